@@ -1,0 +1,361 @@
+"""``Fit``: the one result family returned by every estimator of photogeom."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..units import from_radians
+from .result import Adjustment
+from .snooping import SnoopingResult, data_snooping
+
+
+def propagate_covariance(C: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """Covariance of ``g(x)`` from that of ``x``: ``J C J.T`` (J = dg/dx)."""
+    J = np.asarray(J, dtype=float)
+    return J @ np.asarray(C, dtype=float) @ J.T
+
+
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return [_jsonable(v) for v in value.tolist()] if value.ndim else _jsonable(value.item())
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """Result of an estimation: model, parameters, statistics, residuals, diagnostics.
+
+    Residuals are **computed minus observed**, in the target (observation) system, one row
+    per control point. Check points do not enter the estimate; their residuals are reported
+    separately. Angles are in radians (``parameter_units`` says so); ``summary`` can show
+    them in degrees or gon.
+
+    Attributes
+    ----------
+    model : object
+        The fitted model (a transformation, camera, ...); also available as ``transform``.
+    method : str
+        Estimation method (e.g. ``"linear least squares"``, ``"svd"``).
+    parameter_names : tuple of str
+    parameters : numpy.ndarray
+        Estimated parameters in the order of ``parameter_names``.
+    covariance : numpy.ndarray
+        A-posteriori covariance ``sigma0^2 Qxx`` of ``parameters`` (NaN when r = 0).
+    cofactor : numpy.ndarray
+        ``Qxx`` of ``parameters``.
+    sigma0 : float
+        A-posteriori standard deviation of unit weight (NaN when r = 0: undefined).
+    sigma0_prior : float
+    redundancy : int
+    n_observations : int
+    residuals : numpy.ndarray, shape (n, d)
+    ids : tuple or None
+        Point ids of the residual rows.
+    residual_labels : tuple of str
+        Axis names of the residual columns.
+    residual_unit : str
+        Unit of the residuals (e.g. ``"m"``, ``"mm"``, ``"px"``).
+    parameter_units : dict
+        Unit of each parameter (``"rad"`` for angles, ``"1"`` for unitless).
+    check_residuals, check_ids
+        Residuals of check points (computed minus observed) and their ids.
+    normalized_residuals : numpy.ndarray or None, shape (n, d)
+        Baarda's ``w`` per residual component (a-priori sigma0).
+    redundancy_numbers : numpy.ndarray or None, shape (n, d)
+    iterations, converged, message
+        Iteration diagnostics (0 / True / "" for direct solutions).
+    elapsed : float
+        Wall time of the estimation in seconds.
+    notes : tuple of str
+        Remarks for the user (e.g. which estimate is returned, warnings).
+    extras : dict
+        Estimator-specific results (e.g. corrected observations, inlier masks).
+    """
+
+    model: object
+    method: str
+    parameter_names: tuple[str, ...]
+    parameters: np.ndarray
+    covariance: np.ndarray
+    cofactor: np.ndarray
+    sigma0: float
+    sigma0_prior: float
+    redundancy: int
+    n_observations: int
+    residuals: np.ndarray
+    ids: tuple | None = None
+    residual_labels: tuple[str, ...] = ()
+    residual_unit: str = ""
+    parameter_units: Mapping[str, str] = field(default_factory=dict)
+    check_residuals: np.ndarray | None = None
+    check_ids: tuple | None = None
+    normalized_residuals: np.ndarray | None = None
+    redundancy_numbers: np.ndarray | None = None
+    iterations: int = 0
+    converged: bool = True
+    message: str = ""
+    elapsed: float = 0.0
+    notes: tuple[str, ...] = ()
+    extras: Mapping[str, object] = field(default_factory=dict)
+
+    # --- construction ----------------------------------------------------------------------
+
+    @classmethod
+    def from_adjustment(
+        cls,
+        adjustment: Adjustment,
+        model: object,
+        method: str,
+        *,
+        point_dim: int,
+        parameters: np.ndarray | None = None,
+        parameter_names: Sequence[str] | None = None,
+        jacobian: np.ndarray | None = None,
+        **kwargs,
+    ) -> Fit:
+        """Build a Fit from an :class:`Adjustment`.
+
+        ``parameters`` / ``parameter_names`` / ``jacobian`` re-express the adjusted unknowns
+        in another parametrisation (e.g. back from normalised coordinates, or textbook form):
+        the cofactor is propagated as ``J Qxx J.T``. Residuals are reshaped to
+        ``(n, point_dim)``.
+        """
+        Q = adjustment.cofactor
+        if jacobian is not None:
+            Q = propagate_covariance(Q, jacobian)
+        params = adjustment.x if parameters is None else np.asarray(parameters, dtype=float)
+        names = adjustment.names if parameter_names is None else tuple(parameter_names)
+        s0 = adjustment.sigma0
+
+        def shaped(a):
+            return None if a is None else np.asarray(a).reshape(-1, point_dim)
+
+        return cls(
+            model=model,
+            method=method,
+            parameter_names=tuple(names),
+            parameters=np.asarray(params, dtype=float),
+            covariance=s0**2 * Q,
+            cofactor=Q,
+            sigma0=s0,
+            sigma0_prior=adjustment.sigma0_prior,
+            redundancy=adjustment.redundancy,
+            n_observations=adjustment.n_observations,
+            residuals=shaped(adjustment.residuals),
+            normalized_residuals=shaped(adjustment.normalized_residuals),
+            redundancy_numbers=shaped(adjustment.redundancy_numbers),
+            iterations=adjustment.iterations,
+            converged=adjustment.converged,
+            message=adjustment.message,
+            **kwargs,
+        )
+
+    def with_checks(self, check_residuals: np.ndarray, check_ids: Sequence | None = None) -> Fit:
+        """A copy with check-point residuals (computed minus observed) attached."""
+        return replace(
+            self,
+            check_residuals=np.asarray(check_residuals, dtype=float),
+            check_ids=None if check_ids is None else tuple(check_ids),
+        )
+
+    # --- derived quantities ---------------------------------------------------------------
+
+    @property
+    def transform(self) -> object:
+        """The fitted model (alias of ``model``)."""
+        return self.model
+
+    @property
+    def std_errors(self) -> dict[str, float]:
+        """A-posteriori standard deviations by parameter name (units of ``parameter_units``)."""
+        sd = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return {n: float(s) for n, s in zip(self.parameter_names, sd)}
+
+    @property
+    def std_errors_prior(self) -> dict[str, float]:
+        """Standard deviations from ``sigma0_prior^2 Qxx``."""
+        sd = self.sigma0_prior * np.sqrt(np.clip(np.diag(self.cofactor), 0.0, None))
+        return {n: float(s) for n, s in zip(self.parameter_names, sd)}
+
+    @property
+    def covariance_prior(self) -> np.ndarray:
+        """A-priori covariance ``sigma0_prior^2 Qxx``."""
+        return self.sigma0_prior**2 * self.cofactor
+
+    @property
+    def params(self) -> dict[str, float]:
+        """Parameters by name."""
+        return {n: float(v) for n, v in zip(self.parameter_names, self.parameters)}
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """Correlation matrix of the parameters."""
+        d = np.sqrt(np.clip(np.diag(self.cofactor), 1e-300, None))
+        return self.cofactor / np.outer(d, d)
+
+    @property
+    def rmse(self) -> float:
+        """Per-point RMSE of the control residuals: ``sqrt(sum |v_i|^2 / n_points)``."""
+        return _rmse(self.residuals)
+
+    @property
+    def rms_per_axis(self) -> np.ndarray:
+        """RMS of the control residuals per coordinate axis."""
+        return _rms_axes(self.residuals)
+
+    @property
+    def check_rmse(self) -> float | None:
+        """Per-point RMSE of check-point residuals (None without check points)."""
+        return None if self.check_residuals is None else _rmse(self.check_residuals)
+
+    @property
+    def check_rms_per_axis(self) -> np.ndarray | None:
+        """RMS per axis of check-point residuals."""
+        return None if self.check_residuals is None else _rms_axes(self.check_residuals)
+
+    def snooping(self, alpha: float = 0.001, sigma: str = "prior") -> SnoopingResult:
+        """Baarda's w-test (``sigma="prior"``) or Pope's tau-test (``"posterior"``) per residual."""
+        if self.normalized_residuals is None:
+            from ..errors import InputError
+
+            raise InputError(f"{self.method}: normalised residuals were not computed for this fit")
+        adj = Adjustment(
+            x=self.parameters,
+            names=self.parameter_names,
+            residuals=self.residuals.reshape(-1),
+            cofactor=self.cofactor,
+            redundancy=self.redundancy,
+            n_observations=self.n_observations,
+            vtpv=self.sigma0**2 * self.redundancy if self.redundancy > 0 else 0.0,
+            sigma0_prior=self.sigma0_prior,
+            normalized_residuals=self.normalized_residuals.reshape(-1),
+        )
+        return data_snooping(adj, alpha=alpha, sigma=sigma)
+
+    # --- output ------------------------------------------------------------------------------
+
+    def parameter_table(self, angle_unit: str = "deg") -> list[tuple[str, float, float, str]]:
+        """Rows ``(name, value, std, unit)`` with angles converted to ``angle_unit``."""
+        rows = []
+        std = self.std_errors
+        for name, value in zip(self.parameter_names, self.parameters):
+            unit = self.parameter_units.get(name, "")
+            s = std[name]
+            if unit == "rad" and angle_unit != "rad":
+                value, s, unit = float(from_radians(value, angle_unit)), float(
+                    from_radians(s, angle_unit)
+                ), angle_unit
+            rows.append((name, float(value), float(s), unit))
+        return rows
+
+    def summary(self, angle_unit: str = "deg") -> str:
+        """Plain-text report: parameters with standard deviations, statistics, residuals."""
+        lines = [f"{type(self.model).__name__} estimated by {self.method}"]
+        if self.message:
+            lines.append(f"  {self.message}")
+        lines.append(
+            f"  observations {self.n_observations}, unknowns {len(self.parameter_names)}, "
+            f"redundancy {self.redundancy}"
+        )
+        s0 = "undefined (redundancy 0)" if not math.isfinite(self.sigma0) else f"{self.sigma0:.6g}"
+        lines.append(f"  sigma0 (a posteriori) {s0}   sigma0 (a priori) {self.sigma0_prior:g}")
+        lines.append("  parameter            value              std. dev.        unit")
+        for name, value, s, unit in self.parameter_table(angle_unit):
+            sd = "-" if not math.isfinite(s) else f"{s:.6g}"
+            lines.append(f"  {name:<16} {value:>18.10g} {sd:>18} {unit:>8}")
+        unit = f" {self.residual_unit}" if self.residual_unit else ""
+        lines.append("  residuals v = computed - observed" + (f" [{self.residual_unit}]" if unit else ""))
+        labels = self.residual_labels or tuple(f"v{j}" for j in range(self.residuals.shape[1]))
+        head = "  " + f"{'id':<10}" + "".join(f"{lab:>14}" for lab in labels)
+        lines.append(head)
+        ids = self.ids or tuple(range(1, self.residuals.shape[0] + 1))
+        for pid, row in zip(ids, self.residuals):
+            lines.append("  " + f"{pid!s:<10}" + "".join(f"{x:>14.6g}" for x in row))
+        lines.append(
+            f"  RMSE (per point) {self.rmse:.6g}{unit}; RMS per axis "
+            + ", ".join(f"{lab} {x:.6g}" for lab, x in zip(labels, self.rms_per_axis))
+        )
+        if self.check_residuals is not None:
+            lines.append("  check points (not in the estimate), v = computed - observed")
+            cids = self.check_ids or tuple(range(1, self.check_residuals.shape[0] + 1))
+            for pid, row in zip(cids, self.check_residuals):
+                lines.append("  " + f"{pid!s:<10}" + "".join(f"{x:>14.6g}" for x in row))
+            lines.append(f"  check RMSE (per point) {self.check_rmse:.6g}{unit}")
+        for note in self.notes:
+            lines.append(f"  note: {note}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (NaN becomes None; angles stay in radians)."""
+        std = self.std_errors
+        out = {
+            "model": type(self.model).__name__,
+            "method": self.method,
+            "residual_convention": "computed minus observed",
+            "parameters": {
+                n: {"value": float(v), "std": std[n], "unit": self.parameter_units.get(n, "")}
+                for n, v in zip(self.parameter_names, self.parameters)
+            },
+            "sigma0": self.sigma0,
+            "sigma0_prior": self.sigma0_prior,
+            "redundancy": self.redundancy,
+            "n_observations": self.n_observations,
+            "covariance": self.covariance,
+            "residual_unit": self.residual_unit,
+            "residual_labels": list(self.residual_labels),
+            "residuals": self.residuals,
+            "ids": list(self.ids) if self.ids is not None else None,
+            "rmse": self.rmse,
+            "rms_per_axis": self.rms_per_axis,
+            "iterations": self.iterations,
+            "converged": self.converged,
+            "message": self.message,
+            "elapsed_s": self.elapsed,
+            "notes": list(self.notes),
+        }
+        if self.normalized_residuals is not None:
+            out["normalized_residuals"] = self.normalized_residuals
+        if self.check_residuals is not None:
+            out["check_residuals"] = self.check_residuals
+            out["check_ids"] = list(self.check_ids) if self.check_ids is not None else None
+            out["check_rmse"] = self.check_rmse
+            out["check_rms_per_axis"] = self.check_rms_per_axis
+        model_dict = getattr(self.model, "to_dict", None)
+        if callable(model_dict):
+            out["model_parameters"] = model_dict()
+        if self.extras:
+            out["extras"] = {k: v for k, v in self.extras.items() if _is_plain(v)}
+        return _jsonable(out)
+
+
+def _is_plain(v) -> bool:
+    return isinstance(v, (int, float, str, bool, list, tuple, dict, np.ndarray, np.generic))
+
+
+def _rmse(v: np.ndarray) -> float:
+    v = np.asarray(v, dtype=float)
+    if v.size == 0:
+        return float("nan")
+    return float(np.sqrt(np.sum(v * v) / v.shape[0]))
+
+
+def _rms_axes(v: np.ndarray) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    if v.size == 0:
+        return np.full(v.shape[1] if v.ndim == 2 else 0, np.nan)
+    return np.sqrt(np.mean(v * v, axis=0))

@@ -1,0 +1,1 @@
+"""The ``photogeom`` command line (typer + rich)."""

@@ -1,0 +1,54 @@
+"""Exceptions raised by photogeom.
+
+Every error names the problem and, where there is one, what would fix it.
+All derive from :class:`PhotogeomError` so that callers can catch the family,
+and from the matching builtin (``ValueError``, ``RuntimeError``, ``OSError``)
+so that generic handlers keep working.
+"""
+
+from __future__ import annotations
+
+
+class PhotogeomError(Exception):
+    """Base class of all photogeom errors."""
+
+
+class InputError(PhotogeomError, ValueError):
+    """Input values are malformed: wrong shape, NaN or infinite, duplicate ids, bad units."""
+
+
+class TooFewPointsError(InputError):
+    """Fewer observations than the model needs."""
+
+    def __init__(self, what: str, have: int, need: int, hint: str = "") -> None:
+        self.have = have
+        self.need = need
+        msg = f"{what}: {have} point(s) given, at least {need} needed"
+        if hint:
+            msg += f" ({hint})"
+        super().__init__(msg)
+
+
+class DegenerateGeometryError(PhotogeomError, ValueError):
+    """The point configuration does not determine the parameters (collinear, coplanar, ...)."""
+
+
+class ConvergenceError(PhotogeomError, RuntimeError):
+    """An iterative method diverged or reached its iteration limit."""
+
+    def __init__(self, message: str, iterations: int | None = None, result: object = None) -> None:
+        self.iterations = iterations
+        self.result = result
+        super().__init__(message)
+
+
+class ReflectionError(DegenerateGeometryError):
+    """The best fit is a reflection (det = -1), not a rotation."""
+
+
+class FileFormatError(PhotogeomError, ValueError):
+    """A file could not be parsed: missing key or column, wrong count, unknown format."""
+
+
+class GimbalLockError(PhotogeomError, ValueError):
+    """Angles of a rotation are not unique at this attitude (e.g. phi = +-90 degrees)."""

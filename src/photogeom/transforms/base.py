@@ -1,0 +1,72 @@
+"""Common interface of the transformation models."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+from ..errors import InputError
+from ..validation import as_points
+
+_REGISTRY: dict[str, type[Transform]] = {}
+
+
+class Transform(ABC):
+    """A point transformation ``target = T(source)``.
+
+    Subclasses are small immutable objects: parameters, :meth:`apply`, :meth:`inverse`,
+    :meth:`to_dict` / :func:`from_dict` (JSON round trip). No estimation code lives here.
+    """
+
+    #: Registry key and JSON ``"model"`` value, e.g. ``"similarity3d"``.
+    name: ClassVar[str] = ""
+    #: Coordinate dimension of source and target points.
+    dim: ClassVar[int] = 0
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.name:
+            _REGISTRY[cls.name] = cls
+
+    def _points(self, points, name: str = "points") -> tuple[np.ndarray, bool]:
+        arr = np.asarray(points, dtype=float)
+        single = arr.ndim == 1
+        return as_points(arr, self.dim, name), single
+
+    def __call__(self, points) -> np.ndarray:
+        return self.apply(points)
+
+    @abstractmethod
+    def apply(self, points) -> np.ndarray:
+        """Transform points of shape ``(n, dim)`` (or one point ``(dim,)``)."""
+
+    @abstractmethod
+    def inverse(self) -> Transform:
+        """The inverse transformation (closed form where one exists)."""
+
+    @abstractmethod
+    def to_dict(self) -> dict:
+        """JSON-ready parameters, with ``"model": name``."""
+
+    @classmethod
+    @abstractmethod
+    def from_dict(cls, data: dict) -> Transform:
+        """Inverse of :meth:`to_dict`."""
+
+
+def from_dict(data: dict) -> Transform:
+    """Rebuild any transformation from :meth:`Transform.to_dict` output."""
+    try:
+        name = data["model"]
+    except (KeyError, TypeError) as exc:
+        raise InputError("transformation parameters need a 'model' entry") from exc
+    if name not in _REGISTRY:
+        raise InputError(f"unknown transformation model {name!r}; known: {', '.join(sorted(_REGISTRY))}")
+    return _REGISTRY[name].from_dict(data)
+
+
+def registered_models() -> list[str]:
+    """Names of all transformation models."""
+    return sorted(_REGISTRY)
