@@ -38,7 +38,7 @@ GIMBAL_TOLERANCE = 1e-9
 def _stack(rows) -> np.ndarray:
     """Build (..., 3, 3) from nested lists of broadcastable arrays."""
     arrs = np.broadcast_arrays(*[np.asarray(v, dtype=float) for row in rows for v in row])
-    return np.stack(arrs, axis=-1).reshape(arrs[0].shape + (3, 3))
+    return np.stack(arrs, axis=-1).reshape((*arrs[0].shape, 3, 3))
 
 
 def m1(omega) -> np.ndarray:
@@ -131,7 +131,9 @@ def opk_from_matrix(
                 "another Euler sequence (euler_from_matrix) or a quaternion"
             )
         if on_gimbal_lock != "omega-zero":
-            raise InputError(f"on_gimbal_lock must be 'raise' or 'omega-zero', not {on_gimbal_lock!r}")
+            raise InputError(
+                f"on_gimbal_lock must be 'raise' or 'omega-zero', not {on_gimbal_lock!r}"
+            )
         # With omega = 0: M = M3(k) M2(p); row 2 gives (-sin k, cos k) in (m12, m22).
         k_locked = np.arctan2(M[..., 0, 1], M[..., 1, 1])
         omega = np.where(locked, 0.0, omega)
@@ -291,7 +293,7 @@ def nearest_rotation(A) -> np.ndarray:
     U, _, Vt = np.linalg.svd(np.asarray(A, dtype=float))
     d = np.sign(np.linalg.det(U @ Vt))
     d = np.where(d == 0, 1.0, d)
-    D = np.ones(np.shape(d) + (3,))
+    D = np.ones((*np.shape(d), 3))
     D[..., 2] = d
     return (U * D[..., None, :]) @ Vt
 

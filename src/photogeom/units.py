@@ -15,10 +15,16 @@ _TO_RAD = {
     "mrad": 1e-3,
 }
 _ALIASES = {
-    "radian": "rad", "radians": "rad",
-    "degree": "deg", "degrees": "deg", "°": "deg",
-    "grad": "gon", "grads": "gon", "gons": "gon",
-    "as": "arcsec", '"': "arcsec",
+    "radian": "rad",
+    "radians": "rad",
+    "degree": "deg",
+    "degrees": "deg",
+    "°": "deg",
+    "grad": "gon",
+    "grads": "gon",
+    "gons": "gon",
+    "as": "arcsec",
+    '"': "arcsec",
 }
 ANGLE_UNITS = tuple(_TO_RAD)
 

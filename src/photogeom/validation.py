@@ -53,8 +53,10 @@ def check_finite(arr: np.ndarray, name: str) -> None:
     """Raise :class:`InputError` naming the rows that hold NaN or infinite values."""
     finite = np.isfinite(arr)
     if not finite.all():
-        bad = np.flatnonzero(~finite.reshape(arr.shape[0], -1).all(axis=1)) if arr.ndim > 1 else (
-            np.flatnonzero(~finite)
+        bad = (
+            np.flatnonzero(~finite.reshape(arr.shape[0], -1).all(axis=1))
+            if arr.ndim > 1
+            else (np.flatnonzero(~finite))
         )
         shown = ", ".join(str(int(i)) for i in bad[:10])
         more = " ..." if bad.size > 10 else ""

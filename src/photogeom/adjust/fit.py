@@ -257,9 +257,11 @@ class Fit:
             unit = self.parameter_units.get(name, "")
             s = std[name]
             if unit == "rad" and angle_unit != "rad":
-                value, s, unit = float(from_radians(value, angle_unit)), float(
-                    from_radians(s, angle_unit)
-                ), angle_unit
+                value, s, unit = (
+                    float(from_radians(value, angle_unit)),
+                    float(from_radians(s, angle_unit)),
+                    angle_unit,
+                )
             rows.append((name, float(value), float(s), unit))
         return rows
 
@@ -279,7 +281,9 @@ class Fit:
             sd = "-" if not math.isfinite(s) else f"{s:.6g}"
             lines.append(f"  {name:<16} {value:>18.10g} {sd:>18} {unit:>8}")
         unit = f" {self.residual_unit}" if self.residual_unit else ""
-        lines.append("  residuals v = computed - observed" + (f" [{self.residual_unit}]" if unit else ""))
+        lines.append(
+            "  residuals v = computed - observed" + (f" [{self.residual_unit}]" if unit else "")
+        )
         labels = self.residual_labels or tuple(f"v{j}" for j in range(self.residuals.shape[1]))
         head = "  " + f"{'id':<10}" + "".join(f"{lab:>14}" for lab in labels)
         lines.append(head)

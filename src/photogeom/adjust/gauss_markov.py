@@ -59,7 +59,7 @@ def _solve_whitened(
     what: str = "least squares",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Minimise ``|Aw dx - bw|^2`` (subject to ``H dx = h``); return ``dx`` and ``Qxx``."""
-    n, u = Aw.shape
+    _n, u = Aw.shape
     c = np.linalg.norm(Aw, axis=0)
     if H is not None:
         c = np.maximum(c, np.linalg.norm(H, axis=0))
@@ -111,7 +111,9 @@ def _statistics(
     pqvvp = wh.diag_p() - np.sum((PA @ Qxx) * PA, axis=1)
     pv = wh.apply_t(vw)
     with np.errstate(invalid="ignore", divide="ignore"):
-        w = np.where(pqvvp > 1e-14 * wh.diag_p(), pv / np.sqrt(np.abs(pqvvp)) / sigma0_prior, np.nan)
+        w = np.where(
+            pqvvp > 1e-14 * wh.diag_p(), pv / np.sqrt(np.abs(pqvvp)) / sigma0_prior, np.nan
+        )
     return vtpv, red, w
 
 
@@ -155,7 +157,9 @@ def solve_linear(
     A = np.asarray(A, dtype=float)
     L = np.asarray(L, dtype=float).reshape(-1)
     if A.ndim != 2 or A.shape[0] != L.shape[0]:
-        raise InputError(f"{what}: design matrix {A.shape} does not match {L.shape[0]} observations")
+        raise InputError(
+            f"{what}: design matrix {A.shape} does not match {L.shape[0]} observations"
+        )
     n, u = A.shape
     names = _names(names, u)
     c = 0 if constraints is None else np.atleast_2d(constraints[0]).shape[0]
@@ -217,6 +221,7 @@ def gauss_markov(
     max_iter: int = 50,
     tol: float = 1e-10,
     raise_on_failure: bool = True,
+    step_control: bool = True,
     what: str = "Gauss-Markov adjustment",
 ) -> Adjustment:
     """Nonlinear Gauss-Markov adjustment ``L + v = f(x)`` by Gauss-Newton iteration.
@@ -244,6 +249,10 @@ def gauss_markov(
     raise_on_failure : bool
         Raise :class:`ConvergenceError` when the iteration diverges or reaches
         ``max_iter``; with ``False`` return the last iterate with ``converged=False``.
+    step_control : bool
+        Halve a Gauss-Newton step (up to 30 times) while it increases ``v.T P v``
+        (unconstrained problems only). This only changes the path, not the solution;
+        ``False`` gives the classic undamped iteration.
 
     Returns
     -------
@@ -279,7 +288,9 @@ def gauss_markov(
         cost = float(vw @ vw)
         history.append(cost)
         if len(history) > 2 and cost > 1e12 * max(history[0], 1e-300) + 1e-300:
-            message = f"diverged at iteration {it}: v.T P v grew from {history[0]:.3g} to {cost:.3g}"
+            message = (
+                f"diverged at iteration {it}: v.T P v grew from {history[0]:.3g} to {cost:.3g}"
+            )
             break
         A = np.asarray(jac(x), dtype=float)
         Aw = wh.apply(A)
@@ -288,6 +299,13 @@ def gauss_markov(
             h = -np.atleast_1d(constraints[0](x)).astype(float)
             H = np.atleast_2d(constraints[1](x)).astype(float)
         dx, _ = _solve_whitened(Aw, -vw, names, H, h, what)
+        if step_control and constraints is None:
+            for _ in range(30):
+                f_new = np.asarray(model(x + dx), dtype=float).reshape(-1)
+                vw_new = wh.apply(f_new - L)
+                if np.all(np.isfinite(vw_new)) and float(vw_new @ vw_new) <= cost * (1 + 1e-12):
+                    break
+                dx = 0.5 * dx
         step = float(np.max(np.abs(Aw @ dx))) if n else 0.0
         x = x + dx
         rms_vw = float(np.sqrt(cost / max(n, 1)))

@@ -98,7 +98,7 @@ class Whitener:
         if self.kind == "full":
             Ginv = scipy.linalg.solve_triangular(self.chol, np.eye(self.n), lower=True)
             return np.sum(Ginv * Ginv, axis=0)
-        k, b, _ = self.chol.shape
+        _k, _b, _ = self.chol.shape
         Ginv = np.linalg.inv(self.chol)
         return np.sum(Ginv * Ginv, axis=1).reshape(-1)
 

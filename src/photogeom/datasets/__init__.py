@@ -21,9 +21,9 @@ _PACKAGE = "photogeom.datasets"
 
 DESCRIPTIONS = {
     "lidar_wang2014": "18 point pairs from two terrestrial laser scans (absolute orientation)",
-    "afary2024_simulated": "3 point pairs, error-free and noisy, large angles (absolute orientation)",
+    "afary2024_simulated": "3 point pairs, error-free and noisy, large angles",
     "kraus_absolute_orientation": "3 point pairs, stereo model -> object (absolute orientation)",
-    "lecture_fiducials": "8 fiducial marks, calibrated and machine coordinates (interior orientation)",
+    "lecture_fiducials": "8 fiducial marks, calibrated and machine coordinates",
     "lecture_two_images": "6 tie points on two images (2D similarity, affine, projective)",
 }
 

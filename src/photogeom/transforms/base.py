@@ -63,7 +63,9 @@ def from_dict(data: dict) -> Transform:
     except (KeyError, TypeError) as exc:
         raise InputError("transformation parameters need a 'model' entry") from exc
     if name not in _REGISTRY:
-        raise InputError(f"unknown transformation model {name!r}; known: {', '.join(sorted(_REGISTRY))}")
+        raise InputError(
+            f"unknown transformation model {name!r}; known: {', '.join(sorted(_REGISTRY))}"
+        )
     return _REGISTRY[name].from_dict(data)
 
 

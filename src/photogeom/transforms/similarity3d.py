@@ -112,8 +112,9 @@ class Similarity3D(Transform):
     def inverse(self) -> Similarity3D:
         """``x = (1/s) R^-1 (X - t)``; for a non-orthogonal R the true inverse matrix is used."""
         Rinv = self.rotation.T if self.check else np.linalg.inv(self.rotation)
-        return Similarity3D(1.0 / self.scale, Rinv, -(Rinv @ self.translation) / self.scale,
-                            check=self.check)
+        return Similarity3D(
+            1.0 / self.scale, Rinv, -(Rinv @ self.translation) / self.scale, check=self.check
+        )
 
     def to_dict(self) -> dict:
         """JSON-ready parameters (angles given for both conventions, in radians)."""
@@ -134,9 +135,15 @@ class Similarity3D(Transform):
         """From :meth:`to_dict` output, or from ``scale``, ``omega``, ``phi``, ``kappa``
         (radians, optional ``convention``) and ``translation``."""
         if "rotation" in data:
-            return cls(data["scale"], data["rotation"], data["translation"], check=data.get("check", True))
+            return cls(
+                data["scale"], data["rotation"], data["translation"], check=data.get("check", True)
+            )
         return cls.from_angles(
-            data["scale"], data["omega"], data["phi"], data["kappa"], data["translation"],
+            data["scale"],
+            data["omega"],
+            data["phi"],
+            data["kappa"],
+            data["translation"],
             convention=data.get("convention", DEFAULT_CONVENTION),
         )
 
