@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from .result import Adjustment
@@ -50,6 +51,26 @@ def _rank_check(R: np.ndarray, names: tuple[str, ...], what: str) -> None:
         )
 
 
+def _qr_r_only(M: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R factor of ``M`` and ``Q.T b`` from one QR of ``[M, b]`` (Q is never formed)."""
+    u = M.shape[1]
+    if M.shape[0] <= u:  # square or short: plain reduced QR
+        Q, R = np.linalg.qr(M, mode="reduced")
+        return R, Q.T @ b
+    Raug = np.linalg.qr(np.column_stack([M, b]), mode="r")
+    return Raug[:u, :u], Raug[:u, u]
+
+
+def _tri_inv(R: np.ndarray) -> np.ndarray:
+    """Inverse of an upper-triangular matrix (LAPACK trtri, no BLAS threading overhead)."""
+    if R.shape[0] == 0:
+        return R.copy()
+    Rinv, info = scipy.linalg.lapack.dtrtri(R, lower=0)
+    if info != 0:
+        raise np.linalg.LinAlgError("singular triangular factor")
+    return Rinv
+
+
 def _solve_whitened(
     Aw: np.ndarray,
     bw: np.ndarray,
@@ -59,7 +80,6 @@ def _solve_whitened(
     what: str = "least squares",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Minimise ``|Aw dx - bw|^2`` (subject to ``H dx = h``); return ``dx`` and ``Qxx``."""
-    _n, u = Aw.shape
     c = np.linalg.norm(Aw, axis=0)
     if H is not None:
         c = np.maximum(c, np.linalg.norm(H, axis=0))
@@ -71,10 +91,10 @@ def _solve_whitened(
         )
     As = Aw / c
     if H is None:
-        Q, R = np.linalg.qr(As, mode="reduced")
+        R, qtb = _qr_r_only(As, bw)
         _rank_check(R, names, what)
-        dxs = scipy.linalg.solve_triangular(R, Q.T @ bw)
-        Rinv = scipy.linalg.solve_triangular(R, np.eye(u))
+        Rinv = _tri_inv(R)
+        dxs = Rinv @ qtb
         Qs = Rinv @ Rinv.T
     else:
         Hs = H / c
@@ -83,11 +103,10 @@ def _solve_whitened(
         _rank_check(Rh[:k, :k], tuple(f"constraint {i + 1}" for i in range(k)), what)
         Y, Z = Qh[:, :k], Qh[:, k:]
         dx_p = Y @ scipy.linalg.solve_triangular(Rh[:k, :k].T, h, lower=True)
-        Q, R = np.linalg.qr(As @ Z, mode="reduced")
+        R, qtb = _qr_r_only(As @ Z, bw - As @ dx_p)
         _rank_check(R, names, what)
-        y = scipy.linalg.solve_triangular(R, Q.T @ (bw - As @ dx_p))
-        dxs = dx_p + Z @ y
-        Rinv = scipy.linalg.solve_triangular(R, np.eye(R.shape[0]))
+        Rinv = _tri_inv(R)
+        dxs = dx_p + Z @ (Rinv @ qtb)
         Qs = Z @ (Rinv @ Rinv.T) @ Z.T
     return dxs / c, Qs / np.outer(c, c)
 

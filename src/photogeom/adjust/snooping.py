@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import stats
 
 from ..errors import InputError
 from .result import Adjustment
@@ -62,6 +61,8 @@ class SnoopingResult:
 
 def tau_critical_value(alpha: float, redundancy: int) -> float:
     """Critical value of Pope's tau distribution (two-sided), ``r > 1``."""
+    from scipy import stats  # imported here: scipy.stats is slow to import
+
     if redundancy <= 1:
         raise InputError("the tau-test needs a redundancy of at least 2")
     t = stats.t.ppf(1 - alpha / 2, redundancy - 1)
@@ -93,6 +94,8 @@ def data_snooping(
         )
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
+    from scipy import stats  # imported here: scipy.stats is slow to import
+
     w = np.asarray(adjustment.normalized_residuals, dtype=float)
     if sigma == "prior":
         stat, test = w, "w"

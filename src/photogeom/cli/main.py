@@ -41,24 +41,19 @@ def _register() -> None:
 _register()
 
 
-def main() -> None:
-    """Run the CLI; photogeom errors become a one-line message and exit code 2."""
+def main(argv: list[str] | None = None) -> None:
+    """Run the CLI; photogeom errors become a one-line message and exit code 2.
+
+    Usage errors, ``--help`` and the help shown without arguments are handled by click
+    (standalone mode), so they print the usual usage text and exit codes.
+    """
     try:
-        app(standalone_mode=False)
+        app(args=argv, prog_name="photogeom")
     except PhotogeomError as exc:
         typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
         sys.exit(2)
-    except (typer.Abort, KeyboardInterrupt):
+    except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)
-    except typer.Exit as exc:  # pragma: no cover - typer's normal exit
-        sys.exit(exc.exit_code)
-    except Exception as exc:  # click usage errors
-        import click
-
-        if isinstance(exc, click.ClickException):
-            exc.show()
-            sys.exit(exc.exit_code)
-        raise
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,7 +1,434 @@
-"""`photogeom transform`: Estimate and apply 2D/3D coordinate transformations."""
+"""`photogeom transform`: estimate and apply 2D/3D coordinate transformations.
+
+``estimate`` fits a model to point pairs (one CSV holding both coordinate sets, or two CSVs
+joined by point id) and prints parameters with standard deviations, the adjustment
+statistics and the residuals (computed minus observed); ``apply`` transforms a point file
+with saved parameters.
+"""
 
 from __future__ import annotations
 
-import typer
+import json
+from dataclasses import replace
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
 
-app = typer.Typer(help="Estimate and apply 2D/3D coordinate transformations.", no_args_is_help=True)
+import numpy as np
+import typer
+from rich.console import Console
+
+from ..errors import FileFormatError, InputError
+from ..io import (
+    atomic_write_text,
+    format_points_csv,
+    join_points,
+    read_point_pairs,
+    read_points,
+)
+from ..io.points import PointPairs
+
+MODELS = (
+    "similarity2d",
+    "affine2d",
+    "projective2d",
+    "polynomial2d",
+    "rigid3d",
+    "similarity3d",
+    "affine3d",
+    "projective3d",
+    "polynomial3d",
+)
+ANGLE_UNITS = ("deg", "gon", "rad")
+
+Model = Enum("Model", {m: m for m in MODELS}, type=str)
+AngleUnit = Enum("AngleUnit", {u: u for u in ANGLE_UNITS}, type=str)
+
+
+class ErrorsIn(str, Enum):
+    """Which point set carries errors (projective models)."""
+
+    target = "target"
+    both = "both"
+
+
+app = typer.Typer(
+    help="Estimate and apply 2D/3D coordinate transformations.",
+    no_args_is_help=True,
+)
+
+
+def console(stderr: bool = False) -> Console:
+    """A console that keeps tables readable when the output is not a terminal."""
+    c = Console(stderr=stderr)
+    if not c.is_terminal:
+        c = Console(stderr=stderr, width=max(c.width, 110))
+    return c
+
+
+def _split(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    return parts or None
+
+
+def load_pairs(
+    source: Path,
+    target: Path | None,
+    *,
+    source_cols: str | None = None,
+    target_cols: str | None = None,
+    id_col: str | None = None,
+    weights_col: str | None = None,
+    sigma_col: str | None = None,
+    allow_unmatched: bool = False,
+) -> PointPairs:
+    """Point pairs from one CSV with both coordinate sets or from two CSVs joined by id."""
+    if target is None:
+        return read_point_pairs(
+            source,
+            _split(source_cols),
+            _split(target_cols),
+            id_column=id_col,
+            weight_column=weights_col,
+            sigma_column=sigma_col,
+        )
+    # An explicit weight/sigma column belongs to the target file; without one, a weight or
+    # sigma column found in either file is used (join_points refuses conflicting ones).
+    explicit = weights_col is not None or sigma_col is not None
+    src = read_points(source, _split(source_cols), id_column=id_col, auto_weights=not explicit)
+    dst = read_points(
+        target,
+        _split(target_cols),
+        id_column=id_col,
+        weight_column=weights_col,
+        sigma_column=sigma_col,
+    )
+    return join_points(src, dst, allow_unmatched=allow_unmatched)
+
+
+def check_mask(pairs: PointPairs, check_ids: str | None) -> np.ndarray:
+    """Check points from ``--check-ids`` (overrides roles) or the role column."""
+    ids = _split(check_ids)
+    if ids is None:
+        return pairs.check_mask
+    known = set(pairs.ids)
+    missing = [i for i in ids if i not in known]
+    if missing:
+        raise InputError(
+            f"--check-ids: no point with id {', '.join(missing)}; the ids are "
+            f"{', '.join(pairs.ids[:30])}{' ...' if len(pairs.ids) > 30 else ''}"
+        )
+    return np.isin(np.array(pairs.ids, dtype=object), ids)
+
+
+def _json_text(data) -> str:
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
+@app.command("estimate")
+def estimate(
+    model: Annotated[
+        Model,
+        typer.Argument(help="Transformation model.", case_sensitive=False, show_default=False),
+    ],
+    source: Annotated[
+        Path,
+        typer.Argument(
+            help="CSV with the source points (and the target points if TARGET is not given)."
+        ),
+    ],
+    target: Annotated[
+        Path | None,
+        typer.Argument(help="CSV with the target points, joined to SOURCE by point id."),
+    ] = None,
+    order: Annotated[
+        int | None, typer.Option("--order", "-k", help="Polynomial order (polynomial models).")
+    ] = None,
+    source_cols: Annotated[
+        str | None,
+        typer.Option(help="Source coordinate columns, e.g. x,y or x2,y2 (default: found by name)."),
+    ] = None,
+    target_cols: Annotated[
+        str | None,
+        typer.Option(help="Target coordinate columns, e.g. X,Y,Z (default: found by name)."),
+    ] = None,
+    id_col: Annotated[
+        str | None, typer.Option(help="Id column (default: id, point, point_id or name).")
+    ] = None,
+    check_ids: Annotated[
+        str | None,
+        typer.Option(
+            help="Comma-separated ids of check points (default: rows whose role column says "
+            "'check'). Check points do not enter the estimate."
+        ),
+    ] = None,
+    weights_col: Annotated[
+        str | None,
+        typer.Option(help="Column of per-point weights (unitless; with two files: in TARGET)."),
+    ] = None,
+    sigma_col: Annotated[
+        str | None,
+        typer.Option(help="Column of per-point standard deviations (target units; w = 1/sigma^2)."),
+    ] = None,
+    sigma0_prior: Annotated[
+        float, typer.Option(help="A-priori standard deviation of unit weight.")
+    ] = 1.0,
+    unit: Annotated[
+        str,
+        typer.Option(help="Unit of the target coordinates, to label residuals (e.g. mm, m, px)."),
+    ] = "",
+    source_system: Annotated[
+        str | None,
+        typer.Option(
+            help="2D source system (pixel, image, fiducial, ...): handedness is fixed for you."
+        ),
+    ] = None,
+    target_system: Annotated[
+        str | None, typer.Option(help="2D target system (pixel, image, fiducial, ...).")
+    ] = None,
+    errors_in: Annotated[
+        ErrorsIn,
+        typer.Option(
+            help="Projective models: errors in the target only (Gauss-Markov) or in both sets "
+            "(Gauss-Helmert).",
+        ),
+    ] = ErrorsIn.target,
+    allow_unmatched: Annotated[
+        bool,
+        typer.Option(
+            help="With two files: leave out (and list) ids found in only one file instead of "
+            "stopping with an error."
+        ),
+    ] = False,
+    as_json: Annotated[
+        bool,
+        typer.Option("--json", help="Print machine-readable results (JSON) instead of tables."),
+    ] = False,
+    report: Annotated[
+        Path | None, typer.Option(help="Write an HTML report with residual plots to this file.")
+    ] = None,
+    output_params: Annotated[
+        Path | None,
+        typer.Option(help="Write the estimated parameters (JSON, for 'transform apply') here."),
+    ] = None,
+    angle_unit: Annotated[
+        AngleUnit,
+        typer.Option(help="Unit of angles in the text output and report."),
+    ] = AngleUnit.deg,
+) -> None:
+    """Estimate a transformation TARGET = T(SOURCE) from point pairs by least squares.
+
+    Prints the parameters with standard deviations and units, sigma0 (a priori and
+    a posteriori), the redundancy, the residuals v = computed - observed of control points
+    with data-snooping statistics, and check-point residuals and RMSE.
+    """
+    from ..estimation import estimate_transform
+
+    model = Model(model).value
+    angle_unit = AngleUnit(angle_unit).value
+    errors_in = ErrorsIn(errors_in).value
+    pairs = load_pairs(
+        source,
+        target,
+        source_cols=source_cols,
+        target_cols=target_cols,
+        id_col=id_col,
+        weights_col=weights_col,
+        sigma_col=sigma_col,
+        allow_unmatched=allow_unmatched,
+    )
+    _check_dimensions(model, pairs)
+    mask = check_mask(pairs, check_ids)
+    fit = estimate_transform(
+        model,
+        pairs.source,
+        pairs.target,
+        order=order,
+        weights=pairs.weights,
+        check=mask,
+        ids=pairs.ids,
+        sigma0_prior=sigma0_prior,
+        source_system=source_system,
+        target_system=target_system,
+        errors_in=errors_in,
+        unit=unit,
+    )
+    if pairs.notes:
+        fit = replace(fit, notes=tuple(fit.notes) + tuple(pairs.notes))
+    files = [str(source)] + ([str(target)] if target is not None else [])
+    inputs = {
+        "files": files,
+        "source_columns": list(pairs.source_columns),
+        "target_columns": list(pairs.target_columns),
+        "n_control": int((~mask).sum()),
+        "n_check": int(mask.sum()),
+        "unmatched_source": list(pairs.unmatched_source),
+        "unmatched_target": list(pairs.unmatched_target),
+    }
+
+    # Build every output in memory first; files are then replaced atomically.
+    outputs: list[tuple[Path, str]] = []
+    if output_params is not None:
+        outputs.append((output_params, _json_text(fit.to_dict())))
+    if report is not None:
+        outputs.append((report, _report_html(fit, pairs, mask, inputs, model, angle_unit)))
+    for path, text in outputs:
+        atomic_write_text(path, text)
+
+    if as_json:
+        data = fit.to_dict()
+        data["input"] = inputs
+        typer.echo(_json_text(data), nl=False)
+        return
+    out = console()
+    out.print(_input_line(inputs, model), markup=False, highlight=False, soft_wrap=True)
+    from ..report import print_fit
+
+    print_fit(fit, console=out, angle_unit=angle_unit)
+    for path, _ in outputs:
+        out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)
+
+
+def _check_dimensions(model: str, pairs: PointPairs) -> None:
+    from ..estimation import MODELS as DIMS
+
+    need = DIMS.get(model)
+    for side, cols in (("source", pairs.source_columns), ("target", pairs.target_columns)):
+        if need is not None and len(cols) != need:
+            raise InputError(
+                f"{model} works on {need}D points but the {side} columns are {','.join(cols)} "
+                f"({len(cols)}D); choose {need} columns with --{side}-cols"
+            )
+
+
+def _input_line(inputs: dict, model: str) -> str:
+    files = " + ".join(inputs["files"])
+    return (
+        f"{model}: {files}; source {','.join(inputs['source_columns'])} -> target "
+        f"{','.join(inputs['target_columns'])}; {inputs['n_control']} control, "
+        f"{inputs['n_check']} check point(s)"
+    )
+
+
+def _report_html(fit, pairs: PointPairs, mask: np.ndarray, inputs: dict, model: str, angle_unit):
+    from ..report import Report
+
+    rep = Report(f"Transformation {model}", subtitle=" + ".join(inputs["files"]))
+    rep.add_text(
+        "Input",
+        f"{len(pairs.ids)} point pair(s): {inputs['n_control']} control (in the estimate), "
+        f"{inputs['n_check']} check (not in the estimate). Source columns "
+        f"{', '.join(pairs.source_columns)}; target columns {', '.join(pairs.target_columns)}."
+        + (
+            f"\n\nLeft out (no partner in the other file): source only "
+            f"{', '.join(pairs.unmatched_source) or '-'}; target only "
+            f"{', '.join(pairs.unmatched_target) or '-'}."
+            if pairs.unmatched_source or pairs.unmatched_target
+            else ""
+        ),
+        pre=False,
+    )
+    tcols = tuple(pairs.target_columns)
+    y_down = len(tcols) >= 2 and tcols[1].lower() == "row"
+    rep.add_fit(
+        fit,
+        title=f"{model} ({fit.method})",
+        angle_unit=angle_unit,
+        points=pairs.target[~mask][:, :2],
+        check_points=pairs.target[mask][:, :2] if mask.any() else None,
+        point_labels=(tcols[0], tcols[1]) if len(tcols) >= 2 else None,
+        y_down=y_down,
+    )
+    return rep.to_html()
+
+
+def load_transform(path: Path):
+    """A transformation from a parameter JSON: the output of ``--output-params`` or
+    ``--json`` of ``transform estimate``, or a bare ``Transform.to_dict()``."""
+    from ..transforms import from_dict
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FileFormatError(f"cannot read {path}: no such file") from None
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    if isinstance(data, dict) and isinstance(data.get("model_parameters"), dict):
+        data = data["model_parameters"]
+    elif isinstance(data, dict) and isinstance(data.get("transform"), dict):
+        data = data["transform"]
+    if not isinstance(data, dict) or "model" not in data:
+        raise FileFormatError(
+            f"{path}: no transformation parameters found (expected the JSON written by "
+            "'photogeom transform estimate --output-params')"
+        )
+    return from_dict(data)
+
+
+def _output_columns(columns: tuple[str, ...]) -> list[str]:
+    swapped = []
+    for c in columns:
+        swapped.append(c.upper() if c.islower() else c.lower() if c.isupper() else c)
+    return swapped if swapped != list(columns) else [f"{c}_t" for c in columns]
+
+
+@app.command("apply")
+def apply(
+    params: Annotated[
+        Path, typer.Argument(help="Parameter JSON written by 'transform estimate --output-params'.")
+    ],
+    points: Annotated[Path, typer.Argument(help="CSV of points to transform.")],
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Output CSV (default: print to stdout).")
+    ] = None,
+    inverse: Annotated[
+        bool, typer.Option("--inverse", help="Apply the inverse transformation (target -> source).")
+    ] = False,
+    cols: Annotated[
+        str | None, typer.Option(help="Coordinate columns of POINTS (default: found by name).")
+    ] = None,
+    out_cols: Annotated[
+        str | None,
+        typer.Option(help="Names of the output coordinate columns (default: x <-> X swapped)."),
+    ] = None,
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+) -> None:
+    """Transform the points of a CSV with saved parameters (or their inverse).
+
+    The output CSV has the id, the transformed coordinates and the role column if the input
+    has one; numbers are written losslessly.
+    """
+    transform = load_transform(params)
+    table = read_points(points, _split(cols), id_column=id_col, auto_weights=False)
+    dim = getattr(transform, "dim", table.dim)
+    if table.dim != dim:
+        raise InputError(
+            f"{points}: {table.dim} coordinate column(s) ({', '.join(table.columns)}) but the "
+            f"{getattr(transform, 'name', 'transformation')} works on {dim}D points; choose the "
+            "columns with --cols"
+        )
+    t = transform.inverse() if inverse else transform
+    result = t.apply(table.coords)
+    names = _split(out_cols) or _output_columns(table.columns)
+    if len(names) != result.shape[1]:
+        raise InputError(f"--out-cols: {len(names)} name(s) for {result.shape[1]} coordinates")
+    extra = {"role": list(table.roles)} if table.roles is not None else None
+    direction = "inverse of" if inverse else "forward"
+    comments = [
+        f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "
+        f"input {points} ({', '.join(table.columns)})"
+    ]
+    text = format_points_csv(table.ids, result, names, extra=extra, comments=comments)
+    if output is None:
+        typer.echo(text, nl=False)
+    else:
+        atomic_write_text(output, text)
+        console(stderr=True).print(
+            f"wrote {len(table.ids)} point(s) to {output}", markup=False, highlight=False
+        )

@@ -1,5 +1,26 @@
 """Reading and writing files: point CSVs, atomic output."""
 
 from .atomic import atomic_write_bytes, atomic_write_text
+from .points import (
+    PointPairs,
+    PointTable,
+    format_points_csv,
+    join_points,
+    parse_points,
+    read_point_pairs,
+    read_points,
+    write_points,
+)
 
-__all__ = ["atomic_write_bytes", "atomic_write_text"]
+__all__ = [
+    "PointPairs",
+    "PointTable",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "format_points_csv",
+    "join_points",
+    "parse_points",
+    "read_point_pairs",
+    "read_points",
+    "write_points",
+]

@@ -13,7 +13,9 @@ from ..rotation import (
     angles_from_rotation,
     orthogonality_defect,
     rotation_from_angles,
+    skew,
 )
+from ..units import from_radians, to_radians
 from .base import Transform
 
 #: Largest orthogonality defect |R.T R - I| accepted for a rotation given by the user.
@@ -101,6 +103,112 @@ class Similarity3D(Transform):
         T[:3, 3] = self.translation
         return T
 
+    # --- geodetic (EPSG) parameters -------------------------------------------------------------
+
+    @classmethod
+    def from_helmert(
+        cls,
+        tx: float,
+        ty: float,
+        tz: float,
+        rx: float,
+        ry: float,
+        rz: float,
+        ds: float,
+        *,
+        convention: str,
+        rotation: str = "exact",
+        angle_unit: str = "arcsec",
+    ) -> Similarity3D:
+        """A datum transformation from published 7-parameter Helmert values.
+
+        ``X = (1 + ds * 1e-6) R x + t`` with
+
+        * ``convention="position_vector"`` (EPSG methods 1033 / 9606): exact
+          ``R = Rx(rx) Ry(ry) Rz(rz)`` (active rotations, i.e. ``R = M(rx, ry, rz).T``: the
+          ``"transposed"`` convention), small-angle ``R = I + [r]x`` with
+          ``[r]x = [[0, -rz, ry], [rz, 0, -rx], [-ry, rx, 0]]``;
+        * ``convention="coordinate_frame"`` (EPSG 1032 / 9607): the transpose of the
+          position-vector ``R`` (rotations of opposite sign).
+
+        These are the formulas of PROJ's ``+proj=helmert`` (with ``+exact`` for
+        ``rotation="exact"``).
+
+        Parameters
+        ----------
+        tx, ty, tz : float
+            Shifts in metres (target units).
+        rx, ry, rz : float
+            Rotations in ``angle_unit`` (default arc-seconds).
+        ds : float
+            Scale difference in ppm (parts per million).
+        convention : str
+            ``"position_vector"`` (also ``"1033"``, ``"9606"``, ``"pv"``) or
+            ``"coordinate_frame"`` (``"1032"``, ``"9607"``, ``"cf"``). Required: the two
+            differ only in the sign of the rotations, and a wrong guess is a silent error.
+        rotation : {"exact", "small-angle"}
+            Exact rotation matrix or the linearised (small-angle) one the published parameters
+            may have been fitted with. A small-angle matrix is not orthogonal and is kept as
+            given (``check=False``).
+        angle_unit : str
+            Unit of ``rx, ry, rz``.
+        """
+        conv = _helmert_convention(convention)
+        kind = _helmert_rotation(rotation)
+        r = np.array([float(to_radians(v, angle_unit)) for v in (rx, ry, rz)])
+        if kind == "exact":
+            R = rotation_from_angles(r[0], r[1], r[2], convention="transposed")
+        else:
+            R = np.eye(3) + skew(r)
+        if conv == "coordinate_frame":
+            R = R.T
+        scale = 1.0 + float(ds) * 1e-6
+        return cls(scale, R, [tx, ty, tz], check=kind == "exact")
+
+    def helmert_parameters(
+        self, convention: str, rotation: str = "exact", angle_unit: str = "arcsec"
+    ) -> dict[str, float]:
+        """The 7 Helmert parameters of this similarity in geodetic units and an EPSG convention.
+
+        Returns ``tx, ty, tz`` (metres/target units), ``rx, ry, rz`` (``angle_unit``, default
+        arc-seconds) and ``ds`` (ppm), such that :meth:`from_helmert` with the same
+        ``convention`` and ``rotation`` gives this transformation back. ``rotation="exact"``
+        needs a proper rotation matrix; ``"small-angle"`` reads the angles from the
+        antisymmetric part ``(R - R.T) / 2`` (exact for a small-angle matrix, a
+        first-order approximation otherwise).
+        """
+        conv = _helmert_convention(convention)
+        kind = _helmert_rotation(rotation)
+        R = self.rotation if conv == "position_vector" else self.rotation.T
+        if kind == "exact":
+            if not self.check:
+                raise InputError(
+                    "helmert_parameters: the rotation matrix is not orthogonal (a small-angle "
+                    "matrix?); use rotation='small-angle'"
+                )
+            r = np.array(angles_from_rotation(R, convention="transposed"))
+        else:
+            r = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+        rx, ry, rz = (float(from_radians(v, angle_unit)) for v in r)
+        tx, ty, tz = (float(v) for v in self.translation)
+        return {"tx": tx, "ty": ty, "tz": tz, "rx": rx, "ry": ry, "rz": rz,
+                "ds": (self.scale - 1.0) * 1e6}
+
+    def to_proj_string(self, convention: str = "position_vector", rotation: str = "exact") -> str:
+        """A PROJ ``+proj=helmert`` definition of this transformation (rotations in
+        arc-seconds, scale in ppm), e.g. for ``pyproj.Transformer.from_pipeline``."""
+        conv = _helmert_convention(convention)
+        kind = _helmert_rotation(rotation)
+        p = self.helmert_parameters(conv, kind, "arcsec")
+        parts = ["+proj=helmert"]
+        for key, name in (("tx", "x"), ("ty", "y"), ("tz", "z"),
+                          ("rx", "rx"), ("ry", "ry"), ("rz", "rz"), ("ds", "s")):
+            parts.append(f"+{name}={p[key]!r}")
+        parts.append(f"+convention={conv}")
+        if kind == "exact":
+            parts.append("+exact")
+        return " ".join(parts)
+
     # --- Transform interface ------------------------------------------------------------------
 
     def apply(self, points) -> np.ndarray:
@@ -155,3 +263,38 @@ class Similarity3D(Transform):
             ang = f"rotation (non-orthogonal, defect {orthogonality_defect(self.rotation):.2e})"
         t = ", ".join(f"{v:.6f}" for v in self.translation)
         return f"Similarity3D(scale={self.scale:.9f}, {ang}, translation=({t}))"
+
+
+_HELMERT_CONVENTIONS = {
+    "position_vector": "position_vector",
+    "position-vector": "position_vector",
+    "position vector": "position_vector",
+    "pv": "position_vector",
+    "1033": "position_vector",
+    "9606": "position_vector",
+    "coordinate_frame": "coordinate_frame",
+    "coordinate-frame": "coordinate_frame",
+    "coordinate frame": "coordinate_frame",
+    "cf": "coordinate_frame",
+    "1032": "coordinate_frame",
+    "9607": "coordinate_frame",
+}
+
+
+def _helmert_convention(convention) -> str:
+    key = str(convention).strip().lower()
+    if key not in _HELMERT_CONVENTIONS:
+        raise InputError(
+            f"unknown Helmert convention {convention!r}; use 'position_vector' (EPSG 1033/9606) "
+            "or 'coordinate_frame' (EPSG 1032/9607)"
+        )
+    return _HELMERT_CONVENTIONS[key]
+
+
+def _helmert_rotation(rotation) -> str:
+    key = str(rotation).strip().lower().replace("_", "-")
+    if key == "exact":
+        return "exact"
+    if key in ("small-angle", "linearised", "linearized", "linear"):
+        return "small-angle"
+    raise InputError(f"rotation must be 'exact' or 'small-angle', not {rotation!r}")

@@ -1,0 +1,177 @@
+"""Estimation time of photogeom's transformations against scikit-image, in one run.
+
+Compares ``photogeom.estimation.estimate_transform`` (least squares with the full
+statistics: covariance, residuals, redundancy numbers, normalised residuals) with
+scikit-image's estimators (``AffineTransform``, ``ProjectiveTransform``,
+``SimilarityTransform`` in 3D; ``from_estimate`` where available, else ``estimate``) for
+10, 1e3 and 1e6 point pairs, and the 3D similarity from 1e6 pairs with the time numpy
+needs to sum both input arrays once.
+
+Times are medians of repeated runs (after one warm-up run); ratios < 1 mean photogeom is
+faster. Run::
+
+    python benchmarks/transforms.py            # about a minute
+    python benchmarks/transforms.py --quick    # sizes 10 and 1e3 only
+    python benchmarks/transforms.py --threads 1   # single-threaded BLAS
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+
+
+def _parse_args() -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description="photogeom vs scikit-image: estimation time")
+    parser.add_argument("--quick", action="store_true", help="sizes 10 and 1e3 only")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="BLAS threads (sets OPENBLAS/OMP/MKL_NUM_THREADS before numpy is imported)",
+    )
+    return parser.parse_args()
+
+
+ARGS = _parse_args() if __name__ == "__main__" else None
+if ARGS is not None and ARGS.threads:
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(ARGS.threads)
+
+import numpy as np  # noqa: E402
+
+try:
+    import skimage
+    import skimage.transform as sktf
+except ImportError:  # pragma: no cover - optional peer
+    sys.exit("scikit-image is needed: pip install '.[bench]'")
+
+import photogeom  # noqa: E402
+from photogeom.estimation import estimate_transform  # noqa: E402
+
+SIZES = (10, 1_000, 1_000_000)
+REPEATS = {10: 51, 1_000: 21, 1_000_000: 3}
+#: skimage's 2D affine/projective estimators take a full SVD of the (2n, 9) design matrix,
+#: which allocates a (2n, 2n) matrix; above this many bytes they are not run.
+SKIMAGE_MEMORY_LIMIT = 4 * 2**30
+
+
+def median_time(fn: Callable[[], object], repeats: int, warm_up: bool = True) -> float:
+    """Median wall time of ``fn()`` in seconds (after one warm-up call if ``warm_up``)."""
+    if warm_up:
+        fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def skimage_estimator(cls):
+    """``f(src, dst)`` estimating ``cls`` with the API of the installed scikit-image."""
+    if hasattr(cls, "from_estimate"):
+
+        def f(src, dst):
+            tf = cls.from_estimate(src, dst)
+            if not tf:  # FailedEstimation is falsy
+                raise RuntimeError(f"scikit-image {cls.__name__}: {tf}")
+            return tf
+
+        return f, "from_estimate"
+
+    def g(src, dst):
+        tf = cls(dimensionality=src.shape[1]) if cls is sktf.SimilarityTransform else cls()
+        if not tf.estimate(src, dst):
+            raise RuntimeError(f"scikit-image {cls.__name__}.estimate failed")
+        return tf
+
+    return g, "estimate"
+
+
+def data(model: str, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Noisy point pairs of a realistic transformation of each kind."""
+    if model == "affine2d":
+        src = rng.uniform(0, 4000, (n, 2))
+        A = np.array([[0.95, -0.07], [0.09, 1.03]])
+        dst = src @ A.T + [125.0, 130.0]
+    elif model == "projective2d":
+        src = rng.uniform(0, 4000, (n, 2))
+        H = np.array([[0.97, -0.03, 6.4], [-0.016, 0.97, 4.5], [-1e-5, -3e-5, 1.0]])
+        h = np.column_stack([src, np.ones(n)]) @ H.T
+        dst = h[:, :2] / h[:, 2:]
+    else:  # similarity3d: model coordinates -> UTM-like coordinates
+        src = rng.uniform(-1, 1, (n, 3))
+        R = photogeom.opk_matrix(0.3, -0.2, 2.5).T
+        dst = 250.0 * src @ R.T + [512_000.0, 4_215_000.0, 350.0]
+    return src, dst + rng.normal(0, 0.01, dst.shape)
+
+
+def main(args: argparse.Namespace) -> None:
+    sizes = SIZES[:2] if args.quick else SIZES
+    rng = np.random.default_rng(42)
+
+    peers = {
+        "affine2d": sktf.AffineTransform,
+        "projective2d": sktf.ProjectiveTransform,
+        "similarity3d": sktf.SimilarityTransform,
+    }
+    api = skimage_estimator(sktf.AffineTransform)[1]
+    print(
+        f"photogeom {photogeom.__version__} vs scikit-image {skimage.__version__} "
+        f"({api}); numpy {np.__version__}; Python {platform.python_version()}; "
+        f"{platform.machine()}; BLAS threads: "
+        f"{os.environ.get('OPENBLAS_NUM_THREADS', 'default')}"
+    )
+    print("median wall time per estimation; ratio = photogeom / scikit-image (< 1: faster)\n")
+    header = f"{'model':<14}{'n':>10}{'photogeom':>14}{'scikit-image':>16}{'ratio':>10}"
+    print(header)
+    print("-" * len(header))
+    sum_ratio = None
+    for model, cls in peers.items():
+        peer, _ = skimage_estimator(cls)
+        for n in sizes:
+            src, dst = data(model, n, rng)
+            reps = REPEATS[n]
+            big = n >= 100_000  # no warm-up for the big runs (seconds each)
+            ours = median_time(
+                lambda s=src, d=dst, m=model: estimate_transform(m, s, d), reps, not big
+            )
+            full_svd_bytes = (2 * n) ** 2 * 8
+            if model != "similarity3d" and full_svd_bytes > SKIMAGE_MEMORY_LIMIT:
+                theirs = None
+                peer_text = f"n/a ({full_svd_bytes / 2**40:.0f} TiB)"
+            else:
+                theirs = median_time(lambda s=src, d=dst, f=peer: f(s, d), reps, not big)
+                peer_text = _ms(theirs)
+            ratio = f"{ours / theirs:.2f}" if theirs else "-"
+            print(f"{model:<14}{n:>10,}{_ms(ours):>14}{peer_text:>16}{ratio:>10}")
+            if model == "similarity3d" and n == 1_000_000:
+                t_sum = median_time(lambda s=src, d=dst: (s.sum(), d.sum()), 7)
+                sum_ratio = (ours, t_sum)
+    print()
+    if any(n**2 * 32 > SKIMAGE_MEMORY_LIMIT for n in sizes):
+        print(
+            "n/a: scikit-image's AffineTransform/ProjectiveTransform take a full SVD of the "
+            "(2n, 9) design matrix,\n     whose U factor alone needs (2n)^2 x 8 bytes; "
+            "they were not run at that size."
+        )
+    if sum_ratio is not None:
+        ours, t_sum = sum_ratio
+        print(
+            f"similarity3d from 1e6 pairs: {_ms(ours)}; numpy sum of both input arrays once: "
+            f"{_ms(t_sum)}; ratio {ours / t_sum:.1f} (target <= 3)"
+        )
+
+
+def _ms(t: float) -> str:
+    return f"{t * 1e3:.3g} ms" if t < 1 else f"{t:.3g} s"
+
+
+if __name__ == "__main__":
+    main(ARGS)

@@ -1,0 +1,303 @@
+"""Number formatting and table rows of a :class:`~photogeom.adjust.Fit`, shared by the
+console and HTML reports (so both show the same digits)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Significance level of the data-snooping tests shown in reports.
+SNOOPING_ALPHA = 0.001
+
+RESIDUAL_CONVENTION = "v = computed - observed"
+
+
+def _finite(x) -> bool:
+    try:
+        return math.isfinite(float(x))
+    except (TypeError, ValueError):
+        return False
+
+
+def fmt_std(s: float) -> str:
+    """A standard deviation with two significant digits ("-" when undefined)."""
+    if not _finite(s):
+        return "-"
+    s = float(s)
+    if s == 0.0:
+        return "0"
+    return f"{s:.2g}" if 1e-4 <= abs(s) < 1e6 else f"{s:.2e}"
+
+
+def fmt_value(v: float, std: float | None = None) -> str:
+    """A value with two digits beyond the leading digit of its standard deviation.
+
+    Without a usable standard deviation: ten significant digits.
+    """
+    if not _finite(v):
+        return "nan" if v is not None else "-"
+    v = float(v)
+    if std is not None and _finite(std) and float(std) > 0:
+        decimals = 2 - math.floor(math.log10(float(std)))
+        if 0 <= decimals <= 15:
+            return f"{v:.{decimals}f}"
+        if decimals < 0:
+            return f"{v:.{max(3, math.floor(math.log10(abs(v) + 1e-300)) + 1 + decimals)}g}"
+    return f"{v:.10g}"
+
+
+def residual_decimals(values: np.ndarray) -> int:
+    """Decimals that show residuals of this size with about three significant digits."""
+    v = np.abs(np.asarray(values, dtype=float))
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size == 0:
+        return 3
+    rms = float(np.sqrt(np.mean(v * v)))
+    return int(min(10, max(0, 2 - math.floor(math.log10(rms)))))
+
+
+def fmt_fixed(x: float, decimals: int) -> str:
+    """Fixed-point number, "-" when undefined."""
+    if not _finite(x):
+        return "-"
+    text = f"{float(x):.{decimals}f}"
+    if text.startswith("-") and not text.strip("-0."):
+        text = text[1:]  # no "-0.000"
+    return text
+
+
+def fmt_stat(x: float, digits: int = 4) -> str:
+    """A statistic (sigma0, RMSE) with ``digits`` significant digits."""
+    if not _finite(x):
+        return "-"
+    return f"{float(x):.{digits}g}"
+
+
+def unit_suffix(unit: str) -> str:
+    """`` [unit]`` or an empty string."""
+    return f" [{unit}]" if unit else ""
+
+
+def model_name(fit) -> str:
+    """Readable name of the fitted model."""
+    m = getattr(fit, "model", None)
+    name = getattr(m, "name", "") or type(m).__name__
+    return str(name)
+
+
+@dataclass(frozen=True)
+class ResidualTable:
+    """Residual rows of control or check points, ready for display.
+
+    ``columns`` are headings; ``rows`` are strings; ``flags`` marks cells whose snooping
+    statistic exceeds its critical value (same shape as rows).
+    """
+
+    columns: list[str]
+    rows: list[list[str]]
+    flags: list[list[bool]]
+    footer: list[str]
+
+
+def parameter_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str]]:
+    """``(name, value, std, unit)`` strings, angles in ``angle_unit``."""
+    rows = []
+    for name, value, std, unit in fit.parameter_table(angle_unit):
+        rows.append((name, fmt_value(value, std), fmt_std(std), unit or ""))
+    return rows
+
+
+def statistics_rows(fit) -> list[tuple[str, str]]:
+    """``(label, value)`` strings of the adjustment statistics."""
+    unit = getattr(fit, "residual_unit", "") or ""
+    u = f" {unit}" if unit else ""
+    n_par = len(fit.parameter_names)
+    rows = [
+        ("method", str(fit.method)),
+        ("observations / unknowns", f"{fit.n_observations} / {n_par}"),
+        ("redundancy r", str(fit.redundancy)),
+        ("sigma0 a priori", fmt_stat(fit.sigma0_prior)),
+    ]
+    if _finite(fit.sigma0):
+        rows.append(("sigma0 a posteriori", fmt_stat(fit.sigma0)))
+    else:
+        rows.append(("sigma0 a posteriori", "undefined (redundancy 0)"))
+    n_pts = int(np.asarray(fit.residuals).shape[0]) if fit.residuals is not None else 0
+    if n_pts:
+        labels = axis_labels(fit)
+        rows.append((f"RMSE per point ({n_pts} control)", fmt_stat(fit.rmse) + u))
+        rows.append(
+            (
+                "RMS per axis",
+                ", ".join(f"{lab} {fmt_stat(x)}" for lab, x in zip(labels, fit.rms_per_axis)) + u,
+            )
+        )
+    if fit.check_residuals is not None and np.asarray(fit.check_residuals).size:
+        labels = axis_labels(fit)
+        n_chk = int(np.asarray(fit.check_residuals).shape[0])
+        rows.append((f"check RMSE per point ({n_chk} check)", fmt_stat(fit.check_rmse) + u))
+        rows.append(
+            (
+                "check RMS per axis",
+                ", ".join(f"{lab} {fmt_stat(x)}" for lab, x in zip(labels, fit.check_rms_per_axis))
+                + u,
+            )
+        )
+    if fit.iterations:
+        rows.append(
+            (
+                "iterations",
+                f"{fit.iterations} ({'converged' if fit.converged else 'NOT converged'})",
+            )
+        )
+    elif not fit.converged:
+        rows.append(("convergence", "NOT converged"))
+    if fit.message:
+        rows.append(("message", str(fit.message)))
+    if getattr(fit, "elapsed", 0.0):
+        rows.append(("time", f"{fit.elapsed * 1e3:.3g} ms"))
+    return rows
+
+
+def axis_labels(fit) -> tuple[str, ...]:
+    """Names of the residual columns (``v0, v1, ...`` if the fit has none)."""
+    d = int(np.asarray(fit.residuals).shape[1]) if np.asarray(fit.residuals).ndim == 2 else 1
+    labels = tuple(getattr(fit, "residual_labels", ()) or ())
+    return labels if len(labels) == d else tuple(f"v{j}" for j in range(d))
+
+
+def _snooping(fit, sigma: str):
+    if fit.normalized_residuals is None or fit.redundancy <= (1 if sigma == "posterior" else 0):
+        return None
+    if sigma == "posterior" and not _finite(fit.sigma0):
+        return None
+    try:
+        return fit.snooping(alpha=SNOOPING_ALPHA, sigma=sigma)
+    except Exception:  # a statistic that cannot be formed is simply not shown
+        return None
+
+
+def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
+    """Rows of the control (or check) residuals with |v| and, for control points, the
+    w-test (a-priori sigma0) and tau-test (a-posteriori sigma0) statistics per component."""
+    res = fit.check_residuals if check else fit.residuals
+    if res is None:
+        return None
+    res = np.asarray(res, dtype=float)
+    if res.ndim == 1:
+        res = res[:, None]
+    if res.shape[0] == 0:
+        return None
+    ids = fit.check_ids if check else fit.ids
+    if ids is None:
+        ids = tuple(str(k) for k in range(1, res.shape[0] + 1))
+    labels = axis_labels(fit)
+    unit = getattr(fit, "residual_unit", "") or ""
+    dec = residual_decimals(np.concatenate([np.asarray(fit.residuals, float).ravel(), res.ravel()]))
+    cols = ["id", *(f"v_{lab}" for lab in labels)]
+    norm = np.sqrt(np.sum(res * res, axis=1))
+    if res.shape[1] > 1:
+        cols.append("|v|")
+    cells = [
+        [str(pid), *(fmt_fixed(x, dec) for x in row)]
+        + ([fmt_fixed(nv, dec)] if res.shape[1] > 1 else [])
+        for pid, row, nv in zip(ids, res, norm)
+    ]
+    flags = [[False] * len(c) for c in cells]
+    footer = [f"{RESIDUAL_CONVENTION}" + unit_suffix(unit)]
+    if not check:
+        w = _snooping(fit, "prior")
+        tau = _snooping(fit, "posterior")
+        for test, name, label in (
+            (w, "w", "w-test (Baarda, sigma0 a priori)"),
+            (tau, "tau", "tau-test (Pope, sigma0 a posteriori)"),
+        ):
+            if test is None:
+                continue
+            stat = np.asarray(test.statistic, dtype=float).reshape(res.shape)
+            flagged = np.asarray(test.flagged, dtype=bool).reshape(res.shape)
+            cols.extend(f"{name}_{lab}" for lab in labels)
+            for k in range(res.shape[0]):
+                cells[k].extend(fmt_fixed(x, 2) for x in stat[k])
+                flags[k].extend(bool(f) for f in flagged[k])
+            n_flag = int(flagged.sum())
+            verdict = f"{n_flag} component(s) flagged" if n_flag else "no component flagged"
+            footer.append(
+                f"{label}: critical value {test.critical_value:.3f} at alpha = {test.alpha:g}; "
+                f"{verdict}"
+            )
+        if w is not None and _finite(fit.sigma0) and fit.sigma0_prior > 0:
+            ratio = fit.sigma0 / fit.sigma0_prior
+            if ratio < 0.1 or ratio > 10:
+                footer.append(
+                    f"sigma0 a posteriori / a priori = {ratio:.3g}: the a-priori accuracy does not "
+                    "match the data, so read the tau-test (or give realistic weights/sigmas)"
+                )
+    return ResidualTable(cols, cells, flags, footer)
+
+
+def as_text_table(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """Plain-text table with right-aligned columns (first column left-aligned)."""
+    widths = [len(c) for c in columns]
+    for r in rows:
+        for j, c in enumerate(r):
+            widths[j] = max(widths[j], len(str(c)))
+
+    def line(r):
+        return "  ".join(
+            (str(c).ljust(widths[j]) if j == 0 else str(c).rjust(widths[j]))
+            for j, c in enumerate(r)
+        )
+
+    return "\n".join([line(columns), line(["-" * w for w in widths]), *(line(r) for r in rows)])
+
+
+def textbook_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str]]:
+    """``(name, value, std, unit)`` of the textbook form of the fitted model, angles in
+    ``angle_unit``.
+
+    Uses ``fit.extras["textbook"]`` (name -> (value, std), radians) when the estimator
+    propagated the covariance there, else ``fit.model.textbook()`` without standard
+    deviations. Empty when there is no textbook form distinct from the parameters.
+    """
+    from ..units import from_radians
+
+    extras = getattr(fit, "extras", {}) or {}
+    model = getattr(fit, "model", None)
+    values: dict = {}
+    units: dict = dict(extras.get("textbook_units", {}) or {})
+    tb = extras.get("textbook")
+    if isinstance(tb, dict) and tb:
+        for name, val in tb.items():
+            v, sd = val if isinstance(val, (tuple, list)) and len(val) == 2 else (val, None)
+            values[name] = (v, sd)
+    else:
+        fn = getattr(model, "textbook", None)
+        if not callable(fn):
+            return []
+        try:
+            values = {k: (v, None) for k, v in fn().items()}
+            units = units or dict(getattr(model, "textbook_units", {}) or {})
+        except Exception:  # a model without a textbook form for these parameters
+            return []
+    if set(values) <= set(fit.parameter_names):
+        return []  # the textbook form is the parametric form (e.g. projective)
+    rows = []
+    for name, (value, sd) in values.items():
+        arr = np.asarray(value, dtype=float)
+        if arr.ndim:
+            continue
+        v = float(arr)
+        s = float(sd) if sd is not None and np.ndim(sd) == 0 else float("nan")
+        unit = units.get(name, "")
+        if unit == "rad" and angle_unit != "rad":
+            v, s, unit = (
+                float(from_radians(v, angle_unit)),
+                float(from_radians(s, angle_unit)),
+                angle_unit,
+            )
+        rows.append((str(name), fmt_value(v, s), fmt_std(s), unit))
+    return rows

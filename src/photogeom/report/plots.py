@@ -1,0 +1,154 @@
+"""Residual vector plots (matplotlib, drawn off-screen: no display needed)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..errors import InputError
+
+
+def nice_length(value: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten not above ``value`` (> 0)."""
+    if not (value > 0 and math.isfinite(value)):
+        return 1.0
+    exp = math.floor(math.log10(value))
+    for m in (5.0, 2.0, 1.0):
+        if m * 10.0**exp <= value * (1 + 1e-12):
+            return m * 10.0**exp
+    return 10.0**exp  # pragma: no cover
+
+
+def _xy(a, name: str) -> np.ndarray:
+    arr = np.asarray(a, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] < 2:
+        raise InputError(f"{name}: expected shape (n, 2), got {arr.shape}")
+    return arr[:, :2]
+
+
+def residual_figure(
+    points_xy,
+    residuals_xy,
+    ids: Sequence | None = None,
+    *,
+    unit: str = "",
+    labels: tuple[str, str] = ("x", "y"),
+    check_points=None,
+    check_residuals=None,
+    check_ids: Sequence | None = None,
+    y_down: bool = False,
+    title: str | None = None,
+    point_unit: str | None = None,
+) -> Figure:
+    """Quiver plot of residual vectors at their points, with a labelled scale arrow.
+
+    Parameters
+    ----------
+    points_xy : array_like, shape (n, 2)
+        Positions (e.g. image or plan coordinates) of the residual rows.
+    residuals_xy : array_like, shape (n, 2)
+        Residuals (computed minus observed) at those positions, unit ``unit``.
+    ids : sequence, optional
+        Point ids written next to the points.
+    unit : str
+        Residual unit, shown on the scale arrow.
+    labels : (str, str)
+        Axis names of the positions.
+    check_points, check_residuals, check_ids : optional
+        Check points, drawn in another colour.
+    y_down : bool
+        Draw the second axis downwards (pixel systems: row grows down).
+    point_unit : str, optional
+        Unit of the positions (axis labels); defaults to ``unit``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The arrows are exaggerated by a common factor (stated in the figure); the scale
+        arrow gives their true length.
+    """
+    pts = _xy(points_xy, "points")
+    res = _xy(residuals_xy, "residuals")
+    if pts.shape[0] != res.shape[0]:
+        raise InputError(f"{pts.shape[0]} point(s) but {res.shape[0]} residual row(s)")
+    groups = [(pts, res, ids, "control", "#1f5fa8")]
+    if check_points is not None and check_residuals is not None:
+        cp, cr = _xy(check_points, "check points"), _xy(check_residuals, "check residuals")
+        if cp.shape[0] != cr.shape[0]:
+            raise InputError(f"{cp.shape[0]} check point(s) but {cr.shape[0]} residual row(s)")
+        if cp.shape[0]:
+            groups.append((cp, cr, check_ids, "check", "#c0392b"))
+    all_p = np.vstack([g[0] for g in groups])
+    all_r = np.vstack([g[1] for g in groups])
+    finite = np.isfinite(all_p).all(axis=1) & np.isfinite(all_r).all(axis=1)
+    extent = float(np.ptp(all_p[finite], axis=0).max()) if finite.any() else 1.0
+    if extent <= 0:
+        extent = 1.0
+    vmax = float(np.sqrt((all_r[finite] ** 2).sum(axis=1)).max()) if finite.any() else 0.0
+    factor = nice_length(0.15 * extent / vmax) if vmax > 0 else 1.0
+    key = nice_length(vmax) if vmax > 0 else 0.0
+
+    fig = Figure(figsize=(6.4, 5.6), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    handles = []
+    for p, r, pid, name, colour in groups:
+        ax.plot(p[:, 0], p[:, 1], "o", color=colour, ms=4, zorder=3)
+        q = ax.quiver(
+            p[:, 0],
+            p[:, 1],
+            r[:, 0],
+            r[:, 1],
+            angles="xy",
+            scale_units="xy",
+            scale=1.0 / factor,
+            color=colour,
+            width=0.005,
+            zorder=4,
+            label=f"{name} ({p.shape[0]})",
+        )
+        handles.append(q)
+        if pid is not None:
+            for (x, y), t in zip(p, pid):
+                ax.annotate(
+                    str(t),
+                    (x, y),
+                    textcoords="offset points",
+                    xytext=(5, 5),
+                    fontsize=8,
+                    color=colour,
+                )
+    if key > 0:
+        ax.quiverkey(
+            handles[0],
+            X=0.76,
+            Y=1.035,
+            U=key,
+            label=f"{key:g} {unit}".strip(),
+            labelpos="E",
+            coordinates="axes",
+            color="black",
+        )
+    pad = 0.12 * extent + (0.15 * extent if vmax > 0 else 0)
+    lo = all_p[finite].min(axis=0) if finite.any() else np.zeros(2)
+    hi = all_p[finite].max(axis=0) if finite.any() else np.ones(2)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    if y_down:
+        ax.set_ylim(hi[1] + pad, lo[1] - pad)
+    else:
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal", adjustable="box")
+    pu = unit if point_unit is None else point_unit
+    ax.set_xlabel(f"{labels[0]} [{pu}]" if pu else labels[0])
+    ax.set_ylabel(f"{labels[1]} [{pu}]" if pu else labels[1])
+    ax.grid(True, color="#dddddd", lw=0.6)
+    ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
+    exaggeration = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
+    note = (
+        f"v = computed - observed, arrows x{exaggeration}" if vmax > 0 else "all residuals are zero"
+    )
+    ax.set_title((title + "\n" if title else "") + note, fontsize=9.5, loc="left")
+    fig.tight_layout()
+    return fig

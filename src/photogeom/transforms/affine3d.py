@@ -1,0 +1,250 @@
+"""3D affine (12-parameter) transformation ``X = A x + t`` and its decomposition."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from ..errors import InputError
+from ..rotation import DEFAULT_CONVENTION, Convention, angles_from_rotation, rotation_from_angles
+from ._common import Parametric, fmt_params, frozen, invertible, vector
+from .base import Transform
+from .similarity3d import Similarity3D
+
+_PARAM_NAMES = (
+    "a11", "a12", "a13", "a21", "a22", "a23", "a31", "a32", "a33", "tx", "ty", "tz",
+)
+_TEXTBOOK_NAMES = (
+    "sx", "sy", "sz", "shear_xy", "shear_xz", "shear_yz", "omega", "phi", "kappa", "tx", "ty", "tz",
+)
+
+
+@dataclass(frozen=True)
+class AffineDecomposition:
+    """``A = shear @ diag(scales) @ rotation`` (see :meth:`Affine3D.decompose`).
+
+    Attributes
+    ----------
+    rotation : numpy.ndarray, shape (3, 3)
+        Proper rotation (det +1).
+    scales : numpy.ndarray, shape (3,)
+        ``sx, sy, sz`` (``sz < 0`` for a reflection, ``det(A) < 0``).
+    shears : numpy.ndarray, shape (3,)
+        ``shear_xy, shear_xz, shear_yz``: the off-diagonal elements of the unit upper
+        triangular ``shear = [[1, xy, xz], [0, 1, yz], [0, 0, 1]]``.
+    det : float
+        ``det(A) = sx sy sz``: the volume scale.
+    """
+
+    rotation: np.ndarray
+    scales: np.ndarray
+    shears: np.ndarray
+    det: float
+
+    @property
+    def shear_matrix(self) -> np.ndarray:
+        """The unit upper triangular shear matrix."""
+        xy, xz, yz = self.shears
+        return np.array([[1.0, xy, xz], [0.0, 1.0, yz], [0.0, 0.0, 1.0]])
+
+    def compose(self) -> np.ndarray:
+        """``shear @ diag(scales) @ rotation`` (= the original ``A``)."""
+        return self.shear_matrix @ np.diag(self.scales) @ self.rotation
+
+
+@dataclass(frozen=True, repr=False)
+class Affine3D(Parametric, Transform):
+    """3D affine transformation ``X = A @ x + t``.
+
+    Parametric form: the nine elements ``a11 .. a33`` of ``A`` and ``tx, ty, tz``.
+    Textbook form (:meth:`decompose`)::
+
+        A = [[1, shear_xy, shear_xz], [0, 1, shear_yz], [0, 0, 1]] @ diag(sx, sy, sz) @ R
+
+    with ``R`` a proper rotation whose angles ``omega, phi, kappa`` follow the ``"transposed"``
+    convention (``R = M(omega, phi, kappa).T``), as :class:`Similarity3D`. With ``A.T A = a I``
+    the transformation is a similarity, with ``A.T A = I`` rigid; :meth:`similarity_deviation`
+    says how far it is from a similarity.
+
+    Parameters
+    ----------
+    linear : array_like, shape (3, 3)
+        ``A`` (unitless).
+    translation : array_like, shape (3,)
+        ``t`` in target units.
+    """
+
+    name = "affine3d"
+    dim = 3
+    _linear_indices = tuple(range(9))
+
+    linear: np.ndarray
+    translation: np.ndarray
+
+    def __post_init__(self) -> None:
+        A = np.array(self.linear, dtype=float)
+        t = np.array(self.translation, dtype=float).reshape(-1)
+        if A.shape != (3, 3) or t.shape != (3,):
+            raise InputError("Affine3D: linear part must be 3x3 and translation of length 3")
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(t))):
+            raise InputError("Affine3D: parameters must be finite")
+        object.__setattr__(self, "linear", frozen(A))
+        object.__setattr__(self, "translation", frozen(t))
+
+    @classmethod
+    def from_matrix(cls, M) -> Affine3D:
+        """From a 3x4 ``[A | t]`` or a homogeneous 4x4 matrix (last row ``0 0 0 1``)."""
+        M = np.asarray(M, dtype=float)
+        if M.shape == (4, 4):
+            if not np.allclose(M[3], [0, 0, 0, 1]):
+                raise InputError("Affine3D: the last row of a 4x4 affine matrix must be 0 0 0 1")
+            M = M[:3]
+        if M.shape != (3, 4):
+            raise InputError(f"Affine3D: expected a 3x4 or 4x4 matrix, got shape {M.shape}")
+        return cls(M[:, :3], M[:, 3])
+
+    @classmethod
+    def from_textbook(
+        cls,
+        scales,
+        shears,
+        omega: float,
+        phi: float,
+        kappa: float,
+        translation,
+        *,
+        convention: Convention = DEFAULT_CONVENTION,
+        unit: str = "rad",
+    ) -> Affine3D:
+        """From scales ``(sx, sy, sz)``, shears ``(xy, xz, yz)``, angles (``unit``,
+        ``convention``) and translation."""
+        s = vector(scales, 3, "Affine3D scales")
+        xy, xz, yz = vector(shears, 3, "Affine3D shears")
+        S = np.array([[1.0, xy, xz], [0.0, 1.0, yz], [0.0, 0.0, 1.0]])
+        R = rotation_from_angles(omega, phi, kappa, convention=convention, unit=unit)
+        return cls(S @ np.diag(s) @ R, translation)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Homogeneous 4x4 matrix."""
+        T = np.eye(4)
+        T[:3, :3] = self.linear
+        T[:3, 3] = self.translation
+        return T
+
+    @property
+    def det(self) -> float:
+        """``det(A)``: the volume scale (negative for a reflection)."""
+        return float(np.linalg.det(self.linear))
+
+    def decompose(self) -> AffineDecomposition:
+        """``A = shear @ diag(scales) @ rotation`` by an RQ decomposition.
+
+        Unique with ``sx, sy > 0``, a proper rotation, and ``sz`` carrying the sign of
+        ``det(A)``. Raises :class:`InputError` for a singular ``A``.
+        """
+        A = self.linear
+        if abs(self.det) <= 1e-14 * max(np.max(np.abs(A)) ** 3, 1e-300):
+            raise InputError("Affine3D: the linear part is singular; it has no decomposition")
+        K, Q = scipy.linalg.rq(A)
+        D = np.sign(np.diag(K))  # make the triangular diagonal positive: A = (K D) (D Q)
+        K, Q = K * D, D[:, None] * Q
+        if np.linalg.det(Q) < 0:  # proper rotation; the reflection goes into sz
+            Q[2] = -Q[2]
+            K[:, 2] = -K[:, 2]
+        scales = np.diag(K).copy()
+        shear = K / scales
+        return AffineDecomposition(
+            rotation=Q,
+            scales=scales,
+            shears=np.array([shear[0, 1], shear[0, 2], shear[1, 2]]),
+            det=self.det,
+        )
+
+    def similarity_deviation(self) -> dict:
+        """How far ``A`` is from a similarity ``s R``.
+
+        Returns
+        -------
+        dict
+            ``singular_values`` of ``A``; ``anisotropy`` = largest / smallest singular value
+            minus 1 (0 for a similarity); ``nearest_similarity``: the :class:`Similarity3D`
+            ``s R`` closest to ``A`` in the Frobenius norm (``R`` from the polar decomposition,
+            ``s = trace(R.T A) / 3``, same translation); ``relative_deviation`` =
+            ``|A - s R|_F / |A|_F``; ``max_scale_ratio`` = max/min of the decomposition scales;
+            ``max_shear`` = largest absolute shear.
+        """
+        A = self.linear
+        U, sv, Vt = np.linalg.svd(A)
+        if np.linalg.det(U @ Vt) < 0:
+            raise InputError("Affine3D: det(A) < 0 (a reflection); no similarity is near it")
+        R = U @ Vt
+        s = float(np.trace(R.T @ A) / 3.0)
+        dec = self.decompose()
+        sc = np.abs(dec.scales)
+        return {
+            "singular_values": sv,
+            "anisotropy": float(sv[0] / sv[-1] - 1.0),
+            "nearest_similarity": Similarity3D(s, R, self.translation),
+            "relative_deviation": float(np.linalg.norm(A - s * R) / np.linalg.norm(A)),
+            "max_scale_ratio": float(sc.max() / sc.min()),
+            "max_shear": float(np.max(np.abs(dec.shears))),
+        }
+
+    def textbook(self, convention: Convention = DEFAULT_CONVENTION) -> dict[str, float]:
+        """Scales, shears, rotation angles (rad, ``convention``) and shifts."""
+        dec = self.decompose()
+        w, p, k = angles_from_rotation(dec.rotation, convention=convention,
+                                       on_gimbal_lock="omega-zero")
+        vals = [*dec.scales, *dec.shears, w, p, k, *self.translation]
+        return {n: float(v) for n, v in zip(_TEXTBOOK_NAMES, vals)}
+
+    @property
+    def textbook_units(self) -> dict[str, str]:
+        units = dict.fromkeys(_TEXTBOOK_NAMES[:6], "1")
+        units.update(dict.fromkeys(("omega", "phi", "kappa"), "rad"))
+        units.update(dict.fromkeys(("tx", "ty", "tz"), ""))
+        return units
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return _PARAM_NAMES
+
+    @property
+    def parameters(self) -> np.ndarray:
+        return np.concatenate([self.linear.reshape(-1), self.translation])
+
+    def with_parameters(self, values) -> Affine3D:
+        v = vector(values, 12, "Affine3D")
+        return Affine3D(v[:9].reshape(3, 3), v[9:])
+
+    def apply(self, points) -> np.ndarray:
+        """``A x + t`` for points (n, 3) or one point (3,)."""
+        p, single = self._points(points)
+        out = p @ self.linear.T + self.translation
+        return out[0] if single else out
+
+    def inverse(self) -> Affine3D:
+        """Closed form ``x = A^-1 (X - t)``."""
+        Ai = invertible(self.linear, "Affine3D")
+        return Affine3D(Ai, -Ai @ self.translation)
+
+    def to_dict(self) -> dict:
+        return {
+            "model": self.name,
+            "linear": self.linear.tolist(),
+            "translation": self.translation.tolist(),
+            "det": self.det,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Affine3D:
+        """From :meth:`to_dict` output or a ``matrix`` (3x4 or 4x4)."""
+        if "matrix" in data:
+            return cls.from_matrix(data["matrix"])
+        return cls(data["linear"], data["translation"])
+
+    def __repr__(self) -> str:
+        return f"Affine3D({fmt_params(_PARAM_NAMES, self.parameters)}; det={self.det:.9g})"
