@@ -1,9 +1,278 @@
-"""Commands of `photogeom orient` (see :mod:`.orient`)."""
+"""`photogeom orient absolute`: the 3D similarity (absolute orientation) from point pairs.
+
+One CSV with both coordinate sets (``x,y,z`` and ``X,Y,Z``) or two CSVs joined by point id.
+``--method`` picks one of the six methods; ``--compare`` runs them all and prints the
+evaluation table (parameters, differences to the converged Gauss-Markov solution,
+orthogonality defect, time per solve); ``--ransac`` rejects wrong correspondences.
+"""
 
 from __future__ import annotations
 
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
 import typer
+
+from ..errors import InputError
+from ..orientation import (
+    METHODS,
+    absolute_orientation,
+    compare_absolute_methods,
+    ransac_absolute_orientation,
+)
+
+Method = Enum("Method", {m: m for m in METHODS}, type=str)
+
+
+class AngleUnit(str, Enum):
+    """Angle unit of the output."""
+
+    deg = "deg"
+    gon = "gon"
+    rad = "rad"
+
+
+class Convention(str, Enum):
+    """Convention of the angles of R."""
+
+    transposed = "transposed"
+    direct = "direct"
+
+
+def _angles_line(fit, convention: str, unit: str) -> str:
+    w, p, k = fit.angles(convention, unit)
+    rel = "R = M(omega, phi, kappa).T" if convention == "transposed" else "R = M(omega, phi, kappa)"
+    return (
+        f"angles ({convention} convention, {rel}): omega {w:.6f} {unit}, phi {p:.6f} {unit}, "
+        f"kappa {k:.6f} {unit}; orthogonality defect |R.T R - I| {fit.orthogonality_defect:.2e}"
+    )
+
+
+def _fit_json(fit, convention: str, unit: str, pairs_notes) -> dict:
+    d = fit.to_dict()
+    w, p, k = fit.angles(convention, unit)
+    d["angles"] = {"convention": convention, "unit": unit, "omega": w, "phi": p, "kappa": k}
+    d["scale"] = fit.scale
+    d["rotation"] = np.asarray(fit.rotation).tolist()
+    d["translation"] = np.asarray(fit.translation).tolist()
+    d["orthogonality_defect"] = fit.orthogonality_defect
+    if fit.inliers is not None:
+        d["inliers"] = [bool(v) for v in fit.inliers]
+    if pairs_notes:
+        d["input_notes"] = list(pairs_notes)
+    return d
 
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the ``orient`` group."""
+    """Add ``absolute`` to the ``orient`` group."""
+
+    @app.command("absolute")
+    def absolute(
+        source: Annotated[
+            Path,
+            typer.Argument(
+                help="CSV with the source (model) points, and the target points if TARGET is "
+                "not given (columns x,y,z and X,Y,Z)."
+            ),
+        ],
+        target: Annotated[
+            Path | None,
+            typer.Argument(help="CSV with the target (ground) points, joined by point id."),
+        ] = None,
+        method: Annotated[
+            Method, typer.Option("--method", "-m", help="Estimation method.", case_sensitive=False)
+        ] = Method.svd,
+        compare: Annotated[
+            bool, typer.Option("--compare", help="Run every method and print the comparison.")
+        ] = False,
+        as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = (
+            False
+        ),
+        report: Annotated[
+            Path | None, typer.Option("--report", help="Write an HTML report to this file.")
+        ] = None,
+        angle_unit: Annotated[
+            AngleUnit, typer.Option("--angle-unit", help="Unit of the angles shown.")
+        ] = AngleUnit.deg,
+        convention: Annotated[
+            Convention,
+            typer.Option(
+                "--convention",
+                help="transposed: R = M(omega, phi, kappa).T (Wolf, Kraus; the parameters); "
+                "direct: R = M(omega, phi, kappa).",
+            ),
+        ] = Convention.transposed,
+        ransac: Annotated[
+            bool, typer.Option("--ransac", help="Reject wrong correspondences by RANSAC.")
+        ] = False,
+        threshold: Annotated[
+            float | None,
+            typer.Option("--threshold", help="RANSAC inlier distance (target units)."),
+        ] = None,
+        rigid: Annotated[
+            bool, typer.Option("--rigid", help="Rigid transformation: scale fixed to 1.")
+        ] = False,
+        sigma_source: Annotated[
+            float | None,
+            typer.Option(help="Std. dev. of the source coordinates (gauss-helmert)."),
+        ] = None,
+        sigma_target: Annotated[
+            float | None, typer.Option(help="Std. dev. of the target coordinates.")
+        ] = None,
+        initial: Annotated[
+            str | None,
+            typer.Option(
+                help="Start of gauss-markov / gauss-helmert: a direct method or 'zeros'."
+            ),
+        ] = None,
+        source_cols: Annotated[
+            str | None, typer.Option(help="Source coordinate columns (default x,y,z).")
+        ] = None,
+        target_cols: Annotated[
+            str | None, typer.Option(help="Target coordinate columns (default X,Y,Z).")
+        ] = None,
+        id_col: Annotated[str | None, typer.Option(help="Id column (default: id).")] = None,
+        check_ids: Annotated[
+            str | None,
+            typer.Option(
+                help="Comma-separated ids of check points (default: role column 'check')."
+            ),
+        ] = None,
+        weights_col: Annotated[
+            str | None, typer.Option(help="Column of per-point weights.")
+        ] = None,
+        sigma_col: Annotated[
+            str | None, typer.Option(help="Column of per-point std. devs. (target units).")
+        ] = None,
+        unit: Annotated[str, typer.Option(help="Length unit of the target system.")] = "m",
+        allow_unmatched: Annotated[
+            bool, typer.Option(help="Leave out ids found in only one file (listed).")
+        ] = False,
+        seed: Annotated[int | None, typer.Option(help="Random seed of RANSAC.")] = None,
+    ) -> None:
+        """Absolute orientation: X = s R x + t from corresponding 3D points."""
+        from ..report import Report, print_fit, print_table
+        from .transform import check_mask, console, load_pairs
+
+        out = console()
+        pairs = load_pairs(
+            source, target, source_cols=source_cols, target_cols=target_cols, id_col=id_col,
+            weights_col=weights_col, sigma_col=sigma_col, allow_unmatched=allow_unmatched,
+        )
+        if pairs.source.shape[1] != 3 or pairs.target.shape[1] != 3:
+            raise InputError(
+                "absolute orientation needs 3D points in both systems "
+                f"(got {pairs.source.shape[1]}D source, {pairs.target.shape[1]}D target)"
+            )
+        is_check = check_mask(pairs, check_ids)
+        ctrl = ~is_check
+        ids = np.asarray(pairs.ids, dtype=object)
+        x, X = pairs.source[ctrl], pairs.target[ctrl]
+        w = None if pairs.weights is None else pairs.weights[ctrl]
+        unit_ = unit
+        angle = angle_unit.value
+        conv = convention.value
+        meth = method.value
+        options: dict = {"with_scale": not rigid, "unit": unit_}
+        if w is not None:
+            options["weights"] = w
+        if sigma_target is not None:
+            if w is not None:
+                raise InputError("give per-point weights/sigmas or --sigma-target, not both")
+            options["sigma_target"] = sigma_target
+        if compare:
+            if ransac:
+                raise InputError("--compare and --ransac cannot be combined")
+            cmp = compare_absolute_methods(
+                x, X, convention=conv, angle_unit=angle, length_unit=unit_,
+                **{k: v for k, v in options.items() if k != "unit"},
+            )
+            if as_json:
+                typer.echo(json.dumps(cmp.to_dict(), indent=2))
+            else:
+                out.print(f"[bold]{len(x)} point pairs[/bold] ({source.name}"
+                          + (f", {target.name}" if target else "") + ")")
+                from rich.markup import escape
+
+                cols = [escape(c) for c in cmp.columns()]
+                rows = cmp.table_rows()
+                print_table(
+                    "Absolute orientation: parameters of every method",
+                    cols[:8],
+                    [[r[0], *[_fmt(v, 6) for v in r[1:4]], _fmt(r[4], 10),
+                      *[_fmt(v, 6) for v in r[5:8]]] for r in rows],
+                    console=out,
+                )
+                print_table(
+                    f"Differences to the converged {cmp.reference} solution, speed",
+                    [cols[0], *cols[8:]],
+                    [[r[0], *[_fmt(v, 2, sci=True) for v in r[8:12]], _fmt(r[12], 1)]
+                     for r in rows],
+                    console=out,
+                )
+                for r in cmp.rows:
+                    if r.error:
+                        out.print(f"{r.method}: failed: {r.error}")
+                out.print(
+                    f"differences are to the converged {cmp.reference} solution; times are "
+                    "medians of repeated solves (parameters only)"
+                )
+            if report is not None:
+                from ..examples.absolute import add_comparison
+
+                rep = Report("Absolute orientation: method comparison")
+                add_comparison(rep, cmp, title=f"{source.name}: all methods")
+                rep.write(report)
+                if not as_json:
+                    out.print(f"report written to {report}")
+            return
+        if sigma_source is not None:
+            options["sigma_source"] = sigma_source
+        if initial is not None:
+            options["initial"] = initial
+        row_ids = tuple(str(i) for i in ids[ctrl])
+        if ransac:
+            if threshold is None:
+                raise InputError("--ransac needs --threshold (inlier distance, target units)")
+            fit = ransac_absolute_orientation(
+                x, X, threshold, method=meth, rng=seed, ids=row_ids,
+                **{k: v for k, v in options.items() if k not in ("initial", "sigma_source")},
+            )
+        else:
+            fit = absolute_orientation(x, X, meth, ids=row_ids, **options)
+        if is_check.any():
+            chk = fit.transform.apply(pairs.source[is_check]) - pairs.target[is_check]
+            fit = fit.with_checks(chk, [str(i) for i in ids[is_check]])
+        if as_json:
+            typer.echo(json.dumps(_fit_json(fit, conv, angle, pairs.notes), indent=2))
+        else:
+            for note in pairs.notes:
+                out.print(f"note: {note}")
+            print_fit(fit, console=out, angle_unit=angle,
+                      title=f"Absolute orientation ({meth})")
+            out.print(_angles_line(fit, conv, angle))
+            if fit.inliers is not None:
+                out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
+        if report is not None:
+            rep = Report("Absolute orientation")
+            used = X if fit.inliers is None else X[fit.inliers]
+            rep.add_fit(fit, title=f"Absolute orientation ({meth})", angle_unit=angle,
+                        points=used[:, :2], point_labels=("X", "Y"), point_unit=unit_)
+            rep.add_text("Angles", _angles_line(fit, conv, angle))
+            rep.write(report)
+            if not as_json:
+                out.print(f"report written to {report}")
+
+
+def _fmt(v, decimals: int, sci: bool = False) -> str:
+    if v is None:
+        return "-"
+    v = float(v)
+    if not np.isfinite(v):
+        return "-"
+    if sci:
+        return f"{v:.{decimals}e}"
+    return f"{v:.{decimals}f}"

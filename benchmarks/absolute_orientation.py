@@ -1,0 +1,195 @@
+"""Absolute orientation benchmark: every method, batched minimal solves, large n, and peers.
+
+Run:  python benchmarks/absolute_orientation.py            (about two minutes)
+      python benchmarks/absolute_orientation.py --quick    (smaller sizes, for a smoke run)
+
+Prints, from one run on this machine (times are medians of repeated calls in this process):
+
+1. single solves at n = 3, 18, 1000 of every method (parameters only, ``statistics=False``;
+   also the SVD with statistics), and of the peers that are installed: scikit-image
+   ``SimilarityTransform.from_estimate`` (3D), OpenCV ``estimateAffine3D(..., force_rotation)``
+   (Umeyama with scale), Open3D ``TransformationEstimationPointToPoint(with_scaling=True)``;
+   ratios peer / ours (SVD);
+2. 1e5 three-point problems solved in one batched call vs a Python loop of single solves;
+3. n = 1e6 and 1e7: time of the fast path against the time numpy needs to sum both input
+   arrays once, and the peers at 1e6.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+import photogeom as pg
+from photogeom.orientation import METHODS
+
+
+def median_time(fn, min_time: float = 0.3, min_reps: int = 5, max_reps: int = 100000) -> float:
+    """Median seconds per call over repeated calls (after one warm-up call)."""
+    fn()
+    times = []
+    start = time.perf_counter()
+    while len(times) < max_reps and (
+        len(times) < min_reps or time.perf_counter() - start < min_time
+    ):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def problem(n: int, seed: int = 0, noise: float = 0.01):
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(random_state=seed).as_matrix()
+    x = rng.uniform(-50, 50, (n, 3))
+    X = 1.7 * x @ R.T + np.array([100.0, -200.0, 30.0]) + rng.normal(scale=noise, size=(n, 3))
+    return x, X, R
+
+
+def peers():
+    """name -> callable(x, X) returning something with the rotation (installed peers only)."""
+    out = {}
+    try:
+        from skimage.transform import SimilarityTransform
+
+        out["scikit-image SimilarityTransform"] = lambda x, X: SimilarityTransform.from_estimate(
+            x, X
+        )
+    except ImportError:
+        print("scikit-image: not installed (pip install scikit-image)")
+    try:
+        import cv2
+
+        def opencv(x, X):
+            return cv2.estimateAffine3D(x, X, force_rotation=True)
+
+        out[f"OpenCV {cv2.__version__} estimateAffine3D"] = opencv
+    except (ImportError, TypeError):
+        print("OpenCV: not installed or no estimateAffine3D(src, dst, force_rotation)")
+    try:
+        import open3d as o3d
+
+        est = o3d.pipelines.registration.TransformationEstimationPointToPoint(with_scaling=True)
+
+        def open3d(x, X):
+            ps = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(x))
+            pt = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(X))
+            idx = np.arange(x.shape[0], dtype=np.int32)
+            corr = o3d.utility.Vector2iVector(np.column_stack([idx, idx]))
+            return est.compute_transformation(ps, pt, corr)
+
+        out[f"Open3D {o3d.__version__} point-to-point (from numpy)"] = open3d
+    except ImportError as exc:
+        print(f"Open3D: not importable ({exc}); pip install open3d-cpu (needs libusb-1.0)")
+    return out
+
+
+def section_single(sizes, min_time):
+    print("\n1. single solves: microseconds per call (median)")
+    peer_fns = peers()
+    head = f"{'method':<48}" + "".join(f"{f'n={n}':>12}" for n in sizes)
+    print(head)
+    rows = {}
+    data = {n: problem(n, seed=n) for n in sizes}
+    for m in METHODS:
+        rows[m] = [
+            median_time(lambda n=n, m=m: pg.absolute_orientation(*data[n][:2], m,
+                                                                 statistics=False), min_time)
+            for n in sizes
+        ]
+    rows["svd with statistics"] = [
+        median_time(lambda n=n: pg.absolute_orientation(*data[n][:2], "svd"), min_time)
+        for n in sizes
+    ]
+    for name, fn in peer_fns.items():
+        rows[name] = [median_time(lambda n=n, fn=fn: fn(*data[n][:2]), min_time) for n in sizes]
+    for name, ts in rows.items():
+        print(f"{name:<48}" + "".join(f"{t * 1e6:>12.1f}" for t in ts))
+    print("ratios (time of the other / time of our SVD, parameters only; > 1: ours faster)")
+    ours = rows["svd"]
+    for name, ts in rows.items():
+        if name == "svd":
+            continue
+        print(f"  {name:<46}" + "".join(f"{t / o:>12.2f}" for t, o in zip(ts, ours)))
+    return rows
+
+
+def section_batch(B, loop_n, min_time):
+    print(f"\n2. {B:.0e} three-point problems: one batched call vs a Python loop of single solves")
+    rng = np.random.default_rng(1)
+    R = Rotation.random(B, random_state=1).as_matrix()
+    x = rng.uniform(-10, 10, (B, 3, 3))
+    X = 2.0 * np.matmul(x, np.swapaxes(R, 1, 2)) + 5 + rng.normal(scale=0.01, size=(B, 3, 3))
+    print(f"{'method':<18}{'batch [s]':>12}{'loop [s]':>12}{'ratio':>10}   (loop over all {B} "
+          f"problems for svd, else {loop_n} extrapolated)")
+    for m in ("svd", "gauss-helmert", "quaternion", "dual-quaternion", "closed-form"):
+        tb = median_time(lambda m=m: pg.absolute_orientation_batch(x, X, m), min_time, min_reps=3)
+        count = B if m == "svd" else loop_n
+        t0 = time.perf_counter()
+        for i in range(count):
+            pg.absolute_orientation(x[i], X[i], m, statistics=False)
+        tl = (time.perf_counter() - t0) / count * B
+        print(f"{m:<18}{tb:>12.3f}{tl:>12.3f}{tl / tb:>10.1f}")
+    res = pg.absolute_orientation_batch(x, X, "svd")
+    print(f"   batched svd: max |R - R_true| = {np.nanmax(np.abs(res.rotation - R)):.1e} "
+          f"(noise 0.01 on 3 points), {int(res.valid.sum())} of {B} valid")
+
+
+def section_large(sizes):
+    print("\n3. large n: fast path (statistics=False) against summing both arrays once")
+    peer_fns = peers()
+    for n in sizes:
+        rng = np.random.default_rng(n)
+        R = Rotation.random(random_state=3).as_matrix()
+        x = rng.normal(scale=50.0, size=(n, 3))
+        X = 1.3 * x @ R.T + np.array([10.0, 20.0, 30.0]) + rng.normal(scale=0.01, size=(n, 3))
+        reps = 7 if n <= 1_000_000 else 3
+        ref = median_time(lambda x=x, X=X: (x.sum(), X.sum()), 0.0, min_reps=reps)
+        print(f"n = {n:.0e}: numpy x.sum() + X.sum(): {ref * 1e3:.1f} ms")
+        methods = ["svd", "quaternion", "dual-quaternion", "gauss-helmert", "closed-form"]
+        for m in methods:
+            t = median_time(
+                lambda m=m, x=x, X=X: pg.absolute_orientation(x, X, m, statistics=False), 0.0,
+                min_reps=reps,
+            )
+            print(f"   {m:<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
+        if n <= 1_000_000:
+            t = median_time(lambda x=x, X=X: pg.absolute_orientation(x, X, "svd"), 0.0,
+                            min_reps=3)
+            print(f"   {'svd with statistics':<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
+            Xu = X + np.array([5.0e5, 4.0e6, 0.0])  # UTM-sized target: exact centring first
+            t = median_time(
+                lambda x=x, Xu=Xu: pg.absolute_orientation(x, Xu, "svd", statistics=False),
+                0.0, min_reps=reps,
+            )
+            label = "svd, UTM-sized target"
+            print(f"   {label:<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
+            for name, fn in peer_fns.items():
+                t = median_time(lambda fn=fn, x=x, X=X: fn(x, X), 0.0, min_reps=3)
+                print(f"   {name:<46}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small sizes (smoke run)")
+    args = ap.parse_args(argv)
+    import numpy
+
+    print(f"photogeom {pg.__version__}, numpy {numpy.__version__}, python {sys.version.split()[0]}")
+    if args.quick:
+        section_single((3, 18), 0.05)
+        section_batch(2000, 500, 0.05)
+        section_large((100_000,))
+    else:
+        section_single((3, 18, 1000), 0.3)
+        section_batch(100_000, 10_000, 0.5)
+        section_large((1_000_000, 10_000_000))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1014 @@
+"""Absolute orientation: the 3D similarity ``X = s R x + t`` from point pairs, by six methods.
+
+>>> import photogeom as pg
+>>> fit = pg.absolute_orientation(source, target, method="svd")        # doctest: +SKIP
+>>> fit.scale, fit.rotation, fit.translation, fit.std_errors["kappa"]   # doctest: +SKIP
+
+Methods (``docs/absolute-orientation.md`` has the formulas and the comparison):
+
+=================== ===============================================================
+``"closed-form"``   A: normalised unit vectors, ``R = (M M.T) inv(N M.T)`` (Afary 2024)
+``"svd"``           B: Arun / Umeyama, weighted, reflection guard (the default)
+``"quaternion"``    C: Horn's unit quaternion
+``"dual-quaternion"`` D: Walker et al. with scale and weights
+``"gauss-markov"``  E: iterative least squares, target coordinates observed
+``"gauss-helmert"`` F: errors in both systems (direct, or iterative with covariances)
+=================== ===============================================================
+
+Parameters and standard deviations are named ``tx, ty, tz, scale, omega, phi, kappa``; angles
+in radians in the *transposed* convention ``R = M(omega, phi, kappa).T`` (Wolf, Kraus);
+:meth:`AbsoluteOrientationFit.angles` gives either convention in rad/deg/gon. Residuals are
+computed minus observed, in the target system.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numpy as np
+
+from ..adjust import Fit
+from ..errors import (
+    ConvergenceError,
+    DegenerateGeometryError,
+    InputError,
+    ReflectionError,
+    TooFewPointsError,
+)
+from ..rotation import angles_from_rotation, orthogonality_defect
+from ..transforms import Similarity3D
+from ..validation import check_finite
+from . import absolute_adjust as _adj
+from .absolute_direct import (
+    PairMoments,
+    closed_form_single,
+    large_moments,
+    solve_closed_form,
+    solve_single,
+)
+from .absolute_stats import linearised_statistics, opk_transposed, rotation_derivatives
+
+#: The six methods, in the order of the specification (A-F).
+METHODS: tuple[str, ...] = (
+    "closed-form",
+    "svd",
+    "quaternion",
+    "dual-quaternion",
+    "gauss-markov",
+    "gauss-helmert",
+)
+#: Methods with a direct (non-iterative) solution.
+DIRECT_METHODS: tuple[str, ...] = ("closed-form", "svd", "quaternion", "dual-quaternion")
+#: From this number of points on, ``statistics=False`` uses one-pass moments.
+LARGE_N = 65536
+
+_ALIASES = {
+    "closedform": "closed-form",
+    "closed-form": "closed-form",
+    "afary": "closed-form",
+    "svd": "svd",
+    "umeyama": "svd",
+    "quaternion": "quaternion",
+    "horn": "quaternion",
+    "dual-quaternion": "dual-quaternion",
+    "dualquaternion": "dual-quaternion",
+    "gauss-markov": "gauss-markov",
+    "gaussmarkov": "gauss-markov",
+    "gauss-helmert": "gauss-helmert",
+    "gausshelmert": "gauss-helmert",
+}
+
+def normalize_method(method: str) -> str:
+    """Canonical method name (case-insensitive; ``_`` and spaces read as ``-``)."""
+    key = str(method).strip().lower().replace("_", "-").replace(" ", "-")
+    if key not in _ALIASES:
+        raise InputError(
+            f"unknown absolute orientation method {method!r}; choose one of {', '.join(METHODS)}"
+        )
+    return _ALIASES[key]
+
+
+@dataclass(frozen=True, eq=False)
+class AbsoluteOrientationFit(Fit):
+    """Result of :func:`absolute_orientation` (a :class:`~photogeom.adjust.Fit`).
+
+    ``parameters`` are ``(tx, ty, tz, scale, omega, phi, kappa)`` (without ``scale`` for the
+    rigid model), angles in radians, transposed convention ``R = M(omega, phi, kappa).T``.
+    ``model`` is the :class:`~photogeom.transforms.Similarity3D`; for the raw closed form its
+    rotation is not exactly orthogonal (``orthogonality_defect`` says how far).
+
+    ``extras`` may hold: ``"corrected_source"``, ``"corrected_target"``,
+    ``"source_residuals"`` (Gauss-Helmert), ``"inliers"`` (RANSAC, bool mask over all input
+    points), ``"removed"`` (data snooping), ``"start"`` (initial values of E/F).
+    """
+
+    @property
+    def scale(self) -> float:
+        """Scale factor ``s``."""
+        return float(self.model.scale)
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """``R`` (3, 3), applied to source coordinates: ``X = s R x + t``."""
+        return self.model.rotation
+
+    @property
+    def translation(self) -> np.ndarray:
+        """``t`` (3,) in target units."""
+        return self.model.translation
+
+    def angles(self, convention: str = "transposed", unit: str = "rad") -> tuple:
+        """``(omega, phi, kappa)`` of ``R`` in ``convention`` (``"transposed"``: ``R =
+        M.T``, ``"direct"``: ``R = M``) and ``unit`` (``"rad"``, ``"deg"``, ``"gon"``)."""
+        return angles_from_rotation(
+            self.rotation, convention=convention, unit=unit, on_gimbal_lock="omega-zero"
+        )
+
+    @property
+    def orthogonality_defect(self) -> float:
+        """``|R.T R - I|`` (Frobenius); ~1e-16 except for the raw closed form."""
+        return float(orthogonality_defect(self.rotation))
+
+    @property
+    def inliers(self) -> np.ndarray | None:
+        """RANSAC inlier mask over all input points (None without RANSAC)."""
+        return self.extras.get("inliers")
+
+    @property
+    def corrected_source(self) -> np.ndarray | None:
+        """Adjusted source coordinates (Gauss-Helmert), else None."""
+        return self.extras.get("corrected_source")
+
+    @property
+    def corrected_target(self) -> np.ndarray | None:
+        """Adjusted target coordinates (Gauss-Helmert), else None."""
+        return self.extras.get("corrected_target")
+
+
+# --- input handling ----------------------------------------------------------------------------
+
+
+def _as_pair(source, target) -> tuple[np.ndarray, np.ndarray]:
+    x = _as3(source, "source")
+    X = _as3(target, "target")
+    if x.shape[0] != X.shape[0]:
+        raise InputError(
+            f"source has {x.shape[0]} point(s) but target has {X.shape[0]}; "
+            "they must correspond one to one"
+        )
+    if x.shape[0] < 3:
+        raise TooFewPointsError(
+            "absolute orientation",
+            x.shape[0],
+            3,
+            "three non-collinear point pairs determine the 7 parameters",
+        )
+    return x, X
+
+
+def _as3(values, name: str) -> np.ndarray:
+    try:
+        a = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise InputError(f"{name}: expected an array of shape (n, 3), got shape {a.shape}")
+    return a
+
+
+def _finite_or_raise(x: np.ndarray, X: np.ndarray) -> None:
+    check_finite(x, "source")
+    check_finite(X, "target")
+    raise InputError(
+        "absolute orientation: the sums of the coordinates overflow; the coordinates are too "
+        "large (reduce them by a common offset)"
+    )
+
+
+@dataclass(frozen=True)
+class _Precision:
+    """Observation precision in normalised form."""
+
+    point_w: np.ndarray | None = None  # (n,) isotropic per point (target / both)
+    obs_w: np.ndarray | None = None  # (3n,) per target coordinate
+    cov_t: np.ndarray | None = None  # (3n,3n) or (n,3,3) target covariance
+    sig_s: object = None  # GH source: None, scalar, (n,), (n,3)
+    sig_t: object = None
+    cov_s: np.ndarray | None = None
+    scalar_sigmas: bool = True  # GH: at most one sigma per system
+
+
+def _sigma_array(sig, n: int, name: str):
+    if sig is None:
+        return None
+    a = np.asarray(sig, dtype=float)
+    if a.ndim == 0:
+        v = float(a)
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"{name} must be a positive number, got {v}")
+        return v
+    if a.shape == (n,) or a.shape == (n, 3):
+        if not (np.all(np.isfinite(a)) and np.all(a > 0)):
+            raise InputError(f"{name}: every standard deviation must be finite and > 0")
+        return a
+    raise InputError(f"{name}: expected a number, shape ({n},) or ({n}, 3); got shape {a.shape}")
+
+
+def _cov_array(cov, n: int, name: str):
+    if cov is None:
+        return None
+    c = np.asarray(cov, dtype=float)
+    if c.shape not in ((n, 3, 3), (3 * n, 3 * n)):
+        raise InputError(
+            f"{name}: expected shape ({n}, 3, 3) (per point) or ({3 * n}, {3 * n}) (full), "
+            f"got {c.shape}"
+        )
+    if not np.all(np.isfinite(c)):
+        raise InputError(f"{name}: NaN or infinite values")
+    return c
+
+
+_NO_PRECISION = _Precision()
+
+
+def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_target,
+               sigma0_prior=1.0):
+    if (
+        weights is None and sigma_source is None and sigma_target is None
+        and cov_source is None and cov_target is None
+    ):
+        return _NO_PRECISION
+    w = None
+    if weights is not None:
+        w = np.asarray(weights, dtype=float)
+        if w.shape not in ((n,), (n, 3), (3 * n,)):
+            raise InputError(
+                f"weights: expected shape ({n},) per point, ({n}, 3) or ({3 * n},) per "
+                f"coordinate; got {w.shape}"
+            )
+        if not (np.all(np.isfinite(w)) and np.all(w > 0)):
+            raise InputError("weights: every weight must be finite and > 0")
+        if sigma_target is not None or cov_target is not None:
+            raise InputError("give either weights or sigma_target/covariance_target, not both")
+    st = _sigma_array(sigma_target, n, "sigma_target")
+    ss = _sigma_array(sigma_source, n, "sigma_source")
+    ct = _cov_array(cov_target, n, "covariance_target")
+    cs = _cov_array(cov_source, n, "covariance_source")
+    if st is not None and ct is not None:
+        raise InputError("give either sigma_target or covariance_target, not both")
+    if ss is not None and cs is not None:
+        raise InputError("give either sigma_source or covariance_source, not both")
+    if method != "gauss-helmert" and (ss is not None or cs is not None):
+        raise InputError(
+            f"method {method!r} treats the source coordinates as error-free; errors in both "
+            "systems (sigma_source / covariance_source) need method='gauss-helmert'"
+        )
+    if method == "gauss-helmert":
+        if w is not None:
+            if w.shape != (n,):
+                raise InputError(
+                    "gauss-helmert: weights are per point pair (shape (n,)); give per-coordinate "
+                    "precision as sigma_source / sigma_target of shape (n, 3)"
+                )
+            if st is not None or ss is not None:
+                raise InputError("give either weights or sigma_source/sigma_target, not both")
+            ss = st = 1.0 / np.sqrt(w)
+        scalar = (
+            (ss is None or np.ndim(ss) == 0)
+            and (st is None or np.ndim(st) == 0)
+            and cs is None
+            and ct is None
+        )
+        return _Precision(sig_s=ss, sig_t=st, cov_s=cs, cov_t=ct, scalar_sigmas=scalar)
+    # observation equations: target precision only
+    point_w = obs_w = None
+    if w is not None:
+        if w.shape == (n,):
+            point_w = w
+        else:
+            obs_w = w.reshape(-1)
+    elif st is not None:
+        s2 = sigma0_prior**2
+        if np.ndim(st) == 0:
+            point_w = np.full(n, s2 / st**2)
+        elif st.shape == (n,):
+            point_w = s2 / st**2
+        else:
+            obs_w = (s2 / st**2).reshape(-1)
+    if method in DIRECT_METHODS and (obs_w is not None or ct is not None):
+        raise InputError(
+            f"method {method!r} takes one weight per point; per-coordinate weights or "
+            "covariances need method='gauss-markov' (or 'gauss-helmert')"
+        )
+    if method == "closed-form" and point_w is not None and np.ptp(point_w) > 0:
+        raise InputError(
+            "closed-form (method A) has no weights as published; use 'svd', 'quaternion', "
+            "'dual-quaternion' or 'gauss-markov' for weighted points"
+        )
+    return _Precision(point_w=point_w, obs_w=obs_w, cov_t=ct)
+
+
+# --- the public entry point ----------------------------------------------------------------
+
+
+def absolute_orientation(
+    source,
+    target,
+    method: str = "svd",
+    *,
+    weights=None,
+    with_scale: bool = True,
+    scale_method: str | None = None,
+    statistics: bool = True,
+    initial=None,
+    sigma_source=None,
+    sigma_target=None,
+    covariance_source=None,
+    covariance_target=None,
+    covariance=None,
+    sigma0_prior: float = 1.0,
+    nearest_rotation: bool = False,
+    coplanar_threshold: float | None = None,
+    iterate: bool | None = None,
+    max_iter: int = 50,
+    tol: float = 1e-10,
+    raise_on_failure: bool = True,
+    robust: str | None = None,
+    threshold: float | None = None,
+    ids: Sequence | None = None,
+    unit: str = "m",
+    **robust_options,
+) -> AbsoluteOrientationFit:
+    """Estimate the 3D similarity ``X = s R x + t`` from corresponding points.
+
+    Parameters
+    ----------
+    source, target : array_like, shape (n, 3)
+        Corresponding points (model/source -> ground/target), n >= 3, not collinear.
+    method : str
+        ``"closed-form"``, ``"svd"`` (default), ``"quaternion"``, ``"dual-quaternion"``,
+        ``"gauss-markov"`` or ``"gauss-helmert"``.
+    weights : array_like, optional
+        Point weights (n,) for every method but the closed form; per-coordinate weights
+        (n, 3) or (3n,) for ``"gauss-markov"``. ``P = diag(weights)``, sigma0_prior = 1.
+    with_scale : bool
+        False estimates the rigid (6-parameter) transformation, ``s = 1``.
+    scale_method : {"least-squares", "symmetric"}, optional
+        Scale of the SVD / quaternion / dual-quaternion methods: ``"least-squares"``
+        (default; Umeyama, identical for B, C, D, E) or Horn's ``"symmetric"``
+        ``sqrt(sum |X'|^2 / sum |x'|^2)``.
+    statistics : bool
+        Compute residuals, sigma0, covariance and normalised residuals (the linearised
+        Gauss-Markov model at the solution for the direct methods). ``False`` is the fast path
+        for millions of points: one pass over the data, no residuals (``fit.residuals`` is
+        empty; apply ``fit.transform`` to get them).
+    initial : str, Similarity3D or array_like, optional
+        Start of ``"gauss-markov"`` / ``"gauss-helmert"``: a direct method name (default
+        ``"svd"``; ``"gauss-helmert"`` starts from its direct solution), ``"zeros"`` (s = 1,
+        R = I, t = 0), a :class:`Similarity3D`, or ``(tx, ty, tz, scale, omega, phi, kappa)``
+        in radians, transposed convention.
+    sigma_source, sigma_target : float or array_like, optional
+        Standard deviations of the coordinates (target units): one per system, (n,) per
+        point, or (n, 3) per coordinate. ``sigma_source`` only for ``"gauss-helmert"``.
+    covariance_source, covariance_target : array_like, optional
+        Covariances per point (n, 3, 3) or full (3n, 3n). ``covariance`` is an alias of
+        ``covariance_target``.
+    sigma0_prior : float
+        A-priori standard deviation of unit weight: ``P = sigma0_prior^2 C^-1`` for sigmas and
+        covariances (``weights`` are P itself); used by the w-test and ``std_errors_prior``.
+    nearest_rotation : bool
+        Closed form only: replace the raw (non-orthogonal) R by the nearest rotation.
+    coplanar_threshold : float, optional
+        Closed form only: augment with the plane normal when the smallest / largest singular
+        value of either centred point set is below this (default
+        :data:`~photogeom.orientation.absolute_direct.COPLANAR_THRESHOLD` = 0.3; 0 augments
+        only for n = 3).
+    iterate : bool, optional
+        ``"gauss-helmert"``: ``None`` uses the exact direct solution for at most one sigma per
+        system and the iterative adjustment otherwise; ``True`` always iterates.
+    max_iter, tol : int, float
+        Iteration limit and convergence tolerance of E/F (see
+        :func:`photogeom.adjust.gauss_markov`).
+    raise_on_failure : bool
+        Non-convergence raises :class:`ConvergenceError`; with False a flagged fit
+        (``converged=False``) is returned. A solution with scale <= 0 always raises.
+    robust : {"ransac"}, optional
+        Run :func:`~photogeom.orientation.ransac_absolute_orientation` with ``threshold``
+        (target units) and ``robust_options``; ``method`` refines on the inliers.
+    ids : sequence, optional
+        Point ids for the residual rows.
+    unit : str
+        Length unit of the target system (labels only).
+
+    Returns
+    -------
+    AbsoluteOrientationFit
+
+    Raises
+    ------
+    TooFewPointsError, InputError, DegenerateGeometryError, ReflectionError, ConvergenceError
+    """
+    method = normalize_method(method)
+    if robust is not None:
+        if str(robust).lower() != "ransac":
+            raise InputError(f"robust must be 'ransac' or None, not {robust!r}")
+        if threshold is None:
+            raise InputError("robust='ransac' needs an inlier threshold (target units)")
+        from .absolute_robust import ransac_absolute_orientation
+
+        return ransac_absolute_orientation(
+            source, target, threshold, method=method, with_scale=with_scale,
+            statistics=statistics, weights=weights, sigma_target=sigma_target, ids=ids,
+            unit=unit, **robust_options,
+        )
+    if robust_options:
+        raise InputError(f"unexpected keyword argument(s): {', '.join(sorted(robust_options))}")
+    t0 = time.perf_counter()
+    x, X = _as_pair(source, target)
+    n = x.shape[0]
+    if ids is not None and len(ids) != n:
+        raise InputError(f"ids: {len(ids)} id(s) for {n} point pair(s)")
+    if covariance is not None:
+        if covariance_target is not None:
+            raise InputError("give covariance or covariance_target (an alias), not both")
+        covariance_target = covariance
+    if not (math.isfinite(sigma0_prior) and sigma0_prior > 0):
+        raise InputError(f"sigma0_prior must be a positive number, got {sigma0_prior!r}")
+    prec = _precision(
+        method, n, weights, sigma_source, sigma_target, covariance_source, covariance_target,
+        sigma0_prior,
+    )
+    if scale_method is not None:
+        if scale_method not in ("least-squares", "symmetric"):
+            raise InputError(
+                f"scale_method must be 'least-squares' or 'symmetric', not {scale_method!r}"
+            )
+        if method not in ("svd", "quaternion", "dual-quaternion"):
+            raise InputError(
+                f"scale_method applies to 'svd', 'quaternion' and 'dual-quaternion', not {method!r}"
+            )
+    if (nearest_rotation or coplanar_threshold is not None) and method != "closed-form":
+        raise InputError(
+            "nearest_rotation and coplanar_threshold are options of method='closed-form' only"
+        )
+    if initial is not None and method not in ("gauss-markov", "gauss-helmert"):
+        raise InputError("initial values apply to 'gauss-markov' and 'gauss-helmert' only")
+    ctx = _Context(n=n, ids=None if ids is None else tuple(ids), unit=unit, t0=t0,
+                   sigma0_prior=float(sigma0_prior))
+    if method in DIRECT_METHODS:
+        return _direct_fit(
+            method, x, X, prec, with_scale, scale_method or "least-squares", statistics,
+            nearest_rotation, ctx, coplanar_threshold,
+        )
+    if method == "gauss-markov":
+        return _gauss_markov_fit(
+            x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
+        )
+    return _gauss_helmert_fit(
+        x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol, raise_on_failure, ctx
+    )
+
+
+@dataclass(slots=True)
+class _Context:
+    n: int
+    ids: tuple | None
+    unit: str
+    t0: float
+    sigma0_prior: float = 1.0
+
+
+def _check_solution(degenerate, reflection, method: str) -> None:
+    if degenerate is not False and bool(np.ravel(degenerate)[0]):
+        raise DegenerateGeometryError(
+            f"absolute orientation ({method}): the points are collinear or coincide, so the "
+            "rotation about their line (and the scale, if all coincide) is undetermined; at "
+            "least three non-collinear points are needed"
+        )
+    if reflection is not False and bool(np.ravel(reflection)[0]):
+        raise ReflectionError(
+            f"absolute orientation ({method}): the best fit is a reflection (det R = -1), "
+            "not a rotation: the two coordinate systems have opposite handedness (e.g. one is "
+            "left-handed). Flip the sign of one axis of one system"
+        )
+
+
+_UNITS: dict = {}
+
+
+def _param_units(with_scale: bool, unit: str) -> Mapping[str, str]:
+    key = (with_scale, unit)
+    if key not in _UNITS:
+        u = {"tx": unit, "ty": unit, "tz": unit, "omega": "rad", "phi": "rad", "kappa": "rad"}
+        if with_scale:
+            u["scale"] = "1"
+        _UNITS[key] = MappingProxyType(u)
+    return _UNITS[key]
+
+
+_CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (radians inside)"
+
+
+_NAN = {u: np.full((u, u), np.nan) for u in (6, 7)}
+for _a in _NAN.values():
+    _a.flags.writeable = False
+
+
+def _nan_stats(u: int) -> np.ndarray:
+    """Read-only NaN matrix (statistics not computed)."""
+    return _NAN[u]
+
+
+def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, nearest, ctx,
+                coplanar_threshold=None):
+    n = ctx.n
+    w = prec.point_w
+    notes = [_CONVENTION_NOTE]
+    raw = False
+    pm = None
+    if method == "closed-form":
+        check_finite(x, "source")
+        check_finite(X, "target")
+        kw = {} if coplanar_threshold is None else {"coplanar_threshold": coplanar_threshold}
+        sol, augmented, k = closed_form_single(
+            x, X, nearest=nearest, with_scale=with_scale, **kw
+        )
+        raw = not nearest
+        if k:
+            notes.append(
+                f"{k} point(s) at the centroid carry no direction: left out of the scale "
+                "ratios and unit vectors (kept in centroids and residuals)"
+            )
+        if augmented:
+            notes.append("plane-normal augmentation used (n = 3 or a nearly coplanar point set)")
+        _check_solution(sol.degenerate, sol.reflection, method)
+        s, R, t = sol.scale, sol.rotation, sol.translation
+    else:
+        pm = _moments(x, X, w, statistics)
+        sol = solve_single(pm, method, with_scale=with_scale, scale_method=scale_method)
+        _check_solution(sol.degenerate, sol.reflection, method)
+        s, R, t = sol.scale, sol.rotation, sol.translation
+    if raw:
+        notes.append(
+            f"raw closed-form R kept as published (orthogonality defect "
+            f"{orthogonality_defect(R):.2e}); angles read from it"
+        )
+    model = Similarity3D(s, R, t, check=False) if raw else _similarity(s, R, t)
+    omega, phi, kappa, gimbal = opk_transposed(R)
+    if gimbal:
+        notes.append(_GIMBAL_NOTE)
+    params = _params(t, s, (omega, phi, kappa), with_scale)
+    names = _adj.names(with_scale)
+    u = len(names)
+    r = 3 * n - u
+    if not statistics:
+        return AbsoluteOrientationFit(
+            model=model, method=method, parameter_names=names, parameters=params,
+            covariance=_nan_stats(u), cofactor=_nan_stats(u), sigma0=math.nan,
+            sigma0_prior=1.0, redundancy=r, n_observations=3 * n,
+            residuals=np.empty((0, 3)), ids=ctx.ids, residual_labels=("X", "Y", "Z"),
+            residual_unit=ctx.unit, parameter_units=_param_units(with_scale, ctx.unit),
+            elapsed=time.perf_counter() - ctx.t0,
+            notes=(*notes, "statistics=False: no residuals or statistics computed"),
+        )
+    if pm is not None:
+        xg, Xg = pm.source_centroid, pm.target_centroid
+    else:
+        xg, Xg = x.mean(axis=0), X.mean(axis=0)
+    xr = x - xg
+    v = s * (xr @ R.T) - (X - Xg) + (s * (R @ xg) + t - Xg)
+    st = linearised_statistics(
+        xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
+        with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
+    )
+    if raw:
+        notes.append("statistics from the linearised model at the reported parameters")
+    return _stat_fit(model, method, names, params, st, r, 3 * n, v, with_scale, ctx, notes)
+
+
+def _moments(x, X, w, statistics: bool) -> PairMoments:
+    n = x.shape[0]
+    if not statistics and n >= LARGE_N:
+        pm = PairMoments.from_moments(large_moments(x, X, w))
+    else:
+        pm = PairMoments.of(x, X, w)
+    if not pm.finite():
+        _finite_or_raise(x, X)
+    return pm
+
+
+def _similarity(s, R, t) -> Similarity3D:
+    """``Similarity3D(s, R, t)`` for a rotation that is orthogonal by construction (SVD,
+    quaternion, adjustment): the same object, without repeating the orthogonality and
+    determinant check that would cost more than the whole small solve."""
+    s = float(s)
+    R = np.array(R, dtype=float)
+    t = np.array(t, dtype=float)
+    if not (s > 0 and math.isfinite(s) and R.shape == (3, 3) and t.shape == (3,)):
+        return Similarity3D(s, R, t)  # let the constructor report the problem
+    R.flags.writeable = False
+    t.flags.writeable = False
+    obj = object.__new__(Similarity3D)
+    for name, value in (("scale", s), ("rotation", R), ("translation", t), ("check", True)):
+        object.__setattr__(obj, name, value)
+    return obj
+
+
+def _params(t, s, angles, with_scale) -> np.ndarray:
+    return _adj.pack(t, s, angles, with_scale)
+
+
+def _stat_fit(model, method, names, params, st, r, n_obs, v, with_scale, ctx, notes,
+              extras=None, iterations=0, message="") -> AbsoluteOrientationFit:
+    s0 = math.sqrt(max(st.vtpv, 0.0) / r) if r > 0 else math.nan
+    return AbsoluteOrientationFit(
+        model=model, method=method, parameter_names=names, parameters=params,
+        covariance=s0**2 * st.cofactor, cofactor=st.cofactor, sigma0=s0,
+        sigma0_prior=ctx.sigma0_prior,
+        redundancy=r, n_observations=n_obs, residuals=v, ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
+        parameter_units=_param_units(with_scale, ctx.unit),
+        normalized_residuals=st.normalized_residuals, redundancy_numbers=st.redundancy_numbers,
+        iterations=iterations, converged=True, message=message,
+        elapsed=time.perf_counter() - ctx.t0, notes=tuple(notes), extras=extras or {},
+    )
+
+
+# --- initial values for E / F ---------------------------------------------------------------
+
+
+def _start(
+    initial, x, X, with_scale, point_w, default: str
+) -> tuple[float, np.ndarray, np.ndarray, str]:
+    if initial is None:
+        initial = default
+    if isinstance(initial, str):
+        key = initial.strip().lower()
+        if key in ("zeros", "zero", "identity"):
+            return 1.0, np.eye(3), np.zeros(3), "zeros (s = 1, R = I, t = 0)"
+        meth = normalize_method(key)
+        if meth == "gauss-markov":
+            raise InputError("initial values: choose a direct method, 'zeros' or given values")
+        if meth == "closed-form":
+            sol = solve_closed_form(x[None], X[None], with_scale=with_scale)
+            _check_solution(sol.degenerate, sol.reflection, f"initial values by {meth}")
+            s, R, t = float(sol.scale[0]), sol.rotation[0], sol.translation[0]
+        else:
+            pm = PairMoments.of(x, X, None if meth == "gauss-helmert" else point_w)
+            one = solve_single(pm, meth, with_scale=with_scale)
+            _check_solution(one.degenerate, one.reflection, f"initial values by {meth}")
+            s, R, t = one.scale, one.rotation, one.translation
+        return s, R, t, f"direct method {meth}"
+    if isinstance(initial, Similarity3D):
+        return initial.scale, np.asarray(initial.rotation), np.asarray(initial.translation), (
+            "given Similarity3D"
+        )
+    p = np.asarray(initial, dtype=float).reshape(-1)
+    u = 7 if with_scale else 6
+    if p.size != u or not np.all(np.isfinite(p)):
+        raise InputError(
+            f"initial values: expected {u} finite numbers (tx, ty, tz"
+            + (", scale" if with_scale else "")
+            + ", omega, phi, kappa; radians, transposed convention), a Similarity3D, a method "
+            "name or 'zeros'"
+        )
+    t, s, ang = _adj.unpack(p, with_scale)
+    R, _ = rotation_derivatives(*ang)
+    return s, R, t, "given values"
+
+
+def _min_cost(pm: PairMoments, with_scale: bool) -> float:
+    """Least-squares cost ``min sum w |v|^2`` of point-weighted data from the moments."""
+    S = np.linalg.svd(pm.H, compute_uv=False)
+    d = np.sign(np.linalg.det(pm.H)) or 1.0
+    lam = S[0] + S[1] + d * S[2]
+    a, b = pm.a, pm.b
+    return b - lam * lam / a if with_scale else a + b - 2 * lam
+
+
+# --- E: Gauss-Markov ---------------------------------------------------------------------------
+
+
+def _geometry_check(x, X, w, with_scale, method) -> None:
+    """Collinear points and best-fit reflections, before any iteration."""
+    one = solve_single(PairMoments.of(x, X, w), "svd", with_scale=with_scale)
+    _check_solution(one.degenerate, one.reflection, method)
+
+
+def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx):
+    check_finite(x, "source")
+    check_finite(X, "target")
+    _geometry_check(x, X, prec.point_w, with_scale, "gauss-markov")
+    s0, R0, t0, start = _start(initial, x, X, with_scale, prec.point_w, "svd")
+    prob = _adj.reduce(x, X, prec.point_w)
+    R0 = _as_rotation(R0)
+    p0 = _adj.to_reduced(t0, s0, R0, prob.source_ref, prob.target_ref, with_scale)
+    obs_w = prec.obs_w
+    if prec.point_w is not None:
+        obs_w = np.repeat(prec.point_w, 3)
+    cov = prec.cov_t
+    what = "absolute orientation (Gauss-Markov)"
+    try:
+        adj = _adj.similarity_gauss_markov(
+            prob, p0, with_scale=with_scale, R0=R0, weights=obs_w, covariance=cov,
+            max_iter=max_iter, tol=tol, sigma0_prior=ctx.sigma0_prior,
+        )
+    except DegenerateGeometryError as exc:
+        raise ConvergenceError(_SINGULAR.format(what=what, start=start, exc=exc)) from exc
+    if not np.all(np.isfinite(adj.x)):
+        raise ConvergenceError(
+            f"{what}: diverged ({adj.message}) from {start}; start from a direct method "
+            "(initial='svd')", iterations=adj.iterations, result=adj,
+        )
+    _, s, _ = _adj.unpack(adj.x, with_scale)
+    if with_scale and s <= 0:
+        raise ConvergenceError(
+            f"{what}: the iteration from {start} ended at scale {s:.3g} <= 0, a point-reflected "
+            "fit (s R with s < 0 is a reflection), not a similarity; start from a direct "
+            "method (initial='svd')", iterations=adj.iterations, result=adj,
+        )
+    notes = [_CONVENTION_NOTE, f"start: {start}"]
+    if adj.converged:
+        if prec.obs_w is None and cov is None:
+            pmm = PairMoments.of(x, X, prec.point_w)
+            best = _min_cost(pmm, with_scale)
+            if adj.vtpv > best * (1 + 1e-6) + 1e-10 * pmm.b:
+                msg = (
+                    f"{what}: the iteration from {start} converged to a stationary point that is "
+                    f"not the least-squares minimum (v.T P v {adj.vtpv:.6g} vs {best:.6g}); "
+                    "start from a direct method (initial='svd')"
+                )
+                if raise_on_failure:
+                    raise ConvergenceError(msg, iterations=adj.iterations, result=adj)
+                notes.append(msg)
+                adj = _flag(adj, msg)
+    else:
+        msg = (
+            f"{what}: {adj.message} (started from {start}); the estimate is not a least-squares "
+            "solution. Start from a direct method (initial='svd') or raise max_iter"
+        )
+        if raise_on_failure:
+            raise ConvergenceError(msg, iterations=adj.iterations, result=adj)
+        notes.append("NOT CONVERGED: " + msg)
+    params, J, R, gimbal = _adj.to_original(
+        adj.x, prob.source_ref, prob.target_ref, with_scale, R0
+    )
+    if gimbal:
+        notes.append(_GIMBAL_NOTE)
+    t, s, _ = _adj.unpack(params, with_scale)
+    model = _similarity(s, R, t)
+    fit = AbsoluteOrientationFit.from_adjustment(
+        adj, model, "gauss-markov", point_dim=3, parameters=params,
+        parameter_names=_adj.names(with_scale), jacobian=J, ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
+        parameter_units=_param_units(with_scale, ctx.unit), notes=tuple(notes),
+        extras={"start": start, "cost_history": list(adj.cost_history)},
+        elapsed=time.perf_counter() - ctx.t0,
+    )
+    return fit
+
+
+_SINGULAR = (
+    "{what}: the iteration from {start} stopped at a singular normal matrix ({exc}); with a "
+    "good geometry this means the angles passed phi = +-90 deg relative to the start. Start "
+    "from a direct method (initial='svd')"
+)
+_GIMBAL_NOTE = (
+    "gimbal lock (phi = +-90 deg): omega set to 0, kappa holds the rotation about the "
+    "vertical; omega and kappa have no separate standard deviations"
+)
+
+
+def _as_rotation(R) -> np.ndarray:
+    """A proper rotation for the start (the raw closed-form matrix is orthogonalised)."""
+    R = np.asarray(R, dtype=float)
+    if orthogonality_defect(R) > 1e-9:
+        from ..rotation import nearest_rotation
+
+        R = nearest_rotation(R)
+    return R
+
+
+def _flag(adj, msg):
+    from dataclasses import replace
+
+    return replace(adj, converged=False, message=msg)
+
+
+# --- F: Gauss-Helmert ---------------------------------------------------------------------------
+
+
+def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
+    n = ctx.n
+    sx = 1.0 if prec.sig_s is None else float(prec.sig_s)
+    sX = 1.0 if prec.sig_t is None else float(prec.sig_t)
+    k = sX / sx
+    pm = _moments(x, X, None, statistics)
+    sol = solve_single(pm, "gauss-helmert", with_scale=with_scale, ratio=k)
+    _check_solution(sol.degenerate, sol.reflection, "gauss-helmert")
+    s, R, t = sol.scale, sol.rotation, sol.translation
+    model = _similarity(s, R, t)
+    omega, phi, kappa, gimbal = opk_transposed(R)
+    notes = [_CONVENTION_NOTE, "direct Gauss-Helmert solution (exact for one sigma per system)"]
+    if prec.sig_s is not None or prec.sig_t is not None:
+        notes.append(f"source prescaled by sigma_target / sigma_source = {k:.6g}")
+    if gimbal:
+        notes.append(_GIMBAL_NOTE)
+    names = _adj.names(with_scale)
+    params = _params(t, s, (omega, phi, kappa), with_scale)
+    u = len(names)
+    r = 3 * n - u
+    if not statistics:
+        return AbsoluteOrientationFit(
+            model=model, method="gauss-helmert", parameter_names=names, parameters=params,
+            covariance=_nan_stats(u), cofactor=_nan_stats(u), sigma0=math.nan,
+            sigma0_prior=1.0, redundancy=r, n_observations=6 * n,
+            residuals=np.empty((0, 3)), ids=ctx.ids, residual_labels=("X", "Y", "Z"),
+            residual_unit=ctx.unit, parameter_units=_param_units(with_scale, ctx.unit),
+            elapsed=time.perf_counter() - ctx.t0,
+            notes=(*notes, "statistics=False: no residuals or statistics computed"),
+        )
+    xg, Xg = pm.source_centroid, pm.target_centroid
+    xr = x - xg
+    # misclosures g = s R x + t - X; corrections e_x = -sx^2 s R.T g / mm, e_X = sX^2 g / mm
+    g = s * (xr @ R.T) - (X - Xg) + (s * (R @ xg) + t - Xg)
+    mm = s * s * sx * sx + sX * sX
+    vx = -(sx * sx * s / mm) * (g @ R)
+    vX = (sX * sX / mm) * g
+    xc = xr + vx  # corrected source about the centroid (its centroid is unchanged)
+    s02 = ctx.sigma0_prior**2
+    st = linearised_statistics(
+        xc, g, scale=s, angles=(omega, phi, kappa), source_centroid=xg,
+        weights=np.full(n, s02 / mm), with_scale=with_scale, blocks=True,
+        sigma0_prior=ctx.sigma0_prior,
+    )
+    # redundancy numbers and normalised residuals of both systems' corrections
+    # (A Qxx A.T)_i in units of the misclosure cofactor Q_gg = mm / sigma0^2 I
+    C = st.point_blocks
+    qg = mm / s02
+    red_t = (sX * sX / (mm * qg)) * (qg - np.diagonal(C, axis1=1, axis2=2))
+    CR = np.einsum("ji,njk,kl->nil", R, C, R)
+    qs = qg - np.diagonal(CR, axis1=1, axis2=2)
+    red_s = (s * s * sx * sx / (mm * qg)) * qs
+    w_s = np.full(qs.shape, np.nan)
+    np.divide(-(g @ R), np.sqrt(np.abs(qs)) * ctx.sigma0_prior, out=w_s, where=qs > 1e-12 * qg)
+    extras = {
+        "corrected_source": x + vx,
+        "corrected_target": X + vX,
+        "source_residuals": vx,
+        "source_redundancy_numbers": red_s,
+        "source_normalized_residuals": w_s,
+        "misclosures": g,
+    }
+    st = type(st)(st.cofactor, st.vtpv, red_t, st.normalized_residuals, st.point_blocks)
+    return _stat_fit(model, "gauss-helmert", names, params, st, r, 6 * n, vX, with_scale, ctx,
+                     notes, extras=extras)
+
+
+def _gh_observation_precision(prec: _Precision, n: int):
+    """Weights (6n,) or covariance ((n, 6, 6) / (6n, 6n)) of ``[x_1, X_1, x_2, X_2, ...]``."""
+
+    def per_coord(sig):
+        if sig is None:
+            return np.ones((n, 3))
+        a = np.asarray(sig, dtype=float)
+        if a.ndim == 0:
+            return np.full((n, 3), float(a) ** 2)
+        if a.shape == (n,):
+            return np.repeat((a**2)[:, None], 3, axis=1)
+        return a**2
+
+    if prec.cov_s is None and prec.cov_t is None:
+        var = np.concatenate([per_coord(prec.sig_s), per_coord(prec.sig_t)], axis=1)
+        return 1.0 / var.reshape(-1), None
+
+    def blocks(sig, cov):
+        if cov is not None and cov.ndim == 3:
+            return cov
+        if cov is not None:
+            return None
+        return np.einsum("ni,ij->nij", per_coord(sig), np.eye(3))
+
+    bs, bt = blocks(prec.sig_s, prec.cov_s), blocks(prec.sig_t, prec.cov_t)
+    if bs is not None and bt is not None:
+        C = np.zeros((n, 6, 6))
+        C[:, :3, :3] = bs
+        C[:, 3:, 3:] = bt
+        return None, C
+    # at least one full (3n, 3n) covariance: assemble the full (6n, 6n) matrix
+    def full(sig, cov):
+        if cov is not None and cov.ndim == 2:
+            return cov
+        b = blocks(sig, cov)
+        F = np.zeros((3 * n, 3 * n))
+        for j in range(3):
+            for k in range(3):
+                F[j::3, k::3] = np.diag(b[:, j, k])
+        return F
+
+    Fs, Ft = full(prec.sig_s, prec.cov_s), full(prec.sig_t, prec.cov_t)
+    idx = np.arange(6 * n).reshape(n, 6)
+    src, tgt = idx[:, :3].reshape(-1), idx[:, 3:].reshape(-1)
+    C = np.zeros((6 * n, 6 * n))
+    C[np.ix_(src, src)] = Fs
+    C[np.ix_(tgt, tgt)] = Ft
+    return None, C
+
+
+def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol,
+                       raise_on_failure, ctx):
+    if iterate is False and not prec.scalar_sigmas:
+        raise InputError(
+            "gauss-helmert: the direct solution needs at most one sigma per system; per-point "
+            "or per-coordinate precision and covariances need the iterative adjustment "
+            "(iterate=None or True)"
+        )
+    if prec.scalar_sigmas and not iterate:
+        if initial is not None:
+            raise InputError(
+                "gauss-helmert: initial values apply to the iterative adjustment; pass "
+                "iterate=True"
+            )
+        return _gh_direct_fit(x, X, prec, with_scale, statistics, ctx)
+    check_finite(x, "source")
+    check_finite(X, "target")
+    _geometry_check(x, X, None, with_scale, "gauss-helmert")
+    n = ctx.n
+    w_obs, cov = _gh_observation_precision(prec, n)
+    if w_obs is not None:
+        w_obs = w_obs * ctx.sigma0_prior**2
+    if initial is None:
+        # the direct solution with representative sigmas (exact for one sigma per system)
+        vs = 1.0 / w_obs.reshape(n, 6) if w_obs is not None else None
+        if vs is not None:
+            k = math.sqrt(float(np.median(vs[:, 3:])) / float(np.median(vs[:, :3])))
+        else:
+            k = 1.0
+        sol = solve_single(PairMoments.of(x, X), "gauss-helmert", with_scale=with_scale, ratio=k)
+        _check_solution(sol.degenerate, sol.reflection, "gauss-helmert")
+        s0, R0, t0 = sol.scale, sol.rotation, sol.translation
+        start = "direct Gauss-Helmert solution"
+    else:
+        s0, R0, t0, start = _start(initial, x, X, with_scale, None, "gauss-helmert")
+    prob = _adj.reduce(x, X)
+    R0 = _as_rotation(R0)
+    p0 = _adj.to_reduced(t0, s0, R0, prob.source_ref, prob.target_ref, with_scale)
+    what = "absolute orientation (Gauss-Helmert)"
+    try:
+        adj = _adj.similarity_gauss_helmert(
+            prob, p0, with_scale=with_scale, R0=R0, weights=w_obs, covariance=cov,
+            max_iter=max_iter, tol=tol, sigma0_prior=ctx.sigma0_prior,
+        )
+    except DegenerateGeometryError as exc:
+        raise ConvergenceError(_SINGULAR.format(what=what, start=start, exc=exc)) from exc
+    _, s, _ = _adj.unpack(adj.x, with_scale)
+    if not np.all(np.isfinite(adj.x)) or (with_scale and s <= 0):
+        raise ConvergenceError(
+            f"{what}: no valid solution from {start} ({adj.message}, scale {s:.3g}); start "
+            "from a direct method", iterations=adj.iterations, result=adj,
+        )
+    notes = [_CONVENTION_NOTE, f"iterative Gauss-Helmert adjustment, start: {start}"]
+    if not adj.converged:
+        msg = f"{what}: {adj.message} (started from {start}); raise max_iter or check the data"
+        if raise_on_failure:
+            raise ConvergenceError(msg, iterations=adj.iterations, result=adj)
+        notes.append("NOT CONVERGED: " + msg)
+    params, J, R, gimbal = _adj.to_original(
+        adj.x, prob.source_ref, prob.target_ref, with_scale, R0
+    )
+    if gimbal:
+        notes.append(_GIMBAL_NOTE)
+    t, s, _ = _adj.unpack(params, with_scale)
+    v = adj.residuals.reshape(n, 6)
+    corr = adj.corrected_observations.reshape(n, 6)
+    extras = {
+        "corrected_source": corr[:, :3] + prob.source_ref,
+        "corrected_target": corr[:, 3:] + prob.target_ref,
+        "source_residuals": v[:, :3],
+        "start": start,
+    }
+    red = adj.redundancy_numbers
+    wn = adj.normalized_residuals
+    if red is not None:
+        extras["source_redundancy_numbers"] = red.reshape(n, 6)[:, :3]
+        red = red.reshape(n, 6)[:, 3:]
+    if wn is not None:
+        extras["source_normalized_residuals"] = wn.reshape(n, 6)[:, :3]
+        wn = wn.reshape(n, 6)[:, 3:]
+    Q = J @ adj.cofactor @ J.T
+    s0 = adj.sigma0
+    return AbsoluteOrientationFit(
+        model=_similarity(s, R, t), method="gauss-helmert",
+        parameter_names=_adj.names(with_scale), parameters=params, covariance=s0**2 * Q,
+        cofactor=Q, sigma0=s0, sigma0_prior=adj.sigma0_prior, redundancy=adj.redundancy,
+        n_observations=adj.n_observations, residuals=v[:, 3:], ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
+        parameter_units=_param_units(with_scale, ctx.unit), normalized_residuals=wn,
+        redundancy_numbers=red, iterations=adj.iterations, converged=adj.converged,
+        message=adj.message, elapsed=time.perf_counter() - ctx.t0, notes=tuple(notes),
+        extras=extras,
+    )

@@ -1,0 +1,255 @@
+"""The evaluation protocol of the absolute orientation methods on one data set.
+
+For every method: the seven parameters, their differences to the converged Gauss-Markov
+solution, the orthogonality defect of R and the time per solve (median of many repeats in
+this process, parameters only: ``statistics=False``).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics as _stats
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from ..errors import PhotogeomError
+from ..units import from_radians
+from .absolute import METHODS, AbsoluteOrientationFit, absolute_orientation, normalize_method
+
+PARAMETERS = ("tx", "ty", "tz", "scale", "omega", "phi", "kappa")
+
+
+@dataclass(frozen=True)
+class MethodRow:
+    """One method's line of the comparison.
+
+    Attributes
+    ----------
+    method : str
+    fit : AbsoluteOrientationFit or None
+        None when the method failed (``error`` says why).
+    values : dict
+        ``tx, ty, tz`` (target units), ``scale``, ``omega, phi, kappa`` (``unit``,
+        ``convention`` of the comparison).
+    differences : dict
+        ``values`` minus the reference method's (angles wrapped to +-half a turn).
+    orthogonality_defect : float
+    time_per_solve : float
+        Median seconds per call (``statistics=False``).
+    repeats : int
+    error : str
+    """
+
+    method: str
+    fit: AbsoluteOrientationFit | None
+    values: dict = field(default_factory=dict)
+    differences: dict = field(default_factory=dict)
+    orthogonality_defect: float = math.nan
+    time_per_solve: float = math.nan
+    repeats: int = 0
+    error: str = ""
+
+
+@dataclass(frozen=True)
+class MethodComparison:
+    """Result of :func:`compare_absolute_methods`."""
+
+    rows: tuple[MethodRow, ...]
+    reference: str
+    convention: str
+    unit: str
+    length_unit: str = "m"
+
+    def row(self, method: str) -> MethodRow:
+        """The row of ``method``."""
+        method = normalize_method(method)
+        for r in self.rows:
+            if r.method == method:
+                return r
+        raise KeyError(method)
+
+    def columns(self) -> list[str]:
+        """Column headings of :meth:`table_rows` (units included)."""
+        u, L = self.unit, self.length_unit
+        return [
+            "method", f"tx [{L}]", f"ty [{L}]", f"tz [{L}]", "scale",
+            f"omega [{u}]", f"phi [{u}]", f"kappa [{u}]",
+            f"max |d shift| [{L}]", "|d scale|", f"max |d angle| [{u}]",
+            "orthogonality defect", "time per solve [us]",
+        ]
+
+    def table_rows(self) -> list[list]:
+        """One list per method (None for values of a failed method)."""
+        out = []
+        for r in self.rows:
+            if r.fit is None:
+                out.append([r.method] + [None] * 12)
+                continue
+            v, d = r.values, r.differences
+            out.append([
+                r.method, v["tx"], v["ty"], v["tz"], v["scale"], v["omega"], v["phi"],
+                v["kappa"],
+                max(abs(d["tx"]), abs(d["ty"]), abs(d["tz"])), abs(d["scale"]),
+                max(abs(d["omega"]), abs(d["phi"]), abs(d["kappa"])),
+                r.orthogonality_defect, r.time_per_solve * 1e6,
+            ])
+        return out
+
+    def to_text(self) -> str:
+        """Plain-text table (differences are to the reference method)."""
+        head = (
+            f"{'method':<16}{'scale':>16}{'omega':>12}{'phi':>12}{'kappa':>12}"
+            f"{'|d shift|':>11}{'|d scale|':>11}{'|d angle|':>11}{'defect':>10}{'us/solve':>10}"
+        )
+        lines = [
+            f"methods compared with the converged {self.reference} solution; angles in "
+            f"{self.unit} ({self.convention} convention), shifts in {self.length_unit}",
+            head,
+        ]
+        for r in self.rows:
+            if r.fit is None:
+                lines.append(f"{r.method:<16}  failed: {r.error}")
+                continue
+            v, d = r.values, r.differences
+            ds = max(abs(d["tx"]), abs(d["ty"]), abs(d["tz"]))
+            da = max(abs(d["omega"]), abs(d["phi"]), abs(d["kappa"]))
+            lines.append(
+                f"{r.method:<16}{v['scale']:>16.10f}{v['omega']:>12.6f}{v['phi']:>12.6f}"
+                f"{v['kappa']:>12.6f}{ds:>11.2e}{abs(d['scale']):>11.2e}{da:>11.2e}"
+                f"{r.orthogonality_defect:>10.1e}{r.time_per_solve * 1e6:>10.1f}"
+            )
+        ref = self.row(self.reference)
+        if ref.fit is not None:
+            v = ref.values
+            lines.append(
+                f"{self.reference} shift: ({v['tx']:.6f}, {v['ty']:.6f}, {v['tz']:.6f}) "
+                f"{self.length_unit}"
+            )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready form."""
+        return {
+            "reference": self.reference,
+            "convention": self.convention,
+            "angle_unit": self.unit,
+            "methods": [
+                {
+                    "method": r.method,
+                    "error": r.error or None,
+                    "parameters": r.values,
+                    "differences_to_reference": r.differences,
+                    "orthogonality_defect": (
+                        r.orthogonality_defect if math.isfinite(r.orthogonality_defect) else None
+                    ),
+                    "time_per_solve_s": (
+                        r.time_per_solve if math.isfinite(r.time_per_solve) else None
+                    ),
+                    "repeats": r.repeats,
+                }
+                for r in self.rows
+            ],
+        }
+
+
+def _values(fit: AbsoluteOrientationFit, convention: str, unit: str) -> dict:
+    w, p, k = fit.angles(convention, "rad")
+    t = fit.translation
+    return {
+        "tx": float(t[0]), "ty": float(t[1]), "tz": float(t[2]), "scale": fit.scale,
+        "omega": float(from_radians(w, unit)), "phi": float(from_radians(p, unit)),
+        "kappa": float(from_radians(k, unit)),
+    }
+
+
+def _time_per_solve(call, min_time: float, max_repeats: int) -> tuple[float, int]:
+    call()  # warm-up
+    times = []
+    start = time.perf_counter()
+    while len(times) < max_repeats and (
+        len(times) < 5 or time.perf_counter() - start < min_time
+    ):
+        t0 = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - t0)
+    return float(_stats.median(times)), len(times)
+
+
+def compare_absolute_methods(
+    source,
+    target,
+    methods: Sequence[str] = METHODS,
+    *,
+    reference: str = "gauss-markov",
+    convention: str = "transposed",
+    angle_unit: str = "deg",
+    min_time: float = 0.05,
+    max_repeats: int = 2000,
+    timing: bool = True,
+    length_unit: str = "m",
+    **options,
+) -> MethodComparison:
+    """Run every method on one data set and compare it with the reference solution.
+
+    Parameters
+    ----------
+    source, target : array_like, shape (n, 3)
+    methods : sequence of str
+        Methods to compare (default: all six).
+    reference : str
+        Method whose (converged) solution the differences refer to.
+    convention, angle_unit : str
+        Angle convention (``"transposed"`` / ``"direct"``) and unit (rad/deg/gon) of the table.
+    min_time, max_repeats : float, int
+        Each method is timed for at least ``min_time`` seconds (and 5 calls), at most
+        ``max_repeats`` calls; the median is reported.
+    timing : bool
+        False skips the timing (faster, for tests).
+    length_unit : str
+        Unit of the target coordinates (labels).
+    options
+        Passed to every :func:`absolute_orientation` call (e.g. ``with_scale``, ``weights``).
+    """
+    unit = angle_unit
+    options["unit"] = length_unit
+    methods = [normalize_method(m) for m in methods]
+    reference = normalize_method(reference)
+    if reference not in methods:
+        methods.append(reference)
+    fits: dict[str, AbsoluteOrientationFit | None] = {}
+    errors: dict[str, str] = {}
+    for m in methods:
+        try:
+            fits[m] = absolute_orientation(source, target, m, **options)
+        except PhotogeomError as exc:
+            fits[m] = None
+            errors[m] = str(exc)
+    ref_fit = fits[reference]
+    ref_vals = _values(ref_fit, convention, unit) if ref_fit is not None else None
+    half = float(from_radians(math.pi, unit))
+    rows = []
+    for m in methods:
+        fit = fits[m]
+        if fit is None:
+            rows.append(MethodRow(m, None, error=errors[m]))
+            continue
+        vals = _values(fit, convention, unit)
+        diffs = {}
+        for k, v in vals.items():
+            if ref_vals is None:
+                diffs[k] = math.nan
+                continue
+            d = v - ref_vals[k]
+            if k in ("omega", "phi", "kappa"):
+                d = (d + half) % (2 * half) - half
+            diffs[k] = d
+        tps, reps = math.nan, 0
+        if timing:
+            tps, reps = _time_per_solve(
+                lambda m=m: absolute_orientation(source, target, m, statistics=False, **options),
+                min_time, max_repeats,
+            )
+        rows.append(MethodRow(m, fit, vals, diffs, fit.orthogonality_defect, tps, reps))
+    return MethodComparison(tuple(rows), reference, convention, unit, length_unit)
+
