@@ -1,7 +1,530 @@
-"""`photogeom camera`: Frame camera models: projection, DLT."""
+"""`photogeom camera`: frame camera models: projection and the DLT.
+
+* ``camera project``: ground points -> image coordinates with the collinearity equations;
+* ``camera dlt estimate``: the 11 DLT parameters from control points (linear, rigorous or
+  constrained), with statistics, residuals and a report;
+* ``camera dlt convert``: interior + exterior orientation -> DLT, or DLT -> orientations.
+
+The camera is given by options (``--f``, ``--x0``, ``--y0``, ``--unit``, or ``--pixel-size``
+and ``--principal-point`` for a digital camera), by a Metashape calibration XML
+(``--calibration``) or by a JSON file (``--camera``: the output of ``--output-params``, or
+``{"interior": {...}, "exterior": {...}}``). Angles on the command line are in
+``--angle-unit`` (degrees by default); inside the library they are radians.
+"""
 
 from __future__ import annotations
 
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
 import typer
+from rich.console import Console
+
+from ..errors import FileFormatError, InputError
 
 app = typer.Typer(help="Frame camera models: projection, DLT.", no_args_is_help=True)
+dlt_app = typer.Typer(help="Direct linear transformation: estimate, convert.", no_args_is_help=True)
+app.add_typer(dlt_app, name="dlt")
+
+
+class AngleUnit(str, Enum):
+    """Angle units at the command line."""
+
+    deg = "deg"
+    gon = "gon"
+    rad = "rad"
+
+
+class ImageUnit(str, Enum):
+    """Image coordinate units."""
+
+    mm = "mm"
+    px = "px"
+
+
+class Behind(str, Enum):
+    """What to do with points behind the camera."""
+
+    raise_ = "raise"
+    nan = "nan"
+
+
+def console(stderr: bool = False) -> Console:
+    """A console that keeps tables readable when the output is not a terminal."""
+    c = Console(stderr=stderr)
+    if not c.is_terminal:
+        c = Console(stderr=stderr, width=max(c.width, 110))
+    return c
+
+
+def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
+    """Comma-separated numbers (exactly ``n`` when given)."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if n is not None and len(vals) != n:
+        raise InputError(f"{what}: expected {n} comma-separated numbers, got {len(vals)}")
+    return vals
+
+
+def split_names(text: str | None) -> list[str] | None:
+    """Comma-separated names."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    return parts or None
+
+
+def json_text(data) -> str:
+    """Indented JSON with a final newline (NaN refused)."""
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
+def read_json(path: Path) -> dict:
+    """A JSON object from a file, with clear errors."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    if not isinstance(data, dict):
+        raise FileFormatError(f"{path}: expected a JSON object")
+    return data
+
+
+def camera_from_json(path: Path):
+    """(InteriorOrientation or None, ExteriorOrientation or None) from a JSON file.
+
+    Accepts a ``FrameCamera.to_dict()``, the ``--output-params``/``--json`` output of
+    ``orient resection`` (its ``model_parameters``), or a bare interior orientation.
+    """
+    from ..camera import ExteriorOrientation, InteriorOrientation
+
+    data = read_json(path)
+    if isinstance(data.get("model_parameters"), dict):
+        data = data["model_parameters"]
+    try:
+        if "interior" in data or "exterior" in data:
+            io = InteriorOrientation.from_dict(data["interior"]) if "interior" in data else None
+            eo = ExteriorOrientation.from_dict(data["exterior"]) if "exterior" in data else None
+            return io, eo
+        if "f" in data:
+            return InteriorOrientation.from_dict(data), None
+    except InputError as exc:
+        raise FileFormatError(f"{path}: {exc}") from None
+    raise FileFormatError(
+        f"{path}: no camera found (expected 'interior'/'exterior' entries, e.g. the output of "
+        "'photogeom orient resection --output-params')"
+    )
+
+
+def build_interior(
+    *,
+    camera: Path | None,
+    calibration: Path | None,
+    f: float | None,
+    x0: float,
+    y0: float,
+    unit: ImageUnit,
+    pixel_size: float | None,
+    principal_point: str | None,
+    required: bool = True,
+):
+    """The interior orientation from the command-line options (see the module docstring)."""
+    from ..camera import InteriorOrientation, read_metashape_xml
+
+    sources = [s for s in (camera, calibration, f) if s is not None]
+    if len(sources) > 1:
+        raise InputError("give the camera once: --camera, --calibration or --f")
+    unit = ImageUnit(unit).value
+    if calibration is not None:
+        return read_metashape_xml(calibration).interior_orientation()
+    if camera is not None:
+        io, _ = camera_from_json(camera)
+        if io is None and required:
+            raise InputError(f"{camera}: holds no interior orientation")
+        return io
+    if f is None:
+        if required:
+            raise InputError(
+                "no camera given: use --f (principal distance) with --unit, --calibration "
+                "(Metashape XML) or --camera (JSON)"
+            )
+        return None
+    if principal_point is not None:
+        col, row = split_numbers(principal_point, 2, "--principal-point")
+        return InteriorOrientation.digital(f, col, row, unit=unit, pixel_size=pixel_size)
+    return InteriorOrientation(f, x0, y0, unit=unit, pixel_size=pixel_size)
+
+
+def build_exterior(eo_text: str | None, angle_unit: AngleUnit, camera: Path | None = None):
+    """The exterior orientation from ``--eo X0,Y0,Z0,omega,phi,kappa`` or the camera JSON."""
+    from ..camera import ExteriorOrientation
+
+    if eo_text is not None:
+        v = split_numbers(eo_text, 6, "--eo X0,Y0,Z0,omega,phi,kappa")
+        return ExteriorOrientation.from_degrees(*v, unit=AngleUnit(angle_unit).value)
+    if camera is not None:
+        _, eo = camera_from_json(camera)
+        if eo is not None:
+            return eo
+    raise InputError("no exterior orientation: give --eo X0,Y0,Z0,omega,phi,kappa")
+
+
+# --- shared option types ----------------------------------------------------------------------
+
+CameraOpt = Annotated[
+    Path | None, typer.Option(help="Camera JSON (interior and/or exterior orientation).")
+]
+CalibrationOpt = Annotated[
+    Path | None, typer.Option(help="Metashape calibration XML (frame camera, pixels).")
+]
+FOpt = Annotated[float | None, typer.Option("--f", help="Principal distance (in --unit).")]
+X0Opt = Annotated[float, typer.Option("--x0", help="Principal point x0 (in --unit).")]
+Y0Opt = Annotated[float, typer.Option("--y0", help="Principal point y0 (in --unit).")]
+UnitOpt = Annotated[ImageUnit, typer.Option(help="Unit of f, x0, y0 and image coordinates.")]
+PixelSizeOpt = Annotated[
+    float | None, typer.Option(help="Pixel size in mm (digital camera, mm <-> pixels).")
+]
+PPOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Principal point COL,ROW in pixels (digital camera; top-left pixel centre = 0,0)."
+    ),
+]
+EOOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--eo", help="Exterior orientation X0,Y0,Z0,omega,phi,kappa (angles: --angle-unit)."
+    ),
+]
+AngleOpt = Annotated[AngleUnit, typer.Option(help="Unit of angles on input and output.")]
+
+
+# --- camera project ---------------------------------------------------------------------------
+
+
+@app.command("project")
+def project_cmd(
+    points: Annotated[Path, typer.Argument(help="CSV of ground points (id,X,Y,Z).")],
+    camera: CameraOpt = None,
+    calibration: CalibrationOpt = None,
+    f: FOpt = None,
+    x0: X0Opt = 0.0,
+    y0: Y0Opt = 0.0,
+    unit: UnitOpt = ImageUnit.mm,
+    pixel_size: PixelSizeOpt = None,
+    principal_point: PPOpt = None,
+    eo: EOOpt = None,
+    angle_unit: AngleOpt = AngleUnit.deg,
+    cols: Annotated[
+        str | None, typer.Option(help="Ground coordinate columns (default X,Y,Z).")
+    ] = None,
+    pixel: Annotated[
+        bool, typer.Option("--pixel", help="Output pixel (col, row) instead of image (x, y).")
+    ] = False,
+    behind: Annotated[
+        Behind, typer.Option(help="Points behind the camera: stop with an error or write NaN.")
+    ] = Behind.raise_,
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
+) -> None:
+    """Project ground points into an image with the collinearity equations.
+
+    Image coordinates are right-handed (x right, y up) in the unit of the camera; with
+    --pixel they are (col, row) with the top-left pixel's centre at (0, 0).
+    """
+    from ..camera import project
+    from ..io import atomic_write_text, format_points_csv, read_points
+
+    io = build_interior(
+        camera=camera,
+        calibration=calibration,
+        f=f,
+        x0=x0,
+        y0=y0,
+        unit=unit,
+        pixel_size=pixel_size,
+        principal_point=principal_point,
+    )
+    ext = build_exterior(eo, angle_unit, camera)
+    table = read_points(points, split_names(cols) or ["X", "Y", "Z"], auto_weights=False)
+    xy = project(
+        table.coords, io, ext, system="pixel" if pixel else "image", behind=Behind(behind).value
+    )
+    names = ["col", "row"] if pixel else ["x", "y"]
+    if as_json:
+        rows = [
+            {"id": pid, names[0]: _num(p[0]), names[1]: _num(p[1])} for pid, p in zip(table.ids, xy)
+        ]
+        typer.echo(json_text({"unit": "px" if pixel else io.unit, "points": rows}), nl=False)
+        return
+    unit_txt = "px (top-left pixel centre = 0,0)" if pixel else f"{io.unit} (x right, y up)"
+    text = format_points_csv(
+        table.ids, xy, names, comments=[f"collinearity projection of {points}; {unit_txt}"]
+    )
+    if output is None:
+        typer.echo(text, nl=False)
+    else:
+        atomic_write_text(output, text)
+        console(stderr=True).print(f"wrote {len(table.ids)} point(s) to {output}", markup=False)
+
+
+def _num(v: float):
+    return float(v) if np.isfinite(v) else None
+
+
+# --- camera dlt estimate ----------------------------------------------------------------------
+
+
+def load_control(
+    points: Path,
+    image: Path | None,
+    *,
+    ground_cols: str | None,
+    image_cols: str | None,
+    id_col: str | None,
+    sigma_col: str | None = None,
+):
+    """Control points: ids, ground (n, 3), image (n, 2), check mask, per-point sigma or None.
+
+    One CSV with both coordinate sets (default columns X,Y,Z and x,y), or a ground CSV and
+    an image CSV joined by point id. A ``role`` column marks check points.
+    """
+    from ..io import join_points, read_point_pairs, read_points
+
+    gcols = split_names(ground_cols) or ["X", "Y", "Z"]
+    icols = split_names(image_cols) or ["x", "y"]
+    if len(gcols) != 3 or len(icols) != 2:
+        raise InputError("ground columns must be three names and image columns two")
+    if image is None:
+        pairs = read_point_pairs(
+            points, icols, gcols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
+        )
+    else:
+        g = read_points(points, gcols, id_column=id_col, auto_weights=False)
+        im = read_points(image, icols, id_column=id_col, sigma_column=sigma_col, auto_weights=False)
+        pairs = join_points(im, g)
+    sigma = None if pairs.weights is None else 1.0 / np.sqrt(pairs.weights)
+    return pairs.ids, pairs.target, pairs.source, pairs.check_mask, sigma
+
+
+def check_mask_from(ids, mask, check_ids: str | None) -> np.ndarray:
+    """Check points from ``--check-ids`` (overrides the role column)."""
+    names = split_names(check_ids)
+    if names is None:
+        return mask
+    missing = [i for i in names if i not in set(ids)]
+    if missing:
+        raise InputError(f"--check-ids: no point with id {', '.join(missing)}")
+    return np.isin(np.array(ids, dtype=object), names)
+
+
+@dlt_app.command("estimate")
+def dlt_estimate(
+    points: Annotated[
+        Path, typer.Argument(help="CSV with ground X,Y,Z (and image x,y if IMAGE is not given).")
+    ],
+    image: Annotated[
+        Path | None, typer.Argument(help="CSV with image x,y joined to POINTS by id.")
+    ] = None,
+    unit: UnitOpt = ImageUnit.mm,
+    constrained: Annotated[
+        bool,
+        typer.Option(help="Impose the two orthogonality conditions (>= 5 points)."),
+    ] = False,
+    linear: Annotated[
+        bool, typer.Option(help="Linear solution only (no refinement of image residuals).")
+    ] = False,
+    ground_cols: Annotated[str | None, typer.Option(help="Ground columns (default X,Y,Z).")] = None,
+    image_cols: Annotated[str | None, typer.Option(help="Image columns (default x,y).")] = None,
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    sigma_col: Annotated[
+        str | None, typer.Option(help="Column of image standard deviations (unit of --unit).")
+    ] = None,
+    check_ids: Annotated[
+        str | None, typer.Option(help="Comma-separated ids of check points.")
+    ] = None,
+    angle_unit: AngleOpt = AngleUnit.deg,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
+    report: Annotated[Path | None, typer.Option(help="Write an HTML report here.")] = None,
+    output_params: Annotated[
+        Path | None, typer.Option(help="Write the parameters (JSON) here.")
+    ] = None,
+) -> None:
+    """Estimate the 11 DLT parameters (and the orientations they imply) from control points.
+
+    Image coordinates must be right-handed (x right, y up). Prints L1..L11 with standard
+    deviations, sigma0, the residuals (computed - observed) and the decomposed interior and
+    exterior orientation.
+    """
+    from ..camera import estimate_dlt
+
+    ids, g, im, mask, sigma = load_control(
+        points,
+        image,
+        ground_cols=ground_cols,
+        image_cols=image_cols,
+        id_col=id_col,
+        sigma_col=sigma_col,
+    )
+    mask = check_mask_from(ids, mask, check_ids)
+    ctrl = ~mask
+    fit = estimate_dlt(
+        g[ctrl],
+        im[ctrl],
+        constrained=constrained,
+        refine=not linear,
+        unit=ImageUnit(unit).value,
+        sigma=None if sigma is None else sigma[ctrl],
+        ids=[i for i, c in zip(ids, ctrl) if c],
+        check_ground=g[mask] if mask.any() else None,
+        check_image=im[mask] if mask.any() else None,
+        check_ids=[i for i, c in zip(ids, mask) if c] if mask.any() else None,
+    )
+    au = AngleUnit(angle_unit).value
+    orient = {
+        "interior": fit.interior.to_dict(),
+        "exterior": fit.exterior.to_dict(au),
+        "cx": fit.interior.fx,
+        "cy": fit.interior.fy,
+    }
+    outputs: list[tuple[Path, str]] = []
+    data = fit.to_dict()
+    data["orientation"] = orient
+    if output_params is not None:
+        outputs.append((output_params, json_text(data)))
+    if report is not None:
+        outputs.append((report, _dlt_report(fit, im[ctrl], im[mask] if mask.any() else None, au)))
+    from ..io import atomic_write_text
+
+    for path, text in outputs:
+        atomic_write_text(path, text)
+    if as_json:
+        typer.echo(json_text(data), nl=False)
+        return
+    from ..report import print_fit
+
+    out = console()
+    print_fit(fit, console=out, angle_unit=au)
+    out.print(_orientation_text(fit.interior, fit.exterior, au), markup=False, highlight=False)
+    for path, _ in outputs:
+        out.print(f"wrote {path}", markup=False)
+
+
+def _orientation_text(io, eo, au: str) -> str:
+    a = eo.angles_in(au)
+    return (
+        f"interior: cx = {io.fx:.6f}, cy = {io.fy:.6f}, x0 = {io.x0:.6f}, y0 = {io.y0:.6f}, "
+        f"shear b2 = {io.b2:.3g} [{io.unit}]\n"
+        f"exterior: X0 = {eo.X0:.4f}, Y0 = {eo.Y0:.4f}, Z0 = {eo.Z0:.4f}; omega = {a[0]:.6f}, "
+        f"phi = {a[1]:.6f}, kappa = {a[2]:.6f} [{au}]"
+    )
+
+
+def _dlt_report(fit, image_ctrl, image_check, au: str) -> str:
+    from ..report import Report
+
+    rep = Report("DLT estimation", subtitle=fit.method)
+    rep.add_fit(
+        fit,
+        title=f"DLT ({fit.method})",
+        angle_unit=au,
+        points=image_ctrl,
+        check_points=image_check,
+        point_labels=("x", "y"),
+        point_unit=fit.residual_unit,
+    )
+    rep.add_text("Decomposed orientation", _orientation_text(fit.interior, fit.exterior, au))
+    return rep.to_html()
+
+
+# --- camera dlt convert -----------------------------------------------------------------------
+
+
+@dlt_app.command("convert")
+def dlt_convert(
+    dlt: Annotated[
+        str | None,
+        typer.Option("--dlt", help="L1,...,L11: decompose into interior and exterior orientation."),
+    ] = None,
+    params: Annotated[
+        Path | None,
+        typer.Option(help="JSON with L1..L11 (e.g. from 'camera dlt estimate --output-params')."),
+    ] = None,
+    camera: CameraOpt = None,
+    f: FOpt = None,
+    x0: X0Opt = 0.0,
+    y0: Y0Opt = 0.0,
+    unit: UnitOpt = ImageUnit.mm,
+    eo: EOOpt = None,
+    angle_unit: AngleOpt = AngleUnit.deg,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Convert between the DLT and interior + exterior orientation.
+
+    With --dlt or --params: L1..L11 -> (cx, cy, x0, y0, shear) and (X0, Y0, Z0, omega, phi,
+    kappa). Otherwise the camera options (--f/--x0/--y0 or --camera, and --eo) -> L1..L11.
+    """
+    from ..camera import DLT, dlt_from_orientation, orientation_from_dlt
+    from ..camera.dlt import NAMES
+
+    au = AngleUnit(angle_unit).value
+    u = ImageUnit(unit).value
+    if dlt is not None or params is not None:
+        if dlt is not None and params is not None:
+            raise InputError("give the DLT once: --dlt or --params")
+        if dlt is not None:
+            L = DLT(split_numbers(dlt, 11, "--dlt L1,...,L11"), u)
+        else:
+            data = read_json(params)
+            if isinstance(data.get("model_parameters"), dict):
+                data = data["model_parameters"]
+            try:
+                L = DLT.from_dict(data)
+            except InputError as exc:
+                raise FileFormatError(f"{params}: {exc}") from None
+        io, ext = orientation_from_dlt(L, unit=L.unit)
+        if as_json:
+            typer.echo(
+                json_text(
+                    {
+                        "interior": io.to_dict(),
+                        "exterior": ext.to_dict(au),
+                        "cx": io.fx,
+                        "cy": io.fy,
+                    }
+                ),
+                nl=False,
+            )
+        else:
+            typer.echo(_orientation_text(io, ext, au))
+        return
+    io = build_interior(
+        camera=camera,
+        calibration=None,
+        f=f,
+        x0=x0,
+        y0=y0,
+        unit=unit,
+        pixel_size=None,
+        principal_point=None,
+    )
+    ext = build_exterior(eo, angle_unit, camera)
+    L = dlt_from_orientation(io, ext)
+    if as_json:
+        typer.echo(json_text(DLT(L, io.unit).to_dict()), nl=False)
+    else:
+        typer.echo("\n".join(f"{n:<4} {v: .10g}" for n, v in zip(NAMES, L)))

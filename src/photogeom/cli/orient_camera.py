@@ -1,9 +1,356 @@
-"""Commands of `photogeom orient` (see :mod:`.orient`)."""
+"""Commands of `photogeom orient` for frame cameras (see :mod:`.orient`).
+
+* ``orient resection``: exterior orientation of one image from control points (closed-form
+  start, collinearity adjustment, optional self-calibration), with statistics, image
+  residuals and an HTML report with residual vectors;
+* ``orient intersection``: object points from their image coordinates in >= 2 oriented
+  images, with per-point standard deviations.
+"""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
 import typer
+
+from ..errors import InputError
+from .camera import (
+    AngleOpt,
+    AngleUnit,
+    CalibrationOpt,
+    CameraOpt,
+    FOpt,
+    ImageUnit,
+    PixelSizeOpt,
+    PPOpt,
+    UnitOpt,
+    X0Opt,
+    Y0Opt,
+    build_interior,
+    camera_from_json,
+    check_mask_from,
+    console,
+    json_text,
+    load_control,
+    split_names,
+    split_numbers,
+)
 
 
 def register(app: typer.Typer) -> None:
     """Add this module's commands to the ``orient`` group."""
+    app.command("resection")(resection)
+    app.command("intersection")(intersection)
+
+
+def resection(
+    points: Annotated[
+        Path,
+        typer.Argument(help="CSV with ground X,Y,Z (and image x,y if IMAGE is not given)."),
+    ],
+    image: Annotated[
+        Path | None, typer.Argument(help="CSV with the image coordinates, joined by id.")
+    ] = None,
+    camera: CameraOpt = None,
+    calibration: CalibrationOpt = None,
+    f: FOpt = None,
+    x0: X0Opt = 0.0,
+    y0: Y0Opt = 0.0,
+    unit: UnitOpt = ImageUnit.mm,
+    pixel_size: PixelSizeOpt = None,
+    principal_point: PPOpt = None,
+    pixel: Annotated[
+        bool,
+        typer.Option(
+            "--pixel", help="Image coordinates are pixels col,row (top-left pixel centre = 0,0)."
+        ),
+    ] = False,
+    calibrate: Annotated[
+        str | None,
+        typer.Option(help="Interior parameters to self-calibrate, e.g. f,x0,y0 or f,k1,k2."),
+    ] = None,
+    initial: Annotated[
+        str | None,
+        typer.Option(help="Start values X0,Y0,Z0,omega,phi,kappa (needed with 3 points)."),
+    ] = None,
+    sigma: Annotated[
+        float | None, typer.Option(help="Standard deviation of the image coordinates.")
+    ] = None,
+    sigma_col: Annotated[
+        str | None, typer.Option(help="Column of per-point image standard deviations.")
+    ] = None,
+    ground_cols: Annotated[str | None, typer.Option(help="Ground columns (default X,Y,Z).")] = None,
+    image_cols: Annotated[
+        str | None, typer.Option(help="Image columns (default x,y; col,row with --pixel).")
+    ] = None,
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    check_ids: Annotated[
+        str | None, typer.Option(help="Comma-separated ids of check points.")
+    ] = None,
+    angle_unit: AngleOpt = AngleUnit.deg,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
+    report: Annotated[
+        Path | None, typer.Option(help="Write an HTML report with image residual vectors.")
+    ] = None,
+    output_params: Annotated[
+        Path | None,
+        typer.Option(help="Write the oriented camera (JSON, for 'orient intersection') here."),
+    ] = None,
+) -> None:
+    """Space resection: exterior orientation of one image from >= 3 control points.
+
+    Start values come from a closed-form P3P solution (or DLT); the collinearity equations
+    are then adjusted. Prints X0, Y0, Z0, omega, phi, kappa (and calibrated interior
+    parameters) with standard deviations, sigma0, and image residuals v = computed - observed.
+    """
+    from ..camera import ExteriorOrientation
+    from ..orientation.resection import space_resection
+
+    io = build_interior(
+        camera=camera,
+        calibration=calibration,
+        f=f,
+        x0=x0,
+        y0=y0,
+        unit=unit,
+        pixel_size=pixel_size,
+        principal_point=principal_point,
+    )
+    ids, g, im, mask, sig = load_control(
+        points,
+        image,
+        ground_cols=ground_cols,
+        image_cols=image_cols or ("col,row" if pixel else None),
+        id_col=id_col,
+        sigma_col=sigma_col,
+    )
+    if pixel:
+        im = io.pixel_to_image(im)
+    if sigma is not None:
+        if sig is not None:
+            raise InputError("give the image standard deviation once: --sigma or --sigma-col")
+        sig = np.full(len(ids), float(sigma))
+    mask = check_mask_from(ids, mask, check_ids)
+    ctrl = ~mask
+    au = AngleUnit(angle_unit).value
+    start = None
+    if initial is not None:
+        start = ExteriorOrientation.from_degrees(*split_numbers(initial, 6, "--initial"), unit=au)
+    fit = space_resection(
+        g[ctrl],
+        im[ctrl],
+        io,
+        initial=start,
+        calibrate=tuple(split_names(calibrate) or ()),
+        sigma=None if sig is None else sig[ctrl],
+        ids=[i for i, c in zip(ids, ctrl) if c],
+        check_ground=g[mask] if mask.any() else None,
+        check_image=im[mask] if mask.any() else None,
+        check_ids=[i for i, c in zip(ids, mask) if c] if mask.any() else None,
+    )
+    data = fit.to_dict()
+    data["model_parameters"] = fit.camera.to_dict(au)
+    outputs: list[tuple[Path, str]] = []
+    if output_params is not None:
+        outputs.append((output_params, json_text(data)))
+    if report is not None:
+        outputs.append(
+            (report, _resection_report(fit, im[ctrl], im[mask] if mask.any() else None, au, points))
+        )
+    from ..io import atomic_write_text
+
+    for path, text in outputs:
+        atomic_write_text(path, text)
+    if as_json:
+        typer.echo(json_text(data), nl=False)
+        return
+    from ..report import print_fit
+
+    out = console()
+    out.print(
+        f"space resection: {points}{' + ' + str(image) if image else ''}; "
+        f"{int(ctrl.sum())} control, {int(mask.sum())} check point(s); image unit {io.unit}",
+        markup=False,
+        highlight=False,
+        soft_wrap=True,
+    )
+    print_fit(fit, console=out, angle_unit=au)
+    for path, _ in outputs:
+        out.print(f"wrote {path}", markup=False)
+
+
+def _resection_report(fit, image_ctrl, image_check, au: str, source: Path) -> str:
+    from ..report import Report
+
+    rep = Report("Space resection", subtitle=str(source))
+    rep.add_fit(
+        fit,
+        title=f"Exterior orientation ({fit.method})",
+        angle_unit=au,
+        points=image_ctrl,
+        check_points=image_check,
+        point_labels=("x", "y"),
+        point_unit=fit.residual_unit,
+        description="Image residual vectors v = computed - observed at the image positions of "
+        "the control points (image system: x right, y up).",
+    )
+    return rep.to_html()
+
+
+def intersection(
+    images: Annotated[
+        list[Path],
+        typer.Argument(help="One CSV of image coordinates (id,x,y) per image, >= 2 images."),
+    ],
+    camera: Annotated[
+        list[Path],
+        typer.Option(
+            "--camera",
+            help="Camera JSON per image, in the order of IMAGES (e.g. from 'orient resection "
+            "--output-params').",
+        ),
+    ],
+    pixel: Annotated[
+        bool, typer.Option("--pixel", help="Image coordinates are pixels col,row.")
+    ] = False,
+    image_cols: Annotated[
+        str | None, typer.Option(help="Image columns (default x,y; col,row with --pixel).")
+    ] = None,
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    sigma: Annotated[
+        float | None,
+        typer.Option(help="Standard deviation of the image coordinates (a-priori std. dev.)."),
+    ] = None,
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
+    report: Annotated[
+        Path | None, typer.Option(help="Write an HTML report with image residual vectors.")
+    ] = None,
+) -> None:
+    """Space intersection: object points from >= 2 oriented images (least squares, all rays).
+
+    Points are joined by id across the image files; points seen in fewer than two images are
+    left out and listed. The output has X, Y, Z, their a-posteriori standard deviations
+    (sX, sY, sZ; a priori from --sigma when the redundancy is 0), the number of rays and
+    sigma0.
+    """
+    from ..io import atomic_write_text, format_points_csv, read_points
+    from ..orientation.intersection import space_intersection
+
+    if len(images) < 2:
+        raise InputError("space intersection needs >= 2 image files")
+    if len(camera) != len(images):
+        raise InputError(
+            f"{len(images)} image file(s) but {len(camera)} --camera file(s): give one camera "
+            "per image, in the same order"
+        )
+    cams = []
+    for path in camera:
+        io, eo = camera_from_json(path)
+        if io is None or eo is None:
+            raise InputError(f"{path}: needs both interior and exterior orientation")
+        cams.append((io, eo))
+    cols = split_names(image_cols) or (["col", "row"] if pixel else ["x", "y"])
+    tables = [read_points(p, cols, id_column=id_col, auto_weights=False) for p in images]
+    order: dict[str, None] = {}
+    for t in tables:
+        order.update(dict.fromkeys(t.ids))
+    all_ids = list(order)
+    obs = np.full((len(images), len(all_ids), 2), np.nan)
+    index = {pid: k for k, pid in enumerate(all_ids)}
+    for i, (t, (io, _)) in enumerate(zip(tables, cams)):
+        xy = io.pixel_to_image(t.coords) if pixel else t.coords
+        obs[i, [index[p] for p in t.ids]] = xy
+    rays = np.sum(np.all(np.isfinite(obs), axis=2), axis=0)
+    keep = rays >= 2
+    dropped = [p for p, k in zip(all_ids, keep) if not k]
+    if not keep.any():
+        raise InputError("no point id occurs in two or more image files")
+    ids = [p for p, k in zip(all_ids, keep) if k]
+    res = space_intersection(obs[:, keep], cams, sigma=sigma)
+    std = np.where(res.redundancy[:, None] > 0, res.std, res.std_prior if sigma else np.nan)
+    notes = []
+    if dropped:
+        notes.append(f"left out (seen in fewer than 2 images): {', '.join(dropped[:30])}")
+    if as_json:
+        pts = [
+            {
+                "id": pid,
+                "X": float(p[0]),
+                "Y": float(p[1]),
+                "Z": float(p[2]),
+                "std": [float(s) if np.isfinite(s) else None for s in sd],
+                "n_rays": int(k),
+                "sigma0": float(s0) if np.isfinite(s0) else None,
+            }
+            for pid, p, sd, k, s0 in zip(ids, res.points, std, res.n_rays, res.sigma0)
+        ]
+        typer.echo(
+            json_text(
+                {"points": pts, "notes": notes, "residual_convention": "computed minus observed"}
+            ),
+            nl=False,
+        )
+    else:
+        text = format_points_csv(
+            ids,
+            np.column_stack([res.points, std]),
+            ["X", "Y", "Z", "sX", "sY", "sZ"],
+            extra={
+                "n_rays": [int(k) for k in res.n_rays],
+                "sigma0": [float(s) for s in res.sigma0],
+            },
+            comments=[
+                f"space intersection of {', '.join(map(str, images))}",
+                "sX, sY, sZ: a-posteriori standard deviations (a priori from --sigma where the "
+                "redundancy is 0)",
+            ],
+        )
+        if output is None:
+            typer.echo(text, nl=False)
+        else:
+            atomic_write_text(output, text)
+    if report is not None:
+        atomic_write_text(report, _intersection_report(res, ids, images, obs[:, keep], cams))
+    err = console(stderr=True)
+    for n in notes:
+        err.print(f"note: {n}", markup=False)
+    if output is not None:
+        err.print(f"wrote {len(ids)} point(s) to {output}", markup=False)
+    if report is not None:
+        err.print(f"wrote {report}", markup=False)
+
+
+def _intersection_report(res, ids, images, obs, cams) -> str:
+    from ..report import Report
+
+    rep = Report("Space intersection", subtitle=", ".join(map(str, images)))
+    rows = [
+        [
+            pid,
+            f"{p[0]:.4f}",
+            f"{p[1]:.4f}",
+            f"{p[2]:.4f}",
+            *(f"{s:.4g}" if np.isfinite(s) else "-" for s in sd),
+            int(k),
+            f"{s0:.4g}" if np.isfinite(s0) else "-",
+        ]
+        for pid, p, sd, k, s0 in zip(ids, res.points, res.std, res.n_rays, res.sigma0)
+    ]
+    rep.add_table("Object points", ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"], rows)
+    for i, path in enumerate(images):
+        ok = np.all(np.isfinite(obs[i]), axis=1)
+        if not ok.any():
+            continue
+        rep.add_residual_plot(
+            f"Image {i + 1} ({path}): residuals v = computed - observed",
+            obs[i][ok],
+            res.residuals[i][ok],
+            ids=[p for p, k in zip(ids, ok) if k],
+            unit=cams[i][0].unit,
+        )
+    return rep.to_html()

@@ -1,0 +1,362 @@
+"""Collinearity equations: ground -> image, image -> ray, image + height -> ground.
+
+    x - x0 = -f (m11 dX + m12 dY + m13 dZ) / (m31 dX + m32 dY + m33 dZ)
+    y - y0 = -f (m21 dX + m22 dY + m23 dZ) / (m31 dX + m32 dY + m33 dZ)
+
+with ``(dX, dY, dZ) = X - X0`` and ``M = M3(kappa) M2(phi) M1(omega)``; affinity, shear
+and Brown distortion as described in :mod:`photogeom.camera.interior`. Everything is
+vectorised over points. A point is *in front of* the camera when its camera-frame
+``w = m3 . (X - X0)`` is negative (the camera looks along its -z axis).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DegenerateGeometryError, InputError
+from ..rotation import m1, m2, m3
+from ..validation import as_points
+from .distortion import CHUNK
+from .exterior import ExteriorOrientation
+from .interior import InteriorOrientation
+
+BEHIND_CHOICES = ("raise", "nan", "keep")
+
+#: Names of interior-orientation parameters that can be differentiated (self-calibration).
+IO_PARAMETERS = ("f", "x0", "y0", "b1", "b2", "k1", "k2", "k3", "k4", "p1", "p2")
+
+
+def _check_behind(behind: str) -> None:
+    if behind not in BEHIND_CHOICES:
+        raise InputError(f"behind must be one of {', '.join(BEHIND_CHOICES)}, not {behind!r}")
+
+
+def in_front(ground, eo: ExteriorOrientation) -> np.ndarray:
+    """Boolean mask: which ground points (n, 3) lie in front of the camera (``w < 0``)."""
+    g = as_points(ground, 3, "ground points")
+    return eo.to_camera(g)[:, 2] < 0
+
+
+def _behind_error(mask_behind: np.ndarray) -> DegenerateGeometryError:
+    idx = np.flatnonzero(mask_behind)
+    shown = ", ".join(str(int(i)) for i in idx[:10]) + (" ..." if idx.size > 10 else "")
+    return DegenerateGeometryError(
+        f"{idx.size} point(s) lie behind the camera or in its principal plane (row index "
+        f"{shown}); their projection is meaningless. Check the exterior orientation (angles "
+        "are radians; the camera looks along its -z axis) or pass behind='nan' to get NaN "
+        "for those points"
+    )
+
+
+def project(
+    ground_xyz,
+    io: InteriorOrientation,
+    eo: ExteriorOrientation,
+    *,
+    system: str = "image",
+    behind: str = "raise",
+    pixel_origin: str = "center",
+) -> np.ndarray:
+    """Project ground points into the image with the collinearity equations.
+
+    Parameters
+    ----------
+    ground_xyz : array_like, shape (n, 3) or (3,)
+        Object-space coordinates (e.g. metres).
+    io : InteriorOrientation
+    eo : ExteriorOrientation
+    system : {"image", "pixel"}
+        ``"image"``: image coordinates ``(x, y)`` in the unit of ``io`` (right-handed, y up).
+        ``"pixel"``: ``(col, row)`` through ``io.image_to_pixel`` (needs pixel geometry).
+    behind : {"raise", "nan", "keep"}
+        Points behind the camera (``w >= 0``): raise :class:`DegenerateGeometryError`,
+        return NaN for them, or keep the (meaningless) mirrored projection.
+    pixel_origin : {"center", "corner"}
+        Pixel convention for ``system="pixel"``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2) (or (2,) for a single point)
+    """
+    _check_behind(behind)
+    arr = np.asarray(ground_xyz, dtype=float)
+    single = arr.ndim == 1
+    g = as_points(arr, 3, "ground points")
+    n = g.shape[0]
+    xy = np.empty((n, 2))
+    back = np.zeros(n, dtype=bool)
+    MT = eo.matrix.T
+    X0 = eo.position
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for s in range(0, n, CHUNK):  # blocks keep temporaries in cache (not a per-point loop)
+            e = min(s + CHUNK, n)
+            p = (g[s:e] - X0) @ MT
+            iw = 1.0 / p[:, 2]
+            back[s:e] = ~(p[:, 2] < 0)
+            p[:, 0] *= -iw
+            p[:, 1] *= iw
+            xy[s:e] = io.image_from_normalized(p[:, :2])
+    if np.any(back):
+        if behind == "raise":
+            raise _behind_error(back)
+        if behind == "nan":
+            xy[back] = np.nan
+    if system == "pixel":
+        xy = io.image_to_pixel(xy, pixel_origin)
+    elif system != "image":
+        raise InputError(f"system must be 'image' or 'pixel', not {system!r}")
+    return xy[0] if single else xy
+
+
+def image_rays(
+    image_xy,
+    io: InteriorOrientation,
+    eo: ExteriorOrientation,
+    *,
+    system="image",
+    pixel_origin: str = "center",
+    tol: float = 1e-9,
+):
+    """Rays from the projection centre through image points.
+
+    Parameters
+    ----------
+    image_xy : array_like, shape (n, 2)
+        Image coordinates in the unit of ``io`` (or pixels with ``system="pixel"``).
+    io, eo
+        Orientation of the image.
+    tol : float
+        Undistortion tolerance in the unit of ``io``; points that do not converge raise
+        :class:`~photogeom.errors.ConvergenceError`.
+
+    Returns
+    -------
+    origin : numpy.ndarray, shape (3,)
+        The projection centre.
+    directions : numpy.ndarray, shape (n, 3)
+        Unit direction vectors in the object system, pointing away from the camera into
+        the scene.
+    """
+    a = as_points(image_xy, 2, "image points")
+    if system == "pixel":
+        a = io.pixel_to_image(a, pixel_origin)
+    elif system != "image":
+        raise InputError(f"system must be 'image' or 'pixel', not {system!r}")
+    xn = io.normalized_from_image(a, tol=tol)
+    # camera frame: u = -xn * (-w) ... with w = -1: (u, v, w) = (xn, -yn, -1)
+    pc = np.stack([xn[:, 0], -xn[:, 1], -np.ones(len(xn))], axis=1)
+    d = pc @ eo.matrix  # M.T @ pc for each row
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return eo.position, d
+
+
+def ground_at_height(
+    image_xy,
+    io: InteriorOrientation,
+    eo: ExteriorOrientation,
+    Z,
+    *,
+    system: str = "image",
+    pixel_origin: str = "center",
+    behind: str = "raise",
+) -> np.ndarray:
+    """Intersect image rays with horizontal planes ``Z = const`` (monoplotting).
+
+    Parameters
+    ----------
+    image_xy : array_like, shape (n, 2)
+    io, eo
+        Orientation of the image.
+    Z : float or array_like, shape (n,)
+        Height of the plane per point, in object units.
+    behind : {"raise", "nan"}
+        A plane that the ray meets behind the camera (or never: ray parallel to it):
+        raise :class:`DegenerateGeometryError` or return NaN for the point.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3)
+    """
+    if behind not in ("raise", "nan"):
+        raise InputError("behind must be 'raise' or 'nan' for ground_at_height")
+    C, d = image_rays(image_xy, io, eo, system=system, pixel_origin=pixel_origin)
+    Zs = (
+        np.broadcast_to(np.asarray(Z, dtype=float).reshape(-1), (d.shape[0],))
+        if np.ndim(Z)
+        else (np.full(d.shape[0], float(Z)))
+    )
+    if not np.all(np.isfinite(Zs)):
+        raise InputError("heights Z contain NaN or infinite values")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (Zs - C[2]) / d[:, 2]
+    bad = ~(np.isfinite(t) & (t > 0))
+    if np.any(bad) and behind == "raise":
+        idx = np.flatnonzero(bad)
+        raise DegenerateGeometryError(
+            f"{idx.size} ray(s) do not meet their height plane in front of the camera (row index "
+            f"{', '.join(str(int(i)) for i in idx[:10])}): the ray is parallel to the plane or "
+            "the plane lies behind the camera. Check Z and the orientation, or pass behind='nan'"
+        )
+    out = C + t[:, None] * d
+    out[bad] = np.nan
+    return out
+
+
+# --- derivatives (used by resection, intersection and self-calibration) --------------------
+
+
+def _rotation_derivatives(eo: ExteriorOrientation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """dM/domega, dM/dphi, dM/dkappa of ``M = M3(k) M2(p) M1(w)``."""
+    w, p, k = eo.omega, eo.phi, eo.kappa
+    cw, sw, cp, sp, ck, sk = np.cos(w), np.sin(w), np.cos(p), np.sin(p), np.cos(k), np.sin(k)
+    dM1 = np.array([[0, 0, 0], [0, -sw, cw], [0, -cw, -sw]])
+    dM2 = np.array([[-sp, 0, -cp], [0, 0, 0], [cp, 0, -sp]])
+    dM3 = np.array([[-sk, ck, 0], [-ck, -sk, 0], [0, 0, 0]])
+    M1, M2, M3 = m1(w), m2(p), m3(k)
+    return M3 @ M2 @ dM1, M3 @ dM2 @ M1, dM3 @ M2 @ M1
+
+
+@dataclass(frozen=True)
+class ProjectionDerivatives:
+    """Image coordinates and their derivatives for n points.
+
+    Attributes
+    ----------
+    xy : (n, 2) image coordinates (unit of the interior orientation).
+    d_eo : (n, 2, 6) w.r.t. X0, Y0, Z0, omega, phi, kappa (angles in radians).
+    d_io : (n, 2, k) w.r.t. the requested interior parameters.
+    d_ground : (n, 2, 3) w.r.t. the ground point X, Y, Z.
+    w : (n,) camera-frame depth (negative in front of the camera).
+    """
+
+    xy: np.ndarray
+    d_eo: np.ndarray
+    d_io: np.ndarray
+    d_ground: np.ndarray
+    w: np.ndarray
+
+
+def projection_derivatives(
+    ground, io: InteriorOrientation, eo: ExteriorOrientation, io_parameters=()
+) -> ProjectionDerivatives:
+    """Analytic derivatives of the collinearity projection (vectorised over points).
+
+    Parameters
+    ----------
+    ground : array_like, shape (n, 3)
+    io, eo
+        Orientation.
+    io_parameters : sequence of str
+        Interior parameters to differentiate, from :data:`IO_PARAMETERS`.
+    """
+    g = np.asarray(ground, dtype=float).reshape(-1, 3)
+    M = eo.matrix
+    d = g - eo.position
+    p = d @ M.T
+    u, v, w = p[:, 0], p[:, 1], p[:, 2]
+    iw = 1.0 / w
+    xn, yn = -u * iw, v * iw
+    # d(xn, yn)/dp  (n, 2, 3)
+    Np = np.zeros((g.shape[0], 2, 3))
+    Np[:, 0, 0] = -iw
+    Np[:, 0, 2] = u * iw * iw
+    Np[:, 1, 1] = iw
+    Np[:, 1, 2] = -v * iw * iw
+    dist = io.distortion
+    xy_n = np.stack([xn, yn], axis=1)
+    if dist is not None:
+        xd_yd = dist.distort(xy_n)
+        JD = dist.jacobian(xy_n)
+    else:
+        xd_yd = xy_n
+        JD = None
+    xd, yd = xd_yd[:, 0], xd_yd[:, 1]
+    x = io.x0 + io.fx * xd + io.b2 * yd
+    y = io.y0 - io.f * yd
+    C = np.array([[io.fx, io.b2], [0.0, -io.f]])
+    # d(x, y)/d(xn, yn)
+    G = np.broadcast_to(C, (g.shape[0], 2, 2)) if JD is None else np.einsum("ij,njk->nik", C, JD)
+    Gp = np.einsum("nij,njk->nik", G, Np)  # d(x, y)/dp  (n, 2, 3)
+    d_ground = Gp @ M  # dp/dX = M
+    dMs = _rotation_derivatives(eo)
+    d_eo = np.empty((g.shape[0], 2, 6))
+    d_eo[:, :, :3] = -d_ground
+    for j, dM in enumerate(dMs):  # three angles
+        dp = d @ dM.T
+        d_eo[:, :, 3 + j] = np.einsum("nij,nj->ni", Gp, dp)
+    names = tuple(io_parameters)
+    d_io = np.zeros((g.shape[0], 2, len(names)))
+    dist_names = [n for n in names if n in ("k1", "k2", "k3", "k4", "p1", "p2")]
+    if dist_names:
+        from .distortion import BrownDistortion
+
+        dd = (dist or BrownDistortion()).coefficient_jacobian(xy_n, dist_names)
+        dd = np.einsum("ij,njk->nik", C, dd)
+    for j, name in enumerate(names):
+        if name == "f":
+            d_io[:, 0, j], d_io[:, 1, j] = xd, -yd
+        elif name == "b1":
+            d_io[:, 0, j] = xd
+        elif name == "b2":
+            d_io[:, 0, j] = yd
+        elif name == "x0":
+            d_io[:, 0, j] = 1.0
+        elif name == "y0":
+            d_io[:, 1, j] = 1.0
+        elif name in dist_names:
+            d_io[:, :, j] = dd[:, :, dist_names.index(name)]
+        else:
+            raise InputError(
+                f"unknown interior parameter {name!r}; known: {', '.join(IO_PARAMETERS)}"
+            )
+    return ProjectionDerivatives(np.stack([x, y], axis=1), d_eo, d_io, d_ground, w)
+
+
+# --- an oriented camera ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FrameCamera:
+    """An oriented frame camera: interior and exterior orientation together.
+
+    Attributes
+    ----------
+    interior : InteriorOrientation
+    exterior : ExteriorOrientation
+    """
+
+    interior: InteriorOrientation
+    exterior: ExteriorOrientation
+
+    def project(self, ground_xyz, **kwargs) -> np.ndarray:
+        """:func:`project` with this camera's orientations."""
+        return project(ground_xyz, self.interior, self.exterior, **kwargs)
+
+    def rays(self, image_xy, **kwargs):
+        """:func:`image_rays` with this camera's orientations."""
+        return image_rays(image_xy, self.interior, self.exterior, **kwargs)
+
+    def ground_at_height(self, image_xy, Z, **kwargs) -> np.ndarray:
+        """:func:`ground_at_height` with this camera's orientations."""
+        return ground_at_height(image_xy, self.interior, self.exterior, Z, **kwargs)
+
+    def to_dict(self, angle_unit: str = "rad") -> dict:
+        """JSON-ready parameters."""
+        return {
+            "model": "frame_camera",
+            "interior": self.interior.to_dict(),
+            "exterior": self.exterior.to_dict(angle_unit),
+        }
+
+    @classmethod
+    def from_dict(cls, data) -> FrameCamera:
+        """Inverse of :meth:`to_dict`."""
+        try:
+            return cls(
+                InteriorOrientation.from_dict(data["interior"]),
+                ExteriorOrientation.from_dict(data["exterior"]),
+            )
+        except KeyError as exc:
+            raise InputError(f"frame camera: missing {exc.args[0]!r}") from exc

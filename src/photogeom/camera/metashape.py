@@ -1,0 +1,506 @@
+"""Frame-camera calibration as Agisoft Metashape defines it: model, XML file, OpenCV conversion.
+
+Metashape's camera system has x to the right, y down and z forward (the viewing direction).
+A camera-frame point ``(X, Y, Z)`` with ``Z > 0`` maps to
+
+    x = X / Z,  y = Y / Z,  r^2 = x^2 + y^2
+    x' = x (1 + K1 r^2 + K2 r^4 + K3 r^6 + K4 r^8) + P1 (r^2 + 2 x^2) + 2 P2 x y
+    y' = y (1 + K1 r^2 + K2 r^4 + K3 r^6 + K4 r^8) + P2 (r^2 + 2 y^2) + 2 P1 x y
+    u = w / 2 + cx + x' f + x' B1 + y' B2
+    v = h / 2 + cy + y' f
+
+with ``f, cx, cy, B1, B2, u, v`` in pixels, ``cx, cy`` offsets of the principal point from
+the image centre, ``w, h`` the image size. Metashape's ``(u, v)`` have their origin at the
+top-left *corner* of the image (the top-left pixel's centre is (0.5, 0.5)): photogeom calls
+this ``pixel_origin="corner"``. photogeom's default pixel convention (and OpenCV's) puts the
+top-left pixel's *centre* at (0, 0): ``pixel_origin="center"``, i.e. ``u - 0.5``.
+
+Against the photogrammetric camera system (x right, y up, z backwards, image plane at
+``z = -f``): ``X_metashape = x``, ``Y_metashape = -y``, ``Z_metashape = -z``.
+
+OpenCV (``cv2.projectPoints``) has the same camera axes and the pixel-centre origin; its
+``p1, p2`` are Metashape's ``P2, P1``, its principal point is absolute
+(``cx_cv = w / 2 + cx - 0.5``) and ``fx = f + B1``, ``fy = f``. Metashape's ``B2`` (shear)
+and ``K4`` (r^8) have no OpenCV equivalent; OpenCV's rational (k4..k6), thin-prism
+(s1..s4) and tilt terms have no Metashape equivalent.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from ..errors import DegenerateGeometryError, FileFormatError, InputError
+from ..validation import as_points
+from .distortion import CHUNK, BrownDistortion, UndistortResult
+from .interior import InteriorOrientation, _pixel_shift
+
+#: Tags of the calibration XML, in the order they are written.
+XML_TAGS = (
+    "projection",
+    "width",
+    "height",
+    "f",
+    "cx",
+    "cy",
+    "b1",
+    "b2",
+    "k1",
+    "k2",
+    "k3",
+    "k4",
+    "p1",
+    "p2",
+)
+#: Tags that are read but carry nothing photogeom uses (Metashape writes them).
+IGNORED_TAGS = ("date", "covariance")
+
+
+class MetashapeXMLWarning(UserWarning):
+    """A calibration XML holds tags photogeom does not know (they are ignored)."""
+
+
+@dataclass(frozen=True)
+class MetashapeCalibration:
+    """Metashape frame-camera calibration (pixels; see the module docstring).
+
+    Parameters
+    ----------
+    width, height : int
+        Image size in pixels.
+    f : float
+        Focal length in pixels.
+    cx, cy : float
+        Principal point offset from the image centre, pixels.
+    k1, k2, k3, k4 : float
+        Radial coefficients (dimensionless).
+    p1, p2 : float
+        Tangential coefficients, Metashape's order (dimensionless).
+    b1, b2 : float
+        Affinity and non-orthogonality (pixels).
+    """
+
+    width: int
+    height: int
+    f: float
+    cx: float = 0.0
+    cy: float = 0.0
+    k1: float = 0.0
+    k2: float = 0.0
+    k3: float = 0.0
+    k4: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    b1: float = 0.0
+    b2: float = 0.0
+
+    def __post_init__(self) -> None:
+        for fl in fields(self):
+            v = getattr(self, fl.name)
+            if fl.name in ("width", "height"):
+                try:
+                    iv = int(v)
+                except (TypeError, ValueError) as exc:
+                    raise InputError(f"{fl.name}: not an integer ({v!r})") from exc
+                if iv != v or iv <= 0:
+                    raise InputError(
+                        f"{fl.name} must be a positive whole number of pixels, got {v!r}"
+                    )
+                object.__setattr__(self, fl.name, iv)
+                continue
+            try:
+                fv = float(v)
+            except (TypeError, ValueError) as exc:
+                raise InputError(f"{fl.name}: not a number ({v!r})") from exc
+            if not math.isfinite(fv):
+                raise InputError(f"{fl.name} is NaN or infinite")
+            object.__setattr__(self, fl.name, fv)
+        if self.f <= 0 or self.f + self.b1 <= 0:
+            raise InputError(
+                f"focal length must be > 0 (f = {self.f:g}, f + b1 = {self.f + self.b1:g})"
+            )
+
+    # --- pieces ------------------------------------------------------------------------------
+
+    @property
+    def distortion(self) -> BrownDistortion:
+        """The dimensionless distortion terms."""
+        return BrownDistortion(self.k1, self.k2, self.k3, self.k4, self.p1, self.p2)
+
+    def principal_point(self, pixel_origin: str = "center") -> tuple[float, float]:
+        """Absolute principal point ``(w/2 + cx, h/2 + cy)`` shifted to ``pixel_origin``."""
+        s = 0.5 - _pixel_shift(pixel_origin)
+        return self.width / 2 + self.cx - s, self.height / 2 + self.cy - s
+
+    # --- forward -----------------------------------------------------------------------------
+
+    def project_normalized(self, xy, *, pixel_origin: str = "center") -> np.ndarray:
+        """Pixels ``(u, v)`` of ideal normalised coordinates ``(X/Z, Y/Z)`` (Metashape axes).
+
+        Vectorised over points; ``xy`` shape (n, 2).
+        """
+        a = np.asarray(xy, dtype=float).reshape(-1, 2)
+        out = np.empty_like(a)
+        for s in range(0, a.shape[0], CHUNK):  # blocks, not points
+            e = min(s + CHUNK, a.shape[0])
+            out[s:e] = self._pixels_from_xy(a[s:e, 0], a[s:e, 1], pixel_origin)
+        return out
+
+    def _pixels_from_xy(self, x: np.ndarray, y: np.ndarray, pixel_origin: str) -> np.ndarray:
+        # Written for speed on 1e7 points: few temporaries, in-place updates.
+        r2 = x * x
+        r2 += y * y
+        rad = self.k4 * r2 if self.k4 else np.zeros_like(r2)
+        rad += self.k3
+        rad *= r2
+        rad += self.k2
+        rad *= r2
+        rad += self.k1
+        rad *= r2
+        rad += 1.0
+        xy2 = x * y
+        xy2 *= 2.0
+        out = np.empty((x.shape[0], 2))
+        xd = out[:, 0]
+        yd = out[:, 1]
+        np.multiply(x, rad, out=xd)
+        np.multiply(y, rad, out=yd)
+        if self.p1 or self.p2:
+            xd += self.p1 * (r2 + 2.0 * x * x) + self.p2 * xy2
+            yd += self.p2 * (r2 + 2.0 * y * y) + self.p1 * xy2
+        u0, v0 = self.principal_point(pixel_origin)
+        xd *= self.f + self.b1
+        if self.b2:
+            xd += self.b2 * yd  # yd is still the distorted normalised y here
+        xd += u0
+        yd *= self.f
+        yd += v0
+        return out
+
+    def project_camera(
+        self, xyz, *, pixel_origin: str = "center", behind: str = "raise"
+    ) -> np.ndarray:
+        """Pixels of camera-frame points (Metashape axes: x right, y down, z forward).
+
+        Points with ``Z <= 0`` are behind the camera: ``behind="raise"`` raises
+        :class:`~photogeom.errors.DegenerateGeometryError`, ``"nan"`` returns NaN for them.
+        """
+        p = as_points(xyz, 3, "camera-frame points")
+        Z = p[:, 2]
+        back = ~(Z > 0)
+        if np.any(back) and behind == "raise":
+            raise DegenerateGeometryError(
+                f"{int(back.sum())} point(s) have Z <= 0 (behind the camera, whose z axis points "
+                "forward in Metashape's convention); pass behind='nan' to get NaN for them"
+            )
+        uv = np.empty((p.shape[0], 2))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for s in range(0, p.shape[0], CHUNK):  # blocks, not points
+                e = min(s + CHUNK, p.shape[0])
+                iz = 1.0 / Z[s:e]
+                uv[s:e] = self._pixels_from_xy(p[s:e, 0] * iz, p[s:e, 1] * iz, pixel_origin)
+        uv[back] = np.nan
+        return uv
+
+    def distort_pixels(self, uv_ideal, *, pixel_origin: str = "center") -> np.ndarray:
+        """Distorted pixels of ideal pixels (a distortion-free camera with the same f, cx, cy).
+
+        The ideal camera has no distortion and no B1, B2: ``u = w/2 + cx + x f``.
+        """
+        a = np.asarray(uv_ideal, dtype=float).reshape(-1, 2)
+        u0, v0 = self.principal_point(pixel_origin)
+        return self.project_normalized((a - np.array([u0, v0])) / self.f, pixel_origin=pixel_origin)
+
+    # --- inverse -----------------------------------------------------------------------------
+
+    def unproject(
+        self, uv, *, pixel_origin: str = "center", tol: float = 1e-9, max_iter: int = 30
+    ) -> UndistortResult:
+        """Ideal normalised coordinates ``(X/Z, Y/Z)`` of observed pixels (iterative).
+
+        Parameters
+        ----------
+        uv : array_like, shape (n, 2)
+            Pixel coordinates in the ``pixel_origin`` convention.
+        tol : float
+            Tolerance in pixels on the re-projected position.
+        max_iter : int
+            Newton iteration limit.
+
+        Returns
+        -------
+        UndistortResult
+            ``points`` normalised; ``status`` per point (0 = converged); ``residual`` in px.
+        """
+        a = np.asarray(uv, dtype=float).reshape(-1, 2)
+        u0, v0 = self.principal_point(pixel_origin)
+        yd = (a[:, 1] - v0) / self.f
+        xd = (a[:, 0] - u0 - self.b2 * yd) / (self.f + self.b1)
+        return self.distortion.undistort(
+            np.stack([xd, yd], axis=1), tol=tol, max_iter=max_iter, scale=(self.f + self.b1, self.f)
+        )
+
+    def undistort_pixels(
+        self, uv, *, pixel_origin: str = "center", tol: float = 1e-9, max_iter: int = 30
+    ) -> UndistortResult:
+        """Ideal pixels (distortion-free camera with the same f, cx, cy) of observed pixels.
+
+        Returns an :class:`UndistortResult` whose ``points`` are pixels and ``status`` flags
+        points that did not converge (their values are the last iterate).
+        """
+        res = self.unproject(uv, pixel_origin=pixel_origin, tol=tol, max_iter=max_iter)
+        u0, v0 = self.principal_point(pixel_origin)
+        pts = res.points * self.f + np.array([u0, v0])
+        return replace(res, points=pts)
+
+    # --- photogrammetric interior orientation --------------------------------------------------
+
+    def interior_orientation(self) -> InteriorOrientation:
+        """The equivalent :class:`InteriorOrientation` in pixels.
+
+        Image system origin at the image centre (pixel ``(w/2 - 0.5, h/2 - 0.5)``, centre
+        convention), y up: ``x0 = cx``, ``y0 = -cy``, ``f``, ``b1``, ``b2`` and the distortion
+        unchanged.
+        """
+        return InteriorOrientation(
+            f=self.f,
+            x0=self.cx,
+            y0=-self.cy,
+            unit="px",
+            b1=self.b1,
+            b2=self.b2,
+            distortion=self.distortion,
+            origin_px=(self.width / 2 - 0.5, self.height / 2 - 0.5),
+            image_size=(self.width, self.height),
+        )
+
+    @classmethod
+    def from_interior_orientation(
+        cls, io: InteriorOrientation, image_size=None
+    ) -> MetashapeCalibration:
+        """Inverse of :meth:`interior_orientation` (needs ``unit="px"``, pixel geometry, size)."""
+        if io.unit != "px":
+            raise InputError(
+                "a Metashape calibration is in pixels: convert the orientation to 'px'"
+            )
+        size = image_size or io.image_size
+        if size is None:
+            raise InputError("a Metashape calibration needs the image size (width, height)")
+        w, h = int(size[0]), int(size[1])
+        col, row = io.principal_point_px("corner")
+        d = io.distortion or BrownDistortion()
+        return cls(w, h, io.f, cx=col - w / 2, cy=row - h / 2, b1=io.b1, b2=io.b2, **d.to_dict())
+
+    # --- OpenCV ------------------------------------------------------------------------------
+
+    def to_opencv(self) -> tuple[np.ndarray, np.ndarray]:
+        """OpenCV camera matrix and distortion vector ``(k1, k2, p1, p2, k3)``.
+
+        Exact: ``fx = f + B1``, ``fy = f``, ``cx_cv = w/2 + cx - 0.5``,
+        ``cy_cv = h/2 + cy - 0.5`` (OpenCV's pixel origin is the top-left pixel's centre),
+        OpenCV ``p1 = P2``, ``p2 = P1``.
+
+        Raises
+        ------
+        InputError
+            When ``K4`` or ``B2`` are non-zero: OpenCV's model has no r^8 term and its
+            projection ignores the shear entry of the camera matrix.
+        """
+        bad = [n for n in ("k4", "b2") if getattr(self, n) != 0.0]
+        if bad:
+            raise InputError(
+                f"{', '.join(n.upper() for n in bad)} have no OpenCV equivalent (OpenCV has no r^8 "
+                "radial term and cv2.projectPoints ignores the shear of the camera matrix); the "
+                "conversion would not be exact"
+            )
+        cxa, cya = self.principal_point("center")
+        K = np.array([[self.f + self.b1, 0.0, cxa], [0.0, self.f, cya], [0.0, 0.0, 1.0]])
+        dist = np.array([self.k1, self.k2, self.p2, self.p1, self.k3])
+        return K, dist
+
+    @classmethod
+    def from_opencv(
+        cls, camera_matrix, dist_coeffs, width: int, height: int
+    ) -> MetashapeCalibration:
+        """From an OpenCV camera matrix and distortion vector (4, 5, 8, 12 or 14 terms).
+
+        Raises :class:`InputError` when terms without a Metashape equivalent are non-zero
+        (rational k4..k6, thin prism s1..s4, tilt, or a non-zero skew / fy > fx + B1 layout
+        is fine: ``B1 = fx - fy``).
+        """
+        K = np.asarray(camera_matrix, dtype=float)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+            raise InputError("camera_matrix must be a finite 3x3 matrix")
+        if K[0, 1] != 0 or K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+            raise InputError(
+                "camera_matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]: OpenCV's projection "
+                "ignores a skew entry, so it cannot be converted exactly"
+            )
+        d = np.asarray(dist_coeffs, dtype=float).reshape(-1)
+        if d.size not in (4, 5, 8, 12, 14):
+            raise InputError(
+                f"OpenCV distortion vectors have 4, 5, 8, 12 or 14 terms, got {d.size}"
+            )
+        if d.size > 5 and np.any(d[5:] != 0):
+            raise InputError(
+                "OpenCV's rational (k4, k5, k6), thin-prism (s1..s4) and tilt (tx, ty) terms "
+                "have no Metashape equivalent; they must be zero for an exact conversion"
+            )
+        k1, k2, p1cv, p2cv = d[:4]
+        k3 = d[4] if d.size >= 5 else 0.0
+        fx, fy = K[0, 0], K[1, 1]
+        return cls(
+            width,
+            height,
+            fy,
+            cx=K[0, 2] + 0.5 - width / 2,
+            cy=K[1, 2] + 0.5 - height / 2,
+            k1=k1,
+            k2=k2,
+            k3=k3,
+            p1=p2cv,
+            p2=p1cv,
+            b1=fx - fy,
+        )
+
+    # --- XML -----------------------------------------------------------------------------------
+
+    def to_xml_string(self) -> str:
+        """Metashape calibration XML (``<calibration>`` with projection, width, height, ...)."""
+        root = ET.Element("calibration")
+        for tag in XML_TAGS:
+            el = ET.SubElement(root, tag)
+            if tag == "projection":
+                el.text = "frame"
+            elif tag in ("width", "height"):
+                el.text = str(getattr(self, tag))
+            else:
+                el.text = repr(float(getattr(self, tag)))
+        ET.indent(root, space="  ")
+        return (
+            '<?xml version="1.0" encoding="UTF-8"?>\n'
+            + ET.tostring(root, encoding="unicode")
+            + "\n"
+        )
+
+    @classmethod
+    def from_xml_string(
+        cls, text: str, *, strict: bool = False, source: str = "calibration XML"
+    ) -> MetashapeCalibration:
+        """Parse Metashape calibration XML; see :func:`read_metashape_xml`."""
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError as exc:
+            raise FileFormatError(f"{source}: not well-formed XML ({exc})") from exc
+        if root.tag != "calibration":
+            raise FileFormatError(f"{source}: root element is <{root.tag}>, expected <calibration>")
+        values: dict[str, str] = {}
+        unknown: list[str] = []
+        projection = root.get("type")
+        for child in root:
+            tag = child.tag
+            if tag == "resolution":  # <resolution width=".." height=".."/> (project files)
+                for k in ("width", "height"):
+                    if child.get(k) is not None:
+                        values[k] = child.get(k)
+                continue
+            if tag == "projection":
+                projection = (child.text or "").strip()
+                continue
+            if tag in IGNORED_TAGS:
+                continue
+            if tag in XML_TAGS or tag in ("p3", "p4"):
+                if tag in values:
+                    raise FileFormatError(f"{source}: tag <{tag}> appears twice")
+                values[tag] = (child.text or "").strip()
+                continue
+            unknown.append(tag)
+        if unknown:
+            msg = (
+                f"{source}: unknown tag(s) {', '.join('<' + t + '>' for t in unknown)} "
+                "(not part of Metashape's frame calibration; ignored)"
+            )
+            if strict:
+                raise FileFormatError(msg)
+            warnings.warn(msg, MetashapeXMLWarning, stacklevel=3)
+        if projection is None:
+            raise FileFormatError(f"{source}: missing <projection> (expected 'frame')")
+        if projection != "frame":
+            raise FileFormatError(
+                f"{source}: projection {projection!r} is not supported; only 'frame' (the Brown "
+                "frame camera) is"
+            )
+        missing = [t for t in ("width", "height", "f") if t not in values]
+        if missing:
+            raise FileFormatError(
+                f"{source}: missing required tag(s) {', '.join('<' + t + '>' for t in missing)}"
+            )
+        parsed: dict[str, float] = {}
+        for tag, txt in values.items():
+            try:
+                parsed[tag] = float(txt)
+            except ValueError as exc:
+                raise FileFormatError(f"{source}: <{tag}> is not a number ({txt!r})") from exc
+            if not math.isfinite(parsed[tag]):
+                raise FileFormatError(f"{source}: <{tag}> is NaN or infinite")
+        for t in ("p3", "p4"):
+            if parsed.pop(t, 0.0) != 0.0:
+                raise FileFormatError(
+                    f"{source}: <{t}> is non-zero; photogeom's Brown model has P1, P2 only"
+                )
+        for t in ("width", "height"):
+            if parsed[t] != int(parsed[t]) or parsed[t] <= 0:
+                raise FileFormatError(
+                    f"{source}: <{t}> must be a positive whole number, got {values[t]!r}"
+                )
+            parsed[t] = int(parsed[t])
+        try:
+            return cls(**parsed)
+        except InputError as exc:
+            raise FileFormatError(f"{source}: {exc}") from exc
+
+    def to_dict(self) -> dict:
+        """JSON-ready parameters."""
+        return {
+            "model": "metashape_frame",
+            **{fl.name: getattr(self, fl.name) for fl in fields(self)},
+        }
+
+
+def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> MetashapeCalibration:
+    """Read a Metashape camera calibration XML file (frame camera).
+
+    Both the exported file (``<projection>``, ``<width>``, ``<height>`` children) and the
+    form inside project/camera exports (``<calibration type="frame">`` with
+    ``<resolution width=".." height=".."/>``) are read. Missing optional terms are zero;
+    ``<date>`` and ``<covariance>`` are ignored.
+
+    Raises
+    ------
+    FileFormatError
+        Unreadable XML, missing ``width``/``height``/``f``, non-numeric values, a projection
+        other than ``frame``, or (with ``strict=True``) unknown tags.
+
+    Warns
+    -----
+    MetashapeXMLWarning
+        Unknown tags (ignored) when ``strict`` is False.
+    """
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
+    return MetashapeCalibration.from_xml_string(text, strict=strict, source=str(path))
+
+
+def write_metashape_xml(calibration: MetashapeCalibration, path: str | os.PathLike) -> None:
+    """Write a Metashape calibration XML file (atomically: old or complete new file)."""
+    from ..atomicfile import atomic_write_text
+
+    atomic_write_text(path, calibration.to_xml_string())
