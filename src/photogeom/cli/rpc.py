@@ -1,7 +1,496 @@
-"""`photogeom rpc`: Rational polynomial (RPC) satellite camera models."""
+"""`photogeom rpc`: rational polynomial (RPC) satellite camera models.
+
+* ``info`` - describe an RPC file (format, offsets and scales, image size, footprint);
+* ``project`` - ground points (lon, lat, h) of a CSV to image points (col, row);
+* ``localize`` - image points (col, row) at heights to ground points (lon, lat), with a
+  status per point;
+* ``fit`` - a terrain-dependent RPC from control points (lon, lat, h, col, row);
+* ``refine`` - bias compensation of a vendor RPC with control points.
+
+Pixel coordinates: (0, 0) is the centre of the first (top-left) pixel; lon/lat in degrees,
+h in metres (ellipsoidal).
+"""
 
 from __future__ import annotations
 
-import typer
+import json
+import warnings
+from dataclasses import replace
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
 
-app = typer.Typer(help="Rational polynomial (RPC) satellite camera models.", no_args_is_help=True)
+import numpy as np
+import typer
+from rich.console import Console
+
+from ..errors import FileFormatError, InputError
+from ..io import atomic_write_text, format_points_csv, read_point_pairs, read_points
+
+app = typer.Typer(
+    help="Rational polynomial (RPC) satellite camera models: (0, 0) is the centre of the first "
+    "pixel; lon/lat in degrees, h in metres.",
+    no_args_is_help=True,
+)
+
+
+class BiasModel(str, Enum):
+    """Image-space correction models of ``refine``."""
+
+    shift = "shift"
+    drift = "shift+drift"
+    affine = "affine"
+
+
+class TextStyle(str, Enum):
+    """RPC text styles of the writer."""
+
+    ikonos = "ikonos"
+    lists = "lists"
+
+
+def _console(stderr: bool = False) -> Console:
+    c = Console(stderr=stderr)
+    if not c.is_terminal:
+        c = Console(stderr=stderr, width=max(c.width, 110))
+    return c
+
+
+def _say(text: str, stderr: bool = False) -> None:
+    _console(stderr).print(text, markup=False, highlight=False, soft_wrap=True)
+
+
+def _json(data) -> str:
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
+def _split(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    return parts or None
+
+
+def _finite_or_none(a) -> list:
+    return [None if not np.isfinite(x) else float(x) for x in np.asarray(a, dtype=float)]
+
+
+def _load_rpc(path: Path):
+    from ..rpc import RPC
+
+    return RPC.from_file(path)
+
+
+GROUND_COLS = [["lon", "lat", "h"], ["lon", "lat", "height"], ["longitude", "latitude", "h"],
+               ["longitude", "latitude", "height"], ["lon", "lat", "z"]]  # fmt: skip
+IMAGE_COLS = [["col", "row"], ["sample", "line"], ["x", "y"]]
+HEIGHT_COLS = ["h", "height", "z"]
+
+
+def _read_with(path: Path, cols: str | None, candidates, what: str, id_col: str | None):
+    """Read the first candidate column set present in the file (or the ``--cols`` given)."""
+    if cols is not None:
+        return read_points(path, _split(cols), id_column=id_col, auto_weights=False)
+    for cand in candidates:
+        try:
+            return read_points(path, cand, id_column=id_col, auto_weights=False)
+        except FileFormatError as exc:
+            if "not found; the file has columns" not in str(exc):
+                raise  # a real problem of the file, not a missing column set
+    raise InputError(
+        f"{path}: cannot find the {what} columns; expected "
+        + " or ".join(",".join(c) for c in candidates)
+        + " (or name them with --cols)"
+    )
+
+
+@app.command("info")
+def info(
+    rpc_file: Annotated[Path, typer.Argument(help="RPC file (any supported format).")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")] = False,
+) -> None:
+    """Describe an RPC: format, offsets and scales, image size, footprint at HEIGHT_OFF."""
+    from ..rpc.localization import approximate_inverse
+
+    rpc = _load_rpc(rpc_file)
+    fp = rpc.footprint()
+    inv = approximate_inverse(rpc)
+    if as_json:
+        data = {
+            "file": str(rpc_file),
+            "format": rpc.source,
+            "pixel_convention": "(0, 0) = centre of the first pixel; col right, row down",
+            "metadata": rpc.to_dict(),
+            "image_size": list(rpc.image_size) if rpc.image_size else None,
+            "image_bounds": list(rpc.image_bounds),
+            "height_range_m": list(rpc.height_range),
+            "footprint_lon_lat_deg": fp.tolist(),
+            "footprint_height_m": rpc.height_off,
+            "has_image_to_ground_polynomials": rpc.direct is not None,
+            "approximate_inverse_max_error_px": inv.max_error_px,
+            "notes": list(rpc.notes),
+        }
+        typer.echo(_json(data), nl=False)
+        return
+    lines = [f"{rpc_file}", rpc.summary()]
+    lines.append(f"  footprint at h = {rpc.height_off:g} m (lon, lat deg):")
+    for name, (lo, la) in zip(("top-left", "top-right", "bottom-right", "bottom-left"), fp):
+        lines.append(f"    {name:<13} {lo:.8f} {la:.8f}")
+    lines.append(
+        f"  localisation start: approximate inverse within {inv.max_error_px:.2g} px "
+        f"({inv.n_points} grid points)"
+    )
+    _say("\n".join(lines))
+
+
+@app.command("project")
+def project(
+    rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
+    points: Annotated[Path, typer.Argument(help="CSV of ground points: id, lon, lat, h.")],
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+    ] = None,
+    cols: Annotated[
+        str | None, typer.Option(help="Ground columns lon,lat,h (default: found by name).")
+    ] = None,
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
+) -> None:
+    """Project ground points (lon, lat in degrees, h in metres) into the image (col, row px)."""
+    rpc = _load_rpc(rpc_file)
+    table = _read_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
+    if table.dim != 3:
+        raise InputError(f"--cols: need three ground columns lon,lat,h, got {table.columns}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        col, row = rpc.project(table.coords[:, 0], table.coords[:, 1], table.coords[:, 2])
+    for w in caught:
+        _say(f"warning: {w.message}", stderr=True)
+    if as_json:
+        data = {
+            "rpc": str(rpc_file),
+            "pixel_convention": "(0, 0) = centre of the first pixel",
+            "points": [
+                {"id": i, "col": float(c), "row": float(r)} for i, c, r in zip(table.ids, col, row)
+            ],
+        }
+        typer.echo(_json(data), nl=False)
+        return
+    text = format_points_csv(
+        table.ids,
+        np.column_stack([col, row]),
+        ["col", "row"],
+        comments=[f"projected with {rpc_file}; (0, 0) = centre of the first pixel, px"],
+    )
+    _emit(text, output, len(table.ids))
+
+
+@app.command("localize")
+def localize(
+    rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
+    points: Annotated[Path, typer.Argument(help="CSV of image points: id, col, row[, h].")],
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+    ] = None,
+    height: Annotated[
+        float | None,
+        typer.Option("--height", help="Height (m) of every point, instead of an h column."),
+    ] = None,
+    cols: Annotated[
+        str | None,
+        typer.Option(help="Image columns col,row (or col,row,h) (default: found by name)."),
+    ] = None,
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    tol: Annotated[float, typer.Option(help="Convergence tolerance (px).")] = 1e-6,
+    max_iter: Annotated[int, typer.Option(help="Newton iterations per point.")] = 20,
+    strict: Annotated[
+        bool, typer.Option(help="Fail (exit 2) when a point does not converge.")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
+) -> None:
+    """Ground points (lon, lat) of image points at given heights, with a status per point.
+
+    Points that do not converge get empty lon/lat ('nan') and status limit_reached or
+    diverged; nothing is guessed.
+    """
+    from ..rpc import LocalizationStatus
+
+    rpc = _load_rpc(rpc_file)
+    if height is None:
+        cands = [[*c, hc] for c in IMAGE_COLS for hc in HEIGHT_COLS]
+        what = "image and height (col, row, h)"
+    else:
+        cands = IMAGE_COLS
+        what = "image (col, row)"
+    table = _read_with(points, cols, cands, what, id_col)
+    if table.dim == 3 and height is None:
+        h = table.coords[:, 2]
+    elif table.dim == 2 and height is not None:
+        h = np.full(len(table.ids), float(height))
+    elif table.dim == 3:
+        h = np.full(len(table.ids), float(height))
+    else:
+        raise InputError(
+            f"{points}: columns {', '.join(table.columns)} give no height; add an h column or "
+            "--height (every point needs its ellipsoidal height in metres)"
+        )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = rpc.localize(
+            table.coords[:, 0], table.coords[:, 1], h, tol=tol, max_iter=max_iter,
+            full_output=True, on_failure="raise" if strict else "nan",
+        )  # fmt: skip
+    for w in caught:
+        _say(f"warning: {w.message}", stderr=True)
+    status = [LocalizationStatus(int(s)).name.lower() for s in res.status]
+    bad = int(np.count_nonzero(~res.converged))
+    if bad:
+        _say(
+            f"warning: {bad} of {len(status)} point(s) did not converge (status column); their "
+            "lon/lat are nan",
+            stderr=True,
+        )
+    if as_json:
+        data = {
+            "rpc": str(rpc_file),
+            "tol_px": tol,
+            "counts": res.counts(),
+            "points": [
+                {"id": i, "lon": lo, "lat": la, "h": float(hh), "status": s, "iterations": int(it)}
+                for i, lo, la, hh, s, it in zip(
+                    table.ids,
+                    _finite_or_none(res.lon),
+                    _finite_or_none(res.lat),
+                    h,
+                    status,
+                    res.iterations,
+                )
+            ],
+        }
+        typer.echo(_json(data), nl=False)
+        return
+    text = format_points_csv(
+        table.ids,
+        np.column_stack([res.lon, res.lat, h]),
+        ["lon", "lat", "h"],
+        extra={"status": status},
+        comments=[f"localised with {rpc_file}; lon, lat in degrees, h in metres; tol {tol:g} px"],
+    )
+    _emit(text, output, len(table.ids))
+
+
+def _emit(text: str, output: Path | None, n: int) -> None:
+    if output is None:
+        typer.echo(text, nl=False)
+    else:
+        atomic_write_text(output, text)
+        _say(f"wrote {n} point(s) to {output}", stderr=True)
+
+
+def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None, check_ids):
+    pairs = read_point_pairs(points, _split(ground_cols), _split(image_cols), id_column=id_col)
+    mask = pairs.check_mask
+    ids = _split(check_ids)
+    if ids is not None:
+        missing = [i for i in ids if i not in set(pairs.ids)]
+        if missing:
+            raise InputError(f"--check-ids: no point with id {', '.join(missing)}")
+        mask = np.isin(np.array(pairs.ids, dtype=object), ids)
+    return pairs, mask
+
+
+def _sigmas(pairs, mask, sigma: float):
+    if pairs.weights is None:
+        return sigma
+    return 1.0 / np.sqrt(pairs.weights[~mask])
+
+
+_GROUND_OPT = typer.Option(help="Ground columns of the CSV (lon deg, lat deg, h m).")
+_IMAGE_OPT = typer.Option(help="Image columns of the CSV (px).")
+_CHECK_OPT = typer.Option(
+    help="Comma-separated ids of check points (default: rows whose role column says 'check')."
+)
+
+
+def _report_html(title: str, subtitle: str, fit, image_ctrl, image_chk, intro: str) -> str:
+    from ..report import Report
+
+    rep = Report(title, subtitle=subtitle)
+    rep.add_text("Input", intro, pre=False)
+    rep.add_fit(
+        fit,
+        title=f"{title} ({fit.method})",
+        points=image_ctrl,
+        check_points=image_chk if image_chk is not None and len(image_chk) else None,
+        point_labels=("col", "row"),
+        point_unit="px",
+        y_down=True,
+    )
+    return rep.to_html()
+
+
+@app.command("fit")
+def fit(
+    points: Annotated[
+        Path, typer.Argument(help="CSV of control points: id, lon, lat, h, col, row[, role].")
+    ],
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Write the fitted RPC (text) here.")
+    ] = None,
+    order: Annotated[
+        int, typer.Option(help="Polynomial degree 1, 2 or 3 (needs 7, 19, 39 control points).")
+    ] = 1,
+    regularization: Annotated[
+        float, typer.Option(help="Tikhonov parameter (normalised units).")
+    ] = 1e-6,
+    sigma: Annotated[float, typer.Option(help="Image measurement std. dev. (px).")] = 1.0,
+    ground_cols: Annotated[str, _GROUND_OPT] = "lon,lat,h",
+    image_cols: Annotated[str, _IMAGE_OPT] = "col,row",
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    check_ids: Annotated[str | None, _CHECK_OPT] = None,
+    style: Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")] = (
+        TextStyle.ikonos
+    ),
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    report: Annotated[Path | None, typer.Option(help="Write an HTML report here.")] = None,
+) -> None:
+    """Fit a terrain-dependent RPC to control points (regularised least squares).
+
+    Needs at least 7, 19 or 39 control points for degree 1, 2 or 3. Residuals are
+    computed minus observed (px); check points do not enter the fit.
+    """
+    from ..rpc import fit_rpc_to_points
+
+    pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
+    kw = {}
+    if mask.any():
+        kw = dict(
+            check_ground=pairs.source[mask],
+            check_image=pairs.target[mask],
+            check_ids=[i for i, m in zip(pairs.ids, mask) if m],
+        )
+    sig = _sigmas(pairs, mask, sigma)
+    if np.ndim(sig):
+        raise InputError(
+            "fit: per-point sigma/weight columns are not supported for RPC fitting; use --sigma"
+        )
+    result = fit_rpc_to_points(
+        pairs.source[~mask], pairs.target[~mask], order=order, regularization=regularization,
+        sigma=float(sig), ids=[i for i, m in zip(pairs.ids, mask) if not m], **kw,
+    )  # fmt: skip
+    _finish(
+        result, output, style, as_json, report, points, pairs, mask, "Terrain-dependent RPC fit"
+    )
+
+
+@app.command("refine")
+def refine(
+    rpc_file: Annotated[Path, typer.Argument(help="Vendor RPC file.")],
+    points: Annotated[
+        Path, typer.Argument(help="CSV of control points: id, lon, lat, h, col, row[, role].")
+    ],
+    model: Annotated[BiasModel, typer.Option(help="Image-space correction.")] = BiasModel.affine,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Write the corrected RPC (text). Shift and per-axis scale corrections are "
+            "written into the offsets exactly; others are re-fitted (the re-fit error is shown).",
+        ),
+    ] = None,
+    sigma: Annotated[float, typer.Option(help="Image measurement std. dev. (px).")] = 1.0,
+    ground_cols: Annotated[str, _GROUND_OPT] = "lon,lat,h",
+    image_cols: Annotated[str, _IMAGE_OPT] = "col,row",
+    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    check_ids: Annotated[str | None, _CHECK_OPT] = None,
+    style: Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")] = (
+        TextStyle.ikonos
+    ),
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    report: Annotated[Path | None, typer.Option(help="Write an HTML report here.")] = None,
+) -> None:
+    """Bias-compensate a vendor RPC with control points (shift, shift+drift or affine).
+
+    Prints the correction parameters with standard deviations, sigma0, and the residuals
+    (computed minus observed, px) of control and check points.
+    """
+    from ..rpc import refine_rpc
+
+    rpc = _load_rpc(rpc_file)
+    pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
+    kw = {}
+    if mask.any():
+        kw = dict(
+            check_ground=pairs.source[mask],
+            check_image=pairs.target[mask],
+            check_ids=[i for i, m in zip(pairs.ids, mask) if m],
+        )
+    result = refine_rpc(
+        rpc, pairs.source[~mask], pairs.target[~mask], model=BiasModel(model).value,
+        sigma=_sigmas(pairs, mask, sigma), ids=[i for i, m in zip(pairs.ids, mask) if not m], **kw,
+    )  # fmt: skip
+    _finish(result, output, style, as_json, report, points, pairs, mask, "RPC bias compensation",
+            source_rpc=rpc_file)  # fmt: skip
+
+
+def _writable(result):
+    """The model to write and a note (re-fitting corrections that cannot be folded)."""
+    model = result.model
+    if model.correction is None or model.correction_is_foldable:
+        return model.with_correction_folded(), None
+    from ..rpc import fit_rpc
+
+    fp = np.vstack([model.footprint(h) for h in model.height_range])
+    lo, hi = fp.min(axis=0), fp.max(axis=0)
+    pad = 0.05 * (hi - lo)
+    bounds = [[lo[0] - pad[0], hi[0] + pad[0]], [lo[1] - pad[1], hi[1] + pad[1]],
+              list(model.height_range)]  # fmt: skip
+    refit = fit_rpc(model, bounds, image_size=model.image_size)
+    note = (
+        "the correction has cross terms; the written RPC is a terrain-independent re-fit of the "
+        f"corrected model (largest check-grid error {refit.extras['check_max_px']:.2g} px)"
+    )
+    return replace(refit.model, source="re-fit of a bias-compensated RPC"), note
+
+
+def _finish(result, output, style, as_json, report, points, pairs, mask, title, source_rpc=None):
+    from ..report import print_fit
+    from ..rpc import write_rpc
+
+    outputs: list[tuple[Path, str]] = []
+    notes = []
+    written = None
+    if output is not None:
+        written, note = _writable(result)
+        if note:
+            notes.append(note)
+            result = replace(result, notes=(*result.notes, note))
+    subtitle = str(points) if source_rpc is None else f"{source_rpc} + {points}"
+    intro = (
+        f"{int((~mask).sum())} control and {int(mask.sum())} check point(s) from {points}; "
+        "ground lon, lat (deg), h (m); image col, row (px, (0, 0) = centre of the first pixel)."
+    )
+    if report is not None:
+        ctrl = pairs.target[~mask]
+        chk = pairs.target[mask] if mask.any() else None
+        outputs.append((report, _report_html(title, subtitle, result, ctrl, chk, intro)))
+    if written is not None:
+        write_rpc(written, output, style=TextStyle(style).value)
+    for path, text in outputs:
+        atomic_write_text(path, text)
+    if as_json:
+        data = result.to_dict()
+        data["input"] = {"points": str(points), "n_control": int((~mask).sum()),
+                         "n_check": int(mask.sum())}  # fmt: skip
+        if written is not None:
+            data["output_rpc"] = str(output)
+        typer.echo(_json(data), nl=False)
+        return
+    out = _console()
+    out.print(intro, markup=False, highlight=False, soft_wrap=True)
+    print_fit(result, console=out)
+    if written is not None:
+        out.print(f"wrote {output}", markup=False, highlight=False)
+    for path, _ in outputs:
+        out.print(f"wrote {path}", markup=False, highlight=False)

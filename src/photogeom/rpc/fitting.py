@@ -1,0 +1,445 @@
+"""Fitting rational polynomial models: to a physical camera or to control points.
+
+**Terrain-independent** (:func:`fit_rpc`): a physical sensor model (any callable
+``ground (n, 3) -> image (n, 2)``, or another :class:`RPC`) projects a 3D grid of ground
+points spanning the given longitude/latitude/height box; the RPC is fitted to those points and
+checked on a second grid placed between the first one's nodes (check points: the fit error).
+
+**Terrain-dependent** (:func:`fit_rpc_to_points`): the RPC is fitted to measured control
+points; it needs at least as many points as coefficients per image coordinate
+(``2 * terms - 1``: 7, 19 or 39 for polynomials of degree 1, 2 or 3).
+
+Estimation (both): the normalised observation equations are
+``col_n = Num_S(t) / Den_S(t)``, ``row_n = Num_L(t) / Den_L(t)`` with the first denominator
+coefficient fixed to 1 (``2 * terms - 1`` unknowns per coordinate, 78 for cubic RPCs).
+Initial values come from the linearised equations ``Num(t) - x_n (Den(t) - 1) = x_n``
+(Tao & Hu 2001), solved by :func:`photogeom.adjust.solve_linear`; the final estimate is a
+nonlinear Gauss-Markov adjustment (:func:`photogeom.adjust.gauss_markov`) of the image
+observations in pixels. Both are regularised (Tikhonov): with ``lambda = regularization``
+the estimate minimises
+
+    sum_i [ ((col_i' - col_i) / SAMP_SCALE)^2 + ((row_i' - row_i) / LINE_SCALE)^2 ] / sigma^2
+        + lambda^2 * sum_j c_j^2
+
+over all free coefficients ``c_j`` (normalised units), implemented as pseudo-observations
+``c_j = 0`` with weight ``lambda^2`` (scaled to pixels). Cubic RPCs are over-parametrised
+(numerator and denominator can share factors), so without regularisation the normal
+equations are singular or nearly so; a small ``lambda`` picks the smallest coefficients among
+the (almost) equivalent solutions and barely changes the fitted function. The reported
+covariance is that of the regularised estimate, ``(A^T P A + lambda^2 S^2 I)^-1``; the
+redundancy counts the image observations only (``2 n - unknowns``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..adjust import Fit, gauss_markov, solve_linear
+from ..errors import ConvergenceError, DegenerateGeometryError, InputError
+from ..validation import as_points, check_count, check_same_length
+from . import polynomial as poly
+from .model import RPC
+
+#: Default Tikhonov parameter (normalised units).
+DEFAULT_REGULARIZATION = 1e-6
+
+
+def _projector(camera) -> Callable[[np.ndarray], np.ndarray]:
+    """``ground (n, 3) -> image (n, 2)`` from a callable or an object with ``project``."""
+    if isinstance(camera, RPC):
+        return lambda g: np.column_stack(camera.project(g[:, 0], g[:, 1], g[:, 2]))
+    if callable(camera):
+        return camera
+    project = getattr(camera, "project", None)
+    if callable(project):
+        return lambda g: np.column_stack(project(g[:, 0], g[:, 1], g[:, 2]))
+    raise InputError(
+        "camera: expected a callable ground (n, 3) [lon deg, lat deg, h m] -> image (n, 2) "
+        "[col, row px], or an object with project(lon, lat, h)"
+    )
+
+
+def _parameter_names(nt: int) -> list[str]:
+    names = []
+    for coord in ("SAMP", "LINE"):
+        names += [f"{coord}_NUM_{j + 1}" for j in range(nt)]
+        names += [f"{coord}_DEN_{j + 1}" for j in range(1, nt)]
+    return names
+
+
+def _unpack(x: np.ndarray, nt: int) -> tuple[np.ndarray, ...]:
+    """Parameter vector -> samp_num, samp_den, line_num, line_den (20 each)."""
+    k = 2 * nt - 1
+    out = []
+    for c in range(2):
+        p = x[c * k : (c + 1) * k]
+        num = np.zeros(poly.N_TERMS)
+        den = np.zeros(poly.N_TERMS)
+        num[:nt] = p[:nt]
+        den[0] = 1.0
+        den[1:nt] = p[nt:]
+        out += [num, den]
+    return tuple(out)
+
+
+class _Normalisation:
+    """Offsets and scales of a fit: ground from a box, image from the observations."""
+
+    def __init__(self, ground_box: np.ndarray, image: np.ndarray) -> None:
+        lo, hi = ground_box
+        self.g_off = 0.5 * (lo + hi)
+        self.g_scale = 0.5 * (hi - lo)
+        ilo, ihi = image.min(axis=0), image.max(axis=0)
+        self.i_off = 0.5 * (ilo + ihi)
+        self.i_scale = np.maximum(0.5 * (ihi - ilo), 1.0)
+
+    def ground(self, g: np.ndarray) -> np.ndarray:
+        return (g - self.g_off) / self.g_scale
+
+    def image(self, im: np.ndarray) -> np.ndarray:
+        return (im - self.i_off) / self.i_scale
+
+
+def _fit_core(
+    ground: np.ndarray,
+    image: np.ndarray,
+    norm: _Normalisation,
+    order: int,
+    regularization: float,
+    sigma: float,
+    what: str,
+):
+    """Regularised rational fit; returns (RPC, Adjustment, names, nt, T)."""
+    if order not in poly.TERMS_OF_ORDER:
+        raise InputError(f"{what}: order must be 1, 2 or 3, got {order!r}")
+    if not (regularization >= 0 and np.isfinite(regularization)):
+        raise InputError(f"{what}: regularization must be >= 0, got {regularization!r}")
+    if not (sigma > 0 and np.isfinite(sigma)):
+        raise InputError(f"{what}: sigma must be a positive number of pixels, got {sigma!r}")
+    nt = poly.TERMS_OF_ORDER[order]
+    k = 2 * nt - 1
+    gn = norm.ground(ground)
+    T = poly.terms(gn[:, 0], gn[:, 1], gn[:, 2])[:, :nt]
+    imn = norm.image(image)
+    S = norm.i_scale  # (samp, line) scales in pixels
+    n = ground.shape[0]
+    lam = float(regularization)
+
+    # linearised initial values, one coordinate at a time (Tao & Hu): Num - x (Den - 1) = x
+    x0 = np.empty(2 * k)
+    for c in range(2):
+        xn = imn[:, c]
+        A = np.hstack([T, -xn[:, None] * T[:, 1:]])
+        L = xn
+        if lam > 0:
+            A = np.vstack([A, lam * np.eye(k)])
+            L = np.concatenate([L, np.zeros(k)])
+        adj = solve_linear(A, L, what=f"{what} (linearised initial values)")
+        x0[c * k : (c + 1) * k] = adj.x
+
+    def split(x):
+        return x[:k], x[k:]
+
+    def model(x):
+        out = np.empty(2 * n + (2 * k if lam > 0 else 0))
+        for c, p in enumerate(split(x)):
+            num = T @ p[:nt]
+            den = 1.0 + T[:, 1:] @ p[nt:]
+            out[c * n : (c + 1) * n] = S[c] * num / den + norm.i_off[c]
+        if lam > 0:
+            out[2 * n :] = x
+        return out
+
+    def jacobian(x):
+        J = np.zeros((2 * n + (2 * k if lam > 0 else 0), 2 * k))
+        for c, p in enumerate(split(x)):
+            num = T @ p[:nt]
+            den = 1.0 + T[:, 1:] @ p[nt:]
+            rows = slice(c * n, (c + 1) * n)
+            J[rows, c * k : c * k + nt] = S[c] * T / den[:, None]
+            J[rows, c * k + nt : (c + 1) * k] = -S[c] * (num / den**2)[:, None] * T[:, 1:]
+        if lam > 0:
+            J[2 * n :, :] = np.eye(2 * k)
+        return J
+
+    observed = image.T.reshape(-1)
+    weights = np.full(2 * n, 1.0 / sigma**2)
+    if lam > 0:
+        # lambda^2 * c^2 in normalised units = (lambda * S)^2 c^2 in pixel units
+        pseudo = np.concatenate([np.full(k, (lam * S[0]) ** 2), np.full(k, (lam * S[1]) ** 2)])
+        observed = np.concatenate([observed, np.zeros(2 * k)])
+        weights = np.concatenate([weights, pseudo / sigma**2])
+    names = _parameter_names(nt)
+    try:
+        adj = gauss_markov(
+            model, x0, observed, jacobian=jacobian, weights=weights, sigma0_prior=1.0,
+            names=names, max_iter=100, what=what,
+        )  # fmt: skip
+    except ConvergenceError as exc:
+        raise ConvergenceError(
+            f"{what}: the rational-function fit did not converge ({exc}). The points do not "
+            f"determine the coefficients well: use a lower order or a larger regularization "
+            f"(now {lam:g})",
+            iterations=exc.iterations,
+        ) from exc
+    sn, sd, ln, ld = _unpack(adj.x, nt)
+    rpc = RPC(
+        line_off=norm.i_off[1], samp_off=norm.i_off[0], lat_off=norm.g_off[1],
+        long_off=norm.g_off[0], height_off=norm.g_off[2], line_scale=S[1], samp_scale=S[0],
+        lat_scale=norm.g_scale[1], long_scale=norm.g_scale[0], height_scale=norm.g_scale[2],
+        line_num=ln, line_den=ld, samp_num=sn, samp_den=sd, source=what,
+    )  # fmt: skip
+    return rpc, adj, names, nt
+
+
+def _make_fit(
+    rpc: RPC,
+    adj,
+    names: list[str],
+    n: int,
+    method: str,
+    ids: Sequence | None,
+    elapsed: float,
+    sigma: float,
+    notes: tuple[str, ...],
+    extras: dict,
+) -> Fit:
+    """A :class:`Fit` with statistics of the image observations only (no pseudo-observations)."""
+    u = len(names)
+    v = adj.residuals[: 2 * n]
+    residuals = v.reshape(2, n).T.copy()
+    r = 2 * n - u
+    vtpv = float(np.sum(v**2)) / sigma**2
+    sigma0 = float(np.sqrt(vtpv / r)) if r > 0 else float("nan")
+    Q = adj.cofactor
+    w = adj.normalized_residuals
+    red = adj.redundancy_numbers
+    return Fit(
+        model=rpc,
+        method=method,
+        parameter_names=tuple(names),
+        parameters=adj.x.copy(),
+        covariance=sigma0**2 * Q,
+        cofactor=Q,
+        sigma0=sigma0,
+        sigma0_prior=1.0,
+        redundancy=r,
+        n_observations=2 * n,
+        residuals=residuals,
+        ids=None if ids is None else tuple(ids),
+        residual_labels=("col", "row"),
+        residual_unit="px",
+        parameter_units={name: "1" for name in names},
+        normalized_residuals=None if w is None else w[: 2 * n].reshape(2, n).T.copy(),
+        redundancy_numbers=None if red is None else red[: 2 * n].reshape(2, n).T.copy(),
+        iterations=adj.iterations,
+        converged=adj.converged,
+        message=adj.message,
+        elapsed=elapsed,
+        notes=notes,
+        extras=extras,
+    )
+
+
+def _denominator_note(rpc: RPC, ground: np.ndarray) -> tuple[tuple[str, ...], float]:
+    L, P, H = rpc.normalize_ground(ground[:, 0], ground[:, 1], ground[:, 2])
+    V = poly.evaluate(np.stack([rpc.samp_den, rpc.line_den]), L, P, H)
+    dmin = float(np.min(np.abs(V)))
+    if dmin < 0.1:
+        return (
+            f"a denominator comes close to zero in the fitted domain (min |Den| = {dmin:.3g}); "
+            "the RPC may be unstable there (raise the regularization or use a lower order)",
+        ), dmin
+    return (), dmin
+
+
+def fit_rpc(
+    camera,
+    bounds,
+    *,
+    grid: tuple[int, int, int] = (11, 11, 6),
+    order: int = 3,
+    regularization: float = DEFAULT_REGULARIZATION,
+    image_size: tuple[int, int] | None = None,
+) -> Fit:
+    """Terrain-independent RPC fitted to a physical sensor model.
+
+    Parameters
+    ----------
+    camera : callable or object with ``project``
+        ``camera(ground)`` with ``ground`` of shape (n, 3) (lon deg, lat deg, h m) returning
+        image points (n, 2) (col, row px, first pixel centre at (0, 0)); or an :class:`RPC`
+        (e.g. a bias-corrected one to re-fit), or any object with ``project(lon, lat, h)``.
+        Points it maps to NaN (e.g. behind the camera) are left out.
+    bounds : array_like, shape (3, 2)
+        ``[[lon_min, lon_max], [lat_min, lat_max], [h_min, h_max]]`` (degrees, metres): the
+        ground box the RPC must be valid in (it becomes the normalised domain).
+    grid : (int, int, int)
+        Grid nodes along lon, lat and h (at least 2 each; the number of points must reach the
+        number of coefficients per coordinate). Check points lie between the nodes.
+    order : {1, 2, 3}
+        Degree of the polynomials (3 = RPC00B).
+    regularization : float
+        Tikhonov parameter lambda (normalised units, see the module docstring).
+    image_size : (int, int), optional
+        Stored in the model (``(columns, rows)``).
+
+    Returns
+    -------
+    Fit
+        ``model`` is the fitted :class:`RPC`; residuals (px, computed - observed) on the
+        grid; ``check_residuals`` on the check grid; ``extras["check_max_px"]`` the largest
+        check-point error.
+    """
+    t0 = time.perf_counter()
+    project = _projector(camera)
+    b = np.asarray(bounds, dtype=np.float64)
+    if b.shape != (3, 2) or not np.all(np.isfinite(b)):
+        raise InputError(
+            "bounds: expected [[lon_min, lon_max], [lat_min, lat_max], [h_min, h_max]] "
+            f"(finite numbers), got shape {b.shape}"
+        )
+    if np.any(b[:, 1] <= b[:, 0]):
+        axis = ["longitude", "latitude", "height"][int(np.argmax(b[:, 1] <= b[:, 0]))]
+        raise DegenerateGeometryError(
+            f"bounds: the {axis} range is empty (max <= min); a terrain-independent RPC needs a "
+            "3D box (for the height too: at least two different heights)"
+        )
+    g = tuple(int(v) for v in grid)
+    if len(g) != 3 or min(g) < 2:
+        raise InputError(f"grid: expected three node counts >= 2, got {grid!r}")
+    axes = [np.linspace(b[i, 0], b[i, 1], g[i]) for i in range(3)]
+    G = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    mids = [0.5 * (a[1:] + a[:-1]) for a in axes]
+    Gc = np.stack(np.meshgrid(*mids, indexing="ij"), axis=-1).reshape(-1, 3)
+    img = np.asarray(project(G), dtype=np.float64)
+    imc = np.asarray(project(Gc), dtype=np.float64)
+    for arr, name, ref in ((img, "grid", G), (imc, "check grid", Gc)):
+        if arr.shape != (ref.shape[0], 2):
+            raise InputError(
+                f"camera returned shape {arr.shape} for {ref.shape[0]} {name} points; "
+                "expected (n, 2) (col, row)"
+            )
+    ok = np.all(np.isfinite(img), axis=1)
+    okc = np.all(np.isfinite(imc), axis=1)
+    nt = poly.TERMS_OF_ORDER.get(order, 20)
+    check_count(
+        int(ok.sum()), 2 * nt - 1, f"terrain-independent RPC fit of order {order}",
+        "use a denser grid or a box the camera sees",
+    )  # fmt: skip
+    norm = _Normalisation(b.T, img[ok])
+    what = "terrain-independent RPC fit"
+    rpc, adj, names, nt = _fit_core(G[ok], img[ok], norm, order, regularization, 1.0, what)
+    if image_size is not None:
+        rpc = _with(rpc, image_size=image_size)
+    cc, rc = rpc.project(Gc[okc, 0], Gc[okc, 1], Gc[okc, 2], domain_limit=None)
+    check = np.column_stack([cc, rc]) - imc[okc]
+    notes, dmin = _denominator_note(rpc, np.vstack([G[ok], Gc[okc]]))
+    if not ok.all():
+        notes = (*notes, f"{int((~ok).sum())} grid point(s) without an image position left out")
+    fit = _make_fit(
+        rpc, adj, names, int(ok.sum()),
+        f"terrain-independent rational function fit (order {order}, Tikhonov {regularization:g})",
+        None, time.perf_counter() - t0, 1.0, notes,
+        {
+            "regularization": regularization,
+            "order": order,
+            "grid": list(g),
+            "check_max_px": float(np.max(np.abs(check))) if check.size else float("nan"),
+            "min_denominator": dmin,
+        },
+    )  # fmt: skip
+    return fit.with_checks(check)
+
+
+def fit_rpc_to_points(
+    ground,
+    image,
+    *,
+    order: int = 1,
+    regularization: float = DEFAULT_REGULARIZATION,
+    sigma: float = 1.0,
+    ids: Sequence | None = None,
+    check_ground=None,
+    check_image=None,
+    check_ids: Sequence | None = None,
+    image_size: tuple[int, int] | None = None,
+) -> Fit:
+    """Terrain-dependent RPC fitted to control points.
+
+    Parameters
+    ----------
+    ground : array_like, shape (n, 3)
+        Control points: lon (deg), lat (deg), h (m).
+    image : array_like, shape (n, 2)
+        Their measured image positions: col, row (px).
+    order : {1, 2, 3}
+        Degree; needs ``n >= 2 * terms - 1`` points (7, 19, 39 for degree 1, 2, 3). Degree 1
+        (the default) is the robust choice for measured control points; degrees 2 and 3 need
+        many well-spread points and overfit noisy ones (watch the check points).
+    regularization : float
+        Tikhonov parameter lambda (normalised units, see the module docstring).
+    sigma : float
+        A-priori standard deviation of the image measurements (px).
+    ids, check_ids : sequence, optional
+        Point ids of control and check points.
+    check_ground, check_image : array_like, optional
+        Check points (not used in the estimate).
+    image_size : (int, int), optional
+
+    Returns
+    -------
+    Fit
+        ``model`` is the fitted :class:`RPC`; residuals in px (computed - observed).
+    """
+    t0 = time.perf_counter()
+    what = f"terrain-dependent RPC fit of order {order}"
+    if order not in poly.TERMS_OF_ORDER:
+        raise InputError(f"{what}: order must be 1, 2 or 3, got {order!r}")
+    G = as_points(ground, 3, "ground (lon, lat, h)")
+    im = as_points(image, 2, "image (col, row)")
+    check_same_length(G, im, "ground", "image")
+    nt = poly.TERMS_OF_ORDER[order]
+    need = 2 * nt - 1
+    lower = [f"order {o} needs {2 * poly.TERMS_OF_ORDER[o] - 1}" for o in (1, 2) if o < order]
+    check_count(
+        G.shape[0], need, what,
+        f"{need} coefficients per image coordinate" + (f"; {', '.join(lower)}" if lower else ""),
+    )  # fmt: skip
+    lo, hi = G.min(axis=0), G.max(axis=0)
+    span = hi - lo
+    for i, axis in enumerate(("longitude", "latitude", "height")):
+        if span[i] <= 0:
+            raise DegenerateGeometryError(
+                f"{what}: all control points have the same {axis}; the {axis} terms cannot be "
+                "determined (give points spread in 3D, e.g. at different heights)"
+            )
+    norm = _Normalisation(np.vstack([lo, hi]), im)
+    rpc, adj, names, nt = _fit_core(G, im, norm, order, regularization, float(sigma), what)
+    if image_size is not None:
+        rpc = _with(rpc, image_size=image_size)
+    notes, dmin = _denominator_note(rpc, G)
+    fit = _make_fit(
+        rpc, adj, names, G.shape[0],
+        f"terrain-dependent rational function fit (order {order}, Tikhonov {regularization:g})",
+        ids, time.perf_counter() - t0, float(sigma), notes,
+        {"regularization": regularization, "order": order, "min_denominator": dmin},
+    )  # fmt: skip
+    if check_ground is not None or check_image is not None:
+        if check_ground is None or check_image is None:
+            raise InputError("check points need both check_ground and check_image")
+        cg = as_points(check_ground, 3, "check_ground")
+        ci = as_points(check_image, 2, "check_image")
+        check_same_length(cg, ci, "check_ground", "check_image")
+        cc, rc = rpc.project(cg[:, 0], cg[:, 1], cg[:, 2])
+        fit = fit.with_checks(np.column_stack([cc, rc]) - ci, check_ids)
+    return fit
+
+
+def _with(rpc: RPC, **changes) -> RPC:
+    from dataclasses import replace
+
+    return replace(rpc, **changes)

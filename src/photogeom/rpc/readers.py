@@ -1,0 +1,512 @@
+"""Readers of RPC files; the format is detected from the content.
+
+Formats:
+
+* **KEY: value text** -- IKONOS / GeoEye / SkySat ``_RPC.TXT`` with numbered coefficient keys
+  (``LINE_NUM_COEFF_1: ...`` to ``_20``) and units after the values (``pixels``,
+  ``degrees``, ``meters``), or one key per coefficient vector with the 20 values on one line
+  (as GDAL's RPC metadata domain). Extended files with ``LON_NUM_COEFF``/``LAT_NUM_COEFF``
+  (image-to-ground polynomials) are read too. ``#`` starts a comment line.
+* **RPB** -- DigitalGlobe/Maxar ``.RPB`` (``lineOffset = ...;``, ``lineNumCoef = (...);``).
+* **DIMAP XML** -- Pleiades / SPOT 6-7 ``RPC_*.XML``: v2 (``Inverse_Model`` = ground to image,
+  ``Direct_Model`` = image to ground) and v3 / Pleiades Neo (``GroundtoImage_Values``,
+  ``ImagetoGround_Values``). DIMAP v2 counts pixels from 1 (the centre of the first pixel is
+  (1, 1)); the validity domain's ``FIRST_COL``/``FIRST_ROW`` (default 1) is subtracted from
+  ``SAMP_OFF``/``LINE_OFF`` so that the model uses the library's convention (first pixel
+  centre at (0, 0)), as GDAL does.
+* **DigitalGlobe/Maxar XML** -- WorldView ``.XML`` with an ``RPB/IMAGE`` block
+  (``LINEOFFSET``, ``LINENUMCOEFList/LINENUMCOEF``, ...); pixel convention as RPB (0-based).
+* **GeoTIFF / NITF** -- the ``RPC`` metadata domain read through ``rasterio`` (optional
+  extra ``photogeom[geotiff]``).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from xml.etree import ElementTree
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+from . import polynomial as poly
+from .model import GDAL_COEFF_KEYS, GDAL_KEYS, RPC, DirectModel
+
+_UNITS = {
+    "pixel", "pixels", "px", "degree", "degrees", "deg", "meter", "meters", "metre",
+    "metres", "m",
+}  # fmt: skip
+
+_OFFSET_SCALE_KEYS = tuple(GDAL_KEYS.values())
+_COEFF_KEYS = tuple(GDAL_COEFF_KEYS.values())
+_DIRECT_KEYS = ("LON_NUM_COEFF", "LON_DEN_COEFF", "LAT_NUM_COEFF", "LAT_DEN_COEFF")
+
+_RPB_KEYS = {
+    "errBias": "ERR_BIAS",
+    "errRand": "ERR_RAND",
+    "lineOffset": "LINE_OFF",
+    "sampOffset": "SAMP_OFF",
+    "latOffset": "LAT_OFF",
+    "longOffset": "LONG_OFF",
+    "heightOffset": "HEIGHT_OFF",
+    "lineScale": "LINE_SCALE",
+    "sampScale": "SAMP_SCALE",
+    "latScale": "LAT_SCALE",
+    "longScale": "LONG_SCALE",
+    "heightScale": "HEIGHT_SCALE",
+    "lineNumCoef": "LINE_NUM_COEFF",
+    "lineDenCoef": "LINE_DEN_COEFF",
+    "sampNumCoef": "SAMP_NUM_COEFF",
+    "sampDenCoef": "SAMP_DEN_COEFF",
+}
+_RPB_LOWER = {k.lower(): v for k, v in _RPB_KEYS.items()}
+
+FORMATS = (
+    "KEY: value text (IKONOS-style _RPC.TXT or coefficient lists), DigitalGlobe .RPB, "
+    "DIMAP XML (Pleiades/SPOT), DigitalGlobe/Maxar XML with an RPB block (WorldView), "
+    "GeoTIFF/NITF RPC metadata (with rasterio)"
+)
+
+
+# --- building from a mapping ------------------------------------------------------------------
+
+
+def _numbers(value: object, key: str, where: str) -> list[float]:
+    """A value (number, string, or list) as a list of floats; units are skipped."""
+    if isinstance(value, (int, float)):
+        return [float(value)]
+    if isinstance(value, str):
+        tokens = value.replace(",", " ").split()
+    else:
+        try:
+            tokens = list(value)  # type: ignore[arg-type]
+        except TypeError as exc:
+            raise FileFormatError(f"{where}: {key} has an unreadable value {value!r}") from exc
+    out = []
+    for tok in tokens:
+        if isinstance(tok, str) and tok.strip().lower() in _UNITS:
+            continue
+        try:
+            out.append(float(tok))
+        except (TypeError, ValueError) as exc:
+            raise FileFormatError(f"{where}: {key} holds {tok!r}, which is not a number") from exc
+    return out
+
+
+def _scalar(d: Mapping[str, object], key: str, where: str) -> float:
+    if key not in d:
+        raise FileFormatError(
+            f"{where}: missing key {key} (truncated or not an RPC file?); an RPC needs "
+            + ", ".join(_OFFSET_SCALE_KEYS)
+            + " and the four coefficient vectors"
+        )
+    vals = _numbers(d[key], key, where)
+    if not vals:
+        raise FileFormatError(f"{where}: key {key} has no value")
+    if len(vals) != 1:
+        raise FileFormatError(f"{where}: key {key} holds {len(vals)} values, expected one")
+    return vals[0]
+
+
+def _vector(d: Mapping[str, object], key: str, where: str, required: bool = True):
+    """20 coefficients from ``key`` (one list) or ``key_1`` .. ``key_20``."""
+    if key in d:
+        vals = _numbers(d[key], key, where)
+        if len(vals) != poly.N_TERMS:
+            raise FileFormatError(
+                f"{where}: {key} has {len(vals)} coefficient(s), an RPC00B polynomial has "
+                f"exactly {poly.N_TERMS}"
+            )
+        return vals
+    numbered = {}
+    pattern = re.compile(rf"^{key}_(\d+)$")
+    for k in d:
+        m = pattern.match(k)
+        if m:
+            numbered[int(m.group(1))] = k
+    if not numbered:
+        if not required:
+            return None
+        raise FileFormatError(
+            f"{where}: missing key {key} (neither {key} with 20 values nor {key}_1 .. "
+            f"{key}_20); truncated or not an RPC file?"
+        )
+    extra = sorted(i for i in numbered if not 1 <= i <= poly.N_TERMS)
+    if extra:
+        raise FileFormatError(
+            f"{where}: {key}_{extra[0]} found, but an RPC00B polynomial has exactly "
+            f"{poly.N_TERMS} coefficients ({key}_1 .. {key}_{poly.N_TERMS})"
+        )
+    missing = [i for i in range(1, poly.N_TERMS + 1) if i not in numbered]
+    if missing:
+        shown = ", ".join(f"{key}_{i}" for i in missing[:5]) + (" ..." if len(missing) > 5 else "")
+        raise FileFormatError(
+            f"{where}: missing key(s) {shown} ({len(numbered)} of {poly.N_TERMS} coefficients "
+            "present; truncated file?)"
+        )
+    out = []
+    for i in range(1, poly.N_TERMS + 1):
+        vals = _numbers(d[numbered[i]], numbered[i], where)
+        if len(vals) != 1:
+            what = "no value" if not vals else f"{len(vals)} values"
+            raise FileFormatError(f"{where}: key {numbered[i]} has {what}, expected one number")
+        out.append(vals[0])
+    return out
+
+
+def _optional_error(d: Mapping[str, object], key: str, where: str) -> float | None:
+    if key not in d:
+        return None
+    vals = _numbers(d[key], key, where)
+    if len(vals) != 1 or vals[0] < 0:  # -1 means "unknown" in RPC00B
+        return None
+    return vals[0]
+
+
+def rpc_from_mapping(
+    d: Mapping[str, object],
+    source: str = "dictionary",
+    where: str | None = None,
+    **extra,
+) -> RPC:
+    """Build an :class:`RPC` from GDAL-style keys (case-insensitive).
+
+    Parameters
+    ----------
+    d : mapping
+        ``LINE_OFF``, ..., ``HEIGHT_SCALE`` (numbers or strings), ``LINE_NUM_COEFF``, ...
+        (20 values as a list or a space-separated string, or numbered keys ``_1`` .. ``_20``),
+        optional ``ERR_BIAS``, ``ERR_RAND`` and ``LON_NUM_COEFF``, ... (image-to-ground).
+    source : str
+        Format name stored in the model.
+    where : str, optional
+        Name used in error messages (file name).
+    **extra
+        Further :class:`RPC` fields (``image_size``, ``notes``, ...).
+    """
+    where = where or source
+    up = {str(k).strip().upper(): v for k, v in d.items()}
+    values = {name: _scalar(up, key, where) for name, key in GDAL_KEYS.items()}
+    coeffs = {name: _vector(up, key, where) for name, key in GDAL_COEFF_KEYS.items()}
+    direct_vecs = [_vector(up, key, where, required=False) for key in _DIRECT_KEYS]
+    present = [v is not None for v in direct_vecs]
+    direct = None
+    if all(present):
+        direct = DirectModel(*direct_vecs)
+    elif any(present):
+        missing = [k for k, p in zip(_DIRECT_KEYS, present) if not p]
+        raise FileFormatError(
+            f"{where}: incomplete image-to-ground polynomials: missing {', '.join(missing)}"
+        )
+    if "IMAGE_CORRECTION" in up and "correction" not in extra:
+        raw = up["IMAGE_CORRECTION"]
+        if not isinstance(raw, str):
+            raw = " ".join(str(v) for v in np.ravel(np.asarray(raw, dtype=object)))
+        vals = _numbers(raw, "IMAGE_CORRECTION", where)
+        if len(vals) != 6:
+            raise FileFormatError(f"{where}: IMAGE_CORRECTION needs 6 values, got {len(vals)}")
+        extra["correction"] = np.reshape(vals, (2, 3))
+    extra.setdefault("err_bias", _optional_error(up, "ERR_BIAS", where))
+    extra.setdefault("err_rand", _optional_error(up, "ERR_RAND", where))
+    try:
+        return RPC(**values, **coeffs, direct=direct, source=source, **extra)
+    except InputError as exc:
+        raise FileFormatError(f"{where}: {exc}") from exc
+
+
+# --- text formats --------------------------------------------------------------------------
+
+_KEY = re.compile(r"^\s*([A-Za-z][A-Za-z0-9_]*)\s*[:=]\s*(.*?)\s*$")
+
+
+def parse_key_value_text(text: str, where: str) -> dict[str, str]:
+    """``KEY: value`` (or ``KEY=value``) lines -> dict; ``#`` lines are comments."""
+    out: dict[str, str] = {}
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        m = _KEY.match(s)
+        if not m:
+            raise FileFormatError(
+                f"{where}, line {lineno}: expected 'KEY: value', found {s[:60]!r}"
+            )
+        key = m.group(1).upper()
+        if key in out:
+            raise FileFormatError(f"{where}, line {lineno}: key {key} appears twice")
+        out[key] = m.group(2)
+    return out
+
+
+def read_key_value_text(text: str, where: str) -> RPC:
+    """Read IKONOS-style or coefficient-list ``KEY: value`` text."""
+    d = parse_key_value_text(text, where)
+    numbered = any(k.startswith("LINE_NUM_COEFF_") for k in d)
+    source = "KEY: value text, numbered coefficients" if numbered else "KEY: value text, lists"
+    return rpc_from_mapping(d, source=source, where=where)
+
+
+_RPB_ASSIGN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(\([^)]*\)|[^;\n]*);", re.M)
+
+
+def read_rpb(text: str, where: str) -> RPC:
+    """Read a DigitalGlobe ``.RPB`` file."""
+    d: dict[str, str] = {}
+    for key, value in _RPB_ASSIGN.findall(text):
+        mapped = _RPB_LOWER.get(key.lower())
+        if mapped is not None:
+            d[mapped] = value.strip().strip("()")
+    if not d:
+        raise FileFormatError(f"{where}: no RPB assignments (lineOffset = ...;) found")
+    for key in _COEFF_KEYS:
+        if key not in d:
+            rpb = next(k for k, v in _RPB_KEYS.items() if v == key)
+            raise FileFormatError(f"{where}: missing key {rpb} ({key}); truncated RPB file?")
+    try:
+        return rpc_from_mapping(d, source="RPB", where=where)
+    except FileFormatError as exc:
+        msg = str(exc)
+        for rpb, gdal in _RPB_KEYS.items():
+            msg = msg.replace(f"missing key {gdal} ", f"missing key {rpb} ({gdal}) ")
+        raise FileFormatError(msg) from exc
+
+
+# --- XML formats ------------------------------------------------------------------------------
+
+
+def _strip_ns(root: ElementTree.Element) -> None:
+    for el in root.iter():
+        if isinstance(el.tag, str) and "}" in el.tag:
+            el.tag = el.tag.split("}", 1)[1]
+
+
+def _find_any(root: ElementTree.Element, tag: str) -> ElementTree.Element | None:
+    return next(iter(root.iter(tag)), None)
+
+
+def _xml_text(el: ElementTree.Element | None, path: str, where: str) -> str:
+    node = None if el is None else el.find(path)
+    if node is None or node.text is None or not node.text.strip():
+        raise FileFormatError(f"{where}: missing XML element {path}")
+    return node.text.strip()
+
+
+def _xml_coeffs(el: ElementTree.Element, prefix: str, where: str, block: str) -> list[float]:
+    vals = []
+    for i in range(1, poly.N_TERMS + 1):
+        node = el.find(f"{prefix}_{i}")
+        if node is None or node.text is None or not node.text.strip():
+            raise FileFormatError(
+                f"{where}: missing XML element {block}/{prefix}_{i} (an RPC00B polynomial has "
+                f"{poly.N_TERMS} coefficients)"
+            )
+        vals.extend(_numbers(node.text, f"{prefix}_{i}", where))
+    if el.find(f"{prefix}_{poly.N_TERMS + 1}") is not None:
+        raise FileFormatError(
+            f"{where}: {block}/{prefix}_{poly.N_TERMS + 1} found; an RPC00B polynomial has "
+            f"exactly {poly.N_TERMS} coefficients"
+        )
+    return vals
+
+
+def read_dimap(root: ElementTree.Element, where: str) -> RPC:
+    """Read the ``Rational_Function_Model`` of a DIMAP (v2 or v3) document."""
+    rfm = _find_any(root, "Rational_Function_Model")
+    g = rfm.find("Global_RFM") if rfm is not None else None
+    if g is None:
+        raise FileFormatError(f"{where}: DIMAP file without Rational_Function_Model/Global_RFM")
+    inverse = g.find("Inverse_Model")
+    forward = g.find("Direct_Model")
+    version = "v2"
+    if inverse is None:
+        inverse = g.find("GroundtoImage_Values")
+        forward = g.find("ImagetoGround_Values")
+        version = "v3"
+    if inverse is None:
+        raise FileFormatError(
+            f"{where}: DIMAP Global_RFM has neither Inverse_Model (v2) nor GroundtoImage_Values "
+            "(v3): no ground-to-image polynomials"
+        )
+    block = "Inverse_Model" if version == "v2" else "GroundtoImage_Values"
+    d: dict[str, object] = {key: _xml_coeffs(inverse, key, where, block) for key in _COEFF_KEYS}
+    if forward is not None:
+        if version == "v2":
+            names = {
+                "LON_NUM_COEFF": "SAMP_NUM_COEFF",
+                "LON_DEN_COEFF": "SAMP_DEN_COEFF",
+                "LAT_NUM_COEFF": "LINE_NUM_COEFF",
+                "LAT_DEN_COEFF": "LINE_DEN_COEFF",
+            }
+        else:
+            names = {k: k for k in _DIRECT_KEYS}
+        fblock = "Direct_Model" if version == "v2" else "ImagetoGround_Values"
+        for key, tag in names.items():
+            d[key] = _xml_coeffs(forward, tag, where, fblock)
+    validity = g.find("RFM_Validity")
+    if validity is None:
+        raise FileFormatError(f"{where}: missing XML element Global_RFM/RFM_Validity")
+    for key in _OFFSET_SCALE_KEYS:
+        d[key] = _xml_text(validity, key, f"{where} (RFM_Validity)")
+    domain = _find_any(g, "Direct_Model_Validity_Domain")
+    if domain is None:
+        domain = _find_any(root, "ImagetoGround_Validity_Domain")
+    first_col = first_row = 1.0
+    image_size = None
+    notes = []
+    if domain is not None:
+        if domain.find("FIRST_COL") is not None:
+            first_col = float(_xml_text(domain, "FIRST_COL", where))
+        if domain.find("FIRST_ROW") is not None:
+            first_row = float(_xml_text(domain, "FIRST_ROW", where))
+        if domain.find("LAST_COL") is not None and domain.find("LAST_ROW") is not None:
+            last_col = float(_xml_text(domain, "LAST_COL", where))
+            last_row = float(_xml_text(domain, "LAST_ROW", where))
+            image_size = (
+                round(last_col - first_col + 1),
+                round(last_row - first_row + 1),
+            )
+    if first_col or first_row:
+        d["SAMP_OFF"] = float(_numbers(d["SAMP_OFF"], "SAMP_OFF", where)[0]) - first_col
+        d["LINE_OFF"] = float(_numbers(d["LINE_OFF"], "LINE_OFF", where)[0]) - first_row
+        notes.append(
+            f"DIMAP pixel origin: first pixel centre at (col {first_col:g}, row {first_row:g}); "
+            f"SAMP_OFF and LINE_OFF reduced by {first_col:g} and {first_row:g} to the "
+            "convention first pixel centre = (0, 0)"
+        )
+    return rpc_from_mapping(
+        d, source=f"DIMAP {version} XML", where=where, image_size=image_size, notes=tuple(notes)
+    )
+
+
+def read_dg_xml(root: ElementTree.Element, where: str) -> RPC:
+    """Read the ``RPB/IMAGE`` block of a DigitalGlobe/Maxar (WorldView, QuickBird) XML file."""
+    rpb = _find_any(root, "RPB")
+    image = rpb.find("IMAGE") if rpb is not None else None
+    if image is None:
+        raise FileFormatError(f"{where}: XML without RPB/IMAGE block")
+    tags = {
+        "LINE_OFF": "LINEOFFSET", "SAMP_OFF": "SAMPOFFSET", "LAT_OFF": "LATOFFSET",
+        "LONG_OFF": "LONGOFFSET", "HEIGHT_OFF": "HEIGHTOFFSET", "LINE_SCALE": "LINESCALE",
+        "SAMP_SCALE": "SAMPSCALE", "LAT_SCALE": "LATSCALE", "LONG_SCALE": "LONGSCALE",
+        "HEIGHT_SCALE": "HEIGHTSCALE",
+    }  # fmt: skip
+    d: dict[str, object] = {k: _xml_text(image, t, f"{where} (RPB/IMAGE)") for k, t in tags.items()}
+    for key in _COEFF_KEYS:
+        tag = key.replace("_COEFF", "COEF").replace("_", "")
+        d[key] = _xml_text(image, f"{tag}List/{tag}", f"{where} (RPB/IMAGE)")
+    for key, tag in (("ERR_BIAS", "ERRBIAS"), ("ERR_RAND", "ERRRAND")):
+        node = image.find(tag)
+        if node is not None and node.text and node.text.strip():
+            d[key] = node.text.strip()
+    image_size = None
+    imd = _find_any(root, "IMD")
+    if imd is not None and imd.find("NUMROWS") is not None and imd.find("NUMCOLUMNS") is not None:
+        image_size = (
+            int(float(_xml_text(imd, "NUMCOLUMNS", where))),
+            int(float(_xml_text(imd, "NUMROWS", where))),
+        )
+    return rpc_from_mapping(d, source="DigitalGlobe XML (RPB block)", where=where,
+                            image_size=image_size)  # fmt: skip
+
+
+def read_xml(text: str, where: str) -> RPC:
+    """Read a DIMAP or DigitalGlobe XML RPC file."""
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise FileFormatError(f"{where}: not well-formed XML ({exc}); truncated file?") from exc
+    _strip_ns(root)
+    if _find_any(root, "Rational_Function_Model") is not None:
+        return read_dimap(root, where)
+    if _find_any(root, "RPB") is not None:
+        return read_dg_xml(root, where)
+    raise FileFormatError(
+        f"{where}: XML file without a known RPC block (DIMAP Rational_Function_Model or "
+        "DigitalGlobe RPB)"
+    )
+
+
+# --- raster files --------------------------------------------------------------------------
+
+
+def read_raster_tags(path: Path) -> RPC:
+    """Read the ``RPC`` metadata domain of a GeoTIFF/NITF through ``rasterio``."""
+    try:
+        import rasterio
+    except ImportError as exc:
+        raise FileFormatError(
+            f"{path}: reading RPC tags of raster files needs rasterio; install the extra "
+            "'photogeom[geotiff]' (pip install rasterio), or give the RPC sidecar file"
+        ) from exc
+    import warnings
+
+    try:
+        with warnings.catch_warnings():
+            # a file without geotransform warns in rasterio; the missing RPCs are reported below
+            warnings.simplefilter(
+                "ignore", getattr(rasterio.errors, "NotGeoreferencedWarning", Warning)
+            )
+            with rasterio.open(path) as src:
+                tags = src.tags(ns="RPC")
+                size = (src.width, src.height)
+    except Exception as exc:  # rasterio raises its own RasterioIOError family
+        raise FileFormatError(f"{path}: cannot open as a raster ({exc})") from exc
+    if not tags:
+        raise FileFormatError(f"{path}: the raster has no RPC metadata")
+    return rpc_from_mapping(
+        tags, source="raster RPC metadata (GDAL)", where=str(path), image_size=size
+    )
+
+
+# --- detection ---------------------------------------------------------------------------------
+
+_RASTER_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+", b"NITF", b"NSIF")
+_RASTER_SUFFIX = {".tif", ".tiff", ".ntf", ".nitf", ".jp2"}
+
+
+def detect_format(path: Path, head: bytes) -> str:
+    """``"raster"``, ``"xml"``, ``"rpb"``, ``"text"`` or ``"unknown"``."""
+    if head.startswith(_RASTER_MAGIC) or (
+        path.suffix.lower() in _RASTER_SUFFIX and not head.lstrip().startswith(b"<")
+    ):
+        return "raster"
+    text = head.decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
+    if text.startswith("<"):
+        return "xml"
+    if re.search(r"\blineOffset\s*=", text, re.I) or re.search(r"BEGIN_GROUP\s*=\s*IMAGE", text):
+        return "rpb"
+    if re.search(r"^\s*[A-Za-z][A-Za-z0-9_]*\s*[:=]", text, re.M) and re.search(
+        r"(LINE|SAMP|LAT|LONG|HEIGHT)_(OFF|SCALE|NUM_COEFF|DEN_COEFF)", text, re.I
+    ):
+        return "text"
+    return "unknown"
+
+
+def read_rpc(path: str | Path) -> RPC:
+    """Read an RPC file of any supported format (detected from the content).
+
+    Raises
+    ------
+    FileFormatError
+        Unknown format, missing keys (named), coefficient vectors that do not have 20 values,
+        keys without a value, numbers that cannot be read.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError(f"{p}: no such file")
+    data = p.read_bytes()
+    if not data.strip():
+        raise FileFormatError(f"{p}: the file is empty")
+    kind = detect_format(p, data[:65536])
+    where = str(p)
+    if kind == "raster":
+        return read_raster_tags(p)
+    text = data.decode("utf-8", errors="replace")
+    if kind == "xml":
+        return read_xml(text, where)
+    if kind == "rpb":
+        return read_rpb(text, where)
+    if kind == "text":
+        return read_key_value_text(text, where)
+    raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")

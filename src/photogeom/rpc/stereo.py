@@ -1,0 +1,299 @@
+"""Stereo intersection: ground points from their positions in two or more RPC images.
+
+For each point the unknowns are ``(lon, lat, h)``; the observations are its image positions
+``(col, row)`` in every image that sees it (``2 K`` observations in ``K`` images, redundancy
+``2 K - 3``). The nonlinear Gauss-Markov model ``col_obs + v = RPC_k(lon, lat, h)`` is solved by
+Gauss-Newton, vectorised over points (each point is an independent 3-unknown adjustment;
+the statistics follow :mod:`photogeom.adjust`: residuals computed minus observed, weights
+``1 / sigma^2``, cofactor ``(J^T P J)^-1``, ``sigma0 = sqrt(v^T P v / r)``).
+
+Start: the point is localised in its first image at the mean height offset of the models.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConvergenceError, InputError, TooFewPointsError
+from .domain import LocalizationWarning
+from .model import RPC
+
+#: WGS84 semi-major axis (m) and first eccentricity squared, for metric standard deviations.
+_A = 6378137.0
+_E2 = 6.69437999014e-3
+
+
+@dataclass(frozen=True)
+class RPCIntersection:
+    """Ground points intersected from several RPC images, with their statistics.
+
+    Attributes
+    ----------
+    ground : numpy.ndarray, shape (n, 3)
+        lon (deg), lat (deg), h (m); NaN where the iteration failed.
+    cofactor : numpy.ndarray, shape (n, 3, 3)
+        ``(J^T P J)^-1`` in (deg, deg, m) units; with weights ``1/sigma^2`` it is the a-priori
+        covariance.
+    sigma0 : numpy.ndarray, shape (n,)
+        A-posteriori standard deviation of unit weight (NaN when the redundancy is 0).
+    redundancy : numpy.ndarray of int, shape (n,)
+        ``2 * (images seeing the point) - 3``.
+    residuals : numpy.ndarray, shape (n, K, 2)
+        Computed minus observed (px); NaN for images that do not see the point.
+    converged : numpy.ndarray of bool, shape (n,)
+    iterations : numpy.ndarray of int, shape (n,)
+    """
+
+    ground: np.ndarray
+    cofactor: np.ndarray
+    sigma0: np.ndarray
+    redundancy: np.ndarray
+    residuals: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+
+    @property
+    def lon(self) -> np.ndarray:
+        return self.ground[:, 0]
+
+    @property
+    def lat(self) -> np.ndarray:
+        return self.ground[:, 1]
+
+    @property
+    def h(self) -> np.ndarray:
+        return self.ground[:, 2]
+
+    @property
+    def covariance_prior(self) -> np.ndarray:
+        """A-priori covariance (n, 3, 3) (deg^2, deg^2, m^2 and mixed): the cofactor."""
+        return self.cofactor
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """A-posteriori covariance ``sigma0^2 Q`` (NaN where the redundancy is 0)."""
+        return self.sigma0[:, None, None] ** 2 * self.cofactor
+
+    @property
+    def std_prior(self) -> np.ndarray:
+        """A-priori standard deviations (n, 3): lon (deg), lat (deg), h (m)."""
+        return np.sqrt(np.clip(np.diagonal(self.cofactor, axis1=1, axis2=2), 0, None))
+
+    @property
+    def std(self) -> np.ndarray:
+        """A-posteriori standard deviations (n, 3): lon (deg), lat (deg), h (m)."""
+        return self.sigma0[:, None] * self.std_prior
+
+    def std_metric(self, prior: bool = True) -> np.ndarray:
+        """Standard deviations in metres (n, 3): east, north, up (WGS84 radii of curvature)."""
+        s = self.std_prior if prior else self.std
+        lat = np.radians(self.ground[:, 1])
+        w = np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
+        n_rad = _A / w
+        m_rad = _A * (1.0 - _E2) / w**3
+        h = self.ground[:, 2]
+        east = np.radians(s[:, 0]) * (n_rad + h) * np.cos(lat)
+        north = np.radians(s[:, 1]) * (m_rad + h)
+        return np.column_stack([east, north, s[:, 2]])
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (NaN -> None)."""
+
+        def clean(a):
+            a = np.asarray(a, dtype=float)
+            return (
+                [None if not np.isfinite(x) else float(x) for x in a.reshape(-1)]
+                if a.ndim <= 1
+                else [clean(row) for row in a]
+            )
+
+        return {
+            "ground_units": ["deg", "deg", "m"],
+            "ground": clean(self.ground),
+            "std_prior": clean(self.std_prior),
+            "std_prior_metric_enu_m": clean(self.std_metric(prior=True)),
+            "sigma0": clean(self.sigma0),
+            "redundancy": [int(r) for r in self.redundancy],
+            "residual_convention": "computed minus observed (px)",
+            "converged": [bool(c) for c in self.converged],
+        }
+
+
+def intersect_rpc(
+    rpcs: Sequence[RPC],
+    image_points,
+    *,
+    sigma=1.0,
+    h0: float | None = None,
+    max_iter: int = 20,
+    tol: float = 1e-8,
+    on_failure: str = "nan",
+) -> RPCIntersection:
+    """Least-squares ground points from image points in two or more RPC images.
+
+    Parameters
+    ----------
+    rpcs : sequence of RPC
+        The K image models.
+    image_points : array_like, shape (n, K, 2)
+        ``(col, row)`` (px) of each point in each image; NaN where an image does not see it
+        (every point needs at least two images). A list of K arrays (n, 2) works too.
+    sigma : float or array_like
+        Standard deviation of the image measurements (px): one number, one per image (K,),
+        or (n, K).
+    h0 : float, optional
+        Starting height (m); default the mean ``HEIGHT_OFF`` of the models.
+    max_iter : int
+        Gauss-Newton iterations.
+    tol : float
+        Convergence: the last step moves every image projection by at most ``tol`` px.
+    on_failure : {"nan", "raise"}
+        Non-converged points: NaN with a warning, or :class:`ConvergenceError`.
+
+    Returns
+    -------
+    RPCIntersection
+    """
+    rpcs = list(rpcs)
+    K = len(rpcs)
+    if K < 2:
+        raise TooFewPointsError("RPC intersection", K, 2, "images (RPC models) per point")
+    if on_failure not in ("nan", "raise"):
+        raise InputError(f"on_failure must be 'nan' or 'raise', got {on_failure!r}")
+    if (
+        isinstance(image_points, (list, tuple))
+        and len(image_points) == K
+        and all(np.ndim(p) == 2 for p in image_points)
+    ):
+        obs = np.stack([np.asarray(p, dtype=np.float64) for p in image_points], axis=1)
+    else:
+        obs = np.asarray(image_points, dtype=np.float64)
+    if obs.ndim == 2 and obs.shape == (K, 2):
+        obs = obs[None]
+    if obs.ndim != 3 or obs.shape[1:] != (K, 2):
+        raise InputError(
+            f"image_points: expected shape (n, {K}, 2) for {K} images, got {obs.shape}"
+        )
+    n = obs.shape[0]
+    seen = np.all(np.isfinite(obs), axis=2)  # (n, K)
+    if np.any(np.isinf(obs)):
+        raise InputError("image_points: infinite values (use NaN for 'not seen in this image')")
+    n_seen = seen.sum(axis=1)
+    if np.any(n_seen < 2):
+        bad = np.flatnonzero(n_seen < 2)
+        raise TooFewPointsError(
+            f"RPC intersection of point(s) {', '.join(str(int(i)) for i in bad[:10])}",
+            int(n_seen[bad[0]]), 2, "images per point (NaN marks an image that does not see it)",
+        )  # fmt: skip
+    s = np.asarray(sigma, dtype=np.float64)
+    if s.ndim == 0:
+        s = np.full((n, K), float(s))
+    elif s.shape == (K,):
+        s = np.broadcast_to(s, (n, K)).copy()
+    elif s.shape != (n, K):
+        raise InputError(f"sigma: expected a number, ({K},) or ({n}, {K}) values, got {s.shape}")
+    if not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise InputError("sigma: standard deviations must be positive numbers of pixels")
+    w = np.where(seen, 1.0 / s**2, 0.0)  # (n, K)
+    obs0 = np.where(seen[..., None], obs, 0.0)
+
+    # start: localise in the first image that sees the point
+    z0 = float(np.mean([r.height_off for r in rpcs])) if h0 is None else float(h0)
+    X = np.full((n, 3), np.nan)
+    X[:, 2] = z0
+    first = np.argmax(seen, axis=1)
+    for k in range(K):  # loop over images, not points
+        idx = np.flatnonzero(first == k)
+        if idx.size:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", LocalizationWarning)
+                lon, lat = rpcs[k].localize(obs[idx, k, 0], obs[idx, k, 1], z0, domain_limit=None)
+            X[idx, 0], X[idx, 1] = lon, lat
+    converged = np.zeros(n, dtype=bool)
+    iterations = np.zeros(n, dtype=np.int32)
+    active = np.flatnonzero(np.all(np.isfinite(X), axis=1))
+    scale = np.array([1e-5, 1e-5, 1.0])  # column scaling: degrees vs metres
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        m = active.size
+        F = np.empty((m, K, 2))
+        J = np.empty((m, K, 2, 3))
+        for k, rpc in enumerate(rpcs):
+            c, r, Jk = rpc._jacobian_flat(X[active, 0], X[active, 1], X[active, 2])
+            F[:, k, 0], F[:, k, 1], J[:, k] = c, r, Jk
+        v = F - obs0[active]  # computed - observed
+        Wa = w[active]
+        Js = J * scale  # scaled columns
+        N = np.einsum("mk,mkci,mkcj->mij", Wa, Js, Js)
+        b = -np.einsum("mk,mkci,mkc->mi", Wa, Js, v)
+        ok = np.all(np.isfinite(N), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+        dx = np.full((m, 3), np.nan)
+        if ok.any():
+            try:
+                dx[ok] = np.linalg.solve(N[ok], b[ok][..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                for i in np.flatnonzero(ok):  # rare singular systems, one at a time
+                    try:
+                        dx[i] = np.linalg.solve(N[i], b[i])
+                    except np.linalg.LinAlgError:
+                        dx[i] = np.nan
+        step_px = np.max(
+            np.abs(np.einsum("mkci,mi->mkc", Js, np.nan_to_num(dx))) * seen[active][..., None],
+            axis=(1, 2),
+        )
+        X[active] = X[active] + dx * scale
+        iterations[active] += 1
+        good = np.all(np.isfinite(dx), axis=1)
+        done = good & (step_px <= tol)
+        converged[active[done]] = True
+        failed = active[~good]
+        X[failed] = np.nan
+        active = active[good & ~done]
+    # statistics at the solution
+    okp = np.flatnonzero(converged)
+    cof = np.full((n, 3, 3), np.nan)
+    s0 = np.full(n, np.nan)
+    res = np.full((n, K, 2), np.nan)
+    if okp.size:
+        F = np.empty((okp.size, K, 2))
+        J = np.empty((okp.size, K, 2, 3))
+        for k, rpc in enumerate(rpcs):
+            c, r, Jk = rpc._jacobian_flat(X[okp, 0], X[okp, 1], X[okp, 2])
+            F[:, k, 0], F[:, k, 1], J[:, k] = c, r, Jk
+        v = F - obs0[okp]
+        Wa = w[okp]
+        Js = J * scale
+        N = np.einsum("mk,mkci,mkcj->mij", Wa, Js, Js)
+        Q = np.linalg.inv(N) * np.outer(scale, scale)
+        cof[okp] = Q
+        vtpv = np.einsum("mk,mkc->m", Wa, v**2)
+        r_ = 2 * n_seen[okp] - 3
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s0[okp] = np.where(r_ > 0, np.sqrt(vtpv / np.maximum(r_, 1)), np.nan)
+        res[okp] = np.where(seen[okp][..., None], v, np.nan)
+    X[~converged] = np.nan
+    result = RPCIntersection(
+        ground=X,
+        cofactor=cof,
+        sigma0=s0,
+        redundancy=2 * n_seen - 3,
+        residuals=res,
+        converged=converged,
+        iterations=iterations,
+    )
+    bad = int(np.count_nonzero(~converged))
+    if bad:
+        msg = (
+            f"RPC intersection: {bad} of {n} point(s) did not converge in {max_iter} "
+            "iteration(s); their ground coordinates are NaN (check the image points and that "
+            "the images overlap)"
+        )
+        if on_failure == "raise":
+            raise ConvergenceError(msg, iterations=int(iterations.max()), result=result)
+        warnings.warn(msg, LocalizationWarning, stacklevel=2)
+    return result
