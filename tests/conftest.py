@@ -9,3 +9,27 @@ import os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+
+
+import pytest  # noqa: E402  (after the thread settings above)
+
+
+@pytest.fixture
+def cli(capsys):
+    """Run the ``photogeom`` command in-process: ``cli(*args) -> (exit code, stdout, stderr)``.
+
+    Arguments are passed through ``str`` (paths welcome); the exit code is that of
+    ``SystemExit`` (0 when the command returns).
+    """
+    from photogeom.cli.main import main
+
+    def run(*args) -> tuple[int, str, str]:
+        try:
+            main([str(a) for a in args])
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        out = capsys.readouterr()
+        return code, out.out, out.err
+
+    return run

@@ -9,33 +9,22 @@ import numpy as np
 import pytest
 
 from photogeom import datasets
-from photogeom.cli.main import main
 from photogeom.examples import get
 
 LIDAR = str(datasets.path("lidar_wang2014"))
 KRAUS = str(datasets.path("kraus_absolute_orientation"))
 
 
-def run(capsys, *args: str) -> tuple[int, str, str]:
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def test_kraus_gon_in_the_table(capsys):
-    code, out, err = run(capsys, "orient", "absolute", KRAUS, "--method", "gauss-markov",
+def test_kraus_gon_in_the_table(cli):
+    code, out, err = cli("orient", "absolute", KRAUS, "--method", "gauss-markov",
                          "--angle-unit", "gon")
     assert code == 0, err
     assert "-0.185368 gon" in out and "-1.091984 gon" in out
     assert "transposed convention" in out
 
 
-def test_json_output_and_direct_convention(capsys):
-    code, out, err = run(capsys, "orient", "absolute", LIDAR, "--json", "--convention", "direct",
+def test_json_output_and_direct_convention(cli):
+    code, out, err = cli("orient", "absolute", LIDAR, "--json", "--convention", "direct",
                          "--angle-unit", "deg", "--method", "quaternion")
     assert code == 0, err
     d = json.loads(out)
@@ -46,7 +35,7 @@ def test_json_output_and_direct_convention(capsys):
     assert d["orthogonality_defect"] < 1e-14
 
 
-def test_two_files_joined_by_id_with_check_points(capsys, tmp_path: Path):
+def test_two_files_joined_by_id_with_check_points(cli, tmp_path: Path):
     t = datasets.load("lidar_wang2014")
     src = tmp_path / "model.csv"
     dst = tmp_path / "ground.csv"
@@ -55,7 +44,7 @@ def test_two_files_joined_by_id_with_check_points(capsys, tmp_path: Path):
     order = np.arange(18)[::-1]  # another order: joined by id
     dst.write_text("id,X,Y,Z\n" + "".join(
         f"{t['id'][k]},{t['X'][k]},{t['Y'][k]},{t['Z'][k]}\n" for k in order))
-    code, out, err = run(capsys, "orient", "absolute", src, dst, "--check-ids", "17,18",
+    code, out, err = cli("orient", "absolute", src, dst, "--check-ids", "17,18",
                          "--json")
     assert code == 0, err
     d = json.loads(out)
@@ -63,9 +52,9 @@ def test_two_files_joined_by_id_with_check_points(capsys, tmp_path: Path):
     assert d["check_ids"] == ["17", "18"]
 
 
-def test_compare_prints_all_methods_and_writes_report(capsys, tmp_path: Path):
+def test_compare_prints_all_methods_and_writes_report(cli, tmp_path: Path):
     rep = tmp_path / "cmp.html"
-    code, out, err = run(capsys, "orient", "absolute", LIDAR, "--compare", "--report", rep)
+    code, out, err = cli("orient", "absolute", LIDAR, "--compare", "--report", rep)
     assert code == 0, err
     for m in ("closed-form", "svd", "quaternion", "dual-quaternion", "gauss-markov",
               "gauss-helmert"):
@@ -73,14 +62,14 @@ def test_compare_prints_all_methods_and_writes_report(capsys, tmp_path: Path):
     assert "solve" in out and "[us]" in out
     html = rep.read_text()
     assert "gauss-helmert" in html and "data:image/png;base64" in html
-    code, out, err = run(capsys, "orient", "absolute", LIDAR, "--compare", "--json")
+    code, out, err = cli("orient", "absolute", LIDAR, "--compare", "--json")
     d = json.loads(out)
     assert {r["method"] for r in d["methods"]} >= {"svd", "closed-form"}
     gm = next(r for r in d["methods"] if r["method"] == "gauss-markov")
     assert gm["differences_to_reference"]["scale"] == 0.0
 
 
-def test_ransac_option_and_report(capsys, tmp_path: Path):
+def test_ransac_option_and_report(cli, tmp_path: Path):
     rng = np.random.default_rng(0)
     x = rng.uniform(-20, 20, (40, 3))
     X = x + np.array([5.0, 6.0, 7.0])
@@ -89,24 +78,24 @@ def test_ransac_option_and_report(capsys, tmp_path: Path):
     f.write_text("id,x,y,z,X,Y,Z\n" + "".join(
         f"p{i},{a[0]},{a[1]},{a[2]},{b[0]},{b[1]},{b[2]}\n" for i, (a, b) in enumerate(zip(x, X))))
     rep = tmp_path / "fit.html"
-    code, out, err = run(capsys, "orient", "absolute", f, "--ransac", "--threshold", "0.01",
+    code, out, err = cli("orient", "absolute", f, "--ransac", "--threshold", "0.01",
                          "--seed", "1", "--report", rep)
     assert code == 0, err
     assert "RANSAC inliers: 32 of 40" in out
     assert rep.exists()
-    code, _, err = run(capsys, "orient", "absolute", f, "--ransac")
+    code, _, err = cli("orient", "absolute", f, "--ransac")
     assert code == 2 and "--threshold" in err
 
 
-def test_errors_are_reported(capsys, tmp_path: Path):
+def test_errors_are_reported(cli, tmp_path: Path):
     f = tmp_path / "line.csv"
     f.write_text("id,x,y,z,X,Y,Z\n" + "".join(
         f"{i},{i},{2 * i},{3 * i},{i},{2 * i},{3 * i}\n" for i in range(5)))
-    code, _, err = run(capsys, "orient", "absolute", f)
+    code, _, err = cli("orient", "absolute", f)
     assert code == 2 and "collinear" in err
     g = tmp_path / "two.csv"
     g.write_text("id,x,y,z,X,Y,Z\n1,0,0,0,1,1,1\n2,1,0,0,2,1,1\n")
-    code, _, err = run(capsys, "orient", "absolute", g)
+    code, _, err = cli("orient", "absolute", g)
     assert code == 2 and "at least 3" in err
 
 

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 import photogeom as pg
-from photogeom.cli.main import main
 from photogeom.examples import get
 from photogeom.io import read_points
 from photogeom.report import Report
@@ -21,16 +20,6 @@ EOS = [
     pg.ExteriorOrientation.from_degrees(1600, 820, 1620, -1, 2, 8),
 ]
 CAMERA = ["--f", "152.14", "--x0", "0.008", "--y0", "-0.12"]
-
-
-def run(capsys, *args) -> tuple[int, str, str]:
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture
@@ -59,14 +48,13 @@ def scene(tmp_path: Path):
     return g, files
 
 
-def test_project_spec_examples(capsys, tmp_path):
+def test_project_spec_examples(cli, tmp_path):
     pts = tmp_path / "g.csv"
     pts.write_text("id,X,Y,Z\nA,1300,650,169\n")
-    code, out, err = run(capsys, "camera", "project", pts, *CAMERA, "--eo", "1114,862,1600,2,3,10")
+    code, out, err = cli("camera", "project", pts, *CAMERA, "--eo", "1114,862,1600,2,3,10")
     assert code == 0, err
     assert "A,22.7354" in out and ",-32.7917" in out
-    code, out, err = run(
-        capsys,
+    code, out, err = cli(
         "camera",
         "project",
         pts,
@@ -86,47 +74,46 @@ def test_project_spec_examples(capsys, tmp_path):
     assert round(p["col"], 1) == 5152.8 and round(p["row"], 1) == 8345.3
 
 
-def test_project_behind_camera(capsys, tmp_path):
+def test_project_behind_camera(cli, tmp_path):
     pts = tmp_path / "g.csv"
     pts.write_text("id,X,Y,Z\nA,1300,650,169\nB,1100,860,2000\n")
     args = ["camera", "project", pts, *CAMERA, "--eo", "1114,862,1600,2,3,10"]
-    code, _, err = run(capsys, *args)
+    code, _, err = cli(*args)
     assert code == 2 and "behind the camera" in err
-    code, out, _ = run(capsys, *args, "--behind", "nan")
+    code, out, _ = cli(*args, "--behind", "nan")
     assert code == 0 and "B,nan,nan" in out
 
 
-def test_dlt_estimate_and_convert(capsys, scene, tmp_path):
+def test_dlt_estimate_and_convert(scene, tmp_path, cli):
     _, files = scene
     params = tmp_path / "dlt.json"
-    code, out, err = run(
-        capsys, "camera", "dlt", "estimate", files[0][0], "--output-params", params, "--json"
+    code, out, err = cli(
+        "camera", "dlt", "estimate", files[0][0], "--output-params", params, "--json"
     )
     assert code == 0, err
     data = json.loads(out)
     assert data["redundancy"] == 20 - 11 and len(data["check_residuals"]) == 2
     assert abs(data["orientation"]["exterior"]["X0"] - 1000) < 5
-    code, out, err = run(capsys, "camera", "dlt", "convert", "--params", params)
+    code, out, err = cli("camera", "dlt", "convert", "--params", params)
     assert code == 0, err
     assert "interior: cx =" in out
-    code, out, err = run(
-        capsys, "camera", "dlt", "convert", *CAMERA, "--eo", "1114,862,1600,2,3,10", "--json"
+    code, out, err = cli(
+        "camera", "dlt", "convert", *CAMERA, "--eo", "1114,862,1600,2,3,10", "--json"
     )
     L = json.loads(out)
     assert round(L["L4"], 4) == -109.9007 and round(L["L11"], 8) == -0.00061413
-    code, out, err = run(capsys, "camera", "dlt", "estimate", files[0][0], "--constrained")
+    code, out, err = cli("camera", "dlt", "estimate", files[0][0], "--constrained")
     assert code == 0, err
     assert "constrained DLT" in out
 
 
-def test_resection_report_and_intersection(capsys, scene, tmp_path):
+def test_resection_report_and_intersection(scene, tmp_path, cli):
     g, files = scene
     cams = []
     for k, (ctl, _) in enumerate(files):
         cam = tmp_path / f"cam{k}.json"
         rep = tmp_path / f"res{k}.html"
-        code, out, err = run(
-            capsys,
+        code, out, err = cli(
             "orient",
             "resection",
             ctl,
@@ -144,8 +131,7 @@ def test_resection_report_and_intersection(capsys, scene, tmp_path):
         assert "<img" in html and "Image residual vectors" in html
         cams.append(cam)
     out_csv = tmp_path / "points.csv"
-    code, _, err = run(
-        capsys,
+    code, _, err = cli(
         "orient",
         "intersection",
         files[0][1],
@@ -164,17 +150,15 @@ def test_resection_report_and_intersection(capsys, scene, tmp_path):
     assert code == 0, err
     table = read_points(out_csv, ["X", "Y", "Z"])
     np.testing.assert_allclose(table.coords, g, atol=1.0)  # noise 3 um -> decimetres
-    code, _, err = run(
-        capsys, "orient", "intersection", files[0][1], files[1][1], "--camera", cams[0]
-    )
+    code, _, err = cli("orient", "intersection", files[0][1], files[1][1], "--camera", cams[0])
     assert code == 2 and "one camera per image" in err
 
 
-def test_resection_errors(capsys, scene):
+def test_resection_errors(cli, scene):
     _, files = scene
-    code, _, err = run(capsys, "orient", "resection", files[0][0])
+    code, _, err = cli("orient", "resection", files[0][0])
     assert code == 2 and "no camera given" in err
-    code, _, err = run(capsys, "orient", "resection", files[0][0], *CAMERA, "--initial", "1,2,3")
+    code, _, err = cli("orient", "resection", files[0][0], *CAMERA, "--initial", "1,2,3")
     assert code == 2 and "expected 6" in err
 
 

@@ -19,17 +19,6 @@ FIDUCIALS = str(datasets.path("lecture_fiducials"))
 TWO_IMAGES = str(datasets.path("lecture_two_images"))
 
 
-def run(capsys, *args: str) -> tuple[int, str, str]:
-    """Run the CLI in-process; returns (exit code, stdout, stderr)."""
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def _write(tmp_path: Path, name: str, text: str) -> Path:
     p = tmp_path / name
     p.write_text(text)
@@ -39,8 +28,8 @@ def _write(tmp_path: Path, name: str, text: str) -> Path:
 # --- estimate ----------------------------------------------------------------------------------
 
 
-def test_estimate_reproduces_lecture_example_4(capsys):
-    code, out, err = run(capsys, "transform", "estimate", "similarity2d", FIDUCIALS, "--unit", "mm")
+def test_estimate_reproduces_lecture_example_4(cli):
+    code, out, err = cli("transform", "estimate", "similarity2d", FIDUCIALS, "--unit", "mm")
     assert code == 0, err
     # a = 1.0000354, b = -0.0000022, c = 130.00875, d = 130.009 (lecture example 4)
     for s in ("1.0000354", "-0.0000022", "130.00875", "130.00900"):
@@ -51,8 +40,8 @@ def test_estimate_reproduces_lecture_example_4(capsys):
     assert "-0.00850" in out and "0.00725" in out  # check points 7 and 5
 
 
-def test_estimate_json_parses(capsys):
-    code, out, _ = run(capsys, "transform", "estimate", "similarity2d", FIDUCIALS, "--json")
+def test_estimate_json_parses(cli):
+    code, out, _ = cli("transform", "estimate", "similarity2d", FIDUCIALS, "--json")
     assert code == 0
     data = json.loads(out)
     p = data["parameters"]
@@ -66,35 +55,33 @@ def test_estimate_json_parses(capsys):
     np.testing.assert_allclose(data["check_residuals"][2], [-0.0085, 0.00575], atol=5e-7)
 
 
-def test_check_ids_option_overrides_roles(capsys):
-    code, out, _ = run(
-        capsys, "transform", "estimate", "affine2d", FIDUCIALS, "--check-ids", "8", "--json"
-    )
+def test_check_ids_option_overrides_roles(cli):
+    code, out, _ = cli("transform", "estimate", "affine2d", FIDUCIALS, "--check-ids", "8", "--json")
     assert code == 0
     data = json.loads(out)
     assert data["check_ids"] == ["8"] and data["redundancy"] == 14 - 6
-    code, _, err = run(capsys, "transform", "estimate", "affine2d", FIDUCIALS, "--check-ids", "99")
+    code, _, err = cli("transform", "estimate", "affine2d", FIDUCIALS, "--check-ids", "99")
     assert code == 2 and "error:" in err and "99" in err
 
 
-def test_two_images_three_models(capsys):
+def test_two_images_three_models(cli):
     # lecture example 5: similarity (1.86, 0.48, -62.16, 89.33); affine a1 = 2.62 ... b3 = -127.03
     args = ["--source-cols", "x2,y2", "--target-cols", "x1,y1", "--json"]
-    _, out, _ = run(capsys, "transform", "estimate", "similarity2d", TWO_IMAGES, *args)
+    _, out, _ = cli("transform", "estimate", "similarity2d", TWO_IMAGES, *args)
     p = json.loads(out)["parameters"]
     assert [round(p[k]["value"], 2) for k in "abcd"] == [1.86, 0.48, -62.16, 89.33]
-    _, out, _ = run(capsys, "transform", "estimate", "affine2d", TWO_IMAGES, *args)
+    _, out, _ = cli("transform", "estimate", "affine2d", TWO_IMAGES, *args)
     p = json.loads(out)["parameters"]
     got = [round(p[k]["value"], 2) for k in ("a1", "a2", "a3", "b1", "b2", "b3")]
     assert got == [2.62, 1.72, -298.19, 0.31, 2.88, -127.03]
-    code, out, _ = run(capsys, "transform", "estimate", "projective2d", TWO_IMAGES, *args[:-1])
+    code, out, _ = cli("transform", "estimate", "projective2d", TWO_IMAGES, *args[:-1])
     assert code == 0 and "Gauss-Markov" in out and "converged" in out
 
 
-def test_two_files_joined_by_id(tmp_path, capsys):
+def test_two_files_joined_by_id(tmp_path, cli):
     src = _write(tmp_path, "src.csv", "id,x,y\n1,0,0\n2,10,0\n3,0,10\n4,10,10\n5,5,5\n")
     dst = _write(tmp_path, "dst.csv", "id,X,Y\n5,110,60\n1,100,50\n2,120,50\n3,100,70\n4,120,70\n")
-    code, out, err = run(capsys, "transform", "estimate", "affine2d", src, dst, "--json")
+    code, out, err = cli("transform", "estimate", "affine2d", src, dst, "--json")
     assert code == 0, err
     p = json.loads(out)["parameters"]
     np.testing.assert_allclose(
@@ -104,14 +91,14 @@ def test_two_files_joined_by_id(tmp_path, capsys):
     )
 
 
-def test_ids_in_one_file_only_are_reported(tmp_path, capsys):
+def test_ids_in_one_file_only_are_reported(tmp_path, cli):
     src = _write(tmp_path, "src.csv", "id,x,y\n1,0,0\n2,10,0\n3,0,10\n4,10,10\n7,1,1\n")
     dst = _write(tmp_path, "dst.csv", "id,X,Y\n1,100,50\n2,120,50\n3,100,70\n4,120,70\n9,0,0\n")
-    code, _, err = run(capsys, "transform", "estimate", "affine2d", src, dst)
+    code, _, err = cli("transform", "estimate", "affine2d", src, dst)
     assert code == 2
     assert "only in" in err and "7" in err and "9" in err
     assert len(err.strip().splitlines()) == 1  # one line, no traceback
-    code, out, err = run(capsys, "transform", "estimate", "affine2d", src, dst, "--allow-unmatched")
+    code, out, err = cli("transform", "estimate", "affine2d", src, dst, "--allow-unmatched")
     assert code == 0, err
     assert "left out" in out and "7" in out and "9" in out
 
@@ -137,30 +124,30 @@ def test_ids_in_one_file_only_are_reported(tmp_path, capsys):
         ),
     ],
 )
-def test_bad_input_one_line_error(tmp_path, capsys, content, args, pattern):
+def test_bad_input_one_line_error(tmp_path, cli, content, args, pattern):
     import re
 
     f = _write(tmp_path, "p.csv", content)
-    code, out, err = run(capsys, "transform", "estimate", args[0], f, *args[1:])
+    code, out, err = cli("transform", "estimate", args[0], f, *args[1:])
     assert code == 2, (out, err)
     assert err.startswith("error: ")
     assert re.search(pattern, err, re.IGNORECASE), err
     assert "Traceback" not in err
 
 
-def test_unreadable_file(tmp_path, capsys):
-    code, _, err = run(capsys, "transform", "estimate", "affine2d", tmp_path / "nope.csv")
+def test_unreadable_file(tmp_path, cli):
+    code, _, err = cli("transform", "estimate", "affine2d", tmp_path / "nope.csv")
     assert code == 2 and "no such file" in err
 
 
-def test_usage_errors_and_help(capsys):
-    code, out, err = run(capsys, "transform", "estimate", "bogus-model", FIDUCIALS)
+def test_usage_errors_and_help(cli):
+    code, out, err = cli("transform", "estimate", "bogus-model", FIDUCIALS)
     assert code == 2 and "bogus-model" in (out + err) and "similarity2d" in (out + err)
-    code, out, _ = run(capsys, "--help")
+    code, out, _ = cli("--help")
     assert code == 0 and "transform" in out and "examples" in out
-    code, out, _ = run(capsys, "transform", "estimate", "--help")
+    code, out, _ = cli("transform", "estimate", "--help")
     assert code == 0 and "--check-ids" in out and "--report" in out
-    code, out, err = run(capsys)
+    code, out, err = cli()
     assert "Usage" in (out + err)  # no arguments: the help
 
 
@@ -190,10 +177,9 @@ def test_console_script_entry_point():
 # --- outputs: report, parameters, atomicity ---------------------------------------------------
 
 
-def test_report_and_params_files(tmp_path, capsys):
+def test_report_and_params_files(tmp_path, cli):
     rep, par = tmp_path / "r.html", tmp_path / "p.json"
-    code, out, err = run(
-        capsys,
+    code, out, err = cli(
         "transform",
         "estimate",
         "similarity2d",
@@ -229,75 +215,75 @@ def test_no_half_written_output(tmp_path, capsys, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.html"]
 
 
-def test_failed_estimate_writes_nothing(tmp_path, capsys):
+def test_failed_estimate_writes_nothing(tmp_path, cli):
     rep = tmp_path / "r.html"
     bad = _write(tmp_path, "p.csv", "id,x,y,X,Y\n1,0,0,1,1\n")
-    code, _, _ = run(capsys, "transform", "estimate", "affine2d", bad, "--report", rep)
+    code, _, _ = cli("transform", "estimate", "affine2d", bad, "--report", rep)
     assert code == 2 and not rep.exists()
 
 
 # --- apply -------------------------------------------------------------------------------------
 
 
-def test_apply_round_trip_with_inverse(tmp_path, capsys):
+def test_apply_round_trip_with_inverse(tmp_path, cli):
     par = tmp_path / "p.json"
     for model in ("similarity2d", "projective2d"):
-        code, _, err = run(
-            capsys, "transform", "estimate", model, FIDUCIALS, "--output-params", par, "--json"
+        code, _, err = cli(
+            "transform", "estimate", model, FIDUCIALS, "--output-params", par, "--json"
         )
         assert code == 0, err
         fwd, back = tmp_path / "fwd.csv", tmp_path / "back.csv"
-        code, _, err = run(capsys, "transform", "apply", par, FIDUCIALS, "-o", fwd)
+        code, _, err = cli("transform", "apply", par, FIDUCIALS, "-o", fwd)
         assert code == 0, err
         t = read_points(fwd)
         assert t.columns == ("X", "Y") and list(t.roles)[-1] == "check"
         # forward: close to the measured machine coordinates (residuals of a few micrometres)
         machine = read_points(FIDUCIALS, "X,Y").coords
         assert np.abs(t.coords - machine).max() < 0.02
-        code, _, err = run(capsys, "transform", "apply", par, fwd, "--inverse", "-o", back)
+        code, _, err = cli("transform", "apply", par, fwd, "--inverse", "-o", back)
         assert code == 0, err
         b = read_points(back)
         assert b.columns == ("x", "y")
         np.testing.assert_allclose(b.coords, read_points(FIDUCIALS, "x,y").coords, atol=1e-9)
 
 
-def test_apply_to_stdout_and_json_input(tmp_path, capsys):
+def test_apply_to_stdout_and_json_input(tmp_path, cli):
     par = tmp_path / "fit.json"
-    _, out, _ = run(capsys, "transform", "estimate", "affine2d", FIDUCIALS, "--json")
+    _, out, _ = cli("transform", "estimate", "affine2d", FIDUCIALS, "--json")
     par.write_text(out)  # the --json output works as a parameter file too
-    code, out, _ = run(capsys, "transform", "apply", par, FIDUCIALS, "--out-cols", "E,N")
+    code, out, _ = cli("transform", "apply", par, FIDUCIALS, "--out-cols", "E,N")
     assert code == 0 and "id,E,N,role" in out
 
 
-def test_apply_errors(tmp_path, capsys):
+def test_apply_errors(tmp_path, cli):
     bad = _write(tmp_path, "bad.json", "{not json")
-    code, _, err = run(capsys, "transform", "apply", bad, FIDUCIALS)
+    code, _, err = cli("transform", "apply", bad, FIDUCIALS)
     assert code == 2 and "not valid JSON" in err
     other = _write(tmp_path, "o.json", '{"a": 1}')
-    code, _, err = run(capsys, "transform", "apply", other, FIDUCIALS)
+    code, _, err = cli("transform", "apply", other, FIDUCIALS)
     assert code == 2 and "no transformation parameters" in err
     par = tmp_path / "p.json"
-    run(capsys, "transform", "estimate", "affine2d", FIDUCIALS, "--output-params", par)
+    cli("transform", "estimate", "affine2d", FIDUCIALS, "--output-params", par)
     pts3 = _write(tmp_path, "p3.csv", "id,x,y,z\n1,0,0,0\n")
-    code, _, err = run(capsys, "transform", "apply", par, pts3)
+    code, _, err = cli("transform", "apply", par, pts3)
     assert code == 2 and "2D points" in err
 
 
 # --- examples ----------------------------------------------------------------------------------
 
 
-def test_examples_list_and_run(tmp_path, capsys):
-    code, out, _ = run(capsys, "examples", "list")
+def test_examples_list_and_run(tmp_path, cli):
+    code, out, _ = cli("examples", "list")
     assert code == 0 and "fiducials" in out and "two-images" in out
     rep = tmp_path / "ex.html"
-    code, out, err = run(capsys, "examples", "run", "fiducials", "--report", rep)
+    code, out, err = cli("examples", "run", "fiducials", "--report", rep)
     assert code == 0, err
     assert "20 of 20 published numbers reproduced" in out
     html = rep.read_text()
     assert "<img" in html and "Comparison with the published numbers" in html
-    code, _, err = run(capsys, "examples", "run")
+    code, _, err = cli("examples", "run")
     assert code == 2 and "--all" in err
-    code, _, err = run(capsys, "examples", "run", "no-such-example")
+    code, _, err = cli("examples", "run", "no-such-example")
     assert code == 2 and "no example" in err
 
 
@@ -310,18 +296,17 @@ def test_two_images_example_reports_every_published_number():
     assert agreement(-62.16496, "-62.16") == "yes" and agreement(1.5, "1.7") == "NO"
 
 
-def test_3d_similarity_and_polynomial_with_report(tmp_path, capsys):
+def test_3d_similarity_and_polynomial_with_report(tmp_path, cli):
     lidar = str(datasets.path("lidar_wang2014"))
     rep = tmp_path / "r3.html"
-    code, out, err = run(
-        capsys, "transform", "estimate", "similarity3d", lidar, "--unit", "m", "--report", rep
+    code, out, err = cli(
+        "transform", "estimate", "similarity3d", lidar, "--unit", "m", "--report", rep
     )
     assert code == 0, err
     assert ("v_z" in out or "v_Z" in out) and "scale" in out and " m" in out
     html = rep.read_text()
     assert "<img" in html and "first two components" in html
-    code, out, err = run(
-        capsys,
+    code, out, err = cli(
         "transform",
         "estimate",
         "polynomial2d",
@@ -337,7 +322,7 @@ def test_3d_similarity_and_polynomial_with_report(tmp_path, capsys):
     assert data["redundancy"] == 14 - 12 and len(data["parameters"]) == 12
 
 
-def test_sigma_column_weights_the_points(tmp_path, capsys):
+def test_sigma_column_weights_the_points(tmp_path, cli):
     from photogeom.estimation import estimate_transform
 
     rng = np.random.default_rng(3)
@@ -349,7 +334,7 @@ def test_sigma_column_weights_the_points(tmp_path, capsys):
     d_lines = "".join(f"{i},{x:.17g},{y:.17g},{s:.17g}\n" for i, (x, y), s in zip(ids, dst, sigma))
     a = _write(tmp_path, "a.csv", "id,x,y\n" + s_lines)
     b = _write(tmp_path, "b.csv", "id,X,Y,sigma\n" + d_lines)
-    code, out, err = run(capsys, "transform", "estimate", "affine2d", a, b, "--json")
+    code, out, err = cli("transform", "estimate", "affine2d", a, b, "--json")
     assert code == 0, err
     got = [v["value"] for v in json.loads(out)["parameters"].values()]
     want = estimate_transform("affine2d", src, dst, weights=1 / sigma**2).parameters

@@ -9,23 +9,12 @@ import numpy as np
 import pytest
 
 import photogeom as pg
-from photogeom.cli.main import main
 from photogeom.examples import get
 from photogeom.examples.rpc import simulated_control
 from photogeom.io import read_points, write_points
 from photogeom.rpc import RPC
 
 WV2 = str(pg.datasets.path("worldview2"))
-
-
-def run(capsys, *args) -> tuple[int, str, str]:
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
@@ -39,22 +28,22 @@ def control_csv(tmp_path_factory) -> Path:
     return p
 
 
-def test_info_text_and_json(capsys):
-    code, out, err = run(capsys, "rpc", "info", WV2)
+def test_info_text_and_json(cli):
+    code, out, err = cli("rpc", "info", WV2)
     assert code == 0, err
     assert "centre of the first pixel" in out and "28244 x 20289" in out and "top-left" in out
-    code, out, _ = run(capsys, "rpc", "info", WV2, "--json")
+    code, out, _ = cli("rpc", "info", WV2, "--json")
     data = json.loads(out)
     assert data["metadata"]["LINE_OFF"] == 10108.0
     assert len(data["footprint_lon_lat_deg"]) == 4
 
 
-def test_project_and_localize_round_trip(capsys, tmp_path):
+def test_project_and_localize_round_trip(cli, tmp_path):
     rpc = RPC.from_file(WV2)
     g = tmp_path / "ground.csv"
     g.write_text("id,lon,lat,h\np1,-0.33,45.65,100\np2,-0.30,45.66,50\n")
     img = tmp_path / "img.csv"
-    code, _, err = run(capsys, "rpc", "project", WV2, g, "-o", img)
+    code, _, err = cli("rpc", "project", WV2, g, "-o", img)
     assert code == 0, err
     t = read_points(img, ["col", "row"])
     c, r = rpc.project([-0.33, -0.30], [45.65, 45.66], [100.0, 50.0])
@@ -63,37 +52,37 @@ def test_project_and_localize_round_trip(capsys, tmp_path):
     li = tmp_path / "loc.csv"
     c, r = c.tolist(), r.tolist()
     li.write_text(f"id,col,row,h\np1,{c[0]!r},{r[0]!r},100\np2,{c[1]!r},{r[1]!r},50\n")
-    code, out, err = run(capsys, "rpc", "localize", WV2, li)
+    code, out, err = cli("rpc", "localize", WV2, li)
     assert code == 0, err
     lines = [x for x in out.splitlines() if x.startswith("p")]
     lon1, lat1 = (float(v) for v in lines[0].split(",")[1:3])
     assert abs(lon1 + 0.33) < 1e-9 and abs(lat1 - 45.65) < 1e-9
     assert lines[0].endswith(",converged")
-    code, out, _ = run(capsys, "rpc", "localize", WV2, img, "--height", "100", "--json")
+    code, out, _ = cli("rpc", "localize", WV2, img, "--height", "100", "--json")
     data = json.loads(out)
     assert data["counts"]["converged"] == 2
     assert abs(data["points"][0]["lon"] + 0.33) < 1e-9
 
 
-def test_localize_failures_are_reported_not_guessed(capsys, tmp_path):
+def test_localize_failures_are_reported_not_guessed(cli, tmp_path):
     li = tmp_path / "bad.csv"
     li.write_text("id,col,row,h\nok,1000,2000,100\nfar,50000000,3,0\n")
-    code, out, err = run(capsys, "rpc", "localize", WV2, li)
+    code, out, err = cli("rpc", "localize", WV2, li)
     assert code == 0
     assert "far,nan,nan,0.0,diverged" in out
     assert "did not converge" in err
-    code, _, err = run(capsys, "rpc", "localize", WV2, li, "--strict")
+    code, _, err = cli("rpc", "localize", WV2, li, "--strict")
     assert code == 2 and "did not converge" in err
     nh = tmp_path / "noh.csv"
     nh.write_text("id,col,row\na,1,2\n")
-    code, _, err = run(capsys, "rpc", "localize", WV2, nh)
+    code, _, err = cli("rpc", "localize", WV2, nh)
     assert code == 2 and "height" in err
 
 
-def test_refine_with_check_points_and_outputs(capsys, control_csv, tmp_path):
+def test_refine_with_check_points_and_outputs(cli, control_csv, tmp_path):
     out_rpc = tmp_path / "refined_RPC.TXT"
     rep = tmp_path / "refine.html"
-    code, out, err = run(capsys, "rpc", "refine", WV2, control_csv, "--model", "shift+drift",
+    code, out, err = cli("rpc", "refine", WV2, control_csv, "--model", "shift+drift",
                          "--sigma", "0.3", "-o", out_rpc, "--report", rep)  # fmt: skip
     assert code == 0, err
     assert "a0" in out and "b2" in out and "check" in out.lower()
@@ -103,19 +92,19 @@ def test_refine_with_check_points_and_outputs(capsys, control_csv, tmp_path):
     c, r = refined.project(*ground[4:].T)
     # the written (re-fitted) model reproduces the true check positions to the noise level
     assert np.sqrt(np.mean((np.column_stack([c, r]) - true[4:]) ** 2)) < 0.5
-    code, out, _ = run(capsys, "rpc", "refine", WV2, control_csv, "--model", "shift", "--json")
+    code, out, _ = cli("rpc", "refine", WV2, control_csv, "--model", "shift", "--json")
     data = json.loads(out)
     assert set(data["parameters"]) == {"a0", "b0"}
     assert data["input"]["n_check"] == 20
     # the shift-only model folds exactly into the offsets
     out2 = tmp_path / "shift_RPC.TXT"
-    code, _, _ = run(capsys, "rpc", "refine", WV2, control_csv, "--model", "shift", "-o", out2)
+    code, _, _ = cli("rpc", "refine", WV2, control_csv, "--model", "shift", "-o", out2)
     assert RPC.from_file(out2).samp_off == pytest.approx(
         rpc.samp_off + data["parameters"]["a0"]["value"], abs=1e-12
     )
 
 
-def test_fit_command(capsys, tmp_path):
+def test_fit_command(cli, tmp_path):
     rpc = RPC.from_file(WV2)
     rng = np.random.default_rng(1)
     c, r, h = rng.uniform(0, 28000, 30), rng.uniform(0, 20000, 30), rng.uniform(0, 500, 30)
@@ -126,18 +115,18 @@ def test_fit_command(capsys, tmp_path):
     write_points(p, [f"Q{i}" for i in range(30)], np.column_stack([lon, lat, h, c, r]), cols,
                  extra=roles)  # fmt: skip
     out_rpc = tmp_path / "fit_RPC.TXT"
-    code, out, err = run(capsys, "rpc", "fit", p, "-o", out_rpc, "--order", "1")
+    code, out, err = cli("rpc", "fit", p, "-o", out_rpc, "--order", "1")
     assert code == 0, err
     assert "SAMP_NUM_1" in out and "wrote" in out
     assert RPC.from_file(out_rpc).coefficients.shape == (4, 20)
-    code, _, err = run(capsys, "rpc", "fit", p, "--order", "3")
+    code, _, err = cli("rpc", "fit", p, "--order", "3")
     assert code == 2 and "at least 39" in err
 
 
-def test_bad_files_give_one_line_errors(capsys, tmp_path):
+def test_bad_files_give_one_line_errors(cli, tmp_path):
     bad = tmp_path / "x_RPC.TXT"
     bad.write_text("LINE_OFF: 1\n")
-    code, _, err = run(capsys, "rpc", "info", bad)
+    code, _, err = cli("rpc", "info", bad)
     assert code == 2 and "missing key" in err
 
 

@@ -107,14 +107,19 @@ def test_regularisation_keeps_the_fit_and_shrinks_the_coefficients():
         fit_rpc(frame_camera, BOUNDS, regularization=-1.0)
 
 
-def test_refit_of_a_vendor_rpc_reproduces_it():
-    vendor = RPC.from_file(pg.datasets.path("ikonos"))
-    fp = vendor.footprint()
-    b = [
+def _footprint_bounds(rpc: RPC) -> list:
+    """[[lon min, max], [lat min, max], [h min, max]] of an RPC's footprint (deg, m)."""
+    fp = rpc.footprint()
+    return [
         [fp[:, 0].min(), fp[:, 0].max()],
         [fp[:, 1].min(), fp[:, 1].max()],
-        list(vendor.height_range),
+        list(rpc.height_range),
     ]
+
+
+def test_refit_of_a_vendor_rpc_reproduces_it():
+    vendor = RPC.from_file(pg.datasets.path("ikonos"))
+    b = _footprint_bounds(vendor)
     fit = fit_rpc(vendor, b, grid=(7, 7, 4))
     assert fit.extras["check_max_px"] < 0.01
 
@@ -122,12 +127,7 @@ def test_refit_of_a_vendor_rpc_reproduces_it():
 def test_refit_of_a_bias_corrected_rpc_with_cross_terms():
     vendor = RPC.from_file(pg.datasets.path("worldview2"))
     corrected = vendor.with_correction([[1e-4, -2e-4, 5.0], [3e-4, 1e-4, -3.0]])
-    fp = vendor.footprint()
-    b = [
-        [fp[:, 0].min(), fp[:, 0].max()],
-        [fp[:, 1].min(), fp[:, 1].max()],
-        list(vendor.height_range),
-    ]
+    b = _footprint_bounds(vendor)
     fit = fit_rpc(corrected, b, grid=(7, 7, 4))
     assert fit.model.correction is None
     assert fit.extras["check_max_px"] < 0.01

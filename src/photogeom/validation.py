@@ -49,6 +49,17 @@ def as_points(
     return arr
 
 
+def as_finite_scalar(value: object, name: str) -> float:
+    """Return ``value`` as a finite float; :class:`InputError` naming ``name`` otherwise."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: not a number ({value!r})") from exc
+    if not np.isfinite(v):
+        raise InputError(f"{name} is NaN or infinite")
+    return v
+
+
 def check_finite(arr: np.ndarray, name: str) -> None:
     """Raise :class:`InputError` naming the rows that hold NaN or infinite values."""
     finite = np.isfinite(arr)

@@ -18,6 +18,7 @@ import numpy as np
 from ..adjust import Fit, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
+from ._checks import with_check_points
 
 NAMES = ("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4")
 
@@ -166,9 +167,4 @@ def estimate_affine_camera(
         parameter_units=units,
         elapsed=time.perf_counter() - t0,
     )
-    if check_ground is not None or check_image is not None:
-        cg = as_points(check_ground, 3, "check ground points")
-        ci = as_points(check_image, 2, "check image points")
-        check_same_length(cg, ci, "check ground points", "check image points")
-        fit = fit.with_checks(model.project(cg) - ci, check_ids)
-    return fit
+    return with_check_points(fit, model.project, check_ground, check_image, check_ids)

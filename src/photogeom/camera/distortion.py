@@ -21,6 +21,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import InputError
+from ..validation import as_finite_scalar
 
 #: Status codes of :class:`UndistortResult`.
 STATUS_CONVERGED = 0
@@ -105,13 +106,7 @@ class BrownDistortion:
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            v = getattr(self, f.name)
-            try:
-                v = float(v)
-            except (TypeError, ValueError) as exc:
-                raise InputError(f"distortion coefficient {f.name}: not a number ({v!r})") from exc
-            if not np.isfinite(v):
-                raise InputError(f"distortion coefficient {f.name} is NaN or infinite")
+            v = as_finite_scalar(getattr(self, f.name), f"distortion coefficient {f.name}")
             object.__setattr__(self, f.name, v)
 
     # --- helpers ------------------------------------------------------------------------------

@@ -24,6 +24,7 @@ import numpy as np
 from ..adjust import Fit, gauss_markov, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
+from ._checks import with_check_points
 from .dlt import DLT, NAMES, dlt_from_orientation, orientation_from_dlt
 from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
@@ -339,9 +340,4 @@ def estimate_dlt(
         ),
     )
     fit = replace(fit, residuals=fit.residuals * s_img, elapsed=time.perf_counter() - t0)
-    if check_ground is not None or check_image is not None:
-        cg = as_points(check_ground, 3, "check ground points")
-        ci = as_points(check_image, 2, "check image points")
-        check_same_length(cg, ci, "check ground points", "check image points")
-        fit = fit.with_checks(dlt.project(cg) - ci, check_ids)
-    return fit
+    return with_check_points(fit, dlt.project, check_ground, check_image, check_ids)

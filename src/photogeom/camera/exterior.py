@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import InputError
 from ..rotation import opk_from_matrix, opk_matrix
 from ..units import from_radians, to_radians
+from ..validation import as_finite_scalar
 
 NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
 
@@ -39,13 +40,7 @@ class ExteriorOrientation:
 
     def __post_init__(self) -> None:
         for name in NAMES:
-            v = getattr(self, name)
-            try:
-                v = float(v)
-            except (TypeError, ValueError) as exc:
-                raise InputError(f"exterior orientation {name}: not a number ({v!r})") from exc
-            if not np.isfinite(v):
-                raise InputError(f"exterior orientation {name} is NaN or infinite")
+            v = as_finite_scalar(getattr(self, name), f"exterior orientation {name}")
             object.__setattr__(self, name, v)
 
     @classmethod

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import InputError
+from ..validation import as_finite_scalar
 from .distortion import BrownDistortion
 
 UNITS = ("mm", "px")
@@ -59,16 +60,6 @@ def _pixel_shift(pixel_origin: str) -> float:
         f"unknown pixel_origin {pixel_origin!r}; use 'center' (top-left pixel centre = (0, 0)) "
         "or 'corner' (top-left pixel corner = (0, 0), pixel centres at half-integers)"
     )
-
-
-def _finite(name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: not a number ({value!r})") from exc
-    if not np.isfinite(v):
-        raise InputError(f"{name} is NaN or infinite")
-    return v
 
 
 @dataclass(frozen=True)
@@ -113,7 +104,7 @@ class InteriorOrientation:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         for name in ("f", "x0", "y0", "b1", "b2"):
-            set_(self, name, _finite(name, getattr(self, name)))
+            set_(self, name, as_finite_scalar(getattr(self, name), name))
         if self.f <= 0:
             raise InputError(f"principal distance f must be > 0 (got {self.f:g})")
         if self.f + self.b1 <= 0:

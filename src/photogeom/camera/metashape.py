@@ -36,7 +36,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from ..errors import DegenerateGeometryError, FileFormatError, InputError
-from ..validation import as_points
+from ..validation import as_finite_scalar, as_points
 from .distortion import CHUNK, BrownDistortion, UndistortResult
 from .interior import InteriorOrientation, _pixel_shift
 
@@ -113,13 +113,7 @@ class MetashapeCalibration:
                     )
                 object.__setattr__(self, fl.name, iv)
                 continue
-            try:
-                fv = float(v)
-            except (TypeError, ValueError) as exc:
-                raise InputError(f"{fl.name}: not a number ({v!r})") from exc
-            if not math.isfinite(fv):
-                raise InputError(f"{fl.name} is NaN or infinite")
-            object.__setattr__(self, fl.name, fv)
+            object.__setattr__(self, fl.name, as_finite_scalar(v, fl.name))
         if self.f <= 0 or self.f + self.b1 <= 0:
             raise InputError(
                 f"focal length must be > 0 (f = {self.f:g}, f + b1 = {self.f + self.b1:g})"

@@ -21,21 +21,29 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.console import Console
 
 from ..errors import FileFormatError, InputError
+from ._common import (
+    AngleUnit,
+    IdColOpt,
+    JsonOpt,
+    OutputCsvOpt,
+    ReportOpt,
+    check_mask,
+    console,
+    emit_points,
+    finite_or_none,
+    json_text,
+    say,
+    split_control,
+    split_names,
+    split_numbers,
+    write_outputs,
+)
 
 app = typer.Typer(help="Frame camera models: projection, DLT.", no_args_is_help=True)
 dlt_app = typer.Typer(help="Direct linear transformation: estimate, convert.", no_args_is_help=True)
 app.add_typer(dlt_app, name="dlt")
-
-
-class AngleUnit(str, Enum):
-    """Angle units at the command line."""
-
-    deg = "deg"
-    gon = "gon"
-    rad = "rad"
 
 
 class ImageUnit(str, Enum):
@@ -50,41 +58,6 @@ class Behind(str, Enum):
 
     raise_ = "raise"
     nan = "nan"
-
-
-def console(stderr: bool = False) -> Console:
-    """A console that keeps tables readable when the output is not a terminal."""
-    c = Console(stderr=stderr)
-    if not c.is_terminal:
-        c = Console(stderr=stderr, width=max(c.width, 110))
-    return c
-
-
-def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
-    """Comma-separated numbers (exactly ``n`` when given)."""
-    if text is None:
-        return None
-    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
-    try:
-        vals = [float(p) for p in parts]
-    except ValueError:
-        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
-    if n is not None and len(vals) != n:
-        raise InputError(f"{what}: expected {n} comma-separated numbers, got {len(vals)}")
-    return vals
-
-
-def split_names(text: str | None) -> list[str] | None:
-    """Comma-separated names."""
-    if text is None:
-        return None
-    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
-    return parts or None
-
-
-def json_text(data) -> str:
-    """Indented JSON with a final newline (NaN refused)."""
-    return json.dumps(data, indent=2, allow_nan=False) + "\n"
 
 
 def read_json(path: Path) -> dict:
@@ -102,6 +75,15 @@ def read_json(path: Path) -> dict:
     return data
 
 
+def read_parameters_json(path: Path) -> dict:
+    """:func:`read_json`, descending into ``model_parameters`` when the file has it (the
+    ``--output-params`` / ``--json`` output of the estimating commands)."""
+    data = read_json(path)
+    if isinstance(data.get("model_parameters"), dict):
+        data = data["model_parameters"]
+    return data
+
+
 def camera_from_json(path: Path):
     """(InteriorOrientation or None, ExteriorOrientation or None) from a JSON file.
 
@@ -110,9 +92,7 @@ def camera_from_json(path: Path):
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
 
-    data = read_json(path)
-    if isinstance(data.get("model_parameters"), dict):
-        data = data["model_parameters"]
+    data = read_parameters_json(path)
     try:
         if "interior" in data or "exterior" in data:
             io = InteriorOrientation.from_dict(data["interior"]) if "interior" in data else None
@@ -236,9 +216,7 @@ def project_cmd(
     behind: Annotated[
         Behind, typer.Option(help="Points behind the camera: stop with an error or write NaN.")
     ] = Behind.raise_,
-    output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
-    ] = None,
+    output: OutputCsvOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
 ) -> None:
     """Project ground points into an image with the collinearity equations.
@@ -247,7 +225,7 @@ def project_cmd(
     --pixel they are (col, row) with the top-left pixel's centre at (0, 0).
     """
     from ..camera import project
-    from ..io import atomic_write_text, format_points_csv, read_points
+    from ..io import format_points_csv, read_points
 
     io = build_interior(
         camera=camera,
@@ -267,7 +245,8 @@ def project_cmd(
     names = ["col", "row"] if pixel else ["x", "y"]
     if as_json:
         rows = [
-            {"id": pid, names[0]: _num(p[0]), names[1]: _num(p[1])} for pid, p in zip(table.ids, xy)
+            {"id": pid, names[0]: finite_or_none(p[0]), names[1]: finite_or_none(p[1])}
+            for pid, p in zip(table.ids, xy)
         ]
         typer.echo(json_text({"unit": "px" if pixel else io.unit, "points": rows}), nl=False)
         return
@@ -275,15 +254,7 @@ def project_cmd(
     text = format_points_csv(
         table.ids, xy, names, comments=[f"collinearity projection of {points}; {unit_txt}"]
     )
-    if output is None:
-        typer.echo(text, nl=False)
-    else:
-        atomic_write_text(output, text)
-        console(stderr=True).print(f"wrote {len(table.ids)} point(s) to {output}", markup=False)
-
-
-def _num(v: float):
-    return float(v) if np.isfinite(v) else None
+    emit_points(text, output, len(table.ids))
 
 
 # --- camera dlt estimate ----------------------------------------------------------------------
@@ -321,17 +292,6 @@ def load_control(
     return pairs.ids, pairs.target, pairs.source, pairs.check_mask, sigma
 
 
-def check_mask_from(ids, mask, check_ids: str | None) -> np.ndarray:
-    """Check points from ``--check-ids`` (overrides the role column)."""
-    names = split_names(check_ids)
-    if names is None:
-        return mask
-    missing = [i for i in names if i not in set(ids)]
-    if missing:
-        raise InputError(f"--check-ids: no point with id {', '.join(missing)}")
-    return np.isin(np.array(ids, dtype=object), names)
-
-
 @dlt_app.command("estimate")
 def dlt_estimate(
     points: Annotated[
@@ -350,7 +310,7 @@ def dlt_estimate(
     ] = False,
     ground_cols: Annotated[str | None, typer.Option(help="Ground columns (default X,Y,Z).")] = None,
     image_cols: Annotated[str | None, typer.Option(help="Image columns (default x,y).")] = None,
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    id_col: IdColOpt = None,
     sigma_col: Annotated[
         str | None, typer.Option(help="Column of image standard deviations (unit of --unit).")
     ] = None,
@@ -359,7 +319,7 @@ def dlt_estimate(
     ] = None,
     angle_unit: AngleOpt = AngleUnit.deg,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
-    report: Annotated[Path | None, typer.Option(help="Write an HTML report here.")] = None,
+    report: ReportOpt = None,
     output_params: Annotated[
         Path | None, typer.Option(help="Write the parameters (JSON) here.")
     ] = None,
@@ -380,38 +340,26 @@ def dlt_estimate(
         id_col=id_col,
         sigma_col=sigma_col,
     )
-    mask = check_mask_from(ids, mask, check_ids)
-    ctrl = ~mask
+    mask = check_mask(ids, mask, check_ids)
+    g_ctrl, im_ctrl, kw = split_control(ids, g, im, mask)
     fit = estimate_dlt(
-        g[ctrl],
-        im[ctrl],
+        g_ctrl,
+        im_ctrl,
         constrained=constrained,
         refine=not linear,
         unit=ImageUnit(unit).value,
-        sigma=None if sigma is None else sigma[ctrl],
-        ids=[i for i, c in zip(ids, ctrl) if c],
-        check_ground=g[mask] if mask.any() else None,
-        check_image=im[mask] if mask.any() else None,
-        check_ids=[i for i, c in zip(ids, mask) if c] if mask.any() else None,
+        sigma=None if sigma is None else sigma[~mask],
+        **kw,
     )
     au = AngleUnit(angle_unit).value
-    orient = {
-        "interior": fit.interior.to_dict(),
-        "exterior": fit.exterior.to_dict(au),
-        "cx": fit.interior.fx,
-        "cy": fit.interior.fy,
-    }
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()
-    data["orientation"] = orient
+    data["orientation"] = _orientation_json(fit.interior, fit.exterior, au)
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
     if report is not None:
-        outputs.append((report, _dlt_report(fit, im[ctrl], im[mask] if mask.any() else None, au)))
-    from ..io import atomic_write_text
-
-    for path, text in outputs:
-        atomic_write_text(path, text)
+        outputs.append((report, _dlt_report(fit, im_ctrl, kw.get("check_image"), au)))
+    write_outputs(outputs)
     if as_json:
         typer.echo(json_text(data), nl=False)
         return
@@ -421,7 +369,12 @@ def dlt_estimate(
     print_fit(fit, console=out, angle_unit=au)
     out.print(_orientation_text(fit.interior, fit.exterior, au), markup=False, highlight=False)
     for path, _ in outputs:
-        out.print(f"wrote {path}", markup=False)
+        say(f"wrote {path}", out)
+
+
+def _orientation_json(io, eo, au: str) -> dict:
+    """Interior (with ``cx``, ``cy``) and exterior orientation (angles in ``au``) for JSON."""
+    return {"interior": io.to_dict(), "exterior": eo.to_dict(au), "cx": io.fx, "cy": io.fy}
 
 
 def _orientation_text(io, eo, au: str) -> str:
@@ -471,7 +424,7 @@ def dlt_convert(
     unit: UnitOpt = ImageUnit.mm,
     eo: EOOpt = None,
     angle_unit: AngleOpt = AngleUnit.deg,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Convert between the DLT and interior + exterior orientation.
 
@@ -489,26 +442,14 @@ def dlt_convert(
         if dlt is not None:
             L = DLT(split_numbers(dlt, 11, "--dlt L1,...,L11"), u)
         else:
-            data = read_json(params)
-            if isinstance(data.get("model_parameters"), dict):
-                data = data["model_parameters"]
+            data = read_parameters_json(params)
             try:
                 L = DLT.from_dict(data)
             except InputError as exc:
                 raise FileFormatError(f"{params}: {exc}") from None
         io, ext = orientation_from_dlt(L, unit=L.unit)
         if as_json:
-            typer.echo(
-                json_text(
-                    {
-                        "interior": io.to_dict(),
-                        "exterior": ext.to_dict(au),
-                        "cx": io.fx,
-                        "cy": io.fy,
-                    }
-                ),
-                nl=False,
-            )
+            typer.echo(json_text(_orientation_json(io, ext, au)), nl=False)
         else:
             typer.echo(_orientation_text(io, ext, au))
         return

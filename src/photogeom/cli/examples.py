@@ -8,21 +8,14 @@ from typing import Annotated
 
 import typer
 from rich import box
-from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.rule import Rule
 from rich.table import Table
 
 from ..errors import InputError
+from ._common import console, say
 
 app = typer.Typer(help="List and run the bundled worked examples.", no_args_is_help=True)
-
-
-def _console() -> Console:
-    c = Console()
-    if not c.is_terminal:
-        c = Console(width=max(c.width, 110))
-    return c
 
 
 @app.command("list")
@@ -35,7 +28,7 @@ def list_examples() -> None:
     t.add_column("example")
     for ex in all_examples():
         t.add_row(ex.name, ex.title)
-    out = _console()
+    out = console()
     out.print(t)
     out.print(
         "Run one with 'photogeom examples run NAME', all with 'photogeom examples run --all "
@@ -82,7 +75,7 @@ def run_examples(
         if not report.parent.exists() and str(report.parent):
             raise InputError(f"cannot write {report}: directory {report.parent} does not exist")
 
-    out = _console()
+    out = console()
     timings: list[tuple[str, float]] = []
     with Progress(
         SpinnerColumn(),
@@ -115,4 +108,4 @@ def run_examples(
     out.print(summary)
     if rep is not None:
         path = rep.write(report)
-        out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)
+        say(f"wrote {path}", out)

@@ -23,16 +23,9 @@ from ..orientation import (
     compare_absolute_methods,
     ransac_absolute_orientation,
 )
+from ._common import AngleUnit, check_mask, console, load_pairs
 
 Method = Enum("Method", {m: m for m in METHODS}, type=str)
-
-
-class AngleUnit(str, Enum):
-    """Angle unit of the output."""
-
-    deg = "deg"
-    gon = "gon"
-    rad = "rad"
 
 
 class Convention(str, Enum):
@@ -155,7 +148,6 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
-        from .transform import check_mask, console, load_pairs
 
         out = console()
         pairs = load_pairs(
@@ -167,16 +159,15 @@ def register(app: typer.Typer) -> None:
                 "absolute orientation needs 3D points in both systems "
                 f"(got {pairs.source.shape[1]}D source, {pairs.target.shape[1]}D target)"
             )
-        is_check = check_mask(pairs, check_ids)
+        is_check = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
         ctrl = ~is_check
         ids = np.asarray(pairs.ids, dtype=object)
         x, X = pairs.source[ctrl], pairs.target[ctrl]
         w = None if pairs.weights is None else pairs.weights[ctrl]
-        unit_ = unit
         angle = angle_unit.value
         conv = convention.value
         meth = method.value
-        options: dict = {"with_scale": not rigid, "unit": unit_}
+        options: dict = {"with_scale": not rigid, "unit": unit}
         if w is not None:
             options["weights"] = w
         if sigma_target is not None:
@@ -187,7 +178,7 @@ def register(app: typer.Typer) -> None:
             if ransac:
                 raise InputError("--compare and --ransac cannot be combined")
             cmp = compare_absolute_methods(
-                x, X, convention=conv, angle_unit=angle, length_unit=unit_,
+                x, X, convention=conv, angle_unit=angle, length_unit=unit,
                 **{k: v for k, v in options.items() if k != "unit"},
             )
             if as_json:
@@ -260,7 +251,7 @@ def register(app: typer.Typer) -> None:
             rep = Report("Absolute orientation")
             used = X if fit.inliers is None else X[fit.inliers]
             rep.add_fit(fit, title=f"Absolute orientation ({meth})", angle_unit=angle,
-                        points=used[:, :2], point_labels=("X", "Y"), point_unit=unit_)
+                        points=used[:, :2], point_labels=("X", "Y"), point_unit=unit)
             rep.add_text("Angles", _angles_line(fit, conv, angle))
             rep.write(report)
             if not as_json:

@@ -16,9 +16,22 @@ import numpy as np
 import typer
 
 from ..errors import InputError
+from ._common import (
+    AngleUnit,
+    IdColOpt,
+    OutputCsvOpt,
+    check_mask,
+    console,
+    finite_or_none,
+    json_text,
+    say,
+    split_control,
+    split_names,
+    split_numbers,
+    write_outputs,
+)
 from .camera import (
     AngleOpt,
-    AngleUnit,
     CalibrationOpt,
     CameraOpt,
     FOpt,
@@ -30,12 +43,7 @@ from .camera import (
     Y0Opt,
     build_interior,
     camera_from_json,
-    check_mask_from,
-    console,
-    json_text,
     load_control,
-    split_names,
-    split_numbers,
 )
 
 
@@ -85,7 +93,7 @@ def resection(
     image_cols: Annotated[
         str | None, typer.Option(help="Image columns (default x,y; col,row with --pixel).")
     ] = None,
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    id_col: IdColOpt = None,
     check_ids: Annotated[
         str | None, typer.Option(help="Comma-separated ids of check points.")
     ] = None,
@@ -132,23 +140,20 @@ def resection(
         if sig is not None:
             raise InputError("give the image standard deviation once: --sigma or --sigma-col")
         sig = np.full(len(ids), float(sigma))
-    mask = check_mask_from(ids, mask, check_ids)
-    ctrl = ~mask
+    mask = check_mask(ids, mask, check_ids)
+    g_ctrl, im_ctrl, kw = split_control(ids, g, im, mask)
     au = AngleUnit(angle_unit).value
     start = None
     if initial is not None:
         start = ExteriorOrientation.from_degrees(*split_numbers(initial, 6, "--initial"), unit=au)
     fit = space_resection(
-        g[ctrl],
-        im[ctrl],
+        g_ctrl,
+        im_ctrl,
         io,
         initial=start,
         calibrate=tuple(split_names(calibrate) or ()),
-        sigma=None if sig is None else sig[ctrl],
-        ids=[i for i, c in zip(ids, ctrl) if c],
-        check_ground=g[mask] if mask.any() else None,
-        check_image=im[mask] if mask.any() else None,
-        check_ids=[i for i, c in zip(ids, mask) if c] if mask.any() else None,
+        sigma=None if sig is None else sig[~mask],
+        **kw,
     )
     data = fit.to_dict()
     data["model_parameters"] = fit.camera.to_dict(au)
@@ -157,28 +162,23 @@ def resection(
         outputs.append((output_params, json_text(data)))
     if report is not None:
         outputs.append(
-            (report, _resection_report(fit, im[ctrl], im[mask] if mask.any() else None, au, points))
+            (report, _resection_report(fit, im_ctrl, kw.get("check_image"), au, points))
         )
-    from ..io import atomic_write_text
-
-    for path, text in outputs:
-        atomic_write_text(path, text)
+    write_outputs(outputs)
     if as_json:
         typer.echo(json_text(data), nl=False)
         return
     from ..report import print_fit
 
     out = console()
-    out.print(
+    say(
         f"space resection: {points}{' + ' + str(image) if image else ''}; "
-        f"{int(ctrl.sum())} control, {int(mask.sum())} check point(s); image unit {io.unit}",
-        markup=False,
-        highlight=False,
-        soft_wrap=True,
+        f"{len(im_ctrl)} control, {int(mask.sum())} check point(s); image unit {io.unit}",
+        out,
     )
     print_fit(fit, console=out, angle_unit=au)
     for path, _ in outputs:
-        out.print(f"wrote {path}", markup=False)
+        say(f"wrote {path}", out)
 
 
 def _resection_report(fit, image_ctrl, image_check, au: str, source: Path) -> str:
@@ -218,14 +218,12 @@ def intersection(
     image_cols: Annotated[
         str | None, typer.Option(help="Image columns (default x,y; col,row with --pixel).")
     ] = None,
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    id_col: IdColOpt = None,
     sigma: Annotated[
         float | None,
         typer.Option(help="Standard deviation of the image coordinates (a-priori std. dev.)."),
     ] = None,
-    output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
-    ] = None,
+    output: OutputCsvOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: Annotated[
         Path | None, typer.Option(help="Write an HTML report with image residual vectors.")
@@ -283,9 +281,9 @@ def intersection(
                 "X": float(p[0]),
                 "Y": float(p[1]),
                 "Z": float(p[2]),
-                "std": [float(s) if np.isfinite(s) else None for s in sd],
+                "std": [finite_or_none(s) for s in sd],
                 "n_rays": int(k),
-                "sigma0": float(s0) if np.isfinite(s0) else None,
+                "sigma0": finite_or_none(s0),
             }
             for pid, p, sd, k, s0 in zip(ids, res.points, std, res.n_rays, res.sigma0)
         ]
@@ -318,11 +316,11 @@ def intersection(
         atomic_write_text(report, _intersection_report(res, ids, images, obs[:, keep], cams))
     err = console(stderr=True)
     for n in notes:
-        err.print(f"note: {n}", markup=False)
+        say(f"note: {n}", err)
     if output is not None:
-        err.print(f"wrote {len(ids)} point(s) to {output}", markup=False)
+        say(f"wrote {len(ids)} point(s) to {output}", err)
     if report is not None:
-        err.print(f"wrote {report}", markup=False)
+        say(f"wrote {report}", err)
 
 
 def _intersection_report(res, ids, images, obs, cams) -> str:

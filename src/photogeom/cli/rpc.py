@@ -13,7 +13,6 @@ h in metres (ellipsoidal).
 
 from __future__ import annotations
 
-import json
 import warnings
 from dataclasses import replace
 from enum import Enum
@@ -22,10 +21,24 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.console import Console
 
 from ..errors import FileFormatError, InputError
-from ..io import atomic_write_text, format_points_csv, read_point_pairs, read_points
+from ..io import format_points_csv, read_point_pairs, read_points
+from ._common import (
+    IdColOpt,
+    JsonOpt,
+    OutputCsvOpt,
+    ReportOpt,
+    check_mask,
+    console,
+    emit_points,
+    finite_or_none,
+    json_text,
+    say,
+    split_control,
+    split_names,
+    write_outputs,
+)
 
 app = typer.Typer(
     help="Rational polynomial (RPC) satellite camera models: (0, 0) is the centre of the first "
@@ -49,32 +62,6 @@ class TextStyle(str, Enum):
     lists = "lists"
 
 
-def _console(stderr: bool = False) -> Console:
-    c = Console(stderr=stderr)
-    if not c.is_terminal:
-        c = Console(stderr=stderr, width=max(c.width, 110))
-    return c
-
-
-def _say(text: str, stderr: bool = False) -> None:
-    _console(stderr).print(text, markup=False, highlight=False, soft_wrap=True)
-
-
-def _json(data) -> str:
-    return json.dumps(data, indent=2, allow_nan=False) + "\n"
-
-
-def _split(text: str | None) -> list[str] | None:
-    if text is None:
-        return None
-    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
-    return parts or None
-
-
-def _finite_or_none(a) -> list:
-    return [None if not np.isfinite(x) else float(x) for x in np.asarray(a, dtype=float)]
-
-
 def _load_rpc(path: Path):
     from ..rpc import RPC
 
@@ -90,7 +77,7 @@ HEIGHT_COLS = ["h", "height", "z"]
 def _read_with(path: Path, cols: str | None, candidates, what: str, id_col: str | None):
     """Read the first candidate column set present in the file (or the ``--cols`` given)."""
     if cols is not None:
-        return read_points(path, _split(cols), id_column=id_col, auto_weights=False)
+        return read_points(path, split_names(cols), id_column=id_col, auto_weights=False)
     for cand in candidates:
         try:
             return read_points(path, cand, id_column=id_col, auto_weights=False)
@@ -130,7 +117,7 @@ def info(
             "approximate_inverse_max_error_px": inv.max_error_px,
             "notes": list(rpc.notes),
         }
-        typer.echo(_json(data), nl=False)
+        typer.echo(json_text(data), nl=False)
         return
     lines = [f"{rpc_file}", rpc.summary()]
     lines.append(f"  footprint at h = {rpc.height_off:g} m (lon, lat deg):")
@@ -140,20 +127,18 @@ def info(
         f"  localisation start: approximate inverse within {inv.max_error_px:.2g} px "
         f"({inv.n_points} grid points)"
     )
-    _say("\n".join(lines))
+    say("\n".join(lines))
 
 
 @app.command("project")
 def project(
     rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
     points: Annotated[Path, typer.Argument(help="CSV of ground points: id, lon, lat, h.")],
-    output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
-    ] = None,
+    output: OutputCsvOpt = None,
     cols: Annotated[
         str | None, typer.Option(help="Ground columns lon,lat,h (default: found by name).")
     ] = None,
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    id_col: IdColOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
 ) -> None:
     """Project ground points (lon, lat in degrees, h in metres) into the image (col, row px)."""
@@ -165,7 +150,7 @@ def project(
         warnings.simplefilter("always")
         col, row = rpc.project(table.coords[:, 0], table.coords[:, 1], table.coords[:, 2])
     for w in caught:
-        _say(f"warning: {w.message}", stderr=True)
+        say(f"warning: {w.message}", stderr=True)
     if as_json:
         data = {
             "rpc": str(rpc_file),
@@ -174,7 +159,7 @@ def project(
                 {"id": i, "col": float(c), "row": float(r)} for i, c, r in zip(table.ids, col, row)
             ],
         }
-        typer.echo(_json(data), nl=False)
+        typer.echo(json_text(data), nl=False)
         return
     text = format_points_csv(
         table.ids,
@@ -182,16 +167,14 @@ def project(
         ["col", "row"],
         comments=[f"projected with {rpc_file}; (0, 0) = centre of the first pixel, px"],
     )
-    _emit(text, output, len(table.ids))
+    emit_points(text, output, len(table.ids))
 
 
 @app.command("localize")
 def localize(
     rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
     points: Annotated[Path, typer.Argument(help="CSV of image points: id, col, row[, h].")],
-    output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
-    ] = None,
+    output: OutputCsvOpt = None,
     height: Annotated[
         float | None,
         typer.Option("--height", help="Height (m) of every point, instead of an h column."),
@@ -200,7 +183,7 @@ def localize(
         str | None,
         typer.Option(help="Image columns col,row (or col,row,h) (default: found by name)."),
     ] = None,
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    id_col: IdColOpt = None,
     tol: Annotated[float, typer.Option(help="Convergence tolerance (px).")] = 1e-6,
     max_iter: Annotated[int, typer.Option(help="Newton iterations per point.")] = 20,
     strict: Annotated[
@@ -223,12 +206,10 @@ def localize(
         cands = IMAGE_COLS
         what = "image (col, row)"
     table = _read_with(points, cols, cands, what, id_col)
-    if table.dim == 3 and height is None:
-        h = table.coords[:, 2]
-    elif table.dim == 2 and height is not None:
+    if height is not None and table.dim in (2, 3):
         h = np.full(len(table.ids), float(height))
     elif table.dim == 3:
-        h = np.full(len(table.ids), float(height))
+        h = table.coords[:, 2]
     else:
         raise InputError(
             f"{points}: columns {', '.join(table.columns)} give no height; add an h column or "
@@ -241,11 +222,11 @@ def localize(
             full_output=True, on_failure="raise" if strict else "nan",
         )  # fmt: skip
     for w in caught:
-        _say(f"warning: {w.message}", stderr=True)
+        say(f"warning: {w.message}", stderr=True)
     status = [LocalizationStatus(int(s)).name.lower() for s in res.status]
     bad = int(np.count_nonzero(~res.converged))
     if bad:
-        _say(
+        say(
             f"warning: {bad} of {len(status)} point(s) did not converge (status column); their "
             "lon/lat are nan",
             stderr=True,
@@ -259,15 +240,15 @@ def localize(
                 {"id": i, "lon": lo, "lat": la, "h": float(hh), "status": s, "iterations": int(it)}
                 for i, lo, la, hh, s, it in zip(
                     table.ids,
-                    _finite_or_none(res.lon),
-                    _finite_or_none(res.lat),
+                    map(finite_or_none, res.lon),
+                    map(finite_or_none, res.lat),
                     h,
                     status,
                     res.iterations,
                 )
             ],
         }
-        typer.echo(_json(data), nl=False)
+        typer.echo(json_text(data), nl=False)
         return
     text = format_points_csv(
         table.ids,
@@ -276,27 +257,14 @@ def localize(
         extra={"status": status},
         comments=[f"localised with {rpc_file}; lon, lat in degrees, h in metres; tol {tol:g} px"],
     )
-    _emit(text, output, len(table.ids))
-
-
-def _emit(text: str, output: Path | None, n: int) -> None:
-    if output is None:
-        typer.echo(text, nl=False)
-    else:
-        atomic_write_text(output, text)
-        _say(f"wrote {n} point(s) to {output}", stderr=True)
+    emit_points(text, output, len(table.ids))
 
 
 def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None, check_ids):
-    pairs = read_point_pairs(points, _split(ground_cols), _split(image_cols), id_column=id_col)
-    mask = pairs.check_mask
-    ids = _split(check_ids)
-    if ids is not None:
-        missing = [i for i in ids if i not in set(pairs.ids)]
-        if missing:
-            raise InputError(f"--check-ids: no point with id {', '.join(missing)}")
-        mask = np.isin(np.array(pairs.ids, dtype=object), ids)
-    return pairs, mask
+    pairs = read_point_pairs(
+        points, split_names(ground_cols), split_names(image_cols), id_column=id_col
+    )
+    return pairs, check_mask(pairs.ids, pairs.check_mask, check_ids)
 
 
 def _sigmas(pairs, mask, sigma: float):
@@ -305,11 +273,21 @@ def _sigmas(pairs, mask, sigma: float):
     return 1.0 / np.sqrt(pairs.weights[~mask])
 
 
-_GROUND_OPT = typer.Option(help="Ground columns of the CSV (lon deg, lat deg, h m).")
-_IMAGE_OPT = typer.Option(help="Image columns of the CSV (px).")
-_CHECK_OPT = typer.Option(
-    help="Comma-separated ids of check points (default: rows whose role column says 'check')."
-)
+# --- options shared by ``fit`` and ``refine`` ---------------------------------------------------
+
+SigmaOpt = Annotated[float, typer.Option(help="Image measurement std. dev. (px).")]
+GroundColsOpt = Annotated[
+    str, typer.Option(help="Ground columns of the CSV (lon deg, lat deg, h m).")
+]
+ImageColsOpt = Annotated[str, typer.Option(help="Image columns of the CSV (px).")]
+CheckIdsOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Comma-separated ids of check points (default: rows whose role column says "
+        "'check')."
+    ),
+]
+StyleOpt = Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")]
 
 
 def _report_html(title: str, subtitle: str, fit, image_ctrl, image_chk, intro: str) -> str:
@@ -343,16 +321,14 @@ def fit(
     regularization: Annotated[
         float, typer.Option(help="Tikhonov parameter (normalised units).")
     ] = 1e-6,
-    sigma: Annotated[float, typer.Option(help="Image measurement std. dev. (px).")] = 1.0,
-    ground_cols: Annotated[str, _GROUND_OPT] = "lon,lat,h",
-    image_cols: Annotated[str, _IMAGE_OPT] = "col,row",
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
-    check_ids: Annotated[str | None, _CHECK_OPT] = None,
-    style: Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")] = (
-        TextStyle.ikonos
-    ),
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
-    report: Annotated[Path | None, typer.Option(help="Write an HTML report here.")] = None,
+    sigma: SigmaOpt = 1.0,
+    ground_cols: GroundColsOpt = "lon,lat,h",
+    image_cols: ImageColsOpt = "col,row",
+    id_col: IdColOpt = None,
+    check_ids: CheckIdsOpt = None,
+    style: StyleOpt = TextStyle.ikonos,
+    as_json: JsonOpt = False,
+    report: ReportOpt = None,
 ) -> None:
     """Fit a terrain-dependent RPC to control points (regularised least squares).
 
@@ -362,22 +338,15 @@ def fit(
     from ..rpc import fit_rpc_to_points
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
-    kw = {}
-    if mask.any():
-        kw = dict(
-            check_ground=pairs.source[mask],
-            check_image=pairs.target[mask],
-            check_ids=[i for i, m in zip(pairs.ids, mask) if m],
-        )
     sig = _sigmas(pairs, mask, sigma)
     if np.ndim(sig):
         raise InputError(
             "fit: per-point sigma/weight columns are not supported for RPC fitting; use --sigma"
         )
+    ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
     result = fit_rpc_to_points(
-        pairs.source[~mask], pairs.target[~mask], order=order, regularization=regularization,
-        sigma=float(sig), ids=[i for i, m in zip(pairs.ids, mask) if not m], **kw,
-    )  # fmt: skip
+        ground, image, order=order, regularization=regularization, sigma=float(sig), **kw
+    )
     _finish(
         result, output, style, as_json, report, points, pairs, mask, "Terrain-dependent RPC fit"
     )
@@ -399,16 +368,14 @@ def refine(
             "written into the offsets exactly; others are re-fitted (the re-fit error is shown).",
         ),
     ] = None,
-    sigma: Annotated[float, typer.Option(help="Image measurement std. dev. (px).")] = 1.0,
-    ground_cols: Annotated[str, _GROUND_OPT] = "lon,lat,h",
-    image_cols: Annotated[str, _IMAGE_OPT] = "col,row",
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
-    check_ids: Annotated[str | None, _CHECK_OPT] = None,
-    style: Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")] = (
-        TextStyle.ikonos
-    ),
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
-    report: Annotated[Path | None, typer.Option(help="Write an HTML report here.")] = None,
+    sigma: SigmaOpt = 1.0,
+    ground_cols: GroundColsOpt = "lon,lat,h",
+    image_cols: ImageColsOpt = "col,row",
+    id_col: IdColOpt = None,
+    check_ids: CheckIdsOpt = None,
+    style: StyleOpt = TextStyle.ikonos,
+    as_json: JsonOpt = False,
+    report: ReportOpt = None,
 ) -> None:
     """Bias-compensate a vendor RPC with control points (shift, shift+drift or affine).
 
@@ -419,17 +386,10 @@ def refine(
 
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
-    kw = {}
-    if mask.any():
-        kw = dict(
-            check_ground=pairs.source[mask],
-            check_image=pairs.target[mask],
-            check_ids=[i for i, m in zip(pairs.ids, mask) if m],
-        )
+    ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
     result = refine_rpc(
-        rpc, pairs.source[~mask], pairs.target[~mask], model=BiasModel(model).value,
-        sigma=_sigmas(pairs, mask, sigma), ids=[i for i, m in zip(pairs.ids, mask) if not m], **kw,
-    )  # fmt: skip
+        rpc, ground, image, model=BiasModel(model).value, sigma=_sigmas(pairs, mask, sigma), **kw
+    )
     _finish(result, output, style, as_json, report, points, pairs, mask, "RPC bias compensation",
             source_rpc=rpc_file)  # fmt: skip
 
@@ -477,20 +437,19 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
         outputs.append((report, _report_html(title, subtitle, result, ctrl, chk, intro)))
     if written is not None:
         write_rpc(written, output, style=TextStyle(style).value)
-    for path, text in outputs:
-        atomic_write_text(path, text)
+    write_outputs(outputs)
     if as_json:
         data = result.to_dict()
         data["input"] = {"points": str(points), "n_control": int((~mask).sum()),
                          "n_check": int(mask.sum())}  # fmt: skip
         if written is not None:
             data["output_rpc"] = str(output)
-        typer.echo(_json(data), nl=False)
+        typer.echo(json_text(data), nl=False)
         return
-    out = _console()
-    out.print(intro, markup=False, highlight=False, soft_wrap=True)
+    out = console()
+    say(intro, out)
     print_fit(result, console=out)
     if written is not None:
-        out.print(f"wrote {output}", markup=False, highlight=False)
+        say(f"wrote {output}", out)
     for path, _ in outputs:
-        out.print(f"wrote {path}", markup=False, highlight=False)
+        say(f"wrote {path}", out)

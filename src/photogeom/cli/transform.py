@@ -16,17 +16,22 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.console import Console
 
 from ..errors import FileFormatError, InputError
-from ..io import (
-    atomic_write_text,
-    format_points_csv,
-    join_points,
-    read_point_pairs,
-    read_points,
-)
+from ..io import format_points_csv, read_points
 from ..io.points import PointPairs
+from ._common import (
+    AngleUnit,
+    IdColOpt,
+    check_mask,
+    console,
+    emit_points,
+    json_text,
+    load_pairs,
+    say,
+    split_names,
+    write_outputs,
+)
 
 MODELS = (
     "similarity2d",
@@ -39,10 +44,8 @@ MODELS = (
     "projective3d",
     "polynomial3d",
 )
-ANGLE_UNITS = ("deg", "gon", "rad")
 
 Model = Enum("Model", {m: m for m in MODELS}, type=str)
-AngleUnit = Enum("AngleUnit", {u: u for u in ANGLE_UNITS}, type=str)
 
 
 class ErrorsIn(str, Enum):
@@ -56,75 +59,6 @@ app = typer.Typer(
     help="Estimate and apply 2D/3D coordinate transformations.",
     no_args_is_help=True,
 )
-
-
-def console(stderr: bool = False) -> Console:
-    """A console that keeps tables readable when the output is not a terminal."""
-    c = Console(stderr=stderr)
-    if not c.is_terminal:
-        c = Console(stderr=stderr, width=max(c.width, 110))
-    return c
-
-
-def _split(text: str | None) -> list[str] | None:
-    if text is None:
-        return None
-    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
-    return parts or None
-
-
-def load_pairs(
-    source: Path,
-    target: Path | None,
-    *,
-    source_cols: str | None = None,
-    target_cols: str | None = None,
-    id_col: str | None = None,
-    weights_col: str | None = None,
-    sigma_col: str | None = None,
-    allow_unmatched: bool = False,
-) -> PointPairs:
-    """Point pairs from one CSV with both coordinate sets or from two CSVs joined by id."""
-    if target is None:
-        return read_point_pairs(
-            source,
-            _split(source_cols),
-            _split(target_cols),
-            id_column=id_col,
-            weight_column=weights_col,
-            sigma_column=sigma_col,
-        )
-    # An explicit weight/sigma column belongs to the target file; without one, a weight or
-    # sigma column found in either file is used (join_points refuses conflicting ones).
-    explicit = weights_col is not None or sigma_col is not None
-    src = read_points(source, _split(source_cols), id_column=id_col, auto_weights=not explicit)
-    dst = read_points(
-        target,
-        _split(target_cols),
-        id_column=id_col,
-        weight_column=weights_col,
-        sigma_column=sigma_col,
-    )
-    return join_points(src, dst, allow_unmatched=allow_unmatched)
-
-
-def check_mask(pairs: PointPairs, check_ids: str | None) -> np.ndarray:
-    """Check points from ``--check-ids`` (overrides roles) or the role column."""
-    ids = _split(check_ids)
-    if ids is None:
-        return pairs.check_mask
-    known = set(pairs.ids)
-    missing = [i for i in ids if i not in known]
-    if missing:
-        raise InputError(
-            f"--check-ids: no point with id {', '.join(missing)}; the ids are "
-            f"{', '.join(pairs.ids[:30])}{' ...' if len(pairs.ids) > 30 else ''}"
-        )
-    return np.isin(np.array(pairs.ids, dtype=object), ids)
-
-
-def _json_text(data) -> str:
-    return json.dumps(data, indent=2, allow_nan=False) + "\n"
 
 
 @app.command("estimate")
@@ -240,7 +174,7 @@ def estimate(
         allow_unmatched=allow_unmatched,
     )
     _check_dimensions(model, pairs)
-    mask = check_mask(pairs, check_ids)
+    mask = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
     fit = estimate_transform(
         model,
         pairs.source,
@@ -268,27 +202,26 @@ def estimate(
         "unmatched_target": list(pairs.unmatched_target),
     }
 
+    params = fit.to_dict()
+
     # Build every output in memory first; files are then replaced atomically.
     outputs: list[tuple[Path, str]] = []
     if output_params is not None:
-        outputs.append((output_params, _json_text(fit.to_dict())))
+        outputs.append((output_params, json_text(params)))
     if report is not None:
         outputs.append((report, _report_html(fit, pairs, mask, inputs, model, angle_unit)))
-    for path, text in outputs:
-        atomic_write_text(path, text)
+    write_outputs(outputs)
 
     if as_json:
-        data = fit.to_dict()
-        data["input"] = inputs
-        typer.echo(_json_text(data), nl=False)
+        typer.echo(json_text({**params, "input": inputs}), nl=False)
         return
     out = console()
-    out.print(_input_line(inputs, model), markup=False, highlight=False, soft_wrap=True)
+    say(_input_line(inputs, model), out)
     from ..report import print_fit
 
     print_fit(fit, console=out, angle_unit=angle_unit)
     for path, _ in outputs:
-        out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)
+        say(f"wrote {path}", out)
 
 
 def _check_dimensions(model: str, pairs: PointPairs) -> None:
@@ -397,7 +330,7 @@ def apply(
         str | None,
         typer.Option(help="Names of the output coordinate columns (default: x <-> X swapped)."),
     ] = None,
-    id_col: Annotated[str | None, typer.Option(help="Id column.")] = None,
+    id_col: IdColOpt = None,
 ) -> None:
     """Transform the points of a CSV with saved parameters (or their inverse).
 
@@ -405,7 +338,7 @@ def apply(
     has one; numbers are written losslessly.
     """
     transform = load_transform(params)
-    table = read_points(points, _split(cols), id_column=id_col, auto_weights=False)
+    table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
     dim = getattr(transform, "dim", table.dim)
     if table.dim != dim:
         raise InputError(
@@ -415,7 +348,7 @@ def apply(
         )
     t = transform.inverse() if inverse else transform
     result = t.apply(table.coords)
-    names = _split(out_cols) or _output_columns(table.columns)
+    names = split_names(out_cols) or _output_columns(table.columns)
     if len(names) != result.shape[1]:
         raise InputError(f"--out-cols: {len(names)} name(s) for {result.shape[1]} coordinates")
     extra = {"role": list(table.roles)} if table.roles is not None else None
@@ -425,10 +358,4 @@ def apply(
         f"input {points} ({', '.join(table.columns)})"
     ]
     text = format_points_csv(table.ids, result, names, extra=extra, comments=comments)
-    if output is None:
-        typer.echo(text, nl=False)
-    else:
-        atomic_write_text(output, text)
-        console(stderr=True).print(
-            f"wrote {len(table.ids)} point(s) to {output}", markup=False, highlight=False
-        )
+    emit_points(text, output, len(table.ids))

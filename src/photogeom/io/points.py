@@ -114,9 +114,7 @@ class PointTable:
     @property
     def check_mask(self) -> np.ndarray:
         """Boolean mask of check points (all False without a role column)."""
-        if self.roles is None:
-            return np.zeros(len(self.ids), dtype=bool)
-        return self.roles == "check"
+        return _check_mask(self.roles, len(self.ids))
 
 
 @dataclass(frozen=True)
@@ -161,9 +159,13 @@ class PointPairs:
     @property
     def check_mask(self) -> np.ndarray:
         """Boolean mask of check points (all False without roles)."""
-        if self.roles is None:
-            return np.zeros(len(self.ids), dtype=bool)
-        return self.roles == "check"
+        return _check_mask(self.roles, len(self.ids))
+
+
+def _check_mask(roles: np.ndarray | None, n: int) -> np.ndarray:
+    if roles is None:
+        return np.zeros(n, dtype=bool)
+    return roles == "check"
 
 
 # --------------------------------------------------------------------------------------------

@@ -13,20 +13,24 @@ from rich.text import Text
 from . import format as F
 
 
+def _parameter_table(title: str, rows) -> Table:
+    """Rows (name, value, std. dev., unit) as a table titled ``title``."""
+    t = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", title_style="bold")
+    t.add_column("parameter", style="bold", no_wrap=True)
+    t.add_column("value", justify="right", no_wrap=True)
+    t.add_column("std. dev.", justify="right", no_wrap=True)
+    t.add_column("unit", no_wrap=True)
+    for row in rows:
+        t.add_row(*row)
+    return t
+
+
 def fit_renderable(fit, title: str | None = None, angle_unit: str = "deg") -> Group:
     """Rich renderable of a fit: parameters, statistics, residuals, check points, notes."""
     title = title or f"{F.model_name(fit)} ({fit.method})"
     items: list = []
 
-    params = Table(
-        title="Parameters", box=box.SIMPLE_HEAD, title_justify="left", title_style="bold"
-    )
-    params.add_column("parameter", style="bold", no_wrap=True)
-    params.add_column("value", justify="right", no_wrap=True)
-    params.add_column("std. dev.", justify="right", no_wrap=True)
-    params.add_column("unit", no_wrap=True)
-    for name, value, std, unit in F.parameter_rows(fit, angle_unit):
-        params.add_row(name, value, std, unit)
+    params = _parameter_table("Parameters", F.parameter_rows(fit, angle_unit))
 
     stats = Table(
         title="Adjustment",
@@ -43,16 +47,7 @@ def fit_renderable(fit, title: str | None = None, angle_unit: str = "deg") -> Gr
     items.append(params)
     tb = F.textbook_rows(fit, angle_unit)
     if tb:
-        t = Table(
-            title="Textbook form", box=box.SIMPLE_HEAD, title_justify="left", title_style="bold"
-        )
-        t.add_column("parameter", style="bold", no_wrap=True)
-        t.add_column("value", justify="right", no_wrap=True)
-        t.add_column("std. dev.", justify="right", no_wrap=True)
-        t.add_column("unit", no_wrap=True)
-        for row in tb:
-            t.add_row(*row)
-        items.append(t)
+        items.append(_parameter_table("Textbook form", tb))
     items.append(stats)
 
     for check in (False, True):

@@ -30,6 +30,7 @@ import numpy as np
 from ..adjust import Fit, solve_linear
 from ..errors import DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
+from .fitting import with_check_points
 from .model import RPC
 
 #: Correction models and the parameters they estimate (of a0, a1, a2, b0, b1, b2).
@@ -169,12 +170,4 @@ def refine_rpc(
         ),
         extras={"model": key, "shift_px": shift_px},
     )
-    if check_ground is not None or check_image is not None:
-        if check_ground is None or check_image is None:
-            raise InputError("check points need both check_ground and check_image")
-        cg = as_points(check_ground, 3, "check_ground")
-        ci = as_points(check_image, 2, "check_image")
-        check_same_length(cg, ci, "check_ground", "check_image")
-        cc, rc = corrected.project(cg[:, 0], cg[:, 1], cg[:, 2])
-        fit = fit.with_checks(np.column_stack([cc, rc]) - ci, check_ids)
-    return fit
+    return with_check_points(fit, corrected, check_ground, check_image, check_ids)

@@ -428,15 +428,22 @@ def fit_rpc_to_points(
         ids, time.perf_counter() - t0, float(sigma), notes,
         {"regularization": regularization, "order": order, "min_denominator": dmin},
     )  # fmt: skip
-    if check_ground is not None or check_image is not None:
-        if check_ground is None or check_image is None:
-            raise InputError("check points need both check_ground and check_image")
-        cg = as_points(check_ground, 3, "check_ground")
-        ci = as_points(check_image, 2, "check_image")
-        check_same_length(cg, ci, "check_ground", "check_image")
-        cc, rc = rpc.project(cg[:, 0], cg[:, 1], cg[:, 2])
-        fit = fit.with_checks(np.column_stack([cc, rc]) - ci, check_ids)
-    return fit
+    return with_check_points(fit, rpc, check_ground, check_image, check_ids)
+
+
+def with_check_points(fit: Fit, rpc: RPC, check_ground, check_image, check_ids) -> Fit:
+    """``fit`` with the image residuals (computed minus observed, px) of check points
+    ``check_ground`` (lon, lat, h) / ``check_image`` (col, row) projected with ``rpc``;
+    ``fit`` itself when none are given."""
+    if check_ground is None and check_image is None:
+        return fit
+    if check_ground is None or check_image is None:
+        raise InputError("check points need both check_ground and check_image")
+    cg = as_points(check_ground, 3, "check_ground")
+    ci = as_points(check_image, 2, "check_image")
+    check_same_length(cg, ci, "check_ground", "check_image")
+    cc, rc = rpc.project(cg[:, 0], cg[:, 1], cg[:, 2])
+    return fit.with_checks(np.column_stack([cc, rc]) - ci, check_ids)
 
 
 def _with(rpc: RPC, **changes) -> RPC:

@@ -8,6 +8,10 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
+from ..rotation import orthogonality_defect
+
+#: Largest orthogonality defect ``|R.T R - I|`` accepted for a rotation given by the user.
+ROTATION_TOLERANCE = 1e-6
 
 
 class Parametric:
@@ -78,6 +82,72 @@ class Parametric:
             diff[angle] = (diff[angle] + np.pi) % (2 * np.pi) - np.pi
             J[:, j] = diff / (2 * steps[j])
         return J
+
+
+class MatrixShift3D(Parametric):
+    """Mixin of the 3D models ``X = L x + t`` stored as a 3x3 matrix ``L`` and a shift ``t``
+    (``translation``), built as ``cls(L, t)``.
+
+    Parametric form: the nine elements of ``L`` row by row and ``tx, ty, tz``. Subclasses
+    name ``L`` by :attr:`_matrix3` and the parameters by :attr:`parameter_names`.
+    """
+
+    @property
+    def _matrix3(self) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Homogeneous 4x4 matrix."""
+        return homogeneous(self._matrix3, self.translation)
+
+    @property
+    def parameters(self) -> np.ndarray:
+        return np.concatenate([self._matrix3.reshape(-1), self.translation])
+
+    def with_parameters(self, values) -> MatrixShift3D:
+        v = vector(values, 12, type(self).__name__)
+        return type(self)(v[:9].reshape(3, 3), v[9:])
+
+    def apply(self, points) -> np.ndarray:
+        """``L x + t`` for points (n, 3) or one point (3,)."""
+        p, single = self._points(points)
+        out = p @ self._matrix3.T + self.translation
+        return out[0] if single else out
+
+
+def homogeneous(linear: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """The homogeneous (d+1, d+1) matrix of ``X = linear @ x + translation``."""
+    d = len(translation)
+    T = np.eye(d + 1)
+    T[:d, :d] = linear
+    T[:d, d] = translation
+    return T
+
+
+def matrix_and_shift(linear, translation, what: str, part: str) -> tuple[np.ndarray, np.ndarray]:
+    """A 3x3 matrix and a shift of length 3 as float arrays (copies), both finite.
+
+    ``part`` names the matrix in the message (e.g. ``"rotation"``).
+    """
+    L = np.array(linear, dtype=float)
+    t = np.array(translation, dtype=float).reshape(-1)
+    if L.shape != (3, 3) or t.shape != (3,):
+        raise InputError(f"{what}: {part} must be 3x3 and translation of length 3")
+    if not (np.all(np.isfinite(L)) and np.all(np.isfinite(t))):
+        raise InputError(f"{what}: parameters must be finite")
+    return L, t
+
+
+def check_proper_rotation(R: np.ndarray, what: str, fix: str = "") -> None:
+    """:class:`InputError` unless ``R`` is a proper rotation (orthogonality defect <=
+    :data:`ROTATION_TOLERANCE`, det > 0); ``fix`` is appended to the message."""
+    defect = orthogonality_defect(R)
+    if defect > ROTATION_TOLERANCE or np.linalg.det(R) < 0:
+        raise InputError(
+            f"{what}: rotation is not a proper rotation (orthogonality defect {defect:.2e}, "
+            f"det {np.linalg.det(R):.6f}){fix}"
+        )
 
 
 def vector(values, n: int, what: str) -> np.ndarray:

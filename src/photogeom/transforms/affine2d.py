@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..units import from_radians, to_radians
-from ._common import Parametric, fmt_params, invertible, vector
+from ._common import Parametric, fmt_params, homogeneous, invertible, vector
 from .base import Transform
 
 _NAMES = ("a1", "a2", "a3", "b1", "b2", "b3")
@@ -98,7 +98,7 @@ class Affine2D(Parametric, Transform):
     @property
     def matrix(self) -> np.ndarray:
         """Homogeneous 3x3 matrix."""
-        return np.array([[self.a1, self.a2, self.a3], [self.b1, self.b2, self.b3], [0, 0, 1.0]])
+        return homogeneous(self.linear, self.translation)
 
     @property
     def det(self) -> float:

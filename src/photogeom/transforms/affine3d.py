@@ -9,7 +9,7 @@ import scipy.linalg
 
 from ..errors import InputError
 from ..rotation import DEFAULT_CONVENTION, Convention, angles_from_rotation, rotation_from_angles
-from ._common import Parametric, fmt_params, frozen, invertible, vector
+from ._common import MatrixShift3D, fmt_params, frozen, invertible, matrix_and_shift, vector
 from .base import Transform
 from .similarity3d import Similarity3D
 
@@ -55,7 +55,7 @@ class AffineDecomposition:
 
 
 @dataclass(frozen=True, repr=False)
-class Affine3D(Parametric, Transform):
+class Affine3D(MatrixShift3D, Transform):
     """3D affine transformation ``X = A @ x + t``.
 
     Parametric form: the nine elements ``a11 .. a33`` of ``A`` and ``tx, ty, tz``.
@@ -84,12 +84,7 @@ class Affine3D(Parametric, Transform):
     translation: np.ndarray
 
     def __post_init__(self) -> None:
-        A = np.array(self.linear, dtype=float)
-        t = np.array(self.translation, dtype=float).reshape(-1)
-        if A.shape != (3, 3) or t.shape != (3,):
-            raise InputError("Affine3D: linear part must be 3x3 and translation of length 3")
-        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(t))):
-            raise InputError("Affine3D: parameters must be finite")
+        A, t = matrix_and_shift(self.linear, self.translation, "Affine3D", "linear part")
         object.__setattr__(self, "linear", frozen(A))
         object.__setattr__(self, "translation", frozen(t))
 
@@ -125,14 +120,6 @@ class Affine3D(Parametric, Transform):
         S = np.array([[1.0, xy, xz], [0.0, 1.0, yz], [0.0, 0.0, 1.0]])
         R = rotation_from_angles(omega, phi, kappa, convention=convention, unit=unit)
         return cls(S @ np.diag(s) @ R, translation)
-
-    @property
-    def matrix(self) -> np.ndarray:
-        """Homogeneous 4x4 matrix."""
-        T = np.eye(4)
-        T[:3, :3] = self.linear
-        T[:3, 3] = self.translation
-        return T
 
     @property
     def det(self) -> float:
@@ -213,18 +200,8 @@ class Affine3D(Parametric, Transform):
         return _PARAM_NAMES
 
     @property
-    def parameters(self) -> np.ndarray:
-        return np.concatenate([self.linear.reshape(-1), self.translation])
-
-    def with_parameters(self, values) -> Affine3D:
-        v = vector(values, 12, "Affine3D")
-        return Affine3D(v[:9].reshape(3, 3), v[9:])
-
-    def apply(self, points) -> np.ndarray:
-        """``A x + t`` for points (n, 3) or one point (3,)."""
-        p, single = self._points(points)
-        out = p @ self.linear.T + self.translation
-        return out[0] if single else out
+    def _matrix3(self) -> np.ndarray:
+        return self.linear
 
     def inverse(self) -> Affine3D:
         """Closed form ``x = A^-1 (X - t)``."""

@@ -6,26 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..rotation import (
-    DEFAULT_CONVENTION,
-    Convention,
-    angles_from_rotation,
-    orthogonality_defect,
-    rotation_from_angles,
-)
+from ..rotation import DEFAULT_CONVENTION, Convention, angles_from_rotation, rotation_from_angles
 from ..units import from_radians
-from ._common import Parametric, fmt_params, frozen, vector
+from ._common import MatrixShift3D, check_proper_rotation, fmt_params, frozen, matrix_and_shift
 from .base import Transform
-
-#: Largest orthogonality defect ``|R.T R - I|`` accepted for a rotation.
-ROTATION_TOLERANCE = 1e-6
 
 _PARAM_NAMES = (*(f"r{i}{j}" for i in range(1, 4) for j in range(1, 4)), "tx", "ty", "tz")
 
 
 @dataclass(frozen=True, repr=False)
-class Rigid3D(Parametric, Transform):
+class Rigid3D(MatrixShift3D, Transform):
     """Rotation and translation ``X = rotation @ x + translation`` (no scale).
 
     Textbook parameters: ``omega, phi, kappa`` (radians, ``"transposed"`` convention
@@ -47,18 +37,8 @@ class Rigid3D(Parametric, Transform):
     translation: np.ndarray
 
     def __post_init__(self) -> None:
-        R = np.array(self.rotation, dtype=float)
-        t = np.array(self.translation, dtype=float).reshape(-1)
-        if R.shape != (3, 3) or t.shape != (3,):
-            raise InputError("Rigid3D: rotation must be 3x3 and translation of length 3")
-        if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
-            raise InputError("Rigid3D: parameters must be finite")
-        defect = orthogonality_defect(R)
-        if defect > ROTATION_TOLERANCE or np.linalg.det(R) < 0:
-            raise InputError(
-                f"Rigid3D: rotation is not a proper rotation (orthogonality defect {defect:.2e}, "
-                f"det {np.linalg.det(R):.6f})"
-            )
+        R, t = matrix_and_shift(self.rotation, self.translation, "Rigid3D", "rotation")
+        check_proper_rotation(R, "Rigid3D")
         object.__setattr__(self, "rotation", frozen(R))
         object.__setattr__(self, "translation", frozen(t))
 
@@ -86,14 +66,6 @@ class Rigid3D(Parametric, Transform):
         """Always 1 (a rigid transformation does not scale)."""
         return 1.0
 
-    @property
-    def matrix(self) -> np.ndarray:
-        """Homogeneous 4x4 matrix."""
-        T = np.eye(4)
-        T[:3, :3] = self.rotation
-        T[:3, 3] = self.translation
-        return T
-
     def textbook(self, convention: Convention = DEFAULT_CONVENTION) -> dict[str, float]:
         """``omega, phi, kappa`` (rad, ``convention``) and ``tx, ty, tz``."""
         w, p, k = angles_from_rotation(self.rotation, convention=convention,
@@ -110,18 +82,8 @@ class Rigid3D(Parametric, Transform):
         return _PARAM_NAMES
 
     @property
-    def parameters(self) -> np.ndarray:
-        return np.concatenate([self.rotation.reshape(-1), self.translation])
-
-    def with_parameters(self, values) -> Rigid3D:
-        v = vector(values, 12, "Rigid3D")
-        return Rigid3D(v[:9].reshape(3, 3), v[9:])
-
-    def apply(self, points) -> np.ndarray:
-        """``R x + t`` for points (n, 3) or one point (3,)."""
-        p, single = self._points(points)
-        out = p @ self.rotation.T + self.translation
-        return out[0] if single else out
+    def _matrix3(self) -> np.ndarray:
+        return self.rotation
 
     def inverse(self) -> Rigid3D:
         """Closed form ``x = R.T (X - t)``."""

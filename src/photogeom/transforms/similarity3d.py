@@ -16,10 +16,8 @@ from ..rotation import (
     skew,
 )
 from ..units import from_radians, to_radians
+from ._common import check_proper_rotation, homogeneous, matrix_and_shift
 from .base import Transform
-
-#: Largest orthogonality defect |R.T R - I| accepted for a rotation given by the user.
-ROTATION_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True, repr=False)
@@ -51,22 +49,14 @@ class Similarity3D(Transform):
     check: bool = True
 
     def __post_init__(self) -> None:
-        R = np.array(self.rotation, dtype=float)
-        t = np.array(self.translation, dtype=float).reshape(-1)
         s = float(self.scale)
-        if R.shape != (3, 3) or t.shape != (3,):
-            raise InputError("Similarity3D: rotation must be 3x3 and translation of length 3")
-        if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t)) and np.isfinite(s)):
+        R, t = matrix_and_shift(self.rotation, self.translation, "Similarity3D", "rotation")
+        if not np.isfinite(s):
             raise InputError("Similarity3D: parameters must be finite")
         if s <= 0:
             raise InputError(f"Similarity3D: scale must be > 0, got {s}")
         if self.check:
-            defect = orthogonality_defect(R)
-            if defect > ROTATION_TOLERANCE or np.linalg.det(R) < 0:
-                raise InputError(
-                    f"Similarity3D: rotation is not a proper rotation (orthogonality defect "
-                    f"{defect:.2e}, det {np.linalg.det(R):.6f}); pass check=False to keep it"
-                )
+            check_proper_rotation(R, "Similarity3D", "; pass check=False to keep it")
         R.flags.writeable = False
         t.flags.writeable = False
         object.__setattr__(self, "rotation", R)
@@ -98,10 +88,7 @@ class Similarity3D(Transform):
     @property
     def matrix(self) -> np.ndarray:
         """Homogeneous 4x4 matrix."""
-        T = np.eye(4)
-        T[:3, :3] = self.scale * self.rotation
-        T[:3, 3] = self.translation
-        return T
+        return homogeneous(self.scale * self.rotation, self.translation)
 
     # --- geodetic (EPSG) parameters -------------------------------------------------------------
 

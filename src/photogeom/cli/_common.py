@@ -1,0 +1,175 @@
+"""Pieces shared by the command groups: option parsing, consoles, JSON text, point files.
+
+One definition of each (``--check-ids``, comma-separated lists, JSON text, point CSV output,
+the console width off a terminal) so that the commands of every group behave alike.
+"""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+
+from ..errors import InputError
+from ..io import atomic_write_text, join_points, read_point_pairs, read_points
+from ..io.points import PointPairs
+
+
+class AngleUnit(str, Enum):
+    """Angle units at the command line."""
+
+    deg = "deg"
+    gon = "gon"
+    rad = "rad"
+
+
+#: ``--id-col``, the same in every command that reads point files.
+IdColOpt = Annotated[str | None, typer.Option(help="Id column.")]
+#: ``--json`` of the commands whose JSON output needs no further words.
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON.")]
+#: ``--report`` of the commands that write one HTML report.
+ReportOpt = Annotated[Path | None, typer.Option(help="Write an HTML report here.")]
+#: ``--output/-o`` of the commands that write a point CSV (or print it).
+OutputCsvOpt = Annotated[
+    Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+]
+
+
+def console(stderr: bool = False) -> Console:
+    """A console that keeps tables readable when the output is not a terminal."""
+    c = Console(stderr=stderr)
+    if not c.is_terminal:
+        c = Console(stderr=stderr, width=max(c.width, 110))
+    return c
+
+
+def say(text: str, out: Console | None = None, *, stderr: bool = False) -> None:
+    """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
+    (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
+
+
+def split_names(text: str | None) -> list[str] | None:
+    """Comma- (or semicolon-) separated names; None for no or an empty option."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    return parts or None
+
+
+def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
+    """Comma-separated numbers (exactly ``n`` when given)."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if n is not None and len(vals) != n:
+        raise InputError(f"{what}: expected {n} comma-separated numbers, got {len(vals)}")
+    return vals
+
+
+def json_text(data) -> str:
+    """Indented JSON with a final newline (NaN refused)."""
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
+def finite_or_none(v) -> float | None:
+    """``float(v)``, or None (JSON null) for NaN and infinity."""
+    return float(v) if np.isfinite(v) else None
+
+
+def check_mask(
+    ids, default: np.ndarray, check_ids: str | None, *, list_ids: bool = False
+) -> np.ndarray:
+    """Check points from ``--check-ids`` (overrides ``default``, the role column).
+
+    ``list_ids`` adds the first 30 known ids to the message for an unknown one.
+    """
+    names = split_names(check_ids)
+    if names is None:
+        return default
+    known = set(ids)
+    missing = [i for i in names if i not in known]
+    if missing:
+        known_ids = ""
+        if list_ids:
+            known_ids = (
+                f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
+            )
+        raise InputError(f"--check-ids: no point with id {', '.join(missing)}{known_ids}")
+    return np.isin(np.array(ids, dtype=object), names)
+
+
+def split_control(ids, ground: np.ndarray, image: np.ndarray, mask: np.ndarray):
+    """Control rows (``~mask``) of ground and image, and the ``ids`` / check-point keyword
+    arguments of the estimators (``check_ground``, ``check_image``, ``check_ids`` only when
+    there are check points)."""
+    ctrl = ~mask
+    kwargs: dict = {"ids": [i for i, c in zip(ids, ctrl) if c]}
+    if mask.any():
+        kwargs.update(
+            check_ground=ground[mask],
+            check_image=image[mask],
+            check_ids=[i for i, c in zip(ids, mask) if c],
+        )
+    return ground[ctrl], image[ctrl], kwargs
+
+
+def load_pairs(
+    source: Path,
+    target: Path | None,
+    *,
+    source_cols: str | None = None,
+    target_cols: str | None = None,
+    id_col: str | None = None,
+    weights_col: str | None = None,
+    sigma_col: str | None = None,
+    allow_unmatched: bool = False,
+) -> PointPairs:
+    """Point pairs from one CSV with both coordinate sets or from two CSVs joined by id."""
+    if target is None:
+        return read_point_pairs(
+            source,
+            split_names(source_cols),
+            split_names(target_cols),
+            id_column=id_col,
+            weight_column=weights_col,
+            sigma_column=sigma_col,
+        )
+    # An explicit weight/sigma column belongs to the target file; without one, a weight or
+    # sigma column found in either file is used (join_points refuses conflicting ones).
+    explicit = weights_col is not None or sigma_col is not None
+    src = read_points(
+        source, split_names(source_cols), id_column=id_col, auto_weights=not explicit
+    )
+    dst = read_points(
+        target,
+        split_names(target_cols),
+        id_column=id_col,
+        weight_column=weights_col,
+        sigma_column=sigma_col,
+    )
+    return join_points(src, dst, allow_unmatched=allow_unmatched)
+
+
+def write_outputs(outputs: list[tuple[Path, str]]) -> None:
+    """Write every ``(path, text)``, each atomically; built in memory first, so a failed
+    computation leaves no file half written."""
+    for path, text in outputs:
+        atomic_write_text(path, text)
+
+
+def emit_points(text: str, output: Path | None, n: int) -> None:
+    """A point CSV to stdout, or to ``output`` (atomically) with a note on stderr."""
+    if output is None:
+        typer.echo(text, nl=False)
+    else:
+        atomic_write_text(output, text)
+        say(f"wrote {n} point(s) to {output}", stderr=True)
