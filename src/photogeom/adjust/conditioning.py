@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,13 +40,14 @@ class PointNormalization:
 def normalize_points(points: np.ndarray, weights: np.ndarray | None = None) -> PointNormalization:
     """Normalisation of ``points`` (n, dim), optionally with per-point weights for the centroid."""
     p = np.asarray(points, dtype=float)
+    n, dim = p.shape
     if weights is None:
-        centre = p.mean(axis=0)
+        centre = np.add.reduce(p, axis=0) / n
     else:
         w = np.asarray(weights, dtype=float)
         centre = (w[:, None] * p).sum(axis=0) / w.sum()
     d = p - centre
-    rms = float(np.sqrt(np.mean(np.sum(d * d, axis=1)) / p.shape[1]))
-    if not np.isfinite(rms) or rms <= 0.0:
+    rms = math.sqrt(float(np.einsum("ij,ij->", d, d)) / (n * dim)) if n else math.nan
+    if not math.isfinite(rms) or rms <= 0.0:
         rms = 1.0
     return PointNormalization(centre=centre, scale=rms)

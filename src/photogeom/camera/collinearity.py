@@ -11,12 +11,12 @@ vectorised over points. A point is *in front of* the camera when its camera-fram
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
-from ..rotation import m1, m2, m3
 from ..validation import as_points
 from .distortion import CHUNK
 from .exterior import ExteriorOrientation
@@ -207,15 +207,22 @@ def ground_at_height(
 # --- derivatives (used by resection, intersection and self-calibration) --------------------
 
 
-def _rotation_derivatives(eo: ExteriorOrientation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """dM/domega, dM/dphi, dM/dkappa of ``M = M3(k) M2(p) M1(w)``."""
-    w, p, k = eo.omega, eo.phi, eo.kappa
-    cw, sw, cp, sp, ck, sk = np.cos(w), np.sin(w), np.cos(p), np.sin(p), np.cos(k), np.sin(k)
-    dM1 = np.array([[0, 0, 0], [0, -sw, cw], [0, -cw, -sw]])
-    dM2 = np.array([[-sp, 0, -cp], [0, 0, 0], [cp, 0, -sp]])
-    dM3 = np.array([[-sk, ck, 0], [-ck, -sk, 0], [0, 0, 0]])
-    M1, M2, M3 = m1(w), m2(p), m3(k)
-    return M3 @ M2 @ dM1, M3 @ dM2 @ M1, dM3 @ M2 @ M1
+def _rotation_and_derivatives(omega: float, phi: float, kappa: float):
+    """``M = M3(kappa) M2(phi) M1(omega)`` and its derivatives by the three angles (radians),
+    in scalar arithmetic: one small matrix each, without the broadcasting builders (which
+    cost more than a whole iteration of a small resection)."""
+    cw, sw = math.cos(omega), math.sin(omega)
+    cp, sp = math.cos(phi), math.sin(phi)
+    ck, sk = math.cos(kappa), math.sin(kappa)
+    M1 = np.array([[1.0, 0.0, 0.0], [0.0, cw, sw], [0.0, -sw, cw]])
+    M2 = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])
+    M3 = np.array([[ck, sk, 0.0], [-sk, ck, 0.0], [0.0, 0.0, 1.0]])
+    dM1 = np.array([[0.0, 0.0, 0.0], [0.0, -sw, cw], [0.0, -cw, -sw]])
+    dM2 = np.array([[-sp, 0.0, -cp], [0.0, 0.0, 0.0], [cp, 0.0, -sp]])
+    dM3 = np.array([[-sk, ck, 0.0], [-ck, -sk, 0.0], [0.0, 0.0, 0.0]])
+    M32 = M3 @ M2
+    M21 = M2 @ M1
+    return M32 @ M1, (M32 @ dM1, M3 @ dM2 @ M1, dM3 @ M21)
 
 
 @dataclass(frozen=True)
@@ -252,41 +259,49 @@ def projection_derivatives(
         Interior parameters to differentiate, from :data:`IO_PARAMETERS`.
     """
     g = np.asarray(ground, dtype=float).reshape(-1, 3)
-    M = eo.matrix
-    d = g - eo.position
+    return _projection_derivatives(
+        g, io, eo.position, (eo.omega, eo.phi, eo.kappa), tuple(io_parameters)
+    )
+
+
+def _projection_derivatives(
+    g: np.ndarray, io: InteriorOrientation, position, angles, names: tuple
+) -> ProjectionDerivatives:
+    """:func:`projection_derivatives` for ground points (n, 3), the projection centre (3,)
+    and the angles (radians) as plain values."""
+    M, dMs = _rotation_and_derivatives(*angles)
+    n = g.shape[0]
+    d = g - position
     p = d @ M.T
     u, v, w = p[:, 0], p[:, 1], p[:, 2]
     iw = 1.0 / w
-    xn, yn = -u * iw, v * iw
     # d(xn, yn)/dp  (n, 2, 3)
-    Np = np.zeros((g.shape[0], 2, 3))
+    Np = np.zeros((n, 2, 3))
     Np[:, 0, 0] = -iw
     Np[:, 0, 2] = u * iw * iw
     Np[:, 1, 1] = iw
     Np[:, 1, 2] = -v * iw * iw
     dist = io.distortion
-    xy_n = np.stack([xn, yn], axis=1)
+    xy_n = np.empty((n, 2))
+    np.multiply(u, -iw, out=xy_n[:, 0])
+    np.multiply(v, iw, out=xy_n[:, 1])
+    C = np.array([[io.fx, io.b2], [0.0, -io.f]])
     if dist is not None:
         xd_yd = dist.distort(xy_n)
-        JD = dist.jacobian(xy_n)
+        G = np.einsum("ij,njk->nik", C, dist.jacobian(xy_n))  # d(x, y)/d(xn, yn)
+        Gp = np.matmul(G, Np)  # d(x, y)/dp  (n, 2, 3)
     else:
         xd_yd = xy_n
-        JD = None
+        Gp = np.matmul(C, Np)
     xd, yd = xd_yd[:, 0], xd_yd[:, 1]
-    x = io.x0 + io.fx * xd + io.b2 * yd
-    y = io.y0 - io.f * yd
-    C = np.array([[io.fx, io.b2], [0.0, -io.f]])
-    # d(x, y)/d(xn, yn)
-    G = np.broadcast_to(C, (g.shape[0], 2, 2)) if JD is None else np.einsum("ij,njk->nik", C, JD)
-    Gp = np.einsum("nij,njk->nik", G, Np)  # d(x, y)/dp  (n, 2, 3)
+    xy = xd_yd @ C.T
+    xy += (io.x0, io.y0)
     d_ground = Gp @ M  # dp/dX = M
-    dMs = _rotation_derivatives(eo)
-    d_eo = np.empty((g.shape[0], 2, 6))
-    d_eo[:, :, :3] = -d_ground
-    for j, dM in enumerate(dMs):  # three angles
-        dp = d @ dM.T
-        d_eo[:, :, 3 + j] = np.einsum("nij,nj->ni", Gp, dp)
-    names = tuple(io_parameters)
+    d_eo = np.empty((n, 2, 6))
+    np.negative(d_ground, out=d_eo[:, :, :3])
+    # the three angles at once: rows j of dp_all are dM_j (X - X0)
+    dp_all = (d @ np.concatenate(dMs).T).reshape(n, 3, 3)
+    np.matmul(Gp, np.swapaxes(dp_all, 1, 2), out=d_eo[:, :, 3:])
     d_io = np.zeros((g.shape[0], 2, len(names)))
     dist_names = [n for n in names if n in ("k1", "k2", "k3", "k4", "p1", "p2")]
     if dist_names:
@@ -311,7 +326,7 @@ def projection_derivatives(
             raise InputError(
                 f"unknown interior parameter {name!r}; known: {', '.join(IO_PARAMETERS)}"
             )
-    return ProjectionDerivatives(np.stack([x, y], axis=1), d_eo, d_io, d_ground, w)
+    return ProjectionDerivatives(xy, d_eo, d_io, d_ground, w)
 
 
 # --- an oriented camera ----------------------------------------------------------------------

@@ -23,16 +23,26 @@ Observation order for weights and covariances: point by point, ``x1, y1, x2, y2,
 
 from __future__ import annotations
 
-import inspect
 import itertools
+import math
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack as _lapack
 import scipy.sparse
 
-from ..adjust import Adjustment, Fit, gauss_helmert, gauss_markov, normalize_points, solve_linear
+from ..adjust import (
+    Adjustment,
+    Fit,
+    PointNormalization,
+    gauss_helmert,
+    gauss_markov,
+    normalize_points,
+    solve_linear,
+)
+from ..adjust.gauss_markov import NORMAL_FROM, r_factor
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
 from ..transforms import (
@@ -77,6 +87,8 @@ RANK_TOLERANCE = 1e-10
 
 _METHOD_LINEAR = "linear least squares (QR)"
 
+_EPS = float(np.finfo(float).eps)
+
 
 @dataclass(frozen=True)
 class _Observations:
@@ -96,8 +108,18 @@ class _Observations:
 # --- input handling ----------------------------------------------------------------------------
 
 
-def _stochastic_model(weights, covariance, n: int, k: int, mask: np.ndarray) -> _Observations:
-    """Weights (n,) or (n, k), or covariance (n, k, k) or (n k, n k), restricted to ``mask``."""
+_NO_OBSERVATION_MODEL = _Observations(None, None)
+
+
+def _stochastic_model(
+    weights, covariance, n: int, k: int, mask: np.ndarray | None
+) -> _Observations:
+    """Weights (n,) or (n, k), or covariance (n, k, k) or (n k, n k), restricted to ``mask``
+    (None: all points)."""
+    if weights is None and covariance is None:
+        return _NO_OBSERVATION_MODEL
+    if mask is None:
+        mask = np.ones(n, dtype=bool)
     if weights is not None and covariance is not None:
         raise InputError("give either weights or a covariance, not both")
     if weights is not None:
@@ -156,8 +178,13 @@ def _whitened_scale(obs: _Observations, factors: np.ndarray) -> tuple:
     return (base * f**2).reshape(-1), None
 
 
-def _unit_weights_scaled(n: int, factors: np.ndarray, obs: _Observations):
-    """Engine weights/covariance for normalised observations (observation / factor)."""
+def _unit_weights_scaled(n: int, factors: np.ndarray | None, obs: _Observations):
+    """Engine weights/covariance for normalised observations (observation / factor;
+    ``factors`` None: all 1)."""
+    if factors is None:
+        if obs.covariance is None and obs.weights is None:
+            return None, None
+        factors = np.ones(obs.weights.shape[1] if obs.weights is not None else 1)
     f = np.asarray(factors, dtype=float)
     if obs.covariance is None and obs.weights is None:
         if np.all(f == 1.0):
@@ -180,17 +207,20 @@ def _ids(ids, n: int) -> np.ndarray | None:
     return arr
 
 
-def _select_ids(ids: np.ndarray | None, mask: np.ndarray, numbered: bool) -> tuple | None:
-    """Ids of the rows in ``mask`` (row numbers 1..n when no ids were given and
-    ``numbered``; None when no ids were given and all rows are selected)."""
+def _select_ids(ids: np.ndarray | None, mask: np.ndarray | None, numbered: bool) -> tuple | None:
+    """Ids of the rows in ``mask`` (None: all rows; row numbers 1..n when no ids were given
+    and ``numbered``; None when no ids were given and all rows are selected)."""
     if ids is None:
-        return tuple((np.flatnonzero(mask) + 1).tolist()) if numbered else None
-    return tuple(ids[mask].tolist())
+        if not numbered:
+            return None
+        return tuple((np.flatnonzero(mask) + 1).tolist())
+    return tuple((ids if mask is None else ids[mask]).tolist())
 
 
-def _check_mask(check, n: int) -> np.ndarray:
+def _check_mask(check, n: int) -> np.ndarray | None:
+    """Boolean mask of the check points, or None when there are none."""
     if check is None:
-        return np.zeros(n, dtype=bool)
+        return None
     c = np.asarray(check)
     if c.shape != (n,):
         raise InputError(f"check: expected a boolean mask of shape ({n},), got shape {c.shape}")
@@ -198,19 +228,22 @@ def _check_mask(check, n: int) -> np.ndarray:
         if not np.all(np.isin(c, (0, 1))):
             raise InputError("check: expected a boolean mask (True marks a check point)")
         c = c.astype(bool)
-    return c
+    return c if c.any() else None
+
+
+_MIN_POINTS = {
+    "similarity2d": 2,
+    "affine2d": 3,
+    "projective2d": 4,
+    "rigid3d": 3,
+    "similarity3d": 3,
+    "affine3d": 4,
+    "projective3d": 5,
+}
 
 
 def _min_points(model: str, order: int | None) -> int:
-    return {
-        "similarity2d": 2,
-        "affine2d": 3,
-        "projective2d": 4,
-        "rigid3d": 3,
-        "similarity3d": 3,
-        "affine3d": 4,
-        "projective3d": 5,
-    }.get(model) or polynomial_term_count(order, MODELS[model])
+    return _MIN_POINTS.get(model) or polynomial_term_count(order, MODELS[model])
 
 
 def _hint(model: str, order: int | None) -> str:
@@ -227,11 +260,26 @@ def _hint(model: str, order: int | None) -> str:
     )
 
 
+def _centred(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid and centred copy of points (n, d). Many points: the sums as one matrix-vector
+    product and the centring column by column (numpy's axis-0 reductions and row-wise
+    broadcasting over 2 or 3 columns are several times slower)."""
+    n, d = points.shape
+    if n <= 4096:
+        centre = np.add.reduce(points, axis=0) / n
+        return centre, points - centre
+    centre = (np.ones(n) @ points) / n
+    c = np.empty((n, d))
+    for k in range(d):
+        np.subtract(points[:, k], centre[k], out=c[:, k])
+    return centre, c
+
+
 def _rank(points: np.ndarray) -> tuple[int, np.ndarray]:
     """Numerical rank of the centred point set (0 = all coincide) and its singular values."""
-    c = points - points.mean(axis=0)
-    mag = max(float(np.max(np.abs(points))), 1e-300)
-    if float(np.max(np.abs(c))) <= 1e-13 * mag:
+    _, c = _centred(points)
+    mag = max(float(max(points.max(), -points.min())), 1e-300)
+    if float(max(c.max(), -c.min())) <= 1e-13 * mag:
         return 0, np.zeros(points.shape[1])
     if c.shape[0] <= 5000:
         s = np.linalg.svd(c, compute_uv=False)
@@ -243,8 +291,37 @@ def _rank(points: np.ndarray) -> tuple[int, np.ndarray]:
     return int(np.sum(s > RANK_TOLERANCE * s[0])), s
 
 
+def _spread_certified(points: np.ndarray, need_rank: int) -> bool:
+    """True when the rule of :func:`_rank` certainly gives at least ``need_rank``, decided
+    cheaply from the 2x2 / 3x3 scatter of the centred points (invariants of its eigenvalues
+    ``l1 >= l2 >= l3``: ``l2 / l1 >= e2 / (3 e1^2)``, ``l_d / l1 >= det / (e1 e_{d-1})``,
+    with margins far above their rounding errors and far below the rule's ``1e-20``);
+    False means: not proven, decide exactly."""
+    n, d = points.shape
+    c = points - np.add.reduce(points, axis=0) / n
+    S = (c.T @ c).tolist()
+    e1 = sum(S[i][i] for i in range(d))
+    if not (e1 > 0 and math.isfinite(e1)):
+        return False
+    # rounding of the n-term sums and of the invariants: relative to e1^k at most ~n eps
+    thr = max(3e-13, 16 * n * _EPS)
+    if d == 2:
+        det = S[0][0] * S[1][1] - S[0][1] * S[1][0]
+        return need_rank <= 1 or det > thr * e1 * e1
+    e2 = (S[0][0] * S[1][1] - S[0][1] * S[1][0] + S[0][0] * S[2][2] - S[0][2] * S[2][0]
+          + S[1][1] * S[2][2] - S[1][2] * S[2][1])
+    if need_rank <= 2:
+        return need_rank <= 1 or e2 > thr * e1 * e1
+    det = (S[0][0] * (S[1][1] * S[2][2] - S[1][2] * S[2][1])
+           - S[0][1] * (S[1][0] * S[2][2] - S[1][2] * S[2][0])
+           + S[0][2] * (S[1][0] * S[2][1] - S[1][1] * S[2][0]))
+    return det > 1e-14 * e1 * e2 and det > thr * e1 * e1 * e1
+
+
 def _geometry(points: np.ndarray, need_rank: int, model: str, side: str, need: int) -> None:
     """Raise :class:`DegenerateGeometryError` when the points span fewer dimensions."""
+    if points.shape[0] <= 5000 and need_rank >= 2 and _spread_certified(points, need_rank):
+        return
     rank, _ = _rank(points)
     if rank >= need_rank:
         return
@@ -309,6 +386,8 @@ def _combine(parts: list[Adjustment], names: tuple[str, ...]) -> Adjustment:
         vals = [getattr(a, attr) for a in parts]
         if any(v is None for v in vals):
             return None
+        if vals[0].size == 0:  # statistics=False
+            return vals[0]
         return np.column_stack(vals).reshape(-1)
 
     return Adjustment(
@@ -337,6 +416,7 @@ def _shared_design_solve(
     names: tuple[str, ...],
     what: str,
     force: str | None = None,
+    statistics: bool = True,
 ) -> Adjustment:
     """Least squares for ``L[:, k] + v = D x_k`` (every coordinate k with the same design D).
 
@@ -354,7 +434,8 @@ def _shared_design_solve(
         for j in range(k):
             w = None if obs.weights is None else obs.weights[:, j]
             parts.append(solve_linear(D, L[:, j], weights=w, sigma0_prior=sigma0_prior,
-                                      names=names[j * m:(j + 1) * m], what=what))
+                                      names=names[j * m:(j + 1) * m], what=what,
+                                      statistics=statistics, check_finite=False))
         return _combine(parts, names)
     A = np.zeros((n, k, k * m))
     for j in range(k):
@@ -367,24 +448,25 @@ def _shared_design_solve(
         sigma0_prior=sigma0_prior,
         names=names,
         what=what,
+        statistics=statistics,
+        check_finite=False,
     )
 
 
 # --- the linear models -------------------------------------------------------------------------
 
 
-def _fit_similarity2d(src, dst, obs, sigma0_prior, what):
-    ns = normalize_points(src)
-    ct = dst.mean(axis=0)
-    u = ns.apply(src)
-    X = dst - ct
+def _fit_similarity2d(src, dst, obs, sigma0_prior, what, statistics=True):
+    ns, u = _normalised(src)
+    ct, X = _centred(dst)
     n = src.shape[0]
     A = np.zeros((n, 2, 4))
     A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = u[:, 0], u[:, 1], 1.0
     A[:, 1, 0], A[:, 1, 1], A[:, 1, 3] = u[:, 1], -u[:, 0], 1.0
     adj = solve_linear(A.reshape(2 * n, 4), X.reshape(-1), weights=obs.flat_weights(),
                        covariance=obs.covariance, sigma0_prior=sigma0_prior,
-                       names=("a", "b", "c", "d"), what=what)
+                       names=("a", "b", "c", "d"), what=what, statistics=statistics,
+                       check_finite=False)
     an, bn, cn, dn = adj.x
     k = ns.scale
     cx, cy = ns.centre
@@ -409,37 +491,48 @@ def _affine_back(ns, ct, d: int) -> np.ndarray:
     return Jr
 
 
-def _fit_affine(src, dst, obs, sigma0_prior, what, force=None):
+#: Names of the normalised affine unknowns, d = 2, 3 (one row of parameters per coordinate).
+_AFFINE_NAMES = {d: tuple(f"{r}{j}" for r in "abc"[:d] for j in range(1, d + 2)) for d in (2, 3)}
+
+
+def _fit_affine(src, dst, obs, sigma0_prior, what, force=None, statistics=True):
     d = src.shape[1]
-    ns = normalize_points(src)
-    ct = dst.mean(axis=0)
-    D = np.column_stack([ns.apply(src), np.ones(src.shape[0])])
-    names_n = tuple(f"{r}{j}" for r in "abc"[:d] for j in range(1, d + 2))
-    adj = _shared_design_solve(D, dst - ct, obs, sigma0_prior, names_n, what, force)
+    ns, u = _normalised(src)
+    ct, L = _centred(dst)
+    D = np.empty((src.shape[0], d + 1))
+    D[:, :d] = u
+    D[:, d] = 1.0
+    adj = _shared_design_solve(D, L, obs, sigma0_prior, _AFFINE_NAMES[d], what, force,
+                               statistics)
     Jr = _affine_back(ns, ct, d)
     xr = adj.x.reshape(d, d + 1)
     rows = xr @ Jr.T  # per output row [a.., t]
     rows[:, d] += ct
-    Jrows = scipy.linalg.block_diag(*([Jr] * d))  # row-block order (a1 a2 a3 b1 b2 b3 ...)
+    Jrows = None
+    if statistics:  # block diagonal, row-block order (a1 a2 a3 b1 b2 b3 ...)
+        m = d + 1
+        Jrows = np.zeros((d * m, d * m))
+        for r in range(d):
+            Jrows[r * m:(r + 1) * m, r * m:(r + 1) * m] = Jr
     if d == 2:
         p = rows.reshape(-1)
         return Affine2D(*p), adj, p, Jrows
     # Affine3D parameter order: a11..a33, tx, ty, tz
     perm = [r * 4 + j for r in range(3) for j in range(3)] + [3, 7, 11]
     p = rows.reshape(-1)[perm]
-    return Affine3D(rows[:, :3], rows[:, 3]), adj, p, Jrows[perm]
+    return Affine3D(rows[:, :3], rows[:, 3]), adj, p, None if Jrows is None else Jrows[perm]
 
 
-def _fit_polynomial(src, dst, order, obs, sigma0_prior, what, force=None):
+def _fit_polynomial(src, dst, order, obs, sigma0_prior, what, force=None, statistics=True):
     d = src.shape[1]
-    ns = normalize_points(src)
-    ct = dst.mean(axis=0)
+    ns, u = _normalised(src)
+    ct, L = _centred(dst)
     exps = polynomial_exponents(order, d)
-    D = polynomial_terms(ns.apply(src), exps)
+    D = polynomial_terms(u, exps)
     cls = Polynomial2D if d == 2 else Polynomial3D
     template = cls(order, np.zeros((d, exps.shape[0])), ns.centre, ns.scale)
     names = template.parameter_names
-    adj = _shared_design_solve(D, dst - ct, obs, sigma0_prior, names, what, force)
+    adj = _shared_design_solve(D, L, obs, sigma0_prior, names, what, force, statistics)
     C = adj.x.reshape(d, -1).copy()
     C[:, 0] += ct  # the constant monomial is first
     model = cls(order, C, ns.centre, ns.scale)
@@ -450,58 +543,138 @@ def _fit_polynomial(src, dst, order, obs, sigma0_prior, what, force=None):
 
 
 def _affine_rows(M: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """``[u, 1] @ M.T`` for points u (n, d) and M (k, d + 1), by columns (fast for small d)."""
+    """``[u, 1] @ M.T`` for points u (n, d) and M (k, d + 1)."""
     d = u.shape[1]
-    out = np.empty((u.shape[0], M.shape[0]))
-    for k in range(M.shape[0]):
-        col = u[:, 0] * M[k, 0] + M[k, d]
-        for j in range(1, d):
-            col += u[:, j] * M[k, j]
-        out[:, k] = col
-    return out
+    return u @ M[:, :d].T + M[:, d]
+
+
+def _homogeneous(p: np.ndarray, d: int) -> np.ndarray:
+    """The (d+1, d+1) matrix of the (d+1)^2 - 1 parameters, last element 1."""
+    H = np.empty((d + 1) * (d + 1))
+    H[:-1] = p
+    H[-1] = 1.0
+    return H.reshape(d + 1, d + 1)
 
 
 def _proj_rational(p: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rational projective map of (normalised) points: (X (n, d), w (n,), H)."""
     d = u.shape[1]
-    H = np.append(p, 1.0).reshape(d + 1, d + 1)
+    H = _homogeneous(p, d)
     h = _affine_rows(H, u)
     w = h[:, d]
     return h[:, :d] / w[:, None], w, H
 
 
-def _proj_jacobian(p: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """d X / d p for the rational form, rows point by point: (n d, (d+1)^2 - 1), built
-    column by column (Fortran order, as the QR factorisation wants it)."""
+class _Rational:
+    """The rational projective map of fixed (normalised) source points ``u`` as the engine's
+    model and Jacobian; the last evaluation is kept (the engine asks for both at the same
+    parameters)."""
+
+    def __init__(self, u: np.ndarray) -> None:
+        self.u = u
+        self.key = None
+        self.X = self.w = None
+
+    def _at(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = p.tobytes()
+        if key != self.key:
+            self.X, self.w, _ = _proj_rational(p, self.u)
+            self.key = key
+        return self.X, self.w
+
+    def model(self, p: np.ndarray) -> np.ndarray:
+        return self._at(p)[0].reshape(-1)
+
+    def jacobian(self, p: np.ndarray) -> np.ndarray:
+        X, w = self._at(p)
+        return _proj_jacobian(p, self.u, X, w)
+
+
+def _proj_jacobian(p: np.ndarray, u: np.ndarray, X=None, w=None) -> np.ndarray:
+    """d X / d p for the rational form, rows point by point: (n d, (d+1)^2 - 1)
+    (``X``, ``w``: the map at ``p`` when already known). Few points: built by blocks (fewest
+    calls); many: column by column (Fortran order: contiguous writes)."""
     n, d = u.shape
-    X, w, _ = _proj_rational(p, u)
+    if X is None:
+        X, w, _ = _proj_rational(p, u)
     iw = 1.0 / w
     ui = u * iw[:, None]
-    Jt = np.zeros(((d + 1) ** 2 - 1, n, d))
+    npar = (d + 1) ** 2 - 1
+    if n <= 4096:
+        J = np.zeros((n, d, npar))
+        for k in range(d):
+            base = k * (d + 1)
+            J[:, k, base:base + d] = ui
+            J[:, k, base + d] = iw
+        J[:, :, d * (d + 1):] = X[:, :, None] * -ui[:, None, :]
+        return J.reshape(n * d, -1)
+    Jt = np.zeros((npar, n, d))
     for k in range(d):
         base = k * (d + 1)
         for j in range(d):
             Jt[base + j, :, k] = ui[:, j]
-            Jt[d * (d + 1) + j, :, k] = -X[:, k] * ui[:, j]
         Jt[base + d, :, k] = iw
-    return Jt.reshape(Jt.shape[0], n * d).T
+    for j in range(d):
+        np.multiply(X, -ui[:, j:j + 1], out=Jt[d * (d + 1) + j])
+    return Jt.reshape(npar, n * d).T
 
 
-def _proj_back(p_n: np.ndarray, ns, nt, d: int) -> tuple[np.ndarray, np.ndarray]:
-    """Raw parameters and d p_raw / d p_n from normalised ones: H = Tt^-1 H_n Ts / h_last."""
-    Ts, Tt_inv = ns.matrix, np.linalg.inv(nt.matrix)
-    K = np.kron(Tt_inv, Ts.T)  # vec_row(Tt^-1 H Ts) = K vec_row(H)
-    h = K @ np.append(p_n, 1.0)
+def _normalised(points: np.ndarray, scaled: bool = True):
+    """:func:`normalize_points` of ``points`` and the normalised (``scaled``) or only
+    centred points, from one centring."""
+    n, dim = points.shape
+    centre, c = _centred(points)
+    rms = math.sqrt(float(np.vdot(c, c)) / (n * dim))
+    if not math.isfinite(rms) or rms <= 0.0:
+        rms = 1.0
+    if scaled:
+        c *= 1.0 / rms
+    return PointNormalization(centre, rms), c
+
+
+def _projective(H: np.ndarray, d: int):
+    """``Projective2D/3D(H)`` for a matrix already normalised to ``H[d, d] = 1``: the same
+    object, without repeating the constructor's normalisation (its checks are done here)."""
+    if not np.isfinite(H).all():
+        raise DegenerateGeometryError(
+            "projective: the estimated transformation has non-finite elements; the point "
+            "configuration does not determine it"
+        )
+    H.flags.writeable = False
+    tf = object.__new__(Projective2D if d == 2 else Projective3D)
+    object.__setattr__(tf, "matrix", H)
+    return tf
+
+
+def _proj_back(
+    p_n: np.ndarray, ns, nt, d: int, jacobian: bool = True
+) -> tuple[object, np.ndarray, np.ndarray | None]:
+    """The transformation, its raw parameters and d p_raw / d p_n (None unless ``jacobian``)
+    from normalised ones: H = Tt^-1 H_n Ts / h_last."""
+    Hn = _homogeneous(p_n, d)
+    # H_n Ts with Ts = [[I / ks, -cs / ks], [0, 1]], then Tt^-1 = [[kt I, ct], [0, 1]] on the left
+    Hr = np.empty_like(Hn)
+    Hr[:, :d] = Hn[:, :d] / ns.scale
+    Hr[:, d] = Hn[:, d] - Hr[:, :d] @ ns.centre
+    Hr[:d] = nt.scale * Hr[:d] + np.outer(nt.centre, Hr[d])
+    h = Hr.reshape(-1)
     last = h[-1]
     if abs(last) <= 1e-14 * np.max(np.abs(h)):
         raise DegenerateGeometryError(
             "projective: the estimated transformation sends the source origin to infinity, so "
             "it cannot be written with its last element 1; shift the source coordinates"
         )
+    tf = _projective(Hr / last, d)
     p = h[:-1] / last
+    if not jacobian:
+        return tf, p, None
+    Tt_inv = np.eye(d + 1)
+    Tt_inv[:d, :d] *= nt.scale
+    Tt_inv[:d, d] = nt.centre
+    K = np.kron(Tt_inv, ns.matrix.T)  # vec_row(Tt^-1 H Ts) = K vec_row(H)
     Kf = K[:, :-1]  # the last normalised element is fixed at 1
     J = (Kf[:-1] - np.outer(p, Kf[-1])) / last
-    return p, J
+    return tf, p, J
 
 
 def _proj_forward(p_raw: np.ndarray, ns, nt, d: int) -> np.ndarray:
@@ -516,54 +689,9 @@ def _proj_forward(p_raw: np.ndarray, ns, nt, d: int) -> np.ndarray:
     return (Hn / Hn[-1, -1]).reshape(-1)[:-1]
 
 
-def _refine_start(p: np.ndarray, u: np.ndarray, X: np.ndarray, weights, max_steps: int = 8):
-    """Initial values for the Gauss-Markov adjustment of the rational form: Gauss-Newton steps
-    from ``p`` on the normal equations of the (normalised, hence well-conditioned) problem,
-    kept only while they lower ``v.T P v``. This only saves iterations of the adjustment,
-    whose estimate and statistics do not depend on it."""
-    sw = None if weights is None else np.sqrt(np.asarray(weights, dtype=float))
-    L = X.reshape(-1)
-
-    def cost_and_r(q):
-        r = _proj_rational(q, u)[0].reshape(-1) - L
-        if sw is not None:
-            r = r * sw
-        return float(r @ r), r
-
-    cost, r = cost_and_r(p)
-    for _ in range(max_steps):
-        J = _proj_jacobian(p, u)
-        if sw is not None:
-            J = J * sw[:, None]
-        try:
-            dp = -scipy.linalg.solve(J.T @ J, J.T @ r, assume_a="pos", check_finite=False)
-        except (np.linalg.LinAlgError, ValueError):
-            break
-        if not np.all(np.isfinite(dp)):
-            break
-        new_cost, new_r = cost_and_r(p + dp)
-        if not new_cost < cost:
-            break
-        p, cost, r = p + dp, new_cost, new_r
-        if float(np.max(np.abs(J @ dp))) <= 1e-12 * (1.0 + np.sqrt(cost / max(L.size, 1))):
-            break
-    return p
-
-
-def _r_factor(A: np.ndarray, block: int = 2048) -> np.ndarray:
-    """Triangular factor R of ``A = Q R`` (rows of A in C order), by a tall-skinny QR: batched
-    QR factorisations of row blocks, then of the stacked block factors (Q is never formed)."""
-    m, u = A.shape
-    if m <= 4 * block:
-        return np.linalg.qr(A, mode="r")
-    k = m // block
-    parts = [np.linalg.qr(A[: k * block].reshape(k, block, u), mode="r").reshape(-1, u)]
-    if m > k * block:
-        parts.append(A[k * block:])
-    return _r_factor(np.vstack(parts), block)
-
-
-def _linearised_start(u: np.ndarray, X: np.ndarray, ns, what: str) -> tuple[np.ndarray, float]:
+def _linearised_start(
+    u: np.ndarray, X: np.ndarray, ns, what: str, row_scale: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
     """The lecture's linearised least squares (observations on both sides) with ``h_last = 1``
     in the *raw* coordinates.
 
@@ -573,18 +701,39 @@ def _linearised_start(u: np.ndarray, X: np.ndarray, ns, what: str) -> tuple[np.n
     equations are formed); ``v.T v = 1 / (c.N^-1 c)``. Returns ``h`` (normalised, (d+1)^2) and
     ``v.T v`` in normalised target units. Used for initial values and reported as the
     linearised solution; the estimate itself is the adjustment that follows.
+
+    ``row_scale`` (n,) multiplies the equations of each point (1 / w_i turns the algebraic
+    residuals into first-order coordinate residuals: a start closer to the adjustment).
     """
     n, d = u.shape
     npar = (d + 1) ** 2
+    # raw h_last = (H_n Ts)[d, d] = h_n[d, :d] . (-centre / scale) + h_n[d, d]
+    cons = np.zeros(npar)
+    cons[d * (d + 1):] = (*(-ns.centre / ns.scale), 1.0)
+    if n * d >= NORMAL_FROM:
+        out = _linearised_normal(u, X, cons, row_scale)
+        if out is not None:
+            return out
     A = np.zeros((n, d, npar))
+    ur = u if row_scale is None else u * row_scale[:, None]
+    one = -1.0 if row_scale is None else -row_scale
     for k in range(d):
-        for j in range(d):
-            A[:, k, k * (d + 1) + j] = -u[:, j]
-            A[:, k, d * (d + 1) + j] = X[:, k] * u[:, j]
-        A[:, k, k * (d + 1) + d] = -1.0
-        A[:, k, d * (d + 1) + d] = X[:, k]
+        base = k * (d + 1)
+        A[:, k, base:base + d] = -ur
+        np.multiply(ur, X[:, k:k + 1], out=A[:, k, d * (d + 1):d * (d + 1) + d])
+        A[:, k, base + d] = one
+        A[:, k, d * (d + 1) + d] = X[:, k] if row_scale is None else X[:, k] * row_scale
+    Rf = r_factor(A.reshape(n * d, npar))
+    if Rf.shape[0] == npar:
+        # cond(R) <= |R|_F |R^-1|_F < 1e12 proves both rank checks below: no SVD needed
+        Rinv, info = _lapack.dtrtri(Rf, lower=0)
+        if info == 0:
+            bound = float(np.vdot(Rf, Rf)) * float(np.vdot(Rinv, Rinv))
+            if math.isfinite(bound) and bound < 1e24:
+                y = Rinv.T @ cons
+                yy = float(y @ y)
+                return (Rinv @ y) / yy, 1.0 / yy
     R = np.zeros((npar, npar))
-    Rf = _r_factor(A.reshape(n * d, npar))[:npar]
     R[: Rf.shape[0]] = Rf  # square (zero rows when there are fewer equations than unknowns)
     sv = np.linalg.svd(R, compute_uv=False)
     if not np.all(np.isfinite(sv)) or sv[-2] <= 1e-12 * sv[0]:
@@ -592,10 +741,6 @@ def _linearised_start(u: np.ndarray, X: np.ndarray, ns, what: str) -> tuple[np.n
             f"{what}: the point configuration does not determine a projective transformation "
             "(the linearised equations are rank deficient); add points in general position"
         )
-    # raw h_last = (H_n Ts)[d, d] = h_n[d, :d] . (-centre / scale) + h_n[d, d]
-    cons = np.zeros(npar)
-    cons[d * (d + 1):d * (d + 1) + d] = -ns.centre / ns.scale
-    cons[-1] = 1.0
     if sv[-1] <= 1e-12 * sv[0]:  # an exact fit: the null vector of A, scaled to c.h = 1
         h = np.linalg.svd(R)[2][-1]
         ch = cons @ h
@@ -610,11 +755,73 @@ def _linearised_start(u: np.ndarray, X: np.ndarray, ns, what: str) -> tuple[np.n
     return h, float(1.0 / (y @ y))
 
 
-def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol):
+def _linearised_normal(u, X, cons, row_scale):
+    """The solution of :func:`_linearised_start` from its normal equations ``N = A.T A``,
+    assembled from weighted moments of ``z = [u, 1]`` (no (n d, (d+1)^2) design is formed):
+    the equations of coordinate k are ``-z`` in block k and ``X_k z`` in the last block, so
+    ``N`` has blocks ``sum z z.T`` (diagonal), ``-sum X_k z z.T`` (last column) and
+    ``sum |X|^2 z z.T`` (corner).
+
+    ``N`` of the homogeneous problem is nearly singular by design (its smallest eigenvalue
+    is the algebraic misfit), so it is solved by its eigen-decomposition: the constrained
+    minimum ``h = N^-1 c / (c.N^-1 c)`` is accurate when the smallest eigenvalue stands
+    clear of the rounding level (``> 1e3 eps`` of the largest) and the second smallest is
+    well separated (``> 1e-8``; the rank check of the QR path passes then too). Otherwise
+    None: the caller factorises the design by QR.
+    """
+    n, d = u.shape
+    m = d + 1
+    # products z_a z_b (a <= b) as columns, and the factors 1, X_1 .. X_d, |X|^2
+    pairs = [(a, b) for a in range(m) for b in range(a, m)]
+    P = np.empty((n, len(pairs)), order="F")  # column writes contiguous
+    for j, (a, b) in enumerate(pairs):
+        if a == d:
+            P[:, j] = 1.0
+        elif b == d:
+            P[:, j] = u[:, a]
+        else:
+            np.multiply(u[:, a], u[:, b], out=P[:, j])
+    if row_scale is not None:
+        P *= (row_scale * row_scale)[:, None]
+    F = np.empty((n, d + 2), order="F")
+    F[:, 0] = 1.0
+    F[:, 1:d + 1] = X
+    F[:, d + 1] = np.einsum("ij,ij->i", X, X)
+    S = P.T @ F  # (pairs, d + 2)
+    M = np.empty((d + 2, m, m))
+    for j, (a, b) in enumerate(pairs):
+        M[:, a, b] = M[:, b, a] = S[j]
+    npar = m * m
+    N = np.zeros((npar, npar))
+    last = slice(d * m, npar)
+    for k in range(d):
+        blk = slice(k * m, (k + 1) * m)
+        N[blk, blk] = M[0]
+        N[blk, last] = -M[k + 1]
+        N[last, blk] = -M[k + 1]
+    N[last, last] = M[d + 1]
+    lam, V = np.linalg.eigh(N)
+    top = lam[-1]
+    if not (math.isfinite(top) and lam[0] > 1e3 * _EPS * top and lam[1] > 1e-8 * top):
+        return None
+    g = (V.T @ cons) / lam  # N^-1 c in the eigenbasis
+    h = (V @ g) / float(g @ (V.T @ cons))
+    # v.T v = |A h|^2 from the equations themselves (the smallest eigenvalue of N carries
+    # only eps cond(N) relative accuracy)
+    Gz = _affine_rows(h.reshape(m, m), u)  # rows z.h_k, k = 0..d
+    r = Gz[:, d:] * X - Gz[:, :d]
+    if row_scale is not None:
+        r *= row_scale[:, None]
+    return h, float(np.vdot(r, r))
+
+
+def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
+                    statistics=True):
     n, d = src.shape
-    ns, nt = normalize_points(src), normalize_points(dst)
-    u = ns.apply(src)
-    h_lin, vtv_lin = _linearised_start(u, nt.apply(dst), ns, what)
+    ns, u = _normalised(src)
+    nt, X = _normalised(dst, scaled=False)  # the adjustment works on the centred target
+    Xn = X / nt.scale
+    h_lin, vtv_lin = _linearised_start(u, Xn, ns, what)
     ks, kt = ns.scale, nt.scale
     names = (Projective2D if d == 2 else Projective3D).names
     if abs(h_lin[-1]) <= 1e-12 * np.max(np.abs(h_lin)):
@@ -622,44 +829,55 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol)
             f"{what}: the linearised solution maps the centroid of the source points to "
             "infinity; the point configuration does not determine a projective transformation"
         )
-    # the linearised solution in raw coordinates (what the lecture prints)
-    p_lin_raw, _ = _proj_back(h_lin[:-1] / h_lin[-1], ns, nt, d)
-    linear_info = {
-        "parameters": dict(zip(names, (float(v) for v in p_lin_raw))),
-        # raw algebraic residuals are kt times the normalised ones (the constraint fixes the
-        # raw last element at 1)
-        "vtv": float(vtv_lin * kt**2),
-        "redundancy": int(n * d - len(names)),
-        "note": "linearised least squares x = a1 x' + a2 y' + a3 - c1 x' x - c2 y' x (observations "
-                "on both sides; residuals are algebraic, not coordinate residuals)",
-    }
-    # the adjustment works on normalised source and centred target coordinates
+    linear_info = None
+    if statistics:
+        # the linearised solution in raw coordinates (what the lecture prints)
+        _, p_lin_raw, _ = _proj_back(h_lin[:-1] / h_lin[-1], ns, nt, d, jacobian=False)
+        linear_info = {
+            "parameters": dict(zip(names, (float(v) for v in p_lin_raw))),
+            # raw algebraic residuals are kt times the normalised ones (the constraint fixes
+            # the raw last element at 1)
+            "vtv": float(vtv_lin * kt**2),
+            "redundancy": int(n * d - len(names)),
+            "note": "linearised least squares x = a1 x' + a2 y' + a3 - c1 x' x - c2 y' x "
+                    "(observations on both sides; residuals are algebraic, not coordinate "
+                    "residuals)",
+        }
+    # the start: the linearised solution with the target scale undone (rows of H_n times
+    # kt); with errors in the target its equations reweighted by 1 / w_i first (first-order
+    # coordinate residuals: a start that saves the adjustment an iteration)
+    h0 = h_lin
+    if errors_in == "target" and obs.covariance is None:
+        wl = _affine_rows(h_lin.reshape(d + 1, d + 1)[d:], u)[:, 0]
+        if np.all(np.abs(wl) > 1e-6 * np.max(np.abs(wl))):
+            h0 = _linearised_start(u, Xn, ns, what, row_scale=1.0 / wl)[0]
+    Hl = h0.reshape(d + 1, d + 1).copy()
+    Hl[:d] *= kt
+    p0 = (Hl / Hl[d, d]).reshape(-1)[:-1]
     nt = replace(nt, scale=1.0)
     kt = 1.0
-    X = nt.apply(dst)
-    p0 = _proj_forward(p_lin_raw, ns, nt, d)
     if errors_in == "target":
-        w, C = _unit_weights_scaled(n, np.ones(d), obs)
-        if C is None:
-            p0 = _refine_start(p0, u, X, w)
+        w, C = _unit_weights_scaled(n, None, obs)
+        rational = _Rational(u)
         adj = gauss_markov(
-            lambda p: _proj_rational(p, u)[0].reshape(-1),
+            rational.model,
             p0,
             X.reshape(-1),
-            jacobian=lambda p: _proj_jacobian(p, u),
+            jacobian=rational.jacobian,
             weights=w,
             covariance=C,
             sigma0_prior=sigma0_prior,
             names=names,
             max_iter=max_iter,
             tol=tol,
+            statistics=statistics,
             what=what,
         )
         method = "Gauss-Markov (rational form)"
         note = (
             "nonlinear Gauss-Markov adjustment of the rational projective equations (errors in "
             "the target coordinates), started from the linearised least-squares solution "
-            "(extras['linearised']) refined by Gauss-Newton steps"
+            "(extras['linearised'])"
         )
         p_n = adj.x
         extra_res = None
@@ -687,7 +905,7 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol)
         def jac_l(p, lk):
             lk = lk.reshape(n, 2 * d)
             uu, XX = lk[:, :d], lk[:, d:]
-            H = np.append(p, 1.0).reshape(d + 1, d + 1)
+            H = _homogeneous(p, d)
             wd = _affine_rows(H[d:], uu)[:, 0]
             blocks = np.zeros((n, d, 2 * d))
             blocks[:, :, :d] = XX[:, :, None] * H[d, :d][None, None, :] - H[None, :d, :d]
@@ -710,6 +928,9 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol)
             tol=tol,
             what=what,
         )
+        if not statistics:  # the same estimate; its statistics are not reported
+            tf, p, _ = _proj_back(adj.x, ns, nt, d, jacobian=False)
+            return tf, adj, p, None, "Gauss-Helmert (errors in source and target)", "", None, None
         corr = adj.residuals.reshape(n, 2 * d) * factors
         extra_res = corr[:, :d]
         nr = adj.normalized_residuals
@@ -732,35 +953,35 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol)
             "target corrections, the source corrections are in extras['source_residuals']"
         )
         p_n = adj.x
-    p, J = _proj_back(p_n, ns, nt, d)
-    cls = Projective2D if d == 2 else Projective3D
-    return cls.from_parameters(p), adj, p, J, method, note, linear_info, extra_res
+    tf, p, J = _proj_back(p_n, ns, nt, d, jacobian=statistics)
+    return tf, adj, p, J, method, note, linear_info, extra_res
 
 
 # --- the 3D similarity and rigid models ----------------------------------------------------------
 
 
-def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, what):
-    try:
-        from ..orientation.absolute import absolute_orientation
-    except ImportError as exc:  # pragma: no cover - depends on the installed parts
-        raise InputError(
-            f"{what}: photogeom.orientation.absolute is not available in this installation"
-        ) from exc
-    kwargs: dict = {"method": "svd"}
-    params = inspect.signature(absolute_orientation).parameters
-    wanted = {"weights": weights, "covariance": covariance}
+def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics, ids, unit,
+                  what, need):
+    """The 3D similarity / rigid model by :func:`~photogeom.orientation.absolute_orientation`
+    (SVD), which checks the geometry of both point sets; on degenerate geometry the message
+    names the side and the minimum in the words of this module."""
+    from ..orientation.absolute import absolute_orientation
+
+    kwargs: dict = {}
+    if weights is not None:
+        kwargs["weights"] = weights
+    if covariance is not None:
+        kwargs["covariance"] = covariance
     if sigma0_prior != 1.0:
-        wanted["sigma0_prior"] = sigma0_prior
-    if model == "rigid3d":
-        wanted["with_scale"] = False
-    for key, value in wanted.items():
-        if value is None:
-            continue
-        if key not in params:
-            raise InputError(f"{what}: the absolute orientation does not accept {key!r}")
-        kwargs[key] = value
-    return absolute_orientation(src, dst, **kwargs)
+        kwargs["sigma0_prior"] = sigma0_prior
+    try:
+        return absolute_orientation(
+            src, dst, "svd", with_scale=model == "similarity3d", statistics=statistics,
+            ids=ids, unit=unit or "m", **kwargs,
+        )
+    except DegenerateGeometryError:
+        _validate_geometry(model, src, dst, need)
+        raise
 
 
 def _helmert_extras(fit: Fit) -> dict:
@@ -817,6 +1038,7 @@ def estimate_transform(
     target_system: str | None = None,
     errors_in: str = "target",
     unit: str = "",
+    statistics: bool = True,
     max_iter: int = 50,
     tol: float = 1e-10,
 ) -> Fit:
@@ -857,6 +1079,15 @@ def estimate_transform(
         coordinates; ``"both"`` - Gauss-Helmert with errors in source and target.
     unit : str
         Unit of the target coordinates, used to label residuals and shifts (e.g. ``"mm"``).
+    statistics : bool
+        ``True`` (default): the full statistics below. ``False``: the same estimate (the same
+        least-squares solution; the projective models still get their nonlinear adjustment),
+        returned without statistics, as ``absolute_orientation(..., statistics=False)``
+        does: ``fit.residuals`` is empty (shape (0, d); apply ``fit.transform`` to get
+        them), ``covariance`` and ``cofactor`` are NaN, ``sigma0`` is NaN, no normalised
+        residuals or redundancy numbers, ``extras`` holds no textbook parameters or
+        linearised solution (``fit.model.textbook()`` gives the textbook values); check-point
+        residuals are still computed. Bad input raises the same errors.
     max_iter, tol : int, float
         Iteration limit and tolerance of the nonlinear adjustments (projective models).
 
@@ -878,10 +1109,10 @@ def estimate_transform(
         Shapes, NaN / infinite values, unknown model or options.
     """
     t0 = time.perf_counter()
-    key = str(model).strip().lower()
-    if key not in MODELS:
+    key = model.strip().lower() if isinstance(model, str) else str(model)
+    d = MODELS.get(key)
+    if d is None:
         raise InputError(f"unknown transformation model {model!r}; use one of {', '.join(MODELS)}")
-    d = MODELS[key]
     what = key
     if key.startswith("polynomial"):
         if order is None:
@@ -892,23 +1123,30 @@ def estimate_transform(
         what = f"{key} of order {order}"
     elif order is not None:
         raise InputError(f"order applies only to polynomial models, not to {key}")
-    if errors_in not in ("target", "both"):
-        raise InputError(f"errors_in must be 'target' or 'both', not {errors_in!r}")
-    if errors_in == "both" and not key.startswith("projective"):
-        raise InputError(
-            f"errors_in='both' is offered for the projective models; {key} is estimated with "
-            "errors in the target coordinates"
-        )
-    src = as_points(source, d, "source", allow_single=False)
-    dst = as_points(target, d, "target", allow_single=False)
+    if errors_in != "target":
+        if errors_in != "both":
+            raise InputError(f"errors_in must be 'target' or 'both', not {errors_in!r}")
+        if not key.startswith("projective"):
+            raise InputError(
+                f"errors_in='both' is offered for the projective models; {key} is estimated "
+                "with errors in the target coordinates"
+            )
+    absolute = key in ("similarity3d", "rigid3d")
+    if absolute and check is None:
+        # NaN / inf show in the moments of the absolute orientation (one pass, no extra check)
+        src = _coordinates(source, d, "source")
+        dst = _coordinates(target, d, "target")
+    else:
+        src = as_points(source, d, "source", allow_single=False)
+        dst = as_points(target, d, "target", allow_single=False)
     check_same_length(src, dst, "source", "target")
     n = src.shape[0]
-    point_ids = _ids(ids, n)
+    point_ids = None if ids is None else _ids(ids, n)
     is_check = _check_mask(check, n)
-    ctrl = ~is_check
+    ctrl = None if is_check is None else ~is_check
     nobs = 2 * d if errors_in == "both" else d
     obs = _stochastic_model(weights, covariance, n, nobs, ctrl)
-    if not (np.isfinite(sigma0_prior) and sigma0_prior > 0):
+    if not (math.isfinite(sigma0_prior) and sigma0_prior > 0):
         raise InputError(f"sigma0_prior must be a positive number, got {sigma0_prior!r}")
 
     notes: list[str] = []
@@ -925,44 +1163,46 @@ def estimate_transform(
                 signs[nobs - 1] = -1.0
             obs = _flip_stochastic(obs, signs)
             notes.append(plan.note)
-        extras["handedness"] = {
-            "source_system": plan.source_system,
-            "target_system": plan.target_system,
-            "source_flip_y": plan.flip_source,
-            "target_flip_y": plan.flip_target,
-        }
+        if statistics or plan.source_system is not None:
+            extras["handedness"] = {
+                "source_system": plan.source_system,
+                "target_system": plan.target_system,
+                "source_flip_y": plan.flip_source,
+                "target_flip_y": plan.flip_target,
+            }
     elif source_system is not None or target_system is not None:
         raise InputError("source_system / target_system apply to 2D models only")
 
     need = _min_points(key, order)
-    sc, dc = src[ctrl], dst[ctrl]
-    check_count(sc.shape[0], need, what, _hint(key, order) + (
-        f"; {int(is_check.sum())} point(s) are check points" if is_check.any() else ""))
-    _validate_geometry(key, sc, dc, need)
-
-    ctrl_ids = _select_ids(point_ids, ctrl, numbered=bool(is_check.any()))
+    sc, dc = (src, dst) if ctrl is None else (src[ctrl], dst[ctrl])
+    if sc.shape[0] < need:
+        check_count(sc.shape[0], need, what, _hint(key, order) + (
+            f"; {int(is_check.sum())} point(s) are check points" if is_check is not None else ""))
+    ctrl_ids = _select_ids(point_ids, ctrl, numbered=is_check is not None)
     labels = ("x", "y") if d == 2 else ("x", "y", "z")
-    if key in ("similarity3d", "rigid3d"):
-        w_ctrl = None if weights is None else np.asarray(weights, dtype=float)[ctrl]
-        fit = _fit_absolute(key, sc, dc, w_ctrl, obs.covariance, sigma0_prior, what)
-        if key == "rigid3d" and not isinstance(fit.model, Rigid3D):
+    if absolute:
+        w_ctrl = None if weights is None else np.asarray(weights, dtype=float)
+        if w_ctrl is not None and ctrl is not None:
+            w_ctrl = w_ctrl[ctrl]
+        fit = _fit_absolute(key, sc, dc, w_ctrl, obs.covariance, sigma0_prior, statistics,
+                            ctrl_ids, unit, what, need)
+        if key == "rigid3d":
             m = fit.model
-            fit = replace(fit, model=Rigid3D(m.rotation, m.translation))
+            _set(fit, model=Rigid3D(m.rotation, m.translation))
         extras.update(fit.extras or {})
-        if key == "similarity3d":
+        if key == "similarity3d" and statistics:
             extras["helmert"] = _helmert_extras(fit)
-        fit = replace(fit, ids=ctrl_ids if ctrl_ids is not None else fit.ids,
-                      residual_unit=unit or fit.residual_unit,
-                      residual_labels=fit.residual_labels or labels)
     else:
+        _validate_geometry(key, sc, dc, need)
         if key == "similarity2d":
-            tf, adj, p, J = _fit_similarity2d(sc, dc, obs, sigma0_prior, what)
+            tf, adj, p, J = _fit_similarity2d(sc, dc, obs, sigma0_prior, what, statistics)
             method = _METHOD_LINEAR
         elif key in ("affine2d", "affine3d"):
-            tf, adj, p, J = _fit_affine(sc, dc, obs, sigma0_prior, what)
+            tf, adj, p, J = _fit_affine(sc, dc, obs, sigma0_prior, what, statistics=statistics)
             method = _METHOD_LINEAR
         elif key.startswith("polynomial"):
-            tf, adj, p, J = _fit_polynomial(sc, dc, order, obs, sigma0_prior, what)
+            tf, adj, p, J = _fit_polynomial(sc, dc, order, obs, sigma0_prior, what,
+                                            statistics=statistics)
             method = _METHOD_LINEAR
             centre = np.array2string(tf.centre, precision=6)
             notes.append(
@@ -971,42 +1211,102 @@ def estimate_transform(
             )
         else:
             tf, adj, p, J, method, note, lin, extra_res = _fit_projective(
-                sc, dc, obs, sigma0_prior, what, errors_in, max_iter, tol)
-            notes.append(note)
-            extras["linearised"] = lin
+                sc, dc, obs, sigma0_prior, what, errors_in, max_iter, tol, statistics)
+            if note:
+                notes.append(note)
+            if lin is not None:
+                extras["linearised"] = lin
             if extra_res is not None:
                 extras.update(extra_res)
-        tb_units = tf.textbook_units
-        units = dict.fromkeys(tf.parameter_names, "")
-        if key in ("similarity2d", "affine2d", "affine3d"):
-            units = dict.fromkeys(tf.parameter_names, "1")
-            shifts = {"similarity2d": ("c", "d"), "affine2d": ("a3", "b3"),
-                      "affine3d": ("tx", "ty", "tz")}[key]
-            units.update(dict.fromkeys(shifts, unit))
-        fit = Fit.from_adjustment(
-            adj, tf, method, point_dim=d, parameters=p, parameter_names=tf.parameter_names,
-            jacobian=J, ids=ctrl_ids, residual_labels=labels, residual_unit=unit,
-            parameter_units=units,
-        )
-        textbook, Qtb = _textbook(tf, fit.cofactor, fit.sigma0)
-        extras["textbook"] = textbook
-        extras["textbook_units"] = {k: (unit if v == "" else v) for k, v in tb_units.items()}
-        extras["textbook_cofactor"] = Qtb
+        units = _parameter_units(key, tf, unit)
+        if statistics:
+            fit = Fit.from_adjustment(
+                adj, tf, method, point_dim=d, parameters=p, parameter_names=tf.parameter_names,
+                jacobian=J, ids=ctrl_ids, residual_labels=labels, residual_unit=unit,
+                parameter_units=units,
+            )
+            textbook, Qtb = _textbook(tf, fit.cofactor, fit.sigma0)
+            extras["textbook"] = textbook
+            extras["textbook_units"] = {
+                k: (unit if v == "" else v) for k, v in tf.textbook_units.items()
+            }
+            extras["textbook_cofactor"] = Qtb
+        else:
+            u = len(p)
+            nan = np.full((u, u), np.nan)
+            fit = Fit._construct(
+                model=tf, method=method, parameter_names=tf.parameter_names, parameters=p,
+                covariance=nan, cofactor=nan, sigma0=math.nan, sigma0_prior=sigma0_prior,
+                redundancy=adj.redundancy, n_observations=adj.n_observations,
+                residuals=np.empty((0, d)), ids=ctrl_ids, residual_labels=labels,
+                residual_unit=unit, parameter_units=units, iterations=adj.iterations,
+                converged=adj.converged, message=adj.message,
+            )
+    if not statistics:
+        notes.append(_NO_STATISTICS_NOTE)
 
     # residuals back in the systems as given (undo the flips)
     if plan is not None and plan.flip_source:
         for name in ("source_residuals", "source_normalized_residuals"):
             if extras.get(name) is not None:
                 extras[name] = extras[name] * np.array([1.0, -1.0])
-    if plan is not None and plan.flip_target:
+    if plan is not None and plan.flip_target and statistics:
         sign = np.array([1.0, -1.0])
         nr = fit.normalized_residuals
-        fit = replace(fit, residuals=fit.residuals * sign,
-                      normalized_residuals=None if nr is None else nr * sign)
-    if is_check.any():
+        _set(fit, residuals=fit.residuals * sign,
+             normalized_residuals=None if nr is None else nr * sign)
+    if is_check is not None:
         chk = fit.model.apply(src[is_check]) - dst[is_check]
         if plan is not None and plan.flip_target:
             chk = chk * np.array([1.0, -1.0])
-        fit = fit.with_checks(chk, _select_ids(point_ids, is_check, numbered=True))
-    return replace(fit, notes=tuple(fit.notes) + tuple(notes), extras=extras,
-                   elapsed=time.perf_counter() - t0)
+        _set(fit, check_residuals=chk,
+             check_ids=_select_ids(point_ids, is_check, numbered=True))
+    _set(fit, notes=tuple(fit.notes) + tuple(notes), extras=extras,
+         elapsed=time.perf_counter() - t0)
+    return fit
+
+
+_NO_STATISTICS_NOTE = "statistics=False: no residuals or statistics computed"
+
+
+def _set(fit: Fit, **values) -> None:
+    """Complete a Fit this function has just built (no one else holds it yet): the frozen
+    fields are set in place instead of copying all of them with ``dataclasses.replace``."""
+    for name, value in values.items():
+        object.__setattr__(fit, name, value)
+
+
+_UNITS: dict = {}
+
+
+def _parameter_units(key: str, tf, unit: str) -> dict:
+    """Units of the parametric parameters: unitless linear part, shifts in target units
+    (a fresh dict; the computed ones are kept per model, names and unit)."""
+    names = tf.parameter_names
+    cache = (key, names, unit)
+    if cache not in _UNITS:
+        if len(_UNITS) > 256:
+            _UNITS.clear()
+        _UNITS[cache] = _units_of(key, names, unit)
+    return dict(_UNITS[cache])
+
+
+def _units_of(key: str, names: tuple, unit: str) -> dict:
+    if key in ("similarity2d", "affine2d", "affine3d"):
+        units = dict.fromkeys(names, "1")
+        shifts = {"similarity2d": ("c", "d"), "affine2d": ("a3", "b3"),
+                  "affine3d": ("tx", "ty", "tz")}[key]
+        units.update(dict.fromkeys(shifts, unit))
+        return units
+    return dict.fromkeys(names, "")
+
+
+def _coordinates(values, d: int, name: str) -> np.ndarray:
+    """``values`` as a float array (n, d); shape checks only (finiteness is checked later)."""
+    try:
+        arr = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    if arr.ndim != 2 or arr.shape[1] != d:
+        raise InputError(f"{name}: expected an array of shape (n, {d}), got shape {arr.shape}")
+    return arr

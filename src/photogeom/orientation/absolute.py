@@ -50,7 +50,12 @@ from .absolute_direct import (
     solve_closed_form,
     solve_single,
 )
-from .absolute_stats import linearised_statistics, opk_transposed, rotation_derivatives
+from .absolute_stats import (
+    linearised_statistics,
+    opk_transposed,
+    residual_statistics,
+    rotation_derivatives,
+)
 
 #: The six methods, in the order of the specification (A-F).
 METHODS: tuple[str, ...] = (
@@ -63,8 +68,11 @@ METHODS: tuple[str, ...] = (
 )
 #: Methods with a direct (non-iterative) solution.
 DIRECT_METHODS: tuple[str, ...] = ("closed-form", "svd", "quaternion", "dual-quaternion")
-#: From this number of points on, ``statistics=False`` uses one-pass moments.
+#: From this number of points on, the moments are taken in one chunked pass over the data.
 LARGE_N = 65536
+#: Both point sets must spread beyond a line: the second singular value of the centred
+#: (weighted) coordinates above this fraction of the first, in either system.
+RANK_TOLERANCE = 1e-10
 
 _ALIASES = {
     "closedform": "closed-form",
@@ -497,6 +505,42 @@ def _check_solution(degenerate, reflection, method: str) -> None:
         )
 
 
+def _check_single(sol, x, X, w, pm: PairMoments, method: str) -> None:
+    """Degenerate geometry (naming the collinear side when one is), reflections, and the
+    spread of both point sets for a single solve."""
+    if sol.degenerate:
+        _check_spread(x, X, w, pm, None, method)  # names the side when one set is a line
+    _check_solution(sol.degenerate, sol.reflection, method)
+    _check_spread(x, X, w, pm, sol.singular_values, method)
+
+
+def _check_spread(x, X, w, pm: PairMoments, sv, method: str) -> None:
+    """Raise when the source or the target points are (numerically) collinear.
+
+    ``sigma_2(H) <= sigma_1(x') sigma_2(X')`` and ``sigma_1 <= sqrt(a)`` resp. ``sqrt(b)``:
+    ``sigma_2(H) > 2 RANK_TOLERANCE sqrt(a b)`` proves both sets spread (the usual case, no
+    extra work); otherwise the centred coordinates themselves decide
+    (:data:`RANK_TOLERANCE`).
+    """
+    if sv is not None and sv[1] > 2 * RANK_TOLERANCE * math.sqrt(pm.a * pm.b):
+        return
+    for pts, centre, side in ((x, pm.source_centroid, "source"), (X, pm.target_centroid, "target")):
+        c = pts - centre
+        if w is not None:
+            c = c * np.sqrt(w)[:, None]
+        if c.shape[0] > 5000:
+            c = np.linalg.qr(c, mode="r")
+        sig = np.linalg.svd(c, compute_uv=False)
+        if not np.all(np.isfinite(sig)):
+            return  # NaN / inf: reported by the caller
+        if not sig[1] > RANK_TOLERANCE * sig[0]:
+            raise DegenerateGeometryError(
+                f"absolute orientation ({method}): the {pts.shape[0]} {side} points are "
+                "collinear (on one line) or coincide, so the rotation about their line is "
+                "undetermined; at least three non-collinear points are needed in each system"
+            )
+
+
 _UNITS: dict = {}
 
 
@@ -511,6 +555,21 @@ def _param_units(with_scale: bool, unit: str) -> Mapping[str, str]:
 
 
 _CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (radians inside)"
+_NO_STATISTICS_NOTE = "statistics=False: no residuals or statistics computed"
+_NO_RESIDUALS = np.empty((0, 3))
+_NO_RESIDUALS.flags.writeable = False
+
+
+def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes):
+    """The Fit of ``statistics=False``: parameters only (NaN covariance, no residuals)."""
+    return AbsoluteOrientationFit._construct(
+        model=model, method=method, parameter_names=names, parameters=params,
+        covariance=_nan_stats(u), cofactor=_nan_stats(u), sigma0=math.nan, sigma0_prior=1.0,
+        redundancy=r, n_observations=n_obs, residuals=_NO_RESIDUALS, ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
+        parameter_units=_param_units(with_scale, ctx.unit), extras={},
+        elapsed=time.perf_counter() - ctx.t0, notes=(*notes, _NO_STATISTICS_NOTE),
+    )
 
 
 _NAN = {u: np.full((u, u), np.nan) for u in (6, 7)}
@@ -550,7 +609,7 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
     else:
         pm = _moments(x, X, w, statistics)
         sol = solve_single(pm, method, with_scale=with_scale, scale_method=scale_method)
-        _check_solution(sol.degenerate, sol.reflection, method)
+        _check_single(sol, x, X, w, pm, method)
         s, R, t = sol.scale, sol.rotation, sol.translation
     if raw:
         notes.append(
@@ -566,34 +625,31 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
     u = len(names)
     r = 3 * n - u
     if not statistics:
-        return AbsoluteOrientationFit(
-            model=model, method=method, parameter_names=names, parameters=params,
-            covariance=_nan_stats(u), cofactor=_nan_stats(u), sigma0=math.nan,
-            sigma0_prior=1.0, redundancy=r, n_observations=3 * n,
-            residuals=np.empty((0, 3)), ids=ctx.ids, residual_labels=("X", "Y", "Z"),
-            residual_unit=ctx.unit, parameter_units=_param_units(with_scale, ctx.unit),
-            elapsed=time.perf_counter() - ctx.t0,
-            notes=(*notes, "statistics=False: no residuals or statistics computed"),
+        return _bare_fit(model, method, names, params, u, r, 3 * n, with_scale, ctx, notes)
+    if pm is not None and pm.S is not None:
+        st, v = residual_statistics(
+            x, X, scale=s, rotation=R, translation=t, angles=(omega, phi, kappa),
+            source_centroid=pm.source_centroid, scatter=pm.S, weight_sum=pm.weight, weights=w,
+            with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
         )
-    if pm is not None:
-        xg, Xg = pm.source_centroid, pm.target_centroid
     else:
         xg, Xg = x.mean(axis=0), X.mean(axis=0)
-    xr = x - xg
-    v = s * (xr @ R.T) - (X - Xg) + (s * (R @ xg) + t - Xg)
-    st = linearised_statistics(
-        xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
-        with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
-    )
+        xr = x - xg
+        v = s * (xr @ R.T) - (X - Xg) + (s * (R @ xg) + t - Xg)
+        st = linearised_statistics(
+            xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
+            with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
+        )
     if raw:
         notes.append("statistics from the linearised model at the reported parameters")
     return _stat_fit(model, method, names, params, st, r, 3 * n, v, with_scale, ctx, notes)
 
 
 def _moments(x, X, w, statistics: bool) -> PairMoments:
+    """Centred moments (with the source scatter when ``statistics``)."""
     n = x.shape[0]
-    if not statistics and n >= LARGE_N:
-        pm = PairMoments.from_moments(large_moments(x, X, w))
+    if n >= LARGE_N:
+        pm = PairMoments.from_moments(large_moments(x, X, w, scatter=statistics))
     else:
         pm = PairMoments.of(x, X, w)
     if not pm.finite():
@@ -619,13 +675,15 @@ def _similarity(s, R, t) -> Similarity3D:
 
 
 def _params(t, s, angles, with_scale) -> np.ndarray:
-    return _adj.pack(t, s, angles, with_scale)
+    """``(tx, ty, tz, [scale,] omega, phi, kappa)`` (``_adj.pack`` for float inputs)."""
+    tx, ty, tz = t.tolist() if isinstance(t, np.ndarray) else t
+    return np.array([tx, ty, tz, float(s), *angles] if with_scale else [tx, ty, tz, *angles])
 
 
 def _stat_fit(model, method, names, params, st, r, n_obs, v, with_scale, ctx, notes,
               extras=None, iterations=0, message="") -> AbsoluteOrientationFit:
     s0 = math.sqrt(max(st.vtpv, 0.0) / r) if r > 0 else math.nan
-    return AbsoluteOrientationFit(
+    return AbsoluteOrientationFit._construct(
         model=model, method=method, parameter_names=names, parameters=params,
         covariance=s0**2 * st.cofactor, cofactor=st.cofactor, sigma0=s0,
         sigma0_prior=ctx.sigma0_prior,
@@ -695,8 +753,9 @@ def _min_cost(pm: PairMoments, with_scale: bool) -> float:
 
 def _geometry_check(x, X, w, with_scale, method) -> None:
     """Collinear points and best-fit reflections, before any iteration."""
-    one = solve_single(PairMoments.of(x, X, w), "svd", with_scale=with_scale)
-    _check_solution(one.degenerate, one.reflection, method)
+    pm = PairMoments.of(x, X, w)
+    one = solve_single(pm, "svd", with_scale=with_scale)
+    _check_single(one, x, X, w, pm, method)
 
 
 def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx):
@@ -809,7 +868,7 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     k = sX / sx
     pm = _moments(x, X, None, statistics)
     sol = solve_single(pm, "gauss-helmert", with_scale=with_scale, ratio=k)
-    _check_solution(sol.degenerate, sol.reflection, "gauss-helmert")
+    _check_single(sol, x, X, None, pm, "gauss-helmert")
     s, R, t = sol.scale, sol.rotation, sol.translation
     model = _similarity(s, R, t)
     omega, phi, kappa, gimbal = opk_transposed(R)
@@ -823,15 +882,8 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     u = len(names)
     r = 3 * n - u
     if not statistics:
-        return AbsoluteOrientationFit(
-            model=model, method="gauss-helmert", parameter_names=names, parameters=params,
-            covariance=_nan_stats(u), cofactor=_nan_stats(u), sigma0=math.nan,
-            sigma0_prior=1.0, redundancy=r, n_observations=6 * n,
-            residuals=np.empty((0, 3)), ids=ctx.ids, residual_labels=("X", "Y", "Z"),
-            residual_unit=ctx.unit, parameter_units=_param_units(with_scale, ctx.unit),
-            elapsed=time.perf_counter() - ctx.t0,
-            notes=(*notes, "statistics=False: no residuals or statistics computed"),
-        )
+        return _bare_fit(model, "gauss-helmert", names, params, u, r, 6 * n, with_scale, ctx,
+                         notes)
     xg, Xg = pm.source_centroid, pm.target_centroid
     xr = x - xg
     # misclosures g = s R x + t - X; corrections e_x = -sx^2 s R.T g / mm, e_X = sX^2 g / mm

@@ -78,6 +78,8 @@ class Moments:
         ``sum w_i u_i U_i.T``.
     sq_source, sq_target : numpy.ndarray, shape (B,)
         ``sum w_i |u_i|^2`` and ``sum w_i |U_i|^2``.
+    scatter_source : numpy.ndarray, shape (B, 3, 3), optional
+        ``sum w_i u_i u_i.T`` (when computed).
     """
 
     weight: np.ndarray
@@ -88,6 +90,7 @@ class Moments:
     cross: np.ndarray
     sq_source: np.ndarray
     sq_target: np.ndarray
+    scatter_source: np.ndarray | None = None
 
     @property
     def source_centroid(self) -> np.ndarray:
@@ -103,6 +106,15 @@ class Moments:
     def H(self) -> np.ndarray:
         """Centred cross-covariance ``H = sum w_i x'_i X'_i.T`` (B, 3, 3)."""
         return self.cross - self.sum_source[:, :, None] * self.sum_target[:, None, :] / (
+            self.weight[:, None, None]
+        )
+
+    @property
+    def S(self) -> np.ndarray | None:
+        """Centred source scatter ``sum w_i x'_i x'_i.T`` (B, 3, 3), when computed."""
+        if self.scatter_source is None:
+            return None
+        return self.scatter_source - self.sum_source[:, :, None] * self.sum_source[:, None, :] / (
             self.weight[:, None, None]
         )
 
@@ -186,73 +198,107 @@ def batch_moments(x: np.ndarray, X: np.ndarray, w: np.ndarray | None = None) -> 
     return Moments(W, xg, Xg, ss, st, cross, sq_s, sq_t)
 
 
+def _reference(p: np.ndarray) -> np.ndarray | None:
+    """Reference point of one-pass moments: None (the origin) unless the first chunk of the
+    points lies far from the origin compared with its spread (``|mean|^2 > var`` / 100 of
+    :data:`CANCELLATION_LIMIT`, e.g. UTM coordinates); then the mean of that chunk."""
+    head = p[:CHUNK_POINTS]
+    mu = np.add.reduce(head, axis=0) / head.shape[0]
+    d = head - mu
+    var = float(np.einsum("ij,ij->", d, d)) / head.shape[0]
+    if float(mu @ mu) <= 0.01 * CANCELLATION_LIMIT * var:
+        return None
+    return mu
+
+
 def _raw_moments_chunked(
-    x: np.ndarray, X: np.ndarray, w: np.ndarray | None, ref_x: np.ndarray, ref_X: np.ndarray
+    x: np.ndarray,
+    X: np.ndarray,
+    w: np.ndarray | None,
+    ref_x: np.ndarray | None,
+    ref_X: np.ndarray | None,
+    scatter: bool,
 ) -> tuple:
-    """Moments about ``ref_x``/``ref_X`` in one cache-friendly pass (chunks of
-    :data:`CHUNK_POINTS` points; zero references avoid any temporary array)."""
+    """Moments about ``ref_x``/``ref_X`` (None: the origin) in one cache-friendly pass.
+
+    Chunks of :data:`CHUNK_POINTS` points, four points per row: ``(m/4, 12) x (m/4, 12)``
+    products whose 3x3 diagonal blocks are the per-point cross products (BLAS runs far
+    faster on 12 than on 3 columns); sums and sums of squares of the same rows. A reference
+    costs one subtraction per chunk (the chunk is in the CPU cache). ``scatter`` also
+    accumulates ``sum w u u.T`` of the source.
+    """
     n = x.shape[0]
-    shift = bool(np.any(ref_x) or np.any(ref_X))
-    cross = np.zeros((3, 3))
-    sx = np.zeros(3)
-    sX = np.zeros(3)
-    qx = 0.0
-    qX = 0.0
-    W = 0.0
+    n4 = n - n % 4
+    G = np.zeros((12, 12))
+    Gs = np.zeros((12, 12)) if scatter else None
+    sa = np.zeros(12)
+    sb = np.zeros(12)
+    qa = 0.0
+    qb = 0.0
+    W = 0.0 if w is not None else float(n)
+    rx = None if ref_x is None else np.tile(ref_x, 4)
+    rX = None if ref_X is None else np.tile(ref_X, 4)
     ones = np.ones(CHUNK_POINTS // 4)
-    for i in range(0, n, CHUNK_POINTS):
-        a = x[i : i + CHUNK_POINTS]
-        b = X[i : i + CHUNK_POINTS]
-        if shift:
-            a = a - ref_x
-            b = b - ref_X
-        m = a.shape[0]
-        if w is not None:
-            wi = w[i : i + CHUNK_POINTS]
-            wa = a * wi[:, None]
-            W += float(np.add.reduce(wi))
+    for i in range(0, n4, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n4)
+        A = x[i:j].reshape(-1, 12)
+        B = X[i:j].reshape(-1, 12)
+        if rx is not None:
+            A = A - rx
+        if rX is not None:
+            B = B - rX
+        o = ones[: A.shape[0]]
+        if w is None:
+            Aw, Bw = A, B
         else:
-            wa = a
-            W += m
-        m4 = m - m % 4
-        if m4:
-            # four points per row: a (m/4, 12) x (m/4, 12) product whose 3x3 diagonal blocks
-            # are the per-point cross products (BLAS runs far faster on 12 than on 3 columns)
-            A12 = wa[:m4].reshape(-1, 12)
-            B12 = b[:m4].reshape(-1, 12)
-            G = A12.T @ B12
-            cross += G[0:3, 0:3] + G[3:6, 3:6] + G[6:9, 6:9] + G[9:12, 9:12]
-            o = ones[: A12.shape[0]]
-            sx += (o @ A12).reshape(4, 3).sum(axis=0)
-            if w is None:
-                sX += (o @ B12).reshape(4, 3).sum(axis=0)
-                qX += float(B12.reshape(-1) @ B12.reshape(-1))
-            else:
-                wB = b[:m4] * wi[:m4, None]
-                sX += np.add.reduce(wB, axis=0)
-                qX += float(wB.reshape(-1) @ B12.reshape(-1))
-            qx += float(A12.reshape(-1) @ a[:m4].reshape(-1))
-        if m4 < m:
-            ta, tb, twa = a[m4:], b[m4:], wa[m4:]
-            cross += twa.T @ tb
-            sx += np.add.reduce(twa, axis=0)
-            wtb = tb if w is None else tb * wi[m4:, None]
-            sX += np.add.reduce(wtb, axis=0)
-            qx += float(np.sum(twa * ta))
-            qX += float(np.sum(wtb * tb))
-    return W, sx, sX, cross, qx, qX
+            wi = w[i:j]
+            W += float(np.add.reduce(wi))
+            w12 = np.repeat(wi, 3).reshape(-1, 12)
+            Aw, Bw = A * w12, B * w12
+        G += Aw.T @ B
+        if scatter:
+            Gs += Aw.T @ A
+        sa += o @ Aw
+        sb += o @ Bw
+        qa += float(Aw.reshape(-1) @ A.reshape(-1))
+        qb += float(Bw.reshape(-1) @ B.reshape(-1))
+    cross = G[0:3, 0:3] + G[3:6, 3:6] + G[6:9, 6:9] + G[9:12, 9:12]
+    S = None if Gs is None else Gs[0:3, 0:3] + Gs[3:6, 3:6] + Gs[6:9, 6:9] + Gs[9:12, 9:12]
+    sx = sa.reshape(4, 3).sum(axis=0)
+    sX = sb.reshape(4, 3).sum(axis=0)
+    if n4 < n:  # the last n % 4 points
+        a = x[n4:] if ref_x is None else x[n4:] - ref_x
+        b = X[n4:] if ref_X is None else X[n4:] - ref_X
+        if w is None:
+            wa, wb = a, b
+        else:
+            wt = w[n4:]
+            W += float(np.add.reduce(wt))
+            wa, wb = a * wt[:, None], b * wt[:, None]
+        cross = cross + wa.T @ b
+        if S is not None:
+            S = S + wa.T @ a
+        sx = sx + np.add.reduce(wa, axis=0)
+        sX = sX + np.add.reduce(wb, axis=0)
+        qa += float(np.sum(wa * a))
+        qb += float(np.sum(wb * b))
+    return W, sx, sX, cross, qa, qb, S
 
 
-def large_moments(x: np.ndarray, X: np.ndarray, w: np.ndarray | None = None) -> Moments:
+def large_moments(
+    x: np.ndarray, X: np.ndarray, w: np.ndarray | None = None, *, scatter: bool = False
+) -> Moments:
     """Moments of one large problem (n, 3) in a single pass over the data.
 
-    The sums are taken about the origin (no temporary arrays); when the centroids are far from
-    the origin compared with the spread (``|centroid|^2 / variance`` above
-    :data:`CANCELLATION_LIMIT`, e.g. UTM coordinates) the centroids are computed first and
-    the moments are taken about them (a second pass), so that no digits are lost.
+    The sums are taken about the origin, or - for a point set far from the origin compared
+    with its spread, e.g. UTM coordinates - about the mean of its first chunk, so that no
+    digits are lost. Should the sums still show cancellation (``|centroid - reference|^2 /
+    variance`` above :data:`CANCELLATION_LIMIT`: the first chunk was not representative),
+    a second pass takes them about the centroids of the first. ``scatter`` also returns the
+    source scatter matrix (``Moments.scatter_source``).
     """
     with _single_threaded_blas():
-        return _large_moments(x, X, w)
+        return _large_moments(x, X, w, scatter)
 
 
 _BLAS_CONTROLLER: list = []
@@ -277,24 +323,27 @@ def _single_threaded_blas():
     return ctl.limit(limits=1, user_api="blas")
 
 
-def _large_moments(x: np.ndarray, X: np.ndarray, w: np.ndarray | None) -> Moments:
+def _cancellation(W: float, s: np.ndarray, q: float) -> float:
+    """``|sum / W|^2 / variance`` of one point set's one-pass sums (inf when degenerate)."""
+    ss = float(s @ s) / W
+    var = q - ss
+    return ss / var if var > 0 else (0.0 if ss == 0 else math.inf)
+
+
+def _large_moments(x: np.ndarray, X: np.ndarray, w: np.ndarray | None, scatter: bool) -> Moments:
     x = np.ascontiguousarray(x)
     X = np.ascontiguousarray(X)
-    zero = np.zeros(3)
-    W, sx, sX, cross, qx, qX = _raw_moments_chunked(x, X, w, zero, zero)
-    ax = qx - (sx @ sx) / W
-    aX = qX - (sX @ sX) / W
-    fx = (sx @ sx) / W / ax if ax > 0 else np.inf
-    fX = (sX @ sX) / W / aX if aX > 0 else np.inf
-    if not (np.isfinite(fx) and np.isfinite(fX)) or max(fx, fX) > CANCELLATION_LIMIT:
-        if w is None:
-            ones = np.ones(x.shape[0])
-            ref_x, ref_X = (ones @ x) / W, (ones @ X) / W
-        else:
-            ref_x, ref_X = (w @ x) / W, (w @ X) / W
-        W, sx, sX, cross, qx, qX = _raw_moments_chunked(x, X, w, ref_x, ref_X)
-    else:
-        ref_x, ref_X = zero, zero
+    ref_x, ref_X = _reference(x), _reference(X)
+    W, sx, sX, cross, qx, qX, S = _raw_moments_chunked(x, X, w, ref_x, ref_X, scatter)
+    if not math.isfinite(qx + qX + float(sx.sum() + sX.sum())) or not W > 0:
+        pass  # NaN / inf in the data (or overflow): the caller reports it
+    elif max(_cancellation(W, sx, qx), _cancellation(W, sX, qX)) > CANCELLATION_LIMIT:
+        zero = np.zeros(3)
+        ref_x = (zero if ref_x is None else ref_x) + sx / W
+        ref_X = (zero if ref_X is None else ref_X) + sX / W
+        W, sx, sX, cross, qx, qX, S = _raw_moments_chunked(x, X, w, ref_x, ref_X, scatter)
+    ref_x = np.zeros(3) if ref_x is None else ref_x
+    ref_X = np.zeros(3) if ref_X is None else ref_X
     return Moments(
         np.array([W]),
         ref_x[None].copy(),
@@ -304,6 +353,7 @@ def _large_moments(x: np.ndarray, X: np.ndarray, w: np.ndarray | None) -> Moment
         cross[None],
         np.array([qx]),
         np.array([qX]),
+        None if S is None else S[None],
     )
 
 
@@ -320,6 +370,8 @@ class PairMoments:
         ``sum w_i x'_i X'_i.T``.
     a, b : float
         ``sum w_i |x'_i|^2`` and ``sum w_i |X'_i|^2``.
+    S : numpy.ndarray, shape (3, 3), optional
+        Source scatter ``sum w_i x'_i x'_i.T`` (when computed).
     """
 
     weight: float
@@ -328,6 +380,7 @@ class PairMoments:
     H: np.ndarray
     a: float
     b: float
+    S: np.ndarray | None = None
 
     @classmethod
     def of(cls, x: np.ndarray, X: np.ndarray, w: np.ndarray | None = None) -> PairMoments:
@@ -341,15 +394,17 @@ class PairMoments:
         C = Zr.T @ Zr if w is None else (Zr * w[:, None]).T @ Zr
         c = C.tolist()
         return cls(
-            W, mu[:3], mu[3:], C[:3, 3:], c[0][0] + c[1][1] + c[2][2], c[3][3] + c[4][4] + c[5][5]
+            W, mu[:3], mu[3:], C[:3, 3:], c[0][0] + c[1][1] + c[2][2], c[3][3] + c[4][4] + c[5][5],
+            C[:3, :3],
         )
 
     @classmethod
     def from_moments(cls, m: Moments, i: int = 0) -> PairMoments:
         """Problem ``i`` of a batch of :class:`Moments`."""
+        S = m.S
         return cls(
             float(m.weight[i]), m.source_centroid[i], m.target_centroid[i], m.H[i],
-            float(m.a[i]), float(m.b[i]),
+            float(m.a[i]), float(m.b[i]), None if S is None else S[i],
         )
 
     def as_batch(self) -> Moments:
@@ -399,6 +454,7 @@ class SingleSolution:
     translation: np.ndarray
     degenerate: bool
     reflection: bool
+    singular_values: list | None = None  # of the cross-covariance H, descending
 
 
 def solve_single(
@@ -416,7 +472,8 @@ def solve_single(
     if info != 0:
         raise np.linalg.LinAlgError("SVD did not converge")
     S = S_.tolist()
-    d = 1.0 if _det_list(u.tolist()) * _det_list(vt.tolist()) >= 0 else -1.0
+    R0 = vt.T @ u.T  # V U.T; det(R0) = det(U) det(V) = +-1
+    d = 1.0 if _det_list(R0.tolist()) >= 0 else -1.0
     a, b = pm.a, pm.b
     degenerate, reflection = _classify_one(S, d, a, b, with_scale)
     xg, Xg = pm.source_centroid, pm.target_centroid
@@ -443,8 +500,8 @@ def solve_single(
         R = _quaternion_matrix(q)
         trace = float(vals[3])
     else:
-        vt[2] *= d  # V diag(1, 1, d) as rows of Vt
-        R = vt.T @ u.T
+        # V diag(1, 1, d) U.T = V U.T - (1 - d) v3 u3.T
+        R = R0 if d > 0 else R0 - 2.0 * np.outer(vt[2], u[:, 2])
         trace = S[0] + S[1] + d * S[2]
     if not with_scale:
         s = 1.0
@@ -462,7 +519,7 @@ def solve_single(
     else:
         s = trace / a if a > 0 else math.nan
     t = Xg - s * (R @ xg)
-    return SingleSolution(s, R, t, degenerate, reflection)
+    return SingleSolution(s, R, t, degenerate, reflection, S)
 
 
 # --- small linear-algebra helpers (LAPACK directly for a single 3x3 / 4x4) ------------------

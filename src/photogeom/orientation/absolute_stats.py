@@ -99,6 +99,150 @@ class LinearisedStatistics:
     point_blocks: np.ndarray
 
 
+#: Points per chunk of the per-point statistics (the temporaries stay in the CPU cache).
+CHUNK_POINTS = 8192
+
+
+def _psd_factor(Q: np.ndarray) -> np.ndarray:
+    """``L`` with ``Q = L L.T`` for a symmetric positive (semi-)definite 3x3 matrix."""
+    try:
+        return np.linalg.cholesky(Q)
+    except np.linalg.LinAlgError:
+        e, V = np.linalg.eigh(0.5 * (Q + Q.T))
+        return V * np.sqrt(np.clip(e, 0.0, None))
+
+
+@dataclass(frozen=True)
+class _Model:
+    """Everything the per-point pass needs. ``(A Qxx A.T)_i`` of point i is
+    ``Y_i Y_i.T + I / W`` with ``Y_i`` (3 x 4) the rows j = 1..3 of ``M x'_i``: three
+    components ``s L.T [R_j]x x'_i`` (``Qd = L L.T``, the rotation cofactor) and, with scale,
+    ``(R x'_i)_j / sqrt(a)``. So its diagonal is ``(M x')**2`` summed per j (``B``)."""
+
+    MT: np.ndarray  # (3, 12): Y = x' @ MT, columns 4 j + c
+    B: np.ndarray  # (12, 3): sums the squares of the four columns of each j
+    inv_W: float
+
+
+def _cofactor(
+    S: np.ndarray,
+    W: float,
+    *,
+    scale: float,
+    angles: tuple[float, float, float],
+    source_centroid: np.ndarray,
+    with_scale: bool,
+) -> tuple[np.ndarray, _Model]:
+    """``Qxx`` of ``(t, [s,] omega, phi, kappa)`` and the per-point model, from the scatter."""
+    a = float(S[0, 0] + S[1, 1] + S[2, 2])
+    s = scale
+    R, _, Ginv = _rotation_and_perturbation(*angles)
+    Qd = np.linalg.inv(s * s * (a * _EYE3 - S))
+    u = 7 if with_scale else 6
+    # cofactor of the reduced unknowns (t', [s,] delta): block diagonal
+    Qr = np.zeros((u, u))
+    Qr[0, 0] = Qr[1, 1] = Qr[2, 2] = 1.0 / W
+    if with_scale:
+        Qr[3, 3] = 1.0 / a
+    Qr[u - 3 :, u - 3 :] = Qd
+    # back from the reduced shift t' to t = Xg + t' - s R xg: dt/ds = -R xg,
+    # dt/d(delta) = s R [xg]x
+    J = np.eye(u)
+    xg = np.asarray(source_centroid, dtype=float)
+    if with_scale:
+        J[:3, 3] = -(R @ xg)
+    J[:3, u - 3 :] = s * (R @ _skew(xg))
+    Q1 = J @ Qr @ J.T
+    # rotation perturbation -> omega, phi, kappa (undefined at gimbal lock: NaN rows)
+    K = np.eye(u)
+    if Ginv is not None:
+        K[u - 3 :, u - 3 :] = Ginv
+        Q = K @ Q1 @ K.T
+    else:
+        Q = Q1.copy()
+        Q[u - 3 :, :] = np.nan
+        Q[:, u - 3 :] = np.nan
+    # per point, the rotation rows of A (as delta) are -s (R_j x x'_i) = -s [R_j]x x'_i, so
+    # (A Qxx A.T)_jk = s^2 x'.T [R_j]x.T Qd [R_k]x x' + ... (parametrisation-invariant)
+    Lt = _psd_factor(Qd).T
+    M = np.zeros((3, 4, 3))
+    M[:, :3] = s * (Lt[None] @ np.stack([_skew(R[0]), _skew(R[1]), _skew(R[2])]))
+    if with_scale:
+        M[:, 3] = R / math.sqrt(a)
+    return Q, _Model(np.ascontiguousarray(M.reshape(12, 3).T), _SUM4, 1.0 / W)
+
+
+def _rotation_and_perturbation(omega: float, phi: float, kappa: float):
+    """``R = M(omega, phi, kappa).T``, ``G`` with ``delta = G d(angles)`` (the right
+    perturbation ``R (I + [delta]x)``, as :func:`angle_to_perturbation` of
+    :func:`rotation_derivatives`) and ``G^-1`` (None at gimbal lock, ``cos phi <= 1e-9``), in
+    closed form: the columns of ``G`` are ``M3 M2 e_x``, ``M3 e_y`` and ``e_z``, so
+    ``det G = cos phi``."""
+    sw, cw = math.sin(omega), math.cos(omega)
+    sp, cp = math.sin(phi), math.cos(phi)
+    sk, ck = math.sin(kappa), math.cos(kappa)
+    R = np.array(
+        [
+            [ck * cp, -sk * cp, sp],
+            [ck * sp * sw + sk * cw, -sk * sp * sw + ck * cw, -cp * sw],
+            [-ck * sp * cw + sk * sw, sk * sp * cw + ck * sw, cp * cw],
+        ]
+    )
+    G = np.array([[ck * cp, sk, 0.0], [-sk * cp, ck, 0.0], [sp, 0.0, 1.0]])
+    if abs(cp) <= 1e-9:
+        return R, G, None
+    Ginv = np.array(
+        [
+            [ck / cp, -sk / cp, 0.0],
+            [sk, ck, 0.0],
+            [-sp * ck / cp, sp * sk / cp, 1.0],
+        ]
+    )
+    return R, G, Ginv
+
+
+def _skew(v) -> np.ndarray:
+    """``[v]x`` of one vector (3,)."""
+    x, y, z = v.tolist() if isinstance(v, np.ndarray) else v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+#: (12, 3): sums four consecutive columns.
+_SUM4 = np.kron(np.eye(3), np.ones((4, 1)))
+
+
+def _point_pass(
+    pm: _Model,
+    Y: np.ndarray,
+    v: np.ndarray,
+    w: np.ndarray | None,
+    sigma0_prior: float,
+    red: np.ndarray,
+    wn: np.ndarray,
+    C: np.ndarray | None,
+) -> None:
+    """Redundancy numbers, normalised residuals (and blocks) of points with ``Y = x' @ MT``
+    (m, 12; overwritten) and residuals ``v`` into the output rows ``red``, ``wn`` (``C``)."""
+    if C is not None:
+        Yb = Y.reshape(-1, 3, 4)
+        np.matmul(Yb, np.swapaxes(Yb, 1, 2), out=C)
+        C += _EYE3 * pm.inv_W
+    np.multiply(Y, Y, out=Y)
+    hd = Y @ pm.B
+    hd += pm.inv_W
+    if w is None:
+        num = v
+    else:
+        hd *= w[:, None]
+        num = v * np.sqrt(w)[:, None]
+    np.subtract(1.0, hd, out=red)
+    wn.fill(np.nan)
+    np.sqrt(np.abs(red), out=hd)
+    if sigma0_prior != 1.0:
+        hd *= sigma0_prior
+    np.divide(num, hd, out=wn, where=red > 1e-12)
+
+
 def linearised_statistics(
     xr: np.ndarray,
     v: np.ndarray,
@@ -110,6 +254,7 @@ def linearised_statistics(
     sigma0_prior: float = 1.0,
     with_scale: bool = True,
     blocks: bool = False,
+    scatter: np.ndarray | None = None,
 ) -> LinearisedStatistics:
     """Closed-form Gauss-Markov statistics of ``X_i + v_i = t + s R x_i`` at a solution.
 
@@ -131,70 +276,95 @@ def linearised_statistics(
         False: rigid model (6 parameters).
     blocks : bool
         Also return the per-point 3x3 blocks of ``A Qxx A.T`` (else ``point_blocks`` is None).
+    scatter : numpy.ndarray, shape (3, 3), optional
+        ``sum w_i x'_i x'_i.T`` when already known.
     """
-    n = xr.shape[0]
-    if weights is None:
-        w = None
-        Wsum = float(n)
-        S = xr.T @ xr
+    w = weights
+    if w is None:
+        Wsum = float(xr.shape[0])
+        S = xr.T @ xr if scatter is None else scatter
         vtpv = float(v.reshape(-1) @ v.reshape(-1))
     else:
-        w = weights
         Wsum = float(np.add.reduce(w))
-        S = (xr * w[:, None]).T @ xr
+        S = (xr * w[:, None]).T @ xr if scatter is None else scatter
         vtpv = float(np.add.reduce(np.add.reduce(v * v, axis=1) * w))
-    a = float(S[0, 0] + S[1, 1] + S[2, 2])
-    s = scale
-    R, dR = rotation_derivatives(*angles)
-    G = angle_to_perturbation(R, dR)
-    Qd = np.linalg.inv(s * s * (a * _EYE3 - S))
-    u = 7 if with_scale else 6
-    # cofactor of the reduced unknowns (t', [s,] delta): block diagonal
-    Qr = np.zeros((u, u))
-    Qr[0, 0] = Qr[1, 1] = Qr[2, 2] = 1.0 / Wsum
-    if with_scale:
-        Qr[3, 3] = 1.0 / a
-    Qr[u - 3 :, u - 3 :] = Qd
-    # back from the reduced shift t' to t = Xg + t' - s R xg: dt/ds = -R xg,
-    # dt/d(delta) = s R [xg]x
-    J = np.eye(u)
-    xg = np.asarray(source_centroid, dtype=float)
-    if with_scale:
-        J[:3, 3] = -(R @ xg)
-    J[:3, u - 3 :] = s * (R @ _skew_rows(xg[None])[0])
-    Q1 = J @ Qr @ J.T
-    # rotation perturbation -> omega, phi, kappa (undefined at gimbal lock: NaN rows)
-    K = np.eye(u)
-    if abs(np.linalg.det(G)) > 1e-9:
-        K[u - 3 :, u - 3 :] = np.linalg.inv(G)
-        Q = K @ Q1 @ K.T
-    else:
-        Q = Q1.copy()
-        Q[u - 3 :, :] = np.nan
-        Q[:, u - 3 :] = np.nan
-    # per point, the rotation rows of A (as delta) are -s (R_j x x'_i) = -s [R_j]x x'_i, so
-    # (A Qxx A.T)_jk = x'.T (s^2 [R_j]x.T Qd [R_k]x) x' + ... (parametrisation-invariant)
-    K = _skew_rows(R)  # [R_j]x
-    T = (s * s) * (np.swapaxes(K, 1, 2) @ Qd @ K)  # (3, 3, 3), j a b
-    hd = np.einsum("na,jab,nb->nj", xr, T, xr)
-    hd += 1.0 / Wsum
-    if with_scale:
-        Rx = xr @ R.T
-        hd += Rx * Rx / a
-    h = hd if w is None else hd * w[:, None]
-    red = 1.0 - h
-    num = v if w is None else v * np.sqrt(w)[:, None]
-    den = np.sqrt(np.abs(red)) * sigma0_prior
-    wn = np.full(v.shape, np.nan)
-    np.divide(num, den, out=wn, where=red > 1e-12)
-    C = None
-    if blocks:
-        T4 = (s * s) * np.einsum("iba,bc,jcd->ijad", K, Qd, K)
-        C = np.einsum("na,ijab,nb->nij", xr, T4, xr)
-        C += _EYE3[None] / Wsum
-        if with_scale:
-            C += Rx[:, :, None] * Rx[:, None, :] / a
+    Q, pm = _cofactor(S, Wsum, scale=scale, angles=angles, source_centroid=source_centroid,
+                      with_scale=with_scale)
+    n = xr.shape[0]
+    red = np.empty((n, 3))
+    wn = np.empty((n, 3))
+    C = np.empty((n, 3, 3)) if blocks else None
+    for i in range(0, n, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n)
+        _point_pass(pm, xr[i:j] @ pm.MT, v[i:j], None if w is None else w[i:j], sigma0_prior,
+                    red[i:j], wn[i:j], None if C is None else C[i:j])
     return LinearisedStatistics(Q, vtpv, red, wn, C)
+
+
+def residual_statistics(
+    x: np.ndarray,
+    X: np.ndarray,
+    *,
+    scale: float,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+    angles: tuple[float, float, float],
+    source_centroid: np.ndarray,
+    scatter: np.ndarray,
+    weight_sum: float,
+    weights: np.ndarray | None = None,
+    sigma0_prior: float = 1.0,
+    with_scale: bool = True,
+) -> tuple[LinearisedStatistics, np.ndarray]:
+    """Residuals ``v = s R x + t - X`` (computed minus observed) and the statistics of
+    :func:`linearised_statistics`, in one chunked pass over the points.
+
+    ``rotation`` is the R of the reported model (the raw closed form's may be slightly
+    non-orthogonal); the linearisation uses ``R(angles)``. ``scatter`` is the weighted
+    centred source scatter and ``weight_sum`` the sum of the weights (the moments).
+    """
+    Q, pm = _cofactor(scatter, weight_sum, scale=scale, angles=angles,
+                      source_centroid=source_centroid, with_scale=with_scale)
+    xg = np.asarray(source_centroid, dtype=float)
+    sR = scale * np.asarray(rotation, dtype=float)
+    k = sR @ xg + translation  # v = sR x' + k - X
+    n = x.shape[0]
+    v = np.empty((n, 3))
+    red = np.empty((n, 3))
+    wn = np.empty((n, 3))
+    vtpv = 0.0
+    if n <= 2048:  # few points: one chunk, plain broadcasting
+        xr = x - xg
+        np.matmul(xr, sR.T, out=v)
+        v += k
+        v -= X
+        vtpv = float(np.vdot(v, v)) if weights is None else float(
+            np.einsum("ij,ij,i->", v, v, weights))
+        _point_pass(pm, xr @ pm.MT, v, weights, sigma0_prior, red, wn, None)
+        return LinearisedStatistics(Q, vtpv, red, wn, None), v
+    # row-wise broadcasting over 3 columns is slow in numpy: centre and shift the chunks as
+    # flat arrays against tiled vectors
+    m0 = min(CHUNK_POINTS, n)
+    xg_t = np.tile(xg, m0)
+    k_t = np.tile(k, m0)
+    x_flat = x.reshape(-1)
+    for i in range(0, n, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n)
+        m3 = 3 * (j - i)
+        xr = (x_flat[3 * i:3 * j] - xg_t[:m3]).reshape(-1, 3)
+        vc = v[i:j]
+        np.matmul(xr, sR.T, out=vc)
+        vflat = vc.reshape(-1)
+        vflat += k_t[:m3]
+        vc -= X[i:j]
+        Y = xr @ pm.MT
+        wc = None if weights is None else weights[i:j]
+        if wc is None:
+            vtpv += float(np.vdot(vc, vc))
+        else:
+            vtpv += float(np.einsum("ij,ij,i->", vc, vc, wc))
+        _point_pass(pm, Y, vc, wc, sigma0_prior, red[i:j], wn[i:j], None)
+    return LinearisedStatistics(Q, vtpv, red, wn, None), v
 
 
 _EYE3 = np.eye(3)

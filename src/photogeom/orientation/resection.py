@@ -22,7 +22,7 @@ import numpy as np
 from numpy.polynomial import polynomial as npoly
 
 from ..adjust import Fit, gauss_markov
-from ..camera.collinearity import IO_PARAMETERS, FrameCamera, project, projection_derivatives
+from ..camera.collinearity import IO_PARAMETERS, FrameCamera, _projection_derivatives, project
 from ..camera.distortion import COEFFICIENTS, BrownDistortion
 from ..camera.exterior import NAMES as EO_NAMES
 from ..camera.exterior import ExteriorOrientation
@@ -133,21 +133,24 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
     sols: list[ExteriorOrientation] = []
     seen: list[np.ndarray] = []
     dres = npoly.polyder(res) if res.size > 1 else res
+    # scalar polynomial values by Horner's rule (coefficients in increasing powers)
+    c_res, c_dres, c_d0, c_d1 = (list(map(float, c)) for c in (res, dres, d0, d1))
+    c_q0, c_q1 = list(map(float, q0)), list(map(float, q1))
     for r in roots:
         if abs(r.imag) > 1e-6 * (1.0 + abs(r.real)) or r.real <= 0:
             continue
         v = float(r.real)
         for _ in range(3):  # polish the companion-matrix root by Newton steps
-            dv = npoly.polyval(v, dres)
+            dv = _horner(c_dres, v)
             if dv == 0:
                 break
-            v -= npoly.polyval(v, res) / dv
-        den = npoly.polyval(v, d1)
+            v -= _horner(c_res, v) / dv
+        den = _horner(c_d1, v)
         us = []
         if abs(den) > 1e-10:
-            us.append(-npoly.polyval(v, d0) / den)  # (p - q)(u) = -d1 u - d0 = 0
+            us.append(-_horner(c_d0, v) / den)  # (p - q)(u) = -d1 u - d0 = 0
         else:  # p and q share both roots: solve q(u) = 0
-            qq = [npoly.polyval(v, q0), npoly.polyval(v, q1), 1.0]
+            qq = [_horner(c_q0, v), _horner(c_q1, v), 1.0]
             us.extend(x.real for x in npoly.polyroots(qq) if abs(x.imag) < 1e-9)
         for u in us:
             if u <= 0:
@@ -159,7 +162,8 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
             pc = np.array([s1, u * s1, v * s1])[:, None] * j
             R, t = _rigid_from_pairs(pc, G)
             key = np.concatenate([t, R.ravel()])
-            if any(np.allclose(key, k, rtol=1e-9, atol=1e-9 * (1 + np.abs(t).max())) for k in seen):
+            tol = 1e-9 * (1 + float(np.abs(t).max()))
+            if any(float(np.max(np.abs(key - k) - 1e-9 * np.abs(k))) <= tol for k in seen):
                 continue
             seen.append(key)
             try:
@@ -167,6 +171,14 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
             except PhotogeomError:  # pragma: no cover - defensive
                 continue
     return sols
+
+
+def _horner(coefficients: list, v: float) -> float:
+    """Value at ``v`` of the polynomial with ``coefficients`` in increasing powers."""
+    out = 0.0
+    for c in reversed(coefficients):
+        out = out * v + c
+    return out
 
 
 # --- start values ----------------------------------------------------------------------------
@@ -343,27 +355,26 @@ def space_resection(
     if any(c in COEFFICIENTS for c in calib) and io0.distortion is None:
         io0 = replace(io0, distortion=BrownDistortion())
 
-    def unpack(x: np.ndarray) -> tuple[InteriorOrientation, ExteriorOrientation]:
-        eo = ExteriorOrientation(*x[:6])
+    def unpack_io(x: np.ndarray) -> InteriorOrientation:
         if not calib:
-            return io0, eo
+            return io0
         vals = dict(zip(calib, x[6:]))
         base = {k: vals[k] for k in ("f", "x0", "y0", "b1", "b2") if k in vals}
         dist = io0.distortion
         dk = {k: vals[k] for k in COEFFICIENTS if k in vals}
         if dk:
             dist = replace(dist or BrownDistortion(), **dk)
-        return replace(io0, distortion=dist, **base) if (base or dk) else io0, eo
+        return replace(io0, distortion=dist, **base) if (base or dk) else io0
 
     cache: dict[bytes, object] = {}
 
     def derivs(x: np.ndarray):
+        # the engine asks for the model and the Jacobian at the same x: one evaluation
         key = x.tobytes()
         if key not in cache:
             cache.clear()
-            i_, e_ = unpack(x)
             try:
-                cache[key] = projection_derivatives(gc, i_, e_, calib)
+                cache[key] = _projection_derivatives(gc, unpack_io(x), x[:3], x[3:6], calib)
             except PhotogeomError:
                 cache[key] = None
         return cache[key]
@@ -397,7 +408,7 @@ def space_resection(
     )
     x = adj.x.copy()
     x[:3] += centre
-    io_hat, eo_hat = unpack(adj.x)
+    io_hat = unpack_io(adj.x)
     eo_hat = ExteriorOrientation(*x[:6])
     wdepth = eo_hat.to_camera(g)[:, 2]
     if np.any(wdepth >= 0):
