@@ -191,3 +191,17 @@ def test_units_helpers():
     assert pg.gon2deg(400) == pytest.approx(360)
     assert pg.to_radians(200, "gon") == pytest.approx(np.pi)
     assert pg.from_radians(np.pi, "arcsec") == pytest.approx(648000)
+
+
+@given(angle, phi_ok, angle)
+@settings(max_examples=40, deadline=None)
+def test_scalar_matrix_and_derivatives_match_central_differences(w, p, k):
+    M, dM = rot.opk_matrix_and_derivatives(w, p, k)
+    np.testing.assert_allclose(M, pg.opk_matrix(w, p, k), atol=1e-15)
+    h = 1e-6
+    for j, d in enumerate(dM):
+        a = np.array([w, p, k])
+        b = a.copy()
+        a[j] += h
+        b[j] -= h
+        np.testing.assert_allclose(d, (pg.opk_matrix(*a) - pg.opk_matrix(*b)) / (2 * h), atol=1e-8)

@@ -19,6 +19,7 @@ coordinates (``R @ x``), exactly as our ``R``.
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -85,6 +86,28 @@ def opk_matrix(omega, phi, kappa) -> np.ndarray:
             [sp, -cp * sw, cp * cw],
         ]
     )
+
+
+def opk_matrix_and_derivatives(
+    omega: float, phi: float, kappa: float
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``M = M3(kappa) M2(phi) M1(omega)`` and ``dM/domega, dM/dphi, dM/dkappa`` (radians).
+
+    Scalar arithmetic for one attitude: each derivative replaces one elementary factor by
+    its derivative. Cheaper than the broadcasting builders where it is called once per
+    iteration (resection, absolute orientation).
+    """
+    cw, sw = math.cos(omega), math.sin(omega)
+    cp, sp = math.cos(phi), math.sin(phi)
+    ck, sk = math.cos(kappa), math.sin(kappa)
+    M1 = np.array([[1.0, 0.0, 0.0], [0.0, cw, sw], [0.0, -sw, cw]])
+    M2 = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])
+    M3 = np.array([[ck, sk, 0.0], [-sk, ck, 0.0], [0.0, 0.0, 1.0]])
+    dM1 = np.array([[0.0, 0.0, 0.0], [0.0, -sw, cw], [0.0, -cw, -sw]])
+    dM2 = np.array([[-sp, 0.0, -cp], [0.0, 0.0, 0.0], [cp, 0.0, -sp]])
+    dM3 = np.array([[-sk, ck, 0.0], [-ck, -sk, 0.0], [0.0, 0.0, 0.0]])
+    M32 = M3 @ M2
+    return M32 @ M1, (M32 @ dM1, M3 @ dM2 @ M1, dM3 @ (M2 @ M1))
 
 
 def opk_from_matrix(

@@ -11,12 +11,12 @@ vectorised over points. A point is *in front of* the camera when its camera-fram
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
+from ..rotation import opk_matrix_and_derivatives
 from ..validation import as_points
 from .distortion import CHUNK
 from .exterior import ExteriorOrientation
@@ -207,24 +207,6 @@ def ground_at_height(
 # --- derivatives (used by resection, intersection and self-calibration) --------------------
 
 
-def _rotation_and_derivatives(omega: float, phi: float, kappa: float):
-    """``M = M3(kappa) M2(phi) M1(omega)`` and its derivatives by the three angles (radians),
-    in scalar arithmetic: one small matrix each, without the broadcasting builders (which
-    cost more than a whole iteration of a small resection)."""
-    cw, sw = math.cos(omega), math.sin(omega)
-    cp, sp = math.cos(phi), math.sin(phi)
-    ck, sk = math.cos(kappa), math.sin(kappa)
-    M1 = np.array([[1.0, 0.0, 0.0], [0.0, cw, sw], [0.0, -sw, cw]])
-    M2 = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])
-    M3 = np.array([[ck, sk, 0.0], [-sk, ck, 0.0], [0.0, 0.0, 1.0]])
-    dM1 = np.array([[0.0, 0.0, 0.0], [0.0, -sw, cw], [0.0, -cw, -sw]])
-    dM2 = np.array([[-sp, 0.0, -cp], [0.0, 0.0, 0.0], [cp, 0.0, -sp]])
-    dM3 = np.array([[-sk, ck, 0.0], [-ck, -sk, 0.0], [0.0, 0.0, 0.0]])
-    M32 = M3 @ M2
-    M21 = M2 @ M1
-    return M32 @ M1, (M32 @ dM1, M3 @ dM2 @ M1, dM3 @ M21)
-
-
 @dataclass(frozen=True)
 class ProjectionDerivatives:
     """Image coordinates and their derivatives for n points.
@@ -269,7 +251,7 @@ def _projection_derivatives(
 ) -> ProjectionDerivatives:
     """:func:`projection_derivatives` for ground points (n, 3), the projection centre (3,)
     and the angles (radians) as plain values."""
-    M, dMs = _rotation_and_derivatives(*angles)
+    M, dMs = opk_matrix_and_derivatives(*angles)
     n = g.shape[0]
     d = g - position
     p = d @ M.T

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..rotation import opk_matrix_and_derivatives
+
 
 def opk_transposed(R: np.ndarray) -> tuple[float, float, float, bool]:
     """``(omega, phi, kappa, gimbal)`` of ``R = M(omega, phi, kappa).T`` in radians.
@@ -49,19 +51,9 @@ def rotation_derivatives(omega: float, phi: float, kappa: float) -> tuple[np.nda
     derivatives replace one factor by its derivative. Scalar arithmetic (called once per
     iteration or solve).
     """
-    cw, sw = math.cos(omega), math.sin(omega)
-    cp, sp = math.cos(phi), math.sin(phi)
-    ck, sk = math.cos(kappa), math.sin(kappa)
-    M1 = np.array([[1.0, 0.0, 0.0], [0.0, cw, sw], [0.0, -sw, cw]])
-    M2 = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])
-    M3 = np.array([[ck, sk, 0.0], [-sk, ck, 0.0], [0.0, 0.0, 1.0]])
-    D1 = np.array([[0.0, 0.0, 0.0], [0.0, -sw, cw], [0.0, -cw, -sw]])
-    D2 = np.array([[-sp, 0.0, -cp], [0.0, 0.0, 0.0], [cp, 0.0, -sp]])
-    D3 = np.array([[-sk, ck, 0.0], [-ck, -sk, 0.0], [0.0, 0.0, 0.0]])
-    M32 = M3 @ M2
-    M21 = M2 @ M1
-    R = (M32 @ M1).T
-    dR = np.stack([(M32 @ D1).T, (M3 @ D2 @ M1).T, (D3 @ M21).T])
+    M, dM = opk_matrix_and_derivatives(omega, phi, kappa)
+    R = M.T
+    dR = np.stack([d.T for d in dM])
     return R, dR
 
 
