@@ -22,6 +22,7 @@ import numpy as np
 from numpy.polynomial import polynomial as npoly
 
 from ..adjust import Fit, gauss_markov
+from ..camera._checks import with_check_points
 from ..camera.collinearity import IO_PARAMETERS, FrameCamera, _projection_derivatives, project
 from ..camera.distortion import COEFFICIENTS, BrownDistortion
 from ..camera.exterior import NAMES as EO_NAMES
@@ -434,14 +435,16 @@ def space_resection(
         elapsed=time.perf_counter() - t0,
         notes=(f"self-calibrated: {', '.join(calib)}",) if calib else (),
     )
-    if check_ground is not None or check_image is not None:
-        cg = as_points(check_ground, 3, "check ground points")
-        ci = as_points(check_image, 2, "check image points")
-        check_same_length(cg, ci, "check ground points", "check image points")
-        if system == "pixel":
-            ci = io.pixel_to_image(ci, pixel_origin)
-        fit = fit.with_checks(project(cg, io_hat, eo_hat, behind="nan") - ci, check_ids)
-    return fit
+    return with_check_points(
+        fit,
+        lambda g: project(g, io_hat, eo_hat, behind="nan"),
+        check_ground,
+        check_image,
+        check_ids,
+        observed_to_image=(
+            (lambda ci: io.pixel_to_image(ci, pixel_origin)) if system == "pixel" else None
+        ),
+    )
 
 
 def _io_value(io: InteriorOrientation, name: str) -> float:
