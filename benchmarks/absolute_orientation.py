@@ -23,6 +23,7 @@ import sys
 import time
 
 import numpy as np
+import scipy.linalg.lapack
 from scipy.spatial.transform import Rotation
 
 import photogeom as pg
@@ -89,6 +90,25 @@ def peers():
     return out
 
 
+FLOOR = "floor: bare SVD solution, 8 numpy/LAPACK calls"
+
+
+def svd_floor(x, X):
+    """The SVD solution (s, R, t) in the fewest numpy calls, with no input checks, no
+    degeneracy or reflection test and no result object: what any numpy implementation
+    must at least spend per call (the lower bound for the single-solve ratios)."""
+    n = x.shape[0]
+    Z = np.concatenate((x, X), axis=1)
+    mu = Z.sum(axis=0) / n
+    Zr = Z - mu
+    C = Zr.T @ Zr
+    u, S, vt, _ = scipy.linalg.lapack.dgesvd(C[:3, 3:])
+    R = vt.T @ u.T
+    c = C.diagonal()
+    s = S.sum() / c[:3].sum()
+    return s, R, mu[3:] - s * (R @ mu[:3])
+
+
 def section_single(sizes, min_time):
     print("\n1. single solves: microseconds per call (median)")
     peer_fns = peers()
@@ -108,6 +128,7 @@ def section_single(sizes, min_time):
     ]
     for name, fn in peer_fns.items():
         rows[name] = [median_time(lambda n=n, fn=fn: fn(*data[n][:2]), min_time) for n in sizes]
+    rows[FLOOR] = [median_time(lambda n=n: svd_floor(*data[n][:2]), min_time) for n in sizes]
     for name, ts in rows.items():
         print(f"{name:<48}" + "".join(f"{t * 1e6:>12.1f}" for t in ts))
     print("ratios (time of the other / time of our SVD, parameters only; > 1: ours faster)")
@@ -116,6 +137,11 @@ def section_single(sizes, min_time):
         if name == "svd":
             continue
         print(f"  {name:<46}" + "".join(f"{t / o:>12.2f}" for t, o in zip(ts, ours)))
+    for name, ts in rows.items():
+        if name.startswith("scikit-image"):
+            print("ratio scikit-image / floor (what a check-free numpy implementation "
+                  "would show)")
+            print(f"  {'':<46}" + "".join(f"{t / f:>12.2f}" for t, f in zip(ts, rows[FLOOR])))
     return rows
 
 

@@ -254,3 +254,22 @@ def test_cheap_geometry_certificate_never_overrules_the_rank_rule(d):
                         assert est._rank(pts)[0] >= need, (ratio, offset, n, need)
     # a clearly spread set is certified (the cheap path is taken)
     assert est._spread_certified(rng.normal(size=(20, d)), d)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_joint_certificate_of_two_point_sets(d):
+    """One scatter of both sets certifies each of them exactly when the separate certificates
+    do (and so never overrules the rank rule either): flattened sets on either side, far from
+    the origin or not."""
+    rng = np.random.default_rng(10 + d)
+    sets = []
+    for ratio in (1.0, 1e-6, 1e-11, 1e-13, 0.0):
+        for offset in (0.0, 1e6):
+            pts = rng.normal(size=(25, d))
+            pts[:, -1] *= ratio
+            sets.append(pts @ np.linalg.qr(rng.normal(size=(d, d)))[0] + offset)
+    for a in sets:
+        for b in sets[::3]:
+            for need in range(2, d + 1):
+                separate = est._spread_certified(a, need) and est._spread_certified(b, need)
+                assert est._pair_certified(a, b, need) == separate

@@ -298,8 +298,11 @@ def _statistics(
     return vtpv, red, w
 
 
-def _bare(x, names, n, u, redundancy, sigma0_prior, iterations, converged, history, message):
-    """An Adjustment without statistics (``statistics=False``)."""
+def bare_adjustment(
+    x, names, n, u, redundancy, sigma0_prior, iterations, converged, history, message
+) -> Adjustment:
+    """An Adjustment without statistics (``statistics=False``): the estimate ``x`` of ``u``
+    parameters from ``n`` observations, NaN cofactor, no residuals."""
     return Adjustment(
         x=x,
         names=names,
@@ -382,7 +385,7 @@ def solve_linear(
     Aw = wh.apply(A)
     x, F = _solve(Aw, wh.apply(L), names, H, h, what)
     if not statistics:
-        return _bare(x, names, n, u, n - u + c, sigma0_prior, 0, True, (), "linear solve")
+        return bare_adjustment(x, names, n, u, n - u + c, sigma0_prior, 0, True, (), "linear solve")
     v = A @ x - L
     vtpv, red, w = _statistics(A, v, F, wh, sigma0_prior, Aw)
     return Adjustment(
@@ -556,8 +559,9 @@ def gauss_markov(
             iterations=it,
         )
     if not statistics:
-        return _bare(x, names, n, u, n - u + nc, sigma0_prior, it, converged, tuple(history),
-                     message)
+        return bare_adjustment(
+            x, names, n, u, n - u + nc, sigma0_prior, it, converged, tuple(history), message
+        )
     if f is None:
         f = _flat(model(x))
     v = f - L
