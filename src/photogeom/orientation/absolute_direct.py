@@ -239,14 +239,17 @@ def _raw_moments_chunked(
     rx = None if ref_x is None else np.tile(ref_x, 4)
     rX = None if ref_X is None else np.tile(ref_X, 4)
     ones = np.ones(CHUNK_POINTS // 4)
+    # reduced chunks go to buffers that stay in the CPU cache (no new array per chunk)
+    buf_x = None if rx is None else np.empty((CHUNK_POINTS // 4, 12))
+    buf_X = None if rX is None else np.empty((CHUNK_POINTS // 4, 12))
     for i in range(0, n4, CHUNK_POINTS):
         j = min(i + CHUNK_POINTS, n4)
         A = x[i:j].reshape(-1, 12)
         B = X[i:j].reshape(-1, 12)
         if rx is not None:
-            A = A - rx
+            A = np.subtract(A, rx, out=buf_x[: A.shape[0]])
         if rX is not None:
-            B = B - rX
+            B = np.subtract(B, rX, out=buf_X[: B.shape[0]])
         o = ones[: A.shape[0]]
         if w is None:
             Aw, Bw = A, B
