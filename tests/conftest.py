@@ -3,6 +3,12 @@
 One BLAS thread per test process: the suite runs with ``pytest -n 2`` on two cores, and
 multithreaded BLAS in each worker oversubscribes the cores, which makes the many small
 least-squares solves of the tests orders of magnitude slower. Set before numpy loads.
+
+Property tests (hypothesis) draw the same examples on every run (profile "repeatable", the
+default, no per-example deadline), so that a test run - and CI - gives the same verdict for
+the same code whatever the load of the machine. To search for new counter-examples, run
+with ``HYPOTHESIS_PROFILE=explore`` (random draws, failures kept in the local example
+database).
 """
 
 import os
@@ -12,6 +18,11 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 
 import pytest  # noqa: E402  (after the thread settings above)
+from hypothesis import settings  # noqa: E402
+
+settings.register_profile("repeatable", derandomize=True, database=None, deadline=None)
+settings.register_profile("explore", derandomize=False, deadline=None)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
 
 @pytest.fixture

@@ -71,6 +71,7 @@ def gauss_newton_unit(
     for it in range(1, max_iter + 1):
         if not math.isfinite(cost):
             return None
+        limit = tol * (1.0 + math.sqrt(cost / (n * d))) + floor
         a = u1 / w[:, None]  # d X_k / d H[k] = [u, 1] / w
         for k in range(d):
             J[:, k, k * m:(k + 1) * m] = a
@@ -81,7 +82,6 @@ def gauss_newton_unit(
         if info != 0:
             return None
         step = float(np.abs(Jm @ dx).max())
-        limit = tol * (1.0 + math.sqrt(cost / (n * d))) + floor
         h_flat[:-1] -= dx
         if step <= limit:
             # the engine's rank check at the solution: a reciprocal condition estimate of N

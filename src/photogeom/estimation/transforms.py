@@ -677,21 +677,32 @@ def _proj_back(
 ) -> tuple[object, np.ndarray, np.ndarray | None]:
     """The transformation, its raw parameters and d p_raw / d p_n (None unless ``jacobian``)
     from normalised ones: H = Tt^-1 H_n Ts / h_last."""
-    Hn = _homogeneous(p_n, d)
-    # H_n Ts with Ts = [[I / ks, -cs / ks], [0, 1]], then Tt^-1 = [[kt I, ct], [0, 1]] on the left
-    Hr = np.empty_like(Hn)
-    Hr[:, :d] = Hn[:, :d] / ns.scale
-    Hr[:, d] = Hn[:, d] - Hr[:, :d] @ ns.centre
-    Hr[:d] = nt.scale * Hr[:d] + nt.centre[:, None] * Hr[d]
-    h = Hr.reshape(-1)
-    last = float(h[-1])
-    if abs(last) <= 1e-14 * float(np.abs(h).max()):
+    m = d + 1
+    hn = p_n.tolist()
+    hn.append(1.0)
+    ks, cs = float(ns.scale), ns.centre.tolist()
+    kt, ct = float(nt.scale), nt.centre.tolist()
+    # H_n Ts with Ts = [[I / ks, -cs / ks], [0, 1]], then Tt^-1 = [[kt I, ct], [0, 1]] on the
+    # left (scalar arithmetic: (d+1)^2 elements)
+    rows = []
+    for i in range(m):
+        r = [v / ks for v in hn[i * m:i * m + d]]
+        r.append(hn[i * m + d] - sum(a * c for a, c in zip(r, cs)))
+        rows.append(r)
+    bottom = rows[d]
+    h = []
+    for i in range(d):
+        h.extend(kt * a + ct[i] * b for a, b in zip(rows[i], bottom))
+    h.extend(bottom)
+    last = h[-1]
+    if abs(last) <= 1e-14 * max(map(abs, h)):
         raise DegenerateGeometryError(
             "projective: the estimated transformation sends the source origin to infinity, so "
             "it cannot be written with its last element 1; shift the source coordinates"
         )
-    tf = _projective(Hr / last, d)
-    p = h[:-1] / last
+    h = [v / last for v in h]
+    tf = _projective(np.array(h).reshape(m, m), d)
+    p = np.array(h[:-1])
     if not jacobian:
         return tf, p, None
     Tt_inv = np.eye(d + 1)
@@ -716,49 +727,91 @@ def _proj_forward(p_raw: np.ndarray, ns, nt, d: int) -> np.ndarray:
 
 
 def _linearised_start(
-    u: np.ndarray, X: np.ndarray, ns, what: str, row_scale: np.ndarray | None = None
-) -> tuple[np.ndarray, float]:
+    u: np.ndarray, X: np.ndarray, ns, what: str, reweight: bool = False
+) -> tuple[np.ndarray, float, np.ndarray]:
     """The lecture's linearised least squares (observations on both sides) with ``h_last = 1``
-    in the *raw* coordinates.
+    in the *raw* coordinates, and the start of the adjustment.
 
     Solved in normalised coordinates (``u`` source, ``X`` target) as the homogeneous problem
     ``min |A h|^2`` subject to the linear constraint (raw last element) ``c.h = 1``:
     ``h = N^-1 c / (c.N^-1 c)`` with ``N = R.T R`` from a QR factorisation of ``A`` (no normal
-    equations are formed); ``v.T v = 1 / (c.N^-1 c)``. Returns ``h`` (normalised, (d+1)^2) and
-    ``v.T v`` in normalised target units. Used for initial values and reported as the
-    linearised solution; the estimate itself is the adjustment that follows.
+    equations are formed); ``v.T v = 1 / (c.N^-1 c)``. Used for initial values and reported
+    as the linearised solution; the estimate itself is the adjustment that follows.
 
-    ``row_scale`` (n,) multiplies the equations of each point (1 / w_i turns the algebraic
-    residuals into first-order coordinate residuals: a start closer to the adjustment).
+    Returns ``h`` (normalised, (d+1)^2), its ``v.T v`` in normalised target units, and the
+    start: with ``reweight``, the same equations solved again with those of each point
+    multiplied by ``1 / w_i`` (the denominator at ``h``), which turns the algebraic residuals
+    into first-order coordinate residuals (a start closer to the adjustment); otherwise, or
+    when a denominator nearly vanishes, ``h`` itself.
     """
     n, d = u.shape
-    npar = (d + 1) ** 2
+    m = d + 1
+    npar = m * m
     # raw h_last = (H_n Ts)[d, d] = h_n[d, :d] . (-centre / scale) + h_n[d, d]
     cons = np.zeros(npar)
-    cons[d * (d + 1):] = (*(-ns.centre / ns.scale), 1.0)
-    if n * d >= NORMAL_FROM:
-        out = _linearised_normal(u, X, cons, row_scale)
-        if out is not None:
-            return out
-    A = np.zeros((n, d, npar))
-    ur = u if row_scale is None else u * row_scale[:, None]
-    one = -1.0 if row_scale is None else -row_scale
+    cons[d * m:] = (*(-ns.centre / ns.scale), 1.0)
+    u1 = np.empty((n, m))
+    u1[:, :d] = u
+    u1[:, d] = 1.0
+    A = None
+    out = _linearised_normal(u, X, cons, None) if n * d >= NORMAL_FROM else None
+    if out is None:
+        A = _linearised_design(u1, X)
+        out = _constrained_null_vector(A.reshape(n * d, npar), cons, what)
+    h, vtv = out
+    if abs(float(h[-1])) <= 1e-12 * float(np.abs(h).max()):
+        raise DegenerateGeometryError(
+            f"{what}: the linearised solution maps the centroid of the source points to "
+            "infinity; the point configuration does not determine a projective transformation"
+        )
+    if not reweight:
+        return h, vtv, h
+    wl = u1 @ h[d * m:]
+    awl = np.abs(wl)
+    if not (awl > 1e-6 * awl.max()).all():
+        return h, vtv, h
+    row_scale = 1.0 / wl
+    out = _linearised_normal(u, X, cons, row_scale) if A is None else None
+    if out is None:
+        if A is None:
+            A = _linearised_design(u1, X)
+        A *= row_scale[:, None, None]
+        out = _constrained_null_vector(A.reshape(n * d, npar), cons, what)
+    return h, vtv, out[0]
+
+
+def _linearised_design(u1: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Design (n, d, (d+1)^2) of the linearised equations: for coordinate k of a point,
+    ``-[u, 1]`` in block k and ``X_k [u, 1]`` in the last block (``u1 = [u, 1]``)."""
+    n, m = u1.shape
+    d = m - 1
+    A = np.zeros((n, d, m * m))
+    neg = -u1
     for k in range(d):
-        base = k * (d + 1)
-        A[:, k, base:base + d] = -ur
-        np.multiply(ur, X[:, k:k + 1], out=A[:, k, d * (d + 1):d * (d + 1) + d])
-        A[:, k, base + d] = one
-        A[:, k, d * (d + 1) + d] = X[:, k] if row_scale is None else X[:, k] * row_scale
-    Rf = r_factor(A.reshape(n * d, npar))
-    if Rf.shape[0] == npar:
-        # cond(R) <= |R|_F |R^-1|_F < 1e12 proves both rank checks below: no SVD needed
-        Rinv, info = _lapack.dtrtri(Rf, lower=0)
+        A[:, k, k * m:(k + 1) * m] = neg
+    np.multiply(X[:, :, None], u1[:, None, :], out=A[:, :, d * m:])
+    return A
+
+
+def _constrained_null_vector(
+    A: np.ndarray, cons: np.ndarray, what: str
+) -> tuple[np.ndarray, float]:
+    """``min |A h|^2`` subject to ``cons.h = 1`` and its ``|A h|^2``, from a QR factorisation
+    of ``A`` (m x p); raises when ``A`` has a null space of more than one dimension."""
+    m, npar = A.shape
+    if m >= npar:
+        qr, _tau, _work, info = _lapack.dgeqrf(A)
         if info == 0:
-            bound = float(np.vdot(Rf, Rf)) * float(np.vdot(Rinv, Rinv))
-            if math.isfinite(bound) and bound < 1e24:
-                y = Rinv.T @ cons
+            R = qr[:npar]  # upper triangle: R (LAPACK reads only that part below)
+            # LAPACK's estimate of cond_1(R) far below 1e12 (a margin of 100 for the
+            # estimate) passes both rank checks below: no SVD needed
+            rcond, info = _lapack.dtrcon(R)
+            if info == 0 and rcond > 1e-10:
+                y, _ = _lapack.dtrtrs(R, cons, trans=1)  # R.T y = c
+                h, _ = _lapack.dtrtrs(R, y)
                 yy = float(y @ y)
-                return (Rinv @ y) / yy, 1.0 / yy
+                return h / yy, 1.0 / yy
+    Rf = r_factor(A)
     R = np.zeros((npar, npar))
     R[: Rf.shape[0]] = Rf  # square (zero rows when there are fewer equations than unknowns)
     sv = np.linalg.svd(R, compute_uv=False)
@@ -854,14 +907,13 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
     ns, u = _normalised(src)
     nt, X = _normalised(dst, scaled=False)  # the adjustment works on the centred target
     Xn = X / nt.scale
-    h_lin, vtv_lin = _linearised_start(u, Xn, ns, what)
+    reweight = errors_in == "target" and obs.covariance is None
+    # the start: the linearised solution (with errors in the target its equations reweighted
+    # by 1 / w_i: first-order coordinate residuals, a start that saves the adjustment an
+    # iteration), with the target scale undone below (rows of H_n times kt)
+    h_lin, vtv_lin, h0 = _linearised_start(u, Xn, ns, what, reweight=reweight)
     ks, kt = ns.scale, nt.scale
     names = (Projective2D if d == 2 else Projective3D).names
-    if abs(float(h_lin[-1])) <= 1e-12 * float(np.abs(h_lin).max()):
-        raise DegenerateGeometryError(
-            f"{what}: the linearised solution maps the centroid of the source points to "
-            "infinity; the point configuration does not determine a projective transformation"
-        )
     linear_info = None
     if statistics:
         # the linearised solution in raw coordinates (what the lecture prints)
@@ -876,15 +928,6 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
                     "(observations on both sides; residuals are algebraic, not coordinate "
                     "residuals)",
         }
-    # the start: the linearised solution with the target scale undone (rows of H_n times
-    # kt); with errors in the target its equations reweighted by 1 / w_i first (first-order
-    # coordinate residuals: a start that saves the adjustment an iteration)
-    h0 = h_lin
-    if errors_in == "target" and obs.covariance is None:
-        wl = _affine_rows(h_lin.reshape(d + 1, d + 1)[d:], u)[:, 0]
-        awl = np.abs(wl)
-        if (awl > 1e-6 * awl.max()).all():
-            h0 = _linearised_start(u, Xn, ns, what, row_scale=1.0 / wl)[0]
     Hl = h0.reshape(d + 1, d + 1).copy()
     Hl[:d] *= kt
     p0 = (Hl / Hl[d, d]).reshape(-1)[:-1]
