@@ -308,9 +308,11 @@ def _spread_certified(points: np.ndarray, need_rank: int) -> bool:
     return _scatter_certified((c.T @ c).tolist(), n, d, need_rank)
 
 
-def _scatter_certified(S: list, n: int, d: int, need_rank: int) -> bool:
-    """:func:`_spread_certified` from the scatter matrix ``S`` (nested lists, d x d) of n
-    centred points."""
+def _scatter_certified(S: list, n: int, d: int, need_rank: int, k: int = 0) -> bool:
+    """:func:`_spread_certified` from the scatter matrix of n centred points: the d x d block
+    of ``S`` (nested lists) that starts at row and column ``k``."""
+    if k:
+        S = [r[k:k + d] for r in S[k:k + d]]
     e1 = sum(S[i][i] for i in range(d))
     if not (e1 > 0 and math.isfinite(e1)):
         return False
@@ -329,17 +331,47 @@ def _scatter_certified(S: list, n: int, d: int, need_rank: int) -> bool:
     return det > 1e-14 * e1 * e2 and det > thr * e1 * e1 * e1
 
 
+@dataclass(frozen=True, slots=True)
+class _CentredPair:
+    """Source and target points centred together (one pass for the geometry check and the
+    normalisation of the projective fits)."""
+
+    centre: np.ndarray  # (2 d,): source centroid, then target centroid
+    centred: np.ndarray  # (n, 2 d): centred source, then centred target coordinates
+    scatter: list  # (2 d) x (2 d) nested lists: centred.T @ centred
+
+    @classmethod
+    def of(cls, src: np.ndarray, dst: np.ndarray) -> _CentredPair:
+        n = src.shape[0]
+        Z = np.concatenate((src, dst), axis=1)
+        mu = np.add.reduce(Z, axis=0) / n
+        Z -= mu
+        return cls(mu, Z, (Z.T @ Z).tolist())
+
+    def normalization(self, side: int, d: int) -> PointNormalization:
+        """:func:`_normalised` of the source (side 0) or target (side 1) from the scatter."""
+        k = side * d
+        n = self.centred.shape[0]
+        rms = math.sqrt(sum(self.scatter[k + i][k + i] for i in range(d)) / (n * d))
+        if not math.isfinite(rms) or rms <= 0.0:
+            rms = 1.0
+        return PointNormalization(self.centre[k:k + d], rms)
+
+    def certified(self, need_rank: int) -> bool:
+        """:func:`_spread_certified` of both point sets."""
+        S = self.scatter
+        n = self.centred.shape[0]
+        d = len(S) // 2
+        return _scatter_certified(S, n, d, need_rank) and _scatter_certified(
+            S, n, d, need_rank, d
+        )
+
+
 def _pair_certified(src: np.ndarray, dst: np.ndarray, need_rank: int) -> bool:
     """:func:`_spread_certified` of both point sets from one joint scatter matrix."""
-    n, d = src.shape
-    if n > 5000 or need_rank < 2:
+    if src.shape[0] > 5000 or need_rank < 2:
         return False
-    Z = np.concatenate((src, dst), axis=1)
-    Z -= np.add.reduce(Z, axis=0) / n
-    S = (Z.T @ Z).tolist()
-    return _scatter_certified([r[:d] for r in S[:d]], n, d, need_rank) and _scatter_certified(
-        [r[d:] for r in S[d:]], n, d, need_rank
-    )
+    return _CentredPair.of(src, dst).certified(need_rank)
 
 
 def _geometry(points: np.ndarray, need_rank: int, model: str, side: str, need: int) -> None:
@@ -382,8 +414,13 @@ def _general_position(points: np.ndarray, model: str, side: str) -> None:
             )
 
 
-def _validate_geometry(model: str, src: np.ndarray, dst: np.ndarray, need: int) -> None:
+def _validate_geometry(
+    model: str, src: np.ndarray, dst: np.ndarray, need: int
+) -> _CentredPair | None:
+    """Raise when the points cannot determine the model; for the projective models return
+    the centred pair the check computed (None for many points or other models)."""
     d = src.shape[1]
+    pair = None
     if model == "similarity2d":
         _geometry(src, 1, model, "source", need)
     elif model in ("rigid3d", "similarity3d"):
@@ -393,12 +430,15 @@ def _validate_geometry(model: str, src: np.ndarray, dst: np.ndarray, need: int) 
     elif model in ("affine2d", "affine3d", "polynomial2d", "polynomial3d"):
         _geometry(src, d, model, "source", need)
     elif model in ("projective2d", "projective3d"):
-        if not _pair_certified(src, dst, d):
+        if src.shape[0] <= 5000:
+            pair = _CentredPair.of(src, dst)
+        if pair is None or not pair.certified(d):
             _geometry(src, d, model, "source", need)
             _geometry(dst, d, model, "target", need)
         if src.shape[0] == need:
             _general_position(src, model, "source")
             _general_position(dst, model, "target")
+    return pair
 
 
 # --- combination of per-coordinate adjustments ---------------------------------------------------
@@ -748,8 +788,8 @@ def _linearised_start(
     m = d + 1
     npar = m * m
     # raw h_last = (H_n Ts)[d, d] = h_n[d, :d] . (-centre / scale) + h_n[d, d]
-    cons = np.zeros(npar)
-    cons[d * m:] = (*(-ns.centre / ns.scale), 1.0)
+    ks = float(ns.scale)
+    cons = np.array([0.0] * (d * m) + [-c / ks for c in ns.centre.tolist()] + [1.0])
     u1 = np.empty((n, m))
     u1[:, :d] = u
     u1[:, d] = 1.0
@@ -759,7 +799,8 @@ def _linearised_start(
         A = _linearised_design(u1, X)
         out = _constrained_null_vector(A.reshape(n * d, npar), cons, what)
     h, vtv = out
-    if abs(float(h[-1])) <= 1e-12 * float(np.abs(h).max()):
+    hl = h.tolist()
+    if abs(hl[-1]) <= 1e-12 * max(map(abs, hl)):
         raise DegenerateGeometryError(
             f"{what}: the linearised solution maps the centroid of the source points to "
             "infinity; the point configuration does not determine a projective transformation"
@@ -768,7 +809,7 @@ def _linearised_start(
         return h, vtv, h
     wl = u1 @ h[d * m:]
     awl = np.abs(wl)
-    if not (awl > 1e-6 * awl.max()).all():
+    if not awl.min() > 1e-6 * awl.max():
         return h, vtv, h
     row_scale = 1.0 / wl
     out = _linearised_normal(u, X, cons, row_scale) if A is None else None
@@ -902,10 +943,15 @@ _NOTE_RATIONAL = (
 
 
 def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
-                    statistics=True):
+                    statistics=True, pair: _CentredPair | None = None):
     n, d = src.shape
-    ns, u = _normalised(src)
-    nt, X = _normalised(dst, scaled=False)  # the adjustment works on the centred target
+    if pair is None:
+        ns, u = _normalised(src)
+        nt, X = _normalised(dst, scaled=False)  # the adjustment works on the centred target
+    else:  # the same, from the centring of the geometry check
+        ns, nt = pair.normalization(0, d), pair.normalization(1, d)
+        u = pair.centred[:, :d] * (1.0 / ns.scale)
+        X = pair.centred[:, d:]
     Xn = X / nt.scale
     reweight = errors_in == "target" and obs.covariance is None
     # the start: the linearised solution (with errors in the target its equations reweighted
@@ -1280,7 +1326,7 @@ def estimate_transform(
         if key == "similarity3d" and statistics:
             extras["helmert"] = _helmert_extras(fit)
     else:
-        _validate_geometry(key, sc, dc, need)
+        pair = _validate_geometry(key, sc, dc, need)
         if key == "similarity2d":
             tf, adj, p, J = _fit_similarity2d(sc, dc, obs, sigma0_prior, what, statistics)
             method = _METHOD_LINEAR
@@ -1298,7 +1344,7 @@ def estimate_transform(
             )
         else:
             tf, adj, p, J, method, note, lin, extra_res = _fit_projective(
-                sc, dc, obs, sigma0_prior, what, errors_in, max_iter, tol, statistics)
+                sc, dc, obs, sigma0_prior, what, errors_in, max_iter, tol, statistics, pair)
             if note:
                 notes.append(note)
             if lin is not None:
