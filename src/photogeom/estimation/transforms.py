@@ -60,7 +60,14 @@ from ..transforms import (
     polynomial_terms,
 )
 from ..validation import as_points, check_count, check_same_length
-from .projective_newton import gauss_newton_unit
+from .rational_projective import (
+    RationalModel,
+    affine_rows,
+    gauss_newton_unit,
+    homogeneous_matrix,
+    homogeneous_points,
+    rational_map,
+)
 
 #: Models accepted by :func:`estimate_transform` and their coordinate dimension.
 MODELS: dict[str, int] = {
@@ -82,7 +89,7 @@ SEPARABLE_FROM = 2000
 #: From this many condition equations on, the Gauss-Helmert B matrix is built sparse.
 SPARSE_FROM = 3000
 #: Largest number of points of a projective fit without statistics that takes the
-#: model-specific Gauss-Newton path (:mod:`.projective_newton`); beyond it the general
+#: model-specific Gauss-Newton path (:mod:`.rational_projective`); beyond it the general
 #: engine's column-wise Jacobian and normal-equation solver are faster (measured crossover
 #: between 5e3 and 1e5 points).
 LEAN_MAX_POINTS = 4096
@@ -608,83 +615,6 @@ def _fit_polynomial(src, dst, order, obs, sigma0_prior, what, force=None, statis
 # --- projective models -------------------------------------------------------------------------
 
 
-def _affine_rows(M: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """``[u, 1] @ M.T`` for points u (n, d) and M (k, d + 1)."""
-    d = u.shape[1]
-    return u @ M[:, :d].T + M[:, d]
-
-
-def _homogeneous(p: np.ndarray, d: int) -> np.ndarray:
-    """The (d+1, d+1) matrix of the (d+1)^2 - 1 parameters, last element 1."""
-    H = np.empty((d + 1) * (d + 1))
-    H[:-1] = p
-    H[-1] = 1.0
-    return H.reshape(d + 1, d + 1)
-
-
-def _proj_rational(p: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rational projective map of (normalised) points: (X (n, d), w (n,), H)."""
-    d = u.shape[1]
-    H = _homogeneous(p, d)
-    h = _affine_rows(H, u)
-    w = h[:, d]
-    return h[:, :d] / w[:, None], w, H
-
-
-class _Rational:
-    """The rational projective map of fixed (normalised) source points ``u`` as the engine's
-    model and Jacobian; the last evaluation is kept (the engine asks for both at the same
-    parameters)."""
-
-    def __init__(self, u: np.ndarray) -> None:
-        self.u = u
-        self.key = None
-        self.X = self.w = None
-
-    def _at(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        key = p.tobytes()
-        if key != self.key:
-            self.X, self.w, _ = _proj_rational(p, self.u)
-            self.key = key
-        return self.X, self.w
-
-    def model(self, p: np.ndarray) -> np.ndarray:
-        return self._at(p)[0].reshape(-1)
-
-    def jacobian(self, p: np.ndarray) -> np.ndarray:
-        X, w = self._at(p)
-        return _proj_jacobian(p, self.u, X, w)
-
-
-def _proj_jacobian(p: np.ndarray, u: np.ndarray, X=None, w=None) -> np.ndarray:
-    """d X / d p for the rational form, rows point by point: (n d, (d+1)^2 - 1)
-    (``X``, ``w``: the map at ``p`` when already known). Few points: built by blocks (fewest
-    calls); many: column by column (Fortran order: contiguous writes)."""
-    n, d = u.shape
-    if X is None:
-        X, w, _ = _proj_rational(p, u)
-    iw = 1.0 / w
-    ui = u * iw[:, None]
-    npar = (d + 1) ** 2 - 1
-    if n <= 4096:
-        J = np.zeros((n, d, npar))
-        for k in range(d):
-            base = k * (d + 1)
-            J[:, k, base:base + d] = ui
-            J[:, k, base + d] = iw
-        J[:, :, d * (d + 1):] = X[:, :, None] * -ui[:, None, :]
-        return J.reshape(n * d, -1)
-    Jt = np.zeros((npar, n, d))
-    for k in range(d):
-        base = k * (d + 1)
-        for j in range(d):
-            Jt[base + j, :, k] = ui[:, j]
-        Jt[base + d, :, k] = iw
-    for j in range(d):
-        np.multiply(X, -ui[:, j:j + 1], out=Jt[d * (d + 1) + j])
-    return Jt.reshape(npar, n * d).T
-
-
 def _normalised(points: np.ndarray, scaled: bool = True):
     """:func:`normalize_points` of ``points`` and the normalised (``scaled``) or only
     centred points, from one centring."""
@@ -790,9 +720,7 @@ def _linearised_start(
     # raw h_last = (H_n Ts)[d, d] = h_n[d, :d] . (-centre / scale) + h_n[d, d]
     ks = float(ns.scale)
     cons = np.array([0.0] * (d * m) + [-c / ks for c in ns.centre.tolist()] + [1.0])
-    u1 = np.empty((n, m))
-    u1[:, :d] = u
-    u1[:, d] = 1.0
+    u1 = homogeneous_points(u)
     A = None
     out = _linearised_normal(u, X, cons, None) if n * d >= NORMAL_FROM else None
     if out is None:
@@ -928,7 +856,7 @@ def _linearised_normal(u, X, cons, row_scale):
     h = (V @ g) / float(g @ (V.T @ cons))
     # v.T v = |A h|^2 from the equations themselves (the smallest eigenvalue of N carries
     # only eps cond(N) relative accuracy)
-    Gz = _affine_rows(h.reshape(m, m), u)  # rows z.h_k, k = 0..d
+    Gz = affine_rows(h.reshape(m, m), u)  # rows z.h_k, k = 0..d
     r = Gz[:, d:] * X - Gz[:, :d]
     if row_scale is not None:
         r *= row_scale[:, None]
@@ -995,7 +923,7 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
         extra_res = None
     elif errors_in == "target":
         w, C = _unit_weights_scaled(n, None, obs)
-        rational = _Rational(u)
+        rational = RationalModel(u)
         adj = gauss_markov(
             rational.model,
             p0,
@@ -1021,7 +949,7 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
 
         def conditions(p, lk):
             lk = lk.reshape(n, 2 * d)
-            Xh, wd, _ = _proj_rational(p, lk[:, :d])
+            Xh, wd = rational_map(homogeneous_matrix(p, d), homogeneous_points(lk[:, :d]))
             return ((lk[:, d:] - Xh) * wd[:, None]).reshape(-1)
 
         def jac_x(p, lk):
@@ -1038,8 +966,8 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
         def jac_l(p, lk):
             lk = lk.reshape(n, 2 * d)
             uu, XX = lk[:, :d], lk[:, d:]
-            H = _homogeneous(p, d)
-            wd = _affine_rows(H[d:], uu)[:, 0]
+            H = homogeneous_matrix(p, d)
+            wd = affine_rows(H[d:], uu)[:, 0]
             blocks = np.zeros((n, d, 2 * d))
             blocks[:, :, :d] = XX[:, :, None] * H[d, :d][None, None, :] - H[None, :d, :d]
             blocks[:, np.arange(d), d + np.arange(d)] = wd[:, None]

@@ -1,4 +1,5 @@
-"""The small-problem Gauss-Newton path of the projective fits against the general engine.
+"""The rational form of the projective models: its Jacobian against central differences, and
+the small-problem Gauss-Newton path against the general engine.
 
 ``gauss_newton_unit`` (normal equations, Cholesky) must give the estimate of
 ``gauss_markov`` on the rational model (QR of the design, step control), or None so that the
@@ -13,7 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from photogeom.adjust import gauss_markov
-from photogeom.estimation.projective_newton import gauss_newton_unit
+from photogeom.estimation.rational_projective import (
+    gauss_newton_unit,
+    homogeneous_matrix,
+    homogeneous_points,
+    rational_jacobian,
+    rational_map,
+)
 
 
 def _homography(rng: np.random.Generator, d: int, perspective: float) -> np.ndarray:
@@ -134,3 +141,27 @@ def test_public_fit_uses_it_and_agrees_with_statistics(d):
     bare = pg.estimate_transform(model, src, dst, statistics=False)
     np.testing.assert_allclose(bare.parameters, full.parameters, rtol=1e-11, atol=1e-14)
     assert bare.iterations == full.iterations and bare.converged
+
+
+@pytest.mark.parametrize("d, n", [(2, 7), (3, 9), (2, 5000), (3, 4500)])
+def test_jacobian_against_central_differences(d, n):
+    """Both ways of building the Jacobian (blocks for few points, columns for many) against
+    central differences of the map."""
+    rng = np.random.default_rng(d * n)
+    H = _homography(rng, d, 0.1)
+    u = rng.uniform(-1.5, 1.5, (n, d))
+    p = (H / H[d, d]).reshape(-1)[:-1]
+    u1 = homogeneous_points(u)
+    X, w = rational_map(homogeneous_matrix(p, d), u1)
+    J = rational_jacobian(u1, X, w)
+    num = np.empty_like(J)
+    for j in range(p.size):
+        e = np.zeros(p.size)
+        e[j] = 1e-6
+        plus = rational_map(homogeneous_matrix(p + e, d), u1)[0].reshape(-1)
+        minus = rational_map(homogeneous_matrix(p - e, d), u1)[0].reshape(-1)
+        num[:, j] = (plus - minus) / 2e-6
+    np.testing.assert_allclose(J, num, rtol=0, atol=1e-6 * np.abs(num).max())
+    # the rational map itself: homogeneous coordinates divided by their last element
+    h = np.column_stack([u, np.ones(n)]) @ (H / H[d, d]).T
+    np.testing.assert_allclose(X, h[:, :d] / h[:, d:], rtol=1e-13, atol=1e-13)
