@@ -272,4 +272,4 @@ def test_joint_certificate_of_two_point_sets(d):
         for b in sets[::3]:
             for need in range(2, d + 1):
                 separate = est._spread_certified(a, need) and est._spread_certified(b, need)
-                assert est._pair_certified(a, b, need) == separate
+                assert est._CentredPair.of(a, b).certified(need) == separate

@@ -359,10 +359,8 @@ class _CentredPair:
         """:func:`_normalised` of the source (side 0) or target (side 1) from the scatter."""
         k = side * d
         n = self.centred.shape[0]
-        rms = math.sqrt(sum(self.scatter[k + i][k + i] for i in range(d)) / (n * d))
-        if not math.isfinite(rms) or rms <= 0.0:
-            rms = 1.0
-        return PointNormalization(self.centre[k:k + d], rms)
+        ss = sum(self.scatter[k + i][k + i] for i in range(d))
+        return PointNormalization(self.centre[k:k + d], _rms_scale(ss, n * d))
 
     def certified(self, need_rank: int) -> bool:
         """:func:`_spread_certified` of both point sets."""
@@ -372,13 +370,6 @@ class _CentredPair:
         return _scatter_certified(S, n, d, need_rank) and _scatter_certified(
             S, n, d, need_rank, d
         )
-
-
-def _pair_certified(src: np.ndarray, dst: np.ndarray, need_rank: int) -> bool:
-    """:func:`_spread_certified` of both point sets from one joint scatter matrix."""
-    if src.shape[0] > 5000 or need_rank < 2:
-        return False
-    return _CentredPair.of(src, dst).certified(need_rank)
 
 
 def _geometry(points: np.ndarray, need_rank: int, model: str, side: str, need: int) -> None:
@@ -424,25 +415,23 @@ def _general_position(points: np.ndarray, model: str, side: str) -> None:
 def _validate_geometry(
     model: str, src: np.ndarray, dst: np.ndarray, need: int
 ) -> _CentredPair | None:
-    """Raise when the points cannot determine the model; for the projective models return
-    the centred pair the check computed (None for many points or other models)."""
+    """Raise when the points cannot determine the model; for the models with conditions on
+    both sides return the centred pair the check computed (None for many points or other
+    models)."""
     d = src.shape[1]
     pair = None
     if model == "similarity2d":
         _geometry(src, 1, model, "source", need)
-    elif model in ("rigid3d", "similarity3d"):
-        if not _pair_certified(src, dst, 2):
-            _geometry(src, 2, model, "source", need)
-            _geometry(dst, 2, model, "target", need)
     elif model in ("affine2d", "affine3d", "polynomial2d", "polynomial3d"):
         _geometry(src, d, model, "source", need)
-    elif model in ("projective2d", "projective3d"):
-        if src.shape[0] <= 5000:
+    else:  # rigid3d, similarity3d (a plane is enough), projective2d/3d: both sides spread
+        need_rank = 2 if model in ("rigid3d", "similarity3d") else d
+        if src.shape[0] <= 5000:  # the exact rank check takes over for more points
             pair = _CentredPair.of(src, dst)
-        if pair is None or not pair.certified(d):
-            _geometry(src, d, model, "source", need)
-            _geometry(dst, d, model, "target", need)
-        if src.shape[0] == need:
+        if pair is None or not pair.certified(need_rank):
+            _geometry(src, need_rank, model, "source", need)
+            _geometry(dst, need_rank, model, "target", need)
+        if model.startswith("projective") and src.shape[0] == need:
             _general_position(src, model, "source")
             _general_position(dst, model, "target")
     return pair
@@ -615,14 +604,19 @@ def _fit_polynomial(src, dst, order, obs, sigma0_prior, what, force=None, statis
 # --- projective models -------------------------------------------------------------------------
 
 
+def _rms_scale(sum_squares: float, count: int) -> float:
+    """Scale of :func:`normalize_points` from the sum of squares of ``count`` centred
+    coordinates: their RMS, or 1 when that is zero or not finite (all points coincide)."""
+    rms = math.sqrt(sum_squares / count)
+    return rms if math.isfinite(rms) and rms > 0.0 else 1.0
+
+
 def _normalised(points: np.ndarray, scaled: bool = True):
     """:func:`normalize_points` of ``points`` and the normalised (``scaled``) or only
     centred points, from one centring."""
     n, dim = points.shape
     centre, c = _centred(points)
-    rms = math.sqrt(float(np.vdot(c, c)) / (n * dim))
-    if not math.isfinite(rms) or rms <= 0.0:
-        rms = 1.0
+    rms = _rms_scale(float(np.vdot(c, c)), n * dim)
     if scaled:
         c *= 1.0 / rms
     return PointNormalization(centre, rms), c
@@ -768,6 +762,7 @@ def _constrained_null_vector(
     """``min |A h|^2`` subject to ``cons.h = 1`` and its ``|A h|^2``, from a QR factorisation
     of ``A`` (m x p); raises when ``A`` has a null space of more than one dimension."""
     m, npar = A.shape
+    Rf = None
     if m >= npar:
         qr, _tau, _work, info = _lapack.dgeqrf(A)
         if info == 0:
@@ -780,7 +775,9 @@ def _constrained_null_vector(
                 h, _ = _lapack.dtrtrs(R, y)
                 yy = float(y @ y)
                 return h / yy, 1.0 / yy
-    Rf = r_factor(A)
+            Rf = np.triu(R)
+    if Rf is None:
+        Rf = r_factor(A)
     R = np.zeros((npar, npar))
     R[: Rf.shape[0]] = Rf  # square (zero rows when there are fewer equations than unknowns)
     sv = np.linalg.svd(R, compute_uv=False)
