@@ -813,13 +813,7 @@ def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_f
         if raise_on_failure:
             raise ConvergenceError(msg, iterations=adj.iterations, result=adj)
         notes.append("NOT CONVERGED: " + msg)
-    params, J, R, gimbal = _adj.to_original(
-        adj.x, prob.source_ref, prob.target_ref, with_scale, R0
-    )
-    if gimbal:
-        notes.append(_GIMBAL_NOTE)
-    t, s, _ = _adj.unpack(params, with_scale)
-    model = _similarity(s, R, t)
+    params, J, model = _original(adj, prob, with_scale, R0, notes)
     fit = AbsoluteOrientationFit.from_adjustment(
         adj, model, "gauss-markov", point_dim=3, parameters=params,
         parameter_names=_adj.names(with_scale), jacobian=J, ids=ctx.ids,
@@ -840,6 +834,18 @@ _GIMBAL_NOTE = (
     "gimbal lock (phi = +-90 deg): omega set to 0, kappa holds the rotation about the "
     "vertical; omega and kappa have no separate standard deviations"
 )
+
+
+def _original(adj, prob, with_scale: bool, R0: np.ndarray, notes: list):
+    """Parameters, their Jacobian and the model in the original systems from an adjustment
+    of the reduced problem (angles relative to ``R0``); a gimbal-lock note is appended."""
+    params, J, R, gimbal = _adj.to_original(
+        adj.x, prob.source_ref, prob.target_ref, with_scale, R0
+    )
+    if gimbal:
+        notes.append(_GIMBAL_NOTE)
+    t, s, _ = _adj.unpack(params, with_scale)
+    return params, J, _similarity(s, R, t)
 
 
 def _as_rotation(R) -> np.ndarray:
@@ -1029,12 +1035,7 @@ def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max
         if raise_on_failure:
             raise ConvergenceError(msg, iterations=adj.iterations, result=adj)
         notes.append("NOT CONVERGED: " + msg)
-    params, J, R, gimbal = _adj.to_original(
-        adj.x, prob.source_ref, prob.target_ref, with_scale, R0
-    )
-    if gimbal:
-        notes.append(_GIMBAL_NOTE)
-    t, s, _ = _adj.unpack(params, with_scale)
+    params, J, model = _original(adj, prob, with_scale, R0, notes)
     v = adj.residuals.reshape(n, 6)
     corr = adj.corrected_observations.reshape(n, 6)
     extras = {
@@ -1054,7 +1055,7 @@ def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max
     Q = J @ adj.cofactor @ J.T
     s0 = adj.sigma0
     return AbsoluteOrientationFit(
-        model=_similarity(s, R, t), method="gauss-helmert",
+        model=model, method="gauss-helmert",
         parameter_names=_adj.names(with_scale), parameters=params, covariance=s0**2 * Q,
         cofactor=Q, sigma0=s0, sigma0_prior=adj.sigma0_prior, redundancy=adj.redundancy,
         n_observations=adj.n_observations, residuals=v[:, 3:], ids=ctx.ids,
