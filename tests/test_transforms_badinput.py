@@ -146,3 +146,18 @@ def test_options():
     with pytest.raises(InputError, match="weights or a covariance"):
         pg.estimate_transform("affine2d", src, dst, weights=np.ones(12),
                               covariance=np.ones((12, 2, 2)))
+
+
+def test_shape_only_point_check():
+    """``as_points(..., finite=False)`` checks the shape and lets NaN through (for callers that
+    find non-finite values in their sums); the default refuses them, naming the row."""
+    from photogeom.validation import as_points
+
+    pts = [[0.0, 1.0, 2.0], [np.nan, 1.0, 2.0]]
+    assert np.isnan(as_points(pts, 3, "source", finite=False)[1, 0])
+    with pytest.raises(InputError, match=r"source: 1 row\(s\).*row index 1"):
+        as_points(pts, 3, "source")
+    with pytest.raises(InputError, match=r"source: expected an array of shape \(n, 3\)"):
+        as_points([[0.0, 1.0]], 3, "source", finite=False)
+    with pytest.raises(InputError, match="cannot be read as numbers"):
+        as_points([["a", 1.0, 2.0]], 3, "source", finite=False)

@@ -15,6 +15,7 @@ def as_points(
     name: str = "points",
     *,
     allow_single: bool = True,
+    finite: bool = True,
 ) -> np.ndarray:
     """Return ``values`` as a float64 array of shape ``(n, dim)``.
 
@@ -29,6 +30,9 @@ def as_points(
         Name used in error messages.
     allow_single : bool
         Accept a single point of shape ``(dim,)`` and promote it to ``(1, dim)``.
+    finite : bool
+        Refuse NaN / infinite values. False checks the shape only, for callers that detect
+        non-finite input later at no extra cost (e.g. in sums over the points).
 
     Raises
     ------
@@ -45,7 +49,8 @@ def as_points(
     if arr.ndim != 2 or arr.shape[1] not in dims:
         want = " or ".join(f"(n, {d})" for d in dims)
         raise InputError(f"{name}: expected an array of shape {want}, got shape {arr.shape}")
-    check_finite(arr, name)
+    if finite:
+        check_finite(arr, name)
     return arr
 
 

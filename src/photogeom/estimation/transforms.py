@@ -1192,8 +1192,8 @@ def estimate_transform(
     absolute = key in ("similarity3d", "rigid3d")
     if absolute and check is None:
         # NaN / inf show in the moments of the absolute orientation (one pass, no extra check)
-        src = _coordinates(source, d, "source")
-        dst = _coordinates(target, d, "target")
+        src = as_points(source, d, "source", allow_single=False, finite=False)
+        dst = as_points(target, d, "target", allow_single=False, finite=False)
     else:
         src = as_points(source, d, "source", allow_single=False)
         dst = as_points(target, d, "target", allow_single=False)
@@ -1357,14 +1357,3 @@ def _units_of(key: str, names: tuple, unit: str) -> dict:
         units.update(dict.fromkeys(shifts, unit))
         return units
     return dict.fromkeys(names, "")
-
-
-def _coordinates(values, d: int, name: str) -> np.ndarray:
-    """``values`` as a float array (n, d); shape checks only (finiteness is checked later)."""
-    try:
-        arr = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
-    if arr.ndim != 2 or arr.shape[1] != d:
-        raise InputError(f"{name}: expected an array of shape (n, {d}), got shape {arr.shape}")
-    return arr

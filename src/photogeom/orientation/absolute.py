@@ -41,7 +41,7 @@ from ..errors import (
 )
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
-from ..validation import check_finite
+from ..validation import as_points, check_finite
 from . import absolute_adjust as _adj
 from .absolute_direct import (
     PairMoments,
@@ -161,8 +161,9 @@ class AbsoluteOrientationFit(Fit):
 
 
 def _as_pair(source, target) -> tuple[np.ndarray, np.ndarray]:
-    x = _as3(source, "source")
-    X = _as3(target, "target")
+    # NaN / inf show in the moments (one pass, no extra check)
+    x = as_points(source, 3, "source", allow_single=False, finite=False)
+    X = as_points(target, 3, "target", allow_single=False, finite=False)
     if x.shape[0] != X.shape[0]:
         raise InputError(
             f"source has {x.shape[0]} point(s) but target has {X.shape[0]}; "
@@ -178,19 +179,15 @@ def _as_pair(source, target) -> tuple[np.ndarray, np.ndarray]:
     return x, X
 
 
-def _as3(values, name: str) -> np.ndarray:
-    try:
-        a = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise InputError(f"{name}: expected an array of shape (n, 3), got shape {a.shape}")
-    return a
+def _check_finite_pair(x: np.ndarray, X: np.ndarray) -> None:
+    """Refuse NaN / infinite coordinates (naming the side and rows)."""
+    check_finite(x, "source")
+    check_finite(X, "target")
 
 
 def _finite_or_raise(x: np.ndarray, X: np.ndarray) -> None:
-    check_finite(x, "source")
-    check_finite(X, "target")
+    """After non-finite sums: name the bad input rows, or else report the overflow."""
+    _check_finite_pair(x, X)
     raise InputError(
         "absolute orientation: the sums of the coordinates overflow; the coordinates are too "
         "large (reduce them by a common offset)"
@@ -590,8 +587,7 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
     raw = False
     pm = None
     if method == "closed-form":
-        check_finite(x, "source")
-        check_finite(X, "target")
+        _check_finite_pair(x, X)
         kw = {} if coplanar_threshold is None else {"coplanar_threshold": coplanar_threshold}
         sol, augmented, k = closed_form_single(
             x, X, nearest=nearest, with_scale=with_scale, **kw
@@ -759,8 +755,7 @@ def _geometry_check(x, X, w, with_scale, method) -> None:
 
 
 def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx):
-    check_finite(x, "source")
-    check_finite(X, "target")
+    _check_finite_pair(x, X)
     _geometry_check(x, X, prec.point_w, with_scale, "gauss-markov")
     s0, R0, t0, start = _start(initial, x, X, with_scale, prec.point_w, "svd")
     prob = _adj.reduce(x, X, prec.point_w)
@@ -992,8 +987,7 @@ def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max
                 "iterate=True"
             )
         return _gh_direct_fit(x, X, prec, with_scale, statistics, ctx)
-    check_finite(x, "source")
-    check_finite(X, "target")
+    _check_finite_pair(x, X)
     _geometry_check(x, X, None, with_scale, "gauss-helmert")
     n = ctx.n
     w_obs, cov = _gh_observation_precision(prec, n)
