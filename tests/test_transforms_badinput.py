@@ -106,6 +106,29 @@ def test_nan_and_inf(bad):
         pg.estimate_transform("affine2d", src, dst)
 
 
+@pytest.mark.parametrize("model", sorted(MINIMUM))
+@pytest.mark.parametrize("n", [12, 6001])  # the projective check proves finiteness up to 5000
+@pytest.mark.parametrize("statistics", [True, False])
+def test_nan_and_inf_named_for_every_model(model, n, statistics):
+    """Every model names the side and the row of a NaN / infinite coordinate, whether the
+    values are checked on reading or in the geometry check's scatter (projective models)."""
+    dim = 2 if model.endswith("2d") else 3
+    for side, bad in (("source", np.nan), ("target", np.inf), ("source", -np.inf)):
+        src, dst = good(dim, n, seed=3)
+        dst = dst + np.random.default_rng(4).normal(0, 1e-3, dst.shape)
+        (src if side == "source" else dst)[n // 2, dim - 1] = bad
+        with pytest.raises(InputError, match="NaN or infinite") as err:
+            pg.estimate_transform(model, src, dst, statistics=statistics)
+        assert side in str(err.value) and f"row index {n // 2}" in str(err.value)
+
+
+def test_nan_in_projective_with_both_errors_and_few_points():
+    src, dst = good(2, 4)
+    src[0, 0] = np.nan
+    with pytest.raises(InputError, match=r"source: 1 row\(s\) contain NaN"):
+        pg.estimate_transform("projective2d", src, dst, errors_in="both")
+
+
 def test_shape_mismatch():
     src, dst = good(2)
     with pytest.raises(InputError, match="12 point"):

@@ -326,6 +326,9 @@ class HandednessPlan:
                 flip_y(target) if self.flip_target else target)
 
 
+_UNNAMED = HandednessPlan(None, None, False, False, "")
+
+
 def handedness_plan(source_system: str | None, target_system: str | None) -> HandednessPlan:
     """Decide the row/y flip for a 2D fit between named systems.
 
@@ -336,7 +339,7 @@ def handedness_plan(source_system: str | None, target_system: str | None) -> Han
       the note says so. The fitted transformation then maps ``(col, -row)``.
     """
     if source_system is None and target_system is None:
-        return HandednessPlan(None, None, False, False, "")
+        return _UNNAMED
     if source_system is None or target_system is None:
         raise InputError(
             "give both source_system and target_system (or neither): the handedness of the "

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import MISSING, dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..records import build
 from ..units import from_radians
 from .result import Adjustment
 from .snooping import SnoopingResult, data_snooping
@@ -118,23 +119,9 @@ class Fit:
     @classmethod
     def _construct(cls, **values) -> Fit:
         """``cls(**values)``, the same object, without the per-field cost of the frozen
-        dataclass constructor (one ``object.__setattr__`` per field: more than a small solve
-        costs). For estimators returning many small results; classes with a
-        ``__post_init__`` go through the constructor."""
-        if hasattr(cls, "__post_init__"):
-            return cls(**values)
-        plain, factories, required = _field_defaults(cls)
-        missing = required - values.keys()
-        if missing:
-            raise TypeError(f"{cls.__name__}: missing field(s) {', '.join(sorted(missing))}")
-        obj = object.__new__(cls)
-        d = obj.__dict__
-        d.update(plain)
-        for name, factory in factories.items():
-            if name not in values:
-                d[name] = factory()
-        d.update(values)
-        return obj
+        dataclass constructor (:func:`photogeom.records.build`). For estimators returning
+        many small results."""
+        return build(cls, values)
 
     @classmethod
     def from_adjustment(
@@ -366,25 +353,6 @@ class Fit:
         if self.extras:
             out["extras"] = {k: v for k, v in self.extras.items() if _is_plain(v)}
         return _jsonable(out)
-
-
-_DEFAULTS: dict = {}
-
-
-def _field_defaults(cls) -> tuple[dict, dict, frozenset]:
-    """(plain defaults, default factories, required names) of a Fit class's fields."""
-    out = _DEFAULTS.get(cls)
-    if out is None:
-        plain, factories, required = {}, {}, set()
-        for f in fields(cls):
-            if f.default is not MISSING:
-                plain[f.name] = f.default
-            elif f.default_factory is not MISSING:
-                factories[f.name] = f.default_factory
-            else:
-                required.add(f.name)
-        out = _DEFAULTS[cls] = (plain, factories, frozenset(required))
-    return out
 
 
 def _is_plain(v) -> bool:

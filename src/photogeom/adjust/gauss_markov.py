@@ -23,7 +23,8 @@ import scipy.linalg
 import scipy.linalg.lapack as _lapack
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
-from .result import Adjustment
+from ..records import build
+from .result import Adjustment, not_computed
 from .weighting import Whitener
 
 #: Reciprocal condition number (of the column-scaled design) below which a solve is refused.
@@ -302,21 +303,13 @@ def bare_adjustment(
     x, names, n, u, redundancy, sigma0_prior, iterations, converged, history, message
 ) -> Adjustment:
     """An Adjustment without statistics (``statistics=False``): the estimate ``x`` of ``u``
-    parameters from ``n`` observations, NaN cofactor, no residuals."""
-    return Adjustment(
-        x=x,
-        names=names,
-        residuals=np.empty(0),
-        cofactor=np.full((u, u), np.nan),
-        redundancy=redundancy,
-        n_observations=n,
-        vtpv=math.nan,
-        sigma0_prior=sigma0_prior,
-        iterations=iterations,
-        converged=converged,
-        cost_history=history,
-        message=message,
-    )
+    parameters from ``n`` observations, NaN cofactor (read-only), no residuals."""
+    return build(Adjustment, {
+        "x": x, "names": names, "residuals": not_computed((0,)), "cofactor": not_computed((u, u)),
+        "redundancy": redundancy, "n_observations": n, "vtpv": math.nan,
+        "sigma0_prior": sigma0_prior, "iterations": iterations, "converged": converged,
+        "cost_history": history, "message": message,
+    })
 
 
 def solve_linear(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -80,3 +81,19 @@ class Adjustment:
     def std(self) -> np.ndarray:
         """A-posteriori standard deviations of the parameters."""
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+
+_NOT_COMPUTED: dict = {}
+
+
+def not_computed(shape: tuple[int, ...]) -> np.ndarray:
+    """A shared read-only array of ``shape`` standing for statistics that were not computed
+    (``statistics=False``): NaN-filled, or empty when ``shape`` has a zero. Cached per shape."""
+    a = _NOT_COMPUTED.get(shape)
+    if a is None:
+        if len(_NOT_COMPUTED) > 64:
+            _NOT_COMPUTED.clear()
+        a = np.full(shape, math.nan)
+        a.flags.writeable = False
+        _NOT_COMPUTED[shape] = a
+    return a

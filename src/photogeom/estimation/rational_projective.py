@@ -121,7 +121,12 @@ class RationalModel:
 
 
 def gauss_newton_unit(
-    u: np.ndarray, X: np.ndarray, p0: np.ndarray, max_iter: int, tol: float
+    u: np.ndarray,
+    X: np.ndarray,
+    p0: np.ndarray,
+    max_iter: int,
+    tol: float,
+    u1: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int] | None:
     """Least-squares rational projective map of points ``u`` (n, d) to ``X`` (n, d).
 
@@ -137,6 +142,8 @@ def gauss_newton_unit(
         Iteration limit.
     tol : float
         Convergence tolerance (as :func:`photogeom.adjust.gauss_markov`).
+    u1 : numpy.ndarray, shape (n, d + 1), optional
+        ``[u, 1]`` when the caller has it already.
 
     Returns
     -------
@@ -152,7 +159,8 @@ def gauss_newton_unit(
     h_flat[:-1] = p0
     h_flat[-1] = 1.0
     H = h_flat.reshape(m, m)  # a view: updates of h_flat[:-1] update H
-    u1 = homogeneous_points(u)
+    if u1 is None:
+        u1 = homogeneous_points(u)
     J = np.zeros((n, d, npar))  # rewritten in place each iteration (the zeros stay)
     v, w, Hx, cost = _residuals(H, u1, X)
     for it in range(1, max_iter + 1):

@@ -43,6 +43,7 @@ from ..adjust import (
     solve_linear,
 )
 from ..adjust.gauss_markov import NORMAL_FROM, bare_adjustment, r_factor
+from ..adjust.result import not_computed
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
 from ..transforms import (
@@ -59,7 +60,7 @@ from ..transforms import (
     polynomial_term_count,
     polynomial_terms,
 )
-from ..validation import as_points, check_count, check_same_length
+from ..validation import as_points, check_count, check_finite, check_same_length
 from .rational_projective import (
     RationalModel,
     affine_rows,
@@ -348,10 +349,15 @@ class _CentredPair:
     scatter: list  # (2 d) x (2 d) nested lists: centred.T @ centred
 
     @classmethod
-    def of(cls, src: np.ndarray, dst: np.ndarray) -> _CentredPair:
+    def of(cls, src: np.ndarray, dst: np.ndarray) -> _CentredPair | None:
+        """The centred pair, or None when a coordinate sum is not finite (NaN or infinite
+        values, or an overflow: the caller checks the values)."""
         n = src.shape[0]
         Z = np.concatenate((src, dst), axis=1)
-        mu = np.add.reduce(Z, axis=0) / n
+        sums = np.add.reduce(Z, axis=0)
+        if not math.isfinite(sum(sums.tolist())):
+            return None
+        mu = sums / n
         Z -= mu
         return cls(mu, Z, (Z.T @ Z).tolist())
 
@@ -417,7 +423,8 @@ def _validate_geometry(
 ) -> _CentredPair | None:
     """Raise when the points cannot determine the model; for the models with conditions on
     both sides return the centred pair the check computed (None for many points or other
-    models)."""
+    models). For those models the values need not have been checked for NaN / infinity:
+    a finite scatter proves them finite, and otherwise they are checked here first."""
     d = src.shape[1]
     pair = None
     if model == "similarity2d":
@@ -429,6 +436,10 @@ def _validate_geometry(
         if src.shape[0] <= 5000:  # the exact rank check takes over for more points
             pair = _CentredPair.of(src, dst)
         if pair is None or not pair.certified(need_rank):
+            # not proven from a finite scatter: the values first (the caller may have left
+            # their check to this function), then the exact rank
+            check_finite(src, "source")
+            check_finite(dst, "target")
             _geometry(src, need_rank, model, "source", need)
             _geometry(dst, need_rank, model, "target", need)
         if model.startswith("projective") and src.shape[0] == need:
@@ -622,14 +633,16 @@ def _normalised(points: np.ndarray, scaled: bool = True):
     return PointNormalization(centre, rms), c
 
 
-def _projective(H: np.ndarray, d: int):
-    """``Projective2D/3D(H)`` for a matrix already normalised to ``H[d, d] = 1``: the same
-    object, without repeating the constructor's normalisation (its checks are done here)."""
-    if not np.isfinite(H).all():
+def _projective(h: list, d: int):
+    """``Projective2D/3D`` of the row-major elements ``h`` (a list, already normalised to
+    ``h[-1] = 1``): the same object as the constructor gives, without repeating its
+    normalisation (its checks are done here)."""
+    if not all(map(math.isfinite, h)):
         raise DegenerateGeometryError(
             "projective: the estimated transformation has non-finite elements; the point "
             "configuration does not determine it"
         )
+    H = np.array(h).reshape(d + 1, d + 1)
     H.flags.writeable = False
     tf = object.__new__(Projective2D if d == 2 else Projective3D)
     object.__setattr__(tf, "matrix", H)
@@ -647,17 +660,23 @@ def _proj_back(
     ks, cs = float(ns.scale), ns.centre.tolist()
     kt, ct = float(nt.scale), nt.centre.tolist()
     # H_n Ts with Ts = [[I / ks, -cs / ks], [0, 1]], then Tt^-1 = [[kt I, ct], [0, 1]] on the
-    # left (scalar arithmetic: (d+1)^2 elements)
+    # left (scalar arithmetic: (d+1)^2 elements, plain loops: no per-row generator frames)
     rows = []
     for i in range(m):
-        r = [v / ks for v in hn[i * m:i * m + d]]
-        r.append(hn[i * m + d] - sum(a * c for a, c in zip(r, cs)))
+        r = hn[i * m:(i + 1) * m]
+        t = r[d]
+        for j in range(d):
+            r[j] = r[j] / ks
+            t -= r[j] * cs[j]
+        r[d] = t
         rows.append(r)
     bottom = rows[d]
     h = []
     for i in range(d):
-        h.extend(kt * a + ct[i] * b for a, b in zip(rows[i], bottom))
-    h.extend(bottom)
+        r, c = rows[i], ct[i]
+        for j in range(m):
+            h.append(kt * r[j] + c * bottom[j])
+    h += bottom
     last = h[-1]
     if abs(last) <= 1e-14 * max(map(abs, h)):
         raise DegenerateGeometryError(
@@ -665,7 +684,7 @@ def _proj_back(
             "it cannot be written with its last element 1; shift the source coordinates"
         )
     h = [v / last for v in h]
-    tf = _projective(np.array(h).reshape(m, m), d)
+    tf = _projective(h, d)
     p = np.array(h[:-1])
     if not jacobian:
         return tf, p, None
@@ -691,12 +710,13 @@ def _proj_forward(p_raw: np.ndarray, ns, nt, d: int) -> np.ndarray:
 
 
 def _linearised_start(
-    u: np.ndarray, X: np.ndarray, ns, what: str, reweight: bool = False
+    u1: np.ndarray, X: np.ndarray, ns, what: str, reweight: bool = False
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """The lecture's linearised least squares (observations on both sides) with ``h_last = 1``
     in the *raw* coordinates, and the start of the adjustment.
 
-    Solved in normalised coordinates (``u`` source, ``X`` target) as the homogeneous problem
+    Solved in normalised coordinates (``u1 = [u, 1]`` of the normalised source points ``u``,
+    ``X`` target) as the homogeneous problem
     ``min |A h|^2`` subject to the linear constraint (raw last element) ``c.h = 1``:
     ``h = N^-1 c / (c.N^-1 c)`` with ``N = R.T R`` from a QR factorisation of ``A`` (no normal
     equations are formed); ``v.T v = 1 / (c.N^-1 c)``. Used for initial values and reported
@@ -708,13 +728,13 @@ def _linearised_start(
     into first-order coordinate residuals (a start closer to the adjustment); otherwise, or
     when a denominator nearly vanishes, ``h`` itself.
     """
-    n, d = u.shape
-    m = d + 1
+    n, m = u1.shape
+    d = m - 1
     npar = m * m
+    u = u1[:, :d]
     # raw h_last = (H_n Ts)[d, d] = h_n[d, :d] . (-centre / scale) + h_n[d, d]
     ks = float(ns.scale)
     cons = np.array([0.0] * (d * m) + [-c / ks for c in ns.centre.tolist()] + [1.0])
-    u1 = homogeneous_points(u)
     A = None
     out = _linearised_normal(u, X, cons, None) if n * d >= NORMAL_FROM else None
     if out is None:
@@ -882,7 +902,8 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
     # the start: the linearised solution (with errors in the target its equations reweighted
     # by 1 / w_i: first-order coordinate residuals, a start that saves the adjustment an
     # iteration), with the target scale undone below (rows of H_n times kt)
-    h_lin, vtv_lin, h0 = _linearised_start(u, Xn, ns, what, reweight=reweight)
+    u1 = homogeneous_points(u)
+    h_lin, vtv_lin, h0 = _linearised_start(u1, Xn, ns, what, reweight=reweight)
     ks, kt = ns.scale, nt.scale
     names = (Projective2D if d == 2 else Projective3D).names
     linear_info = None
@@ -908,7 +929,7 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
     if (errors_in == "target" and not statistics and obs.weights is None
             and obs.covariance is None and n <= LEAN_MAX_POINTS):
         # the same iteration without the general engine's overhead (None: the engine decides)
-        lean = gauss_newton_unit(u, X, p0, max_iter, tol)
+        lean = gauss_newton_unit(u, X, p0, max_iter, tol, u1=u1)
     if lean is not None:
         p_n, iterations = lean
         adj = bare_adjustment(
@@ -1190,8 +1211,10 @@ def estimate_transform(
                 "with errors in the target coordinates"
             )
     absolute = key in ("similarity3d", "rigid3d")
-    if absolute and check is None:
-        # NaN / inf show in the moments of the absolute orientation (one pass, no extra check)
+    if check is None and (absolute or key.startswith("projective")):
+        # NaN / inf show in the moments of the absolute orientation and in the scatter of the
+        # projective geometry check (one pass, no extra check; _validate_geometry checks the
+        # values whenever the scatter is not finite)
         src = as_points(source, d, "source", allow_single=False, finite=False)
         dst = as_points(target, d, "target", allow_single=False, finite=False)
     else:
@@ -1291,12 +1314,12 @@ def estimate_transform(
             extras["textbook_cofactor"] = Qtb
         else:
             u = len(p)
-            nan = np.full((u, u), np.nan)
+            nan = not_computed((u, u))
             fit = Fit._construct(
                 model=tf, method=method, parameter_names=tf.parameter_names, parameters=p,
                 covariance=nan, cofactor=nan, sigma0=math.nan, sigma0_prior=sigma0_prior,
                 redundancy=adj.redundancy, n_observations=adj.n_observations,
-                residuals=np.empty((0, d)), ids=ctrl_ids, residual_labels=labels,
+                residuals=not_computed((0, d)), ids=ctrl_ids, residual_labels=labels,
                 residual_unit=unit, parameter_units=units, iterations=adj.iterations,
                 converged=adj.converged, message=adj.message,
             )

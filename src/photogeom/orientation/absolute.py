@@ -32,6 +32,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..adjust import Fit
+from ..adjust.result import not_computed
 from ..errors import (
     ConvergenceError,
     DegenerateGeometryError,
@@ -553,30 +554,19 @@ def _param_units(with_scale: bool, unit: str) -> Mapping[str, str]:
 
 _CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (radians inside)"
 _NO_STATISTICS_NOTE = "statistics=False: no residuals or statistics computed"
-_NO_RESIDUALS = np.empty((0, 3))
-_NO_RESIDUALS.flags.writeable = False
 
 
 def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes):
     """The Fit of ``statistics=False``: parameters only (NaN covariance, no residuals)."""
     return AbsoluteOrientationFit._construct(
         model=model, method=method, parameter_names=names, parameters=params,
-        covariance=_nan_stats(u), cofactor=_nan_stats(u), sigma0=math.nan, sigma0_prior=1.0,
-        redundancy=r, n_observations=n_obs, residuals=_NO_RESIDUALS, ids=ctx.ids,
+        covariance=not_computed((u, u)), cofactor=not_computed((u, u)), sigma0=math.nan,
+        sigma0_prior=1.0,
+        redundancy=r, n_observations=n_obs, residuals=not_computed((0, 3)), ids=ctx.ids,
         residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
         parameter_units=_param_units(with_scale, ctx.unit), extras={},
         elapsed=time.perf_counter() - ctx.t0, notes=(*notes, _NO_STATISTICS_NOTE),
     )
-
-
-_NAN = {u: np.full((u, u), np.nan) for u in (6, 7)}
-for _a in _NAN.values():
-    _a.flags.writeable = False
-
-
-def _nan_stats(u: int) -> np.ndarray:
-    """Read-only NaN matrix (statistics not computed)."""
-    return _NAN[u]
 
 
 def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, nearest, ctx,
