@@ -80,7 +80,8 @@ def _assert_bare(fit, d):
     assert fit.covariance.shape == (u, u) and np.all(np.isnan(fit.covariance))
     assert np.all(np.isnan(fit.cofactor)) and np.isnan(fit.sigma0)
     assert fit.normalized_residuals is None and fit.redundancy_numbers is None
-    assert any("statistics=False" in note for note in fit.notes)
+    assert sum("statistics=False" in note for note in fit.notes) == 1
+    assert not fit.covariance.flags.writeable and not fit.residuals.flags.writeable
     assert "textbook" not in fit.extras and "linearised" not in fit.extras
 
 
@@ -146,6 +147,9 @@ def test_weights_check_points_and_ids(model):
     assert bare.ids == full.ids and bare.check_ids == full.check_ids
     np.testing.assert_allclose(bare.check_residuals, full.check_residuals, atol=1e-9)
     assert bare.residual_unit == full.residual_unit
+    _assert_bare(bare, src.shape[1])
+    assert bare.elapsed > 0 and bare.extras.keys() == full.extras.keys() - {
+        "textbook", "textbook_units", "textbook_cofactor", "linearised", "helmert", "handedness"}
 
 
 def test_handedness_flip():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -82,6 +83,22 @@ class Adjustment:
         """A-posteriori standard deviations of the parameters."""
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
+
+class BareSolution(NamedTuple):
+    """What a solver run without statistics reports (the fields a ``statistics=False`` Fit
+    takes from an :class:`Adjustment`, which has them too): for estimators whose small
+    problems skip the general engine."""
+
+    x: np.ndarray
+    redundancy: int
+    n_observations: int
+    iterations: int
+    converged: bool
+    message: str
+
+
+#: The note of every Fit returned with ``statistics=False``.
+NO_STATISTICS_NOTE = "statistics=False: no residuals or statistics computed"
 
 _NOT_COMPUTED: dict = {}
 

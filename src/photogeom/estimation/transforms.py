@@ -42,10 +42,11 @@ from ..adjust import (
     normalize_points,
     solve_linear,
 )
-from ..adjust.gauss_markov import NORMAL_FROM, bare_adjustment, r_factor
-from ..adjust.result import not_computed
+from ..adjust.gauss_markov import NORMAL_FROM, r_factor
+from ..adjust.result import NO_STATISTICS_NOTE, BareSolution, not_computed
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
+from ..records import build
 from ..transforms import (
     Affine2D,
     Affine3D,
@@ -932,10 +933,8 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
         lean = gauss_newton_unit(u, X, p0, max_iter, tol, u1=u1)
     if lean is not None:
         p_n, iterations = lean
-        adj = bare_adjustment(
-            p_n, names, n * d, len(names), n * d - len(names), sigma0_prior, iterations, True, (),
-            f"converged after {iterations} iteration(s)",
-        )
+        adj = BareSolution(p_n, n * d - len(names), n * d, iterations, True,
+                           f"converged after {iterations} iteration(s)")
         method = "Gauss-Markov (rational form)"
         note = _NOTE_RATIONAL
         extra_res = None
@@ -1313,18 +1312,22 @@ def estimate_transform(
             }
             extras["textbook_cofactor"] = Qtb
         else:
+            notes.append(NO_STATISTICS_NOTE)
             u = len(p)
             nan = not_computed((u, u))
-            fit = Fit._construct(
-                model=tf, method=method, parameter_names=tf.parameter_names, parameters=p,
-                covariance=nan, cofactor=nan, sigma0=math.nan, sigma0_prior=sigma0_prior,
-                redundancy=adj.redundancy, n_observations=adj.n_observations,
-                residuals=not_computed((0, d)), ids=ctrl_ids, residual_labels=labels,
-                residual_unit=unit, parameter_units=units, iterations=adj.iterations,
-                converged=adj.converged, message=adj.message,
-            )
-    if not statistics:
-        notes.append(_NO_STATISTICS_NOTE)
+            fit = build(Fit, {
+                "model": tf, "method": method, "parameter_names": tf.parameter_names,
+                "parameters": p, "covariance": nan, "cofactor": nan, "sigma0": math.nan,
+                "sigma0_prior": sigma0_prior, "redundancy": adj.redundancy,
+                "n_observations": adj.n_observations, "residuals": not_computed((0, d)),
+                "ids": ctrl_ids, "residual_labels": labels, "residual_unit": unit,
+                "parameter_units": units, "iterations": adj.iterations,
+                "converged": adj.converged, "message": adj.message, "notes": tuple(notes),
+                "extras": extras, "elapsed": time.perf_counter() - t0,
+            })
+            if is_check is None:  # complete: no residuals to report or flip back
+                return fit
+            notes = []
 
     # residuals back in the systems as given (undo the flips)
     if plan is not None and plan.flip_source:
@@ -1345,9 +1348,6 @@ def estimate_transform(
     _set(fit, notes=tuple(fit.notes) + tuple(notes), extras=extras,
          elapsed=time.perf_counter() - t0)
     return fit
-
-
-_NO_STATISTICS_NOTE = "statistics=False: no residuals or statistics computed"
 
 
 def _set(fit: Fit, **values) -> None:

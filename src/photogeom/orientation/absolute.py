@@ -32,7 +32,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..adjust import Fit
-from ..adjust.result import not_computed
+from ..adjust.result import NO_STATISTICS_NOTE, not_computed
 from ..errors import (
     ConvergenceError,
     DegenerateGeometryError,
@@ -553,7 +553,6 @@ def _param_units(with_scale: bool, unit: str) -> Mapping[str, str]:
 
 
 _CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (radians inside)"
-_NO_STATISTICS_NOTE = "statistics=False: no residuals or statistics computed"
 
 
 def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes):
@@ -565,7 +564,7 @@ def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes)
         redundancy=r, n_observations=n_obs, residuals=not_computed((0, 3)), ids=ctx.ids,
         residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
         parameter_units=_param_units(with_scale, ctx.unit), extras={},
-        elapsed=time.perf_counter() - ctx.t0, notes=(*notes, _NO_STATISTICS_NOTE),
+        elapsed=time.perf_counter() - ctx.t0, notes=(*notes, NO_STATISTICS_NOTE),
     )
 
 
