@@ -13,8 +13,12 @@ For 10, 1e3 and 1e6 point pairs and the 2D affine, 2D projective and 3D similari
 and the 3D similarity from 1e6 pairs against the time numpy needs to sum both input arrays
 once. Targets: bare / scikit-image <= 1 everywhere; bare 1e6 similarity <= 3x the sum.
 
-Times are medians of repeated calls (after one warm-up call; none for 1e6 points), each
-contender timed in its own block. Ratios < 1 mean photogeom is faster. Run::
+Times are medians of repeated calls (after warm-up calls; none for 1e6 points). For 10
+points the contenders are timed in 150 interleaved rounds of 20 calls each and the ratio is
+the median of the per-round ratios (a shared machine's speed drifts by tens of per cent
+within seconds, which blocks timed one after the other would mistake for a difference);
+for more points each contender is timed in its own block (a multithreaded peer leaves BLAS
+threads spinning after a big call). Ratios < 1 mean photogeom is faster. Run::
 
     python benchmarks/transforms.py            # a few minutes
     python benchmarks/transforms.py --quick    # sizes 10 and 1e3 only
@@ -62,6 +66,11 @@ from photogeom.estimation import estimate_transform  # noqa: E402
 
 SIZES = (10, 1_000, 1_000_000)
 REPEATS = {10: 101, 1_000: 31, 1_000_000: 5}
+#: Up to this many points the contenders are timed in interleaved rounds (see
+#: :func:`interleaved_medians`): ratios are medians over rounds of the per-round ratio.
+INTERLEAVED_MAX = 100
+INTERLEAVED_ROUNDS = 150
+INTERLEAVED_BLOCK = 20
 #: skimage's 2D affine/projective estimators take a full SVD of the (2n, 9) design matrix,
 #: which allocates a (2n, 2n) matrix; above this many bytes they are not run.
 SKIMAGE_MEMORY_LIMIT = 4 * 2**30
@@ -86,6 +95,37 @@ def blocked_medians(
     rounds: a multithreaded peer leaves BLAS threads spinning for a while after each call,
     which would slow down whatever runs right after it on a small machine."""
     return [None if f is None else median_time(f, repeats, warm_up) for f in fns]
+
+
+def interleaved_medians(
+    fns: list[Callable[[], object] | None], rounds: int, block: int
+) -> tuple[list[float | None], list[float | None]]:
+    """For small problems: ``rounds`` rounds, each timing a block of ``block`` calls of every
+    function in turn (the order rotating from round to round), so that all contenders see
+    the same machine state (a shared machine's speed drifts by tens of per cent within
+    seconds). Returns the median time per call of each function and the median over rounds
+    of each function's time divided by the last one's (None entries give None)."""
+    live = [i for i, f in enumerate(fns) if f is not None]
+    for i in live:  # warm-up
+        for _ in range(block):
+            fns[i]()
+    times: dict[int, list[float]] = {i: [] for i in live}
+    for r in range(rounds):
+        k = r % len(live)
+        for i in live[k:] + live[:k]:
+            f = fns[i]
+            t0 = time.perf_counter()
+            for _ in range(block):
+                f()
+            times[i].append((time.perf_counter() - t0) / block)
+    medians = [statistics.median(times[i]) if i in times else None for i in range(len(fns))]
+    ref = times.get(len(fns) - 1)
+    ratios = [
+        None if ref is None or i not in times
+        else statistics.median(a / b for a, b in zip(times[i], ref))
+        for i in range(len(fns))
+    ]
+    return medians, ratios
 
 
 def skimage_estimator(cls):
@@ -145,7 +185,9 @@ def main(args: argparse.Namespace) -> None:
     )
     print(
         "median wall time per estimation; bare = statistics=False, full = with statistics;\n"
-        "ratio = photogeom / scikit-image (< 1: photogeom faster; bare/sk is the target)\n"
+        "ratio = photogeom / scikit-image (< 1: photogeom faster; bare/sk is the target);\n"
+        f"up to {INTERLEAVED_MAX} points: median of per-round ratios over "
+        f"{INTERLEAVED_ROUNDS} interleaved rounds\n"
     )
     header = (
         f"{'model':<14}{'n':>10}{'bare':>12}{'full':>12}{'scikit-image':>16}"
@@ -162,21 +204,26 @@ def main(args: argparse.Namespace) -> None:
             big = n >= 100_000  # no warm-up for the big runs (seconds each)
             full_svd_bytes = (2 * n) ** 2 * 8
             skip_peer = model != "similarity3d" and full_svd_bytes > SKIMAGE_MEMORY_LIMIT
-            bare, full, theirs = blocked_medians(
-                [
-                    lambda s=src, d=dst, m=model: estimate_transform(m, s, d, statistics=False),
-                    lambda s=src, d=dst, m=model: estimate_transform(m, s, d),
-                    None if skip_peer else (lambda s=src, d=dst, f=peer: f(s, d)),
-                ],
-                reps,
-                not big,
-            )
+            contenders = [
+                lambda s=src, d=dst, m=model: estimate_transform(m, s, d, statistics=False),
+                lambda s=src, d=dst, m=model: estimate_transform(m, s, d),
+                None if skip_peer else (lambda s=src, d=dst, f=peer: f(s, d)),
+            ]
+            if n <= INTERLEAVED_MAX:
+                (bare, full, theirs), (q_bare, q_full, _) = interleaved_medians(
+                    contenders, INTERLEAVED_ROUNDS, INTERLEAVED_BLOCK
+                )
+            else:
+                bare, full, theirs = blocked_medians(contenders, reps, not big)
+                q_bare = q_full = None
+                if not skip_peer:
+                    q_bare, q_full = bare / theirs, full / theirs
             if skip_peer:
                 peer_text = f"n/a ({full_svd_bytes / 2**40:.0f} TiB)"
                 r_bare = r_full = "-"
             else:
                 peer_text = _ms(theirs)
-                r_bare, r_full = f"{bare / theirs:.2f}", f"{full / theirs:.2f}"
+                r_bare, r_full = f"{q_bare:.2f}", f"{q_full:.2f}"
             print(
                 f"{model:<14}{n:>10,}{_ms(bare):>12}{_ms(full):>12}{peer_text:>16}"
                 f"{r_bare:>9}{r_full:>9}",

@@ -320,23 +320,25 @@ def _spread_certified(points: np.ndarray, need_rank: int) -> bool:
 def _scatter_certified(S: list, n: int, d: int, need_rank: int, k: int = 0) -> bool:
     """:func:`_spread_certified` from the scatter matrix of n centred points: the d x d block
     of ``S`` (nested lists) that starts at row and column ``k``."""
-    if k:
-        S = [r[k:k + d] for r in S[k:k + d]]
-    e1 = sum(S[i][i] for i in range(d))
+    a, b = S[k], S[k + 1]
+    s00, s01, s11 = a[k], a[k + 1], b[k + 1]
+    if d == 2:
+        e1 = s00 + s11
+    else:
+        c = S[k + 2]
+        s02, s12, s22 = a[k + 2], b[k + 2], c[k + 2]
+        e1 = s00 + s11 + s22
     if not (e1 > 0 and math.isfinite(e1)):
         return False
     # rounding of the n-term sums and of the invariants: relative to e1^k at most ~n eps
     thr = max(3e-13, 16 * n * _EPS)
-    if d == 2:
-        det = S[0][0] * S[1][1] - S[0][1] * S[1][0]
-        return need_rank <= 1 or det > thr * e1 * e1
-    e2 = (S[0][0] * S[1][1] - S[0][1] * S[1][0] + S[0][0] * S[2][2] - S[0][2] * S[2][0]
-          + S[1][1] * S[2][2] - S[1][2] * S[2][1])
+    if d == 2:  # S is symmetric: S[1][0] = S[0][1]
+        return need_rank <= 1 or s00 * s11 - s01 * s01 > thr * e1 * e1
+    e2 = s00 * s11 - s01 * s01 + s00 * s22 - s02 * s02 + s11 * s22 - s12 * s12
     if need_rank <= 2:
         return need_rank <= 1 or e2 > thr * e1 * e1
-    det = (S[0][0] * (S[1][1] * S[2][2] - S[1][2] * S[2][1])
-           - S[0][1] * (S[1][0] * S[2][2] - S[1][2] * S[2][0])
-           + S[0][2] * (S[1][0] * S[2][1] - S[1][1] * S[2][0]))
+    det = (s00 * (s11 * s22 - s12 * s12) - s01 * (s01 * s22 - s12 * s02)
+           + s02 * (s01 * s12 - s11 * s02))
     return det > 1e-14 * e1 * e2 and det > thr * e1 * e1 * e1
 
 
@@ -365,9 +367,9 @@ class _CentredPair:
     def normalization(self, side: int, d: int) -> PointNormalization:
         """:func:`_normalised` of the source (side 0) or target (side 1) from the scatter."""
         k = side * d
-        n = self.centred.shape[0]
-        ss = sum(self.scatter[k + i][k + i] for i in range(d))
-        return PointNormalization(self.centre[k:k + d], _rms_scale(ss, n * d))
+        S = self.scatter
+        ss = S[k][k] + S[k + 1][k + 1] + (S[k + 2][k + 2] if d == 3 else 0.0)
+        return PointNormalization(self.centre[k:k + d], _rms_scale(ss, self.centred.shape[0] * d))
 
     def certified(self, need_rank: int) -> bool:
         """:func:`_spread_certified` of both point sets."""
@@ -894,16 +896,18 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
     if pair is None:
         ns, u = _normalised(src)
         nt, X = _normalised(dst, scaled=False)  # the adjustment works on the centred target
-    else:  # the same, from the centring of the geometry check
+        u1 = homogeneous_points(u)
+    else:  # the same, from the centring of the geometry check, written into [u, 1] at once
         ns, nt = pair.normalization(0, d), pair.normalization(1, d)
-        u = pair.centred[:, :d] * (1.0 / ns.scale)
+        u1 = np.empty((n, d + 1))
+        u = np.multiply(pair.centred[:, :d], 1.0 / ns.scale, out=u1[:, :d])
+        u1[:, d] = 1.0
         X = pair.centred[:, d:]
     Xn = X / nt.scale
     reweight = errors_in == "target" and obs.covariance is None
     # the start: the linearised solution (with errors in the target its equations reweighted
     # by 1 / w_i: first-order coordinate residuals, a start that saves the adjustment an
     # iteration), with the target scale undone below (rows of H_n times kt)
-    u1 = homogeneous_points(u)
     h_lin, vtv_lin, h0 = _linearised_start(u1, Xn, ns, what, reweight=reweight)
     ks, kt = ns.scale, nt.scale
     names = (Projective2D if d == 2 else Projective3D).names
@@ -921,9 +925,8 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
                     "(observations on both sides; residuals are algebraic, not coordinate "
                     "residuals)",
         }
-    Hl = h0.reshape(d + 1, d + 1).copy()
-    Hl[:d] *= kt
-    p0 = (Hl / Hl[d, d]).reshape(-1)[:-1]
+    p0 = h0[:-1] / h0[-1]
+    p0[:d * (d + 1)] *= kt
     nt = PointNormalization(nt.centre, 1.0)
     kt = 1.0
     lean = None
