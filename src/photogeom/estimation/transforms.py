@@ -1165,7 +1165,8 @@ def estimate_transform(
         least-squares solution; the projective models still get their nonlinear adjustment),
         returned without statistics, as ``absolute_orientation(..., statistics=False)``
         does: ``fit.residuals`` is empty (shape (0, d); apply ``fit.transform`` to get
-        them), ``covariance`` and ``cofactor`` are NaN, ``sigma0`` is NaN, no normalised
+        them), ``covariance`` and ``cofactor`` are NaN (shared read-only arrays, as
+        ``fit.residuals``), ``sigma0`` is NaN, no normalised
         residuals or redundancy numbers, ``extras`` holds no textbook parameters or
         linearised solution (``fit.model.textbook()`` gives the textbook values); check-point
         residuals are still computed. Bad input raises the same errors.
