@@ -10,7 +10,7 @@ import numpy as np
 
 from ..records import build
 from ..units import from_radians
-from .result import Adjustment
+from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
 
 
@@ -121,6 +121,20 @@ class Fit:
         """``cls(**values)``, the same object, without the per-field cost of the frozen
         dataclass constructor (:func:`photogeom.records.build`). For estimators returning
         many small results."""
+        return build(cls, values)
+
+    @classmethod
+    def without_statistics(cls, values: dict, point_dim: int) -> Fit:
+        """The Fit of ``statistics=False``: the estimate and its labels from ``values`` (field
+        name -> value, completed in place), with the stand-ins for what was not computed:
+        NaN covariance, cofactor and sigma0 (shared read-only arrays), no residuals (shape
+        (0, ``point_dim``)), and :data:`NO_STATISTICS_NOTE` after the given notes."""
+        u = len(values["parameters"])
+        nan = not_computed((u, u))
+        values["covariance"] = values["cofactor"] = nan
+        values["sigma0"] = math.nan
+        values["residuals"] = not_computed((0, point_dim))
+        values["notes"] = (*values.get("notes", ()), NO_STATISTICS_NOTE)
         return build(cls, values)
 
     @classmethod

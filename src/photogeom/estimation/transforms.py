@@ -43,10 +43,9 @@ from ..adjust import (
     solve_linear,
 )
 from ..adjust.gauss_markov import NORMAL_FROM, r_factor
-from ..adjust.result import NO_STATISTICS_NOTE, BareSolution, not_computed
+from ..adjust.result import BareSolution
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
-from ..records import build
 from ..transforms import (
     Affine2D,
     Affine3D,
@@ -1316,22 +1315,18 @@ def estimate_transform(
             }
             extras["textbook_cofactor"] = Qtb
         else:
-            notes.append(NO_STATISTICS_NOTE)
-            u = len(p)
-            nan = not_computed((u, u))
-            fit = build(Fit, {
+            fit = Fit.without_statistics({
                 "model": tf, "method": method, "parameter_names": tf.parameter_names,
-                "parameters": p, "covariance": nan, "cofactor": nan, "sigma0": math.nan,
-                "sigma0_prior": sigma0_prior, "redundancy": adj.redundancy,
-                "n_observations": adj.n_observations, "residuals": not_computed((0, d)),
-                "ids": ctrl_ids, "residual_labels": labels, "residual_unit": unit,
-                "parameter_units": units, "iterations": adj.iterations,
-                "converged": adj.converged, "message": adj.message, "notes": tuple(notes),
-                "extras": extras, "elapsed": time.perf_counter() - t0,
-            })
+                "parameters": p, "sigma0_prior": sigma0_prior, "redundancy": adj.redundancy,
+                "n_observations": adj.n_observations, "ids": ctrl_ids,
+                "residual_labels": labels, "residual_unit": unit, "parameter_units": units,
+                "iterations": adj.iterations, "converged": adj.converged,
+                "message": adj.message, "notes": tuple(notes), "extras": extras,
+                "elapsed": time.perf_counter() - t0,
+            }, d)
             if is_check is None:  # complete: no residuals to report or flip back
                 return fit
-            notes = []
+            notes = []  # they are in fit.notes
 
     # residuals back in the systems as given (undo the flips)
     if plan is not None and plan.flip_source:

@@ -32,7 +32,6 @@ from types import MappingProxyType
 import numpy as np
 
 from ..adjust import Fit
-from ..adjust.result import NO_STATISTICS_NOTE, not_computed
 from ..errors import (
     ConvergenceError,
     DegenerateGeometryError,
@@ -557,15 +556,13 @@ _CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (r
 
 def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes):
     """The Fit of ``statistics=False``: parameters only (NaN covariance, no residuals)."""
-    return AbsoluteOrientationFit._construct(
-        model=model, method=method, parameter_names=names, parameters=params,
-        covariance=not_computed((u, u)), cofactor=not_computed((u, u)), sigma0=math.nan,
-        sigma0_prior=1.0,
-        redundancy=r, n_observations=n_obs, residuals=not_computed((0, 3)), ids=ctx.ids,
-        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
-        parameter_units=_param_units(with_scale, ctx.unit), extras={},
-        elapsed=time.perf_counter() - ctx.t0, notes=(*notes, NO_STATISTICS_NOTE),
-    )
+    return AbsoluteOrientationFit.without_statistics({
+        "model": model, "method": method, "parameter_names": names, "parameters": params,
+        "sigma0_prior": 1.0, "redundancy": r, "n_observations": n_obs, "ids": ctx.ids,
+        "residual_labels": ("X", "Y", "Z"), "residual_unit": ctx.unit,
+        "parameter_units": _param_units(with_scale, ctx.unit), "extras": {},
+        "elapsed": time.perf_counter() - ctx.t0, "notes": tuple(notes),
+    }, 3)
 
 
 def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, nearest, ctx,
