@@ -298,19 +298,19 @@ def _triangulate_fixed(block: Block, rows_of_point, X0, iterations: int = 15):
 
 
 def _chi2(vtpv: float, r: int, s0: float, alpha: float = 0.05) -> dict:
-    from scipy import stats
+    from scipy import special
 
     if r <= 0:
         return {"statistic": vtpv, "dof": r, "p_value": math.nan, "passed": None}
     t = vtpv / s0**2
-    p = float(2 * min(stats.chi2.cdf(t, r), stats.chi2.sf(t, r)))
+    p = float(2 * min(special.chdtr(r, t), special.chdtrc(r, t)))
     return {
         "statistic": float(t),
         "dof": int(r),
         "p_value": p,
         "alpha": alpha,
-        "lower": float(stats.chi2.ppf(alpha / 2, r)),
-        "upper": float(stats.chi2.ppf(1 - alpha / 2, r)),
+        "lower": float(special.chdtri(r, 1 - alpha / 2)),
+        "upper": float(special.chdtri(r, alpha / 2)),
         "passed": bool(p >= alpha),
     }
 
@@ -335,7 +335,7 @@ def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors:
 
 
 def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
-    from scipy import stats
+    from scipy import special
 
     block = problem.block
     state = run.state
@@ -455,7 +455,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         rw = lin.r  # whitened residuals (robust weights applied)
         with np.errstate(invalid="ignore", divide="ignore"):
             w = np.where(qvv > 1e-10, rw / np.sqrt(qvv), np.nan) / s0p
-        crit = float(stats.norm.ppf(1 - opts.alpha / 2))
+        crit = float(special.ndtri(1 - opts.alpha / 2))
         wall = np.full((block.n_observations, 2), np.nan)
         wall[problem.obs_rows] = w
         red_num = np.full((block.n_observations, 2), np.nan)
