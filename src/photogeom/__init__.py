@@ -49,7 +49,7 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import camera, imagecoords, rpc, transforms
+from . import camera, imagecoords, rpc, simulate, transforms
 from .camera import (
     DLT,
     AffineCamera,
@@ -205,6 +205,7 @@ __all__ = [
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",
+    "simulate",
     "snooping_absolute_orientation",
     "solve_linear",
     "space_intersection",
