@@ -256,22 +256,24 @@ def triangulate(
     dist = np.sqrt(_sum_rows(lp, np.sum((X[lp] - C) ** 2, axis=1), k) / np.maximum(n_rays, 1))
     conv = np.zeros(k, dtype=bool)
     done = 0
-    N = np.zeros((k, 3, 3))
     for _ in range(iterations):
-        pr = project_rows(X[lp], Mr, C, cal, size)
-        r = obs - pr.uv
+        todo = active & ~conv
+        sel = np.flatnonzero(todo[lp])  # rows of the points still moving
+        if sel.size == 0:
+            break
+        ls = lp[sel]
+        pr = project_rows(X[ls], Mr[sel], C[sel], cal[sel], size[sel])
+        r = obs[sel] - pr.uv
         J = pr.d_point
-        JW = J * w[:, None, None]
-        N = _sum_rows(lp, np.einsum("nai,naj->nij", JW, J), k)
-        g = _sum_rows(lp, np.einsum("nai,na->ni", JW, r), k)
-        N[~active] = np.eye(3)
-        g[~active] = 0.0
+        JW = J * w[sel, None, None]
+        N = _sum_rows(ls, np.einsum("nai,naj->nij", JW, J), k)
+        g = _sum_rows(ls, np.einsum("nai,na->ni", JW, r), k)
+        N[~todo] = np.eye(3)
+        g[~todo] = 0.0
         dx = np.linalg.solve(N, g[:, :, None])[:, :, 0]
         X = X + dx
         done += 1
-        conv = np.linalg.norm(dx, axis=1) <= tol * np.maximum(dist, 1e-300)
-        if np.all(conv | ~active):
-            break
+        conv |= todo & (np.linalg.norm(dx, axis=1) <= tol * np.maximum(dist, 1e-300))
     pr = project_rows(X[lp], Mr, C, cal, size, jacobian=covariance)
     r = pr.uv - obs
     rms = np.sqrt(_sum_rows(lp, np.sum(r * r, axis=1), k) / np.maximum(n_rays, 1))

@@ -171,20 +171,34 @@ class LocalDistortionField:
     def rows(self, image_rows: np.ndarray, uv) -> np.ndarray:
         """Displacements (n, 2) px at pixels ``uv`` (n, 2) of image rows ``image_rows`` (n,)
         (positions in :attr:`image_ids`), vectorised over observations."""
-        a = np.asarray(uv, dtype=float).reshape(-1, 2)
+        uv_all = np.asarray(uv, dtype=float).reshape(-1, 2)
         r = np.asarray(image_rows, dtype=np.int64).reshape(-1)
-        out = np.zeros((a.shape[0], 2))
-        if self.waves.shape[0] == 0:
+        out = np.zeros((uv_all.shape[0], 2))
+        if self.waves.shape[0] == 0 or uv_all.shape[0] == 0:
             return out
-        fx = 2 * np.pi * self.waves[:, 0] / self.width
-        fy = 2 * np.pi * self.waves[:, 1] / self.height
-        for s in range(0, a.shape[0], _CHUNK):  # chunks of rows, not single rows
-            e = min(s + _CHUNK, a.shape[0])
-            t = a[s:e, 0:1] * fx + a[s:e, 1:2] * fy
-            c = self.coef[r[s:e]]  # (n, K, 2, 2)
-            out[s:e] = np.einsum("nk,nkd->nd", np.cos(t), c[:, :, 0]) + np.einsum(
-                "nk,nkd->nd", np.sin(t), c[:, :, 1]
-            )
+        kmax = int(np.max(np.abs(self.waves)))
+        kx = self.waves[:, 0].astype(np.int64)
+        ky = self.waves[:, 1].astype(np.int64) + kmax
+        hu = 2 * np.pi * np.arange(kmax + 1) / self.width
+        hv = 2 * np.pi * np.arange(-kmax, kmax + 1) / self.height
+        order = np.argsort(r, kind="stable")
+        rs = r[order]
+        cuts = np.flatnonzero(np.diff(rs)) + 1
+        starts = np.concatenate([[0], cuts])
+        stops = np.concatenate([cuts, [rs.size]])
+        for s0, s1 in zip(starts, stops):  # one matrix product per image, not per row
+            c = self.coef[rs[s0]]  # (K, 2, 2)
+            c2 = np.ascontiguousarray(np.concatenate([c[:, 0], c[:, 1]]))  # (2K, 2)
+            for b0 in range(s0, s1, _CHUNK):
+                b1 = min(b0 + _CHUNK, s1)
+                idx = order[b0:b1]
+                # cos/sin of t = a + b from the harmonics of u and v separately
+                a = np.multiply.outer(uv_all[idx, 0], hu)
+                b = np.multiply.outer(uv_all[idx, 1], hv)
+                ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+                ca, sa, cb, sb = ca[:, kx], sa[:, kx], cb[:, ky], sb[:, ky]
+                cs = np.concatenate([ca * cb - sa * sb, sa * cb + ca * sb], axis=1)
+                out[idx] = cs @ c2
         return out
 
     def __call__(self, image_id, uv) -> np.ndarray:

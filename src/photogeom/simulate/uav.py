@@ -18,7 +18,7 @@ terrain height.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -192,31 +192,81 @@ def _layout(spec, extent, rng: np.random.Generator, name: str) -> np.ndarray:
     return a
 
 
-def _candidate_pairs(XY_img: np.ndarray, XY_pts: np.ndarray, R: float):
-    """(image row, point row) pairs whose horizontal distance may be below R: a grid of
-    cells of size R, each image meeting at most 3 x 3 cells (vectorised, no per-point loop)."""
-    lo = XY_pts.min(axis=0) - R
-    cell = np.floor((XY_pts - lo) / R).astype(np.int64)
-    ncx = int(cell[:, 0].max()) + 3
-    ncy = int(cell[:, 1].max()) + 3
-    key = cell[:, 1] * ncx + cell[:, 0]
+def _footprint_boxes(cam, offsets, M, C, zmin: float, zmax: float) -> np.ndarray:
+    """Ground bounding boxes (m, 4: xmin, xmax, ymin, ymax) of each image's view of the
+    terrain between heights ``zmin`` and ``zmax``: rays through 32 points of the image border
+    (undistorted with the image's calibration, 2 % margin) intersected with both planes."""
+    W, H = cam.width - 1.0, cam.height - 1.0
+    t = np.linspace(0.0, 1.0, 9)[:-1]
+    border = np.vstack(
+        [
+            np.column_stack([t * W, np.zeros_like(t)]),
+            np.column_stack([np.full_like(t, W), t * H]),
+            np.column_stack([W - t * W, np.full_like(t, H)]),
+            np.column_stack([np.zeros_like(t), H - t * H]),
+        ]
+    )
+    m = C.shape[0]
+    xy = np.empty((m, border.shape[0], 2))
+    for g in np.unique(offsets, axis=0):  # distinct image calibrations, not points
+        sel = np.all(offsets == g, axis=1)
+        c = replace(cam, f=cam.f + g[0], cx=cam.cx + g[1], cy=cam.cy + g[2])
+        res = c.unproject(border)
+        xy[sel] = res.points * 1.02
+    dcam = np.concatenate([xy[:, :, :1], -xy[:, :, 1:], -np.ones((m, xy.shape[1], 1))], axis=2)
+    d = np.einsum("mji,mkj->mki", M, dcam)  # object-space directions (M' p)
+    out = np.empty((m, 4))
+    pts = []
+    for z in (zmin, zmax):
+        s = (z - C[:, None, 2]) / d[:, :, 2]  # > 0 for rays going down to the plane
+        s = np.where(s > 0, s, np.nan)
+        pts.append(C[:, None, :2] + s[:, :, None] * d[:, :, :2])
+    P = np.concatenate(pts, axis=1)
+    if np.any(~np.isfinite(P)):
+        raise InputError(
+            "an image looks above the horizon of the terrain (tilt too large for the field of "
+            "view): lower attitude_jitter_deg"
+        )
+    out[:, 0], out[:, 1] = P[:, :, 0].min(axis=1), P[:, :, 0].max(axis=1)
+    out[:, 2], out[:, 3] = P[:, :, 1].min(axis=1), P[:, :, 1].max(axis=1)
+    return out
+
+
+def _candidate_pairs(boxes: np.ndarray, XY: np.ndarray):
+    """(image row, point row) pairs with the point inside the image's ground box: points
+    sorted into a grid of cells, each box covering contiguous runs of cells per cell row
+    (vectorised over images and points)."""
+    cell = 0.25 * float(np.min(np.minimum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2])))
+    cell = max(cell, 1e-9)
+    lo = XY.min(axis=0)
+    ij = np.floor((XY - lo) / cell).astype(np.int64)
+    ncx = int(ij[:, 0].max()) + 1
+    ncy = int(ij[:, 1].max()) + 1
+    key = ij[:, 1] * ncx + ij[:, 0]
     order = np.argsort(key, kind="stable")
     skey = key[order]
-    ic = np.floor((XY_img - lo) / R).astype(np.int64)
-    offs = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
-    cx = ic[:, None, 0] + offs[None, :, 0]
-    cy = ic[:, None, 1] + offs[None, :, 1]
-    valid = (cx >= 0) & (cx < ncx) & (cy >= 0) & (cy < ncy)
-    ckey = np.where(valid, cy * ncx + cx, -1)
-    start = np.searchsorted(skey, ckey, side="left")
-    stop = np.searchsorted(skey, ckey, side="right")
+    ix0 = np.clip(np.floor((boxes[:, 0] - lo[0]) / cell), 0, ncx - 1).astype(np.int64)
+    ix1 = np.clip(np.floor((boxes[:, 1] - lo[0]) / cell), 0, ncx - 1).astype(np.int64)
+    iy0 = np.clip(np.floor((boxes[:, 2] - lo[1]) / cell), 0, ncy - 1).astype(np.int64)
+    iy1 = np.clip(np.floor((boxes[:, 3] - lo[1]) / cell), 0, ncy - 1).astype(np.int64)
+    rows = int(np.max(iy1 - iy0)) + 1
+    iy = iy0[:, None] + np.arange(rows)[None, :]
+    valid = iy <= iy1[:, None]
+    start = np.searchsorted(skey, iy * ncx + ix0[:, None], side="left")
+    stop = np.searchsorted(skey, iy * ncx + ix1[:, None], side="right")
     count = np.where(valid, stop - start, 0).ravel()
     start = start.ravel()
-    img = np.repeat(np.repeat(np.arange(XY_img.shape[0]), 9), count)
-    total = int(count.sum())
+    img = np.repeat(np.repeat(np.arange(boxes.shape[0]), rows), count)
     first = np.repeat(np.cumsum(count) - count, count)
-    pos = np.arange(total) - first + np.repeat(start, count)
-    return img, order[pos]
+    pos = np.arange(int(count.sum())) - first + np.repeat(start, count)
+    pts = order[pos]
+    inside = (
+        (XY[pts, 0] >= boxes[img, 0])
+        & (XY[pts, 0] <= boxes[img, 1])
+        & (XY[pts, 1] >= boxes[img, 2])
+        & (XY[pts, 1] <= boxes[img, 3])
+    )
+    return img[inside], pts[inside]
 
 
 def _project_pairs(img, pts, X, M, C, calv, size):
@@ -533,11 +583,8 @@ def uav_block(
         -1, 3, 3
     )
     rmax = _max_radius(cam)
-    half_fov = float(np.arctan(rmax))
-    tilt = float(np.max(np.arccos(np.clip(M_true[:, 2, 2], -1.0, 1.0))))
-    depth_span = float(C_true[:, 2].max() - Z.min())
-    R = max(depth_span * np.tan(min(half_fov + tilt, np.radians(85.0))) * 1.05, 1e-6)
-    ci, cj = _candidate_pairs(C_true[:, :2], xyz_true[:, :2], R)
+    boxes = _footprint_boxes(cam, offsets, M_true, C_true, float(Z.min()), float(Z.max()))
+    ci, cj = _candidate_pairs(boxes, xyz_true[:, :2])
     uv_c, depth_c, rad_c = _project_pairs(ci, cj, xyz_true, M_true, C_true, cal_rows, sizes)
     inside = (
         (depth_c > 0)
