@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import photogeom as pg
 from photogeom.bundle import reprojection_residuals
@@ -270,3 +272,47 @@ def test_bad_options_are_named(kwargs, match):
 def test_local_field_unknown_image_is_named(sim):
     with pytest.raises(InputError, match="unknown image id"):
         sim.local_field(10**6, [[0.0, 0.0]])
+
+
+def test_tie_points_the_initial_cameras_cannot_intersect_are_dropped_consistently():
+    s = uav_block("FC300S", seed=1, imu_sigma_deg=20.0, blunders=20)
+    assert s.options["dropped_tie_points"] > 0
+    s.block.validate()
+    np.testing.assert_array_equal(s.block.point_ids, s.truth.point_ids)
+    assert np.all(np.isfinite(s.block.xyz))
+    np.testing.assert_allclose(
+        s.observed - s.ideal, s.local + s.noise + s.blunders, rtol=0, atol=1e-9
+    )
+    assert np.abs(reprojection_residuals(s.truth)).max() < 1e-9
+    assert np.all(s.block.role[s.block.obs_point[s.blunder_rows]] == "tie")
+    np.testing.assert_allclose(np.linalg.norm(s.blunder_offsets, axis=1), 50.0)
+
+
+@settings(max_examples=8, deadline=None, derandomize=True)
+@given(
+    seed=st.integers(0, 2**31),
+    name=st.sampled_from(NAMES),
+    terrain=st.sampled_from(["flat", "hilly"]),
+    variation=st.booleans(),
+    overlap=st.floats(0.55, 0.85),
+)
+def test_property_truth_is_consistent_and_recovered_by_triangulation(
+    seed, name, terrain, variation, overlap
+):
+    s = uav_block(
+        name,
+        seed=seed,
+        terrain=terrain,
+        strips=2,
+        images_per_strip=4,
+        forward_overlap=overlap,
+        tie_points_per_image=25,
+        calibration_variation=(2.0, 1.0, 1.0) if variation else None,
+    )
+    assert np.abs(reprojection_residuals(s.truth)).max() < 1e-9
+    np.testing.assert_allclose(
+        s.observed - s.ideal, s.local + s.noise + s.blunders, rtol=0, atol=1e-9
+    )
+    t = pg.bundle.triangulate(s.truth)
+    assert t.all_ok, t.describe_failures()
+    np.testing.assert_allclose(t.xyz, s.truth.xyz, rtol=0, atol=1e-8 * s.flying_height)

@@ -122,6 +122,16 @@ def _sum_rows(index: np.ndarray, values: np.ndarray, k: int) -> np.ndarray:
     return out.reshape((k, *values.shape[1:]))
 
 
+def _singular(N: np.ndarray) -> np.ndarray:
+    """(k,) True where a 3x3 normal matrix is not finite or numerically singular."""
+    fin = np.all(np.isfinite(N.reshape(N.shape[0], -1)), axis=1)
+    out = ~fin
+    if np.any(fin):
+        lam = np.linalg.eigvalsh(N[fin])
+        out[fin] = ~(lam[:, 0] > 1e-12 * np.maximum(lam[:, 2], 1e-300))
+    return out
+
+
 def normalized_rays(block: Block, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ideal normalised coordinates ``(X/Z, Y/Z)`` (Metashape axes) of observation rows.
 
@@ -158,7 +168,7 @@ def triangulate(
     point_ids: Sequence | None = None,
     *,
     images: Sequence | None = None,
-    iterations: int = 10,
+    iterations: int = 20,
     tol: float = 1e-10,
     min_rays: int = 2,
     min_angle: float = 1e-3,
@@ -255,6 +265,7 @@ def triangulate(
     w = 1.0 / block.observations.sigma[rows] ** 2
     dist = np.sqrt(_sum_rows(lp, np.sum((X[lp] - C) ** 2, axis=1), k) / np.maximum(n_rays, 1))
     conv = np.zeros(k, dtype=bool)
+    singular = np.zeros(k, dtype=bool)
     done = 0
     for _ in range(iterations):
         todo = active & ~conv
@@ -270,6 +281,13 @@ def triangulate(
         g = _sum_rows(ls, np.einsum("nai,na->ni", JW, r), k)
         N[~todo] = np.eye(3)
         g[~todo] = 0.0
+        sing = _singular(N)
+        if np.any(sing):  # e.g. a ray through the point at zero depth: stop that point
+            singular |= sing
+            active &= ~sing
+            todo &= ~sing
+            N[sing] = np.eye(3)
+            g[sing] = 0.0
         dx = np.linalg.solve(N, g[:, :, None])[:, :, 0]
         X = X + dx
         done += 1
@@ -280,7 +298,7 @@ def triangulate(
     behind = np.bincount(lp[~(pr.depth > 0)], minlength=k) > 0
     status[~conv] = STATUS_NOT_CONVERGED
     status[behind] = STATUS_BEHIND
-    status[weak] = STATUS_POORLY_CONDITIONED
+    status[weak | singular] = STATUS_POORLY_CONDITIONED
     status[bad_und] = STATUS_UNDISTORTION_FAILED
     status[few] = STATUS_TOO_FEW_RAYS
     good = status == STATUS_OK

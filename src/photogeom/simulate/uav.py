@@ -720,7 +720,7 @@ def uav_block(
     arrays = [ci, cj, pid, role, xyz_true, xyz_obs, point_sigma, uv_ideal, observed, obs_sigma]
     truth, start = build(*arrays)
     tie_idx = np.flatnonzero(role == "tie")
-    tri = triangulate(start, pid[tie_idx])
+    tri = triangulate(start, pid[tie_idx], iterations=50)
     n_dropped = int(np.sum(~tri.ok))
     if n_dropped:
         # Tie points that the initial cameras cannot intersect (e.g. nearly parallel rays
