@@ -178,3 +178,20 @@ def test_bad_input_is_named():
         triangulate(s.block, images=[10**9])
     with pytest.raises(InputError, match="min_rays"):
         triangulate(s.block, min_rays=1)
+
+
+def test_apply_writes_the_points_into_a_block():
+    s = uav_block("FC300S", seed=17, tie_points_per_image=30)
+    t = triangulate(s.truth, s.tie_ids[:5])
+    b = t.apply(s.block)
+    rows = np.searchsorted(b.point_ids, s.tie_ids[:5])
+    np.testing.assert_allclose(b.xyz[rows], s.truth.xyz[rows], atol=1e-8 * s.flying_height)
+    others = np.setdiff1d(np.arange(b.n_points), rows)
+    np.testing.assert_array_equal(b.xyz[others], s.block.xyz[others])
+    C = np.array([[0.0, 0.0, 100.0], [30.0, 0.0, 100.0]])
+    pb = _pair_block([[10.0, 5.0, 0.0], [15.0, 2.0, 400.0]], C)
+    bad = triangulate(pb)
+    with pytest.raises(InputError, match="point 1: behind a camera"):
+        bad.apply(pb)
+    kept = bad.apply(pb, on_failure="keep")
+    np.testing.assert_array_equal(kept.xyz[1], pb.xyz[1])

@@ -109,6 +109,26 @@ class Triangulation:
         more = f" (and {bad.size - limit} more)" if bad.size > limit else ""
         return f"{bad.size} point(s) not triangulated: " + "; ".join(parts) + more
 
+    def apply(self, block: Block, *, on_failure: str = "raise") -> Block:
+        """A new block with these points' coordinates replaced by the triangulated ones.
+
+        Parameters
+        ----------
+        block : Block
+            A block holding all of :attr:`point_ids`.
+        on_failure : {"raise", "keep"}
+            Points that were not triangulated: raise :class:`InputError` naming them, or keep
+            their coordinates in ``block``.
+        """
+        if on_failure not in ("raise", "keep"):
+            raise InputError(f"on_failure must be 'raise' or 'keep', got {on_failure!r}")
+        if on_failure == "raise" and not self.all_ok:
+            raise InputError(self.describe_failures() + " (pass on_failure='keep' to keep them)")
+        rows = _lookup(block.point_ids, self.point_ids, "Triangulation.apply", "points")
+        xyz = block.xyz.copy()
+        xyz[rows[self.ok]] = self.xyz[self.ok]
+        return block.replace(xyz=xyz)
+
     def __len__(self) -> int:
         return int(self.point_ids.size)
 
