@@ -49,7 +49,7 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import camera, imagecoords, rpc, transforms
+from . import bundle, camera, imagecoords, rpc, transforms
 from .camera import (
     DLT,
     AffineCamera,
@@ -163,6 +163,7 @@ __all__ = [
     "absolute_orientation_batch",
     "angles_from_rotation",
     "axis_angle_from_matrix",
+    "bundle",
     "camera",
     "camera_matrix",
     "compare_absolute_methods",

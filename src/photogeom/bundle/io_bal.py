@@ -135,8 +135,8 @@ def read_bal(
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
         raise FileFormatError(
-            f"{label}, line {where(k, 4, 3)}: observation {k} refers to camera "
-            f"{format_floats(ci[k : k + 1])[0]} and point {format_floats(pi[k : k + 1])[0]}; indices "
+            f"{label}, line {where(k, 4, 3)}: observation {k} refers to camera {ci[k]:g} and "
+            f"point {pi[k]:g}; indices "
             f"must be integers in 0..{m - 1} (cameras) and 0..{p - 1} (points)"
         )
     for arr, width, offset, what in (
