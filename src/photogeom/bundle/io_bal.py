@@ -156,7 +156,7 @@ def read_bal(
         line = token_line(text, 3 + 4 * n + 9 * k + 6)[0]
         raise FileFormatError(
             f"{label}, line {line}: camera {k} has focal length "
-            f"{cams[k, 6]!r}; the Metashape model needs f > 0"
+            f"{cams[k, 6]:g}; the Metashape model needs f > 0"
         )
     xy = obs[:, 2:]
     if image_size is None:
