@@ -31,8 +31,9 @@ COLMAP's conventions and how photogeom maps them:
   default: the focal length(s) and the distortion terms of the camera's model, the principal
   point fixed (``refine_principal_point=True`` frees it).
 * Observations: each track element ``(IMAGE_ID, POINT2D_IDX)`` of ``points3D.txt`` is one
-  observation, at that 2D point of ``images.txt``. 2D points without a 3D point
-  (``POINT3D_ID = -1``) are not observations and are not kept. Colours and COLMAP's ``ERROR``
+  observation, at that 2D point of ``images.txt``; they come in the order of ``images.txt``
+  (image by image, 2D point by 2D point), the order the writer keeps. 2D points without a 3D
+  point (``POINT3D_ID = -1``) are not observations and are not kept. Colours and COLMAP's ``ERROR``
   are not kept (written as 0 and -1).
 * Ids: camera groups are COLMAP's ``CAMERA_ID``, points its ``POINT3D_ID``; images are keyed
   by ``NAME`` (default) or ``IMAGE_ID`` (``image_key="id"``). The writer keeps integer ids
@@ -326,7 +327,8 @@ def read_colmap(
     Block
         One camera group per COLMAP camera (group id = ``CAMERA_ID``) with the parameters of
         its COLMAP model free, images with their poses, tie points (ids ``POINT3D_ID``) and
-        one observation per track element (see the module docstring).
+        one observation per track element, in the order of ``images.txt`` (see the module
+        docstring).
 
     Raises
     ------
@@ -349,7 +351,7 @@ def read_colmap(
         u, c = np.unique(names, return_counts=True)
         if np.any(c > 1):
             raise FileFormatError(
-                f"{pi}: image NAME {u[c > 1][0]!r} appears twice; read with image_key='id'"
+                f"{pi}: image NAME {str(u[c > 1][0])!r} appears twice; read with image_key='id'"
             )
     unknown = ~np.isin(cam_id, np.array(list(cams)))
     if np.any(unknown):
@@ -406,6 +408,9 @@ def read_colmap(
             f"{flat.size} (with {flat.size - np.unique(flat).size} repeated): the two files "
             "disagree"
         )
+    # observations in the order of images.txt: image by image, 2D point by 2D point
+    by_2d = np.argsort(flat, kind="stable")
+    flat, row, owner = flat[by_2d], row[by_2d], owner[by_2d]
     uv = p2d[flat, :2] - 0.5
     nf = ~np.all(np.isfinite(uv), axis=1)
     if np.any(nf):

@@ -209,7 +209,7 @@ def _read_cameras(path: Path):
     ids = _id_array(t.col("camera"), t, "camera")
     u, c = np.unique(ids, return_counts=True)
     if np.any(c > 1):
-        raise FileFormatError(f"{path}: camera {u[c > 1][0]!r} appears twice")
+        raise FileFormatError(f"{path}: camera {u[c > 1][0].item()!r} appears twice")
     w, h = t.floats("width"), t.floats("height")
     vals = {
         n: (t.floats(n) if n == "f" else t.floats(n, optional_cells=True))
@@ -328,7 +328,7 @@ def read_csv_block(
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
         raise FileFormatError(
-            f"{tp.path}, line {tp.lines[k]}: role {role[k]!r} is not tie, control or check"
+            f"{tp.path}, line {tp.lines[k]}: role {str(role[k])!r} is not tie, control or check"
         )
     psig = None
     if tp.has("sX"):
