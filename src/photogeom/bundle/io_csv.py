@@ -150,8 +150,18 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     if empty:
         raise FileFormatError(f"{table.path}, line {table.lines[empty[0]]}: {name!r} is empty")
     if cells and all(_INT.fullmatch(c) for c in cells):
-        return np.array([int(c) for c in cells], dtype=np.int64)
-    return np.array(cells, dtype=str)
+        ids = np.array([int(c) for c in cells], dtype=np.int64)
+    else:
+        ids = np.array(cells, dtype=str)
+    _, first, counts = np.unique(ids, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        k = int(first[counts > 1][0])
+        again = int(np.flatnonzero(ids == ids[k])[1])
+        raise FileFormatError(
+            f"{table.path}, line {table.lines[again]}: {name} {cells[k]!r} appears twice "
+            f"(first on line {table.lines[k]})"
+        )
+    return ids
 
 
 def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what: str):
@@ -184,7 +194,12 @@ def _angle_column(table: _Table, base: str) -> tuple[str, str] | None:
     return None
 
 
-def _angles(table: _Table, bases, *, optional: bool) -> np.ndarray | None:
+def _angles(
+    table: _Table, bases, *, optional: bool, empty_cells: bool | None = None
+) -> np.ndarray | None:
+    """Angle columns named ``<base>_<unit>``, in radians; ``optional``: the columns may be
+    absent (None); ``empty_cells``: cells may be empty (NaN; default: as ``optional``)."""
+    empty_cells = optional if empty_cells is None else empty_cells
     found = [_angle_column(table, b) for b in bases]
     if all(f is None for f in found) and optional:
         return None
@@ -196,7 +211,7 @@ def _angles(table: _Table, bases, *, optional: bool) -> np.ndarray | None:
             f"columns {', '.join(table.header)}"
         )
     return np.column_stack(
-        [to_radians(table.floats(n, optional_cells=optional), u) for n, u in found]
+        [to_radians(table.floats(n, optional_cells=empty_cells), u) for n, u in found]
     )
 
 
@@ -207,9 +222,6 @@ def _names(cell: str) -> tuple[str, ...]:
 def _read_cameras(path: Path):
     t = _read_table(path)
     ids = _id_array(t.col("camera"), t, "camera")
-    u, c = np.unique(ids, return_counts=True)
-    if np.any(c > 1):
-        raise FileFormatError(f"{path}: camera {u[c > 1][0].item()!r} appears twice")
     w, h = t.floats("width"), t.floats("height")
     vals = {
         n: (t.floats(n) if n == "f" else t.floats(n, optional_cells=True))
@@ -319,7 +331,7 @@ def read_csv_block(
         gnss_s = np.column_stack([ti.floats(f"gnss_s{a}", optional_cells=True) for a in "XYZ"])
     imu = _angles(ti, [f"imu_{a}" for a in _EO_ANGLES], optional=True)
     if imu is not None:
-        imu_s = _angles(ti, [f"imu_s{a}" for a in _EO_ANGLES], optional=False)
+        imu_s = _angles(ti, [f"imu_s{a}" for a in _EO_ANGLES], optional=False, empty_cells=True)
     tp = _read_table(d / "points.csv")
     pt_ids = _id_array(tp.col("id"), tp, "id")
     xyz = np.column_stack([tp.floats(n) for n in ("X", "Y", "Z")])
