@@ -12,6 +12,7 @@ import os
 import re
 import tempfile
 from collections.abc import Mapping
+from itertools import chain
 from pathlib import Path
 
 import numpy as np
@@ -108,7 +109,7 @@ def split_numeric_lines(
     """
     parts = [ln.split() for ln in lines]
     counts = np.fromiter(map(len, parts), dtype=np.int64, count=len(parts))
-    flat = [t for p in parts for t in p]
+    flat = list(chain.from_iterable(parts))
     try:
         values = np.array(flat, dtype=np.float64) if flat else np.zeros(0)
     except ValueError:
