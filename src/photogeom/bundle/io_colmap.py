@@ -401,16 +401,16 @@ def read_colmap(
             f"{int(t_idx[k])} of image {int(image_id[row[k]])}, but {pi} gives that 2D point "
             f"POINT3D_ID {p2d[flat[k], 2]:g}: the two files disagree"
         )
-    linked = int(np.sum(p2d[:, 2] != -1))
-    if linked != flat.size or np.unique(flat).size != flat.size:
-        raise FileFormatError(
-            f"{pi} links {linked} 2D points to 3D points but the tracks of {pp} hold "
-            f"{flat.size} (with {flat.size - np.unique(flat).size} repeated): the two files "
-            "disagree"
-        )
     # observations in the order of images.txt: image by image, 2D point by 2D point
     by_2d = np.argsort(flat, kind="stable")
     flat, row, owner = flat[by_2d], row[by_2d], owner[by_2d]
+    linked = int(np.sum(p2d[:, 2] != -1))
+    repeated = int(np.sum(flat[1:] == flat[:-1]))
+    if linked != flat.size or repeated:
+        raise FileFormatError(
+            f"{pi} links {linked} 2D points to 3D points but the tracks of {pp} hold "
+            f"{flat.size} (with {repeated} repeated): the two files disagree"
+        )
     uv = p2d[flat, :2] - 0.5
     nf = ~np.all(np.isfinite(uv), axis=1)
     if np.any(nf):
