@@ -295,6 +295,7 @@ def test_good_minimal_file(tmp_path):
         ("1 2\n", r"truncated: the header needs 3 numbers"),
         ("1.5 2 2\n", r"line 1: the header must be three non-negative integers"),
         ("", r"truncated"),
+        ("0 0 0\n", r"line 1: the header announces no cameras"),
     ],
 )
 def test_named_errors(tmp_path, text, match):

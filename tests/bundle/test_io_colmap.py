@@ -330,7 +330,8 @@ def test_refused_cameras(tmp_path, cameras, match):
             None,
             r"NAME 'a.jpg' appears twice; read with image_key='id'",
         ),
-        ("1 1 0 0 0 0 0 5 1 a.jpg\n", None, r"truncated"),
+        ("1 1 0 0 0 0 0 5 1 a.jpg\n", None, r"point 7 is observed in image 2, which is not in"),
+        ("# nothing\n", None, r"images\.txt: no images"),
     ],
 )
 def test_inconsistent_models(tmp_path, images, points, match):

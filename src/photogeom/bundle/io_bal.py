@@ -101,6 +101,10 @@ def read_bal(
             "(num_cameras num_points num_observations), got " + " ".join(format_floats(head))
         )
     m, p, n = (int(v) for v in head)
+    if m == 0:
+        raise FileFormatError(
+            f"{label}, line 1: the header announces no cameras (an empty problem)"
+        )
     need = 3 + 4 * n + 9 * m + 3 * p
     if vals.size < need:
         have = vals.size - 3

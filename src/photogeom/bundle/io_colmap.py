@@ -228,15 +228,13 @@ def _read_images(path: Path):
             continue
         heads.append(s.split())
         head_no.append(k + 1)
-        if k + 1 >= len(raw):
-            raise FileFormatError(
-                f"{path}, line {k + 1}: truncated: the image has no POINTS2D line after it "
-                "(images.txt holds two lines per image)"
-            )
-        pts_lines.append(raw[k + 1])
+        # the last image's POINTS2D line may be missing when it is empty (end of file)
+        pts_lines.append(raw[k + 1] if k + 1 < len(raw) else "")
         pts_no.append(k + 2)
         k += 2
     m = len(heads)
+    if m == 0:
+        raise FileFormatError(f"{path}: no images")
     bad = [i for i, t in enumerate(heads) if len(t) != 10]
     if bad:
         i = bad[0]
