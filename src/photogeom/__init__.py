@@ -50,6 +50,7 @@ __version__ = "0.1.0"
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
 from . import bundle, camera, imagecoords, rpc, transforms
+from .bundle import Block, BundleFit, BundleOptions, bundle_adjust
 from .camera import (
     DLT,
     AffineCamera,
@@ -128,7 +129,10 @@ __all__ = [
     "AffineCamera",
     "BatchOrientation",
     "BatchResection",
+    "Block",
     "BrownDistortion",
+    "BundleFit",
+    "BundleOptions",
     "ConvergenceError",
     "DegenerateGeometryError",
     "ExteriorOrientation",
@@ -164,6 +168,7 @@ __all__ = [
     "angles_from_rotation",
     "axis_angle_from_matrix",
     "bundle",
+    "bundle_adjust",
     "camera",
     "camera_matrix",
     "compare_absolute_methods",

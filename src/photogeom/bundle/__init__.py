@@ -1,19 +1,27 @@
 """Blocks of images and their bundle adjustment with self-calibration.
 
 * :class:`Block` - camera groups, images, points and observations keyed by ids;
-* :func:`reprojection_residuals` - computed minus observed pixels of every observation;
+* :func:`bundle_adjust` - Levenberg-Marquardt on the reduced camera system, returning a
+  :class:`BundleFit` with the adjusted block and its statistics;
+* :func:`reprojection_residuals` - computed minus observed pixels of every observation.
 """
 
+from .adjustment import bundle_adjust
 from .block import CALIBRATION_NAMES, DEFAULT_FREE, Block, Image, Observations, Point
+from .options import BundleOptions
 from .residuals import projected_pixels, reprojection_residuals
+from .result import BundleFit
 
 __all__ = [
     "CALIBRATION_NAMES",
     "DEFAULT_FREE",
     "Block",
+    "BundleFit",
+    "BundleOptions",
     "Image",
     "Observations",
     "Point",
+    "bundle_adjust",
     "projected_pixels",
     "reprojection_residuals",
 ]
