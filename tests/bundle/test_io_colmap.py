@@ -383,3 +383,40 @@ def test_write_keeps_old_files_when_refused(tmp_path):
     with pytest.raises(InputError):
         write_colmap(bad, tmp_path)
     assert {p.name: p.read_text() for p in tmp_path.iterdir()} == before
+
+
+def test_same_minimum_as_colmaps_bundle_adjuster(tmp_path):
+    """A BAL block (GTSAM's Balbianello, 5 images, 544 points) adjusted by photogeom reaches
+    the minimum COLMAP's bundle adjuster (Ceres) reaches on the model write_colmap wrote: the
+    free parameters read from each format are the ones its own tool refines."""
+    gtsam = pytest.importorskip("gtsam")
+    try:
+        src = gtsam.findExampleDataFile("Balbianello.out")
+    except Exception:  # pragma: no cover - wheels without data
+        pytest.skip("gtsam ships no Balbianello.out")
+    gtsam.writeBAL(str(tmp_path / "b.txt"), gtsam.SfmData.FromBundlerFile(src))
+    from photogeom.bundle import bundle_adjust, read_bal
+
+    b = read_bal(tmp_path / "b.txt")
+    ours = bundle_adjust(b, datum="free", snooping=False)
+    assert ours.converged
+    write_colmap(b, tmp_path / "model")
+    rec = pycolmap.Reconstruction(str(tmp_path / "model"))
+    opts = pycolmap.BundleAdjustmentOptions()
+    opts.print_summary = False
+    so = opts.ceres.solver_options
+    so.function_tolerance = so.gradient_tolerance = so.parameter_tolerance = 1e-15
+    so.max_num_iterations = 500
+    pycolmap.bundle_adjustment(rec, opts)
+    rec.write_text(str(tmp_path / "model"))
+    theirs = read_colmap(tmp_path / "model", image_key="id")
+    cost_ours = 0.5 * np.sum(reprojection_residuals(ours.block) ** 2)
+    cost_theirs = 0.5 * np.sum(reprojection_residuals(theirs) ** 2)
+    assert cost_ours == pytest.approx(cost_theirs, rel=1e-6)
+    assert cost_ours < 0.5 * np.sum(reprojection_residuals(b) ** 2)
+    # the calibration does not depend on the datum: the same at the minimum
+    np.testing.assert_allclose(
+        ours.block.calibration_matrix()[:, [0, 3, 4]],
+        theirs.calibration_matrix()[:, [0, 3, 4]],
+        rtol=1e-4,
+    )
