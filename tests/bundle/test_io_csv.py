@@ -159,6 +159,9 @@ def test_a_folder_written_by_hand(tmp_path):
     np.testing.assert_array_equal(b.observations.sigma, 0.7)
     assert b.free[1] == pg.bundle.DEFAULT_FREE
     assert b.cameras[1].k1 == -0.1 and b.cameras[1].cx == 0.0
+    # a spreadsheet export with semicolons
+    (tmp_path / "cameras.csv").write_text("camera;width;height;f;k1\n1;4000;3000;2300;-0.1\n")
+    assert read_csv_block(tmp_path).cameras[1].k1 == -0.1
     # ids that are not canonical integers stay text
     (tmp_path / "points.csv").write_text("id,role,X,Y,Z\n07,tie,10,5,0\n8,tie,20,-5,0\n")
     (tmp_path / "observations.csv").write_text(

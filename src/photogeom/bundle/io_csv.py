@@ -1,7 +1,7 @@
 """A block as CSV files a person can edit: cameras, images, points, observations.
 
-A folder holds four files (comma-separated, a header line, ``#`` comment lines and blank
-lines skipped anywhere)::
+A folder holds four files (comma-separated, or semicolons or tabs when the header has no
+comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
 
     cameras.csv       camera, width, height, f, cx, cy, k1, k2, k3, k4, p1, p2, b1, b2,
                       free, image_variant
@@ -125,7 +125,14 @@ def _read_table(path: Path) -> _Table:
         numbers.append(k)
     if not body:
         raise FileFormatError(f"{path}: no header line (the file is empty or all comments)")
-    parsed = [[c.strip() for c in row] for row in csv.reader(body, skipinitialspace=True)]
+    # comma-separated; a header without commas but with semicolons or tabs (spreadsheet
+    # exports in some locales) selects that separator for the whole file
+    sep = ","
+    if "," not in body[0]:
+        sep = ";" if ";" in body[0] else "\t" if "\t" in body[0] else ","
+    parsed = [
+        [c.strip() for c in row] for row in csv.reader(body, delimiter=sep, skipinitialspace=True)
+    ]
     header = parsed[0]
     if any(not h for h in header):
         raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
