@@ -29,3 +29,16 @@ __all__ = [
     "reprojection_residuals",
     "triangulate",
 ]
+
+from .io_bal import read_bal, write_bal
+from .io_colmap import read_colmap, write_colmap
+from .io_csv import read_csv_block, write_csv_block
+
+__all__ += [
+    "read_bal",
+    "read_colmap",
+    "read_csv_block",
+    "write_bal",
+    "write_colmap",
+    "write_csv_block",
+]
