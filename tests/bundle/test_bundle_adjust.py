@@ -12,7 +12,7 @@ from photogeom.bundle import Block, bundle_adjust, reprojection_residuals
 from photogeom.errors import DegenerateGeometryError, InputError
 
 sys.path.insert(0, str(Path(__file__).parent))
-from blocks import TRUE_CAL, grid_block, perturbed  # noqa: E402
+from blocks import TRUE_CAL, grid_block, perturbed
 
 
 def _cal(res):
