@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from photogeom.adjust.sparse import HAVE_CHOLMOD, factorize
 from photogeom.errors import DegenerateGeometryError
 
-BACKENDS = ["superlu"] + (["cholmod"] if HAVE_CHOLMOD else [])
+BACKENDS = ["superlu", "dense"] + (["cholmod"] if HAVE_CHOLMOD else [])
 
 
 def _spd(n=60, seed=0):

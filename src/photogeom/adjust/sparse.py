@@ -23,7 +23,10 @@ except Exception:  # pragma: no cover - any import failure means: not available
     _Cholmod = None
     HAVE_CHOLMOD = False
 
-BACKENDS = ("auto", "cholmod", "superlu")
+BACKENDS = ("auto", "cholmod", "superlu", "dense")
+#: "auto" factorises systems up to this size densely (LAPACK): faster than a sparse
+#: factorisation there, and the memory (n^2 doubles, 50 MB at 2500) is small.
+DENSE_MAX = 2500
 
 
 class SparseFactor:
@@ -33,8 +36,9 @@ class SparseFactor:
     ----------
     N : scipy.sparse matrix, shape (n, n)
         Symmetric positive definite. Only its full (both triangles) pattern is used.
-    backend : {"auto", "cholmod", "superlu"}
-        ``"auto"`` takes CHOLMOD when available.
+    backend : {"auto", "cholmod", "superlu", "dense"}
+        ``"auto"`` takes LAPACK's dense Cholesky up to :data:`DENSE_MAX` unknowns, else
+        CHOLMOD when available, else SuperLU.
     what : str
         What the matrix is, for error messages (e.g. ``"reduced camera system"``).
 
@@ -71,8 +75,21 @@ class SparseFactor:
         D = sp.diags(self._scale)
         Ns = sp.csc_matrix(D @ N @ D)
         Ns.sort_indices()
-        self.backend = "cholmod" if use_cholmod else "superlu"
-        if use_cholmod:
+        use_dense = backend == "dense" or (backend == "auto" and self.n <= DENSE_MAX)
+        self.backend = "dense" if use_dense else ("cholmod" if use_cholmod else "superlu")
+        if use_dense:
+            from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+            try:
+                c = cho_factor(Ns.toarray(), lower=True, check_finite=False)
+            except LinAlgError as exc:
+                raise DegenerateGeometryError(
+                    f"{what} is not positive definite (a datum defect or an undetermined "
+                    "parameter)"
+                ) from exc
+            self._f = c
+            self._solve = lambda rhs: cho_solve(c, rhs, check_finite=False)
+        elif use_cholmod:
             try:
                 self._f = _Cholmod(Ns)
             except ValueError as exc:
