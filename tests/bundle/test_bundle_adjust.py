@@ -183,3 +183,15 @@ def test_image_variant_focal_lengths_are_recovered():
     res = bundle_adjust(start, snooping=False)
     assert res.converged
     np.testing.assert_allclose(res.block.calibration_offset[:, 0], off[:, 0], atol=1e-6)
+
+
+@pytest.mark.parametrize("backend", ["superlu", "cg", "dense"])
+def test_solver_backends_reach_the_same_minimum(backend):
+    truth = grid_block(7, rows=2, cols=3, n_points=120, noise=0.4)
+    ref = bundle_adjust(truth, snooping=False)
+    res = bundle_adjust(truth, snooping=False, backend=backend)
+    assert res.solver["backend"] == backend
+    np.testing.assert_allclose(res.block.exterior, ref.block.exterior, atol=1e-7)
+    np.testing.assert_allclose(res.exterior_std, ref.exterior_std, rtol=1e-5)
+    with pytest.raises(InputError, match="backend must be one of"):
+        bundle_adjust(truth, backend="magic")

@@ -395,7 +395,9 @@ class _Normal:
     # --- solving -------------------------------------------------------------------------
 
     def factor(self) -> SparseFactor:
-        return factorize(self.S, backend=self.sys.backend, what="reduced camera system")
+        return factorize(
+            self.S, backend=self.sys.backend, what="reduced camera system", block_size=self.sys.b
+        )
 
     def reduced_rhs(self) -> np.ndarray:
         """``-(g_c - W V^-1 g_p)`` stacked (local blocks, then global)."""
