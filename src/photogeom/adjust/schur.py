@@ -480,12 +480,22 @@ def covariance_blocks(
     Qlg = np.zeros((L, b, g))
     Qp = np.zeros((s.blocks.shape[0], b, b)) if pairs else None
     per = max(1, batch_columns // b)
+    from .sparse import DENSE_INVERSE_MAX
+
+    if s.nc <= DENSE_INVERSE_MAX and factor.backend != "cg":
+        Qd = factor.dense_inverse()
+        per = L  # one "batch": all columns at once from the dense inverse
+    else:
+        Qd = None
     for l0 in range(0, L, per):
         l1 = min(L, l0 + per)
         ncol = (l1 - l0) * b
-        E = np.zeros((s.nc, ncol))
-        E[np.arange(l0 * b, l1 * b), np.arange(ncol)] = 1.0
-        X = factor.solve(E)  # columns: Q[:, local l0..l1]
+        if Qd is not None:
+            X = Qd[:, l0 * b : l1 * b]
+        else:
+            E = np.zeros((s.nc, ncol))
+            E[np.arange(l0 * b, l1 * b), np.arange(ncol)] = 1.0
+            X = factor.solve(E)  # columns: Q[:, local l0..l1]
         Xr = X[: L * b].reshape(L, b, l1 - l0, b)
         idx = np.arange(l1 - l0)
         Ql[l0:l1] = Xr[l0 + idx, :, idx, :]
@@ -499,10 +509,12 @@ def covariance_blocks(
                 blk = Xr[hi_, :, lo_ - l0, :]  # (k, b(rows of hi), b(cols of lo))
                 Qp[sel] = blk.transpose(0, 2, 1)
     if g:
-        E = np.zeros((s.nc, g))
-        E[L * b + np.arange(g), np.arange(g)] = 1.0
-        X = factor.solve(E)
-        Qgg = X[L * b :]
+        if Qd is not None:
+            Qgg = Qd[L * b :, L * b :].copy()
+        else:
+            E = np.zeros((s.nc, g))
+            E[L * b + np.arange(g), np.arange(g)] = 1.0
+            Qgg = factor.solve(E)[L * b :]
         Qgg = 0.5 * (Qgg + Qgg.T)
     else:
         Qgg = np.zeros((0, 0))

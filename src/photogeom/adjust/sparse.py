@@ -27,6 +27,10 @@ BACKENDS = ("auto", "cholmod", "superlu", "dense", "cg")
 #: "auto" factorises systems up to this size densely (LAPACK): faster than a sparse
 #: factorisation there, and the memory (n^2 doubles, 50 MB at 2500) is small.
 DENSE_MAX = 2500
+#: Up to this size the whole inverse is formed densely by LAPACK when many of its blocks
+#: are wanted (n^2 doubles: 512 MB at 8000); sparse solves with unit vectors are far
+#: slower there. Larger systems use the solves.
+DENSE_INVERSE_MAX = 8000
 
 
 class SparseFactor:
@@ -86,6 +90,7 @@ class SparseFactor:
         D = sp.diags(self._scale)
         Ns = sp.csc_matrix(D @ N @ D)
         Ns.sort_indices()
+        self._Ns = Ns
         use_dense = backend == "dense" or (backend == "auto" and self.n <= DENSE_MAX)
         self.backend = "dense" if use_dense else ("cholmod" if use_cholmod else "superlu")
         if backend == "cg":
@@ -205,6 +210,27 @@ class SparseFactor:
         rhs = np.ascontiguousarray(b * s)
         out = self._solve(rhs)
         return out * s
+
+    def dense_inverse(self) -> np.ndarray:
+        """The whole inverse ``N^-1`` (n, n) by LAPACK's Cholesky inverse (``potrf`` +
+        ``potri``); for ``n`` up to :data:`DENSE_INVERSE_MAX`."""
+        from scipy.linalg import lapack
+
+        if self.n > DENSE_INVERSE_MAX:
+            raise ValueError(
+                f"{self.what}: {self.n} unknowns are too many for a dense inverse; use "
+                "inverse_blocks"
+            )
+        c, info = lapack.dpotrf(self._Ns.toarray(), lower=1, clean=0, overwrite_a=1)
+        if info != 0:
+            raise DegenerateGeometryError(f"{self.what} is not positive definite")
+        inv, info = lapack.dpotri(c, lower=1, overwrite_c=1)
+        if info != 0:
+            raise DegenerateGeometryError(f"{self.what} is singular")
+        inv = np.tril(inv) + np.tril(inv, -1).T
+        inv *= self._scale[:, None]
+        inv *= self._scale[None, :]
+        return inv
 
     def inverse_blocks(self, starts: np.ndarray, size: int) -> np.ndarray:
         """Diagonal blocks of ``N^-1``: ``(len(starts), size, size)`` for the index ranges

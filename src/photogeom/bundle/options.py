@@ -65,7 +65,7 @@ class BundleOptions:
     """
 
     max_iterations: int = 100
-    ftol: float = 1e-12
+    ftol: float = 1e-10
     xtol: float = 1e-12
     initial_damping: float = 1e-4
     loss: str = "squared"
