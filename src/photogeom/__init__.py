@@ -49,7 +49,7 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import bundle, camera, imagecoords, rpc, transforms
+from . import bundle, camera, imagecoords, rpc, simulate, transforms
 from .bundle import Block, BundleFit, BundleOptions, bundle_adjust
 from .camera import (
     DLT,
@@ -211,6 +211,7 @@ __all__ = [
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",
+    "simulate",
     "snooping_absolute_orientation",
     "solve_linear",
     "space_intersection",

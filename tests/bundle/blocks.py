@@ -58,8 +58,14 @@ def grid_block(
         np.tile([cal.width, cal.height], (ii.size, 1)),
         jacobian=False,
     )
+    # the Brown polynomial folds far-off points back into the frame: keep points whose
+    # ideal (undistorted) direction lies inside the field of view
+    pc = np.einsum("nij,nj->ni", M[ii], P[jj] - C[ii])
+    xn, yn = pc[:, 0] / -pc[:, 2], pc[:, 1] / -pc[:, 2]
     inside = (
         (pr.depth > 0)
+        & (np.abs(xn) < 0.5 * cal.width / cal.f)
+        & (np.abs(yn) < 0.5 * cal.height / cal.f)
         & (pr.uv[:, 0] > 10)
         & (pr.uv[:, 0] < cal.width - 10)
         & (pr.uv[:, 1] > 10)

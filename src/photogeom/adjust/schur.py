@@ -243,30 +243,21 @@ class SchurSystem:
         gloc = lin.local_grad.copy()
         ggl_loc = np.zeros((L, gl))
 
-        def per_local(rows):
-            a, gg_, rr = A[rows], G[rows], r[rows]
-            parts = [np.einsum("ndi,ndj->nij", a, a).reshape(rows.size, -1)]
-            parts.append(np.einsum("ndi,nd->ni", a, rr))
+        # one small GEMM per local block over its contiguous (sorted) rows: [A G r]'[A G r]
+        d = r.shape[1]
+        B = np.concatenate([A, G, r[:, :, None]], axis=2)[self.order_loc]
+        B = B.reshape(-1, b + gl + 1)
+        ends = np.r_[self.loc_starts[1:], self.n]
+        for lo, hi, key in zip(self.loc_starts.tolist(), ends.tolist(), self.loc_keys.tolist()):
+            Bi = B[d * lo : d * hi]
+            Mi = Bi.T @ Bi
+            U[key] += Mi[:b, :b]
+            gloc[key] += Mi[:b, -1]
             if gl:
-                parts.append(np.einsum("ndi,ndj->nij", a, gg_).reshape(rows.size, -1))
-                parts.append(np.einsum("ndi,ndj->nij", gg_, gg_).reshape(rows.size, -1))
-                parts.append(np.einsum("ndi,nd->ni", gg_, rr))
-            return np.concatenate(parts, axis=1)
-
-        width = b * b + b + (b * gl + gl * gl + gl if gl else 0)
-        acc = np.zeros((L, width))
-        _segment_sum(per_local, self.order_loc, self.loc_starts, self.loc_keys, self.n, acc)
-        o = 0
-        U += acc[:, o : o + b * b].reshape(L, b, b)
-        o += b * b
-        gloc += acc[:, o : o + b]
-        o += b
-        if gl:
-            Ulg = acc[:, o : o + b * gl].reshape(L, b, gl)
-            o += b * gl
-            Ugl_loc = acc[:, o : o + gl * gl].reshape(L, gl, gl)
-            o += gl * gl
-            ggl_loc = acc[:, o : o + gl]
+                Ulg[key] = Mi[:b, b : b + gl]
+                Ugl_loc[key] = Mi[b : b + gl, b : b + gl]
+                ggl_loc[key] = Mi[b : b + gl, -1]
+        del B
         # global sums (scatter local global columns)
         Ugg = lin.global_info.copy()
         gglob = lin.global_grad.copy()
@@ -279,13 +270,12 @@ class SchurSystem:
         V = lin.point_info.copy()
         gpt = lin.point_grad.copy()
 
+        PT = P.transpose(0, 2, 1)
+
         def per_point(rows):
-            p, rr = P[rows], r[rows]
+            pt_ = PT[rows]
             return np.concatenate(
-                [
-                    np.einsum("ndi,ndj->nij", p, p).reshape(rows.size, 9),
-                    np.einsum("ndi,nd->ni", p, rr),
-                ],
+                [(pt_ @ P[rows]).reshape(rows.size, 9), (pt_ @ r[rows][:, :, None])[:, :, 0]],
                 axis=1,
             )
 
@@ -335,12 +325,12 @@ class _Normal:
         Vinv = self.Vinv
         pt = s.point
         # W_k = A_k' P_k (b, 3); Y_k = W_k Vinv_j
-        W = np.einsum("ndi,ndj->nij", A, P)
-        Y = np.einsum("nij,njk->nik", W, Vinv[pt])
+        W = A.transpose(0, 2, 1) @ P
+        Y = W @ Vinv[pt]
         self.W, self.Y = W, Y
         # H_j (3, g): sum over the point's rows of P_k' G_k in global columns
         if g:
-            Wg = np.einsum("ndi,ndj->nij", G, P)  # (n, gl, 3)
+            Wg = G.transpose(0, 2, 1) @ P  # (n, gl, 3)
             cols = s.local_global[s.local]  # (n, gl)
             flat = (pt[:, None, None] * 3 + np.arange(3)[None, None, :]) * g + cols[:, :, None]
             H = np.bincount(flat.ravel(), weights=Wg.ravel(), minlength=s.n_points * 3 * g)
@@ -348,29 +338,30 @@ class _Normal:
         else:
             H = np.zeros((s.n_points, 3, 0))
         self.H = H
-        VH = np.einsum("pij,pjk->pik", Vinv, H)  # (p, 3, g)
+        VH = Vinv @ H  # (p, 3, g)
         self.VH = VH
-        # diagonal blocks: U_ll - sum Y_k W_k'
+        # diagonal blocks U_ll - sum_k Y_k W_k' and local-global blocks - sum_k Y_k H_j,
+        # one GEMM per local block over its sorted rows
         D = self.U.copy()
-        acc = np.zeros((L, b * b))
-        _segment_sum(
-            lambda rows: np.einsum("nij,nkj->nik", Y[rows], W[rows]).reshape(rows.size, -1),
-            s.order_loc,
-            s.loc_starts,
-            s.loc_keys,
-            s.n,
-            acc,
-        )
-        D -= acc.reshape(L, b, b)
+        LG = np.zeros((L, b, g))
+        ol = s.order_loc
+        Ys = Y[ol].transpose(0, 2, 1).reshape(-1, b)  # rows (k, 3) x b
+        Ws = W[ol].transpose(0, 2, 1).reshape(-1, b)
+        Hs = H[pt[ol]].reshape(-1, g) if g else None
+        ends = np.r_[s.loc_starts[1:], s.n]
+        for lo, hi, key in zip(s.loc_starts.tolist(), ends.tolist(), s.loc_keys.tolist()):
+            Yi = Ys[3 * lo : 3 * hi]
+            D[key] -= Yi.T @ Ws[3 * lo : 3 * hi]
+            if g:
+                LG[key] -= Yi.T @ Hs[3 * lo : 3 * hi]
+        del Ys, Ws, Hs
         # off-diagonal blocks: - sum over pairs Y_k1 W_k2'
         nb = s.blocks.shape[0]
         off = np.zeros((nb, b * b))
         if s.n_pairs:
             k1, k2 = s.pair_k1, s.pair_k2
             _segment_sum(
-                lambda rows: np.einsum("nij,nkj->nik", Y[k1[rows]], W[k2[rows]]).reshape(
-                    rows.size, -1
-                ),
+                lambda rows: (Y[k1[rows]] @ W[k2[rows]].transpose(0, 2, 1)).reshape(rows.size, -1),
                 s.pair_order,
                 s.pair_starts,
                 s.pair_keys,
@@ -378,27 +369,16 @@ class _Normal:
                 off,
             )
         off = -off
-        # local-global: U_lg (scattered) - sum_k Y_k H_j
-        LG = np.zeros((L, b, g))
+        # local-global: U_lg (scattered into the global columns)
         if g:
             cols = s.local_global
             for c in range(gl):  # gl columns, not points
                 LG[np.arange(L), :, cols[:, c]] += self.Ulg[:, :, c]
-            acc = np.zeros((L, b * g))
-            _segment_sum(
-                lambda rows: np.einsum("nij,njk->nik", Y[rows], H[pt[rows]]).reshape(rows.size, -1),
-                s.order_loc,
-                s.loc_starts,
-                s.loc_keys,
-                s.n,
-                acc,
-            )
-            LG -= acc.reshape(L, b, g)
             # fixed parameters: no coupling
             LG *= s.local_free[:, :, None]
             LG *= s.global_free[None, None, :]
             # global-global: U_gg - sum_j H_j' Vinv_j H_j
-            GG = self.Ugg - np.einsum("pki,pkj->ij", H, VH)
+            GG = self.Ugg - H.reshape(-1, g).T @ VH.reshape(-1, g)
             gf = s.global_free
             GG = np.where(np.outer(gf, gf), GG, np.diag((~gf).astype(float)))
         else:
@@ -415,16 +395,18 @@ class _Normal:
     # --- solving -------------------------------------------------------------------------
 
     def factor(self) -> SparseFactor:
-        return factorize(self.S, backend=self.sys.backend, what="reduced camera system")
+        return factorize(
+            self.S, backend=self.sys.backend, what="reduced camera system", block_size=self.sys.b
+        )
 
     def reduced_rhs(self) -> np.ndarray:
         """``-(g_c - W V^-1 g_p)`` stacked (local blocks, then global)."""
         s = self.sys
         L, b = s.n_local, s.b
-        Vg = np.einsum("pij,pj->pi", self.Vinv, self.gpt)  # V^-1 g_p
+        Vg = (self.Vinv @ self.gpt[:, :, None])[:, :, 0]  # V^-1 g_p
         acc = np.zeros((L, b))
         _segment_sum(
-            lambda rows: np.einsum("nij,nj->ni", self.W[rows], Vg[s.point[rows]]),
+            lambda rows: (self.W[rows] @ Vg[s.point[rows]][:, :, None])[:, :, 0],
             s.order_loc,
             s.loc_starts,
             s.loc_keys,
@@ -432,7 +414,7 @@ class _Normal:
             acc,
         )
         rl = -(self.gloc - acc) * s.local_free
-        rg = -(self.gglob - np.einsum("pki,pk->i", self.H, Vg)) * s.global_free
+        rg = -(self.gglob - self.H.reshape(-1, s.n_global).T @ Vg.ravel()) * s.global_free
         return np.concatenate([rl.ravel(), rg])
 
     def back_substitute(self, dc: np.ndarray) -> np.ndarray:
@@ -443,7 +425,7 @@ class _Normal:
         dg = dc[L * b :]
         acc = np.zeros((s.n_points, 3))
         _segment_sum(
-            lambda rows: np.einsum("nij,ni->nj", self.W[rows], dl[s.local[rows]]),
+            lambda rows: (dl[s.local[rows]][:, None, :] @ self.W[rows])[:, 0, :],
             s.order_pt,
             s.pt_starts,
             s.pt_keys,
@@ -452,8 +434,8 @@ class _Normal:
         )
         t = self.gpt + acc
         if s.n_global:
-            t += np.einsum("pkj,j->pk", self.H, dg)
-        return -np.einsum("pij,pj->pi", self.Vinv, t)
+            t += self.H @ dg
+        return -(self.Vinv @ t[:, :, None])[:, :, 0]
 
     def solve(self) -> tuple[np.ndarray, np.ndarray, SparseFactor]:
         """Camera-side step (nc,), point step (n_points, 3) and the factor used."""
@@ -547,9 +529,10 @@ def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
 
     def self_terms(rows):
         y = Y[rows]
-        t = np.einsum("nai,nab,nbj->nij", y, Q.local[loc[rows]], y)
+        yt = y.transpose(0, 2, 1)
+        t = yt @ Q.local[loc[rows]] @ y
         if s.n_global:
-            c = np.einsum("nai,nag,njg->nij", y, Q.local_global[loc[rows]], VH[s.point[rows]])
+            c = yt @ Q.local_global[loc[rows]] @ VH[s.point[rows]].transpose(0, 2, 1)
             t += c + c.transpose(0, 2, 1)
         return t.reshape(rows.size, 9)
 
@@ -563,13 +546,13 @@ def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
         order, starts, keys = _segments(pp, s.n_points)
 
         def pair_terms(rows):
-            a = np.einsum("nai,nab,nbj->nij", Y[k1[rows]], Q.pairs[blk_of_pair[rows]], Y[k2[rows]])
+            a = Y[k1[rows]].transpose(0, 2, 1) @ Q.pairs[blk_of_pair[rows]] @ Y[k2[rows]]
             return (a + a.transpose(0, 2, 1)).reshape(rows.size, 9)
 
         _segment_sum(pair_terms, order, starts, keys, s.n_pairs, acc)
     out += acc.reshape(-1, 3, 3)
     if s.n_global:
-        out += np.einsum("pig,gh,pjh->pij", VH, Q.global_, VH)
+        out += VH @ Q.global_ @ VH.transpose(0, 2, 1)
     return 0.5 * (out + out.transpose(0, 2, 1))
 
 
@@ -583,9 +566,9 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
     n = s.n
     # cross cofactor camera-side (local b + global g) x point for each row: Q_{c,p_j}
     # Q_{l,p_j} = -(sum_k' Q_{l,l(k')} Y_k' + Q_{l,g} VH_j)
-    Qlp = -np.einsum("nab,nbj->naj", Q.local[loc], Y)  # own term k' = k
+    Qlp = -(Q.local[loc] @ Y)  # own term k' = k
     if s.n_global:
-        Qlp -= np.einsum("nag,njg->naj", Q.local_global[loc], VH[pt])
+        Qlp -= Q.local_global[loc] @ VH[pt].transpose(0, 2, 1)
     if s.n_pairs:
         k1, k2 = s.pair_k1, s.pair_k2
         blk_of_pair = np.empty(s.n_pairs, dtype=np.int64)
@@ -595,26 +578,28 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
         for lo in range(0, s.n_pairs, CHUNK):
             hi = min(s.n_pairs, lo + CHUNK)
             q = Q.pairs[blk_of_pair[lo:hi]]
-            a = np.einsum("nab,nbj->naj", q, Y[k2[lo:hi]])
-            c = np.einsum("nba,nbj->naj", q, Y[k1[lo:hi]])
+            a = q @ Y[k2[lo:hi]]
+            c = q.transpose(0, 2, 1) @ Y[k1[lo:hi]]
             np.subtract.at(Qlp, k1[lo:hi], a)
             np.subtract.at(Qlp, k2[lo:hi], c)
-    out = np.einsum("ndi,nij,nej->nde", A, Q.local[loc], A)
-    out += np.einsum("ndi,nij,nej->nde", P, Qpp[pt], P)
-    c = np.einsum("ndi,nij,nej->nde", A, Qlp, P)
+    At, Pt = A.transpose(0, 2, 1), P.transpose(0, 2, 1)
+    out = A @ Q.local[loc] @ At
+    out += P @ Qpp[pt] @ Pt
+    c = A @ Qlp @ Pt
     out += c + c.transpose(0, 2, 1)
     if s.n_global:
         cols = s.local_global[loc]  # (n, gl)
         Qgg_rows = Q.global_[cols[:, :, None], cols[:, None, :]]  # (n, gl, gl)
-        out += np.einsum("ndi,nij,nej->nde", G, Qgg_rows, G)
+        Gt = G.transpose(0, 2, 1)
+        out += G @ Qgg_rows @ Gt
         Qlg_rows = np.take_along_axis(Q.local_global[loc], cols[:, None, :], axis=2)
-        c = np.einsum("ndi,nij,nej->nde", A, Qlg_rows, G)
+        c = A @ Qlg_rows @ Gt
         out += c + c.transpose(0, 2, 1)
         # Q_{g,p_j} = -(sum_k' Q_{g,l(k')} Y_k' + Q_gg VH_j), restricted to the row's columns
-        Qgp = -np.einsum("gh,pjh->pgj", Q.global_, VH)
+        Qgp = -(Q.global_ @ VH.transpose(0, 2, 1))
         accg = np.zeros((s.n_points, s.n_global * 3))
         _segment_sum(
-            lambda rows: np.einsum("nag,naj->ngj", Q.local_global[loc[rows]], Y[rows]).reshape(
+            lambda rows: (Q.local_global[loc[rows]].transpose(0, 2, 1) @ Y[rows]).reshape(
                 rows.size, -1
             ),
             s.order_pt,
@@ -625,6 +610,6 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
         )
         Qgp -= accg.reshape(s.n_points, s.n_global, 3)
         Qgp_rows = np.take_along_axis(Qgp[pt], cols[:, :, None], axis=1)  # (n, gl, 3)
-        c = np.einsum("ndi,nij,nej->nde", G, Qgp_rows, P)
+        c = G @ Qgp_rows @ Pt
         out += c + c.transpose(0, 2, 1)
     return out

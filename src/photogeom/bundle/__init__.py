@@ -3,7 +3,8 @@
 * :class:`Block` - camera groups, images, points and observations keyed by ids;
 * :func:`bundle_adjust` - Levenberg-Marquardt on the reduced camera system, returning a
   :class:`BundleFit` with the adjusted block and its statistics;
-* :func:`reprojection_residuals` - computed minus observed pixels of every observation.
+* :func:`reprojection_residuals` - computed minus observed pixels of every observation;
+* :func:`triangulate` - points from their observations with the cameras fixed (vectorised).
 """
 
 from .adjustment import bundle_adjust
@@ -11,6 +12,7 @@ from .block import CALIBRATION_NAMES, DEFAULT_FREE, Block, Image, Observations, 
 from .options import BundleOptions
 from .residuals import projected_pixels, reprojection_residuals
 from .result import BundleFit
+from .triangulate import Triangulation, triangulate
 
 __all__ = [
     "CALIBRATION_NAMES",
@@ -21,9 +23,11 @@ __all__ = [
     "Image",
     "Observations",
     "Point",
+    "Triangulation",
     "bundle_adjust",
     "projected_pixels",
     "reprojection_residuals",
+    "triangulate",
 ]
 
 from .io_bal import read_bal, write_bal

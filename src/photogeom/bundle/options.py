@@ -54,8 +54,10 @@ class BundleOptions:
         Estimate one variance factor per observation group (Förstner/Helmert, iterated).
     sigma0_prior : float
         A-priori standard deviation of unit weight.
-    backend : {"auto", "cholmod", "superlu"}
-        Sparse solver of the reduced camera system.
+    backend : {"auto", "cholmod", "superlu", "dense", "cg"}
+        Solver of the reduced camera system (:mod:`photogeom.adjust.sparse`): ``"auto"``
+        takes a dense Cholesky for small systems, else CHOLMOD (or SuperLU); ``"cg"``
+        (preconditioned conjugate gradients) for blocks too large to factorise.
     correlation_threshold : float
         Calibration correlations above this (absolute) are flagged.
     verbose : bool
@@ -96,6 +98,12 @@ class BundleOptions:
             raise InputError(f"loss_scale must be positive, not {self.loss_scale!r}")
         if self.datum not in DATUMS:
             raise InputError(f"datum must be one of {', '.join(DATUMS)}, not {self.datum!r}")
+        from ..adjust.sparse import BACKENDS
+
+        if self.backend not in BACKENDS:
+            raise InputError(
+                f"backend must be one of {', '.join(BACKENDS)}, not {self.backend!r}"
+            )
         if not (0 < self.alpha < 0.5):
             raise InputError(f"alpha must be in (0, 0.5), not {self.alpha!r}")
         if not (0 < self.correlation_threshold <= 1):

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..adjust.schur import covariance_blocks, observation_cofactors, point_covariances
-from ..camera.frame_kernel import opk_from_increment_jacobian, project_rows
+from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
 from .adjustment import NCAL, Problem, opk_rows
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
@@ -271,46 +271,20 @@ class BundleFit:
 # --- construction ----------------------------------------------------------------------------
 
 
-def _triangulate_fixed(block: Block, rows_of_point, X0, iterations: int = 15):
-    """Gauss-Newton on the reprojection error of points with the cameras fixed, vectorised
-    over points; ``rows_of_point`` (n,) point index per observation row of ``block``."""
-    X = X0.copy()
-    i = block.obs_image
-    M = block.rotations()[i]
-    C = block.exterior[i, :3]
-    cal = block.calibration_matrix()[i]
-    size = block.image_sizes()[i]
-    w = 1.0 / block.observations.sigma
-    k = X.shape[0]
-    for _ in range(iterations):
-        pr = project_rows(X[rows_of_point], M, C, cal, size)
-        r = (pr.uv - block.observations.uv) * w[:, None]
-        J = pr.d_point * w[:, None, None]
-        N = np.zeros((k, 3, 3))
-        g = np.zeros((k, 3))
-        np.add.at(N, rows_of_point, np.einsum("ndi,ndj->nij", J, J))
-        np.add.at(g, rows_of_point, np.einsum("ndi,nd->ni", J, r))
-        dX = -np.linalg.solve(N, g[:, :, None])[:, :, 0]
-        X += dX
-        if np.abs(dX).max(initial=0) < 1e-12 * max(1.0, np.abs(X).max()):
-            break
-    return X, np.linalg.inv(N)
-
-
 def _chi2(vtpv: float, r: int, s0: float, alpha: float = 0.05) -> dict:
-    from scipy import stats
+    from scipy import special
 
     if r <= 0:
         return {"statistic": vtpv, "dof": r, "p_value": math.nan, "passed": None}
     t = vtpv / s0**2
-    p = float(2 * min(stats.chi2.cdf(t, r), stats.chi2.sf(t, r)))
+    p = float(2 * min(special.chdtr(r, t), special.chdtrc(r, t)))
     return {
         "statistic": float(t),
         "dof": int(r),
         "p_value": p,
         "alpha": alpha,
-        "lower": float(stats.chi2.ppf(alpha / 2, r)),
-        "upper": float(stats.chi2.ppf(1 - alpha / 2, r)),
+        "lower": float(special.chdtri(r, 1 - alpha / 2)),
+        "upper": float(special.chdtri(r, alpha / 2)),
         "passed": bool(p >= alpha),
     }
 
@@ -335,7 +309,7 @@ def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors:
 
 
 def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
-    from scipy import stats
+    from scipy import special
 
     block = problem.block
     state = run.state
@@ -417,19 +391,17 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     check = {"ids": []}
     check_xyz = None
     if problem.check_points.size:
-        sel = np.isin(block.obs_point, problem.check_points)
-        cb = adjusted.select_observations(sel)
-        pmap = np.full(block.n_points, -1)
-        pmap[problem.check_points] = np.arange(problem.check_points.size)
-        X0 = block.xyz[problem.check_points]
-        counts = np.bincount(pmap[cb.obs_point], minlength=problem.check_points.size)
-        if np.any(counts < 2):
-            bad = block.point_ids[problem.check_points[counts < 2]]
+        from .triangulate import triangulate
+
+        tri = triangulate(adjusted, block.point_ids[problem.check_points], covariance=True)
+        if not np.all(tri.ok):
+            bad = tri.point_ids[~tri.ok]
             raise InputError(
-                f"check point(s) {', '.join(map(str, bad[:5]))} have fewer than two image "
-                "observations and cannot be triangulated"
+                f"check point(s) {', '.join(map(str, bad[:5]))} cannot be triangulated from "
+                f"their image observations ({tri.describe_failures()})"
             )
-        check_xyz, Qc = _triangulate_fixed(cb, pmap[cb.obs_point], X0)
+        X0 = block.xyz[problem.check_points]
+        check_xyz = tri.xyz
         err = check_xyz - X0
         gsd = adjusted.gsd()
         rm = np.sqrt(np.mean(err**2, axis=0))
@@ -442,7 +414,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             "cameras, minus surveyed",
         }
         if point_cov is not None:
-            point_cov[problem.check_points] = Qc * s0p**2
+            point_cov[problem.check_points] = tri.covariance * s0p**2
     adjusted = problem.to_block(state, check_xyz)
     if point_cov is not None:
         point_std = np.sqrt(np.clip(np.einsum("pii->pi", point_cov), 0, None))
@@ -455,7 +427,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         rw = lin.r  # whitened residuals (robust weights applied)
         with np.errstate(invalid="ignore", divide="ignore"):
             w = np.where(qvv > 1e-10, rw / np.sqrt(qvv), np.nan) / s0p
-        crit = float(stats.norm.ppf(1 - opts.alpha / 2))
+        crit = float(special.ndtri(1 - opts.alpha / 2))
         wall = np.full((block.n_observations, 2), np.nan)
         wall[problem.obs_rows] = w
         red_num = np.full((block.n_observations, 2), np.nan)
