@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 import photogeom as pg
 from photogeom.bundle import Block, projected_pixels, read_bal, reprojection_residuals, write_bal
@@ -342,3 +343,36 @@ def test_write_is_atomic(tmp_path, monkeypatch):
         write_bal(b, out)
     assert out.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
+
+
+@pytest.mark.parametrize("eps", [1e-3, 1e-6, 1e-9, 1e-12, 0.0])
+def test_rotations_near_gimbal_lock_survive_the_angles(tmp_path, eps):
+    """Cameras at phi = 90 deg - eps: the block's M = M(omega, phi, kappa) equals BAL's R to
+    rounding (the angles are chosen so that omega and kappa compensate each other)."""
+    rng = np.random.default_rng(11)
+    R = []
+    for sign in (1.0, -1.0):
+        for _ in range(20):
+            om, ka = rng.uniform(-3, 3, 2)
+            R.append(pg.opk_matrix(om, sign * (math.pi / 2 - eps), ka))
+    R = Rotation.from_matrix(np.array(R)).as_matrix()  # re-orthonormalised by scipy
+    m = len(R)
+    cams = np.column_stack(
+        [
+            Rotation.from_matrix(R).as_rotvec(),
+            rng.normal(0, 5, (m, 3)),
+            np.full(m, 1000.0),
+            np.zeros((m, 2)),
+        ]
+    )
+    lines = [f"{m} 1 {m}"] + [f"{i} 0 1.5 -2.5" for i in range(m)]
+    lines += [repr(v) for v in cams.ravel().tolist()] + ["1.0", "2.0", "3.0"]
+    path = tmp_path / "lock.txt"
+    path.write_text("\n".join(lines) + "\n")
+    b = read_bal(path)
+    np.testing.assert_allclose(
+        b.rotations(), Rotation.from_rotvec(cams[:, :3]).as_matrix(), rtol=0, atol=2e-15
+    )
+    write_bal(b, tmp_path / "again.txt")
+    again = read_bal(tmp_path / "again.txt")
+    np.testing.assert_allclose(again.rotations(), b.rotations(), rtol=0, atol=2e-15)

@@ -420,3 +420,18 @@ def test_same_minimum_as_colmaps_bundle_adjuster(tmp_path):
         theirs.calibration_matrix()[:, [0, 3, 4]],
         rtol=1e-4,
     )
+
+
+def test_poses_near_gimbal_lock(tmp_path):
+    """Images whose phi is 90 deg minus 1e-3 .. 0 (and beyond): COLMAP's quaternions give the
+    block's M back to rounding through omega, phi, kappa."""
+    rng = np.random.default_rng(12)
+    b = _block(rng, {1: CALS["RADIAL"]}, m=6, free=MODEL_FREE["RADIAL"])
+    eps = np.array([1e-3, 1e-6, 1e-9, 1e-12, 0.0, -1e-9])
+    ext = b.exterior.copy()
+    ext[:, 4] = np.pi / 2 - eps
+    b = b.replace(exterior=ext)
+    write_colmap(b, tmp_path, drop_extras=True)
+    back = read_colmap(tmp_path, image_key="id")
+    np.testing.assert_allclose(back.rotations(), b.rotations(), rtol=0, atol=2e-15)
+    np.testing.assert_allclose(back.exterior[:, :3], b.exterior[:, :3], rtol=1e-14, atol=1e-12)

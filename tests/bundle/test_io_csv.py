@@ -320,3 +320,33 @@ def test_write_is_atomic(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="disk full"):
         write_csv_block(changed, tmp_path)
     assert {p.name: p.read_text() for p in tmp_path.iterdir()} == before  # no temp left
+
+
+def test_read_and_write_block_by_path(tmp_path):
+    from photogeom.bundle import detect_format, read_block, write_block
+
+    b = read_block(pg.datasets.path("dubrovnik-3-7"))
+    write_block(b, tmp_path / "p.bal.bz2")
+    write_block(b, tmp_path / "model", kind="colmap")
+    write_block(b, tmp_path / "csv", kind="CSV")
+    assert [detect_format(tmp_path / n) for n in ("p.bal.bz2", "model", "csv")] == [
+        "bal",
+        "colmap",
+        "csv",
+    ]
+    for name, opts in (("p.bal.bz2", {}), ("model", {"image_key": "id"}), ("csv", {})):
+        c = read_block(tmp_path / name, **opts)
+        o, ob = c.observations, b.observations  # COLMAP reads image by image
+        k1 = np.lexsort((o.point_ids, o.image_ids))
+        k0 = np.lexsort((ob.point_ids, ob.image_ids))
+        np.testing.assert_allclose(
+            reprojection_residuals(c)[k1], reprojection_residuals(b)[k0], atol=1e-9
+        )
+    write_block(c, tmp_path / "csv")  # an existing folder keeps its format
+    with pytest.raises(InputError, match="say which format"):
+        write_block(b, tmp_path / "new_folder")
+    with pytest.raises(InputError, match="unknown block format 'ply'"):
+        read_block(tmp_path / "csv", kind="ply")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileFormatError, match="neither a COLMAP text model"):
+        read_block(tmp_path / "empty")

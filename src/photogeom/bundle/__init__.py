@@ -33,12 +33,16 @@ __all__ = [
 from .io_bal import read_bal, write_bal
 from .io_colmap import read_colmap, write_colmap
 from .io_csv import read_csv_block, write_csv_block
+from .io_formats import detect_format, read_block, write_block
 
 __all__ += [
+    "detect_format",
     "read_bal",
+    "read_block",
     "read_colmap",
     "read_csv_block",
     "write_bal",
+    "write_block",
     "write_colmap",
     "write_csv_block",
 ]

@@ -47,7 +47,7 @@ from scipy.spatial.transform import Rotation
 
 from ..camera.metashape import MetashapeCalibration
 from ..errors import FileFormatError, InputError
-from ..rotation import opk_from_matrix
+from ._angles import opk_from_rotations
 from ._textio import format_floats, numbers, read_text, token_line, write_files_atomically
 from .block import CALIBRATION_NAMES, Block
 
@@ -170,8 +170,7 @@ def read_bal(
         w, h = (int(s) for s in image_size)
     R = Rotation.from_rotvec(cams[:, :3]).as_matrix().reshape(m, 3, 3)
     X0 = -np.einsum("nji,nj->ni", R, cams[:, 3:6])
-    om, ph, ka = opk_from_matrix(R, on_gimbal_lock="omega-zero")
-    exterior = np.column_stack([X0, np.atleast_1d(om), np.atleast_1d(ph), np.atleast_1d(ka)])
+    exterior = np.column_stack([X0, opk_from_rotations(R)])
     ids = np.arange(m)
     try:
         cameras = {

@@ -52,7 +52,7 @@ from scipy.spatial.transform import Rotation
 
 from ..camera.metashape import MetashapeCalibration
 from ..errors import FileFormatError, InputError
-from ..rotation import opk_from_matrix
+from ._angles import opk_from_rotations
 from ._textio import format_floats, read_text, split_numeric_lines, write_files_atomically
 from .block import Block
 from .io_bal import refuse_extras
@@ -426,9 +426,8 @@ def read_colmap(
     R = Rotation.from_quat(q).as_matrix().reshape(-1, 3, 3)
     X0 = -np.einsum("nji,nj->ni", R, pose[:, 4:7])
     M = _FLIP @ R
-    om, ph, ka = opk_from_matrix(M, on_gimbal_lock="omega-zero")
+    exterior = np.column_stack([X0, opk_from_rotations(M)])
     m = image_id.size
-    exterior = np.column_stack([X0, np.atleast_1d(om), np.atleast_1d(ph), np.atleast_1d(ka)])
     ids = names if image_key == "name" else image_id
     return Block.from_arrays(
         cameras=cams,
