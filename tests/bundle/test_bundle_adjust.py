@@ -195,3 +195,12 @@ def test_solver_backends_reach_the_same_minimum(backend):
     np.testing.assert_allclose(res.exterior_std, ref.exterior_std, rtol=1e-5)
     with pytest.raises(InputError, match="backend must be one of"):
         bundle_adjust(truth, backend="magic")
+
+
+def test_cauchy_loss_still_lists_the_blunders_it_down_weights():
+    sim = pg.simulate.uav_block("FC6310", seed=4, local_field=0.0, blunders=6, blunder_size=50)
+    res = bundle_adjust(sim.block, loss="cauchy")
+    o = sim.block.observations
+    blunders = {(o.image_ids[k].item(), o.point_ids[k].item()) for k in sim.blunder_rows}
+    flagged = {(a, b) for a, b, _ in res.snooping["flagged"]}
+    assert blunders <= flagged

@@ -423,10 +423,16 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     in_adj[problem.obs_rows] = True
     snoop = None
     if Cobs is not None:
-        qvv = np.clip(1.0 - np.einsum("ndd->nd", Cobs), 0.0, None)
-        rw = lin.r  # whitened residuals (robust weights applied)
+        # Baarda's w of each coordinate as if the observation had its full a-priori weight:
+        # the unweighted normalised residual e over sqrt(1 - h), h the leverage at unit
+        # weight (C / weight). Without a robust loss the weights are 1 and this is the
+        # classical w-test; with one, down-weighted blunders keep their large w.
+        wt = np.clip(run.weights, 1e-12, None)[:, None]
+        lev = np.clip(np.einsum("ndd->nd", Cobs) / wt, 0.0, None)
+        qvv = 1.0 - lev
+        rw = lin.r / np.sqrt(wt)  # whitened residuals without the robust weights
         with np.errstate(invalid="ignore", divide="ignore"):
-            w = np.where(qvv > 1e-10, rw / np.sqrt(qvv), np.nan) / s0p
+            w = np.where(qvv > 1e-10, rw / np.sqrt(np.clip(qvv, 1e-300, None)), np.nan) / s0p
         crit = float(special.ndtri(1 - opts.alpha / 2))
         wall = np.full((block.n_observations, 2), np.nan)
         wall[problem.obs_rows] = w
