@@ -86,6 +86,7 @@ from .orientation import (
     snooping_absolute_orientation,
 )
 from .orientation.intersection import IntersectionResult, space_intersection
+from .orientation.relative import ImagePair, RelativeOrientationFit, relative_orientation
 from .orientation.resection import (
     BatchResection,
     ResectionFit,
@@ -93,6 +94,7 @@ from .orientation.resection import (
     space_resection,
     space_resection_batch,
 )
+from .orientation.strip import BlockStart, block_start, orient_strip
 from .rpc import (
     RPC,
     LocalizationResult,
@@ -128,6 +130,7 @@ __all__ = [
     "AffineCamera",
     "BatchOrientation",
     "BatchResection",
+    "BlockStart",
     "BrownDistortion",
     "ConvergenceError",
     "DegenerateGeometryError",
@@ -136,6 +139,7 @@ __all__ = [
     "Fit",
     "FrameCamera",
     "GimbalLockError",
+    "ImagePair",
     "ImageVariantInteriorOrientation",
     "InputError",
     "InteriorOrientation",
@@ -153,6 +157,7 @@ __all__ = [
     "RPCExtrapolationWarning",
     "RPCIntersection",
     "ReflectionError",
+    "RelativeOrientationFit",
     "ResectionFit",
     "Rigid3D",
     "Similarity2D",
@@ -163,6 +168,7 @@ __all__ = [
     "absolute_orientation_batch",
     "angles_from_rotation",
     "axis_angle_from_matrix",
+    "block_start",
     "camera",
     "camera_matrix",
     "compare_absolute_methods",
@@ -193,6 +199,7 @@ __all__ = [
     "nearest_rotation",
     "opk_from_matrix",
     "opk_matrix",
+    "orient_strip",
     "orientation_from_dlt",
     "orthogonality_defect",
     "p3p",
@@ -202,6 +209,7 @@ __all__ = [
     "read_metashape_xml",
     "read_rpc",
     "refine_rpc",
+    "relative_orientation",
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",

@@ -468,6 +468,7 @@ def relative_orientation(
         inl = np.ones(n, dtype=bool)
         start_info["source"] = "initial"
     else:
+        check_base(d1, d2, thr_n, what)
         ess = essential_start(xn1, xn2, thr_n, seed=seed, what=what)
         check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
         R, base, inl = ess.rotation, ess.base, ess.inliers
@@ -521,13 +522,22 @@ def relative_orientation(
 
     def statistics(adj, mask):
         """Test statistic of every point, and the critical value."""
+        # points in the adjustment: w = b.v / sqrt(b Q b.T - a Qxx a.T) at (x, L + v);
+        # the others: their misclosure g over sqrt(b Q b.T + a Qxx a.T) (independent of x)
+        Lc = L_all.copy()
+        Lc[mask] += adj.residuals.reshape(-1, 4)
         g, A, B = cop.evaluate(adj.x, L_all)
+        _, Ac, Bc = cop.evaluate(adj.x, Lc)
+        A = np.where(mask[:, None], Ac, A)
+        B = np.where(mask[:, None], Bc, B)
+        num = -g
+        num[mask] = np.sum(Bc[mask] * adj.residuals.reshape(-1, 4), axis=1)
         S2 = np.ones((n, 4)) if sig is None else sig**2
         Mi = np.sum(B * B * S2, axis=1)  # b Q b.T per point
         qa = np.einsum("nk,kl,nl->n", A, adj.cofactor, A)
         var = np.where(mask, Mi - qa, Mi + qa)
         with np.errstate(invalid="ignore", divide="ignore"):
-            w = np.where(var > 1e-14 * Mi, -g / np.sqrt(np.abs(var)), np.nan)
+            w = np.where(var > 1e-14 * Mi, num / np.sqrt(np.abs(var)), np.nan)
         red = adj.redundancy
         if sig is not None:
             crit = _norm_critical(alpha)
@@ -570,7 +580,7 @@ def relative_orientation(
             adj = adjust(mask, adj.x)
     stat, crit, test = statistics(adj, mask)
     _check_conditioning(adj, what)
-    g, A, B = cop.evaluate(adj.x, L_all)
+    g, _A, B = cop.evaluate(adj.x, L_all)
     parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
     e1, e2 = geom.exteriors(adj.x)
     pair = ImagePair(io1, io2, e1, e2, method)
@@ -589,14 +599,14 @@ def relative_orientation(
         notes.append(f"{n_out} of {n} point(s) left out as wrong matches")
     # per-observation normalised residuals: each coordinate of a point carries its w
     with np.errstate(invalid="ignore", divide="ignore"):
-        Bm = B[mask]
         v4 = adj.residuals.reshape(-1, 4)
+        _, Am, Bm = cop.evaluate(adj.x, L_all[mask] + v4)
         wobs = np.where(np.abs(v4) > 0, np.sign(v4) * np.abs(stat[mask])[:, None], np.nan)
         if test == "tau":
             wobs = wobs * max(adj.sigma0, NUMERICAL_FLOOR * fmean) / adj.sigma0_prior
         S2m = np.ones_like(Bm) if sig is None else sig[mask] ** 2
         Mi = np.sum(Bm * Bm * S2m, axis=1)
-        qa = np.einsum("nk,kl,nl->n", A[mask], adj.cofactor, A[mask])
+        qa = np.einsum("nk,kl,nl->n", Am, adj.cofactor, Am)
         rnum = (Bm * Bm * S2m) / Mi[:, None] * ((Mi - qa) / Mi)[:, None]
     fit = RelativeOrientationFit.from_adjustment(
         adj,
