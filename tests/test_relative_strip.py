@@ -1,0 +1,141 @@
+"""Block start without GNSS: strips from relative orientations, scale transfer, absolute
+orientation to GCPs, on a simulated 2-strip block with known truth."""
+
+import math
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+
+IO = pg.InteriorOrientation(1000.0, unit="px")
+
+
+def simulate_block(seed=0, noise=0.0, wrong=0.0, n_points=600, gcps=None):
+    """Two strips of five images (60 % forward, 30 % side overlap, H = 100 m, f = 1000 px,
+    frame 1000 x 700 px), the second flown the other way (kappa + 180 degrees), over hilly
+    terrain; observations by projection through the true cameras."""
+    rng = np.random.default_rng(seed)
+    H = 100.0
+    strips, truth = [], {}
+    for s, (y, direction) in enumerate([(0.0, 1), (49.0, -1)]):
+        xs = np.arange(5) * 40.0
+        if direction < 0:
+            xs = xs[::-1]
+        ids = []
+        for k, x in enumerate(xs):
+            iid = f"{s + 1}{k + 1:02d}"
+            ang = rng.normal(0, math.radians(2), 3)
+            if direction < 0:
+                ang[2] += math.pi
+            truth[iid] = pg.ExteriorOrientation(x, y, H + rng.normal(0, 2), *ang)
+            ids.append(iid)
+        strips.append(ids)
+    P = np.column_stack(
+        [rng.uniform(-50, 210, n_points), rng.uniform(-35, 84, n_points), np.zeros(n_points)]
+    )
+    P[:, 2] = 5 * np.sin(P[:, 0] / 30) + 3 * np.cos(P[:, 1] / 20)
+    pids = [f"p{i}" for i in range(n_points)]
+    obs = {}
+    for iid, e in truth.items():
+        xy = pg.project(P, IO, e)
+        ok = (np.abs(xy[:, 0]) < 500) & (np.abs(xy[:, 1]) < 350)
+        xy = xy + rng.normal(0, noise, xy.shape) if noise else xy
+        if wrong:
+            bad = rng.random(len(P)) < wrong
+            xy[bad] += rng.uniform(-60, 60, (int(bad.sum()), 2))
+        obs[iid] = {pids[i]: xy[i] for i in np.flatnonzero(ok)}
+    if gcps is None:
+        gcps = [(x, y) for x in (-5, 80, 165) for y in (-25, 25, 75)]
+    control = {}
+    for gx, gy in gcps:
+        i = int(np.argmin(np.hypot(P[:, 0] - gx, P[:, 1] - gy)))
+        control[pids[i]] = P[i]
+    return strips, truth, obs, control, dict(zip(pids, P))
+
+
+def eo_errors(start, truth):
+    dp, da = [], []
+    for i, e in truth.items():
+        f = start.exteriors[i]
+        dp.append(np.linalg.norm(f.position - e.position))
+        R = f.matrix @ e.matrix.T
+        da.append(np.linalg.norm(R - np.eye(3)) / math.sqrt(2))  # ~ the rotation angle (rad)
+    return np.array(dp), np.array(da)
+
+
+def interiors(strips):
+    return {i: IO for s in strips for i in s}
+
+
+def test_noise_free_block_start_is_exact():
+    strips, truth, obs, control, P = simulate_block()
+    bs = pg.block_start(strips, interiors(strips), obs, control)
+    dp, da = eo_errors(bs, truth)
+    assert dp.max() < 1e-6 and da.max() < 1e-8
+    err = [np.linalg.norm(bs.points[p] - P[p]) for p in bs.points]
+    assert max(err) < 1e-6
+    # every strip was oriented to its own GCPs (six of the nine in each)
+    assert [len(u) for u in bs.control_used] == [6, 6]
+    # the second strip is flown the other way: bx = -1 in its dependent models
+    assert all(f.extras["bx"] == -1 for f in bs.strips[1].relative)
+    assert all(f.extras["bx"] == 1 for f in bs.strips[0].relative)
+
+
+def test_noisy_block_with_wrong_matches_lands_near_the_truth():
+    """0.5 px noise and 3 % wrong matches: centres within ~2 % of the flying height and
+    attitudes within 1.5 degrees (benchmarks/relative_orientation.py prints the errors);
+    the wrong matches are flagged by the relative orientations."""
+    strips, truth, obs, control, _ = simulate_block(seed=1, noise=0.5, wrong=0.03)
+    bs = pg.block_start(strips, interiors(strips), obs, control, sigma=0.5)
+    dp, da = eo_errors(bs, truth)
+    assert dp.max() < 2.5
+    assert np.degrees(da.max()) < 1.5
+    assert all(f.flagged.any() for s in bs.strips for f in s.relative)
+    for s in bs.strips:
+        assert max(s.scale_spread) < 0.01
+
+
+def test_independent_models_give_the_same_strip():
+    strips, _, obs, _, _ = simulate_block()
+    a = pg.orient_strip(strips[0], interiors(strips), obs, method="dependent")
+    b = pg.orient_strip(strips[0], interiors(strips), obs, method="independent")
+    ids = list(a.points)
+    ao = pg.absolute_orientation(
+        np.array([a.points[p] for p in ids]), np.array([b.points[p] for p in ids])
+    )
+    assert ao.rmse < 1e-9
+
+
+def test_strip_without_gcps_oriented_through_the_other_strip():
+    """GCPs only in strip 1: strip 2 is oriented to the tie points it shares with strip 1."""
+    gcps = [(x, y) for x in (-5, 80, 165) for y in (-25, 10)]
+    strips, truth, obs, control, _ = simulate_block(gcps=gcps)
+    bs = pg.block_start(strips, interiors(strips), obs, control)
+    assert len(bs.control_used[1]) > len([p for p in bs.control_used[1] if p in control])
+    dp, da = eo_errors(bs, truth)
+    assert dp.max() < 1e-6 and da.max() < 1e-8
+
+
+def test_no_control_for_a_strip_is_named():
+    strips, _, obs, _, P = simulate_block()
+    control = {p: P[p] for p in list(P)[:2]}
+    with pytest.raises(pg.TooFewPointsError, match="absolute orientation of strip"):
+        pg.block_start(strips, interiors(strips), obs, control)
+
+
+def test_scale_transfer_needs_common_points():
+    strips, _, obs, _, _ = simulate_block()
+    # keep only the points of image 103 that 102 does not see: no triple points 102-103-104
+    seen_102 = set(obs["102"])
+    obs = dict(obs)
+    obs["103"] = {p: v for p, v in obs["103"].items() if p not in seen_102 or p in obs["104"]}
+    obs["104"] = {p: v for p, v in obs["104"].items() if p not in seen_102}
+    with pytest.raises(pg.TooFewPointsError, match="scale transfer"):
+        pg.orient_strip(strips[0], interiors(strips), obs)
+
+
+def test_missing_image_is_named():
+    strips, _, obs, _, _ = simulate_block()
+    with pytest.raises(pg.InputError, match="interior orientation"):
+        pg.orient_strip(["101", "102", "999"], interiors(strips), obs)
