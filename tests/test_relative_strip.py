@@ -75,8 +75,8 @@ def test_noise_free_block_start_is_exact():
     assert dp.max() < 1e-6 and da.max() < 1e-8
     err = [np.linalg.norm(bs.points[p] - P[p]) for p in bs.points]
     assert max(err) < 1e-6
-    # every strip was oriented to its own GCPs (six of the nine in each)
-    assert [len(u) for u in bs.control_used] == [6, 6]
+    # every strip was oriented to its own GCPs (those seen in two of its images)
+    assert all(len(u) >= 5 and all(p in control for p in u) for u in bs.control_used)
     # the second strip is flown the other way: bx = -1 in its dependent models
     assert all(f.extras["bx"] == -1 for f in bs.strips[1].relative)
     assert all(f.extras["bx"] == 1 for f in bs.strips[0].relative)
