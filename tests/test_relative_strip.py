@@ -77,9 +77,17 @@ def test_noise_free_block_start_is_exact():
     assert max(err) < 1e-6
     # every strip was oriented to its own GCPs (those seen in two of its images)
     assert all(len(u) >= 5 and all(p in control for p in u) for u in bs.control_used)
-    # the second strip is flown the other way: bx = -1 in its dependent models
-    assert all(f.extras["bx"] == -1 for f in bs.strips[1].relative)
-    assert all(f.extras["bx"] == 1 for f in bs.strips[0].relative)
+    assert all(f.extras["bx"] == 1 for s in bs.strips for f in s.relative)
+
+
+def test_strip_listed_against_the_image_x_axis():
+    """Images listed against their x axis: every dependent model has bx = -1, same result."""
+    strips, truth, obs, control, _ = simulate_block()
+    rev = [strips[0][::-1], strips[1]]
+    bs = pg.block_start(rev, interiors(strips), obs, control)
+    assert all(f.extras["bx"] == -1 for f in bs.strips[0].relative)
+    dp, da = eo_errors(bs, truth)
+    assert dp.max() < 1e-6 and da.max() < 1e-8
 
 
 def test_noisy_block_with_wrong_matches_lands_near_the_truth():
