@@ -121,7 +121,9 @@ class RelativeOrientationFit(Fit):
     ``residuals`` are the corrections of the image coordinates (adjusted minus observed,
     columns x1, y1, x2, y2) of the points used (``ids``). ``extras`` holds per input point:
     ``"parallax"``, ``"inliers"``, ``"statistic"`` (w or tau), ``"all_ids"``; and
-    ``"start"`` (the essential-matrix start), ``"critical_value"``, ``"test"``,
+    ``"epipolar_normal1"`` (unit normals of the epipolar lines in image 1: the parallax
+    vector of a point is ``parallax * normal``); ``"start"`` (the essential-matrix start),
+    ``"critical_value"``, ``"test"``,
     ``"removed"`` (ids removed by data snooping, in order).
     """
 
@@ -582,6 +584,10 @@ def relative_orientation(
     _check_conditioning(adj, what)
     g, _A, B = cop.evaluate(adj.x, L_all)
     parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
+    # unit normal of the epipolar line in image 1, oriented so that parallax * normal is
+    # (0, y1 - y2) in the normal case: the parallax vector drawn on image 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normal1 = -B[:, :2] / np.linalg.norm(B[:, :2], axis=1, keepdims=True)
     e1, e2 = geom.exteriors(adj.x)
     pair = ImagePair(io1, io2, e1, e2, method)
     _check_in_front(pair, q1[mask], q2[mask], what)
@@ -630,6 +636,7 @@ def relative_orientation(
             "start": start_info,
             "bx": sx if method == "dependent" else None,
             "ideal_observations": L_all,
+            "epipolar_normal1": normal1,
             "weights": W_all,
         },
     )
