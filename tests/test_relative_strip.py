@@ -147,3 +147,57 @@ def test_missing_image_is_named():
     strips, _, obs, _, _ = simulate_block()
     with pytest.raises(pg.InputError, match="interior orientation"):
         pg.orient_strip(["101", "102", "999"], interiors(strips), obs)
+
+
+def test_bundle_adjustment_from_the_block_start_reaches_the_minimum_of_the_truth():
+    """GTSAM's bundle adjustment (peer) started from the block start and from the true values
+    converges to the same minimum (the start lies in the convergence basin)."""
+    gtsam = pytest.importorskip("gtsam")
+    from gtsam.symbol_shorthand import L, X
+
+    strips, truth, obs, control, P = simulate_block(seed=2, noise=0.5)
+    bs = pg.block_start(strips, interiors(strips), obs, control, sigma=0.5)
+    pts = [p for p in bs.points if sum(p in o for o in obs.values()) >= 2]
+    F = np.diag([1.0, -1.0, -1.0])
+    K = gtsam.Cal3_S2(IO.f, IO.f, 0.0, 0.0, 0.0)
+    graph = gtsam.NonlinearFactorGraph()
+    noise = gtsam.noiseModel.Isotropic.Sigma(2, 0.5)
+    index = {p: k for k, p in enumerate(pts)}
+    images = list(truth)
+    for i, iid in enumerate(images):
+        for p, xy in obs[iid].items():
+            if p in index:  # OpenCV axes: measurement (x, -y)
+                graph.add(
+                    gtsam.GenericProjectionFactorCal3_S2(
+                        gtsam.Point2(xy[0], -xy[1]), noise, X(i), L(index[p]), K
+                    )
+                )
+    for p in control:
+        if p in index:
+            graph.add(
+                gtsam.PriorFactorPoint3(
+                    L(index[p]),
+                    gtsam.Point3(*control[p]),
+                    gtsam.noiseModel.Isotropic.Sigma(3, 0.01),
+                )
+            )
+
+    def adjust(eos, points):
+        values = gtsam.Values()
+        for i, iid in enumerate(images):
+            e = eos[iid]
+            values.insert(X(i), gtsam.Pose3(gtsam.Rot3(e.matrix.T @ F), gtsam.Point3(*e.position)))
+        for p, k in index.items():
+            values.insert(L(k), gtsam.Point3(*points[p]))
+        params = gtsam.LevenbergMarquardtParams()
+        params.setRelativeErrorTol(1e-12)
+        params.setAbsoluteErrorTol(1e-12)
+        res = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+        return graph.error(res), np.array(
+            [res.atPose3(X(i)).translation() for i in range(len(images))]
+        )
+
+    cost_start, c_start = adjust(bs.exteriors, bs.points)
+    cost_true, c_true = adjust(truth, P)
+    assert cost_start == pytest.approx(cost_true, rel=1e-9)
+    assert np.abs(c_start - c_true).max() < 1e-6
