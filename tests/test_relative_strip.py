@@ -201,3 +201,20 @@ def test_bundle_adjustment_from_the_block_start_reaches_the_minimum_of_the_truth
     cost_true, c_true = adjust(truth, P)
     assert cost_start == pytest.approx(cost_true, rel=1e-9)
     assert np.abs(c_start - c_true).max() < 1e-6
+
+
+def test_points_from_gnss_imu_exteriors():
+    """The UAV case: exterior orientations known (here exact, then perturbed like GNSS/IMU);
+    tie points by intersection, in chunks of points."""
+    strips, truth, obs, _, P = simulate_block()
+    pts = pg.points_from_exteriors(truth, interiors(strips), obs, chunk=500)
+    seen = {p for p in P if sum(p in o for o in obs.values()) >= 2}
+    assert set(pts) == seen
+    assert max(np.linalg.norm(pts[p] - P[p]) for p in pts) < 1e-8
+    rng = np.random.default_rng(0)
+    gnss = {
+        i: pg.ExteriorOrientation(*(e.parameters + rng.normal(0, [0.05] * 3 + [0.001] * 3)))
+        for i, e in truth.items()
+    }
+    pts = pg.points_from_exteriors(gnss, interiors(strips), obs)
+    assert np.median([np.linalg.norm(pts[p] - P[p]) for p in pts]) < 0.3

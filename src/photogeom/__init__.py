@@ -94,7 +94,7 @@ from .orientation.resection import (
     space_resection,
     space_resection_batch,
 )
-from .orientation.strip import BlockStart, block_start, orient_strip
+from .orientation.strip import BlockStart, block_start, orient_strip, points_from_exteriors
 from .rpc import (
     RPC,
     LocalizationResult,
@@ -203,6 +203,7 @@ __all__ = [
     "orientation_from_dlt",
     "orthogonality_defect",
     "p3p",
+    "points_from_exteriors",
     "project",
     "quaternion_from_matrix",
     "ransac_absolute_orientation",

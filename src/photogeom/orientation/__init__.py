@@ -11,7 +11,7 @@ from .absolute_compare import MethodComparison, compare_absolute_methods
 from .absolute_robust import ransac_absolute_orientation, snooping_absolute_orientation
 from .relative import ImagePair, RelativeOrientationFit, relative_orientation
 from .stereo_model import ModelPoints, ParallaxReport, model_points, parallax_report
-from .strip import BlockStart, StripModel, block_start, orient_strip
+from .strip import BlockStart, StripModel, block_start, orient_strip, points_from_exteriors
 
 __all__ = [
     "DIRECT_METHODS",
@@ -32,6 +32,7 @@ __all__ = [
     "model_points",
     "orient_strip",
     "parallax_report",
+    "points_from_exteriors",
     "ransac_absolute_orientation",
     "relative_orientation",
     "snooping_absolute_orientation",

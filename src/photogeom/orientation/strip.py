@@ -16,6 +16,9 @@ The classical chain, for each strip of images in flight order:
 The result, every image's exterior orientation and every tie point's ground coordinates, is
 the start of a bundle adjustment; strip deformation (bending, scale drift) is left for that
 adjustment to remove.
+
+With GNSS/IMU (the UAV case) the exterior orientations are known approximately and the tie
+points follow by intersection: :func:`points_from_exteriors`.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from ..camera.interior import InteriorOrientation
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
 from .relative import RelativeOrientationFit, relative_orientation
 
-__all__ = ["BlockStart", "StripModel", "block_start", "orient_strip"]
+__all__ = ["BlockStart", "StripModel", "block_start", "orient_strip", "points_from_exteriors"]
 
 
 @dataclass(frozen=True)
@@ -263,3 +266,58 @@ def block_start(
             g = s * R @ x + t
             ground[p] = (ground[p] + g) / 2.0 if p in ground else g
     return BlockStart(exteriors, ground, tuple(models), tuple(fits), tuple(used))
+
+
+def points_from_exteriors(
+    exteriors: Mapping[Hashable, ExteriorOrientation],
+    interiors: Mapping[Hashable, InteriorOrientation],
+    observations: Mapping[Hashable, Mapping[Hashable, Sequence[float]]],
+    *,
+    min_rays: int = 2,
+    chunk: int = 2_000_000,
+) -> dict:
+    """Tie-point start values by intersection from known exterior orientations (GNSS/IMU).
+
+    Parameters
+    ----------
+    exteriors : mapping image id -> ExteriorOrientation (e.g. from GNSS/IMU).
+    interiors : mapping image id -> InteriorOrientation.
+    observations : mapping image id -> {point id: (x, y)} (image system, unit of the interior
+        orientation).
+    min_rays : int
+        Points seen in fewer images are left out.
+    chunk : int
+        Largest ``images x points`` block intersected at once (memory bound).
+
+    Returns
+    -------
+    dict
+        point id -> (3,) ground coordinates (least-squares intersection of all rays).
+    """
+    from .intersection import space_intersection
+
+    imgs = [i for i in exteriors if i in observations]
+    for i in imgs:
+        if i not in interiors:
+            raise InputError(f"image {i!r}: no interior orientation given")
+    count: dict = {}
+    for i in imgs:
+        for p in observations[i]:
+            count[p] = count.get(p, 0) + 1
+    ids = [p for p, c in count.items() if c >= max(min_rays, 2)]
+    cams = [(interiors[i], exteriors[i]) for i in imgs]
+    step = max(1, chunk // max(len(imgs), 1))
+    out: dict = {}
+    for s in range(0, len(ids), step):
+        part = ids[s : s + step]
+        index = {p: k for k, p in enumerate(part)}
+        obs = np.full((len(imgs), len(part), 2), np.nan)
+        for k, i in enumerate(imgs):
+            o = observations[i]
+            sel = [p for p in o if p in index]
+            if sel:
+                obs[k, [index[p] for p in sel]] = np.array([o[p] for p in sel], dtype=float)
+        used = np.any(np.isfinite(obs[:, :, 0]), axis=1)
+        res = space_intersection(obs[used], [c for c, u in zip(cams, used) if u])
+        out.update(zip(part, res.points))
+    return out
