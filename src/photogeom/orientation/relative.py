@@ -393,7 +393,8 @@ def relative_orientation(
     alpha : float
         Significance level of each point's test (0.001: critical w 3.29).
     max_removed : float
-        Largest fraction of points that data snooping may remove before the pair is refused.
+        Largest fraction of the points that may be left out (RANSAC and data snooping
+        together) before data snooping gives up and the pair is refused.
     seed : int or None
         Seed of the RANSAC generator (reproducible results).
     max_iter, tol
