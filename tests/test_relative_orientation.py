@@ -416,3 +416,45 @@ def test_fit_family_fields_and_json():
     assert "y-parallaxes" not in fit.summary()  # the Fit summary; the report has its own text
     ind = pg.relative_orientation(xy1, xy2, IO, method="independent", sigma=0.003)
     assert set(ind.std_errors) == {"phi1", "kappa1", "omega2", "phi2", "kappa2"}
+
+
+def _look_at(position, target, kappa):
+    """An image at ``position`` looking at ``target``, turned by ``kappa`` about its axis."""
+    z = position - target
+    z = z / np.linalg.norm(z)  # the camera's +z points away from the scene
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    M = pg.opk_matrix(0.0, 0.0, kappa) @ np.vstack([x, np.cross(z, x), z])
+    return pg.ExteriorOrientation.from_matrix(position, M, on_gimbal_lock="omega-zero")
+
+
+@settings(max_examples=15)
+@given(
+    base=st.floats(10.0, 100.0),
+    tilt1=st.floats(-0.7, 0.7),
+    tilt2=st.floats(-0.7, 0.7),
+    kappa1=st.floats(-math.pi, math.pi),
+    kappa2=st.floats(-math.pi, math.pi),
+    seed=st.integers(0, 1000),
+)
+def test_oblique_convergent_pairs_any_kappa(base, tilt1, tilt2, kappa1, kappa2, seed):
+    """Oblique images (up to 40 degrees off nadir) converging on the scene, each turned by any
+    kappa about its axis (e.g. adjacent strips flown in opposite directions)."""
+    rng = np.random.default_rng(seed)
+    pts = np.column_stack(
+        [rng.uniform(-40, 40 + base, 40), rng.uniform(-40, 40, 40), rng.uniform(-15, 15, 40)]
+    )
+    centre = np.array([base / 2, 0.0, 0.0])
+    e1 = _look_at(np.array([0.0, 100 * math.tan(tilt1), 100.0]), centre, kappa1)
+    e2 = _look_at(np.array([base, 100 * math.tan(tilt2), 100.0]), centre, kappa2)
+    xy1, xy2 = pg.project(pts, IO, e1), pg.project(pts, IO, e2)
+    R, b = truth(e1, e2)
+    for method in ("independent", "dependent"):
+        try:
+            fit = pg.relative_orientation(xy1, xy2, IO, method=method)
+        except pg.DegenerateGeometryError as exc:  # the base across image 1's x axis
+            assert method == "dependent" and "independent" in str(exc)
+            assert abs(b[0]) < 0.05
+            continue
+        assert np.abs(fit.pair.relative_rotation - R).max() < 1e-9
+        assert np.abs(fit.pair.base_in_camera1 - b).max() < 1e-9
