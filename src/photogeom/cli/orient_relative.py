@@ -263,24 +263,12 @@ def _report(fit, par, xy1, au: str, source: Path) -> str:
         description="Residuals are the corrections of the image coordinates x1, y1, x2, y2 "
         "(adjusted minus observed) of the points used.",
     )
-    used = fit.inliers
-    vec = fit.parallax[:, None] * np.nan_to_num(fit.extras["epipolar_normal1"])
-    ids = list(fit.all_ids)
-    kwargs = {}
-    if (~used).any():
-        kwargs = dict(
-            check_points=xy1[~used],
-            check_residuals=vec[~used],
-            check_ids=[i for i, u in zip(ids, used) if not u],
-        )
-    rep.add_residual_plot(
-        "Residual y-parallaxes on image 1 (across the epipolar lines; left-out points in the "
-        "second colour)",
-        xy1[used],
-        vec[used],
-        ids=[i for i, u in zip(ids, used) if u],
-        unit=fit.residual_unit,
-        **kwargs,
+    rep.add_figure(
+        "Residual y-parallaxes on image 1",
+        _parallax_figure(fit, xy1),
+        caption="Arrows: the y-parallax of each point used, drawn across its epipolar line "
+        "(py times the line's unit normal; in the normal case (0, y1 - y2)). Crosses: points "
+        "left out as wrong matches (their y-parallaxes are in the table below).",
     )
     rows = [
         [
@@ -298,3 +286,48 @@ def _report(fit, par, xy1, au: str, source: Path) -> str:
         note=f"critical value of the {par.test}-test: {par.critical_value:.3g}",
     )
     return rep.to_html()
+
+
+def _parallax_figure(fit, xy1):
+    """Image 1 frame with the y-parallax vectors of the points used and the points left out."""
+    from matplotlib.figure import Figure
+
+    from ..report.plots import nice_length
+
+    used = np.asarray(fit.inliers)
+    vec = fit.parallax[:, None] * np.nan_to_num(fit.extras["epipolar_normal1"])
+    ids = list(fit.all_ids)
+    extent = float(np.ptp(xy1, axis=0).max()) or 1.0
+    vmax = float(np.sqrt((vec[used] ** 2).sum(axis=1)).max()) if used.any() else 0.0
+    factor = nice_length(0.15 * extent / vmax) if vmax > 0 else 1.0
+    fig = Figure(figsize=(6.4, 5.6), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    p, v = xy1[used], vec[used]
+    ax.plot(p[:, 0], p[:, 1], "o", color="#1f5fa8", ms=4, label=f"used ({int(used.sum())})")
+    q = ax.quiver(
+        p[:, 0], p[:, 1], v[:, 0], v[:, 1], angles="xy", scale_units="xy",
+        scale=1.0 / factor, color="#1f5fa8", width=0.005,
+    )  # fmt: skip
+    if vmax > 0:
+        key = nice_length(vmax)
+        ax.quiverkey(q, X=0.76, Y=1.035, U=key, label=f"{key:g} {fit.residual_unit}",
+                     labelpos="E", coordinates="axes", color="black")  # fmt: skip
+    if (~used).any():
+        o = xy1[~used]
+        ax.plot(o[:, 0], o[:, 1], "x", color="#c0392b", ms=7, label=f"left out ({len(o)})")
+        for (x, y), t in zip(o, (i for i, u in zip(ids, used) if not u)):
+            ax.annotate(t, (x, y), textcoords="offset points", xytext=(5, 5), fontsize=8,
+                        color="#c0392b")  # fmt: skip
+    pad = 0.15 * extent
+    lo, hi = xy1.min(axis=0), xy1.max(axis=0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel(f"x1 [{fit.residual_unit}]")
+    ax.set_ylabel(f"y1 [{fit.residual_unit}]")
+    ax.grid(True, color="#dddddd", lw=0.6)
+    ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
+    ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
+    ax.set_title(f"residual y-parallaxes, arrows x{ex}", fontsize=9.5, loc="left")
+    fig.tight_layout()
+    return fig
