@@ -218,3 +218,16 @@ def test_points_from_gnss_imu_exteriors():
     }
     pts = pg.points_from_exteriors(gnss, interiors(strips), obs)
     assert np.median([np.linalg.norm(pts[p] - P[p]) for p in pts]) < 0.3
+
+
+def test_integer_ids_are_kept():
+    strips, truth, obs, control, _ = simulate_block()
+    num = {s: k for k, s in enumerate(truth)}
+    pnum = {p: int(p[1:]) for p in {p for o in obs.values() for p in o} | set(control)}
+    obs_i = {num[i]: {pnum[p]: xy for p, xy in o.items()} for i, o in obs.items()}
+    ctrl_i = {pnum[p]: x for p, x in control.items()}
+    strips_i = [[num[i] for i in s] for s in strips]
+    bs = pg.block_start(strips_i, {num[i]: IO for i in truth}, obs_i, ctrl_i)
+    dp, _ = eo_errors(bs, {num[i]: e for i, e in truth.items()})
+    assert dp.max() < 1e-6
+    assert all(isinstance(p, int) for p in bs.points)

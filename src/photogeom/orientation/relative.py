@@ -379,8 +379,8 @@ def relative_orientation(
         A-priori standard deviation of the image coordinates (image unit). With it,
         ``sigma0`` should be about 1 and data snooping is Baarda's w-test; without it the
         weights are 1, ``sigma0`` estimates the image noise and the tau-test is used.
-    ids : sequence, optional
-        Point ids (default ``"1" .. "n"``).
+    ids : sequence of hashable, optional
+        Point ids, kept as given (default the strings ``"1" .. "n"``).
     initial : (ExteriorOrientation, ExteriorOrientation), optional
         Start values: both images' orientations in any common system (e.g. from GNSS/IMU).
         Default: the essential matrix (five-point solver in RANSAC).
@@ -434,7 +434,7 @@ def relative_orientation(
     n = p1.shape[0]
     if n < 5:
         raise TooFewPointsError(what, n, 5, "five orientation elements, one condition per point")
-    all_ids = tuple(str(i) for i in (range(1, n + 1) if ids is None else ids))
+    all_ids = tuple(str(i) for i in range(1, n + 1)) if ids is None else tuple(ids)
     if len(all_ids) != n:
         raise InputError(f"ids: {len(all_ids)} id(s) for {n} point(s)")
     if len(set(all_ids)) != n:
@@ -456,6 +456,7 @@ def relative_orientation(
     thr_n = threshold / fmean
 
     # --- start values -----------------------------------------------------------------------
+    check_base(d1, d2, thr_n, what)
     start_info: dict = {}
     if initial is not None:
         try:
@@ -471,7 +472,6 @@ def relative_orientation(
         inl = np.ones(n, dtype=bool)
         start_info["source"] = "initial"
     else:
-        check_base(d1, d2, thr_n, what)
         ess = essential_start(xn1, xn2, thr_n, seed=seed, what=what)
         check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
         R, base, inl = ess.rotation, ess.base, ess.inliers
