@@ -458,3 +458,14 @@ def test_oblique_convergent_pairs_any_kappa(base, tilt1, tilt2, kappa1, kappa2, 
             continue
         assert np.abs(fit.pair.relative_rotation - R).max() < 1e-9
         assert np.abs(fit.pair.base_in_camera1 - b).max() < 1e-9
+
+
+def test_without_sigma_the_tau_test_finds_wrong_matches():
+    """No a-priori sigma: sigma0 estimates the image noise, Pope's tau-test flags."""
+    _, _, _, xy1, xy2 = simulate(12, 0.5, n=60, noise=0.004)
+    xy2 = xy2.copy()
+    xy2[[3, 17, 40]] += [[0.5, 0.3], [-0.4, 0.6], [0.2, -0.7]]
+    fit = pg.relative_orientation(xy1, xy2, IO)
+    assert fit.extras["test"] == "tau"
+    assert sorted(np.flatnonzero(fit.flagged).tolist()) == [3, 17, 40]
+    assert fit.sigma0 == pytest.approx(0.004, rel=0.3)  # unit weights: sigma0 in mm
