@@ -49,7 +49,8 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import camera, imagecoords, rpc, transforms
+from . import bundle, camera, imagecoords, rpc, simulate, transforms
+from .bundle import Block, BundleFit, BundleOptions, bundle_adjust
 from .camera import (
     DLT,
     AffineCamera,
@@ -130,8 +131,11 @@ __all__ = [
     "AffineCamera",
     "BatchOrientation",
     "BatchResection",
+    "Block",
     "BlockStart",
     "BrownDistortion",
+    "BundleFit",
+    "BundleOptions",
     "ConvergenceError",
     "DegenerateGeometryError",
     "ExteriorOrientation",
@@ -169,6 +173,8 @@ __all__ = [
     "angles_from_rotation",
     "axis_angle_from_matrix",
     "block_start",
+    "bundle",
+    "bundle_adjust",
     "camera",
     "camera_matrix",
     "compare_absolute_methods",
@@ -214,6 +220,7 @@ __all__ = [
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",
+    "simulate",
     "snooping_absolute_orientation",
     "solve_linear",
     "space_intersection",

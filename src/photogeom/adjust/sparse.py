@@ -127,12 +127,7 @@ class SparseFactor:
         b = np.asarray(b, dtype=float)
         s = self._scale if b.ndim == 1 else self._scale[:, None]
         rhs = np.ascontiguousarray(b * s)
-        if b.ndim == 2 and self.backend == "cholmod":
-            out = np.empty_like(rhs)
-            for j in range(rhs.shape[1]):  # the wheel's solver takes one vector at a time
-                out[:, j] = self._solve(np.ascontiguousarray(rhs[:, j]))
-        else:
-            out = self._solve(rhs)
+        out = self._solve(rhs)
         return out * s
 
     def inverse_blocks(self, starts: np.ndarray, size: int) -> np.ndarray:
