@@ -11,7 +11,9 @@ The classical chain, for each strip of images in flight order:
    matches);
 3. absolute orientation of the strip (:func:`absolute_orientation`, a 3D similarity) to
    the ground control points it contains; a strip with fewer than three GCPs is oriented to
-   the tie points it shares with strips already oriented.
+   the tie points it shares with strips already oriented; when no strip can be oriented
+   that way, the strip with the most GCPs is first joined in model space to the strip it
+   shares the most tie points with (a similarity on those points), and so on.
 
 The result, every image's exterior orientation and every tie point's ground coordinates, is
 the start of a bundle adjustment; strip deformation (bending, scale drift) is left for that
@@ -230,42 +232,100 @@ def block_start(
         )
         for s in strips
     ]
-    seen = [sum(1 for p in m.points if p in ctrl) for m in models]
-    order = sorted(range(len(models)), key=lambda i: -seen[i])
+    # units: strips (or strips joined in model space) oriented by one similarity each
+    units = [
+        {"strips": [k], "exteriors": dict(m.exteriors), "points": dict(m.points)}
+        for k, m in enumerate(models)
+    ]
     exteriors: dict = {}
     ground: dict = {}
     fits: list = [None] * len(models)
     used: list = [()] * len(models)
-    for i in order:
-        m = models[i]
-        ids = [p for p in m.points if p in ctrl]
+    pending = list(range(len(units)))
+
+    def known(u):
+        ids = [p for p in u["points"] if p in ctrl]
         if len(ids) < 3:
-            ids = ids + [p for p in m.points if p in ground and p not in ctrl]
-        if len(ids) < 3:
+            ids += [p for p in u["points"] if p in ground and p not in ctrl]
+        return ids
+
+    def name(u):
+        return ", ".join(f"strip {k + 1}" for k in u["strips"])
+
+    while pending:
+        counts = [len(known(units[k])) for k in pending]
+        best = int(np.argmax(counts))
+        if counts[best] >= 3:
+            k = pending.pop(best)
+            u = units[k]
+            ids = known(u)
+            src = np.array([u["points"][p] for p in ids])
+            dst = np.array([ctrl[p] if p in ctrl else ground[p] for p in ids])
+            try:
+                fit = absolute_orientation(src, dst, method="svd", ids=[str(p) for p in ids])
+            except DegenerateGeometryError as exc:
+                raise DegenerateGeometryError(
+                    f"absolute orientation of {name(u)}: {exc}; spread the control points"
+                ) from exc
+            for m in u["strips"]:
+                fits[m], used[m] = fit, tuple(ids)
+            sc, R, t = fit.scale, fit.rotation, fit.translation
+            for img, e in u["exteriors"].items():
+                exteriors[img] = _moved(e, sc, R, t)
+            for p, x in u["points"].items():
+                g = sc * R @ x + t
+                ground[p] = (ground[p] + g) / 2.0 if p in ground else g
+            continue
+        # no unit has three known points: join the one with the most control points to the
+        # pending unit it shares the most tie points with (in model space), then try again
+        a = max(pending, key=lambda k: (sum(p in ctrl for p in units[k]["points"]), -k))
+        others = [k for k in pending if k != a]
+        shared = [sum(p in units[a]["points"] for p in units[k]["points"]) for k in others]
+        if not others or max(shared) < 3:
+            u = units[a]
             raise TooFewPointsError(
-                f"absolute orientation of strip {i + 1} ({', '.join(map(str, m.images))})",
-                len(ids),
+                f"absolute orientation of {name(u)} ({', '.join(map(str, _images(u)))})",
+                counts[pending.index(a)],
                 3,
-                "control points in the strip, or tie points shared with a strip that has them",
+                "control points in the strips, or tie points shared with strips that have them",
             )
-        src = np.array([m.points[p] for p in ids])
-        dst = np.array([ctrl[p] if p in ctrl else ground[p] for p in ids])
-        try:
-            fit = absolute_orientation(src, dst, method="svd", ids=[str(p) for p in ids])
-        except DegenerateGeometryError as exc:
-            raise DegenerateGeometryError(
-                f"absolute orientation of strip {i + 1}: {exc}; spread the control points"
-            ) from exc
-        fits[i], used[i] = fit, tuple(ids)
-        s, R, t = fit.scale, fit.rotation, fit.translation
-        for img, e in m.exteriors.items():
-            exteriors[img] = ExteriorOrientation.from_matrix(
-                s * R @ e.position + t, e.matrix @ R.T, on_gimbal_lock="omega-zero"
-            )
-        for p, x in m.points.items():
-            g = s * R @ x + t
-            ground[p] = (ground[p] + g) / 2.0 if p in ground else g
+        b = others[int(np.argmax(shared))]
+        _join(units[a], units[b])
+        pending.remove(b)
     return BlockStart(exteriors, ground, tuple(models), tuple(fits), tuple(used))
+
+
+def _moved(e: ExteriorOrientation, s: float, R: np.ndarray, t: np.ndarray):
+    """An exterior orientation carried by the similarity ``X = s R x + t``."""
+    return ExteriorOrientation.from_matrix(
+        s * R @ e.position + t, e.matrix @ R.T, on_gimbal_lock="omega-zero"
+    )
+
+
+def _images(u: dict) -> list:
+    return list(u["exteriors"])
+
+
+def _join(a: dict, b: dict) -> None:
+    """Carry unit ``b`` into the model system of unit ``a`` (similarity on their common
+    points, one pass removing points off by more than five times the median) and merge."""
+    from .absolute import absolute_orientation
+
+    common = [p for p in b["points"] if p in a["points"]]
+    src = np.array([b["points"][p] for p in common])
+    dst = np.array([a["points"][p] for p in common])
+    fit = absolute_orientation(src, dst, method="svd")
+    err = np.linalg.norm(fit.residuals, axis=1)
+    keep = err <= 5.0 * max(float(np.median(err)), 1e-12)
+    if 3 <= keep.sum() < len(common):
+        fit = absolute_orientation(src[keep], dst[keep], method="svd")
+    s, R, t = fit.scale, fit.rotation, fit.translation
+    for img, e in b["exteriors"].items():
+        a["exteriors"].setdefault(img, _moved(e, s, R, t))
+    for p, x in b["points"].items():
+        g = s * R @ x + t
+        a["points"][p] = (a["points"][p] + g) / 2.0 if p in a["points"] else g
+    a["strips"] += b["strips"]
 
 
 def points_from_exteriors(
