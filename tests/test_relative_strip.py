@@ -70,7 +70,7 @@ def interiors(strips):
 
 def test_noise_free_block_start_is_exact():
     strips, truth, obs, control, P = simulate_block()
-    bs = pg.block_start(strips, interiors(strips), obs, control)
+    bs = pg.block_start(strips, interiors(strips), obs, control, method="dependent")
     dp, da = eo_errors(bs, truth)
     assert dp.max() < 1e-6 and da.max() < 1e-8
     err = [np.linalg.norm(bs.points[p] - P[p]) for p in bs.points]
@@ -84,7 +84,7 @@ def test_strip_listed_against_the_image_x_axis():
     """Images listed against their x axis: every dependent model has bx = -1, same result."""
     strips, truth, obs, control, _ = simulate_block()
     rev = [strips[0][::-1], strips[1]]
-    bs = pg.block_start(rev, interiors(strips), obs, control)
+    bs = pg.block_start(rev, interiors(strips), obs, control, method="dependent")
     assert all(f.extras["bx"] == -1 for f in bs.strips[0].relative)
     dp, da = eo_errors(bs, truth)
     assert dp.max() < 1e-6 and da.max() < 1e-8

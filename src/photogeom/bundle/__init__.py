@@ -33,11 +33,13 @@ __all__ = [
 from .io_bal import read_bal, write_bal
 from .io_colmap import read_colmap, write_colmap
 from .io_csv import read_csv_block, write_csv_block
+from .relative_start import start_from_relative_orientation
 
 __all__ += [
     "read_bal",
     "read_colmap",
     "read_csv_block",
+    "start_from_relative_orientation",
     "write_bal",
     "write_colmap",
     "write_csv_block",

@@ -448,6 +448,7 @@ def relative_orientation(
     xn2 = np.column_stack([d2[:, 0], -d2[:, 1]])
     check_not_collinear(xn1, xn2, what)
     fmean = 0.5 * (io1.f + io2.f)
+    user_threshold = threshold is not None
     if threshold is None:
         scalar_sigma = sig is not None and np.all(sig == sig.flat[0])
         threshold = 5.0 * float(sig.flat[0]) if scalar_sigma else 1e-3 * fmean
@@ -455,9 +456,127 @@ def relative_orientation(
         raise InputError(f"threshold must be a positive number, got {threshold!r}")
     thr_n = threshold / fmean
 
-    # --- start values -----------------------------------------------------------------------
+    # --- start values, adjustment, wrong matches ----------------------------------------------
     check_base(d1, d2, thr_n, what)
     start_info: dict = {}
+    L_all = np.column_stack([q1, q2])
+    W_all = None if sig is None else 1.0 / sig**2
+
+    def solve(R, base, inl):
+        """Adjustment from one start: data snooping, checks; everything the Fit needs."""
+        x0, sx = _start_parameters(method, R, base)
+        geom = _Geometry(method, sx)
+        cop = _Coplanarity(geom, io1, io2)
+
+        def adjust(mask: np.ndarray, x_start: np.ndarray):
+            if int(mask.sum()) < 5:
+                raise TooFewPointsError(
+                    what, int(mask.sum()), 5, "after removing the matches flagged as wrong"
+                )
+            L = L_all[mask].reshape(-1)
+            m = int(mask.sum())
+
+            def cond(x, l):
+                return cop.evaluate(x, l.reshape(m, 4))[0]
+
+            def jx(x, l):
+                return cop.evaluate(x, l.reshape(m, 4))[1]
+
+            def jl(x, l):
+                return _block_diagonal(cop.evaluate(x, l.reshape(m, 4))[2])
+
+            try:
+                return gauss_helmert(
+                    cond,
+                    x_start,
+                    L,
+                    jacobian_x=jx,
+                    jacobian_l=jl,
+                    weights=None if W_all is None else W_all[mask].reshape(-1),
+                    names=PARAMETER_NAMES[method],
+                    max_iter=max_iter,
+                    tol=tol,
+                    what=what,
+                    dense_limit=0,
+                )
+            except DegenerateGeometryError as exc:
+                raise DegenerateGeometryError(
+                    f"{what}: the points do not determine the orientation ({exc}); they lie on a "
+                    "critical surface (e.g. a cylinder through both projection centres, or a "
+                    "plane containing the base) or on a line: add points off that surface"
+                ) from exc
+
+        def statistics(adj, mask):
+            """Test statistic of every point, and the critical value."""
+            # points in the adjustment: w = b.v / sqrt(b Q b.T - a Qxx a.T) at (x, L + v);
+            # the others: their misclosure g over sqrt(b Q b.T + a Qxx a.T) (independent of x)
+            Lc = L_all.copy()
+            Lc[mask] += adj.residuals.reshape(-1, 4)
+            g, A, B = cop.evaluate(adj.x, L_all)
+            _, Ac, Bc = cop.evaluate(adj.x, Lc)
+            A = np.where(mask[:, None], Ac, A)
+            B = np.where(mask[:, None], Bc, B)
+            num = -g
+            num[mask] = np.sum(Bc[mask] * adj.residuals.reshape(-1, 4), axis=1)
+            S2 = np.ones((n, 4)) if sig is None else sig**2
+            Mi = np.sum(B * B * S2, axis=1)  # b Q b.T per point
+            qa = np.einsum("nk,kl,nl->n", A, adj.cofactor, A)
+            var = np.where(mask, Mi - qa, Mi + qa)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                w = np.where(var > 1e-14 * Mi, num / np.sqrt(np.abs(var)), np.nan)
+            red = adj.redundancy
+            if sig is not None:
+                crit = _norm_critical(alpha)
+                return w, crit, "w"
+            s0 = adj.sigma0
+            if red <= 1 or not np.isfinite(s0):
+                return np.full(n, np.nan), np.inf, "tau"
+            # data consistent to rounding: test against the rounding level, not against zero
+            s0 = max(s0, NUMERICAL_FLOOR * fmean)
+            return w / s0, tau_critical_value(alpha, red), "tau"
+
+        mask = inl.copy()
+        adj = adjust(mask, x0)
+        removed: list[str] = []
+        if robust:
+            # matches rejected by RANSAC rejoin when the adjusted orientation accepts them
+            for _ in range(2):
+                stat, crit, test = statistics(adj, mask)
+                back = ~mask & (np.abs(stat) <= crit)
+                if not back.any():
+                    break
+                mask |= back
+                adj = adjust(mask, adj.x)
+            # Baarda's data snooping: remove the largest flagged point, one at a time
+            limit = int(max_removed * n)
+            while True:
+                stat, crit, test = statistics(adj, mask)
+                s_in = np.where(mask, np.abs(stat), -np.inf)
+                s_in = np.where(np.isfinite(s_in), s_in, -np.inf)
+                j = int(np.argmax(s_in))
+                if not s_in[j] > crit:
+                    break
+                if int((~mask).sum()) + 1 > limit:
+                    raise DegenerateGeometryError(
+                        f"{what}: more than {max_removed:.0%} of the {n} matches are flagged as "
+                        "wrong; the matches are unreliable or the a-priori sigma is too small"
+                    )
+                mask[j] = False
+                removed.append(all_ids[j])
+                adj = adjust(mask, adj.x)
+        stat, crit, test = statistics(adj, mask)
+        _check_conditioning(adj, what)
+        g, _A, B = cop.evaluate(adj.x, L_all)
+        parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
+        # unit normal of the epipolar line in image 1, oriented so that parallax * normal is
+        # (0, y1 - y2) in the normal case: the parallax vector drawn on image 1
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normal1 = -B[:, :2] / np.linalg.norm(B[:, :2], axis=1, keepdims=True)
+        e1, e2 = geom.exteriors(adj.x)
+        pair = ImagePair(io1, io2, e1, e2, method)
+        _check_in_front(pair, q1[mask], q2[mask], what)
+        return adj, mask, stat, crit, test, removed, sx, x0, pair, parallax, normal1, cop
+
     if initial is not None:
         try:
             e1, e2 = initial
@@ -469,129 +588,43 @@ def relative_orientation(
         base = e1.matrix @ (e2.position - e1.position)
         if np.linalg.norm(base) == 0:
             raise DegenerateGeometryError(f"{what}: the initial orientations share one position")
-        inl = np.ones(n, dtype=bool)
         start_info["source"] = "initial"
+        result = solve(R, base, np.ones(n, dtype=bool))
     else:
-        ess = essential_start(xn1, xn2, thr_n, seed=seed, what=what)
-        check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
-        R, base, inl = ess.rotation, ess.base, ess.inliers
-        start_info.update(source="essential matrix (five-point RANSAC)", candidates=ess.candidates)
-        if not robust:
-            inl = np.ones(n, dtype=bool)
-    x0, sx = _start_parameters(method, R, base)
-    start_info["parameters"] = dict(zip(PARAMETER_NAMES[method], map(float, x0)))
-    geom = _Geometry(method, sx)
-    cop = _Coplanarity(geom, io1, io2)
-    L_all = np.column_stack([q1, q2])
-    W_all = None if sig is None else 1.0 / sig**2
-
-    def adjust(mask: np.ndarray, x_start: np.ndarray):
-        if int(mask.sum()) < 5:
-            raise TooFewPointsError(
-                what, int(mask.sum()), 5, "after removing the matches flagged as wrong"
-            )
-        L = L_all[mask].reshape(-1)
-        m = int(mask.sum())
-
-        def cond(x, l):
-            return cop.evaluate(x, l.reshape(m, 4))[0]
-
-        def jx(x, l):
-            return cop.evaluate(x, l.reshape(m, 4))[1]
-
-        def jl(x, l):
-            return _block_diagonal(cop.evaluate(x, l.reshape(m, 4))[2])
-
-        try:
-            return gauss_helmert(
-                cond,
-                x_start,
-                L,
-                jacobian_x=jx,
-                jacobian_l=jl,
-                weights=None if W_all is None else W_all[mask].reshape(-1),
-                names=PARAMETER_NAMES[method],
-                max_iter=max_iter,
-                tol=tol,
-                what=what,
-                dense_limit=0,
-            )
-        except DegenerateGeometryError as exc:
-            raise DegenerateGeometryError(
-                f"{what}: the points do not determine the orientation ({exc}); they lie on a "
-                "critical surface (e.g. a cylinder through both projection centres, or a "
-                "plane containing the base) or on a line: add points off that surface"
-            ) from exc
-
-    def statistics(adj, mask):
-        """Test statistic of every point, and the critical value."""
-        # points in the adjustment: w = b.v / sqrt(b Q b.T - a Qxx a.T) at (x, L + v);
-        # the others: their misclosure g over sqrt(b Q b.T + a Qxx a.T) (independent of x)
-        Lc = L_all.copy()
-        Lc[mask] += adj.residuals.reshape(-1, 4)
-        g, A, B = cop.evaluate(adj.x, L_all)
-        _, Ac, Bc = cop.evaluate(adj.x, Lc)
-        A = np.where(mask[:, None], Ac, A)
-        B = np.where(mask[:, None], Bc, B)
-        num = -g
-        num[mask] = np.sum(Bc[mask] * adj.residuals.reshape(-1, 4), axis=1)
-        S2 = np.ones((n, 4)) if sig is None else sig**2
-        Mi = np.sum(B * B * S2, axis=1)  # b Q b.T per point
-        qa = np.einsum("nk,kl,nl->n", A, adj.cofactor, A)
-        var = np.where(mask, Mi - qa, Mi + qa)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            w = np.where(var > 1e-14 * Mi, num / np.sqrt(np.abs(var)), np.nan)
-        red = adj.redundancy
-        if sig is not None:
-            crit = _norm_critical(alpha)
-            return w, crit, "w"
-        s0 = adj.sigma0
-        if red <= 1 or not np.isfinite(s0):
-            return np.full(n, np.nan), np.inf, "tau"
-        # data consistent to rounding: test against the rounding level, not against zero
-        s0 = max(s0, NUMERICAL_FLOOR * fmean)
-        return w / s0, tau_critical_value(alpha, red), "tau"
-
-    mask = inl.copy()
-    adj = adjust(mask, x0)
-    removed: list[str] = []
-    if robust:
-        # matches rejected by RANSAC rejoin when the adjusted orientation accepts them
-        for _ in range(2):
-            stat, crit, test = statistics(adj, mask)
-            back = ~mask & (np.abs(stat) <= crit)
-            if not back.any():
-                break
-            mask |= back
-            adj = adjust(mask, adj.x)
-        # Baarda's data snooping: remove the largest flagged point, one at a time
-        limit = int(max_removed * n)
-        while True:
-            stat, crit, test = statistics(adj, mask)
-            s_in = np.where(mask, np.abs(stat), -np.inf)
-            s_in = np.where(np.isfinite(s_in), s_in, -np.inf)
-            j = int(np.argmax(s_in))
-            if not s_in[j] > crit:
-                break
-            if int((~mask).sum()) + 1 > limit:
+        # a start that the adjustment cannot use (points behind the images, most matches
+        # flagged: RANSAC chose a wrong solution because the threshold was below the real
+        # misfit, e.g. of a start calibration) is retried with a 3 and 9 times larger threshold
+        ladder = (thr_n,) if user_threshold else (thr_n, 3 * thr_n, 9 * thr_n)
+        first_error = None
+        for t in ladder:
+            ess = essential_start(xn1, xn2, t, seed=seed, what=what)
+            check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
+            results = []
+            for R_k, b_k, inl_k in ((ess.rotation, ess.base, ess.inliers), *ess.alternatives):
+                try:
+                    results.append(solve(R_k, b_k, inl_k if robust else np.ones(n, bool)))
+                except DegenerateGeometryError as exc:
+                    first_error = first_error or exc
+            if not results:
+                continue
+            if len(results) > 1 and n == 5:
                 raise DegenerateGeometryError(
-                    f"{what}: more than {max_removed:.0%} of the {n} matches are flagged as "
-                    "wrong; the matches are unreliable or the a-priori sigma is too small"
+                    f"{what}: {len(results)} relative orientations fit the five points "
+                    "exactly, each with every point in front of both images; add points or "
+                    "pass start values (initial=)"
                 )
-            mask[j] = False
-            removed.append(all_ids[j])
-            adj = adjust(mask, adj.x)
-    stat, crit, test = statistics(adj, mask)
-    _check_conditioning(adj, what)
-    g, _A, B = cop.evaluate(adj.x, L_all)
-    parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
-    # unit normal of the epipolar line in image 1, oriented so that parallax * normal is
-    # (0, y1 - y2) in the normal case: the parallax vector drawn on image 1
-    with np.errstate(invalid="ignore", divide="ignore"):
-        normal1 = -B[:, :2] / np.linalg.norm(B[:, :2], axis=1, keepdims=True)
-    e1, e2 = geom.exteriors(adj.x)
-    pair = ImagePair(io1, io2, e1, e2, method)
-    _check_in_front(pair, q1[mask], q2[mask], what)
+            # several solutions: the one keeping the most points, then the smaller misfit
+            result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
+            start_info.update(
+                source="essential matrix (five-point RANSAC)",
+                candidates=ess.candidates,
+                threshold=t * fmean,
+            )
+            break
+        else:
+            raise first_error
+    adj, mask, stat, crit, test, removed, sx, x0, pair, parallax, normal1, cop = result
+    start_info["parameters"] = dict(zip(PARAMETER_NAMES[method], map(float, x0)))
     used_ids = tuple(i for i, k in zip(all_ids, mask) if k)
     units = {nm: ("1" if nm in ("by", "bz") else "rad") for nm in PARAMETER_NAMES[method]}
     notes = []
@@ -600,7 +633,7 @@ def relative_orientation(
     else:
         notes.append("model system: x along the base, unit the base length")
     if removed:
-        notes.append(f"removed by data snooping: {', '.join(removed[:30])}")
+        notes.append(f"removed by data snooping: {', '.join(map(str, removed[:30]))}")
     n_out = int((~mask).sum())
     if n_out:
         notes.append(f"{n_out} of {n} point(s) left out as wrong matches")

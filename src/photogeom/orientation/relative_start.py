@@ -1,8 +1,9 @@
 """Start values of a relative orientation: the essential matrix (five-point solver in RANSAC).
 
-OpenCV's ``findEssentialMat`` (Nister's five-point solver inside RANSAC) and
-``recoverPose`` (the cheirality test that picks one of the four decompositions) give the
-relative rotation and the base direction; the Gauss-Helmert adjustment of the coplanarity
+OpenCV's ``findEssentialMat`` (Nister's five-point solver inside RANSAC, and inside
+MAGSAC++ where OpenCV has it) and ``recoverPose`` (the cheirality test that picks one of the
+four decompositions) give the relative rotation and the base direction, the candidate with
+the most points in front of both images winning; the Gauss-Helmert adjustment of the coplanarity
 condition (:mod:`photogeom.orientation.relative`) then decides on the final values.
 
 Conventions. OpenCV's camera axes are x right, y down, z forward; the photogrammetric camera
@@ -28,6 +29,11 @@ from ..errors import DegenerateGeometryError
 #: ``diag(1, -1, -1)``: OpenCV camera axes <-> photogrammetric camera axes.
 FLIP = np.diag([1.0, -1.0, -1.0])
 
+#: Largest difference (rotation-matrix entries, unit-base components) between two start
+#: candidates taken for one solution (estimates from different samples differ by noise; the
+#: distinct solutions of five points differ grossly).
+SAME = 0.05
+
 #: Smallest / largest singular value of the centred image points below which they are
 #: taken to lie on a line.
 COLLINEAR_RATIO = 1e-3
@@ -43,13 +49,17 @@ class EssentialStart:
     base : (3,) unit base ``O2 - O1`` in the camera-1 frame.
     inliers : (n,) bool, matches consistent with the essential matrix (and in front of both
         cameras).
-    candidates : int, number of essential matrices the solver returned.
+    candidates : int, number of essential matrices the solvers returned.
+    alternatives : tuple of (rotation, base, inliers), other solutions with as many points in
+        front of both images (five points admit several; noisy near-planar scenes may give
+        two that only the adjustment tells apart).
     """
 
     rotation: np.ndarray
     base: np.ndarray
     inliers: np.ndarray
     candidates: int
+    alternatives: tuple = ()
 
 
 def check_not_collinear(xn1: np.ndarray, xn2: np.ndarray, what: str) -> None:
@@ -115,8 +125,7 @@ def essential_start(
     Raises
     ------
     DegenerateGeometryError
-        No essential matrix found, or several with every point in front of both cameras
-        (five points: pass start values).
+        No essential matrix found, or none with five points in front of both images.
     """
     import cv2
 
@@ -125,21 +134,33 @@ def essential_start(
     p1 = np.ascontiguousarray(xn1, dtype=np.float64)
     p2 = np.ascontiguousarray(xn2, dtype=np.float64)
     K = np.eye(3)
-    E, mask = cv2.findEssentialMat(
-        p1, p2, K, method=cv2.RANSAC, prob=confidence, threshold=threshold, maxIters=max_iter
-    )
-    if E is None or E.size == 0 or not np.all(np.isfinite(E)):
+    best = []
+    n_candidates = 0
+    # RANSAC, and MAGSAC++ where OpenCV has it: near-planar scenes with a misfit above the
+    # threshold can make RANSAC prefer a spurious solution (base along the viewing axis) that
+    # puts many of its inliers behind the cameras; the decision below is by the number of
+    # points in front of both images
+    methods = [cv2.RANSAC] + ([cv2.USAC_MAGSAC] if hasattr(cv2, "USAC_MAGSAC") else [])
+    for method in methods:
+        if seed is not None:
+            cv2.setRNGSeed(int(seed))
+        E, mask = cv2.findEssentialMat(
+            p1, p2, K, method=method, prob=confidence, threshold=threshold, maxIters=max_iter
+        )
+        if E is None or E.size == 0 or not np.all(np.isfinite(E)):
+            continue
+        Es = E.reshape(-1, 3, 3)
+        n_candidates += len(Es)
+        mask0 = None if mask is None else mask.reshape(-1).astype(np.uint8)
+        for Ek in Es:
+            m = None if mask0 is None else mask0.copy()
+            count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
+            best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
+    if not best:
         raise DegenerateGeometryError(
             f"{what}: the five-point solver found no essential matrix (too few consistent "
             "matches, or the points do not determine the orientation)"
         )
-    Es = E.reshape(-1, 3, 3)
-    mask0 = None if mask is None else mask.reshape(-1).astype(np.uint8)
-    best = []
-    for Ek in Es:
-        m = None if mask0 is None else mask0.copy()
-        count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
-        best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     top = max(b[0] for b in best)
     if top < 5:
         raise DegenerateGeometryError(
@@ -153,15 +174,15 @@ def essential_start(
         base = -FLIP @ b[1].T @ b[2]
         base = base / np.linalg.norm(base)
         if not any(
-            np.max(np.abs(Rp - d[0])) < 1e-6 and np.max(np.abs(base - d[1])) < 1e-6
+            np.max(np.abs(Rp - d[0])) < SAME and np.max(np.abs(base - d[1])) < SAME
             for d in distinct
         ):
             distinct.append((Rp, base, b[3]))
-    if len(distinct) > 1:
-        raise DegenerateGeometryError(
-            f"{what}: {len(distinct)} relative orientations fit the matches equally well "
-            f"({top} points in front of both cameras for each); add points (five points can "
-            "admit several solutions) or pass start values (initial=)"
-        )
     Rp, base, inl = distinct[0]
-    return EssentialStart(rotation=Rp, base=base, inliers=inl, candidates=len(Es))
+    return EssentialStart(
+        rotation=Rp,
+        base=base,
+        inliers=inl,
+        candidates=n_candidates,
+        alternatives=tuple(distinct[1:]),
+    )

@@ -94,7 +94,7 @@ def orient_strip(
     interiors: Mapping[Hashable, InteriorOrientation],
     observations: Mapping[Hashable, Mapping[Hashable, Sequence[float]]],
     *,
-    method: str = "dependent",
+    method: str = "independent",
     sigma=None,
     min_common: int = 3,
     seed: int | None = 0,
@@ -107,8 +107,9 @@ def orient_strip(
     interiors : mapping image id -> InteriorOrientation.
     observations : mapping image id -> {point id: (x, y)}
         Image coordinates (photogrammetric image system, unit of the interior orientation).
-    method : {"dependent", "independent"}
-        Parameterisation of each relative orientation (the strip does not depend on it).
+    method : {"independent", "dependent"}
+        Parameterisation of each relative orientation (the strip does not depend on it; the
+        default, independent, takes a base in any direction of the image plane).
     sigma : float, optional
         A-priori standard deviation of the image coordinates.
     min_common : int
@@ -186,7 +187,7 @@ def block_start(
     observations: Mapping[Hashable, Mapping[Hashable, Sequence[float]]],
     control: Mapping[Hashable, Sequence[float]],
     *,
-    method: str = "dependent",
+    method: str = "independent",
     sigma=None,
     min_common: int = 3,
     seed: int | None = 0,
