@@ -87,6 +87,7 @@ from .orientation import (
     snooping_absolute_orientation,
 )
 from .orientation.intersection import IntersectionResult, space_intersection
+from .orientation.relative import ImagePair, RelativeOrientationFit, relative_orientation
 from .orientation.resection import (
     BatchResection,
     ResectionFit,
@@ -94,6 +95,7 @@ from .orientation.resection import (
     space_resection,
     space_resection_batch,
 )
+from .orientation.strip import BlockStart, block_start, orient_strip, points_from_exteriors
 from .rpc import (
     RPC,
     LocalizationResult,
@@ -130,6 +132,7 @@ __all__ = [
     "BatchOrientation",
     "BatchResection",
     "Block",
+    "BlockStart",
     "BrownDistortion",
     "BundleFit",
     "BundleOptions",
@@ -140,6 +143,7 @@ __all__ = [
     "Fit",
     "FrameCamera",
     "GimbalLockError",
+    "ImagePair",
     "ImageVariantInteriorOrientation",
     "InputError",
     "InteriorOrientation",
@@ -157,6 +161,7 @@ __all__ = [
     "RPCExtrapolationWarning",
     "RPCIntersection",
     "ReflectionError",
+    "RelativeOrientationFit",
     "ResectionFit",
     "Rigid3D",
     "Similarity2D",
@@ -167,6 +172,7 @@ __all__ = [
     "absolute_orientation_batch",
     "angles_from_rotation",
     "axis_angle_from_matrix",
+    "block_start",
     "bundle",
     "bundle_adjust",
     "camera",
@@ -199,15 +205,18 @@ __all__ = [
     "nearest_rotation",
     "opk_from_matrix",
     "opk_matrix",
+    "orient_strip",
     "orientation_from_dlt",
     "orthogonality_defect",
     "p3p",
+    "points_from_exteriors",
     "project",
     "quaternion_from_matrix",
     "ransac_absolute_orientation",
     "read_metashape_xml",
     "read_rpc",
     "refine_rpc",
+    "relative_orientation",
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",

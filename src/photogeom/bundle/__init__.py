@@ -34,6 +34,7 @@ from .io_bal import read_bal, write_bal
 from .io_colmap import read_colmap, write_colmap
 from .io_csv import read_csv_block, write_csv_block
 from .io_formats import detect_format, read_block, write_block
+from .relative_start import start_from_relative_orientation
 
 __all__ += [
     "detect_format",
@@ -41,6 +42,7 @@ __all__ += [
     "read_block",
     "read_colmap",
     "read_csv_block",
+    "start_from_relative_orientation",
     "write_bal",
     "write_block",
     "write_colmap",
