@@ -41,6 +41,8 @@ def _refuse_doctype(data: bytes | str, where: str) -> None:
         parser.Parse(data, True)
     except _PrologDone:
         return
+    except FileFormatError:
+        raise
     except (expat.ExpatError, ValueError, LookupError):
         return  # reported by the real parse below
 
