@@ -27,7 +27,6 @@ others.
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -301,57 +300,10 @@ def large_moments(
     a second pass takes them about the centroids of the first. ``scatter`` also returns the
     source scatter matrix (``Moments.scatter_source``).
     """
-    with _single_threaded_blas():
-        return _large_moments(x, X, w, scatter)
-
-
-class _SingleThreadedBlas:
-    """Run BLAS single-threaded inside ``with``; safe when several threads enter at once.
-
-    The chunked products are small and memory-bound; waking BLAS threads for each chunk costs
-    more than it gains, badly so on a loaded machine. The thread count is a process-wide
-    setting, so the entries are counted under a lock: the first thread to enter records the
-    limits and sets one thread, the last to leave restores the recorded limits. (Limiting and
-    restoring per thread, as a plain ``threadpool_limits`` block does, lets a thread record
-    another's limit of one as "the original" and leave the process single-threaded.) Uses
-    threadpoolctl; without it, a no-op.
-    """
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._depth = 0
-        self._limiter = None
-        self._controller = None
-        self._loaded = False
-
-    def __enter__(self) -> None:
-        with self._lock:
-            if not self._loaded:
-                try:
-                    from threadpoolctl import ThreadpoolController
-
-                    self._controller = ThreadpoolController()
-                except ImportError:  # pragma: no cover - optional speed-up only
-                    self._controller = None
-                self._loaded = True
-            if self._depth == 0 and self._controller is not None:
-                self._limiter = self._controller.limit(limits=1, user_api="blas")
-            self._depth += 1
-
-    def __exit__(self, *exc) -> None:
-        with self._lock:
-            self._depth -= 1
-            if self._depth == 0 and self._limiter is not None:
-                limiter, self._limiter = self._limiter, None
-                limiter.restore_original_limits()
-
-
-_BLAS_LIMIT = _SingleThreadedBlas()
-
-
-def _single_threaded_blas() -> _SingleThreadedBlas:
-    """The process's single :class:`_SingleThreadedBlas` context (re-entrant, thread-safe)."""
-    return _BLAS_LIMIT
+    # No BLAS thread limit is set around the chunked products: the limit is process-wide
+    # state (other threads' BLAS calls would change with it, and concurrent set/restore
+    # pairs can leave the process single-threaded), and it measured no faster here.
+    return _large_moments(x, X, w, scatter)
 
 
 def _cancellation(W: float, s: np.ndarray, q: float) -> float:
