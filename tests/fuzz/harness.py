@@ -135,28 +135,45 @@ def _rpc_dir() -> Path:
     return pg.datasets.path("ikonos").parent
 
 
+def _rpc_text_seeds() -> list[bytes]:
+    names = ("rpc_IKONOS.txt", "skysat_l1a_RPC.TXT", "quickbird_gdal_autotest.rpc.txt")
+    return [(_rpc_dir() / n).read_bytes() for n in names]
+
+
+def _rpb_seeds() -> list[bytes]:
+    return [_rpb_text(pg.read_rpc(pg.datasets.path("ikonos"))).encode()]
+
+
+def _dimap_seeds() -> list[bytes]:
+    return [(_rpc_dir() / "rpc_PLEIADES.xml").read_bytes()]
+
+
+def _worldview_seeds() -> list[bytes]:
+    return [(_rpc_dir() / "rpc_WV2.xml").read_bytes()]
+
+
+def _points_seeds() -> list[bytes]:
+    return _bundled("lidar_wang2014", "kraus_absolute_orientation", "lecture_fiducials")
+
+
+def _pairs_seeds() -> list[bytes]:
+    return _bundled("lecture_fiducials", "lidar_wang2014", "kraus_absolute_orientation")
+
+
 TARGETS: dict[str, Target] = {
     t.name: t
     for t in (
-        Target("rpc-text", _read_rpc, lambda: [
-            (_rpc_dir() / n).read_bytes()
-            for n in ("rpc_IKONOS.txt", "skysat_l1a_RPC.TXT", "quickbird_gdal_autotest.rpc.txt")
-        ], ".txt"),  # fmt: skip
-        Target("rpc-rpb", _read_rpc,
-               lambda: [_rpb_text(pg.read_rpc(pg.datasets.path("ikonos"))).encode()], ".RPB"),
-        Target("rpc-dimap", _read_rpc, lambda: [(_rpc_dir() / "rpc_PLEIADES.xml").read_bytes()],
-               ".XML"),
-        Target("rpc-worldview", _read_rpc, lambda: [(_rpc_dir() / "rpc_WV2.xml").read_bytes()],
-               ".XML"),
+        Target("rpc-text", _read_rpc, _rpc_text_seeds, ".txt"),
+        Target("rpc-rpb", _read_rpc, _rpb_seeds, ".RPB"),
+        Target("rpc-dimap", _read_rpc, _dimap_seeds, ".XML"),
+        Target("rpc-worldview", _read_rpc, _worldview_seeds, ".XML"),
         Target("metashape-xml", _read_metashape, _metashape_seeds, ".xml"),
         Target("transform-json", _read_transform_json, _transform_seeds, ".json"),
         Target("camera-json", _read_camera_json, _camera_seeds, ".json"),
-        Target("points-csv", _read_points, lambda: _bundled(
-            "lecture_two_images", "kraus_absolute_orientation", "lecture_fiducials"), ".csv"),
-        Target("point-pairs-csv", _read_point_pairs, lambda: _bundled(
-            "lecture_fiducials", "lidar_wang2014", "kraus_absolute_orientation"), ".csv"),
+        Target("points-csv", _read_points, _points_seeds, ".csv"),
+        Target("point-pairs-csv", _read_point_pairs, _pairs_seeds, ".csv"),
     )
-}  # fmt: skip
+}
 
 #: Targets whose reader is the point CSV reader.
 CSV_TARGETS = ("points-csv", "point-pairs-csv")
@@ -205,13 +222,13 @@ def mutate(data: bytes, rng: random.Random) -> bytes:
             a, b = _span(rng, n)
             reps = rng.choice([2, 10, 100, 1000, 10000])
             chunk = bytes(buf[a:b]) * reps
-            buf[b:b] = chunk[: 300_000]
+            buf[b:b] = chunk[:300_000]
         elif op == 4 and n:  # replace a number by a hostile value
             m = _NUMBER.search(buf, rng.randrange(n))
             if m is None:
                 m = _NUMBER.search(buf)
             if m is not None:
-                buf[m.start() : m.end()] = rng.choice(_TOKENS[:13] + [b"x", b"", b"pixels"])
+                buf[m.start() : m.end()] = rng.choice([*_TOKENS[:13], b"x", b"", b"pixels"])
         elif op == 5:  # swap two lines
             lines = bytes(buf).split(b"\n")
             if len(lines) > 2:
@@ -259,6 +276,6 @@ def run_one(target: Target, data: bytes, directory: Path) -> Outcome:
             target.read(path)
     except PhotogeomError as exc:
         return Outcome(True, time.perf_counter() - t0, exc)
-    except Exception as exc:  # noqa: BLE001 - the finding
+    except Exception as exc:  # the finding
         return Outcome(False, time.perf_counter() - t0, exc)
     return Outcome(True, time.perf_counter() - t0, None)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from harness import TARGETS, mutate, run_one  # noqa: E402
+from harness import TARGETS, mutate, run_one
 
 
 def main(argv: list[str] | None = None) -> int:
