@@ -162,3 +162,29 @@ def test_the_same_file_twice_is_refused(tmp_path):
     with pytest.raises(InputError, match="same file"):
         atomic_write_many([(tmp_path / "a.txt", b"1"), (tmp_path / "." / "a.txt", b"2")])
     assert _names(tmp_path) == []
+
+
+def test_several_files_without_hard_links_keep_a_copy_for_the_rollback(tmp_path, monkeypatch):
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    a.write_text("old a")
+    b.write_text("old b")
+
+    def no_links(*_):
+        raise OSError(1, "Operation not permitted")
+
+    calls = []
+    real_replace = os.replace
+
+    def replace(src, dst):
+        calls.append(dst)
+        if len(calls) == 2:
+            raise OSError(5, "Input/output error")
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(os, "link", no_links)
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(OutputError):
+        atomic_write_many([(a, b"new a"), (b, b"new b")])
+    monkeypatch.setattr(os, "replace", real_replace)
+    assert a.read_text() == "old a" and b.read_text() == "old b"
+    assert _names(tmp_path) == ["a.txt", "b.txt"]

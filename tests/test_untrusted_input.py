@@ -287,6 +287,7 @@ CSV_XFAIL = pytest.mark.xfail(strict=False, reason="point CSV reader being rewri
     ('id,x,y\n1,"2\n3",4\n', "quote"),
     ("id,x,y\n1," + "2" * 140_000 + ",3\n", "x"),
     ("id,x,y,weight\n1,2,3,heavy\n4,5,6,light\n7,8,9,x\n", "weight"),
+    ("id,x,y,sigma\n1,2,3,1e308\n4,5,6,1\n7,8,9,1\n", "sigma"),  # weight 1e-616 = 0
 ])  # fmt: skip
 def test_point_csv_hostile_fields_are_refused(tmp_path, text, words):
     from photogeom.io import read_points

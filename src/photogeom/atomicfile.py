@@ -25,6 +25,7 @@ from __future__ import annotations
 import errno
 import os
 import secrets
+import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -124,8 +125,16 @@ class _Staged:
         backup = self.tmp.with_name(self.tmp.name[:-4] + ".old")
         try:
             os.link(self.target, backup)
-        except OSError as exc:
-            raise _failure(self.given, exc) from exc
+        except OSError:
+            # a file system without hard links: keep a copy instead
+            try:
+                shutil.copy2(self.target, backup)
+            except OSError as exc:
+                try:
+                    os.unlink(backup)
+                except OSError:
+                    pass
+                raise _failure(self.given, exc) from exc
         self.backup = backup
 
     def discard(self) -> None:
