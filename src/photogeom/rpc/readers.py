@@ -652,7 +652,11 @@ def read_rpc(path: str | Path) -> RPC:
         size = p.stat().st_size
         with open(p, "rb") as fh:
             head = fh.read(65536)
+            if not head.strip() and size <= len(head):
+                raise FileFormatError(f"{p}: the file is empty")
             kind = detect_format(p, head)
+            if kind == "unknown":
+                raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")
             if kind == "raster":
                 data = b""
             else:
