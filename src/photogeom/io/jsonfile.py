@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import json
 import os
-import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
+
+import numpy as np
 
 from ..errors import FileFormatError, PhotogeomError
 
@@ -30,38 +31,34 @@ MAX_DEPTH = 64
 MAX_INT_DIGITS = 40
 
 _T = TypeVar("_T")
-_BRACKETS = re.compile(rb'[\[\]{}"\\]')
 
 
 def _max_depth(data: bytes) -> int:
-    """Deepest nesting of ``[``/``{`` outside strings (one pass over the bracket, quote and
-    backslash characters; stops once :data:`MAX_DEPTH` is exceeded)."""
+    """Deepest nesting of ``[``/``{`` outside strings, with array operations (no loop, no
+    backtracking pattern).
+
+    A quote opens or closes a string unless an odd number of backslashes precedes it; a
+    bracket is inside a string when an odd number of such quotes precedes it.
+    """
     if data.count(b"[") + data.count(b"{") <= MAX_DEPTH:
         return 0
-    depth = deepest = 0
-    in_string = False
-    escaped_at = -1
-    for m in _BRACKETS.finditer(data):
-        i, c = m.start(), m.group()
-        if in_string:
-            if i == escaped_at:
-                continue
-            if c == b"\\":
-                escaped_at = i + 1
-            elif c == b'"':
-                in_string = False
-            continue
-        if c == b'"':
-            in_string = True
-        elif c in (b"[", b"{"):
-            depth += 1
-            if depth > deepest:
-                deepest = depth
-                if deepest > MAX_DEPTH:
-                    break
-        elif c in (b"]", b"}"):
-            depth -= 1
-    return deepest
+    a = np.frombuffer(data, dtype=np.uint8)
+    # only brackets, quotes and backslashes matter: work on their positions
+    pos = np.flatnonzero(np.isin(a, np.frombuffer(b'[]{}"\\', dtype=np.uint8)))
+    c = a[pos]
+    backslash = c == ord("\\")
+    # a backslash run continues only over adjacent positions
+    adjacent = np.concatenate([[False], np.diff(pos) == 1])
+    count = np.cumsum(backslash, dtype=np.int32)
+    start = np.where(backslash & adjacent, 0, count - backslash)
+    run = count - np.maximum.accumulate(start)  # backslashes in the run ending here
+    before = np.concatenate([[0], run[:-1]]) * adjacent  # the run right before this byte
+    quote = (c == ord('"')) & (before % 2 == 0)
+    inside = np.cumsum(quote, dtype=np.int32) % 2 == 1
+    step = (c == ord("[")).astype(np.int32) + (c == ord("{"))
+    step -= (c == ord("]")).astype(np.int32) + (c == ord("}"))
+    step[inside] = 0
+    return int(np.cumsum(step).max(initial=0))
 
 
 def _decode(data: bytes, where: str) -> str:
