@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import photogeom as pg
 from photogeom.cli.camera import camera_from_json
@@ -301,3 +303,36 @@ def test_point_csv_header_with_many_columns_is_linear(tmp_path):
 
     header = ",".join(f"c{i}" for i in range(12_000))
     _refused(_file(tmp_path, "p.csv", "id,x,y," + header + "\n1,2,3\n"), "", reader=read_points)
+
+
+_JSON_TEXT = st.text(alphabet='[]{}"\\ax\u00e9', max_size=6)
+_JSON = st.recursive(
+    st.none() | st.floats(allow_nan=False) | _JSON_TEXT,
+    lambda kids: st.lists(kids, max_size=3) | st.dictionaries(_JSON_TEXT, kids, max_size=3),
+    max_leaves=20,
+)
+
+
+def _depth(obj) -> int:
+    if isinstance(obj, list):
+        return 1 + max((_depth(v) for v in obj), default=0)
+    if isinstance(obj, dict):
+        return 1 + max((_depth(v) for v in obj.values()), default=0)
+    return 0
+
+
+@settings(max_examples=200)
+@given(obj=_JSON, ascii_only=st.booleans())
+def test_json_depth_scan_matches_the_parsed_structure(obj, ascii_only):
+    """The pre-parse depth scan (strings with brackets, quotes, backslashes skipped) agrees
+    with the depth of the parsed document."""
+    from photogeom.io import jsonfile
+
+    data = json.dumps(obj, ensure_ascii=ascii_only).encode()
+    limit = jsonfile.MAX_DEPTH
+    jsonfile.MAX_DEPTH = 0  # scan every document, however shallow
+    try:
+        got = jsonfile._max_depth(data)
+    finally:
+        jsonfile.MAX_DEPTH = limit
+    assert got == _depth(obj)
