@@ -62,6 +62,13 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
                  np.column_stack([gr, np.vstack([observed[:4], true[4:]])]),
                  ["lon", "lat", "h", "col", "row"],
                  extra={"role": ["control"] * 4 + ["check"] * 20})  # fmt: skip
+    rpc = pg.read_rpc(WV2)
+    c, r, h = rng.uniform(0, 28000, 30), rng.uniform(0, 20000, 30), rng.uniform(0, 500, 30)
+    lon, lat = rpc.localize(c, r, h)
+    many = d / "rpc_many.csv"
+    write_points(many, [f"Q{i}" for i in range(30)], np.column_stack([lon, lat, h, c, r]),
+                 ["lon", "lat", "h", "col", "row"])  # fmt: skip
+    files["rpc_many"] = many
     params = d / "similarity.json"
     pairs = pg.io.read_point_pairs(FIDUCIALS)
     fit = pg.estimate_transform("similarity2d", pairs.source, pairs.target)
@@ -100,6 +107,7 @@ COMMANDS = [
     ("rpc localize", lambda f: ["rpc", "localize", WV2, f["pixels"]], ["-o"]),
     ("rpc refine", lambda f: ["rpc", "refine", WV2, f["rpc_control"], "--model", "shift"],
      ["-o", "--report"]),
+    ("rpc fit", lambda f: ["rpc", "fit", f["rpc_many"], "--order", "1"], ["-o"]),
     ("examples run", lambda f: ["examples", "run", "fiducials"], ["--report"]),
 ]  # fmt: skip
 

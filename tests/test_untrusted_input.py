@@ -321,7 +321,7 @@ def _depth(obj) -> int:
     return 0
 
 
-@settings(max_examples=200)
+@settings(max_examples=100)
 @given(obj=_JSON, ascii_only=st.booleans())
 def test_json_depth_scan_matches_the_parsed_structure(obj, ascii_only):
     """The pre-parse depth scan (strings with brackets, quotes, backslashes skipped) agrees
