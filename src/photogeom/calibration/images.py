@@ -162,8 +162,14 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
         elif fmt == "TIFF":
             if meta.get("compression") and meta["compression"] != "raw":
                 kw["compression"] = meta["compression"]
-            if xmp:
-                kw["tiffinfo"] = {700: xmp}
+            if xmp:  # XMP is TIFF tag 700; Pillow takes one tag set, so it joins the EXIF
+                tags = meta.get("exif")
+                if not isinstance(tags, Image.Exif):
+                    tags = Image.Exif()
+                    if meta.get("exif"):
+                        tags.load(meta["exif"])
+                tags[700] = xmp
+                kw["exif"] = tags
         elif fmt == "PNG" and xmp:
             from PIL.PngImagePlugin import PngInfo
 
