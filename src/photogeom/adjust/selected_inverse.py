@@ -78,7 +78,7 @@ class BlockSelectedInverse:
         np.add.at(E, (bi[m], r[m] % s, c[m] % s), x[m])
         pad = np.arange(n, K * s)  # padding: decoupled unit diagonal
         D[pad // s, pad % s, pad % s] = 1.0
-        with _single_threaded_blas():
+        with single_threaded_blas():
             self._Zd, self._Zo = _recurrence(D, E, K, s, what)
         self._scale = scale
 
@@ -114,7 +114,7 @@ class BlockSelectedInverse:
 _BLAS: list = []
 
 
-def _single_threaded_blas():
+def single_threaded_blas():
     """Run BLAS single-threaded: the blocks are small, and waking BLAS threads for each
     product costs far more than it gains (a hundredfold on a loaded machine)."""
     if not _BLAS:

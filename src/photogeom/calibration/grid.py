@@ -30,7 +30,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
-from ..adjust.selected_inverse import BlockSelectedInverse
+from ..adjust.selected_inverse import BlockSelectedInverse, single_threaded_blas
 from ..adjust.snooping import w_critical_value
 from ..adjust.sparse import factorize
 from ..adjust.variance_components import converged as vce_converged
@@ -213,6 +213,10 @@ class FiniteElementSystem:
     constraint_weight : float
         ``1 / sigma_c^2`` (1/px^2).
     border : {"mean", "linear"}
+    A, C : scipy.sparse matrix, optional
+        The design and constraint matrices when already built.
+    factor : bool
+        Factorise ``N`` (needed by ``solve``; not by ``selected_inverse``).
     """
 
     def __init__(
@@ -225,6 +229,7 @@ class FiniteElementSystem:
         *,
         A=None,
         C=None,
+        factor: bool = True,
     ):
         self.layout = layout
         self.uv = uv
@@ -236,6 +241,12 @@ class FiniteElementSystem:
         AtP = self.A.T.multiply(self.weights[None, :]).tocsr()
         self._AtP = AtP
         self.N = (AtP @ self.A + self.constraint_weight * (self.C.T @ self.C)).tocsc()
+        self.factor = None
+        if not factor:  # only the selected inverse is wanted
+            return
+        self.factor = None
+        if not factor:  # only the selected inverse is wanted
+            return
         try:
             self.factor = factorize(self.N, what="normal matrix of the residual grid")
         except DegenerateGeometryError as exc:
@@ -377,16 +388,22 @@ class ResidualGrid:
         """``diag(N^-1)`` reshaped (ny, nx), px^2 per unit weight; computed on first use."""
         if not self._std:
             if self.uv is None:
-                raise InputError("node standard deviations need the observations of the fit")
+                raise InputError(
+                    "node standard deviations were not stored with this grid (saved with "
+                    "std=False / --no-std): fit the grid again to compute them"
+                )
             used = ~self.outliers if self.outliers.size else np.ones(len(self.uv), bool)
-            sysm = FiniteElementSystem(
-                self.layout,
-                self.uv[used],
-                1.0 / self.sigma_obs**2,
-                1.0 / self.sigma_constraint**2,
-                self.border,  # type: ignore[arg-type]
-            )
-            self._std.append(sysm.selected_inverse.diagonal().reshape(self.layout.shape))
+            with single_threaded_blas():
+                sysm = FiniteElementSystem(
+                    self.layout,
+                    self.uv[used],
+                    1.0 / self.sigma_obs**2,
+                    1.0 / self.sigma_constraint**2,
+                    self.border,  # type: ignore[arg-type]
+                    factor=False,
+                )
+                diag = sysm.selected_inverse.diagonal()
+            self._std.append(diag.reshape(self.layout.shape))
         return self._std[0]
 
     def to_dict(self) -> dict:
@@ -504,6 +521,49 @@ def fit_grid(
     TooFewPointsError
         Fewer than ``min_observations`` residuals.
     """
+    # small dense blocks and supernodes: BLAS threads cost more than they give
+    with single_threaded_blas():
+        return _fit_grid(
+            uv,
+            residuals,
+            image_size,
+            spacing,
+            sigma_obs=sigma_obs,
+            sigma_constraint=sigma_constraint,
+            border=border,
+            min_observations=min_observations,
+            min_support=min_support,
+            folds=folds,
+            snooping=snooping,
+            alpha=alpha,
+            max_snooping_rounds=max_snooping_rounds,
+            max_vce_iterations=max_vce_iterations,
+            vce_tol=vce_tol,
+            seed=seed,
+            image_id=image_id,
+        )
+
+
+def _fit_grid(
+    uv,
+    residuals,
+    image_size,
+    spacing,
+    *,
+    sigma_obs,
+    sigma_constraint,
+    border,
+    min_observations,
+    min_support,
+    folds,
+    snooping,
+    alpha,
+    max_snooping_rounds,
+    max_vce_iterations,
+    vce_tol,
+    seed,
+    image_id,
+) -> ResidualGrid:
     where = f"image {image_id}: " if image_id is not None else ""
     uv = _as_uv(uv, f"{where}uv")
     res = _as_uv(residuals, f"{where}residuals")

@@ -186,10 +186,7 @@ def fit(
         return
     from rich.table import Table
 
-    t = Table(
-        title=f"Residual grids ({spacing:g} px) written to {output}; "
-        "residuals computed minus observed, px"
-    )
+    t = Table(title=f"Residual grids, {spacing:g} px (residuals computed minus observed, px)")
     for c in (
         "image",
         "n",
@@ -216,7 +213,9 @@ def fit(
             _pct(s["reduction"]),
             _pct(s["reduction_cv"]),
         )
-    console().print(t)
+    out = console()
+    out.print(t)
+    say(f"wrote {len(stats)} grid(s) to {output}", out)
 
 
 def _cli_words(msg: str) -> str:
