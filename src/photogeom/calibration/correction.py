@@ -113,6 +113,7 @@ def correct_image(
     interpolation: Interpolation = "bilinear",
     border: Literal["replicate", "constant", "reflect"] = "replicate",
     threads: int | None = None,
+    chunk_rows: int = 128,
 ) -> np.ndarray:
     """Resample an image so that the residual field is built in (see the module).
 
@@ -126,8 +127,10 @@ def correct_image(
     border : {"replicate", "constant", "reflect"}
         Values for output pixels whose source lies outside the image.
     threads : int, optional
-        Threads over bands of rows (default: 2). The map of each band is built and used
-        at once, so the full-size maps are never held in memory.
+        Threads over chunks of rows (default: 2). The maps of each chunk are built and
+        used at once, so the full-size maps are never held in memory.
+    chunk_rows : int
+        Rows per chunk (whole cell rows, at least this many).
 
     Returns
     -------
@@ -175,21 +178,35 @@ def correct_image(
     if edges[L.ny - 1] < L.height:  # rows past the last node row: last cell extrapolates
         bands.append((L.ny - 2, edges[L.ny - 1], L.height))
 
-    def run(band):
-        k, y0, y1 = band
-        y = np.arange(y0, y1, dtype=np.float64)
-        b = (y / g - k).astype(np.float32)[:, None]
-        mx = np.multiply(b, -dT[k, :, 0][None, :])
-        mx += xs - T32[k, :, 0]
-        my = np.multiply(b, -dT[k, :, 1][None, :])
-        my += y.astype(np.float32)[:, None] - T32[k, :, 1][None, :]
-        out[y0:y1] = cv2.remap(img, mx, my, flag, borderMode=mode)
+    # chunks of whole bands, at least ``chunk_rows`` rows: few remap calls, small maps
+    chunks, cur = [], []
+    for band in bands:
+        cur.append(band)
+        if band[2] - cur[0][1] >= chunk_rows:
+            chunks.append(cur)
+            cur = []
+    if cur:
+        chunks.append(cur)
+
+    def run(chunk):
+        c0, c1 = chunk[0][1], chunk[-1][2]
+        mx = np.empty((c1 - c0, L.width), np.float32)
+        my = np.empty_like(mx)
+        for k, y0, y1 in chunk:
+            y = np.arange(y0, y1, dtype=np.float64)
+            b = (y / g - k).astype(np.float32)[:, None]
+            sx, sy = mx[y0 - c0 : y1 - c0], my[y0 - c0 : y1 - c0]
+            np.multiply(b, -dT[k, :, 0][None, :], out=sx)
+            sx += xs - T32[k, :, 0]
+            np.multiply(b, -dT[k, :, 1][None, :], out=sy)
+            sy += y.astype(np.float32)[:, None] - T32[k, :, 1][None, :]
+        cv2.remap(img, mx, my, flag, dst=out[c0:c1], borderMode=mode)
 
     n_threads = 2 if threads is None else max(1, int(threads))
     if n_threads == 1:
-        for band in bands:
-            run(band)
+        for chunk in chunks:
+            run(chunk)
     else:
         with ThreadPoolExecutor(n_threads) as ex:
-            list(ex.map(run, bands))
+            list(ex.map(run, chunks))
     return out
