@@ -237,14 +237,25 @@ def _portable(grid: ResidualGrid) -> ResidualGrid:
 
 
 def _task(src: str, dst: str, grid: ResidualGrid, interpolation: str, threads: int | None):
-    """Worker: correct one file; returns (ok, note or message). Never raises for bad files."""
+    """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
+
+    With ``threads=1`` OpenCV runs single-threaded for the task (the workers already fill
+    the cores); its thread count is restored afterwards.
+    """
+    import cv2
+
+    before = cv2.getNumThreads()
     try:
+        if threads == 1:
+            cv2.setNumThreads(1)
         note = correct_image_file(src, dst, grid, interpolation=interpolation, threads=threads)
         return True, note
     except (PhotogeomError, OSError) as exc:
         return False, str(exc)
     except Exception as exc:  # cv2/Pillow errors on damaged files
         return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
+    finally:
+        cv2.setNumThreads(before)
 
 
 def find_images(folder: Path, ids) -> tuple[dict, list, list]:
