@@ -236,17 +236,25 @@ def _portable(grid: ResidualGrid) -> ResidualGrid:
     return replace(grid, uv=None, _std=[])
 
 
-def _task(src: str, dst: str, grid: ResidualGrid, interpolation: str, threads: int | None):
+def _task(
+    src: str,
+    dst: str,
+    grid: ResidualGrid,
+    interpolation: str,
+    threads: int | None,
+    cv_single: bool = False,
+):
     """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
 
-    With ``threads=1`` OpenCV runs single-threaded for the task (the workers already fill
-    the cores); its thread count is restored afterwards.
+    ``cv_single``: OpenCV runs single-threaded for the task (Dask workers already fill the
+    cores); its thread count is restored afterwards. Not in forked processes, where
+    changing OpenCV's thread pool can deadlock.
     """
     import cv2
 
-    before = cv2.getNumThreads()
+    before = cv2.getNumThreads() if cv_single else 0
     try:
-        if threads == 1:
+        if cv_single:
             cv2.setNumThreads(1)
         note = correct_image_file(src, dst, grid, interpolation=interpolation, threads=threads)
         return True, note
@@ -255,7 +263,8 @@ def _task(src: str, dst: str, grid: ResidualGrid, interpolation: str, threads: i
     except Exception as exc:  # cv2/Pillow errors on damaged files
         return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
     finally:
-        cv2.setNumThreads(before)
+        if cv_single:
+            cv2.setNumThreads(before)
 
 
 def find_images(folder: Path, ids) -> tuple[dict, list, list]:
@@ -415,7 +424,8 @@ def _run_dask(jobs, workers, dask, interpolation, progress):
         with _progress(progress, len(jobs)) as prog:
             t = prog.add_task("correcting images (dask)", total=len(jobs))
             futs = [
-                client.submit(_task, s, d, g, interpolation, 1, pure=False) for _k, s, d, g in jobs
+                client.submit(_task, s, d, g, interpolation, 1, True, pure=False)
+                for _k, s, d, g in jobs
             ]
             index = {f.key: i for i, f in enumerate(futs)}
             for f in as_completed(futs):
