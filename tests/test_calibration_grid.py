@@ -266,6 +266,22 @@ def test_snooping_removes_gross_errors():
     assert set(bad) <= found and len(found) <= len(bad) + 2
     plain = fit_grid(uv, l, (w, h), 100, sigma_obs=0.2, sigma_constraint=0.05, folds=0)
     assert not plain.outliers.any()
+    # one round only: the fit of that round stands (one removal per cell per round)
+    l[bad[0] + 1, 0] += 4.0  # a second blunder near the first is caught in round 2 at most
+    one = fit_grid(
+        uv,
+        l,
+        (w, h),
+        100,
+        sigma_obs=0.2,
+        sigma_constraint=0.05,
+        snooping=True,
+        alpha=1e-4,
+        max_snooping_rounds=1,
+        folds=0,
+    )
+    assert 1 <= one.outliers.sum() <= len(bad) + 3
+    assert one.sigma_obs.size == len(uv) - one.outliers.sum()
 
 
 # ------------------------------------------------------------------ many images

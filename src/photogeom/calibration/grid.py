@@ -641,7 +641,7 @@ def _fit_grid(
             w = np.abs(v) / np.sqrt(np.where(qvv > 1e-12 * s_obs[used] ** 2, qvv, np.nan))[:, None]
         wmax = np.nanmax(np.where(np.isfinite(w), w, -1.0), axis=1)
         flagged = wmax > crit
-        if not np.any(flagged):
+        if not np.any(flagged) or _round == max_snooping_rounds:  # the last fit stands
             break
         idx_used = np.flatnonzero(used)
         fi = idx_used[flagged]
