@@ -306,7 +306,9 @@ class ResidualGrid:
         RMS length of the image's residuals before and after subtracting the field
         (used points, px).
     rms_cv_before, rms_cv_after : float
-        The same on points left out of the fit (k-fold cross-validation); NaN without it.
+        The same on points left out of the fit (k-fold cross-validation); NaN without it,
+        or when leaving a fold out leaves the grid undetermined (``border="linear"`` with
+        very few points).
     outliers : numpy.ndarray of bool, shape (n_input,)
         Input points rejected by data snooping.
     vce_iterations : int
@@ -717,7 +719,11 @@ def _cross_validate(system, uv, l, p, A, folds, seed):
         Af = A[m]
         Nf = system.N - (Af.T.multiply(p[m][None, :]) @ Af)
         bf = AtPl - Af.T @ (p[m][:, None] * l[m])
-        fac = factorize(Nf, what="normal matrix of the residual grid (cross-validation)")
+        try:
+            fac = factorize(Nf, what="normal matrix of the residual grid (cross-validation)")
+        except DegenerateGeometryError:  # a fold left the grid undetermined: no estimate
+            nan = float("nan")
+            return nan, nan
         zf = fac.solve(np.asarray(bf))
         pred[m] = np.asarray(Af @ zf)
     return _rms_len(l), _rms_len(l - pred)
