@@ -33,8 +33,7 @@ import scipy.sparse as sp
 from ..adjust.selected_inverse import BlockSelectedInverse, single_threaded_blas
 from ..adjust.snooping import w_critical_value
 from ..adjust.sparse import factorize
-from ..adjust.variance_components import converged as vce_converged
-from ..adjust.variance_components import variance_factors
+from ..adjust.variance_components import update_variance_factors
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
 
 Border = Literal["mean", "linear"]
@@ -746,7 +745,7 @@ def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):
         r_c = 2.0 * (m - (u - t))
         vtpv = [float(np.sum(p[:, None] * v * v)), float(np.sum(wc * wc)) / s_c**2]
         try:
-            f = variance_factors(vtpv, [r_o, r_c])
+            _, f = update_variance_factors([1.0, 1.0], vtpv, [r_o, r_c])
         except InputError as exc:
             raise InputError(f"{where}variance components of the residual grid: {exc}") from None
         if f[1] <= 0:
@@ -756,7 +755,7 @@ def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):
             )
         s_obs = s_obs * math.sqrt(f[0])
         s_c = s_c * math.sqrt(f[1])
-        if vce_converged(f, tol):
+        if np.all(np.abs(f - 1.0) <= tol):
             break
     else:
         from ..errors import ConvergenceError
