@@ -49,7 +49,8 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import camera, imagecoords, rpc, transforms
+from . import bundle, camera, imagecoords, rpc, simulate, transforms
+from .bundle import Block, BundleFit, BundleOptions, bundle_adjust
 from .camera import (
     DLT,
     AffineCamera,
@@ -128,7 +129,10 @@ __all__ = [
     "AffineCamera",
     "BatchOrientation",
     "BatchResection",
+    "Block",
     "BrownDistortion",
+    "BundleFit",
+    "BundleOptions",
     "ConvergenceError",
     "DegenerateGeometryError",
     "ExteriorOrientation",
@@ -163,6 +167,8 @@ __all__ = [
     "absolute_orientation_batch",
     "angles_from_rotation",
     "axis_angle_from_matrix",
+    "bundle",
+    "bundle_adjust",
     "calibration",
     "camera",
     "camera_matrix",
@@ -206,6 +212,7 @@ __all__ = [
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",
+    "simulate",
     "snooping_absolute_orientation",
     "solve_linear",
     "space_intersection",

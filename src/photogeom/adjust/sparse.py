@@ -23,7 +23,10 @@ except Exception:  # pragma: no cover - any import failure means: not available
     _Cholmod = None
     HAVE_CHOLMOD = False
 
-BACKENDS = ("auto", "cholmod", "superlu")
+BACKENDS = ("auto", "cholmod", "superlu", "dense", "cg")
+#: "auto" factorises systems up to this size densely (LAPACK): faster than a sparse
+#: factorisation there, and the memory (n^2 doubles, 50 MB at 2500) is small.
+DENSE_MAX = 2500
 
 
 class SparseFactor:
@@ -33,8 +36,12 @@ class SparseFactor:
     ----------
     N : scipy.sparse matrix, shape (n, n)
         Symmetric positive definite. Only its full (both triangles) pattern is used.
-    backend : {"auto", "cholmod", "superlu"}
-        ``"auto"`` takes CHOLMOD when available.
+    backend : {"auto", "cholmod", "superlu", "dense", "cg"}
+        ``"auto"`` takes LAPACK's dense Cholesky up to :data:`DENSE_MAX` unknowns, else
+        CHOLMOD when available, else SuperLU. ``"cg"``: no factorisation; conjugate
+        gradients preconditioned by the diagonal blocks of size ``block_size`` (for systems
+        too large to factorise; each solve iterates to a relative residual of ``cg_tol``; it
+        cannot certify that the matrix is positive definite).
     what : str
         What the matrix is, for error messages (e.g. ``"reduced camera system"``).
 
@@ -45,7 +52,15 @@ class SparseFactor:
         parameter); the message names ``what``.
     """
 
-    def __init__(self, N, *, backend: str = "auto", what: str = "normal matrix") -> None:
+    def __init__(
+        self,
+        N,
+        *,
+        backend: str = "auto",
+        what: str = "normal matrix",
+        block_size: int = 1,
+        cg_tol: float = 1e-12,
+    ) -> None:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
         N = sp.csc_matrix(N, dtype=float)
@@ -71,8 +86,25 @@ class SparseFactor:
         D = sp.diags(self._scale)
         Ns = sp.csc_matrix(D @ N @ D)
         Ns.sort_indices()
-        self.backend = "cholmod" if use_cholmod else "superlu"
-        if use_cholmod:
+        use_dense = backend == "dense" or (backend == "auto" and self.n <= DENSE_MAX)
+        self.backend = "dense" if use_dense else ("cholmod" if use_cholmod else "superlu")
+        if backend == "cg":
+            self.backend = "cg"
+            self._setup_cg(Ns, block_size, cg_tol)
+            return
+        if use_dense:
+            from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+            try:
+                c = cho_factor(Ns.toarray(), lower=True, check_finite=False)
+            except LinAlgError as exc:
+                raise DegenerateGeometryError(
+                    f"{what} is not positive definite (a datum defect or an undetermined "
+                    "parameter)"
+                ) from exc
+            self._f = c
+            self._solve = lambda rhs: cho_solve(c, rhs, check_finite=False)
+        elif use_cholmod:
             try:
                 self._f = _Cholmod(Ns)
             except ValueError as exc:
@@ -108,6 +140,50 @@ class SparseFactor:
                 )
         self._check()
 
+    def _setup_cg(self, Ns, block_size: int, tol: float) -> None:
+        from scipy.sparse.linalg import LinearOperator, cg
+
+        n, bs = self.n, max(1, int(block_size))
+        nb = n // bs
+        head = nb * bs
+        blocks = np.zeros((nb, bs, bs))
+        if nb:
+            T = Ns[:head, :head].tocoo()
+            same = (T.row // bs) == (T.col // bs)
+            blocks[T.row[same] // bs, T.row[same] % bs, T.col[same] % bs] = T.data[same]
+        try:
+            inv_blocks = np.linalg.inv(blocks)
+        except np.linalg.LinAlgError as exc:
+            raise DegenerateGeometryError(f"{self.what}: a diagonal block is singular") from exc
+        tail = Ns[head:, head:].toarray()
+        inv_tail = np.linalg.inv(tail) if tail.size else tail
+
+        def precond(x):
+            x = np.asarray(x).reshape(n, -1)
+            out = np.empty_like(x)
+            out[:head] = (inv_blocks @ x[:head].reshape(nb, bs, -1)).reshape(head, -1)
+            out[head:] = inv_tail @ x[head:]
+            return out if out.shape[1] > 1 else out[:, 0]
+
+        Mop = LinearOperator((n, n), matvec=precond, dtype=float)
+
+        def solve(rhs):
+            rhs = np.asarray(rhs, dtype=float)
+            cols = rhs.reshape(n, -1)
+            out = np.empty_like(cols)
+            for j in range(cols.shape[1]):  # columns, not points
+                x, info = cg(Ns, cols[:, j], rtol=tol, atol=0.0, M=Mop, maxiter=10 * n)
+                if info != 0:
+                    raise DegenerateGeometryError(
+                        f"{self.what}: conjugate gradients did not converge ({info} "
+                        "iterations); the system may be singular (a datum defect)"
+                    )
+                out[:, j] = x
+            return out.reshape(rhs.shape)
+
+        self._f = None
+        self._solve = solve
+
     def _check(self) -> None:
         """Refuse a factor that does not reproduce the matrix (CHOLMOD on an indefinite
         matrix returns garbage rather than an error)."""
@@ -127,12 +203,7 @@ class SparseFactor:
         b = np.asarray(b, dtype=float)
         s = self._scale if b.ndim == 1 else self._scale[:, None]
         rhs = np.ascontiguousarray(b * s)
-        if b.ndim == 2 and self.backend == "cholmod":
-            out = np.empty_like(rhs)
-            for j in range(rhs.shape[1]):  # the wheel's solver takes one vector at a time
-                out[:, j] = self._solve(np.ascontiguousarray(rhs[:, j]))
-        else:
-            out = self._solve(rhs)
+        out = self._solve(rhs)
         return out * s
 
     def inverse_blocks(self, starts: np.ndarray, size: int) -> np.ndarray:
@@ -156,6 +227,8 @@ class SparseFactor:
         return out
 
 
-def factorize(N, *, backend: str = "auto", what: str = "normal matrix") -> SparseFactor:
+def factorize(
+    N, *, backend: str = "auto", what: str = "normal matrix", block_size: int = 1
+) -> SparseFactor:
     """Factorise a sparse SPD matrix; see :class:`SparseFactor`."""
-    return SparseFactor(N, backend=backend, what=what)
+    return SparseFactor(N, backend=backend, what=what, block_size=block_size)
