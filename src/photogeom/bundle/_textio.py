@@ -10,15 +10,14 @@ from __future__ import annotations
 import bz2
 import os
 import re
-import tempfile
 from collections.abc import Mapping
 from itertools import chain
 from pathlib import Path
 
 import numpy as np
 
-from ..atomicfile import _file_mode
-from ..errors import FileFormatError, PhotogeomError
+from ..atomicfile import atomic_write_many
+from ..errors import FileFormatError
 
 _TOKEN = re.compile(r"\S+")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)")
@@ -122,35 +121,9 @@ def split_numeric_lines(
 
 
 def write_files_atomically(files: Mapping[Path, bytes]) -> None:
-    """Write several files so that each is either its old or its complete new version.
-
-    All contents go to temporary files beside their targets first (flushed and fsynced);
-    only when every one is complete are they renamed over the targets, one after the
-    other. An error while writing leaves every target as it was.
-    """
-    temps: list[tuple[str, Path]] = []
-    try:
-        for target, data in files.items():
-            target = Path(target)
-            directory = target.parent if str(target.parent) else Path(".")
-            if not directory.is_dir():
-                raise PhotogeomError(f"cannot write {target}: directory {directory} does not exist")
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-            temps.append((tmp, target))
-            os.chmod(tmp, _file_mode(target))
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-        for tmp, target in temps:
-            os.replace(tmp, target)
-        temps = []
-    finally:
-        for tmp, _ in temps:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
+    """Write several files as one: each is its old or its complete new version, and either
+    all are replaced or none is (:func:`photogeom.atomicfile.atomic_write_many`)."""
+    atomic_write_many(list(files.items()))
 
 
 def format_floats(values: np.ndarray) -> list[str]:
