@@ -52,3 +52,8 @@ class FileFormatError(PhotogeomError, ValueError):
 
 class GimbalLockError(PhotogeomError, ValueError):
     """Angles of a rotation are not unique at this attitude (e.g. phi = +-90 degrees)."""
+
+
+class SuspectResultWarning(UserWarning):
+    """A result was returned but fails a plausibility check (the reason is in the message
+    and in the result's notes): for example a sigma0 the a-priori sigma does not explain."""
