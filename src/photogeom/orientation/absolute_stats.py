@@ -68,6 +68,28 @@ def angle_to_perturbation(R: np.ndarray, dR: np.ndarray) -> np.ndarray:
     )
 
 
+def transpose_angles(omega: float, phi: float, kappa: float) -> tuple[np.ndarray, np.ndarray]:
+    """Angles of ``R.T`` and their Jacobian with respect to the angles of ``R`` (radians).
+
+    ``R = M(omega, phi, kappa).T``; the returned angles ``b`` satisfy ``M(b).T = R.T``, i.e.
+    they are the angles of the inverse rotation in the same convention (the coordinate-frame
+    Helmert rotations from the position-vector ones, or the ``"direct"`` angles ``R = M(b)``
+    from the ``"transposed"`` ones). With right perturbations ``R(a + d) = R (I + [G_a d]x)``
+    (:func:`angle_to_perturbation`), ``R(b + e) = R(a + d).T`` gives exactly, to first order,
+    ``G_b e = -R(a) G_a d``, so ``J = -G_b^-1 R(a) G_a`` (3, 3); covariances propagate as
+    ``J C J.T``. NaN at gimbal lock of either set of angles.
+    """
+    R, dR = rotation_derivatives(omega, phi, kappa)
+    wb, pb, kb, gimbal = opk_transposed(R.T)
+    Rb, dRb = rotation_derivatives(wb, pb, kb)
+    Ga = angle_to_perturbation(R, dR)
+    Gb = angle_to_perturbation(Rb, dRb)
+    b = np.array([wb, pb, kb])
+    if gimbal or math.cos(phi) < 1e-9:
+        return b, np.full((3, 3), np.nan)
+    return b, -np.linalg.solve(Gb, R @ Ga)
+
+
 @dataclass(frozen=True)
 class LinearisedStatistics:
     """Statistics of the linearised model at a solution.
