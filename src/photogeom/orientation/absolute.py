@@ -41,12 +41,14 @@ from ..errors import (
 )
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
+from ..units import from_radians
 from ..validation import as_points, check_finite
 from . import absolute_adjust as _adj
 from .absolute_direct import (
     PairMoments,
     closed_form_single,
     large_moments,
+    published_angles,
     solve_closed_form,
     solve_single,
 )
@@ -131,7 +133,21 @@ class AbsoluteOrientationFit(Fit):
 
     def angles(self, convention: str = "transposed", unit: str = "rad") -> tuple:
         """``(omega, phi, kappa)`` of ``R`` in ``convention`` (``"transposed"``: ``R =
-        M.T``, ``"direct"``: ``R = M``) and ``unit`` (``"rad"``, ``"deg"``, ``"gon"``)."""
+        M.T``, ``"direct"``: ``R = M``) and ``unit`` (``"rad"``, ``"deg"``, ``"gon"``).
+
+        For the raw closed-form matrix (not orthogonal) the angles are read as its paper
+        reads them, ``phi = asin(m31)`` (:func:`~photogeom.orientation.absolute_direct.
+        published_angles`); for a rotation by the formulas of
+        :func:`~photogeom.rotation.opk_from_matrix`.
+        """
+        if not self.model.check:
+            if convention not in ("transposed", "direct"):
+                raise InputError(
+                    f"convention must be 'transposed' or 'direct', not {convention!r}"
+                )
+            return tuple(
+                float(from_radians(a, unit)) for a in published_angles(self.rotation, convention)
+            )
         return angles_from_rotation(
             self.rotation, convention=convention, unit=unit, on_gimbal_lock="omega-zero"
         )
@@ -600,6 +616,8 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
         )
     model = Similarity3D(s, R, t, check=False) if raw else _similarity(s, R, t)
     omega, phi, kappa, gimbal = opk_transposed(R)
+    if raw and not gimbal:  # the raw matrix: phi read as published, asin(m31)
+        omega, phi, kappa = published_angles(R, "transposed")
     if gimbal:
         notes.append(_GIMBAL_NOTE)
     params = _params(t, s, (omega, phi, kappa), with_scale)

@@ -966,6 +966,28 @@ def solve_gauss_helmert_direct(
 # --- A: normalised-vector closed form (Afary 2024) -------------------------------------------
 
 
+def published_angles(R, convention: str = "direct"):
+    """Angles of the raw (non-orthogonal) closed-form matrix read as the paper reads them.
+
+    With ``M = R`` (``"direct"``, the paper's convention ``R = M(Omega, Phi, K)``) or
+    ``M = R.T`` (``"transposed"``): ``phi = asin(m31)``, ``omega = atan2(-m32, m33)``,
+    ``kappa = atan2(-m21, m11)`` (radians; ``R`` of shape (..., 3, 3)). For a rotation this
+    equals :func:`~photogeom.rotation.opk_from_matrix` (which reads phi as
+    ``atan2(m31, hypot(m32, m33))``, robust near +-90 degrees); for the raw matrix the two
+    readings differ (by 0.003 degrees in phi on the laser-scan data), and only this one
+    reproduces the paper's tables. ``m31`` is clipped to [-1, 1].
+    """
+    R = np.asarray(R, dtype=float)
+    M = R if convention == "direct" else np.swapaxes(R, -1, -2)
+    m31 = np.clip(M[..., 2, 0], -1.0, 1.0)
+    phi = np.arcsin(m31)
+    omega = np.arctan2(-M[..., 2, 1], M[..., 2, 2])
+    kappa = np.arctan2(-M[..., 1, 0], M[..., 0, 0])
+    if np.ndim(phi) == 0:
+        return float(omega), float(phi), float(kappa)
+    return omega, phi, kappa
+
+
 def _sym_eigvals(x: np.ndarray) -> np.ndarray:
     """Singular values (B, 3), descending, of centred point sets (B, n, 3)."""
     C = np.matmul(np.swapaxes(x, 1, 2), x)
