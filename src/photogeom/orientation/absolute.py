@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import numpy as np
@@ -53,6 +53,7 @@ from .absolute_direct import (
     solve_single,
 )
 from .absolute_stats import (
+    closed_form_cofactor,
     linearised_statistics,
     opk_transposed,
     residual_statistics,
@@ -640,8 +641,18 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
             xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
             with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
         )
-    if raw:
-        notes.append("statistics from the linearised model at the reported parameters")
+    if method == "closed-form":
+        # not a least-squares estimator: its covariance is propagated through the estimator
+        Qcf = closed_form_cofactor(
+            x, X, nearest=nearest, with_scale=with_scale, weights=w,
+            coplanar_threshold=coplanar_threshold,
+        )
+        # angles not separable at gimbal lock: NaN where the linearised model has NaN
+        st = replace(st, cofactor=np.where(np.isnan(st.cofactor), np.nan, Qcf))
+        notes.append(
+            "standard deviations propagated through the closed-form estimator (its Jacobian "
+            "with respect to the target coordinates); residual tests from the linearised model"
+        )
     return _stat_fit(model, method, names, params, st, r, 3 * n, v, with_scale, ctx, notes)
 
 
