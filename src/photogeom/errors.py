@@ -57,3 +57,7 @@ class GimbalLockError(PhotogeomError, ValueError):
 class SuspectResultWarning(UserWarning):
     """A result was returned but fails a plausibility check (the reason is in the message
     and in the result's notes): for example a sigma0 the a-priori sigma does not explain."""
+
+
+class PrecisionWarning(UserWarning):
+    """Input in a low-precision type (float32) has already lost digits the result needs."""

@@ -42,7 +42,7 @@ from ..errors import (
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
 from ..units import from_radians
-from ..validation import as_points, check_finite
+from ..validation import as_float64, as_points, check_finite
 from . import absolute_adjust as _adj
 from .absolute_direct import (
     PairMoments,
@@ -227,7 +227,7 @@ class _Precision:
 def _sigma_array(sig, n: int, name: str):
     if sig is None:
         return None
-    a = np.asarray(sig, dtype=float)
+    a = as_float64(sig, name)
     if a.ndim == 0:
         v = float(a)
         if not (np.isfinite(v) and v > 0):
@@ -243,7 +243,7 @@ def _sigma_array(sig, n: int, name: str):
 def _cov_array(cov, n: int, name: str):
     if cov is None:
         return None
-    c = np.asarray(cov, dtype=float)
+    c = as_float64(cov, name)
     if c.shape not in ((n, 3, 3), (3 * n, 3 * n)):
         raise InputError(
             f"{name}: expected shape ({n}, 3, 3) (per point) or ({3 * n}, {3 * n}) (full), "
@@ -266,7 +266,7 @@ def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_t
         return _NO_PRECISION
     w = None
     if weights is not None:
-        w = np.asarray(weights, dtype=float)
+        w = as_float64(weights, "weights")
         if w.shape not in ((n,), (n, 3), (3 * n,)):
             raise InputError(
                 f"weights: expected shape ({n},) per point, ({n}, 3) or ({3 * n},) per "

@@ -30,7 +30,7 @@ from ..camera.exterior import NAMES as EO_NAMES
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
 from ..errors import DegenerateGeometryError, InputError, PhotogeomError, SuspectResultWarning
-from ..validation import as_points, check_count, check_same_length
+from ..validation import as_float64, as_points, check_count, check_same_length
 
 __all__ = [
     "BatchResection",
@@ -862,11 +862,11 @@ def space_resection_batch(
     -------
     BatchResection
     """
-    im = np.asarray(image, dtype=float)
+    im = as_float64(image, "image")
     if im.ndim != 3 or im.shape[2] != 2:
         raise InputError(f"image: expected shape (B, n, 2), got {im.shape}")
     B, n, _ = im.shape
-    g = np.asarray(ground, dtype=float)
+    g = as_float64(ground, "ground")
     if g.ndim == 2:
         g = np.broadcast_to(g, (B, *g.shape))
     if g.shape != (B, n, 3):
