@@ -98,3 +98,38 @@ def test_float32_without_large_offsets_does_not_warn():
         warnings.simplefilter("error", PrecisionWarning)
         fit = pg.absolute_orientation(x.astype(np.float32), X.astype(np.float32))
     assert fit.parameters.dtype == np.float64
+
+
+@pytest.mark.parametrize(
+    "method",
+    ["closed-form", "svd", "quaternion", "dual-quaternion", "gauss-markov", "gauss-helmert"],
+)
+@pytest.mark.parametrize("side", ["source", "target"])
+def test_coordinates_near_1e200_give_the_named_overflow_error(method, side):
+    x, X = _pairs()
+    if side == "source":
+        x = x * 1e200
+    else:
+        X = X * 1e200
+    with pytest.raises(InputError, match="overflow"):
+        pg.absolute_orientation(x, X, method)
+
+
+def test_camera_and_transform_estimators_name_the_overflow():
+    io, _, g, xy = _camera_problem()
+    with pytest.raises(InputError, match="overflow"):
+        pg.space_resection(g * 1e200, xy, io)  # was numpy's LinAlgError
+    with pytest.raises(InputError, match="overflow"):
+        pg.estimate_dlt(g * 1e200, xy)
+    x, X = _pairs()
+    for model in ("affine3d", "similarity3d"):
+        with pytest.raises(InputError, match="overflow"):
+            pg.estimate_transform(model, x * 1e200, X)
+
+
+def test_gauss_helmert_scale_without_overflow_at_large_coordinates():
+    # d^2 + 4 c^2 overflowed at 1e100 (scale reported as 0); hypot(d, 2 c) does not
+    x, X = _pairs()
+    fit = pg.absolute_orientation(x * 1e100, X, "gauss-helmert")
+    ref = pg.absolute_orientation(x, X, "gauss-helmert")
+    assert fit.scale == pytest.approx(ref.scale * 1e-100, rel=1e-9)

@@ -165,6 +165,29 @@ def check_finite(arr: np.ndarray, name: str) -> None:
         )
 
 
+#: Largest coordinate magnitude times sqrt(number of values) accepted by the estimators: sums
+#: of squares and products of the coordinates (normal equations, scatter matrices) must stay
+#: well inside the float64 range (1.8e308).
+MAX_MAGNITUDE = 1e150
+
+
+def check_finite_magnitude(arr: np.ndarray, name: str, what: str) -> None:
+    """Refuse NaN / infinite values (:func:`check_finite`) and values so large that sums of
+    their squares overflow float64: :class:`InputError` naming the scaling problem (one pass
+    over the data: the largest magnitude, whose finiteness implies that of every value)."""
+    if arr.size == 0:
+        return
+    big = float(np.max(np.abs(arr)))
+    if not np.isfinite(big):
+        check_finite(arr, name)
+    if big * np.sqrt(arr.size) > MAX_MAGNITUDE:
+        raise InputError(
+            f"{what}: {name} coordinates up to {big:.3g} overflow float64 in the sums of "
+            f"squares the estimate needs (limit {MAX_MAGNITUDE:.0e} / sqrt(number of values)); "
+            "reduce them to a local origin or change their unit (scale them down)"
+        )
+
+
 def check_count(n: int, need: int, what: str, hint: str = "") -> None:
     """Raise :class:`TooFewPointsError` when ``n < need``."""
     if n < need:

@@ -60,7 +60,13 @@ from ..transforms import (
     polynomial_term_count,
     polynomial_terms,
 )
-from ..validation import as_points, check_count, check_finite, check_same_length
+from ..validation import (
+    as_points,
+    check_count,
+    check_finite,
+    check_finite_magnitude,
+    check_same_length,
+)
 from .rational_projective import (
     RationalModel,
     affine_rows,
@@ -1232,8 +1238,10 @@ def estimate_transform(
         src = as_points(source, d, "source", allow_single=False, finite=False)
         dst = as_points(target, d, "target", allow_single=False, finite=False)
     else:
-        src = as_points(source, d, "source", allow_single=False)
-        dst = as_points(target, d, "target", allow_single=False)
+        src = as_points(source, d, "source", allow_single=False, finite=False)
+        dst = as_points(target, d, "target", allow_single=False, finite=False)
+        check_finite_magnitude(src, "source", key)
+        check_finite_magnitude(dst, "target", key)
     check_same_length(src, dst, "source", "target")
     n = src.shape[0]
     point_ids = None if ids is None else _ids(ids, n)

@@ -42,7 +42,7 @@ from ..errors import (
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
 from ..units import from_radians
-from ..validation import as_float64, as_points, check_finite
+from ..validation import as_float64, as_points, check_finite_magnitude
 from . import absolute_adjust as _adj
 from .absolute_direct import (
     PairMoments,
@@ -197,9 +197,10 @@ def _as_pair(source, target) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _check_finite_pair(x: np.ndarray, X: np.ndarray) -> None:
-    """Refuse NaN / infinite coordinates (naming the side and rows)."""
-    check_finite(x, "source")
-    check_finite(X, "target")
+    """Refuse NaN / infinite coordinates (naming the side and rows) and coordinates so large
+    that their squares summed over the points overflow."""
+    check_finite_magnitude(x, "source", "absolute orientation")
+    check_finite_magnitude(X, "target", "absolute orientation")
 
 
 def _finite_or_raise(x: np.ndarray, X: np.ndarray) -> None:

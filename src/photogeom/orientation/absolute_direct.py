@@ -512,7 +512,7 @@ def solve_single(
         aa = a * ratio * ratio
         c = trace * ratio
         dd = aa - b
-        f = math.sqrt(dd * dd + 4 * c * c)
+        f = math.hypot(dd, 2 * c)
         if c == 0:
             s = math.nan
         else:
@@ -764,7 +764,7 @@ def _solve_three_chunk(x, X, with_scale, gh_ratio):
         k = gh_ratio
         aa, cc = a * k * k, trace * k
         dd = aa - b
-        f = np.sqrt(dd * dd + 4 * cc * cc)
+        f = np.hypot(dd, 2 * cc)
         with np.errstate(divide="ignore", invalid="ignore"):
             scale = np.where(dd > 0, 2 * cc / (dd + f), (f - dd) / (2 * cc)) * k
     t = Xg - scale[:, None] * np.einsum("bij,bj->bi", R, xg)
@@ -952,7 +952,7 @@ def solve_gauss_helmert_direct(
         a = m.a * k * k
         c = np.sum(S * D, axis=1) * k
         d = a - m.b
-        f = np.sqrt(d * d + 4 * c * c)
+        f = np.hypot(d, 2 * c)
         with np.errstate(divide="ignore", invalid="ignore"):
             # (-d + f) / (2 c) written without cancellation for d > 0
             s_tilde = np.where(d > 0, 2 * c / (d + f), (f - d) / (2 * c))

@@ -30,7 +30,13 @@ from ..camera.exterior import NAMES as EO_NAMES
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
 from ..errors import DegenerateGeometryError, InputError, PhotogeomError, SuspectResultWarning
-from ..validation import as_float64, as_points, check_count, check_same_length
+from ..validation import (
+    as_float64,
+    as_points,
+    check_count,
+    check_finite_magnitude,
+    check_same_length,
+)
 
 __all__ = [
     "BatchResection",
@@ -557,6 +563,7 @@ def space_resection(
     """
     t0 = time.perf_counter()
     g = as_points(ground, 3, "ground points")
+    check_finite_magnitude(g, "ground points", "space resection")
     im = as_points(image, 2, "image points")
     check_same_length(g, im, "ground points", "image points")
     if system == "pixel":
