@@ -144,3 +144,27 @@ def test_large_n_gauss_markov_from_moments_equals_the_general_adjustment(weighte
     assert big.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
     np.testing.assert_allclose(big.residuals, ref.residuals, atol=1e-8)
     np.testing.assert_allclose(big.redundancy_numbers, ref.redundancy_numbers, atol=1e-9)
+
+
+@pytest.mark.parametrize("flat", [1.0, 0.05])
+def test_chunked_closed_form_equals_the_single_pass_arrays(flat, monkeypatch):
+    # from CLOSED_FORM_CHUNKED_N points on the closed form (and its propagated covariance)
+    # runs in chunks without n-row temporaries; same estimate as the array version
+    from photogeom.orientation import absolute_direct as ad
+    from photogeom.orientation.absolute_stats import closed_form_cofactor
+
+    x, X = _utm_problem(ad.CLOSED_FORM_CHUNKED_N + 700, seed=6)
+    x = x * [1.0, 1.0, flat]
+    x[7] = (x.sum(axis=0) - x[7]) / (x.shape[0] - 1)  # one point at the centroid
+    fits = [pg.absolute_orientation(x, X, "closed-form", nearest_rotation=nr) for nr in (0, 1)]
+    covs = [closed_form_cofactor(x, X, nearest=nr) for nr in (False, True)]
+    monkeypatch.setattr(ad, "CLOSED_FORM_CHUNKED_N", 10**9)
+    for nr, fit, Q in zip((False, True), fits, covs):
+        ref = pg.absolute_orientation(x, X, "closed-form", nearest_rotation=nr)
+        assert fit.scale == pytest.approx(ref.scale, rel=1e-13)
+        np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-12)
+        np.testing.assert_allclose(fit.translation, ref.translation, rtol=1e-13)
+        assert fit.notes == ref.notes  # augmentation and the point at the centroid
+        Qa = closed_form_cofactor(x, X, nearest=nr)
+        sd = np.sqrt(np.diag(Qa))
+        np.testing.assert_allclose(Q / np.outer(sd, sd), Qa / np.outer(sd, sd), atol=1e-6)

@@ -177,7 +177,7 @@ def check_finite_magnitude(arr: np.ndarray, name: str, what: str) -> None:
     over the data: the largest magnitude, whose finiteness implies that of every value)."""
     if arr.size == 0:
         return
-    big = float(np.max(np.abs(arr)))
+    big = max(float(np.max(arr)), -float(np.min(arr)))  # no temporary copy
     if not np.isfinite(big):
         check_finite(arr, name)
     if big * np.sqrt(arr.size) > MAX_MAGNITUDE:

@@ -611,6 +611,8 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
             notes.append("plane-normal augmentation used (n = 3 or a nearly coplanar point set)")
         _check_solution(sol.degenerate, sol.reflection, method)
         s, R, t = sol.scale, sol.rotation, sol.translation
+        if statistics and n >= LARGE_N:  # moments for the chunked statistics pass
+            pm = _moments(x, X, w, True)
     else:
         pm = _moments(x, X, w, statistics)
         sol = solve_single(pm, method, with_scale=with_scale, scale_method=scale_method)

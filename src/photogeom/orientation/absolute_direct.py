@@ -1111,9 +1111,14 @@ def closed_form_single(
     """:func:`solve_closed_form` for one problem (n, 3), with LAPACK called directly.
 
     Returns the solution, whether the plane-normal augmentation was used, and the number of
-    points left out because they lie at the centroid.
+    points left out because they lie at the centroid. From
+    :data:`CLOSED_FORM_CHUNKED_N` points on, :func:`closed_form_chunked`.
     """
     n = x.shape[0]
+    if n >= CLOSED_FORM_CHUNKED_N:
+        return closed_form_chunked(
+            x, X, nearest=nearest, with_scale=with_scale, coplanar_threshold=coplanar_threshold
+        )
     xg = np.add.reduce(x, axis=0) / n
     Xg = np.add.reduce(X, axis=0) / n
     xr = x - xg
@@ -1168,3 +1173,183 @@ def closed_form_single(
         R = u @ vt
     t = Xg - s * (R @ xg)
     return SingleSolution(s, R, t, False, reflection), augment, n - nu
+
+
+# --- the closed form for many points: chunked, no n-row temporaries ---------------------------
+
+#: From this many points the closed form runs in cache-sized chunks (two passes over the data:
+#: the centroids, then everything else), without n-row temporaries.
+CLOSED_FORM_CHUNKED_N = 65536
+#: Points per chunk of the chunked closed form.
+CLOSED_FORM_CHUNK = 16384
+
+
+@dataclass
+class ClosedFormSums:
+    """What the closed form accumulates over the points (see :func:`closed_form_sums`).
+
+    ``tx``, ``tX``: the centroid-distance thresholds below which a point carries no direction;
+    ``MMt``, ``NMt`` include the plane-normal augmentation when ``aug`` is set:
+    ``(l, k, xp, Xp, |Xb_l x Xb_k|, Xb_l, Xb_k)``.
+    """
+
+    n: int
+    xg: np.ndarray
+    Xg: np.ndarray
+    tx: float
+    tX: float
+    nu: int
+    ratio_sum: float
+    MMt: np.ndarray
+    NMt: np.ndarray
+    augment: bool
+    aug: tuple | None
+
+
+def _chunks(n: int):
+    for i in range(0, n, CLOSED_FORM_CHUNK):
+        yield i, min(i + CLOSED_FORM_CHUNK, n)
+
+
+def closed_form_sums(
+    x: np.ndarray, X: np.ndarray, coplanar_threshold: float = COPLANAR_THRESHOLD
+) -> ClosedFormSums | None:
+    """The sums of the closed form in chunks: the centroids (one pass), then the centroid
+    distances, length ratios, ``M M.T``, ``N M.T``, both scatter matrices (coplanarity) and
+    the unit vector closest to perpendicular to the first usable one (a second pass).
+
+    The second pass takes every point off the centroid; only if some point then lies within
+    :data:`CENTROID_TOLERANCE` of the largest centroid distance (known at the end of the pass)
+    a third pass repeats it with the exact thresholds. The same arithmetic as
+    :func:`closed_form_single` for n > 64 (its O(n) pair search).
+    """
+    n = x.shape[0]
+    xg = np.add.reduce(x, axis=0) / n
+    Xg = np.add.reduce(X, axis=0) / n
+    res = _closed_form_pass(x, X, xg, Xg, 0.0, 0.0)
+    if res is None:
+        return None
+    _, (dx_max, dX_max, dx_min, dX_min) = res
+    tx, tX = CENTROID_TOLERANCE * dx_max, CENTROID_TOLERANCE * dX_max
+    if dx_min > tx and dX_min > tX:
+        return _finish(res[0], tx, tX, coplanar_threshold)
+    exact = _closed_form_pass(x, X, xg, Xg, tx, tX)  # some point lies at the centroid
+    return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold)
+
+
+def _closed_form_pass(x, X, xg, Xg, tx, tX):
+    n = x.shape[0]
+    # the first usable point: reference of the perpendicular-pair search
+    first = None
+    for a, b in _chunks(n):
+        xr, Xr = x[a:b] - xg, X[a:b] - Xg
+        dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
+        dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
+        ok = np.flatnonzero((dx > tx) & (dX > tX))
+        if ok.size:
+            i = int(ok[0])
+            first = (a + i, xr[i] / dx[i], Xr[i] / dX[i])
+            break
+    if first is None:
+        return None
+    l_idx, xb_l, Xb_l = first
+    MMt = np.zeros((3, 3))
+    NMt = np.zeros((3, 3))
+    Sx = np.zeros((3, 3))
+    SX = np.zeros((3, 3))
+    ratio_sum = 0.0
+    nu = 0
+    best = (math.inf, -1, None, None)
+    dx_max = dX_max = 0.0
+    dx_min = dX_min = math.inf
+    for a, b in _chunks(n):
+        xr, Xr = x[a:b] - xg, X[a:b] - Xg
+        Sx += xr.T @ xr
+        SX += Xr.T @ Xr
+        dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
+        dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
+        dx_max, dX_max = max(dx_max, float(dx.max())), max(dX_max, float(dX.max()))
+        use = (dx > tx) & (dX > tX)
+        if not use.all():
+            xr, Xr, dx, dX = xr[use], Xr[use], dx[use], dX[use]
+            idx = np.flatnonzero(use) + a
+        else:
+            idx = None
+        if dx.size == 0:
+            continue
+        dx_min, dX_min = min(dx_min, float(dx.min())), min(dX_min, float(dX.min()))
+        nu += dx.size
+        ratio_sum += float(np.add.reduce(dX / dx))
+        xb = xr / dx[:, None]
+        Xb = Xr / dX[:, None]
+        MMt += Xb.T @ Xb
+        NMt += xb.T @ Xb
+        dots = np.abs(xb @ xb_l)
+        gidx = (np.arange(a, a + dx.size) if idx is None else idx)
+        dots[gidx == l_idx] = np.inf
+        j = int(np.argmin(dots))
+        if dots[j] < best[0]:
+            best = (float(dots[j]), int(gidx[j]), xb[j].copy(), Xb[j].copy())
+    sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=MMt, NMt=NMt, Sx=Sx, SX=SX,
+                pair=(l_idx, xb_l, Xb_l, best[1], best[2], best[3]))
+    return sums, (dx_max, dX_max, dx_min, dX_min)
+
+
+def _finish(sums: dict, tx: float, tX: float, coplanar_threshold: float) -> ClosedFormSums:
+    ev_x = np.linalg.eigvalsh(sums["Sx"])
+    ev_X = np.linalg.eigvalsh(sums["SX"])
+    ratio = min(
+        math.sqrt(max(ev_x[0], 0.0) / ev_x[2]) if ev_x[2] > 0 else 0.0,
+        math.sqrt(max(ev_X[0], 0.0) / ev_X[2]) if ev_X[2] > 0 else 0.0,
+    )
+    nu = sums["nu"]
+    augment = ratio < coplanar_threshold or nu <= 3
+    MMt, NMt = sums["MMt"], sums["NMt"]
+    aug = None
+    l_idx, xb_l, Xb_l, k_idx, xb_k, Xb_k = sums["pair"]
+    if augment and k_idx >= 0:
+        xp = np.cross(xb_l, xb_k)
+        c = np.cross(Xb_l, Xb_k)
+        nx, nc = float(np.linalg.norm(xp)), float(np.linalg.norm(c))
+        if nx > 0 and nc > 0:
+            xp, Xp = xp / nx, c / nc
+            MMt = MMt + np.outer(Xp, Xp)
+            NMt = NMt + np.outer(xp, Xp)
+            aug = (l_idx, k_idx, xp, Xp, nc, Xb_l, Xb_k)
+    return ClosedFormSums(sums["n"], sums["xg"], sums["Xg"], tx, tX, nu, sums["ratio_sum"],
+                          MMt, NMt, augment, aug)
+
+
+def closed_form_chunked(
+    x: np.ndarray,
+    X: np.ndarray,
+    *,
+    nearest: bool = False,
+    with_scale: bool = True,
+    coplanar_threshold: float = COPLANAR_THRESHOLD,
+) -> tuple[SingleSolution, bool, int]:
+    """:func:`closed_form_single` for many points, from :func:`closed_form_sums` (two passes
+    over the data in cache-sized chunks, no n-row temporaries)."""
+    cs = closed_form_sums(x, X, coplanar_threshold)
+    n = x.shape[0]
+    if cs is None or cs.nu < 2:
+        xg_ = np.add.reduce(X, axis=0) / n
+        return SingleSolution(math.nan, np.eye(3), xg_, True, False), False, n
+    s = cs.ratio_sum / cs.nu if with_scale else 1.0
+    sv = _lapack.dgesvd(cs.NMt, compute_uv=0)[1]
+    if not sv[2] > DEGENERATE_TOLERANCE**0.5 * sv[0] or not math.isfinite(s):
+        return (SingleSolution(math.nan, np.eye(3), cs.Xg.copy(), True, False), cs.augment,
+                n - cs.nu)
+    _, _, Rt, info = _lapack.dgesv(cs.NMt.T, cs.MMt.T)
+    if info != 0:
+        return (SingleSolution(math.nan, np.eye(3), cs.Xg.copy(), True, False), cs.augment,
+                n - cs.nu)
+    R = Rt.T
+    reflection = _det_list(R.tolist()) < 0
+    if nearest:
+        u, _, vt, _ = _lapack.dgesvd(R)
+        if _det_list(u.tolist()) * _det_list(vt.tolist()) < 0:
+            u[:, 2] *= -1
+        R = u @ vt
+    t = cs.Xg - s * (R @ cs.xg)
+    return SingleSolution(s, R, t, False, reflection), cs.augment, n - cs.nu

@@ -441,46 +441,76 @@ def closed_form_cofactor(
     """
     from .absolute_direct import (
         CENTROID_TOLERANCE,
+        CLOSED_FORM_CHUNK,
+        CLOSED_FORM_CHUNKED_N,
         COPLANAR_THRESHOLD,
         _perpendicular_pair,
+        closed_form_sums,
     )
 
     thr = COPLANAR_THRESHOLD if coplanar_threshold is None else coplanar_threshold
     n = x.shape[0]
-    xg = np.add.reduce(x, axis=0) / n
-    Xg = np.add.reduce(X, axis=0) / n
-    xr = x - xg
-    Xr = X - Xg
-    dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
-    dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
-    usable = (dx > CENTROID_TOLERANCE * dx.max()) & (dX > CENTROID_TOLERANCE * dX.max())
-    idx = np.flatnonzero(usable)
-    nu = idx.size
-    xb = xr[idx] / dx[idx, None]
-    Xb = Xr[idx] / dX[idx, None]
-    MMt = Xb.T @ Xb
-    NMt = xb.T @ Xb
-    ev_x = np.linalg.eigvalsh(xr.T @ xr)
-    ev_X = np.linalg.eigvalsh(Xr.T @ Xr)
-    ratio = min(
-        math.sqrt(max(ev_x[0], 0.0) / ev_x[2]) if ev_x[2] > 0 else 0.0,
-        math.sqrt(max(ev_X[0], 0.0) / ev_X[2]) if ev_X[2] > 0 else 0.0,
-    )
-    aug = None
-    if ratio < thr or nu <= 3:
-        lq, kq = _perpendicular_pair(xb[None], np.ones((1, nu), dtype=bool))
-        lq, kq = int(lq[0]), int(kq[0])
-        xp = np.cross(xb[lq], xb[kq])
-        c = np.cross(Xb[lq], Xb[kq])
-        nx, nc = float(np.linalg.norm(xp)), float(np.linalg.norm(c))
-        if nx > 0 and nc > 0:
-            xp, Xp = xp / nx, c / nc
-            MMt = MMt + np.outer(Xp, Xp)
-            NMt = NMt + np.outer(xp, Xp)
-            aug = (lq, kq, xp, Xp, nc)
+    if n >= CLOSED_FORM_CHUNKED_N:  # the sums in chunks; per-point terms recomputed per chunk
+        cs = closed_form_sums(x, X, thr)
+        xg, Xg, nu, MMt, NMt = cs.xg, cs.Xg, cs.nu, cs.MMt, cs.NMt
+        aug = cs.aug
+        tx, tX = cs.tx, cs.tX
+
+        def chunks():
+            for a in range(0, n, CLOSED_FORM_CHUNK):
+                b = min(a + CLOSED_FORM_CHUNK, n)
+                xr, Xr = x[a:b] - xg, X[a:b] - Xg
+                dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
+                dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
+                use = (dx > tx) & (dX > tX)
+                gidx = np.flatnonzero(use) + a
+                xr, Xr, dx, dX = xr[use], Xr[use], dx[use], dX[use]
+                yield gidx, xr / dx[:, None], Xr / dX[:, None], dx, dX
+
+    else:
+        xg = np.add.reduce(x, axis=0) / n
+        Xg = np.add.reduce(X, axis=0) / n
+        xr = x - xg
+        Xr = X - Xg
+        dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
+        dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
+        usable = (dx > CENTROID_TOLERANCE * dx.max()) & (dX > CENTROID_TOLERANCE * dX.max())
+        idx = np.flatnonzero(usable)
+        nu = idx.size
+        xb = xr[idx] / dx[idx, None]
+        Xb = Xr[idx] / dX[idx, None]
+        MMt = Xb.T @ Xb
+        NMt = xb.T @ Xb
+        ev_x = np.linalg.eigvalsh(xr.T @ xr)
+        ev_X = np.linalg.eigvalsh(Xr.T @ Xr)
+        ratio = min(
+            math.sqrt(max(ev_x[0], 0.0) / ev_x[2]) if ev_x[2] > 0 else 0.0,
+            math.sqrt(max(ev_X[0], 0.0) / ev_X[2]) if ev_X[2] > 0 else 0.0,
+        )
+        aug = None
+        if ratio < thr or nu <= 3:
+            lq, kq = _perpendicular_pair(xb[None], np.ones((1, nu), dtype=bool))
+            lq, kq = int(lq[0]), int(kq[0])
+            xp = np.cross(xb[lq], xb[kq])
+            c = np.cross(Xb[lq], Xb[kq])
+            nx, nc = float(np.linalg.norm(xp)), float(np.linalg.norm(c))
+            if nx > 0 and nc > 0:
+                xp, Xp = xp / nx, c / nc
+                MMt = MMt + np.outer(Xp, Xp)
+                NMt = NMt + np.outer(xp, Xp)
+                aug = (int(idx[lq]), int(idx[kq]), xp, Xp, nc, Xb[lq], Xb[kq])
+
+        def chunks():
+            for a in range(0, nu, CHUNK_POINTS):
+                b = min(a + CHUNK_POINTS, nu)
+                yield idx[a:b], xb[a:b], Xb[a:b], dx[idx[a:b]], dX[idx[a:b]]
+
     Binv = np.linalg.inv(NMt)
     R_raw = MMt @ Binv
-    s = float(np.sum(dX[idx] / dx[idx])) / nu if with_scale else 1.0
+    if with_scale:
+        s = sum(float(np.add.reduce(dXc / dxc)) for _, _, _, dxc, dXc in chunks()) / nu
+    else:
+        s = 1.0
     # outputs as a function of z = (vec R_raw, s, Xg): Jacobian by central differences
     z = np.concatenate([R_raw.ravel(), [s], Xg])
     steps = np.concatenate(
@@ -508,25 +538,22 @@ def closed_form_cofactor(
     # gradient with respect to the augmentation normal, mapped to the two unit vectors
     extra = {}
     if aug is not None:
-        lq, kq, xp, Xp, nc = aug
+        lq, kq, xp, Xp, nc, Xb_l, Xb_k = aug
         qp = Hs @ Xp - K @ xp  # (u, 3)
         gc = (qp - np.outer(qp @ Xp, Xp)) / nc
-        extra[lq] = np.cross(Xb[kq], gc)
-        extra[kq] = np.cross(gc, Xb[lq])
+        extra[lq] = np.cross(Xb_k, gc)
+        extra[kq] = np.cross(gc, Xb_l)
     S1 = np.zeros((u, 3))
     S2 = np.zeros((u, u))
-    for a in range(0, nu, CHUNK_POINTS):
-        b = min(a + CHUNK_POINTS, nu)
-        Xb_c, xb_c = Xb[a:b], xb[a:b]
+    for gidx, xb_c, Xb_c, dx_c, dX_c in chunks():
         qb = np.einsum("kij,nj->nki", Hs, Xb_c) - np.einsum("kij,nj->nki", K, xb_c)
         for i, g in extra.items():
-            if a <= i < b:
-                qb[i - a] += g
+            qb[gidx == i] += g
         # through the unit vector: P_i q / rho_i, P_i = I - Xb_i Xb_i.T
         proj = qb - np.einsum("nk,ni->nki", np.einsum("nki,ni->nk", qb, Xb_c), Xb_c)
-        ai = proj / dX[idx[a:b], None, None]
+        ai = proj / dX_c[:, None, None]
         if with_scale:  # s = mean |X'_i| / |x'_i|: d s / d X'_i = Xb_i / (nu |x'_i|)
-            ai += Jz[None, :, 9, None] * (Xb_c / (nu * dx[idx[a:b], None]))[:, None, :]
+            ai += Jz[None, :, 9, None] * (Xb_c / (nu * dx_c[:, None]))[:, None, :]
         S2 += np.einsum("nki,nli->kl", ai, ai)
         S1 += ai.sum(axis=0)
     # the centroid: d X'_i / d X_j = (delta_ij - 1/n) I, so the gradient with respect to X_j
