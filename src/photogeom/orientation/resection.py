@@ -152,6 +152,14 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
     return sols
 
 
+def _poly_sub(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a - b`` for coefficient arrays in increasing powers (of different lengths)."""
+    out = np.zeros(max(a.size, b.size))
+    out[: a.size] += a
+    out[: b.size] -= b
+    return out
+
+
 def _horner(coefficients: list, v: float) -> float:
     """Value at ``v`` of the polynomial with ``coefficients`` in increasing powers."""
     out = 0.0
@@ -225,12 +233,10 @@ def _p3p_points(G: np.ndarray, j: np.ndarray, imaginary_tolerance: float) -> lis
     p0 = np.array([-A, 2.0 * A * cb, 1.0 - A])
     q1 = np.array([-2.0 * cg])
     q0 = np.array([1.0 - C, 2.0 * C * cb, -C])
-    d0 = npoly.polysub(q0, p0)
-    d1 = npoly.polysub(q1, p1)
-    res = npoly.polysub(
-        npoly.polymul(d0, d0),
-        npoly.polymul(d1, npoly.polysub(npoly.polymul(p1, q0), npoly.polymul(p0, q1))),
-    )
+    d0 = np.array([1.0 - C + A, 2.0 * cb * (C - A), A - C - 1.0])  # q0 - p0
+    d1 = np.array([-2.0 * cg, 2.0 * ca])  # q1 - p1
+    cross = _poly_sub(np.convolve(p1, q0), np.convolve(p0, q1))
+    res = _poly_sub(np.convolve(d0, d0), np.convolve(d1, cross))
     res = np.trim_zeros(res, "b")
     roots = npoly.polyroots(res) if res.size > 1 else np.array([])
     out: list[np.ndarray] = []
@@ -590,7 +596,7 @@ def space_resection(
     w = _image_weights(sigma, n)
     # --- start values ---
     if initial is None:
-        cands = start_candidates(g, im, io)
+        cands = start_candidates(g, im, io, limit=16 if n == 3 else MAX_STARTS)
         if not cands:
             raise DegenerateGeometryError(
                 "space resection: no start values found (the closed-form solutions put points "
