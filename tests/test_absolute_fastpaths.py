@@ -161,7 +161,7 @@ def test_chunked_closed_form_equals_the_single_pass_arrays(flat, monkeypatch):
     monkeypatch.setattr(ad, "CLOSED_FORM_CHUNKED_N", 10**9)
     for nr, fit, Q in zip((False, True), fits, covs):
         ref = pg.absolute_orientation(x, X, "closed-form", nearest_rotation=nr)
-        assert fit.scale == pytest.approx(ref.scale, rel=1e-13)
+        assert fit.scale == pytest.approx(ref.scale, rel=1e-11)
         np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-12)
         np.testing.assert_allclose(fit.translation, ref.translation, rtol=1e-13)
         assert fit.notes == ref.notes  # augmentation and the point at the centroid

@@ -596,11 +596,14 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
     raw = False
     pm = None
     if method == "closed-form":
-        _check_finite_pair(x, X)
+        if n < LARGE_N:
+            _check_finite_pair(x, X)
         kw = {} if coplanar_threshold is None else {"coplanar_threshold": coplanar_threshold}
         sol, augmented, k = closed_form_single(
             x, X, nearest=nearest, with_scale=with_scale, **kw
         )
+        if n >= LARGE_N and (sol.degenerate or not np.all(np.isfinite(sol.translation))):
+            _check_finite_pair(x, X)  # NaN / inf / overflow show in the sums: name them
         raw = not nearest
         if k:
             notes.append(
@@ -883,11 +886,14 @@ def _gm_normal(pm: PairMoments, p: np.ndarray, with_scale: bool, R0: np.ndarray)
 def _gm_extent(x, X, w, xg, Xg) -> tuple[float, float]:
     """Largest ``sqrt(w) |x'_i|`` and ``sqrt(w) |X'_i|`` (one chunked pass): bounds for the
     change of the whitened computed observations by a step."""
+    from .absolute_direct import centred_chunk
+
     rx = rX = 0.0
+    xt, Xt = np.tile(xg, GM_CHUNK), np.tile(Xg, GM_CHUNK)
     for i in range(0, x.shape[0], GM_CHUNK):
         j = min(i + GM_CHUNK, x.shape[0])
-        nx = np.einsum("ni,ni->n", x[i:j] - xg, x[i:j] - xg)
-        nX = np.einsum("ni,ni->n", X[i:j] - Xg, X[i:j] - Xg)
+        nx = centred_chunk(x, i, j, xt)[1]
+        nX = centred_chunk(X, i, j, Xt)[1]
         if w is not None:
             nx = nx * w[i:j]
             nX = nX * w[i:j]
