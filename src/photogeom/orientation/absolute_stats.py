@@ -545,17 +545,21 @@ def closed_form_cofactor(
         extra[kq] = np.cross(gc, Xb_l)
     S1 = np.zeros((u, 3))
     S2 = np.zeros((u, u))
+    HsT = np.swapaxes(Hs, 1, 2)
+    KT = np.swapaxes(K, 1, 2)
     for gidx, xb_c, Xb_c, dx_c, dX_c in chunks():
-        qb = np.einsum("kij,nj->nki", Hs, Xb_c) - np.einsum("kij,nj->nki", K, xb_c)
+        # per output k and point i (layout (u, c, 3), BLAS products)
+        qb = np.matmul(Xb_c[None], HsT) - np.matmul(xb_c[None], KT)
         for i, g in extra.items():
-            qb[gidx == i] += g
+            qb[:, gidx == i, :] += g[:, None, :]
         # through the unit vector: P_i q / rho_i, P_i = I - Xb_i Xb_i.T
-        proj = qb - np.einsum("nk,ni->nki", np.einsum("nki,ni->nk", qb, Xb_c), Xb_c)
-        ai = proj / dX_c[:, None, None]
+        dots = np.sum(qb * Xb_c[None], axis=2)
+        ai = (qb - dots[:, :, None] * Xb_c[None]) / dX_c[None, :, None]
         if with_scale:  # s = mean |X'_i| / |x'_i|: d s / d X'_i = Xb_i / (nu |x'_i|)
-            ai += Jz[None, :, 9, None] * (Xb_c / (nu * dx_c[:, None]))[:, None, :]
-        S2 += np.einsum("nki,nli->kl", ai, ai)
-        S1 += ai.sum(axis=0)
+            ai += Jz[:, 9, None, None] * (Xb_c / (nu * dx_c[:, None]))[None]
+        flat = ai.reshape(u, -1)
+        S2 += flat @ flat.T
+        S1 += ai.sum(axis=1)
     # the centroid: d X'_i / d X_j = (delta_ij - 1/n) I, so the gradient with respect to X_j
     # is a_j + b with b = (d output / d Xg - sum_i a_i) / n (a_j = 0 for unusable points)
     bvec = (Jz[:, 10:13] - S1) / n
