@@ -628,8 +628,15 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
         )
     model = Similarity3D(s, R, t, check=False) if raw else _similarity(s, R, t)
     omega, phi, kappa, gimbal = opk_transposed(R)
+    clipped = raw and abs(float(R[0, 2])) > 1.0
     if raw and not gimbal:  # the raw matrix: phi read as published, asin(m31)
         omega, phi, kappa = published_angles(R, "transposed")
+    if clipped:
+        notes.append(
+            f"the raw R has m31 = {float(R[0, 2]):.6g} outside [-1, 1]: phi = asin(m31) is "
+            "undefined and set to +-90 deg, the angles have no standard deviations; the "
+            "raw R is far from a rotation (nearest_rotation=True gives one)"
+        )
     if gimbal:
         notes.append(_GIMBAL_NOTE)
     params = _params(t, s, (omega, phi, kappa), with_scale)
@@ -659,7 +666,11 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
             coplanar_threshold=coplanar_threshold,
         )
         # angles not separable at gimbal lock: NaN where the linearised model has NaN
-        st = replace(st, cofactor=np.where(np.isnan(st.cofactor), np.nan, Qcf))
+        Qcf = np.where(np.isnan(st.cofactor), np.nan, Qcf)
+        if clipped:
+            Qcf[-3:, :] = np.nan
+            Qcf[:, -3:] = np.nan
+        st = replace(st, cofactor=Qcf)
         notes.append(
             "standard deviations propagated through the closed-form estimator (its Jacobian "
             "with respect to the target coordinates); residual tests from the linearised model"
