@@ -23,7 +23,9 @@ from .errors import (
     GimbalLockError,
     InputError,
     PhotogeomError,
+    PrecisionWarning,
     ReflectionError,
+    SuspectResultWarning,
     TooFewPointsError,
 )
 from .rotation import (
@@ -148,6 +150,7 @@ __all__ = [
     "PhotogeomError",
     "Polynomial2D",
     "Polynomial3D",
+    "PrecisionWarning",
     "Projective2D",
     "Projective3D",
     "RPCExtrapolationWarning",
@@ -157,6 +160,7 @@ __all__ = [
     "Rigid3D",
     "Similarity2D",
     "Similarity3D",
+    "SuspectResultWarning",
     "TooFewPointsError",
     "__version__",
     "absolute_orientation",
