@@ -1,10 +1,12 @@
 """Space resection: exterior orientation of one image from control points.
 
-1. Initial values: a closed-form perspective-3-point solution (Grunert's elimination: the
+1. Initial values: closed-form perspective-3-point solutions (Grunert's elimination: the
    three distances from the projection centre satisfy three law-of-cosines equations,
-   reduced here to a quartic by the resultant of two quadratics), disambiguated by the
-   remaining points; with >= 6 non-coplanar points a DLT decomposition is tried as well.
-   With exactly three points the geometry has up to four solutions: pass ``initial``.
+   reduced here to a quartic by the resultant of two quadratics) on several well-spread
+   triples, the linear DLT (>= 6 non-coplanar points) and the plane homography (>= 4 nearly
+   coplanar points), scored by the reprojection of all points; several are refined when the
+   best does not give a plausible adjustment. With exactly three points the geometry has up
+   to four solutions: pass ``initial``.
 2. A Gauss-Markov adjustment of the collinearity equations with an analytic Jacobian,
    optionally self-calibrating interior parameters (f, x0, y0, b1, b2, k1..k4, p1, p2).
 
@@ -566,6 +568,18 @@ def space_resection(
     -------
     ResectionFit
         Parameters ``X0, Y0, Z0, omega, phi, kappa`` (radians) plus calibrated ones.
+        ``suspect`` is True (with ``suspect_reason``, a note and a
+        :class:`~photogeom.errors.SuspectResultWarning`) when sigma0 fails the global test
+        for the given ``sigma`` (alpha = :data:`GLOBAL_TEST_ALPHA`) or the RMS image residual
+        exceeds :data:`RELATIVE_RESIDUAL_LIMIT` of the image spread of the control points.
+
+    Notes
+    -----
+    Without ``initial`` the start values are the candidates of :func:`start_candidates`
+    (P3P on several triples, the linear DLT, the plane homography), best reprojection first;
+    when the adjustment from the best does not converge, ends with a point behind the camera
+    or is implausible, up to :data:`MAX_STARTS` candidates are refined and the smallest
+    ``v'Pv`` is kept.
     """
     t0 = time.perf_counter()
     g = as_points(ground, 3, "ground points")
