@@ -133,3 +133,11 @@ def test_gauss_helmert_scale_without_overflow_at_large_coordinates():
     fit = pg.absolute_orientation(x * 1e100, X, "gauss-helmert")
     ref = pg.absolute_orientation(x, X, "gauss-helmert")
     assert fit.scale == pytest.approx(ref.scale * 1e-100, rel=1e-9)
+
+
+def test_float32_weights_are_not_reported_as_coordinates():
+    x, X = _pairs()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PrecisionWarning)
+        fit = pg.absolute_orientation(x, X, weights=np.ones(len(x), dtype=np.float32))
+    assert np.isfinite(fit.sigma0)

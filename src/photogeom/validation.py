@@ -15,7 +15,7 @@ from .errors import InputError, PrecisionWarning, TooFewPointsError
 LOW_PRECISION_RELATIVE = 1e-6
 
 
-def as_float64(values: object, name: str = "points") -> np.ndarray:
+def as_float64(values: object, name: str = "points", *, coordinates: bool = True) -> np.ndarray:
     """Return ``values`` as a float64 array; refuse what would be a silent wrong answer.
 
     * masked arrays with masked entries: :class:`InputError` (the hidden values would be
@@ -24,7 +24,8 @@ def as_float64(values: object, name: str = "points") -> np.ndarray:
     * float16 / float32 input is converted to float64 (every computation is in float64), with
       a :class:`PrecisionWarning` when the input's own resolution at its largest value is
       coarser than ``LOW_PRECISION_RELATIVE`` times the spread of its values (large offsets,
-      e.g. UTM coordinates in float32, have been rounded before photogeom sees them).
+      e.g. UTM coordinates in float32, have been rounded before photogeom sees them);
+      ``coordinates=False`` (weights, standard deviations) skips this check.
     """
     if isinstance(values, np.ma.MaskedArray):
         mask = np.ma.getmaskarray(values)
@@ -51,7 +52,7 @@ def as_float64(values: object, name: str = "points") -> np.ndarray:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
-    if low and arr.size:
+    if low and coordinates and arr.size:
         _check_resolution(arr, dtype, name)
     return arr
 
@@ -207,7 +208,7 @@ def as_weights(weights: object, n: int, name: str = "weights") -> np.ndarray | N
     """Return per-point positive weights of shape ``(n,)`` or ``None``."""
     if weights is None:
         return None
-    w = as_float64(weights, name).reshape(-1)
+    w = as_float64(weights, name, coordinates=False).reshape(-1)
     if w.shape[0] != n:
         raise InputError(f"{name}: {w.shape[0]} value(s) for {n} point(s)")
     check_finite(w, name)

@@ -64,7 +64,7 @@ class DLTFit(Fit):
 def image_weights(sigma, n: int) -> np.ndarray | None:
     if sigma is None:
         return None
-    s = as_float64(sigma, "sigma")
+    s = as_float64(sigma, "sigma", coordinates=False)
     if s.ndim == 0:
         s = np.full((n, 2), float(s))
     elif s.shape == (n,):

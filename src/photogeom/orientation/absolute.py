@@ -228,7 +228,7 @@ class _Precision:
 def _sigma_array(sig, n: int, name: str):
     if sig is None:
         return None
-    a = as_float64(sig, name)
+    a = as_float64(sig, name, coordinates=False)
     if a.ndim == 0:
         v = float(a)
         if not (np.isfinite(v) and v > 0):
@@ -244,7 +244,7 @@ def _sigma_array(sig, n: int, name: str):
 def _cov_array(cov, n: int, name: str):
     if cov is None:
         return None
-    c = as_float64(cov, name)
+    c = as_float64(cov, name, coordinates=False)
     if c.shape not in ((n, 3, 3), (3 * n, 3 * n)):
         raise InputError(
             f"{name}: expected shape ({n}, 3, 3) (per point) or ({3 * n}, {3 * n}) (full), "
@@ -267,7 +267,7 @@ def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_t
         return _NO_PRECISION
     w = None
     if weights is not None:
-        w = as_float64(weights, "weights")
+        w = as_float64(weights, "weights", coordinates=False)
         if w.shape not in ((n,), (n, 3), (3 * n,)):
             raise InputError(
                 f"weights: expected shape ({n},) per point, ({n}, 3) or ({3 * n},) per "

@@ -208,7 +208,7 @@ def absolute_orientation_batch(
     _check_finite_batch(X, "target")
     w = None
     if weights is not None:
-        w = as_float64(weights, "weights")
+        w = as_float64(weights, "weights", coordinates=False)
         if w.ndim == 1:
             w = np.broadcast_to(w, x.shape[:2])
         if w.shape != x.shape[:2] or not (np.all(np.isfinite(w)) and np.all(w > 0)):
