@@ -11,8 +11,9 @@ Prints, from one run on this machine (times are medians of repeated calls in thi
    (Umeyama with scale), Open3D ``TransformationEstimationPointToPoint(with_scaling=True)``;
    ratios peer / ours (SVD);
 2. 1e5 three-point problems solved in one batched call vs a Python loop of single solves;
-3. n = 1e6 and 1e7: time of the fast path against the time numpy needs to sum both input
-   arrays once, and the peers at 1e6.
+3. n = 1e6 and 1e7: time of every method (without and with statistics) against the time numpy
+   needs to sum both input arrays once and against the SVD, peak memory (tracemalloc) against
+   the size of the input, and the peers at 1e6 (``--large-only`` runs this section alone).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import argparse
 import statistics
 import sys
 import time
+import tracemalloc
 
 import numpy as np
 import scipy.linalg.lapack
@@ -166,8 +168,18 @@ def section_batch(B, loop_n, min_time):
           f"(noise 0.01 on 3 points), {int(res.valid.sum())} of {B} valid")
 
 
+def peak_memory(fn) -> float:
+    """Peak bytes allocated (tracemalloc: numpy reports its buffers) during one call."""
+    tracemalloc.start()
+    try:
+        fn()
+        return float(tracemalloc.get_traced_memory()[1])
+    finally:
+        tracemalloc.stop()
+
+
 def section_large(sizes):
-    print("\n3. large n: fast path (statistics=False) against summing both arrays once")
+    print("\n3. large n: time against summing both arrays once; peak memory against the input")
     peer_fns = peers()
     for n in sizes:
         rng = np.random.default_rng(n)
@@ -176,25 +188,34 @@ def section_large(sizes):
         X = 1.3 * x @ R.T + np.array([10.0, 20.0, 30.0]) + rng.normal(scale=0.01, size=(n, 3))
         reps = 7 if n <= 1_000_000 else 3
         ref = median_time(lambda x=x, X=X: (x.sum(), X.sum()), 0.0, min_reps=reps)
-        print(f"n = {n:.0e}: numpy x.sum() + X.sum(): {ref * 1e3:.1f} ms")
-        methods = ["svd", "quaternion", "dual-quaternion", "gauss-helmert", "closed-form"]
-        for m in methods:
-            t = median_time(
-                lambda m=m, x=x, X=X: pg.absolute_orientation(x, X, m, statistics=False), 0.0,
-                min_reps=reps,
-            )
-            print(f"   {m:<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
+        size = x.nbytes + X.nbytes
+        print(f"n = {n:.0e}: numpy x.sum() + X.sum(): {ref * 1e3:.1f} ms; "
+              f"input {size / 1e6:.0f} MB")
+        methods = ["svd", "quaternion", "dual-quaternion", "gauss-helmert", "closed-form",
+                   "gauss-markov"]
+        t_svd = None
+        for stats in (False, True):
+            for m in methods:
+                if stats and n > 1_000_000 and m not in ("svd", "gauss-markov"):
+                    continue
+                def call(m=m, x=x, X=X, stats=stats):
+                    return pg.absolute_orientation(x, X, m, statistics=stats)
+
+                t = median_time(call, 0.0, min_reps=reps if not stats else 3)
+                mem = peak_memory(call) / size
+                if m == "svd" and not stats:
+                    t_svd = t
+                label = m + (" with statistics" if stats else "")
+                print(f"   {label:<34}{t * 1e3:>10.1f} ms {t / ref:>7.2f} x the sum "
+                      f"{t / t_svd:>7.2f} x svd   peak memory {mem:5.2f} x the input")
         if n <= 1_000_000:
-            t = median_time(lambda x=x, X=X: pg.absolute_orientation(x, X, "svd"), 0.0,
-                            min_reps=3)
-            print(f"   {'svd with statistics':<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
             Xu = X + np.array([5.0e5, 4.0e6, 0.0])  # UTM-sized target: exact centring first
             t = median_time(
                 lambda x=x, Xu=Xu: pg.absolute_orientation(x, Xu, "svd", statistics=False),
                 0.0, min_reps=reps,
             )
             label = "svd, UTM-sized target"
-            print(f"   {label:<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
+            print(f"   {label:<34}{t * 1e3:>10.1f} ms {t / ref:>7.2f} x the sum")
             for name, fn in peer_fns.items():
                 t = median_time(lambda fn=fn, x=x, X=X: fn(x, X), 0.0, min_reps=3)
                 print(f"   {name:<46}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
@@ -203,11 +224,14 @@ def section_large(sizes):
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (smoke run)")
+    ap.add_argument("--large-only", action="store_true", help="only section 3 (large n)")
     args = ap.parse_args(argv)
     import numpy
 
     print(f"photogeom {pg.__version__}, numpy {numpy.__version__}, python {sys.version.split()[0]}")
-    if args.quick:
+    if args.large_only:
+        section_large((1_000_000, 10_000_000))
+    elif args.quick:
         section_single((3, 18), 0.05)
         section_batch(2000, 500, 0.05)
         section_large((100_000,))

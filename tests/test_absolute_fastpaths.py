@@ -52,8 +52,9 @@ def test_many_points_statistics_equal_the_engine():
     assert svd.sigma0 == pytest.approx(ref.sigma0, rel=1e-8)
     np.testing.assert_allclose(svd.residuals, ref.residuals, atol=1e-9)
     np.testing.assert_allclose(svd.redundancy_numbers, ref.redundancy_numbers, atol=1e-10)
-    np.testing.assert_allclose(svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6,
-                               atol=1e-8)
+    np.testing.assert_allclose(
+        svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6, atol=1e-8
+    )
     fast = pg.absolute_orientation(x, X, "svd", statistics=False)
     np.testing.assert_array_equal(fast.parameters, svd.parameters)
 
@@ -65,8 +66,9 @@ def test_weighted_many_points_statistics_equal_the_engine():
     ref = pg.absolute_orientation(x, X, "gauss-markov", weights=w)
     np.testing.assert_allclose(svd.cofactor, ref.cofactor, rtol=1e-7, atol=1e-18)
     np.testing.assert_allclose(svd.redundancy_numbers, ref.redundancy_numbers, atol=1e-10)
-    np.testing.assert_allclose(svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6,
-                               atol=1e-8)
+    np.testing.assert_allclose(
+        svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6, atol=1e-8
+    )
 
 
 @pytest.mark.parametrize("side", ["source", "target"])
@@ -118,3 +120,51 @@ def test_closed_form_perturbation_map_equals_the_derivatives():
         np.testing.assert_allclose(G, angle_to_perturbation(R2, dR), atol=1e-14)
         np.testing.assert_allclose(Ginv @ G, np.eye(3), atol=1e-9)
     assert _rotation_and_perturbation(0.3, np.pi / 2, 0.1)[2] is None  # gimbal lock
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_large_n_gauss_markov_from_moments_equals_the_general_adjustment(weighted, monkeypatch):
+    # from LARGE_N points on, method E builds its normal equations from the moments (no dense
+    # 3n x 7 Jacobian, memory of the outputs only); the general engine gives the same fit
+    from photogeom.orientation import absolute as ao
+
+    x, X = _utm_problem(ao.LARGE_N + 500, seed=4)
+    w = np.random.default_rng(5).uniform(0.5, 2.0, x.shape[0]) if weighted else None
+    big = pg.absolute_orientation(x, X, "gauss-markov", weights=w)
+    assert any("from the moments" in note for note in big.notes) and big.converged
+    zeros = pg.absolute_orientation(
+        x, X, "gauss-markov", weights=w, initial=[0, 0, 0, 1, 0.1, 0, 0]
+    )
+    monkeypatch.setattr(ao, "LARGE_N", 10**9)
+    ref = pg.absolute_orientation(x, X, "gauss-markov", weights=w)
+    assert not any("from the moments" in note for note in ref.notes)
+    for fit in (big, zeros):
+        np.testing.assert_allclose(fit.parameters, ref.parameters, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(big.cofactor, ref.cofactor, rtol=1e-9, atol=1e-18)
+    assert big.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
+    np.testing.assert_allclose(big.residuals, ref.residuals, atol=1e-8)
+    np.testing.assert_allclose(big.redundancy_numbers, ref.redundancy_numbers, atol=1e-9)
+
+
+@pytest.mark.parametrize("flat", [1.0, 0.05])
+def test_chunked_closed_form_equals_the_single_pass_arrays(flat, monkeypatch):
+    # from CLOSED_FORM_CHUNKED_N points on the closed form (and its propagated covariance)
+    # runs in chunks without n-row temporaries; same estimate as the array version
+    from photogeom.orientation import absolute_direct as ad
+    from photogeom.orientation.absolute_stats import closed_form_cofactor
+
+    x, X = _utm_problem(ad.CLOSED_FORM_CHUNKED_N + 700, seed=6)
+    x = x * [1.0, 1.0, flat]
+    x[7] = (x.sum(axis=0) - x[7]) / (x.shape[0] - 1)  # one point at the centroid
+    fits = [pg.absolute_orientation(x, X, "closed-form", nearest_rotation=nr) for nr in (0, 1)]
+    covs = [closed_form_cofactor(x, X, nearest=nr) for nr in (False, True)]
+    monkeypatch.setattr(ad, "CLOSED_FORM_CHUNKED_N", 10**9)
+    for nr, fit, Q in zip((False, True), fits, covs):
+        ref = pg.absolute_orientation(x, X, "closed-form", nearest_rotation=nr)
+        assert fit.scale == pytest.approx(ref.scale, rel=1e-11)
+        np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-12)
+        np.testing.assert_allclose(fit.translation, ref.translation, rtol=1e-13)
+        assert fit.notes == ref.notes  # augmentation and the point at the centroid
+        Qa = closed_form_cofactor(x, X, nearest=nr)
+        sd = np.sqrt(np.diag(Qa))
+        np.testing.assert_allclose(Q / np.outer(sd, sd), Qa / np.outer(sd, sd), atol=1e-6)

@@ -280,3 +280,18 @@ def test_closed_form_single_and_batched_paths_agree(n, thick):
             np.testing.assert_allclose(f.rotation, b.rotation[i], atol=1e-10)
             assert f.scale == pytest.approx(b.scale[i], rel=1e-12)
             np.testing.assert_allclose(f.translation, b.translation[i], atol=1e-9)
+
+
+def test_raw_closed_form_with_m31_outside_the_unit_interval_says_so():
+    # inconsistent data (the source flattened after the target was made): the raw R is far
+    # from a rotation and asin(m31) is undefined; phi is set to -90 deg with a note and the
+    # angles get no standard deviations instead of a silent 0
+    rng = np.random.default_rng(6)
+    x = rng.uniform(-1, 1, (20, 3))
+    X = 250.0 * x @ pg.rotation_from_angles(0.3, -1.2, 0.4).T + [5e5, 4e6, 300.0]
+    fit = pg.absolute_orientation(x * [1.0, 1.0, 0.05], X, "closed-form")
+    if abs(fit.rotation[0, 2]) <= 1.0:  # pragma: no cover - depends on the random data
+        pytest.skip("m31 inside [-1, 1] for this draw")
+    assert any("outside [-1, 1]" in note for note in fit.notes)
+    assert all(np.isnan(fit.std_errors[a]) for a in ("omega", "phi", "kappa"))
+    assert np.isfinite(fit.std_errors["scale"])

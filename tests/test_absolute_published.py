@@ -154,3 +154,29 @@ def test_estimate_transform_similarity3d_is_the_svd_solution():
     rig = est.estimate_transform("rigid3d", x, X)
     ref_r = pg.absolute_orientation(x, X, "svd", with_scale=False)
     np.testing.assert_allclose(rig.model.rotation, ref_r.rotation, atol=1e-12)
+
+
+def test_raw_closed_form_angles_read_as_published():
+    # the paper reads its raw (non-orthogonal) R with phi = asin(m31); the robust reading
+    # atan2(m31, hypot(m32, m33)) of a rotation differs for the raw R (0.0025 deg in phi on
+    # the laser-scan data), omega and kappa are read the same way by both
+    from photogeom.orientation.absolute_direct import published_angles
+
+    x, X = _pairs("lidar_wang2014")
+    cf = pg.absolute_orientation(x, X, "closed-form")
+    R = cf.rotation
+    assert cf.orthogonality_defect > 1e-6
+    w, p, k = cf.angles("direct", "rad")
+    assert p == np.arcsin(R[2, 0])
+    assert w == np.arctan2(-R[2, 1], R[2, 2]) and k == np.arctan2(-R[1, 0], R[0, 0])
+    robust = pg.angles_from_rotation(R, "direct", "deg")
+    d = np.array(cf.angles("direct", "deg")) - np.array(robust)
+    assert abs(d[1]) == pytest.approx(0.0025, abs=3e-4) and d[0] == 0.0 and d[2] == 0.0
+    # the parameters (transposed convention) are read the same way, from R.T
+    assert cf.params["phi"] == np.arcsin(R[0, 2])
+    # differences to least squares in the paper's (direct) convention, degrees
+    ls = pg.absolute_orientation(x, X, "gauss-markov")
+    diff = np.array(cf.angles("direct", "deg")) - np.array(ls.angles("direct", "deg"))
+    np.testing.assert_allclose(diff, [0.0022, -0.0168, -0.0210], atol=5e-5)
+    # a rotation is read identically by both formulas
+    np.testing.assert_allclose(published_angles(ls.rotation), ls.angles("direct"), atol=1e-13)

@@ -24,7 +24,9 @@ from .errors import (
     InputError,
     OutputError,
     PhotogeomError,
+    PrecisionWarning,
     ReflectionError,
+    SuspectResultWarning,
     TooFewPointsError,
 )
 from .rotation import (
@@ -158,6 +160,7 @@ __all__ = [
     "PhotogeomError",
     "Polynomial2D",
     "Polynomial3D",
+    "PrecisionWarning",
     "Projective2D",
     "Projective3D",
     "RPCExtrapolationWarning",
@@ -168,6 +171,7 @@ __all__ = [
     "Rigid3D",
     "Similarity2D",
     "Similarity3D",
+    "SuspectResultWarning",
     "TooFewPointsError",
     "__version__",
     "absolute_orientation",

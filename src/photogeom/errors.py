@@ -67,3 +67,12 @@ class OutputError(PhotogeomError, OSError):
 
     def __str__(self) -> str:
         return str(self.args[0]) if self.args else ""
+
+
+class SuspectResultWarning(UserWarning):
+    """A result was returned but fails a plausibility check (the reason is in the message
+    and in the result's notes): for example a sigma0 the a-priori sigma does not explain."""
+
+
+class PrecisionWarning(UserWarning):
+    """Input in a low-precision type (float32) has already lost digits the result needs."""

@@ -2,11 +2,94 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
-from .errors import InputError, TooFewPointsError
+from .errors import InputError, PrecisionWarning, TooFewPointsError
+
+#: A low-precision (float16/float32) coordinate array is reported (:class:`PrecisionWarning`)
+#: when its resolution at its largest value exceeds this fraction of the spread of the points:
+#: fewer than about six significant digits of the point configuration survive the rounding.
+LOW_PRECISION_RELATIVE = 1e-6
+
+
+def as_float64(values: object, name: str = "points", *, coordinates: bool = True) -> np.ndarray:
+    """Return ``values`` as a float64 array; refuse what would be a silent wrong answer.
+
+    * masked arrays with masked entries: :class:`InputError` (the hidden values would be
+      used); a masked array without masked entries is read as its data;
+    * complex values: :class:`InputError` (the imaginary part would be dropped);
+    * float16 / float32 input is converted to float64 (every computation is in float64), with
+      a :class:`PrecisionWarning` when the input's own resolution at its largest value is
+      coarser than ``LOW_PRECISION_RELATIVE`` times the spread of its values (large offsets,
+      e.g. UTM coordinates in float32, have been rounded before photogeom sees them);
+      ``coordinates=False`` (weights, standard deviations) skips this check.
+    """
+    if isinstance(values, np.ma.MaskedArray):
+        mask = np.ma.getmaskarray(values)
+        if mask.any():
+            rows = np.flatnonzero(mask.reshape(mask.shape[0], -1).any(axis=1)) if mask.ndim else []
+            shown = ", ".join(str(int(i)) for i in rows[:10]) + (" ..." if len(rows) > 10 else "")
+            raise InputError(
+                f"{name}: masked array with {int(mask.sum())} masked value(s) (row index "
+                f"{shown}); masked points are not dropped silently: remove those rows "
+                "(e.g. a[~a.mask.any(axis=1)]) or fill the values"
+            )
+        values = np.ma.getdata(values)
+    try:
+        arr = np.asarray(values)
+        if np.iscomplexobj(arr):
+            raise InputError(
+                f"{name}: complex values given; coordinates must be real numbers (the "
+                "imaginary part would be discarded)"
+            )
+        low = arr.dtype.kind == "f" and arr.dtype.itemsize < 8
+        dtype = arr.dtype
+        arr = np.asarray(arr, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    if low and coordinates and arr.size:
+        _check_resolution(arr, dtype, name)
+    return arr
+
+
+def _check_resolution(arr: np.ndarray, dtype: np.dtype, name: str) -> None:
+    finite = arr[np.isfinite(arr)]
+    if finite.size == 0:
+        return
+    big = float(np.max(np.abs(finite)))
+    res = float(np.spacing(dtype.type(big)))
+    cols = arr.reshape(arr.shape[0], -1) if arr.ndim > 1 else arr[:, None]
+    with np.errstate(invalid="ignore"):
+        spread = float(np.nanmax(np.nanmax(cols, axis=0) - np.nanmin(cols, axis=0)))
+    if res > LOW_PRECISION_RELATIVE * spread:
+        warnings.warn(
+            f"{name}: {dtype.name} coordinates up to {big:.6g} have a resolution of {res:.3g} "
+            f"(the points spread over {spread:.6g}): they were rounded to that before photogeom "
+            "(which computes in float64) received them. Pass float64 coordinates, or reduce "
+            f"them to a local origin before converting to {dtype.name}",
+            PrecisionWarning,
+            stacklevel=_caller_level(),
+        )
+
+
+def _caller_level() -> int:
+    """``stacklevel`` for :func:`warnings.warn` called from the caller of this function that
+    points at the first frame outside the photogeom package (the user's call)."""
+    import os
+    import sys
+
+    pkg = os.path.dirname(os.path.abspath(__file__))
+    frame = sys._getframe(2)
+    level = 2
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(pkg):
+        frame = frame.f_back
+        level += 1
+    return level
 
 
 def as_points(
@@ -37,13 +120,14 @@ def as_points(
     Raises
     ------
     InputError
-        Wrong shape, or NaN / infinite values (the message lists the first bad rows).
+        Wrong shape, NaN / infinite values (the message lists the first bad rows), masked
+        entries or complex values (see :func:`as_float64`).
     """
     dims = (dim,) if isinstance(dim, int) else tuple(dim)
-    try:
-        arr = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    if type(values) is np.ndarray and values.dtype == np.float64:
+        arr = values
+    else:
+        arr = as_float64(values, name)
     if arr.ndim == 1 and allow_single and arr.shape[0] in dims:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] not in dims:
@@ -82,6 +166,29 @@ def check_finite(arr: np.ndarray, name: str) -> None:
         )
 
 
+#: Largest coordinate magnitude times sqrt(number of values) accepted by the estimators: sums
+#: of squares and products of the coordinates (normal equations, scatter matrices) must stay
+#: well inside the float64 range (1.8e308).
+MAX_MAGNITUDE = 1e150
+
+
+def check_finite_magnitude(arr: np.ndarray, name: str, what: str) -> None:
+    """Refuse NaN / infinite values (:func:`check_finite`) and values so large that sums of
+    their squares overflow float64: :class:`InputError` naming the scaling problem (one pass
+    over the data: the largest magnitude, whose finiteness implies that of every value)."""
+    if arr.size == 0:
+        return
+    big = max(float(np.max(arr)), -float(np.min(arr)))  # no temporary copy
+    if not np.isfinite(big):
+        check_finite(arr, name)
+    if big * np.sqrt(arr.size) > MAX_MAGNITUDE:
+        raise InputError(
+            f"{what}: {name} coordinates up to {big:.3g} overflow float64 in the sums of "
+            f"squares the estimate needs (limit {MAX_MAGNITUDE:.0e} / sqrt(number of values)); "
+            "reduce them to a local origin or change their unit (scale them down)"
+        )
+
+
 def check_count(n: int, need: int, what: str, hint: str = "") -> None:
     """Raise :class:`TooFewPointsError` when ``n < need``."""
     if n < need:
@@ -101,7 +208,7 @@ def as_weights(weights: object, n: int, name: str = "weights") -> np.ndarray | N
     """Return per-point positive weights of shape ``(n,)`` or ``None``."""
     if weights is None:
         return None
-    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    w = as_float64(weights, name, coordinates=False).reshape(-1)
     if w.shape[0] != n:
         raise InputError(f"{name}: {w.shape[0]} value(s) for {n} point(s)")
     check_finite(w, name)

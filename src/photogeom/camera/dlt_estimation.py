@@ -23,7 +23,13 @@ import numpy as np
 
 from ..adjust import Fit, gauss_markov, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError
-from ..validation import as_points, check_count, check_same_length
+from ..validation import (
+    as_float64,
+    as_points,
+    check_count,
+    check_finite_magnitude,
+    check_same_length,
+)
 from ._checks import with_check_points
 from .dlt import DLT, NAMES, dlt_from_orientation, orientation_from_dlt
 from .exterior import ExteriorOrientation
@@ -58,7 +64,7 @@ class DLTFit(Fit):
 def image_weights(sigma, n: int) -> np.ndarray | None:
     if sigma is None:
         return None
-    s = np.asarray(sigma, dtype=float)
+    s = as_float64(sigma, "sigma", coordinates=False)
     if s.ndim == 0:
         s = np.full((n, 2), float(s))
     elif s.shape == (n,):
@@ -254,6 +260,7 @@ def estimate_dlt(
     """
     t0 = time.perf_counter()
     g = as_points(ground, 3, "ground points")
+    check_finite_magnitude(g, "ground points", "DLT estimation")
     im = as_points(image, 2, "image points")
     check_same_length(g, im, "ground points", "image points")
     n = g.shape[0]

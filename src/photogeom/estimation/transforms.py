@@ -60,7 +60,13 @@ from ..transforms import (
     polynomial_term_count,
     polynomial_terms,
 )
-from ..validation import as_points, check_count, check_finite, check_same_length
+from ..validation import (
+    as_points,
+    check_count,
+    check_finite,
+    check_finite_magnitude,
+    check_same_length,
+)
 from .rational_projective import (
     RationalModel,
     affine_rows,
@@ -1069,9 +1075,13 @@ def _helmert_extras(fit: Fit) -> dict:
     (value, std): shifts in target units, rotations in arc-seconds, scale difference in ppm.
 
     Position-vector rotations are the ``"transposed"`` angles omega, phi, kappa, so their
-    standard deviations are those of the fit; the coordinate-frame rotations are those of
-    ``R.T`` (equal and opposite to first order), with the same standard deviations.
+    standard deviations are those of the fit. The coordinate-frame rotations are the angles of
+    ``R.T``: their standard deviations are propagated through that exact conversion (its
+    Jacobian, :func:`~photogeom.orientation.absolute_stats.transpose_angles`), not copied
+    (equal only to first order in the rotation).
     """
+    from ..orientation.absolute_stats import transpose_angles
+
     m = fit.model
     if not isinstance(m, Similarity3D) or not m.check:
         return {}
@@ -1082,10 +1092,18 @@ def _helmert_extras(fit: Fit) -> dict:
         "rx": std.get("omega", np.nan) * sec, "ry": std.get("phi", np.nan) * sec,
         "rz": std.get("kappa", np.nan) * sec, "ds": std.get("scale", np.nan) * 1e6,
     }
+    names = list(fit.parameter_names)
+    sd_cf = dict(sd)
+    if all(k in names for k in ("omega", "phi", "kappa")):
+        idx = [names.index(k) for k in ("omega", "phi", "kappa")]
+        _, J = transpose_angles(*(float(fit.parameters[i]) for i in idx))
+        C = J @ np.asarray(fit.covariance)[np.ix_(idx, idx)] @ J.T
+        s_cf = np.sqrt(np.clip(np.diag(C), 0.0, None)) * sec
+        sd_cf.update(rx=float(s_cf[0]), ry=float(s_cf[1]), rz=float(s_cf[2]))
     out: dict = {}
-    for conv in ("position_vector", "coordinate_frame"):
+    for conv, sds in (("position_vector", sd), ("coordinate_frame", sd_cf)):
         hp = m.helmert_parameters(conv)
-        out[conv] = {k: (float(hp[k]), float(sd[k])) for k in hp}
+        out[conv] = {k: (float(hp[k]), float(sds[k])) for k in hp}
     out["units"] = {"tx": "m", "ty": "m", "tz": "m", "rx": "arcsec", "ry": "arcsec",
                     "rz": "arcsec", "ds": "ppm"}
     return out
@@ -1220,8 +1238,10 @@ def estimate_transform(
         src = as_points(source, d, "source", allow_single=False, finite=False)
         dst = as_points(target, d, "target", allow_single=False, finite=False)
     else:
-        src = as_points(source, d, "source", allow_single=False)
-        dst = as_points(target, d, "target", allow_single=False)
+        src = as_points(source, d, "source", allow_single=False, finite=False)
+        dst = as_points(target, d, "target", allow_single=False, finite=False)
+        check_finite_magnitude(src, "source", key)
+        check_finite_magnitude(dst, "target", key)
     check_same_length(src, dst, "source", "target")
     n = src.shape[0]
     point_ids = None if ids is None else _ids(ids, n)

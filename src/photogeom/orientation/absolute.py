@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import numpy as np
@@ -41,16 +41,19 @@ from ..errors import (
 )
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
-from ..validation import as_points, check_finite
+from ..units import from_radians
+from ..validation import as_float64, as_points, check_finite_magnitude
 from . import absolute_adjust as _adj
 from .absolute_direct import (
     PairMoments,
     closed_form_single,
     large_moments,
+    published_angles,
     solve_closed_form,
     solve_single,
 )
 from .absolute_stats import (
+    closed_form_cofactor,
     linearised_statistics,
     opk_transposed,
     residual_statistics,
@@ -131,7 +134,21 @@ class AbsoluteOrientationFit(Fit):
 
     def angles(self, convention: str = "transposed", unit: str = "rad") -> tuple:
         """``(omega, phi, kappa)`` of ``R`` in ``convention`` (``"transposed"``: ``R =
-        M.T``, ``"direct"``: ``R = M``) and ``unit`` (``"rad"``, ``"deg"``, ``"gon"``)."""
+        M.T``, ``"direct"``: ``R = M``) and ``unit`` (``"rad"``, ``"deg"``, ``"gon"``).
+
+        For the raw closed-form matrix (not orthogonal) the angles are read as its paper
+        reads them, ``phi = asin(m31)`` (:func:`~photogeom.orientation.absolute_direct.
+        published_angles`); for a rotation by the formulas of
+        :func:`~photogeom.rotation.opk_from_matrix`.
+        """
+        if not self.model.check:
+            if convention not in ("transposed", "direct"):
+                raise InputError(
+                    f"convention must be 'transposed' or 'direct', not {convention!r}"
+                )
+            return tuple(
+                float(from_radians(a, unit)) for a in published_angles(self.rotation, convention)
+            )
         return angles_from_rotation(
             self.rotation, convention=convention, unit=unit, on_gimbal_lock="omega-zero"
         )
@@ -180,9 +197,10 @@ def _as_pair(source, target) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _check_finite_pair(x: np.ndarray, X: np.ndarray) -> None:
-    """Refuse NaN / infinite coordinates (naming the side and rows)."""
-    check_finite(x, "source")
-    check_finite(X, "target")
+    """Refuse NaN / infinite coordinates (naming the side and rows) and coordinates so large
+    that their squares summed over the points overflow."""
+    check_finite_magnitude(x, "source", "absolute orientation")
+    check_finite_magnitude(X, "target", "absolute orientation")
 
 
 def _finite_or_raise(x: np.ndarray, X: np.ndarray) -> None:
@@ -210,7 +228,7 @@ class _Precision:
 def _sigma_array(sig, n: int, name: str):
     if sig is None:
         return None
-    a = np.asarray(sig, dtype=float)
+    a = as_float64(sig, name, coordinates=False)
     if a.ndim == 0:
         v = float(a)
         if not (np.isfinite(v) and v > 0):
@@ -226,7 +244,7 @@ def _sigma_array(sig, n: int, name: str):
 def _cov_array(cov, n: int, name: str):
     if cov is None:
         return None
-    c = np.asarray(cov, dtype=float)
+    c = as_float64(cov, name, coordinates=False)
     if c.shape not in ((n, 3, 3), (3 * n, 3 * n)):
         raise InputError(
             f"{name}: expected shape ({n}, 3, 3) (per point) or ({3 * n}, {3 * n}) (full), "
@@ -249,7 +267,7 @@ def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_t
         return _NO_PRECISION
     w = None
     if weights is not None:
-        w = np.asarray(weights, dtype=float)
+        w = as_float64(weights, "weights", coordinates=False)
         if w.shape not in ((n,), (n, 3), (3 * n,)):
             raise InputError(
                 f"weights: expected shape ({n},) per point, ({n}, 3) or ({3 * n},) per "
@@ -470,6 +488,11 @@ def absolute_orientation(
             nearest_rotation, ctx, coplanar_threshold,
         )
     if method == "gauss-markov":
+        if n >= LARGE_N and prec.obs_w is None and prec.cov_t is None:
+            return _gauss_markov_large(
+                x, X, prec.point_w, with_scale, initial, statistics, max_iter, tol,
+                raise_on_failure, ctx,
+            )
         return _gauss_markov_fit(
             x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
         )
@@ -573,11 +596,14 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
     raw = False
     pm = None
     if method == "closed-form":
-        _check_finite_pair(x, X)
+        if n < LARGE_N:
+            _check_finite_pair(x, X)
         kw = {} if coplanar_threshold is None else {"coplanar_threshold": coplanar_threshold}
         sol, augmented, k = closed_form_single(
             x, X, nearest=nearest, with_scale=with_scale, **kw
         )
+        if n >= LARGE_N and (sol.degenerate or not np.all(np.isfinite(sol.translation))):
+            _check_finite_pair(x, X)  # NaN / inf / overflow show in the sums: name them
         raw = not nearest
         if k:
             notes.append(
@@ -588,6 +614,8 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
             notes.append("plane-normal augmentation used (n = 3 or a nearly coplanar point set)")
         _check_solution(sol.degenerate, sol.reflection, method)
         s, R, t = sol.scale, sol.rotation, sol.translation
+        if statistics and n >= LARGE_N:  # moments for the chunked statistics pass
+            pm = _moments(x, X, w, True)
     else:
         pm = _moments(x, X, w, statistics)
         sol = solve_single(pm, method, with_scale=with_scale, scale_method=scale_method)
@@ -600,6 +628,15 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
         )
     model = Similarity3D(s, R, t, check=False) if raw else _similarity(s, R, t)
     omega, phi, kappa, gimbal = opk_transposed(R)
+    clipped = raw and abs(float(R[0, 2])) > 1.0
+    if raw and not gimbal:  # the raw matrix: phi read as published, asin(m31)
+        omega, phi, kappa = published_angles(R, "transposed")
+    if clipped:
+        notes.append(
+            f"the raw R has m31 = {float(R[0, 2]):.6g} outside [-1, 1]: phi = asin(m31) is "
+            "undefined and set to +-90 deg, the angles have no standard deviations; the "
+            "raw R is far from a rotation (nearest_rotation=True gives one)"
+        )
     if gimbal:
         notes.append(_GIMBAL_NOTE)
     params = _params(t, s, (omega, phi, kappa), with_scale)
@@ -622,8 +659,22 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
             xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
             with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
         )
-    if raw:
-        notes.append("statistics from the linearised model at the reported parameters")
+    if method == "closed-form":
+        # not a least-squares estimator: its covariance is propagated through the estimator
+        Qcf = closed_form_cofactor(
+            x, X, nearest=nearest, with_scale=with_scale, weights=w,
+            coplanar_threshold=coplanar_threshold,
+        )
+        # angles not separable at gimbal lock: NaN where the linearised model has NaN
+        Qcf = np.where(np.isnan(st.cofactor), np.nan, Qcf)
+        if clipped:
+            Qcf[-3:, :] = np.nan
+            Qcf[:, -3:] = np.nan
+        st = replace(st, cofactor=Qcf)
+        notes.append(
+            "standard deviations propagated through the closed-form estimator (its Jacobian "
+            "with respect to the target coordinates); residual tests from the linearised model"
+        )
     return _stat_fit(model, method, names, params, st, r, 3 * n, v, with_scale, ctx, notes)
 
 
@@ -804,6 +855,181 @@ def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_f
         elapsed=time.perf_counter() - ctx.t0,
     )
     return fit
+
+
+#: Points per chunk of the large-n Gauss-Markov pass (temporaries stay cache-sized).
+GM_CHUNK = 16384
+
+
+def _gm_normal(pm: PairMoments, p: np.ndarray, with_scale: bool, R0: np.ndarray):
+    """``v'Pv``, the normal matrix ``A'PA`` and ``-A'Pv`` of the point-weighted similarity at
+    reduced parameters ``p``, from the centred moments alone.
+
+    Each point's 3 x u block is ``A_i = [I, R x'_i, s dR_k x'_i]`` (linear in ``x'_i``), so
+    ``sum w_i A_i.T A_i`` and ``sum w_i A_i.T v_i`` need only ``W``, the scatter ``S``, the
+    cross moment ``H = sum w x' X'.T`` and ``b = sum w |X'|^2`` (``sum w x' = sum w X' = 0``):
+    O(1) per iteration after one pass over the data, never an n-row array.
+    """
+    tr, s, _ = _adj.unpack(p, with_scale)
+    R, dR = _adj._rotation(p, with_scale, R0)
+    S, H, W = pm.S, pm.H, pm.weight
+    u = p.size
+    k = 4 if with_scale else 3
+    N = np.zeros((u, u))
+    b = np.zeros(u)
+    N[:3, :3] = W * np.eye(3)
+    b[:3] = -W * tr
+    HR = float(np.trace(H @ R))
+    if with_scale:
+        N[3, 3] = pm.a
+        b[3] = -(s * pm.a - HR)
+    for i in range(3):
+        dRi = dR[i]
+        if with_scale:
+            N[3, k + i] = N[k + i, 3] = s * float(np.trace(R.T @ dRi @ S))
+        for j in range(i, 3):
+            N[k + i, k + j] = N[k + j, k + i] = s * s * float(np.trace(dRi.T @ dR[j] @ S))
+        b[k + i] = -s * (s * float(np.trace(dRi.T @ R @ S)) - float(np.trace(H @ dRi)))
+    vtpv = W * float(tr @ tr) + s * s * pm.a + pm.b - 2 * s * HR
+    return max(vtpv, 0.0), N, b
+
+
+def _gm_extent(x, X, w, xg, Xg) -> tuple[float, float]:
+    """Largest ``sqrt(w) |x'_i|`` and ``sqrt(w) |X'_i|`` (one chunked pass): bounds for the
+    change of the whitened computed observations by a step."""
+    from .absolute_direct import centred_chunk
+
+    rx = rX = 0.0
+    xt, Xt = np.tile(xg, GM_CHUNK), np.tile(Xg, GM_CHUNK)
+    for i in range(0, x.shape[0], GM_CHUNK):
+        j = min(i + GM_CHUNK, x.shape[0])
+        nx = centred_chunk(x, i, j, xt)[1]
+        nX = centred_chunk(X, i, j, Xt)[1]
+        if w is not None:
+            nx = nx * w[i:j]
+            nX = nX * w[i:j]
+        rx, rX = max(rx, float(np.max(nx))), max(rX, float(np.max(nX)))
+    return math.sqrt(rx), math.sqrt(rX)
+
+
+def _gauss_markov_large(x, X, w, with_scale, initial, statistics, max_iter, tol,
+                        raise_on_failure, ctx):
+    """Method E for many points with point weights: Gauss-Newton on normal equations
+    accumulated in chunks (the 3x7 block of each point), never a dense (3n x 7) Jacobian;
+    statistics by the chunked pass of the direct methods. Same estimate, criteria and
+    diagnostics as the general path."""
+    what = "absolute orientation (Gauss-Markov)"
+    pm = _moments(x, X, w, True)
+    one = solve_single(pm, "svd", with_scale=with_scale)
+    _check_single(one, x, X, w, pm, "gauss-markov")
+    if initial is None or (isinstance(initial, str) and initial.strip().lower() == "svd"):
+        s0, R0, t0, start = one.scale, one.rotation, one.translation, "direct method svd"
+    else:
+        s0, R0, t0, start = _start(initial, x, X, with_scale, w, "svd")
+    R0 = _as_rotation(R0)
+    xg, Xg = pm.source_centroid, pm.target_centroid
+    p = _adj.to_reduced(t0, s0, R0, xg, Xg, with_scale)
+    u = p.size
+    vtpv, N, b = _gm_normal(pm, p, with_scale, R0)
+    rx, lmax = _gm_extent(x, X, w, xg, Xg)
+    wmax = 1.0 if w is None else math.sqrt(float(np.max(w)))
+    history = [vtpv]
+    converged = False
+    message = ""
+    it = 0
+    eps = np.finfo(float).eps
+    k = 4 if with_scale else 3
+    while it < max_iter:
+        it += 1
+        d = np.sqrt(np.diag(N))
+        d[d == 0] = 1.0
+        try:
+            dx = np.linalg.solve(N / np.outer(d, d), b / d) / d
+        except np.linalg.LinAlgError as exc:
+            raise ConvergenceError(
+                _SINGULAR.format(what=what, start=start, exc=exc), iterations=it
+            ) from exc
+        # bound of the largest whitened change |A_i dx| of the computed observations
+        _, s_cur, _ = _adj.unpack(p, with_scale)
+        _, dRc = _adj._rotation(p, with_scale, R0)
+        rot = sum(abs(float(dx[k + i])) * float(np.linalg.norm(dRc[i], 2)) for i in range(3))
+        step = (
+            float(np.linalg.norm(dx[:3])) * wmax
+            + (abs(float(dx[3])) if with_scale else 0.0) * rx
+            + abs(s_cur) * rot * rx
+        )
+        rms = math.sqrt(vtpv / (3 * ctx.n))
+        small = step <= tol * (1.0 + rms) + 64 * eps * lmax
+        lam = 1.0
+        for _ in range(31):  # step control: halve while v'Pv grows
+            cand = p + lam * dx
+            v_new, N_new, b_new = _gm_normal(pm, cand, with_scale, R0)
+            if small or v_new <= vtpv * (1 + 1e-12) or not math.isfinite(v_new):
+                break
+            lam /= 2
+        if not math.isfinite(v_new):
+            raise ConvergenceError(f"{what}: diverged (non-finite values) from {start}",
+                                   iterations=it)
+        p, vtpv, N, b = cand, v_new, N_new, b_new
+        history.append(vtpv)
+        if small:
+            converged = True
+            break
+    if not converged:
+        message = f"not converged: iteration limit {max_iter} reached"
+    tr, s, _ = _adj.unpack(p, with_scale)
+    if with_scale and s <= 0:
+        raise ConvergenceError(
+            f"{what}: the iteration from {start} ended at scale {s:.3g} <= 0, a point-reflected "
+            "fit (s R with s < 0 is a reflection), not a similarity; start from a direct "
+            "method (initial='svd')", iterations=it,
+        )
+    notes = [_CONVENTION_NOTE, f"start: {start}",
+             "normal equations from the moments (large n): no dense Jacobian"]
+    if converged:
+        best = _min_cost(pm, with_scale)
+        if vtpv > best * (1 + 1e-6) + 1e-10 * pm.b:
+            msg = (
+                f"{what}: the iteration from {start} converged to a stationary point that is "
+                f"not the least-squares minimum (v.T P v {vtpv:.6g} vs {best:.6g}); "
+                "start from a direct method (initial='svd')"
+            )
+            if raise_on_failure:
+                raise ConvergenceError(msg, iterations=it)
+            notes.append(msg)
+            converged, message = False, msg
+    else:
+        msg = (
+            f"{what}: {message} (started from {start}); the estimate is not a least-squares "
+            "solution. Start from a direct method (initial='svd') or raise max_iter"
+        )
+        if raise_on_failure:
+            raise ConvergenceError(msg, iterations=it)
+        notes.append("NOT CONVERGED: " + msg)
+        message = msg
+    R, _ = _adj._rotation(p, with_scale, R0)
+    omega, phi, kappa, gimbal = opk_transposed(R)
+    if gimbal:
+        notes.append(_GIMBAL_NOTE)
+    t = Xg + tr - s * (R @ xg)
+    model = _similarity(s, R, t)
+    params = _params(t, s, (omega, phi, kappa), with_scale)
+    names = _adj.names(with_scale)
+    r = 3 * ctx.n - u
+    extras = {"start": start, "cost_history": history}
+    if not statistics:
+        fit = _bare_fit(model, "gauss-markov", names, params, u, r, 3 * ctx.n, with_scale,
+                        ctx, notes)
+        return replace(fit, iterations=it, converged=converged, message=message,
+                       extras=extras)
+    st, v = residual_statistics(
+        x, X, scale=s, rotation=R, translation=t, angles=(omega, phi, kappa),
+        source_centroid=xg, scatter=pm.S, weight_sum=pm.weight, weights=w,
+        with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
+    )
+    fit = _stat_fit(model, "gauss-markov", names, params, st, r, 3 * ctx.n, v, with_scale,
+                    ctx, notes, extras=extras, iterations=it, message=message)
+    return replace(fit, converged=converged) if not converged else fit
 
 
 _SINGULAR = (

@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InputError, TooFewPointsError
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
+from ..validation import as_float64
 from .absolute import normalize_method
 from .absolute_direct import (
     DirectSolution,
@@ -99,10 +100,7 @@ class BatchOrientation:
 
 
 def _as_batch(values, name: str) -> np.ndarray:
-    try:
-        a = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    a = as_float64(values, name)
     if a.ndim != 3 or a.shape[2] != 3:
         raise InputError(f"{name}: expected shape (B, n, 3) for B problems, got {a.shape}")
     return a
@@ -210,7 +208,7 @@ def absolute_orientation_batch(
     _check_finite_batch(X, "target")
     w = None
     if weights is not None:
-        w = np.asarray(weights, dtype=float)
+        w = as_float64(weights, "weights", coordinates=False)
         if w.ndim == 1:
             w = np.broadcast_to(w, x.shape[:2])
         if w.shape != x.shape[:2] or not (np.all(np.isfinite(w)) and np.all(w > 0)):

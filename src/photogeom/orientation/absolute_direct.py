@@ -492,7 +492,7 @@ def solve_single(
         aa = a * ratio * ratio
         c = trace * ratio
         dd = aa - b
-        f = math.sqrt(dd * dd + 4 * c * c)
+        f = math.hypot(dd, 2 * c)
         if c == 0:
             s = math.nan
         else:
@@ -744,7 +744,7 @@ def _solve_three_chunk(x, X, with_scale, gh_ratio):
         k = gh_ratio
         aa, cc = a * k * k, trace * k
         dd = aa - b
-        f = np.sqrt(dd * dd + 4 * cc * cc)
+        f = np.hypot(dd, 2 * cc)
         with np.errstate(divide="ignore", invalid="ignore"):
             scale = np.where(dd > 0, 2 * cc / (dd + f), (f - dd) / (2 * cc)) * k
     t = Xg - scale[:, None] * np.einsum("bij,bj->bi", R, xg)
@@ -932,7 +932,7 @@ def solve_gauss_helmert_direct(
         a = m.a * k * k
         c = np.sum(S * D, axis=1) * k
         d = a - m.b
-        f = np.sqrt(d * d + 4 * c * c)
+        f = np.hypot(d, 2 * c)
         with np.errstate(divide="ignore", invalid="ignore"):
             # (-d + f) / (2 c) written without cancellation for d > 0
             s_tilde = np.where(d > 0, 2 * c / (d + f), (f - d) / (2 * c))
@@ -944,6 +944,28 @@ def solve_gauss_helmert_direct(
 
 
 # --- A: normalised-vector closed form (Afary 2024) -------------------------------------------
+
+
+def published_angles(R, convention: str = "direct"):
+    """Angles of the raw (non-orthogonal) closed-form matrix read as the paper reads them.
+
+    With ``M = R`` (``"direct"``, the paper's convention ``R = M(Omega, Phi, K)``) or
+    ``M = R.T`` (``"transposed"``): ``phi = asin(m31)``, ``omega = atan2(-m32, m33)``,
+    ``kappa = atan2(-m21, m11)`` (radians; ``R`` of shape (..., 3, 3)). For a rotation this
+    equals :func:`~photogeom.rotation.opk_from_matrix` (which reads phi as
+    ``atan2(m31, hypot(m32, m33))``, robust near +-90 degrees); for the raw matrix the two
+    readings differ (by 0.003 degrees in phi on the laser-scan data), and only this one
+    reproduces the paper's tables. ``m31`` is clipped to [-1, 1].
+    """
+    R = np.asarray(R, dtype=float)
+    M = R if convention == "direct" else np.swapaxes(R, -1, -2)
+    m31 = np.clip(M[..., 2, 0], -1.0, 1.0)
+    phi = np.arcsin(m31)
+    omega = np.arctan2(-M[..., 2, 1], M[..., 2, 2])
+    kappa = np.arctan2(-M[..., 1, 0], M[..., 0, 0])
+    if np.ndim(phi) == 0:
+        return float(omega), float(phi), float(kappa)
+    return omega, phi, kappa
 
 
 def _sym_eigvals(x: np.ndarray) -> np.ndarray:
@@ -1069,9 +1091,14 @@ def closed_form_single(
     """:func:`solve_closed_form` for one problem (n, 3), with LAPACK called directly.
 
     Returns the solution, whether the plane-normal augmentation was used, and the number of
-    points left out because they lie at the centroid.
+    points left out because they lie at the centroid. From
+    :data:`CLOSED_FORM_CHUNKED_N` points on, :func:`closed_form_chunked`.
     """
     n = x.shape[0]
+    if n >= CLOSED_FORM_CHUNKED_N:
+        return closed_form_chunked(
+            x, X, nearest=nearest, with_scale=with_scale, coplanar_threshold=coplanar_threshold
+        )
     xg = np.add.reduce(x, axis=0) / n
     Xg = np.add.reduce(X, axis=0) / n
     xr = x - xg
@@ -1126,3 +1153,209 @@ def closed_form_single(
         R = u @ vt
     t = Xg - s * (R @ xg)
     return SingleSolution(s, R, t, False, reflection), augment, n - nu
+
+
+# --- the closed form for many points: chunked, no n-row temporaries ---------------------------
+
+#: From this many points the closed form runs in cache-sized chunks (two passes over the data:
+#: the centroids, then everything else), without n-row temporaries.
+CLOSED_FORM_CHUNKED_N = 65536
+#: Points per chunk of the chunked closed form.
+CLOSED_FORM_CHUNK = 16384
+
+
+@dataclass
+class ClosedFormSums:
+    """What the closed form accumulates over the points (see :func:`closed_form_sums`).
+
+    ``tx``, ``tX``: the centroid-distance thresholds below which a point carries no direction;
+    ``MMt``, ``NMt`` include the plane-normal augmentation when ``aug`` is set:
+    ``(l, k, xp, Xp, |Xb_l x Xb_k|, Xb_l, Xb_k)``.
+    """
+
+    n: int
+    xg: np.ndarray
+    Xg: np.ndarray
+    tx: float
+    tX: float
+    nu: int
+    ratio_sum: float
+    MMt: np.ndarray
+    NMt: np.ndarray
+    augment: bool
+    aug: tuple | None
+
+
+def _chunks(n: int):
+    for i in range(0, n, CLOSED_FORM_CHUNK):
+        yield i, min(i + CLOSED_FORM_CHUNK, n)
+
+
+def column_sums(p: np.ndarray) -> np.ndarray:
+    """Sums of the columns of ``p`` (n, 3): 16 points per row of a 48-column sum (a
+    reduction over the first axis of an (n, 3) array is several times slower)."""
+    m = (p.shape[0] // 16) * 16
+    out = p[:m].reshape(-1, 48).sum(axis=0).reshape(16, 3).sum(axis=0)
+    return out + p[m:].sum(axis=0) if m < p.shape[0] else out
+
+
+def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
+    """Rows ``a:b`` of ``p`` (n, 3) minus a centre given tiled (``np.tile(centre, chunk)``),
+    and their squared norms: flat arithmetic (numpy's (n, 3) broadcasts with an inner length
+    of 3 are several times slower)."""
+    m = 3 * (b - a)
+    r = (p[a:b].reshape(-1) - tiled[:m]).reshape(-1, 3)
+    sq = r * r
+    return r, sq[:, 0] + sq[:, 1] + sq[:, 2]
+
+
+def _unit_rows(r: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``r / d[:, None]`` by a flat product with the repeated reciprocals."""
+    return (r.reshape(-1) * np.repeat(1.0 / d, 3)).reshape(-1, 3)
+
+
+def closed_form_sums(
+    x: np.ndarray, X: np.ndarray, coplanar_threshold: float = COPLANAR_THRESHOLD
+) -> ClosedFormSums | None:
+    """The sums of the closed form in chunks: the centroids (one pass), then the centroid
+    distances, length ratios, ``M M.T``, ``N M.T``, both scatter matrices (coplanarity) and
+    the unit vector closest to perpendicular to the first usable one (a second pass).
+
+    The second pass takes every point off the centroid; only if some point then lies within
+    :data:`CENTROID_TOLERANCE` of the largest centroid distance (known at the end of the pass)
+    a third pass repeats it with the exact thresholds. The same arithmetic as
+    :func:`closed_form_single` for n > 64 (its O(n) pair search).
+    """
+    n = x.shape[0]
+    xg = column_sums(x) / n
+    Xg = column_sums(X) / n
+    res = _closed_form_pass(x, X, xg, Xg, 0.0, 0.0)
+    if res is None:
+        return None
+    _, (dx_max, dX_max, dx_min, dX_min) = res
+    tx, tX = CENTROID_TOLERANCE * dx_max, CENTROID_TOLERANCE * dX_max
+    if dx_min > tx and dX_min > tX:
+        return _finish(res[0], tx, tX, coplanar_threshold)
+    exact = _closed_form_pass(x, X, xg, Xg, tx, tX)  # some point lies at the centroid
+    return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold)
+
+
+def _closed_form_pass(x, X, xg, Xg, tx, tX):
+    n = x.shape[0]
+    xt = np.tile(xg, CLOSED_FORM_CHUNK)
+    Xt = np.tile(Xg, CLOSED_FORM_CHUNK)
+    # the first usable point: reference of the perpendicular-pair search
+    first = None
+    for a, b in _chunks(n):
+        xr, dx2 = centred_chunk(x, a, b, xt)
+        Xr, dX2 = centred_chunk(X, a, b, Xt)
+        dx, dX = np.sqrt(dx2), np.sqrt(dX2)
+        ok = np.flatnonzero((dx > tx) & (dX > tX))
+        if ok.size:
+            i = int(ok[0])
+            first = (a + i, xr[i] / dx[i], Xr[i] / dX[i])
+            break
+    if first is None:
+        return None
+    l_idx, xb_l, Xb_l = first
+    MMt = np.zeros((3, 3))
+    NMt = np.zeros((3, 3))
+    Sx = np.zeros((3, 3))
+    SX = np.zeros((3, 3))
+    ratio_sum = 0.0
+    nu = 0
+    best = (math.inf, -1, None, None)
+    dx_max = dX_max = 0.0
+    dx_min = dX_min = math.inf
+    for a, b in _chunks(n):
+        xr, dx2 = centred_chunk(x, a, b, xt)
+        Xr, dX2 = centred_chunk(X, a, b, Xt)
+        Sx += xr.T @ xr
+        SX += Xr.T @ Xr
+        dx, dX = np.sqrt(dx2), np.sqrt(dX2)
+        dx_max, dX_max = max(dx_max, float(dx.max())), max(dX_max, float(dX.max()))
+        use = (dx > tx) & (dX > tX)
+        if not use.all():
+            xr, Xr, dx, dX = xr[use], Xr[use], dx[use], dX[use]
+            idx = np.flatnonzero(use) + a
+        else:
+            idx = None
+        if dx.size == 0:
+            continue
+        dx_min, dX_min = min(dx_min, float(dx.min())), min(dX_min, float(dX.min()))
+        nu += dx.size
+        ratio_sum += float(np.add.reduce(dX / dx))
+        xb = _unit_rows(xr, dx)
+        Xb = _unit_rows(Xr, dX)
+        MMt += Xb.T @ Xb
+        NMt += xb.T @ Xb
+        dots = np.abs(xb @ xb_l)
+        if a <= l_idx < b:
+            dots[(l_idx - a) if idx is None else (idx == l_idx)] = np.inf
+        j = int(np.argmin(dots))
+        if dots[j] < best[0]:
+            gj = a + j if idx is None else int(idx[j])
+            best = (float(dots[j]), gj, xb[j].copy(), Xb[j].copy())
+    sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=MMt, NMt=NMt, Sx=Sx, SX=SX,
+                pair=(l_idx, xb_l, Xb_l, best[1], best[2], best[3]))
+    return sums, (dx_max, dX_max, dx_min, dX_min)
+
+
+def _finish(sums: dict, tx: float, tX: float, coplanar_threshold: float) -> ClosedFormSums:
+    ev_x = np.linalg.eigvalsh(sums["Sx"])
+    ev_X = np.linalg.eigvalsh(sums["SX"])
+    ratio = min(
+        math.sqrt(max(ev_x[0], 0.0) / ev_x[2]) if ev_x[2] > 0 else 0.0,
+        math.sqrt(max(ev_X[0], 0.0) / ev_X[2]) if ev_X[2] > 0 else 0.0,
+    )
+    nu = sums["nu"]
+    augment = ratio < coplanar_threshold or nu <= 3
+    MMt, NMt = sums["MMt"], sums["NMt"]
+    aug = None
+    l_idx, xb_l, Xb_l, k_idx, xb_k, Xb_k = sums["pair"]
+    if augment and k_idx >= 0:
+        xp = np.cross(xb_l, xb_k)
+        c = np.cross(Xb_l, Xb_k)
+        nx, nc = float(np.linalg.norm(xp)), float(np.linalg.norm(c))
+        if nx > 0 and nc > 0:
+            xp, Xp = xp / nx, c / nc
+            MMt = MMt + np.outer(Xp, Xp)
+            NMt = NMt + np.outer(xp, Xp)
+            aug = (l_idx, k_idx, xp, Xp, nc, Xb_l, Xb_k)
+    return ClosedFormSums(sums["n"], sums["xg"], sums["Xg"], tx, tX, nu, sums["ratio_sum"],
+                          MMt, NMt, augment, aug)
+
+
+def closed_form_chunked(
+    x: np.ndarray,
+    X: np.ndarray,
+    *,
+    nearest: bool = False,
+    with_scale: bool = True,
+    coplanar_threshold: float = COPLANAR_THRESHOLD,
+) -> tuple[SingleSolution, bool, int]:
+    """:func:`closed_form_single` for many points, from :func:`closed_form_sums` (two passes
+    over the data in cache-sized chunks, no n-row temporaries)."""
+    cs = closed_form_sums(x, X, coplanar_threshold)
+    n = x.shape[0]
+    if cs is None or cs.nu < 2:
+        xg_ = np.add.reduce(X, axis=0) / n
+        return SingleSolution(math.nan, np.eye(3), xg_, True, False), False, n
+    s = cs.ratio_sum / cs.nu if with_scale else 1.0
+    sv = _lapack.dgesvd(cs.NMt, compute_uv=0)[1]
+    if not sv[2] > DEGENERATE_TOLERANCE**0.5 * sv[0] or not math.isfinite(s):
+        return (SingleSolution(math.nan, np.eye(3), cs.Xg.copy(), True, False), cs.augment,
+                n - cs.nu)
+    _, _, Rt, info = _lapack.dgesv(cs.NMt.T, cs.MMt.T)
+    if info != 0:
+        return (SingleSolution(math.nan, np.eye(3), cs.Xg.copy(), True, False), cs.augment,
+                n - cs.nu)
+    R = Rt.T
+    reflection = _det_list(R.tolist()) < 0
+    if nearest:
+        u, _, vt, _ = _lapack.dgesvd(R)
+        if _det_list(u.tolist()) * _det_list(vt.tolist()) < 0:
+            u[:, 2] *= -1
+        R = u @ vt
+    t = cs.Xg - s * (R @ cs.xg)
+    return SingleSolution(s, R, t, False, reflection), cs.augment, n - cs.nu

@@ -23,6 +23,7 @@ from ..camera.distortion import CHUNK
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
+from ..validation import as_float64
 
 __all__ = ["IntersectionResult", "space_intersection"]
 
@@ -154,7 +155,7 @@ def space_intersection(
         Rays that are (nearly) parallel, so the point is not determined.
     """
     cams = _cameras(cameras)
-    obs = np.asarray(image_points, dtype=float)
+    obs = as_float64(image_points, "image points")
     if obs.ndim == 2 and obs.shape[1] == 2 and len(cams) == obs.shape[0]:
         obs = obs[:, None, :]
     if obs.ndim != 3 or obs.shape[2] != 2:

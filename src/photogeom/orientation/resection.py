@@ -1,10 +1,12 @@
 """Space resection: exterior orientation of one image from control points.
 
-1. Initial values: a closed-form perspective-3-point solution (Grunert's elimination: the
+1. Initial values: closed-form perspective-3-point solutions (Grunert's elimination: the
    three distances from the projection centre satisfy three law-of-cosines equations,
-   reduced here to a quartic by the resultant of two quadratics), disambiguated by the
-   remaining points; with >= 6 non-coplanar points a DLT decomposition is tried as well.
-   With exactly three points the geometry has up to four solutions: pass ``initial``.
+   reduced here to a quartic by the resultant of two quadratics) on several well-spread
+   triples, the linear DLT (>= 6 non-coplanar points) and the plane homography (>= 4 nearly
+   coplanar points), scored by the reprojection of all points; several are refined when the
+   best does not give a plausible adjustment. With exactly three points the geometry has up
+   to four solutions: pass ``initial``.
 2. A Gauss-Markov adjustment of the collinearity equations with an analytic Jacobian,
    optionally self-calibrating interior parameters (f, x0, y0, b1, b2, k1..k4, p1, p2).
 
@@ -15,6 +17,7 @@ standard deviations, residuals (computed minus observed image coordinates) and c
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -28,15 +31,40 @@ from ..camera.distortion import COEFFICIENTS, BrownDistortion
 from ..camera.exterior import NAMES as EO_NAMES
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
-from ..errors import DegenerateGeometryError, InputError, PhotogeomError
-from ..validation import as_points, check_count, check_same_length
+from ..errors import DegenerateGeometryError, InputError, PhotogeomError, SuspectResultWarning
+from ..validation import (
+    as_float64,
+    as_points,
+    check_count,
+    check_finite_magnitude,
+    check_same_length,
+)
 
-__all__ = ["BatchResection", "ResectionFit", "p3p", "space_resection", "space_resection_batch"]
+__all__ = [
+    "BatchResection",
+    "ResectionFit",
+    "p3p",
+    "space_resection",
+    "space_resection_batch",
+    "start_candidates",
+]
 
 
 @dataclass(frozen=True, eq=False)
 class ResectionFit(Fit):
-    """Result of :func:`space_resection`; ``model`` is the oriented :class:`FrameCamera`."""
+    """Result of :func:`space_resection`; ``model`` is the oriented :class:`FrameCamera`.
+
+    ``suspect_reason`` is empty for a plausible adjustment; otherwise it says why the result
+    should not be trusted as it is (``suspect`` is then True, the reason is among ``notes``
+    and a :class:`~photogeom.errors.SuspectResultWarning` was issued).
+    """
+
+    suspect_reason: str = ""
+
+    @property
+    def suspect(self) -> bool:
+        """True when sigma0 is implausible for the a-priori sigma (see ``suspect_reason``)."""
+        return bool(self.suspect_reason)
 
     @property
     def camera(self) -> FrameCamera:
@@ -110,6 +138,90 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
     if e <= 1e-12 * max(np.linalg.norm(G[1] - G[0]), np.linalg.norm(G[2] - G[0])) ** 2:
         raise DegenerateGeometryError("p3p: the three control points are collinear")
     j = _bearings(im, io)
+    sols: list[ExteriorOrientation] = []
+    seen: list[np.ndarray] = []
+    for pc in _p3p_points(G, j, 0.0):
+        R, t = _rigid_from_pairs(pc, G)
+        key = np.concatenate([t, R.ravel()])
+        tol = 1e-9 * (1 + float(np.abs(t).max()))
+        if any(float(np.max(np.abs(key - k) - 1e-9 * np.abs(k))) <= tol for k in seen):
+            continue
+        seen.append(key)
+        try:
+            sols.append(ExteriorOrientation.from_matrix(t, R.T, on_gimbal_lock="omega-zero"))
+        except PhotogeomError:  # pragma: no cover - defensive
+            continue
+    return sols
+
+
+def _poly_sub(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a - b`` for coefficient arrays in increasing powers (of different lengths)."""
+    out = np.zeros(max(a.size, b.size))
+    out[: a.size] += a
+    out[: b.size] -= b
+    return out
+
+
+def _horner(coefficients: list, v: float) -> float:
+    """Value at ``v`` of the polynomial with ``coefficients`` in increasing powers."""
+    out = 0.0
+    for c in reversed(coefficients):
+        out = out * v + c
+    return out
+
+
+# --- start values ----------------------------------------------------------------------------
+
+#: Largest imaginary part (relative to ``1 + |real part|``) of a root of the P3P quartic still
+#: taken as a start candidate: noise turns the double root of an ill-conditioned triple into a
+#: complex pair whose real part is close to the true solution.
+COMPLEX_ROOT_TOLERANCE = 0.1
+
+#: P3P triples tried for start values (the best-spread one first, then well-spread others).
+N_TRIPLES = 6
+
+#: At most this many distinct start candidates are refined when the first does not give a
+#: plausible adjustment (it did not converge, or its sigma0 fails the plausibility checks).
+MAX_STARTS = 6
+
+
+def _spread_triple(im: np.ndarray) -> tuple[int, int, int]:
+    c = im.mean(axis=0)
+    i0 = int(np.argmax(np.sum((im - c) ** 2, axis=1)))
+    i1 = int(np.argmax(np.sum((im - im[i0]) ** 2, axis=1)))
+    d = im[i1] - im[i0]
+    area = np.abs(d[0] * (im[:, 1] - im[i0, 1]) - d[1] * (im[:, 0] - im[i0, 0]))
+    area[[i0, i1]] = -1
+    return i0, i1, int(np.argmax(area))
+
+
+def _triples(im: np.ndarray, count: int) -> list[tuple[int, int, int]]:
+    """``count`` distinct point triples with large image triangles (deterministic)."""
+    n = im.shape[0]
+    if n == 3:
+        return [(0, 1, 2)]
+    first = tuple(sorted(_spread_triple(im)))
+    rng = np.random.default_rng(0)
+    draws = np.sort(np.argsort(rng.random((12 * count, n)), axis=1)[:, :3], axis=1)
+    draws = np.unique(draws, axis=0)
+    a, b, c = im[draws[:, 0]], im[draws[:, 1]], im[draws[:, 2]]
+    u, v = b - a, c - a
+    area = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+    order = np.argsort(-area)
+    out = [first]
+    for k in order:
+        t = tuple(int(i) for i in draws[k])
+        if t not in out:
+            out.append(t)
+        if len(out) >= count:
+            break
+    return out
+
+
+def _p3p_points(G: np.ndarray, j: np.ndarray, imaginary_tolerance: float) -> list[np.ndarray]:
+    """The three points in the camera frame (3, 3) for each solution of the P3P problem
+    (Grunert's distances along the unit rays ``j``); roots of the quartic with an imaginary
+    part up to ``imaginary_tolerance (1 + |real part|)`` are taken by their real part."""
     a2 = float(np.sum((G[1] - G[2]) ** 2))
     b2 = float(np.sum((G[0] - G[2]) ** 2))
     c2 = float(np.sum((G[0] - G[1]) ** 2))
@@ -123,29 +235,30 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
     p0 = np.array([-A, 2.0 * A * cb, 1.0 - A])
     q1 = np.array([-2.0 * cg])
     q0 = np.array([1.0 - C, 2.0 * C * cb, -C])
-    d0 = npoly.polysub(q0, p0)
-    d1 = npoly.polysub(q1, p1)
-    res = npoly.polysub(
-        npoly.polymul(d0, d0),
-        npoly.polymul(d1, npoly.polysub(npoly.polymul(p1, q0), npoly.polymul(p0, q1))),
-    )
+    d0 = np.array([1.0 - C + A, 2.0 * cb * (C - A), A - C - 1.0])  # q0 - p0
+    d1 = np.array([-2.0 * cg, 2.0 * ca])  # q1 - p1
+    cross = _poly_sub(np.convolve(p1, q0), np.convolve(p0, q1))
+    res = _poly_sub(np.convolve(d0, d0), np.convolve(d1, cross))
     res = np.trim_zeros(res, "b")
     roots = npoly.polyroots(res) if res.size > 1 else np.array([])
-    sols: list[ExteriorOrientation] = []
-    seen: list[np.ndarray] = []
+    out: list[np.ndarray] = []
     dres = npoly.polyder(res) if res.size > 1 else res
     # scalar polynomial values by Horner's rule (coefficients in increasing powers)
     c_res, c_dres, c_d0, c_d1 = (list(map(float, c)) for c in (res, dres, d0, d1))
     c_q0, c_q1 = list(map(float, q0)), list(map(float, q1))
     for r in roots:
-        if abs(r.imag) > 1e-6 * (1.0 + abs(r.real)) or r.real <= 0:
+        if r.real <= 0:
+            continue
+        is_real = abs(r.imag) <= 1e-6 * (1.0 + abs(r.real))
+        if not is_real and abs(r.imag) > imaginary_tolerance * (1.0 + abs(r.real)):
             continue
         v = float(r.real)
-        for _ in range(3):  # polish the companion-matrix root by Newton steps
-            dv = _horner(c_dres, v)
-            if dv == 0:
-                break
-            v -= _horner(c_res, v) / dv
+        if is_real:
+            for _ in range(3):  # polish the companion-matrix root by Newton steps
+                dv = _horner(c_dres, v)
+                if dv == 0:
+                    break
+                v -= _horner(c_res, v) / dv
         den = _horner(c_d1, v)
         us = []
         if abs(den) > 1e-10:
@@ -160,92 +273,243 @@ def p3p(ground, image, io: InteriorOrientation) -> list[ExteriorOrientation]:
             if den1 <= 0:
                 continue
             s1 = np.sqrt(b2 / den1)
-            pc = np.array([s1, u * s1, v * s1])[:, None] * j
-            R, t = _rigid_from_pairs(pc, G)
-            key = np.concatenate([t, R.ravel()])
-            tol = 1e-9 * (1 + float(np.abs(t).max()))
-            if any(float(np.max(np.abs(key - k) - 1e-9 * np.abs(k))) <= tol for k in seen):
-                continue
-            seen.append(key)
-            try:
-                sols.append(ExteriorOrientation.from_matrix(t, R.T, on_gimbal_lock="omega-zero"))
-            except PhotogeomError:  # pragma: no cover - defensive
-                continue
-    return sols
-
-
-def _horner(coefficients: list, v: float) -> float:
-    """Value at ``v`` of the polynomial with ``coefficients`` in increasing powers."""
-    out = 0.0
-    for c in reversed(coefficients):
-        out = out * v + c
+            out.append(np.array([s1, u * s1, v * s1])[:, None] * j)
     return out
 
 
-# --- start values ----------------------------------------------------------------------------
+def _rigid_batch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations R (K, 3, 3) and translations t (K, 3) with ``dst ~ R src + t`` per problem
+    (least squares, det R = +1); ``src``, ``dst`` of shape (K, m, 3)."""
+    cs, cd = src.mean(axis=1), dst.mean(axis=1)
+    H = np.einsum("kmi,kmj->kij", src - cs[:, None], dst - cd[:, None])
+    U, _, Vt = np.linalg.svd(H)
+    V = np.swapaxes(Vt, 1, 2)
+    d = np.sign(np.linalg.det(V @ np.swapaxes(U, 1, 2)))
+    d[d == 0] = 1.0
+    V[:, :, 2] *= d[:, None]
+    R = V @ np.swapaxes(U, 1, 2)
+    return R, cd - np.einsum("kij,kj->ki", R, cs)
 
 
-def _spread_triple(im: np.ndarray) -> tuple[int, int, int]:
-    c = im.mean(axis=0)
-    i0 = int(np.argmax(np.sum((im - c) ** 2, axis=1)))
-    i1 = int(np.argmax(np.sum((im - im[i0]) ** 2, axis=1)))
-    d = im[i1] - im[i0]
-    area = np.abs(d[0] * (im[:, 1] - im[i0, 1]) - d[1] * (im[:, 0] - im[i0, 0]))
-    area[[i0, i1]] = -1
-    return i0, i1, int(np.argmax(area))
+def _homogeneous_rays(xn: np.ndarray) -> np.ndarray:
+    """``(-x, y, 1)`` per point: proportional to ``M (X - X0)`` (camera looks along -z)."""
+    return np.column_stack([-xn[:, 0], xn[:, 1], np.ones(len(xn))])
 
 
-def _reprojection_rms(g, im, io, eo) -> float:
-    try:
-        xy = project(g, io, eo, behind="nan")
-    except PhotogeomError:
-        return np.inf
-    if not np.all(np.isfinite(xy)):
-        return np.inf
-    return float(np.sqrt(np.mean(np.sum((xy - im) ** 2, axis=1))))
+def _camera_from_linear(A: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Rotations M and centres X0 from ``P = [A | b] ~ lambda M [I | -X0]`` (both signs)."""
+    out = []
+    for s in (1.0, -1.0):
+        As = s * A
+        if not np.linalg.det(As) > 0:
+            continue
+        U, _, Vt = np.linalg.svd(As)
+        M = U @ Vt
+        try:
+            X0 = -np.linalg.solve(As, s * b)
+        except np.linalg.LinAlgError:
+            continue
+        if np.all(np.isfinite(X0)):
+            out.append((M, X0))
+    return out
+
+
+def _linear_starts(g: np.ndarray, xn: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Start candidates ``(M, X0)`` from the linear DLT (>= 6 points, not coplanar) and from
+    the plane homography (>= 4 points, coplanar or nearly so), in normalised coordinates."""
+    n = g.shape[0]
+    c = g.mean(axis=0)
+    gc = g - c
+    _, sv, Vt = np.linalg.svd(gc, full_matrices=False)
+    scale = float(sv[0] / np.sqrt(n)) or 1.0
+    gs = gc / scale
+    h = _homogeneous_rays(xn)
+    out: list[tuple[np.ndarray, np.ndarray]] = []
+    thin = sv[2] <= 0.05 * sv[0]
+    if n >= 6 and not sv[2] <= 1e-6 * sv[0]:
+        X = np.column_stack([gs, np.ones(n)])
+        Z = np.zeros_like(X)
+        rows = np.concatenate(
+            [
+                np.hstack([X, Z, -h[:, :1] * X]),
+                np.hstack([Z, X, -h[:, 1:2] * X]),
+            ]
+        )
+        _, s, V = np.linalg.svd(rows, full_matrices=False)
+        if s[-2] > 1e-9 * s[0]:
+            P = V[-1].reshape(3, 4)
+            for M, X0 in _camera_from_linear(P[:, :3], P[:, 3]):
+                out.append((M, c + scale * X0))
+    if n >= 4 and thin:
+        E = Vt[:2].T  # plane axes (3, 2)
+        ab = gs @ E
+        X = np.column_stack([ab, np.ones(n)])
+        Z = np.zeros_like(X)
+        rows = np.concatenate(
+            [
+                np.hstack([X, Z, -h[:, :1] * X]),
+                np.hstack([Z, X, -h[:, 1:2] * X]),
+            ]
+        )
+        _, s, V = np.linalg.svd(rows, full_matrices=False)
+        if s[-2] > 1e-9 * s[0]:
+            H = V[-1].reshape(3, 3)  # [M e1, M e2, -M X0] up to a factor
+            for sgn in (1.0, -1.0):
+                Hs = sgn * H / np.sqrt(np.linalg.norm(H[:, 0]) * np.linalg.norm(H[:, 1]))
+                r1, r2 = Hs[:, 0], Hs[:, 1]
+                r3 = np.cross(r1, r2)
+                ME = np.column_stack([r1, r2, r3 / (np.linalg.norm(r3) or 1.0)])
+                U, _, Wt = np.linalg.svd(ME)
+                ME = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt)) or 1.0]) @ Wt
+                # ME = M [E, e3]: M = ME [E, e3]^T
+                B = np.column_stack([E, np.cross(E[:, 0], E[:, 1])])
+                M = ME @ B.T
+                X0 = -M.T @ Hs[:, 2]
+                out.append((M, c + scale * X0))
+    return out
+
+
+def _score(g: np.ndarray, xn: np.ndarray, f: float, Ms: np.ndarray, X0s: np.ndarray) -> np.ndarray:
+    """RMS reprojection error (unit of ``f``) of K candidates over all points; inf when a
+    point is behind the camera. ``Ms`` (K, 3, 3), ``X0s`` (K, 3)."""
+    p = np.einsum("kij,knj->kni", Ms, g[None, :, :] - X0s[:, None, :])
+    w = p[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pred = np.stack([-p[..., 0] / w, p[..., 1] / w], axis=-1)
+        e = np.sqrt(np.mean(np.sum((pred - xn) ** 2, axis=-1), axis=-1)) * f
+    e[~np.all(w < 0, axis=1) | ~np.isfinite(e)] = np.inf
+    return e
+
+
+def start_candidates(
+    ground, image, io: InteriorOrientation, *, triples: int = N_TRIPLES, limit: int = 16
+) -> list[tuple[float, ExteriorOrientation]]:
+    """Start values for a resection, best first, as ``(rms reprojection error, orientation)``.
+
+    Candidates come from P3P on ``triples`` well-spread point triples (roots of the quartic
+    with small imaginary parts included, as noise turns a double root into a complex pair),
+    from the linear DLT (>= 6 points, not coplanar) and from the plane homography (>= 4
+    points, nearly coplanar). Each is scored by its RMS reprojection error over all points
+    (unit of ``io``, distortion removed from the observations); candidates putting a point
+    behind the camera are dropped, and so are duplicates. At most ``limit`` are returned.
+    """
+    g = as_points(ground, 3, "ground points")
+    im = as_points(image, 2, "image points")
+    n = g.shape[0]
+    xn = io.normalized_from_image(im, on_failure="keep")
+    if not np.all(np.isfinite(xn)):
+        return []
+    j = np.stack([xn[:, 0], -xn[:, 1], -np.ones(n)], axis=1)
+    j /= np.linalg.norm(j, axis=1, keepdims=True)
+    tol = 0.0 if n == 3 else COMPLEX_ROOT_TOLERANCE
+    cam: list[np.ndarray] = []
+    obj: list[np.ndarray] = []
+    for t in _triples(xn, triples):
+        G = g[list(t)]
+        e = np.linalg.norm(np.cross(G[1] - G[0], G[2] - G[0]))
+        if e <= 1e-12 * max(np.linalg.norm(G[1] - G[0]), np.linalg.norm(G[2] - G[0])) ** 2:
+            continue
+        pcs = _p3p_points(G, j[list(t)], tol)
+        cam += pcs
+        obj += [G] * len(pcs)
+    Ms: list[np.ndarray] = []
+    X0s: list[np.ndarray] = []
+    if cam:
+        R, tr = _rigid_batch(np.array(cam), np.array(obj))
+        Ms.append(np.swapaxes(R, 1, 2))
+        X0s.append(tr)
+    if n >= 4:
+        lin = _linear_starts(g, xn)
+        if lin:
+            Ms.append(np.array([m for m, _ in lin]))
+            X0s.append(np.array([x for _, x in lin]))
+    if not Ms:
+        return []
+    M_arr, X_arr = np.concatenate(Ms), np.concatenate(X0s)
+    scores = _score(g, xn, float(io.f), M_arr, X_arr)
+    order = np.argsort(scores, kind="stable")
+    order = order[np.isfinite(scores[order])]
+    size = float(np.sqrt(np.mean(np.sum((g - g.mean(axis=0)) ** 2, axis=1)))) or 1.0
+    keys = np.concatenate([X_arr / size, M_arr.reshape(-1, 9)], axis=1)
+    out: list[tuple[float, ExteriorOrientation]] = []
+    kept: list[int] = []
+    for k in order:
+        if kept and np.min(np.max(np.abs(keys[kept] - keys[k]), axis=1)) < 1e-6:
+            continue
+        try:
+            eo = ExteriorOrientation.from_matrix(X_arr[k], M_arr[k], on_gimbal_lock="omega-zero")
+        except PhotogeomError:  # pragma: no cover - defensive
+            continue
+        kept.append(int(k))
+        out.append((float(scores[k]), eo))
+        if len(out) >= limit:
+            break
+    return out
 
 
 def initial_exterior(
     ground, image, io: InteriorOrientation
 ) -> list[tuple[float, ExteriorOrientation]]:
-    """Candidate start values, best first, as ``(rms reprojection error, orientation)``.
-
-    P3P on a well-spread triple (further triples, then - with >= 6 non-coplanar points - the
-    DLT decomposition, only when it gives no candidate with every point in front), each
-    scored by its reprojection RMS over all points (points behind the camera disqualify).
-    """
-    g = as_points(ground, 3, "ground points")
-    im = as_points(image, 2, "image points")
-    n = g.shape[0]
-    triples = [(0, 1, 2)] if n == 3 else [_spread_triple(im)]
-    if n >= 5:  # further triples, used only when the first gives no valid candidate
-        rng = np.random.default_rng(0)
-        triples += [tuple(rng.choice(n, 3, replace=False)) for _ in range(3)]
-    scored: list[tuple[float, ExteriorOrientation]] = []
-    for t in triples:
-        try:
-            cands = p3p(g[list(t)], im[list(t)], io)
-        except PhotogeomError:
-            continue
-        scored += [(_reprojection_rms(g, im, io, e), e) for e in cands]
-        if any(np.isfinite(s[0]) for s in scored):
-            break
-    if n >= 6 and not any(np.isfinite(s[0]) for s in scored):
-        from ..camera.dlt_estimation import estimate_dlt
-
-        try:
-            fit = estimate_dlt(
-                g, io.normalized_from_image(im) * np.array([1.0, -1.0]), unit=io.unit,
-                refine=False,
-            )
-            scored.append((_reprojection_rms(g, im, io, fit.exterior), fit.exterior))
-        except PhotogeomError:
-            pass
-    scored.sort(key=lambda p: p[0])
-    return [s for s in scored if np.isfinite(s[0])]
+    """Candidate start values, best first (see :func:`start_candidates`)."""
+    return start_candidates(ground, image, io)
 
 
 # --- resection ---------------------------------------------------------------------------------
+
+
+#: Significance level of the global test (chi-square test of v'Pv against the redundancy)
+#: that flags a resection as suspect when the a-priori sigma of the image coordinates is given.
+GLOBAL_TEST_ALPHA = 1e-3
+
+#: Without an a-priori sigma, a resection is flagged as suspect when the RMS image residual
+#: exceeds this fraction of the RMS spread of the control points in the image.
+RELATIVE_RESIDUAL_LIMIT = 0.01
+
+
+def _image_spread(im: np.ndarray) -> float:
+    """RMS distance of the image points from their centroid."""
+    return float(np.sqrt(np.mean(np.sum((im - im.mean(axis=0)) ** 2, axis=1))))
+
+
+def implausibility(adj, sigma_given: bool, spread: float, unit: str) -> str:
+    """Why the adjustment ``adj`` of a resection is implausible, or ``""``.
+
+    With the a-priori sigma given, the global test: ``v'Pv / sigma0_prior^2`` against the
+    chi-square quantile ``1 - GLOBAL_TEST_ALPHA`` for the redundancy. Always: the RMS image
+    residual against ``RELATIVE_RESIDUAL_LIMIT`` times the spread of the control points in the
+    image (a scale-free bound on what a correct orientation leaves). Nothing is tested at
+    redundancy 0.
+    """
+    from scipy.special import chdtri  # chi-square quantile (lighter than scipy.stats)
+
+    r = adj.redundancy
+    if r <= 0 or not np.isfinite(adj.vtpv):
+        return ""
+    reasons = []
+    if sigma_given:
+        T = adj.vtpv / adj.sigma0_prior**2
+        limit = float(chdtri(r, GLOBAL_TEST_ALPHA))
+        if T > limit:
+            reasons.append(
+                f"sigma0 {adj.sigma0:.4g} fails the global test for the given sigma "
+                f"(v'Pv / sigma0_prior^2 = {T:.4g} > {limit:.4g}, the chi-square quantile at "
+                f"alpha = {GLOBAL_TEST_ALPHA:g} for redundancy {r})"
+            )
+    v = adj.residuals.reshape(-1, 2)
+    rms = float(np.sqrt(np.mean(np.sum(v * v, axis=1))))
+    if rms > RELATIVE_RESIDUAL_LIMIT * spread:
+        reasons.append(
+            f"RMS image residual {rms:.4g} {unit} is {100 * rms / spread:.2g}% of the spread of "
+            f"the control points in the image (limit {100 * RELATIVE_RESIDUAL_LIMIT:g}%)"
+        )
+    if not reasons:
+        return ""
+    return (
+        "; ".join(reasons)
+        + ". Either the observations hold blunders (see fit.snooping()), the given sigma is "
+        "too small, or the adjustment ended in a false minimum (try initial= from another "
+        "source)"
+    )
 
 
 def _image_weights(sigma, n: int) -> np.ndarray | None:
@@ -304,9 +568,22 @@ def space_resection(
     -------
     ResectionFit
         Parameters ``X0, Y0, Z0, omega, phi, kappa`` (radians) plus calibrated ones.
+        ``suspect`` is True (with ``suspect_reason``, a note and a
+        :class:`~photogeom.errors.SuspectResultWarning`) when sigma0 fails the global test
+        for the given ``sigma`` (alpha = :data:`GLOBAL_TEST_ALPHA`) or the RMS image residual
+        exceeds :data:`RELATIVE_RESIDUAL_LIMIT` of the image spread of the control points.
+
+    Notes
+    -----
+    Without ``initial`` the start values are the candidates of :func:`start_candidates`
+    (P3P on several triples, the linear DLT, the plane homography), best reprojection first;
+    when the adjustment from the best does not converge, ends with a point behind the camera
+    or is implausible, up to :data:`MAX_STARTS` candidates are refined and the smallest
+    ``v'Pv`` is kept.
     """
     t0 = time.perf_counter()
     g = as_points(ground, 3, "ground points")
+    check_finite_magnitude(g, "ground points", "space resection")
     im = as_points(image, 2, "image points")
     check_same_length(g, im, "ground points", "image points")
     if system == "pixel":
@@ -333,7 +610,7 @@ def space_resection(
     w = _image_weights(sigma, n)
     # --- start values ---
     if initial is None:
-        cands = initial_exterior(g, im, io)
+        cands = start_candidates(g, im, io, limit=16 if n == 3 else MAX_STARTS)
         if not cands:
             raise DegenerateGeometryError(
                 "space resection: no start values found (the closed-form solutions put points "
@@ -346,9 +623,11 @@ def space_resection(
                 f"orientations ({listing}); pass initial= an approximate orientation or add a "
                 "fourth point (photogeom.orientation.p3p lists them)"
             )
-        initial = cands[0][1]
+        starts = [e for _, e in cands[:MAX_STARTS]]
     elif not isinstance(initial, ExteriorOrientation):
         raise InputError("initial must be an ExteriorOrientation")
+    else:
+        starts = [initial]
     # --- adjustment on centred ground coordinates ---
     centre = g.mean(axis=0)
     gc = g - centre
@@ -388,36 +667,69 @@ def space_resection(
         d = derivs(x)
         return np.concatenate([d.d_eo, d.d_io], axis=2).reshape(2 * n, -1)
 
-    x0 = np.concatenate(
-        [
-            [initial.X0 - centre[0], initial.Y0 - centre[1], initial.Z0 - centre[2]],
-            initial.angles,
-            [_io_value(io0, c) for c in calib],
-        ]
-    )
     names = (*EO_NAMES, *calib)
-    adj = gauss_markov(
-        model,
-        x0,
-        im.reshape(-1),
-        jacobian=jac,
-        weights=w,
-        names=names,
-        max_iter=max_iter,
-        tol=tol,
-        what="space resection",
-    )
-    x = adj.x.copy()
-    x[:3] += centre
-    io_hat = unpack_io(adj.x)
-    eo_hat = ExteriorOrientation(*x[:6])
-    wdepth = eo_hat.to_camera(g)[:, 2]
-    if np.any(wdepth >= 0):
-        raise DegenerateGeometryError(
-            f"space resection converged to an orientation with {int(np.sum(wdepth >= 0))} control "
-            "point(s) behind the camera; the start values were on the wrong branch. Pass "
-            "initial= closer to the true orientation"
+    spread = _image_spread(im)
+
+    def adjust_from(start: ExteriorOrientation):
+        x0 = np.concatenate(
+            [
+                [start.X0 - centre[0], start.Y0 - centre[1], start.Z0 - centre[2]],
+                start.angles,
+                [_io_value(io0, c) for c in calib],
+            ]
         )
+        adj = gauss_markov(
+            model,
+            x0,
+            im.reshape(-1),
+            jacobian=jac,
+            weights=w,
+            names=names,
+            max_iter=max_iter,
+            tol=tol,
+            what="space resection",
+        )
+        x = adj.x.copy()
+        x[:3] += centre
+        eo = ExteriorOrientation(*x[:6])
+        behind = int(np.sum(eo.to_camera(g)[:, 2] >= 0))
+        if behind:
+            raise DegenerateGeometryError(
+                f"space resection converged to an orientation with {behind} control "
+                "point(s) behind the camera; the start values were on the wrong branch. Pass "
+                "initial= closer to the true orientation"
+            )
+        return adj, x, eo
+
+    # Refine the best start; when that fails or its sigma0 is implausible, the next distinct
+    # starts, keeping the adjustment with the smallest v'Pv.
+    best = None
+    first_error: PhotogeomError | None = None
+    for start in starts:
+        try:
+            adj, x, eo_hat = adjust_from(start)
+        except PhotogeomError as exc:
+            first_error = first_error or exc
+            continue
+        reason = implausibility(adj, sigma is not None, spread, io.unit)
+        if best is None or adj.vtpv < best[0].vtpv:
+            best = (adj, x, eo_hat, reason)
+        if not reason:
+            break
+    if best is None:
+        assert first_error is not None
+        if len(starts) > 1:
+            first_error.args = (
+                f"{first_error} (each of {len(starts)} start values from the closed-form "
+                "solutions failed)",
+            )
+        raise first_error
+    adj, x, eo_hat, reason = best
+    io_hat = unpack_io(adj.x)
+    notes = (f"self-calibrated: {', '.join(calib)}",) if calib else ()
+    if reason:
+        notes = (*notes, f"suspect result: {reason}")
+        warnings.warn(f"space resection: {reason}", SuspectResultWarning, stacklevel=2)
     units = {"X0": "m", "Y0": "m", "Z0": "m", "omega": "rad", "phi": "rad", "kappa": "rad"}
     units.update({c: ("1" if c in COEFFICIENTS else io.unit) for c in calib})
     camera = FrameCamera(io_hat, eo_hat)
@@ -433,7 +745,8 @@ def space_resection(
         residual_unit=io.unit,
         parameter_units=units,
         elapsed=time.perf_counter() - t0,
-        notes=(f"self-calibrated: {', '.join(calib)}",) if calib else (),
+        notes=notes,
+        suspect_reason=reason,
     )
     return with_check_points(
         fit,
@@ -576,11 +889,11 @@ def space_resection_batch(
     -------
     BatchResection
     """
-    im = np.asarray(image, dtype=float)
+    im = as_float64(image, "image")
     if im.ndim != 3 or im.shape[2] != 2:
         raise InputError(f"image: expected shape (B, n, 2), got {im.shape}")
     B, n, _ = im.shape
-    g = np.asarray(ground, dtype=float)
+    g = as_float64(ground, "ground")
     if g.ndim == 2:
         g = np.broadcast_to(g, (B, *g.shape))
     if g.shape != (B, n, 3):
