@@ -1,7 +1,7 @@
 """Monte-Carlo check of the bundle adjustment's statistics on a simulated block.
 
-Each trial draws new image noise and new surveyed coordinates of the control points (their
-standard deviations), adjusts the same block from the same start, and records the
+Each trial draws new image noise, new surveyed coordinates of the control points and new
+GNSS/IMU observations (all with their standard deviations), adjusts the same block from the same start, and records the
 calibration, one image's exterior orientation and one tie point. Printed: the ratio of the
 Monte-Carlo spread to the mean reported standard deviation (1 is right; the sampling error
 of a spread from N trials is about 1/sqrt(2N)), the mean sigma0^2 (1 is right), and for a
@@ -45,8 +45,9 @@ def main() -> None:
         xyz[ctrl] = truth.xyz[ctrl] + rng.normal(0.0, 1.0, (int(ctrl.sum()), 3)) * (
             truth.point_sigma[ctrl]
         )
-        gn = truth.exterior[:, :3] + rng.normal(0, 1, (truth.n_images, 3)) * truth.gnss_sigma
-        b = start.with_observations(uv=uv).replace(xyz=xyz, gnss=gn)
+        gn = truth.exterior[:, :3] + rng.normal(0, 1, (truth.n_images, 3)) * start.gnss_sigma
+        imu = truth.exterior[:, 3:] + rng.normal(0, 1, (truth.n_images, 3)) * start.imu_sigma
+        b = start.with_observations(uv=uv).replace(xyz=xyz, gnss=gn, imu=imu)
         r = pg.bundle_adjust(b, snooping=False, point_covariance=True)
         c, cs = r.calibration[gid], r.calibration_std[gid]
         est.append([c[n] for n in names] + list(r.block.exterior[img]) + list(r.block.xyz[tie]))
