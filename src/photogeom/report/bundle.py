@@ -244,7 +244,7 @@ def read_bundle_result(path: str | os.PathLike) -> dict:
         raise FileFormatError(f"{p}: not JSON ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != RESULT_FORMAT:
         raise FileFormatError(
-            f"{p}: not a bundle adjustment result (expected \"format\": \"{RESULT_FORMAT}\"; "
+            f'{p}: not a bundle adjustment result (expected "format": "{RESULT_FORMAT}"; '
             "write one with 'photogeom bundle adjust ... --result FILE.json')"
         )
     if data.get("version") != RESULT_VERSION:
@@ -298,14 +298,30 @@ def sensor_grid_figure(grids: list[Mapping]) -> Figure:
         for sel, colour in ((strong, "#1f5fa8"), (weak, "#a9bcd0")):
             if sel.any():
                 qq = ax.quiver(
-                    xc[sel], yc[sel], m[sel, 0], m[sel, 1], angles="xy", scale_units="xy",
-                    scale=1.0 / factor, color=colour, width=0.006, zorder=3,
+                    xc[sel],
+                    yc[sel],
+                    m[sel, 0],
+                    m[sel, 1],
+                    angles="xy",
+                    scale_units="xy",
+                    scale=1.0 / factor,
+                    color=colour,
+                    width=0.006,
+                    zorder=3,
                 )
                 q = q or qq
         if q is not None and vmax > 0:
             key = nice_length(max(v90, 0.8 * cell / factor))
-            ax.quiverkey(q, X=0.70, Y=1.03, U=key, label=f"{key:g} px", labelpos="E",
-                         coordinates="axes", color="black")
+            ax.quiverkey(
+                q,
+                X=0.70,
+                Y=1.03,
+                U=key,
+                label=f"{key:g} px",
+                labelpos="E",
+                coordinates="axes",
+                color="black",
+            )
         ax.add_patch(_rect(w, h))
         ax.set_xlim(-0.5 - 0.02 * w, w - 0.5 + 0.02 * w)
         ax.set_ylim(h - 0.5 + 0.02 * h, -0.5 - 0.02 * h)
@@ -316,7 +332,8 @@ def sensor_grid_figure(grids: list[Mapping]) -> Figure:
         ax.set_title(
             f"{g['label']}: {g['n_observations']} obs. in {g['n_images']} images, RMS "
             f"{g['rms']:.3g} px\nmean v per {nx} x {ny} cell, arrows x{ex}",
-            fontsize=9, loc="left",
+            fontsize=9,
+            loc="left",
         )
     fig.tight_layout()
     return fig
@@ -345,9 +362,16 @@ def correlation_figure(names, R, threshold: float, title: str) -> Figure:
             if i == j or not np.isfinite(R[i, j]):
                 continue
             hi = abs(R[i, j]) > threshold
-            ax.text(j, i, f"{R[i, j]:.2f}", ha="center", va="center",
-                    fontsize=7 if k > 7 else 8, fontweight="bold" if hi else "normal",
-                    color="white" if abs(R[i, j]) > 0.6 else "#1d2733")
+            ax.text(
+                j,
+                i,
+                f"{R[i, j]:.2f}",
+                ha="center",
+                va="center",
+                fontsize=7 if k > 7 else 8,
+                fontweight="bold" if hi else "normal",
+                color="white" if abs(R[i, j]) > 0.6 else "#1d2733",
+            )
             if hi:
                 ax.add_patch(_box(j, i))
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="correlation")
@@ -378,8 +402,7 @@ def image_rms_figure(images: list[Mapping], overall: float) -> Figure:
         ax.axhline(overall, color="#c0392b", lw=1, ls="--", label=f"all images: {overall:.3g} px")
         ax.legend(fontsize=8, loc="upper right")
     if n <= 40:
-        ax.set_xticks(x, ids, rotation=90 if max(map(len, ids), default=0) > 3 else 0,
-                      fontsize=8)
+        ax.set_xticks(x, ids, rotation=90 if max(map(len, ids), default=0) > 3 else 0, fontsize=8)
         ax.set_xlabel("image id")
     else:
         ax.set_xlabel("image (block order)")
@@ -455,6 +478,14 @@ def _val(v, s) -> str:
     return F.fmt_value(_nan(v), None if s is None else _nan(s))
 
 
+def _pm(v, s) -> str:
+    """``value ± std``; ``value (fixed)`` for a zero std. dev."""
+    sv = _nan(s)
+    if sv == 0.0:
+        return f"{F.fmt_value(_nan(v))} (fixed)"
+    return f"{_val(v, s)} ± {_std(s)}"
+
+
 def _summary_rows(d: Mapping) -> list[list[str]]:
     c = d["chi2"]
     blk = d["block"]
@@ -467,12 +498,27 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             f"p = {_f(c['p_value'], 3)}"
         )
     return [
-        ["block", f"{blk['n_camera_groups']} camera group(s), {blk['n_images']} images, "
-         f"{blk['n_points']} points ({blk['n_tie']} tie, {blk['n_control']} control, "
-         f"{blk['n_check']} check), {blk['n_image_observations']} image observations"],
-        ["datum observations", ", ".join(
-            [s for s, ok in (("control points", blk["n_control"] > 0), ("GNSS", blk["has_gnss"]),
-                             ("IMU", blk["has_imu"])) if ok]) or "none (free network)"],
+        [
+            "block",
+            f"{blk['n_camera_groups']} camera group(s), {blk['n_images']} images, "
+            f"{blk['n_points']} points ({blk['n_tie']} tie, {blk['n_control']} control, "
+            f"{blk['n_check']} check), {blk['n_image_observations']} image observations",
+        ],
+        [
+            "datum observations",
+            ", ".join(
+                [
+                    s
+                    for s, ok in (
+                        ("control points", blk["n_control"] > 0),
+                        ("GNSS", blk["has_gnss"]),
+                        ("IMU", blk["has_imu"]),
+                    )
+                    if ok
+                ]
+            )
+            or "none (free network)",
+        ],
         ["sigma0 a posteriori", _f(d["sigma0"])],
         ["sigma0 a priori", _f(d["sigma0_prior"])],
         ["observations / unknowns", f"{d['n_observations']} / {d['n_unknowns']}"],
@@ -480,14 +526,19 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
         ["chi-square test of v'Pv / sigma0_prior^2", test],
         ["RMS image residual", f"{_f(d['rmse_px'])} px"],
         ["mean GSD", f"{_f(d['gsd'])} {d['unit']}/px"],
-        ["convergence", (f"{d['message']}" if d["converged"] else
-                         f"NOT CONVERGED ({d['message']})") +
-         f" after {d['iterations']} iteration(s)"],
+        [
+            "convergence",
+            (f"{d['message']}" if d["converged"] else f"NOT CONVERGED ({d['message']})")
+            + f" after {d['iterations']} iteration(s)",
+        ],
         ["time", f"{_f(d['elapsed_s'], 3)} s"],
-        ["solver", f"{solver.get('backend', '?')}, reduced camera system "
-         f"{solver.get('reduced_system_size', '?')} unknowns, "
-         f"{solver.get('reduced_system_nonzeros', '?')} non-zeros; loss "
-         f"{solver.get('loss', '?')}"],
+        [
+            "solver",
+            f"{solver.get('backend', '?')}, reduced camera system "
+            f"{solver.get('reduced_system_size', '?')} unknowns, "
+            f"{solver.get('reduced_system_nonzeros', '?')} non-zeros; loss "
+            f"{solver.get('loss', '?')}",
+        ],
     ]
 
 
@@ -504,7 +555,9 @@ def _calibration_section(d: Mapping, max_rows: int) -> str:
                 free = s is not None
                 rows.append([n, _val(cal[g][n], s), _std(s) if free else "fixed", _CAL_UNIT[n]])
             table = f"<h4>camera {_esc(g)}</h4>" + _table_html(
-                ["parameter", "value", "std. dev.", "unit"], rows, text_cols={2, 3},
+                ["parameter", "value", "std. dev.", "unit"],
+                rows,
+                text_cols={2, 3},
                 note="f, cx, cy, b1, b2 in pixels (cx, cy from the image centre); K, P "
                 "dimensionless (Metashape frame model)",
             )
@@ -512,32 +565,40 @@ def _calibration_section(d: Mapping, max_rows: int) -> str:
             fig = ""
             if corr and len(corr["names"]) >= 2:
                 fig = _img_html(
-                    figure_to_png(correlation_figure(corr["names"], corr["matrix"], thr,
-                                                     f"camera {g}: correlations")),
-                    f"calibration correlations of camera {g}", None,
+                    figure_to_png(
+                        correlation_figure(
+                            corr["names"], corr["matrix"], thr, f"camera {g}: correlations"
+                        )
+                    ),
+                    f"calibration correlations of camera {g}",
+                    None,
                 )
             parts.append(f'<div class="grid"><div>{table}</div><div>{fig}</div></div>')
     else:
         free = [n for n in _CAL_NAMES if any(cstd[g].get(n) is not None for g in groups)]
         shown = groups[:max_rows]
-        rows = [
-            [g, *[f"{_val(cal[g][n], cstd[g].get(n))} +- {_std(cstd[g].get(n))}" for n in free]]
-            for g in shown
-        ]
+        rows = [[g, *[_pm(cal[g][n], cstd[g].get(n)) for n in free]] for g in shown]
         parts.append(
-            _table_html(["camera", *[f"{n} [{_CAL_UNIT[n]}]" for n in free]], rows,
-                        text_cols=set(range(1, len(free) + 1)),
-                        note=f"{len(shown)} of {len(groups)} camera groups (block order); "
-                        "value +- std. dev. of the free parameters; the result record holds "
-                        "all")
+            _table_html(
+                ["camera", *[f"{n} [{_CAL_UNIT[n]}]" for n in free]],
+                rows,
+                numeric_cols=set(range(1, len(free) + 1)),
+                note=f"{len(shown)} of {len(groups)} camera groups (block order); "
+                "value ± std. dev. of the free parameters; the result record holds "
+                "all",
+            )
         )
     high = d.get("high_correlations") or []
     if high:
         rows = [[str(g), a, b, f"{r:+.3f}"] for g, a, b, r in high[:max_rows]]
         parts.append(
             f"<h4>Correlations with |rho| &gt; {thr:g} ({len(high)})</h4>"
-            + _table_html(["camera", "parameter", "parameter", "rho"], rows,
-                          flags=[[False, False, False, True]] * len(rows), text_cols={1, 2})
+            + _table_html(
+                ["camera", "parameter", "parameter", "rho"],
+                rows,
+                flags=[[False, False, False, True]] * len(rows),
+                text_cols={1, 2},
+            )
             + '<p class="note">These parameters are not separated well by the block\'s '
             "geometry: fix one of them, or add control, GNSS, oblique images or height "
             "differences.</p>"
@@ -551,26 +612,45 @@ def _exterior_section(d: Mapping, max_rows: int) -> str:
     order = list(range(len(imgs)))
     note = f"all {len(imgs)} images in block order"
     if len(imgs) > max_rows:
-        order = sorted(order, key=lambda k: -_nan(imgs[k]["rms_px"]) if math.isfinite(
-            _nan(imgs[k]["rms_px"])) else math.inf)[:max_rows]
-        note = (f"the {max_rows} of {len(imgs)} images with the largest RMS residual (largest "
-                "first); the result record holds all")
-    cols = ["image", "camera", f"X0 [{u}]", f"Y0 [{u}]", f"Z0 [{u}]", f"omega [{au}]",
-            f"phi [{au}]", f"kappa [{au}]", f"sX0 [{u}]", f"sY0 [{u}]", f"sZ0 [{u}]",
-            f"s omega [{au}]", f"s phi [{au}]", f"s kappa [{au}]", "obs.", "RMS [px]"]
+        order = sorted(
+            order,
+            key=lambda k: (
+                -_nan(imgs[k]["rms_px"]) if math.isfinite(_nan(imgs[k]["rms_px"])) else math.inf
+            ),
+        )[:max_rows]
+        note = (
+            f"the {max_rows} of {len(imgs)} images with the largest RMS residual (largest "
+            "first); the result record holds all"
+        )
     names = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
+    cols = [
+        "image",
+        "camera",
+        *[f"{n} ± s [{u if k < 3 else au}]" for k, n in enumerate(names)],
+        "obs.",
+        "RMS [px]",
+    ]
     rows = []
     for k in order:
         r = imgs[k]
-        rows.append([
-            str(r["id"]), str(r.get("camera", "")),
-            *[_val(r[n], r[f"s{n}"]) for n in names],
-            *[_std(r[f"s{n}"]) for n in names],
-            str(r.get("n_obs", "")), _f(r["rms_px"], 3),
-        ])
-    return _table_html(cols, rows, text_cols={1},
-                       note=note + "; std. dev. 0 = held fixed; RMS of the image residual "
-                       "lengths of the image's adjusted observations")
+        rows.append(
+            [
+                str(r["id"]),
+                str(r.get("camera", "")),
+                *[_pm(r[n], r[f"s{n}"]) for n in names],
+                str(r.get("n_obs", "")),
+                _f(r["rms_px"], 3),
+            ]
+        )
+    return _table_html(
+        cols,
+        rows,
+        text_cols={1},
+        numeric_cols=set(range(2, 8)),
+        note=note + '; value ± a-posteriori std. dev. ("fixed": held at its '
+        "value, or fixed by the datum); RMS of the image residual lengths of the "
+        "image's adjusted observations",
+    )
 
 
 def _points_section(d: Mapping) -> str:
@@ -579,8 +659,12 @@ def _points_section(d: Mapping) -> str:
     parts = []
     for key, title, conv in (
         ("control", "Control points", "adjusted minus surveyed (in the adjustment)"),
-        ("check", "Check points", "triangulated from their image observations with the "
-         "adjusted cameras, minus surveyed (not in the adjustment)"),
+        (
+            "check",
+            "Check points",
+            "triangulated from their image observations with the "
+            "adjusted cameras, minus surveyed (not in the adjustment)",
+        ),
     ):
         c = d.get(key) or {}
         ids = c.get("ids") or []
@@ -593,13 +677,19 @@ def _points_section(d: Mapping) -> str:
             for i, e, n in zip(ids, err, length)
         ]
         rm, rg = c["rmse"], c["rmse_gsd"]
-        rows.append(["RMSE", *[F.fmt_fixed(_nan(x), 4) for x in rm],
-                     F.fmt_fixed(float(np.sqrt(np.sum(np.square([_nan(x) for x in rm])))), 4),
-                     F.fmt_fixed(float(np.sqrt(np.sum(np.square([_nan(x) for x in rg])))), 2)])
+        rows.append(
+            [
+                "RMSE",
+                *[F.fmt_fixed(_nan(x), 4) for x in rm],
+                F.fmt_fixed(float(np.sqrt(np.sum(np.square([_nan(x) for x in rm])))), 4),
+                F.fmt_fixed(float(np.sqrt(np.sum(np.square([_nan(x) for x in rg])))), 2),
+            ]
+        )
         parts.append(
             f"<h4>{title} ({len(ids)})</h4>"
-            + _table_html(["point", f"dX [{u}]", f"dY [{u}]", f"dZ [{u}]", f"|d| [{u}]",
-                           "|d| [GSD]"], rows)
+            + _table_html(
+                ["point", f"dX [{u}]", f"dY [{u}]", f"dZ [{u}]", f"|d| [{u}]", "|d| [GSD]"], rows
+            )
             + f'<p class="note">{_esc(conv)}; RMSE in GSD: X {_f(rg[0], 3)}, Y {_f(rg[1], 3)}, '
             f"Z {_f(rg[2], 3)} (GSD {_f(gsd)} {_esc(u)}/px)</p>"
         )
@@ -612,18 +702,30 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
         return '<p class="note">Data snooping was not run (snooping=False).</p>'
     fl = d.get("flagged") or []
     n = int(d.get("n_flagged", len(fl)))
-    head = (f"<p>Baarda's w-test per image observation (the larger |w| of u and v), "
-            f"alpha {sn['alpha']} per test, critical value {_f(sn['critical_value'])}: "
-            f"<strong>{n}</strong> observation(s) flagged. Flagged observations are listed, "
-            "not removed: the largest |w| is the most likely blunder; remove it and adjust "
-            "again.</p>")
+    head = (
+        f"<p>Baarda's w-test per image observation (the larger |w| of u and v), "
+        f"alpha {sn['alpha']} per test, critical value {_f(sn['critical_value'])}: "
+        f"<strong>{n}</strong> observation(s) flagged. Flagged observations are listed, "
+        "not removed: the largest |w| is the most likely blunder; remove it and adjust "
+        "again.</p>"
+    )
     if not fl:
         return head
     shown = fl[:max_rows]
-    rows = [[str(r["image"]), str(r["point"]), f"{r['w']:.2f}", F.fmt_fixed(_nan(r["v"][0]), 3),
-             F.fmt_fixed(_nan(r["v"][1]), 3), _f(r["sigma"], 3)] for r in shown]
+    rows = [
+        [
+            str(r["image"]),
+            str(r["point"]),
+            f"{r['w']:.2f}",
+            F.fmt_fixed(_nan(r["v"][0]), 3),
+            F.fmt_fixed(_nan(r["v"][1]), 3),
+            _f(r["sigma"], 3),
+        ]
+        for r in shown
+    ]
     return head + _table_html(
-        ["image", "point", "|w|", "v_u [px]", "v_v [px]", "sigma [px]"], rows,
+        ["image", "point", "|w|", "v_u [px]", "v_v [px]", "sigma [px]"],
+        rows,
         flags=[[False, False, True, False, False, False]] * len(rows),
         note=(f"the {len(shown)} largest of {n}" if n > len(shown) else f"all {n}")
         + "; v = computed - observed",
@@ -633,12 +735,19 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
 def _variance_section(vc: Mapping) -> str:
     f = vc.get("factors") or {}
     red = vc.get("redundancy") or {}
-    rows = [[k, F.fmt_fixed(_nan(v), 4), F.fmt_fixed(math.sqrt(_nan(v)) if _nan(v) >= 0
-                                                     else math.nan, 4),
-             F.fmt_fixed(_nan(red.get(k)), 1)] for k, v in f.items()]
+    rows = [
+        [
+            k,
+            F.fmt_fixed(_nan(v), 4),
+            F.fmt_fixed(math.sqrt(_nan(v)) if _nan(v) >= 0 else math.nan, 4),
+            F.fmt_fixed(_nan(red.get(k)), 1),
+        ]
+        for k, v in f.items()
+    ]
     conv = "converged" if vc.get("converged") else "NOT converged"
     return _table_html(
-        ["observation group", "factor", "sqrt(factor)", "redundancy"], rows,
+        ["observation group", "factor", "sqrt(factor)", "redundancy"],
+        rows,
         note=f"{_esc(vc.get('meaning', ''))}; iterated estimation {conv} after "
         f"{vc.get('rounds', '?')} round(s)",
     )
@@ -661,62 +770,112 @@ def add_bundle_result(
     """
     d = data
     p = f"{title}: " if title else ""
-    report._add(3, f"{p}Adjustment summary" if title else "Adjustment summary",
-                _table_html(["quantity", "value"], _summary_rows(d), cls="stats",
-                            header=False)
-                + ("" if d["converged"] else '<p class="warn">The iteration did NOT converge; '
-                   "do not trust these numbers.</p>"))
+    report._add(
+        3,
+        f"{p}Adjustment summary" if title else "Adjustment summary",
+        _table_html(["quantity", "value"], _summary_rows(d), cls="stats", header=False)
+        + (
+            ""
+            if d["converged"]
+            else '<p class="warn">The iteration did NOT converge; do not trust these numbers.</p>'
+        ),
+    )
     report._add(3, f"{p}Calibration", _calibration_section(d, max_rows))
     report._add(3, f"{p}Exterior orientation", _exterior_section(d, max_rows))
     pts = _points_section(d)
     if pts:
         report._add(3, f"{p}Control and check points", pts)
     if d.get("sensor_grid"):
-        report._add(3, f"{p}Residuals over the sensor", _img_html(
-            figure_to_png(sensor_grid_figure(d["sensor_grid"])), "residuals over the sensor",
-            "Mean image residual (computed - observed) of the adjusted observations in each "
-            "cell of a regular grid over the image frame; pale arrows: cells with fewer than "
-            f"{MIN_CELL_COUNT} observations. A pattern repeated over the frame is a "
-            "systematic error the camera model does not absorb."))
+        report._add(
+            3,
+            f"{p}Residuals over the sensor",
+            _img_html(
+                figure_to_png(sensor_grid_figure(d["sensor_grid"])),
+                "residuals over the sensor",
+                "Mean image residual (computed - observed) of the adjusted observations in each "
+                "cell of a regular grid over the image frame; pale arrows: cells with fewer than "
+                f"{MIN_CELL_COUNT} observations. A pattern repeated over the frame is a "
+                "systematic error the camera model does not absorb.",
+            ),
+        )
     if d.get("images"):
-        report._add(3, f"{p}Residual RMS per image", _img_html(
-            figure_to_png(image_rms_figure(d["images"], _nan(d["rmse_px"]))),
-            "RMS residual per image", "RMS of the image residual lengths of each image's "
-            "adjusted observations, in block order."))
+        report._add(
+            3,
+            f"{p}Residual RMS per image",
+            _img_html(
+                figure_to_png(image_rms_figure(d["images"], _nan(d["rmse_px"]))),
+                "RMS residual per image",
+                "RMS of the image residual lengths of each image's "
+                "adjusted observations, in block order.",
+            ),
+        )
     pp = d.get("point_precision")
     if pp:
-        txt = (f"{pp['n']} tie and control points; RMS of the standard deviations X "
-               f"{_f(pp['rms'][0])}, Y {_f(pp['rms'][1])}, Z {_f(pp['rms'][2])} {d['unit']}; "
-               f"median {_f(pp['median'][0])}, {_f(pp['median'][1])}, {_f(pp['median'][2])}; "
-               f"largest {_f(pp['max'][0])}, {_f(pp['max'][1])}, {_f(pp['max'][2])}")
+        txt = (
+            f"{pp['n']} tie and control points; RMS of the standard deviations X "
+            f"{_f(pp['rms'][0])}, Y {_f(pp['rms'][1])}, Z {_f(pp['rms'][2])} {d['unit']}; "
+            f"median {_f(pp['median'][0])}, {_f(pp['median'][1])}, {_f(pp['median'][2])}; "
+            f"largest {_f(pp['max'][0])}, {_f(pp['max'][1])}, {_f(pp['max'][2])}"
+        )
         above = sum(pp["above"].values())
         if above:
             txt += f"; {above} value(s) beyond the last bin are counted in it"
-        report._add(3, f"{p}Point precision", _img_html(
-            figure_to_png(point_precision_figure(pp, d["unit"])), "point precision",
-            txt + " (marginal a-posteriori standard deviations)."))
+        report._add(
+            3,
+            f"{p}Point precision",
+            _img_html(
+                figure_to_png(point_precision_figure(pp, d["unit"])),
+                "point precision",
+                txt + " (marginal a-posteriori standard deviations).",
+            ),
+        )
     else:
-        report._add(3, f"{p}Point precision", '<p class="note">Point covariances were not '
-                    "computed (bundle_adjust(..., point_covariance=True), or --point-covariance "
-                    "at the command line).</p>")
+        report._add(
+            3,
+            f"{p}Point precision",
+            '<p class="note">Point covariances were not '
+            "computed (bundle_adjust(..., point_covariance=True), or --point-covariance "
+            "at the command line).</p>",
+        )
     if d.get("cost_history"):
-        report._add(3, f"{p}Convergence", _img_html(
-            figure_to_png(convergence_figure(d["cost_history"])), "convergence",
-            f"Cost v'Pv (whitened, robust weights applied) after each accepted "
-            f"Levenberg-Marquardt step; {d['message']}."
-            + (" With variance components: the last round's iterations (each round "
-               "re-weights the groups and iterates again)." if d.get("variance_components")
-               else "")))
+        report._add(
+            3,
+            f"{p}Convergence",
+            _img_html(
+                figure_to_png(convergence_figure(d["cost_history"])),
+                "convergence",
+                f"Cost v'Pv (whitened, robust weights applied) after each accepted "
+                f"Levenberg-Marquardt step; {d['message']}."
+                + (
+                    " With variance components: the last round's iterations (each round "
+                    "re-weights the groups and iterates again)."
+                    if d.get("variance_components")
+                    else ""
+                ),
+            ),
+        )
     report._add(3, f"{p}Flagged observations (w-test)", _flagged_section(d, max_rows))
     if d.get("variance_components"):
         report._add(3, f"{p}Variance components", _variance_section(d["variance_components"]))
     notes = d.get("notes") or []
-    report._add(3, f"{p}Notes", "".join(f'<p class="note">{_esc(n)}</p>' for n in notes)
-                if notes else '<p class="note">none</p>')
+    report._add(
+        3,
+        f"{p}Notes",
+        "".join(f'<p class="note">{_esc(n)}</p>' for n in notes)
+        if notes
+        else '<p class="note">none</p>',
+    )
 
 
-def add_bundle_fit(report: Report, fit, title: str | None = None, *, unit: str = "m",
-                   angle_unit: str = "deg", max_rows: int = MAX_ROWS) -> dict:
+def add_bundle_fit(
+    report: Report,
+    fit,
+    title: str | None = None,
+    *,
+    unit: str = "m",
+    angle_unit: str = "deg",
+    max_rows: int = MAX_ROWS,
+) -> dict:
     """Add the sections of a :class:`~photogeom.bundle.BundleFit` to ``report``; returns the
     result record (see :func:`bundle_result_data`) it was rendered from."""
     data = bundle_result_data(fit, unit=unit, angle_unit=angle_unit)
@@ -724,8 +883,14 @@ def add_bundle_fit(report: Report, fit, title: str | None = None, *, unit: str =
     return data
 
 
-def bundle_report(fit_or_data, title: str = "Bundle adjustment", *, unit: str = "m",
-                  angle_unit: str = "deg", max_rows: int = MAX_ROWS) -> Report:
+def bundle_report(
+    fit_or_data,
+    title: str = "Bundle adjustment",
+    *,
+    unit: str = "m",
+    angle_unit: str = "deg",
+    max_rows: int = MAX_ROWS,
+) -> Report:
     """A complete HTML report of a bundle adjustment (a ``BundleFit`` or a result record).
 
     >>> bundle_report(fit).write("bundle.html")                      # doctest: +SKIP
@@ -735,8 +900,11 @@ def bundle_report(fit_or_data, title: str = "Bundle adjustment", *, unit: str = 
     else:
         data = bundle_result_data(fit_or_data, unit=unit, angle_unit=angle_unit)
     blk = data["block"]
-    rep = Report(title, subtitle=f"{blk['n_images']} images, {blk['n_points']} points, "
-                 f"{blk['n_image_observations']} image observations; residuals are computed "
-                 "minus observed, in pixels")
+    rep = Report(
+        title,
+        subtitle=f"{blk['n_images']} images, {blk['n_points']} points, "
+        f"{blk['n_image_observations']} image observations; residuals are computed "
+        "minus observed, in pixels",
+    )
     add_bundle_result(rep, data, max_rows=max_rows)
     return rep
