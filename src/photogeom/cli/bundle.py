@@ -428,7 +428,7 @@ def adjust(
     Prints the summary (or JSON with --json); on a terminal the iterations are shown as they
     run. Everything is computed before any file is written.
     """
-    from ..bundle import bundle_adjust
+    from ..bundle import CALIBRATION_NAMES, bundle_adjust
     from ..report.bundle import bundle_report, bundle_result_data
 
     src_fmt = detect_format(source, fmt)
@@ -447,7 +447,14 @@ def adjust(
     )
     names = split_names(free)
     if names is not None:
-        options["free"] = () if [n.lower() for n in names] == ["none"] else tuple(names)
+        names = [] if [n.lower() for n in names] == ["none"] else [n.lower() for n in names]
+        unknown = [n for n in names if n not in CALIBRATION_NAMES]
+        if unknown:
+            raise InputError(
+                f"--free: unknown calibration parameter(s) {', '.join(unknown)}; the names are "
+                f"{', '.join(CALIBRATION_NAMES)} (or 'none')"
+            )
+        options["free"] = tuple(names)
     prog, progress = _progress_display(max_iterations)
     if prog is not None:
         with prog:
