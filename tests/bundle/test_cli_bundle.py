@@ -218,3 +218,22 @@ def test_progress_on_a_terminal_only(simulated, cli, monkeypatch):
     assert code == 0, err
     assert calls and calls == sorted(calls)
     assert "cost" in buf.getvalue()
+
+
+def test_worked_example_finds_the_blunder_and_fills_the_report():
+    from photogeom.examples import get
+    from photogeom.report import Report
+
+    rep = Report("examples")
+    text = get("bundle-uav").run(rep)
+    assert "(the simulated blunder); removed, adjusted again" in text
+    assert "chi-square test: passed" in text
+    z = [float(ln.split("(")[-1].split()[0]) for ln in text.splitlines() if "sigma)" in ln]
+    assert len(z) == 8 and max(abs(v) for v in z) < 4
+    for h in (
+        "Calibration against the truth",
+        "FC300S block: Calibration",
+        "FC300S block: Residuals over the sensor",
+        "FC300S block: Convergence",
+    ):
+        assert h in rep.headings
