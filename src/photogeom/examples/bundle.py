@@ -59,7 +59,7 @@ def _uav(report) -> str:
     flagged = first.snooping["flagged"]
     found = bool(flagged) and tuple(flagged[0][:2]) == blunder
     # remove the observation with the largest |w| and adjust again
-    img, pt = flagged[0][:2]
+    img, pt, wmax = flagged[0] if flagged else (None, None, float("nan"))
     keep = ~((o.image_ids == img) & (o.point_ids == pt))
     fit = bundle.bundle_adjust(
         sim.block.select_observations(keep), free=FREE, point_covariance=True
@@ -67,7 +67,7 @@ def _uav(report) -> str:
     rows, info = _truth_rows(sim, fit)
     first_line = (
         f"first adjustment: sigma0 {first.sigma0:.3f}, {len(flagged)} observation(s) fail the "
-        f"w-test, the largest |w| = {flagged[0][2]:.1f} at image {img}, point {pt} "
+        f"w-test, the largest |w| = {wmax:.1f} at image {img}, point {pt} "
         f"({'the simulated blunder' if found else 'NOT the simulated blunder'}); removed, "
         "adjusted again:"
     )
@@ -89,25 +89,29 @@ def _uav(report) -> str:
     ]
     if report is not None:
         from ..report.bundle import add_bundle_fit
+        from ..report.format import fmt_std, fmt_value
 
+        report.add_text("The block", sim.summary(), pre=True)
         report.add_text(
-            "The block",
-            sim.summary() + "\n\nSimulated by pg.simulate.uav_block('FC300S', seed=7, strips=2, "
-            "images_per_strip=6, tie_points_per_image=100, blunders=1, local_field=0): "
-            "without the image-variant local distortion the camera model is complete, so the "
-            "estimate should differ from the truth by about its standard deviations. "
-            "Adjusted by "
-            "pg.bundle_adjust(block, free=('f', 'cx', 'cy', 'k1', 'k2', 'k3', 'p1', 'p2')). "
+            None,
+            "Simulated by pg.simulate.uav_block('FC300S', seed=7, strips=2, images_per_strip=6, "
+            "tie_points_per_image=100, blunders=1, local_field=0): without the image-variant "
+            "local distortion the camera model is complete, so the estimate should differ from "
+            "the truth by about its standard deviations. Adjusted by pg.bundle_adjust(block, "
+            "free=('f', 'cx', 'cy', 'k1', 'k2', 'k3', 'p1', 'p2')).\n\n"
             + first_line.replace(
-                "adjusted again:", "adjusted again with point_covariance=True (the report below)."
-            )
-            + " The true values are known: the table compares them.",
+                "adjusted again:",
+                "adjusted again with point_covariance=True (the report below).",
+            ),
             pre=False,
         )
         report.add_table(
             "Calibration against the truth",
             ["parameter", "estimate", "true", "estimate - true", "std. dev.", "in std. dev."],
-            [[n, e, t, f"{d:.3g}", f"{s:.2g}", f"{z:+.2f}"] for n, e, t, d, s, z in rows],
+            [
+                [n, fmt_value(e, s), f"{t:g}", f"{d:.3g}", fmt_std(s), f"{z:+.2f}"]
+                for n, e, t, d, s, z in rows
+            ],
             note="f, cx, cy in px; K, P dimensionless; differences within about two standard "
             "deviations are what the noise explains",
         )
