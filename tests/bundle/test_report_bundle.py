@@ -301,6 +301,11 @@ def test_many_camera_groups_are_pooled(tmp_path):
     pg.bundle.write_bal(sim.truth, bal, drop_extras=True)
     block = pg.bundle.read_bal(bal)  # one camera group per image
     fit = pg.bundle.bundle_adjust(block, datum="free", max_iterations=10)
+    # free network: every image has standard deviations in the inner-constraint datum (the
+    # images held for the minimal constraints too), the same as its covariance block
+    cov = np.array([np.sqrt(np.diag(fit.image_covariance(i))) for i in block.image_ids.tolist()])
+    np.testing.assert_allclose(fit.exterior_std, cov, rtol=1e-12)
+    assert np.all(fit.exterior_std > 0)
     d = bundle_result_data(fit)
     assert len(d["sensor_grid"]) == 1 and d["sensor_grid"][0]["n_images"] == block.n_images
     assert "pooled over camera groups" in d["sensor_grid"][0]["label"]

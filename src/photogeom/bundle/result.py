@@ -381,6 +381,10 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     image_cov = var * np.einsum("mij,mjk,mlk->mil", Jm, Ql6, Jm)
     ext_std = np.sqrt(np.clip(np.einsum("mii->mi", image_cov), 0, None))
     fixed6 = ~problem.local_free[:, :6]
+    if problem.free_datum is not None and not opts.fix_exterior:
+        # the minimal constraints are only a computational datum: after the transformation
+        # to inner constraints every image has its (non-zero) standard deviations
+        fixed6 = np.zeros_like(fixed6)
     ext_std[fixed6] = 0.0
     # calibration
     calib, cal_std, cal_corr, cal_cov, high = {}, {}, {}, {}, []
