@@ -286,6 +286,7 @@ def test_variance_components(sim, monkeypatch):
     assert rep.headings[0] == "VC: Adjustment summary"
     t = _table_after(html, "VC: Variance components")
     groups = {r[0][0]: float(r[1][0]) for r in t[1:]}
+    assert [c[0] for c in t[0]][:3] == ["observation group", "sigma factor", "variance factor"]
     assert groups.keys() == fit.variance_components["factors"].keys()
     for k, v in groups.items():
         assert v == pytest.approx(fit.variance_components["factors"][k], abs=1e-4)

@@ -742,14 +742,14 @@ def _variance_section(vc: Mapping) -> str:
         [
             k,
             F.fmt_fixed(_nan(v), 4),
-            F.fmt_fixed(math.sqrt(_nan(v)) if _nan(v) >= 0 else math.nan, 4),
+            F.fmt_fixed(_nan(v) ** 2, 4),
             F.fmt_fixed(_nan(red.get(k)), 1),
         ]
         for k, v in f.items()
     ]
     conv = "converged" if vc.get("converged") else "NOT converged"
     return _table_html(
-        ["observation group", "factor", "sqrt(factor)", "redundancy"],
+        ["observation group", "sigma factor", "variance factor", "redundancy"],
         rows,
         note=f"{_esc(vc.get('meaning', ''))}; iterated estimation {conv} after "
         f"{vc.get('rounds', '?')} round(s)",
