@@ -154,6 +154,9 @@ def test_errors_are_one_line_in_option_words(simulated, cli, tmp_path):
     assert code == 2 and "--format" in err
     code, _, err = cli("bundle", "convert", simulated, tmp_path / "out")
     assert code == 2 and "--to" in err
+    # an undetermined camera: the advice names --free, not the keyword of bundle_adjust
+    code, _, err = cli("bundle", "adjust", pg.datasets.path("dubrovnik-3-7"), "--datum", "free")
+    assert code == 2 and "--free f,cx,cy" in err and "free=(" not in err
     bad = tmp_path / "x.json"
     bad.write_text('{"a": 1}')
     code, _, err = cli("bundle", "report", bad)

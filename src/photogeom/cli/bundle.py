@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -67,6 +68,9 @@ _CLI_WORDS = (
     ("loss_scale", "--loss-scale"),
 )
 
+#: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
+_FREE_TUPLE = re.compile(r"free=\(((?:'\w+',?\s*)+)\)")
+
 
 class _CliWords:
     """Re-raise photogeom errors with the library's keyword names replaced by the options."""
@@ -81,6 +85,9 @@ class _CliWords:
             text = str(exc.args[0])
             for lib, cli in _CLI_WORDS:
                 text = text.replace(lib, cli)
+            text = _FREE_TUPLE.sub(
+                lambda m: "--free " + ",".join(re.findall(r"'(\w+)'", m.group(1))), text
+            )
             if text != exc.args[0]:
                 exc.args = (text, *exc.args[1:])
         return False
