@@ -12,7 +12,7 @@ from photogeom.bundle import Block, bundle_adjust, reprojection_residuals
 from photogeom.errors import DegenerateGeometryError, InputError
 
 sys.path.insert(0, str(Path(__file__).parent))
-from blocks import TRUE_CAL, grid_block, perturbed  # noqa: E402
+from blocks import TRUE_CAL, grid_block, perturbed
 
 
 def _cal(res):
@@ -60,7 +60,7 @@ def test_contract_names():
 
 def test_datum_defect_is_named():
     truth = grid_block(0, rows=2, cols=3, n_points=120, n_control=0, n_check=0)
-    with pytest.raises(DegenerateGeometryError, match="datum defect.*3 shifts"):
+    with pytest.raises(DegenerateGeometryError, match=r"datum defect.*3 shifts"):
         bundle_adjust(truth)
     two = grid_block(0, rows=2, cols=3, n_points=120, n_control=2, n_check=0)
     with pytest.raises(DegenerateGeometryError, match="rotation about the line"):

@@ -15,7 +15,7 @@ import pytest
 from photogeom.bundle import bundle_adjust
 
 sys.path.insert(0, str(Path(__file__).parent))
-from blocks import grid_block  # noqa: E402
+from blocks import grid_block
 
 
 @pytest.mark.slow
