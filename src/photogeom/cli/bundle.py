@@ -486,6 +486,7 @@ def adjust(
     if as_json:
         d = fit.to_dict(angle)
         d["unit"] = unit
+        d["input"] = {"path": str(source), "format": src_fmt}
         typer.echo(json_text(d), nl=False)
         return
     out = console()
