@@ -230,12 +230,13 @@ class BundleFit:
         ext = b.exterior.copy()
         ext[:, 3:] = np.asarray(from_radians(ext[:, 3:], angle_unit))
         es[:, 3:] = np.asarray(from_radians(es[:, 3:], angle_unit))
+        rms = self.rms_per_image  # once: the property scans every observation
         images = [
             {
                 "id": i,
                 **{n: float(v) for n, v in zip(EO_NAMES, ext[k])},
                 **{f"s{n}": float(v) for n, v in zip(EO_NAMES, es[k])},
-                "rms_px": float(self.rms_per_image[i]),
+                "rms_px": float(rms[i]),
             }
             for k, i in enumerate(b.image_ids.tolist())
         ]

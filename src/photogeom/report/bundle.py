@@ -442,7 +442,7 @@ def convergence_figure(history) -> Figure:
         a2.semilogy(it[1:][ok], rel[ok], "s-", color="#2e8b57", ms=4)
     a2.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:.0e}"))
     a2.set_xlabel("iteration")
-    a2.set_ylabel("(cost before - after) / before")
+    a2.set_ylabel("relative decrease")
     a2.set_title("relative decrease of each step", fontsize=9, loc="left")
     for ax in (a1, a2):
         ax.xaxis.get_major_locator().set_params(integer=True)
@@ -626,9 +626,10 @@ def _exterior_section(d: Mapping, max_rows: int) -> str:
             "first); the result record holds all"
         )
     names = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
+    cams = len({str(r.get("camera", "")) for r in imgs}) > 1  # a camera column when useful
     cols = [
         "image",
-        "camera",
+        *(["camera"] if cams else []),
         *[f"{n} ± s [{u if k < 3 else au}]" for k, n in enumerate(names)],
         "obs.",
         "RMS [px]",
@@ -639,21 +640,22 @@ def _exterior_section(d: Mapping, max_rows: int) -> str:
         rows.append(
             [
                 str(r["id"]),
-                str(r.get("camera", "")),
+                *([str(r.get("camera", ""))] if cams else []),
                 *[_pm(r[n], r[f"s{n}"]) for n in names],
                 str(r.get("n_obs", "")),
                 _f(r["rms_px"], 3),
             ]
         )
-    return _table_html(
+    c0 = 2 if cams else 1
+    table = _table_html(
         cols,
         rows,
-        text_cols={1},
-        numeric_cols=set(range(2, 8)),
-        note=note + '; value ± a-posteriori std. dev. ("fixed": held at its '
-        "value, or fixed by the datum); RMS of the image residual lengths of the "
-        "image's adjusted observations",
+        text_cols={1} if cams else None,
+        numeric_cols=set(range(c0, c0 + 6)),
+        note=note + '; value ± a-posteriori std. dev. ("fixed": held at its value); RMS of '
+        "the image residual lengths of the image's adjusted observations",
     )
+    return f'<div style="overflow-x:auto">{table}</div>'
 
 
 def _points_section(d: Mapping) -> str:
