@@ -157,6 +157,8 @@ def test_errors_are_one_line_in_option_words(simulated, cli, tmp_path):
     # an undetermined camera: the advice names --free, not the keyword of bundle_adjust
     code, _, err = cli("bundle", "adjust", pg.datasets.path("dubrovnik-3-7"), "--datum", "free")
     assert code == 2 and "--free f,cx,cy" in err and "free=(" not in err
+    code, _, err = cli("bundle", "adjust", simulated, "--report", tmp_path / "no" / "r.html")
+    assert code == 2 and "--report" in err and "does not exist" in err
     bad = tmp_path / "x.json"
     bad.write_text('{"a": 1}')
     code, _, err = cli("bundle", "report", bad)

@@ -439,6 +439,9 @@ def adjust(
     from ..report.bundle import bundle_report, bundle_result_data
 
     src_fmt = detect_format(source, fmt)
+    for opt, path in (("--report", report), ("--result", result)):
+        if path is not None and str(path.parent) and not path.parent.is_dir():
+            raise InputError(f"{opt}: cannot write {path}: folder {path.parent} does not exist")
     out_fmt = (
         None if output is None else output_format(output, output_fmt, src_fmt, "--output-format")
     )
@@ -568,6 +571,8 @@ def report_cmd(
 
     if max_rows < 1:
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
+    if str(output.parent) and not output.parent.is_dir():
+        raise InputError(f"--output: cannot write {output}: folder {output.parent} does not exist")
     data = read_bundle_result(result)
     rep = bundle_report(data, title or f"Bundle adjustment: {result.stem}", max_rows=max_rows)
     path = rep.write(output)
