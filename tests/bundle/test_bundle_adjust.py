@@ -16,9 +16,8 @@ from blocks import TRUE_CAL, grid_block, perturbed
 
 
 def _cal(res):
-    return np.array(
-        [res.calibration["cam"][n] for n in ("f", "cx", "cy", "k1", "k2", "k3", "p1", "p2")]
-    )
+    return np.array([res.calibration["cam"][n] for n in ("f", "cx", "cy", "k1", "k2", "k3",
+                                                         "p1", "p2")])
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -27,7 +26,8 @@ def test_noise_free_block_is_recovered_from_a_perturbed_start(seed):
     assert np.abs(reprojection_residuals(truth)).max() < 1e-9
     res = pg.bundle_adjust(perturbed(truth, seed=seed + 10, pos=3.0, ang=0.03, cal_rel=0.05))
     assert res.converged
-    t = np.array([getattr(TRUE_CAL, n) for n in ("f", "cx", "cy", "k1", "k2", "k3", "p1", "p2")])
+    t = np.array([getattr(TRUE_CAL, n) for n in ("f", "cx", "cy", "k1", "k2", "k3", "p1",
+                                                 "p2")])
     np.testing.assert_allclose(_cal(res), t, rtol=1e-8, atol=1e-10)
     np.testing.assert_allclose(res.block.exterior[:, :3], truth.exterior[:, :3], atol=1e-6)
     np.testing.assert_allclose(res.block.exterior[:, 3:], truth.exterior[:, 3:], atol=1e-9)
@@ -72,26 +72,17 @@ def test_free_network_covariance_does_not_depend_on_the_minimal_datum():
     res1 = bundle_adjust(truth, datum="free", snooping=False)
     assert res1.converged
     order = np.r_[3, 0, 1, 2, 4, 5]  # another image first: another minimal datum
-    t2 = truth.replace(
-        image_ids=truth.image_ids[order],
-        image_camera=truth.image_camera[order],
-        exterior=truth.exterior[order],
-        gnss=truth.gnss[order],
-        gnss_sigma=truth.gnss_sigma[order],
-        imu=truth.imu[order],
-        imu_sigma=truth.imu_sigma[order],
-        calibration_offset=truth.calibration_offset[order],
-        obs_image=np.argsort(order)[truth.obs_image],
-    )
+    t2 = truth.replace(image_ids=truth.image_ids[order], image_camera=truth.image_camera[order],
+                       exterior=truth.exterior[order], gnss=truth.gnss[order],
+                       gnss_sigma=truth.gnss_sigma[order], imu=truth.imu[order],
+                       imu_sigma=truth.imu_sigma[order],
+                       calibration_offset=truth.calibration_offset[order],
+                       obs_image=np.argsort(order)[truth.obs_image])
     res2 = bundle_adjust(t2, datum="free", snooping=False)
     for k in range(6):
         i = truth.image_ids[k].item()
-        np.testing.assert_allclose(
-            res1.image_covariance(i)[:3, :3],
-            res2.image_covariance(i)[:3, :3],
-            rtol=1e-6,
-            atol=1e-14,
-        )
+        np.testing.assert_allclose(res1.image_covariance(i)[:3, :3],
+                                   res2.image_covariance(i)[:3, :3], rtol=1e-6, atol=1e-14)
     # inner constraints on the centres: the shifts of the centres' covariance sum to zero
     S = sum(res1.image_covariance(truth.image_ids[k].item())[:3, :3] for k in range(6))
     assert np.all(np.isfinite(S))
@@ -112,17 +103,9 @@ def test_point_seen_once_image_with_two_observations_and_unknown_ids():
     with pytest.raises(InputError, match=r"fewer than 3 observations.*img000"):
         bundle_adjust(b)
     with pytest.raises(InputError, match="unknown points id"):
-        Block.from_arrays(
-            cameras={"c": TRUE_CAL},
-            image_ids=["a"],
-            image_camera=["c"],
-            exterior=[[0, 0, 10, 0, 0, 0]],
-            point_ids=[1],
-            xyz=[[0, 0, 0]],
-            obs_image_ids=["a"],
-            obs_point_ids=[7],
-            uv=[[1, 1]],
-        )
+        Block.from_arrays(cameras={"c": TRUE_CAL}, image_ids=["a"], image_camera=["c"],
+                          exterior=[[0, 0, 10, 0, 0, 0]], point_ids=[1], xyz=[[0, 0, 0]],
+                          obs_image_ids=["a"], obs_point_ids=[7], uv=[[1, 1]])
 
 
 def test_blunder_of_50_px_is_flagged_by_ids_and_huber_resists_it():
@@ -164,20 +147,11 @@ def test_image_variant_focal_lengths_are_recovered():
     uv = tb.observations.uv + reprojection_residuals(tb)
     tb = tb.with_observations(uv=uv)
     tb = Block.from_arrays(
-        cameras=tb.cameras,
-        image_ids=tb.image_ids,
-        image_camera=["cam"] * tb.n_images,
-        exterior=tb.exterior,
-        point_ids=tb.point_ids,
-        xyz=tb.xyz,
-        role=tb.role,
-        point_sigma=tb.point_sigma,
-        obs_image_ids=tb.observations.image_ids,
-        obs_point_ids=tb.observations.point_ids,
-        uv=uv,
-        sigma=0.5,
-        image_variant=("f",),
-        calibration_offset=off,
+        cameras=tb.cameras, image_ids=tb.image_ids, image_camera=["cam"] * tb.n_images,
+        exterior=tb.exterior, point_ids=tb.point_ids, xyz=tb.xyz, role=tb.role,
+        point_sigma=tb.point_sigma, obs_image_ids=tb.observations.image_ids,
+        obs_point_ids=tb.observations.point_ids, uv=uv, sigma=0.5,
+        image_variant=("f",), calibration_offset=off,
     )
     start = tb.replace(calibration_offset=np.zeros_like(off))
     res = bundle_adjust(start, snooping=False)
