@@ -46,6 +46,8 @@ class BundleFit:
         Correlation matrix of the free calibration parameters of each group.
     high_correlations : list of (group, name, name, rho)
         Calibration correlations above the threshold of the options.
+    correlation_threshold : float
+        That threshold (``BundleOptions.correlation_threshold``).
     exterior_std : numpy.ndarray (m, 6)
         Standard deviations of X0, Y0, Z0 (object units) and omega, phi, kappa (radians).
     point_std : numpy.ndarray (p, 3) or None
@@ -53,6 +55,9 @@ class BundleFit:
     check : dict
         Check-point ids, errors ``adjusted - surveyed`` (k, 3), RMSE X, Y, Z (object units
         and GSD).
+    control : dict
+        Control-point ids, their adjusted minus surveyed coordinates (k, 3), RMSE X, Y, Z
+        (object units and GSD) and the surveyed standard deviations (k, 3).
     snooping : dict or None
         Baarda's w per observation (n, 2), the critical value and the flagged observations
         as (image id, point id, w).
@@ -92,6 +97,8 @@ class BundleFit:
     notes: tuple = ()
     elapsed: float = 0.0
     solver: Mapping = field(default_factory=dict)
+    control: Mapping = field(default_factory=lambda: {"ids": []})
+    correlation_threshold: float = 0.9
     _image_cov: np.ndarray | None = None
     _point_cov: np.ndarray | None = None
     _cal_cov: Mapping | None = None
@@ -223,12 +230,13 @@ class BundleFit:
         ext = b.exterior.copy()
         ext[:, 3:] = np.asarray(from_radians(ext[:, 3:], angle_unit))
         es[:, 3:] = np.asarray(from_radians(es[:, 3:], angle_unit))
+        rms = self.rms_per_image  # once: the property scans every observation
         images = [
             {
                 "id": i,
                 **{n: float(v) for n, v in zip(EO_NAMES, ext[k])},
                 **{f"s{n}": float(v) for n, v in zip(EO_NAMES, es[k])},
-                "rms_px": float(self.rms_per_image[i]),
+                "rms_px": float(rms[i]),
             }
             for k, i in enumerate(b.image_ids.tolist())
         ]
@@ -252,6 +260,7 @@ class BundleFit:
                 "high_correlations": [list(x) for x in self.high_correlations],
                 "images": images,
                 "check": dict(self.check),
+                "control": dict(self.control),
                 "snooping": None
                 if self.snooping is None
                 else {
@@ -347,6 +356,10 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     image_cov = var * np.einsum("mij,mjk,mlk->mil", Jm, Ql6, Jm)
     ext_std = np.sqrt(np.clip(np.einsum("mii->mi", image_cov), 0, None))
     fixed6 = ~problem.local_free[:, :6]
+    if problem.free_datum is not None and not opts.fix_exterior:
+        # the minimal constraints are only a computational datum: after the transformation
+        # to inner constraints every image has its (non-zero) standard deviations
+        fixed6 = np.zeros_like(fixed6)
     ext_std[fixed6] = 0.0
     # calibration
     calib, cal_std, cal_corr, cal_cov, high = {}, {}, {}, {}, []
@@ -416,6 +429,19 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         if point_cov is not None:
             point_cov[problem.check_points] = tri.covariance * s0p**2
     adjusted = problem.to_block(state, check_xyz)
+    control = {"ids": []}
+    if problem.control.size:
+        ci = problem.adj_points[problem.control]
+        cerr = adjusted.xyz[ci] - block.xyz[ci]
+        crm = np.sqrt(np.mean(cerr**2, axis=0))
+        control = {
+            "ids": block.point_ids[ci].tolist(),
+            "errors": cerr,
+            "rmse": crm,
+            "rmse_gsd": crm / adjusted.gsd(),
+            "sigma": block.point_sigma[ci],
+            "convention": "adjusted minus surveyed",
+        }
     if point_cov is not None:
         point_std = np.sqrt(np.clip(np.einsum("pii->pi", point_cov), 0, None))
     residuals = reprojection_residuals(adjusted, behind="nan")
@@ -500,6 +526,8 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         notes=tuple(notes),
         elapsed=elapsed,
         solver=solver,
+        control=control,
+        correlation_threshold=float(opts.correlation_threshold),
         _image_cov=image_cov,
         _point_cov=point_cov,
         _cal_cov=cal_cov,

@@ -27,6 +27,7 @@ _GROUPS = (
     ("camera", "camera"),
     ("rpc", "rpc"),
     ("grid", "grid"),
+    ("bundle", "bundle"),
     ("examples", "examples"),
 )
 

@@ -29,8 +29,9 @@ table{border-collapse:collapse;margin:.4em 0 .8em 0;font-size:.92em}
 th,td{padding:.22em .75em;border-bottom:1px solid #e3e8ee}
 th{background:#eef3f8;text-align:right;font-weight:600}
 th:first-child,td:first-child{text-align:left}
-td{text-align:right;font-family:"DejaVu Sans Mono",Menlo,Consolas,monospace;font-size:.95em}
-td.text{font-family:inherit;text-align:left}
+td{text-align:right;font-family:"DejaVu Sans Mono",Menlo,Consolas,monospace;font-size:.95em;
+white-space:nowrap}
+td.text{font-family:inherit;text-align:left;white-space:normal}
 td.flag{background:#fbe3e1;color:#a01d12;font-weight:600}
 table.stats td:first-child{font-family:inherit;color:#4a5a6c}
 table.stats td{text-align:left}
@@ -343,6 +344,7 @@ def _table_html(
     cls: str | None = None,
     header: bool = True,
     text_cols: set[int] | None = None,
+    numeric_cols: set[int] | None = None,
 ) -> str:
     out = [f'<table class="{cls}">' if cls else "<table>"]
     if header:
@@ -351,7 +353,12 @@ def _table_html(
         cells = []
         for j, c in enumerate(row):
             classes = []
-            if j > 0 and ((text_cols and j in text_cols) or not _is_numeric_text(str(c))):
+            numeric = bool(numeric_cols and j in numeric_cols)
+            if (
+                j > 0
+                and not numeric
+                and ((text_cols and j in text_cols) or not _is_numeric_text(str(c)))
+            ):
                 classes.append("text")
             if flags is not None and i < len(flags) and j < len(flags[i]) and flags[i][j]:
                 classes.append("flag")

@@ -1,0 +1,579 @@
+"""`photogeom bundle`: simulate, adjust, convert and report image blocks.
+
+* ``simulate OUT``: a simulated UAV block in the CSV block format, with the truth in
+  ``OUT/truth/`` and the simulation's settings and blunders in ``OUT/simulation.json``;
+* ``adjust INPUT``: the bundle adjustment of a CSV block folder, a BAL file or a COLMAP text
+  folder (format detected, or ``--format``), with the adjusted block (``--output``), the
+  summary as JSON (``--json``), an HTML report (``--report``) and the result record
+  (``--result``) that ``report`` renders again;
+* ``convert INPUT OUTPUT``: between BAL, COLMAP text and CSV blocks;
+* ``report RESULT.json``: the HTML report of a saved result record.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import InputError
+from ._common import AngleUnit, console, json_text, say, split_names
+
+app = typer.Typer(
+    help="Bundle adjustment of image blocks: simulate, adjust, convert, report.",
+    no_args_is_help=True,
+)
+
+
+class BlockFormat(str, Enum):
+    """Block formats at the command line."""
+
+    csv = "csv"
+    bal = "bal"
+    colmap = "colmap"
+
+
+class Loss(str, Enum):
+    """Losses of the image observations."""
+
+    squared = "squared"
+    huber = "huber"
+    cauchy = "cauchy"
+
+
+class Datum(str, Enum):
+    """Datum of the adjustment."""
+
+    auto = "auto"
+    weighted = "weighted"
+    free = "free"
+
+
+_BAL_SUFFIXES = (".txt", ".bal", ".bz2")
+
+#: Library words in error messages and the command-line options that say the same.
+_CLI_WORDS = (
+    ("pass drop_extras=True", "use --drop-extras"),
+    ("drop_extras=True", "--drop-extras"),
+    ("pass datum='free'", "use --datum free"),
+    ("datum='free'", "--datum free"),
+    ("run bundle_adjust(..., point_covariance=True)", "use --point-covariance"),
+    ("point_covariance=True", "--point-covariance"),
+    ("max_iterations", "--max-iterations"),
+    ("loss_scale", "--loss-scale"),
+)
+
+#: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
+_FREE_TUPLE = re.compile(r"free=\(((?:'\w+',?\s*)+)\)")
+
+
+class _CliWords:
+    """Re-raise photogeom errors with the library's keyword names replaced by the options."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        from ..errors import PhotogeomError
+
+        if isinstance(exc, PhotogeomError) and exc.args:
+            text = str(exc.args[0])
+            for lib, cli in _CLI_WORDS:
+                text = text.replace(lib, cli)
+            text = _FREE_TUPLE.sub(
+                lambda m: "--free " + ",".join(re.findall(r"'(\w+)'", m.group(1))), text
+            )
+            if text != exc.args[0]:
+                exc.args = (text, *exc.args[1:])
+        return False
+
+
+def _cli_words(fn):
+    """Decorator: run a command with :class:`_CliWords`."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with _CliWords():
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+def detect_format(path: Path, given: BlockFormat | None, option: str = "--format") -> str:
+    """The format of an existing block: ``given``, else by content (a file is BAL; a folder
+    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model)."""
+    if not path.exists():
+        raise InputError(f"no file or folder {path}")
+    if given is not None:
+        return given.value
+    if path.is_file():
+        if path.suffix.lower() == ".json":
+            raise InputError(
+                f"{path} is JSON, not a block: a result record is rendered with "
+                "'photogeom bundle report'"
+            )
+        return "bal"
+    if (path / "cameras.csv").is_file():
+        return "csv"
+    if (path / "cameras.txt").is_file() or (path / "images.txt").is_file():
+        return "colmap"
+    raise InputError(
+        f"{path}: not a block folder (no cameras.csv of a CSV block, no cameras.txt of a "
+        f"COLMAP text model); give the format with {option} csv|colmap|bal"
+    )
+
+
+def output_format(path: Path, given: BlockFormat | None, default: str | None, option: str) -> str:
+    """The format to write ``path`` in: ``given``, else ``default``, else by the name
+    (``.txt``, ``.bal``, ``.bz2``: BAL)."""
+    if given is not None:
+        return given.value
+    if default is not None:
+        return default
+    if path.suffix.lower() in _BAL_SUFFIXES:
+        return "bal"
+    raise InputError(
+        f"cannot tell the format of {path} from its name: give {option} csv|colmap|bal "
+        "(CSV blocks and COLMAP models are folders; a BAL file ends in .txt, .bal or .bz2)"
+    )
+
+
+def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
+    """Read a block in format ``fmt``."""
+    from .. import bundle
+
+    kw = {} if sigma is None else {"sigma": sigma}
+    if fmt == "bal":
+        return bundle.read_bal(path, **kw)
+    if fmt == "colmap":
+        return bundle.read_colmap(path, image_key=image_key, **kw)
+    return bundle.read_csv_block(path, **kw)
+
+
+def write_block(block, path: Path, fmt: str, *, drop_extras: bool, angle_unit: str) -> Path:
+    """Write a block in format ``fmt`` (each writer replaces its files atomically)."""
+    from .. import bundle
+
+    if fmt == "bal":
+        return bundle.write_bal(block, path, drop_extras=drop_extras)
+    if fmt == "colmap":
+        return bundle.write_colmap(block, path, drop_extras=drop_extras)
+    return bundle.write_csv_block(block, path, angle_unit=angle_unit)
+
+
+SigmaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--sigma",
+        help="Std. dev. of image observations without one [px] (default: 1 for BAL and "
+        "COLMAP, 0.5 for CSV blocks without a sigma column).",
+    ),
+]
+ImageKeyOpt = Annotated[
+    str, typer.Option("--image-key", help="COLMAP: image ids from 'name' or 'id'.")
+]
+DropExtrasOpt = Annotated[
+    bool,
+    typer.Option(
+        "--drop-extras",
+        help="BAL/COLMAP output: leave out what the format cannot hold (control and check "
+        "points, GNSS/IMU, unequal sigmas) instead of refusing.",
+    ),
+]
+
+
+# --- simulate ------------------------------------------------------------------------------------
+
+
+class Preset(str, Enum):
+    """Camera presets of the simulator."""
+
+    ILCE_7RM2 = "ILCE-7RM2"
+    FC6310 = "FC6310"
+    FC300S = "FC300S"
+
+
+@app.command("simulate")
+@_cli_words
+def simulate(
+    output: Annotated[
+        Path, typer.Argument(help="Folder for the simulated CSV block (created if missing).")
+    ],
+    preset: Annotated[
+        Preset, typer.Option("--preset", "-p", help="Camera preset.")
+    ] = Preset.FC300S,
+    seed: Annotated[int, typer.Option(help="Random seed (same seed, same block).")] = 1,
+    size: Annotated[
+        str,
+        typer.Option(help="'small': --strips x --images-per-strip; 'study': the study's block."),
+    ] = "small",
+    strips: Annotated[int, typer.Option(help="Number of strips.")] = 3,
+    images_per_strip: Annotated[int, typer.Option(help="Images per strip.")] = 7,
+    gsd: Annotated[
+        float | None, typer.Option(help="Ground sample distance [m/px] (default: the preset's).")
+    ] = None,
+    tie_points_per_image: Annotated[
+        float, typer.Option(help="Mean number of tie points in an image's footprint.")
+    ] = 120.0,
+    terrain: Annotated[str, typer.Option(help="'hilly' or 'flat'.")] = "hilly",
+    gcps: Annotated[
+        str,
+        typer.Option(
+            help="Control point layout: corners, corners+centre, edges, centre, gridK, "
+            "none, or a count."
+        ),
+    ] = "corners+centre",
+    checks: Annotated[str, typer.Option(help="Check point layout (as --gcps) or a count.")] = "4",
+    sigma: Annotated[float, typer.Option(help="Tie-point image noise [px].")] = 0.3,
+    gcp_sigma: Annotated[float, typer.Option(help="Control/check image noise [px].")] = 0.5,
+    gnss: Annotated[
+        bool,
+        typer.Option("--gnss/--no-gnss", help="GNSS positions of the images (sigma 3/3/5 cm)."),
+    ] = True,
+    imu: Annotated[
+        bool, typer.Option("--imu/--no-imu", help="IMU attitudes of the images (sigma 1 deg).")
+    ] = True,
+    blunders: Annotated[int, typer.Option(help="Tie observations with a blunder.")] = 0,
+    blunder_size: Annotated[float, typer.Option(help="Blunder length [px].")] = 50.0,
+    local_field: Annotated[
+        float | None,
+        typer.Option(help="RMS of the image-variant local distortion [px] (default: preset's)."),
+    ] = None,
+    free: Annotated[
+        str | None,
+        typer.Option(
+            help="Calibration parameters the block marks free, comma-separated "
+            "(default f,cx,cy,k1,k2,k3,p1,p2)."
+        ),
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Simulate a UAV block with known truth, written as a CSV block.
+
+    OUTPUT gets cameras.csv, images.csv, points.csv and observations.csv (the block to adjust:
+    noisy observations, initial values), OUTPUT/truth/ the same ids with the true values, and
+    OUTPUT/simulation.json the settings and the blunders (image id, point id, offset in px).
+    """
+    from .. import bundle
+    from .. import simulate as sim_mod
+    from ..io import atomic_write_text
+
+    def layout(text: str):
+        t = text.strip()
+        return int(t) if t.isdigit() else t
+
+    kwargs = dict(
+        seed=seed,
+        size=size,
+        strips=strips,
+        images_per_strip=images_per_strip,
+        gsd=gsd,
+        tie_points_per_image=tie_points_per_image,
+        terrain=terrain,
+        gcps=layout(gcps),
+        checks=layout(checks),
+        sigma=sigma,
+        gcp_sigma=gcp_sigma,
+        blunders=blunders,
+        blunder_size=blunder_size,
+        local_field=local_field,
+        free=split_names(free),
+    )
+    if not gnss:
+        kwargs["gnss_sigma"] = None
+    if not imu:
+        kwargs["imu_sigma_deg"] = None
+    if output.exists() and not output.is_dir():
+        raise InputError(f"{output} exists and is not a folder")
+    sim = sim_mod.uav_block(preset.value, **kwargs)
+    o = sim.block.observations
+    from ..adjust.fit import _jsonable
+
+    record = _jsonable(
+        {
+            "preset": preset.value,
+            "seed": seed,
+            "options": sim.options,
+            "summary": sim.summary(),
+            "blunders": [
+                {
+                    "image": o.image_ids[r].item(),
+                    "point": o.point_ids[r].item(),
+                    "offset_px": [float(a) for a in d],
+                }
+                for r, d in zip(sim.blunder_rows.tolist(), sim.blunder_offsets)
+            ],
+            "block": str(output),
+            "truth": str(output / "truth"),
+            "true_camera": {n: float(getattr(sim.camera, n)) for n in bundle.CALIBRATION_NAMES},
+        }
+    )
+    bundle.write_csv_block(sim.block, output)
+    bundle.write_csv_block(sim.truth, output / "truth")
+    atomic_write_text(output / "simulation.json", json_text(record))
+    if as_json:
+        typer.echo(json_text(record), nl=False)
+        return
+    out = console()
+    say(sim.summary(), out)
+    say(
+        f"wrote the block to {output}, the truth to {output / 'truth'}, the settings and "
+        f"blunders to {output / 'simulation.json'}",
+        out,
+    )
+
+
+# --- adjust --------------------------------------------------------------------------------------
+
+
+def _progress_display(max_iterations: int):
+    """A rich progress display of the iterations on a terminal (stderr), else None."""
+    err = console(stderr=True)
+    if not err.is_terminal:
+        return None, None
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    prog = Progress(
+        SpinnerColumn(),
+        TextColumn("[bold]adjusting[/bold] iteration {task.completed}"),
+        BarColumn(),
+        TextColumn("{task.fields[info]}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+    )
+    task = prog.add_task("adjust", total=max_iterations, info="")
+
+    def progress(it, cost, lam):
+        prog.update(
+            task, completed=min(it, max_iterations), info=f"cost {cost:.6e}  damping {lam:.1e}"
+        )
+
+    return prog, progress
+
+
+@app.command("adjust")
+@_cli_words
+def adjust(
+    source: Annotated[
+        Path, typer.Argument(help="A CSV block folder, a BAL file or a COLMAP text folder.")
+    ],
+    fmt: Annotated[
+        BlockFormat | None,
+        typer.Option("--format", help="Format of SOURCE (default: detected)."),
+    ] = None,
+    free: Annotated[
+        str | None,
+        typer.Option(
+            help="Calibration parameters to estimate for every camera, comma-separated "
+            "(e.g. f,cx,cy,k1,k2,k3,p1,p2; 'none' for none; default: the block's)."
+        ),
+    ] = None,
+    loss: Annotated[Loss, typer.Option(help="Loss of the image observations.")] = Loss.squared,
+    loss_scale: Annotated[
+        float | None,
+        typer.Option(help="Robust loss scale in sigmas (default 1.345 Huber, 2.385 Cauchy)."),
+    ] = None,
+    datum: Annotated[
+        Datum,
+        typer.Option(
+            help="weighted: control/GNSS; free: inner constraints; auto: weighted "
+            "when there is control or GNSS."
+        ),
+    ] = Datum.auto,
+    point_covariance: Annotated[
+        bool, typer.Option("--point-covariance", help="Marginal 3x3 covariance of every point.")
+    ] = False,
+    variance_components: Annotated[
+        bool,
+        typer.Option(
+            "--variance-components", help="Estimate one variance factor per observation group."
+        ),
+    ] = False,
+    snooping: Annotated[
+        bool, typer.Option("--snooping/--no-snooping", help="Baarda's w-test per observation.")
+    ] = True,
+    max_iterations: Annotated[int, typer.Option(help="Iterations at most.")] = 100,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Write the adjusted block here (a folder for CSV and COLMAP, a file for BAL).",
+        ),
+    ] = None,
+    output_fmt: Annotated[
+        BlockFormat | None,
+        typer.Option("--output-format", help="Format of --output (default: that of SOURCE)."),
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+    report: Annotated[
+        Path | None, typer.Option("--report", help="Write an HTML report to this file.")
+    ] = None,
+    result: Annotated[
+        Path | None,
+        typer.Option(
+            "--result",
+            help="Write the result record (JSON) that 'photogeom bundle report' renders.",
+        ),
+    ] = None,
+    unit: Annotated[str, typer.Option(help="Length unit of the object coordinates.")] = "m",
+    angle_unit: Annotated[
+        AngleUnit, typer.Option("--angle-unit", help="Unit of the angles shown.")
+    ] = AngleUnit.deg,
+    sigma: SigmaOpt = None,
+    image_key: ImageKeyOpt = "name",
+    drop_extras: DropExtrasOpt = False,
+) -> None:
+    """Bundle adjustment with self-calibration of a block read from a file.
+
+    Prints the summary (or JSON with --json); on a terminal the iterations are shown as they
+    run. Everything is computed before any file is written.
+    """
+    from ..bundle import CALIBRATION_NAMES, bundle_adjust
+    from ..report.bundle import bundle_report, bundle_result_data
+
+    src_fmt = detect_format(source, fmt)
+    for opt, path in (("--report", report), ("--result", result)):
+        if path is not None and str(path.parent) and not path.parent.is_dir():
+            raise InputError(f"{opt}: cannot write {path}: folder {path.parent} does not exist")
+    out_fmt = (
+        None if output is None else output_format(output, output_fmt, src_fmt, "--output-format")
+    )
+    block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
+    options = dict(
+        loss=loss.value,
+        loss_scale=loss_scale,
+        datum=datum.value,
+        point_covariance=point_covariance,
+        variance_components=variance_components,
+        snooping=snooping,
+        max_iterations=max_iterations,
+    )
+    names = split_names(free)
+    if names is not None:
+        names = [] if [n.lower() for n in names] == ["none"] else [n.lower() for n in names]
+        unknown = [n for n in names if n not in CALIBRATION_NAMES]
+        if unknown:
+            raise InputError(
+                f"--free: unknown calibration parameter(s) {', '.join(unknown)}; the names are "
+                f"{', '.join(CALIBRATION_NAMES)} (or 'none')"
+            )
+        options["free"] = tuple(names)
+    prog, progress = _progress_display(max_iterations)
+    if prog is not None:
+        with prog:
+            fit = bundle_adjust(block, progress=progress, **options)
+    else:
+        fit = bundle_adjust(block, **options)
+    angle = angle_unit.value
+    texts: list[tuple[Path, str]] = []
+    if report is not None or result is not None:
+        data = bundle_result_data(fit, unit=unit, angle_unit=angle)
+        if result is not None:
+            texts.append((result, json.dumps(data, indent=1, allow_nan=False) + "\n"))
+        if report is not None:
+            texts.append(
+                (report, bundle_report(data, f"Bundle adjustment: {source.name}").to_html())
+            )
+    if output is not None:
+        write_block(fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=angle)
+    from ._common import write_outputs
+
+    write_outputs(texts)
+    if as_json:
+        d = fit.to_dict(angle)
+        d["unit"] = unit
+        d["input"] = {"path": str(source), "format": src_fmt}
+        typer.echo(json_text(d), nl=False)
+        return
+    out = console()
+    say(f"{source} ({src_fmt})", out)
+    say(fit.summary(angle), out)
+    if output is not None:
+        say(f"adjusted block written to {output} ({out_fmt})", out)
+    for path, _ in texts:
+        say(f"wrote {path}", out)
+
+
+# --- convert -------------------------------------------------------------------------------------
+
+
+@app.command("convert")
+@_cli_words
+def convert(
+    source: Annotated[Path, typer.Argument(help="Block to read (BAL file, COLMAP or CSV folder).")],
+    target: Annotated[Path, typer.Argument(help="Where to write (a folder for CSV and COLMAP).")],
+    from_fmt: Annotated[
+        BlockFormat | None, typer.Option("--from", help="Format of SOURCE (default: detected).")
+    ] = None,
+    to_fmt: Annotated[
+        BlockFormat | None,
+        typer.Option("--to", help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names)."),
+    ] = None,
+    angle_unit: Annotated[
+        AngleUnit, typer.Option("--angle-unit", help="Angle unit of a CSV block written.")
+    ] = AngleUnit.deg,
+    sigma: SigmaOpt = None,
+    image_key: ImageKeyOpt = "name",
+    drop_extras: DropExtrasOpt = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Convert a block between BAL, COLMAP text and CSV (conventions converted exactly)."""
+    src = detect_format(source, from_fmt, "--from")
+    dst = output_format(target, to_fmt, None, "--to")
+    block = read_block(source, src, sigma=sigma, image_key=image_key)
+    write_block(block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value)
+    info = {
+        "source": str(source),
+        "source_format": src,
+        "target": str(target),
+        "target_format": dst,
+        "camera_groups": len(block.calibrations),
+        "images": block.n_images,
+        "points": block.n_points,
+        "observations": block.n_observations,
+    }
+    if as_json:
+        typer.echo(json_text(info), nl=False)
+        return
+    say(
+        f"{source} ({src}) -> {target} ({dst}): {info['camera_groups']} camera group(s), "
+        f"{info['images']} images, {info['points']} points, {info['observations']} image "
+        "observations"
+    )
+
+
+# --- report --------------------------------------------------------------------------------------
+
+
+@app.command("report")
+@_cli_words
+def report_cmd(
+    result: Annotated[
+        Path, typer.Argument(help="Result record written by 'photogeom bundle adjust --result'.")
+    ],
+    output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")] = Path(
+        "bundle-report.html"
+    ),
+    title: Annotated[str | None, typer.Option(help="Title of the report.")] = None,
+    max_rows: Annotated[
+        int, typer.Option(help="Rows of the image and flagged-observation tables at most.")
+    ] = 50,
+) -> None:
+    """Render the HTML report of a saved bundle adjustment result (JSON record)."""
+    from ..report.bundle import bundle_report, read_bundle_result
+
+    if max_rows < 1:
+        raise InputError(f"--max-rows must be at least 1, not {max_rows}")
+    if str(output.parent) and not output.parent.is_dir():
+        raise InputError(f"--output: cannot write {output}: folder {output.parent} does not exist")
+    data = read_bundle_result(result)
+    rep = bundle_report(data, title or f"Bundle adjustment: {result.stem}", max_rows=max_rows)
+    path = rep.write(output)
+    say(f"wrote {path}")

@@ -1,0 +1,915 @@
+"""The HTML report of a bundle adjustment (:class:`~photogeom.bundle.BundleFit`).
+
+The report is rendered from a JSON-ready *result record*, :func:`bundle_result_data`: the
+summary of ``BundleFit.to_dict()`` plus what the figures need (calibration correlation
+matrices, residuals binned over the sensor, the point-precision histogram, the flagged
+observations with their residuals). The record is small (it grows with the images, not with
+the observations), so it can be saved (``photogeom bundle adjust --result r.json``) and
+rendered again later (``photogeom bundle report r.json``) into the same report.
+
+>>> fit = pg.bundle_adjust(block, point_covariance=True)         # doctest: +SKIP
+>>> bundle_report(fit).write("bundle.html")                      # doctest: +SKIP
+>>> rep = Report("Survey 2026"); add_bundle_fit(rep, fit)         # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..errors import FileFormatError, InputError
+from . import format as F
+from .html import Report, _esc, _img_html, _table_html, figure_to_png
+from .plots import nice_length
+
+#: Identifies a saved result record (``"format"``) and its layout (``"version"``).
+RESULT_FORMAT = "photogeom-bundle-result"
+RESULT_VERSION = 1
+#: Rows of the image, calibration-group and flagged-observation tables at most.
+MAX_ROWS = 50
+#: Flagged observations kept in the record at most.
+MAX_FLAGGED = 200
+#: Sensor cells with fewer observations are drawn pale (their mean is noisy).
+MIN_CELL_COUNT = 5
+#: Camera groups drawn with their own sensor panel and heat map at most.
+MAX_GROUP_PANELS = 4
+
+_CAL_NAMES = ("f", "cx", "cy", "k1", "k2", "k3", "k4", "p1", "p2", "b1", "b2")
+_CAL_UNIT = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in _CAL_NAMES}
+
+
+# --- the result record ---------------------------------------------------------------------------
+
+
+def _nan(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def _sensor_grid(fit, cells: int) -> list[dict]:
+    """Mean residual vector per cell of a regular grid over the image frame, per camera
+    group (or pooled per image size when there are many groups)."""
+    from ..adjust.fit import _jsonable
+
+    b = fit.block
+    rows = fit.in_adjustment & np.isfinite(fit.residuals).all(axis=1)
+    uv = b.observations.uv[rows]
+    v = fit.residuals[rows]
+    img = b.obs_image[rows]
+    group = b.image_camera[img]
+    sizes = b.image_sizes()[img]
+    cams = b.camera_ids.tolist()
+    if len(cams) <= MAX_GROUP_PANELS:
+        keys = [(f"camera {cams[g]}", group == g) for g in range(len(cams))]
+    else:
+        uniq = np.unique(b.image_sizes(), axis=0)
+        keys = [
+            (
+                f"images of {int(w)} x {int(h)} px (pooled over camera groups)",
+                (sizes[:, 0] == w) & (sizes[:, 1] == h),
+            )
+            for w, h in uniq
+        ]
+    out = []
+    for label, sel in keys:
+        if not sel.any():
+            continue
+        w, h = (float(x) for x in sizes[sel][0])
+        nx = int(cells)
+        ny = max(1, round(cells * h / w))
+        # pixel centres run from -0.5 to w - 0.5 (centre of the top-left pixel at 0, 0)
+        cx = np.clip(((uv[sel, 0] + 0.5) / w * nx).astype(int), 0, nx - 1)
+        cy = np.clip(((uv[sel, 1] + 0.5) / h * ny).astype(int), 0, ny - 1)
+        cell = cy * nx + cx
+        n = np.bincount(cell, minlength=nx * ny)
+        su = np.bincount(cell, weights=v[sel, 0], minlength=nx * ny)
+        sv = np.bincount(cell, weights=v[sel, 1], minlength=nx * ny)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.column_stack([su / n, sv / n])
+        vs = v[sel]
+        out.append(
+            _jsonable(
+                {
+                    "label": label,
+                    "width": w,
+                    "height": h,
+                    "nx": nx,
+                    "ny": ny,
+                    "count": n,
+                    "mean": mean,
+                    "n_observations": int(sel.sum()),
+                    "n_images": int(np.unique(img[sel]).size),
+                    "rms": float(np.sqrt(np.mean(np.einsum("nd,nd->n", vs, vs)))),
+                }
+            )
+        )
+    return out
+
+
+def _point_histogram(fit, bins: int = 30) -> dict | None:
+    if fit.point_std is None:
+        return None
+    s = fit.point_std[fit.block.role != "check"]
+    s = s[np.isfinite(s).all(axis=1)]
+    if s.size == 0:
+        return None
+    top = float(np.quantile(s, 0.995))
+    if not top > 0:
+        top = float(s.max()) or 1.0
+    edges = np.linspace(0.0, top, bins + 1)
+    counts = {a: np.histogram(np.clip(s[:, k], 0, top), edges)[0] for k, a in enumerate("XYZ")}
+    above = {a: int(np.sum(s[:, k] > top)) for k, a in enumerate("XYZ")}
+    return {
+        "edges": edges.tolist(),
+        "counts": {a: c.tolist() for a, c in counts.items()},
+        "above": above,
+        "rms": np.sqrt(np.mean(s**2, axis=0)).tolist(),
+        "median": np.median(s, axis=0).tolist(),
+        "max": s.max(axis=0).tolist(),
+        "n": int(s.shape[0]),
+    }
+
+
+def _flagged(fit) -> tuple[list[dict], int]:
+    if fit.snooping is None:
+        return [], 0
+    w = np.abs(fit.snooping["w"])
+    mx = np.nanmax(np.where(np.isfinite(w), w, -1.0), axis=1)
+    crit = fit.snooping["critical_value"]
+    rows = np.flatnonzero(mx > crit)
+    rows = rows[np.argsort(-mx[rows], kind="stable")]
+    o = fit.block.observations
+    out = [
+        {
+            "image": o.image_ids[k].item(),
+            "point": o.point_ids[k].item(),
+            "w": float(mx[k]),
+            "v": [float(fit.residuals[k, 0]), float(fit.residuals[k, 1])],
+            "sigma": float(o.sigma[k]),
+        }
+        for k in rows[:MAX_FLAGGED]
+    ]
+    return out, int(rows.size)
+
+
+def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: int = 10) -> dict:
+    """The JSON-ready record of a bundle adjustment that :func:`add_bundle_result` renders.
+
+    Parameters
+    ----------
+    fit : BundleFit
+    unit : str
+        Name of the object-space length unit (labels only; the block's coordinates are not
+        converted).
+    angle_unit : {"deg", "gon", "rad"}
+        Unit of the exterior orientation angles and their standard deviations.
+    cells : int
+        Cells of the sensor grid across the image width (rows follow the aspect ratio).
+
+    Returns
+    -------
+    dict
+        ``fit.to_dict(angle_unit)`` plus ``format``, ``version``, ``unit``, ``block`` (counts),
+        per image ``camera`` and ``n_obs``, ``calibration_correlation`` (names and matrix per
+        group), ``sensor_grid``, ``point_precision`` (histogram of the point standard
+        deviations, or None), ``flagged`` (at most 200 observations, largest |w| first) and
+        ``n_flagged``. NaN is written as None (JSON null).
+    """
+    from ..adjust.fit import _jsonable
+
+    if int(cells) != cells or not 1 <= cells <= 200:
+        raise InputError(f"cells must be an integer from 1 to 200, not {cells!r}")
+    b = fit.block
+    d = fit.to_dict(angle_unit)
+    per_img, _ = b.observation_counts()
+    in_adj = np.bincount(b.obs_image[fit.in_adjustment], minlength=b.n_images)
+    cams = b.camera_ids.tolist()
+    for k, row in enumerate(d["images"]):
+        row["camera"] = cams[b.image_camera[k]]
+        row["n_obs"] = int(in_adj[k])
+        row["n_obs_all"] = int(per_img[k])
+    flagged, n_flagged = _flagged(fit)
+    d.update(
+        {
+            "format": RESULT_FORMAT,
+            "version": RESULT_VERSION,
+            "unit": unit,
+            "block": {
+                "n_camera_groups": len(cams),
+                "n_images": b.n_images,
+                "n_points": b.n_points,
+                "n_tie": int(np.sum(b.role == "tie")),
+                "n_control": int(np.sum(b.role == "control")),
+                "n_check": int(np.sum(b.role == "check")),
+                "n_image_observations": b.n_observations,
+                "has_gnss": bool(np.isfinite(b.gnss).all(axis=1).any()) if b.n_images else False,
+                "has_imu": bool(np.isfinite(b.imu).all(axis=1).any()) if b.n_images else False,
+            },
+            "calibration_correlation": {
+                str(g): {"names": list(names), "matrix": np.asarray(R)}
+                for g, (names, R) in fit.calibration_correlation.items()
+            },
+            "sensor_grid": _sensor_grid(fit, int(cells)),
+            "point_precision": _point_histogram(fit),
+            "flagged": flagged,
+            "n_flagged": n_flagged,
+            "correlation_threshold": fit.correlation_threshold,
+        }
+    )
+    return _jsonable(d)
+
+
+def write_bundle_result(data: Mapping, path: str | os.PathLike) -> Path:
+    """Write a result record (from :func:`bundle_result_data`) as JSON, atomically."""
+    from ..io.atomic import atomic_write_text
+
+    return atomic_write_text(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+
+
+def read_bundle_result(path: str | os.PathLike) -> dict:
+    """Read a result record written by :func:`write_bundle_result` (or ``--result``)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"no file {p}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{p}: not JSON ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != RESULT_FORMAT:
+        raise FileFormatError(
+            f'{p}: not a bundle adjustment result (expected "format": "{RESULT_FORMAT}"; '
+            "write one with 'photogeom bundle adjust ... --result FILE.json')"
+        )
+    if data.get("version") != RESULT_VERSION:
+        raise FileFormatError(
+            f"{p}: result version {data.get('version')!r}; this photogeom reads version "
+            f"{RESULT_VERSION}"
+        )
+    return data
+
+
+# --- figures -------------------------------------------------------------------------------------
+
+
+def sensor_grid_figure(grids: list[Mapping]) -> Figure:
+    """Mean residual vector per sensor cell, one panel per camera group, arrows exaggerated
+    by a common factor with a scale arrow of their true length (pixels)."""
+    n = len(grids)
+    cols = min(n, 2)
+    rows = math.ceil(n / cols)
+    fig = Figure(figsize=(6.2 * cols, 4.9 * rows), dpi=110)
+    lengths = []
+    for g in grids:
+        m = np.array([[_nan(a), _nan(b)] for a, b in g["mean"]])
+        ok = np.isfinite(m).all(axis=1) & (np.asarray(g["count"]) >= MIN_CELL_COUNT)
+        lengths.append(np.hypot(m[ok, 0], m[ok, 1]))
+    lengths = np.concatenate(lengths) if lengths else np.zeros(0)
+    # the scale follows the typical cell (90th percentile), not a single blunder-driven one,
+    # but no arrow is longer than three cells
+    vmax = float(lengths.max()) if lengths.size else 0.0
+    v90 = float(np.quantile(lengths, 0.9)) if lengths.size else 0.0
+    for k, g in enumerate(grids):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        w, h, nx, ny = g["width"], g["height"], g["nx"], g["ny"]
+        cw, ch = w / nx, h / ny
+        m = np.array([[_nan(a), _nan(b)] for a, b in g["mean"]])
+        cnt = np.asarray(g["count"])
+        iy, ix = np.divmod(np.arange(nx * ny), nx)
+        xc = (ix + 0.5) * cw - 0.5
+        yc = (iy + 0.5) * ch - 0.5
+        ok = np.isfinite(m).all(axis=1)
+        cell = min(cw, ch)
+        factor = nice_length(min(0.8 * cell / v90, 3.0 * cell / vmax)) if v90 > 0 else 1.0
+        for x in np.arange(nx + 1) * cw - 0.5:
+            ax.axvline(x, color="#e3e8ee", lw=0.6, zorder=1)
+        for y in np.arange(ny + 1) * ch - 0.5:
+            ax.axhline(y, color="#e3e8ee", lw=0.6, zorder=1)
+        ax.plot(xc[ok], yc[ok], ".", color="#8a99a8", ms=2, zorder=2)
+        strong = ok & (cnt >= MIN_CELL_COUNT)
+        weak = ok & (cnt < MIN_CELL_COUNT)
+        q = None
+        for sel, colour in ((strong, "#1f5fa8"), (weak, "#a9bcd0")):
+            if sel.any():
+                qq = ax.quiver(
+                    xc[sel],
+                    yc[sel],
+                    m[sel, 0],
+                    m[sel, 1],
+                    angles="xy",
+                    scale_units="xy",
+                    scale=1.0 / factor,
+                    color=colour,
+                    width=0.006,
+                    zorder=3,
+                )
+                q = q or qq
+        if q is not None and vmax > 0:
+            key = nice_length(max(v90, 0.8 * cell / factor))
+            ax.quiverkey(
+                q,
+                X=0.70,
+                Y=1.03,
+                U=key,
+                label=f"{key:g} px",
+                labelpos="E",
+                coordinates="axes",
+                color="black",
+            )
+        ax.add_patch(_rect(w, h))
+        ax.set_xlim(-0.5 - 0.02 * w, w - 0.5 + 0.02 * w)
+        ax.set_ylim(h - 0.5 + 0.02 * h, -0.5 - 0.02 * h)
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("u (column) [px]")
+        ax.set_ylabel("v (row) [px]")
+        ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
+        ax.set_title(
+            f"{g['label']}: {g['n_observations']} obs. in {g['n_images']} images, RMS "
+            f"{g['rms']:.3g} px\nmean v per {nx} x {ny} cell, arrows x{ex}",
+            fontsize=9,
+            loc="left",
+        )
+    fig.tight_layout()
+    return fig
+
+
+def _rect(w, h):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((-0.5, -0.5), w, h, fill=False, ec="#22364d", lw=1.0, zorder=4)
+
+
+def correlation_figure(names, R, threshold: float, title: str) -> Figure:
+    """Heat map of a correlation matrix with the values written in; |rho| above the
+    threshold boxed in red."""
+    R = np.array([[_nan(x) for x in row] for row in R], dtype=float).reshape(len(names), -1)
+    k = len(names)
+    size = 1.2 + 0.42 * k
+    fig = Figure(figsize=(size + 1.0, size), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    im = ax.imshow(R, vmin=-1, vmax=1, cmap="RdBu_r")
+    ax.set_xticks(range(k), names)
+    ax.set_yticks(range(k), names)
+    ax.tick_params(length=0)
+    for i in range(k):
+        for j in range(k):
+            if i == j or not np.isfinite(R[i, j]):
+                continue
+            hi = abs(R[i, j]) > threshold
+            ax.text(
+                j,
+                i,
+                f"{R[i, j]:.2f}",
+                ha="center",
+                va="center",
+                fontsize=7 if k > 7 else 8,
+                fontweight="bold" if hi else "normal",
+                color="white" if abs(R[i, j]) > 0.6 else "#1d2733",
+            )
+            if hi:
+                ax.add_patch(_box(j, i))
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="correlation")
+    ax.set_title(f"{title}\n|rho| > {threshold:g} boxed", fontsize=9, loc="left")
+    fig.tight_layout()
+    return fig
+
+
+def _box(j, i):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="#c0392b", lw=2.0)
+
+
+def image_rms_figure(images: list[Mapping], overall: float) -> Figure:
+    """RMS image residual per image (pixels), in block order."""
+    ids = [str(r["id"]) for r in images]
+    rms = np.array([_nan(r["rms_px"]) for r in images])
+    n = len(ids)
+    fig = Figure(figsize=(9.5, 3.2), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    x = np.arange(n)
+    if n <= 300:
+        ax.bar(x, rms, width=0.8, color="#1f5fa8")
+    else:
+        ax.plot(x, rms, lw=0.8, color="#1f5fa8")
+    if math.isfinite(overall):
+        ax.axhline(overall, color="#c0392b", lw=1, ls="--", label=f"all images: {overall:.3g} px")
+        ax.legend(fontsize=8, loc="upper right")
+    if n <= 40:
+        ax.set_xticks(x, ids, rotation=90 if max(map(len, ids), default=0) > 3 else 0, fontsize=8)
+        ax.set_xlabel("image id")
+    else:
+        ax.set_xlabel("image (block order)")
+    ax.set_ylabel("RMS residual [px]")
+    ax.set_xlim(-0.8, n - 0.2)
+    ax.grid(True, axis="y", color="#dddddd", lw=0.6)
+    fig.tight_layout()
+    return fig
+
+
+def convergence_figure(history) -> Figure:
+    """Cost v'Pv after each accepted step (log scale) and the relative decrease of each step
+    (log scale)."""
+    from matplotlib.ticker import FuncFormatter
+
+    c = np.array([_nan(x) for x in history])
+    fig = Figure(figsize=(9.5, 3.2), dpi=110)
+    a1 = fig.add_subplot(1, 2, 1)
+    a2 = fig.add_subplot(1, 2, 2)
+    it = np.arange(c.size)
+    pos = c > 0
+    a1.semilogy(it[pos], c[pos], "o-", color="#1f5fa8", ms=4)
+    fmt = FuncFormatter(lambda y, _: f"{y:.6g}")  # plain numbers (no mathtext: faster)
+    for ax in (a1, a2):
+        ax.yaxis.set_major_formatter(fmt)
+        ax.yaxis.set_minor_formatter(FuncFormatter(lambda y, _: ""))
+    if pos.any() and c[pos].max() < 10 * c[pos].min():
+        a1.yaxis.set_minor_formatter(fmt)  # less than a decade: label the minor ticks
+        a1.tick_params(axis="y", which="minor", labelsize=7)
+    a1.set_xlabel("iteration (0 = start)")
+    a1.set_ylabel("cost v'Pv")
+    a1.set_title("cost", fontsize=9, loc="left")
+    if c.size > 1:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel = (c[:-1] - c[1:]) / c[:-1]
+        ok = rel > 0
+        a2.semilogy(it[1:][ok], rel[ok], "s-", color="#2e8b57", ms=4)
+    a2.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:.0e}"))
+    a2.set_xlabel("iteration")
+    a2.set_ylabel("relative decrease")
+    a2.set_title("relative decrease of each step", fontsize=9, loc="left")
+    for ax in (a1, a2):
+        ax.xaxis.get_major_locator().set_params(integer=True)
+        ax.grid(True, color="#e3e8ee", lw=0.6)
+    fig.tight_layout()
+    return fig
+
+
+def point_precision_figure(hist: Mapping, unit: str) -> Figure:
+    """Histograms of the points' standard deviations in X, Y and Z."""
+    e = np.asarray(hist["edges"])
+    fig = Figure(figsize=(6.4, 3.4), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    for a, colour in zip("XYZ", ("#1f5fa8", "#2e8b57", "#c0392b")):
+        ax.stairs(hist["counts"][a], e, color=colour, lw=1.4, label=f"s{a}")
+    ax.set_xlabel(f"standard deviation [{unit}]")
+    ax.set_ylabel("points")
+    ax.legend(fontsize=8)
+    ax.grid(True, color="#e3e8ee", lw=0.6)
+    fig.tight_layout()
+    return fig
+
+
+# --- the report ----------------------------------------------------------------------------------
+
+
+def _f(x, digits: int = 4) -> str:
+    return F.fmt_stat(_nan(x), digits)
+
+
+def _std(x) -> str:
+    return F.fmt_std(_nan(x))
+
+
+def _val(v, s) -> str:
+    return F.fmt_value(_nan(v), None if s is None else _nan(s))
+
+
+def _pm(v, s) -> str:
+    """``value ± std``; ``value (fixed)`` for a zero std. dev."""
+    sv = _nan(s)
+    if sv == 0.0:
+        return f"{F.fmt_value(_nan(v))} (fixed)"
+    return f"{_val(v, s)} ± {_std(s)}"
+
+
+def _summary_rows(d: Mapping) -> list[list[str]]:
+    c = d["chi2"]
+    blk = d["block"]
+    solver = d.get("solver") or {}
+    test = "-"
+    if c.get("passed") is not None:
+        test = (
+            f"{'passed' if c['passed'] else 'FAILED'}: {_f(c['statistic'], 6)} in "
+            f"[{_f(c['lower'], 6)}, {_f(c['upper'], 6)}] (two-sided, alpha {c['alpha']}), "
+            f"p = {_f(c['p_value'], 3)}"
+        )
+    return [
+        [
+            "block",
+            f"{blk['n_camera_groups']} camera group(s), {blk['n_images']} images, "
+            f"{blk['n_points']} points ({blk['n_tie']} tie, {blk['n_control']} control, "
+            f"{blk['n_check']} check), {blk['n_image_observations']} image observations",
+        ],
+        [
+            "datum observations",
+            ", ".join(
+                [
+                    s
+                    for s, ok in (
+                        ("control points", blk["n_control"] > 0),
+                        ("GNSS", blk["has_gnss"]),
+                        ("IMU", blk["has_imu"]),
+                    )
+                    if ok
+                ]
+            )
+            or "none (free network)",
+        ],
+        ["sigma0 a posteriori", _f(d["sigma0"])],
+        ["sigma0 a priori", _f(d["sigma0_prior"])],
+        ["observations / unknowns", f"{d['n_observations']} / {d['n_unknowns']}"],
+        ["redundancy r", str(d["redundancy"])],
+        ["chi-square test of v'Pv / sigma0_prior^2", test],
+        ["RMS image residual", f"{_f(d['rmse_px'])} px"],
+        ["mean GSD", f"{_f(d['gsd'])} {d['unit']}/px"],
+        [
+            "convergence",
+            (f"{d['message']}" if d["converged"] else f"NOT CONVERGED ({d['message']})")
+            + f" after {d['iterations']} iteration(s)",
+        ],
+        ["time", f"{_f(d['elapsed_s'], 3)} s"],
+        [
+            "solver",
+            f"{solver.get('backend', '?')}, reduced camera system "
+            f"{solver.get('reduced_system_size', '?')} unknowns, "
+            f"{solver.get('reduced_system_nonzeros', '?')} non-zeros; loss "
+            f"{solver.get('loss', '?')}",
+        ],
+    ]
+
+
+def _calibration_section(d: Mapping, max_rows: int) -> str:
+    cal, cstd = d["calibration"], d["calibration_std"]
+    groups = list(cal)
+    thr = float(d.get("correlation_threshold", 0.9))
+    parts: list[str] = []
+    if len(groups) <= MAX_GROUP_PANELS:
+        for g in groups:
+            rows = []
+            for n in _CAL_NAMES:
+                s = cstd[g].get(n)
+                free = s is not None
+                rows.append([n, _val(cal[g][n], s), _std(s) if free else "fixed", _CAL_UNIT[n]])
+            table = f"<h4>camera {_esc(g)}</h4>" + _table_html(
+                ["parameter", "value", "std. dev.", "unit"],
+                rows,
+                text_cols={2, 3},
+                note="f, cx, cy, b1, b2 in pixels (cx, cy from the image centre); K, P "
+                "dimensionless (Metashape frame model)",
+            )
+            corr = d["calibration_correlation"].get(g)
+            fig = ""
+            if corr and len(corr["names"]) >= 2:
+                fig = _img_html(
+                    figure_to_png(
+                        correlation_figure(
+                            corr["names"], corr["matrix"], thr, f"camera {g}: correlations"
+                        )
+                    ),
+                    f"calibration correlations of camera {g}",
+                    None,
+                )
+            parts.append(f'<div class="grid"><div>{table}</div><div>{fig}</div></div>')
+    else:
+        free = [n for n in _CAL_NAMES if any(cstd[g].get(n) is not None for g in groups)]
+        shown = groups[:max_rows]
+        rows = [[g, *[_pm(cal[g][n], cstd[g].get(n)) for n in free]] for g in shown]
+        parts.append(
+            _table_html(
+                ["camera", *[f"{n} [{_CAL_UNIT[n]}]" for n in free]],
+                rows,
+                numeric_cols=set(range(1, len(free) + 1)),
+                note=f"{len(shown)} of {len(groups)} camera groups (block order); "
+                "value ± std. dev. of the free parameters; the result record holds "
+                "all",
+            )
+        )
+    high = d.get("high_correlations") or []
+    if high:
+        rows = [[str(g), a, b, f"{r:+.3f}"] for g, a, b, r in high[:max_rows]]
+        parts.append(
+            f"<h4>Correlations with |rho| &gt; {thr:g} ({len(high)})</h4>"
+            + _table_html(
+                ["camera", "parameter", "parameter", "rho"],
+                rows,
+                flags=[[False, False, False, True]] * len(rows),
+                text_cols={1, 2},
+            )
+            + '<p class="note">These parameters are not separated well by the block\'s '
+            "geometry: fix one of them, or add control, GNSS, oblique images or height "
+            "differences.</p>"
+        )
+    return "".join(parts)
+
+
+def _exterior_section(d: Mapping, max_rows: int) -> str:
+    imgs = d["images"]
+    au, u = d["angle_unit"], d["unit"]
+    order = list(range(len(imgs)))
+    note = f"all {len(imgs)} images in block order"
+    if len(imgs) > max_rows:
+        order = sorted(
+            order,
+            key=lambda k: (
+                -_nan(imgs[k]["rms_px"]) if math.isfinite(_nan(imgs[k]["rms_px"])) else math.inf
+            ),
+        )[:max_rows]
+        note = (
+            f"the {max_rows} of {len(imgs)} images with the largest RMS residual (largest "
+            "first); the result record holds all"
+        )
+    names = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
+    cams = len({str(r.get("camera", "")) for r in imgs}) > 1  # a camera column when useful
+    cols = [
+        "image",
+        *(["camera"] if cams else []),
+        *[f"{n} ± s [{u if k < 3 else au}]" for k, n in enumerate(names)],
+        "obs.",
+        "RMS [px]",
+    ]
+    rows = []
+    for k in order:
+        r = imgs[k]
+        rows.append(
+            [
+                str(r["id"]),
+                *([str(r.get("camera", ""))] if cams else []),
+                *[_pm(r[n], r[f"s{n}"]) for n in names],
+                str(r.get("n_obs", "")),
+                _f(r["rms_px"], 3),
+            ]
+        )
+    c0 = 2 if cams else 1
+    table = _table_html(
+        cols,
+        rows,
+        text_cols={1} if cams else None,
+        numeric_cols=set(range(c0, c0 + 6)),
+        note=note + '; value ± a-posteriori std. dev. ("fixed": held at its value); RMS of '
+        "the image residual lengths of the image's adjusted observations",
+    )
+    return f'<div style="overflow-x:auto">{table}</div>'
+
+
+def _points_section(d: Mapping) -> str:
+    u = d["unit"]
+    gsd = _nan(d["gsd"])
+    parts = []
+    for key, title, conv in (
+        ("control", "Control points", "adjusted minus surveyed (in the adjustment)"),
+        (
+            "check",
+            "Check points",
+            "triangulated from their image observations with the "
+            "adjusted cameras, minus surveyed (not in the adjustment)",
+        ),
+    ):
+        c = d.get(key) or {}
+        ids = c.get("ids") or []
+        if not ids:
+            continue
+        err = np.array([[_nan(x) for x in row] for row in c["errors"]], dtype=float)
+        length = np.sqrt((err**2).sum(axis=1))
+        rows = [
+            [str(i), *[F.fmt_fixed(x, 4) for x in e], F.fmt_fixed(n, 4), F.fmt_fixed(n / gsd, 2)]
+            for i, e, n in zip(ids, err, length)
+        ]
+        rm, rg = c["rmse"], c["rmse_gsd"]
+        rows.append(
+            [
+                "RMSE",
+                *[F.fmt_fixed(_nan(x), 4) for x in rm],
+                F.fmt_fixed(float(np.sqrt(np.sum(np.square([_nan(x) for x in rm])))), 4),
+                F.fmt_fixed(float(np.sqrt(np.sum(np.square([_nan(x) for x in rg])))), 2),
+            ]
+        )
+        parts.append(
+            f"<h4>{title} ({len(ids)})</h4>"
+            + _table_html(
+                ["point", f"dX [{u}]", f"dY [{u}]", f"dZ [{u}]", f"|d| [{u}]", "|d| [GSD]"], rows
+            )
+            + f'<p class="note">{_esc(conv)}; RMSE in GSD: X {_f(rg[0], 3)}, Y {_f(rg[1], 3)}, '
+            f"Z {_f(rg[2], 3)} (GSD {_f(gsd)} {_esc(u)}/px)</p>"
+        )
+    return "".join(parts)
+
+
+def _flagged_section(d: Mapping, max_rows: int) -> str:
+    sn = d.get("snooping")
+    if sn is None:
+        return '<p class="note">Data snooping was not run (snooping=False).</p>'
+    fl = d.get("flagged") or []
+    n = int(d.get("n_flagged", len(fl)))
+    head = (
+        f"<p>Baarda's w-test per image observation (the larger |w| of u and v), "
+        f"alpha {sn['alpha']} per test, critical value {_f(sn['critical_value'])}: "
+        f"<strong>{n}</strong> observation(s) flagged. Flagged observations are listed, "
+        "not removed: the largest |w| is the most likely blunder; remove it and adjust "
+        "again.</p>"
+    )
+    if not fl:
+        return head
+    shown = fl[:max_rows]
+    rows = [
+        [
+            str(r["image"]),
+            str(r["point"]),
+            f"{r['w']:.2f}",
+            F.fmt_fixed(_nan(r["v"][0]), 3),
+            F.fmt_fixed(_nan(r["v"][1]), 3),
+            _f(r["sigma"], 3),
+        ]
+        for r in shown
+    ]
+    return head + _table_html(
+        ["image", "point", "|w|", "v_u [px]", "v_v [px]", "sigma [px]"],
+        rows,
+        flags=[[False, False, True, False, False, False]] * len(rows),
+        note=(f"the {len(shown)} largest of {n}" if n > len(shown) else f"all {n}")
+        + "; v = computed - observed",
+    )
+
+
+def _variance_section(vc: Mapping) -> str:
+    f = vc.get("factors") or {}
+    red = vc.get("redundancy") or {}
+    rows = [
+        [
+            k,
+            F.fmt_fixed(_nan(v), 4),
+            F.fmt_fixed(_nan(v) ** 2, 4),
+            F.fmt_fixed(_nan(red.get(k)), 1),
+        ]
+        for k, v in f.items()
+    ]
+    conv = "converged" if vc.get("converged") else "NOT converged"
+    return _table_html(
+        ["observation group", "sigma factor", "variance factor", "redundancy"],
+        rows,
+        note=f"{_esc(vc.get('meaning', ''))}; iterated estimation {conv} after "
+        f"{vc.get('rounds', '?')} round(s)",
+    )
+
+
+def add_bundle_result(
+    report: Report,
+    data: Mapping,
+    title: str | None = None,
+    *,
+    max_rows: int = MAX_ROWS,
+) -> None:
+    """Add the sections of a bundle adjustment to ``report`` from its result record.
+
+    Sections: summary statistics; calibration with standard deviations and correlation heat
+    map; exterior orientation (the ``max_rows`` images with the largest RMS residual when
+    there are more); control and check points; residual vectors binned over the sensor;
+    RMS residual per image; point precision (when computed); convergence; flagged
+    observations; variance components (when estimated); notes.
+    """
+    d = data
+    p = f"{title}: " if title else ""
+    report._add(
+        3,
+        f"{p}Adjustment summary" if title else "Adjustment summary",
+        _table_html(["quantity", "value"], _summary_rows(d), cls="stats", header=False)
+        + (
+            ""
+            if d["converged"]
+            else '<p class="warn">The iteration did NOT converge; do not trust these numbers.</p>'
+        ),
+    )
+    report._add(3, f"{p}Calibration", _calibration_section(d, max_rows))
+    report._add(3, f"{p}Exterior orientation", _exterior_section(d, max_rows))
+    pts = _points_section(d)
+    if pts:
+        report._add(3, f"{p}Control and check points", pts)
+    if d.get("sensor_grid"):
+        report._add(
+            3,
+            f"{p}Residuals over the sensor",
+            _img_html(
+                figure_to_png(sensor_grid_figure(d["sensor_grid"])),
+                "residuals over the sensor",
+                "Mean image residual (computed - observed) of the adjusted observations in each "
+                "cell of a regular grid over the image frame; pale arrows: cells with fewer than "
+                f"{MIN_CELL_COUNT} observations. A pattern repeated over the frame is a "
+                "systematic error the camera model does not absorb.",
+            ),
+        )
+    if d.get("images"):
+        report._add(
+            3,
+            f"{p}Residual RMS per image",
+            _img_html(
+                figure_to_png(image_rms_figure(d["images"], _nan(d["rmse_px"]))),
+                "RMS residual per image",
+                "RMS of the image residual lengths of each image's "
+                "adjusted observations, in block order.",
+            ),
+        )
+    pp = d.get("point_precision")
+    if pp:
+        txt = (
+            f"{pp['n']} tie and control points; RMS of the standard deviations X "
+            f"{_f(pp['rms'][0])}, Y {_f(pp['rms'][1])}, Z {_f(pp['rms'][2])} {d['unit']}; "
+            f"median {_f(pp['median'][0])}, {_f(pp['median'][1])}, {_f(pp['median'][2])}; "
+            f"largest {_f(pp['max'][0])}, {_f(pp['max'][1])}, {_f(pp['max'][2])}"
+        )
+        above = sum(pp["above"].values())
+        if above:
+            txt += f"; {above} value(s) beyond the last bin are counted in it"
+        report._add(
+            3,
+            f"{p}Point precision",
+            _img_html(
+                figure_to_png(point_precision_figure(pp, d["unit"])),
+                "point precision",
+                txt + " (marginal a-posteriori standard deviations).",
+            ),
+        )
+    else:
+        report._add(
+            3,
+            f"{p}Point precision",
+            '<p class="note">Point covariances were not '
+            "computed (bundle_adjust(..., point_covariance=True), or --point-covariance "
+            "at the command line).</p>",
+        )
+    if d.get("cost_history"):
+        report._add(
+            3,
+            f"{p}Convergence",
+            _img_html(
+                figure_to_png(convergence_figure(d["cost_history"])),
+                "convergence",
+                f"Cost v'Pv (whitened, robust weights applied) after each accepted "
+                f"Levenberg-Marquardt step; {d['message']}."
+                + (
+                    " With variance components: the last round's iterations (each round "
+                    "re-weights the groups and iterates again)."
+                    if d.get("variance_components")
+                    else ""
+                ),
+            ),
+        )
+    report._add(3, f"{p}Flagged observations (w-test)", _flagged_section(d, max_rows))
+    if d.get("variance_components"):
+        report._add(3, f"{p}Variance components", _variance_section(d["variance_components"]))
+    notes = d.get("notes") or []
+    report._add(
+        3,
+        f"{p}Notes",
+        "".join(f'<p class="note">{_esc(n)}</p>' for n in notes)
+        if notes
+        else '<p class="note">none</p>',
+    )
+
+
+def add_bundle_fit(
+    report: Report,
+    fit,
+    title: str | None = None,
+    *,
+    unit: str = "m",
+    angle_unit: str = "deg",
+    max_rows: int = MAX_ROWS,
+) -> dict:
+    """Add the sections of a :class:`~photogeom.bundle.BundleFit` to ``report``; returns the
+    result record (see :func:`bundle_result_data`) it was rendered from."""
+    data = bundle_result_data(fit, unit=unit, angle_unit=angle_unit)
+    add_bundle_result(report, data, title, max_rows=max_rows)
+    return data
+
+
+def bundle_report(
+    fit_or_data,
+    title: str = "Bundle adjustment",
+    *,
+    unit: str = "m",
+    angle_unit: str = "deg",
+    max_rows: int = MAX_ROWS,
+) -> Report:
+    """A complete HTML report of a bundle adjustment (a ``BundleFit`` or a result record).
+
+    >>> bundle_report(fit).write("bundle.html")                      # doctest: +SKIP
+    """
+    if isinstance(fit_or_data, Mapping):
+        data = fit_or_data
+    else:
+        data = bundle_result_data(fit_or_data, unit=unit, angle_unit=angle_unit)
+    blk = data["block"]
+    rep = Report(
+        title,
+        subtitle=f"{blk['n_images']} images, {blk['n_points']} points, "
+        f"{blk['n_image_observations']} image observations; residuals are computed "
+        "minus observed, in pixels",
+    )
+    add_bundle_result(rep, data, max_rows=max_rows)
+    return rep

@@ -1,0 +1,244 @@
+"""Command line: photogeom bundle simulate | adjust | convert | report."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import numpy as np
+import pytest
+from rich.console import Console
+from typer.testing import CliRunner
+
+import photogeom as pg
+
+SMALL = ["--strips", "2", "--images-per-strip", "4", "--tie-points-per-image", "60"]
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """A simulated CSV block (written by the command) with one blunder."""
+    from photogeom.cli.main import main
+
+    d = tmp_path_factory.mktemp("sim") / "block"
+    try:
+        main(["bundle", "simulate", str(d), "--seed", "5", "--blunders", "1", *SMALL])
+    except SystemExit as exc:  # pragma: no cover - a failure shows in the asserts below
+        assert exc.code in (0, None)
+    return d
+
+
+def test_help_lists_the_commands():
+    from photogeom.cli.main import app
+
+    res = CliRunner().invoke(app, ["bundle", "--help"])
+    assert res.exit_code == 0
+    for c in ("simulate", "adjust", "convert", "report"):
+        assert c in res.output
+
+
+def test_simulate_writes_block_truth_and_settings(simulated, cli, tmp_path):
+    for name in ("cameras.csv", "images.csv", "points.csv", "observations.csv"):
+        assert (simulated / name).is_file() and (simulated / "truth" / name).is_file()
+    rec = json.loads((simulated / "simulation.json").read_text())
+    assert rec["preset"] == "FC300S" and rec["seed"] == 5 and len(rec["blunders"]) == 1
+    # the files hold the simulator's blocks: same seed, same block
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=5, blunders=1, strips=2, images_per_strip=4, tie_points_per_image=60
+    )
+    block = pg.bundle.read_csv_block(simulated)
+    truth = pg.bundle.read_csv_block(simulated / "truth")
+    assert block.n_observations == sim.block.n_observations
+    np.testing.assert_allclose(block.observations.uv, sim.block.observations.uv, atol=1e-9)
+    np.testing.assert_allclose(truth.xyz, sim.truth.xyz, atol=1e-9)
+    np.testing.assert_allclose(pg.bundle.reprojection_residuals(truth), 0, atol=1e-6)
+    b = rec["blunders"][0]
+    r = sim.blunder_rows[0]
+    assert (b["image"], b["point"]) == (
+        sim.block.observations.image_ids[r].item(),
+        sim.block.observations.point_ids[r].item(),
+    )
+    code, out, err = cli("bundle", "simulate", tmp_path / "j", "--json", "--no-gnss", *SMALL)
+    assert code == 0, err
+    assert json.loads(out)["options"]["gnss_sigma"] is None
+
+
+def test_adjust_text_json_outputs_and_report(simulated, cli, tmp_path):
+    block = pg.bundle.read_csv_block(simulated)
+    ref = pg.bundle.bundle_adjust(block)
+    code, out, err = cli("bundle", "adjust", simulated, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["sigma0"] == pytest.approx(ref.sigma0, rel=1e-9)
+    assert d["redundancy"] == ref.redundancy and d["unit"] == "m" and d["angle_unit"] == "deg"
+    assert d["images"][0]["omega"] == pytest.approx(np.degrees(ref.block.exterior[0, 3]))
+    rep, res, outdir = tmp_path / "r.html", tmp_path / "r.json", tmp_path / "adjusted"
+    code, out, err = cli(
+        "bundle",
+        "adjust",
+        simulated,
+        "--report",
+        rep,
+        "--result",
+        res,
+        "-o",
+        outdir,
+        "--angle-unit",
+        "gon",
+    )
+    assert code == 0, err
+    assert f"sigma0 a posteriori {ref.sigma0:.4f}" in out and "omega" in out
+    assert "fail the w-test" in out  # the blunder
+    adjusted = pg.bundle.read_csv_block(outdir)
+    np.testing.assert_allclose(adjusted.exterior, ref.block.exterior, atol=1e-9)
+    np.testing.assert_allclose(adjusted.xyz, ref.block.xyz, atol=1e-8)
+    html = rep.read_text()
+    assert html.startswith("<!DOCTYPE html>") and "Flagged observations (w-test)" in html
+    assert "omega ± s [gon]" in html
+    # the saved record renders the same report again
+    rep2 = tmp_path / "again.html"
+    code, out, err = cli(
+        "bundle", "report", res, "-o", rep2, "--title", f"Bundle adjustment: {simulated.name}"
+    )
+    assert code == 0, err
+    strip = lambda s: "\n".join(  # noqa: E731
+        ln for ln in s.splitlines() if not ln.startswith('<p class="note">photogeom ')
+    )
+    assert strip(rep2.read_text()) == strip(html)
+
+
+def test_adjust_options_reach_the_adjustment(simulated, cli, tmp_path):
+    code, out, err = cli(
+        "bundle",
+        "adjust",
+        simulated,
+        "--json",
+        "--free",
+        "f,k1,k2",
+        "--loss",
+        "huber",
+        "--variance-components",
+        "--max-iterations",
+        "50",
+    )
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["solver"]["loss"] == "huber"
+    assert d["variance_components"]["factors"]
+    g = next(iter(d["calibration_std"]))
+    free = {k for k, v in d["calibration_std"][g].items() if v is not None}
+    assert free == {"f", "k1", "k2"}
+    code, out, err = cli(
+        "bundle",
+        "adjust",
+        simulated,
+        "--point-covariance",
+        "--no-snooping",
+        "--result",
+        tmp_path / "r.json",
+    )
+    assert code == 0, err
+    rec = json.loads((tmp_path / "r.json").read_text())
+    assert rec["point_precision"]["n"] > 0 and rec["snooping"] is None
+
+
+def test_errors_are_one_line_in_option_words(simulated, cli, tmp_path):
+    code, _out, err = cli("bundle", "adjust", tmp_path / "nothing")
+    assert code == 2 and err.startswith("error: no file or folder")
+    code, _, err = cli("bundle", "adjust", simulated, "--free", "f,zz")
+    assert code == 2 and err.startswith("error:") and "zz" in err
+    code, _, err = cli("bundle", "convert", simulated, tmp_path / "b.txt")
+    assert code == 2 and "--drop-extras" in err and "drop_extras=True" not in err
+    (tmp_path / "empty").mkdir()
+    code, _, err = cli("bundle", "adjust", tmp_path / "empty")
+    assert code == 2 and "--format" in err
+    code, _, err = cli("bundle", "convert", simulated, tmp_path / "out")
+    assert code == 2 and "--to" in err
+    # an undetermined camera: the advice names --free, not the keyword of bundle_adjust
+    code, _, err = cli("bundle", "adjust", pg.datasets.path("dubrovnik-3-7"), "--datum", "free")
+    assert code == 2 and "--free f,cx,cy" in err and "free=(" not in err
+    code, _, err = cli("bundle", "adjust", simulated, "--report", tmp_path / "no" / "r.html")
+    assert code == 2 and "--report" in err and "does not exist" in err
+    bad = tmp_path / "x.json"
+    bad.write_text('{"a": 1}')
+    code, _, err = cli("bundle", "report", bad)
+    assert code == 2 and "not a bundle adjustment result" in err
+    code, _, err = cli("bundle", "adjust", bad)
+    assert code == 2 and "photogeom bundle report" in err
+
+
+def test_convert_round_trip_and_free_datum(simulated, cli, tmp_path):
+    bal = tmp_path / "b.bal"
+    code, out, err = cli("bundle", "convert", simulated, bal, "--drop-extras")
+    assert code == 0, err and "(bal)" in out
+    code, _, err = cli("bundle", "convert", bal, tmp_path / "col", "--to", "colmap")
+    assert code == 0, err
+    code, out, err = cli(
+        "bundle", "convert", tmp_path / "col", tmp_path / "csv", "--to", "csv", "--json"
+    )
+    assert code == 0, err
+    info = json.loads(out)
+    assert info["source_format"] == "colmap" and info["target_format"] == "csv"
+    a = pg.bundle.read_bal(bal)
+    c = pg.bundle.read_csv_block(tmp_path / "csv")
+    assert c.n_observations == a.n_observations
+    np.testing.assert_allclose(
+        pg.bundle.reprojection_residuals(c), pg.bundle.reprojection_residuals(a), atol=1e-6
+    )
+    # no control in BAL: the datum defect names the option
+    code, _, err = cli("bundle", "adjust", bal)
+    assert code == 2 and "--datum free" in err
+    out_bal = tmp_path / "adj.bal"
+    code, out, err = cli("bundle", "adjust", bal, "--datum", "free", "-o", out_bal)
+    assert code == 0, err
+    assert "inner-constraint" in out and out_bal.is_file()
+
+
+def test_progress_on_a_terminal_only(simulated, cli, monkeypatch):
+    import photogeom.cli.bundle as cb
+
+    code, _out, err = cli("bundle", "adjust", simulated)
+    assert code == 0 and err == ""  # not a terminal: no progress display
+    buf = io.StringIO()
+    real = cb.console
+
+    def fake(stderr=False):
+        if stderr:
+            return Console(file=buf, force_terminal=True, width=100)
+        return real(stderr)
+
+    monkeypatch.setattr(cb, "console", fake)
+    calls = []
+    orig = pg.bundle.bundle_adjust
+
+    def spy(block, *a, progress=None, **k):
+        def p(it, cost, lam):
+            calls.append(it)
+            progress(it, cost, lam)
+
+        return orig(block, *a, progress=p, **k)
+
+    monkeypatch.setattr(pg.bundle, "bundle_adjust", spy)
+    code, _out, err = cli("bundle", "adjust", simulated)
+    assert code == 0, err
+    assert calls and calls == sorted(calls)
+    assert "cost" in buf.getvalue()
+
+
+def test_worked_example_finds_the_blunder_and_fills_the_report():
+    from photogeom.examples import get
+    from photogeom.report import Report
+
+    rep = Report("examples")
+    text = get("bundle-uav").run(rep)
+    assert "(the simulated blunder); removed, adjusted again" in text
+    assert "chi-square test: passed" in text
+    z = [float(ln.split("(")[-1].split()[0]) for ln in text.splitlines() if "sigma)" in ln]
+    assert len(z) == 8 and max(abs(v) for v in z) < 4
+    for h in (
+        "Calibration against the truth",
+        "FC300S block: Calibration",
+        "FC300S block: Residuals over the sensor",
+        "FC300S block: Convergence",
+    ):
+        assert h in rep.headings
