@@ -99,6 +99,19 @@ class BundleOptions:
         if self.datum not in DATUMS:
             raise InputError(f"datum must be one of {', '.join(DATUMS)}, not {self.datum!r}")
         from ..adjust.sparse import BACKENDS
+        from .block import CALIBRATION_NAMES
+
+        if self.free is not None:
+            if isinstance(self.free, str):
+                raise InputError(
+                    f"free must be a sequence of parameter names, not the string {self.free!r}"
+                )
+            bad = [n for n in self.free if n not in CALIBRATION_NAMES]
+            if bad:
+                raise InputError(
+                    f"free: unknown calibration parameter(s) {', '.join(map(repr, bad))}; "
+                    f"choose from {', '.join(CALIBRATION_NAMES)}"
+                )
 
         if self.backend not in BACKENDS:
             raise InputError(

@@ -201,7 +201,7 @@ class BundleFit:
             r = c["rmse"]
             g = c["rmse_gsd"]
             L.append(
-                f"check points ({len(c['ids'])}), adjusted minus surveyed: RMSE X {r[0]:.4g}, "
+                f"check points ({len(c['ids'])}), triangulated minus surveyed: RMSE X {r[0]:.4g}, "
                 f"Y {r[1]:.4g}, Z {r[2]:.4g} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
             )
         if self.snooping is not None:
