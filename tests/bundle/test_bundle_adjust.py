@@ -208,7 +208,7 @@ def test_cauchy_loss_still_lists_the_blunders_it_down_weights():
 
 def test_unknown_free_parameter_names_are_refused():
     truth = grid_block(0, rows=2, cols=3, n_points=120)
-    with pytest.raises(InputError, match="unknown calibration parameter.*'k5'"):
+    with pytest.raises(InputError, match=r"unknown calibration parameter.*'k5'"):
         bundle_adjust(truth, free=("f", "k5"))
     with pytest.raises(InputError, match="sequence of parameter names"):
         bundle_adjust(truth, free="f")

@@ -140,5 +140,10 @@ class BundleOptions:
                 f"{', '.join(sorted(names))}"
             )
         if "free" in changes and changes["free"] is not None:
+            if isinstance(changes["free"], str):
+                raise InputError(
+                    f"free must be a sequence of parameter names, not the string "
+                    f"{changes['free']!r} (e.g. free=('f', 'cx', 'cy'))"
+                )
             changes["free"] = tuple(changes["free"])
         return replace(self, **changes).validate()
