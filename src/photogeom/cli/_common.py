@@ -11,13 +11,12 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
-from rich.console import Console
 
+from .._lazy import LazyModule
 from ..errors import InputError
-from ..io import atomic_write_text, join_points, read_point_pairs, read_points
-from ..io.points import PointPairs
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 
 class AngleUnit(str, Enum):
@@ -40,15 +39,17 @@ OutputCsvOpt = Annotated[
 ]
 
 
-def console(stderr: bool = False) -> Console:
+def console(stderr: bool = False):
     """A console that keeps tables readable when the output is not a terminal."""
+    from rich.console import Console
+
     c = Console(stderr=stderr)
     if not c.is_terminal:
         c = Console(stderr=stderr, width=max(c.width, 110))
     return c
 
 
-def say(text: str, out: Console | None = None, *, stderr: bool = False) -> None:
+def say(text: str, out=None, *, stderr: bool = False) -> None:
     """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
 
@@ -100,9 +101,7 @@ def check_mask(
     if missing:
         known_ids = ""
         if list_ids:
-            known_ids = (
-                f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
-            )
+            known_ids = f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
         raise InputError(f"--check-ids: no point with id {', '.join(missing)}{known_ids}")
     return np.isin(np.array(ids, dtype=object), names)
 
@@ -132,8 +131,11 @@ def load_pairs(
     weights_col: str | None = None,
     sigma_col: str | None = None,
     allow_unmatched: bool = False,
-) -> PointPairs:
-    """Point pairs from one CSV with both coordinate sets or from two CSVs joined by id."""
+):
+    """Point pairs (:class:`~photogeom.io.PointPairs`) from one CSV with both coordinate sets
+    or from two CSVs joined by id."""
+    from ..io import join_points, read_point_pairs, read_points
+
     if target is None:
         return read_point_pairs(
             source,
@@ -146,9 +148,7 @@ def load_pairs(
     # An explicit weight/sigma column belongs to the target file; without one, a weight or
     # sigma column found in either file is used (join_points refuses conflicting ones).
     explicit = weights_col is not None or sigma_col is not None
-    src = read_points(
-        source, split_names(source_cols), id_column=id_col, auto_weights=not explicit
-    )
+    src = read_points(source, split_names(source_cols), id_column=id_col, auto_weights=not explicit)
     dst = read_points(
         target,
         split_names(target_cols),
@@ -162,12 +162,16 @@ def load_pairs(
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
     """Write every ``(path, text)``, each atomically; built in memory first, so a failed
     computation leaves no file half written."""
+    from ..io import atomic_write_text
+
     for path, text in outputs:
         atomic_write_text(path, text)
 
 
 def emit_points(text: str, output: Path | None, n: int) -> None:
     """A point CSV to stdout, or to ``output`` (atomically) with a note on stderr."""
+    from ..io import atomic_write_text
+
     if output is None:
         typer.echo(text, nl=False)
     else:

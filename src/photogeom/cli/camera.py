@@ -19,9 +19,9 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
 from ._common import (
     AngleUnit,
@@ -41,8 +41,16 @@ from ._common import (
     write_outputs,
 )
 
-app = typer.Typer(help="Frame camera models: projection, DLT.", no_args_is_help=True)
-dlt_app = typer.Typer(help="Direct linear transformation: estimate, convert.", no_args_is_help=True)
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
+
+app = typer.Typer(
+    help="Frame camera models: projection, DLT.", no_args_is_help=True, rich_markup_mode=None
+)
+dlt_app = typer.Typer(
+    help="Direct linear transformation: estimate, convert.",
+    no_args_is_help=True,
+    rich_markup_mode=None,
+)
 app.add_typer(dlt_app, name="dlt")
 
 

@@ -11,7 +11,9 @@ import typer
 from . import orient_absolute, orient_camera
 
 app = typer.Typer(
-    help="Orientations: absolute (3D similarity), resection, intersection.", no_args_is_help=True
+    help="Orientations: absolute (3D similarity), resection, intersection.",
+    no_args_is_help=True,
+    rich_markup_mode=None,
 )
 orient_absolute.register(app)
 orient_camera.register(app)

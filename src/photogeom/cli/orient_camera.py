@@ -12,9 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import (
     AngleUnit,
@@ -45,6 +45,8 @@ from .camera import (
     camera_from_json,
     load_control,
 )
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 
 def register(app: typer.Typer) -> None:
@@ -161,9 +163,7 @@ def resection(
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
     if report is not None:
-        outputs.append(
-            (report, _resection_report(fit, im_ctrl, kw.get("check_image"), au, points))
-        )
+        outputs.append((report, _resection_report(fit, im_ctrl, kw.get("check_image"), au, points)))
     write_outputs(outputs)
     if as_json:
         typer.echo(json_text(data), nl=False)

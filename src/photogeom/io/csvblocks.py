@@ -278,7 +278,7 @@ class DelimitedText:
                 block = block.decode("latin-1").encode("utf-8")
         if b"\r" in block:
             block = block.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
-        if b"#" in block or _BLANK_LINE.search(block) is not None:
+        if b"#" in block or (_indented(block) and _BLANK_LINE.search(block) is not None):
             keep = []
             for line in block.split(b"\n"):
                 s = line.strip()
@@ -452,6 +452,11 @@ class DelimitedText:
                 if k == len(want):
                     break
         return [found.get(int(r), -1) for r in rows]
+
+
+def _indented(block: bytes) -> bool:
+    """Whether a line of ``block`` starts with a space or a tab (cheap test)."""
+    return block[:1] in (b" ", b"\t") or b"\n " in block or b"\n\t" in block
 
 
 def _longest_line(block: bytes) -> int:

@@ -490,6 +490,142 @@ def _as_names(columns: Sequence[str] | str | None) -> tuple[str, ...] | None:
     return names
 
 
+@dataclass(frozen=True)
+class PointBlock:
+    """One block of points read by :class:`PointBlocks`.
+
+    Attributes
+    ----------
+    ids : pyarrow.StringArray
+        Point ids (text), in file order.
+    coords : numpy.ndarray, shape (n, d)
+        Coordinates (float64).
+    roles : pyarrow.StringArray or None
+        ``control`` / ``check`` per point (a blank role is ``control``), when the file has a
+        role column.
+    first_row : int
+        Index of the block's first point among all points of the file.
+    bytes_done : int
+        Bytes of the file read so far.
+    """
+
+    ids: object
+    coords: np.ndarray
+    roles: object
+    first_row: int
+    bytes_done: int
+
+    def __len__(self) -> int:
+        return int(self.coords.shape[0])
+
+
+class PointBlocks:
+    """The points of a CSV read block by block, for files of any size.
+
+    Memory use is that of one block (a few MiB of text), whatever the size of the file. The
+    checks of :func:`read_points` apply (columns, numbers, NaN, empty ids) except that ids
+    are not checked for duplicates, which would need every id of the file in memory; use it
+    for jobs that treat each point on its own (projection, transformation).
+
+    Parameters
+    ----------
+    path : path-like
+        Point CSV (format of :func:`read_points`).
+    columns : sequence of str or comma-separated str, optional
+        Coordinate columns (default: found by name as in :func:`read_points`).
+    id_column : str, optional
+        Id column (default: ``id``, ``point``, ``point_id`` or ``name``).
+    role_column : str or None
+        Role column to pass through (``role`` by default, when present).
+    block_bytes : int
+        Bytes of text per block.
+
+    Attributes
+    ----------
+    columns : tuple of str
+        Coordinate columns read.
+    header : tuple of str
+    size : int
+        File size in bytes (for progress display).
+    has_roles : bool
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        columns: Sequence[str] | str | None = None,
+        *,
+        id_column: str | None = None,
+        role_column: str | None = ROLE_COLUMN,
+        block_bytes: int = 4 << 20,
+    ) -> None:
+        self._raw = _Source(Path(path))
+        self._raw.text.block_bytes = int(block_bytes)
+        self.path = Path(path)
+        self.label = self._raw.label
+        self.header = self._raw.header
+        self._id = _id_column(self._raw, id_column)
+        names = _as_names(columns)
+        self.columns = (
+            _resolve_columns(self._raw, names, "coordinate") if names else _auto_columns(self._raw)
+        )
+        self._role = _role_column(self._raw, role_column)
+        self.has_roles = self._role is not None
+        self.size = self._raw.text.size
+
+    @property
+    def dim(self) -> int:
+        return len(self.columns)
+
+    @property
+    def comments(self) -> tuple[str, ...]:
+        """Comment lines read so far (all of them once the blocks are read)."""
+        return self._raw.comments
+
+    def __iter__(self) -> Iterator[PointBlock]:
+        import pyarrow.compute as pc
+
+        strings = [self._id] + ([self._role] if self._role else [])
+        for block in self._raw.text.blocks(strings, self.columns):
+            ids = block.strings[self._id]
+            if pc.any(pc.equal(ids, "")).as_py():
+                empty = np.flatnonzero(pc.equal(ids, "").to_numpy(zero_copy_only=False))[:10]
+                lines = self._raw.lines(block.first_row + empty)
+                raise FileFormatError(
+                    f"{self.label}: empty point id on line(s) {', '.join(map(str, lines))}"
+                )
+            coords = _stack(block.numbers, self.columns)
+            bad = ~np.isfinite(coords).all(axis=1)
+            if bad.any():
+                rows = np.flatnonzero(bad)[:10]
+                lines = self._raw.lines(block.first_row + rows)
+                where = [f"{ids[int(i)].as_py()} (line {ln})" for i, ln in zip(rows, lines)]
+                raise InputError(
+                    f"{self.label}: point(s) with NaN or infinite coordinates in "
+                    f"{', '.join(self.columns)}: {', '.join(where)}"
+                    f"{' ...' if bad.sum() > 10 else ''}; fix or remove them"
+                )
+            roles = block.strings[self._role] if self._role else None
+            if roles is not None:
+                low = pc.utf8_lower(roles)
+                ok = pc.is_in(low, value_set=_pa_roles())
+                ok = pc.or_(ok, pc.equal(low, ""))
+                if not pc.all(ok).as_py():
+                    k = int(np.flatnonzero(~ok.to_numpy(zero_copy_only=False))[0])
+                    raise FileFormatError(
+                        f"{self.label}, line {self._raw.lines([block.first_row + k])[0]}: role "
+                        f"{roles[k].as_py()!r} is neither 'control' nor 'check'"
+                    )
+                roles = pc.if_else(pc.equal(low, ""), "control", low)
+            yield PointBlock(ids, coords, roles, block.first_row, block.bytes_done)
+
+
+def _pa_roles():
+    import pyarrow as pa
+
+    return pa.array(list(ROLES))
+
+
 def read_point_pairs(
     path: str | os.PathLike,
     source_columns: Sequence[str] | str | None = None,
@@ -718,7 +854,11 @@ class PointWriter:
         if self.path is None:
             import sys
 
-            self._fh = self._stream if self._stream is not None else sys.stdout.buffer
+            if self._stream is not None:
+                self._fh = self._stream
+            else:
+                sys.stdout.flush()
+                self._fh = getattr(sys.stdout, "buffer", None) or _TextSink(sys.stdout)
         else:
             import tempfile
 
@@ -785,8 +925,9 @@ class PointWriter:
                 raise InputError(f"column {name}: {len(v)} value(s) for {n} point(s)")
             arrays[f"e{j}"] = _text_column(pa, pc, v)
         table = pa.table(arrays)
+        texts = [table.column(0)] + [table.column(f"e{j}") for j in range(len(self.extra))]
         plain = not any(
-            pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in table.columns
+            pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in texts
         )
         if plain:
             pcsv.write_csv(
@@ -834,16 +975,36 @@ class PointWriter:
             pass
 
 
+class _TextSink:
+    """Bytes written to a text stream (standard output replaced by a text-only object)."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+
+    def write(self, data: bytes) -> None:
+        self.stream.write(data.decode("utf-8"))
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+
 def _texts(values) -> list[str]:
     return [str(v) for v in values]
 
 
 def _float_text(pa, pc, values: np.ndarray):
     """Shortest round-trip text of float64 values; integral values keep a ``.0``."""
-    text = pc.cast(pa.array(np.asarray(values, dtype=np.float64)), pa.string())
-    whole = pc.match_substring_regex(text, r"^-?[0-9]+$")
-    if pc.any(whole).as_py():
-        text = pc.if_else(whole, pc.binary_join_element_wise(text, ".0", ""), text)
+    values = np.asarray(values, dtype=np.float64)
+    text = pc.cast(pa.array(values), pa.string())
+    with np.errstate(invalid="ignore"):
+        maybe = np.flatnonzero(np.floor(values) == values)  # integral: "3" -> "3.0"
+    if maybe.size:
+        sub = pc.take(text, pa.array(maybe))
+        whole = pc.match_substring_regex(sub, r"^-?[0-9]+$").to_numpy(zero_copy_only=False)
+        if whole.any():
+            mask = np.zeros(values.shape[0], dtype=bool)
+            mask[maybe[whole]] = True
+            text = pc.if_else(pa.array(mask), pc.binary_join_element_wise(text, ".0", ""), text)
     return text
 
 
