@@ -926,9 +926,7 @@ class PointWriter:
             arrays[f"e{j}"] = _text_column(pa, pc, v)
         table = pa.table(arrays)
         texts = [table.column(0)] + [table.column(f"e{j}") for j in range(len(self.extra))]
-        plain = not any(
-            pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in texts
-        )
+        plain = not any(pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in texts)
         if plain:
             pcsv.write_csv(
                 table,
