@@ -177,3 +177,39 @@ def emit_points(text: str, output: Path | None, n: int) -> None:
     else:
         atomic_write_text(output, text)
         say(f"wrote {n} point(s) to {output}", stderr=True)
+
+
+# --- errors in the words of the command line ----------------------------------------------------
+
+#: Phrases of library messages that name a Python argument, and the command-line option that
+#: does the same (the library speaks of its keywords, the command line of its options).
+CLI_WORDS: tuple[tuple[str, str], ...] = (
+    ("pass behind='nan' to get NaN", "pass --behind nan to get NaN"),
+    ("or pass behind='nan'", "or pass --behind nan"),
+    (
+        "(angles are radians; the camera looks along its -z axis)",
+        "(angles of --eo are in --angle-unit, degrees by default; the camera looks along its "
+        "-z axis)",
+    ),
+    (
+        "pass initial= an approximate orientation",
+        "pass --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (metres; angles in --angle-unit) with an "
+        "approximate orientation",
+    ),
+    (
+        "degenerate); pass initial=",
+        "degenerate); pass start values with --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (metres; angles "
+        "in --angle-unit)",
+    ),
+    ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
+    ("source_system / target_system", "--source-system / --target-system"),
+    ("give both source_system and target_system", "give both --source-system and --target-system"),
+    (" (photogeom.orientation.p3p lists them)", ""),
+)
+
+
+def in_cli_words(message: str) -> str:
+    """``message`` with the Python argument names of :data:`CLI_WORDS` replaced by options."""
+    for api, cli in CLI_WORDS:
+        message = message.replace(api, cli)
+    return message

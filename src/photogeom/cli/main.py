@@ -81,7 +81,9 @@ def main(argv: list[str] | None = None) -> None:
     try:
         app(args=argv, prog_name="photogeom")
     except PhotogeomError as exc:
-        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        from ._common import in_cli_words
+
+        typer.secho(f"error: {in_cli_words(str(exc))}", err=True, fg=typer.colors.RED)
         sys.exit(2)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)

@@ -44,6 +44,7 @@ from .camera import (
     build_interior,
     camera_from_json,
     load_control,
+    say_unmatched,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -128,6 +129,7 @@ def resection(
         pixel_size=pixel_size,
         principal_point=principal_point,
     )
+    unmatched: dict = {}
     ids, g, im, mask, sig = load_control(
         points,
         image,
@@ -135,7 +137,9 @@ def resection(
         image_cols=image_cols or ("col,row" if pixel else None),
         id_col=id_col,
         sigma_col=sigma_col,
+        unmatched=unmatched,
     )
+    say_unmatched(unmatched, as_json)
     if pixel:
         im = io.pixel_to_image(im)
     if sigma is not None:
@@ -159,6 +163,8 @@ def resection(
     )
     data = fit.to_dict()
     data["model_parameters"] = fit.camera.to_dict(au)
+    if unmatched:
+        data["unmatched"] = unmatched
     outputs: list[tuple[Path, str]] = []
     if output_params is not None:
         outputs.append((output_params, json_text(data)))

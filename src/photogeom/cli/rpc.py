@@ -67,6 +67,11 @@ class TextStyle(str, Enum):
 def _load_rpc(path: Path):
     from ..rpc import RPC
 
+    if path.is_dir():
+        raise FileFormatError(
+            f"cannot read {path}: it is a directory; give the RPC file itself (e.g. "
+            f"{path}/IMG_RPC.TXT, an _RPC.XML, .RPB or DIMAP file)"
+        )
     return RPC.from_file(path)
 
 
