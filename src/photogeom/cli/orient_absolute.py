@@ -267,8 +267,20 @@ def register(app: typer.Typer) -> None:
         if is_check.any():
             chk = fit.transform.apply(pairs.source[is_check]) - pairs.target[is_check]
             fit = fit.with_checks(chk, [str(i) for i in ids[is_check]])
+        outliers = _outliers(fit, x, X, row_ids)
         if as_json:
-            typer.echo(json.dumps(_fit_json(fit, conv, angle, pairs.notes), indent=2))
+            d = _fit_json(fit, conv, angle, pairs.notes)
+            if fit.inliers is not None:
+                d["ransac"] = {
+                    "threshold": threshold,
+                    "unit": unit,
+                    "pair_ids": list(row_ids),
+                    "inlier_ids": [i for i, k in zip(row_ids, fit.inliers) if k],
+                    "outliers": outliers,
+                    "note": "inliers is a mask over pair_ids; ids and residuals are those of "
+                    "the inliers; outlier residuals v = computed - observed with the inlier fit",
+                }
+            typer.echo(json.dumps(d, indent=2))
         else:
             for note in pairs.notes:
                 out.print(f"note: {note}")
@@ -276,6 +288,14 @@ def register(app: typer.Typer) -> None:
             out.print(_angles_line(fit, conv, angle))
             if fit.inliers is not None:
                 out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
+                if outliers:
+                    print_table(
+                        f"RANSAC outliers ({len(outliers)}, not in the estimate)",
+                        ["id", "v_X", "v_Y", "v_Z", "|v|"],
+                        _outlier_rows(outliers),
+                        console=out,
+                    )
+                    out.print(f"v = computed - observed with the inlier fit [{unit}]", markup=False)
         if report is not None:
             rep = Report("Absolute orientation")
             used = X if fit.inliers is None else X[fit.inliers]
@@ -284,13 +304,40 @@ def register(app: typer.Typer) -> None:
                 title=f"Absolute orientation ({meth})",
                 angle_unit=angle,
                 points=used[:, :2],
+                check_points=pairs.target[is_check][:, :2] if is_check.any() else None,
                 point_labels=("X", "Y"),
                 point_unit=unit,
             )
             rep.add_text("Angles", _angles_line(fit, conv, angle))
+            if outliers:
+                rep.add_table(
+                    f"RANSAC outliers ({len(outliers)} of {len(row_ids)} pairs)",
+                    ["id", f"v_X [{unit}]", f"v_Y [{unit}]", f"v_Z [{unit}]", f"|v| [{unit}]"],
+                    _outlier_rows(outliers),
+                    note=f"Pairs farther than the threshold {threshold:g} {unit} from the "
+                    "RANSAC fit, left out of the estimate; v = computed - observed with the "
+                    "inlier fit.",
+                )
             rep.write(report)
             if not as_json:
                 out.print(f"report written to {report}")
+
+
+def _outliers(fit, x, X, row_ids) -> list[dict]:
+    """Pairs rejected by RANSAC: id, residual v = computed - observed (inlier fit), |v|."""
+    if fit.inliers is None:
+        return []
+    k = np.flatnonzero(~np.asarray(fit.inliers))
+    v = fit.transform.apply(x[k]) - X[k]
+    norms = np.linalg.norm(v, axis=1)
+    return [
+        {"id": row_ids[i], "v": [float(c) for c in vi], "norm": float(n)}
+        for i, vi, n in zip(k, v, norms)
+    ]
+
+
+def _outlier_rows(outliers: list[dict]) -> list[list[str]]:
+    return [[o["id"], *(f"{c:.4f}" for c in o["v"]), f"{o['norm']:.4f}"] for o in outliers]
 
 
 def _fmt(v, decimals: int, sci: bool = False) -> str:
