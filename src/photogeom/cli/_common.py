@@ -193,12 +193,12 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
     ),
     (
         "pass initial= an approximate orientation",
-        "pass --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (metres; angles in --angle-unit) with an "
+        "pass --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (ground units; angles in --angle-unit) with an "
         "approximate orientation",
     ),
     (
         "degenerate); pass initial=",
-        "degenerate); pass start values with --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (metres; angles "
+        "degenerate); pass start values with --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (ground units; angles "
         "in --angle-unit)",
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),

@@ -39,6 +39,7 @@ MAX_FIELD_BYTES = 128 * 1024
 #: Longest line accepted.
 MAX_LINE_BYTES = 16 << 20
 
+_LINE_END = re.compile(rb"\r\n|\n|\r")
 _BLANK_LINE = re.compile(rb"(?m)^[ \t]+\r?$")
 _RUNS_OF_SPACE = re.compile(rb"[ \t]+")
 _EDGE_TABS = re.compile(rb"(?m)^\t|\t(?=\r?$)")
@@ -159,9 +160,7 @@ class DelimitedText:
             raise FileFormatError(
                 f"cannot read {self.label}: it looks like a binary file, not a CSV text file"
             )
-        offset = 0
-        for number, line in self._lines_raw():
-            offset += len(line) + 1
+        for number, line, end in self._head_lines():
             if len(line) > MAX_LINE_BYTES:
                 raise FileFormatError(
                     f"{self.label}, line {number}: the line is longer than {MAX_LINE_BYTES} bytes"
@@ -173,12 +172,42 @@ class DelimitedText:
                 self.comments.append(text[1:].strip())
                 continue
             self.header_line = number
-            self._body_offset = offset
+            self._body_offset = end
             self._parse_header(text, number)
             return
         raise FileFormatError(
             f"{self.label}: no header line and no data (the file is empty or all comments)"
         )
+
+    def _head_lines(self) -> Iterator[tuple[int, bytes, int]]:
+        """(line number, line, byte offset after its end) from the start of the input."""
+        with self._open() as fh:
+            buf = fh.read(1 << 16)
+            pos = 3 if buf.startswith(b"\xef\xbb\xbf") else 0
+            base = 0  # file offset of buf[0]
+            number = 0
+            while True:
+                m = _LINE_END.search(buf, pos)
+                if m is None or (m.group() == b"\r" and m.end() == len(buf)):
+                    more = fh.read(1 << 16)
+                    if more:
+                        if pos > MAX_LINE_BYTES:
+                            buf, base, pos = buf[pos:], base + pos, 0
+                        buf += more
+                        if len(buf) - pos > MAX_LINE_BYTES + (1 << 16):
+                            raise FileFormatError(
+                                f"{self.label}, line {number + 1}: the line is longer than "
+                                f"{MAX_LINE_BYTES} bytes"
+                            )
+                        continue
+                    if pos >= len(buf):
+                        return
+                    number += 1
+                    yield number, buf[pos:], base + len(buf)
+                    return
+                number += 1
+                yield number, buf[pos : m.start()], base + m.end()
+                pos = m.end()
 
     def _parse_header(self, text: str, number: int) -> None:
         if "," in text:

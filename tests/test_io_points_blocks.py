@@ -1,0 +1,199 @@
+"""Point CSVs read in blocks (pyarrow) and written in chunks: malformed input refused with the
+line, results independent of the block size, streamed reading and atomic streamed writing."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from photogeom.errors import FileFormatError, InputError
+from photogeom.io import (
+    PointBlocks,
+    PointWriter,
+    format_points_csv,
+    parse_points,
+    read_points,
+)
+from photogeom.io.csvblocks import MAX_FIELD_BYTES, DelimitedText
+
+
+def _write(tmp_path: Path, text: str, name: str = "a.csv") -> Path:
+    p = tmp_path / name
+    p.write_bytes(text.encode("utf-8"))
+    return p
+
+
+# --- input the csv module accepted silently ------------------------------------------------
+
+
+def test_quoted_field_spanning_lines_is_refused():
+    # Python's csv module joined the lines: x = 23 and the row count changed
+    with pytest.raises(FileFormatError, match=r"line 2: a quote .* cannot span lines"):
+        parse_points('id,x,y\n1,"2\n3",4\n5,6,7\n')
+
+
+def test_stray_quote_does_not_swallow_the_rows_after_it():
+    text = 'id,x,y\n1,0,0\n2,"1,1\n3,2,2\n4,3,3\n'
+    with pytest.raises(FileFormatError, match=r"line 3: a quote"):
+        parse_points(text)
+
+
+def test_quoted_ids_and_spaces_are_fine():
+    t = parse_points('id,x,y\n"P,1", 1.5 ,2\n"say ""hi""",3,4\n')
+    assert t.ids == ("P,1", 'say "hi"')
+    np.testing.assert_array_equal(t.coords, [[1.5, 2], [3, 4]])
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "id,x,y\n" + "a" * (MAX_FIELD_BYTES + 1) + ",1,2\n",
+        "id,x,y\n1," + "9" * (MAX_FIELD_BYTES + 1) + ",2\n",
+        "id,x,y\n1,2,3\n" * 5 + "7,1," + "5" * (MAX_FIELD_BYTES + 10) + "\n",
+    ],
+)
+def test_overlong_field_is_refused_with_its_line(text):
+    with pytest.raises(FileFormatError, match=r"line \d+: a field is longer than 131072 bytes"):
+        parse_points(text)
+
+
+def test_header_checks_are_linear_and_name_the_duplicate():
+    names = [f"c{i}" for i in range(60000)]
+    with pytest.raises(FileFormatError, match=r"column name\(s\) c7 appear more than once"):
+        parse_points("id," + ",".join([*names, "c7"]) + "\n")
+    t = parse_points("id,x,y," + ",".join(names) + "\n1,2,3" + ",0" * len(names) + "\n")
+    assert t.coords.tolist() == [[2.0, 3.0]]
+
+
+def test_weights_must_be_positive_finite_numbers():
+    with pytest.raises(FileFormatError, match=r"line 2: column weight holds 'heavy', not a number"):
+        parse_points("id,x,y,weight\n1,0,0,heavy\n")
+    with pytest.raises(InputError, match=r"sigma of point 1 is 1e\+308.*too small or too large"):
+        parse_points("id,x,y,sigma\n1,0,0,1e308\n")
+    with pytest.raises(InputError, match=r"NaN or infinite"):
+        parse_points("id,x,y,weight\n1,0,0,inf\n")
+    with pytest.raises(InputError, match="must be > 0"):
+        parse_points("id,x,y,weight\n1,0,0,-1\n")
+
+
+def test_comments_blank_lines_line_ends_and_encodings(tmp_path):
+    text = "\ufeff# head\r\nid;x;y\r\n\r\n  \r\n1;1,0;2\r\n# middle\r\n2;3;4\r\n"
+    with pytest.raises(FileFormatError, match=r"line 5: column x holds '1,0'"):
+        parse_points(text)
+    t = parse_points(text.replace("1,0", "1.0"))
+    assert t.ids == ("1", "2") and t.comments == ("head", "middle")
+    p = tmp_path / "latin.csv"
+    p.write_bytes("id,x,y\nM\xfcnster,1,2\n".encode("latin-1"))
+    assert read_points(p).ids == ("M\u00fcnster",)
+    t = parse_points("id,x,y\n007,1,2\n7,3,4\n")  # ids are text
+    assert t.ids == ("007", "7")
+
+
+def test_ragged_lines_are_named_in_any_block(tmp_path):
+    rows = "".join(f"{i},{i},{i}\n" for i in range(2000))
+    p = _write(tmp_path, "id,x,y\n" + rows + "oops,1\n" + rows.replace(",", ",1", 1))
+    src = DelimitedText(p, block_bytes=1000)
+    with pytest.raises(FileFormatError, match=r"line 2002: 2 field\(s\) but the header has 3"):
+        list(src.blocks(["id"], ["x", "y"]))
+
+
+# --- the same result whatever the block size -------------------------------------------------
+
+_ids = st.text(
+    alphabet=st.characters(blacklist_categories=("Cs", "Cc"), blacklist_characters="#\ufeff"),
+    min_size=1,
+    max_size=8,
+).filter(lambda s: s.strip() == s and s != "")
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.tuples(_ids, st.floats(allow_nan=False, allow_infinity=False, width=64)),
+        min_size=1,
+        max_size=40,
+        unique_by=lambda r: r[0],
+    ),
+    st.integers(min_value=1, max_value=200),
+    st.booleans(),
+)
+def test_block_size_does_not_change_the_result(rows, block, comments):
+    ids = [r[0] for r in rows]
+    xy = np.array([[r[1], -r[1]] for r in rows])
+    text = format_points_csv(ids, xy, ["x", "y"], comments=["made"])
+    if comments:  # comment and blank lines between the rows
+        lines = text.split("\n")
+        text = "\n".join(ln + ("\n# c\n\n" if k % 3 == 2 else "") for k, ln in enumerate(lines))
+    whole = parse_points(text)
+    src = DelimitedText(data=text.encode("utf-8"), block_bytes=block)
+    parts = list(src.blocks(["id"], ["x", "y"]))
+    got_ids = [v for b in parts for v in b.strings["id"].to_pylist()]
+    got = np.concatenate([np.column_stack([b.numbers["x"], b.numbers["y"]]) for b in parts])
+    assert tuple(got_ids) == whole.ids == tuple(ids)
+    np.testing.assert_array_equal(got, whole.coords)
+    np.testing.assert_array_equal(got, xy)  # the shortest round-trip text is lossless
+
+
+def test_error_lines_are_right_across_blocks(tmp_path):
+    rows = "".join(f"p{i},{i},{i}\n" for i in range(3000))
+    p = _write(tmp_path, "# c\nid,x,y\n" + rows + "bad,nan,1\n")
+    with pytest.raises(InputError, match=r"bad \(line 3003\)"):
+        for _ in PointBlocks(p, block_bytes=997):
+            pass
+    with pytest.raises(InputError, match=r"bad \(line 3003\)"):
+        read_points(p)
+
+
+# --- streamed reading and writing ----------------------------------------------------------
+
+
+def test_point_blocks_match_read_points(tmp_path):
+    rng = np.random.default_rng(3)
+    xyz = rng.normal(size=(5000, 3)) * 1e3
+    roles = np.where(rng.random(5000) < 0.2, "check", "control")
+    ids = [f"id{k:05d}" for k in range(5000)]
+    p = tmp_path / "p.csv"
+    with PointWriter(p, ["X", "Y", "Z"], extra=["role"], comments=["test"]) as w:
+        for k in range(0, 5000, 1234):
+            w.write(ids[k : k + 1234], xyz[k : k + 1234], {"role": list(roles[k : k + 1234])})
+    whole = read_points(p)
+    blocks = list(PointBlocks(p, block_bytes=10_000))
+    assert len(blocks) > 10
+    assert [v for b in blocks for v in b.ids.to_pylist()] == list(whole.ids) == ids
+    np.testing.assert_array_equal(np.vstack([b.coords for b in blocks]), xyz)
+    assert [v for b in blocks for v in b.roles.to_pylist()] == list(whole.roles) == list(roles)
+
+
+def test_writer_quotes_only_ids_that_need_it_and_keeps_floats_floats():
+    text = format_points_csv(
+        ["a", "b,c", 'd"e'], np.array([[1.0, -0.0], [1e22, 0.1], [2.5e-8, 3.0]]), ["x", "y"]
+    )
+    assert text.splitlines() == [
+        "id,x,y",
+        "a,1.0,-0.0",
+        '"b,c",1e+22,0.1',
+        '"d""e",2.5e-8,3.0',
+    ]
+    t = parse_points(text)
+    assert t.ids == ("a", "b,c", 'd"e')
+
+
+def test_streamed_write_is_atomic(tmp_path):
+    target = tmp_path / "out.csv"
+    target.write_text("old\n")
+    with pytest.raises(RuntimeError, match="stop"):
+        with PointWriter(target, ["x", "y"]) as w:
+            w.write(["1"], np.zeros((1, 2)))
+            raise RuntimeError("stop")
+    assert target.read_text() == "old\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+    with PointWriter(target, ["x", "y"]) as w:
+        w.write(["1"], np.ones((1, 2)))
+    assert target.read_text() == "id,x,y\n1,1.0,1.0\n"
+    if os.name == "posix":
+        assert target.stat().st_mode & 0o777 != 0o600
