@@ -25,6 +25,7 @@ class AngleUnit(str, Enum):
     deg = "deg"
     gon = "gon"
     rad = "rad"
+    arcsec = "arcsec"
 
 
 #: ``--id-col``, the same in every command that reads point files.
@@ -198,8 +199,8 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
     ),
     (
         "degenerate); pass initial=",
-        "degenerate); pass start values with --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (ground units; angles "
-        "in --angle-unit)",
+        "degenerate); pass start values with --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (ground units; "
+        "angles in --angle-unit)",
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
     ("source_system / target_system", "--source-system / --target-system"),

@@ -34,8 +34,21 @@ class Convention(str, Enum):
     direct = "direct"
 
 
-def _angles_line(fit, convention: str, unit: str) -> str:
+def _display_angles(fit, convention: str, unit: str) -> tuple[float, float, float]:
+    """omega, phi, kappa as printed (one rule for every printed angle, see
+    :func:`photogeom.units.display_angle`)."""
+    from ..units import display_angle
+
     w, p, k = fit.angles(convention, unit)
+    return (
+        display_angle(w, unit, "omega"),
+        display_angle(p, unit, "phi"),
+        display_angle(k, unit, "kappa"),
+    )
+
+
+def _angles_line(fit, convention: str, unit: str) -> str:
+    w, p, k = _display_angles(fit, convention, unit)
     rel = "R = M(omega, phi, kappa).T" if convention == "transposed" else "R = M(omega, phi, kappa)"
     return (
         f"angles ({convention} convention, {rel}): omega {w:.6f} {unit}, phi {p:.6f} {unit}, "
@@ -45,7 +58,7 @@ def _angles_line(fit, convention: str, unit: str) -> str:
 
 def _fit_json(fit, convention: str, unit: str, pairs_notes) -> dict:
     d = fit.to_dict()
-    w, p, k = fit.angles(convention, unit)
+    w, p, k = _display_angles(fit, convention, unit)
     d["angles"] = {"convention": convention, "unit": unit, "omega": w, "phi": p, "kappa": k}
     d["scale"] = fit.scale
     d["rotation"] = np.asarray(fit.rotation).tolist()

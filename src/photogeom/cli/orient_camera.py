@@ -87,7 +87,11 @@ def resection(
         typer.Option(help="Start values X0,Y0,Z0,omega,phi,kappa (needed with 3 points)."),
     ] = None,
     sigma: Annotated[
-        float | None, typer.Option(help="Standard deviation of the image coordinates.")
+        float | None,
+        typer.Option(
+            help="Standard deviation of the image coordinates, in --unit (mm by default; with "
+            "--pixel too, as pixels are converted to --unit)."
+        ),
     ] = None,
     sigma_col: Annotated[
         str | None, typer.Option(help="Column of per-point image standard deviations.")
@@ -227,7 +231,10 @@ def intersection(
     id_col: IdColOpt = None,
     sigma: Annotated[
         float | None,
-        typer.Option(help="Standard deviation of the image coordinates (a-priori std. dev.)."),
+        typer.Option(
+            help="A-priori standard deviation of the image coordinates, in the image unit of "
+            "the cameras (e.g. mm; with --pixel too, as pixels are converted)."
+        ),
     ] = None,
     output: OutputCsvOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
@@ -293,9 +300,19 @@ def intersection(
             }
             for pid, p, sd, k, s0 in zip(ids, res.points, std, res.n_rays, res.sigma0)
         ]
+        units = {
+            "X, Y, Z, std": "ground unit of the cameras (that of X0, Y0, Z0)",
+            "image": cams[0][0].unit,
+            "sigma0": "1 (a posteriori / a priori)",
+        }
         typer.echo(
             json_text(
-                {"points": pts, "notes": notes, "residual_convention": "computed minus observed"}
+                {
+                    "points": pts,
+                    "units": units,
+                    "notes": notes,
+                    "residual_convention": "computed minus observed",
+                }
             ),
             nl=False,
         )
@@ -310,8 +327,9 @@ def intersection(
             },
             comments=[
                 f"space intersection of {', '.join(map(str, images))}",
+                "X, Y, Z and sX, sY, sZ in the ground unit of the cameras (that of X0, Y0, Z0); "
                 "sX, sY, sZ: a-posteriori standard deviations (a priori from --sigma where the "
-                "redundancy is 0)",
+                "redundancy is 0); sigma0: a posteriori / a priori, unitless",
             ],
         )
         if output is None:
@@ -345,7 +363,13 @@ def _intersection_report(res, ids, images, obs, cams) -> str:
         ]
         for pid, p, sd, k, s0 in zip(ids, res.points, res.std, res.n_rays, res.sigma0)
     ]
-    rep.add_table("Object points", ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"], rows)
+    rep.add_table(
+        "Object points",
+        ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"],
+        rows,
+        note="X, Y, Z and their standard deviations sX, sY, sZ in the ground unit of the "
+        "cameras (that of X0, Y0, Z0); sigma0 a posteriori / a priori (unitless).",
+    )
     for i, path in enumerate(images):
         ok = np.all(np.isfinite(obs[i]), axis=1)
         if not ok.any():

@@ -117,6 +117,13 @@ def estimate(
         str,
         typer.Option(help="Unit of the target coordinates, to label residuals (e.g. mm, m, px)."),
     ] = "",
+    source_unit: Annotated[
+        str,
+        typer.Option(
+            help="Unit of the source coordinates (default: px with --source-system pixel, else "
+            "--unit); scale parameters are labelled target/source unit, e.g. mm/px."
+        ),
+    ] = "",
     source_system: Annotated[
         str | None,
         typer.Option(
@@ -192,6 +199,7 @@ def estimate(
         target_system=target_system,
         errors_in=errors_in,
         unit=unit,
+        source_unit=source_unit,
     )
     if pairs.notes:
         fit = replace(fit, notes=tuple(fit.notes) + tuple(pairs.notes))

@@ -210,6 +210,16 @@ class Report:
                     text_cols={3},
                 )
             )
+        hm = F.helmert_rows(fit)
+        if hm:
+            parts.append(
+                f"<h4>{html.escape(F.HELMERT_TITLE)}</h4>"
+                + _table_html(
+                    ["parameter", "value", "std. dev.", "unit"],
+                    [list(r) for r in hm],
+                    text_cols={3},
+                )
+            )
         ctab = F.residual_table(fit)
         if ctab is not None:
             parts.append(
