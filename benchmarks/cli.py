@@ -33,15 +33,25 @@ PY = sys.executable
 
 
 def run(cmd: list[str]) -> tuple[float, float, float]:
-    """Wall time (s), CPU time (s) and peak memory (MiB) of a child process."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed: {proc.stderr.read().decode()}")
-    proc.stderr.close()
-    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+    """Wall time (s), CPU time (s) and peak memory (MiB) of a command.
+
+    The command runs under a small launcher process (``python -c``) that starts it: a child
+    forked directly from this process would count this process's memory (the test arrays)
+    in its peak until it execs.
+    """
+    launcher = (
+        "import os, subprocess, sys, time\n"
+        "t0 = time.perf_counter()\n"
+        "p = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL)\n"
+        "_, st, ru = os.wait4(p.pid, 0)\n"
+        "print(time.perf_counter() - t0, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0,"
+        " os.waitstatus_to_exitcode(st))\n"
+    )
+    out = subprocess.run([PY, "-c", launcher, *cmd], capture_output=True, text=True)
+    wall, cpu, peak, code = out.stdout.split()
+    if int(code) != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {out.stderr}")
+    return float(wall), float(cpu), float(peak)
 
 
 def best_of(f, repeat: int) -> float:

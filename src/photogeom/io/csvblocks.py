@@ -485,7 +485,10 @@ class DelimitedText:
 
 def _indented(block: bytes) -> bool:
     """Whether a line of ``block`` starts with a space or a tab (cheap test)."""
-    return block[:1] in (b" ", b"\t") or b"\n " in block or b"\n\t" in block
+    # a search for a single byte is fast; "\n " is slow (line ends are everywhere)
+    if block[:1] in (b" ", b"\t"):
+        return True
+    return (b" " in block and b"\n " in block) or (b"\t" in block and b"\n\t" in block)
 
 
 def _longest_line(block: bytes) -> int:
