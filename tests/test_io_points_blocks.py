@@ -197,3 +197,58 @@ def test_streamed_write_is_atomic(tmp_path):
     assert target.read_text() == "id,x,y\n1,1.0,1.0\n"
     if os.name == "posix":
         assert target.stat().st_mode & 0o777 != 0o600
+
+
+# --- the Python parser of small inputs and pyarrow agree ----------------------------------
+
+_number_texts = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False).map(repr),
+    st.sampled_from(["5.", ".5", "+3", "1E5", "-0", "00012", "1e-400", "abc", "", "1_0", "١٢"]),
+)
+
+
+@st.composite
+def _csv_texts(draw):
+    n = draw(st.integers(1, 12))
+    lines = ["id,x,y"]
+    for k in range(n):
+        pid = draw(st.sampled_from([f"p{k}", f'"q,{k}"', f" r{k} ", f"s{k}"]))
+        x, y = draw(_number_texts), draw(_number_texts)
+        pad = draw(st.sampled_from(["", " ", "\t"]))
+        lines.append(f"{pid},{pad}{x}{pad},{y}")
+        lines += draw(st.lists(st.sampled_from(["", "  ", "# note"]), max_size=2))
+    if draw(st.booleans()):  # a corruption: a missing field, a stray quote, an extra field
+        k = draw(st.integers(1, len(lines) - 1))
+        lines[k] += draw(st.sampled_from([",", ',"', "", ",9"]))
+    end = draw(st.sampled_from(["\n", "\r\n"]))
+    return end.join(lines) + end
+
+
+def _read(text: str, arrow: bool):
+    src = DelimitedText(data=text.encode("utf-8"))
+    try:
+        parts = list(src.blocks(["id"], ["x", "y"], arrow=arrow))
+    except FileFormatError:
+        return "refused"
+    ids = [v for b in parts for v in (b.strings["id"].to_pylist() if arrow else b.strings["id"])]
+    xy = [np.column_stack([b.numbers["x"], b.numbers["y"]]) for b in parts]
+    return ids, (np.vstack(xy) if xy else np.zeros((0, 2))).tolist(), tuple(src.comments)
+
+
+@settings(max_examples=150, deadline=None)
+@given(_csv_texts())
+def test_python_and_arrow_parsers_agree(text):
+    a, b = _read(text, arrow=True), _read(text, arrow=False)
+    assert a == b
+
+
+def test_small_reads_do_not_import_pyarrow():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from photogeom.io import parse_points; "
+        "t = parse_points('id,x,y\\n1,2,3\\n'); print('pyarrow' in sys.modules, t.coords.tolist())"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.split(None, 1) == ["False", "[[2.0, 3.0]]\n"]

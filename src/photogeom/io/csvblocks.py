@@ -40,6 +40,9 @@ MAX_FIELD_BYTES = 128 * 1024
 MAX_LINE_BYTES = 16 << 20
 
 _LINE_END = re.compile(rb"\r\n|\n|\r")
+_LINE_SPLIT = re.compile(r"\r\n|\n|\r")
+#: Inputs up to this size are parsed in Python by the whole-table readers (no pyarrow import).
+SMALL_BYTES = 256 << 10
 _BLANK_LINE = re.compile(rb"(?m)^[ \t]+\r?$")
 _RUNS_OF_SPACE = re.compile(rb"[ \t]+")
 _EDGE_TABS = re.compile(rb"(?m)^\t|\t(?=\r?$)")
@@ -322,7 +325,13 @@ class DelimitedText:
             block = _EDGE_TABS.sub(b"", _RUNS_OF_SPACE.sub(b"\t", block))
         return block
 
-    def blocks(self, strings: Sequence[str] = (), numbers: Sequence[str] = ()) -> Iterator[Block]:
+    def blocks(
+        self,
+        strings: Sequence[str] = (),
+        numbers: Sequence[str] = (),
+        *,
+        arrow: bool = True,
+    ) -> Iterator[Block]:
         """Blocks of the columns asked for.
 
         Parameters
@@ -331,6 +340,11 @@ class DelimitedText:
             Columns read as text (white space trimmed).
         numbers : sequence of str
             Columns read as float64.
+        arrow : bool
+            ``True``: string columns are pyarrow arrays. ``False``: they are lists of str,
+            and an input of at most :data:`SMALL_BYTES` is parsed in Python, without
+            importing pyarrow (a command on a few points starts faster); the rules and the
+            error messages are the same.
 
         Raises
         ------
@@ -338,8 +352,57 @@ class DelimitedText:
             A malformed line (field count, unclosed quote, overlong field) or a number column
             holding text; the message names the line and the column.
         """
-        pa, pc, pcsv = _pa()
         strings, numbers = list(strings), list(numbers)
+        if not arrow and self.size <= SMALL_BYTES:
+            yield from self._python_blocks(strings, numbers)
+            return
+        for block in self._arrow_blocks(strings, numbers):
+            if not arrow:
+                block.strings = {c: v.to_pylist() for c, v in block.strings.items()}
+            yield block
+
+    def _python_blocks(self, strings: list[str], numbers: list[str]) -> Iterator[Block]:
+        """One block parsed line by line (small inputs)."""
+        with self._open() as fh:
+            fh.seek(self._body_offset)
+            data = fh.read()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = data.decode("latin-1")
+        where = {c: self.header.index(c) for c in dict.fromkeys([*strings, *numbers])}
+        out_s: dict[str, list] = {c: [] for c in strings}
+        out_n: dict[str, list] = {c: [] for c in numbers}
+        n_fields = len(self.header)
+        for k, line in enumerate(_LINE_SPLIT.split(text), start=self.header_line + 1):
+            stripped = line.strip()
+            if not stripped:
+                continue
+            if stripped.startswith("#"):
+                self.comments.append(stripped[1:].strip())
+                continue
+            fields = self._split_line(stripped, k)
+            if len(fields) != n_fields:
+                raise FileFormatError(
+                    f"{self.label}, line {k}: {len(fields)} field(s) but the header has "
+                    f"{n_fields} ({_names(self.header)})"
+                )
+            for c in strings:
+                out_s[c].append(fields[where[c]])
+            for c in numbers:
+                v = fields[where[c]]
+                if not _arrow_number(v):
+                    shown = "an empty field" if v == "" else repr(_shorten(v))
+                    raise FileFormatError(
+                        f"{self.label}, line {k}: column {c} holds {shown}, not a number"
+                    )
+                out_n[c].append(float(v))
+        n = len(out_s[strings[0]]) if strings else len(out_n[numbers[0]]) if numbers else 0
+        arrays = {c: np.array(v, dtype=np.float64) for c, v in out_n.items()}
+        yield Block(0, n, out_s, arrays, self.size)
+
+    def _arrow_blocks(self, strings: list[str], numbers: list[str]) -> Iterator[Block]:
+        pa, pc, pcsv = _pa()
         row = 0
         delim = "\t" if self.delimiter == " " else self.delimiter
         read_opts = pcsv.ReadOptions(column_names=list(self.header), use_threads=True)
@@ -506,7 +569,9 @@ def _trim(pc, col):
 
 
 def _arrow_number(v: str) -> bool:
-    if "_" in v:
+    """Whether pyarrow reads ``v`` as a float64 (Python's float() also takes "1_0" and
+    non-ASCII digits)."""
+    if "_" in v or not v.isascii():
         return False
     try:
         float(v)

@@ -183,12 +183,12 @@ class _Source:
         """Whole columns: strings as lists of str, numbers as float64 arrays."""
         s_parts: dict[str, list] = {c: [] for c in strings}
         n_parts: dict[str, list] = {c: [] for c in numbers}
-        for block in self.text.blocks(strings, numbers):
+        for block in self.text.blocks(strings, numbers, arrow=False):
             for c in strings:
                 s_parts[c].append(block.strings[c])
             for c in numbers:
                 n_parts[c].append(block.numbers[c])
-        out_s = {c: [v for arr in parts for v in arr.to_pylist()] for c, parts in s_parts.items()}
+        out_s = {c: [v for part in parts for v in part] for c, parts in s_parts.items()}
         out_n = {
             c: (np.concatenate(parts) if parts else np.zeros(0)) for c, parts in n_parts.items()
         }
