@@ -54,7 +54,7 @@ def test_quoted_ids_and_spaces_are_fine():
     [
         "id,x,y\n" + "a" * (MAX_FIELD_BYTES + 1) + ",1,2\n",
         "id,x,y\n1," + "9" * (MAX_FIELD_BYTES + 1) + ",2\n",
-        "id,x,y\n1,2,3\n" * 5 + "7,1," + "5" * (MAX_FIELD_BYTES + 10) + "\n",
+        "id,x,y\n" + "1,2,3\n" * 5 + "7,1," + "5" * (MAX_FIELD_BYTES + 10) + "\n",
     ],
 )
 def test_overlong_field_is_refused_with_its_line(text):
@@ -252,3 +252,25 @@ def test_small_reads_do_not_import_pyarrow():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.stdout.split(None, 1) == ["False", "[[2.0, 3.0]]\n"]
+
+
+def test_join_refuses_weights_given_as_strings():
+    from dataclasses import replace
+
+    from photogeom.io import join_points
+
+    a = parse_points("id,x,y\n1,0,0\n2,1,0\n")
+    b = parse_points("id,X,Y\n1,0,0\n2,1,0\n")
+    with pytest.raises(InputError, match=r"weights must be numbers.*'1'.*float\(\)"):
+        join_points(a, replace(b, weights=np.array(["1", "2"])))
+    with pytest.raises(InputError, match="positive finite"):
+        join_points(a, replace(b, weights=np.array([1.0, -2.0])))
+    pairs = join_points(a, replace(b, weights=np.array([1, 2])))
+    assert pairs.weights.dtype == np.float64
+
+
+def test_overlong_field_in_a_big_file_is_refused_by_the_block_reader(tmp_path):
+    rows = "".join(f"{i},{i},{i}\n" for i in range(30000))  # over SMALL_BYTES: pyarrow reads it
+    p = _write(tmp_path, "id,x,y\n" + rows + "7,1," + "5" * (MAX_FIELD_BYTES + 10) + "\n")
+    with pytest.raises(FileFormatError, match=r"line 30002: a field is longer than 131072"):
+        read_points(p)

@@ -770,8 +770,8 @@ def join_points(
             )
     roles = s_roles if s_roles is not None else t_roles
 
-    s_w = None if source.weights is None else source.weights[si]
-    t_w = None if target.weights is None else target.weights[ti]
+    s_w = None if source.weights is None else _numeric_weights(source.weights, s_label)[si]
+    t_w = None if target.weights is None else _numeric_weights(target.weights, t_label)[ti]
     if s_w is not None and t_w is not None and not np.allclose(s_w, t_w, rtol=1e-12, atol=0):
         raise InputError(
             "both files give point weights and they differ; keep the weight (or sigma) column "
@@ -790,6 +790,21 @@ def join_points(
         unmatched_target=only_t,
         notes=tuple(notes),
     )
+
+
+def _numeric_weights(weights, label: str) -> np.ndarray:
+    """Weights as positive finite float64, or an InputError naming the table."""
+    w = np.asarray(weights)
+    if w.dtype.kind not in "fiu":
+        raise InputError(
+            f"{label}: weights must be numbers, not {w.dtype.name} values such as "
+            f"{str(w.reshape(-1)[0])!r}; convert them with float() (or read the file with "
+            "read_points, which does)"
+        )
+    w = w.astype(np.float64)
+    if not np.all(np.isfinite(w) & (w > 0)):
+        raise InputError(f"{label}: weights must be positive finite numbers")
+    return w
 
 
 def _list(ids: Sequence[str], limit: int = 20) -> str:
