@@ -1025,8 +1025,10 @@ def _text_column(pa, pc, values):
     if isinstance(values, pa.Array):
         return values if pa.types.is_string(values.type) else pc.cast(values, pa.string())
     arr = np.asarray(values)
-    if arr.dtype.kind in "fiu":
-        return _float_text(pa, pc, arr.astype(float))
+    if arr.dtype.kind in "iu":  # counts stay integers
+        return pc.cast(pa.array(arr.astype(np.int64)), pa.string())
+    if arr.dtype.kind == "f":
+        return _float_text(pa, pc, arr)
     if (
         arr.dtype == object
         and len(arr)
