@@ -118,3 +118,9 @@ def test_proj_string_has_no_float_noise():
     t = pyproj.Transformer.from_pipeline(text)
     x = np.array([4e6, 3e5, 5e6])
     np.testing.assert_allclose(t.transform(*x), h.apply(x), atol=1e-6)
+
+
+def test_method_comparison_prints_angles_by_the_same_rule(cli):
+    code, out, err = cli("orient", "absolute", KRAUS, "--compare", "--angle-unit", "gon")
+    assert code == 0, err
+    assert "298.6799" in out and "-101.32" not in out
