@@ -118,10 +118,8 @@ def section_single(sizes, min_time):
     data = {n: problem(n, seed=n) for n in sizes}
     for m in METHODS:
         rows[m] = [
-            median_time(
-                lambda n=n, m=m: pg.absolute_orientation(*data[n][:2], m, statistics=False),
-                min_time,
-            )
+            median_time(lambda n=n, m=m: pg.absolute_orientation(*data[n][:2], m,
+                                                                 statistics=False), min_time)
             for n in sizes
         ]
     rows["svd with statistics"] = [
@@ -141,7 +139,8 @@ def section_single(sizes, min_time):
         print(f"  {name:<46}" + "".join(f"{t / o:>12.2f}" for t, o in zip(ts, ours)))
     for name, ts in rows.items():
         if name.startswith("scikit-image"):
-            print("ratio scikit-image / floor (what a check-free numpy implementation would show)")
+            print("ratio scikit-image / floor (what a check-free numpy implementation "
+                  "would show)")
             print(f"  {'':<46}" + "".join(f"{t / f:>12.2f}" for t, f in zip(ts, rows[FLOOR])))
     return rows
 
@@ -152,10 +151,8 @@ def section_batch(B, loop_n, min_time):
     R = Rotation.random(B, random_state=1).as_matrix()
     x = rng.uniform(-10, 10, (B, 3, 3))
     X = 2.0 * np.matmul(x, np.swapaxes(R, 1, 2)) + 5 + rng.normal(scale=0.01, size=(B, 3, 3))
-    print(
-        f"{'method':<18}{'batch [s]':>12}{'loop [s]':>12}{'ratio':>10}   (loop over all {B} "
-        f"problems for svd, else {loop_n} extrapolated)"
-    )
+    print(f"{'method':<18}{'batch [s]':>12}{'loop [s]':>12}{'ratio':>10}   (loop over all {B} "
+          f"problems for svd, else {loop_n} extrapolated)")
     for m in ("svd", "gauss-helmert", "quaternion", "dual-quaternion", "closed-form"):
         tb = median_time(lambda m=m: pg.absolute_orientation_batch(x, X, m), min_time, min_reps=3)
         count = B if m == "svd" else loop_n
@@ -165,10 +162,8 @@ def section_batch(B, loop_n, min_time):
         tl = (time.perf_counter() - t0) / count * B
         print(f"{m:<18}{tb:>12.3f}{tl:>12.3f}{tl / tb:>10.1f}")
     res = pg.absolute_orientation_batch(x, X, "svd")
-    print(
-        f"   batched svd: max |R - R_true| = {np.nanmax(np.abs(res.rotation - R)):.1e} "
-        f"(noise 0.01 on 3 points), {int(res.valid.sum())} of {B} valid"
-    )
+    print(f"   batched svd: max |R - R_true| = {np.nanmax(np.abs(res.rotation - R)):.1e} "
+          f"(noise 0.01 on 3 points), {int(res.valid.sum())} of {B} valid")
 
 
 def section_large(sizes):
@@ -185,19 +180,18 @@ def section_large(sizes):
         methods = ["svd", "quaternion", "dual-quaternion", "gauss-helmert", "closed-form"]
         for m in methods:
             t = median_time(
-                lambda m=m, x=x, X=X: pg.absolute_orientation(x, X, m, statistics=False),
-                0.0,
+                lambda m=m, x=x, X=X: pg.absolute_orientation(x, X, m, statistics=False), 0.0,
                 min_reps=reps,
             )
             print(f"   {m:<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
         if n <= 1_000_000:
-            t = median_time(lambda x=x, X=X: pg.absolute_orientation(x, X, "svd"), 0.0, min_reps=3)
+            t = median_time(lambda x=x, X=X: pg.absolute_orientation(x, X, "svd"), 0.0,
+                            min_reps=3)
             print(f"   {'svd with statistics':<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")
             Xu = X + np.array([5.0e5, 4.0e6, 0.0])  # UTM-sized target: exact centring first
             t = median_time(
                 lambda x=x, Xu=Xu: pg.absolute_orientation(x, Xu, "svd", statistics=False),
-                0.0,
-                min_reps=reps,
+                0.0, min_reps=reps,
             )
             label = "svd, UTM-sized target"
             print(f"   {label:<22}{t * 1e3:>10.1f} ms   {t / ref:>6.2f} x the sum")

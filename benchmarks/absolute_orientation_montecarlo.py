@@ -75,18 +75,14 @@ def q(a, p):
 
 def section_a(quick):
     print("\nA. accuracy against least squares (LS = converged Gauss-Markov = batched SVD)")
-    print(
-        "   rotation: angle of R_method.T R_LS [deg]; shift: |t - t_LS| [m]; "
-        "median and 95th percentile over the trials; noise sigma on the target, 100 m cube"
-    )
+    print("   rotation: angle of R_method.T R_LS [deg]; shift: |t - t_LS| [m]; "
+          "median and 95th percentile over the trials; noise sigma on the target, 100 m cube")
     sizes = [(3, 400), (4, 400), (10, 400), (100, 200), (1000, 50), (100_000, 4), (1_000_000, 2)]
     if quick:
         sizes = [(3, 100), (10, 100), (1000, 10)]
     sig = (0.01, 0.1, 1.0)
-    print(
-        f"{'n':>8}{'sigma':>7}  {'method':<18}{'rot med':>10}{'rot 95%':>10}"
-        f"{'shift med':>11}{'shift 95%':>11}{'|ds|/s med':>12}"
-    )
+    print(f"{'n':>8}{'sigma':>7}  {'method':<18}{'rot med':>10}{'rot 95%':>10}"
+          f"{'shift med':>11}{'shift 95%':>11}{'|ds|/s med':>12}")
     checked = 0
     for n, B in sizes:
         for sigma in sig:
@@ -103,23 +99,17 @@ def section_a(quick):
                 ang = rot_err_deg(ls.rotation, r.rotation)
                 dt = np.linalg.norm(r.translation - ls.translation, axis=1)
                 ds = np.abs(r.scale / ls.scale - 1)
-                print(
-                    f"{n:>8}{sigma:>7}  {m:<18}{q(ang, 50):>10.2e}{q(ang, 95):>10.2e}"
-                    f"{q(dt, 50):>11.2e}{q(dt, 95):>11.2e}{q(ds, 50):>12.2e}"
-                )
+                print(f"{n:>8}{sigma:>7}  {m:<18}{q(ang, 50):>10.2e}{q(ang, 95):>10.2e}"
+                      f"{q(dt, 50):>11.2e}{q(dt, 95):>11.2e}{q(ds, 50):>12.2e}")
     print(f"   (Gauss-Markov run on {checked} of the trials: equal to the SVD to 1e-9)")
 
 
 def section_b(quick):
-    print(
-        "\nB. wrong correspondences (n = 100, sigma = 0.01 m): rotation error against the "
-        "truth [deg]"
-    )
+    print("\nB. wrong correspondences (n = 100, sigma = 0.01 m): rotation error against the "
+          "truth [deg]")
     T = 20 if quick else 60
-    print(
-        f"{'outliers':>9}  {'method':<20}{'median':>10}{'95%':>10}{'success':>9}"
-        f"{'inlier mask exact':>19}"
-    )
+    print(f"{'outliers':>9}  {'method':<20}{'median':>10}{'95%':>10}{'success':>9}"
+          f"{'inlier mask exact':>19}")
     for frac in (0.0, 0.05, 0.2, 0.5):
         x, X, s, R, t = make(T, 100, 0.01, seed=int(frac * 100) + 7)
         rng = np.random.default_rng(3)
@@ -151,19 +141,16 @@ def section_b(quick):
 
 
 def section_c(quick):
-    print(
-        "\nC. near-coplanar and near-collinear sets (n = 10, sigma = 0.01 m, 100 m extent): "
-        "rotation error against the truth [deg], median"
-    )
+    print("\nC. near-coplanar and near-collinear sets (n = 10, sigma = 0.01 m, 100 m extent): "
+          "rotation error against the truth [deg], median")
     T = 100 if quick else 400
     head = f"{'shape':<10}{'thick':>7}{'flagged':>9}"
-    cols = ("svd", "closed-form", "closed-form*", "quaternion", "dual-quaternion", "gauss-helmert")
+    cols = ("svd", "closed-form", "closed-form*", "quaternion", "dual-quaternion",
+            "gauss-helmert")
     print(head + "".join(f"{c:>16}" for c in cols) + f"{'GM std/emp':>20}")
-    print(
-        "   closed-form*: without the plane-normal augmentation (threshold 0); "
-        "flagged: share of problems reported as degenerate; GM std/emp: reported / empirical "
-        "standard deviation of the least determined angle (one geometry, 400 noise draws)"
-    )
+    print("   closed-form*: without the plane-normal augmentation (threshold 0); "
+          "flagged: share of problems reported as degenerate; GM std/emp: reported / empirical "
+          "standard deviation of the least determined angle (one geometry, 400 noise draws)")
     for shape in ("coplanar", "collinear"):
         for thick in (1.0, 0.1, 0.01, 0.001, 0.0):
             x, X, s, R, t = make(T, 10, 0.01, seed=11, thick=thick, collinear=shape == "collinear")
@@ -175,9 +162,8 @@ def section_c(quick):
                     from photogeom.orientation.absolute_direct import solve_closed_form
 
                     sol = solve_closed_form(x, X, coplanar_threshold=0.0)
-                    rot = np.where(
-                        (sol.degenerate | sol.reflection)[:, None, None], np.nan, sol.rotation
-                    )
+                    rot = np.where((sol.degenerate | sol.reflection)[:, None, None], np.nan,
+                                   sol.rotation)
                 else:
                     r = pg.absolute_orientation_batch(x, X, c)
                     rot = r.rotation
@@ -193,9 +179,8 @@ def section_c(quick):
                 if ok.sum() > 10:
                     i0 = int(np.flatnonzero(ok)[0])
                     try:
-                        gm = pg.absolute_orientation(
-                            x[i0], X[i0], "gauss-markov", sigma_target=0.01
-                        )
+                        gm = pg.absolute_orientation(x[i0], X[i0], "gauss-markov",
+                                                     sigma_target=0.01)
                         # same geometry, new noise: empirical spread of kappa about the truth
                         xs = np.broadcast_to(x[i0], (T, *x.shape[1:]))
                         Xt = s[i0] * x[i0] @ R[i0].T + t[i0]
@@ -209,18 +194,16 @@ def section_c(quick):
                         ratio = f"{gm.std_errors_prior[names[j]] / np.nanstd(da):.2f} ({names[j]})"
                     except PhotogeomError as exc:
                         ratio = type(exc).__name__
-            print(line + f"{flagged:>9.0%}" + "".join(f"{e:>16.2e}" for e in errs) + f"{ratio:>20}")
+            print(line + f"{flagged:>9.0%}" + "".join(f"{e:>16.2e}" for e in errs)
+                  + f"{ratio:>20}")
 
 
 def section_d(quick):
-    print(
-        "\nD. Gauss-Markov from naive initial values (s = 1, R = I, t = 0), n = 10, sigma = 0.01 m"
-    )
+    print("\nD. Gauss-Markov from naive initial values (s = 1, R = I, t = 0), n = 10, "
+          "sigma = 0.01 m")
     T = 40 if quick else 150
-    print(
-        f"{'rotation [deg]':>15}{'success':>9}{'s < 0':>8}{'saddle':>8}{'no conv.':>9}"
-        f"{'iter. med':>10}    Gauss-Helmert: success"
-    )
+    print(f"{'rotation [deg]':>15}{'success':>9}{'s < 0':>8}{'saddle':>8}{'no conv.':>9}"
+          f"{'iter. med':>10}    Gauss-Helmert: success")
     rng = np.random.default_rng(21)
     for lo, hi in ((0, 45), (45, 90), (90, 135), (135, 180)):
         counts = {"ok": 0, "neg": 0, "saddle": 0, "conv": 0}
@@ -232,7 +215,8 @@ def section_d(quick):
             axis = rng.normal(size=3)
             R = Rotation.from_rotvec(axis / np.linalg.norm(axis) * ang).as_matrix()
             x = rng.uniform(-50, 50, (10, 3))
-            X = 1.3 * x @ R.T + rng.normal(scale=300, size=3) + rng.normal(scale=0.01, size=(10, 3))
+            X = 1.3 * x @ R.T + rng.normal(scale=300, size=3) + rng.normal(scale=0.01,
+                                                                           size=(10, 3))
             ref = pg.absolute_orientation(x, X, "svd", statistics=False)
             try:
                 f = pg.absolute_orientation(x, X, "gauss-markov", initial="zeros", max_iter=100)
@@ -251,23 +235,18 @@ def section_d(quick):
                     counts["conv"] += 1
             if k < gh_T:
                 try:
-                    g = pg.absolute_orientation(
-                        x, X, "gauss-helmert", iterate=True, initial="zeros", max_iter=100
-                    )
+                    g = pg.absolute_orientation(x, X, "gauss-helmert", iterate=True,
+                                                initial="zeros", max_iter=100)
                     d = pg.absolute_orientation(x, X, "gauss-helmert")
                     gh_ok += np.abs(g.rotation - d.rotation).max() < 1e-8
                 except PhotogeomError:
                     pass
         med = np.median(its) if its else np.nan
-        print(
-            f"{f'{lo}-{hi}':>15}{counts['ok'] / T:>9.0%}{counts['neg'] / T:>8.0%}"
-            f"{counts['saddle'] / T:>8.0%}{counts['conv'] / T:>9.0%}{med:>10.0f}"
-            f"    {gh_ok / gh_T:.0%} of {gh_T}"
-        )
-    print(
-        "   s < 0: converged to the point-reflected fit (reported as ConvergenceError); "
-        "saddle: a stationary point that is not the minimum (detected, reported)"
-    )
+        print(f"{f'{lo}-{hi}':>15}{counts['ok'] / T:>9.0%}{counts['neg'] / T:>8.0%}"
+              f"{counts['saddle'] / T:>8.0%}{counts['conv'] / T:>9.0%}{med:>10.0f}"
+              f"    {gh_ok / gh_T:.0%} of {gh_T}")
+    print("   s < 0: converged to the point-reflected fit (reported as ConvergenceError); "
+          "saddle: a stationary point that is not the minimum (detected, reported)")
 
 
 def section_e(quick):
@@ -290,12 +269,10 @@ def section_e(quick):
         ss = c.get("sigma_source", 0.0)
         if ss:
             xs = xs + rng.normal(scale=ss, size=xs.shape)
-            r = pg.absolute_orientation_batch(
-                xs, Xs, "gauss-helmert", sigma_source=ss, sigma_target=c["sigma"]
-            )
-            fit = pg.absolute_orientation(
-                xs[0], Xs[0], "gauss-helmert", sigma_source=ss, sigma_target=c["sigma"]
-            )
+            r = pg.absolute_orientation_batch(xs, Xs, "gauss-helmert", sigma_source=ss,
+                                              sigma_target=c["sigma"])
+            fit = pg.absolute_orientation(xs[0], Xs[0], "gauss-helmert", sigma_source=ss,
+                                          sigma_target=c["sigma"])
         else:
             r = pg.absolute_orientation_batch(xs, Xs, "svd")
             fit = pg.absolute_orientation(xs[0], Xs[0], "gauss-markov", sigma_target=c["sigma"])
@@ -307,10 +284,8 @@ def section_e(quick):
         emp = np.nanstd(d, axis=0, ddof=1)
         rep = np.array([fit.std_errors_prior[n] for n in NAMES])
         print(f"{label:<28}" + "".join(f"{v:>8.3f}" for v in rep / emp))
-    print(
-        f"   ({T} trials each; 1.000 = perfect; the sampling error of the ratio is about "
-        f"{1 / np.sqrt(2 * T):.1%})"
-    )
+    print(f"   ({T} trials each; 1.000 = perfect; the sampling error of the ratio is about "
+          f"{1 / np.sqrt(2 * T):.1%})")
 
 
 def main(argv=None):

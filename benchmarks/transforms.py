@@ -121,8 +121,7 @@ def interleaved_medians(
     medians = [statistics.median(times[i]) if i in times else None for i in range(len(fns))]
     ref = times.get(len(fns) - 1)
     ratios = [
-        None
-        if ref is None or i not in times
+        None if ref is None or i not in times
         else statistics.median(a / b for a, b in zip(times[i], ref))
         for i in range(len(fns))
     ]

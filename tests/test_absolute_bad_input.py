@@ -117,10 +117,7 @@ def test_negative_scale_solution_is_never_returned():
     flipped = Rotation.from_rotvec([np.pi, 0, 0]).as_matrix() @ ref.rotation
     with pytest.raises(pg.ConvergenceError, match=r"scale .* <= 0"):
         pg.absolute_orientation(
-            x,
-            X,
-            "gauss-markov",
-            initial=Similarity3D(ref.scale, flipped, ref.translation),
+            x, X, "gauss-markov", initial=Similarity3D(ref.scale, flipped, ref.translation),
             raise_on_failure=False,
         )
 

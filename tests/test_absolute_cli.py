@@ -16,27 +16,16 @@ KRAUS = str(datasets.path("kraus_absolute_orientation"))
 
 
 def test_kraus_gon_in_the_table(cli):
-    code, out, err = cli(
-        "orient", "absolute", KRAUS, "--method", "gauss-markov", "--angle-unit", "gon"
-    )
+    code, out, err = cli("orient", "absolute", KRAUS, "--method", "gauss-markov",
+                         "--angle-unit", "gon")
     assert code == 0, err
     assert "-0.185368 gon" in out and "-1.091984 gon" in out
     assert "transposed convention" in out
 
 
 def test_json_output_and_direct_convention(cli):
-    code, out, err = cli(
-        "orient",
-        "absolute",
-        LIDAR,
-        "--json",
-        "--convention",
-        "direct",
-        "--angle-unit",
-        "deg",
-        "--method",
-        "quaternion",
-    )
+    code, out, err = cli("orient", "absolute", LIDAR, "--json", "--convention", "direct",
+                         "--angle-unit", "deg", "--method", "quaternion")
     assert code == 0, err
     d = json.loads(out)
     assert d["method"] == "quaternion"
@@ -50,15 +39,13 @@ def test_two_files_joined_by_id_with_check_points(cli, tmp_path: Path):
     t = datasets.load("lidar_wang2014")
     src = tmp_path / "model.csv"
     dst = tmp_path / "ground.csv"
-    src.write_text(
-        "id,x,y,z\n"
-        + "".join(f"{i},{a},{b},{c}\n" for i, a, b, c in zip(t["id"], t["x"], t["y"], t["z"]))
-    )
+    src.write_text("id,x,y,z\n" + "".join(
+        f"{i},{a},{b},{c}\n" for i, a, b, c in zip(t["id"], t["x"], t["y"], t["z"])))
     order = np.arange(18)[::-1]  # another order: joined by id
-    dst.write_text(
-        "id,X,Y,Z\n" + "".join(f"{t['id'][k]},{t['X'][k]},{t['Y'][k]},{t['Z'][k]}\n" for k in order)
-    )
-    code, out, err = cli("orient", "absolute", src, dst, "--check-ids", "17,18", "--json")
+    dst.write_text("id,X,Y,Z\n" + "".join(
+        f"{t['id'][k]},{t['X'][k]},{t['Y'][k]},{t['Z'][k]}\n" for k in order))
+    code, out, err = cli("orient", "absolute", src, dst, "--check-ids", "17,18",
+                         "--json")
     assert code == 0, err
     d = json.loads(out)
     assert len(d["residuals"]) == 16 and len(d["check_residuals"]) == 2
@@ -69,14 +56,8 @@ def test_compare_prints_all_methods_and_writes_report(cli, tmp_path: Path):
     rep = tmp_path / "cmp.html"
     code, out, err = cli("orient", "absolute", LIDAR, "--compare", "--report", rep)
     assert code == 0, err
-    for m in (
-        "closed-form",
-        "svd",
-        "quaternion",
-        "dual-quaternion",
-        "gauss-markov",
-        "gauss-helmert",
-    ):
+    for m in ("closed-form", "svd", "quaternion", "dual-quaternion", "gauss-markov",
+              "gauss-helmert"):
         assert m in out
     assert "solve" in out and "[us]" in out
     html = rep.read_text()
@@ -94,17 +75,11 @@ def test_ransac_option_and_report(cli, tmp_path: Path):
     X = x + np.array([5.0, 6.0, 7.0])
     X[:8] = X[rng.permutation(8)[::-1]][:8] + rng.uniform(3, 9, (8, 3))
     f = tmp_path / "pairs.csv"
-    f.write_text(
-        "id,x,y,z,X,Y,Z\n"
-        + "".join(
-            f"p{i},{a[0]},{a[1]},{a[2]},{b[0]},{b[1]},{b[2]}\n"
-            for i, (a, b) in enumerate(zip(x, X))
-        )
-    )
+    f.write_text("id,x,y,z,X,Y,Z\n" + "".join(
+        f"p{i},{a[0]},{a[1]},{a[2]},{b[0]},{b[1]},{b[2]}\n" for i, (a, b) in enumerate(zip(x, X))))
     rep = tmp_path / "fit.html"
-    code, out, err = cli(
-        "orient", "absolute", f, "--ransac", "--threshold", "0.01", "--seed", "1", "--report", rep
-    )
+    code, out, err = cli("orient", "absolute", f, "--ransac", "--threshold", "0.01",
+                         "--seed", "1", "--report", rep)
     assert code == 0, err
     assert "RANSAC inliers: 32 of 40" in out
     assert rep.exists()
@@ -114,10 +89,8 @@ def test_ransac_option_and_report(cli, tmp_path: Path):
 
 def test_errors_are_reported(cli, tmp_path: Path):
     f = tmp_path / "line.csv"
-    f.write_text(
-        "id,x,y,z,X,Y,Z\n"
-        + "".join(f"{i},{i},{2 * i},{3 * i},{i},{2 * i},{3 * i}\n" for i in range(5))
-    )
+    f.write_text("id,x,y,z,X,Y,Z\n" + "".join(
+        f"{i},{i},{2 * i},{3 * i},{i},{2 * i},{3 * i}\n" for i in range(5)))
     code, _, err = cli("orient", "absolute", f)
     assert code == 2 and "collinear" in err
     g = tmp_path / "two.csv"

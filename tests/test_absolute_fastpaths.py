@@ -52,9 +52,8 @@ def test_many_points_statistics_equal_the_engine():
     assert svd.sigma0 == pytest.approx(ref.sigma0, rel=1e-8)
     np.testing.assert_allclose(svd.residuals, ref.residuals, atol=1e-9)
     np.testing.assert_allclose(svd.redundancy_numbers, ref.redundancy_numbers, atol=1e-10)
-    np.testing.assert_allclose(
-        svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6, atol=1e-8
-    )
+    np.testing.assert_allclose(svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6,
+                               atol=1e-8)
     fast = pg.absolute_orientation(x, X, "svd", statistics=False)
     np.testing.assert_array_equal(fast.parameters, svd.parameters)
 
@@ -66,9 +65,8 @@ def test_weighted_many_points_statistics_equal_the_engine():
     ref = pg.absolute_orientation(x, X, "gauss-markov", weights=w)
     np.testing.assert_allclose(svd.cofactor, ref.cofactor, rtol=1e-7, atol=1e-18)
     np.testing.assert_allclose(svd.redundancy_numbers, ref.redundancy_numbers, atol=1e-10)
-    np.testing.assert_allclose(
-        svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6, atol=1e-8
-    )
+    np.testing.assert_allclose(svd.normalized_residuals, ref.normalized_residuals, rtol=1e-6,
+                               atol=1e-8)
 
 
 @pytest.mark.parametrize("side", ["source", "target"])

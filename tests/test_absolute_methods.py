@@ -101,18 +101,13 @@ def test_gauss_helmert_direct_equals_iterative_and_prescaling():
     # ... and per-point / block covariances holding the same numbers give the same estimate
     n = x.shape[0]
     blk = pg.absolute_orientation(
-        x,
-        X,
-        "gauss-helmert",
+        x, X, "gauss-helmert",
         covariance_source=np.tile(np.eye(3) * 0.004**2, (n, 1, 1)),
         covariance_target=np.tile(np.eye(3) * 0.03**2, (n, 1, 1)),
     )
     np.testing.assert_allclose(blk.parameters, pre.parameters, rtol=1e-10, atol=1e-10)
     full = pg.absolute_orientation(
-        x,
-        X,
-        "gauss-helmert",
-        covariance_source=np.eye(3 * n) * 0.004**2,
+        x, X, "gauss-helmert", covariance_source=np.eye(3 * n) * 0.004**2,
         sigma_target=np.full((n, 3), 0.03),
     )
     np.testing.assert_allclose(full.parameters, pre.parameters, rtol=1e-10, atol=1e-10)
@@ -137,13 +132,8 @@ def test_gauss_markov_from_any_initial_values():
     x, X, (s, R, t) = _problem(7)
     ref = pg.absolute_orientation(x, X, "svd")
     start = Similarity3D(s * 1.3, Rotation.from_rotvec([0.4, -0.3, 0.5]).as_matrix() @ R, t + 5)
-    for init in (
-        "closed-form",
-        "quaternion",
-        "gauss-helmert",
-        start,
-        np.r_[ref.parameters[:4], np.array(ref.parameters[4:]) + 0.2],
-    ):
+    for init in ("closed-form", "quaternion", "gauss-helmert", start,
+                 np.r_[ref.parameters[:4], np.array(ref.parameters[4:]) + 0.2]):
         fit = pg.absolute_orientation(x, X, "gauss-markov", initial=init)
         assert fit.converged
         np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-9)
@@ -187,14 +177,8 @@ def test_dual_quaternion_with_off_centre_reference():
     from photogeom.orientation.absolute_direct import Moments
 
     m0 = Moments(
-        np.array([float(len(x))]),
-        x[:1],
-        X[:1],
-        u.sum(0)[None],
-        U.sum(0)[None],
-        (u.T @ U)[None],
-        np.array([np.sum(u * u)]),
-        np.array([np.sum(U * U)]),
+        np.array([float(len(x))]), x[:1], X[:1], u.sum(0)[None], U.sum(0)[None],
+        (u.T @ U)[None], np.array([np.sum(u * u)]), np.array([np.sum(U * U)]),
     )
     dq = solve_dual_quaternion(m0)
     np.testing.assert_allclose(dq.rotation, ref.rotation, atol=1e-10)

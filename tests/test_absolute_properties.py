@@ -39,9 +39,8 @@ def _points(seed: int, n: int, shape: str) -> np.ndarray:
     shape=st.sampled_from(["general", "planar"]),
     convention=st.sampled_from(["transposed", "direct"]),
 )
-def test_every_method_recovers_noise_free_similarity(
-    ang, log_scale, shift, n, seed, shape, convention
-):
+def test_every_method_recovers_noise_free_similarity(ang, log_scale, shift, n, seed, shape,
+                                                      convention):
     R = rotation_from_angles(*ang, convention=convention)
     s = 10.0**log_scale
     t = np.array(shift)
@@ -60,11 +59,8 @@ def test_every_method_recovers_noise_free_similarity(
         assert abs(fit.scale / s - 1) < tol_s, m
         np.testing.assert_allclose(fit.translation, t, atol=tol_t, err_msg=m)
         # apply then inverse is the identity
-        np.testing.assert_allclose(
-            fit.transform.inverse().apply(fit.transform.apply(x)),
-            x,
-            atol=1e-8 * (np.abs(x).max() + 1),
-        )
+        np.testing.assert_allclose(fit.transform.inverse().apply(fit.transform.apply(x)), x,
+                                   atol=1e-8 * (np.abs(x).max() + 1))
     # the batched solvers too
     for m in ("svd", "quaternion", "dual-quaternion", "closed-form", "gauss-helmert"):
         b = pg.absolute_orientation_batch(x[None], X[None], m)

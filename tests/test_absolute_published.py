@@ -69,12 +69,8 @@ def test_afary_noisy_closed_form_near_least_squares():
 
 @pytest.mark.parametrize(
     "name,kind",
-    [
-        ("lidar_wang2014", None),
-        ("kraus_absolute_orientation", None),
-        ("afary2024_simulated", "true"),
-        ("afary2024_simulated", "noisy"),
-    ],
+    [("lidar_wang2014", None), ("kraus_absolute_orientation", None),
+     ("afary2024_simulated", "true"), ("afary2024_simulated", "noisy")],
 )
 def test_least_squares_methods_agree(name, kind):
     x, X = _pairs(name, kind)

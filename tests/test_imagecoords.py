@@ -23,13 +23,11 @@ def test_lecture_example_6_fiducial_to_image_centre():
 
 def test_lecture_example_7_pixel_to_image():
     # pixel (row 9541, col 356), principal point (row 6912, col 3840), 12 um pixels, f = 120 mm
-    out = ic.pixel_to_image(
-        (356, 9541), pixel_size=0.012, principal_point=(3840, 6912), focal_length=120.0
-    )
+    out = ic.pixel_to_image((356, 9541), pixel_size=0.012, principal_point=(3840, 6912),
+                            focal_length=120.0)
     np.testing.assert_allclose(out, (-41.808, -31.548, -120.0), atol=5e-4)
-    back = ic.image_to_pixel(
-        out, pixel_size=0.012, principal_point=(3840, 6912), focal_length=120.0
-    )
+    back = ic.image_to_pixel(out, pixel_size=0.012, principal_point=(3840, 6912),
+                             focal_length=120.0)
     np.testing.assert_allclose(back, (356, 9541), atol=1e-9)
 
 
@@ -42,7 +40,6 @@ def test_formulas_and_sign_of_y():
     # so a counter-clockwise triangle in the image is clockwise in pixels
     tri_px = np.array([[0, 0], [10, 0], [0, 10]], float)  # right, then down
     tri_mm = sys_.to_image(tri_px)
-
     def cross(t):
         a, b = t[1] - t[0], t[2] - t[0]
         return a[0] * b[1] - a[1] * b[0]
@@ -73,12 +70,9 @@ def test_pixel_origin_conventions():
 
 @settings(max_examples=40, deadline=None)
 @given(
-    dx=st.floats(1e-4, 0.1),
-    dy=st.floats(1e-4, 0.1),
-    cpp=st.floats(-100, 10000),
-    rpp=st.floats(-100, 10000),
-    f=st.floats(1.0, 500.0),
-    origin=st.sampled_from(["center", "corner"]),
+    dx=st.floats(1e-4, 0.1), dy=st.floats(1e-4, 0.1),
+    cpp=st.floats(-100, 10000), rpp=st.floats(-100, 10000),
+    f=st.floats(1.0, 500.0), origin=st.sampled_from(["center", "corner"]),
 )
 def test_pixel_image_round_trip(dx, dy, cpp, rpp, f, origin):
     rng = np.random.default_rng(1)

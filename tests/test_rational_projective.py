@@ -52,8 +52,8 @@ def _engine(u, X, p0, tol=1e-10):
         a = np.column_stack([u, np.ones(len(u))]) / w[:, None]
         J = np.zeros((len(u), d, m * m - 1))
         for k in range(d):
-            J[:, k, k * m : (k + 1) * m] = a
-            J[:, k, d * m :] = -Xh[:, k : k + 1] * a[:, :d]
+            J[:, k, k * m:(k + 1) * m] = a
+            J[:, k, d * m:] = -Xh[:, k:k + 1] * a[:, :d]
         return J.reshape(len(u) * d, -1)
 
     return gauss_markov(model, p0, X.reshape(-1), jacobian=jac, tol=tol, statistics=False)

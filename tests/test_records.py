@@ -16,17 +16,9 @@ from photogeom.records import build
 
 def _fit_values() -> dict:
     return dict(
-        model=None,
-        method="m",
-        parameter_names=("a", "b"),
-        parameters=np.zeros(2),
-        covariance=np.eye(2),
-        cofactor=np.eye(2),
-        sigma0=1.0,
-        sigma0_prior=1.0,
-        redundancy=3,
-        n_observations=5,
-        residuals=np.zeros((0, 2)),
+        model=None, method="m", parameter_names=("a", "b"), parameters=np.zeros(2),
+        covariance=np.eye(2), cofactor=np.eye(2), sigma0=1.0, sigma0_prior=1.0,
+        redundancy=3, n_observations=5, residuals=np.zeros((0, 2)),
     )
 
 
@@ -78,15 +70,8 @@ def test_classes_with_post_init_or_slots_use_their_constructor():
 
 
 def test_adjustment_built_equals_constructed():
-    values = dict(
-        x=np.ones(2),
-        names=("a", "b"),
-        residuals=np.zeros(4),
-        cofactor=np.eye(2),
-        redundancy=2,
-        n_observations=4,
-        vtpv=0.5,
-    )
+    values = dict(x=np.ones(2), names=("a", "b"), residuals=np.zeros(4), cofactor=np.eye(2),
+                  redundancy=2, n_observations=4, vtpv=0.5)
     assert _same(build(Adjustment, values), Adjustment(**values))
 
 

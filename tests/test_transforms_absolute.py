@@ -23,9 +23,8 @@ def test_example_8_recovered():
     np.testing.assert_allclose(fit.model.rotation, true.rotation, atol=1e-12)
     np.testing.assert_allclose(fit.model.translation, true.translation, atol=1e-9)
     assert fit.model.scale == pytest.approx(1.0, abs=1e-12)
-    np.testing.assert_allclose(
-        fit.model.apply([1354, 547, 135]), (270.8707, 1501.3692, 443.5540), atol=5e-5
-    )
+    np.testing.assert_allclose(fit.model.apply([1354, 547, 135]), (270.8707, 1501.3692, 443.5540),
+                               atol=5e-5)
     assert fit.residual_unit == "m"
 
 
@@ -81,13 +80,8 @@ def test_helmert_parameters_of_an_estimate():
 
 
 @settings(max_examples=20, deadline=None)
-@given(
-    w=st.floats(-np.pi, np.pi),
-    p=st.floats(-1.55, 1.55),
-    k=st.floats(-np.pi, np.pi),
-    s=st.floats(0.01, 100),
-    seed=st.integers(0, 2**31),
-)
+@given(w=st.floats(-np.pi, np.pi), p=st.floats(-1.55, 1.55), k=st.floats(-np.pi, np.pi),
+       s=st.floats(0.01, 100), seed=st.integers(0, 2**31))
 def test_noise_free_recovery(w, p, k, s, seed):
     rng = np.random.default_rng(seed)
     true = pg.Similarity3D.from_angles(s, w, p, k, rng.uniform(-1e4, 1e4, 3))

@@ -167,9 +167,8 @@ def test_options():
     with pytest.raises(InputError, match="2D models only"):
         pg.estimate_transform("affine3d", s3, d3, source_system="pixel", target_system="image")
     with pytest.raises(InputError, match="weights or a covariance"):
-        pg.estimate_transform(
-            "affine2d", src, dst, weights=np.ones(12), covariance=np.ones((12, 2, 2))
-        )
+        pg.estimate_transform("affine2d", src, dst, weights=np.ones(12),
+                              covariance=np.ones((12, 2, 2)))
 
 
 def test_shape_only_point_check():

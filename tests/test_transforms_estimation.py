@@ -45,29 +45,14 @@ def two_images():
 
 def test_example_4_interior_orientation():
     t, src, dst = fiducials()
-    fit = pg.estimate_transform(
-        "similarity2d", src, dst, check=t["role"] == "check", ids=t["id"], unit="mm"
-    )
+    fit = pg.estimate_transform("similarity2d", src, dst, check=t["role"] == "check",
+                                ids=t["id"], unit="mm")
     assert_printed(fit.parameters, ["1.0000354", "-0.0000022", "130.00875", "130.009"])
     assert fit.ids == ("1", "2", "3", "4") and fit.check_ids == ("5", "6", "7", "8")
-    assert_printed(
-        fit.residuals,
-        [
-            ["-0.00225", "0.00425"],
-            ["-0.00025", "-0.00225"],
-            ["0.0045", "0.0"],
-            ["-0.002", "-0.002"],
-        ],
-    )
-    assert_printed(
-        fit.check_residuals,
-        [
-            ["0.0045", "0.00725"],
-            ["-0.001", "0.00075"],
-            ["-0.0085", "0.00575"],
-            ["-0.001", "0.00225"],
-        ],
-    )
+    assert_printed(fit.residuals, [["-0.00225", "0.00425"], ["-0.00025", "-0.00225"],
+                                   ["0.0045", "0.0"], ["-0.002", "-0.002"]])
+    assert_printed(fit.check_residuals, [["0.0045", "0.00725"], ["-0.001", "0.00075"],
+                                         ["-0.0085", "0.00575"], ["-0.001", "0.00225"]])
     assert fit.redundancy == 4 and fit.n_observations == 8
     # residual sign: computed minus observed
     np.testing.assert_allclose(fit.residuals, fit.model.apply(src[:4]) - dst[:4], atol=1e-12)
@@ -105,10 +90,8 @@ def test_example_5_similarity_affine_projective():
     def rms8(v):
         return float(np.sqrt(np.sum(np.square(v)) / 8))
 
-    assert_printed(
-        [rms8(sim.residuals), rms8(aff.residuals), np.sqrt(lin["vtv"] / 8)],
-        ["41.2096", "18.6572", "0.21"],
-    )
+    assert_printed([rms8(sim.residuals), rms8(aff.residuals), np.sqrt(lin["vtv"] / 8)],
+                   ["41.2096", "18.6572", "0.21"])
     # similarity: redundancy 8, so the figure is our sigma0
     assert sim.redundancy == 8 and agree(sim.sigma0, "41.2096")
     # affine: redundancy 6, so sigma0 (and the per-point RMSE) is sqrt(v.T v / 6), not the figure
@@ -165,15 +148,13 @@ def test_polynomial_against_lstsq_and_textbook_std():
     dst = src * 0.9 + 0.002 * src**2 / 100 + rng.normal(0, 0.05, src.shape)
     fit = pg.estimate_transform("polynomial2d", src, dst, order=2)
     # plain coefficients by lstsq on the plain (raw) monomials
-    A = np.column_stack(
-        [src[:, 0] ** i * src[:, 1] ** j for i, j in pg.transforms.polynomial_exponents(2, 2)]
-    )
+    A = np.column_stack([src[:, 0] ** i * src[:, 1] ** j for i, j in
+                         pg.transforms.polynomial_exponents(2, 2)])
     cx, *_ = np.linalg.lstsq(A, dst[:, 0], rcond=None)
     cy, *_ = np.linalg.lstsq(A, dst[:, 1], rcond=None)
     tb = fit.extras["textbook"]
-    np.testing.assert_allclose(
-        [tb[n][0] for n in fit.parameter_names], np.r_[cx, cy], rtol=1e-7, atol=1e-9
-    )
+    np.testing.assert_allclose([tb[n][0] for n in fit.parameter_names],
+                               np.r_[cx, cy], rtol=1e-7, atol=1e-9)
     # standard deviations of the plain coefficients: sigma0^2 (A.T A)^-1
     v = np.r_[A @ cx - dst[:, 0], A @ cy - dst[:, 1]]
     s0 = np.sqrt(v @ v / (2 * len(src) - 12))
@@ -212,15 +193,8 @@ def test_projective_nonlinear_against_scipy_least_squares():
 
     # scipy starts from the linearised solution, like the library
     start = [fit.extras["linearised"]["parameters"][n] for n in fit.parameter_names]
-    ref = scipy.optimize.least_squares(
-        resid,
-        (np.array(start) - fit.parameters) / sd,
-        jac=jac,
-        method="lm",
-        xtol=1e-15,
-        ftol=1e-15,
-        gtol=1e-15,
-    )
+    ref = scipy.optimize.least_squares(resid, (np.array(start) - fit.parameters) / sd, jac=jac,
+                                       method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     np.testing.assert_allclose(ref.x, 0.0, atol=1e-7)  # in standard deviations
     J = ref.jac / sd
     r = J.shape[0] - J.shape[1]
@@ -238,28 +212,20 @@ def test_projective_gauss_helmert_against_total_least_squares():
 
     def resid(z):  # (parameters in std units, adjusted source points)
         u = z[8:].reshape(n, 2)
-        return np.r_[
-            (u - src).reshape(-1), (rational(fit.parameters + sd * z[:8], u)[0] - dst).reshape(-1)
-        ]
+        return np.r_[(u - src).reshape(-1),
+                     (rational(fit.parameters + sd * z[:8], u)[0] - dst).reshape(-1)]
 
     def jac(z):
         u = z[8:].reshape(n, 2)
         _, dp, du = rational(fit.parameters + sd * z[:8], u)
         J = np.zeros((4 * n, 8 + 2 * n))
         J[: 2 * n, 8:] = np.eye(2 * n)
-        J[2 * n :, :8] = dp.reshape(-1, 8) * sd
-        J[2 * n :, 8:] = scipy.linalg.block_diag(*du)
+        J[2 * n:, :8] = dp.reshape(-1, 8) * sd
+        J[2 * n:, 8:] = scipy.linalg.block_diag(*du)
         return J
 
-    ref = scipy.optimize.least_squares(
-        resid,
-        np.r_[np.full(8, 0.3), src.reshape(-1)],
-        jac=jac,
-        method="lm",
-        xtol=1e-15,
-        ftol=1e-15,
-        gtol=1e-15,
-    )
+    ref = scipy.optimize.least_squares(resid, np.r_[np.full(8, 0.3), src.reshape(-1)], jac=jac,
+                                       method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     # MINPACK's LM stops with a gradient of ~3e-8 here; polish the reference with a few plain
     # Gauss-Newton steps (numpy lstsq) so that it is converged to the precision we test.
     for _ in range(3):
@@ -285,17 +251,10 @@ def test_shared_design_separate_solution_has_identical_statistics(monkeypatch):
         fits.append(pg.estimate_transform("affine3d", src, dst, weights=w, check=check))
     joint, sep = fits
     assert "separately" in sep.message and "separately" not in joint.message
-    for attr in (
-        "parameters",
-        "covariance",
-        "residuals",
-        "normalized_residuals",
-        "redundancy_numbers",
-        "check_residuals",
-    ):
-        np.testing.assert_allclose(
-            getattr(sep, attr), getattr(joint, attr), rtol=1e-9, atol=1e-12, err_msg=attr
-        )
+    for attr in ("parameters", "covariance", "residuals", "normalized_residuals",
+                 "redundancy_numbers", "check_residuals"):
+        np.testing.assert_allclose(getattr(sep, attr), getattr(joint, attr), rtol=1e-9,
+                                   atol=1e-12, err_msg=attr)
     assert sep.sigma0 == pytest.approx(joint.sigma0, rel=1e-12)
     assert sep.redundancy == joint.redundancy == 3 * 51 - 12
 
@@ -309,9 +268,8 @@ def test_weights_and_covariance_forms_agree():
     c = pg.estimate_transform("affine2d", src, dst, covariance=np.diag(np.repeat(1 / w, 2)))
     for f in (b, c):
         np.testing.assert_allclose(f.parameters, a.parameters, rtol=1e-10)
-        np.testing.assert_allclose(
-            f.covariance, a.covariance, rtol=1e-9, atol=1e-12 * np.abs(a.covariance).max()
-        )
+        np.testing.assert_allclose(f.covariance, a.covariance, rtol=1e-9,
+                                   atol=1e-12 * np.abs(a.covariance).max())
     # x/y correlations that differ from point to point change the estimate (joint solution;
     # the same correlation everywhere would not, designs being equal)
     corr = blocks.copy()
@@ -326,12 +284,10 @@ def test_check_points_do_not_enter_the_estimate():
     with_checks = pg.estimate_transform("affine2d", src, dst, check=chk)
     control_only = pg.estimate_transform("affine2d", src[~chk], dst[~chk])
     np.testing.assert_allclose(with_checks.parameters, control_only.parameters)
-    np.testing.assert_allclose(
-        with_checks.check_residuals, control_only.model.apply(src[chk]) - dst[chk], atol=1e-12
-    )
+    np.testing.assert_allclose(with_checks.check_residuals,
+                               control_only.model.apply(src[chk]) - dst[chk], atol=1e-12)
     assert with_checks.check_rmse == pytest.approx(
-        np.sqrt(np.sum(with_checks.check_residuals**2) / 4)
-    )
+        np.sqrt(np.sum(with_checks.check_residuals**2) / 4))
 
 
 def test_handedness_pixel_to_image():
@@ -340,9 +296,8 @@ def test_handedness_pixel_to_image():
     px = rng.uniform(0, 4000, (12, 2))
     true = pg.Similarity2D.from_textbook(0.012, 0.003, -24.0, 18.0)
     mm = true.apply(pg.imagecoords.flip_y(px)) + rng.normal(0, 1e-4, (12, 2))
-    fit = pg.estimate_transform(
-        "similarity2d", px, mm, source_system="pixel", target_system="image", unit="mm"
-    )
+    fit = pg.estimate_transform("similarity2d", px, mm, source_system="pixel",
+                                target_system="image", unit="mm")
     np.testing.assert_allclose(fit.parameters, true.parameters, rtol=1e-3, atol=1e-3)
     assert fit.sigma0 < 1e-3 and fit.extras["handedness"]["source_flip_y"]
     assert any("left-handed" in note for note in fit.notes)
@@ -350,15 +305,13 @@ def test_handedness_pixel_to_image():
     naive = pg.estimate_transform("similarity2d", px, mm)
     assert naive.sigma0 > 1.0
     # the other way round (image -> pixel): target flipped, residuals in pixels as given
-    back = pg.estimate_transform(
-        "similarity2d", mm, px, source_system="image", target_system="pixel"
-    )
+    back = pg.estimate_transform("similarity2d", mm, px, source_system="image",
+                                 target_system="pixel")
     pred = pg.imagecoords.flip_y(back.model.apply(mm))
     np.testing.assert_allclose(back.residuals, pred - px, atol=1e-9)
     # same handedness: nothing flipped
-    same = pg.estimate_transform(
-        "affine2d", px, px * 2, source_system="pixel", target_system="pixel"
-    )
+    same = pg.estimate_transform("affine2d", px, px * 2, source_system="pixel",
+                                 target_system="pixel")
     assert not same.notes and not same.extras["handedness"]["source_flip_y"]
 
 
@@ -369,14 +322,14 @@ def test_large_coordinates_recovered_to_1e9():
     fit = pg.estimate_transform("affine2d", local, true.apply(local))
     np.testing.assert_allclose(fit.parameters, true.parameters, rtol=1e-9, atol=1e-9)
     local3 = rng.uniform(-1, 1, (50, 3))
-    true3 = pg.Affine3D.from_textbook(
-        [2.0, 2.1, 1.9], [0.01, 0.0, -0.02], 0.3, -0.2, 2.5, [512_345.678, 4_012_345.678, 250.5]
-    )
+    true3 = pg.Affine3D.from_textbook([2.0, 2.1, 1.9], [0.01, 0.0, -0.02], 0.3, -0.2, 2.5,
+                                      [512_345.678, 4_012_345.678, 250.5])
     fit3 = pg.estimate_transform("affine3d", local3, true3.apply(local3))
     np.testing.assert_allclose(fit3.parameters, true3.parameters, rtol=1e-9, atol=1e-9)
     # and the other way round: UTM-sized source (conditioning by reduction)
     fit_inv = pg.estimate_transform("affine2d", true.apply(local), local)
-    np.testing.assert_allclose(fit_inv.parameters, true.inverse().parameters, rtol=1e-9, atol=1e-8)
+    np.testing.assert_allclose(fit_inv.parameters, true.inverse().parameters, rtol=1e-9,
+                               atol=1e-8)
     proj = pg.estimate_transform("projective2d", true.apply(local), local)
     np.testing.assert_allclose(proj.model.apply(true.apply(local)), local, atol=1e-7)
 
@@ -391,13 +344,8 @@ def pts(dim, seed, n=20, spread=100.0):
 
 
 @settings(max_examples=25, deadline=None)
-@given(
-    s=st.floats(0.01, 100),
-    t=angles,
-    x0=st.floats(-1e5, 1e5),
-    y0=st.floats(-1e5, 1e5),
-    seed=st.integers(0, 2**31),
-)
+@given(s=st.floats(0.01, 100), t=angles, x0=st.floats(-1e5, 1e5), y0=st.floats(-1e5, 1e5),
+       seed=st.integers(0, 2**31))
 def test_recover_similarity2d(s, t, x0, y0, seed):
     true = pg.Similarity2D.from_textbook(s, t, x0, y0)
     src = pts(2, seed)
@@ -409,22 +357,16 @@ def test_recover_similarity2d(s, t, x0, y0, seed):
 
 
 @settings(max_examples=25, deadline=None)
-@given(
-    sx=st.floats(0.1, 10),
-    sy=st.floats(0.1, 10),
-    t=angles,
-    e=st.floats(-1.3, 1.3),
-    seed=st.integers(0, 2**31),
-)
+@given(sx=st.floats(0.1, 10), sy=st.floats(0.1, 10), t=angles, e=st.floats(-1.3, 1.3),
+       seed=st.integers(0, 2**31))
 def test_recover_affine2d(sx, sy, t, e, seed):
     true = pg.Affine2D.from_textbook(sx, sy, t, e, 1234.5, -678.9)
     src = pts(2, seed)
     fit = pg.estimate_transform("affine2d", src, true.apply(src))
     np.testing.assert_allclose(fit.parameters, true.parameters, rtol=0, atol=1e-9 * 1e3)
     tb = fit.extras["textbook"]
-    np.testing.assert_allclose(
-        [tb["sx"][0], tb["sy"][0], tb["e"][0]], [sx, sy, e], rtol=1e-8, atol=1e-9
-    )
+    np.testing.assert_allclose([tb["sx"][0], tb["sy"][0], tb["e"][0]], [sx, sy, e], rtol=1e-8,
+                               atol=1e-9)
 
 
 @settings(max_examples=20, deadline=None)
@@ -438,9 +380,8 @@ def test_recover_projective2d(t, seed, both):
     H[2, :2] = rng.uniform(-2e-3, 2e-3, 2)
     true = pg.Projective2D(H)
     src = pts(2, seed, 12)
-    fit = pg.estimate_transform(
-        "projective2d", src, true.apply(src), errors_in="both" if both else "target"
-    )
+    fit = pg.estimate_transform("projective2d", src, true.apply(src),
+                                errors_in="both" if both else "target")
     np.testing.assert_allclose(fit.model.matrix, true.matrix, rtol=1e-7, atol=1e-9)
 
 
@@ -448,9 +389,8 @@ def test_recover_projective2d(t, seed, both):
 @given(w=angles, p=st.floats(-1.5, 1.5), k=angles, seed=st.integers(0, 2**31))
 def test_recover_affine3d_and_projective3d(w, p, k, seed):
     rng = np.random.default_rng(seed)
-    true = pg.Affine3D.from_textbook(
-        rng.uniform(0.2, 5, 3), rng.uniform(-0.3, 0.3, 3), w, p, k, rng.uniform(-1e4, 1e4, 3)
-    )
+    true = pg.Affine3D.from_textbook(rng.uniform(0.2, 5, 3), rng.uniform(-0.3, 0.3, 3), w, p, k,
+                                     rng.uniform(-1e4, 1e4, 3))
     src = pts(3, seed, 15)
     fit = pg.estimate_transform("affine3d", src, true.apply(src))
     np.testing.assert_allclose(fit.parameters, true.parameters, rtol=0, atol=1e-8 * 1e4)
@@ -503,9 +443,8 @@ def test_gauss_helmert_sparse_path_and_handedness(monkeypatch):
     # the model on the flipped pixel coordinates
     adj_src = px_obs + dense.extras["source_residuals"]
     adj_dst = mm + dense.residuals
-    np.testing.assert_allclose(
-        dense.model.apply(pg.imagecoords.flip_y(adj_src)), adj_dst, atol=1e-9
-    )
+    np.testing.assert_allclose(dense.model.apply(pg.imagecoords.flip_y(adj_src)), adj_dst,
+                               atol=1e-9)
     np.testing.assert_allclose(dense.model.matrix, true.matrix, rtol=0.05, atol=1e-4)
 
 

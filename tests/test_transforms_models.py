@@ -43,42 +43,28 @@ def test_example_1_similarity_parameters():
 
 def test_example_2_affine_parameters():
     aff = pg.Affine2D.from_textbook(0.95, 1.03, 5.0, 0.5, 125.0, 130.0, unit="deg")
-    assert_printed(
-        [aff.a1, aff.a2, aff.b1, aff.b2, aff.a3, aff.b3],
-        ["0.9472", "-0.0738", "0.0898", "1.0260", "125", "130"],
-    )
+    assert_printed([aff.a1, aff.a2, aff.b1, aff.b2, aff.a3, aff.b3],
+                   ["0.9472", "-0.0738", "0.0898", "1.0260", "125", "130"])
     # the textbook form equals [[1, sin e], [0, cos e]] diag(sx, sy) R(theta), written out
     e, t = np.radians(0.5), np.radians(5.0)
-    A = (
-        np.array([[1, np.sin(e)], [0, np.cos(e)]])
-        @ np.diag([0.95, 1.03])
-        @ np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
-    )
+    A = np.array([[1, np.sin(e)], [0, np.cos(e)]]) @ np.diag([0.95, 1.03]) @ np.array(
+        [[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
     np.testing.assert_allclose(aff.linear, A, atol=1e-15)
     tb = aff.textbook()
-    np.testing.assert_allclose(
-        [tb["sx"], tb["sy"], np.degrees(tb["theta"]), np.degrees(tb["e"])],
-        [0.95, 1.03, 5.0, 0.5],
-        rtol=1e-12,
-    )
+    np.testing.assert_allclose([tb["sx"], tb["sy"], np.degrees(tb["theta"]), np.degrees(tb["e"])],
+                               [0.95, 1.03, 5.0, 0.5], rtol=1e-12)
 
 
 def test_example_3_apply_similarity_affine_projective():
     sim = pg.Similarity2D(1.0, -0.2, 130.1, 130.0)
-    assert_printed(
-        sim.apply(LECTURE_POINTS),
-        [["243.1196", "152.6060"], ["-5.488", "220.3920"], ["265.712", "39.5920"]],
-    )
+    assert_printed(sim.apply(LECTURE_POINTS),
+                   [["243.1196", "152.6060"], ["-5.488", "220.3920"], ["265.712", "39.5920"]])
     aff = pg.Affine2D(0.94, -0.01, 126.0, 0.05, 1.054, 128.1)
-    assert_printed(
-        aff.apply(LECTURE_POINTS),
-        [["232.2388", "133.7531"], ["18.6595", "241.5420"], ["233.3595", "14.6380"]],
-    )
+    assert_printed(aff.apply(LECTURE_POINTS),
+                   [["232.2388", "133.7531"], ["18.6595", "241.5420"], ["233.3595", "14.6380"]])
     proj = pg.Projective2D.from_parameters([0.94, -0.01, 126.0, 0.05, 1.054, 128.1, 0.003, -0.045])
-    assert_printed(
-        proj.apply(LECTURE_POINTS),
-        [["173.4458", "99.8925"], ["-4.2182", "-54.6040"], ["36.3235", "2.2785"]],
-    )
+    assert_printed(proj.apply(LECTURE_POINTS),
+                   [["173.4458", "99.8925"], ["-4.2182", "-54.6040"], ["36.3235", "2.2785"]])
     # one point at a time gives the same as the batch
     np.testing.assert_allclose(proj.apply(LECTURE_POINTS[1]), proj.apply(LECTURE_POINTS)[1])
 
@@ -89,14 +75,9 @@ def test_example_8_similarity3d():
     assert np.trunc(M[2, 1] * 1e7) / 1e7 == pytest.approx(-0.1677312, abs=1e-12)
     M_rounded = M.copy()
     M_rounded[2, 1] = -0.1677312
-    assert_printed(
-        M_rounded,
-        [
-            ["0.620885", "0.7832956", "-0.030816"],
-            ["-0.739942", "0.5985935", "0.306874"],
-            ["0.258819", "-0.1677312", "0.951251"],
-        ],
-    )
+    assert_printed(M_rounded, [["0.620885", "0.7832956", "-0.030816"],
+                               ["-0.739942", "0.5985935", "0.306874"],
+                               ["0.258819", "-0.1677312", "0.951251"]])
     sim = pg.Similarity3D.from_angles(1.0, 10.0, 15.0, 50.0, [-200, 136, 189], unit="deg")
     np.testing.assert_allclose(sim.rotation, M.T, atol=1e-15)
     assert_printed(sim.apply([1354, 547, 135]), ["270.8707", "1501.3692", "443.5540"])
@@ -153,13 +134,8 @@ def test_affine3d_decomposition_and_similarity_deviation():
     # textbook round trip
     tb = aff.textbook()
     back = pg.Affine3D.from_textbook(
-        [tb["sx"], tb["sy"], tb["sz"]],
-        [tb["shear_xy"], tb["shear_xz"], tb["shear_yz"]],
-        tb["omega"],
-        tb["phi"],
-        tb["kappa"],
-        [tb["tx"], tb["ty"], tb["tz"]],
-    )
+        [tb["sx"], tb["sy"], tb["sz"]], [tb["shear_xy"], tb["shear_xz"], tb["shear_yz"]],
+        tb["omega"], tb["phi"], tb["kappa"], [tb["tx"], tb["ty"], tb["tz"]])
     np.testing.assert_allclose(back.parameters, aff.parameters, atol=1e-13)
     dev = aff.similarity_deviation()
     assert dev["anisotropy"] > 0.1 and dev["relative_deviation"] > 0.05
@@ -181,9 +157,8 @@ def test_affine3d_decomposition_and_similarity_deviation():
 
 def test_polynomial_structure_and_reduction():
     assert tr.polynomial_term_count(3, 2) == 10 and tr.polynomial_term_count(2, 3) == 10
-    np.testing.assert_array_equal(
-        tr.polynomial_exponents(2, 2), [[0, 0], [1, 0], [0, 1], [2, 0], [1, 1], [0, 2]]
-    )
+    np.testing.assert_array_equal(tr.polynomial_exponents(2, 2),
+                                  [[0, 0], [1, 0], [0, 1], [2, 0], [1, 1], [0, 2]])
     rng = np.random.default_rng(5)
     poly = pg.Polynomial2D(3, rng.normal(size=(2, 10)), centre=[5e5, 4e6], scale=250.0)
     assert poly.parameter_names[:3] == ("a00", "a10", "a01")
@@ -191,10 +166,8 @@ def test_polynomial_structure_and_reduction():
     pts = rng.normal(size=(6, 2)) * 300 + [5e5, 4e6]
     u = (pts - [5e5, 4e6]) / 250.0
     # x = sum a_ij u^i v^j written out
-    expect_x = sum(
-        c * u[:, 0] ** i * u[:, 1] ** j
-        for c, (i, j) in zip(poly.coefficients[0], tr.polynomial_exponents(3, 2))
-    )
+    expect_x = sum(c * u[:, 0] ** i * u[:, 1] ** j
+                   for c, (i, j) in zip(poly.coefficients[0], tr.polynomial_exponents(3, 2)))
     np.testing.assert_allclose(poly.apply(pts)[:, 0], expect_x, rtol=1e-12)
     # another reduction of the same mapping (moderate: exact algebra, few digits lost)
     other = poly.with_reduction([5e5 + 10, 4e6 - 20], 100.0)
@@ -209,9 +182,8 @@ def test_polynomial_structure_and_reduction():
     x0 = np.array([[0.3, -0.7]])
     J = small.jacobian(x0)[0]
     h = 1e-6
-    num = np.column_stack(
-        [(small.apply(x0 + h * e) - small.apply(x0 - h * e))[0] / (2 * h) for e in np.eye(2)]
-    )
+    num = np.column_stack([(small.apply(x0 + h * e) - small.apply(x0 - h * e))[0] / (2 * h)
+                           for e in np.eye(2)])
     np.testing.assert_allclose(J, num, rtol=1e-7, atol=1e-8)
 
 
@@ -256,15 +228,8 @@ def test_similarity2d_inverse(s, t, x0, y0, seed):
 
 
 @settings(max_examples=40, deadline=None)
-@given(
-    sx=st.floats(0.1, 10),
-    sy=st.floats(0.1, 10),
-    t=angles,
-    e=st.floats(-1.4, 1.4),
-    x0=shifts,
-    y0=shifts,
-    seed=st.integers(0, 2**31),
-)
+@given(sx=st.floats(0.1, 10), sy=st.floats(0.1, 10), t=angles, e=st.floats(-1.4, 1.4),
+       x0=shifts, y0=shifts, seed=st.integers(0, 2**31))
 def test_affine2d_inverse_and_textbook(sx, sy, t, e, x0, y0, seed):
     m = pg.Affine2D.from_textbook(sx, sy, t, e, x0, y0)
     _roundtrip(m, _points(2, seed), 1e-8 * max(1, abs(x0) + abs(y0)) / min(sx, sy * np.cos(e)))
@@ -276,15 +241,10 @@ def test_affine2d_inverse_and_textbook(sx, sy, t, e, x0, y0, seed):
 def _random_projective(dim, seed, persp=0.002):
     rng = np.random.default_rng(seed)
     H = np.eye(dim + 1)
-    H[:dim, :dim] = (
-        pg.rotation.matrix_from_axis_angle(rng.normal(size=3), rng.uniform(-3, 3))[:dim, :dim]
-        * rng.uniform(0.5, 2)
-        if dim == 3
-        else np.array(
-            [[np.cos(a := rng.uniform(-np.pi, np.pi)), -np.sin(a)], [np.sin(a), np.cos(a)]]
-        )
-        * rng.uniform(0.5, 2)
-    )
+    H[:dim, :dim] = pg.rotation.matrix_from_axis_angle(rng.normal(size=3), rng.uniform(-3, 3))[
+        :dim, :dim] * rng.uniform(0.5, 2) if dim == 3 else np.array(
+        [[np.cos(a := rng.uniform(-np.pi, np.pi)), -np.sin(a)], [np.sin(a), np.cos(a)]]
+    ) * rng.uniform(0.5, 2)
     H[:dim, :dim] += rng.normal(scale=0.1, size=(dim, dim))
     H[:dim, dim] = rng.uniform(-100, 100, dim)
     H[dim, :dim] = rng.uniform(-persp, persp, dim)
@@ -314,18 +274,12 @@ def test_3d_rigid_similarity_affine_inverse(w, p, k, s, seed):
     _roundtrip(aff, pts, 1e-9 * 1e4)
     tb = aff.textbook()
     back = pg.Affine3D.from_textbook(
-        [tb["sx"], tb["sy"], tb["sz"]],
-        [tb["shear_xy"], tb["shear_xz"], tb["shear_yz"]],
-        tb["omega"],
-        tb["phi"],
-        tb["kappa"],
-        t,
-    )
+        [tb["sx"], tb["sy"], tb["sz"]], [tb["shear_xy"], tb["shear_xz"], tb["shear_yz"]],
+        tb["omega"], tb["phi"], tb["kappa"], t)
     np.testing.assert_allclose(back.linear, aff.linear, atol=1e-10 * np.max(np.abs(aff.linear)))
     rw, rp, rk = rig.angles()
-    np.testing.assert_allclose(
-        pg.rotation.rotation_from_angles(rw, rp, rk), rig.rotation, atol=1e-12
-    )
+    np.testing.assert_allclose(pg.rotation.rotation_from_angles(rw, rp, rk), rig.rotation,
+                               atol=1e-12)
 
 
 @settings(max_examples=25, deadline=None)
@@ -367,9 +321,8 @@ def test_json_round_trip_and_repr(model):
     text = repr(model)
     assert type(model).__name__ in text and len(text) < 600
     if hasattr(model, "parameters") and not isinstance(model, pg.Similarity3D):
-        np.testing.assert_allclose(
-            model.with_parameters(model.parameters).apply(pts), model.apply(pts)
-        )
+        np.testing.assert_allclose(model.with_parameters(model.parameters).apply(pts),
+                                   model.apply(pts))
 
 
 def test_polynomial_inverse_json():
@@ -383,14 +336,12 @@ def test_textbook_jacobian_similarity2d_analytic():
     # d(s, theta)/d(a, b) written out: s = hypot(a, b), theta = atan2(-b, a)
     m = pg.Similarity2D(0.7, -1.3, 10.0, 20.0)
     a, b, s2 = 0.7, -1.3, 0.7**2 + 1.3**2
-    expect = np.array(
-        [
-            [a / np.sqrt(s2), b / np.sqrt(s2), 0, 0],
-            [b / s2, -a / s2, 0, 0],
-            [0, 0, 1, 0],
-            [0, 0, 0, 1],
-        ]
-    )
+    expect = np.array([
+        [a / np.sqrt(s2), b / np.sqrt(s2), 0, 0],
+        [b / s2, -a / s2, 0, 0],
+        [0, 0, 1, 0],
+        [0, 0, 0, 1],
+    ])
     np.testing.assert_allclose(m.textbook_jacobian(), expect, rtol=1e-8, atol=1e-10)
 
 
@@ -417,19 +368,11 @@ def test_model_bad_input():
         tr.from_dict({"model": "helmert9"})
 
 
-@pytest.mark.parametrize(
-    "model",
-    [
-        pg.Affine2D.from_textbook(0.95, 1.03, 2.9, 0.3, 125.0, 130.0),
-        pg.Affine2D.from_textbook(-2.0, 0.4, -1.0, -1.2, 1e5, -3.0),
-        pg.Similarity2D.from_textbook(0.012, -3.1, 5e5, 4e6),
-    ],
-    ids=["affine", "affine-reflection", "similarity"],
-)
+@pytest.mark.parametrize("model", [
+    pg.Affine2D.from_textbook(0.95, 1.03, 2.9, 0.3, 125.0, 130.0),
+    pg.Affine2D.from_textbook(-2.0, 0.4, -1.0, -1.2, 1e5, -3.0),
+    pg.Similarity2D.from_textbook(0.012, -3.1, 5e5, 4e6),
+], ids=["affine", "affine-reflection", "similarity"])
 def test_closed_form_textbook_jacobians_against_differences(model):
-    np.testing.assert_allclose(
-        model.textbook_jacobian(),
-        model.numeric_textbook_jacobian(),
-        rtol=1e-6,
-        atol=1e-8 * np.abs(model.textbook_jacobian()).max(),
-    )
+    np.testing.assert_allclose(model.textbook_jacobian(), model.numeric_textbook_jacobian(),
+                               rtol=1e-6, atol=1e-8 * np.abs(model.textbook_jacobian()).max())

@@ -27,9 +27,8 @@ def response(model, src, clean, w):
     for j in range(2 * N):
         e = np.zeros(2 * N)
         e[j] = 1.0
-        f = pg.estimate_transform(
-            model, src, clean + e.reshape(N, 2), weights=w, sigma0_prior=SIGMA
-        )
+        f = pg.estimate_transform(model, src, clean + e.reshape(N, 2), weights=w,
+                                  sigma0_prior=SIGMA)
         G.append(f.parameters - base.parameters)
         V.append((f.residuals - base.residuals).reshape(-1))
     return base, np.array(G).T, np.array(V).T
@@ -39,10 +38,8 @@ def response(model, src, clean, w):
     "model, true",
     [
         ("similarity2d", pg.Similarity2D.from_textbook(1.25, np.radians(140.0), 3.0e5, 4.1e6)),
-        (
-            "affine2d",
-            pg.Affine2D.from_textbook(0.8, 1.3, np.radians(-100.0), np.radians(7.0), 3.0e5, 4.1e6),
-        ),
+        ("affine2d", pg.Affine2D.from_textbook(0.8, 1.3, np.radians(-100.0), np.radians(7.0),
+                                               3.0e5, 4.1e6)),
     ],
 )
 def test_standard_deviations_match_monte_carlo(model, true):
@@ -51,16 +48,15 @@ def test_standard_deviations_match_monte_carlo(model, true):
     w = rng.uniform(0.5, 4.0, N)  # per-point weights: sigma_i = SIGMA / sqrt(w_i)
     clean = true.apply(src)
     base, G, V = response(model, src, clean, w)
-    noise = rng.normal(size=(TRIALS, N, 2)) * (SIGMA / np.sqrt(w))[None, :, None]
+    noise = (rng.normal(size=(TRIALS, N, 2)) * (SIGMA / np.sqrt(w))[None, :, None])
     noise = noise.reshape(TRIALS, -1)
     params = base.parameters + noise @ G.T
     resid = base.residuals.reshape(-1) + noise @ V.T
 
     # the batched trials are the estimator's results (checked on real runs)
     for k in range(15):
-        f = pg.estimate_transform(
-            model, src, clean + noise[k].reshape(N, 2), weights=w, sigma0_prior=SIGMA
-        )
+        f = pg.estimate_transform(model, src, clean + noise[k].reshape(N, 2), weights=w,
+                                  sigma0_prior=SIGMA)
         np.testing.assert_allclose(f.parameters, params[k], rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(f.residuals.reshape(-1), resid[k], atol=1e-9)
 
@@ -75,15 +71,14 @@ def test_standard_deviations_match_monte_carlo(model, true):
 
     # textbook parameters (scale(s), angles, shifts) by first-order error propagation
     names = list(base.extras["textbook"])
-    textbook = np.array([list(base.model.with_parameters(p).textbook().values()) for p in params])
+    textbook = np.array([list(base.model.with_parameters(p).textbook().values())
+                         for p in params])
     tb_pred = SIGMA * np.sqrt(np.diag(base.extras["textbook_cofactor"]))
-    np.testing.assert_allclose(
-        textbook.std(axis=0, ddof=1) / tb_pred, 1.0, atol=0.10, err_msg=str(names)
-    )
+    np.testing.assert_allclose(textbook.std(axis=0, ddof=1) / tb_pred, 1.0, atol=0.10,
+                               err_msg=str(names))
     # a-posteriori standard deviations of the textbook parameters use sigma0
-    np.testing.assert_allclose(
-        [base.extras["textbook"][n][1] for n in names], base.sigma0 * tb_pred / SIGMA, rtol=1e-9
-    )
+    np.testing.assert_allclose([base.extras["textbook"][n][1] for n in names],
+                               base.sigma0 * tb_pred / SIGMA, rtol=1e-9)
 
     # the a-posteriori variance factor v.T P v / r estimates SIGMA^2
     vtpv = np.sum(resid**2 * np.repeat(w, 2), axis=1)

@@ -96,7 +96,8 @@ def test_same_estimate_every_model(model, order, n):
     assert bare.redundancy == full.redundancy and bare.n_observations == full.n_observations
     assert bare.converged and bare.iterations == full.iterations
     # the bare fit is a working transformation
-    np.testing.assert_allclose(bare.model.apply(src), full.model.apply(src), rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(bare.model.apply(src), full.model.apply(src), rtol=1e-12,
+                               atol=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -132,9 +133,8 @@ def test_errors_in_both_systems():
     assert "source_residuals" not in bare.extras
 
 
-@pytest.mark.parametrize(
-    "model", ["similarity2d", "affine2d", "projective2d", "affine3d", "similarity3d"]
-)
+@pytest.mark.parametrize("model", ["similarity2d", "affine2d", "projective2d", "affine3d",
+                                   "similarity3d"])
 def test_weights_check_points_and_ids(model):
     src, dst = _pairs(model, 40, seed=11)
     n = src.shape[0]
@@ -149,13 +149,7 @@ def test_weights_check_points_and_ids(model):
     assert bare.residual_unit == full.residual_unit
     _assert_bare(bare, src.shape[1])
     assert bare.elapsed > 0 and bare.extras.keys() == full.extras.keys() - {
-        "textbook",
-        "textbook_units",
-        "textbook_cofactor",
-        "linearised",
-        "helmert",
-        "handedness",
-    }
+        "textbook", "textbook_units", "textbook_cofactor", "linearised", "helmert", "handedness"}
 
 
 def test_handedness_flip():
@@ -202,9 +196,8 @@ def test_bad_input_is_refused_the_same_way(statistics):
         with pytest.raises(DegenerateGeometryError, match="collinear"):
             pg.estimate_transform(model, line, line * 2, **kw)
     line3 = np.c_[t, 2 * t, -t]
-    with pytest.raises(
-        DegenerateGeometryError, match="similarity3d: the 8 source points are collinear"
-    ):
+    with pytest.raises(DegenerateGeometryError, match="similarity3d: the 8 source points are "
+                                                      "collinear"):
         pg.estimate_transform("similarity3d", line3, line3 + 1, **kw)
     with pytest.raises(InputError, match=r"shape \(n, 3\)"):
         pg.estimate_transform("similarity3d", src, dst, **kw)
@@ -235,8 +228,7 @@ def test_linearised_start_from_normal_equations_equals_qr(monkeypatch):
         b = np.array(list(fast.extras["linearised"]["parameters"].values()))
         np.testing.assert_allclose(b, a, rtol=1e-10, atol=1e-14)
         assert fast.extras["linearised"]["vtv"] == pytest.approx(
-            ref.extras["linearised"]["vtv"], rel=1e-10
-        )
+            ref.extras["linearised"]["vtv"], rel=1e-10)
         _assert_same_estimate(ref, fast, rtol=1e-9)
 
 

@@ -322,10 +322,8 @@ class HandednessPlan:
 
     def apply(self, source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The point sets with the planned flips applied (copies where flipped)."""
-        return (
-            flip_y(source) if self.flip_source else source,
-            flip_y(target) if self.flip_target else target,
-        )
+        return (flip_y(source) if self.flip_source else source,
+                flip_y(target) if self.flip_target else target)
 
 
 _UNNAMED = HandednessPlan(None, None, False, False, "")

@@ -173,7 +173,9 @@ def resection(
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
     if report is not None:
-        outputs.append((report, _resection_report(fit, im_ctrl, kw.get("check_image"), au, points)))
+        outputs.append(
+            (report, _resection_report(fit, im_ctrl, kw.get("check_image"), au, points))
+        )
     write_outputs(outputs)
     if as_json:
         typer.echo(json_text(data), nl=False)

@@ -364,7 +364,8 @@ ImageColsOpt = Annotated[str, typer.Option(help="Image columns of the CSV (px)."
 CheckIdsOpt = Annotated[
     str | None,
     typer.Option(
-        help="Comma-separated ids of check points (default: rows whose role column says 'check')."
+        help="Comma-separated ids of check points (default: rows whose role column says "
+        "'check')."
     ),
 ]
 StyleOpt = Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")]

@@ -80,8 +80,8 @@ def rational_jacobian(
     if n <= 4096:
         J = np.zeros((n, d, npar)) if out is None else out
         for k in range(d):
-            J[:, k, k * m : (k + 1) * m] = a
-        last = J[:, :, d * m :]
+            J[:, k, k * m:(k + 1) * m] = a
+        last = J[:, :, d * m:]
         np.multiply(X[:, :, None], a[:, None, :d], out=last)  # d X_k / d H[d, :d] = -X_k u / w
         np.negative(last, out=last)
         return J.reshape(n * d, npar)
@@ -90,7 +90,7 @@ def rational_jacobian(
         for j in range(m):
             Jt[k * m + j, :, k] = a[:, j]
     for j in range(d):
-        np.multiply(X, -a[:, j : j + 1], out=Jt[d * m + j])
+        np.multiply(X, -a[:, j:j + 1], out=Jt[d * m + j])
     return Jt.reshape(npar, n * d).T
 
 

@@ -335,11 +335,8 @@ def _scatter_certified(S: list, n: int, d: int, need_rank: int, k: int = 0) -> b
     e2 = s00 * s11 - s01 * s01 + s00 * s22 - s02 * s02 + s11 * s22 - s12 * s12
     if need_rank <= 2:
         return need_rank <= 1 or e2 > thr * e1 * e1
-    det = (
-        s00 * (s11 * s22 - s12 * s12)
-        - s01 * (s01 * s22 - s12 * s02)
-        + s02 * (s01 * s12 - s11 * s02)
-    )
+    det = (s00 * (s11 * s22 - s12 * s12) - s01 * (s01 * s22 - s12 * s02)
+           + s02 * (s01 * s12 - s11 * s02))
     return det > 1e-14 * e1 * e2 and det > thr * e1 * e1 * e1
 
 
@@ -370,14 +367,16 @@ class _CentredPair:
         k = side * d
         S = self.scatter
         ss = S[k][k] + S[k + 1][k + 1] + (S[k + 2][k + 2] if d == 3 else 0.0)
-        return PointNormalization(self.centre[k : k + d], _rms_scale(ss, self.centred.shape[0] * d))
+        return PointNormalization(self.centre[k:k + d], _rms_scale(ss, self.centred.shape[0] * d))
 
     def certified(self, need_rank: int) -> bool:
         """:func:`_spread_certified` of both point sets."""
         S = self.scatter
         n = self.centred.shape[0]
         d = len(S) // 2
-        return _scatter_certified(S, n, d, need_rank) and _scatter_certified(S, n, d, need_rank, d)
+        return _scatter_certified(S, n, d, need_rank) and _scatter_certified(
+            S, n, d, need_rank, d
+        )
 
 
 def _geometry(points: np.ndarray, need_rank: int, model: str, side: str, need: int) -> None:
@@ -411,11 +410,8 @@ def _general_position(points: np.ndarray, model: str, side: str) -> None:
     h = np.column_stack([u, np.ones(n)])
     for sub in itertools.combinations(range(n), d + 1):
         if abs(np.linalg.det(h[list(sub)])) <= 1e-9:
-            what = (
-                "three of the four points are collinear"
-                if d == 2
-                else ("four of the five points are coplanar")
-            )
+            what = "three of the four points are collinear" if d == 2 else (
+                "four of the five points are coplanar")
             raise DegenerateGeometryError(
                 f"{model}: {what} on the {side} side (rows {', '.join(str(i) for i in sub)}); "
                 f"with the minimum of {n} points no {d + 1} may be "
@@ -511,22 +507,13 @@ def _shared_design_solve(
         parts = []
         for j in range(k):
             w = None if obs.weights is None else obs.weights[:, j]
-            parts.append(
-                solve_linear(
-                    D,
-                    L[:, j],
-                    weights=w,
-                    sigma0_prior=sigma0_prior,
-                    names=names[j * m : (j + 1) * m],
-                    what=what,
-                    statistics=statistics,
-                    check_finite=False,
-                )
-            )
+            parts.append(solve_linear(D, L[:, j], weights=w, sigma0_prior=sigma0_prior,
+                                      names=names[j * m:(j + 1) * m], what=what,
+                                      statistics=statistics, check_finite=False))
         return _combine(parts, names)
     A = np.zeros((n, k, k * m))
     for j in range(k):
-        A[:, j, j * m : (j + 1) * m] = D
+        A[:, j, j * m:(j + 1) * m] = D
     return solve_linear(
         A.reshape(n * k, k * m),
         L.reshape(-1),
@@ -550,30 +537,21 @@ def _fit_similarity2d(src, dst, obs, sigma0_prior, what, statistics=True):
     A = np.zeros((n, 2, 4))
     A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = u[:, 0], u[:, 1], 1.0
     A[:, 1, 0], A[:, 1, 1], A[:, 1, 3] = u[:, 1], -u[:, 0], 1.0
-    adj = solve_linear(
-        A.reshape(2 * n, 4),
-        X.reshape(-1),
-        weights=obs.flat_weights(),
-        covariance=obs.covariance,
-        sigma0_prior=sigma0_prior,
-        names=("a", "b", "c", "d"),
-        what=what,
-        statistics=statistics,
-        check_finite=False,
-    )
+    adj = solve_linear(A.reshape(2 * n, 4), X.reshape(-1), weights=obs.flat_weights(),
+                       covariance=obs.covariance, sigma0_prior=sigma0_prior,
+                       names=("a", "b", "c", "d"), what=what, statistics=statistics,
+                       check_finite=False)
     an, bn, cn, dn = adj.x
     k = ns.scale
     cx, cy = ns.centre
     a, b = an / k, bn / k
     p = np.array([a, b, cn + ct[0] - a * cx - b * cy, dn + ct[1] + b * cx - a * cy])
-    J = np.array(
-        [
-            [1 / k, 0, 0, 0],
-            [0, 1 / k, 0, 0],
-            [-cx / k, -cy / k, 1, 0],
-            [-cy / k, cx / k, 0, 1],
-        ]
-    )
+    J = np.array([
+        [1 / k, 0, 0, 0],
+        [0, 1 / k, 0, 0],
+        [-cx / k, -cy / k, 1, 0],
+        [-cy / k, cx / k, 0, 1],
+    ])
     return Similarity2D(*p), adj, p, J
 
 
@@ -598,7 +576,8 @@ def _fit_affine(src, dst, obs, sigma0_prior, what, force=None, statistics=True):
     D = np.empty((src.shape[0], d + 1))
     D[:, :d] = u
     D[:, d] = 1.0
-    adj = _shared_design_solve(D, L, obs, sigma0_prior, _AFFINE_NAMES[d], what, force, statistics)
+    adj = _shared_design_solve(D, L, obs, sigma0_prior, _AFFINE_NAMES[d], what, force,
+                               statistics)
     Jr = _affine_back(ns, ct, d)
     xr = adj.x.reshape(d, d + 1)
     rows = xr @ Jr.T  # per output row [a.., t]
@@ -608,7 +587,7 @@ def _fit_affine(src, dst, obs, sigma0_prior, what, force=None, statistics=True):
         m = d + 1
         Jrows = np.zeros((d * m, d * m))
         for r in range(d):
-            Jrows[r * m : (r + 1) * m, r * m : (r + 1) * m] = Jr
+            Jrows[r * m:(r + 1) * m, r * m:(r + 1) * m] = Jr
     if d == 2:
         p = rows.reshape(-1)
         return Affine2D(*p), adj, p, Jrows
@@ -685,7 +664,7 @@ def _proj_back(
     # left (scalar arithmetic: (d+1)^2 elements, plain loops: no per-row generator frames)
     rows = []
     for i in range(m):
-        r = hn[i * m : (i + 1) * m]
+        r = hn[i * m:(i + 1) * m]
         t = r[d]
         for j in range(d):
             r[j] = r[j] / ks
@@ -771,7 +750,7 @@ def _linearised_start(
         )
     if not reweight:
         return h, vtv, h
-    wl = u1 @ h[d * m :]
+    wl = u1 @ h[d * m:]
     awl = np.abs(wl)
     if not awl.min() > 1e-6 * awl.max():
         return h, vtv, h
@@ -793,8 +772,8 @@ def _linearised_design(u1: np.ndarray, X: np.ndarray) -> np.ndarray:
     A = np.zeros((n, d, m * m))
     neg = -u1
     for k in range(d):
-        A[:, k, k * m : (k + 1) * m] = neg
-    np.multiply(X[:, :, None], u1[:, None, :], out=A[:, :, d * m :])
+        A[:, k, k * m:(k + 1) * m] = neg
+    np.multiply(X[:, :, None], u1[:, None, :], out=A[:, :, d * m:])
     return A
 
 
@@ -872,7 +851,7 @@ def _linearised_normal(u, X, cons, row_scale):
         P *= (row_scale * row_scale)[:, None]
     F = np.empty((n, d + 2), order="F")
     F[:, 0] = 1.0
-    F[:, 1 : d + 1] = X
+    F[:, 1:d + 1] = X
     F[:, d + 1] = np.einsum("ij,ij->i", X, X)
     S = P.T @ F  # (pairs, d + 2)
     M = np.empty((d + 2, m, m))
@@ -909,18 +888,8 @@ _NOTE_RATIONAL = (
 )
 
 
-def _fit_projective(
-    src,
-    dst,
-    obs,
-    sigma0_prior,
-    what,
-    errors_in,
-    max_iter,
-    tol,
-    statistics=True,
-    pair: _CentredPair | None = None,
-):
+def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
+                    statistics=True, pair: _CentredPair | None = None):
     n, d = src.shape
     if pair is None:
         ns, u = _normalised(src)
@@ -951,33 +920,22 @@ def _fit_projective(
             "vtv": float(vtv_lin * kt**2),
             "redundancy": int(n * d - len(names)),
             "note": "linearised least squares x = a1 x' + a2 y' + a3 - c1 x' x - c2 y' x "
-            "(observations on both sides; residuals are algebraic, not coordinate "
-            "residuals)",
+                    "(observations on both sides; residuals are algebraic, not coordinate "
+                    "residuals)",
         }
     p0 = h0[:-1] / h0[-1]
-    p0[: d * (d + 1)] *= kt
+    p0[:d * (d + 1)] *= kt
     nt = PointNormalization(nt.centre, 1.0)
     kt = 1.0
     lean = None
-    if (
-        errors_in == "target"
-        and not statistics
-        and obs.weights is None
-        and obs.covariance is None
-        and n <= LEAN_MAX_POINTS
-    ):
+    if (errors_in == "target" and not statistics and obs.weights is None
+            and obs.covariance is None and n <= LEAN_MAX_POINTS):
         # the same iteration without the general engine's overhead (None: the engine decides)
         lean = gauss_newton_unit(u, X, p0, max_iter, tol, u1=u1)
     if lean is not None:
         p_n, iterations = lean
-        adj = BareSolution(
-            p_n,
-            n * d - len(names),
-            n * d,
-            iterations,
-            True,
-            f"converged after {iterations} iteration(s)",
-        )
+        adj = BareSolution(p_n, n * d - len(names), n * d, iterations, True,
+                           f"converged after {iterations} iteration(s)")
         method = "Gauss-Markov (rational form)"
         note = _NOTE_RATIONAL
         extra_res = None
@@ -1083,9 +1041,8 @@ def _fit_projective(
 # --- the 3D similarity and rigid models ----------------------------------------------------------
 
 
-def _fit_absolute(
-    model, src, dst, weights, covariance, sigma0_prior, statistics, ids, unit, what, need
-):
+def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics, ids, unit,
+                  what, need):
     """The 3D similarity / rigid model by :func:`~photogeom.orientation.absolute_orientation`
     (SVD), which checks the geometry of both point sets; on degenerate geometry the message
     names the side and the minimum in the words of this module."""
@@ -1100,14 +1057,8 @@ def _fit_absolute(
         kwargs["sigma0_prior"] = sigma0_prior
     try:
         return absolute_orientation(
-            src,
-            dst,
-            "svd",
-            with_scale=model == "similarity3d",
-            statistics=statistics,
-            ids=ids,
-            unit=unit or "m",
-            **kwargs,
+            src, dst, "svd", with_scale=model == "similarity3d", statistics=statistics,
+            ids=ids, unit=unit or "m", **kwargs,
         )
     except DegenerateGeometryError:
         _validate_geometry(model, src, dst, need)
@@ -1128,27 +1079,16 @@ def _helmert_extras(fit: Fit) -> dict:
     std = fit.std_errors
     sec = 180.0 / np.pi * 3600.0
     sd = {
-        "tx": std.get("tx", np.nan),
-        "ty": std.get("ty", np.nan),
-        "tz": std.get("tz", np.nan),
-        "rx": std.get("omega", np.nan) * sec,
-        "ry": std.get("phi", np.nan) * sec,
-        "rz": std.get("kappa", np.nan) * sec,
-        "ds": std.get("scale", np.nan) * 1e6,
+        "tx": std.get("tx", np.nan), "ty": std.get("ty", np.nan), "tz": std.get("tz", np.nan),
+        "rx": std.get("omega", np.nan) * sec, "ry": std.get("phi", np.nan) * sec,
+        "rz": std.get("kappa", np.nan) * sec, "ds": std.get("scale", np.nan) * 1e6,
     }
     out: dict = {}
     for conv in ("position_vector", "coordinate_frame"):
         hp = m.helmert_parameters(conv)
         out[conv] = {k: (float(hp[k]), float(sd[k])) for k in hp}
-    out["units"] = {
-        "tx": "m",
-        "ty": "m",
-        "tz": "m",
-        "rx": "arcsec",
-        "ry": "arcsec",
-        "rz": "arcsec",
-        "ds": "ppm",
-    }
+    out["units"] = {"tx": "m", "ty": "m", "tz": "m", "rx": "arcsec", "ry": "arcsec",
+                    "rz": "arcsec", "ds": "ppm"}
     return out
 
 
@@ -1326,34 +1266,16 @@ def estimate_transform(
     need = _min_points(key, order)
     sc, dc = (src, dst) if ctrl is None else (src[ctrl], dst[ctrl])
     if sc.shape[0] < need:
-        check_count(
-            sc.shape[0],
-            need,
-            what,
-            _hint(key, order)
-            + (
-                f"; {int(is_check.sum())} point(s) are check points" if is_check is not None else ""
-            ),
-        )
+        check_count(sc.shape[0], need, what, _hint(key, order) + (
+            f"; {int(is_check.sum())} point(s) are check points" if is_check is not None else ""))
     ctrl_ids = _select_ids(point_ids, ctrl, numbered=is_check is not None)
     labels = ("x", "y") if d == 2 else ("x", "y", "z")
     if absolute:
         w_ctrl = None if weights is None else np.asarray(weights, dtype=float)
         if w_ctrl is not None and ctrl is not None:
             w_ctrl = w_ctrl[ctrl]
-        fit = _fit_absolute(
-            key,
-            sc,
-            dc,
-            w_ctrl,
-            obs.covariance,
-            sigma0_prior,
-            statistics,
-            ctrl_ids,
-            unit,
-            what,
-            need,
-        )
+        fit = _fit_absolute(key, sc, dc, w_ctrl, obs.covariance, sigma0_prior, statistics,
+                            ctrl_ids, unit, what, need)
         if key == "rigid3d":
             m = fit.model
             _set(fit, model=Rigid3D(m.rotation, m.translation))
@@ -1369,9 +1291,8 @@ def estimate_transform(
             tf, adj, p, J = _fit_affine(sc, dc, obs, sigma0_prior, what, statistics=statistics)
             method = _METHOD_LINEAR
         elif key.startswith("polynomial"):
-            tf, adj, p, J = _fit_polynomial(
-                sc, dc, order, obs, sigma0_prior, what, statistics=statistics
-            )
+            tf, adj, p, J = _fit_polynomial(sc, dc, order, obs, sigma0_prior, what,
+                                            statistics=statistics)
             method = _METHOD_LINEAR
             centre = np.array2string(tf.centre, precision=6)
             notes.append(
@@ -1380,8 +1301,7 @@ def estimate_transform(
             )
         else:
             tf, adj, p, J, method, note, lin, extra_res = _fit_projective(
-                sc, dc, obs, sigma0_prior, what, errors_in, max_iter, tol, statistics, pair
-            )
+                sc, dc, obs, sigma0_prior, what, errors_in, max_iter, tol, statistics, pair)
             if note:
                 notes.append(note)
             if lin is not None:
@@ -1392,16 +1312,8 @@ def estimate_transform(
         units = _parameter_units(key, tf, unit, src_unit)
         if statistics:
             fit = Fit.from_adjustment(
-                adj,
-                tf,
-                method,
-                point_dim=d,
-                parameters=p,
-                parameter_names=tf.parameter_names,
-                jacobian=J,
-                ids=ctrl_ids,
-                residual_labels=labels,
-                residual_unit=unit,
+                adj, tf, method, point_dim=d, parameters=p, parameter_names=tf.parameter_names,
+                jacobian=J, ids=ctrl_ids, residual_labels=labels, residual_unit=unit,
                 parameter_units=units,
             )
             textbook, Qtb = _textbook(tf, fit.cofactor, fit.sigma0)
@@ -1409,28 +1321,15 @@ def estimate_transform(
             extras["textbook_units"] = _textbook_units(tf, unit, src_unit)
             extras["textbook_cofactor"] = Qtb
         else:
-            fit = Fit.without_statistics(
-                {
-                    "model": tf,
-                    "method": method,
-                    "parameter_names": tf.parameter_names,
-                    "parameters": p,
-                    "sigma0_prior": sigma0_prior,
-                    "redundancy": adj.redundancy,
-                    "n_observations": adj.n_observations,
-                    "ids": ctrl_ids,
-                    "residual_labels": labels,
-                    "residual_unit": unit,
-                    "parameter_units": units,
-                    "iterations": adj.iterations,
-                    "converged": adj.converged,
-                    "message": adj.message,
-                    "notes": tuple(notes),
-                    "extras": extras,
-                    "elapsed": time.perf_counter() - t0,
-                },
-                d,
-            )
+            fit = Fit.without_statistics({
+                "model": tf, "method": method, "parameter_names": tf.parameter_names,
+                "parameters": p, "sigma0_prior": sigma0_prior, "redundancy": adj.redundancy,
+                "n_observations": adj.n_observations, "ids": ctrl_ids,
+                "residual_labels": labels, "residual_unit": unit, "parameter_units": units,
+                "iterations": adj.iterations, "converged": adj.converged,
+                "message": adj.message, "notes": tuple(notes), "extras": extras,
+                "elapsed": time.perf_counter() - t0,
+            }, d)
             if is_check is None:  # complete: no residuals to report or flip back
                 return fit
             notes = []  # they are in fit.notes
@@ -1443,19 +1342,16 @@ def estimate_transform(
     if plan is not None and plan.flip_target and statistics:
         sign = np.array([1.0, -1.0])
         nr = fit.normalized_residuals
-        _set(
-            fit,
-            residuals=fit.residuals * sign,
-            normalized_residuals=None if nr is None else nr * sign,
-        )
+        _set(fit, residuals=fit.residuals * sign,
+             normalized_residuals=None if nr is None else nr * sign)
     if is_check is not None:
         chk = fit.model.apply(src[is_check]) - dst[is_check]
         if plan is not None and plan.flip_target:
             chk = chk * np.array([1.0, -1.0])
-        _set(fit, check_residuals=chk, check_ids=_select_ids(point_ids, is_check, numbered=True))
-    _set(
-        fit, notes=tuple(fit.notes) + tuple(notes), extras=extras, elapsed=time.perf_counter() - t0
-    )
+        _set(fit, check_residuals=chk,
+             check_ids=_select_ids(point_ids, is_check, numbered=True))
+    _set(fit, notes=tuple(fit.notes) + tuple(notes), extras=extras,
+         elapsed=time.perf_counter() - t0)
     return fit
 
 

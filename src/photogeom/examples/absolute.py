@@ -32,7 +32,8 @@ def comparison_figure(cmp: MethodComparison):
     tiny = 1e-17
     shift = [max(max(abs(r.differences[k]) for k in ("tx", "ty", "tz")), tiny) for r in rows]
     scale = [max(abs(r.differences["scale"]), tiny) for r in rows]
-    angle = [max(max(abs(r.differences[k]) for k in ("omega", "phi", "kappa")), tiny) for r in rows]
+    angle = [max(max(abs(r.differences[k]) for k in ("omega", "phi", "kappa")), tiny)
+             for r in rows]
     times = [r.time_per_solve * 1e6 for r in rows]
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
     y = np.arange(len(names))
@@ -83,9 +84,8 @@ def add_comparison(report, cmp: MethodComparison, title: str) -> None:
             report.add_text(f"{r.method} failed", r.error)
 
 
-def _run(
-    name: str, kind: str | None, title: str, convention: str, unit: str, report, published=None
-) -> str:
+def _run(name: str, kind: str | None, title: str, convention: str, unit: str, report,
+         published=None) -> str:
     _, x, X = datasets.point_pairs(name, kind)
     cmp = compare_absolute_methods(x, X, convention=convention, angle_unit=unit, min_time=0.02)
     lines = [title, cmp.to_text()]
@@ -100,22 +100,14 @@ def _run(
 
 
 def _lidar(report) -> str:
-    return _run(
-        "lidar_wang2014",
-        None,
-        "18 laser-scan point pairs (Wang et al. 2014)",
-        "transposed",
-        "deg",
-        report,
-    )
+    return _run("lidar_wang2014", None, "18 laser-scan point pairs (Wang et al. 2014)",
+                "transposed", "deg", report)
 
 
 def _afary(report) -> str:
     def truth(cmp: MethodComparison) -> str:
-        out = [
-            "true transformation (direct convention): s = 4, t = (250, 250, 250) m, "
-            "Omega/Phi/K = 50/60/130 deg"
-        ]
+        out = ["true transformation (direct convention): s = 4, t = (250, 250, 250) m, "
+               "Omega/Phi/K = 50/60/130 deg"]
         for r in cmp.rows:
             if r.fit is not None:
                 v = r.values
@@ -127,15 +119,8 @@ def _afary(report) -> str:
         return "\n".join(out)
 
     parts = [
-        _run(
-            "afary2024_simulated",
-            kind,
-            f"Afary (2024) simulated data, {kind}",
-            "direct",
-            "deg",
-            report,
-            published=truth,
-        )
+        _run("afary2024_simulated", kind, f"Afary (2024) simulated data, {kind}", "direct",
+             "deg", report, published=truth)
         for kind in ("true", "noisy")
     ]
     return "\n\n".join(parts)
@@ -151,15 +136,8 @@ def _kraus(report) -> str:
             f"{ref['omega']:.4f}, {ref['phi']:.4f}, {k:.4f} gon"
         )
 
-    return _run(
-        "kraus_absolute_orientation",
-        None,
-        "Kraus (2007) absolute orientation",
-        "transposed",
-        "gon",
-        report,
-        published=published,
-    )
+    return _run("kraus_absolute_orientation", None, "Kraus (2007) absolute orientation",
+                "transposed", "gon", report, published=published)
 
 
 EXAMPLES = [

@@ -90,7 +90,6 @@ _ALIASES = {
     "gausshelmert": "gauss-helmert",
 }
 
-
 def normalize_method(method: str) -> str:
     """Canonical method name (case-insensitive; ``_`` and spaces read as ``-``)."""
     key = str(method).strip().lower().replace("_", "-").replace(" ", "-")
@@ -241,15 +240,11 @@ def _cov_array(cov, n: int, name: str):
 _NO_PRECISION = _Precision()
 
 
-def _precision(
-    method, n, weights, sigma_source, sigma_target, cov_source, cov_target, sigma0_prior=1.0
-):
+def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_target,
+               sigma0_prior=1.0):
     if (
-        weights is None
-        and sigma_source is None
-        and sigma_target is None
-        and cov_source is None
-        and cov_target is None
+        weights is None and sigma_source is None and sigma_target is None
+        and cov_source is None and cov_target is None
     ):
         return _NO_PRECISION
     w = None
@@ -431,17 +426,9 @@ def absolute_orientation(
         from .absolute_robust import ransac_absolute_orientation
 
         return ransac_absolute_orientation(
-            source,
-            target,
-            threshold,
-            method=method,
-            with_scale=with_scale,
-            statistics=statistics,
-            weights=weights,
-            sigma_target=sigma_target,
-            ids=ids,
-            unit=unit,
-            **robust_options,
+            source, target, threshold, method=method, with_scale=with_scale,
+            statistics=statistics, weights=weights, sigma_target=sigma_target, ids=ids,
+            unit=unit, **robust_options,
         )
     if robust_options:
         raise InputError(f"unexpected keyword argument(s): {', '.join(sorted(robust_options))}")
@@ -457,13 +444,7 @@ def absolute_orientation(
     if not (math.isfinite(sigma0_prior) and sigma0_prior > 0):
         raise InputError(f"sigma0_prior must be a positive number, got {sigma0_prior!r}")
     prec = _precision(
-        method,
-        n,
-        weights,
-        sigma_source,
-        sigma_target,
-        covariance_source,
-        covariance_target,
+        method, n, weights, sigma_source, sigma_target, covariance_source, covariance_target,
         sigma0_prior,
     )
     if scale_method is not None:
@@ -481,25 +462,12 @@ def absolute_orientation(
         )
     if initial is not None and method not in ("gauss-markov", "gauss-helmert"):
         raise InputError("initial values apply to 'gauss-markov' and 'gauss-helmert' only")
-    ctx = _Context(
-        n=n,
-        ids=None if ids is None else tuple(ids),
-        unit=unit,
-        t0=t0,
-        sigma0_prior=float(sigma0_prior),
-    )
+    ctx = _Context(n=n, ids=None if ids is None else tuple(ids), unit=unit, t0=t0,
+                   sigma0_prior=float(sigma0_prior))
     if method in DIRECT_METHODS:
         return _direct_fit(
-            method,
-            x,
-            X,
-            prec,
-            with_scale,
-            scale_method or "least-squares",
-            statistics,
-            nearest_rotation,
-            ctx,
-            coplanar_threshold,
+            method, x, X, prec, with_scale, scale_method or "least-squares", statistics,
+            nearest_rotation, ctx, coplanar_threshold,
         )
     if method == "gauss-markov":
         return _gauss_markov_fit(
@@ -588,30 +556,17 @@ _CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (r
 
 def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes):
     """The Fit of ``statistics=False``: parameters only (NaN covariance, no residuals)."""
-    return AbsoluteOrientationFit.without_statistics(
-        {
-            "model": model,
-            "method": method,
-            "parameter_names": names,
-            "parameters": params,
-            "sigma0_prior": 1.0,
-            "redundancy": r,
-            "n_observations": n_obs,
-            "ids": ctx.ids,
-            "residual_labels": ("X", "Y", "Z"),
-            "residual_unit": ctx.unit,
-            "parameter_units": _param_units(with_scale, ctx.unit),
-            "extras": {},
-            "elapsed": time.perf_counter() - ctx.t0,
-            "notes": tuple(notes),
-        },
-        3,
-    )
+    return AbsoluteOrientationFit.without_statistics({
+        "model": model, "method": method, "parameter_names": names, "parameters": params,
+        "sigma0_prior": 1.0, "redundancy": r, "n_observations": n_obs, "ids": ctx.ids,
+        "residual_labels": ("X", "Y", "Z"), "residual_unit": ctx.unit,
+        "parameter_units": _param_units(with_scale, ctx.unit), "extras": {},
+        "elapsed": time.perf_counter() - ctx.t0, "notes": tuple(notes),
+    }, 3)
 
 
-def _direct_fit(
-    method, x, X, prec, with_scale, scale_method, statistics, nearest, ctx, coplanar_threshold=None
-):
+def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, nearest, ctx,
+                coplanar_threshold=None):
     n = ctx.n
     w = prec.point_w
     notes = [_CONVENTION_NOTE]
@@ -620,7 +575,9 @@ def _direct_fit(
     if method == "closed-form":
         _check_finite_pair(x, X)
         kw = {} if coplanar_threshold is None else {"coplanar_threshold": coplanar_threshold}
-        sol, augmented, k = closed_form_single(x, X, nearest=nearest, with_scale=with_scale, **kw)
+        sol, augmented, k = closed_form_single(
+            x, X, nearest=nearest, with_scale=with_scale, **kw
+        )
         raw = not nearest
         if k:
             notes.append(
@@ -653,32 +610,17 @@ def _direct_fit(
         return _bare_fit(model, method, names, params, u, r, 3 * n, with_scale, ctx, notes)
     if pm is not None and pm.S is not None:
         st, v = residual_statistics(
-            x,
-            X,
-            scale=s,
-            rotation=R,
-            translation=t,
-            angles=(omega, phi, kappa),
-            source_centroid=pm.source_centroid,
-            scatter=pm.S,
-            weight_sum=pm.weight,
-            weights=w,
-            with_scale=with_scale,
-            sigma0_prior=ctx.sigma0_prior,
+            x, X, scale=s, rotation=R, translation=t, angles=(omega, phi, kappa),
+            source_centroid=pm.source_centroid, scatter=pm.S, weight_sum=pm.weight, weights=w,
+            with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
         )
     else:
         xg, Xg = x.mean(axis=0), X.mean(axis=0)
         xr = x - xg
         v = s * (xr @ R.T) - (X - Xg) + (s * (R @ xg) + t - Xg)
         st = linearised_statistics(
-            xr,
-            v,
-            scale=s,
-            angles=(omega, phi, kappa),
-            source_centroid=xg,
-            weights=w,
-            with_scale=with_scale,
-            sigma0_prior=ctx.sigma0_prior,
+            xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
+            with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
         )
     if raw:
         notes.append("statistics from the linearised model at the reported parameters")
@@ -720,47 +662,19 @@ def _params(t, s, angles, with_scale) -> np.ndarray:
     return np.array([tx, ty, tz, float(s), *angles] if with_scale else [tx, ty, tz, *angles])
 
 
-def _stat_fit(
-    model,
-    method,
-    names,
-    params,
-    st,
-    r,
-    n_obs,
-    v,
-    with_scale,
-    ctx,
-    notes,
-    extras=None,
-    iterations=0,
-    message="",
-) -> AbsoluteOrientationFit:
+def _stat_fit(model, method, names, params, st, r, n_obs, v, with_scale, ctx, notes,
+              extras=None, iterations=0, message="") -> AbsoluteOrientationFit:
     s0 = math.sqrt(max(st.vtpv, 0.0) / r) if r > 0 else math.nan
     return AbsoluteOrientationFit._construct(
-        model=model,
-        method=method,
-        parameter_names=names,
-        parameters=params,
-        covariance=s0**2 * st.cofactor,
-        cofactor=st.cofactor,
-        sigma0=s0,
+        model=model, method=method, parameter_names=names, parameters=params,
+        covariance=s0**2 * st.cofactor, cofactor=st.cofactor, sigma0=s0,
         sigma0_prior=ctx.sigma0_prior,
-        redundancy=r,
-        n_observations=n_obs,
-        residuals=v,
-        ids=ctx.ids,
-        residual_labels=("X", "Y", "Z"),
-        residual_unit=ctx.unit,
+        redundancy=r, n_observations=n_obs, residuals=v, ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
         parameter_units=_param_units(with_scale, ctx.unit),
-        normalized_residuals=st.normalized_residuals,
-        redundancy_numbers=st.redundancy_numbers,
-        iterations=iterations,
-        converged=True,
-        message=message,
-        elapsed=time.perf_counter() - ctx.t0,
-        notes=tuple(notes),
-        extras=extras or {},
+        normalized_residuals=st.normalized_residuals, redundancy_numbers=st.redundancy_numbers,
+        iterations=iterations, converged=True, message=message,
+        elapsed=time.perf_counter() - ctx.t0, notes=tuple(notes), extras=extras or {},
     )
 
 
@@ -790,11 +704,8 @@ def _start(
             s, R, t = one.scale, one.rotation, one.translation
         return s, R, t, f"direct method {meth}"
     if isinstance(initial, Similarity3D):
-        return (
-            initial.scale,
-            np.asarray(initial.rotation),
-            np.asarray(initial.translation),
-            ("given Similarity3D"),
+        return initial.scale, np.asarray(initial.rotation), np.asarray(initial.translation), (
+            "given Similarity3D"
         )
     p = np.asarray(initial, dtype=float).reshape(-1)
     u = 7 if with_scale else 6
@@ -843,33 +754,22 @@ def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_f
     what = "absolute orientation (Gauss-Markov)"
     try:
         adj = _adj.similarity_gauss_markov(
-            prob,
-            p0,
-            with_scale=with_scale,
-            R0=R0,
-            weights=obs_w,
-            covariance=cov,
-            max_iter=max_iter,
-            tol=tol,
-            sigma0_prior=ctx.sigma0_prior,
+            prob, p0, with_scale=with_scale, R0=R0, weights=obs_w, covariance=cov,
+            max_iter=max_iter, tol=tol, sigma0_prior=ctx.sigma0_prior,
         )
     except DegenerateGeometryError as exc:
         raise ConvergenceError(_SINGULAR.format(what=what, start=start, exc=exc)) from exc
     if not np.all(np.isfinite(adj.x)):
         raise ConvergenceError(
             f"{what}: diverged ({adj.message}) from {start}; start from a direct method "
-            "(initial='svd')",
-            iterations=adj.iterations,
-            result=adj,
+            "(initial='svd')", iterations=adj.iterations, result=adj,
         )
     _, s, _ = _adj.unpack(adj.x, with_scale)
     if with_scale and s <= 0:
         raise ConvergenceError(
             f"{what}: the iteration from {start} ended at scale {s:.3g} <= 0, a point-reflected "
             "fit (s R with s < 0 is a reflection), not a similarity; start from a direct "
-            "method (initial='svd')",
-            iterations=adj.iterations,
-            result=adj,
+            "method (initial='svd')", iterations=adj.iterations, result=adj,
         )
     notes = [_CONVENTION_NOTE, f"start: {start}"]
     if adj.converged:
@@ -896,18 +796,10 @@ def _gauss_markov_fit(x, X, prec, with_scale, initial, max_iter, tol, raise_on_f
         notes.append("NOT CONVERGED: " + msg)
     params, J, model = _original(adj, prob, with_scale, R0, notes)
     fit = AbsoluteOrientationFit.from_adjustment(
-        adj,
-        model,
-        "gauss-markov",
-        point_dim=3,
-        parameters=params,
-        parameter_names=_adj.names(with_scale),
-        jacobian=J,
-        ids=ctx.ids,
-        residual_labels=("X", "Y", "Z"),
-        residual_unit=ctx.unit,
-        parameter_units=_param_units(with_scale, ctx.unit),
-        notes=tuple(notes),
+        adj, model, "gauss-markov", point_dim=3, parameters=params,
+        parameter_names=_adj.names(with_scale), jacobian=J, ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
+        parameter_units=_param_units(with_scale, ctx.unit), notes=tuple(notes),
         extras={"start": start, "cost_history": list(adj.cost_history)},
         elapsed=time.perf_counter() - ctx.t0,
     )
@@ -928,7 +820,9 @@ _GIMBAL_NOTE = (
 def _original(adj, prob, with_scale: bool, R0: np.ndarray, notes: list):
     """Parameters, their Jacobian and the model in the original systems from an adjustment
     of the reduced problem (angles relative to ``R0``); a gimbal-lock note is appended."""
-    params, J, R, gimbal = _adj.to_original(adj.x, prob.source_ref, prob.target_ref, with_scale, R0)
+    params, J, R, gimbal = _adj.to_original(
+        adj.x, prob.source_ref, prob.target_ref, with_scale, R0
+    )
     if gimbal:
         notes.append(_GIMBAL_NOTE)
     t, s, _ = _adj.unpack(params, with_scale)
@@ -975,7 +869,8 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     u = len(names)
     r = 3 * n - u
     if not statistics:
-        return _bare_fit(model, "gauss-helmert", names, params, u, r, 6 * n, with_scale, ctx, notes)
+        return _bare_fit(model, "gauss-helmert", names, params, u, r, 6 * n, with_scale, ctx,
+                         notes)
     xg, Xg = pm.source_centroid, pm.target_centroid
     xr = x - xg
     # misclosures g = s R x + t - X; corrections e_x = -sx^2 s R.T g / mm, e_X = sX^2 g / mm
@@ -986,14 +881,8 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     xc = xr + vx  # corrected source about the centroid (its centroid is unchanged)
     s02 = ctx.sigma0_prior**2
     st = linearised_statistics(
-        xc,
-        g,
-        scale=s,
-        angles=(omega, phi, kappa),
-        source_centroid=xg,
-        weights=np.full(n, s02 / mm),
-        with_scale=with_scale,
-        blocks=True,
+        xc, g, scale=s, angles=(omega, phi, kappa), source_centroid=xg,
+        weights=np.full(n, s02 / mm), with_scale=with_scale, blocks=True,
         sigma0_prior=ctx.sigma0_prior,
     )
     # redundancy numbers and normalised residuals of both systems' corrections
@@ -1015,20 +904,8 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
         "misclosures": g,
     }
     st = type(st)(st.cofactor, st.vtpv, red_t, st.normalized_residuals, st.point_blocks)
-    return _stat_fit(
-        model,
-        "gauss-helmert",
-        names,
-        params,
-        st,
-        r,
-        6 * n,
-        vX,
-        with_scale,
-        ctx,
-        notes,
-        extras=extras,
-    )
+    return _stat_fit(model, "gauss-helmert", names, params, st, r, 6 * n, vX, with_scale, ctx,
+                     notes, extras=extras)
 
 
 def _gh_observation_precision(prec: _Precision, n: int):
@@ -1061,7 +938,6 @@ def _gh_observation_precision(prec: _Precision, n: int):
         C[:, :3, :3] = bs
         C[:, 3:, 3:] = bt
         return None, C
-
     # at least one full (3n, 3n) covariance: assemble the full (6n, 6n) matrix
     def full(sig, cov):
         if cov is not None and cov.ndim == 2:
@@ -1082,9 +958,8 @@ def _gh_observation_precision(prec: _Precision, n: int):
     return None, C
 
 
-def _gauss_helmert_fit(
-    x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol, raise_on_failure, ctx
-):
+def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol,
+                       raise_on_failure, ctx):
     if iterate is False and not prec.scalar_sigmas:
         raise InputError(
             "gauss-helmert: the direct solution needs at most one sigma per system; per-point "
@@ -1094,7 +969,8 @@ def _gauss_helmert_fit(
     if prec.scalar_sigmas and not iterate:
         if initial is not None:
             raise InputError(
-                "gauss-helmert: initial values apply to the iterative adjustment; pass iterate=True"
+                "gauss-helmert: initial values apply to the iterative adjustment; pass "
+                "iterate=True"
             )
         return _gh_direct_fit(x, X, prec, with_scale, statistics, ctx)
     _check_finite_pair(x, X)
@@ -1122,15 +998,8 @@ def _gauss_helmert_fit(
     what = "absolute orientation (Gauss-Helmert)"
     try:
         adj = _adj.similarity_gauss_helmert(
-            prob,
-            p0,
-            with_scale=with_scale,
-            R0=R0,
-            weights=w_obs,
-            covariance=cov,
-            max_iter=max_iter,
-            tol=tol,
-            sigma0_prior=ctx.sigma0_prior,
+            prob, p0, with_scale=with_scale, R0=R0, weights=w_obs, covariance=cov,
+            max_iter=max_iter, tol=tol, sigma0_prior=ctx.sigma0_prior,
         )
     except DegenerateGeometryError as exc:
         raise ConvergenceError(_SINGULAR.format(what=what, start=start, exc=exc)) from exc
@@ -1138,9 +1007,7 @@ def _gauss_helmert_fit(
     if not np.all(np.isfinite(adj.x)) or (with_scale and s <= 0):
         raise ConvergenceError(
             f"{what}: no valid solution from {start} ({adj.message}, scale {s:.3g}); start "
-            "from a direct method",
-            iterations=adj.iterations,
-            result=adj,
+            "from a direct method", iterations=adj.iterations, result=adj,
         )
     notes = [_CONVENTION_NOTE, f"iterative Gauss-Helmert adjustment, start: {start}"]
     if not adj.converged:
@@ -1168,27 +1035,13 @@ def _gauss_helmert_fit(
     Q = J @ adj.cofactor @ J.T
     s0 = adj.sigma0
     return AbsoluteOrientationFit(
-        model=model,
-        method="gauss-helmert",
-        parameter_names=_adj.names(with_scale),
-        parameters=params,
-        covariance=s0**2 * Q,
-        cofactor=Q,
-        sigma0=s0,
-        sigma0_prior=adj.sigma0_prior,
-        redundancy=adj.redundancy,
-        n_observations=adj.n_observations,
-        residuals=v[:, 3:],
-        ids=ctx.ids,
-        residual_labels=("X", "Y", "Z"),
-        residual_unit=ctx.unit,
-        parameter_units=_param_units(with_scale, ctx.unit),
-        normalized_residuals=wn,
-        redundancy_numbers=red,
-        iterations=adj.iterations,
-        converged=adj.converged,
-        message=adj.message,
-        elapsed=time.perf_counter() - ctx.t0,
-        notes=tuple(notes),
+        model=model, method="gauss-helmert",
+        parameter_names=_adj.names(with_scale), parameters=params, covariance=s0**2 * Q,
+        cofactor=Q, sigma0=s0, sigma0_prior=adj.sigma0_prior, redundancy=adj.redundancy,
+        n_observations=adj.n_observations, residuals=v[:, 3:], ids=ctx.ids,
+        residual_labels=("X", "Y", "Z"), residual_unit=ctx.unit,
+        parameter_units=_param_units(with_scale, ctx.unit), normalized_residuals=wn,
+        redundancy_numbers=red, iterations=adj.iterations, converged=adj.converged,
+        message=adj.message, elapsed=time.perf_counter() - ctx.t0, notes=tuple(notes),
         extras=extras,
     )

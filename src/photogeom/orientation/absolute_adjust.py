@@ -87,11 +87,7 @@ def to_original(
 
 
 def to_reduced(
-    t: np.ndarray,
-    s: float,
-    R0: np.ndarray,
-    source_ref: np.ndarray,
-    target_ref: np.ndarray,
+    t: np.ndarray, s: float, R0: np.ndarray, source_ref: np.ndarray, target_ref: np.ndarray,
     with_scale: bool,
 ) -> np.ndarray:
     """Reduced parameters of an original ``(t, s, R0)``: ``t' = t + s R0 xg - Xg``, a = 0."""
@@ -183,7 +179,9 @@ def _b_matrix(s: float, R: np.ndarray, n: int) -> scipy.sparse.bsr_matrix:
     """``dg/dl`` (3n, 6n) for observations ordered ``[x_1, X_1, x_2, X_2, ...]``."""
     block = np.hstack([s * R, -np.eye(3)])
     data = np.broadcast_to(block, (n, 3, 6)).copy()
-    return scipy.sparse.bsr_matrix((data, np.arange(n), np.arange(n + 1)), shape=(3 * n, 6 * n))
+    return scipy.sparse.bsr_matrix(
+        (data, np.arange(n), np.arange(n + 1)), shape=(3 * n, 6 * n)
+    )
 
 
 def similarity_gauss_helmert(
@@ -239,3 +237,4 @@ def similarity_gauss_helmert(
         raise_on_failure=False,
         what="absolute orientation (Gauss-Helmert)",
     )
+

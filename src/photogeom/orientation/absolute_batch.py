@@ -78,9 +78,8 @@ class BatchOrientation:
     def angles(self, convention: str = "transposed", unit: str = "rad") -> tuple:
         """``(omega, phi, kappa)`` arrays (B,) in ``convention`` and ``unit`` (NaN if invalid)."""
         R = np.where(self.valid[:, None, None], self.rotation, np.eye(3))
-        w, p, k = angles_from_rotation(
-            R, convention=convention, unit=unit, on_gimbal_lock="omega-zero"
-        )
+        w, p, k = angles_from_rotation(R, convention=convention, unit=unit,
+                                       on_gimbal_lock="omega-zero")
         bad = ~self.valid
         return tuple(np.where(bad, np.nan, np.asarray(a, dtype=float)) for a in (w, p, k))
 
@@ -136,11 +135,8 @@ def solve_batch(
         if w is not None:
             raise InputError("closed-form (method A) has no weights as published")
         return solve_closed_form(x, X, nearest=nearest_rotation, with_scale=with_scale)
-    if (
-        x.shape[1] == 3
-        and w is None
-        and method in ("svd", "gauss-helmert")
-        and (method == "gauss-helmert" or scale_method == "least-squares")
+    if x.shape[1] == 3 and w is None and method in ("svd", "gauss-helmert") and (
+        method == "gauss-helmert" or scale_method == "least-squares"
     ):
         return solve_three_points(
             x, X, with_scale=with_scale, gh_ratio=ratio if method == "gauss-helmert" else None
@@ -207,9 +203,7 @@ def absolute_orientation_batch(
         raise InputError(f"source {x.shape} and target {X.shape} must have the same shape")
     if x.shape[1] < 3:
         raise TooFewPointsError(
-            "absolute orientation (batch)",
-            x.shape[1],
-            3,
+            "absolute orientation (batch)", x.shape[1], 3,
             "three non-collinear point pairs per problem",
         )
     _check_finite_batch(x, "source")
@@ -220,10 +214,8 @@ def absolute_orientation_batch(
         if w.ndim == 1:
             w = np.broadcast_to(w, x.shape[:2])
         if w.shape != x.shape[:2] or not (np.all(np.isfinite(w)) and np.all(w > 0)):
-            raise InputError(
-                f"weights: expected positive values of shape {x.shape[:2]} or "
-                f"({x.shape[1]},), got {np.shape(weights)}"
-            )
+            raise InputError(f"weights: expected positive values of shape {x.shape[:2]} or "
+                             f"({x.shape[1]},), got {np.shape(weights)}")
     if scale_method not in ("least-squares", "symmetric"):
         raise InputError(
             f"scale_method must be 'least-squares' or 'symmetric', not {scale_method!r}"
@@ -234,13 +226,7 @@ def absolute_orientation_batch(
             raise InputError("sigma_source / sigma_target apply to method='gauss-helmert'")
         ratio = (sigma_target or 1.0) / (sigma_source or 1.0)
     sol = solve_batch(
-        method,
-        x,
-        X,
-        w,
-        with_scale=with_scale,
-        scale_method=scale_method,
-        ratio=ratio,
+        method, x, X, w, with_scale=with_scale, scale_method=scale_method, ratio=ratio,
         nearest_rotation=nearest_rotation,
     )
     bad = sol.degenerate | sol.reflection | ~np.isfinite(sol.scale)
@@ -251,6 +237,5 @@ def absolute_orientation_batch(
     if residual_rms:
         v = s[:, None, None] * np.matmul(x, np.swapaxes(R, 1, 2)) + t[:, None, :] - X
         rms = np.sqrt(np.einsum("bni,bni->b", v, v) / x.shape[1])
-    return BatchOrientation(
-        method, s, R, t, sol.degenerate | (bad & ~sol.reflection), sol.reflection, rms
-    )
+    return BatchOrientation(method, s, R, t, sol.degenerate | (bad & ~sol.reflection),
+                            sol.reflection, rms)

@@ -73,19 +73,10 @@ class MethodComparison:
         """Column headings of :meth:`table_rows` (units included)."""
         u, L = self.unit, self.length_unit
         return [
-            "method",
-            f"tx [{L}]",
-            f"ty [{L}]",
-            f"tz [{L}]",
-            "scale",
-            f"omega [{u}]",
-            f"phi [{u}]",
-            f"kappa [{u}]",
-            f"max |d shift| [{L}]",
-            "|d scale|",
-            f"max |d angle| [{u}]",
-            "orthogonality defect",
-            "time per solve [us]",
+            "method", f"tx [{L}]", f"ty [{L}]", f"tz [{L}]", "scale",
+            f"omega [{u}]", f"phi [{u}]", f"kappa [{u}]",
+            f"max |d shift| [{L}]", "|d scale|", f"max |d angle| [{u}]",
+            "orthogonality defect", "time per solve [us]",
         ]
 
     def table_rows(self) -> list[list]:
@@ -96,23 +87,13 @@ class MethodComparison:
                 out.append([r.method] + [None] * 12)
                 continue
             v, d = r.values, r.differences
-            out.append(
-                [
-                    r.method,
-                    v["tx"],
-                    v["ty"],
-                    v["tz"],
-                    v["scale"],
-                    v["omega"],
-                    v["phi"],
-                    v["kappa"],
-                    max(abs(d["tx"]), abs(d["ty"]), abs(d["tz"])),
-                    abs(d["scale"]),
-                    max(abs(d["omega"]), abs(d["phi"]), abs(d["kappa"])),
-                    r.orthogonality_defect,
-                    r.time_per_solve * 1e6,
-                ]
-            )
+            out.append([
+                r.method, v["tx"], v["ty"], v["tz"], v["scale"], v["omega"], v["phi"],
+                v["kappa"],
+                max(abs(d["tx"]), abs(d["ty"]), abs(d["tz"])), abs(d["scale"]),
+                max(abs(d["omega"]), abs(d["phi"]), abs(d["kappa"])),
+                r.orthogonality_defect, r.time_per_solve * 1e6,
+            ])
         return out
 
     def to_text(self) -> str:
@@ -191,7 +172,9 @@ def _time_per_solve(call, min_time: float, max_repeats: int) -> tuple[float, int
     call()  # warm-up
     times = []
     start = time.perf_counter()
-    while len(times) < max_repeats and (len(times) < 5 or time.perf_counter() - start < min_time):
+    while len(times) < max_repeats and (
+        len(times) < 5 or time.perf_counter() - start < min_time
+    ):
         t0 = time.perf_counter()
         call()
         times.append(time.perf_counter() - t0)
@@ -270,8 +253,8 @@ def compare_absolute_methods(
         if timing:
             tps, reps = _time_per_solve(
                 lambda m=m: absolute_orientation(source, target, m, statistics=False, **options),
-                min_time,
-                max_repeats,
+                min_time, max_repeats,
             )
         rows.append(MethodRow(m, fit, vals, diffs, fit.orthogonality_defect, tps, reps))
     return MethodComparison(tuple(rows), reference, convention, unit, length_unit)
+

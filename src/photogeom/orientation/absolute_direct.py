@@ -105,11 +105,8 @@ class Moments:
     @property
     def H(self) -> np.ndarray:
         """Centred cross-covariance ``H = sum w_i x'_i X'_i.T`` (B, 3, 3)."""
-        return (
-            self.cross
-            - self.sum_source[:, :, None]
-            * self.sum_target[:, None, :]
-            / (self.weight[:, None, None])
+        return self.cross - self.sum_source[:, :, None] * self.sum_target[:, None, :] / (
+            self.weight[:, None, None]
         )
 
     @property
@@ -117,11 +114,8 @@ class Moments:
         """Centred source scatter ``sum w_i x'_i x'_i.T`` (B, 3, 3), when computed."""
         if self.scatter_source is None:
             return None
-        return (
-            self.scatter_source
-            - self.sum_source[:, :, None]
-            * self.sum_source[:, None, :]
-            / (self.weight[:, None, None])
+        return self.scatter_source - self.sum_source[:, :, None] * self.sum_source[:, None, :] / (
+            self.weight[:, None, None]
         )
 
     @property
@@ -403,12 +397,7 @@ class PairMoments:
         C = Zr.T @ Zr if w is None else (Zr * w[:, None]).T @ Zr
         c = C.tolist()
         return cls(
-            W,
-            mu[:3],
-            mu[3:],
-            C[:3, 3:],
-            c[0][0] + c[1][1] + c[2][2],
-            c[3][3] + c[4][4] + c[5][5],
+            W, mu[:3], mu[3:], C[:3, 3:], c[0][0] + c[1][1] + c[2][2], c[3][3] + c[4][4] + c[5][5],
             C[:3, :3],
         )
 
@@ -417,27 +406,16 @@ class PairMoments:
         """Problem ``i`` of a batch of :class:`Moments`."""
         S = m.S
         return cls(
-            float(m.weight[i]),
-            m.source_centroid[i],
-            m.target_centroid[i],
-            m.H[i],
-            float(m.a[i]),
-            float(m.b[i]),
-            None if S is None else S[i],
+            float(m.weight[i]), m.source_centroid[i], m.target_centroid[i], m.H[i],
+            float(m.a[i]), float(m.b[i]), None if S is None else S[i],
         )
 
     def as_batch(self) -> Moments:
         """A batch of one (moments about the centroids)."""
         z = np.zeros((1, 3))
         return Moments(
-            np.array([self.weight]),
-            self.source_centroid[None],
-            self.target_centroid[None],
-            z,
-            z,
-            self.H[None],
-            np.array([self.a]),
-            np.array([self.b]),
+            np.array([self.weight]), self.source_centroid[None], self.target_centroid[None],
+            z, z, self.H[None], np.array([self.a]), np.array([self.b]),
         )
 
     def finite(self) -> bool:
@@ -775,8 +753,7 @@ def _solve_three_chunk(x, X, with_scale, gh_ratio):
         ~(nls > DEGENERATE_TOLERANCE * r2s)
         | ~(nlt > DEGENERATE_TOLERANCE * r2t)
         | ~(sig2 > DEGENERATE_TOLERANCE * sig1)
-        | ~(a > 0)
-        | ~(b > 0)
+        | ~(a > 0) | ~(b > 0)
     )
     if not with_scale:
         scale = np.ones(B)
@@ -1096,7 +1073,9 @@ def solve_closed_form(
         s = np.ones(B)
     s = np.where(degenerate, np.nan, s)
     t = Xg - s[:, None] * np.einsum("bij,bj->bi", R, xg)
-    return DirectSolution(s, R, t, degenerate, reflection, augmented=augment, at_centroid=n - nu)
+    return DirectSolution(
+        s, R, t, degenerate, reflection, augmented=augment, at_centroid=n - nu
+    )
 
 
 def closed_form_single(

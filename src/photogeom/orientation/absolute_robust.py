@@ -121,15 +121,8 @@ def ransac_absolute_orientation(
         batch_size = int(np.clip(2_000_000 // max(n, 1), 16, 1024))
     solve, errors = _minimal_solver(x, X, with_scale)
     res = ransac(
-        n,
-        3,
-        solve,
-        errors,
-        threshold,
-        confidence=confidence,
-        max_trials=max_trials,
-        batch_size=batch_size,
-        rng=rng,
+        n, 3, solve, errors, threshold, confidence=confidence, max_trials=max_trials,
+        batch_size=batch_size, rng=rng,
     )
     inliers = np.asarray(res.inliers, dtype=bool)
     w_all = None if weights is None else np.asarray(weights, dtype=float)
@@ -140,9 +133,7 @@ def ransac_absolute_orientation(
     def refit(mask, stats):
         if mask.sum() < 3:
             raise TooFewPointsError(
-                "RANSAC absolute orientation",
-                int(mask.sum()),
-                3,
+                "RANSAC absolute orientation", int(mask.sum()), 3,
                 "too few inliers: raise the threshold or check the correspondences",
             )
         kw = {}
@@ -152,14 +143,8 @@ def ransac_absolute_orientation(
             kw["sigma_target"] = st_all if np.ndim(st_all) == 0 else st_all[mask]
         sub_ids = None if ids is None else tuple(np.asarray(ids, dtype=object)[mask])
         return absolute_orientation(
-            x[mask],
-            X[mask],
-            method,
-            with_scale=with_scale,
-            statistics=stats,
-            ids=sub_ids,
-            unit=unit,
-            **kw,
+            x[mask], X[mask], method, with_scale=with_scale, statistics=stats, ids=sub_ids,
+            unit=unit, **kw,
         )
 
     rounds = 0
@@ -253,11 +238,8 @@ def snooping_absolute_orientation(
     while True:
         opts = {k: sub(v) for k, v in fit_options.items()}
         fit = absolute_orientation(
-            x[keep],
-            X[keep],
-            method,
-            ids=None if all_ids is None else tuple(all_ids[keep]),
-            **opts,
+            x[keep], X[keep], method,
+            ids=None if all_ids is None else tuple(all_ids[keep]), **opts,
         )
         if fit.redundancy < 2:
             raise DegenerateGeometryError("data snooping needs a redundancy of at least 2")
@@ -278,9 +260,6 @@ def snooping_absolute_orientation(
     notes = fit.notes
     if removed:
         shown = removed if all_ids is None else [all_ids[i] for i in removed]
-        notes = (
-            *notes,
-            f"data snooping ({sn.test}-test, alpha {alpha}) removed: "
-            + ", ".join(str(i) for i in shown),
-        )
+        notes = (*notes, f"data snooping ({sn.test}-test, alpha {alpha}) removed: "
+                 + ", ".join(str(i) for i in shown))
     return replace(fit, extras=extras, notes=notes)

@@ -62,11 +62,9 @@ def angle_to_perturbation(R: np.ndarray, dR: np.ndarray) -> np.ndarray:
     column a is ``vee(R.T dR_a)``."""
     K = R.T @ dR  # (3, 3, 3): R.T dR_a, skew-symmetric
     return np.array(
-        [
-            [K[0, 2, 1], K[1, 2, 1], K[2, 2, 1]],
-            [K[0, 0, 2], K[1, 0, 2], K[2, 0, 2]],
-            [K[0, 1, 0], K[1, 1, 0], K[2, 1, 0]],
-        ]
+        [[K[0, 2, 1], K[1, 2, 1], K[2, 2, 1]],
+         [K[0, 0, 2], K[1, 0, 2], K[2, 0, 2]],
+         [K[0, 1, 0], K[1, 1, 0], K[2, 1, 0]]]
     )
 
 
@@ -282,25 +280,16 @@ def linearised_statistics(
         Wsum = float(np.add.reduce(w))
         S = (xr * w[:, None]).T @ xr if scatter is None else scatter
         vtpv = float(np.add.reduce(np.add.reduce(v * v, axis=1) * w))
-    Q, pm = _cofactor(
-        S, Wsum, scale=scale, angles=angles, source_centroid=source_centroid, with_scale=with_scale
-    )
+    Q, pm = _cofactor(S, Wsum, scale=scale, angles=angles, source_centroid=source_centroid,
+                      with_scale=with_scale)
     n = xr.shape[0]
     red = np.empty((n, 3))
     wn = np.empty((n, 3))
     C = np.empty((n, 3, 3)) if blocks else None
     for i in range(0, n, CHUNK_POINTS):
         j = min(i + CHUNK_POINTS, n)
-        _point_pass(
-            pm,
-            xr[i:j] @ pm.MT,
-            v[i:j],
-            None if w is None else w[i:j],
-            sigma0_prior,
-            red[i:j],
-            wn[i:j],
-            None if C is None else C[i:j],
-        )
+        _point_pass(pm, xr[i:j] @ pm.MT, v[i:j], None if w is None else w[i:j], sigma0_prior,
+                    red[i:j], wn[i:j], None if C is None else C[i:j])
     return LinearisedStatistics(Q, vtpv, red, wn, C)
 
 
@@ -326,14 +315,8 @@ def residual_statistics(
     non-orthogonal); the linearisation uses ``R(angles)``. ``scatter`` is the weighted
     centred source scatter and ``weight_sum`` the sum of the weights (the moments).
     """
-    Q, pm = _cofactor(
-        scatter,
-        weight_sum,
-        scale=scale,
-        angles=angles,
-        source_centroid=source_centroid,
-        with_scale=with_scale,
-    )
+    Q, pm = _cofactor(scatter, weight_sum, scale=scale, angles=angles,
+                      source_centroid=source_centroid, with_scale=with_scale)
     xg = np.asarray(source_centroid, dtype=float)
     sR = scale * np.asarray(rotation, dtype=float)
     k = sR @ xg + translation  # v = sR x' + k - X
@@ -347,11 +330,8 @@ def residual_statistics(
         np.matmul(xr, sR.T, out=v)
         v += k
         v -= X
-        vtpv = (
-            float(np.vdot(v, v))
-            if weights is None
-            else float(np.einsum("ij,ij,i->", v, v, weights))
-        )
+        vtpv = float(np.vdot(v, v)) if weights is None else float(
+            np.einsum("ij,ij,i->", v, v, weights))
         _point_pass(pm, xr @ pm.MT, v, weights, sigma0_prior, red, wn, None)
         return LinearisedStatistics(Q, vtpv, red, wn, None), v
     # row-wise broadcasting over 3 columns is slow in numpy: centre and shift the chunks as
@@ -363,7 +343,7 @@ def residual_statistics(
     for i in range(0, n, CHUNK_POINTS):
         j = min(i + CHUNK_POINTS, n)
         m3 = 3 * (j - i)
-        xr = (x_flat[3 * i : 3 * j] - xg_t[:m3]).reshape(-1, 3)
+        xr = (x_flat[3 * i:3 * j] - xg_t[:m3]).reshape(-1, 3)
         vc = v[i:j]
         np.matmul(xr, sR.T, out=vc)
         vflat = vc.reshape(-1)

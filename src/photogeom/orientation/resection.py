@@ -235,9 +235,7 @@ def initial_exterior(
 
         try:
             fit = estimate_dlt(
-                g,
-                io.normalized_from_image(im) * np.array([1.0, -1.0]),
-                unit=io.unit,
+                g, io.normalized_from_image(im) * np.array([1.0, -1.0]), unit=io.unit,
                 refine=False,
             )
             scored.append((_reprojection_rms(g, im, io, fit.exterior), fit.exterior))

@@ -111,14 +111,8 @@ class Affine2D(Parametric, Transform):
         T = self.linear @ _rot(theta).T  # [[sx, sy sin e], [0, sy cos e]]
         sy = float(np.hypot(T[0, 1], T[1, 1]))
         e = float(np.arctan2(T[0, 1], T[1, 1]))
-        return {
-            "sx": float(T[0, 0]),
-            "sy": sy,
-            "theta": theta,
-            "e": e,
-            "x0": self.a3,
-            "y0": self.b3,
-        }
+        return {"sx": float(T[0, 0]), "sy": sy, "theta": theta, "e": e,
+                "x0": self.a3, "y0": self.b3}
 
     @property
     def textbook_units(self) -> dict[str, str]:
@@ -185,9 +179,8 @@ class Affine2D(Parametric, Transform):
         """From :meth:`to_dict` output or textbook ``sx, sy, theta, e, x0, y0`` (radians)."""
         if "a1" in data:
             return cls(*(data[n] for n in _NAMES))
-        return cls.from_textbook(
-            data["sx"], data["sy"], data["theta"], data["e"], data["x0"], data["y0"]
-        )
+        return cls.from_textbook(data["sx"], data["sy"], data["theta"], data["e"],
+                                 data["x0"], data["y0"])
 
     def __repr__(self) -> str:
         tb = self.textbook()

@@ -14,32 +14,10 @@ from .base import Transform
 from .similarity3d import Similarity3D
 
 _PARAM_NAMES = (
-    "a11",
-    "a12",
-    "a13",
-    "a21",
-    "a22",
-    "a23",
-    "a31",
-    "a32",
-    "a33",
-    "tx",
-    "ty",
-    "tz",
+    "a11", "a12", "a13", "a21", "a22", "a23", "a31", "a32", "a33", "tx", "ty", "tz",
 )
 _TEXTBOOK_NAMES = (
-    "sx",
-    "sy",
-    "sz",
-    "shear_xy",
-    "shear_xz",
-    "shear_yz",
-    "omega",
-    "phi",
-    "kappa",
-    "tx",
-    "ty",
-    "tz",
+    "sx", "sy", "sz", "shear_xy", "shear_xz", "shear_yz", "omega", "phi", "kappa", "tx", "ty", "tz",
 )
 
 
@@ -205,9 +183,8 @@ class Affine3D(MatrixShift3D, Transform):
     def textbook(self, convention: Convention = DEFAULT_CONVENTION) -> dict[str, float]:
         """Scales, shears, rotation angles (rad, ``convention``) and shifts."""
         dec = self.decompose()
-        w, p, k = angles_from_rotation(
-            dec.rotation, convention=convention, on_gimbal_lock="omega-zero"
-        )
+        w, p, k = angles_from_rotation(dec.rotation, convention=convention,
+                                       on_gimbal_lock="omega-zero")
         vals = [*dec.scales, *dec.shears, w, p, k, *self.translation]
         return {n: float(v) for n, v in zip(_TEXTBOOK_NAMES, vals)}
 

@@ -253,22 +253,16 @@ class _Polynomial(Parametric, Transform):
     @classmethod
     def from_dict(cls, data: dict) -> _Polynomial:
         """From :meth:`to_dict` output (``centre``/``scale`` optional: plain form)."""
-        return cls(
-            int(data["order"]), data["coefficients"], data.get("centre"), data.get("scale", 1.0)
-        )
+        return cls(int(data["order"]), data["coefficients"], data.get("centre"),
+                   data.get("scale", 1.0))
 
     def __repr__(self) -> str:
         red = f"centre={np.array2string(self.centre, precision=6)}, scale={self.scale:.6g}"
         linear = np.tile(self.exponents.sum(axis=1) <= 1, self.dim)
-        lin = ", ".join(
-            f"{n}={v:.6g}"
-            for n, v, keep in zip(self.parameter_names, self.parameters, linear)
-            if keep
-        )
-        return (
-            f"{type(self).__name__}(order={self.order}, {self.dim * self.n_terms} "
-            f"coefficients, {red}; {lin}, ...)"
-        )
+        lin = ", ".join(f"{n}={v:.6g}" for n, v, keep in
+                        zip(self.parameter_names, self.parameters, linear) if keep)
+        return (f"{type(self).__name__}(order={self.order}, {self.dim * self.n_terms} "
+                f"coefficients, {red}; {lin}, ...)")
 
 
 class InverseResult(NamedTuple):
@@ -309,8 +303,7 @@ class _PolynomialInverse(Transform):
         except np.linalg.LinAlgError as exc:
             raise ConvergenceError(
                 f"{type(f).__name__} inverse: the Jacobian at the centre is singular; the "
-                "polynomial is not invertible there",
-                iterations=0,
+                "polynomial is not invertible there", iterations=0
             ) from exc
         lim = self.tol + 16 * np.finfo(float).eps * (np.max(np.abs(X), axis=1) + 1.0)
         r = f.apply(x) - X
@@ -372,21 +365,14 @@ class _PolynomialInverse(Transform):
         return self.forward
 
     def to_dict(self) -> dict:
-        return {
-            "model": self.name,
-            "forward": self.forward.to_dict(),
-            "tol": self.tol,
-            "max_iter": int(self.max_iter),
-        }
+        return {"model": self.name, "forward": self.forward.to_dict(), "tol": self.tol,
+                "max_iter": int(self.max_iter)}
 
     @classmethod
     def from_dict(cls, data: dict) -> _PolynomialInverse:
         fwd_cls = Polynomial2D if cls.dim == 2 else Polynomial3D
-        return cls(
-            fwd_cls.from_dict(data["forward"]),
-            float(data.get("tol", 1e-9)),
-            int(data.get("max_iter", 50)),
-        )
+        return cls(fwd_cls.from_dict(data["forward"]), float(data.get("tol", 1e-9)),
+                   int(data.get("max_iter", 50)))
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(forward={self.forward!r}, tol={self.tol:g})"

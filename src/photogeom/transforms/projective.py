@@ -134,6 +134,6 @@ class Projective3D(_Projective):
 
     name = "projective3d"
     dim = 3
-    names: ClassVar[tuple[str, ...]] = tuple(f"h{i}{j}" for i in range(1, 5) for j in range(1, 5))[
-        :-1
-    ]
+    names: ClassVar[tuple[str, ...]] = tuple(
+        f"h{i}{j}" for i in range(1, 5) for j in range(1, 5)
+    )[:-1]

@@ -54,9 +54,8 @@ class Rigid3D(MatrixShift3D, Transform):
         unit: str = "rad",
     ) -> Rigid3D:
         """From angles (in ``unit``, ``convention``) and translation."""
-        return cls(
-            rotation_from_angles(omega, phi, kappa, convention=convention, unit=unit), translation
-        )
+        return cls(rotation_from_angles(omega, phi, kappa, convention=convention, unit=unit),
+                   translation)
 
     def angles(self, convention: Convention = DEFAULT_CONVENTION, unit: str = "rad") -> tuple:
         """(omega, phi, kappa) of ``rotation`` in ``convention`` and ``unit``."""
@@ -69,9 +68,8 @@ class Rigid3D(MatrixShift3D, Transform):
 
     def textbook(self, convention: Convention = DEFAULT_CONVENTION) -> dict[str, float]:
         """``omega, phi, kappa`` (rad, ``convention``) and ``tx, ty, tz``."""
-        w, p, k = angles_from_rotation(
-            self.rotation, convention=convention, on_gimbal_lock="omega-zero"
-        )
+        w, p, k = angles_from_rotation(self.rotation, convention=convention,
+                                       on_gimbal_lock="omega-zero")
         tx, ty, tz = (float(v) for v in self.translation)
         return {"omega": float(w), "phi": float(p), "kappa": float(k), "tx": tx, "ty": ty, "tz": tz}
 
@@ -106,20 +104,12 @@ class Rigid3D(MatrixShift3D, Transform):
         and ``translation``."""
         if "rotation" in data:
             return cls(data["rotation"], data["translation"])
-        return cls.from_angles(
-            data["omega"],
-            data["phi"],
-            data["kappa"],
-            data["translation"],
-            convention=data.get("convention", DEFAULT_CONVENTION),
-        )
+        return cls.from_angles(data["omega"], data["phi"], data["kappa"], data["translation"],
+                               convention=data.get("convention", DEFAULT_CONVENTION))
 
     def __repr__(self) -> str:
         tb = self.textbook()
-        ang = fmt_params(
-            ("omega", "phi", "kappa"),
-            [float(from_radians(tb[n], "deg")) for n in ("omega", "phi", "kappa")],
-            10,
-        )
+        ang = fmt_params(("omega", "phi", "kappa"),
+                         [float(from_radians(tb[n], "deg")) for n in ("omega", "phi", "kappa")], 10)
         t = ", ".join(f"{v:.6f}" for v in self.translation)
         return f"Rigid3D({ang} deg (transposed), translation=({t}))"

@@ -81,14 +81,12 @@ class Similarity2D(Parametric, Transform):
         a, b = self.a, self.b
         s2 = a * a + b * b
         s = np.sqrt(s2)
-        return np.array(
-            [
-                [a / s, b / s, 0.0, 0.0],
-                [b / s2, -a / s2, 0.0, 0.0],
-                [0.0, 0.0, 1.0, 0.0],
-                [0.0, 0.0, 0.0, 1.0],
-            ]
-        )
+        return np.array([
+            [a / s, b / s, 0.0, 0.0],
+            [b / s2, -a / s2, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ])
 
     @property
     def parameter_names(self) -> tuple[str, ...]:

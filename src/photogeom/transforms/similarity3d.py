@@ -178,15 +178,8 @@ class Similarity3D(Transform):
             r = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
         rx, ry, rz = (float(from_radians(v, angle_unit)) for v in r)
         tx, ty, tz = (float(v) for v in self.translation)
-        return {
-            "tx": tx,
-            "ty": ty,
-            "tz": tz,
-            "rx": rx,
-            "ry": ry,
-            "rz": rz,
-            "ds": (self.scale - 1.0) * 1e6,
-        }
+        return {"tx": tx, "ty": ty, "tz": tz, "rx": rx, "ry": ry, "rz": rz,
+                "ds": (self.scale - 1.0) * 1e6}
 
     def to_proj_string(self, convention: str = "position_vector", rotation: str = "exact") -> str:
         """A PROJ ``+proj=helmert`` definition of this transformation (rotations in
