@@ -242,3 +242,15 @@ def test_progress_bar_draws_on_a_terminal(monkeypatch):
         advance(1000, 1000)
     shown = term.getvalue()
     assert "rpc localize" in shown and "2,234 points" in shown
+
+
+def test_busy_spinner_only_on_terminals(monkeypatch, tmp_path):
+    big = tmp_path / "big.csv"
+    big.write_bytes(b"x" * 10)
+    with _stream.busy("reading", big) as step:  # small file, not a terminal: nothing drawn
+        step("estimating")
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    with _stream.busy("reading big.csv", big, force=True) as step:
+        step("estimating similarity3d from 1,000,000 point pairs")
+    assert "estimating similarity3d" in term.getvalue() or "reading big.csv" in term.getvalue()

@@ -98,3 +98,37 @@ def run_point_job(
                 n += len(block)
                 advance(block.bytes_done, len(block))
     return n
+
+
+@contextmanager
+def busy(description: str, *paths, force: bool | None = None):
+    """A spinner with the elapsed time on stderr while a job on big input files runs.
+
+    For jobs whose progress cannot be counted (reading a whole file, then one estimate):
+    shown on a terminal when the input files together hold at least
+    :data:`PROGRESS_BYTES` (``force`` overrides). Yields ``step(text)``, which names the
+    current stage; removed when the job ends.
+    """
+    size = 0
+    for p in paths:
+        try:
+            size += Path(p).stat().st_size if p is not None else 0
+        except OSError:
+            pass
+    show = _wants_progress(size) if force is None else force
+    if not show:
+        yield lambda text: None
+        return
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    progress = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+    with progress:
+        task = progress.add_task(description, total=None)
+        yield lambda text: progress.update(task, description=text)

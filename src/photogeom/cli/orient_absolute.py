@@ -18,6 +18,7 @@ import typer
 from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import AngleUnit, check_mask, console, load_pairs
+from ._stream import busy
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
@@ -162,10 +163,11 @@ def register(app: typer.Typer) -> None:
         from ..report import Report, print_fit, print_table
 
         out = console()
-        pairs = load_pairs(
-            source, target, source_cols=source_cols, target_cols=target_cols, id_col=id_col,
-            weights_col=weights_col, sigma_col=sigma_col, allow_unmatched=allow_unmatched,
-        )
+        with busy(f"reading {source.name}", source, target):
+            pairs = load_pairs(
+                source, target, source_cols=source_cols, target_cols=target_cols, id_col=id_col,
+                weights_col=weights_col, sigma_col=sigma_col, allow_unmatched=allow_unmatched,
+            )
         if pairs.source.shape[1] != 3 or pairs.target.shape[1] != 3:
             raise InputError(
                 "absolute orientation needs 3D points in both systems "
@@ -251,7 +253,8 @@ def register(app: typer.Typer) -> None:
         else:
             from ..orientation import absolute_orientation
 
-            fit = absolute_orientation(x, X, meth, ids=row_ids, **options)
+            with busy(f"{meth}: {len(x)} point pairs", source, target):
+                fit = absolute_orientation(x, X, meth, ids=row_ids, **options)
         if is_check.any():
             chk = fit.transform.apply(pairs.source[is_check]) - pairs.target[is_check]
             fit = fit.with_checks(chk, [str(i) for i in ids[is_check]])

@@ -29,7 +29,7 @@ from ._common import (
     split_names,
     write_outputs,
 )
-from ._stream import run_point_job
+from ._stream import busy, run_point_job
 
 if TYPE_CHECKING:
     from ..io.points import PointPairs
@@ -174,33 +174,35 @@ def estimate(
     model = Model(model).value
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value
-    pairs = load_pairs(
-        source,
-        target,
-        source_cols=source_cols,
-        target_cols=target_cols,
-        id_col=id_col,
-        weights_col=weights_col,
-        sigma_col=sigma_col,
-        allow_unmatched=allow_unmatched,
-    )
-    _check_dimensions(model, pairs)
-    mask = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
-    fit = estimate_transform(
-        model,
-        pairs.source,
-        pairs.target,
-        order=order,
-        weights=pairs.weights,
-        check=mask,
-        ids=pairs.ids,
-        sigma0_prior=sigma0_prior,
-        source_system=source_system,
-        target_system=target_system,
-        errors_in=errors_in,
-        unit=unit,
-        source_unit=source_unit,
-    )
+    with busy(f"reading {source.name}", source, target) as step:
+        pairs = load_pairs(
+            source,
+            target,
+            source_cols=source_cols,
+            target_cols=target_cols,
+            id_col=id_col,
+            weights_col=weights_col,
+            sigma_col=sigma_col,
+            allow_unmatched=allow_unmatched,
+        )
+        _check_dimensions(model, pairs)
+        mask = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
+        step(f"estimating {model} from {len(pairs)} point pairs")
+        fit = estimate_transform(
+            model,
+            pairs.source,
+            pairs.target,
+            order=order,
+            weights=pairs.weights,
+            check=mask,
+            ids=pairs.ids,
+            sigma0_prior=sigma0_prior,
+            source_system=source_system,
+            target_system=target_system,
+            errors_in=errors_in,
+            unit=unit,
+            source_unit=source_unit,
+        )
     if pairs.notes:
         fit = replace(fit, notes=tuple(fit.notes) + tuple(pairs.notes))
     files = [str(source)] + ([str(target)] if target is not None else [])
