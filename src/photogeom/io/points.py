@@ -14,12 +14,25 @@ Format
 * An optional ``weight`` column (per-point weight, unitless) or ``sigma`` column (per-point
   standard deviation in the coordinate unit; weight = 1 / sigma^2) weights the points.
 
+* A quoted field (``"P,1"``) must close on its line; fields are at most 128 KiB; every line
+  has as many fields as the header. Anything else is refused with the line number.
+
 Example::
 
     # fiducial marks, mm
     id,role,x,y,X,Y
     1,control,113.016,0.002,243.031,130.007
     5,check,113.008,112.995,243.016,243.001
+
+Reading and writing
+-------------------
+Files are parsed block by block by :mod:`photogeom.io.csvblocks` (pyarrow's CSV reader;
+small files in Python, by the same rules), so reading is linear in the file size.
+:func:`read_points` and :func:`read_point_pairs` return whole tables; :class:`PointBlocks`
+yields blocks of any file with the memory of one block, for jobs that treat each point on
+its own. :class:`PointWriter` writes chunks (numbers as the shortest text that reads back to
+the same float64) to a file renamed into place at the end; :func:`format_points_csv` and
+:func:`write_points` are its one-chunk forms.
 """
 
 from __future__ import annotations
