@@ -165,12 +165,17 @@ def load_pairs(
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
-    """Write every ``(path, text)``, each atomically; built in memory first, so a failed
-    computation leaves no file half written."""
-    from ..io import atomic_write_text
+    """Write every ``(path, text)`` as one: all files are replaced, or none is changed.
 
-    for path, text in outputs:
-        atomic_write_text(path, text)
+    The texts are built in memory first, so a failed computation writes nothing; a file
+    that cannot be written raises :class:`~photogeom.errors.OutputError` (one ``error:``
+    line, exit code 2, in :func:`photogeom.cli.main.main`) and leaves every destination as
+    it was.
+    """
+    from ..io.atomic import atomic_write_texts
+
+    if outputs:
+        atomic_write_texts(outputs)
 
 
 def emit_points(text: str, output: Path | None, n: int) -> None:
