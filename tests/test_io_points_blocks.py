@@ -274,3 +274,27 @@ def test_overlong_field_in_a_big_file_is_refused_by_the_block_reader(tmp_path):
     p = _write(tmp_path, "id,x,y\n" + rows + "7,1," + "5" * (MAX_FIELD_BYTES + 10) + "\n")
     with pytest.raises(FileFormatError, match=r"line 30002: a field is longer than 131072"):
         read_points(p)
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="POSIX permissions, not root")
+def test_streamed_write_refuses_a_read_only_file(tmp_path):
+    from photogeom.errors import OutputError
+
+    target = tmp_path / "ro.csv"
+    target.write_text("old\n")
+    target.chmod(0o444)
+    with pytest.raises(OutputError, match="read-only"):
+        with PointWriter(target, ["x"]) as w:
+            w.write(["1"], np.zeros((1, 1)))
+    assert target.read_text() == "old\n"
+
+
+@pytest.mark.skipif(os.name != "posix", reason="symbolic links")
+def test_streamed_write_follows_a_symbolic_link(tmp_path):
+    real = tmp_path / "real.csv"
+    real.write_text("old\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to(real)
+    with PointWriter(link, ["x"]) as w:
+        w.write(["1"], np.ones((1, 1)))
+    assert link.is_symlink() and real.read_text() == "id,x\n1,1.0\n"

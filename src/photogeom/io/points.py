@@ -888,30 +888,61 @@ class PointWriter:
                 sys.stdout.flush()
                 self._fh = getattr(sys.stdout, "buffer", None) or _TextSink(sys.stdout)
         else:
-            import tempfile
-
-            from ..atomicfile import _file_mode
-
-            target = self.path
-            directory = target.parent if str(target.parent) else Path(".")
-            if not directory.is_dir():
-                raise PhotogeomError(f"cannot write {target}: directory {directory} does not exist")
-            fd, self._tmp = tempfile.mkstemp(
-                prefix=f".{target.name}.", suffix=".tmp", dir=directory
-            )
-            try:
-                os.chmod(self._tmp, _file_mode(target))
-                self._fh = os.fdopen(fd, "wb")
-            except BaseException:
-                os.close(fd)
-                os.unlink(self._tmp)
-                raise
+            self._open_temporary()
         try:
             self._fh.write(self._head().encode("utf-8"))
+        except OSError as exc:
+            self._abort()
+            raise self._failure(exc) from exc
         except BaseException:
             self._abort()
             raise
         return self
+
+    def _open_temporary(self) -> None:
+        """A temporary file beside the destination, by the policy of
+        :mod:`photogeom.atomicfile` (symbolic links followed, read-only files and missing
+        directories refused, the mode of a replaced file kept, 0666 minus umask for a new
+        one)."""
+        import secrets
+
+        from ..atomicfile import _destination, _failure
+
+        given, target = _destination(self.path)
+        self._given, self._target = given, target
+        try:
+            mode = target.stat().st_mode & 0o7777
+        except FileNotFoundError:
+            mode = None
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+        directory = target.parent if str(target.parent) else Path(".")
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+        for _ in range(100):
+            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            try:
+                fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask
+                break
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise _failure(given, exc) from exc
+        else:  # pragma: no cover - 100 collisions of 48 random bits
+            raise PhotogeomError(f"cannot write {given}: no free temporary file name")
+        self._tmp = str(tmp)
+        try:
+            if mode is not None and hasattr(os, "fchmod"):
+                os.fchmod(fd, mode)
+            self._fh = os.fdopen(fd, "wb")
+        except BaseException:
+            os.close(fd)
+            os.unlink(self._tmp)
+            raise
+
+    def _failure(self, exc: OSError):
+        from ..atomicfile import _failure
+
+        return _failure(getattr(self, "_given", self.path), exc)
 
     def _head(self) -> str:
         import csv
@@ -955,21 +986,26 @@ class PointWriter:
         table = pa.table(arrays)
         texts = [table.column(0)] + [table.column(f"e{j}") for j in range(len(self.extra))]
         plain = not any(pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in texts)
-        if plain:
-            pcsv.write_csv(
-                table,
-                self._fh,
-                write_options=pcsv.WriteOptions(include_header=False, quoting_style="none"),
-            )
-        else:  # ids with delimiters or quotes: quote only those fields
-            import csv
-            import io
+        try:
+            if plain:
+                pcsv.write_csv(
+                    table,
+                    self._fh,
+                    write_options=pcsv.WriteOptions(include_header=False, quoting_style="none"),
+                )
+            else:  # ids with delimiters or quotes: quote only those fields
+                import csv
+                import io
 
-            buf = io.StringIO()
-            csv.writer(buf, lineterminator="\n").writerows(
-                zip(*(col.to_pylist() for col in table.columns))
-            )
-            self._fh.write(buf.getvalue().encode("utf-8"))
+                buf = io.StringIO()
+                csv.writer(buf, lineterminator="\n").writerows(
+                    zip(*(col.to_pylist() for col in table.columns))
+                )
+                self._fh.write(buf.getvalue().encode("utf-8"))
+        except OSError as exc:
+            if self.path is None:
+                raise
+            raise self._failure(exc) from exc
         self.n_written += n
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -979,11 +1015,18 @@ class PointWriter:
         if self.path is None:
             self._fh.flush()
             return
+        from ..atomicfile import _fsync_directory
+
         try:
             self._fh.flush()
             os.fsync(self._fh.fileno())
             self._fh.close()
-            os.replace(self._tmp, self.path)
+            os.replace(self._tmp, self._target)
+            self._tmp = None
+            _fsync_directory(self._target.parent if str(self._target.parent) else Path("."))
+        except OSError as exc:
+            self._abort()
+            raise self._failure(exc) from exc
         except BaseException:
             self._abort()
             raise
@@ -999,6 +1042,7 @@ class PointWriter:
             os.unlink(self._tmp)
         except FileNotFoundError:
             pass
+        self._tmp = None
 
 
 class _TextSink:
