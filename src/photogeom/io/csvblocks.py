@@ -257,22 +257,27 @@ class DelimitedText:
             )
         except csv.Error as exc:
             if "field larger than field limit" in str(exc):
-                raise FileFormatError(
-                    f"{self.label}, line {number}: a field is longer than {MAX_FIELD_BYTES} "
-                    "bytes; point files hold ids and numbers"
-                ) from None
+                naive = text.split(self.delimiter)  # to name the column (quotes ignored)
+                k = next((i for i, f in enumerate(naive) if len(f) > MAX_FIELD_BYTES), None)
+                raise self._long_field(number, k) from None
             raise FileFormatError(
                 f'{self.label}, line {number}: a quote (") opens a field that is not closed '
                 "on the same line; a quoted field cannot span lines (close the quote or "
                 "remove it)"
             ) from None
         fields = rows[0] if rows else []
-        if any(len(f) > MAX_FIELD_BYTES for f in fields):
-            raise FileFormatError(
-                f"{self.label}, line {number}: a field is longer than {MAX_FIELD_BYTES} bytes; "
-                "point files hold ids and numbers"
-            )
+        k = next((i for i, f in enumerate(fields) if len(f) > MAX_FIELD_BYTES), None)
+        if k is not None:
+            raise self._long_field(number, k)
         return [f.strip() for f in fields]
+
+    def _long_field(self, number: int, k: int | None) -> FileFormatError:
+        header = getattr(self, "header", ())
+        where = f"column {header[k]}" if k is not None and k < len(header) else "a field"
+        return FileFormatError(
+            f"{self.label}, line {number}: {where} holds a field longer than {MAX_FIELD_BYTES} "
+            "bytes; point files hold ids and numbers"
+        )
 
     # -- data -----------------------------------------------------------------------------
 
