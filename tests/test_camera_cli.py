@@ -150,6 +150,8 @@ def test_resection_report_and_intersection(scene, tmp_path, cli):
     assert code == 0, err
     table = read_points(out_csv, ["X", "Y", "Z"])
     np.testing.assert_allclose(table.coords, g, atol=1.0)  # noise 3 um -> decimetres
+    assert any("ground unit of the cameras" in c for c in table.comments)
+    assert "ground unit of the cameras" in (tmp_path / "i.html").read_text()
     code, _, err = cli("orient", "intersection", files[0][1], files[1][1], "--camera", cams[0])
     assert code == 2 and "one camera per image" in err
 

@@ -280,10 +280,6 @@ def test_cli_reports_a_bad_json_in_one_line(cli, tmp_path):
 
 # --- point CSV -----------------------------------------------------------------------------------
 
-CSV_XFAIL = pytest.mark.xfail(strict=False, reason="point CSV reader being rewritten")
-
-
-@CSV_XFAIL
 @pytest.mark.parametrize(("text", "words"), [
     ('id,x,y\n1,"2,3\n4,5,6\n7,8,9\n10,11,12\n', "quote"),
     ('id,x,y\n1,"2\n3",4\n', "quote"),
@@ -297,7 +293,6 @@ def test_point_csv_hostile_fields_are_refused(tmp_path, text, words):
     _refused(_file(tmp_path, "p.csv", text), words, reader=read_points)
 
 
-@CSV_XFAIL
 def test_point_csv_header_with_many_columns_is_linear(tmp_path):
     from photogeom.io import read_points
 

@@ -14,8 +14,6 @@ Angles are radians unless a name or ``unit=`` says otherwise. Residuals are comp
 observed.
 """
 
-from . import datasets
-from .adjust import Fit, data_snooping, gauss_helmert, gauss_markov, solve_linear
 from .errors import (
     ConvergenceError,
     DegenerateGeometryError,
@@ -29,101 +27,131 @@ from .errors import (
     SuspectResultWarning,
     TooFewPointsError,
 )
-from .rotation import (
-    angles_from_rotation,
-    axis_angle_from_matrix,
-    euler_from_matrix,
-    matrix_from_axis_angle,
-    matrix_from_euler,
-    matrix_from_quaternion,
-    matrix_from_rodrigues,
-    nearest_rotation,
-    opk_from_matrix,
-    opk_matrix,
-    orthogonality_defect,
-    quaternion_from_matrix,
-    rodrigues_from_matrix,
-    rotation_from_angles,
-)
-from .units import deg2gon, from_radians, gon2deg, to_radians
 
 __version__ = "0.1.0"
 
-# --- transformations and their estimation ----------------------------------------------------
-# --- frame cameras ----------------------------------------------------------------------------
-# --- RPC satellite camera models ---------------------------------------------------------------
-from . import bundle, camera, imagecoords, rpc, simulate, transforms
-from .bundle import Block, BundleFit, BundleOptions, bundle_adjust
-from .camera import (
-    DLT,
-    AffineCamera,
-    BrownDistortion,
-    ExteriorOrientation,
-    FrameCamera,
-    ImageVariantInteriorOrientation,
-    InteriorOrientation,
-    MetashapeCalibration,
-    camera_matrix,
-    dlt_from_orientation,
-    estimate_affine_camera,
-    estimate_dlt,
-    fit_fiducials,
-    ground_at_height,
-    image_rays,
-    in_front,
-    orientation_from_dlt,
-    project,
-    read_metashape_xml,
-    write_metashape_xml,
-)
-from .estimation.transforms import estimate_transform
+# Every other public name is imported on first use (module-level __getattr__), so that
+# ``import photogeom`` and the command line start quickly; ``from photogeom import X`` and
+# ``photogeom.X`` work as for an eager import.
+_LAZY: dict[str, tuple[str, str | None]] = {
+    "calibration": (".calibration", None),
+    "datasets": (".datasets", None),
+    "Fit": (".adjust", "Fit"),
+    "data_snooping": (".adjust", "data_snooping"),
+    "gauss_helmert": (".adjust", "gauss_helmert"),
+    "gauss_markov": (".adjust", "gauss_markov"),
+    "solve_linear": (".adjust", "solve_linear"),
+    "angles_from_rotation": (".rotation", "angles_from_rotation"),
+    "axis_angle_from_matrix": (".rotation", "axis_angle_from_matrix"),
+    "euler_from_matrix": (".rotation", "euler_from_matrix"),
+    "matrix_from_axis_angle": (".rotation", "matrix_from_axis_angle"),
+    "matrix_from_euler": (".rotation", "matrix_from_euler"),
+    "matrix_from_quaternion": (".rotation", "matrix_from_quaternion"),
+    "matrix_from_rodrigues": (".rotation", "matrix_from_rodrigues"),
+    "nearest_rotation": (".rotation", "nearest_rotation"),
+    "opk_from_matrix": (".rotation", "opk_from_matrix"),
+    "opk_matrix": (".rotation", "opk_matrix"),
+    "orthogonality_defect": (".rotation", "orthogonality_defect"),
+    "quaternion_from_matrix": (".rotation", "quaternion_from_matrix"),
+    "rodrigues_from_matrix": (".rotation", "rodrigues_from_matrix"),
+    "rotation_from_angles": (".rotation", "rotation_from_angles"),
+    "deg2gon": (".units", "deg2gon"),
+    "from_radians": (".units", "from_radians"),
+    "gon2deg": (".units", "gon2deg"),
+    "to_radians": (".units", "to_radians"),
+    "bundle": (".bundle", None),
+    "camera": (".camera", None),
+    "imagecoords": (".imagecoords", None),
+    "rpc": (".rpc", None),
+    "simulate": (".simulate", None),
+    "transforms": (".transforms", None),
+    "Block": (".bundle", "Block"),
+    "BundleFit": (".bundle", "BundleFit"),
+    "BundleOptions": (".bundle", "BundleOptions"),
+    "bundle_adjust": (".bundle", "bundle_adjust"),
+    "DLT": (".camera", "DLT"),
+    "AffineCamera": (".camera", "AffineCamera"),
+    "BrownDistortion": (".camera", "BrownDistortion"),
+    "ExteriorOrientation": (".camera", "ExteriorOrientation"),
+    "FrameCamera": (".camera", "FrameCamera"),
+    "ImageVariantInteriorOrientation": (".camera", "ImageVariantInteriorOrientation"),
+    "InteriorOrientation": (".camera", "InteriorOrientation"),
+    "MetashapeCalibration": (".camera", "MetashapeCalibration"),
+    "camera_matrix": (".camera", "camera_matrix"),
+    "dlt_from_orientation": (".camera", "dlt_from_orientation"),
+    "estimate_affine_camera": (".camera", "estimate_affine_camera"),
+    "estimate_dlt": (".camera", "estimate_dlt"),
+    "fit_fiducials": (".camera", "fit_fiducials"),
+    "ground_at_height": (".camera", "ground_at_height"),
+    "image_rays": (".camera", "image_rays"),
+    "in_front": (".camera", "in_front"),
+    "orientation_from_dlt": (".camera", "orientation_from_dlt"),
+    "project": (".camera", "project"),
+    "read_metashape_xml": (".camera", "read_metashape_xml"),
+    "write_metashape_xml": (".camera", "write_metashape_xml"),
+    "estimate_transform": (".estimation.transforms", "estimate_transform"),
+    "AbsoluteOrientationFit": (".orientation", "AbsoluteOrientationFit"),
+    "BatchOrientation": (".orientation", "BatchOrientation"),
+    "MethodComparison": (".orientation", "MethodComparison"),
+    "absolute_orientation": (".orientation", "absolute_orientation"),
+    "absolute_orientation_batch": (".orientation", "absolute_orientation_batch"),
+    "compare_absolute_methods": (".orientation", "compare_absolute_methods"),
+    "ransac_absolute_orientation": (".orientation", "ransac_absolute_orientation"),
+    "snooping_absolute_orientation": (".orientation", "snooping_absolute_orientation"),
+    "IntersectionResult": (".orientation.intersection", "IntersectionResult"),
+    "space_intersection": (".orientation.intersection", "space_intersection"),
+    "ImagePair": (".orientation.relative", "ImagePair"),
+    "RelativeOrientationFit": (".orientation.relative", "RelativeOrientationFit"),
+    "relative_orientation": (".orientation.relative", "relative_orientation"),
+    "BatchResection": (".orientation.resection", "BatchResection"),
+    "ResectionFit": (".orientation.resection", "ResectionFit"),
+    "p3p": (".orientation.resection", "p3p"),
+    "space_resection": (".orientation.resection", "space_resection"),
+    "space_resection_batch": (".orientation.resection", "space_resection_batch"),
+    "BlockStart": (".orientation.strip", "BlockStart"),
+    "block_start": (".orientation.strip", "block_start"),
+    "orient_strip": (".orientation.strip", "orient_strip"),
+    "points_from_exteriors": (".orientation.strip", "points_from_exteriors"),
+    "RPC": (".rpc", "RPC"),
+    "LocalizationResult": (".rpc", "LocalizationResult"),
+    "LocalizationStatus": (".rpc", "LocalizationStatus"),
+    "LocalizationWarning": (".rpc", "LocalizationWarning"),
+    "RPCExtrapolationWarning": (".rpc", "RPCExtrapolationWarning"),
+    "RPCIntersection": (".rpc", "RPCIntersection"),
+    "fit_rpc": (".rpc", "fit_rpc"),
+    "fit_rpc_to_points": (".rpc", "fit_rpc_to_points"),
+    "intersect_rpc": (".rpc", "intersect_rpc"),
+    "read_rpc": (".rpc", "read_rpc"),
+    "refine_rpc": (".rpc", "refine_rpc"),
+    "write_rpc": (".rpc", "write_rpc"),
+    "Affine2D": (".transforms", "Affine2D"),
+    "Affine3D": (".transforms", "Affine3D"),
+    "Polynomial2D": (".transforms", "Polynomial2D"),
+    "Polynomial3D": (".transforms", "Polynomial3D"),
+    "Projective2D": (".transforms", "Projective2D"),
+    "Projective3D": (".transforms", "Projective3D"),
+    "Rigid3D": (".transforms", "Rigid3D"),
+    "Similarity2D": (".transforms", "Similarity2D"),
+    "Similarity3D": (".transforms", "Similarity3D"),
+}
 
-# --- absolute orientation ---------------------------------------------------------------------
-from .orientation import (
-    AbsoluteOrientationFit,
-    BatchOrientation,
-    MethodComparison,
-    absolute_orientation,
-    absolute_orientation_batch,
-    compare_absolute_methods,
-    ransac_absolute_orientation,
-    snooping_absolute_orientation,
-)
-from .orientation.intersection import IntersectionResult, space_intersection
-from .orientation.relative import ImagePair, RelativeOrientationFit, relative_orientation
-from .orientation.resection import (
-    BatchResection,
-    ResectionFit,
-    p3p,
-    space_resection,
-    space_resection_batch,
-)
-from .orientation.strip import BlockStart, block_start, orient_strip, points_from_exteriors
-from .rpc import (
-    RPC,
-    LocalizationResult,
-    LocalizationStatus,
-    LocalizationWarning,
-    RPCExtrapolationWarning,
-    RPCIntersection,
-    fit_rpc,
-    fit_rpc_to_points,
-    intersect_rpc,
-    read_rpc,
-    refine_rpc,
-    write_rpc,
-)
-from .transforms import (
-    Affine2D,
-    Affine3D,
-    Polynomial2D,
-    Polynomial3D,
-    Projective2D,
-    Projective3D,
-    Rigid3D,
-    Similarity2D,
-    Similarity3D,
-)
+
+def __getattr__(name: str):
+    try:
+        module, attr = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'photogeom' has no attribute {name!r}") from None
+    import importlib
+
+    mod = importlib.import_module(module, __name__)
+    value = mod if attr is None else getattr(mod, attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "DLT",
@@ -238,13 +266,3 @@ __all__ = [
     "write_metashape_xml",
     "write_rpc",
 ]
-
-
-def __getattr__(name: str):
-    """Sub-packages loaded on first use (``pg.calibration``), to keep ``import photogeom``
-    light."""
-    if name == "calibration":
-        import importlib
-
-        return importlib.import_module(f"{__name__}.calibration")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

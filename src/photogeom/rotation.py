@@ -23,7 +23,6 @@ import math
 from typing import Literal
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .errors import GimbalLockError, InputError
 from .units import from_radians, to_radians
@@ -34,6 +33,13 @@ DEFAULT_CONVENTION: Convention = "transposed"
 
 #: Below this value of cos(phi) the angles omega and kappa are not separable.
 GIMBAL_TOLERANCE = 1e-9
+
+
+def _Rotation():
+    """scipy's Rotation class, imported on first use (scipy.spatial is slow to import)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 
 def _stack(rows) -> np.ndarray:
@@ -210,11 +216,11 @@ def angles_from_rotation(
 # --- other parametrisations (delegated to scipy) -------------------------------------------
 
 
-def _as_rotation(R) -> Rotation:
+def _as_rotation(R):
     R = np.asarray(R, dtype=float)
     if R.shape[-2:] != (3, 3):
         raise InputError(f"rotation matrix: expected shape (..., 3, 3), got {R.shape}")
-    return Rotation.from_matrix(R)
+    return _Rotation().from_matrix(R)
 
 
 def quaternion_from_matrix(R, *, scalar_first: bool = True) -> np.ndarray:
@@ -240,7 +246,7 @@ def matrix_from_quaternion(q, *, scalar_first: bool = True) -> np.ndarray:
         raise InputError("quaternion: zero quaternion does not represent a rotation")
     if scalar_first:
         q = np.roll(q, -1, axis=-1)
-    return Rotation.from_quat(q).as_matrix()
+    return _Rotation().from_quat(q).as_matrix()
 
 
 def axis_angle_from_matrix(R) -> tuple[np.ndarray, np.ndarray]:
@@ -259,7 +265,9 @@ def matrix_from_axis_angle(axis, angle) -> np.ndarray:
     norm = np.linalg.norm(axis, axis=-1, keepdims=True)
     if np.any(norm < 1e-15):
         raise InputError("axis-angle: the rotation axis has zero length")
-    return Rotation.from_rotvec(axis / norm * np.asarray(angle, dtype=float)[..., None]).as_matrix()
+    return (
+        _Rotation().from_rotvec(axis / norm * np.asarray(angle, dtype=float)[..., None]).as_matrix()
+    )
 
 
 def rodrigues_from_matrix(R) -> np.ndarray:
@@ -289,7 +297,7 @@ def euler_from_matrix(R, seq: str, unit: str = "rad") -> np.ndarray:
 
 def matrix_from_euler(seq: str, angles, unit: str = "rad") -> np.ndarray:
     """Rotation matrix from Euler angles of an scipy sequence (active rotations)."""
-    return Rotation.from_euler(seq, to_radians(angles, unit)).as_matrix()
+    return _Rotation().from_euler(seq, to_radians(angles, unit)).as_matrix()
 
 
 # --- helpers ---------------------------------------------------------------------------------

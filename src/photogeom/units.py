@@ -63,3 +63,31 @@ def wrap_angle(value, unit: str = "rad"):
     half = float(from_radians(np.pi, unit))
     v = np.asarray(value, dtype=float)
     return (v + half) % (2 * half) - half
+
+
+def display_angle(value, unit: str = "rad", name: str = ""):
+    """An angle as photogeom prints it in tables, reports and the command line's JSON.
+
+    One rule for every printed angle: ``kappa`` (the rotation about the vertical, an azimuth
+    in the textbooks) in ``[0, one turn)``; every other angle (omega, phi, theta, ...) in
+    ``[-half turn, +half turn)``. Kraus' kappa of -101.3201 gon is printed 298.6799 gon,
+    an omega of 399.8 gon is printed -0.2 gon. Values returned by the API (``fit.angles()``,
+    ``fit.parameters``) are not changed.
+
+    Parameters
+    ----------
+    value : float or array_like
+        Angle(s) in ``unit``.
+    unit : str
+        Angle unit of ``value`` (and of the result).
+    name : str
+        Parameter name; ``"kappa"`` selects the [0, one turn) range.
+    """
+    full = 2.0 * float(from_radians(np.pi, unit))
+    v = np.asarray(value, dtype=float)
+    if name == "kappa":
+        out = np.mod(v, full)
+        out = np.where(out >= full, 0.0, out)  # -tiny % full rounds to full
+    else:
+        out = wrap_angle(v, unit)
+    return float(out) if out.ndim == 0 else out

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import CSV_TARGETS, TARGETS, mutate, run_one
+from harness import TARGETS, mutate, run_one
 
 EXAMPLES = 60
 
@@ -26,15 +26,7 @@ def _seeds(name: str) -> list[bytes]:
     return _SEEDS[name]
 
 
-PARAMS = [
-    pytest.param(
-        name,
-        marks=[pytest.mark.xfail(strict=False, reason="point CSV reader being rewritten")]
-        if name in CSV_TARGETS
-        else [],
-    )
-    for name in TARGETS
-]
+PARAMS = list(TARGETS)  # the point CSV targets (CSV_TARGETS) included
 
 
 @pytest.mark.parametrize("name", list(TARGETS))

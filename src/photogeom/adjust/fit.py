@@ -9,7 +9,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..records import build
-from ..units import from_radians
+from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
 
@@ -272,15 +272,17 @@ class Fit:
     # --- output ------------------------------------------------------------------------------
 
     def parameter_table(self, angle_unit: str = "deg") -> list[tuple[str, float, float, str]]:
-        """Rows ``(name, value, std, unit)`` with angles converted to ``angle_unit``."""
+        """Rows ``(name, value, std, unit)`` with angles converted to ``angle_unit`` and
+        normalised for printing (:func:`photogeom.units.display_angle`: kappa in [0, one
+        turn), other angles in [-half turn, +half turn))."""
         rows = []
         std = self.std_errors
         for name, value in zip(self.parameter_names, self.parameters):
             unit = self.parameter_units.get(name, "")
             s = std[name]
-            if unit == "rad" and angle_unit != "rad":
+            if unit == "rad":
                 value, s, unit = (
-                    float(from_radians(value, angle_unit)),
+                    display_angle(from_radians(value, angle_unit), angle_unit, name),
                     float(from_radians(s, angle_unit)),
                     angle_unit,
                 )

@@ -15,8 +15,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse
-import scipy.sparse.linalg
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from .gauss_markov import _names, _solve_whitened
@@ -27,19 +25,27 @@ from .weighting import Whitener
 DENSE_LIMIT = 3000
 
 
+def _sparse():
+    """scipy.sparse, imported on first use (it is slow to import and rarely needed)."""
+    import scipy.sparse
+    import scipy.sparse.linalg
+
+    return scipy.sparse
+
+
 class _MSolver:
     """Solves with ``M = B Qll B.T`` (dense Cholesky or sparse LU)."""
 
     def __init__(self, B, wh: Whitener, dense_limit: int = DENSE_LIMIT) -> None:
-        sparse_b = scipy.sparse.issparse(B)
+        sparse_b = not isinstance(B, np.ndarray) and _sparse().issparse(B)
         m = B.shape[0]
         if sparse_b and wh.kind in ("unit", "diagonal") and m > dense_limit:
             q = wh.diag_q()
-            BQ = B @ scipy.sparse.diags(q)
+            BQ = B @ _sparse().diags(q)
             self.BQ = BQ.tocsr()
             M = (BQ @ B.T).tocsc()
             try:
-                self.lu = scipy.sparse.linalg.splu(M)
+                self.lu = _sparse().linalg.splu(M)
             except RuntimeError as exc:
                 raise DegenerateGeometryError(
                     "Gauss-Helmert: B Qll B.T is singular (a condition does not depend on any "

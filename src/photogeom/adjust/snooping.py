@@ -61,20 +61,21 @@ class SnoopingResult:
 
 def w_critical_value(alpha: float) -> float:
     """Critical value of Baarda's w-test (standard normal, two-sided) at level ``alpha``."""
-    from scipy import stats  # imported here: scipy.stats is slow to import
+    from scipy.special import ndtri  # normal quantile (scipy.stats is slow to import)
 
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
-    return float(stats.norm.ppf(1 - alpha / 2))
+    return float(ndtri(1 - alpha / 2))
 
 
 def tau_critical_value(alpha: float, redundancy: int) -> float:
     """Critical value of Pope's tau distribution (two-sided), ``r > 1``."""
-    from scipy import stats  # imported here: scipy.stats is slow to import
+    # scipy.special's quantile functions, not scipy.stats (which takes a second to import)
+    from scipy.special import stdtrit
 
     if redundancy <= 1:
         raise InputError("the tau-test needs a redundancy of at least 2")
-    t = stats.t.ppf(1 - alpha / 2, redundancy - 1)
+    t = stdtrit(redundancy - 1, 1 - alpha / 2)  # Student t quantile
     return float(t * np.sqrt(redundancy) / np.sqrt(redundancy - 1 + t * t))
 
 

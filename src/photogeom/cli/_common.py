@@ -11,14 +11,12 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
-from rich.console import Console
 
+from .._lazy import LazyModule
 from ..errors import InputError
-from ..io import join_points, read_point_pairs, read_points
-from ..io.atomic import atomic_write_text, atomic_write_texts
-from ..io.points import PointPairs
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 
 class AngleUnit(str, Enum):
@@ -27,6 +25,7 @@ class AngleUnit(str, Enum):
     deg = "deg"
     gon = "gon"
     rad = "rad"
+    arcsec = "arcsec"
 
 
 #: ``--id-col``, the same in every command that reads point files.
@@ -41,15 +40,17 @@ OutputCsvOpt = Annotated[
 ]
 
 
-def console(stderr: bool = False) -> Console:
+def console(stderr: bool = False):
     """A console that keeps tables readable when the output is not a terminal."""
+    from rich.console import Console
+
     c = Console(stderr=stderr)
     if not c.is_terminal:
         c = Console(stderr=stderr, width=max(c.width, 110))
     return c
 
 
-def say(text: str, out: Console | None = None, *, stderr: bool = False) -> None:
+def say(text: str, out=None, *, stderr: bool = False) -> None:
     """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
 
@@ -133,8 +134,11 @@ def load_pairs(
     weights_col: str | None = None,
     sigma_col: str | None = None,
     allow_unmatched: bool = False,
-) -> PointPairs:
-    """Point pairs from one CSV with both coordinate sets or from two CSVs joined by id."""
+):
+    """Point pairs (:class:`~photogeom.io.PointPairs`) from one CSV with both coordinate sets
+    or from two CSVs joined by id."""
+    from ..io import join_points, read_point_pairs, read_points
+
     if target is None:
         return read_point_pairs(
             source,
@@ -168,14 +172,54 @@ def write_outputs(outputs: list[tuple[Path, str]]) -> None:
     line, exit code 2, in :func:`photogeom.cli.main.main`) and leaves every destination as
     it was.
     """
+    from ..io.atomic import atomic_write_texts
+
     if outputs:
         atomic_write_texts(outputs)
 
 
 def emit_points(text: str, output: Path | None, n: int) -> None:
     """A point CSV to stdout, or to ``output`` (atomically) with a note on stderr."""
+    from ..io import atomic_write_text
+
     if output is None:
         typer.echo(text, nl=False)
     else:
         atomic_write_text(output, text)
         say(f"wrote {n} point(s) to {output}", stderr=True)
+
+
+# --- errors in the words of the command line ----------------------------------------------------
+
+#: Phrases of library messages that name a Python argument, and the command-line option that
+#: does the same (the library speaks of its keywords, the command line of its options).
+CLI_WORDS: tuple[tuple[str, str], ...] = (
+    ("pass behind='nan' to get NaN", "pass --behind nan to get NaN"),
+    ("or pass behind='nan'", "or pass --behind nan"),
+    (
+        "(angles are radians; the camera looks along its -z axis)",
+        "(angles of --eo are in --angle-unit, degrees by default; the camera looks along its "
+        "-z axis)",
+    ),
+    (
+        "pass initial= an approximate orientation",
+        "pass --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (ground units; angles in --angle-unit) with an "
+        "approximate orientation",
+    ),
+    (
+        "degenerate); pass initial=",
+        "degenerate); pass start values with --initial X0,Y0,Z0,OMEGA,PHI,KAPPA (ground units; "
+        "angles in --angle-unit)",
+    ),
+    ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
+    ("source_system / target_system", "--source-system / --target-system"),
+    ("give both source_system and target_system", "give both --source-system and --target-system"),
+    (" (photogeom.orientation.p3p lists them)", ""),
+)
+
+
+def in_cli_words(message: str) -> str:
+    """``message`` with the Python argument names of :data:`CLI_WORDS` replaced by options."""
+    for api, cli in CLI_WORDS:
+        message = message.replace(api, cli)
+    return message

@@ -18,9 +18,9 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
 from ._common import (
     AngleUnit,
@@ -40,8 +40,16 @@ from ._common import (
     write_outputs,
 )
 
-app = typer.Typer(help="Frame camera models: projection, DLT.", no_args_is_help=True)
-dlt_app = typer.Typer(help="Direct linear transformation: estimate, convert.", no_args_is_help=True)
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
+
+app = typer.Typer(
+    help="Frame camera models: projection, DLT.", no_args_is_help=True, rich_markup_mode=None
+)
+dlt_app = typer.Typer(
+    help="Direct linear transformation: estimate, convert.",
+    no_args_is_help=True,
+    rich_markup_mode=None,
+)
 app.add_typer(dlt_app, name="dlt")
 
 
@@ -265,11 +273,15 @@ def load_control(
     image_cols: str | None,
     id_col: str | None,
     sigma_col: str | None = None,
+    unmatched: dict | None = None,
 ):
     """Control points: ids, ground (n, 3), image (n, 2), check mask, per-point sigma or None.
 
     One CSV with both coordinate sets (default columns X,Y,Z and x,y), or a ground CSV and
-    an image CSV joined by point id. A ``role`` column marks check points.
+    an image CSV joined by point id. A ``role`` column marks check points. With two files,
+    the points found in both are used; ids found in only one (tie points of the image, ground
+    points not measured) are left out and listed in ``unmatched`` (keys ``image_only``,
+    ``ground_only``), which the caller reports.
     """
     from ..io import join_points, read_point_pairs, read_points
 
@@ -284,9 +296,41 @@ def load_control(
     else:
         g = read_points(points, gcols, id_column=id_col, auto_weights=False)
         im = read_points(image, icols, id_column=id_col, sigma_column=sigma_col, auto_weights=False)
-        pairs = join_points(im, g)
+        pairs = join_points(im, g, allow_unmatched=True)
+        if unmatched is not None:
+            unmatched["image_only"] = list(pairs.unmatched_source)
+            unmatched["ground_only"] = list(pairs.unmatched_target)
     sigma = None if pairs.weights is None else 1.0 / np.sqrt(pairs.weights)
     return pairs.ids, pairs.target, pairs.source, pairs.check_mask, sigma
+
+
+def unmatched_text(unmatched: dict) -> str | None:
+    """One line on the points left out of a ground/image join, or None."""
+    parts = []
+    if unmatched.get("image_only"):
+        ids = unmatched["image_only"]
+        parts.append(
+            f"{len(ids)} image point(s) without ground coordinates (tie points), not used: "
+            + _short_list(ids)
+        )
+    if unmatched.get("ground_only"):
+        ids = unmatched["ground_only"]
+        parts.append(
+            f"{len(ids)} ground point(s) not measured in the image, not used: " + _short_list(ids)
+        )
+    return "; ".join(parts) if parts else None
+
+
+def _short_list(ids, limit: int = 20) -> str:
+    shown = ", ".join(ids[:limit])
+    return shown + (f" ... ({len(ids)} in all)" if len(ids) > limit else "")
+
+
+def say_unmatched(unmatched: dict, as_json: bool) -> None:
+    """Report the points left out of the join on stderr (text output only)."""
+    text = unmatched_text(unmatched)
+    if text and not as_json:
+        say(f"note: {text}", stderr=True)
 
 
 @dlt_app.command("estimate")
@@ -329,6 +373,7 @@ def dlt_estimate(
     """
     from ..camera import estimate_dlt
 
+    unmatched: dict = {}
     ids, g, im, mask, sigma = load_control(
         points,
         image,
@@ -336,7 +381,9 @@ def dlt_estimate(
         image_cols=image_cols,
         id_col=id_col,
         sigma_col=sigma_col,
+        unmatched=unmatched,
     )
+    say_unmatched(unmatched, as_json)
     mask = check_mask(ids, mask, check_ids)
     g_ctrl, im_ctrl, kw = split_control(ids, g, im, mask)
     fit = estimate_dlt(
@@ -352,6 +399,8 @@ def dlt_estimate(
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()
     data["orientation"] = _orientation_json(fit.interior, fit.exterior, au)
+    if unmatched:
+        data["unmatched"] = unmatched
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
     if report is not None:

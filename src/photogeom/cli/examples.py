@@ -7,20 +7,21 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich import box
-from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-from rich.rule import Rule
-from rich.table import Table
 
 from ..errors import InputError
 from ._common import console, say
 
-app = typer.Typer(help="List and run the bundled worked examples.", no_args_is_help=True)
+app = typer.Typer(
+    help="List and run the bundled worked examples.", no_args_is_help=True, rich_markup_mode=None
+)
 
 
 @app.command("list")
 def list_examples() -> None:
     """List the worked examples (name and what each computes)."""
+    from rich import box
+    from rich.table import Table
+
     from ..examples import all_examples
 
     t = Table(box=box.SIMPLE_HEAD)
@@ -55,6 +56,17 @@ def run_examples(
     report with parameter and residual tables and residual vector plots is written
     (atomically, after all examples have run).
     """
+    from rich import box
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+    from rich.rule import Rule
+    from rich.table import Table
+
     from ..examples import all_examples, get
 
     if run_all and names:

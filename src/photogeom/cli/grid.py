@@ -13,15 +13,18 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
 from ._common import JsonOpt, OutputCsvOpt, ReportOpt, console, emit_points, json_text, say
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 app = typer.Typer(
     help="Finite-element residual grids: fit per image, correct coordinates and images.",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 
 

@@ -6,6 +6,7 @@ Each part registers its command group from its own module; this file only wires 
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 
@@ -16,9 +17,39 @@ app = typer.Typer(
     help="Analytical photogrammetry with least-squares statistics. "
     "Angles are labelled with their unit; residuals are computed minus observed.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
+    # plain help text: flags shown as flags, and no rich import before a command needs it
+    rich_markup_mode=None,
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"photogeom {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_version,
+            is_eager=True,
+            help="Print the version and exit.",
+        ),
+    ] = False,
+) -> None:
+    """Analytical photogrammetry with least-squares statistics.
+
+    Angles are labelled with their unit; residuals are computed minus observed. Each command
+    has --help; shell completion: photogeom --install-completion.
+    """
+
 
 _GROUPS = (
     # (module under photogeom.cli, command name)
@@ -52,7 +83,9 @@ def main(argv: list[str] | None = None) -> None:
     try:
         app(args=argv, prog_name="photogeom")
     except PhotogeomError as exc:
-        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        from ._common import in_cli_words
+
+        typer.secho(f"error: {in_cli_words(str(exc))}", err=True, fg=typer.colors.RED)
         sys.exit(2)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)

@@ -13,6 +13,7 @@ from . import orient_absolute, orient_camera, orient_relative
 app = typer.Typer(
     help="Orientations: absolute (3D similarity), resection, intersection, relative.",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 orient_absolute.register(app)
 orient_camera.register(app)

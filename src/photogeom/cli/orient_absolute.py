@@ -13,18 +13,18 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import InputError
-from ..orientation import (
-    METHODS,
-    absolute_orientation,
-    compare_absolute_methods,
-    ransac_absolute_orientation,
-)
 from ._common import AngleUnit, check_mask, console, load_pairs
+from ._stream import busy
 
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
+
+#: The methods of :data:`photogeom.orientation.METHODS` (named here so that the command line
+#: starts without importing the estimators; a test keeps the two equal).
+METHODS = ("closed-form", "svd", "quaternion", "dual-quaternion", "gauss-markov", "gauss-helmert")
 Method = Enum("Method", {m: m for m in METHODS}, type=str)
 
 
@@ -35,8 +35,21 @@ class Convention(str, Enum):
     direct = "direct"
 
 
-def _angles_line(fit, convention: str, unit: str) -> str:
+def _display_angles(fit, convention: str, unit: str) -> tuple[float, float, float]:
+    """omega, phi, kappa as printed (one rule for every printed angle, see
+    :func:`photogeom.units.display_angle`)."""
+    from ..units import display_angle
+
     w, p, k = fit.angles(convention, unit)
+    return (
+        display_angle(w, unit, "omega"),
+        display_angle(p, unit, "phi"),
+        display_angle(k, unit, "kappa"),
+    )
+
+
+def _angles_line(fit, convention: str, unit: str) -> str:
+    w, p, k = _display_angles(fit, convention, unit)
     rel = "R = M(omega, phi, kappa).T" if convention == "transposed" else "R = M(omega, phi, kappa)"
     return (
         f"angles ({convention} convention, {rel}): omega {w:.6f} {unit}, phi {p:.6f} {unit}, "
@@ -46,7 +59,7 @@ def _angles_line(fit, convention: str, unit: str) -> str:
 
 def _fit_json(fit, convention: str, unit: str, pairs_notes) -> dict:
     d = fit.to_dict()
-    w, p, k = fit.angles(convention, unit)
+    w, p, k = _display_angles(fit, convention, unit)
     d["angles"] = {"convention": convention, "unit": unit, "omega": w, "phi": p, "kappa": k}
     d["scale"] = fit.scale
     d["rotation"] = np.asarray(fit.rotation).tolist()
@@ -150,10 +163,11 @@ def register(app: typer.Typer) -> None:
         from ..report import Report, print_fit, print_table
 
         out = console()
-        pairs = load_pairs(
-            source, target, source_cols=source_cols, target_cols=target_cols, id_col=id_col,
-            weights_col=weights_col, sigma_col=sigma_col, allow_unmatched=allow_unmatched,
-        )
+        with busy(f"reading {source.name}", source, target):
+            pairs = load_pairs(
+                source, target, source_cols=source_cols, target_cols=target_cols, id_col=id_col,
+                weights_col=weights_col, sigma_col=sigma_col, allow_unmatched=allow_unmatched,
+            )
         if pairs.source.shape[1] != 3 or pairs.target.shape[1] != 3:
             raise InputError(
                 "absolute orientation needs 3D points in both systems "
@@ -177,6 +191,8 @@ def register(app: typer.Typer) -> None:
         if compare:
             if ransac:
                 raise InputError("--compare and --ransac cannot be combined")
+            from ..orientation import compare_absolute_methods
+
             cmp = compare_absolute_methods(
                 x, X, convention=conv, angle_unit=angle, length_unit=unit,
                 **{k: v for k, v in options.items() if k != "unit"},
@@ -228,17 +244,34 @@ def register(app: typer.Typer) -> None:
         if ransac:
             if threshold is None:
                 raise InputError("--ransac needs --threshold (inlier distance, target units)")
+            from ..orientation import ransac_absolute_orientation
+
             fit = ransac_absolute_orientation(
                 x, X, threshold, method=meth, rng=seed, ids=row_ids,
                 **{k: v for k, v in options.items() if k not in ("initial", "sigma_source")},
             )
         else:
-            fit = absolute_orientation(x, X, meth, ids=row_ids, **options)
+            from ..orientation import absolute_orientation
+
+            with busy(f"{meth}: {len(x)} point pairs", source, target):
+                fit = absolute_orientation(x, X, meth, ids=row_ids, **options)
         if is_check.any():
             chk = fit.transform.apply(pairs.source[is_check]) - pairs.target[is_check]
             fit = fit.with_checks(chk, [str(i) for i in ids[is_check]])
+        outliers = _outliers(fit, x, X, row_ids)
         if as_json:
-            typer.echo(json.dumps(_fit_json(fit, conv, angle, pairs.notes), indent=2))
+            d = _fit_json(fit, conv, angle, pairs.notes)
+            if fit.inliers is not None:
+                d["ransac"] = {
+                    "threshold": threshold,
+                    "unit": unit,
+                    "pair_ids": list(row_ids),
+                    "inlier_ids": [i for i, k in zip(row_ids, fit.inliers) if k],
+                    "outliers": outliers,
+                    "note": "inliers is a mask over pair_ids; ids and residuals are those of "
+                    "the inliers; outlier residuals v = computed - observed with the inlier fit",
+                }
+            typer.echo(json.dumps(d, indent=2))
         else:
             for note in pairs.notes:
                 out.print(f"note: {note}")
@@ -247,15 +280,56 @@ def register(app: typer.Typer) -> None:
             out.print(_angles_line(fit, conv, angle))
             if fit.inliers is not None:
                 out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
+                if outliers:
+                    print_table(
+                        f"RANSAC outliers ({len(outliers)}, not in the estimate)",
+                        ["id", "v_X", "v_Y", "v_Z", "|v|"],
+                        _outlier_rows(outliers),
+                        console=out,
+                    )
+                    out.print(f"v = computed - observed with the inlier fit [{unit}]", markup=False)
         if report is not None:
             rep = Report("Absolute orientation")
             used = X if fit.inliers is None else X[fit.inliers]
-            rep.add_fit(fit, title=f"Absolute orientation ({meth})", angle_unit=angle,
-                        points=used[:, :2], point_labels=("X", "Y"), point_unit=unit)
+            rep.add_fit(
+                fit,
+                title=f"Absolute orientation ({meth})",
+                angle_unit=angle,
+                points=used[:, :2],
+                check_points=pairs.target[is_check][:, :2] if is_check.any() else None,
+                point_labels=("X", "Y"),
+                point_unit=unit,
+            )
             rep.add_text("Angles", _angles_line(fit, conv, angle))
+            if outliers:
+                rep.add_table(
+                    f"RANSAC outliers ({len(outliers)} of {len(row_ids)} pairs)",
+                    ["id", f"v_X [{unit}]", f"v_Y [{unit}]", f"v_Z [{unit}]", f"|v| [{unit}]"],
+                    _outlier_rows(outliers),
+                    note=f"Pairs farther than the threshold {threshold:g} {unit} from the "
+                    "RANSAC fit, left out of the estimate; v = computed - observed with the "
+                    "inlier fit.",
+                )
             rep.write(report)
             if not as_json:
                 out.print(f"report written to {report}")
+
+
+def _outliers(fit, x, X, row_ids) -> list[dict]:
+    """Pairs rejected by RANSAC: id, residual v = computed - observed (inlier fit), |v|."""
+    if fit.inliers is None:
+        return []
+    k = np.flatnonzero(~np.asarray(fit.inliers))
+    v = fit.transform.apply(x[k]) - X[k]
+    norms = np.linalg.norm(v, axis=1)
+    return [
+        {"id": row_ids[i], "v": [float(c) for c in vi], "norm": float(n)}
+        for i, vi, n in zip(k, v, norms)
+    ]
+
+
+def _outlier_rows(outliers: list[dict]) -> list[list[str]]:
+    return [[o["id"], *(f"{c:.4f}" for c in o["v"]), f"{o['norm']:.4f}"] for o in outliers]
 
 
 def _fmt(v, decimals: int, sci: bool = False) -> str:

@@ -12,9 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import (
     AngleUnit,
@@ -44,7 +44,10 @@ from .camera import (
     build_interior,
     camera_from_json,
     load_control,
+    say_unmatched,
 )
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 
 def register(app: typer.Typer) -> None:
@@ -84,7 +87,11 @@ def resection(
         typer.Option(help="Start values X0,Y0,Z0,omega,phi,kappa (needed with 3 points)."),
     ] = None,
     sigma: Annotated[
-        float | None, typer.Option(help="Standard deviation of the image coordinates.")
+        float | None,
+        typer.Option(
+            help="Standard deviation of the image coordinates, in --unit (mm by default; with "
+            "--pixel too, as pixels are converted to --unit)."
+        ),
     ] = None,
     sigma_col: Annotated[
         str | None, typer.Option(help="Column of per-point image standard deviations.")
@@ -126,6 +133,7 @@ def resection(
         pixel_size=pixel_size,
         principal_point=principal_point,
     )
+    unmatched: dict = {}
     ids, g, im, mask, sig = load_control(
         points,
         image,
@@ -133,7 +141,9 @@ def resection(
         image_cols=image_cols or ("col,row" if pixel else None),
         id_col=id_col,
         sigma_col=sigma_col,
+        unmatched=unmatched,
     )
+    say_unmatched(unmatched, as_json)
     if pixel:
         im = io.pixel_to_image(im)
     if sigma is not None:
@@ -157,6 +167,8 @@ def resection(
     )
     data = fit.to_dict()
     data["model_parameters"] = fit.camera.to_dict(au)
+    if unmatched:
+        data["unmatched"] = unmatched
     outputs: list[tuple[Path, str]] = []
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
@@ -221,7 +233,10 @@ def intersection(
     id_col: IdColOpt = None,
     sigma: Annotated[
         float | None,
-        typer.Option(help="Standard deviation of the image coordinates (a-priori std. dev.)."),
+        typer.Option(
+            help="A-priori standard deviation of the image coordinates, in the image unit of "
+            "the cameras (e.g. mm; with --pixel too, as pixels are converted)."
+        ),
     ] = None,
     output: OutputCsvOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
@@ -288,9 +303,19 @@ def intersection(
             }
             for pid, p, sd, k, s0 in zip(ids, res.points, std, res.n_rays, res.sigma0)
         ]
+        units = {
+            "X, Y, Z, std": "ground unit of the cameras (that of X0, Y0, Z0)",
+            "image": cams[0][0].unit,
+            "sigma0": "1 (a posteriori / a priori)",
+        }
         typer.echo(
             json_text(
-                {"points": pts, "notes": notes, "residual_convention": "computed minus observed"}
+                {
+                    "points": pts,
+                    "units": units,
+                    "notes": notes,
+                    "residual_convention": "computed minus observed",
+                }
             ),
             nl=False,
         )
@@ -305,8 +330,9 @@ def intersection(
             },
             comments=[
                 f"space intersection of {', '.join(map(str, images))}",
+                "X, Y, Z and sX, sY, sZ in the ground unit of the cameras (that of X0, Y0, Z0); "
                 "sX, sY, sZ: a-posteriori standard deviations (a priori from --sigma where the "
-                "redundancy is 0)",
+                "redundancy is 0); sigma0: a posteriori / a priori, unitless",
             ],
         )
         if output is None:
@@ -341,7 +367,13 @@ def _intersection_report(res, ids, images, obs, cams) -> str:
         ]
         for pid, p, sd, k, s0 in zip(ids, res.points, res.std, res.n_rays, res.sigma0)
     ]
-    rep.add_table("Object points", ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"], rows)
+    rep.add_table(
+        "Object points",
+        ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"],
+        rows,
+        note="X, Y, Z and their standard deviations sX, sY, sZ in the ground unit of the "
+        "cameras (that of X0, Y0, Z0); sigma0 a posteriori / a priori (unitless).",
+    )
     for i, path in enumerate(images):
         ok = np.all(np.isfinite(obs[i]), axis=1)
         if not ok.any():

@@ -14,9 +14,9 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import (
     AngleUnit,
@@ -42,6 +42,8 @@ from .camera import (
     build_interior,
     camera_from_json,
 )
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 
 class Method(str, Enum):

@@ -19,11 +19,10 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
-from ..io import format_points_csv, read_point_pairs, read_points
 from ._common import (
     IdColOpt,
     JsonOpt,
@@ -31,7 +30,6 @@ from ._common import (
     ReportOpt,
     check_mask,
     console,
-    emit_points,
     finite_or_none,
     json_text,
     say,
@@ -39,11 +37,15 @@ from ._common import (
     split_names,
     write_outputs,
 )
+from ._stream import run_point_job
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 app = typer.Typer(
     help="Rational polynomial (RPC) satellite camera models: (0, 0) is the centre of the first "
     "pixel; lon/lat in degrees, h in metres.",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 
 
@@ -65,6 +67,11 @@ class TextStyle(str, Enum):
 def _load_rpc(path: Path):
     from ..rpc import RPC
 
+    if path.is_dir():
+        raise FileFormatError(
+            f"cannot read {path}: it is a directory; give the RPC file itself (e.g. "
+            f"{path}/IMG_RPC.TXT, an _RPC.XML, .RPB or DIMAP file)"
+        )
     return RPC.from_file(path)
 
 
@@ -74,13 +81,15 @@ IMAGE_COLS = [["col", "row"], ["sample", "line"], ["x", "y"]]
 HEIGHT_COLS = ["h", "height", "z"]
 
 
-def _read_with(path: Path, cols: str | None, candidates, what: str, id_col: str | None):
-    """Read the first candidate column set present in the file (or the ``--cols`` given)."""
+def _blocks_with(path: Path, cols: str | None, candidates, what: str, id_col: str | None):
+    """Point blocks of the first candidate column set present in the file (or ``--cols``)."""
+    from ..io import PointBlocks
+
     if cols is not None:
-        return read_points(path, split_names(cols), id_column=id_col, auto_weights=False)
+        return PointBlocks(path, split_names(cols), id_column=id_col, role_column=None)
     for cand in candidates:
         try:
-            return read_points(path, cand, id_column=id_col, auto_weights=False)
+            return PointBlocks(path, cand, id_column=id_col, role_column=None)
         except FileFormatError as exc:
             if "not found; the file has columns" not in str(exc):
                 raise  # a real problem of the file, not a missing column set
@@ -130,6 +139,14 @@ def info(
     say("\n".join(lines))
 
 
+def _say_warnings(caught: list, seen: set) -> None:
+    for w in caught:
+        text = str(w.message)
+        if text not in seen:
+            seen.add(text)
+            say(f"warning: {text}", stderr=True)
+
+
 @app.command("project")
 def project(
     rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
@@ -141,33 +158,60 @@ def project(
     id_col: IdColOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
 ) -> None:
-    """Project ground points (lon, lat in degrees, h in metres) into the image (col, row px)."""
+    """Project ground points (lon, lat in degrees, h in metres) into the image (col, row px).
+
+    Files of any size are read and written block by block (a progress bar on a terminal).
+    """
     rpc = _load_rpc(rpc_file)
-    table = _read_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
-    if table.dim != 3:
-        raise InputError(f"--cols: need three ground columns lon,lat,h, got {table.columns}")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        col, row = rpc.project(table.coords[:, 0], table.coords[:, 1], table.coords[:, 2])
-    for w in caught:
-        say(f"warning: {w.message}", stderr=True)
+    blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
+    if blocks.dim != 3:
+        raise InputError(
+            f"--cols: need three ground columns lon,lat,h, got {', '.join(blocks.columns)}"
+        )
+    seen: set = set()
+
+    def compute(block):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            c = block.coords
+            col, row = rpc.project(c[:, 0], c[:, 1], c[:, 2])
+        _say_warnings(caught, seen)
+        return np.column_stack([col, row]), {}
+
     if as_json:
+        rows = []
+        for block in blocks:
+            xy, _ = compute(block)
+            rows += [
+                {"id": i, "col": float(c), "row": float(r)}
+                for i, (c, r) in zip(block.ids.to_pylist(), xy)
+            ]
         data = {
             "rpc": str(rpc_file),
             "pixel_convention": "(0, 0) = centre of the first pixel",
-            "points": [
-                {"id": i, "col": float(c), "row": float(r)} for i, c, r in zip(table.ids, col, row)
-            ],
+            "points": rows,
         }
         typer.echo(json_text(data), nl=False)
         return
-    text = format_points_csv(
-        table.ids,
-        np.column_stack([col, row]),
-        ["col", "row"],
+    n = run_point_job(
+        blocks, output, ["col", "row"], compute,
         comments=[f"projected with {rpc_file}; (0, 0) = centre of the first pixel, px"],
-    )
-    emit_points(text, output, len(table.ids))
+        description="rpc project",
+    )  # fmt: skip
+    if output is not None:
+        say(f"wrote {n} point(s) to {output}", stderr=True)
+
+
+def _extrapolated(rpc, col, row, h, lon, lat, converged) -> np.ndarray:
+    """Converged points outside the domain the RPC was fitted on (the projection's warning
+    limit on normalised image or ground coordinates)."""
+    from ..rpc.domain import DOMAIN_LIMIT
+
+    sn, ln = rpc.normalize_image(col, row)
+    with np.errstate(invalid="ignore"):
+        L, P, H = rpc.normalize_ground(lon, lat, h)
+        worst = np.max(np.abs(np.vstack([sn, ln, L, P, H])), axis=0)
+    return converged & (worst > DOMAIN_LIMIT)
 
 
 @app.command("localize")
@@ -193,74 +237,111 @@ def localize(
 ) -> None:
     """Ground points (lon, lat) of image points at given heights, with a status per point.
 
-    Points that do not converge get empty lon/lat ('nan') and status limit_reached or
-    diverged; nothing is guessed.
+    Status: converged; extrapolated (converged, but the point or its height lies outside the
+    domain the RPC was fitted on, so the position is not to be trusted); limit_reached or
+    diverged (empty lon/lat, 'nan': nothing is guessed). Files of any size are read and
+    written block by block (a progress bar on a terminal).
     """
+    from ..errors import ConvergenceError
     from ..rpc import LocalizationStatus
 
     rpc = _load_rpc(rpc_file)
     if height is None:
         cands = [[*c, hc] for c in IMAGE_COLS for hc in HEIGHT_COLS]
         what = "image and height (col, row, h)"
+        try:
+            blocks = _blocks_with(points, cols, cands, what, id_col)
+        except InputError:
+            if cols is None:
+                raise InputError(
+                    f"{points}: no height column (h, height or z) next to the image columns; "
+                    "add one, or give every point the same height with --height METRES "
+                    "(ellipsoidal)"
+                ) from None
+            raise
     else:
-        cands = IMAGE_COLS
-        what = "image (col, row)"
-    table = _read_with(points, cols, cands, what, id_col)
-    if height is not None and table.dim in (2, 3):
-        h = np.full(len(table.ids), float(height))
-    elif table.dim == 3:
-        h = table.coords[:, 2]
-    else:
+        blocks = _blocks_with(points, cols, IMAGE_COLS, "image (col, row)", id_col)
+    if height is None and blocks.dim != 3:
         raise InputError(
-            f"{points}: columns {', '.join(table.columns)} give no height; add an h column or "
-            "--height (every point needs its ellipsoidal height in metres)"
+            f"{points}: columns {', '.join(blocks.columns)} give no height; add an h column to "
+            "--cols (col,row,h) or give every point the same height with --height METRES"
         )
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res = rpc.localize(
-            table.coords[:, 0], table.coords[:, 1], h, tol=tol, max_iter=max_iter,
-            full_output=True, on_failure="raise" if strict else "nan",
-        )  # fmt: skip
-    for w in caught:
-        say(f"warning: {w.message}", stderr=True)
-    status = [LocalizationStatus(int(s)).name.lower() for s in res.status]
-    bad = int(np.count_nonzero(~res.converged))
-    if bad:
-        say(
-            f"warning: {bad} of {len(status)} point(s) did not converge (status column); their "
-            "lon/lat are nan",
-            stderr=True,
-        )
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    labels = [s.name.lower() for s in sorted(LocalizationStatus)] + ["extrapolated"]
+    counts = {name: 0 for name in labels}
+    seen: set = set()
+
+    def compute(block):
+        c = block.coords
+        h = np.full(len(block), float(height)) if height is not None else c[:, 2]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                res = rpc.localize(
+                    c[:, 0], c[:, 1], h, tol=tol, max_iter=max_iter, full_output=True,
+                    on_failure="raise" if strict else "nan",
+                )  # fmt: skip
+            except ConvergenceError as exc:
+                raise ConvergenceError(
+                    f"{exc} (without --strict, such points get status limit_reached or "
+                    "diverged and empty lon/lat)",
+                    exc.iterations,
+                    exc.result,
+                ) from None
+        _say_warnings(caught, seen)
+        code = res.status.astype(np.int64)
+        code[_extrapolated(rpc, c[:, 0], c[:, 1], h, res.lon, res.lat, res.converged)] = 3
+        for k, v in enumerate(np.bincount(code, minlength=4)):
+            counts[labels[k]] += int(v)
+        status = pc.take(pa.array(labels), pa.array(code))
+        return np.column_stack([res.lon, res.lat, h]), {"status": status}, res
+
+    def report():
+        bad = counts["limit_reached"] + counts["diverged"]
+        total = sum(counts.values())
+        if bad:
+            say(
+                f"warning: {bad} of {total} point(s) did not converge (status column); their "
+                "lon/lat are nan",
+                stderr=True,
+            )
+        if counts["extrapolated"]:
+            say(
+                f"warning: {counts['extrapolated']} of {total} point(s) lie outside the domain "
+                "of the RPC (status extrapolated); their lon/lat are extrapolations",
+                stderr=True,
+            )
+
     if as_json:
-        data = {
-            "rpc": str(rpc_file),
-            "tol_px": tol,
-            "counts": res.counts(),
-            "points": [
-                {"id": i, "lon": lo, "lat": la, "h": float(hh), "status": s, "iterations": int(it)}
-                for i, lo, la, hh, s, it in zip(
-                    table.ids,
-                    map(finite_or_none, res.lon),
-                    map(finite_or_none, res.lat),
-                    h,
-                    status,
-                    res.iterations,
+        rows = []
+        for block in blocks:
+            xyz, more, res = compute(block)
+            rows += [
+                {"id": i, "lon": finite_or_none(p[0]), "lat": finite_or_none(p[1]),
+                 "h": float(p[2]), "status": s, "iterations": int(it)}
+                for i, p, s, it in zip(
+                    block.ids.to_pylist(), xyz, more["status"].to_pylist(), res.iterations
                 )
-            ],
-        }
+            ]  # fmt: skip
+        report()
+        data = {"rpc": str(rpc_file), "tol_px": tol, "counts": counts, "points": rows}
         typer.echo(json_text(data), nl=False)
         return
-    text = format_points_csv(
-        table.ids,
-        np.column_stack([res.lon, res.lat, h]),
-        ["lon", "lat", "h"],
-        extra={"status": status},
+    n = run_point_job(
+        blocks, output, ["lon", "lat", "h"], lambda b: compute(b)[:2], extra=["status"],
         comments=[f"localised with {rpc_file}; lon, lat in degrees, h in metres; tol {tol:g} px"],
-    )
-    emit_points(text, output, len(table.ids))
+        description="rpc localize",
+    )  # fmt: skip
+    report()
+    if output is not None:
+        say(f"wrote {n} point(s) to {output}", stderr=True)
 
 
 def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None, check_ids):
+    from ..io import read_point_pairs
+
     pairs = read_point_pairs(
         points, split_names(ground_cols), split_names(image_cols), id_column=id_col
     )

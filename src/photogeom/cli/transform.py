@@ -11,26 +11,29 @@ from __future__ import annotations
 from dataclasses import replace
 from enum import Enum
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
+from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
-from ..io import format_points_csv, read_points
-from ..io.points import PointPairs
 from ._common import (
     AngleUnit,
     IdColOpt,
     check_mask,
     console,
-    emit_points,
     json_text,
     load_pairs,
     say,
     split_names,
     write_outputs,
 )
+from ._stream import busy, run_point_job
+
+if TYPE_CHECKING:
+    from ..io.points import PointPairs
+
+np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 MODELS = (
     "similarity2d",
@@ -57,6 +60,7 @@ class ErrorsIn(str, Enum):
 app = typer.Typer(
     help="Estimate and apply 2D/3D coordinate transformations.",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 
 
@@ -112,6 +116,13 @@ def estimate(
         str,
         typer.Option(help="Unit of the target coordinates, to label residuals (e.g. mm, m, px)."),
     ] = "",
+    source_unit: Annotated[
+        str,
+        typer.Option(
+            help="Unit of the source coordinates (default: px with --source-system pixel, else "
+            "--unit); scale parameters are labelled target/source unit, e.g. mm/px."
+        ),
+    ] = "",
     source_system: Annotated[
         str | None,
         typer.Option(
@@ -162,32 +173,35 @@ def estimate(
     model = Model(model).value
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value
-    pairs = load_pairs(
-        source,
-        target,
-        source_cols=source_cols,
-        target_cols=target_cols,
-        id_col=id_col,
-        weights_col=weights_col,
-        sigma_col=sigma_col,
-        allow_unmatched=allow_unmatched,
-    )
-    _check_dimensions(model, pairs)
-    mask = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
-    fit = estimate_transform(
-        model,
-        pairs.source,
-        pairs.target,
-        order=order,
-        weights=pairs.weights,
-        check=mask,
-        ids=pairs.ids,
-        sigma0_prior=sigma0_prior,
-        source_system=source_system,
-        target_system=target_system,
-        errors_in=errors_in,
-        unit=unit,
-    )
+    with busy(f"reading {source.name}", source, target) as step:
+        pairs = load_pairs(
+            source,
+            target,
+            source_cols=source_cols,
+            target_cols=target_cols,
+            id_col=id_col,
+            weights_col=weights_col,
+            sigma_col=sigma_col,
+            allow_unmatched=allow_unmatched,
+        )
+        _check_dimensions(model, pairs)
+        mask = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
+        step(f"estimating {model} from {len(pairs)} point pairs")
+        fit = estimate_transform(
+            model,
+            pairs.source,
+            pairs.target,
+            order=order,
+            weights=pairs.weights,
+            check=mask,
+            ids=pairs.ids,
+            sigma0_prior=sigma0_prior,
+            source_system=source_system,
+            target_system=target_system,
+            errors_in=errors_in,
+            unit=unit,
+            source_unit=source_unit,
+        )
     if pairs.notes:
         fit = replace(fit, notes=tuple(fit.notes) + tuple(pairs.notes))
     files = [str(source)] + ([str(target)] if target is not None else [])
@@ -328,25 +342,36 @@ def apply(
     The output CSV has the id, the transformed coordinates and the role column if the input
     has one; numbers are written losslessly.
     """
+    from ..io import PointBlocks
+
     transform = load_transform(params)
-    table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
-    dim = getattr(transform, "dim", table.dim)
-    if table.dim != dim:
+    blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+    dim = getattr(transform, "dim", blocks.dim)
+    if blocks.dim != dim:
         raise InputError(
-            f"{points}: {table.dim} coordinate column(s) ({', '.join(table.columns)}) but the "
+            f"{points}: {blocks.dim} coordinate column(s) ({', '.join(blocks.columns)}) but the "
             f"{getattr(transform, 'name', 'transformation')} works on {dim}D points; choose the "
             "columns with --cols"
         )
     t = transform.inverse() if inverse else transform
-    result = t.apply(table.coords)
-    names = split_names(out_cols) or _output_columns(table.columns)
-    if len(names) != result.shape[1]:
-        raise InputError(f"--out-cols: {len(names)} name(s) for {result.shape[1]} coordinates")
-    extra = {"role": list(table.roles)} if table.roles is not None else None
+    n_out = t.apply(np.zeros((1, blocks.dim))).shape[1]
+    names = split_names(out_cols) or _output_columns(blocks.columns)
+    if len(names) != n_out:
+        raise InputError(f"--out-cols: {len(names)} name(s) for {n_out} coordinates")
+    extra = ["role"] if blocks.has_roles else []
     direction = "inverse of" if inverse else "forward"
     comments = [
         f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "
-        f"input {points} ({', '.join(table.columns)})"
+        f"input {points} ({', '.join(blocks.columns)})"
     ]
-    text = format_points_csv(table.ids, result, names, extra=extra, comments=comments)
-    emit_points(text, output, len(table.ids))
+
+    def compute(block):
+        more = {"role": block.roles} if blocks.has_roles else {}
+        return t.apply(block.coords), more
+
+    n = run_point_job(
+        blocks, output, names, compute, extra=extra, comments=comments,
+        description="transform apply",
+    )  # fmt: skip
+    if output is not None:
+        say(f"wrote {n} point(s) to {output}", stderr=True)

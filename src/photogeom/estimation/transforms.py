@@ -31,7 +31,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 import scipy.linalg.lapack as _lapack
-import scipy.sparse
 
 from ..adjust import (
     Adjustment,
@@ -998,7 +997,9 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
             blocks[:, np.arange(d), d + np.arange(d)] = wd[:, None]
             if n * d < SPARSE_FROM:
                 return scipy.linalg.block_diag(*blocks) if n > 0 else np.zeros((0, 0))
-            return scipy.sparse.block_diag(list(blocks), format="csr")
+            from scipy.sparse import block_diag
+
+            return block_diag(list(blocks), format="csr")
 
         adj = gauss_helmert(
             conditions,
@@ -1136,6 +1137,7 @@ def estimate_transform(
     target_system: str | None = None,
     errors_in: str = "target",
     unit: str = "",
+    source_unit: str = "",
     statistics: bool = True,
     max_iter: int = 50,
     tol: float = 1e-10,
@@ -1177,6 +1179,11 @@ def estimate_transform(
         coordinates; ``"both"`` - Gauss-Helmert with errors in source and target.
     unit : str
         Unit of the target coordinates, used to label residuals and shifts (e.g. ``"mm"``).
+    source_unit : str
+        Unit of the source coordinates (default: ``"px"`` for ``source_system="pixel"``,
+        else the target unit). Labels the parameters that convert between the two: the
+        linear part of a similarity, affine or projective transformation from pixels to mm
+        is in ``"mm/px"``, the denominator of a projective one in ``"1/px"``.
     statistics : bool
         ``True`` (default): the full statistics below. ``False``: the same estimate (the same
         least-squares solution; the projective models still get their nonlinear adjustment),
@@ -1321,7 +1328,8 @@ def estimate_transform(
                 extras["linearised"] = lin
             if extra_res is not None:
                 extras.update(extra_res)
-        units = _parameter_units(key, tf, unit)
+        src_unit = source_unit or ("px" if source_system == "pixel" else "")
+        units = _parameter_units(key, tf, unit, src_unit)
         if statistics:
             fit = Fit.from_adjustment(
                 adj, tf, method, point_dim=d, parameters=p, parameter_names=tf.parameter_names,
@@ -1330,9 +1338,7 @@ def estimate_transform(
             )
             textbook, Qtb = _textbook(tf, fit.cofactor, fit.sigma0)
             extras["textbook"] = textbook
-            extras["textbook_units"] = {
-                k: (unit if v == "" else v) for k, v in tf.textbook_units.items()
-            }
+            extras["textbook_units"] = _textbook_units(tf, unit, src_unit)
             extras["textbook_cofactor"] = Qtb
         else:
             fit = Fit.without_statistics({
@@ -1379,23 +1385,59 @@ def _set(fit: Fit, **values) -> None:
 _UNITS: dict = {}
 
 
-def _parameter_units(key: str, tf, unit: str) -> dict:
-    """Units of the parametric parameters: unitless linear part, shifts in target units
-    (a fresh dict; the computed ones are kept per model, names and unit)."""
+#: Textbook parameters that are scale factors (target unit per source unit).
+_SCALE_NAMES = frozenset({"scale", "sx", "sy", "sz", "mx", "my", "mz"})
+
+
+def _textbook_units(tf, unit: str, source_unit: str) -> dict:
+    """Units of the textbook parameters: shifts in the target unit, scale factors in target
+    per source unit."""
+    src = source_unit or unit
+    ratio = "1" if src == unit else f"{unit or '1'}/{src}"
+    out = {}
+    for k, v in tf.textbook_units.items():
+        out[k] = unit if v == "" else (ratio if k in _SCALE_NAMES and v == "1" else v)
+    return out
+
+
+def _parameter_units(key: str, tf, unit: str, source_unit: str = "") -> dict:
+    """Units of the parametric parameters (a fresh dict; the computed ones are kept per model,
+    names and units)."""
     names = tf.parameter_names
-    cache = (key, names, unit)
+    cache = (key, names, unit, source_unit)
     if cache not in _UNITS:
         if len(_UNITS) > 256:
             _UNITS.clear()
-        _UNITS[cache] = _units_of(key, names, unit)
+        _UNITS[cache] = _units_of(key, names, unit, source_unit)
     return dict(_UNITS[cache])
 
 
-def _units_of(key: str, names: tuple, unit: str) -> dict:
+def _units_of(key: str, names: tuple, unit: str, source_unit: str = "") -> dict:
+    """Units of each parameter: target per source for the linear part, target for shifts,
+    1 / source for the denominator of a projective model; polynomial coefficients act on
+    reduced (unitless) source coordinates, so they are in target units."""
+    src = source_unit or unit
+    ratio = "1" if src == unit else f"{unit or '1'}/{src}"
+    inverse = f"1/{src}" if src else ""
     if key in ("similarity2d", "affine2d", "affine3d"):
-        units = dict.fromkeys(names, "1")
-        shifts = {"similarity2d": ("c", "d"), "affine2d": ("a3", "b3"),
-                  "affine3d": ("tx", "ty", "tz")}[key]
+        units = dict.fromkeys(names, ratio)
+        shifts = {
+            "similarity2d": ("c", "d"),
+            "affine2d": ("a3", "b3"),
+            "affine3d": ("tx", "ty", "tz"),
+        }[key]
         units.update(dict.fromkeys(shifts, unit))
         return units
+    if key in ("projective2d", "projective3d"):
+        d = 2 if key == "projective2d" else 3
+        units = {}
+        for k, name in enumerate(names):
+            row, col = divmod(k, d + 1)
+            if row == d:
+                units[name] = inverse
+            else:
+                units[name] = unit if col == d else ratio
+        return units
+    if key.startswith("polynomial"):
+        return dict.fromkeys(names, unit)
     return dict.fromkeys(names, "")

@@ -49,6 +49,9 @@ def comparison_figure(cmp: MethodComparison):
     if all(np.isfinite(times)):
         a2.barh(y, times, color="0.5")
         a2.set_xscale("log")
+        from matplotlib.ticker import NullFormatter
+
+        a2.xaxis.set_minor_formatter(NullFormatter())  # minor labels overlapped each other
         a2.set_yticks(y, names)
         a2.invert_yaxis()
         a2.set_xlabel("time per solve [us] (median)")
@@ -60,10 +63,21 @@ def comparison_figure(cmp: MethodComparison):
 def add_comparison(report, cmp: MethodComparison, title: str) -> None:
     """Add the comparison table and its figure to an HTML report."""
     cols = cmp.columns()
-    report.add_table(title, cols, [[r[0], *r[1:]] for r in cmp.table_rows()],
-                     note=f"differences to the converged {cmp.reference} solution; angles "
-                     f"{cmp.unit} ({cmp.convention} convention); times: medians of repeated "
-                     "solves, parameters only")
+    rows = cmp.table_rows()
+    # two tables of at most 8 columns (as on the console): one page width, no scrolling
+    report.add_table(
+        title,
+        cols[:8],
+        [r[:8] for r in rows],
+        note=f"parameters of every method; angles {cmp.unit} ({cmp.convention} convention)",
+    )
+    report.add_table(
+        f"{title}: differences to the converged {cmp.reference} solution, speed",
+        [cols[0], *cols[8:]],
+        [[r[0], *r[8:]] for r in rows],
+        note=f"differences to the converged {cmp.reference} solution; times: medians of "
+        "repeated solves, parameters only",
+    )
     report.add_figure(f"{title}: differences and speed", comparison_figure(cmp))
     for r in cmp.rows:
         if r.error:

@@ -2,8 +2,11 @@
 
 from .atomic import atomic_write_bytes, atomic_write_text
 from .points import (
+    PointBlock,
+    PointBlocks,
     PointPairs,
     PointTable,
+    PointWriter,
     format_points_csv,
     join_points,
     parse_points,
@@ -13,8 +16,11 @@ from .points import (
 )
 
 __all__ = [
+    "PointBlock",
+    "PointBlocks",
     "PointPairs",
     "PointTable",
+    "PointWriter",
     "atomic_write_bytes",
     "atomic_write_text",
     "format_points_csv",

@@ -14,18 +14,29 @@ Format
 * An optional ``weight`` column (per-point weight, unitless) or ``sigma`` column (per-point
   standard deviation in the coordinate unit; weight = 1 / sigma^2) weights the points.
 
+* A quoted field (``"P,1"``) must close on its line; fields are at most 128 KiB; every line
+  has as many fields as the header. Anything else is refused with the line number.
+
 Example::
 
     # fiducial marks, mm
     id,role,x,y,X,Y
     1,control,113.016,0.002,243.031,130.007
     5,check,113.008,112.995,243.016,243.001
+
+Reading and writing
+-------------------
+Files are parsed block by block by :mod:`photogeom.io.csvblocks` (pyarrow's CSV reader;
+small files in Python, by the same rules), so reading is linear in the file size.
+:func:`read_points` and :func:`read_point_pairs` return whole tables; :class:`PointBlocks`
+yields blocks of any file with the memory of one block, for jobs that treat each point on
+its own. :class:`PointWriter` writes chunks (numbers as the shortest text that reads back to
+the same float64) to a file renamed into place at the end; :func:`format_points_csv` and
+:func:`write_points` are its one-chunk forms.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import os
 import re
 from collections.abc import Iterator, Sequence
@@ -34,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError
-from .atomic import atomic_write_text
+from ..errors import FileFormatError, InputError, PhotogeomError
+from .csvblocks import DelimitedText
 
 #: Coordinate column sets tried, in this order, when none is given.
 DEFAULT_COLUMN_SETS: tuple[tuple[str, ...], ...] = (
@@ -169,103 +180,43 @@ def _check_mask(roles: np.ndarray | None, n: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------
-# low-level parsing
+# low-level reading
 
 
-@dataclass(frozen=True)
-class _RawTable:
-    path: Path | None
-    header: tuple[str, ...]
-    rows: list[list[str]]
-    line_numbers: list[int]
-    comments: tuple[str, ...]
+class _Source:
+    """A point file opened for reading: its header and the columns read from it."""
 
-    def column(self, name: str) -> list[str]:
-        j = self.header.index(name)
-        return [r[j] for r in self.rows]
+    def __init__(self, path: Path | None = None, data: bytes | None = None) -> None:
+        self.text = DelimitedText(path, data)
+        self.path = path
+        self.header = self.text.header
+        self.label = self.text.label
+
+    def read(self, strings: Sequence[str], numbers: Sequence[str]) -> tuple[dict, dict]:
+        """Whole columns: strings as lists of str, numbers as float64 arrays."""
+        s_parts: dict[str, list] = {c: [] for c in strings}
+        n_parts: dict[str, list] = {c: [] for c in numbers}
+        for block in self.text.blocks(strings, numbers, arrow=False):
+            for c in strings:
+                s_parts[c].append(block.strings[c])
+            for c in numbers:
+                n_parts[c].append(block.numbers[c])
+        out_s = {c: [v for part in parts for v in part] for c, parts in s_parts.items()}
+        out_n = {
+            c: (np.concatenate(parts) if parts else np.zeros(0)) for c, parts in n_parts.items()
+        }
+        return out_s, out_n
 
     @property
-    def label(self) -> str:
-        return str(self.path) if self.path is not None else "point table"
+    def comments(self) -> tuple[str, ...]:
+        return tuple(self.text.comments)
+
+    def lines(self, rows) -> list[int]:
+        return self.text.line_numbers(list(rows))
 
 
-def _read_text(path: str | os.PathLike) -> str:
-    p = Path(path)
-    try:
-        data = p.read_bytes()
-    except FileNotFoundError:
-        raise FileFormatError(f"cannot read {p}: no such file") from None
-    except IsADirectoryError:
-        raise FileFormatError(f"cannot read {p}: it is a directory, not a CSV file") from None
-    except PermissionError:
-        raise FileFormatError(f"cannot read {p}: permission denied") from None
-    except OSError as exc:
-        raise FileFormatError(f"cannot read {p}: {exc.strerror or exc}") from None
-    if b"\x00" in data[:4096]:
-        raise FileFormatError(f"cannot read {p}: it looks like a binary file, not a CSV text file")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        try:
-            return data.decode("latin-1")
-        except UnicodeDecodeError as exc:  # pragma: no cover - latin-1 decodes any byte
-            raise FileFormatError(f"cannot read {p}: not a text file ({exc})") from None
-
-
-def _split_function(header_line: str):
-    if "," in header_line:
-        return lambda lines: csv.reader(lines, delimiter=",", skipinitialspace=True)
-    if ";" in header_line:
-        return lambda lines: csv.reader(lines, delimiter=";", skipinitialspace=True)
-    if "\t" in header_line:
-        return lambda lines: csv.reader(lines, delimiter="\t", skipinitialspace=True)
-    return lambda lines: (re.split(r"\s+", ln.strip()) for ln in lines)
-
-
-def _parse(text: str, path: Path | None) -> _RawTable:
-    label = str(path) if path is not None else "point table"
-    comments: list[str] = []
-    body: list[str] = []
-    numbers: list[int] = []
-    for k, line in enumerate(text.splitlines(), start=1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            comments.append(stripped[1:].strip())
-            continue
-        body.append(line)
-        numbers.append(k)
-    if not body:
-        raise FileFormatError(
-            f"{label}: no header line and no data (the file is empty or all comments)"
-        )
-    reader = _split_function(body[0])
-    parsed = [[c.strip() for c in row] for row in reader(body)]
-    header = tuple(parsed[0])
-    if any(not h for h in header):
-        raise FileFormatError(
-            f"{label}, line {numbers[0]}: the header has an empty column name: {body[0]!r}"
-        )
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise FileFormatError(
-            f"{label}: column name(s) {', '.join(dup)} appear more than once in the header"
-        )
-    if all(_is_number(h) for h in header):
-        raise FileFormatError(
-            f"{label}, line {numbers[0]}: the first line holds numbers, not column names; "
-            "a header line such as 'id,x,y' is required"
-        )
-    rows = parsed[1:]
-    lines = numbers[1:]
-    for row, ln in zip(rows, lines):
-        if len(row) != len(header):
-            raise FileFormatError(
-                f"{label}, line {ln}: {len(row)} field(s) but the header has {len(header)} "
-                f"({', '.join(header)})"
-            )
-    return _RawTable(path, header, rows, lines, tuple(comments))
+def _source(path: str | os.PathLike) -> _Source:
+    return _Source(Path(path))
 
 
 def _is_number(s: str) -> bool:
@@ -280,148 +231,197 @@ def _find(header: Sequence[str], name: str) -> str | None:
     """Exact column match, else a unique case-insensitive match."""
     if name in header:
         return name
-    hits = [h for h in header if h.lower() == name.lower()]
+    low = name.lower()
+    hits = [h for h in header if h.lower() == low]
     return hits[0] if len(hits) == 1 else None
 
 
-def _resolve_columns(raw: _RawTable, wanted: Sequence[str], what: str) -> tuple[str, ...]:
+def _resolve_columns(raw: _Source, wanted: Sequence[str], what: str) -> tuple[str, ...]:
     found = [_find(raw.header, c) for c in wanted]
     missing = [c for c, f in zip(wanted, found) if f is None]
     if missing:
         raise FileFormatError(
             f"{raw.label}: {what} column(s) {', '.join(missing)} not found; the file has columns "
-            f"{', '.join(raw.header)} (choose others by name, e.g. --source-cols x,y)"
+            f"{_names(raw.header)} (choose others by name, e.g. --source-cols x,y)"
         )
     return tuple(f for f in found if f is not None)
 
 
-def _auto_columns(raw: _RawTable, exclude: Sequence[str] = ()) -> tuple[str, ...]:
+def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
+    present = set(raw.header)
     for cand in DEFAULT_COLUMN_SETS:
         if any(c in exclude for c in cand):
             continue
-        if all(c in raw.header for c in cand):
+        if all(c in present for c in cand):
             return cand
     expected = " or ".join(",".join(c) for c in DEFAULT_COLUMN_SETS)
     raise FileFormatError(
-        f"{raw.label}: no coordinate columns found; the file has columns {', '.join(raw.header)}, "
+        f"{raw.label}: no coordinate columns found; the file has columns {_names(raw.header)}, "
         f"expected {expected} (or name the columns to use)"
     )
 
 
-def _numbers(raw: _RawTable, columns: Sequence[str], ids: Sequence[str]) -> np.ndarray:
-    idx = [raw.header.index(c) for c in columns]
-    cells = [[row[j] for j in idx] for row in raw.rows]
-    try:
-        arr = np.array(cells, dtype=np.float64).reshape(len(raw.rows), len(columns))
-    except ValueError:
-        for row, ln in zip(cells, raw.line_numbers):
-            for c, v in zip(columns, row):
-                if not _is_number(v):
-                    shown = "an empty field" if v == "" else repr(v)
-                    raise FileFormatError(
-                        f"{raw.label}, line {ln}: column {c} holds {shown}, not a number"
-                    ) from None
-        raise  # pragma: no cover
+def _names(header: Sequence[str], limit: int = 30) -> str:
+    shown = ", ".join(header[:limit])
+    return shown + (f" ... ({len(header)} in all)" if len(header) > limit else "")
+
+
+def _finite(raw: _Source, arr: np.ndarray, columns: Sequence[str], ids: Sequence[str]) -> None:
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
-        where = [f"{ids[i]} (line {raw.line_numbers[i]})" for i in np.flatnonzero(bad)[:10]]
+        rows = np.flatnonzero(bad)[:10]
+        lines = raw.lines(rows)
+        where = [f"{ids[i]} (line {ln})" for i, ln in zip(rows, lines)]
         more = " ..." if bad.sum() > 10 else ""
         raise InputError(
             f"{raw.label}: {int(bad.sum())} point(s) have NaN or infinite coordinates in "
             f"{', '.join(columns)}: {', '.join(where)}{more}; fix or remove them"
         )
-    return arr
 
 
-def _ids(raw: _RawTable, id_column: str | None) -> tuple[tuple[str, ...], str | None]:
+def _id_column(raw: _Source, id_column: str | None) -> str:
     name = None
     if id_column is not None:
         name = _find(raw.header, id_column)
         if name is None:
             raise FileFormatError(
                 f"{raw.label}: id column {id_column!r} not found; the file has columns "
-                f"{', '.join(raw.header)}"
+                f"{_names(raw.header)}"
             )
-    else:
-        for cand in ID_COLUMNS:
-            name = _find(raw.header, cand)
-            if name is not None:
-                break
-    if name is None:
+        return name
+    for cand in ID_COLUMNS:
+        name = _find(raw.header, cand)
+        if name is not None:
+            return name
+    raise FileFormatError(
+        f"{raw.label}: no id column; the file has columns {_names(raw.header)}, "
+        f"expected one named {' or '.join(ID_COLUMNS)}"
+    )
+
+
+def _check_ids(raw: _Source, ids: Sequence[str]) -> None:
+    if "" in ids:
+        empty = [k for k, v in enumerate(ids) if v == ""][:10]
         raise FileFormatError(
-            f"{raw.label}: no id column; the file has columns {', '.join(raw.header)}, "
-            f"expected one named {' or '.join(ID_COLUMNS)}"
-        )
-    ids = tuple(raw.column(name))
-    empty = [ln for v, ln in zip(ids, raw.line_numbers) if v == ""]
-    if empty:
-        raise FileFormatError(
-            f"{raw.label}: empty point id on line(s) {', '.join(map(str, empty[:10]))}"
+            f"{raw.label}: empty point id on line(s) {', '.join(map(str, raw.lines(empty)))}"
         )
     _check_unique(ids, raw.label)
-    return ids, name
 
 
 def _check_unique(ids: Sequence[str], label: str) -> None:
+    if len(set(ids)) == len(ids):
+        return
     seen: dict[str, int] = {}
     for v in ids:
         seen[v] = seen.get(v, 0) + 1
     dup = [k for k, c in seen.items() if c > 1]
-    if dup:
-        shown = ", ".join(f"{d} ({seen[d]}x)" for d in dup[:10])
-        raise InputError(
-            f"{label}: duplicate point id(s) {shown}{' ...' if len(dup) > 10 else ''}; "
-            "every id must appear once"
-        )
+    shown = ", ".join(f"{d} ({seen[d]}x)" for d in dup[:10])
+    raise InputError(
+        f"{label}: duplicate point id(s) {shown}{' ...' if len(dup) > 10 else ''}; "
+        "every id must appear once"
+    )
 
 
-def _roles(raw: _RawTable, role_column: str | None) -> np.ndarray | None:
+def _role_column(raw: _Source, role_column: str | None) -> str | None:
     if role_column is None:
         return None
-    name = _find(raw.header, role_column)
-    if name is None:
+    return _find(raw.header, role_column)
+
+
+def _roles(raw: _Source, name: str | None, values: list[str] | None) -> np.ndarray | None:
+    if name is None or values is None:
         return None
-    vals = np.array([v.lower() for v in raw.column(name)], dtype=object)
+    vals = np.array([v.lower() for v in values], dtype=object)
     vals[vals == ""] = "control"
     bad = ~np.isin(vals, ROLES)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise FileFormatError(
-            f"{raw.label}, line {raw.line_numbers[i]}: role "
-            f"{raw.rows[i][raw.header.index(name)]!r} is neither 'control' nor 'check'"
+            f"{raw.label}, line {raw.lines([i])[0]}: role {values[i]!r} is neither 'control' "
+            "nor 'check'"
         )
     return vals.astype(str)
 
 
-def _weights(
-    raw: _RawTable,
-    ids: Sequence[str],
-    weight_column: str | None,
-    sigma_column: str | None,
-    auto: bool,
-) -> tuple[np.ndarray | None, str | None]:
+def _weight_column(
+    raw: _Source, weight_column: str | None, sigma_column: str | None, auto: bool
+) -> tuple[str | None, bool]:
+    """Name of the weight (or sigma) column and whether it holds sigmas."""
     if weight_column is not None and sigma_column is not None:
         raise InputError("give a weight column or a sigma column, not both")
-    wname = sname = None
     if weight_column is not None:
-        wname = _resolve_columns(raw, [weight_column], "weight")[0]
-    elif sigma_column is not None:
-        sname = _resolve_columns(raw, [sigma_column], "sigma")[0]
-    elif auto:
-        wname = next((c for c in WEIGHT_COLUMNS if c in raw.header), None)
-        if wname is None:
-            sname = next((c for c in SIGMA_COLUMNS if c in raw.header), None)
-    if wname is None and sname is None:
-        return None, None
-    col = wname or sname
-    v = _numbers(raw, [col], ids)[:, 0]
-    if np.any(v <= 0):
-        i = int(np.flatnonzero(v <= 0)[0])
-        raise InputError(
-            f"{raw.label}, line {raw.line_numbers[i]}: {col} of point {ids[i]} is {v[i]:g}; "
-            f"every {'weight' if wname else 'sigma'} must be > 0"
+        return _resolve_columns(raw, [weight_column], "weight")[0], False
+    if sigma_column is not None:
+        return _resolve_columns(raw, [sigma_column], "sigma")[0], True
+    if auto:
+        present = set(raw.header)
+        w = next((c for c in WEIGHT_COLUMNS if c in present), None)
+        if w is not None:
+            return w, False
+        s = next((c for c in SIGMA_COLUMNS if c in present), None)
+        if s is not None:
+            return s, True
+    return None, False
+
+
+def _weights(
+    raw: _Source, ids: Sequence[str], col: str | None, is_sigma: bool, v: np.ndarray | None
+) -> np.ndarray | None:
+    if col is None or v is None:
+        return None
+    _finite(raw, v[:, None], [col], ids)
+    with np.errstate(divide="ignore", over="ignore"):
+        w = 1.0 / v**2 if is_sigma else v
+    bad = ~(v > 0) | ~np.isfinite(w) | ~(w > 0)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        kind = "sigma" if is_sigma else "weight"
+        why = (
+            f"every {kind} must be > 0"
+            if not v[i] > 0
+            else f"the weight {'1 / sigma^2 ' if is_sigma else ''}is not a positive finite "
+            "number (too small or too large)"
         )
-    return (v if wname else 1.0 / v**2), col
+        raise InputError(
+            f"{raw.label}, line {raw.lines([i])[0]}: {col} of point {ids[i]} is {v[i]:g}; {why}"
+        )
+    return w
+
+
+def _table(raw, columns, id_column, role_column, weight_column, sigma_column, auto_weights):
+    id_name = _id_column(raw, id_column)
+    names = _as_names(columns)
+    cols = _resolve_columns(raw, names, "coordinate") if names else _auto_columns(raw)
+    role_name = _role_column(raw, role_column)
+    wcol, is_sigma = _weight_column(raw, weight_column, sigma_column, auto_weights)
+    strings = [id_name] + ([role_name] if role_name else [])
+    numbers = list(dict.fromkeys([*cols, *([wcol] if wcol else [])]))
+    s, n = raw.read(strings, numbers)
+    ids = tuple(s[id_name])
+    _check_ids(raw, ids)
+    coords = _stack(n, cols)
+    _finite(raw, coords, cols, ids)
+    roles = _roles(raw, role_name, s.get(role_name) if role_name else None)
+    weights = _weights(raw, ids, wcol, is_sigma, n.get(wcol) if wcol else None)
+    return PointTable(
+        ids=ids,
+        coords=coords,
+        roles=roles,
+        weights=weights,
+        columns=cols,
+        path=raw.path,
+        weight_source=wcol,
+        header=raw.header,
+        comments=raw.comments,
+    )
+
+
+def _stack(numbers: dict, cols: Sequence[str]) -> np.ndarray:
+    n = len(numbers[cols[0]]) if cols else 0
+    out = np.empty((n, len(cols)))
+    for j, c in enumerate(cols):
+        out[:, j] = numbers[c]
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -471,8 +471,7 @@ def read_points(
     InputError
         Duplicate ids, NaN / infinite coordinates, weights <= 0.
     """
-    p = Path(path)
-    raw = _parse(_read_text(p), p)
+    raw = _source(path)
     return _table(raw, columns, id_column, role_column, weight_column, sigma_column, auto_weights)
 
 
@@ -487,7 +486,7 @@ def parse_points(
     auto_weights: bool = True,
 ) -> PointTable:
     """:func:`read_points` on CSV text instead of a file (same arguments)."""
-    raw = _parse(text, None)
+    raw = _Source(None, text.encode("utf-8"))
     return _table(raw, columns, id_column, role_column, weight_column, sigma_column, auto_weights)
 
 
@@ -504,24 +503,140 @@ def _as_names(columns: Sequence[str] | str | None) -> tuple[str, ...] | None:
     return names
 
 
-def _table(raw, columns, id_column, role_column, weight_column, sigma_column, auto_weights):
-    ids, _ = _ids(raw, id_column)
-    names = _as_names(columns)
-    cols = _resolve_columns(raw, names, "coordinate") if names else _auto_columns(raw)
-    coords = _numbers(raw, cols, ids)
-    roles = _roles(raw, role_column)
-    weights, wsrc = _weights(raw, ids, weight_column, sigma_column, auto_weights)
-    return PointTable(
-        ids=ids,
-        coords=coords,
-        roles=roles,
-        weights=weights,
-        columns=cols,
-        path=raw.path,
-        weight_source=wsrc,
-        header=raw.header,
-        comments=raw.comments,
-    )
+@dataclass(frozen=True)
+class PointBlock:
+    """One block of points read by :class:`PointBlocks`.
+
+    Attributes
+    ----------
+    ids : pyarrow.StringArray
+        Point ids (text), in file order.
+    coords : numpy.ndarray, shape (n, d)
+        Coordinates (float64).
+    roles : pyarrow.StringArray or None
+        ``control`` / ``check`` per point (a blank role is ``control``), when the file has a
+        role column.
+    first_row : int
+        Index of the block's first point among all points of the file.
+    bytes_done : int
+        Bytes of the file read so far.
+    """
+
+    ids: object
+    coords: np.ndarray
+    roles: object
+    first_row: int
+    bytes_done: int
+
+    def __len__(self) -> int:
+        return int(self.coords.shape[0])
+
+
+class PointBlocks:
+    """The points of a CSV read block by block, for files of any size.
+
+    Memory use is that of one block (a few MiB of text), whatever the size of the file. The
+    checks of :func:`read_points` apply (columns, numbers, NaN, empty ids) except that ids
+    are not checked for duplicates, which would need every id of the file in memory; use it
+    for jobs that treat each point on its own (projection, transformation).
+
+    Parameters
+    ----------
+    path : path-like
+        Point CSV (format of :func:`read_points`).
+    columns : sequence of str or comma-separated str, optional
+        Coordinate columns (default: found by name as in :func:`read_points`).
+    id_column : str, optional
+        Id column (default: ``id``, ``point``, ``point_id`` or ``name``).
+    role_column : str or None
+        Role column to pass through (``role`` by default, when present).
+    block_bytes : int
+        Bytes of text per block.
+
+    Attributes
+    ----------
+    columns : tuple of str
+        Coordinate columns read.
+    header : tuple of str
+    size : int
+        File size in bytes (for progress display).
+    has_roles : bool
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        columns: Sequence[str] | str | None = None,
+        *,
+        id_column: str | None = None,
+        role_column: str | None = ROLE_COLUMN,
+        block_bytes: int = 4 << 20,
+    ) -> None:
+        self._raw = _Source(Path(path))
+        self._raw.text.block_bytes = int(block_bytes)
+        self.path = Path(path)
+        self.label = self._raw.label
+        self.header = self._raw.header
+        self._id = _id_column(self._raw, id_column)
+        names = _as_names(columns)
+        self.columns = (
+            _resolve_columns(self._raw, names, "coordinate") if names else _auto_columns(self._raw)
+        )
+        self._role = _role_column(self._raw, role_column)
+        self.has_roles = self._role is not None
+        self.size = self._raw.text.size
+
+    @property
+    def dim(self) -> int:
+        return len(self.columns)
+
+    @property
+    def comments(self) -> tuple[str, ...]:
+        """Comment lines read so far (all of them once the blocks are read)."""
+        return self._raw.comments
+
+    def __iter__(self) -> Iterator[PointBlock]:
+        import pyarrow.compute as pc
+
+        strings = [self._id] + ([self._role] if self._role else [])
+        for block in self._raw.text.blocks(strings, self.columns):
+            ids = block.strings[self._id]
+            if pc.any(pc.equal(ids, "")).as_py():
+                empty = np.flatnonzero(pc.equal(ids, "").to_numpy(zero_copy_only=False))[:10]
+                lines = self._raw.lines(block.first_row + empty)
+                raise FileFormatError(
+                    f"{self.label}: empty point id on line(s) {', '.join(map(str, lines))}"
+                )
+            coords = _stack(block.numbers, self.columns)
+            bad = ~np.isfinite(coords).all(axis=1)
+            if bad.any():
+                rows = np.flatnonzero(bad)[:10]
+                lines = self._raw.lines(block.first_row + rows)
+                where = [f"{ids[int(i)].as_py()} (line {ln})" for i, ln in zip(rows, lines)]
+                raise InputError(
+                    f"{self.label}: point(s) with NaN or infinite coordinates in "
+                    f"{', '.join(self.columns)}: {', '.join(where)}"
+                    f"{' ...' if bad.sum() > 10 else ''}; fix or remove them"
+                )
+            roles = block.strings[self._role] if self._role else None
+            if roles is not None:
+                low = pc.utf8_lower(roles)
+                ok = pc.is_in(low, value_set=_pa_roles())
+                ok = pc.or_(ok, pc.equal(low, ""))
+                if not pc.all(ok).as_py():
+                    k = int(np.flatnonzero(~ok.to_numpy(zero_copy_only=False))[0])
+                    raise FileFormatError(
+                        f"{self.label}, line {self._raw.lines([block.first_row + k])[0]}: role "
+                        f"{roles[k].as_py()!r} is neither 'control' nor 'check'"
+                    )
+                roles = pc.if_else(pc.equal(low, ""), "control", low)
+            yield PointBlock(ids, coords, roles, block.first_row, block.bytes_done)
+
+
+def _pa_roles():
+    import pyarrow as pa
+
+    return pa.array(list(ROLES))
 
 
 def read_point_pairs(
@@ -546,13 +661,13 @@ def read_point_pairs(
     FileFormatError, InputError
         As :func:`read_points`; also when source and target columns overlap.
     """
-    p = Path(path)
-    raw = _parse(_read_text(p), p)
-    ids, _ = _ids(raw, id_column)
+    raw = _source(path)
+    id_name = _id_column(raw, id_column)
     src_names, dst_names = _as_names(source_columns), _as_names(target_columns)
+    present = set(raw.header)
     if src_names is None and dst_names is None:
         for s_c, t_c in DEFAULT_PAIR_COLUMN_SETS:
-            if all(c in raw.header for c in s_c + t_c):
+            if all(c in present for c in s_c + t_c):
                 src_names, dst_names = s_c, t_c
                 break
         else:
@@ -561,7 +676,7 @@ def read_point_pairs(
             )
             raise FileFormatError(
                 f"{raw.label}: cannot tell which columns hold the source and target coordinates; "
-                f"the file has columns {', '.join(raw.header)}, expected {expected} "
+                f"the file has columns {_names(raw.header)}, expected {expected} "
                 "(or name them, e.g. --source-cols x2,y2 --target-cols x1,y1)"
             )
     elif src_names is None:
@@ -578,10 +693,19 @@ def read_point_pairs(
             f"{raw.label}: column(s) {', '.join(overlap)} chosen for both source and target "
             "coordinates"
         )
-    src = _numbers(raw, s_cols, ids)
-    dst = _numbers(raw, t_cols, ids)
-    roles = _roles(raw, role_column)
-    weights, _ = _weights(raw, ids, weight_column, sigma_column, auto_weights)
+    role_name = _role_column(raw, role_column)
+    wcol, is_sigma = _weight_column(raw, weight_column, sigma_column, auto_weights)
+    strings = [id_name] + ([role_name] if role_name else [])
+    numbers = list(dict.fromkeys([*s_cols, *t_cols, *([wcol] if wcol else [])]))
+    s, n = raw.read(strings, numbers)
+    ids = tuple(s[id_name])
+    _check_ids(raw, ids)
+    src = _stack(n, s_cols)
+    dst = _stack(n, t_cols)
+    _finite(raw, src, s_cols, ids)
+    _finite(raw, dst, t_cols, ids)
+    roles = _roles(raw, role_name, s.get(role_name) if role_name else None)
+    weights = _weights(raw, ids, wcol, is_sigma, n.get(wcol) if wcol else None)
     return PointPairs(
         ids=ids,
         source=src,
@@ -659,8 +783,8 @@ def join_points(
             )
     roles = s_roles if s_roles is not None else t_roles
 
-    s_w = None if source.weights is None else source.weights[si]
-    t_w = None if target.weights is None else target.weights[ti]
+    s_w = None if source.weights is None else _numeric_weights(source.weights, s_label)[si]
+    t_w = None if target.weights is None else _numeric_weights(target.weights, t_label)[ti]
     if s_w is not None and t_w is not None and not np.allclose(s_w, t_w, rtol=1e-12, atol=0):
         raise InputError(
             "both files give point weights and they differ; keep the weight (or sigma) column "
@@ -681,6 +805,21 @@ def join_points(
     )
 
 
+def _numeric_weights(weights, label: str) -> np.ndarray:
+    """Weights as positive finite float64, or an InputError naming the table."""
+    w = np.asarray(weights)
+    if w.dtype.kind not in "fiu":
+        raise InputError(
+            f"{label}: weights must be numbers, not {w.dtype.name} values such as "
+            f"{str(w.reshape(-1)[0])!r}; convert them with float() (or read the file with "
+            "read_points, which does)"
+        )
+    w = w.astype(np.float64)
+    if not np.all(np.isfinite(w) & (w > 0)):
+        raise InputError(f"{label}: weights must be positive finite numbers")
+    return w
+
+
 def _list(ids: Sequence[str], limit: int = 20) -> str:
     ids = list(ids)
     shown = ", ".join(ids[:limit])
@@ -689,6 +828,271 @@ def _list(ids: Sequence[str], limit: int = 20) -> str:
 
 # --------------------------------------------------------------------------------------------
 # writing
+
+
+class PointWriter:
+    """Point CSV output in chunks: ``# comment`` lines, header ``id,<columns>,<extra>``, rows.
+
+    Numbers are written with the shortest representation that reads back to the same
+    float64 (a lossless round trip); ids are written as text, quoted only when they hold a
+    delimiter or a quote. A file is written atomically: rows go to a temporary file beside
+    it, renamed over ``path`` when the ``with`` block ends without an error (and removed when
+    it ends with one), so a failed job never leaves a half-written file. Memory use is that
+    of one chunk.
+
+    Parameters
+    ----------
+    path : path-like or None
+        Output file; None writes to ``stream``.
+    columns : sequence of str
+        Coordinate column names.
+    extra : sequence of str
+        Names of further columns (text or numbers), after the coordinates.
+    comments : sequence of str
+        Comment lines written before the header.
+    stream : binary file, optional
+        Where to write when ``path`` is None (default: standard output).
+
+    Examples
+    --------
+    >>> with PointWriter("out.csv", ["X", "Y"]) as w:  # doctest: +SKIP
+    ...     for ids, xy in chunks:
+    ...         w.write(ids, xy)
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike | None,
+        columns: Sequence[str],
+        *,
+        extra: Sequence[str] = (),
+        comments: Sequence[str] = (),
+        stream=None,
+    ) -> None:
+        self.path = Path(path) if path is not None else None
+        self.columns = tuple(str(c) for c in columns)
+        self.extra = tuple(str(c) for c in extra)
+        self.comments = tuple(comments)
+        self._stream = stream
+        self._fh = None
+        self._tmp: str | None = None
+        self.n_written = 0
+
+    def __enter__(self) -> PointWriter:
+        if self.path is None:
+            import sys
+
+            if self._stream is not None:
+                self._fh = self._stream
+            else:
+                sys.stdout.flush()
+                self._fh = getattr(sys.stdout, "buffer", None) or _TextSink(sys.stdout)
+        else:
+            self._open_temporary()
+        try:
+            self._fh.write(self._head().encode("utf-8"))
+        except OSError as exc:
+            self._abort()
+            raise self._failure(exc) from exc
+        except BaseException:
+            self._abort()
+            raise
+        return self
+
+    def _open_temporary(self) -> None:
+        """A temporary file beside the destination, by the policy of
+        :mod:`photogeom.atomicfile` (symbolic links followed, read-only files and missing
+        directories refused, the mode of a replaced file kept, 0666 minus umask for a new
+        one)."""
+        import secrets
+
+        from ..atomicfile import _destination, _failure
+
+        given, target = _destination(self.path)
+        self._given, self._target = given, target
+        try:
+            mode = target.stat().st_mode & 0o7777
+        except FileNotFoundError:
+            mode = None
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+        directory = target.parent if str(target.parent) else Path(".")
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+        for _ in range(100):
+            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            try:
+                fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask
+                break
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise _failure(given, exc) from exc
+        else:  # pragma: no cover - 100 collisions of 48 random bits
+            raise PhotogeomError(f"cannot write {given}: no free temporary file name")
+        self._tmp = str(tmp)
+        try:
+            if mode is not None and hasattr(os, "fchmod"):
+                os.fchmod(fd, mode)
+            self._fh = os.fdopen(fd, "wb")
+        except BaseException:
+            os.close(fd)
+            os.unlink(self._tmp)
+            raise
+
+    def _failure(self, exc: OSError):
+        from ..atomicfile import _failure
+
+        return _failure(getattr(self, "_given", self.path), exc)
+
+    def _head(self) -> str:
+        import csv
+        import io
+
+        buf = io.StringIO()
+        for c in self.comments:
+            for line in str(c).splitlines() or [""]:
+                buf.write(f"# {line}\n")
+        csv.writer(buf, lineterminator="\n").writerow(["id", *self.columns, *self.extra])
+        return buf.getvalue()
+
+    def write(self, ids, coords: np.ndarray, extra: dict | None = None) -> None:
+        """Write rows: ``ids`` (sequence of str or a pyarrow string array), ``coords`` of shape
+        (n, len(columns)), ``extra`` a mapping of the extra column names to sequences."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+        import pyarrow.csv as pcsv
+
+        coords = np.asarray(coords, dtype=float)
+        if coords.ndim != 2 or coords.shape[1] != len(self.columns):
+            raise InputError(
+                f"{len(self.columns)} column name(s) for coordinates of shape {coords.shape}"
+            )
+        n = coords.shape[0]
+        if len(ids) != n:
+            raise InputError(f"{len(ids)} id(s) for {n} point(s)")
+        extra = dict(extra or {})
+        if set(extra) != set(self.extra):
+            raise InputError(
+                f"extra columns {', '.join(extra)} given, {', '.join(self.extra)} declared"
+            )
+        arrays = {"id": ids if isinstance(ids, pa.Array) else pa.array(_texts(ids), pa.string())}
+        for j in range(coords.shape[1]):
+            arrays[f"c{j}"] = _float_text(pa, pc, coords[:, j])
+        for j, name in enumerate(self.extra):
+            v = extra[name]
+            if len(v) != n:
+                raise InputError(f"column {name}: {len(v)} value(s) for {n} point(s)")
+            arrays[f"e{j}"] = _text_column(pa, pc, v)
+        table = pa.table(arrays)
+        texts = [table.column(0)] + [table.column(f"e{j}") for j in range(len(self.extra))]
+        plain = not any(pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in texts)
+        try:
+            if plain:
+                pcsv.write_csv(
+                    table,
+                    self._fh,
+                    write_options=pcsv.WriteOptions(include_header=False, quoting_style="none"),
+                )
+            else:  # ids with delimiters or quotes: quote only those fields
+                import csv
+                import io
+
+                buf = io.StringIO()
+                csv.writer(buf, lineterminator="\n").writerows(
+                    zip(*(col.to_pylist() for col in table.columns))
+                )
+                self._fh.write(buf.getvalue().encode("utf-8"))
+        except OSError as exc:
+            if self.path is None:
+                raise
+            raise self._failure(exc) from exc
+        self.n_written += n
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self._abort()
+            return
+        if self.path is None:
+            self._fh.flush()
+            return
+        from ..atomicfile import _fsync_directory
+
+        try:
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self._fh.close()
+            os.replace(self._tmp, self._target)
+            self._tmp = None
+            _fsync_directory(self._target.parent if str(self._target.parent) else Path("."))
+        except OSError as exc:
+            self._abort()
+            raise self._failure(exc) from exc
+        except BaseException:
+            self._abort()
+            raise
+
+    def _abort(self) -> None:
+        if self.path is None or self._tmp is None:
+            return
+        try:
+            self._fh.close()
+        except Exception:  # pragma: no cover - closing a broken file
+            pass
+        try:
+            os.unlink(self._tmp)
+        except FileNotFoundError:
+            pass
+        self._tmp = None
+
+
+class _TextSink:
+    """Bytes written to a text stream (standard output replaced by a text-only object)."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+
+    def write(self, data: bytes) -> None:
+        self.stream.write(data.decode("utf-8"))
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+
+def _texts(values) -> list[str]:
+    return [str(v) for v in values]
+
+
+def _float_text(pa, pc, values: np.ndarray):
+    """Shortest round-trip text of float64 values; integral values keep a ``.0``."""
+    values = np.asarray(values, dtype=np.float64)
+    text = pc.cast(pa.array(values), pa.string())
+    with np.errstate(invalid="ignore"):
+        maybe = np.flatnonzero(np.floor(values) == values)  # integral: "3" -> "3.0"
+    if maybe.size:
+        sub = pc.take(text, pa.array(maybe))
+        whole = pc.match_substring_regex(sub, r"^-?[0-9]+$").to_numpy(zero_copy_only=False)
+        if whole.any():
+            mask = np.zeros(values.shape[0], dtype=bool)
+            mask[maybe[whole]] = True
+            text = pc.if_else(pa.array(mask), pc.binary_join_element_wise(text, ".0", ""), text)
+    return text
+
+
+def _text_column(pa, pc, values):
+    if isinstance(values, pa.Array):
+        return values if pa.types.is_string(values.type) else pc.cast(values, pa.string())
+    arr = np.asarray(values)
+    if arr.dtype.kind in "iu":  # counts stay integers
+        return pc.cast(pa.array(arr.astype(np.int64)), pa.string())
+    if arr.dtype.kind == "f":
+        return _float_text(pa, pc, arr)
+    if (
+        arr.dtype == object
+        and len(arr)
+        and all(isinstance(v, (float, np.floating)) for v in values)
+    ):
+        return _float_text(pa, pc, arr.astype(float))
+    return pa.array(_texts(values), pa.string())
 
 
 def format_points_csv(
@@ -702,36 +1106,15 @@ def format_points_csv(
     """CSV text of points: optional ``# comment`` lines, header ``id,<columns>,<extra>``, rows.
 
     Numbers are written with the shortest representation that reads back to the same
-    float64 (lossless round trip).
+    float64 (lossless round trip). See :class:`PointWriter` for files of any size.
     """
-    coords = np.asarray(coords, dtype=float)
-    if coords.ndim != 2 or coords.shape[1] != len(columns):
-        raise InputError(f"{len(columns)} column name(s) for coordinates of shape {coords.shape}")
-    if len(ids) != coords.shape[0]:
-        raise InputError(f"{len(ids)} id(s) for {coords.shape[0]} point(s)")
+    import io
+
+    buf = io.BytesIO()
     extra = dict(extra or {})
-    for k, v in extra.items():
-        if len(v) != coords.shape[0]:
-            raise InputError(f"column {k}: {len(v)} value(s) for {coords.shape[0]} point(s)")
-    buf = io.StringIO()
-    for c in comments:
-        for line in str(c).splitlines() or [""]:
-            buf.write(f"# {line}\n")
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(["id", *columns, *extra])
-    cols = [coords[:, j].tolist() for j in range(coords.shape[1])]
-    extra_cols = [list(v) for v in extra.values()]
-    writer.writerows(
-        [str(pid), *(repr(c[k]) for c in cols), *(_cell(e[k]) for e in extra_cols)]
-        for k, pid in enumerate(ids)
-    )
-    return buf.getvalue()
-
-
-def _cell(v) -> str:
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    return str(v)
+    with PointWriter(None, columns, extra=list(extra), comments=comments, stream=buf) as w:
+        w.write(ids, coords, extra)
+    return buf.getvalue().decode("utf-8")
 
 
 def write_points(
@@ -743,6 +1126,8 @@ def write_points(
     extra: dict[str, Sequence] | None = None,
     comments: Sequence[str] = (),
 ) -> Path:
-    """Write points as CSV, atomically (see :func:`format_points_csv` for the layout)."""
-    text = format_points_csv(ids, coords, columns, extra=extra, comments=comments)
-    return atomic_write_text(path, text)
+    """Write points as CSV, atomically (see :class:`PointWriter` for the layout)."""
+    extra = dict(extra or {})
+    with PointWriter(path, columns, extra=list(extra), comments=comments) as w:
+        w.write(ids, coords, extra)
+    return Path(path)

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from ..errors import PhotogeomError
-from ..units import from_radians
+from ..units import display_angle, from_radians
 from .absolute import METHODS, AbsoluteOrientationFit, absolute_orientation, normalize_method
 
 PARAMETERS = ("tx", "ty", "tz", "scale", "omega", "phi", "kappa")
@@ -157,9 +157,14 @@ def _values(fit: AbsoluteOrientationFit, convention: str, unit: str) -> dict:
     w, p, k = fit.angles(convention, "rad")
     t = fit.translation
     return {
-        "tx": float(t[0]), "ty": float(t[1]), "tz": float(t[2]), "scale": fit.scale,
-        "omega": float(from_radians(w, unit)), "phi": float(from_radians(p, unit)),
-        "kappa": float(from_radians(k, unit)),
+        "tx": float(t[0]),
+        "ty": float(t[1]),
+        "tz": float(t[2]),
+        "scale": fit.scale,
+        # printed values: one rule for every printed angle (units.display_angle)
+        "omega": display_angle(from_radians(w, unit), unit, "omega"),
+        "phi": display_angle(from_radians(p, unit), unit, "phi"),
+        "kappa": display_angle(from_radians(k, unit), unit, "kappa"),
     }
 
 

@@ -7,17 +7,38 @@
 >>> rep.write("report.html")                         # doctest: +SKIP
 """
 
-from .bundle import (
-    add_bundle_fit,
-    add_bundle_result,
-    bundle_report,
-    bundle_result_data,
-    read_bundle_result,
-    write_bundle_result,
-)
-from .console import fit_renderable, fit_text, print_fit, print_table
-from .html import Report, figure_to_png
-from .plots import nice_length, residual_figure
+# Imported on first use: the HTML report needs matplotlib, the console tables rich.
+_LAZY = {
+    "Report": "html",
+    "figure_to_png": "html",
+    "fit_renderable": "console",
+    "fit_text": "console",
+    "print_fit": "console",
+    "print_table": "console",
+    "nice_length": "plots",
+    "residual_figure": "plots",
+    "add_bundle_fit": "bundle",
+    "add_bundle_result": "bundle",
+    "bundle_report": "bundle",
+    "bundle_result_data": "bundle",
+    "read_bundle_result": "bundle",
+    "write_bundle_result": "bundle",
+}
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'photogeom.report' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "Report",

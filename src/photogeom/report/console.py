@@ -48,6 +48,9 @@ def fit_renderable(fit, title: str | None = None, angle_unit: str = "deg") -> Gr
     tb = F.textbook_rows(fit, angle_unit)
     if tb:
         items.append(_parameter_table("Textbook form", tb))
+    hm = F.helmert_rows(fit)
+    if hm:
+        items.append(_parameter_table(F.HELMERT_TITLE, hm))
     items.append(stats)
 
     for check in (False, True):

@@ -263,7 +263,7 @@ def textbook_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str
     propagated the covariance there, else ``fit.model.textbook()`` without standard
     deviations. Empty when there is no textbook form distinct from the parameters.
     """
-    from ..units import from_radians
+    from ..units import display_angle, from_radians
 
     extras = getattr(fit, "extras", {}) or {}
     model = getattr(fit, "model", None)
@@ -293,11 +293,30 @@ def textbook_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str
         v = float(arr)
         s = float(sd) if sd is not None and np.ndim(sd) == 0 else float("nan")
         unit = units.get(name, "")
-        if unit == "rad" and angle_unit != "rad":
+        if unit == "rad":
             v, s, unit = (
-                float(from_radians(v, angle_unit)),
+                display_angle(from_radians(v, angle_unit), angle_unit, str(name)),
                 float(from_radians(s, angle_unit)),
                 angle_unit,
             )
         rows.append((str(name), fmt_value(v, s), fmt_std(s), unit))
     return rows
+
+
+def helmert_rows(fit, convention: str = "position_vector") -> list[tuple[str, str, str, str]]:
+    """``(name, value, std, unit)`` of the geodetic (EPSG) Helmert form of a 3D similarity:
+    shifts, rotations in arc-seconds, scale difference in ppm; empty for other fits."""
+    extras = getattr(fit, "extras", {}) or {}
+    h = extras.get("helmert") or {}
+    values = h.get(convention)
+    if not values:
+        return []
+    units = h.get("units", {})
+    rows = []
+    for name, (v, sd) in values.items():
+        rows.append((str(name), fmt_value(v, sd), fmt_std(sd), units.get(name, "")))
+    return rows
+
+
+#: Title of the Helmert table in the reports.
+HELMERT_TITLE = "Helmert form (EPSG, position vector convention)"

@@ -35,6 +35,7 @@ td.text{font-family:inherit;text-align:left;white-space:normal}
 td.flag{background:#fbe3e1;color:#a01d12;font-weight:600}
 table.stats td:first-child{font-family:inherit;color:#4a5a6c}
 table.stats td{text-align:left}
+div.tbl{max-width:100%;overflow-x:auto}
 pre{background:#f5f7fa;border:1px solid #e3e8ee;padding:.7em;overflow-x:auto;font-size:.88em}
 p.note{color:#4a5a6c;font-size:.9em;margin:.2em 0}
 p.warn{color:#a01d12}
@@ -211,6 +212,16 @@ class Report:
                     text_cols={3},
                 )
             )
+        hm = F.helmert_rows(fit)
+        if hm:
+            parts.append(
+                f"<h4>{html.escape(F.HELMERT_TITLE)}</h4>"
+                + _table_html(
+                    ["parameter", "value", "std. dev.", "unit"],
+                    [list(r) for r in hm],
+                    text_cols={3},
+                )
+            )
         ctab = F.residual_table(fit)
         if ctab is not None:
             parts.append(
@@ -346,7 +357,8 @@ def _table_html(
     text_cols: set[int] | None = None,
     numeric_cols: set[int] | None = None,
 ) -> str:
-    out = [f'<table class="{cls}">' if cls else "<table>"]
+    # a wide table scrolls inside its box instead of widening the page
+    out = ['<div class="tbl">', f'<table class="{cls}">' if cls else "<table>"]
     if header:
         out.append("<tr>" + "".join(f"<th>{_esc(c)}</th>" for c in columns) + "</tr>")
     for i, row in enumerate(rows):
@@ -365,7 +377,7 @@ def _table_html(
             attr = f' class="{" ".join(classes)}"' if classes else ""
             cells.append(f"<td{attr}>{_esc(c)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
-    out.append("</table>")
+    out.append("</table></div>")
     if note:
         out.append(f'<p class="note">{_esc(note)}</p>')
     return "".join(out)

@@ -94,6 +94,7 @@ def residual_figure(
     fig = Figure(figsize=(6.4, 5.6), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
     handles = []
+    shown_by_number = []
     for p, r, pid, name, colour in groups:
         ax.plot(p[:, 0], p[:, 1], "o", color=colour, ms=4, zorder=3)
         q = ax.quiver(
@@ -111,25 +112,31 @@ def residual_figure(
         )
         handles.append(q)
         if pid is not None:
-            for (x, y), t in zip(p, pid):
+            texts, font, missing = point_labels([str(t) for t in pid], name)
+            shown_by_number += missing
+            for (x, y), t in zip(p, texts):
                 ax.annotate(
-                    str(t),
+                    t,
                     (x, y),
                     textcoords="offset points",
                     xytext=(5, 5),
                     fontsize=8,
                     color=colour,
+                    fontproperties=font,
                 )
     if key > 0:
+        # the scale arrow in the lower-left corner inside the axes (kept free by the padding
+        # below), away from the title above and the legend in the lower right
         ax.quiverkey(
             handles[0],
-            X=0.76,
-            Y=1.035,
+            X=0.1,
+            Y=0.05,
             U=key,
             label=f"{key:g} {unit}".strip(),
             labelpos="E",
             coordinates="axes",
             color="black",
+            fontproperties={"size": 8.5},
         )
     pad = 0.12 * extent + (0.15 * extent if vmax > 0 else 0)
     lo = all_p[finite].min(axis=0) if finite.any() else np.zeros(2)
@@ -149,6 +156,74 @@ def residual_figure(
     note = (
         f"v = computed - observed, arrows x{exaggeration}" if vmax > 0 else "all residuals are zero"
     )
+    if shown_by_number:
+        # the ids themselves cannot be drawn: refer to the rows of the residual tables
+        note += (
+            f"\n{len(shown_by_number)} id(s) the font cannot draw: #k = row k of the residual table"
+        )
     ax.set_title((title + "\n" if title else "") + note, fontsize=9.5, loc="left")
     fig.tight_layout()
     return fig
+
+
+def point_labels(ids: Sequence[str], group: str = "") -> tuple[list[str], object, list[str]]:
+    """Labels for point ids, in a font that can draw them.
+
+    Returns the labels, the font properties to draw them with (None: matplotlib's default
+    font) and ``"label = id"`` entries for ids no installed font can draw, which are labelled
+    ``#k`` (k = their position, 1-based) instead of showing empty boxes.
+    """
+    from matplotlib.font_manager import FontProperties
+
+    needed = {ch for t in ids for ch in t if not ch.isspace()}
+    default = _charmap(None)
+    if needed <= default[1]:
+        return list(ids), None, []
+    font = _font_covering(needed)
+    if font is not None:
+        return list(ids), FontProperties(fname=font), []
+    prefix = "c" if group == "check" else ""
+    out, missing = [], []
+    for k, t in enumerate(ids, start=1):
+        if set(t.replace(" ", "")) <= default[1]:
+            out.append(t)
+        else:
+            label = f"#{prefix}{k}"
+            out.append(label)
+            missing.append(f"{label} = {t}")
+    return out, None, missing
+
+
+_CHARMAPS: dict = {}
+
+
+def _charmap(path: str | None) -> tuple[str, frozenset]:
+    """(font file, code points it draws) of ``path`` or of matplotlib's default font."""
+    if path not in _CHARMAPS:
+        from matplotlib import font_manager
+        from matplotlib.ft2font import FT2Font
+
+        file = path or font_manager.findfont(font_manager.FontProperties())
+        try:
+            chars = frozenset(chr(c) for c in FT2Font(file).get_charmap())
+        except (OSError, RuntimeError, ValueError):
+            chars = frozenset()
+        _CHARMAPS[path] = (file, chars)
+    return _CHARMAPS[path]
+
+
+def _font_covering(chars: set) -> str | None:
+    """An installed font file that draws every character of ``chars``, or None."""
+    from matplotlib import font_manager
+
+    names = ("cjk", "noto", "droid", "wenquanyi", "unifont", "ipa", "takao", "arphic", "symbola")
+    candidates = sorted(
+        {f.fname for f in font_manager.fontManager.ttflist},
+        key=lambda f: (not any(n in f.lower() for n in names), f),
+    )
+    for file in candidates[:60]:
+        if "lastresort" in file.lower():  # maps every character to a box
+            continue
+        if chars <= _charmap(file)[1]:
+            return file
+    return None

@@ -188,9 +188,19 @@ class Similarity3D(Transform):
         kind = _helmert_rotation(rotation)
         p = self.helmert_parameters(conv, kind, "arcsec")
         parts = ["+proj=helmert"]
-        for key, name in (("tx", "x"), ("ty", "y"), ("tz", "z"),
-                          ("rx", "rx"), ("ry", "ry"), ("rz", "rz"), ("ds", "s")):
-            parts.append(f"+{name}={p[key]!r}")
+        for key, name in (
+            ("tx", "x"),
+            ("ty", "y"),
+            ("tz", "z"),
+            ("rx", "rx"),
+            ("ry", "ry"),
+            ("rz", "rz"),
+            ("ds", "s"),
+        ):
+            value = p[key]
+            if key == "ds":  # s - 1 of a double near 1 resolves about 2e-10 ppm
+                value = round(value, 9)
+            parts.append(f"+{name}={_proj_number(value)}")
         parts.append(f"+convention={conv}")
         if kind == "exact":
             parts.append("+exact")
@@ -285,3 +295,11 @@ def _helmert_rotation(rotation) -> str:
     if key in ("small-angle", "linearised", "linearized", "linear"):
         return "small-angle"
     raise InputError(f"rotation must be 'exact' or 'small-angle', not {rotation!r}")
+
+
+def _proj_number(value: float) -> str:
+    """A number for a PROJ string: 15 significant digits (the precision of a double), so
+    that the conversions to arc-seconds and ppm leave no trailing float noise
+    (-0.247, not -0.24699999999999994)."""
+    text = f"{float(value):.15g}"
+    return "0" if text == "-0" else text

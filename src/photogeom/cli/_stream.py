@@ -1,0 +1,134 @@
+"""Point jobs of any size: read a CSV block by block, compute, write block by block.
+
+Used by the commands that treat each point on its own (``rpc project``, ``rpc localize``,
+``transform apply``, ``camera project``). Memory use is that of one block whatever the size
+of the file; the output file appears (atomically) only when every block is done. On a
+terminal, a job on a file large enough to take more than about a second shows a progress bar
+on standard error; in pipes and logs nothing is drawn.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+
+#: Files at least this large (bytes) get a progress bar on a terminal (about 250 000 points,
+#: over a second for any of the streamed jobs).
+PROGRESS_BYTES = 16 << 20
+
+
+def _wants_progress(size: int, stream=None) -> bool:
+    stream = sys.stderr if stream is None else stream
+    try:
+        return size >= PROGRESS_BYTES and stream.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+@contextmanager
+def progress_bar(total: int, description: str, *, force: bool | None = None):
+    """A callable ``advance(done_bytes)`` drawing a rich progress bar on standard error.
+
+    Drawn only on a terminal and for ``total`` >= :data:`PROGRESS_BYTES` (``force``
+    overrides the decision); otherwise ``advance`` does nothing.
+    """
+    show = _wants_progress(total) if force is None else force
+    if not show:
+        yield lambda done, n_points=0: None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        DownloadColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    progress = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        DownloadColumn(),
+        TextColumn("{task.fields[points]} points"),
+        TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=False,
+    )
+    with progress:
+        task = progress.add_task(description, total=max(total, 1), points="0")
+        counter = {"n": 0}
+
+        def advance(done: int, n_points: int = 0) -> None:
+            counter["n"] += n_points
+            progress.update(task, completed=min(done, total), points=f"{counter['n']:,}")
+
+        yield advance
+        progress.update(task, completed=total)
+
+
+def run_point_job(
+    blocks,
+    output: Path | None,
+    columns: Sequence[str],
+    compute: Callable,
+    *,
+    extra: Sequence[str] = (),
+    comments: Sequence[str] = (),
+    description: str = "points",
+) -> int:
+    """Stream ``blocks`` (a :class:`~photogeom.io.PointBlocks`) through ``compute`` into a CSV.
+
+    ``compute(block)`` returns ``(coords, extra)``: the output coordinates (n, len(columns))
+    and a dict of the ``extra`` columns. Returns the number of points written. The output
+    goes to ``output`` (atomically, replaced only when every block succeeded) or to stdout.
+    """
+    from ..io import PointWriter
+
+    n = 0
+    with progress_bar(blocks.size, description) as advance:
+        with PointWriter(output, columns, extra=extra, comments=comments) as writer:
+            for block in blocks:
+                coords, more = compute(block)
+                writer.write(block.ids, coords, more)
+                n += len(block)
+                advance(block.bytes_done, len(block))
+    return n
+
+
+@contextmanager
+def busy(description: str, *paths, force: bool | None = None):
+    """A spinner with the elapsed time on stderr while a job on big input files runs.
+
+    For jobs whose progress cannot be counted (reading a whole file, then one estimate):
+    shown on a terminal when the input files together hold at least
+    :data:`PROGRESS_BYTES` (``force`` overrides). Yields ``step(text)``, which names the
+    current stage; removed when the job ends.
+    """
+    size = 0
+    for p in paths:
+        try:
+            size += Path(p).stat().st_size if p is not None else 0
+        except OSError:
+            pass
+    show = _wants_progress(size) if force is None else force
+    if not show:
+        yield lambda text: None
+        return
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    progress = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+    with progress:
+        task = progress.add_task(description, total=None)
+        yield lambda text: progress.update(task, description=text)
