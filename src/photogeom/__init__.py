@@ -49,7 +49,7 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import camera, imagecoords, rpc, transforms
+from . import camera, crs, distributed, imagecoords, io, rpc, transforms
 from .camera import (
     DLT,
     AffineCamera,
@@ -166,9 +166,11 @@ __all__ = [
     "camera",
     "camera_matrix",
     "compare_absolute_methods",
+    "crs",
     "data_snooping",
     "datasets",
     "deg2gon",
+    "distributed",
     "dlt_from_orientation",
     "estimate_affine_camera",
     "estimate_dlt",
@@ -185,6 +187,7 @@ __all__ = [
     "image_rays",
     "imagecoords",
     "in_front",
+    "io",
     "intersect_rpc",
     "matrix_from_axis_angle",
     "matrix_from_euler",

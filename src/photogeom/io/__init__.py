@@ -1,6 +1,16 @@
-"""Reading and writing files: point CSVs, atomic output."""
+"""Reading and writing files: point CSVs, LAS/LAZ point clouds, atomic output."""
 
 from .atomic import atomic_write_bytes, atomic_write_text
+from .cloud import (
+    CloudInfo,
+    CloudTransformResult,
+    cloud_dask_xyz,
+    cloud_info,
+    iter_cloud_xyz,
+    read_cloud_xyz,
+    transform_cloud,
+    write_cloud,
+)
 from .points import (
     PointPairs,
     PointTable,
@@ -13,14 +23,22 @@ from .points import (
 )
 
 __all__ = [
+    "CloudInfo",
+    "CloudTransformResult",
     "PointPairs",
     "PointTable",
     "atomic_write_bytes",
     "atomic_write_text",
+    "cloud_dask_xyz",
+    "cloud_info",
     "format_points_csv",
+    "iter_cloud_xyz",
     "join_points",
     "parse_points",
+    "read_cloud_xyz",
     "read_point_pairs",
     "read_points",
+    "transform_cloud",
+    "write_cloud",
     "write_points",
 ]
