@@ -13,8 +13,10 @@ pytest.importorskip("lazrs")
 def _cloud(tmp_path, name="scan.laz", n=5000, crs="EPSG:32632", fmt=6, version="1.4"):
     rng = np.random.default_rng(0)
     xyz = rng.uniform([0, 0, 0], [300, 200, 40], (n, 3))
-    extra = {"reflectance": rng.normal(size=n).astype(np.float32),
-             "tile": rng.integers(0, 9, n).astype(np.uint16)}
+    extra = {
+        "reflectance": rng.normal(size=n).astype(np.float32),
+        "tile": rng.integers(0, 9, n).astype(np.uint16),
+    }
     path = tmp_path / name
     pg.io.write_cloud(path, xyz, crs=crs, point_format=fmt, version=version, extra=extra)
     las = laspy.read(path)
@@ -92,8 +94,9 @@ def test_fit_and_function_transforms_and_chunks(tmp_path):
     T = pg.Similarity3D.from_angles(1.0, 0.0, 0.0, 0.3, [5.0, 6.0, 7.0])
     fit = pg.absolute_orientation(xyz[:100], T.apply(xyz[:100]))
     pg.io.transform_cloud(src, tmp_path / "f.laz", fit)
-    np.testing.assert_allclose(pg.io.read_cloud_xyz(tmp_path / "f.laz"), T.apply(xyz),
-                               atol=0.5e-3 + 1e-9)
+    np.testing.assert_allclose(
+        pg.io.read_cloud_xyz(tmp_path / "f.laz"), T.apply(xyz), atol=0.5e-3 + 1e-9
+    )
 
 
 def test_bad_input_and_atomic_output(tmp_path):

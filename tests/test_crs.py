@@ -27,7 +27,7 @@ def test_axes_and_poles():
     np.testing.assert_allclose(pg.crs.geodetic_to_ecef(0, 0, 0), (a, 0, 0), atol=1e-9)
     np.testing.assert_allclose(pg.crs.geodetic_to_ecef(0, 90, 10), (0, a + 10, 0), atol=1e-9)
     np.testing.assert_allclose(pg.crs.geodetic_to_ecef(90, 0, 0), (0, 0, b), atol=1e-9)
-    lat, lon, h = pg.crs.ecef_to_geodetic(0.0, 0.0, -b - 5.0)
+    lat, _, h = pg.crs.ecef_to_geodetic(0.0, 0.0, -b - 5.0)
     assert lat == -90.0 and abs(h - 5.0) < 1e-9
 
 
@@ -71,15 +71,19 @@ def test_round_trips_at_rounding_level():
 def test_far_points_and_satellites():
     rng = np.random.default_rng(11)
     lat, lon, h = _random_geodetic(rng, 20000, 1e5, 4.2e7)
-    la, lo, hh = pg.crs.ecef_to_geodetic(*pg.crs.geodetic_to_ecef(lat, lon, h))
+    la, _, hh = pg.crs.ecef_to_geodetic(*pg.crs.geodetic_to_ecef(lat, lon, h))
     assert np.max(np.abs(la - lat)) < 1e-12
     np.testing.assert_allclose(hh, h, rtol=1e-15, atol=3e-8)
 
 
 @settings(max_examples=60, deadline=None)
 @given(
-    lat0=st.floats(-89.9, 89.9), lon0=st.floats(-180, 180), h0=st.floats(-400, 9000),
-    e=st.floats(-5e4, 5e4), n=st.floats(-5e4, 5e4), u=st.floats(-1e3, 1e4),
+    lat0=st.floats(-89.9, 89.9),
+    lon0=st.floats(-180, 180),
+    h0=st.floats(-400, 9000),
+    e=st.floats(-5e4, 5e4),
+    n=st.floats(-5e4, 5e4),
+    u=st.floats(-1e3, 1e4),
 )
 def test_enu_round_trip_and_proj(lat0, lon0, h0, e, n, u):
     enu = np.array([e, n, u])
@@ -97,8 +101,7 @@ def test_enu_is_a_rigid_motion_and_up_is_the_normal():
     assert abs(np.linalg.det(R) - 1) < 1e-15
     # a point straight above the origin is pure up
     X = np.array(pg.crs.geodetic_to_ecef(47.3, 8.5, 1234.5))
-    np.testing.assert_allclose(pg.crs.ecef_to_enu(X, 47.3, 8.5, 1000.0), [0, 0, 234.5],
-                               atol=1e-8)
+    np.testing.assert_allclose(pg.crs.ecef_to_enu(X, 47.3, 8.5, 1000.0), [0, 0, 234.5], atol=1e-8)
 
 
 def test_curvature_drop_matches_enu_of_ellipsoid_points():
@@ -140,16 +143,16 @@ def test_any_crs_through_proj_and_helmert_pipeline():
     # an estimated Helmert as a PROJ pipeline step gives the same points (both conventions)
     rng = np.random.default_rng(2)
     x = rng.normal(size=(30, 3)) * 1000 + [4.1e6, 6e5, 4.8e6]
-    T = pg.Similarity3D.from_helmert(-87.0, -98.0, -121.0, 0.5, -0.3, 0.8, 2.5,
-                                     convention="coordinate_frame")
+    T = pg.Similarity3D.from_helmert(
+        -87.0, -98.0, -121.0, 0.5, -0.3, 0.8, 2.5, convention="coordinate_frame"
+    )
     fit = pg.absolute_orientation(x, T.apply(x), method="svd")
     for conv in ("position_vector", "coordinate_frame"):
         p = pyproj.Transformer.from_pipeline(fit.transform.to_proj_string(conv))
         np.testing.assert_allclose(np.c_[p.transform(*x.T)], T.apply(x), atol=1e-6)
     op = pg.crs.ProjTransform("EPSG:4979", "EPSG:4978")
     X = op.apply(np.c_[lon, lat, [300.0, 310.0]])
-    np.testing.assert_allclose(X[:, 0], pg.crs.geodetic_to_ecef(lat, lon, [300, 310])[0],
-                               atol=1e-8)
+    np.testing.assert_allclose(X[:, 0], pg.crs.geodetic_to_ecef(lat, lon, [300, 310])[0], atol=1e-8)
 
 
 def test_bad_input_names_the_problem():

@@ -1,6 +1,7 @@
 """Dask: per-item jobs with failures collected, dask-array transformation and orientation."""
 
 import functools
+import itertools
 
 import numpy as np
 import pytest
@@ -39,8 +40,11 @@ def test_dask_orientation_equals_in_memory(method):
     for weights in (None, w):
         ref = pg.absolute_orientation(x, X, method=method, weights=weights, statistics=False)
         fit = pg.distributed.absolute_orientation(
-            da.from_array(x, chunks=(7000, 3)), da.from_array(X, chunks=(9000, 3)),
-            method=method, weights=weights, scheduler="sync",
+            da.from_array(x, chunks=(7000, 3)),
+            da.from_array(X, chunks=(9000, 3)),
+            method=method,
+            weights=weights,
+            scheduler="sync",
         )
         assert abs(fit.scale - ref.scale) < 1e-13
         np.testing.assert_allclose(fit.rotation, ref.rotation, rtol=0, atol=1e-13)
@@ -59,9 +63,7 @@ def test_chunked_moments_any_split_and_far_from_origin():
     x, X, _ = _data(5000, seed=4)
     ref = pg.absolute_orientation(x, X, method="svd", statistics=False)
     splits = [0, 1, 2, 3, 700, 701, 4999, 5000]  # empty and one-point chunks too
-    fit = absolute_orientation_chunks(
-        (x[a:b], X[a:b]) for a, b in zip(splits[:-1], splits[1:])
-    )
+    fit = absolute_orientation_chunks((x[a:b], X[a:b]) for a, b in itertools.pairwise(splits))
     np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-13)
     np.testing.assert_allclose(fit.translation, ref.translation, atol=1e-7)
 
@@ -92,7 +94,9 @@ def test_transform_array_is_lazy_and_blockwise():
 def test_map_items_collects_failures_in_order(scheduler):
     seen = []
     res = pg.distributed.map_items(
-        functools.partial(_square_or_fail, bad=(2, 5)), range(8), scheduler=scheduler,
+        functools.partial(_square_or_fail, bad=(2, 5)),
+        range(8),
+        scheduler=scheduler,
         progress=lambda done, total: seen.append((done, total)),
     )
     assert res.results == [0, 1, None, 9, 16, None, 36, 49]
@@ -120,9 +124,7 @@ def test_map_items_on_a_local_cluster_resections():
     assert [f.index for f in res.failures] == [4]
     assert "TooFewPointsError" in res.failures[0].error
     for eo, got in zip(truth, res.results[:4]):
-        np.testing.assert_allclose(
-            [got.X0, got.Y0, got.Z0], [eo.X0, eo.Y0, eo.Z0], atol=1e-6
-        )
+        np.testing.assert_allclose([got.X0, got.Y0, got.Z0], [eo.X0, eo.Y0, eo.Z0], atol=1e-6)
 
 
 def test_scheduler_values():

@@ -96,9 +96,16 @@ ELLIPSOIDS: dict[str, Ellipsoid] = {
         Ellipsoid("Airy1830", 6377563.396, 299.3249646),
     )
 }
-_ALIASES = {"WGS 84": "WGS84", "WGS-84": "WGS84", "GRS 1980": "GRS80", "BESSEL": "BESSEL1841",
-            "INTL": "INTERNATIONAL1924", "KRASS": "KRASSOWSKY1940", "AIRY": "AIRY1830",
-            "CLRK66": "CLARKE1866"}
+_ALIASES = {
+    "WGS 84": "WGS84",
+    "WGS-84": "WGS84",
+    "GRS 1980": "GRS80",
+    "BESSEL": "BESSEL1841",
+    "INTL": "INTERNATIONAL1924",
+    "KRASS": "KRASSOWSKY1940",
+    "AIRY": "AIRY1830",
+    "CLRK66": "CLARKE1866",
+}
 
 
 def get_ellipsoid(ellipsoid: str | tuple[float, float] | Ellipsoid = "WGS84") -> Ellipsoid:
@@ -128,9 +135,10 @@ def get_ellipsoid(ellipsoid: str | tuple[float, float] | Ellipsoid = "WGS84") ->
                         b = float(p["b"])
                         rf = math.inf if b == a else a / (a - b)
                     return Ellipsoid(name, a, rf)
+        known = ", ".join(e.name for e in ELLIPSOIDS.values())
         raise InputError(
-            f"unknown ellipsoid {ellipsoid!r}; known: {', '.join(e.name for e in ELLIPSOIDS.values())}"
-            " (any PROJ ellipsoid name with pyproj installed), or pass (a, 1/f)"
+            f"unknown ellipsoid {ellipsoid!r}; known: {known} (any PROJ ellipsoid name with "
+            "pyproj installed), or pass (a, 1/f)"
         )
     try:
         a, rf = (float(v) for v in ellipsoid)
@@ -226,11 +234,13 @@ def enu_rotation(lat0: float, lon0: float) -> np.ndarray:
         raise InputError(f"origin lat0={lat0}, lon0={lon0}: need finite values, |lat0| <= 90")
     phi, lam = math.radians(lat0), math.radians(lon0)
     sp, cp, sl, cl = math.sin(phi), math.cos(phi), math.sin(lam), math.cos(lam)
-    return np.array([
-        [-sl, cl, 0.0],
-        [-sp * cl, -sp * sl, cp],
-        [cp * cl, cp * sl, sp],
-    ])
+    return np.array(
+        [
+            [-sl, cl, 0.0],
+            [-sp * cl, -sp * sl, cp],
+            [cp * cl, cp * sl, sp],
+        ]
+    )
 
 
 def _points3(values, name: str) -> tuple[np.ndarray, bool]:
@@ -272,8 +282,9 @@ def curvature_drop(distance, *, lat0: float = 45.0, ellipsoid="WGS84"):
     of the (negative) U coordinate of the ellipsoid point there, ``~ d^2 / (2 R)`` with the
     Gaussian mean radius ``R = sqrt(M N)`` at ``lat0`` (about 7.8 cm at 1 km, 7.8 m at
     10 km; the radius of curvature depends on the direction, from the meridian radius M
-    to N, so the true drop differs by up to 0.7 %). It is what a block adjusted in a local Cartesian frame must carry as height,
-    not an error of the frame (see ``docs/crs-and-clouds.md``).
+    to N, so the true drop differs by up to 0.7 %). It is what a block adjusted in a local
+    Cartesian frame must carry as height, not an error of the frame
+    (see ``docs/crs-and-clouds.md``).
     """
     d = np.asarray(distance, dtype=float)
     ell = get_ellipsoid(ellipsoid)
@@ -353,8 +364,13 @@ class LocalFrame:
 
     def to_dict(self) -> dict:
         """JSON-ready description (for results and reports)."""
-        return {"frame": "ENU", "lat0_deg": self.lat0, "lon0_deg": self.lon0, "h0_m": self.h0,
-                "ellipsoid": get_ellipsoid(self.ellipsoid).name}
+        return {
+            "frame": "ENU",
+            "lat0_deg": self.lat0,
+            "lon0_deg": self.lon0,
+            "h0_m": self.h0,
+            "ellipsoid": get_ellipsoid(self.ellipsoid).name,
+        }
 
 
 # --- any CRS, through pyproj ------------------------------------------------------------------

@@ -6,6 +6,8 @@
 * :func:`transform_array` - apply a transformation to a ``dask.array`` of points (n, 3);
 * :func:`absolute_orientation` - the absolute orientation of two ``dask.array`` point sets
   in one pass over the data (moments per block, merged exactly);
+* :func:`register_clouds` - absolute orientation of one LAS/LAZ cloud to another from
+  corresponding points, with check-pair statistics;
 * :func:`scheduler_client` - the Dask client for a ``scheduler=`` value.
 
 ``scheduler`` values (also ``--scheduler`` on the command line):
@@ -27,7 +29,7 @@ from __future__ import annotations
 import os
 import time
 import traceback
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
@@ -37,10 +39,12 @@ import numpy as np
 from .errors import InputError, PhotogeomError
 
 __all__ = [
+    "CloudRegistration",
     "ItemFailure",
     "MapResult",
     "absolute_orientation",
     "map_items",
+    "register_clouds",
     "scheduler_client",
     "transform_array",
 ]
@@ -122,7 +126,10 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
         return
     n = arg or max(1, os.cpu_count() or 1)
     cluster = distributed.LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
         silence_logs=40,
     )
     client = distributed.Client(cluster)
@@ -199,7 +206,8 @@ class MapResult:
             more = len(self.failures) - 5
             raise PhotogeomError(
                 f"{len(self.failures)} of {len(self.results)} item(s) failed:\n"
-                + "\n".join(lines) + (f"\n  ... and {more} more" if more > 0 else "")
+                + "\n".join(lines)
+                + (f"\n  ... and {more} more" if more > 0 else "")
             )
 
 
@@ -208,7 +216,7 @@ def _guarded(func: Callable, item: Any) -> tuple[bool, Any]:
     stop the job)."""
     try:
         return True, func(item)
-    except Exception as exc:  # noqa: BLE001 - collected and reported per item
+    except Exception as exc:
         return False, (f"{type(exc).__name__}: {exc}", traceback.format_exc())
 
 
@@ -376,7 +384,170 @@ def absolute_orientation(
         parts = [delayed(chunk_moments)(a, b, c) for a, b, c in zip(xb, Xb, wb)]
     # merge in a tree on the workers: only small tuples travel
     while len(parts) > 1:
-        parts = [delayed(merge_moments)(parts[i:i + 16]) for i in range(0, len(parts), 16)]
+        parts = [delayed(merge_moments)(parts[i : i + 16]) for i in range(0, len(parts), 16)]
     (moments,) = _compute(parts[0], scheduler=scheduler)
-    return fit_from_moments(moments, int(x.shape[0]), method=method, with_scale=with_scale,
-                            scale_method=scale_method, unit=unit, t0=t0)
+    return fit_from_moments(
+        moments,
+        int(x.shape[0]),
+        method=method,
+        with_scale=with_scale,
+        scale_method=scale_method,
+        unit=unit,
+        t0=t0,
+    )
+
+
+# --- registration of one cloud to another ------------------------------------------------------
+
+
+def _pair_block(src: str, dst: str, start: int, stop: int, check_every: int, want: str):
+    """Moments of the control pairs (``want="moments"``) or residual sums of the check pairs
+    (``want="checks"``, a tuple ``(count, sum v, sum v^2, max |v|)``) of points start:stop."""
+    from .io.cloud import read_cloud_xyz
+
+    x = read_cloud_xyz(src, start, stop)
+    X = read_cloud_xyz(dst, start, stop)
+    if check_every:
+        is_check = (np.arange(start, stop) % check_every) == 0
+    else:
+        is_check = np.zeros(stop - start, dtype=bool)
+    if want == "moments":
+        from .orientation.absolute_chunked import chunk_moments
+
+        return chunk_moments(x[~is_check], X[~is_check])
+    return x[is_check], X[is_check]
+
+
+def _check_sums(block, transform) -> tuple:
+    x, X = block
+    if x.shape[0] == 0:
+        return 0, np.zeros(3), np.zeros(3), 0.0
+    v = transform.apply(x) - X
+    return (
+        x.shape[0],
+        v.sum(axis=0),
+        (v * v).sum(axis=0),
+        float(np.sqrt((v * v).sum(axis=1)).max()),
+    )
+
+
+@dataclass(frozen=True)
+class CloudRegistration:
+    """Result of :func:`register_clouds`.
+
+    Attributes
+    ----------
+    fit : AbsoluteOrientationFit
+        From the control pairs (parameters, no per-point statistics).
+    n_control, n_check : int
+    check_rms : numpy.ndarray, shape (3,)
+        Per-axis RMS of the check-pair residuals (computed minus observed, target units).
+    check_rmse : float
+        Per-point RMSE ``sqrt(sum |v|^2 / n_check)``.
+    check_mean : numpy.ndarray, shape (3,)
+        Mean residual per axis (a systematic shift shows here).
+    check_max : float
+        Largest residual length.
+    control_rmse : float
+        ``sqrt(sum_squared_residuals / n_control)`` of the control pairs (from the moments).
+    """
+
+    fit: Any
+    n_control: int
+    n_check: int
+    check_rms: np.ndarray
+    check_rmse: float
+    check_mean: np.ndarray
+    check_max: float
+    control_rmse: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready (NaN where there are no check pairs)."""
+        f = self.fit
+        return {
+            "method": f.method,
+            "scale": f.scale,
+            "rotation": np.asarray(f.rotation).tolist(),
+            "translation": np.asarray(f.translation).tolist(),
+            "angles_transposed_rad": [f.params[k] for k in ("omega", "phi", "kappa")],
+            "n_control": self.n_control,
+            "n_check": self.n_check,
+            "control_rmse": self.control_rmse,
+            "check_rmse": self.check_rmse,
+            "check_rms": self.check_rms.tolist(),
+            "check_mean": self.check_mean.tolist(),
+            "check_max": self.check_max,
+            "transform": f.transform.to_dict(),
+        }
+
+
+def register_clouds(
+    source,
+    target,
+    *,
+    method: str = "svd",
+    with_scale: bool = True,
+    check_every: int = 0,
+    chunk_size: int = 1_000_000,
+    scheduler: str | None = "threads",
+) -> CloudRegistration:
+    """Absolute orientation of the cloud ``source`` to ``target`` (LAS/LAZ files whose points
+    correspond one to one, in file order), out of core, with check-pair statistics.
+
+    Every ``check_every``-th pair (indices 0, k, 2k, ...) is kept out of the estimate and its
+    residuals are reported (``0``: no check pairs). Two passes over the files: the moments of
+    the control pairs, then the residuals of the check pairs (skipped without check pairs).
+    Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``.
+    """
+    from .io.cloud import _check_chunk, cloud_info
+    from .orientation.absolute_chunked import fit_from_moments, merge_moments
+
+    t0 = time.perf_counter()
+    _, delayed = _dask()
+    chunk_size = _check_chunk(chunk_size)
+    check_every = int(check_every)
+    if check_every < 0 or check_every == 1:
+        raise InputError(
+            f"check_every={check_every}: give 0 (no check pairs) or k >= 2 (every k-th pair)"
+        )
+    n = cloud_info(source).point_count
+    m = cloud_info(target).point_count
+    if n != m:
+        raise InputError(
+            f"{source} has {n} points and {target} {m}: registration needs corresponding "
+            "points, the same count in the same order"
+        )
+    src, dst = str(source), str(target)
+    ranges = [(i, min(i + chunk_size, n)) for i in range(0, n, chunk_size)]
+    parts = [delayed(_pair_block)(src, dst, a, b, check_every, "moments") for a, b in ranges]
+    while len(parts) > 1:
+        parts = [delayed(merge_moments)(parts[i : i + 16]) for i in range(0, len(parts), 16)]
+    n_check = 0 if not check_every else len(range(0, n, check_every))
+    (moments,) = _compute(parts[0], scheduler=scheduler)
+    fit = fit_from_moments(moments, n - n_check, method=method, with_scale=with_scale, t0=t0)
+    if n_check:
+        T = fit.transform
+        sums = [
+            delayed(_check_sums)(delayed(_pair_block)(src, dst, a, b, check_every, "checks"), T)
+            for a, b in ranges
+        ]
+        (out,) = _compute(delayed(list)(sums), scheduler=scheduler)
+        cnt = sum(o[0] for o in out)
+        s1 = np.sum([o[1] for o in out], axis=0)
+        s2 = np.sum([o[2] for o in out], axis=0)
+        vmax = max(o[3] for o in out)
+        rms, rmse, mean = np.sqrt(s2 / cnt), float(np.sqrt(s2.sum() / cnt)), s1 / cnt
+    else:
+        rms = mean = np.full(3, np.nan)
+        rmse = vmax = float("nan")
+    ctrl = n - n_check
+    return CloudRegistration(
+        fit,
+        ctrl,
+        n_check,
+        rms,
+        rmse,
+        mean,
+        vmax,
+        float(np.sqrt(fit.extras["sum_squared_residuals"] / ctrl)),
+    )

@@ -26,6 +26,8 @@ _GROUPS = (
     ("orient", "orient"),
     ("camera", "camera"),
     ("rpc", "rpc"),
+    ("cloud", "cloud"),
+    ("crs", "crs"),
     ("examples", "examples"),
 )
 

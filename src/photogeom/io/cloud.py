@@ -99,20 +99,27 @@ class CloudInfo:
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {
-            "path": self.path, "point_count": self.point_count,
-            "point_format": self.point_format, "version": self.version,
-            "compressed": self.compressed, "scales": self.scales.tolist(),
-            "offsets": self.offsets.tolist(), "mins": self.mins.tolist(),
-            "maxs": self.maxs.tolist(), "dimensions": list(self.dimensions),
-            "extra_dimensions": list(self.extra_dimensions), "crs_name": self.crs_name,
-            "crs": self.crs, "vlrs": list(self.vlrs),
+            "path": self.path,
+            "point_count": self.point_count,
+            "point_format": self.point_format,
+            "version": self.version,
+            "compressed": self.compressed,
+            "scales": self.scales.tolist(),
+            "offsets": self.offsets.tolist(),
+            "mins": self.mins.tolist(),
+            "maxs": self.maxs.tolist(),
+            "dimensions": list(self.dimensions),
+            "extra_dimensions": list(self.extra_dimensions),
+            "crs_name": self.crs_name,
+            "crs": self.crs,
+            "vlrs": list(self.vlrs),
         }
 
 
 def _header_crs(header) -> tuple[str | None, str | None]:
     try:
         crs = header.parse_crs()
-    except Exception:  # noqa: BLE001 - laspy raises several types for unusual GeoTIFF keys
+    except Exception:
         crs = None
     if crs is None:
         return None, None
@@ -127,14 +134,21 @@ def cloud_info(path) -> CloudInfo:
         wkt, name = _header_crs(h)
         pf = h.point_format
         return CloudInfo(
-            path=str(path), point_count=int(h.point_count), point_format=int(pf.id),
+            path=str(path),
+            point_count=int(h.point_count),
+            point_format=int(pf.id),
             version=f"{h.version.major}.{h.version.minor}",
-            compressed=bool(h.are_points_compressed) if hasattr(h, "are_points_compressed")
+            compressed=bool(h.are_points_compressed)
+            if hasattr(h, "are_points_compressed")
             else str(path).lower().endswith(".laz"),
-            scales=np.array(h.scales, dtype=float), offsets=np.array(h.offsets, dtype=float),
-            mins=np.array(h.mins, dtype=float), maxs=np.array(h.maxs, dtype=float),
+            scales=np.array(h.scales, dtype=float),
+            offsets=np.array(h.offsets, dtype=float),
+            mins=np.array(h.mins, dtype=float),
+            maxs=np.array(h.maxs, dtype=float),
             dimensions=tuple(pf.dimension_names),
-            extra_dimensions=tuple(pf.extra_dimension_names), crs=wkt, crs_name=name,
+            extra_dimensions=tuple(pf.extra_dimension_names),
+            crs=wkt,
+            crs_name=name,
             vlrs=tuple(type(v).__name__ for v in h.vlrs),
         )
 
@@ -392,9 +406,10 @@ def transform_cloud(
     chunks = 0
     done = 0
     with _atomic_target(dst) as tmp:
-        with _open_read(src) as reader, laspy.open(
-            tmp, mode="w", header=header, do_compress=compress
-        ) as writer:
+        with (
+            _open_read(src) as reader,
+            laspy.open(tmp, mode="w", header=header, do_compress=compress) as writer,
+        ):
             for pts in reader.chunk_iterator(chunk_size):
                 _rewrite(pts, fn, sc, off)
                 writer.write_points(pts)
@@ -404,13 +419,29 @@ def transform_cloud(
                     progress(done, n)
     info = cloud_info(dst)
     return CloudTransformResult(
-        str(dst), info.point_count, info.scales, info.offsets, info.mins, info.maxs,
-        info.crs_name, chunks, passes,
+        str(dst),
+        info.point_count,
+        info.scales,
+        info.offsets,
+        info.mins,
+        info.maxs,
+        info.crs_name,
+        chunks,
+        passes,
     )
 
 
-def write_cloud(path, xyz, *, scales=(0.001, 0.001, 0.001), offsets=None, crs=None,
-                point_format: int = 6, version: str = "1.4", extra: dict | None = None) -> Path:
+def write_cloud(
+    path,
+    xyz,
+    *,
+    scales=(0.001, 0.001, 0.001),
+    offsets=None,
+    crs=None,
+    point_format: int = 6,
+    version: str = "1.4",
+    extra: dict | None = None,
+) -> Path:
     """Write points (n, 3) to a new LAS/LAZ file (atomically), e.g. a generated test cloud.
 
     ``extra`` maps names to (n,) arrays written as extra-bytes dimensions (their dtype).
@@ -453,7 +484,8 @@ def cloud_dask_xyz(path, chunk_size: int = DEFAULT_CHUNK):
     blocks = [
         da.from_delayed(
             delayed(read_cloud_xyz, pure=True)(str(path), i, min(i + chunk_size, n)),
-            shape=(min(i + chunk_size, n) - i, 3), dtype=float,
+            shape=(min(i + chunk_size, n) - i, 3),
+            dtype=float,
         )
         for i in range(0, n, chunk_size)
     ]

@@ -128,8 +128,7 @@ def fit_from_moments(
     t0 = time.perf_counter() if t0 is None else t0
     if method not in MOMENT_METHODS:
         raise InputError(
-            f"method {method!r} needs all points at once; out of core: "
-            f"{', '.join(MOMENT_METHODS)}"
+            f"method {method!r} needs all points at once; out of core: {', '.join(MOMENT_METHODS)}"
         )
     W, xg, Xg, H, a, b, bad = moments
     if bad:
@@ -150,8 +149,9 @@ def fit_from_moments(
     u = len(names)
     params = _params(t, s, (omega, phi, kappa), with_scale)
     ctx = _Context(n=n, ids=None, unit=unit, t0=t0)
-    fit = _bare_fit(_similarity(s, R, t), method, names, params, u, 3 * n - u, 3 * n,
-                    with_scale, ctx, notes)
+    fit = _bare_fit(
+        _similarity(s, R, t), method, names, params, u, 3 * n - u, 3 * n, with_scale, ctx, notes
+    )
     vtv = s * s * pm.a - 2.0 * s * float(np.trace(R @ pm.H)) + pm.b
     fit.extras["sum_squared_residuals"] = max(vtv, 0.0) if math.isfinite(vtv) else math.nan
     return fit
@@ -176,5 +176,12 @@ def absolute_orientation_chunks(
         n += int(np.shape(x)[0])
         if len(parts) > 64:  # keep the list short: merge as we go
             parts = [merge_moments(parts)]
-    return fit_from_moments(merge_moments(parts), n, method=method, with_scale=with_scale,
-                            scale_method=scale_method, unit=unit, t0=t0)
+    return fit_from_moments(
+        merge_moments(parts),
+        n,
+        method=method,
+        with_scale=with_scale,
+        scale_method=scale_method,
+        unit=unit,
+        t0=t0,
+    )
