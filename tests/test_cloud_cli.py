@@ -84,7 +84,7 @@ def test_register_then_transform(cli, clouds, tmp_path):
 def test_transform_between_crs_and_errors(cli, clouds, tmp_path):
     _, dst, _ = clouds
     geo = tmp_path / "geo.las"
-    code, out, err = cli(
+    code, _out, err = cli(
         "cloud",
         "transform",
         str(dst),
