@@ -460,6 +460,7 @@ class ProjTransform:
         pyproj = _pyproj()
         self.source_crs = parse_crs(src_crs, what="source crs")
         self.target_crs = parse_crs(dst_crs, what="target crs")
+        self._ballpark = bool(allow_ballpark)
         try:
             self.transformer = pyproj.Transformer.from_crs(
                 self.source_crs, self.target_crs, always_xy=True, allow_ballpark=allow_ballpark
@@ -470,6 +471,14 @@ class ProjTransform:
                 f"{crs_name(self.target_crs)} without a ballpark datum shift ({exc}); allow "
                 "it explicitly (allow_ballpark=True / --allow-ballpark)"
             ) from None
+
+    def __getstate__(self) -> dict:
+        # rebuilt on the other side (Dask workers): PROJ objects are not shared
+        return {"src": self.source_crs.to_wkt(), "dst": self.target_crs.to_wkt(),
+                "ballpark": self._ballpark}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["src"], state["dst"], allow_ballpark=state["ballpark"])
 
     @property
     def description(self) -> str:

@@ -15,7 +15,10 @@ laspy and lazrs are an optional extra: ``pip install "photogeom[cloud]"``.
 
 from __future__ import annotations
 
+import functools
 import os
+import shutil
+import struct
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -345,6 +348,7 @@ def transform_cloud(
     scales=None,
     crs=None,
     progress: Callable[[int, int], None] | None = None,
+    scheduler: str | None = None,
 ) -> CloudTransformResult:
     """Transform the points of a LAS/LAZ file into a new file, ``chunk_size`` points at a time.
 
@@ -368,6 +372,10 @@ def transform_cloud(
         transformation's ``target_crs`` if it has one, else the input's record unchanged.
     progress : callable(done, total), optional
         Called after each chunk with points done and total.
+    scheduler : str, optional
+        None (default): in this process, chunk after chunk. Otherwise the pieces of the file
+        are Dask tasks (:func:`transform_cloud_dask`): ``"local"``, ``"local:N"``, a
+        scheduler address, ``"threads"``; the output is the same.
 
     Notes
     -----
@@ -377,6 +385,17 @@ def transform_cloud(
     affine transformations; a first pass over the points for others), scales are kept, and
     coordinates are rounded to the scale like any LAS writer does.
     """
+    if scheduler is not None:
+        return transform_cloud_dask(
+            src,
+            dst,
+            transform,
+            chunk_size,
+            scheduler=scheduler,
+            scales=scales,
+            crs=crs,
+            progress=progress,
+        )
     laspy = _laspy()
     chunk_size = _check_chunk(chunk_size)
     fn = _as_apply(transform)
@@ -492,3 +511,247 @@ def cloud_dask_xyz(path, chunk_size: int = DEFAULT_CHUNK):
     if not blocks:
         return da.zeros((0, 3), chunks=(1, 3))
     return da.concatenate(blocks, axis=0)
+
+
+# --- the same job as Dask tasks ---------------------------------------------------------------
+
+#: Points per chunk of laspy's LAZ writer (lazrs default); pieces written by separate tasks
+#: are whole multiples of it so that their chunk tables join into one file.
+LAZ_CHUNK = 50_000
+_COPY_BLOCK = 1 << 24
+
+
+def _piece_bounds(src: str, start: int, stop: int, transform, chunk_size: int):
+    """Bounds (lo, hi) of the transformed points start:stop (first pass of a non-affine
+    transformation)."""
+    fn = _as_apply(transform)
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    with _open_read(src) as reader:
+        reader.seek(start)
+        left = stop - start
+        while left > 0:
+            pts = reader.read_points(min(chunk_size, left))
+            left -= len(pts)
+            out = fn(_xyz(pts))
+            lo = np.minimum(lo, out.min(axis=0))
+            hi = np.maximum(hi, out.max(axis=0))
+    return lo, hi
+
+
+def _write_piece(
+    src: str, part: str, start: int, stop: int, transform, header, chunk_size: int, compress: bool
+) -> int:
+    """Transform points start:stop of ``src`` into the complete LAS/LAZ file ``part``."""
+    laspy = _laspy()
+    fn = _as_apply(transform)
+    sc = np.array(header.scales, dtype=float)
+    off = np.array(header.offsets, dtype=float)
+    with (
+        _open_read(src) as reader,
+        laspy.open(
+            part,
+            mode="w",
+            header=header,
+            do_compress=compress,
+            laz_backend=laspy.LazBackend.Lazrs if compress else None,
+        ) as writer,
+    ):
+        reader.seek(start)
+        left = stop - start
+        while left > 0:
+            pts = reader.read_points(min(chunk_size, left))
+            left -= len(pts)
+            _rewrite(pts, fn, sc, off)
+            writer.write_points(pts)
+    return stop - start
+
+
+def _laz_vlr(raw: bytes):
+    """The LASzip VLR of a file's header bytes."""
+    import lazrs
+
+    pos = struct.unpack_from("<H", raw, 94)[0]
+    for _ in range(struct.unpack_from("<I", raw, 100)[0]):
+        uid = raw[pos + 2 : pos + 18].rstrip(b"\0")
+        ln = struct.unpack_from("<H", raw, pos + 20)[0]
+        if uid == b"laszip encoded":
+            return lazrs.LazVlr(raw[pos + 54 : pos + 54 + ln])
+        pos += 54 + ln
+    raise FileFormatError("LAZ piece without a LASzip VLR")  # pragma: no cover
+
+
+def _copy(fin, fout, nbytes: int) -> None:
+    while nbytes > 0:
+        block = fin.read(min(_COPY_BLOCK, nbytes))
+        if not block:
+            raise FileFormatError("a piece of the output ended early")  # pragma: no cover
+        fout.write(block)
+        nbytes -= len(block)
+
+
+def _merge_pieces(parts: list[Path], out: Path, compress: bool) -> None:
+    """Join complete LAS/LAZ files written with one header into one file: the header of the
+    first with the counts, per-return counts and bounds of all; the point data one after the
+    other (LAZ: the compressed chunks, and one chunk table for all)."""
+    laspy = _laspy()
+    heads = []
+    for p in parts:
+        with laspy.open(p) as r:
+            heads.append(r.header)
+    total = sum(int(h.point_count) for h in heads)
+    by_return = np.sum(
+        [np.asarray(h.number_of_points_by_return, dtype=np.int64) for h in heads if h.point_count],
+        axis=0,
+    )
+    mins = np.min([h.mins for h in heads if h.point_count], axis=0)
+    maxs = np.max([h.maxs for h in heads if h.point_count], axis=0)
+    with open(parts[0], "rb") as f0:
+        start = struct.unpack_from("<I", f0.read(100), 96)[0]
+        f0.seek(0)
+        raw = bytearray(f0.read(start))
+    minor = raw[25]
+    rec_len = struct.unpack_from("<H", raw, 105)[0]
+    if struct.unpack_from("<I", raw, 107)[0] or total == 0:
+        legacy = total if total <= 0xFFFFFFFF and raw[104] < 6 else 0
+        struct.pack_into("<I", raw, 107, legacy)
+        if legacy:
+            struct.pack_into("<5I", raw, 111, *[int(v) for v in by_return[:5]])
+    struct.pack_into("<6d", raw, 179, maxs[0], mins[0], maxs[1], mins[1], maxs[2], mins[2])
+    if minor >= 4:
+        struct.pack_into("<Q", raw, 247, total)
+        br = np.zeros(15, dtype=np.int64)
+        br[: by_return.size] = by_return[:15]
+        struct.pack_into("<15Q", raw, 255, *[int(v) for v in br])
+    with open(out, "wb") as fo:
+        fo.write(raw)
+        if compress:
+            import lazrs
+
+            vlr = _laz_vlr(bytes(raw))
+            fo.write(b"\0" * 8)  # offset to the chunk table, filled in below
+            table = []
+            for p, h in zip(parts, heads):
+                if not h.point_count:
+                    continue
+                with open(p, "rb") as fi:
+                    fi.seek(start)
+                    entries = lazrs.read_chunk_table(fi, vlr)  # leaves fi at the first chunk
+                    _copy(fi, fo, sum(int(e[1]) for e in entries))
+                    table.extend(entries)
+            at = fo.tell()
+            lazrs.write_chunk_table(fo, table, vlr)
+            fo.seek(start)
+            fo.write(struct.pack("<q", at))
+        else:
+            for p, h in zip(parts, heads):
+                with open(p, "rb") as fi:
+                    fi.seek(start)
+                    _copy(fi, fo, int(h.point_count) * rec_len)
+        fo.flush()
+        os.fsync(fo.fileno())
+
+
+def transform_cloud_dask(
+    src,
+    dst,
+    transform,
+    chunk_size: int = DEFAULT_CHUNK,
+    *,
+    scheduler: str | None = None,
+    scales=None,
+    crs=None,
+    progress: Callable[[int, int], None] | None = None,
+) -> CloudTransformResult:
+    """:func:`transform_cloud` as Dask tasks: each task transforms a piece of the file into
+    a complete LAS/LAZ file of its own (pieces are whole multiples of the LAZ chunk of 50 000
+    points), and the pieces are joined into ``dst`` without recompression (one chunk table).
+
+    ``scheduler`` as in :mod:`photogeom.distributed` (a local cluster by default); every
+    worker must see ``src`` and the directory of ``dst`` (a shared file system on a real
+    cluster). The output equals :func:`transform_cloud`'s point for point (same header
+    fields, VLRs and integers; only the optional min/max statistics of extra-bytes
+    descriptors, which laspy's writer updates per written chunk, can differ); the pieces
+    take as much disk space as the output until they are joined.
+    ``progress(done, total)`` counts points of finished pieces. Files with extended VLRs
+    (EVLRs, LAS 1.4) are refused: use :func:`transform_cloud`.
+    """
+    from ..distributed import map_items
+
+    chunk_size = _check_chunk(chunk_size)
+    _as_apply(transform)
+    src = Path(src)
+    dst = Path(dst)
+    if dst.resolve() == src.resolve():
+        raise InputError(f"output {dst} is the input file; write to a new file")
+    if crs is None:
+        crs = getattr(transform, "target_crs", None)
+    compress = dst.suffix.lower() == ".laz"
+    with _open_read(src) as reader:
+        n = int(reader.header.point_count)
+        if getattr(reader.header, "number_of_evlrs", 0) or reader.evlrs:
+            raise InputError(
+                f"{src} has extended VLRs (EVLRs), which the joined pieces would drop; "
+                "transform it without a scheduler"
+            )
+        src_header = reader.header
+    piece = max(LAZ_CHUNK, -(-chunk_size // LAZ_CHUNK) * LAZ_CHUNK)
+    ranges = [(i, min(i + piece, n)) for i in range(0, n, piece)] or [(0, 0)]
+    passes = 1
+    bounds = None
+    if not _affine_like(transform):
+        res = map_items(
+            functools.partial(_bounds_item, str(src), transform, chunk_size),
+            ranges,
+            scheduler=scheduler,
+            raise_on_failure=True,
+        )
+        lo = np.min([r[0] for r in res.results], axis=0)
+        hi = np.max([r[1] for r in res.results], axis=0)
+        bounds = (lo, hi) if n else (np.zeros(3), np.zeros(3))
+        passes = 2
+    header = output_header(src_header, transform, scales, crs, bounds)
+    directory = dst.parent if str(dst.parent) else Path(".")
+    if not directory.is_dir():
+        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{dst.name}.pieces.", dir=directory))
+    try:
+        parts = [tmpdir / f"piece-{k:06d}{dst.suffix}" for k in range(len(ranges))]
+        items = [(str(p), a, b) for p, (a, b) in zip(parts, ranges)]
+
+        def _progress(k: int, total: int) -> None:
+            if progress is not None:
+                progress(min(n, k * piece), n)
+
+        map_items(
+            functools.partial(_piece_item, str(src), transform, header, chunk_size, compress),
+            items,
+            scheduler=scheduler,
+            progress=_progress,
+            raise_on_failure=True,
+        )
+        with _atomic_target(dst) as tmp:
+            _merge_pieces(parts, tmp, compress)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+    info = cloud_info(dst)
+    return CloudTransformResult(
+        str(dst),
+        info.point_count,
+        info.scales,
+        info.offsets,
+        info.mins,
+        info.maxs,
+        info.crs_name,
+        len(ranges),
+        passes,
+    )
+
+
+def _bounds_item(src, transform, chunk_size, rng):
+    return _piece_bounds(src, rng[0], rng[1], transform, chunk_size)
+
+
+def _piece_item(src, transform, header, chunk_size, compress, item):
+    part, a, b = item
+    return _write_piece(src, part, a, b, transform, header, chunk_size, compress)
