@@ -72,6 +72,8 @@ def test_register_then_transform(cli, clouds, tmp_path):
         "--chunk-size",
         "999",
         "-q",
+        "--scheduler",
+        "threads",
     )
     assert code == 0, err
     got = pg.io.read_cloud_xyz(out_laz)

@@ -109,6 +109,14 @@ def transform(
         bool, typer.Option(help="Accept an approximate PROJ datum shift.")
     ] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress.")] = False,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--scheduler",
+            help="Run pieces of the file as Dask tasks: 'local', 'local:N', 'threads' or a "
+            "scheduler address (default: in this process, chunk after chunk).",
+        ),
+    ] = None,
 ) -> None:
     """Transform a cloud with saved parameters (--params) or between CRSs (--from-crs,
     --to-crs), chunk by chunk; point format, extra dimensions, VLRs and the CRS record are
