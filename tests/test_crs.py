@@ -169,3 +169,16 @@ def test_bad_input_names_the_problem():
     with pytest.raises(InputError, match="not a coordinate reference system"):
         pg.crs.parse_crs("EPSG:999999")
     assert pg.crs.get_ellipsoid((6378137.0, 298.257223563)).a == 6378137.0
+
+
+def test_optional_libraries_are_imported_only_when_used():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, photogeom, photogeom.cli.main\n"
+        "print(sorted(m for m in ('laspy', 'lazrs', 'dask', 'distributed', 'pyproj') "
+        "if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -381,7 +381,7 @@ def _pyproj():
         import pyproj
     except ImportError:  # pragma: no cover - depends on the installation
         raise InputError(
-            "coordinate reference systems need pyproj: pip install 'photogeom[cloud]'"
+            "coordinate reference systems need pyproj: pip install 'photogeom[crs]'"
         ) from None
     return pyproj
 
