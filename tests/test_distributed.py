@@ -20,11 +20,6 @@ def _square_or_fail(i, bad=(3,)):
     return i * i
 
 
-def _resect(item):
-    ground, image, io = item
-    return pg.space_resection(ground, image, io).exterior
-
-
 def _data(n=60000, seed=0):
     rng = np.random.default_rng(seed)
     x = rng.normal(size=(n, 3)) * [80.0, 60.0, 10.0] + [512000.0, 5400000.0, 400.0]
@@ -120,10 +115,11 @@ def test_map_items_on_a_local_cluster_resections():
         items.append((ground, pg.project(ground, io, eo), io))
         truth.append(eo)
     items.append((ground[:2], pg.project(ground[:2], io, truth[0]), io))  # too few points
-    res = pg.distributed.map_items(_resect, items, scheduler="local:2")
+    res = pg.distributed.resect_images(items, scheduler="local:2")
     assert [f.index for f in res.failures] == [4]
     assert "TooFewPointsError" in res.failures[0].error
-    for eo, got in zip(truth, res.results[:4]):
+    for eo, fit in zip(truth, res.results[:4]):
+        got = fit.exterior
         np.testing.assert_allclose([got.X0, got.Y0, got.Z0], [eo.X0, eo.Y0, eo.Z0], atol=1e-6)
 
 
@@ -133,3 +129,19 @@ def test_scheduler_values():
     with pytest.raises(InputError, match="scheduler address"):
         pg.distributed.map_items(abs, [1], scheduler="bogus")
     assert pg.distributed.map_items(abs, [], scheduler="local").results == []
+
+
+def test_rpc_localisation_of_many_files():
+    names = ["ikonos", "pleiades", "worldview2"]
+    paths = [pg.datasets.path(n) for n in names]
+    col, row, h = np.array([100.0, 2000.0]), np.array([50.0, 1500.0]), np.array([30.0, 30.0])
+    res = pg.distributed.localize_files(
+        [*paths, "missing_RPC.TXT"], (col, row, h), scheduler="threads"
+    )
+    assert [f.index for f in res.failures] == [3]
+    for p, (lon, lat) in zip(paths, res.results[:3]):
+        lon0, lat0 = pg.RPC.from_file(p).localize(col, row, h)
+        np.testing.assert_array_equal(lon, lon0)
+        np.testing.assert_array_equal(lat, lat0)
+    with pytest.raises(InputError, match="point sets for"):
+        pg.distributed.localize_files(paths, [(col, row, h)], scheduler="sync")

@@ -8,6 +8,8 @@
   in one pass over the data (moments per block, merged exactly);
 * :func:`register_clouds` - absolute orientation of one LAS/LAZ cloud to another from
   corresponding points, with check-pair statistics;
+* :func:`localize_files`, :func:`resect_images` - per-image jobs of a block (RPC
+  localisation in many files, space resection of many images) on :func:`map_items`;
 * :func:`scheduler_client` - the Dask client for a ``scheduler=`` value.
 
 ``scheduler`` values (also ``--scheduler`` on the command line):
@@ -43,8 +45,10 @@ __all__ = [
     "ItemFailure",
     "MapResult",
     "absolute_orientation",
+    "localize_files",
     "map_items",
     "register_clouds",
+    "resect_images",
     "scheduler_client",
     "transform_array",
 ]
@@ -550,4 +554,107 @@ def register_clouds(
         mean,
         vmax,
         float(np.sqrt(fit.extras["sum_squared_residuals"] / ctrl)),
+    )
+
+
+# --- per-image jobs of a block ----------------------------------------------------------------
+
+
+def _localize_one(item, options: dict):
+    path, (col, row, h) = item
+    from .rpc import RPC
+
+    lon, lat = RPC.from_file(path).localize(col, row, h, **options)
+    return np.asarray(lon), np.asarray(lat)
+
+
+def localize_files(
+    paths: Sequence,
+    points,
+    *,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    **options,
+) -> MapResult:
+    """RPC localisation in many image files, one Dask task per file.
+
+    Parameters
+    ----------
+    paths : sequence of path
+        RPC files (any format :meth:`photogeom.RPC.from_file` reads).
+    points : tuple (col, row, h) or sequence of such tuples
+        Image points (pixels, centre of the first pixel at (0, 0)) and ellipsoidal heights
+        (m): one tuple for all files, or one per file.
+    options
+        Passed to :meth:`photogeom.RPC.localize` (``tol``, ``max_iter``, ``on_failure``...).
+
+    Returns
+    -------
+    MapResult
+        ``results[i] = (lon, lat)`` (degrees) of file i; unreadable files and failed
+        localisations are in ``failures``.
+    """
+    paths = [str(p) for p in paths]
+    if isinstance(points, tuple) and len(points) == 3 and not isinstance(points[0], tuple):
+        per_file = [points] * len(paths)
+    else:
+        per_file = list(points)
+        if len(per_file) != len(paths):
+            raise InputError(
+                f"{len(per_file)} point sets for {len(paths)} files: give one (col, row, h) "
+                "for all files or one per file"
+            )
+    import functools
+
+    return map_items(
+        functools.partial(_localize_one, options=options),
+        list(zip(paths, per_file)),
+        scheduler=scheduler,
+        progress=progress,
+    )
+
+
+def _resect_one(item, io, options: dict):
+    from .orientation.resection import space_resection
+
+    ground, image, *rest = item
+    return space_resection(ground, image, rest[0] if rest else io, **options)
+
+
+def resect_images(
+    problems: Sequence,
+    io=None,
+    *,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    **options,
+):
+    """Space resection of many images, one Dask task per image.
+
+    Parameters
+    ----------
+    problems : sequence of (ground, image) or (ground, image, io)
+        Control points per image: object coordinates (n, 3) and image coordinates (n, 2),
+        optionally the image's own interior orientation.
+    io : InteriorOrientation, optional
+        Interior orientation of every image without its own.
+    options
+        Passed to :func:`photogeom.space_resection` (``system``, ``calibrate``, ...).
+
+    Returns
+    -------
+    MapResult
+        ``results[i]`` is the :class:`~photogeom.ResectionFit` of image i; images that fail
+        (too few points, no convergence, ...) are in ``failures``.
+    """
+    import functools
+
+    problems = list(problems)
+    if io is None and any(len(p) < 3 for p in problems):
+        raise InputError("give io= or an interior orientation with every image's points")
+    return map_items(
+        functools.partial(_resect_one, io=io, options=options),
+        problems,
+        scheduler=scheduler,
+        progress=progress,
     )
