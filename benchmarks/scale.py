@@ -220,6 +220,7 @@ def main() -> None:
         r.update(kind=kind, ok=ok, extra=extra)
         rows.append(r)
         dst.unlink()
+        print(f"  {kind}: {r['seconds']:.1f} s, peak {r['peak_mb']:.0f} MB", flush=True)
     base = rows[0]["seconds"]
     print(f"{'job':<26}{'time [s]':>10}{'points/s':>12}{'vs laspy':>10}{'peak MB':>10}  check")
     names = {"laspy": "laspy + numpy loop", "photogeom": "transform_cloud"}

@@ -182,3 +182,23 @@ def test_optional_libraries_are_imported_only_when_used():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("convention", ["position_vector", "coordinate_frame"])
+def test_helmert_estimate_recovers_a_proj_datum_step(convention):
+    """Points moved by PROJ's +proj=helmert (published-size parameters): the absolute
+    orientation gives PROJ's parameters back in the same EPSG convention."""
+    p = {"x": 584.8, "y": 67.0, "z": 400.3, "rx": 0.105, "ry": 0.013, "rz": -2.378, "s": 10.29}
+    step = " ".join(f"+{k}={v}" for k, v in p.items())
+    op = pyproj.Transformer.from_pipeline(f"+proj=helmert {step} +convention={convention} +exact")
+    lat, lon = np.meshgrid(np.linspace(45, 55, 6), np.linspace(5, 15, 6))
+    src = np.column_stack(pg.crs.geodetic_to_ecef(lat.ravel(), lon.ravel(), 300.0))
+    dst = np.column_stack(op.transform(*src.T))
+    fit = pg.absolute_orientation(src, dst, method="svd")
+    got = fit.transform.helmert_parameters(convention)
+    for ours, theirs in (("tx", "x"), ("ty", "y"), ("tz", "z")):
+        assert abs(got[ours] - p[theirs]) < 2e-5
+    for key in ("rx", "ry", "rz"):
+        assert abs(got[key] - p[key]) < 1e-6
+    assert abs(got["ds"] - p["s"]) < 1e-6
+    assert fit.rmse < 1e-8
