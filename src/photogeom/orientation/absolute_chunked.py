@@ -2,9 +2,9 @@
 
 The direct solvers (SVD, quaternion, dual quaternion, direct Gauss-Helmert) need only the
 weighted moments of the two point sets (centroids, cross-covariance ``H``, sums of squares).
-Here each chunk of corresponding points gives its *centred* moments (about its own
-centroids, by :func:`~photogeom.orientation.absolute_direct.large_moments`' one-pass
-kernel), and chunks are merged with the pairwise update of Chan, Golub & LeVeque (1979):
+Here each chunk of corresponding points gives its *centred* moments (by the in-memory
+accumulator :func:`~photogeom.orientation.absolute_direct.large_moments`), and chunks are
+merged with the pairwise update of Chan, Golub & LeVeque (1979):
 
     W = W1 + W2,   d = m2 - m1 (centroid differences),
     H = H1 + H2 + (W1 W2 / W) dx dX.T,   a = a1 + a2 + (W1 W2 / W) |dx|^2
@@ -36,7 +36,7 @@ from .absolute import (
     _params,
     _similarity,
 )
-from .absolute_direct import PairMoments, _raw_moments_chunked, _single_threaded_blas, solve_single
+from .absolute_direct import PairMoments, large_moments, solve_single
 from .absolute_stats import opk_transposed
 
 #: Methods that work from moments alone.
@@ -63,21 +63,16 @@ def chunk_moments(x, X, w=None) -> tuple:
     if m == 0:
         z = np.zeros(3)
         return 0.0, z, z, np.zeros((3, 3)), 0.0, 0.0, 0
-    bad = int(np.count_nonzero(~np.isfinite(x)) + np.count_nonzero(~np.isfinite(X)))
-    if w is None:
-        rx = np.add.reduce(x, axis=0) / m
-        rX = np.add.reduce(X, axis=0) / m
-    else:
-        ws = float(np.add.reduce(w))
-        rx = (w @ x) / ws
-        rX = (w @ X) / ws
-    with _single_threaded_blas():
-        W, sx, sX, cross, qx, qX, _ = _raw_moments_chunked(x, X, w, rx, rX, False)
-    # about the chunk centroid the sums sx, sX are rounding-level; fold them in exactly
-    H = cross - np.outer(sx, sX) / W
-    a = qx - float(sx @ sx) / W
-    b = qX - float(sX @ sX) / W
-    return W, rx + sx / W, rX + sX / W, H, a, b, bad
+    # the in-memory accumulator: one pass, about a reference near the data, with its own
+    # second pass (over this chunk only) should the first show cancellation
+    mo = large_moments(x, X, w)
+    H, a, b = mo.H[0], float(mo.a[0]), float(mo.b[0])
+    xg, Xg = mo.source_centroid[0], mo.target_centroid[0]
+    bad = 0
+    if not (math.isfinite(a + b) and np.all(np.isfinite(H)) and np.all(np.isfinite(xg + Xg))):
+        bad = int(np.count_nonzero(~np.isfinite(x)) + np.count_nonzero(~np.isfinite(X)))
+        bad = max(bad, 1)
+    return float(mo.weight[0]), xg, Xg, H, a, b, bad
 
 
 def merge_moments(parts: Iterable[tuple]) -> tuple:
