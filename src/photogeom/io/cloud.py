@@ -45,12 +45,16 @@ def _laspy():
     return laspy
 
 
-def _open_read(path):
+def _open_read(path, single_thread: bool = False):
+    """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
+    core each) instead of lazrs's parallel decoder."""
     laspy = _laspy()
     p = Path(path)
     if not p.is_file():
         raise InputError(f"point cloud {p} does not exist")
     try:
+        if single_thread:
+            return laspy.open(p, laz_backend=laspy.LazBackend.Lazrs)
         return laspy.open(p)
     except laspy.errors.LaspyException as exc:
         raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
@@ -527,7 +531,7 @@ def _piece_bounds(src: str, start: int, stop: int, transform, chunk_size: int):
     fn = _as_apply(transform)
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
-    with _open_read(src) as reader:
+    with _open_read(src, single_thread=True) as reader:
         reader.seek(start)
         left = stop - start
         while left > 0:
@@ -548,7 +552,7 @@ def _write_piece(
     sc = np.array(header.scales, dtype=float)
     off = np.array(header.offsets, dtype=float)
     with (
-        _open_read(src) as reader,
+        _open_read(src, single_thread=True) as reader,
         laspy.open(
             part,
             mode="w",
