@@ -146,3 +146,19 @@ def test_rpc_localisation_of_many_files():
         np.testing.assert_array_equal(lat, lat0)
     with pytest.raises(InputError, match="point sets for"):
         pg.distributed.localize_files(paths, [(col, row, h)], scheduler="sync")
+
+
+def test_cloud_as_dask_array(tmp_path):
+    pytest.importorskip("laspy")
+    x, X, _ = _data(7000)
+    pg.io.write_cloud(tmp_path / "x.laz", x - [512000.0, 5400000.0, 0.0])
+    pg.io.write_cloud(tmp_path / "X.laz", X)
+    dx = pg.io.cloud_dask_xyz(tmp_path / "x.laz", chunk_size=3000)
+    dX = pg.io.cloud_dask_xyz(tmp_path / "X.laz", chunk_size=2500)
+    assert dx.chunks[0] == (3000, 3000, 1000)
+    xs = pg.io.read_cloud_xyz(tmp_path / "x.laz")
+    np.testing.assert_array_equal(dx.compute(scheduler="sync"), xs)
+    fit = pg.distributed.absolute_orientation(dx, dX, scheduler="sync")
+    ref = pg.absolute_orientation(xs, pg.io.read_cloud_xyz(tmp_path / "X.laz"), statistics=False)
+    np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-13)
+    np.testing.assert_allclose(fit.translation, ref.translation, atol=1e-7)
