@@ -9,6 +9,7 @@ from .cloud import (
     iter_cloud_xyz,
     read_cloud_xyz,
     transform_cloud,
+    transform_cloud_dask,
     write_cloud,
 )
 from .points import (
@@ -39,6 +40,7 @@ __all__ = [
     "read_point_pairs",
     "read_points",
     "transform_cloud",
+    "transform_cloud_dask",
     "write_cloud",
     "write_points",
 ]
