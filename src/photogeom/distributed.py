@@ -304,7 +304,8 @@ def map_items(
 def _as_dask_points(arr, name: str):
     da, _ = _dask()
     if not isinstance(arr, da.Array):
-        arr = da.from_array(np.asarray(arr, dtype=float), chunks=(1_000_000, 3))
+        # name=False: no hash of the whole array (seconds for 1e7 points)
+        arr = da.from_array(np.asarray(arr, dtype=float), chunks=(1_000_000, 3), name=False)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise InputError(f"{name} must have shape (n, 3), got {arr.shape}")
     if len(arr.chunks[1]) != 1:
@@ -381,7 +382,11 @@ def absolute_orientation(
         parts = [delayed(chunk_moments)(a, b) for a, b in zip(xb, Xb)]
     else:
         da, _ = _dask()
-        w = weights if isinstance(weights, da.Array) else da.from_array(np.asarray(weights))
+        w = (
+            weights
+            if isinstance(weights, da.Array)
+            else da.from_array(np.asarray(weights, dtype=float), name=False)
+        )
         if w.shape != (x.shape[0],):
             raise InputError(f"weights must have shape ({x.shape[0]},), got {w.shape}")
         wb = w.rechunk((x.chunks[0],)).to_delayed().ravel()
