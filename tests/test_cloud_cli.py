@@ -56,6 +56,7 @@ def test_register_then_transform(cli, clouds, tmp_path):
     assert code == 0, err
     d = json.loads(out)
     assert d["n_check"] == 400 and d["n_control"] == 3600
+    assert d["target_crs"].startswith("EPSG:32633")
     assert d["scale"] == pytest.approx(T.scale, abs=1e-8)
     # quantisation of both files to 0.1 mm: check residuals of that size
     assert d["check_rmse"] < 2e-4

@@ -459,6 +459,9 @@ class CloudRegistration:
         Largest residual length.
     control_rmse : float
         ``sqrt(sum_squared_residuals / n_control)`` of the control pairs (from the moments).
+    crs_name : str or None
+        The CRS recorded in the target (reference) cloud: the system of the parameters'
+        output and of the residuals.
     """
 
     fit: Any
@@ -469,6 +472,7 @@ class CloudRegistration:
     check_mean: np.ndarray
     check_max: float
     control_rmse: float
+    crs_name: str | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready (NaN where there are no check pairs)."""
@@ -486,6 +490,7 @@ class CloudRegistration:
             "check_rms": self.check_rms.tolist(),
             "check_mean": self.check_mean.tolist(),
             "check_max": self.check_max,
+            "target_crs": self.crs_name,
             "transform": f.transform.to_dict(),
         }
 
@@ -520,7 +525,8 @@ def register_clouds(
             f"check_every={check_every}: give 0 (no check pairs) or k >= 2 (every k-th pair)"
         )
     n = cloud_info(source).point_count
-    m = cloud_info(target).point_count
+    target_info = cloud_info(target)
+    m = target_info.point_count
     if n != m:
         raise InputError(
             f"{source} has {n} points and {target} {m}: registration needs corresponding "
@@ -559,6 +565,7 @@ def register_clouds(
         mean,
         vmax,
         float(np.sqrt(fit.extras["sum_squared_residuals"] / ctrl)),
+        target_info.crs_name,
     )
 
 

@@ -215,6 +215,7 @@ def register(
         f"omega {om:+.6f} gon  phi {ph:+.6f} gon  kappa {ka:+.6f} gon (transposed convention)",
         f"translation {_fmt3(f.translation)}",
         f"control RMSE {reg.control_rmse:.4g} (from the moments)",
+        f"target CRS: {reg.crs_name or 'none recorded'}",
     ]
     if reg.n_check:
         lines.append(
