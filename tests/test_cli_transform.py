@@ -208,9 +208,11 @@ def test_no_half_written_output(tmp_path, capsys, monkeypatch):
         raise OSError("simulated crash during rename")
 
     monkeypatch.setattr(os, "replace", crash)
-    with pytest.raises(OSError, match="simulated crash"):
+    with pytest.raises(SystemExit) as info:
         main(["transform", "estimate", "similarity2d", FIDUCIALS, "--report", str(rep)])
-    capsys.readouterr()
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: cannot write") and "simulated crash" in err
     assert rep.read_text() == "old report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.html"]
 

@@ -22,6 +22,7 @@ from .errors import (
     FileFormatError,
     GimbalLockError,
     InputError,
+    OutputError,
     PhotogeomError,
     ReflectionError,
     TooFewPointsError,
@@ -49,7 +50,8 @@ __version__ = "0.1.0"
 # --- transformations and their estimation ----------------------------------------------------
 # --- frame cameras ----------------------------------------------------------------------------
 # --- RPC satellite camera models ---------------------------------------------------------------
-from . import camera, crs, distributed, imagecoords, io, rpc, transforms
+from . import bundle, camera, crs, distributed, imagecoords, io, rpc, simulate, transforms
+from .bundle import Block, BundleFit, BundleOptions, bundle_adjust
 from .camera import (
     DLT,
     AffineCamera,
@@ -86,6 +88,7 @@ from .orientation import (
     snooping_absolute_orientation,
 )
 from .orientation.intersection import IntersectionResult, space_intersection
+from .orientation.relative import ImagePair, RelativeOrientationFit, relative_orientation
 from .orientation.resection import (
     BatchResection,
     ResectionFit,
@@ -93,6 +96,7 @@ from .orientation.resection import (
     space_resection,
     space_resection_batch,
 )
+from .orientation.strip import BlockStart, block_start, orient_strip, points_from_exteriors
 from .rpc import (
     RPC,
     LocalizationResult,
@@ -128,7 +132,11 @@ __all__ = [
     "AffineCamera",
     "BatchOrientation",
     "BatchResection",
+    "Block",
+    "BlockStart",
     "BrownDistortion",
+    "BundleFit",
+    "BundleOptions",
     "ConvergenceError",
     "DegenerateGeometryError",
     "ExteriorOrientation",
@@ -136,6 +144,7 @@ __all__ = [
     "Fit",
     "FrameCamera",
     "GimbalLockError",
+    "ImagePair",
     "ImageVariantInteriorOrientation",
     "InputError",
     "InteriorOrientation",
@@ -145,6 +154,7 @@ __all__ = [
     "LocalizationWarning",
     "MetashapeCalibration",
     "MethodComparison",
+    "OutputError",
     "PhotogeomError",
     "Polynomial2D",
     "Polynomial3D",
@@ -153,6 +163,7 @@ __all__ = [
     "RPCExtrapolationWarning",
     "RPCIntersection",
     "ReflectionError",
+    "RelativeOrientationFit",
     "ResectionFit",
     "Rigid3D",
     "Similarity2D",
@@ -163,6 +174,10 @@ __all__ = [
     "absolute_orientation_batch",
     "angles_from_rotation",
     "axis_angle_from_matrix",
+    "block_start",
+    "bundle",
+    "bundle_adjust",
+    "calibration",
     "camera",
     "camera_matrix",
     "compare_absolute_methods",
@@ -196,18 +211,22 @@ __all__ = [
     "nearest_rotation",
     "opk_from_matrix",
     "opk_matrix",
+    "orient_strip",
     "orientation_from_dlt",
     "orthogonality_defect",
     "p3p",
+    "points_from_exteriors",
     "project",
     "quaternion_from_matrix",
     "ransac_absolute_orientation",
     "read_metashape_xml",
     "read_rpc",
     "refine_rpc",
+    "relative_orientation",
     "rodrigues_from_matrix",
     "rotation_from_angles",
     "rpc",
+    "simulate",
     "snooping_absolute_orientation",
     "solve_linear",
     "space_intersection",
@@ -218,3 +237,13 @@ __all__ = [
     "write_metashape_xml",
     "write_rpc",
 ]
+
+
+def __getattr__(name: str):
+    """Sub-packages loaded on first use (``pg.calibration``), to keep ``import photogeom``
+    light."""
+    if name == "calibration":
+        import importlib
+
+        return importlib.import_module(f"{__name__}.calibration")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

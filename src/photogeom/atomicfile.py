@@ -1,55 +1,268 @@
-"""Atomic file output: write to a temporary file beside the target, then rename."""
+"""Atomic file output: write to a temporary file beside the target, then rename.
+
+Policy (the same for every file photogeom writes):
+
+* Readers of the destination see either the old file or the complete new one, never a
+  partial file. The data are fsynced before the rename and the directory after it.
+* A new file gets the mode a plain ``open(path, "w")`` would give it: ``0666`` minus the
+  umask, applied by the operating system when the temporary file is created (the umask is
+  never read or changed, so other threads are not affected). A replaced file keeps its mode.
+* A destination that is a **symbolic link** is followed: the file it points to is replaced
+  and the link stays, as a plain ``open()`` would do.
+* A destination that exists but may not be written (no write permission bit, or not
+  writable by this user) is **refused**, as a plain ``open()`` would refuse it: a rename
+  would otherwise replace a file its owner protected.
+* A destination that is a directory, or in a directory that does not exist, is refused.
+* Every failure (permissions, disk full, file-size limit, ...) raises
+  :class:`~photogeom.errors.OutputError` naming the file and the cause; the temporary files
+  are removed and the destinations are left as they were.
+* :func:`atomic_write_many` writes several files as one: when any of them cannot be written,
+  none is changed.
+"""
 
 from __future__ import annotations
 
+import errno
 import os
-import tempfile
+import secrets
+import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
-from .errors import PhotogeomError
+from .errors import InputError, OutputError
+
+_HINTS = {
+    errno.EACCES: "permission denied; choose a writable location",
+    errno.EPERM: "operation not permitted; choose a writable location",
+    errno.EROFS: "the file system is read-only; choose a writable location",
+    errno.ENOSPC: "no space left on the device; free some space or write elsewhere",
+    errno.EDQUOT: "disk quota exceeded; free some space or write elsewhere",
+    errno.EFBIG: "file too large for the file-size limit (ulimit -f) or the file system",
+    errno.EISDIR: "it is a directory; give a file name",
+    errno.ENOTDIR: "a part of the path is not a directory",
+    errno.ENAMETOOLONG: "the file name is too long",
+}
+
+
+def _failure(target: Path, exc: OSError) -> OutputError:
+    reason = _HINTS.get(exc.errno) if exc.errno is not None else None
+    if reason is None:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+    return OutputError(f"cannot write {target}: {reason}", exc.errno)
+
+
+def _destination(path: str | os.PathLike) -> tuple[Path, Path]:
+    """(name as given, real file to replace): symbolic links are followed."""
+    given = Path(os.fspath(path))
+    if not given.name:
+        raise OutputError(f"cannot write {given}: give a file name, not a directory")
+    target = Path(os.path.realpath(given)) if given.is_symlink() else given
+    directory = target.parent if str(target.parent) else Path(".")
+    if not directory.is_dir():
+        raise OutputError(
+            f"cannot write {given}: directory {directory} does not exist; create it first"
+        )
+    if target.is_dir():
+        raise OutputError(f"cannot write {given}: it is a directory; give a file name")
+    if target.exists():
+        mode = target.stat().st_mode
+        if not (mode & 0o222) or not os.access(target, os.W_OK):
+            raise OutputError(
+                f"cannot write {given}: the existing file is read-only; make it writable "
+                "(chmod u+w) or choose another output file"
+            )
+    return given, target
+
+
+class _Staged:
+    """One file written to a temporary name beside its destination, not yet renamed."""
+
+    def __init__(self, given: Path, target: Path, data: bytes) -> None:
+        self.given = given
+        self.target = target
+        self.tmp: Path | None = None
+        self.backup: Path | None = None
+        directory = target.parent if str(target.parent) else Path(".")
+        mode = None
+        try:
+            mode = target.stat().st_mode & 0o7777
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+        for _ in range(100):
+            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            try:
+                # 0o666: the kernel applies the umask, exactly as for open(path, "w")
+                fd = os.open(tmp, flags, 0o666)
+                break
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise _failure(given, exc) from exc
+        else:  # pragma: no cover - 100 collisions of 48 random bits
+            raise OutputError(f"cannot write {given}: no free temporary file name")
+        self.tmp = tmp
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                if mode is not None and hasattr(os, "fchmod"):
+                    os.fchmod(fh.fileno(), mode)
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:
+            self.discard()
+            raise _failure(given, exc) from exc
+        except BaseException:
+            self.discard()
+            raise
+
+    def keep_old(self) -> None:
+        """Hard-link the current destination (if any) to a backup name, for a rollback."""
+        if not self.target.exists():
+            return
+        backup = self.tmp.with_name(self.tmp.name[:-4] + ".old")
+        try:
+            os.link(self.target, backup)
+        except OSError:
+            # a file system without hard links: keep a copy instead
+            try:
+                shutil.copy2(self.target, backup)
+            except OSError as exc:
+                try:
+                    os.unlink(backup)
+                except OSError:
+                    pass
+                raise _failure(self.given, exc) from exc
+        self.backup = backup
+
+    def discard(self) -> None:
+        for p in (self.tmp, self.backup):
+            if p is not None:
+                try:
+                    os.unlink(p)
+                except FileNotFoundError:
+                    pass
+        self.tmp = self.backup = None
+
+
+def _fsync_directory(directory: Path) -> None:
+    """Make a rename in ``directory`` durable (POSIX; a no-op where directories cannot be
+    opened, e.g. Windows)."""
+    flags = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
+    try:
+        fd = os.open(directory, flags)
+    except OSError:  # pragma: no cover - platforms without directory handles
+        return
+    try:
+        os.fsync(fd)
+    except OSError as exc:  # pragma: no cover - file systems that cannot sync directories
+        if exc.errno not in (errno.EINVAL, errno.ENOTSUP, errno.EBADF):
+            raise
+    finally:
+        os.close(fd)
+
+
+def atomic_write_many(items: Sequence[tuple[str | os.PathLike, bytes]]) -> list[Path]:
+    """Write several files as one: either all are replaced, or none is changed.
+
+    Every file is first written in full to a temporary file beside its destination; only
+    when all are written are they renamed into place. Should a rename fail, the files
+    already renamed are put back as they were.
+
+    Parameters
+    ----------
+    items : sequence of (path, bytes)
+        Destinations and their contents. A destination may appear only once.
+
+    Returns
+    -------
+    list of Path
+        The destinations, as given.
+
+    Raises
+    ------
+    OutputError
+        A destination cannot be written (see the module's policy); nothing was changed.
+    InputError
+        The same destination given twice.
+    """
+    prepared = []
+    for p, data in items:
+        try:
+            prepared.append((_destination(p), data))
+        except OSError as exc:
+            if isinstance(exc, OutputError):
+                raise
+            raise _failure(Path(os.fspath(p)), exc) from exc
+    seen: dict[str, Path] = {}
+    for (given, target), _ in prepared:
+        key = os.path.normcase(os.path.abspath(target))
+        if key in seen:
+            raise InputError(f"{given} and {seen[key]} are the same file: give different outputs")
+        seen[key] = given
+    staged: list[_Staged] = []
+    try:
+        for (given, target), data in prepared:
+            staged.append(_Staged(given, target, data))
+        if len(staged) > 1:
+            for s in staged:
+                s.keep_old()
+        done: list[_Staged] = []
+        try:
+            for s in staged:
+                try:
+                    os.replace(s.tmp, s.target)
+                except OSError as exc:
+                    raise _failure(s.given, exc) from exc
+                s.tmp = None
+                done.append(s)
+        except BaseException:
+            for s in reversed(done):  # roll back: old contents back, new files removed
+                try:
+                    if s.backup is not None:
+                        os.replace(s.backup, s.target)
+                        s.backup = None
+                    else:
+                        os.unlink(s.target)
+                except OSError:  # pragma: no cover - the directory vanished meanwhile
+                    pass
+            raise
+        for directory in {s.target.parent for s in staged}:
+            try:
+                _fsync_directory(directory if str(directory) else Path("."))
+            except OSError as exc:  # pragma: no cover - I/O error on the directory
+                raise _failure(directory, exc) from exc
+    finally:
+        for s in staged:
+            s.discard()
+    return [given for (given, _), _ in prepared]
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` so that readers see either the old or the complete new file.
 
     The data go to a temporary file in the same directory, are flushed and fsynced, and the
-    temporary file is renamed over ``path``. On any error the temporary file is removed
-    and ``path`` is left as it was.
+    temporary file is renamed over ``path``; the directory is fsynced after the rename. On
+    any error the temporary file is removed and ``path`` is left as it was. See the module
+    docstring for symbolic links, read-only files and permissions.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written (read-only, a directory, missing directory, disk full, ...).
     """
-    target = Path(path)
-    directory = target.parent if str(target.parent) else Path(".")
-    if not directory.is_dir():
-        raise PhotogeomError(f"cannot write {target}: directory {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    try:
-        # mkstemp creates the file private (0600); give it the mode a plain open() would
-        # (or keep the mode of the file being replaced).
-        os.chmod(tmp, _file_mode(target))
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return target
-
-
-def _file_mode(target: Path) -> int:
-    """Permission bits for ``target``: those of the existing file, else 0666 minus umask."""
-    try:
-        return target.stat().st_mode & 0o7777
-    except OSError:
-        pass
-    mask = os.umask(0o022)  # read the umask (and put it back at once)
-    os.umask(mask)
-    return 0o666 & ~mask
+    return atomic_write_many([(path, data)])[0]
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> Path:
     """Text version of :func:`atomic_write_bytes`."""
     return atomic_write_bytes(path, text.encode(encoding))
+
+
+def atomic_write_texts(
+    items: Sequence[tuple[str | os.PathLike, str]], encoding: str = "utf-8"
+) -> list[Path]:
+    """Text version of :func:`atomic_write_many`: all files or none."""
+    return atomic_write_many([(p, t.encode(encoding)) for p, t in items])

@@ -52,3 +52,18 @@ class FileFormatError(PhotogeomError, ValueError):
 
 class GimbalLockError(PhotogeomError, ValueError):
     """Angles of a rotation are not unique at this attitude (e.g. phi = +-90 degrees)."""
+
+
+class OutputError(PhotogeomError, OSError):
+    """An output file cannot be written: read-only, a directory, disk full, size limit, ...
+
+    ``errno`` is that of the underlying operating-system error (None when photogeom refused
+    the file itself, e.g. a read-only destination).
+    """
+
+    def __init__(self, message: str, errno: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""

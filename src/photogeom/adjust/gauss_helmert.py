@@ -30,10 +30,10 @@ DENSE_LIMIT = 3000
 class _MSolver:
     """Solves with ``M = B Qll B.T`` (dense Cholesky or sparse LU)."""
 
-    def __init__(self, B, wh: Whitener) -> None:
+    def __init__(self, B, wh: Whitener, dense_limit: int = DENSE_LIMIT) -> None:
         sparse_b = scipy.sparse.issparse(B)
         m = B.shape[0]
-        if sparse_b and wh.kind in ("unit", "diagonal") and m > DENSE_LIMIT:
+        if sparse_b and wh.kind in ("unit", "diagonal") and m > dense_limit:
             q = wh.diag_q()
             BQ = B @ scipy.sparse.diags(q)
             self.BQ = BQ.tocsr()
@@ -90,6 +90,7 @@ def gauss_helmert(
     tol: float = 1e-10,
     raise_on_failure: bool = True,
     what: str = "Gauss-Helmert adjustment",
+    dense_limit: int = DENSE_LIMIT,
 ) -> Adjustment:
     """Iterative Gauss-Helmert adjustment.
 
@@ -110,6 +111,11 @@ def gauss_helmert(
     max_iter, tol, raise_on_failure
         As in :func:`photogeom.adjust.gauss_markov`; convergence needs both the parameter
         step and the change of the corrections to be negligible.
+    dense_limit : int
+        With a sparse ``jacobian_l`` and unit or diagonal weights, ``M`` is factorised as a
+        sparse matrix above this number of conditions (default :data:`DENSE_LIMIT`; 0 always
+        for sparse ``B``, e.g. point-wise conditions whose ``M`` is diagonal). The sparse
+        path does not compute redundancy numbers or normalised residuals.
 
     Returns
     -------
@@ -147,7 +153,7 @@ def gauss_helmert(
             message = f"diverged at iteration {it}: non-finite conditions"
             break
         w = g - np.asarray(B @ v).reshape(-1)
-        ms = _MSolver(B, wh)
+        ms = _MSolver(B, wh, dense_limit)
         if ms.sparse:
             MiA = ms.solve(A)
             Miw = ms.solve(w)

@@ -147,7 +147,7 @@ def _tsqr(M: np.ndarray) -> np.ndarray:
     nb = m // QR_BLOCK
     parts = [np.linalg.qr(M[: nb * QR_BLOCK].reshape(nb, QR_BLOCK, k), mode="r").reshape(-1, k)]
     if m > nb * QR_BLOCK:
-        parts.append(M[nb * QR_BLOCK:])
+        parts.append(M[nb * QR_BLOCK :])
     return _tsqr(np.vstack(parts))
 
 
@@ -304,12 +304,23 @@ def bare_adjustment(
 ) -> Adjustment:
     """An Adjustment without statistics (``statistics=False``): the estimate ``x`` of ``u``
     parameters from ``n`` observations, NaN cofactor (read-only), no residuals."""
-    return build(Adjustment, {
-        "x": x, "names": names, "residuals": not_computed((0,)), "cofactor": not_computed((u, u)),
-        "redundancy": redundancy, "n_observations": n, "vtpv": math.nan,
-        "sigma0_prior": sigma0_prior, "iterations": iterations, "converged": converged,
-        "cost_history": history, "message": message,
-    })
+    return build(
+        Adjustment,
+        {
+            "x": x,
+            "names": names,
+            "residuals": not_computed((0,)),
+            "cofactor": not_computed((u, u)),
+            "redundancy": redundancy,
+            "n_observations": n,
+            "vtpv": math.nan,
+            "sigma0_prior": sigma0_prior,
+            "iterations": iterations,
+            "converged": converged,
+            "cost_history": history,
+            "message": message,
+        },
+    )
 
 
 def solve_linear(

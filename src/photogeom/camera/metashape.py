@@ -57,6 +57,13 @@ XML_TAGS = (
     "p1",
     "p2",
 )
+#: Largest calibration XML read (bytes); Metashape writes about 1 kB.
+MAX_XML_BYTES = 1 << 20
+#: Largest image side accepted (pixels); a larger value is a corrupt file.
+MAX_IMAGE_SIDE = 10**6
+#: Largest focal length accepted, in image diagonals (a field of view of ~0.06 degree).
+MAX_FOCAL_DIAGONALS = 1000.0
+
 #: Tags that are read but carry nothing photogeom uses (Metashape writes them).
 IGNORED_TAGS = ("date", "covariance")
 
@@ -105,11 +112,12 @@ class MetashapeCalibration:
             if fl.name in ("width", "height"):
                 try:
                     iv = int(v)
-                except (TypeError, ValueError) as exc:
+                except (TypeError, ValueError, OverflowError) as exc:
                     raise InputError(f"{fl.name}: not an integer ({v!r})") from exc
-                if iv != v or iv <= 0:
+                if iv != v or not 0 < iv <= MAX_IMAGE_SIDE:
                     raise InputError(
-                        f"{fl.name} must be a positive whole number of pixels, got {v!r}"
+                        f"{fl.name} must be a whole number of pixels from 1 to "
+                        f"{MAX_IMAGE_SIDE}, got {v!r}"
                     )
                 object.__setattr__(self, fl.name, iv)
                 continue
@@ -118,6 +126,19 @@ class MetashapeCalibration:
             raise InputError(
                 f"focal length must be > 0 (f = {self.f:g}, f + b1 = {self.f + self.b1:g})"
             )
+        diagonal = math.hypot(self.width, self.height)
+        if max(self.f, self.f + self.b1) > MAX_FOCAL_DIAGONALS * diagonal:
+            raise InputError(
+                f"focal length f = {self.f:g} px is more than {MAX_FOCAL_DIAGONALS:g} image "
+                f"diagonals ({diagonal:.0f} px): not a camera calibration (f is in pixels)"
+            )
+        limit = MAX_FOCAL_DIAGONALS * diagonal
+        for name in ("cx", "cy", "b2"):
+            if abs(getattr(self, name)) > limit:
+                raise InputError(
+                    f"{name} = {getattr(self, name):g} px is more than {MAX_FOCAL_DIAGONALS:g} "
+                    f"image diagonals from the centre: not a camera calibration"
+                )
 
     # --- pieces ------------------------------------------------------------------------------
 
@@ -384,13 +405,16 @@ class MetashapeCalibration:
 
     @classmethod
     def from_xml_string(
-        cls, text: str, *, strict: bool = False, source: str = "calibration XML"
+        cls, text: str | bytes, *, strict: bool = False, source: str = "calibration XML"
     ) -> MetashapeCalibration:
-        """Parse Metashape calibration XML; see :func:`read_metashape_xml`."""
-        try:
-            root = ET.fromstring(text)
-        except ET.ParseError as exc:
-            raise FileFormatError(f"{source}: not well-formed XML ({exc})") from exc
+        """Parse Metashape calibration XML; see :func:`read_metashape_xml`.
+
+        ``text`` may be bytes (the encoding declared in the document is used: UTF-8, UTF-16
+        with a byte-order mark, ISO-8859-1, ...).
+        """
+        from ..xmlsafe import parse_xml
+
+        root = parse_xml(text, source)
         if root.tag != "calibration":
             raise FileFormatError(f"{source}: root element is <{root.tag}>, expected <calibration>")
         values: dict[str, str] = {}
@@ -439,7 +463,7 @@ class MetashapeCalibration:
             try:
                 parsed[tag] = float(txt)
             except ValueError as exc:
-                raise FileFormatError(f"{source}: <{tag}> is not a number ({txt!r})") from exc
+                raise FileFormatError(f"{source}: <{tag}> is not a number ({txt[:40]!r})") from exc
             if not math.isfinite(parsed[tag]):
                 raise FileFormatError(f"{source}: <{tag}> is NaN or infinite")
         for t in ("p3", "p4"):
@@ -448,9 +472,10 @@ class MetashapeCalibration:
                     f"{source}: <{t}> is non-zero; photogeom's Brown model has P1, P2 only"
                 )
         for t in ("width", "height"):
-            if parsed[t] != int(parsed[t]) or parsed[t] <= 0:
+            if not 0 < parsed[t] <= MAX_IMAGE_SIDE or parsed[t] != int(parsed[t]):
                 raise FileFormatError(
-                    f"{source}: <{t}> must be a positive whole number, got {values[t]!r}"
+                    f"{source}: <{t}> must be a whole number of pixels from 1 to "
+                    f"{MAX_IMAGE_SIDE}, got {values[t][:40]!r}"
                 )
             parsed[t] = int(parsed[t])
         try:
@@ -486,11 +511,15 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
         Unknown tags (ignored) when ``strict`` is False.
     """
     try:
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_XML_BYTES + 1)
     except OSError as exc:
         raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    return MetashapeCalibration.from_xml_string(text, strict=strict, source=str(path))
+    if len(data) > MAX_XML_BYTES:
+        raise FileFormatError(
+            f"{path}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: wrong file?"
+        )
+    return MetashapeCalibration.from_xml_string(data, strict=strict, source=str(path))
 
 
 def write_metashape_xml(calibration: MetashapeCalibration, path: str | os.PathLike) -> None:

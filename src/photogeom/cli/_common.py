@@ -16,7 +16,8 @@ import typer
 from rich.console import Console
 
 from ..errors import InputError
-from ..io import atomic_write_text, join_points, read_point_pairs, read_points
+from ..io import join_points, read_point_pairs, read_points
+from ..io.atomic import atomic_write_text, atomic_write_texts
 from ..io.points import PointPairs
 
 
@@ -160,10 +161,15 @@ def load_pairs(
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
-    """Write every ``(path, text)``, each atomically; built in memory first, so a failed
-    computation leaves no file half written."""
-    for path, text in outputs:
-        atomic_write_text(path, text)
+    """Write every ``(path, text)`` as one: all files are replaced, or none is changed.
+
+    The texts are built in memory first, so a failed computation writes nothing; a file
+    that cannot be written raises :class:`~photogeom.errors.OutputError` (one ``error:``
+    line, exit code 2, in :func:`photogeom.cli.main.main`) and leaves every destination as
+    it was.
+    """
+    if outputs:
+        atomic_write_texts(outputs)
 
 
 def emit_points(text: str, output: Path | None, n: int) -> None:

@@ -14,7 +14,6 @@ and ``--principal-point`` for a digital camera), by a Metashape calibration XML
 
 from __future__ import annotations
 
-import json
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -61,18 +60,10 @@ class Behind(str, Enum):
 
 
 def read_json(path: Path) -> dict:
-    """A JSON object from a file, with clear errors."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    if not isinstance(data, dict):
-        raise FileFormatError(f"{path}: expected a JSON object")
-    return data
+    """A JSON object from a file, with clear errors (see :mod:`photogeom.io.jsonfile`)."""
+    from ..io.jsonfile import read_json_object
+
+    return read_json_object(path)
 
 
 def read_parameters_json(path: Path) -> dict:
@@ -91,17 +82,23 @@ def camera_from_json(path: Path):
     ``orient resection`` (its ``model_parameters``), or a bare interior orientation.
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
+    from ..io.jsonfile import build_from_json
 
     data = read_parameters_json(path)
-    try:
-        if "interior" in data or "exterior" in data:
-            io = InteriorOrientation.from_dict(data["interior"]) if "interior" in data else None
-            eo = ExteriorOrientation.from_dict(data["exterior"]) if "exterior" in data else None
-            return io, eo
-        if "f" in data:
-            return InteriorOrientation.from_dict(data), None
-    except InputError as exc:
-        raise FileFormatError(f"{path}: {exc}") from None
+    if "interior" in data or "exterior" in data:
+        io = eo = None
+        if "interior" in data:
+            io = build_from_json(
+                InteriorOrientation.from_dict, data["interior"], path, "interior orientation"
+            )
+        if "exterior" in data:
+            eo = build_from_json(
+                ExteriorOrientation.from_dict, data["exterior"], path, "exterior orientation"
+            )
+        return io, eo
+    if "f" in data:
+        io = build_from_json(InteriorOrientation.from_dict, data, path, "interior orientation")
+        return io, None
     raise FileFormatError(
         f"{path}: no camera found (expected 'interior'/'exterior' entries, e.g. the output of "
         "'photogeom orient resection --output-params')"

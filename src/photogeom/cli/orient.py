@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import typer
 
-from . import orient_absolute, orient_camera
+from . import orient_absolute, orient_camera, orient_relative
 
 app = typer.Typer(
-    help="Orientations: absolute (3D similarity), resection, intersection.", no_args_is_help=True
+    help="Orientations: absolute (3D similarity), resection, intersection, relative.",
+    no_args_is_help=True,
 )
 orient_absolute.register(app)
 orient_camera.register(app)
+orient_relative.register(app)

@@ -236,7 +236,7 @@ def intersection(
     (sX, sY, sZ; a priori from --sigma when the redundancy is 0), the number of rays and
     sigma0.
     """
-    from ..io import atomic_write_text, format_points_csv, read_points
+    from ..io import format_points_csv, read_points
     from ..orientation.intersection import space_intersection
 
     if len(images) < 2:
@@ -274,6 +274,7 @@ def intersection(
     notes = []
     if dropped:
         notes.append(f"left out (seen in fewer than 2 images): {', '.join(dropped[:30])}")
+    outputs: list[tuple[Path, str]] = []
     if as_json:
         pts = [
             {
@@ -311,9 +312,10 @@ def intersection(
         if output is None:
             typer.echo(text, nl=False)
         else:
-            atomic_write_text(output, text)
+            outputs.append((output, text))
     if report is not None:
-        atomic_write_text(report, _intersection_report(res, ids, images, obs[:, keep], cams))
+        outputs.append((report, _intersection_report(res, ids, images, obs[:, keep], cams)))
+    write_outputs(outputs)
     err = console(stderr=True)
     for n in notes:
         say(f"note: {n}", err)

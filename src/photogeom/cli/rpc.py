@@ -416,7 +416,7 @@ def _writable(result):
 
 def _finish(result, output, style, as_json, report, points, pairs, mask, title, source_rpc=None):
     from ..report import print_fit
-    from ..rpc import write_rpc
+    from ..rpc.writer import format_rpc
 
     outputs: list[tuple[Path, str]] = []
     notes = []
@@ -436,7 +436,7 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
         chk = pairs.target[mask] if mask.any() else None
         outputs.append((report, _report_html(title, subtitle, result, ctrl, chk, intro)))
     if written is not None:
-        write_rpc(written, output, style=TextStyle(style).value)
+        outputs.insert(0, (output, format_rpc(written, style=TextStyle(style).value)))
     write_outputs(outputs)
     if as_json:
         data = result.to_dict()
@@ -449,7 +449,5 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
     out = console()
     say(intro, out)
     print_fit(result, console=out)
-    if written is not None:
-        say(f"wrote {output}", out)
     for path, _ in outputs:
         say(f"wrote {path}", out)

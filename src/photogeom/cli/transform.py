@@ -8,7 +8,6 @@ with saved parameters.
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from enum import Enum
 from pathlib import Path
@@ -280,18 +279,10 @@ def _report_html(fit, pairs: PointPairs, mask: np.ndarray, inputs: dict, model: 
 def load_transform(path: Path):
     """A transformation from a parameter JSON: the output of ``--output-params`` or
     ``--json`` of ``transform estimate``, or a bare ``Transform.to_dict()``."""
+    from ..io.jsonfile import build_from_json, read_json_object
     from ..transforms import from_dict
 
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise FileFormatError(f"cannot read {path}: no such file") from None
-    except OSError as exc:
-        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    data = read_json_object(path)
     if isinstance(data, dict) and isinstance(data.get("model_parameters"), dict):
         data = data["model_parameters"]
     elif isinstance(data, dict) and isinstance(data.get("transform"), dict):
@@ -301,7 +292,7 @@ def load_transform(path: Path):
             f"{path}: no transformation parameters found (expected the JSON written by "
             "'photogeom transform estimate --output-params')"
         )
-    return from_dict(data)
+    return build_from_json(from_dict, data, path, "transformation parameters")
 
 
 def _output_columns(columns: tuple[str, ...]) -> list[str]:

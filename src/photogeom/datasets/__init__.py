@@ -35,6 +35,12 @@ RPC_FILES = {
     "worldview2": "rpc_WV2.xml",
 }
 
+#: Bundle-adjustment problems (see ``data/bundle/SOURCES.md``); read with
+#: ``photogeom.bundle.read_bal(datasets.path(name))``.
+BUNDLE_FILES = {
+    "dubrovnik-3-7": "dubrovnik-3-7-pre.txt",
+}
+
 
 def names() -> list[str]:
     """Names of the bundled point data sets."""
@@ -42,16 +48,19 @@ def names() -> list[str]:
 
 
 def path(name: str) -> Path:
-    """Filesystem path of a bundled file: a data set name, a file name, or ``rpc/<file>``."""
+    """Filesystem path of a bundled file: a data set name, a file name, ``rpc/<file>`` or a
+    bundle-adjustment problem of :data:`BUNDLE_FILES`."""
     base = resources.files(_PACKAGE).joinpath("data")
     candidates = [f"{name}.csv", name]
     if name in RPC_FILES:
         candidates.insert(0, f"rpc/{RPC_FILES[name]}")
+    if name in BUNDLE_FILES:
+        candidates.insert(0, f"bundle/{BUNDLE_FILES[name]}")
     for cand in candidates:
         p = base.joinpath(cand)
         if p.is_file():
             return Path(str(p))
-    known = ", ".join(names() + sorted(RPC_FILES))
+    known = ", ".join(names() + sorted(RPC_FILES) + sorted(BUNDLE_FILES))
     raise InputError(f"no bundled data set {name!r}; known: {known}")
 
 

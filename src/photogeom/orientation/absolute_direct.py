@@ -300,30 +300,10 @@ def large_moments(
     a second pass takes them about the centroids of the first. ``scatter`` also returns the
     source scatter matrix (``Moments.scatter_source``).
     """
-    with _single_threaded_blas():
-        return _large_moments(x, X, w, scatter)
-
-
-_BLAS_CONTROLLER: list = []
-
-
-def _single_threaded_blas():
-    """Context that runs BLAS single-threaded (the chunked products are small and
-    memory-bound; waking BLAS threads for each chunk costs more than it gains, badly so on a
-    loaded machine). Uses threadpoolctl; without it, a no-op."""
-    import contextlib
-
-    if not _BLAS_CONTROLLER:
-        try:
-            from threadpoolctl import ThreadpoolController
-
-            _BLAS_CONTROLLER.append(ThreadpoolController())
-        except ImportError:  # pragma: no cover - optional speed-up only
-            _BLAS_CONTROLLER.append(None)
-    ctl = _BLAS_CONTROLLER[0]
-    if ctl is None:  # pragma: no cover
-        return contextlib.nullcontext()
-    return ctl.limit(limits=1, user_api="blas")
+    # No BLAS thread limit is set around the chunked products: the limit is process-wide
+    # state (other threads' BLAS calls would change with it, and concurrent set/restore
+    # pairs can leave the process single-threaded), and it measured no faster here.
+    return _large_moments(x, X, w, scatter)
 
 
 def _cancellation(W: float, s: np.ndarray, q: float) -> float:

@@ -64,6 +64,29 @@ def _coeff_vector(values, name: str) -> np.ndarray:
     return arr
 
 
+def _check_denominator(arr: np.ndarray, key: str) -> None:
+    if not np.any(arr):
+        raise InputError(
+            f"RPC {key}: all 20 coefficients are zero, so every projection divides by zero; "
+            "a denominator needs a non-zero term (usually the first, 1.0)"
+        )
+
+
+def _check_error(value, key: str) -> float | None:
+    if value is None:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"RPC {key}: not a number ({exc})") from exc
+    if not np.isfinite(v) or v < 0:
+        raise InputError(
+            f"RPC {key} is {v!r}: give a finite error in metres (or leave it out / -1 in a "
+            "file when unknown)"
+        )
+    return v
+
+
 @dataclass(frozen=True, eq=False)
 class DirectModel:
     """Image-to-ground rational polynomials shipped by some vendors (DIMAP ``Direct_Model``).
@@ -83,6 +106,8 @@ class DirectModel:
     def __post_init__(self) -> None:
         for name in ("lon_num", "lon_den", "lat_num", "lat_den"):
             object.__setattr__(self, name, _coeff_vector(getattr(self, name), name))
+        for name in ("lon_den", "lat_den"):
+            _check_denominator(getattr(self, name), f"{name.upper()}_COEFF")
 
     @property
     def coefficients(self) -> np.ndarray:
@@ -164,6 +189,10 @@ class RPC:
             object.__setattr__(self, name, v)
         for name, key in GDAL_COEFF_KEYS.items():
             object.__setattr__(self, name, _coeff_vector(getattr(self, name), key))
+        _check_denominator(self.line_den, "LINE_DEN_COEFF")
+        _check_denominator(self.samp_den, "SAMP_DEN_COEFF")
+        object.__setattr__(self, "err_bias", _check_error(self.err_bias, "ERR_BIAS"))
+        object.__setattr__(self, "err_rand", _check_error(self.err_rand, "ERR_RAND"))
         if self.correction is not None:
             D = np.asarray(self.correction, dtype=np.float64)
             if D.shape != (2, 3) or not np.all(np.isfinite(D)):
@@ -173,7 +202,12 @@ class RPC:
             D.setflags(write=False)
             object.__setattr__(self, "correction", D)
         if self.image_size is not None:
-            w, h = (int(v) for v in self.image_size)
+            try:
+                w, h = (int(v) for v in self.image_size)
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise InputError(
+                    f"RPC image_size must be two positive integers, got {self.image_size!r}"
+                ) from exc
             if w <= 0 or h <= 0:
                 raise InputError(f"RPC image_size must be positive, got {self.image_size}")
             object.__setattr__(self, "image_size", (w, h))

@@ -30,6 +30,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import FileFormatError, InputError
+from ..xmlsafe import parse_xml
 from . import polynomial as poly
 from .model import GDAL_COEFF_KEYS, GDAL_KEYS, RPC, DirectModel
 
@@ -61,6 +62,11 @@ _RPB_KEYS = {
     "sampDenCoef": "SAMP_DEN_COEFF",
 }
 _RPB_LOWER = {k.lower(): v for k, v in _RPB_KEYS.items()}
+
+#: Largest RPC text or RPB file read (bytes); an RPC is a few kB.
+MAX_TEXT_BYTES = 1 << 20
+#: Largest XML file read (bytes): WorldView metadata may carry long attitude/ephemeris lists.
+MAX_XML_BYTES = 64 << 20
 
 FORMATS = (
     "KEY: value text (IKONOS-style _RPC.TXT or coefficient lists), DigitalGlobe .RPB, "
@@ -112,6 +118,10 @@ def _scalar(d: Mapping[str, object], key: str, where: str) -> float:
 def _vector(d: Mapping[str, object], key: str, where: str, required: bool = True):
     """20 coefficients from ``key`` (one list) or ``key_1`` .. ``key_20``."""
     if key in d:
+        if any(k.startswith(f"{key}_") and k[len(key) + 1 :].isdigit() for k in d):
+            raise FileFormatError(
+                f"{where}: {key} is given both as a list and as numbered keys {key}_1 ...; keep one"
+            )
         vals = _numbers(d[key], key, where)
         if len(vals) != poly.N_TERMS:
             raise FileFormatError(
@@ -119,12 +129,26 @@ def _vector(d: Mapping[str, object], key: str, where: str, required: bool = True
                 f"exactly {poly.N_TERMS}"
             )
         return vals
-    numbered = {}
-    pattern = re.compile(rf"^{key}_(\d+)$")
+    numbered: dict[int, str] = {}
+    prefix = f"{key}_"
     for k in d:
-        m = pattern.match(k)
-        if m:
-            numbered[int(m.group(1))] = k
+        if not k.startswith(prefix):
+            continue
+        digits = k[len(prefix) :]
+        if not digits.isascii() or not digits.isdigit():
+            continue
+        stripped = digits.lstrip("0")
+        if len(stripped) > 6:  # no int() of a number with thousands of digits
+            raise FileFormatError(
+                f"{where}: {k[:60]}... found, but an RPC00B polynomial has exactly "
+                f"{poly.N_TERMS} coefficients ({key}_1 .. {key}_{poly.N_TERMS})"
+            )
+        i = int(stripped or "0")
+        if i in numbered:
+            raise FileFormatError(
+                f"{where}: {numbered[i]} and {k} both give coefficient {i} of {key}; keep one"
+            )
+        numbered[i] = k
     if not numbered:
         if not required:
             return None
@@ -159,7 +183,15 @@ def _optional_error(d: Mapping[str, object], key: str, where: str) -> float | No
     if key not in d:
         return None
     vals = _numbers(d[key], key, where)
-    if len(vals) != 1 or vals[0] < 0:  # -1 means "unknown" in RPC00B
+    if len(vals) != 1:
+        raise FileFormatError(
+            f"{where}: {key} holds {len(vals)} values, expected one number (-1 when unknown)"
+        )
+    if not np.isfinite(vals[0]):
+        raise FileFormatError(
+            f"{where}: {key} is {vals[0]!r}; give a finite error in metres, or -1 when unknown"
+        )
+    if vals[0] < 0:  # -1 means "unknown" in RPC00B
         return None
     return vals[0]
 
@@ -217,25 +249,31 @@ def rpc_from_mapping(
 
 # --- text formats --------------------------------------------------------------------------
 
-_KEY = re.compile(r"^\s*([A-Za-z][A-Za-z0-9_]*)\s*[:=]\s*(.*?)\s*$")
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+_SEPARATOR = re.compile(r"[:=]")
 
 
 def parse_key_value_text(text: str, where: str) -> dict[str, str]:
-    """``KEY: value`` (or ``KEY=value``) lines -> dict; ``#`` lines are comments."""
+    """``KEY: value`` (or ``KEY=value``) lines -> dict; ``#`` lines are comments.
+
+    Linear in the length of the text (no pattern that backtracks over a line). A key given
+    twice is refused.
+    """
     out: dict[str, str] = {}
     for lineno, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
-        m = _KEY.match(s)
-        if not m:
+        sep = _SEPARATOR.search(s)
+        name = s[: sep.start()].rstrip() if sep else ""
+        if sep is None or _NAME.fullmatch(name) is None:
             raise FileFormatError(
                 f"{where}, line {lineno}: expected 'KEY: value', found {s[:60]!r}"
             )
-        key = m.group(1).upper()
+        key = name.upper()
         if key in out:
             raise FileFormatError(f"{where}, line {lineno}: key {key} appears twice")
-        out[key] = m.group(2)
+        out[key] = s[sep.end() :].strip()
     return out
 
 
@@ -247,16 +285,58 @@ def read_key_value_text(text: str, where: str) -> RPC:
     return rpc_from_mapping(d, source=source, where=where)
 
 
-_RPB_ASSIGN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(\([^)]*\)|[^;\n]*);", re.M)
+_RPB_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _rpb_assignments(text: str, where: str) -> dict[str, str]:
+    """The ``name = value;`` statements of an RPB file that carry RPC values (GDAL names).
+
+    One pass over the statements (split at ``;``); ``BEGIN_GROUP``/``END_GROUP`` lines
+    and ``END;`` are skipped. A value in parentheses may span lines. An RPC key given twice
+    (e.g. two ``IMAGE`` groups) is refused.
+    """
+    d: dict[str, str] = {}
+    first_line: dict[str, int] = {}
+    lineno = 1
+    for stmt in text.split(";"):
+        start_line = lineno
+        lineno += stmt.count("\n")
+        lines = [ln.strip() for ln in stmt.split("\n")]
+        # drop group markers and blank lines before the assignment
+        k = 0
+        while k < len(lines) and (
+            not lines[k] or lines[k].upper().startswith(("BEGIN_GROUP", "END_GROUP"))
+        ):
+            k += 1
+        if k == len(lines):
+            continue
+        body = " ".join(lines[k:])
+        name, eq, value = body.partition("=")
+        name = name.strip()
+        if not eq or _RPB_NAME.fullmatch(name) is None:
+            continue  # "END" and other non-assignments
+        mapped = _RPB_LOWER.get(name.lower())
+        if mapped is None:
+            continue
+        where_line = f"{where}, line {start_line + k}"
+        if mapped in d:
+            raise FileFormatError(
+                f"{where_line}: {name} given again (first on line {first_line[mapped]}); "
+                "an RPB file has one IMAGE group with each key once"
+            )
+        value = value.strip()
+        if value.startswith("("):
+            if not value.endswith(")"):
+                raise FileFormatError(f"{where_line}: {name} = ( ... without the closing ')'")
+            value = value[1:-1]
+        d[mapped] = value
+        first_line[mapped] = start_line + k
+    return d
 
 
 def read_rpb(text: str, where: str) -> RPC:
     """Read a DigitalGlobe ``.RPB`` file."""
-    d: dict[str, str] = {}
-    for key, value in _RPB_ASSIGN.findall(text):
-        mapped = _RPB_LOWER.get(key.lower())
-        if mapped is not None:
-            d[mapped] = value.strip().strip("()")
+    d = _rpb_assignments(text, where)
     if not d:
         raise FileFormatError(f"{where}: no RPB assignments (lineOffset = ...;) found")
     for key in _COEFF_KEYS:
@@ -282,20 +362,62 @@ def _strip_ns(root: ElementTree.Element) -> None:
 
 
 def _find_any(root: ElementTree.Element, tag: str) -> ElementTree.Element | None:
-    return next(iter(root.iter(tag)), None)
+    """The element ``tag`` anywhere below ``root``; refused when there are several."""
+    found = None
+    for el in root.iter(tag):
+        if found is not None:
+            raise FileFormatError(
+                f"XML element {tag} appears more than once: one RPC per file is read; "
+                "split the file"
+            )
+        found = el
+    return found
+
+
+def _find_one(el: ElementTree.Element, path: str, where: str) -> ElementTree.Element | None:
+    nodes = el.findall(path)
+    if len(nodes) > 1:
+        raise FileFormatError(
+            f"{where}: XML element {path} appears {len(nodes)} times; it must be given once"
+        )
+    return nodes[0] if nodes else None
 
 
 def _xml_text(el: ElementTree.Element | None, path: str, where: str) -> str:
-    node = None if el is None else el.find(path)
+    node = None if el is None else _find_one(el, path, where)
     if node is None or node.text is None or not node.text.strip():
         raise FileFormatError(f"{where}: missing XML element {path}")
     return node.text.strip()
 
 
+def _xml_number(el: ElementTree.Element, path: str, where: str) -> float:
+    """One finite number from the element ``path`` (units after it are skipped)."""
+    vals = _numbers(_xml_text(el, path, where), path, where)
+    if len(vals) != 1 or not np.isfinite(vals[0]):
+        shown = "no number" if not vals else ", ".join(repr(v) for v in vals[:3])
+        raise FileFormatError(
+            f"{where}: XML element {path} holds {shown}; expected one finite number"
+        )
+    return vals[0]
+
+
+#: Largest image side accepted from a file (pixels); larger values are a corrupt file.
+MAX_IMAGE_SIDE = 10**7
+
+
+def _image_side(value: float, what: str, where: str) -> int:
+    if not 1 <= value <= MAX_IMAGE_SIDE or value != round(value):
+        raise FileFormatError(
+            f"{where}: {what} = {value:g} is not an image size in pixels (a whole number from "
+            f"1 to {MAX_IMAGE_SIDE})"
+        )
+    return round(value)
+
+
 def _xml_coeffs(el: ElementTree.Element, prefix: str, where: str, block: str) -> list[float]:
     vals = []
     for i in range(1, poly.N_TERMS + 1):
-        node = el.find(f"{prefix}_{i}")
+        node = _find_one(el, f"{prefix}_{i}", f"{where} ({block})")
         if node is None or node.text is None or not node.text.strip():
             raise FileFormatError(
                 f"{where}: missing XML element {block}/{prefix}_{i} (an RPC00B polynomial has "
@@ -355,20 +477,23 @@ def read_dimap(root: ElementTree.Element, where: str) -> RPC:
     image_size = None
     notes = []
     if domain is not None:
-        if domain.find("FIRST_COL") is not None:
-            first_col = float(_xml_text(domain, "FIRST_COL", where))
-        if domain.find("FIRST_ROW") is not None:
-            first_row = float(_xml_text(domain, "FIRST_ROW", where))
-        if domain.find("LAST_COL") is not None and domain.find("LAST_ROW") is not None:
-            last_col = float(_xml_text(domain, "LAST_COL", where))
-            last_row = float(_xml_text(domain, "LAST_ROW", where))
+        dwhere = f"{where} ({domain.tag})"
+        if _find_one(domain, "FIRST_COL", dwhere) is not None:
+            first_col = _xml_number(domain, "FIRST_COL", dwhere)
+        if _find_one(domain, "FIRST_ROW", dwhere) is not None:
+            first_row = _xml_number(domain, "FIRST_ROW", dwhere)
+        has_last = [_find_one(domain, t, dwhere) is not None for t in ("LAST_COL", "LAST_ROW")]
+        if all(has_last):
+            last_col = _xml_number(domain, "LAST_COL", dwhere)
+            last_row = _xml_number(domain, "LAST_ROW", dwhere)
             image_size = (
-                round(last_col - first_col + 1),
-                round(last_row - first_row + 1),
+                _image_side(last_col - first_col + 1, "LAST_COL - FIRST_COL + 1", dwhere),
+                _image_side(last_row - first_row + 1, "LAST_ROW - FIRST_ROW + 1", dwhere),
             )
     if first_col or first_row:
-        d["SAMP_OFF"] = float(_numbers(d["SAMP_OFF"], "SAMP_OFF", where)[0]) - first_col
-        d["LINE_OFF"] = float(_numbers(d["LINE_OFF"], "LINE_OFF", where)[0]) - first_row
+        vwhere = f"{where} (RFM_Validity)"
+        d["SAMP_OFF"] = _scalar(d, "SAMP_OFF", vwhere) - first_col
+        d["LINE_OFF"] = _scalar(d, "LINE_OFF", vwhere) - first_row
         notes.append(
             f"DIMAP pixel origin: first pixel centre at (col {first_col:g}, row {first_row:g}); "
             f"SAMP_OFF and LINE_OFF reduced by {first_col:g} and {first_row:g} to the "
@@ -396,31 +521,43 @@ def read_dg_xml(root: ElementTree.Element, where: str) -> RPC:
         tag = key.replace("_COEFF", "COEF").replace("_", "")
         d[key] = _xml_text(image, f"{tag}List/{tag}", f"{where} (RPB/IMAGE)")
     for key, tag in (("ERR_BIAS", "ERRBIAS"), ("ERR_RAND", "ERRRAND")):
-        node = image.find(tag)
+        node = _find_one(image, tag, f"{where} (RPB/IMAGE)")
         if node is not None and node.text and node.text.strip():
             d[key] = node.text.strip()
     image_size = None
     imd = _find_any(root, "IMD")
-    if imd is not None and imd.find("NUMROWS") is not None and imd.find("NUMCOLUMNS") is not None:
+    iwhere = f"{where} (IMD)"
+    if (
+        imd is not None
+        and _find_one(imd, "NUMROWS", iwhere) is not None
+        and _find_one(imd, "NUMCOLUMNS", iwhere) is not None
+    ):
         image_size = (
-            int(float(_xml_text(imd, "NUMCOLUMNS", where))),
-            int(float(_xml_text(imd, "NUMROWS", where))),
+            _image_side(_xml_number(imd, "NUMCOLUMNS", iwhere), "NUMCOLUMNS", iwhere),
+            _image_side(_xml_number(imd, "NUMROWS", iwhere), "NUMROWS", iwhere),
         )
     return rpc_from_mapping(d, source="DigitalGlobe XML (RPB block)", where=where,
                             image_size=image_size)  # fmt: skip
 
 
-def read_xml(text: str, where: str) -> RPC:
-    """Read a DIMAP or DigitalGlobe XML RPC file."""
-    try:
-        root = ElementTree.fromstring(text)
-    except ElementTree.ParseError as exc:
-        raise FileFormatError(f"{where}: not well-formed XML ({exc}); truncated file?") from exc
+def read_xml(text: bytes | str, where: str) -> RPC:
+    """Read a DIMAP or DigitalGlobe XML RPC file (bytes: the declared encoding is used)."""
+    root = parse_xml(text, where)
     _strip_ns(root)
-    if _find_any(root, "Rational_Function_Model") is not None:
-        return read_dimap(root, where)
-    if _find_any(root, "RPB") is not None:
-        return read_dg_xml(root, where)
+    try:
+        has_dimap = _find_any(root, "Rational_Function_Model") is not None
+        has_rpb = not has_dimap and _find_any(root, "RPB") is not None
+    except FileFormatError as exc:
+        raise FileFormatError(f"{where}: {exc}") from None
+    try:
+        if has_dimap:
+            return read_dimap(root, where)
+        if has_rpb:
+            return read_dg_xml(root, where)
+    except FileFormatError as exc:
+        if str(exc).startswith("XML element"):
+            raise FileFormatError(f"{where}: {exc}") from None
+        raise
     raise FileFormatError(
         f"{where}: XML file without a known RPC block (DIMAP Rational_Function_Model or "
         "DigitalGlobe RPB)"
@@ -465,20 +602,36 @@ _RASTER_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+", b"NITF", b"NSIF
 _RASTER_SUFFIX = {".tif", ".tiff", ".ntf", ".nitf", ".jp2"}
 
 
+_RPB_HINT = re.compile(r"\blineOffset[ \t]*=|BEGIN_GROUP[ \t]*=[ \t]*IMAGE", re.I)
+_TEXT_LINE = re.compile(r"^[ \t]*[A-Za-z][A-Za-z0-9_]*[ \t]*[:=]", re.M)
+_TEXT_HINT = re.compile(r"(LINE|SAMP|LAT|LONG|HEIGHT)_(OFF|SCALE|NUM_COEFF|DEN_COEFF)", re.I)
+
+
+def decode_text(data: bytes) -> str:
+    """Text of a file: UTF-8 (a byte-order mark is dropped) or UTF-16 with a byte-order mark;
+    bytes that are not UTF-8 are replaced (they can only be part of a value, which is then
+    reported as not a number)."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return data.decode("utf-16", errors="replace")
+    return data.decode("utf-8", errors="replace").removeprefix("\ufeff")
+
+
 def detect_format(path: Path, head: bytes) -> str:
-    """``"raster"``, ``"xml"``, ``"rpb"``, ``"text"`` or ``"unknown"``."""
+    """``"raster"``, ``"xml"``, ``"rpb"``, ``"text"`` or ``"unknown"``.
+
+    Every pattern is anchored to one line (``[ \\t]``, not ``\\s``), so the detection is
+    linear in the head it looks at.
+    """
     if head.startswith(_RASTER_MAGIC) or (
         path.suffix.lower() in _RASTER_SUFFIX and not head.lstrip().startswith(b"<")
     ):
         return "raster"
-    text = head.decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
+    text = decode_text(head).lstrip("\ufeff \t\r\n")
     if text.startswith("<"):
         return "xml"
-    if re.search(r"\blineOffset\s*=", text, re.I) or re.search(r"BEGIN_GROUP\s*=\s*IMAGE", text):
+    if _RPB_HINT.search(text):
         return "rpb"
-    if re.search(r"^\s*[A-Za-z][A-Za-z0-9_]*\s*[:=]", text, re.M) and re.search(
-        r"(LINE|SAMP|LAT|LONG|HEIGHT)_(OFF|SCALE|NUM_COEFF|DEN_COEFF)", text, re.I
-    ):
+    if _TEXT_LINE.search(text) and _TEXT_HINT.search(text):
         return "text"
     return "unknown"
 
@@ -495,16 +648,37 @@ def read_rpc(path: str | Path) -> RPC:
     p = Path(path)
     if not p.is_file():
         raise FileFormatError(f"{p}: no such file")
-    data = p.read_bytes()
-    if not data.strip():
-        raise FileFormatError(f"{p}: the file is empty")
-    kind = detect_format(p, data[:65536])
+    try:
+        size = p.stat().st_size
+        with open(p, "rb") as fh:
+            head = fh.read(65536)
+            if not head.strip() and size <= len(head):
+                raise FileFormatError(f"{p}: the file is empty")
+            kind = detect_format(p, head)
+            if kind == "unknown":
+                raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")
+            if kind == "raster":
+                data = b""
+            else:
+                limit = MAX_XML_BYTES if kind == "xml" else MAX_TEXT_BYTES
+                if size > limit:
+                    raise FileFormatError(
+                        f"{p}: {size} bytes is too large for an RPC file of this kind (at most "
+                        f"{limit} bytes; an RPC is a few kB): wrong file?"
+                    )
+                data = head + fh.read(limit + 1 - len(head))
+                if len(data) > limit:
+                    raise FileFormatError(f"{p}: more than {limit} bytes; wrong file?")
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {p}: {exc.strerror or exc}") from None
     where = str(p)
     if kind == "raster":
         return read_raster_tags(p)
-    text = data.decode("utf-8", errors="replace")
+    if not data.strip():
+        raise FileFormatError(f"{p}: the file is empty")
     if kind == "xml":
-        return read_xml(text, where)
+        return read_xml(data, where)
+    text = decode_text(data)
     if kind == "rpb":
         return read_rpb(text, where)
     if kind == "text":

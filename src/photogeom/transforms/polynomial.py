@@ -110,14 +110,22 @@ class _Polynomial(Parametric, Transform):
 
     def __post_init__(self) -> None:
         d = self.dim
-        exps = polynomial_exponents(self.order, d)
+        try:
+            whole = int(self.order) == self.order
+        except (TypeError, ValueError, OverflowError):
+            whole = False
+        if not whole or self.order < 1:
+            raise InputError(f"polynomial: order must be an integer >= 1, got {self.order!r}")
+        # the shape is checked against the closed-form term count before the exponents of
+        # the order are built (a corrupt order of 1e300 must not enumerate monomials)
+        n_terms = polynomial_term_count(self.order, d)
         C = np.array(self.coefficients, dtype=float)
-        if C.shape == (d * exps.shape[0],):
+        if C.shape == (d * n_terms,):
             C = C.reshape(d, -1)
-        if C.shape != (d, exps.shape[0]):
+        if C.shape != (d, n_terms):
             raise InputError(
                 f"{type(self).__name__} of order {self.order}: expected coefficients of shape "
-                f"({d}, {exps.shape[0]}), got {C.shape}"
+                f"({d}, {n_terms}), got {C.shape}"
             )
         centre = np.zeros(d) if self.centre is None else vector(self.centre, d, "centre")
         scale = float(self.scale)

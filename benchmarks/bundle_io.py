@@ -1,0 +1,138 @@
+"""Interchange benchmark: reading and writing BAL files and COLMAP text models, with peers.
+
+Run:  python benchmarks/bundle_io.py            (250 images, ~1 M observations)
+      python benchmarks/bundle_io.py --quick    (smaller, for a smoke run)
+
+Prints, from one run on this machine (wall time of one call each, best of ``--repeat``):
+photogeom's ``read_bal`` / ``write_bal`` against GTSAM's ``SfmData.FromBalFile`` /
+``writeBAL`` on the same file, and ``read_colmap`` / ``write_colmap`` against pycolmap's
+``Reconstruction(dir)`` / ``write_text`` on the same model; ratios peer / photogeom (> 1:
+photogeom is faster). Also the time per observation at two sizes, to show the readers are
+linear in their input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from photogeom.bundle import (
+    Block,
+    projected_pixels,
+    read_bal,
+    read_colmap,
+    write_bal,
+    write_colmap,
+)
+from photogeom.camera.metashape import MetashapeCalibration
+
+
+def synthetic(m: int, p: int, per_point: int, seed: int = 0) -> Block:
+    """A BAL-type block: m images on a grid above p points, each point seen in per_point."""
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(m)))
+    cx, cy = np.meshgrid(np.arange(side) * 20.0, np.arange(side) * 20.0)
+    cx, cy = cx.ravel()[:m], cy.ravel()[:m]
+    ext = np.column_stack(
+        [cx, cy, np.full(m, 100.0), rng.normal(0, 0.02, (m, 2)), rng.uniform(-3, 3, m)]
+    )
+    cams = {i: MetashapeCalibration(4000, 3000, 3000.0, k1=-0.05, k2=0.01) for i in range(m)}
+    obs_i = rng.integers(0, m, size=(p, per_point))
+    # points near their first image, seen from per_point images (distinct where possible)
+    xyz = np.column_stack([cx[obs_i[:, 0]], cy[obs_i[:, 0]], np.zeros(p)])
+    xyz += rng.normal(0, 5, (p, 3))
+    oi = obs_i.ravel()
+    op = np.repeat(np.arange(p), per_point)
+    key = np.unique(oi * p + op, return_index=True)[1]
+    key.sort()
+    oi, op = oi[key], op[key]
+    b = Block.from_arrays(
+        cameras=cams,
+        image_ids=range(m),
+        image_camera=range(m),
+        exterior=ext,
+        point_ids=range(p),
+        xyz=xyz,
+        obs_image_ids=oi,
+        obs_point_ids=op,
+        uv=np.zeros((oi.size, 2)),
+        sigma=1.0,
+        free=("f", "k1", "k2"),
+    )
+    uv, _ = projected_pixels(b)
+    return b.with_observations(uv=uv + rng.normal(0, 0.5, uv.shape))
+
+
+def best(fn, repeat: int) -> float:
+    out = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t)
+    return min(out)
+
+
+def run(m: int, p: int, per_point: int, repeat: int) -> None:
+    b = synthetic(m, p, per_point)
+    n = b.n_observations
+    print(f"\nblock: {m} images, {p} points, {n} observations")
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        bal = d / "problem.txt"
+        t_wb = best(lambda: write_bal(b, bal), repeat)
+        t_rb = best(lambda: read_bal(bal), repeat)
+        print(
+            f"  BAL    write {t_wb:7.3f} s  read {t_rb:7.3f} s  "
+            f"({1e6 * t_rb / n:.2f} us per observation read)"
+        )
+        try:
+            import gtsam
+
+            t_g = best(lambda: gtsam.SfmData.FromBalFile(str(bal)), repeat)
+            data = gtsam.SfmData.FromBalFile(str(bal))
+            t_gw = best(lambda: gtsam.writeBAL(str(d / "g.txt"), data), repeat)
+            print(
+                f"  GTSAM  write {t_gw:7.3f} s  read {t_g:7.3f} s  ratio GTSAM / photogeom: "
+                f"write {t_gw / t_wb:.2f}, read {t_g / t_rb:.2f}"
+            )
+        except ImportError:
+            print("  GTSAM not installed")
+        col = d / "colmap"
+        t_wc = best(lambda: write_colmap(b, col), repeat)
+        t_rc = best(lambda: read_colmap(col, image_key="id"), repeat)
+        print(
+            f"  COLMAP write {t_wc:7.3f} s  read {t_rc:7.3f} s  "
+            f"({1e6 * t_rc / n:.2f} us per observation read)"
+        )
+        try:
+            import pycolmap
+
+            t_p = best(lambda: pycolmap.Reconstruction(str(col)), repeat)
+            rec = pycolmap.Reconstruction(str(col))
+            out = d / "pc"
+            out.mkdir()
+            t_pw = best(lambda: rec.write_text(str(out)), repeat)
+            print(
+                f"  pycolmap write {t_pw:5.3f} s  read {t_p:7.3f} s  ratio pycolmap / "
+                f"photogeom: write {t_pw / t_wc:.2f}, read {t_p / t_rc:.2f}"
+            )
+        except ImportError:
+            print("  pycolmap not installed")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--repeat", type=int, default=2)
+    a = ap.parse_args()
+    sizes = [(50, 20000, 5), (250, 100000, 10)] if not a.quick else [(20, 2000, 4), (50, 8000, 4)]
+    for m, p, k in sizes:
+        run(m, p, k, a.repeat)
+
+
+if __name__ == "__main__":
+    main()

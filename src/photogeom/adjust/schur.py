@@ -1,0 +1,627 @@
+"""Normal equations of block-structured least squares, solved with the Schur complement.
+
+The problems of this module have three kinds of unknowns:
+
+* *local* blocks of size ``b`` (e.g. one image's exterior orientation), many of them;
+* *global* parameters, few (e.g. the calibration of the camera groups);
+* *point* blocks of size 3, very many (object points), each seen by a few local blocks.
+
+Each row group ``k`` (an observation of dimension ``d``, e.g. the two pixel coordinates of an
+image point) depends on one local block ``local[k]``, the global columns
+``local_global[local[k]]`` of that block and one point ``point[k]``. Given the whitened
+residuals and Jacobian blocks, :class:`SchurSystem` forms the normal equations, eliminates
+the points (3x3 blocks, inverted in one vectorised call), solves the sparse reduced system
+(:mod:`photogeom.adjust.sparse`) and back-substitutes. Memory and work are linear in the
+number of observations and in the number of pairs of observations of one point; no dense
+matrix of the size of all unknowns is ever formed.
+
+The covariance part gives blocks of the inverse: local and global blocks of the reduced
+system (by solves with unit vectors, never a dense inverse of the whole system), the
+marginal 3x3 covariance of every point ``Q_pp = V^-1 + V^-1 W' Q_cc W V^-1`` and the
+cofactor of every observation's residual (redundancy numbers and data snooping).
+
+Conventions: residuals ``r`` are whitened (divided by their standard deviation), the cost is
+``r' r`` and the Gauss-Newton step solves ``(J'J + damping) dx = -J' r``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import DegenerateGeometryError
+from .sparse import SparseFactor, factorize
+
+#: Observation rows processed at once (bounds temporary memory).
+CHUNK = 32768
+
+
+def _segments(keys: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stable order by key, the start of each non-empty segment and its key."""
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    if sk.size == 0:
+        return order, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+    return order, starts, sk[starts]
+
+
+def _chunks(starts: np.ndarray, total: int, size: int = CHUNK):
+    """Ranges ``(s0, s1, seg0, seg1)`` of whole segments holding about ``size`` rows."""
+    nseg = starts.size
+    seg = 0
+    while seg < nseg:
+        lo = starts[seg]
+        # last segment whose start is < lo + size (at least one segment)
+        seg1 = int(np.searchsorted(starts, lo + size, side="left"))
+        seg1 = max(seg1, seg + 1)
+        hi = starts[seg1] if seg1 < nseg else total
+        yield int(lo), int(hi), seg, seg1
+        seg = seg1
+
+
+def _segment_sum(values_fn, order, starts, keys, total, out) -> None:
+    """``out[keys[s]] += sum of values over segment s``; ``values_fn(rows)`` gives the
+    per-row values for observation rows ``rows`` (in segment order)."""
+    for lo, hi, s0, s1 in _chunks(starts, total):
+        rows = order[lo:hi]
+        vals = values_fn(rows)
+        red = np.add.reduceat(vals, starts[s0:s1] - lo, axis=0)
+        out[keys[s0:s1]] += red
+
+
+@dataclass
+class Linearization:
+    """Whitened residuals and Jacobian blocks of one linearisation.
+
+    Attributes
+    ----------
+    r : (n, d) residual rows; A : (n, d, b) local; G : (n, d, gl) global (columns
+    ``local_global[local[k]]``); P : (n, d, 3) point.
+    local_info, local_grad : (n_local, b, b), (n_local, b) extra terms (priors) ``J'J``, ``J'r``
+    point_info, point_grad : (n_points, 3, 3), (n_points, 3)
+    global_info, global_grad : (g, g), (g,)
+    cost : float, ``r'r`` of all terms
+    """
+
+    r: np.ndarray
+    A: np.ndarray
+    G: np.ndarray
+    P: np.ndarray
+    local_info: np.ndarray
+    local_grad: np.ndarray
+    point_info: np.ndarray
+    point_grad: np.ndarray
+    global_info: np.ndarray
+    global_grad: np.ndarray
+    cost: float
+
+
+class SchurSystem:
+    """The structure of a block-structured problem (fixed over the iterations).
+
+    Parameters
+    ----------
+    n_local, b : number and size of the local blocks.
+    n_global : number of global parameters.
+    n_points : number of points (blocks of 3).
+    local, point : (n,) int, the local block and the point of each observation row group.
+    local_global : (n_local, gl) int, the global columns each local block's rows depend on.
+    local_free : (n_local, b) bool; global_free : (n_global,) bool
+        Parameters that are estimated; the others keep their values (their columns are
+        dropped from the normal equations).
+    backend : sparse solver backend (see :mod:`photogeom.adjust.sparse`).
+    """
+
+    def __init__(
+        self,
+        n_local: int,
+        b: int,
+        n_global: int,
+        n_points: int,
+        local: np.ndarray,
+        point: np.ndarray,
+        local_global: np.ndarray,
+        local_free: np.ndarray,
+        global_free: np.ndarray,
+        *,
+        backend: str = "auto",
+    ) -> None:
+        self.n_local, self.b, self.n_global, self.n_points = n_local, b, n_global, n_points
+        self.local = np.asarray(local, dtype=np.int64)
+        self.point = np.asarray(point, dtype=np.int64)
+        self.local_global = np.asarray(local_global, dtype=np.int64).reshape(n_local, -1)
+        self.gl = self.local_global.shape[1]
+        self.local_free = np.asarray(local_free, dtype=bool).reshape(n_local, b)
+        self.global_free = np.asarray(global_free, dtype=bool).reshape(n_global)
+        self.backend = backend
+        self.n = self.local.size
+        self.nc = n_local * b + n_global
+        self.order_pt, self.pt_starts, self.pt_keys = _segments(self.point, n_points)
+        self.order_loc, self.loc_starts, self.loc_keys = _segments(self.local, n_local)
+        self._pairs()
+        self._pattern()
+
+    # --- structure ---------------------------------------------------------------------------
+
+    def _pairs(self) -> None:
+        """Pairs of observation rows of one point in two different local blocks."""
+        o = self.order_pt
+        counts = np.diff(np.r_[self.pt_starts, self.n])
+        seg_of = np.repeat(np.arange(counts.size), counts)
+        pos = np.arange(self.n) - self.pt_starts[seg_of]
+        partners = counts[seg_of] - 1 - pos
+        total = int(partners.sum())
+        k1s = np.repeat(np.arange(self.n), partners)
+        # offsets 1..partners within each repeat group
+        first = np.repeat(np.cumsum(partners) - partners, partners)
+        d = np.arange(total) - first + 1
+        k1 = o[k1s]
+        k2 = o[k1s + d]
+        l1, l2 = self.local[k1], self.local[k2]
+        same = l1 == l2
+        if np.any(same):
+            raise DegenerateGeometryError(
+                "a point is observed twice in the same local block (image): remove the "
+                "duplicate observation"
+            )
+        swap = l1 > l2
+        k1, k2 = np.where(swap, k2, k1), np.where(swap, k1, k2)
+        l1, l2 = self.local[k1], self.local[k2]
+        key = l1 * self.n_local + l2
+        uniq, inv = np.unique(key, return_inverse=True)
+        self.pair_k1, self.pair_k2 = k1, k2
+        self.blocks = np.column_stack([uniq // self.n_local, uniq % self.n_local])
+        self.pair_order, self.pair_starts, self.pair_keys = _segments(inv, uniq.size)
+        self.n_pairs = k1.size
+
+    def _pattern(self) -> None:
+        """Index arrays of the reduced matrix in CSC order (assembled from block data)."""
+        b, L, g = self.b, self.n_local, self.n_global
+        nb = self.blocks.shape[0]
+        rr, cc = np.meshgrid(np.arange(b), np.arange(b), indexing="ij")
+        rows, cols = [], []
+        base = np.arange(L) * b
+        rows.append((base[:, None, None] + rr[None]).ravel())
+        cols.append((base[:, None, None] + cc[None]).ravel())
+        b1 = self.blocks[:, 0] * b
+        b2 = self.blocks[:, 1] * b
+        rows.append((b1[:, None, None] + rr[None]).ravel())
+        cols.append((b2[:, None, None] + cc[None]).ravel())
+        rows.append((b2[:, None, None] + cc[None]).ravel())  # transposed blocks
+        cols.append((b1[:, None, None] + rr[None]).ravel())
+        if g:
+            gr, gc = np.meshgrid(np.arange(b), np.arange(g), indexing="ij")
+            rows.append((base[:, None, None] + gr[None]).ravel())
+            cols.append((L * b + gc[None] + 0 * base[:, None, None]).ravel())
+            rows.append((L * b + gc[None] + 0 * base[:, None, None]).ravel())
+            cols.append((base[:, None, None] + gr[None]).ravel())
+            ggr, ggc = np.meshgrid(np.arange(g), np.arange(g), indexing="ij")
+            rows.append((L * b + ggr).ravel())
+            cols.append((L * b + ggc).ravel())
+        rows = np.concatenate(rows)
+        cols = np.concatenate(cols)
+        perm = np.lexsort((rows, cols))
+        self._csc_perm = perm
+        self._csc_indices = rows[perm].astype(np.int32)
+        self._csc_indptr = np.r_[0, np.cumsum(np.bincount(cols, minlength=self.nc))].astype(
+            np.int64
+        )
+        self._nnz_parts = (L * b * b, nb * b * b, L * b * g, g * g)
+
+    # --- normal equations ----------------------------------------------------------------
+
+    def _masked(self, lin: Linearization) -> Linearization:
+        """Drop the columns of fixed parameters (zero Jacobian entries)."""
+        if np.all(self.local_free) and np.all(self.global_free):
+            return lin
+        A = lin.A * self.local_free[self.local][:, None, :]
+        G = lin.G
+        if self.gl:
+            G = lin.G * self.global_free[self.local_global[self.local]][:, None, :]
+        lf = self.local_free
+        li = lin.local_info * (lf[:, :, None] & lf[:, None, :])
+        lg = lin.local_grad * lf
+        gf = self.global_free
+        gi = lin.global_info * np.outer(gf, gf)
+        gg = lin.global_grad * gf
+        return Linearization(
+            lin.r, A, G, lin.P, li, lg, lin.point_info, lin.point_grad, gi, gg, lin.cost
+        )
+
+    def normal_equations(self, lin: Linearization, damping: float = 0.0) -> _Normal:
+        """Form the damped normal equations and the reduced (camera) system."""
+        lin = self._masked(lin)
+        b, L, g, gl = self.b, self.n_local, self.n_global, self.gl
+        A, G, P, r = lin.A, lin.G, lin.P, lin.r
+        # per-local sums: U_ll, U_lg (local global columns), gradients
+        U = lin.local_info.copy()
+        Ulg = np.zeros((L, b, gl))
+        Ugl_loc = np.zeros((L, gl, gl))
+        gloc = lin.local_grad.copy()
+        ggl_loc = np.zeros((L, gl))
+
+        # one small GEMM per local block over its contiguous (sorted) rows: [A G r]'[A G r]
+        d = r.shape[1]
+        B = np.concatenate([A, G, r[:, :, None]], axis=2)[self.order_loc]
+        B = B.reshape(-1, b + gl + 1)
+        ends = np.r_[self.loc_starts[1:], self.n]
+        for lo, hi, key in zip(self.loc_starts.tolist(), ends.tolist(), self.loc_keys.tolist()):
+            Bi = B[d * lo : d * hi]
+            Mi = Bi.T @ Bi
+            U[key] += Mi[:b, :b]
+            gloc[key] += Mi[:b, -1]
+            if gl:
+                Ulg[key] = Mi[:b, b : b + gl]
+                Ugl_loc[key] = Mi[b : b + gl, b : b + gl]
+                ggl_loc[key] = Mi[b : b + gl, -1]
+        del B
+        # global sums (scatter local global columns)
+        Ugg = lin.global_info.copy()
+        gglob = lin.global_grad.copy()
+        if gl:
+            cols = self.local_global
+            idx = (cols[:, :, None] * g + cols[:, None, :]).ravel()
+            Ugg += np.bincount(idx, weights=Ugl_loc.ravel(), minlength=g * g).reshape(g, g)
+            gglob += np.bincount(cols.ravel(), weights=ggl_loc.ravel(), minlength=g)
+        # per-point sums
+        V = lin.point_info.copy()
+        gpt = lin.point_grad.copy()
+
+        PT = P.transpose(0, 2, 1)
+
+        def per_point(rows):
+            pt_ = PT[rows]
+            return np.concatenate(
+                [(pt_ @ P[rows]).reshape(rows.size, 9), (pt_ @ r[rows][:, :, None])[:, :, 0]],
+                axis=1,
+            )
+
+        accp = np.zeros((self.n_points, 12))
+        _segment_sum(per_point, self.order_pt, self.pt_starts, self.pt_keys, self.n, accp)
+        V += accp[:, :9].reshape(-1, 3, 3)
+        gpt += accp[:, 9:]
+        # damping (Marquardt: scaled by the diagonal), fixed parameters get a unit diagonal
+        dl = np.einsum("lii->li", U)
+        dg = np.diag(Ugg).copy()
+        dp = np.einsum("pii->pi", V)
+        diag_l, diag_g, diag_p = dl.copy(), dg.copy(), dp.copy()
+        if damping > 0:
+            U[:, np.arange(b), np.arange(b)] += damping * np.maximum(dl, 1e-12)
+            Ugg[np.arange(g), np.arange(g)] += damping * np.maximum(dg, 1e-12)
+            V[:, np.arange(3), np.arange(3)] += damping * np.maximum(dp, 1e-12)
+        fixed_l = ~self.local_free
+        U[:, np.arange(b), np.arange(b)] += fixed_l
+        Ugg[np.arange(g), np.arange(g)] += ~self.global_free
+        return _Normal(self, lin, U, Ulg, Ugg, V, gloc, gglob, gpt, diag_l, diag_g, diag_p)
+
+
+class _Normal:
+    """Damped normal equations of one linearisation, reduced by the Schur complement."""
+
+    def __init__(self, sys, lin, U, Ulg, Ugg, V, gloc, gglob, gpt, diag_l, diag_g, diag_p):
+        self.sys, self.lin = sys, lin
+        self.U, self.Ulg, self.Ugg, self.V = U, Ulg, Ugg, V
+        self.gloc, self.gglob, self.gpt = gloc, gglob, gpt
+        self.diag = (diag_l, diag_g, diag_p)
+        det = np.linalg.det(V)
+        scale = np.einsum("pii->p", V) ** 3
+        weak = ~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))
+        if np.any(weak):
+            raise DegenerateGeometryError(
+                f"{int(weak.sum())} point(s) are not determined by their rays (all rays "
+                "nearly parallel or fewer than two); first point row "
+                f"{int(np.flatnonzero(weak)[0])}",
+            )
+        self.Vinv = np.linalg.inv(V)
+        self._reduce()
+
+    def _reduce(self) -> None:
+        s = self.sys
+        b, L, g, gl = s.b, s.n_local, s.n_global, s.gl
+        A, G, P = self.lin.A, self.lin.G, self.lin.P
+        Vinv = self.Vinv
+        pt = s.point
+        # W_k = A_k' P_k (b, 3); Y_k = W_k Vinv_j
+        W = A.transpose(0, 2, 1) @ P
+        Y = W @ Vinv[pt]
+        self.W, self.Y = W, Y
+        # H_j (3, g): sum over the point's rows of P_k' G_k in global columns
+        if g:
+            Wg = G.transpose(0, 2, 1) @ P  # (n, gl, 3)
+            cols = s.local_global[s.local]  # (n, gl)
+            flat = (pt[:, None, None] * 3 + np.arange(3)[None, None, :]) * g + cols[:, :, None]
+            H = np.bincount(flat.ravel(), weights=Wg.ravel(), minlength=s.n_points * 3 * g)
+            H = H.reshape(s.n_points, 3, g)
+        else:
+            H = np.zeros((s.n_points, 3, 0))
+        self.H = H
+        VH = Vinv @ H  # (p, 3, g)
+        self.VH = VH
+        # diagonal blocks U_ll - sum_k Y_k W_k' and local-global blocks - sum_k Y_k H_j,
+        # one GEMM per local block over its sorted rows
+        D = self.U.copy()
+        LG = np.zeros((L, b, g))
+        ol = s.order_loc
+        Ys = Y[ol].transpose(0, 2, 1).reshape(-1, b)  # rows (k, 3) x b
+        Ws = W[ol].transpose(0, 2, 1).reshape(-1, b)
+        Hs = H[pt[ol]].reshape(-1, g) if g else None
+        ends = np.r_[s.loc_starts[1:], s.n]
+        for lo, hi, key in zip(s.loc_starts.tolist(), ends.tolist(), s.loc_keys.tolist()):
+            Yi = Ys[3 * lo : 3 * hi]
+            D[key] -= Yi.T @ Ws[3 * lo : 3 * hi]
+            if g:
+                LG[key] -= Yi.T @ Hs[3 * lo : 3 * hi]
+        del Ys, Ws, Hs
+        # off-diagonal blocks: - sum over pairs Y_k1 W_k2'
+        nb = s.blocks.shape[0]
+        off = np.zeros((nb, b * b))
+        if s.n_pairs:
+            k1, k2 = s.pair_k1, s.pair_k2
+            _segment_sum(
+                lambda rows: (Y[k1[rows]] @ W[k2[rows]].transpose(0, 2, 1)).reshape(rows.size, -1),
+                s.pair_order,
+                s.pair_starts,
+                s.pair_keys,
+                s.n_pairs,
+                off,
+            )
+        off = -off
+        # local-global: U_lg (scattered into the global columns)
+        if g:
+            cols = s.local_global
+            for c in range(gl):  # gl columns, not points
+                LG[np.arange(L), :, cols[:, c]] += self.Ulg[:, :, c]
+            # fixed parameters: no coupling
+            LG *= s.local_free[:, :, None]
+            LG *= s.global_free[None, None, :]
+            # global-global: U_gg - sum_j H_j' Vinv_j H_j
+            GG = self.Ugg - H.reshape(-1, g).T @ VH.reshape(-1, g)
+            gf = s.global_free
+            GG = np.where(np.outer(gf, gf), GG, np.diag((~gf).astype(float)))
+        else:
+            GG = np.zeros((0, 0))
+        self.D, self.off, self.LG, self.GG = D, off, LG, GG
+        # the pattern lists symmetric counterparts in the same element order (see _pattern)
+        data = np.concatenate(
+            [D.ravel(), off.ravel(), off.ravel(), LG.ravel(), LG.ravel(), GG.ravel()]
+        )
+        self.S = sp.csc_matrix(
+            (data[s._csc_perm], s._csc_indices, s._csc_indptr), shape=(s.nc, s.nc)
+        )
+
+    # --- solving -------------------------------------------------------------------------
+
+    def factor(self) -> SparseFactor:
+        return factorize(
+            self.S, backend=self.sys.backend, what="reduced camera system", block_size=self.sys.b
+        )
+
+    def reduced_rhs(self) -> np.ndarray:
+        """``-(g_c - W V^-1 g_p)`` stacked (local blocks, then global)."""
+        s = self.sys
+        L, b = s.n_local, s.b
+        Vg = (self.Vinv @ self.gpt[:, :, None])[:, :, 0]  # V^-1 g_p
+        acc = np.zeros((L, b))
+        _segment_sum(
+            lambda rows: (self.W[rows] @ Vg[s.point[rows]][:, :, None])[:, :, 0],
+            s.order_loc,
+            s.loc_starts,
+            s.loc_keys,
+            s.n,
+            acc,
+        )
+        rl = -(self.gloc - acc) * s.local_free
+        rg = -(self.gglob - self.H.reshape(-1, s.n_global).T @ Vg.ravel()) * s.global_free
+        return np.concatenate([rl.ravel(), rg])
+
+    def back_substitute(self, dc: np.ndarray) -> np.ndarray:
+        """Point steps ``-V^-1 (g_p + W' dc)`` (n_points, 3) for camera-side steps ``dc``."""
+        s = self.sys
+        L, b = s.n_local, s.b
+        dl = dc[: L * b].reshape(L, b)
+        dg = dc[L * b :]
+        acc = np.zeros((s.n_points, 3))
+        _segment_sum(
+            lambda rows: (dl[s.local[rows]][:, None, :] @ self.W[rows])[:, 0, :],
+            s.order_pt,
+            s.pt_starts,
+            s.pt_keys,
+            s.n,
+            acc,
+        )
+        t = self.gpt + acc
+        if s.n_global:
+            t += self.H @ dg
+        return -(self.Vinv @ t[:, :, None])[:, :, 0]
+
+    def solve(self) -> tuple[np.ndarray, np.ndarray, SparseFactor]:
+        """Camera-side step (nc,), point step (n_points, 3) and the factor used."""
+        F = self.factor()
+        dc = F.solve(self.reduced_rhs())
+        return dc, self.back_substitute(dc), F
+
+    def predicted_decrease(self, dc: np.ndarray, dp: np.ndarray, damping: float) -> float:
+        """``-2 g'dx - dx' N dx`` of the undamped model, from the damped solution."""
+        s = self.sys
+        g = np.concatenate([self.gloc.ravel(), self.gglob, self.gpt.ravel()])
+        dx = np.concatenate([dc, dp.ravel()])
+        diag = np.concatenate([np.maximum(d, 1e-12).ravel() for d in self.diag])
+        free = np.concatenate([s.local_free.ravel(), s.global_free, np.ones(dp.size, dtype=bool)])
+        return float(-(g @ dx) + damping * np.sum(diag * free * dx * dx))
+
+
+@dataclass
+class CovarianceBlocks:
+    """Blocks of ``Q_cc`` (the inverse of the reduced system) needed for statistics.
+
+    ``local`` (n_local, b, b): diagonal blocks; ``pairs`` (n_blocks, b, b): blocks of the
+    pairs of local blocks that share a point (``Q[l1, l2]`` with ``l1 < l2`` as in
+    ``SchurSystem.blocks``); ``local_global`` (n_local, b, g); ``global_`` (g, g).
+    Entries of fixed parameters are zero.
+    """
+
+    local: np.ndarray
+    pairs: np.ndarray | None
+    local_global: np.ndarray
+    global_: np.ndarray
+
+
+def covariance_blocks(
+    normal: _Normal, factor: SparseFactor, *, pairs: bool, batch_columns: int = 512
+) -> CovarianceBlocks:
+    """Blocks of the inverse of the reduced system by solves with unit vectors in batches
+    (memory ``nc * batch_columns``)."""
+    s = normal.sys
+    b, L, g = s.b, s.n_local, s.n_global
+    Ql = np.zeros((L, b, b))
+    Qlg = np.zeros((L, b, g))
+    Qp = np.zeros((s.blocks.shape[0], b, b)) if pairs else None
+    per = max(1, batch_columns // b)
+    from .sparse import DENSE_INVERSE_MAX
+
+    if s.nc <= DENSE_INVERSE_MAX and factor.backend != "cg":
+        Qd = factor.dense_inverse()
+        per = L  # one "batch": all columns at once from the dense inverse
+    else:
+        Qd = None
+    for l0 in range(0, L, per):
+        l1 = min(L, l0 + per)
+        ncol = (l1 - l0) * b
+        if Qd is not None:
+            X = Qd[:, l0 * b : l1 * b]
+        else:
+            E = np.zeros((s.nc, ncol))
+            E[np.arange(l0 * b, l1 * b), np.arange(ncol)] = 1.0
+            X = factor.solve(E)  # columns: Q[:, local l0..l1]
+        Xr = X[: L * b].reshape(L, b, l1 - l0, b)
+        idx = np.arange(l1 - l0)
+        Ql[l0:l1] = Xr[l0 + idx, :, idx, :]
+        if g:
+            Qlg[l0:l1] = X[L * b :].reshape(g, l1 - l0, b).transpose(1, 2, 0)
+        if pairs and s.blocks.shape[0]:
+            sel = np.flatnonzero((s.blocks[:, 0] >= l0) & (s.blocks[:, 0] < l1))
+            if sel.size:
+                lo_, hi_ = s.blocks[sel, 0], s.blocks[sel, 1]
+                # Q[hi, lo] rows hi, columns lo -> Q[lo, hi] = its transpose
+                blk = Xr[hi_, :, lo_ - l0, :]  # (k, b(rows of hi), b(cols of lo))
+                Qp[sel] = blk.transpose(0, 2, 1)
+    if g:
+        if Qd is not None:
+            Qgg = Qd[L * b :, L * b :].copy()
+        else:
+            E = np.zeros((s.nc, g))
+            E[L * b + np.arange(g), np.arange(g)] = 1.0
+            Qgg = factor.solve(E)[L * b :]
+        Qgg = 0.5 * (Qgg + Qgg.T)
+    else:
+        Qgg = np.zeros((0, 0))
+    lf = s.local_free
+    Ql *= lf[:, :, None] & lf[:, None, :]
+    Qlg *= lf[:, :, None]
+    if g:
+        gf = s.global_free
+        Qlg *= gf[None, None, :]
+        Qgg *= np.outer(gf, gf)
+    if Qp is not None:
+        Qp *= lf[s.blocks[:, 0]][:, :, None] & lf[s.blocks[:, 1]][:, None, :]
+    return CovarianceBlocks(Ql, Qp, Qlg, Qgg)
+
+
+def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
+    """Marginal cofactor of every point (n_points, 3, 3):
+    ``V^-1 + V^-1 W' Q_cc W V^-1`` (needs ``Q.pairs``)."""
+    s = normal.sys
+    Y, Vinv, VH = normal.Y, normal.Vinv, normal.VH
+    out = Vinv.copy()
+    acc = np.zeros((s.n_points, 9))
+    loc = s.local
+
+    def self_terms(rows):
+        y = Y[rows]
+        yt = y.transpose(0, 2, 1)
+        t = yt @ Q.local[loc[rows]] @ y
+        if s.n_global:
+            c = yt @ Q.local_global[loc[rows]] @ VH[s.point[rows]].transpose(0, 2, 1)
+            t += c + c.transpose(0, 2, 1)
+        return t.reshape(rows.size, 9)
+
+    _segment_sum(self_terms, s.order_pt, s.pt_starts, s.pt_keys, s.n, acc)
+    if s.n_pairs:
+        k1, k2 = s.pair_k1, s.pair_k2
+        blk_of_pair = np.empty(s.n_pairs, dtype=np.int64)
+        counts = np.diff(np.r_[s.pair_starts, s.n_pairs])
+        blk_of_pair[s.pair_order] = np.repeat(s.pair_keys, counts)
+        pp = s.point[k1]
+        order, starts, keys = _segments(pp, s.n_points)
+
+        def pair_terms(rows):
+            a = Y[k1[rows]].transpose(0, 2, 1) @ Q.pairs[blk_of_pair[rows]] @ Y[k2[rows]]
+            return (a + a.transpose(0, 2, 1)).reshape(rows.size, 9)
+
+        _segment_sum(pair_terms, order, starts, keys, s.n_pairs, acc)
+    out += acc.reshape(-1, 3, 3)
+    if s.n_global:
+        out += VH @ Q.global_ @ VH.transpose(0, 2, 1)
+    return 0.5 * (out + out.transpose(0, 2, 1))
+
+
+def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray) -> np.ndarray:
+    """Cofactor ``J Q J'`` of the adjusted value of every observation row group (n, d, d)
+    (whitened; the residual cofactor is ``I - J Q J'``)."""
+    s = normal.sys
+    A, G, P = normal.lin.A, normal.lin.G, normal.lin.P
+    Y, VH = normal.Y, normal.VH
+    loc, pt = s.local, s.point
+    n = s.n
+    # cross cofactor camera-side (local b + global g) x point for each row: Q_{c,p_j}
+    # Q_{l,p_j} = -(sum_k' Q_{l,l(k')} Y_k' + Q_{l,g} VH_j)
+    Qlp = -(Q.local[loc] @ Y)  # own term k' = k
+    if s.n_global:
+        Qlp -= Q.local_global[loc] @ VH[pt].transpose(0, 2, 1)
+    if s.n_pairs:
+        k1, k2 = s.pair_k1, s.pair_k2
+        blk_of_pair = np.empty(s.n_pairs, dtype=np.int64)
+        counts = np.diff(np.r_[s.pair_starts, s.n_pairs])
+        blk_of_pair[s.pair_order] = np.repeat(s.pair_keys, counts)
+        # row k1 needs Q[l1, l2] Y_k2; row k2 needs Q[l2, l1] Y_k1 = Q[l1, l2]' Y_k1
+        for lo in range(0, s.n_pairs, CHUNK):
+            hi = min(s.n_pairs, lo + CHUNK)
+            q = Q.pairs[blk_of_pair[lo:hi]]
+            a = q @ Y[k2[lo:hi]]
+            c = q.transpose(0, 2, 1) @ Y[k1[lo:hi]]
+            np.subtract.at(Qlp, k1[lo:hi], a)
+            np.subtract.at(Qlp, k2[lo:hi], c)
+    At, Pt = A.transpose(0, 2, 1), P.transpose(0, 2, 1)
+    out = A @ Q.local[loc] @ At
+    out += P @ Qpp[pt] @ Pt
+    c = A @ Qlp @ Pt
+    out += c + c.transpose(0, 2, 1)
+    if s.n_global:
+        cols = s.local_global[loc]  # (n, gl)
+        Qgg_rows = Q.global_[cols[:, :, None], cols[:, None, :]]  # (n, gl, gl)
+        Gt = G.transpose(0, 2, 1)
+        out += G @ Qgg_rows @ Gt
+        Qlg_rows = np.take_along_axis(Q.local_global[loc], cols[:, None, :], axis=2)
+        c = A @ Qlg_rows @ Gt
+        out += c + c.transpose(0, 2, 1)
+        # Q_{g,p_j} = -(sum_k' Q_{g,l(k')} Y_k' + Q_gg VH_j), restricted to the row's columns
+        Qgp = -(Q.global_ @ VH.transpose(0, 2, 1))
+        accg = np.zeros((s.n_points, s.n_global * 3))
+        _segment_sum(
+            lambda rows: (Q.local_global[loc[rows]].transpose(0, 2, 1) @ Y[rows]).reshape(
+                rows.size, -1
+            ),
+            s.order_pt,
+            s.pt_starts,
+            s.pt_keys,
+            n,
+            accg,
+        )
+        Qgp -= accg.reshape(s.n_points, s.n_global, 3)
+        Qgp_rows = np.take_along_axis(Qgp[pt], cols[:, :, None], axis=1)  # (n, gl, 3)
+        c = G @ Qgp_rows @ Pt
+        out += c + c.transpose(0, 2, 1)
+    return out

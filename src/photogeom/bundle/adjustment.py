@@ -1,0 +1,490 @@
+"""Bundle adjustment with self-calibration: Levenberg-Marquardt on the reduced camera system.
+
+Unknowns: per image its projection centre and attitude (a rotation increment on the left of
+``M``, reported as omega, phi, kappa) and, for image-variant calibration, its offsets of f,
+cx, cy; per camera group the free Metashape calibration parameters; per tie and control
+point its object coordinates. Observations: image points (pixels, computed minus
+observed), control point coordinates, GNSS projection centres and IMU angles, each whitened
+by its standard deviation. The engine is :mod:`photogeom.adjust.schur`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..adjust.schur import Linearization, SchurSystem
+from ..camera.frame_kernel import (
+    opk_from_increment_jacobian,
+    project_rows,
+    rotation_increment,
+)
+from ..errors import DegenerateGeometryError, InputError
+from .block import CALIBRATION_NAMES, IMAGE_VARIANT_NAMES, Block
+from .options import BundleOptions
+
+NCAL = len(CALIBRATION_NAMES)
+
+
+@dataclass
+class _State:
+    C: np.ndarray  # (m, 3) centred projection centres
+    M: np.ndarray  # (m, 3, 3)
+    offset: np.ndarray  # (m, 3) image-variant f, cx, cy offsets
+    cal: np.ndarray  # (groups, 11)
+    X: np.ndarray  # (p_adj, 3) centred points
+
+    def copy(self) -> _State:
+        return _State(
+            self.C.copy(), self.M.copy(), self.offset.copy(), self.cal.copy(), self.X.copy()
+        )
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi)."""
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def opk_rows(M: np.ndarray) -> np.ndarray:
+    """omega, phi, kappa (m, 3) of rotation matrices (m, 3, 3), vectorised."""
+    phi = np.arcsin(np.clip(M[:, 2, 0], -1.0, 1.0))
+    omega = np.arctan2(-M[:, 2, 1], M[:, 2, 2])
+    kappa = np.arctan2(-M[:, 1, 0], M[:, 0, 0])
+    return np.column_stack([omega, phi, kappa])
+
+
+class Problem:
+    """The block turned into unknowns, observations and the Schur structure."""
+
+    def __init__(self, block: Block, options: BundleOptions) -> None:
+        self.block = block
+        self.options = options
+        role = block.role
+        adj_pt = role != "check"
+        self.adj_points = np.flatnonzero(adj_pt)
+        self.check_points = np.flatnonzero(~adj_pt)
+        pt_map = np.full(block.n_points, -1, dtype=np.int64)
+        pt_map[self.adj_points] = np.arange(self.adj_points.size)
+        keep = adj_pt[block.obs_point]
+        self.obs_rows = np.flatnonzero(keep)  # rows of block.observations in the adjustment
+        self.obs_i = block.obs_image[keep]
+        self.obs_j = pt_map[block.obs_point[keep]]
+        self.uv = block.observations.uv[keep]
+        self.sigma = block.observations.sigma[keep]
+        self.size = block.image_sizes()[self.obs_i]
+        m, ng = block.n_images, len(block.calibrations)
+        self.m, self.ng, self.p = m, ng, self.adj_points.size
+        if self.obs_rows.size == 0:
+            raise InputError("the block has no image observations of tie or control points")
+        self.origin = block.exterior[:, :3].mean(axis=0)  # coordinates reduced to this
+        iv_any = any(len(v) for v in block.image_variant.values())
+        self.b = 9 if iv_any else 6
+        lf = np.ones((m, self.b), dtype=bool)
+        if options.fix_exterior:
+            lf[:, :6] = False
+        if iv_any:
+            for gi, gid in enumerate(block.camera_ids.tolist()):
+                names = block.image_variant[gid]
+                rows = block.image_camera == gi
+                for c, nm in enumerate(IMAGE_VARIANT_NAMES):
+                    lf[rows, 6 + c] = nm in names
+        gf = np.zeros(ng * NCAL, dtype=bool)
+        for gi, gid in enumerate(block.camera_ids.tolist()):
+            free = options.free if options.free is not None else block.free[gid]
+            iv = block.image_variant[gid]
+            for c, nm in enumerate(CALIBRATION_NAMES):
+                gf[gi * NCAL + c] = nm in free and nm not in iv
+        self.local_free, self.global_free = lf, gf
+        self.local_global = block.image_camera[:, None] * NCAL + np.arange(NCAL)[None, :]
+        self.free_datum: tuple[int, int, int] | None = None
+        if options.datum == "free":
+            self._free_datum()
+        self.sys = SchurSystem(
+            m,
+            self.b,
+            ng * NCAL,
+            self.p,
+            self.obs_i,
+            self.obs_j,
+            self.local_global,
+            self.local_free,
+            self.global_free,
+            backend=options.backend,
+        )
+        self.has_gnss = np.all(np.isfinite(block.gnss), axis=1)
+        self.has_imu = np.all(np.isfinite(block.imu), axis=1)
+        ctrl = role[self.adj_points] == "control"
+        self.control = np.flatnonzero(ctrl)
+        self.control_xyz = block.xyz[self.adj_points[ctrl]] - self.origin
+        self.control_sigma = block.point_sigma[self.adj_points[ctrl]]
+        self.obs_is_control = np.isin(self.obs_j, self.control)
+        #: variance factors per observation group (variance-component estimation)
+        self.group_factor = {
+            "image_tie": 1.0,
+            "image_control": 1.0,
+            "control": 1.0,
+            "gnss": 1.0,
+            "imu": 1.0,
+        }
+        self._datum_check()
+
+    # --- datum -------------------------------------------------------------------------------
+
+    def _free_datum(self) -> None:
+        """Minimal constraints of a free network: the first image's orientation and one
+        coordinate of the farthest projection centre are held (the reported covariances
+        are transformed to inner constraints on the centres afterwards)."""
+        C = self.block.exterior[:, :3]
+        if self.m < 2:
+            raise DegenerateGeometryError("a free network needs at least two images")
+        d = C - C[0]
+        far = int(np.argmax(np.linalg.norm(d, axis=1)))
+        if np.linalg.norm(d[far]) == 0:
+            raise DegenerateGeometryError("a free network needs two distinct projection centres")
+        axis = int(np.argmax(np.abs(d[far])))
+        self.local_free[0, :6] = False
+        self.local_free[far, axis] = False
+        self.free_datum = (0, far, axis)
+
+    def _datum_check(self) -> None:
+        if self.options.datum == "free":
+            return
+        pos = []
+        if self.control.size:
+            pos.append(self.control_xyz)
+        if np.any(self.has_gnss):
+            pos.append(self.block.gnss[self.has_gnss] - self.origin)
+        P = np.concatenate(pos) if pos else np.zeros((0, 3))
+        imu = bool(np.any(self.has_imu))
+        missing: list[str] = []
+        if self.options.fix_exterior:
+            return
+        if P.shape[0] == 0:
+            missing = ["3 shifts", "3 rotations", "the scale"]
+        elif P.shape[0] == 1:
+            missing = ["the scale"] + ([] if imu else ["3 rotations"])
+        else:
+            s = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+            if s[0] <= 1e-9 * max(1.0, float(np.abs(P).max())):
+                missing = ["the scale"] + ([] if imu else ["3 rotations"])
+            elif s[1] <= 1e-6 * s[0] and not imu:
+                missing = ["the rotation about the line through the control/GNSS positions"]
+        if missing:
+            raise DegenerateGeometryError(
+                "datum defect: the control points and GNSS positions do not fix "
+                + ", ".join(missing)
+                + ". Add control points (at least three, not on a line) or GNSS camera "
+                "positions, or pass datum='free' for a free network"
+            )
+
+    # --- state -------------------------------------------------------------------------------
+
+    def initial_state(self) -> _State:
+        b = self.block
+        cal = np.array([[getattr(c, n) for n in CALIBRATION_NAMES] for c in b.calibrations])
+        return _State(
+            b.exterior[:, :3] - self.origin,
+            b.rotations(),
+            b.calibration_offset.copy(),
+            cal,
+            b.xyz[self.adj_points] - self.origin,
+        )
+
+    def update(self, s: _State, dc: np.ndarray, dp: np.ndarray) -> _State:
+        m, b = self.m, self.b
+        dl = dc[: m * b].reshape(m, b)
+        dg = dc[m * b :].reshape(self.ng, NCAL)
+        n = s.copy()
+        n.C += dl[:, :3]
+        n.M = rotation_increment(dl[:, 3:6]) @ s.M
+        if b > 6:
+            n.offset += dl[:, 6:9]
+        n.cal += dg
+        n.X += dp
+        return n
+
+    # --- residuals and Jacobians -----------------------------------------------------------
+
+    def _rows(self, s: _State):
+        i, j = self.obs_i, self.obs_j
+        cal = s.cal[self.block.image_camera][i]
+        cal[:, :3] += s.offset[i]
+        return s.X[j], s.M[i], s.C[i], cal
+
+    def residuals(self, s: _State) -> tuple[np.ndarray, np.ndarray]:
+        """Image residuals (n, 2) px (computed - observed) and depths (positive in front)."""
+        X, M, C, cal = self._rows(s)
+        pr = project_rows(X, M, C, cal, self.size, jacobian=False)
+        return pr.uv - self.uv, pr.depth
+
+    def robust_weights(self, e2: np.ndarray) -> np.ndarray:
+        """IRLS weights of the image observations from squared whitened norms."""
+        loss, c = self.options.loss, self.options.scale
+        if loss == "squared":
+            return np.ones_like(e2)
+        if loss == "huber":
+            e = np.sqrt(e2)
+            return np.where(e <= c, 1.0, c / np.maximum(e, 1e-300))
+        return 1.0 / (1.0 + e2 / (c * c))
+
+    def robust_cost(self, e2: np.ndarray) -> float:
+        loss, c = self.options.loss, self.options.scale
+        if loss == "squared":
+            return float(e2.sum())
+        if loss == "huber":
+            e = np.sqrt(e2)
+            return float(np.where(e <= c, e2, 2 * c * e - c * c).sum())
+        return float((c * c * np.log1p(e2 / (c * c))).sum())
+
+    def sigma_obs(self) -> np.ndarray:
+        """Standard deviation of each image observation in use (with variance factors)."""
+        gf = self.group_factor
+        f = np.where(self.obs_is_control, gf["image_control"], gf["image_tie"])
+        return self.sigma * np.sqrt(f)
+
+    def prior_terms(self, s: _State):
+        """Normal-equation terms of the GNSS, IMU and control-point observations and their
+        whitened residuals ``{group: (k, 3)}``."""
+        m, b = self.m, self.b
+        gf = self.group_factor
+        li = np.zeros((m, b, b))
+        lg = np.zeros((m, b))
+        cost = 0.0
+        parts: dict[str, np.ndarray] = {}
+        if np.any(self.has_gnss):
+            k = self.has_gnss
+            sg = self.block.gnss_sigma[k] * math.sqrt(gf["gnss"])
+            r = (s.C[k] - (self.block.gnss[k] - self.origin)) / sg
+            w = 1.0 / sg
+            idx = np.flatnonzero(k)
+            for a in range(3):
+                li[idx, a, a] += w[:, a] ** 2
+            lg[idx, :3] += r * w
+            cost += float((r * r).sum())
+            parts["gnss"] = r
+        if np.any(self.has_imu):
+            k = self.has_imu
+            sg = self.block.imu_sigma[k] * math.sqrt(gf["imu"])
+            ang = opk_rows(s.M[k])
+            r = wrap_angle(ang - self.block.imu[k]) / sg
+            J = opk_from_increment_jacobian(ang) / sg[:, :, None]
+            idx = np.flatnonzero(k)
+            li[idx, 3:6, 3:6] += np.einsum("kai,kaj->kij", J, J)
+            lg[idx, 3:6] += np.einsum("kai,ka->ki", J, r)
+            cost += float((r * r).sum())
+            parts["imu"] = r
+        pi = np.zeros((self.p, 3, 3))
+        pg = np.zeros((self.p, 3))
+        if self.control.size:
+            sg = self.control_sigma * math.sqrt(gf["control"])
+            r = (s.X[self.control] - self.control_xyz) / sg
+            w = 1.0 / sg
+            for a in range(3):
+                pi[self.control, a, a] += w[:, a] ** 2
+            pg[self.control] += r * w
+            cost += float((r * r).sum())
+            parts["control"] = r
+        return li, lg, pi, pg, cost, parts
+
+    def linearize(self, s: _State, weights: np.ndarray) -> Linearization:
+        X, M, C, cal = self._rows(s)
+        pr = project_rows(X, M, C, cal, self.size, jacobian=True)
+        sw = np.sqrt(weights) / self.sigma_obs()
+        r = (pr.uv - self.uv) * sw[:, None]
+        blocks = [pr.d_center, pr.d_rotation]
+        if self.b > 6:
+            blocks.append(pr.d_calibration[:, :, :3])
+        A = np.concatenate(blocks, axis=2) * sw[:, None, None]
+        G = pr.d_calibration * sw[:, None, None]
+        P = pr.d_point * sw[:, None, None]
+        li, lg, pi, pg, pcost, _ = self.prior_terms(s)
+        ng = self.ng * NCAL
+        return Linearization(
+            r,
+            A,
+            G,
+            P,
+            li,
+            lg,
+            pi,
+            pg,
+            np.zeros((ng, ng)),
+            np.zeros(ng),
+            float(np.einsum("nd,nd->", r, r)) + pcost,
+        )
+
+    def cost(self, s: _State) -> tuple[float, np.ndarray, np.ndarray]:
+        """Robust cost, squared whitened norms of the image residuals, depths."""
+        v, depth = self.residuals(s)
+        e2 = np.einsum("nd,nd->n", v, v) / self.sigma_obs() ** 2
+        pcost = self.prior_terms(s)[4]
+        return self.robust_cost(e2) + pcost, e2, depth
+
+    # --- back to a block ---------------------------------------------------------------------
+
+    def to_block(self, s: _State, check_xyz: np.ndarray | None = None) -> Block:
+        b = self.block
+        ext = np.column_stack([s.C + self.origin, opk_rows(s.M)])
+        xyz = b.xyz.copy()
+        xyz[self.adj_points] = s.X + self.origin
+        if check_xyz is not None:
+            xyz[self.check_points] = check_xyz
+        cals = tuple(
+            replace(c, **{n: float(s.cal[g, k]) for k, n in enumerate(CALIBRATION_NAMES)})
+            for g, c in enumerate(b.calibrations)
+        )
+        return b.replace(
+            exterior=ext, xyz=xyz, calibrations=cals, calibration_offset=s.offset.copy()
+        )
+
+
+def _step_small(problem: Problem, s: _State, dc: np.ndarray, dp: np.ndarray, xtol: float) -> bool:
+    m, b = problem.m, problem.b
+    extent = max(float(np.ptp(s.X, axis=0).max()) if s.X.size else 1.0, 1e-9)
+    dl = dc[: m * b].reshape(m, b)
+    dg = dc[m * b :].reshape(problem.ng, NCAL)
+    f = float(np.abs(s.cal[:, 0]).max())
+    ok = np.abs(dl[:, :3]).max(initial=0) <= xtol * extent
+    ok = ok and np.abs(dl[:, 3:6]).max(initial=0) <= xtol
+    if b > 6:
+        ok = ok and np.abs(dl[:, 6:]).max(initial=0) <= xtol * f
+    scale = np.maximum(np.abs(s.cal), 1e-6)
+    scale[:, :3] = f
+    ok = ok and bool(np.all(np.abs(dg) <= xtol * scale))
+    ok = ok and np.abs(dp).max(initial=0) <= xtol * extent
+    return bool(ok)
+
+
+@dataclass
+class Iteration:
+    """Outcome of the Levenberg-Marquardt loop."""
+
+    state: _State
+    iterations: int
+    converged: bool
+    message: str
+    history: list
+    weights: np.ndarray
+
+
+def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions, progress=None):
+    """Minimise the (robust) cost from ``state``; see :class:`Iteration`."""
+    cost, e2, depth = problem.cost(state)
+    if np.any(~(depth > 0)):
+        k = np.flatnonzero(~(depth > 0))
+        o = problem.block.observations
+        row = problem.obs_rows[k[0]]
+        raise DegenerateGeometryError(
+            f"{k.size} observation(s) have their point behind the camera at the start, e.g. "
+            f"image {o.image_ids[row]} point {o.point_ids[row]}: check the initial exterior "
+            "orientations (angles in radians, M = M3(kappa) M2(phi) M1(omega)) and points"
+        )
+    history = [cost]
+    lam = options.initial_damping
+    nu = 2.0
+    converged = False
+    message = f"not converged: {options.max_iterations} iterations reached"
+    weights = problem.robust_weights(e2)
+    lin = problem.linearize(state, weights)
+    tiny = 1e-26 * max(2 * problem.obs_i.size, 1)
+    it = 0
+    while it < options.max_iterations:
+        if cost <= tiny:
+            converged, message = True, "converged: the cost is zero to rounding (exact fit)"
+            break
+        it += 1
+        try:
+            ne = problem.sys.normal_equations(lin, damping=lam)
+            dc, dp, _ = ne.solve()
+        except DegenerateGeometryError:
+            if lam > 1e10:
+                raise
+            lam *= nu
+            nu *= 2.0
+            continue
+        pred = ne.predicted_decrease(dc, dp, lam)
+        trial = problem.update(state, dc, dp)
+        new_cost, new_e2, depth = problem.cost(trial)
+        if np.all(depth > 0) and np.isfinite(new_cost) and new_cost < cost:
+            rho = (cost - new_cost) / pred if pred > 0 else 1.0
+            small = _step_small(problem, state, dc, dp, options.xtol)
+            decrease = cost - new_cost
+            state, cost = trial, new_cost
+            history.append(cost)
+            lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
+            nu = 2.0
+            weights = problem.robust_weights(new_e2)
+            lin = problem.linearize(state, weights)
+            if progress is not None:
+                progress(it, cost, lam)
+            if decrease <= options.ftol * cost:
+                converged, message = True, "converged: relative cost decrease below ftol"
+                break
+            if small:
+                converged, message = True, "converged: step below xtol"
+                break
+        else:
+            if np.isfinite(new_cost) and _step_small(problem, state, dc, dp, options.xtol):
+                converged = True
+                message = "converged: no further decrease (step below xtol)"
+                break
+            lam *= nu
+            nu *= 2.0
+            if lam > 1e16:
+                message = "stopped: the damping grew without a decrease of the cost"
+                break
+    return Iteration(state, it, converged, message, history, weights)
+
+
+def bundle_adjust(block: Block, options: BundleOptions | None = None, *, progress=None, **kwargs):
+    """Adjust an image block: exterior orientations, points and the camera calibration.
+
+    Parameters
+    ----------
+    block : Block
+        The block with initial values (see :class:`photogeom.bundle.Block`).
+    options : BundleOptions, optional
+        Settings; keyword arguments override single fields (e.g. ``loss="huber"``,
+        ``point_covariance=True``, ``free=("f", "cx", "cy", "k1", "k2")``).
+    progress : callable, optional
+        Called as ``progress(iteration, cost, damping)`` after each accepted step.
+
+    Returns
+    -------
+    BundleFit
+        The adjusted block, statistics and diagnostics.
+
+    Raises
+    ------
+    DegenerateGeometryError
+        Datum defect, points behind cameras at the start, points without intersection,
+        parameters the observations do not determine.
+    InputError
+        Invalid block (unknown ids, points seen once, duplicate observations, ...) or options.
+    """
+    from .result import build_result
+
+    t0 = time.perf_counter()
+    opts = options or BundleOptions()
+    opts = opts.updated(**kwargs) if kwargs else opts.validate()
+    if not isinstance(block, Block):
+        raise InputError(
+            f"bundle_adjust needs a photogeom.bundle.Block, got {type(block).__name__}"
+        )
+    block.validate()
+    problem = Problem(block, opts)
+    if opts.verbose and progress is None:
+
+        def progress(it, cost, lam):
+            print(f"iteration {it:3d}  cost {cost:.6e}  damping {lam:.1e}")
+
+    run = levenberg_marquardt(problem, problem.initial_state(), opts, progress)
+    vce = None
+    if opts.variance_components:
+        from .variance import iterate_variance_components
+
+        run, vce = iterate_variance_components(problem, run, opts, progress)
+    return build_result(problem, run, opts, vce, time.perf_counter() - t0)

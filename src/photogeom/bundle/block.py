@@ -1,0 +1,603 @@
+"""The block: camera groups, images, points and image observations, keyed by ids.
+
+A :class:`Block` is immutable and stored as arrays (fast at thousands of images and millions
+of observations); mapping-style views (``block.images[image_id]``, ``block.points[point_id]``)
+build small records on demand. Every table is keyed by ids, never by row position, so that
+blocks can be filtered and merged.
+
+Conventions (06-bundle-adjustment.md, 01-conventions.md):
+
+* cameras are :class:`~photogeom.camera.MetashapeCalibration` (pixels);
+* an image's exterior orientation is the photogrammetric one: projection centre
+  ``(X0, Y0, Z0)`` and ``M = M3(kappa) M2(phi) M1(omega)`` (object -> image system);
+* image observations ``(u, v)`` are pixels with the centre of the first pixel at (0, 0);
+* point roles: ``"tie"`` (unknown), ``"control"`` (surveyed, enters the adjustment with its
+  standard deviations), ``"check"`` (surveyed, kept out of the adjustment and compared
+  afterwards).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+
+from ..camera.exterior import ExteriorOrientation
+from ..camera.metashape import MetashapeCalibration
+from ..errors import InputError
+from ..rotation import opk_matrix
+
+#: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
+CALIBRATION_NAMES = ("f", "cx", "cy", "k1", "k2", "k3", "k4", "p1", "p2", "b1", "b2")
+#: Parameters Metashape refines by default ("Optimize cameras").
+DEFAULT_FREE = ("f", "cx", "cy", "k1", "k2", "k3", "p1", "p2")
+#: Parameters that may vary per image ("image-variant" calibration, Hastedt et al. 2002).
+IMAGE_VARIANT_NAMES = ("f", "cx", "cy")
+ROLES = ("tie", "control", "check")
+EO_NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
+
+
+def _ids(values, what: str) -> np.ndarray:
+    a = np.asarray(values)
+    if a.ndim != 1:
+        raise InputError(f"{what}: ids must be a flat sequence, got shape {a.shape}")
+    if a.dtype.kind not in "iuUO":
+        raise InputError(f"{what}: ids must be integers or strings, got dtype {a.dtype}")
+    if a.dtype.kind == "O":
+        a = a.astype(str)
+    return a
+
+
+def _unique_check(ids: np.ndarray, what: str) -> None:
+    u, c = np.unique(ids, return_counts=True)
+    if u.size != ids.size:
+        dup = u[c > 1][:5]
+        raise InputError(f"{what}: duplicate id(s) {', '.join(map(str, dup))}")
+
+
+def _lookup(keys: np.ndarray, ids: np.ndarray, what: str, table: str) -> np.ndarray:
+    """Row index of each of ``ids`` in ``keys`` (vectorised); named error for unknown ids."""
+    if ids.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    if keys.dtype.kind != ids.dtype.kind and not (
+        keys.dtype.kind in "iu" and ids.dtype.kind in "iu"
+    ):
+        raise InputError(
+            f"{what}: ids are of type {ids.dtype} but the {table} ids are {keys.dtype}; use one "
+            "kind of id (all integers or all strings)"
+        )
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    pos = np.searchsorted(sk, ids)
+    pos = np.clip(pos, 0, max(sk.size - 1, 0))
+    ok = sk.size > 0 and True
+    found = (sk[pos] == ids) if ok else np.zeros(ids.size, bool)
+    if not np.all(found):
+        bad = np.unique(ids[~found])[:5]
+        raise InputError(
+            f"{what}: unknown {table} id(s) {', '.join(map(str, bad))} (not in block.{table})"
+        )
+    return order[pos].astype(np.int64)
+
+
+@dataclass(frozen=True)
+class Image:
+    """One image of a block (a view; the block stores arrays)."""
+
+    id: object
+    camera: object
+    exterior: ExteriorOrientation
+    gnss: np.ndarray | None = None
+    gnss_sigma: np.ndarray | None = None
+    imu: np.ndarray | None = None
+    imu_sigma: np.ndarray | None = None
+    calibration_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+@dataclass(frozen=True)
+class Point:
+    """One object point of a block (a view)."""
+
+    id: object
+    xyz: np.ndarray
+    role: str
+    sigma: np.ndarray | None = None
+
+
+class _View(Mapping):
+    def __init__(self, keys: np.ndarray, make) -> None:
+        self._keys = keys
+        self._make = make
+        self._index: dict | None = None
+
+    def _idx(self) -> dict:
+        if self._index is None:
+            self._index = {k: i for i, k in enumerate(self._keys.tolist())}
+        return self._index
+
+    def __getitem__(self, key):
+        try:
+            i = self._idx()[key]
+        except (KeyError, TypeError):
+            raise KeyError(key) from None
+        return self._make(i)
+
+    def __iter__(self) -> Iterator:
+        return iter(self._keys.tolist())
+
+    def __len__(self) -> int:
+        return int(self._keys.size)
+
+
+@dataclass(frozen=True, eq=False)
+class Observations:
+    """Image observations: one row per (image, point) measurement.
+
+    Attributes
+    ----------
+    image_ids, point_ids : numpy.ndarray, shape (n,)
+    uv : numpy.ndarray, shape (n, 2)
+        Pixels, centre of the first pixel at (0, 0).
+    sigma : numpy.ndarray, shape (n,)
+        A-priori standard deviation of u and of v, pixels.
+    """
+
+    image_ids: np.ndarray
+    point_ids: np.ndarray
+    uv: np.ndarray
+    sigma: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.uv.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Block:
+    """An image block (see the module docstring). Build with :meth:`from_arrays`.
+
+    Array attributes (row order = the order of the ids):
+
+    ``image_ids`` (m,), ``image_camera`` (m,) group ids, ``exterior`` (m, 6) X0, Y0, Z0 and
+    omega, phi, kappa in radians, ``calibration_offset`` (m, 3) per-image offsets of f, cx, cy
+    (image-variant calibration; zero otherwise), ``gnss`` / ``gnss_sigma`` (m, 3) with NaN
+    where an image has none, ``imu`` / ``imu_sigma`` (m, 3) radians; ``point_ids`` (p,),
+    ``xyz`` (p, 3), ``role`` (p,) strings, ``point_sigma`` (p, 3) (NaN for tie points);
+    ``observations`` (:class:`Observations`) with the integer ``obs_image`` / ``obs_point``
+    rows they refer to.
+
+    ``free`` maps each camera group to the calibration parameters that the adjustment
+    estimates; ``image_variant`` maps groups to the parameters estimated per image.
+    """
+
+    camera_ids: np.ndarray
+    calibrations: tuple[MetashapeCalibration, ...]
+    image_ids: np.ndarray
+    image_camera: np.ndarray  # (m,) int index into camera_ids
+    exterior: np.ndarray
+    calibration_offset: np.ndarray
+    gnss: np.ndarray
+    gnss_sigma: np.ndarray
+    imu: np.ndarray
+    imu_sigma: np.ndarray
+    point_ids: np.ndarray
+    xyz: np.ndarray
+    role: np.ndarray
+    point_sigma: np.ndarray
+    observations: Observations
+    obs_image: np.ndarray
+    obs_point: np.ndarray
+    free: Mapping[object, tuple[str, ...]]
+    image_variant: Mapping[object, tuple[str, ...]]
+    crs: str | None = None
+
+    # --- construction --------------------------------------------------------------------
+
+    @classmethod
+    def from_arrays(
+        cls,
+        *,
+        cameras: Mapping[object, MetashapeCalibration],
+        image_ids: Sequence,
+        image_camera: Sequence,
+        exterior,
+        point_ids: Sequence,
+        xyz,
+        obs_image_ids: Sequence,
+        obs_point_ids: Sequence,
+        uv,
+        sigma=0.5,
+        role: Sequence[str] | str = "tie",
+        point_sigma=None,
+        gnss=None,
+        gnss_sigma=None,
+        imu=None,
+        imu_sigma=None,
+        calibration_offset=None,
+        free: Mapping[object, Sequence[str]] | Sequence[str] | None = None,
+        image_variant: Mapping[object, Sequence[str]] | Sequence[str] | None = None,
+        crs: str | None = None,
+    ) -> Block:
+        """Build a block from tables.
+
+        Parameters
+        ----------
+        cameras : mapping group id -> MetashapeCalibration
+        image_ids, image_camera : sequences (m,)
+            Image ids and the camera group of each image.
+        exterior : array_like (m, 6)
+            X0, Y0, Z0, omega, phi, kappa (radians) per image: the current (initial) values.
+        point_ids : sequence (p,); xyz : array_like (p, 3)
+            Point ids and (approximate for tie points) object coordinates.
+        obs_image_ids, obs_point_ids : sequences (n,); uv : array_like (n, 2)
+            Image observations in pixels (centre of the first pixel at (0, 0)).
+        sigma : float or array_like (n,)
+            Standard deviation of u and v of each observation, pixels.
+        role : str or sequence (p,)
+            ``"tie"``, ``"control"`` or ``"check"`` per point.
+        point_sigma : array_like (p, 3) or (3,), optional
+            Standard deviations of surveyed coordinates (control and check points).
+        gnss, gnss_sigma : array_like (m, 3), optional
+            Observed projection centres and their standard deviations (NaN: none).
+        imu, imu_sigma : array_like (m, 3), optional
+            Observed omega, phi, kappa (radians) and standard deviations (NaN: none).
+        calibration_offset : array_like (m, 3), optional
+            Per-image offsets of f, cx, cy (pixels) for image-variant calibration.
+        free : sequence of names, or mapping group -> names, optional
+            Calibration parameters to estimate (default: f, cx, cy, k1, k2, k3, p1, p2).
+        image_variant : sequence of names, or mapping group -> names, optional
+            Subset of f, cx, cy estimated per image (default: none).
+        """
+        cam_ids = _ids(list(cameras.keys()), "cameras")
+        _unique_check(cam_ids, "cameras")
+        cals = tuple(cameras[k] for k in cameras)
+        for k, c in zip(cam_ids.tolist(), cals):
+            if not isinstance(c, MetashapeCalibration):
+                raise InputError(
+                    f"camera {k!r}: expected a MetashapeCalibration, got {type(c).__name__}"
+                )
+        img = _ids(image_ids, "images")
+        _unique_check(img, "images")
+        m = img.size
+        icam = _lookup(cam_ids, _ids(image_camera, "image cameras"), "images", "cameras")
+        if icam.size != m:
+            raise InputError(f"image_camera has {icam.size} entries for {m} images")
+        eo = _table(exterior, (m, 6), "exterior")
+        pid = _ids(point_ids, "points")
+        _unique_check(pid, "points")
+        p = pid.size
+        X = _table(xyz, (p, 3), "xyz")
+        if isinstance(role, str):
+            roles = np.full(p, role, dtype="<U7")
+        else:
+            roles = np.asarray(role, dtype="<U7")
+            if roles.shape != (p,):
+                raise InputError(f"role has shape {roles.shape}, expected ({p},)")
+        bad = ~np.isin(roles, ROLES)
+        if np.any(bad):
+            raise InputError(
+                f"point {pid[bad][0]}: role {roles[bad][0]!r} is not one of {', '.join(ROLES)}"
+            )
+        ps = np.full((p, 3), np.nan)
+        if point_sigma is not None:
+            ps = np.broadcast_to(np.asarray(point_sigma, dtype=float), (p, 3)).copy()
+        surveyed = roles != "tie"
+        if np.any(surveyed & ~np.all(np.isfinite(ps) & (ps > 0), axis=1)):
+            first = pid[surveyed & ~np.all(np.isfinite(ps) & (ps > 0), axis=1)][0]
+            raise InputError(
+                f"point {first}: control and check points need positive standard deviations "
+                "of their coordinates (point_sigma)"
+            )
+        oi = _ids(obs_image_ids, "observations")
+        op = _ids(obs_point_ids, "observations")
+        n = oi.size
+        if op.size != n:
+            raise InputError(f"observations: {n} image ids but {op.size} point ids")
+        UV = _table(uv, (n, 2), "uv")
+        sg = np.broadcast_to(np.asarray(sigma, dtype=float), (n,)).copy()
+        if np.any(~np.isfinite(sg) | (sg <= 0)):
+            raise InputError("observation sigma must be positive and finite (pixels)")
+        obs_i = _lookup(img, oi, "observations", "images")
+        obs_p = _lookup(pid, op, "observations", "points")
+        gn, gs = _optional_pair(gnss, gnss_sigma, m, "gnss")
+        im, ims = _optional_pair(imu, imu_sigma, m, "imu")
+        off = (
+            np.zeros((m, 3))
+            if calibration_offset is None
+            else _table(calibration_offset, (m, 3), "calibration_offset")
+        )
+        freem = _per_group(free, cam_ids, DEFAULT_FREE, CALIBRATION_NAMES, "free")
+        ivm = _per_group(image_variant, cam_ids, (), IMAGE_VARIANT_NAMES, "image_variant")
+        return cls(
+            camera_ids=cam_ids,
+            calibrations=cals,
+            image_ids=img,
+            image_camera=icam,
+            exterior=eo,
+            calibration_offset=off,
+            gnss=gn,
+            gnss_sigma=gs,
+            imu=im,
+            imu_sigma=ims,
+            point_ids=pid,
+            xyz=X,
+            role=roles,
+            point_sigma=ps,
+            observations=Observations(oi, op, UV, sg),
+            obs_image=obs_i,
+            obs_point=obs_p,
+            free=freem,
+            image_variant=ivm,
+            crs=crs,
+        )
+
+    # --- mapping views (the public contract) ---------------------------------------------
+
+    @property
+    def cameras(self) -> Mapping[object, MetashapeCalibration]:
+        """Camera group id -> :class:`MetashapeCalibration`."""
+        return dict(zip(self.camera_ids.tolist(), self.calibrations))
+
+    @property
+    def images(self) -> Mapping[object, Image]:
+        """Image id -> :class:`Image` (camera group id, exterior orientation, GNSS/IMU)."""
+        return _View(self.image_ids, self._image)
+
+    @property
+    def points(self) -> Mapping[object, Point]:
+        """Point id -> :class:`Point` (``xyz``, ``role``, ``sigma``)."""
+        return _View(self.point_ids, self._point)
+
+    def _image(self, i: int) -> Image:
+        e = self.exterior[i]
+        g = self.gnss[i] if np.all(np.isfinite(self.gnss[i])) else None
+        u = self.imu[i] if np.all(np.isfinite(self.imu[i])) else None
+        return Image(
+            id=self.image_ids[i].item(),
+            camera=self.camera_ids[self.image_camera[i]].item(),
+            exterior=ExteriorOrientation(*e),
+            gnss=None if g is None else g.copy(),
+            gnss_sigma=None if g is None else self.gnss_sigma[i].copy(),
+            imu=None if u is None else u.copy(),
+            imu_sigma=None if u is None else self.imu_sigma[i].copy(),
+            calibration_offset=self.calibration_offset[i].copy(),
+        )
+
+    def _point(self, j: int) -> Point:
+        s = self.point_sigma[j]
+        return Point(
+            id=self.point_ids[j].item(),
+            xyz=self.xyz[j].copy(),
+            role=str(self.role[j]),
+            sigma=None if not np.all(np.isfinite(s)) else s.copy(),
+        )
+
+    # --- sizes and derived arrays ----------------------------------------------------------
+
+    @property
+    def n_images(self) -> int:
+        return int(self.image_ids.size)
+
+    @property
+    def n_points(self) -> int:
+        return int(self.point_ids.size)
+
+    @property
+    def n_observations(self) -> int:
+        return len(self.observations)
+
+    def image_calibration(self, i: int) -> MetashapeCalibration:
+        """The calibration of image row ``i`` (its group's, plus its image-variant offsets)."""
+        c = self.calibrations[self.image_camera[i]]
+        d = self.calibration_offset[i]
+        if not np.any(d):
+            return c
+        return replace(c, f=c.f + d[0], cx=c.cx + d[1], cy=c.cy + d[2])
+
+    def calibration_matrix(self) -> np.ndarray:
+        """Per-image calibration vectors (m, 11) in the order of ``CALIBRATION_NAMES``."""
+        G = np.array([[getattr(c, n) for n in CALIBRATION_NAMES] for c in self.calibrations])
+        C = G[self.image_camera].copy() if G.size else np.zeros((0, 11))
+        C[:, :3] += self.calibration_offset
+        return C
+
+    def image_sizes(self) -> np.ndarray:
+        """Per-image (width, height) in pixels (m, 2)."""
+        S = np.array([[c.width, c.height] for c in self.calibrations], dtype=float)
+        return S[self.image_camera]
+
+    def rotations(self) -> np.ndarray:
+        """Rotation matrices ``M`` (object -> image system) per image (m, 3, 3)."""
+        e = self.exterior
+        return np.asarray(opk_matrix(e[:, 3], e[:, 4], e[:, 5])).reshape(-1, 3, 3)
+
+    def observation_counts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Number of observations per image (m,) and per point (p,)."""
+        return (
+            np.bincount(self.obs_image, minlength=self.n_images),
+            np.bincount(self.obs_point, minlength=self.n_points),
+        )
+
+    def gsd(self) -> float:
+        """Mean ground sample distance (object units per pixel): mean over observations of
+        the depth of the point below the camera divided by the focal length."""
+        if self.n_observations == 0:
+            return float("nan")
+        M = self.rotations()
+        d = self.xyz[self.obs_point] - self.exterior[self.obs_image, :3]
+        depth = -np.einsum("nj,nj->n", M[self.obs_image, 2, :], d)
+        f = self.calibration_matrix()[self.obs_image, 0]
+        return float(np.mean(np.abs(depth) / f))
+
+    # --- new blocks ----------------------------------------------------------------------
+
+    def replace(self, **changes) -> Block:
+        """A new block with some arrays replaced (same ids and observations unless given)."""
+        return replace(self, **changes)
+
+    def with_calibrations(self, cameras: Mapping[object, MetashapeCalibration]) -> Block:
+        """A new block with the calibrations of the given groups replaced."""
+        cals = list(self.calibrations)
+        for k, c in cameras.items():
+            idx = _lookup(self.camera_ids, _ids([k], "cameras"), "cameras", "cameras")[0]
+            cals[idx] = c
+        return replace(self, calibrations=tuple(cals))
+
+    def select_observations(self, mask: np.ndarray) -> Block:
+        """A new block keeping the observation rows where ``mask`` is true."""
+        mask = np.asarray(mask, dtype=bool)
+        o = self.observations
+        return replace(
+            self,
+            observations=Observations(
+                o.image_ids[mask], o.point_ids[mask], o.uv[mask], o.sigma[mask]
+            ),
+            obs_image=self.obs_image[mask],
+            obs_point=self.obs_point[mask],
+        )
+
+    def with_observations(self, uv=None, sigma=None) -> Block:
+        """A new block with the observed pixels and/or their sigmas replaced (same rows)."""
+        o = self.observations
+        n = len(o)
+        UV = o.uv if uv is None else _table(uv, (n, 2), "uv")
+        sg = o.sigma if sigma is None else np.broadcast_to(np.asarray(sigma, float), (n,)).copy()
+        return replace(self, observations=Observations(o.image_ids, o.point_ids, UV, sg))
+
+    def validate(self, *, min_image_observations: int = 3) -> None:
+        """Refuse a block that no adjustment can solve, naming the ids at fault.
+
+        Raises :class:`InputError` for duplicate observations (an image observing a point
+        twice), tie or control points observed in fewer than two images, check points with
+        fewer than two observations (they cannot be triangulated) and images with fewer
+        than ``min_image_observations`` observations.
+        """
+        key = self.obs_image.astype(np.int64) * max(self.n_points, 1) + self.obs_point
+        u, c = np.unique(key, return_counts=True)
+        if u.size != key.size:
+            k = u[c > 1][0]
+            i, j = divmod(int(k), max(self.n_points, 1))
+            raise InputError(
+                f"image {self.image_ids[i]} observes point {self.point_ids[j]} "
+                f"{int(c[c > 1][0])} times: remove the duplicate observation(s)"
+            )
+        per_img, per_pt = self.observation_counts()
+        once = per_pt < 2
+        if np.any(once):
+            ids = self.point_ids[once]
+            raise InputError(
+                f"{ids.size} point(s) are observed in fewer than two images and cannot be "
+                f"intersected: {', '.join(map(str, ids[:8]))}"
+                + (" ..." if ids.size > 8 else "")
+                + " (remove them, e.g. with Block.drop_weak_points())"
+            )
+        few = per_img < min_image_observations
+        if np.any(few):
+            ids = self.image_ids[few]
+            raise InputError(
+                f"{ids.size} image(s) have fewer than {min_image_observations} observations "
+                f"and cannot be oriented: {', '.join(map(str, ids[:8]))}"
+                + (" ..." if ids.size > 8 else "")
+            )
+
+    def drop_weak_points(self) -> Block:
+        """A new block without the tie points observed in fewer than two images (and their
+        observations)."""
+        _, per_pt = self.observation_counts()
+        keep_pt = (per_pt >= 2) | (self.role != "tie")
+        if np.all(keep_pt):
+            return self
+        b = self.select_observations(keep_pt[self.obs_point])
+        newidx = np.cumsum(keep_pt) - 1
+        return replace(
+            b,
+            point_ids=self.point_ids[keep_pt],
+            xyz=self.xyz[keep_pt],
+            role=self.role[keep_pt],
+            point_sigma=self.point_sigma[keep_pt],
+            obs_point=newidx[b.obs_point],
+        )
+
+    def summary(self) -> str:
+        """A few lines: sizes, roles, observations per image and per point."""
+        per_img, per_pt = self.observation_counts()
+        roles = {r: int(np.sum(self.role == r)) for r in ROLES}
+        lines = [
+            f"block: {len(self.calibrations)} camera group(s), {self.n_images} images, "
+            f"{self.n_points} points ({roles['tie']} tie, {roles['control']} control, "
+            f"{roles['check']} check), {self.n_observations} image observations",
+        ]
+        if self.n_images:
+            lines.append(
+                f"observations per image: min {per_img.min()}, median "
+                f"{int(np.median(per_img))}, max {per_img.max()}"
+            )
+        if self.n_points:
+            lines.append(
+                f"images per point: min {per_pt.min()}, median {int(np.median(per_pt))}, "
+                f"max {per_pt.max()}"
+            )
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (
+            f"Block({len(self.calibrations)} cameras, {self.n_images} images, "
+            f"{self.n_points} points, {self.n_observations} observations)"
+        )
+
+
+def _table(values, shape: tuple[int, int], name: str) -> np.ndarray:
+    try:
+        a = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    if a.shape == (shape[1],) and shape[0] == 1:
+        a = a[None, :]
+    if a.shape != shape:
+        raise InputError(f"{name}: expected shape {shape}, got {a.shape}")
+    bad = ~np.all(np.isfinite(a), axis=1)
+    if np.any(bad):
+        raise InputError(f"{name}: row {int(np.flatnonzero(bad)[0])} holds NaN or infinity")
+    return a.copy()
+
+
+def _optional_pair(values, sigmas, m: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+    if values is None:
+        return np.full((m, 3), np.nan), np.full((m, 3), np.nan)
+    v = np.asarray(values, dtype=float).reshape(m, 3).copy()
+    if sigmas is None:
+        raise InputError(f"{name}: observations given without standard deviations ({name}_sigma)")
+    s = np.broadcast_to(np.asarray(sigmas, dtype=float), (m, 3)).copy()
+    has = np.all(np.isfinite(v), axis=1)
+    partial = np.any(np.isfinite(v), axis=1) & ~has
+    if np.any(partial):
+        raise InputError(f"{name}: row {int(np.flatnonzero(partial)[0])} is partly NaN")
+    if np.any(has & ~np.all(np.isfinite(s) & (s > 0), axis=1)):
+        raise InputError(f"{name}_sigma must be positive and finite where {name} is given")
+    s[~has] = np.nan
+    return v, s
+
+
+def _per_group(value, cam_ids, default, allowed, name) -> dict:
+    if value is None or isinstance(value, (str, bytes)) or not isinstance(value, Mapping):
+        names = default if value is None else ((value,) if isinstance(value, str) else value)
+        out = {k: tuple(names) for k in cam_ids.tolist()}
+    else:
+        out = {k: tuple(value.get(k, default)) for k in cam_ids.tolist()}
+        unknown = set(value) - set(cam_ids.tolist())
+        if unknown:
+            raise InputError(f"{name}: unknown camera group(s) {sorted(map(str, unknown))}")
+    for k, names in out.items():
+        bad = [n for n in names if n not in allowed]
+        if bad:
+            raise InputError(
+                f"{name} of camera {k!r}: unknown parameter(s) {bad}; choose from "
+                f"{', '.join(allowed)}"
+            )
+        out[k] = tuple(n for n in allowed if n in names)  # canonical order
+    return out
+
+
+def block_fields() -> tuple[str, ...]:
+    """Names of the stored arrays of a :class:`Block` (for writers and tests)."""
+    return tuple(f.name for f in fields(Block))

@@ -1,0 +1,285 @@
+"""BAL files (Bundle Adjustment in the Large, Agarwal et al. 2010): read and write.
+
+The format (plain text, optionally bzip2-compressed)::
+
+    <num_cameras> <num_points> <num_observations>
+    <camera_index> <point_index> <x> <y>          one line per observation
+    ...
+    <camera parameters>                           9 numbers per camera
+    ...
+    <point coordinates>                           3 numbers per point
+    ...
+
+BAL's conventions and how photogeom maps them:
+
+* A camera is 9 numbers: a Rodrigues (axis-angle) vector ``r`` and a translation ``t``
+  (world -> camera: ``P = R(r) X + t``), the focal length ``f`` and radial terms ``k1, k2``.
+* The camera looks down its -z axis, x right, y up: ``p = -P / P_z``,
+  ``x = f (1 + k1 |p|^2 + k2 |p|^4) p_x`` and likewise y; ``(x, y)`` in pixels from the
+  principal point (the image centre), y up.
+* BAL's camera frame *is* the photogrammetric image system (x right, y up, z backwards), so
+  ``M = R(r)`` and the projection centre is ``X0 = -R^T t``; omega, phi, kappa are the angles
+  of ``M``. The radial model is Metashape's with ``K1 = k1, K2 = k2`` and everything else
+  zero (``|p|`` is the same in both camera frames).
+* Every image has its own camera: one camera group per image (group id = image id), with
+  ``f, k1, k2`` free and the principal point fixed at the image centre (``cx = cy = 0``), the
+  problem BAL's own solvers (Ceres' ``bundle_adjuster``) solve.
+* BAL has no image size. photogeom needs one to place its pixel origin (centre of the first
+  pixel at (0, 0)); the reader picks the smallest even width and height that hold every
+  observation, the same for all images, unless ``image_size`` is given. Then
+  ``u = x + (w - 1) / 2`` and ``v = (h - 1) / 2 - y`` exactly (even sizes make
+  ``(w - 1) / 2`` a half-integer, exact in binary); the choice moves the pixel origin only,
+  never a projection.
+* Cameras, points and observations are indexed by position: ids are ``0 .. n - 1`` on
+  reading; on writing, images and points go in block order (their ids are not stored).
+* BAL's cost is the plain sum of squared residuals: observations are read with one
+  standard deviation (``sigma``, default 1 px), which changes no minimum.
+"""
+
+from __future__ import annotations
+
+import bz2
+import os
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..camera.metashape import MetashapeCalibration
+from ..errors import FileFormatError, InputError
+from ._angles import opk_from_rotations
+from ._textio import format_floats, numbers, read_text, token_line, write_files_atomically
+from .block import CALIBRATION_NAMES, Block
+
+#: Calibration parameters a BAL camera holds (the free ones of a block read from BAL).
+BAL_FREE = ("f", "k1", "k2")
+
+
+def read_bal(
+    path: str | os.PathLike,
+    *,
+    image_size: tuple[int, int] | None = None,
+    sigma: float = 1.0,
+) -> Block:
+    """Read a BAL problem file (``.bz2`` compressed or plain) as a :class:`Block`.
+
+    Parameters
+    ----------
+    path : path-like
+        The BAL file (bzip2-compressed files are recognised by content, any name).
+    image_size : (width, height), optional
+        Pixel size of every image. Default: the smallest even sizes that hold every
+        observation (BAL stores none; see the module docstring).
+    sigma : float
+        Standard deviation of every image coordinate, pixels (BAL's cost is unweighted).
+
+    Returns
+    -------
+    Block
+        Image ids and camera group ids ``0 .. m - 1`` (one group per image, ``f, k1, k2``
+        free), tie points with ids ``0 .. p - 1``, observations in file order.
+
+    Raises
+    ------
+    FileFormatError
+        A token that is not a number, counts that do not match the header, a truncated
+        file, camera or point indices out of range, a non-positive focal length or
+        non-finite values, each naming the line.
+    """
+    label = str(path)
+    text = read_text(path, "BAL file")
+    vals = numbers(text, label)
+    if vals.size < 3:
+        raise FileFormatError(
+            f"{label}: truncated: the header needs 3 numbers (cameras, points, observations), "
+            f"found {vals.size}"
+        )
+    head = vals[:3]
+    if np.any(head != np.round(head)) or np.any(head < 0):
+        raise FileFormatError(
+            f"{label}, line 1: the header must be three non-negative integers "
+            "(num_cameras num_points num_observations), got " + " ".join(format_floats(head))
+        )
+    m, p, n = (int(v) for v in head)
+    if m == 0:
+        raise FileFormatError(
+            f"{label}, line 1: the header announces no cameras (an empty problem)"
+        )
+    need = 3 + 4 * n + 9 * m + 3 * p
+    if vals.size < need:
+        have = vals.size - 3
+        section = (
+            "observations"
+            if have < 4 * n
+            else "camera parameters"
+            if have < 4 * n + 9 * m
+            else "point coordinates"
+        )
+        raise FileFormatError(
+            f"{label}: truncated: the header announces {m} cameras, {p} points and {n} "
+            f"observations ({need} numbers in all), the file holds {vals.size}; it ends in the "
+            f"{section}"
+        )
+    if vals.size > need:
+        line, tok = token_line(text, need)
+        raise FileFormatError(
+            f"{label}, line {line}: counts do not match: the header announces {m} cameras, "
+            f"{p} points and {n} observations ({need} numbers), but the file holds "
+            f"{vals.size} (first extra value {tok!r})"
+        )
+    obs = vals[3 : 3 + 4 * n].reshape(n, 4)
+    cams = vals[3 + 4 * n : 3 + 4 * n + 9 * m].reshape(m, 9)
+    pts = vals[3 + 4 * n + 9 * m :].reshape(p, 3)
+
+    def where(row: int, width: int, offset: int) -> int:
+        return token_line(text, offset + row * width)[0]
+
+    ci, pi = obs[:, 0], obs[:, 1]
+    bad = (ci != np.round(ci)) | (ci < 0) | (ci >= m) | (pi != np.round(pi)) | (pi < 0) | (pi >= p)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise FileFormatError(
+            f"{label}, line {where(k, 4, 3)}: observation {k} refers to camera {ci[k]:g} and "
+            f"point {pi[k]:g}; indices "
+            f"must be integers in 0..{m - 1} (cameras) and 0..{p - 1} (points)"
+        )
+    for arr, width, offset, what in (
+        (obs[:, 2:], 4, 3, "observation"),
+        (cams, 9, 3 + 4 * n, "camera"),
+        (pts, 3, 3 + 4 * n + 9 * m, "point"),
+    ):
+        nf = ~np.all(np.isfinite(arr), axis=1)
+        if np.any(nf):
+            k = int(np.flatnonzero(nf)[0])
+            raise FileFormatError(
+                f"{label}, line {where(k, width, offset)}: {what} {k} holds NaN or infinity"
+            )
+    nonpos = cams[:, 6] <= 0
+    if np.any(nonpos):
+        k = int(np.flatnonzero(nonpos)[0])
+        line = token_line(text, 3 + 4 * n + 9 * k + 6)[0]
+        raise FileFormatError(
+            f"{label}, line {line}: camera {k} has focal length "
+            f"{cams[k, 6]:g}; the Metashape model needs f > 0"
+        )
+    xy = obs[:, 2:]
+    if image_size is None:
+        w = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 0]), initial=0.0))))
+        h = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 1]), initial=0.0))))
+    else:
+        w, h = (int(s) for s in image_size)
+    R = Rotation.from_rotvec(cams[:, :3]).as_matrix().reshape(m, 3, 3)
+    X0 = -np.einsum("nji,nj->ni", R, cams[:, 3:6])
+    exterior = np.column_stack([X0, opk_from_rotations(R)])
+    ids = np.arange(m)
+    try:
+        cameras = {
+            int(k): MetashapeCalibration(w, h, float(c[6]), k1=float(c[7]), k2=float(c[8]))
+            for k, c in enumerate(cams)
+        }
+    except InputError as exc:
+        raise FileFormatError(f"{label}: {exc} (image_size={(w, h)})") from None
+    uv = np.column_stack([xy[:, 0] + (w - 1) / 2, (h - 1) / 2 - xy[:, 1]])
+    return Block.from_arrays(
+        cameras=cameras,
+        image_ids=ids,
+        image_camera=ids,
+        exterior=exterior.reshape(m, 6),
+        point_ids=np.arange(p),
+        xyz=pts,
+        obs_image_ids=ci.astype(np.int64),
+        obs_point_ids=pi.astype(np.int64),
+        uv=uv.reshape(n, 2),
+        sigma=sigma,
+        free=BAL_FREE,
+    )
+
+
+def _extras(block: Block) -> list[str]:
+    """What a block holds that the format has no room for (empty: nothing)."""
+    out = []
+    for role in ("control", "check"):
+        k = int(np.sum(block.role == role))
+        if k:
+            out.append(f"{k} {role} point(s)")
+    for name, arr in (("GNSS", block.gnss), ("IMU", block.imu)):
+        k = int(np.sum(np.all(np.isfinite(arr), axis=1)))
+        if k:
+            out.append(f"{name} observations of {k} image(s)")
+    s = block.observations.sigma
+    if s.size and np.any(s != s[0]):
+        out.append("observation standard deviations that differ between observations")
+    return out
+
+
+def refuse_extras(block: Block, fmt: str) -> None:
+    extras = _extras(block)
+    if extras:
+        raise InputError(
+            f"{fmt} has no room for {'; '.join(extras)}: pass drop_extras=True to write the "
+            "images, points and observations only (all points as tie points, one standard "
+            "deviation)"
+        )
+
+
+def bal_text(block: Block, *, drop_extras: bool = False) -> str:
+    """The BAL text of a block (see :func:`write_bal`)."""
+    if not drop_extras:
+        refuse_extras(block, "BAL")
+    C = block.calibration_matrix()
+    names = ("k3", "k4", "p1", "p2", "b1", "b2")
+    idx = [CALIBRATION_NAMES.index(nm) for nm in names]
+    extra = C[:, idx]
+    bad = np.any(extra != 0, axis=1)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        nz = [f"{nm} = {v!r}" for nm, v in zip(names, extra[i].tolist()) if v != 0]
+        raise InputError(
+            f"image {block.image_ids[i]} (camera {block.camera_ids[block.image_camera[i]]}): "
+            f"{', '.join(nz)}; a BAL camera has only f, k1, k2, so it cannot be written "
+            "exactly (BAL's solvers would adjust a different camera)"
+        )
+    m, p, n = block.n_images, block.n_points, block.n_observations
+    sizes = block.image_sizes()
+    # BAL measures from the principal point, y up
+    u0 = sizes[:, 0] / 2 - 0.5 + C[:, 1]
+    v0 = sizes[:, 1] / 2 - 0.5 + C[:, 2]
+    uv = block.observations.uv
+    i = block.obs_image
+    x = uv[:, 0] - u0[i]
+    y = v0[i] - uv[:, 1]
+    M = block.rotations()
+    t = -np.einsum("nij,nj->ni", M, block.exterior[:, :3])
+    r = Rotation.from_matrix(M).as_rotvec().reshape(m, 3) if m else np.zeros((0, 3))
+    cam = np.column_stack([r, t, C[:, 0], C[:, 3], C[:, 4]])
+    xs = format_floats(x)
+    ys = format_floats(y)
+    ci = map(str, block.obs_image.tolist())
+    pi = map(str, block.obs_point.tolist())
+    lines = [f"{m} {p} {n}"]
+    lines.extend(map(" ".join, zip(ci, pi, xs, ys)))
+    lines.extend(format_floats(cam))
+    lines.extend(format_floats(block.xyz))
+    return "\n".join(lines) + "\n"
+
+
+def write_bal(block: Block, path: str | os.PathLike, *, drop_extras: bool = False) -> Path:
+    """Write a block as a BAL problem file, atomically (``.bz2`` names are compressed).
+
+    Images, points and observations are written in block order (BAL indexes them by
+    position). Observations are measured from each image's principal point (BAL's origin),
+    so a fixed principal point off the image centre is written exactly.
+
+    Raises
+    ------
+    InputError
+        A calibration BAL cannot hold (non-zero K3, K4, P1, P2, B1 or B2: BAL's camera has
+        f, k1, k2 only), or, unless ``drop_extras=True``, control or check points, GNSS/IMU
+        observations or unequal observation standard deviations (BAL has none of them).
+    """
+    data = bal_text(block, drop_extras=drop_extras).encode("ascii")
+    target = Path(path)
+    if target.suffix == ".bz2":
+        data = bz2.compress(data)
+    write_files_atomically({target: data})
+    return target

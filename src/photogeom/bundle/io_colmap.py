@@ -1,0 +1,661 @@
+"""COLMAP text models (``cameras.txt``, ``images.txt``, ``points3D.txt``): read and write.
+
+COLMAP's conventions and how photogeom maps them:
+
+* Pose: world -> camera quaternion ``(QW, QX, QY, QZ)`` (scalar first) and translation
+  ``T``: ``P = R(q) X + T`` in COLMAP's camera frame (x right, y down, z forward, as
+  Metashape's). The photogrammetric image system is ``(x, -y, -z)`` of that frame, so
+  ``M = diag(1, -1, -1) R(q)`` and the projection centre is ``X0 = -R(q)^T T``.
+* Pixels: COLMAP's origin is the top-left *corner* of the image (the first pixel's centre is
+  (0.5, 0.5)); photogeom's is the first pixel's centre: ``u = u_colmap - 0.5``. COLMAP's
+  principal point is absolute (corner origin), Metashape's ``cx`` an offset from the image
+  centre: ``cx = cx_colmap - w / 2``.
+* Camera models read and written (exactly representable in the Metashape frame model):
+
+  ==============  ==============================  =====================================
+  COLMAP model    parameters                      Metashape
+  ==============  ==============================  =====================================
+  SIMPLE_PINHOLE  f, cx, cy                       f
+  PINHOLE         fx, fy, cx, cy                  f = fy, B1 = fx - fy
+  SIMPLE_RADIAL   f, cx, cy, k                    f, K1 = k
+  RADIAL          f, cx, cy, k1, k2               f, K1, K2
+  OPENCV          fx, fy, cx, cy, k1, k2, p1, p2  f = fy, B1, K1, K2, P1 = p2, P2 = p1
+  FULL_OPENCV     ... + k3, k4, k5, k6            as OPENCV + K3, only if k4 = k5 = k6 = 0
+  ==============  ==============================  =====================================
+
+  FULL_OPENCV's rational terms k4..k6 (a denominator), and every fisheye, FOV, division,
+  thin-prism or spherical model, have no Metashape equivalent: such cameras are refused.
+  Metashape's K4 and B2 have no COLMAP equivalent: such calibrations are refused on
+  writing.
+* Free parameters: a block read from COLMAP refines what COLMAP's bundle adjuster refines by
+  default: the focal length(s) and the distortion terms of the camera's model, the principal
+  point fixed (``refine_principal_point=True`` frees it).
+* Observations: each track element ``(IMAGE_ID, POINT2D_IDX)`` of ``points3D.txt`` is one
+  observation, at that 2D point of ``images.txt``; they come in the order of ``images.txt``
+  (image by image, 2D point by 2D point), the order the writer keeps. 2D points without a 3D
+  point (``POINT3D_ID = -1``) are not observations and are not kept. Colours and COLMAP's ``ERROR``
+  are not kept (written as 0 and -1).
+* Ids: camera groups are COLMAP's ``CAMERA_ID``, points its ``POINT3D_ID``; images are keyed
+  by ``NAME`` (default) or ``IMAGE_ID`` (``image_key="id"``). The writer keeps integer ids
+  (non-negative) and numbers other ids 1, 2, ... in block order (image ids that are text go
+  to ``NAME``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..camera.metashape import MetashapeCalibration
+from ..errors import FileFormatError, InputError
+from ._angles import opk_from_rotations
+from ._textio import format_floats, read_text, split_numeric_lines, write_files_atomically
+from .block import Block
+from .io_bal import refuse_extras
+
+#: Parameters of each supported COLMAP model (COLMAP's order).
+COLMAP_MODELS: dict[str, tuple[str, ...]] = {
+    "SIMPLE_PINHOLE": ("f", "cx", "cy"),
+    "PINHOLE": ("fx", "fy", "cx", "cy"),
+    "SIMPLE_RADIAL": ("f", "cx", "cy", "k"),
+    "RADIAL": ("f", "cx", "cy", "k1", "k2"),
+    "OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"),
+    "FULL_OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
+}
+#: Metashape parameters each model can hold besides the principal point (what COLMAP refines
+#: by default: focal length(s) and distortion), in photogeom's names.
+MODEL_FREE: dict[str, tuple[str, ...]] = {
+    "SIMPLE_PINHOLE": ("f",),
+    "PINHOLE": ("f", "b1"),
+    "SIMPLE_RADIAL": ("f", "k1"),
+    "RADIAL": ("f", "k1", "k2"),
+    "OPENCV": ("f", "b1", "k1", "k2", "p1", "p2"),
+    "FULL_OPENCV": ("f", "b1", "k1", "k2", "k3", "p1", "p2"),
+}
+_FLIP = np.diag([1.0, -1.0, -1.0])
+_UINT32_MAX = 2**32 - 1
+
+
+def _calibration_from_colmap(model: str, w: int, h: int, q: list[float]) -> MetashapeCalibration:
+    if model in ("SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL"):
+        f, cxc, cyc = q[:3]
+        k = q[3:] + [0.0] * (2 - len(q[3:]))
+        return MetashapeCalibration(w, h, f, cx=cxc - w / 2, cy=cyc - h / 2, k1=k[0], k2=k[1])
+    fx, fy, cxc, cyc = q[:4]
+    d = q[4:] + [0.0] * (8 - len(q[4:]))
+    return MetashapeCalibration(
+        w,
+        h,
+        fy,
+        cx=cxc - w / 2,
+        cy=cyc - h / 2,
+        b1=fx - fy,
+        k1=d[0],
+        k2=d[1],
+        p1=d[3],
+        p2=d[2],
+        k3=d[4],
+    )
+
+
+def _colmap_from_calibration(model: str, c: MetashapeCalibration) -> list[float]:
+    cxc, cyc = c.width / 2 + c.cx, c.height / 2 + c.cy
+    if model == "SIMPLE_PINHOLE":
+        return [c.f, cxc, cyc]
+    if model == "SIMPLE_RADIAL":
+        return [c.f, cxc, cyc, c.k1]
+    if model == "RADIAL":
+        return [c.f, cxc, cyc, c.k1, c.k2]
+    q = [c.f + c.b1, c.f, cxc, cyc]
+    if model == "PINHOLE":
+        return q
+    q += [c.k1, c.k2, c.p2, c.p1]
+    if model == "OPENCV":
+        return q
+    return [*q, c.k3, 0.0, 0.0, 0.0]
+
+
+def _nonzero(c: MetashapeCalibration) -> set[str]:
+    return {n for n in ("b1", "b2", "k1", "k2", "k3", "k4", "p1", "p2") if getattr(c, n) != 0.0}
+
+
+def colmap_model_for(c: MetashapeCalibration, free: tuple[str, ...] = ()) -> str:
+    """The smallest COLMAP model that holds calibration ``c`` exactly and its free terms.
+
+    The free parameters count too, so that a block read from COLMAP is written back with the
+    model it came from. Raises :class:`InputError` for non-zero K4 or B2.
+    """
+    nz = _nonzero(c)
+    bad = sorted(nz & {"k4", "b2"})
+    if bad:
+        raise InputError(
+            f"{', '.join(n.upper() for n in bad)} = "
+            f"{', '.join(repr(getattr(c, n)) for n in bad)}: no COLMAP camera model has "
+            "Metashape's r^8 radial term (K4) or its shear (B2); the calibration cannot be "
+            "written exactly"
+        )
+    want = nz | (set(free) - {"cx", "cy", "k4", "b2"})
+    for model, names in MODEL_FREE.items():
+        if want <= set(names):
+            return model
+    raise AssertionError("unreachable: FULL_OPENCV holds every remaining term")  # pragma: no cover
+
+
+# --- reading ---------------------------------------------------------------------------------
+
+
+def _data_lines(text: str, keep_blank: bool = False) -> tuple[list[str], list[int]]:
+    lines, numbers = [], []
+    for k, ln in enumerate(text.splitlines(), start=1):
+        s = ln.strip()
+        if s.startswith("#") or (not s and not keep_blank):
+            continue
+        lines.append(s)
+        numbers.append(k)
+    return lines, numbers
+
+
+def _read_cameras(path: Path, refine_pp: bool):
+    text = read_text(path, "COLMAP cameras file")
+    lines, nums = _data_lines(text)
+    cams: dict[int, MetashapeCalibration] = {}
+    free: dict[int, tuple[str, ...]] = {}
+    for ln, k in zip(lines, nums):
+        tok = ln.split()
+        where = f"{path}, line {k}"
+        if len(tok) < 4:
+            raise FileFormatError(
+                f"{where}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[], got {ln!r}"
+            )
+        try:
+            cid, w, h = int(tok[0]), int(tok[2]), int(tok[3])
+        except ValueError:
+            raise FileFormatError(
+                f"{where}: CAMERA_ID, WIDTH and HEIGHT must be integers, got {ln!r}"
+            ) from None
+        model = tok[1].upper()
+        if model not in COLMAP_MODELS:
+            raise FileFormatError(
+                f"{where}: camera {cid} has COLMAP model {tok[1]}, which the Metashape frame "
+                f"model cannot represent exactly; supported: {', '.join(COLMAP_MODELS)}"
+            )
+        try:
+            q = [float(t) for t in tok[4:]]
+        except ValueError:
+            raise FileFormatError(f"{where}: a camera parameter is not a number: {ln!r}") from None
+        names = COLMAP_MODELS[model]
+        if len(q) != len(names):
+            raise FileFormatError(
+                f"{where}: model {model} has {len(names)} parameters ({', '.join(names)}), "
+                f"the line gives {len(q)}"
+            )
+        if not all(np.isfinite(q)):
+            raise FileFormatError(f"{where}: camera {cid} has NaN or infinite parameters")
+        if model == "FULL_OPENCV" and any(q[9:]):
+            raise FileFormatError(
+                f"{where}: camera {cid} (FULL_OPENCV) has rational terms k4, k5, k6 = "
+                f"{q[9]!r}, {q[10]!r}, {q[11]!r}; the Metashape model has no denominator, so "
+                "only FULL_OPENCV cameras with k4 = k5 = k6 = 0 can be read"
+            )
+        if cid in cams:
+            raise FileFormatError(f"{where}: camera id {cid} appears twice")
+        try:
+            cams[cid] = _calibration_from_colmap(model, w, h, q)
+        except InputError as exc:
+            raise FileFormatError(f"{where}: camera {cid}: {exc}") from None
+        free[cid] = MODEL_FREE[model] + (("cx", "cy") if refine_pp else ())
+    if not cams:
+        raise FileFormatError(f"{path}: no cameras")
+    return cams, free
+
+
+def _read_images(path: Path):
+    text = read_text(path, "COLMAP images file")
+    raw = text.splitlines()
+    heads: list[list[str]] = []
+    head_no: list[int] = []
+    pts_lines: list[str] = []
+    pts_no: list[int] = []
+    k = 0
+    while k < len(raw):
+        s = raw[k].strip()
+        if not s or s.startswith("#"):
+            k += 1
+            continue
+        heads.append(s.split())
+        head_no.append(k + 1)
+        # the last image's POINTS2D line may be missing when it is empty (end of file)
+        pts_lines.append(raw[k + 1] if k + 1 < len(raw) else "")
+        pts_no.append(k + 2)
+        k += 2
+    m = len(heads)
+    if m == 0:
+        raise FileFormatError(f"{path}: no images")
+    bad = [i for i, t in enumerate(heads) if len(t) != 10]
+    if bad:
+        i = bad[0]
+        raise FileFormatError(
+            f"{path}, line {head_no[i]}: expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME "
+            f"(10 fields, names without spaces), got {len(heads[i])} field(s)"
+        )
+    try:
+        image_id = np.array([int(t[0]) for t in heads], dtype=np.int64)
+        cam_id = np.array([int(t[8]) for t in heads], dtype=np.int64)
+    except ValueError:
+        i = next(i for i, t in enumerate(heads) if not (_isint(t[0]) and _isint(t[8])))
+        raise FileFormatError(
+            f"{path}, line {head_no[i]}: IMAGE_ID and CAMERA_ID must be integers"
+        ) from None
+    names = np.array([t[9] for t in heads], dtype=str)
+    pose_vals, _ = split_numeric_lines([" ".join(t[1:8]) for t in heads], head_no, str(path))
+    pose = pose_vals.reshape(m, 7)
+    vals, counts = split_numeric_lines(pts_lines, pts_no, str(path))
+    odd = counts % 3 != 0
+    if np.any(odd):
+        i = int(np.flatnonzero(odd)[0])
+        raise FileFormatError(
+            f"{path}, line {pts_no[i]}: POINTS2D must be triples (X, Y, POINT3D_ID), the line "
+            f"holds {counts[i]} numbers"
+        )
+    p2d = vals.reshape(-1, 3)
+    nf = ~np.all(np.isfinite(pose), axis=1)
+    if np.any(nf):
+        i = int(np.flatnonzero(nf)[0])
+        raise FileFormatError(f"{path}, line {head_no[i]}: the pose holds NaN or infinity")
+    return image_id, cam_id, names, pose, p2d, counts // 3, np.array(head_no)
+
+
+def _isint(s: str) -> bool:
+    try:
+        int(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _read_points(path: Path):
+    text = read_text(path, "COLMAP points3D file")
+    lines, nums = _data_lines(text)
+    vals, counts = split_numeric_lines(lines, nums, str(path))
+    bad = (counts < 8) | ((counts - 8) % 2 != 0)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise FileFormatError(
+            f"{path}, line {nums[i]}: expected POINT3D_ID X Y Z R G B ERROR and a track of "
+            f"(IMAGE_ID, POINT2D_IDX) pairs, got {counts[i]} numbers"
+        )
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    head = vals[starts[:, None] + np.arange(8)] if len(lines) else np.zeros((0, 8))
+    tlen = (counts - 8) // 2
+    # positions of the track pairs in the flat value array
+    owner = np.repeat(np.arange(len(lines)), tlen)
+    first = np.repeat(starts + 8, tlen)
+    within = np.arange(int(tlen.sum())) - np.repeat(np.cumsum(tlen) - tlen, tlen)
+    pos = first + 2 * within
+    track = np.column_stack([vals[pos], vals[pos + 1]]) if pos.size else np.zeros((0, 2))
+    return head, track, owner, np.array(nums, dtype=np.int64)
+
+
+def read_colmap(
+    directory: str | os.PathLike,
+    *,
+    image_key: str = "name",
+    refine_principal_point: bool = False,
+    sigma: float = 1.0,
+) -> Block:
+    """Read a COLMAP text model (``cameras.txt``, ``images.txt``, ``points3D.txt``).
+
+    Parameters
+    ----------
+    directory : path-like
+        The folder holding the three files.
+    image_key : {"name", "id"}
+        Key images by their ``NAME`` (text ids, the default) or their ``IMAGE_ID``.
+    refine_principal_point : bool
+        Also free cx, cy (COLMAP's bundle adjuster keeps them fixed by default).
+    sigma : float
+        Standard deviation of every image coordinate, pixels (COLMAP's cost is unweighted).
+
+    Returns
+    -------
+    Block
+        One camera group per COLMAP camera (group id = ``CAMERA_ID``) with the parameters of
+        its COLMAP model free, images with their poses, tie points (ids ``POINT3D_ID``) and
+        one observation per track element, in the order of ``images.txt`` (see the module
+        docstring).
+
+    Raises
+    ------
+    FileFormatError
+        Missing files, malformed lines (naming file and line), camera models the Metashape
+        model cannot represent, unknown ids, and tracks that disagree with ``images.txt``.
+    """
+    if image_key not in ("name", "id"):
+        raise InputError(f"image_key must be 'name' or 'id', not {image_key!r}")
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileFormatError(f"{d}: not a directory (a COLMAP text model is a folder)")
+    pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
+    cams, free = _read_cameras(pc, refine_principal_point)
+    image_id, cam_id, names, pose, p2d, n2d, head_no = _read_images(pi)
+    u, c = np.unique(image_id, return_counts=True)
+    if np.any(c > 1):
+        raise FileFormatError(f"{pi}: IMAGE_ID {int(u[c > 1][0])} appears twice")
+    if image_key == "name":
+        u, c = np.unique(names, return_counts=True)
+        if np.any(c > 1):
+            raise FileFormatError(
+                f"{pi}: image NAME {str(u[c > 1][0])!r} appears twice; read with image_key='id'"
+            )
+    unknown = ~np.isin(cam_id, np.array(list(cams)))
+    if np.any(unknown):
+        i = int(np.flatnonzero(unknown)[0])
+        raise FileFormatError(
+            f"{pi}, line {head_no[i]}: image {int(image_id[i])} refers to camera "
+            f"{int(cam_id[i])}, which is not in {pc}"
+        )
+    head, track, owner, pnums = _read_points(pp)
+    pid = head[:, 0]
+    if np.any(pid != np.round(pid)) or np.any(pid < 0):
+        raise FileFormatError(f"{pp}: POINT3D_ID must be non-negative integers")
+    pid = pid.astype(np.int64)
+    u, c = np.unique(pid, return_counts=True)
+    if np.any(c > 1):
+        raise FileFormatError(f"{pp}: POINT3D_ID {int(u[c > 1][0])} appears twice")
+    nf = ~np.all(np.isfinite(head[:, 1:4]), axis=1)
+    if np.any(nf):
+        i = int(np.flatnonzero(nf)[0])
+        raise FileFormatError(f"{pp}, line {pnums[i]}: point {pid[i]} holds NaN or infinity")
+    # track -> observations
+    t_img, t_idx = track[:, 0], track[:, 1]
+    order = np.argsort(image_id, kind="stable")
+    pos = np.searchsorted(image_id[order], t_img)
+    pos = np.clip(pos, 0, max(image_id.size - 1, 0))
+    found = (image_id[order][pos] == t_img) if image_id.size else np.zeros(t_img.size, bool)
+    if not np.all(found):
+        k = int(np.flatnonzero(~found)[0])
+        raise FileFormatError(
+            f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]} is observed in image "
+            f"{t_img[k]:g}, which is not in {pi}"
+        )
+    row = order[pos]
+    offset = np.concatenate([[0], np.cumsum(n2d)[:-1]]).astype(np.int64)
+    badidx = (t_idx != np.round(t_idx)) | (t_idx < 0) | (t_idx >= n2d[row])
+    if np.any(badidx):
+        k = int(np.flatnonzero(badidx)[0])
+        raise FileFormatError(
+            f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]}: POINT2D_IDX {t_idx[k]:g} is "
+            f"out of range for image {int(image_id[row[k]])} ({int(n2d[row[k]])} 2D points)"
+        )
+    flat = offset[row] + t_idx.astype(np.int64)
+    if np.any(p2d[flat, 2] != pid[owner]):
+        k = int(np.flatnonzero(p2d[flat, 2] != pid[owner])[0])
+        raise FileFormatError(
+            f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]} lists 2D point "
+            f"{int(t_idx[k])} of image {int(image_id[row[k]])}, but {pi} gives that 2D point "
+            f"POINT3D_ID {p2d[flat[k], 2]:g}: the two files disagree"
+        )
+    # observations in the order of images.txt: image by image, 2D point by 2D point
+    by_2d = np.argsort(flat, kind="stable")
+    flat, row, owner = flat[by_2d], row[by_2d], owner[by_2d]
+    linked = int(np.sum(p2d[:, 2] != -1))
+    repeated = int(np.sum(flat[1:] == flat[:-1]))
+    if linked != flat.size or repeated:
+        raise FileFormatError(
+            f"{pi} links {linked} 2D points to 3D points but the tracks of {pp} hold "
+            f"{flat.size} (with {repeated} repeated): the two files disagree"
+        )
+    uv = p2d[flat, :2] - 0.5
+    nf = ~np.all(np.isfinite(uv), axis=1)
+    if np.any(nf):
+        k = int(np.flatnonzero(nf)[0])
+        raise FileFormatError(f"{pi}: image {int(image_id[row[k]])} has NaN or infinite 2D points")
+    # poses
+    qn = np.linalg.norm(pose[:, :4], axis=1)
+    if np.any(np.abs(qn - 1.0) > 1e-6):
+        i = int(np.flatnonzero(np.abs(qn - 1.0) > 1e-6)[0])
+        raise FileFormatError(
+            f"{pi}, line {head_no[i]}: the quaternion of image {int(image_id[i])} has norm "
+            f"{qn[i]:.9g}, not 1"
+        )
+    q = pose[:, [1, 2, 3, 0]]  # scipy: scalar last
+    R = Rotation.from_quat(q).as_matrix().reshape(-1, 3, 3)
+    X0 = -np.einsum("nji,nj->ni", R, pose[:, 4:7])
+    M = _FLIP @ R
+    exterior = np.column_stack([X0, opk_from_rotations(M)])
+    m = image_id.size
+    ids = names if image_key == "name" else image_id
+    return Block.from_arrays(
+        cameras=cams,
+        image_ids=ids,
+        image_camera=cam_id,
+        exterior=exterior.reshape(m, 6),
+        point_ids=pid,
+        xyz=head[:, 1:4],
+        obs_image_ids=ids[row],
+        obs_point_ids=pid[owner],
+        uv=uv,
+        sigma=sigma,
+        free=free,
+    )
+
+
+# --- writing ---------------------------------------------------------------------------------
+
+
+def _int_ids(ids: np.ndarray, limit: int) -> np.ndarray | None:
+    """The ids themselves when they are integers in 0..limit - 1, else None."""
+    if ids.dtype.kind in "iu" and (ids.size == 0 or (ids.min() >= 0 and ids.max() < limit)):
+        return ids.astype(np.int64)
+    return None
+
+
+def _join_lines(tokens: list[str], counts: np.ndarray) -> str:
+    """Join a flat token list into lines of ``counts`` tokens (one string operation)."""
+    total = len(tokens)
+    seps = np.full(total, " ", dtype=object)
+    ends = np.cumsum(counts) - 1
+    seps[ends[counts > 0]] = "\n"
+    out = np.empty(2 * total, dtype=object)
+    out[0::2] = tokens
+    out[1::2] = seps
+    return "".join(out.tolist())
+
+
+def colmap_texts(
+    block: Block,
+    *,
+    model: str | Mapping[object, str] | None = None,
+    drop_extras: bool = False,
+) -> dict[str, str]:
+    """The texts of ``cameras.txt``, ``images.txt`` and ``points3D.txt`` (see
+    :func:`write_colmap`)."""
+    if not drop_extras:
+        refuse_extras(block, "a COLMAP text model")
+    g = len(block.calibrations)
+    gid = block.camera_ids.tolist()
+    models = {}
+    for k, (cid, c) in enumerate(zip(gid, block.calibrations)):
+        want = model.get(cid) if isinstance(model, Mapping) else model
+        try:
+            auto = colmap_model_for(c, block.free.get(cid, ()))
+        except InputError as exc:
+            raise InputError(f"camera {cid!r}: {exc}") from None
+        if want is None:
+            models[k] = auto
+            continue
+        want = str(want).upper()
+        if want not in COLMAP_MODELS:
+            raise InputError(
+                f"camera {cid!r}: COLMAP model {want!r} is not one photogeom writes; choose "
+                f"from {', '.join(COLMAP_MODELS)}"
+            )
+        extra = _nonzero(c) - set(MODEL_FREE[want])
+        if extra:
+            raise InputError(
+                f"camera {cid!r}: model {want} cannot hold {', '.join(sorted(extra))} "
+                f"(non-zero); the smallest model that can is {auto}"
+            )
+        models[k] = want
+    # cameras: one per group, or one per image for groups with image-variant offsets
+    variant = np.zeros(g, dtype=bool)
+    offs = np.any(block.calibration_offset != 0, axis=1)
+    variant[np.unique(block.image_camera[offs])] = True
+    keep_ids = _int_ids(block.camera_ids, _UINT32_MAX) if not np.any(variant) else None
+    cam_lines = []
+    img_cam = np.empty(block.n_images, dtype=np.int64)
+    next_id = 1
+    for k in range(g):
+        rows = np.flatnonzero(block.image_camera == k)
+        if variant[k]:
+            for i in rows.tolist():
+                c = block.image_calibration(i)
+                cam_lines.append((next_id, models[k], c))
+                img_cam[i] = next_id
+                next_id += 1
+        else:
+            cid = int(keep_ids[k]) if keep_ids is not None else next_id
+            next_id += 1
+            cam_lines.append((cid, models[k], block.calibrations[k]))
+            img_cam[rows] = cid
+    cams_txt = [
+        "# Camera list with one line of data per camera:",
+        "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
+        f"# Number of cameras: {len(cam_lines)}",
+    ]
+    for cid, mdl, c in cam_lines:
+        q = format_floats(np.array(_colmap_from_calibration(mdl, c)))
+        cams_txt.append(f"{cid} {mdl} {c.width} {c.height} {' '.join(q)}")
+    # images
+    m = block.n_images
+    iid = _int_ids(block.image_ids, _UINT32_MAX)
+    if iid is None:
+        iid = np.arange(1, m + 1, dtype=np.int64)
+    inames = block.image_ids.astype(str)
+    spaced = [s for s in inames.tolist() if not s or len(s.split()) != 1]
+    if spaced:
+        raise InputError(
+            f"image id {spaced[0]!r}: COLMAP's images.txt cannot hold names with white space "
+            "(or empty names); rename the images"
+        )
+    R = _FLIP @ block.rotations()  # world -> COLMAP camera
+    T = -np.einsum("nij,nj->ni", R, block.exterior[:, :3])
+    q = Rotation.from_matrix(R).as_quat(canonical=True).reshape(m, 4) if m else np.zeros((0, 4))
+    q = q[:, [3, 0, 1, 2]]
+    pose_tok = np.array(format_floats(np.column_stack([q, T]))).reshape(m, 7)
+    n = block.n_observations
+    o_img, o_pt = block.obs_image, block.obs_point
+    by_img = np.argsort(o_img, kind="stable")
+    per_img = np.bincount(o_img, minlength=m)
+    start = np.concatenate([[0], np.cumsum(per_img)[:-1]]).astype(np.int64)
+    idx2d = np.empty(n, dtype=np.int64)
+    idx2d[by_img] = np.arange(n) - np.repeat(start, per_img)
+    pid = _int_ids(block.point_ids, 2**63 - 1)
+    if pid is None:
+        pid = np.arange(1, block.n_points + 1, dtype=np.int64)
+    uvc = block.observations.uv[by_img] + 0.5
+    p_tok = np.empty((n, 3), dtype=object)
+    p_tok[:, 0] = format_floats(uvc[:, 0])
+    p_tok[:, 1] = format_floats(uvc[:, 1])
+    p_tok[:, 2] = list(map(str, pid[o_pt[by_img]].tolist()))
+    head_tok = np.empty((m, 10), dtype=object)
+    head_tok[:, 0] = list(map(str, iid.tolist()))
+    head_tok[:, 1:8] = pose_tok
+    head_tok[:, 8] = list(map(str, img_cam.tolist()))
+    head_tok[:, 9] = inames.tolist()
+    body = _images_lines(head_tok, p_tok, per_img)
+    mean_obs = n / m if m else 0.0
+    imgs_txt = (
+        "# Image list with two lines of data per image:\n"
+        "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
+        "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
+        f"# Number of images: {m}, mean observations per image: {mean_obs:.6g}\n" + body
+    )
+    # points3D: id X Y Z R G B ERROR track (IMAGE_ID, POINT2D_IDX)
+    p = block.n_points
+    by_pt = np.argsort(o_pt, kind="stable")
+    per_pt = np.bincount(o_pt, minlength=p)
+    ph = np.empty((p, 8), dtype=object)
+    ph[:, 0] = list(map(str, pid.tolist()))
+    ph[:, 1:4] = np.array(format_floats(block.xyz), dtype=object).reshape(p, 3)
+    ph[:, 4:7] = "0"
+    ph[:, 7] = "-1"
+    tt = np.empty((n, 2), dtype=object)
+    tt[:, 0] = list(map(str, iid[o_img[by_pt]].tolist()))
+    tt[:, 1] = list(map(str, idx2d[by_pt].tolist()))
+    counts = 8 + 2 * per_pt
+    pstart = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    tstart = np.concatenate([[0], np.cumsum(per_pt)[:-1]]).astype(np.int64)
+    ptok = np.empty(int(counts.sum()), dtype=object)
+    ptok[(pstart[:, None] + np.arange(8)).ravel()] = ph.ravel()
+    tpos = np.repeat(pstart + 8, 2 * per_pt) + (
+        np.arange(2 * n) - np.repeat(2 * tstart, 2 * per_pt)
+    )
+    ptok[tpos] = tt.ravel()
+    mean_track = n / p if p else 0.0
+    pts_txt = (
+        "# 3D point list with one line of data per point:\n"
+        "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
+        f"# Number of points: {p}, mean track length: {mean_track:.6g}\n"
+        + _join_lines(ptok.tolist(), counts)
+    )
+    return {
+        "cameras.txt": "\n".join(cams_txt) + "\n",
+        "images.txt": imgs_txt,
+        "points3D.txt": pts_txt,
+    }
+
+
+def _images_lines(head_tok, p_tok, per_img) -> str:
+    out = []
+    s = 0
+    for i, k in enumerate(per_img.tolist()):  # one join per image (empty lines kept)
+        out.append(" ".join(head_tok[i].tolist()))
+        out.append(" ".join(p_tok[s : s + k].ravel().tolist()))
+        s += k
+    return "\n".join(out) + "\n"
+
+
+def write_colmap(
+    block: Block,
+    directory: str | os.PathLike,
+    *,
+    model: str | Mapping[object, str] | None = None,
+    drop_extras: bool = False,
+) -> Path:
+    """Write a block as a COLMAP text model (three files, each replaced atomically).
+
+    Parameters
+    ----------
+    block : Block
+    directory : path-like
+        Target folder (created if missing). ``cameras.txt``, ``images.txt`` and
+        ``points3D.txt`` are all formatted before any is replaced.
+    model : str or mapping group -> str, optional
+        COLMAP camera model per group. Default: the smallest of SIMPLE_PINHOLE, PINHOLE,
+        SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV that holds the calibration's non-zero terms
+        and its free parameters (so a block read from COLMAP keeps its models).
+    drop_extras : bool
+        Write a block with control or check points, GNSS/IMU observations or unequal
+        observation standard deviations anyway (COLMAP's text model has none of them).
+
+    Notes
+    -----
+    A group with image-variant offsets is written as one COLMAP camera per image. Ids: see
+    the module docstring.
+
+    Raises
+    ------
+    InputError
+        K4 or B2 non-zero (no COLMAP model has them), a ``model`` that cannot hold the
+        calibration, image names with white space, or extras without ``drop_extras``.
+    """
+    texts = colmap_texts(block, model=model, drop_extras=drop_extras)
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    write_files_atomically({d / k: v.encode("utf-8") for k, v in texts.items()})
+    return d

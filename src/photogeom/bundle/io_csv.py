@@ -1,0 +1,517 @@
+"""A block as CSV files a person can edit: cameras, images, points, observations.
+
+A folder holds four files (comma-separated, or semicolons or tabs when the header has no
+comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
+
+    cameras.csv       camera, width, height, f, cx, cy, k1, k2, k3, k4, p1, p2, b1, b2,
+                      free, image_variant
+    images.csv        id, camera, X0, Y0, Z0, omega_deg, phi_deg, kappa_deg
+                      [, df, dcx, dcy]
+                      [, gnss_X, gnss_Y, gnss_Z, gnss_sX, gnss_sY, gnss_sZ]
+                      [, imu_omega_deg, imu_phi_deg, imu_kappa_deg,
+                         imu_somega_deg, imu_sphi_deg, imu_skappa_deg]
+    points.csv        id, role, X, Y, Z, sX, sY, sZ
+    observations.csv  image_id, point_id, u, v, sigma
+
+* Cameras: the Metashape frame model in pixels (``cx, cy`` offsets from the image centre);
+  ``free`` and ``image_variant`` list parameter names separated by spaces (``f cx cy k1``).
+  Instead of (or over) ``cameras.csv``, Metashape calibration XML files can give the starting
+  cameras: ``read_csv_block(folder, calibrations={"cam": "cam.xml"})``.
+* Angles carry their unit in the column name: ``_deg``, ``_gon`` or ``_rad`` (the writer
+  uses degrees unless ``angle_unit`` says otherwise). ``df, dcx, dcy`` are per-image offsets
+  of f, cx, cy (image-variant calibration), pixels. GNSS and IMU cells are empty for images
+  without them.
+* Points: role ``tie``, ``control`` or ``check``; ``sX, sY, sZ`` standard deviations of
+  surveyed coordinates (empty for tie points). An optional ``# crs: ...`` comment line in
+  ``points.csv`` names the coordinate reference system.
+* Observations: ``u, v`` pixels with the centre of the top-left pixel at (0, 0), u right,
+  v down; ``sigma`` pixels (optional column; default ``sigma`` of the reader).
+* Ids are integers when every id of a column is written as one (``7``, not ``07`` or
+  ``+7``), otherwise text; the observations' ids are read as the kind of the ids they
+  refer to.
+
+Errors name the file, the line and the column. Each file is written atomically, and all four
+are formatted before any is replaced.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..camera.metashape import MetashapeCalibration, read_metashape_xml
+from ..errors import FileFormatError, InputError
+from ..units import from_radians, normalize_angle_unit, to_radians
+from ._textio import format_floats, read_text, write_files_atomically
+from .block import CALIBRATION_NAMES, Block
+
+FILES = ("cameras.csv", "images.csv", "points.csv", "observations.csv")
+_INT = re.compile(r"-?(?:0|[1-9][0-9]*)")
+_EO_ANGLES = ("omega", "phi", "kappa")
+
+
+@dataclass
+class _Table:
+    path: Path
+    header: list[str]
+    rows: list[list[str]]
+    lines: np.ndarray
+    comments: list[str]
+
+    def find(self, name: str) -> int | None:
+        if name in self.header:
+            return self.header.index(name)
+        hits = [k for k, h in enumerate(self.header) if h.lower() == name.lower()]
+        return hits[0] if len(hits) == 1 else None
+
+    def col(self, name: str) -> list[str]:
+        k = self.find(name)
+        if k is None:
+            raise FileFormatError(
+                f"{self.path}: column {name!r} not found; the file has columns "
+                f"{', '.join(self.header)}"
+            )
+        return [r[k] for r in self.rows]
+
+    def has(self, name: str) -> bool:
+        return self.find(name) is not None
+
+    def floats(self, name: str, *, optional_cells: bool = False) -> np.ndarray:
+        cells = self.col(name)
+        arr = np.array(cells, dtype=object)
+        empty = np.array([c == "" for c in cells], dtype=bool)
+        if np.any(empty) and not optional_cells:
+            k = int(np.flatnonzero(empty)[0])
+            raise FileFormatError(f"{self.path}, line {self.lines[k]}: column {name!r} is empty")
+        arr[empty] = "nan"
+        try:
+            out = arr.astype(np.float64)
+        except ValueError:
+            for k, c in enumerate(cells):
+                try:
+                    float(c) if c else None
+                except ValueError:
+                    raise FileFormatError(
+                        f"{self.path}, line {self.lines[k]}: column {name!r}: {c!r} is not a number"
+                    ) from None
+            raise  # pragma: no cover
+        bad = ~np.isfinite(out) & ~empty
+        if np.any(bad):
+            k = int(np.flatnonzero(bad)[0])
+            raise FileFormatError(
+                f"{self.path}, line {self.lines[k]}: column {name!r} is NaN or infinite"
+            )
+        return out
+
+
+def _read_table(path: Path) -> _Table:
+    text = read_text(path, "CSV file")
+    body, numbers, comments = [], [], []
+    for k, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            comments.append(s[1:].strip())
+            continue
+        body.append(line)
+        numbers.append(k)
+    if not body:
+        raise FileFormatError(f"{path}: no header line (the file is empty or all comments)")
+    # comma-separated; a header without commas but with semicolons or tabs (spreadsheet
+    # exports in some locales) selects that separator for the whole file
+    sep = ","
+    if "," not in body[0]:
+        sep = ";" if ";" in body[0] else "\t" if "\t" in body[0] else ","
+    parsed = [
+        [c.strip() for c in row] for row in csv.reader(body, delimiter=sep, skipinitialspace=True)
+    ]
+    header = parsed[0]
+    if any(not h for h in header):
+        raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise FileFormatError(f"{path}: column(s) {', '.join(dup)} appear more than once")
+    rows = parsed[1:]
+    lines = np.array(numbers[1:], dtype=np.int64)
+    widths = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
+    bad = widths != len(header)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise FileFormatError(
+            f"{path}, line {lines[k]}: {widths[k]} field(s) but the header has {len(header)} "
+            f"({', '.join(header)})"
+        )
+    return _Table(path, header, rows, lines, comments)
+
+
+def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
+    empty = [k for k, c in enumerate(cells) if not c]
+    if empty:
+        raise FileFormatError(f"{table.path}, line {table.lines[empty[0]]}: {name!r} is empty")
+    if cells and all(_INT.fullmatch(c) for c in cells):
+        ids = np.array([int(c) for c in cells], dtype=np.int64)
+    else:
+        ids = np.array(cells, dtype=str)
+    _, first, counts = np.unique(ids, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        k = int(first[counts > 1][0])
+        again = int(np.flatnonzero(ids == ids[k])[1])
+        raise FileFormatError(
+            f"{table.path}, line {table.lines[again]}: {name} {cells[k]!r} appears twice "
+            f"(first on line {table.lines[k]})"
+        )
+    return ids
+
+
+def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what: str):
+    """Read the referring ids ``cells`` as the kind of ``keys``; name unknown ones."""
+    if keys.dtype.kind in "iu":
+        bad = [k for k, c in enumerate(cells) if not _INT.fullmatch(c)]
+        if bad:
+            k = bad[0]
+            raise FileFormatError(
+                f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
+                f"{what} ids"
+            )
+        ids = np.array([int(c) for c in cells], dtype=np.int64)
+    else:
+        ids = np.array(cells, dtype=str)
+    known = np.isin(ids, keys)
+    if not np.all(known):
+        k = int(np.flatnonzero(~known)[0])
+        raise FileFormatError(
+            f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the {what} ids"
+        )
+    return ids
+
+
+def _angle_column(table: _Table, base: str) -> tuple[str, str] | None:
+    for unit in ("deg", "gon", "rad"):
+        name = f"{base}_{unit}"
+        if table.has(name):
+            return name, unit
+    return None
+
+
+def _angles(
+    table: _Table, bases, *, optional: bool, empty_cells: bool | None = None
+) -> np.ndarray | None:
+    """Angle columns named ``<base>_<unit>``, in radians; ``optional``: the columns may be
+    absent (None); ``empty_cells``: cells may be empty (NaN; default: as ``optional``)."""
+    empty_cells = optional if empty_cells is None else empty_cells
+    found = [_angle_column(table, b) for b in bases]
+    if all(f is None for f in found) and optional:
+        return None
+    missing = [b for b, f in zip(bases, found) if f is None]
+    if missing:
+        raise FileFormatError(
+            f"{table.path}: angle column(s) {', '.join(missing)} not found: name them with "
+            f"their unit ({missing[0]}_deg, {missing[0]}_gon or {missing[0]}_rad); the file has "
+            f"columns {', '.join(table.header)}"
+        )
+    return np.column_stack(
+        [to_radians(table.floats(n, optional_cells=empty_cells), u) for n, u in found]
+    )
+
+
+def _names(cell: str) -> tuple[str, ...]:
+    return tuple(cell.replace(",", " ").split())
+
+
+def _read_cameras(path: Path):
+    t = _read_table(path)
+    ids = _id_array(t.col("camera"), t, "camera")
+    w, h = t.floats("width"), t.floats("height")
+    vals = {
+        n: (t.floats(n) if n == "f" else t.floats(n, optional_cells=True))
+        for n in CALIBRATION_NAMES
+        if n == "f" or t.has(n)
+    }
+    cams, free, variant = {}, {}, {}
+    free_cells = t.col("free") if t.has("free") else None
+    var_cells = t.col("image_variant") if t.has("image_variant") else None
+    for k, cid in enumerate(ids.tolist()):
+        kw = {n: (0.0 if np.isnan(v[k]) else float(v[k])) for n, v in vals.items()}
+        try:
+            cams[cid] = MetashapeCalibration(w[k], h[k], **kw)
+        except InputError as exc:
+            raise FileFormatError(f"{path}, line {t.lines[k]}: camera {cid!r}: {exc}") from None
+        if free_cells is not None:
+            free[cid] = _names(free_cells[k])
+        if var_cells is not None:
+            variant[cid] = _names(var_cells[k])
+    return ids, cams, (free if free_cells is not None else None), variant
+
+
+def read_csv_block(
+    directory: str | os.PathLike,
+    *,
+    calibrations: Mapping[object, MetashapeCalibration | str | os.PathLike] | None = None,
+    sigma: float = 0.5,
+) -> Block:
+    """Read a block from a folder of CSV files (see the module docstring).
+
+    Parameters
+    ----------
+    directory : path-like
+        Folder with ``images.csv``, ``points.csv``, ``observations.csv`` and (unless
+        ``calibrations`` gives every camera) ``cameras.csv``.
+    calibrations : mapping camera id -> MetashapeCalibration or path of a Metashape
+        calibration XML, optional
+        Starting cameras; they replace the calibration of ``cameras.csv`` for those ids
+        (``free`` and ``image_variant`` stay those of ``cameras.csv``, or the defaults).
+    sigma : float
+        Standard deviation of observations without a ``sigma`` column, pixels.
+
+    Raises
+    ------
+    FileFormatError
+        Missing files or columns, cells that are not numbers, unknown ids (each naming file
+        and line), angle columns without a unit, unknown roles.
+    """
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileFormatError(f"{d}: not a directory (a CSV block is a folder of CSV files)")
+    given: dict = {}
+    for k, v in (calibrations or {}).items():
+        if isinstance(v, MetashapeCalibration):
+            given[k] = v
+        else:
+            given[k] = read_metashape_xml(v)
+    cam_path = d / "cameras.csv"
+    free = variant = None
+    if cam_path.exists():
+        cam_ids, cams, free, variant = _read_cameras(cam_path)
+    else:
+        if not given:
+            raise FileFormatError(
+                f"{d}: no cameras.csv; give the cameras in it or as Metashape calibration XML "
+                "files (calibrations={camera id: path})"
+            )
+        cams = {}
+        cam_ids = np.array(list(given))
+    ti = _read_table(d / "images.csv")
+    img_ids = _id_array(ti.col("id"), ti, "id")
+    cam_cells = ti.col("camera")
+    if not cams:
+        # the XML keys are the camera ids; read the images' cameras as the same kind
+        kinds = {type(k) for k in given}
+        cam_ids = (
+            np.array(list(given), dtype=np.int64)
+            if kinds == {int}
+            else np.array([str(k) for k in given], dtype=str)
+        )
+        given = dict(zip(cam_ids.tolist(), given.values()))
+    img_cam = _ids_like(cam_cells, cam_ids, ti, "camera", "camera")
+    for k in given:
+        if k not in set(cam_ids.tolist()):
+            raise InputError(
+                f"calibrations: camera {k!r} is not a camera of {cam_path} "
+                f"({', '.join(map(str, cam_ids.tolist()))})"
+            )
+    cams = {**cams, **given}
+    cams = {k: cams[k] for k in cam_ids.tolist()}
+    xyz0 = np.column_stack([ti.floats(n) for n in ("X0", "Y0", "Z0")])
+    ang = _angles(ti, _EO_ANGLES, optional=False)
+    exterior = np.column_stack([xyz0, ang])
+    offset = None
+    if any(ti.has(n) for n in ("df", "dcx", "dcy")):
+        offset = np.column_stack(
+            [
+                np.nan_to_num(ti.floats(n, optional_cells=True))
+                if ti.has(n)
+                else np.zeros(len(ti.rows))
+                for n in ("df", "dcx", "dcy")
+            ]
+        )
+    gnss = gnss_s = imu = imu_s = None
+    if ti.has("gnss_X"):
+        gnss = np.column_stack([ti.floats(f"gnss_{a}", optional_cells=True) for a in "XYZ"])
+        gnss_s = np.column_stack([ti.floats(f"gnss_s{a}", optional_cells=True) for a in "XYZ"])
+    imu = _angles(ti, [f"imu_{a}" for a in _EO_ANGLES], optional=True)
+    if imu is not None:
+        imu_s = _angles(ti, [f"imu_s{a}" for a in _EO_ANGLES], optional=False, empty_cells=True)
+    tp = _read_table(d / "points.csv")
+    pt_ids = _id_array(tp.col("id"), tp, "id")
+    xyz = np.column_stack([tp.floats(n) for n in ("X", "Y", "Z")])
+    role = np.array(tp.col("role"), dtype=str) if tp.has("role") else np.full(len(tp.rows), "tie")
+    bad = ~np.isin(role, ("tie", "control", "check"))
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise FileFormatError(
+            f"{tp.path}, line {tp.lines[k]}: role {str(role[k])!r} is not tie, control or check"
+        )
+    psig = None
+    if tp.has("sX"):
+        psig = np.column_stack([tp.floats(f"s{a}", optional_cells=True) for a in "XYZ"])
+        need = (role != "tie") & ~np.all(np.isfinite(psig) & (psig > 0), axis=1)
+        if np.any(need):
+            k = int(np.flatnonzero(need)[0])
+            raise FileFormatError(
+                f"{tp.path}, line {tp.lines[k]}: {role[k]} point {pt_ids[k]} needs positive "
+                "sX, sY, sZ"
+            )
+    crs = None
+    for c in tp.comments:
+        if c.lower().startswith("crs:"):
+            crs = c[4:].strip() or None
+    to = _read_table(d / "observations.csv")
+    oi = _ids_like(to.col("image_id"), img_ids, to, "image_id", "image (images.csv)")
+    op = _ids_like(to.col("point_id"), pt_ids, to, "point_id", "point (points.csv)")
+    uv = np.column_stack([to.floats("u"), to.floats("v")])
+    sg = to.floats("sigma") if to.has("sigma") else sigma
+    if np.any(np.asarray(sg) <= 0):
+        k = int(np.flatnonzero(np.asarray(sg) <= 0)[0])
+        raise FileFormatError(f"{to.path}, line {to.lines[k]}: sigma must be positive")
+    try:
+        return Block.from_arrays(
+            cameras=cams,
+            image_ids=img_ids,
+            image_camera=img_cam,
+            exterior=exterior,
+            point_ids=pt_ids,
+            xyz=xyz,
+            obs_image_ids=oi,
+            obs_point_ids=op,
+            uv=uv,
+            sigma=sg,
+            role=role,
+            point_sigma=psig,
+            gnss=gnss,
+            gnss_sigma=gnss_s,
+            imu=imu,
+            imu_sigma=imu_s,
+            calibration_offset=offset,
+            free=free,
+            image_variant=variant or None,
+            crs=crs,
+        )
+    except InputError as exc:
+        raise FileFormatError(f"{d}: {exc}") from None
+
+
+def _csv(header: list[str], columns: list[list[str]], comments: list[str] = ()) -> str:
+    buf = io.StringIO()
+    for c in comments:
+        buf.write(f"# {c}\n")
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    w.writerows(zip(*columns))
+    return buf.getvalue()
+
+
+def _cells(values: np.ndarray) -> list[str]:
+    """Shortest round-trip text, empty for NaN."""
+    out = format_floats(values)
+    nan = np.isnan(np.asarray(values, dtype=float).ravel())
+    if np.any(nan):
+        for k in np.flatnonzero(nan).tolist():
+            out[k] = ""
+    return out
+
+
+def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
+    """The texts of the four CSV files of a block (see :func:`write_csv_block`)."""
+    unit = normalize_angle_unit(angle_unit)
+    if unit not in ("deg", "gon", "rad"):
+        raise InputError(f"angle_unit must be deg, gon or rad, not {angle_unit!r}")
+    gids = block.camera_ids.tolist()
+    cal = np.array(
+        [[getattr(c, n) for n in CALIBRATION_NAMES] for c in block.calibrations]
+    ).reshape(-1, len(CALIBRATION_NAMES))
+    cams = _csv(
+        ["camera", "width", "height", *CALIBRATION_NAMES, "free", "image_variant"],
+        [
+            list(map(str, gids)),
+            [str(c.width) for c in block.calibrations],
+            [str(c.height) for c in block.calibrations],
+            *[_cells(cal[:, k]) for k in range(len(CALIBRATION_NAMES))],
+            [" ".join(block.free[g]) for g in gids],
+            [" ".join(block.image_variant[g]) for g in gids],
+        ],
+        [
+            "Metashape frame calibration in pixels (cx, cy from the image centre); free and "
+            "image_variant: parameter names separated by spaces"
+        ],
+    )
+    e = block.exterior
+    ang = from_radians(e[:, 3:], unit)
+    header = ["id", "camera", "X0", "Y0", "Z0", *[f"{a}_{unit}" for a in _EO_ANGLES]]
+    cols = [
+        list(map(str, block.image_ids.tolist())),
+        list(map(str, block.camera_ids[block.image_camera].tolist())),
+        *[_cells(e[:, k]) for k in range(3)],
+        *[_cells(ang[:, k]) for k in range(3)],
+    ]
+    if np.any(block.calibration_offset != 0):
+        header += ["df", "dcx", "dcy"]
+        cols += [_cells(block.calibration_offset[:, k]) for k in range(3)]
+    if np.any(np.isfinite(block.gnss)):
+        header += [f"gnss_{a}" for a in "XYZ"] + [f"gnss_s{a}" for a in "XYZ"]
+        cols += [_cells(block.gnss[:, k]) for k in range(3)]
+        cols += [_cells(block.gnss_sigma[:, k]) for k in range(3)]
+    if np.any(np.isfinite(block.imu)):
+        header += [f"imu_{a}_{unit}" for a in _EO_ANGLES]
+        header += [f"imu_s{a}_{unit}" for a in _EO_ANGLES]
+        im, ims = from_radians(block.imu, unit), from_radians(block.imu_sigma, unit)
+        cols += [_cells(im[:, k]) for k in range(3)] + [_cells(ims[:, k]) for k in range(3)]
+    imgs = _csv(
+        header,
+        cols,
+        [
+            f"exterior orientation: projection centre and omega, phi, kappa in {unit} "
+            "(M = M3(kappa) M2(phi) M1(omega), object -> image)"
+        ],
+    )
+    comments = ["object coordinates; sX, sY, sZ: standard deviations of surveyed points"]
+    if block.crs:
+        comments.append(f"crs: {block.crs}")
+    pts = _csv(
+        ["id", "role", "X", "Y", "Z", "sX", "sY", "sZ"],
+        [
+            list(map(str, block.point_ids.tolist())),
+            block.role.tolist(),
+            *[_cells(block.xyz[:, k]) for k in range(3)],
+            *[_cells(block.point_sigma[:, k]) for k in range(3)],
+        ],
+        comments,
+    )
+    o = block.observations
+    obs = _csv(
+        ["image_id", "point_id", "u", "v", "sigma"],
+        [
+            list(map(str, o.image_ids.tolist())),
+            list(map(str, o.point_ids.tolist())),
+            _cells(o.uv[:, 0]),
+            _cells(o.uv[:, 1]),
+            _cells(o.sigma),
+        ],
+        ["pixels: centre of the top-left pixel at (0, 0), u right, v down; sigma in pixels"],
+    )
+    return {
+        "cameras.csv": cams,
+        "images.csv": imgs,
+        "points.csv": pts,
+        "observations.csv": obs,
+    }
+
+
+def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: str = "deg") -> Path:
+    """Write a block as a folder of CSV files (created if missing; see the module docstring).
+
+    All four files are formatted first, then each is replaced atomically. Angles are written
+    in ``angle_unit`` (``"deg"``, ``"gon"`` or ``"rad"``, named in the column headers).
+    """
+    texts = csv_block_texts(block, angle_unit=angle_unit)
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    write_files_atomically({d / k: v.encode("utf-8") for k, v in texts.items()})
+    return d

@@ -1,0 +1,550 @@
+"""The result of a bundle adjustment: adjusted block, statistics, diagnostics."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..adjust.schur import covariance_blocks, observation_cofactors, point_covariances
+from ..camera.frame_kernel import opk_from_increment_jacobian
+from ..errors import DegenerateGeometryError, InputError
+from .adjustment import NCAL, Problem, opk_rows
+from .block import CALIBRATION_NAMES, EO_NAMES, Block
+from .residuals import reprojection_residuals
+
+CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
+
+
+@dataclass(frozen=True, eq=False)
+class BundleFit:
+    """Adjusted block and the statistics of a bundle adjustment.
+
+    Attributes
+    ----------
+    block : Block
+        The adjusted block (exterior orientations, calibrations, points; check points
+        triangulated from their image observations with the adjusted cameras).
+    sigma0, sigma0_prior : float
+        A-posteriori ``sqrt(v'Pv / r)`` and a-priori standard deviation of unit weight.
+    redundancy, n_observations, n_unknowns : int
+        ``r = n_observations - n_unknowns`` (scalar observations: 2 per image point, 3 per
+        control point, GNSS position and IMU attitude).
+    converged, iterations, message, cost_history
+        Convergence diagnostics (cost = v'Pv after each accepted step).
+    residuals : numpy.ndarray (n, 2)
+        Image residuals, computed minus observed, pixels, in the order of
+        ``block.observations`` (check-point rows with their triangulated points).
+    in_adjustment : numpy.ndarray (n,) bool
+        Rows that entered the adjustment (not check points).
+    calibration, calibration_std : dict group -> dict name -> value
+        Calibration of each camera group and the standard deviations of the free parameters
+        (pixels; distortion terms dimensionless); NaN for fixed parameters.
+    calibration_correlation : dict group -> (names, matrix)
+        Correlation matrix of the free calibration parameters of each group.
+    high_correlations : list of (group, name, name, rho)
+        Calibration correlations above the threshold of the options.
+    exterior_std : numpy.ndarray (m, 6)
+        Standard deviations of X0, Y0, Z0 (object units) and omega, phi, kappa (radians).
+    point_std : numpy.ndarray (p, 3) or None
+        Standard deviations of every point's coordinates (``point_covariance=True``).
+    check : dict
+        Check-point ids, errors ``adjusted - surveyed`` (k, 3), RMSE X, Y, Z (object units
+        and GSD).
+    snooping : dict or None
+        Baarda's w per observation (n, 2), the critical value and the flagged observations
+        as (image id, point id, w).
+    variance_components : dict or None
+        Estimated standard deviation factor of each observation group.
+    chi2 : dict
+        Global test of ``v'Pv / sigma0_prior^2`` against chi-square with r degrees of freedom.
+    notes : tuple of str
+    elapsed : float (s)
+    solver : dict
+        The sparse backend and sizes of the reduced system.
+    """
+
+    block: Block
+    sigma0: float
+    sigma0_prior: float
+    redundancy: int
+    n_observations: int
+    n_unknowns: int
+    converged: bool
+    iterations: int
+    message: str
+    cost_history: tuple
+    residuals: np.ndarray
+    in_adjustment: np.ndarray
+    calibration: Mapping
+    calibration_std: Mapping
+    calibration_correlation: Mapping
+    high_correlations: list
+    exterior_std: np.ndarray
+    point_std: np.ndarray | None
+    check: Mapping
+    snooping: Mapping | None
+    variance_components: Mapping | None
+    chi2: Mapping
+    gsd: float
+    notes: tuple = ()
+    elapsed: float = 0.0
+    solver: Mapping = field(default_factory=dict)
+    _image_cov: np.ndarray | None = None
+    _point_cov: np.ndarray | None = None
+    _cal_cov: Mapping | None = None
+
+    # --- queries -----------------------------------------------------------------------------
+
+    def image_covariance(self, image_id) -> np.ndarray:
+        """Covariance (6, 6) of X0, Y0, Z0, omega, phi, kappa of one image (a-posteriori)."""
+        try:
+            i = {k: n for n, k in enumerate(self.block.image_ids.tolist())}[image_id]
+        except KeyError:
+            raise InputError(f"unknown image id {image_id!r}") from None
+        return self._image_cov[i].copy()
+
+    def point_covariance(self, point_id) -> np.ndarray:
+        """Marginal covariance (3, 3) of one point (a-posteriori; needs
+        ``point_covariance=True``)."""
+        if self._point_cov is None:
+            raise InputError(
+                "point covariances were not computed: run bundle_adjust(..., point_covariance=True)"
+            )
+        try:
+            j = {k: n for n, k in enumerate(self.block.point_ids.tolist())}[point_id]
+        except KeyError:
+            raise InputError(f"unknown point id {point_id!r}") from None
+        return self._point_cov[j].copy()
+
+    def calibration_covariance(self, group) -> tuple[tuple[str, ...], np.ndarray]:
+        """Names of the free calibration parameters of ``group`` and their covariance."""
+        return self._cal_cov[group]
+
+    @property
+    def rms_per_image(self) -> dict:
+        """RMS of the image residual lengths per image (px), adjusted observations only."""
+        b = self.block
+        v = self.residuals[self.in_adjustment]
+        i = b.obs_image[self.in_adjustment]
+        s = np.bincount(i, weights=np.einsum("nd,nd->n", v, v), minlength=b.n_images)
+        c = np.bincount(i, minlength=b.n_images)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rms = np.sqrt(s / c)
+        return dict(zip(b.image_ids.tolist(), rms.tolist()))
+
+    @property
+    def rmse(self) -> float:
+        """RMS of the image residual lengths over the adjusted observations (px)."""
+        v = self.residuals[self.in_adjustment]
+        return float(np.sqrt(np.mean(np.einsum("nd,nd->n", v, v)))) if v.size else math.nan
+
+    # --- reports -----------------------------------------------------------------------------
+
+    def summary(self, angle_unit: str = "deg") -> str:
+        """A text report: convergence, sigma0, calibration, check points, outliers."""
+        from ..units import from_radians
+
+        b = self.block
+        L = [
+            "Bundle adjustment with self-calibration",
+            b.summary(),
+            f"{self.message} after {self.iterations} iteration(s), {self.elapsed:.2f} s "
+            f"(solver: {self.solver.get('backend', '?')})",
+            f"observations {self.n_observations}, unknowns {self.n_unknowns}, redundancy "
+            f"{self.redundancy}",
+            f"sigma0 a posteriori {self.sigma0:.4f} (a priori {self.sigma0_prior:g}); chi-square "
+            f"test: {'passed' if self.chi2.get('passed') else 'failed'} "
+            f"(p = {self.chi2.get('p_value', math.nan):.3g})",
+            f"image residuals (computed - observed): RMS {self.rmse:.3f} px; GSD "
+            f"{self.gsd:.4g} object units per px",
+            "",
+            "calibration (px; distortion dimensionless), standard deviations a posteriori:",
+        ]
+        for g, vals in self.calibration.items():
+            L.append(f"  camera {g}")
+            for n in CALIBRATION_NAMES:
+                s = self.calibration_std[g][n]
+                std = f"{s:.3e}" if math.isfinite(s) else "fixed"
+                L.append(f"    {n:>3} = {vals[n]: .9g}  +- {std} {CAL_UNITS[n]}")
+        if self.high_correlations:
+            L.append("high calibration correlations (|rho| > threshold):")
+            for g, a, c, r in self.high_correlations:
+                L.append(f"  camera {g}: {a} / {c}: {r:+.3f}")
+        es = self.exterior_std
+        if es.size:
+            unit = angle_unit
+            rms_pos = np.sqrt(np.nanmean(es[:, :3] ** 2, axis=0))
+            rms_ang = np.sqrt(np.nanmean(np.asarray(from_radians(es[:, 3:], unit)) ** 2, axis=0))
+            L.append(
+                "exterior orientation, RMS of the standard deviations: "
+                f"X0 {rms_pos[0]:.4g}, Y0 {rms_pos[1]:.4g}, Z0 {rms_pos[2]:.4g}; omega "
+                f"{rms_ang[0]:.3g}, phi {rms_ang[1]:.3g}, kappa {rms_ang[2]:.3g} {unit}"
+            )
+        if self.point_std is not None:
+            ps = self.point_std[b.role != "check"]
+            r = np.sqrt(np.nanmean(ps**2, axis=0))
+            L.append(
+                f"points, RMS of the standard deviations: X {r[0]:.4g}, Y {r[1]:.4g}, Z {r[2]:.4g}"
+            )
+        c = self.check
+        if c.get("ids"):
+            r = c["rmse"]
+            g = c["rmse_gsd"]
+            L.append(
+                f"check points ({len(c['ids'])}), adjusted minus surveyed: RMSE X {r[0]:.4g}, "
+                f"Y {r[1]:.4g}, Z {r[2]:.4g} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
+            )
+        if self.snooping is not None:
+            fl = self.snooping["flagged"]
+            L.append(
+                f"data snooping (w-test, alpha {self.snooping['alpha']}, critical "
+                f"{self.snooping['critical_value']:.2f}): {len(fl)} observation(s) flagged"
+            )
+            for img, pt, w in fl[:20]:
+                L.append(f"  image {img} point {pt}: |w| = {w:.1f}")
+        if self.variance_components:
+            L.append("variance components (estimated sigma = factor x a-priori sigma):")
+            for k, v in self.variance_components["factors"].items():
+                L.append(f"  {k}: {v:.4f}")
+        for n in self.notes:
+            L.append(f"note: {n}")
+        return "\n".join(L)
+
+    def to_dict(self, angle_unit: str = "deg") -> dict:
+        """JSON-ready summary (without the per-observation arrays)."""
+        from ..adjust.fit import _jsonable
+        from ..units import from_radians
+
+        b = self.block
+        es = self.exterior_std.copy()
+        ext = b.exterior.copy()
+        ext[:, 3:] = np.asarray(from_radians(ext[:, 3:], angle_unit))
+        es[:, 3:] = np.asarray(from_radians(es[:, 3:], angle_unit))
+        images = [
+            {
+                "id": i,
+                **{n: float(v) for n, v in zip(EO_NAMES, ext[k])},
+                **{f"s{n}": float(v) for n, v in zip(EO_NAMES, es[k])},
+                "rms_px": float(self.rms_per_image[i]),
+            }
+            for k, i in enumerate(b.image_ids.tolist())
+        ]
+        return _jsonable(
+            {
+                "converged": self.converged,
+                "iterations": self.iterations,
+                "message": self.message,
+                "sigma0": self.sigma0,
+                "sigma0_prior": self.sigma0_prior,
+                "redundancy": self.redundancy,
+                "n_observations": self.n_observations,
+                "n_unknowns": self.n_unknowns,
+                "chi2": dict(self.chi2),
+                "rmse_px": self.rmse,
+                "gsd": self.gsd,
+                "angle_unit": angle_unit,
+                "residual_convention": "computed minus observed, pixels",
+                "calibration": {str(g): v for g, v in self.calibration.items()},
+                "calibration_std": {str(g): v for g, v in self.calibration_std.items()},
+                "high_correlations": [list(x) for x in self.high_correlations],
+                "images": images,
+                "check": dict(self.check),
+                "snooping": None
+                if self.snooping is None
+                else {
+                    "alpha": self.snooping["alpha"],
+                    "critical_value": self.snooping["critical_value"],
+                    "flagged": [list(x) for x in self.snooping["flagged"]],
+                },
+                "variance_components": self.variance_components,
+                "cost_history": list(self.cost_history),
+                "notes": list(self.notes),
+                "elapsed_s": self.elapsed,
+                "solver": dict(self.solver),
+            }
+        )
+
+
+# --- construction ----------------------------------------------------------------------------
+
+
+def _chi2(vtpv: float, r: int, s0: float, alpha: float = 0.05) -> dict:
+    from scipy import special
+
+    if r <= 0:
+        return {"statistic": vtpv, "dof": r, "p_value": math.nan, "passed": None}
+    t = vtpv / s0**2
+    p = float(2 * min(special.chdtr(r, t), special.chdtrc(r, t)))
+    return {
+        "statistic": float(t),
+        "dof": int(r),
+        "p_value": p,
+        "alpha": alpha,
+        "lower": float(special.chdtri(r, 1 - alpha / 2)),
+        "upper": float(special.chdtri(r, alpha / 2)),
+        "passed": bool(p >= alpha),
+    }
+
+
+def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors: bool):
+    """Final linearisation, factor and the covariance blocks the result needs."""
+    lin = problem.linearize(state, weights)
+    ne = problem.sys.normal_equations(lin)
+    try:
+        F = ne.factor()
+    except DegenerateGeometryError as exc:
+        raise DegenerateGeometryError(
+            "the observations do not determine all free parameters at the solution "
+            f"({exc}): fix calibration parameters the geometry cannot separate (e.g. "
+            "free=('f', 'cx', 'cy', 'k1', 'k2', 'k3', 'p1', 'p2') without b1/b2/k4, or f on a "
+            "flat block without GNSS/oblique images) or add control"
+        ) from exc
+    Q = covariance_blocks(ne, F, pairs=pairs)
+    Qpp = point_covariances(ne, Q) if pairs else None
+    Cobs = observation_cofactors(ne, Q, Qpp) if cofactors else None
+    return lin, ne, F, Q, Qpp, Cobs
+
+
+def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
+    from scipy import special
+
+    block = problem.block
+    state = run.state
+    need_pairs = bool(opts.point_covariance or opts.snooping)
+    lin, ne, F, Q, Qpp, Cobs = statistics_pass(
+        problem, state, run.weights, pairs=need_pairs, cofactors=bool(opts.snooping)
+    )
+    m = problem.m
+    n_img = problem.obs_i.size
+    n_obs = (
+        2 * n_img
+        + 3 * int(problem.has_gnss.sum())
+        + 3 * int(problem.has_imu.sum())
+        + 3 * int(problem.control.size)
+    )
+    n_unk = int(problem.local_free.sum() + problem.global_free.sum() + 3 * problem.p)
+    red = n_obs - n_unk
+    vtpv = float(lin.cost)
+    s0p = opts.sigma0_prior
+    sigma0 = math.sqrt(vtpv / red) if red > 0 else math.nan
+    var = sigma0**2 if red > 0 else math.nan
+    notes = []
+    # exterior orientation covariance in X0..kappa
+    T = opk_from_increment_jacobian(opk_rows(state.M))
+    Jm = np.zeros((m, 6, 6))
+    Jm[:, :3, :3] = np.eye(3)
+    Jm[:, 3:, 3:] = T
+    Ql6 = Q.local[:, :6, :6]
+    if problem.free_datum is not None:
+        Ql6 = _inner_constraint_centres(problem, ne, F, Q, state)
+        notes.append(
+            "free network: covariances of the exterior orientation in the inner-constraint "
+            "(minimum-trace) datum of the projection centres"
+        )
+    image_cov = var * np.einsum("mij,mjk,mlk->mil", Jm, Ql6, Jm)
+    ext_std = np.sqrt(np.clip(np.einsum("mii->mi", image_cov), 0, None))
+    fixed6 = ~problem.local_free[:, :6]
+    ext_std[fixed6] = 0.0
+    # calibration
+    calib, cal_std, cal_corr, cal_cov, high = {}, {}, {}, {}, []
+    for gi, gid in enumerate(block.camera_ids.tolist()):
+        sl = slice(gi * NCAL, (gi + 1) * NCAL)
+        free = problem.global_free[sl]
+        Qg = Q.global_[sl, sl]
+        calib[gid] = {n: float(state.cal[gi, k]) for k, n in enumerate(CALIBRATION_NAMES)}
+        std = np.sqrt(np.clip(np.diag(Qg) * var, 0, None))
+        cal_std[gid] = {
+            n: (float(std[k]) if free[k] else math.nan) for k, n in enumerate(CALIBRATION_NAMES)
+        }
+        names = tuple(n for k, n in enumerate(CALIBRATION_NAMES) if free[k])
+        C = Qg[np.ix_(free, free)] * var
+        d = np.sqrt(np.clip(np.diag(C), 1e-300, None))
+        R = C / np.outer(d, d)
+        cal_corr[gid] = (names, R)
+        cal_cov[gid] = (names, C)
+        for a in range(len(names)):
+            for c in range(a + 1, len(names)):
+                if abs(R[a, c]) > opts.correlation_threshold:
+                    high.append((gid, names[a], names[c], float(R[a, c])))
+        # weak determinability: standard deviation larger than the value's plausible range
+        if free[0] and std[0] > 0.05 * state.cal[gi, 0]:
+            notes.append(
+                f"camera {gid}: the focal length is poorly determined (std {std[0]:.3g} px of "
+                f"{state.cal[gi, 0]:.6g} px): the block's geometry cannot separate it from "
+                "the flying height (add GNSS positions, oblique images or height differences)"
+            )
+    if high:
+        notes.append(
+            f"{len(high)} calibration correlation(s) above {opts.correlation_threshold}: those "
+            "parameters are not separated well by this block"
+        )
+    # points: adjusted and check points
+    adjusted = problem.to_block(state)
+    point_std = None
+    point_cov = None
+    if Qpp is not None:
+        point_cov = np.full((block.n_points, 3, 3), np.nan)
+        point_cov[problem.adj_points] = Qpp * var
+    check = {"ids": []}
+    check_xyz = None
+    if problem.check_points.size:
+        from .triangulate import triangulate
+
+        tri = triangulate(adjusted, block.point_ids[problem.check_points], covariance=True)
+        if not np.all(tri.ok):
+            bad = tri.point_ids[~tri.ok]
+            raise InputError(
+                f"check point(s) {', '.join(map(str, bad[:5]))} cannot be triangulated from "
+                f"their image observations ({tri.describe_failures()})"
+            )
+        X0 = block.xyz[problem.check_points]
+        check_xyz = tri.xyz
+        err = check_xyz - X0
+        gsd = adjusted.gsd()
+        rm = np.sqrt(np.mean(err**2, axis=0))
+        check = {
+            "ids": block.point_ids[problem.check_points].tolist(),
+            "errors": err,
+            "rmse": rm,
+            "rmse_gsd": rm / gsd,
+            "convention": "triangulated from the image observations with the adjusted "
+            "cameras, minus surveyed",
+        }
+        if point_cov is not None:
+            point_cov[problem.check_points] = tri.covariance * s0p**2
+    adjusted = problem.to_block(state, check_xyz)
+    if point_cov is not None:
+        point_std = np.sqrt(np.clip(np.einsum("pii->pi", point_cov), 0, None))
+    residuals = reprojection_residuals(adjusted, behind="nan")
+    in_adj = np.zeros(block.n_observations, dtype=bool)
+    in_adj[problem.obs_rows] = True
+    snoop = None
+    if Cobs is not None:
+        # Baarda's w of each coordinate as if the observation had its full a-priori weight:
+        # the unweighted normalised residual e over sqrt(1 - h), h the leverage at unit
+        # weight (C / weight). Without a robust loss the weights are 1 and this is the
+        # classical w-test; with one, down-weighted blunders keep their large w.
+        wt = np.clip(run.weights, 1e-12, None)[:, None]
+        lev = np.clip(np.einsum("ndd->nd", Cobs) / wt, 0.0, None)
+        qvv = 1.0 - lev
+        rw = lin.r / np.sqrt(wt)  # whitened residuals without the robust weights
+        with np.errstate(invalid="ignore", divide="ignore"):
+            w = np.where(qvv > 1e-10, rw / np.sqrt(np.clip(qvv, 1e-300, None)), np.nan) / s0p
+        crit = float(special.ndtri(1 - opts.alpha / 2))
+        wall = np.full((block.n_observations, 2), np.nan)
+        wall[problem.obs_rows] = w
+        red_num = np.full((block.n_observations, 2), np.nan)
+        red_num[problem.obs_rows] = qvv
+        mx = np.nanmax(np.abs(wall), axis=1, initial=0)
+        order = np.argsort(-np.nan_to_num(mx, nan=0.0))
+        flagged = [
+            (
+                block.observations.image_ids[k].item(),
+                block.observations.point_ids[k].item(),
+                float(mx[k]),
+            )
+            for k in order
+            if mx[k] > crit
+        ]
+        snoop = {
+            "w": wall,
+            "redundancy_numbers": red_num,
+            "alpha": opts.alpha,
+            "critical_value": crit,
+            "flagged": flagged,
+        }
+        if flagged:
+            notes.append(
+                f"{len(flagged)} image observation(s) fail the w-test (largest |w| "
+                f"{flagged[0][2]:.1f} at image {flagged[0][0]}, point {flagged[0][1]}); they "
+                "are listed, not removed"
+            )
+    if not run.converged:
+        notes.append(run.message)
+    vc = None
+    if vce is not None:
+        vc = vce
+    solver = {
+        "backend": F.backend,
+        "reduced_system_size": int(problem.sys.nc),
+        "reduced_system_nonzeros": int(ne.S.nnz),
+        "loss": opts.loss,
+    }
+    return BundleFit(
+        block=adjusted,
+        sigma0=sigma0,
+        sigma0_prior=s0p,
+        redundancy=int(red),
+        n_observations=int(n_obs),
+        n_unknowns=n_unk,
+        converged=bool(run.converged),
+        iterations=int(run.iterations),
+        message=run.message,
+        cost_history=tuple(run.history),
+        residuals=residuals,
+        in_adjustment=in_adj,
+        calibration=calib,
+        calibration_std=cal_std,
+        calibration_correlation=cal_corr,
+        high_correlations=high,
+        exterior_std=ext_std,
+        point_std=point_std,
+        check=check,
+        snooping=snoop,
+        variance_components=vc,
+        chi2=_chi2(vtpv, red, s0p),
+        gsd=float(adjusted.gsd()),
+        notes=tuple(notes),
+        elapsed=elapsed,
+        solver=solver,
+        _image_cov=image_cov,
+        _point_cov=point_cov,
+        _cal_cov=cal_cov,
+    )
+
+
+def _inner_constraint_centres(problem: Problem, ne, F, Q, state) -> np.ndarray:
+    """Cofactor blocks (m, 6, 6) of the exterior orientations transformed from the minimal
+    datum to inner constraints on the projection centres (S-transformation).
+
+    The null space of the free network, restricted to the camera-side unknowns, is spanned
+    by 3 shifts, 3 rotations and the scale acting on the centres (and rotations on the
+    attitudes). ``Q_inner = P Q P'`` with ``P = I - G (G' H G)^-1 G' H`` and ``H`` selecting
+    the centres; only the diagonal blocks are formed, from ``Q G`` (7 solves).
+    """
+    m, b, nc = problem.m, problem.b, problem.sys.nc
+    C = state.C
+    G = np.zeros((nc, 7))
+    for a in range(3):
+        G[np.arange(m) * b + a, a] = 1.0  # shifts
+    # rotations: dC = w x C, attitude increment dtheta = -M w (left increment of M)
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = 1.0
+        dC = np.cross(e, C)
+        G[(np.arange(m) * b)[:, None] + np.arange(3), 3 + a] = dC
+        G[(np.arange(m) * b)[:, None] + 3 + np.arange(3), 3 + a] = -(state.M @ e)
+    G[(np.arange(m) * b)[:, None] + np.arange(3), 6] = C  # scale
+    free = np.concatenate([problem.local_free.ravel(), problem.global_free])
+    H = np.zeros(nc)
+    H[(np.arange(m) * b)[:, None] + np.arange(3)] = 1.0
+    # P Q P' with P = I - G K, K = (G' H G)^-1 G' H; Q K' = Q H G (G' H G)^-1
+    K = np.linalg.solve(G.T @ (H[:, None] * G), (G * H[:, None]).T)  # (7, nc)
+    A7 = np.linalg.inv(G.T @ (H[:, None] * G))
+    QHG = F.solve((H[:, None] * G) * free[:, None])
+    QHG[~free] = 0.0
+    QK = QHG @ A7  # (nc, 7) = Q K'
+    KQK = K @ QK  # (7, 7)
+    for_rows = (np.arange(m) * b)[:, None] + np.arange(6)
+    Gi = G[for_rows]  # (m, 6, 7)
+    QKi = QK[for_rows]  # (m, 6, 7)
+    out = (
+        Q.local[:, :6, :6]
+        - np.einsum("mik,mjk->mij", Gi, QKi)
+        - np.einsum("mik,mjk->mij", QKi, Gi)
+        + np.einsum("mik,kl,mjl->mij", Gi, KQK, Gi)
+    )
+    return 0.5 * (out + out.transpose(0, 2, 1))

@@ -1,0 +1,91 @@
+"""Variance-component estimation (Förstner / Helmert, iterated) for the bundle adjustment.
+
+Groups: image observations of tie points, image observations of control points, control
+point coordinates, GNSS positions, IMU attitudes. For each group k with whitened residuals
+``v_k`` and redundancy contribution ``r_k = n_k - tr(P_k J Q J')`` the variance factor is
+updated as ``f_k <- f_k * v_k'P_k v_k / r_k`` and the adjustment repeated until every ratio
+is 1 within the tolerance. The estimated standard deviation of a group is its a-priori one
+times ``sqrt(f_k)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..adjust.variance_components import update_variance_factors
+from ..camera.frame_kernel import opk_from_increment_jacobian
+from .adjustment import levenberg_marquardt, opk_rows
+
+#: Stop when every group's ratio v'Pv / r is within this of 1.
+TOLERANCE = 0.01
+MAX_ROUNDS = 20
+
+
+def _contributions(problem, run):
+    from .result import statistics_pass
+
+    lin, _, _, Q, Qpp, Cobs = statistics_pass(
+        problem, run.state, run.weights, pairs=True, cofactors=True
+    )
+    out = {}
+    r_img = np.einsum("nd,nd->n", lin.r, lin.r)
+    red_img = 2.0 - np.einsum("ndd->n", Cobs)
+    ctrl = problem.obs_is_control
+    if np.any(~ctrl):
+        out["image_tie"] = (float(r_img[~ctrl].sum()), float(red_img[~ctrl].sum()))
+    if np.any(ctrl):
+        out["image_control"] = (float(r_img[ctrl].sum()), float(red_img[ctrl].sum()))
+    _, _, _, _, _, parts = problem.prior_terms(run.state)
+    gf = problem.group_factor
+    if "gnss" in parts:
+        k = problem.has_gnss
+        w = 1.0 / (problem.block.gnss_sigma[k] ** 2 * gf["gnss"])
+        q = np.einsum("kii->ki", Q.local[k][:, :3, :3])
+        out["gnss"] = (float((parts["gnss"] ** 2).sum()), float((1.0 - w * q).sum()))
+    if "imu" in parts:
+        k = problem.has_imu
+        s = problem.block.imu_sigma[k] * np.sqrt(gf["imu"])
+        J = opk_from_increment_jacobian(opk_rows(run.state.M[k])) / s[:, :, None]
+        q = np.einsum("kai,kij,kaj->ka", J, Q.local[k][:, 3:6, 3:6], J)
+        out["imu"] = (float((parts["imu"] ** 2).sum()), float((1.0 - q).sum()))
+    if "control" in parts:
+        c = problem.control
+        w = 1.0 / (problem.control_sigma**2 * gf["control"])
+        q = np.einsum("kii->ki", Qpp[c])
+        out["control"] = (float((parts["control"] ** 2).sum()), float((1.0 - w * q).sum()))
+    return out
+
+
+def iterate_variance_components(problem, run, opts, progress=None):
+    """Alternate adjustment and variance-factor updates; returns the last run and a dict
+    with the factors (sigma multipliers), redundancy contributions and rounds."""
+    history = []
+    rounds = 0
+    iters = run.iterations
+    converged = False
+    while rounds < MAX_ROUNDS:
+        rounds += 1
+        contrib = _contributions(problem, run)
+        names = list(contrib)
+        vtpv = np.array([contrib[k][0] for k in names])
+        red = np.array([contrib[k][1] for k in names])
+        old = np.array([problem.group_factor[k] for k in names])
+        new, ratio = update_variance_factors(old, vtpv, red)
+        history.append({k: float(r) for k, r in zip(names, ratio)})
+        if np.all(np.abs(ratio - 1.0) < TOLERANCE):
+            converged = True
+            break
+        for k, v in zip(names, new):
+            problem.group_factor[k] = float(v)
+        run = levenberg_marquardt(problem, run.state, opts, progress)
+        iters += run.iterations
+    run.iterations = iters
+    info = {
+        "factors": {k: float(np.sqrt(problem.group_factor[k])) for k in contrib},
+        "redundancy": {k: float(contrib[k][1]) for k in contrib},
+        "rounds": rounds,
+        "converged": converged,
+        "ratio_history": history,
+        "meaning": "estimated sigma of each group = factor x its a-priori sigma",
+    }
+    return run, info

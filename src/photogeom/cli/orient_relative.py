@@ -1,0 +1,333 @@
+"""`photogeom orient relative`: relative orientation of an image pair (see :mod:`.orient`).
+
+Input: one CSV with the matched image coordinates of both images (``id,x1,y1,x2,y2``, or
+``col1,row1,col2,row2`` with ``--pixel``), or two CSVs (``id,x,y`` each) joined by id.
+Output: the five orientation elements with standard deviations, sigma0, the residual
+y-parallaxes (RMS and the worst points), the points left out as wrong matches; ``--json``
+for machines, ``--report`` for an HTML report with the parallax vectors drawn on the image
+frame, ``--output`` for the model coordinates with their standard deviations.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ..errors import InputError
+from ._common import (
+    AngleUnit,
+    IdColOpt,
+    OutputCsvOpt,
+    console,
+    json_text,
+    say,
+    split_names,
+    write_outputs,
+)
+from .camera import (
+    AngleOpt,
+    CalibrationOpt,
+    CameraOpt,
+    FOpt,
+    ImageUnit,
+    PixelSizeOpt,
+    PPOpt,
+    UnitOpt,
+    X0Opt,
+    Y0Opt,
+    build_interior,
+    camera_from_json,
+)
+
+
+class Method(str, Enum):
+    """Parameterisations of the relative orientation."""
+
+    dependent = "dependent"
+    independent = "independent"
+
+
+def register(app: typer.Typer) -> None:
+    """Add this module's commands to the ``orient`` group."""
+    app.command("relative")(relative)
+
+
+def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bool, id_col):
+    from ..io import read_points
+
+    if image2 is None:
+        names = split_names(cols) or (
+            ["col1", "row1", "col2", "row2"] if pixel else ["x1", "y1", "x2", "y2"]
+        )
+        if len(names) != 4:
+            raise InputError(
+                f"--cols: expected 4 columns (image 1 x, y, image 2 x, y), got {names}"
+            )
+        t1 = read_points(points, names[:2], id_column=id_col, role_column=None, auto_weights=False)
+        t2 = read_points(points, names[2:], id_column=id_col, role_column=None, auto_weights=False)
+        return list(t1.ids), t1.coords, t2.coords, []
+    names = split_names(cols) or (["col", "row"] if pixel else ["x", "y"])
+    if len(names) != 2:
+        raise InputError(f"--cols: expected 2 columns per image file, got {names}")
+    t1 = read_points(points, names, id_column=id_col, role_column=None, auto_weights=False)
+    t2 = read_points(image2, names, id_column=id_col, role_column=None, auto_weights=False)
+    index2 = {p: k for k, p in enumerate(t2.ids)}
+    ids = [p for p in t1.ids if p in index2]
+    ids1 = set(t1.ids)
+    only = [p for p in t1.ids if p not in index2] + [p for p in t2.ids if p not in ids1]
+    if not ids:
+        raise InputError(f"{points} and {image2} share no point id")
+    index1 = {p: k for k, p in enumerate(t1.ids)}
+    k1 = [index1[p] for p in ids]
+    return ids, t1.coords[k1], t2.coords[[index2[p] for p in ids]], only
+
+
+def relative(
+    points: Annotated[
+        Path,
+        typer.Argument(
+            help="CSV with id,x1,y1,x2,y2 (both images), or image 1's id,x,y if IMAGE2 is given."
+        ),
+    ],
+    image2: Annotated[
+        Path | None, typer.Argument(help="CSV with image 2's id,x,y, joined by id.")
+    ] = None,
+    camera: CameraOpt = None,
+    calibration: CalibrationOpt = None,
+    f: FOpt = None,
+    x0: X0Opt = 0.0,
+    y0: Y0Opt = 0.0,
+    unit: UnitOpt = ImageUnit.mm,
+    pixel_size: PixelSizeOpt = None,
+    principal_point: PPOpt = None,
+    camera2: Annotated[
+        Path | None,
+        typer.Option(help="Camera JSON of image 2 when it differs (default: the same camera)."),
+    ] = None,
+    method: Annotated[
+        Method, typer.Option(help="dependent (by, bz, omega2, phi2, kappa2) or independent.")
+    ] = Method.dependent,
+    pixel: Annotated[
+        bool,
+        typer.Option(
+            "--pixel", help="Image coordinates are pixels col,row (top-left pixel centre = 0,0)."
+        ),
+    ] = False,
+    cols: Annotated[
+        str | None,
+        typer.Option(help="Coordinate columns (default x1,y1,x2,y2; x,y with IMAGE2)."),
+    ] = None,
+    id_col: IdColOpt = None,
+    sigma: Annotated[
+        float | None,
+        typer.Option(help="A-priori standard deviation of the image coordinates (image unit)."),
+    ] = None,
+    threshold: Annotated[
+        float | None,
+        typer.Option(help="RANSAC threshold, distance to the epipolar line (image unit)."),
+    ] = None,
+    robust: Annotated[
+        bool,
+        typer.Option(
+            "--robust/--no-robust",
+            help="Remove wrong matches (RANSAC start, data snooping); --no-robust keeps all.",
+        ),
+    ] = True,
+    worst: Annotated[int, typer.Option(help="Number of worst y-parallaxes listed.")] = 10,
+    angle_unit: AngleOpt = AngleUnit.deg,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
+    report: Annotated[
+        Path | None,
+        typer.Option(help="Write an HTML report with the y-parallax vectors on the image frame."),
+    ] = None,
+    output: OutputCsvOpt = None,
+) -> None:
+    """Relative orientation of an image pair from >= 5 matched points (coplanarity condition).
+
+    Start values from the essential matrix (five-point RANSAC), then a Gauss-Helmert
+    adjustment with data snooping. Prints the orientation elements with standard deviations,
+    sigma0, residual y-parallaxes (RMS, worst points) and the points left out as wrong
+    matches; --output writes the model coordinates (model unit: bx for --method dependent,
+    the base length for independent) with their standard deviations.
+    """
+    from ..io import format_points_csv
+    from ..orientation.relative import relative_orientation
+
+    io1 = build_interior(
+        camera=camera,
+        calibration=calibration,
+        f=f,
+        x0=x0,
+        y0=y0,
+        unit=unit,
+        pixel_size=pixel_size,
+        principal_point=principal_point,
+    )
+    io2 = io1
+    if camera2 is not None:
+        io2, _ = camera_from_json(camera2)
+        if io2 is None:
+            raise InputError(f"--camera2 {camera2}: holds no interior orientation")
+    ids, xy1, xy2, unmatched = _read_matches(points, image2, cols, pixel, id_col)
+    if pixel:
+        xy1, xy2 = io1.pixel_to_image(xy1), io2.pixel_to_image(xy2)
+    fit = relative_orientation(
+        xy1,
+        xy2,
+        io1,
+        io2,
+        method=Method(method).value,
+        sigma=sigma,
+        ids=ids,
+        robust=robust,
+        threshold=threshold,
+    )
+    au = AngleUnit(angle_unit).value
+    par = fit.parallax_report(worst=worst)
+    mp = fit.model_points()
+    std = mp.std if np.isfinite(fit.sigma0) else np.sqrt(np.einsum("nii->ni", mp.covariance_prior))
+    outputs: list[tuple[Path, str]] = []
+    if output is not None:
+        outputs.append(
+            (
+                output,
+                format_points_csv(
+                    list(mp.ids),
+                    np.column_stack([mp.points, std]),
+                    ["X", "Y", "Z", "sX", "sY", "sZ"],
+                    comments=[
+                        f"model coordinates of the {fit.pair.method} relative orientation of "
+                        f"{points}{' + ' + str(image2) if image2 else ''}",
+                        "model unit: "
+                        + ("bx" if fit.pair.method == "dependent" else "the base length"),
+                        "sX, sY, sZ include the uncertainty of the orientation",
+                    ],
+                ),
+            )
+        )
+    if report is not None:
+        outputs.append((report, _report(fit, par, xy1, au, points)))
+    notes = []
+    if unmatched:
+        notes.append(f"ids in only one file, left out: {', '.join(unmatched[:30])}")
+    write_outputs(outputs)
+    if as_json:
+        data = fit.to_dict()
+        for k in ("ideal_observations", "epipolar_normal1"):
+            data.get("extras", {}).pop(k, None)
+        data["model_parameters"] = fit.pair.to_dict(au)
+        data["parallax"] = par.to_dict()
+        data["flagged"] = [i for i, b in zip(fit.all_ids, fit.flagged) if b]
+        data["notes"] = data["notes"] + notes
+        typer.echo(json_text(data), nl=False)
+        return
+    from ..report import print_fit
+
+    out = console()
+    if not out.is_terminal:  # the residual table has four columns and their tests
+        from rich.console import Console
+
+        out = Console(width=max(out.width, 170))
+    say(
+        f"relative orientation: {points}{' + ' + str(image2) if image2 else ''}; "
+        f"{len(ids)} matched point(s); image unit {io1.unit}",
+        out,
+    )
+    print_fit(fit, console=out, angle_unit=au)
+    say(par.text(), out)
+    for e, name in ((fit.exterior1, "image 1"), (fit.exterior2, "image 2")):
+        a = e.angles_in(au)
+        say(
+            f"{name} in the model system: X0 {e.X0:.6g}, Y0 {e.Y0:.6g}, Z0 {e.Z0:.6g}, "
+            f"omega {a[0]:.6g}, phi {a[1]:.6g}, kappa {a[2]:.6g} {au}",
+            out,
+        )
+    for n in notes:
+        say(f"note: {n}", out)
+    for path, _ in outputs:
+        say(f"wrote {path}", out)
+
+
+def _report(fit, par, xy1, au: str, source: Path) -> str:
+    from ..report import Report
+
+    rep = Report("Relative orientation", subtitle=str(source))
+    rep.add_fit(
+        fit,
+        title=f"Relative orientation ({fit.method})",
+        angle_unit=au,
+        description="Residuals are the corrections of the image coordinates x1, y1, x2, y2 "
+        "(adjusted minus observed) of the points used.",
+    )
+    rep.add_figure(
+        "Residual y-parallaxes on image 1",
+        _parallax_figure(fit, xy1),
+        caption="Arrows: the y-parallax of each point used, drawn across its epipolar line "
+        "(py times the line's unit normal; in the normal case (0, y1 - y2)). Crosses: points "
+        "left out as wrong matches (their y-parallaxes are in the table below).",
+    )
+    rows = [
+        [
+            par.ids[k],
+            f"{par.parallax[k]:.5g}",
+            f"{par.statistic[k]:.3g}" if np.isfinite(par.statistic[k]) else "-",
+            "used" if par.used[k] else "left out",
+        ]
+        for k in par.worst
+    ]
+    rep.add_table(
+        f"Worst y-parallaxes (RMS {par.rms:.4g} {par.unit} over the points used)",
+        ["id", f"py [{par.unit}]", par.test, "status"],
+        rows,
+        note=f"critical value of the {par.test}-test: {par.critical_value:.3g}",
+    )
+    return rep.to_html()
+
+
+def _parallax_figure(fit, xy1):
+    """Image 1 frame with the y-parallax vectors of the points used and the points left out."""
+    from matplotlib.figure import Figure
+
+    from ..report.plots import nice_length
+
+    used = np.asarray(fit.inliers)
+    vec = fit.parallax[:, None] * np.nan_to_num(fit.extras["epipolar_normal1"])
+    ids = list(fit.all_ids)
+    extent = float(np.ptp(xy1, axis=0).max()) or 1.0
+    vmax = float(np.sqrt((vec[used] ** 2).sum(axis=1)).max()) if used.any() else 0.0
+    factor = nice_length(0.15 * extent / vmax) if vmax > 0 else 1.0
+    fig = Figure(figsize=(6.4, 5.6), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    p, v = xy1[used], vec[used]
+    ax.plot(p[:, 0], p[:, 1], "o", color="#1f5fa8", ms=4, label=f"used ({int(used.sum())})")
+    q = ax.quiver(
+        p[:, 0], p[:, 1], v[:, 0], v[:, 1], angles="xy", scale_units="xy",
+        scale=1.0 / factor, color="#1f5fa8", width=0.005,
+    )  # fmt: skip
+    if vmax > 0:
+        key = nice_length(vmax)
+        ax.quiverkey(q, X=0.76, Y=1.035, U=key, label=f"{key:g} {fit.residual_unit}",
+                     labelpos="E", coordinates="axes", color="black")  # fmt: skip
+    if (~used).any():
+        o = xy1[~used]
+        ax.plot(o[:, 0], o[:, 1], "x", color="#c0392b", ms=7, label=f"left out ({len(o)})")
+        for (x, y), t in zip(o, (i for i, u in zip(ids, used) if not u)):
+            ax.annotate(t, (x, y), textcoords="offset points", xytext=(5, 5), fontsize=8,
+                        color="#c0392b")  # fmt: skip
+    pad = 0.15 * extent
+    lo, hi = xy1.min(axis=0), xy1.max(axis=0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel(f"x1 [{fit.residual_unit}]")
+    ax.set_ylabel(f"y1 [{fit.residual_unit}]")
+    ax.grid(True, color="#dddddd", lw=0.6)
+    ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
+    ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
+    ax.set_title(f"residual y-parallaxes, arrows x{ex}", fontsize=9.5, loc="left")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,716 @@
+"""Relative orientation of an image pair: the coplanarity condition in a Gauss-Helmert model.
+
+For every tie point the base ``b = O2 - O1`` and the two rays ``r1 = M1.T d1``,
+``r2 = M2.T d2`` (``d = (x - x0, y - y0, -f) / f``, in each camera frame) lie in one plane:
+
+    g = b . (r1 x r2) = 0
+
+The four image coordinates of each point are the observations (errors in both images), the
+five orientation elements the unknowns. Two parameterisations of the model system:
+
+* ``"dependent"`` (image 1 fixed): ``O1 = 0``, ``M1 = I``, ``O2 = (bx, by, bz)`` with
+  ``bx = +1`` (``-1`` when image 2 lies on the -x side of image 1), unknowns
+  ``by, bz, omega2, phi2, kappa2``; the model system is the camera frame of image 1, its
+  unit the x component of the base.
+* ``"independent"`` (base fixed): ``O1 = 0``, ``O2 = (1, 0, 0)``, ``M1 = M(0, phi1,
+  kappa1)``, ``M2 = M(omega2, phi2, kappa2)``; the model x axis is the base, its unit the
+  base length.
+
+Start values come from the essential matrix (five-point solver in RANSAC,
+:mod:`.relative_start`); the adjustment then decides: matches rejected by RANSAC rejoin when
+their test statistic passes, and Baarda's data snooping (or Pope's tau-test without an
+a-priori sigma) removes the largest flagged point one at a time. Lens distortion is removed
+from the observations first; residuals refer to distortion-free image coordinates.
+
+The residual **y-parallax** of a point is its coplanarity misclosure expressed in the image
+unit: ``py = -sqrt(2) g / |dg/dl|``, which in the normal case (vertical images, base along x,
+one principal distance) is ``y1 - y2``. It is the sum of the distances by which the two
+image points miss each other's epipolar lines when both images are measured alike.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse
+
+from ..adjust import Fit, gauss_helmert
+from ..adjust.snooping import tau_critical_value
+from ..camera.exterior import ExteriorOrientation
+from ..camera.interior import InteriorOrientation
+from ..errors import DegenerateGeometryError, InputError, PhotogeomError, TooFewPointsError
+from ..rotation import opk_from_matrix, opk_matrix, opk_matrix_and_derivatives
+from ..validation import as_points
+from .relative_start import check_base, check_not_collinear, essential_start
+
+__all__ = [
+    "METHODS",
+    "ImagePair",
+    "RelativeOrientationFit",
+    "relative_orientation",
+]
+
+METHODS = ("dependent", "independent")
+PARAMETER_NAMES = {
+    "dependent": ("by", "bz", "omega2", "phi2", "kappa2"),
+    "independent": ("phi1", "kappa1", "omega2", "phi2", "kappa2"),
+}
+#: ``|bx| / |b|`` below which the dependent parameterisation (bx fixed) is refused.
+MIN_BX_RATIO = 0.05
+#: Relative (to the principal distance) image noise below which data count as noise-free
+#: in the tau-test.
+NUMERICAL_FLOOR = 1e-10
+#: Condition number of the parameters' correlation matrix above which the points are taken
+#: to lie on a critical surface.
+CRITICAL_CONDITION = 1e10
+
+
+@dataclass(frozen=True)
+class ImagePair:
+    """Two images oriented in a model system (the model of a relative orientation).
+
+    Attributes
+    ----------
+    interior1, interior2 : InteriorOrientation
+    exterior1, exterior2 : ExteriorOrientation
+        Exterior orientations in the model system (angles in radians).
+    method : str
+        ``"dependent"`` or ``"independent"`` (which elements define the model system).
+    """
+
+    interior1: InteriorOrientation
+    interior2: InteriorOrientation
+    exterior1: ExteriorOrientation
+    exterior2: ExteriorOrientation
+    method: str
+
+    @property
+    def base(self) -> np.ndarray:
+        """``O2 - O1`` in the model system (3,)."""
+        return self.exterior2.position - self.exterior1.position
+
+    @property
+    def relative_rotation(self) -> np.ndarray:
+        """``M2 M1.T``: camera-1 frame -> camera-2 frame (3, 3)."""
+        return self.exterior2.matrix @ self.exterior1.matrix.T
+
+    @property
+    def base_in_camera1(self) -> np.ndarray:
+        """Unit base direction in the camera frame of image 1 (3,)."""
+        b = self.exterior1.matrix @ self.base
+        return b / np.linalg.norm(b)
+
+    def to_dict(self, angle_unit: str = "rad") -> dict:
+        """JSON-ready exterior orientations of both images in the model system."""
+        return {
+            "method": self.method,
+            "exterior1": self.exterior1.to_dict(angle_unit),
+            "exterior2": self.exterior2.to_dict(angle_unit),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class RelativeOrientationFit(Fit):
+    """Result of :func:`relative_orientation` (a :class:`~photogeom.adjust.Fit`).
+
+    ``parameters`` are ``by, bz, omega2, phi2, kappa2`` (dependent; by, bz in units of bx)
+    or ``phi1, kappa1, omega2, phi2, kappa2`` (independent), angles in radians.
+    ``residuals`` are the corrections of the image coordinates (adjusted minus observed,
+    columns x1, y1, x2, y2) of the points used (``ids``). ``extras`` holds per input point:
+    ``"parallax"``, ``"inliers"``, ``"statistic"`` (w or tau), ``"all_ids"``; and
+    ``"epipolar_normal1"`` (unit normals of the epipolar lines in image 1: the parallax
+    vector of a point is ``parallax * normal``); ``"start"`` (the essential-matrix start),
+    ``"critical_value"``, ``"test"``,
+    ``"removed"`` (ids removed by data snooping, in order).
+    """
+
+    @property
+    def pair(self) -> ImagePair:
+        """The oriented image pair."""
+        return self.model
+
+    @property
+    def exterior1(self) -> ExteriorOrientation:
+        """Image 1 in the model system."""
+        return self.model.exterior1
+
+    @property
+    def exterior2(self) -> ExteriorOrientation:
+        """Image 2 in the model system."""
+        return self.model.exterior2
+
+    @property
+    def parallax(self) -> np.ndarray:
+        """(n,) residual y-parallaxes of every input point (image unit), at the adjusted
+        orientation and the observed coordinates (see the module docstring)."""
+        return self.extras["parallax"]
+
+    @property
+    def inliers(self) -> np.ndarray:
+        """(n,) bool: the points used in the final adjustment."""
+        return self.extras["inliers"]
+
+    @property
+    def flagged(self) -> np.ndarray:
+        """(n,) bool: points left out as wrong matches (``~inliers``)."""
+        return ~self.extras["inliers"]
+
+    @property
+    def statistic(self) -> np.ndarray:
+        """(n,) test statistic of every point (Baarda's w with ``sigma=``, else Pope's tau)."""
+        return self.extras["statistic"]
+
+    @property
+    def all_ids(self) -> tuple:
+        """Ids of every input point (``ids`` are those used)."""
+        return self.extras["all_ids"]
+
+    def model_points(self, which: str = "inliers"):
+        """Model coordinates by intersection, with covariance: see
+        :func:`photogeom.orientation.stereo_model.model_points`."""
+        from .stereo_model import model_points
+
+        return model_points(self, which=which)
+
+    def parallax_report(self, worst: int = 10):
+        """Residual y-parallaxes per point, RMS and the worst points: see
+        :func:`photogeom.orientation.stereo_model.parallax_report`."""
+        from .stereo_model import parallax_report
+
+        return parallax_report(self, worst=worst)
+
+
+# --- geometry of the parameterisations --------------------------------------------------------
+
+
+class _Geometry:
+    """Base, rotations and their derivatives for one parameterisation."""
+
+    def __init__(self, method: str, sx: float) -> None:
+        self.method = method
+        self.sx = sx
+
+    def elements(self, x: np.ndarray):
+        """``b, M1, M2`` and the derivatives ``db (5, 3)``, ``dM1 (5, 3, 3)``, ``dM2``."""
+        db = np.zeros((5, 3))
+        dM1 = np.zeros((5, 3, 3))
+        dM2 = np.zeros((5, 3, 3))
+        if self.method == "dependent":
+            b = np.array([self.sx, x[0], x[1]])
+            db[0, 1] = db[1, 2] = 1.0
+            M1 = np.eye(3)
+            M2, d2 = opk_matrix_and_derivatives(x[2], x[3], x[4])
+            dM2[2:] = d2
+        else:
+            b = np.array([1.0, 0.0, 0.0])
+            M1, d1 = opk_matrix_and_derivatives(0.0, x[0], x[1])
+            dM1[0], dM1[1] = d1[1], d1[2]
+            M2, d2 = opk_matrix_and_derivatives(x[2], x[3], x[4])
+            dM2[2:] = d2
+        return b, M1, M2, db, dM1, dM2
+
+    def exteriors(self, x: np.ndarray) -> tuple[ExteriorOrientation, ExteriorOrientation]:
+        if self.method == "dependent":
+            return (
+                ExteriorOrientation(0.0, 0.0, 0.0),
+                ExteriorOrientation(self.sx, x[0], x[1], x[2], x[3], x[4]),
+            )
+        return (
+            ExteriorOrientation(0.0, 0.0, 0.0, 0.0, x[0], x[1]),
+            ExteriorOrientation(1.0, 0.0, 0.0, x[2], x[3], x[4]),
+        )
+
+
+def _direction_jacobian(io: InteriorOrientation) -> np.ndarray:
+    """``dd/d(x, y)`` (3, 2) of ``d = (xn, -yn, -1)`` for ideal image coordinates."""
+    return np.array([[1.0 / io.fx, io.b2 / (io.f * io.fx)], [0.0, 1.0 / io.f], [0.0, 0.0]])
+
+
+def _directions(io: InteriorOrientation, xy: np.ndarray) -> np.ndarray:
+    """``d = (xn, -yn, -1)`` of ideal image coordinates (n, 2) (linear in x, y)."""
+    yn = (io.y0 - xy[:, 1]) / io.f
+    xn = (xy[:, 0] - io.x0 - io.b2 * yn) / io.fx
+    return np.column_stack([xn, -yn, -np.ones(len(xy))])
+
+
+class _Coplanarity:
+    """Conditions ``g`` (n,), ``dg/dx`` (n, 5) and ``dg/dl`` (n, 4) at one evaluation."""
+
+    def __init__(self, geom: _Geometry, io1, io2) -> None:
+        self.geom = geom
+        self.io1, self.io2 = io1, io2
+        self.J1 = _direction_jacobian(io1)
+        self.J2 = _direction_jacobian(io2)
+        self._key: tuple | None = None
+        self._val = None
+
+    def evaluate(self, x: np.ndarray, l4: np.ndarray):
+        key = (x.tobytes(), l4.tobytes())
+        if key == self._key:
+            return self._val
+        b, M1, M2, db, dM1, dM2 = self.geom.elements(x)
+        d1 = _directions(self.io1, l4[:, :2])
+        d2 = _directions(self.io2, l4[:, 2:])
+        r1 = d1 @ M1  # rows M1.T d1
+        r2 = d2 @ M2
+        c = np.cross(r1, r2)
+        g = c @ b
+        # dg/dx: b' . (r1 x r2) + b . (r1' x r2) + b . (r1 x r2')
+        A = c @ db.T
+        rb2 = np.cross(r2, b)  # b . (a x r2) = a . (r2 x b)
+        br1 = np.cross(b, r1)  # b . (r1 x a) = a . (b x r1)
+        for k in range(5):
+            if np.any(dM1[k]):
+                A[:, k] += np.sum((d1 @ dM1[k]) * rb2, axis=1)
+            if np.any(dM2[k]):
+                A[:, k] += np.sum((d2 @ dM2[k]) * br1, axis=1)
+        # dg/dd1 = M1 (r2 x b), dg/dd2 = M2 (b x r1); chain to image coordinates
+        g1 = rb2 @ M1.T
+        g2 = br1 @ M2.T
+        B = np.concatenate([g1 @ self.J1, g2 @ self.J2], axis=1)
+        self._key = key
+        self._val = (g, A, B)
+        return self._val
+
+
+def _block_diagonal(B: np.ndarray) -> scipy.sparse.csr_matrix:
+    n = B.shape[0]
+    return scipy.sparse.csr_matrix(
+        (B.reshape(-1), np.arange(4 * n), np.arange(0, 4 * n + 1, 4)), shape=(n, 4 * n)
+    )
+
+
+# --- start values ------------------------------------------------------------------------------
+
+
+def _start_parameters(method: str, R: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, float]:
+    """Parameters and the sign of bx from the relative rotation ``M2 M1.T`` and the base
+    direction in the camera-1 frame."""
+    b = base / np.linalg.norm(base)
+    what = "relative orientation"
+    if method == "dependent":
+        if abs(b[0]) < MIN_BX_RATIO:
+            raise DegenerateGeometryError(
+                f"{what}: the base is (nearly) perpendicular to the x axis of image 1 (bx/|b| "
+                f"= {b[0]:.3g}), so the dependent parameterisation, which fixes bx, cannot "
+                "describe it; use method='independent' (any base direction) or rotate the "
+                "image coordinates so that x runs along the base"
+            )
+        sx = float(np.sign(b[0]))
+        w, p, k = opk_from_matrix(R)
+        return np.array([b[1] / abs(b[0]), b[2] / abs(b[0]), w, p, k]), sx
+    # independent: first column of M1 = M(0, phi1, kappa1) is the base in camera 1
+    p1 = math.asin(float(np.clip(b[2], -1.0, 1.0)))
+    if abs(math.cos(p1)) < 1e-6:
+        raise DegenerateGeometryError(
+            f"{what}: the base runs along the viewing axis of image 1 (phi1 = +-90 degrees), "
+            "where kappa1 of the independent parameterisation is undefined"
+        )
+    k1 = math.atan2(-b[1], b[0])
+    M1 = opk_matrix(0.0, p1, k1)
+    w2, p2, k2 = opk_from_matrix(R @ M1)
+    return np.array([p1, k1, w2, p2, k2]), 1.0
+
+
+# --- the estimator -----------------------------------------------------------------------------
+
+
+def _sigmas(sigma, n: int) -> np.ndarray | None:
+    if sigma is None:
+        return None
+    s = np.asarray(sigma, dtype=float)
+    if s.ndim == 0:
+        s = np.full((n, 4), float(s))
+    elif s.shape == (n,):
+        s = np.repeat(s[:, None], 4, axis=1)
+    elif s.shape != (n, 4):
+        raise InputError(
+            f"sigma: expected one value, one per point (n,) or one per coordinate (n, 4) with "
+            f"n = {n}, got shape {s.shape}"
+        )
+    if not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise InputError("sigma: standard deviations must be finite and > 0")
+    return s
+
+
+def _ideal(io: InteriorOrientation, xy: np.ndarray, name: str) -> np.ndarray:
+    if io.distortion is None:
+        return xy
+    res = io.undistort_image(xy)
+    if not res.all_converged:
+        raise InputError(f"{name}: undistortion failed: {res.describe_failures()}")
+    xn = res.points
+    return np.column_stack([io.x0 + io.fx * xn[:, 0] + io.b2 * xn[:, 1], io.y0 - io.f * xn[:, 1]])
+
+
+def relative_orientation(
+    xy1,
+    xy2,
+    io1: InteriorOrientation,
+    io2: InteriorOrientation | None = None,
+    method: str = "dependent",
+    *,
+    sigma=None,
+    ids=None,
+    initial: tuple[ExteriorOrientation, ExteriorOrientation] | None = None,
+    robust: bool = True,
+    threshold: float | None = None,
+    alpha: float = 0.001,
+    max_removed: float = 0.5,
+    seed: int | None = 0,
+    max_iter: int = 50,
+    tol: float = 1e-10,
+) -> RelativeOrientationFit:
+    """Relative orientation of an image pair from >= 5 tie points (coplanarity condition).
+
+    Parameters
+    ----------
+    xy1, xy2 : array_like, shape (n, 2)
+        Image coordinates of the same points in image 1 and image 2, in the photogrammetric
+        image system of each camera (unit of its interior orientation; right-handed, y up).
+    io1, io2 : InteriorOrientation
+        Interior orientations (``io2`` defaults to ``io1``); both in one unit.
+    method : {"dependent", "independent"}
+        Parameterisation of the model system (see the module docstring).
+    sigma : float or array_like (n,) or (n, 4), optional
+        A-priori standard deviation of the image coordinates (image unit). With it,
+        ``sigma0`` should be about 1 and data snooping is Baarda's w-test; without it the
+        weights are 1, ``sigma0`` estimates the image noise and the tau-test is used.
+    ids : sequence of hashable, optional
+        Point ids, kept as given (default the strings ``"1" .. "n"``).
+    initial : (ExteriorOrientation, ExteriorOrientation), optional
+        Start values: both images' orientations in any common system (e.g. from GNSS/IMU).
+        Default: the essential matrix (five-point solver in RANSAC).
+    robust : bool
+        Start from RANSAC inliers and remove wrong matches by data snooping (default).
+        False adjusts every point and only reports the test statistics.
+    threshold : float, optional
+        RANSAC inlier threshold on the distance to the epipolar line (image unit). Default
+        ``5 sigma`` with a scalar ``sigma``, else 1/1000 of the principal distance.
+    alpha : float
+        Significance level of each point's test (0.001: critical w 3.29).
+    max_removed : float
+        Largest fraction of the points that may be left out (RANSAC and data snooping
+        together) before data snooping gives up and the pair is refused.
+    seed : int or None
+        Seed of the RANSAC generator (reproducible results).
+    max_iter, tol
+        Gauss-Helmert controls (see :func:`~photogeom.adjust.gauss_helmert`).
+
+    Returns
+    -------
+    RelativeOrientationFit
+
+    Raises
+    ------
+    TooFewPointsError
+        Fewer than 5 points (or fewer than 5 left after removing wrong matches).
+    DegenerateGeometryError
+        Points on a line or on a critical surface, no base (pure rotation), several
+        solutions (five points), a base the chosen parameterisation cannot describe.
+    InputError
+        Mismatched shapes, NaN, different image units, unknown method.
+    """
+    t0 = time.perf_counter()
+    what = "relative orientation"
+    if method not in METHODS:
+        raise InputError(f"method must be 'dependent' or 'independent', not {method!r}")
+    io2 = io1 if io2 is None else io2
+    for k, io in ((1, io1), (2, io2)):
+        if not isinstance(io, InteriorOrientation):
+            raise InputError(f"io{k} must be an InteriorOrientation")
+    if io1.unit != io2.unit:
+        raise InputError(
+            f"{what}: the images use different units ({io1.unit}, {io2.unit}); give both image "
+            "coordinate sets and interior orientations in one unit"
+        )
+    p1 = as_points(xy1, 2, "xy1")
+    p2 = as_points(xy2, 2, "xy2")
+    if p1.shape != p2.shape:
+        raise InputError(f"xy1 and xy2 differ in shape: {p1.shape} vs {p2.shape}")
+    n = p1.shape[0]
+    if n < 5:
+        raise TooFewPointsError(what, n, 5, "five orientation elements, one condition per point")
+    all_ids = tuple(str(i) for i in range(1, n + 1)) if ids is None else tuple(ids)
+    if len(all_ids) != n:
+        raise InputError(f"ids: {len(all_ids)} id(s) for {n} point(s)")
+    if len(set(all_ids)) != n:
+        raise InputError("ids: duplicate point ids")
+    sig = _sigmas(sigma, n)
+    if not 0 < alpha < 1:
+        raise InputError(f"alpha must be in (0, 1), got {alpha}")
+    q1, q2 = _ideal(io1, p1, "xy1"), _ideal(io2, p2, "xy2")
+    d1, d2 = _directions(io1, q1), _directions(io2, q2)
+    xn1 = np.column_stack([d1[:, 0], -d1[:, 1]])
+    xn2 = np.column_stack([d2[:, 0], -d2[:, 1]])
+    check_not_collinear(xn1, xn2, what)
+    fmean = 0.5 * (io1.f + io2.f)
+    user_threshold = threshold is not None
+    if threshold is None:
+        scalar_sigma = sig is not None and np.all(sig == sig.flat[0])
+        threshold = 5.0 * float(sig.flat[0]) if scalar_sigma else 1e-3 * fmean
+    if not (math.isfinite(threshold) and threshold > 0):
+        raise InputError(f"threshold must be a positive number, got {threshold!r}")
+    thr_n = threshold / fmean
+
+    # --- start values, adjustment, wrong matches ----------------------------------------------
+    check_base(d1, d2, thr_n, what)
+    start_info: dict = {}
+    L_all = np.column_stack([q1, q2])
+    W_all = None if sig is None else 1.0 / sig**2
+
+    def solve(R, base, inl):
+        """Adjustment from one start: data snooping, checks; everything the Fit needs."""
+        x0, sx = _start_parameters(method, R, base)
+        geom = _Geometry(method, sx)
+        cop = _Coplanarity(geom, io1, io2)
+
+        def adjust(mask: np.ndarray, x_start: np.ndarray):
+            if int(mask.sum()) < 5:
+                raise TooFewPointsError(
+                    what, int(mask.sum()), 5, "after removing the matches flagged as wrong"
+                )
+            L = L_all[mask].reshape(-1)
+            m = int(mask.sum())
+
+            def cond(x, l):
+                return cop.evaluate(x, l.reshape(m, 4))[0]
+
+            def jx(x, l):
+                return cop.evaluate(x, l.reshape(m, 4))[1]
+
+            def jl(x, l):
+                return _block_diagonal(cop.evaluate(x, l.reshape(m, 4))[2])
+
+            try:
+                return gauss_helmert(
+                    cond,
+                    x_start,
+                    L,
+                    jacobian_x=jx,
+                    jacobian_l=jl,
+                    weights=None if W_all is None else W_all[mask].reshape(-1),
+                    names=PARAMETER_NAMES[method],
+                    max_iter=max_iter,
+                    tol=tol,
+                    what=what,
+                    dense_limit=0,
+                )
+            except DegenerateGeometryError as exc:
+                raise DegenerateGeometryError(
+                    f"{what}: the points do not determine the orientation ({exc}); they lie on a "
+                    "critical surface (e.g. a cylinder through both projection centres, or a "
+                    "plane containing the base) or on a line: add points off that surface"
+                ) from exc
+
+        def statistics(adj, mask):
+            """Test statistic of every point, and the critical value."""
+            # points in the adjustment: w = b.v / sqrt(b Q b.T - a Qxx a.T) at (x, L + v);
+            # the others: their misclosure g over sqrt(b Q b.T + a Qxx a.T) (independent of x)
+            Lc = L_all.copy()
+            Lc[mask] += adj.residuals.reshape(-1, 4)
+            g, A, B = cop.evaluate(adj.x, L_all)
+            _, Ac, Bc = cop.evaluate(adj.x, Lc)
+            A = np.where(mask[:, None], Ac, A)
+            B = np.where(mask[:, None], Bc, B)
+            num = -g
+            num[mask] = np.sum(Bc[mask] * adj.residuals.reshape(-1, 4), axis=1)
+            S2 = np.ones((n, 4)) if sig is None else sig**2
+            Mi = np.sum(B * B * S2, axis=1)  # b Q b.T per point
+            qa = np.einsum("nk,kl,nl->n", A, adj.cofactor, A)
+            var = np.where(mask, Mi - qa, Mi + qa)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                w = np.where(var > 1e-14 * Mi, num / np.sqrt(np.abs(var)), np.nan)
+            red = adj.redundancy
+            if sig is not None:
+                crit = _norm_critical(alpha)
+                return w, crit, "w"
+            s0 = adj.sigma0
+            if red <= 1 or not np.isfinite(s0):
+                return np.full(n, np.nan), np.inf, "tau"
+            # data consistent to rounding: test against the rounding level, not against zero
+            s0 = max(s0, NUMERICAL_FLOOR * fmean)
+            return w / s0, tau_critical_value(alpha, red), "tau"
+
+        mask = inl.copy()
+        adj = adjust(mask, x0)
+        removed: list[str] = []
+        if robust:
+            # matches rejected by RANSAC rejoin when the adjusted orientation accepts them
+            for _ in range(2):
+                stat, crit, test = statistics(adj, mask)
+                back = ~mask & (np.abs(stat) <= crit)
+                if not back.any():
+                    break
+                mask |= back
+                adj = adjust(mask, adj.x)
+            # Baarda's data snooping: remove the largest flagged point, one at a time
+            limit = int(max_removed * n)
+            while True:
+                stat, crit, test = statistics(adj, mask)
+                s_in = np.where(mask, np.abs(stat), -np.inf)
+                s_in = np.where(np.isfinite(s_in), s_in, -np.inf)
+                j = int(np.argmax(s_in))
+                if not s_in[j] > crit:
+                    break
+                if int((~mask).sum()) + 1 > limit:
+                    raise DegenerateGeometryError(
+                        f"{what}: more than {max_removed:.0%} of the {n} matches are flagged as "
+                        "wrong; the matches are unreliable or the a-priori sigma is too small"
+                    )
+                mask[j] = False
+                removed.append(all_ids[j])
+                adj = adjust(mask, adj.x)
+        stat, crit, test = statistics(adj, mask)
+        _check_conditioning(adj, what)
+        g, _A, B = cop.evaluate(adj.x, L_all)
+        parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
+        # unit normal of the epipolar line in image 1, oriented so that parallax * normal is
+        # (0, y1 - y2) in the normal case: the parallax vector drawn on image 1
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normal1 = -B[:, :2] / np.linalg.norm(B[:, :2], axis=1, keepdims=True)
+        e1, e2 = geom.exteriors(adj.x)
+        pair = ImagePair(io1, io2, e1, e2, method)
+        _check_in_front(pair, q1[mask], q2[mask], what)
+        return adj, mask, stat, crit, test, removed, sx, x0, pair, parallax, normal1, cop
+
+    if initial is not None:
+        try:
+            e1, e2 = initial
+        except (TypeError, ValueError):
+            raise InputError("initial must be a pair (exterior1, exterior2)") from None
+        if not isinstance(e1, ExteriorOrientation) or not isinstance(e2, ExteriorOrientation):
+            raise InputError("initial must be a pair of ExteriorOrientation")
+        R = e2.matrix @ e1.matrix.T
+        base = e1.matrix @ (e2.position - e1.position)
+        if np.linalg.norm(base) == 0:
+            raise DegenerateGeometryError(f"{what}: the initial orientations share one position")
+        start_info["source"] = "initial"
+        result = solve(R, base, np.ones(n, dtype=bool))
+    else:
+        # a start that the adjustment cannot use (points behind the images, most matches
+        # flagged: RANSAC chose a wrong solution because the threshold was below the real
+        # misfit, e.g. of a start calibration) is retried with a 3 and 9 times larger threshold
+        ladder = (thr_n,) if user_threshold else (thr_n, 3 * thr_n, 9 * thr_n)
+        first_error = None
+        for t in ladder:
+            ess = essential_start(xn1, xn2, t, seed=seed, what=what)
+            check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
+            results = []
+            for R_k, b_k, inl_k in ((ess.rotation, ess.base, ess.inliers), *ess.alternatives):
+                try:
+                    results.append(solve(R_k, b_k, inl_k if robust else np.ones(n, bool)))
+                except DegenerateGeometryError as exc:
+                    first_error = first_error or exc
+            if not results:
+                continue
+            if len(results) > 1 and n == 5:
+                raise DegenerateGeometryError(
+                    f"{what}: {len(results)} relative orientations fit the five points "
+                    "exactly, each with every point in front of both images; add points or "
+                    "pass start values (initial=)"
+                )
+            # several solutions: the one keeping the most points, then the smaller misfit
+            result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
+            start_info.update(
+                source="essential matrix (five-point RANSAC)",
+                candidates=ess.candidates,
+                threshold=t * fmean,
+            )
+            break
+        else:
+            raise first_error
+    adj, mask, stat, crit, test, removed, sx, x0, pair, parallax, normal1, cop = result
+    start_info["parameters"] = dict(zip(PARAMETER_NAMES[method], map(float, x0)))
+    used_ids = tuple(i for i, k in zip(all_ids, mask) if k)
+    units = {nm: ("1" if nm in ("by", "bz") else "rad") for nm in PARAMETER_NAMES[method]}
+    notes = []
+    if method == "dependent":
+        notes.append(f"model system: image 1 frame, unit bx (bx = {sx:+.0f})")
+    else:
+        notes.append("model system: x along the base, unit the base length")
+    if removed:
+        notes.append(f"removed by data snooping: {', '.join(map(str, removed[:30]))}")
+    n_out = int((~mask).sum())
+    if n_out:
+        notes.append(f"{n_out} of {n} point(s) left out as wrong matches")
+    # per-observation normalised residuals: each coordinate of a point carries its w
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v4 = adj.residuals.reshape(-1, 4)
+        _, Am, Bm = cop.evaluate(adj.x, L_all[mask] + v4)
+        wobs = np.where(np.abs(v4) > 0, np.sign(v4) * np.abs(stat[mask])[:, None], np.nan)
+        if test == "tau":
+            wobs = wobs * max(adj.sigma0, NUMERICAL_FLOOR * fmean) / adj.sigma0_prior
+        S2m = np.ones_like(Bm) if sig is None else sig[mask] ** 2
+        Mi = np.sum(Bm * Bm * S2m, axis=1)
+        qa = np.einsum("nk,kl,nl->n", Am, adj.cofactor, Am)
+        rnum = (Bm * Bm * S2m) / Mi[:, None] * ((Mi - qa) / Mi)[:, None]
+    fit = RelativeOrientationFit.from_adjustment(
+        adj,
+        pair,
+        f"relative orientation ({method}, coplanarity, Gauss-Helmert)",
+        point_dim=4,
+        ids=used_ids,
+        residual_labels=("x1", "y1", "x2", "y2"),
+        residual_unit=io1.unit,
+        parameter_units=units,
+        elapsed=time.perf_counter() - t0,
+        notes=tuple(notes),
+        extras={
+            "parallax": parallax,
+            "inliers": mask,
+            "statistic": stat,
+            "test": test,
+            "critical_value": crit,
+            "all_ids": all_ids,
+            "removed": tuple(removed),
+            "start": start_info,
+            "bx": sx if method == "dependent" else None,
+            "ideal_observations": L_all,
+            "epipolar_normal1": normal1,
+            "weights": W_all,
+        },
+    )
+    return replace(fit, normalized_residuals=wobs, redundancy_numbers=rnum)
+
+
+def _norm_critical(alpha: float) -> float:
+    from scipy import stats
+
+    return float(stats.norm.ppf(1 - alpha / 2))
+
+
+def _check_conditioning(adj, what: str) -> None:
+    Q = adj.cofactor
+    d = np.sqrt(np.clip(np.diag(Q), 1e-300, None))
+    C = Q / np.outer(d, d)
+    cond = np.linalg.cond(C)
+    if not np.isfinite(cond) or cond > CRITICAL_CONDITION:
+        raise DegenerateGeometryError(
+            f"{what}: the points do not determine the orientation (condition number of the "
+            f"parameters' correlation matrix {cond:.3g}); they lie on or near a critical "
+            "surface (e.g. a cylinder through both projection centres, or a plane containing "
+            "the base): add points off that surface"
+        )
+
+
+def _check_in_front(pair: ImagePair, q1, q2, what: str) -> None:
+    from .intersection import space_intersection
+
+    try:
+        space_intersection(
+            np.stack([q1, q2]),
+            [
+                (replace(pair.interior1, distortion=None), pair.exterior1),
+                (replace(pair.interior2, distortion=None), pair.exterior2),
+            ],
+            max_iter=5,
+        )
+    except PhotogeomError as exc:
+        raise DegenerateGeometryError(
+            f"{what}: the adjusted orientation does not put every point in front of both "
+            f"images ({exc}); start from better values (initial=) or check the matches"
+        ) from exc

@@ -1,0 +1,218 @@
+"""Smooth random surfaces of the simulator: terrain heights and image-variant local fields.
+
+Both are sums of random plane waves (a truncated random Fourier series), so they are smooth,
+cheap to evaluate at any point, vectorised, and fully determined by their coefficients.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+from ..errors import InputError
+
+__all__ = ["LocalDistortionField", "WaveTerrain", "ar1_along_flight"]
+
+#: Rows per chunk when evaluating many modes at many points (bounds the temporaries).
+_CHUNK = 1 << 15
+
+
+@dataclass(frozen=True, eq=False)
+class WaveTerrain:
+    """Hilly terrain ``Z(X, Y) = base + sum_k a_k cos(2 pi (kx_k X + ky_k Y) + phase_k)``.
+
+    Attributes
+    ----------
+    base : float
+        Mean height, metres.
+    freq : (K, 2) spatial frequencies, cycles per metre.
+    amplitude, phase : (K,) metres and radians.
+    """
+
+    base: float
+    freq: np.ndarray
+    amplitude: np.ndarray
+    phase: np.ndarray
+
+    @classmethod
+    def random(
+        cls,
+        rng: np.random.Generator,
+        extent: tuple[float, float, float, float],
+        relief: float,
+        base: float = 0.0,
+        waves: int = 6,
+    ) -> WaveTerrain:
+        """Random hills over ``extent = (xmin, xmax, ymin, ymax)`` (m) whose peak-to-peak
+        height on the extent is ``relief`` (m); wavelengths 0.4 to 1.5 times the extent's
+        diagonal."""
+        xmin, xmax, ymin, ymax = extent
+        diag = float(np.hypot(xmax - xmin, ymax - ymin)) or 1.0
+        lam = rng.uniform(0.4, 1.5, waves) * diag
+        ang = rng.uniform(0.0, np.pi, waves)
+        freq = np.column_stack([np.cos(ang), np.sin(ang)]) / lam[:, None]
+        amp = rng.uniform(0.5, 1.0, waves)
+        phase = rng.uniform(0.0, 2 * np.pi, waves)
+        t = cls(0.0, freq, amp, phase)
+        gx, gy = np.meshgrid(np.linspace(xmin, xmax, 101), np.linspace(ymin, ymax, 101))
+        z = t(gx.ravel(), gy.ravel())
+        span = float(z.max() - z.min())
+        scale = relief / span if span > 0 else 0.0
+        mid = 0.5 * float(z.max() + z.min()) * scale
+        return cls(float(base) - mid, freq, amp * scale, phase)
+
+    def __call__(self, X, Y) -> np.ndarray:
+        """Heights (m) at ground positions ``X, Y`` (arrays of one shape)."""
+        X = np.asarray(X, dtype=float)
+        Y = np.asarray(Y, dtype=float)
+        ph = 2 * np.pi * (X[..., None] * self.freq[:, 0] + Y[..., None] * self.freq[:, 1])
+        return self.base + np.cos(ph + self.phase) @ self.amplitude
+
+
+def ar1_along_flight(
+    rng: np.random.Generator, n: int, shape: tuple[int, ...], correlation: float
+) -> np.ndarray:
+    """Stationary unit-variance AR(1) sequences along the first axis: ``x_0 ~ N(0, 1)``,
+    ``x_i = rho x_{i-1} + sqrt(1 - rho^2) e_i`` (array (n, *shape))."""
+    if not 0.0 <= correlation < 1.0:
+        raise InputError(
+            f"the correlation between consecutive images must be in [0, 1), got {correlation}"
+        )
+    e = rng.standard_normal((n, *shape))
+    if n == 0 or correlation == 0.0:
+        return e
+    s = np.sqrt(1.0 - correlation**2)
+    e[0] /= s
+    return lfilter([s], [1.0, -correlation], e, axis=0)
+
+
+@dataclass(frozen=True, eq=False)
+class LocalDistortionField:
+    """Image-variant local displacement fields (pixels), one smooth random field per image.
+
+    In image ``i`` the displacement of pixel ``(u, v)`` is
+
+        d(u, v) = sum_k  c[i, k, 0] cos(t_k) + c[i, k, 1] sin(t_k),
+        t_k = 2 pi (kx_k u / width + ky_k v / height)
+
+    with ``c[i, k, j]`` a 2-vector (du, dv). Wave numbers are whole numbers
+    ``0 <= kx <= modes``, ``-modes <= ky <= modes`` (one half-plane, no constant term), so the
+    shortest wavelength is ``width / modes`` along u. The coefficients' standard deviation
+    falls as ``1 / |k|`` (wave-number magnitude) and is scaled so that the expected RMS length
+    of the displacement over an image is ``rms``. Along the flight the coefficients follow a
+    stationary AR(1) process with the given correlation between consecutive images, plus an
+    optional static part shared by all images.
+
+    Attributes
+    ----------
+    image_ids : (m,) ids of the images, in flight order.
+    width, height : float
+        Image size, pixels.
+    waves : (K, 2) integer wave numbers (kx, ky).
+    coef : (m, K, 2, 2) coefficients: image, mode, (cos, sin), (du, dv), pixels.
+    rms : float
+        The nominal RMS length, pixels.
+    """
+
+    image_ids: np.ndarray
+    width: float
+    height: float
+    waves: np.ndarray
+    coef: np.ndarray
+    rms: float
+
+    @classmethod
+    def random(
+        cls,
+        rng: np.random.Generator,
+        image_ids,
+        width: float,
+        height: float,
+        *,
+        rms: float,
+        modes: int = 6,
+        correlation: float = 0.9,
+        static: float = 0.0,
+    ) -> LocalDistortionField:
+        """Random fields for images in flight order (see the class docstring).
+
+        ``static`` in [0, 1] is the share of the variance common to all images.
+        """
+        if modes < 1:
+            raise InputError(f"local_field_modes must be >= 1, got {modes}")
+        if rms < 0 or not np.isfinite(rms):
+            raise InputError(f"local_field must be >= 0 (RMS, pixels), got {rms}")
+        if not 0.0 <= static <= 1.0:
+            raise InputError(f"local_field_static must be in [0, 1], got {static}")
+        ids = np.asarray(image_ids)
+        kx, ky = np.meshgrid(np.arange(0, modes + 1), np.arange(-modes, modes + 1), indexing="ij")
+        kx, ky = kx.ravel(), ky.ravel()
+        half = (kx > 0) | ((kx == 0) & (ky > 0))
+        waves = np.column_stack([kx[half], ky[half]])
+        w = 1.0 / np.hypot(waves[:, 0], waves[:, 1])
+        s = rms / np.sqrt(2.0 * np.sum(w**2))
+        K = waves.shape[0]
+        varying = ar1_along_flight(rng, ids.size, (K, 2, 2), correlation)
+        common = rng.standard_normal((1, K, 2, 2))
+        c = np.sqrt(1.0 - static) * varying + np.sqrt(static) * common
+        coef = c * (s * w)[None, :, None, None]
+        return cls(ids, float(width), float(height), waves, coef, float(rms))
+
+    @classmethod
+    def zero(cls, image_ids, width: float, height: float) -> LocalDistortionField:
+        """No local displacement in any image."""
+        ids = np.asarray(image_ids)
+        return cls(
+            ids, float(width), float(height), np.zeros((0, 2)), np.zeros((ids.size, 0, 2, 2)), 0.0
+        )
+
+    def rows(self, image_rows: np.ndarray, uv) -> np.ndarray:
+        """Displacements (n, 2) px at pixels ``uv`` (n, 2) of image rows ``image_rows`` (n,)
+        (positions in :attr:`image_ids`), vectorised over observations."""
+        uv_all = np.asarray(uv, dtype=float).reshape(-1, 2)
+        r = np.asarray(image_rows, dtype=np.int64).reshape(-1)
+        out = np.zeros((uv_all.shape[0], 2))
+        if self.waves.shape[0] == 0 or uv_all.shape[0] == 0:
+            return out
+        kmax = int(np.max(np.abs(self.waves)))
+        kx = self.waves[:, 0].astype(np.int64)
+        ky = self.waves[:, 1].astype(np.int64) + kmax
+        hu = 2 * np.pi * np.arange(kmax + 1) / self.width
+        hv = 2 * np.pi * np.arange(-kmax, kmax + 1) / self.height
+        order = np.argsort(r, kind="stable")
+        rs = r[order]
+        cuts = np.flatnonzero(np.diff(rs)) + 1
+        starts = np.concatenate([[0], cuts])
+        stops = np.concatenate([cuts, [rs.size]])
+        for s0, s1 in zip(starts, stops):  # one matrix product per image, not per row
+            c = self.coef[rs[s0]]  # (K, 2, 2)
+            c2 = np.ascontiguousarray(np.concatenate([c[:, 0], c[:, 1]]))  # (2K, 2)
+            for b0 in range(s0, s1, _CHUNK):
+                b1 = min(b0 + _CHUNK, s1)
+                idx = order[b0:b1]
+                # cos/sin of t = a + b from the harmonics of u and v separately
+                a = np.multiply.outer(uv_all[idx, 0], hu)
+                b = np.multiply.outer(uv_all[idx, 1], hv)
+                ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+                ca, sa, cb, sb = ca[:, kx], sa[:, kx], cb[:, ky], sb[:, ky]
+                cs = np.concatenate([ca * cb - sa * sb, sa * cb + ca * sb], axis=1)
+                out[idx] = cs @ c2
+        return out
+
+    def __call__(self, image_id, uv) -> np.ndarray:
+        """Displacement (n, 2) px at pixels ``uv`` of image ``image_id`` (one id, or one per
+        row of ``uv``)."""
+        a = np.asarray(uv, dtype=float).reshape(-1, 2)
+        ids = np.asarray(image_id)
+        order = np.argsort(self.image_ids, kind="stable")
+        keys = self.image_ids[order]
+        flat = np.broadcast_to(ids.reshape(-1) if ids.ndim else ids, (a.shape[0],))
+        pos = np.clip(np.searchsorted(keys, flat), 0, max(keys.size - 1, 0))
+        if keys.size == 0 or not np.all(keys[pos] == flat):
+            bad = flat[~(keys[pos] == flat)] if keys.size else flat
+            raise InputError(
+                f"local_field: unknown image id {bad[0]!r} (not an image of the simulated block)"
+            )
+        return self.rows(order[pos], a)

@@ -1,0 +1,71 @@
+"""Parsing XML from files that may be hostile.
+
+One entry point, :func:`parse_xml`, for every XML reader of photogeom (RPC, Metashape):
+
+* bytes go to the parser untouched, so the document's encoding declaration (UTF-8, UTF-16
+  with a byte-order mark, ISO-8859-1, ...) is honoured;
+* a document type declaration (``<!DOCTYPE ...>``) is refused before the document is built:
+  none of the formats read has one, and refusing it keeps entity expansion ("billion
+  laughs") and external entities (XXE) out;
+* every parser failure is a :class:`~photogeom.errors.FileFormatError` naming the file.
+"""
+
+from __future__ import annotations
+
+from xml.etree import ElementTree
+from xml.parsers import expat
+
+from .errors import FileFormatError
+
+
+class _PrologDone(Exception):
+    """The first element was reached: the prolog holds no document type declaration."""
+
+
+def _refuse_doctype(data: bytes | str, where: str) -> None:
+    """Scan the prolog (up to the first element) for a document type declaration."""
+    parser = expat.ParserCreate()
+
+    def doctype(*_args) -> None:
+        raise FileFormatError(
+            f"{where}: XML with a document type declaration (<!DOCTYPE ...>) is refused "
+            "(entities are never expanded); remove the declaration"
+        )
+
+    def first_element(*_args) -> None:
+        raise _PrologDone
+
+    parser.StartDoctypeDeclHandler = doctype
+    parser.StartElementHandler = first_element
+    try:
+        parser.Parse(data, True)
+    except _PrologDone:
+        return
+    except FileFormatError:
+        raise
+    except (expat.ExpatError, ValueError, LookupError):
+        return  # reported by the real parse below
+
+
+def parse_xml(data: bytes | str, where: str) -> ElementTree.Element:
+    """The root element of an XML document; see the module docstring.
+
+    Parameters
+    ----------
+    data : bytes or str
+        The document; bytes keep the declared encoding.
+    where : str
+        Name used in error messages (the file).
+
+    Raises
+    ------
+    FileFormatError
+        Not well-formed, an unknown encoding, or a document type declaration.
+    """
+    _refuse_doctype(data, where)
+    try:
+        return ElementTree.fromstring(data)
+    except ElementTree.ParseError as exc:
+        raise FileFormatError(f"{where}: not well-formed XML ({exc}); truncated file?") from None
+    except (ValueError, LookupError) as exc:  # e.g. an encoding the parser does not know
+        raise FileFormatError(f"{where}: cannot read this XML ({exc})") from None

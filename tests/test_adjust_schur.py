@@ -1,0 +1,134 @@
+"""The Schur-complement engine against the dense normal equations of the same problem."""
+
+import numpy as np
+import pytest
+
+from photogeom.adjust.schur import (
+    Linearization,
+    SchurSystem,
+    covariance_blocks,
+    observation_cofactors,
+    point_covariances,
+)
+
+
+def _problem(seed, L=5, b=4, n_groups=2, gl=3, n_points=12, fixed=True):
+    rng = np.random.default_rng(seed)
+    g = n_groups * gl
+    local_group = rng.integers(0, n_groups, L)
+    local_global = local_group[:, None] * gl + np.arange(gl)[None, :]
+    loc, pt = [], []
+    for j in range(n_points):
+        ims = rng.choice(L, size=rng.integers(2, L + 1), replace=False)
+        loc += list(ims)
+        pt += [j] * ims.size
+    loc, pt = np.array(loc), np.array(pt)
+    n, d = loc.size, 2
+    A = rng.standard_normal((n, d, b))
+    G = rng.standard_normal((n, d, gl))
+    P = rng.standard_normal((n, d, 3))
+    r = rng.standard_normal((n, d))
+    local_free = np.ones((L, b), bool)
+    global_free = np.ones(g, bool)
+    if fixed:
+        local_free[0, :] = False
+        local_free[2, 1] = False
+        global_free[1] = False
+    li = np.zeros((L, b, b))
+    lg = np.zeros((L, b))
+    Jl = rng.standard_normal((L, 3, b))
+    rl = rng.standard_normal((L, 3))
+    li += np.einsum("lki,lkj->lij", Jl, Jl)
+    lg += np.einsum("lki,lk->li", Jl, rl)
+    pi = np.zeros((n_points, 3, 3))
+    pg_ = np.zeros((n_points, 3))
+    pi[0] = np.eye(3) * 4
+    pg_[0] = [0.3, -0.1, 0.2]
+    gi = np.eye(g) * 0.5
+    gg = rng.standard_normal(g) * 0.1
+    lin = Linearization(r, A, G, P, li, lg, pi, pg_, gi, gg, 0.0)
+    sysm = SchurSystem(
+        L, b, g, n_points, loc, pt, local_global, local_free, global_free, backend="superlu"
+    )
+    # dense
+    nc = L * b + g
+    u = nc + 3 * n_points
+    J = np.zeros((n * d, u))
+    for k in range(n):
+        rows = slice(k * d, k * d + d)
+        J[rows, loc[k] * b : loc[k] * b + b] = A[k]
+        J[rows, L * b + local_global[loc[k]]] = G[k]
+        J[rows, nc + 3 * pt[k] : nc + 3 * pt[k] + 3] = P[k]
+    N = J.T @ J
+    grad = J.T @ r.ravel()
+    for l_ in range(L):
+        N[l_ * b : l_ * b + b, l_ * b : l_ * b + b] += li[l_]
+        grad[l_ * b : l_ * b + b] += lg[l_]
+    for j in range(n_points):
+        N[nc + 3 * j : nc + 3 * j + 3, nc + 3 * j : nc + 3 * j + 3] += pi[j]
+        grad[nc + 3 * j : nc + 3 * j + 3] += pg_[j]
+    N[L * b : nc, L * b : nc] += gi
+    grad[L * b : nc] += gg
+    free = np.concatenate([local_free.ravel(), global_free, np.ones(3 * n_points, bool)])
+    return sysm, lin, N, grad, free, J
+
+
+@pytest.mark.parametrize("seed,dense_inverse", [(0, True), (1, False), (2, True), (3, False)])
+def test_step_and_covariances_equal_the_dense_solution(seed, dense_inverse, monkeypatch):
+    import photogeom.adjust.sparse as sparse
+
+    if not dense_inverse:  # the blocks by batched solves with unit vectors
+        monkeypatch.setattr(sparse, "DENSE_INVERSE_MAX", 0)
+    sysm, lin, N, grad, free, J = _problem(seed)
+    ne = sysm.normal_equations(lin)
+    dc, dp, F = ne.solve()
+    Nf = N[np.ix_(free, free)]
+    x = np.zeros(N.shape[0])
+    x[free] = np.linalg.solve(Nf, -grad[free])
+    nc = sysm.nc
+    np.testing.assert_allclose(dc, x[:nc], rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(dp.ravel(), x[nc:], rtol=1e-9, atol=1e-11)
+    Qf = np.linalg.inv(Nf)
+    Q = np.zeros_like(N)
+    Q[np.ix_(free, free)] = Qf
+    cb = covariance_blocks(ne, F, pairs=True, batch_columns=7)
+    b, L = sysm.b, sysm.n_local
+    for l_ in range(L):
+        np.testing.assert_allclose(
+            cb.local[l_], Q[l_ * b : l_ * b + b, l_ * b : l_ * b + b], atol=1e-10
+        )
+        np.testing.assert_allclose(
+            cb.local_global[l_], Q[l_ * b : l_ * b + b, L * b : nc], atol=1e-10
+        )
+    for k, (l1, l2) in enumerate(sysm.blocks):
+        np.testing.assert_allclose(
+            cb.pairs[k], Q[l1 * b : l1 * b + b, l2 * b : l2 * b + b], atol=1e-10
+        )
+    np.testing.assert_allclose(cb.global_, Q[L * b : nc, L * b : nc], atol=1e-10)
+    Qpp = point_covariances(ne, cb)
+    for j in range(sysm.n_points):
+        np.testing.assert_allclose(
+            Qpp[j],
+            Q[nc + 3 * j : nc + 3 * j + 3, nc + 3 * j : nc + 3 * j + 3],
+            rtol=1e-9,
+            atol=1e-10,
+        )
+    C = observation_cofactors(ne, cb, Qpp)
+    JQJ = J @ Q @ J.T
+    for k in range(sysm.n):
+        np.testing.assert_allclose(
+            C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
+        )
+
+
+def test_damped_step_equals_dense_marquardt():
+    sysm, lin, N, grad, free, _ = _problem(5)
+    lam = 0.3
+    ne = sysm.normal_equations(lin, damping=lam)
+    dc, dp, _ = ne.solve()
+    Nd = N.copy()
+    Nd[np.diag_indices_from(Nd)] *= 1 + lam
+    x = np.zeros(N.shape[0])
+    Nf = Nd[np.ix_(free, free)]
+    x[free] = np.linalg.solve(Nf, -grad[free])
+    np.testing.assert_allclose(np.r_[dc, dp.ravel()], x, rtol=1e-9, atol=1e-11)
