@@ -474,8 +474,11 @@ class ProjTransform:
 
     def __getstate__(self) -> dict:
         # rebuilt on the other side (Dask workers): PROJ objects are not shared
-        return {"src": self.source_crs.to_wkt(), "dst": self.target_crs.to_wkt(),
-                "ballpark": self._ballpark}
+        return {
+            "src": self.source_crs.to_wkt(),
+            "dst": self.target_crs.to_wkt(),
+            "ballpark": self._ballpark,
+        }
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["src"], state["dst"], allow_ballpark=state["ballpark"])
