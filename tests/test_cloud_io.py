@@ -160,3 +160,28 @@ def test_pieces_as_dask_tasks_equal_the_sequential_output(tmp_path, suffix, sche
         pg.io.read_cloud_xyz(par, 99_990, 100_010), np.c_[a.x, a.y, a.z][99_990:100_010]
     )
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_output_file_policy(tmp_path):
+    """Mode of a plain open(), read-only destinations refused, symbolic links followed."""
+    import os
+    import stat
+
+    src = _cloud(tmp_path, n=500)
+    T = pg.Rigid3D(np.eye(3), [1.0, 2.0, 3.0])
+    out = tmp_path / "o.laz"
+    pg.io.transform_cloud(src, out, T)
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask
+    out.chmod(0o444)
+    with pytest.raises(pg.errors.OutputError, match="read-only"):
+        pg.io.transform_cloud(src, out, T)
+    out.chmod(0o640)
+    link = tmp_path / "link.laz"
+    link.symlink_to(out)
+    pg.io.transform_cloud(src, link, T)
+    assert link.is_symlink() and stat.S_IMODE(out.stat().st_mode) == 0o640
+    with pytest.raises(pg.errors.OutputError, match="does not exist"):
+        pg.io.transform_cloud(src, tmp_path / "no" / "o.laz", T)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import os
+import secrets
 import shutil
 import struct
 import tempfile
@@ -248,21 +249,58 @@ def _new_offsets(lo: np.ndarray, hi: np.ndarray, scales: np.ndarray) -> np.ndarr
 
 @contextmanager
 def _atomic_target(dst: Path):
-    """A temporary path beside ``dst`` (same suffix) renamed over it on success."""
-    directory = dst.parent if str(dst.parent) else Path(".")
-    if not directory.is_dir():
-        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=dst.suffix, dir=directory)
-    os.close(fd)
+    """A temporary path beside ``dst``, fsynced and renamed over it when the ``with`` block
+    succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
+    ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
+    file) for files written by a library that needs a path."""
+    from ..atomicfile import _destination, _failure, _fsync_directory
+
+    given, target = _destination(dst)
+    directory = target.parent if str(target.parent) else Path(".")
     try:
-        yield Path(tmp)
-        os.replace(tmp, dst)
-    except BaseException:
+        mode = target.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        mode = None
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
         try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
+            fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask, as open() does
+            break
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+    else:  # pragma: no cover - 100 collisions of 48 random bits
+        raise PhotogeomError(f"cannot write {given}: no free temporary file name")
+    try:
+        if mode is not None and hasattr(os, "fchmod"):
+            os.fchmod(fd, mode)
+        os.close(fd)
+        yield tmp
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, target)
+        _fsync_directory(directory)
+    except PhotogeomError:
+        _unlink(tmp)
         raise
+    except OSError as exc:
+        _unlink(tmp)
+        raise _failure(given, exc) from exc
+    except BaseException:
+        _unlink(tmp)
+        raise
+
+
+def _unlink(path: Path) -> None:
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
 
 
 @dataclass(frozen=True)
@@ -492,7 +530,8 @@ def write_cloud(
         las[name] = values
     p = Path(path)
     with _atomic_target(p) as tmp:
-        las.write(tmp, do_compress=p.suffix.lower() == ".laz")
+        with open(tmp, "wb") as fh:  # a stream: laspy then honours do_compress
+            las.write(fh, do_compress=p.suffix.lower() == ".laz")
     return p
 
 
