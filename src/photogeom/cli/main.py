@@ -59,6 +59,8 @@ _GROUPS = (
     ("rpc", "rpc"),
     ("grid", "grid"),
     ("bundle", "bundle"),
+    ("cloud", "cloud"),
+    ("crs", "crs"),
     ("examples", "examples"),
 )
 

@@ -1,0 +1,226 @@
+"""`photogeom cloud`: LAS/LAZ point clouds, chunk by chunk.
+
+* ``info`` - the header: point count, format, scales/offsets, bounds, extra dimensions, CRS;
+* ``transform`` - apply saved parameters (``transform estimate --output-params``,
+  ``cloud register --output-params``) or a PROJ CRS change to a cloud, chunk by chunk;
+* ``register`` - absolute orientation of one cloud to another from corresponding points
+  (same count, same order), with check-pair statistics; Dask tasks (``--scheduler``).
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import InputError
+from ._common import JsonOpt, json_text, say, split_numbers
+
+app = typer.Typer(
+    help="LAS/LAZ point clouds chunk by chunk: info, transform, register (laspy; LAZ by lazrs).",
+    no_args_is_help=True,
+)
+
+SchedulerOpt = Annotated[
+    str,
+    typer.Option(
+        "--scheduler",
+        help="Where the Dask tasks run: 'threads' (this process), 'local' or 'local:N' (a "
+        "local cluster of N worker processes), 'sync', or a scheduler address "
+        "tcp://host:8786.",
+    ),
+]
+
+
+class CloudMethod(str, Enum):
+    """Absolute orientation methods that work from moments (out of core)."""
+
+    svd = "svd"
+    quaternion = "quaternion"
+    dual_quaternion = "dual-quaternion"
+    gauss_helmert = "gauss-helmert"
+
+
+def _fmt3(v) -> str:
+    return ", ".join(f"{float(x):.6g}" for x in v)
+
+
+@app.command("info")
+def info(
+    path: Annotated[Path, typer.Argument(help="LAS or LAZ file.")],
+    json_out: JsonOpt = False,
+    show_wkt: Annotated[bool, typer.Option("--wkt", help="Print the CRS as WKT.")] = False,
+) -> None:
+    """Describe a LAS/LAZ file from its header (no points are read)."""
+    from ..io.cloud import cloud_info
+
+    ci = cloud_info(path)
+    if json_out:
+        typer.echo(json_text(ci.to_dict()), nl=False)
+        return
+    lines = [
+        f"{ci.path}: {ci.point_count} points, LAS {ci.version}, point format {ci.point_format}"
+        f"{', LAZ' if ci.compressed else ''}",
+        f"scales  {_fmt3(ci.scales)}",
+        f"offsets {_fmt3(ci.offsets)}",
+        f"min     {_fmt3(ci.mins)}",
+        f"max     {_fmt3(ci.maxs)}",
+        f"dimensions: {', '.join(ci.dimensions)}",
+        f"extra dimensions: {', '.join(ci.extra_dimensions) or 'none'}",
+        f"CRS: {ci.crs_name or 'none recorded'}",
+        f"VLRs: {', '.join(ci.vlrs) or 'none'}",
+    ]
+    if show_wkt and ci.crs:
+        lines.append(ci.crs)
+    say("\n".join(lines))
+
+
+@app.command("transform")
+def transform(
+    source: Annotated[Path, typer.Argument(help="Input LAS/LAZ.")],
+    output: Annotated[Path, typer.Argument(help="Output LAS/LAZ (.laz: compressed).")],
+    params: Annotated[
+        Path | None,
+        typer.Option(help="Parameter JSON (transform estimate / cloud register --output-params)."),
+    ] = None,
+    from_crs: Annotated[
+        str | None, typer.Option("--from-crs", help="Source CRS of a PROJ transformation.")
+    ] = None,
+    to_crs: Annotated[
+        str | None, typer.Option("--to-crs", help="Target CRS of a PROJ transformation.")
+    ] = None,
+    inverse: Annotated[bool, typer.Option(help="Apply the inverse of --params.")] = False,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="CRS to record in the output (default: --to-crs, else the input's record).",
+        ),
+    ] = None,
+    scales: Annotated[
+        str | None, typer.Option(help="Output scales sx,sy,sz (default: the input's).")
+    ] = None,
+    chunk_size: Annotated[
+        int, typer.Option(help="Points per chunk (memory is proportional to it).")
+    ] = 1_000_000,
+    allow_ballpark: Annotated[
+        bool, typer.Option(help="Accept an approximate PROJ datum shift.")
+    ] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress.")] = False,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--scheduler",
+            help="Run pieces of the file as Dask tasks: 'local', 'local:N', 'threads' or a "
+            "scheduler address (default: in this process, chunk after chunk).",
+        ),
+    ] = None,
+) -> None:
+    """Transform a cloud with saved parameters (--params) or between CRSs (--from-crs,
+    --to-crs), chunk by chunk; point format, extra dimensions, VLRs and the CRS record are
+    kept, offsets recomputed; the output is written atomically."""
+    from ..io.cloud import transform_cloud
+
+    if (params is None) == (to_crs is None):
+        raise InputError("give either --params FILE or --from-crs and --to-crs")
+    if params is not None:
+        from .transform import load_transform
+
+        T = load_transform(params)
+        if inverse:
+            T = T.inverse()
+    else:
+        from ..crs import ProjTransform
+        from ..io.cloud import cloud_info
+
+        src_crs = from_crs or cloud_info(source).crs
+        if src_crs is None:
+            raise InputError(f"{source} records no CRS: give --from-crs")
+        T = ProjTransform(src_crs, to_crs, allow_ballpark=allow_ballpark)
+    sc = split_numbers(scales, 3, "--scales")
+    progress = None
+    if not quiet:
+        from rich.progress import Progress
+
+        bar = Progress(transient=True)
+        task = bar.add_task("transforming", total=None)
+
+        def progress(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        bar.start()
+    try:
+        res = transform_cloud(
+            source, output, T, chunk_size=chunk_size, scales=sc, crs=crs, progress=progress
+        )
+    finally:
+        if not quiet:
+            bar.stop()
+    say(
+        f"wrote {res.point_count} points to {res.path} ({res.chunks} chunk(s), "
+        f"{res.passes} pass(es)); offsets {_fmt3(res.offsets)}; "
+        f"CRS {res.crs_name or 'none'}",
+        stderr=True,
+    )
+
+
+@app.command("register")
+def register(
+    source: Annotated[Path, typer.Argument(help="Cloud to orient (LAS/LAZ).")],
+    target: Annotated[Path, typer.Argument(help="Reference cloud, same points in the same order.")],
+    method: Annotated[CloudMethod, typer.Option(help="Direct method.")] = CloudMethod.svd,
+    no_scale: Annotated[bool, typer.Option("--no-scale", help="Rigid: scale fixed to 1.")] = False,
+    check_every: Annotated[
+        int, typer.Option(help="Keep every k-th pair out as a check pair (0: none).")
+    ] = 0,
+    chunk_size: Annotated[int, typer.Option(help="Pairs per Dask task.")] = 1_000_000,
+    scheduler: SchedulerOpt = "threads",
+    output_params: Annotated[
+        Path | None, typer.Option(help="Write the parameters (for cloud transform --params).")
+    ] = None,
+    json_out: JsonOpt = False,
+) -> None:
+    """Absolute orientation target ~ s R source + t of two clouds of corresponding points,
+    out of core (one pass for the estimate, one for the check pairs)."""
+    from ..distributed import register_clouds
+    from ..io import atomic_write_text
+
+    if check_every < 0 or check_every == 1:
+        raise InputError(f"--check-every {check_every}: give 0 (no check pairs) or k >= 2")
+    reg = register_clouds(
+        source,
+        target,
+        method=method.value,
+        with_scale=not no_scale,
+        check_every=check_every,
+        chunk_size=chunk_size,
+        scheduler=scheduler,
+    )
+    d = reg.to_dict()
+    if output_params is not None:
+        atomic_write_text(output_params, json_text(reg.fit.transform.to_dict()))
+    if json_out:
+        typer.echo(
+            json_text({k: (None if isinstance(v, float) and v != v else v) for k, v in d.items()}),
+            nl=False,
+        )
+        return
+    f = reg.fit
+    om, ph, ka = f.angles("transposed", "gon")
+    lines = [
+        f"absolute orientation ({f.method}) of {reg.n_control} control pairs",
+        f"scale {f.scale:.10f}",
+        f"omega {om:+.6f} gon  phi {ph:+.6f} gon  kappa {ka:+.6f} gon (transposed convention)",
+        f"translation {_fmt3(f.translation)}",
+        f"control RMSE {reg.control_rmse:.4g} (from the moments)",
+        f"target CRS: {reg.crs_name or 'none recorded'}",
+    ]
+    if reg.n_check:
+        lines.append(
+            f"check pairs {reg.n_check}: RMSE {reg.check_rmse:.4g}, per axis "
+            f"{_fmt3(reg.check_rms)}, mean {_fmt3(reg.check_mean)}, max {reg.check_max:.4g} "
+            "(residuals computed - observed)"
+        )
+    say("\n".join(lines))

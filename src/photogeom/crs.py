@@ -1,0 +1,505 @@
+"""Coordinates on the Earth: geodetic, geocentric (ECEF) and local topocentric (ENU) frames.
+
+Conventions (see ``docs/crs-and-clouds.md``):
+
+* geodetic latitude and longitude in **degrees**, ellipsoidal height in **metres**;
+* geocentric Cartesian coordinates (ECEF) in metres, X towards (lat 0, lon 0), Z towards the
+  north pole;
+* a local topocentric frame (ENU) at an origin ``(lat0, lon0, h0)``: E east, N north, U along
+  the ellipsoid normal of the origin, in metres; it is a rigid transformation of ECEF, so the
+  Earth's surface curves *down* in it (a point on the ellipsoid at 1 km from the origin has
+  U = -7.8 cm);
+* the ellipsoid is WGS 84 unless ``ellipsoid=`` names another (``"GRS80"``, ``"Bessel1841"``
+  ..., any ellipsoid PROJ knows by name, or a pair ``(a, 1/f)``).
+
+The conversions between these frames are closed formulas in numpy (vectorised, no PROJ
+needed; tests compare them with PROJ). Any other coordinate reference system (EPSG code, WKT,
+PROJ string) is handled by pyproj: :func:`parse_crs`, :func:`transform_points`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = [
+    "ELLIPSOIDS",
+    "Ellipsoid",
+    "LocalFrame",
+    "ProjTransform",
+    "crs_name",
+    "curvature_drop",
+    "ecef_to_enu",
+    "ecef_to_geodetic",
+    "enu_rotation",
+    "enu_to_ecef",
+    "geodetic_to_ecef",
+    "get_ellipsoid",
+    "parse_crs",
+    "transform_points",
+]
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    """A reference ellipsoid of revolution.
+
+    Attributes
+    ----------
+    name : str
+    a : float
+        Semi-major axis (m).
+    inv_f : float
+        Inverse flattening ``1/f`` (``inf`` for a sphere).
+    """
+
+    name: str
+    a: float
+    inv_f: float
+
+    @property
+    def f(self) -> float:
+        """Flattening."""
+        return 0.0 if math.isinf(self.inv_f) else 1.0 / self.inv_f
+
+    @property
+    def b(self) -> float:
+        """Semi-minor axis (m)."""
+        return self.a * (1.0 - self.f)
+
+    @property
+    def e2(self) -> float:
+        """First eccentricity squared ``f (2 - f)``."""
+        return self.f * (2.0 - self.f)
+
+    @property
+    def ep2(self) -> float:
+        """Second eccentricity squared ``e2 / (1 - e2)``."""
+        return self.e2 / (1.0 - self.e2)
+
+
+#: Ellipsoids known without PROJ (parameters as defined by EPSG).
+ELLIPSOIDS: dict[str, Ellipsoid] = {
+    e.name.upper(): e
+    for e in (
+        Ellipsoid("WGS84", 6378137.0, 298.257223563),
+        Ellipsoid("GRS80", 6378137.0, 298.257222101),
+        Ellipsoid("Bessel1841", 6377397.155, 299.1528128),
+        Ellipsoid("Clarke1866", 6378206.4, 294.978698214),
+        Ellipsoid("International1924", 6378388.0, 297.0),
+        Ellipsoid("Krassowsky1940", 6378245.0, 298.3),
+        Ellipsoid("Airy1830", 6377563.396, 299.3249646),
+    )
+}
+_ALIASES = {
+    "WGS 84": "WGS84",
+    "WGS-84": "WGS84",
+    "GRS 1980": "GRS80",
+    "BESSEL": "BESSEL1841",
+    "INTL": "INTERNATIONAL1924",
+    "KRASS": "KRASSOWSKY1940",
+    "AIRY": "AIRY1830",
+    "CLRK66": "CLARKE1866",
+}
+
+
+def get_ellipsoid(ellipsoid: str | tuple[float, float] | Ellipsoid = "WGS84") -> Ellipsoid:
+    """An :class:`Ellipsoid` from a name, a pair ``(a, 1/f)`` or an :class:`Ellipsoid`.
+
+    Names not in :data:`ELLIPSOIDS` are looked up in PROJ (``pyproj.get_ellps_map``), e.g.
+    ``"helmert"`` or ``"evrst30"``.
+    """
+    if isinstance(ellipsoid, Ellipsoid):
+        return ellipsoid
+    if isinstance(ellipsoid, str):
+        key = ellipsoid.strip().upper()
+        key = _ALIASES.get(key, key)
+        if key in ELLIPSOIDS:
+            return ELLIPSOIDS[key]
+        try:
+            from pyproj import get_ellps_map
+        except ImportError:  # pragma: no cover - pyproj is a dependency of the tests
+            get_ellps_map = None
+        if get_ellps_map is not None:
+            for name, p in get_ellps_map().items():
+                if name.upper() == key:
+                    a = float(p["a"])
+                    if "rf" in p:
+                        rf = float(p["rf"])
+                    else:
+                        b = float(p["b"])
+                        rf = math.inf if b == a else a / (a - b)
+                    return Ellipsoid(name, a, rf)
+        known = ", ".join(e.name for e in ELLIPSOIDS.values())
+        raise InputError(
+            f"unknown ellipsoid {ellipsoid!r}; known: {known} (any PROJ ellipsoid name with "
+            "pyproj installed), or pass (a, 1/f)"
+        )
+    try:
+        a, rf = (float(v) for v in ellipsoid)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"ellipsoid must be a name or a pair (a, 1/f), got {ellipsoid!r}"
+        ) from None
+    if not (a > 0 and rf > 1):
+        raise InputError(f"ellipsoid (a, 1/f) = ({a}, {rf}): need a > 0 and 1/f > 1 (inf: sphere)")
+    return Ellipsoid("custom", a, rf)
+
+
+def _arrays(*values, names: tuple[str, ...]) -> tuple[np.ndarray, ...]:
+    arrs = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in values))
+    for name, arr in zip(names, arrs):
+        if not np.all(np.isfinite(arr)):
+            raise InputError(f"{name} contains NaN or infinite values")
+    return tuple(arrs)
+
+
+def _scalar_or_array(arr: np.ndarray):
+    return float(arr) if arr.ndim == 0 else arr
+
+
+def geodetic_to_ecef(lat, lon, h, *, ellipsoid="WGS84"):
+    """Geodetic latitude, longitude (degrees) and ellipsoidal height (m) to ECEF X, Y, Z (m).
+
+    ``X = (N + h) cos(lat) cos(lon)``, ``Y = (N + h) cos(lat) sin(lon)``,
+    ``Z = (N (1 - e^2) + h) sin(lat)`` with ``N = a / sqrt(1 - e^2 sin^2(lat))``.
+    Inputs broadcast against each other; returns a tuple ``(X, Y, Z)`` of arrays of their
+    shape (floats for scalar inputs).
+    """
+    lat, lon, h = _arrays(lat, lon, h, names=("lat", "lon", "h"))
+    if np.any(np.abs(lat) > 90.0):
+        raise InputError("lat must be within [-90, 90] degrees (latitude first, then longitude)")
+    ell = get_ellipsoid(ellipsoid)
+    phi = np.radians(lat)
+    lam = np.radians(lon)
+    sp, cp = np.sin(phi), np.cos(phi)
+    N = ell.a / np.sqrt(1.0 - ell.e2 * sp * sp)
+    r = (N + h) * cp
+    X = r * np.cos(lam)
+    Y = r * np.sin(lam)
+    Z = (N * (1.0 - ell.e2) + h) * sp
+    return _scalar_or_array(X), _scalar_or_array(Y), _scalar_or_array(Z)
+
+
+def ecef_to_geodetic(X, Y, Z, *, ellipsoid="WGS84"):
+    """ECEF X, Y, Z (m) to geodetic latitude, longitude (degrees) and ellipsoidal height (m).
+
+    Bowring's parametric-latitude iteration (three steps, converged to rounding for points
+    from the Earth's centre region out to beyond geostationary orbit; tested against PROJ
+    and by round trips: 5e-10 m RMS, below the 9.3e-10 m spacing of doubles at 6.4e6 m); the
+    height ``h = (p - N cos(lat)) cos(lat) + (Z - N (1 - e^2) sin(lat)) sin(lat)`` has no
+    singularity at the poles. Longitude in (-180, 180].
+    Returns a tuple ``(lat, lon, h)``.
+    """
+    X, Y, Z = _arrays(X, Y, Z, names=("X", "Y", "Z"))
+    ell = get_ellipsoid(ellipsoid)
+    a, b, e2, ep2 = ell.a, ell.b, ell.e2, ell.ep2
+    p = np.hypot(X, Y)
+    if np.any((p < 1e-3 * a) & (np.abs(Z) < 1e-3 * a)):
+        raise InputError(
+            "ECEF point within 6 km of the Earth's centre: geodetic coordinates undefined there "
+            "(are the coordinates geocentric metres?)"
+        )
+    beta = np.arctan2(Z * a, p * b)
+    for _ in range(3):
+        sb, cb = np.sin(beta), np.cos(beta)
+        phi = np.arctan2(Z + ep2 * b * sb**3, p - e2 * a * cb**3)
+        beta = np.arctan2((1.0 - ell.f) * np.sin(phi), np.cos(phi))
+    sp, cp = np.sin(phi), np.cos(phi)
+    N = a / np.sqrt(1.0 - e2 * sp * sp)
+    # distance from the foot point along the normal: the differences are exact (Sterbenz),
+    # so the height carries about one rounding of the coordinates
+    h = (p - N * cp) * cp + (Z - N * (1.0 - e2) * sp) * sp
+    lon = np.degrees(np.arctan2(Y, X))
+    return (
+        _scalar_or_array(np.degrees(phi)),
+        _scalar_or_array(lon),
+        _scalar_or_array(h),
+    )
+
+
+def enu_rotation(lat0: float, lon0: float) -> np.ndarray:
+    """The rotation ``R`` (3, 3) with ``enu = R @ (xyz - origin)`` at (lat0, lon0) degrees.
+
+    Rows: east ``(-sin lon, cos lon, 0)``, north ``(-sin lat cos lon, -sin lat sin lon,
+    cos lat)``, up (the ellipsoid normal) ``(cos lat cos lon, cos lat sin lon, sin lat)``.
+    """
+    lat0, lon0 = float(lat0), float(lon0)
+    if not (math.isfinite(lat0) and math.isfinite(lon0)) or abs(lat0) > 90.0:
+        raise InputError(f"origin lat0={lat0}, lon0={lon0}: need finite values, |lat0| <= 90")
+    phi, lam = math.radians(lat0), math.radians(lon0)
+    sp, cp, sl, cl = math.sin(phi), math.cos(phi), math.sin(lam), math.cos(lam)
+    return np.array(
+        [
+            [-sl, cl, 0.0],
+            [-sp * cl, -sp * sl, cp],
+            [cp * cl, cp * sl, sp],
+        ]
+    )
+
+
+def _points3(values, name: str) -> tuple[np.ndarray, bool]:
+    arr = np.asarray(values, dtype=float)
+    single = arr.ndim == 1
+    if single:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"{name} must have shape (n, 3) or (3,), got {np.shape(values)}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} contains NaN or infinite values")
+    return arr, single
+
+
+def ecef_to_enu(xyz, lat0, lon0, h0, *, ellipsoid="WGS84") -> np.ndarray:
+    """ECEF points ``xyz`` (n, 3) or (3,) (m) to local east, north, up (m) at the origin
+    (lat0, lon0 in degrees, h0 in metres, on ``ellipsoid``)."""
+    pts, single = _points3(xyz, "xyz")
+    R = enu_rotation(lat0, lon0)
+    o = np.array(geodetic_to_ecef(lat0, lon0, h0, ellipsoid=ellipsoid))
+    out = (pts - o) @ R.T
+    return out[0] if single else out
+
+
+def enu_to_ecef(enu, lat0, lon0, h0, *, ellipsoid="WGS84") -> np.ndarray:
+    """Local east, north, up (m) at the origin (lat0, lon0 degrees, h0 m) to ECEF (m);
+    the inverse of :func:`ecef_to_enu`."""
+    pts, single = _points3(enu, "enu")
+    R = enu_rotation(lat0, lon0)
+    o = np.array(geodetic_to_ecef(lat0, lon0, h0, ellipsoid=ellipsoid))
+    out = pts @ R + o
+    return out[0] if single else out
+
+
+def curvature_drop(distance, *, lat0: float = 45.0, ellipsoid="WGS84"):
+    """How far below the local horizontal plane the ellipsoid lies at a horizontal distance.
+
+    ``distance`` (m) from the origin of an ENU frame on the ellipsoid; returns the magnitude
+    of the (negative) U coordinate of the ellipsoid point there, ``~ d^2 / (2 R)`` with the
+    Gaussian mean radius ``R = sqrt(M N)`` at ``lat0`` (about 7.8 cm at 1 km, 7.8 m at
+    10 km; the radius of curvature depends on the direction, from the meridian radius M
+    to N, so the true drop differs by up to 0.7 %). It is what a block adjusted in a local
+    Cartesian frame must carry as height, not an error of the frame
+    (see ``docs/crs-and-clouds.md``).
+    """
+    d = np.asarray(distance, dtype=float)
+    ell = get_ellipsoid(ellipsoid)
+    s2 = math.sin(math.radians(lat0)) ** 2
+    w = math.sqrt(1.0 - ell.e2 * s2)
+    R = ell.a * math.sqrt(1.0 - ell.e2) / (w * w)  # sqrt(M N)
+    out = R - np.sqrt(np.maximum(R * R - d * d, 0.0))
+    return _scalar_or_array(out)
+
+
+@dataclass(frozen=True)
+class LocalFrame:
+    """A local topocentric (ENU) frame: where a block is adjusted, and GNSS positions go.
+
+    Parameters
+    ----------
+    lat0, lon0 : float
+        Origin, geodetic degrees.
+    h0 : float
+        Origin ellipsoidal height (m).
+    ellipsoid : str or (a, 1/f)
+        Ellipsoid of the geodetic coordinates (WGS 84 by default).
+
+    Examples
+    --------
+    >>> frame = LocalFrame.at_centroid(lat, lon, h)       # GNSS camera positions
+    >>> enu = frame.from_geodetic(lat, lon, h)            # (n, 3) for the adjustment
+    >>> lat2, lon2, h2 = frame.to_geodetic(adjusted_enu)  # back to WGS 84
+    """
+
+    lat0: float
+    lon0: float
+    h0: float = 0.0
+    ellipsoid: Any = "WGS84"
+
+    @classmethod
+    def at_centroid(cls, lat, lon, h, *, ellipsoid="WGS84") -> LocalFrame:
+        """The frame at the geodetic point below the ECEF centroid of the given points
+        (its height: the mean height), so that the points sit around E = N = 0."""
+        X, Y, Z = geodetic_to_ecef(lat, lon, h, ellipsoid=ellipsoid)
+        c = [float(np.mean(v)) for v in (X, Y, Z)]
+        la, lo, _ = ecef_to_geodetic(*c, ellipsoid=ellipsoid)
+        return cls(float(la), float(lo), float(np.mean(h)), ellipsoid)
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """``R`` with ``enu = R @ (ecef - origin)``."""
+        return enu_rotation(self.lat0, self.lon0)
+
+    @property
+    def origin_ecef(self) -> np.ndarray:
+        """The origin in ECEF (m)."""
+        return np.array(geodetic_to_ecef(self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid))
+
+    def from_ecef(self, xyz) -> np.ndarray:
+        """ECEF (n, 3) -> ENU (n, 3)."""
+        return ecef_to_enu(xyz, self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid)
+
+    def to_ecef(self, enu) -> np.ndarray:
+        """ENU (n, 3) -> ECEF (n, 3)."""
+        return enu_to_ecef(enu, self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid)
+
+    def from_geodetic(self, lat, lon, h) -> np.ndarray:
+        """Geodetic (degrees, m) -> ENU (n, 3)."""
+        X, Y, Z = geodetic_to_ecef(lat, lon, h, ellipsoid=self.ellipsoid)
+        return self.from_ecef(np.column_stack([np.ravel(X), np.ravel(Y), np.ravel(Z)]))
+
+    def to_geodetic(self, enu) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """ENU (n, 3) -> ``(lat, lon, h)`` (degrees, m)."""
+        xyz = np.atleast_2d(self.to_ecef(enu))
+        return ecef_to_geodetic(xyz[:, 0], xyz[:, 1], xyz[:, 2], ellipsoid=self.ellipsoid)
+
+    def covariance_from_ecef(self, cov) -> np.ndarray:
+        """Rotate covariance matrices (..., 3, 3) of ECEF coordinates into ENU."""
+        R = self.rotation
+        return R @ np.asarray(cov, dtype=float) @ R.T
+
+    def to_dict(self) -> dict:
+        """JSON-ready description (for results and reports)."""
+        return {
+            "frame": "ENU",
+            "lat0_deg": self.lat0,
+            "lon0_deg": self.lon0,
+            "h0_m": self.h0,
+            "ellipsoid": get_ellipsoid(self.ellipsoid).name,
+        }
+
+
+# --- any CRS, through pyproj ------------------------------------------------------------------
+
+
+def _pyproj():
+    try:
+        import pyproj
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise InputError(
+            "coordinate reference systems need pyproj: pip install 'photogeom[crs]'"
+        ) from None
+    return pyproj
+
+
+def parse_crs(crs, *, what: str = "crs"):
+    """A ``pyproj.CRS`` from an EPSG code (``"EPSG:4979"``, ``4979``), WKT, a PROJ string or
+    a ``pyproj.CRS``; ``what`` names the option in the error message."""
+    pyproj = _pyproj()
+    if isinstance(crs, pyproj.CRS):
+        return crs
+    try:
+        return pyproj.CRS.from_user_input(crs)
+    except pyproj.exceptions.CRSError as exc:
+        raise InputError(
+            f"{what}: {crs!r} is not a coordinate reference system PROJ knows "
+            f"(give e.g. EPSG:4979, a WKT string or a PROJ string): {exc}"
+        ) from None
+
+
+def crs_name(crs) -> str:
+    """A short readable name: ``"EPSG:32632 (WGS 84 / UTM zone 32N)"`` or the CRS's name."""
+    c = parse_crs(crs)
+    auth = c.to_authority()
+    return f"{auth[0]}:{auth[1]} ({c.name})" if auth else c.name
+
+
+def transform_points(points, src_crs, dst_crs, *, allow_ballpark: bool = False) -> np.ndarray:
+    """Transform points (n, 2) or (n, 3) from ``src_crs`` to ``dst_crs`` with PROJ.
+
+    Axis order is always x/easting/longitude first (``always_xy``), whatever the CRS
+    definition says. ``allow_ballpark=False`` (default) refuses a transformation PROJ can
+    only do approximately (a "ballpark" datum shift without the grids or parameters it needs)
+    instead of returning coordinates metres off; points PROJ cannot transform raise.
+    """
+    pyproj = _pyproj()
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise InputError(f"points must have shape (n, 2) or (n, 3), got {pts.shape}")
+    src = parse_crs(src_crs, what="source crs")
+    dst = parse_crs(dst_crs, what="target crs")
+    try:
+        tr = pyproj.Transformer.from_crs(src, dst, always_xy=True, allow_ballpark=allow_ballpark)
+    except pyproj.exceptions.ProjError as exc:
+        raise InputError(
+            f"no transformation from {crs_name(src)} to {crs_name(dst)} without a ballpark "
+            f"datum shift ({exc}); allow it explicitly (allow_ballpark=True / --allow-ballpark) "
+            "or install the PROJ grids it needs"
+        ) from None
+    cols = [pts[:, i] for i in range(pts.shape[1])]
+    try:
+        out = tr.transform(*cols, errcheck=True)
+    except pyproj.exceptions.ProjError as exc:
+        raise InputError(f"PROJ could not transform the points: {exc}") from None
+    return np.column_stack(out)
+
+
+class ProjTransform:
+    """A PROJ coordinate operation as a photogeom transformation (``apply`` on (n, 3)).
+
+    Parameters
+    ----------
+    src_crs, dst_crs : str or pyproj.CRS
+        Source and target CRS (EPSG code, WKT, PROJ string). x/easting/longitude first.
+    allow_ballpark : bool
+        Accept an approximate ("ballpark") datum shift; refused by default.
+
+    Used by :func:`photogeom.io.transform_cloud`, which records ``target_crs`` in the output.
+    PROJ picks the most accurate operation available (``transformer.description`` says
+    which): this is the reference when a datum transformation by PROJ is asked for.
+    """
+
+    dim = 3
+    name = "proj"
+
+    def __init__(self, src_crs, dst_crs, *, allow_ballpark: bool = False) -> None:
+        pyproj = _pyproj()
+        self.source_crs = parse_crs(src_crs, what="source crs")
+        self.target_crs = parse_crs(dst_crs, what="target crs")
+        self._ballpark = bool(allow_ballpark)
+        try:
+            self.transformer = pyproj.Transformer.from_crs(
+                self.source_crs, self.target_crs, always_xy=True, allow_ballpark=allow_ballpark
+            )
+        except pyproj.exceptions.ProjError as exc:
+            raise InputError(
+                f"no transformation from {crs_name(self.source_crs)} to "
+                f"{crs_name(self.target_crs)} without a ballpark datum shift ({exc}); allow "
+                "it explicitly (allow_ballpark=True / --allow-ballpark)"
+            ) from None
+
+    def __getstate__(self) -> dict:
+        # rebuilt on the other side (Dask workers): PROJ objects are not shared
+        return {
+            "src": self.source_crs.to_wkt(),
+            "dst": self.target_crs.to_wkt(),
+            "ballpark": self._ballpark,
+        }
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["src"], state["dst"], allow_ballpark=state["ballpark"])
+
+    @property
+    def description(self) -> str:
+        """PROJ's name of the operation used."""
+        return self.transformer.description
+
+    def apply(self, points) -> np.ndarray:
+        """Transform points (n, 3) (or one point (3,))."""
+        pts, single = _points3(points, "points")
+        pyproj = _pyproj()
+        try:
+            out = self.transformer.transform(pts[:, 0], pts[:, 1], pts[:, 2], errcheck=True)
+        except pyproj.exceptions.ProjError as exc:
+            raise InputError(f"PROJ could not transform the points: {exc}") from None
+        res = np.column_stack(out)
+        return res[0] if single else res
+
+    __call__ = apply
+
+    def __repr__(self) -> str:
+        return f"ProjTransform({crs_name(self.source_crs)!r} -> {crs_name(self.target_crs)!r})"

@@ -1,0 +1,672 @@
+"""Out of core and distributed: Dask arrays and per-item jobs on ``dask.distributed``.
+
+* :func:`map_items` - run a function over many items (files, images) as Dask tasks on a
+  local cluster or a scheduler, with progress and per-item failures collected instead of
+  stopping the whole job;
+* :func:`transform_array` - apply a transformation to a ``dask.array`` of points (n, 3);
+* :func:`absolute_orientation` - the absolute orientation of two ``dask.array`` point sets
+  in one pass over the data (moments per block, merged exactly);
+* :func:`register_clouds` - absolute orientation of one LAS/LAZ cloud to another from
+  corresponding points, with check-pair statistics;
+* :func:`localize_files`, :func:`resect_images` - per-image jobs of a block (RPC
+  localisation in many files, space resection of many images) on :func:`map_items`;
+* :func:`scheduler_client` - the Dask client for a ``scheduler=`` value.
+
+``scheduler`` values (also ``--scheduler`` on the command line):
+
+=====================  ======================================================================
+``None``/``"local"``   a ``distributed.LocalCluster`` of processes on this machine (one
+                       single-threaded worker per core), started and closed by the call
+``"local:N"``          the same with N workers
+``"tcp://host:8786"``  an existing ``dask.distributed`` scheduler (a real cluster)
+``"threads"``          Dask's threaded scheduler in this process (no ``distributed``)
+``"sync"``             everything in this process, one item after another (debugging)
+=====================  ======================================================================
+
+Dask is an optional extra: ``pip install "photogeom[dask]"``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError, PhotogeomError
+
+__all__ = [
+    "CloudRegistration",
+    "ItemFailure",
+    "MapResult",
+    "absolute_orientation",
+    "localize_files",
+    "map_items",
+    "register_clouds",
+    "resect_images",
+    "scheduler_client",
+    "transform_array",
+]
+
+
+def _dask():
+    """``(dask.array, dask.delayed)``, or an error naming the extra to install."""
+    try:
+        import dask.array as da
+        from dask import delayed
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise PhotogeomError(
+            "out-of-core and distributed processing need Dask: pip install 'photogeom[dask]'"
+        ) from None
+    return da, delayed
+
+
+def _distributed():
+    try:
+        import distributed
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise PhotogeomError(
+            "a Dask cluster needs dask.distributed: pip install 'photogeom[dask]'"
+        ) from None
+    return distributed
+
+
+def _parse_scheduler(scheduler: str | None) -> tuple[str, Any]:
+    if scheduler is None or scheduler == "local":
+        return "local", None
+    if not isinstance(scheduler, str):
+        return "client", scheduler  # a distributed.Client given directly
+    s = scheduler.strip()
+    if s.startswith("local:"):
+        try:
+            n = int(s.split(":", 1)[1])
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise InputError(f"scheduler {scheduler!r}: 'local:N' needs a worker count N >= 1")
+        return "local", n
+    if s in ("threads", "sync", "synchronous"):
+        return "threads" if s == "threads" else "sync", None
+    if "://" in s or ":" in s:
+        return "address", s
+    raise InputError(
+        f"scheduler {scheduler!r}: give 'local', 'local:N', 'threads', 'sync' or a scheduler "
+        "address such as tcp://host:8786"
+    )
+
+
+@contextmanager
+def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
+    """A ``distributed.Client`` for ``scheduler`` (None for ``"threads"``/``"sync"``).
+
+    A local cluster is started for the duration of the ``with`` block and closed after it;
+    an address connects to a running scheduler (left running).
+    """
+    kind, arg = _parse_scheduler(scheduler)
+    if kind in ("threads", "sync"):
+        yield None
+        return
+    if kind == "client":
+        yield arg
+        return
+    distributed = _distributed()
+    if kind == "address":
+        try:
+            client = distributed.Client(arg, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise PhotogeomError(
+                f"cannot connect to the Dask scheduler at {arg} ({exc}); is it running? "
+                "(--scheduler local runs a cluster on this machine)"
+            ) from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = arg or max(1, os.cpu_count() or 1)
+    cluster = distributed.LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=40,
+    )
+    client = distributed.Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _compute(*collections, scheduler: str | None):
+    """``dask.compute`` on the scheduler named."""
+    import dask
+
+    kind, _ = _parse_scheduler(scheduler)
+    if kind in ("threads", "sync"):
+        return dask.compute(*collections, scheduler="threads" if kind == "threads" else "sync")
+    with scheduler_client(scheduler) as client:
+        return client.compute(list(collections), sync=True)
+
+
+# --- per-item jobs ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ItemFailure:
+    """One item whose function raised.
+
+    Attributes
+    ----------
+    index : int
+        Position in the input.
+    item : object
+        The item.
+    error : str
+        ``"ExceptionType: message"``.
+    traceback : str
+        The formatted traceback (from the worker).
+    """
+
+    index: int
+    item: Any
+    error: str
+    traceback: str
+
+
+@dataclass(frozen=True)
+class MapResult:
+    """Results of :func:`map_items`, in input order.
+
+    Attributes
+    ----------
+    results : list
+        ``func(item)`` per item; ``None`` where it failed.
+    failures : list of ItemFailure
+        The items that raised (sorted by index); empty when all succeeded.
+    elapsed : float
+        Wall time (s).
+    """
+
+    results: list
+    failures: list[ItemFailure]
+    elapsed: float
+
+    @property
+    def ok(self) -> bool:
+        """True when every item succeeded."""
+        return not self.failures
+
+    def raise_failures(self) -> None:
+        """Raise a :class:`PhotogeomError` listing the failures (the first five in full)."""
+        if self.failures:
+            lines = [f"  item {f.index} ({f.item!r}): {f.error}" for f in self.failures[:5]]
+            more = len(self.failures) - 5
+            raise PhotogeomError(
+                f"{len(self.failures)} of {len(self.results)} item(s) failed:\n"
+                + "\n".join(lines)
+                + (f"\n  ... and {more} more" if more > 0 else "")
+            )
+
+
+def _guarded(func: Callable, item: Any) -> tuple[bool, Any]:
+    """Run ``func(item)`` on a worker; an exception becomes data (so one bad file does not
+    stop the job)."""
+    try:
+        return True, func(item)
+    except Exception as exc:
+        return False, (f"{type(exc).__name__}: {exc}", traceback.format_exc())
+
+
+def map_items(
+    func: Callable[[Any], Any],
+    items: Sequence,
+    *,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    raise_on_failure: bool = False,
+) -> MapResult:
+    """Run ``func(item)`` for each item as a Dask task; collect results and failures.
+
+    Parameters
+    ----------
+    func : callable
+        A picklable function of one item (module-level function or ``functools.partial``);
+        it runs on the workers.
+    items : sequence
+        The work items (file names, image records, ...).
+    scheduler : str, optional
+        Where to run (see the module docstring): a local cluster by default, a scheduler
+        address for a real cluster, ``"threads"`` or ``"sync"`` in this process.
+    progress : callable(done, total), optional
+        Called as items finish (in completion order).
+    raise_on_failure : bool
+        Raise after all items ran if any failed (the message lists them); by default the
+        failures are returned in :attr:`MapResult.failures`.
+
+    Returns
+    -------
+    MapResult
+        Results in input order (``None`` for failed items) and the failures.
+    """
+    t0 = time.perf_counter()
+    items = list(items)
+    total = len(items)
+    outcomes: list = [None] * total
+    kind, _ = _parse_scheduler(scheduler)
+    if kind in ("threads", "sync"):
+        if kind == "sync":
+            for i, item in enumerate(items):
+                outcomes[i] = _guarded(func, item)
+                if progress is not None:
+                    progress(i + 1, total)
+        else:
+            from concurrent.futures import ThreadPoolExecutor, as_completed
+
+            with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
+                futs = {ex.submit(_guarded, func, it): i for i, it in enumerate(items)}
+                for done, fut in enumerate(as_completed(futs), 1):
+                    outcomes[futs[fut]] = fut.result()
+                    if progress is not None:
+                        progress(done, total)
+    elif total:
+        distributed = _distributed()
+        with scheduler_client(scheduler) as client:
+            futs = client.map(_guarded, [func] * total, items, pure=False)
+            index = {f.key: i for i, f in enumerate(futs)}
+            for done, fut in enumerate(distributed.as_completed(futs), 1):
+                outcomes[index[fut.key]] = fut.result()
+                if progress is not None:
+                    progress(done, total)
+    results: list = []
+    failures: list[ItemFailure] = []
+    for i, (ok, value) in enumerate(outcomes):
+        if ok:
+            results.append(value)
+        else:
+            results.append(None)
+            failures.append(ItemFailure(i, items[i], value[0], value[1]))
+    out = MapResult(results, failures, time.perf_counter() - t0)
+    if raise_on_failure:
+        out.raise_failures()
+    return out
+
+
+# --- dask arrays of points -------------------------------------------------------------------
+
+
+def _as_dask_points(arr, name: str):
+    da, _ = _dask()
+    if not isinstance(arr, da.Array):
+        # name=False: no hash of the whole array (seconds for 1e7 points)
+        arr = da.from_array(np.asarray(arr, dtype=float), chunks=(1_000_000, 3), name=False)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"{name} must have shape (n, 3), got {arr.shape}")
+    if len(arr.chunks[1]) != 1:
+        arr = arr.rechunk({1: 3})
+    return arr
+
+
+def transform_array(transform, points):
+    """``transform.apply`` over a ``dask.array`` of points (n, 3), block by block (lazy:
+    nothing is computed until the result is). Returns a ``dask.array`` of the same chunks."""
+    from .io.cloud import _as_apply
+
+    fn = _as_apply(transform)
+    pts = _as_dask_points(points, "points")
+    return pts.map_blocks(fn, dtype=float)
+
+
+def absolute_orientation(
+    source,
+    target,
+    *,
+    method: str = "svd",
+    with_scale: bool = True,
+    weights=None,
+    scale_method: str = "least-squares",
+    scheduler: str | None = "threads",
+    unit: str = "m",
+):
+    """Absolute orientation ``target ~ s R source + t`` of two ``dask.array`` point sets.
+
+    One pass over the data: each block pair gives its centred moments
+    (:func:`photogeom.orientation.absolute_chunked.chunk_moments`), merged exactly on the
+    client. Equal to ``photogeom.absolute_orientation(source, target, method=method,
+    statistics=False)`` on the same points to rounding (tests: 1e-12 relative).
+
+    Parameters
+    ----------
+    source, target : dask.array or numpy.ndarray, shape (n, 3)
+        Corresponding points (target is rechunked to the source's row blocks if needed).
+    method : {"svd", "quaternion", "dual-quaternion", "gauss-helmert"}
+    weights : dask.array or numpy.ndarray, shape (n,), optional
+    scheduler : str
+        See the module docstring; ``"threads"`` (this process) by default, ``"local"`` for a
+        local cluster of processes, or a scheduler address.
+
+    Returns
+    -------
+    AbsoluteOrientationFit
+        Parameters without statistics (covariance NaN, no per-point residuals);
+        ``extras["sum_squared_residuals"]`` from the moments.
+    """
+    from .orientation.absolute_chunked import (
+        MOMENT_METHODS,
+        chunk_moments,
+        fit_from_moments,
+        merge_moments,
+    )
+
+    t0 = time.perf_counter()
+    if method not in MOMENT_METHODS:
+        raise InputError(
+            f"method {method!r} needs all points at once; over dask arrays: "
+            f"{', '.join(MOMENT_METHODS)}"
+        )
+    _, delayed = _dask()
+    x = _as_dask_points(source, "source")
+    X = _as_dask_points(target, "target")
+    if x.shape[0] != X.shape[0]:
+        raise InputError(f"source has {x.shape[0]} points, target {X.shape[0]}: need pairs")
+    X = X.rechunk((x.chunks[0], 3))
+    xb = x.to_delayed().ravel()
+    Xb = X.to_delayed().ravel()
+    if weights is None:
+        parts = [delayed(chunk_moments)(a, b) for a, b in zip(xb, Xb)]
+    else:
+        da, _ = _dask()
+        w = (
+            weights
+            if isinstance(weights, da.Array)
+            else da.from_array(np.asarray(weights, dtype=float), name=False)
+        )
+        if w.shape != (x.shape[0],):
+            raise InputError(f"weights must have shape ({x.shape[0]},), got {w.shape}")
+        wb = w.rechunk((x.chunks[0],)).to_delayed().ravel()
+        parts = [delayed(chunk_moments)(a, b, c) for a, b, c in zip(xb, Xb, wb)]
+    # merge in a tree on the workers: only small tuples travel
+    while len(parts) > 1:
+        parts = [delayed(merge_moments)(parts[i : i + 16]) for i in range(0, len(parts), 16)]
+    (moments,) = _compute(parts[0], scheduler=scheduler)
+    return fit_from_moments(
+        moments,
+        int(x.shape[0]),
+        method=method,
+        with_scale=with_scale,
+        scale_method=scale_method,
+        unit=unit,
+        t0=t0,
+    )
+
+
+# --- registration of one cloud to another ------------------------------------------------------
+
+
+def _pair_block(src: str, dst: str, start: int, stop: int, check_every: int, want: str):
+    """Moments of the control pairs (``want="moments"``) or residual sums of the check pairs
+    (``want="checks"``, a tuple ``(count, sum v, sum v^2, max |v|)``) of points start:stop."""
+    from .io.cloud import read_cloud_xyz
+
+    x = read_cloud_xyz(src, start, stop)
+    X = read_cloud_xyz(dst, start, stop)
+    if check_every:
+        is_check = (np.arange(start, stop) % check_every) == 0
+    else:
+        is_check = np.zeros(stop - start, dtype=bool)
+    if want == "moments":
+        from .orientation.absolute_chunked import chunk_moments
+
+        return chunk_moments(x[~is_check], X[~is_check])
+    return x[is_check], X[is_check]
+
+
+def _check_sums(block, transform) -> tuple:
+    x, X = block
+    if x.shape[0] == 0:
+        return 0, np.zeros(3), np.zeros(3), 0.0
+    v = transform.apply(x) - X
+    return (
+        x.shape[0],
+        v.sum(axis=0),
+        (v * v).sum(axis=0),
+        float(np.sqrt((v * v).sum(axis=1)).max()),
+    )
+
+
+@dataclass(frozen=True)
+class CloudRegistration:
+    """Result of :func:`register_clouds`.
+
+    Attributes
+    ----------
+    fit : AbsoluteOrientationFit
+        From the control pairs (parameters, no per-point statistics).
+    n_control, n_check : int
+    check_rms : numpy.ndarray, shape (3,)
+        Per-axis RMS of the check-pair residuals (computed minus observed, target units).
+    check_rmse : float
+        Per-point RMSE ``sqrt(sum |v|^2 / n_check)``.
+    check_mean : numpy.ndarray, shape (3,)
+        Mean residual per axis (a systematic shift shows here).
+    check_max : float
+        Largest residual length.
+    control_rmse : float
+        ``sqrt(sum_squared_residuals / n_control)`` of the control pairs (from the moments).
+    crs_name : str or None
+        The CRS recorded in the target (reference) cloud: the system of the parameters'
+        output and of the residuals.
+    """
+
+    fit: Any
+    n_control: int
+    n_check: int
+    check_rms: np.ndarray
+    check_rmse: float
+    check_mean: np.ndarray
+    check_max: float
+    control_rmse: float
+    crs_name: str | None = None
+
+    def to_dict(self) -> dict:
+        """JSON-ready (NaN where there are no check pairs)."""
+        f = self.fit
+        return {
+            "method": f.method,
+            "scale": f.scale,
+            "rotation": np.asarray(f.rotation).tolist(),
+            "translation": np.asarray(f.translation).tolist(),
+            "angles_transposed_rad": [f.params[k] for k in ("omega", "phi", "kappa")],
+            "n_control": self.n_control,
+            "n_check": self.n_check,
+            "control_rmse": self.control_rmse,
+            "check_rmse": self.check_rmse,
+            "check_rms": self.check_rms.tolist(),
+            "check_mean": self.check_mean.tolist(),
+            "check_max": self.check_max,
+            "target_crs": self.crs_name,
+            "transform": f.transform.to_dict(),
+        }
+
+
+def register_clouds(
+    source,
+    target,
+    *,
+    method: str = "svd",
+    with_scale: bool = True,
+    check_every: int = 0,
+    chunk_size: int = 1_000_000,
+    scheduler: str | None = "threads",
+) -> CloudRegistration:
+    """Absolute orientation of the cloud ``source`` to ``target`` (LAS/LAZ files whose points
+    correspond one to one, in file order), out of core, with check-pair statistics.
+
+    Every ``check_every``-th pair (indices 0, k, 2k, ...) is kept out of the estimate and its
+    residuals are reported (``0``: no check pairs). Two passes over the files: the moments of
+    the control pairs, then the residuals of the check pairs (skipped without check pairs).
+    Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``.
+    """
+    from .io.cloud import _check_chunk, cloud_info
+    from .orientation.absolute_chunked import fit_from_moments, merge_moments
+
+    t0 = time.perf_counter()
+    _, delayed = _dask()
+    chunk_size = _check_chunk(chunk_size)
+    check_every = int(check_every)
+    if check_every < 0 or check_every == 1:
+        raise InputError(
+            f"check_every={check_every}: give 0 (no check pairs) or k >= 2 (every k-th pair)"
+        )
+    n = cloud_info(source).point_count
+    target_info = cloud_info(target)
+    m = target_info.point_count
+    if n != m:
+        raise InputError(
+            f"{source} has {n} points and {target} {m}: registration needs corresponding "
+            "points, the same count in the same order"
+        )
+    src, dst = str(source), str(target)
+    ranges = [(i, min(i + chunk_size, n)) for i in range(0, n, chunk_size)]
+    parts = [delayed(_pair_block)(src, dst, a, b, check_every, "moments") for a, b in ranges]
+    while len(parts) > 1:
+        parts = [delayed(merge_moments)(parts[i : i + 16]) for i in range(0, len(parts), 16)]
+    n_check = 0 if not check_every else len(range(0, n, check_every))
+    (moments,) = _compute(parts[0], scheduler=scheduler)
+    fit = fit_from_moments(moments, n - n_check, method=method, with_scale=with_scale, t0=t0)
+    if n_check:
+        T = fit.transform
+        sums = [
+            delayed(_check_sums)(delayed(_pair_block)(src, dst, a, b, check_every, "checks"), T)
+            for a, b in ranges
+        ]
+        (out,) = _compute(delayed(list)(sums), scheduler=scheduler)
+        cnt = sum(o[0] for o in out)
+        s1 = np.sum([o[1] for o in out], axis=0)
+        s2 = np.sum([o[2] for o in out], axis=0)
+        vmax = max(o[3] for o in out)
+        rms, rmse, mean = np.sqrt(s2 / cnt), float(np.sqrt(s2.sum() / cnt)), s1 / cnt
+    else:
+        rms = mean = np.full(3, np.nan)
+        rmse = vmax = float("nan")
+    ctrl = n - n_check
+    return CloudRegistration(
+        fit,
+        ctrl,
+        n_check,
+        rms,
+        rmse,
+        mean,
+        vmax,
+        float(np.sqrt(fit.extras["sum_squared_residuals"] / ctrl)),
+        target_info.crs_name,
+    )
+
+
+# --- per-image jobs of a block ----------------------------------------------------------------
+
+
+def _localize_one(item, options: dict):
+    path, (col, row, h) = item
+    from .rpc import RPC
+
+    lon, lat = RPC.from_file(path).localize(col, row, h, **options)
+    return np.asarray(lon), np.asarray(lat)
+
+
+def localize_files(
+    paths: Sequence,
+    points,
+    *,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    **options,
+) -> MapResult:
+    """RPC localisation in many image files, one Dask task per file.
+
+    Parameters
+    ----------
+    paths : sequence of path
+        RPC files (any format :meth:`photogeom.RPC.from_file` reads).
+    points : tuple (col, row, h) or sequence of such tuples
+        Image points (pixels, centre of the first pixel at (0, 0)) and ellipsoidal heights
+        (m): one tuple for all files, or one per file.
+    options
+        Passed to :meth:`photogeom.RPC.localize` (``tol``, ``max_iter``, ``on_failure``...).
+
+    Returns
+    -------
+    MapResult
+        ``results[i] = (lon, lat)`` (degrees) of file i; unreadable files and failed
+        localisations are in ``failures``.
+    """
+    paths = [str(p) for p in paths]
+    if isinstance(points, tuple) and len(points) == 3 and not isinstance(points[0], tuple):
+        per_file = [points] * len(paths)
+    else:
+        per_file = list(points)
+        if len(per_file) != len(paths):
+            raise InputError(
+                f"{len(per_file)} point sets for {len(paths)} files: give one (col, row, h) "
+                "for all files or one per file"
+            )
+    import functools
+
+    return map_items(
+        functools.partial(_localize_one, options=options),
+        list(zip(paths, per_file)),
+        scheduler=scheduler,
+        progress=progress,
+    )
+
+
+def _resect_one(item, io, options: dict):
+    from .orientation.resection import space_resection
+
+    ground, image, *rest = item
+    return space_resection(ground, image, rest[0] if rest else io, **options)
+
+
+def resect_images(
+    problems: Sequence,
+    io=None,
+    *,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    **options,
+):
+    """Space resection of many images, one Dask task per image.
+
+    Parameters
+    ----------
+    problems : sequence of (ground, image) or (ground, image, io)
+        Control points per image: object coordinates (n, 3) and image coordinates (n, 2),
+        optionally the image's own interior orientation.
+    io : InteriorOrientation, optional
+        Interior orientation of every image without its own.
+    options
+        Passed to :func:`photogeom.space_resection` (``system``, ``calibrate``, ...).
+
+    Returns
+    -------
+    MapResult
+        ``results[i]`` is the :class:`~photogeom.ResectionFit` of image i; images that fail
+        (too few points, no convergence, ...) are in ``failures``.
+    """
+    import functools
+
+    problems = list(problems)
+    if io is None and any(len(p) < 3 for p in problems):
+        raise InputError("give io= or an interior orientation with every image's points")
+    return map_items(
+        functools.partial(_resect_one, io=io, options=options),
+        problems,
+        scheduler=scheduler,
+        progress=progress,
+    )

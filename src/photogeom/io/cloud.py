@@ -1,0 +1,800 @@
+"""LAS/LAZ point clouds, chunk by chunk, with laspy (LAZ through the lazrs backend).
+
+* :func:`cloud_info` - the header of a file: point count, format, scales and offsets, bounds,
+  extra dimensions, CRS;
+* :func:`read_cloud_xyz` - coordinates (n, 3) of a file or of a slice of it;
+* :func:`iter_cloud_xyz` - coordinates chunk by chunk (memory bounded by the chunk);
+* :func:`transform_cloud` - apply any transformation to a file, chunk by chunk, keeping the
+  point format, every dimension (extra bytes too), the VLRs and the CRS record; scales kept,
+  offsets recomputed for the moved coordinates; written atomically;
+* :func:`cloud_dask_xyz` - a file's coordinates as a lazy ``dask.array`` (for
+  :mod:`photogeom.distributed`).
+
+laspy and lazrs are an optional extra: ``pip install "photogeom[cloud]"``.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import secrets
+import shutil
+import struct
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError, PhotogeomError
+
+#: Points per chunk unless ``chunk_size=`` says otherwise (about 30-60 MB of records).
+DEFAULT_CHUNK = 1_000_000
+_INT32 = 2**31 - 1
+
+
+def _laspy():
+    try:
+        import laspy
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise PhotogeomError(
+            "point clouds (LAS/LAZ) need laspy with the lazrs backend: "
+            "pip install 'photogeom[cloud]'"
+        ) from None
+    return laspy
+
+
+def _open_read(path, single_thread: bool = False):
+    """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
+    core each) instead of lazrs's parallel decoder."""
+    laspy = _laspy()
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"point cloud {p} does not exist")
+    try:
+        if single_thread:
+            return laspy.open(p, laz_backend=laspy.LazBackend.Lazrs)
+        return laspy.open(p)
+    except laspy.errors.LaspyException as exc:
+        raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
+
+
+@dataclass(frozen=True)
+class CloudInfo:
+    """What the header of a LAS/LAZ file says.
+
+    Attributes
+    ----------
+    path : str
+    point_count : int
+    point_format : int
+        LAS point data record format id.
+    version : str
+        LAS version, e.g. ``"1.4"``.
+    compressed : bool
+        LAZ.
+    scales, offsets : numpy.ndarray, shape (3,)
+        Stored integer ``X`` means ``X * scale + offset`` (m or the CRS unit).
+    mins, maxs : numpy.ndarray, shape (3,)
+        Bounds recorded in the header.
+    dimensions : tuple of str
+        Every dimension of a point record (standard and extra).
+    extra_dimensions : tuple of str
+        The extra-bytes dimensions.
+    crs : str or None
+        The CRS record (WKT or GeoTIFF keys) as WKT, None when the file has none.
+    crs_name : str or None
+        ``"EPSG:code (name)"`` or the CRS name.
+    """
+
+    path: str
+    point_count: int
+    point_format: int
+    version: str
+    compressed: bool
+    scales: np.ndarray
+    offsets: np.ndarray
+    mins: np.ndarray
+    maxs: np.ndarray
+    dimensions: tuple[str, ...]
+    extra_dimensions: tuple[str, ...]
+    crs: str | None = None
+    crs_name: str | None = None
+    vlrs: tuple[str, ...] = field(default=())
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {
+            "path": self.path,
+            "point_count": self.point_count,
+            "point_format": self.point_format,
+            "version": self.version,
+            "compressed": self.compressed,
+            "scales": self.scales.tolist(),
+            "offsets": self.offsets.tolist(),
+            "mins": self.mins.tolist(),
+            "maxs": self.maxs.tolist(),
+            "dimensions": list(self.dimensions),
+            "extra_dimensions": list(self.extra_dimensions),
+            "crs_name": self.crs_name,
+            "crs": self.crs,
+            "vlrs": list(self.vlrs),
+        }
+
+
+def _header_crs(header) -> tuple[str | None, str | None]:
+    try:
+        crs = header.parse_crs()
+    except Exception:
+        crs = None
+    if crs is None:
+        return None, None
+    auth = crs.to_authority()
+    return crs.to_wkt(), (f"{auth[0]}:{auth[1]} ({crs.name})" if auth else crs.name)
+
+
+def cloud_info(path) -> CloudInfo:
+    """Read the header of a LAS/LAZ file (no points are read)."""
+    with _open_read(path) as reader:
+        h = reader.header
+        wkt, name = _header_crs(h)
+        pf = h.point_format
+        return CloudInfo(
+            path=str(path),
+            point_count=int(h.point_count),
+            point_format=int(pf.id),
+            version=f"{h.version.major}.{h.version.minor}",
+            compressed=bool(h.are_points_compressed)
+            if hasattr(h, "are_points_compressed")
+            else str(path).lower().endswith(".laz"),
+            scales=np.array(h.scales, dtype=float),
+            offsets=np.array(h.offsets, dtype=float),
+            mins=np.array(h.mins, dtype=float),
+            maxs=np.array(h.maxs, dtype=float),
+            dimensions=tuple(pf.dimension_names),
+            extra_dimensions=tuple(pf.extra_dimension_names),
+            crs=wkt,
+            crs_name=name,
+            vlrs=tuple(type(v).__name__ for v in h.vlrs),
+        )
+
+
+def _xyz(points) -> np.ndarray:
+    out = np.empty((len(points), 3))
+    out[:, 0] = points.x
+    out[:, 1] = points.y
+    out[:, 2] = points.z
+    return out
+
+
+def iter_cloud_xyz(path, chunk_size: int = DEFAULT_CHUNK) -> Iterator[np.ndarray]:
+    """Coordinates (m, 3) of a LAS/LAZ file, ``chunk_size`` points at a time."""
+    chunk_size = _check_chunk(chunk_size)
+    with _open_read(path) as reader:
+        for pts in reader.chunk_iterator(chunk_size):
+            yield _xyz(pts)
+
+
+def read_cloud_xyz(path, start: int = 0, stop: int | None = None) -> np.ndarray:
+    """Coordinates (n, 3) of points ``start:stop`` of a LAS/LAZ file (all by default)."""
+    with _open_read(path) as reader:
+        n = reader.header.point_count
+        stop = n if stop is None else min(int(stop), n)
+        start = int(start)
+        if not 0 <= start <= stop:
+            raise InputError(f"point range {start}:{stop} outside 0:{n}")
+        if start:
+            reader.seek(start)
+        return _xyz(reader.read_points(stop - start))
+
+
+def _check_chunk(chunk_size) -> int:
+    c = int(chunk_size)
+    if c < 1:
+        raise InputError(f"chunk_size must be >= 1 point, got {chunk_size}")
+    return c
+
+
+def _as_apply(transform) -> Callable[[np.ndarray], np.ndarray]:
+    """``apply`` of a transformation, of a Fit (its ``transform``), or a callable."""
+    if hasattr(transform, "apply"):
+        fn = transform.apply
+    elif hasattr(transform, "transform") and hasattr(transform.transform, "apply"):
+        fn = transform.transform.apply
+    elif callable(transform):
+        fn = transform
+    else:
+        raise InputError(
+            "transform must be a photogeom transformation (an object with apply), a Fit, "
+            f"or a function of (n, 3) points; got {type(transform).__name__}"
+        )
+    dim = getattr(transform, "dim", 3)
+    if dim != 3:
+        raise InputError(f"point clouds need a 3D transformation; this one is {dim}D")
+    return fn
+
+
+def _affine_like(transform) -> bool:
+    """True when the transformation maps boxes into the box of their corners' images."""
+    name = getattr(transform, "name", "")
+    if not name and hasattr(transform, "transform"):
+        name = getattr(transform.transform, "name", "")
+    return name in ("similarity3d", "rigid3d", "affine3d") or bool(
+        getattr(transform, "affine", False)
+    )
+
+
+def _corners(mins: np.ndarray, maxs: np.ndarray) -> np.ndarray:
+    idx = np.array([[i >> k & 1 for k in range(3)] for i in range(8)], dtype=bool)
+    return np.where(idx, maxs, mins)
+
+
+def _new_offsets(lo: np.ndarray, hi: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """Offsets at the centre of the output bounds, rounded to a round number (a whole
+    multiple of ``1000 * scale`` so that offsets stay readable), checked against int32."""
+    centre = 0.5 * (lo + hi)
+    step = scales * 1000.0
+    off = np.round(centre / step) * step
+    span = np.maximum(np.abs(hi - off), np.abs(lo - off)) / scales
+    if np.any(span > _INT32):
+        raise InputError(
+            f"the transformed coordinates span {(hi - lo).tolist()} which the scales "
+            f"{scales.tolist()} cannot store in 32-bit integers; pass larger scales "
+            "(scales= / --scales)"
+        )
+    return off
+
+
+@contextmanager
+def _atomic_target(dst: Path):
+    """A temporary path beside ``dst``, fsynced and renamed over it when the ``with`` block
+    succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
+    ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
+    file) for files written by a library that needs a path."""
+    from ..atomicfile import _destination, _failure, _fsync_directory
+
+    given, target = _destination(dst)
+    directory = target.parent if str(target.parent) else Path(".")
+    try:
+        mode = target.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        mode = None
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+        try:
+            fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask, as open() does
+            break
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+    else:  # pragma: no cover - 100 collisions of 48 random bits
+        raise PhotogeomError(f"cannot write {given}: no free temporary file name")
+    try:
+        if mode is not None and hasattr(os, "fchmod"):
+            os.fchmod(fd, mode)
+        os.close(fd)
+        yield tmp
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, target)
+        _fsync_directory(directory)
+    except PhotogeomError:
+        _unlink(tmp)
+        raise
+    except OSError as exc:
+        _unlink(tmp)
+        raise _failure(given, exc) from exc
+    except BaseException:
+        _unlink(tmp)
+        raise
+
+
+def _unlink(path: Path) -> None:
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
+
+
+@dataclass(frozen=True)
+class CloudTransformResult:
+    """What :func:`transform_cloud` wrote.
+
+    Attributes
+    ----------
+    path : str
+    point_count : int
+    scales, offsets : numpy.ndarray, shape (3,)
+        Of the output file.
+    mins, maxs : numpy.ndarray, shape (3,)
+        Bounds of the output points.
+    crs_name : str or None
+        CRS recorded in the output.
+    chunks : int
+        Chunks processed.
+    passes : int
+        Passes over the input (1, or 2 when the output bounds of a non-affine
+        transformation had to be found first).
+    """
+
+    path: str
+    point_count: int
+    scales: np.ndarray
+    offsets: np.ndarray
+    mins: np.ndarray
+    maxs: np.ndarray
+    crs_name: str | None
+    chunks: int
+    passes: int
+
+
+def output_header(src_header, transform, scales=None, crs=None, bounds=None):
+    """The header of a transformed copy: the source header (point format, version, VLRs,
+    extra dimensions, CRS record) with the given or kept scales, offsets recomputed from the
+    output bounds (``bounds`` = (lo, hi), else the transformed corners of the source box of
+    an affine-like transformation), and ``crs`` (a pyproj-readable CRS) replacing the CRS
+    record when given."""
+    h = src_header.copy() if hasattr(src_header, "copy") else src_header
+    sc = np.array(h.scales if scales is None else scales, dtype=float)
+    if sc.shape != (3,) or not np.all(sc > 0):
+        raise InputError(f"scales must be three positive numbers, got {scales}")
+    if bounds is None:
+        fn = _as_apply(transform)
+        img = fn(_corners(np.array(h.mins), np.array(h.maxs)))
+        bounds = (img.min(axis=0), img.max(axis=0))
+    lo, hi = (np.asarray(b, dtype=float) for b in bounds)
+    h.scales = sc
+    h.offsets = _new_offsets(lo, hi, sc)
+    if crs is not None:
+        from ..crs import parse_crs
+
+        h.add_crs(parse_crs(crs, what="crs"))
+    return h
+
+
+def _quantise(values: np.ndarray, offset: float, scale: float, axis: str) -> np.ndarray:
+    q = np.rint((values - offset) / scale)
+    if not np.all(np.isfinite(q)) or np.any(np.abs(q) > _INT32):
+        raise InputError(
+            f"transformed {axis} coordinates do not fit the output scale/offset "
+            f"({scale}/{offset}) or are not finite; pass larger scales (scales= / --scales)"
+        )
+    return q.astype(np.int32)
+
+
+def _rewrite(points, fn, scales, offsets) -> None:
+    """Transform a chunk of points in place into the output scales and offsets."""
+    out = fn(_xyz(points))
+    if out.shape != (len(points), 3):
+        raise InputError(f"the transformation returned shape {out.shape} for {len(points)} points")
+    points.X = _quantise(out[:, 0], offsets[0], scales[0], "x")
+    points.Y = _quantise(out[:, 1], offsets[1], scales[1], "y")
+    points.Z = _quantise(out[:, 2], offsets[2], scales[2], "z")
+    points.scales = scales
+    points.offsets = offsets
+
+
+def transform_cloud(
+    src,
+    dst,
+    transform,
+    chunk_size: int = DEFAULT_CHUNK,
+    *,
+    scales=None,
+    crs=None,
+    progress: Callable[[int, int], None] | None = None,
+    scheduler: str | None = None,
+) -> CloudTransformResult:
+    """Transform the points of a LAS/LAZ file into a new file, ``chunk_size`` points at a time.
+
+    Parameters
+    ----------
+    src, dst : str or path
+        Input and output LAS/LAZ files (compression from ``dst``'s suffix ``.laz``). ``dst``
+        is written to a temporary file beside it and renamed when complete.
+    transform : transformation
+        Anything with ``apply((n, 3)) -> (n, 3)``: a photogeom transformation
+        (``Similarity3D``, ``Affine3D``, ``Projective3D``, ``Polynomial3D``, ...), a
+        ``Fit`` (its ``transform``), :class:`photogeom.crs.ProjTransform` (a PROJ
+        coordinate operation; its target CRS is then recorded), or a function.
+    chunk_size : int
+        Points per chunk; memory use is proportional to it (~100 bytes per point), not to
+        the file.
+    scales : sequence of 3 floats, optional
+        Output coordinate resolution; default: the input's.
+    crs : str, optional
+        CRS to record in the output (EPSG code, WKT, PROJ string); default: the
+        transformation's ``target_crs`` if it has one, else the input's record unchanged.
+    progress : callable(done, total), optional
+        Called after each chunk with points done and total.
+    scheduler : str, optional
+        None (default): in this process, chunk after chunk. Otherwise the pieces of the file
+        are Dask tasks (:func:`transform_cloud_dask`): ``"local"``, ``"local:N"``, a
+        scheduler address, ``"threads"``; the output is the same.
+
+    Notes
+    -----
+    Kept: point format and LAS version, every dimension including extra bytes, all VLRs
+    and EVLRs the writer supports, the CRS record (unless replaced). Offsets are
+    recomputed from the bounds of the output (the transformed corners of the input box for
+    affine transformations; a first pass over the points for others), scales are kept, and
+    coordinates are rounded to the scale like any LAS writer does.
+    """
+    if scheduler is not None:
+        return transform_cloud_dask(
+            src,
+            dst,
+            transform,
+            chunk_size,
+            scheduler=scheduler,
+            scales=scales,
+            crs=crs,
+            progress=progress,
+        )
+    laspy = _laspy()
+    chunk_size = _check_chunk(chunk_size)
+    fn = _as_apply(transform)
+    src = Path(src)
+    dst = Path(dst)
+    if dst.resolve() == src.resolve():
+        raise InputError(f"output {dst} is the input file; write to a new file")
+    if crs is None:
+        crs = getattr(transform, "target_crs", None)
+    passes = 1
+    bounds = None
+    with _open_read(src) as reader:
+        n = int(reader.header.point_count)
+        if not _affine_like(transform):
+            lo = np.full(3, np.inf)
+            hi = np.full(3, -np.inf)
+            for pts in reader.chunk_iterator(chunk_size):
+                out = fn(_xyz(pts))
+                lo = np.minimum(lo, out.min(axis=0))
+                hi = np.maximum(hi, out.max(axis=0))
+            passes = 2
+            bounds = (lo, hi) if n else (np.zeros(3), np.zeros(3))
+        header = output_header(reader.header, transform, scales, crs, bounds)
+    sc = np.array(header.scales, dtype=float)
+    off = np.array(header.offsets, dtype=float)
+    compress = dst.suffix.lower() == ".laz"
+    chunks = 0
+    done = 0
+    with _atomic_target(dst) as tmp:
+        with (
+            _open_read(src) as reader,
+            laspy.open(tmp, mode="w", header=header, do_compress=compress) as writer,
+        ):
+            for pts in reader.chunk_iterator(chunk_size):
+                _rewrite(pts, fn, sc, off)
+                writer.write_points(pts)
+                chunks += 1
+                done += len(pts)
+                if progress is not None:
+                    progress(done, n)
+    info = cloud_info(dst)
+    return CloudTransformResult(
+        str(dst),
+        info.point_count,
+        info.scales,
+        info.offsets,
+        info.mins,
+        info.maxs,
+        info.crs_name,
+        chunks,
+        passes,
+    )
+
+
+def write_cloud(
+    path,
+    xyz,
+    *,
+    scales=(0.001, 0.001, 0.001),
+    offsets=None,
+    crs=None,
+    point_format: int = 6,
+    version: str = "1.4",
+    extra: dict | None = None,
+) -> Path:
+    """Write points (n, 3) to a new LAS/LAZ file (atomically), e.g. a generated test cloud.
+
+    ``extra`` maps names to (n,) arrays written as extra-bytes dimensions (their dtype).
+    """
+    laspy = _laspy()
+    xyz = np.asarray(xyz, dtype=float)
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise InputError(f"points must have shape (n, 3), got {xyz.shape}")
+    header = laspy.LasHeader(point_format=point_format, version=version)
+    for name, values in (extra or {}).items():
+        header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=np.asarray(values).dtype))
+    header.scales = np.array(scales, dtype=float)
+    if offsets is None:
+        offsets = np.floor(xyz.min(axis=0)) if len(xyz) else np.zeros(3)
+    header.offsets = np.array(offsets, dtype=float)
+    if crs is not None:
+        from ..crs import parse_crs
+
+        header.add_crs(parse_crs(crs, what="crs"))
+    las = laspy.LasData(header)
+    las.x = xyz[:, 0]
+    las.y = xyz[:, 1]
+    las.z = xyz[:, 2]
+    for name, values in (extra or {}).items():
+        las[name] = values
+    p = Path(path)
+    with _atomic_target(p) as tmp:
+        with open(tmp, "wb") as fh:  # a stream: laspy then honours do_compress
+            las.write(fh, do_compress=p.suffix.lower() == ".laz")
+    return p
+
+
+def cloud_dask_xyz(path, chunk_size: int = DEFAULT_CHUNK):
+    """The coordinates of a LAS/LAZ file as a lazy ``dask.array`` (n, 3), one block per
+    ``chunk_size`` points, each read (seeking in the file) when computed."""
+    from ..distributed import _dask
+
+    da, delayed = _dask()
+    chunk_size = _check_chunk(chunk_size)
+    n = cloud_info(path).point_count
+    blocks = [
+        da.from_delayed(
+            delayed(read_cloud_xyz, pure=True)(str(path), i, min(i + chunk_size, n)),
+            shape=(min(i + chunk_size, n) - i, 3),
+            dtype=float,
+        )
+        for i in range(0, n, chunk_size)
+    ]
+    if not blocks:
+        return da.zeros((0, 3), chunks=(1, 3))
+    return da.concatenate(blocks, axis=0)
+
+
+# --- the same job as Dask tasks ---------------------------------------------------------------
+
+#: Points per chunk of laspy's LAZ writer (lazrs default); pieces written by separate tasks
+#: are whole multiples of it so that their chunk tables join into one file.
+LAZ_CHUNK = 50_000
+_COPY_BLOCK = 1 << 24
+
+
+def _piece_bounds(src: str, start: int, stop: int, transform, chunk_size: int):
+    """Bounds (lo, hi) of the transformed points start:stop (first pass of a non-affine
+    transformation)."""
+    fn = _as_apply(transform)
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    with _open_read(src, single_thread=True) as reader:
+        reader.seek(start)
+        left = stop - start
+        while left > 0:
+            pts = reader.read_points(min(chunk_size, left))
+            left -= len(pts)
+            out = fn(_xyz(pts))
+            lo = np.minimum(lo, out.min(axis=0))
+            hi = np.maximum(hi, out.max(axis=0))
+    return lo, hi
+
+
+def _write_piece(
+    src: str, part: str, start: int, stop: int, transform, header, chunk_size: int, compress: bool
+) -> int:
+    """Transform points start:stop of ``src`` into the complete LAS/LAZ file ``part``."""
+    laspy = _laspy()
+    fn = _as_apply(transform)
+    sc = np.array(header.scales, dtype=float)
+    off = np.array(header.offsets, dtype=float)
+    with (
+        _open_read(src, single_thread=True) as reader,
+        laspy.open(
+            part,
+            mode="w",
+            header=header,
+            do_compress=compress,
+            laz_backend=laspy.LazBackend.Lazrs if compress else None,
+        ) as writer,
+    ):
+        reader.seek(start)
+        left = stop - start
+        while left > 0:
+            pts = reader.read_points(min(chunk_size, left))
+            left -= len(pts)
+            _rewrite(pts, fn, sc, off)
+            writer.write_points(pts)
+    return stop - start
+
+
+def _laz_vlr(raw: bytes):
+    """The LASzip VLR of a file's header bytes."""
+    import lazrs
+
+    pos = struct.unpack_from("<H", raw, 94)[0]
+    for _ in range(struct.unpack_from("<I", raw, 100)[0]):
+        uid = raw[pos + 2 : pos + 18].rstrip(b"\0")
+        ln = struct.unpack_from("<H", raw, pos + 20)[0]
+        if uid == b"laszip encoded":
+            return lazrs.LazVlr(raw[pos + 54 : pos + 54 + ln])
+        pos += 54 + ln
+    raise FileFormatError("LAZ piece without a LASzip VLR")  # pragma: no cover
+
+
+def _copy(fin, fout, nbytes: int) -> None:
+    while nbytes > 0:
+        block = fin.read(min(_COPY_BLOCK, nbytes))
+        if not block:
+            raise FileFormatError("a piece of the output ended early")  # pragma: no cover
+        fout.write(block)
+        nbytes -= len(block)
+
+
+def _merge_pieces(parts: list[Path], out: Path, compress: bool) -> None:
+    """Join complete LAS/LAZ files written with one header into one file: the header of the
+    first with the counts, per-return counts and bounds of all; the point data one after the
+    other (LAZ: the compressed chunks, and one chunk table for all)."""
+    laspy = _laspy()
+    heads = []
+    for p in parts:
+        with laspy.open(p) as r:
+            heads.append(r.header)
+    total = sum(int(h.point_count) for h in heads)
+    by_return = np.sum(
+        [np.asarray(h.number_of_points_by_return, dtype=np.int64) for h in heads if h.point_count],
+        axis=0,
+    )
+    mins = np.min([h.mins for h in heads if h.point_count], axis=0)
+    maxs = np.max([h.maxs for h in heads if h.point_count], axis=0)
+    with open(parts[0], "rb") as f0:
+        start = struct.unpack_from("<I", f0.read(100), 96)[0]
+        f0.seek(0)
+        raw = bytearray(f0.read(start))
+    minor = raw[25]
+    rec_len = struct.unpack_from("<H", raw, 105)[0]
+    if struct.unpack_from("<I", raw, 107)[0] or total == 0:
+        legacy = total if total <= 0xFFFFFFFF and raw[104] < 6 else 0
+        struct.pack_into("<I", raw, 107, legacy)
+        if legacy:
+            struct.pack_into("<5I", raw, 111, *[int(v) for v in by_return[:5]])
+    struct.pack_into("<6d", raw, 179, maxs[0], mins[0], maxs[1], mins[1], maxs[2], mins[2])
+    if minor >= 4:
+        struct.pack_into("<Q", raw, 247, total)
+        br = np.zeros(15, dtype=np.int64)
+        br[: by_return.size] = by_return[:15]
+        struct.pack_into("<15Q", raw, 255, *[int(v) for v in br])
+    with open(out, "wb") as fo:
+        fo.write(raw)
+        if compress:
+            import lazrs
+
+            vlr = _laz_vlr(bytes(raw))
+            fo.write(b"\0" * 8)  # offset to the chunk table, filled in below
+            table = []
+            for p, h in zip(parts, heads):
+                if not h.point_count:
+                    continue
+                with open(p, "rb") as fi:
+                    fi.seek(start)
+                    entries = lazrs.read_chunk_table(fi, vlr)  # leaves fi at the first chunk
+                    _copy(fi, fo, sum(int(e[1]) for e in entries))
+                    table.extend(entries)
+            at = fo.tell()
+            lazrs.write_chunk_table(fo, table, vlr)
+            fo.seek(start)
+            fo.write(struct.pack("<q", at))
+        else:
+            for p, h in zip(parts, heads):
+                with open(p, "rb") as fi:
+                    fi.seek(start)
+                    _copy(fi, fo, int(h.point_count) * rec_len)
+        fo.flush()
+        os.fsync(fo.fileno())
+
+
+def transform_cloud_dask(
+    src,
+    dst,
+    transform,
+    chunk_size: int = DEFAULT_CHUNK,
+    *,
+    scheduler: str | None = None,
+    scales=None,
+    crs=None,
+    progress: Callable[[int, int], None] | None = None,
+) -> CloudTransformResult:
+    """:func:`transform_cloud` as Dask tasks: each task transforms a piece of the file into
+    a complete LAS/LAZ file of its own (pieces are whole multiples of the LAZ chunk of 50 000
+    points), and the pieces are joined into ``dst`` without recompression (one chunk table).
+
+    ``scheduler`` as in :mod:`photogeom.distributed` (a local cluster by default); every
+    worker must see ``src`` and the directory of ``dst`` (a shared file system on a real
+    cluster). The output equals :func:`transform_cloud`'s point for point (same header
+    fields, VLRs and integers; only the optional min/max statistics of extra-bytes
+    descriptors, which laspy's writer updates per written chunk, can differ); the pieces
+    take as much disk space as the output until they are joined.
+    ``progress(done, total)`` counts points of finished pieces. Files with extended VLRs
+    (EVLRs, LAS 1.4) are refused: use :func:`transform_cloud`.
+    """
+    from ..distributed import map_items
+
+    chunk_size = _check_chunk(chunk_size)
+    _as_apply(transform)
+    src = Path(src)
+    dst = Path(dst)
+    if dst.resolve() == src.resolve():
+        raise InputError(f"output {dst} is the input file; write to a new file")
+    if crs is None:
+        crs = getattr(transform, "target_crs", None)
+    compress = dst.suffix.lower() == ".laz"
+    with _open_read(src) as reader:
+        n = int(reader.header.point_count)
+        if getattr(reader.header, "number_of_evlrs", 0) or reader.evlrs:
+            raise InputError(
+                f"{src} has extended VLRs (EVLRs), which the joined pieces would drop; "
+                "transform it without a scheduler"
+            )
+        src_header = reader.header
+    piece = max(LAZ_CHUNK, -(-chunk_size // LAZ_CHUNK) * LAZ_CHUNK)
+    ranges = [(i, min(i + piece, n)) for i in range(0, n, piece)] or [(0, 0)]
+    passes = 1
+    bounds = None
+    if not _affine_like(transform):
+        res = map_items(
+            functools.partial(_bounds_item, str(src), transform, chunk_size),
+            ranges,
+            scheduler=scheduler,
+            raise_on_failure=True,
+        )
+        lo = np.min([r[0] for r in res.results], axis=0)
+        hi = np.max([r[1] for r in res.results], axis=0)
+        bounds = (lo, hi) if n else (np.zeros(3), np.zeros(3))
+        passes = 2
+    header = output_header(src_header, transform, scales, crs, bounds)
+    directory = dst.parent if str(dst.parent) else Path(".")
+    if not directory.is_dir():
+        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{dst.name}.pieces.", dir=directory))
+    try:
+        parts = [tmpdir / f"piece-{k:06d}{dst.suffix}" for k in range(len(ranges))]
+        items = [(str(p), a, b) for p, (a, b) in zip(parts, ranges)]
+
+        def _progress(k: int, total: int) -> None:
+            if progress is not None:
+                progress(min(n, k * piece), n)
+
+        map_items(
+            functools.partial(_piece_item, str(src), transform, header, chunk_size, compress),
+            items,
+            scheduler=scheduler,
+            progress=_progress,
+            raise_on_failure=True,
+        )
+        with _atomic_target(dst) as tmp:
+            _merge_pieces(parts, tmp, compress)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+    info = cloud_info(dst)
+    return CloudTransformResult(
+        str(dst),
+        info.point_count,
+        info.scales,
+        info.offsets,
+        info.mins,
+        info.maxs,
+        info.crs_name,
+        len(ranges),
+        passes,
+    )
+
+
+def _bounds_item(src, transform, chunk_size, rng):
+    return _piece_bounds(src, rng[0], rng[1], transform, chunk_size)
+
+
+def _piece_item(src, transform, header, chunk_size, compress, item):
+    part, a, b = item
+    return _write_piece(src, part, a, b, transform, header, chunk_size, compress)
