@@ -3,10 +3,10 @@
 Each trial draws new image noise, new surveyed coordinates of the control points and new
 GNSS/IMU observations (all with their standard deviations), adjusts the same block from the
 same start, and records the calibration, one image's exterior orientation and one tie point.
-Printed: the ratio of the Monte-Carlo spread to the mean reported standard deviation (1 is right; the sampling error
-of a spread from N trials is about 1/sqrt(2N)), the mean sigma0^2 (1 is right), and for a
-second experiment with wrong a-priori sigmas the variance components against the true
-sigmas.
+Printed: the ratio of the Monte-Carlo spread to the mean reported standard deviation (1 is
+right; the sampling error of a spread from N trials is about 1/sqrt(2N)), the mean sigma0^2
+(1 is right), and for a second experiment with wrong a-priori sigmas the variance
+components against the true sigmas.
 
     python benchmarks/bundle_montecarlo.py [--trials 400] [--preset FC300S]
 """
