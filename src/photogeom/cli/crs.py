@@ -9,11 +9,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from ..errors import InputError
-from ..io import format_points_csv, read_points
 from ._common import IdColOpt, OutputCsvOpt, emit_points, split_names, split_numbers
 
 app = typer.Typer(
@@ -55,7 +53,10 @@ def convert(
     """Convert the points of a CSV between CRSs; geographic coordinates are lon,lat[,h] in
     degrees (x first), a local frame 'enu' is east, north, up in metres at --origin on
     WGS 84 (through geocentric WGS 84, EPSG:4978)."""
+    import numpy as np
+
     from .. import crs as _crs
+    from ..io import format_points_csv, read_points
 
     table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
     xyz = table.coords
