@@ -33,10 +33,11 @@ def main() -> None:
     ctrl = truth.role == "control"
     sig = truth.observations.sigma
     gid = truth.camera_ids[0].item()
-    tie = int(np.flatnonzero(truth.role == "tie")[0])
+    ties = np.flatnonzero(truth.role == "tie")
+    tie = int(ties[0])
     img = 3
     names = ["f", "cx", "cy", "k1", "p1"]
-    est, std, s02 = [], [], []
+    est, std, s02, pts, pstd = [], [], [], [], []
     t0 = time.perf_counter()
     for k in range(a.trials):
         rng = np.random.default_rng(10_000 + k)
@@ -53,6 +54,8 @@ def main() -> None:
         est.append([c[n] for n in names] + list(r.block.exterior[img]) + list(r.block.xyz[tie]))
         std.append([cs[n] for n in names] + list(r.exterior_std[img]) + list(r.point_std[tie]))
         s02.append(r.sigma0**2)
+        pts.append(r.block.xyz[ties])
+        pstd.append(r.point_std[ties])
     dt = time.perf_counter() - t0
     labels = [*names, "X0", "Y0", "Z0", "omega", "phi", "kappa", "X", "Y", "Z"]
     ratio = np.std(est, axis=0, ddof=1) / np.mean(std, axis=0)
@@ -60,6 +63,12 @@ def main() -> None:
     print(f"expected sampling error of each ratio: {1 / np.sqrt(2 * a.trials):.3f}")
     for n, q in zip(labels, ratio):
         print(f"  spread / reported std  {n:>6}: {q:.3f}")
+    pr = np.std(pts, axis=0, ddof=1) / np.mean(pstd, axis=0)
+    print(
+        f"all {ties.size} tie points, spread / reported std: mean X {pr[:, 0].mean():.3f}, "
+        f"Y {pr[:, 1].mean():.3f}, Z {pr[:, 2].mean():.3f} (one point's ratio scatters by "
+        f"about {1 / np.sqrt(2 * a.trials):.3f})"
+    )
     print(f"mean sigma0^2: {np.mean(s02):.4f}")
     # variance components: true tie sigma 0.8 px and GNSS 0.02 m against a-priori 0.5 / 0.05
     rng = np.random.default_rng(1)
