@@ -175,6 +175,7 @@ __all__ = [
     "block_start",
     "bundle",
     "bundle_adjust",
+    "calibration",
     "camera",
     "camera_matrix",
     "compare_absolute_methods",
@@ -231,3 +232,13 @@ __all__ = [
     "write_metashape_xml",
     "write_rpc",
 ]
+
+
+def __getattr__(name: str):
+    """Sub-packages loaded on first use (``pg.calibration``), to keep ``import photogeom``
+    light."""
+    if name == "calibration":
+        import importlib
+
+        return importlib.import_module(f"{__name__}.calibration")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

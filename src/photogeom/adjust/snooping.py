@@ -59,6 +59,15 @@ class SnoopingResult:
         }
 
 
+def w_critical_value(alpha: float) -> float:
+    """Critical value of Baarda's w-test (standard normal, two-sided) at level ``alpha``."""
+    from scipy import stats  # imported here: scipy.stats is slow to import
+
+    if not 0 < alpha < 1:
+        raise InputError(f"alpha must be in (0, 1), got {alpha}")
+    return float(stats.norm.ppf(1 - alpha / 2))
+
+
 def tau_critical_value(alpha: float, redundancy: int) -> float:
     """Critical value of Pope's tau distribution (two-sided), ``r > 1``."""
     from scipy import stats  # imported here: scipy.stats is slow to import
@@ -94,12 +103,10 @@ def data_snooping(
         )
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
-    from scipy import stats  # imported here: scipy.stats is slow to import
-
     w = np.asarray(adjustment.normalized_residuals, dtype=float)
     if sigma == "prior":
         stat, test = w, "w"
-        crit = float(stats.norm.ppf(1 - alpha / 2))
+        crit = w_critical_value(alpha)
     elif sigma == "posterior":
         s0 = adjustment.sigma0
         if not np.isfinite(s0) or s0 == 0:

@@ -26,6 +26,7 @@ _GROUPS = (
     ("orient", "orient"),
     ("camera", "camera"),
     ("rpc", "rpc"),
+    ("grid", "grid"),
     ("examples", "examples"),
 )
 

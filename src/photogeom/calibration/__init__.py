@@ -1,0 +1,48 @@
+"""Finite-element residual grids: image-variant local distortions of UAV cameras.
+
+After a bundle adjustment with Brown self-calibration, the image residuals (computed minus
+observed, px) of each image are modelled by a regular grid of correction vectors with
+bilinear interpolation; the field corrects image coordinates and images.
+
+* :func:`fit_grid`, :func:`fit_grids` - the finite-element fit of one image / many images;
+* :class:`ResidualGrid` - the result: nodes, standard deviations, support, statistics;
+* :func:`correct_points`, :func:`correct_observations`, :func:`correct_image`,
+  :func:`correct_image_file`, :func:`correct_folder` - apply the field;
+* :func:`compare_residuals`, :func:`choose_spacing`, :func:`most_frequent_spacing` -
+  evaluation on arrays (:mod:`photogeom.calibration.evaluate`);
+* :func:`save_grids`, :func:`load_grids` - the grids file (NPZ or JSON).
+"""
+
+from .correction import correct_image, correct_observations, correct_points, field_at_pixels
+from .evaluate import (
+    choose_spacing,
+    compare_residuals,
+    min_max_normalise,
+    most_frequent_spacing,
+    residual_statistics,
+)
+from .grid import FiniteElementSystem, GridLayout, ResidualGrid, fit_grid, fit_grids
+from .gridfile import load_grids, save_grids
+from .images import FolderResult, correct_folder, correct_image_file
+
+__all__ = [
+    "FiniteElementSystem",
+    "FolderResult",
+    "GridLayout",
+    "ResidualGrid",
+    "choose_spacing",
+    "compare_residuals",
+    "correct_folder",
+    "correct_image",
+    "correct_image_file",
+    "correct_observations",
+    "correct_points",
+    "field_at_pixels",
+    "fit_grid",
+    "fit_grids",
+    "load_grids",
+    "min_max_normalise",
+    "most_frequent_spacing",
+    "residual_statistics",
+    "save_grids",
+]

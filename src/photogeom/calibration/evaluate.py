@@ -1,0 +1,166 @@
+"""Evaluation of residual grids on arrays: residual statistics and the choice of spacing.
+
+* :func:`residual_statistics` / :func:`compare_residuals` - RMS and mean length of image
+  residuals per image and for the block, before and after the correction;
+* :func:`min_max_normalise`, :func:`choose_spacing`, :func:`most_frequent_spacing` - the
+  grid-size sweep: per test model, accuracy (the height step) and computing time are each
+  normalised to [0, 1] (min-max over the spacings tried) and the spacing closest to the
+  origin (equal weights) is chosen; the block's spacing is the most frequent choice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+
+
+def residual_statistics(residuals) -> dict:
+    """Statistics of 2D residual vectors (n, 2), px.
+
+    Returns a dict with ``n``, ``rms`` (``sqrt(mean |v|^2)``, the per-point RMSE),
+    ``mean_length`` (``mean |v|``), ``rms_x``, ``rms_y``.
+    """
+    v = np.asarray(residuals, dtype=float)
+    if v.ndim != 2 or v.shape[1] != 2:
+        raise InputError(f"residuals: expected shape (n, 2), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise InputError("residuals: NaN or infinite values")
+    if v.shape[0] == 0:
+        nan = float("nan")
+        return {"n": 0, "rms": nan, "mean_length": nan, "rms_x": nan, "rms_y": nan}
+    length = np.hypot(v[:, 0], v[:, 1])
+    return {
+        "n": int(v.shape[0]),
+        "rms": float(np.sqrt(np.mean(length**2))),
+        "mean_length": float(np.mean(length)),
+        "rms_x": float(np.sqrt(np.mean(v[:, 0] ** 2))),
+        "rms_y": float(np.sqrt(np.mean(v[:, 1] ** 2))),
+    }
+
+
+def compare_residuals(before: Mapping, after: Mapping) -> dict:
+    """Residual statistics per image and for the block, before and after.
+
+    Parameters
+    ----------
+    before, after : mapping
+        ``image id -> residuals (n, 2)`` (px), the same images and counts in both.
+
+    Returns
+    -------
+    dict
+        ``{"images": {id: {"before": stats, "after": stats, "reduction_rms": float,
+        "reduction_mean_length": float}}, "block": {...the same over all residuals...}}``;
+        a reduction is ``1 - after / before``.
+    """
+    if set(before) != set(after):
+        diff = set(before) ^ set(after)
+        raise InputError(
+            f"before and after differ in images: {', '.join(map(str, sorted(diff, key=str)[:10]))}"
+        )
+    images = {}
+    all_b, all_a = [], []
+    for key in before:
+        b = np.asarray(before[key], dtype=float)
+        a = np.asarray(after[key], dtype=float)
+        if b.shape != a.shape:
+            raise InputError(f"image {key}: before {b.shape} and after {a.shape} differ in shape")
+        images[key] = _pair(b, a)
+        all_b.append(b.reshape(-1, 2))
+        all_a.append(a.reshape(-1, 2))
+    block = _pair(
+        np.concatenate(all_b) if all_b else np.zeros((0, 2)),
+        np.concatenate(all_a) if all_a else np.zeros((0, 2)),
+    )
+    return {"images": images, "block": block}
+
+
+def _pair(b: np.ndarray, a: np.ndarray) -> dict:
+    sb, sa = residual_statistics(b), residual_statistics(a)
+
+    def red(k):
+        return 1.0 - sa[k] / sb[k] if sb[k] > 0 else float("nan")
+
+    return {
+        "before": sb,
+        "after": sa,
+        "reduction_rms": red("rms"),
+        "reduction_mean_length": red("mean_length"),
+    }
+
+
+def min_max_normalise(values, axis: int = -1) -> np.ndarray:
+    """``(x - min) / (max - min)`` along ``axis``; 0 where all values are equal."""
+    x = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(x)):
+        raise InputError("min-max normalisation: NaN or infinite values")
+    lo = x.min(axis=axis, keepdims=True)
+    span = x.max(axis=axis, keepdims=True) - lo
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(span > 0, (x - lo) / np.where(span > 0, span, 1.0), 0.0)
+
+
+def choose_spacing(spacings: Sequence[float], step, time) -> dict:
+    """The closest-to-origin spacing of each test model.
+
+    Parameters
+    ----------
+    spacings : sequence of float, shape (s,)
+        Grid spacings tried (px).
+    step : array_like, shape (s,) or (models, s)
+        Accuracy per spacing (the height step, GSD; smaller is better).
+    time : array_like, the shape of ``step``
+        Computing time per spacing (s).
+
+    Returns
+    -------
+    dict
+        ``spacing`` (models,), ``index`` (models,), ``step_norm``, ``time_norm`` and
+        ``distance`` (models, s): ``sqrt(step_norm^2 + time_norm^2)``. One model: the
+        arrays keep a leading axis of length 1.
+    """
+    g = np.asarray(spacings, dtype=float)
+    s = np.atleast_2d(np.asarray(step, dtype=float))
+    t = np.atleast_2d(np.asarray(time, dtype=float))
+    if g.ndim != 1 or g.size < 2:
+        raise InputError("choose_spacing: give at least two spacings")
+    if s.shape != t.shape or s.shape[1] != g.size:
+        raise InputError(
+            f"choose_spacing: step {s.shape} and time {t.shape} must both be "
+            f"(models, {g.size}) for {g.size} spacings"
+        )
+    sn = min_max_normalise(s, axis=1)
+    tn = min_max_normalise(t, axis=1)
+    d = np.hypot(sn, tn)
+    idx = np.argmin(d, axis=1)
+    return {"spacing": g[idx], "index": idx, "step_norm": sn, "time_norm": tn, "distance": d}
+
+
+def most_frequent_spacing(chosen, distance=None) -> float:
+    """The most frequent spacing among the models' choices.
+
+    Ties are broken by the smaller sum of the models' normalised distances at the tied
+    spacings when ``distance`` (models, s) and the choices come from :func:`choose_spacing`
+    (pass its result dict as ``chosen``), else by the smaller spacing.
+    """
+    if isinstance(chosen, Mapping):
+        res = chosen
+        chosen = res["spacing"]
+        distance = res["distance"]
+        spacings_idx = res["index"]
+    else:
+        spacings_idx = None
+    c = np.asarray(chosen, dtype=float).ravel()
+    if c.size == 0:
+        raise InputError("most_frequent_spacing: no choices given")
+    values, counts = np.unique(c, return_counts=True)
+    top = values[counts == counts.max()]
+    if top.size == 1 or distance is None or spacings_idx is None:
+        return float(top.min())
+    d = np.asarray(distance, dtype=float)
+    col_of = {float(c[m]): int(spacings_idx[m]) for m in range(c.size)}
+    sums = [d[:, col_of[float(v)]].sum() for v in top]
+    return float(top[int(np.argmin(sums))])

@@ -1,0 +1,814 @@
+"""Finite-element residual grid of one image: bilinear elements on a regular node grid.
+
+Geometry (pixel convention of the library: the centre of the top-left pixel is (0, 0),
+``u`` the column to the right, ``v`` the row down): nodes at ``(j g, i g)`` for
+``i = 0 .. ny-1``, ``j = 0 .. nx-1``, ``nx = ceil((width - 0.5) / g) + 1`` (likewise ``ny``),
+so that the last node lies at or past the outer edge of the last pixel. A point at
+``(u, v)`` lies in the cell with lower corner node ``(i, j) = (floor(v / g), floor(u / g))``
+(clipped to the last cell) at local coordinates ``a = u / g - j``, ``b = v / g - i``, and
+
+    r(u, v) = (1-a)(1-b) z_ij + a(1-b) z_i,j+1 + (1-a) b z_i+1,j + a b z_i+1,j+1
+
+for each of the two components. Points in the outer half of the first pixel row or column
+(``-0.5 <= u < 0``) are extrapolated from the first cell.
+
+Fit: observations ``l_k`` (the image residuals, computed minus observed, px) with weights
+``p_k = 1 / sigma_k^2`` and pseudo-observations ``0 = C z`` with weight ``1 / sigma_c^2``:
+each node equals the mean of its 4 neighbours (``border="mean"``: border and corner nodes
+the mean of the neighbours they have; ``border="linear"``: along each axis where the node
+has both neighbours, the mean of the pair, corners free, which leaves bilinear fields
+unconstrained). ``N = A' P A + C' P_c C`` is factorised once for both components.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..adjust.selected_inverse import BlockSelectedInverse, single_threaded_blas
+from ..adjust.snooping import w_critical_value
+from ..adjust.sparse import factorize
+from ..adjust.variance_components import update_variance_factors
+from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
+
+Border = Literal["mean", "linear"]
+BORDERS = ("mean", "linear")
+
+
+# --------------------------------------------------------------------------- geometry
+@dataclass(frozen=True)
+class GridLayout:
+    """Node layout of a residual grid over an image.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size in pixels (columns, rows).
+    spacing : float
+        Node spacing ``g`` in pixels, the same in both directions.
+    """
+
+    width: int
+    height: int
+    spacing: float
+
+    def __post_init__(self) -> None:
+        w, h, g = self.width, self.height, self.spacing
+        for name, val in (("width", w), ("height", h)):
+            if not isinstance(val, (int, np.integer)) or val < 1:
+                raise InputError(
+                    f"image {name} must be a positive whole number of pixels, not {val!r}"
+                )
+        try:
+            g = float(g)
+        except (TypeError, ValueError):
+            raise InputError(
+                f"grid spacing must be a number of pixels, not {self.spacing!r}"
+            ) from None
+        if not math.isfinite(g) or g <= 0:
+            raise InputError(
+                f"grid spacing must be a positive number of pixels, not {self.spacing!r}"
+            )
+        if g > max(w, h):
+            raise InputError(
+                f"grid spacing {g:g} px is larger than the image ({w} x {h} px): choose a "
+                f"spacing of at most {max(w, h)} px"
+            )
+        object.__setattr__(self, "width", int(w))
+        object.__setattr__(self, "height", int(h))
+        object.__setattr__(self, "spacing", g)
+
+    @property
+    def nx(self) -> int:
+        """Number of node columns."""
+        return math.ceil((self.width - 0.5) / self.spacing) + 1
+
+    @property
+    def ny(self) -> int:
+        """Number of node rows."""
+        return math.ceil((self.height - 0.5) / self.spacing) + 1
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(ny, nx)``."""
+        return self.ny, self.nx
+
+    @property
+    def n_nodes(self) -> int:
+        return self.nx * self.ny
+
+    def node_coordinates(self) -> tuple[np.ndarray, np.ndarray]:
+        """Node positions ``(u, v)`` in pixels, each of shape (ny, nx)."""
+        g = self.spacing
+        return np.meshgrid(np.arange(self.nx) * g, np.arange(self.ny) * g)
+
+    def check_inside(self, uv: np.ndarray, what: str = "uv") -> None:
+        """Refuse points outside the image area ``[-0.5, width - 0.5] x [-0.5, height - 0.5]``."""
+        out = (
+            (uv[:, 0] < -0.5)
+            | (uv[:, 0] > self.width - 0.5)
+            | (uv[:, 1] < -0.5)
+            | (uv[:, 1] > self.height - 0.5)
+        )
+        if np.any(out):
+            k = int(np.flatnonzero(out)[0])
+            raise InputError(
+                f"{what}: {int(out.sum())} point(s) outside the {self.width} x {self.height} px "
+                f"image (first: row {k}, ({uv[k, 0]:g}, {uv[k, 1]:g}))"
+            )
+
+    def locate(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Element nodes and bilinear weights of points.
+
+        Returns
+        -------
+        nodes : numpy.ndarray of int, shape (n, 4)
+            Node indices ``i * nx + j`` of the cell corners: (i, j), (i, j+1), (i+1, j),
+            (i+1, j+1).
+        weights : numpy.ndarray, shape (n, 4)
+            Bilinear weights (summing to 1).
+        """
+        g, nx = self.spacing, self.nx
+        x = uv[:, 0] / g
+        y = uv[:, 1] / g
+        j = np.clip(np.floor(x).astype(np.int64), 0, nx - 2)
+        i = np.clip(np.floor(y).astype(np.int64), 0, self.ny - 2)
+        a = x - j
+        b = y - i
+        k = i * nx + j
+        nodes = np.stack([k, k + 1, k + nx, k + nx + 1], axis=1)
+        weights = np.stack([(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b], axis=1)
+        return nodes, weights
+
+    def cell_index(self, uv: np.ndarray) -> np.ndarray:
+        """Index ``i * (nx - 1) + j`` of the cell holding each point, shape (n,)."""
+        g = self.spacing
+        j = np.clip(np.floor(uv[:, 0] / g).astype(np.int64), 0, self.nx - 2)
+        i = np.clip(np.floor(uv[:, 1] / g).astype(np.int64), 0, self.ny - 2)
+        return i * (self.nx - 1) + j
+
+    def design_matrix(self, uv: np.ndarray) -> sp.csr_matrix:
+        """Sparse ``A`` (n, n_nodes) of the bilinear interpolation at ``uv``."""
+        nodes, w = self.locate(uv)
+        n = uv.shape[0]
+        indptr = np.arange(0, 4 * n + 1, 4)
+        return sp.csr_matrix((w.ravel(), nodes.ravel(), indptr), shape=(n, self.n_nodes))
+
+    def constraint_matrix(self, border: Border = "mean") -> sp.csr_matrix:
+        """Sparse ``C`` (m, n_nodes): rows ``z_ij - mean(neighbours)`` (see the module)."""
+        if border not in BORDERS:
+            raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
+        ny, nx = self.shape
+        I, J = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+        I, J = I.ravel(), J.ravel()
+        k = I * nx + J
+        left, right, up, down = J > 0, J < nx - 1, I > 0, I < ny - 1
+        if border == "mean":
+            use = {"l": left, "r": right, "u": up, "d": down}
+        else:
+            hx, hy = left & right, up & down
+            use = {"l": hx, "r": hx, "u": hy, "d": hy}
+        deg = sum(m.astype(float) for m in use.values())
+        rows_mask = deg > 0
+        row_of = np.cumsum(rows_mask) - 1
+        offs = {"l": -1, "r": 1, "u": -nx, "d": nx}
+        R = [row_of[rows_mask]]
+        Cc = [k[rows_mask]]
+        V = [np.ones(int(rows_mask.sum()))]
+        for key, m in use.items():
+            R.append(row_of[m])
+            Cc.append(k[m] + offs[key])
+            V.append(-1.0 / deg[m])
+        m_rows = int(rows_mask.sum())
+        return sp.csr_matrix(
+            (np.concatenate(V), (np.concatenate(R), np.concatenate(Cc))),
+            shape=(m_rows, self.n_nodes),
+        )
+
+    def to_dict(self) -> dict:
+        return {"width": self.width, "height": self.height, "spacing": self.spacing}
+
+
+# --------------------------------------------------------------------------- system
+class FiniteElementSystem:
+    """The normal equations of one image's grid for given weights.
+
+    ``N = A' P A + C' P_c C``, factorised once (``photogeom.adjust.sparse``); ``solve``
+    returns the node values for observations ``l`` (n, 2) and, optionally, non-zero
+    pseudo-observations ``lc`` (m, 2) of the constraints (zero in the grid fit).
+
+    Parameters
+    ----------
+    layout : GridLayout
+    uv : numpy.ndarray, shape (n, 2)
+        Observation positions (px).
+    weights : numpy.ndarray, shape (n,)
+        ``p_k = 1 / sigma_k^2`` (1/px^2).
+    constraint_weight : float
+        ``1 / sigma_c^2`` (1/px^2).
+    border : {"mean", "linear"}
+    A, C : scipy.sparse matrix, optional
+        The design and constraint matrices when already built.
+    factor : bool
+        Factorise ``N`` (needed by ``solve``; not by ``selected_inverse``).
+    """
+
+    def __init__(
+        self,
+        layout: GridLayout,
+        uv,
+        weights,
+        constraint_weight: float,
+        border: Border = "mean",
+        *,
+        A=None,
+        C=None,
+        factor: bool = True,
+    ):
+        self.layout = layout
+        self.uv = uv
+        self.weights = np.asarray(weights, dtype=float)
+        self.constraint_weight = float(constraint_weight)
+        self.border = border
+        self.A = layout.design_matrix(uv) if A is None else A
+        self.C = layout.constraint_matrix(border) if C is None else C
+        AtP = self.A.T.multiply(self.weights[None, :]).tocsr()
+        self._AtP = AtP
+        self.N = (AtP @ self.A + self.constraint_weight * (self.C.T @ self.C)).tocsc()
+        self.factor = None
+        if not factor:  # only the selected inverse is wanted
+            return
+        self.factor = None
+        if not factor:  # only the selected inverse is wanted
+            return
+        try:
+            self.factor = factorize(self.N, what="normal matrix of the residual grid")
+        except DegenerateGeometryError as exc:
+            raise DegenerateGeometryError(
+                f"{exc}: the observations do not determine the grid (with border='linear' "
+                "at least 4 points not on one line are needed; try border='mean')"
+            ) from None
+
+    def solve(self, l: np.ndarray, lc: np.ndarray | None = None) -> np.ndarray:
+        """Node values (n_nodes, 2) for observations ``l`` (n, 2) [and pseudo-observations]."""
+        rhs = self._AtP @ l
+        if lc is not None:
+            rhs = rhs + self.constraint_weight * (self.C.T @ lc)
+        return self.factor.solve(np.asarray(rhs))
+
+    @cached_property
+    def selected_inverse(self) -> BlockSelectedInverse:
+        """Entries of ``N^-1`` on the pattern of ``N`` (two node rows or columns per block)."""
+        ny, nx = self.layout.shape
+        if nx <= ny:  # blocks of two node rows
+            perm, s = np.arange(nx * ny), 2 * nx
+        else:  # blocks of two node columns
+            perm, s = np.arange(nx * ny).reshape(ny, nx).T.ravel(), 2 * ny
+        return BlockSelectedInverse(self.N, s, perm, what="normal matrix of the residual grid")
+
+    def observation_cofactors(self) -> np.ndarray:
+        """``a_k' N^-1 a_k`` for every observation (n,): cofactor of the modelled residual."""
+        nodes, w = self.layout.locate(self.uv)
+        Z = self.selected_inverse.entries(nodes[:, :, None], nodes[:, None, :])
+        return np.einsum("ki,kij,kj->k", w, Z, w)
+
+
+# --------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False)
+class ResidualGrid:
+    """The fitted residual field of one image.
+
+    Attributes
+    ----------
+    layout : GridLayout
+    nodes : numpy.ndarray, shape (ny, nx, 2)
+        Node values (px): the modelled residual, computed minus observed, (x, y).
+    sigma0 : float
+        A-posteriori standard deviation of unit weight of the fit (observations and
+        pseudo-observations); NaN when the redundancy is 0.
+    redundancy : int
+        ``2 (n_used + m - n_nodes)`` (both components).
+    sigma_obs : numpy.ndarray, shape (n,)
+        Standard deviations of the observations used (px), after variance components.
+    sigma_constraint : float
+        Standard deviation of the pseudo-observations (px), after variance components.
+    support : numpy.ndarray of bool, shape (ny, nx)
+        Nodes whose adjacent cells hold at least ``min_support`` used observations.
+    counts : numpy.ndarray of int, shape (ny, nx)
+        Observations in the cells adjacent to each node.
+    rms_before, rms_after : float
+        RMS length of the image's residuals before and after subtracting the field
+        (used points, px).
+    rms_cv_before, rms_cv_after : float
+        The same on points left out of the fit (k-fold cross-validation); NaN without it,
+        or when leaving a fold out leaves the grid undetermined (``border="linear"`` with
+        very few points).
+    outliers : numpy.ndarray of bool, shape (n_input,)
+        Input points rejected by data snooping.
+    vce_iterations : int
+        Variance-component iterations (0: weights given).
+    border : str
+    """
+
+    layout: GridLayout
+    nodes: np.ndarray
+    sigma0: float
+    redundancy: int
+    sigma_obs: np.ndarray
+    sigma_constraint: float
+    support: np.ndarray
+    counts: np.ndarray
+    rms_before: float
+    rms_after: float
+    rms_cv_before: float = float("nan")
+    rms_cv_after: float = float("nan")
+    outliers: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    vce_iterations: int = 0
+    border: str = "mean"
+    uv: np.ndarray | None = field(default=None, repr=False)
+    _std: list = field(default_factory=list, repr=False)
+
+    # -------------------------------------------------------------- evaluation
+    @property
+    def spacing(self) -> float:
+        return self.layout.spacing
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """``(width, height)`` in pixels."""
+        return self.layout.width, self.layout.height
+
+    def evaluate(self, uv) -> np.ndarray:
+        """The modelled residual (computed minus observed, px) at image points.
+
+        Parameters
+        ----------
+        uv : array_like, shape (n, 2)
+            Pixel coordinates (column, row) inside the image.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+        """
+        uv = _as_uv(uv, "uv")
+        self.layout.check_inside(uv)
+        return evaluate_nodes(self.layout, self.nodes, uv)
+
+    def correct(self, uv) -> np.ndarray:
+        """Corrected image coordinates ``uv + r(uv)`` (px): the observation moved by the
+        modelled residual, i.e. the local displacement field ``-r`` subtracted."""
+        uv = _as_uv(uv, "uv")
+        return uv + self.evaluate(uv)
+
+    @property
+    def reduction(self) -> float:
+        """``1 - rms_after / rms_before`` on the points of the fit."""
+        return 1.0 - self.rms_after / self.rms_before if self.rms_before > 0 else float("nan")
+
+    @property
+    def reduction_cv(self) -> float:
+        """``1 - rms_cv_after / rms_cv_before`` on points left out (cross-validation)."""
+        if not self.rms_cv_before > 0:
+            return float("nan")
+        return 1.0 - self.rms_cv_after / self.rms_cv_before
+
+    @property
+    def node_std(self) -> np.ndarray:
+        """A-posteriori standard deviations of the node values (ny, nx), px, the same for
+        x and y: ``sigma0 sqrt(diag(N^-1))``. Computed on first use (selected inversion,
+        no dense inverse)."""
+        return self.sigma0 * np.sqrt(self.node_cofactor)
+
+    @property
+    def node_cofactor(self) -> np.ndarray:
+        """``diag(N^-1)`` reshaped (ny, nx), px^2 per unit weight; computed on first use."""
+        if not self._std:
+            if self.uv is None:
+                raise InputError(
+                    "node standard deviations were not stored with this grid (saved with "
+                    "std=False / --no-std): fit the grid again to compute them"
+                )
+            used = ~self.outliers if self.outliers.size else np.ones(len(self.uv), bool)
+            with single_threaded_blas():
+                sysm = FiniteElementSystem(
+                    self.layout,
+                    self.uv[used],
+                    1.0 / self.sigma_obs**2,
+                    1.0 / self.sigma_constraint**2,
+                    self.border,  # type: ignore[arg-type]
+                    factor=False,
+                )
+                diag = sysm.selected_inverse.diagonal()
+            self._std.append(diag.reshape(self.layout.shape))
+        return self._std[0]
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (without the node arrays)."""
+        return {
+            **self.layout.to_dict(),
+            "shape": list(self.layout.shape),
+            "border": self.border,
+            "sigma0": _num(self.sigma0),
+            "redundancy": int(self.redundancy),
+            "sigma_constraint": _num(self.sigma_constraint),
+            "n_observations": int(self.sigma_obs.size),
+            "n_outliers": int(self.outliers.sum()),
+            "supported_nodes": int(self.support.sum()),
+            "rms_before": _num(self.rms_before),
+            "rms_after": _num(self.rms_after),
+            "reduction": _num(self.reduction),
+            "rms_cv_before": _num(self.rms_cv_before),
+            "rms_cv_after": _num(self.rms_cv_after),
+            "reduction_cv": _num(self.reduction_cv),
+            "vce_iterations": int(self.vce_iterations),
+        }
+
+
+def _num(x) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def evaluate_nodes(layout: GridLayout, nodes: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of node values (ny, nx, 2) at points (n, 2); no checks."""
+    idx, w = layout.locate(uv)
+    flat = nodes.reshape(-1, 2)
+    return np.einsum("nk,nkc->nc", w, flat[idx])
+
+
+def _as_uv(values, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot be read as numbers ({exc})") from exc
+    if arr.ndim == 1 and arr.shape[0] == 2:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise InputError(f"{name}: expected shape (n, 2), got {arr.shape}")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if np.any(bad):
+        raise InputError(
+            f"{name}: {int(bad.sum())} row(s) hold NaN or infinite values (first: row "
+            f"{int(np.flatnonzero(bad)[0])}); remove them before fitting"
+        )
+    return arr
+
+
+# --------------------------------------------------------------------------- fitting
+def fit_grid(
+    uv,
+    residuals,
+    image_size: tuple[int, int],
+    spacing: float,
+    *,
+    sigma_obs=1.0,
+    sigma_constraint: float | Literal["vce"] = 1.0,
+    border: Border = "mean",
+    min_observations: int = 4,
+    min_support: int = 3,
+    folds: int = 5,
+    snooping: bool = False,
+    alpha: float = 0.001,
+    max_snooping_rounds: int = 10,
+    max_vce_iterations: int = 30,
+    vce_tol: float = 1e-3,
+    seed: int = 0,
+    image_id: object = None,
+) -> ResidualGrid:
+    """Fit the finite-element residual field of one image.
+
+    Parameters
+    ----------
+    uv : array_like, shape (n, 2)
+        Observed image coordinates (column, row) in pixels.
+    residuals : array_like, shape (n, 2)
+        Image residuals at ``uv`` (computed minus observed, px).
+    image_size : (int, int)
+        ``(width, height)`` of the image in pixels.
+    spacing : float
+        Node spacing in pixels.
+    sigma_obs : float or array_like (n,)
+        Standard deviation of the residuals (px); weights ``1 / sigma_obs^2``.
+    sigma_constraint : float or "vce"
+        Standard deviation of the pseudo-observations ``0 = z - mean(neighbours)`` (px), or
+        ``"vce"`` to estimate both variances (Förstner's iteration; ``sigma_obs`` is then
+        the start and only its relative values matter).
+    border : {"mean", "linear"}
+        Constraint of border and corner nodes (see the module).
+    min_observations : int
+        Fewer used observations than this is refused.
+    min_support : int
+        A node is supported when its adjacent cells hold at least this many observations.
+    folds : int
+        k of the k-fold cross-validation (0 or 1: none).
+    snooping : bool
+        Data snooping (Baarda's w-test with the a-priori sigmas, level ``alpha``); per
+        round the largest flagged point of each cell is removed, up to
+        ``max_snooping_rounds`` rounds.
+    seed : int
+        Seed of the random split into folds.
+    image_id : object
+        Named in error messages.
+
+    Raises
+    ------
+    InputError
+        NaN/infinite values, points outside the image, bad spacing (0, negative, larger
+        than the image), mismatched shapes.
+    TooFewPointsError
+        Fewer than ``min_observations`` residuals.
+    """
+    # small dense blocks and supernodes: BLAS threads cost more than they give
+    with single_threaded_blas():
+        return _fit_grid(
+            uv,
+            residuals,
+            image_size,
+            spacing,
+            sigma_obs=sigma_obs,
+            sigma_constraint=sigma_constraint,
+            border=border,
+            min_observations=min_observations,
+            min_support=min_support,
+            folds=folds,
+            snooping=snooping,
+            alpha=alpha,
+            max_snooping_rounds=max_snooping_rounds,
+            max_vce_iterations=max_vce_iterations,
+            vce_tol=vce_tol,
+            seed=seed,
+            image_id=image_id,
+        )
+
+
+def _fit_grid(
+    uv,
+    residuals,
+    image_size,
+    spacing,
+    *,
+    sigma_obs,
+    sigma_constraint,
+    border,
+    min_observations,
+    min_support,
+    folds,
+    snooping,
+    alpha,
+    max_snooping_rounds,
+    max_vce_iterations,
+    vce_tol,
+    seed,
+    image_id,
+) -> ResidualGrid:
+    where = f"image {image_id}: " if image_id is not None else ""
+    uv = _as_uv(uv, f"{where}uv")
+    res = _as_uv(residuals, f"{where}residuals")
+    if res.shape != uv.shape:
+        raise InputError(f"{where}uv {uv.shape} and residuals {res.shape} differ in shape")
+    try:
+        width, height = (int(x) for x in image_size)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}image_size must be (width, height), not {image_size!r}") from None
+    layout = GridLayout(width, height, spacing)
+    layout.check_inside(uv, f"{where}uv")
+    n = uv.shape[0]
+    if n < max(1, min_observations):
+        raise TooFewPointsError(
+            f"{where}residual grid of {layout.ny} x {layout.nx} nodes",
+            n,
+            max(1, min_observations),
+            "use a larger spacing or leave the image out",
+        )
+    s_obs = np.broadcast_to(np.asarray(sigma_obs, dtype=float), (n,)).copy()
+    if not np.all(np.isfinite(s_obs) & (s_obs > 0)):
+        raise InputError(f"{where}sigma_obs must be positive and finite")
+    vce = isinstance(sigma_constraint, str)
+    if vce and sigma_constraint != "vce":
+        raise InputError(
+            f"sigma_constraint must be a number (px) or 'vce', not {sigma_constraint!r}"
+        )
+    s_c = 1.0 if vce else float(sigma_constraint)
+    if not (math.isfinite(s_c) and s_c > 0):
+        raise InputError(f"{where}sigma_constraint must be positive and finite")
+    if border not in BORDERS:
+        raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
+
+    C = layout.constraint_matrix(border)
+    used = np.ones(n, bool)
+    crit = w_critical_value(alpha) if snooping else math.inf
+    cells = layout.cell_index(uv)
+    vce_its = 0
+    for _round in range(max_snooping_rounds + 1 if snooping else 1):
+        k_used = int(used.sum())
+        if k_used < max(1, min_observations):
+            raise TooFewPointsError(
+                f"{where}residual grid after data snooping",
+                k_used,
+                max(1, min_observations),
+                "use a larger spacing, a larger alpha, or leave the image out",
+            )
+        u_uv, u_l = uv[used], res[used]
+        A = layout.design_matrix(u_uv)
+        if vce:
+            s_obs_u, s_c, vce_its, system, z = _vce(
+                layout,
+                u_uv,
+                u_l,
+                s_obs[used],
+                s_c,
+                border,
+                A,
+                C,
+                max_vce_iterations,
+                vce_tol,
+                where,
+            )
+            s_obs[used] = s_obs_u
+        else:
+            system = FiniteElementSystem(
+                layout, u_uv, 1.0 / s_obs[used] ** 2, 1.0 / s_c**2, border, A=A, C=C
+            )
+            z = system.solve(u_l)
+        if not snooping:
+            break
+        v = np.asarray(A @ z) - u_l
+        qvv = s_obs[used] ** 2 - system.observation_cofactors()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            w = np.abs(v) / np.sqrt(np.where(qvv > 1e-12 * s_obs[used] ** 2, qvv, np.nan))[:, None]
+        wmax = np.nanmax(np.where(np.isfinite(w), w, -1.0), axis=1)
+        flagged = wmax > crit
+        if not np.any(flagged) or _round == max_snooping_rounds:  # the last fit stands
+            break
+        idx_used = np.flatnonzero(used)
+        fi = idx_used[flagged]
+        fw = wmax[flagged]
+        order = np.lexsort((-fw, cells[fi]))
+        first = np.ones(order.size, bool)
+        first[1:] = cells[fi][order][1:] != cells[fi][order][:-1]
+        used[fi[order][first]] = False
+
+    u_uv, u_l = uv[used], res[used]
+    A = system.A
+    model = np.asarray(A @ z)
+    v = model - u_l
+    p = 1.0 / s_obs[used] ** 2
+    wc = np.asarray(C @ z)
+    vtpv = float(np.sum(p[:, None] * v * v) + np.sum(wc * wc) / s_c**2)
+    redundancy = 2 * (u_uv.shape[0] + C.shape[0] - layout.n_nodes)
+    sigma0 = math.sqrt(vtpv / redundancy) if redundancy > 0 else float("nan")
+
+    counts = _node_counts(layout, u_uv)
+    rms_before = _rms_len(u_l)
+    rms_after = _rms_len(u_l - model)
+    cv_before = cv_after = float("nan")
+    if folds and folds > 1 and u_uv.shape[0] >= folds:
+        cv_before, cv_after = _cross_validate(system, u_uv, u_l, p, A, folds, seed)
+    return ResidualGrid(
+        layout=layout,
+        nodes=z.reshape(layout.ny, layout.nx, 2),
+        sigma0=sigma0,
+        redundancy=int(redundancy),
+        sigma_obs=s_obs[used],
+        sigma_constraint=s_c,
+        support=counts >= min_support,
+        counts=counts,
+        rms_before=rms_before,
+        rms_after=rms_after,
+        rms_cv_before=cv_before,
+        rms_cv_after=cv_after,
+        outliers=~used,
+        vce_iterations=vce_its,
+        border=border,
+        uv=uv,
+    )
+
+
+def _rms_len(v: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(v * v, axis=1)))) if v.size else float("nan")
+
+
+def _node_counts(layout: GridLayout, uv: np.ndarray) -> np.ndarray:
+    """Observations in the cells adjacent to each node, (ny, nx)."""
+    ny, nx = layout.shape
+    cells = np.bincount(layout.cell_index(uv), minlength=(ny - 1) * (nx - 1)).reshape(
+        ny - 1, nx - 1
+    )
+    out = np.zeros((ny, nx), dtype=np.int64)
+    out[:-1, :-1] += cells
+    out[:-1, 1:] += cells
+    out[1:, :-1] += cells
+    out[1:, 1:] += cells
+    return out
+
+
+def _cross_validate(system, uv, l, p, A, folds, seed):
+    """k-fold: refit without each fold by downdating N and the right-hand side."""
+    n = uv.shape[0]
+    rng = np.random.default_rng(seed)
+    fold_of = rng.permutation(n) % folds
+    pred = np.empty_like(l)
+    AtPl = system._AtP @ l
+    for f in range(folds):
+        m = fold_of == f
+        Af = A[m]
+        Nf = system.N - (Af.T.multiply(p[m][None, :]) @ Af)
+        bf = AtPl - Af.T @ (p[m][:, None] * l[m])
+        try:
+            fac = factorize(Nf, what="normal matrix of the residual grid (cross-validation)")
+        except DegenerateGeometryError:  # a fold left the grid undetermined: no estimate
+            nan = float("nan")
+            return nan, nan
+        zf = fac.solve(np.asarray(bf))
+        pred[m] = np.asarray(Af @ zf)
+    return _rms_len(l), _rms_len(l - pred)
+
+
+def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):
+    """Förstner's iteration for two groups: observations and pseudo-observations."""
+    n, m, u = uv.shape[0], C.shape[0], layout.n_nodes
+    s_obs = s_obs.copy()
+    its = 0
+    for it in range(1, max_it + 1):
+        its = it
+        system = FiniteElementSystem(layout, uv, 1.0 / s_obs**2, 1.0 / s_c**2, border, A=A, C=C)
+        z = system.solve(l)
+        v = np.asarray(A @ z) - l
+        wc = np.asarray(C @ z)
+        p = 1.0 / s_obs**2
+        t = float(np.sum(p * system.observation_cofactors()))  # tr(N^-1 A'PA)
+        r_o = 2.0 * (n - t)
+        r_c = 2.0 * (m - (u - t))
+        vtpv = [float(np.sum(p[:, None] * v * v)), float(np.sum(wc * wc)) / s_c**2]
+        try:
+            _, f = update_variance_factors([1.0, 1.0], vtpv, [r_o, r_c])
+        except InputError as exc:
+            raise InputError(f"{where}variance components of the residual grid: {exc}") from None
+        if f[1] <= 0:
+            raise DegenerateGeometryError(
+                f"{where}variance components: the residuals are reproduced exactly, so the "
+                "constraint variance is zero; give sigma_constraint instead of 'vce'"
+            )
+        s_obs = s_obs * math.sqrt(f[0])
+        s_c = s_c * math.sqrt(f[1])
+        if np.all(np.abs(f - 1.0) <= tol):
+            break
+    else:
+        from ..errors import ConvergenceError
+
+        raise ConvergenceError(
+            f"{where}variance components did not converge in {max_it} iterations "
+            f"(last factors {f[0]:.4g}, {f[1]:.4g}); give sigma_constraint instead",
+            iterations=max_it,
+        )
+    system = FiniteElementSystem(layout, uv, 1.0 / s_obs**2, 1.0 / s_c**2, border, A=A, C=C)
+    return s_obs, s_c, its, system, system.solve(l)
+
+
+def fit_grids(
+    per_image: dict,
+    image_size,
+    spacing: float,
+    *,
+    progress: bool = False,
+    **options,
+) -> dict:
+    """Fit the residual grids of many images, one sparse factorisation each.
+
+    Parameters
+    ----------
+    per_image : dict
+        ``image id -> (uv (n, 2), residuals (n, 2))``, pixels, computed minus observed.
+    image_size : (int, int) or dict
+        ``(width, height)`` for all images, or ``image id -> (width, height)``.
+    spacing : float
+        Node spacing (px).
+    progress : bool
+        Show a progress bar (rich) on the terminal.
+    **options
+        Passed to :func:`fit_grid` (weights, border, folds, snooping, ...).
+
+    Returns
+    -------
+    dict
+        ``image id -> ResidualGrid``, in the order of ``per_image``.
+    """
+    out = {}
+    items = list(per_image.items())
+    it = items
+    if progress:
+        from rich.progress import track
+
+        it = track(items, description="fitting residual grids", transient=True)
+    for key, val in it:
+        try:
+            uv, res = val
+        except (TypeError, ValueError):
+            raise InputError(f"image {key}: expected a pair (uv, residuals)") from None
+        size = image_size[key] if isinstance(image_size, dict) else image_size
+        out[key] = fit_grid(uv, res, size, spacing, image_id=key, **options)
+    return out

@@ -1,0 +1,438 @@
+"""Correct image files and folders with residual grids, keeping format and metadata.
+
+Pixels are read with OpenCV (``IMREAD_UNCHANGED``: bit depth and alpha kept, EXIF
+orientation not applied, so pixel coordinates stay those of the bundle adjustment) and the
+metadata with Pillow. The corrected image is written in the original format:
+
+* JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
+  subsampling (the quality is kept), EXIF, XMP and ICC profile;
+* TIFF and PNG with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (TIFF tag 700,
+  PNG iTXt ``XML:com.adobe.xmp``) and ICC profile, TIFF with its compression;
+* anything else (16-bit colour, other formats): OpenCV, pixels exact, metadata not kept
+  (said in the result's ``notes``).
+
+Every file is encoded in memory and written atomically (temporary file, then rename):
+an interrupted or failed image leaves no partial file.
+
+Folders are processed in parallel: local processes, or a Dask cluster
+(``dask.distributed``: a ``LocalCluster`` or the scheduler at an address). Dask is an
+optional dependency (``pip install "photogeom[dask]"``).
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..atomicfile import atomic_write_bytes
+from ..errors import FileFormatError, InputError, PhotogeomError
+from .correction import correct_image
+from .grid import ResidualGrid
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".tif", ".tiff", ".png")
+
+
+@dataclass
+class FolderResult:
+    """Outcome of :func:`correct_folder`.
+
+    Attributes
+    ----------
+    written : dict
+        ``image id -> output path`` of the images corrected.
+    failures : dict
+        ``image id -> message`` of the images that could not be corrected (missing or
+        unreadable files, size mismatch); nothing was written for them.
+    skipped : list of str
+        Image files of the folder without a grid (not corrected).
+    notes : dict
+        ``image id -> note`` (e.g. metadata that the format did not let us keep).
+    """
+
+    written: dict = field(default_factory=dict)
+    failures: dict = field(default_factory=dict)
+    skipped: list = field(default_factory=list)
+    notes: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def to_dict(self) -> dict:
+        return {
+            "written": {str(k): str(v) for k, v in self.written.items()},
+            "failures": {str(k): v for k, v in self.failures.items()},
+            "skipped": list(self.skipped),
+            "notes": {str(k): v for k, v in self.notes.items()},
+        }
+
+
+# --------------------------------------------------------------------------- one file
+def _read(path: Path):
+    """Pixels (OpenCV order: BGR[A]) and the Pillow metadata of an image file."""
+    import cv2
+    from PIL import Image
+
+    if not path.is_file():
+        raise FileFormatError(f"{path}: no such image file")
+    data = np.fromfile(path, dtype=np.uint8)
+    pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if pixels is None:
+        raise FileFormatError(f"{path}: not a readable image (corrupt or unknown format)")
+    meta: dict = {}
+    try:
+        with Image.open(io.BytesIO(data.tobytes())) as im:
+            meta["format"] = im.format
+            meta["mode"] = im.mode
+            info = im.info
+            if im.format == "JPEG":
+                from PIL import JpegImagePlugin
+
+                meta["qtables"] = getattr(im, "quantization", None)
+                try:
+                    meta["subsampling"] = JpegImagePlugin.get_sampling(im)
+                except Exception:  # pragma: no cover - unusual JPEG
+                    meta["subsampling"] = None
+                meta["xmp"] = info.get("xmp")
+            elif im.format == "TIFF":
+                meta["xmp"] = im.tag_v2.get(700)
+                meta["compression"] = info.get("compression")
+            elif im.format == "PNG":
+                meta["xmp"] = info.get("XML:com.adobe.xmp")
+            exif = info.get("exif")
+            if exif is None and im.format == "TIFF":
+                exif = im.getexif()
+            meta["exif"] = exif
+            meta["icc_profile"] = info.get("icc_profile")
+            meta["dpi"] = info.get("dpi")
+    except Exception:
+        # OpenCV decoded it; Pillow cannot read it: pixels only.
+        meta = {}
+    return pixels, meta
+
+
+def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | None]:
+    """Encoded file bytes in the original format, and a note when metadata is lost."""
+    import cv2
+    from PIL import Image
+
+    fmt = meta.get("format")
+    channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
+        (
+            pixels.dtype == np.uint8
+            and channels in (1, 3, 4)
+            and not (fmt == "JPEG" and channels == 4)
+        )
+        or (pixels.dtype == np.uint16 and channels == 1 and fmt in ("TIFF", "PNG"))
+    )
+    if pil_ok:
+        if channels == 3:
+            arr = cv2.cvtColor(pixels, cv2.COLOR_BGR2RGB)
+        elif channels == 4:
+            arr = cv2.cvtColor(pixels, cv2.COLOR_BGRA2RGBA)
+        else:
+            arr = pixels
+        im = Image.fromarray(arr)
+        kw: dict = {}
+        if meta.get("exif") is not None:
+            kw["exif"] = meta["exif"]
+        if meta.get("icc_profile"):
+            kw["icc_profile"] = meta["icc_profile"]
+        if meta.get("dpi"):
+            kw["dpi"] = meta["dpi"]
+        xmp = meta.get("xmp")
+        if isinstance(xmp, str):
+            xmp = xmp.encode("utf-8")
+        if fmt == "JPEG":
+            if meta.get("qtables"):
+                kw["qtables"] = meta["qtables"]
+                if meta.get("subsampling") is not None and meta["subsampling"] >= 0:
+                    kw["subsampling"] = meta["subsampling"]
+            else:
+                kw["quality"] = 95
+            if xmp:
+                kw["xmp"] = xmp
+        elif fmt == "TIFF":
+            if meta.get("compression") and meta["compression"] != "raw":
+                kw["compression"] = meta["compression"]
+            if xmp:  # XMP is TIFF tag 700; Pillow takes one tag set, so it joins the EXIF
+                tags = meta.get("exif")
+                if not isinstance(tags, Image.Exif):
+                    tags = Image.Exif()
+                    if meta.get("exif"):
+                        tags.load(meta["exif"])
+                tags[700] = xmp
+                kw["exif"] = tags
+        elif fmt == "PNG" and xmp:
+            from PIL.PngImagePlugin import PngInfo
+
+            pinfo = PngInfo()
+            pinfo.add_itxt("XML:com.adobe.xmp", xmp.decode("utf-8", "replace"))
+            kw["pnginfo"] = pinfo
+        buf = io.BytesIO()
+        im.save(buf, format=fmt, **kw)
+        return buf.getvalue(), None
+    ok, enc = cv2.imencode(suffix, pixels)
+    if not ok:
+        raise FileFormatError(
+            f"cannot encode a {pixels.dtype} image with {channels} channel(s) as {suffix}"
+        )
+    lost = meta.get("exif") or meta.get("xmp") or meta.get("icc_profile")
+    note = (
+        f"metadata (EXIF/XMP/ICC) not kept: {fmt or suffix} with {pixels.dtype} x {channels} "
+        "channel(s) is written by OpenCV"
+        if lost
+        else None
+    )
+    return enc.tobytes(), note
+
+
+def correct_image_file(
+    src: str | os.PathLike,
+    dst: str | os.PathLike,
+    grid: ResidualGrid,
+    *,
+    interpolation: str = "bilinear",
+    threads: int | None = None,
+) -> str | None:
+    """Correct one image file into ``dst`` (same format, metadata kept where possible).
+
+    Returns
+    -------
+    str or None
+        A note when metadata could not be kept, else None.
+
+    Raises
+    ------
+    FileFormatError
+        Missing, empty, corrupt or unwritable file.
+    InputError
+        The image size differs from the grid's.
+    """
+    src, dst = Path(src), Path(dst)
+    pixels, meta = _read(src)
+    h, w = pixels.shape[:2]
+    if (w, h) != grid.image_size:
+        raise InputError(
+            f"{src.name}: the image is {w} x {h} px, its grid was fitted for "
+            f"{grid.image_size[0]} x {grid.image_size[1]} px"
+        )
+    out = correct_image(pixels, grid, interpolation=interpolation, threads=threads)  # type: ignore[arg-type]
+    data, note = _encode(out, meta, src.suffix.lower() or ".png")
+    atomic_write_bytes(dst, data)
+    return note
+
+
+# --------------------------------------------------------------------------- folders
+def _portable(grid: ResidualGrid) -> ResidualGrid:
+    """The grid without its observations (what a worker needs: layout and nodes)."""
+    return replace(grid, uv=None, _std=[])
+
+
+def _task(
+    src: str,
+    dst: str,
+    grid: ResidualGrid,
+    interpolation: str,
+    threads: int | None,
+    cv_single: bool = False,
+):
+    """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
+
+    ``cv_single``: OpenCV runs single-threaded for the task (Dask workers already fill the
+    cores); its thread count is restored afterwards. Not in forked processes, where
+    changing OpenCV's thread pool can deadlock.
+    """
+    import cv2
+
+    before = cv2.getNumThreads() if cv_single else 0
+    try:
+        if cv_single:
+            cv2.setNumThreads(1)
+        note = correct_image_file(src, dst, grid, interpolation=interpolation, threads=threads)
+        return True, note
+    except (PhotogeomError, OSError) as exc:
+        return False, str(exc)
+    except Exception as exc:  # cv2/Pillow errors on damaged files
+        return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
+    finally:
+        if cv_single:
+            cv2.setNumThreads(before)
+
+
+def find_images(folder: Path, ids) -> tuple[dict, list, list]:
+    """Match image ids to files of ``folder`` (the file name, or its stem).
+
+    Returns ``(id -> path, ids without a file, files without an id)``.
+    """
+    files = sorted(
+        p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
+    )
+    by_name = {p.name: p for p in files}
+    by_stem: dict = {}
+    for p in files:
+        by_stem.setdefault(p.stem, []).append(p)
+    found, missing = {}, []
+    for key in ids:
+        k = str(key)
+        if k in by_name:
+            found[key] = by_name[k]
+        elif len(by_stem.get(k, [])) == 1:
+            found[key] = by_stem[k][0]
+        else:
+            missing.append(key)
+    used = {p for p in found.values()}
+    return found, missing, [p.name for p in files if p not in used]
+
+
+def correct_folder(
+    src_dir: str | os.PathLike,
+    dst_dir: str | os.PathLike,
+    grids: Mapping,
+    *,
+    workers: int = 1,
+    dask: bool | str = False,
+    interpolation: str = "bilinear",
+    progress: bool = True,
+) -> FolderResult:
+    """Correct every image of a folder that has a grid, in parallel.
+
+    Parameters
+    ----------
+    src_dir, dst_dir : path
+        Input and output folders (must differ; ``dst_dir`` is created).
+    grids : mapping
+        ``image id -> ResidualGrid``; an id names a file by its name or its stem.
+    workers : int
+        Parallel workers (processes, or Dask workers of a local cluster).
+    dask : bool or str
+        False: local processes; True: a ``dask.distributed.LocalCluster`` with
+        ``workers`` single-threaded workers; a string: the address of a running scheduler
+        (``"tcp://host:8786"``).
+    interpolation : {"bilinear", "bicubic"}
+    progress : bool
+        A rich progress bar on the terminal.
+
+    Returns
+    -------
+    FolderResult
+        Images written, failures (missing or corrupt files: listed, the rest processed),
+        image files without a grid.
+    """
+    src, dst = Path(src_dir), Path(dst_dir)
+    if not src.is_dir():
+        raise InputError(f"input folder {src} does not exist")
+    if interpolation not in ("bilinear", "bicubic"):
+        raise InputError(f"interpolation must be bilinear or bicubic, not {interpolation!r}")
+    if workers < 1:
+        raise InputError(f"workers must be at least 1, not {workers}")
+    dst.mkdir(parents=True, exist_ok=True)
+    if src.resolve() == dst.resolve():
+        raise InputError("the output folder must differ from the input folder (originals are kept)")
+    result = FolderResult()
+    found, missing, extra = find_images(src, list(grids))
+    for key in missing:
+        result.failures[key] = f"no image file named {key} (or {key}.<ext>) in {src}"
+    result.skipped = extra
+    jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
+    # threads inside a job: only when the jobs do not already fill the machine
+    threads = 1 if (workers > 1 or dask) else None
+    if dask:
+        outcomes = _run_dask(jobs, workers, dask, interpolation, progress)
+    elif workers == 1:
+        outcomes = _run_serial(jobs, interpolation, threads, progress)
+    else:
+        outcomes = _run_processes(jobs, workers, interpolation, progress)
+    for (key, _s, d, _g), (ok, msg) in zip(jobs, outcomes):
+        if ok:
+            result.written[key] = Path(d)
+            if msg:
+                result.notes[key] = msg
+        else:
+            result.failures[key] = msg
+    return result
+
+
+def _progress(enabled: bool, total: int):
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    prog = Progress(
+        "[progress.description]{task.description}",
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeRemainingColumn(),
+        transient=True,
+        disable=not enabled,
+    )
+    return prog
+
+
+def _run_serial(jobs, interpolation, threads, progress):
+    out = []
+    with _progress(progress, len(jobs)) as prog:
+        t = prog.add_task("correcting images", total=len(jobs))
+        for _key, s, d, g in jobs:
+            out.append(_task(s, d, g, interpolation, threads))
+            prog.advance(t)
+    return out
+
+
+def _run_processes(jobs, workers, interpolation, progress):
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    out: list = [None] * len(jobs)
+    with _progress(progress, len(jobs)) as prog, ProcessPoolExecutor(workers) as ex:
+        t = prog.add_task("correcting images", total=len(jobs))
+        futs = {
+            ex.submit(_task, s, d, g, interpolation, 1): i for i, (_k, s, d, g) in enumerate(jobs)
+        }
+        for f in as_completed(futs):
+            out[futs[f]] = f.result()
+            prog.advance(t)
+    return out
+
+
+def _run_dask(jobs, workers, dask, interpolation, progress):
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise PhotogeomError(
+            "correcting images on a Dask cluster needs dask.distributed: "
+            'pip install "photogeom[dask]" (or run without --dask/--scheduler)'
+        ) from None
+    out: list = [None] * len(jobs)
+    cluster = None
+    if isinstance(dask, str):
+        client = Client(dask)
+    else:
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            silence_logs=logging.ERROR,
+        )
+        client = Client(cluster)
+    try:
+        with _progress(progress, len(jobs)) as prog:
+            t = prog.add_task("correcting images (dask)", total=len(jobs))
+            futs = [
+                client.submit(_task, s, d, g, interpolation, 1, True, pure=False)
+                for _k, s, d, g in jobs
+            ]
+            index = {f.key: i for i, f in enumerate(futs)}
+            for f in as_completed(futs):
+                out[index[f.key]] = f.result()
+                prog.advance(t)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return out

@@ -1,0 +1,383 @@
+"""`photogeom grid`: finite-element residual grids of UAV images.
+
+``fit`` reads per-observation image residuals (CSV columns ``image_id, u, v, rx, ry``;
+pixels, computed minus observed) and writes the grids file (NPZ or JSON); ``apply``
+corrects the image coordinates of an observation CSV; ``correct-images`` resamples a folder
+of images into another folder (in parallel, optionally on a Dask cluster).
+"""
+
+from __future__ import annotations
+
+import csv
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ..errors import FileFormatError, InputError
+from ._common import JsonOpt, OutputCsvOpt, ReportOpt, console, emit_points, json_text, say
+
+app = typer.Typer(
+    help="Finite-element residual grids: fit per image, correct coordinates and images.",
+    no_args_is_help=True,
+)
+
+
+class Border(str, Enum):
+    mean = "mean"
+    linear = "linear"
+
+
+class Interp(str, Enum):
+    bilinear = "bilinear"
+    bicubic = "bicubic"
+
+
+def _read_csv(path: Path, need: tuple[str, ...]) -> tuple[list[str], list[list[str]], dict]:
+    """Header, rows and the column index of each needed column (case-insensitive)."""
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
+    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    if not rows:
+        raise FileFormatError(f"{path}: empty file")
+    header = [c.strip() for c in rows[0]]
+    low = [c.lower() for c in header]
+    col = {}
+    for name in need:
+        aliases = {"image_id": ("image_id", "image", "id")}.get(name, (name,))
+        hit = next((low.index(a) for a in aliases if a in low), None)
+        if hit is None:
+            raise FileFormatError(
+                f"{path}: no column {name!r} (columns: {', '.join(header)}); "
+                f"the file needs {', '.join(need)}"
+            )
+        col[name] = hit
+    body = rows[1:]
+    bad = [k + 2 for k, r in enumerate(body) if len(r) != len(header)]
+    if bad:
+        raise FileFormatError(
+            f"{path}: line {bad[0]} has {len(body[bad[0] - 2])} fields, the header {len(header)}"
+        )
+    return header, body, col
+
+
+def _numbers(path: Path, body, idx: int, name: str) -> np.ndarray:
+    try:
+        return np.array([float(r[idx]) for r in body])
+    except ValueError:
+        for k, r in enumerate(body):
+            try:
+                float(r[idx])
+            except ValueError:
+                raise FileFormatError(
+                    f"{path}: line {k + 2}, column {name}: not a number ({r[idx]!r})"
+                ) from None
+        raise  # pragma: no cover
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().replace(",", "x").split("x"))
+    except ValueError:
+        raise InputError(
+            f"--image-size: expected WIDTHxHEIGHT in pixels, e.g. 7952x5304, not {text!r}"
+        ) from None
+    return w, h
+
+
+@app.command("fit")
+def fit(
+    residuals: Annotated[
+        Path,
+        typer.Argument(
+            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed)."
+        ),
+    ],
+    image_size: Annotated[
+        str, typer.Option("--image-size", help="Image size WIDTHxHEIGHT in pixels (all images).")
+    ],
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="Grids file: .npz, or JSON for any other suffix.")
+    ],
+    spacing: Annotated[float, typer.Option(help="Node spacing in pixels.")] = 100.0,
+    sigma_obs: Annotated[
+        float, typer.Option(help="Standard deviation of the residuals (px).")
+    ] = 1.0,
+    sigma_constraint: Annotated[
+        str,
+        typer.Option(
+            help="Standard deviation of the smoothness pseudo-observations (px), "
+            "or 'vce' to estimate both variances."
+        ),
+    ] = "1.0",
+    border: Annotated[
+        Border,
+        typer.Option(
+            help="Constraint of border nodes: mean of the neighbours they have, "
+            "or linear along the edge."
+        ),
+    ] = Border.mean,
+    folds: Annotated[int, typer.Option(help="k-fold cross-validation (0: none).")] = 5,
+    snooping: Annotated[
+        bool,
+        typer.Option("--snooping/--no-snooping", help="Reject outliers by data snooping (w-test)."),
+    ] = False,
+    alpha: Annotated[float, typer.Option(help="Significance level of the w-test.")] = 0.001,
+    min_support: Annotated[
+        int, typer.Option(help="Observations in a node's cells for it to count as supported.")
+    ] = 3,
+    std: Annotated[
+        bool, typer.Option("--std/--no-std", help="Compute and store node standard deviations.")
+    ] = True,
+    report: ReportOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Fit one residual grid per image and write the grids file."""
+    from ..calibration import fit_grids, save_grids
+
+    size = _image_size(image_size)
+    if sigma_constraint.strip().lower() == "vce":
+        s_c: float | str = "vce"
+    else:
+        try:
+            s_c = float(sigma_constraint)
+        except ValueError:
+            raise InputError(
+                f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
+            ) from None
+    _h, body, col = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
+    ids = np.array([r[col["image_id"]].strip() for r in body], dtype=object)
+    data = np.stack([_numbers(residuals, body, col[c], c) for c in ("u", "v", "rx", "ry")], axis=1)
+    per_image = {}
+    order = list(dict.fromkeys(ids.tolist()))
+    groups = {k: [] for k in order}
+    for i, k in enumerate(ids.tolist()):
+        groups[k].append(i)
+    for k in order:
+        rows = np.asarray(groups[k])
+        per_image[k] = (data[rows, :2], data[rows, 2:])
+    try:
+        grids = fit_grids(
+            per_image,
+            size,
+            spacing,
+            sigma_obs=sigma_obs,
+            sigma_constraint=s_c,
+            border=border.value,
+            folds=folds,
+            snooping=snooping,
+            alpha=alpha,
+            min_support=min_support,
+            progress=console(stderr=True).is_terminal,
+        )
+    except InputError as exc:
+        raise InputError(_cli_words(str(exc))) from None
+    save_grids(output, grids, std=std)
+    stats = {k: g.to_dict() for k, g in grids.items()}
+    if report is not None:
+        _write_report(report, grids)
+    if as_json:
+        typer.echo(json_text({"output": str(output), "images": stats}), nl=False)
+        return
+    from rich.table import Table
+
+    t = Table(title=f"Residual grids, {spacing:g} px (residuals computed minus observed, px)")
+    for c in (
+        "image",
+        "n",
+        "outliers",
+        "nodes",
+        "supported",
+        "sigma0",
+        "RMS before",
+        "RMS after",
+        "reduction",
+        "CV reduction",
+    ):
+        t.add_column(c, justify="right")
+    for k, s in stats.items():
+        t.add_row(
+            str(k),
+            str(s["n_observations"]),
+            str(s["n_outliers"]),
+            f"{s['shape'][0]}x{s['shape'][1]}",
+            str(s["supported_nodes"]),
+            _f(s["sigma0"]),
+            _f(s["rms_before"]),
+            _f(s["rms_after"]),
+            _pct(s["reduction"]),
+            _pct(s["reduction_cv"]),
+        )
+    out = console()
+    out.print(t)
+    say(f"wrote {len(stats)} grid(s) to {output}", out)
+
+
+def _cli_words(msg: str) -> str:
+    return (
+        msg.replace("sigma_constraint", "--sigma-constraint")
+        .replace("sigma_obs", "--sigma-obs")
+        .replace("min_observations", "observations")
+        .replace("grid spacing", "--spacing")
+        .replace("use a larger spacing", "use a larger --spacing")
+        .replace("a larger alpha", "a larger --alpha")
+    )
+
+
+def _f(x) -> str:
+    return "-" if x is None else f"{x:.4f}"
+
+
+def _pct(x) -> str:
+    return "-" if x is None else f"{100 * x:.1f} %"
+
+
+def _write_report(path: Path, grids: dict) -> None:
+    from matplotlib.figure import Figure
+
+    from ..report import Report
+
+    rep = Report("Finite-element residual grids", "image residuals computed minus observed, px")
+    rows = []
+    for k, g in grids.items():
+        s = g.to_dict()
+        rows.append(
+            [
+                k,
+                s["n_observations"],
+                s["n_outliers"],
+                s["supported_nodes"],
+                s["sigma0"],
+                s["rms_before"],
+                s["rms_after"],
+                s["reduction"],
+                s["reduction_cv"],
+            ]
+        )
+    rep.add_table(
+        "Per image",
+        [
+            "image",
+            "n",
+            "outliers",
+            "supported nodes",
+            "sigma0",
+            "RMS before (px)",
+            "RMS after (px)",
+            "reduction",
+            "reduction (cross-validation)",
+        ],
+        rows,
+    )
+    first = next(iter(grids.values()))
+    same = [g for g in grids.values() if g.layout == first.layout]
+    mean = np.mean([g.nodes for g in same], axis=0)
+    u, v = first.layout.node_coordinates()
+    fig = Figure(figsize=(8, 8 * first.layout.height / first.layout.width + 0.6))
+    ax = fig.add_subplot()
+    ax.quiver(u, v, mean[..., 0], mean[..., 1], angles="xy")
+    ax.set_xlim(-0.5, first.layout.width - 0.5)
+    ax.set_ylim(first.layout.height - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("u (px)")
+    ax.set_ylabel("v (px)")
+    rep.add_figure(f"Mean grid of {len(same)} image(s) (node vectors, not to scale)", fig)
+    rep.write(path)
+
+
+@app.command("apply")
+def apply(
+    grids_file: Annotated[Path, typer.Argument(help="Grids file written by 'photogeom grid fit'.")],
+    observations: Annotated[
+        Path, typer.Argument(help="CSV with image_id, u, v (px); other columns are kept.")
+    ],
+    output: OutputCsvOpt = None,
+) -> None:
+    """Correct image coordinates: u, v replaced by u + rx(u, v), v + ry(u, v)."""
+    from ..calibration import correct_observations, load_grids
+
+    grids = load_grids(grids_file)
+    header, body, col = _read_csv(observations, ("image_id", "u", "v"))
+    ids = [r[col["image_id"]].strip() for r in body]
+    uv = np.stack([_numbers(observations, body, col[c], c) for c in ("u", "v")], axis=1)
+    per_image: dict = {}
+    for i, k in enumerate(ids):
+        per_image.setdefault(k, []).append(i)
+    missing = [k for k in per_image if k not in grids]
+    if missing:
+        raise InputError(
+            f"{observations}: no grid in {grids_file} for image(s) {', '.join(missing[:10])}"
+        )
+    corrected = correct_observations({k: uv[np.asarray(r)] for k, r in per_image.items()}, grids)
+    new = uv.copy()
+    for k, r in per_image.items():
+        new[np.asarray(r)] = corrected[k]
+    lines = [",".join(header)]
+    for i, r in enumerate(body):
+        r = list(r)
+        r[col["u"]] = repr(float(new[i, 0]))
+        r[col["v"]] = repr(float(new[i, 1]))
+        lines.append(",".join(_csv_field(c) for c in r))
+    emit_points("\n".join(lines) + "\n", output, len(body))
+
+
+def _csv_field(c: str) -> str:
+    return f'"{c}"' if ("," in c or '"' in c) and not c.startswith('"') else c
+
+
+@app.command("correct-images")
+def correct_images(
+    grids_file: Annotated[Path, typer.Argument(help="Grids file written by 'photogeom grid fit'.")],
+    src_dir: Annotated[
+        Path, typer.Argument(help="Folder of the original images (file name or stem = image id).")
+    ],
+    dst_dir: Annotated[
+        Path, typer.Argument(help="Output folder (created; must differ from the input).")
+    ],
+    workers: Annotated[int, typer.Option(help="Parallel workers.")] = 1,
+    dask: Annotated[
+        bool, typer.Option("--dask", help="Run on a Dask local cluster of --workers workers.")
+    ] = False,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Address of a running Dask scheduler (tcp://host:8786).")
+    ] = None,
+    interpolation: Annotated[Interp, typer.Option(help="Resampling.")] = Interp.bilinear,
+    as_json: JsonOpt = False,
+) -> None:
+    """Resample every image that has a grid; failures are listed, the rest processed."""
+    from ..calibration import correct_folder, load_grids
+
+    grids = load_grids(grids_file)
+    mode: bool | str = scheduler if scheduler else dask
+    try:
+        res = correct_folder(
+            src_dir,
+            dst_dir,
+            grids,
+            workers=workers,
+            dask=mode,
+            interpolation=interpolation.value,
+            progress=console(stderr=True).is_terminal,
+        )
+    except InputError as exc:
+        raise InputError(str(exc).replace("workers must", "--workers must")) from None
+    if as_json:
+        typer.echo(json_text(res.to_dict()), nl=False)
+    else:
+        say(f"corrected {len(res.written)} image(s) into {dst_dir}")
+        for k, note in res.notes.items():
+            say(f"  {k}: {note}")
+        if res.skipped:
+            say(
+                f"{len(res.skipped)} image file(s) without a grid, not corrected: "
+                f"{', '.join(res.skipped[:10])}"
+            )
+        for k, msg in res.failures.items():
+            say(f"failed {k}: {msg}", stderr=True)
+    if res.failures:
+        raise typer.Exit(1)

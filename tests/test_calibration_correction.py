@@ -1,0 +1,227 @@
+"""Applying residual grids: corrected coordinates, resampled images, files and folders."""
+
+from __future__ import annotations
+
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from photogeom.calibration import (
+    correct_folder,
+    correct_image,
+    correct_image_file,
+    correct_observations,
+    correct_points,
+    field_at_pixels,
+    fit_grid,
+)
+from photogeom.errors import InputError, PhotogeomError
+
+W, H = 240, 180
+XMP = b'<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF/></x:xmpmeta>'
+
+
+def field(uv):
+    """Modelled residual (px): smooth, up to about 2 px."""
+    x, y = uv[:, 0] / W, uv[:, 1] / H
+    return np.column_stack([1.5 * np.sin(2 * x) + 0.5 * y, -1.2 * np.cos(1.5 * y) + 0.8 * x * y])
+
+
+@pytest.fixture(scope="module")
+def grid():
+    rng = np.random.default_rng(4)
+    uv = np.column_stack([rng.uniform(0, W - 1, 2000), rng.uniform(0, H - 1, 2000)])
+    return fit_grid(uv, field(uv), (W, H), 30, sigma_obs=0.1, sigma_constraint=0.05, folds=0)
+
+
+def test_correct_points_and_observations(grid):
+    uv = np.array([[10.0, 20.0], [200.5, 170.25]])
+    np.testing.assert_allclose(correct_points(uv, grid), uv + grid.evaluate(uv))
+    out = correct_observations({"a": uv, "b": uv[:1]}, {"a": grid, "b": grid})
+    np.testing.assert_allclose(out["b"], uv[:1] + grid.evaluate(uv[:1]))
+    with pytest.raises(InputError, match="no residual grid for image\\(s\\) c"):
+        correct_observations({"c": uv}, {"a": grid})
+    with pytest.raises(InputError, match=r"image a: .*outside"):
+        correct_observations({"a": uv + 1000}, {"a": grid})
+
+
+def test_field_at_pixels_matches_pointwise_evaluation(grid):
+    yy, xx = np.mgrid[0:H, 0:W]
+    pts = np.column_stack([xx.ravel(), yy.ravel()]).astype(float)
+    np.testing.assert_allclose(field_at_pixels(grid).reshape(-1, 2), grid.evaluate(pts), atol=1e-12)
+
+
+@pytest.mark.parametrize("interpolation", ["bilinear", "bicubic"])
+def test_image_correction_equals_remap_with_pointwise_maps(grid, interpolation):
+    rng = np.random.default_rng(1)
+    img = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
+    yy, xx = np.mgrid[0:H, 0:W]
+    pts = np.column_stack([xx.ravel(), yy.ravel()]).astype(float)
+    r = grid.evaluate(pts).reshape(H, W, 2)
+    mx = (xx - r[..., 0]).astype(np.float32)
+    my = (yy - r[..., 1]).astype(np.float32)
+    flag = cv2.INTER_LINEAR if interpolation == "bilinear" else cv2.INTER_CUBIC
+    ref = cv2.remap(img, mx, my, flag, borderMode=cv2.BORDER_REPLICATE)
+    for threads in (1, 3):
+        out = correct_image(img, grid, interpolation=interpolation, threads=threads)
+        np.testing.assert_allclose(out, ref, atol=2e-3)
+
+
+def _blobs(points, sigma=1.6):
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    img = np.zeros((H, W), np.float32)
+    for u, v in points:
+        img += np.exp(-((xx - u) ** 2 + (yy - v) ** 2) / (2 * sigma**2)).astype(np.float32)
+    return img
+
+
+def _centroid(img, u, v, r=6):
+    i0, j0 = round(v), round(u)
+    win = img[i0 - r : i0 + r + 1, j0 - r : j0 + r + 1].astype(float)
+    yy, xx = np.mgrid[i0 - r : i0 + r + 1, j0 - r : j0 + r + 1]
+    return np.array([np.sum(win * xx), np.sum(win * yy)]) / win.sum()
+
+
+@pytest.mark.parametrize("interpolation", ["bilinear", "bicubic"])
+def test_feature_moves_to_its_corrected_coordinates(grid, interpolation):
+    """A point observed at p appears at p + r(p) in the corrected image (the point
+    correction), up to the inverse-mapping approximation |grad r| |r|."""
+    rng = np.random.default_rng(8)
+    pts = np.column_stack([rng.uniform(20, W - 20, 12), rng.uniform(20, H - 20, 12)])
+    pts = pts[np.argsort(pts[:, 0])]
+    keep = [0]
+    for k in range(1, len(pts)):  # blobs apart from each other
+        if np.min(np.hypot(*(pts[keep] - pts[k]).T)) > 16:
+            keep.append(k)
+    pts = pts[keep]
+    out = correct_image(_blobs(pts), grid, interpolation=interpolation)
+    expected = correct_points(pts, grid)
+    found = np.array([_centroid(out, *p) for p in expected])
+    np.testing.assert_allclose(found, expected, atol=0.05)
+    assert np.max(np.hypot(*(expected - pts).T)) > 1.0  # the field moved the points
+
+
+def test_correct_image_bad_input(grid):
+    with pytest.raises(InputError, match="does not match"):
+        correct_image(np.zeros((H + 1, W), np.uint8), grid)
+    with pytest.raises(InputError, match="channels"):
+        correct_image(np.zeros((H, W, 5), np.uint8), grid)
+    with pytest.raises(InputError, match="type"):
+        correct_image(np.zeros((H, W), np.int64), grid)
+    with pytest.raises(InputError, match="interpolation"):
+        correct_image(np.zeros((H, W), np.uint8), grid, interpolation="nearest")
+
+
+# ------------------------------------------------------------------ files and folders
+def _exif():
+    ex = Image.Exif()
+    ex[0x010F] = "SONY"
+    ex[0x0110] = "ILCE-7RM2"
+    return ex
+
+
+@pytest.fixture
+def folder(tmp_path):
+    rng = np.random.default_rng(2)
+    src = tmp_path / "in"
+    src.mkdir()
+    rgb = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
+    Image.fromarray(rgb).save(src / "IMG_1.JPG", exif=_exif(), xmp=XMP, quality=90)
+    tags = _exif()
+    tags[700] = XMP  # XMP is TIFF tag 700
+    Image.fromarray(rgb).save(src / "IMG_2.tif", exif=tags, compression="tiff_lzw")
+    Image.fromarray(rgb[..., 0]).save(src / "IMG_3.png", exif=_exif())
+    (src / "IMG_4.jpg").write_bytes(b"\xff\xd8 not really a JPEG")
+    return src, rgb
+
+
+def test_image_files_keep_format_and_metadata(folder, grid, tmp_path):
+    src, rgb = folder
+    for name in ("IMG_1.JPG", "IMG_2.tif", "IMG_3.png"):
+        dst = tmp_path / name
+        assert correct_image_file(src / name, dst, grid) is None
+        with Image.open(dst) as im, Image.open(src / name) as orig:
+            assert im.format == orig.format and im.size == (W, H) and im.mode == orig.mode
+            assert im.getexif()[0x0110] == "ILCE-7RM2"
+            if im.format == "JPEG":
+                assert im.info["xmp"] == XMP
+                assert im.quantization == orig.quantization  # quality kept
+            if im.format == "TIFF":
+                assert bytes(im.tag_v2[700]) == XMP
+                assert im.info["compression"] == "tiff_lzw"
+    # lossless formats: the pixels are exactly the corrected array
+    with Image.open(tmp_path / "IMG_2.tif") as im:
+        np.testing.assert_array_equal(np.asarray(im), correct_image(rgb, grid))
+    with Image.open(tmp_path / "IMG_3.png") as im:
+        np.testing.assert_array_equal(np.asarray(im), correct_image(rgb[..., 0], grid))
+
+
+def test_sixteen_bit_colour_kept_by_opencv(grid, tmp_path):
+    """16-bit colour is beyond Pillow: OpenCV writes it, bit depth and pixels exact."""
+    img = np.random.default_rng(0).integers(0, 65535, (H, W, 3)).astype(np.uint16)
+    assert cv2.imwrite(str(tmp_path / "deep.png"), img)
+    note = correct_image_file(tmp_path / "deep.png", tmp_path / "out.png", grid)
+    out = cv2.imread(str(tmp_path / "out.png"), cv2.IMREAD_UNCHANGED)
+    assert out.dtype == np.uint16 and out.shape == img.shape
+    np.testing.assert_array_equal(out, correct_image(img, grid))
+    assert note is None  # no metadata to lose
+
+
+def test_folder_lists_failures_and_processes_the_rest(folder, grid, tmp_path):
+    src, _ = folder
+    (src / "other.png").write_bytes((src / "IMG_3.png").read_bytes())
+    grids = {f"IMG_{k}": grid for k in (1, 2, 3, 4, 5)}
+    small = fit_grid(
+        np.array([[1.0, 1], [50, 40], [10, 60], [70, 5]]), np.zeros((4, 2)), (80, 70), 30
+    )
+    grids["IMG_3"] = small  # wrong size for the file
+    dst = tmp_path / "out"
+    res = correct_folder(src, dst, grids, progress=False)
+    assert set(res.written) == {"IMG_1", "IMG_2"}
+    assert set(res.failures) == {"IMG_3", "IMG_4", "IMG_5"}
+    assert "no image file named IMG_5" in res.failures["IMG_5"]
+    assert "not a readable image" in res.failures["IMG_4"]
+    assert "80 x 70" in res.failures["IMG_3"]
+    assert res.skipped == ["other.png"]
+    assert sorted(p.name for p in dst.iterdir()) == ["IMG_1.JPG", "IMG_2.tif"]  # nothing half
+    # two processes give the same files
+    res2 = correct_folder(src, tmp_path / "out2", grids, workers=2, progress=False)
+    assert set(res2.written) == {"IMG_1", "IMG_2"} and set(res2.failures) == set(res.failures)
+    for name in ("IMG_1.JPG", "IMG_2.tif"):
+        assert (tmp_path / "out2" / name).read_bytes() == (dst / name).read_bytes()
+    with pytest.raises(InputError, match="must differ"):
+        correct_folder(src, src, grids, progress=False)
+    with pytest.raises(InputError, match="does not exist"):
+        correct_folder(tmp_path / "nope", dst, grids, progress=False)
+
+
+def test_folder_on_a_dask_scheduler(folder, grid, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    src, _ = folder
+    cluster = distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=":0"
+    )
+    try:
+        res = correct_folder(
+            src,
+            tmp_path / "out",
+            {"IMG_1": grid, "IMG_4": grid},
+            dask=cluster.scheduler_address,
+            progress=False,
+        )
+    finally:
+        cluster.close()
+    assert set(res.written) == {"IMG_1"} and set(res.failures) == {"IMG_4"}
+    ref = tmp_path / "ref.jpg"
+    correct_image_file(src / "IMG_1.JPG", ref, grid)
+    assert (tmp_path / "out" / "IMG_1.JPG").read_bytes() == ref.read_bytes()
+
+
+def test_missing_dask_is_named(folder, grid, tmp_path, monkeypatch):
+    src, _ = folder
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(PhotogeomError, match=r"photogeom\[dask\]"):
+        correct_folder(src, tmp_path / "out", {"IMG_1": grid}, dask=True, progress=False)
