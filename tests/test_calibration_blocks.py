@@ -1,4 +1,4 @@
-"""Residual grids of a whole block: fit, correct, re-adjust, height steps (small simulated blocks)."""
+"""Residual grids of a whole block: fit, correct, re-adjust, steps (small simulated blocks)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def test_contract_names():
 
 
 def test_grids_per_image_from_tie_residuals(unstable):
-    sim, fit, grids = unstable
+    _, fit, grids = unstable
     b = fit.block
     assert list(grids) == b.image_ids.tolist()
     w, h = (int(x) for x in b.image_sizes()[0])
