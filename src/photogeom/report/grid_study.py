@@ -70,12 +70,28 @@ def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> 
     ref = max(ref, 1e-12)
     k = 0.08 * w / ref  # the longest vector is 8 % of the image width
     ax.quiver(
-        xy[:, 0], xy[:, 1], v[:, 0] * k, -v[:, 1] * k, angles="xy", scale_units="xy",
-        scale=1, color=color, width=0.003,
-    )  # fmt: skip
+        xy[:, 0],
+        xy[:, 1],
+        v[:, 0] * k,
+        -v[:, 1] * k,
+        angles="xy",
+        scale_units="xy",
+        scale=1,
+        color=color,
+        width=0.003,
+    )
     L = nice_length(ref)
-    ax.quiver([0.05 * w], [1.06 * h], [L * k], [0], angles="xy", scale_units="xy", scale=1,
-              color="k", width=0.004)  # fmt: skip
+    ax.quiver(
+        [0.05 * w],
+        [1.06 * h],
+        [L * k],
+        [0],
+        angles="xy",
+        scale_units="xy",
+        scale=1,
+        color="k",
+        width=0.004,
+    )
     ax.text(0.05 * w, 1.1 * h, f"{L:g} px", fontsize=8)
     ax.set_xlim(-0.02 * w, 1.02 * w)
     ax.set_ylim(1.15 * h, -0.02 * h)
@@ -88,7 +104,7 @@ def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> 
 def _fig_sensor(before, after) -> Figure:
     fig = Figure(figsize=(10, 4))
     size = tuple(before.image_sizes()[0])
-    cb, mb, _ = sensor_mean_residuals(before)
+    _, mb, _ = sensor_mean_residuals(before)
     ref = float(np.max(np.hypot(mb[:, 0], mb[:, 1]))) if mb.size else None
     for ax, blk, t in zip(
         fig.subplots(1, 2), (before, after), ("before (Fig. 7)", "after the correction (Fig. 9)")
@@ -112,8 +128,15 @@ def _fig_image(block, grids, image_id) -> Figure:
     sel = np.zeros(g.layout.shape, bool)
     sel[::step, ::step] = True
     sel = sel.ravel() & (nodes[:, 0] <= size[0]) & (nodes[:, 1] <= size[1])
-    _quiver(a2, nodes[sel], g.nodes.reshape(-1, 2)[sel], None, size,
-            f"fitted grid ({g.spacing:g} px, every {step}. node)", color="#a01d12")  # fmt: skip
+    _quiver(
+        a2,
+        nodes[sel],
+        g.nodes.reshape(-1, 2)[sel],
+        None,
+        size,
+        f"fitted grid ({g.spacing:g} px, every {step}. node)",
+        color="#a01d12",
+    )
     return fig
 
 
@@ -153,8 +176,9 @@ def _fig_models(ev) -> Figure:
     ax.set_xticks(x)
     ax.set_xticklabels([f"{a}-{b}" for a, b in keys], rotation=90, fontsize=7)
     ax.set_ylabel("step (GSD)")
-    ax.set_title("step per model pair (first model's images), before and after (Fig. 14)",
-                 fontsize=9)  # fmt: skip
+    ax.set_title(
+        "step per model pair (first model's images), before and after (Fig. 14)", fontsize=9
+    )
     ax.legend(fontsize=8)
     return fig
 
@@ -187,8 +211,14 @@ def grid_study_report(
         )
     rep.add_table(
         "Ours beside the study",
-        ["block", "step before -> after (GSD)", "published", "residual RMS reduction",
-         "optimal spacing", "published optimum"],  # fmt: skip
+        [
+            "block",
+            "step before -> after (GSD)",
+            "published",
+            "residual RMS reduction",
+            "optimal spacing",
+            "published optimum",
+        ],
         summary,
         note="Simulated re-creations (trends), not the study's data.",
     )
@@ -200,22 +230,40 @@ def grid_study_report(
         blk = ev["residuals"]["block"]
         rows = [
             ["RMS (px)", blk["before"]["rms"], blk["after"]["rms"], blk["reduction_rms"]],
-            ["mean length (px)", blk["before"]["mean_length"], blk["after"]["mean_length"],
-             blk["reduction_mean_length"]],  # fmt: skip
-            ["mean step (GSD)", ev["mean_step_before"], ev["mean_step_after"],
-             ev["step_reduction"]],  # fmt: skip
+            [
+                "mean length (px)",
+                blk["before"]["mean_length"],
+                blk["after"]["mean_length"],
+                blk["reduction_mean_length"],
+            ],
+            [
+                "mean step (GSD)",
+                ev["mean_step_before"],
+                ev["mean_step_after"],
+                ev["step_reduction"],
+            ],
         ]
         if ev.get("check_before"):
-            rows.append(["check RMSE (GSD, 3D)",
-                         float(np.linalg.norm(ev["check_before"]["rmse_gsd"])),
-                         float(np.linalg.norm(ev["check_after"]["rmse_gsd"])), ""])  # fmt: skip
+            rows.append(
+                [
+                    "check RMSE (GSD, 3D)",
+                    float(np.linalg.norm(ev["check_before"]["rmse_gsd"])),
+                    float(np.linalg.norm(ev["check_after"]["rmse_gsd"])),
+                    "",
+                ]
+            )
         rep.add_table("Block", ["quantity", "before", "after", "reduction"], rows)
         rep.add_table(
             "Per image",
             ["image", "RMS before", "RMS after", "mean length before", "mean length after"],
             [
-                [k, v["before"]["rms"], v["after"]["rms"], v["before"]["mean_length"],
-                 v["after"]["mean_length"]]  # fmt: skip
+                [
+                    k,
+                    v["before"]["rms"],
+                    v["after"]["rms"],
+                    v["before"]["mean_length"],
+                    v["after"]["mean_length"],
+                ]
                 for k, v in ev["residuals"]["images"].items()
             ],
         )
