@@ -32,7 +32,7 @@ class Example:
 
 
 #: Modules that contribute examples (each defines ``EXAMPLES``).
-_MODULES = ("transforms", "absolute", "rpc", "camera")
+_MODULES = ("transforms", "absolute", "rpc", "camera", "grid")
 
 
 def all_examples() -> list[Example]:
