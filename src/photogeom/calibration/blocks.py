@@ -90,6 +90,7 @@ def fit_residual_grids(
     roles: Sequence[str] | str = ("tie",),
     images: Sequence | None = None,
     sigma_obs: float | str = "block",
+    sigma_constraint: float | str = 0.1,
     **options,
 ) -> dict[object, ResidualGrid]:
     """Fit one finite-element residual grid per image of an adjusted block.
@@ -110,6 +111,11 @@ def fit_residual_grids(
         Standard deviations of the residuals (px): ``"block"`` takes each observation's
         a-priori sigma from the block (``block.observations.sigma``), a number one value
         for all.
+    sigma_constraint : float or "vce"
+        Standard deviation of the smoothness pseudo-observations (px). The default 0.1 px
+        suits observation sigmas of a few tenths of a pixel and a few hundred tie points per
+        image: with 1 px a 100 px grid nearly interpolates the residuals (noise included).
+        ``"vce"`` estimates it (variance components).
     **options
         Passed to :func:`~photogeom.calibration.fit_grid` (``sigma_constraint`` - a number
         in px or ``"vce"`` -, ``border``, ``min_observations``, ``min_support``, ``folds``,
@@ -149,9 +155,20 @@ def fit_residual_grids(
         sig = _sigmas_per_image(block, roles)
         out = {}
         for k, val in per.items():  # images, not points
-            out.update(fit_grids({k: val}, size_of, spacing, sigma_obs=sig[k], **options))
+            out.update(
+                fit_grids(
+                    {k: val},
+                    size_of,
+                    spacing,
+                    sigma_obs=sig[k],
+                    sigma_constraint=sigma_constraint,
+                    **options,
+                )
+            )
         return out
-    return fit_grids(per, size_of, spacing, sigma_obs=sigma_obs, **options)
+    return fit_grids(
+        per, size_of, spacing, sigma_obs=sigma_obs, sigma_constraint=sigma_constraint, **options
+    )
 
 
 def _sigmas_per_image(block: Block, roles) -> dict:

@@ -199,10 +199,9 @@ def run_study(
     evaluate; the same with ``coarse_spacing`` (the study's 2000 px against 100 px); the
     grid-size sweep over ``sweep`` (None: skipped); the fitted field against the truth.
 
-    The grids are fitted with ``sigma_constraint=0.1`` px (the block's observation sigmas
-    for the residuals) and no cross-validation unless ``fit_options`` says otherwise: with
-    the weaker default of :func:`~photogeom.calibration.fit_grid` (1 px) a 100 px grid
-    nearly interpolates the residuals of a few hundred tie points per image.
+    The grids are fitted with the defaults of :func:`fit_residual_grids` (the block's
+    observation sigmas, a constraint sigma of 0.1 px) and no cross-validation unless
+    ``fit_options`` says otherwise.
 
     Returns
     -------
@@ -215,7 +214,7 @@ def run_study(
     from ..bundle.adjustment import bundle_adjust
     from ..simulate import uav_block
 
-    opts = {"folds": 0, "sigma_constraint": 0.1, **(fit_options or {})}
+    opts = {"folds": 0, **(fit_options or {})}
     times = {}
     t0 = time.perf_counter()
     sim = uav_block(preset, seed=seed, size=size, **simulate)
