@@ -148,3 +148,18 @@ def test_bad_input(unstable):
         pg.calibration.fit_residual_grids(b, roles=("ground",))
     with pytest.raises(InputError, match="overlap"):
         pg.calibration.model_steps(b, overlap=1.5)
+
+
+def test_readjust_needs_no_datum_of_its_own():
+    """Without GNSS, IMU and control points the fixed orientations are the datum."""
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=5, strips=1, images_per_strip=4, gcps="none", checks=0,
+        gnss_sigma=None, imu_sigma_deg=None,
+    )  # fmt: skip
+    block = sim.truth.with_observations(uv=sim.observed)
+    with pytest.raises(pg.errors.DegenerateGeometryError, match="datum"):
+        pg.bundle_adjust(block)
+    grids = pg.calibration.fit_residual_grids(block, 500, folds=0)
+    re = pg.calibration.readjust(block, grids, snooping=False)
+    np.testing.assert_allclose(re.block.exterior, block.exterior, rtol=0, atol=1e-12)
+    assert re.converged
