@@ -213,6 +213,7 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
     out = uv.copy()
     order = np.argsort(block.obs_image, kind="stable")
     starts = np.concatenate([[0], np.cumsum(counts)])
+    sizes = block.image_sizes().astype(int)
     for i, iid in enumerate(ids):  # images, not points
         sel = order[starts[i] : starts[i + 1]]
         if sel.size == 0:
@@ -220,7 +221,7 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
         g = grids[iid]
         if not isinstance(g, ResidualGrid):
             raise InputError(f"image {iid}: expected a ResidualGrid, got {type(g).__name__}")
-        w, h = (int(x) for x in block.image_sizes()[i])
+        w, h = int(sizes[i, 0]), int(sizes[i, 1])
         if g.image_size != (w, h):
             raise InputError(
                 f"image {iid}: the grid was fitted for a {g.image_size[0]} x {g.image_size[1]} "
