@@ -10,10 +10,15 @@ bilinear interpolation; the field corrects image coordinates and images.
   :func:`correct_image_file`, :func:`correct_folder` - apply the field;
 * :func:`compare_residuals`, :func:`choose_spacing`, :func:`most_frequent_spacing` -
   evaluation on arrays (:mod:`photogeom.calibration.evaluate`);
-* :func:`save_grids`, :func:`load_grids` - the grids file (NPZ or JSON).
+* :func:`save_grids`, :func:`load_grids` - the grids file (NPZ or JSON);
+* :func:`fit_residual_grids`, :func:`readjust`, :func:`model_steps` - the block level
+  (:mod:`photogeom.calibration.blocks`, :mod:`photogeom.calibration.steps`);
+  :func:`correct_observations` takes a Block or arrays per image.
 """
 
-from .correction import correct_image, correct_observations, correct_points, field_at_pixels
+from .blocks import block_residuals, correct_block_observations, fit_residual_grids, readjust
+from .correction import correct_image, correct_points, field_at_pixels
+from .dispatch import correct_observations
 from .evaluate import (
     choose_spacing,
     compare_residuals,
@@ -24,6 +29,8 @@ from .evaluate import (
 from .grid import FiniteElementSystem, GridLayout, ResidualGrid, fit_grid, fit_grids
 from .gridfile import load_grids, save_grids
 from .images import FolderResult, correct_folder, correct_image_file
+from .steps import StereoModels, image_overlap, model_steps, stereo_models
+from .study import evaluate_readjustment, field_recovery, run_study, sweep_spacings
 
 __all__ = [
     "FiniteElementSystem",
@@ -45,4 +52,18 @@ __all__ = [
     "most_frequent_spacing",
     "residual_statistics",
     "save_grids",
+]
+__all__ += [
+    "StereoModels",
+    "block_residuals",
+    "correct_block_observations",
+    "evaluate_readjustment",
+    "field_recovery",
+    "fit_residual_grids",
+    "image_overlap",
+    "model_steps",
+    "readjust",
+    "run_study",
+    "stereo_models",
+    "sweep_spacings",
 ]

@@ -384,3 +384,9 @@ def correct_images(
             say(f"failed {k}: {msg}", stderr=True)
     if res.failures:
         raise typer.Exit(1)
+
+
+# block-level commands (evaluate, sweep, report) live in their own module
+from .grid_block import register as _register_block_commands  # noqa: E402
+
+_register_block_commands(app)

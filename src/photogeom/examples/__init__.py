@@ -32,7 +32,7 @@ class Example:
 
 
 #: Modules that contribute examples (each defines ``EXAMPLES``).
-_MODULES = ("transforms", "absolute", "rpc", "camera", "bundle")
+_MODULES = ("transforms", "absolute", "rpc", "camera", "bundle", "grid")
 
 
 def all_examples() -> list[Example]:

@@ -1,0 +1,269 @@
+"""Residual grids of a whole block: fit from the adjusted block, correct, re-adjust.
+
+The block-level face of the finite-element residual grids (05-residual-grid.md, "Public API
+contract"):
+
+* :func:`block_residuals` - the reprojection residuals (computed minus observed, px) of one
+  block, grouped per image;
+* :func:`fit_residual_grids` - one :class:`~photogeom.calibration.ResidualGrid` per image
+  from the residuals of the block's **tie points** (by default; control points can be
+  added with ``roles=("tie", "control")``; check points never enter: they are kept out of
+  the adjustment and out of the grid so that they stay independent checks);
+* :func:`correct_block_observations` - a new block whose observations (every role) are
+  moved by the modelled residual, ``uv + r(uv)``;
+* :func:`readjust` - the corrected block adjusted again with the exterior orientation and
+  the Brown coefficients held at their first values: only the points move (the tie points
+  are re-triangulated, the check points triangulated from the corrected observations).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..bundle.block import ROLES, Block
+from ..bundle.residuals import reprojection_residuals
+from ..errors import InputError
+from .grid import ResidualGrid, fit_grids
+
+__all__ = [
+    "block_residuals",
+    "correct_block_observations",
+    "fit_residual_grids",
+    "readjust",
+]
+
+
+def _check_block(block, what: str) -> Block:
+    if not isinstance(block, Block):
+        raise InputError(f"{what} needs a photogeom.bundle.Block, got {type(block).__name__}")
+    return block
+
+
+def _roles(roles: Sequence[str] | str) -> tuple[str, ...]:
+    roles = (roles,) if isinstance(roles, str) else tuple(roles)
+    bad = [r for r in roles if r not in ROLES]
+    if bad or not roles:
+        raise InputError(f"roles must be a non-empty choice of {', '.join(ROLES)}, not {roles!r}")
+    return roles
+
+
+def block_residuals(
+    block: Block, *, roles: Sequence[str] | str = ("tie",)
+) -> dict[object, tuple[np.ndarray, np.ndarray]]:
+    """Observed pixels and reprojection residuals per image.
+
+    Parameters
+    ----------
+    block : Block
+        An adjusted block (e.g. ``pg.bundle_adjust(...).block``).
+    roles : sequence of str
+        Point roles whose observations are used (default: tie points only).
+
+    Returns
+    -------
+    dict
+        ``image id -> (uv (n, 2), residuals (n, 2))`` in pixels, residuals computed minus
+        observed, for every image of the block in block order (an image without
+        observations of these roles gets empty arrays).
+    """
+    _check_block(block, "block_residuals")
+    use = np.isin(block.role[block.obs_point], _roles(roles))
+    r = reprojection_residuals(block)
+    uv = block.observations.uv
+    rows = np.flatnonzero(use)
+    order = rows[np.argsort(block.obs_image[rows], kind="stable")]
+    counts = np.bincount(block.obs_image[rows], minlength=block.n_images)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    out = {}
+    for i, iid in enumerate(block.image_ids.tolist()):  # images, not points
+        sel = order[starts[i] : starts[i + 1]]
+        out[iid] = (uv[sel], r[sel])
+    return out
+
+
+def fit_residual_grids(
+    block: Block,
+    spacing: float = 100,
+    *,
+    roles: Sequence[str] | str = ("tie",),
+    images: Sequence | None = None,
+    sigma_obs: float | str = "block",
+    sigma_constraint: float | str = 0.1,
+    **options,
+) -> dict[object, ResidualGrid]:
+    """Fit one finite-element residual grid per image of an adjusted block.
+
+    Parameters
+    ----------
+    block : Block
+        The adjusted block: its reprojection residuals (computed minus observed, px) are
+        the data, its cameras give each image's size.
+    spacing : float
+        Node spacing in pixels (the study: 100 px on the unstable camera, 70 px on the
+        stable ones; 150-200 px chosen by the closest-to-origin rule).
+    roles : sequence of str
+        Point roles whose residuals are fitted (default: tie points only; see the module).
+    images : sequence of image ids, optional
+        Fit only these images (default: every image of the block).
+    sigma_obs : "block" or float
+        Standard deviations of the residuals (px): ``"block"`` takes each observation's
+        a-priori sigma from the block (``block.observations.sigma``), a number one value
+        for all.
+    sigma_constraint : float or "vce"
+        Standard deviation of the smoothness pseudo-observations (px). The default 0.1 px
+        suits observation sigmas of a few tenths of a pixel and a few hundred tie points per
+        image: with 1 px a 100 px grid nearly interpolates the residuals (noise included).
+        ``"vce"`` estimates it (variance components).
+    **options
+        Passed to :func:`~photogeom.calibration.fit_grid` (``sigma_constraint`` - a number
+        in px or ``"vce"`` -, ``border``, ``min_observations``, ``min_support``, ``folds``,
+        ``snooping``, ...).
+
+    Returns
+    -------
+    dict
+        ``image id -> ResidualGrid`` in block order.
+
+    Raises
+    ------
+    InputError
+        Not a block, unknown roles or image ids, a spacing of 0, negative or larger than
+        an image, residuals outside the image.
+    TooFewPointsError
+        An image with fewer residuals than ``min_observations`` (named): fit with a larger
+        spacing, or leave the image out with ``images=``.
+    """
+    _check_block(block, "fit_residual_grids")
+    per = block_residuals(block, roles=roles)
+    if images is not None:
+        want = list(images)
+        unknown = [k for k in want if k not in per]
+        if unknown:
+            raise InputError(
+                f"images: unknown image id(s) {', '.join(map(str, unknown[:5]))} "
+                "(not in block.image_ids)"
+            )
+        per = {k: per[k] for k in want}
+    sizes = block.image_sizes().astype(int)
+    row = {iid: i for i, iid in enumerate(block.image_ids.tolist())}
+    size_of = {k: (int(sizes[row[k], 0]), int(sizes[row[k], 1])) for k in per}
+    if isinstance(sigma_obs, str):
+        if sigma_obs != "block":
+            raise InputError(f"sigma_obs must be 'block' or a number of pixels, not {sigma_obs!r}")
+        sig = _sigmas_per_image(block, roles)
+        out = {}
+        for k, val in per.items():  # images, not points
+            out.update(
+                fit_grids(
+                    {k: val},
+                    size_of,
+                    spacing,
+                    sigma_obs=sig[k],
+                    sigma_constraint=sigma_constraint,
+                    **options,
+                )
+            )
+        return out
+    return fit_grids(
+        per, size_of, spacing, sigma_obs=sigma_obs, sigma_constraint=sigma_constraint, **options
+    )
+
+
+def _sigmas_per_image(block: Block, roles) -> dict:
+    use = np.isin(block.role[block.obs_point], _roles(roles))
+    rows = np.flatnonzero(use)
+    order = rows[np.argsort(block.obs_image[rows], kind="stable")]
+    counts = np.bincount(block.obs_image[rows], minlength=block.n_images)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    s = block.observations.sigma
+    return {
+        iid: s[order[starts[i] : starts[i + 1]]] for i, iid in enumerate(block.image_ids.tolist())
+    }
+
+
+def correct_block_observations(block: Block, grids: Mapping) -> Block:
+    """A new block with every observation corrected by its image's grid: ``uv + r(uv)``.
+
+    All roles are corrected (the local field displaces every measurement of an image). The
+    result has the same ids, points and orientations; only ``observations.uv`` changes.
+
+    Raises
+    ------
+    InputError
+        Images holding observations but no grid (named), or observations outside their
+        image.
+    """
+    _check_block(block, "correct_observations")
+    if not isinstance(grids, Mapping):
+        raise InputError(
+            f"grids must be a mapping image id -> ResidualGrid, not {type(grids).__name__}"
+        )
+    counts, _ = block.observation_counts()
+    ids = block.image_ids.tolist()
+    missing = [iid for iid, c in zip(ids, counts) if c and iid not in grids]
+    if missing:
+        raise InputError(
+            f"no residual grid for image(s) {', '.join(map(str, missing[:10]))}"
+            f"{' ...' if len(missing) > 10 else ''}: fit grids for every image of the block "
+            "(fit_residual_grids) to correct its observations"
+        )
+    uv = block.observations.uv
+    out = uv.copy()
+    order = np.argsort(block.obs_image, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    sizes = block.image_sizes().astype(int)
+    for i, iid in enumerate(ids):  # images, not points
+        sel = order[starts[i] : starts[i + 1]]
+        if sel.size == 0:
+            continue
+        g = grids[iid]
+        if not isinstance(g, ResidualGrid):
+            raise InputError(f"image {iid}: expected a ResidualGrid, got {type(g).__name__}")
+        w, h = int(sizes[i, 0]), int(sizes[i, 1])
+        if g.image_size != (w, h):
+            raise InputError(
+                f"image {iid}: the grid was fitted for a {g.image_size[0]} x {g.image_size[1]} "
+                f"px image, the block's camera is {w} x {h} px"
+            )
+        try:
+            out[sel] = g.correct(uv[sel])
+        except InputError as exc:
+            raise InputError(f"image {iid}: {exc}") from None
+    return block.with_observations(uv=out)
+
+
+def readjust(block: Block, grids: Mapping, **options):
+    """Correct the observations with the grids and adjust again with the exterior
+    orientation and the Brown coefficients held at their first values.
+
+    Only the points move: tie (and control) points are re-triangulated by the adjustment,
+    check points triangulated from their corrected observations afterwards. The datum is
+    given by the fixed orientations (no datum check applies).
+
+    Parameters
+    ----------
+    block : Block
+        The adjusted block the grids were fitted to.
+    grids : mapping
+        ``image id -> ResidualGrid`` for every image with observations.
+    **options
+        Passed to :func:`photogeom.bundle_adjust` (``loss``, ``snooping``, ...);
+        ``fix_exterior`` and ``free`` are set by this function and refused.
+
+    Returns
+    -------
+    BundleFit
+    """
+    from ..bundle.adjustment import bundle_adjust
+
+    fixed = sorted({"fix_exterior", "free"} & set(options))
+    if fixed:
+        raise InputError(
+            f"readjust holds the exterior orientation and calibration fixed; do not pass "
+            f"{', '.join(fixed)} (call photogeom.bundle_adjust on correct_observations(...) "
+            "for another setting)"
+        )
+    corrected = correct_block_observations(block, grids)
+    return bundle_adjust(corrected, fix_exterior=True, free=(), **options)

@@ -1,0 +1,257 @@
+"""The residual-grid study re-created on simulated blocks, and its block-level evaluation.
+
+* :func:`field_recovery` - the fitted grids against the simulator's true local field, at the
+  supported nodes inside each image;
+* :func:`evaluate_readjustment` - residuals (RMS, mean length per image and block), steps
+  per model and, for a simulated block, check-point errors against the truth, before and
+  after the correction;
+* :func:`sweep_spacings` - the grid-size sweep: step per model and computing time per
+  spacing, the closest-to-origin spacing per model and the most frequent one
+  (:func:`~photogeom.calibration.choose_spacing`,
+  :func:`~photogeom.calibration.most_frequent_spacing`);
+* :func:`run_study` - the pipeline of the study on one simulated preset: adjust, fit,
+  correct, re-adjust, evaluate, a coarse grid against the fine one, the sweep.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..bundle.block import Block
+from ..errors import InputError
+from .blocks import block_residuals, fit_residual_grids, readjust
+from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
+from .steps import model_steps
+
+__all__ = ["evaluate_readjustment", "field_recovery", "run_study", "sweep_spacings"]
+
+
+def _rms(v: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(v * v, axis=1)))) if v.size else float("nan")
+
+
+def field_recovery(sim, grids) -> dict:
+    """Compare fitted grids with the true local field of a simulated block.
+
+    At every supported node inside the image (``grid.support``) the grid's value is
+    compared with ``-sim.local_field(image, node)`` (the modelled residual is computed
+    minus observed, the field is added to the observations).
+
+    Returns
+    -------
+    dict
+        ``images``: per image ``{"field_rms", "difference_rms", "ratio", "nodes"}`` (px);
+        ``block``: the same over all images' supported nodes.
+    """
+    out, all_t, all_d = {}, [], []
+    for iid, g in grids.items():  # images, not points
+        u, v = g.layout.node_coordinates()
+        uv = np.column_stack([u.ravel(), v.ravel()])
+        keep = g.support.ravel() & (uv[:, 0] <= g.layout.width - 0.5)
+        keep &= uv[:, 1] <= g.layout.height - 0.5
+        uv = uv[keep]
+        if uv.shape[0] == 0:
+            continue
+        truth = -np.asarray(sim.local_field(iid, uv))
+        d = g.evaluate(uv) - truth
+        out[iid] = {
+            "field_rms": _rms(truth),
+            "difference_rms": _rms(d),
+            "ratio": _rms(d) / _rms(truth) if _rms(truth) > 0 else float("nan"),
+            "nodes": int(uv.shape[0]),
+        }
+        all_t.append(truth)
+        all_d.append(d)
+    if not all_t:
+        raise InputError("field_recovery: no grid has a supported node (use a larger spacing)")
+    t, d = np.concatenate(all_t), np.concatenate(all_d)
+    return {
+        "images": out,
+        "block": {
+            "field_rms": _rms(t),
+            "difference_rms": _rms(d),
+            "ratio": _rms(d) / _rms(t),
+            "nodes": int(t.shape[0]),
+        },
+    }
+
+
+def _check_errors(block: Block, sim) -> dict:
+    ids = np.asarray(sim.check_ids)
+    if ids.size == 0:
+        return {}
+    row = {k: i for i, k in enumerate(block.point_ids.tolist())}
+    trow = {k: i for i, k in enumerate(sim.truth.point_ids.tolist())}
+    e = np.array([block.xyz[row[k]] - sim.truth.xyz[trow[k]] for k in ids.tolist()])
+    rmse = np.sqrt(np.nanmean(e * e, axis=0))
+    return {"errors": e, "rmse": rmse, "rmse_gsd": rmse / sim.gsd}
+
+
+def evaluate_readjustment(before, after, *, sim=None, overlap: float = 0.6) -> dict:
+    """Residuals, steps and check-point errors before and after the correction.
+
+    Parameters
+    ----------
+    before, after : BundleFit
+        The first adjustment and the re-adjustment (:func:`readjust`).
+    sim : SimulatedBlock, optional
+        Adds the check-point errors against the true coordinates (object units and GSD).
+
+    Returns
+    -------
+    dict
+        ``residuals`` (:func:`compare_residuals` of the tie-point residuals per image and
+        block), ``steps_before``, ``steps_after`` (``{(a, b): GSD}``), ``mean_step_before``,
+        ``mean_step_after``, ``step_reduction`` (of the mean) and, with ``sim``,
+        ``check_before``, ``check_after``.
+    """
+    rb = {k: v[1] for k, v in block_residuals(before.block).items() if v[1].size}
+    ra = {k: v[1] for k, v in block_residuals(after.block).items() if k in rb}
+    sb = model_steps(before.block, overlap=overlap)
+    sa = model_steps(after.block, overlap=overlap)
+    common = [k for k in sb if k in sa]
+    mb = float(np.mean([sb[k] for k in common])) if common else float("nan")
+    ma = float(np.mean([sa[k] for k in common])) if common else float("nan")
+    out = {
+        "residuals": compare_residuals(rb, ra),
+        "steps_before": sb,
+        "steps_after": sa,
+        "mean_step_before": mb,
+        "mean_step_after": ma,
+        "step_reduction": 1.0 - ma / mb if mb > 0 else float("nan"),
+    }
+    if sim is not None:
+        out["check_before"] = _check_errors(before.block, sim)
+        out["check_after"] = _check_errors(after.block, sim)
+    return out
+
+
+def sweep_spacings(fit, spacings: Sequence[float], *, overlap: float = 0.6, **options) -> dict:
+    """The grid-size sweep on an adjusted block.
+
+    For every spacing: fit the grids, re-adjust, the step per model and the computing
+    time (fit and re-adjustment, s); then per model the closest-to-origin spacing of the
+    min-max normalised step and time, and the block's most frequent spacing.
+
+    Parameters
+    ----------
+    fit : BundleFit
+        The first adjustment.
+    spacings : sequence of float
+        At least two spacings (px).
+    **options
+        Passed to :func:`fit_residual_grids`.
+
+    Returns
+    -------
+    dict
+        ``spacings``, ``models`` (keys), ``step`` (models, s) GSD, ``time`` (s,) seconds,
+        ``step_before`` (models,), ``choice`` (the dict of :func:`choose_spacing`),
+        ``spacing`` (the most frequent choice).
+    """
+    g = [float(s) for s in spacings]
+    if len(g) < 2:
+        raise InputError("sweep_spacings: give at least two spacings")
+    before = model_steps(fit.block, overlap=overlap)
+    keys = list(before)
+    if not keys:
+        raise InputError("sweep_spacings: the block has no pair of consecutive stereo models")
+    step = np.full((len(keys), len(g)), np.nan)
+    times = np.zeros(len(g))
+    for c, sp in enumerate(g):  # spacings, not points
+        t0 = time.perf_counter()
+        grids = fit_residual_grids(fit.block, sp, **options)
+        re = readjust(fit.block, grids, snooping=False)
+        times[c] = time.perf_counter() - t0
+        s = model_steps(re.block, overlap=overlap)
+        step[:, c] = [s.get(k, np.nan) for k in keys]
+    ok = np.all(np.isfinite(step), axis=1)
+    choice = choose_spacing(g, step[ok], np.broadcast_to(times, step[ok].shape))
+    return {
+        "spacings": g,
+        "models": [k for k, o in zip(keys, ok) if o],
+        "step": step[ok],
+        "time": times,
+        "step_before": np.array([before[k] for k, o in zip(keys, ok) if o]),
+        "choice": choice,
+        "spacing": most_frequent_spacing(choice),
+    }
+
+
+def run_study(
+    preset: str = "ILCE-7RM2",
+    *,
+    seed: int = 1,
+    size: str = "small",
+    spacing: float = 100.0,
+    coarse_spacing: float = 2000.0,
+    sweep: Sequence[float] | None = (100, 150, 200, 300, 500, 1000, 2000),
+    fit_options: dict | None = None,
+    **simulate,
+) -> dict:
+    """The study's pipeline on one simulated preset.
+
+    Simulate (:func:`photogeom.simulate.uav_block`), adjust with Brown self-calibration,
+    fit grids of ``spacing``, correct and re-adjust with the orientation fixed, and
+    evaluate; the same with ``coarse_spacing`` (the study's 2000 px against 100 px); the
+    grid-size sweep over ``sweep`` (None: skipped); the fitted field against the truth.
+
+    The grids are fitted with the defaults of :func:`fit_residual_grids` (the block's
+    observation sigmas, a constraint sigma of 0.1 px) and no cross-validation unless
+    ``fit_options`` says otherwise.
+
+    Returns
+    -------
+    dict
+        ``preset``, ``images``, ``gsd``, ``evaluation`` (:func:`evaluate_readjustment`),
+        ``coarse`` (the same for the coarse grid), ``coarse_share`` (the coarse grid's
+        step reduction over the fine one's), ``residual_reduction`` (block RMS),
+        ``field`` (:func:`field_recovery`), ``sweep`` (:func:`sweep_spacings`), ``times``.
+    """
+    from ..bundle.adjustment import bundle_adjust
+    from ..simulate import uav_block
+
+    opts = {"folds": 0, **(fit_options or {})}
+    times = {}
+    t0 = time.perf_counter()
+    sim = uav_block(preset, seed=seed, size=size, **simulate)
+    times["simulate"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    fit = bundle_adjust(sim.block, snooping=False)
+    times["adjust"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    grids = fit_residual_grids(fit.block, spacing, **opts)
+    times["fit_grids"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    re = readjust(fit.block, grids, snooping=False)
+    times["readjust"] = time.perf_counter() - t0
+    ev = evaluate_readjustment(fit, re, sim=sim)
+    coarse_grids = fit_residual_grids(fit.block, coarse_spacing, **opts)
+    coarse = evaluate_readjustment(fit, readjust(fit.block, coarse_grids, snooping=False), sim=sim)
+    gain = ev["mean_step_before"] - ev["mean_step_after"]
+    cgain = coarse["mean_step_before"] - coarse["mean_step_after"]
+    out = {
+        "preset": str(preset),
+        "images": int(sim.block.n_images),
+        "gsd": float(sim.gsd),
+        "spacing": float(spacing),
+        "coarse_spacing": float(coarse_spacing),
+        "evaluation": ev,
+        "coarse": coarse,
+        "coarse_share": cgain / gain if gain > 0 else float("nan"),
+        "residual_reduction": ev["residuals"]["block"]["reduction_rms"],
+        "field": field_recovery(sim, grids),
+        "sweep": None,
+        "times": times,
+        "grids": grids,
+        "fit": fit,
+        "refit": re,
+    }
+    if sweep is not None:
+        t0 = time.perf_counter()
+        out["sweep"] = sweep_spacings(fit, sweep, **opts)
+        times["sweep"] = time.perf_counter() - t0
+    return out

@@ -1,0 +1,253 @@
+"""`photogeom grid evaluate | sweep | report`: residual grids of a whole adjusted block.
+
+The block is a folder (or file) readable by ``photogeom.bundle.read_block`` (CSV block
+format, COLMAP text model, BAL) holding an **adjusted** block, or ``--preset NAME`` for a
+simulated block of the study's cameras (simulated and adjusted first). ``evaluate`` fits
+grids, corrects, re-adjusts with the orientation fixed and prints the residuals and steps
+before and after; ``sweep`` tries several spacings and chooses one by the closest-to-origin
+rule; ``report`` writes the HTML report with the study's figures.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from ..errors import InputError
+from ._common import JsonOpt, console, json_text, say, split_numbers
+
+BlockArg = Annotated[
+    Path | None,
+    typer.Argument(help="Adjusted block: a CSV block folder, COLMAP text model or BAL file."),
+]
+PresetOpt = Annotated[
+    str | None,
+    typer.Option(help="Simulated block instead: ILCE-7RM2, FC6310 or FC300S (then adjusted)."),
+]
+SpacingOpt = Annotated[float, typer.Option(help="Node spacing of the grids in pixels.")]
+SigmaCOpt = Annotated[
+    float, typer.Option(help="Standard deviation of the smoothness pseudo-observations (px).")
+]
+SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--preset).")]
+StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
+ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
+OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]
+SpacingsOpt = Annotated[
+    str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
+]
+
+
+class _Fit:
+    """A block standing for the first adjustment (the block read is already adjusted)."""
+
+    def __init__(self, block) -> None:
+        self.block = block
+
+
+def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
+    """(first fit, simulated block or None)."""
+    import photogeom as pg
+
+    if (block is None) == (preset is None):
+        raise InputError("give either a BLOCK folder or --preset NAME (not both)")
+    if preset is not None:
+        if strips < 1 or images < 3:
+            raise InputError("--strips must be >= 1 and --images >= 3")
+        sim = pg.simulate.uav_block(preset, seed=seed, strips=strips, images_per_strip=images)
+        return pg.bundle_adjust(sim.block, snooping=False), sim
+    if not block.exists():
+        raise InputError(f"BLOCK: {block} does not exist")
+    return _Fit(pg.bundle.read_block(block)), None
+
+
+def _cli(msg: str) -> str:
+    return (
+        msg.replace("sigma_constraint", "--sigma-constraint")
+        .replace("grid spacing", "--spacing")
+        .replace("use a larger spacing", "use a larger --spacing")
+        .replace("overlap must", "--overlap must")
+    )
+
+
+def _evaluate(block, preset, spacing, sigma_constraint, seed, strips, images, overlap):
+    from ..calibration import evaluate_readjustment, fit_residual_grids, readjust
+
+    fit, sim = _source(block, preset, seed, strips, images)
+    try:
+        grids = fit_residual_grids(fit.block, spacing, sigma_constraint=sigma_constraint, folds=0)
+        re = readjust(fit.block, grids, snooping=False)
+        ev = evaluate_readjustment(fit, re, sim=sim, overlap=overlap)
+    except InputError as exc:
+        raise InputError(_cli(str(exc))) from None
+    return fit, re, grids, ev, sim
+
+
+def _ev_json(ev) -> dict:
+    blk = ev["residuals"]["block"]
+    out = {
+        "residuals": {
+            "block": blk,
+            "images": {str(k): v for k, v in ev["residuals"]["images"].items()},
+        },
+        "steps_before": {f"{a}-{b}": v for (a, b), v in ev["steps_before"].items()},
+        "steps_after": {f"{a}-{b}": v for (a, b), v in ev["steps_after"].items()},
+        "mean_step_before": ev["mean_step_before"],
+        "mean_step_after": ev["mean_step_after"],
+        "step_reduction": ev["step_reduction"],
+    }
+    if ev.get("check_before"):
+        out["check_rmse_gsd_before"] = ev["check_before"]["rmse_gsd"].tolist()
+        out["check_rmse_gsd_after"] = ev["check_after"]["rmse_gsd"].tolist()
+    return out
+
+
+def evaluate(
+    block: BlockArg = None,
+    preset: PresetOpt = None,
+    spacing: SpacingOpt = 100.0,
+    sigma_constraint: SigmaCOpt = 0.1,
+    overlap: OverlapOpt = 0.6,
+    seed: SeedOpt = 1,
+    strips: StripsOpt = 2,
+    images: ImagesOpt = 6,
+    as_json: JsonOpt = False,
+) -> None:
+    """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps."""
+    _, _, _, ev, _ = _evaluate(
+        block, preset, spacing, sigma_constraint, seed, strips, images, overlap
+    )
+    if as_json:
+        typer.echo(json_text(_ev_json(ev)))
+        return
+    out = console()
+    t = Table(title="tie-point residuals (px) and steps (GSD)")
+    for c in ("quantity", "before", "after", "reduction"):
+        t.add_column(c, justify="right")
+    blk = ev["residuals"]["block"]
+    t.add_row(
+        "RMS",
+        f"{blk['before']['rms']:.4f}",
+        f"{blk['after']['rms']:.4f}",
+        f"{100 * blk['reduction_rms']:.1f} %",
+    )
+    t.add_row(
+        "mean length",
+        f"{blk['before']['mean_length']:.4f}",
+        f"{blk['after']['mean_length']:.4f}",
+        f"{100 * blk['reduction_mean_length']:.1f} %",
+    )
+    t.add_row(
+        "mean step",
+        f"{ev['mean_step_before']:.3f}",
+        f"{ev['mean_step_after']:.3f}",
+        f"{100 * ev['step_reduction']:.1f} %",
+    )
+    out.print(t)
+    m = Table(title="step per model pair (GSD)")
+    for c in ("first model", "before", "after"):
+        m.add_column(c, justify="right")
+    for k, v in ev["steps_before"].items():
+        a = ev["steps_after"].get(k, float("nan"))
+        m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
+    out.print(m)
+
+
+def sweep(
+    block: BlockArg = None,
+    preset: PresetOpt = None,
+    spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
+    sigma_constraint: SigmaCOpt = 0.1,
+    overlap: OverlapOpt = 0.6,
+    seed: SeedOpt = 1,
+    strips: StripsOpt = 2,
+    images: ImagesOpt = 6,
+    as_json: JsonOpt = False,
+) -> None:
+    """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
+    from ..calibration import sweep_spacings
+
+    g = split_numbers(spacings, None, "--spacings")
+    fit, _ = _source(block, preset, seed, strips, images)
+    try:
+        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
+    except InputError as exc:
+        raise InputError(
+            _cli(str(exc)).replace("give at least two spacings", "--spacings: give at least two")
+        ) from None
+    if as_json:
+        typer.echo(
+            json_text(
+                {
+                    "spacings": sw["spacings"],
+                    "time": sw["time"].tolist(),
+                    "models": [f"{a}-{b}" for a, b in sw["models"]],
+                    "step": sw["step"].tolist(),
+                    "step_before": sw["step_before"].tolist(),
+                    "chosen": np.asarray(sw["choice"]["spacing"]).tolist(),
+                    "spacing": sw["spacing"],
+                }
+            )
+        )
+        return
+    out = console()
+    t = Table(title="mean step (GSD) and time per spacing")
+    for c in ("spacing (px)", "mean step", "time (s)", "chosen by models"):
+        t.add_column(c, justify="right")
+    ch = np.asarray(sw["choice"]["spacing"])
+    for c, s in enumerate(sw["spacings"]):
+        t.add_row(
+            f"{s:g}",
+            f"{np.mean(sw['step'][:, c]):.3f}",
+            f"{sw['time'][c]:.2f}",
+            str(int(np.sum(ch == s))),
+        )
+    out.print(t)
+    say(
+        f"step before: {np.mean(sw['step_before']):.3f} GSD; chosen spacing "
+        f"{sw['spacing']:g} px ({int(np.sum(ch == sw['spacing']))} of {ch.size} models)",
+        out,
+    )
+
+
+def report(
+    output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")],
+    block: BlockArg = None,
+    preset: PresetOpt = None,
+    spacing: SpacingOpt = 100.0,
+    spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
+    sigma_constraint: SigmaCOpt = 0.1,
+    overlap: OverlapOpt = 0.6,
+    seed: SeedOpt = 1,
+    strips: StripsOpt = 2,
+    images: ImagesOpt = 6,
+) -> None:
+    """Evaluate and sweep, then write the HTML report with the study's figures."""
+    from ..calibration import sweep_spacings
+    from ..report.grid_study import grid_study_report
+
+    g = split_numbers(spacings, None, "--spacings")
+    fit, re, grids, ev, _ = _evaluate(
+        block, preset, spacing, sigma_constraint, seed, strips, images, overlap
+    )
+    sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
+    res = {
+        "preset": preset or str(block),
+        "evaluation": ev,
+        "fit": fit,
+        "refit": re,
+        "grids": grids,
+        "sweep": sw,
+    }
+    path = grid_study_report(res, output)
+    say(f"wrote {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``evaluate``, ``sweep`` and ``report`` to the ``photogeom grid`` group."""
+    app.command("evaluate")(evaluate)
+    app.command("sweep")(sweep)
+    app.command("report")(report)

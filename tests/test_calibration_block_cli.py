@@ -1,0 +1,52 @@
+"""`photogeom grid evaluate | sweep | report` on an adjusted block folder and on a preset."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import photogeom as pg
+
+
+@pytest.fixture(scope="module")
+def block_folder(tmp_path_factory):
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=4, strips=1, images_per_strip=5)
+    fit = pg.bundle_adjust(sim.block, snooping=False)
+    d = tmp_path_factory.mktemp("block") / "adjusted"
+    pg.bundle.write_csv_block(fit.block, d)
+    return d
+
+
+def test_evaluate_block_folder_json(cli, block_folder):
+    code, text, err = cli("grid", "evaluate", str(block_folder), "--spacing", "200", "--json")
+    assert code == 0, err
+    data = json.loads(text)
+    assert data["residuals"]["block"]["reduction_rms"] > 0.3
+    assert data["mean_step_after"] < data["mean_step_before"]
+    assert set(data["steps_before"]) == {"0-1", "1-2", "2-3"}
+
+
+def test_sweep_and_report(cli, block_folder, tmp_path):
+    code, text, err = cli("grid", "sweep", str(block_folder), "--spacings", "200,1000", "--json")
+    assert code == 0, err
+    data = json.loads(text)
+    assert data["spacing"] in (200.0, 1000.0)
+    out = tmp_path / "grid.html"
+    code, text, err = cli(
+        "grid", "report", str(block_folder), "--spacings", "200,1000", "-o", str(out)
+    )
+    assert code == 0, err
+    html = out.read_text()
+    assert html.count("<img") == 4
+
+
+def test_bad_input(cli, block_folder):
+    code, _, err = cli("grid", "evaluate", str(block_folder), "--preset", "FC300S")
+    assert code == 2 and "either a BLOCK" in err
+    code, _, err = cli("grid", "evaluate", str(block_folder), "--spacing", "0")
+    assert code == 2 and "--spacing" in err
+    code, _, err = cli("grid", "sweep", str(block_folder), "--spacings", "200")
+    assert code == 2 and "--spacings" in err
+    code, _, err = cli("grid", "evaluate", str(block_folder / "nowhere"))
+    assert code == 2 and "does not exist" in err

@@ -1,0 +1,165 @@
+"""Residual grids of a whole block: fit, correct, re-adjust, steps (small simulated blocks)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+from photogeom.errors import InputError, TooFewPointsError
+
+
+def _rms(v):
+    return float(np.sqrt(np.mean(np.sum(v * v, axis=1))))
+
+
+@pytest.fixture(scope="module")
+def unstable():
+    """A small block of the study's unstable camera, adjusted, with its grids."""
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=1, strips=2, images_per_strip=5)
+    fit = pg.bundle_adjust(sim.block, snooping=False)
+    grids = pg.calibration.fit_residual_grids(fit.block, spacing=100, folds=0)
+    return sim, fit, grids
+
+
+def test_contract_names():
+    cal = pg.calibration
+    for name in ("fit_residual_grids", "correct_observations", "readjust", "model_steps"):
+        assert callable(getattr(cal, name))
+        assert name in cal.__all__
+
+
+def test_grids_per_image_from_tie_residuals(unstable):
+    _, fit, grids = unstable
+    b = fit.block
+    assert list(grids) == b.image_ids.tolist()
+    w, h = (int(x) for x in b.image_sizes()[0])
+    r = pg.bundle.reprojection_residuals(b)
+    tie = b.role[b.obs_point] == "tie"
+    for i, iid in enumerate(b.image_ids.tolist()):
+        g = grids[iid]
+        assert g.image_size == (w, h)
+        assert g.spacing == 100
+        m = tie & (b.obs_image == i)
+        # the grid was fitted to exactly this image's tie-point residuals
+        assert g.sigma_obs.size == int(m.sum())
+        assert g.rms_before == pytest.approx(_rms(r[m]))
+
+
+def test_correct_observations_block_and_arrays_agree(unstable):
+    _, fit, grids = unstable
+    b = fit.block
+    b2 = pg.calibration.correct_observations(b, grids)
+    assert isinstance(b2, pg.bundle.Block)
+    per = {iid: b.observations.uv[b.obs_image == i] for i, iid in enumerate(b.image_ids.tolist())}
+    arr = pg.calibration.correct_observations(per, grids)
+    for i, iid in enumerate(b.image_ids.tolist()):
+        m = b.obs_image == i
+        np.testing.assert_array_equal(b2.observations.uv[m], arr[iid])
+        # uv + r(uv): the modelled residual added
+        uv = b.observations.uv[m]
+        np.testing.assert_allclose(arr[iid] - uv, grids[iid].evaluate(uv))
+    np.testing.assert_array_equal(b2.xyz, b.xyz)
+    np.testing.assert_array_equal(b2.exterior, b.exterior)
+
+
+def test_readjust_fixes_orientation_and_reduces_residuals_and_steps(unstable):
+    sim, fit, grids = unstable
+    re = pg.calibration.readjust(fit.block, grids, snooping=False)
+    np.testing.assert_allclose(re.block.exterior, fit.block.exterior, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        re.block.calibration_matrix(), fit.block.calibration_matrix(), rtol=1e-14
+    )
+    ev = pg.calibration.evaluate_readjustment(fit, re, sim=sim)
+    assert ev["residuals"]["block"]["reduction_rms"] > 0.5
+    assert ev["mean_step_before"] > 2.0  # the unstable camera's strong field: a visible step
+    assert ev["mean_step_after"] < 0.5 * ev["mean_step_before"]
+    assert set(ev["check_after"]) == {"errors", "rmse", "rmse_gsd"}
+
+
+def test_field_recovered_where_supported():
+    """Residuals against the true orientation: the grid matches the true local field."""
+    sim = pg.simulate.uav_block(
+        "ILCE-7RM2",
+        seed=3,
+        strips=1,
+        images_per_strip=4,
+        tie_points_per_image=600,
+        gcps="none",
+        checks=0,
+        sigma=0.1,
+    )
+    block = sim.truth.with_observations(uv=sim.observed)  # residuals = -(field + noise)
+    grids = pg.calibration.fit_residual_grids(block, 200, sigma_constraint=0.1, folds=0)
+    rec = pg.calibration.field_recovery(sim, grids)
+    assert rec["block"]["field_rms"] > 0.5
+    for iid, r in rec["images"].items():
+        assert r["nodes"] > 100
+        assert r["ratio"] < 0.2, iid
+
+
+def test_model_steps_zero_on_the_truth_and_overlap_rule():
+    sim = pg.simulate.uav_block("FC300S", seed=2, strips=2, images_per_strip=6, local_field=0.0)
+    truth = sim.truth  # ideal observations, true cameras: both models agree exactly
+    sm = pg.calibration.stereo_models(truth)
+    assert len(sm.strips) == 2
+    assert sm.offsets == [2, 2]  # 80 % forward overlap: every second image gives ~60 %
+    assert all(abs(o - 0.6) < 0.1 for o in sm.model_overlap)
+    steps, info = pg.calibration.model_steps(truth, details=True)
+    assert set(steps) == {(a, b) for a, b, _ in sm.triples}
+    assert max(steps.values()) < 1e-6
+    assert all(v["n"] >= 3 for v in info.values())
+    # a height error of one image shows as a step between its two models
+    ext = truth.exterior.copy()
+    ext[2, 2] += 0.5  # image 2 raised by 0.5 m
+    steps2 = pg.calibration.model_steps(truth.replace(exterior=ext))
+    assert steps2[(0, 2)] > 1.0
+
+
+def test_seventy_percent_overlap_uses_neighbours():
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=2, strips=1, images_per_strip=5)
+    sm = pg.calibration.stereo_models(sim.truth)
+    assert sm.offsets == [1]
+    assert [t[:2] for t in sm.triples] == [(0, 1), (1, 2), (2, 3)]
+
+
+def test_bad_input(unstable):
+    _, fit, grids = unstable
+    b = fit.block
+    with pytest.raises(InputError, match="positive"):
+        pg.calibration.fit_residual_grids(b, spacing=0)
+    with pytest.raises(InputError, match="larger than the image"):
+        pg.calibration.fit_residual_grids(b, spacing=9000)
+    # image 0 keeps only 2 tie observations: too few for its grid, named
+    tie = b.role[b.obs_point] == "tie"
+    rows0 = np.flatnonzero(tie & (b.obs_image == 0))
+    keep = np.ones(b.n_observations, bool)
+    keep[rows0[2:]] = False
+    with pytest.raises(TooFewPointsError, match="image 0"):
+        pg.calibration.fit_residual_grids(b.select_observations(keep), spacing=500)
+    partial = {k: v for k, v in grids.items() if k != 3}
+    with pytest.raises(InputError, match="no residual grid for image"):
+        pg.calibration.correct_observations(b, partial)
+    with pytest.raises(InputError, match="do not pass fix_exterior"):
+        pg.calibration.readjust(b, grids, fix_exterior=False)
+    with pytest.raises(InputError, match="Block or a mapping"):
+        pg.calibration.correct_observations([1, 2], grids)
+    with pytest.raises(InputError, match="roles"):
+        pg.calibration.fit_residual_grids(b, roles=("ground",))
+    with pytest.raises(InputError, match="overlap"):
+        pg.calibration.model_steps(b, overlap=1.5)
+
+
+def test_readjust_needs_no_datum_of_its_own():
+    """Without GNSS, IMU and control points the fixed orientations are the datum."""
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=5, strips=1, images_per_strip=4, gcps="none", checks=0,
+        gnss_sigma=None, imu_sigma_deg=None,
+    )  # fmt: skip
+    block = sim.truth.with_observations(uv=sim.observed)
+    with pytest.raises(pg.errors.DegenerateGeometryError, match="datum"):
+        pg.bundle_adjust(block)
+    grids = pg.calibration.fit_residual_grids(block, 500, folds=0)
+    re = pg.calibration.readjust(block, grids, snooping=False)
+    np.testing.assert_allclose(re.block.exterior, block.exterior, rtol=0, atol=1e-12)
+    assert re.converged
