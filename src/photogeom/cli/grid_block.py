@@ -13,9 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
-from rich.table import Table
 
 from ..errors import InputError
 from ._common import JsonOpt, console, json_text, say, split_numbers
@@ -123,6 +121,8 @@ def evaluate(
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
         return
+    from rich.table import Table
+
     out = console()
     t = Table(title="tie-point residuals (px) and steps (GSD)")
     for c in ("quantity", "before", "after", "reduction"):
@@ -168,6 +168,9 @@ def sweep(
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
+    import numpy as np
+    from rich.table import Table
+
     from ..calibration import sweep_spacings
 
     g = split_numbers(spacings, None, "--spacings")
