@@ -364,7 +364,17 @@ def fmt_t(t):
     return "-" if t is None else (f"{t * 1e3:.0f} ms" if t < 1 else f"{t:.2f} s")
 
 
-def run_size(n: int, ftol: float, timeout: float, peers: bool) -> list[dict]:
+RUNS = {
+    "ours (OPENCV set)": ("ours", "colmap", "none"),
+    "pycolmap OPENCV": ("pycolmap", "colmap", "none"),
+    "ours (Cal3DS2 set)": ("ours", "gtsam", "none"),
+    "GTSAM Cal3DS2": ("gtsam", "gtsam", "none"),
+    "ours + all point cov.": ("ours", "colmap", "points"),
+    "ours + snooping": ("ours", "colmap", "snooping"),
+}
+
+
+def run_size(n: int, ftol: float, timeout: float, only: list[int] | None) -> list[dict]:
     block, _ = simulate(n)
     print(
         f"\n== {block.n_images} images, {block.n_points} points, {block.n_observations} "
@@ -375,16 +385,7 @@ def run_size(n: int, ftol: float, timeout: float, peers: bool) -> list[dict]:
         path = str(Path(tmp) / "block.pkl")
         with open(path, "wb") as fh:
             pickle.dump(block, fh)
-        runs = {
-            "ours (OPENCV set)": ("ours", "colmap", "none"),
-            "pycolmap OPENCV": ("pycolmap", "colmap", "none"),
-            "ours (Cal3DS2 set)": ("ours", "gtsam", "none"),
-            "GTSAM Cal3DS2": ("gtsam", "gtsam", "none"),
-            "ours + all point cov.": ("ours", "colmap", "points"),
-            "ours + snooping": ("ours", "colmap", "snooping"),
-        }
-        if not peers:
-            runs = {k: v for k, v in runs.items() if v[0] == "ours"}
+        runs = {k: v for i, (k, v) in enumerate(RUNS.items()) if only is None or i in only}
         res = {}
         for name, (w, model, stats) in runs.items():
             r = spawn(path, w, ftol, model=model, stats=stats, timeout=timeout)
@@ -446,7 +447,13 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="*", default=[50, 250, 2000])
     ap.add_argument("--ftol", type=float, nargs="*", default=[1e-10])
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--no-peers", action="store_true")
+    ap.add_argument(
+        "--runs",
+        type=int,
+        nargs="*",
+        help="indices of the runs to make (default all): "
+        + ", ".join(f"{i} {k}" for i, k in enumerate(RUNS)),
+    )
     ap.add_argument("--timeout", type=float, default=3600.0, help="s per solver run")
     ap.add_argument("--json", help="write all rows to this file")
     ap.add_argument("--worker", choices=sorted(WORKERS), help=argparse.SUPPRESS)
@@ -464,7 +471,7 @@ def main() -> None:
         for n in sizes:
             if n not in LAYOUTS:
                 ap.error(f"--sizes: choose from {', '.join(map(str, LAYOUTS))}")
-            rows += run_size(n, ftol, args.timeout, not args.no_peers)
+            rows += run_size(n, ftol, args.timeout, args.runs)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
 

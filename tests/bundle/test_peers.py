@@ -194,3 +194,52 @@ def test_exterior_and_calibration_covariances_as_gtsams_marginals(weighted):
     ref = marg.marginalCovariance(K(0))
     d = np.sqrt(np.diag(ref))
     np.testing.assert_allclose(q / np.outer(d, d), ref / np.outer(d, d), rtol=0, atol=1e-6)
+
+
+def test_free_network_covariances_in_the_inner_constraint_datum():
+    """Free network: photogeom's point and exterior-orientation covariances are those of the
+    inner constraints on the projection centres. Reference: GTSAM's linearisation of the
+    same cost at photogeom's solution, a dense normal matrix ``N``, its 7-dimensional null
+    space ``G`` found numerically, and the bordered inverse ``[[N, C], [C', 0]]^-1`` with
+    ``C`` = G on the centres (GTSAM's translation tangent is R' dC: the constraint
+    ``sum G_c' dC = 0`` keeps its form) and zero elsewhere."""
+    gtsam = pytest.importorskip("gtsam")
+    from gtsam.symbol_shorthand import K, L, X
+
+    b = _free_block(seed=2, b2=0.2).with_observations(sigma=0.5)
+    ours = pg.bundle_adjust(
+        b, datum="free", free=CAL3DS2_SET, point_covariance=True, snooping=False, ftol=1e-14
+    )
+    assert ours.converged
+    g, _ = graph(b)
+    values = values_of(ours.block)
+    keys = [X(i) for i in range(b.n_images)] + [L(j) for j in range(b.n_points)] + [K(0)]
+    ordering = gtsam.Ordering()
+    for k in keys:
+        ordering.push_back(k)
+    A, _ = g.linearize(values).jacobian(ordering)
+    N = A.T @ A
+    m, p = b.n_images, b.n_points
+    assert N.shape == (6 * m + 3 * p + 9,) * 2
+    d = 1.0 / np.sqrt(np.diag(N))
+    w, V = np.linalg.eigh(d[:, None] * N * d[None, :])
+    assert w[6] < 1e-6 * w[7]  # a seven-dimensional null space
+    G = d[:, None] * V[:, :7]
+    C = np.zeros_like(G)
+    rows = (6 * np.arange(m))[:, None] + np.arange(3, 6)  # translation tangents
+    C[rows.ravel()] = G[rows.ravel()]
+    n = N.shape[0]
+    Q = np.linalg.inv(np.block([[N, C], [C.T, np.zeros((7, 7))]]))[:n, :n]
+    s2 = ours.sigma0**2
+    for j, pid in enumerate(b.point_ids.tolist()):
+        sl = slice(6 * m + 3 * j, 6 * m + 3 * j + 3)
+        ref = Q[sl, sl]
+        np.testing.assert_allclose(
+            ours.point_covariance(pid) / s2, ref, rtol=0, atol=1e-6 * np.abs(ref).max()
+        )
+    for i, iid in enumerate(b.image_ids.tolist()):
+        R = values.atPose3(X(i)).rotation().matrix()
+        ref = R @ Q[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] @ R.T
+        np.testing.assert_allclose(
+            ours.image_covariance(iid)[:3, :3] / s2, ref, rtol=0, atol=1e-6 * np.abs(ref).max()
+        )
