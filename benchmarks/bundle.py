@@ -3,6 +3,7 @@
 Run:  python benchmarks/bundle.py                      (50, 250 and 2000 images)
       python benchmarks/bundle.py --sizes 50 250       (a subset)
       python benchmarks/bundle.py --quick              (one small block, a smoke run)
+      python benchmarks/bundle.py --sizes 2000 --runs 0 1 3   (some solvers only; --help)
 
 The blocks are simulated UAV blocks (``pg.simulate.uav_block``, FC300S camera) on the
 camera model all three solvers share: f, B1 (OpenCV's fx = f + B1, fy = f), cx, cy, K1, K2,
