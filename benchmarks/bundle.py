@@ -340,7 +340,9 @@ def worker_main(args) -> None:
     with open(args.block, "rb") as fh:
         block = pickle.load(fh)
     out = WORKERS[args.worker](block, args)
-    out["maxrss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    out["maxrss_mb"] = ru.ru_maxrss / 1024.0
+    out["process_cpu_s"] = ru.ru_utime + ru.ru_stime  # whole process, for a loaded machine
     print("RESULT " + json.dumps(out))
 
 
@@ -406,7 +408,7 @@ def run_size(n: int, ftol: float, timeout: float, only: list[int] | None) -> lis
             print(
                 f"{name:24s} solve {fmt_t(r['time']):>9s}  {extra:16s} iterations "
                 f"{r['iterations']:3d}  cost {r['cost']:.10e}  behind {r['behind']}  peak "
-                f"{r['maxrss_mb']:.0f} MB"
+                f"{r['maxrss_mb']:.0f} MB  (process CPU {r['process_cpu_s']:.1f} s)"
             )
             rows.append({"images": n, "name": name, "ftol": ftol, **r})
 
