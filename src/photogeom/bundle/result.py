@@ -348,10 +348,10 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     Jm[:, 3:, 3:] = T
     Ql6 = Q.local[:, :6, :6]
     if problem.free_datum is not None:
-        Ql6 = _inner_constraint_centres(problem, ne, F, Q, state)
+        Ql6, Qpp = _inner_constraint_centres(problem, ne, F, Q, state, Qpp)
         notes.append(
-            "free network: covariances of the exterior orientation in the inner-constraint "
-            "(minimum-trace) datum of the projection centres"
+            "free network: covariances of the exterior orientation and the points in the "
+            "inner-constraint (minimum-trace) datum of the projection centres"
         )
     image_cov = var * np.einsum("mij,mjk,mlk->mil", Jm, Ql6, Jm)
     ext_std = np.sqrt(np.clip(np.einsum("mii->mi", image_cov), 0, None))
@@ -534,14 +534,16 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     )
 
 
-def _inner_constraint_centres(problem: Problem, ne, F, Q, state) -> np.ndarray:
-    """Cofactor blocks (m, 6, 6) of the exterior orientations transformed from the minimal
-    datum to inner constraints on the projection centres (S-transformation).
+def _inner_constraint_centres(problem: Problem, ne, F, Q, state, Qpp=None):
+    """Cofactor blocks (m, 6, 6) of the exterior orientations, and (p, 3, 3) of the points
+    when ``Qpp`` (minimal datum) is given, transformed from the minimal datum to inner
+    constraints on the projection centres (S-transformation).
 
-    The null space of the free network, restricted to the camera-side unknowns, is spanned
-    by 3 shifts, 3 rotations and the scale acting on the centres (and rotations on the
-    attitudes). ``Q_inner = P Q P'`` with ``P = I - G (G' H G)^-1 G' H`` and ``H`` selecting
-    the centres; only the diagonal blocks are formed, from ``Q G`` (7 solves).
+    The null space of the free network is spanned by 3 shifts, 3 rotations and the scale
+    acting on the centres and points (and rotations on the attitudes). ``Q_inner = P Q P'``
+    with ``P = I - G (G' H G)^-1 G' H`` and ``H`` selecting the centres; only the diagonal
+    blocks are formed, from ``Q H G`` (7 solves of the reduced system; its point rows
+    ``Q_pc H G = -V^-1 W' Q_cc H G`` by back-substitution).
     """
     m, b, nc = problem.m, problem.b, problem.sys.nc
     C = state.C
@@ -575,4 +577,25 @@ def _inner_constraint_centres(problem: Problem, ne, F, Q, state) -> np.ndarray:
         - np.einsum("mik,mjk->mij", QKi, Gi)
         + np.einsum("mik,kl,mjl->mij", Gi, KQK, Gi)
     )
-    return 0.5 * (out + out.transpose(0, 2, 1))
+    out = 0.5 * (out + out.transpose(0, 2, 1))
+    if Qpp is None:
+        return out, None
+    # point rows of Q H G: back-substitution is affine in the camera-side vector
+    zero = ne.back_substitute(np.zeros(nc))
+    QHGp = np.stack([ne.back_substitute(QHG[:, k]) - zero for k in range(7)], axis=2)
+    QKp = QHGp @ A7  # (p, 3, 7)
+    X = state.X
+    Gp = np.zeros((X.shape[0], 3, 7))
+    Gp[:, :, :3] = np.eye(3)
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = 1.0
+        Gp[:, :, 3 + a] = np.cross(e, X)
+    Gp[:, :, 6] = X
+    pts = (
+        Qpp
+        - np.einsum("pik,pjk->pij", Gp, QKp)
+        - np.einsum("pik,pjk->pij", QKp, Gp)
+        + np.einsum("pik,kl,pjl->pij", Gp, KQK, Gp)
+    )
+    return out, 0.5 * (pts + pts.transpose(0, 2, 1))
