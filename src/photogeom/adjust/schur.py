@@ -594,20 +594,8 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
             c = q.transpose(0, 2, 1) @ Y[k1[lo:hi]]
             np.subtract.at(Qlp, k1[lo:hi], a)
             np.subtract.at(Qlp, k2[lo:hi], c)
-    At, Pt = A.transpose(0, 2, 1), P.transpose(0, 2, 1)
-    out = A @ Q.local[loc] @ At
-    out += P @ Qpp[pt] @ Pt
-    c = A @ Qlp @ Pt
-    out += c + c.transpose(0, 2, 1)
     if s.n_global:
-        cols = s.local_global[loc]  # (n, gl)
-        Qgg_rows = Q.global_[cols[:, :, None], cols[:, None, :]]  # (n, gl, gl)
-        Gt = G.transpose(0, 2, 1)
-        out += G @ Qgg_rows @ Gt
-        Qlg_rows = np.take_along_axis(Q.local_global[loc], cols[:, None, :], axis=2)
-        c = A @ Qlg_rows @ Gt
-        out += c + c.transpose(0, 2, 1)
-        # Q_{g,p_j} = -(sum_k' Q_{g,l(k')} Y_k' + Q_gg VH_j), restricted to the row's columns
+        # Q_{g,p_j} = -(sum_k' Q_{g,l(k')} Y_k' + Q_gg VH_j) per point
         Qgp = -(Q.global_ @ VH.transpose(0, 2, 1))
         accg = np.zeros((s.n_points, s.n_global * 3))
         _segment_sum(
@@ -621,7 +609,24 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
             accg,
         )
         Qgp -= accg.reshape(s.n_points, s.n_global, 3)
-        Qgp_rows = np.take_along_axis(Qgp[pt], cols[:, :, None], axis=1)  # (n, gl, 3)
-        c = G @ Qgp_rows @ Pt
-        out += c + c.transpose(0, 2, 1)
+    d = A.shape[1]
+    out = np.empty((n, d, d))
+    for lo in range(0, n, CHUNK):  # chunks of rows: bounded temporaries
+        r = slice(lo, min(n, lo + CHUNK))
+        a, p_, lr, pr = A[r], P[r], loc[r], pt[r]
+        at, pt_ = a.transpose(0, 2, 1), p_.transpose(0, 2, 1)
+        o = a @ Q.local[lr] @ at
+        o += p_ @ Qpp[pr] @ pt_
+        c = a @ Qlp[r] @ pt_
+        o += c + c.transpose(0, 2, 1)
+        if s.n_global:
+            g_ = G[r]
+            gt = g_.transpose(0, 2, 1)
+            cols = s.local_global[lr]  # (k, gl)
+            o += g_ @ Q.global_[cols[:, :, None], cols[:, None, :]] @ gt
+            c = a @ np.take_along_axis(Q.local_global[lr], cols[:, None, :], axis=2) @ gt
+            o += c + c.transpose(0, 2, 1)
+            c = g_ @ np.take_along_axis(Qgp[pr], cols[:, :, None], axis=1) @ pt_
+            o += c + c.transpose(0, 2, 1)
+        out[r] = o
     return out
