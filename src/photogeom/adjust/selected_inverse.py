@@ -111,17 +111,17 @@ class BlockSelectedInverse:
         return self.entries(i, i)
 
 
-_BLAS: list = []
-
-
 def single_threaded_blas():
-    """Run BLAS single-threaded: the blocks are small, and waking BLAS threads for each
-    product costs far more than it gains (a hundredfold on a loaded machine)."""
-    if not _BLAS:
-        from threadpoolctl import ThreadpoolController
+    """A context for the small block products of this module.
 
-        _BLAS.append(ThreadpoolController())
-    return _BLAS[0].limit(limits=1, user_api="blas")
+    It does not change the BLAS thread limit: that limit is process-wide, and changing it
+    here would change other threads' BLAS (and their last bits) while they run. Users who
+    want single-threaded BLAS on a loaded machine set ``OPENBLAS_NUM_THREADS=1`` (or
+    threadpoolctl) for the whole process.
+    """
+    import contextlib
+
+    return contextlib.nullcontext()
 
 
 def _recurrence(D, E, K, s, what):
