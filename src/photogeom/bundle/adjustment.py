@@ -406,6 +406,7 @@ def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions,
             nu *= 2.0
             continue
         pred = ne.predicted_decrease(dc, dp, lam)
+        del ne  # the reduced system and its blocks: not kept beside the next linearisation
         trial = problem.update(state, dc, dp)
         new_cost, new_e2, depth = problem.cost(trial)
         if np.all(depth > 0) and np.isfinite(new_cost) and new_cost < cost:
@@ -417,6 +418,7 @@ def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions,
             lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
             nu = 2.0
             weights = problem.robust_weights(new_e2)
+            lin = None  # free the old Jacobian blocks before forming the new ones
             lin = problem.linearize(state, weights)
             if progress is not None:
                 progress(it, cost, lam)
