@@ -180,7 +180,6 @@ class SchurSystem:
     def _pattern(self) -> None:
         """Index arrays of the reduced matrix in CSC order (assembled from block data)."""
         b, L, g = self.b, self.n_local, self.n_global
-        nb = self.blocks.shape[0]
         rr, cc = np.meshgrid(np.arange(b), np.arange(b), indexing="ij")
         rows, cols = [], []
         base = np.arange(L) * b
@@ -209,7 +208,6 @@ class SchurSystem:
         self._csc_indptr = np.r_[0, np.cumsum(np.bincount(cols, minlength=self.nc))].astype(
             np.int64
         )
-        self._nnz_parts = (L * b * b, nb * b * b, L * b * g, g * g)
 
     # --- normal equations ----------------------------------------------------------------
 

@@ -23,6 +23,8 @@ from ..camera.frame_kernel import (
     rotation_increment,
 )
 from ..errors import DegenerateGeometryError, InputError
+from ..units import wrap_angle
+from ._angles import opk_from_rotations
 from .block import CALIBRATION_NAMES, IMAGE_VARIANT_NAMES, Block
 from .options import BundleOptions
 
@@ -41,19 +43,6 @@ class _State:
         return _State(
             self.C.copy(), self.M.copy(), self.offset.copy(), self.cal.copy(), self.X.copy()
         )
-
-
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
-def opk_rows(M: np.ndarray) -> np.ndarray:
-    """omega, phi, kappa (m, 3) of rotation matrices (m, 3, 3), vectorised."""
-    phi = np.arcsin(np.clip(M[:, 2, 0], -1.0, 1.0))
-    omega = np.arctan2(-M[:, 2, 1], M[:, 2, 2])
-    kappa = np.arctan2(-M[:, 1, 0], M[:, 0, 0])
-    return np.column_stack([omega, phi, kappa])
 
 
 class Problem:
@@ -268,7 +257,7 @@ class Problem:
         if np.any(self.has_imu):
             k = self.has_imu
             sg = self.block.imu_sigma[k] * math.sqrt(gf["imu"])
-            ang = opk_rows(s.M[k])
+            ang = opk_from_rotations(s.M[k])
             r = wrap_angle(ang - self.block.imu[k]) / sg
             J = opk_from_increment_jacobian(ang) / sg[:, :, None]
             idx = np.flatnonzero(k)
@@ -327,7 +316,7 @@ class Problem:
 
     def to_block(self, s: _State, check_xyz: np.ndarray | None = None) -> Block:
         b = self.block
-        ext = np.column_stack([s.C + self.origin, opk_rows(s.M)])
+        ext = np.column_stack([s.C + self.origin, opk_from_rotations(s.M)])
         xyz = b.xyz.copy()
         xyz[self.adj_points] = s.X + self.origin
         if check_xyz is not None:

@@ -11,7 +11,8 @@ import numpy as np
 from ..adjust.schur import covariance_blocks, observation_cofactors, point_covariances
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
-from .adjustment import NCAL, Problem, opk_rows
+from ._angles import opk_from_rotations
+from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
 from .residuals import reprojection_residuals
 
@@ -342,7 +343,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     var = sigma0**2 if red > 0 else math.nan
     notes = []
     # exterior orientation covariance in X0..kappa
-    T = opk_from_increment_jacobian(opk_rows(state.M))
+    T = opk_from_increment_jacobian(opk_from_rotations(state.M))
     Jm = np.zeros((m, 6, 6))
     Jm[:, :3, :3] = np.eye(3)
     Jm[:, 3:, 3:] = T

@@ -14,7 +14,8 @@ import numpy as np
 
 from ..adjust.variance_components import update_variance_factors
 from ..camera.frame_kernel import opk_from_increment_jacobian
-from .adjustment import levenberg_marquardt, opk_rows
+from ._angles import opk_from_rotations
+from .adjustment import levenberg_marquardt
 
 #: Stop when every group's ratio v'Pv / r is within this of 1.
 TOLERANCE = 0.01
@@ -45,7 +46,7 @@ def _contributions(problem, run):
     if "imu" in parts:
         k = problem.has_imu
         s = problem.block.imu_sigma[k] * np.sqrt(gf["imu"])
-        J = opk_from_increment_jacobian(opk_rows(run.state.M[k])) / s[:, :, None]
+        J = opk_from_increment_jacobian(opk_from_rotations(run.state.M[k])) / s[:, :, None]
         q = np.einsum("kai,kij,kaj->ka", J, Q.local[k][:, 3:6, 3:6], J)
         out["imu"] = (float((parts["imu"] ** 2).sum()), float((1.0 - q).sum()))
     if "control" in parts:
