@@ -174,6 +174,7 @@ class SchurSystem:
         uniq, inv = np.unique(key, return_inverse=True)
         self.pair_k1, self.pair_k2 = k1, k2
         self.blocks = np.column_stack([uniq // self.n_local, uniq % self.n_local])
+        self.pair_block = inv.astype(np.int64)  # index into self.blocks of each pair
         self.pair_order, self.pair_starts, self.pair_keys = _segments(inv, uniq.size)
         self.n_pairs = k1.size
 
@@ -549,9 +550,7 @@ def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
     _segment_sum(self_terms, s.order_pt, s.pt_starts, s.pt_keys, s.n, acc)
     if s.n_pairs:
         k1, k2 = s.pair_k1, s.pair_k2
-        blk_of_pair = np.empty(s.n_pairs, dtype=np.int64)
-        counts = np.diff(np.r_[s.pair_starts, s.n_pairs])
-        blk_of_pair[s.pair_order] = np.repeat(s.pair_keys, counts)
+        blk_of_pair = s.pair_block
         pp = s.point[k1]
         order, starts, keys = _segments(pp, s.n_points)
 
@@ -581,9 +580,7 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
         Qlp -= Q.local_global[loc] @ VH[pt].transpose(0, 2, 1)
     if s.n_pairs:
         k1, k2 = s.pair_k1, s.pair_k2
-        blk_of_pair = np.empty(s.n_pairs, dtype=np.int64)
-        counts = np.diff(np.r_[s.pair_starts, s.n_pairs])
-        blk_of_pair[s.pair_order] = np.repeat(s.pair_keys, counts)
+        blk_of_pair = s.pair_block
         # row k1 needs Q[l1, l2] Y_k2; row k2 needs Q[l2, l1] Y_k1 = Q[l1, l2]' Y_k1
         for lo in range(0, s.n_pairs, CHUNK):
             hi = min(s.n_pairs, lo + CHUNK)
