@@ -13,7 +13,10 @@ bilinear interpolation; the field corrects image coordinates and images.
 * :func:`save_grids`, :func:`load_grids` - the grids file (NPZ or JSON);
 * :func:`fit_residual_grids`, :func:`readjust`, :func:`model_steps` - the block level
   (:mod:`photogeom.calibration.blocks`, :mod:`photogeom.calibration.steps`);
-  :func:`correct_observations` takes a Block or arrays per image.
+  :func:`correct_observations` takes a Block or arrays per image;
+* :func:`adjust_with_grids` - the grids estimated inside the bundle adjustment
+  (:mod:`photogeom.calibration.in_adjustment`), :func:`compare_in_adjustment` - against
+  the post-processing on a simulated block.
 """
 
 from .blocks import block_residuals, correct_block_observations, fit_residual_grids, readjust
@@ -29,6 +32,7 @@ from .evaluate import (
 from .grid import FiniteElementSystem, GridLayout, ResidualGrid, fit_grid, fit_grids
 from .gridfile import load_grids, save_grids
 from .images import FolderResult, correct_folder, correct_image_file
+from .in_adjustment import GridAdjustment, adjust_with_grids
 from .steps import StereoModels, image_overlap, model_steps, stereo_models
 from .study import evaluate_readjustment, field_recovery, run_study, sweep_spacings
 
@@ -54,7 +58,9 @@ __all__ = [
     "save_grids",
 ]
 __all__ += [
+    "GridAdjustment",
     "StereoModels",
+    "adjust_with_grids",
     "block_residuals",
     "correct_block_observations",
     "evaluate_readjustment",

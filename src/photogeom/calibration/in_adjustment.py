@@ -1,0 +1,640 @@
+"""Residual grids estimated inside the bundle adjustment (Hastedt's approach).
+
+The post-processing of the study fits a grid to the residuals of a finished adjustment. Here
+the grid is an unknown of the adjustment itself: the computed image coordinate of a point is
+
+    u_computed = project(X; exterior orientation, Brown calibration) - r(u_observed)
+
+with ``r`` the bilinear interpolation of the node values of the image's grid (or of its
+camera group's grid) at the observed position, the same finite-element model and the same
+sign as :class:`~photogeom.calibration.ResidualGrid` (the modelled residual, computed minus
+observed; a point's observation is corrected by ``u + r(u)``). The unknowns are adjusted
+jointly: exterior orientations, free calibration parameters, points and grid nodes.
+
+Pseudo-observations of the grids, all with observed value 0:
+
+* smoothness (the study's intra-image constraint): every node equals the mean of its
+  neighbours, standard deviation ``sigma_constraint`` (px);
+* temporal (optional, ``per="image"``): the nodes of consecutive images of a camera group (in
+  block order, i.e. the order of acquisition) are equal, standard deviation
+  ``sigma_temporal`` (px);
+* the datum of the grid. A grid can take up part of the image model: a constant field is a
+  shift of the image (principal point, or omega/phi), a field proportional to the image
+  coordinates a scale or rotation (focal length, kappa, Z). Without a datum the split
+  between grid and orientation would be decided by the smoothness weights alone and the
+  system would be nearly singular. The datum conditions hold those components of every grid
+  at zero: ``"similarity"`` (the default of per-image grids) the mean shift, scale and
+  rotation of the node values, ``"affine"`` (the default of per-camera grids: the affinity
+  b1, b2 of the Brown model too) the mean shift and the four linear terms. They are
+  pseudo-observations with a standard deviation of 1e-6 px on the mean over the nodes
+  (numerically hard constraints). MicMac's bilinear grid freezes two nodes on the middle
+  line instead; the conditions here leave every node free and make the result independent of
+  the node chosen.
+
+The system is solved by Levenberg-Marquardt on the sparse normal equations of all unknowns
+(CHOLMOD). It suits blocks of tens to a few hundred images with grids of some hundred nodes
+(spacings of 300-1000 px on 20-40 Mpx images); finer grids belong to the post-processing.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from ..adjust.sparse import factorize
+from ..bundle.adjustment import NCAL, Problem, _step_small
+from ..bundle.block import Block
+from ..bundle.options import BundleOptions
+from ..camera.frame_kernel import project_rows
+from ..errors import DegenerateGeometryError, InputError
+from .grid import BORDERS, GridLayout, ResidualGrid, _node_counts, _rms_len
+
+__all__ = ["GridAdjustment", "adjust_with_grids"]
+
+PER = ("image", "camera")
+DATUMS = ("similarity", "affine")
+#: Standard deviation of the datum conditions (px, on the mean over the nodes).
+DATUM_SIGMA = 1e-6
+#: Unknowns (without the points) up to which node standard deviations are computed by
+#: default (a dense inverse of the system reduced by the points).
+STD_MAX = 5000
+
+
+@dataclass(frozen=True, eq=False)
+class GridAdjustment:
+    """A bundle adjustment with residual grids as unknowns.
+
+    Attributes
+    ----------
+    grids : dict
+        ``image id -> ResidualGrid``; with ``per="camera"`` the images of a camera group share
+        one grid object. ``sigma0`` and ``redundancy`` of each grid are those of the joint
+        adjustment; ``rms_before``/``rms_after`` the image's residuals at the joint solution
+        without and with the grid (px).
+    block : Block
+        The joint estimate: exterior orientations, calibrations and points, with the
+        observations as given (not corrected).
+    fit : BundleFit
+        The observations corrected by the grids and adjusted with the exterior orientation and
+        calibration held at the joint estimate: its points equal the joint solution's, its
+        check points are triangulated from corrected observations, and its residuals,
+        steps and check-point statistics are comparable with
+        :func:`~photogeom.calibration.readjust` after the post-processing. Its standard
+        deviations are conditional on the fixed orientation.
+    per : {"image", "camera"}
+    spacing : float
+        Node spacing (px).
+    datum : str
+    sigma_constraint, sigma_temporal : float
+        Standard deviations of the pseudo-observations (px); ``sigma_temporal`` NaN without
+        temporal constraints.
+    sigma0 : float
+        A-posteriori standard deviation of unit weight of the joint adjustment.
+    redundancy, n_unknowns : int
+        Scalar observations and pseudo-observations minus free unknowns.
+    node_std : dict or None
+        ``grid key -> (ny, nx, 2)`` standard deviations of the node values (px) from the joint
+        covariance (keys are image ids, or camera ids with ``per="camera"``); None when not
+        computed (see ``std`` of :func:`adjust_with_grids`).
+    converged, iterations, message, cost_history
+        Convergence diagnostics (cost: whitened squared norm of all terms).
+    elapsed : float
+        Seconds, the final conditional adjustment included.
+    """
+
+    grids: dict
+    block: Block
+    fit: object
+    per: str
+    spacing: float
+    datum: str
+    sigma_constraint: float
+    sigma_temporal: float
+    sigma0: float
+    redundancy: int
+    n_unknowns: int
+    node_std: dict | None
+    converged: bool
+    iterations: int
+    message: str
+    cost_history: list = field(default_factory=list)
+    elapsed: float = 0.0
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {
+            "per": self.per,
+            "spacing": self.spacing,
+            "datum": self.datum,
+            "sigma_constraint": self.sigma_constraint,
+            "sigma_temporal": None if math.isnan(self.sigma_temporal) else self.sigma_temporal,
+            "sigma0": self.sigma0,
+            "redundancy": self.redundancy,
+            "n_unknowns": self.n_unknowns,
+            "converged": self.converged,
+            "iterations": self.iterations,
+            "message": self.message,
+            "elapsed_s": self.elapsed,
+            "grids": len({id(g) for g in self.grids.values()}),
+        }
+
+
+# --------------------------------------------------------------------------- the problem
+class _GridProblem:
+    """The bundle problem with grid nodes appended to the unknowns."""
+
+    def __init__(self, block, opts, spacing, per, datum, sc, st, border):
+        self.bp = bp = Problem(block, opts)
+        self.block = block
+        m, b, ng = bp.m, bp.b, bp.ng
+        sizes = block.image_sizes().astype(int)
+        cam_of_img = block.image_camera
+        # grids: one per image or per camera group, each with the layout of its camera
+        if per == "image":
+            self.grid_keys = block.image_ids.tolist()
+            grid_cam = cam_of_img.copy()
+            self.grid_of_image = np.arange(m)
+        else:
+            self.grid_keys = block.camera_ids.tolist()
+            grid_cam = np.arange(ng)
+            self.grid_of_image = cam_of_img.copy()
+        cam_size = {}
+        for i in range(m):  # images, not points
+            cam_size.setdefault(int(cam_of_img[i]), (int(sizes[i, 0]), int(sizes[i, 1])))
+        layouts_cam = {}
+        for c, (w, h) in cam_size.items():
+            try:
+                layouts_cam[c] = GridLayout(w, h, spacing)
+            except InputError as exc:
+                raise InputError(f"camera {block.camera_ids[c]}: {exc}") from None
+        self.layouts = [layouts_cam.get(int(c)) for c in grid_cam]
+        nn = np.array([0 if L is None else L.n_nodes for L in self.layouts], dtype=np.int64)
+        self.goff = np.r_[0, np.cumsum(2 * nn)]
+        self.n_grid = int(self.goff[-1])
+        self.nl, self.ncal = m * b, ng * NCAL
+        self.off_g = self.nl + self.ncal
+        self.off_p = self.off_g + self.n_grid
+        self.ntot = self.off_p + 3 * bp.p
+        # bilinear weights at the observations (constant over the iterations)
+        gk = self.grid_of_image[bp.obs_i]
+        self.obs_grid = gk
+        nodes = np.zeros((bp.obs_i.size, 4), dtype=np.int64)
+        wts = np.zeros((bp.obs_i.size, 4))
+        for g in np.unique(gk).tolist():  # grids, not points
+            sel = np.flatnonzero(gk == g)
+            L = self.layouts[g]
+            try:
+                L.check_inside(bp.uv[sel], "observations")
+            except InputError as exc:
+                raise InputError(f"grid {self.grid_keys[g]}: {exc}") from None
+            nodes[sel], wts[sel] = L.locate(bp.uv[sel])
+        self.obs_nodes, self.obs_w = nodes, wts
+        self.sc, self.st = sc, st
+        self.R, self.n_pseudo = self._regularisation(datum, sc, st, border, per)
+        free = np.zeros(self.ntot, dtype=bool)
+        free[: self.nl] = bp.local_free.ravel()
+        free[self.nl : self.off_g] = bp.global_free
+        free[self.off_g :] = True
+        self.free = free
+        self.free_idx = np.flatnonzero(free)
+        # observations' rows and the columns of their non-grid Jacobian blocks
+        n = bp.obs_i.size
+        self.n = n
+        loc_cols = bp.obs_i[:, None] * b + np.arange(b)[None, :]
+        cal_cols = self.nl + bp.local_global[bp.obs_i]
+        pt_cols = self.off_p + 3 * bp.obs_j[:, None] + np.arange(3)[None, :]
+        self._cols_dense = np.concatenate([loc_cols, cal_cols, pt_cols], axis=1)  # (n, b+11+3)
+        self._grid_cols = self.off_g + self.goff[gk][:, None] + 2 * nodes  # x; y is +1
+
+    # -------------------------------------------------------------- pseudo-observations
+    def _regularisation(self, datum, sc, st, border, per):
+        blocks, datum_diag, count = [], [], 0
+        for L in self.layouts:
+            if L is None:
+                blocks.append(sp.csr_matrix((0, 0)))
+                continue
+            C = L.constraint_matrix(border)
+            CC = sp.kron(C.T @ C, sp.identity(2), format="csr") / sc**2
+            D = _datum_rows(L, datum)
+            blocks.append((CC + sp.csr_matrix(D.T @ D) / DATUM_SIGMA**2).tocsr())
+            datum_diag.append(np.sum(D * D, axis=0) / DATUM_SIGMA**2)
+            count += 2 * C.shape[0] + D.shape[0]
+        R = sp.block_diag(blocks, format="csr") if blocks else sp.csr_matrix((0, 0))
+        # the datum conditions are (numerically) hard: no Marquardt damping scaled by them
+        dd = np.zeros(self.ntot)
+        if datum_diag:
+            dd[self.off_g : self.off_p] = np.concatenate(datum_diag)
+        self.datum_diag = dd
+        if per == "image" and st is not None:
+            cam = self.block.image_camera
+            pairs = [
+                (i, i + 1) for i in range(self.bp.m - 1) if cam[i] == cam[i + 1]
+            ]  # images, not points
+            if pairs:
+                rows, cols, vals, start = [], [], [], 0
+                for i, k in pairs:  # images, not points
+                    size = int(self.goff[i + 1] - self.goff[i])
+                    base = start + np.arange(size)
+                    rows += [base, base]
+                    cols += [self.goff[i] + np.arange(size), self.goff[k] + np.arange(size)]
+                    vals += [np.ones(size), -np.ones(size)]
+                    start += size
+                T = sp.csr_matrix(
+                    (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                    shape=(start, self.n_grid),
+                )
+                R = (R + (T.T @ T) / st**2).tocsr()
+                count += T.shape[0]
+        return R, count
+
+    # -------------------------------------------------------------- model
+    def grid_values(self, z: np.ndarray) -> np.ndarray:
+        """The modelled residual (n, 2) px at every observation."""
+        zx = z[self._grid_cols - self.off_g]
+        zy = z[self._grid_cols - self.off_g + 1]
+        return np.column_stack([np.sum(self.obs_w * zx, 1), np.sum(self.obs_w * zy, 1)])
+
+    def residuals(self, s, z):
+        X, M, C, cal = self.bp._rows(s)
+        pr = project_rows(X, M, C, cal, self.bp.size, jacobian=False)
+        return pr.uv - self.grid_values(z) - self.bp.uv, pr.depth
+
+    def cost(self, s, z) -> tuple[float, np.ndarray]:
+        v, depth = self.residuals(s, z)
+        sw = 1.0 / self.bp.sigma_obs()
+        c = float(np.sum((v * sw[:, None]) ** 2))
+        c += self.bp.prior_terms(s)[4] + float(z @ (self.R @ z))
+        return c, depth
+
+    def normal_equations(self, s, z):
+        """``N`` (free unknowns, sparse) and the gradient ``J'r`` of all terms."""
+        bp = self.bp
+        X, M, C, cal = bp._rows(s)
+        pr = project_rows(X, M, C, cal, bp.size, jacobian=True)
+        sw = 1.0 / bp.sigma_obs()
+        r = (pr.uv - self.grid_values(z) - bp.uv) * sw[:, None]
+        blocks = [pr.d_center, pr.d_rotation]
+        if bp.b > 6:
+            blocks.append(pr.d_calibration[:, :, :3])
+        dense = np.concatenate([*blocks, pr.d_calibration, pr.d_point], axis=2)
+        dense = dense * sw[:, None, None]
+        n, k = self.n, dense.shape[2]
+        rows_d = np.repeat(np.arange(2 * n), k)
+        cols_d = np.repeat(self._cols_dense, 2, axis=0).ravel()
+        vals_d = dense.reshape(-1)
+        gw = -self.obs_w * sw[:, None]  # (n, 4)
+        rx = np.repeat(2 * np.arange(n), 4)
+        rows_g = np.concatenate([rx, rx + 1])
+        cols_g = np.concatenate([self._grid_cols.ravel(), self._grid_cols.ravel() + 1])
+        vals_g = np.concatenate([gw.ravel(), gw.ravel()])
+        J = sp.csr_matrix(
+            (
+                np.concatenate([vals_d, vals_g]),
+                (np.concatenate([rows_d, rows_g]), np.concatenate([cols_d, cols_g])),
+            ),
+            shape=(2 * n, self.ntot),
+        )
+        J = J[:, self.free_idx]
+        rv = r.ravel()
+        N = (J.T @ J).tocsr()
+        g = J.T @ rv
+        # priors of the bundle problem (GNSS, IMU, control) and the grids' pseudo-observations
+        li, lg, pi, pgr, pcost, _ = bp.prior_terms(s)
+        full = sp.block_diag(
+            [
+                _block_diagonal(li),
+                sp.csr_matrix((self.ncal, self.ncal)),
+                self.R,
+                _block_diagonal(pi),
+            ],
+            format="csr",
+        )
+        full_g = np.concatenate([lg.ravel(), np.zeros(self.ncal), self.R @ z, pgr.ravel()])
+        fi = self.free_idx
+        N = (N + full[fi][:, fi]).tocsr()
+        g = g + full_g[fi]
+        cost = float(rv @ rv) + pcost + float(z @ (self.R @ z))
+        return N, g, cost
+
+    def split(self, dx_free: np.ndarray):
+        dx = np.zeros(self.ntot)
+        dx[self.free_idx] = dx_free
+        return dx[: self.off_g], dx[self.off_g : self.off_p], dx[self.off_p :].reshape(-1, 3)
+
+
+def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
+    """Sparse block-diagonal matrix of ``blocks`` (k, s, s)."""
+    k, s, _ = blocks.shape
+    if k == 0:
+        return sp.csr_matrix((0, 0))
+    base = np.arange(k)[:, None, None] * s
+    r = np.broadcast_to(base + np.arange(s)[None, :, None], (k, s, s))
+    c = np.broadcast_to(base + np.arange(s)[None, None, :], (k, s, s))
+    return sp.csr_matrix((blocks.ravel(), (r.ravel(), c.ravel())), shape=(k * s, k * s))
+
+
+def _datum_rows(L: GridLayout, datum: str) -> np.ndarray:
+    """Rows (conditions x 2 n_nodes) of the mean shift/scale/rotation (or affinity) of the
+    node values; unknowns ordered node by node, (x, y)."""
+    u, v = L.node_coordinates()
+    u, v = u.ravel(), v.ravel()
+    half = max(L.width, L.height) / 2.0
+    uc, vc = (u - (L.width - 1) / 2.0) / half, (v - (L.height - 1) / 2.0) / half
+    one, zero = np.ones_like(uc), np.zeros_like(uc)
+
+    def row(fx, fy):
+        out = np.empty(2 * uc.size)
+        out[0::2], out[1::2] = fx, fy
+        return out
+
+    rows = [row(one, zero), row(zero, one)]
+    if datum == "similarity":
+        rows += [row(uc, vc), row(-vc, uc)]
+    else:
+        rows += [row(uc, zero), row(vc, zero), row(zero, uc), row(zero, vc)]
+    return np.array(rows) / uc.size
+
+
+# --------------------------------------------------------------------------- the solver
+def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
+    bp = gp.bp
+    s = bp.initial_state()
+    z = np.zeros(gp.n_grid)
+    cost, depth = gp.cost(s, z)
+    if np.any(~(depth > 0)):
+        raise DegenerateGeometryError(
+            f"{int(np.sum(~(depth > 0)))} observation(s) have their point behind the camera at "
+            "the start: check the initial exterior orientations and points"
+        )
+    history, lam, nu = [cost], opts.initial_damping, 2.0
+    converged, message = False, f"not converged: {opts.max_iterations} iterations reached"
+    N, g, _ = gp.normal_equations(s, z)
+    scale_uv = float(max(L.width for L in gp.layouts if L is not None))
+    it = 0
+    while it < opts.max_iterations:
+        it += 1
+        d = np.maximum(N.diagonal() - gp.datum_diag[gp.free_idx], 1e-12)
+        Nd = (N + sp.diags(lam * d)).tocsc()
+        try:
+            F = factorize(Nd, backend=opts.backend, what="normal equations with residual grids")
+        except DegenerateGeometryError:
+            if lam > 1e10:
+                raise
+            lam *= nu
+            nu *= 2.0
+            continue
+        dx = F.solve(-g)
+        pred = float(-(g @ dx) + lam * np.sum(d * dx * dx))
+        dcg, dz, dp = gp.split(dx)
+        trial = bp.update(s, dcg, dp)
+        zt = z + dz
+        new_cost, depth = gp.cost(trial, zt)
+        if np.all(depth > 0) and np.isfinite(new_cost) and new_cost < cost:
+            rho = (cost - new_cost) / pred if pred > 0 else 1.0
+            small = _step_small(bp, s, dcg, dp, opts.xtol)
+            small = small and np.abs(dz).max(initial=0) <= opts.xtol * scale_uv
+            decrease = cost - new_cost
+            s, z, cost = trial, zt, new_cost
+            history.append(cost)
+            lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
+            nu = 2.0
+            N, g, _ = gp.normal_equations(s, z)
+            if progress is not None:
+                progress(it, cost, lam)
+            if decrease <= opts.ftol * cost:
+                converged, message = True, "converged: relative cost decrease below ftol"
+                break
+            if small:
+                converged, message = True, "converged: step below xtol"
+                break
+        else:
+            small = _step_small(bp, s, dcg, dp, opts.xtol)
+            small = small and np.abs(dz).max(initial=0) <= opts.xtol * scale_uv
+            if np.isfinite(new_cost) and small:
+                converged, message = True, "converged: no further decrease (step below xtol)"
+                break
+            lam *= nu
+            nu *= 2.0
+            if lam > 1e16:
+                message = "stopped: the damping grew without a decrease of the cost"
+                break
+    return s, z, N, cost, it, converged, message, history
+
+
+def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix) -> np.ndarray:
+    """``diag(N^-1)`` of the grid unknowns: the points (3x3 blocks, last) are eliminated,
+    the reduced system inverted densely."""
+    fi = gp.free_idx
+    npf = 3 * gp.bp.p
+    nc = fi.size - npf
+    Ncc = N[:nc][:, :nc].toarray()
+    Ncp = N[:nc][:, nc:].tocsr()
+    Npp = N[nc:][:, nc:].tocsr()
+    k = gp.bp.p
+    blocks = np.zeros((k, 3, 3))
+    coo = Npp.tocoo()
+    blocks[coo.row // 3, coo.row % 3, coo.col % 3] = coo.data
+    inv = np.linalg.inv(blocks)
+    S = Ncc - (Ncp @ _block_diagonal(inv) @ Ncp.T).toarray()
+    try:
+        c = sla.cho_factor(S, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        raise DegenerateGeometryError(
+            "the normal equations with residual grids are singular at the solution: a grid "
+            "or orientation parameter is not determined (use a larger spacing or stronger "
+            "constraints)"
+        ) from None
+    Q = sla.cho_solve(c, np.eye(nc), check_finite=False)
+    diag = np.full(gp.ntot, np.nan)
+    diag[fi[:nc]] = np.diag(Q)
+    return diag[gp.off_g : gp.off_p]
+
+
+# --------------------------------------------------------------------------- the call
+def adjust_with_grids(
+    block: Block,
+    spacing: float,
+    *,
+    per: str = "image",
+    sigma_constraint: float = 0.1,
+    sigma_temporal: float | None = None,
+    datum: str | None = None,
+    border: str = "mean",
+    min_support: int = 3,
+    std: bool | None = None,
+    options: BundleOptions | None = None,
+    progress=None,
+    **kwargs,
+) -> GridAdjustment:
+    """Bundle adjustment with finite-element residual grids as unknowns.
+
+    Parameters
+    ----------
+    block : Block
+        The block with initial values (as for :func:`photogeom.bundle_adjust`), e.g. the
+        block of a first adjustment.
+    spacing : float
+        Node spacing in pixels (a few hundred: every grid node is an unknown of the
+        adjustment).
+    per : {"image", "camera"}
+        One grid per image (image-variant fields) or one per camera group.
+    sigma_constraint : float
+        Standard deviation of the smoothness pseudo-observations (px).
+    sigma_temporal : float, optional
+        Standard deviation (px) of the equality of the grids of consecutive images (block
+        order) of one camera group; ``per="image"`` only. None: no temporal constraints.
+    datum : {"similarity", "affine"}, optional
+        Components of every grid held at zero (see the module); default ``"similarity"``
+        per image, ``"affine"`` per camera.
+    border : {"mean", "linear"}
+        Smoothness rule of border nodes (:meth:`GridLayout.constraint_matrix`).
+    min_support : int
+        A node is supported when its adjacent cells hold at least this many observations.
+    std : bool, optional
+        Standard deviations of the nodes from the joint covariance (a dense inverse of the
+        system reduced by the points). None: when at most 5000 unknowns remain after the
+        points.
+    options : BundleOptions, optional
+        Settings of the adjustment; keyword arguments override fields. The loss must be
+        ``"squared"``; variance components and free networks are not supported here.
+    progress : callable, optional
+        ``progress(iteration, cost, damping)`` after each accepted step.
+
+    Returns
+    -------
+    GridAdjustment
+
+    Raises
+    ------
+    InputError
+        Bad spacing (0, negative, larger than the image), per, datum, sigmas or options;
+        observations outside their image.
+    DegenerateGeometryError
+        As :func:`photogeom.bundle_adjust` (datum defect, points behind cameras), or a
+        singular system.
+    """
+    from ..bundle.adjustment import bundle_adjust
+
+    t0 = time.perf_counter()
+    if not isinstance(block, Block):
+        raise InputError(
+            f"adjust_with_grids needs a photogeom.bundle.Block, got {type(block).__name__}"
+        )
+    if per not in PER:
+        raise InputError(f"per must be one of {', '.join(PER)}, not {per!r}")
+    datum = datum or ("similarity" if per == "image" else "affine")
+    if datum not in DATUMS:
+        raise InputError(f"datum must be one of {', '.join(DATUMS)}, not {datum!r}")
+    if border not in BORDERS:
+        raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
+    sc = _positive(sigma_constraint, "sigma_constraint")
+    st = None if sigma_temporal is None else _positive(sigma_temporal, "sigma_temporal")
+    if st is not None and per != "image":
+        raise InputError("sigma_temporal needs per='image' (temporal constraints join images)")
+    opts = options or BundleOptions()
+    opts = opts.updated(**kwargs) if kwargs else opts.validate()
+    if opts.loss != "squared":
+        raise InputError(
+            f"adjust_with_grids: loss={opts.loss!r} is not supported (squared loss only); "
+            "remove blunders first (photogeom.bundle_adjust with snooping)"
+        )
+    if opts.variance_components:
+        raise InputError("adjust_with_grids: variance_components=True is not supported")
+    if opts.datum == "free":
+        raise InputError(
+            "adjust_with_grids needs a datum by control points or GNSS positions "
+            "(datum='free' is not supported)"
+        )
+    block.validate()
+    gp = _GridProblem(block, opts, spacing, per, datum, sc, st, border)
+    s, z, N, cost, it, converged, message, history = _levenberg_marquardt(gp, opts, progress)
+    n_obs = 2 * gp.n + _prior_count(gp.bp) + gp.n_pseudo
+    redundancy = int(n_obs - gp.free_idx.size)
+    sigma0 = math.sqrt(cost / redundancy) if redundancy > 0 else float("nan")
+    est = gp.bp.to_block(s)
+    # grids as ResidualGrid objects, with the image's residuals at the joint solution
+    v, _ = gp.residuals(s, z)
+    gv = gp.grid_values(z)
+    bp = gp.bp
+    want_std = std if std is not None else (gp.free_idx.size - 3 * bp.p) <= STD_MAX
+    cof = _grid_cofactors(gp, N) if want_std else None
+    objs, node_std = {}, ({} if want_std else None)
+    for g, key in enumerate(gp.grid_keys):  # grids, not points
+        L = gp.layouts[g]
+        sel = np.flatnonzero(gp.obs_grid == g)
+        if L is None:
+            continue
+        nodes = z[gp.goff[g] : gp.goff[g + 1]].reshape(L.shape[0], L.shape[1], 2)
+        counts = _node_counts(L, bp.uv[sel]) if sel.size else np.zeros(L.shape, np.int64)
+        std_g = []
+        if cof is not None:
+            c = cof[gp.goff[g] : gp.goff[g + 1]].reshape(L.shape[0], L.shape[1], 2)
+            node_std[key] = sigma0 * np.sqrt(c)
+            std_g = [c.mean(axis=2)]
+        objs[key] = ResidualGrid(
+            layout=L,
+            nodes=nodes,
+            sigma0=sigma0,
+            redundancy=redundancy,
+            sigma_obs=bp.sigma_obs()[sel],
+            sigma_constraint=sc,
+            support=counts >= min_support,
+            counts=counts,
+            rms_before=_rms_len(v[sel] + gv[sel]),
+            rms_after=_rms_len(v[sel]),
+            border=border,
+            _std=std_g,
+        )
+    if per == "image":
+        grids = {k: objs[k] for k in gp.grid_keys if k in objs}
+    else:
+        cam_ids = block.camera_ids.tolist()
+        grids = {
+            iid: objs[cam_ids[c]]
+            for iid, c in zip(block.image_ids.tolist(), block.image_camera.tolist())
+            if cam_ids[c] in objs
+        }
+    from .blocks import correct_block_observations
+
+    final = bundle_adjust(
+        correct_block_observations(est, grids),
+        opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
+    )
+    return GridAdjustment(
+        grids=grids,
+        block=est,
+        fit=final,
+        per=per,
+        spacing=float(gp.layouts[0].spacing if gp.layouts[0] is not None else spacing),
+        datum=datum,
+        sigma_constraint=sc,
+        sigma_temporal=float("nan") if st is None else st,
+        sigma0=sigma0,
+        redundancy=redundancy,
+        n_unknowns=int(gp.free_idx.size),
+        node_std=node_std,
+        converged=converged,
+        iterations=it,
+        message=message,
+        cost_history=history,
+        elapsed=time.perf_counter() - t0,
+    )
+
+
+def _prior_count(bp: Problem) -> int:
+    return int(3 * (np.sum(bp.has_gnss) + np.sum(bp.has_imu) + bp.control.size))
+
+
+def _positive(value, name: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a positive number of pixels, not {value!r}") from None
+    if not math.isfinite(x) or x <= 0:
+        raise InputError(f"{name} must be a positive number of pixels, not {value!r}")
+    return x

@@ -1,0 +1,144 @@
+"""Residual grids estimated inside the bundle adjustment (small simulated blocks)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+from photogeom.calibration import GridLayout, adjust_with_grids
+from photogeom.calibration.in_adjustment import _datum_rows
+from photogeom.errors import InputError
+
+
+def _rms(v):
+    return float(np.sqrt(np.mean(np.sum(v * v, axis=1))))
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A small block of the stable FC300S camera (4000 x 3000 px), no local field."""
+    return pg.simulate.uav_block(
+        "FC300S", seed=3, strips=2, images_per_strip=4, local_field=0.0, sigma=0.2
+    )
+
+
+def _random_nodes(rng, layout, datum, rms):
+    """Random node values (ny, nx, 2) without the datum components (px)."""
+    z = rng.standard_normal(2 * layout.n_nodes)
+    D = _datum_rows(layout, datum)
+    z -= D.T @ np.linalg.solve(D @ D.T, D @ z)
+    z *= rms / np.sqrt(np.mean(z.reshape(-1, 2) ** 2) * 2)
+    return z.reshape(layout.shape[0], layout.shape[1], 2)
+
+
+def _observe(truth, ideal, fields):
+    """Observations ``u`` with ``u + r(u) = ideal`` for modelled residual fields ``r``
+    (``fields[i]`` evaluates image row ``i``), solved by fixed-point iteration."""
+    uv = ideal.copy()
+    for _ in range(30):
+        new = ideal.copy()
+        for i in range(truth.n_images):
+            sel = truth.obs_image == i
+            new[sel] = ideal[sel] - fields[i](uv[sel])
+        if np.max(np.abs(new - uv)) < 1e-12:
+            break
+        uv = new
+    return new
+
+
+def _evaluator(layout, nodes):
+    return lambda uv: pg.calibration.grid.evaluate_nodes(layout, nodes, uv)
+
+
+def test_noise_free_camera_grid_is_recovered(small):
+    """A field shared by the images of the camera, in the grid's function space and without
+    its affine part, is recovered with the orientation from noise-free observations."""
+    truth = small.truth
+    w, h = (int(x) for x in truth.image_sizes()[0])
+    L = GridLayout(w, h, 1000.0)
+    nodes = _random_nodes(np.random.default_rng(1), L, "affine", 1.0)
+    uv = _observe(truth, small.ideal, [_evaluator(L, nodes)] * truth.n_images)
+    block = truth.with_observations(uv=uv)
+    ga = adjust_with_grids(block, 1000.0, per="camera", sigma_constraint=1e3, free=(), std=True)
+    assert ga.converged
+    g = ga.grids[truth.image_ids[0]]
+    assert g is ga.grids[truth.image_ids[-1]]  # one grid for the camera group
+    np.testing.assert_allclose(g.nodes, nodes, atol=2e-4)
+    np.testing.assert_allclose(ga.block.exterior[:, :3], truth.exterior[:, :3], atol=1e-4)
+    # the corrected observations reproduce the ideal image points
+    np.testing.assert_allclose(ga.fit.block.observations.uv, small.ideal, atol=1e-3)
+    assert ga.node_std is not None and ga.node_std[truth.camera_ids[0]].shape == (4, 5, 2)
+
+
+def test_noise_free_image_grids_are_recovered_when_the_object_is_fixed(small):
+    """Per-image fields are determined when every point is a control point (the object
+    cannot deform to take them up): noise-free recovery of every image's nodes."""
+    truth = small.truth
+    w, h = (int(x) for x in truth.image_sizes()[0])
+    L = GridLayout(w, h, 1000.0)
+    rng = np.random.default_rng(2)
+    true_nodes = [_random_nodes(rng, L, "similarity", 0.8) for _ in range(truth.n_images)]
+    uv = _observe(truth, small.ideal, [_evaluator(L, z) for z in true_nodes])
+    block = truth.with_observations(uv=uv).replace(
+        role=np.full(truth.n_points, "control", dtype=object),
+        point_sigma=np.full((truth.n_points, 3), 1e-5),
+    )
+    ga = adjust_with_grids(block, 1000.0, per="image", sigma_constraint=1e3, free=())
+    for i, iid in enumerate(truth.image_ids.tolist()):
+        g = ga.grids[iid]
+        assert g.support.sum() >= 0.6 * g.support.size
+        np.testing.assert_allclose(g.nodes[g.support], true_nodes[i][g.support], atol=2e-4)
+
+
+def test_stiff_grids_give_the_bundle_adjustment(small):
+    """With the grids held at zero by their smoothness and datum (tiny sigma_constraint)
+    the joint adjustment is the plain bundle adjustment."""
+    ref = pg.bundle_adjust(small.block, snooping=False)
+    ga = adjust_with_grids(small.block, 1000.0, sigma_constraint=1e-7, std=False)
+    assert max(np.abs(g.nodes).max() for g in ga.grids.values()) < 1e-5
+    np.testing.assert_allclose(ga.block.exterior[:, :3], ref.block.exterior[:, :3], atol=1e-5)
+    np.testing.assert_allclose(ga.block.exterior[:, 3:], ref.block.exterior[:, 3:], atol=1e-8)
+    tie = ref.block.role == "tie"
+    np.testing.assert_allclose(ga.block.xyz[tie], ref.block.xyz[tie], atol=1e-5)
+
+
+def test_the_final_fit_keeps_the_joint_points_and_orientation():
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=1, strips=2, images_per_strip=4)
+    fit = pg.bundle_adjust(sim.block, snooping=False)
+    ga = adjust_with_grids(fit.block, 2000.0, sigma_temporal=0.3, sigma_constraint=1.0)
+    assert ga.converged and ga.sigma_temporal == 0.3
+    np.testing.assert_allclose(ga.fit.block.exterior, ga.block.exterior, atol=1e-12)
+    tie = ga.block.role == "tie"
+    np.testing.assert_allclose(ga.fit.block.xyz[tie], ga.block.xyz[tie], atol=1e-6)
+    # the grids take up residual: the joint residuals are smaller than the first fit's
+    before = _rms(pg.bundle.reprojection_residuals(fit.block))
+    assert _rms(ga.fit.residuals[ga.fit.in_adjustment]) < before
+    d = ga.to_dict()
+    assert d["per"] == "image" and d["grids"] == sim.block.n_images
+    g = next(iter(ga.grids.values()))
+    assert g.rms_after < g.rms_before
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"spacing": 0}, "positive number of pixels"),
+        ({"spacing": 5000}, "larger than the image"),
+        ({"spacing": 1000, "per": "strip"}, "per must be one of"),
+        ({"spacing": 1000, "datum": "none"}, "datum must be one of"),
+        ({"spacing": 1000, "sigma_constraint": 0}, "sigma_constraint must be a positive"),
+        ({"spacing": 1000, "per": "camera", "sigma_temporal": 0.3}, "needs per='image'"),
+        ({"spacing": 1000, "loss": "huber"}, "squared loss only"),
+        ({"spacing": 1000, "datum_": "free"}, "free"),
+    ],
+)
+def test_bad_input_is_named(small, kwargs, match):
+    kw = dict(kwargs)
+    if "datum_" in kw:
+        kw["datum"] = None
+        kw["options"] = pg.bundle.BundleOptions(datum=kw.pop("datum_"))
+    with pytest.raises(InputError, match=match):
+        adjust_with_grids(small.block, **kw)
+    with pytest.raises(InputError, match=r"needs a photogeom\.bundle\.Block"):
+        adjust_with_grids("block.json", 1000)
