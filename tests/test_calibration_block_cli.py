@@ -50,3 +50,20 @@ def test_bad_input(cli, block_folder):
     assert code == 2 and "--spacings" in err
     code, _, err = cli("grid", "evaluate", str(block_folder / "nowhere"))
     assert code == 2 and "does not exist" in err
+
+
+def test_evaluate_in_adjustment(cli, block_folder):
+    code, text, err = cli(
+        "grid", "evaluate", str(block_folder), "--spacing", "2000", "--sigma-constraint", "1",
+        "--in-adjustment", "--sigma-temporal", "0.3", "--json",
+    )  # fmt: skip
+    assert code == 0, err
+    data = json.loads(text)
+    assert data["residuals"]["block"]["reduction_rms"] > 0
+    code, _, err = cli("grid", "evaluate", str(block_folder), "--per", "camera")
+    assert code == 2 and "--in-adjustment only" in err
+    code, _, err = cli(
+        "grid", "evaluate", str(block_folder), "--in-adjustment", "--per", "camera",
+        "--sigma-temporal", "0.3",
+    )  # fmt: skip
+    assert code == 2 and "--sigma-temporal needs --per image" in err

@@ -34,7 +34,15 @@ from .gridfile import load_grids, save_grids
 from .images import FolderResult, correct_folder, correct_image_file
 from .in_adjustment import GridAdjustment, adjust_with_grids
 from .steps import StereoModels, image_overlap, model_steps, stereo_models
-from .study import evaluate_readjustment, field_recovery, run_study, sweep_spacings
+from .study import (
+    compare_in_adjustment,
+    evaluate_readjustment,
+    field_recovery,
+    run_study,
+    sweep_spacings,
+    visible_field,
+    visible_recovery,
+)
 
 __all__ = [
     "FiniteElementSystem",
@@ -62,6 +70,7 @@ __all__ += [
     "StereoModels",
     "adjust_with_grids",
     "block_residuals",
+    "compare_in_adjustment",
     "correct_block_observations",
     "evaluate_readjustment",
     "field_recovery",
@@ -72,4 +81,6 @@ __all__ += [
     "run_study",
     "stereo_models",
     "sweep_spacings",
+    "visible_field",
+    "visible_recovery",
 ]

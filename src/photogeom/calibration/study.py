@@ -10,7 +10,11 @@
   (:func:`~photogeom.calibration.choose_spacing`,
   :func:`~photogeom.calibration.most_frequent_spacing`);
 * :func:`run_study` - the pipeline of the study on one simulated preset: adjust, fit,
-  correct, re-adjust, evaluate, a coarse grid against the fine one, the sweep.
+  correct, re-adjust, evaluate, a coarse grid against the fine one, the sweep;
+* :func:`visible_field` - the part of the true local field that an adjustment leaves in
+  the residuals (the rest is taken up by orientations, calibration and points);
+* :func:`compare_in_adjustment` - post-processing against grids estimated inside the
+  adjustment on one simulated block: field recovery, check points, steps, time.
 """
 
 from __future__ import annotations
@@ -26,7 +30,15 @@ from .blocks import block_residuals, fit_residual_grids, readjust
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
 from .steps import model_steps
 
-__all__ = ["evaluate_readjustment", "field_recovery", "run_study", "sweep_spacings"]
+__all__ = [
+    "compare_in_adjustment",
+    "evaluate_readjustment",
+    "field_recovery",
+    "run_study",
+    "sweep_spacings",
+    "visible_field",
+    "visible_recovery",
+]
 
 
 def _rms(v: np.ndarray) -> float:
@@ -76,6 +88,66 @@ def field_recovery(sim, grids) -> dict:
             "ratio": _rms(d) / _rms(t),
             "nodes": int(t.shape[0]),
         },
+    }
+
+
+def visible_field(sim, **options) -> np.ndarray:
+    """The part of the simulated local field that the adjustment leaves in the residuals.
+
+    The block's truth is adjusted (same settings as :func:`photogeom.bundle_adjust`, Brown
+    self-calibration) with noise-free observations ``ideal + local field``: its residuals
+    (computed minus observed, px, per observation in block order) are what any fit to the
+    residuals of an adjustment can see. The difference to ``-sim.local`` was taken up by the
+    exterior orientations, the calibration and the points: a smooth deformation of the
+    object displaces each image differently, so per-image fields of long wavelength are
+    partly indistinguishable from the object and orientation (a null space of the
+    residuals, not a weakness of the grid).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2)
+        NaN for check-point rows (not adjusted).
+    """
+    from ..bundle.adjustment import bundle_adjust
+    from ..bundle.residuals import reprojection_residuals
+
+    block = sim.truth.with_observations(uv=sim.ideal + sim.local)
+    fit = bundle_adjust(block, **{"snooping": False, **options})
+    v = reprojection_residuals(fit.block)
+    v[~fit.in_adjustment] = np.nan
+    return v
+
+
+def visible_recovery(sim, grids, visible: np.ndarray | None = None) -> dict:
+    """Fitted grids against :func:`visible_field` at the tie observations.
+
+    Returns
+    -------
+    dict
+        ``field_rms`` (the true field at the tie observations), ``visible_rms``,
+        ``visible_share`` (their ratio), ``difference_rms`` (grid minus visible field) and
+        ``ratio`` (difference over visible RMS), px.
+    """
+    v = visible_field(sim) if visible is None else np.asarray(visible)
+    b = sim.block
+    tie = (b.role[b.obs_point] == "tie") & np.all(np.isfinite(v), axis=1)
+    rows = np.flatnonzero(tie)
+    ids = b.image_ids[b.obs_image[rows]]
+    est = np.full((rows.size, 2), np.nan)
+    for iid in np.unique(ids).tolist():  # images, not points
+        if iid not in grids:
+            continue
+        sel = ids == iid
+        est[sel] = grids[iid].evaluate(b.observations.uv[rows[sel]])
+    ok = np.all(np.isfinite(est), axis=1)
+    vis, est, loc = v[rows[ok]], est[ok], sim.local[rows[ok]]
+    d = est - vis
+    return {
+        "field_rms": _rms(loc),
+        "visible_rms": _rms(vis),
+        "visible_share": _rms(vis) / _rms(loc) if _rms(loc) > 0 else float("nan"),
+        "difference_rms": _rms(d),
+        "ratio": _rms(d) / _rms(vis) if _rms(vis) > 0 else float("nan"),
     }
 
 
@@ -254,4 +326,76 @@ def run_study(
         t0 = time.perf_counter()
         out["sweep"] = sweep_spacings(fit, sweep, **opts)
         times["sweep"] = time.perf_counter() - t0
+    return out
+
+
+def compare_in_adjustment(
+    sim,
+    spacing: float = 500.0,
+    *,
+    sigma_constraint: float = 1.0,
+    sigma_temporal: float | None = 0.3,
+    per: str = "image",
+    overlap: float = 0.6,
+) -> dict:
+    """Post-processing against grids estimated inside the adjustment, on one simulated block.
+
+    Both start from the same Brown self-calibrating adjustment of ``sim.block``; both use
+    the grid ``spacing`` and smoothness ``sigma_constraint``. Post-processing: grids fitted to
+    the residuals, observations corrected, re-adjusted with orientation and calibration
+    fixed (the study). In-adjustment: :func:`~photogeom.calibration.adjust_with_grids`
+    (``per``, ``sigma_temporal``).
+
+    Returns
+    -------
+    dict
+        ``post_hoc`` and ``in_adjustment``, each with ``field`` (:func:`field_recovery`,
+        block ratio against the true field), ``visible`` (:func:`visible_recovery`),
+        ``check_rmse_gsd`` (X, Y, Z), ``mean_step`` (GSD), ``residual_rms`` (px, tie
+        points), ``seconds`` (the first adjustment included); ``before`` the first
+        adjustment's ``check_rmse_gsd`` and ``mean_step``; ``images``, ``spacing``.
+    """
+    from ..bundle.adjustment import bundle_adjust
+    from .in_adjustment import adjust_with_grids
+
+    t0 = time.perf_counter()
+    fit = bundle_adjust(sim.block, snooping=False)
+    t_first = time.perf_counter() - t0
+    vis = visible_field(sim)
+    out = {"images": int(sim.block.n_images), "spacing": float(spacing)}
+    t0 = time.perf_counter()
+    grids = fit_residual_grids(fit.block, spacing, folds=0, sigma_constraint=sigma_constraint)
+    re = readjust(fit.block, grids, snooping=False)
+    t_post = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ga = adjust_with_grids(
+        fit.block,
+        spacing,
+        per=per,
+        sigma_constraint=sigma_constraint,
+        sigma_temporal=sigma_temporal if per == "image" else None,
+        std=False,
+    )
+    t_in = time.perf_counter() - t0
+    ev_post = evaluate_readjustment(fit, re, sim=sim, overlap=overlap)
+    ev_in = evaluate_readjustment(fit, ga.fit, sim=sim, overlap=overlap)
+    out["before"] = {
+        "check_rmse_gsd": ev_post["check_before"].get("rmse_gsd"),
+        "mean_step": ev_post["mean_step_before"],
+    }
+    for name, g, ev, t in (
+        ("post_hoc", grids, ev_post, t_post),
+        ("in_adjustment", ga.grids, ev_in, t_in),
+    ):
+        ra = ev["residuals"]["block"]
+        out[name] = {
+            "field": field_recovery(sim, g)["block"]["ratio"],
+            "visible": visible_recovery(sim, g, vis)["ratio"],
+            "check_rmse_gsd": ev["check_after"].get("rmse_gsd"),
+            "mean_step": ev["mean_step_after"],
+            "residual_rms": ra["after"]["rms"],
+            "seconds": t_first + t,
+        }
+    out["visible_share"] = visible_recovery(sim, grids, vis)["visible_share"]
+    out["in_adjustment_result"] = ga
     return out

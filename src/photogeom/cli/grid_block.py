@@ -34,6 +34,24 @@ SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--prese
 StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
 ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
 OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]
+InAdjOpt = Annotated[
+    bool,
+    typer.Option(
+        "--in-adjustment",
+        help="Estimate the grids inside the bundle adjustment instead of after it "
+        "(coarse grids: every node is an unknown).",
+    ),
+]
+PerOpt = Annotated[
+    str, typer.Option(help="With --in-adjustment: one grid per 'image' or per 'camera'.")
+]
+SigmaTOpt = Annotated[
+    float | None,
+    typer.Option(
+        help="With --in-adjustment --per image: standard deviation (px) of the equality of "
+        "consecutive images' grids (temporal constraints); omit for none."
+    ),
+]
 SpacingsOpt = Annotated[
     str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
 ]
@@ -68,16 +86,51 @@ def _cli(msg: str) -> str:
         .replace("grid spacing", "--spacing")
         .replace("use a larger spacing", "use a larger --spacing")
         .replace("overlap must", "--overlap must")
+        .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
+        .replace("sigma_temporal", "--sigma-temporal")
+        .replace("per must be one of", "--per must be one of")
     )
 
 
-def _evaluate(block, preset, spacing, sigma_constraint, seed, strips, images, overlap):
-    from ..calibration import evaluate_readjustment, fit_residual_grids, readjust
+def _evaluate(
+    block,
+    preset,
+    spacing,
+    sigma_constraint,
+    seed,
+    strips,
+    images,
+    overlap,
+    in_adjustment=False,
+    per="image",
+    sigma_temporal=None,
+):
+    from ..calibration import (
+        adjust_with_grids,
+        evaluate_readjustment,
+        fit_residual_grids,
+        readjust,
+    )
 
     fit, sim = _source(block, preset, seed, strips, images)
+    if not in_adjustment and (per != "image" or sigma_temporal is not None):
+        raise InputError("--per and --sigma-temporal apply with --in-adjustment only")
     try:
-        grids = fit_residual_grids(fit.block, spacing, sigma_constraint=sigma_constraint, folds=0)
-        re = readjust(fit.block, grids, snooping=False)
+        if in_adjustment:
+            ga = adjust_with_grids(
+                fit.block,
+                spacing,
+                per=per,
+                sigma_constraint=sigma_constraint,
+                sigma_temporal=sigma_temporal,
+                std=False,
+            )
+            grids, re = ga.grids, ga.fit
+        else:
+            grids = fit_residual_grids(
+                fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
+            )
+            re = readjust(fit.block, grids, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, overlap=overlap)
     except InputError as exc:
         raise InputError(_cli(str(exc))) from None
@@ -112,11 +165,25 @@ def evaluate(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    in_adjustment: InAdjOpt = False,
+    per: PerOpt = "image",
+    sigma_temporal: SigmaTOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps."""
+    """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
+    with --in-adjustment the grids are unknowns of the adjustment itself."""
     _, _, _, ev, _ = _evaluate(
-        block, preset, spacing, sigma_constraint, seed, strips, images, overlap
+        block,
+        preset,
+        spacing,
+        sigma_constraint,
+        seed,
+        strips,
+        images,
+        overlap,
+        in_adjustment,
+        per,
+        sigma_temporal,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
