@@ -247,6 +247,50 @@ def test_vce_recovers_observation_sigma():
     assert 0 < grid.sigma_constraint < 1
 
 
+def _foerstner(uv, l, w, h, spacing, s_obs, s_c, iterations):
+    """The plain Förstner iteration (both groups' factors updated each step), run long."""
+    L = GridLayout(w, h, spacing)
+    A, C = L.design_matrix(uv), L.constraint_matrix("mean")
+    n, m, u = uv.shape[0], C.shape[0], L.n_nodes
+    for _ in range(iterations):
+        p = np.full(n, 1.0 / s_obs**2)
+        sysm = FiniteElementSystem(L, uv, p, 1.0 / s_c**2, "mean", A=A, C=C)
+        z = sysm.solve(l)
+        v, wc = A @ z - l, C @ z
+        t = float(np.sum(p * sysm.observation_cofactors()))
+        f_o = float(np.sum(p[:, None] * v * v)) / (2 * (n - t))
+        f_c = float(np.sum(wc * wc)) / s_c**2 / (2 * (m - (u - t)))
+        s_obs, s_c = s_obs * math.sqrt(f_o), s_c * math.sqrt(f_c)
+    return s_obs, s_c
+
+
+def test_vce_root_equals_the_long_foerstner_iteration():
+    """The decade search + Brent finds the fixed point of Förstner's iteration (run 400
+    times here) in a few factorisations."""
+    rng = np.random.default_rng(11)
+    w, h = 1000, 800
+    uv = scattered(rng, 300, w, h)
+    l = -smooth_field(uv, w, h, 0.2) + rng.normal(0, 0.3, (300, 2))
+    ref_obs, ref_c = _foerstner(uv, l, w, h, 50, 1.0, 1.0, 400)
+    g = fit_grid(uv, l, (w, h), 50, sigma_obs=1.0, sigma_constraint="vce", folds=0)
+    assert g.sigma_constraint == pytest.approx(ref_c, rel=2e-3)
+    assert g.sigma_obs[0] == pytest.approx(ref_obs, rel=2e-3)
+    assert g.vce_iterations <= 14  # Förstner's own iteration needs 22 to 1e-3 here
+
+
+def test_vce_without_a_root_is_a_named_error():
+    """A weak field on a grid finer than its data: no ratio of the variances fits; the error
+    says so (the plain iteration ran into a group without redundancy)."""
+    from photogeom.errors import ConvergenceError
+
+    rng = np.random.default_rng(11)
+    w, h = 1000, 800
+    uv = scattered(rng, 150, w, h)
+    l = -smooth_field(uv, w, h, 0.2) + rng.normal(0, 0.3, (150, 2))
+    with pytest.raises(ConvergenceError, match="no ratio of the variances fits"):
+        fit_grid(uv, l, (w, h), 100, sigma_obs=1.0, sigma_constraint="vce", folds=0)
+
+
 # ------------------------------------------------------------------ data snooping
 def test_snooping_removes_gross_errors():
     rng = np.random.default_rng(2)

@@ -729,44 +729,101 @@ def _cross_validate(system, uv, l, p, A, folds, seed):
 
 
 def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):
-    """Förstner's iteration for two groups: observations and pseudo-observations."""
+    """Förstner's variance components of two groups: observations and pseudo-observations.
+
+    Only the ratio of the two variances changes the solution, so the estimate is the root
+    of ``h(x) = log(ratio_c / ratio_o)`` in ``x = log(sigma_constraint)`` (the observation
+    sigmas held), ``ratio_k = v_k' P_k v_k / r_k`` with the redundancy contributions ``r_k``;
+    at the root both groups' factors equal, and both sigmas are scaled by that factor. The
+    plain Förstner iteration takes the step ``x + h/2`` and converges linearly, slowly when
+    one group's redundancy is small, and drifts without end when ``h`` has no root (a grid
+    far finer than its observations support). Here ``h`` is evaluated in decades of
+    ``sigma_constraint`` from the start until it changes sign, and Brent's method finds the
+    root in that decade; without a sign change the error says how close the best ratio came.
+    One factorisation per evaluation of ``h``.
+    """
+    from scipy.optimize import brentq
+
+    from ..errors import ConvergenceError
+
     n, m, u = uv.shape[0], C.shape[0], layout.n_nodes
-    s_obs = s_obs.copy()
-    its = 0
-    for it in range(1, max_it + 1):
-        its = it
-        system = FiniteElementSystem(layout, uv, 1.0 / s_obs**2, 1.0 / s_c**2, border, A=A, C=C)
+    p = 1.0 / s_obs**2
+    state = {"its": 0}
+
+    def h(x: float) -> float:
+        state["its"] += 1
+        if state["its"] > max_it:
+            raise ConvergenceError(
+                f"{where}variance components did not converge in {max_it} evaluations "
+                "(give sigma_constraint instead)",
+                iterations=max_it,
+            )
+        sc = math.exp(x)
+        system = FiniteElementSystem(layout, uv, p, 1.0 / sc**2, border, A=A, C=C)
         z = system.solve(l)
         v = np.asarray(A @ z) - l
         wc = np.asarray(C @ z)
-        p = 1.0 / s_obs**2
         t = float(np.sum(p * system.observation_cofactors()))  # tr(N^-1 A'PA)
-        r_o = 2.0 * (n - t)
-        r_c = 2.0 * (m - (u - t))
-        vtpv = [float(np.sum(p[:, None] * v * v)), float(np.sum(wc * wc)) / s_c**2]
+        r = [2.0 * (n - t), 2.0 * (m - (u - t))]
+        q = [float(np.sum(p[:, None] * v * v)), float(np.sum(wc * wc)) / sc**2]
         try:
-            _, f = update_variance_factors([1.0, 1.0], vtpv, [r_o, r_c])
+            _, ratio = update_variance_factors([1.0, 1.0], q, r)
         except InputError as exc:
-            raise InputError(f"{where}variance components of the residual grid: {exc}") from None
-        if f[1] <= 0:
+            raise DegenerateGeometryError(
+                f"{where}variance components of the residual grid with sigma_constraint "
+                f"{sc:.3g} px: {exc}"
+            ) from None
+        if ratio[1] <= 0:
             raise DegenerateGeometryError(
                 f"{where}variance components: the residuals are reproduced exactly, so the "
                 "constraint variance is zero; give sigma_constraint instead of 'vce'"
             )
-        s_obs = s_obs * math.sqrt(f[0])
-        s_c = s_c * math.sqrt(f[1])
-        if np.all(np.abs(f - 1.0) <= tol):
-            break
-    else:
-        from ..errors import ConvergenceError
+        state["last"] = (float(ratio[0]), x)
+        return math.log(ratio[1] / ratio[0])
 
+    eps = 2.0 * math.log1p(tol)
+    x0 = math.log(s_c)
+    values = {0: h(x0)}
+    root = x0 if abs(values[0]) <= eps else None
+    step = math.log(10.0)
+    bracket = None
+    # search outward in decades, first where Förstner's step points (h > 0: weaker
+    # constraints), then the other way, until h changes sign
+    first = 1 if values[0] > 0 else -1
+    for direction in (first, -first) if root is None else ():
+        for k in range(1, 7):
+            key = direction * k
+            try:
+                values[key] = h(x0 + key * step)
+            except DegenerateGeometryError:
+                break  # beyond what the data determine: no root further out
+            prev = values[direction * (k - 1)]
+            if abs(values[key]) <= eps:
+                root = x0 + key * step
+                break
+            if prev * values[key] < 0:
+                bracket = sorted((x0 + key * step, x0 + (key - direction) * step))
+                break
+        if root is not None or bracket is not None:
+            break
+    if root is None and bracket is None:
+        best = min(values, key=lambda k: abs(values[k]))
         raise ConvergenceError(
-            f"{where}variance components did not converge in {max_it} iterations "
-            f"(last factors {f[0]:.4g}, {f[1]:.4g}); give sigma_constraint instead",
-            iterations=max_it,
+            f"{where}variance components: no ratio of the variances fits these residuals "
+            f"(the closest, at sigma_constraint {math.exp(x0 + best * step):.3g} "
+            f"px, leaves the factors {math.exp(values[best]):.3g} apart; {n} observations "
+            f"for {u} nodes: a grid finer than its data, or a field below the noise): give "
+            "sigma_constraint, or a larger spacing",
+            iterations=state["its"],
         )
-    system = FiniteElementSystem(layout, uv, 1.0 / s_obs**2, 1.0 / s_c**2, border, A=A, C=C)
-    return s_obs, s_c, its, system, system.solve(l)
+    if root is None:
+        root = brentq(h, bracket[0], bracket[1], xtol=1e-3 * tol, rtol=1e-12, maxiter=max_it)
+    h(root)  # the factor at the root
+    f = state["last"][0]
+    s_c_new = math.exp(root) * math.sqrt(f)
+    s_obs_new = s_obs * math.sqrt(f)
+    system = FiniteElementSystem(layout, uv, 1.0 / s_obs_new**2, 1.0 / s_c_new**2, border, A=A, C=C)
+    return s_obs_new, s_c_new, state["its"], system, system.solve(l)
 
 
 def fit_grids(
