@@ -26,7 +26,7 @@ Pseudo-observations of the grids, all with observed value 0:
   at zero: ``"similarity"`` (the default of per-image grids) the mean shift, scale and
   rotation of the node values, ``"affine"`` (the default of per-camera grids: the affinity
   b1, b2 of the Brown model too) the mean shift and the four linear terms. They are
-  pseudo-observations with a standard deviation of 1e-6 px on the mean over the nodes
+  pseudo-observations with a standard deviation of 1e-4 px on the mean over the nodes
   (numerically hard constraints). MicMac's bilinear grid freezes two nodes on the middle
   line instead; the conditions here leave every node free and make the result independent of
   the node chosen.
@@ -59,7 +59,7 @@ __all__ = ["GridAdjustment", "adjust_with_grids"]
 PER = ("image", "camera")
 DATUMS = ("similarity", "affine")
 #: Standard deviation of the datum conditions (px, on the mean over the nodes).
-DATUM_SIGMA = 1e-6
+DATUM_SIGMA = 1e-4
 #: Unknowns (without the points) up to which node standard deviations are computed by
 #: default (a dense inverse of the system reduced by the points).
 STD_MAX = 5000
