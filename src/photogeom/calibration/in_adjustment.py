@@ -461,7 +461,7 @@ def adjust_with_grids(
     spacing: float,
     *,
     per: str = "image",
-    sigma_constraint: float = 0.1,
+    sigma_constraint: float | str = "scaled",
     sigma_temporal: float | None = None,
     datum: str | None = None,
     border: str = "mean",
@@ -483,8 +483,9 @@ def adjust_with_grids(
         adjustment).
     per : {"image", "camera"}
         One grid per image (image-variant fields) or one per camera group.
-    sigma_constraint : float
-        Standard deviation of the smoothness pseudo-observations (px).
+    sigma_constraint : float or "scaled"
+        Standard deviation of the smoothness pseudo-observations (px); ``"scaled"``:
+        ``0.1 px * (spacing / 100 px)^2`` (see :func:`fit_residual_grids`).
     sigma_temporal : float, optional
         Standard deviation (px) of the equality of the grids of consecutive images (block
         order) of one camera group; ``per="image"`` only. None: no temporal constraints.
@@ -532,7 +533,9 @@ def adjust_with_grids(
         raise InputError(f"datum must be one of {', '.join(DATUMS)}, not {datum!r}")
     if border not in BORDERS:
         raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
-    sc = _positive(sigma_constraint, "sigma_constraint")
+    from .blocks import scaled_constraint_sigma
+
+    sc = _positive(scaled_constraint_sigma(sigma_constraint, spacing), "sigma_constraint")
     st = None if sigma_temporal is None else _positive(sigma_temporal, "sigma_temporal")
     if st is not None and per != "image":
         raise InputError("sigma_temporal needs per='image' (temporal constraints join images)")

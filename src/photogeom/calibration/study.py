@@ -272,8 +272,8 @@ def run_study(
     grid-size sweep over ``sweep`` (None: skipped); the fitted field against the truth.
 
     The grids are fitted with the defaults of :func:`fit_residual_grids` (the block's
-    observation sigmas, a constraint sigma of 0.1 px) and no cross-validation unless
-    ``fit_options`` says otherwise.
+    observation sigmas, the constraint sigma scaled with the spacing, 0.1 px at 100 px)
+    and no cross-validation unless ``fit_options`` says otherwise.
 
     Returns
     -------

@@ -28,8 +28,29 @@ PresetOpt = Annotated[
 ]
 SpacingOpt = Annotated[float, typer.Option(help="Node spacing of the grids in pixels.")]
 SigmaCOpt = Annotated[
-    float, typer.Option(help="Standard deviation of the smoothness pseudo-observations (px).")
+    str,
+    typer.Option(
+        help="Standard deviation of the smoothness pseudo-observations: px, 'scaled' "
+        "(0.1 px x (spacing / 100 px)^2) or 'vce' (variance components; not with "
+        "--in-adjustment)."
+    ),
 ]
+
+
+def _sigma_c(text: str):
+    """The --sigma-constraint value: a number of px, 'scaled' or 'vce'."""
+    t = text.strip().lower()
+    if t in ("scaled", "vce"):
+        return t
+    try:
+        x = float(t)
+    except ValueError:
+        raise InputError(
+            f"--sigma-constraint must be a number of pixels, 'scaled' or 'vce', not {text!r}"
+        ) from None
+    if not x > 0 or x == float("inf"):
+        raise InputError(f"--sigma-constraint must be a positive number of pixels, not {text!r}")
+    return x
 SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--preset).")]
 StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
 ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
@@ -112,7 +133,10 @@ def _evaluate(
         readjust,
     )
 
+    sigma_constraint = _sigma_c(sigma_constraint)
     fit, sim = _source(block, preset, seed, strips, images)
+    if in_adjustment and sigma_constraint == "vce":
+        raise InputError("--sigma-constraint vce does not apply with --in-adjustment")
     if not in_adjustment and (per != "image" or sigma_temporal is not None):
         raise InputError("--per and --sigma-temporal apply with --in-adjustment only")
     try:
@@ -160,7 +184,7 @@ def evaluate(
     block: BlockArg = None,
     preset: PresetOpt = None,
     spacing: SpacingOpt = 100.0,
-    sigma_constraint: SigmaCOpt = 0.1,
+    sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
@@ -227,7 +251,7 @@ def sweep(
     block: BlockArg = None,
     preset: PresetOpt = None,
     spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
-    sigma_constraint: SigmaCOpt = 0.1,
+    sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
@@ -241,6 +265,7 @@ def sweep(
     from ..calibration import sweep_spacings
 
     g = split_numbers(spacings, None, "--spacings")
+    sigma_constraint = _sigma_c(sigma_constraint)
     fit, _ = _source(block, preset, seed, strips, images)
     try:
         sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
@@ -289,7 +314,7 @@ def report(
     preset: PresetOpt = None,
     spacing: SpacingOpt = 100.0,
     spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
-    sigma_constraint: SigmaCOpt = 0.1,
+    sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
@@ -303,7 +328,9 @@ def report(
     fit, re, grids, ev, _ = _evaluate(
         block, preset, spacing, sigma_constraint, seed, strips, images, overlap
     )
-    sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
+    sw = sweep_spacings(
+        fit, g, overlap=overlap, sigma_constraint=_sigma_c(sigma_constraint), folds=0
+    )
     res = {
         "preset": preset or str(block),
         "evaluation": ev,
