@@ -60,6 +60,9 @@ PER = ("image", "camera")
 DATUMS = ("similarity", "affine")
 #: Standard deviation of the datum conditions (px, on the mean over the nodes).
 DATUM_SIGMA = 1e-4
+#: Camera-side unknowns (the points eliminated) up to which the reduced system is factorised
+#: densely (LAPACK; 70 MB at 3000, 800 MB at 10000).
+DENSE_REDUCED_MAX = 10000
 #: Unknowns (without the points) up to which node standard deviations are computed by
 #: default (a dense inverse of the system reduced by the points).
 STD_MAX = 5000
@@ -379,16 +382,15 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
     while it < opts.max_iterations:
         it += 1
         d = np.maximum(N.diagonal() - gp.datum_diag[gp.free_idx], 1e-12)
-        Nd = (N + sp.diags(lam * d)).tocsc()
+        Nd = (N + sp.diags(lam * d)).tocsr()
         try:
-            F = factorize(Nd, backend=opts.backend, what="normal equations with residual grids")
+            dx = _solve_by_points(Nd, g, 3 * bp.p, opts.backend)
         except DegenerateGeometryError:
             if lam > 1e10:
                 raise
             lam *= nu
             nu *= 2.0
             continue
-        dx = F.solve(-g)
         pred = float(-(g @ dx) + lam * np.sum(d * dx * dx))
         dcg, dz, dp = gp.split(dx)
         trial = bp.update(s, dcg, dp)
@@ -426,21 +428,62 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
     return s, z, N, cost, it, converged, message, history
 
 
+def _point_blocks(Npp: sp.csr_matrix, k: int) -> np.ndarray:
+    """The 3x3 diagonal blocks (k, 3, 3) of the point part of ``N`` (block diagonal)."""
+    blocks = np.zeros((k, 3, 3))
+    coo = Npp.tocoo()
+    blocks[coo.row // 3, coo.row % 3, coo.col % 3] = coo.data
+    return blocks
+
+
+def _reduce_points(N: sp.csr_matrix, npt: int):
+    """The camera-side system with the points (last ``npt`` unknowns, 3x3 blocks)
+    eliminated: ``S = Ncc - Ncp Vinv Npc`` (dense when small, else sparse), ``Ncp``,
+    ``Vinv`` (block diagonal, sparse)."""
+    nc = N.shape[0] - npt
+    Ncc = N[:nc][:, :nc]
+    Ncp = N[:nc][:, nc:].tocsr()
+    blocks = _point_blocks(N[nc:][:, nc:].tocsr(), npt // 3)
+    det = np.linalg.det(blocks)
+    scale = np.einsum("pii->p", blocks) ** 3
+    if np.any(~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))):
+        raise DegenerateGeometryError(
+            "a point is not determined by its rays (all rays nearly parallel or fewer than two)"
+        )
+    Vinv = _block_diagonal(np.linalg.inv(blocks))
+    S = Ncc - Ncp @ Vinv @ Ncp.T
+    return S, Ncp, Vinv
+
+
+def _solve_by_points(N: sp.csr_matrix, g: np.ndarray, npt: int, backend: str) -> np.ndarray:
+    """``N dx = -g`` with the points eliminated first (3x3 blocks); the reduced system is
+    factorised densely (LAPACK) up to a few thousand unknowns, else sparsely."""
+    nc = N.shape[0] - npt
+    S, Ncp, Vinv = _reduce_points(N, npt)
+    gc, gp_ = g[:nc], g[nc:]
+    rhs = -gc + Ncp @ (Vinv @ gp_)
+    if nc <= DENSE_REDUCED_MAX and backend in ("auto", "dense"):
+        try:
+            c = sla.cho_factor(S.toarray(), lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            raise DegenerateGeometryError(
+                "normal equations with residual grids are not positive definite (a grid or "
+                "orientation parameter is not determined)"
+            ) from None
+        dc = sla.cho_solve(c, rhs, check_finite=False)
+    else:
+        F = factorize(S.tocsc(), backend=backend, what="normal equations with residual grids")
+        dc = F.solve(rhs)
+    dp = -(Vinv @ (gp_ + Ncp.T @ dc))
+    return np.concatenate([dc, dp])
+
+
 def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix) -> np.ndarray:
     """``diag(N^-1)`` of the grid unknowns: the points (3x3 blocks, last) are eliminated,
     the reduced system inverted densely."""
     fi = gp.free_idx
-    npf = 3 * gp.bp.p
-    nc = fi.size - npf
-    Ncc = N[:nc][:, :nc].toarray()
-    Ncp = N[:nc][:, nc:].tocsr()
-    Npp = N[nc:][:, nc:].tocsr()
-    k = gp.bp.p
-    blocks = np.zeros((k, 3, 3))
-    coo = Npp.tocoo()
-    blocks[coo.row // 3, coo.row % 3, coo.col % 3] = coo.data
-    inv = np.linalg.inv(blocks)
-    S = Ncc - (Ncp @ _block_diagonal(inv) @ Ncp.T).toarray()
+    nc = fi.size - 3 * gp.bp.p
+    S = _reduce_points(N, 3 * gp.bp.p)[0].toarray()
     try:
         c = sla.cho_factor(S, lower=True, check_finite=False)
     except np.linalg.LinAlgError:
