@@ -102,9 +102,7 @@ def check_mask(
     if missing:
         known_ids = ""
         if list_ids:
-            known_ids = (
-                f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
-            )
+            known_ids = f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
         raise InputError(f"--check-ids: no point with id {', '.join(missing)}{known_ids}")
     return np.isin(np.array(ids, dtype=object), names)
 
@@ -151,9 +149,7 @@ def load_pairs(
     # An explicit weight/sigma column belongs to the target file; without one, a weight or
     # sigma column found in either file is used (join_points refuses conflicting ones).
     explicit = weights_col is not None or sigma_col is not None
-    src = read_points(
-        source, split_names(source_cols), id_column=id_col, auto_weights=not explicit
-    )
+    src = read_points(source, split_names(source_cols), id_column=id_col, auto_weights=not explicit)
     dst = read_points(
         target,
         split_names(target_cols),
@@ -223,3 +219,40 @@ def in_cli_words(message: str) -> str:
     for api, cli in CLI_WORDS:
         message = message.replace(api, cli)
     return message
+
+
+# --- coordinate reference systems ---------------------------------------------------------------
+
+
+#: Help text shared by the CRS options: what they take.
+CRS_FORMS = "EPSG code (EPSG:25832), WKT, PROJ string, or enu:LAT,LON,H (a local ENU frame)"
+
+
+def cartesian_crs_option(text: str | None, option: str, *, dim: int = 3, unit: str | None = None):
+    """The :class:`~photogeom.crs.CrsInfo` of a CRS option (None when not given), validated by
+    PROJ and refused when geographic (pyproj is imported only here, when the option is used)."""
+    if text is None:
+        return None
+    from ..crs import cartesian_crs
+
+    return cartesian_crs(text, what=option, dim=dim, unit=unit or None)
+
+
+def crs_from_comments(comments) -> str | None:
+    """The CRS of a ``# crs: ...`` comment line of a point or block file (None without one)."""
+    found = None
+    for c in comments:
+        t = c.strip().lstrip("#").strip()
+        if t.lower().startswith("crs:"):
+            found = t[4:].strip() or None
+    return found
+
+
+def same_crs(a: str, b: str) -> bool:
+    """Whether two CRS texts name the same system (PROJ's equality; local frames by origin)."""
+    from ..crs import frame_from_text, parse_crs
+
+    fa, fb = frame_from_text(a), frame_from_text(b)
+    if fa is not None or fb is not None:
+        return fa == fb
+    return parse_crs(a) == parse_crs(b)
