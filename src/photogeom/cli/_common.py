@@ -102,7 +102,9 @@ def check_mask(
     if missing:
         known_ids = ""
         if list_ids:
-            known_ids = f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
+            known_ids = (
+                f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
+            )
         raise InputError(f"--check-ids: no point with id {', '.join(missing)}{known_ids}")
     return np.isin(np.array(ids, dtype=object), names)
 
@@ -149,7 +151,9 @@ def load_pairs(
     # An explicit weight/sigma column belongs to the target file; without one, a weight or
     # sigma column found in either file is used (join_points refuses conflicting ones).
     explicit = weights_col is not None or sigma_col is not None
-    src = read_points(source, split_names(source_cols), id_column=id_col, auto_weights=not explicit)
+    src = read_points(
+        source, split_names(source_cols), id_column=id_col, auto_weights=not explicit
+    )
     dst = read_points(
         target,
         split_names(target_cols),

@@ -130,7 +130,9 @@ def register(app: typer.Typer) -> None:
         ] = None,
         initial: Annotated[
             str | None,
-            typer.Option(help="Start of gauss-markov / gauss-helmert: a direct method or 'zeros'."),
+            typer.Option(
+                help="Start of gauss-markov / gauss-helmert: a direct method or 'zeros'."
+            ),
         ] = None,
         source_cols: Annotated[
             str | None, typer.Option(help="Source coordinate columns (default x,y,z).")
@@ -189,14 +191,8 @@ def register(app: typer.Typer) -> None:
         out = console()
         with busy(f"reading {source.name}", source, target):
             pairs = load_pairs(
-                source,
-                target,
-                source_cols=source_cols,
-                target_cols=target_cols,
-                id_col=id_col,
-                weights_col=weights_col,
-                sigma_col=sigma_col,
-                allow_unmatched=allow_unmatched,
+                source, target, source_cols=source_cols, target_cols=target_cols, id_col=id_col,
+                weights_col=weights_col, sigma_col=sigma_col, allow_unmatched=allow_unmatched,
             )
         if pairs.source.shape[1] != 3 or pairs.target.shape[1] != 3:
             raise InputError(
@@ -225,11 +221,7 @@ def register(app: typer.Typer) -> None:
             from ..orientation import compare_absolute_methods
 
             cmp = compare_absolute_methods(
-                x,
-                X,
-                convention=conv,
-                angle_unit=angle,
-                length_unit=unit,
+                x, X, convention=conv, angle_unit=angle, length_unit=unit,
                 **{k: v for k, v in options.items() if k != "unit"},
             )
             if as_json:
@@ -239,11 +231,8 @@ def register(app: typer.Typer) -> None:
                     d["source_crs"] = crs_record["source_crs"]
                 typer.echo(json.dumps(d, indent=2))
             else:
-                out.print(
-                    f"[bold]{len(x)} point pairs[/bold] ({source.name}"
-                    + (f", {target.name}" if target else "")
-                    + ")"
-                )
+                out.print(f"[bold]{len(x)} point pairs[/bold] ({source.name}"
+                          + (f", {target.name}" if target else "") + ")")
                 from rich.markup import escape
 
                 cols = [escape(c) for c in cmp.columns()]
@@ -251,24 +240,15 @@ def register(app: typer.Typer) -> None:
                 print_table(
                     "Absolute orientation: parameters of every method",
                     cols[:8],
-                    [
-                        [
-                            r[0],
-                            *[_fmt(v, 6) for v in r[1:4]],
-                            _fmt(r[4], 10),
-                            *[_fmt(v, 6) for v in r[5:8]],
-                        ]
-                        for r in rows
-                    ],
+                    [[r[0], *[_fmt(v, 6) for v in r[1:4]], _fmt(r[4], 10),
+                      *[_fmt(v, 6) for v in r[5:8]]] for r in rows],
                     console=out,
                 )
                 print_table(
                     f"Differences to the converged {cmp.reference} solution, speed",
                     [cols[0], *cols[8:]],
-                    [
-                        [r[0], *[_fmt(v, 2, sci=True) for v in r[8:12]], _fmt(r[12], 1)]
-                        for r in rows
-                    ],
+                    [[r[0], *[_fmt(v, 2, sci=True) for v in r[8:12]], _fmt(r[12], 1)]
+                     for r in rows],
                     console=out,
                 )
                 for r in cmp.rows:
@@ -286,7 +266,7 @@ def register(app: typer.Typer) -> None:
                 rep = Report("Absolute orientation: method comparison")
                 add_comparison(rep, cmp, title=f"{source.name}: all methods")
                 if crs_record["lines"]:
-                    rep.add_text("Coordinate reference systems", "\n".join(crs_record["lines"]))
+                    rep.add_text("Coordinate reference systems", "\n".join(_crs_lines(crs_record)))
                 rep.write(report)
                 if not as_json:
                     out.print(f"report written to {report}")
@@ -302,12 +282,7 @@ def register(app: typer.Typer) -> None:
             from ..orientation import ransac_absolute_orientation
 
             fit = ransac_absolute_orientation(
-                x,
-                X,
-                threshold,
-                method=meth,
-                rng=seed,
-                ids=row_ids,
+                x, X, threshold, method=meth, rng=seed, ids=row_ids,
                 **{k: v for k, v in options.items() if k not in ("initial", "sigma_source")},
             )
         else:
@@ -344,7 +319,8 @@ def register(app: typer.Typer) -> None:
         else:
             for note in pairs.notes:
                 out.print(f"note: {note}")
-            print_fit(fit, console=out, angle_unit=angle, title=f"Absolute orientation ({meth})")
+            print_fit(fit, console=out, angle_unit=angle,
+                      title=f"Absolute orientation ({meth})")
             out.print(_angles_line(fit, conv, angle))
             if fit.inliers is not None:
                 out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")

@@ -489,6 +489,24 @@ def _pm(v, s) -> str:
     return f"{_val(v, s)} ± {_std(s)}"
 
 
+def _crs_rows(d: Mapping) -> list[list[str]]:
+    """Rows naming the CRS of the object coordinates and of the GNSS positions."""
+    rows = []
+    if d.get("crs"):
+        rows.append(["object coordinates", str(d.get("crs_name") or d["crs"])])
+    g = d.get("georeferencing")
+    if g:
+        rows.append(
+            [
+                "GNSS positions",
+                f"{g['n_gnss']} converted from {g['gnss_crs_name']} into the block's system; "
+                "adjusted projection centres in that CRS in the result record "
+                "(images[].position_gnss_crs)",
+            ]
+        )
+    return rows
+
+
 def _summary_rows(d: Mapping) -> list[list[str]]:
     c = d["chi2"]
     blk = d["block"]
@@ -522,6 +540,7 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             )
             or "none (free network)",
         ],
+        *_crs_rows(d),
         ["sigma0 a posteriori", _f(d["sigma0"])],
         ["sigma0 a priori", _f(d["sigma0_prior"])],
         ["observations / unknowns", f"{d['n_observations']} / {d['n_unknowns']}"],
