@@ -50,7 +50,7 @@ def test_flags_are_shown_as_flags(cli):
 
 
 def test_nothing_heavy_is_imported_before_it_is_needed():
-    heavy = ["numpy", "scipy", "matplotlib", "pyarrow", "rich", "pandas"]
+    heavy = ["numpy", "scipy", "matplotlib", "pyarrow", "rich", "pandas", "pyproj", "laspy", "dask"]
     probe = (
         "import sys, photogeom, photogeom.cli.main; "
         f"print([m for m in {heavy!r} if m in sys.modules])"
