@@ -425,3 +425,58 @@ def test_pyproj_is_imported_only_when_a_crs_option_is_used(pairs3d):
         )  # fmt: skip
         assert proc.returncode == 0, proc.stderr
         assert proc.stderr.strip().splitlines()[-1] == want
+
+
+# --- resection and intersection: the ground CRS travels with the camera files ---------------------
+
+
+def test_resection_and_intersection_carry_the_ground_crs(cli, tmp_path):
+    io = pg.InteriorOrientation(152.14, 0.008, -0.12)
+    eos = [
+        pg.ExteriorOrientation.from_degrees(481000, 5300800, 1600, 2, 3, 10),
+        pg.ExteriorOrientation.from_degrees(481600, 5300820, 1620, -1, 2, 8),
+    ]
+    rng = np.random.default_rng(0)
+    g = np.column_stack(
+        [
+            rng.uniform(481050, 481550, 10),
+            rng.uniform(5300750, 5301100, 10),
+            rng.uniform(100, 300, 10),
+        ]
+    )
+    cams, images = [], []
+    for k, eo in enumerate(eos):
+        xy = pg.project(g, io, eo) + rng.normal(0, 0.003, (10, 2))
+        ctl, img = tmp_path / f"control{k}.csv", tmp_path / f"image{k}.csv"
+        ctl.write_text(
+            "id,X,Y,Z,x,y\n"
+            + "".join(
+                f"P{i}," + ",".join(repr(float(v)) for v in (*g[i], *xy[i])) + "\n"
+                for i in range(10)
+            )
+        )
+        img.write_text(
+            "id,x,y\n"
+            + "".join(f"P{i},{float(xy[i, 0])!r},{float(xy[i, 1])!r}\n" for i in range(10))
+        )
+        cam = tmp_path / f"cam{k}.json"
+        code, out, err = cli(
+            "orient", "resection", ctl, "--f", "152.14", "--x0", "0.008", "--y0", "-0.12",
+            "--crs", "EPSG:32632", "--output-params", cam,
+        )  # fmt: skip
+        assert code == 0, err
+        assert "ground CRS" in out and "UTM zone 32N" in out
+        assert json.loads(cam.read_text())["crs"] == "EPSG:32632"
+        cams.append(cam)
+        images.append(img)
+    code, out, err = cli(
+        "orient", "intersection", *images, "--camera", cams[0], "--camera", cams[1]
+    )
+    assert code == 0, err
+    assert "# crs: EPSG:32632" in out.splitlines()
+    code, _, err = cli("orient", "intersection", *images, "--camera", cams[0], "--camera",
+                       cams[1], "--crs", "EPSG:25832")  # fmt: skip
+    assert code == 2 and "record the CRS EPSG:32632" in err
+    code, _, err = cli("orient", "resection", tmp_path / "control0.csv", "--f", "152.14",
+                       "--crs", "EPSG:4326")  # fmt: skip
+    assert code == 2 and "--crs EPSG:4326" in err and "geographic" in err

@@ -121,6 +121,9 @@ class Fit:
     crs: str | None = None
     source_crs: str | None = None
 
+    #: What ``crs`` is the system of, in reports ("target CRS"; "ground CRS" of a resection).
+    crs_role = "target"
+
     # --- construction ----------------------------------------------------------------------
 
     @classmethod
@@ -408,7 +411,7 @@ def crs_rows(fit) -> list[tuple[str, str]]:
     if src is not None:
         rows.append(("source CRS", crs_label(src)))
     if crs is not None:
-        rows.append(("target CRS", crs_label(crs)))
+        rows.append((f"{getattr(fit, 'crs_role', 'target')} CRS", crs_label(crs)))
     return rows
 
 
