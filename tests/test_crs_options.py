@@ -480,3 +480,29 @@ def test_resection_and_intersection_carry_the_ground_crs(cli, tmp_path):
     code, _, err = cli("orient", "resection", tmp_path / "control0.csv", "--f", "152.14",
                        "--crs", "EPSG:4326")  # fmt: skip
     assert code == 2 and "--crs EPSG:4326" in err and "geographic" in err
+
+
+def test_rpc_localize_records_wgs84_and_converts_with_crs(cli, tmp_path):
+    ikonos = pg.datasets.path("ikonos")
+    px = tmp_path / "px.csv"
+    px.write_text("id,col,row\na,100,200\nb,5000,6000\nfar,-50000,3\n")
+    code, out, err = cli("rpc", "localize", ikonos, px, "--height", "30")
+    assert code == 0, err
+    assert "# crs: EPSG:4979" in out.splitlines()
+    rows = [ln.split(",") for ln in out.splitlines() if not ln.startswith("#")][1:]
+    lonlath = np.array([[float(v) for v in r[1:4]] for r in rows])
+    code, out, err = cli("rpc", "localize", ikonos, px, "--height", "30", "--crs", "EPSG:32721")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert "# crs: EPSG:32721" in lines and "id,x,y,z,status" in lines
+    rows = [ln.split(",") for ln in lines if not ln.startswith("#")][1:]
+    xyz = np.array([[float(v) for v in r[1:4]] for r in rows])
+    t = pyproj.Transformer.from_crs(4979, 32721, always_xy=True)
+    want = np.column_stack(t.transform(*lonlath.T))
+    np.testing.assert_allclose(xyz, want, atol=1e-6, rtol=0)
+    code, out, err = cli("rpc", "localize", ikonos, px, "--height", "30", "--crs", "EPSG:32721",
+                         "--json")  # fmt: skip
+    d = json.loads(out)
+    assert d["crs"] == "EPSG:32721" and d["points"][0]["x"] == pytest.approx(want[0, 0])
+    code, _, err = cli("rpc", "localize", ikonos, px, "--height", "30", "--crs", "EPSG:0")
+    assert code == 2 and "--crs" in err
