@@ -506,3 +506,27 @@ def test_rpc_localize_records_wgs84_and_converts_with_crs(cli, tmp_path):
     assert d["crs"] == "EPSG:32721" and d["points"][0]["x"] == pytest.approx(want[0, 0])
     code, _, err = cli("rpc", "localize", ikonos, px, "--height", "30", "--crs", "EPSG:0")
     assert code == 2 and "--crs" in err
+
+
+def test_rpc_project_takes_points_in_any_crs(cli, tmp_path):
+    ikonos = pg.datasets.path("ikonos")
+    lonlath = np.array([[-56.24, -34.948, 30.0], [-56.166, -34.9165, 12.0]])
+    geo = tmp_path / "geo.csv"
+    geo.write_text("id,lon,lat,h\n" + "".join(f"p{i},{a!r},{b!r},{c!r}\n" for i, (a, b, c)
+                                              in enumerate(lonlath.tolist())))  # fmt: skip
+    code, out, err = cli("rpc", "project", ikonos, geo, "--json")
+    assert code == 0, err
+    want = [[p["col"], p["row"]] for p in json.loads(out)["points"]]
+    t = pyproj.Transformer.from_crs(4979, 32721, always_xy=True)
+    utm = np.column_stack(t.transform(*lonlath.T))
+    rows = "".join(f"p{i},{x!r},{y!r},{z!r}\n" for i, (x, y, z) in enumerate(utm.tolist()))
+    plain, recorded = tmp_path / "utm.csv", tmp_path / "utm-crs.csv"
+    plain.write_text("id,x,y,z\n" + rows)
+    recorded.write_text("# crs: EPSG:32721\nid,x,y,z\n" + rows)
+    for args in ((plain, "--crs", "EPSG:32721"), (recorded,)):
+        code, out, err = cli("rpc", "project", ikonos, *args, "--json")
+        assert code == 0, err
+        got = [[p["col"], p["row"]] for p in json.loads(out)["points"]]
+        np.testing.assert_allclose(got, want, atol=1e-6)
+    code, _, err = cli("rpc", "project", ikonos, plain)
+    assert code == 2 and "lon,lat,h" in err

@@ -252,6 +252,23 @@ def crs_from_comments(comments) -> str | None:
     return found
 
 
+def leading_comments(path: Path, max_lines: int = 1000) -> list[str]:
+    """The ``#`` comment lines before the header of a text file (none when it cannot be read:
+    the reader of the file reports that)."""
+    out: list[str] = []
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for _, line in zip(range(max_lines), fh):
+                t = line.strip().lstrip("\ufeff")
+                if t.startswith("#"):
+                    out.append(t[1:].strip())
+                elif t:
+                    break
+    except OSError:
+        return []
+    return out
+
+
 def same_crs(a: str, b: str) -> bool:
     """Whether two CRS texts name the same system (PROJ's equality; local frames by origin)."""
     from ..crs import frame_from_text, parse_crs

@@ -157,13 +157,37 @@ def project(
     ] = None,
     id_col: IdColOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="CRS of the ground points (EPSG:32632, WKT, PROJ string or enu:LAT,LON,H; "
+            "columns x,y,z found by name), converted by PROJ to the RPC's WGS 84 (EPSG:4979). "
+            "Default: the '# crs:' line of POINTS, else lon,lat,h in EPSG:4979.",
+            show_default=False,
+        ),
+    ] = None,
+    allow_ballpark: Annotated[
+        bool, typer.Option(help="Accept an approximate PROJ datum shift (--crs).")
+    ] = False,
 ) -> None:
     """Project ground points (lon, lat in degrees, h in metres) into the image (col, row px).
 
     Files of any size are read and written block by block (a progress bar on a terminal).
     """
+    from ._common import crs_from_comments, leading_comments
+
     rpc = _load_rpc(rpc_file)
-    blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
+    if crs is None:
+        crs = crs_from_comments(leading_comments(points))
+        if crs is not None and _is_wgs84_3d(crs):
+            crs = None
+    if crs is None:
+        blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
+        to_wgs84 = None
+    else:
+        blocks = _blocks_with(points, cols, _CRS_COLS, "ground (x, y, z)", id_col)
+        to_wgs84 = _input_crs(crs, allow_ballpark)
     if blocks.dim != 3:
         raise InputError(
             f"--cols: need three ground columns lon,lat,h, got {', '.join(blocks.columns)}"
@@ -173,7 +197,7 @@ def project(
     def compute(block):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            c = block.coords
+            c = block.coords if to_wgs84 is None else to_wgs84(block.coords)
             col, row = rpc.project(c[:, 0], c[:, 1], c[:, 2])
         _say_warnings(caught, seen)
         return np.column_stack([col, row]), {}
@@ -368,6 +392,32 @@ def localize(
     report()
     if output is not None:
         say(f"wrote {n} point(s) to {output}", stderr=True)
+
+
+_CRS_COLS = [["x", "y", "z"], ["X", "Y", "Z"], ["E", "N", "H"], ["E", "N", "U"],
+             ["easting", "northing", "height"], *GROUND_COLS]  # fmt: skip
+
+
+def _is_wgs84_3d(text: str) -> bool:
+    from .. import crs as _crs
+
+    return _crs.frame_from_text(text) is None and _crs.parse_crs(text) == _crs.parse_crs(
+        "EPSG:4979"
+    )
+
+
+def _input_crs(crs: str, allow_ballpark: bool):
+    """A function converting (n, 3) points of ``crs`` to lon, lat, h of WGS 84."""
+    from .. import crs as _crs
+
+    text = crs.strip()
+    if _crs.frame_from_text(text) is None:
+        _crs.parse_crs(text, what="--crs")
+
+    def convert(xyz):
+        return _crs.points_between(xyz, text, "EPSG:4979", allow_ballpark=allow_ballpark)
+
+    return convert
 
 
 def _output_crs(crs: str, allow_ballpark: bool):
