@@ -339,8 +339,9 @@ def test_bundle_adjust_cli_gnss_crs_and_crs(cli, geo_block, tmp_path):
     # the adjusted block is in the local frame, GNSS included, and says so
     adj = pg.bundle.read_csv_block(out_block)
     assert adj.crs == FRAME and np.all(np.abs(adj.gnss) < 1e3)
-    assert "local ENU frame at lat 47.1" in report.read_text()
-    assert "EPSG:4979" in report.read_text()
+    html = report.read_text()
+    assert "local ENU frame at lat 47.1" in html and "Projection centres in EPSG:4979" in html
+    assert f"{got[0, 0]:.9f}" in html and f"{got[0, 1]:.9f}" in html
     assert json.loads(result.read_text())["georeferencing"]["gnss_crs"] == "EPSG:4979"
     code, out, err = cli("bundle", "adjust", folder, "--gnss-crs", "EPSG:4979")
     assert code == 0 and "object coordinates: local ENU frame" in out and "EPSG:4979" in out

@@ -567,6 +567,7 @@ def _block_crs(block, crs: str | None, gnss_crs: str | None, allow_ballpark: boo
         return block, None
     import numpy as np
 
+    from .. import crs as _crs
     from ..bundle.georef import gnss_into_block_crs
     from ..crs import crs_label, parse_crs
 
@@ -579,7 +580,8 @@ def _block_crs(block, crs: str | None, gnss_crs: str | None, allow_ballpark: boo
         text = str(exc).replace("crs=, --crs;", "--crs;").replace("(gnss_crs / --gnss-crs)", "")
         raise InputError(f"--gnss-crs {g}: {text}") from None
     n = int(np.all(np.isfinite(block.gnss), axis=1).sum())
-    return block, {"gnss_crs": g, "gnss_crs_name": crs_label(g), "n_gnss": n}
+    angular = _crs.frame_from_text(g) is None and parse_crs(g).is_geographic
+    return block, {"gnss_crs": g, "gnss_crs_name": crs_label(g), "n_gnss": n, "angular": angular}
 
 
 def _georef_back(fit, georef: dict, allow_ballpark: bool) -> dict:
@@ -597,6 +599,8 @@ def _add_georef(d: dict, georef: dict | None) -> None:
         "gnss_crs_name": georef["gnss_crs_name"],
         "block_crs": georef["crs"],
         "n_gnss": georef["n_gnss"],
+        "angular": georef["angular"],
+        "axes": ["lon", "lat", "h"] if georef["angular"] else ["x", "y", "z"],
         "note": "GNSS positions converted from gnss_crs into block_crs for the adjustment; "
         "images[].position_gnss_crs: adjusted projection centres in gnss_crs (x/longitude "
         "first)",
