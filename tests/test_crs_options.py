@@ -531,3 +531,23 @@ def test_rpc_project_takes_points_in_any_crs(cli, tmp_path):
         np.testing.assert_allclose(got, want, atol=1e-6)
     code, _, err = cli("rpc", "project", ikonos, plain)
     assert code == 2 and "lon,lat,h" in err
+
+
+def test_two_point_files_give_their_crs_lines(cli, pairs3d, tmp_path):
+    _, x, X = pairs3d
+    src, dst = tmp_path / "model.csv", tmp_path / "ground.csv"
+    src.write_text("# crs: enu:47.1,8.5,400\nid,x,y,z\n" + "".join(
+        f"{i},{a!r},{b!r},{c!r}\n" for i, (a, b, c) in enumerate(x.tolist())))  # fmt: skip
+    dst.write_text("# crs: EPSG:32632\nid,X,Y,Z\n" + "".join(
+        f"{i},{a!r},{b!r},{c!r}\n" for i, (a, b, c) in enumerate(X.tolist())))  # fmt: skip
+    for cmd in (("transform", "estimate", "similarity3d"), ("orient", "absolute")):
+        code, out, err = cli(*cmd, src, dst, "--json")
+        assert code == 0, err
+        d = json.loads(out)
+        assert d["crs"] == "EPSG:32632" and d["source_crs"] == "enu:47.1,8.5,400"
+        code, _, err = cli(*cmd, src, dst, "--target-crs", "EPSG:25832")
+        assert code == 2 and "records the CRS EPSG:32632" in err and "--target-crs" in err
+    geo = tmp_path / "geo.csv"
+    geo.write_text("# crs: EPSG:4979\n" + dst.read_text().split("\n", 1)[1])
+    code, _, err = cli("orient", "absolute", src, geo)
+    assert code == 2 and "geo.csv ('# crs:' line) EPSG:4979" in err and "geographic" in err

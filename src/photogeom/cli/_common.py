@@ -252,6 +252,27 @@ def crs_from_comments(comments) -> str | None:
     return found
 
 
+def file_crs(
+    value: str | None, option: str, path: Path | None, *, dim: int = 3, unit: str | None = None
+):
+    """The :class:`~photogeom.crs.CrsInfo` of a CRS option, else of the ``# crs:`` line of the
+    point file ``path`` (None: no file to look at); an option contradicting the file's line
+    is refused (the option names the CRS of the coordinates, it does not convert them)."""
+    rec = None if path is None else crs_from_comments(leading_comments(path))
+    if value is None and rec is None:
+        return None
+    if value is None:
+        return cartesian_crs_option(rec, f"{path} ('# crs:' line)", dim=dim, unit=unit)
+    info = cartesian_crs_option(value, option, dim=dim, unit=unit)
+    if rec is not None and not same_crs(rec, info.text):
+        raise InputError(
+            f"{path} records the CRS {rec} ('# crs:' line) but {option} says {value}: "
+            f"{option} names the CRS of the coordinates, it does not convert them; convert "
+            "them with photogeom crs convert"
+        )
+    return info
+
+
 def leading_comments(path: Path, max_lines: int = 1000) -> list[str]:
     """The ``#`` comment lines before the header of a text file (none when it cannot be read:
     the reader of the file reports that)."""

@@ -17,7 +17,7 @@ import typer
 
 from .._lazy import LazyModule
 from ..errors import InputError
-from ._common import CRS_FORMS, AngleUnit, cartesian_crs_option, check_mask, console, load_pairs
+from ._common import CRS_FORMS, AngleUnit, check_mask, console, file_crs, load_pairs
 from ._stream import busy
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -167,8 +167,9 @@ def register(app: typer.Typer) -> None:
         source_crs: Annotated[
             str | None,
             typer.Option(
-                help=f"CRS of the source points, recorded in the results ({CRS_FORMS}); "
-                "geographic CRSs (degrees) are refused.",
+                help=f"CRS of the source points, recorded in the results ({CRS_FORMS}; "
+                "default with two files: SOURCE's '# crs:' line); geographic CRSs (degrees) "
+                "are refused.",
                 show_default=False,
             ),
         ] = None,
@@ -176,7 +177,7 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option(
                 help="CRS of the target points (residuals, parameters), recorded in the "
-                "results and the report.",
+                "results and the report (default: TARGET's '# crs:' line).",
                 show_default=False,
             ),
         ] = None,
@@ -184,8 +185,8 @@ def register(app: typer.Typer) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
 
-        tcrs = cartesian_crs_option(target_crs, "--target-crs", unit=unit)
-        scrs = cartesian_crs_option(source_crs, "--source-crs")
+        tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
+        scrs = file_crs(source_crs, "--source-crs", source if target is not None else None)
         if unit is None:
             unit = tcrs.unit if tcrs is not None and tcrs.unit else "m"
         out = console()

@@ -24,6 +24,7 @@ from ._common import (
     cartesian_crs_option,
     check_mask,
     console,
+    file_crs,
     finite_or_none,
     json_text,
     say,
@@ -119,9 +120,9 @@ def resection(
         str | None,
         typer.Option(
             "--crs",
-            help=f"CRS of the ground coordinates ({CRS_FORMS}): recorded in the results and "
-            "the camera JSON (and so in 'orient intersection' output); geographic CRSs "
-            "(degrees) are refused.",
+            help=f"CRS of the ground coordinates ({CRS_FORMS}; default: the '# crs:' line of "
+            "POINTS): recorded in the results and the camera JSON (and so in 'orient "
+            "intersection' output); geographic CRSs (degrees) are refused.",
             show_default=False,
         ),
     ] = None,
@@ -135,7 +136,7 @@ def resection(
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
 
-    ground_crs = cartesian_crs_option(crs, "--crs")
+    ground_crs = file_crs(crs, "--crs", points)
     io = build_interior(
         camera=camera,
         calibration=calibration,

@@ -25,6 +25,7 @@ from ._common import (
     check_mask,
     console,
     crs_from_comments,
+    file_crs,
     json_text,
     load_pairs,
     same_crs,
@@ -168,8 +169,9 @@ def estimate(
     source_crs: Annotated[
         str | None,
         typer.Option(
-            help=f"CRS of the source coordinates, recorded in the results ({CRS_FORMS}); "
-            "geographic CRSs (degrees) are refused.",
+            help=f"CRS of the source coordinates, recorded in the results ({CRS_FORMS}; "
+            "default with two files: SOURCE's '# crs:' line); geographic CRSs (degrees) are "
+            "refused.",
             show_default=False,
         ),
     ] = None,
@@ -177,7 +179,8 @@ def estimate(
         str | None,
         typer.Option(
             help="CRS of the target coordinates (residuals, parameters), recorded in the "
-            "results, the parameter file and the report; its unit labels the residuals.",
+            "results, the parameter file and the report; its unit labels the residuals "
+            "(default: TARGET's '# crs:' line).",
             show_default=False,
         ),
     ] = None,
@@ -194,9 +197,13 @@ def estimate(
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value
     dim = 3 if model.endswith("3d") else 2
-    tcrs = cartesian_crs_option(target_crs, "--target-crs", dim=dim, unit=unit)
-    scrs = cartesian_crs_option(
-        source_crs, "--source-crs", dim=dim, unit=None if source_system else source_unit
+    tcrs = file_crs(target_crs, "--target-crs", target, dim=dim, unit=unit)
+    scrs = file_crs(
+        source_crs,
+        "--source-crs",
+        source if target is not None else None,
+        dim=dim,
+        unit=None if source_system else source_unit,
     )
     if tcrs is not None and not unit and tcrs.unit:
         unit = tcrs.unit
