@@ -497,6 +497,8 @@ def adjust(
     else:
         fit = bundle_adjust(block, **options)
     angle = angle_unit.value
+    if block.crs is not None:
+        fit = _with_curvature_note(fit)
     if georef is not None:
         georef = _georef_back(fit, georef, allow_ballpark)
     texts: list[tuple[Path, str]] = []
@@ -582,6 +584,19 @@ def _block_crs(block, crs: str | None, gnss_crs: str | None, allow_ballpark: boo
     n = int(np.all(np.isfinite(block.gnss), axis=1).sum())
     angular = _crs.frame_from_text(g) is None and parse_crs(g).is_geographic
     return block, {"gnss_crs": g, "gnss_crs_name": crs_label(g), "n_gnss": n, "angular": angular}
+
+
+def _with_curvature_note(fit):
+    """``fit`` with a note when its object coordinates are map coordinates with heights over
+    an extent where the Earth's curvature shows (:func:`photogeom.crs.curvature_note`)."""
+    from dataclasses import replace
+
+    from ..crs import cartesian_crs, curvature_note
+
+    note = curvature_note(
+        cartesian_crs(fit.block.crs), fit.block.xyz, what="object coordinates of the block"
+    )
+    return fit if note is None else replace(fit, notes=(*fit.notes, note))
 
 
 def _georef_back(fit, georef: dict, allow_ballpark: bool) -> dict:
