@@ -252,6 +252,18 @@ def crs_from_comments(comments) -> str | None:
     return found
 
 
+def recorded_crs(text: str, what: str, *, dim: int = 3, unit: str | None = None, fix=None):
+    """:func:`photogeom.crs.cartesian_crs` of a CRS a file records; without pyproj installed
+    the record is carried as it is (it is only recorded, and only PROJ can read it)."""
+    import importlib.util
+
+    from ..crs import CrsInfo, cartesian_crs, frame_from_text
+
+    if frame_from_text(text) is None and importlib.util.find_spec("pyproj") is None:
+        return CrsInfo(text.strip(), text.strip(), "unknown (pyproj not installed)", None, False, 3)
+    return cartesian_crs(text, what=what, dim=dim, unit=unit or None, fix=fix)
+
+
 def file_crs(
     value: str | None, option: str, path: Path | None, *, dim: int = 3, unit: str | None = None
 ):
@@ -262,7 +274,7 @@ def file_crs(
     if value is None and rec is None:
         return None
     if value is None:
-        return cartesian_crs_option(rec, f"{path} ('# crs:' line)", dim=dim, unit=unit)
+        return recorded_crs(rec, f"{path} ('# crs:' line)", dim=dim, unit=unit)
     info = cartesian_crs_option(value, option, dim=dim, unit=unit)
     if rec is not None and not same_crs(rec, info.text):
         raise InputError(

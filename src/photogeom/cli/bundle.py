@@ -564,7 +564,9 @@ def _block_crs(block, crs: str | None, gnss_crs: str | None, allow_ballpark: boo
         else:
             block = block.replace(crs=info.text)
     elif block.crs is not None:
-        cartesian_crs(block.crs, what="the block's CRS (points.csv '# crs:' line)", fix=fix)
+        from ._common import recorded_crs
+
+        recorded_crs(block.crs, "the block's CRS (points.csv '# crs:' line)", fix=fix)
     if gnss_crs is None:
         return block, None
     import numpy as np
@@ -591,10 +593,13 @@ def _with_curvature_note(fit):
     an extent where the Earth's curvature shows (:func:`photogeom.crs.curvature_note`)."""
     from dataclasses import replace
 
-    from ..crs import cartesian_crs, curvature_note
+    from ..crs import curvature_note
+    from ._common import recorded_crs
 
     note = curvature_note(
-        cartesian_crs(fit.block.crs), fit.block.xyz, what="object coordinates of the block"
+        recorded_crs(fit.block.crs, "block crs"),
+        fit.block.xyz,
+        what="object coordinates of the block",
     )
     return fit if note is None else replace(fit, notes=(*fit.notes, note))
 
