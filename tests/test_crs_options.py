@@ -571,3 +571,24 @@ def test_bundle_in_map_coordinates_gets_the_curvature_note(cli, tmp_path):
     assert d == pytest.approx(half, rel=1e-3)  # of the adjusted points
     code, out, err = cli("bundle", "adjust", folder, "--crs", "EPSG:4978", "--json")
     assert code == 0 and not any("not Cartesian" in n for n in json.loads(out)["notes"])
+
+
+def test_dlt_estimate_records_the_ground_crs(cli, tmp_path):
+    io = pg.InteriorOrientation(152.14, 0.008, -0.12)
+    eo = pg.ExteriorOrientation.from_degrees(481000, 5300800, 1600, 2, 3, 10)
+    rng = np.random.default_rng(1)
+    g = rng.uniform([480600, 5300500, 100], [481400, 5301100, 300], (12, 3))
+    xy = pg.project(g, io, eo) + rng.normal(0, 0.003, (12, 2))
+    p = tmp_path / "gcp.csv"
+    p.write_text(
+        "# crs: EPSG:32632\nid,X,Y,Z,x,y\n"
+        + "".join(f"P{i}," + ",".join(repr(float(v)) for v in (*g[i], *xy[i])) + "\n"
+                  for i in range(12))
+    )  # fmt: skip
+    code, out, err = cli("camera", "dlt", "estimate", p, "--json")
+    assert code == 0, err
+    assert json.loads(out)["crs"] == "EPSG:32632"
+    code, out, err = cli("camera", "dlt", "estimate", p)
+    assert code == 0 and "ground CRS" in out and "UTM zone 32N" in out
+    code, _, err = cli("camera", "dlt", "estimate", p, "--crs", "EPSG:25832")
+    assert code == 2 and "records the CRS EPSG:32632" in err
