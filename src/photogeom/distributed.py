@@ -598,8 +598,7 @@ def _cloud_crs(info, path) -> str | None:
     return cartesian_crs(
         text,
         what=f"{path} (its CRS record)",
-        fix="transform the cloud to a projected CRS first (photogeom cloud transform "
-        "--to-crs)",
+        fix="transform the cloud to a projected CRS first (photogeom cloud transform --to-crs)",
     ).text
 
 

@@ -19,6 +19,7 @@ app = typer.Typer(
     no_args_is_help=True,
 )
 
+
 @app.command("convert")
 def convert(
     points: Annotated[Path, typer.Argument(help="CSV of points.")],
@@ -30,9 +31,7 @@ def convert(
             "--origin) or enu:LAT,LON,H.",
         ),
     ],
-    to_crs: Annotated[
-        str, typer.Option("--to", help="CRS of the output, 'enu' or enu:LAT,LON,H.")
-    ],
+    to_crs: Annotated[str, typer.Option("--to", help="CRS of the output, 'enu' or enu:LAT,LON,H.")],
     origin: Annotated[
         str | None,
         typer.Option(help="ENU origin lat,lon,h (degrees, m; WGS 84) for 'enu'."),
