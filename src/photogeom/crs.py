@@ -29,18 +29,24 @@ from .errors import InputError
 
 __all__ = [
     "ELLIPSOIDS",
+    "CrsInfo",
     "Ellipsoid",
     "LocalFrame",
     "ProjTransform",
+    "cartesian_crs",
+    "crs_label",
     "crs_name",
     "curvature_drop",
+    "curvature_note",
     "ecef_to_enu",
     "ecef_to_geodetic",
     "enu_rotation",
     "enu_to_ecef",
+    "frame_from_text",
     "geodetic_to_ecef",
     "get_ellipsoid",
     "parse_crs",
+    "points_between",
     "transform_points",
 ]
 
@@ -362,6 +368,24 @@ class LocalFrame:
         R = self.rotation
         return R @ np.asarray(cov, dtype=float) @ R.T
 
+    def to_text(self) -> str:
+        """The frame as a CRS text, ``"enu:lat0,lon0,h0"`` (WGS 84 only): what the
+        ``# crs:`` line of a point or block file and ``--crs`` options take for a local frame
+        (see :func:`frame_from_text`)."""
+        if get_ellipsoid(self.ellipsoid).name != "WGS84":
+            raise InputError(
+                "only local frames on WGS 84 have a text form (enu:lat0,lon0,h0); this one is "
+                f"on {get_ellipsoid(self.ellipsoid).name}"
+            )
+        return f"enu:{self.lat0!r},{self.lon0!r},{self.h0!r}"
+
+    def describe(self) -> str:
+        """``"local ENU frame at lat 47.1, lon 8.5, h 500 m (WGS 84)"``."""
+        return (
+            f"local ENU frame at lat {self.lat0:.9g}, lon {self.lon0:.9g}, h {self.h0:.6g} m "
+            f"({get_ellipsoid(self.ellipsoid).name})"
+        )
+
     def to_dict(self) -> dict:
         """JSON-ready description (for results and reports)."""
         return {
@@ -503,3 +527,237 @@ class ProjTransform:
 
     def __repr__(self) -> str:
         return f"ProjTransform({crs_name(self.source_crs)!r} -> {crs_name(self.target_crs)!r})"
+
+
+# --- CRS of the coordinates a command or a result works in -------------------------------------
+
+#: Geocentric WGS 84: the way between a local ENU frame (``enu:lat,lon,h``) and any CRS.
+GEOCENTRIC_WGS84 = "EPSG:4978"
+
+_UNIT_ABBREV = {"metre": "m", "meter": "m", "foot": "ft", "us survey foot": "ftUS"}
+_UNIT_WORDS = {
+    "m": {"m", "metre", "meter", "metres", "meters"},
+    "ft": {"ft", "foot", "feet"},
+    "ftUS": {"ftus", "us-ft", "usft", "us survey foot", "us survey feet"},
+}
+
+
+def frame_from_text(text) -> LocalFrame | None:
+    """The :class:`LocalFrame` of a CRS text ``"enu:lat0,lon0,h0"`` (degrees, metres, WGS 84),
+    or None when ``text`` is not of that form (then it is an EPSG code, WKT, ...)."""
+    if isinstance(text, LocalFrame):
+        return text
+    if not isinstance(text, str) or not text.strip().lower().startswith("enu:"):
+        return None
+    parts = text.strip()[4:].split(",")
+    try:
+        lat0, lon0, h0 = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(
+            f"{text!r}: a local frame is written enu:lat0,lon0,h0 (degrees, degrees, metres)"
+        ) from None
+    enu_rotation(lat0, lon0)  # validates the origin
+    if not math.isfinite(h0):
+        raise InputError(f"{text!r}: the origin height must be finite")
+    return LocalFrame(lat0, lon0, h0)
+
+
+@dataclass(frozen=True)
+class CrsInfo:
+    """A coordinate reference system as photogeom records it in results.
+
+    Attributes
+    ----------
+    text : str
+        What to store and read back: the CRS as given (``"EPSG:25832"``, WKT, a PROJ string,
+        ``"enu:lat0,lon0,h0"``), stripped; the WKT of a ``pyproj.CRS`` given as an object.
+    name : str
+        Readable: ``"EPSG:25832 (ETRS89 / UTM zone 32N)"``.
+    kind : str
+        ``"projected"``, ``"geographic"``, ``"geocentric"``, ``"engineering"``,
+        ``"vertical"``, ``"local ENU"`` or PROJ's type name for others.
+    unit : str or None
+        The unit of the first axis (``"m"``, ``"ft"``, ``"ftUS"``, ``"degree"``, ...).
+    angular : bool
+        Horizontal coordinates are angles (degrees): not Cartesian.
+    dim : int
+        Number of axes (2 or 3).
+    """
+
+    text: str
+    name: str
+    kind: str
+    unit: str | None
+    angular: bool
+    dim: int
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"crs": self.text, "name": self.name, "kind": self.kind, "unit": self.unit}
+
+
+def _crs_info(crs, what: str) -> CrsInfo:
+    frame = frame_from_text(crs)
+    if frame is not None:
+        text = frame.to_text() if isinstance(crs, LocalFrame) else crs.strip()
+        return CrsInfo(text, frame.describe(), "local ENU", "m", False, 3)
+    if isinstance(crs, str):
+        text = crs.strip()
+        if not text:
+            raise InputError(f"{what}: empty; give e.g. EPSG:25832, a WKT or a PROJ string")
+    elif isinstance(crs, int):
+        text = f"EPSG:{crs}"
+    else:
+        text = None
+    c = parse_crs(text if text is not None else crs, what=what)
+    if text is None:
+        auth = c.to_authority()
+        text = f"{auth[0]}:{auth[1]}" if auth else c.to_wkt()
+    axes = c.axis_info
+    unit_name = axes[0].unit_name if axes else None
+    angular = any(
+        a.unit_name.lower() in ("degree", "grad", "radian", "arc-second", "arc-minute")
+        or "degree" in a.unit_name.lower()
+        for a in axes[:2]
+    )
+    if c.is_geographic:
+        kind = "geographic"
+    elif c.is_projected:
+        kind = "projected"
+    elif c.is_geocentric:
+        kind = "geocentric"
+    elif c.is_vertical and not c.is_compound:
+        kind = "vertical"
+    elif getattr(c, "is_engineering", False):
+        kind = "engineering"
+    else:
+        kind = c.type_name
+    unit = None
+    if unit_name is not None:
+        unit = _UNIT_ABBREV.get(unit_name.lower(), unit_name)
+    return CrsInfo(text, crs_name(c), kind, unit, angular, len(axes))
+
+
+def crs_label(crs) -> str:
+    """A readable name of a recorded CRS text (falls back to the text itself when PROJ is not
+    installed or does not know it): for reports."""
+    frame = frame_from_text(crs) if isinstance(crs, str) else None
+    if frame is not None:
+        return frame.describe()
+    try:
+        return crs_name(crs)
+    except Exception:  # reports never fail on a record they cannot name
+        return str(crs)
+
+
+def cartesian_crs(
+    crs, *, what: str = "crs", dim: int = 3, unit: str | None = None, fix: str | None = None
+) -> CrsInfo:
+    """Validate a CRS for a computation in Cartesian coordinates and describe it.
+
+    Parameters
+    ----------
+    crs : str, int, pyproj.CRS or LocalFrame
+        EPSG code, WKT, PROJ string, or ``"enu:lat0,lon0,h0"`` (a local ENU frame on WGS 84).
+    what : str
+        The option or argument that gave it, for the messages (``"--target-crs"``).
+    dim : int
+        Dimension of the coordinates computed with (2 or 3).
+    unit : str, optional
+        A unit the caller was told the coordinates are in (``--unit``): refused when the
+        CRS says another length unit.
+    fix : str, optional
+        How to convert the coordinates, for the message refusing a geographic CRS (default:
+        ``photogeom crs convert`` to a local ENU frame or a projected CRS).
+
+    Raises
+    ------
+    InputError
+        Unknown CRS; geographic coordinates (degrees: latitude and longitude are not
+        Cartesian axes, and a degree of longitude is shorter than one of latitude); a
+        vertical CRS alone; a geocentric CRS for 2D coordinates; a unit that contradicts
+        the CRS.
+    """
+    info = _crs_info(crs, what)
+    if info.angular or info.kind == "geographic":
+        how = fix or (
+            "convert the points first, e.g. 'photogeom crs convert points.csv --from "
+            f"{_short(info.text)} --to enu --origin LAT,LON,H' (a local east-north-up frame in "
+            "metres) or '--to EPSG:326zz' (the UTM zone of the area), and give the new CRS"
+        )
+        raise InputError(
+            f"{what} {info.name} is geographic (latitude and longitude in degrees): this "
+            "computation needs Cartesian coordinates (a degree of longitude is shorter than "
+            f"one of latitude, and angles do not mix with heights in metres); {how}"
+        )
+    if info.kind == "vertical":
+        raise InputError(
+            f"{what} {info.name} is a vertical CRS (heights only): give the CRS of all "
+            "coordinates, e.g. a compound CRS EPSG:25832+5783"
+        )
+    if dim == 2 and info.kind in ("geocentric", "local ENU"):
+        raise InputError(
+            f"{what} {info.name} is a 3D Cartesian system: a 2D transformation of two of its "
+            "axes is not a map of anything; use a 3D model or a projected CRS"
+        )
+    if (
+        unit
+        and info.unit in _UNIT_WORDS
+        and unit.strip().lower() not in {u.lower() for u in _UNIT_WORDS[info.unit]}
+    ):
+        raise InputError(
+            f"{what} {info.name} has coordinates in {info.unit}, but the unit given is "
+            f"{unit!r}: leave the unit out (it is taken from the CRS) or give the CRS of the "
+            "coordinates"
+        )
+    return info
+
+
+def _short(text: str) -> str:
+    return text if len(text) <= 40 else "CRS"
+
+
+def curvature_note(info: CrsInfo, points, *, what: str = "coordinates") -> str | None:
+    """A note on how far map coordinates with heights (a projected CRS used in 3D) are from
+    Cartesian over the extent of ``points`` (n, 3): the Earth-curvature drop at the largest
+    horizontal distance from their centre (see ``docs/crs-and-clouds.md``); None for other
+    systems, fewer than 2 points, or a drop under 1 mm (points within 113 m of their
+    centre)."""
+    pts = np.asarray(points, dtype=float)
+    if info.kind != "projected" or pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2:
+        return None
+    c = pts[:, :2].mean(axis=0)
+    d = float(np.sqrt(np.max(np.sum((pts[:, :2] - c) ** 2, axis=1))))
+    if info.unit == "ft":
+        d *= 0.3048
+    elif info.unit == "ftUS":
+        d *= 1200.0 / 3937.0
+    drop = float(curvature_drop(d))
+    if drop < 1e-3:
+        return None
+    return (
+        f"{what} in {info.name}: map coordinates with heights are not Cartesian; at "
+        f"{d:.4g} m from the centre of the points the Earth's surface is {drop:.2g} m below "
+        "the map plane, and the map scale factor changes distances; if that matters, work in "
+        "a local ENU frame (photogeom crs convert --to enu)"
+    )
+
+
+def points_between(points, src, dst, *, allow_ballpark: bool = False) -> np.ndarray:
+    """Points (n, 3) from ``src`` to ``dst``, either of which may be a local ENU frame
+    (``"enu:lat0,lon0,h0"`` or a :class:`LocalFrame`; through geocentric WGS 84, EPSG:4978)
+    or any CRS PROJ knows. x/easting/longitude first."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InputError(f"points must have shape (n, 3), got {pts.shape}")
+    f_src, f_dst = frame_from_text(src), frame_from_text(dst)
+    if f_src is not None:
+        pts = f_src.to_ecef(pts) if len(pts) else pts
+        src = GEOCENTRIC_WGS84
+    if f_dst is not None:
+        if len(pts) and src != GEOCENTRIC_WGS84:
+            pts = transform_points(pts, src, GEOCENTRIC_WGS84, allow_ballpark=allow_ballpark)
+        return f_dst.from_ecef(pts) if len(pts) else pts
+    if not len(pts) or src == dst:
+        return pts.copy()
+    return transform_points(pts, src, dst, allow_ballpark=allow_ballpark)

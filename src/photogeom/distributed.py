@@ -461,7 +461,8 @@ class CloudRegistration:
         ``sqrt(sum_squared_residuals / n_control)`` of the control pairs (from the moments).
     crs_name : str or None
         The CRS recorded in the target (reference) cloud: the system of the parameters'
-        output and of the residuals.
+        output and of the residuals (``fit.crs`` holds it as an EPSG code or WKT, and
+        ``fit.source_crs`` the source cloud's record).
     """
 
     fit: Any
@@ -491,6 +492,8 @@ class CloudRegistration:
             "check_mean": self.check_mean.tolist(),
             "check_max": self.check_max,
             "target_crs": self.crs_name,
+            "crs": f.crs,
+            "source_crs": f.source_crs,
             "transform": f.transform.to_dict(),
         }
 
@@ -511,7 +514,9 @@ def register_clouds(
     Every ``check_every``-th pair (indices 0, k, 2k, ...) is kept out of the estimate and its
     residuals are reported (``0``: no check pairs). Two passes over the files: the moments of
     the control pairs, then the residuals of the check pairs (skipped without check pairs).
-    Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``.
+    Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``. The CRS records of the
+    files go into ``fit.crs`` (target) and ``fit.source_crs``; a geographic one (degrees)
+    is refused: the orientation is computed in Cartesian coordinates.
     """
     from .io.cloud import _check_chunk, cloud_info
     from .orientation.absolute_chunked import fit_from_moments, merge_moments
@@ -532,6 +537,13 @@ def register_clouds(
             f"{source} has {n} points and {target} {m}: registration needs corresponding "
             "points, the same count in the same order"
         )
+    crs_records = {
+        key: _cloud_crs(info, path)
+        for key, info, path in (
+            ("crs", target_info, target),
+            ("source_crs", cloud_info(source), source),
+        )
+    }
     src, dst = str(source), str(target)
     ranges = [(i, min(i + chunk_size, n)) for i in range(0, n, chunk_size)]
     parts = [delayed(_pair_block)(src, dst, a, b, check_every, "moments") for a, b in ranges]
@@ -540,6 +552,10 @@ def register_clouds(
     n_check = 0 if not check_every else len(range(0, n, check_every))
     (moments,) = _compute(parts[0], scheduler=scheduler)
     fit = fit_from_moments(moments, n - n_check, method=method, with_scale=with_scale, t0=t0)
+    if any(crs_records.values()):
+        from dataclasses import replace
+
+        fit = replace(fit, **crs_records)
     if n_check:
         T = fit.transform
         sums = [
@@ -567,6 +583,23 @@ def register_clouds(
         float(np.sqrt(fit.extras["sum_squared_residuals"] / ctrl)),
         target_info.crs_name,
     )
+
+
+def _cloud_crs(info, path) -> str | None:
+    """The CRS record of a cloud as a CRS text (``EPSG:code`` when it has one, else WKT),
+    refused when geographic; None without a record."""
+    if info.crs is None:
+        return None
+    from .crs import cartesian_crs
+
+    text = info.crs
+    if info.crs_name and info.crs_name.startswith("EPSG:"):
+        text = info.crs_name.split(" ", 1)[0]
+    return cartesian_crs(
+        text,
+        what=f"{path} (its CRS record)",
+        fix="transform the cloud to a projected CRS first (photogeom cloud transform --to-crs)",
+    ).text
 
 
 # --- per-image jobs of a block ----------------------------------------------------------------

@@ -86,6 +86,11 @@ class Fit:
         Remarks for the user (e.g. which estimate is returned, warnings).
     extras : dict
         Estimator-specific results (e.g. corrected observations, inlier masks).
+    crs, source_crs : str or None
+        Coordinate reference system of the target (observation) coordinates, in which the
+        residuals, check points and transformed points are, and of the source coordinates of
+        a transformation: an EPSG code, WKT or PROJ string, or ``"enu:lat0,lon0,h0"`` (see
+        :meth:`with_crs`); None when not given. Recorded, never used to compute.
     """
 
     model: object
@@ -113,6 +118,11 @@ class Fit:
     elapsed: float = 0.0
     notes: tuple[str, ...] = ()
     extras: Mapping[str, object] = field(default_factory=dict)
+    crs: str | None = None
+    source_crs: str | None = None
+
+    #: What ``crs`` is the system of, in reports ("target CRS"; "ground CRS" of a resection).
+    crs_role = "target"
 
     # --- construction ----------------------------------------------------------------------
 
@@ -194,6 +204,20 @@ class Fit:
             check_residuals=np.asarray(check_residuals, dtype=float),
             check_ids=None if check_ids is None else tuple(check_ids),
         )
+
+    def with_crs(self, crs=None, source_crs=None) -> Fit:
+        """A copy recording the CRS of the target (``crs``) and source (``source_crs``)
+        coordinates; each validated by PROJ (pyproj) and refused when geographic (degrees:
+        the estimate was computed as if the coordinates were Cartesian), see
+        :func:`photogeom.crs.cartesian_crs`. None leaves a record as it is."""
+        from ..crs import cartesian_crs
+
+        dim = int(np.asarray(self.residuals).shape[1]) if np.ndim(self.residuals) == 2 else 3
+        changes = {}
+        for key, value in (("crs", crs), ("source_crs", source_crs)):
+            if value is not None:
+                changes[key] = cartesian_crs(value, what=key, dim=dim).text
+        return replace(self, **changes) if changes else self
 
     # --- derived quantities ---------------------------------------------------------------
 
@@ -324,6 +348,8 @@ class Fit:
             for pid, row in zip(cids, self.check_residuals):
                 lines.append("  " + f"{pid!s:<10}" + "".join(f"{x:>14.6g}" for x in row))
             lines.append(f"  check RMSE (per point) {self.check_rmse:.6g}{unit}")
+        for label, value in crs_rows(self):
+            lines.append(f"  {label}: {value}")
         for note in self.notes:
             lines.append(f"  note: {note}")
         return "\n".join(lines)
@@ -356,6 +382,9 @@ class Fit:
             "elapsed_s": self.elapsed,
             "notes": list(self.notes),
         }
+        if self.crs is not None or self.source_crs is not None:
+            out["crs"] = self.crs
+            out["source_crs"] = self.source_crs
         if self.normalized_residuals is not None:
             out["normalized_residuals"] = self.normalized_residuals
         if self.check_residuals is not None:
@@ -369,6 +398,21 @@ class Fit:
         if self.extras:
             out["extras"] = {k: v for k, v in self.extras.items() if _is_plain(v)}
         return _jsonable(out)
+
+
+def crs_rows(fit) -> list[tuple[str, str]]:
+    """``(label, readable name)`` of the CRS records of a fit (none when there are none)."""
+    rows = []
+    crs, src = getattr(fit, "crs", None), getattr(fit, "source_crs", None)
+    if crs is None and src is None:
+        return rows
+    from ..crs import crs_label
+
+    if src is not None:
+        rows.append(("source CRS", crs_label(src)))
+    if crs is not None:
+        rows.append((f"{getattr(fit, 'crs_role', 'target')} CRS", crs_label(crs)))
+    return rows
 
 
 def _is_plain(v) -> bool:

@@ -30,6 +30,7 @@ __all__ = [
     "triangulate",
 ]
 
+from .georef import gnss_into_block_crs, points_in, positions_in
 from .io_bal import read_bal, write_bal
 from .io_colmap import read_colmap, write_colmap
 from .io_csv import read_csv_block, write_csv_block
@@ -38,6 +39,9 @@ from .relative_start import start_from_relative_orientation
 
 __all__ += [
     "detect_format",
+    "gnss_into_block_crs",
+    "points_in",
+    "positions_in",
     "read_bal",
     "read_block",
     "read_colmap",

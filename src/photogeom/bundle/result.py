@@ -132,6 +132,25 @@ class BundleFit:
         return self._cal_cov[group]
 
     @property
+    def crs(self) -> str | None:
+        """The CRS of the adjusted object coordinates (``block.crs``: an EPSG code, WKT,
+        ``"enu:lat0,lon0,h0"``, ...), None when the block records none."""
+        return self.block.crs
+
+    def positions_in(self, crs, *, allow_ballpark: bool = False) -> np.ndarray:
+        """Adjusted projection centres (m, 3) in another CRS (``"EPSG:4979"``: lon, lat, h),
+        from the block's CRS (:func:`photogeom.bundle.georef.positions_in`)."""
+        from .georef import positions_in
+
+        return positions_in(self.block, crs, allow_ballpark=allow_ballpark)
+
+    def points_in(self, crs, *, allow_ballpark: bool = False) -> np.ndarray:
+        """Adjusted object points (p, 3) in another CRS (see :meth:`positions_in`)."""
+        from .georef import points_in
+
+        return points_in(self.block, crs, allow_ballpark=allow_ballpark)
+
+    @property
     def rms_per_image(self) -> dict:
         """RMS of the image residual lengths per image (px), adjusted observations only."""
         b = self.block
@@ -168,6 +187,7 @@ class BundleFit:
             f"(p = {self.chi2.get('p_value', math.nan):.3g})",
             f"image residuals (computed - observed): RMS {self.rmse:.3f} px; GSD "
             f"{self.gsd:.4g} object units per px",
+            *([f"object coordinates: {_crs_label(self.crs)}"] if self.crs else []),
             "",
             "calibration (px; distortion dimensionless), standard deviations a posteriori:",
         ]
@@ -274,8 +294,16 @@ class BundleFit:
                 "notes": list(self.notes),
                 "elapsed_s": self.elapsed,
                 "solver": dict(self.solver),
+                "crs": self.crs,
+                "crs_name": None if self.crs is None else _crs_label(self.crs),
             }
         )
+
+
+def _crs_label(crs: str) -> str:
+    from ..crs import crs_label
+
+    return crs_label(crs)
 
 
 # --- construction ----------------------------------------------------------------------------

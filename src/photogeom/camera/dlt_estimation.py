@@ -40,6 +40,8 @@ from .interior import InteriorOrientation
 class DLTFit(Fit):
     """A :class:`~photogeom.adjust.Fit` of a DLT with named access to the camera."""
 
+    crs_role = "ground"
+
     @property
     def dlt(self) -> DLT:
         """The estimated :class:`~photogeom.camera.dlt.DLT`."""

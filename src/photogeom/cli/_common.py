@@ -223,3 +223,90 @@ def in_cli_words(message: str) -> str:
     for api, cli in CLI_WORDS:
         message = message.replace(api, cli)
     return message
+
+
+# --- coordinate reference systems ---------------------------------------------------------------
+
+
+#: Help text shared by the CRS options: what they take.
+CRS_FORMS = "EPSG code (EPSG:25832), WKT, PROJ string, or enu:LAT,LON,H (a local ENU frame)"
+
+
+def cartesian_crs_option(text: str | None, option: str, *, dim: int = 3, unit: str | None = None):
+    """The :class:`~photogeom.crs.CrsInfo` of a CRS option (None when not given), validated by
+    PROJ and refused when geographic (pyproj is imported only here, when the option is used)."""
+    if text is None:
+        return None
+    from ..crs import cartesian_crs
+
+    return cartesian_crs(text, what=option, dim=dim, unit=unit or None)
+
+
+def crs_from_comments(comments) -> str | None:
+    """The CRS of a ``# crs: ...`` comment line of a point or block file (None without one)."""
+    found = None
+    for c in comments:
+        t = c.strip().lstrip("#").strip()
+        if t.lower().startswith("crs:"):
+            found = t[4:].strip() or None
+    return found
+
+
+def recorded_crs(text: str, what: str, *, dim: int = 3, unit: str | None = None, fix=None):
+    """:func:`photogeom.crs.cartesian_crs` of a CRS a file records; without pyproj installed
+    the record is carried as it is (it is only recorded, and only PROJ can read it)."""
+    import importlib.util
+
+    from ..crs import CrsInfo, cartesian_crs, frame_from_text
+
+    if frame_from_text(text) is None and importlib.util.find_spec("pyproj") is None:
+        return CrsInfo(text.strip(), text.strip(), "unknown (pyproj not installed)", None, False, 3)
+    return cartesian_crs(text, what=what, dim=dim, unit=unit or None, fix=fix)
+
+
+def file_crs(
+    value: str | None, option: str, path: Path | None, *, dim: int = 3, unit: str | None = None
+):
+    """The :class:`~photogeom.crs.CrsInfo` of a CRS option, else of the ``# crs:`` line of the
+    point file ``path`` (None: no file to look at); an option contradicting the file's line
+    is refused (the option names the CRS of the coordinates, it does not convert them)."""
+    rec = None if path is None else crs_from_comments(leading_comments(path))
+    if value is None and rec is None:
+        return None
+    if value is None:
+        return recorded_crs(rec, f"{path} ('# crs:' line)", dim=dim, unit=unit)
+    info = cartesian_crs_option(value, option, dim=dim, unit=unit)
+    if rec is not None and not same_crs(rec, info.text):
+        raise InputError(
+            f"{path} records the CRS {rec} ('# crs:' line) but {option} says {value}: "
+            f"{option} names the CRS of the coordinates, it does not convert them; convert "
+            "them with photogeom crs convert"
+        )
+    return info
+
+
+def leading_comments(path: Path, max_lines: int = 1000) -> list[str]:
+    """The ``#`` comment lines before the header of a text file (none when it cannot be read:
+    the reader of the file reports that)."""
+    out: list[str] = []
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for _, line in zip(range(max_lines), fh):
+                t = line.strip().lstrip("\ufeff")
+                if t.startswith("#"):
+                    out.append(t[1:].strip())
+                elif t:
+                    break
+    except OSError:
+        return []
+    return out
+
+
+def same_crs(a: str, b: str) -> bool:
+    """Whether two CRS texts name the same system (PROJ's equality; local frames by origin)."""
+    from ..crs import frame_from_text, parse_crs
+
+    fa, fb = frame_from_text(a), frame_from_text(b)
+    if fa is not None or fb is not None:
+        return fa == fb
+    return parse_crs(a) == parse_crs(b)

@@ -22,7 +22,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._common import AngleUnit, console, json_text, say, split_names
+from ._common import CRS_FORMS, AngleUnit, console, json_text, say, split_names
 
 app = typer.Typer(
     help="Bundle adjustment of image blocks: simulate, adjust, convert, report.",
@@ -429,6 +429,30 @@ def adjust(
     sigma: SigmaOpt = None,
     image_key: ImageKeyOpt = "name",
     drop_extras: DropExtrasOpt = False,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help=f"CRS of the block's object coordinates ({CRS_FORMS}; default: the "
+            "'# crs:' line of points.csv); recorded in the results and the adjusted block; "
+            "geographic CRSs (degrees) are refused.",
+            show_default=False,
+        ),
+    ] = None,
+    gnss_crs: Annotated[
+        str | None,
+        typer.Option(
+            "--gnss-crs",
+            help="CRS of the GNSS positions (e.g. EPSG:4979: gnss_X,gnss_Y,gnss_Z are lon, "
+            "lat, h): converted into the block's CRS (without one: a local ENU frame at the "
+            "centre of the GNSS positions) for the adjustment; the adjusted projection "
+            "centres are given back in it.",
+            show_default=False,
+        ),
+    ] = None,
+    allow_ballpark: Annotated[
+        bool, typer.Option(help="Accept an approximate PROJ datum shift (--gnss-crs).")
+    ] = False,
 ) -> None:
     """Bundle adjustment with self-calibration of a block read from a file.
 
@@ -446,6 +470,7 @@ def adjust(
         None if output is None else output_format(output, output_fmt, src_fmt, "--output-format")
     )
     block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
+    block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     options = dict(
         loss=loss.value,
         loss_scale=loss_scale,
@@ -472,9 +497,14 @@ def adjust(
     else:
         fit = bundle_adjust(block, **options)
     angle = angle_unit.value
+    if block.crs is not None:
+        fit = _with_curvature_note(fit)
+    if georef is not None:
+        georef = _georef_back(fit, georef, allow_ballpark)
     texts: list[tuple[Path, str]] = []
     if report is not None or result is not None:
         data = bundle_result_data(fit, unit=unit, angle_unit=angle)
+        _add_georef(data, georef)
         if result is not None:
             texts.append((result, json.dumps(data, indent=1, allow_nan=False) + "\n"))
         if report is not None:
@@ -490,15 +520,113 @@ def adjust(
         d = fit.to_dict(angle)
         d["unit"] = unit
         d["input"] = {"path": str(source), "format": src_fmt}
+        _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
         return
     out = console()
     say(f"{source} ({src_fmt})", out)
     say(fit.summary(angle), out)
+    if georef is not None:
+        say(
+            f"GNSS positions of {georef['n_gnss']} image(s) converted from "
+            f"{georef['gnss_crs_name']} into the block's system; the adjusted projection "
+            f"centres in {georef['gnss_crs_name']} are in the JSON (--json, --result: "
+            "images[].position_gnss_crs)",
+            out,
+        )
     if output is not None:
         say(f"adjusted block written to {output} ({out_fmt})", out)
     for path, _ in texts:
         say(f"wrote {path}", out)
+
+
+def _block_crs(block, crs: str | None, gnss_crs: str | None, allow_ballpark: bool):
+    """The block with its CRS checked or recorded (``--crs``) and its GNSS positions brought
+    from ``--gnss-crs`` into its system; and the record of that conversion (or None)."""
+    from ..crs import cartesian_crs
+
+    fix = (
+        "convert the block's coordinates first (photogeom crs convert --to enu --origin "
+        "LAT,LON,H for a local east-north-up frame, or to a projected CRS) and give the CRS of "
+        "the GNSS positions with --gnss-crs"
+    )
+    if crs is not None:
+        info = cartesian_crs(crs, what="--crs", fix=fix)
+        if block.crs is not None:
+            from ._common import same_crs
+
+            if not same_crs(block.crs, info.text):
+                raise InputError(
+                    f"the block records the CRS {block.crs} (points.csv '# crs:' line) but "
+                    f"--crs says {crs}: --crs names the CRS of the coordinates, it does not "
+                    "convert them; convert them with photogeom crs convert"
+                )
+        else:
+            block = block.replace(crs=info.text)
+    elif block.crs is not None:
+        from ._common import recorded_crs
+
+        recorded_crs(block.crs, "the block's CRS (points.csv '# crs:' line)", fix=fix)
+    if gnss_crs is None:
+        return block, None
+    import numpy as np
+
+    from .. import crs as _crs
+    from ..bundle.georef import gnss_into_block_crs
+    from ..crs import crs_label, parse_crs
+
+    g = gnss_crs.strip()
+    if not g.lower().startswith("enu:"):
+        parse_crs(g, what="--gnss-crs")
+    try:
+        block = gnss_into_block_crs(block, g, allow_ballpark=allow_ballpark)
+    except InputError as exc:
+        text = str(exc).replace("crs=, --crs;", "--crs;").replace("(gnss_crs / --gnss-crs)", "")
+        raise InputError(f"--gnss-crs {g}: {text}") from None
+    n = int(np.all(np.isfinite(block.gnss), axis=1).sum())
+    angular = _crs.frame_from_text(g) is None and parse_crs(g).is_geographic
+    return block, {"gnss_crs": g, "gnss_crs_name": crs_label(g), "n_gnss": n, "angular": angular}
+
+
+def _with_curvature_note(fit):
+    """``fit`` with a note when its object coordinates are map coordinates with heights over
+    an extent where the Earth's curvature shows (:func:`photogeom.crs.curvature_note`)."""
+    from dataclasses import replace
+
+    from ..crs import curvature_note
+    from ._common import recorded_crs
+
+    note = curvature_note(
+        recorded_crs(fit.block.crs, "block crs"),
+        fit.block.xyz,
+        what="object coordinates of the block",
+    )
+    return fit if note is None else replace(fit, notes=(*fit.notes, note))
+
+
+def _georef_back(fit, georef: dict, allow_ballpark: bool) -> dict:
+    """The conversion record with the adjusted projection centres in the GNSS CRS."""
+    pos = fit.positions_in(georef["gnss_crs"], allow_ballpark=allow_ballpark)
+    return {**georef, "crs": fit.crs, "positions": pos}
+
+
+def _add_georef(d: dict, georef: dict | None) -> None:
+    """Put the GNSS CRS and the projection centres in it into a JSON record."""
+    if georef is None:
+        return
+    d["georeferencing"] = {
+        "gnss_crs": georef["gnss_crs"],
+        "gnss_crs_name": georef["gnss_crs_name"],
+        "block_crs": georef["crs"],
+        "n_gnss": georef["n_gnss"],
+        "angular": georef["angular"],
+        "axes": ["lon", "lat", "h"] if georef["angular"] else ["x", "y", "z"],
+        "note": "GNSS positions converted from gnss_crs into block_crs for the adjustment; "
+        "images[].position_gnss_crs: adjusted projection centres in gnss_crs (x/longitude "
+        "first)",
+    }
+    for row, p in zip(d["images"], georef["positions"].tolist()):
+        row["position_gnss_crs"] = p
 
 
 # --- convert -------------------------------------------------------------------------------------

@@ -364,6 +364,16 @@ def dlt_estimate(
     output_params: Annotated[
         Path | None, typer.Option(help="Write the parameters (JSON) here.")
     ] = None,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="CRS of the ground coordinates (EPSG code, WKT, PROJ string or enu:LAT,LON,H; "
+            "default: the '# crs:' line of POINTS), recorded in the results; geographic CRSs "
+            "(degrees) are refused.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Estimate the 11 DLT parameters (and the orientations they imply) from control points.
 
@@ -372,7 +382,9 @@ def dlt_estimate(
     exterior orientation.
     """
     from ..camera import estimate_dlt
+    from ._common import file_crs
 
+    ground_crs = file_crs(crs, "--crs", points)
     unmatched: dict = {}
     ids, g, im, mask, sigma = load_control(
         points,
@@ -395,6 +407,10 @@ def dlt_estimate(
         sigma=None if sigma is None else sigma[~mask],
         **kw,
     )
+    if ground_crs is not None:
+        from dataclasses import replace
+
+        fit = replace(fit, crs=ground_crs.text)
     au = AngleUnit(angle_unit).value
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()

@@ -96,7 +96,8 @@ def transform(
         str | None,
         typer.Option(
             "--crs",
-            help="CRS to record in the output (default: --to-crs, else the input's record).",
+            help="CRS to record in the output (default: --to-crs, else the target CRS of "
+            "--params, else the input's record).",
         ),
     ] = None,
     scales: Annotated[
@@ -126,11 +127,16 @@ def transform(
     if (params is None) == (to_crs is None):
         raise InputError("give either --params FILE or --from-crs and --to-crs")
     if params is not None:
-        from .transform import load_transform
+        from .transform import load_transform_record
 
-        T = load_transform(params)
+        T, to_rec, from_rec = load_transform_record(params)
         if inverse:
             T = T.inverse()
+            to_rec, from_rec = from_rec, to_rec
+        if from_rec is not None:
+            _check_input_crs(source, from_rec, params, inverse)
+        if crs is None and to_rec is not None:
+            crs = to_rec
     else:
         from ..crs import ProjTransform
         from ..io.cloud import cloud_info
@@ -164,6 +170,20 @@ def transform(
         f"CRS {res.crs_name or 'none'}",
         stderr=True,
     )
+
+
+def _check_input_crs(source: Path, expected: str, params: Path, inverse: bool) -> None:
+    """Refuse a cloud whose CRS record is not the one the parameters transform from."""
+    from ..crs import parse_crs
+    from ..io.cloud import cloud_info
+
+    rec = cloud_info(source).crs
+    if rec is not None and parse_crs(rec) != parse_crs(expected, what=f"{params}: crs"):
+        raise InputError(
+            f"{source} records the CRS {cloud_info(source).crs_name} but the parameters of "
+            f"{params} transform from {expected}{' (--inverse)' if inverse else ''}: use the "
+            "parameters of its CRS or transform it to that CRS first (--to-crs)"
+        )
 
 
 @app.command("register")
@@ -200,7 +220,9 @@ def register(
     )
     d = reg.to_dict()
     if output_params is not None:
-        atomic_write_text(output_params, json_text(reg.fit.transform.to_dict()))
+        record = {"model_parameters": reg.fit.transform.to_dict()}
+        record.update({"crs": reg.fit.crs, "source_crs": reg.fit.source_crs})
+        atomic_write_text(output_params, json_text(record))
     if json_out:
         typer.echo(
             json_text({k: (None if isinstance(v, float) and v != v else v) for k, v in d.items()}),

@@ -19,8 +19,6 @@ app = typer.Typer(
     no_args_is_help=True,
 )
 
-_GEOCENTRIC = "EPSG:4978"
-
 
 @app.command("convert")
 def convert(
@@ -29,11 +27,11 @@ def convert(
         str,
         typer.Option(
             "--from",
-            help="CRS of the input (EPSG:4979, WKT, PROJ string) or "
-            "'enu' (a local frame at --origin).",
+            help="CRS of the input (EPSG:4979, WKT, PROJ string), 'enu' (a local frame at "
+            "--origin) or enu:LAT,LON,H.",
         ),
     ],
-    to_crs: Annotated[str, typer.Option("--to", help="CRS of the output, or 'enu'.")],
+    to_crs: Annotated[str, typer.Option("--to", help="CRS of the output, 'enu' or enu:LAT,LON,H.")],
     origin: Annotated[
         str | None,
         typer.Option(help="ENU origin lat,lon,h (degrees, m; WGS 84) for 'enu'."),
@@ -52,7 +50,8 @@ def convert(
 ) -> None:
     """Convert the points of a CSV between CRSs; geographic coordinates are lon,lat[,h] in
     degrees (x first), a local frame 'enu' is east, north, up in metres at --origin on
-    WGS 84 (through geocentric WGS 84, EPSG:4978)."""
+    WGS 84 (through geocentric WGS 84, EPSG:4978). The output records its CRS in a
+    '# crs: ...' line (enu:LAT,LON,H for a local frame), which the other commands read."""
     import numpy as np
 
     from .. import crs as _crs
@@ -60,41 +59,41 @@ def convert(
 
     table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
     xyz = table.coords
-    src, dst = from_crs.strip(), to_crs.strip()
-    enu_in, enu_out = src.lower() == "enu", dst.lower() == "enu"
-    if (enu_in or enu_out) and origin is None:
-        raise InputError("--origin lat,lon,h is needed for an 'enu' frame")
     frame = None
     if origin is not None:
         lat0, lon0, h0 = split_numbers(origin, 3, "--origin")
         frame = _crs.LocalFrame(lat0, lon0, h0)
+
+    def resolve(text: str, option: str) -> str:
+        t = text.strip()
+        if t.lower() == "enu":
+            if frame is None:
+                raise InputError("--origin lat,lon,h is needed for an 'enu' frame")
+            return frame.to_text()
+        if _crs.frame_from_text(t) is None:
+            _crs.parse_crs(t, what=option)
+        return t
+
+    src, dst = resolve(from_crs, "--from"), resolve(to_crs, "--to")
+    enu_in = _crs.frame_from_text(src) is not None
+    enu_out = _crs.frame_from_text(dst) is not None
     if (enu_in or enu_out) and xyz.shape[1] != 3:
         raise InputError(
             f"{points}: 'enu' needs three coordinate columns, found "
             f"{', '.join(table.columns)}; choose them with --cols"
         )
-    if enu_in:
-        xyz = frame.to_ecef(xyz)
-        src = _GEOCENTRIC
-    if enu_out:
-        out = (
-            xyz
-            if src == _GEOCENTRIC
-            else _crs.transform_points(xyz, src, _GEOCENTRIC, allow_ballpark=allow_ballpark)
-        )
-        out = frame.from_ecef(out)
-        names = ["E", "N", "U"]
+    if enu_in or enu_out:
+        out = _crs.points_between(xyz, src, dst, allow_ballpark=allow_ballpark)
+    elif src == dst:
+        out = xyz
     else:
-        out = (
-            xyz
-            if src == dst
-            else _crs.transform_points(xyz, src, dst, allow_ballpark=allow_ballpark)
-        )
-        names = ["x", "y", "z"][: out.shape[1]]
+        out = _crs.transform_points(xyz, src, dst, allow_ballpark=allow_ballpark)
+    names = ["E", "N", "U"] if enu_out else ["x", "y", "z"][: out.shape[1]]
     names = split_names(out_cols) or names
     if len(names) != out.shape[1]:
         raise InputError(f"--out-cols: {len(names)} name(s) for {out.shape[1]} coordinates")
     comments = [f"{from_crs} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
+    comments.append(f"crs: {dst}")
     extra = {"role": list(table.roles)} if table.roles is not None else None
     text = format_points_csv(table.ids, np.asarray(out), names, extra=extra, comments=comments)
     emit_points(text, output, len(table.ids))

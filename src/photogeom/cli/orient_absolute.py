@@ -17,7 +17,7 @@ import typer
 
 from .._lazy import LazyModule
 from ..errors import InputError
-from ._common import AngleUnit, check_mask, console, load_pairs
+from ._common import CRS_FORMS, AngleUnit, check_mask, console, file_crs, load_pairs
 from ._stream import busy
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -153,15 +153,42 @@ def register(app: typer.Typer) -> None:
         sigma_col: Annotated[
             str | None, typer.Option(help="Column of per-point std. devs. (target units).")
         ] = None,
-        unit: Annotated[str, typer.Option(help="Length unit of the target system.")] = "m",
+        unit: Annotated[
+            str | None,
+            typer.Option(
+                help="Length unit of the target system [default: the --target-crs unit, else m].",
+                show_default=False,
+            ),
+        ] = None,
         allow_unmatched: Annotated[
             bool, typer.Option(help="Leave out ids found in only one file (listed).")
         ] = False,
         seed: Annotated[int | None, typer.Option(help="Random seed of RANSAC.")] = None,
+        source_crs: Annotated[
+            str | None,
+            typer.Option(
+                help=f"CRS of the source points, recorded in the results ({CRS_FORMS}; "
+                "default with two files: SOURCE's '# crs:' line); geographic CRSs (degrees) "
+                "are refused.",
+                show_default=False,
+            ),
+        ] = None,
+        target_crs: Annotated[
+            str | None,
+            typer.Option(
+                help="CRS of the target points (residuals, parameters), recorded in the "
+                "results and the report (default: TARGET's '# crs:' line).",
+                show_default=False,
+            ),
+        ] = None,
     ) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
 
+        tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
+        scrs = file_crs(source_crs, "--source-crs", source if target is not None else None)
+        if unit is None:
+            unit = tcrs.unit if tcrs is not None and tcrs.unit else "m"
         out = console()
         with busy(f"reading {source.name}", source, target):
             pairs = load_pairs(
@@ -174,6 +201,7 @@ def register(app: typer.Typer) -> None:
                 f"(got {pairs.source.shape[1]}D source, {pairs.target.shape[1]}D target)"
             )
         is_check = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
+        crs_record = _crs_record(tcrs, scrs, pairs)
         ctrl = ~is_check
         ids = np.asarray(pairs.ids, dtype=object)
         x, X = pairs.source[ctrl], pairs.target[ctrl]
@@ -198,7 +226,11 @@ def register(app: typer.Typer) -> None:
                 **{k: v for k, v in options.items() if k != "unit"},
             )
             if as_json:
-                typer.echo(json.dumps(cmp.to_dict(), indent=2))
+                d = cmp.to_dict()
+                if tcrs is not None or scrs is not None:
+                    d["crs"] = crs_record["crs"]
+                    d["source_crs"] = crs_record["source_crs"]
+                typer.echo(json.dumps(d, indent=2))
             else:
                 out.print(f"[bold]{len(x)} point pairs[/bold] ({source.name}"
                           + (f", {target.name}" if target else "") + ")")
@@ -227,11 +259,15 @@ def register(app: typer.Typer) -> None:
                     f"differences are to the converged {cmp.reference} solution; times are "
                     "medians of repeated solves (parameters only)"
                 )
+                for line in _crs_lines(crs_record):
+                    out.print(line, markup=False, highlight=False)
             if report is not None:
                 from ..examples.absolute import add_comparison
 
                 rep = Report("Absolute orientation: method comparison")
                 add_comparison(rep, cmp, title=f"{source.name}: all methods")
+                if crs_record["lines"]:
+                    rep.add_text("Coordinate reference systems", "\n".join(_crs_lines(crs_record)))
                 rep.write(report)
                 if not as_json:
                     out.print(f"report written to {report}")
@@ -258,6 +294,15 @@ def register(app: typer.Typer) -> None:
         if is_check.any():
             chk = fit.transform.apply(pairs.source[is_check]) - pairs.target[is_check]
             fit = fit.with_checks(chk, [str(i) for i in ids[is_check]])
+        if tcrs is not None or scrs is not None:
+            from dataclasses import replace
+
+            fit = replace(
+                fit,
+                crs=crs_record["crs"],
+                source_crs=crs_record["source_crs"],
+                notes=tuple(fit.notes) + tuple(crs_record["notes"]),
+            )
         outliers = _outliers(fit, x, X, row_ids)
         if as_json:
             d = _fit_json(fit, conv, angle, pairs.notes)
@@ -313,6 +358,29 @@ def register(app: typer.Typer) -> None:
             rep.write(report)
             if not as_json:
                 out.print(f"report written to {report}")
+
+
+def _crs_record(tcrs, scrs, pairs) -> dict:
+    """The CRS texts, their readable lines and the curvature notes of the point sets."""
+    from ..crs import curvature_note
+
+    rec: dict = {"crs": None, "source_crs": None, "lines": [], "notes": []}
+    for info, pts, side, key in (
+        (scrs, pairs.source, "source", "source_crs"),
+        (tcrs, pairs.target, "target", "crs"),
+    ):
+        if info is None:
+            continue
+        rec[key] = info.text
+        rec["lines"].append(f"{side} CRS: {info.name}")
+        note = curvature_note(info, pts, what=f"{side} coordinates")
+        if note:
+            rec["notes"].append(note)
+    return rec
+
+
+def _crs_lines(rec: dict) -> list[str]:
+    return list(rec["lines"]) + [f"note: {n}" for n in rec["notes"]]
 
 
 def _outliers(fit, x, X, row_ids) -> list[dict]:

@@ -17,11 +17,14 @@ import typer
 from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import (
+    CRS_FORMS,
     AngleUnit,
     IdColOpt,
     OutputCsvOpt,
+    cartesian_crs_option,
     check_mask,
     console,
+    file_crs,
     finite_or_none,
     json_text,
     say,
@@ -113,6 +116,16 @@ def resection(
         Path | None,
         typer.Option(help="Write the oriented camera (JSON, for 'orient intersection') here."),
     ] = None,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help=f"CRS of the ground coordinates ({CRS_FORMS}; default: the '# crs:' line of "
+            "POINTS): recorded in the results and the camera JSON (and so in 'orient "
+            "intersection' output); geographic CRSs (degrees) are refused.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Space resection: exterior orientation of one image from >= 3 control points.
 
@@ -123,6 +136,7 @@ def resection(
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
 
+    ground_crs = file_crs(crs, "--crs", points)
     io = build_interior(
         camera=camera,
         calibration=calibration,
@@ -165,6 +179,10 @@ def resection(
         sigma=None if sig is None else sig[~mask],
         **kw,
     )
+    if ground_crs is not None:
+        from dataclasses import replace
+
+        fit = replace(fit, crs=ground_crs.text)
     data = fit.to_dict()
     data["model_parameters"] = fit.camera.to_dict(au)
     if unmatched:
@@ -243,6 +261,15 @@ def intersection(
     report: Annotated[
         Path | None, typer.Option(help="Write an HTML report with image residual vectors.")
     ] = None,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="CRS of the ground coordinates, recorded in the output (default: that of the "
+            "camera files, 'orient resection --crs').",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Space intersection: object points from >= 2 oriented images (least squares, all rays).
 
@@ -261,6 +288,7 @@ def intersection(
             f"{len(images)} image file(s) but {len(camera)} --camera file(s): give one camera "
             "per image, in the same order"
         )
+    ground_crs = _cameras_crs(camera, crs)
     cams = []
     for path in camera:
         io, eo = camera_from_json(path)
@@ -315,6 +343,7 @@ def intersection(
                     "units": units,
                     "notes": notes,
                     "residual_convention": "computed minus observed",
+                    "crs": ground_crs,
                 }
             ),
             nl=False,
@@ -333,6 +362,7 @@ def intersection(
                 "X, Y, Z and sX, sY, sZ in the ground unit of the cameras (that of X0, Y0, Z0); "
                 "sX, sY, sZ: a-posteriori standard deviations (a priori from --sigma where the "
                 "redundancy is 0); sigma0: a posteriori / a priori, unitless",
+                *([f"crs: {ground_crs}"] if ground_crs else []),
             ],
         )
         if output is None:
@@ -340,7 +370,9 @@ def intersection(
         else:
             outputs.append((output, text))
     if report is not None:
-        outputs.append((report, _intersection_report(res, ids, images, obs[:, keep], cams)))
+        outputs.append(
+            (report, _intersection_report(res, ids, images, obs[:, keep], cams, ground_crs))
+        )
     write_outputs(outputs)
     err = console(stderr=True)
     for n in notes:
@@ -351,7 +383,45 @@ def intersection(
         say(f"wrote {report}", err)
 
 
-def _intersection_report(res, ids, images, obs, cams) -> str:
+def _crs_label(crs: str) -> str:
+    from ..crs import crs_label
+
+    return crs_label(crs)
+
+
+def _cameras_crs(camera: list[Path], crs: str | None) -> str | None:
+    """The CRS of the ground coordinates: ``--crs`` or the one the camera files record
+    (they must agree)."""
+    from ..io.jsonfile import read_json_object
+    from ._common import same_crs
+
+    recorded = {}
+    for path in camera:
+        data = read_json_object(path)
+        value = data.get("crs") if isinstance(data, dict) else None
+        if value is not None:
+            recorded[str(path)] = str(value)
+    texts = list(dict.fromkeys(recorded.values()))
+    if len(texts) > 1 and not all(same_crs(texts[0], t) for t in texts[1:]):
+        listing = "; ".join(f"{p}: {c}" for p, c in recorded.items())
+        raise InputError(
+            f"the --camera files record different CRSs ({listing}): orient the images in one "
+            "ground system"
+        )
+    if crs is not None:
+        info = cartesian_crs_option(crs, "--crs")
+        if texts and not same_crs(texts[0], info.text):
+            raise InputError(
+                f"--crs {crs}: the --camera files record the CRS {texts[0]}; --crs names the CRS "
+                "of the cameras' ground coordinates, it does not convert them"
+            )
+        return info.text
+    if texts:
+        return cartesian_crs_option(texts[0], "the CRS of the --camera files").text
+    return None
+
+
+def _intersection_report(res, ids, images, obs, cams, crs=None) -> str:
     from ..report import Report
 
     rep = Report("Space intersection", subtitle=", ".join(map(str, images)))
@@ -372,7 +442,8 @@ def _intersection_report(res, ids, images, obs, cams) -> str:
         ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"],
         rows,
         note="X, Y, Z and their standard deviations sX, sY, sZ in the ground unit of the "
-        "cameras (that of X0, Y0, Z0); sigma0 a posteriori / a priori (unitless).",
+        "cameras (that of X0, Y0, Z0); sigma0 a posteriori / a priori (unitless)."
+        + (f" Ground CRS: {_crs_label(crs)}." if crs else ""),
     )
     for i, path in enumerate(images):
         ok = np.all(np.isfinite(obs[i]), axis=1)

@@ -157,13 +157,37 @@ def project(
     ] = None,
     id_col: IdColOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="CRS of the ground points (EPSG:32632, WKT, PROJ string or enu:LAT,LON,H; "
+            "columns x,y,z found by name), converted by PROJ to the RPC's WGS 84 (EPSG:4979). "
+            "Default: the '# crs:' line of POINTS, else lon,lat,h in EPSG:4979.",
+            show_default=False,
+        ),
+    ] = None,
+    allow_ballpark: Annotated[
+        bool, typer.Option(help="Accept an approximate PROJ datum shift (--crs).")
+    ] = False,
 ) -> None:
     """Project ground points (lon, lat in degrees, h in metres) into the image (col, row px).
 
     Files of any size are read and written block by block (a progress bar on a terminal).
     """
+    from ._common import crs_from_comments, leading_comments
+
     rpc = _load_rpc(rpc_file)
-    blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
+    if crs is None:
+        crs = crs_from_comments(leading_comments(points))
+        if crs is not None and _is_wgs84_3d(crs):
+            crs = None
+    if crs is None:
+        blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
+        to_wgs84 = None
+    else:
+        blocks = _blocks_with(points, cols, _CRS_COLS, "ground (x, y, z)", id_col)
+        to_wgs84 = _input_crs(crs, allow_ballpark)
     if blocks.dim != 3:
         raise InputError(
             f"--cols: need three ground columns lon,lat,h, got {', '.join(blocks.columns)}"
@@ -173,7 +197,7 @@ def project(
     def compute(block):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            c = block.coords
+            c = block.coords if to_wgs84 is None else to_wgs84(block.coords)
             col, row = rpc.project(c[:, 0], c[:, 1], c[:, 2])
         _say_warnings(caught, seen)
         return np.column_stack([col, row]), {}
@@ -234,6 +258,19 @@ def localize(
         bool, typer.Option(help="Fail (exit 2) when a point does not converge.")
     ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="Write the ground points in this CRS (EPSG:32632, WKT, PROJ string or "
+            "enu:LAT,LON,H; columns x,y,z), converted by PROJ from the RPC's WGS 84 "
+            "(EPSG:4979: lon, lat, ellipsoidal h). Default: lon,lat,h in EPSG:4979.",
+            show_default=False,
+        ),
+    ] = None,
+    allow_ballpark: Annotated[
+        bool, typer.Option(help="Accept an approximate PROJ datum shift (--crs).")
+    ] = False,
 ) -> None:
     """Ground points (lon, lat) of image points at given heights, with a status per point.
 
@@ -246,6 +283,7 @@ def localize(
     from ..rpc import LocalizationStatus
 
     rpc = _load_rpc(rpc_file)
+    to_crs = None if crs is None else _output_crs(crs, allow_ballpark)
     if height is None:
         cands = [[*c, hc] for c in IMAGE_COLS for hc in HEIGHT_COLS]
         what = "image and height (col, row, h)"
@@ -296,7 +334,10 @@ def localize(
         for k, v in enumerate(np.bincount(code, minlength=4)):
             counts[labels[k]] += int(v)
         status = pc.take(pa.array(labels), pa.array(code))
-        return np.column_stack([res.lon, res.lat, h]), {"status": status}, res
+        xyz = np.column_stack([res.lon, res.lat, h])
+        if to_crs is not None:
+            xyz = to_crs[1](xyz)
+        return xyz, {"status": status}, res
 
     def report():
         bad = counts["limit_reached"] + counts["diverged"]
@@ -316,27 +357,88 @@ def localize(
 
     if as_json:
         rows = []
+        keys = ("lon", "lat", "h") if to_crs is None else ("x", "y", "z")
         for block in blocks:
             xyz, more, res = compute(block)
             rows += [
-                {"id": i, "lon": finite_or_none(p[0]), "lat": finite_or_none(p[1]),
-                 "h": float(p[2]), "status": s, "iterations": int(it)}
+                {"id": i, **{k: finite_or_none(v) for k, v in zip(keys, p)}, "status": s,
+                 "iterations": int(it)}
                 for i, p, s, it in zip(
                     block.ids.to_pylist(), xyz, more["status"].to_pylist(), res.iterations
                 )
             ]  # fmt: skip
         report()
         data = {"rpc": str(rpc_file), "tol_px": tol, "counts": counts, "points": rows}
+        data["crs"] = "EPSG:4979" if to_crs is None else to_crs[0]
         typer.echo(json_text(data), nl=False)
         return
+    if to_crs is None:
+        names = ["lon", "lat", "h"]
+        comments = [
+            f"localised with {rpc_file}; lon, lat in degrees, h in metres; tol {tol:g} px",
+            "crs: EPSG:4979",
+        ]
+    else:
+        names = ["x", "y", "z"]
+        comments = [
+            f"localised with {rpc_file}; tol {tol:g} px; converted from EPSG:4979 (lon, lat, "
+            "ellipsoidal h) by PROJ",
+            f"crs: {to_crs[0]}",
+        ]
     n = run_point_job(
-        blocks, output, ["lon", "lat", "h"], lambda b: compute(b)[:2], extra=["status"],
-        comments=[f"localised with {rpc_file}; lon, lat in degrees, h in metres; tol {tol:g} px"],
-        description="rpc localize",
+        blocks, output, names, lambda b: compute(b)[:2], extra=["status"],
+        comments=comments, description="rpc localize",
     )  # fmt: skip
     report()
     if output is not None:
         say(f"wrote {n} point(s) to {output}", stderr=True)
+
+
+_CRS_COLS = [["x", "y", "z"], ["X", "Y", "Z"], ["E", "N", "H"], ["E", "N", "U"],
+             ["easting", "northing", "height"], *GROUND_COLS]  # fmt: skip
+
+
+def _is_wgs84_3d(text: str) -> bool:
+    from .. import crs as _crs
+
+    return _crs.frame_from_text(text) is None and _crs.parse_crs(text) == _crs.parse_crs(
+        "EPSG:4979"
+    )
+
+
+def _input_crs(crs: str, allow_ballpark: bool):
+    """A function converting (n, 3) points of ``crs`` to lon, lat, h of WGS 84."""
+    from .. import crs as _crs
+
+    text = crs.strip()
+    if _crs.frame_from_text(text) is None:
+        _crs.parse_crs(text, what="--crs")
+
+    def convert(xyz):
+        return _crs.points_between(xyz, text, "EPSG:4979", allow_ballpark=allow_ballpark)
+
+    return convert
+
+
+def _output_crs(crs: str, allow_ballpark: bool):
+    """(CRS text, function converting (n, 3) lon, lat, h of WGS 84 into it; rows with NaN
+    stay NaN) for ``--crs``."""
+    from .. import crs as _crs
+
+    text = crs.strip()
+    if _crs.frame_from_text(text) is None:
+        _crs.parse_crs(text, what="--crs")
+
+    def convert(lonlath):
+        out = np.full_like(lonlath, np.nan)
+        ok = np.all(np.isfinite(lonlath), axis=1)
+        if np.any(ok):
+            out[ok] = _crs.points_between(
+                lonlath[ok], "EPSG:4979", text, allow_ballpark=allow_ballpark
+            )
+        return out
+
+    return text, convert
 
 
 def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None, check_ids):

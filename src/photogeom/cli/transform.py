@@ -18,12 +18,17 @@ import typer
 from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
 from ._common import (
+    CRS_FORMS,
     AngleUnit,
     IdColOpt,
+    cartesian_crs_option,
     check_mask,
     console,
+    crs_from_comments,
+    file_crs,
     json_text,
     load_pairs,
+    same_crs,
     say,
     split_names,
     write_outputs,
@@ -161,6 +166,24 @@ def estimate(
         AngleUnit,
         typer.Option(help="Unit of angles in the text output and report."),
     ] = AngleUnit.deg,
+    source_crs: Annotated[
+        str | None,
+        typer.Option(
+            help=f"CRS of the source coordinates, recorded in the results ({CRS_FORMS}; "
+            "default with two files: SOURCE's '# crs:' line); geographic CRSs (degrees) are "
+            "refused.",
+            show_default=False,
+        ),
+    ] = None,
+    target_crs: Annotated[
+        str | None,
+        typer.Option(
+            help="CRS of the target coordinates (residuals, parameters), recorded in the "
+            "results, the parameter file and the report; its unit labels the residuals "
+            "(default: TARGET's '# crs:' line).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Estimate a transformation TARGET = T(SOURCE) from point pairs by least squares.
 
@@ -173,6 +196,19 @@ def estimate(
     model = Model(model).value
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value
+    dim = 3 if model.endswith("3d") else 2
+    tcrs = file_crs(target_crs, "--target-crs", target, dim=dim, unit=unit)
+    scrs = file_crs(
+        source_crs,
+        "--source-crs",
+        source if target is not None else None,
+        dim=dim,
+        unit=None if source_system else source_unit,
+    )
+    if tcrs is not None and not unit and tcrs.unit:
+        unit = tcrs.unit
+    if scrs is not None and not source_unit and not source_system and scrs.unit:
+        source_unit = scrs.unit
     with busy(f"reading {source.name}", source, target) as step:
         pairs = load_pairs(
             source,
@@ -204,6 +240,8 @@ def estimate(
         )
     if pairs.notes:
         fit = replace(fit, notes=tuple(fit.notes) + tuple(pairs.notes))
+    if tcrs is not None or scrs is not None:
+        fit = _with_crs(fit, tcrs, scrs, pairs)
     files = [str(source)] + ([str(target)] if target is not None else [])
     inputs = {
         "files": files,
@@ -235,6 +273,23 @@ def estimate(
     print_fit(fit, console=out, angle_unit=angle_unit)
     for path, _ in outputs:
         say(f"wrote {path}", out)
+
+
+def _with_crs(fit, tcrs, scrs, pairs: PointPairs):
+    """``fit`` recording the CRSs, with a note where map coordinates are used in 3D."""
+    from ..crs import curvature_note
+
+    notes = []
+    for info, pts, side in ((scrs, pairs.source, "source"), (tcrs, pairs.target, "target")):
+        note = None if info is None else curvature_note(info, pts, what=f"{side} coordinates")
+        if note:
+            notes.append(note)
+    return replace(
+        fit,
+        crs=None if tcrs is None else tcrs.text,
+        source_crs=None if scrs is None else scrs.text,
+        notes=tuple(fit.notes) + tuple(notes),
+    )
 
 
 def _check_dimensions(model: str, pairs: PointPairs) -> None:
@@ -293,10 +348,23 @@ def _report_html(fit, pairs: PointPairs, mask: np.ndarray, inputs: dict, model: 
 def load_transform(path: Path):
     """A transformation from a parameter JSON: the output of ``--output-params`` or
     ``--json`` of ``transform estimate``, or a bare ``Transform.to_dict()``."""
+    return load_transform_record(path)[0]
+
+
+def load_transform_record(path: Path):
+    """``(transformation, target CRS, source CRS)`` of a parameter JSON (see
+    :func:`load_transform`); the CRSs are None where the file records none."""
     from ..io.jsonfile import build_from_json, read_json_object
     from ..transforms import from_dict
 
     data = read_json_object(path)
+    crs = {"crs": None, "source_crs": None}
+    if isinstance(data, dict):
+        for key in crs:
+            value = data.get(key)
+            if value is not None and not isinstance(value, str):
+                raise FileFormatError(f"{path}: {key!r} must be a CRS text (e.g. EPSG:25832)")
+            crs[key] = value
     if isinstance(data, dict) and isinstance(data.get("model_parameters"), dict):
         data = data["model_parameters"]
     elif isinstance(data, dict) and isinstance(data.get("transform"), dict):
@@ -306,7 +374,11 @@ def load_transform(path: Path):
             f"{path}: no transformation parameters found (expected the JSON written by "
             "'photogeom transform estimate --output-params')"
         )
-    return build_from_json(from_dict, data, path, "transformation parameters")
+    return (
+        build_from_json(from_dict, data, path, "transformation parameters"),
+        crs["crs"],
+        crs["source_crs"],
+    )
 
 
 def _output_columns(columns: tuple[str, ...]) -> list[str]:
@@ -336,16 +408,38 @@ def apply(
         typer.Option(help="Names of the output coordinate columns (default: x <-> X swapped)."),
     ] = None,
     id_col: IdColOpt = None,
+    crs: Annotated[
+        str | None,
+        typer.Option(
+            "--crs",
+            help="CRS to record in the output ('# crs:' line; default: the target CRS of the "
+            "parameter file, its source CRS with --inverse).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Transform the points of a CSV with saved parameters (or their inverse).
 
     The output CSV has the id, the transformed coordinates and the role column if the input
-    has one; numbers are written losslessly.
+    has one; numbers are written losslessly. The CRS of the output is recorded in a
+    '# crs: ...' line; a '# crs:' line of POINTS must name the input side of the parameters.
     """
     from ..io import PointBlocks
 
-    transform = load_transform(params)
+    transform, to_crs, from_crs = load_transform_record(params)
+    if inverse:
+        to_crs, from_crs = from_crs, to_crs
     blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+    in_crs = crs_from_comments(blocks.comments)
+    if in_crs is not None:
+        cartesian_crs_option(in_crs, f"{points} ('# crs:' line)")
+    if in_crs is not None and from_crs is not None and not same_crs(in_crs, from_crs):
+        raise InputError(
+            f"{points} records the CRS {in_crs} but the parameters of {params} transform from "
+            f"{from_crs}{' (--inverse)' if inverse else ''}: convert the points first "
+            "(photogeom crs convert) or use the parameters of their CRS"
+        )
+    out_info = cartesian_crs_option(crs or to_crs, "--crs" if crs else f"{params}: crs")
     dim = getattr(transform, "dim", blocks.dim)
     if blocks.dim != dim:
         raise InputError(
@@ -364,6 +458,8 @@ def apply(
         f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "
         f"input {points} ({', '.join(blocks.columns)})"
     ]
+    if out_info is not None:
+        comments.append(f"crs: {out_info.text}")
 
     def compute(block):
         more = {"role": block.roles} if blocks.has_roles else {}

@@ -8,7 +8,7 @@ Format
 * An ``id`` column names each point; ids are text (``"7"`` and ``"07"`` differ).
 * Coordinate columns are chosen by name; without a choice the first complete set of
   :data:`DEFAULT_COLUMN_SETS` found in the header is used (``x,y,z``, ``x,y``, ``X,Y,Z``,
-  ``X,Y``, ``E,N,H``, ``E,N``, ``col,row``, ...).
+  ``X,Y``, ``E,N,H``, ``E,N,U``, ``E,N``, ``col,row``, ...).
 * An optional ``role`` column says ``control`` (enters the estimate) or ``check`` (does not;
   reported separately). Points without a role column are control points.
 * An optional ``weight`` column (per-point weight, unitless) or ``sigma`` column (per-point
@@ -55,6 +55,7 @@ DEFAULT_COLUMN_SETS: tuple[tuple[str, ...], ...] = (
     ("X", "Y", "Z"),
     ("X", "Y"),
     ("E", "N", "H"),
+    ("E", "N", "U"),
     ("E", "N"),
     ("easting", "northing", "height"),
     ("easting", "northing"),

@@ -59,6 +59,8 @@ class ResectionFit(Fit):
     and a :class:`~photogeom.errors.SuspectResultWarning` was issued).
     """
 
+    crs_role = "ground"
+
     suspect_reason: str = ""
 
     @property

@@ -489,6 +489,24 @@ def _pm(v, s) -> str:
     return f"{_val(v, s)} ± {_std(s)}"
 
 
+def _crs_rows(d: Mapping) -> list[list[str]]:
+    """Rows naming the CRS of the object coordinates and of the GNSS positions."""
+    rows = []
+    if d.get("crs"):
+        rows.append(["object coordinates", str(d.get("crs_name") or d["crs"])])
+    g = d.get("georeferencing")
+    if g:
+        rows.append(
+            [
+                "GNSS positions",
+                f"{g['n_gnss']} converted from {g['gnss_crs_name']} into the block's system; "
+                "adjusted projection centres in that CRS in the result record "
+                "(images[].position_gnss_crs)",
+            ]
+        )
+    return rows
+
+
 def _summary_rows(d: Mapping) -> list[list[str]]:
     c = d["chi2"]
     blk = d["block"]
@@ -522,6 +540,7 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             )
             or "none (free network)",
         ],
+        *_crs_rows(d),
         ["sigma0 a posteriori", _f(d["sigma0"])],
         ["sigma0 a priori", _f(d["sigma0_prior"])],
         ["observations / unknowns", f"{d['n_observations']} / {d['n_unknowns']}"],
@@ -658,6 +677,30 @@ def _exterior_section(d: Mapping, max_rows: int) -> str:
     return f'<div style="overflow-x:auto">{table}</div>'
 
 
+def _positions_section(d: Mapping, max_rows: int) -> str:
+    """The adjusted projection centres in the CRS of the GNSS positions."""
+    g = d["georeferencing"]
+    imgs = d["images"][:max_rows]
+    angular = bool(g.get("angular"))
+    names = g.get("axes") or ["x", "y", "z"]
+    decimals = (9, 9, 4) if angular else (4, 4, 4)
+    rows = [
+        [
+            str(r["id"]),
+            *("-" if v is None else f"{v:.{k}f}" for v, k in zip(r["position_gnss_crs"], decimals)),
+        ]
+        for r in imgs
+    ]
+    more = len(d["images"]) > max_rows
+    note = (
+        f"Adjusted projection centres converted from the block's system ({d.get('crs_name')}) "
+        f"to {g['gnss_crs_name']}, x/longitude first"
+        + (f"; the first {max_rows} of {len(d['images'])} images" if more else "")
+        + "."
+    )
+    return _table_html(["image", *names], rows, note=note)
+
+
 def _points_section(d: Mapping) -> str:
     u = d["unit"]
     gsd = _nan(d["gsd"])
@@ -787,6 +830,13 @@ def add_bundle_result(
     )
     report._add(3, f"{p}Calibration", _calibration_section(d, max_rows))
     report._add(3, f"{p}Exterior orientation", _exterior_section(d, max_rows))
+    if d.get("georeferencing") and d.get("images"):
+        g = d["georeferencing"]
+        report._add(
+            3,
+            f"{p}Projection centres in {g['gnss_crs_name']}",
+            _positions_section(d, max_rows),
+        )
     pts = _points_section(d)
     if pts:
         report._add(3, f"{p}Control and check points", pts)

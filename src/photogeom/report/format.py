@@ -146,6 +146,9 @@ def statistics_rows(fit) -> list[tuple[str, str]]:
                 + u,
             )
         )
+    from ..adjust.fit import crs_rows
+
+    rows.extend(crs_rows(fit))
     if fit.iterations:
         rows.append(
             (
