@@ -142,3 +142,27 @@ def test_bad_input_is_named(small, kwargs, match):
         adjust_with_grids(small.block, **kw)
     with pytest.raises(InputError, match=r"needs a photogeom\.bundle\.Block"):
         adjust_with_grids("block.json", 1000)
+
+
+def test_node_standard_deviations_match_monte_carlo():
+    """The joint covariance of a camera grid against the spread of 40 noisy adjustments
+    (weak smoothness, so the pseudo-observations do not act as a prior)."""
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=5, strips=2, images_per_strip=3, local_field=0.0, sigma=0.3
+    )
+    truth, sigma = sim.truth, 0.3
+    rng = np.random.default_rng(7)
+    kw = dict(per="camera", sigma_constraint=100.0, free=(), max_iterations=20)
+    est, cof = [], None
+    for trial in range(40):
+        uv = sim.ideal + rng.normal(0.0, sigma, sim.ideal.shape)
+        block = truth.with_observations(uv=uv, sigma=sigma)
+        ga = adjust_with_grids(block, 2000.0, std=trial == 0, **kw)
+        g = ga.grids[truth.image_ids[0]]
+        est.append(g.nodes.copy())
+        if trial == 0:
+            cof = ga.node_std[truth.camera_ids[0]] / ga.sigma0
+    spread = np.std(np.array(est), axis=0, ddof=1)
+    ratio = spread / cof  # cof: the standard deviation for sigma0 = 1 (weights 1 / 0.3^2)
+    assert 0.8 < float(np.median(ratio)) < 1.2
+    assert np.all((ratio > 0.5) & (ratio < 1.6))
