@@ -67,3 +67,15 @@ def test_evaluate_in_adjustment(cli, block_folder):
         "--sigma-temporal", "0.3",
     )  # fmt: skip
     assert code == 2 and "--sigma-temporal needs --per image" in err
+
+
+def test_report_in_adjustment(cli, tmp_path):
+    out = tmp_path / "grid.html"
+    code, _, err = cli(
+        "grid", "report", "--preset", "FC300S", "--strips", "1", "--images", "5",
+        "--spacing", "1000", "--spacings", "500,1000", "--in-adjustment",
+        "--sigma-temporal", "0.3", "-o", str(out),
+    )  # fmt: skip
+    assert code == 0, err
+    html = out.read_text()
+    assert "grids in the adjustment" in html and html.count("<img") == 4

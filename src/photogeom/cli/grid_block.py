@@ -51,6 +51,8 @@ def _sigma_c(text: str):
     if not x > 0 or x == float("inf"):
         raise InputError(f"--sigma-constraint must be a positive number of pixels, not {text!r}")
     return x
+
+
 SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--preset).")]
 StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
 ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
@@ -319,20 +321,33 @@ def report(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    in_adjustment: InAdjOpt = False,
+    per: PerOpt = "image",
+    sigma_temporal: SigmaTOpt = None,
 ) -> None:
-    """Evaluate and sweep, then write the HTML report with the study's figures."""
+    """Evaluate and sweep, then write the HTML report with the study's figures (with
+    --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
     from ..calibration import sweep_spacings
     from ..report.grid_study import grid_study_report
 
     g = split_numbers(spacings, None, "--spacings")
     fit, re, grids, ev, _ = _evaluate(
-        block, preset, spacing, sigma_constraint, seed, strips, images, overlap
+        block,
+        preset,
+        spacing,
+        sigma_constraint,
+        seed,
+        strips,
+        images,
+        overlap,
+        in_adjustment,
+        per,
+        sigma_temporal,
     )
-    sw = sweep_spacings(
-        fit, g, overlap=overlap, sigma_constraint=_sigma_c(sigma_constraint), folds=0
-    )
+    sc = _sigma_c(sigma_constraint)
+    sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
     res = {
-        "preset": preset or str(block),
+        "preset": (preset or str(block)) + (" (grids in the adjustment)" if in_adjustment else ""),
         "evaluation": ev,
         "fit": fit,
         "refit": re,

@@ -197,7 +197,7 @@ def grid_study_report(
     for res in results:
         ev = res["evaluation"]
         name = res.get("preset", "block")
-        pub = PUBLISHED.get(name, ("-", "-", "-"))
+        pub = PUBLISHED.get(str(name).split(" (")[0], ("-", "-", "-"))
         sw = res.get("sweep")
         summary.append(
             [
