@@ -437,10 +437,10 @@ class DelimitedText:
             if not block:
                 continue
             table = None
-            if b'"' not in block and _longest_line(block) <= MAX_FIELD_BYTES:
+            if b'"' not in block and _lines_at_most(block, MAX_FIELD_BYTES):
                 try:
                     table = pcsv.read_csv(
-                        io.BytesIO(block), read_options=read_opts, parse_options=parse_opts,
+                        pa.BufferReader(block), read_options=read_opts, parse_options=parse_opts,
                         convert_options=convert(fast_types),
                     )  # fmt: skip
                 except pa.ArrowInvalid:
@@ -448,7 +448,7 @@ class DelimitedText:
             if table is None:
                 try:
                     table = pcsv.read_csv(
-                        io.BytesIO(block), read_options=read_opts, parse_options=parse_opts,
+                        pa.BufferReader(block), read_options=read_opts, parse_options=parse_opts,
                         convert_options=convert(all_text),
                     )  # fmt: skip
                 except pa.ArrowInvalid:
@@ -559,14 +559,19 @@ def _indented(block: bytes) -> bool:
     return (b" " in block and b"\n " in block) or (b"\t" in block and b"\n\t" in block)
 
 
-def _longest_line(block: bytes) -> int:
-    """Length of the longest line of ``block`` (bytes, one vectorised pass)."""
-    if len(block) <= MAX_FIELD_BYTES:
-        return len(block)
-    ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == 10)
-    if ends.size == 0:
-        return len(block)
-    return int(max(ends[0] + 1, np.diff(ends).max() if ends.size > 1 else 0, len(block) - ends[-1]))
+def _lines_at_most(block: bytes, limit: int) -> bool:
+    """Whether every line of ``block`` (its end included) has at most ``limit`` bytes.
+
+    From a line start, the last line end within the next ``limit`` bytes closes every line
+    begun before it; one backward search per ``limit`` bytes of text.
+    """
+    pos, n = 0, len(block)
+    while n - pos > limit:
+        end = block.rfind(b"\n", pos, pos + limit)
+        if end < 0:
+            return False
+        pos = end + 1
+    return True
 
 
 def _trim(pc, col):
