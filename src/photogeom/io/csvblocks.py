@@ -34,6 +34,8 @@ from ..errors import FileFormatError
 
 #: Bytes of text parsed at a time.
 BLOCK_BYTES = 8 << 20
+#: Blocks at least this large are parsed by several threads.
+THREADED_BLOCK_BYTES = 4 << 20
 #: Longest field accepted (a point id or a number is a few dozen bytes).
 MAX_FIELD_BYTES = 128 * 1024
 #: Longest line accepted.
@@ -410,7 +412,11 @@ class DelimitedText:
         pa, pc, pcsv = _pa()
         row = 0
         delim = "\t" if self.delimiter == " " else self.delimiter
-        read_opts = pcsv.ReadOptions(column_names=list(self.header), use_threads=True)
+        # a block of a few MiB is parsed in pieces by threads; a small block (streamed jobs,
+        # whose writer formats in threads of its own) by one thread, which allocates less
+        read_opts = pcsv.ReadOptions(
+            column_names=list(self.header), use_threads=self.block_bytes >= THREADED_BLOCK_BYTES
+        )
         parse_opts = pcsv.ParseOptions(
             delimiter=delim,
             quote_char=False if self.delimiter == " " else '"',
