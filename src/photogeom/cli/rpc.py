@@ -37,7 +37,7 @@ from ._common import (
     split_names,
     write_outputs,
 )
-from ._stream import run_point_job
+from ._stream import run_point_job, single_threaded_blas
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
@@ -162,6 +162,7 @@ def project(
 
     Files of any size are read and written block by block (a progress bar on a terminal).
     """
+    single_threaded_blas()
     rpc = _load_rpc(rpc_file)
     blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
     if blocks.dim != 3:
@@ -242,6 +243,7 @@ def localize(
     diverged (empty lon/lat, 'nan': nothing is guessed). Files of any size are read and
     written block by block (a progress bar on a terminal).
     """
+    single_threaded_blas()
     from ..errors import ConvergenceError
     from ..rpc import LocalizationStatus
 

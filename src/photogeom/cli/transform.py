@@ -28,7 +28,7 @@ from ._common import (
     split_names,
     write_outputs,
 )
-from ._stream import busy, run_point_job
+from ._stream import busy, run_point_job, single_threaded_blas
 
 if TYPE_CHECKING:
     from ..io.points import PointPairs
@@ -342,6 +342,7 @@ def apply(
     The output CSV has the id, the transformed coordinates and the role column if the input
     has one; numbers are written losslessly.
     """
+    single_threaded_blas()
     from ..io import PointBlocks
 
     transform = load_transform(params)
