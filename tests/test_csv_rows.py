@@ -173,3 +173,18 @@ def test_line_length_gate(lengths, final_newline, limit):
     lines = block.split(b"\n")
     want = all(len(ln) + 1 <= limit for ln in lines[:-1]) and len(lines[-1]) <= limit
     assert _lines_at_most(block, limit) == want
+
+
+def test_arrays_reused_by_the_caller_do_not_change_rows_already_written(tmp_path, monkeypatch):
+    monkeypatch.setattr(csvrows, "worker_count", lambda: 2)
+    n = 2 * csvrows.SLICE_ROWS
+    buf, count = np.zeros((n, 2)), np.zeros(n, dtype=int)
+    target = tmp_path / "out.csv"
+    with PointWriter(target, ["x", "y"], extra=["k"]) as w:
+        for k in range(3):  # one buffer refilled for every chunk, as a reader might
+            buf[:] = k
+            count[:] = k
+            w.write([f"p{k}-{i}" for i in range(n)], buf, {"k": count})
+    rows = _rows_back(target.read_text())[1:]
+    assert [r[1:] for r in rows[::n]] == [[f"{k}.0", f"{k}.0", str(k)] for k in range(3)]
+    assert {r[0].split("-")[0][1:] == r[1][0] for r in rows} == {True}

@@ -104,13 +104,25 @@ def quoted(text):
 
 
 def _may_need_quotes(text) -> bool:
-    """Whether the bytes under ``text`` hold a character that needs quotes (a fast test on
-    the data buffer; a slice is tested with the whole buffer under it)."""
-    data = text.buffers()[2]
-    if data is None:
+    """Whether the bytes of ``text`` hold a character that needs quotes (a fast search of
+    the array's data, without a Python object per value)."""
+    _, offsets, data = text.buffers()[:3]
+    if data is None or len(text) == 0:
         return False
-    raw = data.to_pybytes()
+    start, stop = _byte_range(text, offsets)
+    raw = data.slice(start, stop - start).to_pybytes()
     return any(c in raw for c in _NEEDS_QUOTES)
+
+
+def _byte_range(text, offsets) -> tuple[int, int]:
+    """First and end byte, in its data buffer, of a (sliced) string array."""
+    import pyarrow as pa
+
+    dtype = np.dtype(np.int64 if pa.types.is_large_string(text.type) else np.int32)
+    ends = np.frombuffer(
+        offsets, dtype=dtype, count=len(text) + 1, offset=text.offset * dtype.itemsize
+    )
+    return int(ends[0]), int(ends[-1])
 
 
 def format_rows(texts: Sequence, numbers: np.ndarray, extras: Sequence, start: int, stop: int):
@@ -137,12 +149,9 @@ def format_rows(texts: Sequence, numbers: np.ndarray, extras: Sequence, start: i
         cols = [pc.cast(c, pa.large_string()) for c in cols]  # 32-bit offsets would overflow
     lines = pc.binary_join_element_wise(*cols, ",")
     lines = pc.binary_join_element_wise(lines, "\n", "")
-    width = 8 if pa.types.is_large_string(lines.type) else 4
-    offsets = np.frombuffer(
-        lines.buffers()[1], dtype=np.int64 if width == 8 else np.int32,
-        count=len(lines) + 1, offset=lines.offset * width,
-    )  # fmt: skip
-    return lines.buffers()[2].slice(int(offsets[0]), int(offsets[-1] - offsets[0]))
+    _, offsets, data = lines.buffers()[:3]
+    start, stop = _byte_range(lines, offsets)
+    return data.slice(start, stop - start)
 
 
 def _data_bytes(text) -> int:

@@ -971,7 +971,9 @@ class PointWriter:
 
         from .csvrows import text_column
 
-        coords = np.asarray(coords, dtype=float)
+        # a copy: rows may be formatted after this call returns, and the caller may reuse
+        # its arrays
+        coords = np.array(coords, dtype=float)
         if coords.ndim != 2 or coords.shape[1] != len(self.columns):
             raise InputError(
                 f"{len(self.columns)} column name(s) for coordinates of shape {coords.shape}"
@@ -996,7 +998,7 @@ class PointWriter:
             if len(v) != n:
                 raise InputError(f"column {name}: {len(v)} value(s) for {n} point(s)")
             if not isinstance(v, (pa.Array, pa.ChunkedArray)):
-                arr = np.asarray(v)
+                arr = np.array(v)  # a copy, as the coordinates
                 v = arr if arr.dtype.kind in "iuf" else text_column(v)
             extras.append(v)
         try:
