@@ -15,8 +15,8 @@ run, interleaved:
 
 The fixed cost of the command (start-up, imports, the fsync of the output) is shown by the
 same command on the first 1000 points of the file. The peak memory of the command and of the
-floor is printed against the size of the input file. Start-up: ``photogeom --help``, ``import photogeom`` and an 8-point ``transform
-estimate`` (wall and CPU time, medians).
+floor is printed against the size of the input file. Start-up: ``photogeom --help``,
+``import photogeom`` and an 8-point ``transform estimate`` (wall and CPU time, medians).
 
 Numbers depend on the machine and its load; compare the ratios.
 """

@@ -188,3 +188,15 @@ def test_arrays_reused_by_the_caller_do_not_change_rows_already_written(tmp_path
     rows = _rows_back(target.read_text())[1:]
     assert [r[1:] for r in rows[::n]] == [[f"{k}.0", f"{k}.0", str(k)] for k in range(3)]
     assert {r[0].split("-")[0][1:] == r[1][0] for r in rows} == {True}
+
+
+def test_missing_text_values_are_empty_fields_not_lost_rows():
+    import pyarrow as pa
+
+    text = format_points_csv(
+        pa.array(["a", None, "c"]),
+        np.zeros((3, 1)),
+        ["x"],
+        extra={"note": pa.array([None, "n,1", "z"])},
+    )
+    assert text.splitlines() == ["id,x,note", "a,0.0,", ',0.0,"n,1"', "c,0.0,z"]

@@ -90,8 +90,11 @@ def text_column(values):
 
 def quoted(text):
     """``text`` (pyarrow string array) with the fields holding a comma, a quote or a line
-    break enclosed in quotes, inner quotes doubled (the CSV rule)."""
+    break enclosed in quotes, inner quotes doubled (the CSV rule); a missing value (null) is
+    an empty field."""
     _, pc, _ = _pa()
+    if text.null_count:
+        text = pc.fill_null(text, "")
     if len(text) == 0 or not _may_need_quotes(text):
         return text
     need = pc.match_substring_regex(text, r'[,"\r\n]')
