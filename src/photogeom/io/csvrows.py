@@ -29,6 +29,9 @@ import numpy as np
 SLICE_ROWS = 1 << 14
 #: Chunks with fewer rows are formatted at once in the calling thread (no threads started).
 MIN_THREADED_ROWS = 1 << 12
+#: Most worker threads. Formatting a row costs about twice its parsing, which one thread
+#: does: more workers would wait for the reader and only hold memory.
+MAX_WORKERS = 4
 #: Characters that make a text field quoted.
 _NEEDS_QUOTES = (b",", b'"', b"\n", b"\r")
 
@@ -163,12 +166,13 @@ def _data_bytes(text) -> int:
 
 
 def worker_count() -> int:
-    """Worker threads for formatting: the CPUs this process may run on (at most 8)."""
+    """Worker threads for formatting: the CPUs this process may run on, at most
+    :data:`MAX_WORKERS`."""
     try:
         n = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):  # pragma: no cover - platforms without affinity
         n = os.cpu_count() or 1
-    return max(1, min(n, 8))
+    return max(1, min(n, MAX_WORKERS))
 
 
 class OrderedRows:
