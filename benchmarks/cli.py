@@ -5,9 +5,17 @@ Usage::
     python benchmarks/cli.py [--n 1000000] [--repeat 3]
 
 For each job the script times the ``photogeom`` command on a CSV of ``n`` points (a fresh
-process: start-up, reading, computing, writing) and the same computation through the Python
-API on arrays already in memory, in the same run, and prints the ratio; the peak memory of
-the command is printed against the size of its input file. Start-up: ``photogeom --help``,
+process: start-up, reading, computing, writing) against two references measured in the same
+run, interleaved:
+
+* the same computation through the Python API on arrays already in memory;
+* the floor of any command on that file: a fresh Python process in which pyarrow reads the
+  input CSV (``pyarrow.csv.read_csv``, all threads) and writes it back
+  (``pyarrow.csv.write_csv``, which formats the floats), with no computation and no checks.
+
+The fixed cost of the command (start-up, imports, the fsync of the output) is shown by the
+same command on the first 1000 points of the file. The peak memory of the command and of the
+floor is printed against the size of the input file. Start-up: ``photogeom --help``,
 ``import photogeom`` and an 8-point ``transform estimate`` (wall and CPU time, medians).
 
 Numbers depend on the machine and its load; compare the ratios.
@@ -56,6 +64,10 @@ def run(cmd: list[str]) -> tuple[float, float, float]:
     if int(code) != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {out.stderr}")
     return float(wall), float(cpu), float(peak)
+
+
+#: The floor: pyarrow reads the input file and writes it back, nothing else.
+FLOOR = "import sys, pyarrow.csv as c\nc.write_csv(c.read_csv(sys.argv[1]), sys.argv[2])\n"
 
 
 def best_of(f, repeat: int) -> float:
@@ -115,21 +127,36 @@ def main() -> None:
                 xyz_csv,
             ),
         ]
-        print(f"n = {n:,} points; command (fresh process) vs the API on arrays; "
-              f"minimum of {args.repeat}, interleaved")  # fmt: skip
-        print(f"{'job':<16} {'command':>9} {'API':>8} {'ratio':>6} {'peak MiB':>9} "
-              f"{'file MiB':>9} {'mem/file':>8}")  # fmt: skip
+        print(f"n = {n:,} points; command (fresh process) vs the API on arrays and vs the "
+              f"floor (pyarrow read + write, fresh process); minimum of {args.repeat}, "
+              "interleaved")  # fmt: skip
+        print("'1e3 pts': the same command on the first 1000 points (start-up, imports, fsync)")
+        print(f"{'job':<16} {'command':>8} {'1e3 pts':>7} {'API':>7} {'floor':>7} {'/API':>6} "
+              f"{'/floor':>6} {'peak MiB':>8} {'floor MiB':>9} {'file MiB':>8} "
+              f"{'mem/file':>8}")  # fmt: skip
+        floor_out = d / "floor.csv"
+        print(f"load average at start: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
         for name, cmd, api, src in jobs:
-            cli_runs, api_times = [], []
-            for _ in range(args.repeat):  # interleaved: the machine's drift hits both alike
+            small = d / f"small-{src.name}"
+            with open(src) as fh:
+                small.write_text("".join(line for _, line in zip(range(1001), fh)))
+            small_cmd = [str(small) if c == str(src) else c for c in cmd]
+            cli_runs, small_runs, api_times, floor_runs = [], [], [], []
+            for _ in range(args.repeat):  # interleaved: the machine's drift hits all alike
                 cli_runs.append(run(cmd))
+                small_runs.append(run(small_cmd))
                 api_times.append(best_of(api, 1))
+                floor_runs.append(run([PY, "-c", FLOOR, str(src), str(floor_out)]))
             wall = min(r[0] for r in cli_runs)
             peak = max(r[2] for r in cli_runs)
+            t_small = min(r[0] for r in small_runs)
             t_api = min(api_times)
+            t_floor = min(r[0] for r in floor_runs)
+            floor_peak = max(r[2] for r in floor_runs)
             size = src.stat().st_size / 2**20
-            print(f"{name:<16} {wall:8.2f}s {t_api:7.2f}s {wall / t_api:6.2f} {peak:9.0f} "
-                  f"{size:9.0f} {peak / size:8.2f}")  # fmt: skip
+            print(f"{name:<16} {wall:7.2f}s {t_small:6.2f}s {t_api:6.3f}s {t_floor:6.2f}s "
+                  f"{wall / t_api:6.1f} {wall / t_floor:6.2f} {peak:8.0f} {floor_peak:9.0f} "
+                  f"{size:8.0f} {peak / size:8.2f}")  # fmt: skip
 
         # reading and writing alone: the block reader against Python's csv module
         import csv

@@ -37,7 +37,7 @@ from ._common import (
     split_names,
     write_outputs,
 )
-from ._stream import run_point_job
+from ._stream import run_point_job, single_threaded_blas
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
@@ -177,6 +177,7 @@ def project(
     """
     from ._common import crs_from_comments, leading_comments
 
+    single_threaded_blas()
     rpc = _load_rpc(rpc_file)
     if crs is None:
         crs = crs_from_comments(leading_comments(points))
@@ -279,6 +280,7 @@ def localize(
     diverged (empty lon/lat, 'nan': nothing is guessed). Files of any size are read and
     written block by block (a progress bar on a terminal).
     """
+    single_threaded_blas()
     from ..errors import ConvergenceError
     from ..rpc import LocalizationStatus
 

@@ -33,7 +33,7 @@ from ._common import (
     split_names,
     write_outputs,
 )
-from ._stream import busy, run_point_job
+from ._stream import busy, run_point_job, single_threaded_blas
 
 if TYPE_CHECKING:
     from ..io.points import PointPairs
@@ -424,6 +424,7 @@ def apply(
     has one; numbers are written losslessly. The CRS of the output is recorded in a
     '# crs: ...' line; a '# crs:' line of POINTS must name the input side of the parameters.
     """
+    single_threaded_blas()
     from ..io import PointBlocks
 
     transform, to_crs, from_crs = load_transform_record(params)

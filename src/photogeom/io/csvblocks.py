@@ -34,6 +34,8 @@ from ..errors import FileFormatError
 
 #: Bytes of text parsed at a time.
 BLOCK_BYTES = 8 << 20
+#: Blocks at least this large are parsed by several threads.
+THREADED_BLOCK_BYTES = 4 << 20
 #: Longest field accepted (a point id or a number is a few dozen bytes).
 MAX_FIELD_BYTES = 128 * 1024
 #: Longest line accepted.
@@ -410,7 +412,11 @@ class DelimitedText:
         pa, pc, pcsv = _pa()
         row = 0
         delim = "\t" if self.delimiter == " " else self.delimiter
-        read_opts = pcsv.ReadOptions(column_names=list(self.header), use_threads=True)
+        # a block of a few MiB is parsed in pieces by threads; a small block (streamed jobs,
+        # whose writer formats in threads of its own) by one thread, which allocates less
+        read_opts = pcsv.ReadOptions(
+            column_names=list(self.header), use_threads=self.block_bytes >= THREADED_BLOCK_BYTES
+        )
         parse_opts = pcsv.ParseOptions(
             delimiter=delim,
             quote_char=False if self.delimiter == " " else '"',
@@ -437,10 +443,10 @@ class DelimitedText:
             if not block:
                 continue
             table = None
-            if b'"' not in block and _longest_line(block) <= MAX_FIELD_BYTES:
+            if b'"' not in block and _lines_at_most(block, MAX_FIELD_BYTES):
                 try:
                     table = pcsv.read_csv(
-                        io.BytesIO(block), read_options=read_opts, parse_options=parse_opts,
+                        pa.BufferReader(block), read_options=read_opts, parse_options=parse_opts,
                         convert_options=convert(fast_types),
                     )  # fmt: skip
                 except pa.ArrowInvalid:
@@ -448,7 +454,7 @@ class DelimitedText:
             if table is None:
                 try:
                     table = pcsv.read_csv(
-                        io.BytesIO(block), read_options=read_opts, parse_options=parse_opts,
+                        pa.BufferReader(block), read_options=read_opts, parse_options=parse_opts,
                         convert_options=convert(all_text),
                     )  # fmt: skip
                 except pa.ArrowInvalid:
@@ -559,14 +565,19 @@ def _indented(block: bytes) -> bool:
     return (b" " in block and b"\n " in block) or (b"\t" in block and b"\n\t" in block)
 
 
-def _longest_line(block: bytes) -> int:
-    """Length of the longest line of ``block`` (bytes, one vectorised pass)."""
-    if len(block) <= MAX_FIELD_BYTES:
-        return len(block)
-    ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == 10)
-    if ends.size == 0:
-        return len(block)
-    return int(max(ends[0] + 1, np.diff(ends).max() if ends.size > 1 else 0, len(block) - ends[-1]))
+def _lines_at_most(block: bytes, limit: int) -> bool:
+    """Whether every line of ``block`` (its end included) has at most ``limit`` bytes.
+
+    From a line start, the last line end within the next ``limit`` bytes closes every line
+    begun before it; one backward search per ``limit`` bytes of text.
+    """
+    pos, n = 0, len(block)
+    while n - pos > limit:
+        end = block.rfind(b"\n", pos, pos + limit)
+        if end < 0:
+            return False
+        pos = end + 1
+    return True
 
 
 def _trim(pc, col):

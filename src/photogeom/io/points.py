@@ -571,7 +571,7 @@ class PointBlocks:
         *,
         id_column: str | None = None,
         role_column: str | None = ROLE_COLUMN,
-        block_bytes: int = 4 << 20,
+        block_bytes: int = 1 << 20,
     ) -> None:
         self._raw = _Source(Path(path))
         self._raw.text.block_bytes = int(block_bytes)
@@ -836,10 +836,11 @@ class PointWriter:
 
     Numbers are written with the shortest representation that reads back to the same
     float64 (a lossless round trip); ids are written as text, quoted only when they hold a
-    delimiter or a quote. A file is written atomically: rows go to a temporary file beside
-    it, renamed over ``path`` when the ``with`` block ends without an error (and removed when
-    it ends with one), so a failed job never leaves a half-written file. Memory use is that
-    of one chunk.
+    comma, a quote or a line break. A file is written atomically: rows go to a temporary
+    file beside it, renamed over ``path`` when the ``with`` block ends without an error (and
+    removed when it ends with one), so a failed job never leaves a half-written file. Large
+    chunks are formatted by pyarrow in worker threads (see :mod:`photogeom.io.csvrows`)
+    while the caller prepares the next chunk; memory use is that of a few chunks.
 
     Parameters
     ----------
@@ -877,6 +878,7 @@ class PointWriter:
         self._stream = stream
         self._fh = None
         self._tmp: str | None = None
+        self._rows = None
         self.n_written = 0
 
     def __enter__(self) -> PointWriter:
@@ -890,6 +892,9 @@ class PointWriter:
                 self._fh = getattr(sys.stdout, "buffer", None) or _TextSink(sys.stdout)
         else:
             self._open_temporary()
+        from .csvrows import OrderedRows
+
+        self._rows = OrderedRows(self._put)
         try:
             self._fh.write(self._head().encode("utf-8"))
         except OSError as exc:
@@ -958,12 +963,18 @@ class PointWriter:
 
     def write(self, ids, coords: np.ndarray, extra: dict | None = None) -> None:
         """Write rows: ``ids`` (sequence of str or a pyarrow string array), ``coords`` of shape
-        (n, len(columns)), ``extra`` a mapping of the extra column names to sequences."""
-        import pyarrow as pa
-        import pyarrow.compute as pc
-        import pyarrow.csv as pcsv
+        (n, len(columns)), ``extra`` a mapping of the extra column names to sequences.
 
-        coords = np.asarray(coords, dtype=float)
+        Large chunks are formatted in worker threads while the caller prepares the next
+        one; their bytes reach the file in row order (all of them when the ``with`` block
+        ends)."""
+        import pyarrow as pa
+
+        from .csvrows import text_column
+
+        # a copy: rows may be formatted after this call returns, and the caller may reuse
+        # its arrays
+        coords = np.array(coords, dtype=float)
         if coords.ndim != 2 or coords.shape[1] != len(self.columns):
             raise InputError(
                 f"{len(self.columns)} column name(s) for coordinates of shape {coords.shape}"
@@ -976,49 +987,48 @@ class PointWriter:
             raise InputError(
                 f"extra columns {', '.join(extra)} given, {', '.join(self.extra)} declared"
             )
-        arrays = {"id": ids if isinstance(ids, pa.Array) else pa.array(_texts(ids), pa.string())}
-        for j in range(coords.shape[1]):
-            arrays[f"c{j}"] = _float_text(pa, pc, coords[:, j])
-        for j, name in enumerate(self.extra):
+        if isinstance(ids, pa.ChunkedArray):
+            ids = ids.combine_chunks()
+        if not isinstance(ids, pa.Array):
+            ids = pa.array(_texts(ids), pa.string())
+        elif not pa.types.is_string(ids.type):
+            ids = text_column(ids)
+        extras = []
+        for name in self.extra:
             v = extra[name]
             if len(v) != n:
                 raise InputError(f"column {name}: {len(v)} value(s) for {n} point(s)")
-            arrays[f"e{j}"] = _text_column(pa, pc, v)
-        table = pa.table(arrays)
-        texts = [table.column(0)] + [table.column(f"e{j}") for j in range(len(self.extra))]
-        plain = not any(pc.any(pc.match_substring_regex(col, r'[,"\r\n]')).as_py() for col in texts)
+            if not isinstance(v, (pa.Array, pa.ChunkedArray)):
+                arr = np.array(v)  # a copy, as the coordinates
+                v = arr if arr.dtype.kind in "iuf" else text_column(v)
+            extras.append(v)
         try:
-            if plain:
-                pcsv.write_csv(
-                    table,
-                    self._fh,
-                    write_options=pcsv.WriteOptions(include_header=False, quoting_style="none"),
-                )
-            else:  # ids with delimiters or quotes: quote only those fields
-                import csv
-                import io
-
-                buf = io.StringIO()
-                csv.writer(buf, lineterminator="\n").writerows(
-                    zip(*(col.to_pylist() for col in table.columns))
-                )
-                self._fh.write(buf.getvalue().encode("utf-8"))
+            self._rows.add([ids], coords, extras)
         except OSError as exc:
             if self.path is None:
                 raise
             raise self._failure(exc) from exc
         self.n_written += n
 
+    def _put(self, data) -> None:
+        self._fh.write(data)
+
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is not None:
             self._abort()
             return
         if self.path is None:
+            try:
+                self._rows.close()
+            except BaseException:
+                self._rows.close(discard=True)
+                raise
             self._fh.flush()
             return
         from ..atomicfile import _fsync_directory
 
         try:
+            self._rows.close()
             self._fh.flush()
             os.fsync(self._fh.fileno())
             self._fh.close()
@@ -1033,6 +1043,8 @@ class PointWriter:
             raise
 
     def _abort(self) -> None:
+        if self._rows is not None:
+            self._rows.close(discard=True)
         if self.path is None or self._tmp is None:
             return
         try:
@@ -1053,7 +1065,7 @@ class _TextSink:
         self.stream = stream
 
     def write(self, data: bytes) -> None:
-        self.stream.write(data.decode("utf-8"))
+        self.stream.write(bytes(data).decode("utf-8"))
 
     def flush(self) -> None:
         self.stream.flush()
@@ -1061,39 +1073,6 @@ class _TextSink:
 
 def _texts(values) -> list[str]:
     return [str(v) for v in values]
-
-
-def _float_text(pa, pc, values: np.ndarray):
-    """Shortest round-trip text of float64 values; integral values keep a ``.0``."""
-    values = np.asarray(values, dtype=np.float64)
-    text = pc.cast(pa.array(values), pa.string())
-    with np.errstate(invalid="ignore"):
-        maybe = np.flatnonzero(np.floor(values) == values)  # integral: "3" -> "3.0"
-    if maybe.size:
-        sub = pc.take(text, pa.array(maybe))
-        whole = pc.match_substring_regex(sub, r"^-?[0-9]+$").to_numpy(zero_copy_only=False)
-        if whole.any():
-            mask = np.zeros(values.shape[0], dtype=bool)
-            mask[maybe[whole]] = True
-            text = pc.if_else(pa.array(mask), pc.binary_join_element_wise(text, ".0", ""), text)
-    return text
-
-
-def _text_column(pa, pc, values):
-    if isinstance(values, pa.Array):
-        return values if pa.types.is_string(values.type) else pc.cast(values, pa.string())
-    arr = np.asarray(values)
-    if arr.dtype.kind in "iu":  # counts stay integers
-        return pc.cast(pa.array(arr.astype(np.int64)), pa.string())
-    if arr.dtype.kind == "f":
-        return _float_text(pa, pc, arr)
-    if (
-        arr.dtype == object
-        and len(arr)
-        and all(isinstance(v, (float, np.floating)) for v in values)
-    ):
-        return _float_text(pa, pc, arr.astype(float))
-    return pa.array(_texts(values), pa.string())
 
 
 def format_points_csv(

@@ -12,15 +12,37 @@ projection), :mod:`.polynomial` (the 20 cubic terms), :mod:`.readers`, :mod:`.wr
 :mod:`.bias` (bias compensation), :mod:`.stereo` (intersection), :mod:`.domain` (warnings).
 """
 
-from .bias import MODELS as BIAS_MODELS
-from .bias import refine_rpc
 from .domain import DOMAIN_LIMIT, LocalizationWarning, RPCExtrapolationWarning
-from .fitting import fit_rpc, fit_rpc_to_points
 from .localization import LocalizationResult, LocalizationStatus, approximate_inverse
 from .model import RPC, DirectModel
 from .readers import read_rpc
 from .stereo import RPCIntersection, intersect_rpc
 from .writer import format_rpc, write_rpc
+
+#: Names imported on first use: fitting and bias compensation need the adjustment engine
+#: (scipy), projecting and localising do not.
+_DEFERRED = {
+    "BIAS_MODELS": (".bias", "MODELS"),
+    "refine_rpc": (".bias", "refine_rpc"),
+    "fit_rpc": (".fitting", "fit_rpc"),
+    "fit_rpc_to_points": (".fitting", "fit_rpc_to_points"),
+}
+
+
+def __getattr__(name: str):
+    if name in _DEFERRED:
+        import importlib
+
+        module, attr = _DEFERRED[name]
+        value = getattr(importlib.import_module(module, __name__), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_DEFERRED))
+
 
 __all__ = [
     "BIAS_MODELS",

@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import InputError
 from ..rotation import DEFAULT_CONVENTION, Convention, angles_from_rotation, rotation_from_angles
@@ -135,6 +134,8 @@ class Affine3D(MatrixShift3D, Transform):
         A = self.linear
         if abs(self.det) <= 1e-14 * max(np.max(np.abs(A)) ** 3, 1e-300):
             raise InputError("Affine3D: the linear part is singular; it has no decomposition")
+        import scipy.linalg  # imported here: applying a transformation needs no scipy
+
         K, Q = scipy.linalg.rq(A)
         D = np.sign(np.diag(K))  # make the triangular diagonal positive: A = (K D) (D Q)
         K, Q = K * D, D[:, None] * Q

@@ -28,7 +28,6 @@ from functools import lru_cache
 from typing import ClassVar, NamedTuple
 
 import numpy as np
-import scipy.special
 
 from ..errors import ConvergenceError, InputError
 from ._common import Parametric, frozen, vector
@@ -89,6 +88,8 @@ def _names(exponents: np.ndarray, dim: int) -> tuple[str, ...]:
 
 def _rereduction(exponents: np.ndarray, alpha: float, beta: np.ndarray) -> np.ndarray:
     """Matrix T with ``coef_new = coef_old @ T`` when ``u_old = alpha u_new + beta``."""
+    import scipy.special  # imported here: applying a transformation needs no scipy
+
     E = exponents[:, None, :]
     K = exponents[None, :, :]
     valid = np.all(K <= E, axis=2)
