@@ -1161,7 +1161,7 @@ def closed_form_single(
 #: the centroids, then everything else), without n-row temporaries.
 CLOSED_FORM_CHUNKED_N = 65536
 #: Points per chunk of the chunked closed form.
-CLOSED_FORM_CHUNK = 16384
+CLOSED_FORM_CHUNK = 8192
 
 
 @dataclass
@@ -1191,14 +1191,6 @@ def _chunks(n: int):
         yield i, min(i + CLOSED_FORM_CHUNK, n)
 
 
-def column_sums(p: np.ndarray) -> np.ndarray:
-    """Sums of the columns of ``p`` (n, 3): 16 points per row of a 48-column sum (a
-    reduction over the first axis of an (n, 3) array is several times slower)."""
-    m = (p.shape[0] // 16) * 16
-    out = p[:m].reshape(-1, 48).sum(axis=0).reshape(16, 3).sum(axis=0)
-    return out + p[m:].sum(axis=0) if m < p.shape[0] else out
-
-
 def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
     """Rows ``a:b`` of ``p`` (n, 3) minus a centre given tiled (``np.tile(centre, chunk)``),
     and their squared norms: flat arithmetic (numpy's (n, 3) broadcasts with an inner length
@@ -1209,26 +1201,46 @@ def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
     return r, sq[:, 0] + sq[:, 1] + sq[:, 2]
 
 
-def _unit_rows(r: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """``r / d[:, None]`` by a flat product with the repeated reciprocals."""
-    return (r.reshape(-1) * np.repeat(1.0 / d, 3)).reshape(-1, 3)
+def chunked_centroid(p: np.ndarray) -> np.ndarray:
+    """Centroid of ``p`` (n, 3) in one chunked pass: four points per row of a 12-column view,
+    summed by a matrix-vector product. For points far from the origin compared with their
+    spread (e.g. UTM coordinates) the sums are taken about the mean of the first chunk
+    (:func:`_reference`), so that no digits are lost to the offset."""
+    n = p.shape[0]
+    n4 = n - n % 4
+    ref = _reference(p)
+    ones = np.ones(CLOSED_FORM_CHUNK // 4)
+    r12 = None if ref is None else np.tile(ref, 4)
+    buf = None if ref is None else np.empty((CLOSED_FORM_CHUNK // 4, 12))
+    s = np.zeros(12)
+    for a in range(0, n4, CLOSED_FORM_CHUNK):
+        A = p[a : min(a + CLOSED_FORM_CHUNK, n4)].reshape(-1, 12)
+        if r12 is not None:
+            A = np.subtract(A, r12, out=buf[: A.shape[0]])
+        s += ones[: A.shape[0]] @ A
+    total = s.reshape(4, 3).sum(axis=0)
+    if n4 < n:
+        total = total + (p[n4:] if ref is None else p[n4:] - ref).sum(axis=0)
+    mean = total / n
+    return mean if ref is None else ref + mean
 
 
 def closed_form_sums(
     x: np.ndarray, X: np.ndarray, coplanar_threshold: float = COPLANAR_THRESHOLD
 ) -> ClosedFormSums | None:
-    """The sums of the closed form in chunks: the centroids (one pass), then the centroid
+    """The sums of the closed form in chunks: the centroids (first pass), then the centroid
     distances, length ratios, ``M M.T``, ``N M.T``, both scatter matrices (coplanarity) and
-    the unit vector closest to perpendicular to the first usable one (a second pass).
+    the unit vector closest to perpendicular to the first usable one (second pass).
 
-    The second pass takes every point off the centroid; only if some point then lies within
-    :data:`CENTROID_TOLERANCE` of the largest centroid distance (known at the end of the pass)
-    a third pass repeats it with the exact thresholds. The same arithmetic as
-    :func:`closed_form_single` for n > 64 (its O(n) pair search).
+    Two passes are the least: every unit vector ``(X_i - Xg) / |X_i - Xg|`` depends on the
+    centroid through its norm, so no sums of powers of the raw coordinates give ``M M.T``,
+    ``N M.T`` or the length ratios. The second pass takes every point off the centroid; only
+    if some point then lies within :data:`CENTROID_TOLERANCE` of the largest centroid distance
+    (known at the end of the pass) a third pass repeats it with the exact thresholds. The same
+    estimate as :func:`closed_form_single` for n > 64 (its O(n) pair search) to rounding.
     """
-    n = x.shape[0]
-    xg = column_sums(x) / n
-    Xg = column_sums(X) / n
+    xg = chunked_centroid(x)
+    Xg = chunked_centroid(X)
     res = _closed_form_pass(x, X, xg, Xg, 0.0, 0.0)
     if res is None:
         return None
@@ -1240,64 +1252,91 @@ def closed_form_sums(
     return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold)
 
 
-def _closed_form_pass(x, X, xg, Xg, tx, tX):
-    n = x.shape[0]
-    xt = np.tile(xg, CLOSED_FORM_CHUNK)
-    Xt = np.tile(Xg, CLOSED_FORM_CHUNK)
-    # the first usable point: reference of the perpendicular-pair search
-    first = None
-    for a, b in _chunks(n):
-        xr, dx2 = centred_chunk(x, a, b, xt)
-        Xr, dX2 = centred_chunk(X, a, b, Xt)
-        dx, dX = np.sqrt(dx2), np.sqrt(dX2)
+def _first_usable(x, X, xg, Xg, tx, tX):
+    """Index and unit vectors (source, target) of the first point off both centroids."""
+    for a, b in _chunks(x.shape[0]):
+        xr, Xr = x[a:b] - xg, X[a:b] - Xg
+        dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
+        dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
         ok = np.flatnonzero((dx > tx) & (dX > tX))
         if ok.size:
             i = int(ok[0])
-            first = (a + i, xr[i] / dx[i], Xr[i] / dX[i])
-            break
+            return a + i, xr[i] / dx[i], Xr[i] / dX[i]
+    return None
+
+
+def _closed_form_pass(x, X, xg, Xg, tx, tX):
+    """One pass over the centred points in chunks. Each chunk's coordinates go to the rows of
+    a (12, chunk) buffer (``x'``, ``X'``, ``X' / |X'|^2``, ``x' / (|x'| |X'|)``); one matrix
+    product of the buffer with its first six rows gives both scatter matrices, ``M M.T`` and
+    ``N M.T`` of the chunk; per point only the two squared distances, one square root and
+    two reciprocals."""
+    n = x.shape[0]
+    first = _first_usable(x, X, xg, Xg, tx, tX)
     if first is None:
         return None
     l_idx, xb_l, Xb_l = first
-    MMt = np.zeros((3, 3))
-    NMt = np.zeros((3, 3))
-    Sx = np.zeros((3, 3))
-    SX = np.zeros((3, 3))
+    C = CLOSED_FORM_CHUNK
+    buf = np.empty((12, C))
+    sq = np.empty((3, C))
+    d = np.empty((4, C))
+    G = np.zeros((12, 6))
+    xgc, Xgc = xg[:, None], Xg[:, None]
     ratio_sum = 0.0
     nu = 0
-    best = (math.inf, -1, None, None)
+    best = (math.inf, -1)
     dx_max = dX_max = 0.0
     dx_min = dX_min = math.inf
     for a, b in _chunks(n):
-        xr, dx2 = centred_chunk(x, a, b, xt)
-        Xr, dX2 = centred_chunk(X, a, b, Xt)
-        Sx += xr.T @ xr
-        SX += Xr.T @ Xr
-        dx, dX = np.sqrt(dx2), np.sqrt(dX2)
-        dx_max, dX_max = max(dx_max, float(dx.max())), max(dX_max, float(dX.max()))
-        use = (dx > tx) & (dX > tX)
-        if not use.all():
-            xr, Xr, dx, dX = xr[use], Xr[use], dx[use], dX[use]
-            idx = np.flatnonzero(use) + a
-        else:
-            idx = None
-        if dx.size == 0:
-            continue
-        dx_min, dX_min = min(dx_min, float(dx.min())), min(dX_min, float(dX.min()))
-        nu += dx.size
-        ratio_sum += float(np.add.reduce(dX / dx))
-        xb = _unit_rows(xr, dx)
-        Xb = _unit_rows(Xr, dX)
-        MMt += Xb.T @ Xb
-        NMt += xb.T @ Xb
-        dots = np.abs(xb @ xb_l)
+        m = b - a
+        np.subtract(x[a:b].T, xgc, out=buf[0:3, :m])
+        np.subtract(X[a:b].T, Xgc, out=buf[3:6, :m])
+        for k, row in ((0, 0), (3, 1)):  # squared centroid distances
+            s2 = np.multiply(buf[k : k + 3, :m], buf[k : k + 3, :m], out=sq[:, :m])
+            np.add(s2[0], s2[1], out=d[row, :m])
+            d[row, :m] += s2[2]
+        # sqrt is monotone: the extreme distances are the roots of the extreme squares
+        dx_max = max(dx_max, math.sqrt(float(d[0, :m].max())))
+        dX_max = max(dX_max, math.sqrt(float(d[1, :m].max())))
+        lo_x, lo_X = math.sqrt(float(d[0, :m].min())), math.sqrt(float(d[1, :m].min()))
+        gidx = None  # global indices of the columns when some points are left out
+        if not (lo_x > tx and lo_X > tX):  # points at the centroid: keep the usable ones
+            keep = np.flatnonzero((np.sqrt(d[0, :m]) > tx) & (np.sqrt(d[1, :m]) > tX))
+            m = keep.size
+            if m == 0:
+                continue
+            buf[:6, :m] = buf[:6, keep]
+            d[:2, :m] = d[:2, keep]
+            gidx = keep + a
+            lo_x, lo_X = math.sqrt(float(d[0, :m].min())), math.sqrt(float(d[1, :m].min()))
+        dx_min, dX_min = min(dx_min, lo_x), min(dX_min, lo_X)
+        nu += m
+        dx2, dX2, v, w = d[0, :m], d[1, :m], d[2, :m], d[3, :m]
+        np.multiply(dx2, dX2, out=v)
+        np.sqrt(v, out=v)
+        np.divide(1.0, v, out=v)  # 1 / (|x'| |X'|)
+        ratio_sum += float(dX2 @ v)  # sum of |X'| / |x'|
+        np.divide(1.0, dX2, out=w)
+        np.multiply(buf[3:6, :m], w, out=buf[6:9, :m])
+        np.multiply(buf[0:3, :m], v, out=buf[9:12, :m])
+        G += buf[:, :m] @ buf[:6, :m].T
+        # the direction closest to perpendicular to the first usable one: min (xb_l.x')^2/|x'|^2
+        p = xb_l @ buf[0:3, :m]
+        np.multiply(p, p, out=p)
+        np.divide(p, dx2, out=p)
         if a <= l_idx < b:
-            dots[(l_idx - a) if idx is None else (idx == l_idx)] = np.inf
-        j = int(np.argmin(dots))
-        if dots[j] < best[0]:
-            gj = a + j if idx is None else int(idx[j])
-            best = (float(dots[j]), gj, xb[j].copy(), Xb[j].copy())
-    sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=MMt, NMt=NMt, Sx=Sx, SX=SX,
-                pair=(l_idx, xb_l, Xb_l, best[1], best[2], best[3]))
+            p[(l_idx - a) if gidx is None else (gidx == l_idx)] = np.inf
+        j = int(np.argmin(p))
+        if p[j] < best[0]:
+            best = (float(p[j]), a + j if gidx is None else int(gidx[j]))
+    k_idx = best[1]
+    xb_k = Xb_k = None
+    if k_idx >= 0:
+        xr, Xr = x[k_idx] - xg, X[k_idx] - Xg
+        xb_k, Xb_k = xr / math.sqrt(float(xr @ xr)), Xr / math.sqrt(float(Xr @ Xr))
+    sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=G[6:9, 3:6].copy(),
+                NMt=G[9:12, 3:6].copy(), Sx=G[0:3, 0:3].copy(), SX=G[3:6, 3:6].copy(),
+                pair=(l_idx, xb_l, Xb_l, k_idx, xb_k, Xb_k))
     return sums, (dx_max, dX_max, dx_min, dX_min)
 
 

@@ -381,6 +381,108 @@ def residual_statistics(
     return LinearisedStatistics(Q, vtpv, red, wn, None), v
 
 
+def gauss_helmert_statistics(
+    x: np.ndarray,
+    X: np.ndarray,
+    *,
+    scale: float,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+    angles: tuple[float, float, float],
+    source_centroid: np.ndarray,
+    target_centroid: np.ndarray,
+    sigma_source: float,
+    sigma_target: float,
+    sigma0_prior: float = 1.0,
+    with_scale: bool = True,
+) -> tuple[LinearisedStatistics, np.ndarray, dict]:
+    """Statistics of the direct Gauss-Helmert solution (one sigma per system), in chunks.
+
+    Misclosures ``g = s R x + t - X``; corrections ``e_x = -sx^2 s R.T g / mm`` and
+    ``e_X = sX^2 g / mm`` (``mm = s^2 sx^2 + sX^2``); the cofactor from the linearised model
+    at the corrected source points (weights ``sigma0_prior^2 / mm``); redundancy numbers and
+    normalised residuals of both systems' corrections from the per-point blocks
+    ``(A Qxx A.T)_i`` in units of the misclosure cofactor ``mm / sigma0_prior^2``.
+
+    Two passes over the points in chunks of :data:`CHUNK_POINTS` (the corrections and the
+    scatter of the corrected source, then the per-point statistics), writing straight into
+    the returned arrays: no (n, 3, 3) blocks and no full-size temporaries. Returns the
+    statistics (``redundancy_numbers`` of the target), the target corrections and the extras
+    ``corrected_source``, ``corrected_target``, ``source_residuals``,
+    ``source_redundancy_numbers``, ``source_normalized_residuals`` and ``misclosures``.
+    """
+    s = float(scale)
+    R = np.asarray(rotation, dtype=float)
+    xg = np.asarray(source_centroid, dtype=float)
+    Xg = np.asarray(target_centroid, dtype=float)
+    sx, sX = float(sigma_source), float(sigma_target)
+    n = x.shape[0]
+    mm = s * s * sx * sx + sX * sX
+    s02 = sigma0_prior**2
+    wgt = s02 / mm  # weight of every misclosure component
+    cx = -(sx * sx * s / mm)
+    cX = sX * sX / mm
+    c = s * (R @ xg) + translation - Xg
+    g = np.empty((n, 3))
+    vx = np.empty((n, 3))
+    vX = np.empty((n, 3))
+    corr_s = np.empty((n, 3))
+    corr_t = np.empty((n, 3))
+    S = np.zeros((3, 3))
+    vtpv = 0.0
+    xr = np.empty((min(CHUNK_POINTS, n), 3))
+    for i in range(0, n, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n)
+        xc = np.subtract(x[i:j], xg, out=xr[: j - i])
+        gc = g[i:j]
+        np.matmul(xc, R.T, out=gc)
+        gc *= s
+        gc -= X[i:j] - Xg
+        gc += c
+        np.multiply(gc @ R, cx, out=vx[i:j])
+        np.multiply(gc, cX, out=vX[i:j])
+        np.add(x[i:j], vx[i:j], out=corr_s[i:j])
+        np.add(X[i:j], vX[i:j], out=corr_t[i:j])
+        xc += vx[i:j]  # the corrected source about the centroid (its centroid is unchanged)
+        S += (xc * wgt).T @ xc
+        vtpv += float(np.vdot(gc, gc)) * wgt
+    Q, pm = _cofactor(S, n * wgt, scale=s, angles=angles, source_centroid=xg,
+                      with_scale=with_scale)
+    qg = mm / s02
+    ft = sX * sX / (mm * qg)
+    fs = s * s * sx * sx / (mm * qg)
+    red_t = np.empty((n, 3))
+    wn_t = np.empty((n, 3))
+    red_s = np.empty((n, 3))
+    wn_s = np.full((n, 3), np.nan)
+    m0 = min(CHUNK_POINTS, n)
+    C = np.empty((m0, 3, 3))
+    red = np.empty((m0, 3))
+    w_c = np.full(m0, wgt)
+    for i in range(0, n, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n)
+        m = j - i
+        xc = np.subtract(x[i:j], xg, out=xr[:m])
+        xc += vx[i:j]
+        _point_pass(pm, xc @ pm.MT, g[i:j], w_c[:m], sigma0_prior, red[:m], wn_t[i:j], C[:m])
+        np.subtract(qg, np.diagonal(C[:m], axis1=1, axis2=2), out=red_t[i:j])
+        red_t[i:j] *= ft
+        qs = qg - np.diagonal(np.einsum("ji,njk,kl->nil", R, C[:m], R), axis1=1, axis2=2)
+        np.multiply(qs, fs, out=red_s[i:j])
+        np.divide(-(g[i:j] @ R), np.sqrt(np.abs(qs)) * sigma0_prior, out=wn_s[i:j],
+                  where=qs > 1e-12 * qg)
+    st = LinearisedStatistics(Q, vtpv, red_t, wn_t, None)
+    extras = {
+        "corrected_source": corr_s,
+        "corrected_target": corr_t,
+        "source_residuals": vx,
+        "source_redundancy_numbers": red_s,
+        "source_normalized_residuals": wn_s,
+        "misclosures": g,
+    }
+    return st, vX, extras
+
+
 _EYE3 = np.eye(3)
 
 
