@@ -1202,10 +1202,21 @@ def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
 
 
 def chunked_centroid(p: np.ndarray) -> np.ndarray:
-    """Centroid of ``p`` (n, 3) in one chunked pass: four points per row of a 12-column view,
-    summed by a matrix-vector product. For points far from the origin compared with their
-    spread (e.g. UTM coordinates) the sums are taken about the mean of the first chunk
-    (:func:`_reference`), so that no digits are lost to the offset."""
+    """Centroid of ``p`` (n, 3) in one chunked pass (see :func:`centroid_about_reference`)."""
+    ref, c = centroid_about_reference(p)
+    return c if ref is None else ref + c
+
+
+def centroid_about_reference(p: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """``(ref, c)``: the centroid of ``p`` (n, 3) is ``ref + c``, in one chunked pass (four
+    points per row of a 12-column view, summed by a matrix-vector product).
+
+    ``ref`` is None (the origin) unless the points lie far from the origin compared with their
+    spread (e.g. UTM coordinates, :func:`_reference`); then it is the mean of the first chunk
+    and ``c`` the mean of ``p - ref``: no digits are lost to the offset, and centring as
+    ``(p - ref) - c`` keeps the digits that ``ref + c`` rounded in absolute coordinates would
+    drop (~1e-16 of the offset).
+    """
     n = p.shape[0]
     n4 = n - n % 4
     ref = _reference(p)
@@ -1221,8 +1232,7 @@ def chunked_centroid(p: np.ndarray) -> np.ndarray:
     total = s.reshape(4, 3).sum(axis=0)
     if n4 < n:
         total = total + (p[n4:] if ref is None else p[n4:] - ref).sum(axis=0)
-    mean = total / n
-    return mean if ref is None else ref + mean
+    return ref, total / n
 
 
 def closed_form_sums(
@@ -1239,23 +1249,27 @@ def closed_form_sums(
     (known at the end of the pass) a third pass repeats it with the exact thresholds. The same
     estimate as :func:`closed_form_single` for n > 64 (its O(n) pair search) to rounding.
     """
-    xg = chunked_centroid(x)
-    Xg = chunked_centroid(X)
-    res = _closed_form_pass(x, X, xg, Xg, 0.0, 0.0)
+    centres = centroid_about_reference(x), centroid_about_reference(X)
+    res = _closed_form_pass(x, X, centres, 0.0, 0.0)
     if res is None:
         return None
     _, (dx_max, dX_max, dx_min, dX_min) = res
     tx, tX = CENTROID_TOLERANCE * dx_max, CENTROID_TOLERANCE * dX_max
     if dx_min > tx and dX_min > tX:
         return _finish(res[0], tx, tX, coplanar_threshold)
-    exact = _closed_form_pass(x, X, xg, Xg, tx, tX)  # some point lies at the centroid
+    exact = _closed_form_pass(x, X, centres, tx, tX)  # some point lies at the centroid
     return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold)
 
 
-def _first_usable(x, X, xg, Xg, tx, tX):
+def _centre(p: np.ndarray, ref: np.ndarray | None, c: np.ndarray) -> np.ndarray:
+    """``p`` about its centroid ``ref + c`` (:func:`centroid_about_reference`)."""
+    return p - c if ref is None else (p - ref) - c
+
+
+def _first_usable(x, X, centres, tx, tX):
     """Index and unit vectors (source, target) of the first point off both centroids."""
     for a, b in _chunks(x.shape[0]):
-        xr, Xr = x[a:b] - xg, X[a:b] - Xg
+        xr, Xr = _centre(x[a:b], *centres[0]), _centre(X[a:b], *centres[1])
         dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
         dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
         ok = np.flatnonzero((dx > tx) & (dX > tX))
@@ -1265,14 +1279,14 @@ def _first_usable(x, X, xg, Xg, tx, tX):
     return None
 
 
-def _closed_form_pass(x, X, xg, Xg, tx, tX):
+def _closed_form_pass(x, X, centres, tx, tX):
     """One pass over the centred points in chunks. Each chunk's coordinates go to the rows of
     a (12, chunk) buffer (``x'``, ``X'``, ``X' / |X'|^2``, ``x' / (|x'| |X'|)``); one matrix
     product of the buffer with its first six rows gives both scatter matrices, ``M M.T`` and
     ``N M.T`` of the chunk; per point only the two squared distances, one square root and
     two reciprocals."""
     n = x.shape[0]
-    first = _first_usable(x, X, xg, Xg, tx, tX)
+    first = _first_usable(x, X, centres, tx, tX)
     if first is None:
         return None
     l_idx, xb_l, Xb_l = first
@@ -1281,7 +1295,8 @@ def _closed_form_pass(x, X, xg, Xg, tx, tX):
     sq = np.empty((3, C))
     d = np.empty((4, C))
     G = np.zeros((12, 6))
-    xgc, Xgc = xg[:, None], Xg[:, None]
+    (rx, cx), (rX, cX) = centres
+    xg, Xg = (cx if rx is None else rx + cx), (cX if rX is None else rX + cX)
     ratio_sum = 0.0
     nu = 0
     best = (math.inf, -1)
@@ -1289,8 +1304,12 @@ def _closed_form_pass(x, X, xg, Xg, tx, tX):
     dx_min = dX_min = math.inf
     for a, b in _chunks(n):
         m = b - a
-        np.subtract(x[a:b].T, xgc, out=buf[0:3, :m])
-        np.subtract(X[a:b].T, Xgc, out=buf[3:6, :m])
+        for p, (ref, c), rows in ((x, centres[0], buf[0:3, :m]), (X, centres[1], buf[3:6, :m])):
+            if ref is None:
+                np.subtract(p[a:b].T, c[:, None], out=rows)
+            else:  # (p - ref) - c: exact differences first
+                np.subtract(p[a:b].T, ref[:, None], out=rows)
+                rows -= c[:, None]
         for k, row in ((0, 0), (3, 1)):  # squared centroid distances
             s2 = np.multiply(buf[k : k + 3, :m], buf[k : k + 3, :m], out=sq[:, :m])
             np.add(s2[0], s2[1], out=d[row, :m])
@@ -1332,7 +1351,7 @@ def _closed_form_pass(x, X, xg, Xg, tx, tX):
     k_idx = best[1]
     xb_k = Xb_k = None
     if k_idx >= 0:
-        xr, Xr = x[k_idx] - xg, X[k_idx] - Xg
+        xr, Xr = _centre(x[k_idx], *centres[0]), _centre(X[k_idx], *centres[1])
         xb_k, Xb_k = xr / math.sqrt(float(xr @ xr)), Xr / math.sqrt(float(Xr @ Xr))
     sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=G[6:9, 3:6].copy(),
                 NMt=G[9:12, 3:6].copy(), Sx=G[0:3, 0:3].copy(), SX=G[3:6, 3:6].copy(),
