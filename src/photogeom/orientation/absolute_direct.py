@@ -58,6 +58,12 @@ COPLANAR_REFLECTION = 1e-10
 CANCELLATION_LIMIT = 1e4
 #: Points per chunk of :func:`large_moments` (the chunk stays in the CPU cache).
 CHUNK_POINTS = 16384
+#: Rows (of four points) per BLAS call of :func:`large_moments`: the (12 x 512) (512 x 12)
+#: products, (512 x 12) sums and 6144-element dot products stay below the sizes from which
+#: OpenBLAS runs on several threads. On a machine busy with other work those threads wait for
+#: each other: with one product per 4096-row chunk the pass took 5.5 s instead of 0.26 s for
+#: 1e7 points (median of seven runs on a loaded 2-core machine).
+BLAS_ROWS = 512
 
 
 @dataclass(frozen=True)
@@ -222,8 +228,9 @@ def _raw_moments_chunked(
     """Moments about ``ref_x``/``ref_X`` (None: the origin) in one cache-friendly pass.
 
     Chunks of :data:`CHUNK_POINTS` points, four points per row: ``(m/4, 12) x (m/4, 12)``
-    products whose 3x3 diagonal blocks are the per-point cross products (BLAS runs far
-    faster on 12 than on 3 columns); sums and sums of squares of the same rows. A reference
+    products (stacks of :data:`BLAS_ROWS`-row products) whose 3x3 diagonal blocks are the
+    per-point cross products (BLAS runs far faster on 12 than on 3 columns); sums and sums of
+    squares of the same rows. A reference
     costs one subtraction per chunk (the chunk is in the CPU cache). ``scatter`` also
     accumulates ``sum w u u.T`` of the source.
     """
@@ -239,6 +246,7 @@ def _raw_moments_chunked(
     rx = None if ref_x is None else np.tile(ref_x, 4)
     rX = None if ref_X is None else np.tile(ref_X, 4)
     ones = np.ones(CHUNK_POINTS // 4)
+    ones_r = ones[:BLAS_ROWS]
     # reduced chunks go to buffers that stay in the CPU cache (no new array per chunk)
     buf_x = None if rx is None else np.empty((CHUNK_POINTS // 4, 12))
     buf_X = None if rX is None else np.empty((CHUNK_POINTS // 4, 12))
@@ -250,7 +258,6 @@ def _raw_moments_chunked(
             A = np.subtract(A, rx, out=buf_x[: A.shape[0]])
         if rX is not None:
             B = np.subtract(B, rX, out=buf_X[: B.shape[0]])
-        o = ones[: A.shape[0]]
         if w is None:
             Aw, Bw = A, B
         else:
@@ -258,13 +265,27 @@ def _raw_moments_chunked(
             W += float(np.add.reduce(wi))
             w12 = np.repeat(wi, 3).reshape(-1, 12)
             Aw, Bw = A * w12, B * w12
-        G += Aw.T @ B
+        k = A.shape[0]
+        if k % BLAS_ROWS:  # the last, partial chunk
+            G += Aw.T @ B
+            if scatter:
+                Gs += Aw.T @ A
+            sa += ones[:k] @ Aw
+            sb += ones[:k] @ Bw
+            qa += float(Aw.reshape(-1) @ A.reshape(-1))
+            qb += float(Bw.reshape(-1) @ B.reshape(-1))
+            continue
+        # stacks of BLAS_ROWS-row products: each small enough for one BLAS thread
+        A3, B3 = A.reshape(-1, BLAS_ROWS, 12), B.reshape(-1, BLAS_ROWS, 12)
+        Aw3T = Aw.reshape(-1, BLAS_ROWS, 12).transpose(0, 2, 1)
+        G += np.matmul(Aw3T, B3).sum(axis=0)
         if scatter:
-            Gs += Aw.T @ A
-        sa += o @ Aw
-        sb += o @ Bw
-        qa += float(Aw.reshape(-1) @ A.reshape(-1))
-        qb += float(Bw.reshape(-1) @ B.reshape(-1))
+            Gs += np.matmul(Aw3T, A3).sum(axis=0)
+        sa += np.matmul(ones_r, Aw.reshape(-1, BLAS_ROWS, 12)).sum(axis=0)
+        sb += np.matmul(ones_r, Bw.reshape(-1, BLAS_ROWS, 12)).sum(axis=0)
+        f = 12 * BLAS_ROWS
+        qa += float(np.matmul(Aw.reshape(-1, 1, f), A.reshape(-1, f, 1)).sum())
+        qb += float(np.matmul(Bw.reshape(-1, 1, f), B.reshape(-1, f, 1)).sum())
     cross = G[0:3, 0:3] + G[3:6, 3:6] + G[6:9, 6:9] + G[9:12, 9:12]
     S = None if Gs is None else Gs[0:3, 0:3] + Gs[3:6, 3:6] + Gs[6:9, 6:9] + Gs[9:12, 9:12]
     sx = sa.reshape(4, 3).sum(axis=0)
@@ -1160,8 +1181,14 @@ def closed_form_single(
 #: From this many points the closed form runs in cache-sized chunks (two passes over the data:
 #: the centroids, then everything else), without n-row temporaries.
 CLOSED_FORM_CHUNKED_N = 65536
-#: Points per chunk of the chunked closed form.
+#: Points per chunk of the chunked closed form. Its vector products (the length ratios, the
+#: perpendicular-pair search) stay below the size from which OpenBLAS runs them on several
+#: threads: on a machine busy with other work those threads wait for each other and the pass
+#: ran up to ten times slower with 16384-point chunks.
 CLOSED_FORM_CHUNK = 8192
+#: Points per matrix product of the chunked closed form ((12 x 2048) (2048 x 6): one thread,
+#: for the same reason).
+CLOSED_FORM_PRODUCT = 2048
 
 
 @dataclass
@@ -1292,16 +1319,23 @@ def _closed_form_pass(x, X, centres, tx, tX):
     l_idx, xb_l, Xb_l = first
     C = CLOSED_FORM_CHUNK
     buf = np.empty((12, C))
-    sq = np.empty((3, C))
+    sq = np.empty((6, C))
     d = np.empty((4, C))
     G = np.zeros((12, 6))
+    P = CLOSED_FORM_PRODUCT
+    # the full chunk as C / P stacked products (one matmul call, each product single-threaded)
+    stacked = (
+        buf.reshape(12, -1, P).transpose(1, 0, 2),
+        buf[:6].reshape(6, -1, P).transpose(1, 2, 0),
+    )
     (rx, cx), (rX, cX) = centres
     xg, Xg = (cx if rx is None else rx + cx), (cX if rX is None else rX + cX)
     ratio_sum = 0.0
     nu = 0
     best = (math.inf, -1)
-    dx_max = dX_max = 0.0
-    dx_min = dX_min = math.inf
+    hi = np.zeros(2)  # largest squared distances (source, target)
+    lo = np.full(2, math.inf)  # smallest squared distances of the usable points
+    t2 = np.array([tx, tX])
     for a, b in _chunks(n):
         m = b - a
         for p, (ref, c), rows in ((x, centres[0], buf[0:3, :m]), (X, centres[1], buf[3:6, :m])):
@@ -1310,25 +1344,23 @@ def _closed_form_pass(x, X, centres, tx, tX):
             else:  # (p - ref) - c: exact differences first
                 np.subtract(p[a:b].T, ref[:, None], out=rows)
                 rows -= c[:, None]
-        for k, row in ((0, 0), (3, 1)):  # squared centroid distances
-            s2 = np.multiply(buf[k : k + 3, :m], buf[k : k + 3, :m], out=sq[:, :m])
-            np.add(s2[0], s2[1], out=d[row, :m])
-            d[row, :m] += s2[2]
+        s2 = np.multiply(buf[:6, :m], buf[:6, :m], out=sq[:, :m])
+        dd = np.add(s2[0::3], s2[1::3], out=d[:2, :m])  # squared centroid distances
+        dd += s2[2::3]
+        np.maximum(hi, dd.max(axis=1), out=hi)
         # sqrt is monotone: the extreme distances are the roots of the extreme squares
-        dx_max = max(dx_max, math.sqrt(float(d[0, :m].max())))
-        dX_max = max(dX_max, math.sqrt(float(d[1, :m].max())))
-        lo_x, lo_X = math.sqrt(float(d[0, :m].min())), math.sqrt(float(d[1, :m].min()))
+        lo_c = dd.min(axis=1)
         gidx = None  # global indices of the columns when some points are left out
-        if not (lo_x > tx and lo_X > tX):  # points at the centroid: keep the usable ones
-            keep = np.flatnonzero((np.sqrt(d[0, :m]) > tx) & (np.sqrt(d[1, :m]) > tX))
+        if not np.all(np.sqrt(lo_c) > t2):  # points at the centroid: keep the usable ones
+            keep = np.flatnonzero((np.sqrt(dd[0]) > tx) & (np.sqrt(dd[1]) > tX))
             m = keep.size
             if m == 0:
                 continue
             buf[:6, :m] = buf[:6, keep]
             d[:2, :m] = d[:2, keep]
             gidx = keep + a
-            lo_x, lo_X = math.sqrt(float(d[0, :m].min())), math.sqrt(float(d[1, :m].min()))
-        dx_min, dX_min = min(dx_min, lo_x), min(dX_min, lo_X)
+            lo_c = d[:2, :m].min(axis=1)
+        np.minimum(lo, lo_c, out=lo)
         nu += m
         dx2, dX2, v, w = d[0, :m], d[1, :m], d[2, :m], d[3, :m]
         np.multiply(dx2, dX2, out=v)
@@ -1338,7 +1370,12 @@ def _closed_form_pass(x, X, centres, tx, tX):
         np.divide(1.0, dX2, out=w)
         np.multiply(buf[3:6, :m], w, out=buf[6:9, :m])
         np.multiply(buf[0:3, :m], v, out=buf[9:12, :m])
-        G += buf[:, :m] @ buf[:6, :m].T
+        if m == C:
+            G += np.matmul(*stacked).sum(axis=0)
+        else:
+            for k in range(0, m, P):
+                e = min(k + P, m)
+                G += buf[:, k:e] @ buf[:6, k:e].T
         # the direction closest to perpendicular to the first usable one: min (xb_l.x')^2/|x'|^2
         p = xb_l @ buf[0:3, :m]
         np.multiply(p, p, out=p)
@@ -1348,6 +1385,8 @@ def _closed_form_pass(x, X, centres, tx, tX):
         j = int(np.argmin(p))
         if p[j] < best[0]:
             best = (float(p[j]), a + j if gidx is None else int(gidx[j]))
+    dx_max, dX_max = math.sqrt(float(hi[0])), math.sqrt(float(hi[1]))
+    dx_min, dX_min = math.sqrt(float(lo[0])), math.sqrt(float(lo[1]))
     k_idx = best[1]
     xb_k = Xb_k = None
     if k_idx >= 0:
