@@ -458,22 +458,39 @@ def gauss_helmert_statistics(
     wn_t = np.empty((n, 3))
     red_s = np.empty((n, 3))
     wn_s = np.full((n, 3), np.nan)
-    m0 = min(CHUNK_POINTS, n)
-    C = np.empty((m0, 3, 3))
-    red = np.empty((m0, 3))
-    w_c = np.full(m0, wgt)
-    RR = np.einsum("ji,ki->jki", R, R).reshape(9, 3)  # diag(R.T C R) = C.reshape(m, 9) @ RR
+    # diag (A Qxx A.T)_i = sum_c Y_jc^2 + 1/W with Y = x' @ MT (see _Model), and the diagonal
+    # of R.T (A Qxx A.T)_i R alike from the rows of R.T Y (R is orthogonal: R.T I R / W = I / W)
+    MT = pm.MT
+    K = np.kron(R, np.eye(4))  # (12, 12): column 4 i + c of Y @ K is (R.T Y)_ic
+    MTK = MT @ K
+    sqrt_w = math.sqrt(wgt)
     for i in range(0, n, CHUNK_POINTS):
         j = min(i + CHUNK_POINTS, n)
-        m = j - i
-        xc = np.subtract(x[i:j], xg, out=xr[:m])
+        xc = np.subtract(x[i:j], xg, out=xr[: j - i])
         xc += vx[i:j]
-        _point_pass(pm, xc @ pm.MT, g[i:j], w_c[:m], sigma0_prior, red[:m], wn_t[i:j], C[:m])
-        np.subtract(qg, np.diagonal(C[:m], axis1=1, axis2=2), out=red_t[i:j])
+        Y = xc @ MT
+        Z = xc @ MTK
+        np.multiply(Y, Y, out=Y)
+        dC = Y @ pm.B
+        dC += pm.inv_W  # diag (A Qxx A.T)_i, in units of the misclosure cofactor
+        np.multiply(Z, Z, out=Z)
+        qs = Z @ pm.B
+        qs += pm.inv_W
+        np.subtract(qg, qs, out=qs)  # diag of the source corrections' cofactor
+        gc = g[i:j]
+        # the misclosures' normalised residuals (Gauss-Markov at weight wgt)
+        hd = dC * wgt
+        red = np.subtract(1.0, hd, out=hd)
+        wt = wn_t[i:j]
+        wt.fill(np.nan)
+        den = np.sqrt(np.abs(red))
+        if sigma0_prior != 1.0:
+            den *= sigma0_prior
+        np.divide(gc * sqrt_w, den, out=wt, where=red > 1e-12)
+        np.subtract(qg, dC, out=red_t[i:j])
         red_t[i:j] *= ft
-        qs = qg - C[:m].reshape(m, 9) @ RR
         np.multiply(qs, fs, out=red_s[i:j])
-        np.divide(-(g[i:j] @ R), np.sqrt(np.abs(qs)) * sigma0_prior, out=wn_s[i:j],
+        np.divide(-(gc @ R), np.sqrt(np.abs(qs)) * sigma0_prior, out=wn_s[i:j],
                   where=qs > 1e-12 * qg)
     st = LinearisedStatistics(Q, vtpv, red_t, wn_t, None)
     extras = {
