@@ -56,8 +56,8 @@ COPLANAR_REFLECTION = 1e-10
 #: Largest ``|centroid|^2 / variance`` for which the one-pass moments of :func:`large_moments`
 #: are accurate to ~1e-11; beyond it the centroids are removed exactly first.
 CANCELLATION_LIMIT = 1e4
-#: Points per chunk of :func:`large_moments` (the chunk stays in the CPU cache).
-CHUNK_POINTS = 16384
+#: Points per chunk of :func:`large_moments` (the chunk stays in the CPU's last-level cache).
+CHUNK_POINTS = 32768
 #: Rows (of four points) per BLAS call of :func:`large_moments`: the (12 x 512) (512 x 12)
 #: products, (512 x 12) sums and 6144-element dot products stay below the sizes from which
 #: OpenBLAS runs on several threads. On a machine busy with other work those threads wait for
@@ -1181,13 +1181,12 @@ def closed_form_single(
 #: From this many points the closed form runs in cache-sized chunks (two passes over the data:
 #: the centroids, then everything else), without n-row temporaries.
 CLOSED_FORM_CHUNKED_N = 65536
-#: Points per chunk of the chunked closed form. Its vector products (the length ratios, the
-#: perpendicular-pair search) stay below the size from which OpenBLAS runs them on several
-#: threads: on a machine busy with other work those threads wait for each other and the pass
-#: ran up to ten times slower with 16384-point chunks.
-CLOSED_FORM_CHUNK = 8192
-#: Points per matrix product of the chunked closed form ((12 x 2048) (2048 x 6): one thread,
-#: for the same reason).
+#: Points per chunk of the chunked closed form.
+CLOSED_FORM_CHUNK = 32768
+#: Points per BLAS call of the chunked closed form (stacks of (12 x 2048) (2048 x 6) products
+#: and 2048-element dot products): sizes OpenBLAS runs on one thread. On a machine busy with
+#: other work its threads wait for each other, and the pass with one product per chunk ran up
+#: to ten times slower.
 CLOSED_FORM_PRODUCT = 2048
 
 
@@ -1255,7 +1254,11 @@ def centroid_about_reference(p: np.ndarray) -> tuple[np.ndarray | None, np.ndarr
         A = p[a : min(a + CLOSED_FORM_CHUNK, n4)].reshape(-1, 12)
         if r12 is not None:
             A = np.subtract(A, r12, out=buf[: A.shape[0]])
-        s += ones[: A.shape[0]] @ A
+        k = A.shape[0]
+        if k % BLAS_ROWS:
+            s += ones[:k] @ A
+        else:  # stacked sums of BLAS_ROWS rows (one BLAS thread, see BLAS_ROWS)
+            s += np.matmul(ones[:BLAS_ROWS], A.reshape(-1, BLAS_ROWS, 12)).sum(axis=0)
     total = s.reshape(4, 3).sum(axis=0)
     if n4 < n:
         total = total + (p[n4:] if ref is None else p[n4:] - ref).sum(axis=0)
@@ -1366,7 +1369,10 @@ def _closed_form_pass(x, X, centres, tx, tX):
         np.multiply(dx2, dX2, out=v)
         np.sqrt(v, out=v)
         np.divide(1.0, v, out=v)  # 1 / (|x'| |X'|)
-        ratio_sum += float(dX2 @ v)  # sum of |X'| / |x'|
+        if m == C:  # sum of |X'| / |x'|
+            ratio_sum += float(np.matmul(dX2.reshape(-1, 1, P), v.reshape(-1, P, 1)).sum())
+        else:
+            ratio_sum += float(np.add.reduce(dX2 * v))
         np.divide(1.0, dX2, out=w)
         np.multiply(buf[3:6, :m], w, out=buf[6:9, :m])
         np.multiply(buf[0:3, :m], v, out=buf[9:12, :m])
@@ -1377,7 +1383,10 @@ def _closed_form_pass(x, X, centres, tx, tX):
                 e = min(k + P, m)
                 G += buf[:, k:e] @ buf[:6, k:e].T
         # the direction closest to perpendicular to the first usable one: min (xb_l.x')^2/|x'|^2
-        p = xb_l @ buf[0:3, :m]
+        if m == C:
+            p = np.matmul(xb_l, stacked[0][:, 0:3]).reshape(-1)
+        else:
+            p = np.add.reduce(buf[0:3, :m] * xb_l[:, None], axis=0)
         np.multiply(p, p, out=p)
         np.divide(p, dx2, out=p)
         if a <= l_idx < b:

@@ -505,6 +505,8 @@ def gauss_helmert_statistics(
 
 
 _EYE3 = np.eye(3)
+#: Points per chunk of :func:`closed_form_cofactor` (its per-chunk arrays are (u, chunk, 3)).
+COFACTOR_CHUNK = 8192
 
 
 def _skew_rows(v: np.ndarray) -> np.ndarray:
@@ -564,7 +566,6 @@ def closed_form_cofactor(
     """
     from .absolute_direct import (
         CENTROID_TOLERANCE,
-        CLOSED_FORM_CHUNK,
         CLOSED_FORM_CHUNKED_N,
         COPLANAR_THRESHOLD,
         _perpendicular_pair,
@@ -580,8 +581,8 @@ def closed_form_cofactor(
         tx, tX = cs.tx, cs.tX
 
         def chunks():
-            for a in range(0, n, CLOSED_FORM_CHUNK):
-                b = min(a + CLOSED_FORM_CHUNK, n)
+            for a in range(0, n, COFACTOR_CHUNK):
+                b = min(a + COFACTOR_CHUNK, n)
                 xr, Xr = x[a:b] - xg, X[a:b] - Xg
                 dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
                 dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
