@@ -114,10 +114,10 @@ class LinearisedStatistics:
 
 
 #: Points per chunk of the per-point statistics (the temporaries stay in the CPU cache, and
-#: the chunk's BLAS calls - (3072 x 3) (3 x 12) products, 9216-element dot products - stay
-#: below the sizes from which OpenBLAS runs on several threads, whose waiting for each other
-#: on a machine busy with other work made the statistics of 1e7 points ten times slower).
-CHUNK_POINTS = 3072
+#: the chunk's BLAS calls, (6144 x 3) (3 x 12) products, stay below the sizes from which
+#: OpenBLAS runs on several threads, whose waiting for each other on a machine busy with other
+#: work made the statistics of 1e7 points ten times slower; sums of squares by numpy, not BLAS).
+CHUNK_POINTS = 6144
 
 
 def _psd_factor(Q: np.ndarray) -> np.ndarray:
@@ -377,7 +377,7 @@ def residual_statistics(
         Y = xr @ pm.MT
         wc = None if weights is None else weights[i:j]
         if wc is None:
-            vtpv += float(np.vdot(vc, vc))
+            vtpv += float(np.einsum("ij,ij->", vc, vc))
         else:
             vtpv += float(np.einsum("ij,ij,i->", vc, vc, wc))
         _point_pass(pm, Y, vc, wc, sigma0_prior, red[i:j], wn[i:j], None)
@@ -448,7 +448,7 @@ def gauss_helmert_statistics(
         np.add(X[i:j], vX[i:j], out=corr_t[i:j])
         xc += vx[i:j]  # the corrected source about the centroid (its centroid is unchanged)
         S += (xc * wgt).T @ xc
-        vtpv += float(np.vdot(gc, gc)) * wgt
+        vtpv += float(np.einsum("ij,ij->", gc, gc)) * wgt
     Q, pm = _cofactor(S, n * wgt, scale=s, angles=angles, source_centroid=xg,
                       with_scale=with_scale)
     qg = mm / s02
