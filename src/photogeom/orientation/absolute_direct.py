@@ -1327,7 +1327,7 @@ def _closed_form_pass(x, X, centres, tx, tX):
     G = np.zeros((12, 6))
     P = CLOSED_FORM_PRODUCT
     # the full chunk as C / P stacked products (one matmul call, each product single-threaded)
-    stacked = (
+    stacked = None if C % P else (
         buf.reshape(12, -1, P).transpose(1, 0, 2),
         buf[:6].reshape(6, -1, P).transpose(1, 2, 0),
     )
@@ -1369,21 +1369,22 @@ def _closed_form_pass(x, X, centres, tx, tX):
         np.multiply(dx2, dX2, out=v)
         np.sqrt(v, out=v)
         np.divide(1.0, v, out=v)  # 1 / (|x'| |X'|)
-        if m == C:  # sum of |X'| / |x'|
+        full = m == C and stacked is not None
+        if full:  # sum of |X'| / |x'|
             ratio_sum += float(np.matmul(dX2.reshape(-1, 1, P), v.reshape(-1, P, 1)).sum())
         else:
             ratio_sum += float(np.add.reduce(dX2 * v))
         np.divide(1.0, dX2, out=w)
         np.multiply(buf[3:6, :m], w, out=buf[6:9, :m])
         np.multiply(buf[0:3, :m], v, out=buf[9:12, :m])
-        if m == C:
+        if full:
             G += np.matmul(*stacked).sum(axis=0)
         else:
             for k in range(0, m, P):
                 e = min(k + P, m)
                 G += buf[:, k:e] @ buf[:6, k:e].T
         # the direction closest to perpendicular to the first usable one: min (xb_l.x')^2/|x'|^2
-        if m == C:
+        if full:
             p = np.matmul(xb_l, stacked[0][:, 0:3]).reshape(-1)
         else:
             p = np.add.reduce(buf[0:3, :m] * xb_l[:, None], axis=0)
