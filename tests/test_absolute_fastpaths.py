@@ -238,8 +238,14 @@ def _gauss_helmert_dense(x, X, fit, sx, sX):
     vx = -(sx * sx * s / mm) * (g @ R)
     vX = (sX * sX / mm) * g
     st = linearised_statistics(
-        x - xg + vx, g, scale=s, angles=fit.angles(), source_centroid=xg,
-        weights=np.full(x.shape[0], 1 / mm), with_scale=True, blocks=True,
+        x - xg + vx,
+        g,
+        scale=s,
+        angles=fit.angles(),
+        source_centroid=xg,
+        weights=np.full(x.shape[0], 1 / mm),
+        with_scale=True,
+        blocks=True,
     )
     C = st.point_blocks
     red_t = (sX * sX / mm**2) * (mm - np.diagonal(C, axis1=1, axis2=2))
@@ -247,10 +253,16 @@ def _gauss_helmert_dense(x, X, fit, sx, sX):
     red_s = (s * s * sx * sx / mm**2) * qs
     wn_s = np.where(qs > 1e-12 * mm, -(g @ R) / np.sqrt(np.abs(qs)), np.nan)
     return dict(
-        cofactor=st.cofactor, residuals=vX, redundancy_numbers=red_t,
-        normalized_residuals=st.normalized_residuals, misclosures=g, source_residuals=vx,
-        source_redundancy_numbers=red_s, source_normalized_residuals=wn_s,
-        corrected_source=x + vx, corrected_target=X + vX,
+        cofactor=st.cofactor,
+        residuals=vX,
+        redundancy_numbers=red_t,
+        normalized_residuals=st.normalized_residuals,
+        misclosures=g,
+        source_residuals=vx,
+        source_redundancy_numbers=red_s,
+        source_normalized_residuals=wn_s,
+        corrected_source=x + vx,
+        corrected_target=X + vX,
     )
 
 
@@ -265,12 +277,19 @@ def test_chunked_gauss_helmert_statistics_equal_the_dense_formulas():
     fit = pg.absolute_orientation(x, X, "gauss-helmert", sigma_source=sx, sigma_target=sX)
     ref = _gauss_helmert_dense(x, X, fit, sx, sX)
     sd = np.sqrt(np.diag(ref["cofactor"]))
-    np.testing.assert_allclose(fit.cofactor / np.outer(sd, sd), ref["cofactor"] / np.outer(sd, sd),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        fit.cofactor / np.outer(sd, sd), ref["cofactor"] / np.outer(sd, sd), rtol=0, atol=1e-12
+    )
     for key in ("residuals", "redundancy_numbers", "normalized_residuals"):
         np.testing.assert_allclose(getattr(fit, key), ref[key], rtol=1e-9, atol=1e-11)
-    for key in ("misclosures", "source_residuals", "source_redundancy_numbers",
-                "source_normalized_residuals", "corrected_source", "corrected_target"):
+    for key in (
+        "misclosures",
+        "source_residuals",
+        "source_redundancy_numbers",
+        "source_normalized_residuals",
+        "corrected_source",
+        "corrected_target",
+    ):
         np.testing.assert_allclose(fit.extras[key], ref[key], rtol=1e-9, atol=1e-11)
     # the redundancy numbers of all 6n coordinates add up to the redundancy 3n - 7
     total = fit.redundancy_numbers.sum() + fit.extras["source_redundancy_numbers"].sum()
