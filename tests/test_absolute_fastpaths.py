@@ -168,3 +168,129 @@ def test_chunked_closed_form_equals_the_single_pass_arrays(flat, monkeypatch):
         Qa = closed_form_cofactor(x, X, nearest=nr)
         sd = np.sqrt(np.diag(Qa))
         np.testing.assert_allclose(Q / np.outer(sd, sd), Qa / np.outer(sd, sd), atol=1e-6)
+
+
+def _shifted_closed_form(x, X, x0, X0, **kw):
+    """The in-memory closed form of ``x - x0``, ``X - X0`` (exact differences: well-conditioned
+    sums) taken back to the original frame: centroid-based, so only t changes."""
+    f = pg.absolute_orientation(x - x0, X - X0, "closed-form", statistics=False, **kw)
+    return f.scale, f.rotation, f.translation + X0 - f.scale * (f.rotation @ x0), f.notes
+
+
+@pytest.mark.parametrize(
+    ("seed", "flat", "offset"),
+    [(11, 1.0, 0.0), (12, 0.02, 0.0), (13, 1.0, 1.0), (14, 0.02, 1.0), (15, 0.0, 1.0)],
+)
+def test_chunked_closed_form_equals_the_in_memory_reference(seed, flat, offset, monkeypatch):
+    # any rotation, thick, flat (the plane-normal augmentation) and exactly planar sets, with
+    # coordinates offset by ~1e6 m (raw moments would lose digits there): the chunked passes
+    # (centroids about a first-chunk reference, then one product per chunk) give the
+    # in-memory estimate to ~1e-12; the raw R of the exactly planar set amplifies rounding
+    # (the in-memory estimates of 30 exact shifts of that data scatter by up to 1.6e-11), so
+    # there the bound is 5e-11
+    from photogeom.orientation import absolute_direct as ad
+
+    rng = np.random.default_rng(seed)
+    n = ad.CLOSED_FORM_CHUNKED_N + 3 * ad.CLOSED_FORM_CHUNK + 3  # a tail chunk, n % 4 != 0
+    R = Rotation.random(random_state=seed).as_matrix()
+    assert np.degrees(np.arccos((np.trace(R) - 1) / 2)) > 20
+    x = rng.uniform(-60.0, 60.0, (n, 3)) * [1.0, 0.7, flat]
+    X = 0.83 * x @ R.T + rng.normal(0.0, 0.02, (n, 3))
+    x = x + offset * np.array([731_000.0, -1_250_000.0, 412.0])
+    X = X + offset * np.array([512_000.0, 4_215_000.0, 350.0])
+    for nearest in (False, True):
+        fit = pg.absolute_orientation(
+            x, X, "closed-form", statistics=False, nearest_rotation=nearest
+        )
+        with monkeypatch.context() as mp:
+            mp.setattr(ad, "CLOSED_FORM_CHUNKED_N", 10**9)
+            s, Rr, t, notes = _shifted_closed_form(x, X, x[0], X[0], nearest_rotation=nearest)
+        tol = 5e-11 if flat == 0.0 else 1e-12
+        assert fit.scale == pytest.approx(s, rel=1e-12)
+        np.testing.assert_allclose(fit.rotation, Rr, rtol=0, atol=tol)
+        # t = Xg - s R xg: the rotation's tolerance times the offset of the source
+        np.testing.assert_allclose(
+            fit.translation, t, rtol=1e-12, atol=1e-9 + 3 * tol * np.linalg.norm(x[0])
+        )
+        assert fit.notes == notes  # the augmentation is used alike
+        assert any("plane-normal" in note for note in notes) == (flat < 0.3)
+
+
+def test_chunked_centroid_keeps_the_digits_of_offset_coordinates():
+    from photogeom.orientation.absolute_direct import chunked_centroid
+
+    rng = np.random.default_rng(21)
+    base = rng.uniform(-50.0, 50.0, (200_003, 3))
+    off = np.array([512_000.0, 4_215_000.0, 350.0])
+    exact = base.mean(axis=0)  # of the small numbers: no digits lost
+    np.testing.assert_allclose(chunked_centroid(base + off) - off, exact, rtol=0, atol=2e-9)
+    np.testing.assert_allclose(chunked_centroid(base), exact, rtol=0, atol=1e-13)
+
+
+def _gauss_helmert_dense(x, X, fit, sx, sX):
+    """The Gauss-Helmert statistics written out on whole arrays (n x 3 x 3 blocks)."""
+    from photogeom.orientation.absolute_stats import linearised_statistics
+
+    s, R, t = fit.scale, fit.rotation, fit.translation
+    xg, Xg = x.mean(axis=0), X.mean(axis=0)
+    g = s * (x - xg) @ R.T - (X - Xg) + (s * (R @ xg) + t - Xg)
+    mm = s * s * sx * sx + sX * sX
+    vx = -(sx * sx * s / mm) * (g @ R)
+    vX = (sX * sX / mm) * g
+    st = linearised_statistics(
+        x - xg + vx,
+        g,
+        scale=s,
+        angles=fit.angles(),
+        source_centroid=xg,
+        weights=np.full(x.shape[0], 1 / mm),
+        with_scale=True,
+        blocks=True,
+    )
+    C = st.point_blocks
+    red_t = (sX * sX / mm**2) * (mm - np.diagonal(C, axis1=1, axis2=2))
+    qs = mm - np.einsum("ji,njk,ki->ni", R, C, R)
+    red_s = (s * s * sx * sx / mm**2) * qs
+    wn_s = np.where(qs > 1e-12 * mm, -(g @ R) / np.sqrt(np.abs(qs)), np.nan)
+    return dict(
+        cofactor=st.cofactor,
+        residuals=vX,
+        redundancy_numbers=red_t,
+        normalized_residuals=st.normalized_residuals,
+        misclosures=g,
+        source_residuals=vx,
+        source_redundancy_numbers=red_s,
+        source_normalized_residuals=wn_s,
+        corrected_source=x + vx,
+        corrected_target=X + vX,
+    )
+
+
+def test_chunked_gauss_helmert_statistics_equal_the_dense_formulas():
+    # per-point statistics of both systems in chunks (several, and a tail) against the same
+    # formulas on whole arrays with the n x 3 x 3 blocks
+    from photogeom.orientation.absolute_stats import CHUNK_POINTS as STAT_CHUNK
+
+    x, X = _utm_problem(2 * STAT_CHUNK + 17, seed=8)
+    x = x * 40.0
+    sx, sX = 0.004, 0.02
+    fit = pg.absolute_orientation(x, X, "gauss-helmert", sigma_source=sx, sigma_target=sX)
+    ref = _gauss_helmert_dense(x, X, fit, sx, sX)
+    sd = np.sqrt(np.diag(ref["cofactor"]))
+    np.testing.assert_allclose(
+        fit.cofactor / np.outer(sd, sd), ref["cofactor"] / np.outer(sd, sd), rtol=0, atol=1e-12
+    )
+    for key in ("residuals", "redundancy_numbers", "normalized_residuals"):
+        np.testing.assert_allclose(getattr(fit, key), ref[key], rtol=1e-9, atol=1e-11)
+    for key in (
+        "misclosures",
+        "source_residuals",
+        "source_redundancy_numbers",
+        "source_normalized_residuals",
+        "corrected_source",
+        "corrected_target",
+    ):
+        np.testing.assert_allclose(fit.extras[key], ref[key], rtol=1e-9, atol=1e-11)
+    # the redundancy numbers of all 6n coordinates add up to the redundancy 3n - 7
+    total = fit.redundancy_numbers.sum() + fit.extras["source_redundancy_numbers"].sum()
+    assert total == pytest.approx(3 * x.shape[0] - 7, rel=1e-9)

@@ -54,6 +54,7 @@ from .absolute_direct import (
 )
 from .absolute_stats import (
     closed_form_cofactor,
+    gauss_helmert_statistics,
     linearised_statistics,
     opk_transposed,
     residual_statistics,
@@ -1097,39 +1098,13 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     if not statistics:
         return _bare_fit(model, "gauss-helmert", names, params, u, r, 6 * n, with_scale, ctx,
                          notes)
-    xg, Xg = pm.source_centroid, pm.target_centroid
-    xr = x - xg
-    # misclosures g = s R x + t - X; corrections e_x = -sx^2 s R.T g / mm, e_X = sX^2 g / mm
-    g = s * (xr @ R.T) - (X - Xg) + (s * (R @ xg) + t - Xg)
-    mm = s * s * sx * sx + sX * sX
-    vx = -(sx * sx * s / mm) * (g @ R)
-    vX = (sX * sX / mm) * g
-    xc = xr + vx  # corrected source about the centroid (its centroid is unchanged)
-    s02 = ctx.sigma0_prior**2
-    st = linearised_statistics(
-        xc, g, scale=s, angles=(omega, phi, kappa), source_centroid=xg,
-        weights=np.full(n, s02 / mm), with_scale=with_scale, blocks=True,
-        sigma0_prior=ctx.sigma0_prior,
+    # misclosures g = s R x + t - X; corrections e_x = -sx^2 s R.T g / mm, e_X = sX^2 g / mm;
+    # redundancy numbers and normalised residuals of both systems (chunked, no n x 3 x 3)
+    st, vX, extras = gauss_helmert_statistics(
+        x, X, scale=s, rotation=R, translation=t, angles=(omega, phi, kappa),
+        source_centroid=pm.source_centroid, target_centroid=pm.target_centroid,
+        sigma_source=sx, sigma_target=sX, sigma0_prior=ctx.sigma0_prior, with_scale=with_scale,
     )
-    # redundancy numbers and normalised residuals of both systems' corrections
-    # (A Qxx A.T)_i in units of the misclosure cofactor Q_gg = mm / sigma0^2 I
-    C = st.point_blocks
-    qg = mm / s02
-    red_t = (sX * sX / (mm * qg)) * (qg - np.diagonal(C, axis1=1, axis2=2))
-    CR = np.einsum("ji,njk,kl->nil", R, C, R)
-    qs = qg - np.diagonal(CR, axis1=1, axis2=2)
-    red_s = (s * s * sx * sx / (mm * qg)) * qs
-    w_s = np.full(qs.shape, np.nan)
-    np.divide(-(g @ R), np.sqrt(np.abs(qs)) * ctx.sigma0_prior, out=w_s, where=qs > 1e-12 * qg)
-    extras = {
-        "corrected_source": x + vx,
-        "corrected_target": X + vX,
-        "source_residuals": vx,
-        "source_redundancy_numbers": red_s,
-        "source_normalized_residuals": w_s,
-        "misclosures": g,
-    }
-    st = type(st)(st.cofactor, st.vtpv, red_t, st.normalized_residuals, st.point_blocks)
     return _stat_fit(model, "gauss-helmert", names, params, st, r, 6 * n, vX, with_scale, ctx,
                      notes, extras=extras)
 

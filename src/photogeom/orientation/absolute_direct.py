@@ -56,8 +56,14 @@ COPLANAR_REFLECTION = 1e-10
 #: Largest ``|centroid|^2 / variance`` for which the one-pass moments of :func:`large_moments`
 #: are accurate to ~1e-11; beyond it the centroids are removed exactly first.
 CANCELLATION_LIMIT = 1e4
-#: Points per chunk of :func:`large_moments` (the chunk stays in the CPU cache).
-CHUNK_POINTS = 16384
+#: Points per chunk of :func:`large_moments` (the chunk stays in the CPU's last-level cache).
+CHUNK_POINTS = 32768
+#: Rows (of four points) per BLAS call of :func:`large_moments`: the (12 x 512) (512 x 12)
+#: products, (512 x 12) sums and 6144-element dot products stay below the sizes from which
+#: OpenBLAS runs on several threads. On a machine busy with other work those threads wait for
+#: each other: with one product per 4096-row chunk the pass took 5.5 s instead of 0.26 s for
+#: 1e7 points (median of seven runs on a loaded 2-core machine).
+BLAS_ROWS = 512
 
 
 @dataclass(frozen=True)
@@ -222,8 +228,9 @@ def _raw_moments_chunked(
     """Moments about ``ref_x``/``ref_X`` (None: the origin) in one cache-friendly pass.
 
     Chunks of :data:`CHUNK_POINTS` points, four points per row: ``(m/4, 12) x (m/4, 12)``
-    products whose 3x3 diagonal blocks are the per-point cross products (BLAS runs far
-    faster on 12 than on 3 columns); sums and sums of squares of the same rows. A reference
+    products (stacks of :data:`BLAS_ROWS`-row products) whose 3x3 diagonal blocks are the
+    per-point cross products (BLAS runs far faster on 12 than on 3 columns); sums and sums of
+    squares of the same rows. A reference
     costs one subtraction per chunk (the chunk is in the CPU cache). ``scatter`` also
     accumulates ``sum w u u.T`` of the source.
     """
@@ -239,6 +246,7 @@ def _raw_moments_chunked(
     rx = None if ref_x is None else np.tile(ref_x, 4)
     rX = None if ref_X is None else np.tile(ref_X, 4)
     ones = np.ones(CHUNK_POINTS // 4)
+    ones_r = ones[:BLAS_ROWS]
     # reduced chunks go to buffers that stay in the CPU cache (no new array per chunk)
     buf_x = None if rx is None else np.empty((CHUNK_POINTS // 4, 12))
     buf_X = None if rX is None else np.empty((CHUNK_POINTS // 4, 12))
@@ -250,7 +258,6 @@ def _raw_moments_chunked(
             A = np.subtract(A, rx, out=buf_x[: A.shape[0]])
         if rX is not None:
             B = np.subtract(B, rX, out=buf_X[: B.shape[0]])
-        o = ones[: A.shape[0]]
         if w is None:
             Aw, Bw = A, B
         else:
@@ -258,13 +265,27 @@ def _raw_moments_chunked(
             W += float(np.add.reduce(wi))
             w12 = np.repeat(wi, 3).reshape(-1, 12)
             Aw, Bw = A * w12, B * w12
-        G += Aw.T @ B
+        k = A.shape[0]
+        if k % BLAS_ROWS:  # the last, partial chunk
+            G += Aw.T @ B
+            if scatter:
+                Gs += Aw.T @ A
+            sa += ones[:k] @ Aw
+            sb += ones[:k] @ Bw
+            qa += float(Aw.reshape(-1) @ A.reshape(-1))
+            qb += float(Bw.reshape(-1) @ B.reshape(-1))
+            continue
+        # stacks of BLAS_ROWS-row products: each small enough for one BLAS thread
+        A3, B3 = A.reshape(-1, BLAS_ROWS, 12), B.reshape(-1, BLAS_ROWS, 12)
+        Aw3T = Aw.reshape(-1, BLAS_ROWS, 12).transpose(0, 2, 1)
+        G += np.matmul(Aw3T, B3).sum(axis=0)
         if scatter:
-            Gs += Aw.T @ A
-        sa += o @ Aw
-        sb += o @ Bw
-        qa += float(Aw.reshape(-1) @ A.reshape(-1))
-        qb += float(Bw.reshape(-1) @ B.reshape(-1))
+            Gs += np.matmul(Aw3T, A3).sum(axis=0)
+        sa += np.matmul(ones_r, Aw.reshape(-1, BLAS_ROWS, 12)).sum(axis=0)
+        sb += np.matmul(ones_r, Bw.reshape(-1, BLAS_ROWS, 12)).sum(axis=0)
+        f = 12 * BLAS_ROWS
+        qa += float(np.matmul(Aw.reshape(-1, 1, f), A.reshape(-1, f, 1)).sum())
+        qb += float(np.matmul(Bw.reshape(-1, 1, f), B.reshape(-1, f, 1)).sum())
     cross = G[0:3, 0:3] + G[3:6, 3:6] + G[6:9, 6:9] + G[9:12, 9:12]
     S = None if Gs is None else Gs[0:3, 0:3] + Gs[3:6, 3:6] + Gs[6:9, 6:9] + Gs[9:12, 9:12]
     sx = sa.reshape(4, 3).sum(axis=0)
@@ -1161,7 +1182,12 @@ def closed_form_single(
 #: the centroids, then everything else), without n-row temporaries.
 CLOSED_FORM_CHUNKED_N = 65536
 #: Points per chunk of the chunked closed form.
-CLOSED_FORM_CHUNK = 16384
+CLOSED_FORM_CHUNK = 32768
+#: Points per BLAS call of the chunked closed form (stacks of (12 x 2048) (2048 x 6) products
+#: and 2048-element dot products): sizes OpenBLAS runs on one thread. On a machine busy with
+#: other work its threads wait for each other, and the pass with one product per chunk ran up
+#: to ten times slower.
+CLOSED_FORM_PRODUCT = 2048
 
 
 @dataclass
@@ -1191,14 +1217,6 @@ def _chunks(n: int):
         yield i, min(i + CLOSED_FORM_CHUNK, n)
 
 
-def column_sums(p: np.ndarray) -> np.ndarray:
-    """Sums of the columns of ``p`` (n, 3): 16 points per row of a 48-column sum (a
-    reduction over the first axis of an (n, 3) array is several times slower)."""
-    m = (p.shape[0] // 16) * 16
-    out = p[:m].reshape(-1, 48).sum(axis=0).reshape(16, 3).sum(axis=0)
-    return out + p[m:].sum(axis=0) if m < p.shape[0] else out
-
-
 def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
     """Rows ``a:b`` of ``p`` (n, 3) minus a centre given tiled (``np.tile(centre, chunk)``),
     and their squared norms: flat arithmetic (numpy's (n, 3) broadcasts with an inner length
@@ -1209,95 +1227,184 @@ def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
     return r, sq[:, 0] + sq[:, 1] + sq[:, 2]
 
 
-def _unit_rows(r: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """``r / d[:, None]`` by a flat product with the repeated reciprocals."""
-    return (r.reshape(-1) * np.repeat(1.0 / d, 3)).reshape(-1, 3)
+def chunked_centroid(p: np.ndarray) -> np.ndarray:
+    """Centroid of ``p`` (n, 3) in one chunked pass (see :func:`centroid_about_reference`)."""
+    ref, c = centroid_about_reference(p)
+    return c if ref is None else ref + c
+
+
+def centroid_about_reference(p: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """``(ref, c)``: the centroid of ``p`` (n, 3) is ``ref + c``, in one chunked pass (four
+    points per row of a 12-column view, summed by a matrix-vector product).
+
+    ``ref`` is None (the origin) unless the points lie far from the origin compared with their
+    spread (e.g. UTM coordinates, :func:`_reference`); then it is the mean of the first chunk
+    and ``c`` the mean of ``p - ref``: no digits are lost to the offset, and centring as
+    ``(p - ref) - c`` keeps the digits that ``ref + c`` rounded in absolute coordinates would
+    drop (~1e-16 of the offset).
+    """
+    n = p.shape[0]
+    n4 = n - n % 4
+    ref = _reference(p)
+    ones = np.ones(CLOSED_FORM_CHUNK // 4)
+    r12 = None if ref is None else np.tile(ref, 4)
+    buf = None if ref is None else np.empty((CLOSED_FORM_CHUNK // 4, 12))
+    s = np.zeros(12)
+    for a in range(0, n4, CLOSED_FORM_CHUNK):
+        A = p[a : min(a + CLOSED_FORM_CHUNK, n4)].reshape(-1, 12)
+        if r12 is not None:
+            A = np.subtract(A, r12, out=buf[: A.shape[0]])
+        k = A.shape[0]
+        if k % BLAS_ROWS:
+            s += ones[:k] @ A
+        else:  # stacked sums of BLAS_ROWS rows (one BLAS thread, see BLAS_ROWS)
+            s += np.matmul(ones[:BLAS_ROWS], A.reshape(-1, BLAS_ROWS, 12)).sum(axis=0)
+    total = s.reshape(4, 3).sum(axis=0)
+    if n4 < n:
+        total = total + (p[n4:] if ref is None else p[n4:] - ref).sum(axis=0)
+    return ref, total / n
 
 
 def closed_form_sums(
     x: np.ndarray, X: np.ndarray, coplanar_threshold: float = COPLANAR_THRESHOLD
 ) -> ClosedFormSums | None:
-    """The sums of the closed form in chunks: the centroids (one pass), then the centroid
+    """The sums of the closed form in chunks: the centroids (first pass), then the centroid
     distances, length ratios, ``M M.T``, ``N M.T``, both scatter matrices (coplanarity) and
-    the unit vector closest to perpendicular to the first usable one (a second pass).
+    the unit vector closest to perpendicular to the first usable one (second pass).
 
-    The second pass takes every point off the centroid; only if some point then lies within
-    :data:`CENTROID_TOLERANCE` of the largest centroid distance (known at the end of the pass)
-    a third pass repeats it with the exact thresholds. The same arithmetic as
-    :func:`closed_form_single` for n > 64 (its O(n) pair search).
+    Two passes are the least: every unit vector ``(X_i - Xg) / |X_i - Xg|`` depends on the
+    centroid through its norm, so no sums of powers of the raw coordinates give ``M M.T``,
+    ``N M.T`` or the length ratios. The second pass takes every point off the centroid; only
+    if some point then lies within :data:`CENTROID_TOLERANCE` of the largest centroid distance
+    (known at the end of the pass) a third pass repeats it with the exact thresholds. The same
+    estimate as :func:`closed_form_single` for n > 64 (its O(n) pair search) to rounding.
     """
-    n = x.shape[0]
-    xg = column_sums(x) / n
-    Xg = column_sums(X) / n
-    res = _closed_form_pass(x, X, xg, Xg, 0.0, 0.0)
+    centres = centroid_about_reference(x), centroid_about_reference(X)
+    res = _closed_form_pass(x, X, centres, 0.0, 0.0)
     if res is None:
         return None
     _, (dx_max, dX_max, dx_min, dX_min) = res
     tx, tX = CENTROID_TOLERANCE * dx_max, CENTROID_TOLERANCE * dX_max
     if dx_min > tx and dX_min > tX:
         return _finish(res[0], tx, tX, coplanar_threshold)
-    exact = _closed_form_pass(x, X, xg, Xg, tx, tX)  # some point lies at the centroid
+    exact = _closed_form_pass(x, X, centres, tx, tX)  # some point lies at the centroid
     return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold)
 
 
-def _closed_form_pass(x, X, xg, Xg, tx, tX):
-    n = x.shape[0]
-    xt = np.tile(xg, CLOSED_FORM_CHUNK)
-    Xt = np.tile(Xg, CLOSED_FORM_CHUNK)
-    # the first usable point: reference of the perpendicular-pair search
-    first = None
-    for a, b in _chunks(n):
-        xr, dx2 = centred_chunk(x, a, b, xt)
-        Xr, dX2 = centred_chunk(X, a, b, Xt)
-        dx, dX = np.sqrt(dx2), np.sqrt(dX2)
+def _centre(p: np.ndarray, ref: np.ndarray | None, c: np.ndarray) -> np.ndarray:
+    """``p`` about its centroid ``ref + c`` (:func:`centroid_about_reference`)."""
+    return p - c if ref is None else (p - ref) - c
+
+
+def _first_usable(x, X, centres, tx, tX):
+    """Index and unit vectors (source, target) of the first point off both centroids."""
+    for a, b in _chunks(x.shape[0]):
+        xr, Xr = _centre(x[a:b], *centres[0]), _centre(X[a:b], *centres[1])
+        dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
+        dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
         ok = np.flatnonzero((dx > tx) & (dX > tX))
         if ok.size:
             i = int(ok[0])
-            first = (a + i, xr[i] / dx[i], Xr[i] / dX[i])
-            break
+            return a + i, xr[i] / dx[i], Xr[i] / dX[i]
+    return None
+
+
+def _closed_form_pass(x, X, centres, tx, tX):
+    """One pass over the centred points in chunks. Each chunk's coordinates go to the rows of
+    a (12, chunk) buffer (``x'``, ``X'``, ``X' / |X'|^2``, ``x' / (|x'| |X'|)``); one matrix
+    product of the buffer with its first six rows gives both scatter matrices, ``M M.T`` and
+    ``N M.T`` of the chunk; per point only the two squared distances, one square root and
+    two reciprocals."""
+    n = x.shape[0]
+    first = _first_usable(x, X, centres, tx, tX)
     if first is None:
         return None
     l_idx, xb_l, Xb_l = first
-    MMt = np.zeros((3, 3))
-    NMt = np.zeros((3, 3))
-    Sx = np.zeros((3, 3))
-    SX = np.zeros((3, 3))
+    C = CLOSED_FORM_CHUNK
+    buf = np.empty((12, C))
+    sq = np.empty((6, C))
+    d = np.empty((4, C))
+    G = np.zeros((12, 6))
+    P = CLOSED_FORM_PRODUCT
+    # the full chunk as C / P stacked products (one matmul call, each product single-threaded)
+    stacked = None if C % P else (
+        buf.reshape(12, -1, P).transpose(1, 0, 2),
+        buf[:6].reshape(6, -1, P).transpose(1, 2, 0),
+    )
+    (rx, cx), (rX, cX) = centres
+    xg, Xg = (cx if rx is None else rx + cx), (cX if rX is None else rX + cX)
     ratio_sum = 0.0
     nu = 0
-    best = (math.inf, -1, None, None)
-    dx_max = dX_max = 0.0
-    dx_min = dX_min = math.inf
+    best = (math.inf, -1)
+    hi = np.zeros(2)  # largest squared distances (source, target)
+    lo = np.full(2, math.inf)  # smallest squared distances of the usable points
+    t2 = np.array([tx, tX])
     for a, b in _chunks(n):
-        xr, dx2 = centred_chunk(x, a, b, xt)
-        Xr, dX2 = centred_chunk(X, a, b, Xt)
-        Sx += xr.T @ xr
-        SX += Xr.T @ Xr
-        dx, dX = np.sqrt(dx2), np.sqrt(dX2)
-        dx_max, dX_max = max(dx_max, float(dx.max())), max(dX_max, float(dX.max()))
-        use = (dx > tx) & (dX > tX)
-        if not use.all():
-            xr, Xr, dx, dX = xr[use], Xr[use], dx[use], dX[use]
-            idx = np.flatnonzero(use) + a
+        m = b - a
+        for p, (ref, c), rows in ((x, centres[0], buf[0:3, :m]), (X, centres[1], buf[3:6, :m])):
+            if ref is None:
+                np.subtract(p[a:b].T, c[:, None], out=rows)
+            else:  # (p - ref) - c: exact differences first
+                np.subtract(p[a:b].T, ref[:, None], out=rows)
+                rows -= c[:, None]
+        s2 = np.multiply(buf[:6, :m], buf[:6, :m], out=sq[:, :m])
+        dd = np.add(s2[0::3], s2[1::3], out=d[:2, :m])  # squared centroid distances
+        dd += s2[2::3]
+        np.maximum(hi, dd.max(axis=1), out=hi)
+        # sqrt is monotone: the extreme distances are the roots of the extreme squares
+        lo_c = dd.min(axis=1)
+        gidx = None  # global indices of the columns when some points are left out
+        if not np.all(np.sqrt(lo_c) > t2):  # points at the centroid: keep the usable ones
+            keep = np.flatnonzero((np.sqrt(dd[0]) > tx) & (np.sqrt(dd[1]) > tX))
+            m = keep.size
+            if m == 0:
+                continue
+            buf[:6, :m] = buf[:6, keep]
+            d[:2, :m] = d[:2, keep]
+            gidx = keep + a
+            lo_c = d[:2, :m].min(axis=1)
+        np.minimum(lo, lo_c, out=lo)
+        nu += m
+        dx2, dX2, v, w = d[0, :m], d[1, :m], d[2, :m], d[3, :m]
+        np.multiply(dx2, dX2, out=v)
+        np.sqrt(v, out=v)
+        np.divide(1.0, v, out=v)  # 1 / (|x'| |X'|)
+        full = m == C and stacked is not None
+        if full:  # sum of |X'| / |x'|
+            ratio_sum += float(np.matmul(dX2.reshape(-1, 1, P), v.reshape(-1, P, 1)).sum())
         else:
-            idx = None
-        if dx.size == 0:
-            continue
-        dx_min, dX_min = min(dx_min, float(dx.min())), min(dX_min, float(dX.min()))
-        nu += dx.size
-        ratio_sum += float(np.add.reduce(dX / dx))
-        xb = _unit_rows(xr, dx)
-        Xb = _unit_rows(Xr, dX)
-        MMt += Xb.T @ Xb
-        NMt += xb.T @ Xb
-        dots = np.abs(xb @ xb_l)
+            ratio_sum += float(np.add.reduce(dX2 * v))
+        np.divide(1.0, dX2, out=w)
+        np.multiply(buf[3:6, :m], w, out=buf[6:9, :m])
+        np.multiply(buf[0:3, :m], v, out=buf[9:12, :m])
+        if full:
+            G += np.matmul(*stacked).sum(axis=0)
+        else:
+            for k in range(0, m, P):
+                e = min(k + P, m)
+                G += buf[:, k:e] @ buf[:6, k:e].T
+        # the direction closest to perpendicular to the first usable one: min (xb_l.x')^2/|x'|^2
+        if full:
+            p = np.matmul(xb_l, stacked[0][:, 0:3]).reshape(-1)
+        else:
+            p = np.add.reduce(buf[0:3, :m] * xb_l[:, None], axis=0)
+        np.multiply(p, p, out=p)
+        np.divide(p, dx2, out=p)
         if a <= l_idx < b:
-            dots[(l_idx - a) if idx is None else (idx == l_idx)] = np.inf
-        j = int(np.argmin(dots))
-        if dots[j] < best[0]:
-            gj = a + j if idx is None else int(idx[j])
-            best = (float(dots[j]), gj, xb[j].copy(), Xb[j].copy())
-    sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=MMt, NMt=NMt, Sx=Sx, SX=SX,
-                pair=(l_idx, xb_l, Xb_l, best[1], best[2], best[3]))
+            p[(l_idx - a) if gidx is None else (gidx == l_idx)] = np.inf
+        j = int(np.argmin(p))
+        if p[j] < best[0]:
+            best = (float(p[j]), a + j if gidx is None else int(gidx[j]))
+    dx_max, dX_max = math.sqrt(float(hi[0])), math.sqrt(float(hi[1]))
+    dx_min, dX_min = math.sqrt(float(lo[0])), math.sqrt(float(lo[1]))
+    k_idx = best[1]
+    xb_k = Xb_k = None
+    if k_idx >= 0:
+        xr, Xr = _centre(x[k_idx], *centres[0]), _centre(X[k_idx], *centres[1])
+        xb_k, Xb_k = xr / math.sqrt(float(xr @ xr)), Xr / math.sqrt(float(Xr @ Xr))
+    sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=G[6:9, 3:6].copy(),
+                NMt=G[9:12, 3:6].copy(), Sx=G[0:3, 0:3].copy(), SX=G[3:6, 3:6].copy(),
+                pair=(l_idx, xb_l, Xb_l, k_idx, xb_k, Xb_k))
     return sums, (dx_max, dX_max, dx_min, dX_min)
 
 

@@ -113,8 +113,11 @@ class LinearisedStatistics:
     point_blocks: np.ndarray
 
 
-#: Points per chunk of the per-point statistics (the temporaries stay in the CPU cache).
-CHUNK_POINTS = 8192
+#: Points per chunk of the per-point statistics (the temporaries stay in the CPU cache, and
+#: the chunk's BLAS calls, (6144 x 3) (3 x 12) products, stay below the sizes from which
+#: OpenBLAS runs on several threads, whose waiting for each other on a machine busy with other
+#: work made the statistics of 1e7 points ten times slower; sums of squares by numpy, not BLAS).
+CHUNK_POINTS = 6144
 
 
 def _psd_factor(Q: np.ndarray) -> np.ndarray:
@@ -374,14 +377,136 @@ def residual_statistics(
         Y = xr @ pm.MT
         wc = None if weights is None else weights[i:j]
         if wc is None:
-            vtpv += float(np.vdot(vc, vc))
+            vtpv += float(np.einsum("ij,ij->", vc, vc))
         else:
             vtpv += float(np.einsum("ij,ij,i->", vc, vc, wc))
         _point_pass(pm, Y, vc, wc, sigma0_prior, red[i:j], wn[i:j], None)
     return LinearisedStatistics(Q, vtpv, red, wn, None), v
 
 
+def gauss_helmert_statistics(
+    x: np.ndarray,
+    X: np.ndarray,
+    *,
+    scale: float,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+    angles: tuple[float, float, float],
+    source_centroid: np.ndarray,
+    target_centroid: np.ndarray,
+    sigma_source: float,
+    sigma_target: float,
+    sigma0_prior: float = 1.0,
+    with_scale: bool = True,
+) -> tuple[LinearisedStatistics, np.ndarray, dict]:
+    """Statistics of the direct Gauss-Helmert solution (one sigma per system), in chunks.
+
+    Misclosures ``g = s R x + t - X``; corrections ``e_x = -sx^2 s R.T g / mm`` and
+    ``e_X = sX^2 g / mm`` (``mm = s^2 sx^2 + sX^2``); the cofactor from the linearised model
+    at the corrected source points (weights ``sigma0_prior^2 / mm``); redundancy numbers and
+    normalised residuals of both systems' corrections from the per-point blocks
+    ``(A Qxx A.T)_i`` in units of the misclosure cofactor ``mm / sigma0_prior^2``.
+
+    Two passes over the points in chunks of :data:`CHUNK_POINTS` (the corrections and the
+    scatter of the corrected source, then the per-point statistics), writing straight into
+    the returned arrays: no (n, 3, 3) blocks and no full-size temporaries. Returns the
+    statistics (``redundancy_numbers`` of the target), the target corrections and the extras
+    ``corrected_source``, ``corrected_target``, ``source_residuals``,
+    ``source_redundancy_numbers``, ``source_normalized_residuals`` and ``misclosures``.
+    """
+    s = float(scale)
+    R = np.asarray(rotation, dtype=float)
+    xg = np.asarray(source_centroid, dtype=float)
+    Xg = np.asarray(target_centroid, dtype=float)
+    sx, sX = float(sigma_source), float(sigma_target)
+    n = x.shape[0]
+    mm = s * s * sx * sx + sX * sX
+    s02 = sigma0_prior**2
+    wgt = s02 / mm  # weight of every misclosure component
+    cx = -(sx * sx * s / mm)
+    cX = sX * sX / mm
+    c = s * (R @ xg) + translation - Xg
+    g = np.empty((n, 3))
+    vx = np.empty((n, 3))
+    vX = np.empty((n, 3))
+    corr_s = np.empty((n, 3))
+    corr_t = np.empty((n, 3))
+    S = np.zeros((3, 3))
+    vtpv = 0.0
+    xr = np.empty((min(CHUNK_POINTS, n), 3))
+    for i in range(0, n, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n)
+        xc = np.subtract(x[i:j], xg, out=xr[: j - i])
+        gc = g[i:j]
+        np.matmul(xc, R.T, out=gc)
+        gc *= s
+        gc -= X[i:j] - Xg
+        gc += c
+        np.multiply(gc @ R, cx, out=vx[i:j])
+        np.multiply(gc, cX, out=vX[i:j])
+        np.add(x[i:j], vx[i:j], out=corr_s[i:j])
+        np.add(X[i:j], vX[i:j], out=corr_t[i:j])
+        xc += vx[i:j]  # the corrected source about the centroid (its centroid is unchanged)
+        S += (xc * wgt).T @ xc
+        vtpv += float(np.einsum("ij,ij->", gc, gc)) * wgt
+    Q, pm = _cofactor(S, n * wgt, scale=s, angles=angles, source_centroid=xg,
+                      with_scale=with_scale)
+    qg = mm / s02
+    ft = sX * sX / (mm * qg)
+    fs = s * s * sx * sx / (mm * qg)
+    red_t = np.empty((n, 3))
+    wn_t = np.empty((n, 3))
+    red_s = np.empty((n, 3))
+    wn_s = np.full((n, 3), np.nan)
+    # diag (A Qxx A.T)_i = sum_c Y_jc^2 + 1/W with Y = x' @ MT (see _Model), and the diagonal
+    # of R.T (A Qxx A.T)_i R alike from the rows of R.T Y (R is orthogonal: R.T I R / W = I / W)
+    MT = pm.MT
+    K = np.kron(R, np.eye(4))  # (12, 12): column 4 i + c of Y @ K is (R.T Y)_ic
+    MTK = MT @ K
+    sqrt_w = math.sqrt(wgt)
+    for i in range(0, n, CHUNK_POINTS):
+        j = min(i + CHUNK_POINTS, n)
+        xc = np.subtract(x[i:j], xg, out=xr[: j - i])
+        xc += vx[i:j]
+        Y = xc @ MT
+        Z = xc @ MTK
+        np.multiply(Y, Y, out=Y)
+        dC = Y @ pm.B
+        dC += pm.inv_W  # diag (A Qxx A.T)_i, in units of the misclosure cofactor
+        np.multiply(Z, Z, out=Z)
+        qs = Z @ pm.B
+        qs += pm.inv_W
+        np.subtract(qg, qs, out=qs)  # diag of the source corrections' cofactor
+        gc = g[i:j]
+        # the misclosures' normalised residuals (Gauss-Markov at weight wgt)
+        hd = dC * wgt
+        red = np.subtract(1.0, hd, out=hd)
+        wt = wn_t[i:j]
+        wt.fill(np.nan)
+        den = np.sqrt(np.abs(red))
+        if sigma0_prior != 1.0:
+            den *= sigma0_prior
+        np.divide(gc * sqrt_w, den, out=wt, where=red > 1e-12)
+        np.subtract(qg, dC, out=red_t[i:j])
+        red_t[i:j] *= ft
+        np.multiply(qs, fs, out=red_s[i:j])
+        np.divide(-(gc @ R), np.sqrt(np.abs(qs)) * sigma0_prior, out=wn_s[i:j],
+                  where=qs > 1e-12 * qg)
+    st = LinearisedStatistics(Q, vtpv, red_t, wn_t, None)
+    extras = {
+        "corrected_source": corr_s,
+        "corrected_target": corr_t,
+        "source_residuals": vx,
+        "source_redundancy_numbers": red_s,
+        "source_normalized_residuals": wn_s,
+        "misclosures": g,
+    }
+    return st, vX, extras
+
+
 _EYE3 = np.eye(3)
+#: Points per chunk of :func:`closed_form_cofactor` (its per-chunk arrays are (u, chunk, 3)).
+COFACTOR_CHUNK = 8192
 
 
 def _skew_rows(v: np.ndarray) -> np.ndarray:
@@ -441,7 +566,6 @@ def closed_form_cofactor(
     """
     from .absolute_direct import (
         CENTROID_TOLERANCE,
-        CLOSED_FORM_CHUNK,
         CLOSED_FORM_CHUNKED_N,
         COPLANAR_THRESHOLD,
         _perpendicular_pair,
@@ -457,8 +581,8 @@ def closed_form_cofactor(
         tx, tX = cs.tx, cs.tX
 
         def chunks():
-            for a in range(0, n, CLOSED_FORM_CHUNK):
-                b = min(a + CLOSED_FORM_CHUNK, n)
+            for a in range(0, n, COFACTOR_CHUNK):
+                b = min(a + COFACTOR_CHUNK, n)
                 xr, Xr = x[a:b] - xg, X[a:b] - Xg
                 dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
                 dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
