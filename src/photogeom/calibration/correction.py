@@ -113,7 +113,7 @@ def correct_image(
     interpolation: Interpolation = "bilinear",
     border: Literal["replicate", "constant", "reflect"] = "replicate",
     threads: int | None = None,
-    chunk_rows: int = 128,
+    chunk_rows: int = 64,
 ) -> np.ndarray:
     """Resample an image so that the residual field is built in (see the module).
 
