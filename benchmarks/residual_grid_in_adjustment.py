@@ -2,17 +2,18 @@
 
 For each preset of the simulator (small blocks): one Brown self-calibrating adjustment,
 then (a) the post-processing of the study - grids fitted to the residuals, observations
-corrected, re-adjusted with orientation and calibration fixed - and (b) the grids estimated
+corrected, re-adjusted with orientation and calibration fixed - (b) the grids estimated
 inside the adjustment (:func:`photogeom.calibration.adjust_with_grids`, per image, with
-temporal constraints unless ``--no-temporal``). Printed per method: the fitted field
-against the true local field and against its visible part (what the residuals of an
-adjustment can show, :func:`photogeom.calibration.visible_field`), check-point RMSE (GSD),
-the mean height step between consecutive stereo models (GSD), the tie-point residual RMS
-and the time (the first adjustment included).
+temporal constraints unless ``--no-temporal``), and (c) both: (b) post-processed with
+300 px grids. Printed per method: the fitted field against the true local field and
+against its visible part (what the residuals of an adjustment can show,
+:func:`photogeom.calibration.visible_field`), check-point RMSE (GSD), the mean height step
+between consecutive stereo models (GSD), the tie-point residual RMS and the time (the
+first adjustment included).
 
-Run: ``python benchmarks/residual_grid_in_adjustment.py`` (about 2-5 minutes on 2 cores;
-the in-adjustment time grows with the cube of images x nodes on small, fully connected
-blocks).
+Run: ``python benchmarks/residual_grid_in_adjustment.py`` (about a minute on an idle
+2-core machine; the in-adjustment time grows with the cube of images x nodes on small,
+fully connected blocks).
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ def main() -> None:
         b = r["before"]
         c = ", ".join(f"{x:.2f}" for x in b["check_rmse_gsd"])
         print(f"{name:10s} {'adjustment':14s} {'':>10s} {'':>9s} {c:>20s} {b['mean_step']:6.2f}")
-        for m in ("post_hoc", "in_adjustment"):
+        for m in ("post_hoc", "in_adjustment", "combined"):
             x = r[m]
             c = ", ".join(f"{v:.2f}" for v in x["check_rmse_gsd"])
             print(

@@ -166,3 +166,15 @@ def test_node_standard_deviations_match_monte_carlo():
     ratio = spread / cof  # cof: the standard deviation for sigma0 = 1 (weights 1 / 0.3^2)
     assert 0.8 < float(np.median(ratio)) < 1.2
     assert np.all((ratio > 0.5) & (ratio < 1.6))
+
+
+def test_compare_in_adjustment_reports_the_three_methods():
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=2, strips=2, images_per_strip=4)
+    r = pg.calibration.compare_in_adjustment(sim, 2000.0, combined_spacing=1000.0)
+    assert r["images"] == 8 and 0 < r["visible_share"] < 1
+    for m in ("post_hoc", "in_adjustment", "combined"):
+        assert len(r[m]["check_rmse_gsd"]) == 3 and r[m]["seconds"] > 0
+    assert np.isfinite(r["in_adjustment"]["field"]) and np.isnan(r["combined"]["field"])
+    # the post-processing of the in-adjustment result takes up more of the residuals
+    assert r["combined"]["residual_rms"] < r["in_adjustment"]["residual_rms"]
+    assert isinstance(r["in_adjustment_result"], pg.calibration.GridAdjustment)

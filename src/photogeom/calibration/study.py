@@ -337,6 +337,7 @@ def compare_in_adjustment(
     sigma_temporal: float | None = 0.3,
     per: str = "image",
     overlap: float = 0.6,
+    combined_spacing: float | None = 300.0,
 ) -> dict:
     """Post-processing against grids estimated inside the adjustment, on one simulated block.
 
@@ -344,13 +345,16 @@ def compare_in_adjustment(
     the grid ``spacing`` and smoothness ``sigma_constraint``. Post-processing: grids fitted to
     the residuals, observations corrected, re-adjusted with orientation and calibration
     fixed (the study). In-adjustment: :func:`~photogeom.calibration.adjust_with_grids`
-    (``per``, ``sigma_temporal``).
+    (``per``, ``sigma_temporal``). Combined: the in-adjustment result post-processed with
+    grids of ``combined_spacing`` (default smoothness; None: not run) - the orientation of
+    the adjustment with grids, the residual steps removed afterwards.
 
     Returns
     -------
     dict
-        ``post_hoc`` and ``in_adjustment``, each with ``field`` (:func:`field_recovery`,
-        block ratio against the true field), ``visible`` (:func:`visible_recovery`),
+        ``post_hoc``, ``in_adjustment`` and ``combined``, each with ``field``
+        (:func:`field_recovery`, block ratio against the true field; NaN for ``combined``),
+        ``visible`` (:func:`visible_recovery`),
         ``check_rmse_gsd`` (X, Y, Z), ``mean_step`` (GSD), ``residual_rms`` (px, tie
         points), ``seconds`` (the first adjustment included); ``before`` the first
         adjustment's ``check_rmse_gsd`` and ``mean_step``; ``images``, ``spacing``.
@@ -379,18 +383,23 @@ def compare_in_adjustment(
     t_in = time.perf_counter() - t0
     ev_post = evaluate_readjustment(fit, re, sim=sim, overlap=overlap)
     ev_in = evaluate_readjustment(fit, ga.fit, sim=sim, overlap=overlap)
+    runs = [("post_hoc", grids, ev_post, t_post), ("in_adjustment", ga.grids, ev_in, t_in)]
+    if combined_spacing is not None:
+        t0 = time.perf_counter()
+        g2 = fit_residual_grids(ga.fit.block, combined_spacing, folds=0)
+        re2 = readjust(ga.fit.block, g2, snooping=False)
+        t_both = t_in + time.perf_counter() - t0
+        ev_both = evaluate_readjustment(fit, re2, sim=sim, overlap=overlap)
+        runs.append(("combined", None, ev_both, t_both))
     out["before"] = {
         "check_rmse_gsd": ev_post["check_before"].get("rmse_gsd"),
         "mean_step": ev_post["mean_step_before"],
     }
-    for name, g, ev, t in (
-        ("post_hoc", grids, ev_post, t_post),
-        ("in_adjustment", ga.grids, ev_in, t_in),
-    ):
+    for name, g, ev, t in runs:
         ra = ev["residuals"]["block"]
         out[name] = {
-            "field": field_recovery(sim, g)["block"]["ratio"],
-            "visible": visible_recovery(sim, g, vis)["ratio"],
+            "field": field_recovery(sim, g)["block"]["ratio"] if g else float("nan"),
+            "visible": visible_recovery(sim, g, vis)["ratio"] if g else float("nan"),
             "check_rmse_gsd": ev["check_after"].get("rmse_gsd"),
             "mean_step": ev["mean_step_after"],
             "residual_rms": ra["after"]["rms"],
