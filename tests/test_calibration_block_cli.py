@@ -62,6 +62,15 @@ def test_evaluate_in_adjustment(cli, block_folder):
     assert data["residuals"]["block"]["reduction_rms"] > 0
     code, _, err = cli("grid", "evaluate", str(block_folder), "--per", "camera")
     assert code == 2 and "--in-adjustment only" in err
+    code, _, err = cli("grid", "evaluate", str(block_folder), "--post-spacing", "300")
+    assert code == 2 and "--in-adjustment only" in err
+    code, text, err = cli(
+        "grid", "evaluate", str(block_folder), "--spacing", "2000", "--sigma-constraint", "1",
+        "--in-adjustment", "--post-spacing", "500", "--json",
+    )  # fmt: skip
+    assert code == 0, err
+    both = json.loads(text)
+    assert both["residuals"]["block"]["reduction_rms"] > data["residuals"]["block"]["reduction_rms"]
     code, _, err = cli(
         "grid", "evaluate", str(block_folder), "--in-adjustment", "--per", "camera",
         "--sigma-temporal", "0.3",

@@ -75,6 +75,13 @@ SigmaTOpt = Annotated[
         "consecutive images' grids (temporal constraints); omit for none."
     ),
 ]
+PostOpt = Annotated[
+    float | None,
+    typer.Option(
+        help="With --in-adjustment: post-process its result with grids of this spacing "
+        "(px): the orientation of the adjustment with grids, finer grids for the steps."
+    ),
+]
 SpacingsOpt = Annotated[
     str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
 ]
@@ -127,6 +134,7 @@ def _evaluate(
     in_adjustment=False,
     per="image",
     sigma_temporal=None,
+    post_spacing=None,
 ):
     from ..calibration import (
         adjust_with_grids,
@@ -139,8 +147,12 @@ def _evaluate(
     fit, sim = _source(block, preset, seed, strips, images)
     if in_adjustment and sigma_constraint == "vce":
         raise InputError("--sigma-constraint vce does not apply with --in-adjustment")
-    if not in_adjustment and (per != "image" or sigma_temporal is not None):
-        raise InputError("--per and --sigma-temporal apply with --in-adjustment only")
+    if not in_adjustment and (
+        per != "image" or sigma_temporal is not None or post_spacing is not None
+    ):
+        raise InputError(
+            "--per, --sigma-temporal and --post-spacing apply with --in-adjustment only"
+        )
     try:
         if in_adjustment:
             ga = adjust_with_grids(
@@ -152,6 +164,9 @@ def _evaluate(
                 std=False,
             )
             grids, re = ga.grids, ga.fit
+            if post_spacing is not None:
+                grids = fit_residual_grids(re.block, post_spacing, folds=0)
+                re = readjust(re.block, grids, snooping=False)
         else:
             grids = fit_residual_grids(
                 fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
@@ -194,6 +209,7 @@ def evaluate(
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
+    post_spacing: PostOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -210,6 +226,7 @@ def evaluate(
         in_adjustment,
         per,
         sigma_temporal,
+        post_spacing,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
