@@ -40,6 +40,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sweep", default="100,150,200,300,500,1000,2000")
     ap.add_argument("--presets", default="ILCE-7RM2,FC6310,FC300S")
+    ap.add_argument(
+        "--ties", type=float, default=None, help="tie points per image (default: the preset's)"
+    )
     a = ap.parse_args()
     sweep = [float(x) for x in a.sweep.split(",")] if a.sweep else None
     print(f"load average {os.getloadavg()[0]:.1f}; size {a.size}")
@@ -47,6 +50,8 @@ def main() -> None:
     for name in a.presets.split(","):
         t0 = time.perf_counter()
         kw = {} if a.size == "study" else {"strips": a.strips, "images_per_strip": a.images}
+        if a.ties is not None:
+            kw["tie_points_per_image"] = a.ties
         r = pg.calibration.run_study(name, seed=a.seed, size=a.size, sweep=sweep, **kw)
         ev = r["evaluation"]
         sw = r["sweep"]
