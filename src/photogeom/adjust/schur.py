@@ -297,6 +297,26 @@ class SchurSystem:
         return _Normal(self, lin, U, Ulg, Ugg, V, gloc, gglob, gpt, diag_l, diag_g, diag_p)
 
 
+def invert_point_blocks(V: np.ndarray) -> np.ndarray:
+    """Inverses of the 3x3 point blocks ``V`` (p, 3, 3) of normal equations.
+
+    Raises
+    ------
+    DegenerateGeometryError
+        A block is (nearly) singular: its point is not determined by its rays.
+    """
+    det = np.linalg.det(V)
+    scale = np.einsum("pii->p", V) ** 3
+    weak = ~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))
+    if np.any(weak):
+        raise DegenerateGeometryError(
+            f"{int(weak.sum())} point(s) are not determined by their rays (all rays "
+            "nearly parallel or fewer than two); first point row "
+            f"{int(np.flatnonzero(weak)[0])}",
+        )
+    return np.linalg.inv(V)
+
+
 class _Normal:
     """Damped normal equations of one linearisation, reduced by the Schur complement."""
 
@@ -305,16 +325,7 @@ class _Normal:
         self.U, self.Ulg, self.Ugg, self.V = U, Ulg, Ugg, V
         self.gloc, self.gglob, self.gpt = gloc, gglob, gpt
         self.diag = (diag_l, diag_g, diag_p)
-        det = np.linalg.det(V)
-        scale = np.einsum("pii->p", V) ** 3
-        weak = ~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))
-        if np.any(weak):
-            raise DegenerateGeometryError(
-                f"{int(weak.sum())} point(s) are not determined by their rays (all rays "
-                "nearly parallel or fewer than two); first point row "
-                f"{int(np.flatnonzero(weak)[0])}",
-            )
-        self.Vinv = np.linalg.inv(V)
+        self.Vinv = invert_point_blocks(V)
         self._reduce()
 
     def _reduce(self) -> None:

@@ -46,6 +46,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from ..adjust.schur import invert_point_blocks
 from ..adjust.sparse import factorize
 from ..bundle.adjustment import NCAL, Problem, _step_small
 from ..bundle.block import Block
@@ -444,13 +445,7 @@ def _reduce_points(N: sp.csr_matrix, npt: int):
     Ncc = N[:nc][:, :nc]
     Ncp = N[:nc][:, nc:].tocsr()
     blocks = _point_blocks(N[nc:][:, nc:].tocsr(), npt // 3)
-    det = np.linalg.det(blocks)
-    scale = np.einsum("pii->p", blocks) ** 3
-    if np.any(~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))):
-        raise DegenerateGeometryError(
-            "a point is not determined by its rays (all rays nearly parallel or fewer than two)"
-        )
-    Vinv = _block_diagonal(np.linalg.inv(blocks))
+    Vinv = _block_diagonal(invert_point_blocks(blocks))
     S = Ncc - Ncp @ Vinv @ Ncp.T
     return S, Ncp, Vinv
 

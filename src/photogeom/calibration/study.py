@@ -28,6 +28,7 @@ from ..bundle.block import Block
 from ..errors import InputError
 from .blocks import block_residuals, fit_residual_grids, readjust
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
+from .grid import _rms_len
 from .steps import model_steps
 
 __all__ = [
@@ -39,10 +40,6 @@ __all__ = [
     "visible_field",
     "visible_recovery",
 ]
-
-
-def _rms(v: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.sum(v * v, axis=1)))) if v.size else float("nan")
 
 
 def field_recovery(sim, grids) -> dict:
@@ -70,9 +67,9 @@ def field_recovery(sim, grids) -> dict:
         truth = -np.asarray(sim.local_field(iid, uv))
         d = g.evaluate(uv) - truth
         out[iid] = {
-            "field_rms": _rms(truth),
-            "difference_rms": _rms(d),
-            "ratio": _rms(d) / _rms(truth) if _rms(truth) > 0 else float("nan"),
+            "field_rms": _rms_len(truth),
+            "difference_rms": _rms_len(d),
+            "ratio": _rms_len(d) / _rms_len(truth) if _rms_len(truth) > 0 else float("nan"),
             "nodes": int(uv.shape[0]),
         }
         all_t.append(truth)
@@ -83,9 +80,9 @@ def field_recovery(sim, grids) -> dict:
     return {
         "images": out,
         "block": {
-            "field_rms": _rms(t),
-            "difference_rms": _rms(d),
-            "ratio": _rms(d) / _rms(t),
+            "field_rms": _rms_len(t),
+            "difference_rms": _rms_len(d),
+            "ratio": _rms_len(d) / _rms_len(t),
             "nodes": int(t.shape[0]),
         },
     }
@@ -143,11 +140,11 @@ def visible_recovery(sim, grids, visible: np.ndarray | None = None) -> dict:
     vis, est, loc = v[rows[ok]], est[ok], sim.local[rows[ok]]
     d = est - vis
     return {
-        "field_rms": _rms(loc),
-        "visible_rms": _rms(vis),
-        "visible_share": _rms(vis) / _rms(loc) if _rms(loc) > 0 else float("nan"),
-        "difference_rms": _rms(d),
-        "ratio": _rms(d) / _rms(vis) if _rms(vis) > 0 else float("nan"),
+        "field_rms": _rms_len(loc),
+        "visible_rms": _rms_len(vis),
+        "visible_share": _rms_len(vis) / _rms_len(loc) if _rms_len(loc) > 0 else float("nan"),
+        "difference_rms": _rms_len(d),
+        "ratio": _rms_len(d) / _rms_len(vis) if _rms_len(vis) > 0 else float("nan"),
     }
 
 
