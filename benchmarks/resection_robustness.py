@@ -32,63 +32,15 @@ import numpy as np
 
 import photogeom as pg
 from photogeom.errors import PhotogeomError
+from photogeom.simulate.resection import RESECTION_KINDS, resection_problem
 
-KINDS = ("nadir", "oblique", "any")
+KINDS = RESECTION_KINDS
 BOUND = 50.0
-
-
-def random_rotation(rng: np.random.Generator) -> np.ndarray:
-    """A rotation matrix uniformly distributed over SO(3) (QR of a Gaussian matrix)."""
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    if np.linalg.det(q) < 0:
-        q[:, 0] = -q[:, 0]
-    return q
-
-
-def make_problem(seed: int, kind: str):
-    """(io, true exterior orientation, ground (n, 3), noisy image (n, 2) in px, sigma)."""
-    rng = np.random.default_rng(seed)
-    n = int(rng.integers(4, 41))
-    w, h = 6000.0, 4000.0
-    f = float(rng.uniform(800.0, 8000.0))
-    dist = pg.BrownDistortion(
-        k1=float(rng.uniform(-0.25, 0.1)),
-        k2=float(rng.uniform(-0.1, 0.1)),
-        p1=float(rng.uniform(-1e-3, 1e-3)),
-        p2=float(rng.uniform(-1e-3, 1e-3)),
-    )
-    io = pg.InteriorOrientation.digital(f, w / 2 + rng.uniform(-50, 50), h / 2, distortion=dist)
-    if kind == "any":
-        M = random_rotation(rng)
-    else:
-        tilt = np.radians(rng.uniform(0, 5) if kind == "nadir" else rng.uniform(20, 70))
-        az = rng.uniform(-np.pi, np.pi)
-        M = pg.opk_matrix(tilt * np.cos(az), tilt * np.sin(az), rng.uniform(-np.pi, np.pi))
-    position = rng.uniform(-1000, 1000, 3)
-    eo = pg.ExteriorOrientation.from_matrix(position, M, on_gimbal_lock="omega-zero")
-    # points spread over the frame (normalised undistorted coordinates) where the distortion
-    # is one-to-one (the radial derivative 1 + 3 K1 r^2 + 5 K2 r^4 >= 0.5), random depths
-    half = np.array([w, h]) / 2 / f * 0.95
-    xn = np.empty((0, 2))
-    while len(xn) < n:
-        cand = rng.uniform(-half, half, (4 * n, 2))
-        r2 = np.sum(cand**2, axis=1)
-        cand = cand[1 + 3 * dist.k1 * r2 + 5 * dist.k2 * r2**2 >= 0.5]
-        xn = np.concatenate([xn, cand])[:n]
-    d0 = float(rng.uniform(20.0, 2000.0))
-    relief = float(rng.uniform(0.02, 1.0))
-    depth = d0 * rng.uniform(1.0, 1.0 + relief, n)
-    pc = np.column_stack([xn[:, 0], -xn[:, 1], -np.ones(n)]) * depth[:, None]
-    ground = eo.position + pc @ eo.matrix
-    sigma = 0.5
-    image = pg.project(ground, io, eo) + rng.normal(0.0, sigma, (n, 2))
-    return io, eo, ground, image, sigma
 
 
 def classify(seed: int, kind: str) -> tuple[str, float]:
     """Outcome of one problem and its chi-square value (NaN when flagged)."""
-    io, eo, ground, image, sigma = make_problem(seed, kind)
+    io, eo, ground, image, sigma = resection_problem(seed, kind)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
