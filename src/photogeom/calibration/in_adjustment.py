@@ -214,6 +214,25 @@ class _GridProblem:
         pt_cols = self.off_p + 3 * bp.obs_j[:, None] + np.arange(3)[None, :]
         self._cols_dense = np.concatenate([loc_cols, cal_cols, pt_cols], axis=1)  # (n, b+11+3)
         self._grid_cols = self.off_g + self.goff[gk][:, None] + 2 * nodes  # x; y is +1
+        # the pattern of the Jacobian (rows 2k, 2k+1 of observation k) is the same in every
+        # iteration: its indices are built once
+        k = self._cols_dense.shape[1]
+        rx = np.repeat(2 * np.arange(n), 4)
+        self._J_rows = np.concatenate([np.repeat(np.arange(2 * n), k), rx, rx + 1])
+        self._J_cols = np.concatenate(
+            [
+                np.repeat(self._cols_dense, 2, axis=0).ravel(),
+                self._grid_cols.ravel(),
+                self._grid_cols.ravel() + 1,
+            ]
+        )
+        # the grids' pseudo-observations in the free unknowns (every grid unknown is free)
+        g0 = int(np.sum(free[: self.off_g]))
+        nf = self.free_idx.size
+        self._R_free = sp.block_diag(
+            [sp.csr_matrix((g0, g0)), self.R, sp.csr_matrix((nf - g0 - self.n_grid,) * 2)],
+            format="csr",
+        )
 
     # -------------------------------------------------------------- pseudo-observations
     def _regularisation(self, datum, sc, st, border, per):
@@ -287,43 +306,28 @@ class _GridProblem:
             blocks.append(pr.d_calibration[:, :, :3])
         dense = np.concatenate([*blocks, pr.d_calibration, pr.d_point], axis=2)
         dense = dense * sw[:, None, None]
-        n, k = self.n, dense.shape[2]
-        rows_d = np.repeat(np.arange(2 * n), k)
-        cols_d = np.repeat(self._cols_dense, 2, axis=0).ravel()
-        vals_d = dense.reshape(-1)
-        gw = -self.obs_w * sw[:, None]  # (n, 4)
-        rx = np.repeat(2 * np.arange(n), 4)
-        rows_g = np.concatenate([rx, rx + 1])
-        cols_g = np.concatenate([self._grid_cols.ravel(), self._grid_cols.ravel() + 1])
-        vals_g = np.concatenate([gw.ravel(), gw.ravel()])
+        gw = (-self.obs_w * sw[:, None]).ravel()  # (n, 4): the x row, then the y row
         J = sp.csr_matrix(
-            (
-                np.concatenate([vals_d, vals_g]),
-                (np.concatenate([rows_d, rows_g]), np.concatenate([cols_d, cols_g])),
-            ),
-            shape=(2 * n, self.ntot),
+            (np.concatenate([dense.reshape(-1), gw, gw]), (self._J_rows, self._J_cols)),
+            shape=(2 * self.n, self.ntot),
         )
-        J = J[:, self.free_idx]
-        rv = r.ravel()
+        fi = self.free_idx
+        J = J[:, fi]
         N = (J.T @ J).tocsr()
-        g = J.T @ rv
+        g = J.T @ r.ravel()
         # priors of the bundle problem (GNSS, IMU, control) and the grids' pseudo-observations
-        li, lg, pi, pgr, pcost, _ = bp.prior_terms(s)
-        full = sp.block_diag(
+        li, lg, pi, pgr, _, _ = bp.prior_terms(s)
+        priors = sp.block_diag(
             [
                 _block_diagonal(li),
-                sp.csr_matrix((self.ncal, self.ncal)),
-                self.R,
+                sp.csr_matrix((self.ncal + self.n_grid,) * 2),
                 _block_diagonal(pi),
             ],
             format="csr",
         )
-        full_g = np.concatenate([lg.ravel(), np.zeros(self.ncal), self.R @ z, pgr.ravel()])
-        fi = self.free_idx
-        N = (N + full[fi][:, fi]).tocsr()
-        g = g + full_g[fi]
-        cost = float(rv @ rv) + pcost + float(z @ (self.R @ z))
-        return N, g, cost
+        N = (N + priors[fi][:, fi] + self._R_free).tocsr()
+        g_priors = np.concatenate([lg.ravel(), np.zeros(self.ncal), self.R @ z, pgr.ravel()])
+        return N, g + g_priors[fi]
 
     def split(self, dx_free: np.ndarray):
         dx = np.zeros(self.ntot)
@@ -377,7 +381,7 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
         )
     history, lam, nu = [cost], opts.initial_damping, 2.0
     converged, message = False, f"not converged: {opts.max_iterations} iterations reached"
-    N, g, _ = gp.normal_equations(s, z)
+    N, g = gp.normal_equations(s, z)
     scale_uv = float(max(L.width for L in gp.layouts if L is not None))
     it = 0
     while it < opts.max_iterations:
@@ -406,7 +410,7 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
             history.append(cost)
             lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
             nu = 2.0
-            N, g, _ = gp.normal_equations(s, z)
+            N, g = gp.normal_equations(s, z)
             if progress is not None:
                 progress(it, cost, lam)
             if decrease <= opts.ftol * cost:
