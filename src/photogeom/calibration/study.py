@@ -394,14 +394,16 @@ def compare_in_adjustment(
     }
     for name, g, ev, t in runs:
         ra = ev["residuals"]["block"]
+        vr = visible_recovery(sim, g, vis) if g else {"ratio": float("nan")}
+        if name == "post_hoc":
+            out["visible_share"] = vr["visible_share"]
         out[name] = {
             "field": field_recovery(sim, g)["block"]["ratio"] if g else float("nan"),
-            "visible": visible_recovery(sim, g, vis)["ratio"] if g else float("nan"),
+            "visible": vr["ratio"],
             "check_rmse_gsd": ev["check_after"].get("rmse_gsd"),
             "mean_step": ev["mean_step_after"],
             "residual_rms": ra["after"]["rms"],
             "seconds": t_first + t,
         }
-    out["visible_share"] = visible_recovery(sim, grids, vis)["visible_share"]
     out["in_adjustment_result"] = ga
     return out
