@@ -1,9 +1,10 @@
 """Benchmark: residual grids after the adjustment (the study) against grids inside it.
 
-For each preset of the simulator (small blocks): one Brown self-calibrating adjustment,
-then (a) the post-processing of the study - grids fitted to the residuals, observations
-corrected, re-adjusted with orientation and calibration fixed - (b) the grids estimated
-inside the adjustment (:func:`photogeom.calibration.adjust_with_grids`, per image, with
+For each preset of the simulator (small blocks, or the study's sizes): one Brown
+self-calibrating adjustment, then (a) the post-processing of the study - grids fitted to
+the residuals, observations corrected, re-adjusted with orientation and calibration
+fixed - (b) the grids estimated inside the adjustment
+(:func:`photogeom.calibration.adjust_with_grids`, per image, with
 temporal constraints unless ``--no-temporal``), and (c) both: (b) post-processed with
 300 px grids. Printed per method: the fitted field against the true local field and
 against its visible part (what the residuals of an adjustment can show,
@@ -11,9 +12,11 @@ against its visible part (what the residuals of an adjustment can show,
 between consecutive stereo models (GSD), the tie-point residual RMS and the time (the
 first adjustment included).
 
-Run: ``python benchmarks/residual_grid_in_adjustment.py`` (about a minute on an idle
+Run: ``python benchmarks/residual_grid_in_adjustment.py`` (about half a minute on an idle
 2-core machine; the in-adjustment time grows with the cube of images x nodes on small,
-fully connected blocks).
+fully connected blocks), or ``--size study --spacing 1000`` for the study's blocks (250 /
+195 / 82 images; a few minutes; 500 px grids there take about 6 minutes per iteration and
+8 GB on ILCE-7RM2).
 """
 
 from __future__ import annotations
@@ -31,8 +34,9 @@ def main() -> None:
     ap.add_argument("--sigma-constraint", type=float, default=1.0, help="px")
     ap.add_argument("--sigma-temporal", type=float, default=0.3, help="px")
     ap.add_argument("--no-temporal", action="store_true")
+    ap.add_argument("--size", choices=("small", "study"), default="small")
     ap.add_argument("--strips", type=int, default=2)
-    ap.add_argument("--images", type=int, default=8, help="images per strip")
+    ap.add_argument("--images", type=int, default=8, help="images per strip (small size)")
     ap.add_argument("--ties", type=float, default=300.0, help="tie points per image")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--per", choices=("image", "camera"), default="image")
@@ -46,7 +50,8 @@ def main() -> None:
     st = None if a.no_temporal or a.per == "camera" else a.sigma_temporal
     print(
         f"load average {os.getloadavg()[0]:.1f}; spacing {a.spacing:g} px, sigma_constraint "
-        f"{a.sigma_constraint:g} px, sigma_temporal {st} px, {a.strips} x {a.images} images, "
+        f"{a.sigma_constraint:g} px, sigma_temporal {st} px, "
+        f"{'study size' if a.size == 'study' else f'{a.strips} x {a.images} images'}, "
         f"{a.ties:g} tie points per image, grids per {a.per}, static share {a.static:g}"
     )
     head = (
@@ -55,11 +60,12 @@ def main() -> None:
     )
     print(head)
     for name in a.presets.split(","):
+        kw = {} if a.size == "study" else {"strips": a.strips, "images_per_strip": a.images}
         sim = pg.simulate.uav_block(
             name,
             seed=a.seed,
-            strips=a.strips,
-            images_per_strip=a.images,
+            size=a.size,
+            **kw,
             tie_points_per_image=a.ties,
             local_field_static=a.static,
         )
@@ -67,6 +73,7 @@ def main() -> None:
             sim, a.spacing, sigma_constraint=a.sigma_constraint, sigma_temporal=st, per=a.per
         )
         b = r["before"]
+        print(f"{name:10s} {r['images']} images")
         c = ", ".join(f"{x:.2f}" for x in b["check_rmse_gsd"])
         print(f"{name:10s} {'adjustment':14s} {'':>10s} {'':>9s} {c:>20s} {b['mean_step']:6.2f}")
         for m in ("post_hoc", "in_adjustment", "combined"):

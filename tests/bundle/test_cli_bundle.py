@@ -195,19 +195,19 @@ def test_convert_round_trip_and_free_datum(simulated, cli, tmp_path):
 
 
 def test_progress_on_a_terminal_only(simulated, cli, monkeypatch):
-    import photogeom.cli.bundle as cb
+    import photogeom.cli._common as cc
 
     code, _out, err = cli("bundle", "adjust", simulated)
     assert code == 0 and err == ""  # not a terminal: no progress display
     buf = io.StringIO()
-    real = cb.console
+    real = cc.console
 
     def fake(stderr=False):
         if stderr:
             return Console(file=buf, force_terminal=True, width=100)
         return real(stderr)
 
-    monkeypatch.setattr(cb, "console", fake)
+    monkeypatch.setattr(cc, "console", fake)
     calls = []
     orig = pg.bundle.bundle_adjust
 

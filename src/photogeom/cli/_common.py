@@ -50,6 +50,37 @@ def console(stderr: bool = False):
     return c
 
 
+def iteration_progress(max_iterations: int, label: str = "adjusting"):
+    """A rich display of an adjustment's iterations on a terminal (stderr).
+
+    Returns ``(display, progress)``: the display to enter as a context manager and the
+    ``progress(iteration, cost, damping)`` callback of the adjustment; ``(None, None)``
+    when stderr is not a terminal.
+    """
+    err = console(stderr=True)
+    if not err.is_terminal:
+        return None, None
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    prog = Progress(
+        SpinnerColumn(),
+        TextColumn(f"[bold]{label}[/bold] iteration {{task.completed}}"),
+        BarColumn(),
+        TextColumn("{task.fields[info]}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+    )
+    task = prog.add_task("adjust", total=max_iterations, info="")
+
+    def progress(it, cost, lam):
+        prog.update(
+            task, completed=min(it, max_iterations), info=f"cost {cost:.6e}  damping {lam:.1e}"
+        )
+
+    return prog, progress
+
+
 def say(text: str, out=None, *, stderr: bool = False) -> None:
     """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
@@ -102,9 +133,7 @@ def check_mask(
     if missing:
         known_ids = ""
         if list_ids:
-            known_ids = (
-                f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
-            )
+            known_ids = f"; the ids are {', '.join(ids[:30])}{' ...' if len(ids) > 30 else ''}"
         raise InputError(f"--check-ids: no point with id {', '.join(missing)}{known_ids}")
     return np.isin(np.array(ids, dtype=object), names)
 
@@ -151,9 +180,7 @@ def load_pairs(
     # An explicit weight/sigma column belongs to the target file; without one, a weight or
     # sigma column found in either file is used (join_points refuses conflicting ones).
     explicit = weights_col is not None or sigma_col is not None
-    src = read_points(
-        source, split_names(source_cols), id_column=id_col, auto_weights=not explicit
-    )
+    src = read_points(source, split_names(source_cols), id_column=id_col, auto_weights=not explicit)
     dst = read_points(
         target,
         split_names(target_cols),

@@ -22,7 +22,15 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._common import CRS_FORMS, AngleUnit, console, json_text, say, split_names
+from ._common import (
+    CRS_FORMS,
+    AngleUnit,
+    console,
+    iteration_progress,
+    json_text,
+    say,
+    split_names,
+)
 
 app = typer.Typer(
     help="Bundle adjustment of image blocks: simulate, adjust, convert, report.",
@@ -331,32 +339,6 @@ def simulate(
 # --- adjust --------------------------------------------------------------------------------------
 
 
-def _progress_display(max_iterations: int):
-    """A rich progress display of the iterations on a terminal (stderr), else None."""
-    err = console(stderr=True)
-    if not err.is_terminal:
-        return None, None
-    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    prog = Progress(
-        SpinnerColumn(),
-        TextColumn("[bold]adjusting[/bold] iteration {task.completed}"),
-        BarColumn(),
-        TextColumn("{task.fields[info]}"),
-        TimeElapsedColumn(),
-        console=err,
-        transient=True,
-    )
-    task = prog.add_task("adjust", total=max_iterations, info="")
-
-    def progress(it, cost, lam):
-        prog.update(
-            task, completed=min(it, max_iterations), info=f"cost {cost:.6e}  damping {lam:.1e}"
-        )
-
-    return prog, progress
-
-
 @app.command("adjust")
 @_cli_words
 def adjust(
@@ -490,7 +472,7 @@ def adjust(
                 f"{', '.join(CALIBRATION_NAMES)} (or 'none')"
             )
         options["free"] = tuple(names)
-    prog, progress = _progress_display(max_iterations)
+    prog, progress = iteration_progress(max_iterations)
     if prog is not None:
         with prog:
             fit = bundle_adjust(block, progress=progress, **options)

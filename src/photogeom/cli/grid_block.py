@@ -10,13 +10,14 @@ rule; ``report`` writes the HTML report with the study's figures.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from ..errors import InputError
-from ._common import JsonOpt, console, json_text, say, split_numbers
+from ._common import JsonOpt, console, iteration_progress, json_text, say, split_numbers
 
 BlockArg = Annotated[
     Path | None,
@@ -155,14 +156,20 @@ def _evaluate(
         )
     try:
         if in_adjustment:
-            ga = adjust_with_grids(
-                fit.block,
-                spacing,
-                per=per,
-                sigma_constraint=sigma_constraint,
-                sigma_temporal=sigma_temporal,
-                std=False,
-            )
+            from ..bundle.options import BundleOptions
+
+            most = BundleOptions().max_iterations
+            prog, progress = iteration_progress(most, "adjusting with grids")
+            with prog if prog is not None else nullcontext():
+                ga = adjust_with_grids(
+                    fit.block,
+                    spacing,
+                    per=per,
+                    sigma_constraint=sigma_constraint,
+                    sigma_temporal=sigma_temporal,
+                    std=False,
+                    progress=progress,
+                )
             grids, re = ga.grids, ga.fit
             if post_spacing is not None:
                 grids = fit_residual_grids(re.block, post_spacing, folds=0)
