@@ -7,14 +7,22 @@ that a noise-free adjustment of the same block leaves (:func:`photogeom.calibrat
 visible_field`, :func:`photogeom.calibration.visible_recovery`). Printed: RMS of the field,
 share of it that is visible, and the RMS of the differences relative to each reference.
 
-Run: ``python benchmarks/residual_grid_field.py [--ties 1000] [--spacing 200]`` (about a
-minute per preset).
+With ``--absorption`` also: which unknowns take the rest of the field up. The noise-free
+adjustment of the truth is repeated with the tie points held, the orientations held, and
+both (only the calibration free), and for each the visible share and the floor: the RMS of
+the field that no method working on residuals can recover (visible part minus field),
+over the field's RMS. ``--forward-overlap`` and ``--side-overlap`` change the geometry.
+
+Run: ``python benchmarks/residual_grid_field.py [--ties 1000] [--spacing 200]
+[--absorption]`` (about a minute per preset).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+
+import numpy as np
 
 import photogeom as pg
 
@@ -28,6 +36,9 @@ def main() -> None:
     ap.add_argument("--strips", type=int, default=2)
     ap.add_argument("--images", type=int, default=8, help="images per strip")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--forward-overlap", type=float, default=None)
+    ap.add_argument("--side-overlap", type=float, default=None)
+    ap.add_argument("--absorption", action="store_true", help="what takes the field up")
     a = ap.parse_args()
     sc = a.sigma_constraint if a.sigma_constraint == "vce" else float(a.sigma_constraint)
     print(
@@ -45,6 +56,8 @@ def main() -> None:
             strips=a.strips,
             images_per_strip=a.images,
             tie_points_per_image=a.ties,
+            forward_overlap=a.forward_overlap,
+            side_overlap=a.side_overlap,
         )
         fit = pg.bundle_adjust(sim.block, snooping=False)
         grids = pg.calibration.fit_residual_grids(
@@ -56,6 +69,29 @@ def main() -> None:
             f"{name:10s} {vis['field_rms']:8.3f} {vis['visible_share']:13.2f} "
             f"{true['ratio']:15.2f} {vis['ratio']:12.2f}"
         )
+        if a.absorption:
+            absorption(sim)
+
+
+def absorption(sim) -> None:
+    """Visible share and floor with the tie points, the orientations or both held."""
+    b = sim.block
+    rows = np.flatnonzero(b.role[b.obs_point] == "tie")
+    field = sim.local[rows]
+    rms = float(np.sqrt(np.mean(np.sum(field**2, axis=1))))
+    rays = np.bincount(b.obs_point[rows])
+    print(f"{'':10s} mean rays per tie point {rays[rays > 0].mean():.1f}")
+    cases = (
+        ("nothing held (as above)", {}),
+        ("tie points held", {"hold_points": True}),
+        ("orientations held", {"fix_exterior": True}),
+        ("both held (calibration free)", {"hold_points": True, "fix_exterior": True}),
+    )
+    for label, kw in cases:
+        v = pg.calibration.visible_field(sim, **kw)[rows]
+        share = float(np.sqrt(np.mean(np.sum(v**2, axis=1)))) / rms
+        floor = float(np.sqrt(np.mean(np.sum((v + field) ** 2, axis=1)))) / rms
+        print(f"{'':10s} {label:30s} visible share {share:5.2f}  floor {floor:5.2f}")
 
 
 if __name__ == "__main__":

@@ -163,3 +163,39 @@ def test_readjust_needs_no_datum_of_its_own():
     re = pg.calibration.readjust(block, grids, snooping=False)
     np.testing.assert_allclose(re.block.exterior, block.exterior, rtol=0, atol=1e-12)
     assert re.converged
+
+
+@pytest.fixture(scope="module")
+def ilce_small():
+    return pg.simulate.uav_block("ILCE-7RM2", seed=5, strips=2, images_per_strip=4)
+
+
+def test_visible_field_is_the_whole_field_when_nothing_can_take_it_up(ilce_small):
+    """Points, orientations and calibration held: the residuals are the field itself
+    (computed minus observed = -field)."""
+    sim = ilce_small
+    v = pg.calibration.visible_field(sim, hold_points=True, fix_exterior=True, free=())
+    tie = sim.truth.role[sim.truth.obs_point] == "tie"
+    np.testing.assert_allclose(v[tie], -sim.local[tie], atol=1e-3)
+
+
+def test_visible_field_of_a_displaced_object_is_nothing(ilce_small):
+    """A 'field' that is exactly the image displacement of shifted tie points is taken up
+    by the points: nothing of it is visible; with the points held, all of it."""
+    import dataclasses
+
+    from photogeom.bundle.residuals import projected_pixels
+
+    sim = ilce_small
+    T = sim.truth
+    rng = np.random.default_rng(0)
+    xyz = T.xyz.copy()
+    tie = T.role == "tie"
+    xyz[tie] += rng.normal(0.0, 0.05, (int(tie.sum()), 3))  # 5 cm, about one GSD
+    field = projected_pixels(T, xyz)[0] - projected_pixels(T)[0]
+    fake = dataclasses.replace(sim, local=field)
+    rows = tie[T.obs_point]
+    v = pg.calibration.visible_field(fake)
+    assert np.sqrt(np.mean(v[rows] ** 2)) < 1e-6 * np.sqrt(np.mean(field[rows] ** 2)) + 1e-9
+    held = pg.calibration.visible_field(fake, hold_points=True, fix_exterior=True, free=())
+    np.testing.assert_allclose(held[rows], -field[rows], atol=1e-3)

@@ -41,6 +41,9 @@ __all__ = [
     "visible_recovery",
 ]
 
+#: Standard deviation (m) of the tie points held at their truth by ``visible_field``.
+HELD_POINT_SIGMA = 1e-6
+
 
 def field_recovery(sim, grids) -> dict:
     """Compare fitted grids with the true local field of a simulated block.
@@ -88,7 +91,7 @@ def field_recovery(sim, grids) -> dict:
     }
 
 
-def visible_field(sim, **options) -> np.ndarray:
+def visible_field(sim, *, hold_points: bool = False, **options) -> np.ndarray:
     """The part of the simulated local field that the adjustment leaves in the residuals.
 
     The block's truth is adjusted (same settings as :func:`photogeom.bundle_adjust`, Brown
@@ -100,6 +103,16 @@ def visible_field(sim, **options) -> np.ndarray:
     partly indistinguishable from the object and orientation (a null space of the
     residuals, not a weakness of the grid).
 
+    Parameters
+    ----------
+    sim : SimulatedBlock
+    hold_points : bool
+        Hold every tie point at its true coordinates (control with a standard deviation of
+        1e-6 m), to see how much of the field the points take up.
+    **options
+        Settings of :func:`photogeom.bundle_adjust`, e.g. ``fix_exterior=True`` (what the
+        orientations take up) or ``free=()`` (no self-calibration).
+
     Returns
     -------
     numpy.ndarray, shape (n, 2)
@@ -109,6 +122,11 @@ def visible_field(sim, **options) -> np.ndarray:
     from ..bundle.residuals import reprojection_residuals
 
     block = sim.truth.with_observations(uv=sim.ideal + sim.local)
+    if hold_points:
+        tie = block.role == "tie"
+        sigma = block.point_sigma.copy()
+        sigma[tie] = HELD_POINT_SIGMA
+        block = block.replace(role=np.where(tie, "control", block.role), point_sigma=sigma)
     fit = bundle_adjust(block, **{"snooping": False, **options})
     v = reprojection_residuals(fit.block)
     v[~fit.in_adjustment] = np.nan
