@@ -44,3 +44,75 @@ def test_indefinite_and_empty_columns_are_named_errors(backend):
     u = rng.standard_normal((30, 28))
     with pytest.raises(DegenerateGeometryError, match="positive definite"):
         factorize(sp.csc_matrix(u @ u.T - 1e-3 * np.eye(30)), backend=backend)
+
+
+def _banded_dense_blocks(nb=8, b=150, seed=2):
+    """SPD with dense b x b blocks coupled to their neighbours: big supernodes, so the
+    factorisation runs the dense BLAS/LAPACK kernels (dgemm, dsyrk, dtrsm, dpotrf)."""
+    rng = np.random.default_rng(seed)
+    n = nb * b
+    A = np.zeros((n, n))
+    for i in range(nb):
+        for j in (i, i + 1):
+            if j < nb:
+                A[i * b : (i + 1) * b, j * b : (j + 1) * b] = rng.standard_normal((b, b))
+    return sp.csc_matrix(A @ A.T + n * np.eye(n))
+
+
+@pytest.mark.skipif(not HAVE_CHOLMOD, reason="CHOLMOD (sksparse-minimal) not installed")
+def test_cholmod_with_big_supernodes_matches_lapack():
+    N = _banded_dense_blocks()
+    b = np.random.default_rng(3).standard_normal(N.shape[0])
+    x = factorize(N, backend="cholmod").solve(b)
+    np.testing.assert_allclose(x, np.linalg.solve(N.toarray(), b), rtol=1e-10, atol=1e-14)
+    Nd = N.toarray()
+    # indefinite with a positive diagonal (a 2 x 2 minor below zero), inside a supernode
+    Nd[700, 701] = Nd[701, 700] = 2.0 * np.sqrt(Nd[700, 700] * Nd[701, 701])
+    with pytest.raises(DegenerateGeometryError, match="not positive definite"):
+        factorize(sp.csc_matrix(Nd), backend="cholmod")
+
+
+@pytest.mark.skipif(not HAVE_CHOLMOD, reason="CHOLMOD (sksparse-minimal) not installed")
+def test_the_bound_blas_gives_the_reference_blas_solution(tmp_path):
+    """CHOLMOD bound to the optimised BLAS (the default) and to the wheel's reference BLAS
+    (PHOTOGEOM_CHOLMOD_BLAS=reference, a fresh process) solve alike."""
+    import os
+    import subprocess
+    import sys
+
+    from photogeom.adjust import sparse
+
+    N = _banded_dense_blocks()
+    b = np.random.default_rng(4).standard_normal(N.shape[0])
+    sp.save_npz(tmp_path / "N.npz", N)
+    np.save(tmp_path / "b.npy", b)
+    code = (
+        "import sys, numpy as np, scipy.sparse as sp\n"
+        "from photogeom.adjust import sparse\n"
+        "N = sp.load_npz(sys.argv[1]); b = np.load(sys.argv[2])\n"
+        "np.save(sys.argv[3], sparse.factorize(N, backend='cholmod').solve(b))\n"
+        "print(sparse.CHOLMOD_BLAS)\n"
+    )
+    env = {**os.environ, sparse.BLAS_VARIABLE: "reference"}
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path / "N.npz"), str(tmp_path / "b.npy"),
+         str(tmp_path / "x.npy")],
+        env=env, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert out.stdout.startswith("reference")
+    x_ref = np.load(tmp_path / "x.npy")
+    x = factorize(N, backend="cholmod").solve(b)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-11, atol=1e-15)
+
+
+def test_blas_binding_can_be_switched_off_and_needs_no_opencv(monkeypatch):
+    import importlib.util
+
+    from photogeom.adjust import sparse
+
+    monkeypatch.setenv(sparse.BLAS_VARIABLE, "reference")
+    assert sparse._bind_optimised_blas().startswith("reference")
+    monkeypatch.delenv(sparse.BLAS_VARIABLE)
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
+    assert sparse._optimised_blas() is None
+    assert sparse._bind_optimised_blas().startswith("reference")
