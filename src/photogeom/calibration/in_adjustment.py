@@ -47,7 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..adjust.schur import invert_point_blocks
-from ..adjust.sparse import factorize
+from ..adjust.sparse import HAVE_CHOLMOD, factorize
 from ..bundle.adjustment import NCAL, Problem, _step_small
 from ..bundle.block import Block
 from ..bundle.options import BundleOptions
@@ -61,8 +61,8 @@ PER = ("image", "camera")
 DATUMS = ("similarity", "affine")
 #: Standard deviation of the datum conditions (px, on the mean over the nodes).
 DATUM_SIGMA = 1e-4
-#: Camera-side unknowns (the points eliminated) up to which the reduced system is factorised
-#: densely (LAPACK; 70 MB at 3000, 800 MB at 10000).
+#: Without CHOLMOD: camera-side unknowns (the points eliminated) up to which the reduced
+#: system is factorised densely (LAPACK; 70 MB at 3000, 800 MB at 10000).
 DENSE_REDUCED_MAX = 10000
 #: Unknowns (without the points) up to which node standard deviations are computed by
 #: default (a dense inverse of the system reduced by the points).
@@ -462,23 +462,17 @@ def _reduce_points(N: sp.csr_matrix, npt: int):
 
 def _solve_by_points(N: sp.csr_matrix, g: np.ndarray, npt: int, backend: str) -> np.ndarray:
     """``N dx = -g`` with the points eliminated first (3x3 blocks); the reduced system is
-    factorised densely (LAPACK) up to a few thousand unknowns, else sparsely."""
+    factorised by :func:`~photogeom.adjust.sparse.factorize` (dense up to a few thousand
+    unknowns, else CHOLMOD; densely up to :data:`DENSE_REDUCED_MAX` where CHOLMOD is
+    missing, as SuperLU is slower there)."""
     nc = N.shape[0] - npt
     S, Ncp, Vinv = _reduce_points(N, npt)
     gc, gp_ = g[:nc], g[nc:]
     rhs = -gc + Ncp @ (Vinv @ gp_)
-    if nc <= DENSE_REDUCED_MAX and backend in ("auto", "dense"):
-        try:
-            c = sla.cho_factor(S.toarray(), lower=True, check_finite=False)
-        except np.linalg.LinAlgError:
-            raise DegenerateGeometryError(
-                "normal equations with residual grids are not positive definite (a grid or "
-                "orientation parameter is not determined)"
-            ) from None
-        dc = sla.cho_solve(c, rhs, check_finite=False)
-    else:
-        F = factorize(S.tocsc(), backend=backend, what="normal equations with residual grids")
-        dc = F.solve(rhs)
+    if backend == "auto" and not HAVE_CHOLMOD and nc <= DENSE_REDUCED_MAX:
+        backend = "dense"
+    F = factorize(S.tocsc(), backend=backend, what="normal equations with residual grids")
+    dc = F.solve(rhs)
     dp = -(Vinv @ (gp_ + Ncp.T @ dc))
     return np.concatenate([dc, dp])
 
