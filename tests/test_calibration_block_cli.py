@@ -112,3 +112,14 @@ def test_in_adjustment_shows_its_iterations_on_a_terminal_only(cli, block_folder
     code, _out, err = cli(*args, "--sigma-constraint", "1")
     assert code == 0, err
     assert "adjusting with grids" in buf.getvalue() and "cost" in buf.getvalue()
+
+
+def test_evaluate_on_a_preset_prints_the_check_points_against_the_truth(cli, block_folder):
+    code, text, err = cli(
+        "grid", "evaluate", "--preset", "FC300S", "--strips", "1", "--images", "5",
+        "--spacing", "1000",
+    )  # fmt: skip
+    assert code == 0, err
+    assert "check-point RMSE (GSD)" in text and "against the simulated truth" in text
+    code, text, err = cli("grid", "evaluate", str(block_folder), "--spacing", "1000")
+    assert code == 0 and "check-point" not in text  # no truth for a block folder

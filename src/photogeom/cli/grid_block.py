@@ -271,6 +271,14 @@ def evaluate(
         a = ev["steps_after"].get(k, float("nan"))
         m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
     out.print(m)
+    cb, ca = ev.get("check_before"), ev.get("check_after")
+    if cb and ca:
+        c = Table(title="check-point RMSE (GSD)")
+        for col in ("against the simulated truth", "X", "Y", "Z"):
+            c.add_column(col, justify="right")
+        c.add_row("before", *(f"{x:.3f}" for x in cb["rmse_gsd"]))
+        c.add_row("after", *(f"{x:.3f}" for x in ca["rmse_gsd"]))
+        out.print(c)
 
 
 def sweep(
