@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 import photogeom as pg
@@ -123,3 +124,43 @@ def test_evaluate_on_a_preset_prints_the_check_points_against_the_truth(cli, blo
     assert "check-point RMSE (GSD)" in text and "against the simulated truth" in text
     code, text, err = cli("grid", "evaluate", str(block_folder), "--spacing", "1000")
     assert code == 0 and "check-point" not in text  # no truth for a block folder
+
+
+@pytest.fixture(scope="module")
+def folder_and_survey(tmp_path_factory):
+    """An adjusted block folder (check points triangulated) and the surveyed check-point
+    coordinates as a point CSV."""
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=4, strips=1, images_per_strip=5)
+    fit = pg.bundle_adjust(sim.block, snooping=False)
+    d = tmp_path_factory.mktemp("surveyed")
+    pg.bundle.write_csv_block(fit.block, d / "adjusted")
+    b = sim.block
+    rows = [
+        f"{k},{float(x)!r},{float(y)!r},{float(z)!r}"
+        for k, (x, y, z) in zip(b.point_ids.tolist(), b.xyz)
+        if k in fit.check["ids"]
+    ]
+    (d / "checks.csv").write_text("id,X,Y,Z\n" + "\n".join(rows) + "\n")
+    return d / "adjusted", d / "checks.csv", fit
+
+
+def test_check_points_of_a_block_folder_against_surveyed_coordinates(cli, folder_and_survey):
+    folder, checks, fit = folder_and_survey
+    args = ("grid", "evaluate", str(folder), "--spacing", "1000")
+    code, text, err = cli(*args, "--check-points", str(checks), "--json")
+    assert code == 0, err
+    data = json.loads(text)
+    np.testing.assert_allclose(
+        data["check_rmse_gsd_before"], fit.check["rmse"] / fit.block.gsd(), rtol=1e-6
+    )
+    assert len(data["check_rmse_gsd_after"]) == 3
+    code, text, err = cli(*args, "--check-points", str(checks))
+    assert code == 0 and "against surveyed" in text
+    code, _, err = cli(*args, "--check-points", str(checks.with_name("missing.csv")))
+    assert code == 2 and "--check-points" in err and "does not exist" in err
+    other = checks.with_name("other.csv")
+    other.write_text("id,X,Y,Z\nnowhere,1,2,3\n")
+    code, _, err = cli(*args, "--check-points", str(other))
+    assert code == 2 and "--check-points: none of the block's check points" in err
+    code, _, err = cli("grid", "evaluate", "--preset", "FC300S", "--check-points", str(checks))
+    assert code == 2 and "applies to a BLOCK folder" in err

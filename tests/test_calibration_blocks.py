@@ -199,3 +199,28 @@ def test_visible_field_of_a_displaced_object_is_nothing(ilce_small):
     assert np.sqrt(np.mean(v[rows] ** 2)) < 1e-6 * np.sqrt(np.mean(field[rows] ** 2)) + 1e-9
     held = pg.calibration.visible_field(fake, hold_points=True, fix_exterior=True, free=())
     np.testing.assert_allclose(held[rows], -field[rows], atol=1e-3)
+
+
+def test_check_points_against_surveyed_coordinates(ilce_small):
+    """Real blocks: the adjusted block holds its check points triangulated; with their
+    surveyed coordinates the errors before are the bundle adjustment's own check errors,
+    and after minus before is the re-adjustment's move of the triangulated points."""
+    sim = ilce_small
+    fit = pg.bundle_adjust(sim.block, snooping=False)
+    grids = pg.calibration.fit_residual_grids(fit.block, 1000, folds=0)
+    re = pg.calibration.readjust(fit.block, grids, snooping=False)
+    b = sim.block
+    check = b.role == "check"
+    surveyed = dict(zip(b.point_ids[check].tolist(), b.xyz[check]))
+    ev = pg.calibration.evaluate_readjustment(fit, re, surveyed=surveyed)
+    assert ev["check_before"]["ids"] == list(fit.check["ids"])
+    np.testing.assert_allclose(ev["check_before"]["errors"], fit.check["errors"], atol=1e-9)
+    moved = ev["check_after"]["errors"] - ev["check_before"]["errors"]
+    np.testing.assert_allclose(moved, re.check["errors"], atol=1e-9)
+    np.testing.assert_allclose(
+        ev["check_before"]["rmse_gsd"], fit.check["rmse"] / fit.block.gsd(), rtol=1e-12
+    )
+    with pytest.raises(InputError, match="none of the block's check points"):
+        pg.calibration.evaluate_readjustment(fit, re, surveyed={"nowhere": (0, 0, 0)})
+    with pytest.raises(InputError, match="not both"):
+        pg.calibration.evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed)

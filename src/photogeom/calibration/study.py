@@ -177,7 +177,24 @@ def _check_errors(block: Block, sim) -> dict:
     return {"errors": e, "rmse": rmse, "rmse_gsd": rmse / sim.gsd}
 
 
-def evaluate_readjustment(before, after, *, sim=None, overlap: float = 0.6) -> dict:
+def _surveyed_errors(block: Block, surveyed: dict, gsd: float) -> dict:
+    """Check points of ``block`` (their triangulated coordinates) minus ``surveyed``
+    (``{str(id): (3,)}``)."""
+    ids = block.point_ids[block.role == "check"]
+    keep = [k for k in ids.tolist() if str(k) in surveyed]
+    if not keep:
+        raise InputError(
+            "surveyed: none of the block's check points "
+            f"({', '.join(map(str, ids[:5].tolist())) or 'none'}) has a surveyed coordinate; "
+            "give the check points' ids as the block names them"
+        )
+    row = {k: i for i, k in enumerate(block.point_ids.tolist())}
+    e = np.array([block.xyz[row[k]] - np.asarray(surveyed[str(k)], float) for k in keep])
+    rmse = np.sqrt(np.nanmean(e * e, axis=0))
+    return {"ids": keep, "errors": e, "rmse": rmse, "rmse_gsd": rmse / gsd}
+
+
+def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: float = 0.6) -> dict:
     """Residuals, steps and check-point errors before and after the correction.
 
     Parameters
@@ -186,14 +203,20 @@ def evaluate_readjustment(before, after, *, sim=None, overlap: float = 0.6) -> d
         The first adjustment and the re-adjustment (:func:`readjust`).
     sim : SimulatedBlock, optional
         Adds the check-point errors against the true coordinates (object units and GSD).
+    surveyed : mapping, optional
+        ``{point id: (X, Y, Z)}`` surveyed coordinates of check points (real blocks: an
+        adjusted block holds its check points triangulated, not surveyed). Adds the
+        check-point errors, triangulated minus surveyed, before and after (object units,
+        and GSD of the first adjustment's block). Ids are matched as text.
 
     Returns
     -------
     dict
         ``residuals`` (:func:`compare_residuals` of the tie-point residuals per image and
         block), ``steps_before``, ``steps_after`` (``{(a, b): GSD}``), ``mean_step_before``,
-        ``mean_step_after``, ``step_reduction`` (of the mean) and, with ``sim``,
-        ``check_before``, ``check_after``.
+        ``mean_step_after``, ``step_reduction`` (of the mean) and, with ``sim`` or
+        ``surveyed``, ``check_before``, ``check_after`` (``errors`` (k, 3), ``rmse``,
+        ``rmse_gsd``).
     """
     rb = {k: v[1] for k, v in block_residuals(before.block).items() if v[1].size}
     ra = {k: v[1] for k, v in block_residuals(after.block).items() if k in rb}
@@ -210,9 +233,16 @@ def evaluate_readjustment(before, after, *, sim=None, overlap: float = 0.6) -> d
         "mean_step_after": ma,
         "step_reduction": 1.0 - ma / mb if mb > 0 else float("nan"),
     }
+    if sim is not None and surveyed is not None:
+        raise InputError("give sim (the truth) or surveyed check coordinates, not both")
     if sim is not None:
         out["check_before"] = _check_errors(before.block, sim)
         out["check_after"] = _check_errors(after.block, sim)
+    elif surveyed is not None:
+        table = {str(k): v for k, v in dict(surveyed).items()}
+        gsd = before.block.gsd()
+        out["check_before"] = _surveyed_errors(before.block, table, gsd)
+        out["check_after"] = _surveyed_errors(after.block, table, gsd)
     return out
 
 

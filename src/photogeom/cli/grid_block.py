@@ -83,6 +83,14 @@ PostOpt = Annotated[
         "(px): the orientation of the adjustment with grids, finer grids for the steps."
     ),
 ]
+CheckOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--check-points",
+        help="CSV of surveyed check-point coordinates (id, X, Y, Z; the ids of the BLOCK's "
+        "check points): their errors before and after, triangulated minus surveyed.",
+    ),
+]
 SpacingsOpt = Annotated[
     str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
 ]
@@ -120,6 +128,7 @@ def _cli(msg: str) -> str:
         .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
         .replace("sigma_temporal", "--sigma-temporal")
         .replace("per must be one of", "--per must be one of")
+        .replace("surveyed: none of", "--check-points: none of")
     )
 
 
@@ -136,6 +145,7 @@ def _evaluate(
     per="image",
     sigma_temporal=None,
     post_spacing=None,
+    check_points=None,
 ):
     from ..calibration import (
         adjust_with_grids,
@@ -145,7 +155,12 @@ def _evaluate(
     )
 
     sigma_constraint = _sigma_c(sigma_constraint)
+    if check_points is not None and preset is not None:
+        raise InputError(
+            "--check-points applies to a BLOCK folder (a --preset is checked against its truth)"
+        )
     fit, sim = _source(block, preset, seed, strips, images)
+    surveyed = _surveyed(check_points) if check_points is not None else None
     if in_adjustment and sigma_constraint == "vce":
         raise InputError("--sigma-constraint vce does not apply with --in-adjustment")
     if not in_adjustment and (
@@ -179,10 +194,20 @@ def _evaluate(
                 fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
             )
             re = readjust(fit.block, grids, snooping=False)
-        ev = evaluate_readjustment(fit, re, sim=sim, overlap=overlap)
+        ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
     except InputError as exc:
         raise InputError(_cli(str(exc))) from None
     return fit, re, grids, ev, sim
+
+
+def _surveyed(path: Path) -> dict:
+    """``{id: (X, Y, Z)}`` from a point CSV (--check-points)."""
+    from ..io.points import read_points
+
+    if not path.exists():
+        raise InputError(f"--check-points: {path} does not exist")
+    t = read_points(path, "X,Y,Z", role_column=None, auto_weights=False)
+    return dict(zip(t.ids, t.coords))
 
 
 def _ev_json(ev) -> dict:
@@ -217,6 +242,7 @@ def evaluate(
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
     post_spacing: PostOpt = None,
+    check_points: CheckOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -234,6 +260,7 @@ def evaluate(
         per,
         sigma_temporal,
         post_spacing,
+        check_points,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
@@ -274,7 +301,8 @@ def evaluate(
     cb, ca = ev.get("check_before"), ev.get("check_after")
     if cb and ca:
         c = Table(title="check-point RMSE (GSD)")
-        for col in ("against the simulated truth", "X", "Y", "Z"):
+        against = "the simulated truth" if check_points is None else "surveyed"
+        for col in (f"against {against}", "X", "Y", "Z"):
             c.add_column(col, justify="right")
         c.add_row("before", *(f"{x:.3f}" for x in cb["rmse_gsd"]))
         c.add_row("after", *(f"{x:.3f}" for x in ca["rmse_gsd"]))
@@ -356,6 +384,7 @@ def report(
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
+    check_points: CheckOpt = None,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
@@ -375,6 +404,7 @@ def report(
         in_adjustment,
         per,
         sigma_temporal,
+        check_points=check_points,
     )
     sc = _sigma_c(sigma_constraint)
     sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
