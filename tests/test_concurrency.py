@@ -89,3 +89,37 @@ def test_eight_threads_give_single_threaded_results(tmp_path):
         assert serial[1]["mode"] == 0o666 & ~umask
         leftovers = [p.name for p in par_dir.iterdir() if p.name.startswith(".")]
         assert leftovers == []
+
+
+def test_cholmod_factorisations_in_threads_give_the_single_threaded_results():
+    """CHOLMOD (bound to an optimised BLAS, photogeom.adjust.sparse) factorising big
+    supernodes in several threads at once."""
+    import scipy.sparse as sp
+
+    from photogeom.adjust.sparse import HAVE_CHOLMOD, factorize
+
+    if not HAVE_CHOLMOD:
+        pytest.skip("CHOLMOD (sksparse-minimal) not installed")
+
+    def system(seed):
+        rng = np.random.default_rng(seed)
+        nb, b = 6, 150
+        A = np.zeros((nb * b, nb * b))
+        for i in range(nb):
+            for j in (i, i + 1):
+                if j < nb:
+                    A[i * b : (i + 1) * b, j * b : (j + 1) * b] = rng.standard_normal((b, b))
+        return sp.csc_matrix(A @ A.T + nb * b * np.eye(nb * b)), rng.standard_normal(nb * b)
+
+    def solve(seed):
+        N, rhs = system(seed)
+        return factorize(N, backend="cholmod").solve(rhs)
+
+    seeds = list(range(8))
+    alone = [solve(s) for s in seeds]
+    before = _blas_limits()
+    with ThreadPoolExecutor(4) as ex:
+        together = list(ex.map(solve, seeds))
+    for a, t in zip(alone, together):
+        np.testing.assert_allclose(t, a, rtol=1e-12, atol=1e-15)
+    assert _blas_limits() == before
