@@ -1,11 +1,17 @@
 """Sparse SPD factorisation: both backends against dense linear algebra."""
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from photogeom.adjust.sparse import HAVE_CHOLMOD, factorize
 from photogeom.errors import DegenerateGeometryError
+
+sys.path.insert(0, str(Path(__file__).parent))
+from sparse_systems import banded_dense_blocks
 
 BACKENDS = ["superlu", "dense", "cg"] + (["cholmod"] if HAVE_CHOLMOD else [])
 
@@ -46,22 +52,9 @@ def test_indefinite_and_empty_columns_are_named_errors(backend):
         factorize(sp.csc_matrix(u @ u.T - 1e-3 * np.eye(30)), backend=backend)
 
 
-def _banded_dense_blocks(nb=8, b=150, seed=2):
-    """SPD with dense b x b blocks coupled to their neighbours: big supernodes, so the
-    factorisation runs the dense BLAS/LAPACK kernels (dgemm, dsyrk, dtrsm, dpotrf)."""
-    rng = np.random.default_rng(seed)
-    n = nb * b
-    A = np.zeros((n, n))
-    for i in range(nb):
-        for j in (i, i + 1):
-            if j < nb:
-                A[i * b : (i + 1) * b, j * b : (j + 1) * b] = rng.standard_normal((b, b))
-    return sp.csc_matrix(A @ A.T + n * np.eye(n))
-
-
 @pytest.mark.skipif(not HAVE_CHOLMOD, reason="CHOLMOD (sksparse-minimal) not installed")
 def test_cholmod_with_big_supernodes_matches_lapack():
-    N = _banded_dense_blocks()
+    N = banded_dense_blocks()
     b = np.random.default_rng(3).standard_normal(N.shape[0])
     x = factorize(N, backend="cholmod").solve(b)
     np.testing.assert_allclose(x, np.linalg.solve(N.toarray(), b), rtol=1e-10, atol=1e-14)
@@ -82,7 +75,7 @@ def test_the_bound_blas_gives_the_reference_blas_solution(tmp_path):
 
     from photogeom.adjust import sparse
 
-    N = _banded_dense_blocks()
+    N = banded_dense_blocks()
     b = np.random.default_rng(4).standard_normal(N.shape[0])
     sp.save_npz(tmp_path / "N.npz", N)
     np.save(tmp_path / "b.npy", b)

@@ -94,25 +94,20 @@ def test_eight_threads_give_single_threaded_results(tmp_path):
 def test_cholmod_factorisations_in_threads_give_the_single_threaded_results():
     """CHOLMOD (bound to an optimised BLAS, photogeom.adjust.sparse) factorising big
     supernodes in several threads at once."""
-    import scipy.sparse as sp
+    import sys
+    from pathlib import Path
 
     from photogeom.adjust.sparse import HAVE_CHOLMOD, factorize
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from sparse_systems import banded_dense_blocks
 
     if not HAVE_CHOLMOD:
         pytest.skip("CHOLMOD (sksparse-minimal) not installed")
 
-    def system(seed):
-        rng = np.random.default_rng(seed)
-        nb, b = 6, 150
-        A = np.zeros((nb * b, nb * b))
-        for i in range(nb):
-            for j in (i, i + 1):
-                if j < nb:
-                    A[i * b : (i + 1) * b, j * b : (j + 1) * b] = rng.standard_normal((b, b))
-        return sp.csc_matrix(A @ A.T + nb * b * np.eye(nb * b)), rng.standard_normal(nb * b)
-
     def solve(seed):
-        N, rhs = system(seed)
+        N = banded_dense_blocks(nb=6, seed=seed)
+        rhs = np.random.default_rng(100 + seed).standard_normal(N.shape[0])
         return factorize(N, backend="cholmod").solve(rhs)
 
     seeds = list(range(8))
