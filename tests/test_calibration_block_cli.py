@@ -11,12 +11,18 @@ import photogeom as pg
 
 
 @pytest.fixture(scope="module")
-def block_folder(tmp_path_factory):
+def adjusted(tmp_path_factory):
+    """A simulated block, its first adjustment and the adjusted block's CSV folder."""
     sim = pg.simulate.uav_block("ILCE-7RM2", seed=4, strips=1, images_per_strip=5)
     fit = pg.bundle_adjust(sim.block, snooping=False)
     d = tmp_path_factory.mktemp("block") / "adjusted"
     pg.bundle.write_csv_block(fit.block, d)
-    return d
+    return sim, fit, d
+
+
+@pytest.fixture(scope="module")
+def block_folder(adjusted):
+    return adjusted[2]
 
 
 def test_evaluate_block_folder_json(cli, block_folder):
@@ -127,13 +133,11 @@ def test_evaluate_on_a_preset_prints_the_check_points_against_the_truth(cli, blo
 
 
 @pytest.fixture(scope="module")
-def folder_and_survey(tmp_path_factory):
+def folder_and_survey(adjusted, tmp_path_factory):
     """An adjusted block folder (check points triangulated) and the surveyed check-point
     coordinates as a point CSV."""
-    sim = pg.simulate.uav_block("ILCE-7RM2", seed=4, strips=1, images_per_strip=5)
-    fit = pg.bundle_adjust(sim.block, snooping=False)
+    sim, fit, folder = adjusted
     d = tmp_path_factory.mktemp("surveyed")
-    pg.bundle.write_csv_block(fit.block, d / "adjusted")
     b = sim.block
     rows = [
         f"{k},{float(x)!r},{float(y)!r},{float(z)!r}"
@@ -141,7 +145,7 @@ def folder_and_survey(tmp_path_factory):
         if k in fit.check["ids"]
     ]
     (d / "checks.csv").write_text("id,X,Y,Z\n" + "\n".join(rows) + "\n")
-    return d / "adjusted", d / "checks.csv", fit
+    return folder, d / "checks.csv", fit
 
 
 def test_check_points_of_a_block_folder_against_surveyed_coordinates(cli, folder_and_survey):
