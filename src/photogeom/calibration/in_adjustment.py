@@ -407,10 +407,10 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
         trial = bp.update(s, dcg, dp)
         zt = z + dz
         new_cost, depth = gp.cost(trial, zt)
+        small = _step_small(bp, s, dcg, dp, opts.xtol)
+        small = small and np.abs(dz).max(initial=0) <= opts.xtol * scale_uv
         if np.all(depth > 0) and np.isfinite(new_cost) and new_cost < cost:
             rho = (cost - new_cost) / pred if pred > 0 else 1.0
-            small = _step_small(bp, s, dcg, dp, opts.xtol)
-            small = small and np.abs(dz).max(initial=0) <= opts.xtol * scale_uv
             decrease = cost - new_cost
             s, z, cost = trial, zt, new_cost
             history.append(cost)
@@ -426,8 +426,6 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
                 converged, message = True, "converged: step below xtol"
                 break
         else:
-            small = _step_small(bp, s, dcg, dp, opts.xtol)
-            small = small and np.abs(dz).max(initial=0) <= opts.xtol * scale_uv
             if np.isfinite(new_cost) and small:
                 converged, message = True, "converged: no further decrease (step below xtol)"
                 break
