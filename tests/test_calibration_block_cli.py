@@ -85,6 +85,24 @@ def test_evaluate_in_adjustment(cli, block_folder):
     assert code == 2 and "--sigma-temporal needs --per image" in err
 
 
+def test_evaluate_in_adjustment_amplitude(cli, block_folder):
+    """--sigma-amplitude reaches the adjustment: a tiny one holds the grids at zero (the
+    residuals of the first adjustment stay), the default takes up less than none."""
+    args = ("grid", "evaluate", str(block_folder), "--spacing", "2000", "--in-adjustment")
+    red = {}
+    for sa in ("1e-6", "none", "residuals"):
+        code, text, err = cli(*args, "--sigma-constraint", "1", "--sigma-amplitude", sa, "--json")
+        assert code == 0, err
+        red[sa] = json.loads(text)["residuals"]["block"]["reduction_rms"]
+    assert abs(red["1e-6"]) < 0.01 < 0.1 < red["residuals"] < red["none"]
+    code, _, err = cli(*args, "--sigma-amplitude", "large")
+    assert code == 2 and "--sigma-amplitude must be a number of pixels" in err
+    code, _, err = cli(*args, "--sigma-amplitude", "-1")
+    assert code == 2 and "--sigma-amplitude must be a positive number" in err
+    code, _, err = cli("grid", "evaluate", str(block_folder), "--sigma-amplitude", "1")
+    assert code == 2 and "--in-adjustment only" in err
+
+
 def test_report_in_adjustment(cli, tmp_path):
     out = tmp_path / "grid.html"
     code, _, err = cli(

@@ -224,3 +224,28 @@ def test_check_points_against_surveyed_coordinates(ilce_small):
         pg.calibration.evaluate_readjustment(fit, re, surveyed={"nowhere": (0, 0, 0)})
     with pytest.raises(InputError, match="not both"):
         pg.calibration.evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed)
+
+
+def test_tie_point_errors_against_the_truth(ilce_small):
+    """Every tie point of a block against the truth: the truth itself has none, a block with
+    its tie points shifted by a known vector (and its points in another order) has exactly
+    that shift, in GSD; untriangulated points are left out."""
+    from types import SimpleNamespace
+
+    sim = ilce_small
+    T = sim.truth
+    same = SimpleNamespace(block=T)
+    ev = pg.calibration.evaluate_readjustment(same, same, sim=sim)
+    np.testing.assert_allclose(ev["tie_before"]["rmse"], 0.0, atol=1e-12)
+    tie = T.role == "tie"
+    assert ev["tie_after"]["points"] == int(tie.sum())
+    shift = np.array([0.02, -0.04, 0.1])
+    xyz = T.xyz.copy()
+    xyz[tie] += shift
+    xyz[np.flatnonzero(tie)[0]] = np.nan  # one point not triangulated
+    order = np.random.default_rng(3).permutation(T.n_points)
+    moved = SimpleNamespace(point_ids=T.point_ids[order], xyz=xyz[order], role=T.role[order])
+    e = pg.calibration.study._tie_errors(moved, sim)
+    assert e["points"] == int(tie.sum()) - 1
+    np.testing.assert_allclose(e["rmse"], np.abs(shift), rtol=1e-12)
+    np.testing.assert_allclose(e["rmse_gsd"], np.abs(shift) / sim.gsd, rtol=1e-12)

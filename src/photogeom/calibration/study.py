@@ -166,15 +166,33 @@ def visible_recovery(sim, grids, visible: np.ndarray | None = None) -> dict:
     }
 
 
+def _truth_errors(block: Block, sim, ids) -> np.ndarray:
+    """Coordinates of points ``ids`` in ``block`` minus their truth, (k, 3) (NaN where the
+    block has not triangulated a point)."""
+    ids = np.asarray(ids)
+    bids, tids = np.asarray(block.point_ids), np.asarray(sim.truth.point_ids)
+    bo, to = np.argsort(bids, kind="stable"), np.argsort(tids, kind="stable")
+    bpos = bo[np.searchsorted(bids[bo], ids)]
+    tpos = to[np.searchsorted(tids[to], ids)]
+    return block.xyz[bpos] - sim.truth.xyz[tpos]
+
+
 def _check_errors(block: Block, sim) -> dict:
     ids = np.asarray(sim.check_ids)
     if ids.size == 0:
         return {}
-    row = {k: i for i, k in enumerate(block.point_ids.tolist())}
-    trow = {k: i for i, k in enumerate(sim.truth.point_ids.tolist())}
-    e = np.array([block.xyz[row[k]] - sim.truth.xyz[trow[k]] for k in ids.tolist()])
+    e = _truth_errors(block, sim, ids)
     rmse = np.sqrt(np.nanmean(e * e, axis=0))
     return {"errors": e, "rmse": rmse, "rmse_gsd": rmse / sim.gsd}
+
+
+def _tie_errors(block: Block, sim) -> dict:
+    """RMSE (X, Y, Z) of every triangulated tie point against the truth: the object's
+    accuracy measured at thousands of points rather than a few check points."""
+    e = _truth_errors(block, sim, sim.tie_ids)
+    e = e[np.all(np.isfinite(e), axis=1)]
+    rmse = np.sqrt(np.mean(e * e, axis=0)) if e.size else np.full(3, np.nan)
+    return {"points": int(e.shape[0]), "rmse": rmse, "rmse_gsd": rmse / sim.gsd}
 
 
 def _surveyed_errors(block: Block, surveyed: dict, gsd: float) -> dict:
@@ -216,7 +234,10 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
         block), ``steps_before``, ``steps_after`` (``{(a, b): GSD}``), ``mean_step_before``,
         ``mean_step_after``, ``step_reduction`` (of the mean) and, with ``sim`` or
         ``surveyed``, ``check_before``, ``check_after`` (``errors`` (k, 3), ``rmse``,
-        ``rmse_gsd``).
+        ``rmse_gsd``); with ``sim`` also ``tie_before``, ``tie_after``: the RMSE of every
+        triangulated tie point against its true coordinates (``points``, ``rmse``,
+        ``rmse_gsd``), the object's accuracy at thousands of points where a simulated block
+        has a few check points.
     """
     rb = {k: v[1] for k, v in block_residuals(before.block).items() if v[1].size}
     ra = {k: v[1] for k, v in block_residuals(after.block).items() if k in rb}
@@ -238,6 +259,8 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
     if sim is not None:
         out["check_before"] = _check_errors(before.block, sim)
         out["check_after"] = _check_errors(after.block, sim)
+        out["tie_before"] = _tie_errors(before.block, sim)
+        out["tie_after"] = _tie_errors(after.block, sim)
     elif surveyed is not None:
         table = {str(k): v for k, v in dict(surveyed).items()}
         gsd = before.block.gsd()
@@ -380,6 +403,7 @@ def compare_in_adjustment(
     *,
     sigma_constraint: float = 1.0,
     sigma_temporal: float | None = 0.3,
+    sigma_amplitude: float | str | None = "residuals",
     per: str = "image",
     overlap: float = 0.6,
     combined_spacing: float | None = 300.0,
@@ -390,9 +414,9 @@ def compare_in_adjustment(
     the grid ``spacing`` and smoothness ``sigma_constraint``. Post-processing: grids fitted to
     the residuals, observations corrected, re-adjusted with orientation and calibration
     fixed (the study). In-adjustment: :func:`~photogeom.calibration.adjust_with_grids`
-    (``per``, ``sigma_temporal``). Combined: the in-adjustment result post-processed with
-    grids of ``combined_spacing`` (default smoothness; None: not run) - the orientation of
-    the adjustment with grids, the residual steps removed afterwards.
+    (``per``, ``sigma_temporal``, ``sigma_amplitude``). Combined: the in-adjustment result
+    post-processed with grids of ``combined_spacing`` (default smoothness; None: not run) -
+    the orientation of the adjustment with grids, the residual steps removed afterwards.
 
     Returns
     -------
@@ -400,7 +424,8 @@ def compare_in_adjustment(
         ``post_hoc``, ``in_adjustment`` and ``combined``, each with ``field``
         (:func:`field_recovery`, block ratio against the true field; NaN for ``combined``),
         ``visible`` (:func:`visible_recovery`),
-        ``check_rmse_gsd`` (X, Y, Z), ``mean_step`` (GSD), ``residual_rms`` (px, tie
+        ``check_rmse_gsd`` (X, Y, Z), ``tie_rmse_gsd`` (X, Y, Z: every tie point against
+        the truth), ``mean_step`` (GSD), ``residual_rms`` (px, tie
         points), ``seconds`` (the first adjustment included); ``before`` the first
         adjustment's ``check_rmse_gsd`` and ``mean_step``; ``images``, ``spacing``.
     """
@@ -423,6 +448,7 @@ def compare_in_adjustment(
         per=per,
         sigma_constraint=sigma_constraint,
         sigma_temporal=sigma_temporal if per == "image" else None,
+        sigma_amplitude=sigma_amplitude,
         std=False,
     )
     t_in = time.perf_counter() - t0
@@ -438,6 +464,7 @@ def compare_in_adjustment(
         runs.append(("combined", None, ev_both, t_both))
     out["before"] = {
         "check_rmse_gsd": ev_post["check_before"].get("rmse_gsd"),
+        "tie_rmse_gsd": ev_post["tie_before"]["rmse_gsd"],
         "mean_step": ev_post["mean_step_before"],
     }
     for name, g, ev, t in runs:
@@ -449,6 +476,7 @@ def compare_in_adjustment(
             "field": field_recovery(sim, g)["block"]["ratio"] if g else float("nan"),
             "visible": vr["ratio"],
             "check_rmse_gsd": ev["check_after"].get("rmse_gsd"),
+            "tie_rmse_gsd": ev["tie_after"]["rmse_gsd"],
             "mean_step": ev["mean_step_after"],
             "residual_rms": ra["after"]["rms"],
             "seconds": t_first + t,

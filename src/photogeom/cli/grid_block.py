@@ -38,20 +38,29 @@ SigmaCOpt = Annotated[
 ]
 
 
-def _sigma_c(text: str):
-    """The --sigma-constraint value: a number of px, 'scaled' or 'vce'."""
+def _sigma_option(text: str, option: str, words: dict):
+    """A sigma option's value: one of ``words`` (text -> value) or a positive number of px."""
     t = text.strip().lower()
-    if t in ("scaled", "vce"):
-        return t
+    if t in words:
+        return words[t]
     try:
         x = float(t)
     except ValueError:
-        raise InputError(
-            f"--sigma-constraint must be a number of pixels, 'scaled' or 'vce', not {text!r}"
-        ) from None
+        names = " or ".join(repr(w) for w in words)
+        raise InputError(f"{option} must be a number of pixels, {names}, not {text!r}") from None
     if not x > 0 or x == float("inf"):
-        raise InputError(f"--sigma-constraint must be a positive number of pixels, not {text!r}")
+        raise InputError(f"{option} must be a positive number of pixels, not {text!r}")
     return x
+
+
+def _sigma_c(text: str):
+    """The --sigma-constraint value: a number of px, 'scaled' or 'vce'."""
+    return _sigma_option(text, "--sigma-constraint", {"scaled": "scaled", "vce": "vce"})
+
+
+def _sigma_a(text: str):
+    """The --sigma-amplitude value: a number of px, 'residuals' or 'none' (None)."""
+    return _sigma_option(text, "--sigma-amplitude", {"residuals": "residuals", "none": None})
 
 
 SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--preset).")]
@@ -74,6 +83,14 @@ SigmaTOpt = Annotated[
     typer.Option(
         help="With --in-adjustment --per image: standard deviation (px) of the equality of "
         "consecutive images' grids (temporal constraints); omit for none."
+    ),
+]
+SigmaAOpt = Annotated[
+    str,
+    typer.Option(
+        help="With --in-adjustment: standard deviation (px) of every node's value about zero, "
+        "the expected size of the field; 'residuals': twice the RMS of the BLOCK's tie-point "
+        "residuals; 'none': no amplitude."
     ),
 ]
 PostOpt = Annotated[
@@ -127,6 +144,8 @@ def _cli(msg: str) -> str:
         .replace("overlap must", "--overlap must")
         .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
         .replace("sigma_temporal", "--sigma-temporal")
+        .replace("sigma_amplitude='residuals'", "--sigma-amplitude residuals")
+        .replace("sigma_amplitude", "--sigma-amplitude")
         .replace("per must be one of", "--per must be one of")
         .replace("surveyed: none of", "--check-points: none of")
     )
@@ -146,6 +165,7 @@ def _evaluate(
     sigma_temporal=None,
     post_spacing=None,
     check_points=None,
+    sigma_amplitude="residuals",
 ):
     from ..calibration import (
         adjust_with_grids,
@@ -163,11 +183,16 @@ def _evaluate(
     surveyed = _surveyed(check_points) if check_points is not None else None
     if in_adjustment and sigma_constraint == "vce":
         raise InputError("--sigma-constraint vce does not apply with --in-adjustment")
+    amplitude = _sigma_a(sigma_amplitude)
     if not in_adjustment and (
-        per != "image" or sigma_temporal is not None or post_spacing is not None
+        per != "image"
+        or sigma_temporal is not None
+        or post_spacing is not None
+        or amplitude != "residuals"
     ):
         raise InputError(
-            "--per, --sigma-temporal and --post-spacing apply with --in-adjustment only"
+            "--per, --sigma-temporal, --sigma-amplitude and --post-spacing apply with "
+            "--in-adjustment only"
         )
     try:
         if in_adjustment:
@@ -182,6 +207,7 @@ def _evaluate(
                     per=per,
                     sigma_constraint=sigma_constraint,
                     sigma_temporal=sigma_temporal,
+                    sigma_amplitude=amplitude,
                     std=False,
                     progress=progress,
                 )
@@ -241,6 +267,7 @@ def evaluate(
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
+    sigma_amplitude: SigmaAOpt = "residuals",
     post_spacing: PostOpt = None,
     check_points: CheckOpt = None,
     as_json: JsonOpt = False,
@@ -261,6 +288,7 @@ def evaluate(
         sigma_temporal,
         post_spacing,
         check_points,
+        sigma_amplitude,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
@@ -384,6 +412,7 @@ def report(
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
+    sigma_amplitude: SigmaAOpt = "residuals",
     check_points: CheckOpt = None,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
@@ -405,6 +434,7 @@ def report(
         per,
         sigma_temporal,
         check_points=check_points,
+        sigma_amplitude=sigma_amplitude,
     )
     sc = _sigma_c(sigma_constraint)
     sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
