@@ -16,7 +16,9 @@ bilinear interpolation; the field corrects image coordinates and images.
   :func:`correct_observations` takes a Block or arrays per image;
 * :func:`adjust_with_grids` - the grids estimated inside the bundle adjustment
   (:mod:`photogeom.calibration.in_adjustment`), :func:`compare_in_adjustment` - against
-  the post-processing on a simulated block.
+  the post-processing on a simulated block;
+* :func:`field_bound` - on a simulated block, the error of the best estimator of the local
+  field (the floor of any method; :mod:`photogeom.calibration.field_bound`).
 """
 
 from .blocks import block_residuals, correct_block_observations, fit_residual_grids, readjust
@@ -29,6 +31,7 @@ from .evaluate import (
     most_frequent_spacing,
     residual_statistics,
 )
+from .field_bound import field_bound
 from .grid import FiniteElementSystem, GridLayout, ResidualGrid, fit_grid, fit_grids
 from .gridfile import load_grids, save_grids
 from .images import FolderResult, correct_folder, correct_image_file
@@ -57,6 +60,7 @@ __all__ = [
     "correct_observations",
     "correct_points",
     "field_at_pixels",
+    "field_bound",
     "fit_grid",
     "fit_grids",
     "load_grids",

@@ -767,6 +767,7 @@ def uav_block(
         local_field=rms_field,
         local_field_modes=local_field_modes,
         local_field_correlation=local_field_correlation,
+        local_field_static=float(local_field_static),
         calibration_variation=None if cv is None else cv.tolist(),
         initial_camera=initial_camera if isinstance(initial_camera, str) else "given",
     )
