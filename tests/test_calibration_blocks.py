@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -203,8 +205,9 @@ def test_visible_field_of_a_displaced_object_is_nothing(ilce_small):
 
 def test_check_points_against_surveyed_coordinates(ilce_small):
     """Real blocks: the adjusted block holds its check points triangulated; with their
-    surveyed coordinates the errors before are the bundle adjustment's own check errors,
-    and after minus before is the re-adjustment's move of the triangulated points."""
+    surveyed coordinates the errors before and after are the bundle adjustment's and the
+    re-adjustment's own check errors (each against the survey, which the adjusted block
+    keeps in Block.surveyed)."""
     sim = ilce_small
     fit = pg.bundle_adjust(sim.block, snooping=False)
     grids = pg.calibration.fit_residual_grids(fit.block, 1000, folds=0)
@@ -215,8 +218,7 @@ def test_check_points_against_surveyed_coordinates(ilce_small):
     ev = pg.calibration.evaluate_readjustment(fit, re, surveyed=surveyed)
     assert ev["check_before"]["ids"] == list(fit.check["ids"])
     np.testing.assert_allclose(ev["check_before"]["errors"], fit.check["errors"], atol=1e-9)
-    moved = ev["check_after"]["errors"] - ev["check_before"]["errors"]
-    np.testing.assert_allclose(moved, re.check["errors"], atol=1e-9)
+    np.testing.assert_allclose(ev["check_after"]["errors"], re.check["errors"], atol=1e-9)
     np.testing.assert_allclose(
         ev["check_before"]["rmse_gsd"], fit.check["rmse"] / fit.block.gsd(), rtol=1e-12
     )
@@ -249,3 +251,16 @@ def test_tie_point_errors_against_the_truth(ilce_small):
     assert e["points"] == int(tie.sum()) - 1
     np.testing.assert_allclose(e["rmse"], np.abs(shift), rtol=1e-12)
     np.testing.assert_allclose(e["rmse_gsd"], np.abs(shift) / sim.gsd, rtol=1e-12)
+
+
+def test_check_points_from_the_survey_the_adjusted_block_keeps(ilce_small):
+    """Without sim or surveyed, the check errors come from Block.surveyed: the bundle
+    adjustments' own check errors, before and after."""
+    fit = pg.bundle_adjust(ilce_small.block, snooping=False)
+    grids = pg.calibration.fit_residual_grids(fit.block, 1000, folds=0)
+    re = pg.calibration.readjust(fit.block, grids, snooping=False)
+    ev = pg.calibration.evaluate_readjustment(fit, re)
+    np.testing.assert_allclose(ev["check_before"]["errors"], fit.check["errors"], atol=1e-9)
+    np.testing.assert_allclose(ev["check_after"]["errors"], re.check["errors"], atol=1e-9)
+    bare = dataclasses.replace(fit, block=fit.block.replace(surveyed=None))
+    assert "check_before" not in pg.calibration.evaluate_readjustment(bare, re)

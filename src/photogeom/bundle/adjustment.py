@@ -107,7 +107,7 @@ class Problem:
         self.has_imu = np.all(np.isfinite(block.imu), axis=1)
         ctrl = role[self.adj_points] == "control"
         self.control = np.flatnonzero(ctrl)
-        self.control_xyz = block.xyz[self.adj_points[ctrl]] - self.origin
+        self.control_xyz = block.surveyed_xyz[self.adj_points[ctrl]] - self.origin
         self.control_sigma = block.point_sigma[self.adj_points[ctrl]]
         self.obs_is_control = np.isin(self.obs_j, self.control)
         #: variance factors per observation group (variance-component estimation)
@@ -325,8 +325,13 @@ class Problem:
             replace(c, **{n: float(s.cal[g, k]) for k, n in enumerate(CALIBRATION_NAMES)})
             for g, c in enumerate(b.calibrations)
         )
+        known = (b.role != "tie")[:, None]
         return b.replace(
-            exterior=ext, xyz=xyz, calibrations=cals, calibration_offset=s.offset.copy()
+            exterior=ext,
+            xyz=xyz,
+            calibrations=cals,
+            calibration_offset=s.offset.copy(),
+            surveyed=np.where(known, b.surveyed_xyz, np.nan),
         )
 
 

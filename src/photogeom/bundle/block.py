@@ -166,6 +166,13 @@ class Block:
     ``observations`` (:class:`Observations`) with the integer ``obs_image`` / ``obs_point``
     rows they refer to.
 
+    ``surveyed`` (p, 3) or None: the surveyed coordinates of control and check points (NaN
+    for tie points) when ``xyz`` holds something else for them. The adjustment sets it: its
+    block's ``xyz`` are the estimates (control points adjusted, check points triangulated),
+    so an adjusted block adjusted again observes its control points where they were
+    surveyed, not where the first adjustment put them, and compares its check points with
+    the survey (:attr:`surveyed_xyz`). None: ``xyz`` is the survey.
+
     ``free`` maps each camera group to the calibration parameters that the adjustment
     estimates; ``image_variant`` maps groups to the parameters estimated per image.
     """
@@ -190,6 +197,7 @@ class Block:
     free: Mapping[object, tuple[str, ...]]
     image_variant: Mapping[object, tuple[str, ...]]
     crs: str | None = None
+    surveyed: np.ndarray | None = None
 
     # --- construction --------------------------------------------------------------------
 
@@ -432,8 +440,27 @@ class Block:
     # --- new blocks ----------------------------------------------------------------------
 
     def replace(self, **changes) -> Block:
-        """A new block with some arrays replaced (same ids and observations unless given)."""
+        """A new block with some arrays replaced (same ids and observations unless given).
+
+        On a block without :attr:`surveyed` a new ``xyz`` is a new survey of its control and
+        check points; on an adjusted block it changes the estimates and the survey stays.
+        """
+        s = changes.get("surveyed")
+        if s is not None:
+            s = np.array(s, dtype=float)
+            p = len(changes.get("point_ids", self.point_ids))
+            if s.shape != (p, 3):
+                raise InputError(f"surveyed must have shape ({p}, 3), got {s.shape}")
+            changes["surveyed"] = s
         return replace(self, **changes)
+
+    @property
+    def surveyed_xyz(self) -> np.ndarray:
+        """(p, 3) coordinates of the points as surveyed: :attr:`surveyed` where it holds a
+        value, ``xyz`` elsewhere (tie points: their current coordinates)."""
+        if self.surveyed is None:
+            return self.xyz
+        return np.where(np.isfinite(self.surveyed), self.surveyed, self.xyz)
 
     def with_calibrations(self, cameras: Mapping[object, MetashapeCalibration]) -> Block:
         """A new block with the calibrations of the given groups replaced."""
@@ -516,6 +543,7 @@ class Block:
             role=self.role[keep_pt],
             point_sigma=self.point_sigma[keep_pt],
             obs_point=newidx[b.obs_point],
+            surveyed=None if self.surveyed is None else self.surveyed[keep_pt],
         )
 
     def summary(self) -> str:

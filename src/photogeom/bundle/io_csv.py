@@ -10,7 +10,7 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
                       [, gnss_X, gnss_Y, gnss_Z, gnss_sX, gnss_sY, gnss_sZ]
                       [, imu_omega_deg, imu_phi_deg, imu_kappa_deg,
                          imu_somega_deg, imu_sphi_deg, imu_skappa_deg]
-    points.csv        id, role, X, Y, Z, sX, sY, sZ
+    points.csv        id, role, X, Y, Z, sX, sY, sZ [, surveyed_X, surveyed_Y, surveyed_Z]
     observations.csv  image_id, point_id, u, v, sigma
 
 * Cameras: the Metashape frame model in pixels (``cx, cy`` offsets from the image centre);
@@ -22,8 +22,11 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
   of f, cx, cy (image-variant calibration), pixels. GNSS and IMU cells are empty for images
   without them.
 * Points: role ``tie``, ``control`` or ``check``; ``sX, sY, sZ`` standard deviations of
-  surveyed coordinates (empty for tie points). An optional ``# crs: ...`` comment line in
-  ``points.csv`` names the coordinate reference system.
+  surveyed coordinates (empty for tie points). An adjusted block is written with its
+  estimates in ``X, Y, Z`` (check points triangulated) and the survey of its control and
+  check points in ``surveyed_X, surveyed_Y, surveyed_Z`` (``Block.surveyed``; empty for tie
+  points), so that adjusting the folder again observes the survey. An optional
+  ``# crs: ...`` comment line in ``points.csv`` names the coordinate reference system.
 * Observations: ``u, v`` pixels with the centre of the top-left pixel at (0, 0), u right,
   v down; ``sigma`` pixels (optional column; default ``sigma`` of the reader).
 * Ids are integers when every id of a column is written as one (``7``, not ``07`` or
@@ -359,6 +362,11 @@ def read_csv_block(
                 f"{tp.path}, line {tp.lines[k]}: {role[k]} point {pt_ids[k]} needs positive "
                 "sX, sY, sZ"
             )
+    surveyed = None
+    if tp.has("surveyed_X"):
+        surveyed = np.column_stack(
+            [tp.floats(f"surveyed_{a}", optional_cells=True) for a in "XYZ"]
+        )
     crs = None
     for c in tp.comments:
         if c.lower().startswith("crs:"):
@@ -372,7 +380,7 @@ def read_csv_block(
         k = int(np.flatnonzero(np.asarray(sg) <= 0)[0])
         raise FileFormatError(f"{to.path}, line {to.lines[k]}: sigma must be positive")
     try:
-        return Block.from_arrays(
+        block = Block.from_arrays(
             cameras=cams,
             image_ids=img_ids,
             image_camera=img_cam,
@@ -396,6 +404,7 @@ def read_csv_block(
         )
     except InputError as exc:
         raise FileFormatError(f"{d}: {exc}") from None
+    return block if surveyed is None else block.replace(surveyed=surveyed)
 
 
 def _csv(header: list[str], columns: list[list[str]], comments: list[str] = ()) -> str:
@@ -472,18 +481,23 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
         ],
     )
     comments = ["object coordinates; sX, sY, sZ: standard deviations of surveyed points"]
+    head = ["id", "role", "X", "Y", "Z", "sX", "sY", "sZ"]
+    cols = [
+        list(map(str, block.point_ids.tolist())),
+        block.role.tolist(),
+        *[_cells(block.xyz[:, k]) for k in range(3)],
+        *[_cells(block.point_sigma[:, k]) for k in range(3)],
+    ]
+    if block.surveyed is not None:
+        comments.append(
+            "X, Y, Z: adjusted (check points triangulated); surveyed_X, surveyed_Y, "
+            "surveyed_Z: the survey of control and check points"
+        )
+        head += [f"surveyed_{a}" for a in "XYZ"]
+        cols += [_cells(block.surveyed[:, k]) for k in range(3)]
     if block.crs:
         comments.append(f"crs: {block.crs}")
-    pts = _csv(
-        ["id", "role", "X", "Y", "Z", "sX", "sY", "sZ"],
-        [
-            list(map(str, block.point_ids.tolist())),
-            block.role.tolist(),
-            *[_cells(block.xyz[:, k]) for k in range(3)],
-            *[_cells(block.point_sigma[:, k]) for k in range(3)],
-        ],
-        comments,
-    )
+    pts = _csv(head, cols, comments)
     o = block.observations
     obs = _csv(
         ["image_id", "point_id", "u", "v", "sigma"],

@@ -73,7 +73,9 @@ def start_from_relative_orientation(
         xy = io.pixel_to_image(obs.uv[sel])
         observations[iid] = dict(zip(obs.point_ids[sel].tolist(), xy))
     control = {
-        p: x for p, x, r in zip(block.point_ids.tolist(), block.xyz, block.role) if r == "control"
+        p: x
+        for p, x, r in zip(block.point_ids.tolist(), block.surveyed_xyz, block.role)
+        if r == "control"
     }
     start = block_start(
         strips,

@@ -442,7 +442,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
                 f"check point(s) {', '.join(map(str, bad[:5]))} cannot be triangulated from "
                 f"their image observations ({tri.describe_failures()})"
             )
-        X0 = block.xyz[problem.check_points]
+        X0 = block.surveyed_xyz[problem.check_points]
         check_xyz = tri.xyz
         err = check_xyz - X0
         gsd = adjusted.gsd()
@@ -461,7 +461,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     control = {"ids": []}
     if problem.control.size:
         ci = problem.adj_points[problem.control]
-        cerr = adjusted.xyz[ci] - block.xyz[ci]
+        cerr = adjusted.xyz[ci] - block.surveyed_xyz[ci]
         crm = np.sqrt(np.mean(cerr**2, axis=0))
         control = {
             "ids": block.point_ids[ci].tolist(),

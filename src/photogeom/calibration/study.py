@@ -222,10 +222,12 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
     sim : SimulatedBlock, optional
         Adds the check-point errors against the true coordinates (object units and GSD).
     surveyed : mapping, optional
-        ``{point id: (X, Y, Z)}`` surveyed coordinates of check points (real blocks: an
-        adjusted block holds its check points triangulated, not surveyed). Adds the
+        ``{point id: (X, Y, Z)}`` surveyed coordinates of check points. Adds the
         check-point errors, triangulated minus surveyed, before and after (object units,
-        and GSD of the first adjustment's block). Ids are matched as text.
+        and GSD of the first adjustment's block). Ids are matched as text. Default without
+        ``sim``: the survey the adjusted block keeps (``before.block.surveyed``), if it has
+        check points; a block read from a folder written before the survey was kept has
+        none, and these errors are then left out.
 
     Returns
     -------
@@ -261,7 +263,13 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
         out["check_after"] = _check_errors(after.block, sim)
         out["tie_before"] = _tie_errors(before.block, sim)
         out["tie_after"] = _tie_errors(after.block, sim)
-    elif surveyed is not None:
+    else:
+        b = before.block
+        check = b.role == "check"
+        if surveyed is None and b.surveyed is not None and np.any(check):
+            surveyed = dict(zip(b.point_ids[check].tolist(), b.surveyed_xyz[check]))
+        if surveyed is None:
+            return out
         table = {str(k): v for k, v in dict(surveyed).items()}
         gsd = before.block.gsd()
         out["check_before"] = _surveyed_errors(before.block, table, gsd)

@@ -329,7 +329,7 @@ def evaluate(
     cb, ca = ev.get("check_before"), ev.get("check_after")
     if cb and ca:
         c = Table(title="check-point RMSE (GSD)")
-        against = "the simulated truth" if check_points is None else "surveyed"
+        against = "the simulated truth" if preset is not None else "surveyed"
         for col in (f"against {against}", "X", "Y", "Z"):
             c.add_column(col, justify="right")
         c.add_row("before", *(f"{x:.3f}" for x in cb["rmse_gsd"]))
