@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from photogeom.bundle import bundle_adjust
 from photogeom.errors import InputError
@@ -83,3 +85,34 @@ def test_the_survey_survives_the_csv_folder(surveyed_block, tmp_path):
     d2 = write_csv_block(block, tmp_path / "input")
     assert "surveyed_X" not in (d2 / "points.csv").read_text()
     assert read_csv_block(d2).surveyed is None
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    offsets=st.lists(
+        st.tuples(*[st.floats(-1e4, 1e4, allow_nan=False, width=64)] * 3),
+        min_size=9,
+        max_size=9,
+    ),
+    missing=st.lists(st.booleans(), min_size=9, max_size=9),
+)
+def test_any_survey_round_trips_through_a_csv_folder(surveyed_block, offsets, missing):
+    """Whatever survey (any values, any control or check point without one) the block keeps,
+    a CSV folder gives it back exactly, and surveyed_xyz falls back to xyz where it is
+    missing."""
+    import tempfile
+
+    from photogeom.bundle import read_csv_block, write_csv_block
+
+    _, fit = surveyed_block
+    b = fit.block
+    known = np.flatnonzero(b.role != "tie")
+    s = b.surveyed.copy()
+    s[known] = b.xyz[known] + np.array(offsets)[: known.size]
+    s[known[np.array(missing)[: known.size]]] = np.nan
+    block = b.replace(surveyed=s)
+    with tempfile.TemporaryDirectory() as d:
+        back = read_csv_block(write_csv_block(block, Path(d) / "b"))
+    np.testing.assert_array_equal(back.surveyed, s, strict=True)
+    want = np.where(np.isfinite(s), s, b.xyz)
+    np.testing.assert_array_equal(back.surveyed_xyz, want)
