@@ -5,6 +5,8 @@
 * :func:`gauss_helmert` - Gauss-Helmert model ``g(x, L + v) = 0`` (errors in all observations);
 * :func:`data_snooping` - Baarda's w-test (and Pope's tau-test) on normalised residuals;
 * :func:`ransac` - a RANSAC driver over batched minimal solvers;
+* :func:`~photogeom.adjust.levenberg.levenberg_marquardt_loop` - the damped loop of the
+  sparse adjustments (the bundle adjustment, grids inside it);
 * :class:`Adjustment` - the low-level result; :class:`Fit` - the result family of estimators.
 
 Residuals are **computed minus observed** (``v = A x - L``) throughout.

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..adjust.levenberg import levenberg_marquardt_loop
 from ..adjust.schur import Linearization, SchurSystem
 from ..camera.frame_kernel import (
     opk_from_increment_jacobian,
@@ -364,6 +365,37 @@ class Iteration:
     weights: np.ndarray
 
 
+class _BundleSteps:
+    """The bundle problem for :func:`~photogeom.adjust.levenberg.levenberg_marquardt_loop`:
+    damped Schur solves, trials, IRLS weights re-evaluated at each accepted state."""
+
+    def __init__(self, problem: Problem, state: _State, e2: np.ndarray, xtol: float) -> None:
+        self.problem, self.xtol = problem, xtol
+        self.weights = problem.robust_weights(e2)
+        self.lin = problem.linearize(state, self.weights)
+        self._e2 = e2
+
+    def solve(self, damping: float):
+        ne = self.problem.sys.normal_equations(self.lin, damping=damping)
+        dc, dp, _ = ne.solve()
+        pred = ne.predicted_decrease(dc, dp, damping)
+        del ne  # the reduced system and its blocks: not kept beside the next linearisation
+        return (dc, dp), pred
+
+    def evaluate(self, state: _State, step):
+        trial = self.problem.update(state, *step)
+        new_cost, self._e2, depth = self.problem.cost(trial)
+        return trial, new_cost, bool(np.all(depth > 0))
+
+    def small(self, state: _State, step) -> bool:
+        return _step_small(self.problem, state, *step, self.xtol)
+
+    def accept(self, state: _State) -> None:
+        self.weights = self.problem.robust_weights(self._e2)
+        self.lin = None  # free the old Jacobian blocks before forming the new ones
+        self.lin = self.problem.linearize(state, self.weights)
+
+
 def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions, progress=None):
     """Minimise the (robust) cost from ``state``; see :class:`Iteration`."""
     cost, e2, depth = problem.cost(state)
@@ -376,63 +408,18 @@ def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions,
             f"image {o.image_ids[row]} point {o.point_ids[row]}: check the initial exterior "
             "orientations (angles in radians, M = M3(kappa) M2(phi) M1(omega)) and points"
         )
-    history = [cost]
-    lam = options.initial_damping
-    nu = 2.0
-    converged = False
-    message = f"not converged: {options.max_iterations} iterations reached"
-    weights = problem.robust_weights(e2)
-    lin = problem.linearize(state, weights)
-    tiny = 1e-26 * max(2 * problem.obs_i.size, 1)
-    it = 0
-    while it < options.max_iterations:
-        if cost <= tiny:
-            converged, message = True, "converged: the cost is zero to rounding (exact fit)"
-            break
-        it += 1
-        try:
-            ne = problem.sys.normal_equations(lin, damping=lam)
-            dc, dp, _ = ne.solve()
-        except DegenerateGeometryError:
-            if lam > 1e10:
-                raise
-            lam *= nu
-            nu *= 2.0
-            continue
-        pred = ne.predicted_decrease(dc, dp, lam)
-        del ne  # the reduced system and its blocks: not kept beside the next linearisation
-        trial = problem.update(state, dc, dp)
-        new_cost, new_e2, depth = problem.cost(trial)
-        if np.all(depth > 0) and np.isfinite(new_cost) and new_cost < cost:
-            rho = (cost - new_cost) / pred if pred > 0 else 1.0
-            small = _step_small(problem, state, dc, dp, options.xtol)
-            decrease = cost - new_cost
-            state, cost = trial, new_cost
-            history.append(cost)
-            lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
-            nu = 2.0
-            weights = problem.robust_weights(new_e2)
-            lin = None  # free the old Jacobian blocks before forming the new ones
-            lin = problem.linearize(state, weights)
-            if progress is not None:
-                progress(it, cost, lam)
-            if decrease <= options.ftol * cost:
-                converged, message = True, "converged: relative cost decrease below ftol"
-                break
-            if small:
-                converged, message = True, "converged: step below xtol"
-                break
-        else:
-            if np.isfinite(new_cost) and _step_small(problem, state, dc, dp, options.xtol):
-                converged = True
-                message = "converged: no further decrease (step below xtol)"
-                break
-            lam *= nu
-            nu *= 2.0
-            if lam > 1e16:
-                message = "stopped: the damping grew without a decrease of the cost"
-                break
-    return Iteration(state, it, converged, message, history, weights)
+    steps = _BundleSteps(problem, state, e2, options.xtol)
+    run = levenberg_marquardt_loop(
+        steps,
+        state,
+        cost,
+        options,
+        exact_cost=1e-26 * max(2 * problem.obs_i.size, 1),
+        progress=progress,
+    )
+    return Iteration(
+        run.state, run.iterations, run.converged, run.message, run.history, steps.weights
+    )
 
 
 def bundle_adjust(block: Block, options: BundleOptions | None = None, *, progress=None, **kwargs):

@@ -57,6 +57,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from ..adjust.levenberg import levenberg_marquardt_loop
 from ..adjust.schur import invert_point_blocks
 from ..adjust.sparse import HAVE_CHOLMOD, factorize
 from ..bundle.adjustment import NCAL, Problem, _step_small
@@ -398,9 +399,44 @@ def _datum_rows(L: GridLayout, datum: str) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- the solver
+class _GridSteps:
+    """The joint problem for :func:`~photogeom.adjust.levenberg.levenberg_marquardt_loop`:
+    states are ``(bundle state, node values)``; the datum conditions are left out of the
+    Marquardt damping."""
+
+    def __init__(self, gp: _GridProblem, state, opts: BundleOptions) -> None:
+        self.gp, self.opts = gp, opts
+        self.N, self.g = gp.normal_equations(*state)
+        self.scale_uv = float(max(L.width for L in gp.layouts if L is not None))
+
+    def solve(self, damping: float):
+        gp = self.gp
+        d = np.maximum(self.N.diagonal() - gp.datum_diag[gp.free_idx], 1e-12)
+        Nd = (self.N + sp.diags(damping * d)).tocsr()
+        dx = _solve_by_points(Nd, self.g, 3 * gp.bp.p, self.opts.backend)
+        pred = float(-(self.g @ dx) + damping * np.sum(d * dx * dx))
+        return self.gp.split(dx), pred
+
+    def evaluate(self, state, step):
+        (s, z), (dcg, dz, dp) = state, step
+        trial = (self.gp.bp.update(s, dcg, dp), z + dz)
+        new_cost, depth = self.gp.cost(*trial)
+        return trial, new_cost, bool(np.all(depth > 0))
+
+    def small(self, state, step) -> bool:
+        (s, _), (dcg, dz, dp) = state, step
+        xtol = self.opts.xtol
+        return bool(
+            _step_small(self.gp.bp, s, dcg, dp, xtol)
+            and np.abs(dz).max(initial=0) <= xtol * self.scale_uv
+        )
+
+    def accept(self, state) -> None:
+        self.N, self.g = self.gp.normal_equations(*state)
+
+
 def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
-    bp = gp.bp
-    s = bp.initial_state()
+    s = gp.bp.initial_state()
     z = np.zeros(gp.n_grid)
     cost, depth = gp.cost(s, z)
     if np.any(~(depth > 0)):
@@ -408,56 +444,12 @@ def _levenberg_marquardt(gp: _GridProblem, opts: BundleOptions, progress):
             f"{int(np.sum(~(depth > 0)))} observation(s) have their point behind the camera at "
             "the start: check the initial exterior orientations and points"
         )
-    history, lam, nu = [cost], opts.initial_damping, 2.0
-    converged, message = False, f"not converged: {opts.max_iterations} iterations reached"
-    N, g = gp.normal_equations(s, z)
-    scale_uv = float(max(L.width for L in gp.layouts if L is not None))
-    it = 0
-    while it < opts.max_iterations:
-        it += 1
-        d = np.maximum(N.diagonal() - gp.datum_diag[gp.free_idx], 1e-12)
-        Nd = (N + sp.diags(lam * d)).tocsr()
-        try:
-            dx = _solve_by_points(Nd, g, 3 * bp.p, opts.backend)
-        except DegenerateGeometryError:
-            if lam > 1e10:
-                raise
-            lam *= nu
-            nu *= 2.0
-            continue
-        pred = float(-(g @ dx) + lam * np.sum(d * dx * dx))
-        dcg, dz, dp = gp.split(dx)
-        trial = bp.update(s, dcg, dp)
-        zt = z + dz
-        new_cost, depth = gp.cost(trial, zt)
-        small = _step_small(bp, s, dcg, dp, opts.xtol)
-        small = small and np.abs(dz).max(initial=0) <= opts.xtol * scale_uv
-        if np.all(depth > 0) and np.isfinite(new_cost) and new_cost < cost:
-            rho = (cost - new_cost) / pred if pred > 0 else 1.0
-            decrease = cost - new_cost
-            s, z, cost = trial, zt, new_cost
-            history.append(cost)
-            lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
-            nu = 2.0
-            N, g = gp.normal_equations(s, z)
-            if progress is not None:
-                progress(it, cost, lam)
-            if decrease <= opts.ftol * cost:
-                converged, message = True, "converged: relative cost decrease below ftol"
-                break
-            if small:
-                converged, message = True, "converged: step below xtol"
-                break
-        else:
-            if np.isfinite(new_cost) and small:
-                converged, message = True, "converged: no further decrease (step below xtol)"
-                break
-            lam *= nu
-            nu *= 2.0
-            if lam > 1e16:
-                message = "stopped: the damping grew without a decrease of the cost"
-                break
-    return s, z, N, cost, it, converged, message, history
+    steps = _GridSteps(gp, (s, z), opts)
+    run = levenberg_marquardt_loop(
+        steps, (s, z), cost, opts, exact_cost=1e-26 * max(2 * gp.n, 1), progress=progress
+    )
+    (s, z) = run.state
+    return s, z, steps.N, run.cost, run.iterations, run.converged, run.message, run.history
 
 
 def _point_blocks(Npp: sp.csr_matrix, k: int) -> np.ndarray:

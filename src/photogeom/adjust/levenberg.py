@@ -1,0 +1,136 @@
+"""The Levenberg-Marquardt loop shared by the sparse adjustments (bundle, grids in it).
+
+The loop owns the damping rule, the acceptance test and the stopping rules; the problem
+owns everything about its unknowns (:class:`DampedProblem`): the damped solve at its current
+linearisation, the trial evaluation, the step-size test and the re-linearisation after an
+accepted step.
+
+* A step is accepted when the trial is valid (e.g. every point in front of its cameras),
+  its cost finite and lower. The damping then falls with the gain ratio
+  ``rho = actual / predicted decrease``: ``lam * max(1/3, 1 - (2 rho - 1)^3)`` (at least
+  1e-15), as in Nielsen's rule; a rejected step multiplies it by ``nu`` (2, doubling on
+  each rejection in a row).
+* Converged: an accepted step lowering the cost by at most ``ftol`` times the cost, an
+  accepted step below ``xtol`` (the problem's test), a rejected finite trial whose step is
+  below ``xtol``, or a cost of zero to rounding (``exact_cost``). Stopped: the damping grew
+  past 1e16, or ``max_iterations`` iterations.
+* A singular damped system raises the damping; past 1e10 the problem's
+  :class:`~photogeom.errors.DegenerateGeometryError` propagates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from ..errors import DegenerateGeometryError
+
+__all__ = ["DampedProblem", "LoopResult", "levenberg_marquardt_loop"]
+
+
+class DampedProblem(Protocol):
+    """What :func:`levenberg_marquardt_loop` asks of a problem."""
+
+    def solve(self, damping: float) -> tuple[object, float]:
+        """The step of the normal equations at the current linearisation with Marquardt
+        ``damping`` and its predicted cost decrease; raises DegenerateGeometryError when
+        the damped system is singular."""
+
+    def evaluate(self, state, step) -> tuple[object, float, bool]:
+        """``(trial state, its cost, valid)`` for ``step`` from ``state``."""
+
+    def small(self, state, step) -> bool:
+        """Whether ``step`` from ``state`` is below the step tolerance."""
+
+    def accept(self, state) -> None:
+        """Re-linearise at the accepted ``state`` (the last evaluated trial)."""
+
+
+@dataclass
+class LoopResult:
+    """Outcome of :func:`levenberg_marquardt_loop`."""
+
+    state: object
+    cost: float
+    iterations: int
+    converged: bool
+    message: str
+    history: list = field(default_factory=list)
+
+
+def levenberg_marquardt_loop(
+    problem: DampedProblem,
+    state,
+    cost: float,
+    options,
+    *,
+    exact_cost: float = 0.0,
+    progress=None,
+) -> LoopResult:
+    """Minimise from ``state`` (already linearised by ``problem``, cost ``cost``).
+
+    Parameters
+    ----------
+    problem : DampedProblem
+    state : object
+        The problem's starting state.
+    cost : float
+        Its cost.
+    options
+        ``initial_damping``, ``max_iterations``, ``ftol``, ``xtol`` (e.g. ``BundleOptions``;
+        ``xtol`` is used by the problem's ``small``).
+    exact_cost : float
+        A cost at or below this is an exact fit (converged without a step).
+    progress : callable, optional
+        ``progress(iteration, cost, damping)`` after each accepted step.
+    """
+    history = [cost]
+    lam = options.initial_damping
+    nu = 2.0
+    converged = False
+    message = f"not converged: {options.max_iterations} iterations reached"
+    it = 0
+    while it < options.max_iterations:
+        if cost <= exact_cost:
+            converged, message = True, "converged: the cost is zero to rounding (exact fit)"
+            break
+        it += 1
+        try:
+            step, pred = problem.solve(lam)
+        except DegenerateGeometryError:
+            if lam > 1e10:
+                raise
+            lam *= nu
+            nu *= 2.0
+            continue
+        trial, new_cost, valid = problem.evaluate(state, step)
+        if valid and np.isfinite(new_cost) and new_cost < cost:
+            rho = (cost - new_cost) / pred if pred > 0 else 1.0
+            small = problem.small(state, step)
+            decrease = cost - new_cost
+            state, cost = trial, new_cost
+            history.append(cost)
+            lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
+            nu = 2.0
+            problem.accept(state)
+            if progress is not None:
+                progress(it, cost, lam)
+            if decrease <= options.ftol * cost:
+                converged, message = True, "converged: relative cost decrease below ftol"
+                break
+            if small:
+                converged, message = True, "converged: step below xtol"
+                break
+        else:
+            if np.isfinite(new_cost) and problem.small(state, step):
+                converged = True
+                message = "converged: no further decrease (step below xtol)"
+                break
+            lam *= nu
+            nu *= 2.0
+            if lam > 1e16:
+                message = "stopped: the damping grew without a decrease of the cost"
+                break
+    return LoopResult(state, cost, it, converged, message, history)

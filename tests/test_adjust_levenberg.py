@@ -1,0 +1,95 @@
+"""The shared Levenberg-Marquardt loop on small problems with known answers."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from photogeom.adjust.levenberg import levenberg_marquardt_loop
+from photogeom.errors import DegenerateGeometryError
+
+OPTIONS = SimpleNamespace(initial_damping=1e-4, max_iterations=100, ftol=1e-14, xtol=1e-14)
+
+
+class Curve:
+    """Least squares of ``y = a exp(b t) + c`` through the loop's protocol."""
+
+    def __init__(self, t, y, x0, singular_solves=0):
+        self.t, self.y, self.singular_solves = t, y, singular_solves
+        self.accept(np.asarray(x0, float))
+
+    def residuals(self, x):
+        return x[0] * np.exp(x[1] * self.t) + x[2] - self.y
+
+    def cost(self, x):
+        r = self.residuals(x)
+        return float(r @ r)
+
+    def accept(self, x):
+        e = np.exp(x[1] * self.t)
+        J = np.column_stack([e, x[0] * self.t * e, np.ones_like(self.t)])
+        self.N, self.g = J.T @ J, J.T @ self.residuals(x)
+
+    def solve(self, damping):
+        if self.singular_solves > 0:
+            self.singular_solves -= 1
+            raise DegenerateGeometryError("singular")
+        d = np.diag(self.N)
+        dx = -np.linalg.solve(self.N + damping * np.diag(d), self.g)
+        return dx, float(-(self.g @ dx) - 0.5 * dx @ (self.N @ dx)) * 2.0
+
+    def evaluate(self, x, dx):
+        return x + dx, self.cost(x + dx), True
+
+    def small(self, x, dx):
+        return bool(np.all(np.abs(dx) <= OPTIONS.xtol * np.maximum(np.abs(x), 1.0)))
+
+
+def _data(seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, 40)
+    return t, 2.5 * np.exp(-1.3 * t) + 0.4 + rng.normal(0.0, 0.01, t.size)
+
+
+def test_the_minimum_of_a_curve_fit_is_scipys():
+    t, y = _data()
+    x0 = np.array([1.0, -0.5, 0.0])
+    p = Curve(t, y, x0)
+    run = levenberg_marquardt_loop(p, x0, p.cost(x0), OPTIONS)
+    ref = least_squares(lambda x: p.residuals(x), x0, method="lm", xtol=1e-15, ftol=1e-15)
+    assert run.converged and run.message.startswith("converged")
+    np.testing.assert_allclose(run.state, ref.x, rtol=1e-7)
+    assert run.cost == pytest.approx(2 * ref.cost, rel=1e-9)
+    assert all(a > b for a, b in zip(run.history, run.history[1:]))  # accepted steps only
+
+
+def test_an_exact_fit_stops_at_once_and_a_singular_system_raises_the_damping():
+    t = np.linspace(0.0, 2.0, 10)
+    x = np.array([2.0, -1.0, 0.5])
+    p = Curve(t, x[0] * np.exp(x[1] * t) + x[2], x)
+    run = levenberg_marquardt_loop(p, x, p.cost(x), OPTIONS, exact_cost=1e-20)
+    assert run.converged and run.iterations == 0 and "exact fit" in run.message
+    t, y = _data(1)
+    x0 = np.array([1.0, -0.5, 0.0])
+    seen = []
+    p = Curve(t, y, x0, singular_solves=3)  # damping 1e-4 * 2 * 4 * 8 before a solve
+    run = levenberg_marquardt_loop(
+        p, x0, p.cost(x0), OPTIONS, progress=lambda it, c, lam: seen.append((it, lam))
+    )
+    assert run.converged and seen[0][0] == 4  # three iterations went to raising it
+    assert 6.4e-3 / 3.0 <= seen[0][1] <= 6.4e-3
+    p = Curve(t, y, x0, singular_solves=10**6)
+    with pytest.raises(DegenerateGeometryError):
+        levenberg_marquardt_loop(p, x0, p.cost(x0), OPTIONS)
+
+
+def test_the_iteration_limit_is_reported():
+    t, y = _data(2)
+    x0 = np.array([1.0, -0.5, 0.0])
+    p = Curve(t, y, x0)
+    opts = SimpleNamespace(**{**vars(OPTIONS), "max_iterations": 2})
+    run = levenberg_marquardt_loop(p, x0, p.cost(x0), opts)
+    assert not run.converged and run.iterations == 2 and "2 iterations reached" in run.message
