@@ -146,6 +146,13 @@ def test_evaluate_on_a_preset_prints_the_check_points_against_the_truth(cli, blo
     )  # fmt: skip
     assert code == 0, err
     assert "check-point RMSE (GSD)" in text and "against the simulated truth" in text
+    assert "tie-point RMSE (GSD), all" in text
+    code, text, err = cli(
+        "grid", "evaluate", "--preset", "FC300S", "--strips", "1", "--images", "5",
+        "--spacing", "1000", "--json",
+    )  # fmt: skip
+    data = json.loads(text)
+    assert len(data["tie_rmse_gsd_before"]) == 3 and len(data["tie_rmse_gsd_after"]) == 3
     code, text, err = cli("grid", "evaluate", str(block_folder), "--spacing", "1000")
     # a block folder: against the survey it keeps (surveyed_X, _Y, _Z), not a truth
     assert code == 0 and "against surveyed" in text and "simulated truth" not in text

@@ -252,6 +252,9 @@ def _ev_json(ev) -> dict:
     if ev.get("check_before"):
         out["check_rmse_gsd_before"] = ev["check_before"]["rmse_gsd"].tolist()
         out["check_rmse_gsd_after"] = ev["check_after"]["rmse_gsd"].tolist()
+    if ev.get("tie_before"):
+        out["tie_rmse_gsd_before"] = ev["tie_before"]["rmse_gsd"].tolist()
+        out["tie_rmse_gsd_after"] = ev["tie_after"]["rmse_gsd"].tolist()
     return out
 
 
@@ -335,6 +338,14 @@ def evaluate(
         c.add_row("before", *(f"{x:.3f}" for x in cb["rmse_gsd"]))
         c.add_row("after", *(f"{x:.3f}" for x in ca["rmse_gsd"]))
         out.print(c)
+    tb, ta = ev.get("tie_before"), ev.get("tie_after")
+    if tb and ta:
+        t = Table(title=f"tie-point RMSE (GSD), all {ta['points']} points")
+        for col in ("against the simulated truth", "X", "Y", "Z"):
+            t.add_column(col, justify="right")
+        t.add_row("before", *(f"{x:.3f}" for x in tb["rmse_gsd"]))
+        t.add_row("after", *(f"{x:.3f}" for x in ta["rmse_gsd"]))
+        out.print(t)
 
 
 def sweep(
