@@ -204,6 +204,21 @@ class Problem:
         cal[:, :3] += s.offset[i]
         return s.X[j], s.M[i], s.C[i], cal
 
+    def jacobian_columns(self, off_points: int) -> np.ndarray:
+        """(n, b + NCAL + 3) column of each observation's orientation, calibration and
+        point derivatives (the blocks ``A``, ``G``, ``P`` of :meth:`linearize`) in a
+        Jacobian with the unknowns ordered: orientations (``m b``), calibrations (``groups
+        NCAL``), any others, then the points from column ``off_points``."""
+        i = self.obs_i
+        return np.concatenate(
+            [
+                i[:, None] * self.b + np.arange(self.b),
+                self.m * self.b + self.local_global[i],
+                off_points + 3 * self.obs_j[:, None] + np.arange(3),
+            ],
+            axis=1,
+        )
+
     def residuals(self, s: _State) -> tuple[np.ndarray, np.ndarray]:
         """Image residuals (n, 2) px (computed - observed) and depths (positive in front)."""
         X, M, C, cal = self._rows(s)

@@ -86,12 +86,12 @@ def field_bound(sim, options: BundleOptions | None = None) -> dict:
             f"field_bound: {n_dense} unknowns besides the points exceed the dense limit of "
             f"{DENSE_MAX}; simulate fewer images or fewer local_field_modes"
         )
-    frow = _field_rows(F.image_ids, block.image_ids)
+    frow = F.image_rows(block.image_ids)
     lin = bp.linearize(bp.initial_state(), np.ones(bp.obs_i.size))
     sw = 1.0 / bp.sigma_obs()
-    basis = _basis(F, sim.ideal[bp.obs_rows]) * sw[:, None]
+    basis = F.basis(sim.ideal[bp.obs_rows]) * sw[:, None]
     J = _jacobian(bp, lin, basis, nb, off_f, off_p)
-    prior = _prior_precision(F, sim.options, m, frow, nb)
+    prior = _prior_precision(F, frow)
     N = J.T @ J + sp.block_diag(
         [
             sp.block_diag(list(lin.local_info), format="csr"),
@@ -133,9 +133,9 @@ def field_bound(sim, options: BundleOptions | None = None) -> dict:
     # compare over a pixel grid: G = E'E / n with E the basis at the evaluation pixels
     nu, nv = SAMPLES
     gu, gv = np.meshgrid(np.linspace(0.0, F.width - 1, nu), np.linspace(0.0, F.height - 1, nv))
-    E = _basis(F, np.column_stack([gu.ravel(), gv.ravel()]))
+    E = F.basis(np.column_stack([gu.ravel(), gv.ravel()]))
     G = E.T @ E / E.shape[0]
-    std = _coefficient_std(F)
+    std = F.coefficient_std()
     cov = cov.reshape(m, 2, nb, m, 2, nb)
     idx = np.arange(m)
     diag = cov[idx, :, :, idx, :, :]  # (m, 2, nb, 2, nb): each image with itself
@@ -156,63 +156,23 @@ def field_bound(sim, options: BundleOptions | None = None) -> dict:
     }
 
 
-def _field_rows(field_ids, block_ids) -> np.ndarray:
-    """Row of each block image in the field's coefficients."""
-    fid = np.asarray(field_ids)
-    order = np.argsort(fid, kind="stable")
-    pos = order[np.searchsorted(fid[order], np.asarray(block_ids))]
-    return pos
-
-
-def _basis(F, uv: np.ndarray) -> np.ndarray:
-    """(n, 2K): cos then sin of the field's wave phases at pixels ``uv``."""
-    t = (
-        2.0
-        * np.pi
-        * (
-            np.outer(uv[:, 0], F.waves[:, 0]) / F.width
-            + np.outer(uv[:, 1], F.waves[:, 1]) / F.height
-        )
-    )
-    return np.concatenate([np.cos(t), np.sin(t)], axis=1)
-
-
-def _coefficient_std(F) -> np.ndarray:
-    """(2K,) standard deviation of the cos and sin coefficients (px), as drawn."""
-    w = 1.0 / np.hypot(F.waves[:, 0], F.waves[:, 1])
-    s = F.rms / np.sqrt(2.0 * np.sum(w**2))
-    return np.tile(s * w, 2)
-
-
-def _prior_precision(F, options: dict, m: int, frow: np.ndarray, nb: int) -> sp.csr_matrix:
+def _prior_precision(F, frow: np.ndarray) -> sp.csr_matrix:
     """Precision of the coefficients, unknowns ordered (image, coordinate, coefficient):
-    across images ``(1 - static) rho^|i - j| + static`` (flight order), within an image
-    independent with :func:`_coefficient_std`."""
-    rho = float(options.get("local_field_correlation", 0.0))
-    static = float(options.get("local_field_static", 0.0))
-    lag = np.abs(frow[:, None] - frow[None, :])
-    C = (1.0 - static) * rho**lag + static
-    Ci = np.linalg.inv(C)
+    across images :meth:`~LocalDistortionField.image_covariance`, within an image independent
+    with :meth:`~LocalDistortionField.coefficient_std`."""
+    Ci = np.linalg.inv(F.image_covariance(frow))
     Ci[np.abs(Ci) < 1e-12 * np.abs(Ci).max()] = 0.0
-    per = sp.diags(np.tile(1.0 / _coefficient_std(F) ** 2, 2))
+    per = sp.diags(np.tile(1.0 / F.coefficient_std() ** 2, 2))
     return sp.kron(sp.csr_matrix(Ci), per, format="csr")
 
 
 def _jacobian(bp, lin, basis, nb, off_f, off_p) -> sp.csr_matrix:
     """Whitened Jacobian of all unknowns: orientations, calibration, field, points."""
-    n, b = bp.obs_i.size, bp.b
-    i, j = bp.obs_i, bp.obs_j
+    n, i = bp.obs_i.size, bp.obs_i
+    c = bp.jacobian_columns(off_p)
     rows, cols, vals = [], [], []
     for d in range(2):  # the two image coordinates
         r = 2 * np.arange(n) + d
-        c = np.concatenate(
-            [
-                i[:, None] * b + np.arange(b),
-                bp.m * b + bp.local_global[i],
-                off_p + 3 * j[:, None] + np.arange(3),
-            ],
-            axis=1,
-        )
         v = np.concatenate([lin.A[:, d, :], lin.G[:, d, :], lin.P[:, d, :]], axis=1)
         cf = off_f + (2 * i + d)[:, None] * nb + np.arange(nb)
         rows += [np.repeat(r, c.shape[1]), np.repeat(r, nb)]

@@ -236,10 +236,7 @@ class _GridProblem:
         # observations' rows and the columns of their non-grid Jacobian blocks
         n = bp.obs_i.size
         self.n = n
-        loc_cols = bp.obs_i[:, None] * b + np.arange(b)[None, :]
-        cal_cols = self.nl + bp.local_global[bp.obs_i]
-        pt_cols = self.off_p + 3 * bp.obs_j[:, None] + np.arange(3)[None, :]
-        self._cols_dense = np.concatenate([loc_cols, cal_cols, pt_cols], axis=1)  # (n, b+11+3)
+        self._cols_dense = bp.jacobian_columns(self.off_p)  # (n, b + 11 + 3)
         self._grid_cols = self.off_g + self.goff[gk][:, None] + 2 * nodes  # x; y is +1
         # the pattern of the Jacobian (rows 2k, 2k+1 of observation k) is the same in every
         # iteration: its indices are built once

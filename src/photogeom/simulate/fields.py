@@ -114,6 +114,10 @@ class LocalDistortionField:
     coef : (m, K, 2, 2) coefficients: image, mode, (cos, sin), (du, dv), pixels.
     rms : float
         The nominal RMS length, pixels.
+    correlation, static : float
+        The distribution the coefficients were drawn from along the flight: AR(1)
+        correlation between consecutive images and the share of the variance common to all
+        images (:meth:`image_covariance`).
     """
 
     image_ids: np.ndarray
@@ -122,6 +126,8 @@ class LocalDistortionField:
     waves: np.ndarray
     coef: np.ndarray
     rms: float
+    correlation: float = 0.0
+    static: float = 0.0
 
     @classmethod
     def random(
@@ -151,14 +157,14 @@ class LocalDistortionField:
         kx, ky = kx.ravel(), ky.ravel()
         half = (kx > 0) | ((kx == 0) & (ky > 0))
         waves = np.column_stack([kx[half], ky[half]])
-        w = 1.0 / np.hypot(waves[:, 0], waves[:, 1])
-        s = rms / np.sqrt(2.0 * np.sum(w**2))
         K = waves.shape[0]
         varying = ar1_along_flight(rng, ids.size, (K, 2, 2), correlation)
         common = rng.standard_normal((1, K, 2, 2))
         c = np.sqrt(1.0 - static) * varying + np.sqrt(static) * common
-        coef = c * (s * w)[None, :, None, None]
-        return cls(ids, float(width), float(height), waves, coef, float(rms))
+        coef = c * _wave_std(waves, rms)[None, :, None, None]
+        return cls(
+            ids, float(width), float(height), waves, coef, float(rms), correlation, static
+        )
 
     @classmethod
     def zero(cls, image_ids, width: float, height: float) -> LocalDistortionField:
@@ -167,6 +173,42 @@ class LocalDistortionField:
         return cls(
             ids, float(width), float(height), np.zeros((0, 2)), np.zeros((ids.size, 0, 2, 2)), 0.0
         )
+
+    def coefficient_std(self) -> np.ndarray:
+        """(2K,) standard deviation (px) of the cos, then the sin coefficients of each wave,
+        as drawn (the same for du and dv)."""
+        return np.tile(_wave_std(self.waves, self.rms), 2)
+
+    def image_covariance(self, image_rows: np.ndarray) -> np.ndarray:
+        """(n, n) correlation of one coefficient between the images at flight positions
+        ``image_rows``: ``(1 - static) correlation^|i - j| + static``."""
+        r = np.asarray(image_rows)
+        lag = np.abs(r[:, None] - r[None, :])
+        return (1.0 - self.static) * self.correlation**lag + self.static
+
+    def basis(self, uv) -> np.ndarray:
+        """(n, 2K): ``cos(t_k)`` then ``sin(t_k)`` at pixels ``uv`` (n, 2), the functions the
+        coefficients multiply (``d = basis @ [c[:, 0, j]; c[:, 1, j]]`` for coordinate j)."""
+        a = np.asarray(uv, dtype=float).reshape(-1, 2)
+        t = 2.0 * np.pi * (
+            np.outer(a[:, 0], self.waves[:, 0]) / self.width
+            + np.outer(a[:, 1], self.waves[:, 1]) / self.height
+        )
+        return np.concatenate([np.cos(t), np.sin(t)], axis=1)
+
+    def image_rows(self, image_ids) -> np.ndarray:
+        """Flight positions (rows of :attr:`coef`) of ``image_ids``; named error for an id
+        that is not an image of the field."""
+        flat = np.asarray(image_ids).reshape(-1)
+        order = np.argsort(self.image_ids, kind="stable")
+        keys = self.image_ids[order]
+        pos = np.clip(np.searchsorted(keys, flat), 0, max(keys.size - 1, 0))
+        if keys.size == 0 or not np.all(keys[pos] == flat):
+            bad = flat[~(keys[pos] == flat)] if keys.size else flat
+            raise InputError(
+                f"local_field: unknown image id {bad[0]!r} (not an image of the simulated block)"
+            )
+        return order[pos]
 
     def rows(self, image_rows: np.ndarray, uv) -> np.ndarray:
         """Displacements (n, 2) px at pixels ``uv`` (n, 2) of image rows ``image_rows`` (n,)
@@ -206,13 +248,12 @@ class LocalDistortionField:
         row of ``uv``)."""
         a = np.asarray(uv, dtype=float).reshape(-1, 2)
         ids = np.asarray(image_id)
-        order = np.argsort(self.image_ids, kind="stable")
-        keys = self.image_ids[order]
         flat = np.broadcast_to(ids.reshape(-1) if ids.ndim else ids, (a.shape[0],))
-        pos = np.clip(np.searchsorted(keys, flat), 0, max(keys.size - 1, 0))
-        if keys.size == 0 or not np.all(keys[pos] == flat):
-            bad = flat[~(keys[pos] == flat)] if keys.size else flat
-            raise InputError(
-                f"local_field: unknown image id {bad[0]!r} (not an image of the simulated block)"
-            )
-        return self.rows(order[pos], a)
+        return self.rows(self.image_rows(flat), a)
+
+
+def _wave_std(waves: np.ndarray, rms: float) -> np.ndarray:
+    """(K,) standard deviation (px) of each wave's coefficients: proportional to ``1 / |k|``,
+    scaled so that the expected RMS length of the displacement is ``rms``."""
+    w = 1.0 / np.hypot(waves[:, 0], waves[:, 1])
+    return (rms / np.sqrt(2.0 * np.sum(w**2))) * w
