@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..bundle.block import Block
+from ..bundle.block import Block, _lookup
 from ..errors import InputError
 from .blocks import block_residuals, fit_residual_grids, readjust
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
@@ -170,10 +170,8 @@ def _truth_errors(block: Block, sim, ids) -> np.ndarray:
     """Coordinates of points ``ids`` in ``block`` minus their truth, (k, 3) (NaN where the
     block has not triangulated a point)."""
     ids = np.asarray(ids)
-    bids, tids = np.asarray(block.point_ids), np.asarray(sim.truth.point_ids)
-    bo, to = np.argsort(bids, kind="stable"), np.argsort(tids, kind="stable")
-    bpos = bo[np.searchsorted(bids[bo], ids)]
-    tpos = to[np.searchsorted(tids[to], ids)]
+    bpos = _lookup(block.point_ids, ids, "evaluate_readjustment", "point_ids")
+    tpos = _lookup(sim.truth.point_ids, ids, "evaluate_readjustment (the truth)", "point_ids")
     return block.xyz[bpos] - sim.truth.xyz[tpos]
 
 
