@@ -160,6 +160,7 @@ def _evaluate(
     strips,
     images,
     overlap,
+    *,
     in_adjustment=False,
     per="image",
     sigma_temporal=None,
@@ -286,12 +287,12 @@ def evaluate(
         strips,
         images,
         overlap,
-        in_adjustment,
-        per,
-        sigma_temporal,
-        post_spacing,
-        check_points,
-        sigma_amplitude,
+        in_adjustment=in_adjustment,
+        per=per,
+        sigma_temporal=sigma_temporal,
+        sigma_amplitude=sigma_amplitude,
+        post_spacing=post_spacing,
+        check_points=check_points,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
@@ -441,11 +442,11 @@ def report(
         strips,
         images,
         overlap,
-        in_adjustment,
-        per,
-        sigma_temporal,
-        check_points=check_points,
+        in_adjustment=in_adjustment,
+        per=per,
+        sigma_temporal=sigma_temporal,
         sigma_amplitude=sigma_amplitude,
+        check_points=check_points,
     )
     sc = _sigma_c(sigma_constraint)
     sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
