@@ -44,3 +44,29 @@ def cli(capsys):
         return code, out.out, out.err
 
     return run
+
+
+@pytest.fixture
+def terminal_stderr(monkeypatch):
+    """Make the CLI's standard-error console a terminal (progress displays show) writing
+    into a buffer; returns a function giving the buffer's text. Call it only after checks
+    that need stderr not to be a terminal."""
+    import io
+
+    from rich.console import Console
+
+    import photogeom.cli._common as cc
+
+    buf = io.StringIO()
+    real = cc.console
+
+    def fake(stderr=False):
+        if stderr:
+            return Console(file=buf, force_terminal=True, width=100)
+        return real(stderr)
+
+    def start():
+        monkeypatch.setattr(cc, "console", fake)
+        return buf
+
+    return start

@@ -115,25 +115,11 @@ def test_report_in_adjustment(cli, tmp_path):
     assert "grids in the adjustment" in html and html.count("<img") == 4
 
 
-def test_in_adjustment_shows_its_iterations_on_a_terminal_only(cli, block_folder, monkeypatch):
-    import io
-
-    from rich.console import Console
-
-    import photogeom.cli._common as cc
-
+def test_in_adjustment_shows_its_iterations_on_a_terminal_only(cli, block_folder, terminal_stderr):
     args = ("grid", "evaluate", str(block_folder), "--spacing", "2000", "--in-adjustment")
     code, _out, err = cli(*args, "--sigma-constraint", "1")
     assert code == 0 and err == ""  # not a terminal: no progress display
-    buf = io.StringIO()
-    real = cc.console
-
-    def fake(stderr=False):
-        if stderr:
-            return Console(file=buf, force_terminal=True, width=100)
-        return real(stderr)
-
-    monkeypatch.setattr(cc, "console", fake)
+    buf = terminal_stderr()
     code, _out, err = cli(*args, "--sigma-constraint", "1")
     assert code == 0, err
     assert "adjusting with grids" in buf.getvalue() and "cost" in buf.getvalue()

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import io
 import json
 
 import numpy as np
 import pytest
-from rich.console import Console
 from typer.testing import CliRunner
 
 import photogeom as pg
@@ -194,20 +192,10 @@ def test_convert_round_trip_and_free_datum(simulated, cli, tmp_path):
     assert "inner-constraint" in out and out_bal.is_file()
 
 
-def test_progress_on_a_terminal_only(simulated, cli, monkeypatch):
-    import photogeom.cli._common as cc
-
+def test_progress_on_a_terminal_only(simulated, cli, monkeypatch, terminal_stderr):
     code, _out, err = cli("bundle", "adjust", simulated)
     assert code == 0 and err == ""  # not a terminal: no progress display
-    buf = io.StringIO()
-    real = cc.console
-
-    def fake(stderr=False):
-        if stderr:
-            return Console(file=buf, force_terminal=True, width=100)
-        return real(stderr)
-
-    monkeypatch.setattr(cc, "console", fake)
+    buf = terminal_stderr()
     calls = []
     orig = pg.bundle.bundle_adjust
 
