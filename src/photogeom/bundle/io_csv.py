@@ -30,8 +30,13 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
 * Observations: ``u, v`` pixels with the centre of the top-left pixel at (0, 0), u right,
   v down; ``sigma`` pixels (optional column; default ``sigma`` of the reader).
 * Ids are integers when every id of a column is written as one (``7``, not ``07`` or
-  ``+7``), otherwise text; the observations' ids are read as the kind of the ids they
-  refer to.
+  ``+7``) and none is quoted, otherwise text; the observations' ids are read as the kind of
+  the ids they refer to.
+* A cell in double quotes (inner quotes doubled) is its text exactly: not a comment, not
+  stripped, text even in integer form. The writer quotes the text ids the reader would
+  otherwise change (white space at either end, a leading ``#``, a comma, a quote, integer
+  form), so every id round-trips; ids a line cannot hold (empty, a line break, NUL) are
+  refused with :class:`~photogeom.errors.OutputError`.
 
 Errors name the file, the line and the column. Each file is written atomically, and all four
 are formatted before any is replaced.
@@ -40,7 +45,7 @@ are formatted before any is replaced.
 from __future__ import annotations
 
 import csv
-import io
+import functools
 import os
 import re
 from collections.abc import Mapping
@@ -50,7 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera.metashape import MetashapeCalibration, read_metashape_xml
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError, InputError, OutputError
 from ..units import from_radians, normalize_angle_unit, to_radians
 from ._textio import format_floats, read_text, write_files_atomically
 from .block import CALIBRATION_NAMES, Block
@@ -67,6 +72,8 @@ class _Table:
     rows: list[list[str]]
     lines: np.ndarray
     comments: list[str]
+    #: row index -> indices of the cells that were quoted (rows with a quoted cell only)
+    quoted: dict[int, set[int]]
 
     def find(self, name: str) -> int | None:
         if name in self.header:
@@ -85,6 +92,11 @@ class _Table:
 
     def has(self, name: str) -> bool:
         return self.find(name) is not None
+
+    def any_quoted(self, name: str) -> bool:
+        """Whether a cell of column ``name`` was quoted."""
+        k = self.find(name)
+        return k is not None and any(k in q for q in self.quoted.values())
 
     def floats(self, name: str, *, optional_cells: bool = False) -> np.ndarray:
         cells = self.col(name)
@@ -114,6 +126,49 @@ class _Table:
         return out
 
 
+@functools.lru_cache(maxsize=8)
+def _cell_patterns(sep: str) -> tuple[re.Pattern, re.Pattern, re.Pattern]:
+    """Regular expressions of a quoted cell, the start of one, and an unquoted cell (each
+    with the separator after it, or the end of the line)."""
+    ws = "[^\\S\\r\\n" + re.escape(sep) + "]*"
+    after = "(" + re.escape(sep) + "|$)"
+    return (
+        re.compile(ws + '"((?:[^"]|"")*)"' + ws + after),
+        re.compile(ws + '"'),
+        re.compile("([^" + re.escape(sep) + "]*)" + after),
+    )
+
+
+def _split_quoted(line: str, sep: str, path: Path, number: int) -> tuple[list[str], set[int]]:
+    """Cells of a line holding a quote, and which of them were quoted.
+
+    Unquoted cells are stripped of white space; a quoted cell is its text exactly (inner
+    quotes doubled). A quote that is not closed on its line, or text between a closing quote
+    and the next separator, is refused.
+    """
+    quoted_cell, opens, plain_cell = _cell_patterns(sep)
+    cells: list[str] = []
+    quoted: set[int] = set()
+    pos = 0
+    while True:
+        m = quoted_cell.match(line, pos)
+        if m is not None:
+            quoted.add(len(cells))
+            cells.append(m.group(1).replace('""', '"'))
+        elif opens.match(line, pos):
+            raise FileFormatError(
+                f'{path}, line {number}: cell {len(cells) + 1}: a quote (") opens a cell that '
+                "is not closed on its line, or text follows the closing quote; a quoted cell "
+                'ends with a quote and doubles the quotes inside it ("a ""b""")'
+            )
+        else:
+            m = plain_cell.match(line, pos)
+            cells.append(m.group(1).strip())
+        if not m.group(2):  # the end of the line, not a separator
+            return cells, quoted
+        pos = m.end()
+
+
 def _read_table(path: Path) -> _Table:
     text = read_text(path, "CSV file")
     body, numbers, comments = [], [], []
@@ -133,9 +188,25 @@ def _read_table(path: Path) -> _Table:
     sep = ","
     if "," not in body[0]:
         sep = ";" if ";" in body[0] else "\t" if "\t" in body[0] else ","
-    parsed = [
-        [c.strip() for c in row] for row in csv.reader(body, delimiter=sep, skipinitialspace=True)
-    ]
+    # lines without quotes: the csv module (fast), cells stripped; lines with quotes: cell by
+    # cell, a quoted cell kept exactly as written (white space, '#', separators, quotes)
+    with_quotes = [k for k, line in enumerate(body) if '"' in line]
+    if with_quotes:
+        plain = [line for line in body if '"' not in line]
+    else:
+        plain = body
+    fast = iter(csv.reader(plain, delimiter=sep, skipinitialspace=True))
+    slow = set(with_quotes)
+    parsed: list[list[str]] = []
+    quoted: dict[int, set[int]] = {}
+    for k, line in enumerate(body):
+        if k in slow:
+            cells, q = _split_quoted(line, sep, path, numbers[k])
+            if q and k > 0:
+                quoted[k - 1] = q
+            parsed.append(cells)
+        else:
+            parsed.append([c.strip() for c in next(fast)])
     header = parsed[0]
     if any(not h for h in header):
         raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
@@ -152,14 +223,14 @@ def _read_table(path: Path) -> _Table:
             f"{path}, line {lines[k]}: {widths[k]} field(s) but the header has {len(header)} "
             f"({', '.join(header)})"
         )
-    return _Table(path, header, rows, lines, comments)
+    return _Table(path, header, rows, lines, comments, quoted)
 
 
 def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     empty = [k for k, c in enumerate(cells) if not c]
     if empty:
         raise FileFormatError(f"{table.path}, line {table.lines[empty[0]]}: {name!r} is empty")
-    if cells and all(_INT.fullmatch(c) for c in cells):
+    if cells and not table.any_quoted(name) and all(_INT.fullmatch(c) for c in cells):
         ids = np.array([int(c) for c in cells], dtype=np.int64)
     else:
         ids = np.array(cells, dtype=str)
@@ -408,13 +479,42 @@ def read_csv_block(
 
 
 def _csv(header: list[str], columns: list[list[str]], comments: list[str] = ()) -> str:
-    buf = io.StringIO()
-    for c in comments:
-        buf.write(f"# {c}\n")
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    w.writerows(zip(*columns))
-    return buf.getvalue()
+    """CSV text; the cells are written as given (id cells come quoted from :func:`_id_cells`,
+    the other cells are numbers and names that need no quotes)."""
+    lines = [f"# {c}" for c in comments]
+    lines.append(",".join(header))
+    lines.extend(map(",".join, zip(*columns)))
+    return "\n".join(lines) + "\n"
+
+
+#: Characters that end a line for the reader (``str.splitlines``), and NUL (binary files).
+_NO_ID_CHARS = re.compile("[\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029\x00]")
+
+
+def _id_cells(ids: np.ndarray, what: str) -> list[str]:
+    """The cells of an id column: integers as they are; text quoted (inner quotes doubled)
+    when the reader would otherwise change it: leading or trailing white space, a leading
+    ``#`` (a comment line), a comma or a quote, or the form of an integer (read as one).
+
+    Raises
+    ------
+    OutputError
+        An empty id, or one with a line break or a NUL character (a CSV line cannot hold it).
+    """
+    cells = list(map(str, ids.tolist()))
+    if ids.dtype.kind in "iu":
+        return cells
+    for k, c in enumerate(cells):
+        bad = _NO_ID_CHARS.search(c)
+        if not c or bad is not None:
+            why = "is empty" if not c else f"holds the character {bad.group()!r}"
+            raise OutputError(
+                f"cannot write {what} id {c!r} to a CSV block: it {why}, which a CSV line cannot "
+                "hold; rename it (Block.replace with new ids), or write a COLMAP or BAL block"
+            )
+        if c != c.strip() or c[0] == "#" or "," in c or '"' in c or _INT.fullmatch(c):
+            cells[k] = '"' + c.replace('"', '""') + '"'
+    return cells
 
 
 def _cells(values: np.ndarray) -> list[str]:
@@ -433,13 +533,16 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
     if unit not in ("deg", "gon", "rad"):
         raise InputError(f"angle_unit must be deg, gon or rad, not {angle_unit!r}")
     gids = block.camera_ids.tolist()
+    camera_cells = _id_cells(block.camera_ids, "camera")
+    image_cells = _id_cells(block.image_ids, "image")
+    point_cells = _id_cells(block.point_ids, "point")
     cal = np.array(
         [[getattr(c, n) for n in CALIBRATION_NAMES] for c in block.calibrations]
     ).reshape(-1, len(CALIBRATION_NAMES))
     cams = _csv(
         ["camera", "width", "height", *CALIBRATION_NAMES, "free", "image_variant"],
         [
-            list(map(str, gids)),
+            camera_cells,
             [str(c.width) for c in block.calibrations],
             [str(c.height) for c in block.calibrations],
             *[_cells(cal[:, k]) for k in range(len(CALIBRATION_NAMES))],
@@ -455,8 +558,8 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
     ang = from_radians(e[:, 3:], unit)
     header = ["id", "camera", "X0", "Y0", "Z0", *[f"{a}_{unit}" for a in _EO_ANGLES]]
     cols = [
-        list(map(str, block.image_ids.tolist())),
-        list(map(str, block.camera_ids[block.image_camera].tolist())),
+        image_cells,
+        [camera_cells[g] for g in block.image_camera.tolist()],
         *[_cells(e[:, k]) for k in range(3)],
         *[_cells(ang[:, k]) for k in range(3)],
     ]
@@ -483,7 +586,7 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
     comments = ["object coordinates; sX, sY, sZ: standard deviations of surveyed points"]
     head = ["id", "role", "X", "Y", "Z", "sX", "sY", "sZ"]
     cols = [
-        list(map(str, block.point_ids.tolist())),
+        point_cells,
         block.role.tolist(),
         *[_cells(block.xyz[:, k]) for k in range(3)],
         *[_cells(block.point_sigma[:, k]) for k in range(3)],
@@ -502,8 +605,8 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
     obs = _csv(
         ["image_id", "point_id", "u", "v", "sigma"],
         [
-            list(map(str, o.image_ids.tolist())),
-            list(map(str, o.point_ids.tolist())),
+            [image_cells[i] for i in block.obs_image.tolist()],
+            [point_cells[j] for j in block.obs_point.tolist()],
             _cells(o.uv[:, 0]),
             _cells(o.uv[:, 1]),
             _cells(o.sigma),
@@ -523,6 +626,12 @@ def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: s
 
     All four files are formatted first, then each is replaced atomically. Angles are written
     in ``angle_unit`` (``"deg"``, ``"gon"`` or ``"rad"``, named in the column headers).
+
+    Raises
+    ------
+    OutputError
+        A text id that a CSV line cannot hold (empty, a line break, NUL), or a folder that
+        cannot be written.
     """
     texts = csv_block_texts(block, angle_unit=angle_unit)
     d = Path(directory)
