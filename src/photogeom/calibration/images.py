@@ -2,7 +2,10 @@
 
 Pixels are read with OpenCV (``IMREAD_UNCHANGED``: bit depth and alpha kept, EXIF
 orientation not applied, so pixel coordinates stay those of the bundle adjustment) and the
-metadata with Pillow. The corrected image is written in the original format:
+metadata with Pillow. OpenCV turns TIFF pixels by their Orientation tag (274) whatever the
+flags, so a TIFF is decoded from a copy whose tag says 1 (as stored): the image is
+corrected and written in its stored layout, the original tag kept. The corrected image is
+written in the original format:
 
 * JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
   subsampling (the quality is kept), EXIF, XMP and ICC profile;
@@ -24,6 +27,7 @@ from __future__ import annotations
 import io
 import logging
 import os
+import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -82,12 +86,24 @@ def _read(path: Path):
     if not path.is_file():
         raise FileFormatError(f"{path}: no such image file")
     data = np.fromfile(path, dtype=np.uint8)
+    raw = data.tobytes()
+    # OpenCV turns TIFF pixels by their Orientation tag (274) even with IMREAD_UNCHANGED
+    # (and IMREAD_IGNORE_ORIENTATION): decode a copy whose tag says "as stored" instead.
+    stored = _tiff_as_stored(raw)
+    if stored is None:
+        raise FileFormatError(
+            f"{path}: the TIFF Orientation tag (274) is not a single number, so the stored "
+            "pixel layout cannot be read without turning the image; rewrite the file with "
+            "a plain Orientation value (1-8)"
+        )
+    if stored is not raw:
+        data = np.frombuffer(stored, dtype=np.uint8)
     pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if pixels is None:
         raise FileFormatError(f"{path}: not a readable image (corrupt or unknown format)")
     meta: dict = {}
     try:
-        with Image.open(io.BytesIO(data.tobytes())) as im:
+        with Image.open(io.BytesIO(raw)) as im:
             meta["format"] = im.format
             meta["mode"] = im.mode
             info = im.info
@@ -101,6 +117,8 @@ def _read(path: Path):
                     meta["subsampling"] = None
                 meta["xmp"] = info.get("xmp")
             elif im.format == "TIFF":
+                # as stored: Pillow's im.size is turned by the Orientation tag
+                meta["stored_size"] = (im.tag_v2.get(256), im.tag_v2.get(257))
                 meta["xmp"] = im.tag_v2.get(700)
                 meta["compression"] = info.get("compression")
             elif im.format == "PNG":
@@ -114,7 +132,62 @@ def _read(path: Path):
     except Exception:
         # OpenCV decoded it; Pillow cannot read it: pixels only.
         meta = {}
+    stored_size = meta.get("stored_size")
+    if stored_size is not None and stored_size != (pixels.shape[1], pixels.shape[0]):
+        raise FileFormatError(  # pragma: no cover - OpenCV turned the pixels after all
+            f"{path}: decoded as {pixels.shape[1]} x {pixels.shape[0]} px, the file stores "
+            f"{stored_size[0]} x {stored_size[1]} px: the pixels were turned on reading"
+        )
     return pixels, meta
+
+
+_TIFF_ORIENTATION = 274
+# TIFF field types that hold one integer in an IFD entry's value field: size, format
+_TIFF_INTEGERS = {3: (2, "H"), 4: (4, "I"), 8: (2, "h"), 9: (4, "i"), 16: (8, "Q"), 17: (8, "q")}
+
+
+def _tiff_as_stored(data: bytes) -> bytes | None:
+    """TIFF bytes whose first image is decoded as stored (the same object for other files).
+
+    The Orientation tag (274) of the first IFD is set to 1 in a copy; the pixel data and
+    every other byte are unchanged. Returns ``data`` itself when it is not a TIFF, the
+    IFD cannot be walked (the decoder reports the damage), or there is nothing to change;
+    None when the tag is present but not a single integer (it cannot be neutralised).
+    """
+    if len(data) < 8 or data[:2] not in (b"II", b"MM"):
+        return data
+    e = "<" if data[:2] == b"II" else ">"
+    magic = struct.unpack(e + "H", data[2:4])[0]
+    try:
+        if magic == 42:  # classic TIFF
+            ifd = struct.unpack(e + "I", data[4:8])[0]
+            (n,) = struct.unpack(e + "H", data[ifd : ifd + 2])
+            first, size, count_fmt = ifd + 2, 12, "I"
+        elif magic == 43:  # BigTIFF
+            ifd = struct.unpack(e + "Q", data[8:16])[0]
+            (n,) = struct.unpack(e + "Q", data[ifd : ifd + 8])
+            first, size, count_fmt = ifd + 8, 20, "Q"
+        else:
+            return data
+        for k in range(n):
+            at = first + k * size
+            tag, typ = struct.unpack(e + "HH", data[at : at + 4])
+            if tag != _TIFF_ORIENTATION:
+                continue
+            count_size = struct.calcsize(count_fmt)  # the value field has the same size
+            value_at = at + 4 + count_size
+            (count,) = struct.unpack(e + count_fmt, data[at + 4 : value_at])
+            if count != 1 or typ not in _TIFF_INTEGERS or _TIFF_INTEGERS[typ][0] > count_size:
+                return None
+            width, fmt = _TIFF_INTEGERS[typ]
+            if struct.unpack(e + fmt, data[value_at : value_at + width])[0] == 1:
+                return data
+            out = bytearray(data)
+            out[value_at : value_at + width] = struct.pack(e + fmt, 1)
+            return bytes(out)
+    except struct.error:
+        return data  # a damaged IFD: the decoders say so
+    return data
 
 
 def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | None]:

@@ -1,0 +1,100 @@
+"""Image files with a TIFF Orientation tag: corrected in the stored pixel layout.
+
+OpenCV and Pillow both turn TIFF pixels by the Orientation tag (274) on decoding; the
+grid's pixel coordinates are those of the stored layout (the adjustment's), so the file
+must be corrected as stored and written back as stored, the tag kept. The stored pixels
+are read here with tifffile, which never turns them, and the correction is a whole-pixel
+shift whose result is known without the library.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from photogeom.calibration import GridLayout, ResidualGrid, correct_folder, correct_image_file
+from photogeom.errors import FileFormatError
+
+tifffile = pytest.importorskip("tifffile")
+
+W, H = 60, 40  # not square: a turned image does not fit its grid
+SHIFT = (2.0, -1.0)  # modelled residual (px), the same at every node
+
+
+def _shift_grid() -> ResidualGrid:
+    layout = GridLayout(W, H, 20)
+    nodes = np.empty((*layout.shape, 2))
+    nodes[...] = SHIFT
+    zero = np.zeros(layout.shape)
+    return ResidualGrid(
+        layout=layout,
+        nodes=nodes,
+        sigma0=1.0,
+        redundancy=1,
+        sigma_obs=np.ones(1),
+        sigma_constraint=1.0,
+        support=zero > 0,
+        counts=zero.astype(int),
+        rms_before=1.0,
+        rms_after=1.0,
+    )
+
+
+def _shifted(stored: np.ndarray) -> np.ndarray:
+    """The known correction: output pixel (u, v) takes input (u - rx, v - ry), the border
+    replicated (whole pixels, so bilinear resampling is exact)."""
+    vv, uu = np.mgrid[0:H, 0:W]
+    src_v = np.clip(vv - int(SHIFT[1]), 0, H - 1)
+    src_u = np.clip(uu - int(SHIFT[0]), 0, W - 1)
+    return stored[src_v, src_u]
+
+
+def _pattern(channels: int) -> np.ndarray:
+    rng = np.random.default_rng(channels)
+    img = rng.integers(0, 256, (H, W, channels), dtype=np.uint8)
+    img[:8, :15] = 255  # a bright block at the stored top left
+    return img if channels > 1 else img[..., 0]
+
+
+@pytest.mark.parametrize("orientation", [1, 3, 6, 8])
+@pytest.mark.parametrize("channels", [1, 3])
+def test_tiff_orientation_corrected_as_stored(tmp_path, orientation, channels):
+    src, dst = tmp_path / "in", tmp_path / "out"
+    src.mkdir()
+    stored = _pattern(channels)
+    tags = Image.Exif()
+    tags[274] = orientation
+    tags[0x0110] = "ILCE-7RM2"
+    Image.fromarray(stored).save(src / "IMG_1.tif", exif=tags, compression="tiff_adobe_deflate")
+    res = correct_folder(src, dst, {"IMG_1": _shift_grid()}, progress=False)
+    assert res.ok, res.failures
+    assert res.notes == {}
+    out = tifffile.imread(dst / "IMG_1.tif")
+    np.testing.assert_array_equal(out, _shifted(stored))
+    with tifffile.TiffFile(dst / "IMG_1.tif") as tf:
+        page = tf.pages[0]
+        assert page.tags["Orientation"].value == orientation
+        assert page.tags["Model"].value == "ILCE-7RM2"
+        assert page.compression == 8  # Deflate kept
+
+
+@pytest.mark.parametrize("bigtiff", [False, True])
+def test_tiff_orientation_of_other_writers(tmp_path, bigtiff):
+    """Classic and BigTIFF, the tag written by tifffile (a LONG-free SHORT entry)."""
+    stored = _pattern(3)
+    tifffile.imwrite(
+        tmp_path / "a.tif", stored, photometric="rgb", bigtiff=bigtiff,
+        extratags=[(274, 3, 1, 6, True)],
+    )  # fmt: skip
+    correct_image_file(tmp_path / "a.tif", tmp_path / "b.tif", _shift_grid())
+    np.testing.assert_array_equal(tifffile.imread(tmp_path / "b.tif"), _shifted(stored))
+
+
+def test_tiff_orientation_that_is_not_one_number_is_refused(tmp_path):
+    tifffile.imwrite(
+        tmp_path / "a.tif", _pattern(3), photometric="rgb", extratags=[(274, 3, 2, (6, 6), True)]
+    )
+    with pytest.raises(FileFormatError, match="Orientation tag"):
+        correct_image_file(tmp_path / "a.tif", tmp_path / "b.tif", _shift_grid())
+    assert not (tmp_path / "b.tif").exists()
