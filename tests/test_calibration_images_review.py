@@ -9,6 +9,7 @@ shift whose result is known without the library.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from PIL import Image
@@ -98,3 +99,19 @@ def test_tiff_orientation_that_is_not_one_number_is_refused(tmp_path):
     with pytest.raises(FileFormatError, match="Orientation tag"):
         correct_image_file(tmp_path / "a.tif", tmp_path / "b.tif", _shift_grid())
     assert not (tmp_path / "b.tif").exists()
+
+
+def test_no_metadata_note_for_a_tiff_without_metadata(tmp_path):
+    """16-bit colour goes through OpenCV; a TIFF with only layout tags loses nothing."""
+    img = np.random.default_rng(1).integers(0, 65535, (H, W, 3)).astype(np.uint16)
+    tifffile.imwrite(tmp_path / "a.tif", img, photometric="rgb", metadata=None, software=False)
+    assert correct_image_file(tmp_path / "a.tif", tmp_path / "b.tif", _shift_grid()) is None
+    out = cv2.imread(str(tmp_path / "b.tif"), cv2.IMREAD_UNCHANGED)  # OpenCV's LZW
+    np.testing.assert_array_equal(out[..., ::-1], _shifted(img))
+    # with a camera model it is metadata, and its loss is said
+    tifffile.imwrite(
+        tmp_path / "c.tif", img, photometric="rgb", metadata=None, software=False,
+        extratags=[(272, "s", 0, "ILCE-7RM2", True)],
+    )  # fmt: skip
+    note = correct_image_file(tmp_path / "c.tif", tmp_path / "d.tif", _shift_grid())
+    assert note is not None and "not kept" in note

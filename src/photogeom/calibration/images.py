@@ -190,6 +190,23 @@ def _tiff_as_stored(data: bytes) -> bytes | None:
     return data
 
 
+# TIFF tags that describe the pixel layout, not the picture: every TIFF has some, and the
+# OpenCV writer sets its own (their loss is no loss of metadata)
+_TIFF_LAYOUT_TAGS = frozenset(
+    {254, 255, 256, 257, 258, 259, 262, 266, 273, 277, 278, 279, 280, 281, 282, 283, 284}
+    | {296, 317, 320, 322, 323, 324, 325, 338, 339, 340, 341, 347, 530, 531, 532}
+)
+
+
+def _has_metadata(exif) -> bool:
+    """Whether EXIF data holds metadata (a TIFF's tag set: more than its layout tags)."""
+    from PIL import Image
+
+    if isinstance(exif, Image.Exif):
+        return any(tag not in _TIFF_LAYOUT_TAGS for tag in exif)
+    return bool(exif)
+
+
 def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | None]:
     """Encoded file bytes in the original format, and a note when metadata is lost."""
     import cv2
@@ -257,7 +274,7 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
         raise FileFormatError(
             f"cannot encode a {pixels.dtype} image with {channels} channel(s) as {suffix}"
         )
-    lost = meta.get("exif") or meta.get("xmp") or meta.get("icc_profile")
+    lost = _has_metadata(meta.get("exif")) or meta.get("xmp") or meta.get("icc_profile")
     note = (
         f"metadata (EXIF/XMP/ICC) not kept: {fmt or suffix} with {pixels.dtype} x {channels} "
         "channel(s) is written by OpenCV"
