@@ -53,7 +53,7 @@ from scipy.spatial.transform import Rotation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import FileFormatError, InputError
 from ._angles import opk_from_rotations
-from ._textio import format_floats, read_text, split_numeric_lines, write_files_atomically
+from ._textio import format_floats, read_text, split_numeric_lines
 from .block import Block
 from .io_bal import refuse_extras
 
@@ -653,9 +653,14 @@ def write_colmap(
     InputError
         K4 or B2 non-zero (no COLMAP model has them), a ``model`` that cannot hold the
         calibration, image names with white space, or extras without ``drop_extras``.
+    OutputError
+        ``directory`` is a file (or lies under one), or a file cannot be written; nothing
+        is written then.
     """
     texts = colmap_texts(block, model=model, drop_extras=drop_extras)
     d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
-    write_files_atomically({d / k: v.encode("utf-8") for k, v in texts.items()})
+    from .io_formats import check_block_target, write_files  # (io_formats imports this module)
+
+    check_block_target(d, "colmap")
+    write_files({d / k: v.encode("utf-8") for k, v in texts.items()}, folders=[d])
     return d

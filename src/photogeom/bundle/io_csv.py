@@ -57,7 +57,7 @@ import numpy as np
 from ..camera.metashape import MetashapeCalibration, read_metashape_xml
 from ..errors import FileFormatError, InputError, OutputError
 from ..units import from_radians, normalize_angle_unit, to_radians
-from ._textio import format_floats, read_text, write_files_atomically
+from ._textio import format_floats, read_text
 from .block import CALIBRATION_NAMES, Block
 
 FILES = ("cameras.csv", "images.csv", "points.csv", "observations.csv")
@@ -635,6 +635,8 @@ def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: s
     """
     texts = csv_block_texts(block, angle_unit=angle_unit)
     d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
-    write_files_atomically({d / k: v.encode("utf-8") for k, v in texts.items()})
+    from .io_formats import check_block_target, write_files  # (io_formats imports this module)
+
+    check_block_target(d, "csv")
+    write_files({d / k: v.encode("utf-8") for k, v in texts.items()}, folders=[d])
     return d

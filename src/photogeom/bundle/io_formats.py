@@ -7,17 +7,147 @@
 
 from __future__ import annotations
 
+import bz2
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from ..errors import FileFormatError, InputError
+from ..atomicfile import atomic_write_many
+from ..errors import FileFormatError, InputError, OutputError
 from .block import Block
-from .io_bal import read_bal, write_bal
-from .io_colmap import read_colmap, write_colmap
-from .io_csv import read_csv_block, write_csv_block
+from .io_bal import bal_text, read_bal, write_bal
+from .io_colmap import colmap_texts, read_colmap, write_colmap
+from .io_csv import csv_block_texts, read_csv_block, write_csv_block
 
 #: Names of the block formats.
 FORMATS = ("bal", "colmap", "csv")
+#: Formats written as a folder of files (BAL is one file).
+FOLDER_FORMATS = ("colmap", "csv")
+_NAMES = {"bal": "BAL file", "colmap": "COLMAP text model", "csv": "CSV block"}
+
+
+def check_block_target(path: str | os.PathLike, kind: str, what: str | None = None) -> None:
+    """Refuse a destination that a block in format ``kind`` cannot be written to, before
+    anything is computed or written.
+
+    Parameters
+    ----------
+    path : path-like
+        Folder (``"colmap"``, ``"csv"``; created when missing) or file (``"bal"``).
+    kind : str
+        ``"bal"``, ``"colmap"`` or ``"csv"``.
+    what : str, optional
+        How the caller names the destination (e.g. a command-line option), put before the
+        message.
+
+    Raises
+    ------
+    OutputError
+        A folder format onto an existing file (or under one), a BAL file onto a folder or
+        into a folder that does not exist.
+    """
+    p = Path(path)
+    k = _check(kind)
+    head = f"{what}: " if what else ""
+    if k in FOLDER_FORMATS:
+        if p.exists() and not p.is_dir():
+            raise OutputError(
+                f"{head}cannot write {p}: it is a file, not a folder; a {_NAMES[k]} is a "
+                "folder of files: give a folder path (new or existing)"
+            )
+        up = p.parent
+        while not up.exists() and up != up.parent:
+            up = up.parent
+        if up.exists() and not up.is_dir():
+            raise OutputError(
+                f"{head}cannot write {p}: {up} is a file, not a folder; give a folder path"
+            )
+    else:
+        if p.is_dir():
+            raise OutputError(
+                f"{head}cannot write {p}: it is a folder; a BAL block is one file: give a "
+                "file name (.bal, .txt or .bz2)"
+            )
+        if str(p.parent) and not p.parent.is_dir():
+            raise OutputError(
+                f"{head}cannot write {p}: folder {p.parent} does not exist; create it first"
+            )
+
+
+def block_files(
+    block: Block, path: str | os.PathLike, kind: str, **options
+) -> dict[Path, bytes]:
+    """The files of ``block`` written as ``kind`` at ``path`` (nothing is written).
+
+    Parameters
+    ----------
+    block : Block
+    path : path-like
+        The folder of a COLMAP or CSV block, the file of a BAL block (``.bz2``: compressed).
+    kind : str
+        ``"bal"``, ``"colmap"`` or ``"csv"``.
+    **options
+        Options of :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
+
+    Returns
+    -------
+    dict of Path -> bytes
+        Destination and content of every file, for :func:`write_files` (one batch with other
+        outputs: all are written or none is).
+    """
+    p = Path(path)
+    k = _check(kind)
+    if k == "bal":
+        data = bal_text(block, **options).encode("ascii")
+        return {p: bz2.compress(data) if p.suffix == ".bz2" else data}
+    texts = (colmap_texts if k == "colmap" else csv_block_texts)(block, **options)
+    return {p / name: text.encode("utf-8") for name, text in texts.items()}
+
+
+def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> list[Path]:
+    """Write several files as one: every file is replaced, or none is changed.
+
+    Parameters
+    ----------
+    files : mapping Path -> bytes
+        Destinations and contents (:func:`photogeom.atomicfile.atomic_write_many`).
+    folders : sequence of Path
+        Folders to create first when missing (with missing parents); the folders created
+        are removed again when a file cannot be written, so a failure leaves nothing behind.
+
+    Raises
+    ------
+    OutputError
+        A folder that is a file or cannot be created, a file that cannot be written.
+    """
+    made: list[Path] = []
+    try:
+        for folder in folders:
+            missing = []
+            d = Path(folder)
+            while not d.exists() and d != d.parent:
+                missing.append(d)
+                d = d.parent
+            if not d.is_dir():
+                raise OutputError(
+                    f"cannot write {folder}: {d} is a file, not a folder; give a folder path"
+                )
+            for m in reversed(missing):
+                try:
+                    m.mkdir()
+                except OSError as exc:
+                    raise OutputError(
+                        f"cannot create folder {m}: {exc.strerror or exc}", exc.errno
+                    ) from None
+                made.append(m)
+        return atomic_write_many(list(files.items()))
+    except BaseException:
+        for m in reversed(made):  # empty again: the batch rolled its files back
+            try:
+                m.rmdir()
+            except OSError:
+                pass
+        raise
 
 
 def detect_format(path: str | os.PathLike) -> str:
