@@ -21,7 +21,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import InputError
+from ..errors import InputError, OutputError
 from ._common import (
     CRS_FORMS,
     AngleUnit,
@@ -163,15 +163,48 @@ def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
     return bundle.read_csv_block(path, **kw)
 
 
-def write_block(block, path: Path, fmt: str, *, drop_extras: bool, angle_unit: str) -> Path:
-    """Write a block in format ``fmt`` (each writer replaces its files atomically)."""
-    from .. import bundle
+def block_files(block, path: Path, fmt: str, *, drop_extras: bool, angle_unit: str):
+    """The files of ``block`` written in format ``fmt`` at ``path`` (nothing is written: they
+    go to :func:`write_all` with the command's other outputs)."""
+    from ..bundle.io_formats import block_files as files
 
-    if fmt == "bal":
-        return bundle.write_bal(block, path, drop_extras=drop_extras)
-    if fmt == "colmap":
-        return bundle.write_colmap(block, path, drop_extras=drop_extras)
-    return bundle.write_csv_block(block, path, angle_unit=angle_unit)
+    options = {"angle_unit": angle_unit} if fmt == "csv" else {"drop_extras": drop_extras}
+    return files(block, path, fmt, **options)
+
+
+def check_targets(blocks=(), files=(), made=()) -> None:
+    """Refuse, before anything is computed, outputs that cannot be written.
+
+    ``blocks``: ``(option, path, format)`` of blocks to write; ``files``: ``(option, path)``
+    of single files; ``made``: folders the command creates (files may go into them). A CSV
+    or COLMAP block onto an existing file, a file onto a folder or into a folder that does
+    not exist raise :class:`~photogeom.errors.OutputError` naming the option.
+    """
+    from ..bundle.io_formats import check_block_target
+
+    for opt, path, fmt in blocks:
+        if path is not None:
+            check_block_target(path, fmt, opt)
+    for opt, path in files:
+        if path is None:
+            continue
+        if path.is_dir():
+            raise OutputError(f"{opt}: cannot write {path}: it is a folder; give a file name")
+        if str(path.parent) and not path.parent.is_dir() and path.parent not in made:
+            raise OutputError(
+                f"{opt}: cannot write {path}: folder {path.parent} does not exist; create it first"
+            )
+
+
+def write_all(files: dict, texts=(), folders=()) -> None:
+    """Write block files (path -> bytes) and texts ((path, str), UTF-8) in one batch: all
+    are written or none is; ``folders`` are created first and removed again on failure."""
+    from ..bundle.io_formats import write_files
+
+    batch = dict(files)
+    for path, text in texts:
+        batch[path] = text.encode("utf-8")
+    write_files(batch, folders)
 
 
 SigmaOpt = Annotated[
@@ -269,7 +302,6 @@ def simulate(
     """
     from .. import bundle
     from .. import simulate as sim_mod
-    from ..io import atomic_write_text
 
     def layout(text: str):
         t = text.strip()
@@ -296,8 +328,11 @@ def simulate(
         kwargs["gnss_sigma"] = None
     if not imu:
         kwargs["imu_sigma_deg"] = None
-    if output.exists() and not output.is_dir():
-        raise InputError(f"{output} exists and is not a folder")
+    check_targets(
+        blocks=[("OUTPUT", output, "csv"), ("OUTPUT", output / "truth", "csv")],
+        files=[("OUTPUT", output / "simulation.json")],
+        made=[output],
+    )
     sim = sim_mod.uav_block(preset.value, **kwargs)
     o = sim.block.observations
     from ..adjust.fit import _jsonable
@@ -321,9 +356,15 @@ def simulate(
             "true_camera": {n: float(getattr(sim.camera, n)) for n in bundle.CALIBRATION_NAMES},
         }
     )
-    bundle.write_csv_block(sim.block, output)
-    bundle.write_csv_block(sim.truth, output / "truth")
-    atomic_write_text(output / "simulation.json", json_text(record))
+    files = {
+        **block_files(sim.block, output, "csv", drop_extras=False, angle_unit="deg"),
+        **block_files(sim.truth, output / "truth", "csv", drop_extras=False, angle_unit="deg"),
+    }
+    write_all(
+        files,
+        [(output / "simulation.json", json_text(record))],
+        folders=[output, output / "truth"],
+    )
     if as_json:
         typer.echo(json_text(record), nl=False)
         return
@@ -445,11 +486,12 @@ def adjust(
     from ..report.bundle import bundle_report, bundle_result_data
 
     src_fmt = detect_format(source, fmt)
-    for opt, path in (("--report", report), ("--result", result)):
-        if path is not None and str(path.parent) and not path.parent.is_dir():
-            raise InputError(f"{opt}: cannot write {path}: folder {path.parent} does not exist")
     out_fmt = (
         None if output is None else output_format(output, output_fmt, src_fmt, "--output-format")
+    )
+    check_targets(
+        blocks=[("--output", output, out_fmt)],
+        files=[("--report", report), ("--result", result)],
     )
     block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
@@ -493,11 +535,10 @@ def adjust(
             texts.append(
                 (report, bundle_report(data, f"Bundle adjustment: {source.name}").to_html())
             )
+    files = {}
     if output is not None:
-        write_block(fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=angle)
-    from ._common import write_outputs
-
-    write_outputs(texts)
+        files = block_files(fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=angle)
+    write_all(files, texts, folders=[output] if out_fmt in ("csv", "colmap") else [])
     if as_json:
         d = fit.to_dict(angle)
         d["unit"] = unit
@@ -637,8 +678,10 @@ def convert(
     """Convert a block between BAL, COLMAP text and CSV (conventions converted exactly)."""
     src = detect_format(source, from_fmt, "--from")
     dst = output_format(target, to_fmt, None, "--to")
+    check_targets(blocks=[("TARGET", target, dst)])
     block = read_block(source, src, sigma=sigma, image_key=image_key)
-    write_block(block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value)
+    files = block_files(block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value)
+    write_all(files, folders=[target] if dst in ("csv", "colmap") else [])
     info = {
         "source": str(source),
         "source_format": src,
