@@ -302,9 +302,7 @@ class Block:
         if op.size != n:
             raise InputError(f"observations: {n} image ids but {op.size} point ids")
         UV = _table(uv, (n, 2), "uv")
-        sg = np.broadcast_to(np.asarray(sigma, dtype=float), (n,)).copy()
-        if np.any(~np.isfinite(sg) | (sg <= 0)):
-            raise InputError("observation sigma must be positive and finite (pixels)")
+        sg = _observation_sigma(sigma, n)
         obs_i = _lookup(img, oi, "observations", "images")
         obs_p = _lookup(pid, op, "observations", "points")
         gn, gs = _optional_pair(gnss, gnss_sigma, m, "gnss")
@@ -484,11 +482,25 @@ class Block:
         )
 
     def with_observations(self, uv=None, sigma=None) -> Block:
-        """A new block with the observed pixels and/or their sigmas replaced (same rows)."""
+        """A new block with the observed pixels and/or their sigmas replaced (same rows).
+
+        Parameters
+        ----------
+        uv : array_like (n, 2), optional
+            Observed pixels (finite).
+        sigma : float or array_like (n,), optional
+            Standard deviation of u and v of each observation, pixels (positive, finite).
+
+        Raises
+        ------
+        InputError
+            ``uv`` of another shape or not finite; a ``sigma`` that is not positive and
+            finite (the same checks as :meth:`from_arrays`).
+        """
         o = self.observations
         n = len(o)
         UV = o.uv if uv is None else _table(uv, (n, 2), "uv")
-        sg = o.sigma if sigma is None else np.broadcast_to(np.asarray(sigma, float), (n,)).copy()
+        sg = o.sigma if sigma is None else _observation_sigma(sigma, n)
         return replace(self, observations=Observations(o.image_ids, o.point_ids, UV, sg))
 
     def validate(self, *, min_image_observations: int = 3) -> None:
@@ -587,6 +599,20 @@ def _table(values, shape: tuple[int, int], name: str) -> np.ndarray:
     if np.any(bad):
         raise InputError(f"{name}: row {int(np.flatnonzero(bad)[0])} holds NaN or infinity")
     return a.copy()
+
+
+def _observation_sigma(sigma, n: int) -> np.ndarray:
+    """Standard deviations of ``n`` observations (one value for all, or one each): positive
+    and finite, else :class:`InputError` naming the first bad one."""
+    sg = np.broadcast_to(np.asarray(sigma, dtype=float), (n,)).copy()
+    bad = ~np.isfinite(sg) | (sg <= 0)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"observation sigma must be positive and finite (pixels); observation row {k} has "
+            f"{float(sg[k])!r}"
+        )
+    return sg
 
 
 def _optional_pair(values, sigmas, m: int, name: str) -> tuple[np.ndarray, np.ndarray]:
