@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -264,3 +265,30 @@ def test_check_points_from_the_survey_the_adjusted_block_keeps(ilce_small):
     np.testing.assert_allclose(ev["check_after"]["errors"], re.check["errors"], atol=1e-9)
     bare = dataclasses.replace(fit, block=fit.block.replace(surveyed=None))
     assert "check_before" not in pg.calibration.evaluate_readjustment(bare, re)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json"])
+def test_grids_from_a_file_correct_the_block(unstable, tmp_path, suffix):
+    """The block's integer image ids survive the grids file, so the loaded grids correct
+    and re-adjust the block exactly as the fitted ones."""
+    _, fit, grids = unstable
+    b = fit.block
+    assert b.image_ids.dtype.kind == "i"
+    back = pg.calibration.load_grids(pg.calibration.save_grids(tmp_path / f"g{suffix}", grids))
+    assert list(back) == b.image_ids.tolist()
+    want = pg.calibration.correct_observations(b, grids).observations.uv
+    got = pg.calibration.correct_observations(b, back).observations.uv
+    np.testing.assert_array_equal(got, want)
+    if suffix == ".npz":
+        re_mem = pg.calibration.readjust(b, grids, snooping=False)
+        re_file = pg.calibration.readjust(b, back, snooping=False)
+        np.testing.assert_array_equal(re_file.block.xyz, re_mem.block.xyz)
+    else:  # a file written before ids kept their type: text ids still match the block
+        data = json.loads((tmp_path / "g.json").read_text())
+        for entry in data["images"]:
+            entry["id"] = str(entry["id"])
+        (tmp_path / "old.json").write_text(json.dumps(data))
+        old = pg.calibration.load_grids(tmp_path / "old.json")
+        assert list(old) == [str(i) for i in b.image_ids.tolist()]
+        got = pg.calibration.correct_observations(b, old).observations.uv
+        np.testing.assert_array_equal(got, want)

@@ -27,6 +27,7 @@ from ..bundle.block import ROLES, Block
 from ..bundle.residuals import reprojection_residuals
 from ..errors import InputError
 from .grid import ResidualGrid, fit_grids
+from .gridfile import match_grid_ids
 
 __all__ = [
     "block_residuals",
@@ -206,6 +207,8 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
 
     All roles are corrected (the local field displaces every measurement of an image). The
     result has the same ids, points and orientations; only ``observations.uv`` changes.
+    A grid is found by the image id, else by its text when that is unambiguous (grids
+    files written before image ids kept their type hold text ids).
 
     Raises
     ------
@@ -220,7 +223,8 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
         )
     counts, _ = block.observation_counts()
     ids = block.image_ids.tolist()
-    missing = [iid for iid, c in zip(ids, counts) if c and iid not in grids]
+    key_of, _ = match_grid_ids(ids, grids)
+    missing = [iid for iid, c in zip(ids, counts) if c and iid not in key_of]
     if missing:
         raise InputError(
             f"no residual grid for image(s) {', '.join(map(str, missing[:10]))}"
@@ -236,7 +240,7 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
         sel = order[starts[i] : starts[i + 1]]
         if sel.size == 0:
             continue
-        g = grids[iid]
+        g = grids[key_of[iid]]
         if not isinstance(g, ResidualGrid):
             raise InputError(f"image {iid}: expected a ResidualGrid, got {type(g).__name__}")
         w, h = int(sizes[i, 0]), int(sizes[i, 1])

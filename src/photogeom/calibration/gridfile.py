@@ -15,7 +15,9 @@ statistics of :meth:`ResidualGrid.to_dict`.
   "convention": ..., "images": [{"id": ..., <statistics>, "nodes": [[[x, y], ...], ...],
   "node_std": ..., "support": ..., "counts": ..., "sigma_obs": ..., "outliers": ...}]}``.
 
-Image ids are written as text.
+Image ids keep their type: an integer id is written as a JSON number, a text id as a
+JSON string, and each is read back as it was written (files from before ids kept their type
+hold text only; :func:`match_grid_ids` matches such text to integer ids).
 """
 
 from __future__ import annotations
@@ -23,12 +25,13 @@ from __future__ import annotations
 import io
 import json
 import os
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..atomicfile import atomic_write_bytes
-from ..errors import FileFormatError
+from ..errors import FileFormatError, InputError
 from .grid import GridLayout, ResidualGrid
 
 FORMAT = "photogeom-residual-grids"
@@ -39,8 +42,62 @@ CONVENTION = (
 )
 
 
+def _file_id(key) -> int | str:
+    """An image id as the file holds it: integers as numbers, text as strings."""
+    if isinstance(key, (bool, np.bool_)):
+        pass
+    elif isinstance(key, (int, np.integer)):
+        return int(key)
+    elif isinstance(key, str):
+        return str(key)
+    raise InputError(
+        f"image id {key!r} is a {type(key).__name__}: a grids file holds integer or text "
+        "image ids (those of a photogeom Block)"
+    )
+
+
 def _stats(key, grid: ResidualGrid) -> dict:
-    return {"id": str(key), **grid.to_dict()}
+    return {"id": _file_id(key), **grid.to_dict()}
+
+
+def match_grid_ids(ids: Iterable, grids: Mapping) -> tuple[dict, list]:
+    """The grid key of each image id: the id itself, else the one key with the same text.
+
+    The text match serves grids files written before image ids kept their type (text ids
+    against a block's integer ids) and text ids (a CSV's) against integer grid ids. It is
+    used only when unambiguous: one grid key with that text, one id with that text.
+
+    Parameters
+    ----------
+    ids : iterable
+        Image ids (integers or text).
+    grids : mapping
+        ``image id -> ResidualGrid``.
+
+    Returns
+    -------
+    dict, list
+        ``id -> grid key`` of the ids matched, and the ids without a (unique) grid, in the
+        order given.
+    """
+    ids = list(ids)
+    by_text: dict = {}
+    for key in grids:
+        by_text.setdefault(str(key), []).append(key)
+    texts: dict = {}
+    for i in ids:
+        texts[str(i)] = texts.get(str(i), 0) + 1
+    found, missing = {}, []
+    for i in ids:
+        if i in grids:
+            found[i] = i
+            continue
+        same = by_text.get(str(i), [])
+        if len(same) == 1 and texts[str(i)] == 1:
+            found[i] = same[0]
+        else:
+            missing.append(i)
+    return found, missing
 
 
 def _arrays(grid: ResidualGrid, std: bool) -> dict:
@@ -63,7 +120,13 @@ def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Pat
     """Write grids (``image id -> ResidualGrid``) to ``path`` atomically.
 
     ``.npz`` writes NumPy's archive, any other suffix JSON. ``std`` computes and stores the
-    node standard deviations (about 0.1-0.2 s per image of 4000 nodes).
+    node standard deviations (about 0.1-0.2 s per image of 4000 nodes). Image ids keep
+    their type (integers or text; see the module).
+
+    Raises
+    ------
+    InputError
+        An image id that is neither an integer nor text.
     """
     path = Path(path)
     stats = [_stats(k, g) for k, g in grids.items()]
@@ -124,7 +187,10 @@ def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
 
 
 def load_grids(path: str | os.PathLike) -> dict:
-    """Read a grids file written by :func:`save_grids`: ``image id (str) -> ResidualGrid``.
+    """Read a grids file written by :func:`save_grids`: ``image id -> ResidualGrid``.
+
+    Image ids come back with the type they were saved with (integers or text; older files:
+    text).
 
     Raises
     ------
@@ -149,14 +215,27 @@ def load_grids(path: str | os.PathLike) -> dict:
                 for n in ("nodes", "node_std", "support", "counts", "sigma_obs", "outliers")
                 if f"{n}_{k}" in data
             }
-            out[st["id"]] = _grid(st, arr, f"{path}, image {st.get('id')}")
+            _add(out, st, arr, path)
         return out
     try:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise FileFormatError(f"{path}: not a grids JSON file ({exc})") from None
     _check(meta, path)
-    return {st["id"]: _grid(st, st, f"{path}, image {st.get('id')}") for st in meta["images"]}
+    out = {}
+    for st in meta["images"]:
+        _add(out, st, st, path)
+    return out
+
+
+def _add(out: dict, st: dict, arr: dict, path: Path) -> None:
+    """Read one image's grid into ``out`` under its id (integer or text, as written)."""
+    key = st.get("id") if isinstance(st, dict) else None
+    if isinstance(key, bool) or not isinstance(key, (int, str)):
+        raise FileFormatError(f"{path}: an image entry has no integer or text 'id' (found {key!r})")
+    if key in out:
+        raise FileFormatError(f"{path}: image {key!r} appears twice")
+    out[key] = _grid(st, arr, f"{path}, image {key}")
 
 
 def _check(meta, path) -> None:

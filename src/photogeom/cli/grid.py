@@ -303,6 +303,7 @@ def apply(
 ) -> None:
     """Correct image coordinates: u, v replaced by u + rx(u, v), v + ry(u, v)."""
     from ..calibration import correct_observations, load_grids
+    from ..calibration.gridfile import match_grid_ids
 
     grids = load_grids(grids_file)
     header, body, col = _read_csv(observations, ("image_id", "u", "v"))
@@ -311,12 +312,15 @@ def apply(
     per_image: dict = {}
     for i, k in enumerate(ids):
         per_image.setdefault(k, []).append(i)
-    missing = [k for k in per_image if k not in grids]
+    key_of, missing = match_grid_ids(per_image, grids)  # CSV text against integer ids too
     if missing:
         raise InputError(
             f"{observations}: no grid in {grids_file} for image(s) {', '.join(missing[:10])}"
         )
-    corrected = correct_observations({k: uv[np.asarray(r)] for k, r in per_image.items()}, grids)
+    corrected = correct_observations(
+        {k: uv[np.asarray(r)] for k, r in per_image.items()},
+        {k: grids[key_of[k]] for k in per_image},
+    )
     new = uv.copy()
     for k, r in per_image.items():
         new[np.asarray(r)] = corrected[k]

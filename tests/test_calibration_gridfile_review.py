@@ -1,0 +1,87 @@
+"""The grids file: image ids keep their type, non-finite numbers, damaged files."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from photogeom.calibration import GridLayout, ResidualGrid, load_grids, save_grids
+from photogeom.calibration.gridfile import match_grid_ids
+from photogeom.errors import InputError
+
+SUFFIXES = (".npz", ".json")
+
+
+def _grid(seed: int = 0, width: int = 90, height: int = 60, spacing: float = 30) -> ResidualGrid:
+    """A hand-made grid (no fit): random nodes, support and counts."""
+    rng = np.random.default_rng(seed)
+    layout = GridLayout(width, height, spacing)
+    counts = rng.integers(0, 6, layout.shape)
+    return ResidualGrid(
+        layout=layout,
+        nodes=rng.normal(0, 1, (*layout.shape, 2)),
+        sigma0=float(rng.uniform(0.5, 2)),
+        redundancy=int(rng.integers(1, 100)),
+        sigma_obs=rng.uniform(0.1, 1, 7),
+        sigma_constraint=0.1,
+        support=counts >= 3,
+        counts=counts,
+        rms_before=1.0,
+        rms_after=0.5,
+        outliers=rng.random(8) < 0.2,
+    )
+
+
+# ------------------------------------------------------------------ ids keep their type
+ids_st = st.lists(
+    st.one_of(st.integers(-(2**63), 2**64 - 1), st.text(max_size=12)),
+    min_size=1,
+    max_size=4,
+    unique_by=lambda k: (type(k), k),
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(ids=ids_st)
+def test_image_ids_round_trip_with_their_type(ids):
+    grids = {k: _grid(n) for n, k in enumerate(ids)}
+    with tempfile.TemporaryDirectory() as tmp:
+        for suffix in SUFFIXES:
+            back = load_grids(save_grids(Path(tmp) / f"g{suffix}", grids, std=False))
+            assert [(type(k), k) for k in back] == [(type(k), k) for k in ids]
+            for k in ids:
+                np.testing.assert_array_equal(back[k].nodes, grids[k].nodes)
+
+
+def test_numpy_integer_ids_come_back_as_integers(tmp_path):
+    grids = {np.int64(7): _grid(1), np.uint32(3): _grid(2)}
+    for suffix in SUFFIXES:
+        back = load_grids(save_grids(tmp_path / f"g{suffix}", grids, std=False))
+        assert list(back) == [7, 3] and all(type(k) is int for k in back)
+
+
+@pytest.mark.parametrize("key", [1.5, True, ("a", 1), None])
+def test_ids_a_file_cannot_hold_are_refused(tmp_path, key):
+    with pytest.raises(InputError, match="integer or text image ids"):
+        save_grids(tmp_path / "g.json", {key: _grid()}, std=False)
+    assert not (tmp_path / "g.json").exists()
+
+
+def test_text_ids_of_older_files_match_only_when_unambiguous():
+    g = _grid()
+    # an older file's text ids against a block's integer ids
+    found, missing = match_grid_ids([0, 1, 2], {"0": g, "1": g})
+    assert found == {0: "0", 1: "1"} and missing == [2]
+    # a CSV's text against integer grid ids
+    assert match_grid_ids(["5"], {5: g}) == ({"5": 5}, [])
+    # the same id wins over text
+    assert match_grid_ids([1], {1: g, "1": g}) == ({1: 1}, [])
+    # two ids with the text "1": the integer one is not guessed
+    assert match_grid_ids([1, "1"], {"1": g}) == ({"1": "1"}, [1])
+    # two grid keys with the text "1" (1 and "1"), asked for np.int64(1): exact match
+    assert match_grid_ids([np.int64(1)], {"1": g, 1: g})[0] == {np.int64(1): 1}
