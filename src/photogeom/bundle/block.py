@@ -288,7 +288,9 @@ class Block:
             )
         ps = np.full((p, 3), np.nan)
         if point_sigma is not None:
-            ps = np.broadcast_to(np.asarray(point_sigma, dtype=float), (p, 3)).copy()
+            ps = _broadcast(
+                point_sigma, (p, 3), "point_sigma", f"(3,) for all points, or one row each ({p}, 3)"
+            )
         surveyed = roles != "tie"
         if np.any(surveyed & ~np.all(np.isfinite(ps) & (ps > 0), axis=1)):
             first = pid[surveyed & ~np.all(np.isfinite(ps) & (ps > 0), axis=1)][0]
@@ -601,10 +603,26 @@ def _table(values, shape: tuple[int, int], name: str) -> np.ndarray:
     return a.copy()
 
 
+def _broadcast(values, shape: tuple[int, ...], name: str, expected: str, exact: bool = False):
+    """``values`` as a float array of ``shape`` (a copy), broadcast unless ``exact`` (a single
+    row is also taken for a table of one row); :class:`InputError` naming ``name`` and the
+    ``expected`` shapes otherwise."""
+    try:
+        a = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot be read as numbers ({exc})") from None
+    if exact and a.shape != shape and not (a.shape == shape[1:] and shape[0] == 1):
+        raise InputError(f"{name}: shape {a.shape} does not fit; expected {expected}")
+    try:
+        return np.broadcast_to(a, shape).copy()
+    except ValueError:
+        raise InputError(f"{name}: shape {a.shape} does not fit; expected {expected}") from None
+
+
 def _observation_sigma(sigma, n: int) -> np.ndarray:
     """Standard deviations of ``n`` observations (one value for all, or one each): positive
     and finite, else :class:`InputError` naming the first bad one."""
-    sg = np.broadcast_to(np.asarray(sigma, dtype=float), (n,)).copy()
+    sg = _broadcast(sigma, (n,), "sigma", f"one value, or one per observation ({n},)")
     bad = ~np.isfinite(sg) | (sg <= 0)
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
@@ -618,10 +636,12 @@ def _observation_sigma(sigma, n: int) -> np.ndarray:
 def _optional_pair(values, sigmas, m: int, name: str) -> tuple[np.ndarray, np.ndarray]:
     if values is None:
         return np.full((m, 3), np.nan), np.full((m, 3), np.nan)
-    v = np.asarray(values, dtype=float).reshape(m, 3).copy()
+    v = _broadcast(values, (m, 3), name, f"one row per image ({m}, 3), NaN for none", exact=True)
     if sigmas is None:
         raise InputError(f"{name}: observations given without standard deviations ({name}_sigma)")
-    s = np.broadcast_to(np.asarray(sigmas, dtype=float), (m, 3)).copy()
+    s = _broadcast(
+        sigmas, (m, 3), f"{name}_sigma", f"(3,) for every image, or one row per image ({m}, 3)"
+    )
     has = np.all(np.isfinite(v), axis=1)
     partial = np.any(np.isfinite(v), axis=1) & ~has
     if np.any(partial):
