@@ -525,27 +525,43 @@ class Block:
         per_img, per_pt = self.observation_counts()
         once = per_pt < 2
         if np.any(once):
-            ids = self.point_ids[once]
-            raise InputError(
-                f"{ids.size} point(s) are observed in fewer than two images and cannot be "
-                f"intersected: {', '.join(map(str, ids[:8]))}"
-                + (" ..." if ids.size > 8 else "")
-                + " (remove them, e.g. with Block.drop_weak_points())"
-            )
+            tie = once & (self.role == "tie")
+            parts = []
+            if np.any(tie):
+                parts.append(
+                    f"{int(tie.sum())} tie point(s) are observed in fewer than two images and "
+                    f"cannot be intersected: {_some(self.point_ids[tie])} (remove them with "
+                    "Block.drop_weak_points(), or delete their rows from the block's files)"
+                )
+            if np.any(once & ~tie):
+                parts.append(
+                    f"{int((once & ~tie).sum())} control/check point(s) are observed in fewer "
+                    f"than two images: {_some(self.point_ids[once & ~tie])} (measure them in "
+                    "a second image, or remove them with Block.drop_weak_points(surveyed=True) "
+                    "or by deleting their rows from the block's files)"
+                )
+            raise InputError("; ".join(parts))
         few = per_img < min_image_observations
         if np.any(few):
             ids = self.image_ids[few]
             raise InputError(
                 f"{ids.size} image(s) have fewer than {min_image_observations} observations "
-                f"and cannot be oriented: {', '.join(map(str, ids[:8]))}"
-                + (" ..." if ids.size > 8 else "")
+                f"and cannot be oriented: {_some(ids)}"
             )
 
-    def drop_weak_points(self) -> Block:
-        """A new block without the tie points observed in fewer than two images (and their
-        observations)."""
+    def drop_weak_points(self, *, surveyed: bool = False) -> Block:
+        """A new block without the points observed in fewer than two images (and their
+        observations).
+
+        Parameters
+        ----------
+        surveyed : bool
+            Drop control and check points observed in fewer than two images too (the block
+            then has fewer of them). Default: tie points only; such control and check
+            points stay, and :meth:`validate` refuses them.
+        """
         _, per_pt = self.observation_counts()
-        keep_pt = (per_pt >= 2) | (self.role != "tie")
+        keep_pt = (per_pt >= 2) | ((self.role != "tie") & (not surveyed))
         if np.all(keep_pt):
             return self
         b = self.select_observations(keep_pt[self.obs_point])
@@ -601,6 +617,11 @@ def _table(values, shape: tuple[int, int], name: str) -> np.ndarray:
     if np.any(bad):
         raise InputError(f"{name}: row {int(np.flatnonzero(bad)[0])} holds NaN or infinity")
     return a.copy()
+
+
+def _some(ids: np.ndarray, k: int = 8) -> str:
+    """The first ``k`` ids, comma-separated (`` ...`` when there are more)."""
+    return ", ".join(map(str, ids[:k].tolist())) + (" ..." if ids.size > k else "")
 
 
 def _broadcast(values, shape: tuple[int, ...], name: str, expected: str, exact: bool = False):
