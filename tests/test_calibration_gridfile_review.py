@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import tempfile
 from pathlib import Path
 
@@ -85,3 +86,63 @@ def test_text_ids_of_older_files_match_only_when_unambiguous():
     assert match_grid_ids([1, "1"], {"1": g}) == ({"1": "1"}, [1])
     # two grid keys with the text "1" (1 and "1"), asked for np.int64(1): exact match
     assert match_grid_ids([np.int64(1)], {"1": g, 1: g})[0] == {np.int64(1): 1}
+
+
+# ------------------------------------------------------------------ non-finite and zero sigma0
+def _same(a, b) -> bool:
+    return np.array_equal(np.asarray(a, float), np.asarray(b, float), equal_nan=True)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    sigma0=st.one_of(
+        st.just(float("nan")), st.just(0.0), st.floats(1e-6, 1e3, allow_subnormal=False)
+    ),
+    rms_cv=st.one_of(st.just(float("nan")), st.floats(0, 10)),
+    seed=st.integers(0, 2**16),
+)
+def test_standard_deviations_round_trip_exactly(sigma0, rms_cv, seed):
+    """node_std = sigma0 sqrt(cofactor) comes back for any sigma0: 0 (all residuals zero),
+    NaN (redundancy 0) or a number; NaN statistics come back as NaN (JSON null)."""
+    rng = np.random.default_rng(seed)
+    g = _grid(seed)
+    g = ResidualGrid(
+        **{**{f: getattr(g, f) for f in ("layout", "nodes", "redundancy", "sigma_obs")},
+           **{f: getattr(g, f) for f in ("sigma_constraint", "support", "counts")},
+           "sigma0": sigma0, "rms_before": 1.0, "rms_after": 0.5,
+           "rms_cv_before": rms_cv, "rms_cv_after": rms_cv},
+    )  # fmt: skip
+    g._std.append(rng.uniform(0.01, 5, g.layout.shape))
+    with tempfile.TemporaryDirectory() as tmp:
+        for suffix in SUFFIXES:
+            path = save_grids(Path(tmp) / f"g{suffix}", {"a": g})
+            if suffix == ".json":
+                json.loads(path.read_text(), parse_constant=_no_constant)  # strict JSON
+            b = load_grids(path)["a"]
+            assert _same(b.sigma0, sigma0) and _same(b.rms_cv_before, rms_cv)
+            np.testing.assert_array_equal(b.node_cofactor, g.node_cofactor)
+            assert _same(b.node_std, g.node_std)
+            assert b.to_dict() == g.to_dict()
+
+
+def _no_constant(name):
+    raise AssertionError(f"{name} in a JSON file")
+
+
+def test_fit_without_redundancy_saves_as_json(cli, tmp_path):
+    """Four points, one 2 x 2 cell with linear borders: redundancy 0, sigma0 NaN."""
+    csv = tmp_path / "four.csv"
+    csv.write_text(
+        "image_id,u,v,rx,ry\nA,10,10,0.3,0\nA,80,15,0.2,0.1\nA,20,50,0,0.2\nA,70,55,1,1\n"
+    )
+    out = tmp_path / "g.json"
+    code, _, err = cli(
+        "grid", "fit", csv, "--image-size", "100x60", "--spacing", "99", "--border", "linear",
+        "--folds", "0", "-o", out,
+    )  # fmt: skip
+    assert code == 0, err
+    g = load_grids(out)["A"]
+    assert g.redundancy == 0 and np.isnan(g.sigma0)
+    assert np.isnan(g.node_std).all() and np.isfinite(g.node_cofactor).all()
+    data = json.loads(out.read_text(), parse_constant=_no_constant)
+    assert data["images"][0]["sigma0"] is None

@@ -3,17 +3,23 @@
 Both forms hold, per image (in the order given): the id, the layout (``width``,
 ``height``, ``spacing``, ``shape = [ny, nx]``), the node values ``nodes`` (ny, nx, 2, px,
 the modelled residual, computed minus observed, x then y), the node standard deviations
-``node_std`` (ny, nx, px; absent when not computed), the support map ``support`` (ny, nx,
-bool), the observation counts ``counts`` (ny, nx), the standard deviations of the
+``node_std`` (ny, nx, px) with the cofactors they come from, ``node_cofactor = diag(N^-1)``
+(ny, nx, px^2 per unit weight; both absent when not computed), the support map ``support``
+(ny, nx, bool), the observation counts ``counts`` (ny, nx), the standard deviations of the
 observations used ``sigma_obs`` (n,), the outlier mask ``outliers`` (n_input,) and the
-statistics of :meth:`ResidualGrid.to_dict`.
+statistics of :meth:`ResidualGrid.to_dict`. The cofactors are what is read back (so that
+a sigma0 of 0 or NaN loses nothing); files without them give ``node_std / sigma0``.
 
 * NPZ (``.npz``): ``meta`` is a JSON string (format name, version, convention and the list of
   per-image statistics with ``id``); the arrays are ``nodes_<k>``, ``node_std_<k>``,
-  ``support_<k>``, ``counts_<k>``, ``sigma_obs_<k>``, ``outliers_<k>`` for the k-th image.
+  ``node_cofactor_<k>``, ``support_<k>``, ``counts_<k>``, ``sigma_obs_<k>``,
+  ``outliers_<k>`` for the k-th image.
 * JSON (any other suffix): ``{"format": "photogeom-residual-grids", "version": 1,
   "convention": ..., "images": [{"id": ..., <statistics>, "nodes": [[[x, y], ...], ...],
-  "node_std": ..., "support": ..., "counts": ..., "sigma_obs": ..., "outliers": ...}]}``.
+  "node_std": ..., "node_cofactor": ..., "support": ..., "counts": ..., "sigma_obs": ...,
+  "outliers": ...}]}``. Numbers that are not finite (NaN: a sigma0 of a fit without
+  redundancy and the standard deviations from it) are written as ``null`` and read back as
+  NaN.
 
 Image ids keep their type: an integer id is written as a JSON number, a text id as a
 JSON string, and each is read back as it was written (files from before ids kept their type
@@ -110,10 +116,22 @@ def _arrays(grid: ResidualGrid, std: bool) -> dict:
     }
     if std:
         try:
-            out["node_std"] = grid.node_std
-        except Exception:  # a grid read from a file without standard deviations
+            out["node_cofactor"] = grid.node_cofactor
+        except InputError:  # a grid read from a file without standard deviations
             pass
+        else:
+            out["node_std"] = grid.node_std
     return out
+
+
+def _json_array(values) -> list:
+    """Nested lists of an array, non-finite numbers as None (JSON null)."""
+    a = np.asarray(values)
+    if a.dtype.kind != "f":
+        return a.tolist()
+    obj = a.astype(object)
+    obj[~np.isfinite(a)] = None
+    return obj.tolist()
 
 
 def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Path:
@@ -142,7 +160,7 @@ def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Pat
         return atomic_write_bytes(path, buf.getvalue())
     images = []
     for st, arr in zip(stats, arrays):
-        images.append({**st, **{n: np.asarray(v).tolist() for n, v in arr.items()}})
+        images.append({**st, **{n: _json_array(v) for n, v in arr.items()}})
     text = json.dumps({**meta, "images": images}, allow_nan=False) + "\n"
     return atomic_write_bytes(path, text.encode("utf-8"))
 
@@ -179,7 +197,9 @@ def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise FileFormatError(f"{where}: incomplete or malformed grid ({exc})") from None
-    if "node_std" in arr and arr["node_std"] is not None:
+    if arr.get("node_cofactor") is not None:
+        g._std.append(np.asarray(arr["node_cofactor"], dtype=float))
+    elif arr.get("node_std") is not None:  # a file from before the cofactors were stored
         sd = np.asarray(arr["node_std"], dtype=float)
         with np.errstate(invalid="ignore", divide="ignore"):
             g._std.append((sd / g.sigma0) ** 2)
@@ -212,7 +232,15 @@ def load_grids(path: str | os.PathLike) -> dict:
         for k, st in enumerate(meta["images"]):
             arr = {
                 n: data[f"{n}_{k}"]
-                for n in ("nodes", "node_std", "support", "counts", "sigma_obs", "outliers")
+                for n in (
+                    "nodes",
+                    "node_std",
+                    "node_cofactor",
+                    "support",
+                    "counts",
+                    "sigma_obs",
+                    "outliers",
+                )
                 if f"{n}_{k}" in data
             }
             _add(out, st, arr, path)
