@@ -207,6 +207,26 @@ def write_all(files: dict, texts=(), folders=()) -> None:
     write_files(batch, folders)
 
 
+def free_names(text: str | None) -> tuple[str, ...] | None:
+    """The calibration parameters of ``--free`` (comma-separated names, or ``none``; the same
+    in ``simulate`` and ``adjust``): None when not given."""
+    from ..bundle import CALIBRATION_NAMES
+
+    names = split_names(text)
+    if names is None:
+        return None
+    names = [n.lower() for n in names]
+    if names == ["none"]:
+        return ()
+    unknown = [n for n in names if n not in CALIBRATION_NAMES]
+    if unknown:
+        raise InputError(
+            f"--free: unknown calibration parameter(s) {', '.join(unknown)}; the names are "
+            f"{', '.join(CALIBRATION_NAMES)} (or 'none')"
+        )
+    return tuple(names)
+
+
 SigmaOpt = Annotated[
     float | None,
     typer.Option(
@@ -289,7 +309,7 @@ def simulate(
         str | None,
         typer.Option(
             help="Calibration parameters the block marks free, comma-separated "
-            "(default f,cx,cy,k1,k2,k3,p1,p2)."
+            "(default f,cx,cy,k1,k2,k3,p1,p2; 'none' for none)."
         ),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
@@ -322,7 +342,7 @@ def simulate(
         blunders=blunders,
         blunder_size=blunder_size,
         local_field=local_field,
-        free=split_names(free),
+        free=free_names(free),
     )
     if not gnss:
         kwargs["gnss_sigma"] = None
@@ -482,7 +502,7 @@ def adjust(
     Prints the summary (or JSON with --json); on a terminal the iterations are shown as they
     run. Everything is computed before any file is written.
     """
-    from ..bundle import CALIBRATION_NAMES, bundle_adjust
+    from ..bundle import bundle_adjust
     from ..report.bundle import bundle_report, bundle_result_data
 
     src_fmt = detect_format(source, fmt)
@@ -504,16 +524,9 @@ def adjust(
         snooping=snooping,
         max_iterations=max_iterations,
     )
-    names = split_names(free)
+    names = free_names(free)
     if names is not None:
-        names = [] if [n.lower() for n in names] == ["none"] else [n.lower() for n in names]
-        unknown = [n for n in names if n not in CALIBRATION_NAMES]
-        if unknown:
-            raise InputError(
-                f"--free: unknown calibration parameter(s) {', '.join(unknown)}; the names are "
-                f"{', '.join(CALIBRATION_NAMES)} (or 'none')"
-            )
-        options["free"] = tuple(names)
+        options["free"] = names
     prog, progress = iteration_progress(max_iterations)
     if prog is not None:
         with prog:
