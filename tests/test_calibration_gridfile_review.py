@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from photogeom.calibration import GridLayout, ResidualGrid, load_grids, save_grids
 from photogeom.calibration.gridfile import match_grid_ids
-from photogeom.errors import InputError
+from photogeom.errors import FileFormatError, InputError
 
 SUFFIXES = (".npz", ".json")
 
@@ -146,3 +146,101 @@ def test_fit_without_redundancy_saves_as_json(cli, tmp_path):
     assert np.isnan(g.node_std).all() and np.isfinite(g.node_cofactor).all()
     data = json.loads(out.read_text(), parse_constant=_no_constant)
     assert data["images"][0]["sigma0"] is None
+
+
+# ------------------------------------------------------------------ damaged files
+def _json_file(tmp_path) -> dict:
+    path = save_grids(tmp_path / "good.json", {"a": _grid(1), "b": _grid(2)})
+    return json.loads(path.read_text())
+
+
+def _set(key, value):
+    def change(data):
+        data["images"][0][key] = value
+
+    return change
+
+
+def _drop(key):
+    def change(data):
+        del data["images"][0][key]
+
+    return change
+
+
+DAMAGES = {
+    "no id": (_drop("id"), "image entry 1 has no integer or text 'id'"),
+    "float id": (_set("id", 1.5), "image entry 1 has no integer or text 'id'"),
+    "entry not an object": (lambda d: d.update(images=[5]), "image entry 1 is int 5"),
+    "repeated id": (_set("id", "b"), "image 'b' appears twice"),
+    "no width": (_drop("width"), "image a: incomplete grid, no width"),
+    "no nodes": (_drop("nodes"), "incomplete grid, no nodes"),
+    "no support": (_drop("support"), "incomplete grid, no support"),
+    "width not whole": (_set("width", 90.5), "width is 90.5, not a whole number"),
+    "spacing 0": (_set("spacing", 0), "not a valid grid layout"),
+    "shape": (_set("shape", [9, 9]), "does not fit the layout"),
+    "border": (_set("border", "wavy"), "border 'wavy'"),
+    "support shape": (_set("support", [1, 2, 3]), r"support of shape \(3,\).*\(3, 4\)"),
+    "support values": (_set("support", [[2] * 4] * 3), "support holds values other than"),
+    "counts shape": (_set("counts", [[1] * 3] * 3), r"counts of shape \(3, 3\)"),
+    "counts negative": (_set("counts", [[-1] * 4] * 3), "counts holds values other than"),
+    "node_std shape": (_set("node_std", [1.0]), "node_std of shape"),
+    "node_cofactor shape": (_set("node_cofactor", [[1.0] * 4]), "node_cofactor of shape"),
+    "nodes null": (_set("nodes", [[[None, 0.0]] * 4] * 3), "nodes hold NaN"),
+    "nodes text": (_set("nodes", [[["x", 0.0]] * 4] * 3), "nodes is not an array of numbers"),
+    "sigma_obs 2-D": (_set("sigma_obs", [[1.0]]), "sigma_obs of shape"),
+    "sigma0 text": (_set("sigma0", "big"), "sigma0 is 'big', not a number"),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGES))
+def test_damaged_json_entries_are_named(tmp_path, damage):
+    data = _json_file(tmp_path)
+    assert _grid(1).layout.shape == (3, 4)  # the shapes in the messages above
+    change, message = DAMAGES[damage]
+    change(data)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(FileFormatError, match=message) as exc:
+        load_grids(path)
+    assert str(path) in str(exc.value)
+
+
+def test_damaged_npz_files_are_named(tmp_path):
+    good = save_grids(tmp_path / "good.npz", {"a": _grid(1), "b": _grid(2)}).read_bytes()
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good[: len(good) // 2])
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"hello")
+    scratched = tmp_path / "scratched.npz"
+    middle = len(good) // 2
+    scratched.write_bytes(good[:middle] + b"\0" * 40 + good[middle + 40 :])
+    for path in (truncated, garbage, scratched):
+        with pytest.raises(FileFormatError, match="grids NPZ file") as exc:
+            load_grids(path)
+        assert str(path) in str(exc.value)
+    # an array of the wrong shape inside a sound archive
+    with np.load(tmp_path / "good.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["support_1"] = np.ones(5, bool)
+    np.savez(tmp_path / "shape.npz", **arrays)
+    with pytest.raises(FileFormatError, match=r"image b: support of shape \(5,\)"):
+        load_grids(tmp_path / "shape.npz")
+    del arrays["counts_0"]
+    np.savez(tmp_path / "missing.npz", **arrays)
+    with pytest.raises(FileFormatError, match="image a: incomplete grid, no counts"):
+        load_grids(tmp_path / "missing.npz")
+
+
+def test_damaged_grids_file_in_the_cli(cli, tmp_path):
+    (tmp_path / "g.npz").write_bytes(b"PK\x03\x04 cut short")
+    obs = tmp_path / "obs.csv"
+    obs.write_text("image_id,u,v\na,1,1\n")
+    for args in (
+        ("grid", "apply", tmp_path / "g.npz", obs, "-o", tmp_path / "out.csv"),
+        ("grid", "correct-images", tmp_path / "g.npz", tmp_path, tmp_path / "out"),
+    ):
+        code, _, err = cli(*args)
+        assert code == 2 and err.startswith("error:") and "g.npz" in err
+        assert "Traceback" not in err
+    assert not (tmp_path / "out.csv").exists() and not (tmp_path / "out").exists()

@@ -31,6 +31,8 @@ from __future__ import annotations
 import io
 import json
 import os
+import zipfile
+import zlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -165,42 +167,106 @@ def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Pat
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
+_ARRAYS = ("nodes", "node_std", "node_cofactor", "support", "counts", "sigma_obs", "outliers")
+_NEEDED_STATS = ("width", "height", "spacing", "redundancy")
+_NEEDED_ARRAYS = ("nodes", "support", "counts", "sigma_obs", "outliers")
+_BORDERS = ("mean", "linear")
+
+
+def _integer(st: dict, key: str, where: str) -> int:
+    v = st[key]
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise FileFormatError(f"{where}: {key} is {v!r}, not a whole number")
+    if not (np.isfinite(v) and float(v).is_integer()):
+        raise FileFormatError(f"{where}: {key} is {v!r}, not a whole number")
+    return int(v)
+
+
+def _number(st: dict, key: str, where: str) -> float:
+    """A statistic: a number, or NaN for null / absent (JSON has no NaN)."""
+    v = st.get(key)
+    if v is None:
+        return float("nan")
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise FileFormatError(f"{where}: {key} is {v!r}, not a number")
+    return float(v)
+
+
+def _array(arr: dict, name: str, shape: tuple | None, kind: str, where: str) -> np.ndarray:
+    """One stored array, checked: ``kind`` "f" (numbers, null = NaN), "b" (booleans, 0/1
+    accepted), "u" (counts >= 0); ``shape`` exact, or None for any 1-D array."""
+    v = arr[name]
     try:
-        layout = GridLayout(int(st["width"]), int(st["height"]), float(st["spacing"]))
-        nodes = np.asarray(arr["nodes"], dtype=float)
-        if nodes.shape != (*layout.shape, 2):
-            raise FileFormatError(
-                f"{where}: nodes of shape {nodes.shape}, the layout needs {(*layout.shape, 2)}"
-            )
-
-        def num(key):
-            v = st.get(key)
-            return float("nan") if v is None else float(v)
-
-        g = ResidualGrid(
-            layout=layout,
-            nodes=nodes,
-            sigma0=num("sigma0"),
-            redundancy=int(st["redundancy"]),
-            sigma_obs=np.asarray(arr["sigma_obs"], dtype=float),
-            sigma_constraint=num("sigma_constraint"),
-            support=np.asarray(arr["support"], dtype=bool),
-            counts=np.asarray(arr["counts"], dtype=np.int64),
-            rms_before=num("rms_before"),
-            rms_after=num("rms_after"),
-            rms_cv_before=num("rms_cv_before"),
-            rms_cv_after=num("rms_cv_after"),
-            outliers=np.asarray(arr["outliers"], dtype=bool),
-            vce_iterations=int(st.get("vce_iterations", 0)),
-            border=str(st.get("border", "mean")),
+        a = np.asarray(v, dtype=float) if kind == "f" else np.asarray(v)
+    except (TypeError, ValueError):
+        raise FileFormatError(f"{where}: {name} is not an array of numbers") from None
+    want = "a list" if shape is None else f"shape {shape}"
+    if (shape is None and a.ndim != 1) or (shape is not None and a.shape != shape):
+        raise FileFormatError(
+            f"{where}: {name} of shape {a.shape}, the grid needs {want}"
+            + ("" if shape is None else f" ({shape[0]} x {shape[1]} nodes of the layout)")
         )
-    except (KeyError, TypeError, ValueError) as exc:
-        raise FileFormatError(f"{where}: incomplete or malformed grid ({exc})") from None
+    if a.size and kind == "b":
+        if a.dtype.kind in "iu" and np.isin(a, (0, 1)).all():
+            a = a.astype(bool)
+        if a.dtype.kind != "b":
+            raise FileFormatError(f"{where}: {name} holds values other than true/false")
+    elif a.size and kind == "u":
+        if a.dtype.kind not in "iu" or (a < 0).any():
+            raise FileFormatError(f"{where}: {name} holds values other than counts (0, 1, ...)")
+    return a.astype({"f": float, "b": bool, "u": np.int64}[kind])
+
+
+def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
+    """One image's grid from its statistics and arrays; FileFormatError naming what is
+    missing or malformed."""
+    missing = [k for k in _NEEDED_STATS if k not in st]
+    missing += [k for k in _NEEDED_ARRAYS if arr.get(k) is None]
+    if missing:
+        raise FileFormatError(f"{where}: incomplete grid, no {', '.join(missing)}")
+    try:
+        layout = GridLayout(
+            _integer(st, "width", where), _integer(st, "height", where), float(st["spacing"])
+        )
+    except (TypeError, ValueError) as exc:  # InputError of the layout is a ValueError
+        if isinstance(exc, FileFormatError):
+            raise
+        raise FileFormatError(f"{where}: not a valid grid layout ({exc})") from None
+    shape = layout.shape
+    if "shape" in st and st["shape"] != list(shape):
+        raise FileFormatError(
+            f"{where}: shape {st['shape']!r} does not fit the layout "
+            f"({layout.width} x {layout.height} px, {layout.spacing:g} px: {list(shape)})"
+        )
+    border = st.get("border", "mean")
+    if border not in _BORDERS:
+        raise FileFormatError(f"{where}: border {border!r} is not one of {', '.join(_BORDERS)}")
+    nodes = _array(arr, "nodes", (*shape, 2), "f", where)
+    if not np.isfinite(nodes).all():
+        raise FileFormatError(f"{where}: nodes hold NaN or infinite values")
+    g = ResidualGrid(
+        layout=layout,
+        nodes=nodes,
+        sigma0=_number(st, "sigma0", where),
+        redundancy=_integer(st, "redundancy", where),
+        sigma_obs=_array(arr, "sigma_obs", None, "f", where),
+        sigma_constraint=_number(st, "sigma_constraint", where),
+        support=_array(arr, "support", shape, "b", where),
+        counts=_array(arr, "counts", shape, "u", where),
+        rms_before=_number(st, "rms_before", where),
+        rms_after=_number(st, "rms_after", where),
+        rms_cv_before=_number(st, "rms_cv_before", where),
+        rms_cv_after=_number(st, "rms_cv_after", where),
+        outliers=_array(arr, "outliers", None, "b", where),
+        vce_iterations=_integer(
+            {"vce_iterations": st.get("vce_iterations", 0)}, "vce_iterations", where
+        ),
+        border=border,
+    )
     if arr.get("node_cofactor") is not None:
-        g._std.append(np.asarray(arr["node_cofactor"], dtype=float))
+        g._std.append(_array(arr, "node_cofactor", shape, "f", where))
     elif arr.get("node_std") is not None:  # a file from before the cofactors were stored
-        sd = np.asarray(arr["node_std"], dtype=float)
+        sd = _array(arr, "node_std", shape, "f", where)
         with np.errstate(invalid="ignore", divide="ignore"):
             g._std.append((sd / g.sigma0) ** 2)
     return g
@@ -215,52 +281,57 @@ def load_grids(path: str | os.PathLike) -> dict:
     Raises
     ------
     FileFormatError
-        Not a grids file, or a malformed one (the message names the image).
+        Not a grids file (or a damaged one: truncated, not a zip archive, not JSON), or a
+        malformed entry: no id, missing values, arrays whose shape does not fit the
+        layout (the message names the file and the image).
     """
     path = Path(path)
     if not path.is_file():
         raise FileFormatError(f"{path}: no such grids file")
     if path.suffix.lower() == ".npz":
+        if not zipfile.is_zipfile(path):
+            raise FileFormatError(
+                f"{path}: not a grids NPZ file (not a zip archive: truncated, or another "
+                "format); write it again with save_grids or photogeom grid fit"
+            )
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
                 data = {k: z[k] for k in z.files if k != "meta"}
-        except (OSError, ValueError, KeyError) as exc:
-            raise FileFormatError(f"{path}: not a grids NPZ file ({exc})") from None
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+            raise FileFormatError(
+                f"{path}: not a readable grids NPZ file ({type(exc).__name__}: {exc}); "
+                "write it again with save_grids or photogeom grid fit"
+            ) from None
         _check(meta, path)
-        out = {}
+        out: dict = {}
         for k, st in enumerate(meta["images"]):
-            arr = {
-                n: data[f"{n}_{k}"]
-                for n in (
-                    "nodes",
-                    "node_std",
-                    "node_cofactor",
-                    "support",
-                    "counts",
-                    "sigma_obs",
-                    "outliers",
-                )
-                if f"{n}_{k}" in data
-            }
-            _add(out, st, arr, path)
+            arr = {n: data[f"{n}_{k}"] for n in _ARRAYS if f"{n}_{k}" in data}
+            _add(out, k, st, arr, path)
         return out
     try:
         meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError) as exc:  # UnicodeDecodeError is a ValueError
         raise FileFormatError(f"{path}: not a grids JSON file ({exc})") from None
     _check(meta, path)
     out = {}
-    for st in meta["images"]:
-        _add(out, st, st, path)
+    for k, st in enumerate(meta["images"]):
+        _add(out, k, st, st, path)
     return out
 
 
-def _add(out: dict, st: dict, arr: dict, path: Path) -> None:
-    """Read one image's grid into ``out`` under its id (integer or text, as written)."""
-    key = st.get("id") if isinstance(st, dict) else None
+def _add(out: dict, k: int, st, arr: dict, path: Path) -> None:
+    """Read the k-th image's grid into ``out`` under its id (integer or text, as written)."""
+    if not isinstance(st, dict):
+        raise FileFormatError(
+            f"{path}: image entry {k + 1} is {type(st).__name__} {st!r}, not an object with "
+            "id, layout and arrays"
+        )
+    key = st.get("id")
     if isinstance(key, bool) or not isinstance(key, (int, str)):
-        raise FileFormatError(f"{path}: an image entry has no integer or text 'id' (found {key!r})")
+        raise FileFormatError(
+            f"{path}: image entry {k + 1} has no integer or text 'id' (found {key!r})"
+        )
     if key in out:
         raise FileFormatError(f"{path}: image {key!r} appears twice")
     out[key] = _grid(st, arr, f"{path}, image {key}")
