@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import csv
+
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from photogeom.calibration import GridLayout, ResidualGrid, save_grids
 
@@ -41,3 +45,38 @@ def test_apply_matches_csv_text_ids_to_integer_grid_ids(cli, tmp_path):
         uv = np.array([[10.5, 20.25]] if key == 1 else [[3.0, 4.0]])
         want = uv + grids[key].evaluate(uv)
         assert (float(u), float(v)) == pytest.approx(tuple(want[0]), abs=1e-12)
+
+
+cell_text = st.text(
+    st.characters(min_codepoint=32, max_codepoint=0x2FF) | st.sampled_from(',"\n\r\t')
+)
+
+
+@settings(
+    max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(cells=st.lists(st.tuples(cell_text, cell_text), min_size=1, max_size=4))
+def test_apply_writes_csv_that_reads_back(cli, tmp_path, cells):
+    """Kept columns with commas, quotes and line breaks: the output reads back with
+    csv.reader, cell for cell, and through grid apply itself."""
+    path = save_grids(tmp_path / "g.json", {"A": _grid(3)}, std=False)
+    rows = [[name, "A", str(10 + k), str(5 + k), note] for k, (name, note) in enumerate(cells)]
+    rows = [r for r in rows if any(c.strip() for c in r)]
+    obs = tmp_path / "obs.csv"
+    with open(obs, "w", newline="", encoding="utf-8") as fh:
+        csv.writer(fh).writerows([["name", "image_id", "u", "v", "note, with comma"], *rows])
+    out = tmp_path / "out.csv"
+    code, _, err = cli("grid", "apply", path, obs, "-o", out)
+    assert code == 0, err
+    with open(out, newline="", encoding="utf-8") as fh:
+        back = list(csv.reader(fh))
+    assert back[0] == ["name", "image_id", "u", "v", "note, with comma"]
+    assert [[r[0], r[1], r[4]] for r in back[1:]] == [[r[0], r[1], r[4]] for r in rows]
+    uv = np.array([[float(r[2]), float(r[3])] for r in rows])
+    got = np.array([[float(r[2]), float(r[3])] for r in back[1:]])
+    np.testing.assert_array_equal(got, _grid(3).correct(uv))
+    code, _, err = cli("grid", "apply", path, out, "-o", tmp_path / "again.csv")
+    assert code == 0, err
+    with open(tmp_path / "again.csv", newline="", encoding="utf-8") as fh:
+        again = list(csv.reader(fh))
+    assert [[r[0], r[4]] for r in again[1:]] == [[r[0], r[4]] for r in rows]

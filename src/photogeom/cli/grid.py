@@ -324,17 +324,21 @@ def apply(
     new = uv.copy()
     for k, r in per_image.items():
         new[np.asarray(r)] = corrected[k]
-    lines = [",".join(header)]
+    lines = [",".join(_csv_cell(c) for c in header)]
     for i, r in enumerate(body):
         r = list(r)
         r[col["u"]] = repr(float(new[i, 0]))
         r[col["v"]] = repr(float(new[i, 1]))
-        lines.append(",".join(_csv_field(c) for c in r))
+        lines.append(",".join(_csv_cell(c) for c in r))
     emit_points("\n".join(lines) + "\n", output, len(body))
 
 
-def _csv_field(c: str) -> str:
-    return f'"{c}"' if ("," in c or '"' in c) and not c.startswith('"') else c
+def _csv_cell(text: str) -> str:
+    """One CSV cell (RFC 4180): quoted, inner quotes doubled, when it holds a comma, a quote
+    or a line break (``\r`` too, which the csv module leaves bare with ``\n`` line ends)."""
+    if any(ch in text for ch in ',"\r\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
 
 
 @app.command("correct-images")
