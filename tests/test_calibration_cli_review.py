@@ -80,3 +80,16 @@ def test_apply_writes_csv_that_reads_back(cli, tmp_path, cells):
     with open(tmp_path / "again.csv", newline="", encoding="utf-8") as fh:
         again = list(csv.reader(fh))
     assert [[r[0], r[4]] for r in again[1:]] == [[r[0], r[4]] for r in rows]
+
+
+@pytest.mark.parametrize("extra", [(), ("--report", "r.html")])
+def test_fit_refuses_a_csv_without_rows(cli, tmp_path, extra):
+    csv_path = tmp_path / "empty.csv"
+    csv_path.write_text("image_id,u,v,rx,ry\n\n")
+    out = tmp_path / "g.npz"
+    code, _, err = cli(
+        "grid", "fit", csv_path, "--image-size", "90x60", "-o", out,
+        *[tmp_path / a if a.endswith(".html") else a for a in extra],
+    )  # fmt: skip
+    assert code == 2 and err.startswith("error: no residuals in") and str(csv_path) in err
+    assert not out.exists() and not (tmp_path / "r.html").exists()

@@ -154,6 +154,11 @@ def fit(
                 f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
             ) from None
     _h, body, col = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
+    if not body:
+        raise FileFormatError(
+            f"no residuals in {residuals}: the file has a header and no rows; it needs one "
+            "row per observation (image_id, u, v, rx, ry)"
+        )
     ids = np.array([r[col["image_id"]].strip() for r in body], dtype=object)
     data = np.stack([_numbers(residuals, body, col[c], c) for c in ("u", "v", "rx", "ry")], axis=1)
     per_image = {}
