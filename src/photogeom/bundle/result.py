@@ -15,6 +15,7 @@ from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
 from .residuals import reprojection_residuals
+from .robust import consistent_variance_factor
 
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
@@ -30,6 +31,9 @@ class BundleFit:
         triangulated from their image observations with the adjusted cameras).
     sigma0, sigma0_prior : float
         A-posteriori ``sqrt(v'Pv / r)`` and a-priori standard deviation of unit weight.
+        With a robust loss ``sqrt(v'PWv / (r kappa))``, ``kappa`` the expected weighted
+        square sum under normal errors over ``r`` (:mod:`photogeom.bundle.robust`), so that
+        sigma0 is about 1 on clean data with correct a-priori sigmas.
     redundancy, n_observations, n_unknowns : int
         ``r = n_observations - n_unknowns`` (scalar observations: 2 per image point, 3 per
         control point, GNSS position and IMU attitude).
@@ -65,7 +69,9 @@ class BundleFit:
     variance_components : dict or None
         Estimated standard deviation factor of each observation group.
     chi2 : dict
-        Global test of ``v'Pv / sigma0_prior^2`` against chi-square with r degrees of freedom.
+        Global test of ``v'Pv / sigma0_prior^2`` against chi-square with r degrees of freedom
+        (with a robust loss ``v'PWv / kappa``, its expectation under normal errors made
+        that of the squared loss: :mod:`photogeom.bundle.robust`).
     notes : tuple of str
     elapsed : float (s)
     solver : dict
@@ -351,9 +357,11 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
 
     block = problem.block
     state = run.state
-    need_pairs = bool(opts.point_covariance or opts.snooping)
+    # a robust loss needs the redundancy numbers for a consistent sigma0 (robust.py)
+    cofactors = bool(opts.snooping or opts.loss != "squared")
+    need_pairs = bool(opts.point_covariance or cofactors)
     lin, ne, F, Q, Qpp, Cobs = statistics_pass(
-        problem, state, run.weights, pairs=need_pairs, cofactors=bool(opts.snooping)
+        problem, state, run.weights, pairs=need_pairs, cofactors=cofactors
     )
     m = problem.m
     n_img = problem.obs_i.size
@@ -367,8 +375,15 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     red = n_obs - n_unk
     vtpv = float(lin.cost)
     s0p = opts.sigma0_prior
-    sigma0 = math.sqrt(vtpv / red) if red > 0 else math.nan
-    var = sigma0**2 if red > 0 else math.nan
+    # with a robust loss v'PWv is consistent only after dividing by its expectation under
+    # normal errors (robust.py); kappa is 1 for the squared loss
+    leverage = None
+    if Cobs is not None:  # per image point, at unit weight (as for the w-test below)
+        leverage = np.einsum("ndd->n", Cobs) / (2.0 * np.clip(run.weights, 1e-12, None))
+    var, kappa = consistent_variance_factor(
+        vtpv, red, leverage, run.weights, opts.loss, opts.scale
+    )
+    sigma0 = math.sqrt(var) if red > 0 else math.nan
     notes = []
     # exterior orientation covariance in X0..kappa
     T = opk_from_increment_jacobian(opk_from_rotations(state.M))
@@ -477,7 +492,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     in_adj = np.zeros(block.n_observations, dtype=bool)
     in_adj[problem.obs_rows] = True
     snoop = None
-    if Cobs is not None:
+    if Cobs is not None and opts.snooping:
         # Baarda's w of each coordinate as if the observation had its full a-priori weight:
         # the unweighted normalised residual e over sqrt(1 - h), h the leverage at unit
         # weight (C / weight). Without a robust loss the weights are 1 and this is the
@@ -550,7 +565,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         check=check,
         snooping=snoop,
         variance_components=vc,
-        chi2=_chi2(vtpv, red, s0p),
+        chi2=_chi2(vtpv / kappa, red, s0p),
         gsd=float(adjusted.gsd()),
         notes=tuple(notes),
         elapsed=elapsed,

@@ -4,8 +4,10 @@ Groups: image observations of tie points, image observations of control points, 
 point coordinates, GNSS positions, IMU attitudes. For each group k with whitened residuals
 ``v_k`` and redundancy contribution ``r_k = n_k - tr(P_k J Q J')`` the variance factor is
 updated as ``f_k <- f_k * v_k'P_k v_k / r_k`` and the adjustment repeated until every ratio
-is 1 within the tolerance. The estimated standard deviation of a group is its a-priori one
-times ``sqrt(f_k)``.
+is 1 within the tolerance. With a robust loss ``r_k`` of the image groups is their expected
+weighted square sum under normal errors
+(:func:`photogeom.bundle.robust.expected_weighted_squares`). The estimated standard
+deviation of a group is its a-priori one times ``sqrt(f_k)``.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from ..adjust.variance_components import update_variance_factors
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ._angles import opk_from_rotations
 from .adjustment import levenberg_marquardt
+from .robust import expected_weighted_squares
 
 #: Stop when every group's ratio v'Pv / r is within this of 1.
 TOLERANCE = 0.01
@@ -30,7 +33,12 @@ def _contributions(problem, run):
     )
     out = {}
     r_img = np.einsum("nd,nd->n", lin.r, lin.r)
-    red_img = 2.0 - np.einsum("ndd->n", Cobs)
+    # with the squared loss the points' redundancy 2 - tr(J Q J'); with a robust loss the
+    # expected weighted square sum of each point under normal errors (robust.py)
+    opts = problem.options
+    w = np.clip(run.weights, 1e-12, None)
+    lev = np.einsum("ndd->n", Cobs) / (2.0 * w)
+    red_img = expected_weighted_squares(lev, opts.loss, opts.scale)
     ctrl = problem.obs_is_control
     if np.any(~ctrl):
         out["image_tie"] = (float(r_img[~ctrl].sum()), float(red_img[~ctrl].sum()))
