@@ -292,3 +292,18 @@ def test_grids_from_a_file_correct_the_block(unstable, tmp_path, suffix):
         assert list(old) == [str(i) for i in b.image_ids.tolist()]
         got = pg.calibration.correct_observations(b, old).observations.uv
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("roles", [("tie", "check"), ("check",), "check", ("control", "check")])
+def test_check_points_never_enter_the_grids(unstable, roles):
+    _, fit, _ = unstable
+    b = fit.block
+    assert (b.role == "check").any()  # the block has check points to keep out
+    with pytest.raises(InputError, match="check points never enter a residual grid"):
+        pg.calibration.fit_residual_grids(b, spacing=500, roles=roles, folds=0)
+    # tie and control points may: control residuals are added to the tie residuals
+    both = pg.calibration.fit_residual_grids(b, spacing=500, roles=("tie", "control"), folds=0)
+    control = b.role[b.obs_point] == "control"
+    assert sum(g.sigma_obs.size for g in both.values()) == int(
+        ((b.role[b.obs_point] == "tie") | control).sum()
+    )

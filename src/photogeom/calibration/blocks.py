@@ -106,7 +106,8 @@ def fit_residual_grids(
         Node spacing in pixels (the study: 100 px on the unstable camera, 70 px on the
         stable ones; 150-200 px chosen by the closest-to-origin rule).
     roles : sequence of str
-        Point roles whose residuals are fitted (default: tie points only; see the module).
+        Point roles whose residuals are fitted: ``"tie"`` (the default) and ``"control"``;
+        ``"check"`` is refused (see the module).
     images : sequence of image ids, optional
         Fit only these images (default: every image of the block).
     sigma_obs : "block" or float
@@ -135,13 +136,20 @@ def fit_residual_grids(
     Raises
     ------
     InputError
-        Not a block, unknown roles or image ids, a spacing of 0, negative or larger than
-        an image, residuals outside the image.
+        Not a block, unknown roles or image ids, check points in ``roles``, a spacing of
+        0, negative or larger than an image, residuals outside the image.
     TooFewPointsError
         An image with fewer residuals than ``min_observations`` (named): fit with a larger
         spacing, or leave the image out with ``images=``.
     """
     _check_block(block, "fit_residual_grids")
+    roles = _roles(roles)
+    if "check" in roles:
+        raise InputError(
+            f"roles={roles!r}: check points never enter a residual grid, so that they stay "
+            "independent checks of the correction (they are kept out of the adjustment "
+            "too); fit with roles=('tie',) or ('tie', 'control')"
+        )
     sigma_constraint = scaled_constraint_sigma(sigma_constraint, spacing)
     per = block_residuals(block, roles=roles)
     if images is not None:
