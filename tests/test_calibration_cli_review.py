@@ -93,3 +93,29 @@ def test_fit_refuses_a_csv_without_rows(cli, tmp_path, extra):
     )  # fmt: skip
     assert code == 2 and err.startswith("error: no residuals in") and str(csv_path) in err
     assert not out.exists() and not (tmp_path / "r.html").exists()
+
+
+@pytest.mark.parametrize("command", ["fit", "apply"])
+def test_non_finite_numbers_named_by_their_file_line(cli, tmp_path, command):
+    """Line 7 of the file (a blank line and a quoted line break before it), whatever the
+    image's own row count, in the words of the command that read it."""
+    rows = [
+        "image_id,u,v,rx,ry,note",
+        "A,10,10,0,0,x",
+        "",
+        'B,20,20,0,0,"two',
+        'lines"',
+        "A,30,30,0,0,y",
+        "A,inf,40,0,0,z",
+    ]
+    csv_path = tmp_path / "obs.csv"
+    csv_path.write_text("\n".join(rows) + "\n")
+    if command == "fit":
+        args = ("grid", "fit", csv_path, "--image-size", "90x60", "-o", tmp_path / "g.npz")
+    else:
+        grids = save_grids(tmp_path / "g.json", {"A": _grid(), "B": _grid(1)}, std=False)
+        args = ("grid", "apply", grids, csv_path, "-o", tmp_path / "out.csv")
+    code, _, err = cli(*args)
+    assert code == 2 and "line 7, column u: 'inf' is not a finite number" in err
+    assert "before fitting" not in err
+    assert not (tmp_path / "g.npz").exists() and not (tmp_path / "out.csv").exists()

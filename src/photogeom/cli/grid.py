@@ -38,14 +38,25 @@ class Interp(str, Enum):
     bicubic = "bicubic"
 
 
-def _read_csv(path: Path, need: tuple[str, ...]) -> tuple[list[str], list[list[str]], dict]:
-    """Header, rows and the column index of each needed column (case-insensitive)."""
+def _read_csv(
+    path: Path, need: tuple[str, ...]
+) -> tuple[list[str], list[list[str]], dict, list[int]]:
+    """Header, rows, the column index of each needed column (case-insensitive) and the file
+    line on which each row starts (blank lines skipped, quoted line breaks counted)."""
+    rows, lines = [], []
     try:
         with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
+            reader = csv.reader(fh)
+            start = 1
+            for r in reader:
+                if r and any(c.strip() for c in r):
+                    rows.append(r)
+                    lines.append(start)
+                start = reader.line_num + 1
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
-    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise FileFormatError(f"{path}: not a UTF-8 CSV file ({exc})") from None
     if not rows:
         raise FileFormatError(f"{path}: empty file")
     header = [c.strip() for c in rows[0]]
@@ -60,27 +71,37 @@ def _read_csv(path: Path, need: tuple[str, ...]) -> tuple[list[str], list[list[s
                 f"the file needs {', '.join(need)}"
             )
         col[name] = hit
-    body = rows[1:]
-    bad = [k + 2 for k, r in enumerate(body) if len(r) != len(header)]
+    body, lines = rows[1:], lines[1:]
+    bad = [k for k, r in enumerate(body) if len(r) != len(header)]
     if bad:
         raise FileFormatError(
-            f"{path}: line {bad[0]} has {len(body[bad[0] - 2])} fields, the header {len(header)}"
+            f"{path}: line {lines[bad[0]]} has {len(body[bad[0]])} fields, the header {len(header)}"
         )
-    return header, body, col
+    return header, body, col, lines
 
 
-def _numbers(path: Path, body, idx: int, name: str) -> np.ndarray:
+def _numbers(path: Path, body, idx: int, name: str, lines: list[int]) -> np.ndarray:
+    """Column ``idx`` as finite numbers; a FileFormatError names the file line of the first
+    cell that is not one (NaN and infinities included)."""
     try:
-        return np.array([float(r[idx]) for r in body])
+        values = np.array([float(r[idx]) for r in body])
     except ValueError:
         for k, r in enumerate(body):
             try:
                 float(r[idx])
             except ValueError:
                 raise FileFormatError(
-                    f"{path}: line {k + 2}, column {name}: not a number ({r[idx]!r})"
+                    f"{path}: line {lines[k]}, column {name}: not a number ({r[idx]!r})"
                 ) from None
         raise  # pragma: no cover
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        k = int(bad[0])
+        raise FileFormatError(
+            f"{path}: line {lines[k]}, column {name}: {body[k][idx]!r} is not a finite number "
+            f"({bad.size} row(s) in all); remove those rows or give their values"
+        )
+    return values
 
 
 def _image_size(text: str) -> tuple[int, int]:
@@ -153,14 +174,16 @@ def fit(
             raise InputError(
                 f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
             ) from None
-    _h, body, col = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
+    _h, body, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
     if not body:
         raise FileFormatError(
             f"no residuals in {residuals}: the file has a header and no rows; it needs one "
             "row per observation (image_id, u, v, rx, ry)"
         )
     ids = np.array([r[col["image_id"]].strip() for r in body], dtype=object)
-    data = np.stack([_numbers(residuals, body, col[c], c) for c in ("u", "v", "rx", "ry")], axis=1)
+    data = np.stack(
+        [_numbers(residuals, body, col[c], c, lines) for c in ("u", "v", "rx", "ry")], axis=1
+    )
     per_image = {}
     order = list(dict.fromkeys(ids.tolist()))
     groups = {k: [] for k in order}
@@ -311,9 +334,9 @@ def apply(
     from ..calibration.gridfile import match_grid_ids
 
     grids = load_grids(grids_file)
-    header, body, col = _read_csv(observations, ("image_id", "u", "v"))
+    header, body, col, lines = _read_csv(observations, ("image_id", "u", "v"))
     ids = [r[col["image_id"]].strip() for r in body]
-    uv = np.stack([_numbers(observations, body, col[c], c) for c in ("u", "v")], axis=1)
+    uv = np.stack([_numbers(observations, body, col[c], c, lines) for c in ("u", "v")], axis=1)
     per_image: dict = {}
     for i, k in enumerate(ids):
         per_image.setdefault(k, []).append(i)
