@@ -116,3 +116,22 @@ def test_any_survey_round_trips_through_a_csv_folder(surveyed_block, offsets, mi
     np.testing.assert_array_equal(back.surveyed, s, strict=True)
     want = np.where(np.isfinite(s), s, b.xyz)
     np.testing.assert_array_equal(back.surveyed_xyz, want)
+
+
+def test_triangulating_every_point_keeps_the_survey(surveyed_block):
+    """``triangulate(block).apply(block)`` replaces the coordinates by estimates; the control
+    and check points' survey stays the survey (it was overwritten, and the adjustment then
+    held the control points at their triangulated positions)."""
+    from photogeom.bundle import triangulate
+
+    block, fit = surveyed_block
+    known = block.role != "tie"
+    tri = triangulate(block).apply(block, on_failure="keep")
+    assert not np.allclose(tri.xyz[known], block.xyz[known], atol=1e-6)
+    np.testing.assert_array_equal(tri.surveyed_xyz[known], block.xyz[known])
+    again = bundle_adjust(tri, snooping=False)
+    np.testing.assert_allclose(again.control["errors"], fit.control["errors"], atol=1e-7)
+    np.testing.assert_allclose(again.check["errors"], fit.check["errors"], atol=1e-7)
+    # on an adjusted block (with a survey) the survey is kept as it is
+    tri2 = triangulate(fit.block).apply(fit.block, on_failure="keep")
+    np.testing.assert_array_equal(tri2.surveyed, fit.block.surveyed)

@@ -341,13 +341,12 @@ class Problem:
             replace(c, **{n: float(s.cal[g, k]) for k, n in enumerate(CALIBRATION_NAMES)})
             for g, c in enumerate(b.calibrations)
         )
-        known = (b.role != "tie")[:, None]
         return b.replace(
             exterior=ext,
             xyz=xyz,
             calibrations=cals,
             calibration_offset=s.offset.copy(),
-            surveyed=np.where(known, b.surveyed_xyz, np.nan),
+            surveyed=b.survey,
         )
 
 

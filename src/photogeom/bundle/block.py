@@ -462,6 +462,12 @@ class Block:
             return self.xyz
         return np.where(np.isfinite(self.surveyed), self.surveyed, self.xyz)
 
+    @property
+    def survey(self) -> np.ndarray:
+        """(p, 3) the survey of the control and check points, NaN for tie points: what a
+        block with new estimates in ``xyz`` passes as ``surveyed`` to keep it."""
+        return np.where((self.role != "tie")[:, None], self.surveyed_xyz, np.nan)
+
     def with_calibrations(self, cameras: Mapping[object, MetashapeCalibration]) -> Block:
         """A new block with the calibrations of the given groups replaced."""
         cals = list(self.calibrations)

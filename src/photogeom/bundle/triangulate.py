@@ -112,6 +112,10 @@ class Triangulation:
     def apply(self, block: Block, *, on_failure: str = "raise") -> Block:
         """A new block with these points' coordinates replaced by the triangulated ones.
 
+        The survey of control and check points is kept (:attr:`Block.surveyed`): the
+        triangulated coordinates are estimates, and an adjustment of the new block still
+        holds its control points to the survey and compares its check points with it.
+
         Parameters
         ----------
         block : Block
@@ -127,7 +131,9 @@ class Triangulation:
         rows = _lookup(block.point_ids, self.point_ids, "Triangulation.apply", "points")
         xyz = block.xyz.copy()
         xyz[rows[self.ok]] = self.xyz[self.ok]
-        return block.replace(xyz=xyz)
+        # the triangulated coordinates are estimates: the survey of control and check
+        # points stays the survey (on a block without ``surveyed`` its xyz is the survey)
+        return block.replace(xyz=xyz, surveyed=block.survey)
 
     def __len__(self) -> int:
         return int(self.point_ids.size)
