@@ -230,3 +230,12 @@ def test_worked_example_finds_the_blunder_and_fills_the_report():
         "FC300S block: Convergence",
     ):
         assert h in rep.headings
+
+
+def test_free_datum_on_a_block_with_control_is_refused_in_option_words(simulated, cli):
+    """A free network holds the first image: with control, GNSS or IMU in the block it
+    would pull against them (it ran and gave sigma0 2.7 on such a block)."""
+    code, _, err = cli("bundle", "adjust", simulated, "--datum", "free")
+    assert code == 2 and err.startswith("error: --datum free (a free network)")
+    assert "--datum weighted" in err and "images.csv" in err
+    assert "datum='" not in err and "without_datum_observations" not in err

@@ -468,6 +468,17 @@ class Block:
         block with new estimates in ``xyz`` passes as ``surveyed`` to keep it."""
         return np.where((self.role != "tie")[:, None], self.surveyed_xyz, np.nan)
 
+    def without_datum_observations(self) -> Block:
+        """A copy for a free network (``datum="free"``): control points become check points
+        (kept out of the adjustment and compared with their survey afterwards), GNSS
+        positions and IMU attitudes are removed (NaN)."""
+        return self.replace(
+            role=np.where(self.role == "control", "check", self.role),
+            gnss=np.full_like(self.gnss, np.nan),
+            imu=np.full_like(self.imu, np.nan),
+            surveyed=self.survey,
+        )
+
     def with_calibrations(self, cameras: Mapping[object, MetashapeCalibration]) -> Block:
         """A new block with the calibrations of the given groups replaced."""
         cals = list(self.calibrations)

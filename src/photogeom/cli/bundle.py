@@ -68,6 +68,13 @@ _BAL_SUFFIXES = (".txt", ".bal", ".bz2")
 _CLI_WORDS = (
     ("pass drop_extras=True", "use --drop-extras"),
     ("drop_extras=True", "--drop-extras"),
+    (
+        "(control points as check points, GNSS and IMU set to NaN: "
+        "Block.without_datum_observations())",
+        "(in the block's files: the control points' role set to check, the gnss_ and imu_ "
+        "cells of images.csv emptied)",
+    ),
+    ("use datum='weighted' (or 'auto')", "use --datum weighted (or auto)"),
     ("pass datum='free'", "use --datum free"),
     ("datum='free'", "--datum free"),
     ("run bundle_adjust(..., point_covariance=True)", "use --point-covariance"),
