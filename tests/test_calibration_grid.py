@@ -377,6 +377,8 @@ def test_bad_input():
         fit_grid(uv, l, (400, 300), 50, border="free")
     with pytest.raises(InputError, match="sigma_constraint"):
         fit_grid(uv, l, (400, 300), 50, sigma_constraint="estimate")
+    with pytest.raises(InputError, match="min_support must be 0 or more"):
+        fit_grid(uv, l, (400, 300), 50, min_support=-1)
     grid = fit_grid(uv, l, (400, 300), 50, folds=0)
     with pytest.raises(InputError, match="outside"):
         grid.evaluate([[400.0, 10.0]])

@@ -205,6 +205,8 @@ def test_the_small_starting_damping_reaches_the_same_minimum_in_fewer_iterations
         ({"spacing": 1000, "sigma_amplitude": 0}, "sigma_amplitude must be a positive"),
         ({"spacing": 1000, "sigma_amplitude": "vce"}, "'residuals' or None"),
         ({"spacing": 1000, "datum_": "free"}, "free"),
+        ({"spacing": 1000, "min_support": -1}, "min_support must be 0 or more"),
+        ({"spacing": 1000, "min_support": 2.5}, "min_support must be a whole number"),
     ],
 )
 def test_bad_input_is_named(small, kwargs, match):

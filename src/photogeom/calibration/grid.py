@@ -597,6 +597,7 @@ def _fit_grid(
         raise InputError(f"{where}sigma_constraint must be positive and finite")
     if border not in BORDERS:
         raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
+    check_min_support(min_support)
 
     C = layout.constraint_matrix(border)
     used = np.ones(n, bool)
@@ -686,6 +687,21 @@ def _fit_grid(
         border=border,
         uv=uv,
     )
+
+
+def check_min_support(min_support) -> int:
+    """``min_support`` as a count of observations (a whole number, 0 or more)."""
+    if isinstance(min_support, (bool, np.bool_)) or not isinstance(
+        min_support, (int, np.integer)
+    ):
+        raise InputError(
+            f"min_support must be a whole number of observations, not {min_support!r}"
+        )
+    if min_support < 0:
+        raise InputError(
+            f"min_support must be 0 or more (observations in a node's cells), not {min_support}"
+        )
+    return int(min_support)
 
 
 def _rms_len(v: np.ndarray) -> float:

@@ -65,7 +65,14 @@ from ..bundle.block import Block
 from ..bundle.options import BundleOptions
 from ..camera.frame_kernel import project_rows
 from ..errors import DegenerateGeometryError, InputError
-from .grid import BORDERS, GridLayout, ResidualGrid, _node_counts, _rms_len
+from .grid import (
+    BORDERS,
+    GridLayout,
+    ResidualGrid,
+    _node_counts,
+    _rms_len,
+    check_min_support,
+)
 
 __all__ = ["GridAdjustment", "adjust_with_grids"]
 
@@ -596,6 +603,7 @@ def adjust_with_grids(
         raise InputError(f"datum must be one of {', '.join(DATUMS)}, not {datum!r}")
     if border not in BORDERS:
         raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
+    check_min_support(min_support)
     from .blocks import scaled_constraint_sigma
 
     sc = _positive(scaled_constraint_sigma(sigma_constraint, spacing), "sigma_constraint")
