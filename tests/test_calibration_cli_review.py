@@ -119,3 +119,27 @@ def test_non_finite_numbers_named_by_their_file_line(cli, tmp_path, command):
     assert code == 2 and "line 7, column u: 'inf' is not a finite number" in err
     assert "before fitting" not in err
     assert not (tmp_path / "g.npz").exists() and not (tmp_path / "out.csv").exists()
+
+
+def _noise_csv(path, n=200):
+    """Noise only, on a grid finer than its data: no variance ratio fits (vce fails)."""
+    rng = np.random.default_rng(0)
+    uv = rng.uniform(0, 89, (n, 2)) * [1, 0.66]
+    r = rng.normal(0, 1, (n, 2))
+    lines = ["image_id,u,v,rx,ry"] + [f"A,{a},{b},{c},{d}" for a, b, c, d in np.hstack([uv, r])]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_fit_errors_in_cli_words(cli, tmp_path):
+    """A ConvergenceError of the variance components speaks of options, not keywords."""
+    csv_path = _noise_csv(tmp_path / "noise.csv")
+    out = tmp_path / "g.npz"
+    base = ("grid", "fit", csv_path, "--image-size", "90x60", "--folds", "0", "-o", out)
+    code, _, err = cli(*base, "--spacing", "15", "--sigma-constraint", "vce")
+    assert code == 2 and err.startswith("error:") and "variance components" in err
+    assert "give --sigma-constraint, or a larger --spacing" in err
+    assert "sigma_constraint" not in err
+    code, _, err = cli(*base, "--spacing", "30", "--min-support", "-1")
+    assert code == 2 and "--min-support must be 0 or more" in err
+    assert not out.exists()

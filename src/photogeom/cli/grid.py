@@ -16,7 +16,7 @@ from typing import Annotated
 import typer
 
 from .._lazy import LazyModule
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError, InputError, PhotogeomError
 from ._common import JsonOpt, OutputCsvOpt, ReportOpt, console, emit_points, json_text, say
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -206,8 +206,8 @@ def fit(
             min_support=min_support,
             progress=console(stderr=True).is_terminal,
         )
-    except InputError as exc:
-        raise InputError(_cli_words(str(exc))) from None
+    except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
+        raise _reworded(exc, _cli_words) from None
     save_grids(output, grids, std=std)
     stats = {k: g.to_dict() for k, g in grids.items()}
     if report is not None:
@@ -254,10 +254,18 @@ def _cli_words(msg: str) -> str:
         msg.replace("sigma_constraint", "--sigma-constraint")
         .replace("sigma_obs", "--sigma-obs")
         .replace("min_observations", "observations")
+        .replace("min_support", "--min-support")
         .replace("grid spacing", "--spacing")
-        .replace("use a larger spacing", "use a larger --spacing")
+        .replace("a larger spacing", "a larger --spacing")
+        .replace("choose a spacing", "choose a --spacing")
         .replace("a larger alpha", "a larger --alpha")
     )
+
+
+def _reworded(exc: PhotogeomError, words) -> PhotogeomError:
+    """The same error (its class kept) with its message passed through ``words``."""
+    exc.args = (words(str(exc)),)
+    return exc
 
 
 def _f(x) -> str:

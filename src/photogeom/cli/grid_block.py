@@ -16,7 +16,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import InputError
+from ..errors import InputError, PhotogeomError
 from ._common import JsonOpt, console, iteration_progress, json_text, say, split_numbers
 
 BlockArg = Annotated[
@@ -140,7 +140,7 @@ def _cli(msg: str) -> str:
     return (
         msg.replace("sigma_constraint", "--sigma-constraint")
         .replace("grid spacing", "--spacing")
-        .replace("use a larger spacing", "use a larger --spacing")
+        .replace("a larger spacing", "a larger --spacing")
         .replace("overlap must", "--overlap must")
         .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
         .replace("sigma_temporal", "--sigma-temporal")
@@ -222,8 +222,9 @@ def _evaluate(
             )
             re = readjust(fit.block, grids, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
-    except InputError as exc:
-        raise InputError(_cli(str(exc))) from None
+    except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
+        exc.args = (_cli(str(exc)),)
+        raise
     return fit, re, grids, ev, sim
 
 
@@ -371,10 +372,11 @@ def sweep(
     fit, _ = _source(block, preset, seed, strips, images)
     try:
         sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
-    except InputError as exc:
-        raise InputError(
-            _cli(str(exc)).replace("give at least two spacings", "--spacings: give at least two")
-        ) from None
+    except PhotogeomError as exc:
+        exc.args = (
+            _cli(str(exc)).replace("give at least two spacings", "--spacings: give at least two"),
+        )
+        raise
     if as_json:
         typer.echo(
             json_text(
