@@ -135,3 +135,18 @@ def test_triangulating_every_point_keeps_the_survey(surveyed_block):
     # on an adjusted block (with a survey) the survey is kept as it is
     tri2 = triangulate(fit.block).apply(fit.block, on_failure="keep")
     np.testing.assert_array_equal(tri2.surveyed, fit.block.surveyed)
+
+
+def test_the_adjusted_block_records_the_free_parameters_estimated(surveyed_block, tmp_path):
+    """``free=`` overrides the block's own set; the result block (and its files) name
+    what was estimated, so adjusting it again without ``free`` is the same adjustment."""
+    from photogeom.bundle import read_csv_block, write_csv_block
+
+    block, _ = surveyed_block
+    fit = bundle_adjust(block, free=("f", "k1", "k2"), snooping=False)
+    assert all(v == ("f", "k1", "k2") for v in fit.block.free.values())
+    write_csv_block(fit.block, tmp_path / "adj")
+    again = bundle_adjust(read_csv_block(tmp_path / "adj"), snooping=False)
+    assert again.redundancy == fit.redundancy
+    assert again.sigma0 == pytest.approx(fit.sigma0, rel=1e-6)
+    assert bundle_adjust(fit.block, snooping=False).redundancy == fit.redundancy

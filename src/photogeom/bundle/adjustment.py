@@ -362,12 +362,18 @@ class Problem:
             replace(c, **{n: float(s.cal[g, k]) for k, n in enumerate(CALIBRATION_NAMES)})
             for g, c in enumerate(b.calibrations)
         )
+        # the parameters this adjustment estimated, so that adjusting the result again
+        # (or its files) solves the same problem
+        free = b.free
+        if self.options.free is not None:
+            free = {g: tuple(self.options.free) for g in b.camera_ids.tolist()}
         return b.replace(
             exterior=ext,
             xyz=xyz,
             calibrations=cals,
             calibration_offset=s.offset.copy(),
             surveyed=b.survey,
+            free=free,
         )
 
 
