@@ -315,17 +315,36 @@ class Problem:
             parts["control"] = r
         return li, lg, pi, pg, cost, parts
 
+    def _jacobian_blocks(self, pr, sw: np.ndarray):
+        """Whitened derivatives of projected rows: ``A`` (n, 2, b) by the image's local
+        unknowns (centre, rotation increment, image-variant f, cx, cy), ``G`` (n, 2, NCAL)
+        by its group's calibration, ``P`` (n, 2, 3) by the point."""
+        blocks = [pr.d_center, pr.d_rotation]
+        if self.b > 6:
+            blocks.append(pr.d_calibration[:, :, :3])
+        A = np.concatenate(blocks, axis=2) * sw[:, None, None]
+        return A, pr.d_calibration * sw[:, None, None], pr.d_point * sw[:, None, None]
+
+    def jacobians_at(self, s: _State, rows: np.ndarray, xyz: np.ndarray):
+        """:meth:`_jacobian_blocks` of observation ``rows`` of the block (e.g. of check
+        points, which are not in the adjustment) with the points at ``xyz`` (k, 3, object
+        coordinates, one per row) and the cameras of state ``s``; whitened with the
+        observations' sigmas and the image variance factor of tie points."""
+        b = self.block
+        i = b.obs_image[rows]
+        cal = s.cal[b.image_camera][i]
+        cal[:, :3] += s.offset[i]
+        size = b.image_sizes()[i]
+        pr = project_rows(xyz - self.origin, s.M[i], s.C[i], cal, size, jacobian=True)
+        sw = 1.0 / (b.observations.sigma[rows] * math.sqrt(self.group_factor["image_tie"]))
+        return self._jacobian_blocks(pr, sw)
+
     def linearize(self, s: _State, weights: np.ndarray) -> Linearization:
         X, M, C, cal = self._rows(s)
         pr = project_rows(X, M, C, cal, self.size, jacobian=True)
         sw = np.sqrt(weights) / self.sigma_obs()
         r = (pr.uv - self.uv) * sw[:, None]
-        blocks = [pr.d_center, pr.d_rotation]
-        if self.b > 6:
-            blocks.append(pr.d_calibration[:, :, :3])
-        A = np.concatenate(blocks, axis=2) * sw[:, None, None]
-        G = pr.d_calibration * sw[:, None, None]
-        P = pr.d_point * sw[:, None, None]
+        A, G, P = self._jacobian_blocks(pr, sw)
         li, lg, pi, pg, pcost, _ = self.prior_terms(s)
         ng = self.ng * NCAL
         return Linearization(

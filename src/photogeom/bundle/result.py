@@ -352,6 +352,79 @@ def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors:
     return lin, ne, F, Q, Qpp, Cobs
 
 
+def check_point_covariance(
+    problem: Problem, state, factor, xyz: np.ndarray, var: float, *, cameras: bool = True
+) -> np.ndarray:
+    """Covariance (k, 3, 3) of the check points triangulated with the adjusted cameras.
+
+    A check point ``X`` minimises its own image residuals with the cameras ``c`` held at
+    their estimates, so ``dX = -N^-1 P'(A dc - e)`` and
+
+        Cov(X) = sigma0^2 (N^-1 + N^-1 B Q_cc B' N^-1),   N = P'P,  B = P'A,
+
+    ``P`` and ``A`` the whitened derivatives of its observations by the point and by the
+    cameras' unknowns (orientations and calibrations of the images that see it), ``Q_cc``
+    their cofactor block from the adjustment (one solve with the factor per check point:
+    columns of those images and groups only). The first term alone (``cameras=False``) is
+    the triangulation with exact cameras.
+
+    Parameters
+    ----------
+    problem, state
+        The adjustment and its solution.
+    factor
+        The factor of the reduced camera system at the solution.
+    xyz : (k, 3)
+        The triangulated check points (object coordinates), in ``problem.check_points``
+        order.
+    var : float
+        sigma0^2 a posteriori.
+    """
+    block = problem.block
+    cp = problem.check_points
+    k = cp.size
+    kmap = np.full(block.n_points, -1, dtype=np.int64)
+    kmap[cp] = np.arange(k)
+    rows = np.flatnonzero(kmap[block.obs_point] >= 0)
+    kr = kmap[block.obs_point[rows]]
+    A, G, P = problem.jacobians_at(state, rows, xyz[kr])
+    Pt = P.transpose(0, 2, 1)
+    N = np.zeros((k, 3, 3))
+    np.add.at(N, kr, Pt @ P)
+    Ninv = np.linalg.inv(N)
+    out = Ninv.copy()
+    if not cameras:
+        return var * out
+    b, nl = problem.b, problem.m * problem.b
+    img = block.obs_image[rows]
+    grp = block.image_camera[img]
+    # derivatives of the normal equations' right side by the free camera unknowns only
+    PA = Pt @ A * problem.local_free[img][:, None, :]
+    gfree = problem.global_free.reshape(problem.ng, NCAL)
+    PG = Pt @ G * gfree[grp][:, None, :]
+    order = np.argsort(kr, kind="stable")
+    starts = np.searchsorted(kr[order], np.arange(k + 1))
+    for j in range(k):  # over the (few) check points, not over observations
+        sel = order[starts[j] : starts[j + 1]]
+        ims, ipos = np.unique(img[sel], return_inverse=True)
+        gs, gpos = np.unique(grp[sel], return_inverse=True)
+        local_cols = (ims[:, None] * b + np.arange(b)).ravel()
+        global_cols = (nl + gs[:, None] * NCAL + np.arange(NCAL)).ravel()
+        cols = np.concatenate([local_cols, global_cols])
+        B = np.zeros((3, cols.size))
+        li = ipos[:, None] * b + np.arange(b)
+        gi = ims.size * b + (gpos[:, None] * NCAL + np.arange(NCAL))
+        for t in range(sel.size):  # the check point's rays
+            B[:, li[t]] += PA[sel[t]]
+            B[:, gi[t]] += PG[sel[t]]
+        E = np.zeros((problem.sys.nc, cols.size))
+        E[cols, np.arange(cols.size)] = 1.0
+        Qs = factor.solve(E)[cols]
+        T = Ninv[j] @ B
+        out[j] += T @ Qs @ T.T
+    return var * 0.5 * (out + out.transpose(0, 2, 1))
+
+
 def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     from scipy import special
 
@@ -471,7 +544,16 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             "cameras, minus surveyed",
         }
         if point_cov is not None:
-            point_cov[problem.check_points] = tri.covariance * s0p**2
+            cam = problem.free_datum is None
+            point_cov[problem.check_points] = check_point_covariance(
+                problem, state, F, check_xyz, var, cameras=cam
+            )
+            if not cam:
+                notes.append(
+                    "free network: the check points' standard deviations hold only their "
+                    "image observations' part, not the cameras' (their errors against the "
+                    "survey depend on the datum)"
+                )
     adjusted = problem.to_block(state, check_xyz)
     control = {"ids": []}
     if problem.control.size:
