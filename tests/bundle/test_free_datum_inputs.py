@@ -43,3 +43,36 @@ def test_without_datum_observations_is_a_free_network(sim):
     assert weighted.sigma0 == pytest.approx(1.0, abs=0.1)
     # the former control points are compared with their survey as check points
     assert set(fit.check["ids"]) >= set(b.point_ids[was_control].tolist())
+
+
+def _two_parts(sim):
+    """The block cut into its two strips sharing no points; the second strip without
+    control, GNSS or IMU."""
+    b = sim.block
+    second = np.zeros(b.n_images, dtype=bool)
+    second[b.n_images // 2 :] = True
+    in_second = second[b.obs_image]
+    seen_first = np.zeros(b.n_points, dtype=bool)
+    seen_first[b.obs_point[~in_second]] = True
+    drop = in_second & (seen_first[b.obs_point] | (b.role[b.obs_point] != "tie"))
+    cut = b.select_observations(~drop).drop_weak_points(surveyed=True)
+    gnss, imu = cut.gnss.copy(), cut.imu.copy()
+    gnss[second], imu[second] = np.nan, np.nan
+    return cut.replace(gnss=gnss, imu=imu), b.image_ids[second]
+
+
+def test_a_part_without_datum_is_named_before_the_iterations(sim):
+    """Before: all iterations ran, then a message blamed the calibration."""
+    from photogeom.errors import DegenerateGeometryError
+
+    cut, second = _two_parts(sim)
+    first = ", ".join(map(str, second[:4].tolist()))
+    with pytest.raises(DegenerateGeometryError, match=rf"2 parts .* images {first}"):
+        pg.bundle_adjust(cut)
+    with pytest.raises(DegenerateGeometryError, match="free network must be connected"):
+        pg.bundle_adjust(cut.without_datum_observations(), datum="free")
+    # each part with its own datum adjusts
+    gnss = cut.gnss.copy()
+    gnss[np.isin(cut.image_ids, second)] = sim.block.gnss[np.isin(sim.block.image_ids, second)]
+    fit = pg.bundle_adjust(cut.replace(gnss=gnss), snooping=False)
+    assert fit.converged

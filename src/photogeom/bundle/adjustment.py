@@ -139,36 +139,53 @@ class Problem:
         self.local_free[far, axis] = False
         self.free_datum = (0, far, axis)
 
+    def _image_components(self) -> np.ndarray:
+        """(m + p,) label of the connected part of each image and adjusted point (images
+        linked by common points)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        m, n = self.m, self.m + self.p
+        g = coo_matrix(
+            (np.ones(self.obs_i.size), (self.obs_i, m + self.obs_j)), shape=(n, n)
+        )
+        return connected_components(g, directed=False)[1]
+
     def _datum_check(self) -> None:
         if self.options.datum == "free":
             self._free_datum_check()
             return
-        pos = []
-        if self.control.size:
-            pos.append(self.control_xyz)
-        if np.any(self.has_gnss):
-            pos.append(self.block.gnss[self.has_gnss] - self.origin)
-        P = np.concatenate(pos) if pos else np.zeros((0, 3))
-        imu = bool(np.any(self.has_imu))
-        missing: list[str] = []
         if self.options.fix_exterior:
             return
-        if P.shape[0] == 0:
-            missing = ["3 shifts", "3 rotations", "the scale"]
-        elif P.shape[0] == 1:
-            missing = ["the scale"] + ([] if imu else ["3 rotations"])
-        else:
-            s = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
-            if s[0] <= 1e-9 * max(1.0, float(np.abs(P).max())):
-                missing = ["the scale"] + ([] if imu else ["3 rotations"])
-            elif s[1] <= 1e-6 * s[0] and not imu:
-                missing = ["the rotation about the line through the control/GNSS positions"]
-        if missing:
+        label = self._image_components()
+        parts = np.unique(label[: self.m])
+        ctrl_part = label[self.m + self.control]
+        for part in parts:
+            imgs = label[: self.m] == part
+            P = np.concatenate(
+                [
+                    self.control_xyz[ctrl_part == part],
+                    self.block.gnss[self.has_gnss & imgs] - self.origin,
+                ]
+            )
+            missing = _datum_missing(P, bool(np.any(self.has_imu & imgs)))
+            if not missing:
+                continue
+            what = ", ".join(missing)
+            if parts.size == 1:
+                raise DegenerateGeometryError(
+                    f"datum defect: the control points and GNSS positions do not fix {what}. "
+                    "Add control points (at least three, not on a line) or GNSS camera "
+                    "positions, or pass datum='free' for a free network"
+                )
+            ids = self.block.image_ids[imgs]
+            more = f" and {ids.size - 5} more" if ids.size > 5 else ""
             raise DegenerateGeometryError(
-                "datum defect: the control points and GNSS positions do not fix "
-                + ", ".join(missing)
-                + ". Add control points (at least three, not on a line) or GNSS camera "
-                "positions, or pass datum='free' for a free network"
+                f"datum defect: the block falls into {parts.size} parts that share no points, "
+                f"and in the part of images {', '.join(map(str, ids[:5].tolist()))}{more} the "
+                f"control points and GNSS positions do not fix {what}. Link the parts by "
+                "common tie points, add control points or GNSS positions in that part, or "
+                "adjust it as a block of its own"
             )
 
     def _free_datum_check(self) -> None:
@@ -182,6 +199,13 @@ class Problem:
             held.append(f"GNSS positions of {int(self.has_gnss.sum())} image(s)")
         if np.any(self.has_imu):
             held.append(f"IMU attitudes of {int(self.has_imu.sum())} image(s)")
+        parts = np.unique(self._image_components()[: self.m]).size
+        if parts > 1 and not held:
+            raise DegenerateGeometryError(
+                f"a free network must be connected, but the block falls into {parts} parts "
+                "that share no points: link them by common tie points or adjust each part as "
+                "a block of its own"
+            )
         if held:
             raise InputError(
                 "datum='free' (a free network) holds the first image's orientation at its "
@@ -394,6 +418,21 @@ class Problem:
             surveyed=b.survey,
             free=free,
         )
+
+
+def _datum_missing(P: np.ndarray, imu: bool) -> list[str]:
+    """The datum elements that positions ``P`` (k, 3: control points, GNSS centres) and,
+    with ``imu``, attitudes leave undetermined (empty: all seven fixed)."""
+    if P.shape[0] == 0:
+        return ["3 shifts", "3 rotations", "the scale"]
+    if P.shape[0] == 1:
+        return ["the scale"] + ([] if imu else ["3 rotations"])
+    s = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    if s[0] <= 1e-9 * max(1.0, float(np.abs(P).max())):
+        return ["the scale"] + ([] if imu else ["3 rotations"])
+    if s[1] <= 1e-6 * s[0] and not imu:
+        return ["the rotation about the line through the control/GNSS positions"]
+    return []
 
 
 def _step_small(problem: Problem, s: _State, dc: np.ndarray, dp: np.ndarray, xtol: float) -> bool:
