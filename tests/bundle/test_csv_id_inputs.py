@@ -134,3 +134,20 @@ def test_hand_written_quotes(tmp_path):
     (tmp_path / "observations.csv").write_text('image_id,point_id,u,v\n"#1"x,1,1,1\n')
     with pytest.raises(FileFormatError, match=r"line 2: cell 1: a quote"):
         read_csv_block(tmp_path)
+
+
+def test_a_multi_line_wkt_crs_is_written_on_one_comment_line(tmp_path):
+    """A pretty-printed WKT broke points.csv (its second line was read as the header)."""
+    from pyproj import CRS
+
+    import photogeom as pg
+
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=1, strips=1, images_per_strip=3, tie_points_per_image=30
+    )
+    wkt = CRS.from_epsg(25832).to_wkt(pretty=True)
+    assert "\n" in wkt
+    write_csv_block(sim.block.replace(crs=wkt), tmp_path / "b")
+    back = read_csv_block(tmp_path / "b")
+    assert CRS.from_user_input(back.crs) == CRS.from_epsg(25832)
+    assert back.n_observations == sim.block.n_observations

@@ -599,7 +599,10 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
         head += [f"surveyed_{a}" for a in "XYZ"]
         cols += [_cells(block.surveyed[:, k]) for k in range(3)]
     if block.crs:
-        comments.append(f"crs: {block.crs}")
+        # one comment line: a multi-line (pretty) WKT is written with its line breaks and
+        # indentation as single spaces, the same CRS (WKT ignores white space between
+        # its tokens)
+        comments.append("crs: " + " ".join(block.crs.split()))
     pts = _csv(head, cols, comments)
     o = block.observations
     obs = _csv(
