@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from photogeom.calibration import (
     choose_spacing,
@@ -99,3 +101,30 @@ def test_grids_file_errors(tmp_path):
     (tmp_path / "y.npz").write_bytes(b"junk")
     with pytest.raises(FileFormatError, match="not a grids NPZ file"):
         load_grids(tmp_path / "y.npz")
+
+
+def test_choose_spacing_ties_do_not_depend_on_the_order():
+    """Two spacings normalise to {0, 1}: both at distance 1 for every model, a tie that the
+    order of the list decided (the first one listed won)."""
+    a = choose_spacing([100, 2000], [[3, 5], [2, 4]], [[10, 1], [10, 1]])
+    b = choose_spacing([2000, 100], [[5, 3], [4, 2]], [[1, 10], [1, 10]])
+    np.testing.assert_array_equal(a["spacing"], [100, 100])  # the better step
+    np.testing.assert_array_equal(b["spacing"], [100, 100])
+    # equal steps too: the smaller spacing
+    c = choose_spacing([300, 200], [[1, 1]], [[1, 1]])
+    assert c["spacing"][0] == 200
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(2, 6), st.integers(1, 4), st.integers(0, 2**32 - 1), st.booleans())
+def test_choose_spacing_is_invariant_to_permutations(n, models, seed, rounded):
+    rng = np.random.default_rng(seed)
+    g = rng.choice(np.arange(100, 2100, 100), n, replace=False).astype(float)
+    step = rng.uniform(0, 5, (models, n))
+    time = rng.uniform(0, 5, (models, n))
+    if rounded:  # many exact ties
+        step, time = np.round(step), np.round(time)
+    p = rng.permutation(n)
+    r1 = choose_spacing(g, step, time)
+    r2 = choose_spacing(g[p], step[:, p], time[:, p])
+    np.testing.assert_array_equal(r1["spacing"], r2["spacing"])

@@ -103,8 +103,15 @@ def min_max_normalise(values, axis: int = -1) -> np.ndarray:
         return np.where(span > 0, (x - lo) / np.where(span > 0, span, 1.0), 0.0)
 
 
+#: Normalised distances (and steps) closer than this are a tie in :func:`choose_spacing`.
+TIE_TOLERANCE = 1e-12
+
+
 def choose_spacing(spacings: Sequence[float], step, time) -> dict:
     """The closest-to-origin spacing of each test model.
+
+    Ties of the distance are broken by the smaller normalised step (the better accuracy),
+    then by the smaller spacing, whatever the order of ``spacings``.
 
     Parameters
     ----------
@@ -135,7 +142,13 @@ def choose_spacing(spacings: Sequence[float], step, time) -> dict:
     sn = min_max_normalise(s, axis=1)
     tn = min_max_normalise(t, axis=1)
     d = np.hypot(sn, tn)
-    idx = np.argmin(d, axis=1)
+    # ties (equal distances: with two spacings the normal case, both at distance 1) go to
+    # the better accuracy, then to the smaller spacing: the choice does not depend on the
+    # order the spacings are listed in
+    tied = d <= d.min(axis=1, keepdims=True) + TIE_TOLERANCE
+    key = np.where(tied, sn, np.inf)
+    best = tied & (key <= key.min(axis=1, keepdims=True) + TIE_TOLERANCE)
+    idx = np.argmin(np.where(best, g[None, :], np.inf), axis=1)
     return {"spacing": g[idx], "index": idx, "step_norm": sn, "time_norm": tn, "distance": d}
 
 
