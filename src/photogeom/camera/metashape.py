@@ -36,6 +36,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from ..errors import DegenerateGeometryError, FileFormatError, InputError
+from ..numbers import parse_decimal
 from ..validation import as_finite_scalar, as_points
 from .distortion import CHUNK, BrownDistortion, UndistortResult
 from .interior import InteriorOrientation, _pixel_shift
@@ -461,9 +462,12 @@ class MetashapeCalibration:
         parsed: dict[str, float] = {}
         for tag, txt in values.items():
             try:
-                parsed[tag] = float(txt)
-            except ValueError as exc:
-                raise FileFormatError(f"{source}: <{tag}> is not a number ({txt[:40]!r})") from exc
+                parsed[tag] = parse_decimal(txt)
+            except ValueError:
+                raise FileFormatError(
+                    f"{source}: <{tag}> is not a number ({txt[:40]!r}); write it as an ASCII "
+                    "decimal number (digits, '.', an exponent; no '_' digit grouping)"
+                ) from None
             if not math.isfinite(parsed[tag]):
                 raise FileFormatError(f"{source}: <{tag}> is NaN or infinite")
         for t in ("p3", "p4"):

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError
+from ..numbers import is_decimal_number
 
 #: Bytes of text parsed at a time.
 BLOCK_BYTES = 8 << 20
@@ -586,14 +587,8 @@ def _trim(pc, col):
 
 def _arrow_number(v: str) -> bool:
     """Whether pyarrow reads ``v`` as a float64 (Python's float() also takes "1_0" and
-    non-ASCII digits)."""
-    if "_" in v or not v.isascii():
-        return False
-    try:
-        float(v)
-    except ValueError:
-        return False
-    return True
+    non-ASCII digits): :func:`photogeom.numbers.is_decimal_number`, the rule of every reader."""
+    return is_decimal_number(v)
 
 
 def _split_lines(fh) -> Iterator[bytes]:

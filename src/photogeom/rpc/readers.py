@@ -30,6 +30,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import FileFormatError, InputError
+from ..numbers import parse_decimal
 from ..xmlsafe import parse_xml
 from . import polynomial as poly
 from .model import GDAL_COEFF_KEYS, GDAL_KEYS, RPC, DirectModel
@@ -91,12 +92,17 @@ def _numbers(value: object, key: str, where: str) -> list[float]:
             raise FileFormatError(f"{where}: {key} has an unreadable value {value!r}") from exc
     out = []
     for tok in tokens:
+        if isinstance(tok, (bytes, bytearray)):
+            tok = bytes(tok).decode("latin-1")
         if isinstance(tok, str) and tok.strip().lower() in _UNITS:
             continue
         try:
-            out.append(float(tok))
-        except (TypeError, ValueError) as exc:
-            raise FileFormatError(f"{where}: {key} holds {tok!r}, which is not a number") from exc
+            out.append(parse_decimal(tok) if isinstance(tok, str) else float(tok))
+        except (TypeError, ValueError):
+            raise FileFormatError(
+                f"{where}: {key} holds {tok!r}, which is not a number; write it as an ASCII "
+                "decimal number (digits, '.', an exponent; no '_' digit grouping)"
+            ) from None
     return out
 
 
