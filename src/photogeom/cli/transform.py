@@ -353,7 +353,13 @@ def load_transform(path: Path):
 
 def load_transform_record(path: Path):
     """``(transformation, target CRS, source CRS)`` of a parameter JSON (see
-    :func:`load_transform`); the CRSs are None where the file records none."""
+    :func:`load_transform`); the CRSs are None where the file records none.
+
+    Where the file records a row/y flip (``extras.handedness``, written by ``transform
+    estimate`` for a left-handed system such as ``pixel`` paired with a right-handed one),
+    the transformation is a :class:`HandedTransform` that applies the flips, so that it maps
+    the source coordinates as given to the target coordinates as given (and its inverse
+    back)."""
     from ..io.jsonfile import build_from_json, read_json_object
     from ..transforms import from_dict
 
@@ -365,6 +371,7 @@ def load_transform_record(path: Path):
             if value is not None and not isinstance(value, str):
                 raise FileFormatError(f"{path}: {key!r} must be a CRS text (e.g. EPSG:25832)")
             crs[key] = value
+    flips = _handedness_flips(data, path)
     if isinstance(data, dict) and isinstance(data.get("model_parameters"), dict):
         data = data["model_parameters"]
     elif isinstance(data, dict) and isinstance(data.get("transform"), dict):
@@ -374,11 +381,86 @@ def load_transform_record(path: Path):
             f"{path}: no transformation parameters found (expected the JSON written by "
             "'photogeom transform estimate --output-params')"
         )
-    return (
-        build_from_json(from_dict, data, path, "transformation parameters"),
-        crs["crs"],
-        crs["source_crs"],
-    )
+    transform = build_from_json(from_dict, data, path, "transformation parameters")
+    if any(flips):
+        if getattr(transform, "dim", 2) != 2:
+            raise FileFormatError(
+                f"{path}: extras.handedness flips the row/y coordinate, which applies to 2D "
+                f"transformations only, but the model is {transform.name}"
+            )
+        transform = HandedTransform(transform, *flips)
+    return transform, crs["crs"], crs["source_crs"]
+
+
+def _handedness_flips(data, path: Path) -> tuple[bool, bool]:
+    """``(source_flip_y, target_flip_y)`` recorded in ``extras.handedness`` of a result JSON
+    of ``transform estimate`` (both False where the file records none)."""
+    extras = data.get("extras") if isinstance(data, dict) else None
+    hand = extras.get("handedness") if isinstance(extras, dict) else None
+    if hand is None:
+        return False, False
+    if not isinstance(hand, dict):
+        raise FileFormatError(
+            f"{path}: extras.handedness must be an object with source_flip_y and target_flip_y"
+        )
+    flips = []
+    for key in ("source_flip_y", "target_flip_y"):
+        value = hand.get(key, False)
+        if not isinstance(value, bool):
+            raise FileFormatError(f"{path}: extras.handedness.{key} must be true or false")
+        flips.append(value)
+    return flips[0], flips[1]
+
+
+class HandedTransform:
+    """A 2D transformation fitted between systems of opposite handedness, applied to the
+    coordinates as given.
+
+    ``transform estimate --source-system pixel --target-system fiducial`` (and the other
+    mixed pairs) fits the model to ``(col, -row)`` of the left-handed side and records that
+    in ``extras.handedness``; this wrapper negates the second input coordinate before the
+    model (``flip_in``) and the second output coordinate after it (``flip_out``), so that
+    :meth:`apply` maps the source points as given to the target points as given.
+
+    Parameters
+    ----------
+    model : Transform
+        The fitted model (working on the flipped coordinates).
+    flip_in, flip_out : bool
+        Negate the second coordinate of the input / of the output.
+    """
+
+    dim = 2
+
+    def __init__(self, model, flip_in: bool, flip_out: bool) -> None:
+        self.model = model
+        self.flip_in = bool(flip_in)
+        self.flip_out = bool(flip_out)
+        self.name = model.name
+
+    def apply(self, points) -> np.ndarray:
+        """Transform points ``(n, 2)`` (or one point ``(2,)``) as given."""
+        p = np.array(points, dtype=float)
+        if self.flip_in and p.ndim in (1, 2) and p.shape[-1] == 2:  # else the model refuses
+            p[..., 1] = -p[..., 1]
+        out = np.array(self.model.apply(p), dtype=float)
+        if self.flip_out and out.size:
+            out[..., 1] = -out[..., 1]
+        return out
+
+    __call__ = apply
+
+    def inverse(self) -> HandedTransform:
+        """The inverse, target as given -> source as given (the flips change sides)."""
+        return HandedTransform(self.model.inverse(), self.flip_out, self.flip_in)
+
+
+def _flip_comment(t) -> str:
+    """What the output comment says about row/y flips applied by ``t``."""
+    if not isinstance(t, HandedTransform):
+        return ""
+    sides = [s for s, f in (("input", t.flip_in), ("output", t.flip_out)) if f]
+    return f"; {' and '.join(sides)} row/y negated as in the estimate (extras.handedness)"
 
 
 def _output_columns(columns: tuple[str, ...]) -> list[str]:
@@ -458,6 +540,7 @@ def apply(
     comments = [
         f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "
         f"input {points} ({', '.join(blocks.columns)})"
+        + _flip_comment(t)
     ]
     if out_info is not None:
         comments.append(f"crs: {out_info.text}")
