@@ -77,7 +77,7 @@ class Problem:
             lf[:, :6] = False
         if iv_any:
             for gi, gid in enumerate(block.camera_ids.tolist()):
-                names = block.image_variant[gid]
+                names = self.image_variant(gid)
                 rows = block.image_camera == gi
                 for c, nm in enumerate(IMAGE_VARIANT_NAMES):
                     lf[rows, 6 + c] = nm in names
@@ -138,6 +138,15 @@ class Problem:
         self.local_free[0, :6] = False
         self.local_free[far, axis] = False
         self.free_datum = (0, far, axis)
+
+    def image_variant(self, group) -> tuple[str, ...]:
+        """The parameters of camera ``group`` estimated per image: the block's image-variant
+        ones, and with ``free=`` given only those it names (``free=()`` holds the whole
+        calibration, the images' offsets too)."""
+        names = self.block.image_variant[group]
+        if self.options.free is None:
+            return tuple(names)
+        return tuple(n for n in names if n in self.options.free)
 
     def _image_components(self) -> np.ndarray:
         """(m + p,) label of the connected part of each image and adjusted point (images
@@ -407,9 +416,10 @@ class Problem:
         )
         # the parameters this adjustment estimated, so that adjusting the result again
         # (or its files) solves the same problem
-        free = b.free
+        free, iv = b.free, b.image_variant
         if self.options.free is not None:
             free = {g: tuple(self.options.free) for g in b.camera_ids.tolist()}
+            iv = {g: self.image_variant(g) for g in b.camera_ids.tolist()}
         return b.replace(
             exterior=ext,
             xyz=xyz,
@@ -417,6 +427,7 @@ class Problem:
             calibration_offset=s.offset.copy(),
             surveyed=b.survey,
             free=free,
+            image_variant=iv,
         )
 
 
