@@ -337,3 +337,55 @@ def same_crs(a: str, b: str) -> bool:
     if fa is not None or fb is not None:
         return fa == fb
     return parse_crs(a) == parse_crs(b)
+
+
+def option_or_file_crs(
+    value: str | None,
+    option: str,
+    path: Path,
+    *,
+    fix: str = "convert them with photogeom crs convert",
+) -> str | None:
+    """The CRS text of a CRS option, else of the ``# crs:`` line of the point file ``path``.
+
+    The check of :func:`file_crs` for commands that take any CRS (geographic ones too: the
+    coordinates are converted by PROJ, not computed with): both texts are validated (PROJ or
+    ``enu:LAT,LON,H``) and an option that names another CRS than the file's line is refused.
+
+    Parameters
+    ----------
+    value : str or None
+        The option's text (None: not given).
+    option : str
+        The option's name for the messages (``"--crs"``).
+    path : Path
+        The point file whose leading ``# crs:`` line is read.
+    fix : str
+        What to do about a conflict, in the words of the command.
+
+    Returns
+    -------
+    str or None
+        The option's text (stripped), else the file's line; None when neither is there.
+
+    Raises
+    ------
+    InputError
+        An unknown CRS (naming the option or the file's line), or a conflict.
+    """
+    from ..crs import frame_from_text, parse_crs
+
+    rec = crs_from_comments(leading_comments(path))
+    if rec is not None and frame_from_text(rec) is None:
+        parse_crs(rec, what=f"{path} ('# crs:' line)")
+    if value is None:
+        return rec
+    text = value.strip()
+    if frame_from_text(text) is None:
+        parse_crs(text, what=option)
+    if rec is not None and not same_crs(rec, text):
+        raise InputError(
+            f"{path} records the CRS {rec} ('# crs:' line) but {option} says {value}: "
+            f"{option} names the CRS of the coordinates, it does not convert them; {fix}"
+        )
+    return text

@@ -175,14 +175,20 @@ def project(
 
     Files of any size are read and written block by block (a progress bar on a terminal).
     """
-    from ._common import crs_from_comments, leading_comments
+    from ._common import option_or_file_crs
 
     single_threaded_blas()
     rpc = _load_rpc(rpc_file)
-    if crs is None:
-        crs = crs_from_comments(leading_comments(points))
-        if crs is not None and _is_wgs84_3d(crs):
-            crs = None
+    given = crs is not None
+    crs = option_or_file_crs(
+        crs,
+        "--crs",
+        points,
+        fix="leave --crs out (the file's line is the default) or convert the points first "
+        "with photogeom crs convert",
+    )
+    if not given and crs is not None and _is_wgs84_3d(crs):
+        crs = None
     if crs is None:
         blocks = _blocks_with(points, cols, GROUND_COLS, "ground (lon, lat, h)", id_col)
         to_wgs84 = None
@@ -445,6 +451,16 @@ def _output_crs(crs: str, allow_ballpark: bool):
 
 def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None, check_ids):
     from ..io import read_point_pairs
+    from ._common import option_or_file_crs
+
+    rec = option_or_file_crs(None, "--crs", points)
+    if rec is not None and not _is_wgs84_3d(rec):
+        raise InputError(
+            f"{points} records the CRS {rec} ('# crs:' line) but the ground columns of control "
+            "points are lon, lat (degrees) and ellipsoidal h of WGS 84 (EPSG:4979); convert "
+            "the ground coordinates first (photogeom crs convert --to EPSG:4979 --out-cols "
+            "lon,lat,h)"
+        )
 
     pairs = read_point_pairs(
         points, split_names(ground_cols), split_names(image_cols), id_column=id_col
@@ -468,8 +484,7 @@ ImageColsOpt = Annotated[str, typer.Option(help="Image columns of the CSV (px)."
 CheckIdsOpt = Annotated[
     str | None,
     typer.Option(
-        help="Comma-separated ids of check points (default: rows whose role column says "
-        "'check')."
+        help="Comma-separated ids of check points (default: rows whose role column says 'check')."
     ),
 ]
 StyleOpt = Annotated[TextStyle, typer.Option(help="Text style of the written RPC.")]
