@@ -222,27 +222,38 @@ class Similarity3D(Transform):
         )
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters (angles given for both conventions, in radians)."""
+        """JSON-ready parameters: scale, rotation, translation, ``check`` (``False`` for a
+        non-orthogonal matrix kept as given) and, for a proper rotation, its angles in both
+        conventions (radians; at gimbal lock omega is set to zero)."""
         d = {
             "model": self.name,
             "scale": self.scale,
             "rotation": self.rotation.tolist(),
             "translation": self.translation.tolist(),
+            "check": self.check,
         }
         if self.check:
             for conv in ("transposed", "direct"):
-                w, p, k = self.angles(conv)
-                d[f"angles_{conv}_rad"] = {"omega": w, "phi": p, "kappa": k}
+                w, p, k = angles_from_rotation(
+                    self.rotation, convention=conv, on_gimbal_lock="omega-zero"
+                )
+                d[f"angles_{conv}_rad"] = {"omega": float(w), "phi": float(p), "kappa": float(k)}
         return d
 
     @classmethod
     def from_dict(cls, data: dict) -> Similarity3D:
         """From :meth:`to_dict` output, or from ``scale``, ``omega``, ``phi``, ``kappa``
-        (radians, optional ``convention``) and ``translation``."""
+        (radians, optional ``convention``) and ``translation``.
+
+        ``check`` (default ``True``) must be ``true`` or ``false``; ``false`` keeps a
+        non-orthogonal ``rotation`` (small-angle Helmert, closed-form absolute orientation)."""
         if "rotation" in data:
-            return cls(
-                data["scale"], data["rotation"], data["translation"], check=data.get("check", True)
-            )
+            check = data.get("check", True)
+            if not isinstance(check, bool | np.bool_):
+                raise InputError(
+                    f"Similarity3D: 'check' must be true or false, got {check!r}"
+                )
+            return cls(data["scale"], data["rotation"], data["translation"], check=bool(check))
         return cls.from_angles(
             data["scale"],
             data["omega"],
@@ -254,7 +265,9 @@ class Similarity3D(Transform):
 
     def __repr__(self) -> str:
         if self.check:
-            w, p, k = self.angles("transposed", "deg")
+            w, p, k = angles_from_rotation(
+                self.rotation, convention="transposed", unit="deg", on_gimbal_lock="omega-zero"
+            )
             ang = f"omega={w:.6f} deg, phi={p:.6f} deg, kappa={k:.6f} deg (transposed)"
         else:
             ang = f"rotation (non-orthogonal, defect {orthogonality_defect(self.rotation):.2e})"
