@@ -1113,8 +1113,25 @@ def _helmert_extras(fit: Fit) -> dict:
 # --- public entry point --------------------------------------------------------------------------
 
 
+_SINGULAR_AFFINE3D_NOTE = (
+    "the fitted linear part is singular (the target points are coplanar or collinear): the "
+    "affinity maps space onto a plane (or a line), so it has no inverse and its textbook "
+    "decomposition (scales, shears, angles) is undefined (NaN); the parameters a11..a33, "
+    "tx..tz are the estimate"
+)
+
+
 def _textbook(model, cofactor: np.ndarray, sigma0: float):
-    """Textbook parameters with standard deviations: name -> (value, std)."""
+    """Textbook parameters with standard deviations: name -> (value, std); NaN (value, std
+    and cofactor) for a singular 3D affinity, whose decomposition is undefined."""
+    if isinstance(model, Affine3D) and model.singular:
+        # scales, shears, angles undefined; the shifts are the parametric tx, ty, tz
+        names = list(model.textbook_units)
+        Q = np.full((len(names), len(names)), np.nan)
+        Q[-3:, -3:] = cofactor[-3:, -3:]
+        std = np.sqrt(np.clip(np.diag(Q), 0.0, None)) * sigma0
+        values = np.concatenate([np.full(len(names) - 3, np.nan), model.translation])
+        return {n: (float(v), float(s)) for n, v, s in zip(names, values, std)}, Q
     tb = model.textbook()
     Jt = model.textbook_jacobian()
     Q = Jt @ cofactor @ Jt.T
@@ -1203,7 +1220,10 @@ def estimate_transform(
         ``fit.model`` the fitted transformation; ``fit.parameters`` in the parametric form with
         covariance; ``fit.extras["textbook"]``: textbook parameters ``name -> (value, std)``
         (angles in radians) by first-order error propagation of the parametric covariance
-        (a-posteriori sigma0); projective fits also carry ``extras["linearised"]``.
+        (a-posteriori sigma0); projective fits also carry ``extras["linearised"]``. A 3D
+        affinity fitted to coplanar target points has a singular linear part: it is returned
+        (with and without statistics) with a note, its textbook scales, shears and angles
+        NaN (undefined; ``fit.model.textbook()`` raises), its shifts as estimated.
 
     Raises
     ------
@@ -1310,6 +1330,8 @@ def estimate_transform(
         elif key in ("affine2d", "affine3d"):
             tf, adj, p, J = _fit_affine(sc, dc, obs, sigma0_prior, what, statistics=statistics)
             method = _METHOD_LINEAR
+            if key == "affine3d" and tf.singular:
+                notes.append(_SINGULAR_AFFINE3D_NOTE)
         elif key.startswith("polynomial"):
             tf, adj, p, J = _fit_polynomial(sc, dc, order, obs, sigma0_prior, what,
                                             statistics=statistics)

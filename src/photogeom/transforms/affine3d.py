@@ -125,15 +125,27 @@ class Affine3D(MatrixShift3D, Transform):
         """``det(A)``: the volume scale (negative for a reflection)."""
         return float(np.linalg.det(self.linear))
 
+    @property
+    def singular(self) -> bool:
+        """``True`` when the linear part is singular to rounding (``|det(A)| <= 1e-14
+        max|A|^3``): the transformation maps space onto a plane or a line (e.g. fitted to
+        coplanar target points), it has no inverse and no textbook decomposition."""
+        A = self.linear
+        return bool(abs(self.det) <= 1e-14 * max(np.max(np.abs(A)) ** 3, 1e-300))
+
     def decompose(self) -> AffineDecomposition:
         """``A = shear @ diag(scales) @ rotation`` by an RQ decomposition.
 
         Unique with ``sx, sy > 0``, a proper rotation, and ``sz`` carrying the sign of
-        ``det(A)``. Raises :class:`InputError` for a singular ``A``.
+        ``det(A)``. Raises :class:`InputError` for a singular ``A`` (see :attr:`singular`).
         """
         A = self.linear
-        if abs(self.det) <= 1e-14 * max(np.max(np.abs(A)) ** 3, 1e-300):
-            raise InputError("Affine3D: the linear part is singular; it has no decomposition")
+        if self.singular:
+            raise InputError(
+                "Affine3D: the linear part is singular (it maps space onto a plane or a line, "
+                "e.g. fitted to coplanar target points); scales, shears and angles are "
+                "undefined, it has no decomposition"
+            )
         import scipy.linalg  # imported here: applying a transformation needs no scipy
 
         K, Q = scipy.linalg.rq(A)

@@ -1,0 +1,93 @@
+"""estimate_transform: a 3D affinity fitted to coplanar targets (singular linear part) is
+returned with and without statistics, its textbook form reported undefined; a projective
+solution that sends the source origin to infinity gets advice that fits the cause."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+from photogeom import transforms as tr
+from photogeom.errors import DegenerateGeometryError, InputError
+
+# --- affine3d onto a plane ---------------------------------------------------------------
+
+
+def _coplanar(noise: float = 0.0, seed: int = 1):
+    """Source points in space, target points on the plane Z = 0.5 X - 2 Y - 1."""
+    rng = np.random.default_rng(seed)
+    src = rng.uniform(-10, 10, (9, 3))
+    xy = src @ np.array([[1.0, 0.2, 0.1], [0.3, 1.1, -0.2]]).T + [10.0, 20.0]
+    xy += rng.normal(0.0, noise, xy.shape)
+    dst = np.column_stack([xy, 0.5 * xy[:, 0] - 2.0 * xy[:, 1] - 1.0])
+    return src, dst
+
+
+def _by_hand(src, dst):
+    """Independent least squares: [x 1] @ M = X, one column per target coordinate."""
+    D = np.column_stack([src, np.ones(len(src))])
+    M = np.linalg.lstsq(D, dst, rcond=None)[0]  # (4, 3)
+    return M[:3].T, M[3]
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-3])
+def test_coplanar_target_estimate_with_and_without_statistics(noise):
+    src, dst = _coplanar(noise)
+    A, t = _by_hand(src, dst)
+    assert abs(np.linalg.det(A)) < 1e-12  # the plane: the linear part is singular
+    full = pg.estimate_transform("affine3d", src, dst)
+    bare = pg.estimate_transform("affine3d", src, dst, statistics=False)
+    for fit in (full, bare):
+        np.testing.assert_allclose(fit.model.linear, A, atol=1e-9)
+        np.testing.assert_allclose(fit.model.translation, t, atol=1e-9)
+        assert fit.model.singular
+        assert any("singular" in n and "coplanar" in n for n in fit.notes)
+    np.testing.assert_allclose(bare.parameters, full.parameters, rtol=0, atol=1e-12)
+    tb = full.extras["textbook"]
+    for name in ("sx", "sy", "sz", "shear_xy", "shear_xz", "shear_yz", "omega", "phi",
+                 "kappa"):
+        assert np.isnan(tb[name][0]) and np.isnan(tb[name][1])
+    # the shifts are defined: the parametric tx, ty, tz with their standard deviations
+    sd = np.sqrt(np.diag(full.covariance))[-3:]
+    for k, name in enumerate(("tx", "ty", "tz")):
+        assert tb[name][0] == pytest.approx(t[k], abs=1e-9)
+        assert tb[name][1] == pytest.approx(sd[k], rel=1e-9, abs=1e-15)
+    json.dumps(full.to_dict(), allow_nan=False)  # NaN written as null
+    with pytest.raises(InputError, match="singular"):
+        full.model.textbook()  # asked explicitly: refused with the reason
+    with pytest.raises(DegenerateGeometryError, match="no inverse"):
+        full.model.inverse()
+
+
+def test_coplanar_target_on_the_command_line(cli, tmp_path):
+    src, dst = _coplanar()
+    lines = ["id,x,y,z,X,Y,Z"] + [
+        f"{i},{','.join(repr(float(v)) for v in (*p, *q))}"
+        for i, (p, q) in enumerate(zip(src, dst, strict=True))
+    ]
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text("\n".join(lines) + "\n")
+    code, out, err = cli("transform", "estimate", "affine3d", pairs, "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["extras"]["textbook"]["sx"] == [None, None]
+    assert any("singular" in n for n in data["notes"])
+    code, out, err = cli("transform", "estimate", "affine3d", pairs)
+    assert code == 0, err and "singular" in out
+
+
+def test_near_coplanar_but_regular_target_keeps_its_textbook():
+    src, dst = _coplanar()
+    dst[:, 2] += np.random.default_rng(3).normal(0, 1e-3, len(dst))  # off the plane
+    fit = pg.estimate_transform("affine3d", src, dst)
+    assert not fit.model.singular and not any("singular" in n for n in fit.notes)
+    assert np.isfinite([v for v, _ in fit.extras["textbook"].values()]).all()
+    assert tr.Affine3D.from_textbook(
+        [fit.extras["textbook"][n][0] for n in ("sx", "sy", "sz")],
+        [fit.extras["textbook"][n][0] for n in ("shear_xy", "shear_xz", "shear_yz")],
+        *(fit.extras["textbook"][n][0] for n in ("omega", "phi", "kappa")),
+        fit.model.translation,
+    ).linear == pytest.approx(fit.model.linear, abs=1e-9)
