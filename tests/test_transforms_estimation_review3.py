@@ -91,3 +91,36 @@ def test_near_coplanar_but_regular_target_keeps_its_textbook():
         *(fit.extras["textbook"][n][0] for n in ("omega", "phi", "kappa")),
         fit.model.translation,
     ).linear == pytest.approx(fit.model.linear, abs=1e-9)
+
+
+# --- projective: the source origin sent to infinity --------------------------------------
+
+
+def _proj(H, p):
+    q = np.column_stack([p, np.ones(len(p))]) @ H.T
+    return q[:, :-1] / q[:, -1:]
+
+
+@pytest.mark.parametrize("errors_in", ["target", "both"])
+def test_four_of_five_collinear_through_the_origin_is_called_degenerate(errors_in):
+    src = np.array([[0, 0], [1, 0.5], [2, 1], [3, 1.5], [-1, 4]], dtype=float)
+    dst = np.random.default_rng(0).normal(size=(5, 2))
+    with pytest.raises(DegenerateGeometryError) as info:
+        pg.estimate_transform("projective2d", src, dst, errors_in=errors_in)
+    msg = str(info.value)
+    assert "general position" in msg and "shift" not in msg
+    # and indeed no shift helps: the configuration stays degenerate
+    with pytest.raises(DegenerateGeometryError):
+        pg.estimate_transform("projective2d", src + np.array([5.0, 7.0]), dst, errors_in=errors_in)
+
+
+@pytest.mark.parametrize("n", [4, 6])
+def test_a_true_transformation_of_the_origin_to_infinity_is_told_to_shift(n):
+    H = np.array([[1.0, 0.2, 3.0], [0.1, 1.0, -2.0], [0.1, 0.05, 0.0]])  # h33 = 0
+    src = np.array([[1, 1], [2, -1], [-1, 3], [3, 2], [-2, -1], [1, -4]], dtype=float)[:n]
+    with pytest.raises(DegenerateGeometryError, match="shift the source coordinates"):
+        pg.estimate_transform("projective2d", src, _proj(H, src))
+    # the advice works: shifted source coordinates give the transformation, checked by hand
+    fit = pg.estimate_transform("projective2d", src + 10.0, _proj(H, src))
+    probe = np.array([[0.5, 2.0], [-1.5, 0.3]])
+    np.testing.assert_allclose(fit.model.apply(probe + 10.0), _proj(H, probe), atol=1e-8)

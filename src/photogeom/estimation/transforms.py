@@ -686,10 +686,7 @@ def _proj_back(
     h += bottom
     last = h[-1]
     if abs(last) <= 1e-14 * max(map(abs, h)):
-        raise DegenerateGeometryError(
-            "projective: the estimated transformation sends the source origin to infinity, so "
-            "it cannot be written with its last element 1; shift the source coordinates"
-        )
+        raise _origin_at_infinity(np.array(h), "projective")
     h = [v / last for v in h]
     tf = _projective(h, d)
     p = np.array(h[:-1])
@@ -770,6 +767,31 @@ def _linearised_start(
     return h, vtv, out[0]
 
 
+def _origin_at_infinity(h: np.ndarray, what: str) -> DegenerateGeometryError:
+    """The error for a projective solution ``h`` (the (d+1)^2 matrix elements) whose last
+    element is zero: it sends the source origin to infinity.
+
+    A regular matrix is a genuine transformation that does so: shifting the source
+    coordinates lets it be written with its last element 1. A singular one is no
+    transformation at all (it collapses the source space): the points do not determine
+    one, as when all but one lie on a line (2D) or all but a few in a plane (3D) while
+    their targets do not; no shift helps.
+    """
+    m = round(math.sqrt(h.size))
+    sv = np.linalg.svd(np.asarray(h, dtype=float).reshape(m, m), compute_uv=False)
+    if not np.all(np.isfinite(sv)) or sv[-1] <= 1e-10 * sv[0]:
+        return DegenerateGeometryError(
+            f"{what}: the point configuration does not determine a projective transformation: "
+            "the only exact solution of the linearised equations is a singular matrix "
+            "(the source points are not in general position, e.g. all but one on one line "
+            "while their targets are not); add points in general position"
+        )
+    return DegenerateGeometryError(
+        f"{what}: the solution maps the source origin to infinity, so it cannot be written "
+        "with its last element 1; shift the source coordinates (e.g. subtract their mean)"
+    )
+
+
 def _linearised_design(u1: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Design (n, d, (d+1)^2) of the linearised equations: for coordinate k of a point,
     ``-[u, 1]`` in block k and ``X_k [u, 1]`` in the last block (``u1 = [u, 1]``)."""
@@ -817,10 +839,7 @@ def _constrained_null_vector(
         h = np.linalg.svd(R)[2][-1]
         ch = cons @ h
         if abs(ch) <= 1e-12 * np.max(np.abs(h)):
-            raise DegenerateGeometryError(
-                f"{what}: the exact solution maps the source origin to infinity; shift the "
-                "source coordinates"
-            )
+            raise _origin_at_infinity(h, what)
         return h / ch, 0.0
     y = scipy.linalg.solve_triangular(R, cons, trans="T", check_finite=False)
     h = scipy.linalg.solve_triangular(R, y, check_finite=False) / (y @ y)
