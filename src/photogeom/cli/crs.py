@@ -12,7 +12,14 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._common import IdColOpt, OutputCsvOpt, emit_points, split_names, split_numbers
+from ._common import (
+    IdColOpt,
+    OutputCsvOpt,
+    emit_points,
+    option_or_file_crs,
+    split_names,
+    split_numbers,
+)
 
 app = typer.Typer(
     help="Coordinate reference systems (PROJ through pyproj): x/easting/longitude first.",
@@ -23,15 +30,17 @@ app = typer.Typer(
 @app.command("convert")
 def convert(
     points: Annotated[Path, typer.Argument(help="CSV of points.")],
+    to_crs: Annotated[str, typer.Option("--to", help="CRS of the output, 'enu' or enu:LAT,LON,H.")],
     from_crs: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--from",
             help="CRS of the input (EPSG:4979, WKT, PROJ string), 'enu' (a local frame at "
-            "--origin) or enu:LAT,LON,H.",
+            "--origin) or enu:LAT,LON,H. Default: the '# crs:' line of POINTS; a --from "
+            "naming another CRS than that line is refused.",
+            show_default=False,
         ),
-    ],
-    to_crs: Annotated[str, typer.Option("--to", help="CRS of the output, 'enu' or enu:LAT,LON,H.")],
+    ] = None,
     origin: Annotated[
         str | None,
         typer.Option(help="ENU origin lat,lon,h (degrees, m; WGS 84) for 'enu'."),
@@ -50,8 +59,10 @@ def convert(
 ) -> None:
     """Convert the points of a CSV between CRSs; geographic coordinates are lon,lat[,h] in
     degrees (x first), a local frame 'enu' is east, north, up in metres at --origin on
-    WGS 84 (through geocentric WGS 84, EPSG:4978). The output records its CRS in a
-    '# crs: ...' line (enu:LAT,LON,H for a local frame), which the other commands read."""
+    WGS 84 (through geocentric WGS 84, EPSG:4978). The CRS of the input is --from or the
+    '# crs:' line of POINTS (a --from contradicting the line is refused). The output records
+    its CRS in a '# crs: ...' line (enu:LAT,LON,H for a local frame), which the other
+    commands read."""
     import numpy as np
 
     from .. import crs as _crs
@@ -74,7 +85,18 @@ def convert(
             _crs.parse_crs(t, what=option)
         return t
 
-    src, dst = resolve(from_crs, "--from"), resolve(to_crs, "--to")
+    src = option_or_file_crs(
+        None if from_crs is None else resolve(from_crs, "--from"),
+        "--from",
+        points,
+        fix="leave --from out (the file's line is the default) or correct the line",
+    )
+    if src is None:
+        raise InputError(
+            f"{points} records no CRS (no '# crs:' line): give the CRS of its coordinates "
+            "with --from (e.g. --from EPSG:4979)"
+        )
+    dst = resolve(to_crs, "--to")
     enu_in = _crs.frame_from_text(src) is not None
     enu_out = _crs.frame_from_text(dst) is not None
     if (enu_in or enu_out) and xyz.shape[1] != 3:
@@ -92,7 +114,7 @@ def convert(
     names = split_names(out_cols) or names
     if len(names) != out.shape[1]:
         raise InputError(f"--out-cols: {len(names)} name(s) for {out.shape[1]} coordinates")
-    comments = [f"{from_crs} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
+    comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
     comments.append(f"crs: {dst}")
     extra = {"role": list(table.roles)} if table.roles is not None else None
     text = format_points_csv(table.ids, np.asarray(out), names, extra=extra, comments=comments)
