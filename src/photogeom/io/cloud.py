@@ -231,7 +231,13 @@ def _corners(mins: np.ndarray, maxs: np.ndarray) -> np.ndarray:
     return np.where(idx, maxs, mins)
 
 
-def _new_offsets(lo: np.ndarray, hi: np.ndarray, scales: np.ndarray) -> np.ndarray:
+def _new_offsets(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    scales: np.ndarray,
+    what: str = "transformed coordinates",
+    fix: str = "scales= / --scales",
+) -> np.ndarray:
     """Offsets at the centre of the output bounds, rounded to a round number (a whole
     multiple of ``1000 * scale`` so that offsets stay readable), checked against int32."""
     centre = 0.5 * (lo + hi)
@@ -240,9 +246,9 @@ def _new_offsets(lo: np.ndarray, hi: np.ndarray, scales: np.ndarray) -> np.ndarr
     span = np.maximum(np.abs(hi - off), np.abs(lo - off)) / scales
     if np.any(span > _INT32):
         raise InputError(
-            f"the transformed coordinates span {(hi - lo).tolist()} which the scales "
+            f"the {what} span {(hi - lo).tolist()} which the scales "
             f"{scales.tolist()} cannot store in 32-bit integers; pass larger scales "
-            "(scales= / --scales)"
+            f"({fix})"
         )
     return off
 
@@ -359,12 +365,20 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     return h
 
 
-def _quantise(values: np.ndarray, offset: float, scale: float, axis: str) -> np.ndarray:
-    q = np.rint((values - offset) / scale)
+def _quantise(
+    values: np.ndarray,
+    offset: float,
+    scale: float,
+    axis: str,
+    what: str = "transformed",
+    fix: str = "pass larger scales (scales= / --scales)",
+) -> np.ndarray:
+    with np.errstate(invalid="ignore", over="ignore"):
+        q = np.rint((values - offset) / scale)
     if not np.all(np.isfinite(q)) or np.any(np.abs(q) > _INT32):
         raise InputError(
-            f"transformed {axis} coordinates do not fit the output scale/offset "
-            f"({scale}/{offset}) or are not finite; pass larger scales (scales= / --scales)"
+            f"{what} {axis} coordinates do not fit the output scale/offset "
+            f"({scale}/{offset}) or are not finite; {fix}"
         )
     return q.astype(np.int32)
 
@@ -505,27 +519,74 @@ def write_cloud(
 ) -> Path:
     """Write points (n, 3) to a new LAS/LAZ file (atomically), e.g. a generated test cloud.
 
-    ``extra`` maps names to (n,) arrays written as extra-bytes dimensions (their dtype).
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (``.laz``: compressed).
+    xyz : array_like, shape (n, 3)
+        Finite coordinates.
+    scales : sequence of 3 floats
+        The coordinate resolution (stored integer ``X`` means ``X * scale + offset``).
+    offsets : sequence of 3 floats, optional
+        Default: the centre of the points' bounds rounded to ``1000 * scale``, as
+        :func:`transform_cloud` chooses them.
+    crs : str, optional
+        A CRS PROJ reads, recorded in the file.
+    point_format, version
+        LAS point format and version.
+    extra : dict, optional
+        Names to (n,) arrays written as extra-bytes dimensions (their dtype).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        Points not (n, 3); a NaN or infinite coordinate (naming its row: LAS stores
+        integers); scales not three positive numbers; coordinates the scales (and offsets)
+        cannot store in 32-bit integers (pass larger ``scales=``). Nothing is written then.
     """
     laspy = _laspy()
     xyz = np.asarray(xyz, dtype=float)
     if xyz.ndim != 2 or xyz.shape[1] != 3:
         raise InputError(f"points must have shape (n, 3), got {xyz.shape}")
+    bad = ~np.all(np.isfinite(xyz), axis=1)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise InputError(
+            f"points: row {k} is not finite ({', '.join(repr(float(v)) for v in xyz[k])}; "
+            f"{int(bad.sum())} such row(s)): a LAS file stores finite coordinates only; "
+            "remove those rows first"
+        )
+    sc = np.asarray(scales, dtype=float)
+    if sc.shape != (3,) or not np.all(np.isfinite(sc) & (sc > 0)):
+        raise InputError(f"scales= must be three positive numbers, got {scales!r}")
+    fit = "pass larger scales (scales=)"
+    if offsets is None:
+        if len(xyz):
+            off = _new_offsets(xyz.min(axis=0), xyz.max(axis=0), sc, "coordinates", "scales=")
+        else:
+            off = np.zeros(3)
+    else:
+        off = np.asarray(offsets, dtype=float)
+        if off.shape != (3,) or not np.all(np.isfinite(off)):
+            raise InputError(f"offsets= must be three finite numbers, got {offsets!r}")
+        fit = "pass larger scales (scales=) or offsets= nearer the points (or none)"
+    ints = [_quantise(xyz[:, i], off[i], sc[i], a, "the", fit) for i, a in enumerate("xyz")]
     header = laspy.LasHeader(point_format=point_format, version=version)
     for name, values in (extra or {}).items():
         header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=np.asarray(values).dtype))
-    header.scales = np.array(scales, dtype=float)
-    if offsets is None:
-        offsets = np.floor(xyz.min(axis=0)) if len(xyz) else np.zeros(3)
-    header.offsets = np.array(offsets, dtype=float)
+    header.scales = sc
+    header.offsets = off
     if crs is not None:
         from ..crs import parse_crs
 
         header.add_crs(parse_crs(crs, what="crs"))
     las = laspy.LasData(header)
-    las.x = xyz[:, 0]
-    las.y = xyz[:, 1]
-    las.z = xyz[:, 2]
+    las.X, las.Y, las.Z = ints
     for name, values in (extra or {}).items():
         las[name] = values
     p = Path(path)
