@@ -109,3 +109,30 @@ def test_examples_run(name):
     assert len(rep) >= 2
     if name == "absolute-kraus":
         assert "ours: -0.1854, -1.0920, 298.6799 gon" in text
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--threshold", "0.5"], "--threshold applies only with --ransac"),
+        (["--method", "closed-form", "--threshold", "0.5"], "--threshold applies only with"),
+        (["--compare", "--threshold", "0.5"], "--threshold applies only with --ransac"),
+        (["--seed", "3"], "--seed applies only with --ransac"),
+        (["--ransac", "--threshold", "0.5", "--initial", "zeros"], "--initial is not used with"),
+        (["--ransac", "--threshold", "0.5", "--sigma-source", "0.1"], "--sigma-source is not"),
+        (["--compare", "--sigma-source", "0.1"], "--sigma-source is not used with --compare"),
+        (["--compare", "--ransac", "--threshold", "0.5"], "cannot be combined"),
+    ],
+)
+def test_options_the_mode_would_ignore_are_refused(cli, tmp_path: Path, args, words):
+    out_file = tmp_path / "r.html"
+    code, out, err = cli("orient", "absolute", KRAUS, *args, "--report", out_file)
+    assert code == 2 and out == "" and not out_file.exists()
+    assert err.startswith("error: ") and words in err
+
+
+def test_threshold_and_seed_with_ransac_are_used(cli):
+    code, out, err = cli("orient", "absolute", KRAUS, "--ransac", "--threshold", "0.5",
+                         "--seed", "3", "--json")
+    assert code == 0, err
+    assert json.loads(out)["ransac"]["threshold"] == 0.5

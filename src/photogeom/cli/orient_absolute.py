@@ -185,6 +185,11 @@ def register(app: typer.Typer) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
 
+        _check_option_combinations(
+            ransac=ransac, compare=compare, threshold=threshold, seed=seed,
+            sigma_source=sigma_source, initial=initial,
+        )
+
         tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
         scrs = file_crs(source_crs, "--source-crs", source if target is not None else None)
         if unit is None:
@@ -217,8 +222,6 @@ def register(app: typer.Typer) -> None:
                 raise InputError("give per-point weights/sigmas or --sigma-target, not both")
             options["sigma_target"] = sigma_target
         if compare:
-            if ransac:
-                raise InputError("--compare and --ransac cannot be combined")
             from ..orientation import compare_absolute_methods
 
             cmp = compare_absolute_methods(
@@ -358,6 +361,44 @@ def register(app: typer.Typer) -> None:
             rep.write(report)
             if not as_json:
                 out.print(f"report written to {report}")
+
+
+def _check_option_combinations(
+    *,
+    ransac: bool,
+    compare: bool,
+    threshold: float | None,
+    seed: int | None,
+    sigma_source: float | None,
+    initial: str | None,
+) -> None:
+    """Refuse options that the chosen mode would ignore (before any file is read).
+
+    Raises
+    ------
+    InputError
+        ``--threshold`` or ``--seed`` without ``--ransac``; ``--compare`` with ``--ransac``;
+        ``--sigma-source`` or ``--initial`` with ``--ransac`` or ``--compare`` (neither uses
+        them).
+    """
+    if compare and ransac:
+        raise InputError("--compare and --ransac cannot be combined")
+    for given, name, what in (
+        (threshold is not None, "--threshold", "the RANSAC inlier distance"),
+        (seed is not None, "--seed", "the random seed of RANSAC"),
+    ):
+        if given and not ransac:
+            raise InputError(
+                f"{name} applies only with --ransac ({what}); add --ransac or leave {name} out"
+            )
+    mode = "--ransac" if ransac else "--compare" if compare else None
+    for given, name in ((sigma_source is not None, "--sigma-source"),
+                        (initial is not None, "--initial")):
+        if given and mode is not None:
+            raise InputError(
+                f"{name} is not used with {mode} (it sets up a single gauss-markov / "
+                f"gauss-helmert estimate); leave it out or drop {mode}"
+            )
 
 
 def _crs_record(tcrs, scrs, pairs) -> dict:
