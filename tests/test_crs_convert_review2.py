@@ -70,6 +70,7 @@ def test_the_same_crs_spelled_differently_is_accepted(cli, tmp_path):
     pts = _write(tmp_path / "g.csv", "id,x,y,z", LONLATH, crs="EPSG:4979")
     code, out, err = cli("crs", "convert", pts, "--from", "epsg:4979", "--to", "EPSG:32632")
     assert code == 0, err
+    np.testing.assert_allclose(_coords(out)[1], _utm(), atol=1e-6, rtol=0)
     enu = _write(tmp_path / "e.csv", "id,E,N,U", [[1, 2, 3]], crs="enu:47.1,8.5,500.0")
     code, _, err = cli("crs", "convert", enu, "--from", "enu", "--origin", "47.1,8.5,500",
                        "--to", "EPSG:4979")  # fmt: skip
