@@ -86,18 +86,29 @@ def transform(
         typer.Option(help="Parameter JSON (transform estimate / cloud register --output-params)."),
     ] = None,
     from_crs: Annotated[
-        str | None, typer.Option("--from-crs", help="Source CRS of a PROJ transformation.")
+        str | None,
+        typer.Option(
+            "--from-crs",
+            help="Source CRS of a PROJ transformation (default: the input's record; not with "
+            "--params).",
+        ),
     ] = None,
     to_crs: Annotated[
         str | None, typer.Option("--to-crs", help="Target CRS of a PROJ transformation.")
     ] = None,
-    inverse: Annotated[bool, typer.Option(help="Apply the inverse of --params.")] = False,
+    inverse: Annotated[
+        bool,
+        typer.Option(
+            help="Apply the inverse of --params (not for --from-crs/--to-crs: swap them)."
+        ),
+    ] = False,
     crs: Annotated[
         str | None,
         typer.Option(
             "--crs",
             help="CRS to record in the output (default: --to-crs, else the target CRS of "
-            "--params, else the input's record).",
+            "--params, else the input's record); refused when it contradicts --to-crs or the "
+            "target CRS of --params.",
         ),
     ] = None,
     scales: Annotated[
@@ -126,6 +137,16 @@ def transform(
 
     if (params is None) == (to_crs is None):
         raise InputError("give either --params FILE or --from-crs and --to-crs")
+    if inverse and params is None:
+        raise InputError(
+            "--inverse inverts the parameters of --params; a PROJ transformation (--to-crs) "
+            "is inverted by swapping --from-crs and --to-crs"
+        )
+    if params is not None and from_crs is not None:
+        raise InputError(
+            "--from-crs belongs to a PROJ transformation (with --to-crs); with --params the "
+            "parameter file names the CRS it transforms from (leave --from-crs out)"
+        )
     if params is not None:
         from .transform import load_transform_record
 
@@ -135,9 +156,13 @@ def transform(
             to_rec, from_rec = from_rec, to_rec
         if from_rec is not None:
             _check_input_crs(source, from_rec, params, inverse)
+        if crs is not None and to_rec is not None:
+            _check_output_crs(crs, to_rec, f"the parameters of {params} transform to")
         if crs is None and to_rec is not None:
             crs = to_rec
     else:
+        if crs is not None:
+            _check_output_crs(crs, to_crs, "--to-crs says")
         from ..crs import ProjTransform
         from ..io.cloud import cloud_info
 
@@ -170,6 +195,22 @@ def transform(
         f"CRS {res.crs_name or 'none'}",
         stderr=True,
     )
+
+
+def _check_output_crs(crs: str, target: str, says: str) -> None:
+    """Refuse a ``--crs`` (the CRS recorded in the output) that is not the CRS the points are
+    transformed to (``says`` names where that comes from)."""
+    from ..crs import frame_from_text, parse_crs
+    from ._common import same_crs
+
+    if frame_from_text(crs) is None:
+        parse_crs(crs, what="--crs")
+    if not same_crs(crs, target):
+        raise InputError(
+            f"--crs {crs} would record another CRS than the one of the transformed points "
+            f"({says} {target}): --crs names the CRS of the output coordinates, it does not "
+            "convert them; leave --crs out"
+        )
 
 
 def _check_input_crs(source: Path, expected: str, params: Path, inverse: bool) -> None:
