@@ -152,6 +152,62 @@ def build_interior(
     return InteriorOrientation(f, x0, y0, unit=unit, pixel_size=pixel_size)
 
 
+def refuse_ignored_camera_options(
+    *,
+    camera: Path | None,
+    calibration: Path | None,
+    f: float | None,
+    x0: float | None,
+    y0: float | None,
+    unit: ImageUnit | None,
+    pixel_size: float | None,
+    principal_point: str | None,
+) -> None:
+    """Refuse camera options that the chosen source of the interior orientation ignores.
+
+    Parameters
+    ----------
+    camera, calibration, f
+        The sources of the camera (``--camera``, ``--calibration``, ``--f``).
+    x0, y0, unit, pixel_size, principal_point
+        The other camera options; None when not given on the command line.
+
+    Raises
+    ------
+    InputError
+        ``--x0``, ``--y0``, ``--unit``, ``--pixel-size`` or ``--principal-point`` with
+        ``--camera`` or ``--calibration`` (the file gives the whole interior orientation),
+        or ``--x0``/``--y0`` with ``--principal-point`` (two principal points). More than one
+        source is left to :func:`build_interior`.
+    """
+    if sum(s is not None for s in (camera, calibration, f)) > 1:
+        return
+    given = {
+        "--x0": x0,
+        "--y0": y0,
+        "--unit": unit,
+        "--pixel-size": pixel_size,
+        "--principal-point": principal_point,
+    }
+    if camera is not None or calibration is not None:
+        source = "--camera" if camera is not None else "--calibration"
+        ignored = [name for name, v in given.items() if v is not None]
+        if ignored:
+            raise InputError(
+                f"{', '.join(ignored)} cannot be used with {source}: the camera file gives the "
+                "interior orientation (principal distance, principal point, unit, pixel size); "
+                f"leave {'them' if len(ignored) > 1 else 'it'} out, or give the camera with "
+                "--f and these options instead"
+            )
+    elif principal_point is not None:
+        both = [name for name in ("--x0", "--y0") if given[name] is not None]
+        if both:
+            raise InputError(
+                f"{' and '.join(both)} and --principal-point both give the principal point; "
+                "give it once: --principal-point COL,ROW (pixels) or --x0/--y0 (in --unit)"
+            )
+
+
 def build_exterior(eo_text: str | None, angle_unit: AngleUnit, camera: Path | None = None):
     """The exterior orientation from ``--eo X0,Y0,Z0,omega,phi,kappa`` or the camera JSON."""
     from ..camera import ExteriorOrientation
@@ -187,6 +243,18 @@ PPOpt = Annotated[
         help="Principal point COL,ROW in pixels (digital camera; top-left pixel centre = 0,0)."
     ),
 ]
+#: ``--x0``/``--y0``/``--unit`` of this module's commands: None when not given, so that an
+#: option the chosen camera source ignores is refused (:func:`refuse_ignored_camera_options`).
+X0GivenOpt = Annotated[
+    float | None, typer.Option("--x0", help="Principal point x0 (in --unit; default 0).")
+]
+Y0GivenOpt = Annotated[
+    float | None, typer.Option("--y0", help="Principal point y0 (in --unit; default 0).")
+]
+UnitGivenOpt = Annotated[
+    ImageUnit | None,
+    typer.Option(help="Unit of f, x0, y0 and image coordinates (default mm).", show_default=False),
+]
 EOOpt = Annotated[
     str | None,
     typer.Option(
@@ -205,9 +273,9 @@ def project_cmd(
     camera: CameraOpt = None,
     calibration: CalibrationOpt = None,
     f: FOpt = None,
-    x0: X0Opt = 0.0,
-    y0: Y0Opt = 0.0,
-    unit: UnitOpt = ImageUnit.mm,
+    x0: X0GivenOpt = None,
+    y0: Y0GivenOpt = None,
+    unit: UnitGivenOpt = None,
     pixel_size: PixelSizeOpt = None,
     principal_point: PPOpt = None,
     eo: EOOpt = None,
@@ -232,13 +300,23 @@ def project_cmd(
     from ..camera import project
     from ..io import format_points_csv, read_points
 
-    io = build_interior(
+    refuse_ignored_camera_options(
         camera=camera,
         calibration=calibration,
         f=f,
         x0=x0,
         y0=y0,
         unit=unit,
+        pixel_size=pixel_size,
+        principal_point=principal_point,
+    )
+    io = build_interior(
+        camera=camera,
+        calibration=calibration,
+        f=f,
+        x0=0.0 if x0 is None else x0,
+        y0=0.0 if y0 is None else y0,
+        unit=ImageUnit.mm if unit is None else unit,
         pixel_size=pixel_size,
         principal_point=principal_point,
     )
@@ -481,9 +559,9 @@ def dlt_convert(
     ] = None,
     camera: CameraOpt = None,
     f: FOpt = None,
-    x0: X0Opt = 0.0,
-    y0: Y0Opt = 0.0,
-    unit: UnitOpt = ImageUnit.mm,
+    x0: X0GivenOpt = None,
+    y0: Y0GivenOpt = None,
+    unit: UnitGivenOpt = None,
     eo: EOOpt = None,
     angle_unit: AngleOpt = AngleUnit.deg,
     as_json: JsonOpt = False,
@@ -497,10 +575,19 @@ def dlt_convert(
     from ..camera.dlt import NAMES
 
     au = AngleUnit(angle_unit).value
-    u = ImageUnit(unit).value
+    u = "mm" if unit is None else ImageUnit(unit).value
     if dlt is not None or params is not None:
         if dlt is not None and params is not None:
             raise InputError("give the DLT once: --dlt or --params")
+        source = "--dlt" if dlt is not None else "--params"
+        camera_opts = {"--camera": camera, "--f": f, "--x0": x0, "--y0": y0, "--eo": eo}
+        ignored = [name for name, v in camera_opts.items() if v is not None]
+        if ignored:
+            raise InputError(
+                f"{', '.join(ignored)} cannot be used with {source}: {source} converts a DLT into "
+                "interior and exterior orientation; the camera options give the other direction "
+                "(orientation -> DLT) without --dlt/--params"
+            )
         if dlt is not None:
             L = DLT(split_numbers(dlt, 11, "--dlt L1,...,L11"), u)
         else:
@@ -509,19 +596,34 @@ def dlt_convert(
                 L = DLT.from_dict(data)
             except InputError as exc:
                 raise FileFormatError(f"{params}: {exc}") from None
+            if unit is not None and L.unit != u:
+                raise InputError(
+                    f"--unit {u}: {params} records its DLT in {L.unit}; leave --unit out (the "
+                    "file's unit is used)"
+                )
         io, ext = orientation_from_dlt(L, unit=L.unit)
         if as_json:
             typer.echo(json_text(_orientation_json(io, ext, au)), nl=False)
         else:
             typer.echo(_orientation_text(io, ext, au))
         return
-    io = build_interior(
+    refuse_ignored_camera_options(
         camera=camera,
         calibration=None,
         f=f,
         x0=x0,
         y0=y0,
         unit=unit,
+        pixel_size=None,
+        principal_point=None,
+    )
+    io = build_interior(
+        camera=camera,
+        calibration=None,
+        f=f,
+        x0=0.0 if x0 is None else x0,
+        y0=0.0 if y0 is None else y0,
+        unit=u,
         pixel_size=None,
         principal_point=None,
     )
