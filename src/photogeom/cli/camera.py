@@ -208,6 +208,43 @@ def refuse_ignored_camera_options(
             )
 
 
+def interior_from_options(
+    *,
+    camera: Path | None,
+    calibration: Path | None,
+    f: float | None,
+    x0: float | None,
+    y0: float | None,
+    unit: ImageUnit | None,
+    pixel_size: float | None,
+    principal_point: str | None,
+):
+    """:func:`build_interior` from options that are None when not given (``X0GivenOpt``,
+    ``Y0GivenOpt``, ``UnitGivenOpt``): the options the chosen camera source ignores are
+    refused first (:func:`refuse_ignored_camera_options`), before any file is read; then the
+    defaults apply (x0 = y0 = 0, unit mm)."""
+    refuse_ignored_camera_options(
+        camera=camera,
+        calibration=calibration,
+        f=f,
+        x0=x0,
+        y0=y0,
+        unit=unit,
+        pixel_size=pixel_size,
+        principal_point=principal_point,
+    )
+    return build_interior(
+        camera=camera,
+        calibration=calibration,
+        f=f,
+        x0=0.0 if x0 is None else x0,
+        y0=0.0 if y0 is None else y0,
+        unit=ImageUnit.mm if unit is None else unit,
+        pixel_size=pixel_size,
+        principal_point=principal_point,
+    )
+
+
 def build_exterior(eo_text: str | None, angle_unit: AngleUnit, camera: Path | None = None):
     """The exterior orientation from ``--eo X0,Y0,Z0,omega,phi,kappa`` or the camera JSON."""
     from ..camera import ExteriorOrientation

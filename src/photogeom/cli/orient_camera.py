@@ -38,14 +38,13 @@ from .camera import (
     CalibrationOpt,
     CameraOpt,
     FOpt,
-    ImageUnit,
     PixelSizeOpt,
     PPOpt,
-    UnitOpt,
-    X0Opt,
-    Y0Opt,
-    build_interior,
+    UnitGivenOpt,
+    X0GivenOpt,
+    Y0GivenOpt,
     camera_from_json,
+    interior_from_options,
     load_control,
     say_unmatched,
 )
@@ -70,9 +69,9 @@ def resection(
     camera: CameraOpt = None,
     calibration: CalibrationOpt = None,
     f: FOpt = None,
-    x0: X0Opt = 0.0,
-    y0: Y0Opt = 0.0,
-    unit: UnitOpt = ImageUnit.mm,
+    x0: X0GivenOpt = None,
+    y0: Y0GivenOpt = None,
+    unit: UnitGivenOpt = None,
     pixel_size: PixelSizeOpt = None,
     principal_point: PPOpt = None,
     pixel: Annotated[
@@ -136,8 +135,7 @@ def resection(
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
 
-    ground_crs = file_crs(crs, "--crs", points)
-    io = build_interior(
+    io = interior_from_options(
         camera=camera,
         calibration=calibration,
         f=f,
@@ -147,6 +145,7 @@ def resection(
         pixel_size=pixel_size,
         principal_point=principal_point,
     )
+    ground_crs = file_crs(crs, "--crs", points)
     unmatched: dict = {}
     ids, g, im, mask, sig = load_control(
         points,

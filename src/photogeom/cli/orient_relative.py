@@ -33,14 +33,13 @@ from .camera import (
     CalibrationOpt,
     CameraOpt,
     FOpt,
-    ImageUnit,
     PixelSizeOpt,
     PPOpt,
-    UnitOpt,
-    X0Opt,
-    Y0Opt,
-    build_interior,
+    UnitGivenOpt,
+    X0GivenOpt,
+    Y0GivenOpt,
     camera_from_json,
+    interior_from_options,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -101,9 +100,9 @@ def relative(
     camera: CameraOpt = None,
     calibration: CalibrationOpt = None,
     f: FOpt = None,
-    x0: X0Opt = 0.0,
-    y0: Y0Opt = 0.0,
-    unit: UnitOpt = ImageUnit.mm,
+    x0: X0GivenOpt = None,
+    y0: Y0GivenOpt = None,
+    unit: UnitGivenOpt = None,
     pixel_size: PixelSizeOpt = None,
     principal_point: PPOpt = None,
     camera2: Annotated[
@@ -159,7 +158,7 @@ def relative(
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
 
-    io1 = build_interior(
+    io1 = interior_from_options(
         camera=camera,
         calibration=calibration,
         f=f,
