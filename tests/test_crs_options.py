@@ -181,8 +181,11 @@ def test_transform_estimate_and_apply_carry_the_crs(cli, pairs3d, tmp_path):
     code, out, err = cli("transform", "apply", params, pts)
     assert code == 0, err
     assert "# crs: EPSG:32632" in out.splitlines()
+    code, out, err = cli("transform", "apply", params, pts, "--crs", "EPSG:32632")
+    assert code == 0 and "# crs: EPSG:32632" in out.splitlines()
+    # a --crs contradicting the parameters' target CRS would mislabel the output
     code, out, err = cli("transform", "apply", params, pts, "--crs", "EPSG:25832")
-    assert code == 0 and "# crs: EPSG:25832" in out.splitlines()
+    assert code == 2 and out == "" and "--crs EPSG:25832" in err and "EPSG:32632" in err
     back = tmp_path / "back.csv"
     back.write_text("# crs: EPSG:32632\nid,X,Y,Z\n1,480010,5300020,253\n")
     code, out, err = cli("transform", "apply", params, back, "--inverse")

@@ -495,7 +495,8 @@ def apply(
         typer.Option(
             "--crs",
             help="CRS to record in the output ('# crs:' line; default: the target CRS of the "
-            "parameter file, its source CRS with --inverse).",
+            "parameter file, its source CRS with --inverse); refused when it contradicts that "
+            "record (it names the CRS, it does not convert).",
             show_default=False,
         ),
     ] = None,
@@ -512,6 +513,14 @@ def apply(
     transform, to_crs, from_crs = load_transform_record(params)
     if inverse:
         to_crs, from_crs = from_crs, to_crs
+    out_info = cartesian_crs_option(crs or to_crs, "--crs" if crs else f"{params}: crs")
+    if crs is not None and to_crs is not None and not same_crs(to_crs, out_info.text):
+        side = "source CRS (--inverse transforms to it)" if inverse else "target CRS"
+        raise InputError(
+            f"--crs {crs}: {params} records the {side} {to_crs}, the CRS of the transformed "
+            "points; --crs names the CRS of the output coordinates, it does not convert them: "
+            "leave --crs out, or convert the output with photogeom crs convert"
+        )
     blocks = PointBlocks(points, split_names(cols), id_column=id_col)
     in_crs = crs_from_comments(blocks.comments)
     if in_crs is not None:
@@ -522,7 +531,6 @@ def apply(
             f"{from_crs}{' (--inverse)' if inverse else ''}: convert the points first "
             "(photogeom crs convert) or use the parameters of their CRS"
         )
-    out_info = cartesian_crs_option(crs or to_crs, "--crs" if crs else f"{params}: crs")
     dim = getattr(transform, "dim", blocks.dim)
     if blocks.dim != dim:
         raise InputError(
