@@ -73,7 +73,7 @@ def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> 
         xy[:, 0],
         xy[:, 1],
         v[:, 0] * k,
-        -v[:, 1] * k,
+        v[:, 1] * k,  # v down the image: the axis is inverted, so down on the page too
         angles="xy",
         scale_units="xy",
         scale=1,
