@@ -93,11 +93,111 @@ def _parse_scheduler(scheduler: str | None) -> tuple[str, Any]:
     if s in ("threads", "sync", "synchronous"):
         return "threads" if s == "threads" else "sync", None
     if "://" in s or ":" in s:
-        return "address", s
+        return "address", _check_address(scheduler, s)
     raise InputError(
         f"scheduler {scheduler!r}: give 'local', 'local:N', 'threads', 'sync' or a scheduler "
         "address such as tcp://host:8786"
     )
+
+
+#: Schemes of ``dask.distributed`` scheduler addresses accepted as ``scheduler=``.
+_ADDRESS_SCHEMES = ("tcp", "tls", "ucx", "ws", "wss", "inproc")
+
+#: Wall-clock limit (s) on connecting to a scheduler address: the TCP connection, the
+#: handshake and the first reply together.
+CONNECT_TIMEOUT = 10.0
+
+
+def _check_address(given: str, s: str) -> str:
+    """``s`` (``scheme://host:port`` or ``host:port``) checked for its form; the address with
+    its scheme (``tcp://`` when none is given), or an :class:`InputError` naming the problem.
+    """
+    form = (
+        "give the scheduler address as tcp://host:port (also tls://host:port, or host:port), "
+        "e.g. tcp://127.0.0.1:8786"
+    )
+    scheme, sep, rest = s.partition("://")
+    if not sep:
+        scheme, rest = "tcp", s
+    scheme = scheme.lower()
+    if scheme in ("http", "https"):
+        raise InputError(
+            f"scheduler {given!r} is a web address (the Dask dashboard, usually port 8787), "
+            f"not a scheduler: {form}; the scheduler's address is printed when it starts "
+            "(usually port 8786)"
+        )
+    if scheme not in _ADDRESS_SCHEMES:
+        raise InputError(f"scheduler {given!r}: unknown address scheme {scheme + '://'!r}; {form}")
+    if scheme == "inproc":  # a scheduler in this process (LocalCluster(processes=False))
+        return f"{scheme}://{rest}"
+    host, colon, port = rest.rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]  # IPv6 literal
+    if "/" in rest or any(c.isspace() for c in rest):
+        problem = "a path or blank after the scheme"
+    elif not colon:
+        problem = "no port"
+    elif not host:
+        problem = "no host"
+    elif not (port.isdigit() and 0 < int(port) < 65536):
+        problem = f"port {port!r} is not a number from 1 to 65535"
+    else:
+        return f"{scheme}://{rest}"
+    raise InputError(f"scheduler {given!r} is not a scheduler address ({problem}); {form}")
+
+
+def _connect(distributed, address: str, timeout: float):
+    """A ``distributed.Client`` connected to ``address`` within ``timeout`` seconds of wall
+    time, or a :class:`PhotogeomError` naming the address and what to check.
+
+    ``Client(address, timeout=...)`` bounds only the TCP connection: a server that accepts
+    it but never answers the handshake (a plain listener, the dashboard's HTTP port, another
+    service) keeps the client waiting for ever, and one that sends something else can fail
+    with any exception (``MemoryError`` for a banner read as a message length). Here the whole
+    start (connection, handshake, first reply) runs under one deadline; a client that did
+    not start is closed before the error is raised.
+    """
+
+    class _DeadlineClient(distributed.Client):
+        def start(self, **kwargs):
+            # Client.start passes callback_timeout to distributed.utils.sync, which cancels
+            # the start coroutine and raises TimeoutError when it runs out
+            kwargs.setdefault("callback_timeout", timeout)
+            try:
+                super().start(**kwargs)
+            except BaseException:
+                try:
+                    self.close(timeout=min(timeout, 5.0))
+                except Exception:  # pragma: no cover - best effort on a failed start
+                    pass
+                raise
+
+    _DeadlineClient.__name__ = _DeadlineClient.__qualname__ = "Client"
+    check = (
+        "is a Dask scheduler running there (dask scheduler, or distributed.LocalCluster) "
+        "and is this its scheduler port (usually 8786, not the dashboard's 8787)? "
+        "(--scheduler local runs a cluster on this machine)"
+    )
+    try:
+        return _DeadlineClient(address, timeout=timeout)
+    except (TimeoutError, OSError) as exc:
+        timed_out = isinstance(exc, TimeoutError) or "Timed out" in str(exc)
+        what = (
+            f"no answer from a Dask scheduler within {timeout:g} s"
+            if timed_out
+            else f"cannot connect ({exc})"
+        )
+        raise PhotogeomError(f"Dask scheduler at {address}: {what}; {check}") from None
+    except Exception as exc:
+        detail = (
+            "it sent data that is not a Dask message"  # a banner read as a message length
+            if isinstance(exc, MemoryError)
+            else f"{type(exc).__name__}: {exc}"
+        )
+        raise PhotogeomError(
+            f"Dask scheduler at {address}: the server there did not answer as a Dask "
+            f"scheduler ({detail}); {check}"
+        ) from None
 
 
 @contextmanager
@@ -106,6 +206,22 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
 
     A local cluster is started for the duration of the ``with`` block and closed after it;
     an address connects to a running scheduler (left running).
+
+    Parameters
+    ----------
+    scheduler : str or distributed.Client, optional
+        See the module docstring. An address is ``tcp://host:port``, ``tls://host:port``
+        or ``host:port`` (``tcp://`` then).
+
+    Raises
+    ------
+    InputError
+        ``scheduler`` is not one of the accepted forms (e.g. ``http://...``, the dashboard,
+        or ``host:notaport``).
+    PhotogeomError
+        The client did not connect to the address within :data:`CONNECT_TIMEOUT` seconds of
+        wall time (nothing listening, a server that does not answer or is not a Dask
+        scheduler); the message names the address and what to check.
     """
     kind, arg = _parse_scheduler(scheduler)
     if kind in ("threads", "sync"):
@@ -116,13 +232,7 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
         return
     distributed = _distributed()
     if kind == "address":
-        try:
-            client = distributed.Client(arg, timeout="10s")
-        except (OSError, TimeoutError) as exc:
-            raise PhotogeomError(
-                f"cannot connect to the Dask scheduler at {arg} ({exc}); is it running? "
-                "(--scheduler local runs a cluster on this machine)"
-            ) from None
+        client = _connect(distributed, arg, CONNECT_TIMEOUT)
         try:
             yield client
         finally:
