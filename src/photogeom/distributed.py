@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError, PhotogeomError
+from .errors import FileFormatError, InputError, PhotogeomError
 
 __all__ = [
     "CloudRegistration",
@@ -524,8 +524,21 @@ def _pair_block(src: str, dst: str, start: int, stop: int, check_every: int, wan
     (``want="checks"``, a tuple ``(count, sum v, sum v^2, max |v|)``) of points start:stop."""
     from .io.cloud import read_cloud_xyz
 
-    x = read_cloud_xyz(src, start, stop)
-    X = read_cloud_xyz(dst, start, stop)
+    try:
+        x = read_cloud_xyz(src, start, stop)
+        X = read_cloud_xyz(dst, start, stop)
+        if x.shape != (stop - start, 3) or X.shape != (stop - start, 3):
+            raise FileFormatError(
+                f"{len(x)} and {len(X)} points read where {stop - start} were asked for"
+            )
+    except Exception as exc:
+        # on a worker the traceback is far away: the message names both files and the block
+        cls = FileFormatError if isinstance(exc, (FileFormatError, ValueError)) else PhotogeomError
+        raise cls(
+            f"registering {src} to {dst}, pairs {start}:{stop}: {exc}"
+            if isinstance(exc, PhotogeomError)
+            else f"registering {src} to {dst}, pairs {start}:{stop}: {type(exc).__name__}: {exc}"
+        ) from None
     if check_every:
         is_check = (np.arange(start, stop) % check_every) == 0
     else:

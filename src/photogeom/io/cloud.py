@@ -46,19 +46,109 @@ def _laspy():
     return laspy
 
 
-def _open_read(path, single_thread: bool = False):
+def _open_read(path, single_thread: bool = False, check_size: bool = True):
     """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
-    core each) instead of lazrs's parallel decoder."""
+    core each) instead of lazrs's parallel decoder. A file shorter than its header says
+    (:func:`_truncation`) is refused unless ``check_size`` is False."""
     laspy = _laspy()
     p = Path(path)
     if not p.is_file():
         raise InputError(f"point cloud {p} does not exist")
     try:
         if single_thread:
-            return laspy.open(p, laz_backend=laspy.LazBackend.Lazrs)
-        return laspy.open(p)
+            reader = laspy.open(p, laz_backend=laspy.LazBackend.Lazrs)
+        else:
+            reader = laspy.open(p)
     except laspy.errors.LaspyException as exc:
         raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
+    except (OSError, ValueError, EOFError) as exc:  # a header cut short, lazrs errors
+        raise FileFormatError(
+            f"{p}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc}); is it "
+            "complete? (an interrupted copy or download: copy it again)"
+        ) from None
+    if check_size:
+        problem = _truncation(p, reader.header)
+        if problem:
+            reader.close()
+            raise FileFormatError(problem)
+    return reader
+
+
+def _truncation(path: Path, header) -> str | None:
+    """Why the file ``path`` is shorter than its ``header`` says, or None.
+
+    Cheap (the file's size and, for LAZ, one 8-byte read): an uncompressed file must hold
+    ``point_count`` records of ``point_format.size`` bytes from ``offset_to_point_data``; a
+    LAZ file must reach its chunk table (the offset stored at the start of the point data;
+    LAZ without a chunk table cannot be checked this way).
+    """
+    size = path.stat().st_size
+    start = int(header.offset_to_point_data)
+    n = int(header.point_count)
+    fix = "the file was cut short (an interrupted copy or download?): copy it again"
+    compressed = bool(getattr(header, "are_points_compressed", False))
+    if not compressed:
+        rec = int(header.point_format.size)
+        need = start + n * rec
+        if size < need:
+            whole = max(0, (size - start) // rec) if rec else 0
+            return (
+                f"{path} is truncated: its header promises {n} points of {rec} bytes from "
+                f"byte {start} (the file must be at least {need} bytes) but the file has "
+                f"{size} bytes, {whole} whole point(s); {fix}"
+            )
+        return None
+    if n == 0:
+        return None
+    if size < start + 8:
+        return (
+            f"{path} is truncated: its header promises {n} compressed points from byte "
+            f"{start} but the file ends at byte {size}; {fix}"
+        )
+    with open(path, "rb") as f:
+        f.seek(start)
+        (table,) = struct.unpack("<q", f.read(8))
+    if table > 0 and size < table + 8:
+        return (
+            f"{path} is truncated: its LAZ chunk table should start at byte {table} but the "
+            f"file has {size} bytes (header: {n} points); {fix}"
+        )
+    return None
+
+
+def _read_error(reader, path, start: int, stop: int, exc: BaseException) -> FileFormatError:
+    return FileFormatError(
+        f"{path}: cannot read points {start}:{stop} of the {int(reader.header.point_count)} "
+        f"points its header promises ({type(exc).__name__}: {exc}); the file is damaged or "
+        "cut short (an interrupted copy or download?): copy it again"
+    )
+
+
+def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterator:
+    """laspy point records ``start:stop`` of an open ``reader``, at most ``chunk_size`` at a
+    time; a read that fails or comes back short is a :class:`FileFormatError` naming the
+    file and the counts (never fewer points than asked for without a word)."""
+    pos = start
+    try:
+        if start:
+            reader.seek(start)
+    except Exception as exc:
+        raise _read_error(reader, path, start, stop, exc) from None
+    while pos < stop:
+        want = min(chunk_size, stop - pos)
+        try:
+            pts = reader.read_points(want)
+        except Exception as exc:
+            raise _read_error(reader, path, pos, pos + want, exc) from None
+        got = len(pts)
+        if got < want:
+            raise FileFormatError(
+                f"{path}: the file ends after point {pos + got} but its header promises "
+                f"{int(reader.header.point_count)} points (points {start}:{stop} asked for); "
+                "it is cut short (an interrupted copy or download?): copy it again"
+            )
+        pos += got
+        yield pts
 
 
 @dataclass(frozen=True)
@@ -135,9 +225,29 @@ def _header_crs(header) -> tuple[str | None, str | None]:
     return crs.to_wkt(), (f"{auth[0]}:{auth[1]} ({crs.name})" if auth else crs.name)
 
 
-def cloud_info(path) -> CloudInfo:
-    """Read the header of a LAS/LAZ file (no points are read)."""
-    with _open_read(path) as reader:
+def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
+    """Read the header of a LAS/LAZ file (no points are read).
+
+    Parameters
+    ----------
+    path : str or path
+        The LAS/LAZ file.
+    check_size : bool
+        Refuse a file shorter than its header says (``point_count`` records of the point
+        format's size for LAS; the chunk table for LAZ), a cheap check of the file's size.
+        False reads the header of such a file anyway.
+
+    Returns
+    -------
+    CloudInfo
+
+    Raises
+    ------
+    FileFormatError
+        Not a LAS/LAZ file, or (``check_size``) a truncated one: the message names the file,
+        the point count its header promises and the bytes present.
+    """
+    with _open_read(path, check_size=check_size) as reader:
         h = reader.header
         wkt, name = _header_crs(h)
         pf = h.point_format
@@ -170,24 +280,51 @@ def _xyz(points) -> np.ndarray:
 
 
 def iter_cloud_xyz(path, chunk_size: int = DEFAULT_CHUNK) -> Iterator[np.ndarray]:
-    """Coordinates (m, 3) of a LAS/LAZ file, ``chunk_size`` points at a time."""
+    """Coordinates (m, 3) of a LAS/LAZ file, ``chunk_size`` points at a time.
+
+    Raises :class:`FileFormatError` naming the file when it holds fewer points than its
+    header says (see :func:`read_cloud_xyz`).
+    """
     chunk_size = _check_chunk(chunk_size)
     with _open_read(path) as reader:
-        for pts in reader.chunk_iterator(chunk_size):
+        n = int(reader.header.point_count)
+        for pts in _read_range(reader, path, 0, n, chunk_size):
             yield _xyz(pts)
 
 
 def read_cloud_xyz(path, start: int = 0, stop: int | None = None) -> np.ndarray:
-    """Coordinates (n, 3) of points ``start:stop`` of a LAS/LAZ file (all by default)."""
+    """Coordinates (n, 3) of points ``start:stop`` of a LAS/LAZ file (all by default).
+
+    Parameters
+    ----------
+    path : str or path
+        The LAS/LAZ file.
+    start, stop : int
+        The range of points (``stop`` is limited to the header's point count).
+
+    Returns
+    -------
+    numpy.ndarray, shape (stop - start, 3)
+        Always as many rows as the range asks for.
+
+    Raises
+    ------
+    FileFormatError
+        The file is shorter than its header says (truncated) or its points cannot be
+        decoded: the message names the file and the counts.
+    """
     with _open_read(path) as reader:
-        n = reader.header.point_count
+        n = int(reader.header.point_count)
         stop = n if stop is None else min(int(stop), n)
         start = int(start)
         if not 0 <= start <= stop:
             raise InputError(f"point range {start}:{stop} outside 0:{n}")
-        if start:
-            reader.seek(start)
-        return _xyz(reader.read_points(stop - start))
+        out = np.empty((stop - start, 3))
+        i = 0
+        for pts in _read_range(reader, path, start, stop, max(1, stop - start)):
+            out[i : i + len(pts)] = _xyz(pts)
+            i += len(pts)
+        return out
 
 
 def _check_chunk(chunk_size) -> int:
@@ -468,7 +605,7 @@ def transform_cloud(
         if not _affine_like(transform):
             lo = np.full(3, np.inf)
             hi = np.full(3, -np.inf)
-            for pts in reader.chunk_iterator(chunk_size):
+            for pts in _read_range(reader, src, 0, n, chunk_size):
                 out = fn(_xyz(pts))
                 lo = np.minimum(lo, out.min(axis=0))
                 hi = np.maximum(hi, out.max(axis=0))
@@ -485,7 +622,7 @@ def transform_cloud(
             _open_read(src) as reader,
             laspy.open(tmp, mode="w", header=header, do_compress=compress) as writer,
         ):
-            for pts in reader.chunk_iterator(chunk_size):
+            for pts in _read_range(reader, src, 0, n, chunk_size):
                 _rewrite(pts, fn, sc, off)
                 writer.write_points(pts)
                 chunks += 1
@@ -632,11 +769,7 @@ def _piece_bounds(src: str, start: int, stop: int, transform, chunk_size: int):
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
     with _open_read(src, single_thread=True) as reader:
-        reader.seek(start)
-        left = stop - start
-        while left > 0:
-            pts = reader.read_points(min(chunk_size, left))
-            left -= len(pts)
+        for pts in _read_range(reader, src, start, stop, chunk_size):
             out = fn(_xyz(pts))
             lo = np.minimum(lo, out.min(axis=0))
             hi = np.maximum(hi, out.max(axis=0))
@@ -661,11 +794,7 @@ def _write_piece(
             laz_backend=laspy.LazBackend.Lazrs if compress else None,
         ) as writer,
     ):
-        reader.seek(start)
-        left = stop - start
-        while left > 0:
-            pts = reader.read_points(min(chunk_size, left))
-            left -= len(pts)
+        for pts in _read_range(reader, src, start, stop, chunk_size):
             _rewrite(pts, fn, sc, off)
             writer.write_points(pts)
     return stop - start
