@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from ..errors import FileFormatError, InputError
 from . import format as F
 from .html import Report, _esc, _img_html, _table_html, figure_to_png
-from .plots import nice_length
+from .plots import nice_length, plain
 
 #: Identifies a saved result record (``"format"``) and its layout (``"version"``).
 RESULT_FORMAT = "photogeom-bundle-result"
@@ -330,8 +330,10 @@ def sensor_grid_figure(grids: list[Mapping]) -> Figure:
         ax.set_ylabel("v (row) [px]")
         ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
         ax.set_title(
-            f"{g['label']}: {g['n_observations']} obs. in {g['n_images']} images, RMS "
-            f"{g['rms']:.3g} px\nmean v per {nx} x {ny} cell, arrows x{ex}",
+            plain(
+                f"{g['label']}: {g['n_observations']} obs. in {g['n_images']} images, RMS "
+                f"{g['rms']:.3g} px\nmean v per {nx} x {ny} cell, arrows x{ex}"
+            ),
             fontsize=9,
             loc="left",
         )
@@ -354,8 +356,8 @@ def correlation_figure(names, R, threshold: float, title: str) -> Figure:
     fig = Figure(figsize=(size + 1.0, size), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
     im = ax.imshow(R, vmin=-1, vmax=1, cmap="RdBu_r")
-    ax.set_xticks(range(k), names)
-    ax.set_yticks(range(k), names)
+    ax.set_xticks(range(k), [plain(n) for n in names])
+    ax.set_yticks(range(k), [plain(n) for n in names])
     ax.tick_params(length=0)
     for i in range(k):
         for j in range(k):
@@ -375,7 +377,7 @@ def correlation_figure(names, R, threshold: float, title: str) -> Figure:
             if hi:
                 ax.add_patch(_box(j, i))
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="correlation")
-    ax.set_title(f"{title}\n|rho| > {threshold:g} boxed", fontsize=9, loc="left")
+    ax.set_title(plain(f"{title}\n|rho| > {threshold:g} boxed"), fontsize=9, loc="left")
     fig.tight_layout()
     return fig
 
@@ -402,7 +404,12 @@ def image_rms_figure(images: list[Mapping], overall: float) -> Figure:
         ax.axhline(overall, color="#c0392b", lw=1, ls="--", label=f"all images: {overall:.3g} px")
         ax.legend(fontsize=8, loc="upper right")
     if n <= 40:
-        ax.set_xticks(x, ids, rotation=90 if max(map(len, ids), default=0) > 3 else 0, fontsize=8)
+        ax.set_xticks(
+            x,
+            [plain(t) for t in ids],
+            rotation=90 if max(map(len, ids), default=0) > 3 else 0,
+            fontsize=8,
+        )
         ax.set_xlabel("image id")
     else:
         ax.set_xlabel("image (block order)")
@@ -458,7 +465,7 @@ def point_precision_figure(hist: Mapping, unit: str) -> Figure:
     ax = fig.add_subplot(1, 1, 1)
     for a, colour in zip("XYZ", ("#1f5fa8", "#2e8b57", "#c0392b")):
         ax.stairs(hist["counts"][a], e, color=colour, lw=1.4, label=f"s{a}")
-    ax.set_xlabel(f"standard deviation [{unit}]")
+    ax.set_xlabel(plain(f"standard deviation [{unit}]"))
     ax.set_ylabel("points")
     ax.legend(fontsize=8)
     ax.grid(True, color="#e3e8ee", lw=0.6)

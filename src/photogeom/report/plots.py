@@ -22,6 +22,28 @@ def nice_length(value: float) -> float:
     return 10.0**exp  # pragma: no cover
 
 
+def plain(text) -> str:
+    """``text`` (an id, a label, a file or camera name, a unit) as matplotlib draws it
+    literally.
+
+    matplotlib reads text between two ``$`` as mathtext: ``$a^$`` fails to parse (the whole
+    figure fails with it) and ``$b$`` is drawn as math. Every ``$`` is escaped (``\\$``), which
+    any text artist (titles, annotations, tick labels, legend entries, quiver keys) then
+    draws as a plain ``$``. Use it on every text that comes from the data or the user.
+
+    Parameters
+    ----------
+    text : object
+        Converted with ``str``.
+
+    Returns
+    -------
+    str
+        The text with ``$`` escaped.
+    """
+    return str(text).replace("$", "\\$")
+
+
 def _xy(a, name: str) -> np.ndarray:
     arr = np.asarray(a, dtype=float)
     if arr.ndim != 2 or arr.shape[1] < 2:
@@ -108,7 +130,7 @@ def residual_figure(
             color=colour,
             width=0.005,
             zorder=4,
-            label=f"{name} ({p.shape[0]})",
+            label=plain(f"{name} ({p.shape[0]})"),
         )
         handles.append(q)
         if pid is not None:
@@ -116,7 +138,7 @@ def residual_figure(
             shown_by_number += missing
             for (x, y), t in zip(p, texts):
                 ax.annotate(
-                    t,
+                    plain(t),
                     (x, y),
                     textcoords="offset points",
                     xytext=(5, 5),
@@ -132,7 +154,7 @@ def residual_figure(
             X=0.1,
             Y=0.05,
             U=key,
-            label=f"{key:g} {unit}".strip(),
+            label=plain(f"{key:g} {unit}".strip()),
             labelpos="E",
             coordinates="axes",
             color="black",
@@ -148,8 +170,8 @@ def residual_figure(
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal", adjustable="box")
     pu = unit if point_unit is None else point_unit
-    ax.set_xlabel(f"{labels[0]} [{pu}]" if pu else labels[0])
-    ax.set_ylabel(f"{labels[1]} [{pu}]" if pu else labels[1])
+    ax.set_xlabel(plain(f"{labels[0]} [{pu}]" if pu else labels[0]))
+    ax.set_ylabel(plain(f"{labels[1]} [{pu}]" if pu else labels[1]))
     ax.grid(True, color="#dddddd", lw=0.6)
     ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
     exaggeration = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
@@ -161,7 +183,7 @@ def residual_figure(
         note += (
             f"\n{len(shown_by_number)} id(s) the font cannot draw: #k = row k of the residual table"
         )
-    ax.set_title((title + "\n" if title else "") + note, fontsize=9.5, loc="left")
+    ax.set_title(plain((title + "\n" if title else "") + note), fontsize=9.5, loc="left")
     fig.tight_layout()
     return fig
 
