@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import InputError
+from ..errors import InputError, PhotogeomError
 from ._common import console, say
 
 app = typer.Typer(
@@ -54,7 +54,9 @@ def run_examples(
 
     Each example compares its numbers with the published ones. With --report, an HTML
     report with parameter and residual tables and residual vector plots is written
-    (atomically, after all examples have run).
+    (atomically, after all examples have run). An example that fails (a damaged bundled
+    file, ...) is reported as failed, in the output and the report, and the others still
+    run; the command then ends with an error naming the failed examples (exit 2).
     """
     from rich import box
     from rich.progress import (
@@ -88,7 +90,8 @@ def run_examples(
             raise InputError(f"cannot write {report}: directory {report.parent} does not exist")
 
     out = console()
-    timings: list[tuple[str, float]] = []
+    timings: list[tuple[str, float, str]] = []
+    failures: list[tuple[str, str]] = []
     with Progress(
         SpinnerColumn(),
         TextColumn("[bold]{task.description}"),
@@ -101,23 +104,57 @@ def run_examples(
         task = progress.add_task("examples", total=len(chosen))
         for ex in chosen:
             progress.update(task, description=ex.name)
+            mark = len(rep) if rep is not None else 0
             if rep is not None:
                 rep.add_heading(ex.title, f"photogeom examples run {ex.name}")
             t0 = time.perf_counter()
-            text = ex.run(rep)
+            try:
+                text = ex.run(rep)
+                error = None
+            except Exception as exc:  # one failed example does not stop the others
+                error = _error_text(exc)
             dt = time.perf_counter() - t0
-            timings.append((ex.name, dt))
+            timings.append((ex.name, dt, "ok" if error is None else "FAILED"))
             progress.console.print(Rule(f"{ex.name}: {ex.title}", align="left", style="blue"))
-            progress.console.print(text, markup=False, highlight=False, soft_wrap=True)
+            if error is None:
+                progress.console.print(text, markup=False, highlight=False, soft_wrap=True)
+            else:
+                failures.append((ex.name, error))
+                progress.console.print(
+                    f"FAILED: {error}", markup=False, highlight=False, soft_wrap=True
+                )
+                if rep is not None:
+                    rep.truncate(mark)  # none of the failed example's sections half-way
+                    rep.add_heading(ex.title, f"photogeom examples run {ex.name}")
+                    rep.add_text(f"{ex.name} failed", error, pre=False)
             progress.console.print()
             progress.advance(task)
 
     summary = Table(title="Examples run", box=box.SIMPLE_HEAD, title_justify="left")
     summary.add_column("example", style="bold")
+    summary.add_column("result")
     summary.add_column("time", justify="right")
-    for name, dt in timings:
-        summary.add_row(name, f"{dt:.2f} s")
+    for name, dt, result in timings:
+        summary.add_row(name, result, f"{dt:.2f} s")
     out.print(summary)
     if rep is not None:
         path = rep.write(report)
         say(f"wrote {path}", out)
+    if failures:
+        if len(failures) == 1:
+            what = f"example {failures[0][0]} failed: {failures[0][1]}"
+        else:
+            listed = "; ".join(f"{name} ({error})" for name, error in failures)
+            what = f"{len(failures)} of {len(chosen)} examples failed: {listed}"
+        others = len(chosen) - len(failures)
+        if others:
+            what += f" (the other {others} ran" + (", see the report)" if rep else ")")
+        raise PhotogeomError(what)
+
+
+def _error_text(exc: Exception) -> str:
+    """The message of an example's error: photogeom's own as it is (it names the file and
+    the fix), any other with its type."""
+    if isinstance(exc, PhotogeomError):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"

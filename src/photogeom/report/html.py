@@ -109,6 +109,14 @@ class Report:
         """Headings of all sections and chapters, in order."""
         return [b[1] for b in self._blocks]
 
+    def truncate(self, n: int) -> None:
+        """Drop the sections added after the first ``n``.
+
+        Take ``n = len(report)`` before a step that may fail: a step that failed then leaves
+        none of its sections half-way in the report.
+        """
+        del self._blocks[int(n) :]
+
     def _add(self, level: int, heading: str | None, body: str) -> None:
         anchor = _slug(heading, self._used) if heading else ""
         self._blocks.append((level, heading or "", anchor, body))
