@@ -200,6 +200,14 @@ def _connect(distributed, address: str, timeout: float):
         ) from None
 
 
+def connect_to_scheduler(address: str):
+    """A ``distributed.Client`` connected to the scheduler at ``address``: the address form
+    checked first (:class:`InputError`), then the whole start under one deadline of
+    :data:`CONNECT_TIMEOUT` seconds (:class:`PhotogeomError` naming the address). The
+    caller closes it."""
+    return _connect(_distributed(), _check_address(address, address.strip()), CONNECT_TIMEOUT)
+
+
 @contextmanager
 def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for ``scheduler`` (None for ``"threads"``/``"sync"``).

@@ -500,7 +500,10 @@ def _run_dask(jobs, workers, dask, interpolation, progress):
     out: list = [None] * len(jobs)
     cluster = None
     if isinstance(dask, str):
-        client = Client(dask)
+        from ..distributed import connect_to_scheduler
+
+        # the address checked and the start bounded in time (a silent or foreign server)
+        client = connect_to_scheduler(dask)
     else:
         cluster = LocalCluster(
             n_workers=workers,

@@ -293,7 +293,7 @@ def _parallax_figure(fit, xy1):
     """Image 1 frame with the y-parallax vectors of the points used and the points left out."""
     from matplotlib.figure import Figure
 
-    from ..report.plots import nice_length
+    from ..report.plots import nice_length, plain
 
     used = np.asarray(fit.inliers)
     vec = fit.parallax[:, None] * np.nan_to_num(fit.extras["epipolar_normal1"])
@@ -317,7 +317,7 @@ def _parallax_figure(fit, xy1):
         o = xy1[~used]
         ax.plot(o[:, 0], o[:, 1], "x", color="#c0392b", ms=7, label=f"left out ({len(o)})")
         for (x, y), t in zip(o, (i for i, u in zip(ids, used) if not u)):
-            ax.annotate(t, (x, y), textcoords="offset points", xytext=(5, 5), fontsize=8,
+            ax.annotate(plain(t), (x, y), textcoords="offset points", xytext=(5, 5), fontsize=8,
                         color="#c0392b")  # fmt: skip
     pad = 0.15 * extent
     lo, hi = xy1.min(axis=0), xy1.max(axis=0)

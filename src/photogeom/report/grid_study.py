@@ -25,7 +25,7 @@ from matplotlib.figure import Figure
 
 from ..calibration.blocks import block_residuals
 from .html import Report
-from .plots import nice_length
+from .plots import nice_length, plain
 
 __all__ = ["PUBLISHED", "grid_study_report", "sensor_mean_residuals"]
 
@@ -96,7 +96,7 @@ def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> 
     ax.set_xlim(-0.02 * w, 1.02 * w)
     ax.set_ylim(1.15 * h, -0.02 * h)
     ax.set_aspect("equal")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(plain(title), fontsize=9)
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
 
@@ -174,7 +174,7 @@ def _fig_models(ev) -> Figure:
     ax.bar(x - 0.2, [ev["steps_before"][k] for k in keys], 0.4, label="before")
     ax.bar(x + 0.2, [ev["steps_after"][k] for k in keys], 0.4, label="after")
     ax.set_xticks(x)
-    ax.set_xticklabels([f"{a}-{b}" for a, b in keys], rotation=90, fontsize=7)
+    ax.set_xticklabels([plain(f"{a}-{b}") for a, b in keys], rotation=90, fontsize=7)
     ax.set_ylabel("step (GSD)")
     ax.set_title(
         "step per model pair (first model's images), before and after (Fig. 14)", fontsize=9
