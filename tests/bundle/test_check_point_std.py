@@ -76,10 +76,13 @@ def test_cameras_part_is_the_difference_to_exact_cameras(sim):
     adj = Problem(fit.block, BundleOptions())
     state = adj.initial_state()
     weights = np.ones(adj.obs_i.size)
-    _, _, F, _, _, _ = statistics_pass(adj, state, weights, pairs=False, cofactors=False)
+    _, _, F, Q, _, _ = statistics_pass(adj, state, weights, pairs=True, cofactors=False)
     exact = check_point_covariance(adj, state, F, fit.block.xyz[chk], 1.0, cameras=False)
     np.testing.assert_allclose(exact, tri.covariance, rtol=1e-6, atol=1e-12)
-    full = check_point_covariance(adj, state, F, fit.block.xyz[chk], 1.0)
+    full = check_point_covariance(adj, state, F, fit.block.xyz[chk], 1.0, blocks=Q)
+    # the cameras' cofactors from the covariance blocks and from solves with the factor
+    solved = check_point_covariance(adj, state, F, fit.block.xyz[chk], 1.0)
+    np.testing.assert_allclose(full, solved, rtol=1e-9, atol=1e-15)
     extra = np.linalg.eigvalsh(full - exact)
     assert np.all(extra > -1e-12)
     reported = fit.point_std[chk] ** 2 / fit.sigma0**2

@@ -8,7 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..adjust.schur import covariance_blocks, observation_cofactors, point_covariances
+from ..adjust.schur import (
+    CovarianceBlocks,
+    covariance_blocks,
+    observation_cofactors,
+    point_covariances,
+)
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
 from ._angles import opk_from_rotations
@@ -353,7 +358,14 @@ def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors:
 
 
 def check_point_covariance(
-    problem: Problem, state, factor, xyz: np.ndarray, var: float, *, cameras: bool = True
+    problem: Problem,
+    state,
+    factor,
+    xyz: np.ndarray,
+    var: float,
+    *,
+    cameras: bool = True,
+    blocks: CovarianceBlocks | None = None,
 ) -> np.ndarray:
     """Covariance (k, 3, 3) of the check points triangulated with the adjusted cameras.
 
@@ -364,9 +376,13 @@ def check_point_covariance(
 
     ``P`` and ``A`` the whitened derivatives of its observations by the point and by the
     cameras' unknowns (orientations and calibrations of the images that see it), ``Q_cc``
-    their cofactor block from the adjustment (one solve with the factor per check point:
-    columns of those images and groups only). The first term alone (``cameras=False``) is
+    their cofactor block from the adjustment. The first term alone (``cameras=False``) is
     the triangulation with exact cameras.
+
+    ``Q_cc`` is assembled from ``blocks`` (the images' diagonal blocks, the blocks of
+    image pairs that share a point, and the calibration's), which the adjustment has
+    computed for the points' covariances; only a check point seen by two images that share
+    no adjusted point needs a solve with the factor (its images' and groups' columns).
 
     Parameters
     ----------
@@ -374,6 +390,9 @@ def check_point_covariance(
         The adjustment and its solution.
     factor
         The factor of the reduced camera system at the solution.
+    blocks : CovarianceBlocks, optional
+        Blocks of its inverse with ``pairs`` (:func:`covariance_blocks` with
+        ``pairs=True``); without them every check point takes a solve.
     xyz : (k, 3)
         The triangulated check points (object coordinates), in ``problem.check_points``
         order.
@@ -404,6 +423,10 @@ def check_point_covariance(
     PG = Pt @ G * gfree[grp][:, None, :]
     order = np.argsort(kr, kind="stable")
     starts = np.searchsorted(kr[order], np.arange(k + 1))
+    pair_index = None
+    if blocks is not None and blocks.pairs is not None:
+        pairs = problem.sys.blocks
+        pair_index = {(int(a), int(c)): t for t, (a, c) in enumerate(pairs.tolist())}
     for j in range(k):  # over the (few) check points, not over observations
         sel = order[starts[j] : starts[j + 1]]
         ims, ipos = np.unique(img[sel], return_inverse=True)
@@ -417,12 +440,41 @@ def check_point_covariance(
         for t in range(sel.size):  # the check point's rays
             B[:, li[t]] += PA[sel[t]]
             B[:, gi[t]] += PG[sel[t]]
-        E = np.zeros((problem.sys.nc, cols.size))
-        E[cols, np.arange(cols.size)] = 1.0
-        Qs = factor.solve(E)[cols]
+        Qs = _camera_cofactors(problem, blocks, pair_index, ims, gs)
+        if Qs is None:  # an image pair without a common point: its block by a solve
+            E = np.zeros((problem.sys.nc, cols.size))
+            E[cols, np.arange(cols.size)] = 1.0
+            Qs = factor.solve(E)[cols]
         T = Ninv[j] @ B
         out[j] += T @ Qs @ T.T
     return var * 0.5 * (out + out.transpose(0, 2, 1))
+
+
+def _camera_cofactors(problem: Problem, blocks, pair_index, ims, gs) -> np.ndarray | None:
+    """``Q_cc`` of images ``ims`` (their local unknowns) and camera groups ``gs`` (their
+    calibrations), in that order, from the covariance blocks; None when a pair of the
+    images has no block (they share no adjusted point) or there are no blocks."""
+    if pair_index is None:
+        return None
+    b = problem.b
+    ni = ims.size
+    gcols = (gs[:, None] * NCAL + np.arange(NCAL)).ravel()
+    n = ni * b + gcols.size
+    Qs = np.zeros((n, n))
+    for a in range(ni):  # over the few images of one check point
+        sa = slice(a * b, (a + 1) * b)
+        Qs[sa, sa] = blocks.local[ims[a]]
+        Qs[sa, ni * b :] = blocks.local_global[ims[a]][:, gcols]
+        for c in range(a + 1, ni):
+            t = pair_index.get((int(ims[a]), int(ims[c])))
+            if t is None:
+                return None
+            sc = slice(c * b, (c + 1) * b)
+            Qs[sa, sc] = blocks.pairs[t]
+            Qs[sc, sa] = blocks.pairs[t].T
+    Qs[ni * b :, : ni * b] = Qs[: ni * b, ni * b :].T
+    Qs[ni * b :, ni * b :] = blocks.global_[np.ix_(gcols, gcols)]
+    return Qs
 
 
 def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
@@ -546,7 +598,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         if point_cov is not None:
             cam = problem.free_datum is None
             point_cov[problem.check_points] = check_point_covariance(
-                problem, state, F, check_xyz, var, cameras=cam
+                problem, state, F, check_xyz, var, cameras=cam, blocks=Q
             )
             if not cam:
                 notes.append(
