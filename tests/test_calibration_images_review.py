@@ -92,6 +92,18 @@ def test_tiff_orientation_of_other_writers(tmp_path, bigtiff):
     np.testing.assert_array_equal(tifffile.imread(tmp_path / "b.tif"), _shifted(stored))
 
 
+@pytest.mark.parametrize(("dtype", "value"), [(1, 1), (1, 6), (6, 6), (4, 6)])
+def test_tiff_orientation_of_any_integer_type(tmp_path, dtype, value):
+    """BYTE, SBYTE and LONG tags are one number too (BYTE and SBYTE were refused as 'not a
+    single number', even Orientation 1)."""
+    stored = _pattern(3)
+    tifffile.imwrite(
+        tmp_path / "a.tif", stored, photometric="rgb", extratags=[(274, dtype, 1, value, True)]
+    )
+    correct_image_file(tmp_path / "a.tif", tmp_path / "b.tif", _shift_grid())
+    np.testing.assert_array_equal(tifffile.imread(tmp_path / "b.tif"), _shifted(stored))
+
+
 def test_tiff_orientation_that_is_not_one_number_is_refused(tmp_path):
     tifffile.imwrite(
         tmp_path / "a.tif", _pattern(3), photometric="rgb", extratags=[(274, 3, 2, (6, 6), True)]

@@ -126,6 +126,9 @@ def _read(path: Path):
             exif = info.get("exif")
             if exif is None and im.format == "TIFF":
                 exif = im.getexif()
+                o = exif.get(_TIFF_ORIENTATION)
+                if isinstance(o, bytes) and len(o) == 1:  # a BYTE tag: Pillow cannot save it
+                    exif[_TIFF_ORIENTATION] = o[0]
             meta["exif"] = exif
             meta["icc_profile"] = info.get("icc_profile")
             meta["dpi"] = info.get("dpi")
@@ -143,7 +146,16 @@ def _read(path: Path):
 
 _TIFF_ORIENTATION = 274
 # TIFF field types that hold one integer in an IFD entry's value field: size, format
-_TIFF_INTEGERS = {3: (2, "H"), 4: (4, "I"), 8: (2, "h"), 9: (4, "i"), 16: (8, "Q"), 17: (8, "q")}
+_TIFF_INTEGERS = {
+    1: (1, "B"),  # BYTE and SBYTE: written by some tools for small tags
+    6: (1, "b"),
+    3: (2, "H"),
+    4: (4, "I"),
+    8: (2, "h"),
+    9: (4, "i"),
+    16: (8, "Q"),
+    17: (8, "q"),
+}
 
 
 def _tiff_as_stored(data: bytes) -> bytes | None:
