@@ -337,23 +337,13 @@ def project_cmd(
     from ..camera import project
     from ..io import format_points_csv, read_points
 
-    refuse_ignored_camera_options(
+    io = interior_from_options(
         camera=camera,
         calibration=calibration,
         f=f,
         x0=x0,
         y0=y0,
         unit=unit,
-        pixel_size=pixel_size,
-        principal_point=principal_point,
-    )
-    io = build_interior(
-        camera=camera,
-        calibration=calibration,
-        f=f,
-        x0=0.0 if x0 is None else x0,
-        y0=0.0 if y0 is None else y0,
-        unit=ImageUnit.mm if unit is None else unit,
         pixel_size=pixel_size,
         principal_point=principal_point,
     )
@@ -644,23 +634,13 @@ def dlt_convert(
         else:
             typer.echo(_orientation_text(io, ext, au))
         return
-    refuse_ignored_camera_options(
+    io = interior_from_options(
         camera=camera,
         calibration=None,
         f=f,
         x0=x0,
         y0=y0,
         unit=unit,
-        pixel_size=None,
-        principal_point=None,
-    )
-    io = build_interior(
-        camera=camera,
-        calibration=None,
-        f=f,
-        x0=0.0 if x0 is None else x0,
-        y0=0.0 if y0 is None else y0,
-        unit=u,
         pixel_size=None,
         principal_point=None,
     )
