@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import csv
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,25 +13,16 @@ from hypothesis import strategies as st
 
 from photogeom.calibration import GridLayout, ResidualGrid, save_grids
 
+sys.path.insert(0, str(Path(__file__).parent))
+from residual_grids import grid_with_nodes
+
 W, H = 90, 60
 
 
 def _grid(seed: int = 0) -> ResidualGrid:
     rng = np.random.default_rng(seed)
     layout = GridLayout(W, H, 30)
-    zero = np.zeros(layout.shape)
-    return ResidualGrid(
-        layout=layout,
-        nodes=rng.normal(0, 1, (*layout.shape, 2)),
-        sigma0=1.0,
-        redundancy=1,
-        sigma_obs=np.ones(1),
-        sigma_constraint=1.0,
-        support=zero > 0,
-        counts=zero.astype(int),
-        rms_before=1.0,
-        rms_after=1.0,
-    )
+    return grid_with_nodes(layout, rng.normal(0, 1, (*layout.shape, 2)))
 
 
 def test_apply_matches_csv_text_ids_to_integer_grid_ids(cli, tmp_path):

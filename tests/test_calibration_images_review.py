@@ -9,6 +9,9 @@ shift whose result is known without the library.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
@@ -16,6 +19,9 @@ from PIL import Image
 
 from photogeom.calibration import GridLayout, ResidualGrid, correct_folder, correct_image_file
 from photogeom.errors import FileFormatError
+
+sys.path.insert(0, str(Path(__file__).parent))
+from residual_grids import grid_with_nodes
 
 tifffile = pytest.importorskip("tifffile")
 
@@ -27,19 +33,7 @@ def _shift_grid() -> ResidualGrid:
     layout = GridLayout(W, H, 20)
     nodes = np.empty((*layout.shape, 2))
     nodes[...] = SHIFT
-    zero = np.zeros(layout.shape)
-    return ResidualGrid(
-        layout=layout,
-        nodes=nodes,
-        sigma0=1.0,
-        redundancy=1,
-        sigma_obs=np.ones(1),
-        sigma_constraint=1.0,
-        support=zero > 0,
-        counts=zero.astype(int),
-        rms_before=1.0,
-        rms_after=1.0,
-    )
+    return grid_with_nodes(layout, nodes)
 
 
 def _shifted(stored: np.ndarray) -> np.ndarray:
