@@ -20,7 +20,7 @@ from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
 from .residuals import reprojection_residuals
-from .robust import consistent_variance_factor
+from .robust import consistent_variance_factor, image_point_leverage
 
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
@@ -502,9 +502,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     s0p = opts.sigma0_prior
     # with a robust loss v'PWv is consistent only after dividing by its expectation under
     # normal errors (robust.py); kappa is 1 for the squared loss
-    leverage = None
-    if Cobs is not None:  # per image point, at unit weight (as for the w-test below)
-        leverage = np.einsum("ndd->n", Cobs) / (2.0 * np.clip(run.weights, 1e-12, None))
+    leverage = None if Cobs is None else image_point_leverage(Cobs, run.weights)
     var, kappa = consistent_variance_factor(
         vtpv, red, leverage, run.weights, opts.loss, opts.scale
     )

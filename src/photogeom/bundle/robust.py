@@ -24,15 +24,18 @@ import math
 import numpy as np
 from scipy import special
 
-__all__ = ["consistent_variance_factor", "expected_weighted_squares", "weighted_square_factor"]
+__all__ = [
+    "consistent_variance_factor",
+    "expected_weighted_squares",
+    "image_point_leverage",
+    "weighted_square_factor",
+]
 
 #: Fixed-point iterations of :func:`consistent_variance_factor` (converges in 3-5).
 _MAX_ITERATIONS = 50
-#: Nodes of the table of ``kappa`` interpolated over the points' arguments.
-_TABLE = 257
 
 
-def weighted_square_factor(loss: str, scale: float, a: float) -> float:
+def weighted_square_factor(loss: str, scale: float, a):
     """``kappa(a) = E[w(a q) q] / 2`` with ``q ~ chi-square(2)`` (closed forms).
 
     Parameters
@@ -41,32 +44,38 @@ def weighted_square_factor(loss: str, scale: float, a: float) -> float:
     scale : float
         The loss scale ``c`` (whitened units: weights ``min(1, c / e)`` and
         ``1 / (1 + e^2 / c^2)`` of the squared 2-D norm ``e^2 = a q``).
-    a : float
+    a : float or array_like
         Variance of each whitened coordinate.
 
     Returns
     -------
-    float
-        1 for the squared loss, below 1 for a robust one.
+    float or numpy.ndarray
+        The shape of ``a``: 1 for the squared loss (and ``a <= 0``), below 1 for a robust
+        one.
     """
-    if loss == "squared" or a <= 0:
-        return 1.0
-    c2 = scale * scale
-    if loss == "huber":
-        t = c2 / a  # q below t keeps weight 1
-        inner = 2.0 - (t + 2.0) * math.exp(-0.5 * t)  # E[q; q < t]
-        # E[c sqrt(q / a); q > t] = c / sqrt(a) sqrt(2) Gamma(3/2) Q(3/2, t / 2)
-        tail = scale / math.sqrt(a) * math.sqrt(2.0) * special.gamma(1.5)
-        return 0.5 * (inner + tail * special.gammaincc(1.5, 0.5 * t))
-    if loss == "cauchy":
-        b = c2 / a  # w = b / (b + q); E[b q / (b + q)] = b (1 - x e^x E1(x)), x = b / 2
-        x = 0.5 * b
-        if x < 50.0:
-            rest = 1.0 - x * math.exp(x) * float(special.exp1(x))
-        else:  # 1 - x e^x E1(x) ~ sum_k (-1)^(k+1) k! / x^k, relative error below 1e-13
-            rest = sum((-1) ** (k + 1) * math.factorial(k) / x**k for k in range(1, 20))
-        return 0.5 * b * rest
-    raise ValueError(f"unknown loss {loss!r}")
+    if loss not in ("squared", "huber", "cauchy"):
+        raise ValueError(f"unknown loss {loss!r}")
+    a = np.asarray(a, dtype=float)
+    out = np.ones(a.shape)
+    pos = a > 0
+    if loss != "squared" and np.any(pos):
+        t = scale * scale / a[pos]  # Huber: q below t keeps weight 1; Cauchy: w = t / (t + q)
+        if loss == "huber":
+            inner = 2.0 - (t + 2.0) * np.exp(-0.5 * t)  # E[q; q < t]
+            # E[c sqrt(q / a); q > t] = c / sqrt(a) sqrt(2) Gamma(3/2) Q(3/2, t / 2)
+            tail = scale / np.sqrt(a[pos]) * math.sqrt(2.0) * special.gamma(1.5)
+            out[pos] = 0.5 * (inner + tail * special.gammaincc(1.5, 0.5 * t))
+        else:  # E[t q / (t + q)] = t (1 - x e^x E1(x)), x = t / 2
+            x = 0.5 * t
+            small = x < 50.0
+            rest = np.empty_like(x)
+            xs = x[small]
+            rest[small] = 1.0 - xs * np.exp(xs) * special.exp1(xs)
+            # 1 - x e^x E1(x) ~ sum_k (-1)^(k+1) k! / x^k, relative error below 1e-13
+            xl = x[~small]
+            rest[~small] = sum((-1) ** (k + 1) * math.factorial(k) / xl**k for k in range(1, 20))
+            out[pos] = 0.5 * t * rest
+    return float(out) if out.ndim == 0 else out
 
 
 def expected_weighted_squares(leverage, loss: str, scale: float, s2: float = 1.0) -> np.ndarray:
@@ -95,13 +104,14 @@ def expected_weighted_squares(leverage, loss: str, scale: float, s2: float = 1.0
     numpy.ndarray (k,)
     """
     r = 1.0 - np.clip(np.asarray(leverage, dtype=float), 0.0, 1.0)
-    if loss == "squared":
-        return 2.0 * r
-    # kappa is smooth: tabulated over the range of r s^2 and interpolated
-    x = r * s2
-    grid = np.linspace(0.0, max(float(x.max(initial=0.0)), 1e-12), _TABLE)
-    table = [weighted_square_factor(loss, scale, float(g)) for g in grid]
-    return 2.0 * r * np.interp(x, grid, table)
+    return 2.0 * r * weighted_square_factor(loss, scale, r * s2)
+
+
+def image_point_leverage(cofactors: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(n,) leverage of each image point at unit weight, the mean of its two coordinates:
+    ``tr(J Q J') / (2 w)`` from the observation cofactors ``J Q J'`` (n, 2, 2) of the
+    weighted adjustment and the IRLS weights (n,)."""
+    return np.einsum("ndd->n", cofactors) / (2.0 * np.clip(weights, 1e-12, None))
 
 
 def consistent_variance_factor(

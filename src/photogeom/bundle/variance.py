@@ -18,7 +18,7 @@ from ..adjust.variance_components import update_variance_factors
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ._angles import opk_from_rotations
 from .adjustment import levenberg_marquardt
-from .robust import expected_weighted_squares
+from .robust import expected_weighted_squares, image_point_leverage
 
 #: Stop when every group's ratio v'Pv / r is within this of 1.
 TOLERANCE = 0.01
@@ -36,8 +36,7 @@ def _contributions(problem, run):
     # with the squared loss the points' redundancy 2 - tr(J Q J'); with a robust loss the
     # expected weighted square sum of each point under normal errors (robust.py)
     opts = problem.options
-    w = np.clip(run.weights, 1e-12, None)
-    lev = np.einsum("ndd->n", Cobs) / (2.0 * w)
+    lev = image_point_leverage(Cobs, run.weights)
     red_img = expected_weighted_squares(lev, opts.loss, opts.scale)
     ctrl = problem.obs_is_control
     if np.any(~ctrl):
