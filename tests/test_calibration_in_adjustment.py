@@ -261,3 +261,14 @@ def test_compare_in_adjustment_reports_the_three_methods():
     # the post-processing of the in-adjustment result takes up more of the residuals
     assert r["combined"]["residual_rms"] < r["in_adjustment"]["residual_rms"]
     assert isinstance(r["in_adjustment_result"], pg.calibration.GridAdjustment)
+    # every method also on re-matched observations (the same fresh noise for all)
+    for m in ("post_hoc", "in_adjustment", "combined"):
+        assert r[m]["mean_step_rematched"] > 0 and len(r[m]["tie_rmse_gsd_rematched"]) == 3
+    # the combined run's second grids were fitted to the first observations' noise: on them
+    # its step is the lowest, on re-matched ones that advantage is gone
+    assert r["combined"]["mean_step"] < r["in_adjustment"]["mean_step"]
+    assert r["combined"]["mean_step_rematched"] > r["combined"]["mean_step"]
+    off = pg.calibration.compare_in_adjustment(
+        sim, 2000.0, combined_spacing=None, rematch_seed=None
+    )
+    assert "mean_step_rematched" not in off["post_hoc"]

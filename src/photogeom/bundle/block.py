@@ -522,6 +522,14 @@ class Block:
         sg = o.sigma if sigma is None else _observation_sigma(sigma, n)
         return replace(self, observations=Observations(o.image_ids, o.point_ids, UV, sg))
 
+    def same_observation_rows(self, other: Block) -> bool:
+        """True when ``other`` observes the same point in the same image in every row of
+        its observations as this block (ids compared; pixels and sigmas may differ)."""
+        return self.obs_image.size == other.obs_image.size and bool(
+            np.array_equal(self.image_ids[self.obs_image], other.image_ids[other.obs_image])
+            and np.array_equal(self.point_ids[self.obs_point], other.point_ids[other.obs_point])
+        )
+
     def validate(self, *, min_image_observations: int = 3) -> None:
         """Refuse a block that no adjustment can solve, naming the ids at fault.
 

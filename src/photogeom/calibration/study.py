@@ -10,7 +10,10 @@
   (:func:`~photogeom.calibration.choose_spacing`,
   :func:`~photogeom.calibration.most_frequent_spacing`);
 * :func:`run_study` - the pipeline of the study on one simulated preset: adjust, fit,
-  correct, re-adjust, evaluate, a coarse grid against the fine one, the sweep;
+  correct, re-adjust, evaluate, a coarse grid against the fine one, the sweep; each also on
+  re-matched observations (:meth:`~photogeom.simulate.SimulatedBlock.rematch`: fresh
+  noise, as the study's matching of its corrected images), where a grid is not credited
+  with the noise it fitted;
 * :func:`visible_field` - the part of the true local field that an adjustment leaves in
   the residuals (the rest is taken up by orientations, calibration and points);
 * :func:`compare_in_adjustment` - post-processing against grids estimated inside the
@@ -26,7 +29,7 @@ import numpy as np
 
 from ..bundle.block import Block, _lookup
 from ..errors import InputError
-from .blocks import block_residuals, fit_residual_grids, readjust
+from .blocks import block_residuals, correct_block_observations, fit_residual_grids, readjust
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
 from .grid import _rms_len
 from .steps import model_steps
@@ -275,7 +278,14 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
     return out
 
 
-def sweep_spacings(fit, spacings: Sequence[float], *, overlap: float = 0.6, **options) -> dict:
+def sweep_spacings(
+    fit,
+    spacings: Sequence[float],
+    *,
+    overlap: float = 0.6,
+    rematched: Block | None = None,
+    **options,
+) -> dict:
     """The grid-size sweep on an adjusted block.
 
     For every spacing: fit the grids, re-adjust, the step per model and the computing
@@ -288,6 +298,11 @@ def sweep_spacings(fit, spacings: Sequence[float], *, overlap: float = 0.6, **op
         The first adjustment.
     spacings : sequence of float
         At least two spacings (px).
+    rematched : Block, optional
+        ``fit.block`` with its observations measured again (same rows), e.g.
+        ``sim.rematch(fit.block)`` (:meth:`~photogeom.simulate.SimulatedBlock.rematch`): the
+        grids fitted to ``fit``'s residuals also correct these observations, which are
+        re-adjusted the same way; their steps and choice are returned beside the others.
     **options
         Passed to :func:`fit_residual_grids`.
 
@@ -296,16 +311,21 @@ def sweep_spacings(fit, spacings: Sequence[float], *, overlap: float = 0.6, **op
     dict
         ``spacings``, ``models`` (keys), ``step`` (models, s) GSD, ``time`` (s,) seconds,
         ``step_before`` (models,), ``choice`` (the dict of :func:`choose_spacing`),
-        ``spacing`` (the most frequent choice).
+        ``spacing`` (the most frequent choice); with ``rematched`` also
+        ``step_rematched``, ``choice_rematched`` and ``spacing_rematched`` (the same
+        models; the times are those of the first re-adjustment).
     """
     g = [float(s) for s in spacings]
     if len(g) < 2:
         raise InputError("sweep_spacings: give at least two spacings")
+    if rematched is not None:
+        _check_rematched(fit.block, rematched)
     before = model_steps(fit.block, overlap=overlap)
     keys = list(before)
     if not keys:
         raise InputError("sweep_spacings: the block has no pair of consecutive stereo models")
-    step = np.full((len(keys), len(g)), np.nan)
+    runs = 1 if rematched is None else 2
+    step = np.full((runs, len(keys), len(g)), np.nan)
     times = np.zeros(len(g))
     for c, sp in enumerate(g):  # spacings, not points
         t0 = time.perf_counter()
@@ -313,18 +333,39 @@ def sweep_spacings(fit, spacings: Sequence[float], *, overlap: float = 0.6, **op
         re = readjust(fit.block, grids, snooping=False)
         times[c] = time.perf_counter() - t0
         s = model_steps(re.block, overlap=overlap)
-        step[:, c] = [s.get(k, np.nan) for k in keys]
-    ok = np.all(np.isfinite(step), axis=1)
-    choice = choose_spacing(g, step[ok], np.broadcast_to(times, step[ok].shape))
-    return {
+        step[0, :, c] = [s.get(k, np.nan) for k in keys]
+        if rematched is not None:
+            s = model_steps(readjust(rematched, grids, snooping=False).block, overlap=overlap)
+            step[1, :, c] = [s.get(k, np.nan) for k in keys]
+    ok = np.all(np.isfinite(step), axis=(0, 2))
+    t = np.broadcast_to(times, step[0, ok].shape)
+    choice = choose_spacing(g, step[0, ok], t)
+    out = {
         "spacings": g,
         "models": [k for k, o in zip(keys, ok) if o],
-        "step": step[ok],
+        "step": step[0, ok],
         "time": times,
         "step_before": np.array([before[k] for k, o in zip(keys, ok) if o]),
         "choice": choice,
         "spacing": most_frequent_spacing(choice),
     }
+    if rematched is not None:
+        out["step_rematched"] = step[1, ok]
+        out["choice_rematched"] = choose_spacing(g, step[1, ok], t)
+        out["spacing_rematched"] = most_frequent_spacing(out["choice_rematched"])
+    return out
+
+
+def _check_rematched(block: Block, rematched) -> None:
+    """Refuse a re-matched block that is not ``block``'s observations row for row."""
+    if not isinstance(rematched, Block):
+        raise InputError(f"rematched must be a Block, not {type(rematched).__name__}")
+    if not block.same_observation_rows(rematched):
+        raise InputError(
+            "rematched: its observations are not the adjusted block's in the same rows "
+            "(same image and point per row); make it with sim.rematch(fit.block) from an "
+            "adjustment with snooping=False"
+        )
 
 
 def run_study(
@@ -336,6 +377,7 @@ def run_study(
     coarse_spacing: float = 2000.0,
     sweep: Sequence[float] | None = (100, 150, 200, 300, 500, 1000, 2000),
     fit_options: dict | None = None,
+    rematch: bool = True,
     **simulate,
 ) -> dict:
     """The study's pipeline on one simulated preset.
@@ -349,13 +391,23 @@ def run_study(
     observation sigmas, the constraint sigma scaled with the spacing, 0.1 px at 100 px)
     and no cross-validation unless ``fit_options`` says otherwise.
 
+    With ``rematch`` the evaluation is also made as the study made it: the study matched
+    the corrected images anew, so the grids met measurements whose noise they had not
+    fitted. :meth:`~photogeom.simulate.SimulatedBlock.rematch` draws that second
+    measurement (noise from ``numpy.random.default_rng((seed, 1))``); the same grids
+    correct it and it is re-adjusted the same way. Correcting the first observations
+    themselves (``evaluation``) credits the grids with the noise they fitted.
+
     Returns
     -------
     dict
         ``preset``, ``images``, ``gsd``, ``evaluation`` (:func:`evaluate_readjustment`),
         ``coarse`` (the same for the coarse grid), ``coarse_share`` (the coarse grid's
         step reduction over the fine one's), ``residual_reduction`` (block RMS),
-        ``field`` (:func:`field_recovery`), ``sweep`` (:func:`sweep_spacings`), ``times``.
+        ``field`` (:func:`field_recovery`), ``sweep`` (:func:`sweep_spacings`), ``times``;
+        with ``rematch`` also ``rematched`` and ``coarse_rematched`` (evaluations of the
+        re-matched observations), ``coarse_share_rematched``, and the sweep's
+        ``step_rematched`` / ``spacing_rematched``.
     """
     from ..bundle.adjustment import bundle_adjust
     from ..simulate import uav_block
@@ -379,6 +431,7 @@ def run_study(
     coarse = evaluate_readjustment(fit, readjust(fit.block, coarse_grids, snooping=False), sim=sim)
     gain = ev["mean_step_before"] - ev["mean_step_after"]
     cgain = coarse["mean_step_before"] - coarse["mean_step_after"]
+    rem = sim.rematch(fit.block, seed=None if seed is None else (seed, 1)) if rematch else None
     out = {
         "preset": str(preset),
         "images": int(sim.block.n_images),
@@ -396,9 +449,18 @@ def run_study(
         "fit": fit,
         "refit": re,
     }
+    if rem is not None:
+        ev_r = evaluate_readjustment(fit, readjust(rem, grids, snooping=False), sim=sim)
+        co_r = evaluate_readjustment(fit, readjust(rem, coarse_grids, snooping=False), sim=sim)
+        g_r = ev_r["mean_step_before"] - ev_r["mean_step_after"]
+        out["rematched"] = ev_r
+        out["coarse_rematched"] = co_r
+        out["coarse_share_rematched"] = (
+            (co_r["mean_step_before"] - co_r["mean_step_after"]) / g_r if g_r > 0 else float("nan")
+        )
     if sweep is not None:
         t0 = time.perf_counter()
-        out["sweep"] = sweep_spacings(fit, sweep, **opts)
+        out["sweep"] = sweep_spacings(fit, sweep, rematched=rem, **opts)
         times["sweep"] = time.perf_counter() - t0
     return out
 
@@ -413,6 +475,7 @@ def compare_in_adjustment(
     per: str = "image",
     overlap: float = 0.6,
     combined_spacing: float | None = 300.0,
+    rematch_seed: int | None = 1,
 ) -> dict:
     """Post-processing against grids estimated inside the adjustment, on one simulated block.
 
@@ -424,6 +487,11 @@ def compare_in_adjustment(
     post-processed with grids of ``combined_spacing`` (default smoothness; None: not run) -
     the orientation of the adjustment with grids, the residual steps removed afterwards.
 
+    With ``rematch_seed`` every run is also evaluated on re-matched observations
+    (:meth:`~photogeom.simulate.SimulatedBlock.rematch`, the same fresh noise for all
+    runs): its grids correct them and they are re-adjusted with its orientation and
+    calibration, so that no run is credited with the noise it fitted.
+
     Returns
     -------
     dict
@@ -432,7 +500,8 @@ def compare_in_adjustment(
         ``visible`` (:func:`visible_recovery`),
         ``check_rmse_gsd`` (X, Y, Z), ``tie_rmse_gsd`` (X, Y, Z: every tie point against
         the truth), ``mean_step`` (GSD), ``residual_rms`` (px, tie
-        points), ``seconds`` (the first adjustment included); ``before`` the first
+        points), ``seconds`` (the first adjustment included); with ``rematch_seed`` also
+        ``mean_step_rematched`` and ``tie_rmse_gsd_rematched``; ``before`` the first
         adjustment's ``check_rmse_gsd`` and ``mean_step``; ``images``, ``spacing``.
     """
     from ..bundle.adjustment import bundle_adjust
@@ -461,6 +530,13 @@ def compare_in_adjustment(
     ev_post = evaluate_readjustment(fit, re, sim=sim, overlap=overlap)
     ev_in = evaluate_readjustment(fit, ga.fit, sim=sim, overlap=overlap)
     runs = [("post_hoc", grids, ev_post, t_post), ("in_adjustment", ga.grids, ev_in, t_in)]
+    again = {}
+    if rematch_seed is not None:
+        in_rem = sim.rematch(ga.block, seed=rematch_seed)
+        again["post_hoc"] = readjust(
+            sim.rematch(fit.block, seed=rematch_seed), grids, snooping=False
+        )
+        again["in_adjustment"] = readjust(in_rem, ga.grids, snooping=False)
     if combined_spacing is not None:
         t0 = time.perf_counter()
         g2 = fit_residual_grids(ga.fit.block, combined_spacing, folds=0)
@@ -468,6 +544,10 @@ def compare_in_adjustment(
         t_both = t_in + time.perf_counter() - t0
         ev_both = evaluate_readjustment(fit, re2, sim=sim, overlap=overlap)
         runs.append(("combined", None, ev_both, t_both))
+        if rematch_seed is not None:
+            again["combined"] = readjust(
+                correct_block_observations(in_rem, ga.grids), g2, snooping=False
+            )
     out["before"] = {
         "check_rmse_gsd": ev_post["check_before"].get("rmse_gsd"),
         "tie_rmse_gsd": ev_post["tie_before"]["rmse_gsd"],
@@ -487,5 +567,9 @@ def compare_in_adjustment(
             "residual_rms": ra["after"]["rms"],
             "seconds": t_first + t,
         }
+        if name in again:
+            ev_r = evaluate_readjustment(fit, again[name], sim=sim, overlap=overlap)
+            out[name]["mean_step_rematched"] = ev_r["mean_step_after"]
+            out[name]["tie_rmse_gsd_rematched"] = ev_r["tie_after"]["rmse_gsd"]
     out["in_adjustment_result"] = ga
     return out
