@@ -468,15 +468,36 @@ def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None
     return pairs, check_mask(pairs.ids, pairs.check_mask, check_ids)
 
 
-def _sigmas(pairs, mask, sigma: float):
+def _weights_are_relative(points: Path) -> bool:
+    """True when the weights :func:`read_point_pairs` found in ``points`` come from a
+    ``weight``/``w`` column (unitless, relative to ``--sigma``), False for a
+    ``sigma``/``sd``/``std`` column (pixels) -- the reader's own order of preference."""
+    from ..io.csvblocks import DelimitedText
+    from ..io.points import WEIGHT_COLUMNS
+
+    header = set(DelimitedText(points).header)
+    return any(c in header for c in WEIGHT_COLUMNS)
+
+
+def _sigmas(pairs, mask, sigma: float, points: Path):
+    """Standard deviations (px) of the control points' image coordinates: ``--sigma``, or
+    ``--sigma / sqrt(weight)`` with a weight column, or a sigma column's values (px)."""
     if pairs.weights is None:
         return sigma
-    return 1.0 / np.sqrt(pairs.weights[~mask])
+    w = pairs.weights[~mask]
+    scale = sigma if _weights_are_relative(points) else 1.0
+    return scale / np.sqrt(w)
 
 
 # --- options shared by ``fit`` and ``refine`` ---------------------------------------------------
 
-SigmaOpt = Annotated[float, typer.Option(help="Image measurement std. dev. (px).")]
+SigmaOpt = Annotated[
+    float,
+    typer.Option(
+        help="Image measurement std. dev. (px); with a weight column, that of weight 1 "
+        "(a point's is sigma / sqrt(weight)); a sigma column (px) replaces it."
+    ),
+]
 GroundColsOpt = Annotated[
     str, typer.Option(help="Ground columns of the CSV (lon deg, lat deg, h m).")
 ]
@@ -538,7 +559,7 @@ def fit(
     from ..rpc import fit_rpc_to_points
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
-    sig = _sigmas(pairs, mask, sigma)
+    sig = _sigmas(pairs, mask, sigma, points)
     if np.ndim(sig):
         raise InputError(
             "fit: per-point sigma/weight columns are not supported for RPC fitting; use --sigma"
@@ -587,9 +608,8 @@ def refine(
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
-    result = refine_rpc(
-        rpc, ground, image, model=BiasModel(model).value, sigma=_sigmas(pairs, mask, sigma), **kw
-    )
+    sig = _sigmas(pairs, mask, sigma, points)
+    result = refine_rpc(rpc, ground, image, model=BiasModel(model).value, sigma=sig, **kw)
     _finish(result, output, style, as_json, report, points, pairs, mask, "RPC bias compensation",
             source_rpc=rpc_file)  # fmt: skip
 

@@ -1,0 +1,63 @@
+"""Review 6 of the RPC statistics: defects found by measurement, each with its test."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+from photogeom.examples.rpc import simulated_control
+from photogeom.io import write_points
+from photogeom.rpc import refine_rpc
+
+WV2 = str(pg.datasets.path("worldview2"))
+
+
+def _control_file(path, column: str | None, values):
+    """The 4 simulated control points of a WorldView-2 image, with an extra column."""
+    _, ground, _, observed = simulated_control()
+    coords = np.column_stack([ground[:4], observed[:4]])
+    extra = {} if column is None else {column: [float(v) for v in values]}
+    write_points(path, [f"P{i}" for i in range(4)], coords, ["lon", "lat", "h", "col", "row"],
+                 extra=extra)  # fmt: skip
+    return ground[:4], observed[:4]
+
+
+@pytest.mark.parametrize("model", ["shift", "affine"])
+def test_refine_weight_column_is_relative_to_sigma(cli, tmp_path, model):
+    # a weight column is unitless (docs/cli.md): a point's standard deviation is
+    # --sigma / sqrt(weight). It used to replace --sigma by 1 / sqrt(weight): with weights
+    # 1 and --sigma 0.3 the CLI's sigma0 was 0.3 times the library's (sigma = 0.3)
+    rpc = pg.RPC.from_file(WV2)
+    w = np.array([1.0, 4.0, 1.0, 0.25])
+    p = tmp_path / "weighted.csv"
+    ground, image = _control_file(p, "weight", w)
+    code, out, err = cli("rpc", "refine", WV2, p, "--model", model, "--sigma", "0.3", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    lib = refine_rpc(rpc, ground, image, model=model, sigma=0.3 / np.sqrt(w))
+    assert data["sigma0"] == pytest.approx(lib.sigma0, rel=1e-9)
+    for name, std in lib.std_errors.items():
+        assert data["parameters"][name]["std"] == pytest.approx(std, rel=1e-9)
+    # equal weights of 1 are the same as no weight column
+    p1 = tmp_path / "ones.csv"
+    _control_file(p1, "weight", np.ones(4))
+    p0 = tmp_path / "plain.csv"
+    _control_file(p0, None, None)
+    s0 = [json.loads(cli("rpc", "refine", WV2, f, "--model", model, "--sigma", "0.3",
+                         "--json")[1])["sigma0"] for f in (p1, p0)]  # fmt: skip
+    assert s0[0] == pytest.approx(s0[1], rel=1e-12)
+
+
+def test_refine_sigma_column_is_in_pixels(cli, tmp_path):
+    # a sigma column gives each point's standard deviation in px (unchanged behaviour)
+    rpc = pg.RPC.from_file(WV2)
+    s = np.array([0.2, 0.4, 0.3, 0.5])
+    p = tmp_path / "sigmas.csv"
+    ground, image = _control_file(p, "sigma", s)
+    code, out, err = cli("rpc", "refine", WV2, p, "--model", "affine", "--json")
+    assert code == 0, err
+    lib = refine_rpc(rpc, ground, image, model="affine", sigma=s)
+    assert json.loads(out)["sigma0"] == pytest.approx(lib.sigma0, rel=1e-9)
