@@ -61,3 +61,26 @@ def test_refine_sigma_column_is_in_pixels(cli, tmp_path):
     assert code == 0, err
     lib = refine_rpc(rpc, ground, image, model="affine", sigma=s)
     assert json.loads(out)["sigma0"] == pytest.approx(lib.sigma0, rel=1e-9)
+
+
+@pytest.mark.parametrize("model", ["shift", "affine"])
+def test_written_refined_rpc_does_not_keep_the_vendor_bias_error(cli, tmp_path, model):
+    # WorldView-2's file gives ERR_BIAS 26.68 m, ERR_RAND 0.14 m. A bias-compensated model
+    # written by 'rpc refine -o' kept ERR_BIAS 26.68 m when the correction folded (shift) and
+    # lost both when it was re-fitted (affine); now ERR_BIAS is dropped (it described the bias
+    # the correction removes) and ERR_RAND kept in both cases
+    vendor = pg.RPC.from_file(WV2)
+    assert vendor.err_bias == 26.68 and vendor.err_rand == 0.14
+    p = tmp_path / "control.csv"
+    _control_file(p, None, None)
+    out = tmp_path / f"{model}_RPC.TXT"
+    code, _, err = cli("rpc", "refine", WV2, p, "--model", model, "-o", out)
+    assert code == 0, err
+    written = pg.RPC.from_file(out)
+    assert written.err_bias is None
+    assert written.err_rand == 0.14
+    # the library's folding says what it dropped
+    ground, image = simulated_control()[1][:4], simulated_control()[3][:4]
+    folded = refine_rpc(vendor, ground, image, model="shift").model.with_correction_folded()
+    assert folded.err_bias is None and folded.err_rand == 0.14
+    assert any("ERR_BIAS" in note for note in folded.notes)

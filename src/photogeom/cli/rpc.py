@@ -631,7 +631,10 @@ def _writable(result):
         "the correction has cross terms; the written RPC is a terrain-independent re-fit of the "
         f"corrected model (largest check-grid error {refit.extras['check_max_px']:.2g} px)"
     )
-    return replace(refit.model, source="re-fit of a bias-compensated RPC"), note
+    # the vendor's random error still applies; its bias error described the removed bias
+    return replace(
+        refit.model, source="re-fit of a bias-compensated RPC", err_rand=model.err_rand
+    ), note
 
 
 def _finish(result, output, style, as_json, report, points, pairs, mask, title, source_rpc=None):
