@@ -84,3 +84,34 @@ def test_written_refined_rpc_does_not_keep_the_vendor_bias_error(cli, tmp_path, 
     folded = refine_rpc(vendor, ground, image, model="shift").model.with_correction_folded()
     assert folded.err_bias is None and folded.err_rand == 0.14
     assert any("ERR_BIAS" in note for note in folded.notes)
+
+
+def test_regularised_fit_does_not_depend_on_sigma_and_its_cofactor_is_documented():
+    # docs/rpc.md and the fitting module stated lambda^2 sum c^2 next to the image term
+    # divided by sigma^2, and the cofactor (A^T P A + lambda^2 S^2 I)^-1: both mean that
+    # sigma changes the estimate. The code weights the pseudo-observations (lambda S /
+    # sigma)^2, so the estimate is the same for every sigma (now documented) and the cofactor
+    # is (A^T P A + (lambda S / sigma)^2 I)^-1
+    from photogeom.rpc import fit_rpc_to_points
+
+    rpc = pg.RPC.from_file(WV2)
+    rng = np.random.default_rng(1)
+    c0, c1, r0, r1 = rpc.image_bounds
+    h = rng.uniform(0.0, 500.0, 30)
+    lon, lat = rpc.localize(rng.uniform(c0, c1, 30), rng.uniform(r0, r1, 30), h)
+    ground = np.column_stack([lon, lat, h])
+    image = np.column_stack(rpc.project(lon, lat, h)) + rng.normal(0.0, 0.5, (30, 2))
+    lam = 0.1
+    fits = [fit_rpc_to_points(ground, image, sigma=s, regularization=lam) for s in (1.0, 5.0)]
+    np.testing.assert_allclose(fits[0].parameters, fits[1].parameters, rtol=0, atol=1e-14)
+    assert fits[0].sigma0 == pytest.approx(5.0 * fits[1].sigma0, rel=1e-12)
+    # Q^-1 minus the documented regularisation term is the image part A^T A / sigma^2: the
+    # same matrix divided by sigma^2 for both sigmas (the old formula leaves lambda^2 S^2 I
+    # (1 - 1/25) ~ 8e-3 of the largest element over: far beyond the 1e-7 of rounding)
+    image_part = []
+    for fit, sigma in zip(fits, (1.0, 5.0)):
+        k = fit.parameters.size // 2
+        S = np.repeat([fit.model.samp_scale, fit.model.line_scale], k)
+        image_part.append(np.linalg.inv(fit.cofactor) - np.diag((lam * S / sigma) ** 2))
+    scale = np.abs(image_part[0]).max()
+    np.testing.assert_allclose(image_part[0], 25.0 * image_part[1], rtol=0, atol=1e-7 * scale)
