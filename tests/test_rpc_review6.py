@@ -115,3 +115,37 @@ def test_regularised_fit_does_not_depend_on_sigma_and_its_cofactor_is_documented
         image_part.append(np.linalg.inv(fit.cofactor) - np.diag((lam * S / sigma) ** 2))
     scale = np.abs(image_part[0]).max()
     np.testing.assert_allclose(image_part[0], 25.0 * image_part[1], rtol=0, atol=1e-7 * scale)
+
+
+def test_intersection_with_parallel_rays_is_a_named_failure_not_a_result():
+    # the same image twice: the rays coincide and the height is not determined. It used to
+    # "converge" for some points (h = 28.87 m for a true 20 m, std of h 3.8e8 m, lon 231 deg)
+    # and report "did not converge in 20 iterations" for others; now such points are NaN,
+    # flagged degenerate, with a warning naming the cause (DegenerateGeometryError with
+    # on_failure="raise"); points seen by a real stereo pair are unaffected
+    import warnings
+
+    from photogeom.errors import DegenerateGeometryError
+    from photogeom.rpc import LocalizationWarning, intersect_rpc
+
+    a = pg.RPC.from_file(pg.datasets.path("ikonos"))
+    b = pg.RPC.from_file(pg.datasets.path("pleiades"))
+    G = np.array([[-56.17, -34.90, 50.0], [-56.16, -34.91, 20.0], [-56.15, -34.89, 80.0]])
+    obs = np.stack([np.column_stack(r.project(*G.T)) for r in (a, b, a)], axis=1)
+    obs[:2, 2] += [0.3, -0.2]  # points 0, 1: seen twice in image a (and not in b)
+    obs[:2, 1] = np.nan
+    with pytest.warns(LocalizationWarning, match="parallel") as caught:
+        res = intersect_rpc([a, b, a], obs)
+    assert not any("did not converge" in str(w.message) for w in caught)
+    assert res.degenerate.tolist() == [True, True, False]
+    assert res.converged.tolist() == [False, False, True]
+    assert np.all(np.isnan(res.ground[:2])) and np.all(np.isnan(res.std_prior[:2]))
+    np.testing.assert_allclose(res.ground[2, :2], G[2, :2], rtol=0, atol=1e-10)
+    assert res.to_dict()["degenerate"] == [True, True, False]
+    with pytest.raises(DegenerateGeometryError, match="parallel"):
+        intersect_rpc([a, b, a], obs, on_failure="raise")
+    # a real stereo pair: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ok = intersect_rpc([a, b], obs[2:, :2])
+    assert not ok.degenerate.any()
