@@ -149,3 +149,31 @@ def test_intersection_with_parallel_rays_is_a_named_failure_not_a_result():
         warnings.simplefilter("error")
         ok = intersect_rpc([a, b], obs[2:, :2])
     assert not ok.degenerate.any()
+
+
+def test_refine_reports_the_a_priori_std_also_at_redundancy_zero(cli, tmp_path):
+    # a shift from one control point (the usual bias compensation) has redundancy 0: the
+    # a-posteriori std is undefined, but the std from --sigma is known (0.5 px for a0, b0).
+    # The CLI showed '-' and JSON null only; now JSON gives std_prior (as fit.std_errors_prior)
+    # and the text a line of a-priori standard deviations
+    rpc = pg.RPC.from_file(WV2)
+    p = tmp_path / "one.csv"
+    ground, image = _control_file(p, None, None)
+    p.write_text("\n".join(p.read_text().splitlines()[:2]) + "\n")  # header + first point
+    code, out, err = cli("rpc", "refine", WV2, p, "--model", "shift", "--sigma", "0.5", "--json")
+    assert code == 0, err
+    par = json.loads(out)["parameters"]
+    lib = refine_rpc(rpc, ground[:1], image[:1], model="shift", sigma=0.5)
+    for name in ("a0", "b0"):
+        assert par[name]["std"] is None
+        assert par[name]["std_prior"] == pytest.approx(lib.std_errors_prior[name], rel=1e-12)
+        assert par[name]["std_prior"] == pytest.approx(0.5, rel=1e-12)
+    code, out, _ = cli("rpc", "refine", WV2, p, "--model", "shift", "--sigma", "0.5")
+    assert "a priori" in out and "a0 0.5 px, b0 0.5 px" in out
+    # with redundancy, std_prior of the affine model equals the library's for every parameter
+    p4 = tmp_path / "four.csv"
+    ground, image = _control_file(p4, None, None)
+    data = json.loads(cli("rpc", "refine", WV2, p4, "--sigma", "0.3", "--json")[1])
+    lib = refine_rpc(rpc, ground, image, model="affine", sigma=0.3)
+    for name, std in lib.std_errors_prior.items():
+        assert data["parameters"][name]["std_prior"] == pytest.approx(std, rel=1e-9)
