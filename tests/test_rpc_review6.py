@@ -177,3 +177,24 @@ def test_refine_reports_the_a_priori_std_also_at_redundancy_zero(cli, tmp_path):
     lib = refine_rpc(rpc, ground, image, model="affine", sigma=0.3)
     for name, std in lib.std_errors_prior.items():
         assert data["parameters"][name]["std_prior"] == pytest.approx(std, rel=1e-9)
+
+
+def test_intersection_sigma_table_may_be_nan_where_a_point_is_not_seen():
+    # image_points mark "not seen" by NaN; a per-observation sigma table (n, K) built the same
+    # way was refused ("sigma: standard deviations must be positive"), though those entries
+    # are never used. Now only the sigmas of existing observations are checked
+    from photogeom.errors import InputError
+    from photogeom.rpc import intersect_rpc
+
+    a = pg.RPC.from_file(pg.datasets.path("ikonos"))
+    b = pg.RPC.from_file(pg.datasets.path("pleiades"))
+    G = np.array([[-56.17, -34.90, 50.0], [-56.16, -34.91, 20.0]])
+    obs = np.stack([np.column_stack(r.project(*G.T)) for r in (a, b, a)], axis=1)
+    obs[0, 2] = np.nan
+    sig = np.array([[0.5, 0.8, np.nan], [0.5, 0.8, 0.6]])
+    res = intersect_rpc([a, b, a], obs, sigma=sig)
+    ref = intersect_rpc([a, b], obs[:1, :2], sigma=[0.5, 0.8])
+    np.testing.assert_allclose(res.cofactor[0], ref.cofactor[0], rtol=1e-10)
+    sig[1, 2] = np.nan  # an existing observation without a sigma is still refused
+    with pytest.raises(InputError, match="point 1, image 2"):
+        intersect_rpc([a, b, a], obs, sigma=sig)

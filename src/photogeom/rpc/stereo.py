@@ -158,7 +158,7 @@ def intersect_rpc(
         (every point needs at least two images). A list of K arrays (n, 2) works too.
     sigma : float or array_like
         Standard deviation of the image measurements (px): one number, one per image (K,),
-        or (n, K).
+        or (n, K) (any value, e.g. NaN, where an image does not see the point).
     h0 : float, optional
         Starting height (m); default the mean ``HEIGHT_OFF`` of the models.
     max_iter : int
@@ -212,9 +212,15 @@ def intersect_rpc(
         s = np.broadcast_to(s, (n, K)).copy()
     elif s.shape != (n, K):
         raise InputError(f"sigma: expected a number, ({K},) or ({n}, {K}) values, got {s.shape}")
-    if not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise InputError("sigma: standard deviations must be positive numbers of pixels")
-    w = np.where(seen, 1.0 / s**2, 0.0)  # (n, K)
+    bad_s = seen & ~(np.isfinite(s) & (s > 0))  # only observations that exist need one
+    if bad_s.any():
+        i, k = (int(a[0]) for a in np.nonzero(bad_s))
+        raise InputError(
+            f"sigma: standard deviations must be positive numbers of pixels (point {i}, image "
+            f"{k}: {s[i, k]!r}); NaN is accepted only where the image does not see the point"
+        )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(seen, 1.0 / s**2, 0.0)  # (n, K)
     obs0 = np.where(seen[..., None], obs, 0.0)
 
     # start: localise in the first image that sees the point
