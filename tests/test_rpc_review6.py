@@ -198,3 +198,60 @@ def test_intersection_sigma_table_may_be_nan_where_a_point_is_not_seen():
     sig[1, 2] = np.nan  # an existing observation without a sigma is still refused
     with pytest.raises(InputError, match="point 1, image 2"):
         intersect_rpc([a, b, a], obs, sigma=sig)
+
+
+def test_refine_ground_sigma_matches_monte_carlo_with_noisy_control_coordinates():
+    # control points surveyed to 0.5 m (east, north) and 1 m (up) move their WorldView-2
+    # image positions by about 1 px, more than the 0.3 px of image measurement: with the
+    # ground taken as exact, the reported std of the affine correction was 4.9-6.1 times
+    # too small (sigma0 6.7). ground_sigma propagates them through the RPC's Jacobian.
+    # 400 trials: the std of an estimated std is 1/sqrt(2 * 399) = 3.5 %, so 12 % is 3.4 of
+    # it; mean sigma0^2 has std sqrt(2 / 10 / 400) = 0.022 (redundancy 10), 0.1 is 4.5 of it
+    rpc = pg.RPC.from_file(WV2)
+    rng = np.random.default_rng(9)
+    c0, c1, r0, r1 = rpc.image_bounds
+    n = 8
+    h = rng.uniform(0.0, 300.0, n)
+    lon, lat = rpc.localize(rng.uniform(c0, c1, n), rng.uniform(r0, r1, n), h)
+    G = np.column_stack([lon, lat, h])
+    c, r = rpc.project(lon, lat, h)
+    true = np.column_stack([c + 10.0, r - 7.0])
+    gs = np.array([0.5, 0.5, 1.0])  # m east, north, up
+    m_per_deg = np.radians(6378137.0)
+    g_deg = np.column_stack([np.full(n, gs[0] / (m_per_deg * np.cos(np.radians(lat[0])))),
+                             np.full(n, gs[1] / m_per_deg), np.full(n, gs[2])])  # fmt: skip
+    P, S = [], []
+    for _ in range(400):
+        obs = true + rng.normal(0.0, 0.3, true.shape)
+        noisy = G + rng.normal(0.0, 1.0, G.shape) * g_deg
+        fit = refine_rpc(rpc, noisy, obs, model="affine", sigma=0.3, ground_sigma=gs)
+        P.append(fit.parameters)
+        S.append(fit.sigma0**2)
+    ratio = np.std(P, axis=0, ddof=1) / np.array(list(fit.std_errors_prior.values()))
+    np.testing.assert_allclose(ratio, 1.0, atol=0.12)
+    assert np.mean(S) == pytest.approx(1.0, abs=0.1)
+    # without ground errors the result is the same as before (weights 1 / sigma^2)
+    exact = refine_rpc(rpc, G, true, model="affine", sigma=0.3)
+    zero = refine_rpc(rpc, G, true, model="affine", sigma=0.3, ground_sigma=0.0)
+    np.testing.assert_allclose(zero.parameters, exact.parameters, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        zero.cofactor, exact.cofactor, rtol=1e-9, atol=1e-9 * np.abs(exact.cofactor).max()
+    )
+    np.testing.assert_allclose(zero.residuals, exact.residuals, atol=1e-9)
+
+
+def test_refine_cli_ground_sigma(cli, tmp_path):
+    rpc = pg.RPC.from_file(WV2)
+    p = tmp_path / "control.csv"
+    ground, image = _control_file(p, None, None)
+    args = ("rpc", "refine", WV2, p, "--model", "affine", "--sigma", "0.3", "--json")
+    data = json.loads(cli(*args, "--ground-sigma", "0.5,0.5,1")[1])
+    lib = refine_rpc(rpc, ground, image, model="affine", sigma=0.3, ground_sigma=[0.5, 0.5, 1])
+    assert data["sigma0"] == pytest.approx(lib.sigma0, rel=1e-9)
+    for name, std in lib.std_errors_prior.items():
+        assert data["parameters"][name]["std_prior"] == pytest.approx(std, rel=1e-9)
+    one = json.loads(cli(*args, "--ground-sigma", "0.5")[1])
+    lib1 = refine_rpc(rpc, ground, image, model="affine", sigma=0.3, ground_sigma=0.5)
+    assert one["sigma0"] == pytest.approx(lib1.sigma0, rel=1e-9)
+    code, _, err = cli(*args, "--ground-sigma", "0.5,1")
+    assert code == 2 and "--ground-sigma" in err

@@ -590,6 +590,14 @@ def refine(
         ),
     ] = None,
     sigma: SigmaOpt = 1.0,
+    ground_sigma: Annotated[
+        str | None,
+        typer.Option(
+            help="Std. dev. of the control points' ground coordinates (m): one number or "
+            "east,north,up. Propagated into image space; default: ground taken as exact.",
+            show_default=False,
+        ),
+    ] = None,
     ground_cols: GroundColsOpt = "lon,lat,h",
     image_cols: ImageColsOpt = "col,row",
     id_col: IdColOpt = None,
@@ -609,9 +617,28 @@ def refine(
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
     sig = _sigmas(pairs, mask, sigma, points)
-    result = refine_rpc(rpc, ground, image, model=BiasModel(model).value, sigma=sig, **kw)
+    gsig = None if ground_sigma is None else _ground_sigma(ground_sigma)
+    result = refine_rpc(
+        rpc, ground, image, model=BiasModel(model).value, sigma=sig, ground_sigma=gsig, **kw
+    )
     _finish(result, output, style, as_json, report, points, pairs, mask, "RPC bias compensation",
             source_rpc=rpc_file)  # fmt: skip
+
+
+def _ground_sigma(text: str) -> np.ndarray:
+    """``--ground-sigma``: one number or east,north,up (m)."""
+    from ..numbers import parse_decimal
+
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = np.array([parse_decimal(p) for p in parts], dtype=float)
+    except (ValueError, InputError):
+        values = np.array([])
+    if values.size not in (1, 3) or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise InputError(
+            f"--ground-sigma: expected one number or east,north,up (metres >= 0), got {text!r}"
+        )
+    return values if values.size == 3 else np.full(3, values[0])
 
 
 def _writable(result):
