@@ -255,3 +255,23 @@ def test_refine_cli_ground_sigma(cli, tmp_path):
     assert one["sigma0"] == pytest.approx(lib1.sigma0, rel=1e-9)
     code, _, err = cli(*args, "--ground-sigma", "0.5,1")
     assert code == 2 and "--ground-sigma" in err
+
+
+def test_metres_per_degree_against_pyproj_geodesics():
+    """The WGS84 metres per degree (used for metric standard deviations and ground sigmas)
+    against geodesic distances of small steps (pyproj.Geod) at h = 0."""
+    import pyproj
+
+    from photogeom.rpc.geodesy import metres_per_degree
+
+    geod = pyproj.Geod(ellps="WGS84")
+    lat = np.array([-80.0, -33.3, 0.0, 12.5, 47.0, 89.0])
+    d = 1e-5
+    _, _, de = geod.inv(np.zeros_like(lat), lat, np.full_like(lat, d), lat)
+    _, _, dn = geod.inv(np.zeros_like(lat), lat - d / 2, np.zeros_like(lat), lat + d / 2)
+    east, north = metres_per_degree(lat, np.zeros_like(lat))
+    np.testing.assert_allclose(east, de / d, rtol=1e-7)
+    np.testing.assert_allclose(north, dn / d, rtol=1e-7)
+    # a height h scales both by (R + h) / R
+    e2, n2 = metres_per_degree(lat, np.full_like(lat, 5000.0))
+    assert np.all(e2[:-1] > east[:-1]) and np.all(n2 > north)

@@ -36,11 +36,8 @@ from ..adjust import Fit, solve_linear
 from ..errors import DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
 from .fitting import with_check_points
+from .geodesy import metres_per_degree
 from .model import RPC
-
-#: WGS84 semi-major axis (m) and first eccentricity squared (metres to degrees).
-_A = 6378137.0
-_E2 = 6.69437999014e-3
 
 #: Correction models and the parameters they estimate (of a0, a1, a2, b0, b1, b2).
 MODELS: dict[str, tuple[str, ...]] = {
@@ -83,11 +80,8 @@ def _ground_sigmas_deg(ground_sigma, G: np.ndarray) -> np.ndarray:
         )
     if not np.all(np.isfinite(g)) or np.any(g < 0):
         raise InputError("ground_sigma: standard deviations must be numbers of metres >= 0")
-    lat = np.radians(G[:, 1])
-    w = np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
-    east_m_per_deg = np.radians(_A / w + G[:, 2]) * np.cos(lat)
-    north_m_per_deg = np.radians(_A * (1.0 - _E2) / w**3 + G[:, 2])
-    return np.column_stack([g[:, 0] / east_m_per_deg, g[:, 1] / north_m_per_deg, g[:, 2]])
+    east, north = metres_per_degree(G[:, 1], G[:, 2])
+    return np.column_stack([g[:, 0] / east, g[:, 1] / north, g[:, 2]])
 
 
 def refine_rpc(

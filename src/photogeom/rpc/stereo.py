@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError, TooFewPointsError
 from .domain import LocalizationWarning
+from .geodesy import metres_per_degree
 from .model import RPC
 
 #: Largest accepted condition number of a point's normal matrix (columns scaled to about a
@@ -27,9 +28,6 @@ from .model import RPC
 #: A base-to-height ratio b gives a condition of about 1 / b^2, so this limit is b ~ 1e-6.
 COND_LIMIT = 1e12
 
-#: WGS84 semi-major axis (m) and first eccentricity squared, for metric standard deviations.
-_A = 6378137.0
-_E2 = 6.69437999014e-3
 
 
 @dataclass(frozen=True)
@@ -104,14 +102,8 @@ class RPCIntersection:
     def std_metric(self, prior: bool = True) -> np.ndarray:
         """Standard deviations in metres (n, 3): east, north, up (WGS84 radii of curvature)."""
         s = self.std_prior if prior else self.std
-        lat = np.radians(self.ground[:, 1])
-        w = np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
-        n_rad = _A / w
-        m_rad = _A * (1.0 - _E2) / w**3
-        h = self.ground[:, 2]
-        east = np.radians(s[:, 0]) * (n_rad + h) * np.cos(lat)
-        north = np.radians(s[:, 1]) * (m_rad + h)
-        return np.column_stack([east, north, s[:, 2]])
+        east, north = metres_per_degree(self.ground[:, 1], self.ground[:, 2])
+        return np.column_stack([s[:, 0] * east, s[:, 1] * north, s[:, 2]])
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (NaN -> None)."""
