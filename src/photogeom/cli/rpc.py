@@ -468,15 +468,36 @@ def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None
     return pairs, check_mask(pairs.ids, pairs.check_mask, check_ids)
 
 
-def _sigmas(pairs, mask, sigma: float):
+def _weights_are_relative(points: Path) -> bool:
+    """True when the weights :func:`read_point_pairs` found in ``points`` come from a
+    ``weight``/``w`` column (unitless, relative to ``--sigma``), False for a
+    ``sigma``/``sd``/``std`` column (pixels) -- the reader's own order of preference."""
+    from ..io.csvblocks import DelimitedText
+    from ..io.points import WEIGHT_COLUMNS
+
+    header = set(DelimitedText(points).header)
+    return any(c in header for c in WEIGHT_COLUMNS)
+
+
+def _sigmas(pairs, mask, sigma: float, points: Path):
+    """Standard deviations (px) of the control points' image coordinates: ``--sigma``, or
+    ``--sigma / sqrt(weight)`` with a weight column, or a sigma column's values (px)."""
     if pairs.weights is None:
         return sigma
-    return 1.0 / np.sqrt(pairs.weights[~mask])
+    w = pairs.weights[~mask]
+    scale = sigma if _weights_are_relative(points) else 1.0
+    return scale / np.sqrt(w)
 
 
 # --- options shared by ``fit`` and ``refine`` ---------------------------------------------------
 
-SigmaOpt = Annotated[float, typer.Option(help="Image measurement std. dev. (px).")]
+SigmaOpt = Annotated[
+    float,
+    typer.Option(
+        help="Image measurement std. dev. (px); with a weight column, that of weight 1 "
+        "(a point's is sigma / sqrt(weight)); a sigma column (px) replaces it."
+    ),
+]
 GroundColsOpt = Annotated[
     str, typer.Option(help="Ground columns of the CSV (lon deg, lat deg, h m).")
 ]
@@ -538,7 +559,7 @@ def fit(
     from ..rpc import fit_rpc_to_points
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
-    sig = _sigmas(pairs, mask, sigma)
+    sig = _sigmas(pairs, mask, sigma, points)
     if np.ndim(sig):
         raise InputError(
             "fit: per-point sigma/weight columns are not supported for RPC fitting; use --sigma"
@@ -569,6 +590,14 @@ def refine(
         ),
     ] = None,
     sigma: SigmaOpt = 1.0,
+    ground_sigma: Annotated[
+        str | None,
+        typer.Option(
+            help="Std. dev. of the control points' ground coordinates (m): one number or "
+            "east,north,up. Propagated into image space; default: ground taken as exact.",
+            show_default=False,
+        ),
+    ] = None,
     ground_cols: GroundColsOpt = "lon,lat,h",
     image_cols: ImageColsOpt = "col,row",
     id_col: IdColOpt = None,
@@ -587,11 +616,29 @@ def refine(
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
+    sig = _sigmas(pairs, mask, sigma, points)
+    gsig = None if ground_sigma is None else _ground_sigma(ground_sigma)
     result = refine_rpc(
-        rpc, ground, image, model=BiasModel(model).value, sigma=_sigmas(pairs, mask, sigma), **kw
+        rpc, ground, image, model=BiasModel(model).value, sigma=sig, ground_sigma=gsig, **kw
     )
     _finish(result, output, style, as_json, report, points, pairs, mask, "RPC bias compensation",
             source_rpc=rpc_file)  # fmt: skip
+
+
+def _ground_sigma(text: str) -> np.ndarray:
+    """``--ground-sigma``: one number or east,north,up (m)."""
+    from ..numbers import parse_decimal
+
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = np.array([parse_decimal(p) for p in parts], dtype=float)
+    except (ValueError, InputError):
+        values = np.array([])
+    if values.size not in (1, 3) or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise InputError(
+            f"--ground-sigma: expected one number or east,north,up (metres >= 0), got {text!r}"
+        )
+    return values if values.size == 3 else np.full(3, values[0])
 
 
 def _writable(result):
@@ -611,7 +658,10 @@ def _writable(result):
         "the correction has cross terms; the written RPC is a terrain-independent re-fit of the "
         f"corrected model (largest check-grid error {refit.extras['check_max_px']:.2g} px)"
     )
-    return replace(refit.model, source="re-fit of a bias-compensated RPC"), note
+    # the vendor's random error still applies; its bias error described the removed bias
+    return replace(
+        refit.model, source="re-fit of a bias-compensated RPC", err_rand=model.err_rand
+    ), note
 
 
 def _finish(result, output, style, as_json, report, points, pairs, mask, title, source_rpc=None):
@@ -638,8 +688,13 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
     if written is not None:
         outputs.insert(0, (output, format_rpc(written, style=TextStyle(style).value)))
     write_outputs(outputs)
+    prior = result.std_errors_prior
     if as_json:
         data = result.to_dict()
+        # "std" is a posteriori (sigma0 times the a-priori one: undefined at redundancy 0,
+        # e.g. a shift from one control point); "std_prior" follows from --sigma alone
+        for name, entry in data["parameters"].items():
+            entry["std_prior"] = finite_or_none(prior[name])
         data["input"] = {"points": str(points), "n_control": int((~mask).sum()),
                          "n_check": int(mask.sum())}  # fmt: skip
         if written is not None:
@@ -649,5 +704,16 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
     out = console()
     say(intro, out)
     print_fit(result, console=out)
+    if source_rpc is not None:  # refine: a few parameters, their a-priori std from --sigma
+        from ..report.format import fmt_std
+
+        say(
+            "std. dev. a priori (from the image sigma, --sigma): "
+            + ", ".join(
+                f"{name} {fmt_std(prior[name])} {result.parameter_units.get(name, '')}".rstrip()
+                for name in result.parameter_names
+            ),
+            out,
+        )
     for path, _ in outputs:
         say(f"wrote {path}", out)

@@ -17,7 +17,12 @@ solved by :func:`photogeom.adjust.solve_linear` with weights ``1 / sigma^2``; th
 :class:`~photogeom.adjust.Fit` whose model is the corrected :class:`~photogeom.rpc.RPC`
 (``rpc.with_correction(...)``) and whose standard deviations are those of
 ``a0, a1, a2, b0, b1, b2`` (pixels and pixels per pixel). Ground coordinates of the control
-points are taken as exact.
+points are taken as exact unless ``ground_sigma`` gives their standard deviations (metres east,
+north, up): they are then propagated into image space through the RPC's Jacobian ``J``
+(px/deg, px/m), each point's image covariance becoming
+``diag(sigma_col^2, sigma_row^2) + J diag(s_lon^2, s_lat^2, s_h^2) J^T`` (a full 2 x 2 block),
+so that the standard deviations, sigma0 and the w-test account for errors of the ground
+survey too.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from ..adjust import Fit, solve_linear
 from ..errors import DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
 from .fitting import with_check_points
+from .geodesy import metres_per_degree
 from .model import RPC
 
 #: Correction models and the parameters they estimate (of a0, a1, a2, b0, b1, b2).
@@ -58,6 +64,26 @@ def _sigmas(sigma, n: int) -> np.ndarray:
     return s
 
 
+def _ground_sigmas_deg(ground_sigma, G: np.ndarray) -> np.ndarray:
+    """Ground standard deviations (n, 3) in lon (deg), lat (deg), h (m) from metres
+    east, north, up: one number (all three), (3,) or (n, 3)."""
+    n = G.shape[0]
+    g = np.asarray(ground_sigma, dtype=np.float64)
+    if g.ndim == 0:
+        g = np.full((n, 3), float(g))
+    elif g.shape == (3,):
+        g = np.broadcast_to(g, (n, 3)).copy()
+    elif g.shape != (n, 3):
+        raise InputError(
+            f"ground_sigma: expected a number, (3,) or ({n}, 3) values (m east, north, up), "
+            f"got {g.shape}"
+        )
+    if not np.all(np.isfinite(g)) or np.any(g < 0):
+        raise InputError("ground_sigma: standard deviations must be numbers of metres >= 0")
+    east, north = metres_per_degree(G[:, 1], G[:, 2])
+    return np.column_stack([g[:, 0] / east, g[:, 1] / north, g[:, 2]])
+
+
 def refine_rpc(
     rpc: RPC,
     ground,
@@ -65,6 +91,7 @@ def refine_rpc(
     *,
     model: str = "affine",
     sigma=1.0,
+    ground_sigma=None,
     ids: Sequence | None = None,
     check_ground=None,
     check_image=None,
@@ -85,6 +112,10 @@ def refine_rpc(
     sigma : float or array_like
         Standard deviation of the image measurements (px): one number, one per point, or
         (n, 2).
+    ground_sigma : float or array_like, optional
+        Standard deviations of the control points' ground coordinates (m): one number, east,
+        north, up (3,), or (n, 3). Propagated into image space (see the module docstring);
+        None (default): the ground coordinates are exact.
     ids, check_ids : sequence, optional
     check_ground, check_image : array_like, optional
         Check points, not used in the estimate.
@@ -130,8 +161,21 @@ def refine_rpc(
     }  # fmt: skip
     A = np.column_stack([np.concatenate(blocks[p]) for p in names])
     L = np.concatenate([im[:, 0] - c, im[:, 1] - r])
-    w = 1.0 / np.concatenate([sig[:, 0], sig[:, 1]]) ** 2
-    adj = solve_linear(A, L, weights=w, sigma0_prior=1.0, names=names, what=what)
+    if ground_sigma is None:
+        w = 1.0 / np.concatenate([sig[:, 0], sig[:, 1]]) ** 2
+        adj = solve_linear(A, L, weights=w, sigma0_prior=1.0, names=names, what=what)
+    else:
+        # per point a full 2 x 2 covariance: observations reordered point by point
+        gs = _ground_sigmas_deg(ground_sigma, G)
+        J = rpc.jacobian(G[:, 0], G[:, 1], G[:, 2])  # (n, 2, 3) px/deg, px/m
+        C = np.einsum("nik,nk,njk->nij", J, gs**2, J)
+        C[:, 0, 0] += sig[:, 0] ** 2
+        C[:, 1, 1] += sig[:, 1] ** 2
+        order = np.arange(2 * n).reshape(2, n).T.reshape(-1)  # col_0, row_0, col_1, ...
+        adj = solve_linear(
+            A[order], L[order], covariance=C, sigma0_prior=1.0, names=names, what=what
+        )
+        adj = _reordered(adj, order)
     full = dict.fromkeys(("a0", "a1", "a2", "b0", "b1", "b2"), 0.0)
     full.update(zip(names, adj.x))
     D = np.array([[full["a1"], full["a2"], full["a0"]], [full["b1"], full["b2"], full["b0"]]])
@@ -171,3 +215,22 @@ def refine_rpc(
         extras={"model": key, "shift_px": shift_px},
     )
     return with_check_points(fit, corrected, check_ground, check_image, check_ids)
+
+
+def _reordered(adj, order: np.ndarray):
+    """``adj`` with its per-observation arrays put back into the order (cols, then rows)
+    of the observations before ``order`` was applied."""
+    from dataclasses import replace
+
+    back = np.empty_like(order)
+    back[order] = np.arange(order.size)
+
+    def undo(a):
+        return None if a is None else np.asarray(a)[back]
+
+    return replace(
+        adj,
+        residuals=undo(adj.residuals),
+        normalized_residuals=undo(adj.normalized_residuals),
+        redundancy_numbers=undo(adj.redundancy_numbers),
+    )

@@ -18,15 +18,19 @@ nonlinear Gauss-Markov adjustment (:func:`photogeom.adjust.gauss_markov`) of the
 observations in pixels. Both are regularised (Tikhonov): with ``lambda = regularization``
 the estimate minimises
 
-    sum_i [ ((col_i' - col_i) / SAMP_SCALE)^2 + ((row_i' - row_i) / LINE_SCALE)^2 ] / sigma^2
-        + lambda^2 * sum_j c_j^2
+    sum_i ((x_i' - x_i) / S)^2 + lambda^2 * sum_j c_j^2
 
-over all free coefficients ``c_j`` (normalised units), implemented as pseudo-observations
-``c_j = 0`` with weight ``lambda^2`` (scaled to pixels). Cubic RPCs are over-parametrised
+for each image coordinate separately (``x`` = col with ``S = SAMP_SCALE``, row with
+``S = LINE_SCALE``; the two share no coefficients)
+
+over its free coefficients ``c_j`` (normalised units), implemented as pseudo-observations
+``c_j = 0`` with weight ``(lambda S / sigma)^2`` next to the image observations'
+``1 / sigma^2``: the estimate does not depend on ``sigma``. Cubic RPCs are over-parametrised
 (numerator and denominator can share factors), so without regularisation the normal
 equations are singular or nearly so; a small ``lambda`` picks the smallest coefficients among
 the (almost) equivalent solutions and barely changes the fitted function. The reported
-covariance is that of the regularised estimate, ``(A^T P A + lambda^2 S^2 I)^-1``; the
+cofactor is that of the regularised estimate, ``(A^T P A + (lambda S / sigma)^2 I)^-1``
+(``P = I / sigma^2``), the covariance ``sigma0^2`` times it; the
 redundancy counts the image observations only (``2 n - unknowns``).
 """
 

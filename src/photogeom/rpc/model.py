@@ -139,6 +139,8 @@ class RPC:
         Coefficients in RPC00B term order.
     err_bias, err_rand : float or None
         Vendor's bias and random error (metres per horizontal axis) when the file gives them.
+        ``err_bias`` describes the model before any bias compensation: a corrected model
+        written to a file (:meth:`with_correction_folded`, or a re-fit) has none.
     direct : DirectModel or None
         Vendor's image-to-ground polynomials (DIMAP) when present.
     correction : numpy.ndarray or None, shape (2, 3)
@@ -555,9 +557,18 @@ class RPC:
 
         Exact for shifts and per-axis scales; raises :class:`InputError` for cross terms
         (re-fit the corrected model with :func:`photogeom.rpc.fitting.fit_rpc` instead).
+        The vendor's ``err_bias`` (m) described the bias the correction removes, so the folded
+        model has none (unknown); ``err_rand`` is kept.
         """
         if self.correction is None:
             return self
+        notes = (*self.notes, "image-space correction folded into SAMP/LINE offsets and scales")
+        if self.err_bias is not None:
+            notes = (
+                *notes,
+                f"vendor ERR_BIAS ({self.err_bias:g} m) dropped: it described the bias that the "
+                "image-space correction removes",
+            )
         if not self.correction_is_foldable:
             raise InputError(
                 "this RPC carries an image-space correction with cross terms (col depends on "
@@ -574,7 +585,8 @@ class RPC:
             line_off=kl * self.line_off + D[1, 2],
             line_scale=kl * self.line_scale,
             correction=None,
-            notes=(*self.notes, "image-space correction folded into SAMP/LINE offsets and scales"),
+            err_bias=None,
+            notes=notes,
         )
 
     # --- description ----------------------------------------------------------------------------

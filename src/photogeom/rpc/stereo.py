@@ -14,17 +14,20 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConvergenceError, InputError, TooFewPointsError
+from ..errors import ConvergenceError, DegenerateGeometryError, InputError, TooFewPointsError
 from .domain import LocalizationWarning
+from .geodesy import metres_per_degree
 from .model import RPC
 
-#: WGS84 semi-major axis (m) and first eccentricity squared, for metric standard deviations.
-_A = 6378137.0
-_E2 = 6.69437999014e-3
+#: Largest accepted condition number of a point's normal matrix (columns scaled to about a
+#: metre each): beyond it the rays are (nearly) parallel and the height is not determined.
+#: A base-to-height ratio b gives a condition of about 1 / b^2, so this limit is b ~ 1e-6.
+COND_LIMIT = 1e12
+
 
 
 @dataclass(frozen=True)
@@ -46,6 +49,9 @@ class RPCIntersection:
         Computed minus observed (px); NaN for images that do not see the point.
     converged : numpy.ndarray of bool, shape (n,)
     iterations : numpy.ndarray of int, shape (n,)
+    degenerate : numpy.ndarray of bool, shape (n,)
+        Points whose rays are (nearly) parallel (condition of the normal matrix above
+        :data:`COND_LIMIT`, e.g. the same image twice): no position, not converged.
     """
 
     ground: np.ndarray
@@ -55,6 +61,11 @@ class RPCIntersection:
     residuals: np.ndarray
     converged: np.ndarray
     iterations: np.ndarray
+    degenerate: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.degenerate is None:
+            object.__setattr__(self, "degenerate", np.zeros(len(self.ground), dtype=bool))
 
     @property
     def lon(self) -> np.ndarray:
@@ -91,14 +102,8 @@ class RPCIntersection:
     def std_metric(self, prior: bool = True) -> np.ndarray:
         """Standard deviations in metres (n, 3): east, north, up (WGS84 radii of curvature)."""
         s = self.std_prior if prior else self.std
-        lat = np.radians(self.ground[:, 1])
-        w = np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
-        n_rad = _A / w
-        m_rad = _A * (1.0 - _E2) / w**3
-        h = self.ground[:, 2]
-        east = np.radians(s[:, 0]) * (n_rad + h) * np.cos(lat)
-        north = np.radians(s[:, 1]) * (m_rad + h)
-        return np.column_stack([east, north, s[:, 2]])
+        east, north = metres_per_degree(self.ground[:, 1], self.ground[:, 2])
+        return np.column_stack([s[:, 0] * east, s[:, 1] * north, s[:, 2]])
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (NaN -> None)."""
@@ -120,6 +125,7 @@ class RPCIntersection:
             "redundancy": [int(r) for r in self.redundancy],
             "residual_convention": "computed minus observed (px)",
             "converged": [bool(c) for c in self.converged],
+            "degenerate": [bool(d) for d in self.degenerate],
         }
 
 
@@ -144,7 +150,7 @@ def intersect_rpc(
         (every point needs at least two images). A list of K arrays (n, 2) works too.
     sigma : float or array_like
         Standard deviation of the image measurements (px): one number, one per image (K,),
-        or (n, K).
+        or (n, K) (any value, e.g. NaN, where an image does not see the point).
     h0 : float, optional
         Starting height (m); default the mean ``HEIGHT_OFF`` of the models.
     max_iter : int
@@ -152,7 +158,9 @@ def intersect_rpc(
     tol : float
         Convergence: the last step moves every image projection by at most ``tol`` px.
     on_failure : {"nan", "raise"}
-        Non-converged points: NaN with a warning, or :class:`ConvergenceError`.
+        Non-converged points: NaN with a warning, or :class:`ConvergenceError`; points whose
+        rays are (nearly) parallel (``degenerate``): NaN with a warning, or
+        :class:`DegenerateGeometryError`.
 
     Returns
     -------
@@ -196,9 +204,15 @@ def intersect_rpc(
         s = np.broadcast_to(s, (n, K)).copy()
     elif s.shape != (n, K):
         raise InputError(f"sigma: expected a number, ({K},) or ({n}, {K}) values, got {s.shape}")
-    if not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise InputError("sigma: standard deviations must be positive numbers of pixels")
-    w = np.where(seen, 1.0 / s**2, 0.0)  # (n, K)
+    bad_s = seen & ~(np.isfinite(s) & (s > 0))  # only observations that exist need one
+    if bad_s.any():
+        i, k = (int(a[0]) for a in np.nonzero(bad_s))
+        raise InputError(
+            f"sigma: standard deviations must be positive numbers of pixels (point {i}, image "
+            f"{k}: {s[i, k]!r}); NaN is accepted only where the image does not see the point"
+        )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(seen, 1.0 / s**2, 0.0)  # (n, K)
     obs0 = np.where(seen[..., None], obs, 0.0)
 
     # start: localise in the first image that sees the point
@@ -214,10 +228,11 @@ def intersect_rpc(
                 lon, lat = rpcs[k].localize(obs[idx, k, 0], obs[idx, k, 1], z0, domain_limit=None)
             X[idx, 0], X[idx, 1] = lon, lat
     converged = np.zeros(n, dtype=bool)
+    degenerate = np.zeros(n, dtype=bool)
     iterations = np.zeros(n, dtype=np.int32)
     active = np.flatnonzero(np.all(np.isfinite(X), axis=1))
     scale = np.array([1e-5, 1e-5, 1.0])  # column scaling: degrees vs metres
-    for _ in range(max_iter):
+    for it in range(max_iter):
         if active.size == 0:
             break
         m = active.size
@@ -232,6 +247,11 @@ def intersect_rpc(
         N = np.einsum("mk,mkci,mkcj->mij", Wa, Js, Js)
         b = -np.einsum("mk,mkci,mkc->mi", Wa, Js, v)
         ok = np.all(np.isfinite(N), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+        if it == 0:  # the geometry of the rays: checked once, at the start
+            bad = np.zeros(m, dtype=bool)
+            bad[ok] = _ill_conditioned(N[ok])
+            degenerate[active[bad]] = True
+            ok &= ~bad
         dx = np.full((m, 3), np.nan)
         if ok.any():
             try:
@@ -254,7 +274,7 @@ def intersect_rpc(
         failed = active[~good]
         X[failed] = np.nan
         active = active[good & ~done]
-    # statistics at the solution
+    # statistics at the solution (the rays checked again there)
     okp = np.flatnonzero(converged)
     cof = np.full((n, 3, 3), np.nan)
     s0 = np.full(n, np.nan)
@@ -269,6 +289,11 @@ def intersect_rpc(
         Wa = w[okp]
         Js = J * scale
         N = np.einsum("mk,mkci,mkcj->mij", Wa, Js, Js)
+        bad = _ill_conditioned(N)
+        if bad.any():
+            degenerate[okp[bad]] = True
+            converged[okp[bad]] = False
+            okp, N, v, Wa = okp[~bad], N[~bad], v[~bad], Wa[~bad]
         Q = np.linalg.inv(N) * np.outer(scale, scale)
         cof[okp] = Q
         vtpv = np.einsum("mk,mkc->m", Wa, v**2)
@@ -285,8 +310,22 @@ def intersect_rpc(
         residuals=res,
         converged=converged,
         iterations=iterations,
+        degenerate=degenerate,
     )
-    bad = int(np.count_nonzero(~converged))
+    n_degenerate = int(np.count_nonzero(degenerate))
+    if n_degenerate:
+        ids = ", ".join(str(int(i)) for i in np.flatnonzero(degenerate)[:10])
+        msg = (
+            f"RPC intersection: the rays of {n_degenerate} of {n} point(s) (point(s) {ids}"
+            f"{', ...' if n_degenerate > 10 else ''}) are parallel or nearly so (condition of "
+            f"the normal equations above {COND_LIMIT:.0e}): their heights are not determined "
+            "and their ground coordinates are NaN. Use images taken from different directions "
+            "(not the same image or model twice)"
+        )
+        if on_failure == "raise":
+            raise DegenerateGeometryError(msg)
+        warnings.warn(msg, LocalizationWarning, stacklevel=2)
+    bad = int(np.count_nonzero(~converged & ~degenerate))
     if bad:
         msg = (
             f"RPC intersection: {bad} of {n} point(s) did not converge in {max_iter} "
@@ -297,3 +336,27 @@ def intersect_rpc(
             raise ConvergenceError(msg, iterations=int(iterations.max()), result=result)
         warnings.warn(msg, LocalizationWarning, stacklevel=2)
     return result
+
+
+def _ill_conditioned(N: np.ndarray) -> np.ndarray:
+    """Points (m,) whose normal matrices N (m, 3, 3), symmetric, have a condition number
+    above :data:`COND_LIMIT` (or are not positive definite)."""
+    out = np.zeros(N.shape[0], dtype=bool)
+    if N.shape[0] == 0:
+        return out
+    # cheap screen: with eigenvalues l1 <= l2 <= l3, l1 = det / (l2 l3) >= det / (tr / 2)^2
+    # and l3 <= tr, so cond <= tr^3 / (4 det); the exact test only where that bound is high
+    tr = np.einsum("mii->m", N)
+    det = (
+        N[:, 0, 0] * (N[:, 1, 1] * N[:, 2, 2] - N[:, 1, 2] * N[:, 2, 1])
+        - N[:, 0, 1] * (N[:, 1, 0] * N[:, 2, 2] - N[:, 1, 2] * N[:, 2, 0])
+        + N[:, 0, 2] * (N[:, 1, 0] * N[:, 2, 1] - N[:, 1, 1] * N[:, 2, 0])
+    )
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        maybe = ~(4.0 * det * COND_LIMIT > tr**3)
+    idx = np.flatnonzero(maybe)
+    if idx.size:
+        ev = np.linalg.eigvalsh(N[idx])  # ascending
+        with np.errstate(invalid="ignore"):
+            out[idx] = ~(ev[:, 0] * COND_LIMIT > ev[:, -1])
+    return out
