@@ -130,7 +130,9 @@ class GridAdjustment:
     sigma0 : float
         A-posteriori standard deviation of unit weight of the joint adjustment.
     redundancy, n_unknowns : int
-        Scalar observations and pseudo-observations minus free unknowns.
+        Scalar observations and independent pseudo-observations minus free unknowns (the
+        smoothness rows of a grid with border="mean" count u - 1 per component: see
+        :meth:`GridLayout.constraint_rank`).
     node_std : dict or None
         ``grid key -> (ny, nx, 2)`` standard deviations of the node values (px) from the joint
         covariance (keys are image ids, or camera ids with ``per="camera"``); None when not
@@ -277,7 +279,7 @@ class _GridProblem:
             D = _datum_rows(L, datum)
             blocks.append((CC + sp.csr_matrix(D.T @ D) / DATUM_SIGMA**2).tocsr())
             datum_diag.append(np.sum(D * D, axis=0) / DATUM_SIGMA**2)
-            count += 2 * C.shape[0] + D.shape[0]
+            count += 2 * L.constraint_rank(border) + D.shape[0]  # independent rows only
         R = sp.block_diag(blocks, format="csr") if blocks else sp.csr_matrix((0, 0))
         if sa is not None and self.n_grid:
             R = (R + sp.identity(self.n_grid, format="csr") / sa**2).tocsr()
