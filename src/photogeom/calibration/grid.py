@@ -190,6 +190,20 @@ class GridLayout:
             shape=(m_rows, self.n_nodes),
         )
 
+    def constraint_rank(self, border: Border = "mean") -> int:
+        """Independent smoothness pseudo-observations per component: the rank of ``C``.
+
+        With ``border="mean"`` every node has a row, but the rows are dependent: summed with
+        the nodes' neighbour counts as weights they vanish for every field
+        (``sum_k deg_k (z_k - mean of its neighbours) = 0``), so only ``n_nodes - 1`` are
+        independent (the constant field is the one null vector). With ``"linear"`` the
+        ``n_nodes - 4`` rows are independent (the bilinear fields are the null space).
+        The redundancy and the variance components count these, not the rows.
+        """
+        if border not in BORDERS:
+            raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
+        return self.n_nodes - (1 if border == "mean" else 4)
+
     def to_dict(self) -> dict:
         return {"width": self.width, "height": self.height, "spacing": self.spacing}
 
@@ -292,7 +306,9 @@ class ResidualGrid:
         A-posteriori standard deviation of unit weight of the fit (observations and
         pseudo-observations); NaN when the redundancy is 0.
     redundancy : int
-        ``2 (n_used + m - n_nodes)`` (both components).
+        ``2 (n_used + m - n_nodes)`` (both components), ``m`` the independent
+        constraints (:meth:`GridLayout.constraint_rank`): ``2 (n_used - 1)`` with
+        ``border="mean"``, ``2 (n_used - 4)`` with ``"linear"``.
     sigma_obs : numpy.ndarray, shape (n,)
         Standard deviations of the observations used (px), after variance components.
     sigma_constraint : float
@@ -660,7 +676,7 @@ def _fit_grid(
     p = 1.0 / s_obs[used] ** 2
     wc = np.asarray(C @ z)
     vtpv = float(np.sum(p[:, None] * v * v) + np.sum(wc * wc) / s_c**2)
-    redundancy = 2 * (u_uv.shape[0] + C.shape[0] - layout.n_nodes)
+    redundancy = 2 * (u_uv.shape[0] + layout.constraint_rank(border) - layout.n_nodes)
     sigma0 = math.sqrt(vtpv / redundancy) if redundancy > 0 else float("nan")
 
     counts = _node_counts(layout, u_uv)
@@ -762,7 +778,9 @@ def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):
 
     from ..errors import ConvergenceError
 
-    n, m, u = uv.shape[0], C.shape[0], layout.n_nodes
+    # m: the independent constraints; with border="mean" one combination of the rows is
+    # zero for every field, so its residual is always zero and it has no redundancy
+    n, m, u = uv.shape[0], layout.constraint_rank(border), layout.n_nodes
     p = 1.0 / s_obs**2
     state = {"its": 0}
 
