@@ -86,6 +86,7 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
         to intersect in front of the images).
     """
     from .intersection import space_intersection
+    from .relative import _ideal_and_derivative
 
     if which not in ("inliers", "all"):
         raise InputError(f"which must be 'inliers' or 'all', not {which!r}")
@@ -106,6 +107,17 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
     F = np.zeros((X.shape[0], 4, 5))
     for k, (img, col) in enumerate(_PARAMETER_COLUMNS[pair.method]):
         F[:, 2 * img : 2 * img + 2, k] = deo[img][:, :, col]
+    # the weights W are those of the measured coordinates: carry G and F through the
+    # distortion (d(measured)/d(ideal)) so that P is that of the observations
+    obs = fit.extras.get("observations")
+    if obs is not None:
+        for img, io in enumerate((pair.interior1, pair.interior2)):
+            _, K = _ideal_and_derivative(io, obs[mask][:, 2 * img : 2 * img + 2], f"xy{img + 1}")
+            if K is not None:
+                Jm = np.linalg.inv(K)
+                rows = slice(2 * img, 2 * img + 2)
+                G[:, rows] = Jm @ G[:, rows]
+                F[:, rows] = Jm @ F[:, rows]
     GP = G * W[:, :, None]  # P G (diagonal P)
     N = np.einsum("nki,nkj->nij", G, GP)
     Qi = np.linalg.inv(N)
