@@ -131,3 +131,29 @@ def test_linear_dlt_statistics_are_those_of_the_image_coordinates():
     assert abs(ratio.mean() - 1.0) < 0.06, ratio
     assert np.all(np.abs(ratio - 1.0) < 0.14), ratio
     assert abs(np.mean(s02) - 1.0) < 0.05
+
+
+def test_resection_cli_states_the_ground_unit_of_the_crs(tmp_path, cli):
+    # control in a CRS in US survey feet: X0, Y0, Z0 and their standard deviations are in
+    # US survey feet, which the output must say (it said "m")
+    import json
+
+    io = pg.InteriorOrientation(153.0, 0.01, -0.02)
+    eo = pg.ExteriorOrientation(1000.0, 2000.0, 1500.0, 0.02, -0.03, 0.5)
+    rng = np.random.default_rng(2)
+    g = np.column_stack(
+        [rng.uniform(600, 1400, 10), rng.uniform(1600, 2400, 10), rng.uniform(0, 200, 10)]
+    )
+    xy = pg.project(g, io, eo) + rng.normal(0, 0.004, (10, 2))
+    path = tmp_path / "control.csv"
+    rows = [f"p{i},{a[0]},{a[1]},{a[2]},{b[0]},{b[1]}" for i, (a, b) in enumerate(zip(g, xy))]
+    path.write_text("id,X,Y,Z,x,y\n" + "\n".join(rows) + "\n")
+    base = ("orient", "resection", path, "--f", "153", "--x0", "0.01", "--y0", "-0.02")
+    code, out, err = cli(*base, "--sigma", "0.004", "--crs", "EPSG:2263", "--json")
+    assert code == 0, err
+    params = json.loads(out)["parameters"]
+    assert [params[k]["unit"] for k in ("X0", "Y0", "Z0")] == ["ftUS"] * 3
+    assert params["omega"]["unit"] == "rad"
+    code, out, err = cli(*base, "--crs", "EPSG:25832", "--json")
+    assert code == 0, err
+    assert json.loads(out)["parameters"]["X0"]["unit"] == "m"
