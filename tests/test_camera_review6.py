@@ -157,3 +157,32 @@ def test_resection_cli_states_the_ground_unit_of_the_crs(tmp_path, cli):
     code, out, err = cli(*base, "--crs", "EPSG:25832", "--json")
     assert code == 0, err
     assert json.loads(out)["parameters"]["X0"]["unit"] == "m"
+
+
+def test_dlt_cli_states_the_ground_unit_of_the_crs(tmp_path, cli):
+    # L1..L3, L5..L7 are image units per ground unit and L9..L11 per ground unit: with a
+    # CRS in US survey feet they were labelled px/m and 1/m
+    import json
+
+    io = pg.InteriorOrientation.digital(4000.0, 3000.0, 2000.0)
+    eo = pg.ExteriorOrientation(1.0, -2.0, 3.0, 0.4, -0.6, 2.0)
+    rng = np.random.default_rng(1)
+    xn = rng.uniform(-0.7, 0.7, (12, 2))
+    d = rng.uniform(2.0, 12.0, 12)
+    g = (
+        eo.position
+        + (np.column_stack([xn[:, 0], -xn[:, 1], -np.ones(12)]) * d[:, None]) @ eo.matrix
+    )
+    xy = pg.project(g, io, eo) + rng.normal(0, 0.5, (12, 2))
+    path = tmp_path / "control.csv"
+    rows = [f"p{i},{a[0]},{a[1]},{a[2]},{b[0]},{b[1]}" for i, (a, b) in enumerate(zip(g, xy))]
+    path.write_text("id,X,Y,Z,x,y\n" + "\n".join(rows) + "\n")
+    code, out, err = cli(
+        "camera", "dlt", "estimate", path, "--unit", "px", "--crs", "EPSG:2263", "--json"
+    )
+    assert code == 0, err
+    units = {k: v["unit"] for k, v in json.loads(out)["parameters"].items()}
+    assert units["L1"] == "px/ftUS" and units["L11"] == "1/ftUS" and units["L4"] == "px"
+    code, out, err = cli("camera", "dlt", "estimate", path, "--unit", "px", "--json")
+    assert code == 0, err
+    assert json.loads(out)["parameters"]["L1"]["unit"] == "px/m"
