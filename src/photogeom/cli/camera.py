@@ -515,7 +515,14 @@ def dlt_estimate(
     if ground_crs is not None:
         from dataclasses import replace
 
-        fit = replace(fit, crs=ground_crs.text)
+        # L1..L3, L5..L7 are image units per ground unit, L9..L11 per ground unit: the unit
+        # of the ground CRS (e.g. US survey feet), not always metres
+        gu = ground_crs.unit or "m"
+        units = {
+            k: (u[: -len("/m")] + f"/{gu}" if u.endswith("/m") else u)
+            for k, u in fit.parameter_units.items()
+        }
+        fit = replace(fit, crs=ground_crs.text, parameter_units=units)
     au = AngleUnit(angle_unit).value
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()

@@ -181,7 +181,12 @@ def resection(
     if ground_crs is not None:
         from dataclasses import replace
 
-        fit = replace(fit, crs=ground_crs.text)
+        # the projection centre and its standard deviations are in the unit of the ground
+        # coordinates, which the CRS names (e.g. US survey feet), not always metres
+        units = dict(fit.parameter_units)
+        if ground_crs.unit:
+            units.update(dict.fromkeys(("X0", "Y0", "Z0"), ground_crs.unit))
+        fit = replace(fit, crs=ground_crs.text, parameter_units=units)
     data = fit.to_dict()
     data["model_parameters"] = fit.camera.to_dict(au)
     if unmatched:

@@ -218,7 +218,7 @@ def relative(
     write_outputs(outputs)
     if as_json:
         data = fit.to_dict()
-        for k in ("ideal_observations", "epipolar_normal1"):
+        for k in ("ideal_observations", "observations", "epipolar_normal1"):
             data.get("extras", {}).pop(k, None)
         data["model_parameters"] = fit.pair.to_dict(au)
         data["parallax"] = par.to_dict()

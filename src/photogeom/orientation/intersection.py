@@ -8,7 +8,10 @@ its own 3x3 normal equations, solved in one batched call. Statistics per point: 
 ``2 k - 3`` for ``k`` rays, sigma0, cofactor and covariance matrices.
 
 Lens distortion is removed from the observations first (iteratively, with a status); the
-residuals therefore refer to distortion-free image coordinates.
+residuals therefore refer to distortion-free image coordinates. Their weights are those of
+the measured coordinates carried through the undistortion: ``P = J.T J / sigma^2`` with
+``J`` the 2x2 derivative of the measured (distorted) with respect to the distortion-free
+image coordinates, so that the statistics do not depend on where in the image a point lies.
 """
 
 from __future__ import annotations
@@ -98,13 +101,24 @@ def _cameras(cameras) -> list[tuple[InteriorOrientation, ExteriorOrientation]]:
     return out
 
 
-def _ideal_image(io: InteriorOrientation, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Remove distortion: ideal image coordinates and a validity mask."""
+def _ideal_image(
+    io: InteriorOrientation, xy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Remove distortion: ideal image coordinates, a validity mask and the derivative.
+
+    Returns
+    -------
+    ideal : (n, 2) distortion-free image coordinates (NaN where unobserved).
+    ok : (n,) bool, observed.
+    J : (n, 2, 2) or None
+        ``d(measured x, y) / d(ideal x, y)`` per point (identity where unobserved); None
+        without distortion (identity everywhere).
+    """
     ok = np.all(np.isfinite(xy), axis=1)
     out = np.full_like(xy, np.nan)
     if io.distortion is None or not np.any(ok):
         out[ok] = xy[ok]
-        return out, ok
+        return out, ok, None
     res = io.undistort_image(xy[ok])
     if not res.all_converged:
         raise ConvergenceError(
@@ -114,7 +128,11 @@ def _ideal_image(io: InteriorOrientation, xy: np.ndarray) -> tuple[np.ndarray, n
     out[ok] = np.stack(
         [io.x0 + io.fx * xn[:, 0] + io.b2 * xn[:, 1], io.y0 - io.f * xn[:, 1]], axis=1
     )
-    return out, ok
+    # image offsets = S (normalised), S = [[fx, b2], [0, -f]]: J = S D S^-1
+    S = np.array([[io.fx, io.b2], [0.0, -io.f]])
+    J = np.broadcast_to(np.eye(2), (xy.shape[0], 2, 2)).copy()
+    J[ok] = S @ io.distortion.jacobian(xn) @ np.linalg.inv(S)
+    return out, ok, J
 
 
 def space_intersection(
@@ -136,7 +154,10 @@ def space_intersection(
     cameras : sequence of FrameCamera or (InteriorOrientation, ExteriorOrientation)
         One per image.
     sigma : float or array_like (n_images,), optional
-        Standard deviation of the image coordinates, per image (weights ``1/sigma^2``).
+        Standard deviation of the measured image coordinates, per image (unit of each
+        image). With distortion, the weights of the distortion-free coordinates are
+        ``J.T J / sigma^2`` (``J``: derivative of the measured with respect to the
+        distortion-free coordinates); without, ``1/sigma^2``.
     max_iter, tol
         Gauss-Newton controls: a point has converged when its step changes its computed
         image coordinates by at most ``tol (1 + rms)`` (whitened).
@@ -175,8 +196,11 @@ def space_intersection(
             raise InputError("sigma: standard deviations must be finite and > 0")
     ideal = np.empty_like(obs)
     valid = np.empty((m, n), dtype=bool)
+    # whitening of the ideal residuals: (J / sigma) v has unit covariance (None: v / sigma)
+    whiten: list[np.ndarray | None] = []
     for i, (io, _) in enumerate(cams):  # loop over images, vectorised over points
-        ideal[i], valid[i] = _ideal_image(io, obs[i])
+        ideal[i], valid[i], J = _ideal_image(io, obs[i])
+        whiten.append(None if J is None else J / sig[i])
     n_rays = valid.sum(axis=0)
     few = n_rays < min_rays
     if np.any(few):
@@ -211,19 +235,19 @@ def space_intersection(
     it = 0
     while it < max_iter:
         it += 1
-        N, b, step_fn, _ = _normals(X, cams, Ms, Cs, ideal, valid, sig)
+        N, b, step_fn, _ = _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten)
         dX = _solve3(N, b, "space intersection")
         step = step_fn(dX)
-        rms = np.sqrt(_vtpv(X, cams, Ms, Cs, ideal, valid, sig) / (2 * n_rays))
+        rms = np.sqrt(_vtpv(X, cams, Ms, Cs, ideal, valid, sig, whiten) / (2 * n_rays))
         dX[done] = 0.0
         X = X + dX
         done |= step <= tol * (1.0 + rms)
         if np.all(done):
             break
-    N, _, _, res = _normals(X, cams, Ms, Cs, ideal, valid, sig)
+    N, _, _, res = _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten)
     Q = np.linalg.inv(N)
     r = 2 * n_rays - 3
-    vtpv = np.nansum((res / sig[:, None, None]) ** 2, axis=(0, 2))
+    vtpv = _vtpv(X, cams, Ms, Cs, ideal, valid, sig, whiten)
     with np.errstate(invalid="ignore", divide="ignore"):
         s0 = np.where(r > 0, np.sqrt(vtpv / np.maximum(r, 1)), np.nan)
     return IntersectionResult(X + centre, Q, s0, 1.0, r, n_rays, res, done, it)
@@ -247,7 +271,14 @@ def _project_all(X, io, M, C):
     return np.stack([x, y], axis=1), G @ M, w
 
 
-def _normals(X, cams, Ms, Cs, ideal, valid, sig):
+def _whitened(v: np.ndarray, A: np.ndarray, sig: float, L: np.ndarray | None):
+    """Residuals (n, 2) and design (n, 2, 3) with unit weight: ``L v``, ``L A``."""
+    if L is None:
+        return v / sig, A / sig
+    return np.einsum("nij,nj->ni", L, v), L @ A
+
+
+def _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten):
     n = X.shape[0]
     N = np.zeros((n, 3, 3))
     b = np.zeros((n, 3))
@@ -265,28 +296,29 @@ def _normals(X, cams, Ms, Cs, ideal, valid, sig):
                 f"{', '.join(str(int(j)) for j in idx[:10])}); the rays do not meet in front of "
                 "the cameras: check the orientations and the point correspondences"
             )
-        wgt = np.where(ok, 1.0 / sig[i] ** 2, 0.0)
-        A = np.where(ok[:, None, None], A, 0.0)
-        vz = np.where(ok[:, None], v, 0.0)
-        N += wgt[:, None, None] * np.einsum("nki,nkj->nij", A, A)
-        b -= wgt[:, None] * np.einsum("nki,nk->ni", A, vz)
+        vw, Aw = _whitened(np.where(ok[:, None], v, 0.0), A, sig[i], whiten[i])
+        Aw = np.where(ok[:, None, None], Aw, 0.0)
+        vw = np.where(ok[:, None], vw, 0.0)
+        N += np.einsum("nki,nkj->nij", Aw, Aw)
+        b -= np.einsum("nki,nk->ni", Aw, vw)
         res[i][ok] = v[ok]
-        As.append((A, np.sqrt(wgt)))
+        As.append(Aw)
 
     def step_fn(dX):
         s = np.zeros(n)
-        for A, sw in As:
-            s = np.maximum(s, sw * np.max(np.abs(np.einsum("nki,ni->nk", A, dX)), axis=1))
+        for Aw in As:
+            s = np.maximum(s, np.max(np.abs(np.einsum("nki,ni->nk", Aw, dX)), axis=1))
         return s
 
     return N, b, step_fn, res
 
 
-def _vtpv(X, cams, Ms, Cs, ideal, valid, sig):
+def _vtpv(X, cams, Ms, Cs, ideal, valid, sig, whiten):
+    """(n,) weighted sum of squared image residuals ``v.T P v`` per point."""
     tot = np.zeros(X.shape[0])
     for i, (io, _) in enumerate(cams):
-        xy, _, _ = _project_all(X, io, Ms[i], Cs[i])
-        v = np.where(valid[i][:, None], xy - ideal[i], 0.0) / sig[i]
+        xy, A, _ = _project_all(X, io, Ms[i], Cs[i])
+        v, _ = _whitened(np.where(valid[i][:, None], xy - ideal[i], 0.0), A, sig[i], whiten[i])
         tot += np.sum(v * v, axis=1)
     return tot
 

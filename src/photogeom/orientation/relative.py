@@ -19,8 +19,10 @@ five orientation elements the unknowns. Two parameterisations of the model syste
 Start values come from the essential matrix (five-point solver in RANSAC,
 :mod:`.relative_start`); the adjustment then decides: matches rejected by RANSAC rejoin when
 their test statistic passes, and Baarda's data snooping (or Pope's tau-test without an
-a-priori sigma) removes the largest flagged point one at a time. Lens distortion is removed
-from the observations first; residuals refer to distortion-free image coordinates.
+a-priori sigma) removes the largest flagged point one at a time. The observations are the
+measured image coordinates: the conditions remove lens distortion from them (iteratively)
+and carry the derivative through it, so that ``sigma`` is that of the measured coordinates
+and the residuals are measured image coordinates, computed minus observed.
 
 The residual **y-parallax** of a point is its coplanarity misclosure expressed in the image
 unit: ``py = -sqrt(2) g / |dg/dl|``, which in the normal case (vertical images, base along x,
@@ -237,7 +239,11 @@ def _directions(io: InteriorOrientation, xy: np.ndarray) -> np.ndarray:
 
 
 class _Coplanarity:
-    """Conditions ``g`` (n,), ``dg/dx`` (n, 5) and ``dg/dl`` (n, 4) at one evaluation."""
+    """Conditions ``g`` (n,), ``dg/dx`` (n, 5) and ``dg/dl`` (n, 4) at one evaluation.
+
+    ``l`` are measured image coordinates (with distortion); they are undistorted at every
+    evaluation and ``dg/dl`` includes the derivative of the undistortion.
+    """
 
     def __init__(self, geom: _Geometry, io1, io2) -> None:
         self.geom = geom
@@ -252,8 +258,10 @@ class _Coplanarity:
         if key == self._key:
             return self._val
         b, M1, M2, db, dM1, dM2 = self.geom.elements(x)
-        d1 = _directions(self.io1, l4[:, :2])
-        d2 = _directions(self.io2, l4[:, 2:])
+        q1, K1 = _ideal_and_derivative(self.io1, l4[:, :2], "xy1")
+        q2, K2 = _ideal_and_derivative(self.io2, l4[:, 2:], "xy2")
+        d1 = _directions(self.io1, q1)
+        d2 = _directions(self.io2, q2)
         r1 = d1 @ M1  # rows M1.T d1
         r2 = d2 @ M2
         c = np.cross(r1, r2)
@@ -270,7 +278,13 @@ class _Coplanarity:
         # dg/dd1 = M1 (r2 x b), dg/dd2 = M2 (b x r1); chain to image coordinates
         g1 = rb2 @ M1.T
         g2 = br1 @ M2.T
-        B = np.concatenate([g1 @ self.J1, g2 @ self.J2], axis=1)
+        B1 = g1 @ self.J1
+        B2 = g2 @ self.J2
+        if K1 is not None:
+            B1 = np.einsum("ni,nij->nj", B1, K1)
+        if K2 is not None:
+            B2 = np.einsum("ni,nij->nj", B2, K2)
+        B = np.concatenate([B1, B2], axis=1)
         self._key = key
         self._val = (g, A, B)
         return self._val
@@ -336,14 +350,32 @@ def _sigmas(sigma, n: int) -> np.ndarray | None:
     return s
 
 
-def _ideal(io: InteriorOrientation, xy: np.ndarray, name: str) -> np.ndarray:
+def _ideal_and_derivative(
+    io: InteriorOrientation, xy: np.ndarray, name: str
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Distortion-free image coordinates (n, 2) of measured ones, and their derivative.
+
+    Returns
+    -------
+    ideal : (n, 2) image coordinates without distortion (unit of ``io``).
+    K : (n, 2, 2) or None
+        ``d(ideal) / d(measured)`` per point; None without distortion (identity).
+    """
     if io.distortion is None:
-        return xy
+        return xy, None
     res = io.undistort_image(xy)
     if not res.all_converged:
         raise InputError(f"{name}: undistortion failed: {res.describe_failures()}")
     xn = res.points
-    return np.column_stack([io.x0 + io.fx * xn[:, 0] + io.b2 * xn[:, 1], io.y0 - io.f * xn[:, 1]])
+    ideal = np.column_stack([io.x0 + io.fx * xn[:, 0] + io.b2 * xn[:, 1], io.y0 - io.f * xn[:, 1]])
+    # image offsets = S (normalised), S = [[fx, b2], [0, -f]]: d(measured)/d(ideal) = S D S^-1
+    S = np.array([[io.fx, io.b2], [0.0, -io.f]])
+    K = np.linalg.inv(S @ io.distortion.jacobian(xn) @ np.linalg.inv(S))
+    return ideal, K
+
+
+def _ideal(io: InteriorOrientation, xy: np.ndarray, name: str) -> np.ndarray:
+    return _ideal_and_derivative(io, xy, name)[0]
 
 
 def relative_orientation(
@@ -376,7 +408,8 @@ def relative_orientation(
     method : {"dependent", "independent"}
         Parameterisation of the model system (see the module docstring).
     sigma : float or array_like (n,) or (n, 4), optional
-        A-priori standard deviation of the image coordinates (image unit). With it,
+        A-priori standard deviation of the measured image coordinates (image unit; with
+        distortion it is carried through the undistortion). With it,
         ``sigma0`` should be about 1 and data snooping is Baarda's w-test; without it the
         weights are 1, ``sigma0`` estimates the image noise and the tau-test is used.
     ids : sequence of hashable, optional
@@ -459,7 +492,7 @@ def relative_orientation(
     # --- start values, adjustment, wrong matches ----------------------------------------------
     check_base(d1, d2, thr_n, what)
     start_info: dict = {}
-    L_all = np.column_stack([q1, q2])
+    L_all = np.column_stack([p1, p2])  # measured: the conditions undistort them
     W_all = None if sig is None else 1.0 / sig**2
 
     def solve(R, base, inl):
@@ -669,7 +702,8 @@ def relative_orientation(
             "removed": tuple(removed),
             "start": start_info,
             "bx": sx if method == "dependent" else None,
-            "ideal_observations": L_all,
+            "ideal_observations": np.column_stack([q1, q2]),
+            "observations": L_all,
             "epipolar_normal1": normal1,
             "weights": W_all,
         },

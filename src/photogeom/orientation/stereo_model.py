@@ -75,8 +75,15 @@ class ModelPoints:
         return dict(zip(self.ids, self.points))
 
 
+#: Gauss-Newton iterations of the weighted model-point intersection (it converges in 2-3).
+MODEL_POINT_ITERATIONS = 10
+
+
 def model_points(fit, which: str = "inliers") -> ModelPoints:
     """Model coordinates by intersection, with covariance.
+
+    The intersection is weighted as the orientation (``sigma`` of the four measured
+    coordinates of each point), so that the reported covariance is that of the points.
 
     Parameters
     ----------
@@ -86,6 +93,7 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
         to intersect in front of the images).
     """
     from .intersection import space_intersection
+    from .relative import _ideal_and_derivative
 
     if which not in ("inliers", "all"):
         raise InputError(f"which must be 'inliers' or 'all', not {which!r}")
@@ -98,15 +106,47 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
     io2 = replace(pair.interior2, distortion=None)
     cams = [(io1, pair.exterior1), (io2, pair.exterior2)]
     res = space_intersection(np.stack([L[:, :2], L[:, 2:]]), cams)
+    # the weights W are those of the measured coordinates: Jm = d(measured)/d(ideal) carries
+    # the design matrices through the distortion, so that P is that of the observations
+    obs = fit.extras.get("observations")
+    Jm: list[np.ndarray | None] = [None, None]
+    if obs is not None:
+        for img, io in enumerate((pair.interior1, pair.interior2)):
+            _, K = _ideal_and_derivative(io, obs[mask][:, 2 * img : 2 * img + 2], f"xy{img + 1}")
+            Jm[img] = None if K is None else np.linalg.inv(K)
+
+    def design(X: np.ndarray):
+        """Weighted-space residuals (n, 4), d/dX (n, 4, 3) and d/d(orientation) (n, 4, 5)."""
+        d1 = projection_derivatives(X, io1, pair.exterior1)
+        d2 = projection_derivatives(X, io2, pair.exterior2)
+        v = np.concatenate([d1.xy, d2.xy], axis=1) - L
+        G = np.concatenate([d1.d_ground, d2.d_ground], axis=1)  # (n, 4, 3)
+        deo = (d1.d_eo, d2.d_eo)
+        F = np.zeros((X.shape[0], 4, 5))
+        for k, (img, col) in enumerate(_PARAMETER_COLUMNS[pair.method]):
+            F[:, 2 * img : 2 * img + 2, k] = deo[img][:, :, col]
+        for img in (0, 1):
+            if Jm[img] is not None:
+                rows = slice(2 * img, 2 * img + 2)
+                v[:, rows] = np.einsum("nij,nj->ni", Jm[img], v[:, rows])
+                G[:, rows] = Jm[img] @ G[:, rows]
+                F[:, rows] = Jm[img] @ F[:, rows]
+        return v, G, F
+
+    # the least-squares intersection with the weights of the orientation (the image
+    # coordinates of the two images may have different sigma): Gauss-Newton from the
+    # unweighted intersection
     X = res.points
-    d1 = projection_derivatives(X, io1, pair.exterior1)
-    d2 = projection_derivatives(X, io2, pair.exterior2)
-    G = np.concatenate([d1.d_ground, d2.d_ground], axis=1)  # (n, 4, 3)
-    deo = (d1.d_eo, d2.d_eo)
-    F = np.zeros((X.shape[0], 4, 5))
-    for k, (img, col) in enumerate(_PARAMETER_COLUMNS[pair.method]):
-        F[:, 2 * img : 2 * img + 2, k] = deo[img][:, :, col]
-    GP = G * W[:, :, None]  # P G (diagonal P)
+    for _ in range(MODEL_POINT_ITERATIONS):
+        v, G, F = design(X)
+        GP = G * W[:, :, None]  # P G (diagonal P)
+        N = np.einsum("nki,nkj->nij", G, GP)
+        dX = -np.linalg.solve(N, np.einsum("nki,nk->ni", GP, v)[..., None])[..., 0]
+        X = X + dX
+        if np.all(np.abs(dX) <= 1e-12 * (1.0 + np.abs(X))):
+            break
+    v, G, F = design(X)
+    GP = G * W[:, :, None]
     N = np.einsum("nki,nkj->nij", G, GP)
     Qi = np.linalg.inv(N)
     H = -Qi @ np.einsum("nki,nkj->nij", GP, F)
