@@ -73,3 +73,37 @@ def test_similarity3d_covariance_std_matches_monte_carlo():
     reported = np.array(list(fit.std_errors_prior.values()))
     ratio = np.std(est, axis=0) / reported
     assert np.all((ratio > 0.85) & (ratio < 1.15)), ratio
+
+
+# --- absolute_orientation("gauss-helmert", weights=..., sigma0_prior=...) ---------------------
+
+
+def test_gauss_helmert_point_weights_are_p_itself():
+    # weights are the diagonal of P for every method (docs: "weights are the diagonal of P;
+    # sigma_* and covariance_* give P = sigma0_prior^2 C^-1"). The Gauss-Helmert method turned
+    # weights into sigmas 1/sqrt(w) and then applied sigma0_prior^2 again: sigma0 grew with
+    # sigma0_prior (0.748 -> 1.496 for sigma0_prior 1 -> 2) and std_errors_prior did not
+    rng, src, tgt = _problem(seed=7)
+    n = src.shape[0]
+    sp = rng.uniform(0.01, 0.05, n)
+    x = src + rng.normal(size=(n, 3)) * sp[:, None]
+    X = tgt + rng.normal(size=(n, 3)) * sp[:, None]
+    w = 1.0 / sp**2
+    one = pg.absolute_orientation(x, X, "gauss-helmert", weights=w)
+    two = pg.absolute_orientation(x, X, "gauss-helmert", weights=w, sigma0_prior=2.0)
+    # the same P: the same estimate and a-posteriori statistics
+    np.testing.assert_allclose(two.parameters, one.parameters, rtol=0, atol=1e-10)
+    assert two.sigma0 == pytest.approx(one.sigma0, rel=1e-9)
+    np.testing.assert_allclose(two.covariance, one.covariance, rtol=1e-8)
+    # the a-priori covariance scales with sigma0_prior^2, the w-test with 1 / sigma0_prior
+    np.testing.assert_allclose(two.covariance_prior, 4.0 * one.covariance_prior, rtol=1e-8)
+    np.testing.assert_allclose(
+        two.snooping().statistic, one.snooping().statistic / 2.0, rtol=1e-8
+    )
+    # and the same P as the sigmas sigma0_prior / sqrt(w) in both systems
+    sig = 2.0 / np.sqrt(w)
+    ref = pg.absolute_orientation(
+        x, X, "gauss-helmert", sigma_source=sig, sigma_target=sig, sigma0_prior=2.0
+    )
+    assert two.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
+    np.testing.assert_allclose(two.covariance, ref.covariance, rtol=1e-8)

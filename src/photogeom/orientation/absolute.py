@@ -300,7 +300,8 @@ def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_t
                 )
             if st is not None or ss is not None:
                 raise InputError("give either weights or sigma_source/sigma_target, not both")
-            ss = st = 1.0 / np.sqrt(w)
+            # weights are P itself: sigmas with P = sigma0_prior^2 / sigma^2 = w
+            ss = st = sigma0_prior / np.sqrt(w)
         scalar = (
             (ss is None or np.ndim(ss) == 0)
             and (st is None or np.ndim(st) == 0)
@@ -378,7 +379,10 @@ def absolute_orientation(
         ``"gauss-markov"`` or ``"gauss-helmert"``.
     weights : array_like, optional
         Point weights (n,) for every method but the closed form; per-coordinate weights
-        (n, 3) or (3n,) for ``"gauss-markov"``. ``P = diag(weights)``, sigma0_prior = 1.
+        (n, 3) or (3n,) for ``"gauss-markov"``. ``P = diag(weights)`` whatever
+        ``sigma0_prior`` (weight 1: standard deviation ``sigma0_prior``); for
+        ``"gauss-helmert"`` a point weight applies to the source and target coordinates of the
+        pair.
     with_scale : bool
         False estimates the rigid (6-parameter) transformation, ``s = 1``.
     scale_method : {"least-squares", "symmetric"}, optional
