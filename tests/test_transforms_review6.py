@@ -107,3 +107,47 @@ def test_gauss_helmert_point_weights_are_p_itself():
     )
     assert two.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
     np.testing.assert_allclose(two.covariance, ref.covariance, rtol=1e-8)
+
+
+# --- per-coordinate weights (3n,) in RANSAC and iterated data snooping ------------------------
+
+
+def _blunder_problem():
+    rng, src, tgt = _problem(n=12, seed=5)
+    sa = rng.uniform(0.01, 0.05, (12, 3))
+    X = tgt + rng.normal(size=(12, 3)) * sa
+    X[4] += [0.5, 0.0, 0.0]
+    return src, X, 1.0 / sa**2
+
+
+def test_snooping_takes_flat_per_coordinate_weights():
+    # absolute_orientation takes per-coordinate weights as (n, 3) or (3n,); iterated snooping
+    # subset (n, 3) but passed (3n,) on unchanged once a point was removed: InputError
+    # "expected shape (11,) ... got (36,)" instead of the result
+    src, X, w = _blunder_problem()
+    a = pg.snooping_absolute_orientation(src, X, "gauss-markov", weights=w, sigma="prior")
+    b = pg.snooping_absolute_orientation(
+        src, X, "gauss-markov", weights=w.reshape(-1), sigma="prior"
+    )
+    assert a.extras["removed"] == b.extras["removed"] == [4]
+    np.testing.assert_allclose(b.parameters, a.parameters, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.covariance, a.covariance, rtol=1e-10)
+
+
+def test_ransac_takes_flat_per_coordinate_weights():
+    # the refinement indexed (3n,) weights with the (n,) inlier mask: IndexError
+    src, X, w = _blunder_problem()
+    a = pg.ransac_absolute_orientation(src, X, 0.2, method="gauss-markov", weights=w, rng=1)
+    b = pg.ransac_absolute_orientation(
+        src, X, 0.2, method="gauss-markov", weights=w.reshape(-1), rng=1
+    )
+    assert not a.inliers[4] and a.inliers.sum() == 11
+    np.testing.assert_array_equal(b.inliers, a.inliers)
+    np.testing.assert_allclose(b.parameters, a.parameters, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.covariance, a.covariance, rtol=1e-10)
+
+
+def test_ransac_refuses_weights_of_the_wrong_shape_by_name():
+    src, X, _ = _blunder_problem()
+    with pytest.raises(pg.InputError, match=r"weights: expected shape \(12,\)"):
+        pg.ransac_absolute_orientation(src, X, 0.2, weights=np.ones(13), rng=1)
