@@ -151,3 +151,31 @@ def test_ransac_refuses_weights_of_the_wrong_shape_by_name():
     src, X, _ = _blunder_problem()
     with pytest.raises(pg.InputError, match=r"weights: expected shape \(12,\)"):
         pg.ransac_absolute_orientation(src, X, 0.2, weights=np.ones(13), rng=1)
+
+
+# --- Gauss-Helmert with the precision of one system only --------------------------------------
+
+
+@pytest.mark.parametrize(
+    "given, missing",
+    [
+        ({"sigma_target": 0.02}, "source"),
+        ({"sigma_target": np.full(10, 0.02)}, "source"),
+        ({"sigma_source": 0.02}, "target"),
+    ],
+)
+def test_gauss_helmert_says_what_it_assumed_for_the_other_system(given, missing):
+    # with sigma_target=0.02 alone the source was silently taken with sigma 1 (weight 1):
+    # sigma0 0.026 on data whose target noise is exactly 0.02 and whose source noise is 0.02,
+    # and nothing said so (the note only gave a prescale factor of 0.02)
+    rng, src, tgt = _problem(seed=3)
+    x = src + rng.normal(size=src.shape) * 0.02
+    X = tgt + rng.normal(size=tgt.shape) * 0.02
+    fit = pg.absolute_orientation(x, X, "gauss-helmert", **given)
+    text = " ".join(fit.notes)
+    assert f"no precision given for the {missing} coordinates" in text
+    assert "sigma0_prior = 1" in text
+    both = pg.absolute_orientation(x, X, "gauss-helmert", sigma_source=0.02, sigma_target=0.02)
+    none = pg.absolute_orientation(x, X, "gauss-helmert")
+    for f in (both, none):
+        assert not any("no precision given" in note for note in f.notes)
