@@ -179,3 +179,63 @@ def test_gauss_helmert_says_what_it_assumed_for_the_other_system(given, missing)
     none = pg.absolute_orientation(x, X, "gauss-helmert")
     for f in (both, none):
         assert not any("no precision given" in note for note in f.notes)
+
+
+# --- orient absolute --convention direct: standard deviations of the direct angles ------------
+
+
+def test_direct_angle_std_matches_monte_carlo():
+    # the parameters (and their std) are the transposed-convention angles; the direct angles
+    # (R = M(b)) printed with --convention direct had no standard deviation. Their covariance
+    # is J C J.T of the exact conversion; at a large rotation it differs from the transposed
+    # one (here by 1.24x in omega), so copying the transposed std would be wrong. 500 trials:
+    # 3.2 % sampling error of a std; 0.87-1.13 is 4 of those
+    from photogeom.cli.orient_absolute import _angle_std
+
+    rng = np.random.default_rng(61)
+    n = 10
+    src = rng.uniform(-50.0, 50.0, (n, 3))
+    R = pg.opk_matrix(0.9, 1.1, 2.5).T
+    tgt = 1.2 * src @ R.T + np.array([10.0, 20.0, 30.0])
+    sig = 0.05
+    direct = []
+    for _ in range(500):
+        f = pg.absolute_orientation(src, tgt + rng.normal(size=(n, 3)) * sig, sigma_target=sig)
+        direct.append(f.angles("direct", "deg"))
+    # the helper gives a-posteriori std; divided by sigma0 they are the a-priori ones
+    one = pg.absolute_orientation(src, tgt + rng.normal(size=(n, 3)) * sig, sigma_target=sig)
+    reported = np.array(_angle_std(one, "direct", "deg")) / one.sigma0
+    ratio = np.std(direct, axis=0) / reported
+    assert np.all((ratio > 0.87) & (ratio < 1.13)), ratio
+    transposed = np.array(_angle_std(one, "transposed", "deg")) / one.sigma0
+    assert np.max(reported / transposed) > 1.15
+
+
+def test_cli_prints_the_std_of_the_angles_in_the_chosen_convention(cli):
+    import json
+
+    from photogeom import datasets
+    from photogeom.cli.orient_absolute import _angle_std
+
+    lidar = str(datasets.path("lidar_wang2014"))
+    t = datasets.load("lidar_wang2014")
+    fit = pg.absolute_orientation(np.c_[t["x"], t["y"], t["z"]], np.c_[t["X"], t["Y"], t["Z"]])
+    for conv in ("transposed", "direct"):
+        code, out, err = cli("orient", "absolute", lidar, "--json", "--convention", conv,
+                             "--angle-unit", "gon")
+        assert code == 0, err
+        std = json.loads(out)["angles"]["std"]
+        expect = _angle_std(fit, conv, "gon")
+        assert [std[a] for a in ("omega", "phi", "kappa")] == pytest.approx(expect, rel=1e-9)
+        code, out, err = cli("orient", "absolute", lidar, "--convention", conv,
+                             "--angle-unit", "gon")
+        assert code == 0, err
+        assert f"std. dev. of these angles (a posteriori): omega {expect[0]:.3g} gon" in out
+    # the transposed std are those of the parameter table, in gon
+    tr = _angle_std(fit, "transposed", "gon")
+    assert tr[0] == pytest.approx(fit.std_errors["omega"] * 200.0 / np.pi, rel=1e-12)
+    # the raw closed form's direct reading is not a function of the rotation angles: no std
+    cf = pg.absolute_orientation(np.c_[t["x"], t["y"], t["z"]], np.c_[t["X"], t["Y"], t["Z"]],
+                                 "closed-form")
+    assert _angle_std(cf, "direct", "gon") is None
+    assert _angle_std(cf, "transposed", "gon") is not None
