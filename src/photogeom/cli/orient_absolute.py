@@ -48,12 +48,50 @@ def _display_angles(fit, convention: str, unit: str) -> tuple[float, float, floa
     )
 
 
+def _angle_std(fit, convention: str, unit: str) -> tuple[float, float, float] | None:
+    """A-posteriori standard deviations of omega, phi, kappa in ``convention`` and ``unit``;
+    None where the fit has none (no statistics, or the raw closed-form matrix, which is not a
+    rotation, in the direct convention).
+
+    The fit's parameters are the angles of the transposed convention ``R = M(a).T``; the
+    direct angles ``b`` (``R = M(b)``) are those of ``R.T`` in the transposed convention, so
+    their covariance is ``J C J.T`` with ``J`` the exact Jacobian of that conversion
+    (:func:`~photogeom.orientation.absolute_stats.transpose_angles`): at large rotations the
+    two sets of standard deviations differ (they are not a relabelling).
+    """
+    from ..orientation.absolute_stats import transpose_angles
+    from ..units import from_radians
+
+    names = list(fit.parameter_names)
+    if not all(a in names for a in ("omega", "phi", "kappa")):
+        return None
+    idx = [names.index(a) for a in ("omega", "phi", "kappa")]
+    C = np.asarray(fit.covariance, dtype=float)
+    if C.ndim != 2 or not np.all(np.isfinite(C[np.ix_(idx, idx)])):
+        return None
+    C = C[np.ix_(idx, idx)]
+    if convention == "direct":
+        if not fit.model.check:  # raw closed form: the direct reading is another function
+            return None
+        _, J = transpose_angles(*(float(fit.parameters[i]) for i in idx))
+        C = J @ C @ J.T
+    std = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    return tuple(float(from_radians(v, unit)) for v in std)
+
+
 def _angles_line(fit, convention: str, unit: str) -> str:
     w, p, k = _display_angles(fit, convention, unit)
     rel = "R = M(omega, phi, kappa).T" if convention == "transposed" else "R = M(omega, phi, kappa)"
-    return (
+    line = (
         f"angles ({convention} convention, {rel}): omega {w:.6f} {unit}, phi {p:.6f} {unit}, "
         f"kappa {k:.6f} {unit}; orthogonality defect |R.T R - I| {fit.orthogonality_defect:.2e}"
+    )
+    std = _angle_std(fit, convention, unit)
+    if std is None:
+        return line
+    return (
+        f"{line}\nstd. dev. of these angles (a posteriori): omega {std[0]:.3g} {unit}, "
+        f"phi {std[1]:.3g} {unit}, kappa {std[2]:.3g} {unit}"
     )
 
 
@@ -61,6 +99,9 @@ def _fit_json(fit, convention: str, unit: str, pairs_notes) -> dict:
     d = fit.to_dict()
     w, p, k = _display_angles(fit, convention, unit)
     d["angles"] = {"convention": convention, "unit": unit, "omega": w, "phi": p, "kappa": k}
+    std = _angle_std(fit, convention, unit)
+    if std is not None:  # a-posteriori standard deviations in this convention and unit
+        d["angles"]["std"] = dict(zip(("omega", "phi", "kappa"), std))
     d["scale"] = fit.scale
     d["rotation"] = np.asarray(fit.rotation).tolist()
     d["translation"] = np.asarray(fit.translation).tolist()

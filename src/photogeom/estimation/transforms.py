@@ -1068,11 +1068,19 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
 
 def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics, ids, unit,
                   what, need):
-    """The 3D similarity / rigid model by :func:`~photogeom.orientation.absolute_orientation`
-    (SVD), which checks the geometry of both point sets; on degenerate geometry the message
-    names the side and the minimum in the words of this module."""
+    """The 3D similarity / rigid model by :func:`~photogeom.orientation.absolute_orientation`,
+    which checks the geometry of both point sets; on degenerate geometry the message names the
+    side and the minimum in the words of this module.
+
+    Point weights (or none) use the SVD (the least-squares solution in closed form); weights
+    per coordinate (n, 3) or a covariance (n, 3, 3) / (3n, 3n) use the Gauss-Markov
+    adjustment started from it, the least-squares solution for that stochastic model (the SVD
+    takes one weight per point only)."""
     from ..orientation.absolute import absolute_orientation
 
+    method = "svd"
+    if covariance is not None or (weights is not None and np.ndim(weights) > 1):
+        method = "gauss-markov"
     kwargs: dict = {}
     if weights is not None:
         kwargs["weights"] = weights
@@ -1082,7 +1090,7 @@ def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics
         kwargs["sigma0_prior"] = sigma0_prior
     try:
         return absolute_orientation(
-            src, dst, "svd", with_scale=model == "similarity3d", statistics=statistics,
+            src, dst, method, with_scale=model == "similarity3d", statistics=statistics,
             ids=ids, unit=unit or "m", **kwargs,
         )
     except DegenerateGeometryError:

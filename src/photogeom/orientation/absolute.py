@@ -300,7 +300,8 @@ def _precision(method, n, weights, sigma_source, sigma_target, cov_source, cov_t
                 )
             if st is not None or ss is not None:
                 raise InputError("give either weights or sigma_source/sigma_target, not both")
-            ss = st = 1.0 / np.sqrt(w)
+            # weights are P itself: sigmas with P = sigma0_prior^2 / sigma^2 = w
+            ss = st = sigma0_prior / np.sqrt(w)
         scalar = (
             (ss is None or np.ndim(ss) == 0)
             and (st is None or np.ndim(st) == 0)
@@ -378,7 +379,10 @@ def absolute_orientation(
         ``"gauss-markov"`` or ``"gauss-helmert"``.
     weights : array_like, optional
         Point weights (n,) for every method but the closed form; per-coordinate weights
-        (n, 3) or (3n,) for ``"gauss-markov"``. ``P = diag(weights)``, sigma0_prior = 1.
+        (n, 3) or (3n,) for ``"gauss-markov"``. ``P = diag(weights)`` whatever
+        ``sigma0_prior`` (weight 1: standard deviation ``sigma0_prior``); for
+        ``"gauss-helmert"`` a point weight applies to the source and target coordinates of the
+        pair.
     with_scale : bool
         False estimates the rigid (6-parameter) transformation, ``s = 1``.
     scale_method : {"least-squares", "symmetric"}, optional
@@ -497,8 +501,30 @@ def absolute_orientation(
         return _gauss_markov_fit(
             x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
         )
-    return _gauss_helmert_fit(
+    fit = _gauss_helmert_fit(
         x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol, raise_on_failure, ctx
+    )
+    note = _gh_default_precision_note(prec, sigma0_prior)
+    return fit if note is None else replace(fit, notes=(*fit.notes, note))
+
+
+def _gh_default_precision_note(prec: _Precision, sigma0_prior: float) -> str | None:
+    """What the Gauss-Helmert model assumed for a system whose precision was not given while
+    the other's was (weight 1: standard deviation ``sigma0_prior`` per coordinate), or None."""
+    given = {
+        "source": prec.sig_s is not None or prec.cov_s is not None,
+        "target": prec.sig_t is not None or prec.cov_t is not None,
+    }
+    if given["source"] == given["target"]:
+        return None
+    side = "source" if not given["source"] else "target"
+    other = "target" if side == "source" else "source"
+    return (
+        f"gauss-helmert: no precision given for the {side} coordinates, only for the "
+        f"{other}: the {side} coordinates were taken with weight 1, i.e. a standard "
+        f"deviation of sigma0_prior = {sigma0_prior:g} per coordinate (in their own units); "
+        f"give sigma_{side} (or covariance_{side}) to state it, or use method='gauss-markov' "
+        "for an error-free source"
     )
 
 

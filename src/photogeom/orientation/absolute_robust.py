@@ -52,6 +52,23 @@ def _minimal_solver(x: np.ndarray, X: np.ndarray, with_scale: bool):
     return solve, errors
 
 
+def _per_pair(values, n: int, name: str) -> np.ndarray | None:
+    """``values`` given per point pair (leading axis ``n``) so that pairs can be selected: a
+    flat per-coordinate array ``(3n,)`` (observations point by point, as
+    :func:`absolute_orientation` takes weights) becomes ``(n, 3)``; scalars and None stay."""
+    if values is None or np.ndim(values) == 0:
+        return values
+    a = np.asarray(values, dtype=float)
+    if a.shape == (3 * n,) and n > 0:
+        return a.reshape(n, 3)
+    if a.shape in ((n,), (n, 3)):
+        return a
+    raise InputError(
+        f"{name}: expected shape ({n},) per point, ({n}, 3) or ({3 * n},) per coordinate; "
+        f"got {a.shape}"
+    )
+
+
 def ransac_absolute_orientation(
     source,
     target,
@@ -90,8 +107,9 @@ def ransac_absolute_orientation(
     max_refinements : int
         Re-selections of the inliers with the refined transformation (stops when stable).
     weights, sigma_target : optional
-        Per-point precision (``weights`` (n,), ``sigma_target`` scalar or (n,)) for the
-        refinement; subset to the inliers.
+        Precision for the refinement, subset to the inliers: ``weights`` per point (n,) or
+        per coordinate (n, 3) / (3n,) (the latter two need ``method="gauss-markov"``),
+        ``sigma_target`` a number, per point (n,) or per coordinate (n, 3).
     ids : sequence, optional
     unit : str
 
@@ -117,6 +135,8 @@ def ransac_absolute_orientation(
         )
     if ids is not None and len(ids) != n:
         raise InputError(f"ids: {len(ids)} id(s) for {n} point pair(s)")
+    w_all = _per_pair(weights, n, "weights")
+    st_all = _per_pair(sigma_target, n, "sigma_target")
     if batch_size is None:
         batch_size = int(np.clip(2_000_000 // max(n, 1), 16, 1024))
     solve, errors = _minimal_solver(x, X, with_scale)
@@ -125,10 +145,6 @@ def ransac_absolute_orientation(
         batch_size=batch_size, rng=rng,
     )
     inliers = np.asarray(res.inliers, dtype=bool)
-    w_all = None if weights is None else np.asarray(weights, dtype=float)
-    st_all = sigma_target
-    if st_all is not None and np.ndim(st_all) > 0:
-        st_all = np.asarray(st_all, dtype=float)
 
     def refit(mask, stats):
         if mask.sum() < 3:
@@ -230,6 +246,8 @@ def snooping_absolute_orientation(
         a = np.asarray(v)
         if a.shape[:1] == (n,):
             return a[keep]
+        if a.shape == (3 * n,):  # per coordinate, observations point by point
+            return a.reshape(n, 3)[keep].reshape(-1)
         if a.shape[:2] == (3 * n, 3 * n):
             idx = np.repeat(keep, 3)
             return a[np.ix_(idx, idx)]
