@@ -343,3 +343,35 @@ def test_sigma_column_weights_the_points(tmp_path, cli):
     unweighted = estimate_transform("affine2d", src, dst).parameters
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
     assert not np.allclose(got, unweighted, rtol=1e-9, atol=1e-9)
+
+
+def test_sigma_column_with_an_a_priori_sigma0(tmp_path, cli):
+    """Sigmas of a sigma column are standard deviations: with --sigma0-prior s0 the weights
+    are s0^2 / sigma^2 (the library's P = s0^2 Cll^-1), so that noise as stated gives sigma0
+    near s0 and the statistics equal the library's with that covariance."""
+    from photogeom.estimation import estimate_transform
+
+    rng = np.random.default_rng(8)
+    n = 300
+    src = rng.uniform(0, 100, (n, 2))
+    sigma = rng.uniform(0.05, 0.3, n)
+    dst = src @ np.array([[0.9, 0.1], [-0.1, 0.9]]).T + [5.0, 7.0]
+    dst = dst + rng.normal(0, 1, (n, 2)) * sigma[:, None]
+    ids = [f"P{k}" for k in range(n)]
+    s_lines = "".join(f"{i},{x:.17g},{y:.17g}\n" for i, (x, y) in zip(ids, src))
+    d_lines = "".join(f"{i},{x:.17g},{y:.17g},{s:.17g}\n" for i, (x, y), s in zip(ids, dst, sigma))
+    a = _write(tmp_path, "a.csv", "id,x,y\n" + s_lines)
+    b = _write(tmp_path, "b.csv", "id,X,Y,sigma\n" + d_lines)
+    code, out, err = cli(
+        "transform", "estimate", "affine2d", a, b, "--sigma0-prior", "0.5", "--json"
+    )
+    assert code == 0, err
+    data = json.loads(out)
+    # sigma0 estimates the a-priori 0.5: relative standard error 1 / sqrt(2 r), r = 594
+    assert abs(data["sigma0"] / 0.5 - 1) < 4 / np.sqrt(2 * (2 * n - 6))
+    cov = np.repeat(sigma**2, 2)
+    lib = estimate_transform("affine2d", src, dst, covariance=np.diag(cov), sigma0_prior=0.5)
+    np.testing.assert_allclose(data["sigma0"], lib.sigma0, rtol=1e-9)
+    got = {k: v["std"] for k, v in data["parameters"].items()}
+    want = lib.std_errors
+    np.testing.assert_allclose([got[k] for k in want], list(want.values()), rtol=1e-9)

@@ -112,7 +112,10 @@ def estimate(
     ] = None,
     sigma_col: Annotated[
         str | None,
-        typer.Option(help="Column of per-point standard deviations (target units; w = 1/sigma^2)."),
+        typer.Option(
+            help="Column of per-point standard deviations (target units; weight "
+            "sigma0_prior^2 / sigma^2, so that sigma0 is expected near --sigma0-prior)."
+        ),
     ] = None,
     sigma0_prior: Annotated[
         float, typer.Option(help="A-priori standard deviation of unit weight.")
@@ -228,7 +231,13 @@ def estimate(
             pairs.source,
             pairs.target,
             order=order,
-            weights=pairs.weights,
+            # sigmas of a sigma column are standard deviations: weights s0^2 / sigma^2, as
+            # the library's P = s0^2 Cll^-1 for a covariance
+            weights=(
+                pairs.weights * sigma0_prior**2
+                if pairs.weights_from_sigma and pairs.weights is not None
+                else pairs.weights
+            ),
             check=mask,
             ids=pairs.ids,
             sigma0_prior=sigma0_prior,

@@ -99,6 +99,10 @@ class PointTable:
         File the table was read from.
     weight_source : str or None
         Name of the column the weights came from.
+    weights_from_sigma : bool
+        The weights are ``1 / sigma^2`` of a sigma column (standard deviations in the
+        coordinate unit), not unitless weights: with an a-priori sigma0 ``s0`` the weight
+        of the adjustment is ``s0^2 / sigma^2``.
     header : tuple of str
         All column names of the file.
     comments : tuple of str
@@ -112,6 +116,7 @@ class PointTable:
     columns: tuple[str, ...] = ()
     path: Path | None = None
     weight_source: str | None = None
+    weights_from_sigma: bool = False
     header: tuple[str, ...] = ()
     comments: tuple[str, ...] = ()
 
@@ -144,6 +149,8 @@ class PointPairs:
         ``"control"`` / ``"check"`` per pair; None when no file has a role column.
     weights : numpy.ndarray or None
         Per-pair weights.
+    weights_from_sigma : bool
+        The weights are ``1 / sigma^2`` of a sigma column (see :class:`PointTable`).
     source_columns, target_columns : tuple of str
     unmatched_source, unmatched_target : tuple of str
         Ids found only in the source (target) file and left out of the pairs.
@@ -156,6 +163,7 @@ class PointPairs:
     target: np.ndarray
     roles: np.ndarray | None = None
     weights: np.ndarray | None = None
+    weights_from_sigma: bool = False
     source_columns: tuple[str, ...] = ()
     target_columns: tuple[str, ...] = ()
     unmatched_source: tuple[str, ...] = ()
@@ -412,6 +420,7 @@ def _table(raw, columns, id_column, role_column, weight_column, sigma_column, au
         columns=cols,
         path=raw.path,
         weight_source=wcol,
+        weights_from_sigma=bool(is_sigma and weights is not None),
         header=raw.header,
         comments=raw.comments,
     )
@@ -713,6 +722,7 @@ def read_point_pairs(
         target=dst,
         roles=roles,
         weights=weights,
+        weights_from_sigma=bool(is_sigma and weights is not None),
         source_columns=s_cols,
         target_columns=t_cols,
     )
@@ -792,12 +802,14 @@ def join_points(
             "in one file only"
         )
     weights = t_w if t_w is not None else s_w
+    from_sigma = target.weights_from_sigma if t_w is not None else source.weights_from_sigma
     return PointPairs(
         ids=ids,
         source=source.coords[si],
         target=target.coords[ti],
         roles=roles,
         weights=weights,
+        weights_from_sigma=bool(weights is not None and from_sigma),
         source_columns=source.columns,
         target_columns=target.columns,
         unmatched_source=only_s,
