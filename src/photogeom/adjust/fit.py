@@ -295,12 +295,15 @@ class Fit:
 
     # --- output ------------------------------------------------------------------------------
 
-    def parameter_table(self, angle_unit: str = "deg") -> list[tuple[str, float, float, str]]:
+    def parameter_table(
+        self, angle_unit: str = "deg", *, prior: bool = False
+    ) -> list[tuple[str, float, float, str]]:
         """Rows ``(name, value, std, unit)`` with angles converted to ``angle_unit`` and
         normalised for printing (:func:`photogeom.units.display_angle`: kappa in [0, one
-        turn), other angles in [-half turn, +half turn))."""
+        turn), other angles in [-half turn, +half turn)); ``std`` a posteriori, or with
+        ``prior`` a priori (``sigma0_prior`` times the cofactors)."""
         rows = []
-        std = self.std_errors
+        std = self.std_errors_prior if prior else self.std_errors
         for name, value in zip(self.parameter_names, self.parameters):
             unit = self.parameter_units.get(name, "")
             s = std[name]
@@ -325,8 +328,10 @@ class Fit:
         s0 = "undefined (redundancy 0)" if not math.isfinite(self.sigma0) else f"{self.sigma0:.6g}"
         lines.append(f"  sigma0 (a posteriori) {s0}   sigma0 (a priori) {self.sigma0_prior:g}")
         lines.append("  parameter            value              std. dev.        unit")
-        for name, value, s, unit in self.parameter_table(angle_unit):
-            sd = "-" if not math.isfinite(s) else f"{s:.6g}"
+        prior = [r[2] for r in self.parameter_table(angle_unit, prior=True)]
+        for (name, value, s, unit), p in zip(self.parameter_table(angle_unit), prior):
+            sd = f"{s:.6g}" if math.isfinite(s) else f"{p:.6g} (a priori)"
+            sd = sd if math.isfinite(s) or math.isfinite(p) else "-"
             lines.append(f"  {name:<16} {value:>18.10g} {sd:>18} {unit:>8}")
         unit = f" {self.residual_unit}" if self.residual_unit else ""
         lines.append(
@@ -355,14 +360,22 @@ class Fit:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary (NaN becomes None; angles stay in radians)."""
+        """JSON-ready dictionary (NaN becomes None; angles stay in radians). Each parameter
+        has ``std`` (a posteriori: undefined at redundancy 0) and ``std_prior``
+        (``sigma0_prior`` times the cofactor's)."""
         std = self.std_errors
+        prior = self.std_errors_prior
         out = {
             "model": type(self.model).__name__,
             "method": self.method,
             "residual_convention": "computed minus observed",
             "parameters": {
-                n: {"value": float(v), "std": std[n], "unit": self.parameter_units.get(n, "")}
+                n: {
+                    "value": float(v),
+                    "std": std[n],
+                    "std_prior": prior[n],
+                    "unit": self.parameter_units.get(n, ""),
+                }
                 for n, v in zip(self.parameter_names, self.parameters)
             },
             "sigma0": self.sigma0,

@@ -688,13 +688,8 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
     if written is not None:
         outputs.insert(0, (output, format_rpc(written, style=TextStyle(style).value)))
     write_outputs(outputs)
-    prior = result.std_errors_prior
     if as_json:
         data = result.to_dict()
-        # "std" is a posteriori (sigma0 times the a-priori one: undefined at redundancy 0,
-        # e.g. a shift from one control point); "std_prior" follows from --sigma alone
-        for name, entry in data["parameters"].items():
-            entry["std_prior"] = finite_or_none(prior[name])
         data["input"] = {"points": str(points), "n_control": int((~mask).sum()),
                          "n_check": int(mask.sum())}  # fmt: skip
         if written is not None:
@@ -704,16 +699,5 @@ def _finish(result, output, style, as_json, report, points, pairs, mask, title, 
     out = console()
     say(intro, out)
     print_fit(result, console=out)
-    if source_rpc is not None:  # refine: a few parameters, their a-priori std from --sigma
-        from ..report.format import fmt_std
-
-        say(
-            "std. dev. a priori (from the image sigma, --sigma): "
-            + ", ".join(
-                f"{name} {fmt_std(prior[name])} {result.parameter_units.get(name, '')}".rstrip()
-                for name in result.parameter_names
-            ),
-            out,
-        )
     for path, _ in outputs:
         say(f"wrote {path}", out)

@@ -29,7 +29,8 @@ def fmt_std(s: float) -> str:
     s = float(s)
     if s == 0.0:
         return "0"
-    return f"{s:.2g}" if 1e-4 <= abs(s) < 1e6 else f"{s:.2e}"
+    # two significant digits, without an exponent in the plain range (204 -> "200")
+    return f"{float(f'{s:.2g}'):g}" if 1e-4 <= abs(s) < 1e6 else f"{s:.2e}"
 
 
 def fmt_value(v: float, std: float | None = None) -> str:
@@ -103,10 +104,15 @@ class ResidualTable:
 
 
 def parameter_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str]]:
-    """``(name, value, std, unit)`` strings, angles in ``angle_unit``."""
+    """``(name, value, std, unit)`` strings, angles in ``angle_unit``. Where the a-posteriori
+    standard deviation is undefined (redundancy 0) the a-priori one is shown, marked."""
     rows = []
-    for name, value, std, unit in fit.parameter_table(angle_unit):
-        rows.append((name, fmt_value(value, std), fmt_std(std), unit or ""))
+    prior = [r[2] for r in fit.parameter_table(angle_unit, prior=True)]
+    for (name, value, std, unit), p in zip(fit.parameter_table(angle_unit), prior):
+        if _finite(std) or not _finite(p):
+            rows.append((name, fmt_value(value, std), fmt_std(std), unit or ""))
+        else:
+            rows.append((name, fmt_value(value, p), f"{fmt_std(p)} (a priori)", unit or ""))
     return rows
 
 
