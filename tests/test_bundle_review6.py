@@ -92,3 +92,47 @@ def test_image_variant_offset_std_matches_the_monte_carlo_spread():
     ratio = np.std(off, axis=0, ddof=1) / np.mean(std, axis=0)
     assert np.all(np.abs(ratio.mean(axis=0) - 1) < 0.15), ratio.mean(axis=0)
     assert np.all(np.abs(ratio - 1) < 0.35), ratio
+
+
+# --- check points under variance-component estimation -------------------------------------------
+
+
+def _gcp_noise_block(true_gcp_sigma: float, seed: int = 20_025):
+    """The simulated block with the image observations of control and check points drawn
+    with ``true_gcp_sigma`` px while their a-priori sigma stays 0.5 px."""
+    sim = pg.simulate.uav_block("FC300S", seed=3, local_field=0.0, sigma=0.5, gcp_sigma=0.5)
+    truth = sim.truth
+    o = truth.observations
+    surveyed = np.isin(o.point_ids, truth.point_ids[truth.role != "tie"])
+    noise = np.where(surveyed, true_gcp_sigma, o.sigma)
+    rng = np.random.default_rng(seed)
+    uv = o.uv + rng.normal(0.0, 1.0, o.uv.shape) * noise[:, None]
+    return sim.block.with_observations(uv=uv), surveyed
+
+
+def test_check_point_std_uses_the_estimated_variance_of_control_measurements():
+    """Check points are measured in the images like control points: under variance-
+    component estimation their image observations take the factor estimated for the
+    control points' (``image_control``), not the tie points'. Before: with GCP image noise
+    twice its a-priori sigma (factor 2.0 estimated) the check points' std came from the
+    tie factor (1.0): over 100 Monte-Carlo redraws their spread was 1.26, 1.32, 1.21 times
+    the reported std in X, Y, Z; now 0.97, 0.99, 0.97.
+
+    Exact form of the test: the adjustment with the estimated factors built into the
+    sigmas gives the same check-point covariance as the one that estimated them."""
+    block, surveyed = _gcp_noise_block(1.0)
+    vce = pg.bundle_adjust(block, variance_components=True, snooping=False, point_covariance=True)
+    f = vce.variance_components["factors"]
+    assert f["image_control"] > 1.5  # the GCP measurements are found worse than said
+    s = block.observations.sigma * np.where(surveyed, f["image_control"], f["image_tie"])
+    baked = block.with_observations(sigma=s).replace(
+        point_sigma=block.point_sigma * f["control"],
+        gnss_sigma=block.gnss_sigma * f["gnss"],
+        imu_sigma=block.imu_sigma * f["imu"],
+    )
+    ref = pg.bundle_adjust(baked, snooping=False, point_covariance=True)
+    assert ref.sigma0 == pytest.approx(vce.sigma0, rel=0.01)
+    chk = block.role == "check"
+    # the VCE stops at ratios within 1 % of 1: standard deviations agree to about 0.5 %
+    np.testing.assert_allclose(vce.point_std[chk], ref.point_std[chk], rtol=0.01)
+    np.testing.assert_allclose(vce.point_std[~chk], ref.point_std[~chk], rtol=0.01)
