@@ -291,8 +291,9 @@ class BundleFit:
                 L.append(f"  image {img} point {pt}: |w| = {w:.1f}")
         if self.variance_components:
             L.append("variance components (estimated sigma = factor x a-priori sigma):")
+            held = self.variance_components.get("not_estimated", {})
             for k, v in self.variance_components["factors"].items():
-                L.append(f"  {k}: {v:.4f}")
+                L.append(f"  {k}: {v:.4f}" + (" (not estimated: a-priori)" if k in held else ""))
         for n in self.notes:
             L.append(f"note: {n}")
         return "\n".join(L)
@@ -730,6 +731,11 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     vc = None
     if vce is not None:
         vc = vce
+        for k, why in vce.get("not_estimated", {}).items():
+            notes.append(
+                f"variance components: the group '{k}' is not estimated ({why}); it keeps "
+                "its a-priori sigmas (factor 1)"
+            )
     solver = {
         "backend": F.backend,
         "reduced_system_size": int(problem.sys.nc),
