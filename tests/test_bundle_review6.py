@@ -176,6 +176,9 @@ def test_collapsing_variance_component_is_held_and_named():
     assert fit.sigma0 == pytest.approx(1.0, abs=0.02)
     assert any("'control' is not estimated" in n for n in fit.notes)
     assert "(not estimated: a-priori)" in fit.summary()
+    from photogeom.report import bundle_report
+
+    assert "control (not estimated: a-priori sigmas)" in bundle_report(fit).to_html()
 
 
 def test_variance_components_converge_with_overstated_sigmas():

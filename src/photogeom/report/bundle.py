@@ -804,9 +804,10 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
 def _variance_section(vc: Mapping) -> str:
     f = vc.get("factors") or {}
     red = vc.get("redundancy") or {}
+    held = vc.get("not_estimated") or {}
     rows = [
         [
-            k,
+            k + (" (not estimated: a-priori sigmas)" if k in held else ""),
             F.fmt_fixed(_nan(v), 4),
             F.fmt_fixed(_nan(v) ** 2, 4),
             F.fmt_fixed(_nan(red.get(k)), 1),
