@@ -362,15 +362,22 @@ class Problem:
         """:meth:`_jacobian_blocks` of observation ``rows`` of the block (e.g. of check
         points, which are not in the adjustment) with the points at ``xyz`` (k, 3, object
         coordinates, one per row) and the cameras of state ``s``; whitened with the
-        observations' sigmas and the image variance factor of tie points."""
+        observations' sigmas and :meth:`check_factor`."""
         b = self.block
         i = b.obs_image[rows]
         cal = s.cal[b.image_camera][i]
         cal[:, :3] += s.offset[i]
         size = b.image_sizes()[i]
         pr = project_rows(xyz - self.origin, s.M[i], s.C[i], cal, size, jacobian=True)
-        sw = 1.0 / (b.observations.sigma[rows] * math.sqrt(self.group_factor["image_tie"]))
+        sw = 1.0 / (b.observations.sigma[rows] * math.sqrt(self.check_factor()))
         return self._jacobian_blocks(pr, sw)
+
+    def check_factor(self) -> float:
+        """Variance factor of the image observations of check points: that of the control
+        points' (``image_control``; check points are surveyed points measured in the
+        images like them), or of the tie points' when no control point is observed."""
+        group = "image_control" if np.any(self.obs_is_control) else "image_tie"
+        return self.group_factor[group]
 
     def linearize(self, s: _State, weights: np.ndarray) -> Linearization:
         X, M, C, cal = self._rows(s)

@@ -60,6 +60,11 @@ class BundleFit:
         That threshold (``BundleOptions.correlation_threshold``).
     exterior_std : numpy.ndarray (m, 6)
         Standard deviations of X0, Y0, Z0 (object units) and omega, phi, kappa (radians).
+    image_calibration_std : numpy.ndarray (m, 3)
+        Standard deviations (pixels) of the per-image offsets of f, cx, cy of image-variant
+        calibration (``block.image_variant``; each image's value is its group's plus the
+        offset in ``block.calibration_offset``, the group's value being held); NaN where a
+        parameter is not estimated per image.
     point_std : numpy.ndarray (p, 3) or None
         Standard deviations of every point's coordinates (``point_covariance=True``).
     check : dict
@@ -111,6 +116,7 @@ class BundleFit:
     solver: Mapping = field(default_factory=dict)
     control: Mapping = field(default_factory=lambda: {"ids": []})
     correlation_threshold: float = 0.9
+    image_calibration_std: np.ndarray | None = None
     _image_cov: np.ndarray | None = None
     _point_cov: np.ndarray | None = None
     _cal_cov: Mapping | None = None
@@ -141,6 +147,33 @@ class BundleFit:
     def calibration_covariance(self, group) -> tuple[tuple[str, ...], np.ndarray]:
         """Names of the free calibration parameters of ``group`` and their covariance."""
         return self._cal_cov[group]
+
+    def image_calibration(self) -> dict:
+        """Image-variant calibration of each group: ``{group: {name: {"rms_offset",
+        "rms_std"}}}`` over the group's images, pixels, for the names estimated per image
+        (offsets of f, cx, cy from the group's value; empty for block-invariant groups).
+        The per-image values are ``block.calibration_offset`` and
+        :attr:`image_calibration_std`."""
+        from .block import IMAGE_VARIANT_NAMES
+
+        out: dict = {}
+        std = self.image_calibration_std
+        if std is None:
+            return out
+        b = self.block
+        for gi, g in enumerate(b.camera_ids.tolist()):
+            rows = b.image_camera == gi
+            names = {}
+            for c, n in enumerate(IMAGE_VARIANT_NAMES):
+                s = std[rows, c]
+                if n in b.image_variant[g] and np.any(np.isfinite(s)):
+                    names[n] = {
+                        "rms_offset": float(np.sqrt(np.mean(b.calibration_offset[rows, c] ** 2))),
+                        "rms_std": float(np.sqrt(np.nanmean(s**2))),
+                    }
+            if names:
+                out[g] = names
+        return out
 
     @property
     def crs(self) -> str | None:
@@ -202,12 +235,24 @@ class BundleFit:
             "",
             "calibration (px; distortion dimensionless), standard deviations a posteriori:",
         ]
+        per_image = self.image_calibration()
         for g, vals in self.calibration.items():
             L.append(f"  camera {g}")
+            iv = per_image.get(g, {})
             for n in CALIBRATION_NAMES:
                 s = self.calibration_std[g][n]
                 std = f"{s:.3e}" if math.isfinite(s) else "fixed"
+                if n in iv:
+                    std = "per image (below)"
                 L.append(f"    {n:>3} = {vals[n]: .9g}  +- {std} {CAL_UNITS[n]}")
+            if iv:
+                L.append(
+                    "    estimated per image (value = the above + the image's offset), RMS of "
+                    "the offsets / of their standard deviations: "
+                    + ", ".join(
+                        f"{n} {v['rms_offset']:.4g} / {v['rms_std']:.4g} px" for n, v in iv.items()
+                    )
+                )
         if self.high_correlations:
             L.append("high calibration correlations (|rho| > threshold):")
             for g, a, c, r in self.high_correlations:
@@ -246,8 +291,9 @@ class BundleFit:
                 L.append(f"  image {img} point {pt}: |w| = {w:.1f}")
         if self.variance_components:
             L.append("variance components (estimated sigma = factor x a-priori sigma):")
+            held = self.variance_components.get("not_estimated", {})
             for k, v in self.variance_components["factors"].items():
-                L.append(f"  {k}: {v:.4f}")
+                L.append(f"  {k}: {v:.4f}" + (" (not estimated: a-priori)" if k in held else ""))
         for n in self.notes:
             L.append(f"note: {n}")
         return "\n".join(L)
@@ -263,6 +309,7 @@ class BundleFit:
         ext[:, 3:] = np.asarray(from_radians(ext[:, 3:], angle_unit))
         es[:, 3:] = np.asarray(from_radians(es[:, 3:], angle_unit))
         rms = self.rms_per_image  # once: the property scans every observation
+        per_image = self.image_calibration()
         images = [
             {
                 "id": i,
@@ -272,6 +319,14 @@ class BundleFit:
             }
             for k, i in enumerate(b.image_ids.tolist())
         ]
+        if per_image:
+            from .block import IMAGE_VARIANT_NAMES
+
+            off, ostd = b.calibration_offset, self.image_calibration_std
+            for k, row in enumerate(images):
+                for c, n in enumerate(IMAGE_VARIANT_NAMES):
+                    row[f"{n}_offset"] = float(off[k, c])
+                    row[f"s{n}_offset"] = float(ostd[k, c])
         return _jsonable(
             {
                 "converged": self.converged,
@@ -289,6 +344,7 @@ class BundleFit:
                 "residual_convention": "computed minus observed, pixels",
                 "calibration": {str(g): v for g, v in self.calibration.items()},
                 "calibration_std": {str(g): v for g, v in self.calibration_std.items()},
+                "image_calibration": {str(g): v for g, v in per_image.items()},
                 "high_correlations": [list(x) for x in self.high_correlations],
                 "images": images,
                 "check": dict(self.check),
@@ -528,6 +584,12 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         # to inner constraints every image has its (non-zero) standard deviations
         fixed6 = np.zeros_like(fixed6)
     ext_std[fixed6] = 0.0
+    # image-variant calibration: the images' offsets of f, cx, cy (datum-invariant)
+    iv_std = np.full((m, 3), np.nan)
+    if problem.b > 6:
+        d = np.sqrt(np.clip(var * np.einsum("mii->mi", Q.local[:, 6:9, 6:9]), 0, None))
+        est = problem.local_free[:, 6:9]
+        iv_std[est] = d[est]
     # calibration
     calib, cal_std, cal_corr, cal_cov, high = {}, {}, {}, {}, []
     for gi, gid in enumerate(block.camera_ids.tolist()):
@@ -625,13 +687,17 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     in_adj[problem.obs_rows] = True
     snoop = None
     if Cobs is not None and opts.snooping:
-        # Baarda's w of each coordinate as if the observation had its full a-priori weight:
-        # the unweighted normalised residual e over sqrt(1 - h), h the leverage at unit
-        # weight (C / weight). Without a robust loss the weights are 1 and this is the
-        # classical w-test; with one, down-weighted blunders keep their large w.
+        # Baarda's w of each coordinate: the unweighted normalised residual e (whitened by
+        # the a-priori sigma, without the robust weight) over its standard deviation. With
+        # robust weight w_i and h = (J Q J')_ii the leverage in the weighted adjustment, the
+        # prediction moves with the observation by h and varies by about h / w_i (its
+        # leverage at unit weight, an upper bound), so var(e) = 1 - 2 h + h / w_i. Without a
+        # robust loss (w_i = 1) this is the classical 1 - h; with one, 1 - h / w_i (as if the
+        # observation had its full weight) gave 4.4 (Huber) and 6.5 (Cauchy) times alpha
+        # false alarms on clean data. Down-weighted blunders keep their large w.
         wt = np.clip(run.weights, 1e-12, None)[:, None]
-        lev = np.clip(np.einsum("ndd->nd", Cobs) / wt, 0.0, None)
-        qvv = 1.0 - lev
+        h = np.clip(np.einsum("ndd->nd", Cobs), 0.0, None)
+        qvv = 1.0 - 2.0 * h + h / wt
         rw = lin.r / np.sqrt(wt)  # whitened residuals without the robust weights
         with np.errstate(invalid="ignore", divide="ignore"):
             w = np.where(qvv > 1e-10, rw / np.sqrt(np.clip(qvv, 1e-300, None)), np.nan) / s0p
@@ -669,6 +735,11 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     vc = None
     if vce is not None:
         vc = vce
+        for k, why in vce.get("not_estimated", {}).items():
+            notes.append(
+                f"variance components: the group '{k}' is not estimated ({why}); it keeps "
+                "its a-priori sigmas (factor 1)"
+            )
     solver = {
         "backend": F.backend,
         "reduced_system_size": int(problem.sys.nc),
@@ -704,6 +775,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         solver=solver,
         control=control,
         correlation_threshold=float(opts.correlation_threshold),
+        image_calibration_std=iv_std,
         _image_cov=image_cov,
         _point_cov=point_cov,
         _cal_cov=cal_cov,

@@ -7,7 +7,9 @@ updated as ``f_k <- f_k * v_k'P_k v_k / r_k`` and the adjustment repeated until 
 is 1 within the tolerance. With a robust loss ``r_k`` of the image groups is their expected
 weighted square sum under normal errors
 (:func:`photogeom.bundle.robust.expected_weighted_squares`). The estimated standard
-deviation of a group is its a-priori one times ``sqrt(f_k)``.
+deviation of a group is its a-priori one times ``sqrt(f_k)``. A group without redundancy,
+or whose iterated estimate runs to zero (its redundancy contribution collapsing), keeps its
+a-priori sigmas and is listed in ``not_estimated``.
 """
 
 from __future__ import annotations
@@ -23,6 +25,39 @@ from .robust import expected_weighted_squares, image_point_leverage
 #: Stop when every group's ratio v'Pv / r is within this of 1.
 TOLERANCE = 0.01
 MAX_ROUNDS = 20
+#: A group whose redundancy contribution falls below this share of its first-round value
+#: is collapsing: the iterated estimate of its variance runs to zero.
+COLLAPSE = 1e-3
+#: A redundancy contribution at most this is none (nothing controls the group).
+NO_REDUNDANCY = 1e-6
+
+GROUP_TEXT = {
+    "image_tie": "image observations of tie points",
+    "image_control": "image observations of control points",
+    "control": "control-point coordinates",
+    "gnss": "GNSS positions",
+    "imu": "IMU attitudes",
+}
+
+
+def _inestimable(names, vtpv, red, first_red, held) -> dict:
+    """Groups (not yet held) whose variance cannot be estimated, with the reason: no
+    redundancy from the start (nothing else controls them), or a redundancy contribution
+    collapsed below :data:`COLLAPSE` of its first round's while its ratio ``v'Pv / r`` is
+    still below 1 (the iterated estimate of the group's variance running to zero)."""
+    out = {}
+    for k, q, r in zip(names, vtpv, red):
+        if k in held:
+            continue
+        if first_red[k] <= NO_REDUNDANCY:
+            out[k] = "no redundancy: no other observations control this group"
+        elif r <= NO_REDUNDANCY or (r < COLLAPSE * first_red[k] and q < (1 - TOLERANCE) * r):
+            out[k] = (
+                "its iterated estimate runs to zero (residuals much smaller than its "
+                f"redundancy of {first_red[k]:.3g} expects: too few observations to estimate "
+                "its variance)"
+            )
+    return out
 
 
 def _contributions(problem, run):
@@ -68,22 +103,40 @@ def iterate_variance_components(problem, run, opts, progress=None):
     """Alternate adjustment and variance-factor updates; returns the last run and a dict
     with the factors (sigma multipliers), redundancy contributions and rounds."""
     history = []
+    held: dict[str, str] = {}  # groups whose variance cannot be estimated, and why
     rounds = 0
     iters = run.iterations
     converged = False
-    while rounds < MAX_ROUNDS:
+    budget = MAX_ROUNDS  # rounds from the start, or from the last group held
+    while rounds < budget:
         rounds += 1
         contrib = _contributions(problem, run)
         names = list(contrib)
         vtpv = np.array([contrib[k][0] for k in names])
         red = np.array([contrib[k][1] for k in names])
-        old = np.array([problem.group_factor[k] for k in names])
-        new, ratio = update_variance_factors(old, vtpv, red)
-        history.append({k: float(r) for k, r in zip(names, ratio)})
+        if rounds == 1:
+            first_red = {k: float(r) for k, r in zip(names, red)}
+        gone = _inestimable(names, vtpv, red, first_red, held)
+        for k in gone:  # back to its a-priori sigmas, no longer estimated
+            problem.group_factor[k] = 1.0
+            held[k] = gone[k]
+        est = np.array([k not in held for k in names])
+        if gone:
+            budget = rounds + MAX_ROUNDS
+            history.append({})
+            run = levenberg_marquardt(problem, run.state, opts, progress)
+            iters += run.iterations
+            continue
+        if not np.any(est):
+            break
+        keys = [k for k, e in zip(names, est) if e]
+        old = np.array([problem.group_factor[k] for k in keys])
+        new, ratio = update_variance_factors(old, vtpv[est], red[est])
+        history.append({k: float(r) for k, r in zip(keys, ratio)})
         if np.all(np.abs(ratio - 1.0) < TOLERANCE):
             converged = True
             break
-        for k, v in zip(names, new):
+        for k, v in zip(keys, new):
             problem.group_factor[k] = float(v)
         run = levenberg_marquardt(problem, run.state, opts, progress)
         iters += run.iterations
@@ -94,6 +147,8 @@ def iterate_variance_components(problem, run, opts, progress=None):
         "rounds": rounds,
         "converged": converged,
         "ratio_history": history,
-        "meaning": "estimated sigma of each group = factor x its a-priori sigma",
+        "not_estimated": dict(held),
+        "meaning": "estimated sigma of each group = factor x its a-priori sigma; groups in "
+        "not_estimated keep their a-priori sigmas (factor 1)",
     }
     return run, info

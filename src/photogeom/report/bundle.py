@@ -577,18 +577,32 @@ def _calibration_section(d: Mapping, max_rows: int) -> str:
     thr = float(d.get("correlation_threshold", 0.9))
     parts: list[str] = []
     if len(groups) <= MAX_GROUP_PANELS:
+        per_image = d.get("image_calibration") or {}
         for g in groups:
             rows = []
+            iv = per_image.get(str(g), {})
             for n in _CAL_NAMES:
                 s = cstd[g].get(n)
                 free = s is not None
-                rows.append([n, _val(cal[g][n], s), _std(s) if free else "fixed", _CAL_UNIT[n]])
+                std = _std(s) if free else "fixed"
+                if n in iv:  # the group's value is held, each image's offset estimated
+                    std = (
+                        f"per image: offsets RMS {_f(iv[n]['rms_offset'], 3)}, "
+                        f"std. dev. RMS {_f(iv[n]['rms_std'], 3)}"
+                    )
+                rows.append([n, _val(cal[g][n], s), std, _CAL_UNIT[n]])
             table = f"<h4>camera {_esc(g)}</h4>" + _table_html(
                 ["parameter", "value", "std. dev.", "unit"],
                 rows,
                 text_cols={2, 3},
                 note="f, cx, cy, b1, b2 in pixels (cx, cy from the image centre); K, P "
-                "dimensionless (Metashape frame model)",
+                "dimensionless (Metashape frame model)"
+                + (
+                    "; 'per image': the image's value is this one plus its offset (result "
+                    "record: images[].f_offset, sf_offset, ...)"
+                    if iv
+                    else ""
+                ),
             )
             corr = d["calibration_correlation"].get(g)
             fig = ""
@@ -790,9 +804,10 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
 def _variance_section(vc: Mapping) -> str:
     f = vc.get("factors") or {}
     red = vc.get("redundancy") or {}
+    held = vc.get("not_estimated") or {}
     rows = [
         [
-            k,
+            k + (" (not estimated: a-priori sigmas)" if k in held else ""),
             F.fmt_fixed(_nan(v), 4),
             F.fmt_fixed(_nan(v) ** 2, 4),
             F.fmt_fixed(_nan(red.get(k)), 1),
