@@ -59,7 +59,8 @@ class BundleFit:
     correlation_threshold : float
         That threshold (``BundleOptions.correlation_threshold``).
     exterior_std : numpy.ndarray (m, 6)
-        Standard deviations of X0, Y0, Z0 (object units) and omega, phi, kappa (radians).
+        Standard deviations of X0, Y0, Z0 (object units) and omega, phi, kappa (radians); 0
+        for components held fixed (``fix_exterior``).
     image_calibration_std : numpy.ndarray (m, 3)
         Standard deviations (pixels) of the per-image offsets of f, cx, cy of image-variant
         calibration (``block.image_variant``; each image's value is its group's plus the
@@ -214,6 +215,34 @@ class BundleFit:
 
     # --- reports -----------------------------------------------------------------------------
 
+    @property
+    def gnss_residuals(self) -> np.ndarray:
+        """(m, 3) GNSS residuals per image, computed minus observed: the adjusted projection
+        centre minus the GNSS position (object units); NaN for images without GNSS."""
+        b = self.block
+        return b.exterior[:, :3] - b.gnss
+
+    @property
+    def imu_residuals(self) -> np.ndarray:
+        """(m, 3) IMU residuals per image, computed minus observed: the adjusted omega, phi,
+        kappa minus the IMU's, wrapped to [-pi, pi) (radians); NaN for images without IMU."""
+        from ..units import wrap_angle
+
+        b = self.block
+        return wrap_angle(b.exterior[:, 3:6] - b.imu)
+
+    def orientation_residual_rms(self) -> dict:
+        """RMS per axis of the GNSS (object units) and IMU (radians) residuals over the images
+        that have them: ``{"gnss": (3,), "gnss_images": k, "imu": (3,), "imu_images": k}``
+        (a group without observations is left out)."""
+        out: dict = {}
+        for key, r in (("gnss", self.gnss_residuals), ("imu", self.imu_residuals)):
+            has = np.all(np.isfinite(r), axis=1)
+            if np.any(has):
+                out[key] = np.sqrt(np.mean(r[has] ** 2, axis=0))
+                out[f"{key}_images"] = int(has.sum())
+        return out
+
     def summary(self, angle_unit: str = "deg") -> str:
         """A text report: convergence, sigma0, calibration, check points, outliers."""
         from ..units import from_radians
@@ -258,7 +287,22 @@ class BundleFit:
             for g, a, c, r in self.high_correlations:
                 L.append(f"  camera {g}: {a} / {c}: {r:+.3f}")
         es = self.exterior_std
-        if es.size:
+        orr = self.orientation_residual_rms()
+        if "gnss" in orr:
+            g = orr["gnss"]
+            L.append(
+                f"GNSS residuals (adjusted - GNSS), RMS over {orr['gnss_images']} image(s): "
+                f"X0 {g[0]:.4g}, Y0 {g[1]:.4g}, Z0 {g[2]:.4g}"
+            )
+        if "imu" in orr:
+            a = np.asarray(from_radians(orr["imu"], angle_unit))
+            L.append(
+                f"IMU residuals (adjusted - IMU), RMS over {orr['imu_images']} image(s): "
+                f"omega {a[0]:.3g}, phi {a[1]:.3g}, kappa {a[2]:.3g} {angle_unit}"
+            )
+        if es.size and not np.any(es):
+            L.append("exterior orientation: held fixed (no standard deviations)")
+        elif es.size:
             unit = angle_unit
             rms_pos = np.sqrt(np.nanmean(es[:, :3] ** 2, axis=0))
             rms_ang = np.sqrt(np.nanmean(np.asarray(from_radians(es[:, 3:], unit)) ** 2, axis=0))
@@ -299,7 +343,10 @@ class BundleFit:
         return "\n".join(L)
 
     def to_dict(self, angle_unit: str = "deg") -> dict:
-        """JSON-ready summary (without the per-observation arrays)."""
+        """JSON-ready summary (without the per-observation arrays). Per image: the
+        exterior orientation, its standard deviations, the RMS image residual and the GNSS
+        and IMU residuals (computed minus observed; object units and ``angle_unit``, None
+        without the observation); ``orientation_residual_rms`` their RMS per axis."""
         from ..adjust.fit import _jsonable
         from ..units import from_radians
 
@@ -310,15 +357,23 @@ class BundleFit:
         es[:, 3:] = np.asarray(from_radians(es[:, 3:], angle_unit))
         rms = self.rms_per_image  # once: the property scans every observation
         per_image = self.image_calibration()
+        vg = self.gnss_residuals
+        va = np.asarray(from_radians(self.imu_residuals, angle_unit))
         images = [
             {
                 "id": i,
                 **{n: float(v) for n, v in zip(EO_NAMES, ext[k])},
                 **{f"s{n}": float(v) for n, v in zip(EO_NAMES, es[k])},
                 "rms_px": float(rms[i]),
+                "gnss_residual": [float(x) for x in vg[k]],
+                "imu_residual": [float(x) for x in va[k]],
             }
             for k, i in enumerate(b.image_ids.tolist())
         ]
+        orr = {
+            k: (np.asarray(from_radians(v, angle_unit)) if k == "imu" else v)
+            for k, v in self.orientation_residual_rms().items()
+        }
         if per_image:
             from .block import IMAGE_VARIANT_NAMES
 
@@ -339,6 +394,7 @@ class BundleFit:
                 "n_unknowns": self.n_unknowns,
                 "chi2": dict(self.chi2),
                 "rmse_px": self.rmse,
+                "orientation_residual_rms": orr,
                 "gsd": self.gsd,
                 "angle_unit": angle_unit,
                 "residual_convention": "computed minus observed, pixels",

@@ -554,6 +554,7 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
         ["redundancy r", str(d["redundancy"])],
         ["chi-square test of v'Pv / sigma0_prior^2", test],
         ["RMS image residual", f"{_f(d['rmse_px'])} px"],
+        *_orientation_residual_rows(d),
         ["mean GSD", f"{_f(d['gsd'])} {d['unit']}/px"],
         [
             "convergence",
@@ -569,6 +570,29 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             f"{solver.get('loss', '?')}",
         ],
     ]
+
+
+def _orientation_residual_rows(d: Mapping) -> list[list[str]]:
+    """RMS per axis of the GNSS and IMU residuals (adjusted minus observed), if any."""
+    orr = d.get("orientation_residual_rms") or {}
+    rows = []
+    if orr.get("gnss") is not None:
+        g = orr["gnss"]
+        rows.append(
+            [
+                f"RMS GNSS residual (adjusted - GNSS, {orr['gnss_images']} images)",
+                f"X0 {_f(g[0])}, Y0 {_f(g[1])}, Z0 {_f(g[2])} {d['unit']}",
+            ]
+        )
+    if orr.get("imu") is not None:
+        a = orr["imu"]
+        rows.append(
+            [
+                f"RMS IMU residual (adjusted - IMU, {orr['imu_images']} images)",
+                f"omega {_f(a[0])}, phi {_f(a[1])}, kappa {_f(a[2])} {d['angle_unit']}",
+            ]
+        )
+    return rows
 
 
 def _calibration_section(d: Mapping, max_rows: int) -> str:
