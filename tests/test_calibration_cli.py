@@ -48,6 +48,11 @@ def test_fit_apply_and_report(cli, residual_csv, tmp_path):
     assert code == 0, err
     data = json.loads(text)
     assert data["images"]["IMG_1"]["vce_iterations"] > 0
+    # the estimated observation sigma is reported (it is what the variance components change)
+    vg = load_grids(tmp_path / "g.json")["IMG_1"]
+    assert data["images"]["IMG_1"]["sigma_obs_rms"] == pytest.approx(
+        float(np.sqrt(np.mean(vg.sigma_obs**2))), rel=1e-12
+    )
     obs = tmp_path / "obs.csv"
     obs.write_text("name,image_id,u,v\np1,IMG_2,10.5,20.25\np2,IMG_1,100,150\n")
     code, text, err = cli("grid", "apply", str(out), str(obs))

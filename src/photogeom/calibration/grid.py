@@ -424,7 +424,8 @@ class ResidualGrid:
         return self._std[0]
 
     def to_dict(self) -> dict:
-        """JSON-ready summary (without the node arrays)."""
+        """JSON-ready summary (without the node arrays); ``sigma_obs_rms`` is the RMS of the
+        observations' standard deviations (px), estimated with ``sigma_constraint="vce"``."""
         return {
             **self.layout.to_dict(),
             "shape": list(self.layout.shape),
@@ -432,6 +433,11 @@ class ResidualGrid:
             "sigma0": _num(self.sigma0),
             "redundancy": int(self.redundancy),
             "sigma_constraint": _num(self.sigma_constraint),
+            "sigma_obs_rms": (
+                _num(float(np.sqrt(np.mean(np.square(self.sigma_obs)))))
+                if self.sigma_obs.size
+                else None
+            ),
             "n_observations": int(self.sigma_obs.size),
             "n_outliers": int(self.outliers.sum()),
             "supported_nodes": int(self.support.sum()),

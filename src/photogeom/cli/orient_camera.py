@@ -96,7 +96,11 @@ def resection(
         ),
     ] = None,
     sigma_col: Annotated[
-        str | None, typer.Option(help="Column of per-point image standard deviations.")
+        str | None,
+        typer.Option(
+            help="Column of per-point image standard deviations, in --unit like --sigma (also "
+            "with --pixel: not pixels)."
+        ),
     ] = None,
     ground_cols: Annotated[str | None, typer.Option(help="Ground columns (default X,Y,Z).")] = None,
     image_cols: Annotated[
