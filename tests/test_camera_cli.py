@@ -94,6 +94,14 @@ def test_dlt_estimate_and_convert(scene, tmp_path, cli):
     data = json.loads(out)
     assert data["redundancy"] == 20 - 11 and len(data["check_residuals"]) == 2
     assert abs(data["orientation"]["exterior"]["X0"] - 1000) < 5
+    # the decomposed orientation comes with its standard deviations, as the library's
+    orient = data["orientation"]
+    assert orient["std_kind"] == "a posteriori"
+    assert set(orient["std"]) >= {"cx", "x0", "X0", "omega", "kappa"}
+    assert all(v is not None and v > 0 for v in orient["std"].values())
+    code, out, err = cli("camera", "dlt", "estimate", files[0][0])
+    assert code == 0, err
+    assert "std. dev. (a posteriori): cx" in out
     code, out, err = cli("camera", "dlt", "convert", "--params", params)
     assert code == 0, err
     assert "interior: cx =" in out

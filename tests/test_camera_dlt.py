@@ -218,3 +218,30 @@ def test_left_handed_image_coordinates_are_detected():
     mirrored = xy * [1.0, -1.0]  # e.g. pixel rows used as y
     with pytest.raises(ReflectionError, match="left-handed"):
         pg.estimate_dlt(g, mirrored)
+
+
+def test_decomposed_orientation_std_against_monte_carlo():
+    """The standard deviations of the orientation decomposed from the DLT (propagated from
+    the DLT's covariance) against the spread of the decomposition over redrawn image noise:
+    300 trials, each ratio within 15 % (the spread of a standard deviation from 300 draws
+    is about 4 %; the decomposition is non-linear)."""
+    rng = np.random.default_rng(12)
+    io, eo = spec_camera()
+    g, xy = _control(20, rng, io, eo)
+    sigma = 0.005
+    reported = pg.estimate_dlt(g, xy + rng.normal(0, sigma, xy.shape), sigma=sigma)
+    prior = reported.orientation_std("rad", prior=True)
+    vals = []
+    for _ in range(300):
+        fit = pg.estimate_dlt(g, xy + rng.normal(0, sigma, xy.shape), sigma=sigma)
+        i, e = fit.interior, fit.exterior
+        vals.append([i.fx, i.fy, i.x0, i.y0, i.b2, e.X0, e.Y0, e.Z0, e.omega, e.phi, e.kappa])
+    spread = np.std(np.array(vals), axis=0, ddof=1)
+    from photogeom.camera.dlt_estimation import ORIENTATION_NAMES
+
+    ratio = spread / np.array([prior[n] for n in ORIENTATION_NAMES])
+    assert np.all((ratio > 0.85) & (ratio < 1.15)), dict(zip(ORIENTATION_NAMES, ratio))
+    # a posteriori = a priori scaled by sigma0; angles converted to the unit asked for
+    post = reported.orientation_std("gon")
+    assert post["X0"] == pytest.approx(prior["X0"] * reported.sigma0, rel=1e-6)
+    assert post["kappa"] == pytest.approx(prior["kappa"] * reported.sigma0 * 200 / np.pi, rel=1e-6)

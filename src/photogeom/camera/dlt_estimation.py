@@ -62,6 +62,55 @@ class DLTFit(Fit):
         """Exterior orientation decomposed from the DLT."""
         return self.extras["exterior"]
 
+    def orientation_covariance(self, *, prior: bool = False) -> np.ndarray:
+        """Covariance (11, 11) of the decomposed orientation, in the order of
+        :data:`ORIENTATION_NAMES`: ``cx, cy, x0, y0, b2`` (image unit), ``X0, Y0, Z0``
+        (object units), ``omega, phi, kappa`` (radians).
+
+        Propagated from the covariance of ``L1 .. L11`` (a posteriori, or with ``prior``
+        a priori: the one defined at redundancy 0) by the Jacobian of the decomposition
+        (:func:`~photogeom.camera.orientation_from_dlt`), taken by central differences
+        with steps of a thousandth of each parameter's standard deviation.
+        """
+        C = self.covariance_prior if prior else self.covariance
+        C = np.asarray(C, dtype=float)
+        std = np.sqrt(np.clip(np.diag(C), 0.0, None))
+        if not np.all(np.isfinite(std)):
+            return np.full((11, 11), np.nan)
+        L0 = np.asarray(self.parameters, dtype=float)
+        h = np.where(std > 0, 1e-3 * std, 1e-9 * np.maximum(np.abs(L0), 1e-12))
+        J = np.empty((11, 11))
+        for i in range(11):  # the eleven parameters, not points
+            d = np.zeros(11)
+            d[i] = h[i]
+            up, down = _orientation_vector(L0 + d), _orientation_vector(L0 - d)
+            diff = up - down
+            diff[8:] = (diff[8:] + np.pi) % (2.0 * np.pi) - np.pi  # angles across the cut
+            J[:, i] = diff / (2.0 * h[i])
+        return J @ C @ J.T
+
+    def orientation_std(self, angle_unit: str = "deg", *, prior: bool = False) -> dict:
+        """Standard deviations of the decomposed orientation by name
+        (:data:`ORIENTATION_NAMES`; angles in ``angle_unit``); see
+        :meth:`orientation_covariance`."""
+        from ..units import from_radians
+
+        s = np.sqrt(np.clip(np.diag(self.orientation_covariance(prior=prior)), 0.0, None))
+        s[8:] = np.asarray(from_radians(s[8:], angle_unit))
+        return {n: float(v) for n, v in zip(ORIENTATION_NAMES, s)}
+
+
+#: Names of the decomposed orientation (:meth:`DLTFit.orientation_covariance`).
+ORIENTATION_NAMES = ("cx", "cy", "x0", "y0", "b2", "X0", "Y0", "Z0", "omega", "phi", "kappa")
+
+
+def _orientation_vector(L: np.ndarray) -> np.ndarray:
+    """cx, cy, x0, y0, b2, X0, Y0, Z0, omega, phi, kappa of the DLT ``L`` (radians)."""
+    io, eo = orientation_from_dlt(L)
+    return np.array(
+        [io.fx, io.fy, io.x0, io.y0, io.b2, eo.X0, eo.Y0, eo.Z0, eo.omega, eo.phi, eo.kappa]
+    )
+
 
 def image_weights(sigma, n: int) -> np.ndarray | None:
     if sigma is None:

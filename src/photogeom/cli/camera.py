@@ -526,7 +526,7 @@ def dlt_estimate(
     au = AngleUnit(angle_unit).value
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()
-    data["orientation"] = _orientation_json(fit.interior, fit.exterior, au)
+    data["orientation"] = _orientation_json(fit.interior, fit.exterior, au, _dlt_std(fit, au))
     if unmatched:
         data["unmatched"] = unmatched
     if output_params is not None:
@@ -541,23 +541,53 @@ def dlt_estimate(
 
     out = console()
     print_fit(fit, console=out, angle_unit=au)
-    out.print(_orientation_text(fit.interior, fit.exterior, au), markup=False, highlight=False)
+    out.print(
+        _orientation_text(fit.interior, fit.exterior, au, _dlt_std(fit, au)),
+        markup=False,
+        highlight=False,
+    )
     for path, _ in outputs:
         say(f"wrote {path}", out)
 
 
-def _orientation_json(io, eo, au: str) -> dict:
-    """Interior (with ``cx``, ``cy``) and exterior orientation (angles in ``au``) for JSON."""
-    return {"interior": io.to_dict(), "exterior": eo.to_dict(au), "cx": io.fx, "cy": io.fy}
+def _dlt_std(fit, au: str) -> tuple[dict, str]:
+    """Standard deviations of the decomposed orientation (angles in ``au``): a posteriori,
+    or a priori where the redundancy is 0; and which."""
+    std = fit.orientation_std(au)
+    if all(np.isfinite(v) for v in std.values()):
+        return std, "a posteriori"
+    return fit.orientation_std(au, prior=True), "a priori"
 
 
-def _orientation_text(io, eo, au: str) -> str:
+def _orientation_json(io, eo, au: str, std: tuple[dict, str] | None = None) -> dict:
+    """Interior (with ``cx``, ``cy``) and exterior orientation (angles in ``au``) for JSON;
+    with ``std`` their standard deviations (``std``, ``std_kind``)."""
+    out = {"interior": io.to_dict(), "exterior": eo.to_dict(au), "cx": io.fx, "cy": io.fy}
+    if std is not None:
+        out["std"] = {k: (float(v) if np.isfinite(v) else None) for k, v in std[0].items()}
+        out["std_kind"] = std[1]
+    return out
+
+
+def _orientation_text(io, eo, au: str, std: tuple[dict, str] | None = None) -> str:
     a = eo.angles_in(au)
-    return (
+    text = (
         f"interior: cx = {io.fx:.6f}, cy = {io.fy:.6f}, x0 = {io.x0:.6f}, y0 = {io.y0:.6f}, "
         f"shear b2 = {io.b2:.3g} [{io.unit}]\n"
         f"exterior: X0 = {eo.X0:.4f}, Y0 = {eo.Y0:.4f}, Z0 = {eo.Z0:.4f}; omega = {a[0]:.6f}, "
         f"phi = {a[1]:.6f}, kappa = {a[2]:.6f} [{au}]"
+    )
+    if std is None:
+        return text
+    from ..report.format import fmt_std
+
+    s, kind = std
+    return text + (
+        f"\nstd. dev. ({kind}): cx {fmt_std(s['cx'])}, cy {fmt_std(s['cy'])}, "
+        f"x0 {fmt_std(s['x0'])}, y0 {fmt_std(s['y0'])}, b2 {fmt_std(s['b2'])} [{io.unit}]; "
+        f"X0 {fmt_std(s['X0'])}, Y0 {fmt_std(s['Y0'])}, Z0 {fmt_std(s['Z0'])}; "
+        f"omega {fmt_std(s['omega'])}, phi {fmt_std(s['phi'])}, kappa {fmt_std(s['kappa'])} "
+        f"[{au}]"
     )
 
 
@@ -574,7 +604,10 @@ def _dlt_report(fit, image_ctrl, image_check, au: str) -> str:
         point_labels=("x", "y"),
         point_unit=fit.residual_unit,
     )
-    rep.add_text("Decomposed orientation", _orientation_text(fit.interior, fit.exterior, au))
+    rep.add_text(
+        "Decomposed orientation",
+        _orientation_text(fit.interior, fit.exterior, au, _dlt_std(fit, au)),
+    )
     return rep.to_html()
 
 
