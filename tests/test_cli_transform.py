@@ -375,3 +375,30 @@ def test_sigma_column_with_an_a_priori_sigma0(tmp_path, cli):
     got = {k: v["std"] for k, v in data["parameters"].items()}
     want = lib.std_errors
     np.testing.assert_allclose([got[k] for k in want], list(want.values()), rtol=1e-9)
+
+
+def test_errors_in_both_refuses_a_sigma_column_in_another_unit(tmp_path, cli):
+    """A sigma column holds target-unit standard deviations; with errors in both point sets
+    they would weigh the source coordinates too: refused when the units differ, accepted
+    when both sets are in one unit or the column holds unitless weights."""
+    rng = np.random.default_rng(5)
+    src = rng.uniform(0, 1000, (8, 2))
+    H = np.array([[1.01, 0.02, 3.0], [-0.01, 0.99, -2.0], [1e-5, 2e-5, 1.0]])
+    h = np.column_stack([src, np.ones(8)]) @ H.T
+    dst = h[:, :2] / h[:, 2:] + rng.normal(0, 0.01, (8, 2))
+    lines = "".join(
+        f"P{k},{a:.17g},{b:.17g},{c:.17g},{d:.17g},0.01\n" for k, (a, b, c, d) in
+        enumerate(np.column_stack([src, dst]))
+    )
+    f = _write(tmp_path, "p.csv", "id,x,y,X,Y,sigma\n" + lines)
+    base = ("transform", "estimate", "projective2d", f, "--errors-in", "both")
+    code, _, err = cli(*base, "--unit", "mm", "--source-unit", "px")
+    assert code == 2 and "--errors-in both with a sigma column" in err and "--weights-col" in err
+    code, _, err = cli(*base, "--source-system", "pixel", "--unit", "mm")
+    assert code == 2 and "(px)" in err
+    code, _, err = cli(*base, "--unit", "mm", "--source-unit", "mm", "--json")
+    assert code == 0, err
+    g = _write(tmp_path, "w.csv", "id,x,y,X,Y,weight\n" + lines)
+    code, _, err = cli("transform", "estimate", "projective2d", g, "--errors-in", "both",
+                       "--unit", "mm", "--source-unit", "px", "--json")  # fmt: skip
+    assert code == 0, err

@@ -224,6 +224,7 @@ def estimate(
             allow_unmatched=allow_unmatched,
         )
         _check_dimensions(model, pairs)
+        _check_sigma_units(errors_in, pairs, unit, source_unit, source_system)
         mask = check_mask(pairs.ids, pairs.check_mask, check_ids, list_ids=True)
         step(f"estimating {model} from {len(pairs)} point pairs")
         fit = estimate_transform(
@@ -298,6 +299,25 @@ def _with_crs(fit, tcrs, scrs, pairs: PointPairs):
         crs=None if tcrs is None else tcrs.text,
         source_crs=None if scrs is None else scrs.text,
         notes=tuple(fit.notes) + tuple(notes),
+    )
+
+
+def _check_sigma_units(
+    errors_in: str, pairs, unit: str, source_unit: str, source_system: str | None
+) -> None:
+    """With errors in both point sets a sigma column's standard deviations (target units)
+    weigh the source coordinates too: refuse when the source is in another unit (its unit
+    defaults to ``px`` with ``--source-system pixel``, else to ``--unit``)."""
+    if errors_in != "both" or not pairs.weights_from_sigma:
+        return
+    src = source_unit or ("px" if (source_system or "").lower() == "pixel" else unit)
+    if src.strip().lower() == (unit or "").strip().lower():
+        return
+    raise InputError(
+        "--errors-in both with a sigma column: its standard deviations are in target units "
+        f"({unit or 'unstated'}) and would be given to the source coordinates ({src}) as "
+        "well; give relative weights in a weight column (--weights-col) instead, or state "
+        "one unit for both point sets with --unit and --source-unit"
     )
 
 
