@@ -124,8 +124,12 @@ def opk_from_matrix(
 ) -> tuple:
     """Angles (omega, phi, kappa) in radians of ``M = M3(kappa) M2(phi) M1(omega)``.
 
-    ``phi = asin(m31)`` in [-pi/2, pi/2], ``omega = atan2(-m32, m33)``,
-    ``kappa = atan2(-m21, m11)``.
+    ``phi = atan2(m31, hypot(m32, m33))`` in [-pi/2, pi/2], ``omega = atan2(-m32, m33)``,
+    ``kappa = atan2(-m21, m11)``. For a rotation ``phi`` equals the textbook ``asin(m31)``
+    (to rounding, and more accurately near +-90 degrees, where ``asin`` loses half the
+    digits); for a matrix that is not orthogonal (the raw closed-form absolute orientation)
+    the two differ: :meth:`AbsoluteOrientationFit.angles` reads that matrix with
+    ``asin(m31)`` as its paper publishes, this function does not.
 
     Parameters
     ----------

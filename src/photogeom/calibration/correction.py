@@ -62,7 +62,7 @@ def correct_observations(per_image: Mapping, grids: Mapping) -> dict:
     out = {}
     for key, uv in per_image.items():
         try:
-            out[key] = grids[key].correct(_as_uv(uv, f"image {key}: uv"))
+            out[key] = grids[key].correct(_as_uv(uv, f"image {key}: uv", "correcting them"))
         except InputError as exc:
             msg = str(exc)
             raise InputError(msg if msg.startswith("image ") else f"image {key}: {msg}") from None

@@ -371,14 +371,14 @@ class ResidualGrid:
         -------
         numpy.ndarray, shape (n, 2)
         """
-        uv = _as_uv(uv, "uv")
+        uv = _as_uv(uv, "uv", "evaluating the grid")
         self.layout.check_inside(uv)
         return evaluate_nodes(self.layout, self.nodes, uv)
 
     def correct(self, uv) -> np.ndarray:
         """Corrected image coordinates ``uv + r(uv)`` (px): the observation moved by the
         modelled residual, i.e. the local displacement field ``-r`` subtracted."""
-        uv = _as_uv(uv, "uv")
+        uv = _as_uv(uv, "uv", "correcting them")
         return uv + self.evaluate(uv)
 
     @property
@@ -462,7 +462,9 @@ def evaluate_nodes(layout: GridLayout, nodes: np.ndarray, uv: np.ndarray) -> np.
     return np.einsum("nk,nkc->nc", w, flat[idx])
 
 
-def _as_uv(values, name: str) -> np.ndarray:
+def _as_uv(values, name: str, action: str = "fitting") -> np.ndarray:
+    """``values`` as an (n, 2) float array; errors name ``name`` and say to remove bad rows
+    before ``action`` (the operation the caller asked for: fitting, evaluating, ...)."""
     try:
         arr = np.asarray(values, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -475,7 +477,7 @@ def _as_uv(values, name: str) -> np.ndarray:
     if np.any(bad):
         raise InputError(
             f"{name}: {int(bad.sum())} row(s) hold NaN or infinite values (first: row "
-            f"{int(np.flatnonzero(bad)[0])}); remove them before fitting"
+            f"{int(np.flatnonzero(bad)[0])}); remove them before {action}"
         )
     return arr
 
