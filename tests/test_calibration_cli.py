@@ -38,6 +38,7 @@ def test_fit_apply_and_report(cli, residual_csv, tmp_path):
     )  # fmt: skip
     assert code == 0, err
     assert "IMG_2" in text and "computed minus observed" in text
+    assert text.count("wrote ") == 2  # the grids and the report
     assert rep.read_text().count("<img") == 1
     grids = load_grids(out)
     assert set(grids) == {"IMG_1", "IMG_2"} and grids["IMG_1"].layout.shape == (5, 7)

@@ -102,6 +102,7 @@ def test_dlt_estimate_and_convert(scene, tmp_path, cli):
     code, out, err = cli("camera", "dlt", "estimate", files[0][0])
     assert code == 0, err
     assert "std. dev. (a posteriori): cx" in out
+    assert "Z0 = " in out and out.count("[m]") >= 2  # the projection centre and its std
     code, out, err = cli("camera", "dlt", "convert", "--params", params)
     assert code == 0, err
     assert "interior: cx =" in out

@@ -541,8 +541,9 @@ def dlt_estimate(
 
     out = console()
     print_fit(fit, console=out, angle_unit=au)
+    gu = (ground_crs.unit if ground_crs is not None else None) or "m"
     out.print(
-        _orientation_text(fit.interior, fit.exterior, au, _dlt_std(fit, au)),
+        _orientation_text(fit.interior, fit.exterior, au, _dlt_std(fit, au), gu),
         markup=False,
         highlight=False,
     )
@@ -569,13 +570,16 @@ def _orientation_json(io, eo, au: str, std: tuple[dict, str] | None = None) -> d
     return out
 
 
-def _orientation_text(io, eo, au: str, std: tuple[dict, str] | None = None) -> str:
+def _orientation_text(
+    io, eo, au: str, std: tuple[dict, str] | None = None, ground_unit: str | None = None
+) -> str:
     a = eo.angles_in(au)
+    gu = f" [{ground_unit}]" if ground_unit else ""
     text = (
         f"interior: cx = {io.fx:.6f}, cy = {io.fy:.6f}, x0 = {io.x0:.6f}, y0 = {io.y0:.6f}, "
         f"shear b2 = {io.b2:.3g} [{io.unit}]\n"
-        f"exterior: X0 = {eo.X0:.4f}, Y0 = {eo.Y0:.4f}, Z0 = {eo.Z0:.4f}; omega = {a[0]:.6f}, "
-        f"phi = {a[1]:.6f}, kappa = {a[2]:.6f} [{au}]"
+        f"exterior: X0 = {eo.X0:.4f}, Y0 = {eo.Y0:.4f}, Z0 = {eo.Z0:.4f}{gu}; "
+        f"omega = {a[0]:.6f}, phi = {a[1]:.6f}, kappa = {a[2]:.6f} [{au}]"
     )
     if std is None:
         return text
@@ -585,7 +589,7 @@ def _orientation_text(io, eo, au: str, std: tuple[dict, str] | None = None) -> s
     return text + (
         f"\nstd. dev. ({kind}): cx {fmt_std(s['cx'])}, cy {fmt_std(s['cy'])}, "
         f"x0 {fmt_std(s['x0'])}, y0 {fmt_std(s['y0'])}, b2 {fmt_std(s['b2'])} [{io.unit}]; "
-        f"X0 {fmt_std(s['X0'])}, Y0 {fmt_std(s['Y0'])}, Z0 {fmt_std(s['Z0'])}; "
+        f"X0 {fmt_std(s['X0'])}, Y0 {fmt_std(s['Y0'])}, Z0 {fmt_std(s['Z0'])}{gu}; "
         f"omega {fmt_std(s['omega'])}, phi {fmt_std(s['phi'])}, kappa {fmt_std(s['kappa'])} "
         f"[{au}]"
     )

@@ -247,6 +247,8 @@ def fit(
     out = console()
     out.print(t)
     say(f"wrote {len(stats)} grid(s) to {output}", out)
+    if report is not None:
+        say(f"wrote {report}", out)
 
 
 def _cli_words(msg: str) -> str:
