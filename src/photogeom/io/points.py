@@ -848,7 +848,8 @@ class PointWriter:
 
     Numbers are written with the shortest representation that reads back to the same
     float64 (a lossless round trip); ids are written as text, quoted only when they hold a
-    comma, a quote or a line break. A file is written atomically: rows go to a temporary
+    comma, a quote or a line break or begin with ``#`` (which would make the row a comment
+    line when read back). A file is written atomically: rows go to a temporary
     file beside it, renamed over ``path`` when the ``with`` block ends without an error (and
     removed when it ends with one), so a failed job never leaves a half-written file. Large
     chunks are formatted by pyarrow in worker threads (see :mod:`photogeom.io.csvrows`)
