@@ -20,12 +20,26 @@ def test_ids_beginning_with_hash_survive_a_write_and_read(tmp_path):
     assert '"#2"' in path.read_text()
 
 
+class _Result:
+    def __init__(self, exit_code: int, output: str) -> None:
+        self.exit_code, self.output = exit_code, output
+
+
 def _run(args):
-    from typer.testing import CliRunner
+    """Run the command line as ``photogeom`` does (errors -> 'error:' line, exit code 2)."""
+    import contextlib
+    import io
 
-    from photogeom.cli.main import app
+    from photogeom.cli.main import main
 
-    return CliRunner().invoke(app, [str(a) for a in args])
+    out, err = io.StringIO(), io.StringIO()
+    code = 0
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            main([str(a) for a in args])
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+    return _Result(code, out.getvalue() + err.getvalue())
 
 
 def test_transform_apply_names_output_columns_as_the_estimate(tmp_path):
@@ -54,3 +68,24 @@ def test_transform_apply_names_output_columns_as_the_estimate(tmp_path):
     again = read_points(back)
     assert again.columns == ("col", "row")
     np.testing.assert_allclose(again.coords, [[100.5, 200.25]], atol=1e-9)
+
+
+def test_missing_columns_name_the_option_of_the_command(tmp_path):
+    """Every command's 'column(s) ... not found' error advised '--source-cols x,y', an option
+    of transform estimate only (orient resection has --image-cols, transform apply --cols)."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text("id,COL,ROW\n1,1.0,2.0\n2,3.0,4.0\n3,5.0,7.0\n")
+    ground = tmp_path / "ground.csv"
+    ground.write_text("id,X,Y,Z\n1,0,0,0\n2,1,0,0\n3,0,1,0\n")
+    cases = [
+        (["orient", "resection", ground, bad, "--f", "152"], "--image-cols"),
+        (["orient", "resection", bad, bad, "--f", "152"], "--ground-cols"),
+        (["camera", "project", bad, "--f", "152", "--eo", "0,0,9,0,0,0"], "--cols"),
+        (["transform", "estimate", "similarity2d", bad, "--target-cols", "x,y"], "--target-cols"),
+        (["orient", "relative", bad, "--f", "100"], "--cols"),
+    ]
+    for args, option in cases:
+        r = _run(args)
+        assert r.exit_code == 2, (args, r.output)
+        assert f"choose others with {option})" in r.output, (args, r.output)
+        assert "--source-cols" not in r.output

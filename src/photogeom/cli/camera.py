@@ -29,6 +29,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     check_mask,
+    column_options,
     console,
     emit_points,
     finite_or_none,
@@ -348,7 +349,8 @@ def project_cmd(
         principal_point=principal_point,
     )
     ext = build_exterior(eo, angle_unit, camera)
-    table = read_points(points, split_names(cols) or ["X", "Y", "Z"], auto_weights=False)
+    with column_options("--cols"):
+        table = read_points(points, split_names(cols) or ["X", "Y", "Z"], auto_weights=False)
     xy = project(
         table.coords, io, ext, system="pixel" if pixel else "image", behind=Behind(behind).value
     )
@@ -395,12 +397,17 @@ def load_control(
     if len(gcols) != 3 or len(icols) != 2:
         raise InputError("ground columns must be three names and image columns two")
     if image is None:
-        pairs = read_point_pairs(
-            points, icols, gcols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
-        )
+        with column_options("--image-cols", source="--image-cols", target="--ground-cols"):
+            pairs = read_point_pairs(
+                points, icols, gcols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
+            )
     else:
-        g = read_points(points, gcols, id_column=id_col, auto_weights=False)
-        im = read_points(image, icols, id_column=id_col, sigma_column=sigma_col, auto_weights=False)
+        with column_options("--ground-cols"):
+            g = read_points(points, gcols, id_column=id_col, auto_weights=False)
+        with column_options("--image-cols"):
+            im = read_points(
+                image, icols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
+            )
         pairs = join_points(im, g, allow_unmatched=True)
         if unmatched is not None:
             unmatched["image_only"] = list(pairs.unmatched_source)

@@ -15,6 +15,7 @@ from ..errors import InputError
 from ._common import (
     IdColOpt,
     OutputCsvOpt,
+    column_options,
     emit_points,
     option_or_file_crs,
     split_names,
@@ -68,7 +69,8 @@ def convert(
     from .. import crs as _crs
     from ..io import format_points_csv, read_points
 
-    table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
+    with column_options("--cols"):
+        table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
     xyz = table.coords
     frame = None
     if origin is not None:

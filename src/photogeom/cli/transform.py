@@ -23,6 +23,7 @@ from ._common import (
     IdColOpt,
     cartesian_crs_option,
     check_mask,
+    column_options,
     console,
     crs_from_comments,
     file_crs,
@@ -570,7 +571,8 @@ def apply(
             "points; --crs names the CRS of the output coordinates, it does not convert them: "
             "leave --crs out, or convert the output with photogeom crs convert"
         )
-    blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+    with column_options("--cols"):
+        blocks = PointBlocks(points, split_names(cols), id_column=id_col)
     in_crs = crs_from_comments(blocks.comments)
     if in_crs is not None:
         cartesian_crs_option(in_crs, f"{points} ('# crs:' line)")

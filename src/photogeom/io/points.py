@@ -249,11 +249,19 @@ def _resolve_columns(raw: _Source, wanted: Sequence[str], what: str) -> tuple[st
     found = [_find(raw.header, c) for c in wanted]
     missing = [c for c, f in zip(wanted, found) if f is None]
     if missing:
-        raise FileFormatError(
+        exc = FileFormatError(
             f"{raw.label}: {what} column(s) {', '.join(missing)} not found; the file has columns "
-            f"{_names(raw.header)} (choose others by name, e.g. --source-cols x,y)"
+            f"{_names(raw.header)} ({COLUMN_HINT})"
         )
+        exc.column_kind = what  # the command line names its option for this kind
+        raise exc
     return tuple(f for f in found if f is not None)
+
+
+#: End of the message of a missing column: how to choose others (the command line replaces it
+#: with its option, e.g. ``--image-cols``).
+COLUMN_HINT = "choose others by name"
+
 
 
 def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
