@@ -89,3 +89,38 @@ def test_missing_columns_name_the_option_of_the_command(tmp_path):
         assert r.exit_code == 2, (args, r.output)
         assert f"choose others with {option})" in r.output, (args, r.output)
         assert "--source-cols" not in r.output
+
+
+def test_grid_fit_and_apply_read_files_with_comment_lines(tmp_path):
+    """grid fit / grid apply took the first line as the header even when it was a '#'
+    comment, so the observations.csv of a block folder (written with '# pixels: ...') was
+    refused: "no column 'image_id' (columns: # pixels: centre ...)". Comments are skipped
+    as in every other point file, kept in the output of grid apply, and a line number in an
+    error is still the file's."""
+    rng = np.random.default_rng(7)
+    n = 60
+    u, v = rng.uniform(0, 400, n), rng.uniform(0, 300, n)
+    rx, ry = rng.normal(0, 0.3, n), rng.normal(0, 0.3, n)
+    head = "# pixels: centre of the top-left pixel at (0, 0), u right, v down\n"
+    res = tmp_path / "res.csv"
+    res.write_text(
+        head + "image_id,point_id,u,v,rx,ry\n"
+        + "".join(f"#1,{k},{u[k]},{v[k]},{rx[k]},{ry[k]}\n" for k in range(n))
+        .replace("#1,", '"#1",')
+    )  # fmt: skip
+    grids = tmp_path / "g.json"
+    r = _run(["grid", "fit", res, "--image-size", "400x300", "--spacing", "100",
+              "-o", grids, "--folds", "0"])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    obs = tmp_path / "obs.csv"
+    obs.write_text(head + "image_id,u,v\n" + '"#1",100.0,100.0\n')
+    out = tmp_path / "out.csv"
+    r = _run(["grid", "apply", grids, obs, "-o", out])
+    assert r.exit_code == 0, r.output
+    text = out.read_text().splitlines()
+    assert text[0] == head.strip() and text[1] == "image_id,u,v"
+    assert text[2].startswith('"#1",')
+    bad = tmp_path / "bad.csv"
+    bad.write_text(head + "image_id,u,v\n" + '"#1",100.0,x\n')
+    r = _run(["grid", "apply", grids, bad])
+    assert r.exit_code == 2 and "line 3, column v" in r.output, r.output
