@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from photogeom.io import read_points, write_points
 
@@ -124,3 +125,18 @@ def test_grid_fit_and_apply_read_files_with_comment_lines(tmp_path):
     bad.write_text(head + "image_id,u,v\n" + '"#1",100.0,x\n')
     r = _run(["grid", "apply", grids, bad])
     assert r.exit_code == 2 and "line 3, column v" in r.output, r.output
+
+
+def test_crs_convert_reads_lon_lat_h_without_cols(tmp_path):
+    """rpc localize writes lon,lat,h with a '# crs: EPSG:4979' line; crs convert, whose help
+    says the columns are found by name, refused it: 'no coordinate columns found'."""
+    pyproj = pytest.importorskip("pyproj")
+    geo = tmp_path / "ground.csv"
+    geo.write_text("# crs: EPSG:4979\nid,lon,lat,h,status\n007,9.0,48.0,500.0,converged\n")
+    out = tmp_path / "utm.csv"
+    r = _run(["crs", "convert", geo, "--to", "EPSG:32632", "-o", out])
+    assert r.exit_code == 0, r.output
+    table = read_points(out)
+    assert table.ids == ("007",)
+    t = pyproj.Transformer.from_crs("EPSG:4979", "EPSG:32632", always_xy=True)
+    np.testing.assert_allclose(table.coords[0], t.transform(9.0, 48.0, 500.0), atol=1e-6)

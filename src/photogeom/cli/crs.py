@@ -28,6 +28,43 @@ app = typer.Typer(
 )
 
 
+#: Column sets of geographic points tried when POINTS has none of the usual names (the output
+#: of 'rpc localize' and of 'crs convert --out-cols lon,lat,h').
+GEOGRAPHIC_COLS = (("lon", "lat", "h"), ("lon", "lat", "height"),
+                   ("longitude", "latitude", "height"), ("longitude", "latitude", "h"),
+                   ("lon", "lat"), ("longitude", "latitude"))  # fmt: skip
+
+
+def _read_input(points: Path, cols: str | None, id_col: str | None):
+    """The points of POINTS: --cols, else the usual names (x,y,z, E,N,H, ...), else
+    lon,lat[,h] (a missing column set names --cols)."""
+    from ..errors import FileFormatError
+    from ..io import read_points
+
+    kw = {"id_column": id_col, "auto_weights": False}
+    with column_options("--cols"):
+        if cols is not None:
+            return read_points(points, split_names(cols), **kw)
+        try:
+            return read_points(points, None, **kw)
+        except FileFormatError as exc:
+            if "no coordinate columns found" not in str(exc):
+                raise
+            first = exc
+        for names in GEOGRAPHIC_COLS:
+            try:
+                return read_points(points, names, **kw)
+            except FileFormatError as exc:
+                if getattr(exc, "column_kind", None) is None:
+                    raise
+        sets = " or ".join(",".join(c) for c in GEOGRAPHIC_COLS)
+        raise FileFormatError(
+            str(first).replace(
+                "(or name the columns to use)", f"or {sets} (or name them with --cols)"
+            )
+        ) from None
+
+
 @app.command("convert")
 def convert(
     points: Annotated[Path, typer.Argument(help="CSV of points.")],
@@ -47,7 +84,11 @@ def convert(
         typer.Option(help="ENU origin lat,lon,h (degrees, m; WGS 84) for 'enu'."),
     ] = None,
     cols: Annotated[
-        str | None, typer.Option(help="Coordinate columns (x/lon first; default: by name).")
+        str | None,
+        typer.Option(
+            help="Coordinate columns (x/lon first; default: by name, x,y,z, X,Y,Z, E,N,H, ... "
+            "or lon,lat,h)."
+        ),
     ] = None,
     out_cols: Annotated[
         str | None, typer.Option(help="Output column names (default: x,y,z or E,N,U).")
@@ -67,10 +108,9 @@ def convert(
     import numpy as np
 
     from .. import crs as _crs
-    from ..io import format_points_csv, read_points
+    from ..io import format_points_csv
 
-    with column_options("--cols"):
-        table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
+    table = _read_input(points, cols, id_col)
     xyz = table.coords
     frame = None
     if origin is not None:
