@@ -140,3 +140,26 @@ def test_crs_convert_reads_lon_lat_h_without_cols(tmp_path):
     assert table.ids == ("007",)
     t = pyproj.Transformer.from_crs("EPSG:4979", "EPSG:32632", always_xy=True)
     np.testing.assert_allclose(table.coords[0], t.transform(9.0, 48.0, 500.0), atol=1e-6)
+
+
+def test_cloud_register_json_without_check_pairs(tmp_path):
+    """cloud register --json with the default --check-every 0 ended in a traceback (exit 1):
+    the per-axis check statistics were lists of NaN, which the JSON writer refuses."""
+    laspy = pytest.importorskip("laspy")
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform(0, 50, (200, 3))
+    paths = []
+    for name, pts in (("a.las", xyz), ("b.las", xyz + np.array([100.0, 200.0, 5.0]))):
+        header = laspy.LasHeader(point_format=3, version="1.2")
+        header.scales, header.offsets = [0.001] * 3, [0.0] * 3
+        las = laspy.LasData(header)
+        las.x, las.y, las.z = pts.T
+        las.write(tmp_path / name)
+        paths.append(tmp_path / name)
+    r = _run(["cloud", "register", *paths, "--json"])
+    assert r.exit_code == 0, r.output
+    import json
+
+    d = json.loads(r.output)
+    assert d["n_check"] == 0 and d["check_rms"] == [None, None, None]
+    np.testing.assert_allclose(d["translation"], [100.0, 200.0, 5.0], atol=1e-3)
