@@ -163,3 +163,27 @@ def test_cloud_register_json_without_check_pairs(tmp_path):
     d = json.loads(r.output)
     assert d["n_check"] == 0 and d["check_rms"] == [None, None, None]
     np.testing.assert_allclose(d["translation"], [100.0, 200.0, 5.0], atol=1e-3)
+
+
+def test_library_warnings_are_one_cli_line(tmp_path, capsys):
+    """A photogeom warning in a command printed Python's display (the library's source file
+    and line, 'SuspectResultWarning:') and Python words ('see fit.snooping()', 'try
+    initial='); it is now one line 'warning: ...' naming the command's options."""
+    import warnings
+
+    from photogeom.cli import main as cli_main
+    from photogeom.errors import SuspectResultWarning
+
+    shown = []
+    before = warnings.showwarning
+    cli_main._show_warning(
+        lambda *a: shown.append(a),
+        SuspectResultWarning("bad (see fit.snooping()), (try initial= from another source)"),
+        SuspectResultWarning, "resection.py", 1,
+    )  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("warning: bad (see the w-test of the residuals)")
+    assert "--initial X0,Y0,Z0,OMEGA,PHI,KAPPA" in err and "resection.py" not in err
+    cli_main._show_warning(lambda *a: shown.append(a), UserWarning("x"), UserWarning, "f.py", 2)
+    assert len(shown) == 1  # other warnings: Python's display
+    assert warnings.showwarning is before

@@ -248,6 +248,11 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
     ("source_system / target_system", "--source-system / --target-system"),
     ("give both source_system and target_system", "give both --source-system and --target-system"),
     (" (photogeom.orientation.p3p lists them)", ""),
+    ("(see fit.snooping())", "(see the w-test of the residuals)"),
+    (
+        "(try initial= from another source)",
+        "(try --initial X0,Y0,Z0,OMEGA,PHI,KAPPA from another source)",
+    ),
 )
 
 
