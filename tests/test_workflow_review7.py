@@ -187,3 +187,29 @@ def test_library_warnings_are_one_cli_line(tmp_path, capsys):
     cli_main._show_warning(lambda *a: shown.append(a), UserWarning("x"), UserWarning, "f.py", 2)
     assert len(shown) == 1  # other warnings: Python's display
     assert warnings.showwarning is before
+
+
+def test_camera_dlt_estimate_output_is_a_camera_file(tmp_path):
+    """camera dlt estimate --output-params writes the decomposed camera under 'orientation',
+    but camera project / orient intersection --camera refused the file ('no camera found');
+    they now read that orientation (angles in the file's unit)."""
+    import photogeom as pg
+    from photogeom.camera import ExteriorOrientation, InteriorOrientation
+
+    rng = np.random.default_rng(5)
+    ground = np.c_[rng.uniform(0, 600, 12), rng.uniform(0, 600, 12), rng.uniform(0, 80, 12)]
+    io = InteriorOrientation(f=152.0)
+    eo = ExteriorOrientation(300.0, 280.0, 1500.0, 0.02, -0.03, 0.5)
+    image = pg.project(ground, io, eo)
+    ids = [f"0{k}" for k in range(12)]
+    g, im = tmp_path / "g.csv", tmp_path / "im.csv"
+    write_points(g, ids, ground, columns=("X", "Y", "Z"))
+    write_points(im, ids, image, columns=("x", "y"))
+    params = tmp_path / "dlt.json"
+    r = _run(["camera", "dlt", "estimate", g, im, "--output-params", params,
+              "--angle-unit", "gon"])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "proj.csv"
+    r = _run(["camera", "project", g, "--camera", params, "-o", out])
+    assert r.exit_code == 0, r.output
+    np.testing.assert_allclose(read_points(out).coords, image, atol=1e-8)

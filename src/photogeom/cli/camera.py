@@ -88,12 +88,21 @@ def camera_from_json(path: Path):
     """(InteriorOrientation or None, ExteriorOrientation or None) from a JSON file.
 
     Accepts a ``FrameCamera.to_dict()``, the ``--output-params``/``--json`` output of
-    ``orient resection`` (its ``model_parameters``), or a bare interior orientation.
+    ``orient resection`` (its ``model_parameters``) or of ``camera dlt estimate`` (the
+    orientation decomposed from the DLT, its ``orientation``), or a bare interior orientation.
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
     from ..io.jsonfile import build_from_json
 
+    raw = read_json(path)
     data = read_parameters_json(path)
+    orientation = raw.get("orientation") if isinstance(raw, dict) else None
+    if (
+        not any(k in data for k in ("interior", "exterior", "f"))
+        and isinstance(orientation, dict)
+        and ("interior" in orientation or "exterior" in orientation)
+    ):  # camera dlt estimate: L1..L11 in model_parameters, the camera in orientation
+        data = orientation
     if "interior" in data or "exterior" in data:
         io = eo = None
         if "interior" in data:
@@ -110,7 +119,7 @@ def camera_from_json(path: Path):
         return io, None
     raise FileFormatError(
         f"{path}: no camera found (expected 'interior'/'exterior' entries, e.g. the output of "
-        "'photogeom orient resection --output-params')"
+        "'photogeom orient resection --output-params' or 'camera dlt estimate --output-params')"
     )
 
 
