@@ -213,3 +213,21 @@ def test_camera_dlt_estimate_output_is_a_camera_file(tmp_path):
     r = _run(["camera", "project", g, "--camera", params, "-o", out])
     assert r.exit_code == 0, r.output
     np.testing.assert_allclose(read_points(out).coords, image, atol=1e-8)
+
+
+def test_bundle_adjust_arcsec_with_a_csv_block_output(tmp_path):
+    """bundle adjust -o DIR --angle-unit arcsec (offered by --help) adjusted the block and
+    then stopped with "error: angle_unit must be deg, gon or rad, not 'arcsec'", writing
+    nothing; the angles are now shown in arcsec and the block written in degrees, which the
+    next adjustment reads. bundle convert to CSV refuses arcsec before reading."""
+    block = tmp_path / "sim"
+    r = _run(["bundle", "simulate", block, "--strips", "2", "--images-per-strip", "3",
+              "--tie-points-per-image", "30", "--no-imu"])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "adj"
+    r = _run(["bundle", "adjust", block, "-o", out, "--angle-unit", "arcsec", "--no-snooping"])
+    assert r.exit_code == 0, r.output
+    assert "omega_deg" in (out / "images.csv").read_text().splitlines()[1]
+    assert _run(["bundle", "adjust", out, "--no-snooping"]).exit_code == 0
+    r = _run(["bundle", "convert", block, tmp_path / "c", "--to", "csv", "--angle-unit", "arcsec"])
+    assert r.exit_code == 2 and "--angle-unit arcsec" in r.output, r.output
