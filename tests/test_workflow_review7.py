@@ -231,3 +231,31 @@ def test_bundle_adjust_arcsec_with_a_csv_block_output(tmp_path):
     assert _run(["bundle", "adjust", out, "--no-snooping"]).exit_code == 0
     r = _run(["bundle", "convert", block, tmp_path / "c", "--to", "csv", "--angle-unit", "arcsec"])
     assert r.exit_code == 2 and "--angle-unit arcsec" in r.output, r.output
+
+
+def test_transform_apply_reads_the_columns_of_the_estimate(tmp_path):
+    """transform estimate --source-cols x2,y2 --target-cols x1,y1 --output-params, then
+    transform apply on the same kind of file: 'no coordinate columns found ... (or name the
+    columns to use)'. apply now reads the estimate's source columns (target ones with
+    --inverse) when the file has them, and the error names --cols."""
+    pts = tmp_path / "two.csv"
+    pts.write_text(
+        "id,x1,y1,x2,y2\n1,253,64,175,44\n2,40,389,18,176\n3,300,300,210,190\n"
+        "4,120,30,80,15\n5,60,200,30,100\n"
+    )
+    params = tmp_path / "p.json"
+    r = _run(["transform", "estimate", "affine2d", pts, "--source-cols", "x2,y2",
+              "--target-cols", "x1,y1", "--output-params", params])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "out.csv"
+    assert _run(["transform", "apply", params, pts, "-o", out]).exit_code == 0
+    assert out.read_text().splitlines()[1] == "id,x1,y1"
+    back = tmp_path / "back.csv"
+    assert _run(["transform", "apply", params, out, "--inverse", "-o", back]).exit_code == 0
+    assert back.read_text().splitlines()[1] == "id,x2,y2"  # image 1 -> image 2 coordinates
+    xy2 = read_points(back, "x2,y2").coords[:2]
+    np.testing.assert_allclose(xy2, [[175, 44], [18, 176]], atol=1e-9)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("id,a,b\n1,2,3\n")
+    r = _run(["transform", "apply", params, bad])
+    assert r.exit_code == 2 and "(or name them with --cols)" in r.output, r.output

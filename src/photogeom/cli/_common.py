@@ -269,12 +269,16 @@ def column_options(coordinates: str, **kinds: str):
         source and target set of one file), ``weight``, ``sigma``.
     """
     from ..errors import FileFormatError
-    from ..io.points import COLUMN_HINT
+    from ..io.points import AUTO_COLUMN_HINT, COLUMN_HINT
 
     try:
         yield
     except FileFormatError as exc:
         kind = getattr(exc, "column_kind", None)
+        if kind is None and AUTO_COLUMN_HINT in str(exc):  # no known column names at all
+            raise FileFormatError(
+                str(exc).replace(AUTO_COLUMN_HINT, f"(or name them with {coordinates})")
+            ) from exc
         if kind is None or COLUMN_HINT not in str(exc):
             raise
         options = {

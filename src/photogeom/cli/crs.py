@@ -40,6 +40,7 @@ def _read_input(points: Path, cols: str | None, id_col: str | None):
     lon,lat[,h] (a missing column set names --cols)."""
     from ..errors import FileFormatError
     from ..io import read_points
+    from ..io.points import AUTO_COLUMN_HINT
 
     kw = {"id_column": id_col, "auto_weights": False}
     with column_options("--cols"):
@@ -59,9 +60,7 @@ def _read_input(points: Path, cols: str | None, id_col: str | None):
                     raise
         sets = " or ".join(",".join(c) for c in GEOGRAPHIC_COLS)
         raise FileFormatError(
-            str(first).replace(
-                "(or name the columns to use)", f"or {sets} (or name them with --cols)"
-            )
+            str(first).replace(AUTO_COLUMN_HINT, f"or {sets} {AUTO_COLUMN_HINT}")
         ) from None
 
 

@@ -528,7 +528,11 @@ def apply(
         bool, typer.Option("--inverse", help="Apply the inverse transformation (target -> source).")
     ] = False,
     cols: Annotated[
-        str | None, typer.Option(help="Coordinate columns of POINTS (default: found by name).")
+        str | None,
+        typer.Option(
+            help="Coordinate columns of POINTS (default: found by name; else "
+            "the columns the estimate read)."
+        ),
     ] = None,
     out_cols: Annotated[
         str | None,
@@ -558,11 +562,12 @@ def apply(
     """
     single_threaded_blas()
     from ..io import PointBlocks
+    from ..io.points import AUTO_COLUMN_HINT
 
     transform, to_crs, from_crs, (from_cols, to_cols) = load_transform_record(params)
     if inverse:
         to_crs, from_crs = from_crs, to_crs
-        to_cols = from_cols
+        to_cols, from_cols = from_cols, to_cols
     out_info = cartesian_crs_option(crs or to_crs, "--crs" if crs else f"{params}: crs")
     if crs is not None and to_crs is not None and not same_crs(to_crs, out_info.text):
         side = "source CRS (--inverse transforms to it)" if inverse else "target CRS"
@@ -572,7 +577,16 @@ def apply(
             "leave --crs out, or convert the output with photogeom crs convert"
         )
     with column_options("--cols"):
-        blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+        try:
+            blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+        except FileFormatError as exc:
+            # no usual column names: the columns the estimate read (x2,y2 ...), if present
+            if cols is not None or from_cols is None or AUTO_COLUMN_HINT not in str(exc):
+                raise
+            try:
+                blocks = PointBlocks(points, from_cols, id_column=id_col)
+            except FileFormatError:
+                raise exc from None
     in_crs = crs_from_comments(blocks.comments)
     if in_crs is not None:
         cartesian_crs_option(in_crs, f"{points} ('# crs:' line)")

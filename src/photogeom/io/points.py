@@ -261,6 +261,8 @@ def _resolve_columns(raw: _Source, wanted: Sequence[str], what: str) -> tuple[st
 #: End of the message of a missing column: how to choose others (the command line replaces it
 #: with its option, e.g. ``--image-cols``).
 COLUMN_HINT = "choose others by name"
+#: End of the message of a file without any of the default column names (as above).
+AUTO_COLUMN_HINT = "(or name the columns to use)"
 
 
 
@@ -274,7 +276,7 @@ def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
     expected = " or ".join(",".join(c) for c in DEFAULT_COLUMN_SETS)
     raise FileFormatError(
         f"{raw.label}: no coordinate columns found; the file has columns {_names(raw.header)}, "
-        f"expected {expected} (or name the columns to use)"
+        f"expected {expected} {AUTO_COLUMN_HINT}"
     )
 
 
