@@ -259,3 +259,23 @@ def test_transform_apply_reads_the_columns_of_the_estimate(tmp_path):
     bad.write_text("id,a,b\n1,2,3\n")
     r = _run(["transform", "apply", params, bad])
     assert r.exit_code == 2 and "(or name them with --cols)" in r.output, r.output
+
+
+def test_crs_convert_to_geographic_feeds_rpc_project(tmp_path):
+    """crs convert --to EPSG:4979 wrote lon, lat, h as columns x,y,z, which rpc project (it
+    looks for lon,lat,h) refused: 'cannot find the ground (lon, lat, h) columns'."""
+    pyproj = pytest.importorskip("pyproj")
+    t = pyproj.Transformer.from_crs("EPSG:4979", "EPSG:32721", always_xy=True)
+    e, n, h = t.transform(-56.17, -34.90, 30.0)
+    utm = tmp_path / "utm.csv"
+    utm.write_text(f"# crs: EPSG:32721\nid,x,y,z\n007,{e!r},{n!r},{h!r}\n")
+    geo = tmp_path / "geo.csv"
+    r = _run(["crs", "convert", utm, "--to", "EPSG:4979", "-o", geo])
+    assert r.exit_code == 0, r.output
+    assert "id,lon,lat,h" in geo.read_text().splitlines()
+    from photogeom.datasets import path
+
+    rpc = path("lecture_fiducials").parent / "rpc" / "rpc_IKONOS.txt"
+    r = _run(["rpc", "project", rpc, geo])
+    assert r.exit_code == 0, r.output
+    assert "id,col,row" in r.output and "007," in r.output

@@ -29,7 +29,7 @@ app = typer.Typer(
 
 
 #: Column sets of geographic points tried when POINTS has none of the usual names (the output
-#: of 'rpc localize' and of 'crs convert --out-cols lon,lat,h').
+#: of 'rpc localize' and of 'crs convert --to' a geographic CRS).
 GEOGRAPHIC_COLS = (("lon", "lat", "h"), ("lon", "lat", "height"),
                    ("longitude", "latitude", "height"), ("longitude", "latitude", "h"),
                    ("lon", "lat"), ("longitude", "latitude"))  # fmt: skip
@@ -90,7 +90,11 @@ def convert(
         ),
     ] = None,
     out_cols: Annotated[
-        str | None, typer.Option(help="Output column names (default: x,y,z or E,N,U).")
+        str | None,
+        typer.Option(
+            help="Output column names (default: x,y,z; lon,lat,h for a geographic --to; E,N,U "
+            "for 'enu')."
+        ),
     ] = None,
     allow_ballpark: Annotated[
         bool, typer.Option(help="Accept an approximate PROJ datum shift.")
@@ -151,7 +155,12 @@ def convert(
         out = xyz
     else:
         out = _crs.transform_points(xyz, src, dst, allow_ballpark=allow_ballpark)
-    names = ["E", "N", "U"] if enu_out else ["x", "y", "z"][: out.shape[1]]
+    if enu_out:
+        names = ["E", "N", "U"]
+    elif _crs.parse_crs(dst, what="--to").is_geographic:  # what rpc project & co. read
+        names = ["lon", "lat", "h"][: out.shape[1]]
+    else:
+        names = ["x", "y", "z"][: out.shape[1]]
     names = split_names(out_cols) or names
     if len(names) != out.shape[1]:
         raise InputError(f"--out-cols: {len(names)} name(s) for {out.shape[1]} coordinates")
