@@ -7,6 +7,7 @@ the console width off a terminal) so that the commands of every group behave ali
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -169,25 +170,30 @@ def load_pairs(
     from ..io import join_points, read_point_pairs, read_points
 
     if target is None:
-        return read_point_pairs(
-            source,
-            split_names(source_cols),
+        with column_options("--source-cols", source="--source-cols", target="--target-cols"):
+            return read_point_pairs(
+                source,
+                split_names(source_cols),
+                split_names(target_cols),
+                id_column=id_col,
+                weight_column=weights_col,
+                sigma_column=sigma_col,
+            )
+    # An explicit weight/sigma column belongs to the target file; without one, a weight or
+    # sigma column found in either file is used (join_points refuses conflicting ones).
+    explicit = weights_col is not None or sigma_col is not None
+    with column_options("--source-cols"):
+        src = read_points(
+            source, split_names(source_cols), id_column=id_col, auto_weights=not explicit
+        )
+    with column_options("--target-cols"):
+        dst = read_points(
+            target,
             split_names(target_cols),
             id_column=id_col,
             weight_column=weights_col,
             sigma_column=sigma_col,
         )
-    # An explicit weight/sigma column belongs to the target file; without one, a weight or
-    # sigma column found in either file is used (join_points refuses conflicting ones).
-    explicit = weights_col is not None or sigma_col is not None
-    src = read_points(source, split_names(source_cols), id_column=id_col, auto_weights=not explicit)
-    dst = read_points(
-        target,
-        split_names(target_cols),
-        id_column=id_col,
-        weight_column=weights_col,
-        sigma_column=sigma_col,
-    )
     return join_points(src, dst, allow_unmatched=allow_unmatched)
 
 
@@ -242,7 +248,50 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
     ("source_system / target_system", "--source-system / --target-system"),
     ("give both source_system and target_system", "give both --source-system and --target-system"),
     (" (photogeom.orientation.p3p lists them)", ""),
+    ("(see fit.snooping())", "(see the w-test of the residuals)"),
+    (
+        "(try initial= from another source)",
+        "(try --initial X0,Y0,Z0,OMEGA,PHI,KAPPA from another source)",
+    ),
 )
+
+
+@contextmanager
+def column_options(coordinates: str, **kinds: str):
+    """Name the command's options in a 'column(s) ... not found' error of the reads inside.
+
+    Parameters
+    ----------
+    coordinates : str
+        Option choosing the coordinate columns, e.g. ``--image-cols``.
+    **kinds : str
+        Options for other kinds of column: ``source``, ``target`` (coordinate columns of the
+        source and target set of one file), ``weight``, ``sigma``.
+    """
+    from ..errors import FileFormatError
+    from ..io.points import AUTO_COLUMN_HINT, COLUMN_HINT
+
+    try:
+        yield
+    except FileFormatError as exc:
+        kind = getattr(exc, "column_kind", None)
+        if kind is None and AUTO_COLUMN_HINT in str(exc):  # no known column names at all
+            raise FileFormatError(
+                str(exc).replace(AUTO_COLUMN_HINT, f"(or name them with {coordinates})")
+            ) from exc
+        if kind is None or COLUMN_HINT not in str(exc):
+            raise
+        options = {
+            "coordinate": coordinates,
+            "source coordinate": kinds.get("source", coordinates),
+            "target coordinate": kinds.get("target", coordinates),
+            "weight": kinds.get("weight", "--weights-col"),
+            "sigma": kinds.get("sigma", "--sigma-col"),
+        }
+        option = options.get(kind, coordinates)
+        new = FileFormatError(str(exc).replace(COLUMN_HINT, f"choose others with {option}"))
+        new.column_kind = kind
+        raise new from exc
 
 
 def in_cli_words(message: str) -> str:

@@ -474,7 +474,12 @@ def adjust(
     ] = None,
     unit: Annotated[str, typer.Option(help="Length unit of the object coordinates.")] = "m",
     angle_unit: Annotated[
-        AngleUnit, typer.Option("--angle-unit", help="Unit of the angles shown.")
+        AngleUnit,
+        typer.Option(
+            "--angle-unit",
+            help="Unit of the angles shown and of a CSV block written with -o (arcsec: "
+            "shown, the block in deg).",
+        ),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
     image_key: ImageKeyOpt = "name",
@@ -556,8 +561,11 @@ def adjust(
                 (report, bundle_report(data, f"Bundle adjustment: {source.name}").to_html())
             )
     files = {}
-    if output is not None:
-        files = block_files(fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=angle)
+    if output is not None:  # a CSV block holds deg, gon or rad: arcsec is shown, deg written
+        block_angle = "deg" if angle == "arcsec" else angle
+        files = block_files(
+            fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=block_angle
+        )
     write_all(files, texts, folders=[output] if out_fmt in ("csv", "colmap") else [])
     if as_json:
         d = fit.to_dict(angle)
@@ -688,7 +696,8 @@ def convert(
         typer.Option("--to", help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names)."),
     ] = None,
     angle_unit: Annotated[
-        AngleUnit, typer.Option("--angle-unit", help="Angle unit of a CSV block written.")
+        AngleUnit,
+        typer.Option("--angle-unit", help="Angle unit of a CSV block written (deg, gon, rad)."),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
     image_key: ImageKeyOpt = "name",
@@ -698,6 +707,11 @@ def convert(
     """Convert a block between BAL, COLMAP text and CSV (conventions converted exactly)."""
     src = detect_format(source, from_fmt, "--from")
     dst = output_format(target, to_fmt, None, "--to")
+    if dst == "csv" and angle_unit.value == "arcsec":
+        raise InputError(
+            "--angle-unit arcsec: a CSV block holds its angles in deg, gon or rad (named in "
+            "the column headers); choose one of them"
+        )
     check_targets(blocks=[("TARGET", target, dst)])
     block = read_block(source, src, sigma=sigma, image_key=image_key)
     files = block_files(block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value)

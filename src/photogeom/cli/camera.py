@@ -29,6 +29,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     check_mask,
+    column_options,
     console,
     emit_points,
     finite_or_none,
@@ -87,12 +88,21 @@ def camera_from_json(path: Path):
     """(InteriorOrientation or None, ExteriorOrientation or None) from a JSON file.
 
     Accepts a ``FrameCamera.to_dict()``, the ``--output-params``/``--json`` output of
-    ``orient resection`` (its ``model_parameters``), or a bare interior orientation.
+    ``orient resection`` (its ``model_parameters``) or of ``camera dlt estimate`` (the
+    orientation decomposed from the DLT, its ``orientation``), or a bare interior orientation.
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
     from ..io.jsonfile import build_from_json
 
+    raw = read_json(path)
     data = read_parameters_json(path)
+    orientation = raw.get("orientation") if isinstance(raw, dict) else None
+    if (
+        not any(k in data for k in ("interior", "exterior", "f"))
+        and isinstance(orientation, dict)
+        and ("interior" in orientation or "exterior" in orientation)
+    ):  # camera dlt estimate: L1..L11 in model_parameters, the camera in orientation
+        data = orientation
     if "interior" in data or "exterior" in data:
         io = eo = None
         if "interior" in data:
@@ -109,7 +119,7 @@ def camera_from_json(path: Path):
         return io, None
     raise FileFormatError(
         f"{path}: no camera found (expected 'interior'/'exterior' entries, e.g. the output of "
-        "'photogeom orient resection --output-params')"
+        "'photogeom orient resection --output-params' or 'camera dlt estimate --output-params')"
     )
 
 
@@ -348,7 +358,8 @@ def project_cmd(
         principal_point=principal_point,
     )
     ext = build_exterior(eo, angle_unit, camera)
-    table = read_points(points, split_names(cols) or ["X", "Y", "Z"], auto_weights=False)
+    with column_options("--cols"):
+        table = read_points(points, split_names(cols) or ["X", "Y", "Z"], auto_weights=False)
     xy = project(
         table.coords, io, ext, system="pixel" if pixel else "image", behind=Behind(behind).value
     )
@@ -395,12 +406,17 @@ def load_control(
     if len(gcols) != 3 or len(icols) != 2:
         raise InputError("ground columns must be three names and image columns two")
     if image is None:
-        pairs = read_point_pairs(
-            points, icols, gcols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
-        )
+        with column_options("--image-cols", source="--image-cols", target="--ground-cols"):
+            pairs = read_point_pairs(
+                points, icols, gcols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
+            )
     else:
-        g = read_points(points, gcols, id_column=id_col, auto_weights=False)
-        im = read_points(image, icols, id_column=id_col, sigma_column=sigma_col, auto_weights=False)
+        with column_options("--ground-cols"):
+            g = read_points(points, gcols, id_column=id_col, auto_weights=False)
+        with column_options("--image-cols"):
+            im = read_points(
+                image, icols, id_column=id_col, sigma_column=sigma_col, auto_weights=False
+            )
         pairs = join_points(im, g, allow_unmatched=True)
         if unmatched is not None:
             unmatched["image_only"] = list(pairs.unmatched_source)

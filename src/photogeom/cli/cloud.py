@@ -150,7 +150,7 @@ def transform(
     if params is not None:
         from .transform import load_transform_record
 
-        T, to_rec, from_rec = load_transform_record(params)
+        T, to_rec, from_rec, _ = load_transform_record(params)
         if inverse:
             T = T.inverse()
             to_rec, from_rec = from_rec, to_rec
@@ -265,10 +265,7 @@ def register(
         record.update({"crs": reg.fit.crs, "source_crs": reg.fit.source_crs})
         atomic_write_text(output_params, json_text(record))
     if json_out:
-        typer.echo(
-            json_text({k: (None if isinstance(v, float) and v != v else v) for k, v in d.items()}),
-            nl=False,
-        )
+        typer.echo(json_text(_nan_to_none(d)), nl=False)
         return
     f = reg.fit
     om, ph, ka = f.angles("transposed", "gon")
@@ -287,3 +284,15 @@ def register(
             "(residuals computed - observed)"
         )
     say("\n".join(lines))
+
+
+def _nan_to_none(value):
+    """``value`` with every NaN, also inside lists and dicts (the per-axis check statistics
+    without check pairs), replaced by None (JSON null)."""
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_nan_to_none(v) for v in value]
+    if isinstance(value, float) and value != value:
+        return None
+    return value

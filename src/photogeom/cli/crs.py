@@ -15,6 +15,7 @@ from ..errors import InputError
 from ._common import (
     IdColOpt,
     OutputCsvOpt,
+    column_options,
     emit_points,
     option_or_file_crs,
     split_names,
@@ -25,6 +26,42 @@ app = typer.Typer(
     help="Coordinate reference systems (PROJ through pyproj): x/easting/longitude first.",
     no_args_is_help=True,
 )
+
+
+#: Column sets of geographic points tried when POINTS has none of the usual names (the output
+#: of 'rpc localize' and of 'crs convert --to' a geographic CRS).
+GEOGRAPHIC_COLS = (("lon", "lat", "h"), ("lon", "lat", "height"),
+                   ("longitude", "latitude", "height"), ("longitude", "latitude", "h"),
+                   ("lon", "lat"), ("longitude", "latitude"))  # fmt: skip
+
+
+def _read_input(points: Path, cols: str | None, id_col: str | None):
+    """The points of POINTS: --cols, else the usual names (x,y,z, E,N,H, ...), else
+    lon,lat[,h] (a missing column set names --cols)."""
+    from ..errors import FileFormatError
+    from ..io import read_points
+    from ..io.points import AUTO_COLUMN_HINT
+
+    kw = {"id_column": id_col, "auto_weights": False}
+    with column_options("--cols"):
+        if cols is not None:
+            return read_points(points, split_names(cols), **kw)
+        try:
+            return read_points(points, None, **kw)
+        except FileFormatError as exc:
+            if "no coordinate columns found" not in str(exc):
+                raise
+            first = exc
+        for names in GEOGRAPHIC_COLS:
+            try:
+                return read_points(points, names, **kw)
+            except FileFormatError as exc:
+                if getattr(exc, "column_kind", None) is None:
+                    raise
+        sets = " or ".join(",".join(c) for c in GEOGRAPHIC_COLS)
+        raise FileFormatError(
+            str(first).replace(AUTO_COLUMN_HINT, f"or {sets} {AUTO_COLUMN_HINT}")
+        ) from None
 
 
 @app.command("convert")
@@ -46,10 +83,18 @@ def convert(
         typer.Option(help="ENU origin lat,lon,h (degrees, m; WGS 84) for 'enu'."),
     ] = None,
     cols: Annotated[
-        str | None, typer.Option(help="Coordinate columns (x/lon first; default: by name).")
+        str | None,
+        typer.Option(
+            help="Coordinate columns (x/lon first; default: by name, x,y,z, X,Y,Z, E,N,H, ... "
+            "or lon,lat,h)."
+        ),
     ] = None,
     out_cols: Annotated[
-        str | None, typer.Option(help="Output column names (default: x,y,z or E,N,U).")
+        str | None,
+        typer.Option(
+            help="Output column names (default: x,y,z; lon,lat,h for a geographic --to; E,N,U "
+            "for 'enu')."
+        ),
     ] = None,
     allow_ballpark: Annotated[
         bool, typer.Option(help="Accept an approximate PROJ datum shift.")
@@ -66,9 +111,9 @@ def convert(
     import numpy as np
 
     from .. import crs as _crs
-    from ..io import format_points_csv, read_points
+    from ..io import format_points_csv
 
-    table = read_points(points, split_names(cols), id_column=id_col, auto_weights=False)
+    table = _read_input(points, cols, id_col)
     xyz = table.coords
     frame = None
     if origin is not None:
@@ -110,7 +155,12 @@ def convert(
         out = xyz
     else:
         out = _crs.transform_points(xyz, src, dst, allow_ballpark=allow_ballpark)
-    names = ["E", "N", "U"] if enu_out else ["x", "y", "z"][: out.shape[1]]
+    if enu_out:
+        names = ["E", "N", "U"]
+    elif _crs.parse_crs(dst, what="--to").is_geographic:  # what rpc project & co. read
+        names = ["lon", "lat", "h"][: out.shape[1]]
+    else:
+        names = ["x", "y", "z"][: out.shape[1]]
     names = split_names(out_cols) or names
     if len(names) != out.shape[1]:
         raise InputError(f"--out-cols: {len(names)} name(s) for {out.shape[1]} coordinates")

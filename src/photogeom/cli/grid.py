@@ -39,20 +39,35 @@ class Interp(str, Enum):
 
 
 def _read_csv(
-    path: Path, need: tuple[str, ...]
+    path: Path, need: tuple[str, ...], comments: list[str] | None = None
 ) -> tuple[list[str], list[list[str]], dict, list[int]]:
     """Header, rows, the column index of each needed column (case-insensitive) and the file
-    line on which each row starts (blank lines skipped, quoted line breaks counted)."""
+    line on which each row starts (blank lines skipped, quoted line breaks counted).
+
+    Lines that begin with ``#`` are comments, as in every point file of photogeom (the
+    observations.csv of a block folder starts with one); their text is appended to
+    ``comments`` when a list is given."""
     rows, lines = [], []
+    physical: list[int] = []  # file line of each line handed to the csv reader
+
+    def data_lines(fh):
+        for number, line in enumerate(fh, start=1):
+            if line.lstrip().startswith("#"):
+                if comments is not None:
+                    comments.append(line.strip()[1:].strip())
+                continue
+            physical.append(number)
+            yield line
+
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            start = 1
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(data_lines(fh))
+            start = 0
             for r in reader:
                 if r and any(c.strip() for c in r):
                     rows.append(r)
-                    lines.append(start)
-                start = reader.line_num + 1
+                    lines.append(physical[start])
+                start = reader.line_num
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
     except (UnicodeDecodeError, csv.Error) as exc:
@@ -344,7 +359,8 @@ def apply(
     from ..calibration.gridfile import match_grid_ids
 
     grids = load_grids(grids_file)
-    header, body, col, lines = _read_csv(observations, ("image_id", "u", "v"))
+    comments: list[str] = []
+    header, body, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
     ids = [r[col["image_id"]].strip() for r in body]
     uv = np.stack([_numbers(observations, body, col[c], c, lines) for c in ("u", "v")], axis=1)
     per_image: dict = {}
@@ -362,7 +378,8 @@ def apply(
     new = uv.copy()
     for k, r in per_image.items():
         new[np.asarray(r)] = corrected[k]
-    lines = [",".join(_csv_cell(c) for c in header)]
+    lines = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
+    lines.append(",".join(_csv_cell(c) for c in header))
     for i, r in enumerate(body):
         r = list(r)
         r[col["u"]] = repr(float(new[i, 0]))
@@ -373,8 +390,9 @@ def apply(
 
 def _csv_cell(text: str) -> str:
     """One CSV cell (RFC 4180): quoted, inner quotes doubled, when it holds a comma, a quote
-    or a line break (``\r`` too, which the csv module leaves bare with ``\n`` line ends)."""
-    if any(ch in text for ch in ',"\r\n'):
+    or a line break (``\r`` too, which the csv module leaves bare with ``\n`` line ends), or
+    begins with ``#`` (a line beginning with it is a comment to the readers)."""
+    if any(ch in text for ch in ',"\r\n') or text.lstrip().startswith("#"):
         return '"' + text.replace('"', '""') + '"'
     return text
 

@@ -82,6 +82,11 @@ def main(argv: list[str] | None = None) -> None:
     Usage errors, ``--help`` and the help shown without arguments are handled by click
     (standalone mode), so they print the usual usage text and exit codes.
     """
+    import warnings
+    from functools import partial
+
+    shown = warnings.showwarning
+    warnings.showwarning = partial(_show_warning, shown)
     try:
         app(args=argv, prog_name="photogeom")
     except PhotogeomError as exc:
@@ -91,6 +96,21 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(2)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)
+    finally:
+        warnings.showwarning = shown
+
+
+def _show_warning(shown, message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning of photogeom as one line ``warning: ...`` on stderr, in the words of the
+    command line (no source file and line of the library, no Python argument names); other
+    warnings as ``shown`` (Python's display) shows them."""
+    if not getattr(category, "__module__", "").startswith("photogeom"):
+        shown(message, category, filename, lineno, file, line)
+        return
+    from ._common import in_cli_words
+
+    text = " ".join(str(message).split())
+    typer.secho(f"warning: {in_cli_words(text)}", err=True, fg=typer.colors.YELLOW)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -23,6 +23,7 @@ from ._common import (
     OutputCsvOpt,
     cartesian_crs_option,
     check_mask,
+    column_options,
     console,
     file_crs,
     finite_or_none,
@@ -304,7 +305,8 @@ def intersection(
             raise InputError(f"{path}: needs both interior and exterior orientation")
         cams.append((io, eo))
     cols = split_names(image_cols) or (["col", "row"] if pixel else ["x", "y"])
-    tables = [read_points(p, cols, id_column=id_col, auto_weights=False) for p in images]
+    with column_options("--image-cols"):
+        tables = [read_points(p, cols, id_column=id_col, auto_weights=False) for p in images]
     order: dict[str, None] = {}
     for t in tables:
         order.update(dict.fromkeys(t.ids))

@@ -22,6 +22,7 @@ from ._common import (
     AngleUnit,
     IdColOpt,
     OutputCsvOpt,
+    column_options,
     console,
     json_text,
     say,
@@ -68,14 +69,17 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
             raise InputError(
                 f"--cols: expected 4 columns (image 1 x, y, image 2 x, y), got {names}"
             )
-        t1 = read_points(points, names[:2], id_column=id_col, role_column=None, auto_weights=False)
-        t2 = read_points(points, names[2:], id_column=id_col, role_column=None, auto_weights=False)
+        kw = {"id_column": id_col, "role_column": None, "auto_weights": False}
+        with column_options("--cols"):
+            t1 = read_points(points, names[:2], **kw)
+            t2 = read_points(points, names[2:], **kw)
         return list(t1.ids), t1.coords, t2.coords, []
     names = split_names(cols) or (["col", "row"] if pixel else ["x", "y"])
     if len(names) != 2:
         raise InputError(f"--cols: expected 2 columns per image file, got {names}")
-    t1 = read_points(points, names, id_column=id_col, role_column=None, auto_weights=False)
-    t2 = read_points(image2, names, id_column=id_col, role_column=None, auto_weights=False)
+    with column_options("--cols"):
+        t1 = read_points(points, names, id_column=id_col, role_column=None, auto_weights=False)
+        t2 = read_points(image2, names, id_column=id_col, role_column=None, auto_weights=False)
     index2 = {p: k for k, p in enumerate(t2.ids)}
     ids = [p for p in t1.ids if p in index2]
     ids1 = set(t1.ids)

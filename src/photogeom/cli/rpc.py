@@ -29,6 +29,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     check_mask,
+    column_options,
     console,
     finite_or_none,
     json_text,
@@ -86,7 +87,8 @@ def _blocks_with(path: Path, cols: str | None, candidates, what: str, id_col: st
     from ..io import PointBlocks
 
     if cols is not None:
-        return PointBlocks(path, split_names(cols), id_column=id_col, role_column=None)
+        with column_options("--cols"):
+            return PointBlocks(path, split_names(cols), id_column=id_col, role_column=None)
     for cand in candidates:
         try:
             return PointBlocks(path, cand, id_column=id_col, role_column=None)
@@ -462,9 +464,10 @@ def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None
             "lon,lat,h)"
         )
 
-    pairs = read_point_pairs(
-        points, split_names(ground_cols), split_names(image_cols), id_column=id_col
-    )
+    with column_options("--ground-cols", source="--ground-cols", target="--image-cols"):
+        pairs = read_point_pairs(
+            points, split_names(ground_cols), split_names(image_cols), id_column=id_col
+        )
     return pairs, check_mask(pairs.ids, pairs.check_mask, check_ids)
 
 

@@ -23,6 +23,7 @@ from ._common import (
     IdColOpt,
     cartesian_crs_option,
     check_mask,
+    column_options,
     console,
     crs_from_comments,
     file_crs,
@@ -267,8 +268,8 @@ def estimate(
 
     # Build every output in memory first; files are then replaced atomically.
     outputs: list[tuple[Path, str]] = []
-    if output_params is not None:
-        outputs.append((output_params, json_text(params)))
+    if output_params is not None:  # with the input, so that apply names its columns
+        outputs.append((output_params, json_text({**params, "input": inputs})))
     if report is not None:
         outputs.append((report, _report_html(fit, pairs, mask, inputs, model, angle_unit)))
     write_outputs(outputs)
@@ -381,8 +382,9 @@ def load_transform(path: Path):
 
 
 def load_transform_record(path: Path):
-    """``(transformation, target CRS, source CRS)`` of a parameter JSON (see
-    :func:`load_transform`); the CRSs are None where the file records none.
+    """``(transformation, target CRS, source CRS, (source columns, target columns))`` of a
+    parameter JSON (see :func:`load_transform`); the CRSs and columns are None where the file
+    records none (the columns are those of the estimate, in its ``input`` section).
 
     Where the file records a row/y flip (``extras.handedness``, written by ``transform
     estimate`` for a left-handed system such as ``pixel`` paired with a right-handed one),
@@ -394,6 +396,7 @@ def load_transform_record(path: Path):
 
     data = read_json_object(path)
     crs = {"crs": None, "source_crs": None}
+    columns = _recorded_columns(data)
     if isinstance(data, dict):
         for key in crs:
             value = data.get(key)
@@ -418,7 +421,20 @@ def load_transform_record(path: Path):
                 f"transformations only, but the model is {transform.name}"
             )
         transform = HandedTransform(transform, *flips)
-    return transform, crs["crs"], crs["source_crs"]
+    return transform, crs["crs"], crs["source_crs"], columns
+
+
+def _recorded_columns(data) -> tuple[list[str] | None, list[str] | None]:
+    """``(source columns, target columns)`` recorded in the ``input`` section of a result
+    JSON of ``transform estimate`` (None where the file records none)."""
+    inputs = data.get("input") if isinstance(data, dict) else None
+    out: list[list[str] | None] = [None, None]
+    if isinstance(inputs, dict):
+        for k, key in enumerate(("source_columns", "target_columns")):
+            names = inputs.get(key)
+            if isinstance(names, list) and names and all(isinstance(c, str) for c in names):
+                out[k] = names
+    return out[0], out[1]
 
 
 def _handedness_flips(data, path: Path) -> tuple[bool, bool]:
@@ -512,11 +528,19 @@ def apply(
         bool, typer.Option("--inverse", help="Apply the inverse transformation (target -> source).")
     ] = False,
     cols: Annotated[
-        str | None, typer.Option(help="Coordinate columns of POINTS (default: found by name).")
+        str | None,
+        typer.Option(
+            help="Coordinate columns of POINTS (default: found by name; else "
+            "the columns the estimate read)."
+        ),
     ] = None,
     out_cols: Annotated[
         str | None,
-        typer.Option(help="Names of the output coordinate columns (default: x <-> X swapped)."),
+        typer.Option(
+            help="Names of the output coordinate columns (default: the target columns of the "
+            "estimate, its source columns with --inverse; for a file that records none, x <-> X "
+            "swapped)."
+        ),
     ] = None,
     id_col: IdColOpt = None,
     crs: Annotated[
@@ -538,10 +562,12 @@ def apply(
     """
     single_threaded_blas()
     from ..io import PointBlocks
+    from ..io.points import AUTO_COLUMN_HINT
 
-    transform, to_crs, from_crs = load_transform_record(params)
+    transform, to_crs, from_crs, (from_cols, to_cols) = load_transform_record(params)
     if inverse:
         to_crs, from_crs = from_crs, to_crs
+        to_cols, from_cols = from_cols, to_cols
     out_info = cartesian_crs_option(crs or to_crs, "--crs" if crs else f"{params}: crs")
     if crs is not None and to_crs is not None and not same_crs(to_crs, out_info.text):
         side = "source CRS (--inverse transforms to it)" if inverse else "target CRS"
@@ -550,7 +576,17 @@ def apply(
             "points; --crs names the CRS of the output coordinates, it does not convert them: "
             "leave --crs out, or convert the output with photogeom crs convert"
         )
-    blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+    with column_options("--cols"):
+        try:
+            blocks = PointBlocks(points, split_names(cols), id_column=id_col)
+        except FileFormatError as exc:
+            # no usual column names: the columns the estimate read (x2,y2 ...), if present
+            if cols is not None or from_cols is None or AUTO_COLUMN_HINT not in str(exc):
+                raise
+            try:
+                blocks = PointBlocks(points, from_cols, id_column=id_col)
+            except FileFormatError:
+                raise exc from None
     in_crs = crs_from_comments(blocks.comments)
     if in_crs is not None:
         cartesian_crs_option(in_crs, f"{points} ('# crs:' line)")
@@ -569,7 +605,10 @@ def apply(
         )
     t = transform.inverse() if inverse else transform
     n_out = t.apply(np.zeros((1, blocks.dim))).shape[1]
-    names = split_names(out_cols) or _output_columns(blocks.columns)
+    names = split_names(out_cols)
+    if names is None:  # the column names of the estimate's output side, else x <-> X
+        recorded = to_cols is not None and len(to_cols) == n_out
+        names = list(to_cols) if recorded else _output_columns(blocks.columns)
     if len(names) != n_out:
         raise InputError(f"--out-cols: {len(names)} name(s) for {n_out} coordinates")
     extra = ["role"] if blocks.has_roles else []

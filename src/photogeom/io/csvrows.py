@@ -13,7 +13,9 @@ Text of the values:
   ``1e+22``, ``2.5e-8``), integral values keep a ``.0`` (``3.0``, ``-0.0``), ``nan``,
   ``inf``, ``-inf``;
 * text: written as it is, enclosed in double quotes (inner quotes doubled) when it holds a
-  comma, a double quote or a line break.
+  comma, a double quote or a line break, or begins with ``#`` (after blanks): a line that
+  begins with an unquoted ``#`` is a comment to the readers, so an id such as ``#12`` would
+  otherwise vanish from the file when it is read back.
 """
 
 from __future__ import annotations
@@ -32,8 +34,11 @@ MIN_THREADED_ROWS = 1 << 12
 #: Most worker threads. Formatting a row costs about twice its parsing, which one thread
 #: does: more workers would wait for the reader and only hold memory.
 MAX_WORKERS = 4
-#: Characters that make a text field quoted.
-_NEEDS_QUOTES = (b",", b'"', b"\n", b"\r")
+#: Characters that make a text field quoted (``#`` only at its start, after blanks).
+_NEEDS_QUOTES = (b",", b'"', b"\n", b"\r", b"#")
+#: Fields that are quoted: a comma, quote or line break anywhere, or a leading ``#`` (which
+#: would make the line a comment when it is the first field).
+_QUOTE_PATTERN = r'[,"\r\n]|^\s*#'
 
 
 def _pa():
@@ -93,14 +98,14 @@ def text_column(values):
 
 def quoted(text):
     """``text`` (pyarrow string array) with the fields holding a comma, a quote or a line
-    break enclosed in quotes, inner quotes doubled (the CSV rule); a missing value (null) is
-    an empty field."""
+    break, or beginning with ``#``, enclosed in quotes, inner quotes doubled (the CSV rule);
+    a missing value (null) is an empty field."""
     _, pc, _ = _pa()
     if text.null_count:
         text = pc.fill_null(text, "")
     if len(text) == 0 or not _may_need_quotes(text):
         return text
-    need = pc.match_substring_regex(text, r'[,"\r\n]')
+    need = pc.match_substring_regex(text, _QUOTE_PATTERN)
     if not pc.any(need).as_py():
         return text
     enclosed = pc.binary_join_element_wise(

@@ -249,11 +249,21 @@ def _resolve_columns(raw: _Source, wanted: Sequence[str], what: str) -> tuple[st
     found = [_find(raw.header, c) for c in wanted]
     missing = [c for c, f in zip(wanted, found) if f is None]
     if missing:
-        raise FileFormatError(
+        exc = FileFormatError(
             f"{raw.label}: {what} column(s) {', '.join(missing)} not found; the file has columns "
-            f"{_names(raw.header)} (choose others by name, e.g. --source-cols x,y)"
+            f"{_names(raw.header)} ({COLUMN_HINT})"
         )
+        exc.column_kind = what  # the command line names its option for this kind
+        raise exc
     return tuple(f for f in found if f is not None)
+
+
+#: End of the message of a missing column: how to choose others (the command line replaces it
+#: with its option, e.g. ``--image-cols``).
+COLUMN_HINT = "choose others by name"
+#: End of the message of a file without any of the default column names (as above).
+AUTO_COLUMN_HINT = "(or name the columns to use)"
+
 
 
 def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
@@ -266,7 +276,7 @@ def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
     expected = " or ".join(",".join(c) for c in DEFAULT_COLUMN_SETS)
     raise FileFormatError(
         f"{raw.label}: no coordinate columns found; the file has columns {_names(raw.header)}, "
-        f"expected {expected} (or name the columns to use)"
+        f"expected {expected} {AUTO_COLUMN_HINT}"
     )
 
 
@@ -848,7 +858,8 @@ class PointWriter:
 
     Numbers are written with the shortest representation that reads back to the same
     float64 (a lossless round trip); ids are written as text, quoted only when they hold a
-    comma, a quote or a line break. A file is written atomically: rows go to a temporary
+    comma, a quote or a line break or begin with ``#`` (which would make the row a comment
+    line when read back). A file is written atomically: rows go to a temporary
     file beside it, renamed over ``path`` when the ``with`` block ends without an error (and
     removed when it ends with one), so a failed job never leaves a half-written file. Large
     chunks are formatted by pyarrow in worker threads (see :mod:`photogeom.io.csvrows`)
