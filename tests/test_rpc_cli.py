@@ -143,3 +143,25 @@ def test_examples_run(name):
     if name == "rpc-files":
         for f in ("quickbird", "ikonos", "skysat", "pleiades", "worldview2"):
             assert f in text
+
+
+def test_localize_into_a_crs_names_its_columns_for_the_next_command(cli, tmp_path):
+    """rpc localize --crs writes lon,lat,h for a geographic CRS (what rpc project reads),
+    x,y,z for a projected one; a geographic output goes back through rpc project."""
+    li = tmp_path / "loc.csv"
+    li.write_text("id,col,row\np1,14000.5,10000.25\np2,15000,11000\n")
+    geo = tmp_path / "geo.csv"
+    code, _, err = cli("rpc", "localize", WV2, li, "--height", "80", "--crs", "EPSG:4979",
+                       "-o", geo)  # fmt: skip
+    assert code == 0, err
+    t = read_points(geo, ["lon", "lat", "h"])
+    back = tmp_path / "back.csv"
+    code, _, err = cli("rpc", "project", WV2, geo, "-o", back)
+    assert code == 0, err
+    np.testing.assert_allclose(read_points(back, ["col", "row"]).coords,
+                               [[14000.5, 10000.25], [15000, 11000]], atol=1e-6)  # fmt: skip
+    assert t.coords.shape == (2, 3)
+    code, out, err = cli("rpc", "localize", WV2, li, "--height", "80", "--crs", "EPSG:32630",
+                         "--json")  # fmt: skip
+    assert code == 0, err
+    assert set(json.loads(out)["points"][0]) >= {"x", "y", "z"}

@@ -272,7 +272,8 @@ def localize(
         typer.Option(
             "--crs",
             help="Write the ground points in this CRS (EPSG:32632, WKT, PROJ string or "
-            "enu:LAT,LON,H; columns x,y,z), converted by PROJ from the RPC's WGS 84 "
+            "enu:LAT,LON,H; columns lon,lat,h for a geographic CRS, E,N,U for a local frame, "
+            "else x,y,z), converted by PROJ from the RPC's WGS 84 "
             "(EPSG:4979: lon, lat, ellipsoidal h). Default: lon,lat,h in EPSG:4979.",
             show_default=False,
         ),
@@ -367,7 +368,7 @@ def localize(
 
     if as_json:
         rows = []
-        keys = ("lon", "lat", "h") if to_crs is None else ("x", "y", "z")
+        keys = ("lon", "lat", "h") if to_crs is None else to_crs[2]
         for block in blocks:
             xyz, more, res = compute(block)
             rows += [
@@ -389,7 +390,7 @@ def localize(
             "crs: EPSG:4979",
         ]
     else:
-        names = ["x", "y", "z"]
+        names = list(to_crs[2])
         comments = [
             f"localised with {rpc_file}; tol {tol:g} px; converted from EPSG:4979 (lon, lat, "
             "ellipsoidal h) by PROJ",
@@ -431,13 +432,17 @@ def _input_crs(crs: str, allow_ballpark: bool):
 
 
 def _output_crs(crs: str, allow_ballpark: bool):
-    """(CRS text, function converting (n, 3) lon, lat, h of WGS 84 into it; rows with NaN
-    stay NaN) for ``--crs``."""
+    """(CRS text, function converting (n, 3) lon, lat, h of WGS 84 into it (rows with NaN
+    stay NaN), output column names) for ``--crs``: ``lon, lat, h`` for a geographic CRS
+    (what ``rpc project`` and ``crs convert`` read), ``E, N, U`` for a local frame, else
+    ``x, y, z``."""
     from .. import crs as _crs
 
     text = crs.strip()
+    names = ("E", "N", "U")
     if _crs.frame_from_text(text) is None:
-        _crs.parse_crs(text, what="--crs")
+        geographic = _crs.parse_crs(text, what="--crs").is_geographic
+        names = ("lon", "lat", "h") if geographic else ("x", "y", "z")
 
     def convert(lonlath):
         out = np.full_like(lonlath, np.nan)
@@ -448,7 +453,7 @@ def _output_crs(crs: str, allow_ballpark: bool):
             )
         return out
 
-    return text, convert
+    return text, convert, names
 
 
 def _control(points: Path, ground_cols: str, image_cols: str, id_col: str | None, check_ids):
