@@ -188,18 +188,23 @@ def correct_image(
     if cur:
         chunks.append(cur)
 
+    ones = np.ones(L.width, np.float32)
+
     def run(chunk):
         c0, c1 = chunk[0][1], chunk[-1][2]
         mx = np.empty((c1 - c0, L.width), np.float32)
         my = np.empty_like(mx)
         for k, y0, y1 in chunk:
+            # in a band the maps are linear in the row: [b, 1, y] times the rows of the two
+            # node rows, one product that writes each map element once (einsum's own loop:
+            # a BLAS product would start BLAS threads inside these threads)
             y = np.arange(y0, y1, dtype=np.float64)
-            b = (y / g - k).astype(np.float32)[:, None]
-            sx, sy = mx[y0 - c0 : y1 - c0], my[y0 - c0 : y1 - c0]
-            np.multiply(b, -dT[k, :, 0][None, :], out=sx)
-            sx += xs - T32[k, :, 0]
-            np.multiply(b, -dT[k, :, 1][None, :], out=sy)
-            sy += y.astype(np.float32)[:, None] - T32[k, :, 1][None, :]
+            B = np.empty((y1 - y0, 3), np.float32)
+            B[:, 0], B[:, 1], B[:, 2] = y / g - k, 1.0, y
+            cx = np.stack([-dT[k, :, 0], xs - T32[k, :, 0]])
+            cy = np.stack([-dT[k, :, 1], -T32[k, :, 1], ones])
+            np.einsum("nk,kw->nw", B[:, :2], cx, out=mx[y0 - c0 : y1 - c0], optimize=False)
+            np.einsum("nk,kw->nw", B, cy, out=my[y0 - c0 : y1 - c0], optimize=False)
         cv2.remap(img, mx, my, flag, dst=out[c0:c1], borderMode=mode)
 
     n_threads = 2 if threads is None else max(1, int(threads))
