@@ -102,3 +102,26 @@ def test_correct_images_lists_failures(cli, residual_csv, tmp_path):
     assert [p.name for p in (tmp_path / "out").iterdir()] == ["IMG_1.jpg"]
     code, _, err = cli("grid", "correct-images", str(grids), str(src), str(src))
     assert code == 2 and "must differ" in err
+
+
+def test_grid_fit_keeps_blas_on_one_thread(residual_csv, tmp_path):
+    """grid fit solves many small systems: in a fresh process without a BLAS thread setting
+    it runs numpy's BLAS on one thread (BLAS threads made it 3x slower on 2 cores)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")}  # fmt: skip
+    code = (
+        "import os, sys\n"
+        "from photogeom.cli.main import main\n"
+        "try:\n"
+        f"    main(['grid', 'fit', {str(residual_csv)!r}, '--image-size', '{W}x{H}', "
+        f"'--spacing', '50', '-o', {str(tmp_path / 'g.npz')!r}, '--json'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print('BLAS', os.environ.get('OPENBLAS_NUM_THREADS'), file=sys.stderr)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert "BLAS 1" in r.stderr, r.stderr
