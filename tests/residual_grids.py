@@ -1,10 +1,12 @@
-"""Residual grids with given node values, shared by the tests of files and images."""
+"""Residual grids with given node values and observations that hold given fields, shared by
+the tests of grid files, images and grids in the adjustment."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from photogeom.calibration import GridLayout, ResidualGrid
+from photogeom.calibration.grid import evaluate_nodes
 
 
 def grid_with_nodes(layout: GridLayout, nodes: np.ndarray) -> ResidualGrid:
@@ -23,3 +25,23 @@ def grid_with_nodes(layout: GridLayout, nodes: np.ndarray) -> ResidualGrid:
         rms_before=1.0,
         rms_after=1.0,
     )
+
+
+def observe(truth, ideal: np.ndarray, fields) -> np.ndarray:
+    """Observations ``u`` with ``u + r(u) = ideal`` for modelled residual fields ``r``
+    (``fields[i]`` evaluates image row ``i`` of ``truth``), by fixed-point iteration."""
+    uv = ideal.copy()
+    for _ in range(50):
+        new = ideal.copy()
+        for i in range(truth.n_images):  # images, not points
+            sel = truth.obs_image == i
+            new[sel] = ideal[sel] - fields[i](uv[sel])
+        if np.max(np.abs(new - uv)) < 1e-12:
+            break
+        uv = new
+    return new
+
+
+def node_field(layout: GridLayout, nodes: np.ndarray):
+    """The bilinear field of ``nodes`` on ``layout``, as a function of pixels (n, 2)."""
+    return lambda uv: evaluate_nodes(layout, nodes, uv)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,6 +12,9 @@ import photogeom as pg
 from photogeom.calibration import GridLayout, adjust_with_grids
 from photogeom.calibration.in_adjustment import _datum_rows
 from photogeom.errors import InputError
+
+sys.path.insert(0, str(Path(__file__).parent))
+from residual_grids import node_field, observe
 
 
 def _rms(v):
@@ -32,25 +38,6 @@ def _random_nodes(rng, layout, datum, rms):
     return z.reshape(layout.shape[0], layout.shape[1], 2)
 
 
-def _observe(truth, ideal, fields):
-    """Observations ``u`` with ``u + r(u) = ideal`` for modelled residual fields ``r``
-    (``fields[i]`` evaluates image row ``i``), solved by fixed-point iteration."""
-    uv = ideal.copy()
-    for _ in range(30):
-        new = ideal.copy()
-        for i in range(truth.n_images):
-            sel = truth.obs_image == i
-            new[sel] = ideal[sel] - fields[i](uv[sel])
-        if np.max(np.abs(new - uv)) < 1e-12:
-            break
-        uv = new
-    return new
-
-
-def _evaluator(layout, nodes):
-    return lambda uv: pg.calibration.grid.evaluate_nodes(layout, nodes, uv)
-
-
 def test_noise_free_camera_grid_is_recovered(small):
     """A field shared by the images of the camera, in the grid's function space and without
     its affine part, is recovered with the orientation from noise-free observations."""
@@ -58,7 +45,7 @@ def test_noise_free_camera_grid_is_recovered(small):
     w, h = (int(x) for x in truth.image_sizes()[0])
     L = GridLayout(w, h, 1000.0)
     nodes = _random_nodes(np.random.default_rng(1), L, "affine", 1.0)
-    uv = _observe(truth, small.ideal, [_evaluator(L, nodes)] * truth.n_images)
+    uv = observe(truth, small.ideal, [node_field(L, nodes)] * truth.n_images)
     block = truth.with_observations(uv=uv)
     ga = adjust_with_grids(
         block, 1000.0, per="camera", sigma_constraint=1e3, sigma_amplitude=None, free=(), std=True
@@ -81,7 +68,7 @@ def test_noise_free_image_grids_are_recovered_when_the_object_is_fixed(small):
     L = GridLayout(w, h, 1000.0)
     rng = np.random.default_rng(2)
     true_nodes = [_random_nodes(rng, L, "similarity", 0.8) for _ in range(truth.n_images)]
-    uv = _observe(truth, small.ideal, [_evaluator(L, z) for z in true_nodes])
+    uv = observe(truth, small.ideal, [node_field(L, z) for z in true_nodes])
     block = truth.with_observations(uv=uv).replace(
         role=np.full(truth.n_points, "control", dtype=object),
         point_sigma=np.full((truth.n_points, 3), 1e-5),
@@ -128,8 +115,8 @@ def test_the_default_amplitude_follows_smooth_residuals_not_noise(small):
     w, h = (int(x) for x in truth.image_sizes()[0])
     L = GridLayout(w, h, 1000.0)
     rng = np.random.default_rng(4)
-    fields = [_evaluator(L, _random_nodes(rng, L, "similarity", 0.8)) for _ in truth.image_ids]
-    uv = _observe(truth, small.ideal, fields)
+    fields = [node_field(L, _random_nodes(rng, L, "similarity", 0.8)) for _ in truth.image_ids]
+    uv = observe(truth, small.ideal, fields)
     tie = truth.role[truth.obs_point] == "tie"
     r = small.ideal - uv  # computed minus observed at the truth: the field at uv
     ga = adjust_with_grids(

@@ -3,12 +3,18 @@ expectations computed densely and independently of the grid code's trace formula
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import photogeom as pg
 from photogeom.calibration import GridLayout, adjust_with_grids, fit_grid
 from photogeom.calibration.in_adjustment import _datum_rows
+
+sys.path.insert(0, str(Path(__file__).parent))
+from residual_grids import node_field, observe
 
 
 def _scattered(rng, n, w, h):
@@ -152,7 +158,7 @@ def test_in_adjustment_sigma0_and_node_std_on_fields_drawn_from_the_prior():
     for trial in range(20):
         nodes = (root @ rng.standard_normal(root.shape[1])).reshape(m, *L.shape, 2)
         ideal = sim.ideal + rng.normal(0.0, sigma, sim.ideal.shape)
-        uv = _observe(truth, ideal, [_evaluator(L, nodes[i]) for i in range(m)])
+        uv = observe(truth, ideal, [node_field(L, nodes[i]) for i in range(m)])
         survey = truth.surveyed_xyz + rng.standard_normal(truth.xyz.shape) * truth.point_sigma
         block = truth.with_observations(uv=uv, sigma=sigma).replace(
             gnss=truth.gnss + rng.standard_normal(truth.gnss.shape) * truth.gnss_sigma,
@@ -176,22 +182,3 @@ def test_in_adjustment_sigma0_and_node_std_on_fields_drawn_from_the_prior():
     assert float(np.mean(s0)) == pytest.approx(1.0, abs=0.03)
     ratio = np.sqrt(np.mean(np.square(errors)) / np.mean(std**2))
     assert ratio == pytest.approx(1.0, abs=0.12)
-
-
-def _observe(truth, ideal, fields):
-    """Observations ``u`` with ``u + r(u) = ideal`` for modelled residual fields ``r``
-    (``fields[i]`` evaluates image row ``i``), by fixed-point iteration."""
-    uv = ideal.copy()
-    for _ in range(50):
-        new = ideal.copy()
-        for i in range(truth.n_images):
-            sel = truth.obs_image == i
-            new[sel] = ideal[sel] - fields[i](uv[sel])
-        if np.max(np.abs(new - uv)) < 1e-12:
-            break
-        uv = new
-    return new
-
-
-def _evaluator(layout, nodes):
-    return lambda uv: pg.calibration.grid.evaluate_nodes(layout, nodes, uv)
