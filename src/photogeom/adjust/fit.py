@@ -316,6 +316,19 @@ class Fit:
             rows.append((name, float(value), float(s), unit))
         return rows
 
+    def shown_parameter_table(
+        self, angle_unit: str = "deg"
+    ) -> list[tuple[str, float, float, str, bool]]:
+        """Rows ``(name, value, std, unit, a_priori)`` as tables print them: the
+        a-posteriori standard deviation, or the a-priori one (``a_priori`` True) where the
+        a-posteriori one is undefined (redundancy 0)."""
+        prior = [r[2] for r in self.parameter_table(angle_unit, prior=True)]
+        rows = []
+        for (name, value, s, unit), p in zip(self.parameter_table(angle_unit), prior):
+            use_prior = not math.isfinite(s) and math.isfinite(p)
+            rows.append((name, value, p if use_prior else s, unit, use_prior))
+        return rows
+
     def summary(self, angle_unit: str = "deg") -> str:
         """Plain-text report: parameters with standard deviations, statistics, residuals."""
         lines = [f"{type(self.model).__name__} estimated by {self.method}"]
@@ -328,10 +341,8 @@ class Fit:
         s0 = "undefined (redundancy 0)" if not math.isfinite(self.sigma0) else f"{self.sigma0:.6g}"
         lines.append(f"  sigma0 (a posteriori) {s0}   sigma0 (a priori) {self.sigma0_prior:g}")
         lines.append("  parameter            value              std. dev.        unit")
-        prior = [r[2] for r in self.parameter_table(angle_unit, prior=True)]
-        for (name, value, s, unit), p in zip(self.parameter_table(angle_unit), prior):
-            sd = f"{s:.6g}" if math.isfinite(s) else f"{p:.6g} (a priori)"
-            sd = sd if math.isfinite(s) or math.isfinite(p) else "-"
+        for name, value, s, unit, a_priori in self.shown_parameter_table(angle_unit):
+            sd = "-" if not math.isfinite(s) else f"{s:.6g}" + (" (a priori)" if a_priori else "")
             lines.append(f"  {name:<16} {value:>18.10g} {sd:>18} {unit:>8}")
         unit = f" {self.residual_unit}" if self.residual_unit else ""
         lines.append(

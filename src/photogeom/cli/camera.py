@@ -542,13 +542,14 @@ def dlt_estimate(
     au = AngleUnit(angle_unit).value
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()
-    data["orientation"] = _orientation_json(fit.interior, fit.exterior, au, _dlt_std(fit, au))
+    std = _dlt_std(fit, au)  # once: each is a propagation through the decomposition
+    data["orientation"] = _orientation_json(fit.interior, fit.exterior, au, std)
     if unmatched:
         data["unmatched"] = unmatched
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
     if report is not None:
-        outputs.append((report, _dlt_report(fit, im_ctrl, kw.get("check_image"), au)))
+        outputs.append((report, _dlt_report(fit, im_ctrl, kw.get("check_image"), au, std)))
     write_outputs(outputs)
     if as_json:
         typer.echo(json_text(data), nl=False)
@@ -559,7 +560,7 @@ def dlt_estimate(
     print_fit(fit, console=out, angle_unit=au)
     gu = (ground_crs.unit if ground_crs is not None else None) or "m"
     out.print(
-        _orientation_text(fit.interior, fit.exterior, au, _dlt_std(fit, au), gu),
+        _orientation_text(fit.interior, fit.exterior, au, std, gu),
         markup=False,
         highlight=False,
     )
@@ -611,7 +612,7 @@ def _orientation_text(
     )
 
 
-def _dlt_report(fit, image_ctrl, image_check, au: str) -> str:
+def _dlt_report(fit, image_ctrl, image_check, au: str, std: tuple[dict, str]) -> str:
     from ..report import Report
 
     rep = Report("DLT estimation", subtitle=fit.method)
@@ -626,7 +627,7 @@ def _dlt_report(fit, image_ctrl, image_check, au: str) -> str:
     )
     rep.add_text(
         "Decomposed orientation",
-        _orientation_text(fit.interior, fit.exterior, au, _dlt_std(fit, au)),
+        _orientation_text(fit.interior, fit.exterior, au, std),
     )
     return rep.to_html()
 

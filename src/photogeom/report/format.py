@@ -107,12 +107,9 @@ def parameter_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, st
     """``(name, value, std, unit)`` strings, angles in ``angle_unit``. Where the a-posteriori
     standard deviation is undefined (redundancy 0) the a-priori one is shown, marked."""
     rows = []
-    prior = [r[2] for r in fit.parameter_table(angle_unit, prior=True)]
-    for (name, value, std, unit), p in zip(fit.parameter_table(angle_unit), prior):
-        if _finite(std) or not _finite(p):
-            rows.append((name, fmt_value(value, std), fmt_std(std), unit or ""))
-        else:
-            rows.append((name, fmt_value(value, p), f"{fmt_std(p)} (a priori)", unit or ""))
+    for name, value, std, unit, a_priori in fit.shown_parameter_table(angle_unit):
+        shown = fmt_std(std) + (" (a priori)" if a_priori else "")
+        rows.append((name, fmt_value(value, std), shown, unit or ""))
     return rows
 
 
