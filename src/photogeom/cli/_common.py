@@ -378,6 +378,19 @@ def leading_comments(path: Path, max_lines: int = 1000) -> list[str]:
     return out
 
 
+def crs_column_names(text: str, what: str) -> tuple[str, str, str]:
+    """Names of the coordinate columns a command writes in the CRS ``text`` (option
+    ``what``): ``E, N, U`` in a local frame (``enu:...``), ``lon, lat, h`` in a geographic
+    CRS (what ``rpc project`` and ``crs convert`` read back), else ``x, y, z``."""
+    from .. import crs as _crs
+
+    if _crs.frame_from_text(text) is not None:
+        return ("E", "N", "U")
+    if _crs.parse_crs(text, what=what).is_geographic:
+        return ("lon", "lat", "h")
+    return ("x", "y", "z")
+
+
 def same_crs(a: str, b: str) -> bool:
     """Whether two CRS texts name the same system (PROJ's equality; local frames by origin)."""
     from ..crs import frame_from_text, parse_crs

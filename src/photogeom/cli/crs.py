@@ -16,6 +16,7 @@ from ._common import (
     IdColOpt,
     OutputCsvOpt,
     column_options,
+    crs_column_names,
     emit_points,
     option_or_file_crs,
     split_names,
@@ -155,13 +156,7 @@ def convert(
         out = xyz
     else:
         out = _crs.transform_points(xyz, src, dst, allow_ballpark=allow_ballpark)
-    if enu_out:
-        names = ["E", "N", "U"]
-    elif _crs.parse_crs(dst, what="--to").is_geographic:  # what rpc project & co. read
-        names = ["lon", "lat", "h"][: out.shape[1]]
-    else:
-        names = ["x", "y", "z"][: out.shape[1]]
-    names = split_names(out_cols) or names
+    names = split_names(out_cols) or list(crs_column_names(dst, "--to")[: out.shape[1]])
     if len(names) != out.shape[1]:
         raise InputError(f"--out-cols: {len(names)} name(s) for {out.shape[1]} coordinates")
     comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]

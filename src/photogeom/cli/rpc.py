@@ -31,6 +31,7 @@ from ._common import (
     check_mask,
     column_options,
     console,
+    crs_column_names,
     finite_or_none,
     json_text,
     say,
@@ -439,10 +440,7 @@ def _output_crs(crs: str, allow_ballpark: bool):
     from .. import crs as _crs
 
     text = crs.strip()
-    names = ("E", "N", "U")
-    if _crs.frame_from_text(text) is None:
-        geographic = _crs.parse_crs(text, what="--crs").is_geographic
-        names = ("lon", "lat", "h") if geographic else ("x", "y", "z")
+    names = crs_column_names(text, "--crs")  # checks the CRS text as well
 
     def convert(lonlath):
         out = np.full_like(lonlath, np.nan)
