@@ -197,6 +197,37 @@ def test_local_field_is_smooth_and_varies_slowly_along_the_flight():
     assert np.all(z.local == 0)
 
 
+@pytest.mark.parametrize("slope", [1.0, 3.0])
+def test_local_field_spectrum_follows_its_slope_and_keeps_its_rms(slope):
+    """Fields drawn with ``slope``, sampled over one period of the image and taken apart by
+    a 2-D FFT (independent of the simulator's basis): the mean power of the (1, 0) wave over
+    that of the (2, 0) wave is 2**(2 slope), and the mean square length over the image is
+    the nominal RMS squared (400 independent images; sampling error a few per cent)."""
+    from photogeom.simulate.fields import LocalDistortionField
+
+    W, H, n, m = 800.0, 600.0, 32, 400
+    F = LocalDistortionField.random(
+        np.random.default_rng(3), np.arange(m), W, H, rms=0.7, modes=3, correlation=0.0,
+        slope=slope,
+    )
+    u, v = np.meshgrid(np.arange(n) * W / n, np.arange(n) * H / n, indexing="ij")
+    uv = np.column_stack([u.ravel(), v.ravel()])
+    d = F.rows(np.repeat(np.arange(m), uv.shape[0]), np.tile(uv, (m, 1)))
+    d = d.reshape(m, n, n, 2)
+    spec = np.abs(np.fft.fft2(d, axes=(1, 2))) ** 2  # (m, kx, ky, 2)
+    p1, p2 = spec[:, 1, 0].mean(), spec[:, 2, 0].mean()
+    assert p1 / p2 == pytest.approx(2.0 ** (2 * slope), rel=0.15)
+    assert np.sqrt(np.mean(np.sum(d**2, axis=3))) == pytest.approx(0.7, rel=0.05)
+    assert F.slope == slope
+    s = uav_block("FC300S", seed=2, tie_points_per_image=20, local_field_slope=slope)
+    assert s.field.slope == slope and s.options["local_field_slope"] == slope
+    np.testing.assert_allclose(
+        F.coefficient_std()[:3] / F.coefficient_std()[0],
+        np.hypot(F.waves[:3, 0], F.waves[:3, 1]) ** -slope
+        / np.hypot(F.waves[0, 0], F.waves[0, 1]) ** -slope,
+    )
+
+
 def test_image_variant_calibration_offsets():
     s = uav_block("FC300S", seed=6, calibration_variation=(3.0, 1.0, 0.0))
     t = s.truth
@@ -257,6 +288,7 @@ def test_brown_options():
         (dict(brown={"k9": 1.0}), "brown: unknown"),
         (dict(size="huge"), "size must be"),
         (dict(local_field_correlation=1.0), r"\[0, 1\)"),
+        (dict(local_field_slope=-1.0), "local_field_slope must be >= 0"),
         (dict(blunders=10**7), "blunders"),
         (dict(brown={"k1": -0.6}), "folds over|cannot be inverted"),
     ],

@@ -100,8 +100,10 @@ class LocalDistortionField:
     with ``c[i, k, j]`` a 2-vector (du, dv). Wave numbers are whole numbers
     ``0 <= kx <= modes``, ``-modes <= ky <= modes`` (one half-plane, no constant term), so the
     shortest wavelength is ``width / modes`` along u. The coefficients' standard deviation
-    falls as ``1 / |k|`` (wave-number magnitude) and is scaled so that the expected RMS length
-    of the displacement over an image is ``rms``. Along the flight the coefficients follow a
+    falls as ``1 / |k|**slope`` (wave-number magnitude; ``slope`` 1 by default: about equal
+    variance per octave of wavelength; larger slopes put the variance into the longest
+    waves) and is scaled so that the expected RMS length of the displacement over an image
+    is ``rms``. Along the flight the coefficients follow a
     stationary AR(1) process with the given correlation between consecutive images, plus an
     optional static part shared by all images.
 
@@ -118,6 +120,8 @@ class LocalDistortionField:
         The distribution the coefficients were drawn from along the flight: AR(1)
         correlation between consecutive images and the share of the variance common to all
         images (:meth:`image_covariance`).
+    slope : float
+        Exponent of the coefficients' fall with the wave number (:meth:`coefficient_std`).
     """
 
     image_ids: np.ndarray
@@ -128,6 +132,7 @@ class LocalDistortionField:
     rms: float
     correlation: float = 0.0
     static: float = 0.0
+    slope: float = 1.0
 
     @classmethod
     def random(
@@ -141,10 +146,12 @@ class LocalDistortionField:
         modes: int = 6,
         correlation: float = 0.9,
         static: float = 0.0,
+        slope: float = 1.0,
     ) -> LocalDistortionField:
         """Random fields for images in flight order (see the class docstring).
 
-        ``static`` in [0, 1] is the share of the variance common to all images.
+        ``static`` in [0, 1] is the share of the variance common to all images; ``slope``
+        (>= 0) the exponent of the coefficients' fall with the wave number.
         """
         if modes < 1:
             raise InputError(f"local_field_modes must be >= 1, got {modes}")
@@ -152,6 +159,8 @@ class LocalDistortionField:
             raise InputError(f"local_field must be >= 0 (RMS, pixels), got {rms}")
         if not 0.0 <= static <= 1.0:
             raise InputError(f"local_field_static must be in [0, 1], got {static}")
+        if not (np.isfinite(slope) and slope >= 0):
+            raise InputError(f"local_field_slope must be >= 0, got {slope}")
         ids = np.asarray(image_ids)
         kx, ky = np.meshgrid(np.arange(0, modes + 1), np.arange(-modes, modes + 1), indexing="ij")
         kx, ky = kx.ravel(), ky.ravel()
@@ -161,9 +170,17 @@ class LocalDistortionField:
         varying = ar1_along_flight(rng, ids.size, (K, 2, 2), correlation)
         common = rng.standard_normal((1, K, 2, 2))
         c = np.sqrt(1.0 - static) * varying + np.sqrt(static) * common
-        coef = c * _wave_std(waves, rms)[None, :, None, None]
+        coef = c * _wave_std(waves, rms, slope)[None, :, None, None]
         return cls(
-            ids, float(width), float(height), waves, coef, float(rms), correlation, static
+            ids,
+            float(width),
+            float(height),
+            waves,
+            coef,
+            float(rms),
+            correlation,
+            static,
+            float(slope),
         )
 
     @classmethod
@@ -177,7 +194,7 @@ class LocalDistortionField:
     def coefficient_std(self) -> np.ndarray:
         """(2K,) standard deviation (px) of the cos, then the sin coefficients of each wave,
         as drawn (the same for du and dv)."""
-        return np.tile(_wave_std(self.waves, self.rms), 2)
+        return np.tile(_wave_std(self.waves, self.rms, self.slope), 2)
 
     def image_covariance(self, image_rows: np.ndarray) -> np.ndarray:
         """(n, n) correlation of one coefficient between the images at flight positions
@@ -252,8 +269,9 @@ class LocalDistortionField:
         return self.rows(self.image_rows(flat), a)
 
 
-def _wave_std(waves: np.ndarray, rms: float) -> np.ndarray:
-    """(K,) standard deviation (px) of each wave's coefficients: proportional to ``1 / |k|``,
-    scaled so that the expected RMS length of the displacement is ``rms``."""
-    w = 1.0 / np.hypot(waves[:, 0], waves[:, 1])
+def _wave_std(waves: np.ndarray, rms: float, slope: float = 1.0) -> np.ndarray:
+    """(K,) standard deviation (px) of each wave's coefficients: proportional to
+    ``1 / |k|**slope``, scaled so that the expected RMS length of the displacement is
+    ``rms``."""
+    w = np.hypot(waves[:, 0], waves[:, 1]) ** -float(slope)
     return (rms / np.sqrt(2.0 * np.sum(w**2))) * w

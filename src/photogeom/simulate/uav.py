@@ -393,6 +393,7 @@ def uav_block(
     local_field_modes: int = 6,
     local_field_correlation: float = 0.9,
     local_field_static: float = 0.0,
+    local_field_slope: float = 1.0,
     calibration_variation=None,
     calibration_correlation: float = 0.9,
     free: Sequence[str] | None = None,
@@ -480,6 +481,9 @@ def uav_block(
         Correlation of the field coefficients between consecutive images, in [0, 1).
     local_field_static : float
         Share of the field's variance common to all images, in [0, 1].
+    local_field_slope : float
+        The fields' coefficients fall as ``1 / |k|**slope`` with the wave number (>= 0;
+        default 1: about equal variance per octave; 3: nearly all in the longest waves).
     calibration_variation : float or (3,) or None
         Standard deviations of image-variant offsets of f, cx, cy, pixels (AR(1) along the
         flight with ``calibration_correlation``); the blocks then estimate those names per
@@ -676,6 +680,7 @@ def uav_block(
             modes=local_field_modes,
             correlation=local_field_correlation,
             static=local_field_static,
+            slope=local_field_slope,
         )
     else:
         if rms_field < 0:
@@ -813,6 +818,7 @@ def uav_block(
         local_field_modes=local_field_modes,
         local_field_correlation=local_field_correlation,
         local_field_static=float(local_field_static),
+        local_field_slope=float(local_field_slope),
         calibration_variation=None if cv is None else cv.tolist(),
         initial_camera=initial_camera if isinstance(initial_camera, str) else "given",
     )
