@@ -51,6 +51,10 @@ def test_free_network_check_std_follows_the_spread(sim):
     assert np.all(f.check["rmse"] < 0.05)
     assert "similarity" in f.check["convention"]
     assert any("similarity transformation" in n for n in f.notes)
+    assert "after the similarity transformation onto the survey" in f.summary()
+    from photogeom.report import bundle_report
+
+    assert "7-parameter similarity" in bundle_report(f, "free").to_html()
 
 
 def test_free_network_with_two_check_points_is_not_compared(sim):

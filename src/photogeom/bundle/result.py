@@ -323,8 +323,11 @@ class BundleFit:
         if c.get("ids"):
             r = c["rmse"]
             g = c["rmse_gsd"]
+            how = "triangulated minus surveyed"
+            if "similarity" in c.get("convention", ""):
+                how += " after the similarity transformation onto the survey"
             L.append(
-                f"check points ({len(c['ids'])}), triangulated minus surveyed: RMSE X {r[0]:.4g}, "
+                f"check points ({len(c['ids'])}), {how}: RMSE X {r[0]:.4g}, "
                 f"Y {r[1]:.4g}, Z {r[2]:.4g} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
             )
         if self.snooping is not None:
