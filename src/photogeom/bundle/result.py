@@ -83,8 +83,9 @@ class BundleFit:
         Estimated standard deviation factor of each observation group.
     chi2 : dict
         Global test of ``v'Pv / sigma0_prior^2`` against chi-square with r degrees of freedom
-        (with a robust loss ``v'PWv / kappa``, its expectation under normal errors made
-        that of the squared loss: :mod:`photogeom.bundle.robust`).
+        (with a robust loss ``v'Pv`` of the least-squares solution of the final
+        linearisation, all observations at full weight: :func:`least_squares_square_sum`;
+        it fails on blunders the robust weights have muted).
     notes : tuple of str
     elapsed : float (s)
     solver : dict
@@ -686,6 +687,19 @@ def _camera_cofactors(problem: Problem, blocks, pair_index, ims, gs) -> np.ndarr
     return Qs
 
 
+def least_squares_square_sum(problem: Problem, state) -> float:
+    """``v'Pv`` (whitened by the a-priori sigmas and the variance factors) of the
+    least-squares solution of the model linearised at ``state``, all image observations at
+    full weight: the linearisation's cost minus the decrease of one undamped Gauss-Newton
+    step. At a robust solution on clean data this is the least-squares minimum to second
+    order, chi-square with ``r`` degrees of freedom under normal errors whatever the
+    geometry; blunders (which the robust weights had muted) raise it."""
+    lin = problem.linearize(state, np.ones(problem.obs_i.size))
+    ne = problem.sys.normal_equations(lin)
+    dc, dp, _ = ne.solve()
+    return float(lin.cost - ne.predicted_decrease(dc, dp, 0.0))
+
+
 def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     from scipy import special
 
@@ -712,8 +726,14 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     # with a robust loss v'PWv is consistent only after dividing by its expectation under
     # normal errors (robust.py); kappa is 1 for the squared loss
     leverage = None if Cobs is None else image_point_leverage(Cobs, run.weights)
-    var, kappa = consistent_variance_factor(vtpv, red, leverage, run.weights, opts.loss, opts.scale)
+    var, _ = consistent_variance_factor(vtpv, red, leverage, run.weights, opts.loss, opts.scale)
     sigma0 = math.sqrt(var) if red > 0 else math.nan
+    # the global test: with a robust loss v'PWv / kappa neither has expectation r (kappa's
+    # model is a few per cent off) nor the spread of chi-square(r) (kappa is evaluated at
+    # the estimated variance); the least-squares v'Pv of the final linearisation has both
+    test_vtpv = vtpv
+    if opts.loss != "squared" and red > 0:
+        test_vtpv = least_squares_square_sum(problem, state)
     notes = []
     # exterior orientation covariance in X0..kappa
     T = opk_from_increment_jacobian(opk_from_rotations(state.M))
@@ -937,7 +957,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         check=check,
         snooping=snoop,
         variance_components=vc,
-        chi2=_chi2(vtpv / kappa, red, s0p),
+        chi2=_chi2(test_vtpv, red, s0p),
         gsd=float(adjusted.gsd()),
         notes=tuple(notes),
         elapsed=elapsed,
