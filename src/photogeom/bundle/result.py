@@ -634,23 +634,20 @@ def free_check_point_covariance(
     (equal weights), the check points' errors' part from the network.
 
     The joint covariance ``C`` (3k, 3k) of the triangulated check points (their rays'
-    ``N^-1`` and the cameras' part, with the cross terms ``T_j Q_cc T_l'`` of points seen by
-    the same images; ``Q_cc`` over the union of their cameras' unknowns by one solve with
-    the factor) is S-transformed onto the check points, ``P C P'`` with ``P = I - G (G'G)^-1
+    ``N^-1`` and the cameras' part ``T Q_cc T'`` with the cross terms of points seen by the
+    same images; ``T = N^-1 B`` of every check point, ``Q_cc T'`` by 3k solves with the
+    factor) is S-transformed onto the check points, ``P C P'`` with ``P = I - G (G'G)^-1
     G'`` and ``G`` the points' similarity derivatives (:func:`similarity_generators`): the
     result is the same in every datum of the network. The survey's own errors add
     ``P C_survey P'`` to the errors' covariance; they are not included.
     """
     Ninv, terms = _check_point_rays(problem, state, xyz)
     k = Ninv.shape[0]
-    cols = np.unique(np.concatenate([t[2] for t in terms]))
-    E = np.zeros((problem.sys.nc, cols.size))
-    E[cols, np.arange(cols.size)] = 1.0
-    Qu = factor.solve(E)[cols]
-    Tall = np.zeros((3 * k, cols.size))
+    # the cameras' part T Q_cc T' with T (3k, nc) the points' N^-1 B: 3k solves
+    Tt = np.zeros((problem.sys.nc, 3 * k))
     for j, (_, _, c, B) in enumerate(terms):  # over the (few) check points
-        Tall[3 * j : 3 * j + 3, np.searchsorted(cols, c)] = Ninv[j] @ B
-    C = Tall @ Qu @ Tall.T
+        Tt[c, 3 * j : 3 * j + 3] = (Ninv[j] @ B).T
+    C = Tt.T @ factor.solve(Tt)
     for j in range(k):
         C[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] += Ninv[j]
     G = similarity_generators(xyz)
