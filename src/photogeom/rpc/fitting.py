@@ -33,7 +33,8 @@ equations are singular or nearly so; a small ``lambda`` picks the smallest coeff
 the (almost) equivalent solutions and barely changes the fitted function. The reported
 cofactor is that of the regularised estimate, ``(A^T P A + (lambda S / sigma)^2 I)^-1``
 (``P = I / sigma^2``), the covariance ``sigma0^2`` times it; the
-redundancy counts the image observations only (``2 n - unknowns``).
+redundancy counts the image observations only (``2 n - unknowns``), and sigma0 divides
+``v'Pv`` by the effective redundancy ``2 n - tr(H)`` of the regularised fit.
 """
 
 from __future__ import annotations
@@ -221,14 +222,26 @@ def _make_fit(
     notes: tuple[str, ...],
     extras: dict,
 ) -> Fit:
-    """A :class:`Fit` with statistics of the image observations only (no pseudo-observations)."""
+    """A :class:`Fit` with statistics of the image observations only (no pseudo-observations).
+
+    ``redundancy`` is ``2 n - unknowns``; sigma0 divides ``v'Pv`` by the effective
+    redundancy of the regularised fit, ``2 n - tr(H)`` with ``tr(H) = u - sum_j w_j Q_jj``
+    (``w_j`` the pseudo-observations' weights, ``Q`` the regularised cofactor): the penalty
+    holds ``u - tr(H)`` of the coefficients, which the residuals then do not absorb
+    (``extras["effective_redundancy"]``)."""
     u = len(names)
     v = adj.residuals[: 2 * n]
     residuals = v.reshape(2, n).T.copy()
     r = 2 * n - u
     vtpv = float(np.sum(v**2)) / sigma**2
-    sigma0 = float(np.sqrt(vtpv / r)) if r > 0 else float("nan")
     Q = adj.cofactor
+    lam = float(extras.get("regularization", 0.0))
+    k = u // 2
+    scales = np.concatenate([np.full(k, rpc.samp_scale), np.full(k, rpc.line_scale)])
+    held = float(np.sum((lam * scales / sigma) ** 2 * np.diag(Q)))  # u - tr(H)
+    r_eff = r + held
+    extras = {**extras, "effective_redundancy": r_eff}
+    sigma0 = float(np.sqrt(vtpv / r_eff)) if r_eff > 0 and r > 0 else float("nan")
     w = adj.normalized_residuals
     red = adj.redundancy_numbers
     return Fit(
