@@ -70,7 +70,9 @@ class BundleFit:
         Standard deviations of every point's coordinates (``point_covariance=True``).
     check : dict
         Check-point ids, errors ``adjusted - surveyed`` (k, 3), RMSE X, Y, Z (object units
-        and GSD).
+        and GSD); in a free network after the 7-parameter similarity transformation of the
+        check points onto their survey (:func:`similarity_residuals`), their ``point_std``
+        in that datum (:func:`free_check_point_covariance`).
     control : dict
         Control-point ids, their adjusted minus surveyed coordinates (k, 3), RMSE X, Y, Z
         (object units and GSD) and the surveyed standard deviations (k, 3).
@@ -81,8 +83,9 @@ class BundleFit:
         Estimated standard deviation factor of each observation group.
     chi2 : dict
         Global test of ``v'Pv / sigma0_prior^2`` against chi-square with r degrees of freedom
-        (with a robust loss ``v'PWv / kappa``, its expectation under normal errors made
-        that of the squared loss: :mod:`photogeom.bundle.robust`).
+        (with a robust loss ``v'Pv`` of the least-squares solution of the final
+        linearisation, all observations at full weight: :func:`least_squares_square_sum`;
+        it fails on blunders the robust weights have muted).
     notes : tuple of str
     elapsed : float (s)
     solver : dict
@@ -321,8 +324,11 @@ class BundleFit:
         if c.get("ids"):
             r = c["rmse"]
             g = c["rmse_gsd"]
+            how = "triangulated minus surveyed"
+            if "similarity" in c.get("convention", ""):
+                how += " after the similarity transformation onto the survey"
             L.append(
-                f"check points ({len(c['ids'])}), triangulated minus surveyed: RMSE X {r[0]:.4g}, "
+                f"check points ({len(c['ids'])}), {how}: RMSE X {r[0]:.4g}, "
                 f"Y {r[1]:.4g}, Z {r[2]:.4g} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
             )
         if self.snooping is not None:
@@ -469,6 +475,49 @@ def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors:
     return lin, ne, F, Q, Qpp, Cobs
 
 
+def _check_point_rays(problem: Problem, state, xyz: np.ndarray):
+    """``N^-1`` (k, 3, 3) of the check points' rays and, per check point, the columns of
+    the camera unknowns its rays depend on with ``B = P'A`` (3, cols) over them (whitened
+    derivatives by the point, ``P``, and by the free camera unknowns, ``A``)."""
+    block = problem.block
+    cp = problem.check_points
+    k = cp.size
+    kmap = np.full(block.n_points, -1, dtype=np.int64)
+    kmap[cp] = np.arange(k)
+    rows = np.flatnonzero(kmap[block.obs_point] >= 0)
+    kr = kmap[block.obs_point[rows]]
+    A, G, P = problem.jacobians_at(state, rows, xyz[kr])
+    Pt = P.transpose(0, 2, 1)
+    N = np.zeros((k, 3, 3))
+    np.add.at(N, kr, Pt @ P)
+    Ninv = np.linalg.inv(N)
+    b, nl = problem.b, problem.m * problem.b
+    img = block.obs_image[rows]
+    grp = block.image_camera[img]
+    # derivatives of the normal equations' right side by the free camera unknowns only
+    PA = Pt @ A * problem.local_free[img][:, None, :]
+    gfree = problem.global_free.reshape(problem.ng, NCAL)
+    PG = Pt @ G * gfree[grp][:, None, :]
+    order = np.argsort(kr, kind="stable")
+    starts = np.searchsorted(kr[order], np.arange(k + 1))
+    terms = []
+    for j in range(k):  # over the (few) check points, not over observations
+        sel = order[starts[j] : starts[j + 1]]
+        ims, ipos = np.unique(img[sel], return_inverse=True)
+        gs, gpos = np.unique(grp[sel], return_inverse=True)
+        local_cols = (ims[:, None] * b + np.arange(b)).ravel()
+        global_cols = (nl + gs[:, None] * NCAL + np.arange(NCAL)).ravel()
+        cols = np.concatenate([local_cols, global_cols])
+        B = np.zeros((3, cols.size))
+        li = ipos[:, None] * b + np.arange(b)
+        gi = ims.size * b + (gpos[:, None] * NCAL + np.arange(NCAL))
+        for t in range(sel.size):  # the check point's rays
+            B[:, li[t]] += PA[sel[t]]
+            B[:, gi[t]] += PG[sel[t]]
+        terms.append((ims, gs, cols, B))
+    return Ninv, terms
+
+
 def check_point_covariance(
     problem: Problem,
     state,
@@ -511,47 +560,24 @@ def check_point_covariance(
     var : float
         sigma0^2 a posteriori.
     """
-    block = problem.block
-    cp = problem.check_points
-    k = cp.size
-    kmap = np.full(block.n_points, -1, dtype=np.int64)
-    kmap[cp] = np.arange(k)
-    rows = np.flatnonzero(kmap[block.obs_point] >= 0)
-    kr = kmap[block.obs_point[rows]]
-    A, G, P = problem.jacobians_at(state, rows, xyz[kr])
-    Pt = P.transpose(0, 2, 1)
-    N = np.zeros((k, 3, 3))
-    np.add.at(N, kr, Pt @ P)
-    Ninv = np.linalg.inv(N)
-    out = Ninv.copy()
     if not cameras:
-        return var * out
-    b, nl = problem.b, problem.m * problem.b
-    img = block.obs_image[rows]
-    grp = block.image_camera[img]
-    # derivatives of the normal equations' right side by the free camera unknowns only
-    PA = Pt @ A * problem.local_free[img][:, None, :]
-    gfree = problem.global_free.reshape(problem.ng, NCAL)
-    PG = Pt @ G * gfree[grp][:, None, :]
-    order = np.argsort(kr, kind="stable")
-    starts = np.searchsorted(kr[order], np.arange(k + 1))
+        block = problem.block
+        cp = problem.check_points
+        kmap = np.full(block.n_points, -1, dtype=np.int64)
+        kmap[cp] = np.arange(cp.size)
+        rows = np.flatnonzero(kmap[block.obs_point] >= 0)
+        kr = kmap[block.obs_point[rows]]
+        _, _, P = problem.jacobians_at(state, rows, xyz[kr])
+        N = np.zeros((cp.size, 3, 3))
+        np.add.at(N, kr, P.transpose(0, 2, 1) @ P)
+        return var * np.linalg.inv(N)
+    Ninv, terms = _check_point_rays(problem, state, xyz)
+    out = Ninv.copy()
     pair_index = None
     if blocks is not None and blocks.pairs is not None:
         pairs = problem.sys.blocks
         pair_index = {(int(a), int(c)): t for t, (a, c) in enumerate(pairs.tolist())}
-    for j in range(k):  # over the (few) check points, not over observations
-        sel = order[starts[j] : starts[j + 1]]
-        ims, ipos = np.unique(img[sel], return_inverse=True)
-        gs, gpos = np.unique(grp[sel], return_inverse=True)
-        local_cols = (ims[:, None] * b + np.arange(b)).ravel()
-        global_cols = (nl + gs[:, None] * NCAL + np.arange(NCAL)).ravel()
-        cols = np.concatenate([local_cols, global_cols])
-        B = np.zeros((3, cols.size))
-        li = ipos[:, None] * b + np.arange(b)
-        gi = ims.size * b + (gpos[:, None] * NCAL + np.arange(NCAL))
-        for t in range(sel.size):  # the check point's rays
-            B[:, li[t]] += PA[sel[t]]
-            B[:, gi[t]] += PG[sel[t]]
+    for j, (ims, gs, cols, B) in enumerate(terms):  # over the (few) check points
         Qs = _camera_cofactors(problem, blocks, pair_index, ims, gs)
         if Qs is None:  # an image pair without a common point: its block by a solve
             E = np.zeros((problem.sys.nc, cols.size))
@@ -559,6 +585,75 @@ def check_point_covariance(
             Qs = factor.solve(E)[cols]
         T = Ninv[j] @ B
         out[j] += T @ Qs @ T.T
+    return var * 0.5 * (out + out.transpose(0, 2, 1))
+
+
+def similarity_generators(xyz: np.ndarray) -> np.ndarray:
+    """(3k, 7) derivatives of the points ``xyz`` (k, 3) by a small similarity
+    transformation about their centroid: 3 shifts, 3 rotations, the scale (columns scaled
+    to the points' spread, for conditioning)."""
+    d = xyz - xyz.mean(axis=0)
+    s = max(float(np.sqrt(np.mean(np.sum(d * d, axis=1)))), 1e-300)
+    k = xyz.shape[0]
+    G = np.zeros((k, 3, 7))
+    G[:, :, :3] = np.eye(3)
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = 1.0
+        G[:, :, 3 + a] = np.cross(e, d) / s
+    G[:, :, 6] = d / s
+    return G.reshape(3 * k, 7)
+
+
+def similarity_residuals(xyz: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``T(xyz) - target`` (k, 3) for the 7-parameter similarity ``T`` that fits the points
+    ``xyz`` best to ``target`` (least squares, equal weights; closed form by the SVD of the
+    cross-covariance). NaN when fewer than 3 points or all on a line."""
+    k = xyz.shape[0]
+    if k < 3:
+        return np.full((k, 3), np.nan)
+    mx, mt = xyz.mean(axis=0), target.mean(axis=0)
+    a, t = xyz - mx, target - mt
+    sa = float(np.sum(a * a))
+    sv = np.linalg.svd(a, compute_uv=False)
+    if sa <= 0 or sv[1] <= 1e-9 * sv[0]:
+        return np.full((k, 3), np.nan)
+    U, S, Vt = np.linalg.svd(t.T @ a)
+    D = np.eye(3)
+    D[2, 2] = np.sign(np.linalg.det(U @ Vt))
+    R = U @ D @ Vt
+    scale = float(np.sum(S * np.diag(D))) / sa
+    return scale * a @ R.T + mt - target
+
+
+def free_check_point_covariance(
+    problem: Problem, state, factor, xyz: np.ndarray, var: float
+) -> np.ndarray:
+    """Covariance (k, 3, 3) of a free network's check points in their own datum: the
+    coordinates after the similarity transformation that fits them best to their survey
+    (equal weights), the check points' errors' part from the network.
+
+    The joint covariance ``C`` (3k, 3k) of the triangulated check points (their rays'
+    ``N^-1`` and the cameras' part ``T Q_cc T'`` with the cross terms of points seen by the
+    same images; ``T = N^-1 B`` of every check point, ``Q_cc T'`` by 3k solves with the
+    factor) is S-transformed onto the check points, ``P C P'`` with ``P = I - G (G'G)^-1
+    G'`` and ``G`` the points' similarity derivatives (:func:`similarity_generators`): the
+    result is the same in every datum of the network. The survey's own errors add
+    ``P C_survey P'`` to the errors' covariance; they are not included.
+    """
+    Ninv, terms = _check_point_rays(problem, state, xyz)
+    k = Ninv.shape[0]
+    # the cameras' part T Q_cc T' with T (3k, nc) the points' N^-1 B: 3k solves
+    Tt = np.zeros((problem.sys.nc, 3 * k))
+    for j, (_, _, c, B) in enumerate(terms):  # over the (few) check points
+        Tt[c, 3 * j : 3 * j + 3] = (Ninv[j] @ B).T
+    C = Tt.T @ factor.solve(Tt)
+    for j in range(k):
+        C[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] += Ninv[j]
+    G = similarity_generators(xyz)
+    Pm = np.eye(3 * k) - G @ np.linalg.solve(G.T @ G, G.T)
+    CS = Pm @ C @ Pm.T
+    out = np.stack([CS[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] for j in range(k)])
     return var * 0.5 * (out + out.transpose(0, 2, 1))
 
 
@@ -589,6 +684,19 @@ def _camera_cofactors(problem: Problem, blocks, pair_index, ims, gs) -> np.ndarr
     return Qs
 
 
+def least_squares_square_sum(problem: Problem, state) -> float:
+    """``v'Pv`` (whitened by the a-priori sigmas and the variance factors) of the
+    least-squares solution of the model linearised at ``state``, all image observations at
+    full weight: the linearisation's cost minus the decrease of one undamped Gauss-Newton
+    step. At a robust solution on clean data this is the least-squares minimum to second
+    order, chi-square with ``r`` degrees of freedom under normal errors whatever the
+    geometry; blunders (which the robust weights had muted) raise it."""
+    lin = problem.linearize(state, np.ones(problem.obs_i.size))
+    ne = problem.sys.normal_equations(lin)
+    dc, dp, _ = ne.solve()
+    return float(lin.cost - ne.predicted_decrease(dc, dp, 0.0))
+
+
 def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     from scipy import special
 
@@ -615,10 +723,14 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     # with a robust loss v'PWv is consistent only after dividing by its expectation under
     # normal errors (robust.py); kappa is 1 for the squared loss
     leverage = None if Cobs is None else image_point_leverage(Cobs, run.weights)
-    var, kappa = consistent_variance_factor(
-        vtpv, red, leverage, run.weights, opts.loss, opts.scale
-    )
+    var, _ = consistent_variance_factor(vtpv, red, leverage, run.weights, opts.loss, opts.scale)
     sigma0 = math.sqrt(var) if red > 0 else math.nan
+    # the global test: with a robust loss v'PWv / kappa neither has expectation r (kappa's
+    # model is a few per cent off) nor the spread of chi-square(r) (kappa is evaluated at
+    # the estimated variance); the least-squares v'Pv of the final linearisation has both
+    test_vtpv = vtpv
+    if opts.loss != "squared" and red > 0:
+        test_vtpv = least_squares_square_sum(problem, state)
     notes = []
     # exterior orientation covariance in X0..kappa
     T = opk_from_increment_jacobian(opk_from_rotations(state.M))
@@ -701,6 +813,24 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         X0 = block.surveyed_xyz[problem.check_points]
         check_xyz = tri.xyz
         err = check_xyz - X0
+        convention = (
+            "triangulated from the image observations with the adjusted cameras, minus surveyed"
+        )
+        if problem.free_datum is not None:
+            # a free network's datum is arbitrary: compare its shape, after the similarity
+            # transformation that fits the check points best to their survey
+            err = similarity_residuals(check_xyz, X0)
+            convention = (
+                "triangulated from the image observations with the adjusted cameras, "
+                "transformed by the 7-parameter similarity that fits them best to their "
+                "survey (free network), minus surveyed"
+            )
+            if np.isnan(err).all():
+                notes.append(
+                    "free network: the check points are not compared with their survey: the "
+                    "similarity transformation onto it needs at least 3 check points not on "
+                    "a line"
+                )
         gsd = adjusted.gsd()
         rm = np.sqrt(np.mean(err**2, axis=0))
         check = {
@@ -708,20 +838,20 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             "errors": err,
             "rmse": rm,
             "rmse_gsd": rm / gsd,
-            "convention": "triangulated from the image observations with the adjusted "
-            "cameras, minus surveyed",
+            "convention": convention,
         }
-        if point_cov is not None:
-            cam = problem.free_datum is None
+        if point_cov is not None and problem.free_datum is None:
             point_cov[problem.check_points] = check_point_covariance(
-                problem, state, F, check_xyz, var, cameras=cam, blocks=Q
+                problem, state, F, check_xyz, var, blocks=Q
             )
-            if not cam:
-                notes.append(
-                    "free network: the check points' standard deviations hold only their "
-                    "image observations' part, not the cameras' (their errors against the "
-                    "survey depend on the datum)"
-                )
+        elif point_cov is not None and not np.isnan(err).all():
+            point_cov[problem.check_points] = free_check_point_covariance(
+                problem, state, F, check_xyz, var
+            )
+            notes.append(
+                "free network: check points compared with their survey after a similarity "
+                "transformation onto it; their standard deviations in that datum"
+            )
     adjusted = problem.to_block(state, check_xyz)
     control = {"ids": []}
     if problem.control.size:
@@ -824,7 +954,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         check=check,
         snooping=snoop,
         variance_components=vc,
-        chi2=_chi2(vtpv / kappa, red, s0p),
+        chi2=_chi2(test_vtpv, red, s0p),
         gsd=float(adjusted.gsd()),
         notes=tuple(notes),
         elapsed=elapsed,

@@ -1,5 +1,7 @@
 """Robust losses of the bundle adjustment: the expected weighted square sum under normal
-errors, which makes sigma0, the global test and the variance components consistent.
+errors, which makes sigma0 and the variance components consistent (within a few per cent:
+the global test uses the least-squares ``v'Pv`` instead,
+:func:`photogeom.bundle.result.least_squares_square_sum`).
 
 With iteratively reweighted least squares the adjustment minimises ``sum w_i e_i^2`` with
 weights ``w(e^2)`` of the squared whitened 2-D residual norm of each image point

@@ -22,7 +22,7 @@ from typing import Annotated
 import typer
 
 from .._lazy import LazyModule
-from ..errors import FileFormatError, InputError
+from ..errors import DegenerateGeometryError, FileFormatError, InputError
 from ._common import (
     IdColOpt,
     JsonOpt,
@@ -563,6 +563,7 @@ def fit(
     computed minus observed (px); check points do not enter the fit.
     """
     from ..rpc import fit_rpc_to_points
+    from ..rpc.fitting import UnstableFitError, unstable_fit_message
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     sig = _sigmas(pairs, mask, sigma, points)
@@ -571,9 +572,14 @@ def fit(
             "fit: per-point sigma/weight columns are not supported for RPC fitting; use --sigma"
         )
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
-    result = fit_rpc_to_points(
-        ground, image, order=order, regularization=regularization, sigma=float(sig), **kw
-    )
+    try:
+        result = fit_rpc_to_points(
+            ground, image, order=order, regularization=regularization, sigma=float(sig), **kw
+        )
+    except UnstableFitError as exc:  # the same refusal in the command's option names
+        raise DegenerateGeometryError(
+            unstable_fit_message(*exc.details, option="--regularization", order_option="--order")
+        ) from exc
     _finish(
         result, output, style, as_json, report, points, pairs, mask, "Terrain-dependent RPC fit"
     )

@@ -763,6 +763,8 @@ def _points_section(d: Mapping) -> str:
         ids = c.get("ids") or []
         if not ids:
             continue
+        if "similarity" in (c.get("convention") or ""):  # a free network's check points
+            conv = c["convention"] + " (not in the adjustment)"
         err = np.array([[_nan(x) for x in row] for row in c["errors"]], dtype=float)
         length = np.sqrt((err**2).sum(axis=1))
         rows = [
