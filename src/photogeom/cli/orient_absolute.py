@@ -17,7 +17,17 @@ import typer
 
 from .._lazy import LazyModule
 from ..errors import InputError
-from ._common import CRS_FORMS, AngleUnit, check_mask, console, file_crs, load_pairs
+from ._common import (
+    CRS_FORMS,
+    AngleUnit,
+    check_mask,
+    console,
+    file_crs,
+    json_text,
+    load_pairs,
+    say,
+    write_outputs,
+)
 from ._stream import busy
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -141,6 +151,14 @@ def register(app: typer.Typer) -> None:
         report: Annotated[
             Path | None, typer.Option("--report", help="Write an HTML report to this file.")
         ] = None,
+        output_params: Annotated[
+            Path | None,
+            typer.Option(
+                "--output-params",
+                help="Write the estimated parameters (the --json results, JSON) to this file, "
+                "for 'transform apply' and 'cloud transform --params'.",
+            ),
+        ] = None,
         angle_unit: Annotated[
             AngleUnit, typer.Option("--angle-unit", help="Unit of the angles shown.")
         ] = AngleUnit.deg,
@@ -228,7 +246,7 @@ def register(app: typer.Typer) -> None:
 
         _check_option_combinations(
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
-            sigma_source=sigma_source, initial=initial,
+            sigma_source=sigma_source, initial=initial, output_params=output_params,
         )
 
         tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
@@ -314,7 +332,7 @@ def register(app: typer.Typer) -> None:
                     rep.add_text("Coordinate reference systems", "\n".join(_crs_lines(crs_record)))
                 rep.write(report)
                 if not as_json:
-                    out.print(f"report written to {report}")
+                    say(f"wrote {report}", out)
             return
         if sigma_source is not None:
             options["sigma_source"] = sigma_source
@@ -348,61 +366,92 @@ def register(app: typer.Typer) -> None:
                 notes=tuple(fit.notes) + tuple(crs_record["notes"]),
             )
         outliers = _outliers(fit, x, X, row_ids)
-        if as_json:
-            d = _fit_json(fit, conv, angle, pairs.notes)
-            if fit.inliers is not None:
-                d["ransac"] = {
-                    "threshold": threshold,
-                    "unit": unit,
-                    "pair_ids": list(row_ids),
-                    "inlier_ids": [i for i, k in zip(row_ids, fit.inliers) if k],
-                    "outliers": outliers,
-                    "note": "inliers is a mask over pair_ids; ids and residuals are those of "
-                    "the inliers; outlier residuals v = computed - observed with the inlier fit",
-                }
-            typer.echo(json.dumps(d, indent=2))
-        else:
-            for note in pairs.notes:
-                out.print(f"note: {note}")
-            print_fit(fit, console=out, angle_unit=angle,
-                      title=f"Absolute orientation ({meth})")
-            out.print(_angles_line(fit, conv, angle))
-            if fit.inliers is not None:
-                out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
-                if outliers:
-                    print_table(
-                        f"RANSAC outliers ({len(outliers)}, not in the estimate)",
-                        ["id", "v_X", "v_Y", "v_Z", "|v|"],
-                        _outlier_rows(outliers),
-                        console=out,
-                    )
-                    out.print(f"v = computed - observed with the inlier fit [{unit}]", markup=False)
-        if report is not None:
-            rep = Report("Absolute orientation")
-            used = X if fit.inliers is None else X[fit.inliers]
-            rep.add_fit(
-                fit,
-                title=f"Absolute orientation ({meth})",
-                angle_unit=angle,
-                points=used[:, :2],
-                check_points=pairs.target[is_check][:, :2] if is_check.any() else None,
-                point_labels=("X", "Y"),
-                point_unit=unit,
-            )
-            rep.add_text("Angles", _angles_line(fit, conv, angle))
-            if outliers:
-                rep.add_table(
-                    f"RANSAC outliers ({len(outliers)} of {len(row_ids)} pairs)",
-                    ["id", f"v_X [{unit}]", f"v_Y [{unit}]", f"v_Z [{unit}]", f"|v| [{unit}]"],
-                    _outlier_rows(outliers),
-                    note=f"Pairs farther than the threshold {threshold:g} {unit} from the "
-                    "RANSAC fit, left out of the estimate; v = computed - observed with the "
-                    "inlier fit.",
-                )
-            rep.write(report)
-            if not as_json:
-                out.print(f"report written to {report}")
+        data = _fit_json(fit, conv, angle, pairs.notes)
+        if fit.inliers is not None:
+            data["ransac"] = {
+                "threshold": threshold,
+                "unit": unit,
+                "pair_ids": list(row_ids),
+                "inlier_ids": [i for i, k in zip(row_ids, fit.inliers) if k],
+                "outliers": outliers,
+                "note": "inliers is a mask over pair_ids; ids and residuals are those of "
+                "the inliers; outlier residuals v = computed - observed with the inlier fit",
+            }
+        # the columns the estimate read, so that 'transform apply' names its output columns
+        data["input"] = _input_record(source, target, pairs, is_check)
 
+        # Build every output in memory first; the files are then replaced as one.
+        outputs: list[tuple[Path, str]] = []
+        if output_params is not None:
+            outputs.append((output_params, json_text(data)))
+        if report is not None:
+            outputs.append((report, _report_html(
+                fit, meth, conv, angle, unit, X, pairs, is_check, outliers, row_ids, threshold,
+            )))  # fmt: skip
+        write_outputs(outputs)
+        if as_json:
+            typer.echo(json_text(data), nl=False)
+            return
+        for note in pairs.notes:
+            out.print(f"note: {note}")
+        print_fit(fit, console=out, angle_unit=angle, title=f"Absolute orientation ({meth})")
+        out.print(_angles_line(fit, conv, angle))
+        if fit.inliers is not None:
+            out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
+            if outliers:
+                print_table(
+                    f"RANSAC outliers ({len(outliers)}, not in the estimate)",
+                    ["id", "v_X", "v_Y", "v_Z", "|v|"],
+                    _outlier_rows(outliers),
+                    console=out,
+                )
+                out.print(f"v = computed - observed with the inlier fit [{unit}]", markup=False)
+        for path, _ in outputs:
+            say(f"wrote {path}", out)
+
+
+def _input_record(source: Path, target: Path | None, pairs, is_check) -> dict:
+    """The ``input`` section of the JSON results: files, the coordinate columns read (``transform
+    apply`` names its output columns after them), control and check counts, unmatched ids."""
+    return {
+        "files": [str(source)] + ([str(target)] if target is not None else []),
+        "source_columns": list(pairs.source_columns),
+        "target_columns": list(pairs.target_columns),
+        "n_control": int((~is_check).sum()),
+        "n_check": int(is_check.sum()),
+        "unmatched_source": list(pairs.unmatched_source),
+        "unmatched_target": list(pairs.unmatched_target),
+    }
+
+
+def _report_html(
+    fit, meth, conv, angle, unit, X, pairs, is_check, outliers, row_ids, threshold
+) -> str:
+    """The HTML report of one estimate (residual plot on X, Y; RANSAC outliers)."""
+    from ..report import Report
+
+    rep = Report("Absolute orientation")
+    used = X if fit.inliers is None else X[fit.inliers]
+    rep.add_fit(
+        fit,
+        title=f"Absolute orientation ({meth})",
+        angle_unit=angle,
+        points=used[:, :2],
+        check_points=pairs.target[is_check][:, :2] if is_check.any() else None,
+        point_labels=("X", "Y"),
+        point_unit=unit,
+    )
+    rep.add_text("Angles", _angles_line(fit, conv, angle))
+    if outliers:
+        rep.add_table(
+            f"RANSAC outliers ({len(outliers)} of {len(row_ids)} pairs)",
+            ["id", f"v_X [{unit}]", f"v_Y [{unit}]", f"v_Z [{unit}]", f"|v| [{unit}]"],
+            _outlier_rows(outliers),
+            note=f"Pairs farther than the threshold {threshold:g} {unit} from the "
+            "RANSAC fit, left out of the estimate; v = computed - observed with the "
+            "inlier fit.",
+        )
+    return rep.to_html()
 
 def _check_option_combinations(
     *,
@@ -412,6 +461,7 @@ def _check_option_combinations(
     seed: int | None,
     sigma_source: float | None,
     initial: str | None,
+    output_params: Path | None = None,
 ) -> None:
     """Refuse options that the chosen mode would ignore (before any file is read).
 
@@ -420,10 +470,15 @@ def _check_option_combinations(
     InputError
         ``--threshold`` or ``--seed`` without ``--ransac``; ``--compare`` with ``--ransac``;
         ``--sigma-source`` or ``--initial`` with ``--ransac`` or ``--compare`` (neither uses
-        them).
+        them); ``--output-params`` with ``--compare`` (no single estimate to write).
     """
     if compare and ransac:
         raise InputError("--compare and --ransac cannot be combined")
+    if compare and output_params is not None:
+        raise InputError(
+            "--output-params writes the parameters of one estimate, but --compare runs every "
+            "method: leave out --compare and choose the method with --method"
+        )
     for given, name, what in (
         (threshold is not None, "--threshold", "the RANSAC inlier distance"),
         (seed is not None, "--seed", "the random seed of RANSAC"),
