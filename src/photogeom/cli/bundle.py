@@ -275,7 +275,9 @@ def simulate(
     preset: Annotated[
         Preset, typer.Option("--preset", "-p", help="Camera preset.")
     ] = Preset.FC300S,
-    seed: Annotated[int, typer.Option(help="Random seed (same seed, same block).")] = 1,
+    seed: Annotated[
+        int, typer.Option(min=0, help="Random seed (same seed, same block), an integer >= 0.")
+    ] = 1,
     size: Annotated[
         str,
         typer.Option(help="'small': --strips x --images-per-strip; 'study': the study's block."),

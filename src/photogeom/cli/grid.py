@@ -161,7 +161,7 @@ def fit(
             "or linear along the edge."
         ),
     ] = Border.mean,
-    folds: Annotated[int, typer.Option(help="k-fold cross-validation (0: none).")] = 5,
+    folds: Annotated[int, typer.Option(help="k-fold cross-validation, k >= 2 (0: none).")] = 5,
     snooping: Annotated[
         bool,
         typer.Option("--snooping/--no-snooping", help="Reject outliers by data snooping (w-test)."),
@@ -186,6 +186,11 @@ def fit(
     from ..calibration import fit_grids, save_grids
 
     size = _image_size(image_size)
+    if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
+        raise InputError(
+            f"--folds {folds}: give the number of cross-validation folds, 2 or more, or 0 "
+            "for no cross-validation"
+        )
     if sigma_constraint.strip().lower() == "vce":
         s_c: float | str = "vce"
     else:

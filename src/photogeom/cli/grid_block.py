@@ -63,7 +63,9 @@ def _sigma_a(text: str):
     return _sigma_option(text, "--sigma-amplitude", {"residuals": "residuals", "none": None})
 
 
-SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--preset).")]
+SeedOpt = Annotated[
+    int, typer.Option(min=0, help="Seed of the simulated block (--preset), an integer >= 0.")
+]
 StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
 ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
 OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]

@@ -222,7 +222,9 @@ def register(app: typer.Typer) -> None:
         allow_unmatched: Annotated[
             bool, typer.Option(help="Leave out ids found in only one file (listed).")
         ] = False,
-        seed: Annotated[int | None, typer.Option(help="Random seed of RANSAC.")] = None,
+        seed: Annotated[
+            int | None, typer.Option(min=0, help="Random seed of RANSAC, an integer >= 0.")
+        ] = None,
         source_crs: Annotated[
             str | None,
             typer.Option(

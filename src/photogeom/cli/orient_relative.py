@@ -142,7 +142,9 @@ def relative(
             help="Remove wrong matches (RANSAC start, data snooping); --no-robust keeps all.",
         ),
     ] = True,
-    worst: Annotated[int, typer.Option(help="Number of worst y-parallaxes listed.")] = 10,
+    worst: Annotated[
+        int, typer.Option(min=0, help="Number of worst y-parallaxes listed (>= 0).")
+    ] = 10,
     angle_unit: AngleOpt = AngleUnit.deg,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: Annotated[
