@@ -159,9 +159,17 @@ def output_format(path: Path, given: BlockFormat | None, default: str | None, op
 
 
 def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
-    """Read a block in format ``fmt``."""
+    """Read a block in format ``fmt`` (``sigma``: the ``--sigma`` of the command, px)."""
+    import math
+
     from .. import bundle
 
+    if sigma is not None and not (math.isfinite(sigma) and sigma > 0):
+        # checked here: the readers would blame the first row of the file that lacks a sigma
+        raise InputError(
+            f"--sigma {sigma:g}: the standard deviation of the image observations must be a "
+            "positive number of pixels"
+        )
     kw = {} if sigma is None else {"sigma": sigma}
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
