@@ -340,6 +340,8 @@ def register(app: typer.Typer) -> None:
             options["sigma_source"] = sigma_source
         if initial is not None:
             options["initial"] = initial
+            if meth == "gauss-helmert":  # a start is used by the iterative adjustment only
+                options["iterate"] = True
         row_ids = tuple(str(i) for i in ids[ctrl])
         if ransac:
             if threshold is None:
