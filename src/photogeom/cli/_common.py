@@ -301,6 +301,69 @@ def in_cli_words(message: str) -> str:
     return message
 
 
+def keywords_as_options(message: str, names: dict[str, str]) -> str:
+    """``message`` of a library error with the Python keywords of ``names`` written as the
+    command's options.
+
+    ``keyword=value`` (``errors_in='both'``) becomes ``option value`` (``--errors-in both``); a
+    keyword with an underscore (``sigma0_prior``) is replaced wherever it stands as a word; a
+    plain word (``sigma``, ``order``) only where it begins a clause (at the start, after
+    ``: ``, ``; ``, ``(``, ``needs `` or ``and ``) and is the subject of a condition (followed
+    by ``must``, ``applies``, ``:``, ``>=``, ``<=``, ``>``, ``<`` or ``/``), so that the same
+    word in prose ("the image size must ...") stays.
+
+    Parameters
+    ----------
+    message : str
+        The error message.
+    names : dict of str to str
+        Python keyword -> command-line option, e.g. ``{"sigma0_prior": "--sigma0-prior"}``.
+    """
+    import re
+
+    for kw, opt in names.items():
+        k = re.escape(kw)
+        message = re.sub(
+            rf"(?<![\w-]){k}=(['\"]?)([^'\"\s,;)]+)\1",
+            lambda m, opt=opt: f"{opt} {m.group(2)}",
+            message,
+        )
+        if "_" in kw:
+            message = re.sub(rf"(?<![\w-]){k}(?![\w-])", lambda m, opt=opt: opt, message)
+        else:
+            message = re.sub(
+                rf"(^|: |; |\(|needs |and ){k}(?=:| must | applies | ?[<>]=? | /)",
+                lambda m, opt=opt: m.group(1) + opt,
+                message,
+            )
+    return message
+
+
+def options_in_errors(**names: str):
+    """Decorator of a command: errors of photogeom raised inside name the command's options
+    instead of the library's keywords (see :func:`keywords_as_options`), e.g.
+    ``@options_in_errors(sigma_target="--sigma-target")`` turns ``sigma_target must be a
+    positive number`` into ``--sigma-target must be a positive number``. The command's
+    signature is kept (typer reads it through ``functools.wraps``)."""
+    import functools
+
+    from ..errors import OutputError, PhotogeomError
+
+    def decorate(command):
+        @functools.wraps(command)
+        def run(*args, **kwargs):
+            try:
+                return command(*args, **kwargs)
+            except PhotogeomError as exc:
+                if not isinstance(exc, OutputError) and exc.args and isinstance(exc.args[0], str):
+                    exc.args = (keywords_as_options(exc.args[0], names), *exc.args[1:])
+                raise
+
+        return run
+
+    return decorate
+
+
 # --- coordinate reference systems ---------------------------------------------------------------
 
 

@@ -28,6 +28,7 @@ from ._common import (
     console,
     iteration_progress,
     json_text,
+    options_in_errors,
     say,
     split_names,
 )
@@ -275,6 +276,12 @@ class Preset(str, Enum):
 
 
 @app.command("simulate")
+@options_in_errors(
+    size="--size", strips="--strips", images_per_strip="--images-per-strip", gsd="--gsd",
+    tie_points_per_image="--tie-points-per-image", gcps="--gcps", checks="--checks",
+    sigma="--sigma", gcp_sigma="--gcp-sigma", blunders="--blunders",
+    blunder_size="--blunder-size", local_field="--local-field",
+)
 @_cli_words
 def simulate(
     output: Annotated[

@@ -34,6 +34,7 @@ from ._common import (
     emit_points,
     finite_or_none,
     json_text,
+    options_in_errors,
     say,
     split_control,
     split_names,
@@ -315,6 +316,7 @@ AngleOpt = Annotated[AngleUnit, typer.Option(help="Unit of angles on input and o
 
 
 @app.command("project")
+@options_in_errors(pixel_size="--pixel-size")
 def project_cmd(
     points: Annotated[Path, typer.Argument(help="CSV of ground points (id,X,Y,Z).")],
     camera: CameraOpt = None,
@@ -636,6 +638,7 @@ def _dlt_report(fit, image_ctrl, image_check, au: str, std: tuple[dict, str]) ->
 
 
 @dlt_app.command("convert")
+@options_in_errors(pixel_size="--pixel-size")
 def dlt_convert(
     dlt: Annotated[
         str | None,

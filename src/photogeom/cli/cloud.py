@@ -16,7 +16,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._common import JsonOpt, json_text, say, split_numbers
+from ._common import JsonOpt, json_text, options_in_errors, say, split_numbers
 
 app = typer.Typer(
     help="LAS/LAZ point clouds chunk by chunk: info, transform, register (laspy; LAZ by lazrs).",
@@ -78,6 +78,7 @@ def info(
 
 
 @app.command("transform")
+@options_in_errors(chunk_size="--chunk-size")
 def transform(
     source: Annotated[Path, typer.Argument(help="Input LAS/LAZ.")],
     output: Annotated[Path, typer.Argument(help="Output LAS/LAZ (.laz: compressed).")],
@@ -228,6 +229,7 @@ def _check_input_crs(source: Path, expected: str, params: Path, inverse: bool) -
 
 
 @app.command("register")
+@options_in_errors(chunk_size="--chunk-size")
 def register(
     source: Annotated[Path, typer.Argument(help="Cloud to orient (LAS/LAZ).")],
     target: Annotated[Path, typer.Argument(help="Reference cloud, same points in the same order.")],

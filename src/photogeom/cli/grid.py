@@ -17,7 +17,16 @@ import typer
 
 from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError, PhotogeomError
-from ._common import JsonOpt, OutputCsvOpt, ReportOpt, console, emit_points, json_text, say
+from ._common import (
+    JsonOpt,
+    OutputCsvOpt,
+    ReportOpt,
+    console,
+    emit_points,
+    json_text,
+    options_in_errors,
+    say,
+)
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
@@ -130,6 +139,7 @@ def _image_size(text: str) -> tuple[int, int]:
 
 
 @app.command("fit")
+@options_in_errors(alpha="--alpha")
 def fit(
     residuals: Annotated[
         Path,

@@ -25,6 +25,7 @@ from ._common import (
     file_crs,
     json_text,
     load_pairs,
+    options_in_errors,
     say,
     write_outputs,
 )
@@ -127,6 +128,7 @@ def register(app: typer.Typer) -> None:
     """Add ``absolute`` to the ``orient`` group."""
 
     @app.command("absolute")
+    @options_in_errors(sigma_target="--sigma-target", sigma_source="--sigma-source")
     def absolute(
         source: Annotated[
             Path,
@@ -249,6 +251,7 @@ def register(app: typer.Typer) -> None:
         _check_option_combinations(
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
             sigma_source=sigma_source, initial=initial, output_params=output_params,
+            method=method.value,
         )
 
         tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
@@ -466,6 +469,7 @@ def _check_option_combinations(
     sigma_source: float | None,
     initial: str | None,
     output_params: Path | None = None,
+    method: str = "svd",
 ) -> None:
     """Refuse options that the chosen mode would ignore (before any file is read).
 
@@ -474,7 +478,10 @@ def _check_option_combinations(
     InputError
         ``--threshold`` or ``--seed`` without ``--ransac``; ``--compare`` with ``--ransac``;
         ``--sigma-source`` or ``--initial`` with ``--ransac`` or ``--compare`` (neither uses
-        them); ``--output-params`` with ``--compare`` (no single estimate to write).
+        them); ``--output-params`` with ``--compare`` (no single estimate to write);
+        ``--sigma-source`` with a ``--method`` other than gauss-helmert (the only one with
+        errors in the source); ``--initial`` with a direct ``--method`` (which needs no start)
+        or a value other than a direct method or ``zeros``.
     """
     if compare and ransac:
         raise InputError("--compare and --ransac cannot be combined")
@@ -499,6 +506,36 @@ def _check_option_combinations(
                 f"{name} is not used with {mode} (it sets up a single gauss-markov / "
                 f"gauss-helmert estimate); leave it out or drop {mode}"
             )
+    if mode is None:
+        _check_single_estimate(method, sigma_source, initial)
+
+
+#: What ``--initial`` takes: the direct methods and ``zeros`` (s = 1, R = I, t = 0).
+INITIAL_VALUES = ("closed-form", "svd", "quaternion", "dual-quaternion", "zeros")
+
+
+def _check_single_estimate(method: str, sigma_source: float | None, initial: str | None) -> None:
+    """Refuse ``--sigma-source`` and ``--initial`` where ``--method`` does not use them, and an
+    ``--initial`` that is not one of :data:`INITIAL_VALUES` (messages in the words of the
+    command line; the library names its keywords)."""
+    if sigma_source is not None and method != "gauss-helmert":
+        raise InputError(
+            f"--sigma-source gives the source coordinates errors, which --method {method} "
+            "does not model (it treats them as error-free): add --method gauss-helmert, or "
+            "leave --sigma-source out"
+        )
+    if initial is None:
+        return
+    if method not in ("gauss-markov", "gauss-helmert"):
+        raise InputError(
+            f"--initial is the start of an iterative estimate; --method {method} is direct and "
+            "needs none: leave --initial out, or choose --method gauss-markov or gauss-helmert"
+        )
+    if initial.strip().lower() not in INITIAL_VALUES:
+        raise InputError(
+            f"--initial {initial}: give a direct method ({', '.join(INITIAL_VALUES[:-1])}) or "
+            "zeros (scale 1, no rotation, no shift)"
+        )
 
 
 def _crs_record(tcrs, scrs, pairs) -> dict:

@@ -28,6 +28,7 @@ from ._common import (
     file_crs,
     finite_or_none,
     json_text,
+    options_in_errors,
     say,
     split_control,
     split_names,
@@ -59,6 +60,7 @@ def register(app: typer.Typer) -> None:
     app.command("intersection")(intersection)
 
 
+@options_in_errors(sigma="--sigma", calibrate="--calibrate", pixel_size="--pixel-size")
 def resection(
     points: Annotated[
         Path,
@@ -238,6 +240,7 @@ def _resection_report(fit, image_ctrl, image_check, au: str, source: Path) -> st
     return rep.to_html()
 
 
+@options_in_errors(sigma="--sigma")
 def intersection(
     images: Annotated[
         list[Path],

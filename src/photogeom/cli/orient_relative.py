@@ -25,6 +25,7 @@ from ._common import (
     column_options,
     console,
     json_text,
+    options_in_errors,
     say,
     split_names,
     write_outputs,
@@ -91,6 +92,7 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
     return ids, t1.coords[k1], t2.coords[[index2[p] for p in ids]], only
 
 
+@options_in_errors(sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size")
 def relative(
     points: Annotated[
         Path,

@@ -34,6 +34,7 @@ from ._common import (
     crs_column_names,
     finite_or_none,
     json_text,
+    options_in_errors,
     say,
     split_control,
     split_names,
@@ -249,6 +250,7 @@ def _extrapolated(rpc, col, row, h, lon, lat, converged) -> np.ndarray:
 
 
 @app.command("localize")
+@options_in_errors(tol="--tol", max_iter="--max-iter")
 def localize(
     rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
     points: Annotated[Path, typer.Argument(help="CSV of image points: id, col, row[, h].")],
