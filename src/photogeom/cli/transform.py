@@ -520,7 +520,11 @@ def _output_columns(columns: tuple[str, ...]) -> list[str]:
 @app.command("apply")
 def apply(
     params: Annotated[
-        Path, typer.Argument(help="Parameter JSON written by 'transform estimate --output-params'.")
+        Path,
+        typer.Argument(
+            help="Parameter JSON written by 'transform estimate --output-params' or 'orient "
+            "absolute --output-params'."
+        ),
     ],
     points: Annotated[Path, typer.Argument(help="CSV of points to transform.")],
     output: Annotated[
