@@ -67,7 +67,16 @@ SeedOpt = Annotated[
     int, typer.Option(min=0, help="Seed of the simulated block (--preset), an integer >= 0.")
 ]
 StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
-ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
+ImagesOpt = Annotated[
+    int,
+    typer.Option(
+        "--images-per-strip", help="Images per strip of the simulated block (--preset)."
+    ),
+]
+#: The former name of --images-per-strip (as in 'bundle simulate'), still accepted.
+ImagesOldOpt = Annotated[
+    int | None, typer.Option("--images", hidden=True, help="Former name of --images-per-strip.")
+]
 OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]
 InAdjOpt = Annotated[
     bool,
@@ -123,14 +132,14 @@ class _Fit:
 
 
 def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
-    """(first fit, simulated block or None)."""
+    """(first fit, simulated block or None); ``images``: --images-per-strip."""
     import photogeom as pg
 
     if (block is None) == (preset is None):
         raise InputError("give either a BLOCK folder or --preset NAME (not both)")
     if preset is not None:
         if strips < 1 or images < 3:
-            raise InputError("--strips must be >= 1 and --images >= 3")
+            raise InputError("--strips must be >= 1 and --images-per-strip >= 3")
         sim = pg.simulate.uav_block(preset, seed=seed, strips=strips, images_per_strip=images)
         return pg.bundle_adjust(sim.block, snooping=False), sim
     if not block.exists():
@@ -271,6 +280,7 @@ def evaluate(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    images_old: ImagesOldOpt = None,
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
@@ -281,6 +291,7 @@ def evaluate(
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
     with --in-adjustment the grids are unknowns of the adjustment itself."""
+    images = images if images_old is None else images_old  # --images: the former name
     _, _, _, ev, _ = _evaluate(
         block,
         preset,
@@ -361,6 +372,7 @@ def sweep(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    images_old: ImagesOldOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
@@ -369,6 +381,7 @@ def sweep(
 
     from ..calibration import sweep_spacings
 
+    images = images if images_old is None else images_old  # --images: the former name
     g = split_numbers(spacings, None, "--spacings")
     sigma_constraint = _sigma_c(sigma_constraint)
     fit, _ = _source(block, preset, seed, strips, images)
@@ -425,6 +438,7 @@ def report(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    images_old: ImagesOldOpt = None,
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
@@ -436,6 +450,7 @@ def report(
     from ..calibration import sweep_spacings
     from ..report.grid_study import grid_study_report
 
+    images = images if images_old is None else images_old  # --images: the former name
     g = split_numbers(spacings, None, "--spacings")
     fit, re, grids, ev, _ = _evaluate(
         block,
