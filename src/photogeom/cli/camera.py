@@ -485,7 +485,11 @@ def dlt_estimate(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: ReportOpt = None,
     output_params: Annotated[
-        Path | None, typer.Option(help="Write the parameters (JSON) here.")
+        Path | None,
+        typer.Option(
+            help="Write the parameters (the --json results, JSON) here, for 'camera dlt "
+            "convert --params' and as --camera of 'camera project' and 'orient intersection'."
+        ),
     ] = None,
     crs: Annotated[
         str | None,

@@ -184,10 +184,14 @@ def register(app: typer.Typer) -> None:
         ] = False,
         sigma_source: Annotated[
             float | None,
-            typer.Option(help="Std. dev. of the source coordinates (gauss-helmert)."),
+            typer.Option(
+                help="Std. dev. of the source coordinates, in source units (--method "
+                "gauss-helmert)."
+            ),
         ] = None,
         sigma_target: Annotated[
-            float | None, typer.Option(help="Std. dev. of the target coordinates.")
+            float | None,
+            typer.Option(help="Std. dev. of the target coordinates, in target units (--unit)."),
         ] = None,
         initial: Annotated[
             str | None,
@@ -201,7 +205,9 @@ def register(app: typer.Typer) -> None:
         target_cols: Annotated[
             str | None, typer.Option(help="Target coordinate columns (default X,Y,Z).")
         ] = None,
-        id_col: Annotated[str | None, typer.Option(help="Id column (default: id).")] = None,
+        id_col: Annotated[
+            str | None, typer.Option(help="Id column (default: id, point, point_id or name).")
+        ] = None,
         check_ids: Annotated[
             str | None,
             typer.Option(
@@ -209,7 +215,8 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         weights_col: Annotated[
-            str | None, typer.Option(help="Column of per-point weights.")
+            str | None,
+            typer.Option(help="Column of per-point weights (unitless; with two files: in TARGET)."),
         ] = None,
         sigma_col: Annotated[
             str | None, typer.Option(help="Column of per-point std. devs. (target units).")
