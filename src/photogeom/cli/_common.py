@@ -245,6 +245,7 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
         "angles in --angle-unit)",
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
+    ("(allow_ballpark=True / --allow-ballpark)", "(--allow-ballpark)"),
     ("source_system / target_system", "--source-system / --target-system"),
     ("give both source_system and target_system", "give both --source-system and --target-system"),
     (" (photogeom.orientation.p3p lists them)", ""),
