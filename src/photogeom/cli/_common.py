@@ -96,7 +96,13 @@ def split_names(text: str | None) -> list[str] | None:
 
 
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
-    """Comma-separated numbers (exactly ``n`` when given)."""
+    """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
+
+    ``nan`` and ``inf`` are refused here, by the option's name: no option takes them, and
+    the library would name its own argument (``origin_px``, ``lat0``, ``scales``).
+    """
+    import math
+
     if text is None:
         return None
     parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
@@ -104,6 +110,11 @@ def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | N
         vals = [float(p) for p in parts]
     except ValueError:
         raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    bad = [p for p, v in zip(parts, vals) if not math.isfinite(v)]
+    if bad:
+        raise InputError(
+            f"{what}: {', '.join(bad)} is not a finite number; give finite numbers ({text!r})"
+        )
     if n is not None and len(vals) != n:
         raise InputError(f"{what}: expected {n} comma-separated numbers, got {len(vals)}")
     return vals
