@@ -537,6 +537,7 @@ def _report_html(title: str, subtitle: str, fit, image_ctrl, image_chk, intro: s
 
 
 @app.command("fit")
+@options_in_errors(order="--order", regularization="--regularization", sigma="--sigma")
 def fit(
     points: Annotated[
         Path, typer.Argument(help="CSV of control points: id, lon, lat, h, col, row[, role].")
@@ -582,6 +583,7 @@ def fit(
 
 
 @app.command("refine")
+@options_in_errors(sigma="--sigma")
 def refine(
     rpc_file: Annotated[Path, typer.Argument(help="Vendor RPC file.")],
     points: Annotated[
