@@ -157,6 +157,11 @@ def build_interior(
                 "(Metashape XML) or --camera (JSON)"
             )
         return None
+    import math
+
+    for name, value in (("--f", f), ("--x0", x0), ("--y0", y0), ("--pixel-size", pixel_size)):
+        if value is not None and not math.isfinite(value):
+            raise InputError(f"{name} {value}: give a finite number")
     if principal_point is not None:
         col, row = split_numbers(principal_point, 2, "--principal-point")
         return InteriorOrientation.digital(f, col, row, unit=unit, pixel_size=pixel_size)
