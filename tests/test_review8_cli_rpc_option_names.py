@@ -39,3 +39,11 @@ def gcps(tmp_path_factory) -> Path:
 def test_rpc_errors_name_the_options(cli, gcps, args, expected):
     code, _, err = cli(*[a.format(g=gcps) for a in args])
     assert code == 2 and expected in err, err
+
+
+@pytest.mark.parametrize("height", ["nan", "inf"])
+def test_localize_height_not_finite_names_the_option(cli, tmp_path: Path, height):
+    pts = tmp_path / "px.csv"
+    pts.write_text("id,col,row\n1,100,200\n")
+    code, _, err = cli("rpc", "localize", IKONOS, pts, "--height", height)
+    assert code == 2 and err.startswith(f"error: --height {height}: "), err

@@ -293,9 +293,15 @@ def localize(
     written block by block (a progress bar on a terminal).
     """
     single_threaded_blas()
+    import math
+
     from ..errors import ConvergenceError
     from ..rpc import LocalizationStatus
 
+    if height is not None and not math.isfinite(height):
+        raise InputError(
+            f"--height {height}: give the ellipsoidal height in metres, a finite number"
+        )
     rpc = _load_rpc(rpc_file)
     to_crs = None if crs is None else _output_crs(crs, allow_ballpark)
     if height is None:
