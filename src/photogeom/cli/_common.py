@@ -82,6 +82,32 @@ def iteration_progress(max_iterations: int, label: str = "adjusting"):
     return prog, progress
 
 
+@contextmanager
+def stage_spinner(description: str):
+    """A spinner with the current stage and the elapsed time on stderr, on a terminal only.
+
+    For long steps whose progress cannot be counted (an adjustment without an iteration
+    callback, a grid-size sweep). Yields ``step(text)``, which names the current stage; the
+    display is removed when the block ends (and never drawn in pipes, logs and scripts).
+    """
+    err = console(stderr=True)
+    if not err.is_terminal:
+        yield lambda text: None
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    prog = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+    )
+    with prog:
+        task = prog.add_task(description, total=None)
+        yield lambda text: prog.update(task, description=text)
+
+
 def say(text: str, out=None, *, stderr: bool = False) -> None:
     """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)

@@ -17,7 +17,15 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError, PhotogeomError
-from ._common import JsonOpt, console, iteration_progress, json_text, say, split_numbers
+from ._common import (
+    JsonOpt,
+    console,
+    iteration_progress,
+    json_text,
+    say,
+    split_numbers,
+    stage_spinner,
+)
 
 BlockArg = Annotated[
     Path | None,
@@ -132,7 +140,8 @@ class _Fit:
 
 
 def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
-    """(first fit, simulated block or None); ``images``: --images-per-strip."""
+    """(first fit, simulated block or None); ``images``: --images-per-strip. A spinner
+    names the stage on a terminal."""
     import photogeom as pg
 
     if (block is None) == (preset is None):
@@ -140,11 +149,16 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
     if preset is not None:
         if strips < 1 or images < 3:
             raise InputError("--strips must be >= 1 and --images-per-strip >= 3")
-        sim = pg.simulate.uav_block(preset, seed=seed, strips=strips, images_per_strip=images)
-        return pg.bundle_adjust(sim.block, snooping=False), sim
+        with stage_spinner(f"simulating the {preset} block") as step:
+            sim = pg.simulate.uav_block(
+                preset, seed=seed, strips=strips, images_per_strip=images
+            )
+            step(f"adjusting the {preset} block")
+            return pg.bundle_adjust(sim.block, snooping=False), sim
     if not block.exists():
         raise InputError(f"BLOCK: {block} does not exist")
-    return _Fit(pg.bundle.read_block(block)), None
+    with stage_spinner(f"reading {block}"):
+        return _Fit(pg.bundle.read_block(block)), None
 
 
 def _cli(msg: str) -> str:
@@ -228,10 +242,12 @@ def _evaluate(
                 grids = fit_residual_grids(re.block, post_spacing, folds=0)
                 re = readjust(re.block, grids, snooping=False)
         else:
-            grids = fit_residual_grids(
-                fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
-            )
-            re = readjust(fit.block, grids, snooping=False)
+            with stage_spinner(f"fitting grids of {spacing:g} px") as step:
+                grids = fit_residual_grids(
+                    fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
+                )
+                step("re-adjusting with the corrected observations")
+                re = readjust(fit.block, grids, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         exc.args = (_cli(str(exc)),)
@@ -386,7 +402,10 @@ def sweep(
     sigma_constraint = _sigma_c(sigma_constraint)
     fit, _ = _source(block, preset, seed, strips, images)
     try:
-        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
+        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+            sw = sweep_spacings(
+                fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0
+            )
     except PhotogeomError as exc:
         exc.args = (
             _cli(str(exc)).replace("give at least two spacings", "--spacings: give at least two"),
@@ -468,7 +487,8 @@ def report(
         check_points=check_points,
     )
     sc = _sigma_c(sigma_constraint)
-    sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
+    with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
     res = {
         "preset": (preset or str(block)) + (" (grids in the adjustment)" if in_adjustment else ""),
         "evaluation": ev,
