@@ -283,6 +283,17 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
     ("(allow_ballpark=True / --allow-ballpark)", "(--allow-ballpark)"),
+    # no command drops weak points: the fix on the command line is the block's files
+    (
+        "(remove them with Block.drop_weak_points(), or delete their rows from the block's "
+        "files)",
+        "(delete their rows from the block's files)",
+    ),
+    (
+        "or remove them with Block.drop_weak_points(surveyed=True) or by deleting their rows "
+        "from the block's files)",
+        "or delete their rows from the block's files)",
+    ),
     ("source_system / target_system", "--source-system / --target-system"),
     ("give both source_system and target_system", "give both --source-system and --target-system"),
     (" (photogeom.orientation.p3p lists them)", ""),

@@ -82,6 +82,7 @@ _CLI_WORDS = (
     ("point_covariance=True", "--point-covariance"),
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
+    ("read with image_key='id'", "read with --image-key id"),
 )
 
 #: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.

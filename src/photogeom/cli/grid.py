@@ -139,7 +139,7 @@ def _image_size(text: str) -> tuple[int, int]:
 
 
 @app.command("fit")
-@options_in_errors(alpha="--alpha")
+@options_in_errors(alpha="--alpha", border="--border")
 def fit(
     residuals: Annotated[
         Path,

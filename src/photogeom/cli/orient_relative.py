@@ -92,7 +92,9 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
     return ids, t1.coords[k1], t2.coords[[index2[p] for p in ids]], only
 
 
-@options_in_errors(sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size")
+@options_in_errors(
+    sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method"
+)
 def relative(
     points: Annotated[
         Path,
