@@ -462,6 +462,7 @@ def say_unmatched(unmatched: dict, as_json: bool) -> None:
 
 
 @dlt_app.command("estimate")
+@options_in_errors(sigma="--sigma")
 def dlt_estimate(
     points: Annotated[
         Path, typer.Argument(help="CSV with ground X,Y,Z (and image x,y if IMAGE is not given).")
@@ -482,6 +483,14 @@ def dlt_estimate(
     id_col: IdColOpt = None,
     sigma_col: Annotated[
         str | None, typer.Option(help="Column of image standard deviations (unit of --unit).")
+    ] = None,
+    sigma_all: Annotated[
+        float | None,
+        typer.Option(
+            "--sigma",
+            help="Standard deviation of the image coordinates, in --unit, for every point "
+            "(as orient resection --sigma; or per point with --sigma-col).",
+        ),
     ] = None,
     check_ids: Annotated[
         str | None, typer.Option(help="Comma-separated ids of check points.")
@@ -528,6 +537,10 @@ def dlt_estimate(
         unmatched=unmatched,
     )
     say_unmatched(unmatched, as_json)
+    if sigma_all is not None:
+        if sigma is not None:
+            raise InputError("give the image standard deviation once: --sigma or --sigma-col")
+        sigma = np.full(len(ids), float(sigma_all))
     mask = check_mask(ids, mask, check_ids)
     g_ctrl, im_ctrl, kw = split_control(ids, g, im, mask)
     fit = estimate_dlt(
