@@ -147,6 +147,9 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
     if (block is None) == (preset is None):
         raise InputError("give either a BLOCK folder or --preset NAME (not both)")
     if preset is not None:
+        names = ("ILCE-7RM2", "FC6310", "FC300S")  # bundle simulate's --preset choices
+        if preset not in names:
+            raise InputError(f"--preset {preset}: choose one of {', '.join(names)}")
         if strips < 1 or images < 3:
             raise InputError("--strips must be >= 1 and --images-per-strip >= 3")
         with stage_spinner(f"simulating the {preset} block") as step:
@@ -408,7 +411,9 @@ def sweep(
             )
     except PhotogeomError as exc:
         exc.args = (
-            _cli(str(exc)).replace("give at least two spacings", "--spacings: give at least two"),
+            _cli(str(exc)).replace(
+                "sweep_spacings: give at least two spacings", "--spacings: give at least two"
+            ),
         )
         raise
     if as_json:
