@@ -251,7 +251,8 @@ def intersection(
         typer.Option(
             "--camera",
             help="Camera JSON per image, in the order of IMAGES (e.g. from 'orient resection "
-            "--output-params').",
+            "--output-params'); repeat the option, once per image.",
+            metavar="<path>",
         ),
     ],
     pixel: Annotated[
@@ -298,7 +299,9 @@ def intersection(
     if len(camera) != len(images):
         raise InputError(
             f"{len(images)} image file(s) but {len(camera)} --camera file(s): give one camera "
-            "per image, in the same order"
+            "per image, in the same order, repeating the option (--camera cam1.json --camera "
+            "cam2.json)"
+            + ("; a comma does not separate files" if any("," in str(c) for c in camera) else "")
         )
     ground_crs = _cameras_crs(camera, crs)
     cams = []
