@@ -45,3 +45,17 @@ def test_only_plain_runtime_warnings_of_photogeom_are_dropped(capsys):
     cli_main._show_warning(python_display, "2 points did not converge", LocalizationWarning,
                            inside, 1)
     assert capsys.readouterr().err.startswith("warning: 2 points did not converge")
+
+
+def test_rpc_localize_prints_its_own_warnings_only(cli, tmp_path: Path):
+    from photogeom import datasets
+
+    rpc = datasets.path("lecture_fiducials").parent / "rpc" / "rpc_IKONOS.txt"
+    pts = tmp_path / "px.csv"
+    pts.write_text("id,col,row\n1,100,200\n2,5000,6000\n")
+    code, _, err = cli("rpc", "localize", rpc, pts, "--height", "1e300")
+    assert code == 0
+    lines = err.strip().splitlines()
+    assert all(ln.startswith("warning: ") for ln in lines)
+    assert any("did not converge" in ln for ln in lines)
+    assert not any("overflow encountered" in ln or "invalid value" in ln for ln in lines), err

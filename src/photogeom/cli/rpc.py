@@ -144,7 +144,14 @@ def info(
 
 
 def _say_warnings(caught: list, seen: set) -> None:
+    """The warnings caught around a block, each text once, as ``warning: ...`` lines; numpy's
+    floating-point warnings from photogeom's code are left out, as the command line's display
+    does (see :func:`photogeom.cli.main._show_warning`): the statuses name those points."""
+    from .main import _in_photogeom
+
     for w in caught:
+        if w.category is RuntimeWarning and _in_photogeom(w.filename):
+            continue
         text = str(w.message)
         if text not in seen:
             seen.add(text)
