@@ -290,6 +290,8 @@ def fit(
 def _cli_words(msg: str) -> str:
     return (
         msg.replace("sigma_constraint", "--sigma-constraint")
+        .replace("image width must be", "--image-size: the width must be")
+        .replace("image height must be", "--image-size: the height must be")
         .replace("sigma_obs", "--sigma-obs")
         .replace("min_observations", "observations")
         .replace("min_support", "--min-support")
