@@ -32,3 +32,20 @@ def test_grid_fit_names_the_option(cli, tmp_path: Path, size, spacing, expected)
                        "-o", out)
     assert code == 2 and expected in err, err
     assert not out.exists()
+
+
+def test_out_of_memory_is_one_error_line(cli, monkeypatch):
+    import numpy as np
+
+    from photogeom import datasets
+
+    def too_big(*args, **kwargs):
+        return np.empty((10**9, 10**9))  # numpy's _ArrayMemoryError, a MemoryError
+
+    import photogeom.orientation as orientation
+
+    monkeypatch.setattr(orientation, "absolute_orientation", too_big)
+    code, _, err = cli("orient", "absolute", datasets.path("lidar_wang2014"))
+    assert code == 2
+    assert err.startswith("error: not enough memory for this job (Unable to allocate")
+    assert len(err.strip().splitlines()) == 1

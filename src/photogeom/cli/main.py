@@ -77,7 +77,8 @@ _register()
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the CLI; photogeom errors become a one-line message and exit code 2.
+    """Run the CLI; photogeom errors (and running out of memory) become a one-line message
+    and exit code 2.
 
     Usage errors, ``--help`` and the help shown without arguments are handled by click
     (standalone mode), so they print the usual usage text and exit codes.
@@ -93,6 +94,15 @@ def main(argv: list[str] | None = None) -> None:
         from ._common import in_cli_words
 
         typer.secho(f"error: {in_cli_words(str(exc))}", err=True, fg=typer.colors.RED)
+        sys.exit(2)
+    except MemoryError as exc:  # numpy's _ArrayMemoryError too: one line, not a traceback
+        detail = f" ({exc})" if str(exc) else ""
+        typer.secho(
+            f"error: not enough memory for this job{detail}; give less input at once or "
+            "options that need less (see the command's --help)",
+            err=True,
+            fg=typer.colors.RED,
+        )
         sys.exit(2)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)
