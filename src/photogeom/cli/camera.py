@@ -410,8 +410,12 @@ def load_control(
 
     gcols = split_names(ground_cols) or ["X", "Y", "Z"]
     icols = split_names(image_cols) or ["x", "y"]
-    if len(gcols) != 3 or len(icols) != 2:
-        raise InputError("ground columns must be three names and image columns two")
+    for option, names, n in (("--ground-cols", gcols, 3), ("--image-cols", icols, 2)):
+        if len(names) != n:
+            raise InputError(
+                f"{option} {','.join(names)}: give {n} column names, comma-separated "
+                f"(e.g. {'X,Y,Z' if n == 3 else 'x,y'})"
+            )
     if image is None:
         with column_options("--image-cols", source="--image-cols", target="--ground-cols"):
             pairs = read_point_pairs(
