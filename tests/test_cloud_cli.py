@@ -81,7 +81,7 @@ def test_register_then_transform(cli, clouds, tmp_path):
     np.testing.assert_allclose(got, pg.io.read_cloud_xyz(dst), atol=3e-4)
     assert pg.io.cloud_info(out_laz).crs_name.startswith("EPSG:32633")
     code, out, err = cli("cloud", "register", str(src), str(dst), "--scheduler", "sync")
-    assert code == 0 and "scale 1.0000400" in out and "gon" in out
+    assert code == 0 and "scale 1.0000400" in out and " deg " in out  # --angle-unit default
 
 
 def test_transform_between_crs_and_errors(cli, clouds, tmp_path):

@@ -41,6 +41,11 @@ BORDERS = ("mean", "linear")
 
 
 # --------------------------------------------------------------------------- geometry
+#: Most nodes of one grid (a 3162 x 3162 node grid): beyond, the arrays of the nodes and of
+#: the normal equations alone need tens of gigabytes.
+MAX_NODES = 10_000_000
+
+
 @dataclass(frozen=True)
 class GridLayout:
     """Node layout of a residual grid over an image.
@@ -82,6 +87,13 @@ class GridLayout:
         object.__setattr__(self, "width", int(w))
         object.__setattr__(self, "height", int(h))
         object.__setattr__(self, "spacing", g)
+        nodes = self.nx * self.ny
+        if nodes > MAX_NODES:  # the node arrays alone would not fit in memory
+            raise InputError(
+                f"grid spacing {g:g} px on a {w} x {h} px image gives {self.ny} x {self.nx} = "
+                f"{nodes:,} nodes, more than {MAX_NODES:,}: choose a larger spacing (at least "
+                f"{math.sqrt(w * h / MAX_NODES):.3g} px)"
+            )
 
     @property
     def nx(self) -> int:

@@ -82,6 +82,32 @@ def iteration_progress(max_iterations: int, label: str = "adjusting"):
     return prog, progress
 
 
+@contextmanager
+def stage_spinner(description: str):
+    """A spinner with the current stage and the elapsed time on stderr, on a terminal only.
+
+    For long steps whose progress cannot be counted (an adjustment without an iteration
+    callback, a grid-size sweep). Yields ``step(text)``, which names the current stage; the
+    display is removed when the block ends (and never drawn in pipes, logs and scripts).
+    """
+    err = console(stderr=True)
+    if not err.is_terminal:
+        yield lambda text: None
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    prog = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+    )
+    with prog:
+        task = prog.add_task(description, total=None)
+        yield lambda text: prog.update(task, description=text)
+
+
 def say(text: str, out=None, *, stderr: bool = False) -> None:
     """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
@@ -96,7 +122,13 @@ def split_names(text: str | None) -> list[str] | None:
 
 
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
-    """Comma-separated numbers (exactly ``n`` when given)."""
+    """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
+
+    ``nan`` and ``inf`` are refused here, by the option's name: no option takes them, and
+    the library would name its own argument (``origin_px``, ``lat0``, ``scales``).
+    """
+    import math
+
     if text is None:
         return None
     parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
@@ -104,6 +136,11 @@ def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | N
         vals = [float(p) for p in parts]
     except ValueError:
         raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    bad = [p for p, v in zip(parts, vals) if not math.isfinite(v)]
+    if bad:
+        raise InputError(
+            f"{what}: {', '.join(bad)} is not a finite number; give finite numbers ({text!r})"
+        )
     if n is not None and len(vals) != n:
         raise InputError(f"{what}: expected {n} comma-separated numbers, got {len(vals)}")
     return vals
@@ -245,6 +282,18 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
         "angles in --angle-unit)",
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
+    ("(allow_ballpark=True / --allow-ballpark)", "(--allow-ballpark)"),
+    # no command drops weak points: the fix on the command line is the block's files
+    (
+        "(remove them with Block.drop_weak_points(), or delete their rows from the block's "
+        "files)",
+        "(delete their rows from the block's files)",
+    ),
+    (
+        "or remove them with Block.drop_weak_points(surveyed=True) or by deleting their rows "
+        "from the block's files)",
+        "or delete their rows from the block's files)",
+    ),
     ("source_system / target_system", "--source-system / --target-system"),
     ("give both source_system and target_system", "give both --source-system and --target-system"),
     (" (photogeom.orientation.p3p lists them)", ""),
@@ -299,6 +348,69 @@ def in_cli_words(message: str) -> str:
     for api, cli in CLI_WORDS:
         message = message.replace(api, cli)
     return message
+
+
+def keywords_as_options(message: str, names: dict[str, str]) -> str:
+    """``message`` of a library error with the Python keywords of ``names`` written as the
+    command's options.
+
+    ``keyword=value`` (``errors_in='both'``) becomes ``option value`` (``--errors-in both``); a
+    keyword with an underscore (``sigma0_prior``) is replaced wherever it stands as a word; a
+    plain word (``sigma``, ``order``) only where it begins a clause (at the start, after
+    ``: ``, ``; ``, ``(``, ``needs `` or ``and ``) and is the subject of a condition (followed
+    by ``must``, ``applies``, ``:``, ``>=``, ``<=``, ``>``, ``<`` or ``/``), so that the same
+    word in prose ("the image size must ...") stays.
+
+    Parameters
+    ----------
+    message : str
+        The error message.
+    names : dict of str to str
+        Python keyword -> command-line option, e.g. ``{"sigma0_prior": "--sigma0-prior"}``.
+    """
+    import re
+
+    for kw, opt in names.items():
+        k = re.escape(kw)
+        message = re.sub(
+            rf"(?<![\w-]){k}=(['\"]?)([^'\"\s,;)]+)\1",
+            lambda m, opt=opt: f"{opt} {m.group(2)}",
+            message,
+        )
+        if "_" in kw:
+            message = re.sub(rf"(?<![\w-]){k}(?![\w-])", lambda m, opt=opt: opt, message)
+        else:
+            message = re.sub(
+                rf"(^|: |; |\(|needs |and ){k}(?=:| must | applies | ?[<>]=? | /)",
+                lambda m, opt=opt: m.group(1) + opt,
+                message,
+            )
+    return message
+
+
+def options_in_errors(**names: str):
+    """Decorator of a command: errors of photogeom raised inside name the command's options
+    instead of the library's keywords (see :func:`keywords_as_options`), e.g.
+    ``@options_in_errors(sigma_target="--sigma-target")`` turns ``sigma_target must be a
+    positive number`` into ``--sigma-target must be a positive number``. The command's
+    signature is kept (typer reads it through ``functools.wraps``)."""
+    import functools
+
+    from ..errors import OutputError, PhotogeomError
+
+    def decorate(command):
+        @functools.wraps(command)
+        def run(*args, **kwargs):
+            try:
+                return command(*args, **kwargs)
+            except PhotogeomError as exc:
+                if not isinstance(exc, OutputError) and exc.args and isinstance(exc.args[0], str):
+                    exc.args = (keywords_as_options(exc.args[0], names), *exc.args[1:])
+                raise
+
+        return run
+
+    return decorate
 
 
 # --- coordinate reference systems ---------------------------------------------------------------

@@ -28,6 +28,7 @@ from ._common import (
     console,
     iteration_progress,
     json_text,
+    options_in_errors,
     say,
     split_names,
 )
@@ -81,6 +82,7 @@ _CLI_WORDS = (
     ("point_covariance=True", "--point-covariance"),
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
+    ("read with image_key='id'", "read with --image-key id"),
 )
 
 #: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
@@ -159,9 +161,17 @@ def output_format(path: Path, given: BlockFormat | None, default: str | None, op
 
 
 def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
-    """Read a block in format ``fmt``."""
+    """Read a block in format ``fmt`` (``sigma``: the ``--sigma`` of the command, px)."""
+    import math
+
     from .. import bundle
 
+    if sigma is not None and not (math.isfinite(sigma) and sigma > 0):
+        # checked here: the readers would blame the first row of the file that lacks a sigma
+        raise InputError(
+            f"--sigma {sigma:g}: the standard deviation of the image observations must be a "
+            "positive number of pixels"
+        )
     kw = {} if sigma is None else {"sigma": sigma}
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
@@ -267,6 +277,12 @@ class Preset(str, Enum):
 
 
 @app.command("simulate")
+@options_in_errors(
+    size="--size", strips="--strips", images_per_strip="--images-per-strip", gsd="--gsd",
+    tie_points_per_image="--tie-points-per-image", gcps="--gcps", checks="--checks",
+    sigma="--sigma", gcp_sigma="--gcp-sigma", blunders="--blunders",
+    blunder_size="--blunder-size", local_field="--local-field",
+)
 @_cli_words
 def simulate(
     output: Annotated[
@@ -275,7 +291,9 @@ def simulate(
     preset: Annotated[
         Preset, typer.Option("--preset", "-p", help="Camera preset.")
     ] = Preset.FC300S,
-    seed: Annotated[int, typer.Option(help="Random seed (same seed, same block).")] = 1,
+    seed: Annotated[
+        int, typer.Option(min=0, help="Random seed (same seed, same block), an integer >= 0.")
+    ] = 1,
     size: Annotated[
         str,
         typer.Option(help="'small': --strips x --images-per-strip; 'study': the study's block."),

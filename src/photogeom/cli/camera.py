@@ -34,6 +34,7 @@ from ._common import (
     emit_points,
     finite_or_none,
     json_text,
+    options_in_errors,
     say,
     split_control,
     split_names,
@@ -156,6 +157,11 @@ def build_interior(
                 "(Metashape XML) or --camera (JSON)"
             )
         return None
+    import math
+
+    for name, value in (("--f", f), ("--x0", x0), ("--y0", y0), ("--pixel-size", pixel_size)):
+        if value is not None and not math.isfinite(value):
+            raise InputError(f"{name} {value}: give a finite number")
     if principal_point is not None:
         col, row = split_numbers(principal_point, 2, "--principal-point")
         return InteriorOrientation.digital(f, col, row, unit=unit, pixel_size=pixel_size)
@@ -315,6 +321,7 @@ AngleOpt = Annotated[AngleUnit, typer.Option(help="Unit of angles on input and o
 
 
 @app.command("project")
+@options_in_errors(pixel_size="--pixel-size")
 def project_cmd(
     points: Annotated[Path, typer.Argument(help="CSV of ground points (id,X,Y,Z).")],
     camera: CameraOpt = None,
@@ -403,8 +410,12 @@ def load_control(
 
     gcols = split_names(ground_cols) or ["X", "Y", "Z"]
     icols = split_names(image_cols) or ["x", "y"]
-    if len(gcols) != 3 or len(icols) != 2:
-        raise InputError("ground columns must be three names and image columns two")
+    for option, names, n in (("--ground-cols", gcols, 3), ("--image-cols", icols, 2)):
+        if len(names) != n:
+            raise InputError(
+                f"{option} {','.join(names)}: give {n} column names, comma-separated "
+                f"(e.g. {'X,Y,Z' if n == 3 else 'x,y'})"
+            )
     if image is None:
         with column_options("--image-cols", source="--image-cols", target="--ground-cols"):
             pairs = read_point_pairs(
@@ -455,6 +466,7 @@ def say_unmatched(unmatched: dict, as_json: bool) -> None:
 
 
 @dlt_app.command("estimate")
+@options_in_errors(sigma="--sigma")
 def dlt_estimate(
     points: Annotated[
         Path, typer.Argument(help="CSV with ground X,Y,Z (and image x,y if IMAGE is not given).")
@@ -476,6 +488,14 @@ def dlt_estimate(
     sigma_col: Annotated[
         str | None, typer.Option(help="Column of image standard deviations (unit of --unit).")
     ] = None,
+    sigma_all: Annotated[
+        float | None,
+        typer.Option(
+            "--sigma",
+            help="Standard deviation of the image coordinates, in --unit, for every point "
+            "(as orient resection --sigma; or per point with --sigma-col).",
+        ),
+    ] = None,
     check_ids: Annotated[
         str | None, typer.Option(help="Comma-separated ids of check points.")
     ] = None,
@@ -483,7 +503,11 @@ def dlt_estimate(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: ReportOpt = None,
     output_params: Annotated[
-        Path | None, typer.Option(help="Write the parameters (JSON) here.")
+        Path | None,
+        typer.Option(
+            help="Write the parameters (the --json results, JSON) here, for 'camera dlt "
+            "convert --params' and as --camera of 'camera project' and 'orient intersection'."
+        ),
     ] = None,
     crs: Annotated[
         str | None,
@@ -517,6 +541,10 @@ def dlt_estimate(
         unmatched=unmatched,
     )
     say_unmatched(unmatched, as_json)
+    if sigma_all is not None:
+        if sigma is not None:
+            raise InputError("give the image standard deviation once: --sigma or --sigma-col")
+        sigma = np.full(len(ids), float(sigma_all))
     mask = check_mask(ids, mask, check_ids)
     g_ctrl, im_ctrl, kw = split_control(ids, g, im, mask)
     fit = estimate_dlt(
@@ -636,6 +664,7 @@ def _dlt_report(fit, image_ctrl, image_check, au: str, std: tuple[dict, str]) ->
 
 
 @dlt_app.command("convert")
+@options_in_errors(pixel_size="--pixel-size")
 def dlt_convert(
     dlt: Annotated[
         str | None,

@@ -16,7 +16,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._common import JsonOpt, json_text, say, split_numbers
+from ._common import AngleUnit, JsonOpt, json_text, options_in_errors, say, split_numbers
 
 app = typer.Typer(
     help="LAS/LAZ point clouds chunk by chunk: info, transform, register (laspy; LAZ by lazrs).",
@@ -78,12 +78,16 @@ def info(
 
 
 @app.command("transform")
+@options_in_errors(chunk_size="--chunk-size")
 def transform(
     source: Annotated[Path, typer.Argument(help="Input LAS/LAZ.")],
     output: Annotated[Path, typer.Argument(help="Output LAS/LAZ (.laz: compressed).")],
     params: Annotated[
         Path | None,
-        typer.Option(help="Parameter JSON (transform estimate / cloud register --output-params)."),
+        typer.Option(
+            help="Parameter JSON (transform estimate / orient absolute / cloud register "
+            "--output-params)."
+        ),
     ] = None,
     from_crs: Annotated[
         str | None,
@@ -228,11 +232,17 @@ def _check_input_crs(source: Path, expected: str, params: Path, inverse: bool) -
 
 
 @app.command("register")
+@options_in_errors(chunk_size="--chunk-size")
 def register(
     source: Annotated[Path, typer.Argument(help="Cloud to orient (LAS/LAZ).")],
     target: Annotated[Path, typer.Argument(help="Reference cloud, same points in the same order.")],
     method: Annotated[CloudMethod, typer.Option(help="Direct method.")] = CloudMethod.svd,
-    no_scale: Annotated[bool, typer.Option("--no-scale", help="Rigid: scale fixed to 1.")] = False,
+    rigid: Annotated[
+        bool, typer.Option("--rigid", help="Rigid transformation: scale fixed to 1.")
+    ] = False,
+    no_scale: Annotated[
+        bool, typer.Option("--no-scale", hidden=True, help="Former name of --rigid.")
+    ] = False,
     check_every: Annotated[
         int, typer.Option(help="Keep every k-th pair out as a check pair (0: none).")
     ] = 0,
@@ -241,12 +251,17 @@ def register(
     output_params: Annotated[
         Path | None, typer.Option(help="Write the parameters (for cloud transform --params).")
     ] = None,
+    angle_unit: Annotated[
+        AngleUnit, typer.Option(help="Unit of the angles shown (the JSON keeps radians).")
+    ] = AngleUnit.deg,
     json_out: JsonOpt = False,
 ) -> None:
     """Absolute orientation target ~ s R source + t of two clouds of corresponding points,
-    out of core (one pass for the estimate, one for the check pairs)."""
+    out of core (one pass for the estimate, one for the check pairs). Lengths are in the
+    unit of the target cloud's CRS (unlabelled when it records none)."""
     from ..distributed import register_clouds
     from ..io import atomic_write_text
+    from ..units import display_angle
 
     if check_every < 0 or check_every == 1:
         raise InputError(f"--check-every {check_every}: give 0 (no check pairs) or k >= 2")
@@ -254,7 +269,7 @@ def register(
         source,
         target,
         method=method.value,
-        with_scale=not no_scale,
+        with_scale=not (rigid or no_scale),
         check_every=check_every,
         chunk_size=chunk_size,
         scheduler=scheduler,
@@ -268,22 +283,43 @@ def register(
         typer.echo(json_text(_nan_to_none(d)), nl=False)
         return
     f = reg.fit
-    om, ph, ka = f.angles("transposed", "gon")
+    au = angle_unit.value
+    om, ph, ka = (
+        display_angle(a, au, name)
+        for a, name in zip(f.angles("transposed", au), ("omega", "phi", "kappa"))
+    )
+    u = _length_unit(f.crs)
     lines = [
         f"absolute orientation ({f.method}) of {reg.n_control} control pairs",
         f"scale {f.scale:.10f}",
-        f"omega {om:+.6f} gon  phi {ph:+.6f} gon  kappa {ka:+.6f} gon (transposed convention)",
-        f"translation {_fmt3(f.translation)}",
-        f"control RMSE {reg.control_rmse:.4g} (from the moments)",
+        f"omega {om:+.6f} {au}  phi {ph:+.6f} {au}  kappa {ka:+.6f} {au} (transposed "
+        "convention)",
+        f"translation {_fmt3(f.translation)}{u}",
+        f"control RMSE {reg.control_rmse:.4g}{u} (from the moments)",
         f"target CRS: {reg.crs_name or 'none recorded'}",
     ]
     if reg.n_check:
         lines.append(
-            f"check pairs {reg.n_check}: RMSE {reg.check_rmse:.4g}, per axis "
-            f"{_fmt3(reg.check_rms)}, mean {_fmt3(reg.check_mean)}, max {reg.check_max:.4g} "
-            "(residuals computed - observed)"
+            f"check pairs {reg.n_check}: RMSE {reg.check_rmse:.4g}{u}, per axis "
+            f"{_fmt3(reg.check_rms)}{u}, mean {_fmt3(reg.check_mean)}{u}, max "
+            f"{reg.check_max:.4g}{u} (residuals computed - observed)"
         )
     say("\n".join(lines))
+
+
+def _length_unit(crs: str | None) -> str:
+    """`` UNIT`` of the lengths of a cloud in ``crs`` (its first axis), or ``""`` when it
+    records none or PROJ cannot tell."""
+    if not crs:
+        return ""
+    from ..crs import cartesian_crs
+    from ..errors import PhotogeomError
+
+    try:
+        unit = cartesian_crs(crs, what="crs").unit
+    except PhotogeomError:
+        return ""
+    return f" {unit}" if unit else ""
 
 
 def _nan_to_none(value):

@@ -150,6 +150,8 @@ def convert(
             f"{points}: 'enu' needs three coordinate columns, found "
             f"{', '.join(table.columns)}; choose them with --cols"
         )
+    if not enu_in:
+        _check_geographic(table, src, points)
     if enu_in or enu_out:
         out = _crs.points_between(xyz, src, dst, allow_ballpark=allow_ballpark)
     elif src == dst:
@@ -164,3 +166,34 @@ def convert(
     extra = {"role": list(table.roles)} if table.roles is not None else None
     text = format_points_csv(table.ids, np.asarray(out), names, extra=extra, comments=comments)
     emit_points(text, output, len(table.ids))
+
+
+def _check_geographic(table, src: str, points: Path) -> None:
+    """Refuse, by point id, latitudes outside [-90, 90] degrees and longitudes outside
+    [-360, 360] degrees when the input CRS ``src`` is geographic (PROJ would stop with
+    "Invalid latitude" and no point named): most often projected or local coordinates given
+    a geographic --from, or columns in the wrong order."""
+    import numpy as np
+
+    from .. import crs as _crs
+
+    c = _crs.parse_crs(src, what="--from")
+    geographic = c.is_geographic or (
+        c.is_compound and bool(c.sub_crs_list) and c.sub_crs_list[0].is_geographic
+    )
+    if not geographic or table.coords.shape[1] < 2:
+        return
+    lon, lat = table.coords[:, 0], table.coords[:, 1]
+    bad = np.flatnonzero(~((np.abs(lat) <= 90.0) & (np.abs(lon) <= 360.0)))
+    if bad.size == 0:
+        return
+    shown = ", ".join(
+        f"{table.ids[i]} (lon {lon[i]:g}, lat {lat[i]:g})" for i in bad[:5]
+    ) + (" ..." if bad.size > 5 else "")
+    cols = ",".join(table.columns)
+    raise InputError(
+        f"{points}: {bad.size} point(s) are not longitude, latitude in degrees ({cols} read as "
+        f"lon,lat in {src}): {shown}; if they are projected or local coordinates, give their "
+        "CRS with --from (or the file's '# crs:' line); if the columns are in another order, "
+        "choose them with --cols LON,LAT[,H]"
+    )

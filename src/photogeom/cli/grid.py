@@ -17,7 +17,16 @@ import typer
 
 from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError, PhotogeomError
-from ._common import JsonOpt, OutputCsvOpt, ReportOpt, console, emit_points, json_text, say
+from ._common import (
+    JsonOpt,
+    OutputCsvOpt,
+    ReportOpt,
+    console,
+    emit_points,
+    json_text,
+    options_in_errors,
+    say,
+)
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
@@ -130,6 +139,7 @@ def _image_size(text: str) -> tuple[int, int]:
 
 
 @app.command("fit")
+@options_in_errors(alpha="--alpha", border="--border")
 def fit(
     residuals: Annotated[
         Path,
@@ -161,7 +171,7 @@ def fit(
             "or linear along the edge."
         ),
     ] = Border.mean,
-    folds: Annotated[int, typer.Option(help="k-fold cross-validation (0: none).")] = 5,
+    folds: Annotated[int, typer.Option(help="k-fold cross-validation, k >= 2 (0: none).")] = 5,
     snooping: Annotated[
         bool,
         typer.Option("--snooping/--no-snooping", help="Reject outliers by data snooping (w-test)."),
@@ -186,6 +196,11 @@ def fit(
     from ..calibration import fit_grids, save_grids
 
     size = _image_size(image_size)
+    if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
+        raise InputError(
+            f"--folds {folds}: give the number of cross-validation folds, 2 or more, or 0 "
+            "for no cross-validation"
+        )
     if sigma_constraint.strip().lower() == "vce":
         s_c: float | str = "vce"
     else:
@@ -275,6 +290,8 @@ def fit(
 def _cli_words(msg: str) -> str:
     return (
         msg.replace("sigma_constraint", "--sigma-constraint")
+        .replace("image width must be", "--image-size: the width must be")
+        .replace("image height must be", "--image-size: the height must be")
         .replace("sigma_obs", "--sigma-obs")
         .replace("min_observations", "observations")
         .replace("min_support", "--min-support")

@@ -17,7 +17,15 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError, PhotogeomError
-from ._common import JsonOpt, console, iteration_progress, json_text, say, split_numbers
+from ._common import (
+    JsonOpt,
+    console,
+    iteration_progress,
+    json_text,
+    say,
+    split_numbers,
+    stage_spinner,
+)
 
 BlockArg = Annotated[
     Path | None,
@@ -63,9 +71,20 @@ def _sigma_a(text: str):
     return _sigma_option(text, "--sigma-amplitude", {"residuals": "residuals", "none": None})
 
 
-SeedOpt = Annotated[int, typer.Option(help="Seed of the simulated block (--preset).")]
+SeedOpt = Annotated[
+    int, typer.Option(min=0, help="Seed of the simulated block (--preset), an integer >= 0.")
+]
 StripsOpt = Annotated[int, typer.Option(help="Strips of the simulated block (--preset).")]
-ImagesOpt = Annotated[int, typer.Option(help="Images per strip of the simulated block.")]
+ImagesOpt = Annotated[
+    int,
+    typer.Option(
+        "--images-per-strip", help="Images per strip of the simulated block (--preset)."
+    ),
+]
+#: The former name of --images-per-strip (as in 'bundle simulate'), still accepted.
+ImagesOldOpt = Annotated[
+    int | None, typer.Option("--images", hidden=True, help="Former name of --images-per-strip.")
+]
 OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]
 InAdjOpt = Annotated[
     bool,
@@ -121,19 +140,28 @@ class _Fit:
 
 
 def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
-    """(first fit, simulated block or None)."""
+    """(first fit, simulated block or None); ``images``: --images-per-strip. A spinner
+    names the stage on a terminal."""
     import photogeom as pg
 
     if (block is None) == (preset is None):
         raise InputError("give either a BLOCK folder or --preset NAME (not both)")
     if preset is not None:
+        names = ("ILCE-7RM2", "FC6310", "FC300S")  # bundle simulate's --preset choices
+        if preset not in names:
+            raise InputError(f"--preset {preset}: choose one of {', '.join(names)}")
         if strips < 1 or images < 3:
-            raise InputError("--strips must be >= 1 and --images >= 3")
-        sim = pg.simulate.uav_block(preset, seed=seed, strips=strips, images_per_strip=images)
-        return pg.bundle_adjust(sim.block, snooping=False), sim
+            raise InputError("--strips must be >= 1 and --images-per-strip >= 3")
+        with stage_spinner(f"simulating the {preset} block") as step:
+            sim = pg.simulate.uav_block(
+                preset, seed=seed, strips=strips, images_per_strip=images
+            )
+            step(f"adjusting the {preset} block")
+            return pg.bundle_adjust(sim.block, snooping=False), sim
     if not block.exists():
         raise InputError(f"BLOCK: {block} does not exist")
-    return _Fit(pg.bundle.read_block(block)), None
+    with stage_spinner(f"reading {block}"):
+        return _Fit(pg.bundle.read_block(block)), None
 
 
 def _cli(msg: str) -> str:
@@ -217,10 +245,12 @@ def _evaluate(
                 grids = fit_residual_grids(re.block, post_spacing, folds=0)
                 re = readjust(re.block, grids, snooping=False)
         else:
-            grids = fit_residual_grids(
-                fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
-            )
-            re = readjust(fit.block, grids, snooping=False)
+            with stage_spinner(f"fitting grids of {spacing:g} px") as step:
+                grids = fit_residual_grids(
+                    fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
+                )
+                step("re-adjusting with the corrected observations")
+                re = readjust(fit.block, grids, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         exc.args = (_cli(str(exc)),)
@@ -269,6 +299,7 @@ def evaluate(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    images_old: ImagesOldOpt = None,
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
@@ -279,6 +310,7 @@ def evaluate(
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
     with --in-adjustment the grids are unknowns of the adjustment itself."""
+    images = images if images_old is None else images_old  # --images: the former name
     _, _, _, ev, _ = _evaluate(
         block,
         preset,
@@ -359,6 +391,7 @@ def sweep(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    images_old: ImagesOldOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
@@ -367,14 +400,20 @@ def sweep(
 
     from ..calibration import sweep_spacings
 
+    images = images if images_old is None else images_old  # --images: the former name
     g = split_numbers(spacings, None, "--spacings")
     sigma_constraint = _sigma_c(sigma_constraint)
     fit, _ = _source(block, preset, seed, strips, images)
     try:
-        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0)
+        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+            sw = sweep_spacings(
+                fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0
+            )
     except PhotogeomError as exc:
         exc.args = (
-            _cli(str(exc)).replace("give at least two spacings", "--spacings: give at least two"),
+            _cli(str(exc)).replace(
+                "sweep_spacings: give at least two spacings", "--spacings: give at least two"
+            ),
         )
         raise
     if as_json:
@@ -423,6 +462,7 @@ def report(
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
+    images_old: ImagesOldOpt = None,
     in_adjustment: InAdjOpt = False,
     per: PerOpt = "image",
     sigma_temporal: SigmaTOpt = None,
@@ -434,6 +474,7 @@ def report(
     from ..calibration import sweep_spacings
     from ..report.grid_study import grid_study_report
 
+    images = images if images_old is None else images_old  # --images: the former name
     g = split_numbers(spacings, None, "--spacings")
     fit, re, grids, ev, _ = _evaluate(
         block,
@@ -451,7 +492,8 @@ def report(
         check_points=check_points,
     )
     sc = _sigma_c(sigma_constraint)
-    sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
+    with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
     res = {
         "preset": (preset or str(block)) + (" (grids in the adjustment)" if in_adjustment else ""),
         "evaluation": ev,

@@ -77,7 +77,8 @@ _register()
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the CLI; photogeom errors become a one-line message and exit code 2.
+    """Run the CLI; photogeom errors (and running out of memory) become a one-line message
+    and exit code 2.
 
     Usage errors, ``--help`` and the help shown without arguments are handled by click
     (standalone mode), so they print the usual usage text and exit codes.
@@ -94,6 +95,15 @@ def main(argv: list[str] | None = None) -> None:
 
         typer.secho(f"error: {in_cli_words(str(exc))}", err=True, fg=typer.colors.RED)
         sys.exit(2)
+    except MemoryError as exc:  # numpy's _ArrayMemoryError too: one line, not a traceback
+        detail = f" ({exc})" if str(exc) else ""
+        typer.secho(
+            f"error: not enough memory for this job{detail}; give less input at once or "
+            "options that need less (see the command's --help)",
+            err=True,
+            fg=typer.colors.RED,
+        )
+        sys.exit(2)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)
     finally:
@@ -102,8 +112,14 @@ def main(argv: list[str] | None = None) -> None:
 
 def _show_warning(shown, message, category, filename, lineno, file=None, line=None) -> None:
     """A warning of photogeom as one line ``warning: ...`` on stderr, in the words of the
-    command line (no source file and line of the library, no Python argument names); other
-    warnings as ``shown`` (Python's display) shows them."""
+    command line (no source file and line of the library, no Python argument names); numpy's
+    floating-point warnings (plain ``RuntimeWarning``: overflow, divide by zero, invalid
+    value) raised in photogeom's own code are not shown: the command names the problem in
+    its error or output (e.g. coordinates that overflow, points behind a camera), and the
+    library's source lines mean nothing on the command line; other warnings as ``shown``
+    (Python's display) shows them."""
+    if category is RuntimeWarning and _in_photogeom(filename):
+        return
     if not getattr(category, "__module__", "").startswith("photogeom"):
         shown(message, category, filename, lineno, file, line)
         return
@@ -111,6 +127,19 @@ def _show_warning(shown, message, category, filename, lineno, file=None, line=No
 
     text = " ".join(str(message).split())
     typer.secho(f"warning: {in_cli_words(text)}", err=True, fg=typer.colors.YELLOW)
+
+
+def _in_photogeom(filename: str) -> bool:
+    """The source file ``filename`` belongs to the photogeom package."""
+    import os
+
+    from .. import __file__ as package_init
+
+    root = os.path.dirname(os.path.abspath(package_init))
+    try:
+        return os.path.commonpath([root, os.path.abspath(filename)]) == root
+    except ValueError:  # another drive (Windows)
+        return False
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -17,7 +17,18 @@ import typer
 
 from .._lazy import LazyModule
 from ..errors import InputError
-from ._common import CRS_FORMS, AngleUnit, check_mask, console, file_crs, load_pairs
+from ._common import (
+    CRS_FORMS,
+    AngleUnit,
+    check_mask,
+    console,
+    file_crs,
+    json_text,
+    load_pairs,
+    options_in_errors,
+    say,
+    write_outputs,
+)
 from ._stream import busy
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -117,6 +128,7 @@ def register(app: typer.Typer) -> None:
     """Add ``absolute`` to the ``orient`` group."""
 
     @app.command("absolute")
+    @options_in_errors(sigma_target="--sigma-target", sigma_source="--sigma-source")
     def absolute(
         source: Annotated[
             Path,
@@ -141,6 +153,14 @@ def register(app: typer.Typer) -> None:
         report: Annotated[
             Path | None, typer.Option("--report", help="Write an HTML report to this file.")
         ] = None,
+        output_params: Annotated[
+            Path | None,
+            typer.Option(
+                "--output-params",
+                help="Write the estimated parameters (the --json results, JSON) to this file, "
+                "for 'transform apply' and 'cloud transform --params'.",
+            ),
+        ] = None,
         angle_unit: Annotated[
             AngleUnit, typer.Option("--angle-unit", help="Unit of the angles shown.")
         ] = AngleUnit.deg,
@@ -164,10 +184,14 @@ def register(app: typer.Typer) -> None:
         ] = False,
         sigma_source: Annotated[
             float | None,
-            typer.Option(help="Std. dev. of the source coordinates (gauss-helmert)."),
+            typer.Option(
+                help="Std. dev. of the source coordinates, in source units (--method "
+                "gauss-helmert)."
+            ),
         ] = None,
         sigma_target: Annotated[
-            float | None, typer.Option(help="Std. dev. of the target coordinates.")
+            float | None,
+            typer.Option(help="Std. dev. of the target coordinates, in target units (--unit)."),
         ] = None,
         initial: Annotated[
             str | None,
@@ -181,7 +205,9 @@ def register(app: typer.Typer) -> None:
         target_cols: Annotated[
             str | None, typer.Option(help="Target coordinate columns (default X,Y,Z).")
         ] = None,
-        id_col: Annotated[str | None, typer.Option(help="Id column (default: id).")] = None,
+        id_col: Annotated[
+            str | None, typer.Option(help="Id column (default: id, point, point_id or name).")
+        ] = None,
         check_ids: Annotated[
             str | None,
             typer.Option(
@@ -189,7 +215,8 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         weights_col: Annotated[
-            str | None, typer.Option(help="Column of per-point weights.")
+            str | None,
+            typer.Option(help="Column of per-point weights (unitless; with two files: in TARGET)."),
         ] = None,
         sigma_col: Annotated[
             str | None, typer.Option(help="Column of per-point std. devs. (target units).")
@@ -204,7 +231,9 @@ def register(app: typer.Typer) -> None:
         allow_unmatched: Annotated[
             bool, typer.Option(help="Leave out ids found in only one file (listed).")
         ] = False,
-        seed: Annotated[int | None, typer.Option(help="Random seed of RANSAC.")] = None,
+        seed: Annotated[
+            int | None, typer.Option(min=0, help="Random seed of RANSAC, an integer >= 0.")
+        ] = None,
         source_crs: Annotated[
             str | None,
             typer.Option(
@@ -228,7 +257,8 @@ def register(app: typer.Typer) -> None:
 
         _check_option_combinations(
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
-            sigma_source=sigma_source, initial=initial,
+            sigma_source=sigma_source, initial=initial, output_params=output_params,
+            method=method.value,
         )
 
         tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
@@ -314,12 +344,14 @@ def register(app: typer.Typer) -> None:
                     rep.add_text("Coordinate reference systems", "\n".join(_crs_lines(crs_record)))
                 rep.write(report)
                 if not as_json:
-                    out.print(f"report written to {report}")
+                    say(f"wrote {report}", out)
             return
         if sigma_source is not None:
             options["sigma_source"] = sigma_source
         if initial is not None:
             options["initial"] = initial
+            if meth == "gauss-helmert":  # a start is used by the iterative adjustment only
+                options["iterate"] = True
         row_ids = tuple(str(i) for i in ids[ctrl])
         if ransac:
             if threshold is None:
@@ -348,61 +380,92 @@ def register(app: typer.Typer) -> None:
                 notes=tuple(fit.notes) + tuple(crs_record["notes"]),
             )
         outliers = _outliers(fit, x, X, row_ids)
-        if as_json:
-            d = _fit_json(fit, conv, angle, pairs.notes)
-            if fit.inliers is not None:
-                d["ransac"] = {
-                    "threshold": threshold,
-                    "unit": unit,
-                    "pair_ids": list(row_ids),
-                    "inlier_ids": [i for i, k in zip(row_ids, fit.inliers) if k],
-                    "outliers": outliers,
-                    "note": "inliers is a mask over pair_ids; ids and residuals are those of "
-                    "the inliers; outlier residuals v = computed - observed with the inlier fit",
-                }
-            typer.echo(json.dumps(d, indent=2))
-        else:
-            for note in pairs.notes:
-                out.print(f"note: {note}")
-            print_fit(fit, console=out, angle_unit=angle,
-                      title=f"Absolute orientation ({meth})")
-            out.print(_angles_line(fit, conv, angle))
-            if fit.inliers is not None:
-                out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
-                if outliers:
-                    print_table(
-                        f"RANSAC outliers ({len(outliers)}, not in the estimate)",
-                        ["id", "v_X", "v_Y", "v_Z", "|v|"],
-                        _outlier_rows(outliers),
-                        console=out,
-                    )
-                    out.print(f"v = computed - observed with the inlier fit [{unit}]", markup=False)
-        if report is not None:
-            rep = Report("Absolute orientation")
-            used = X if fit.inliers is None else X[fit.inliers]
-            rep.add_fit(
-                fit,
-                title=f"Absolute orientation ({meth})",
-                angle_unit=angle,
-                points=used[:, :2],
-                check_points=pairs.target[is_check][:, :2] if is_check.any() else None,
-                point_labels=("X", "Y"),
-                point_unit=unit,
-            )
-            rep.add_text("Angles", _angles_line(fit, conv, angle))
-            if outliers:
-                rep.add_table(
-                    f"RANSAC outliers ({len(outliers)} of {len(row_ids)} pairs)",
-                    ["id", f"v_X [{unit}]", f"v_Y [{unit}]", f"v_Z [{unit}]", f"|v| [{unit}]"],
-                    _outlier_rows(outliers),
-                    note=f"Pairs farther than the threshold {threshold:g} {unit} from the "
-                    "RANSAC fit, left out of the estimate; v = computed - observed with the "
-                    "inlier fit.",
-                )
-            rep.write(report)
-            if not as_json:
-                out.print(f"report written to {report}")
+        data = _fit_json(fit, conv, angle, pairs.notes)
+        if fit.inliers is not None:
+            data["ransac"] = {
+                "threshold": threshold,
+                "unit": unit,
+                "pair_ids": list(row_ids),
+                "inlier_ids": [i for i, k in zip(row_ids, fit.inliers) if k],
+                "outliers": outliers,
+                "note": "inliers is a mask over pair_ids; ids and residuals are those of "
+                "the inliers; outlier residuals v = computed - observed with the inlier fit",
+            }
+        # the columns the estimate read, so that 'transform apply' names its output columns
+        data["input"] = _input_record(source, target, pairs, is_check)
 
+        # Build every output in memory first; the files are then replaced as one.
+        outputs: list[tuple[Path, str]] = []
+        if output_params is not None:
+            outputs.append((output_params, json_text(data)))
+        if report is not None:
+            outputs.append((report, _report_html(
+                fit, meth, conv, angle, unit, X, pairs, is_check, outliers, row_ids, threshold,
+            )))  # fmt: skip
+        write_outputs(outputs)
+        if as_json:
+            typer.echo(json_text(data), nl=False)
+            return
+        for note in pairs.notes:
+            out.print(f"note: {note}")
+        print_fit(fit, console=out, angle_unit=angle, title=f"Absolute orientation ({meth})")
+        out.print(_angles_line(fit, conv, angle))
+        if fit.inliers is not None:
+            out.print(f"RANSAC inliers: {int(fit.inliers.sum())} of {len(fit.inliers)}")
+            if outliers:
+                print_table(
+                    f"RANSAC outliers ({len(outliers)}, not in the estimate)",
+                    ["id", "v_X", "v_Y", "v_Z", "|v|"],
+                    _outlier_rows(outliers),
+                    console=out,
+                )
+                out.print(f"v = computed - observed with the inlier fit [{unit}]", markup=False)
+        for path, _ in outputs:
+            say(f"wrote {path}", out)
+
+
+def _input_record(source: Path, target: Path | None, pairs, is_check) -> dict:
+    """The ``input`` section of the JSON results: files, the coordinate columns read (``transform
+    apply`` names its output columns after them), control and check counts, unmatched ids."""
+    return {
+        "files": [str(source)] + ([str(target)] if target is not None else []),
+        "source_columns": list(pairs.source_columns),
+        "target_columns": list(pairs.target_columns),
+        "n_control": int((~is_check).sum()),
+        "n_check": int(is_check.sum()),
+        "unmatched_source": list(pairs.unmatched_source),
+        "unmatched_target": list(pairs.unmatched_target),
+    }
+
+
+def _report_html(
+    fit, meth, conv, angle, unit, X, pairs, is_check, outliers, row_ids, threshold
+) -> str:
+    """The HTML report of one estimate (residual plot on X, Y; RANSAC outliers)."""
+    from ..report import Report
+
+    rep = Report("Absolute orientation")
+    used = X if fit.inliers is None else X[fit.inliers]
+    rep.add_fit(
+        fit,
+        title=f"Absolute orientation ({meth})",
+        angle_unit=angle,
+        points=used[:, :2],
+        check_points=pairs.target[is_check][:, :2] if is_check.any() else None,
+        point_labels=("X", "Y"),
+        point_unit=unit,
+    )
+    rep.add_text("Angles", _angles_line(fit, conv, angle))
+    if outliers:
+        rep.add_table(
+            f"RANSAC outliers ({len(outliers)} of {len(row_ids)} pairs)",
+            ["id", f"v_X [{unit}]", f"v_Y [{unit}]", f"v_Z [{unit}]", f"|v| [{unit}]"],
+            _outlier_rows(outliers),
+            note=f"Pairs farther than the threshold {threshold:g} {unit} from the "
+            "RANSAC fit, left out of the estimate; v = computed - observed with the "
+            "inlier fit.",
+        )
+    return rep.to_html()
 
 def _check_option_combinations(
     *,
@@ -412,6 +475,8 @@ def _check_option_combinations(
     seed: int | None,
     sigma_source: float | None,
     initial: str | None,
+    output_params: Path | None = None,
+    method: str = "svd",
 ) -> None:
     """Refuse options that the chosen mode would ignore (before any file is read).
 
@@ -420,10 +485,18 @@ def _check_option_combinations(
     InputError
         ``--threshold`` or ``--seed`` without ``--ransac``; ``--compare`` with ``--ransac``;
         ``--sigma-source`` or ``--initial`` with ``--ransac`` or ``--compare`` (neither uses
-        them).
+        them); ``--output-params`` with ``--compare`` (no single estimate to write);
+        ``--sigma-source`` with a ``--method`` other than gauss-helmert (the only one with
+        errors in the source); ``--initial`` with a direct ``--method`` (which needs no start)
+        or a value other than a direct method or ``zeros``.
     """
     if compare and ransac:
         raise InputError("--compare and --ransac cannot be combined")
+    if compare and output_params is not None:
+        raise InputError(
+            "--output-params writes the parameters of one estimate, but --compare runs every "
+            "method: leave out --compare and choose the method with --method"
+        )
     for given, name, what in (
         (threshold is not None, "--threshold", "the RANSAC inlier distance"),
         (seed is not None, "--seed", "the random seed of RANSAC"),
@@ -440,6 +513,36 @@ def _check_option_combinations(
                 f"{name} is not used with {mode} (it sets up a single gauss-markov / "
                 f"gauss-helmert estimate); leave it out or drop {mode}"
             )
+    if mode is None:
+        _check_single_estimate(method, sigma_source, initial)
+
+
+#: What ``--initial`` takes: the direct methods and ``zeros`` (s = 1, R = I, t = 0).
+INITIAL_VALUES = ("closed-form", "svd", "quaternion", "dual-quaternion", "zeros")
+
+
+def _check_single_estimate(method: str, sigma_source: float | None, initial: str | None) -> None:
+    """Refuse ``--sigma-source`` and ``--initial`` where ``--method`` does not use them, and an
+    ``--initial`` that is not one of :data:`INITIAL_VALUES` (messages in the words of the
+    command line; the library names its keywords)."""
+    if sigma_source is not None and method != "gauss-helmert":
+        raise InputError(
+            f"--sigma-source gives the source coordinates errors, which --method {method} "
+            "does not model (it treats them as error-free): add --method gauss-helmert, or "
+            "leave --sigma-source out"
+        )
+    if initial is None:
+        return
+    if method not in ("gauss-markov", "gauss-helmert"):
+        raise InputError(
+            f"--initial is the start of an iterative estimate; --method {method} is direct and "
+            "needs none: leave --initial out, or choose --method gauss-markov or gauss-helmert"
+        )
+    if initial.strip().lower() not in INITIAL_VALUES:
+        raise InputError(
+            f"--initial {initial}: give a direct method ({', '.join(INITIAL_VALUES[:-1])}) or "
+            "zeros (scale 1, no rotation, no shift)"
+        )
 
 
 def _crs_record(tcrs, scrs, pairs) -> dict:

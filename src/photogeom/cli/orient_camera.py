@@ -28,6 +28,7 @@ from ._common import (
     file_crs,
     finite_or_none,
     json_text,
+    options_in_errors,
     say,
     split_control,
     split_names,
@@ -59,6 +60,7 @@ def register(app: typer.Typer) -> None:
     app.command("intersection")(intersection)
 
 
+@options_in_errors(sigma="--sigma", calibrate="--calibrate", pixel_size="--pixel-size")
 def resection(
     points: Annotated[
         Path,
@@ -238,6 +240,7 @@ def _resection_report(fit, image_ctrl, image_check, au: str, source: Path) -> st
     return rep.to_html()
 
 
+@options_in_errors(sigma="--sigma")
 def intersection(
     images: Annotated[
         list[Path],
@@ -248,7 +251,8 @@ def intersection(
         typer.Option(
             "--camera",
             help="Camera JSON per image, in the order of IMAGES (e.g. from 'orient resection "
-            "--output-params').",
+            "--output-params'); repeat the option, once per image.",
+            metavar="<path>",
         ),
     ],
     pixel: Annotated[
@@ -295,7 +299,9 @@ def intersection(
     if len(camera) != len(images):
         raise InputError(
             f"{len(images)} image file(s) but {len(camera)} --camera file(s): give one camera "
-            "per image, in the same order"
+            "per image, in the same order, repeating the option (--camera cam1.json --camera "
+            "cam2.json)"
+            + ("; a comma does not separate files" if any("," in str(c) for c in camera) else "")
         )
     ground_crs = _cameras_crs(camera, crs)
     cams = []

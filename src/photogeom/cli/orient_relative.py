@@ -25,6 +25,7 @@ from ._common import (
     column_options,
     console,
     json_text,
+    options_in_errors,
     say,
     split_names,
     write_outputs,
@@ -91,6 +92,9 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
     return ids, t1.coords[k1], t2.coords[[index2[p] for p in ids]], only
 
 
+@options_in_errors(
+    sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method"
+)
 def relative(
     points: Annotated[
         Path,
@@ -142,7 +146,9 @@ def relative(
             help="Remove wrong matches (RANSAC start, data snooping); --no-robust keeps all.",
         ),
     ] = True,
-    worst: Annotated[int, typer.Option(help="Number of worst y-parallaxes listed.")] = 10,
+    worst: Annotated[
+        int, typer.Option(min=0, help="Number of worst y-parallaxes listed (>= 0).")
+    ] = 10,
     angle_unit: AngleOpt = AngleUnit.deg,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: Annotated[

@@ -34,6 +34,7 @@ from ._common import (
     crs_column_names,
     finite_or_none,
     json_text,
+    options_in_errors,
     say,
     split_control,
     split_names,
@@ -143,7 +144,14 @@ def info(
 
 
 def _say_warnings(caught: list, seen: set) -> None:
+    """The warnings caught around a block, each text once, as ``warning: ...`` lines; numpy's
+    floating-point warnings from photogeom's code are left out, as the command line's display
+    does (see :func:`photogeom.cli.main._show_warning`): the statuses name those points."""
+    from .main import _in_photogeom
+
     for w in caught:
+        if w.category is RuntimeWarning and _in_photogeom(w.filename):
+            continue
         text = str(w.message)
         if text not in seen:
             seen.add(text)
@@ -249,6 +257,7 @@ def _extrapolated(rpc, col, row, h, lon, lat, converged) -> np.ndarray:
 
 
 @app.command("localize")
+@options_in_errors(tol="--tol", max_iter="--max-iter")
 def localize(
     rpc_file: Annotated[Path, typer.Argument(help="RPC file.")],
     points: Annotated[Path, typer.Argument(help="CSV of image points: id, col, row[, h].")],
@@ -291,9 +300,15 @@ def localize(
     written block by block (a progress bar on a terminal).
     """
     single_threaded_blas()
+    import math
+
     from ..errors import ConvergenceError
     from ..rpc import LocalizationStatus
 
+    if height is not None and not math.isfinite(height):
+        raise InputError(
+            f"--height {height}: give the ellipsoidal height in metres, a finite number"
+        )
     rpc = _load_rpc(rpc_file)
     to_crs = None if crs is None else _output_crs(crs, allow_ballpark)
     if height is None:
@@ -535,6 +550,7 @@ def _report_html(title: str, subtitle: str, fit, image_ctrl, image_chk, intro: s
 
 
 @app.command("fit")
+@options_in_errors(order="--order", regularization="--regularization", sigma="--sigma")
 def fit(
     points: Annotated[
         Path, typer.Argument(help="CSV of control points: id, lon, lat, h, col, row[, role].")
@@ -586,6 +602,7 @@ def fit(
 
 
 @app.command("refine")
+@options_in_errors(sigma="--sigma")
 def refine(
     rpc_file: Annotated[Path, typer.Argument(help="Vendor RPC file.")],
     points: Annotated[

@@ -29,6 +29,7 @@ from ._common import (
     file_crs,
     json_text,
     load_pairs,
+    options_in_errors,
     same_crs,
     say,
     split_names,
@@ -71,6 +72,7 @@ app = typer.Typer(
 
 
 @app.command("estimate")
+@options_in_errors(sigma0_prior="--sigma0-prior", order="--order", errors_in="--errors-in")
 def estimate(
     model: Annotated[
         Model,
@@ -518,7 +520,11 @@ def _output_columns(columns: tuple[str, ...]) -> list[str]:
 @app.command("apply")
 def apply(
     params: Annotated[
-        Path, typer.Argument(help="Parameter JSON written by 'transform estimate --output-params'.")
+        Path,
+        typer.Argument(
+            help="Parameter JSON written by 'transform estimate --output-params' or 'orient "
+            "absolute --output-params'."
+        ),
     ],
     points: Annotated[Path, typer.Argument(help="CSV of points to transform.")],
     output: Annotated[

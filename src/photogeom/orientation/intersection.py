@@ -258,17 +258,21 @@ def _project_all(X, io, M, C):
     d = X - C
     p = d @ M.T
     u, v, w = p[:, 0], p[:, 1], p[:, 2]
-    iw = 1.0 / w
-    x = io.x0 - io.fx * u * iw + io.b2 * v * iw
-    y = io.y0 - io.f * v * iw
-    # d(x, y)/dp
-    G = np.zeros((X.shape[0], 2, 3))
-    G[:, 0, 0] = -io.fx * iw
-    G[:, 0, 1] = io.b2 * iw
-    G[:, 0, 2] = (io.fx * u - io.b2 * v) * iw * iw
-    G[:, 1, 1] = -io.f * iw
-    G[:, 1, 2] = io.f * v * iw * iw
-    return np.stack([x, y], axis=1), G @ M, w
+    # a point at the projection centre (w = 0) gives inf/NaN here without a numpy warning:
+    # the caller refuses every point with w >= 0 (behind the camera) by name
+    with np.errstate(divide="ignore", invalid="ignore"):
+        iw = 1.0 / w
+        x = io.x0 - io.fx * u * iw + io.b2 * v * iw
+        y = io.y0 - io.f * v * iw
+        # d(x, y)/dp
+        G = np.zeros((X.shape[0], 2, 3))
+        G[:, 0, 0] = -io.fx * iw
+        G[:, 0, 1] = io.b2 * iw
+        G[:, 0, 2] = (io.fx * u - io.b2 * v) * iw * iw
+        G[:, 1, 1] = -io.f * iw
+        G[:, 1, 2] = io.f * v * iw * iw
+        J = G @ M
+    return np.stack([x, y], axis=1), J, w
 
 
 def _whitened(v: np.ndarray, A: np.ndarray, sig: float, L: np.ndarray | None):

@@ -517,8 +517,18 @@ def uav_block(
     for nm, v in (("sigma", sigma), ("gcp_sigma", gcp_sigma)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"{nm} must be > 0 (pixels), got {v}")
-    if blunders < 0 or blunder_size < 0:
-        raise InputError("blunders and blunder_size must be >= 0")
+    if blunders < 0:
+        raise InputError(f"blunders must be >= 0 (a number of observations), got {blunders}")
+    if not (np.isfinite(blunder_size) and blunder_size >= 0):
+        raise InputError(f"blunder_size must be >= 0 (pixels), got {blunder_size}")
+    if not (np.isfinite(tie_points_per_image) and tie_points_per_image > 0):
+        # checked here: numpy's Poisson draw would fail on it with its own words
+        raise InputError(
+            f"tie_points_per_image must be > 0 (a mean number of points), got "
+            f"{tie_points_per_image}"
+        )
+    if local_field is not None and not (np.isfinite(local_field) and local_field >= 0):
+        raise InputError(f"local_field must be >= 0 (RMS, pixels), got {local_field}")
     # --- cameras ---------------------------------------------------------------------------
     if true_camera is not None:
         cam = true_camera
