@@ -87,9 +87,15 @@ def main(argv: list[str] | None = None) -> None:
     from functools import partial
 
     shown = warnings.showwarning
-    warnings.showwarning = partial(_show_warning, shown)
+    numeric: list[str] = []
+    warnings.showwarning = partial(_show_warning, shown, numeric)
+    failed = True
     try:
         app(args=argv, prog_name="photogeom")
+        failed = False
+    except SystemExit as exc:  # click's standalone mode ends every run with SystemExit
+        failed = exc.code not in (0, None)
+        raise
     except PhotogeomError as exc:
         from ._common import in_cli_words
 
@@ -108,17 +114,25 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(130)
     finally:
         warnings.showwarning = shown
+        if not failed:
+            _show_numeric(numeric)
 
 
-def _show_warning(shown, message, category, filename, lineno, file=None, line=None) -> None:
+def _show_warning(
+    shown, numeric: list, message, category, filename, lineno, file=None, line=None
+) -> None:
     """A warning of photogeom as one line ``warning: ...`` on stderr, in the words of the
-    command line (no source file and line of the library, no Python argument names); numpy's
+    command line (no source file and line of the library, no Python argument names). numpy's
     floating-point warnings (plain ``RuntimeWarning``: overflow, divide by zero, invalid
-    value) raised in photogeom's own code are not shown: the command names the problem in
-    its error or output (e.g. coordinates that overflow, points behind a camera), and the
-    library's source lines mean nothing on the command line; other warnings as ``shown``
-    (Python's display) shows them."""
+    value) raised in photogeom's own code are collected in ``numeric`` and shown at the end,
+    once each, only when the command neither stopped with a named error nor warned in its
+    own words (either says what they meant: coordinates that overflow, points behind a
+    camera, points that did not converge). Other warnings as ``shown`` (Python's display)
+    shows them."""
     if category is RuntimeWarning and _in_photogeom(filename):
+        text = " ".join(str(message).split())
+        if text not in numeric:
+            numeric.append(text)
         return
     if not getattr(category, "__module__", "").startswith("photogeom"):
         shown(message, category, filename, lineno, file, line)
@@ -127,6 +141,21 @@ def _show_warning(shown, message, category, filename, lineno, file=None, line=No
 
     text = " ".join(str(message).split())
     typer.secho(f"warning: {in_cli_words(text)}", err=True, fg=typer.colors.YELLOW)
+    numeric.append(None)  # photogeom said what went wrong in its own words
+
+
+def _show_numeric(numeric: list[str]) -> None:
+    """The floating-point warnings of a command that finished, one line each: its results
+    may hold values computed from an overflow or a division by zero. Not shown when
+    photogeom warned in its own words (a ``None`` in ``numeric``), which names the cause."""
+    if None in numeric:
+        return
+    for text in numeric:
+        typer.secho(
+            f"warning: numerical: {text} (check the results for NaN or infinite values)",
+            err=True,
+            fg=typer.colors.YELLOW,
+        )
 
 
 def _in_photogeom(filename: str) -> bool:
