@@ -46,7 +46,8 @@ def test_plain_runtime_warnings_of_photogeom_are_deferred_not_dropped(capsys):
     cli_main._show_numeric(numeric)
     err = capsys.readouterr().err
     assert err.count("warning: numerical: overflow") == 1 and "NaN" in err
-    cli_main._show_warning(python_display, numeric, "overflow", RuntimeWarning, "/elsewhere/x.py", 1)
+    outside = "/elsewhere/x.py"
+    cli_main._show_warning(python_display, numeric, "overflow", RuntimeWarning, outside, 1)
     assert shown == [RuntimeWarning]  # not photogeom's code: Python shows it
     cli_main._show_warning(python_display, numeric, "2 points did not converge",
                            LocalizationWarning, inside, 1)
