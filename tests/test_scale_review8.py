@@ -261,3 +261,27 @@ def test_csv_block_integer_ids_in_integer_form_only(tmp_path):
     assert _integer_cells(["0", "-12"]).tolist() == [0, -12]
     for bad in (["07"], ["+7"], ["1_0"], ["\u0663"], ["1", "x"], ["1.0"]):
         assert _integer_cells(bad) is None, bad
+
+
+# --- terminal summaries -----------------------------------------------------------------------
+
+
+def _pairs_file(path, ids, seed: int = 0, noise: float = 0.01):
+    rng = np.random.default_rng(seed)
+    src = rng.uniform(0, 100, (len(ids), 3))
+    dst = src * 1.0001 + [10.0, 20.0, 30.0] + rng.normal(0, noise, src.shape)
+    rows = [f"{i},{a[0]!r},{a[1]!r},{a[2]!r},{b[0]!r},{b[1]!r},{b[2]!r}" for i, a, b in
+            zip(ids, src.tolist(), dst.tolist())]  # fmt: skip
+    path.write_text("id,x,y,z,X,Y,Z\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_point_ids_are_shown_as_written_not_as_markup(cli, tmp_path):
+    """Ids went to rich as markup: 'P[/x]' stopped the summary with a MarkupError
+    traceback, '[b]P1' lost its brackets, ':smile:' became an emoji."""
+    ids = ["[b]P1", ":smile:", "P[/x]", "P4", "P5", "P6"]
+    pts = _pairs_file(tmp_path / "p.csv", ids)
+    code, out, err = cli("transform", "estimate", "similarity3d", pts)
+    assert code == 0, err
+    for i in ids:
+        assert f"  {i} " in out

@@ -63,11 +63,13 @@ def fit_renderable(fit, title: str | None = None, angle_unit: str = "deg") -> Gr
             else f"Control point residuals ({len(tab.rows)})"
         )
         items.append(Text(heading, style="bold"))
+        # point ids and column names are the user's text: Text objects, never rich markup
+        # or emoji codes (an id "P[/x]" stopped the summary with a MarkupError)
         t = Table(box=box.SIMPLE_HEAD)
         for j, col in enumerate(tab.columns):
-            t.add_column(col, justify="left" if j == 0 else "right", no_wrap=True)
+            t.add_column(Text(col), justify="left" if j == 0 else "right", no_wrap=True)
         for row, flags in zip(tab.rows, tab.flags):
-            t.add_row(*(Text(c, style="bold red") if f else c for c, f in zip(row, flags)))
+            t.add_row(*(Text(c, style="bold red" if f else "") for c, f in zip(row, flags)))
         items.append(t)
         for line in tab.footer:
             items.append(Text(line, style="dim"))
@@ -102,18 +104,19 @@ def print_table(
     rows: Sequence[Sequence],
     console: Console | None = None,
 ) -> None:
-    """Print a simple table (first column left-aligned, the others right-aligned)."""
+    """Print a simple table (first column left-aligned, the others right-aligned). Cells are
+    shown as they are (text, not rich markup: they hold point ids); column names may hold
+    markup."""
     console = console or Console()
     t = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", title_style="bold")
     for j, c in enumerate(columns):
         t.add_column(str(c), justify="left" if j == 0 else "right")
     for r in rows:
-        t.add_row(
-            *(
-                c if isinstance(c, str) else F.fmt_value(c) if isinstance(c, float) else str(c)
-                for c in r
-            )
+        cells = (
+            c if isinstance(c, str) else F.fmt_value(c) if isinstance(c, float) else str(c)
+            for c in r
         )
+        t.add_row(*(Text(c) for c in cells))
     console.print(t)
 
 
