@@ -369,3 +369,76 @@ def test_summary_of_many_points_is_the_rich_table_text(tmp_path):
     assert fast == slow
     assert fast.count("\n") > 3000
     assert "\u2500" in fast
+
+
+def _jsonable_elementwise(value):
+    """The element-by-element conversion _jsonable did before (the reference)."""
+    import math
+    from collections.abc import Mapping
+
+    if isinstance(value, np.ndarray):
+        if value.ndim:
+            return [_jsonable_elementwise(v) for v in value.tolist()]
+        return _jsonable_elementwise(value.item())
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable_elementwise(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable_elementwise(v) for v in value]
+    return value
+
+
+def test_jsonable_converts_whole_arrays_as_elementwise():
+    """JSON of fits converted every array element by a Python call (1e5 points: 3.9 s of
+    the 6.5 s of 'transform estimate --json'); whole arrays now, the same values (NaN and
+    infinities None; ints, bools, nested and 0-d arrays, float32, object arrays)."""
+    import json
+
+    from photogeom.adjust.fit import _jsonable
+
+    rng = np.random.default_rng(3)
+    f = rng.normal(size=(50, 3))
+    f[3, 1], f[7, 0], f[9, 2] = np.nan, np.inf, -np.inf
+    cases = [
+        f,
+        f[:, 0],
+        rng.normal(size=(4, 2, 3)),
+        f.astype(np.float32),
+        np.arange(12).reshape(3, 4),
+        np.arange(5, dtype=np.uint64) + 2**63,
+        np.array([True, False]),
+        np.array(2.5),
+        np.array(np.nan),
+        np.array(["a", "b"]),
+        np.array([1, None, 2.5, np.float64(np.nan)], dtype=object),
+        np.zeros((0, 3)),
+        {"a": f, 1: [np.float64(np.inf), np.int64(3)], "b": (np.bool_(True), 2)},
+    ]
+    for value in cases:
+        got, want = _jsonable(value), _jsonable_elementwise(value)
+        assert json.dumps(got) == json.dumps(want)
+        assert got == want or json.dumps(got) == json.dumps(want)
+
+
+def test_jsonable_does_not_recurse_into_number_arrays(monkeypatch):
+    import photogeom.adjust.fit as fit_module
+
+    calls = {"n": 0}
+    inner = fit_module._jsonable
+
+    def counting(value):
+        calls["n"] += 1
+        return inner(value)
+
+    monkeypatch.setattr(fit_module, "_jsonable", counting)
+    values = np.random.default_rng(0).normal(size=(1000, 3))
+    values[5, 1] = np.nan
+    out = counting({"residuals": values, "ids": np.arange(1000)})
+    assert out["residuals"][5][1] is None and len(out["residuals"]) == 1000
+    assert calls["n"] <= 3
