@@ -442,3 +442,35 @@ def test_jsonable_does_not_recurse_into_number_arrays(monkeypatch):
     out = counting({"residuals": values, "ids": np.arange(1000)})
     assert out["residuals"][5][1] is None and len(out["residuals"]) == 1000
     assert calls["n"] <= 3
+
+
+def test_fit_grids_checks_every_image_before_fitting_any(monkeypatch):
+    """A point outside its image in the last of many images was found only after every image
+    before it was fitted (250 images of 2000 residuals: the error of image 2 after 19 s); all
+    inputs are checked first now, with the same message."""
+    import photogeom.calibration.grid as grid
+    from photogeom.errors import InputError, TooFewPointsError
+
+    rng = np.random.default_rng(0)
+    per_image = {k: (rng.uniform(0, 999, (200, 2)), rng.normal(0, 0.3, (200, 2))) for k in range(6)}
+    fitted = []
+    fit = grid._fit_grid
+
+    def counting(*args, **kwargs):
+        fitted.append(kwargs.get("image_id"))
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(grid, "_fit_grid", counting)
+    bad = dict(per_image)
+    uv = bad[5][0].copy()
+    uv[17] = [500.0, 999.7]
+    bad[5] = (uv, bad[5][1])
+    with pytest.raises(InputError, match=r"image 5: uv: 1 point\(s\) outside the 1000 x 1000"):
+        grid.fit_grids(bad, (1000, 1000), 250.0, folds=0)
+    few = dict(per_image)
+    few[4] = (few[4][0][:3], few[4][1][:3])
+    with pytest.raises(TooFewPointsError, match="image 4"):
+        grid.fit_grids(few, (1000, 1000), 250.0, folds=0)
+    assert fitted == []
+    grids = grid.fit_grids(per_image, (1000, 1000), 250.0, folds=0)
+    assert list(grids) == list(per_image) and fitted == list(per_image)
