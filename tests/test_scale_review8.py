@@ -543,3 +543,55 @@ def test_json_text_encodes_number_rows_in_one_call(monkeypatch):
     assert text == json.dumps({"residuals": rows}, indent=2, allow_nan=False) + "\n"
     assert indents and all(i is None for i in indents)  # never the Python encoder
     assert len(indents) <= 3
+
+
+@pytest.mark.parametrize("command", ["localize", "project"])
+def test_rpc_crs_builds_the_proj_operation_once(cli, tmp_path, monkeypatch, command):
+    """rpc localize / project --crs built the PROJ operation again for every block of a
+    streamed file (1e6 points: 3.9-4.1 s, now 3.5 s); once now, the same output."""
+    import photogeom as pg
+    import photogeom.crs as pcrs
+
+    rpc_file = pg.datasets.path("quickbird")
+    rng = np.random.default_rng(0)
+    n = 60_000  # several blocks of 1 MiB
+    pix = tmp_path / "pix.csv"
+    cr = np.column_stack([rng.uniform(0, 30000, n), rng.uniform(0, 32000, n)])
+    pix.write_text(
+        "id,col,row\n" + "".join(f"p{k},{c!r},{r!r}\n" for k, (c, r) in enumerate(cr.tolist()))
+    )
+    code, _, err = cli(
+        "rpc", "localize", rpc_file, pix, "--height", "100", "-o", tmp_path / "g.csv"
+    )
+    assert code == 0, err
+    ground = tmp_path / "g.csv"
+    if command == "localize":
+        args = ["rpc", "localize", rpc_file, pix, "--height", "100"]
+    else:  # project the UTM points back
+        utm = tmp_path / "utm.csv"
+        code, _, err = cli("crs", "convert", ground, "--to", "EPSG:32652", "-o", utm)
+        assert code == 0, err
+        args = ["rpc", "project", rpc_file, utm]
+    built = []
+    make = pcrs._proj_transformer
+
+    def counting(*a, **k):
+        built.append(a[:2])
+        return make(*a, **k)
+
+    monkeypatch.setattr(pcrs, "_proj_transformer", counting)
+    out = tmp_path / "out.csv"
+    code, _, err = cli(*args, "--crs", "EPSG:32652", "-o", out)
+    assert code == 0, err
+    assert len(built) == 1
+    monkeypatch.setattr(pcrs, "_proj_transformer", make)
+    rows = [ln.split(",") for ln in out.read_text().splitlines() if not ln.startswith("#")][1:]
+    assert len(rows) == n
+    if command == "localize":  # the default output (EPSG:4979) converted afterwards
+        utm = tmp_path / "utm.csv"
+        code, _, err = cli("crs", "convert", ground, "--to", "EPSG:32652", "-o", utm)
+        assert code == 0, err
+        ref = [ln.split(",") for ln in utm.read_text().splitlines() if not ln.startswith("#")]
+        got = np.array([[float(v) for v in r[1:4]] for r in rows])
+        want = np.array([[float(v) for v in r[1:4]] for r in ref[1:]])
+        np.testing.assert_array_equal(got, want)
