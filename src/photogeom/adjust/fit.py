@@ -21,8 +21,21 @@ def propagate_covariance(C: np.ndarray, J: np.ndarray) -> np.ndarray:
 
 
 def _jsonable(value):
+    """``value`` with numpy arrays and scalars as Python lists and numbers, NaN and
+    infinities as None (JSON has neither), mapping keys as str."""
     if isinstance(value, np.ndarray):
-        return [_jsonable(v) for v in value.tolist()] if value.ndim else _jsonable(value.item())
+        if not value.ndim:
+            return _jsonable(value.item())
+        if value.dtype.kind in "biu":  # whole arrays at once: one row per point is common
+            return value.tolist()
+        if value.dtype.kind == "f":
+            bad = ~np.isfinite(value)
+            if not bad.any():
+                return value.astype(np.float64).tolist()
+            out = value.astype(np.float64).astype(object)
+            out[bad] = None
+            return out.tolist()
+        return [_jsonable(v) for v in value.tolist()]
     if isinstance(value, (np.floating, float)):
         v = float(value)
         return v if math.isfinite(v) else None

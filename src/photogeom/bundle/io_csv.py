@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import csv
 import functools
+import operator
 import os
 import re
 from collections.abc import Mapping
@@ -69,11 +70,16 @@ _EO_ANGLES = ("omega", "phi", "kappa")
 class _Table:
     path: Path
     header: list[str]
-    rows: list[list[str]]
+    #: the cells of each column (object arrays of str, one per header name)
+    columns: list[np.ndarray]
     lines: np.ndarray
     comments: list[str]
-    #: row index -> indices of the cells that were quoted (rows with a quoted cell only)
-    quoted: dict[int, set[int]]
+    #: indices of the columns with a quoted cell
+    quoted: set[int]
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.lines.size)
 
     def find(self, name: str) -> int | None:
         if name in self.header:
@@ -88,7 +94,7 @@ class _Table:
                 f"{self.path}: column {name!r} not found; the file has columns "
                 f"{', '.join(self.header)}"
             )
-        return [r[k] for r in self.rows]
+        return self.columns[k].tolist()
 
     def has(self, name: str) -> bool:
         return self.find(name) is not None
@@ -96,22 +102,27 @@ class _Table:
     def any_quoted(self, name: str) -> bool:
         """Whether a cell of column ``name`` was quoted."""
         k = self.find(name)
-        return k is not None and any(k in q for q in self.quoted.values())
+        return k is not None and k in self.quoted
 
     def floats(self, name: str, *, optional_cells: bool = False) -> np.ndarray:
         cells = self.col(name)
-        arr = np.array(cells, dtype=object)
-        empty = np.array([c == "" for c in cells], dtype=bool)
-        if np.any(empty) and not optional_cells:
-            k = int(np.flatnonzero(empty)[0])
-            raise FileFormatError(f"{self.path}, line {self.lines[k]}: column {name!r} is empty")
-        arr[empty] = "nan"
+        has_empty = "" in cells
+        if has_empty:
+            empty = np.fromiter(map(operator.not_, cells), dtype=bool, count=len(cells))
+            if not optional_cells:
+                k = int(np.flatnonzero(empty)[0])
+                raise FileFormatError(
+                    f"{self.path}, line {self.lines[k]}: column {name!r} is empty"
+                )
+            cells = [c or "nan" for c in cells]
+        else:
+            empty = np.zeros(len(cells), dtype=bool)
         try:
-            out = arr.astype(np.float64)
+            out = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
         except ValueError:
             for k, c in enumerate(cells):
                 try:
-                    float(c) if c else None
+                    float(c)
                 except ValueError:
                     raise FileFormatError(
                         f"{self.path}, line {self.lines[k]}: column {name!r}: {c!r} is not a number"
@@ -169,70 +180,162 @@ def _split_quoted(line: str, sep: str, path: Path, number: int) -> tuple[list[st
         pos = m.end()
 
 
+def _split_line(line: str, sep: str, path: Path, number: int) -> tuple[list[str], set[int]]:
+    """Cells of one line and which of them were quoted: lines without quotes by the csv
+    module (cells stripped), lines with quotes by :func:`_split_quoted`."""
+    if '"' in line:
+        return _split_quoted(line, sep, path, number)
+    row = next(csv.reader([line], delimiter=sep, skipinitialspace=True), [])
+    return [c.strip() for c in row], set()
+
+
+def _simple_cells(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which stripped pieces of lines (split at the separator) are whole cells on their own,
+    and which of those are quoted: a piece without quotes (its text), or one quote at either
+    end and none inside (the text between them, kept exactly). Other pieces (doubled quotes,
+    a separator or text beside a quote) need :func:`_split_quoted`.
+
+    Returns the masks ``simple`` and ``quoted`` and the texts of the quoted cells.
+    """
+    n = cells.size
+    quotes = np.fromiter(map(operator.methodcaller("count", '"'), cells), dtype=np.int64, count=n)
+    quoted = quotes == 2
+    inner = np.empty(int(quoted.sum()), dtype=object)
+    if inner.size:
+        inner[:] = list(map(operator.itemgetter(slice(1, -1)), cells[quoted]))
+        # two quotes, none left inside once the first and the last character are cut off
+        ends = np.fromiter(
+            map(operator.methodcaller("count", '"'), inner), dtype=np.int64, count=inner.size
+        )
+        ok = ends == 0
+        quoted[np.flatnonzero(quoted)[~ok]] = False
+        inner = inner[ok]
+    return (quotes == 0) | quoted, quoted, inner
+
+
 def _read_table(path: Path) -> _Table:
+    """The cells of a CSV file as columns, with the line number of each row.
+
+    Rows are split column-wise over the whole file (one split of the joined lines, cells
+    stripped by ``map``), so that reading is linear and runs at the speed of the string
+    methods; only lines that hold a quoted cell with a separator or a doubled quote inside,
+    white space or text beside a quote, or another number of separators than the header
+    are taken cell by cell (:func:`_split_quoted`), with the same rules and messages.
+    """
     text = read_text(path, "CSV file")
-    body, numbers, comments = [], [], []
-    for k, line in enumerate(text.splitlines(), start=1):
-        s = line.strip()
-        if not s:
-            continue
-        if s.startswith("#"):
-            comments.append(s[1:].strip())
-            continue
-        body.append(line)
-        numbers.append(k)
-    if not body:
+    all_lines = text.splitlines()
+    del text
+    stripped = list(map(str.strip, all_lines))
+    n_all = len(all_lines)
+    blank = np.fromiter(map(operator.not_, stripped), dtype=bool, count=n_all)
+    hashed = np.fromiter(
+        map(operator.methodcaller("startswith", "#"), stripped), dtype=bool, count=n_all
+    )
+    comments = [stripped[k][1:].strip() for k in np.flatnonzero(hashed).tolist()]
+    del stripped
+    keep = np.flatnonzero(~(blank | hashed))
+    if not keep.size:
         raise FileFormatError(f"{path}: no header line (the file is empty or all comments)")
+    numbers = keep + 1
+    first = all_lines[int(keep[0])]
     # comma-separated; a header without commas but with semicolons or tabs (spreadsheet
     # exports in some locales) selects that separator for the whole file
     sep = ","
-    if "," not in body[0]:
-        sep = ";" if ";" in body[0] else "\t" if "\t" in body[0] else ","
-    # lines without quotes: the csv module (fast), cells stripped; lines with quotes: cell by
-    # cell, a quoted cell kept exactly as written (white space, '#', separators, quotes)
-    with_quotes = [k for k, line in enumerate(body) if '"' in line]
-    if with_quotes:
-        plain = [line for line in body if '"' not in line]
-    else:
-        plain = body
-    fast = iter(csv.reader(plain, delimiter=sep, skipinitialspace=True))
-    slow = set(with_quotes)
-    parsed: list[list[str]] = []
-    quoted: dict[int, set[int]] = {}
-    for k, line in enumerate(body):
-        if k in slow:
-            cells, q = _split_quoted(line, sep, path, numbers[k])
-            if q and k > 0:
-                quoted[k - 1] = q
-            parsed.append(cells)
-        else:
-            parsed.append([c.strip() for c in next(fast)])
-    header = parsed[0]
+    if "," not in first:
+        sep = ";" if ";" in first else "\t" if "\t" in first else ","
+    header, _ = _split_line(first, sep, path, int(numbers[0]))
     if any(not h for h in header):
         raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise FileFormatError(f"{path}: column(s) {', '.join(dup)} appear more than once")
-    rows = parsed[1:]
-    lines = np.array(numbers[1:], dtype=np.int64)
-    widths = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
-    bad = widths != len(header)
-    if np.any(bad):
-        k = int(np.flatnonzero(bad)[0])
+    width = len(header)
+    body = [all_lines[k] for k in keep[1:].tolist()]
+    del all_lines
+    lines = numbers[1:].astype(np.int64)
+    n = len(body)
+    # lines with as many separators as the header has: split all at once
+    seps = np.fromiter(map(operator.methodcaller("count", sep), body), dtype=np.int64, count=n)
+    fast = seps == width - 1
+    fast_rows = np.flatnonzero(fast)
+    if fast_rows.size == n:
+        fast_lines = body
+    else:
+        fast_lines = [body[k] for k in fast_rows.tolist()]
+    joined = sep.join(fast_lines)
+    del fast_lines
+    has_quotes = '"' in joined
+    pieces = list(map(str.strip, joined.split(sep))) if fast_rows.size else []
+    del joined
+    cells = np.empty(len(pieces), dtype=object)
+    cells[:] = pieces
+    del pieces
+    cells = cells.reshape(-1, width)
+    quoted_cols: set[int] = set()
+    if has_quotes:
+        simple, quoted, inner = _simple_cells(cells.ravel())
+        simple, quoted = simple.reshape(cells.shape), quoted.reshape(cells.shape)
+        whole = simple.all(axis=1)  # rows whose every cell stands on its own
+        cells[quoted] = inner
+        quoted_cols.update(np.flatnonzero((quoted & whole[:, None]).any(axis=0)).tolist())
+        if not whole.all():
+            fast[fast_rows[~whole]] = False
+            cells = cells[whole]
+    columns = [np.empty(n, dtype=object) for _ in range(width)]
+    fast_rows = np.flatnonzero(fast)
+    for j in range(width):
+        columns[j][fast_rows] = cells[:, j]
+    del cells
+    # the other lines, cell by cell in file order (errors name the first bad line)
+    slow_rows = np.flatnonzero(~fast).tolist()
+    bad = None
+    for k in slow_rows:
+        row, q = _split_line(body[k], sep, path, int(lines[k]))
+        quoted_cols.update(q)
+        if len(row) != width:
+            if bad is None:
+                bad = (k, len(row))
+            continue
+        for j in range(width):
+            columns[j][k] = row[j]
+    if bad is not None:
+        k, got = bad
         raise FileFormatError(
-            f"{path}, line {lines[k]}: {widths[k]} field(s) but the header has {len(header)} "
+            f"{path}, line {lines[k]}: {got} field(s) but the header has {width} "
             f"({', '.join(header)})"
         )
-    return _Table(path, header, rows, lines, comments, quoted)
+    return _Table(path, header, columns, lines, comments, quoted_cols)
+
+
+def _canonical_ints(cells: list[str]) -> np.ndarray | None:
+    """The cells as int64 when every one is an integer written as one (``7``, not ``07``,
+    ``+7`` or ``-0``: ``str(int(c)) == c``), else None. One pass of ``int`` and ``str``."""
+    try:
+        values = list(map(int, cells))
+    except ValueError:
+        return None
+    if list(map(str, values)) != cells:
+        return None
+    try:
+        return np.array(values, dtype=np.int64)
+    except OverflowError:
+        return None
+
+
+def _integer_cells(cells: list[str]) -> np.ndarray | None:
+    """The cells as int64 when each is in integer form (:data:`_INT`), else None."""
+    ids = _canonical_ints(cells)
+    if ids is None and all(_INT.fullmatch(c) for c in cells):  # "-0" is in integer form
+        ids = np.array([int(c) for c in cells], dtype=np.int64)
+    return ids
 
 
 def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
-    empty = [k for k, c in enumerate(cells) if not c]
-    if empty:
-        raise FileFormatError(f"{table.path}, line {table.lines[empty[0]]}: {name!r} is empty")
-    if cells and not table.any_quoted(name) and all(_INT.fullmatch(c) for c in cells):
-        ids = np.array([int(c) for c in cells], dtype=np.int64)
-    else:
+    if "" in cells:
+        k = cells.index("")
+        raise FileFormatError(f"{table.path}, line {table.lines[k]}: {name!r} is empty")
+    ids = _integer_cells(cells) if cells and not table.any_quoted(name) else None
+    if ids is None:
         ids = np.array(cells, dtype=str)
     _, first, counts = np.unique(ids, return_index=True, return_counts=True)
     if np.any(counts > 1):
@@ -248,14 +351,13 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
 def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what: str):
     """Read the referring ids ``cells`` as the kind of ``keys``; name unknown ones."""
     if keys.dtype.kind in "iu":
-        bad = [k for k, c in enumerate(cells) if not _INT.fullmatch(c)]
-        if bad:
-            k = bad[0]
+        ids = _integer_cells(cells)
+        if ids is None:
+            k = next(k for k, c in enumerate(cells) if not _INT.fullmatch(c))
             raise FileFormatError(
                 f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
                 f"{what} ids"
             )
-        ids = np.array([int(c) for c in cells], dtype=np.int64)
     else:
         ids = np.array(cells, dtype=str)
     known = np.isin(ids, keys)
@@ -402,7 +504,7 @@ def read_csv_block(
             [
                 np.nan_to_num(ti.floats(n, optional_cells=True))
                 if ti.has(n)
-                else np.zeros(len(ti.rows))
+                else np.zeros(ti.n_rows)
                 for n in ("df", "dcx", "dcy")
             ]
         )
@@ -416,7 +518,7 @@ def read_csv_block(
     tp = _read_table(d / "points.csv")
     pt_ids = _id_array(tp.col("id"), tp, "id")
     xyz = np.column_stack([tp.floats(n) for n in ("X", "Y", "Z")])
-    role = np.array(tp.col("role"), dtype=str) if tp.has("role") else np.full(len(tp.rows), "tie")
+    role = np.array(tp.col("role"), dtype=str) if tp.has("role") else np.full(tp.n_rows, "tie")
     bad = ~np.isin(role, ("tie", "control", "check"))
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])

@@ -1,10 +1,10 @@
 """Point jobs of any size: read a CSV block by block, compute, write block by block.
 
 Used by the commands that treat each point on its own (``rpc project``, ``rpc localize``,
-``transform apply``, ``camera project``). Memory use is that of one block whatever the size
-of the file; the output file appears (atomically) only when every block is done. On a
-terminal, a job on a file large enough to take more than about a second shows a progress bar
-on standard error; in pipes and logs nothing is drawn.
+``transform apply``, ``camera project``, ``crs convert``). Memory use is that of one block
+whatever the size of the file; the output file appears (atomically) only when every block is
+done. On a terminal, a job on a file large enough to take more than about a second shows a
+progress bar on standard error; in pipes and logs nothing is drawn.
 """
 
 from __future__ import annotations

@@ -17,11 +17,12 @@ from ._common import (
     OutputCsvOpt,
     column_options,
     crs_column_names,
-    emit_points,
     option_or_file_crs,
+    say,
     split_names,
     split_numbers,
 )
+from ._stream import run_point_job, single_threaded_blas
 
 app = typer.Typer(
     help="Coordinate reference systems (PROJ through pyproj): x/easting/longitude first.",
@@ -37,25 +38,26 @@ GEOGRAPHIC_COLS = (("lon", "lat", "h"), ("lon", "lat", "height"),
 
 
 def _read_input(points: Path, cols: str | None, id_col: str | None):
-    """The points of POINTS: --cols, else the usual names (x,y,z, E,N,H, ...), else
-    lon,lat[,h] (a missing column set names --cols)."""
+    """The points of POINTS, opened block by block (:class:`~photogeom.io.PointBlocks`):
+    --cols, else the usual names (x,y,z, E,N,H, ...), else lon,lat[,h] (a missing column set
+    names --cols)."""
     from ..errors import FileFormatError
-    from ..io import read_points
+    from ..io import PointBlocks
     from ..io.points import AUTO_COLUMN_HINT
 
-    kw = {"id_column": id_col, "auto_weights": False}
+    kw = {"id_column": id_col}
     with column_options("--cols"):
         if cols is not None:
-            return read_points(points, split_names(cols), **kw)
+            return PointBlocks(points, split_names(cols), **kw)
         try:
-            return read_points(points, None, **kw)
+            return PointBlocks(points, None, **kw)
         except FileFormatError as exc:
             if "no coordinate columns found" not in str(exc):
                 raise
             first = exc
         for names in GEOGRAPHIC_COLS:
             try:
-                return read_points(points, names, **kw)
+                return PointBlocks(points, names, **kw)
             except FileFormatError as exc:
                 if getattr(exc, "column_kind", None) is None:
                     raise
@@ -108,14 +110,12 @@ def convert(
     WGS 84 (through geocentric WGS 84, EPSG:4978). The CRS of the input is --from or the
     '# crs:' line of POINTS (a --from contradicting the line is refused). The output records
     its CRS in a '# crs: ...' line (enu:LAT,LON,H for a local frame), which the other
-    commands read."""
-    import numpy as np
-
+    commands read. Files of any size are converted block by block, with the memory of a few
+    blocks (ids are not checked for duplicates: each row is converted on its own)."""
+    single_threaded_blas()
     from .. import crs as _crs
-    from ..io import format_points_csv
 
-    table = _read_input(points, cols, id_col)
-    xyz = table.coords
+    blocks = _read_input(points, cols, id_col)
     frame = None
     if origin is not None:
         lat0, lon0, h0 = split_numbers(origin, 3, "--origin")
@@ -145,52 +145,65 @@ def convert(
     dst = resolve(to_crs, "--to")
     enu_in = _crs.frame_from_text(src) is not None
     enu_out = _crs.frame_from_text(dst) is not None
-    if (enu_in or enu_out) and xyz.shape[1] != 3:
+    if (enu_in or enu_out) and blocks.dim != 3:
         raise InputError(
             f"{points}: 'enu' needs three coordinate columns, found "
-            f"{', '.join(table.columns)}; choose them with --cols"
+            f"{', '.join(blocks.columns)}; choose them with --cols"
         )
-    if not enu_in:
-        _check_geographic(table, src, points)
-    if enu_in or enu_out:
-        out = _crs.points_between(xyz, src, dst, allow_ballpark=allow_ballpark)
-    elif src == dst:
-        out = xyz
-    else:
-        out = _crs.transform_points(xyz, src, dst, allow_ballpark=allow_ballpark)
-    names = split_names(out_cols) or list(crs_column_names(dst, "--to")[: out.shape[1]])
-    if len(names) != out.shape[1]:
-        raise InputError(f"--out-cols: {len(names)} name(s) for {out.shape[1]} coordinates")
+    convert_points = _crs.points_converter(src, dst, allow_ballpark=allow_ballpark)
+    names = split_names(out_cols) or list(crs_column_names(dst, "--to")[: blocks.dim])
+    if len(names) != blocks.dim:
+        raise InputError(f"--out-cols: {len(names)} name(s) for {blocks.dim} coordinates")
     comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
     comments.append(f"crs: {dst}")
-    extra = {"role": list(table.roles)} if table.roles is not None else None
-    text = format_points_csv(table.ids, np.asarray(out), names, extra=extra, comments=comments)
-    emit_points(text, output, len(table.ids))
+    extra = ["role"] if blocks.has_roles else []
+
+    geographic = not enu_in and _is_geographic(src)
+
+    def compute(block):
+        if geographic:
+            _check_geographic(block.ids, block.coords, blocks.columns, src, points)
+        more = {"role": block.roles} if blocks.has_roles else {}
+        return convert_points(block.coords), more
+
+    n = run_point_job(
+        blocks, output, names, compute, extra=extra, comments=comments,
+        description="crs convert",
+    )  # fmt: skip
+    if output is not None:
+        say(f"wrote {n} point(s) to {output}", stderr=True)
 
 
-def _check_geographic(table, src: str, points: Path) -> None:
-    """Refuse, by point id, latitudes outside [-90, 90] degrees and longitudes outside
-    [-360, 360] degrees when the input CRS ``src`` is geographic (PROJ would stop with
-    "Invalid latitude" and no point named): most often projected or local coordinates given
-    a geographic --from, or columns in the wrong order."""
-    import numpy as np
-
+def _is_geographic(src: str) -> bool:
+    """The CRS ``src`` (of --from) is geographic, or compound with a geographic horizontal
+    part."""
     from .. import crs as _crs
 
     c = _crs.parse_crs(src, what="--from")
-    geographic = c.is_geographic or (
-        c.is_compound and bool(c.sub_crs_list) and c.sub_crs_list[0].is_geographic
+    return bool(
+        c.is_geographic
+        or (c.is_compound and bool(c.sub_crs_list) and c.sub_crs_list[0].is_geographic)
     )
-    if not geographic or table.coords.shape[1] < 2:
+
+
+def _check_geographic(ids, coords, columns, src: str, points: Path) -> None:
+    """Refuse, by point id, latitudes outside [-90, 90] degrees and longitudes outside
+    [-360, 360] degrees in one block of a file (``ids``, ``coords``) whose CRS ``src`` is
+    geographic (PROJ would stop with "Invalid latitude" and no point named): most often
+    projected or local coordinates given a geographic --from, or columns in the wrong
+    order."""
+    import numpy as np
+
+    if coords.shape[1] < 2:
         return
-    lon, lat = table.coords[:, 0], table.coords[:, 1]
+    lon, lat = coords[:, 0], coords[:, 1]
     bad = np.flatnonzero(~((np.abs(lat) <= 90.0) & (np.abs(lon) <= 360.0)))
     if bad.size == 0:
         return
     shown = ", ".join(
-        f"{table.ids[i]} (lon {lon[i]:g}, lat {lat[i]:g})" for i in bad[:5]
+        f"{ids[i]} (lon {lon[i]:g}, lat {lat[i]:g})" for i in bad[:5]
     ) + (" ..." if bad.size > 5 else "")
-    cols = ",".join(table.columns)
+    cols = ",".join(columns)
     raise InputError(
         f"{points}: {bad.size} point(s) are not longitude, latitude in degrees ({cols} read as "
         f"lon,lat in {src}): {shown}; if they are projected or local coordinates, give their "

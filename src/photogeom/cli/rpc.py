@@ -441,10 +441,8 @@ def _input_crs(crs: str, allow_ballpark: bool):
     if _crs.frame_from_text(text) is None:
         _crs.parse_crs(text, what="--crs")
 
-    def convert(xyz):
-        return _crs.points_between(xyz, text, "EPSG:4979", allow_ballpark=allow_ballpark)
-
-    return convert
+    # the PROJ operation built once, not once per block of a streamed file
+    return _crs.points_converter(text, "EPSG:4979", allow_ballpark=allow_ballpark)
 
 
 def _output_crs(crs: str, allow_ballpark: bool):
@@ -457,13 +455,14 @@ def _output_crs(crs: str, allow_ballpark: bool):
     text = crs.strip()
     names = crs_column_names(text, "--crs")  # checks the CRS text as well
 
+    # the PROJ operation built once, not once per block of a streamed file
+    between = _crs.points_converter("EPSG:4979", text, allow_ballpark=allow_ballpark)
+
     def convert(lonlath):
         out = np.full_like(lonlath, np.nan)
         ok = np.all(np.isfinite(lonlath), axis=1)
         if np.any(ok):
-            out[ok] = _crs.points_between(
-                lonlath[ok], "EPSG:4979", text, allow_ballpark=allow_ballpark
-            )
+            out[ok] = between(lonlath[ok])
         return out
 
     return text, convert, names
