@@ -53,7 +53,13 @@ from scipy.spatial.transform import Rotation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import FileFormatError, InputError
 from ._angles import opk_from_rotations
-from ._textio import format_floats, read_text, split_numeric_lines
+from ._textio import (
+    exact_integers,
+    format_floats,
+    read_text,
+    split_numeric_lines,
+    split_numeric_tokens,
+)
 from .block import Block
 from .io_bal import refuse_extras
 
@@ -253,7 +259,7 @@ def _read_images(path: Path):
     names = np.array([t[9] for t in heads], dtype=str)
     pose_vals, _ = split_numeric_lines([" ".join(t[1:8]) for t in heads], head_no, str(path))
     pose = pose_vals.reshape(m, 7)
-    vals, counts = split_numeric_lines(pts_lines, pts_no, str(path))
+    vals, counts, tokens = split_numeric_tokens(pts_lines, pts_no, str(path))
     odd = counts % 3 != 0
     if np.any(odd):
         i = int(np.flatnonzero(odd)[0])
@@ -262,11 +268,16 @@ def _read_images(path: Path):
             f"holds {counts[i]} numbers"
         )
     p2d = vals.reshape(-1, 3)
+    # POINT3D_ID is COLMAP's uint64 (-1: none): exact integers, also beyond 2^53
+    p3d_pos = np.arange(2, vals.size, 3)
+    p3d = exact_integers(
+        vals, tokens, p3d_pos, np.repeat(pts_no, counts // 3), str(path), "POINT3D_ID"
+    )
     nf = ~np.all(np.isfinite(pose), axis=1)
     if np.any(nf):
         i = int(np.flatnonzero(nf)[0])
         raise FileFormatError(f"{path}, line {head_no[i]}: the pose holds NaN or infinity")
-    return image_id, cam_id, names, pose, p2d, counts // 3, np.array(head_no)
+    return image_id, cam_id, names, pose, p2d, p3d, counts // 3, np.array(head_no)
 
 
 def _isint(s: str) -> bool:
@@ -280,7 +291,7 @@ def _isint(s: str) -> bool:
 def _read_points(path: Path):
     text = read_text(path, "COLMAP points3D file")
     lines, nums = _data_lines(text)
-    vals, counts = split_numeric_lines(lines, nums, str(path))
+    vals, counts, tokens = split_numeric_tokens(lines, nums, str(path))
     bad = (counts < 8) | ((counts - 8) % 2 != 0)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
@@ -297,7 +308,9 @@ def _read_points(path: Path):
     within = np.arange(int(tlen.sum())) - np.repeat(np.cumsum(tlen) - tlen, tlen)
     pos = first + 2 * within
     track = np.column_stack([vals[pos], vals[pos + 1]]) if pos.size else np.zeros((0, 2))
-    return head, track, owner, np.array(nums, dtype=np.int64)
+    lines_no = np.array(nums, dtype=np.int64)
+    pid = exact_integers(vals, tokens, starts, lines_no, str(path), "POINT3D_ID")
+    return head, pid, track, owner, lines_no
 
 
 def read_colmap(
@@ -341,7 +354,7 @@ def read_colmap(
         raise FileFormatError(f"{d}: not a directory (a COLMAP text model is a folder)")
     pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
     cams, free = _read_cameras(pc, refine_principal_point)
-    image_id, cam_id, names, pose, p2d, n2d, head_no = _read_images(pi)
+    image_id, cam_id, names, pose, p2d, p3d, n2d, head_no = _read_images(pi)
     u, c = np.unique(image_id, return_counts=True)
     if np.any(c > 1):
         raise FileFormatError(f"{pi}: IMAGE_ID {int(u[c > 1][0])} appears twice")
@@ -358,11 +371,13 @@ def read_colmap(
             f"{pi}, line {head_no[i]}: image {int(image_id[i])} refers to camera "
             f"{int(cam_id[i])}, which is not in {pc}"
         )
-    head, track, owner, pnums = _read_points(pp)
-    pid = head[:, 0]
-    if np.any(pid != np.round(pid)) or np.any(pid < 0):
-        raise FileFormatError(f"{pp}: POINT3D_ID must be non-negative integers")
-    pid = pid.astype(np.int64)
+    head, pid, track, owner, pnums = _read_points(pp)
+    if np.any(pid < 0):
+        i = int(np.flatnonzero(pid < 0)[0])
+        raise FileFormatError(
+            f"{pp}, line {pnums[i]}: POINT3D_ID {pid[i]} is negative; COLMAP's point ids are "
+            "non-negative integers"
+        )
     u, c = np.unique(pid, return_counts=True)
     if np.any(c > 1):
         raise FileFormatError(f"{pp}: POINT3D_ID {int(u[c > 1][0])} appears twice")
@@ -392,17 +407,17 @@ def read_colmap(
             f"out of range for image {int(image_id[row[k]])} ({int(n2d[row[k]])} 2D points)"
         )
     flat = offset[row] + t_idx.astype(np.int64)
-    if np.any(p2d[flat, 2] != pid[owner]):
-        k = int(np.flatnonzero(p2d[flat, 2] != pid[owner])[0])
+    if np.any(p3d[flat] != pid[owner]):
+        k = int(np.flatnonzero(p3d[flat] != pid[owner])[0])
         raise FileFormatError(
             f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]} lists 2D point "
             f"{int(t_idx[k])} of image {int(image_id[row[k]])}, but {pi} gives that 2D point "
-            f"POINT3D_ID {p2d[flat[k], 2]:g}: the two files disagree"
+            f"POINT3D_ID {p3d[flat[k]]}: the two files disagree"
         )
     # observations in the order of images.txt: image by image, 2D point by 2D point
     by_2d = np.argsort(flat, kind="stable")
     flat, row, owner = flat[by_2d], row[by_2d], owner[by_2d]
-    linked = int(np.sum(p2d[:, 2] != -1))
+    linked = int(np.sum(p3d != -1))
     repeated = int(np.sum(flat[1:] == flat[:-1]))
     if linked != flat.size or repeated:
         raise FileFormatError(

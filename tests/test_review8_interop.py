@@ -1,0 +1,76 @@
+"""Review 8 (files exchanged with other tools): what real files of the peers hold."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from photogeom.bundle import read_colmap, write_colmap
+from photogeom.bundle.block import Block
+from photogeom.camera.metashape import MetashapeCalibration
+from photogeom.errors import FileFormatError
+
+# --- COLMAP: POINT3D_ID is a uint64; ids beyond 2^53 are not float64 numbers ----------------
+
+BIG = 2**53 + 1  # the first integer float64 cannot hold: float(BIG) == BIG - 1
+
+
+def _colmap_dir(tmp_path, images, points):
+    (tmp_path / "cameras.txt").write_text("1 SIMPLE_PINHOLE 100 80 90 50 40\n")
+    (tmp_path / "images.txt").write_text(images)
+    (tmp_path / "points3D.txt").write_text(points)
+    return tmp_path
+
+
+def test_colmap_point_ids_beyond_2_53_are_read_exactly(tmp_path):
+    # one id that float64 rounds to BIG - 1 (was read as 9007199254740992, silently)
+    d = _colmap_dir(
+        tmp_path,
+        f"1 1 0 0 0 0 0 5 1 a.jpg\n10 20 {BIG} 30 40 -1\n2 1 0 0 0 1 0 5 1 b.jpg\n11 21 {BIG}\n",
+        f"{BIG} 0 0 20 0 0 0 -1 1 0 2 0\n",
+    )
+    b = read_colmap(d)
+    assert b.point_ids.tolist() == [BIG]
+    assert b.observations.point_ids.tolist() == [BIG, BIG]
+
+
+def test_colmap_round_trip_of_point_ids_beyond_2_53(tmp_path):
+    cal = MetashapeCalibration(100, 80, 90.0)
+    pid = [BIG, BIG + 1, BIG + 2]  # three ids float64 merges into two (was: "appears twice")
+    b = Block.from_arrays(
+        cameras={1: cal},
+        image_ids=[1, 2],
+        image_camera=[1, 1],
+        exterior=[[0, 0, 20, 0, 0, 0], [1, 0, 20, 0, 0, 0]],
+        point_ids=pid,
+        xyz=[[0, 0, 0], [1, 1, 0], [-1, 1, 0]],
+        obs_image_ids=[1, 1, 1, 2, 2],
+        obs_point_ids=[pid[0], pid[1], pid[2], pid[0], pid[2]],
+        uv=[[50, 40], [54, 36], [45, 36], [46, 40], [41, 36]],
+        sigma=1.0,
+    )
+    write_colmap(b, tmp_path)
+    back = read_colmap(tmp_path, image_key="id")
+    assert back.point_ids.tolist() == pid
+    assert back.observations.point_ids.tolist() == b.observations.point_ids.tolist()
+    pycolmap = pytest.importorskip("pycolmap")
+    assert sorted(pycolmap.Reconstruction(str(tmp_path)).points3D) == pid
+
+
+@pytest.mark.parametrize(
+    ("images_id", "points_id", "match"),
+    [
+        ("7", "9.1e15", r"points3D.txt, line 1: POINT3D_ID '9.1e15' is not an integer"),
+        ("7.5", "7", r"images.txt, line 2: POINT3D_ID '7.5' is not an integer"),
+        ("7", "9223372036854775808", r"line 1: POINT3D_ID '9223372036854775808' is not an"),
+        ("7", "-3", r"points3D.txt, line 1: POINT3D_ID -3 is negative"),
+    ],
+)
+def test_colmap_point_ids_that_are_not_integers_are_named(tmp_path, images_id, points_id, match):
+    d = _colmap_dir(
+        tmp_path,
+        f"1 1 0 0 0 0 0 5 1 a.jpg\n10 20 {images_id}\n",
+        f"{points_id} 0 0 20 0 0 0 -1 1 0\n",
+    )
+    with pytest.raises(FileFormatError, match=match):
+        read_colmap(d)
