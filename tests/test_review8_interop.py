@@ -74,3 +74,69 @@ def test_colmap_point_ids_that_are_not_integers_are_named(tmp_path, images_id, p
     )
     with pytest.raises(FileFormatError, match=match):
         read_colmap(d)
+
+
+# --- LAS 1.4: extended VLRs (EVLRs) are part of the file, the CRS WKT may be one -----------
+
+
+def _las14_with_evlrs(path, crs="EPSG:32633"):
+    laspy = pytest.importorskip("laspy")
+    pyproj = pytest.importorskip("pyproj")
+    from laspy.vlrs.known import WktCoordinateSystemVlr
+    from laspy.vlrs.vlr import VLR
+    from laspy.vlrs.vlrlist import VLRList
+
+    rng = np.random.default_rng(3)
+    xyz = rng.uniform([500000, 5e6, 0], [500100, 5e6 + 100, 50], size=(200, 3))
+    h = laspy.LasHeader(point_format=6, version="1.4")
+    h.scales, h.offsets = [0.01] * 3, [500000, 5e6, 0]
+    las = laspy.LasData(h)
+    las.x, las.y, las.z = xyz.T
+    las.header.global_encoding.wkt = True
+    las.evlrs = VLRList(
+        [
+            WktCoordinateSystemVlr(pyproj.CRS(crs).to_wkt()),
+            VLR("review8", 42, "custom", b"\x01\x02" * 50),
+        ]
+    )
+    las.write(path)
+    return xyz
+
+
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_transform_cloud_keeps_evlrs_and_their_crs(tmp_path, suffix):
+    laspy = pytest.importorskip("laspy")
+    from photogeom.io import cloud_info, transform_cloud
+
+    src = tmp_path / "in.las"
+    _las14_with_evlrs(src)
+    out = tmp_path / f"out{suffix}"
+    res = transform_cloud(src, out, lambda p: p + 1.0)
+    # was: no EVLR written, the output had no CRS at all (crs_name None)
+    assert res.crs_name.startswith("EPSG:32633")
+    assert cloud_info(out).crs_name.startswith("EPSG:32633")
+    with laspy.open(out) as r:
+        kinds = [(type(v).__name__, getattr(v, "user_id", "")) for v in r.header.evlrs]
+        custom = [v for v in r.header.evlrs if getattr(v, "user_id", "") == "review8"]
+    assert kinds[0][0] == "WktCoordinateSystemVlr" and len(kinds) == 2
+    assert custom[0].record_data == b"\x01\x02" * 50
+
+
+def test_transform_cloud_replaces_a_crs_held_in_an_evlr(tmp_path):
+    laspy = pytest.importorskip("laspy")
+    from photogeom.crs import ProjTransform
+    from photogeom.io import transform_cloud
+
+    src = tmp_path / "in.las"
+    _las14_with_evlrs(src)
+    out = tmp_path / "out.las"
+    res = transform_cloud(src, out, ProjTransform("EPSG:32633", "EPSG:32632"))
+    assert res.crs_name.startswith("EPSG:32632")
+    with laspy.open(out) as r:  # one CRS record (the new one), the custom EVLR kept
+        crs_records = [
+            v
+            for v in [*r.header.vlrs, *r.header.evlrs]
+            if type(v).__name__ == "WktCoordinateSystemVlr"
+        ]
+        assert len(crs_records) == 1
+        assert [v.user_id for v in r.header.evlrs] == ["review8"]

@@ -483,7 +483,8 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     extra dimensions, CRS record) with the given or kept scales, offsets recomputed from the
     output bounds (``bounds`` = (lo, hi), else the transformed corners of the source box of
     an affine-like transformation), and ``crs`` (a pyproj-readable CRS) replacing the CRS
-    record when given."""
+    record when given (also a CRS record among the extended VLRs, EVLRs, is replaced: LAS 1.4
+    allows the WKT there)."""
     h = src_header.copy() if hasattr(src_header, "copy") else src_header
     sc = np.array(h.scales if scales is None else scales, dtype=float)
     if sc.shape != (3,) or not np.all(sc > 0):
@@ -498,8 +499,22 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     if crs is not None:
         from ..crs import parse_crs
 
-        h.add_crs(parse_crs(crs, what="crs"))
+        h.add_crs(parse_crs(crs, what="crs"))  # replaces the CRS records among the VLRs
+        evlrs = getattr(h, "evlrs", None)
+        if evlrs:
+            kept = type(evlrs)()
+            kept.extend(v for v in evlrs if type(v).__name__ not in _CRS_VLRS)
+            h.evlrs = kept
     return h
+
+
+#: laspy's classes of the records that hold a CRS (WKT or GeoTIFF keys).
+_CRS_VLRS = (
+    "WktCoordinateSystemVlr",
+    "GeoKeyDirectoryVlr",
+    "GeoAsciiParamsVlr",
+    "GeoDoubleParamsVlr",
+)
 
 
 def _quantise(
@@ -573,7 +588,8 @@ def transform_cloud(
     Notes
     -----
     Kept: point format and LAS version, every dimension including extra bytes, all VLRs
-    and EVLRs the writer supports, the CRS record (unless replaced). Offsets are
+    and EVLRs (LAS 1.4 extended VLRs, written after the points), the CRS record (unless
+    replaced; also one among the EVLRs). Offsets are
     recomputed from the bounds of the output (the transformed corners of the input box for
     affine transformations; a first pass over the points for others), scales are kept, and
     coordinates are rounded to the scale like any LAS writer does.
@@ -629,6 +645,8 @@ def transform_cloud(
                 done += len(pts)
                 if progress is not None:
                     progress(done, n)
+            if header.evlrs:  # LAS 1.4 extended VLRs (e.g. the CRS WKT) follow the points
+                writer.write_evlrs(header.evlrs)
     info = cloud_info(dst)
     return CloudTransformResult(
         str(dst),
