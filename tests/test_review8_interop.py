@@ -140,3 +140,67 @@ def test_transform_cloud_replaces_a_crs_held_in_an_evlr(tmp_path):
         ]
         assert len(crs_records) == 1
         assert [v.user_id for v in r.header.evlrs] == ["review8"]
+
+
+# --- COLMAP binary models (what COLMAP writes by default) -----------------------------------
+
+
+def _small_block() -> Block:
+    cal = MetashapeCalibration(100, 80, 90.0)
+    return Block.from_arrays(
+        cameras={1: cal},
+        image_ids=[1, 2],
+        image_camera=[1, 1],
+        exterior=[[0, 0, 20, 0, 0, 0], [1, 0, 20, 0, 0, 0]],
+        point_ids=[7, 8, 9],
+        xyz=[[0, 0, 0], [1, 1, 0], [-1, 1, 0]],
+        obs_image_ids=[1, 1, 1, 2, 2],
+        obs_point_ids=[7, 8, 9, 7, 9],
+        uv=[[50, 40], [54, 36], [45, 36], [46, 40], [41, 36]],
+        sigma=1.0,
+    )
+
+
+def _binary_model(tmp_path):
+    pycolmap = pytest.importorskip("pycolmap")
+    text, binary = tmp_path / "text", tmp_path / "bin"
+    write_colmap(_small_block(), text)
+    binary.mkdir()
+    pycolmap.Reconstruction(str(text)).write_binary(str(binary))
+    return binary
+
+
+def test_reading_a_colmap_binary_model_names_the_conversion(tmp_path):
+    from photogeom.bundle import read_block
+
+    binary = _binary_model(tmp_path)
+    # was: "cannot read COLMAP cameras file .../cameras.txt: no such file" (read_colmap) and
+    # "a folder with neither a COLMAP text model ... nor a CSV block" (read_block)
+    for read in (read_colmap, read_block):
+        with pytest.raises(FileFormatError, match=r"a COLMAP binary model \(cameras.bin.*"
+                           r"colmap model_converter .*--output_type TXT"):  # fmt: skip
+            read(binary)
+
+
+def test_cli_names_the_conversion_of_a_colmap_binary_model(tmp_path, cli):
+    binary = _binary_model(tmp_path)
+    # was: "not a block folder (...); give the format with --from", then with --from colmap
+    # "cannot read COLMAP cameras file .../cameras.txt: no such file"
+    for extra in ([], ["--from", "colmap"]):
+        code, _, err = cli("bundle", "convert", binary, tmp_path / "o", "--to", "csv", *extra)
+        assert code == 2
+        assert "a COLMAP binary model" in err and "model_converter" in err
+    code, _, err = cli("bundle", "convert", tmp_path / "text", binary, "--to", "colmap")
+    assert code == 2 and "TARGET: cannot write a COLMAP text model" in err
+
+
+def test_writing_a_text_model_over_a_binary_model_is_refused(tmp_path):
+    from photogeom.errors import OutputError
+
+    binary = _binary_model(tmp_path)
+    before = sorted(p.name for p in binary.iterdir())
+    # was: cameras.txt, images.txt, points3D.txt written beside the .bin files, and COLMAP
+    # (which reads the binary model first) kept reading the old model
+    with pytest.raises(OutputError, match=r"holds a COLMAP binary model .*remove the \.bin"):
+        write_colmap(_small_block(), binary)
+    assert sorted(p.name for p in binary.iterdir()) == before

@@ -313,6 +313,30 @@ def _read_points(path: Path):
     return head, pid, track, owner, lines_no
 
 
+#: The files of a COLMAP binary model (what COLMAP writes by default).
+BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")
+
+
+def is_binary_model(directory: str | os.PathLike) -> bool:
+    """Whether ``directory`` holds a COLMAP binary model and no text model."""
+    d = Path(directory)
+    return not (d / "cameras.txt").is_file() and any((d / f).is_file() for f in BINARY_FILES)
+
+
+def refuse_binary_model(directory: str | os.PathLike) -> None:
+    """Refuse a folder that holds COLMAP's binary model instead of the text model, naming
+    the conversion (:class:`FileFormatError`)."""
+    d = Path(directory)
+    if is_binary_model(d):
+        found = ", ".join(f for f in BINARY_FILES if (d / f).is_file())
+        raise FileFormatError(
+            f"{d}: a COLMAP binary model ({found}); photogeom reads COLMAP's text model "
+            "(cameras.txt, images.txt, points3D.txt): convert it first with "
+            f"'colmap model_converter --input_path {d} --output_path {d} --output_type TXT' "
+            f"or, in Python, pycolmap.Reconstruction('{d}').write_text('{d}')"
+        )
+
+
 def read_colmap(
     directory: str | os.PathLike,
     *,
@@ -345,7 +369,9 @@ def read_colmap(
     ------
     FileFormatError
         Missing files, malformed lines (naming file and line), camera models the Metashape
-        model cannot represent, unknown ids, and tracks that disagree with ``images.txt``.
+        model cannot represent, unknown ids, and tracks that disagree with ``images.txt``;
+        a folder with COLMAP's binary model (``cameras.bin``, ...) instead of the text model
+        (the message names the conversion).
     """
     if image_key not in ("name", "id"):
         raise InputError(f"image_key must be 'name' or 'id', not {image_key!r}")
@@ -353,6 +379,7 @@ def read_colmap(
     if not d.is_dir():
         raise FileFormatError(f"{d}: not a directory (a COLMAP text model is a folder)")
     pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
+    refuse_binary_model(d)
     cams, free = _read_cameras(pc, refine_principal_point)
     image_id, cam_id, names, pose, p2d, p3d, n2d, head_no = _read_images(pi)
     u, c = np.unique(image_id, return_counts=True)

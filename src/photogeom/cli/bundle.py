@@ -135,8 +135,12 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
         return "bal"
     if (path / "cameras.csv").is_file():
         return "csv"
+    from ..bundle.io_colmap import is_binary_model
+
     if (path / "cameras.txt").is_file() or (path / "images.txt").is_file():
         return "colmap"
+    if is_binary_model(path):
+        return "colmap"  # reading it names the conversion to the text model
     raise InputError(
         f"{path}: not a block folder (no cameras.csv of a CSV block, no cameras.txt of a "
         f"COLMAP text model); give the format with {option} csv|colmap|bal"
