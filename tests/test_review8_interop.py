@@ -204,3 +204,68 @@ def test_writing_a_text_model_over_a_binary_model_is_refused(tmp_path):
     with pytest.raises(OutputError, match=r"holds a COLMAP binary model .*remove the \.bin"):
         write_colmap(_small_block(), binary)
     assert sorted(p.name for p in binary.iterdir()) == before
+
+
+# --- COLMAP 3.12+: poses live in frames.txt; writing over a COLMAP model must replace it ----
+
+
+def test_write_colmap_over_a_model_written_by_colmap_replaces_its_poses(tmp_path):
+    pycolmap = pytest.importorskip("pycolmap")
+    first, model = tmp_path / "first", tmp_path / "model"
+    block = _small_block()
+    write_colmap(block, first)
+    model.mkdir()
+    pycolmap.Reconstruction(str(first)).write_text(str(model))  # with rigs.txt, frames.txt
+    moved = block.exterior.copy()
+    moved[:, :3] += [5.0, -3.0, 2.0]
+    b2 = Block.from_arrays(
+        cameras={1: block.calibrations[0]},
+        image_ids=[1, 2],
+        image_camera=[1, 1],
+        exterior=moved,
+        point_ids=[7, 8, 9],
+        xyz=block.xyz,
+        obs_image_ids=[1, 1, 1, 2, 2],
+        obs_point_ids=[7, 8, 9, 7, 9],
+        uv=block.observations.uv,
+        sigma=1.0,
+    )
+    write_colmap(b2, model)
+    rec = pycolmap.Reconstruction(str(model))
+    centres = np.array([rec.images[i].projection_center() for i in (1, 2)])
+    # was: COLMAP read the old frames.txt: the centres were the first block's
+    np.testing.assert_allclose(centres, moved[:, :3], atol=1e-9)
+    assert {"rigs.txt", "frames.txt"} <= {p.name for p in model.iterdir()}
+    # and the same model read back by photogeom
+    np.testing.assert_allclose(read_colmap(model, image_key="id").exterior, moved, atol=1e-12)
+
+
+def test_colmap_frames_of_image_variant_cameras(tmp_path):
+    pycolmap = pytest.importorskip("pycolmap")
+    from photogeom.bundle import projected_pixels
+
+    block = _small_block()
+    # image-variant offsets of f, cx, cy: one COLMAP camera (and rig) per image
+    b = Block.from_arrays(
+        cameras={1: block.calibrations[0]},
+        image_ids=[1, 2],
+        image_camera=[1, 1],
+        exterior=block.exterior,
+        point_ids=[7, 8, 9],
+        xyz=block.xyz,
+        obs_image_ids=[1, 1, 1, 2, 2],
+        obs_point_ids=[7, 8, 9, 7, 9],
+        uv=block.observations.uv,
+        sigma=1.0,
+        calibration_offset=[[0.0, 0.5, -0.5], [0.0, -1.0, 1.5]],
+    )
+    write_colmap(b, tmp_path)
+    rec = pycolmap.Reconstruction(str(tmp_path))
+    assert len(rec.cameras) == 2 and len(rec.rigs) == 2 and len(rec.frames) == 2
+    uv, _ = projected_pixels(b)
+    o = b.observations
+    for k in range(len(o)):
+        im = next(i for i in rec.images.values() if i.name == str(o.image_ids[k]))
+        cam = rec.cameras[im.camera_id]
+        got = cam.img_from_cam(im.cam_from_world() * b.xyz[b.obs_point[k]]) - 0.5
+        np.testing.assert_allclose(got, uv[k], atol=1e-9)

@@ -514,8 +514,8 @@ def colmap_texts(
     model: str | Mapping[object, str] | None = None,
     drop_extras: bool = False,
 ) -> dict[str, str]:
-    """The texts of ``cameras.txt``, ``images.txt`` and ``points3D.txt`` (see
-    :func:`write_colmap`)."""
+    """The texts of ``cameras.txt``, ``images.txt``, ``points3D.txt``, ``rigs.txt`` and
+    ``frames.txt`` (see :func:`write_colmap`)."""
     if not drop_extras:
         refuse_extras(block, "a COLMAP text model")
     g = len(block.calibrations)
@@ -645,10 +645,38 @@ def colmap_texts(
         f"# Number of points: {p}, mean track length: {mean_track:.6g}\n"
         + _join_lines(ptok.tolist(), counts)
     )
+    # rigs.txt, frames.txt (COLMAP 3.12 and later take the poses from the frames): one
+    # trivial rig per camera (rig id = camera id), one frame per image (frame id = image id)
+    rig_txt = (
+        "# Rig calib list with one line of data per calib:\n"
+        "#   RIG_ID, NUM_SENSORS, REF_SENSOR_TYPE, REF_SENSOR_ID, SENSORS[] as (SENSOR_TYPE, "
+        "SENSOR_ID, HAS_POSE, [QW, QX, QY, QZ, TX, TY, TZ])\n"
+        f"# Number of rigs: {len(cam_lines)}\n"
+        + "".join(f"{cid} 1 CAMERA {cid}\n" for cid, _, _ in cam_lines)
+    )
+    frame_tok = np.empty((m, 12), dtype=object)
+    frame_tok[:, 0] = head_tok[:, 0]
+    frame_tok[:, 1] = head_tok[:, 8]
+    frame_tok[:, 2:9] = pose_tok
+    frame_tok[:, 9] = "1"
+    frame_tok[:, 10] = "CAMERA"
+    frame_tok[:, 11] = head_tok[:, 8]
+    frame_txt = (
+        "# Frame list with one line of data per frame:\n"
+        "#   FRAME_ID, RIG_ID, RIG_FROM_WORLD[QW, QX, QY, QZ, TX, TY, TZ], NUM_DATA_IDS, "
+        "DATA_IDS[] as (SENSOR_TYPE, SENSOR_ID, DATA_ID)\n"
+        f"# Number of frames: {m}\n"
+        + _join_lines(
+            np.column_stack([frame_tok, head_tok[:, 0]]).ravel().tolist(),
+            np.full(m, 13, dtype=np.int64),
+        )
+    )
     return {
         "cameras.txt": "\n".join(cams_txt) + "\n",
         "images.txt": imgs_txt,
         "points3D.txt": pts_txt,
+        "rigs.txt": rig_txt,
+        "frames.txt": frame_txt,
     }
 
 
@@ -669,14 +697,16 @@ def write_colmap(
     model: str | Mapping[object, str] | None = None,
     drop_extras: bool = False,
 ) -> Path:
-    """Write a block as a COLMAP text model (three files, each replaced atomically).
+    """Write a block as a COLMAP text model (five files, replaced atomically as one batch).
 
     Parameters
     ----------
     block : Block
     directory : path-like
-        Target folder (created if missing). ``cameras.txt``, ``images.txt`` and
-        ``points3D.txt`` are all formatted before any is replaced.
+        Target folder (created if missing). ``cameras.txt``, ``images.txt``,
+        ``points3D.txt``, ``rigs.txt`` (one trivial rig per camera) and ``frames.txt`` (one
+        frame per image: COLMAP 3.12 and later read the poses there) are all formatted
+        before any is replaced.
     model : str or mapping group -> str, optional
         COLMAP camera model per group. Default: the smallest of SIMPLE_PINHOLE, PINHOLE,
         SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV that holds the calibration's non-zero terms
@@ -688,7 +718,8 @@ def write_colmap(
     Notes
     -----
     A group with image-variant offsets is written as one COLMAP camera per image. Ids: see
-    the module docstring.
+    the module docstring. Writing over a model that COLMAP wrote replaces its ``rigs.txt``
+    and ``frames.txt`` too, so COLMAP reads the new poses, not its old frames.
 
     Raises
     ------
