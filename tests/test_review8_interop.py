@@ -269,3 +269,30 @@ def test_colmap_frames_of_image_variant_cameras(tmp_path):
         cam = rec.cameras[im.camera_id]
         got = cam.img_from_cam(im.cam_from_world() * b.xyz[b.obs_point[k]]) - 0.5
         np.testing.assert_allclose(got, uv[k], atol=1e-9)
+
+
+@pytest.mark.parametrize("wkt", [True, False])
+def test_replaced_crs_keeps_the_encoding_the_wkt_bit_announces(tmp_path, wkt):
+    """LAS 1.4, point format 1: the CRS may be WKT (global-encoding bit set) or GeoTIFF keys
+    (bit clear); the record written must be the one the bit says."""
+    laspy = pytest.importorskip("laspy")
+    pyproj = pytest.importorskip("pyproj")
+    from photogeom.crs import ProjTransform
+    from photogeom.io import transform_cloud
+
+    h = laspy.LasHeader(point_format=1, version="1.4")
+    h.scales, h.offsets = [0.01] * 3, [500000, 5e6, 0]
+    h.add_crs(pyproj.CRS("EPSG:32633"), keep_compatibility=not wkt)
+    assert h.global_encoding.wkt == wkt
+    las = laspy.LasData(h)
+    las.x, las.y, las.z = np.array([[500010.0, 5e6 + 10, 1.0], [500020.0, 5e6 + 20, 2.0]]).T
+    src, out = tmp_path / "in.las", tmp_path / "out.las"
+    las.write(src)
+    res = transform_cloud(src, out, ProjTransform("EPSG:32633", "EPSG:32632"))
+    assert res.crs_name.startswith("EPSG:32632")
+    with laspy.open(out) as r:
+        kinds = {type(v).__name__ for v in r.header.vlrs}
+        assert r.header.global_encoding.wkt == wkt
+    # was (bit set): GeoKeyDirectoryVlr written under the WKT bit, no WKT record
+    assert ("WktCoordinateSystemVlr" in kinds) == wkt
+    assert ("GeoKeyDirectoryVlr" in kinds) == (not wkt)

@@ -499,7 +499,11 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     if crs is not None:
         from ..crs import parse_crs
 
-        h.add_crs(parse_crs(crs, what="crs"))  # replaces the CRS records among the VLRs
+        # the record replaced in the encoding the global-encoding WKT bit announces: a LAS
+        # 1.4 file that says "WKT" keeps WKT (laspy would write GeoTIFF keys for point
+        # formats 0-5 and leave the bit set: the spec's readers then find no CRS)
+        wkt = bool(getattr(h.global_encoding, "wkt", False)) and h.version.minor >= 4
+        h.add_crs(parse_crs(crs, what="crs"), keep_compatibility=not wkt)
         evlrs = getattr(h, "evlrs", None)
         if evlrs:
             kept = type(evlrs)()
