@@ -296,3 +296,32 @@ def test_replaced_crs_keeps_the_encoding_the_wkt_bit_announces(tmp_path, wkt):
     # was (bit set): GeoKeyDirectoryVlr written under the WKT bit, no WKT record
     assert ("WktCoordinateSystemVlr" in kinds) == wkt
     assert ("GeoKeyDirectoryVlr" in kinds) == (not wkt)
+
+
+# --- Dask pieces joined into LAZ: the point format byte of LAZ has the compression bits set --
+
+
+@pytest.mark.parametrize(("version", "point_format"), [("1.2", 3), ("1.4", 1), ("1.4", 6)])
+def test_laz_from_dask_pieces_keeps_the_point_count(tmp_path, version, point_format):
+    laspy = pytest.importorskip("laspy")
+    pytest.importorskip("dask")
+    from photogeom.io import read_cloud_xyz, transform_cloud
+
+    rng = np.random.default_rng(5)
+    xyz = rng.uniform([500000, 5e6, 0], [500100, 5e6 + 100, 50], size=(120_000, 3))
+    h = laspy.LasHeader(point_format=point_format, version=version)
+    h.scales, h.offsets = [0.01] * 3, [500000, 5e6, 0]
+    las = laspy.LasData(h)
+    las.x, las.y, las.z = xyz.T
+    src = tmp_path / "in.las"
+    las.write(src)
+    seq, par = tmp_path / "seq.laz", tmp_path / "par.laz"
+    transform_cloud(src, seq, lambda p: p + 1.0, chunk_size=20_000)
+    transform_cloud(src, par, lambda p: p + 1.0, chunk_size=20_000, scheduler="threads")
+    # was (point formats 0-5): the legacy point count of the joined LAZ file was 0, so LAS
+    # 1.0-1.3 readers saw an empty cloud (read_cloud_xyz: 0 of 120 000 points)
+    with open(seq, "rb") as a, open(par, "rb") as b:
+        assert a.read(111)[107:] == b.read(111)[107:]
+    with laspy.open(par) as r:
+        assert r.header.point_count == 120_000
+    np.testing.assert_array_equal(read_cloud_xyz(par), read_cloud_xyz(seq))

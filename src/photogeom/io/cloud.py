@@ -867,8 +867,9 @@ def _merge_pieces(parts: list[Path], out: Path, compress: bool) -> None:
         raw = bytearray(f0.read(start))
     minor = raw[25]
     rec_len = struct.unpack_from("<H", raw, 105)[0]
+    point_format = raw[104] & 0x3F  # LAZ sets bit 7 (and bit 6) of the point format byte
     if struct.unpack_from("<I", raw, 107)[0] or total == 0:
-        legacy = total if total <= 0xFFFFFFFF and raw[104] < 6 else 0
+        legacy = total if total <= 0xFFFFFFFF and point_format < 6 else 0
         struct.pack_into("<I", raw, 107, legacy)
         if legacy:
             struct.pack_into("<5I", raw, 111, *[int(v) for v in by_return[:5]])
