@@ -325,3 +325,21 @@ def test_laz_from_dask_pieces_keeps_the_point_count(tmp_path, version, point_for
     with laspy.open(par) as r:
         assert r.header.point_count == 120_000
     np.testing.assert_array_equal(read_cloud_xyz(par), read_cloud_xyz(seq))
+
+
+# --- Metashape calibration XML: the older Agisoft format is named, not "missing <f>" --------
+
+
+def test_older_agisoft_calibration_xml_is_named_with_the_fix():
+    import warnings
+
+    old = (
+        "<calibration><projection>frame</projection><width>4000</width><height>3000</height>"
+        "<fx>3500.1</fx><fy>3499.2</fy><cx>2010.5</cx><cy>1490.2</cy><skew>0</skew>"
+        "<k1>-0.1</k1><p1>0.001</p1></calibration>"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # was: an "unknown tag(s) <fx>, <fy>, <skew>" warning
+        # and then "missing required tag(s) <f>"
+        with pytest.raises(FileFormatError, match=r"older Agisoft format .*<fx>.*export it again"):
+            MetashapeCalibration.from_xml_string(old, source="lens.xml")
