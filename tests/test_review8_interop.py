@@ -343,3 +343,17 @@ def test_older_agisoft_calibration_xml_is_named_with_the_fix():
         # and then "missing required tag(s) <f>"
         with pytest.raises(FileFormatError, match=r"older Agisoft format .*<fx>.*export it again"):
             MetashapeCalibration.from_xml_string(old, source="lens.xml")
+
+
+@pytest.mark.parametrize(("point_format", "version"), [(6, "1.2"), (11, "1.4"), (3, "1.5")])
+def test_write_cloud_names_point_formats_a_version_lacks(tmp_path, point_format, version):
+    pytest.importorskip("laspy")
+    from photogeom.errors import InputError
+    from photogeom.io import write_cloud
+
+    # was: laspy's LaspyException / PointFormatNotSupported("11"), not a photogeom error
+    match = rf"point_format={point_format} with version='{version}'.*1\.2: 0-3"
+    with pytest.raises(InputError, match=match):
+        write_cloud(tmp_path / "c.las", np.zeros((3, 3)), point_format=point_format,
+                    version=version)  # fmt: skip
+    assert not list(tmp_path.iterdir())

@@ -705,7 +705,8 @@ def write_cloud(
     ------
     InputError
         Points not (n, 3); a NaN or infinite coordinate (naming its row: LAS stores
-        integers); scales not three positive numbers; coordinates the scales (and offsets)
+        integers); scales not three positive numbers; a point format that the LAS version
+        does not have; coordinates the scales (and offsets)
         cannot store in 32-bit integers (pass larger ``scales=``). Nothing is written then.
     """
     laspy = _laspy()
@@ -735,7 +736,19 @@ def write_cloud(
             raise InputError(f"offsets= must be three finite numbers, got {offsets!r}")
         fit = "pass larger scales (scales=) or offsets= nearer the points (or none)"
     ints = [_quantise(xyz[:, i], off[i], sc[i], a, "the", fit) for i, a in enumerate("xyz")]
-    header = laspy.LasHeader(point_format=point_format, version=version)
+    try:
+        header = laspy.LasHeader(point_format=point_format, version=version)
+    except (laspy.errors.LaspyException, ValueError, TypeError):
+        from laspy.point.dims import VERSION_TO_POINT_FMT
+
+        table = "; ".join(
+            f"{v}: {min(f)}-{max(f)}" for v, f in sorted(VERSION_TO_POINT_FMT.items())
+        )
+        raise InputError(
+            f"point_format={point_format!r} with version={version!r} is not a LAS point "
+            f"format of that version; point formats by version: {table} (e.g. "
+            "point_format=6, version='1.4', or point_format=3, version='1.2')"
+        ) from None
     for name, values in (extra or {}).items():
         header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=np.asarray(values).dtype))
     header.scales = sc
