@@ -357,3 +357,27 @@ def test_write_cloud_names_point_formats_a_version_lacks(tmp_path, point_format,
         write_cloud(tmp_path / "c.las", np.zeros((3, 3)), point_format=point_format,
                     version=version)  # fmt: skip
     assert not list(tmp_path.iterdir())
+
+
+# --- COLMAP models without 3D points (COLMAP's "known poses" input: empty points3D.txt) ----
+
+
+def test_colmap_model_without_points_reads_and_writes(tmp_path):
+    (tmp_path / "in").mkdir()
+    d = _colmap_dir(
+        tmp_path / "in",
+        "# Image list\n1 1 0 0 0 0 0 5 1 a.jpg\n10 20 -1 30 40 -1\n2 1 0 0 0 1 0 5 1 b.jpg\n\n",
+        "# 3D point list with one line of data per point:\n# Number of points: 0\n",
+    )
+    # was: ValueError "operands could not be broadcast together with shape (1,) (0,)"
+    b = read_colmap(d, image_key="id")
+    assert (b.n_images, b.n_points, b.n_observations) == (2, 0, 0)
+    np.testing.assert_allclose(b.exterior[:, :3], [[0, 0, -5], [-1, 0, -5]], atol=1e-12)
+    # was: ValueError "shape mismatch ... could not be broadcast to indexing result of shape (8,)"
+    write_colmap(b, tmp_path / "out")
+    back = read_colmap(tmp_path / "out", image_key="id")
+    assert (back.n_images, back.n_points) == (2, 0)
+    np.testing.assert_allclose(back.exterior, b.exterior, atol=1e-12)
+    pycolmap = pytest.importorskip("pycolmap")
+    rec = pycolmap.Reconstruction(str(tmp_path / "out"))
+    assert (rec.num_images(), rec.num_points3D()) == (2, 0)

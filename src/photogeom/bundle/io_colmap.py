@@ -299,7 +299,7 @@ def _read_points(path: Path):
             f"{path}, line {nums[i]}: expected POINT3D_ID X Y Z R G B ERROR and a track of "
             f"(IMAGE_ID, POINT2D_IDX) pairs, got {counts[i]} numbers"
         )
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    starts = (np.cumsum(counts) - counts).astype(np.int64)  # (0,) for a file without points
     head = vals[starts[:, None] + np.arange(8)] if len(lines) else np.zeros((0, 8))
     tlen = (counts - 8) // 2
     # positions of the track pairs in the flat value array
@@ -630,8 +630,8 @@ def colmap_texts(
     tt[:, 0] = list(map(str, iid[o_img[by_pt]].tolist()))
     tt[:, 1] = list(map(str, idx2d[by_pt].tolist()))
     counts = 8 + 2 * per_pt
-    pstart = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    tstart = np.concatenate([[0], np.cumsum(per_pt)[:-1]]).astype(np.int64)
+    pstart = (np.cumsum(counts) - counts).astype(np.int64)  # (0,) for a block without points
+    tstart = (np.cumsum(per_pt) - per_pt).astype(np.int64)
     ptok = np.empty(int(counts.sum()), dtype=object)
     ptok[(pstart[:, None] + np.arange(8)).ravel()] = ph.ravel()
     tpos = np.repeat(pstart + 8, 2 * per_pt) + (
