@@ -381,3 +381,45 @@ def test_colmap_model_without_points_reads_and_writes(tmp_path):
     pycolmap = pytest.importorskip("pycolmap")
     rec = pycolmap.Reconstruction(str(tmp_path / "out"))
     assert (rec.num_images(), rec.num_points3D()) == (2, 0)
+
+
+# --- decimal commas (spreadsheets in many locales) are refused with the fix named ------------
+
+COMMA_HINT = r"decimal comma, which photogeom does not read: write numbers with a decimal point"
+
+
+@pytest.mark.parametrize("rows", [1, 40_000])  # Python parser; pyarrow (> 256 KiB)
+def test_points_with_decimal_commas_name_the_fix(tmp_path, rows):
+    from photogeom.io import read_points
+
+    body = "".join(f"{k};{k}.5;2.5;3\n" for k in range(rows - 1))
+    p = tmp_path / "p.csv"
+    p.write_text("id;x;y;z\n" + body + "99;1.234,5;2,5;3\n")
+    # was: "column x holds '1.234,5', not a number", nothing about the decimal comma
+    with pytest.raises(FileFormatError, match=rf"line {rows + 1}: column x holds '1\.234,5', "
+                       rf"not a number; it has a {COMMA_HINT}"):  # fmt: skip
+        read_points(p)
+
+
+def test_block_files_with_decimal_commas_name_the_fix(tmp_path):
+    from photogeom.bundle import read_bal, read_csv_block, write_csv_block
+    from photogeom.datasets import path as dataset_path
+
+    block = read_bal(dataset_path("dubrovnik-3-7"))
+    write_csv_block(block, tmp_path / "csv")
+    obs = tmp_path / "csv" / "observations.csv"
+    lines = obs.read_text().splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln[:1].isdigit())
+    cells = lines[k].split(",")
+    lines[k] = ";".join([*cells[:2], cells[2].replace(".", ","), *cells[3:]])
+    lines = [ln.replace(",", ";") if i != k else ln for i, ln in enumerate(lines)]
+    obs.write_text("\n".join(lines) + "\n")
+    with pytest.raises(FileFormatError, match=rf"column 'u': .* is not a number; it has a "
+                       rf"{COMMA_HINT}"):  # fmt: skip
+        read_csv_block(tmp_path / "csv")
+    bal = tmp_path / "b.txt"
+    text = dataset_path("dubrovnik-3-7").read_text().replace("-3.859900e+02", "-3,859900e+02")
+    bal.write_text(text)
+    with pytest.raises(FileFormatError, match=rf"line 3: '-3,859900e\+02' is not a number; it "
+                       rf"has a {COMMA_HINT}"):  # fmt: skip
+        read_bal(bal)

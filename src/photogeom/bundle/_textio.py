@@ -18,6 +18,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError
+from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)")
@@ -90,7 +91,9 @@ def numbers(text: str, label: str) -> np.ndarray:
         bad = _first_bad_token(text)
         if bad is not None:
             _, line, tok = bad
-            raise FileFormatError(f"{label}, line {line}: {tok!r} is not a number")
+            raise FileFormatError(
+                f"{label}, line {line}: {tok!r} is not a number{decimal_comma_hint(tok)}"
+            )
         # every token matched the number pattern yet the fast path failed: parse slowly
         try:
             values = np.array(text.split(), dtype=float)
@@ -124,7 +127,9 @@ def split_numeric_tokens(
         for ln_no, p in zip(line_numbers, parts):
             for t in p:
                 if not _NUMBER.fullmatch(t.lower()):
-                    raise FileFormatError(f"{label}, line {ln_no}: {t!r} is not a number") from None
+                    raise FileFormatError(
+                        f"{label}, line {ln_no}: {t!r} is not a number{decimal_comma_hint(t)}"
+                    ) from None
         raise FileFormatError(f"{label}: a value is not a number") from None  # pragma: no cover
     return values, counts, flat
 

@@ -56,6 +56,7 @@ import numpy as np
 
 from ..camera.metashape import MetashapeCalibration, read_metashape_xml
 from ..errors import FileFormatError, InputError, OutputError
+from ..numbers import decimal_comma_hint
 from ..units import from_radians, normalize_angle_unit, to_radians
 from ._textio import format_floats, read_text
 from .block import CALIBRATION_NAMES, Block
@@ -115,6 +116,7 @@ class _Table:
                 except ValueError:
                     raise FileFormatError(
                         f"{self.path}, line {self.lines[k]}: column {name!r}: {c!r} is not a number"
+                        + decimal_comma_hint(c)
                     ) from None
             raise  # pragma: no cover
         bad = ~np.isfinite(out) & ~empty
