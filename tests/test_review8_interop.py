@@ -423,3 +423,48 @@ def test_block_files_with_decimal_commas_name_the_fix(tmp_path):
     with pytest.raises(FileFormatError, match=rf"line 3: '-3,859900e\+02' is not a number; it "
                        rf"has a {COMMA_HINT}"):  # fmt: skip
         read_bal(bal)
+
+
+# --- LAS scales are in the CRS's unit: metres -> degrees must not keep 0.01 (~1 km) --------
+
+
+@pytest.mark.parametrize("scheduler", [None, "threads"])
+def test_projected_to_geographic_keeps_the_resolution(tmp_path, scheduler):
+    pytest.importorskip("laspy")
+    if scheduler:
+        pytest.importorskip("dask")
+    from photogeom.crs import ProjTransform
+    from photogeom.io import read_cloud_xyz, transform_cloud, write_cloud
+
+    rng = np.random.default_rng(6)
+    xyz = rng.uniform([500000, 5e6, 0], [500100, 5e6 + 100, 50], size=(500, 3))
+    src = tmp_path / "utm.las"
+    write_cloud(src, xyz, scales=(0.01, 0.01, 0.01), crs="EPSG:32633")
+    T = ProjTransform("EPSG:32633", "EPSG:4979")
+    out = tmp_path / "geo.las"
+    res = transform_cloud(src, out, T, scheduler=scheduler)
+    # was: scales (0.01, 0.01, 0.01) kept as degrees: all 500 points on one lon/lat
+    # position, up to 0.0044 degrees (~490 m) from where PROJ put them
+    np.testing.assert_array_equal(res.scales, [1e-7, 1e-7, 0.01])
+    got, exact = read_cloud_xyz(out), T.apply(read_cloud_xyz(src))
+    assert np.abs(got[:, :2] - exact[:, :2]).max() <= 0.5e-7 * (1 + 1e-6)
+    assert np.abs(got[:, 2] - exact[:, 2]).max() <= 0.005 + 1e-9
+    assert len(np.unique(got[:, :2], axis=0)) == 500
+    # and back: degrees -> metres gives the metre resolution again
+    back = transform_cloud(out, tmp_path / "back.las", ProjTransform("EPSG:4979", "EPSG:32633"))
+    np.testing.assert_array_equal(back.scales, [0.01, 0.01, 0.01])
+    # scales= given: used as given
+    given = transform_cloud(src, tmp_path / "g.las", T, scales=(1e-8, 1e-8, 0.001))
+    np.testing.assert_array_equal(given.scales, [1e-8, 1e-8, 0.001])
+
+
+def test_unit_scales_of_transformations_without_crs_are_kept():
+    from photogeom.crs import ProjTransform
+    from photogeom.io.cloud import unit_scales
+
+    same = [0.0025, 0.0025, 0.001]
+    np.testing.assert_array_equal(unit_scales(same, lambda p: p), same)
+    utm = ProjTransform("EPSG:32633", "EPSG:32632")  # same units: kept exactly
+    np.testing.assert_array_equal(unit_scales(same, utm), same)
+    feet = ProjTransform("EPSG:32618", "EPSG:2263", allow_ballpark=True)  # US survey feet
+    np.testing.assert_array_equal(unit_scales([0.01, 0.01, 0.01], feet), [0.01, 0.01, 0.01])

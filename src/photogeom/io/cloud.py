@@ -478,15 +478,64 @@ class CloudTransformResult:
     passes: int
 
 
+#: Metres per radian of a geographic axis (the WGS 84 semi-major axis): carries a coordinate
+#: resolution between degrees and metres (1e-7 degree ~ 1.1 cm).
+_METRES_PER_RADIAN = 6_378_137.0
+
+
+def _metres_per_unit(crs) -> np.ndarray:
+    """Metres per unit of the x/easting/longitude, y and height axes of ``crs`` (NaN where
+    the CRS does not say: no height axis, an engineering CRS without units)."""
+    out = np.full(3, np.nan)
+    axes = list(getattr(crs, "axis_info", None) or [])
+    for k, a in enumerate(axes[:3]):
+        f = float(getattr(a, "unit_conversion_factor", np.nan) or np.nan)
+        angular = k < 2 and bool(getattr(crs, "is_geographic", False))
+        out[k] = f * _METRES_PER_RADIAN if angular else f
+    return out
+
+
+def unit_scales(scales, transform) -> np.ndarray:
+    """The scales of a transformed copy: ``scales`` where the axis unit stays, else the same
+    resolution in the target's unit, rounded to a power of ten.
+
+    Parameters
+    ----------
+    scales : array_like (3,)
+        The input file's scales (its coordinate resolution, in its CRS's units).
+    transform : transformation
+        A PROJ operation (with ``source_crs`` and ``target_crs``) changes units between
+        metres, feet and degrees; other transformations keep the scales.
+
+    Returns
+    -------
+    numpy.ndarray (3,)
+        E.g. ``(0.01, 0.01, 0.01)`` metres to EPSG:4979 -> ``(1e-07, 1e-07, 0.01)``
+        (1e-7 degree ~ 1.1 cm); from degrees to metres the reverse; 0.01 m to US survey
+        feet 0.01 ft. The power of ten is at most ~12 % coarser than the input's
+        resolution.
+    """
+    sc = np.array(scales, dtype=float)
+    src, dst = getattr(transform, "source_crs", None), getattr(transform, "target_crs", None)
+    if src is None or dst is None:
+        return sc
+    ratio = _metres_per_unit(src) / _metres_per_unit(dst)
+    change = np.isfinite(ratio) & (np.abs(np.log10(np.where(ratio > 0, ratio, 1.0))) > 1e-3)
+    # a power of ten at most ~12 % coarser than the input's resolution (0.0111 -> 0.01)
+    sc[change] = 10.0 ** np.floor(np.log10(sc[change] * ratio[change]) + 0.05)
+    return sc
+
+
 def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     """The header of a transformed copy: the source header (point format, version, VLRs,
-    extra dimensions, CRS record) with the given or kept scales, offsets recomputed from the
+    extra dimensions, CRS record) with the given or kept scales (carried into the target's
+    unit by :func:`unit_scales` when a PROJ operation changes it), offsets recomputed from the
     output bounds (``bounds`` = (lo, hi), else the transformed corners of the source box of
     an affine-like transformation), and ``crs`` (a pyproj-readable CRS) replacing the CRS
     record when given (also a CRS record among the extended VLRs, EVLRs, is replaced: LAS 1.4
     allows the WKT there)."""
     h = src_header.copy() if hasattr(src_header, "copy") else src_header
-    sc = np.array(h.scales if scales is None else scales, dtype=float)
+    sc = np.array(unit_scales(h.scales, transform) if scales is None else scales, dtype=float)
     if sc.shape != (3,) or not np.all(sc > 0):
         raise InputError(f"scales must be three positive numbers, got {scales}")
     if bounds is None:
@@ -578,7 +627,9 @@ def transform_cloud(
         Points per chunk; memory use is proportional to it (~100 bytes per point), not to
         the file.
     scales : sequence of 3 floats, optional
-        Output coordinate resolution; default: the input's.
+        Output coordinate resolution; default: the input's, carried into the target CRS's
+        unit when a PROJ operation changes it (metres to degrees: 0.01 -> 1e-7, ~1.1 cm;
+        :func:`unit_scales`), so that the resolution stays what it was.
     crs : str, optional
         CRS to record in the output (EPSG code, WKT, PROJ string); default: the
         transformation's ``target_crs`` if it has one, else the input's record unchanged.
