@@ -468,3 +468,48 @@ def test_unit_scales_of_transformations_without_crs_are_kept():
     np.testing.assert_array_equal(unit_scales(same, utm), same)
     feet = ProjTransform("EPSG:32618", "EPSG:2263", allow_ballpark=True)  # US survey feet
     np.testing.assert_array_equal(unit_scales([0.01, 0.01, 0.01], feet), [0.01, 0.01, 0.01])
+
+
+# --- CSV blocks: integer ids beyond 64 bits are labels, not an OverflowError ----------------
+
+
+def _csv_block_with_point_ids(tmp_path, new_id):
+    from photogeom.bundle import read_bal, write_csv_block
+    from photogeom.datasets import path as dataset_path
+
+    d = tmp_path / "csv"
+    write_csv_block(read_bal(dataset_path("dubrovnik-3-7")), d)
+    for name, col in (("points.csv", 0), ("observations.csv", 1)):
+        out = []
+        for ln in (d / name).read_text().splitlines():
+            if ln[:1].isdigit():
+                cells = ln.split(",")
+                cells[col] = new_id(name, cells[col])
+                ln = ",".join(cells)
+            out.append(ln)
+        (d / name).write_text("\n".join(out) + "\n")
+    return d
+
+
+def test_csv_block_ids_beyond_64_bits_are_read_as_text(tmp_path):
+    from photogeom.bundle import read_csv_block, write_csv_block
+
+    d = _csv_block_with_point_ids(tmp_path, lambda _, c: str(10**20 + int(c)))
+    # was: OverflowError "Python int too large to convert to C long"
+    b = read_csv_block(d)
+    assert b.point_ids.dtype.kind == "U" and b.point_ids[0] == str(10**20)
+    assert set(b.observations.point_ids.tolist()) <= set(b.point_ids.tolist())
+    write_csv_block(b, tmp_path / "again")
+    again = read_csv_block(tmp_path / "again")
+    assert again.point_ids.tolist() == b.point_ids.tolist()
+
+
+def test_csv_block_observation_id_beyond_64_bits_is_named(tmp_path):
+    from photogeom.bundle import read_csv_block
+
+    big = str(10**20)
+    d = _csv_block_with_point_ids(
+        tmp_path, lambda name, c: big if name == "observations.csv" and c == "0" else c
+    )
+    with pytest.raises(FileFormatError, match=rf"point_id '{big}' is not one of the point"):
+        read_csv_block(d)

@@ -232,9 +232,13 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     empty = [k for k, c in enumerate(cells) if not c]
     if empty:
         raise FileFormatError(f"{table.path}, line {table.lines[empty[0]]}: {name!r} is empty")
+    ids = None
     if cells and not table.any_quoted(name) and all(_INT.fullmatch(c) for c in cells):
-        ids = np.array([int(c) for c in cells], dtype=np.int64)
-    else:
+        try:
+            ids = np.array([int(c) for c in cells], dtype=np.int64)
+        except OverflowError:  # an id beyond 64 bits: the column is read as text labels
+            ids = None
+    if ids is None:
         ids = np.array(cells, dtype=str)
     _, first, counts = np.unique(ids, return_index=True, return_counts=True)
     if np.any(counts > 1):
@@ -257,7 +261,14 @@ def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what
                 f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
                 f"{what} ids"
             )
-        ids = np.array([int(c) for c in cells], dtype=np.int64)
+        try:
+            ids = np.array([int(c) for c in cells], dtype=np.int64)
+        except OverflowError:  # beyond 64 bits: cannot be one of the (int64) ids
+            k = next(k for k, c in enumerate(cells) if not -(2**63) <= int(c) < 2**63)
+            raise FileFormatError(
+                f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
+                f"{what} ids"
+            ) from None
     else:
         ids = np.array(cells, dtype=str)
     known = np.isin(ids, keys)
