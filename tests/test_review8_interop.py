@@ -513,3 +513,24 @@ def test_csv_block_observation_id_beyond_64_bits_is_named(tmp_path):
     )
     with pytest.raises(FileFormatError, match=rf"point_id '{big}' is not one of the point"):
         read_csv_block(d)
+
+
+@pytest.mark.parametrize(
+    ("cameras", "images", "match"),
+    [
+        ("99999999999999999999 SIMPLE_PINHOLE 100 80 90 50 40\n", None,
+         r"cameras.txt, line 1: CAMERA_ID 99999999999999999999 is not a COLMAP id"),
+        (None, "99999999999999999999 1 0 0 0 0 0 5 1 a.jpg\n10 20 7\n",
+         r"images.txt, line 1: IMAGE_ID 99999999999999999999 is not a COLMAP id"),
+        (None, "1 1 0 0 0 0 0 5 4294967295 a.jpg\n10 20 7\n",
+         r"images.txt, line 1: CAMERA_ID 4294967295 is not a COLMAP id .*0 to 4294967294"),
+    ],
+)  # fmt: skip
+def test_colmap_ids_out_of_colmaps_range_are_named(tmp_path, cameras, images, match):
+    d = _colmap_dir(tmp_path, images or "1 1 0 0 0 0 0 5 1 a.jpg\n10 20 7\n",
+                    "7 0 0 20 0 0 0 -1 1 0\n")  # fmt: skip
+    if cameras:
+        (d / "cameras.txt").write_text(cameras)
+    # was: OverflowError "Python int too large to convert to C long"
+    with pytest.raises(FileFormatError, match=match):
+        read_colmap(d)

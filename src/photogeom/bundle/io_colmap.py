@@ -84,6 +84,7 @@ MODEL_FREE: dict[str, tuple[str, ...]] = {
 }
 _FLIP = np.diag([1.0, -1.0, -1.0])
 _UINT32_MAX = 2**32 - 1
+_ID_RANGE = "(camera and image ids are 32-bit: 0 to 4294967294)"
 
 
 def _calibration_from_colmap(model: str, w: int, h: int, q: list[float]) -> MetashapeCalibration:
@@ -183,6 +184,8 @@ def _read_cameras(path: Path, refine_pp: bool):
             raise FileFormatError(
                 f"{where}: CAMERA_ID, WIDTH and HEIGHT must be integers, got {ln!r}"
             ) from None
+        if not 0 <= cid < _UINT32_MAX:
+            raise FileFormatError(f"{where}: CAMERA_ID {tok[0]} is not a COLMAP id {_ID_RANGE}")
         model = tok[1].upper()
         if model not in COLMAP_MODELS:
             raise FileFormatError(
@@ -256,6 +259,17 @@ def _read_images(path: Path):
         raise FileFormatError(
             f"{path}, line {head_no[i]}: IMAGE_ID and CAMERA_ID must be integers"
         ) from None
+    except OverflowError:  # beyond 64 bits: out of COLMAP's range, named below
+        image_id = np.array([_clip_id(t[0]) for t in heads], dtype=np.int64)
+        cam_id = np.array([_clip_id(t[8]) for t in heads], dtype=np.int64)
+    for what, ids, col in (("IMAGE_ID", image_id, 0), ("CAMERA_ID", cam_id, 8)):
+        out = (ids < 0) | (ids >= _UINT32_MAX)
+        if np.any(out):
+            i = int(np.flatnonzero(out)[0])
+            raise FileFormatError(
+                f"{path}, line {head_no[i]}: {what} {heads[i][col]} is not a COLMAP id "
+                f"{_ID_RANGE}"
+            )
     names = np.array([t[9] for t in heads], dtype=str)
     pose_vals, _ = split_numeric_lines([" ".join(t[1:8]) for t in heads], head_no, str(path))
     pose = pose_vals.reshape(m, 7)
@@ -278,6 +292,12 @@ def _read_images(path: Path):
         i = int(np.flatnonzero(nf)[0])
         raise FileFormatError(f"{path}, line {head_no[i]}: the pose holds NaN or infinity")
     return image_id, cam_id, names, pose, p2d, p3d, counts // 3, np.array(head_no)
+
+
+def _clip_id(s: str) -> int:
+    """An integer id, beyond the int64 range clipped to -1 (reported as out of range)."""
+    n = int(s)
+    return n if -(2**63) <= n < 2**63 else -1
 
 
 def _isint(s: str) -> bool:
