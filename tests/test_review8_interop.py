@@ -534,3 +534,47 @@ def test_colmap_ids_out_of_colmaps_range_are_named(tmp_path, cameras, images, ma
     # was: OverflowError "Python int too large to convert to C long"
     with pytest.raises(FileFormatError, match=match):
         read_colmap(d)
+
+
+# --- damaged block files: refused with file and line, never a raw Python error ---------------
+
+
+def test_damaged_block_files_are_refused_with_file_and_line(tmp_path):
+    from photogeom.bundle import read_bal, read_csv_block, write_csv_block
+    from photogeom.datasets import path as dataset_path
+
+    bal = dataset_path("dubrovnik-3-7").read_text()
+    p = tmp_path / "b.txt"
+    p.write_text("inf 7 19" + bal[bal.index("\n"):])
+    # was: OverflowError "cannot convert float infinity to integer"
+    with pytest.raises(FileFormatError, match=r"line 1: the header must be three non-negative"):
+        read_bal(p)
+
+    (tmp_path / "cm").mkdir()
+    d = _colmap_dir(
+        tmp_path / "cm", "1 1 0 0 0 0 0 5 1 a.jpg\n10 20 7\n", "7 0 0 20 0 0 0 -1 1 0\n"
+    )
+    (d / "cameras.txt").write_text(f"1 SIMPLE_PINHOLE {'1' * 400} 80 90 50 40\n")
+    # was: OverflowError "integer division result too large for a float"
+    with pytest.raises(FileFormatError, match=r"cameras.txt, line 1: camera 1: WIDTH x HEIGHT"):
+        read_colmap(d)
+    (d / "cameras.txt").write_text("1 SIMPLE_PINHOLE 0 80 90 50 40\n")
+    with pytest.raises(FileFormatError, match=r"is not an image size"):
+        read_colmap(d)
+
+    block = read_bal(dataset_path("dubrovnik-3-7"))
+    write_csv_block(block, tmp_path / "csv")
+    obs = tmp_path / "csv" / "observations.csv"
+    good = obs.read_text()
+    lines = good.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln[:1].isdigit())
+    lines[k] = "9" * 5000 + lines[k][lines[k].index(","):]
+    obs.write_text("\n".join(lines) + "\n")
+    # was: ValueError "Exceeds the limit (4300 digits) for integer string conversion"
+    with pytest.raises(FileFormatError, match=rf"line {k + 1}: image_id '9{{40}}\.\.\.' is not"):
+        read_csv_block(tmp_path / "csv")
+    lines[k] = "x" * 200_000 + lines[k][lines[k].index(","):]
+    obs.write_text("\n".join(lines) + "\n")
+    # was: _csv.Error "field larger than field limit (131072)"
+    with pytest.raises(FileFormatError, match=rf"line {k + 1}: cannot split the line into"):
+        read_csv_block(tmp_path / "csv")

@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..camera.metashape import MetashapeCalibration
+from ..camera.metashape import MAX_IMAGE_SIDE, MetashapeCalibration
 from ..errors import FileFormatError, InputError
 from ._angles import opk_from_rotations
 from ._textio import (
@@ -186,6 +186,11 @@ def _read_cameras(path: Path, refine_pp: bool):
             ) from None
         if not 0 <= cid < _UINT32_MAX:
             raise FileFormatError(f"{where}: CAMERA_ID {tok[0]} is not a COLMAP id {_ID_RANGE}")
+        if not (1 <= w <= MAX_IMAGE_SIDE and 1 <= h <= MAX_IMAGE_SIDE):
+            raise FileFormatError(
+                f"{where}: camera {cid}: WIDTH x HEIGHT = {tok[2][:20]} x {tok[3][:20]} is not "
+                f"an image size (whole pixels from 1 to {MAX_IMAGE_SIDE})"
+            )
         model = tok[1].upper()
         if model not in COLMAP_MODELS:
             raise FileFormatError(

@@ -208,7 +208,13 @@ def _read_table(path: Path) -> _Table:
                 quoted[k - 1] = q
             parsed.append(cells)
         else:
-            parsed.append([c.strip() for c in next(fast)])
+            try:
+                parsed.append([c.strip() for c in next(fast)])
+            except csv.Error as exc:  # a field over the csv module's limit (128 KiB)
+                raise FileFormatError(
+                    f"{path}, line {numbers[k]}: cannot split the line into fields ({exc}); "
+                    "a field of a block file is a name or a number: wrong file?"
+                ) from None
     header = parsed[0]
     if any(not h for h in header):
         raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
@@ -234,10 +240,9 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
         raise FileFormatError(f"{table.path}, line {table.lines[empty[0]]}: {name!r} is empty")
     ids = None
     if cells and not table.any_quoted(name) and all(_INT.fullmatch(c) for c in cells):
-        try:
+        fits = _fits_int64(cells)
+        if np.all(fits):  # else an id beyond 64 bits: the column is read as text labels
             ids = np.array([int(c) for c in cells], dtype=np.int64)
-        except OverflowError:  # an id beyond 64 bits: the column is read as text labels
-            ids = None
     if ids is None:
         ids = np.array(cells, dtype=str)
     _, first, counts = np.unique(ids, return_index=True, return_counts=True)
@@ -251,6 +256,17 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     return ids
 
 
+def _fits_int64(cells: list[str]) -> np.ndarray:
+    """Which integer cells (``_INT`` form) fit 64 bits (long ones are never converted)."""
+    return np.array(
+        [len(c) <= 20 and -(2**63) <= int(c) < 2**63 for c in cells], dtype=bool
+    )
+
+
+def _short(text: str, n: int = 40) -> str:
+    return text if len(text) <= n else text[:n] + "..."
+
+
 def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what: str):
     """Read the referring ids ``cells`` as the kind of ``keys``; name unknown ones."""
     if keys.dtype.kind in "iu":
@@ -261,14 +277,14 @@ def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what
                 f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
                 f"{what} ids"
             )
-        try:
-            ids = np.array([int(c) for c in cells], dtype=np.int64)
-        except OverflowError:  # beyond 64 bits: cannot be one of the (int64) ids
-            k = next(k for k, c in enumerate(cells) if not -(2**63) <= int(c) < 2**63)
+        fits = _fits_int64(cells)
+        if not np.all(fits):  # beyond 64 bits: cannot be one of the (int64) ids
+            k = int(np.flatnonzero(~fits)[0])
             raise FileFormatError(
-                f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
-                f"{what} ids"
-            ) from None
+                f"{table.path}, line {table.lines[k]}: {name} {_short(cells[k])!r} is not one "
+                f"of the {what} ids"
+            )
+        ids = np.array([int(c) for c in cells], dtype=np.int64)
     else:
         ids = np.array(cells, dtype=str)
     known = np.isin(ids, keys)
