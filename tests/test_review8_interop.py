@@ -578,3 +578,22 @@ def test_damaged_block_files_are_refused_with_file_and_line(tmp_path):
     # was: _csv.Error "field larger than field limit (131072)"
     with pytest.raises(FileFormatError, match=rf"line {k + 1}: cannot split the line into"):
         read_csv_block(tmp_path / "csv")
+
+
+def test_laz_header_count_beyond_its_chunk_table_is_refused(tmp_path):
+    pytest.importorskip("laspy")
+    import struct
+
+    from photogeom.io import cloud_info, read_cloud_xyz, write_cloud
+
+    p = tmp_path / "c.laz"
+    write_cloud(p, np.random.default_rng(7).uniform(0, 100, (60_000, 3)), point_format=3,
+                version="1.2")  # fmt: skip
+    data = bytearray(p.read_bytes())
+    struct.pack_into("<I", data, 107, 2_717_909_292)  # the legacy point count, damaged
+    p.write_bytes(bytes(data))
+    # was: MemoryError "Unable to allocate 60.8 GiB for an array with shape (2717909292, 3)"
+    for read in (read_cloud_xyz, cloud_info):
+        with pytest.raises(FileFormatError, match=r"promises 2717909292 points but its LAZ "
+                           r"chunk table holds at most 100000"):  # fmt: skip
+            read(p)

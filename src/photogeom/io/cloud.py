@@ -113,7 +113,29 @@ def _truncation(path: Path, header) -> str | None:
             f"{path} is truncated: its LAZ chunk table should start at byte {table} but the "
             f"file has {size} bytes (header: {n} points); {fix}"
         )
+    held = _laz_chunk_points(path, header, start) if table > 0 else None
+    if held is not None and n > held:
+        return (
+            f"{path} is damaged: its header promises {n} points but its LAZ chunk table "
+            f"holds at most {held}; the header or the table is corrupt: copy the file again"
+        )
     return None
+
+
+def _laz_chunk_points(path: Path, header, start: int) -> int | None:
+    """The most points the chunk table of a LAZ file can hold (the sum of its chunks' point
+    counts: exact for variable chunks, chunks x chunk size for fixed ones), or None when
+    the table cannot be read (left to the reader to report)."""
+    try:
+        import lazrs
+
+        raw = next(v.record_data for v in header.vlrs if type(v).__name__ == "LasZipVlr")
+        with open(path, "rb") as f:
+            f.seek(start)
+            entries = lazrs.read_chunk_table(f, lazrs.LazVlr(bytes(raw)))
+        return int(sum(int(e[0]) for e in entries))
+    except Exception:  # no lazrs, no LASzip VLR, a table lazrs cannot read
+        return None
 
 
 def _read_error(reader, path, start: int, stop: int, exc: BaseException) -> FileFormatError:
