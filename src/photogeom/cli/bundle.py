@@ -121,7 +121,8 @@ def _cli_words(fn):
 
 def detect_format(path: Path, given: BlockFormat | None, option: str = "--format") -> str:
     """The format of an existing block: ``given``, else by content (a file is BAL; a folder
-    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model)."""
+    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model, one
+    with COLMAP's binary model "colmap", whose reader names the conversion)."""
     if not path.exists():
         raise InputError(f"no file or folder {path}")
     if given is not None:
