@@ -597,3 +597,19 @@ def test_laz_header_count_beyond_its_chunk_table_is_refused(tmp_path):
         with pytest.raises(FileFormatError, match=r"promises 2717909292 points but its LAZ "
                            r"chunk table holds at most 100000"):  # fmt: skip
             read(p)
+
+
+def test_rpc_text_with_decimal_commas_names_the_fix(tmp_path):
+    from photogeom.datasets import path as dataset_path
+    from photogeom.rpc import read_rpc
+
+    text = dataset_path("ikonos").read_text()
+    lines = text.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("LINE_OFF:"))
+    lines[k] = "LINE_OFF: +005124,00 pixels"
+    p = tmp_path / "x_RPC.TXT"
+    p.write_text("\n".join(lines) + "\n")
+    # was: "key LINE_OFF holds 2 values, expected one", nothing about the comma
+    with pytest.raises(FileFormatError, match=rf"LINE_OFF holds 2 values, expected one; it has a "
+                       rf"{COMMA_HINT}"):  # fmt: skip
+        read_rpc(p)
