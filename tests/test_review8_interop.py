@@ -613,3 +613,30 @@ def test_rpc_text_with_decimal_commas_names_the_fix(tmp_path):
     with pytest.raises(FileFormatError, match=rf"LINE_OFF holds 2 values, expected one; it has a "
                        rf"{COMMA_HINT}"):  # fmt: skip
         read_rpc(p)
+
+
+@pytest.mark.parametrize("scheduler", [None, "threads"])
+def test_transform_cloud_copies_header_text_that_is_not_ascii(tmp_path, scheduler):
+    """LAS header strings are ASCII by the spec; real files carry UTF-8 or Latin-1 in the
+    generating software or a VLR description. laspy reads them; the copy keeps the bytes."""
+    pytest.importorskip("laspy")
+    if scheduler:
+        pytest.importorskip("dask")
+    from photogeom.io import read_cloud_xyz, transform_cloud, write_cloud
+
+    src = tmp_path / "in.las"
+    write_cloud(src, np.random.default_rng(8).uniform(0, 100, (100, 3)), point_format=3,
+                version="1.2", crs="EPSG:32633")  # fmt: skip
+    data = bytearray(src.read_bytes())
+    name = "Généré".encode()  # generating software (UTF-8), bytes 58..89
+    data[58 : 58 + len(name)] = name
+    vlr = int.from_bytes(data[94:96], "little")  # header size: the first VLR starts there
+    data[vlr + 22 : vlr + 26] = b"\xe9t\xe9 "  # its description, Latin-1
+    src.write_bytes(bytes(data))
+    out = tmp_path / "out.las"
+    # was: UnicodeDecodeError "'ascii' codec can't decode byte 0xc3 in position 1"
+    transform_cloud(src, out, lambda p: p + 1.0, scheduler=scheduler)
+    got = out.read_bytes()
+    assert got[58:90] == bytes(data[58:90])
+    assert got[vlr + 22 : vlr + 54] == bytes(data[vlr + 22 : vlr + 54])
+    np.testing.assert_allclose(read_cloud_xyz(out), read_cloud_xyz(src) + 1.0, atol=1e-9)

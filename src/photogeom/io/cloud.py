@@ -583,6 +583,11 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     return h
 
 
+#: How the writer treats header and VLR text that is not ASCII (the spec's character set,
+#: which real files do not always keep: a system identifier or a VLR description in UTF-8 or
+#: Latin-1): text read from the input is copied byte for byte, new text gets '?'.
+_COPY_TEXT = "replace"
+
 #: laspy's classes of the records that hold a CRS (WKT or GeoTIFF keys).
 _CRS_VLRS = (
     "WktCoordinateSystemVlr",
@@ -713,7 +718,13 @@ def transform_cloud(
     with _atomic_target(dst) as tmp:
         with (
             _open_read(src) as reader,
-            laspy.open(tmp, mode="w", header=header, do_compress=compress) as writer,
+            laspy.open(
+                tmp,
+                mode="w",
+                header=header,
+                do_compress=compress,
+                encoding_errors=_COPY_TEXT,
+            ) as writer,
         ):
             for pts in _read_range(reader, src, 0, n, chunk_size):
                 _rewrite(pts, fn, sc, off)
@@ -900,6 +911,7 @@ def _write_piece(
             header=header,
             do_compress=compress,
             laz_backend=laspy.LazBackend.Lazrs if compress else None,
+            encoding_errors=_COPY_TEXT,
         ) as writer,
     ):
         for pts in _read_range(reader, src, start, stop, chunk_size):
