@@ -640,3 +640,21 @@ def test_transform_cloud_copies_header_text_that_is_not_ascii(tmp_path, schedule
     assert got[58:90] == bytes(data[58:90])
     assert got[vlr + 22 : vlr + 54] == bytes(data[vlr + 22 : vlr + 54])
     np.testing.assert_allclose(read_cloud_xyz(out), read_cloud_xyz(src) + 1.0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("name", "n", "match"),
+    [
+        ("x" * 40, 3, r"extra= names dimensions of 1 to 32 bytes"),  # was: ValueError
+        ("X", 3, r"point format 6 already has a dimension 'X'"),  # was: ValueError
+        ("amp", 4, r"has shape \(4,\); it needs one value per point \(3,\)"),
+    ],
+)
+def test_write_cloud_names_bad_extra_dimensions(tmp_path, name, n, match):
+    pytest.importorskip("laspy")
+    from photogeom.errors import InputError
+    from photogeom.io import write_cloud
+
+    with pytest.raises(InputError, match=match):
+        write_cloud(tmp_path / "c.las", np.zeros((3, 3)), extra={name: np.arange(float(n))})
+    assert not list(tmp_path.iterdir())

@@ -790,8 +790,10 @@ def write_cloud(
     InputError
         Points not (n, 3); a NaN or infinite coordinate (naming its row: LAS stores
         integers); scales not three positive numbers; a point format that the LAS version
-        does not have; coordinates the scales (and offsets)
-        cannot store in 32-bit integers (pass larger ``scales=``). Nothing is written then.
+        does not have; extra dimensions with names of more than 32 bytes or names of the
+        point format's own dimensions, or not one value per point; coordinates the scales
+        (and offsets) cannot store in 32-bit integers (pass larger ``scales=``). Nothing is
+        written then.
     """
     laspy = _laspy()
     xyz = np.asarray(xyz, dtype=float)
@@ -833,8 +835,26 @@ def write_cloud(
             f"format of that version; point formats by version: {table} (e.g. "
             "point_format=6, version='1.4', or point_format=3, version='1.2')"
         ) from None
+    taken = {d.lower() for d in header.point_format.dimension_names}
     for name, values in (extra or {}).items():
-        header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=np.asarray(values).dtype))
+        if not isinstance(name, str) or not 0 < len(name.encode("utf-8")) <= 32:
+            raise InputError(
+                f"extra= names dimensions of 1 to 32 bytes (a LAS extra-bytes name); "
+                f"{str(name)[:40]!r} is not one"
+            )
+        if name.lower() in taken:
+            raise InputError(
+                f"extra={{{name!r}: ...}}: point format {point_format} already has a "
+                f"dimension {name!r}; give the extra dimension another name"
+            )
+        v = np.asarray(values)
+        if v.shape != (len(xyz),):
+            raise InputError(
+                f"extra={{{name!r}: ...}} has shape {v.shape}; it needs one value per point "
+                f"({len(xyz)},)"
+            )
+        taken.add(name.lower())
+        header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=v.dtype))
     header.scales = sc
     header.offsets = off
     if crs is not None:
