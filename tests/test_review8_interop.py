@@ -658,3 +658,34 @@ def test_write_cloud_names_bad_extra_dimensions(tmp_path, name, n, match):
     with pytest.raises(InputError, match=match):
         write_cloud(tmp_path / "c.las", np.zeros((3, 3)), extra={name: np.arange(float(n))})
     assert not list(tmp_path.iterdir())
+
+
+def test_damaged_las_headers_are_refused_quickly(tmp_path):
+    """Found by mutating LAS headers: each was a raw laspy error, a MemoryError or a read
+    of 2^31 VLRs one by one (minutes)."""
+    pytest.importorskip("laspy")
+    import struct
+
+    from photogeom.io import cloud_info, read_cloud_xyz, transform_cloud, write_cloud
+
+    good = tmp_path / "good.las"
+    write_cloud(good, np.random.default_rng(9).uniform(0, 100, (50, 3)), point_format=3,
+                version="1.2")  # fmt: skip
+    raw = good.read_bytes()
+
+    def damaged(name, edit):
+        b = bytearray(raw)
+        edit(b)
+        p = tmp_path / name
+        p.write_bytes(bytes(b))
+        return p
+
+    version = damaged("v.las", lambda b: b.__setitem__(24, 59))  # was: FileVersionNotSupported
+    vlrs = damaged("n.las", lambda b: struct.pack_into("<I", b, 100, 2**31))  # was: a hang
+    for p, match in ((version, r"LAS version 59\.2; LAS versions are 1\.0 to 1\.4"),
+                     (vlrs, r"announces 2147483648 VLRs")):  # fmt: skip
+        for run in (cloud_info, read_cloud_xyz,
+                    lambda q: transform_cloud(q, tmp_path / "o.las", lambda x: x)):  # fmt: skip
+            with pytest.raises(FileFormatError, match=match):
+                run(p)
+    assert not (tmp_path / "o.las").exists()

@@ -54,6 +54,9 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
     p = Path(path)
     if not p.is_file():
         raise InputError(f"point cloud {p} does not exist")
+    problem = _damaged_vlr_count(p)
+    if problem:
+        raise FileFormatError(problem)
     try:
         if single_thread:
             reader = laspy.open(p, laz_backend=laspy.LazBackend.Lazrs)
@@ -61,17 +64,43 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
             reader = laspy.open(p)
     except laspy.errors.LaspyException as exc:
         raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
-    except (OSError, ValueError, EOFError) as exc:  # a header cut short, lazrs errors
+    except (OSError, ValueError, EOFError, MemoryError) as exc:  # a header cut short or
+        # damaged (a VLR count or length of gigabytes), lazrs errors
         raise FileFormatError(
             f"{p}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc}); is it "
             "complete? (an interrupted copy or download: copy it again)"
         ) from None
+    version = reader.header.version
+    if version.major != 1 or version.minor > 5:
+        reader.close()
+        raise FileFormatError(
+            f"{p}: the header says LAS version {version.major}.{version.minor}; LAS versions "
+            "are 1.0 to 1.4: the header is damaged (copy the file again)"
+        )
     if check_size:
         problem = _truncation(p, reader.header)
         if problem:
             reader.close()
             raise FileFormatError(problem)
     return reader
+
+
+def _damaged_vlr_count(path: Path) -> str | None:
+    """Why the VLR count of the header cannot be right, or None: the VLRs (54 bytes each at
+    least) lie between the header and the point data. laspy would otherwise read a damaged
+    count of 2^31 VLRs one by one (minutes)."""
+    with open(path, "rb") as f:
+        raw = f.read(104)
+    if len(raw) < 104 or raw[:4] != b"LASF":
+        return None  # laspy reports it
+    header_size, start, n_vlrs = struct.unpack_from("<HII", raw, 94)
+    if n_vlrs * 54 > max(0, start - header_size):
+        return (
+            f"{path}: the header is damaged: it announces {n_vlrs} VLRs (54 bytes each at "
+            f"least) between its end at byte {header_size} and the point data at byte "
+            f"{start}; copy the file again"
+        )
+    return None
 
 
 def _truncation(path: Path, header) -> str | None:
