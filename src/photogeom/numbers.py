@@ -11,7 +11,9 @@ or refuse themselves (PyArrow reads the same set in CSV columns).
 
 from __future__ import annotations
 
-__all__ = ["is_decimal_number", "parse_decimal"]
+import re
+
+__all__ = ["decimal_comma_hint", "is_decimal_number", "parse_decimal"]
 
 
 def is_decimal_number(text: str) -> bool:
@@ -57,3 +59,30 @@ def parse_decimal(text: str) -> float:
     if not is_decimal_number(text):
         raise ValueError(f"not a decimal number: {text!r}")
     return float(text)
+
+
+#: A number written with a decimal comma (and perhaps '.' grouping thousands): 1,5  -3,25e2
+#: 1.234,5 -- what spreadsheets write in German, French, ... locales.
+_DECIMAL_COMMA = re.compile(r"[+-]?(?:\d{1,3}(?:\.\d{3})+|\d+),\d+(?:[eE][+-]?\d+)?")
+
+
+def decimal_comma_hint(text: str) -> str:
+    """A hint to append to "not a number" errors when ``text`` has a decimal comma.
+
+    Parameters
+    ----------
+    text : str
+        The text of the cell that is not a decimal number.
+
+    Returns
+    -------
+    str
+        ``""``, or a clause (starting with ``"; "``) saying that decimal commas are not read
+        and how to export the file instead.
+    """
+    if not isinstance(text, str) or _DECIMAL_COMMA.fullmatch(text.strip()) is None:
+        return ""
+    return (
+        "; it has a decimal comma, which photogeom does not read: write numbers with a "
+        "decimal point (1.5, not 1,5), e.g. export the file with '.' as the decimal separator"
+    )

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError
+from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)")
@@ -90,7 +91,9 @@ def numbers(text: str, label: str) -> np.ndarray:
         bad = _first_bad_token(text)
         if bad is not None:
             _, line, tok = bad
-            raise FileFormatError(f"{label}, line {line}: {tok!r} is not a number")
+            raise FileFormatError(
+                f"{label}, line {line}: {tok!r} is not a number{decimal_comma_hint(tok)}"
+            )
         # every token matched the number pattern yet the fast path failed: parse slowly
         try:
             values = np.array(text.split(), dtype=float)
@@ -106,6 +109,15 @@ def split_numeric_lines(
 
     One vectorised conversion; a token that is not a number is named with its line.
     """
+    values, counts, _ = split_numeric_tokens(lines, line_numbers, label)
+    return values, counts
+
+
+def split_numeric_tokens(
+    lines: list[str], line_numbers: list[int] | np.ndarray, label: str
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """As :func:`split_numeric_lines`, and the flat list of the tokens themselves (for
+    integer ids that float64 cannot hold exactly, see :func:`exact_integers`)."""
     parts = [ln.split() for ln in lines]
     counts = np.fromiter(map(len, parts), dtype=np.int64, count=len(parts))
     flat = list(chain.from_iterable(parts))
@@ -115,9 +127,84 @@ def split_numeric_lines(
         for ln_no, p in zip(line_numbers, parts):
             for t in p:
                 if not _NUMBER.fullmatch(t.lower()):
-                    raise FileFormatError(f"{label}, line {ln_no}: {t!r} is not a number") from None
+                    raise FileFormatError(
+                        f"{label}, line {ln_no}: {t!r} is not a number{decimal_comma_hint(t)}"
+                    ) from None
         raise FileFormatError(f"{label}: a value is not a number") from None  # pragma: no cover
-    return values, counts
+    return values, counts, flat
+
+
+def _int64_text(t: str) -> bool:
+    try:
+        return -(2**63) <= int(t) < 2**63
+    except ValueError:
+        return False
+
+
+#: Integers above this magnitude are not all exact in float64 (2^53).
+EXACT_FLOAT_INT = 2**53
+
+
+def exact_integers(
+    values: np.ndarray,
+    tokens: list[str],
+    positions: np.ndarray,
+    line_numbers: np.ndarray,
+    label: str,
+    field: str,
+) -> np.ndarray:
+    """The integers at ``positions`` of a flat value array, exact also beyond 2^53.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Flat float64 values (of :func:`split_numeric_tokens`).
+    tokens : list of str
+        The tokens the values were converted from.
+    positions : numpy.ndarray of int
+        Positions of the integer fields in ``values`` / ``tokens``.
+    line_numbers : numpy.ndarray of int
+        The line of each position (1-based), for errors.
+    label : str
+        The file, for errors.
+    field : str
+        The name of the field (e.g. ``POINT3D_ID``), for errors.
+
+    Returns
+    -------
+    numpy.ndarray of int64
+        The integers; a float64 value of magnitude 2^53 or more (where neighbouring
+        integers share one float) is converted from its token instead.
+
+    Raises
+    ------
+    FileFormatError
+        A field that is not an integer, or one outside the 64-bit signed range.
+    """
+    v = values[positions]
+    bad = np.flatnonzero(v != np.round(v))
+    if bad.size:
+        k = int(bad[0])
+        raise FileFormatError(
+            f"{label}, line {int(line_numbers[k])}: {field} {tokens[positions[k]]!r} is not an "
+            "integer"
+        )
+    big = np.abs(v) >= EXACT_FLOAT_INT
+    out = np.zeros(v.size, dtype=np.int64)
+    out[~big] = v[~big].astype(np.int64)
+    idx = np.flatnonzero(big)
+    if idx.size:  # ids beyond 2^53: converted from their text (one numpy conversion)
+        text = np.array([tokens[i] for i in positions[idx].tolist()], dtype=str)
+        try:
+            out[idx] = text.astype(np.int64)
+        except (ValueError, OverflowError):
+            k = next(k for k, t in enumerate(text.tolist()) if not _int64_text(t))
+            raise FileFormatError(
+                f"{label}, line {int(line_numbers[idx[k]])}: {field} {str(text[k])!r} is not an "
+                "integer of the 64-bit signed range photogeom reads (|id| < 2^63, written in "
+                "full digits, not with an exponent)"
+            ) from None
+    return out
 
 
 def write_files_atomically(files: Mapping[Path, bytes]) -> None:

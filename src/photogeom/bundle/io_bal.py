@@ -95,7 +95,7 @@ def read_bal(
             f"found {vals.size}"
         )
     head = vals[:3]
-    if np.any(head != np.round(head)) or np.any(head < 0):
+    if not np.all(np.isfinite(head)) or np.any(head != np.round(head)) or np.any(head < 0):
         raise FileFormatError(
             f"{label}, line 1: the header must be three non-negative integers "
             "(num_cameras num_points num_observations), got " + " ".join(format_floats(head))

@@ -50,10 +50,16 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..camera.metashape import MetashapeCalibration
+from ..camera.metashape import MAX_IMAGE_SIDE, MetashapeCalibration
 from ..errors import FileFormatError, InputError
 from ._angles import opk_from_rotations
-from ._textio import format_floats, read_text, split_numeric_lines
+from ._textio import (
+    exact_integers,
+    format_floats,
+    read_text,
+    split_numeric_lines,
+    split_numeric_tokens,
+)
 from .block import Block
 from .io_bal import refuse_extras
 
@@ -78,6 +84,7 @@ MODEL_FREE: dict[str, tuple[str, ...]] = {
 }
 _FLIP = np.diag([1.0, -1.0, -1.0])
 _UINT32_MAX = 2**32 - 1
+_ID_RANGE = "(camera and image ids are 32-bit: 0 to 4294967294)"
 
 
 def _calibration_from_colmap(model: str, w: int, h: int, q: list[float]) -> MetashapeCalibration:
@@ -177,6 +184,13 @@ def _read_cameras(path: Path, refine_pp: bool):
             raise FileFormatError(
                 f"{where}: CAMERA_ID, WIDTH and HEIGHT must be integers, got {ln!r}"
             ) from None
+        if not 0 <= cid < _UINT32_MAX:
+            raise FileFormatError(f"{where}: CAMERA_ID {tok[0]} is not a COLMAP id {_ID_RANGE}")
+        if not (1 <= w <= MAX_IMAGE_SIDE and 1 <= h <= MAX_IMAGE_SIDE):
+            raise FileFormatError(
+                f"{where}: camera {cid}: WIDTH x HEIGHT = {tok[2][:20]} x {tok[3][:20]} is not "
+                f"an image size (whole pixels from 1 to {MAX_IMAGE_SIDE})"
+            )
         model = tok[1].upper()
         if model not in COLMAP_MODELS:
             raise FileFormatError(
@@ -250,10 +264,21 @@ def _read_images(path: Path):
         raise FileFormatError(
             f"{path}, line {head_no[i]}: IMAGE_ID and CAMERA_ID must be integers"
         ) from None
+    except OverflowError:  # beyond 64 bits: out of COLMAP's range, named below
+        image_id = np.array([_clip_id(t[0]) for t in heads], dtype=np.int64)
+        cam_id = np.array([_clip_id(t[8]) for t in heads], dtype=np.int64)
+    for what, ids, col in (("IMAGE_ID", image_id, 0), ("CAMERA_ID", cam_id, 8)):
+        out = (ids < 0) | (ids >= _UINT32_MAX)
+        if np.any(out):
+            i = int(np.flatnonzero(out)[0])
+            raise FileFormatError(
+                f"{path}, line {head_no[i]}: {what} {heads[i][col]} is not a COLMAP id "
+                f"{_ID_RANGE}"
+            )
     names = np.array([t[9] for t in heads], dtype=str)
     pose_vals, _ = split_numeric_lines([" ".join(t[1:8]) for t in heads], head_no, str(path))
     pose = pose_vals.reshape(m, 7)
-    vals, counts = split_numeric_lines(pts_lines, pts_no, str(path))
+    vals, counts, tokens = split_numeric_tokens(pts_lines, pts_no, str(path))
     odd = counts % 3 != 0
     if np.any(odd):
         i = int(np.flatnonzero(odd)[0])
@@ -262,11 +287,22 @@ def _read_images(path: Path):
             f"holds {counts[i]} numbers"
         )
     p2d = vals.reshape(-1, 3)
+    # POINT3D_ID is COLMAP's uint64 (-1: none): exact integers, also beyond 2^53
+    p3d_pos = np.arange(2, vals.size, 3)
+    p3d = exact_integers(
+        vals, tokens, p3d_pos, np.repeat(pts_no, counts // 3), str(path), "POINT3D_ID"
+    )
     nf = ~np.all(np.isfinite(pose), axis=1)
     if np.any(nf):
         i = int(np.flatnonzero(nf)[0])
         raise FileFormatError(f"{path}, line {head_no[i]}: the pose holds NaN or infinity")
-    return image_id, cam_id, names, pose, p2d, counts // 3, np.array(head_no)
+    return image_id, cam_id, names, pose, p2d, p3d, counts // 3, np.array(head_no)
+
+
+def _clip_id(s: str) -> int:
+    """An integer id, beyond the int64 range clipped to -1 (reported as out of range)."""
+    n = int(s)
+    return n if -(2**63) <= n < 2**63 else -1
 
 
 def _isint(s: str) -> bool:
@@ -280,7 +316,7 @@ def _isint(s: str) -> bool:
 def _read_points(path: Path):
     text = read_text(path, "COLMAP points3D file")
     lines, nums = _data_lines(text)
-    vals, counts = split_numeric_lines(lines, nums, str(path))
+    vals, counts, tokens = split_numeric_tokens(lines, nums, str(path))
     bad = (counts < 8) | ((counts - 8) % 2 != 0)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
@@ -288,7 +324,7 @@ def _read_points(path: Path):
             f"{path}, line {nums[i]}: expected POINT3D_ID X Y Z R G B ERROR and a track of "
             f"(IMAGE_ID, POINT2D_IDX) pairs, got {counts[i]} numbers"
         )
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    starts = (np.cumsum(counts) - counts).astype(np.int64)  # (0,) for a file without points
     head = vals[starts[:, None] + np.arange(8)] if len(lines) else np.zeros((0, 8))
     tlen = (counts - 8) // 2
     # positions of the track pairs in the flat value array
@@ -297,7 +333,33 @@ def _read_points(path: Path):
     within = np.arange(int(tlen.sum())) - np.repeat(np.cumsum(tlen) - tlen, tlen)
     pos = first + 2 * within
     track = np.column_stack([vals[pos], vals[pos + 1]]) if pos.size else np.zeros((0, 2))
-    return head, track, owner, np.array(nums, dtype=np.int64)
+    lines_no = np.array(nums, dtype=np.int64)
+    pid = exact_integers(vals, tokens, starts, lines_no, str(path), "POINT3D_ID")
+    return head, pid, track, owner, lines_no
+
+
+#: The files of a COLMAP binary model (what COLMAP writes by default).
+BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")
+
+
+def is_binary_model(directory: str | os.PathLike) -> bool:
+    """Whether ``directory`` holds a COLMAP binary model and no text model."""
+    d = Path(directory)
+    return not (d / "cameras.txt").is_file() and any((d / f).is_file() for f in BINARY_FILES)
+
+
+def refuse_binary_model(directory: str | os.PathLike) -> None:
+    """Refuse a folder that holds COLMAP's binary model instead of the text model, naming
+    the conversion (:class:`FileFormatError`)."""
+    d = Path(directory)
+    if is_binary_model(d):
+        found = ", ".join(f for f in BINARY_FILES if (d / f).is_file())
+        raise FileFormatError(
+            f"{d}: a COLMAP binary model ({found}); photogeom reads COLMAP's text model "
+            "(cameras.txt, images.txt, points3D.txt): convert it first with "
+            f"'colmap model_converter --input_path {d} --output_path {d} --output_type TXT' "
+            f"or, in Python, pycolmap.Reconstruction('{d}').write_text('{d}')"
+        )
 
 
 def read_colmap(
@@ -332,7 +394,9 @@ def read_colmap(
     ------
     FileFormatError
         Missing files, malformed lines (naming file and line), camera models the Metashape
-        model cannot represent, unknown ids, and tracks that disagree with ``images.txt``.
+        model cannot represent, unknown ids, and tracks that disagree with ``images.txt``;
+        a folder with COLMAP's binary model (``cameras.bin``, ...) instead of the text model
+        (the message names the conversion).
     """
     if image_key not in ("name", "id"):
         raise InputError(f"image_key must be 'name' or 'id', not {image_key!r}")
@@ -340,8 +404,9 @@ def read_colmap(
     if not d.is_dir():
         raise FileFormatError(f"{d}: not a directory (a COLMAP text model is a folder)")
     pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
+    refuse_binary_model(d)
     cams, free = _read_cameras(pc, refine_principal_point)
-    image_id, cam_id, names, pose, p2d, n2d, head_no = _read_images(pi)
+    image_id, cam_id, names, pose, p2d, p3d, n2d, head_no = _read_images(pi)
     u, c = np.unique(image_id, return_counts=True)
     if np.any(c > 1):
         raise FileFormatError(f"{pi}: IMAGE_ID {int(u[c > 1][0])} appears twice")
@@ -358,11 +423,13 @@ def read_colmap(
             f"{pi}, line {head_no[i]}: image {int(image_id[i])} refers to camera "
             f"{int(cam_id[i])}, which is not in {pc}"
         )
-    head, track, owner, pnums = _read_points(pp)
-    pid = head[:, 0]
-    if np.any(pid != np.round(pid)) or np.any(pid < 0):
-        raise FileFormatError(f"{pp}: POINT3D_ID must be non-negative integers")
-    pid = pid.astype(np.int64)
+    head, pid, track, owner, pnums = _read_points(pp)
+    if np.any(pid < 0):
+        i = int(np.flatnonzero(pid < 0)[0])
+        raise FileFormatError(
+            f"{pp}, line {pnums[i]}: POINT3D_ID {pid[i]} is negative; COLMAP's point ids are "
+            "non-negative integers"
+        )
     u, c = np.unique(pid, return_counts=True)
     if np.any(c > 1):
         raise FileFormatError(f"{pp}: POINT3D_ID {int(u[c > 1][0])} appears twice")
@@ -392,17 +459,17 @@ def read_colmap(
             f"out of range for image {int(image_id[row[k]])} ({int(n2d[row[k]])} 2D points)"
         )
     flat = offset[row] + t_idx.astype(np.int64)
-    if np.any(p2d[flat, 2] != pid[owner]):
-        k = int(np.flatnonzero(p2d[flat, 2] != pid[owner])[0])
+    if np.any(p3d[flat] != pid[owner]):
+        k = int(np.flatnonzero(p3d[flat] != pid[owner])[0])
         raise FileFormatError(
             f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]} lists 2D point "
             f"{int(t_idx[k])} of image {int(image_id[row[k]])}, but {pi} gives that 2D point "
-            f"POINT3D_ID {p2d[flat[k], 2]:g}: the two files disagree"
+            f"POINT3D_ID {p3d[flat[k]]}: the two files disagree"
         )
     # observations in the order of images.txt: image by image, 2D point by 2D point
     by_2d = np.argsort(flat, kind="stable")
     flat, row, owner = flat[by_2d], row[by_2d], owner[by_2d]
-    linked = int(np.sum(p2d[:, 2] != -1))
+    linked = int(np.sum(p3d != -1))
     repeated = int(np.sum(flat[1:] == flat[:-1]))
     if linked != flat.size or repeated:
         raise FileFormatError(
@@ -472,8 +539,8 @@ def colmap_texts(
     model: str | Mapping[object, str] | None = None,
     drop_extras: bool = False,
 ) -> dict[str, str]:
-    """The texts of ``cameras.txt``, ``images.txt`` and ``points3D.txt`` (see
-    :func:`write_colmap`)."""
+    """The texts of ``cameras.txt``, ``images.txt``, ``points3D.txt``, ``rigs.txt`` and
+    ``frames.txt`` (see :func:`write_colmap`)."""
     if not drop_extras:
         refuse_extras(block, "a COLMAP text model")
     g = len(block.calibrations)
@@ -588,8 +655,8 @@ def colmap_texts(
     tt[:, 0] = list(map(str, iid[o_img[by_pt]].tolist()))
     tt[:, 1] = list(map(str, idx2d[by_pt].tolist()))
     counts = 8 + 2 * per_pt
-    pstart = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    tstart = np.concatenate([[0], np.cumsum(per_pt)[:-1]]).astype(np.int64)
+    pstart = (np.cumsum(counts) - counts).astype(np.int64)  # (0,) for a block without points
+    tstart = (np.cumsum(per_pt) - per_pt).astype(np.int64)
     ptok = np.empty(int(counts.sum()), dtype=object)
     ptok[(pstart[:, None] + np.arange(8)).ravel()] = ph.ravel()
     tpos = np.repeat(pstart + 8, 2 * per_pt) + (
@@ -603,10 +670,38 @@ def colmap_texts(
         f"# Number of points: {p}, mean track length: {mean_track:.6g}\n"
         + _join_lines(ptok.tolist(), counts)
     )
+    # rigs.txt, frames.txt (COLMAP 3.12 and later take the poses from the frames): one
+    # trivial rig per camera (rig id = camera id), one frame per image (frame id = image id)
+    rig_txt = (
+        "# Rig calib list with one line of data per calib:\n"
+        "#   RIG_ID, NUM_SENSORS, REF_SENSOR_TYPE, REF_SENSOR_ID, SENSORS[] as (SENSOR_TYPE, "
+        "SENSOR_ID, HAS_POSE, [QW, QX, QY, QZ, TX, TY, TZ])\n"
+        f"# Number of rigs: {len(cam_lines)}\n"
+        + "".join(f"{cid} 1 CAMERA {cid}\n" for cid, _, _ in cam_lines)
+    )
+    frame_tok = np.empty((m, 12), dtype=object)
+    frame_tok[:, 0] = head_tok[:, 0]
+    frame_tok[:, 1] = head_tok[:, 8]
+    frame_tok[:, 2:9] = pose_tok
+    frame_tok[:, 9] = "1"
+    frame_tok[:, 10] = "CAMERA"
+    frame_tok[:, 11] = head_tok[:, 8]
+    frame_txt = (
+        "# Frame list with one line of data per frame:\n"
+        "#   FRAME_ID, RIG_ID, RIG_FROM_WORLD[QW, QX, QY, QZ, TX, TY, TZ], NUM_DATA_IDS, "
+        "DATA_IDS[] as (SENSOR_TYPE, SENSOR_ID, DATA_ID)\n"
+        f"# Number of frames: {m}\n"
+        + _join_lines(
+            np.column_stack([frame_tok, head_tok[:, 0]]).ravel().tolist(),
+            np.full(m, 13, dtype=np.int64),
+        )
+    )
     return {
         "cameras.txt": "\n".join(cams_txt) + "\n",
         "images.txt": imgs_txt,
         "points3D.txt": pts_txt,
+        "rigs.txt": rig_txt,
+        "frames.txt": frame_txt,
     }
 
 
@@ -627,14 +722,16 @@ def write_colmap(
     model: str | Mapping[object, str] | None = None,
     drop_extras: bool = False,
 ) -> Path:
-    """Write a block as a COLMAP text model (three files, each replaced atomically).
+    """Write a block as a COLMAP text model (five files, replaced atomically as one batch).
 
     Parameters
     ----------
     block : Block
     directory : path-like
-        Target folder (created if missing). ``cameras.txt``, ``images.txt`` and
-        ``points3D.txt`` are all formatted before any is replaced.
+        Target folder (created if missing). ``cameras.txt``, ``images.txt``,
+        ``points3D.txt``, ``rigs.txt`` (one trivial rig per camera) and ``frames.txt`` (one
+        frame per image: COLMAP 3.12 and later read the poses there) are all formatted
+        before any is replaced.
     model : str or mapping group -> str, optional
         COLMAP camera model per group. Default: the smallest of SIMPLE_PINHOLE, PINHOLE,
         SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV that holds the calibration's non-zero terms
@@ -646,7 +743,8 @@ def write_colmap(
     Notes
     -----
     A group with image-variant offsets is written as one COLMAP camera per image. Ids: see
-    the module docstring.
+    the module docstring. Writing over a model that COLMAP wrote replaces its ``rigs.txt``
+    and ``frames.txt`` too, so COLMAP reads the new poses, not its old frames.
 
     Raises
     ------

@@ -57,6 +57,7 @@ import numpy as np
 
 from ..camera.metashape import MetashapeCalibration, read_metashape_xml
 from ..errors import FileFormatError, InputError, OutputError
+from ..numbers import decimal_comma_hint
 from ..units import from_radians, normalize_angle_unit, to_radians
 from ._textio import format_floats, read_text
 from .block import CALIBRATION_NAMES, Block
@@ -126,6 +127,7 @@ class _Table:
                 except ValueError:
                     raise FileFormatError(
                         f"{self.path}, line {self.lines[k]}: column {name!r}: {c!r} is not a number"
+                        + decimal_comma_hint(c)
                     ) from None
             raise  # pragma: no cover
         bad = ~np.isfinite(out) & ~empty
@@ -185,7 +187,13 @@ def _split_line(line: str, sep: str, path: Path, number: int) -> tuple[list[str]
     module (cells stripped), lines with quotes by :func:`_split_quoted`."""
     if '"' in line:
         return _split_quoted(line, sep, path, number)
-    row = next(csv.reader([line], delimiter=sep, skipinitialspace=True), [])
+    try:
+        row = next(csv.reader([line], delimiter=sep, skipinitialspace=True), [])
+    except csv.Error as exc:  # a field over the csv module's limit (128 KiB)
+        raise FileFormatError(
+            f"{path}, line {number}: cannot split the line into fields ({exc}); "
+            "a field of a block file is a name or a number: wrong file?"
+        ) from None
     return [c.strip() for c in row], set()
 
 
@@ -323,10 +331,12 @@ def _canonical_ints(cells: list[str]) -> np.ndarray | None:
 
 
 def _integer_cells(cells: list[str]) -> np.ndarray | None:
-    """The cells as int64 when each is in integer form (:data:`_INT`), else None."""
+    """The cells as int64 when each is in integer form (:data:`_INT`) and fits 64 bits,
+    else None."""
     ids = _canonical_ints(cells)
     if ids is None and all(_INT.fullmatch(c) for c in cells):  # "-0" is in integer form
-        ids = np.array([int(c) for c in cells], dtype=np.int64)
+        if np.all(_fits_int64(cells)):  # else an id beyond 64 bits: not an int64 column
+            ids = np.array([int(c) for c in cells], dtype=np.int64)
     return ids
 
 
@@ -348,15 +358,28 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     return ids
 
 
+def _fits_int64(cells: list[str]) -> np.ndarray:
+    """Which integer cells (``_INT`` form) fit 64 bits (long ones are never converted)."""
+    return np.array(
+        [len(c) <= 20 and -(2**63) <= int(c) < 2**63 for c in cells], dtype=bool
+    )
+
+
+def _short(text: str, n: int = 40) -> str:
+    return text if len(text) <= n else text[:n] + "..."
+
+
 def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what: str):
     """Read the referring ids ``cells`` as the kind of ``keys``; name unknown ones."""
     if keys.dtype.kind in "iu":
         ids = _integer_cells(cells)
-        if ids is None:
-            k = next(k for k, c in enumerate(cells) if not _INT.fullmatch(c))
+        if ids is None:  # not in integer form, or beyond 64 bits: not one of the ids
+            ok = np.array([bool(_INT.fullmatch(c)) for c in cells], dtype=bool)
+            ok[ok] = _fits_int64([c for c, g in zip(cells, ok) if g])
+            k = int(np.flatnonzero(~ok)[0])
             raise FileFormatError(
-                f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the "
-                f"{what} ids"
+                f"{table.path}, line {table.lines[k]}: {name} {_short(cells[k])!r} is not one "
+                f"of the {what} ids"
             )
     else:
         ids = np.array(cells, dtype=str)

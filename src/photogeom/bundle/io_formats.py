@@ -16,7 +16,7 @@ from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError, InputError, OutputError
 from .block import Block
 from .io_bal import bal_text, read_bal, write_bal
-from .io_colmap import colmap_texts, read_colmap, write_colmap
+from .io_colmap import BINARY_FILES, colmap_texts, is_binary_model, read_colmap, write_colmap
 from .io_csv import csv_block_texts, read_csv_block, write_csv_block
 
 #: Names of the block formats.
@@ -44,7 +44,8 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     ------
     OutputError
         A folder format onto an existing file (or under one), a BAL file onto a folder or
-        into a folder that does not exist.
+        into a folder that does not exist, a COLMAP text model into a folder holding a
+        COLMAP binary model (COLMAP would read the old binary files).
     """
     p = Path(path)
     k = _check(kind)
@@ -55,6 +56,14 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
                 f"{head}cannot write {p}: it is a file, not a folder; a {_NAMES[k]} is a "
                 "folder of files: give a folder path (new or existing)"
             )
+        if k == "colmap" and p.is_dir():
+            stale = [f for f in BINARY_FILES if (p / f).is_file()]
+            if stale:
+                raise OutputError(
+                    f"{head}cannot write a COLMAP text model into {p}: it holds a COLMAP "
+                    f"binary model ({', '.join(stale)}), which COLMAP reads instead of the "
+                    "text files; give another folder, or remove the .bin files first"
+                )
         up = p.parent
         while not up.exists() and up != up.parent:
             up = up.parent
@@ -157,8 +166,8 @@ def detect_format(path: str | os.PathLike) -> str:
     if p.is_file():
         return "bal"
     if p.is_dir():
-        if (p / "images.txt").is_file() or (p / "cameras.txt").is_file():
-            return "colmap"
+        if (p / "images.txt").is_file() or (p / "cameras.txt").is_file() or is_binary_model(p):
+            return "colmap"  # a binary model: read_colmap names the conversion
         if (p / "images.csv").is_file() or (p / "observations.csv").is_file():
             return "csv"
         raise FileFormatError(

@@ -439,6 +439,14 @@ class MetashapeCalibration:
                 values[tag] = (child.text or "").strip()
                 continue
             unknown.append(tag)
+        if "f" not in values and {"fx", "fy"} & set(unknown):
+            raise FileFormatError(
+                f"{source}: a calibration in the older Agisoft format of PhotoScan and "
+                "Agisoft Lens (<fx>, <fy>, <skew>, the principal point <cx>, <cy> as absolute "
+                "pixel coordinates), not Metashape's (<f>, <b1>, <b2>, <cx>, <cy> from the image "
+                "centre), which photogeom reads: import it into Metashape and export it "
+                "again (Camera Calibration dialog, Export)"
+            )
         if unknown:
             msg = (
                 f"{source}: unknown tag(s) {', '.join('<' + t + '>' for t in unknown)} "

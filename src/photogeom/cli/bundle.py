@@ -123,7 +123,8 @@ def _cli_words(fn):
 
 def detect_format(path: Path, given: BlockFormat | None, option: str = "--format") -> str:
     """The format of an existing block: ``given``, else by content (a file is BAL; a folder
-    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model)."""
+    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model, one
+    with COLMAP's binary model "colmap", whose reader names the conversion)."""
     if not path.exists():
         raise InputError(f"no file or folder {path}")
     if given is not None:
@@ -137,8 +138,12 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
         return "bal"
     if (path / "cameras.csv").is_file():
         return "csv"
+    from ..bundle.io_colmap import is_binary_model
+
     if (path / "cameras.txt").is_file() or (path / "images.txt").is_file():
         return "colmap"
+    if is_binary_model(path):
+        return "colmap"  # reading it names the conversion to the text model
     raise InputError(
         f"{path}: not a block folder (no cameras.csv of a CSV block, no cameras.txt of a "
         f"COLMAP text model); give the format with {option} csv|colmap|bal"

@@ -116,7 +116,11 @@ def transform(
         ),
     ] = None,
     scales: Annotated[
-        str | None, typer.Option(help="Output scales sx,sy,sz (default: the input's).")
+        str | None,
+        typer.Option(
+            help="Output scales sx,sy,sz (default: the input's, carried into the unit of "
+            "--to-crs when it changes: metres to degrees 0.01 -> 1e-7)."
+        ),
     ] = None,
     chunk_size: Annotated[
         int, typer.Option(help="Points per chunk (memory is proportional to it).")
@@ -195,7 +199,7 @@ def transform(
             bar.stop()
     say(
         f"wrote {res.point_count} points to {res.path} ({res.chunks} chunk(s), "
-        f"{res.passes} pass(es)); offsets {_fmt3(res.offsets)}; "
+        f"{res.passes} pass(es)); scales {_fmt3(res.scales)}; offsets {_fmt3(res.offsets)}; "
         f"CRS {res.crs_name or 'none'}",
         stderr=True,
     )

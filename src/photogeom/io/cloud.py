@@ -54,6 +54,9 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
     p = Path(path)
     if not p.is_file():
         raise InputError(f"point cloud {p} does not exist")
+    problem = _damaged_vlr_count(p)
+    if problem:
+        raise FileFormatError(problem)
     try:
         if single_thread:
             reader = laspy.open(p, laz_backend=laspy.LazBackend.Lazrs)
@@ -61,17 +64,43 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
             reader = laspy.open(p)
     except laspy.errors.LaspyException as exc:
         raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
-    except (OSError, ValueError, EOFError) as exc:  # a header cut short, lazrs errors
+    except (OSError, ValueError, EOFError, MemoryError) as exc:  # a header cut short or
+        # damaged (a VLR count or length of gigabytes), lazrs errors
         raise FileFormatError(
             f"{p}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc}); is it "
             "complete? (an interrupted copy or download: copy it again)"
         ) from None
+    version = reader.header.version
+    if version.major != 1 or version.minor > 5:
+        reader.close()
+        raise FileFormatError(
+            f"{p}: the header says LAS version {version.major}.{version.minor}; LAS versions "
+            "are 1.0 to 1.4: the header is damaged (copy the file again)"
+        )
     if check_size:
         problem = _truncation(p, reader.header)
         if problem:
             reader.close()
             raise FileFormatError(problem)
     return reader
+
+
+def _damaged_vlr_count(path: Path) -> str | None:
+    """Why the VLR count of the header cannot be right, or None: the VLRs (54 bytes each at
+    least) lie between the header and the point data. laspy would otherwise read a damaged
+    count of 2^31 VLRs one by one (minutes)."""
+    with open(path, "rb") as f:
+        raw = f.read(104)
+    if len(raw) < 104 or raw[:4] != b"LASF":
+        return None  # laspy reports it
+    header_size, start, n_vlrs = struct.unpack_from("<HII", raw, 94)
+    if n_vlrs * 54 > max(0, start - header_size):
+        return (
+            f"{path}: the header is damaged: it announces {n_vlrs} VLRs (54 bytes each at "
+            f"least) between its end at byte {header_size} and the point data at byte "
+            f"{start}; copy the file again"
+        )
+    return None
 
 
 def _truncation(path: Path, header) -> str | None:
@@ -113,7 +142,29 @@ def _truncation(path: Path, header) -> str | None:
             f"{path} is truncated: its LAZ chunk table should start at byte {table} but the "
             f"file has {size} bytes (header: {n} points); {fix}"
         )
+    held = _laz_chunk_points(path, header, start) if table > 0 else None
+    if held is not None and n > held:
+        return (
+            f"{path} is damaged: its header promises {n} points but its LAZ chunk table "
+            f"holds at most {held}; the header or the table is corrupt: copy the file again"
+        )
     return None
+
+
+def _laz_chunk_points(path: Path, header, start: int) -> int | None:
+    """The most points the chunk table of a LAZ file can hold (the sum of its chunks' point
+    counts: exact for variable chunks, chunks x chunk size for fixed ones), or None when
+    the table cannot be read (left to the reader to report)."""
+    try:
+        import lazrs
+
+        raw = next(v.record_data for v in header.vlrs if type(v).__name__ == "LasZipVlr")
+        with open(path, "rb") as f:
+            f.seek(start)
+            entries = lazrs.read_chunk_table(f, lazrs.LazVlr(bytes(raw)))
+        return int(sum(int(e[0]) for e in entries))
+    except Exception:  # no lazrs, no LASzip VLR, a table lazrs cannot read
+        return None
 
 
 def _read_error(reader, path, start: int, stop: int, exc: BaseException) -> FileFormatError:
@@ -478,14 +529,64 @@ class CloudTransformResult:
     passes: int
 
 
+#: Metres per radian of a geographic axis (the WGS 84 semi-major axis): carries a coordinate
+#: resolution between degrees and metres (1e-7 degree ~ 1.1 cm).
+_METRES_PER_RADIAN = 6_378_137.0
+
+
+def _metres_per_unit(crs) -> np.ndarray:
+    """Metres per unit of the x/easting/longitude, y and height axes of ``crs`` (NaN where
+    the CRS does not say: no height axis, an engineering CRS without units)."""
+    out = np.full(3, np.nan)
+    axes = list(getattr(crs, "axis_info", None) or [])
+    for k, a in enumerate(axes[:3]):
+        f = float(getattr(a, "unit_conversion_factor", np.nan) or np.nan)
+        angular = k < 2 and bool(getattr(crs, "is_geographic", False))
+        out[k] = f * _METRES_PER_RADIAN if angular else f
+    return out
+
+
+def unit_scales(scales, transform) -> np.ndarray:
+    """The scales of a transformed copy: ``scales`` where the axis unit stays, else the same
+    resolution in the target's unit, rounded to a power of ten.
+
+    Parameters
+    ----------
+    scales : array_like (3,)
+        The input file's scales (its coordinate resolution, in its CRS's units).
+    transform : transformation
+        A PROJ operation (with ``source_crs`` and ``target_crs``) changes units between
+        metres, feet and degrees; other transformations keep the scales.
+
+    Returns
+    -------
+    numpy.ndarray (3,)
+        E.g. ``(0.01, 0.01, 0.01)`` metres to EPSG:4979 -> ``(1e-07, 1e-07, 0.01)``
+        (1e-7 degree ~ 1.1 cm); from degrees to metres the reverse; 0.01 m to US survey
+        feet 0.01 ft. The power of ten is at most ~12 % coarser than the input's
+        resolution.
+    """
+    sc = np.array(scales, dtype=float)
+    src, dst = getattr(transform, "source_crs", None), getattr(transform, "target_crs", None)
+    if src is None or dst is None:
+        return sc
+    ratio = _metres_per_unit(src) / _metres_per_unit(dst)
+    change = np.isfinite(ratio) & (np.abs(np.log10(np.where(ratio > 0, ratio, 1.0))) > 1e-3)
+    # a power of ten at most ~12 % coarser than the input's resolution (0.0111 -> 0.01)
+    sc[change] = 10.0 ** np.floor(np.log10(sc[change] * ratio[change]) + 0.05)
+    return sc
+
+
 def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     """The header of a transformed copy: the source header (point format, version, VLRs,
-    extra dimensions, CRS record) with the given or kept scales, offsets recomputed from the
+    extra dimensions, CRS record) with the given or kept scales (carried into the target's
+    unit by :func:`unit_scales` when a PROJ operation changes it), offsets recomputed from the
     output bounds (``bounds`` = (lo, hi), else the transformed corners of the source box of
     an affine-like transformation), and ``crs`` (a pyproj-readable CRS) replacing the CRS
-    record when given."""
+    record when given (also a CRS record among the extended VLRs, EVLRs, is replaced: LAS 1.4
+    allows the WKT there)."""
     h = src_header.copy() if hasattr(src_header, "copy") else src_header
-    sc = np.array(h.scales if scales is None else scales, dtype=float)
+    sc = np.array(unit_scales(h.scales, transform) if scales is None else scales, dtype=float)
     if sc.shape != (3,) or not np.all(sc > 0):
         raise InputError(f"scales must be three positive numbers, got {scales}")
     if bounds is None:
@@ -498,8 +599,31 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     if crs is not None:
         from ..crs import parse_crs
 
-        h.add_crs(parse_crs(crs, what="crs"))
+        # the record replaced in the encoding the global-encoding WKT bit announces: a LAS
+        # 1.4 file that says "WKT" keeps WKT (laspy would write GeoTIFF keys for point
+        # formats 0-5 and leave the bit set: the spec's readers then find no CRS)
+        wkt = bool(getattr(h.global_encoding, "wkt", False)) and h.version.minor >= 4
+        h.add_crs(parse_crs(crs, what="crs"), keep_compatibility=not wkt)
+        evlrs = getattr(h, "evlrs", None)
+        if evlrs:
+            kept = type(evlrs)()
+            kept.extend(v for v in evlrs if type(v).__name__ not in _CRS_VLRS)
+            h.evlrs = kept
     return h
+
+
+#: How the writer treats header and VLR text that is not ASCII (the spec's character set,
+#: which real files do not always keep: a system identifier or a VLR description in UTF-8 or
+#: Latin-1): text read from the input is copied byte for byte, new text gets '?'.
+_COPY_TEXT = "replace"
+
+#: laspy's classes of the records that hold a CRS (WKT or GeoTIFF keys).
+_CRS_VLRS = (
+    "WktCoordinateSystemVlr",
+    "GeoKeyDirectoryVlr",
+    "GeoAsciiParamsVlr",
+    "GeoDoubleParamsVlr",
+)
 
 
 def _quantise(
@@ -559,7 +683,9 @@ def transform_cloud(
         Points per chunk; memory use is proportional to it (~100 bytes per point), not to
         the file.
     scales : sequence of 3 floats, optional
-        Output coordinate resolution; default: the input's.
+        Output coordinate resolution; default: the input's, carried into the target CRS's
+        unit when a PROJ operation changes it (metres to degrees: 0.01 -> 1e-7, ~1.1 cm;
+        :func:`unit_scales`), so that the resolution stays what it was.
     crs : str, optional
         CRS to record in the output (EPSG code, WKT, PROJ string); default: the
         transformation's ``target_crs`` if it has one, else the input's record unchanged.
@@ -573,7 +699,8 @@ def transform_cloud(
     Notes
     -----
     Kept: point format and LAS version, every dimension including extra bytes, all VLRs
-    and EVLRs the writer supports, the CRS record (unless replaced). Offsets are
+    and EVLRs (LAS 1.4 extended VLRs, written after the points), the CRS record (unless
+    replaced; also one among the EVLRs). Offsets are
     recomputed from the bounds of the output (the transformed corners of the input box for
     affine transformations; a first pass over the points for others), scales are kept, and
     coordinates are rounded to the scale like any LAS writer does.
@@ -620,7 +747,13 @@ def transform_cloud(
     with _atomic_target(dst) as tmp:
         with (
             _open_read(src) as reader,
-            laspy.open(tmp, mode="w", header=header, do_compress=compress) as writer,
+            laspy.open(
+                tmp,
+                mode="w",
+                header=header,
+                do_compress=compress,
+                encoding_errors=_COPY_TEXT,
+            ) as writer,
         ):
             for pts in _read_range(reader, src, 0, n, chunk_size):
                 _rewrite(pts, fn, sc, off)
@@ -629,6 +762,8 @@ def transform_cloud(
                 done += len(pts)
                 if progress is not None:
                     progress(done, n)
+            if header.evlrs:  # LAS 1.4 extended VLRs (e.g. the CRS WKT) follow the points
+                writer.write_evlrs(header.evlrs)
     info = cloud_info(dst)
     return CloudTransformResult(
         str(dst),
@@ -683,8 +818,11 @@ def write_cloud(
     ------
     InputError
         Points not (n, 3); a NaN or infinite coordinate (naming its row: LAS stores
-        integers); scales not three positive numbers; coordinates the scales (and offsets)
-        cannot store in 32-bit integers (pass larger ``scales=``). Nothing is written then.
+        integers); scales not three positive numbers; a point format that the LAS version
+        does not have; extra dimensions with names of more than 32 bytes or names of the
+        point format's own dimensions, or not one value per point; coordinates the scales
+        (and offsets) cannot store in 32-bit integers (pass larger ``scales=``). Nothing is
+        written then.
     """
     laspy = _laspy()
     xyz = np.asarray(xyz, dtype=float)
@@ -713,9 +851,39 @@ def write_cloud(
             raise InputError(f"offsets= must be three finite numbers, got {offsets!r}")
         fit = "pass larger scales (scales=) or offsets= nearer the points (or none)"
     ints = [_quantise(xyz[:, i], off[i], sc[i], a, "the", fit) for i, a in enumerate("xyz")]
-    header = laspy.LasHeader(point_format=point_format, version=version)
+    try:
+        header = laspy.LasHeader(point_format=point_format, version=version)
+    except (laspy.errors.LaspyException, ValueError, TypeError):
+        from laspy.point.dims import VERSION_TO_POINT_FMT
+
+        table = "; ".join(
+            f"{v}: {min(f)}-{max(f)}" for v, f in sorted(VERSION_TO_POINT_FMT.items())
+        )
+        raise InputError(
+            f"point_format={point_format!r} with version={version!r} is not a LAS point "
+            f"format of that version; point formats by version: {table} (e.g. "
+            "point_format=6, version='1.4', or point_format=3, version='1.2')"
+        ) from None
+    taken = {d.lower() for d in header.point_format.dimension_names}
     for name, values in (extra or {}).items():
-        header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=np.asarray(values).dtype))
+        if not isinstance(name, str) or not 0 < len(name.encode("utf-8")) <= 32:
+            raise InputError(
+                f"extra= names dimensions of 1 to 32 bytes (a LAS extra-bytes name); "
+                f"{str(name)[:40]!r} is not one"
+            )
+        if name.lower() in taken:
+            raise InputError(
+                f"extra={{{name!r}: ...}}: point format {point_format} already has a "
+                f"dimension {name!r}; give the extra dimension another name"
+            )
+        v = np.asarray(values)
+        if v.shape != (len(xyz),):
+            raise InputError(
+                f"extra={{{name!r}: ...}} has shape {v.shape}; it needs one value per point "
+                f"({len(xyz)},)"
+            )
+        taken.add(name.lower())
+        header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=v.dtype))
     header.scales = sc
     header.offsets = off
     if crs is not None:
@@ -792,6 +960,7 @@ def _write_piece(
             header=header,
             do_compress=compress,
             laz_backend=laspy.LazBackend.Lazrs if compress else None,
+            encoding_errors=_COPY_TEXT,
         ) as writer,
     ):
         for pts in _read_range(reader, src, start, stop, chunk_size):
@@ -845,8 +1014,9 @@ def _merge_pieces(parts: list[Path], out: Path, compress: bool) -> None:
         raw = bytearray(f0.read(start))
     minor = raw[25]
     rec_len = struct.unpack_from("<H", raw, 105)[0]
+    point_format = raw[104] & 0x3F  # LAZ sets bit 7 (and bit 6) of the point format byte
     if struct.unpack_from("<I", raw, 107)[0] or total == 0:
-        legacy = total if total <= 0xFFFFFFFF and raw[104] < 6 else 0
+        legacy = total if total <= 0xFFFFFFFF and point_format < 6 else 0
         struct.pack_into("<I", raw, 107, legacy)
         if legacy:
             struct.pack_into("<5I", raw, 111, *[int(v) for v in by_return[:5]])

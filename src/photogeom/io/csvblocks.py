@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError
-from ..numbers import is_decimal_number
+from ..numbers import decimal_comma_hint, is_decimal_number
 
 #: Bytes of text parsed at a time.
 BLOCK_BYTES = 8 << 20
@@ -403,6 +403,7 @@ class DelimitedText:
                     shown = "an empty field" if v == "" else repr(_shorten(v))
                     raise FileFormatError(
                         f"{self.label}, line {k}: column {c} holds {shown}, not a number"
+                        + decimal_comma_hint(v)
                     )
                 out_n[c].append(float(v))
         n = len(out_s[strings[0]]) if strings else len(out_n[numbers[0]]) if numbers else 0
@@ -506,6 +507,7 @@ class DelimitedText:
                 shown = "an empty field" if v == "" else repr(_shorten(v))
                 raise FileFormatError(
                     f"{self.label}, line {line}: column {name} holds {shown}, not a number"
+                    + decimal_comma_hint(v)
                 )
         raise FileFormatError(  # pragma: no cover - the loop finds the cell
             f"{self.label}: column {name} holds text that is not a number"

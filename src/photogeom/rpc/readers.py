@@ -30,7 +30,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..numbers import parse_decimal
+from ..numbers import decimal_comma_hint, parse_decimal
 from ..xmlsafe import parse_xml
 from . import polynomial as poly
 from .model import GDAL_COEFF_KEYS, GDAL_KEYS, RPC, DirectModel
@@ -106,6 +106,16 @@ def _numbers(value: object, key: str, where: str) -> list[float]:
     return out
 
 
+def _comma_hint(value: object) -> str:
+    """The decimal-comma hint when a value read as several numbers has one (``1234,5``)."""
+    if isinstance(value, str):
+        for tok in value.split():
+            hint = decimal_comma_hint(tok)
+            if hint:
+                return hint
+    return ""
+
+
 def _scalar(d: Mapping[str, object], key: str, where: str) -> float:
     if key not in d:
         raise FileFormatError(
@@ -117,7 +127,9 @@ def _scalar(d: Mapping[str, object], key: str, where: str) -> float:
     if not vals:
         raise FileFormatError(f"{where}: key {key} has no value")
     if len(vals) != 1:
-        raise FileFormatError(f"{where}: key {key} holds {len(vals)} values, expected one")
+        raise FileFormatError(
+            f"{where}: key {key} holds {len(vals)} values, expected one{_comma_hint(d[key])}"
+        )
     return vals[0]
 
 
@@ -132,7 +144,7 @@ def _vector(d: Mapping[str, object], key: str, where: str, required: bool = True
         if len(vals) != poly.N_TERMS:
             raise FileFormatError(
                 f"{where}: {key} has {len(vals)} coefficient(s), an RPC00B polynomial has "
-                f"exactly {poly.N_TERMS}"
+                f"exactly {poly.N_TERMS}{_comma_hint(d[key])}"
             )
         return vals
     numbered: dict[int, str] = {}
@@ -180,7 +192,10 @@ def _vector(d: Mapping[str, object], key: str, where: str, required: bool = True
         vals = _numbers(d[numbered[i]], numbered[i], where)
         if len(vals) != 1:
             what = "no value" if not vals else f"{len(vals)} values"
-            raise FileFormatError(f"{where}: key {numbered[i]} has {what}, expected one number")
+            raise FileFormatError(
+                f"{where}: key {numbered[i]} has {what}, expected one number"
+                f"{_comma_hint(d[numbered[i]])}"
+            )
         out.append(vals[0])
     return out
 
