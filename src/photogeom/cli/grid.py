@@ -9,6 +9,7 @@ of images into another folder (in parallel, optionally on a Dask cluster).
 from __future__ import annotations
 
 import csv
+import operator
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -47,15 +48,148 @@ class Interp(str, Enum):
     bicubic = "bicubic"
 
 
-def _read_csv(
-    path: Path, need: tuple[str, ...], comments: list[str] | None = None
-) -> tuple[list[str], list[list[str]], dict, list[int]]:
-    """Header, rows, the column index of each needed column (case-insensitive) and the file
-    line on which each row starts (blank lines skipped, quoted line breaks counted).
+#: Columns of at least this many cells are converted to numbers by pyarrow (fewer: by
+#: :func:`float`, without importing pyarrow, which takes longer than converting them).
+ARROW_CELLS = 20_000
 
-    Lines that begin with ``#`` are comments, as in every point file of photogeom (the
-    observations.csv of a block folder starts with one); their text is appended to
-    ``comments`` when a list is given."""
+
+class _Cells:
+    """The cells of a CSV file: header, field count and file line of each body row, and the
+    body's columns (built once every row has the header's field count)."""
+
+    def __init__(
+        self,
+        header: list[str],
+        widths: np.ndarray,
+        lines: np.ndarray,
+        rows: list[list[str]] | None = None,
+        fast: tuple | None = None,
+    ) -> None:
+        self.header = header
+        #: fields of each body row (numpy int array)
+        self.widths = widths
+        #: file line on which each body row starts (numpy int array)
+        self.lines = lines
+        self._rows = rows  # the body as rows of cells (the line-wise reader)
+        self._fast = fast  # the body as (lines without quotes, their rows, other rows)
+
+    def columns(self) -> list[list[str]]:
+        """The cells of each header field, one list per column (every row must have them
+        all; called once: the lines are let go)."""
+        width = len(self.header)
+        if self._rows is not None:
+            if not self._rows:
+                return [[] for _ in range(width)]
+            return [list(c) for c in zip(*self._rows, strict=True)]
+        plain, plain_rows, quoted, quoted_rows = self._fast
+        self._fast = None  # the lines are let go once split
+        # the lines without quotes: one split of their joined text, linear in the file size
+        pieces = ",".join(plain).split(",") if plain else []
+        del plain
+        if not quoted:
+            return [pieces[j::width] for j in range(width)]
+        if not pieces:
+            return [list(c) for c in zip(*quoted, strict=True)]
+        out = []
+        for j, cells in enumerate(zip(*quoted, strict=True)):
+            column = np.empty(self.lines.size, dtype=object)
+            column[plain_rows] = pieces[j::width]
+            column[quoted_rows] = cells
+            out.append(column.tolist())
+        return out
+
+
+def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
+    """The rows of a CSV file as Python's csv module reads them (``#`` lines taken out
+    before it, blank rows skipped), split column-wise.
+
+    Lines without a quote are split at their commas all at once; lines with one are read by
+    the csv module one by one. A file the csv module must read as a stream (a quoted cell
+    across lines, text after a closing quote, a field over its size limit, text that is not
+    UTF-8) is read by :func:`_read_rows_linewise`, with the same rules and messages.
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        return _read_rows_linewise(path, comments)
+    if "\r" in text:  # the line ends of a file read with newline="": \n, \r\n and \r
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    any_quote = '"' in text
+    all_lines = text.split("\n")
+    del text
+    stripped = list(map(str.strip, all_lines))
+    # the first character of each stripped line: blank lines, comments ("#") and lines whose
+    # cells may all be blank (a line without quotes that has them starts with a comma)
+    first = np.empty(len(stripped), dtype=object)
+    first[:] = list(map(operator.itemgetter(slice(0, 1)), stripped))
+    blank, hashed, comma_first = first == "", first == "#", first == ","
+    del first
+    found = [stripped[k][1:].strip() for k in np.flatnonzero(hashed).tolist()]
+    del stripped
+    keep = np.flatnonzero(~(blank | hashed))
+    data = [all_lines[k] for k in keep.tolist()]
+    del all_lines
+    n = len(data)
+    if n and max(map(len, data)) >= csv.field_size_limit():
+        return _read_rows_linewise(path, comments)
+    if any_quote:
+        has_quote = np.fromiter(
+            map(operator.methodcaller("__contains__", '"'), data), dtype=bool, count=n
+        )
+    else:
+        has_quote = np.zeros(n, dtype=bool)
+    quoted_at = np.flatnonzero(has_quote)
+    quoted = []
+    if quoted_at.size:
+        try:  # strict: a quote left open or text after a closing one is read line-wise
+            quoted = list(csv.reader([data[k] for k in quoted_at.tolist()], strict=True))
+        except csv.Error:
+            return _read_rows_linewise(path, comments)
+        if len(quoted) != quoted_at.size:  # a quoted cell spans lines
+            return _read_rows_linewise(path, comments)
+    widths = (
+        np.fromiter(map(operator.methodcaller("count", ","), data), dtype=np.int64, count=n) + 1
+    )
+    widths[quoted_at] = np.fromiter(map(len, quoted), dtype=np.int64, count=len(quoted))
+    # rows whose cells are all blank are skipped, as blank lines are
+    empty = np.zeros(n, dtype=bool)
+    maybe = np.flatnonzero(comma_first[keep] & ~has_quote)
+    empty[maybe] = [not data[k].replace(",", "").strip() for k in maybe.tolist()]
+    empty[quoted_at] = [not "".join(r).strip() for r in quoted]
+    rows = np.flatnonzero(~empty)
+    if comments is not None:
+        comments.extend(found)
+    if not rows.size:
+        raise FileFormatError(f"{path}: empty file")
+    top = int(rows[0])
+    if has_quote[top]:
+        header = quoted[int(np.searchsorted(quoted_at, top))]
+    else:
+        header = data[top].split(",")
+    body = rows[1:]
+    plain_at = body[~has_quote[body]]
+    quoted_body = body[has_quote[body]]
+    plain = [data[k] for k in plain_at.tolist()]
+    quoted_rows = [quoted[k] for k in np.searchsorted(quoted_at, quoted_body).tolist()]
+    return _Cells(
+        [c.strip() for c in header],
+        widths[body],
+        keep[body] + 1,
+        fast=(
+            plain,
+            np.searchsorted(body, plain_at),
+            quoted_rows,
+            np.searchsorted(body, quoted_body),
+        ),
+    )
+
+
+def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
+    """:func:`_read_cells` for the files it does not split itself: the csv module over the
+    whole file, line by line (quoted line breaks counted in the line numbers)."""
     rows, lines = [], []
     physical: list[int] = []  # file line of each line handed to the csv reader
 
@@ -83,7 +217,28 @@ def _read_csv(
         raise FileFormatError(f"{path}: not a UTF-8 CSV file ({exc})") from None
     if not rows:
         raise FileFormatError(f"{path}: empty file")
-    header = [c.strip() for c in rows[0]]
+    body = rows[1:]
+    return _Cells(
+        [c.strip() for c in rows[0]],
+        np.fromiter(map(len, body), dtype=np.int64, count=len(body)),
+        np.asarray(lines[1:], dtype=np.int64),
+        rows=body,
+    )
+
+
+def _read_csv(
+    path: Path, need: tuple[str, ...], comments: list[str] | None = None
+) -> tuple[list[str], list, dict, np.ndarray]:
+    """Header, columns (one object array of str per header field), the column index of each
+    needed column (case-insensitive) and the file line on which each row starts (blank lines
+    skipped, quoted line breaks counted).
+
+    Lines that begin with ``#`` are comments, as in every point file of photogeom (the
+    observations.csv of a block folder starts with one); their text is appended to
+    ``comments`` when a list is given. Reading is linear in the file size: see
+    :func:`_read_cells`."""
+    cells = _read_cells(path, comments)
+    header = cells.header
     low = [c.lower() for c in header]
     col = {}
     for name in need:
@@ -95,37 +250,72 @@ def _read_csv(
                 f"the file needs {', '.join(need)}"
             )
         col[name] = hit
-    body, lines = rows[1:], lines[1:]
-    bad = [k for k, r in enumerate(body) if len(r) != len(header)]
-    if bad:
+    bad = np.flatnonzero(cells.widths != len(header))
+    if bad.size:
+        k = int(bad[0])
         raise FileFormatError(
-            f"{path}: line {lines[bad[0]]} has {len(body[bad[0]])} fields, the header {len(header)}"
+            f"{path}: line {cells.lines[k]} has {cells.widths[k]} fields, the header {len(header)}"
         )
-    return header, body, col, lines
+    return header, cells.columns(), col, cells.lines
 
 
-def _numbers(path: Path, body, idx: int, name: str, lines: list[int]) -> np.ndarray:
-    """Column ``idx`` as finite numbers; a FileFormatError names the file line of the first
-    cell that is not one (NaN and infinities included)."""
+def _numbers(path: Path, cells, name: str, lines: np.ndarray) -> np.ndarray:
+    """The cells of one column as finite numbers; a FileFormatError names the file line of
+    the first cell that is not one (NaN and infinities included)."""
+    values = _arrow_floats(cells) if len(cells) >= ARROW_CELLS else None
+    if values is not None:
+        return values
     try:
-        values = np.array([float(r[idx]) for r in body])
+        values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
     except ValueError:
-        for k, r in enumerate(body):
+        for k, c in enumerate(cells):
             try:
-                float(r[idx])
+                float(c)
             except ValueError:
                 raise FileFormatError(
-                    f"{path}: line {lines[k]}, column {name}: not a number ({r[idx]!r})"
+                    f"{path}: line {lines[k]}, column {name}: not a number ({c!r})"
                 ) from None
         raise  # pragma: no cover
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         k = int(bad[0])
         raise FileFormatError(
-            f"{path}: line {lines[k]}, column {name}: {body[k][idx]!r} is not a finite number "
+            f"{path}: line {lines[k]}, column {name}: {cells[k]!r} is not a finite number "
             f"({bad.size} row(s) in all); remove those rows or give their values"
         )
     return values
+
+
+def _arrow_floats(cells: list[str]) -> np.ndarray | None:
+    """The cells as float64 by pyarrow's conversion (compiled, correctly rounded, as
+    :func:`float`), or None unless it reads every cell as a finite number.
+
+    pyarrow reads a subset of what :func:`float` reads (no ``_``, no non-ASCII digits, blanks
+    only at the ends trimmed here) and, of finite numbers, the same values; it also reads
+    ``nan(...)``, which :func:`float` refuses: a column with a NaN or an infinity is left to
+    :func:`float`, whose messages name the cell."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    try:
+        text = pc.utf8_trim(pa.array(cells, type=pa.string()), " \t")
+        values = pc.cast(text, pa.float64()).to_numpy(zero_copy_only=False)
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError):
+        return None
+    return values if np.isfinite(values).all() else None
+
+
+def _groups(ids: list[str]) -> dict:
+    """Row indices of each image id (numpy int arrays): ids in the order of their first row,
+    rows in file order (a stable sort of the ids' codes, linear in the rows)."""
+    if not ids:
+        return {}
+    order = list(dict.fromkeys(ids))
+    code = dict(zip(order, range(len(order)), strict=True))
+    inverse = np.fromiter(map(code.__getitem__, ids), dtype=np.intp, count=len(ids))
+    rows = np.argsort(inverse, kind="stable")
+    cuts = np.cumsum(np.bincount(inverse, minlength=len(order)))[:-1]
+    return dict(zip(order, np.split(rows, cuts), strict=True))
 
 
 def _image_size(text: str) -> tuple[int, int]:
@@ -210,24 +400,18 @@ def fit(
             raise InputError(
                 f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
             ) from None
-    _h, body, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
-    if not body:
+    _h, columns, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
+    if not lines.size:
         raise FileFormatError(
             f"no residuals in {residuals}: the file has a header and no rows; it needs one "
             "row per observation (image_id, u, v, rx, ry)"
         )
-    ids = np.array([r[col["image_id"]].strip() for r in body], dtype=object)
+    ids = list(map(str.strip, columns[col["image_id"]]))
     data = np.stack(
-        [_numbers(residuals, body, col[c], c, lines) for c in ("u", "v", "rx", "ry")], axis=1
+        [_numbers(residuals, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
+        axis=1,
     )
-    per_image = {}
-    order = list(dict.fromkeys(ids.tolist()))
-    groups = {k: [] for k in order}
-    for i, k in enumerate(ids.tolist()):
-        groups[k].append(i)
-    for k in order:
-        rows = np.asarray(groups[k])
-        per_image[k] = (data[rows, :2], data[rows, 2:])
+    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
     try:
         grids = fit_grids(
             per_image,
@@ -383,32 +567,32 @@ def apply(
 
     grids = load_grids(grids_file)
     comments: list[str] = []
-    header, body, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
-    ids = [r[col["image_id"]].strip() for r in body]
-    uv = np.stack([_numbers(observations, body, col[c], c, lines) for c in ("u", "v")], axis=1)
-    per_image: dict = {}
-    for i, k in enumerate(ids):
-        per_image.setdefault(k, []).append(i)
+    header, columns, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
+    ids = list(map(str.strip, columns[col["image_id"]]))
+    uv = np.stack([_numbers(observations, columns[col[c]], c, lines) for c in ("u", "v")], axis=1)
+    per_image = _groups(ids)
     key_of, missing = match_grid_ids(per_image, grids)  # CSV text against integer ids too
     if missing:
         raise InputError(
             f"{observations}: no grid in {grids_file} for image(s) {', '.join(missing[:10])}"
         )
     corrected = correct_observations(
-        {k: uv[np.asarray(r)] for k, r in per_image.items()},
+        {k: uv[r] for k, r in per_image.items()},
         {k: grids[key_of[k]] for k in per_image},
     )
     new = uv.copy()
     for k, r in per_image.items():
-        new[np.asarray(r)] = corrected[k]
-    lines = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
-    lines.append(",".join(_csv_cell(c) for c in header))
-    for i, r in enumerate(body):
-        r = list(r)
-        r[col["u"]] = repr(float(new[i, 0]))
-        r[col["v"]] = repr(float(new[i, 1]))
-        lines.append(",".join(_csv_cell(c) for c in r))
-    emit_points("\n".join(lines) + "\n", output, len(body))
+        new[r] = corrected[k]
+    # the cells as read, u and v replaced; each column formatted at once, rows joined
+    for j in range(len(columns)):
+        columns[j] = _csv_column(columns[j])
+    columns[col["u"]] = list(map(repr, new[:, 0].tolist()))
+    columns[col["v"]] = list(map(repr, new[:, 1].tolist()))
+    out = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
+    out.append(",".join(_csv_cell(c) for c in header))
+    out.extend(map(",".join, zip(*columns, strict=True)))
+    del columns
+    emit_points("\n".join(out) + "\n", output, int(lines.size))
 
 
 def _csv_cell(text: str) -> str:
@@ -418,6 +602,15 @@ def _csv_cell(text: str) -> str:
     if any(ch in text for ch in ',"\r\n') or text.lstrip().startswith("#"):
         return '"' + text.replace('"', '""') + '"'
     return text
+
+
+def _csv_column(cells) -> list[str]:
+    """The cells of one column formatted by :func:`_csv_cell`; a column without a character
+    that needs quotes (one search of its joined text) is returned as it is."""
+    joined = "".join(cells)
+    if not any(ch in joined for ch in ',"\r\n#'):
+        return cells
+    return list(map(_csv_cell, cells))
 
 
 @app.command("correct-images")
