@@ -305,6 +305,43 @@ def _arrow_floats(cells: list[str]) -> np.ndarray | None:
     return values if np.isfinite(values).all() else None
 
 
+def _refuse_outside(
+    path: Path,
+    ids: list[str],
+    uv: np.ndarray,
+    lines: np.ndarray,
+    width: np.ndarray,
+    height: np.ndarray,
+    fix: str,
+) -> None:
+    """Refuse rows whose ``u, v`` (px) lie outside their image, ``[-0.5, width - 0.5] x
+    [-0.5, height - 0.5]`` (the area of a grid), naming the file line of the first; the
+    library names a row counted within one image, which the file does not show.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file (for the message).
+    ids, uv, lines : list of str, numpy.ndarray (n, 2), numpy.ndarray (n,)
+        Image id, pixel coordinates and file line of each row.
+    width, height : numpy.ndarray (n,)
+        Size in pixels of each row's image.
+    fix : str
+        What to do, in the words of the command.
+    """
+    out = (
+        (uv[:, 0] < -0.5) | (uv[:, 0] > width - 0.5) | (uv[:, 1] < -0.5) | (uv[:, 1] > height - 0.5)
+    )
+    if not out.any():
+        return
+    k = int(np.flatnonzero(out)[0])
+    raise InputError(
+        f"{path}: line {lines[k]}, image {ids[k]}: u, v = ({uv[k, 0]:g}, {uv[k, 1]:g}) px "
+        f"lie outside the {width[k]:.0f} x {height[k]:.0f} px image ({int(out.sum())} row(s) "
+        f"in all); {fix}"
+    )
+
+
 def _groups(ids: list[str]) -> dict:
     """Row indices of each image id (numpy int arrays): ids in the order of their first row,
     rows in file order (a stable sort of the ids' codes, linear in the rows)."""
@@ -383,7 +420,7 @@ def fit(
     # threads only wait on each other (12 images of 42 Mpx at 100 px: 10.4 s with, 3.0 s
     # without them on 2 cores)
     single_threaded_blas()
-    from ..calibration import fit_grids, save_grids
+    from ..calibration import GridLayout, fit_grids, save_grids
 
     size = _image_size(image_size)
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
@@ -411,6 +448,14 @@ def fit(
         [_numbers(residuals, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
         axis=1,
     )
+    try:  # the image size and the spacing are refused first, as fit_grids does
+        GridLayout(size[0], size[1], spacing)
+    except PhotogeomError as exc:
+        raise _reworded(exc, _cli_words) from None
+    _refuse_outside(
+        residuals, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
+        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
+    )  # fmt: skip
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
     try:
         grids = fit_grids(
@@ -576,6 +621,14 @@ def apply(
         raise InputError(
             f"{observations}: no grid in {grids_file} for image(s) {', '.join(missing[:10])}"
         )
+    width, height = np.empty(len(ids)), np.empty(len(ids))
+    for k, r in per_image.items():  # per image, not per point
+        layout = grids[key_of[k]].layout
+        width[r], height[r] = layout.width, layout.height
+    _refuse_outside(
+        observations, ids, uv, lines, width, height,
+        f"a grid of {grids_file} covers its image only: remove those rows",
+    )  # fmt: skip
     corrected = correct_observations(
         {k: uv[r] for k, r in per_image.items()},
         {k: grids[key_of[k]] for k in per_image},
