@@ -17,6 +17,7 @@ import pytest
 from photogeom.calibration import correct_observations, fit_grids, load_grids, save_grids
 from photogeom.cli import grid as gridcli
 from photogeom.errors import FileFormatError, PhotogeomError
+from photogeom.numbers import is_decimal_number
 
 # --- the replaced reader (photogeom 2026-11-24, cli/grid.py), the reference -----------------
 
@@ -90,6 +91,17 @@ def _old_numbers(path, body, idx, name, lines):
             f"({bad.size} row(s) in all); remove those rows or give their values"
         )
     return values
+
+
+def _expected_numbers(path, body, idx, name, lines):
+    """:func:`_old_numbers` with the decimal-number rule of every reader of photogeom (a
+    later fix: ``1_0`` and non-ASCII digits are not numbers)."""
+    for k, r in enumerate(body):
+        if not is_decimal_number(r[idx]):
+            raise FileFormatError(
+                f"{path}: line {lines[k]}, column {name}: not a number ({r[idx]!r})"
+            )
+    return _old_numbers(path, body, idx, name, lines)
 
 
 def _old_cell(text):
@@ -190,7 +202,7 @@ def _outcome(path, need, reader):
     for name in need[1:]:
         try:
             if reader == "old":
-                values = _old_numbers(path, body, col[name], name, lines)
+                values = _expected_numbers(path, body, col[name], name, lines)
             else:
                 values = gridcli._numbers(path, columns[col[name]], name, np.asarray(lines))
             numbers.append(values.tolist())

@@ -261,21 +261,27 @@ def _read_csv(
 
 def _numbers(path: Path, cells, name: str, lines: np.ndarray) -> np.ndarray:
     """The cells of one column as finite numbers; a FileFormatError names the file line of
-    the first cell that is not one (NaN and infinities included)."""
+    the first cell that is not one (NaN and infinities included).
+
+    A number is a decimal number (:func:`photogeom.numbers.is_decimal_number`, the rule of
+    every reader of photogeom): :func:`float`'s ``3_500.5`` and non-ASCII digits are not."""
+    from ..numbers import is_decimal_number
+
     values = _arrow_floats(cells) if len(cells) >= ARROW_CELLS else None
     if values is not None:
         return values
+    joined = "".join(cells)  # "_" or a non-ASCII character: a cell to look at one by one
     try:
+        if "_" in joined or not joined.isascii():
+            raise ValueError
         values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
     except ValueError:
         for k, c in enumerate(cells):
-            try:
-                float(c)
-            except ValueError:
+            if not is_decimal_number(c):
                 raise FileFormatError(
                     f"{path}: line {lines[k]}, column {name}: not a number ({c!r})"
                 ) from None
-        raise  # pragma: no cover
+        values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         k = int(bad[0])
