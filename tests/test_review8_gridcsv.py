@@ -150,7 +150,8 @@ HEADERS = [
 ]
 ODD_LINES = ['"open', '"a"b,1,2,3,4', 'x,"multi\nline",1,2,3', '#c, inside', "   ", ",,,,",
              " , ,", '""', '"",""', "a,b", "a,1,2,3,4,5,6", '"unclosed,1,2,3,4', 'a"b,1,2,3,4',
-             "\x0c", "  # indented comment"]  # fmt: skip
+             "\x0c", "  # indented comment", '"  ,  "', '" ",""', '"a",b"', 'x,"y"z', '"",',
+             ' "a",b', '"IMG_1","1","2","3","4"', '"",,,,', '"#a",1,2,3,4']  # fmt: skip
 
 
 def _random_file(rng: random.Random, odd: float) -> bytes:
@@ -303,3 +304,23 @@ def test_grid_apply_of_a_header_only_file(cli, tmp_path):
     code, text, err = cli("grid", "apply", tmp_path / "g.npz", obs)
     assert code == 0, err
     assert text == _old_apply_text(obs, {}) == "# c\nimage_id,u,v,p\n"
+
+
+def test_cells_in_quotes_are_split_with_the_others(tmp_path, monkeypatch):
+    """Cells that are one quoted text each are unwrapped in place, without the csv module
+    (which reads only the lines with a quote inside a cell or around a comma)."""
+
+    class NoReader:
+        Error = csv.Error
+        field_size_limit = staticmethod(csv.field_size_limit)
+
+        @staticmethod
+        def reader(*_a, **_k):
+            raise AssertionError("csv module used")
+
+    path = tmp_path / "obs.csv"
+    path.write_text('"image_id","u","v"\n"A","1",2\n"",""," "\n"B ",3,"4"\n')
+    monkeypatch.setattr(gridcli, "csv", NoReader)
+    header, columns, _, lines = gridcli._read_csv(path, ("image_id", "u", "v"))
+    assert header == ["image_id", "u", "v"] and lines.tolist() == [2, 4]
+    assert columns == [["A", "B "], ["1", "3"], ["2", "4"]]

@@ -63,7 +63,7 @@ class _Cells:
         widths: np.ndarray,
         lines: np.ndarray,
         rows: list[list[str]] | None = None,
-        fast: tuple | None = None,
+        split: tuple | None = None,
     ) -> None:
         self.header = header
         #: fields of each body row (numpy int array)
@@ -71,30 +71,40 @@ class _Cells:
         #: file line on which each body row starts (numpy int array)
         self.lines = lines
         self._rows = rows  # the body as rows of cells (the line-wise reader)
-        self._fast = fast  # the body as (lines without quotes, their rows, other rows)
+        # the body as (cells of all lines split at once, index of each body row's first
+        # cell there or -1, {body row: its cells} of the rows read by the csv module)
+        self._split = split
 
     def columns(self) -> list[list[str]]:
         """The cells of each header field, one list per column (every row must have them
-        all; called once: the lines are let go)."""
+        all; called once: the cells are let go)."""
         width = len(self.header)
         if self._rows is not None:
             if not self._rows:
                 return [[] for _ in range(width)]
             return [list(c) for c in zip(*self._rows, strict=True)]
-        plain, plain_rows, quoted, quoted_rows = self._fast
-        self._fast = None  # the lines are let go once split
-        # the lines without quotes: one split of their joined text, linear in the file size
-        pieces = ",".join(plain).split(",") if plain else []
-        del plain
-        if not quoted:
-            return [pieces[j::width] for j in range(width)]
-        if not pieces:
-            return [list(c) for c in zip(*quoted, strict=True)]
+        pieces, first, others = self._split
+        self._split = None
+        if isinstance(pieces, list):  # no quotes: the rows are slices of the cells
+            if not first.size:
+                return [[] for _ in range(width)]
+            lo, hi = int(first[0]), int(first[-1]) + width
+            if hi - lo == width * first.size:  # no blank row among them: one block
+                block = pieces[lo:hi]
+                del pieces
+                return [block[j::width] for j in range(width)]
+            pieces = np.array(pieces, dtype=object)
+        split = np.flatnonzero(first >= 0)
+        table = pieces[first[split][:, None] + np.arange(width)]  # one gather: (rows, width)
+        del pieces
+        if not others:
+            return [table[:, j].tolist() for j in range(width)]
         out = []
-        for j, cells in enumerate(zip(*quoted, strict=True)):
+        rows = np.fromiter(others, dtype=np.intp, count=len(others))
+        for j, cells in enumerate(zip(*others.values(), strict=True)):
             column = np.empty(self.lines.size, dtype=object)
-            column[plain_rows] = pieces[j::width]
-            column[quoted_rows] = cells
+            column[split] = table[:, j]
+            column[rows] = cells
             out.append(column.tolist())
         return out
 
@@ -103,10 +113,11 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     """The rows of a CSV file as Python's csv module reads them (``#`` lines taken out
     before it, blank rows skipped), split column-wise.
 
-    Lines without a quote are split at their commas all at once; lines with one are read by
-    the csv module one by one. A file the csv module must read as a stream (a quoted cell
-    across lines, text after a closing quote, a field over its size limit, text that is not
-    UTF-8) is read by :func:`_read_rows_linewise`, with the same rules and messages.
+    All lines are split at their commas at once; a line with a quote that is not around a
+    whole cell (``"a,b"``, ``"a""b"``, ``x"y``) is read by the csv module on its own. A file
+    the csv module must read as a stream (a quoted cell across lines, text after a closing
+    quote, a field over its size limit, text that is not UTF-8) is read by
+    :func:`_read_rows_linewise`, with the same rules and messages.
     """
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
@@ -121,11 +132,9 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     all_lines = text.split("\n")
     del text
     stripped = list(map(str.strip, all_lines))
-    # the first character of each stripped line: blank lines, comments ("#") and lines whose
-    # cells may all be blank (a line without quotes that has them starts with a comma)
-    first = np.empty(len(stripped), dtype=object)
+    first = np.empty(len(stripped), dtype=object)  # first character: blank lines, comments
     first[:] = list(map(operator.itemgetter(slice(0, 1)), stripped))
-    blank, hashed, comma_first = first == "", first == "#", first == ","
+    blank, hashed = first == "", first == "#"
     del first
     found = [stripped[k][1:].strip() for k in np.flatnonzero(hashed).tolist()]
     del stripped
@@ -135,55 +144,64 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     n = len(data)
     if n and max(map(len, data)) >= csv.field_size_limit():
         return _read_rows_linewise(path, comments)
+    widths = np.fromiter(map(operator.methodcaller("count", ","), data), dtype=np.int64, count=n)
+    widths += 1
+    starts = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(widths, out=starts[1:])
+    pieces: list | np.ndarray = ",".join(data).split(",")  # every line at once: linear
+    others: dict[int, list[str]] = {}  # lines read by the csv module, by data line
     if any_quote:
-        has_quote = np.fromiter(
-            map(operator.methodcaller("__contains__", '"'), data), dtype=bool, count=n
+        pieces = np.array(pieces, dtype=object)
+        quotes = np.fromiter(
+            map(operator.methodcaller("count", '"'), pieces), dtype=np.int64, count=pieces.size
         )
-    else:
-        has_quote = np.zeros(n, dtype=bool)
-    quoted_at = np.flatnonzero(has_quote)
-    quoted = []
-    if quoted_at.size:
-        try:  # strict: a quote left open or text after a closing one is read line-wise
-            quoted = list(csv.reader([data[k] for k in quoted_at.tolist()], strict=True))
-        except csv.Error:
-            return _read_rows_linewise(path, comments)
-        if len(quoted) != quoted_at.size:  # a quoted cell spans lines
-            return _read_rows_linewise(path, comments)
-    widths = (
-        np.fromiter(map(operator.methodcaller("count", ","), data), dtype=np.int64, count=n) + 1
-    )
-    widths[quoted_at] = np.fromiter(map(len, quoted), dtype=np.int64, count=len(quoted))
-    # rows whose cells are all blank are skipped, as blank lines are
+        # a whole quoted cell: a quote at either end and none inside (its text between them)
+        two = np.flatnonzero(quotes == 2)
+        inner = np.empty(two.size, dtype=object)
+        inner[:] = list(map(operator.itemgetter(slice(1, -1)), pieces[two]))
+        whole = np.fromiter(
+            map(operator.methodcaller("count", '"'), inner), dtype=np.int64, count=two.size
+        )
+        pieces[two[whole == 0]] = inner[whole == 0]
+        simple = quotes == 0
+        simple[two[whole == 0]] = True
+        other = np.flatnonzero(~np.logical_and.reduceat(simple, starts[:-1]))
+        if other.size:
+            try:  # strict: a quote left open or text after a closing one is read line-wise
+                parsed = list(csv.reader([data[k] for k in other.tolist()], strict=True))
+            except csv.Error:
+                return _read_rows_linewise(path, comments)
+            if len(parsed) != other.size:  # a quoted cell spans lines
+                return _read_rows_linewise(path, comments)
+            others = dict(zip(other.tolist(), parsed, strict=True))
+            widths[other] = np.fromiter(map(len, parsed), dtype=np.int64, count=other.size)
+    del data
+    # rows whose cells are all blank are skipped, as blank lines are: only a row whose first
+    # cell is blank (or that the csv module read) is looked at
+    firsts = map(pieces.__getitem__, starts[:-1].tolist())
+    first_blank = np.fromiter(map(operator.not_, map(str.strip, firsts)), dtype=bool, count=n)
+    is_other = np.zeros(n, dtype=bool)
+    is_other[list(others)] = True
     empty = np.zeros(n, dtype=bool)
-    maybe = np.flatnonzero(comma_first[keep] & ~has_quote)
-    empty[maybe] = [not data[k].replace(",", "").strip() for k in maybe.tolist()]
-    empty[quoted_at] = [not "".join(r).strip() for r in quoted]
+    for k in np.flatnonzero(first_blank | is_other).tolist():
+        cells = others[k] if k in others else pieces[starts[k] : starts[k + 1]]
+        empty[k] = not "".join(list(cells)).strip()
     rows = np.flatnonzero(~empty)
     if comments is not None:
         comments.extend(found)
     if not rows.size:
         raise FileFormatError(f"{path}: empty file")
     top = int(rows[0])
-    if has_quote[top]:
-        header = quoted[int(np.searchsorted(quoted_at, top))]
-    else:
-        header = data[top].split(",")
+    header = others[top] if top in others else list(pieces[starts[top] : starts[top + 1]])
     body = rows[1:]
-    plain_at = body[~has_quote[body]]
-    quoted_body = body[has_quote[body]]
-    plain = [data[k] for k in plain_at.tolist()]
-    quoted_rows = [quoted[k] for k in np.searchsorted(quoted_at, quoted_body).tolist()]
+    first_cell = starts[body]
+    in_body = np.flatnonzero(is_other[body])  # body rows read by the csv module
+    first_cell[in_body] = -1
     return _Cells(
         [c.strip() for c in header],
         widths[body],
         keep[body] + 1,
-        fast=(
-            plain,
-            np.searchsorted(body, plain_at),
-            quoted_rows,
-            np.searchsorted(body, quoted_body),
-        ),
+        split=(pieces, first_cell, {i: others[int(body[i])] for i in in_body.tolist()}),
     )
 
 
