@@ -9,6 +9,7 @@ of images into another folder (in parallel, optionally on a Dask cluster).
 from __future__ import annotations
 
 import csv
+import operator
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -47,15 +48,166 @@ class Interp(str, Enum):
     bicubic = "bicubic"
 
 
-def _read_csv(
-    path: Path, need: tuple[str, ...], comments: list[str] | None = None
-) -> tuple[list[str], list[list[str]], dict, list[int]]:
-    """Header, rows, the column index of each needed column (case-insensitive) and the file
-    line on which each row starts (blank lines skipped, quoted line breaks counted).
+#: Columns of at least this many cells are converted to numbers by pyarrow (fewer: by
+#: :func:`float`, without importing pyarrow, which takes longer than converting them).
+ARROW_CELLS = 20_000
 
-    Lines that begin with ``#`` are comments, as in every point file of photogeom (the
-    observations.csv of a block folder starts with one); their text is appended to
-    ``comments`` when a list is given."""
+
+class _Cells:
+    """The cells of a CSV file: header, field count and file line of each body row, and the
+    body's columns (built once every row has the header's field count)."""
+
+    def __init__(
+        self,
+        header: list[str],
+        widths: np.ndarray,
+        lines: np.ndarray,
+        rows: list[list[str]] | None = None,
+        split: tuple | None = None,
+    ) -> None:
+        self.header = header
+        #: fields of each body row (numpy int array)
+        self.widths = widths
+        #: file line on which each body row starts (numpy int array)
+        self.lines = lines
+        self._rows = rows  # the body as rows of cells (the line-wise reader)
+        # the body as (cells of all lines split at once, index of each body row's first
+        # cell there or -1, {body row: its cells} of the rows read by the csv module)
+        self._split = split
+
+    def columns(self) -> list[list[str]]:
+        """The cells of each header field, one list per column (every row must have them
+        all; called once: the cells are let go)."""
+        width = len(self.header)
+        if self._rows is not None:
+            if not self._rows:
+                return [[] for _ in range(width)]
+            return [list(c) for c in zip(*self._rows, strict=True)]
+        pieces, first, others = self._split
+        self._split = None
+        if isinstance(pieces, list):  # no quotes: the rows are slices of the cells
+            if not first.size:
+                return [[] for _ in range(width)]
+            lo, hi = int(first[0]), int(first[-1]) + width
+            if hi - lo == width * first.size:  # no blank row among them: one block
+                block = pieces[lo:hi]
+                del pieces
+                return [block[j::width] for j in range(width)]
+            pieces = np.array(pieces, dtype=object)
+        split = np.flatnonzero(first >= 0)
+        table = pieces[first[split][:, None] + np.arange(width)]  # one gather: (rows, width)
+        del pieces
+        if not others:
+            return [table[:, j].tolist() for j in range(width)]
+        out = []
+        rows = np.fromiter(others, dtype=np.intp, count=len(others))
+        for j, cells in enumerate(zip(*others.values(), strict=True)):
+            column = np.empty(self.lines.size, dtype=object)
+            column[split] = table[:, j]
+            column[rows] = cells
+            out.append(column.tolist())
+        return out
+
+
+def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
+    """The rows of a CSV file as Python's csv module reads them (``#`` lines taken out
+    before it, blank rows skipped), split column-wise.
+
+    All lines are split at their commas at once; a line with a quote that is not around a
+    whole cell (``"a,b"``, ``"a""b"``, ``x"y``) is read by the csv module on its own. A file
+    the csv module must read as a stream (a quoted cell across lines, text after a closing
+    quote, a field over its size limit, text that is not UTF-8) is read by
+    :func:`_read_rows_linewise`, with the same rules and messages.
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        return _read_rows_linewise(path, comments)
+    if "\r" in text:  # the line ends of a file read with newline="": \n, \r\n and \r
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    any_quote = '"' in text
+    all_lines = text.split("\n")
+    del text
+    stripped = list(map(str.strip, all_lines))
+    first = np.empty(len(stripped), dtype=object)  # first character: blank lines, comments
+    first[:] = list(map(operator.itemgetter(slice(0, 1)), stripped))
+    blank, hashed = first == "", first == "#"
+    del first
+    found = [stripped[k][1:].strip() for k in np.flatnonzero(hashed).tolist()]
+    del stripped
+    keep = np.flatnonzero(~(blank | hashed))
+    data = [all_lines[k] for k in keep.tolist()]
+    del all_lines
+    n = len(data)
+    if n and max(map(len, data)) >= csv.field_size_limit():
+        return _read_rows_linewise(path, comments)
+    widths = np.fromiter(map(operator.methodcaller("count", ","), data), dtype=np.int64, count=n)
+    widths += 1
+    starts = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(widths, out=starts[1:])
+    pieces: list | np.ndarray = ",".join(data).split(",")  # every line at once: linear
+    others: dict[int, list[str]] = {}  # lines read by the csv module, by data line
+    if any_quote:
+        pieces = np.array(pieces, dtype=object)
+        quotes = np.fromiter(
+            map(operator.methodcaller("count", '"'), pieces), dtype=np.int64, count=pieces.size
+        )
+        # a whole quoted cell: a quote at either end and none inside (its text between them)
+        two = np.flatnonzero(quotes == 2)
+        inner = np.empty(two.size, dtype=object)
+        inner[:] = list(map(operator.itemgetter(slice(1, -1)), pieces[two]))
+        whole = np.fromiter(
+            map(operator.methodcaller("count", '"'), inner), dtype=np.int64, count=two.size
+        )
+        pieces[two[whole == 0]] = inner[whole == 0]
+        simple = quotes == 0
+        simple[two[whole == 0]] = True
+        other = np.flatnonzero(~np.logical_and.reduceat(simple, starts[:-1]))
+        if other.size:
+            try:  # strict: a quote left open or text after a closing one is read line-wise
+                parsed = list(csv.reader([data[k] for k in other.tolist()], strict=True))
+            except csv.Error:
+                return _read_rows_linewise(path, comments)
+            if len(parsed) != other.size:  # a quoted cell spans lines
+                return _read_rows_linewise(path, comments)
+            others = dict(zip(other.tolist(), parsed, strict=True))
+            widths[other] = np.fromiter(map(len, parsed), dtype=np.int64, count=other.size)
+    del data
+    # rows whose cells are all blank are skipped, as blank lines are: only a row whose first
+    # cell is blank (or that the csv module read) is looked at
+    firsts = map(pieces.__getitem__, starts[:-1].tolist())
+    first_blank = np.fromiter(map(operator.not_, map(str.strip, firsts)), dtype=bool, count=n)
+    is_other = np.zeros(n, dtype=bool)
+    is_other[list(others)] = True
+    empty = np.zeros(n, dtype=bool)
+    for k in np.flatnonzero(first_blank | is_other).tolist():
+        cells = others[k] if k in others else pieces[starts[k] : starts[k + 1]]
+        empty[k] = not "".join(list(cells)).strip()
+    rows = np.flatnonzero(~empty)
+    if comments is not None:
+        comments.extend(found)
+    if not rows.size:
+        raise FileFormatError(f"{path}: empty file")
+    top = int(rows[0])
+    header = others[top] if top in others else list(pieces[starts[top] : starts[top + 1]])
+    body = rows[1:]
+    first_cell = starts[body]
+    in_body = np.flatnonzero(is_other[body])  # body rows read by the csv module
+    first_cell[in_body] = -1
+    return _Cells(
+        [c.strip() for c in header],
+        widths[body],
+        keep[body] + 1,
+        split=(pieces, first_cell, {i: others[int(body[i])] for i in in_body.tolist()}),
+    )
+
+
+def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
+    """:func:`_read_cells` for the files it does not split itself: the csv module over the
+    whole file, line by line (quoted line breaks counted in the line numbers)."""
     rows, lines = [], []
     physical: list[int] = []  # file line of each line handed to the csv reader
 
@@ -83,7 +235,28 @@ def _read_csv(
         raise FileFormatError(f"{path}: not a UTF-8 CSV file ({exc})") from None
     if not rows:
         raise FileFormatError(f"{path}: empty file")
-    header = [c.strip() for c in rows[0]]
+    body = rows[1:]
+    return _Cells(
+        [c.strip() for c in rows[0]],
+        np.fromiter(map(len, body), dtype=np.int64, count=len(body)),
+        np.asarray(lines[1:], dtype=np.int64),
+        rows=body,
+    )
+
+
+def _read_csv(
+    path: Path, need: tuple[str, ...], comments: list[str] | None = None
+) -> tuple[list[str], list, dict, np.ndarray]:
+    """Header, columns (one object array of str per header field), the column index of each
+    needed column (case-insensitive) and the file line on which each row starts (blank lines
+    skipped, quoted line breaks counted).
+
+    Lines that begin with ``#`` are comments, as in every point file of photogeom (the
+    observations.csv of a block folder starts with one); their text is appended to
+    ``comments`` when a list is given. Reading is linear in the file size: see
+    :func:`_read_cells`."""
+    cells = _read_cells(path, comments)
+    header = cells.header
     low = [c.lower() for c in header]
     col = {}
     for name in need:
@@ -95,37 +268,115 @@ def _read_csv(
                 f"the file needs {', '.join(need)}"
             )
         col[name] = hit
-    body, lines = rows[1:], lines[1:]
-    bad = [k for k, r in enumerate(body) if len(r) != len(header)]
-    if bad:
+    bad = np.flatnonzero(cells.widths != len(header))
+    if bad.size:
+        k = int(bad[0])
         raise FileFormatError(
-            f"{path}: line {lines[bad[0]]} has {len(body[bad[0]])} fields, the header {len(header)}"
+            f"{path}: line {cells.lines[k]} has {cells.widths[k]} fields, the header {len(header)}"
         )
-    return header, body, col, lines
+    return header, cells.columns(), col, cells.lines
 
 
-def _numbers(path: Path, body, idx: int, name: str, lines: list[int]) -> np.ndarray:
-    """Column ``idx`` as finite numbers; a FileFormatError names the file line of the first
-    cell that is not one (NaN and infinities included)."""
+def _numbers(path: Path, cells, name: str, lines: np.ndarray) -> np.ndarray:
+    """The cells of one column as finite numbers; a FileFormatError names the file line of
+    the first cell that is not one (NaN and infinities included).
+
+    A number is a decimal number (:func:`photogeom.numbers.is_decimal_number`, the rule of
+    every reader of photogeom): :func:`float`'s ``3_500.5`` and non-ASCII digits are not."""
+    from ..numbers import is_decimal_number
+
+    values = _arrow_floats(cells) if len(cells) >= ARROW_CELLS else None
+    if values is not None:
+        return values
+    joined = "".join(cells)  # "_" or a non-ASCII character: a cell to look at one by one
     try:
-        values = np.array([float(r[idx]) for r in body])
+        if "_" in joined or not joined.isascii():
+            raise ValueError
+        values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
     except ValueError:
-        for k, r in enumerate(body):
-            try:
-                float(r[idx])
-            except ValueError:
+        for k, c in enumerate(cells):
+            if not is_decimal_number(c):
                 raise FileFormatError(
-                    f"{path}: line {lines[k]}, column {name}: not a number ({r[idx]!r})"
+                    f"{path}: line {lines[k]}, column {name}: not a number ({c!r})"
                 ) from None
-        raise  # pragma: no cover
+        values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         k = int(bad[0])
         raise FileFormatError(
-            f"{path}: line {lines[k]}, column {name}: {body[k][idx]!r} is not a finite number "
+            f"{path}: line {lines[k]}, column {name}: {cells[k]!r} is not a finite number "
             f"({bad.size} row(s) in all); remove those rows or give their values"
         )
     return values
+
+
+def _arrow_floats(cells: list[str]) -> np.ndarray | None:
+    """The cells as float64 by pyarrow's conversion (compiled, correctly rounded, as
+    :func:`float`), or None unless it reads every cell as a finite number.
+
+    pyarrow reads a subset of what :func:`float` reads (no ``_``, no non-ASCII digits, blanks
+    only at the ends trimmed here) and, of finite numbers, the same values; it also reads
+    ``nan(...)``, which :func:`float` refuses: a column with a NaN or an infinity is left to
+    :func:`float`, whose messages name the cell."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    try:
+        text = pc.utf8_trim(pa.array(cells, type=pa.string()), " \t")
+        values = pc.cast(text, pa.float64()).to_numpy(zero_copy_only=False)
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError):
+        return None
+    return values if np.isfinite(values).all() else None
+
+
+def _refuse_outside(
+    path: Path,
+    ids: list[str],
+    uv: np.ndarray,
+    lines: np.ndarray,
+    width: np.ndarray,
+    height: np.ndarray,
+    fix: str,
+) -> None:
+    """Refuse rows whose ``u, v`` (px) lie outside their image, ``[-0.5, width - 0.5] x
+    [-0.5, height - 0.5]`` (the area of a grid), naming the file line of the first; the
+    library names a row counted within one image, which the file does not show.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file (for the message).
+    ids, uv, lines : list of str, numpy.ndarray (n, 2), numpy.ndarray (n,)
+        Image id, pixel coordinates and file line of each row.
+    width, height : numpy.ndarray (n,)
+        Size in pixels of each row's image.
+    fix : str
+        What to do, in the words of the command.
+    """
+    out = (
+        (uv[:, 0] < -0.5) | (uv[:, 0] > width - 0.5) | (uv[:, 1] < -0.5) | (uv[:, 1] > height - 0.5)
+    )
+    if not out.any():
+        return
+    k = int(np.flatnonzero(out)[0])
+    raise InputError(
+        f"{path}: line {lines[k]}, image {ids[k]}: u, v = ({uv[k, 0]:g}, {uv[k, 1]:g}) px "
+        f"lie outside the {width[k]:.0f} x {height[k]:.0f} px image ({int(out.sum())} row(s) "
+        f"in all); {fix}"
+    )
+
+
+def _groups(ids: list[str]) -> dict:
+    """Row indices of each image id (numpy int arrays): ids in the order of their first row,
+    rows in file order (a stable sort of the ids' codes, linear in the rows)."""
+    if not ids:
+        return {}
+    order = list(dict.fromkeys(ids))
+    code = dict(zip(order, range(len(order)), strict=True))
+    inverse = np.fromiter(map(code.__getitem__, ids), dtype=np.intp, count=len(ids))
+    rows = np.argsort(inverse, kind="stable")
+    cuts = np.cumsum(np.bincount(inverse, minlength=len(order)))[:-1]
+    return dict(zip(order, np.split(rows, cuts), strict=True))
 
 
 def _image_size(text: str) -> tuple[int, int]:
@@ -193,7 +444,7 @@ def fit(
     # threads only wait on each other (12 images of 42 Mpx at 100 px: 10.4 s with, 3.0 s
     # without them on 2 cores)
     single_threaded_blas()
-    from ..calibration import fit_grids, save_grids
+    from ..calibration import GridLayout, fit_grids, save_grids
 
     size = _image_size(image_size)
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
@@ -210,24 +461,26 @@ def fit(
             raise InputError(
                 f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
             ) from None
-    _h, body, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
-    if not body:
+    _h, columns, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
+    if not lines.size:
         raise FileFormatError(
             f"no residuals in {residuals}: the file has a header and no rows; it needs one "
             "row per observation (image_id, u, v, rx, ry)"
         )
-    ids = np.array([r[col["image_id"]].strip() for r in body], dtype=object)
+    ids = list(map(str.strip, columns[col["image_id"]]))
     data = np.stack(
-        [_numbers(residuals, body, col[c], c, lines) for c in ("u", "v", "rx", "ry")], axis=1
+        [_numbers(residuals, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
+        axis=1,
     )
-    per_image = {}
-    order = list(dict.fromkeys(ids.tolist()))
-    groups = {k: [] for k in order}
-    for i, k in enumerate(ids.tolist()):
-        groups[k].append(i)
-    for k in order:
-        rows = np.asarray(groups[k])
-        per_image[k] = (data[rows, :2], data[rows, 2:])
+    try:  # the image size and the spacing are refused first, as fit_grids does
+        GridLayout(size[0], size[1], spacing)
+    except PhotogeomError as exc:
+        raise _reworded(exc, _cli_words) from None
+    _refuse_outside(
+        residuals, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
+        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
+    )  # fmt: skip
+    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
     try:
         grids = fit_grids(
             per_image,
@@ -383,32 +636,40 @@ def apply(
 
     grids = load_grids(grids_file)
     comments: list[str] = []
-    header, body, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
-    ids = [r[col["image_id"]].strip() for r in body]
-    uv = np.stack([_numbers(observations, body, col[c], c, lines) for c in ("u", "v")], axis=1)
-    per_image: dict = {}
-    for i, k in enumerate(ids):
-        per_image.setdefault(k, []).append(i)
+    header, columns, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
+    ids = list(map(str.strip, columns[col["image_id"]]))
+    uv = np.stack([_numbers(observations, columns[col[c]], c, lines) for c in ("u", "v")], axis=1)
+    per_image = _groups(ids)
     key_of, missing = match_grid_ids(per_image, grids)  # CSV text against integer ids too
     if missing:
         raise InputError(
             f"{observations}: no grid in {grids_file} for image(s) {', '.join(missing[:10])}"
         )
+    width, height = np.empty(len(ids)), np.empty(len(ids))
+    for k, r in per_image.items():  # per image, not per point
+        layout = grids[key_of[k]].layout
+        width[r], height[r] = layout.width, layout.height
+    _refuse_outside(
+        observations, ids, uv, lines, width, height,
+        f"a grid of {grids_file} covers its image only: remove those rows",
+    )  # fmt: skip
     corrected = correct_observations(
-        {k: uv[np.asarray(r)] for k, r in per_image.items()},
+        {k: uv[r] for k, r in per_image.items()},
         {k: grids[key_of[k]] for k in per_image},
     )
     new = uv.copy()
     for k, r in per_image.items():
-        new[np.asarray(r)] = corrected[k]
-    lines = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
-    lines.append(",".join(_csv_cell(c) for c in header))
-    for i, r in enumerate(body):
-        r = list(r)
-        r[col["u"]] = repr(float(new[i, 0]))
-        r[col["v"]] = repr(float(new[i, 1]))
-        lines.append(",".join(_csv_cell(c) for c in r))
-    emit_points("\n".join(lines) + "\n", output, len(body))
+        new[r] = corrected[k]
+    # the cells as read, u and v replaced; each column formatted at once, rows joined
+    for j in range(len(columns)):
+        columns[j] = _csv_column(columns[j])
+    columns[col["u"]] = list(map(repr, new[:, 0].tolist()))
+    columns[col["v"]] = list(map(repr, new[:, 1].tolist()))
+    out = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
+    out.append(",".join(_csv_cell(c) for c in header))
+    out.extend(map(",".join, zip(*columns, strict=True)))
+    del columns
+    emit_points("\n".join(out) + "\n", output, int(lines.size))
 
 
 def _csv_cell(text: str) -> str:
@@ -418,6 +679,15 @@ def _csv_cell(text: str) -> str:
     if any(ch in text for ch in ',"\r\n') or text.lstrip().startswith("#"):
         return '"' + text.replace('"', '""') + '"'
     return text
+
+
+def _csv_column(cells) -> list[str]:
+    """The cells of one column formatted by :func:`_csv_cell`; a column without a character
+    that needs quotes (one search of its joined text) is returned as it is."""
+    joined = "".join(cells)
+    if not any(ch in joined for ch in ',"\r\n#'):
+        return cells
+    return list(map(_csv_cell, cells))
 
 
 @app.command("correct-images")
