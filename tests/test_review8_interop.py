@@ -8,7 +8,7 @@ import pytest
 from photogeom.bundle import read_colmap, write_colmap
 from photogeom.bundle.block import Block
 from photogeom.camera.metashape import MetashapeCalibration
-from photogeom.errors import FileFormatError
+from photogeom.errors import FileFormatError, InputError
 
 # --- COLMAP: POINT3D_ID is a uint64; ids beyond 2^53 are not float64 numbers ----------------
 
@@ -696,3 +696,24 @@ def test_damaged_las_headers_are_refused_quickly(tmp_path):
             with pytest.raises(FileFormatError, match=match):
                 run(p)
     assert not (tmp_path / "o.las").exists()
+
+
+def test_a_blocks_crs_is_not_dropped_silently_by_bal_or_colmap(tmp_path):
+    """BAL and COLMAP hold no CRS: a block with one was written without it, and read back as
+    a block in no CRS, while control points and GNSS were refused without drop_extras."""
+    import photogeom as pg
+    from photogeom.bundle.io_colmap import colmap_texts
+
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=1, gcps="none", checks=0, gnss_sigma=None, imu_sigma_deg=None,
+        tie_points_per_image=30, brown=False,
+    )  # fmt: skip
+    plain = colmap_texts(sim.block)  # nothing the format cannot hold
+    block = sim.block.replace(crs="EPSG:32632")
+    crs = r"coordinate reference system \(EPSG:32632\)"
+    with pytest.raises(InputError, match=crs + ".*drop_extras"):
+        colmap_texts(block)
+    with pytest.raises(InputError, match=crs):
+        pg.bundle.write_bal(block, tmp_path / "b.bal")
+    assert not (tmp_path / "b.bal").exists()
+    assert colmap_texts(block, drop_extras=True) == plain

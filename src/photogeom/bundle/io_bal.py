@@ -206,6 +206,8 @@ def _extras(block: Block) -> list[str]:
         k = int(np.sum(np.all(np.isfinite(arr), axis=1)))
         if k:
             out.append(f"{name} observations of {k} image(s)")
+    if block.crs:
+        out.append(f"the block's coordinate reference system ({block.crs})")
     s = block.observations.sigma
     if s.size and np.any(s != s[0]):
         out.append("observation standard deviations that differ between observations")
