@@ -717,3 +717,43 @@ def test_a_blocks_crs_is_not_dropped_silently_by_bal_or_colmap(tmp_path):
         pg.bundle.write_bal(block, tmp_path / "b.bal")
     assert not (tmp_path / "b.bal").exists()
     assert colmap_texts(block, drop_extras=True) == plain
+
+
+def _cloud_with_broken_crs(path):
+    import laspy
+
+    h = laspy.LasHeader(point_format=6, version="1.4")
+    h.scales, h.offsets = [0.01] * 3, [0.0] * 3
+    h.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr('PROJCS["broken", nonsense'))
+    las = laspy.LasData(h)
+    las.x = las.y = las.z = np.arange(5.0)
+    las.write(path)
+    return path
+
+
+def test_an_unreadable_crs_record_is_not_shown_as_none(tmp_path, cli):
+    """A CRS record that pyproj cannot parse was swallowed: cloud info said 'none recorded'
+    and a PROJ transformation asked for --from-crs as if the file had no record."""
+    from photogeom.io.cloud import cloud_info
+
+    src = _cloud_with_broken_crs(tmp_path / "bad.las")
+    info = cloud_info(src)
+    assert info.crs is None and "broken" in info.crs_error
+    assert info.to_dict()["crs_error"] == info.crs_error
+    code, out, _ = cli("cloud", "info", src)
+    assert code == 0 and "CRS: a record that cannot be read (" in out
+    code, _, err = cli("cloud", "transform", src, tmp_path / "o.las", "--to-crs", "EPSG:4979")
+    assert code == 2 and "its CRS record cannot be read" in err and "--from-crs" in err
+    assert not (tmp_path / "o.las").exists()
+
+
+def test_parameters_are_not_applied_to_a_cloud_whose_crs_record_cannot_be_read(tmp_path):
+    """--params naming the CRS they transform from: a cloud whose record cannot be read was
+    taken as one without a record, so the check of its CRS was skipped."""
+    from pathlib import Path
+
+    from photogeom.cli.cloud import _check_input_crs
+
+    src = _cloud_with_broken_crs(tmp_path / "bad.las")
+    with pytest.raises(InputError, match=r"cannot be read .*EPSG:32632.*p\.json"):
+        _check_input_crs(src, "EPSG:32632", Path("p.json"), False)

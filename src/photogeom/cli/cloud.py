@@ -69,7 +69,7 @@ def info(
         f"max     {_fmt3(ci.maxs)}",
         f"dimensions: {', '.join(ci.dimensions)}",
         f"extra dimensions: {', '.join(ci.extra_dimensions) or 'none'}",
-        f"CRS: {ci.crs_name or 'none recorded'}",
+        f"CRS: {_crs_shown(ci)}",
         f"VLRs: {', '.join(ci.vlrs) or 'none'}",
     ]
     if show_wkt and ci.crs:
@@ -174,8 +174,14 @@ def transform(
         from ..crs import ProjTransform
         from ..io.cloud import cloud_info
 
-        src_crs = from_crs or cloud_info(source).crs
+        info = cloud_info(source)
+        src_crs = from_crs or info.crs
         if src_crs is None:
+            if info.crs_error:
+                raise InputError(
+                    f"{source}: its CRS record cannot be read ({info.crs_error}): give the "
+                    "CRS of its coordinates with --from-crs"
+                )
             raise InputError(f"{source} records no CRS: give --from-crs")
         T = ProjTransform(src_crs, to_crs, allow_ballpark=allow_ballpark)
     sc = split_numbers(scales, 3, "--scales")
@@ -221,12 +227,29 @@ def _check_output_crs(crs: str, target: str, says: str) -> None:
         )
 
 
+def _crs_shown(ci) -> str:
+    """The CRS line of ``cloud info``: its name, that none is recorded, or why the record
+    cannot be read."""
+    if ci.crs_name:
+        return ci.crs_name
+    if ci.crs_error:
+        return f"a record that cannot be read ({ci.crs_error})"
+    return "none recorded"
+
+
 def _check_input_crs(source: Path, expected: str, params: Path, inverse: bool) -> None:
     """Refuse a cloud whose CRS record is not the one the parameters transform from."""
     from ..crs import parse_crs
     from ..io.cloud import cloud_info
 
-    rec = cloud_info(source).crs
+    info = cloud_info(source)
+    rec = info.crs
+    if rec is None and info.crs_error:
+        raise InputError(
+            f"{source}: its CRS record cannot be read ({info.crs_error}), so it cannot be "
+            f"checked against the {expected} that the parameters of {params} transform from: "
+            "repair the record (e.g. write the cloud again with its CRS) before transforming"
+        )
     if rec is not None and parse_crs(rec) != parse_crs(expected, what=f"{params}: crs"):
         raise InputError(
             f"{source} records the CRS {cloud_info(source).crs_name} but the parameters of "

@@ -228,6 +228,9 @@ class CloudInfo:
         The CRS record (WKT or GeoTIFF keys) as WKT, None when the file has none.
     crs_name : str or None
         ``"EPSG:code (name)"`` or the CRS name.
+    crs_error : str or None
+        Why the file's CRS record could not be read (``crs`` is then None although the file
+        has a record); None when it was read or there is none.
     """
 
     path: str
@@ -244,6 +247,7 @@ class CloudInfo:
     crs: str | None = None
     crs_name: str | None = None
     vlrs: tuple[str, ...] = field(default=())
+    crs_error: str | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready."""
@@ -261,19 +265,23 @@ class CloudInfo:
             "extra_dimensions": list(self.extra_dimensions),
             "crs_name": self.crs_name,
             "crs": self.crs,
+            "crs_error": self.crs_error,
             "vlrs": list(self.vlrs),
         }
 
 
-def _header_crs(header) -> tuple[str | None, str | None]:
+def _header_crs(header) -> tuple[str | None, str | None, str | None]:
+    """The header's CRS as (WKT, name, None); (None, None, None) without a CRS record;
+    (None, None, reason) when a record is there but cannot be read."""
     try:
         crs = header.parse_crs()
-    except Exception:
-        crs = None
+    except Exception as exc:  # laspy / pyproj: a damaged or unknown record
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        return None, None, reason[:300]
     if crs is None:
-        return None, None
+        return None, None, None
     auth = crs.to_authority()
-    return crs.to_wkt(), (f"{auth[0]}:{auth[1]} ({crs.name})" if auth else crs.name)
+    return crs.to_wkt(), (f"{auth[0]}:{auth[1]} ({crs.name})" if auth else crs.name), None
 
 
 def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
@@ -300,7 +308,7 @@ def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
     """
     with _open_read(path, check_size=check_size) as reader:
         h = reader.header
-        wkt, name = _header_crs(h)
+        wkt, name, crs_error = _header_crs(h)
         pf = h.point_format
         return CloudInfo(
             path=str(path),
@@ -319,6 +327,7 @@ def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
             crs=wkt,
             crs_name=name,
             vlrs=tuple(type(v).__name__ for v in h.vlrs),
+            crs_error=crs_error,
         )
 
 
