@@ -103,3 +103,40 @@ def test_relative_errors(cli, matches, tmp_path):
     assert code == 2 and "at least 5" in err
     code, _, err = cli("orient", "relative", one, "--f", "100", "--cols", "a,b")
     assert code == 2 and "--cols" in err
+
+
+def test_output_cameras_intersect_the_model_points_again(cli, matches, tmp_path):
+    """--output-cameras writes the two cameras in the model system; orient intersection
+    with them finds the model points of --output (an independent computation: a space
+    intersection of the image files, not the relative orientation's own triangulation)."""
+    _, f1, f2, _, _ = matches
+    c1, c2, model = tmp_path / "c1.json", tmp_path / "c2.json", tmp_path / "model.csv"
+    code, _, err = cli(
+        "orient", "relative", f1, f2, "--f", "100", "--sigma", "0.004", "-o", model,
+        "--output-cameras", c1, c2,
+    )  # fmt: skip
+    assert code == 0, err
+    cam1, cam2 = json.loads(c1.read_text()), json.loads(c2.read_text())
+    assert cam1["image"] == 1 and cam2["model_unit"] == "bx"
+    assert cam2["exterior"]["X0"] == 1.0 and cam1["exterior"]["X0"] == 0.0
+    code, out, err = cli(
+        "orient", "intersection", f1, f2, "--camera", c1, "--camera", c2, "--sigma", "0.004"
+    )
+    assert code == 0, err
+    rows = {
+        ln.split(",")[0]: [float(v) for v in ln.split(",")[1:4]]
+        for ln in out.splitlines()
+        if ln and not ln.startswith("#") and not ln.startswith("id")
+    }
+    ref = {
+        ln.split(",")[0]: [float(v) for v in ln.split(",")[1:4]]
+        for ln in model.read_text().splitlines()
+        if ln and not ln.startswith("#") and not ln.startswith("id")
+    }
+    common = sorted(set(rows) & set(ref))
+    assert len(common) >= 35
+    np.testing.assert_allclose([rows[k] for k in common], [ref[k] for k in common], atol=1e-9)
+    code, _, err = cli(
+        "orient", "relative", f1, f2, "--f", "100", "--output-cameras", c1, c1
+    )
+    assert code == 2 and "--output-cameras: give two different files" in err

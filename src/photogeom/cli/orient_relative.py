@@ -156,6 +156,16 @@ def relative(
         typer.Option(help="Write an HTML report with the y-parallax vectors on the image frame."),
     ] = None,
     output: OutputCsvOpt = None,
+    output_cameras: Annotated[
+        tuple[Path, Path] | None,
+        typer.Option(
+            "--output-cameras",
+            metavar="CAM1.json CAM2.json",
+            help="Write the two cameras in the model system (interior and exterior "
+            "orientation, model unit), as orient intersection --camera and camera project "
+            "--camera read them.",
+        ),
+    ] = None,
 ) -> None:
     """Relative orientation of an image pair from >= 5 matched points (coplanarity condition).
 
@@ -163,7 +173,8 @@ def relative(
     adjustment with data snooping. Prints the orientation elements with standard deviations,
     sigma0, residual y-parallaxes (RMS, worst points) and the points left out as wrong
     matches; --output writes the model coordinates (model unit: bx for --method dependent,
-    the base length for independent) with their standard deviations.
+    the base length for independent) with their standard deviations, --output-cameras the
+    two cameras in the model system.
     """
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
@@ -220,6 +231,29 @@ def relative(
                 ),
             )
         )
+    if output_cameras is not None:
+        if len(set(map(str, output_cameras))) != 2:
+            raise InputError("--output-cameras: give two different files, image 1's first")
+        source = f"{points}{' + ' + str(image2) if image2 else ''}"
+        model_unit = "bx" if fit.pair.method == "dependent" else "the base length"
+        for k, (path, io, eo) in enumerate(
+            zip(output_cameras, (io1, io2), (fit.exterior1, fit.exterior2)), start=1
+        ):
+            outputs.append(
+                (
+                    path,
+                    json_text(
+                        {
+                            "system": f"model system of the {fit.pair.method} relative "
+                            f"orientation of {source}",
+                            "image": k,
+                            "model_unit": model_unit,
+                            "interior": io.to_dict(),
+                            "exterior": eo.to_dict(au),
+                        }
+                    ),
+                )
+            )
     if report is not None:
         outputs.append((report, _report(fit, par, xy1, au, points)))
     notes = []
