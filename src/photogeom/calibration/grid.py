@@ -918,28 +918,24 @@ def fit_grids(
     dict
         ``image id -> ResidualGrid``, in the order of ``per_image``.
     """
-    out = {}
-    items = list(per_image.items())
     # the input of every image is checked before any is fitted: an error in the last of
     # 250 images came after the others were fitted (minutes), now at once
     min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
-    for key, val in items:
+    items = []  # (image id, uv, residuals, size)
+    for key, val in per_image.items():
         try:
             uv, res = val
         except (TypeError, ValueError):
             raise InputError(f"image {key}: expected a pair (uv, residuals)") from None
         size = image_size[key] if isinstance(image_size, dict) else image_size
         _image_inputs(uv, res, size, spacing, min_obs, f"image {key}: ")
+        items.append((key, uv, res, size))
     it = items
     if progress:
         from rich.progress import track
 
         it = track(items, description="fitting residual grids", transient=True)
-    for key, val in it:
-        try:
-            uv, res = val
-        except (TypeError, ValueError):
-            raise InputError(f"image {key}: expected a pair (uv, residuals)") from None
-        size = image_size[key] if isinstance(image_size, dict) else image_size
-        out[key] = fit_grid(uv, res, size, spacing, image_id=key, **options)
-    return out
+    return {
+        key: fit_grid(uv, res, size, spacing, image_id=key, **options)
+        for key, uv, res, size in it
+    }

@@ -252,7 +252,7 @@ def _check_input_crs(source: Path, expected: str, params: Path, inverse: bool) -
         )
     if rec is not None and parse_crs(rec) != parse_crs(expected, what=f"{params}: crs"):
         raise InputError(
-            f"{source} records the CRS {cloud_info(source).crs_name} but the parameters of "
+            f"{source} records the CRS {info.crs_name} but the parameters of "
             f"{params} transform from {expected}{' (--inverse)' if inverse else ''}: use the "
             "parameters of its CRS or transform it to that CRS first (--to-crs)"
         )
