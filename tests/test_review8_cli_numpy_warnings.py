@@ -35,15 +35,15 @@ def test_plain_runtime_warnings_of_photogeom_are_deferred_not_dropped(capsys):
     from photogeom.rpc.domain import LocalizationWarning
 
     inside = str(Path(photogeom.__file__).parent / "orientation" / "x.py")
-    shown, numeric = [], []
+    shown, numeric = [], cli_main.NumericWarnings()
 
     def python_display(*args, **kwargs):
         shown.append(args[1])
 
     for _ in range(2):
         cli_main._show_warning(python_display, numeric, "overflow", RuntimeWarning, inside, 1)
-    assert shown == [] and capsys.readouterr().err == "" and numeric == ["overflow"]
-    cli_main._show_numeric(numeric)
+    assert shown == [] and capsys.readouterr().err == "" and numeric.texts == ["overflow"]
+    numeric.show()
     err = capsys.readouterr().err
     assert err.count("warning: numerical: overflow") == 1 and "NaN" in err
     outside = "/elsewhere/x.py"
@@ -52,7 +52,7 @@ def test_plain_runtime_warnings_of_photogeom_are_deferred_not_dropped(capsys):
     cli_main._show_warning(python_display, numeric, "2 points did not converge",
                            LocalizationWarning, inside, 1)
     assert capsys.readouterr().err.startswith("warning: 2 points did not converge")
-    cli_main._show_numeric(numeric)  # photogeom named the cause: no numeric line
+    numeric.show()  # photogeom named the cause: no numeric line
     assert capsys.readouterr().err == ""
 
 

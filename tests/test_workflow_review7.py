@@ -177,14 +177,17 @@ def test_library_warnings_are_one_cli_line(tmp_path, capsys):
     shown = []
     before = warnings.showwarning
     cli_main._show_warning(
-        lambda *a: shown.append(a), [],
+        lambda *a: shown.append(a), cli_main.NumericWarnings(),
         SuspectResultWarning("bad (see fit.snooping()), (try initial= from another source)"),
         SuspectResultWarning, "resection.py", 1,
     )  # fmt: skip
     err = capsys.readouterr().err.strip()
     assert err.startswith("warning: bad (see the w-test of the residuals)")
     assert "--initial X0,Y0,Z0,OMEGA,PHI,KAPPA" in err and "resection.py" not in err
-    cli_main._show_warning(lambda *a: shown.append(a), [], UserWarning("x"), UserWarning, "f.py", 2)
+    cli_main._show_warning(
+        lambda *a: shown.append(a), cli_main.NumericWarnings(), UserWarning("x"), UserWarning,
+        "f.py", 2,
+    )  # fmt: skip
     assert len(shown) == 1  # other warnings: Python's display
     assert warnings.showwarning is before
 

@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> None:
     from functools import partial
 
     shown = warnings.showwarning
-    numeric: list[str] = []
+    numeric = NumericWarnings()
     warnings.showwarning = partial(_show_warning, shown, numeric)
     failed = True
     try:
@@ -115,24 +115,47 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         warnings.showwarning = shown
         if not failed:
-            _show_numeric(numeric)
+            numeric.show()
+
+
+class NumericWarnings:
+    """numpy's floating-point warnings raised in photogeom's code during one command, held
+    for its end (:func:`_show_warning`)."""
+
+    def __init__(self) -> None:
+        self.texts: list[str] = []  # each message once, in the order first raised
+        self.explained = False  # photogeom warned in its own words, which names the cause
+
+    def add(self, text: str) -> None:
+        if text not in self.texts:
+            self.texts.append(text)
+
+    def show(self) -> None:
+        """One line each on stderr for a command that finished (its results may hold values
+        computed from an overflow or a division by zero), unless photogeom explained."""
+        if self.explained:
+            return
+        for text in self.texts:
+            typer.secho(
+                f"warning: numerical: {text} (check the results for NaN or infinite values)",
+                err=True,
+                fg=typer.colors.YELLOW,
+            )
 
 
 def _show_warning(
-    shown, numeric: list, message, category, filename, lineno, file=None, line=None
+    shown, numeric: NumericWarnings, message, category, filename, lineno, file=None, line=None
 ) -> None:
     """A warning of photogeom as one line ``warning: ...`` on stderr, in the words of the
     command line (no source file and line of the library, no Python argument names). numpy's
     floating-point warnings (plain ``RuntimeWarning``: overflow, divide by zero, invalid
-    value) raised in photogeom's own code are collected in ``numeric`` and shown at the end,
+    value) raised in photogeom's own code are held in ``numeric`` and shown at the end,
     once each, only when the command neither stopped with a named error nor warned in its
     own words (either says what they meant: coordinates that overflow, points behind a
     camera, points that did not converge). Other warnings as ``shown`` (Python's display)
     shows them."""
     if category is RuntimeWarning and _in_photogeom(filename):
-        text = " ".join(str(message).split())
-        if text not in numeric:
-            numeric.append(text)
+        numeric.add(" ".join(str(message).split()))
         return
     if not getattr(category, "__module__", "").startswith("photogeom"):
         shown(message, category, filename, lineno, file, line)
@@ -141,21 +164,7 @@ def _show_warning(
 
     text = " ".join(str(message).split())
     typer.secho(f"warning: {in_cli_words(text)}", err=True, fg=typer.colors.YELLOW)
-    numeric.append(None)  # photogeom said what went wrong in its own words
-
-
-def _show_numeric(numeric: list[str]) -> None:
-    """The floating-point warnings of a command that finished, one line each: its results
-    may hold values computed from an overflow or a division by zero. Not shown when
-    photogeom warned in its own words (a ``None`` in ``numeric``), which names the cause."""
-    if None in numeric:
-        return
-    for text in numeric:
-        typer.secho(
-            f"warning: numerical: {text} (check the results for NaN or infinite values)",
-            err=True,
-            fg=typer.colors.YELLOW,
-        )
+    numeric.explained = True
 
 
 def _in_photogeom(filename: str) -> bool:
