@@ -102,20 +102,27 @@ def run_point_job(
     extra: Sequence[str] = (),
     comments: Sequence[str] = (),
     description: str = "points",
+    keep_roles: bool = False,
 ) -> int:
     """Stream ``blocks`` (a :class:`~photogeom.io.PointBlocks`) through ``compute`` into a CSV.
 
     ``compute(block)`` returns ``(coords, extra)``: the output coordinates (n, len(columns))
-    and a dict of the ``extra`` columns. Returns the number of points written. The output
-    goes to ``output`` (atomically, replaced only when every block succeeded) or to stdout.
+    and a dict of the ``extra`` columns. With ``keep_roles`` the input's role column, if it
+    has one, is written after them. Returns the number of points written. The output goes to
+    ``output`` (atomically, replaced only when every block succeeded) or to stdout.
     """
     from ..io import PointWriter
 
+    roles = keep_roles and blocks.has_roles
+    if roles:
+        extra = [*extra, "role"]
     n = 0
     with progress_bar(blocks.size, description) as advance:
         with PointWriter(output, columns, extra=extra, comments=comments) as writer:
             for block in blocks:
                 coords, more = compute(block)
+                if roles:
+                    more = {**more, "role": block.roles}
                 writer.write(block.ids, coords, more)
                 n += len(block)
                 advance(block.bytes_done, len(block))

@@ -156,19 +156,17 @@ def convert(
         raise InputError(f"--out-cols: {len(names)} name(s) for {blocks.dim} coordinates")
     comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
     comments.append(f"crs: {dst}")
-    extra = ["role"] if blocks.has_roles else []
 
     geographic = not enu_in and _is_geographic(src)
 
     def compute(block):
         if geographic:
             _check_geographic(block.ids, block.coords, blocks.columns, src, points)
-        more = {"role": block.roles} if blocks.has_roles else {}
-        return convert_points(block.coords), more
+        return convert_points(block.coords), {}
 
     n = run_point_job(
-        blocks, output, names, compute, extra=extra, comments=comments,
-        description="crs convert",
+        blocks, output, names, compute, comments=comments, description="crs convert",
+        keep_roles=True,
     )  # fmt: skip
     if output is not None:
         say(f"wrote {n} point(s) to {output}", stderr=True)

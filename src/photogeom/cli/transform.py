@@ -617,7 +617,6 @@ def apply(
         names = list(to_cols) if recorded else _output_columns(blocks.columns)
     if len(names) != n_out:
         raise InputError(f"--out-cols: {len(names)} name(s) for {n_out} coordinates")
-    extra = ["role"] if blocks.has_roles else []
     direction = "inverse of" if inverse else "forward"
     comments = [
         f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "
@@ -628,12 +627,11 @@ def apply(
         comments.append(f"crs: {out_info.text}")
 
     def compute(block):
-        more = {"role": block.roles} if blocks.has_roles else {}
-        return t.apply(block.coords), more
+        return t.apply(block.coords), {}
 
     n = run_point_job(
-        blocks, output, names, compute, extra=extra, comments=comments,
-        description="transform apply",
+        blocks, output, names, compute, comments=comments, description="transform apply",
+        keep_roles=True,
     )  # fmt: skip
     if output is not None:
         say(f"wrote {n} point(s) to {output}", stderr=True)
