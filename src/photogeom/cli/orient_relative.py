@@ -194,6 +194,7 @@ def relative(
         io2, _ = camera_from_json(camera2)
         if io2 is None:
             raise InputError(f"--camera2 {camera2}: holds no interior orientation")
+    source = f"{points}{' + ' + str(image2) if image2 else ''}"  # what was oriented
     ids, xy1, xy2, unmatched = _read_matches(points, image2, cols, pixel, id_col)
     if pixel:
         xy1, xy2 = io1.pixel_to_image(xy1), io2.pixel_to_image(xy2)
@@ -209,6 +210,7 @@ def relative(
         threshold=threshold,
     )
     au = AngleUnit(angle_unit).value
+    model_unit = "bx" if fit.pair.method == "dependent" else "the base length"
     par = fit.parallax_report(worst=worst)
     mp = fit.model_points()
     std = mp.std if np.isfinite(fit.sigma0) else np.sqrt(np.einsum("nii->ni", mp.covariance_prior))
@@ -223,9 +225,8 @@ def relative(
                     ["X", "Y", "Z", "sX", "sY", "sZ"],
                     comments=[
                         f"model coordinates of the {fit.pair.method} relative orientation of "
-                        f"{points}{' + ' + str(image2) if image2 else ''}",
-                        "model unit: "
-                        + ("bx" if fit.pair.method == "dependent" else "the base length"),
+                        f"{source}",
+                        f"model unit: {model_unit}",
                         "sX, sY, sZ include the uncertainty of the orientation",
                     ],
                 ),
@@ -234,8 +235,6 @@ def relative(
     if output_cameras is not None:
         if len(set(map(str, output_cameras))) != 2:
             raise InputError("--output-cameras: give two different files, image 1's first")
-        source = f"{points}{' + ' + str(image2) if image2 else ''}"
-        model_unit = "bx" if fit.pair.method == "dependent" else "the base length"
         for k, (path, io, eo) in enumerate(
             zip(output_cameras, (io1, io2), (fit.exterior1, fit.exterior2)), start=1
         ):
@@ -278,7 +277,7 @@ def relative(
 
         out = Console(width=max(out.width, 170))
     say(
-        f"relative orientation: {points}{' + ' + str(image2) if image2 else ''}; "
+        f"relative orientation: {source}; "
         f"{len(ids)} matched point(s); image unit {io1.unit}",
         out,
     )
