@@ -608,22 +608,19 @@ def similarity_generators(xyz: np.ndarray) -> np.ndarray:
 def similarity_residuals(xyz: np.ndarray, target: np.ndarray) -> np.ndarray:
     """``T(xyz) - target`` (k, 3) for the 7-parameter similarity ``T`` that fits the points
     ``xyz`` best to ``target`` (least squares, equal weights; closed form by the SVD of the
-    cross-covariance). NaN when fewer than 3 points or all on a line."""
+    cross-covariance: the absolute orientation's :func:`~photogeom.orientation.
+    absolute_direct.solve_svd`). NaN when fewer than 3 points or all on a line."""
+    from ..orientation.absolute_direct import batch_moments, solve_svd
+
     k = xyz.shape[0]
     if k < 3:
         return np.full((k, 3), np.nan)
-    mx, mt = xyz.mean(axis=0), target.mean(axis=0)
-    a, t = xyz - mx, target - mt
-    sa = float(np.sum(a * a))
+    a = xyz - xyz.mean(axis=0)
     sv = np.linalg.svd(a, compute_uv=False)
-    if sa <= 0 or sv[1] <= 1e-9 * sv[0]:
+    if float(np.sum(a * a)) <= 0 or sv[1] <= 1e-9 * sv[0]:
         return np.full((k, 3), np.nan)
-    U, S, Vt = np.linalg.svd(t.T @ a)
-    D = np.eye(3)
-    D[2, 2] = np.sign(np.linalg.det(U @ Vt))
-    R = U @ D @ Vt
-    scale = float(np.sum(S * np.diag(D))) / sa
-    return scale * a @ R.T + mt - target
+    fit = solve_svd(batch_moments(xyz[None], target[None]))
+    return fit.scale[0] * xyz @ fit.rotation[0].T + fit.translation[0] - target
 
 
 def free_check_point_covariance(
