@@ -156,3 +156,35 @@ def test_crs_convert_geographic_geocentric_enu(cli, tmp_path):
         "crs", "convert", str(pts), "--from", "EPSG:0", "--to", "EPSG:4978", "--cols", "lon,lat,h"
     )
     assert code == 2 and "EPSG:0" in err
+
+
+def test_register_statistics_and_report(cli, tmp_path):
+    """sigma0 and the standard deviations of the parameters (from the moments, out of core)
+    are printed, in --json and in the --report; they equal the in-memory fit's."""
+    rng = np.random.default_rng(8)
+    x = rng.uniform([0, 0, 0], [400, 300, 30], (3000, 3))
+    T = pg.Similarity3D.from_angles(1.00004, 0.01, -0.02, 0.7, [480000.0, 5300000.0, 250.0])
+    X = T.apply(x) + rng.normal(0, 0.01, x.shape)
+    src, dst = tmp_path / "scan.las", tmp_path / "ref.las"
+    pg.io.write_cloud(src, x, scales=(1e-5, 1e-5, 1e-5))
+    pg.io.write_cloud(dst, X, scales=(1e-5, 1e-5, 1e-5), crs="EPSG:32633")
+    xs, Xs = pg.io.read_cloud_xyz(src), pg.io.read_cloud_xyz(dst)
+    ref = pg.absolute_orientation(xs[np.arange(3000) % 10 != 0], Xs[np.arange(3000) % 10 != 0])
+    report = tmp_path / "reg.html"
+    args = ("cloud", "register", str(src), str(dst), "--check-every", "10", "--chunk-size",
+            "700", "--scheduler", "sync")
+    code, out, err = cli(*args, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["sigma0"] == pytest.approx(ref.sigma0, rel=1e-6)
+    np.testing.assert_allclose(d["std"], np.sqrt(np.diag(ref.covariance)), rtol=1e-6)
+    assert d["parameter_names"] == list(ref.parameter_names) and d["redundancy"] == 3 * 2700 - 7
+    code, out, err = cli(*args, "--report", str(report), "--angle-unit", "gon")
+    assert code == 0, err
+    assert f"sigma0 {ref.sigma0:.4g} m" in out and "std. dev." in out and " gon" in out
+    assert ", 5300000.0" in out  # the translation to 0.1 mm (it was printed as 5.3e+06)
+    html = report.read_text()
+    assert "Control and check pairs" in html and "check RMSE" in html and "sigma0" in html
+    # an output into a folder that does not exist is refused before the clouds are read
+    code, out, err = cli(*args, "--report", str(tmp_path / "no" / "r.html"))
+    assert code != 0 and "--report" in err and "does not exist" in err

@@ -162,3 +162,53 @@ def test_cloud_as_dask_array(tmp_path):
     ref = pg.absolute_orientation(xs, pg.io.read_cloud_xyz(tmp_path / "X.laz"), statistics=False)
     np.testing.assert_allclose(fit.rotation, ref.rotation, atol=1e-13)
     np.testing.assert_allclose(fit.translation, ref.translation, atol=1e-7)
+
+
+@pytest.mark.parametrize("method", ["svd", "gauss-helmert"])
+def test_out_of_core_statistics_equal_the_in_memory_fit(method):
+    """sigma0 and the parameters' covariance from the merged moments are the in-memory
+    fit's (v'Pv from the moments: 1e-8 relative here; gauss-helmert's cofactor at the
+    observed instead of the corrected source points: residual / spread ~ 1e-4)."""
+    x, X, rng = _data(20000, seed=5)
+    w = rng.uniform(0.5, 2.0, x.shape[0])
+    for weights in (None, w) if method == "svd" else (None,):
+        ref = pg.absolute_orientation(x, X, method=method, weights=weights)
+        fit = pg.distributed.absolute_orientation(
+            da.from_array(x, chunks=(3000, 3)), X, method=method, weights=weights,
+            scheduler="sync",
+        )
+        assert fit.sigma0 == pytest.approx(ref.sigma0, rel=1e-7)
+        assert fit.redundancy == ref.redundancy and fit.n_observations == ref.n_observations
+        tol = 1e-9 if method == "svd" else 1e-3
+        np.testing.assert_allclose(fit.cofactor, ref.cofactor, rtol=tol,
+                                   atol=tol * np.abs(ref.cofactor).max())
+        np.testing.assert_allclose(fit.covariance, ref.covariance, rtol=max(tol, 3e-7),
+                                   atol=max(tol, 3e-7) * np.abs(ref.covariance).max())
+        assert fit.residuals.shape == (0, 3)
+    splits = [0, 1, 2, 700, 701, 20000]  # empty and one-point chunks merge exactly
+    chunked = absolute_orientation_chunks(
+        (x[a:b], X[a:b]) for a, b in itertools.pairwise(splits)
+    )
+    ref = pg.absolute_orientation(x, X)
+    np.testing.assert_allclose(np.sqrt(np.diag(chunked.covariance)),
+                               np.sqrt(np.diag(ref.covariance)), rtol=1e-8)
+
+
+def test_out_of_core_standard_deviations_against_monte_carlo():
+    """The standard deviations from the moments against the spread of 300 redraws of the
+    noise (sampling error of a std ratio over 300 redraws: ~4 %)."""
+    rng = np.random.default_rng(11)
+    x = rng.uniform(-50, 50, (60, 3)) + np.array([480000.0, 5300000.0, 200.0])
+    T = pg.Similarity3D.from_angles(1.0002, 0.3, -0.5, 1.2, [10.0, -20.0, 5.0])
+    X0 = T.apply(x)
+    sigma = 0.05
+    est, sds, s0 = [], [], []
+    for _ in range(300):
+        X = X0 + rng.normal(0, sigma, X0.shape)
+        fit = absolute_orientation_chunks([(x[:25], X[:25]), (x[25:], X[25:])])
+        est.append(fit.parameters)
+        sds.append(np.sqrt(np.diag(fit.covariance)))
+        s0.append(fit.sigma0)
+    ratio = np.std(est, axis=0, ddof=1) / np.mean(sds, axis=0)
+    assert np.all(np.abs(ratio - 1) < 0.15), ratio
+    assert np.mean(np.square(s0)) == pytest.approx(sigma**2, rel=0.03)

@@ -457,7 +457,8 @@ def absolute_orientation(
     One pass over the data: each block pair gives its centred moments
     (:func:`photogeom.orientation.absolute_chunked.chunk_moments`), merged exactly on the
     client. Equal to ``photogeom.absolute_orientation(source, target, method=method,
-    statistics=False)`` on the same points to rounding (tests: 1e-12 relative).
+    statistics=False)`` on the same points to rounding (tests: 1e-12 relative), and so are
+    its sigma0 and parameter covariance (to the digits the moments keep).
 
     Parameters
     ----------
@@ -472,8 +473,9 @@ def absolute_orientation(
     Returns
     -------
     AbsoluteOrientationFit
-        Parameters without statistics (covariance NaN, no per-point residuals);
-        ``extras["sum_squared_residuals"]`` from the moments.
+        Parameters, sigma0 and the covariance of the parameters (from the moments, as
+        :func:`photogeom.orientation.absolute_chunked.fit_from_moments`); no per-point
+        residuals or tests; ``extras["sum_squared_residuals"]`` from the moments.
     """
     from .orientation.absolute_chunked import (
         MOMENT_METHODS,
@@ -578,7 +580,9 @@ class CloudRegistration:
     Attributes
     ----------
     fit : AbsoluteOrientationFit
-        From the control pairs (parameters, no per-point statistics).
+        From the control pairs: parameters, sigma0 and their covariance (from the moments;
+        unit weights, so sigma0 is the standard deviation of one target coordinate in target
+        units when the source is exact); no per-point residuals or tests.
     n_control, n_check : int
     check_rms : numpy.ndarray, shape (3,)
         Per-axis RMS of the check-pair residuals (computed minus observed, target units).
@@ -615,6 +619,12 @@ class CloudRegistration:
             "rotation": np.asarray(f.rotation).tolist(),
             "translation": np.asarray(f.translation).tolist(),
             "angles_transposed_rad": [f.params[k] for k in ("omega", "phi", "kappa")],
+            "parameter_names": list(f.parameter_names),
+            "parameters": np.asarray(f.parameters).tolist(),
+            "std": np.sqrt(np.diag(f.covariance)).tolist(),
+            "covariance": np.asarray(f.covariance).tolist(),
+            "sigma0": f.sigma0,
+            "redundancy": f.redundancy,
             "n_control": self.n_control,
             "n_check": self.n_check,
             "control_rmse": self.control_rmse,

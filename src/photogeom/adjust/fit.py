@@ -358,19 +358,22 @@ class Fit:
             sd = "-" if not math.isfinite(s) else f"{s:.6g}" + (" (a priori)" if a_priori else "")
             lines.append(f"  {name:<16} {value:>18.10g} {sd:>18} {unit:>8}")
         unit = f" {self.residual_unit}" if self.residual_unit else ""
-        lines.append(
-            "  residuals v = computed - observed" + (f" [{self.residual_unit}]" if unit else "")
-        )
         labels = self.residual_labels or tuple(f"v{j}" for j in range(self.residuals.shape[1]))
-        head = "  " + f"{'id':<10}" + "".join(f"{lab:>14}" for lab in labels)
-        lines.append(head)
-        ids = self.ids or tuple(range(1, self.residuals.shape[0] + 1))
-        for pid, row in zip(ids, self.residuals):
-            lines.append("  " + f"{pid!s:<10}" + "".join(f"{x:>14.6g}" for x in row))
-        lines.append(
-            f"  RMSE (per point) {self.rmse:.6g}{unit}; RMS per axis "
-            + ", ".join(f"{lab} {x:.6g}" for lab, x in zip(labels, self.rms_per_axis))
-        )
+        if self.residuals.shape[0] == 0 and self.n_observations > 0:
+            lines.append("  residuals: not computed")
+        else:
+            lines.append(
+                "  residuals v = computed - observed" + (f" [{self.residual_unit}]" if unit else "")
+            )
+            head = "  " + f"{'id':<10}" + "".join(f"{lab:>14}" for lab in labels)
+            lines.append(head)
+            ids = self.ids or tuple(range(1, self.residuals.shape[0] + 1))
+            for pid, row in zip(ids, self.residuals):
+                lines.append("  " + f"{pid!s:<10}" + "".join(f"{x:>14.6g}" for x in row))
+            lines.append(
+                f"  RMSE (per point) {self.rmse:.6g}{unit}; RMS per axis "
+                + ", ".join(f"{lab} {x:.6g}" for lab, x in zip(labels, self.rms_per_axis))
+            )
         if self.check_residuals is not None:
             lines.append("  check points (not in the estimate), v = computed - observed")
             cids = self.check_ids or tuple(range(1, self.check_residuals.shape[0] + 1))

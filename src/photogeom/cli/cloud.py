@@ -43,8 +43,8 @@ class CloudMethod(str, Enum):
     gauss_helmert = "gauss-helmert"
 
 
-def _fmt3(v) -> str:
-    return ", ".join(f"{float(x):.6g}" for x in v)
+def _fmt3(v, fmt: str = ".6g") -> str:
+    return ", ".join(f"{float(x):{fmt}}" for x in v)
 
 
 @app.command("info")
@@ -281,17 +281,26 @@ def register(
     angle_unit: Annotated[
         AngleUnit, typer.Option(help="Unit of the angles shown (the JSON keeps radians).")
     ] = AngleUnit.deg,
+    report: Annotated[
+        Path | None,
+        typer.Option(help="Write an HTML report (parameters, statistics, check pairs)."),
+    ] = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Absolute orientation target ~ s R source + t of two clouds of corresponding points,
-    out of core (one pass for the estimate, one for the check pairs). Lengths are in the
-    unit of the target cloud's CRS (unlabelled when it records none)."""
+    out of core (one pass for the estimate, one for the check pairs), with sigma0 and the
+    parameters' standard deviations from the moments. Lengths are in the unit of the target
+    cloud's CRS (unlabelled when it records none)."""
+    import numpy as np
+
     from ..distributed import register_clouds
-    from ..io import atomic_write_text
-    from ..units import display_angle
+    from ..units import display_angle, from_radians
+    from ._common import write_outputs
+    from .bundle import check_targets
 
     if check_every < 0 or check_every == 1:
         raise InputError(f"--check-every {check_every}: give 0 (no check pairs) or k >= 2")
+    check_targets(files=[("--output-params", output_params), ("--report", report)])
     reg = register_clouds(
         source,
         target,
@@ -302,36 +311,77 @@ def register(
         scheduler=scheduler,
     )
     d = reg.to_dict()
+    outputs: list[tuple[Path, str]] = []
     if output_params is not None:
         record = {"model_parameters": reg.fit.transform.to_dict()}
         record.update({"crs": reg.fit.crs, "source_crs": reg.fit.source_crs})
-        atomic_write_text(output_params, json_text(record))
+        outputs.append((output_params, json_text(record)))
+    if report is not None:
+        outputs.append((report, _register_report(reg, source, target, angle_unit.value)))
+    write_outputs(outputs)
     if json_out:
         typer.echo(json_text(_nan_to_none(d)), nl=False)
         return
     f = reg.fit
     au = angle_unit.value
+    sd = dict(zip(f.parameter_names, np.sqrt(np.diag(f.covariance))))
     om, ph, ka = (
         display_angle(a, au, name)
         for a, name in zip(f.angles("transposed", au), ("omega", "phi", "kappa"))
     )
     u = _length_unit(f.crs)
+    sda = [from_radians(sd[k], au) for k in ("omega", "phi", "kappa")]
     lines = [
         f"absolute orientation ({f.method}) of {reg.n_control} control pairs",
-        f"scale {f.scale:.10f}",
+        f"scale {f.scale:.10f}" + (f" +- {sd['scale']:.3g}" if "scale" in sd else " (fixed)"),
         f"omega {om:+.6f} {au}  phi {ph:+.6f} {au}  kappa {ka:+.6f} {au} (transposed "
         "convention)",
-        f"translation {_fmt3(f.translation)}{u}",
-        f"control RMSE {reg.control_rmse:.4g}{u} (from the moments)",
+        f"  std. dev. {sda[0]:.3g} / {sda[1]:.3g} / {sda[2]:.3g} {au}",
+        f"translation {_fmt3(f.translation, '.4f')}{u}",
+        f"  std. dev. {_fmt3([sd['tx'], sd['ty'], sd['tz']], '.3g')}{u}",
+        f"sigma0 {f.sigma0:.4g}{u} (one target coordinate; redundancy {f.redundancy}; "
+        "from the moments)",
+        f"control RMSE {reg.control_rmse:.4g}{u} (per point, from the moments)",
         f"target CRS: {reg.crs_name or 'none recorded'}",
     ]
     if reg.n_check:
         lines.append(
             f"check pairs {reg.n_check}: RMSE {reg.check_rmse:.4g}{u}, per axis "
-            f"{_fmt3(reg.check_rms)}{u}, mean {_fmt3(reg.check_mean)}{u}, max "
+            f"{_fmt3(reg.check_rms, '.4g')}{u}, mean {_fmt3(reg.check_mean, '.4g')}{u}, max "
             f"{reg.check_max:.4g}{u} (residuals computed - observed)"
         )
     say("\n".join(lines))
+
+
+def _register_report(reg, source: Path, target: Path, angle_unit: str) -> str:
+    """The HTML report of ``cloud register``: the fit (parameters with standard deviations,
+    sigma0; no per-point residuals out of core) and the check-pair statistics."""
+    from ..report import Report
+
+    unit = _length_unit(reg.fit.crs).strip()
+    rep = Report("Registration of two point clouds", f"{source} -> {target}")
+    rep.add_fit(reg.fit, title=f"Absolute orientation ({reg.fit.method})",
+                angle_unit=angle_unit)
+    u = f" [{unit}]" if unit else ""
+    rows = [
+        ["control pairs", f"{reg.n_control}"],
+        [f"control RMSE{u} (per point)", f"{reg.control_rmse:.4g}"],
+        ["check pairs", f"{reg.n_check}"],
+    ]
+    if reg.n_check:
+        rows += [
+            [f"check RMSE{u} (per point)", f"{reg.check_rmse:.4g}"],
+            [f"check RMS X / Y / Z{u}", " / ".join(f"{v:.4g}" for v in reg.check_rms)],
+            [f"check mean X / Y / Z{u}", " / ".join(f"{v:.4g}" for v in reg.check_mean)],
+            [f"check max |v|{u}", f"{reg.check_max:.4g}"],
+        ]
+    rows.append(["target CRS", reg.crs_name or "none recorded"])
+    rep.add_table(
+        "Control and check pairs", ["quantity", "value"], rows,
+        note="Residuals v = computed - observed; check pairs (every k-th pair, --check-every) "
+        "are not in the estimate.",
+    )
+    return rep.to_html()
 
 
 def _length_unit(crs: str | None) -> str:
