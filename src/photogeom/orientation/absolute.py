@@ -693,6 +693,7 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
         Qcf, r_eff, red, wn = closed_form_statistics(
             x, X, v, nearest=nearest, with_scale=with_scale, weights=w,
             coplanar_threshold=coplanar_threshold, sigma0_prior=ctx.sigma0_prior,
+            out=(st.redundancy_numbers, st.normalized_residuals),
         )
         # angles not separable at gimbal lock: NaN where the linearised model has NaN
         Qcf = np.where(np.isnan(st.cofactor), np.nan, Qcf)

@@ -682,12 +682,14 @@ def _closed_form_gradients(cf: _ClosedFormSetup, Jo: np.ndarray):
         qb = np.matmul(Xb_c[None], HsT) - np.matmul(xb_c[None], KT)
         for i, g in extra.items():
             qb[:, gidx == i, :] += g[:, None, :]
-        # through the unit vector: P_i q / rho_i, P_i = I - Xb_i Xb_i.T
-        dots = np.sum(qb * Xb_c[None], axis=2)
-        ai = (qb - dots[:, :, None] * Xb_c[None]) / dX_c[None, :, None]
+        # through the unit vector: P_i q / rho_i, P_i = I - Xb_i Xb_i.T (in place: the
+        # (u, c, 3) arrays are the cost of this pass)
+        dots = np.einsum("ucj,cj->uc", qb, Xb_c)
+        qb -= dots[:, :, None] * Xb_c[None]
+        qb /= dX_c[None, :, None]
         if Jo[:, 9].any():  # s = mean |X'_i| / |x'_i|: d s / d X'_i = Xb_i / (nu |x'_i|)
-            ai += Jo[:, 9, None, None] * (Xb_c / (cf.nu * dx_c[:, None]))[None]
-        yield gidx, ai
+            qb += Jo[:, 9, None, None] * (Xb_c / (cf.nu * dx_c[:, None]))[None]
+        yield gidx, qb
 
 
 def _closed_form_sums(cf: _ClosedFormSetup, Jo: np.ndarray):
@@ -701,7 +703,7 @@ def _closed_form_sums(cf: _ClosedFormSetup, Jo: np.ndarray):
     for _, ai in _closed_form_gradients(cf, Jo):
         flat = ai.reshape(u, -1)
         S2 += flat @ flat.T
-        S1 += ai.sum(axis=1)
+        S1 += np.add.reduce(ai, axis=1)
     n = cf.n
     bvec = (Jo[:, 10:13] - S1) / n
     return S2 + S1 @ bvec.T + bvec @ S1.T + n * bvec @ bvec.T, bvec
@@ -748,6 +750,11 @@ def _used_rotation(R_raw: np.ndarray, nearest: bool) -> np.ndarray:
     return U @ Vt
 
 
+def nearest_identity(G: np.ndarray) -> bool:
+    """True when ``G`` is the identity (the raw R: no polar factor to differentiate)."""
+    return G.shape[0] == G.shape[1] and bool(np.array_equal(G, np.eye(G.shape[0])))
+
+
 def _fitted_jacobians(xr: np.ndarray, s: float, R: np.ndarray, Gp: np.ndarray,
                       with_scale: bool) -> np.ndarray:
     """``D_i = d F_i / d z`` (c, 3, 13) of the fitted points ``F_i = s R x'_i + Xg``,
@@ -757,7 +764,7 @@ def _fitted_jacobians(xr: np.ndarray, s: float, R: np.ndarray, Gp: np.ndarray,
     for a in range(3):  # d F_a / d R[a, b] = s x'_b (R row-major)
         E[:, a, 3 * a : 3 * a + 3] = xr
     D = np.zeros((c, 3, 13))
-    D[:, :, :9] = s * (E @ Gp)
+    D[:, :, :9] = s * E if nearest_identity(Gp) else s * (E @ Gp)
     if with_scale:
         D[:, :, 9] = xr @ R.T
     D[:, :, 10:13] = np.eye(3)
@@ -774,6 +781,7 @@ def closed_form_statistics(
     weights: np.ndarray | None = None,
     coplanar_threshold: float | None = None,
     sigma0_prior: float = 1.0,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """Cofactor, expected ``v'Pv`` and residual tests of the closed-form estimate, all
     propagated through the estimator itself.
@@ -800,6 +808,9 @@ def closed_form_statistics(
         Uniform point weights (the closed form takes no others).
     sigma0_prior : float
         A-priori standard deviation of unit weight.
+    out : (numpy.ndarray, numpy.ndarray), optional
+        Arrays (n, 3) to write the redundancy numbers and normalised residuals into (e.g.
+        those of the linearised statistics, no longer needed): no further n-row arrays.
 
     Returns
     -------
@@ -811,10 +822,16 @@ def closed_form_statistics(
         NaN normalised residual where the redundancy number is ~0.
     """
     cf = _closed_form_setup(x, X, nearest, with_scale, coplanar_threshold)
-    Iz = np.eye(13)
+    # gradients of z itself; those of Xg are I / n for every point (a_i = 0), uncorrelated
+    # with the rest (sum_j of the others' gradients is 0): the passes carry vec R_raw and s
+    Iz = np.eye(13)[:10]
     if not with_scale:
         Iz[9, 9] = 0.0
-    Qz, bz = _closed_form_sums(cf, Iz)  # of z itself
+    Q10, b10 = _closed_form_sums(cf, Iz)
+    Qz = np.zeros((13, 13))
+    Qz[:10, :10] = Q10
+    Qz[10:, 10:] = np.eye(3) / cf.n
+    bz = np.vstack([b10, np.eye(3) / cf.n])
     Q = cf.Jz @ Qz @ cf.Jz.T
     R = _used_rotation(cf.R_raw, nearest)
     if nearest:  # d vec R / d vec R_raw of the polar factor, central differences
@@ -829,25 +846,36 @@ def closed_form_statistics(
     else:
         Gp = np.eye(9)
     n = cf.n
-    red = np.empty((n, 3))
-    # every point: diag(D_i Qz D_i.T) - 2 diag(D_i b) + 1 (the part of a_i follows)
-    for a in range(0, n, COFACTOR_CHUNK):
-        b = min(a + COFACTOR_CHUNK, n)
-        D = _fitted_jacobians(x[a:b] - cf.xg, cf.s, R, Gp, with_scale)
-        red[a:b] = (
-            np.einsum("ckm,mn,ckn->ck", D, Qz, D, optimize=True)
-            - 2.0 * np.einsum("ckm,mk->ck", D, bz)
-            + 1.0
-        )
-    for gidx, ai in _closed_form_gradients(cf, Iz):  # -2 diag(D_i a_i), usable points
-        D = _fitted_jacobians(x[gidx] - cf.xg, cf.s, R, Gp, with_scale)
-        red[gidx] -= 2.0 * np.einsum("ckm,mck->ck", D, ai)
-    np.clip(red, 0.0, None, out=red)
-    r = float(np.add.reduce(red.reshape(-1)))
+    red, wn = (np.empty((n, 3)), np.empty((n, 3))) if out is None else out
     w = None if weights is None else float(np.mean(np.asarray(weights, dtype=float)))
+    root_w = 1.0 if w is None else math.sqrt(w)
+    total = 0.0
+
+    def rows(idx, a=None) -> float:
+        """Redundancy numbers diag(D_i Qz D_i.T) - 2 diag(D_i g_i) + 1 (g_i = a_i + b the
+        gradient of z) and normalised residuals of the points ``idx``; returns their sum."""
+        D = _fitted_jacobians(x[idx] - cf.xg, cf.s, R, Gp, with_scale)
+        DQ = D @ Qz
+        DQ -= 2.0 * bz.T
+        if a is not None:
+            DQ[:, :, :10] -= 2.0 * np.transpose(a, (1, 2, 0))
+        r_i = np.einsum("ckm,ckm->ck", DQ, D)  # (c, 3): BLAS products, no n x 13 x 13 loop
+        r_i += 1.0
+        np.clip(r_i, 0.0, None, out=r_i)
+        red[idx] = r_i
+        ok = r_i > 1e-12
+        wi = np.full(r_i.shape, np.nan)
+        np.divide(v[idx] * root_w, sigma0_prior * np.sqrt(r_i), out=wi, where=ok)
+        wn[idx] = wi
+        return float(np.add.reduce(r_i.reshape(-1)))
+
+    seen = np.zeros(n, dtype=bool)
+    for gidx, ai in _closed_form_gradients(cf, Iz):  # usable points
+        total += rows(gidx, ai)
+        seen[gidx] = True
+    rest = np.flatnonzero(~seen)  # points at the centroid (no unit vector): g_i = b
+    for a0 in range(0, rest.size, COFACTOR_CHUNK):
+        total += rows(rest[a0 : a0 + COFACTOR_CHUNK])
     if w is not None:
         Q = Q / w
-    num = v if w is None else v * math.sqrt(w)
-    wn = np.full((n, 3), np.nan)
-    np.divide(num, sigma0_prior * np.sqrt(red), out=wn, where=red > 1e-12)
-    return Q, r, red, wn
+    return Q, total, red, wn
