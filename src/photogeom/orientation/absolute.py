@@ -53,7 +53,7 @@ from .absolute_direct import (
     solve_single,
 )
 from .absolute_stats import (
-    closed_form_cofactor,
+    closed_form_statistics,
     gauss_helmert_statistics,
     linearised_statistics,
     opk_transposed,
@@ -686,23 +686,28 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
             xr, v, scale=s, angles=(omega, phi, kappa), source_centroid=xg, weights=w,
             with_scale=with_scale, sigma0_prior=ctx.sigma0_prior,
         )
+    r_eff = None
     if method == "closed-form":
-        # not a least-squares estimator: its covariance is propagated through the estimator
-        Qcf = closed_form_cofactor(
-            x, X, nearest=nearest, with_scale=with_scale, weights=w,
-            coplanar_threshold=coplanar_threshold,
+        # not a least-squares estimator: its covariance, the expectation of v'Pv and the
+        # residual tests are propagated through the estimator
+        Qcf, r_eff, red, wn = closed_form_statistics(
+            x, X, v, nearest=nearest, with_scale=with_scale, weights=w,
+            coplanar_threshold=coplanar_threshold, sigma0_prior=ctx.sigma0_prior,
+            out=(st.redundancy_numbers, st.normalized_residuals),
         )
         # angles not separable at gimbal lock: NaN where the linearised model has NaN
         Qcf = np.where(np.isnan(st.cofactor), np.nan, Qcf)
         if clipped:
             Qcf[-3:, :] = np.nan
             Qcf[:, -3:] = np.nan
-        st = replace(st, cofactor=Qcf)
+        st = replace(st, cofactor=Qcf, redundancy_numbers=red, normalized_residuals=wn)
         notes.append(
-            "standard deviations propagated through the closed-form estimator (its Jacobian "
-            "with respect to the target coordinates); residual tests from the linearised model"
+            "standard deviations, sigma0 and residual tests propagated through the closed-form "
+            f"estimator (its Jacobian with respect to the target coordinates); sigma0 divides "
+            f"v'Pv by its expectation {r_eff:.4g} (not the least-squares redundancy {r})"
         )
-    return _stat_fit(model, method, names, params, st, r, 3 * n, v, with_scale, ctx, notes)
+    return _stat_fit(model, method, names, params, st, r, 3 * n, v, with_scale, ctx, notes,
+                     effective_redundancy=r_eff)
 
 
 def _moments(x, X, w, statistics: bool) -> PairMoments:
@@ -741,8 +746,17 @@ def _params(t, s, angles, with_scale) -> np.ndarray:
 
 
 def _stat_fit(model, method, names, params, st, r, n_obs, v, with_scale, ctx, notes,
-              extras=None, iterations=0, message="") -> AbsoluteOrientationFit:
-    s0 = math.sqrt(max(st.vtpv, 0.0) / r) if r > 0 else math.nan
+              extras=None, iterations=0, message="",
+              effective_redundancy: float | None = None) -> AbsoluteOrientationFit:
+    """The Fit with statistics; ``effective_redundancy`` (the expectation of ``v'Pv /
+    sigma0^2`` of an estimator that is not least squares, the closed form's) divides ``v'Pv``
+    instead of ``r`` and is kept in ``extras["effective_redundancy"]``."""
+    if effective_redundancy is None:
+        s0 = math.sqrt(max(st.vtpv, 0.0) / r) if r > 0 else math.nan
+    else:
+        ok = r > 0 and effective_redundancy > 0
+        s0 = math.sqrt(max(st.vtpv, 0.0) / effective_redundancy) if ok else math.nan
+        extras = {**(extras or {}), "effective_redundancy": float(effective_redundancy)}
     return AbsoluteOrientationFit._construct(
         model=model, method=method, parameter_names=names, parameters=params,
         covariance=s0**2 * st.cofactor, cofactor=st.cofactor, sigma0=s0,

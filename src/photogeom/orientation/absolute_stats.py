@@ -540,30 +540,31 @@ def _closed_form_outputs(z: np.ndarray, xg: np.ndarray, nearest: bool, with_scal
     return np.array([*t, s, w, p, k] if with_scale else [*t, w, p, k])
 
 
-def closed_form_cofactor(
+@dataclass
+class _ClosedFormSetup:
+    """What the closed form's propagation needs: ``z = (vec R_raw, s, Xg)``, the Jacobian
+    ``Jz`` of the reported parameters with respect to ``z``, the pieces of ``R_raw``'s
+    derivative and a generator of the usable points in chunks."""
+
+    n: int
+    nu: int
+    xg: np.ndarray
+    s: float
+    R_raw: np.ndarray
+    Binv: np.ndarray
+    Jz: np.ndarray
+    aug: tuple | None
+    chunks: object  # callable: () -> iterator of (gidx, xb, Xb, dx, dX)
+
+
+def _closed_form_setup(
     x: np.ndarray,
     X: np.ndarray,
-    *,
-    nearest: bool = False,
-    with_scale: bool = True,
-    weights: np.ndarray | None = None,
-    coplanar_threshold: float | None = None,
-) -> np.ndarray:
-    """Cofactor matrix of the closed-form (Afary 2024) estimate, propagated through the
-    estimator itself: ``Q = sum_i J_i J_i.T / w_i`` with ``J_i`` the Jacobian of the
-    parameters ``(tx, ty, tz[, scale], omega, phi, kappa)`` with respect to the target point
-    ``X_i`` (isotropic target errors, weight ``w_i``; source coordinates error-free, as in the
-    Gauss-Markov model).
-
-    The closed form is not a least-squares estimator, so the linearised least-squares
-    cofactor is not its covariance (it is too small by up to a factor 1.6 in the standard
-    deviations). The Jacobian follows the estimator step by step: centroid, scale (the mean
-    length ratio), unit vectors, ``R = (M M.T) inv(N M.T)`` with the plane-normal
-    augmentation where used, then the angles as read (published reading of the raw R, or of
-    its nearest rotation) and ``t = Xg - s R xg``; the last 3x3 map is differentiated
-    numerically (central differences on 13 inputs), the per-point part analytically. O(n),
-    in chunks.
-    """
+    nearest: bool,
+    with_scale: bool,
+    coplanar_threshold: float | None,
+) -> _ClosedFormSetup:
+    """Sums, ``R_raw``, ``s`` and ``Jz`` of the closed form (see :func:`closed_form_cofactor`)."""
     from .absolute_direct import (
         CENTROID_TOLERANCE,
         CLOSED_FORM_CHUNKED_N,
@@ -654,40 +655,227 @@ def closed_form_cofactor(
     Jz = np.column_stack(cols)  # (u, 13)
     if not with_scale:
         Jz[:, 9] = 0.0
-    u = Jz.shape[0]
-    G = Jz[:, :9].reshape(u, 3, 3)  # d output / d R_raw
-    H = G @ Binv.T  # (u, 3, 3)
-    K = np.swapaxes(R_raw.T @ H, 1, 2)  # K_k.T with K_k = R_raw.T H_k
+    return _ClosedFormSetup(n, nu, xg, s, R_raw, Binv, Jz, aug, chunks)
+
+
+def _closed_form_gradients(cf: _ClosedFormSetup, Jo: np.ndarray):
+    """Per chunk of usable points, ``(gidx, a)`` with ``a`` (u, c, 3) the gradients of the
+    outputs ``o(z)`` (``Jo = d o / d z``, (u, 13)) with respect to the reduced target points
+    ``X'_i = X_i - Xg`` (through the unit vectors, the scale and the augmentation)."""
+    u = Jo.shape[0]
+    G = Jo[:, :9].reshape(u, 3, 3)  # d output / d R_raw
+    H = G @ cf.Binv.T  # (u, 3, 3)
+    K = np.swapaxes(cf.R_raw.T @ H, 1, 2)  # K_k.T with K_k = R_raw.T H_k
     Hs = H + np.swapaxes(H, 1, 2)
     # gradient with respect to the augmentation normal, mapped to the two unit vectors
     extra = {}
-    if aug is not None:
-        lq, kq, xp, Xp, nc, Xb_l, Xb_k = aug
+    if cf.aug is not None:
+        lq, kq, xp, Xp, nc, Xb_l, Xb_k = cf.aug
         qp = Hs @ Xp - K @ xp  # (u, 3)
         gc = (qp - np.outer(qp @ Xp, Xp)) / nc
         extra[lq] = np.cross(Xb_k, gc)
         extra[kq] = np.cross(gc, Xb_l)
-    S1 = np.zeros((u, 3))
-    S2 = np.zeros((u, u))
     HsT = np.swapaxes(Hs, 1, 2)
     KT = np.swapaxes(K, 1, 2)
-    for gidx, xb_c, Xb_c, dx_c, dX_c in chunks():
+    for gidx, xb_c, Xb_c, dx_c, dX_c in cf.chunks():
         # per output k and point i (layout (u, c, 3), BLAS products)
         qb = np.matmul(Xb_c[None], HsT) - np.matmul(xb_c[None], KT)
         for i, g in extra.items():
             qb[:, gidx == i, :] += g[:, None, :]
-        # through the unit vector: P_i q / rho_i, P_i = I - Xb_i Xb_i.T
-        dots = np.sum(qb * Xb_c[None], axis=2)
-        ai = (qb - dots[:, :, None] * Xb_c[None]) / dX_c[None, :, None]
-        if with_scale:  # s = mean |X'_i| / |x'_i|: d s / d X'_i = Xb_i / (nu |x'_i|)
-            ai += Jz[:, 9, None, None] * (Xb_c / (nu * dx_c[:, None]))[None]
+        # through the unit vector: P_i q / rho_i, P_i = I - Xb_i Xb_i.T (in place: the
+        # (u, c, 3) arrays are the cost of this pass)
+        dots = np.einsum("ucj,cj->uc", qb, Xb_c)
+        qb -= dots[:, :, None] * Xb_c[None]
+        qb /= dX_c[None, :, None]
+        if Jo[:, 9].any():  # s = mean |X'_i| / |x'_i|: d s / d X'_i = Xb_i / (nu |x'_i|)
+            qb += Jo[:, 9, None, None] * (Xb_c / (cf.nu * dx_c[:, None]))[None]
+        yield gidx, qb
+
+
+def _closed_form_sums(cf: _ClosedFormSetup, Jo: np.ndarray):
+    """``Q = sum_j g_j g_j.T`` of the outputs ``o(z)`` (``Jo = d o / d z``) over the target
+    points, ``g_j = a_j + b`` their gradients (the centroid: ``d X'_i / d X_j = (delta_ij -
+    1/n) I``, so ``b = (d o / d Xg - sum_i a_i) / n``, ``a_j = 0`` for unusable points);
+    returns ``(Q, b)``."""
+    u = Jo.shape[0]
+    S1 = np.zeros((u, 3))
+    S2 = np.zeros((u, u))
+    for _, ai in _closed_form_gradients(cf, Jo):
         flat = ai.reshape(u, -1)
         S2 += flat @ flat.T
-        S1 += ai.sum(axis=1)
-    # the centroid: d X'_i / d X_j = (delta_ij - 1/n) I, so the gradient with respect to X_j
-    # is a_j + b with b = (d output / d Xg - sum_i a_i) / n (a_j = 0 for unusable points)
-    bvec = (Jz[:, 10:13] - S1) / n
-    Q = S2 + S1 @ bvec.T + bvec @ S1.T + n * bvec @ bvec.T
+        S1 += np.add.reduce(ai, axis=1)
+    n = cf.n
+    bvec = (Jo[:, 10:13] - S1) / n
+    return S2 + S1 @ bvec.T + bvec @ S1.T + n * bvec @ bvec.T, bvec
+
+
+def closed_form_cofactor(
+    x: np.ndarray,
+    X: np.ndarray,
+    *,
+    nearest: bool = False,
+    with_scale: bool = True,
+    weights: np.ndarray | None = None,
+    coplanar_threshold: float | None = None,
+) -> np.ndarray:
+    """Cofactor matrix of the closed-form (Afary 2024) estimate, propagated through the
+    estimator itself: ``Q = sum_i J_i J_i.T / w_i`` with ``J_i`` the Jacobian of the
+    parameters ``(tx, ty, tz[, scale], omega, phi, kappa)`` with respect to the target point
+    ``X_i`` (isotropic target errors, weight ``w_i``; source coordinates error-free, as in the
+    Gauss-Markov model).
+
+    The closed form is not a least-squares estimator, so the linearised least-squares
+    cofactor is not its covariance (it is too small by up to a factor 1.6 in the standard
+    deviations). The Jacobian follows the estimator step by step: centroid, scale (the mean
+    length ratio), unit vectors, ``R = (M M.T) inv(N M.T)`` with the plane-normal
+    augmentation where used, then the angles as read (published reading of the raw R, or of
+    its nearest rotation) and ``t = Xg - s R xg``; the last 3x3 map is differentiated
+    numerically (central differences on 13 inputs), the per-point part analytically. O(n),
+    in chunks.
+    """
+    cf = _closed_form_setup(x, X, nearest, with_scale, coplanar_threshold)
+    Q, _ = _closed_form_sums(cf, cf.Jz)
     if weights is not None:  # the closed form takes uniform weights only
         Q = Q / float(np.mean(np.asarray(weights, dtype=float)))
     return Q
+
+
+def _used_rotation(R_raw: np.ndarray, nearest: bool) -> np.ndarray:
+    """The R the closed form reports: ``R_raw`` or its nearest rotation."""
+    if not nearest:
+        return R_raw
+    U, _, Vt = np.linalg.svd(R_raw)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        U[:, 2] *= -1
+    return U @ Vt
+
+
+def nearest_identity(G: np.ndarray) -> bool:
+    """True when ``G`` is the identity (the raw R: no polar factor to differentiate)."""
+    return G.shape[0] == G.shape[1] and bool(np.array_equal(G, np.eye(G.shape[0])))
+
+
+def _fitted_jacobians(xr: np.ndarray, s: float, R: np.ndarray, Gp: np.ndarray,
+                      with_scale: bool) -> np.ndarray:
+    """``D_i = d F_i / d z`` (c, 3, 13) of the fitted points ``F_i = s R x'_i + Xg``,
+    ``z = (vec R_raw, s, Xg)``, ``Gp = d vec R / d vec R_raw`` (9, 9)."""
+    c = xr.shape[0]
+    E = np.zeros((c, 3, 9))
+    for a in range(3):  # d F_a / d R[a, b] = s x'_b (R row-major)
+        E[:, a, 3 * a : 3 * a + 3] = xr
+    D = np.zeros((c, 3, 13))
+    D[:, :, :9] = s * E if nearest_identity(Gp) else s * (E @ Gp)
+    if with_scale:
+        D[:, :, 9] = xr @ R.T
+    D[:, :, 10:13] = np.eye(3)
+    return D
+
+
+def closed_form_statistics(
+    x: np.ndarray,
+    X: np.ndarray,
+    v: np.ndarray,
+    *,
+    nearest: bool = False,
+    with_scale: bool = True,
+    weights: np.ndarray | None = None,
+    coplanar_threshold: float | None = None,
+    sigma0_prior: float = 1.0,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """Cofactor, expected ``v'Pv`` and residual tests of the closed-form estimate, all
+    propagated through the estimator itself.
+
+    The residuals ``v_i = F_i(z) - X_i`` (``F_i = s R x'_i + Xg`` with the reported R) are a
+    function of the target points through ``z = (vec R_raw, s, Xg)``: to first order
+    ``v = (H - I) e`` with ``H = D Z`` (``D_i = d F_i / d z``, ``Z_j = d z / d X_j``), so the
+    residual cofactor is ``Qvv = (H - I)(H - I).T / w`` (uniform point weight ``w``). Its trace
+    times ``w``, ``3n - 2 tr H + tr(H.T H)``, is the expectation of ``v'Pv / sigma0^2``: the
+    redundancy to divide by (the least-squares ``3n - u`` holds for a projection ``H`` only;
+    the raw closed form's residuals are smaller, those of its nearest rotation larger).
+    Redundancy numbers are the diagonal of ``Qvv P``, normalised residuals
+    ``v_i sqrt(w) / (sigma0_prior sqrt(r_i))``.
+
+    Parameters
+    ----------
+    x, X : numpy.ndarray, shape (n, 3)
+        Source and target points.
+    v : numpy.ndarray, shape (n, 3)
+        Residuals (computed minus observed) of the closed-form estimate, target units.
+    nearest, with_scale, coplanar_threshold
+        As for the estimate.
+    weights : numpy.ndarray, shape (n,), optional
+        Uniform point weights (the closed form takes no others).
+    sigma0_prior : float
+        A-priori standard deviation of unit weight.
+    out : (numpy.ndarray, numpy.ndarray), optional
+        Arrays (n, 3) to write the redundancy numbers and normalised residuals into (e.g.
+        those of the linearised statistics, no longer needed): no further n-row arrays.
+
+    Returns
+    -------
+    cofactor : numpy.ndarray, shape (u, u)
+        As :func:`closed_form_cofactor`.
+    redundancy : float
+        Expected ``v'Pv / sigma0^2`` (not an integer).
+    redundancy_numbers, normalized_residuals : numpy.ndarray, shape (n, 3)
+        NaN normalised residual where the redundancy number is ~0.
+    """
+    cf = _closed_form_setup(x, X, nearest, with_scale, coplanar_threshold)
+    # gradients of z itself; those of Xg are I / n for every point (a_i = 0), uncorrelated
+    # with the rest (sum_j of the others' gradients is 0): the passes carry vec R_raw and s
+    Iz = np.eye(13)[:10]
+    if not with_scale:
+        Iz[9, 9] = 0.0
+    Q10, b10 = _closed_form_sums(cf, Iz)
+    Qz = np.zeros((13, 13))
+    Qz[:10, :10] = Q10
+    Qz[10:, 10:] = np.eye(3) / cf.n
+    bz = np.vstack([b10, np.eye(3) / cf.n])
+    Q = cf.Jz @ Qz @ cf.Jz.T
+    R = _used_rotation(cf.R_raw, nearest)
+    if nearest:  # d vec R / d vec R_raw of the polar factor, central differences
+        Gp = np.empty((9, 9))
+        for j in range(9):
+            e = np.zeros(9)
+            e[j] = 1e-7
+            Gp[:, j] = (
+                _used_rotation(cf.R_raw + e.reshape(3, 3), True)
+                - _used_rotation(cf.R_raw - e.reshape(3, 3), True)
+            ).ravel() / 2e-7
+    else:
+        Gp = np.eye(9)
+    n = cf.n
+    red, wn = (np.empty((n, 3)), np.empty((n, 3))) if out is None else out
+    w = None if weights is None else float(np.mean(np.asarray(weights, dtype=float)))
+    root_w = 1.0 if w is None else math.sqrt(w)
+    total = 0.0
+
+    def rows(idx, a=None) -> float:
+        """Redundancy numbers diag(D_i Qz D_i.T) - 2 diag(D_i g_i) + 1 (g_i = a_i + b the
+        gradient of z) and normalised residuals of the points ``idx``; returns their sum."""
+        D = _fitted_jacobians(x[idx] - cf.xg, cf.s, R, Gp, with_scale)
+        DQ = D @ Qz
+        DQ -= 2.0 * bz.T
+        if a is not None:
+            DQ[:, :, :10] -= 2.0 * np.transpose(a, (1, 2, 0))
+        r_i = np.einsum("ckm,ckm->ck", DQ, D)  # (c, 3): BLAS products, no n x 13 x 13 loop
+        r_i += 1.0
+        np.clip(r_i, 0.0, None, out=r_i)
+        red[idx] = r_i
+        ok = r_i > 1e-12
+        wi = np.full(r_i.shape, np.nan)
+        np.divide(v[idx] * root_w, sigma0_prior * np.sqrt(r_i), out=wi, where=ok)
+        wn[idx] = wi
+        return float(np.add.reduce(r_i.reshape(-1)))
+
+    seen = np.zeros(n, dtype=bool)
+    for gidx, ai in _closed_form_gradients(cf, Iz):  # usable points
+        total += rows(gidx, ai)
+        seen[gidx] = True
+    rest = np.flatnonzero(~seen)  # points at the centroid (no unit vector): g_i = b
+    for a0 in range(0, rest.size, COFACTOR_CHUNK):
+        total += rows(rest[a0 : a0 + COFACTOR_CHUNK])
+    if w is not None:
+        Q = Q / w
+    return Q, total, red, wn
