@@ -383,6 +383,30 @@ def _score(g: np.ndarray, xn: np.ndarray, f: float, Ms: np.ndarray, X0s: np.ndar
     return e
 
 
+def _distinct_points(g: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
+    """Indices of the first of each group of coinciding points (sorted by position).
+
+    Parameters
+    ----------
+    g : ndarray, shape (n, 3)
+        Object coordinates (m or any length unit).
+    rel_tol : float
+        Points whose coordinates agree to ``rel_tol`` times the extent of all points (on a
+        grid of that spacing) count as one position.
+
+    Returns
+    -------
+    ndarray of int
+        One index per distinct position.
+    """
+    lo = g.min(axis=0)
+    extent = float(np.max(g.max(axis=0) - lo))
+    if not extent > 0.0:
+        return np.zeros(1, dtype=np.intp)
+    cells = np.round((g - lo) / (rel_tol * extent))
+    return np.unique(cells, axis=0, return_index=True)[1]
+
+
 def start_candidates(
     ground, image, io: InteriorOrientation, *, triples: int = N_TRIPLES, limit: int = 16
 ) -> list[tuple[float, ExteriorOrientation]]:
@@ -610,18 +634,36 @@ def space_resection(
         f"{u} unknowns ({', '.join(calib)} besides the exterior orientation) need {u} observations",
     )
     w = _image_weights(sigma, n)
+    first = _distinct_points(g)
+    n_distinct = first.size
+    repeated = (
+        f" (the {n} control points are only {n_distinct} distinct ground positions: "
+        "points are repeated)"
+        if n_distinct < n
+        else ""
+    )
+    if n_distinct < 3:
+        raise DegenerateGeometryError(
+            f"space resection: the {n} control points are only {n_distinct} distinct ground "
+            "position(s) (points are repeated), which cannot determine an orientation; give "
+            "at least 3 distinct control points (4 or more for a unique solution)"
+        )
     # --- start values ---
     if initial is None:
-        cands = start_candidates(g, im, io, limit=16 if n == 3 else MAX_STARTS)
+        if n_distinct == 3:
+            # A repeated point adds no geometry: three positions admit up to four solutions.
+            cands = start_candidates(g[first], im[first], io, limit=16)
+        else:
+            cands = start_candidates(g, im, io, limit=MAX_STARTS)
         if not cands:
             raise DegenerateGeometryError(
                 "space resection: no start values found (the closed-form solutions put points "
                 "behind the camera or the control is degenerate); pass initial="
             )
-        if n == 3 and len(cands) > 1:
+        if n_distinct == 3 and len(cands) > 1:
             listing = "; ".join(f"X0=({e.X0:.6g}, {e.Y0:.6g}, {e.Z0:.6g})" for _, e in cands)
             raise InputError(
-                f"space resection: three control points admit {len(cands)} exterior "
+                f"space resection: three control points{repeated} admit {len(cands)} exterior "
                 f"orientations ({listing}); pass initial= an approximate orientation or add a "
                 "fourth point (photogeom.orientation.p3p lists them)"
             )
