@@ -53,3 +53,60 @@ def test_resection_with_two_distinct_positions_names_the_repeat():
     g4, im4 = np.r_[g[:2], g[:2]], np.r_[im[:2], im[:2]]
     with pytest.raises(DegenerateGeometryError, match="only 2 distinct ground position"):
         pg.space_resection(g4, im4, IO_MM)
+
+
+# --- terrain-dependent RPC fit: control that cannot determine the coefficients -------------
+
+
+def _ikonos_points(n: int, seed: int, heights=None):
+    from photogeom.rpc import RPC
+
+    vendor = RPC.from_file(pg.datasets.path("ikonos"))
+    rng = np.random.default_rng(seed)
+    cols, rows = rng.uniform(0, 12000, n), rng.uniform(0, 10000, n)
+    h = rng.uniform(0, 100, n) if heights is None else rng.choice(heights, n)
+    lon, lat = vendor.localize(cols, rows, h)
+    return np.column_stack([lon, lat, h]), np.column_stack([cols, rows])
+
+
+def test_rpc_fit_to_repeated_points_is_refused_by_name():
+    # Before: 4 positions x 10 fitted order 1 (7 coefficients per coordinate) with
+    # sigma0 7e-11, redundancy 66 and standard deviations 1e-8, but 7675 px off elsewhere.
+    from photogeom.rpc import fit_rpc_to_points
+
+    G, im = _ikonos_points(4, 1)
+    with pytest.raises(DegenerateGeometryError, match="only 4 distinct ground positions"):
+        fit_rpc_to_points(np.repeat(G, 10, axis=0), np.repeat(im, 10, axis=0), order=1)
+
+
+def test_rpc_fit_at_two_heights_refuses_the_quadratic_height_term():
+    # Before: order 2 at two heights fitted to rmse 1e-5 px and was 3874 px off between them.
+    from photogeom.rpc import fit_rpc_to_points
+
+    G, im = _ikonos_points(60, 2, heights=[0.0, 100.0])
+    assert fit_rpc_to_points(G, im, order=1).rmse < 1.0
+    for order in (2, 3):
+        with pytest.raises(DegenerateGeometryError, match=r"only \d height.*order=1"):
+            fit_rpc_to_points(G, im, order=order)
+
+
+def test_rpc_fit_on_one_vertical_plane_is_refused():
+    from photogeom.rpc import RPC, fit_rpc_to_points
+
+    vendor = RPC.from_file(pg.datasets.path("ikonos"))
+    G, _ = _ikonos_points(60, 3)
+    G[:, 1] = G[0, 1] + (G[:, 0] - G[0, 0]) * 0.7  # lon and lat on one line
+    im = np.column_stack(vendor.project(G[:, 0], G[:, 1], G[:, 2]))
+    with pytest.raises(DegenerateGeometryError, match="terms L, P"):
+        fit_rpc_to_points(G, im, order=1)
+
+
+def test_rpc_fit_command_names_the_order_option(tmp_path, cli):
+    G, im = _ikonos_points(60, 2, heights=[0.0, 100.0])
+    path = tmp_path / "gcp.csv"
+    rows = [f"P{i},{lo:.9f},{la:.9f},{h:.3f},{c:.3f},{r:.3f}" for i, ((c, r), (lo, la, h))
+            in enumerate(zip(im, G))]  # fmt: skip
+    path.write_text("id,lon,lat,h,col,row\n" + "\n".join(rows) + "\n")
+    code, _out, err = cli("rpc", "fit", path, "--order", "2", "--output", tmp_path / "o.rpb")
+    assert code != 0
+    assert "only 2 height(s)" in err and "--order 1" in err, err

@@ -491,6 +491,7 @@ def fit_rpc_to_points(
                 "determined (give points spread in 3D, e.g. at different heights)"
             )
     norm = _Normalisation(np.vstack([lo, hi]), im)
+    _check_control_geometry(norm.ground(G), order, what)
     rpc, adj, names, nt = _fit_core(G, im, norm, order, regularization, float(sigma), what)
     if image_size is not None:
         rpc = _with(rpc, image_size=image_size)
@@ -505,6 +506,68 @@ def fit_rpc_to_points(
         {"regularization": regularization, "order": order, "min_denominator": dmin},
     )  # fmt: skip
     return with_check_points(fit, rpc, check_ground, check_image, check_ids)
+
+
+#: Smallest ratio of the extreme singular values of the polynomial terms of the control points
+#: (normalised to their box) below which those terms count as undetermined by the points.
+MIN_TERMS_CONDITION = 1e-8
+
+
+def _check_control_geometry(gn: np.ndarray, order: int, what: str) -> None:
+    """Refuse control points that cannot determine the coefficients of ``order``.
+
+    The default Tikhonov term keeps the normal equations regular, so without this check a fit
+    to too few distinct positions, or to points on a surface of degree ``order`` (one
+    vertical plane, two heights for a quadratic in height), returned the smallest
+    coefficients among infinitely many exact fits, with small standard deviations.
+
+    Parameters
+    ----------
+    gn : ndarray, shape (n, 3)
+        Control points normalised to their box (``[-1, 1]`` on each axis).
+    order : int
+        Polynomial degree (1, 2, 3).
+    what : str
+        The fit, for messages.
+
+    Raises
+    ------
+    DegenerateGeometryError
+        Fewer distinct positions than coefficients per image coordinate (repeated points),
+        or polynomial terms that are linearly dependent at the points.
+    """
+    nt = poly.TERMS_OF_ORDER[order]
+    k = 2 * nt - 1
+    lower = "" if order == 1 else "; or a lower order (order=1 needs 7 distinct points)"
+    distinct = np.unique(np.round(gn * 1e9), axis=0).shape[0]
+    if distinct < k:
+        raise DegenerateGeometryError(
+            f"{what}: the {gn.shape[0]} control points are only {distinct} distinct ground "
+            f"positions (points are repeated); the {k} coefficients per image coordinate need "
+            f"at least {k} distinct points. Give more distinct control points{lower}"
+        )
+    T = poly.terms(gn[:, 0], gn[:, 1], gn[:, 2])[:, :nt]
+    _, sv, vt = np.linalg.svd(T, full_matrices=False)
+    ratio = float(sv[-1] / sv[0])
+    if not ratio >= MIN_TERMS_CONDITION:
+        null = np.abs(vt[-1])
+        terms = [poly.TERM_NAMES[j] for j in np.flatnonzero(null >= 0.1 * null.max())]
+        ok = [o for o in (1, 2) if o < order and _terms_condition(gn, o) >= MIN_TERMS_CONDITION]
+        fix = f"; or a lower order (order={ok[-1]})" if ok else ""
+        raise DegenerateGeometryError(
+            f"{what}: the control points do not determine the polynomial terms "
+            f"{', '.join(terms)} (L, P, H: normalised longitude, latitude, height): they lie "
+            f"on a surface of degree {order} or lower, e.g. along one line in plan or at only "
+            f"{order} height(s) (relative singular value {ratio:.1e}). Give control points "
+            f"spread in longitude, latitude and height{fix}"
+        )
+
+
+def _terms_condition(gn: np.ndarray, order: int) -> float:
+    """Ratio of the extreme singular values of the terms of ``order`` at ``gn``."""
+    T = poly.terms(gn[:, 0], gn[:, 1], gn[:, 2])[:, : poly.TERMS_OF_ORDER[order]]
+    sv = np.linalg.svd(T, compute_uv=False)
+    return float(sv[-1] / sv[0])
 
 
 def with_check_points(fit: Fit, rpc: RPC, check_ground, check_image, check_ids) -> Fit:
