@@ -110,3 +110,44 @@ def test_rpc_fit_command_names_the_order_option(tmp_path, cli):
     code, _out, err = cli("rpc", "fit", path, "--order", "2", "--output", tmp_path / "o.rpb")
     assert code != 0
     assert "only 2 height(s)" in err and "--order 1" in err, err
+
+
+# --- relative orientation: repeated tie points --------------------------------------------
+
+EO_LEFT = ExteriorOrientation(0.0, 0.0, 400.0)
+EO_RIGHT = ExteriorOrientation(150.0, 5.0, 402.0, 0.01, -0.02, 0.03)
+
+
+def _five_ties(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    g = np.c_[rng.uniform(-100, 250, 5), rng.uniform(-150, 150, 5), rng.uniform(0, 80, 5)]
+    return project(g, IO_MM, EO_LEFT), project(g, IO_MM, EO_RIGHT)
+
+
+def test_relative_orientation_of_five_repeated_ties_is_the_five_point_case():
+    # Before: five tie points and three of them listed again returned one of the five-point
+    # solutions silently (100 random cases: 43 wrong, 34 right, 23 errors); exactly five
+    # points raised the 'several orientations' error in all the ambiguous ones.
+    truth = np.array([5.0 / 150.0, 2.0 / 150.0])
+    for seed in range(12):
+        x1, x2 = _five_ties(seed)
+        y1, y2 = np.r_[x1, x1[:3]], np.r_[x2, x2[:3]]
+        try:
+            pg.relative_orientation(x1, x2, IO_MM)
+            five_ok = True
+        except DegenerateGeometryError:
+            five_ok = False
+        try:
+            fit = pg.relative_orientation(y1, y2, IO_MM)
+        except DegenerateGeometryError as exc:
+            assert not five_ok, exc
+            continue
+        assert five_ok
+        assert np.allclose(fit.parameters[:2], truth, atol=1e-6)
+
+
+def test_relative_orientation_with_fewer_than_five_distinct_ties_names_the_repeat():
+    # before: ConvergenceError 'iteration limit 50 reached ... raise max_iter'
+    x1, x2 = _five_ties(0)
+    with pytest.raises(pg.TooFewPointsError, match="only 4 distinct pairs"):
+        pg.relative_orientation(np.r_[x1[:4], x1[:4]], np.r_[x2[:4], x2[:4]], IO_MM)
