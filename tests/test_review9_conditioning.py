@@ -151,3 +151,48 @@ def test_relative_orientation_with_fewer_than_five_distinct_ties_names_the_repea
     x1, x2 = _five_ties(0)
     with pytest.raises(pg.TooFewPointsError, match="only 4 distinct pairs"):
         pg.relative_orientation(np.r_[x1[:4], x1[:4]], np.r_[x2[:4], x2[:4]], IO_MM)
+
+
+# --- angles near gimbal lock: the matrix from the angles is the matrix ---------------------
+
+
+def _near_lock_rotations(count: int, dphi_deg: float, seed: int = 0) -> np.ndarray:
+    """Rotations at phi = +-(90 - dphi) degrees, rounded through a quaternion (errors of
+    1e-16 in every entry, as any computed rotation has)."""
+    rng = np.random.default_rng(seed)
+    phi = np.radians(90.0 - dphi_deg) * rng.choice([-1.0, 1.0], count)
+    M = pg.opk_matrix(rng.uniform(-3, 3, count), phi, rng.uniform(-3, 3, count))
+    return pg.matrix_from_quaternion(pg.quaternion_from_matrix(M))
+
+
+@pytest.mark.parametrize("dphi_deg", [1e-3, 1e-5, 1e-7])
+def test_opk_from_matrix_reproduces_the_matrix_near_gimbal_lock(dphi_deg):
+    # before: 5e-12, 6e-10, 7e-8 (the textbook kappa = atan2(-m21, m11))
+    M = _near_lock_rotations(200, dphi_deg)
+    w, p, k = pg.opk_from_matrix(M)
+    assert np.max(np.abs(pg.opk_matrix(w, p, k) - M)) < 5e-15
+    for Mi in M[:20]:  # the scalar path and the exterior orientation built on it
+        eo = ExteriorOrientation.from_matrix([0.0, 0.0, 0.0], Mi)
+        assert np.max(np.abs(eo.matrix - Mi)) < 5e-15
+
+
+def test_opk_from_matrix_unchanged_away_from_the_lock():
+    rng = np.random.default_rng(1)
+    a = rng.uniform(-1.4, 1.4, (3, 500))
+    M = pg.opk_matrix(*a)
+    w, p, k = pg.opk_from_matrix(M)
+    m = M
+    assert np.array_equal(k, np.arctan2(-m[:, 1, 0], m[:, 0, 0]))
+    assert np.allclose(np.array([w, p, k]), a, atol=1e-14)
+
+
+def test_absolute_orientation_angles_give_its_rotation_near_gimbal_lock():
+    # before: the fitted omega, phi, kappa rebuilt R only to 2.9e-7 at phi = 90 - 1e-7 deg
+    x = np.random.default_rng(2).uniform(-100, 100, (10, 3))
+    for R in np.swapaxes(_near_lock_rotations(10, 1e-7, seed=3), 1, 2):
+        X = 1.2 * x @ R.T + [5.0, 6.0, 7.0]
+        for method in ("svd", "gauss-markov"):
+            fit = pg.absolute_orientation(x, X, method=method)
+            p = dict(zip(fit.parameter_names, fit.parameters))
+            Rp = pg.opk_matrix(p["omega"], p["phi"], p["kappa"]).T
+            assert np.max(np.abs(Rp - R)) < 1e-13
