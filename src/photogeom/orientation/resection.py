@@ -383,6 +383,27 @@ def _score(g: np.ndarray, xn: np.ndarray, f: float, Ms: np.ndarray, X0s: np.ndar
     return e
 
 
+#: A start with cos(phi) below this (radians) begins this far from phi = +-90 degrees, where
+#: omega and kappa are not separable and the adjustment's design is singular.
+LOCK_START_OFFSET = 1e-4
+
+
+def _gimbal_lock_error(exc: DegenerateGeometryError, model, jac, x0) -> DegenerateGeometryError:
+    """``exc`` itself, or when only omega and kappa are named as undetermined, the same
+    error saying that the adjustment reached phi = +-90 degrees (gimbal lock)."""
+    text = str(exc)
+    if "(omega, kappa are undetermined" not in text:
+        return exc
+    return DegenerateGeometryError(
+        "space resection: the adjustment reached phi = +-90 degrees, where omega and kappa "
+        "(rotations about the same axis there) are not separable in the omega-phi-kappa "
+        "angles: the orientation is determined, its angles are not (error-free image "
+        "coordinates of a camera at exactly phi = +-90 degrees). Express the ground "
+        "coordinates in a system turned about its y axis, so that the camera's phi is away "
+        f"from +-90 degrees, and turn the result back ({text})"
+    )
+
+
 def _distinct_points(g: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     """Indices of the first of each group of coinciding points (sorted by position).
 
@@ -715,24 +736,33 @@ def space_resection(
     spread = _image_spread(im)
 
     def adjust_from(start: ExteriorOrientation):
+        angles = start.angles
+        if np.cos(angles[1]) < LOCK_START_OFFSET:
+            # at phi = +-90 deg the omega and kappa columns of the Jacobian coincide: start
+            # just off the lock (the adjustment moves phi anyway)
+            angles = angles.copy()
+            angles[1] = np.copysign(0.5 * np.pi - LOCK_START_OFFSET, angles[1])
         x0 = np.concatenate(
             [
                 [start.X0 - centre[0], start.Y0 - centre[1], start.Z0 - centre[2]],
-                start.angles,
+                angles,
                 [_io_value(io0, c) for c in calib],
             ]
         )
-        adj = gauss_markov(
-            model,
-            x0,
-            im.reshape(-1),
-            jacobian=jac,
-            weights=w,
-            names=names,
-            max_iter=max_iter,
-            tol=tol,
-            what="space resection",
-        )
+        try:
+            adj = gauss_markov(
+                model,
+                x0,
+                im.reshape(-1),
+                jacobian=jac,
+                weights=w,
+                names=names,
+                max_iter=max_iter,
+                tol=tol,
+                what="space resection",
+            )
+        except DegenerateGeometryError as exc:
+            raise _gimbal_lock_error(exc, model, jac, x0) from exc
         x = adj.x.copy()
         x[:3] += centre
         eo = ExteriorOrientation(*x[:6])
