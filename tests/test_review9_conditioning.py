@@ -225,3 +225,39 @@ def test_resection_converging_onto_gimbal_lock_says_so():
     g, im, eo = _horizontal_camera(90.0, 0.0, 1)
     with pytest.raises(DegenerateGeometryError, match=r"phi = \+-90 degrees.*turned about"):
         pg.space_resection(g, im, IO_MM, initial=eo)
+
+
+# --- batched resections: degenerate problems --------------------------------------------------
+
+
+def test_resection_batch_with_coinciding_control_names_the_problem():
+    # before: numpy.linalg.LinAlgError 'Singular matrix'
+    g = np.array([[10.0, 20.0, 30.0]] * 4)
+    start = ExteriorOrientation(90.0, -40.0, 390.0, 0.0, 0.0, 0.3)
+    im = np.broadcast_to(project(g, IO_MM, EO_TRUE), (2, 4, 2))
+    with pytest.raises(DegenerateGeometryError, match=r"problem\(s\) 0, 1 .*coincide or lie"):
+        pg.space_resection_batch(g, im, IO_MM, start)
+
+
+def test_resection_batch_with_collinear_control_is_refused_not_converged():
+    # before: parameters 60-80 m off, converged=True, std NaN (RuntimeWarning in sqrt)
+    g = np.array([[10.0, 20, 30], [10, 20, 30], [50, 60, 10], [50, 60, 10]])
+    good = np.c_[np.random.default_rng(0).uniform(-200, 300, (6, 2)), np.zeros(6)]
+    start = ExteriorOrientation(90.0, -40.0, 390.0, 0.0, 0.0, 0.3)
+    ground = np.stack([good[:4], g])
+    im = np.stack([project(good[:4], IO_MM, EO_TRUE), project(g, IO_MM, EO_TRUE)])
+    with pytest.raises(DegenerateGeometryError, match=r"problem\(s\) 1 \(1 in all\)"):
+        pg.space_resection_batch(ground, im, IO_MM, start)
+
+
+def test_resection_batch_agrees_with_space_resection_and_starts_off_the_lock():
+    g, im, eo = _horizontal_camera(90.0, 0.001, 0)
+    single = pg.space_resection(g, im, IO_MM)
+    batch = pg.space_resection_batch(g, im[None], IO_MM, eo)
+    assert batch.converged[0]
+    assert np.max(np.abs(batch.exterior(0).matrix - single.exterior.matrix)) < 1e-9
+    g2, im2, _ = _horizontal_camera(30.0, 0.001, 1)
+    one = pg.space_resection(g2, im2, IO_MM)
+    many = pg.space_resection_batch(g2, im2[None], IO_MM, one.exterior)
+    assert np.allclose(many.parameters[0], one.parameters, rtol=0, atol=1e-9)
+    assert np.allclose(many.std[0], list(one.std_errors.values()), rtol=1e-6)

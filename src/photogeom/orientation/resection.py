@@ -883,6 +883,41 @@ class BatchResection:
         return ExteriorOrientation(*self.parameters[i])
 
 
+#: Smallest ratio of the extreme eigenvalues of a batched resection's column-scaled normal
+#: equations; below it they are singular to double precision.
+_BATCH_NORMAL_LIMIT = 1e-15
+
+
+def _problems(idx: np.ndarray) -> str:
+    shown = ", ".join(str(int(i)) for i in idx[:10])
+    return f"problem(s) {shown}{', ...' if idx.size > 10 else ''} ({idx.size} in all)"
+
+
+def _check_batch_spread(gc: np.ndarray) -> None:
+    """Refuse problems whose centred control points (B, n, 3) coincide or lie on a line."""
+    sv = np.linalg.svd(gc, compute_uv=False)  # (B, 3), descending
+    bad = np.flatnonzero(~(sv[:, 1] > 1e-9 * sv[:, 0]))
+    if bad.size:
+        raise DegenerateGeometryError(
+            f"space resection (batch): the control points of {_problems(bad)} coincide or lie "
+            "on one line, which does not determine an orientation; give each problem at "
+            "least 3 control points not on a line (4 or more for a unique solution)"
+        )
+
+
+def _check_batch_normal(Ns: np.ndarray, iteration: int) -> None:
+    """Refuse singular column-scaled normal equations (B, 6, 6), naming the problems."""
+    ev = np.linalg.eigvalsh(Ns)
+    bad = np.flatnonzero(~(ev[:, 0] > _BATCH_NORMAL_LIMIT * ev[:, -1]))
+    if bad.size:
+        raise DegenerateGeometryError(
+            f"space resection (batch): at iteration {iteration} the observations of "
+            f"{_problems(bad)} do not determine the six parameters (singular normal "
+            "equations: weak control, or phi at +-90 degrees, where omega and kappa are not "
+            "separable); check those problems' control points and start values (initial)"
+        )
+
+
 def _batched_projection(gc: np.ndarray, x: np.ndarray, io: InteriorOrientation):
     """Image coordinates (B, n, 2), Jacobian (B, n, 2, 6) and depth (B, n) for B cameras."""
     from ..rotation import opk_matrix
@@ -986,7 +1021,11 @@ def space_resection_batch(
         raise InputError("sigma must be > 0")
     centre = g.mean(axis=1)
     gc = g - centre[:, None, :]
+    _check_batch_spread(gc)
     x[:, :3] -= centre
+    # starts at phi = +-90 deg (singular design) begin just off it, as in space_resection
+    lock = np.cos(x[:, 4]) < LOCK_START_OFFSET
+    x[lock, 4] = np.copysign(0.5 * np.pi - LOCK_START_OFFSET, x[lock, 4])
     done = np.zeros(B, dtype=bool)
     it = 0
     while it < max_iter:
@@ -999,6 +1038,7 @@ def space_resection_batch(
         dg = np.sqrt(np.einsum("bii->bi", N))
         dg[dg == 0] = 1.0
         Ns = N / dg[:, :, None] / dg[:, None, :]
+        _check_batch_normal(Ns, it)
         dx = np.linalg.solve(Ns, (b / dg)[..., None])[..., 0] / dg
         step = np.max(np.abs(np.einsum("bki,bi->bk", A, dx)), axis=1)
         rms = np.sqrt(np.mean(v * v, axis=1))
@@ -1011,7 +1051,11 @@ def space_resection_batch(
     res = xy - im
     A = J.reshape(B, 2 * n, 6) / s
     N = np.einsum("bki,bkj->bij", A, A)
-    Q = np.linalg.inv(N)
+    dg = np.sqrt(np.einsum("bii->bi", N))
+    dg[dg == 0] = 1.0
+    Ns = N / dg[:, :, None] / dg[:, None, :]
+    _check_batch_normal(Ns, it)
+    Q = np.linalg.inv(Ns) / dg[:, :, None] / dg[:, None, :]
     r = 2 * n - 6
     vtpv = np.sum((res / s) ** 2, axis=(1, 2))
     sigma0 = np.sqrt(vtpv / r) if r > 0 else np.full(B, np.nan)
