@@ -261,3 +261,26 @@ def test_resection_batch_agrees_with_space_resection_and_starts_off_the_lock():
     many = pg.space_resection_batch(g2, im2[None], IO_MM, one.exterior)
     assert np.allclose(many.parameters[0], one.parameters, rtol=0, atol=1e-9)
     assert np.allclose(many.std[0], list(one.std_errors.values()), rtol=1e-6)
+
+
+def test_terrain_independent_rpc_grid_needs_order_plus_one_nodes_per_axis():
+    # before: grid (9, 9, 2), order 2: rmse 1e-5 px on the grid, check RMSE 1310 px, no note
+    from photogeom.rpc import fit_rpc
+
+    bounds = [[10.98, 11.02], [47.99, 48.01], [0.0, 600.0]]
+    io = pg.InteriorOrientation(f=10000.0, unit="px", origin_px=(3999.5, 2999.5))
+    eo = pg.ExteriorOrientation(0.0, 0.0, 3000.0)
+
+    def camera(g):  # a rough local tangent plane is enough here
+        enu = np.column_stack([(g[:, 0] - 11.0) * 74500.0, (g[:, 1] - 48.0) * 111200.0,
+                               g[:, 2]])  # fmt: skip
+        return pg.project(enu, io, eo, system="pixel", behind="nan")
+
+    msg = r"2 node\(s\) along height.*grid=\(9, 9, 3\)"
+    with pytest.raises(DegenerateGeometryError, match=msg):
+        fit_rpc(camera, bounds, grid=(9, 9, 2), order=2)
+    with pytest.raises(DegenerateGeometryError, match="needs at least 4"):
+        fit_rpc(camera, bounds, grid=(9, 9, 3), order=3)
+    fit = fit_rpc(camera, bounds, grid=(9, 9, 3), order=2)
+    assert fit.check_rmse < 1e-3
+    assert fit_rpc(camera, bounds, grid=(9, 9, 2), order=1).check_rmse < 5.0

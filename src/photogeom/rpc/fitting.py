@@ -344,7 +344,8 @@ def fit_rpc(
         ``[[lon_min, lon_max], [lat_min, lat_max], [h_min, h_max]]`` (degrees, metres): the
         ground box the RPC must be valid in (it becomes the normalised domain).
     grid : (int, int, int)
-        Grid nodes along lon, lat and h (at least 2 each; the number of points must reach the
+        Grid nodes along lon, lat and h (at least ``order + 1`` each, so that the terms of
+        each degree are determined between the nodes; the number of points must reach the
         number of coefficients per coordinate). Check points lie between the nodes.
     order : {1, 2, 3}
         Degree of the polynomials (3 = RPC00B).
@@ -398,6 +399,18 @@ def fit_rpc(
     )  # fmt: skip
     norm = _Normalisation(b.T, img[ok])
     what = "terrain-independent RPC fit"
+    if order in poly.TERMS_OF_ORDER:
+        few = [i for i in range(3) if g[i] <= order]
+        if few:
+            axis = ("longitude", "latitude", "height")[few[0]]
+            need = tuple(max(v, order + 1) for v in g)
+            raise DegenerateGeometryError(
+                f"{what} of order {order}: grid={g} has {g[few[0]]} node(s) along {axis}; a "
+                f"polynomial of degree {order} needs at least {order + 1} along each axis, "
+                f"else its {axis} terms are undetermined between the nodes. Give "
+                f"grid={need} or a lower order"
+            )
+        _check_control_geometry(norm.ground(G[ok]), order, f"{what} of order {order}")
     rpc, adj, names, nt = _fit_core(G[ok], img[ok], norm, order, regularization, 1.0, what)
     if image_size is not None:
         rpc = _with(rpc, image_size=image_size)
