@@ -284,3 +284,31 @@ def test_terrain_independent_rpc_grid_needs_order_plus_one_nodes_per_axis():
     fit = fit_rpc(camera, bounds, grid=(9, 9, 3), order=2)
     assert fit.check_rmse < 1e-3
     assert fit_rpc(camera, bounds, grid=(9, 9, 2), order=1).check_rmse < 5.0
+
+
+# --- DLT: repeated control points ------------------------------------------------------------
+
+
+def _dlt_points(k: int, m: int):
+    rng = np.random.default_rng(3)
+    g = np.c_[rng.uniform(-200, 300, k), rng.uniform(-250, 150, k), rng.uniform(0, 50, k)]
+    g = g[np.arange(m) % k]
+    return g, project(g, IO_MM, EO_TRUE)
+
+
+def test_constrained_dlt_of_five_distinct_points_listed_twice_works():
+    # before: 'constrained DLT (linear): the observations do not determine the parameters
+    # (L1, L2, ...)' although the same five points alone gave the orientation
+    g, im = _dlt_points(5, 8)
+    fit = pg.estimate_dlt(g, im, constrained=True)
+    _, eo = pg.orientation_from_dlt(fit.model)
+    assert np.max(np.abs(eo.position - EO_TRUE.position)) < 1e-6
+
+
+def test_dlt_with_too_few_distinct_points_names_the_repeat():
+    g, im = _dlt_points(5, 12)
+    with pytest.raises(pg.TooFewPointsError, match="only 5 distinct ground positions"):
+        pg.estimate_dlt(g, im)
+    g, im = _dlt_points(4, 8)
+    with pytest.raises(pg.TooFewPointsError, match="only 4 distinct ground positions"):
+        pg.estimate_dlt(g, im, constrained=True)
