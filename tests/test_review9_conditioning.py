@@ -312,3 +312,24 @@ def test_dlt_with_too_few_distinct_points_names_the_repeat():
     g, im = _dlt_points(4, 8)
     with pytest.raises(pg.TooFewPointsError, match="only 4 distinct ground positions"):
         pg.estimate_dlt(g, im, constrained=True)
+
+
+# --- relative orientation: short base (base / distance below 1/50) ---------------------------
+
+
+@pytest.mark.parametrize("base", [15.0, 10.0])
+def test_relative_orientation_of_a_short_base_is_found(base):
+    # Before: 'no essential matrix has five or more points in front of both cameras; check
+    # the matches' for base / distance below 1/50 (OpenCV's recoverPose drops points farther
+    # than 50 bases), although the parallaxes (0.35 mm at f = 35 mm for base 10 m at 1 km)
+    # are 175 times the noise.
+    rng = np.random.default_rng(5)
+    e1 = ExteriorOrientation(0.0, 0.0, 1000.0)
+    e2 = ExteriorOrientation(base, 0.0, 1000.0, 0.01, -0.02, 0.03)
+    g = np.c_[rng.uniform(-300, 300, 50), rng.uniform(-300, 300, 50), rng.uniform(0, 100, 50)]
+    x1 = project(g, IO_MM, e1) + rng.normal(0, 0.002, (50, 2))
+    x2 = project(g, IO_MM, e2) + rng.normal(0, 0.002, (50, 2))
+    fit = pg.relative_orientation(x1, x2, IO_MM, sigma=0.002)
+    p = dict(zip(fit.parameter_names, fit.parameters))
+    for name, truth in (("by", 0.0), ("bz", 0.0), ("omega2", 0.01), ("phi2", -0.02)):
+        assert abs(p[name] - truth) < 4 * fit.std_errors[name], name
