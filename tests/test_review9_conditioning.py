@@ -333,3 +333,49 @@ def test_relative_orientation_of_a_short_base_is_found(base):
     p = dict(zip(fit.parameter_names, fit.parameters))
     for name, truth in (("by", 0.0), ("bz", 0.0), ("omega2", 0.01), ("phi2", -0.02)):
         assert abs(p[name] - truth) < 4 * fit.std_errors[name], name
+
+
+# --- RPCs on the antimeridian ------------------------------------------------------------------
+
+
+def _antimeridian_rpc():
+    from dataclasses import replace as dc_replace
+
+    from photogeom.rpc import RPC
+
+    vendor = RPC.from_file(pg.datasets.path("ikonos"))
+    return dc_replace(vendor, long_off=179.99)  # the same scene moved onto the antimeridian
+
+
+def test_rpc_projects_longitudes_given_on_either_side_of_the_antimeridian():
+    # before: a point at lon -179.94 (= 180.06) projected 1.2e7 px off (an extrapolation
+    # warning), and localize returned 180.06
+    rpc = _antimeridian_rpc()
+    c0, c1, r0, r1 = rpc.image_bounds
+    cols = np.array([c0 + 10, c1 - 10, 0.5 * (c0 + c1)])
+    rows = np.array([r0 + 10, r1 - 10, 0.5 * (r0 + r1)])
+    h = np.full(3, rpc.height_off)
+    lon, lat = rpc.localize(cols, rows, h)
+    assert np.all(np.abs(lon) <= 180.0) and lon.min() < 0 < lon.max()
+    col, row = rpc.project(lon, lat, h)
+    assert np.max(np.abs(col - cols)) < 1e-6 and np.max(np.abs(row - rows)) < 1e-6
+    east = lon < 0
+    col2, _ = rpc.project(np.where(east, lon + 360.0, lon), lat, h)  # 180.06 works as well
+    assert np.max(np.abs(col2 - cols)) < 1e-6
+
+
+def test_rpc_fit_to_points_across_the_antimeridian():
+    # before: the box of the points ran from -179.998 to 179.996 (LONG_OFF ~0, scale 180):
+    # the fit was meaningless
+    from photogeom.rpc import fit_rpc_to_points
+
+    rpc = _antimeridian_rpc()
+    rng = np.random.default_rng(0)
+    c0, c1, r0, r1 = rpc.image_bounds
+    cols, rows = rng.uniform(c0, c1, 40), rng.uniform(r0, r1, 40)
+    h = rng.uniform(*rpc.height_range, 40)
+    lon, lat = rpc.localize(cols, rows, h)
+    assert lon.min() < -179.9 and lon.max() > 179.9
+    fit = fit_rpc_to_points(np.c_[lon, lat, h], np.c_[cols, rows], order=1)
+    assert abs(abs(fit.model.long_off) - 180.0) < 0.05 and fit.model.long_scale < 0.1
+    assert fit.rmse < 1.0

@@ -48,6 +48,7 @@ from ..adjust import Fit, gauss_markov, solve_linear
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
 from . import polynomial as poly
+from .domain import longitude_difference, wrap_longitude
 from .model import RPC
 
 #: Default Tikhonov parameter (normalised units).
@@ -106,13 +107,16 @@ class _Normalisation:
     def __init__(self, ground_box: np.ndarray, image: np.ndarray) -> None:
         lo, hi = ground_box
         self.g_off = 0.5 * (lo + hi)
+        self.g_off[0] = float(wrap_longitude(self.g_off[0]))
         self.g_scale = 0.5 * (hi - lo)
         ilo, ihi = image.min(axis=0), image.max(axis=0)
         self.i_off = 0.5 * (ilo + ihi)
         self.i_scale = np.maximum(0.5 * (ihi - ilo), 1.0)
 
     def ground(self, g: np.ndarray) -> np.ndarray:
-        return (g - self.g_off) / self.g_scale
+        d = g - self.g_off
+        d[:, 0] = longitude_difference(g[:, 0], self.g_off[0])
+        return d / self.g_scale
 
     def image(self, im: np.ndarray) -> np.ndarray:
         return (im - self.i_off) / self.i_scale
@@ -495,7 +499,10 @@ def fit_rpc_to_points(
         G.shape[0], need, what,
         f"{need} coefficients per image coordinate" + (f"; {', '.join(lower)}" if lower else ""),
     )  # fmt: skip
-    lo, hi = G.min(axis=0), G.max(axis=0)
+    # longitudes of a scene on the antimeridian (179.9 and -179.9) taken around the first one
+    lon = G[0, 0] + longitude_difference(G[:, 0], G[0, 0])
+    lo = np.array([lon.min(), G[:, 1].min(), G[:, 2].min()])
+    hi = np.array([lon.max(), G[:, 1].max(), G[:, 2].max()])
     span = hi - lo
     for i, axis in enumerate(("longitude", "latitude", "height")):
         if span[i] <= 0:

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import InputError
 from . import polynomial as poly
-from .domain import DOMAIN_LIMIT, check_domain
+from .domain import DOMAIN_LIMIT, check_domain, longitude_difference, wrap_longitude
 
 _FIELDS_OFF_SCALE = (
     "line_off", "samp_off", "lat_off", "long_off", "height_off",
@@ -334,7 +334,7 @@ class RPC:
         """``(L, P, H)`` normalised ground coordinates (arrays of the broadcast shape)."""
         lon, lat, h = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (lon, lat, h)))
         return (
-            (lon - self.long_off) / self.long_scale,
+            longitude_difference(lon, self.long_off) / self.long_scale,
             (lat - self.lat_off) / self.lat_scale,
             (h - self.height_off) / self.height_scale,
         )
@@ -370,7 +370,7 @@ class RPC:
         return _shaped(col, shape), _shaped(row, shape)
 
     def _project_flat(self, lon, lat, h, domain_limit=DOMAIN_LIMIT):
-        L = (lon - self.long_off) / self.long_scale
+        L = longitude_difference(lon, self.long_off) / self.long_scale
         P = (lat - self.lat_off) / self.lat_scale
         H = (h - self.height_off) / self.height_scale
         check_domain({"longitude": L, "latitude": P, "height": H}, domain_limit, "RPC projection")
@@ -414,7 +414,7 @@ class RPC:
 
     def _jacobian_flat(self, lon, lat, h):
         """Image coordinates and their Jacobian (n, 2, 3) at flat inputs."""
-        L = (lon - self.long_off) / self.long_scale
+        L = longitude_difference(lon, self.long_off) / self.long_scale
         P = (lat - self.lat_off) / self.lat_scale
         H = (h - self.height_off) / self.height_scale
         V, dV = poly.evaluate_with_derivatives(self.coefficients, L, P, H, wrt="LPH")
@@ -512,7 +512,7 @@ class RPC:
         rn = (row - self.line_off) / self.line_scale
         hn = (h - self.height_off) / self.height_scale
         V = poly.evaluate(self.direct.coefficients, cn, rn, hn)
-        lon = V[0] / V[1] * self.long_scale + self.long_off
+        lon = wrap_longitude(V[0] / V[1] * self.long_scale + self.long_off)
         lat = V[2] / V[3] * self.lat_scale + self.lat_off
         return _shaped(lon, shape), _shaped(lat, shape)
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError, TooFewPointsError
-from .domain import LocalizationWarning
+from .domain import LocalizationWarning, wrap_longitude
 from .geodesy import metres_per_degree
 from .model import RPC
 
@@ -302,6 +302,7 @@ def intersect_rpc(
             s0[okp] = np.where(r_ > 0, np.sqrt(vtpv / np.maximum(r_, 1)), np.nan)
         res[okp] = np.where(seen[okp][..., None], v, np.nan)
     X[~converged] = np.nan
+    X[:, 0] = wrap_longitude(X[:, 0])  # a step may have crossed the antimeridian
     result = RPCIntersection(
         ground=X,
         cofactor=cof,
