@@ -379,3 +379,42 @@ def test_rpc_fit_to_points_across_the_antimeridian():
     fit = fit_rpc_to_points(np.c_[lon, lat, h], np.c_[cols, rows], order=1)
     assert abs(abs(fit.model.long_off) - 180.0) < 0.05 and fit.model.long_scale < 0.1
     assert fit.rmse < 1.0
+
+
+# --- RPC inputs: masked, complex and low-precision arrays ----------------------------------------
+
+
+def test_rpc_refuses_masked_heights_instead_of_using_the_hidden_values():
+    # before: the masked -9999 m was used (a column 1250 px off, an extrapolation warning)
+    from photogeom.errors import InputError as _InputError
+    from photogeom.rpc import RPC
+
+    rpc = RPC.from_file(pg.datasets.path("ikonos"))
+    h = np.ma.masked_array([100.0, 120.0, -9999.0], mask=[0, 0, 1])
+    lon, lat = np.full(3, rpc.long_off), np.full(3, rpc.lat_off)
+    with pytest.raises(_InputError, match="h: masked array"):
+        rpc.project(lon, lat, h)
+    with pytest.raises(_InputError, match="h: masked array"):
+        rpc.localize(np.full(3, rpc.samp_off), np.full(3, rpc.line_off), h)
+    with pytest.raises(_InputError, match="complex"):
+        rpc.project(lon + 0j, lat, 100.0)
+    obs = np.ma.masked_array(np.zeros((2, 2, 2)), mask=np.zeros((2, 2, 2), bool))
+    obs.mask[0, 1] = True
+    with pytest.raises(_InputError, match=r"NaN where an image does not see"):
+        pg.intersect_rpc([rpc, rpc], obs)
+
+
+def test_rpc_reports_float32_longitudes():
+    # before: float32 lon/lat (resolution 3.8e-6 deg, 0.3 m) moved the column by 0.17 px silently
+    from photogeom.errors import PrecisionWarning
+    from photogeom.rpc import RPC
+
+    rpc = RPC.from_file(pg.datasets.path("ikonos"))
+    lon = np.float32([rpc.long_off]) + np.float32(0.01)
+    with pytest.warns(PrecisionWarning, match="lon in float32"):
+        rpc.project(lon, np.float32([rpc.lat_off]), np.float32([100.0]))
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PrecisionWarning)
+        rpc.project(np.float64(rpc.long_off), rpc.lat_off, np.float32(100.0))  # h: 7.6e-6 m

@@ -13,13 +13,15 @@ in metres.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, PrecisionWarning
+from ..validation import _caller_level, as_float64
 from . import polynomial as poly
 from .domain import DOMAIN_LIMIT, check_domain, longitude_difference, wrap_longitude
 
@@ -643,6 +645,33 @@ def _replace(rpc: RPC, **changes) -> RPC:
     return replace(rpc, **changes)
 
 
+#: Rounding of an input (degrees for lon/lat, metres for h, pixels for col/row) above which a
+#: float16/float32 array is reported: about 1 cm on the ground, 1/1000 pixel.
+LOW_PRECISION_LIMIT = {"lon": 1e-7, "lat": 1e-7, "h": 1e-3, "col": 1e-3, "row": 1e-3}
+
+
+def _check_low_precision(value, arr: np.ndarray, name: str, what: str) -> None:
+    """Warn (:class:`~photogeom.errors.PrecisionWarning`) when a float16/float32 input was
+    rounded more coarsely than :data:`LOW_PRECISION_LIMIT` before photogeom received it."""
+    dtype = getattr(value, "dtype", None)
+    if dtype is None or dtype.kind != "f" or dtype.itemsize >= 8 or arr.size == 0:
+        return
+    finite = np.abs(arr[np.isfinite(arr)])
+    if finite.size == 0:
+        return
+    big = float(finite.max())
+    res = float(np.spacing(dtype.type(big)))
+    unit = {"lon": "deg", "lat": "deg", "h": "m"}.get(name, "px")
+    if res > LOW_PRECISION_LIMIT[name]:
+        warnings.warn(
+            f"{what}: {name} in {dtype.name} up to {big:.6g} {unit} has a resolution of "
+            f"{res:.3g} {unit}: the values were rounded to that before photogeom (which "
+            "computes in float64) received them. Pass float64 values",
+            PrecisionWarning,
+            stacklevel=_caller_level(),
+        )
+
+
 def _prepare(*named, what: str):
     """Broadcast named array inputs, check them, return flat float arrays and the shape."""
     arrays = []
@@ -655,10 +684,10 @@ def _prepare(*named, what: str):
                     "a rough value)"
                 )
             raise InputError(f"{what}: {name} is missing")
-        try:
-            arrays.append(np.asarray(v, dtype=np.float64))
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{what}: {name} cannot be read as numbers ({exc})") from exc
+        # masked values and imaginary parts are refused, not used (as everywhere in photogeom)
+        arr = as_float64(v, f"{what}: {name}", coordinates=False)
+        _check_low_precision(v, arr, name, what)
+        arrays.append(arr)
     try:
         b = np.broadcast_arrays(*arrays)
     except ValueError as exc:
