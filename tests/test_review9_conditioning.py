@@ -418,3 +418,34 @@ def test_rpc_reports_float32_longitudes():
     with warnings.catch_warnings():
         warnings.simplefilter("error", PrecisionWarning)
         rpc.project(np.float64(rpc.long_off), rpc.lat_off, np.float32(100.0))  # h: 7.6e-6 m
+
+
+# --- apply / project paths read points like the estimators -------------------------------------
+
+
+def test_apply_and_project_refuse_masked_points_and_report_float32():
+    from photogeom.errors import InputError as _InputError
+    from photogeom.errors import PrecisionWarning
+
+    rng = np.random.default_rng(0)
+    src = rng.uniform(-500, 500, (10, 3)) + np.array([500000.0, 5000000.0, 300.0])
+    tf = pg.estimate_transform("similarity3d", src, src + 1.0).transform
+    masked = np.ma.masked_array(src[:2], mask=[[0, 0, 0], [0, 0, 1]])
+    eo = ExteriorOrientation(500100.0, 5000000.0, 1000.0, 0.02, -0.03, 0.4)
+    calls = {
+        "transform": lambda a: tf(a),
+        "project": lambda a: project(a, IO_MM, eo),
+        "dlt": lambda a: pg.DLT(pg.dlt_from_orientation(IO_MM, eo), "mm").project(a),
+    }
+    for call in calls.values():
+        # before: the hidden value of the masked cell was used without a word
+        with pytest.raises(_InputError, match="masked array"):
+            call(masked)
+        # before: float32 (0.5 m resolution at 5e6) passed silently
+        with pytest.warns(PrecisionWarning, match="float32"):
+            call(src.astype(np.float32))
+    with pytest.raises(_InputError, match="masked array"):
+        pg.ground_at_height(np.zeros((2, 2)), IO_MM, eo, np.ma.masked_array([0.0, 1.0], [0, 1]))
+    io_px = pg.InteriorOrientation(f=35.0, unit="mm", pixel_size=0.005, origin_px=(100, 100))
+    with pytest.raises(_InputError, match="masked array"):
+        io_px.image_to_pixel(np.ma.masked_array([[0.0, 0.0], [1.0, 1.0]], [[0, 0], [0, 1]]))
