@@ -449,3 +449,14 @@ def test_apply_and_project_refuse_masked_points_and_report_float32():
     io_px = pg.InteriorOrientation(f=35.0, unit="mm", pixel_size=0.005, origin_px=(100, 100))
     with pytest.raises(_InputError, match="masked array"):
         io_px.image_to_pixel(np.ma.masked_array([[0.0, 0.0], [1.0, 1.0]], [[0, 0], [0, 1]]))
+
+
+def test_resection_with_control_on_a_line_says_so():
+    # before: 'no start values found (... or the control is degenerate); pass initial=' and,
+    # with initial=, 'X0, Y0, omega, phi are undetermined ... fix those parameters'
+    t = np.random.default_rng(3).uniform(-1, 1, 20)
+    g = np.c_[100 + 200 * t, 50 + 100 * t, 10 + 5 * t]
+    im = project(g, IO_MM, EO_TRUE)
+    for initial in (None, EO_TRUE):
+        with pytest.raises(DegenerateGeometryError, match="lie on one line"):
+            pg.space_resection(g, im, IO_MM, initial=initial)

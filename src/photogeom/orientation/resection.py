@@ -669,6 +669,13 @@ def space_resection(
             "position(s) (points are repeated), which cannot determine an orientation; give "
             "at least 3 distinct control points (4 or more for a unique solution)"
         )
+    sv = np.linalg.svd(g - g.mean(axis=0), compute_uv=False)
+    if not sv[1] > 1e-9 * sv[0]:
+        raise DegenerateGeometryError(
+            f"space resection: the {n} control points lie on one line (relative spread "
+            f"across it {sv[1] / sv[0]:.1e}), so the rotation about that line is undetermined; "
+            "give at least 3 control points not on a line (4 or more for a unique solution)"
+        )
     # --- start values ---
     if initial is None:
         if n_distinct == 3:
