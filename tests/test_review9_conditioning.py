@@ -412,7 +412,7 @@ def test_rpc_reports_float32_longitudes():
     rpc = RPC.from_file(pg.datasets.path("ikonos"))
     lon = np.float32([rpc.long_off]) + np.float32(0.01)
     with pytest.warns(PrecisionWarning, match="lon in float32"):
-        rpc.project(lon, np.float32([rpc.lat_off]), np.float32([100.0]))
+        rpc.project(lon, np.array([rpc.lat_off]), np.float32([100.0]))
     import warnings
 
     with warnings.catch_warnings():
