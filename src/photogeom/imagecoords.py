@@ -37,7 +37,7 @@ from typing import Literal
 import numpy as np
 
 from .errors import InputError
-from .validation import as_points
+from .validation import as_float64, as_points
 
 PixelOrigin = Literal["center", "corner"]
 PIXEL_ORIGINS: tuple[str, ...] = ("center", "corner")
@@ -104,7 +104,7 @@ def convert_pixel_origin(points, from_origin: PixelOrigin, to_origin: PixelOrigi
     """
     _check_origin(from_origin)
     _check_origin(to_origin)
-    arr = np.asarray(points, dtype=float)
+    arr = as_float64(points, "pixel coordinates")
     p = as_points(arr, 2, "pixel coordinates")
     shift = {"center": 0.0, "corner": 0.5}
     out = p + (shift[to_origin] - shift[from_origin])
@@ -174,7 +174,7 @@ class PixelSystem:
         Returns ``(x, y)`` of shape (n, 2), or ``(x, y, -f)`` of shape (n, 3) when the
         focal length is known (a single point in gives a single point out).
         """
-        arr = np.asarray(pixels, dtype=float)
+        arr = as_float64(pixels, "pixel coordinates (col, row)")
         p = as_points(arr, 2, "pixel coordinates (col, row)")
         d, pp = self.pixel_size, self.principal_point
         x = d[0] * (p[:, 0] - pp[0])
@@ -188,7 +188,7 @@ class PixelSystem:
 
         A third coordinate, when given, must equal ``-f`` (points on the image plane).
         """
-        arr = np.asarray(image_points, dtype=float)
+        arr = as_float64(image_points, "image coordinates (mm)")
         p = as_points(arr, (2, 3), "image coordinates (mm)")
         if p.shape[1] == 3:
             if self.focal_length is None:
@@ -266,7 +266,7 @@ def fiducial_to_image(points, principal_point, focal_length: float) -> np.ndarra
     -------
     numpy.ndarray, shape (n, 3) or (3,)
     """
-    arr = np.asarray(points, dtype=float)
+    arr = as_float64(points, "fiducial coordinates (mm)")
     p = as_points(arr, 2, "fiducial coordinates (mm)")
     pp = _pair(principal_point, "principal_point")
     f = _focal(focal_length)
@@ -278,7 +278,7 @@ def fiducial_to_image(points, principal_point, focal_length: float) -> np.ndarra
 
 def image_to_fiducial(points, principal_point) -> np.ndarray:
     """Image coordinates (x, y[, z]) in mm -> fiducial coordinates ``(x + x0, y + y0)``."""
-    arr = np.asarray(points, dtype=float)
+    arr = as_float64(points, "image coordinates (mm)")
     p = as_points(arr, (2, 3), "image coordinates (mm)")
     out = p[:, :2] + _pair(principal_point, "principal_point")
     return out[0] if arr.ndim == 1 else out
@@ -300,7 +300,7 @@ def handedness(system: str) -> str:
 def flip_y(points) -> np.ndarray:
     """Negate the second coordinate (row or y): turns a left-handed 2D system right-handed and
     back. Works on (n, 2) and (2,) arrays; returns a new array."""
-    arr = np.asarray(points, dtype=float)
+    arr = as_float64(points, "points")
     p = as_points(arr, 2, "points").copy()
     p[:, 1] = -p[:, 1]
     return p[0] if arr.ndim == 1 else p

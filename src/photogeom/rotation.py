@@ -34,6 +34,10 @@ DEFAULT_CONVENTION: Convention = "transposed"
 #: Below this value of cos(phi) the angles omega and kappa are not separable.
 GIMBAL_TOLERANCE = 1e-9
 
+#: Below this value of cos(phi) :func:`opk_from_matrix` takes kappa from entries of order one
+#: (the textbook atan2(-m21, m11) divides the rounding errors of the matrix by cos(phi)).
+NEAR_GIMBAL_LOCK = 1e-2
+
 
 def _Rotation():
     """scipy's Rotation class, imported on first use (scipy.spatial is slow to import)."""
@@ -125,7 +129,11 @@ def opk_from_matrix(
     """Angles (omega, phi, kappa) in radians of ``M = M3(kappa) M2(phi) M1(omega)``.
 
     ``phi = atan2(m31, hypot(m32, m33))`` in [-pi/2, pi/2], ``omega = atan2(-m32, m33)``,
-    ``kappa = atan2(-m21, m11)``. For a rotation ``phi`` equals the textbook ``asin(m31)``
+    ``kappa = atan2(-m21, m11)``; near gimbal lock (``cos(phi) <`` :data:`NEAR_GIMBAL_LOCK`)
+    kappa is read from the first row of ``M (M2(phi) M1(omega))^T = M3(kappa)`` instead, whose
+    entries are of order one, so that the angles give ``M`` back to rounding (the textbook
+    formula loses digits as ``1 / cos(phi)``: 7e-8 at phi = 90 - 1e-7 degrees). For a
+    rotation ``phi`` equals the textbook ``asin(m31)``
     (to rounding, and more accurately near +-90 degrees, where ``asin`` loses half the
     digits); for a matrix that is not orthogonal (the raw closed-form absolute orientation)
     the two differ: :meth:`AbsoluteOrientationFit.angles` reads that matrix with
@@ -155,6 +163,18 @@ def opk_from_matrix(
     phi = np.arctan2(m31, cos_phi)
     omega = np.arctan2(-m32, m33)
     kappa = np.arctan2(-m21, m11)
+    near = cos_phi < NEAR_GIMBAL_LOCK
+    if np.any(near):
+        # m11, m21 (like m32, m33) are cos(phi) times O(1): their rounding errors, relative
+        # to cos(phi), separate kappa from omega. Kappa from the first row of
+        # M (M2(phi) M1(omega))^T = M3(kappa) instead, whose entries are O(1), keeps
+        # M(omega, phi, kappa) = M to rounding (the rotation about the vertical taken up by
+        # kappa whatever the error of omega).
+        cw, sw = np.cos(omega), np.sin(omega)
+        cp, sp = cos_phi, m31
+        m12, m13 = M[..., 0, 1], M[..., 0, 2]
+        k_near = np.arctan2(m12 * cw + m13 * sw, m11 * cp + (m12 * sw - m13 * cw) * sp)
+        kappa = np.where(near, k_near, kappa)
     locked = cos_phi < tolerance
     if np.any(locked):
         if on_gimbal_lock == "raise":

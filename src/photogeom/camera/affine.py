@@ -17,7 +17,7 @@ import numpy as np
 
 from ..adjust import Fit, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError
-from ..validation import as_points, check_count, check_same_length
+from ..validation import as_float64, as_points, check_count, check_same_length
 from ._checks import with_check_points
 
 NAMES = ("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4")
@@ -58,7 +58,7 @@ class AffineCamera:
 
     def project(self, ground_xyz) -> np.ndarray:
         """Image coordinates (n, 2) of ground points (n, 3)."""
-        arr = np.asarray(ground_xyz, dtype=float)
+        arr = as_float64(ground_xyz, "ground points")
         single = arr.ndim == 1
         g = as_points(arr, 3, "ground points")
         xy = g @ self.matrix[:, :3].T + self.matrix[:, 3]

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
 from ..rotation import opk_matrix_and_derivatives
-from ..validation import as_points
+from ..validation import as_float64, as_points
 from .distortion import CHUNK
 from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
@@ -81,7 +81,7 @@ def project(
     numpy.ndarray, shape (n, 2) (or (2,) for a single point)
     """
     _check_behind(behind)
-    arr = np.asarray(ground_xyz, dtype=float)
+    arr = as_float64(ground_xyz, "ground points")
     single = arr.ndim == 1
     g = as_points(arr, 3, "ground points")
     n = g.shape[0]
@@ -183,7 +183,7 @@ def ground_at_height(
         raise InputError("behind must be 'raise' or 'nan' for ground_at_height")
     C, d = image_rays(image_xy, io, eo, system=system, pixel_origin=pixel_origin)
     Zs = (
-        np.broadcast_to(np.asarray(Z, dtype=float).reshape(-1), (d.shape[0],))
+        np.broadcast_to(as_float64(Z, "heights Z", coordinates=False).reshape(-1), (d.shape[0],))
         if np.ndim(Z)
         else (np.full(d.shape[0], float(Z)))
     )

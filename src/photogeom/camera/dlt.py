@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError, ReflectionError
-from ..validation import as_points
+from ..validation import as_float64, as_points
 from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
 
@@ -80,7 +80,7 @@ class DLT:
 
     def project(self, ground_xyz) -> np.ndarray:
         """Image coordinates (n, 2) of ground points (n, 3)."""
-        arr = np.asarray(ground_xyz, dtype=float)
+        arr = as_float64(ground_xyz, "ground points")
         single = arr.ndim == 1
         g = as_points(arr, 3, "ground points")
         h = g @ self.matrix[:, :3].T + self.matrix[:, 3]

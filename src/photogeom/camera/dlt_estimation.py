@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..adjust import Fit, gauss_markov, normalize_points, solve_linear
-from ..errors import DegenerateGeometryError, InputError
+from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
 from ..validation import (
     as_float64,
     as_points,
@@ -214,6 +214,16 @@ def _shear_and_aspect(P: np.ndarray) -> tuple[float, float]:
     return float(c1 @ c2 / (n1 * n2)), float(abs(n1 - n2) / (n1 + n2))
 
 
+def _distinct_count(g: np.ndarray, rel_tol: float = 1e-9) -> int:
+    """Number of distinct ground points (m): coordinates equal to ``rel_tol`` times the
+    extent of all points (on a grid of that spacing) count as one position."""
+    lo = g.min(axis=0)
+    extent = float(np.max(g.max(axis=0) - lo))
+    if not extent > 0.0:
+        return 1
+    return int(np.unique(np.round((g - lo) / (rel_tol * extent)), axis=0).shape[0])
+
+
 def _five_point_start(gn: np.ndarray, xn: np.ndarray) -> np.ndarray:
     """Camera matrix through five points with zero shear and equal scales (normalised)."""
     n = gn.shape[0]
@@ -324,6 +334,13 @@ def estimate_dlt(
         "orientation 3"
     )
     check_count(n, need, what, hint)
+    distinct = _distinct_count(g)
+    if distinct < need:
+        raise TooFewPointsError(
+            what, distinct, need,
+            f"the {n} control points are only {distinct} distinct ground positions: points "
+            f"are repeated; {hint}",
+        )  # fmt: skip
     check_not_coplanar(g, what, need, _COPLANAR_HINT)
     w = image_weights(sigma, n)
     Ng, Ni = normalize_points(g), normalize_points(im)
@@ -333,7 +350,7 @@ def estimate_dlt(
     wn = (np.ones(2 * n) if w is None else w) * s_img**2
     method = "linear DLT (normalised)"
     adj = None
-    if n >= 6:
+    if distinct >= 6:
         A, obs = _linear_rows(gn, xn)
         adj = solve_linear(A, obs, weights=wn, names=NAMES, what=f"{what} (linear)")
         Ln = adj.x

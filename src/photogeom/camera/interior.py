@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import InputError
-from ..validation import as_finite_scalar
+from ..validation import as_finite_scalar, as_float64
 from .distortion import BrownDistortion
 
 UNITS = ("mm", "px")
@@ -304,7 +304,7 @@ class InteriorOrientation:
         """
         from .distortion import UndistortResult
 
-        a = np.asarray(xy, dtype=float).reshape(-1, 2)
+        a = as_float64(xy, "image coordinates").reshape(-1, 2)
         yd = (self.y0 - a[:, 1]) / self.f
         xd = (a[:, 0] - self.x0 - self.b2 * yd) / self.fx
         d = np.stack([xd, yd], axis=1)
@@ -354,7 +354,7 @@ class InteriorOrientation:
 
     @staticmethod
     def _convert(points, fn) -> np.ndarray:
-        a = np.asarray(points, dtype=float)
+        a = as_float64(points, "image or pixel coordinates")
         single = a.ndim == 1
         a2 = a.reshape(-1, 2)
         ok = np.all(np.isfinite(a2), axis=1)

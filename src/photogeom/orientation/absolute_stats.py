@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotation import opk_matrix_and_derivatives
+from ..rotation import GIMBAL_TOLERANCE, NEAR_GIMBAL_LOCK, opk_matrix_and_derivatives
 
 
 def opk_transposed(R: np.ndarray) -> tuple[float, float, float, bool]:
@@ -33,15 +33,24 @@ def opk_transposed(R: np.ndarray) -> tuple[float, float, float, bool]:
 
     The same formulas as :func:`photogeom.rotation.opk_from_matrix` (applied to ``R.T``),
     in scalar arithmetic for speed; at gimbal lock (``cos phi < 1e-9``) omega is set to 0
-    and ``gimbal`` is True. Works on a non-orthogonal ``R`` (reads the same elements).
+    and ``gimbal`` is True; near it (``cos phi < 1e-2``) kappa is read from entries of order
+    one, as there. Works on a non-orthogonal ``R`` (reads the same elements).
     """
     r = R.tolist()
     m31, m32, m33, m21, m11 = r[0][2], r[1][2], r[2][2], r[0][1], r[0][0]
     cos_phi = math.hypot(m32, m33)
     phi = math.atan2(m31, cos_phi)
-    if cos_phi < 1e-9:
+    if cos_phi < GIMBAL_TOLERANCE:
         return 0.0, phi, math.atan2(r[1][0], r[1][1]), True
-    return math.atan2(-m32, m33), phi, math.atan2(-m21, m11), False
+    omega = math.atan2(-m32, m33)
+    if cos_phi < NEAR_GIMBAL_LOCK:
+        # as opk_from_matrix: kappa from entries of order one, so that the angles give R back
+        # to rounding (atan2(-m21, m11) divides R's rounding errors by cos(phi))
+        cw, sw = math.cos(omega), math.sin(omega)
+        m12, m13 = r[1][0], r[2][0]
+        kappa = math.atan2(m12 * cw + m13 * sw, m11 * cos_phi + (m12 * sw - m13 * cw) * m31)
+        return omega, phi, kappa, False
+    return omega, phi, math.atan2(-m21, m11), False
 
 
 def rotation_derivatives(omega: float, phi: float, kappa: float) -> tuple[np.ndarray, np.ndarray]:

@@ -378,6 +378,29 @@ def _ideal(io: InteriorOrientation, xy: np.ndarray, name: str) -> np.ndarray:
     return _ideal_and_derivative(io, xy, name)[0]
 
 
+def _distinct_pairs(
+    p1: np.ndarray, p2: np.ndarray, rel_tol: float = 1e-9
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct tie points: rows of ``(p1, p2)`` (image units) that differ by more than
+    ``rel_tol`` times the extent of the coordinates (on a grid of that spacing).
+
+    Returns
+    -------
+    first : ndarray of int
+        Index of one row of each distinct tie point.
+    group : ndarray of int, shape (n,)
+        For every row, the position in ``first`` of its distinct tie point.
+    """
+    both = np.column_stack([p1, p2])
+    lo = both.min(axis=0)
+    extent = float(np.max(both.max(axis=0) - lo))
+    if not extent > 0.0:
+        return np.zeros(1, dtype=np.intp), np.zeros(both.shape[0], dtype=np.intp)
+    cells = np.round((both - lo) / (rel_tol * extent))
+    _, first, group = np.unique(cells, axis=0, return_index=True, return_inverse=True)
+    return first, group.reshape(-1)
+
+
 def relative_orientation(
     xy1,
     xy2,
@@ -472,6 +495,14 @@ def relative_orientation(
         raise InputError(f"ids: {len(all_ids)} id(s) for {n} point(s)")
     if len(set(all_ids)) != n:
         raise InputError("ids: duplicate point ids")
+    first, group = _distinct_pairs(p1, p2)
+    n_distinct = first.size
+    if n_distinct < 5:
+        raise TooFewPointsError(
+            what, n_distinct, 5,
+            f"the {n} tie points are only {n_distinct} distinct pairs of image positions: "
+            "points are repeated; give five or more different tie points",
+        )  # fmt: skip
     sig = _sigmas(sigma, n)
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
@@ -630,7 +661,17 @@ def relative_orientation(
         ladder = (thr_n,) if user_threshold else (thr_n, 3 * thr_n, 9 * thr_n)
         first_error = None
         for t in ladder:
-            ess = essential_start(xn1, xn2, t, seed=seed, what=what)
+            if n_distinct == 5 < n:
+                # repeated points add no geometry; the five-point solver lists all the
+                # solutions only when given exactly five points
+                ess = essential_start(xn1[first], xn2[first], t, seed=seed, what=what)
+                ess = replace(
+                    ess,
+                    inliers=ess.inliers[group],
+                    alternatives=tuple((R, b, i[group]) for R, b, i in ess.alternatives),
+                )
+            else:
+                ess = essential_start(xn1, xn2, t, seed=seed, what=what)
             check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
             results = []
             for R_k, b_k, inl_k in ((ess.rotation, ess.base, ess.inliers), *ess.alternatives):
@@ -640,11 +681,12 @@ def relative_orientation(
                     first_error = first_error or exc
             if not results:
                 continue
-            if len(results) > 1 and n == 5:
+            if len(results) > 1 and n_distinct == 5:
+                repeated = f" (the {n} tie points repeat five)" if n > 5 else ""
                 raise DegenerateGeometryError(
-                    f"{what}: {len(results)} relative orientations fit the five points "
-                    "exactly, each with every point in front of both images; add points or "
-                    "pass start values (initial=)"
+                    f"{what}: {len(results)} relative orientations fit the five points"
+                    f"{repeated} exactly, each with every point in front of both images; add "
+                    "points or pass start values (initial=)"
                 )
             # several solutions: the one keeping the most points, then the smaller misfit
             result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))

@@ -39,6 +39,10 @@ SAME = 0.05
 COLLINEAR_RATIO = 1e-3
 
 
+#: OpenCV's default distance (in base lengths) beyond which recoverPose ignores a point.
+OPENCV_FAR = 50.0
+
+
 @dataclass(frozen=True)
 class EssentialStart:
     """Relative orientation from the essential matrix.
@@ -134,6 +138,7 @@ def essential_start(
     p1 = np.ascontiguousarray(xn1, dtype=np.float64)
     p2 = np.ascontiguousarray(xn2, dtype=np.float64)
     K = np.eye(3)
+    far = max(OPENCV_FAR, 1.0 / threshold)  # distance / base beyond which a point is at infinity
     best = []
     n_candidates = 0
     # RANSAC, and MAGSAC++ where OpenCV has it: near-planar scenes with a misfit above the
@@ -154,7 +159,10 @@ def essential_start(
         mask0 = None if mask is None else mask.reshape(-1).astype(np.uint8)
         for Ek in Es:
             m = None if mask0 is None else mask0.copy()
-            count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
+            # OpenCV's default drops points farther than 50 bases as 'at infinity': a pair of
+            # base / distance below 1/50 (long range, video frames) then had no point in
+            # front. Here only points whose parallax is below the threshold are too far
+            count, R, t, m2, _ = cv2.recoverPose(Ek, p1, p2, K, distanceThresh=far, mask=m)
             best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     if not best:
         raise DegenerateGeometryError(

@@ -383,6 +383,51 @@ def _score(g: np.ndarray, xn: np.ndarray, f: float, Ms: np.ndarray, X0s: np.ndar
     return e
 
 
+#: A start with cos(phi) below this (radians) begins this far from phi = +-90 degrees, where
+#: omega and kappa are not separable and the adjustment's design is singular.
+LOCK_START_OFFSET = 1e-4
+
+
+def _gimbal_lock_error(exc: DegenerateGeometryError, model, jac, x0) -> DegenerateGeometryError:
+    """``exc`` itself, or when only omega and kappa are named as undetermined, the same
+    error saying that the adjustment reached phi = +-90 degrees (gimbal lock)."""
+    text = str(exc)
+    if "(omega, kappa are undetermined" not in text:
+        return exc
+    return DegenerateGeometryError(
+        "space resection: the adjustment reached phi = +-90 degrees, where omega and kappa "
+        "(rotations about the same axis there) are not separable in the omega-phi-kappa "
+        "angles: the orientation is determined, its angles are not (error-free image "
+        "coordinates of a camera at exactly phi = +-90 degrees). Express the ground "
+        "coordinates in a system turned about its y axis, so that the camera's phi is away "
+        f"from +-90 degrees, and turn the result back ({text})"
+    )
+
+
+def _distinct_points(g: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
+    """Indices of the first of each group of coinciding points (sorted by position).
+
+    Parameters
+    ----------
+    g : ndarray, shape (n, 3)
+        Object coordinates (m or any length unit).
+    rel_tol : float
+        Points whose coordinates agree to ``rel_tol`` times the extent of all points (on a
+        grid of that spacing) count as one position.
+
+    Returns
+    -------
+    ndarray of int
+        One index per distinct position.
+    """
+    lo = g.min(axis=0)
+    extent = float(np.max(g.max(axis=0) - lo))
+    if not extent > 0.0:
+        return np.zeros(1, dtype=np.intp)
+    cells = np.round((g - lo) / (rel_tol * extent))
+    return np.unique(cells, axis=0, return_index=True)[1]
+
+
 def start_candidates(
     ground, image, io: InteriorOrientation, *, triples: int = N_TRIPLES, limit: int = 16
 ) -> list[tuple[float, ExteriorOrientation]]:
@@ -610,18 +655,43 @@ def space_resection(
         f"{u} unknowns ({', '.join(calib)} besides the exterior orientation) need {u} observations",
     )
     w = _image_weights(sigma, n)
+    first = _distinct_points(g)
+    n_distinct = first.size
+    repeated = (
+        f" (the {n} control points are only {n_distinct} distinct ground positions: "
+        "points are repeated)"
+        if n_distinct < n
+        else ""
+    )
+    if n_distinct < 3:
+        raise DegenerateGeometryError(
+            f"space resection: the {n} control points are only {n_distinct} distinct ground "
+            "position(s) (points are repeated), which cannot determine an orientation; give "
+            "at least 3 distinct control points (4 or more for a unique solution)"
+        )
+    sv = np.linalg.svd(g - g.mean(axis=0), compute_uv=False)
+    if not sv[1] > 1e-9 * sv[0]:
+        raise DegenerateGeometryError(
+            f"space resection: the {n} control points lie on one line (relative spread "
+            f"across it {sv[1] / sv[0]:.1e}), so the rotation about that line is undetermined; "
+            "give at least 3 control points not on a line (4 or more for a unique solution)"
+        )
     # --- start values ---
     if initial is None:
-        cands = start_candidates(g, im, io, limit=16 if n == 3 else MAX_STARTS)
+        if n_distinct == 3:
+            # A repeated point adds no geometry: three positions admit up to four solutions.
+            cands = start_candidates(g[first], im[first], io, limit=16)
+        else:
+            cands = start_candidates(g, im, io, limit=MAX_STARTS)
         if not cands:
             raise DegenerateGeometryError(
                 "space resection: no start values found (the closed-form solutions put points "
                 "behind the camera or the control is degenerate); pass initial="
             )
-        if n == 3 and len(cands) > 1:
+        if n_distinct == 3 and len(cands) > 1:
             listing = "; ".join(f"X0=({e.X0:.6g}, {e.Y0:.6g}, {e.Z0:.6g})" for _, e in cands)
             raise InputError(
-                f"space resection: three control points admit {len(cands)} exterior "
+                f"space resection: three control points{repeated} admit {len(cands)} exterior "
                 f"orientations ({listing}); pass initial= an approximate orientation or add a "
                 "fourth point (photogeom.orientation.p3p lists them)"
             )
@@ -673,24 +743,33 @@ def space_resection(
     spread = _image_spread(im)
 
     def adjust_from(start: ExteriorOrientation):
+        angles = start.angles
+        if np.cos(angles[1]) < LOCK_START_OFFSET:
+            # at phi = +-90 deg the omega and kappa columns of the Jacobian coincide: start
+            # just off the lock (the adjustment moves phi anyway)
+            angles = angles.copy()
+            angles[1] = np.copysign(0.5 * np.pi - LOCK_START_OFFSET, angles[1])
         x0 = np.concatenate(
             [
                 [start.X0 - centre[0], start.Y0 - centre[1], start.Z0 - centre[2]],
-                start.angles,
+                angles,
                 [_io_value(io0, c) for c in calib],
             ]
         )
-        adj = gauss_markov(
-            model,
-            x0,
-            im.reshape(-1),
-            jacobian=jac,
-            weights=w,
-            names=names,
-            max_iter=max_iter,
-            tol=tol,
-            what="space resection",
-        )
+        try:
+            adj = gauss_markov(
+                model,
+                x0,
+                im.reshape(-1),
+                jacobian=jac,
+                weights=w,
+                names=names,
+                max_iter=max_iter,
+                tol=tol,
+                what="space resection",
+            )
+        except DegenerateGeometryError as exc:
+            raise _gimbal_lock_error(exc, model, jac, x0) from exc
         x = adj.x.copy()
         x[:3] += centre
         eo = ExteriorOrientation(*x[:6])
@@ -811,6 +890,41 @@ class BatchResection:
         return ExteriorOrientation(*self.parameters[i])
 
 
+#: Smallest ratio of the extreme eigenvalues of a batched resection's column-scaled normal
+#: equations; below it they are singular to double precision.
+_BATCH_NORMAL_LIMIT = 1e-15
+
+
+def _problems(idx: np.ndarray) -> str:
+    shown = ", ".join(str(int(i)) for i in idx[:10])
+    return f"problem(s) {shown}{', ...' if idx.size > 10 else ''} ({idx.size} in all)"
+
+
+def _check_batch_spread(gc: np.ndarray) -> None:
+    """Refuse problems whose centred control points (B, n, 3) coincide or lie on a line."""
+    sv = np.linalg.svd(gc, compute_uv=False)  # (B, 3), descending
+    bad = np.flatnonzero(~(sv[:, 1] > 1e-9 * sv[:, 0]))
+    if bad.size:
+        raise DegenerateGeometryError(
+            f"space resection (batch): the control points of {_problems(bad)} coincide or lie "
+            "on one line, which does not determine an orientation; give each problem at "
+            "least 3 control points not on a line (4 or more for a unique solution)"
+        )
+
+
+def _check_batch_normal(Ns: np.ndarray, iteration: int) -> None:
+    """Refuse singular column-scaled normal equations (B, 6, 6), naming the problems."""
+    ev = np.linalg.eigvalsh(Ns)
+    bad = np.flatnonzero(~(ev[:, 0] > _BATCH_NORMAL_LIMIT * ev[:, -1]))
+    if bad.size:
+        raise DegenerateGeometryError(
+            f"space resection (batch): at iteration {iteration} the observations of "
+            f"{_problems(bad)} do not determine the six parameters (singular normal "
+            "equations: weak control, or phi at +-90 degrees, where omega and kappa are not "
+            "separable); check those problems' control points and start values (initial)"
+        )
+
+
 def _batched_projection(gc: np.ndarray, x: np.ndarray, io: InteriorOrientation):
     """Image coordinates (B, n, 2), Jacobian (B, n, 2, 6) and depth (B, n) for B cameras."""
     from ..rotation import opk_matrix
@@ -914,7 +1028,11 @@ def space_resection_batch(
         raise InputError("sigma must be > 0")
     centre = g.mean(axis=1)
     gc = g - centre[:, None, :]
+    _check_batch_spread(gc)
     x[:, :3] -= centre
+    # starts at phi = +-90 deg (singular design) begin just off it, as in space_resection
+    lock = np.cos(x[:, 4]) < LOCK_START_OFFSET
+    x[lock, 4] = np.copysign(0.5 * np.pi - LOCK_START_OFFSET, x[lock, 4])
     done = np.zeros(B, dtype=bool)
     it = 0
     while it < max_iter:
@@ -927,6 +1045,7 @@ def space_resection_batch(
         dg = np.sqrt(np.einsum("bii->bi", N))
         dg[dg == 0] = 1.0
         Ns = N / dg[:, :, None] / dg[:, None, :]
+        _check_batch_normal(Ns, it)
         dx = np.linalg.solve(Ns, (b / dg)[..., None])[..., 0] / dg
         step = np.max(np.abs(np.einsum("bki,bi->bk", A, dx)), axis=1)
         rms = np.sqrt(np.mean(v * v, axis=1))
@@ -939,7 +1058,11 @@ def space_resection_batch(
     res = xy - im
     A = J.reshape(B, 2 * n, 6) / s
     N = np.einsum("bki,bkj->bij", A, A)
-    Q = np.linalg.inv(N)
+    dg = np.sqrt(np.einsum("bii->bi", N))
+    dg[dg == 0] = 1.0
+    Ns = N / dg[:, :, None] / dg[:, None, :]
+    _check_batch_normal(Ns, it)
+    Q = np.linalg.inv(Ns) / dg[:, :, None] / dg[:, None, :]
     r = 2 * n - 6
     vtpv = np.sum((res / s) ** 2, axis=(1, 2))
     sigma0 = np.sqrt(vtpv / r) if r > 0 else np.full(B, np.nan)

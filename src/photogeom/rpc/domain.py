@@ -17,6 +17,26 @@ import numpy as np
 DOMAIN_LIMIT = 1.5
 
 
+def longitude_difference(lon, lon0):
+    """``lon - lon0`` in degrees, the short way round: within [-180, 180].
+
+    RPCs of scenes on the antimeridian have a ``LONG_OFF`` near +-180 while ground data give
+    the longitudes of the same area as both 179.9 and -179.9; a plain difference puts the
+    second 360 degrees (thousands of normalised units) away. Differences already within
+    [-180, 180] are returned unchanged (bit for bit).
+    """
+    d = np.subtract(lon, lon0)
+    if np.any(np.abs(d) > 180.0):  # rare: a scene on the antimeridian
+        d = np.where(d > 180.0, d - 360.0, np.where(d < -180.0, d + 360.0, d))
+    return d
+
+
+def wrap_longitude(lon):
+    """Longitude(s) in degrees brought into [-180, 180] (values inside unchanged)."""
+    lon = np.asarray(lon, dtype=np.float64)
+    return np.where(lon > 180.0, lon - 360.0, np.where(lon < -180.0, lon + 360.0, lon))
+
+
 class RPCExtrapolationWarning(UserWarning):
     """Points lie far outside the normalised domain the RPC was fitted on."""
 

@@ -51,6 +51,7 @@ from ..adjust import Fit, gauss_markov, solve_linear
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from ..validation import as_points, check_count, check_same_length
 from . import polynomial as poly
+from .domain import longitude_difference, wrap_longitude
 from .model import RPC
 
 #: Default Tikhonov parameter (normalised units).
@@ -109,13 +110,16 @@ class _Normalisation:
     def __init__(self, ground_box: np.ndarray, image: np.ndarray) -> None:
         lo, hi = ground_box
         self.g_off = 0.5 * (lo + hi)
+        self.g_off[0] = float(wrap_longitude(self.g_off[0]))
         self.g_scale = 0.5 * (hi - lo)
         ilo, ihi = image.min(axis=0), image.max(axis=0)
         self.i_off = 0.5 * (ilo + ihi)
         self.i_scale = np.maximum(0.5 * (ihi - ilo), 1.0)
 
     def ground(self, g: np.ndarray) -> np.ndarray:
-        return (g - self.g_off) / self.g_scale
+        d = g - self.g_off
+        d[:, 0] = longitude_difference(g[:, 0], self.g_off[0])
+        return d / self.g_scale
 
     def image(self, im: np.ndarray) -> np.ndarray:
         return (im - self.i_off) / self.i_scale
@@ -360,7 +364,8 @@ def fit_rpc(
         ``[[lon_min, lon_max], [lat_min, lat_max], [h_min, h_max]]`` (degrees, metres): the
         ground box the RPC must be valid in (it becomes the normalised domain).
     grid : (int, int, int)
-        Grid nodes along lon, lat and h (at least 2 each; the number of points must reach the
+        Grid nodes along lon, lat and h (at least ``order + 1`` each, so that the terms of
+        each degree are determined between the nodes; the number of points must reach the
         number of coefficients per coordinate). Check points lie between the nodes.
     order : {1, 2, 3}
         Degree of the polynomials (3 = RPC00B).
@@ -414,6 +419,18 @@ def fit_rpc(
     )  # fmt: skip
     norm = _Normalisation(b.T, img[ok])
     what = "terrain-independent RPC fit"
+    if order in poly.TERMS_OF_ORDER:
+        few = [i for i in range(3) if g[i] <= order]
+        if few:
+            axis = ("longitude", "latitude", "height")[few[0]]
+            need = tuple(max(v, order + 1) for v in g)
+            raise DegenerateGeometryError(
+                f"{what} of order {order}: grid={g} has {g[few[0]]} node(s) along {axis}; a "
+                f"polynomial of degree {order} needs at least {order + 1} along each axis, "
+                f"else its {axis} terms are undetermined between the nodes. Give "
+                f"grid={need} or a lower order"
+            )
+        _check_control_geometry(norm.ground(G[ok]), order, f"{what} of order {order}")
     rpc, adj, names, nt, image_normal = _fit_core(
         G[ok], img[ok], norm, order, regularization, 1.0, what
     )
@@ -501,7 +518,10 @@ def fit_rpc_to_points(
         G.shape[0], need, what,
         f"{need} coefficients per image coordinate" + (f"; {', '.join(lower)}" if lower else ""),
     )  # fmt: skip
-    lo, hi = G.min(axis=0), G.max(axis=0)
+    # longitudes of a scene on the antimeridian (179.9 and -179.9) taken around the first one
+    lon = G[0, 0] + longitude_difference(G[:, 0], G[0, 0])
+    lo = np.array([lon.min(), G[:, 1].min(), G[:, 2].min()])
+    hi = np.array([lon.max(), G[:, 1].max(), G[:, 2].max()])
     span = hi - lo
     for i, axis in enumerate(("longitude", "latitude", "height")):
         if span[i] <= 0:
@@ -510,6 +530,7 @@ def fit_rpc_to_points(
                 "determined (give points spread in 3D, e.g. at different heights)"
             )
     norm = _Normalisation(np.vstack([lo, hi]), im)
+    _check_control_geometry(norm.ground(G), order, what)
     rpc, adj, names, nt, image_normal = _fit_core(
         G, im, norm, order, regularization, float(sigma), what
     )
@@ -527,6 +548,68 @@ def fit_rpc_to_points(
         image_normal,
     )  # fmt: skip
     return with_check_points(fit, rpc, check_ground, check_image, check_ids)
+
+
+#: Smallest ratio of the extreme singular values of the polynomial terms of the control points
+#: (normalised to their box) below which those terms count as undetermined by the points.
+MIN_TERMS_CONDITION = 1e-8
+
+
+def _check_control_geometry(gn: np.ndarray, order: int, what: str) -> None:
+    """Refuse control points that cannot determine the coefficients of ``order``.
+
+    The default Tikhonov term keeps the normal equations regular, so without this check a fit
+    to too few distinct positions, or to points on a surface of degree ``order`` (one
+    vertical plane, two heights for a quadratic in height), returned the smallest
+    coefficients among infinitely many exact fits, with small standard deviations.
+
+    Parameters
+    ----------
+    gn : ndarray, shape (n, 3)
+        Control points normalised to their box (``[-1, 1]`` on each axis).
+    order : int
+        Polynomial degree (1, 2, 3).
+    what : str
+        The fit, for messages.
+
+    Raises
+    ------
+    DegenerateGeometryError
+        Fewer distinct positions than coefficients per image coordinate (repeated points),
+        or polynomial terms that are linearly dependent at the points.
+    """
+    nt = poly.TERMS_OF_ORDER[order]
+    k = 2 * nt - 1
+    lower = "" if order == 1 else "; or a lower order (order=1 needs 7 distinct points)"
+    distinct = np.unique(np.round(gn * 1e9), axis=0).shape[0]
+    if distinct < k:
+        raise DegenerateGeometryError(
+            f"{what}: the {gn.shape[0]} control points are only {distinct} distinct ground "
+            f"positions (points are repeated); the {k} coefficients per image coordinate need "
+            f"at least {k} distinct points. Give more distinct control points{lower}"
+        )
+    T = poly.terms(gn[:, 0], gn[:, 1], gn[:, 2])[:, :nt]
+    _, sv, vt = np.linalg.svd(T, full_matrices=False)
+    ratio = float(sv[-1] / sv[0])
+    if not ratio >= MIN_TERMS_CONDITION:
+        null = np.abs(vt[-1])
+        terms = [poly.TERM_NAMES[j] for j in np.flatnonzero(null >= 0.1 * null.max())]
+        ok = [o for o in (1, 2) if o < order and _terms_condition(gn, o) >= MIN_TERMS_CONDITION]
+        fix = f"; or a lower order (order={ok[-1]})" if ok else ""
+        raise DegenerateGeometryError(
+            f"{what}: the control points do not determine the polynomial terms "
+            f"{', '.join(terms)} (L, P, H: normalised longitude, latitude, height): they lie "
+            f"on a surface of degree {order} or lower, e.g. along one line in plan or at only "
+            f"{order} height(s) (relative singular value {ratio:.1e}). Give control points "
+            f"spread in longitude, latitude and height{fix}"
+        )
+
+
+def _terms_condition(gn: np.ndarray, order: int) -> float:
+    """Ratio of the extreme singular values of the terms of ``order`` at ``gn``."""
+    T = poly.terms(gn[:, 0], gn[:, 1], gn[:, 2])[:, : poly.TERMS_OF_ORDER[order]]
+    sv = np.linalg.svd(T, compute_uv=False)
+    return float(sv[-1] / sv[0])
 
 
 def with_check_points(fit: Fit, rpc: RPC, check_ground, check_image, check_ids) -> Fit:

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from . import polynomial as poly
-from .domain import DOMAIN_LIMIT, LocalizationWarning, check_domain
+from .domain import DOMAIN_LIMIT, LocalizationWarning, check_domain, wrap_longitude
 
 if TYPE_CHECKING:  # pragma: no cover
     from .model import RPC
@@ -388,7 +388,7 @@ def localize(
         iters[retry] += it2
         L[retry], P[retry], status[retry], res[retry] = L2, P2, st2, res2
     ok = status == LocalizationStatus.CONVERGED
-    lon = np.where(ok, L * rpc.long_scale + rpc.long_off, np.nan)
+    lon = np.where(ok, wrap_longitude(L * rpc.long_scale + rpc.long_off), np.nan)
     lat = np.where(ok, P * rpc.lat_scale + rpc.lat_off, np.nan)
     result = LocalizationResult(
         lon=_shaped(lon, shape),

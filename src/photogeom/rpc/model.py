@@ -13,15 +13,17 @@ in metres.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, PrecisionWarning
+from ..validation import _caller_level, as_float64
 from . import polynomial as poly
-from .domain import DOMAIN_LIMIT, check_domain
+from .domain import DOMAIN_LIMIT, check_domain, longitude_difference, wrap_longitude
 
 _FIELDS_OFF_SCALE = (
     "line_off", "samp_off", "lat_off", "long_off", "height_off",
@@ -334,7 +336,7 @@ class RPC:
         """``(L, P, H)`` normalised ground coordinates (arrays of the broadcast shape)."""
         lon, lat, h = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (lon, lat, h)))
         return (
-            (lon - self.long_off) / self.long_scale,
+            longitude_difference(lon, self.long_off) / self.long_scale,
             (lat - self.lat_off) / self.lat_scale,
             (h - self.height_off) / self.height_scale,
         )
@@ -370,7 +372,7 @@ class RPC:
         return _shaped(col, shape), _shaped(row, shape)
 
     def _project_flat(self, lon, lat, h, domain_limit=DOMAIN_LIMIT):
-        L = (lon - self.long_off) / self.long_scale
+        L = longitude_difference(lon, self.long_off) / self.long_scale
         P = (lat - self.lat_off) / self.lat_scale
         H = (h - self.height_off) / self.height_scale
         check_domain({"longitude": L, "latitude": P, "height": H}, domain_limit, "RPC projection")
@@ -414,7 +416,7 @@ class RPC:
 
     def _jacobian_flat(self, lon, lat, h):
         """Image coordinates and their Jacobian (n, 2, 3) at flat inputs."""
-        L = (lon - self.long_off) / self.long_scale
+        L = longitude_difference(lon, self.long_off) / self.long_scale
         P = (lat - self.lat_off) / self.lat_scale
         H = (h - self.height_off) / self.height_scale
         V, dV = poly.evaluate_with_derivatives(self.coefficients, L, P, H, wrt="LPH")
@@ -512,7 +514,7 @@ class RPC:
         rn = (row - self.line_off) / self.line_scale
         hn = (h - self.height_off) / self.height_scale
         V = poly.evaluate(self.direct.coefficients, cn, rn, hn)
-        lon = V[0] / V[1] * self.long_scale + self.long_off
+        lon = wrap_longitude(V[0] / V[1] * self.long_scale + self.long_off)
         lat = V[2] / V[3] * self.lat_scale + self.lat_off
         return _shaped(lon, shape), _shaped(lat, shape)
 
@@ -643,6 +645,33 @@ def _replace(rpc: RPC, **changes) -> RPC:
     return replace(rpc, **changes)
 
 
+#: Rounding of an input (degrees for lon/lat, metres for h, pixels for col/row) above which a
+#: float16/float32 array is reported: about 1 cm on the ground, 1/1000 pixel.
+LOW_PRECISION_LIMIT = {"lon": 1e-7, "lat": 1e-7, "h": 1e-3, "col": 1e-3, "row": 1e-3}
+
+
+def _check_low_precision(value, arr: np.ndarray, name: str, what: str) -> None:
+    """Warn (:class:`~photogeom.errors.PrecisionWarning`) when a float16/float32 input was
+    rounded more coarsely than :data:`LOW_PRECISION_LIMIT` before photogeom received it."""
+    dtype = getattr(value, "dtype", None)
+    if dtype is None or dtype.kind != "f" or dtype.itemsize >= 8 or arr.size == 0:
+        return
+    finite = np.abs(arr[np.isfinite(arr)])
+    if finite.size == 0:
+        return
+    big = float(finite.max())
+    res = float(np.spacing(dtype.type(big)))
+    unit = {"lon": "deg", "lat": "deg", "h": "m"}.get(name, "px")
+    if res > LOW_PRECISION_LIMIT[name]:
+        warnings.warn(
+            f"{what}: {name} in {dtype.name} up to {big:.6g} {unit} has a resolution of "
+            f"{res:.3g} {unit}: the values were rounded to that before photogeom (which "
+            "computes in float64) received them. Pass float64 values",
+            PrecisionWarning,
+            stacklevel=_caller_level(),
+        )
+
+
 def _prepare(*named, what: str):
     """Broadcast named array inputs, check them, return flat float arrays and the shape."""
     arrays = []
@@ -655,10 +684,10 @@ def _prepare(*named, what: str):
                     "a rough value)"
                 )
             raise InputError(f"{what}: {name} is missing")
-        try:
-            arrays.append(np.asarray(v, dtype=np.float64))
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{what}: {name} cannot be read as numbers ({exc})") from exc
+        # masked values and imaginary parts are refused, not used (as everywhere in photogeom)
+        arr = as_float64(v, f"{what}: {name}", coordinates=False)
+        _check_low_precision(v, arr, name, what)
+        arrays.append(arr)
     try:
         b = np.broadcast_arrays(*arrays)
     except ValueError as exc:

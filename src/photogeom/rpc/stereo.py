@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError, TooFewPointsError
-from .domain import LocalizationWarning
+from ..validation import as_float64
+from .domain import LocalizationWarning, wrap_longitude
 from .geodesy import metres_per_degree
 from .model import RPC
 
@@ -172,14 +173,20 @@ def intersect_rpc(
         raise TooFewPointsError("RPC intersection", K, 2, "images (RPC models) per point")
     if on_failure not in ("nan", "raise"):
         raise InputError(f"on_failure must be 'nan' or 'raise', got {on_failure!r}")
+    if isinstance(image_points, np.ma.MaskedArray) and np.ma.getmaskarray(image_points).any():
+        raise InputError(
+            "image_points: masked array with masked values; give NaN where an image does not "
+            "see a point (e.g. image_points.filled(np.nan)) - masked values are not dropped "
+            "silently"
+        )
     if (
         isinstance(image_points, (list, tuple))
         and len(image_points) == K
         and all(np.ndim(p) == 2 for p in image_points)
     ):
-        obs = np.stack([np.asarray(p, dtype=np.float64) for p in image_points], axis=1)
+        obs = np.stack([as_float64(p, "image_points") for p in image_points], axis=1)
     else:
-        obs = np.asarray(image_points, dtype=np.float64)
+        obs = as_float64(image_points, "image_points")
     if obs.ndim == 2 and obs.shape == (K, 2):
         obs = obs[None]
     if obs.ndim != 3 or obs.shape[1:] != (K, 2):
@@ -302,6 +309,7 @@ def intersect_rpc(
             s0[okp] = np.where(r_ > 0, np.sqrt(vtpv / np.maximum(r_, 1)), np.nan)
         res[okp] = np.where(seen[okp][..., None], v, np.nan)
     X[~converged] = np.nan
+    X[:, 0] = wrap_longitude(X[:, 0])  # a step may have crossed the antimeridian
     result = RPCIntersection(
         ground=X,
         cofactor=cof,

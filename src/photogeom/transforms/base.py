@@ -8,7 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InputError
-from ..validation import as_points
+from ..validation import as_float64, as_points
 
 _REGISTRY: dict[str, type[Transform]] = {}
 
@@ -31,7 +31,7 @@ class Transform(ABC):
             _REGISTRY[cls.name] = cls
 
     def _points(self, points, name: str = "points") -> tuple[np.ndarray, bool]:
-        arr = np.asarray(points, dtype=float)
+        arr = as_float64(points, name)
         single = arr.ndim == 1
         return as_points(arr, self.dim, name), single
 

@@ -30,6 +30,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from ..errors import ConvergenceError, InputError
+from ..validation import as_float64
 from ._common import Parametric, frozen, vector
 from .base import Transform
 
@@ -354,7 +355,7 @@ class _PolynomialInverse(Transform):
     def apply(self, points) -> np.ndarray:
         """Inverse-transform points; raises :class:`ConvergenceError` naming rows that do not
         converge (the full :class:`InverseResult` is in the error's ``result``)."""
-        arr = np.asarray(points, dtype=float)
+        arr = as_float64(points, "points")
         res = self.apply_with_status(arr)
         if not np.all(res.converged):
             bad = np.flatnonzero(~res.converged)
