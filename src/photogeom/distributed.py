@@ -208,6 +208,17 @@ def connect_to_scheduler(address: str):
     return _connect(_distributed(), _check_address(address, address.strip()), CONNECT_TIMEOUT)
 
 
+def _local_cluster_message(n: int, exc: BaseException) -> str:
+    """Why a local cluster of ``n`` worker processes did not start, and what to do."""
+    return (
+        f"a local Dask cluster of {n} worker process(es) (scheduler 'local', --scheduler "
+        f"local) did not start ({type(exc).__name__}: {exc}). Its workers are new Python "
+        "processes that import the program's main module again: in a script, put the code "
+        "that calls photogeom under 'if __name__ == \"__main__\":'; or run in this process "
+        "with scheduler='threads' (--scheduler threads)"
+    )
+
+
 @contextmanager
 def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for ``scheduler`` (None for ``"threads"``/``"sync"``).
@@ -229,7 +240,11 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
     PhotogeomError
         The client did not connect to the address within :data:`CONNECT_TIMEOUT` seconds of
         wall time (nothing listening, a server that does not answer or is not a Dask
-        scheduler); the message names the address and what to check.
+        scheduler); the message names the address and what to check. Or a local cluster did
+        not start its worker processes (most often a script without an
+        ``if __name__ == "__main__":`` guard: the workers import the main module again and
+        would start a cluster of their own); the message names the guard and
+        ``scheduler="threads"``.
     """
     kind, arg = _parse_scheduler(scheduler)
     if kind in ("threads", "sync"):
@@ -247,13 +262,16 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
             client.close()
         return
     n = arg or max(1, os.cpu_count() or 1)
-    cluster = distributed.LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=40,
-    )
+    try:
+        cluster = distributed.LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=40,
+        )
+    except Exception as exc:
+        raise PhotogeomError(_local_cluster_message(n, exc)) from exc
     client = distributed.Client(cluster)
     try:
         yield client
