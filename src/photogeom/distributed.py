@@ -482,10 +482,18 @@ def absolute_orientation(
     source, target : dask.array or numpy.ndarray, shape (n, 3)
         Corresponding points (target is rechunked to the source's row blocks if needed).
     method : {"svd", "quaternion", "dual-quaternion", "gauss-helmert"}
+    with_scale : bool
+        False estimates the rigid (6-parameter) transformation, ``s = 1``.
     weights : dask.array or numpy.ndarray, shape (n,), optional
+        Point weights (unitless), as in :func:`photogeom.absolute_orientation`.
+    scale_method : {"least-squares", "symmetric"}
+        Scale of the SVD / quaternion / dual-quaternion methods: the least-squares scale
+        (Umeyama) or Horn's ``sqrt(sum |X'|^2 / sum |x'|^2)``.
     scheduler : str
         See the module docstring; ``"threads"`` (this process) by default, ``"local"`` for a
         local cluster of processes, or a scheduler address.
+    unit : str
+        Length unit of the target coordinates (labels of the shift and the residual sum).
 
     Returns
     -------
@@ -779,6 +787,10 @@ def localize_files(
     points : tuple (col, row, h) or sequence of such tuples
         Image points (pixels, centre of the first pixel at (0, 0)) and ellipsoidal heights
         (m): one tuple for all files, or one per file.
+    scheduler : str, optional
+        Where the tasks run, as in :func:`map_items` (default: a local cluster).
+    progress : callable, optional
+        ``progress(done, total)``, called on the client as files finish.
     options
         Passed to :meth:`photogeom.RPC.localize` (``tol``, ``max_iter``, ``on_failure``...).
 
@@ -832,6 +844,10 @@ def resect_images(
         optionally the image's own interior orientation.
     io : InteriorOrientation, optional
         Interior orientation of every image without its own.
+    scheduler : str, optional
+        Where the tasks run, as in :func:`map_items` (default: a local cluster).
+    progress : callable, optional
+        ``progress(done, total)``, called on the client as images finish.
     options
         Passed to :func:`photogeom.space_resection` (``system``, ``calibrate``, ...).
 

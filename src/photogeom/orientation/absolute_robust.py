@@ -214,8 +214,16 @@ def snooping_absolute_orientation(
 
     Parameters
     ----------
+    source, target : array_like, shape (n, 3)
+        Corresponding points, as in :func:`absolute_orientation`.
+    method : str
+        Estimator of every round (default ``"gauss-markov"``).
     alpha : float
         Significance level of each test (0.001: Baarda's 3.29 for the w-test).
+    sigma : {"posterior", "prior"}
+        ``"posterior"``: Pope's tau-test with the a-posteriori sigma0; ``"prior"``:
+        Baarda's w-test with ``sigma0_prior`` (needs realistic precisions in
+        ``fit_options``).
     max_remove : int, optional
         Upper bound on removed points (default: no bound besides ``min_points``).
     min_points : int
