@@ -49,6 +49,7 @@ FUNCTIONS = [
     photogeom.report.residual_figure,
     pg.simulate.uav_block,
     pg.calibration.fit_grid,
+    pg.absolute_orientation,
 ]
 
 
