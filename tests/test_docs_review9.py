@@ -63,3 +63,60 @@ def test_residual_grid_node_std_limit_as_documented():
     fine = pg.calibration.adjust_with_grids(res.block, 500, **opts)
     assert fine.node_std is None
     assert np.isfinite(fine.grids[first].nodes).all()
+
+
+def _cli_params() -> dict:
+    """``{"group command": {option name: click parameter}}`` of the whole command line."""
+    import click
+    import typer
+
+    from photogeom.cli.main import app
+
+    out: dict = {}
+
+    def walk(cmd, path):
+        if hasattr(cmd, "list_commands"):
+            ctx = click.Context(cmd)
+            for name in cmd.list_commands(ctx):
+                walk(cmd.get_command(ctx, name), [*path, name])
+        else:
+            out[" ".join(path)] = {o: p for p in cmd.params for o in (*p.opts, *p.secondary_opts)}
+
+    walk(typer.main.get_command(app), [])
+    return out
+
+
+def _choices(param) -> set:
+    """The values a choice option takes (an Enum annotation of typer, or click's Choice)."""
+    import enum
+
+    ann = getattr(getattr(param, "type_descriptor", None), "annotation", None)
+    if isinstance(ann, type) and issubclass(ann, enum.Enum):
+        return {str(e.value) for e in ann}
+    return set(getattr(getattr(param, "type", None), "choices", ()) or ())
+
+
+def test_cli_md_option_tables_match_the_commands():
+    # docs/cli.md listed --angle-unit deg|gon|rad for orient relative, which also takes
+    # arcsec; every option of a command's table must exist and list the command's choices
+    params = _cli_params()
+    section = None
+    problems = []
+    for line in (DOCS / "cli.md").read_text(encoding="utf-8").splitlines():
+        m = re.match(r"#+ `photogeom ([a-z-]+) ([a-z-]+)", line)
+        if line.startswith("#"):
+            section = f"{m.group(1)} {m.group(2)}" if m else None
+            continue
+        if section not in params or not line.startswith("| `"):
+            continue
+        first = re.split(r"(?<!\\)\|", line)[1]  # cells split at unescaped bars
+        for opt, choices in re.findall(r"`(--[a-z][\w-]*)(?: ([\w\\|-]+\|[\w\\|-]+))?", first):
+            p = params[section].get(opt)
+            if p is None:
+                problems.append(f"{section}: {opt} is not an option")
+            elif choices:
+                listed = set(choices.replace("\\", "").split("|"))
+                actual = _choices(p)
+                if actual and listed != actual:
+                    problems.append(f"{section}: {opt} lists {sorted(listed)} of {sorted(actual)}")
+    assert not problems, problems
