@@ -198,7 +198,8 @@ def transform(
         bar.start()
     try:
         res = transform_cloud(
-            source, output, T, chunk_size=chunk_size, scales=sc, crs=crs, progress=progress
+            source, output, T, chunk_size=chunk_size, scales=sc, crs=crs, progress=progress,
+            scheduler=scheduler,
         )
     finally:
         if not quiet:
