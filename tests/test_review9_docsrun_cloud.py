@@ -70,5 +70,13 @@ def test_bad_scheduler_is_refused(cli, scan, tmp_path, value):
     out = tmp_path / "out.laz"
     code, _, err = cli("cloud", "transform", src, out, "--params", params, "--scheduler", value)
     assert code == 2
-    assert "scheduler" in err and value in err
+    assert f"error: --scheduler '{value}'" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("value", ["foo", "local:0", "http://host:8787"])
+def test_register_bad_scheduler_names_the_option(cli, scan, tmp_path, value):
+    src, _ = scan
+    code, _, err = cli("cloud", "register", src, src, "--scheduler", value)
+    assert code == 2
+    assert f"error: --scheduler '{value}'" in err
