@@ -674,6 +674,27 @@ def register_clouds(
     Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``. The CRS records of the
     files go into ``fit.crs`` (target) and ``fit.source_crs``; a geographic one (degrees)
     is refused: the orientation is computed in Cartesian coordinates.
+
+    Parameters
+    ----------
+    source, target : str or path
+        LAS/LAZ files with the same number of points, corresponding in file order
+        (coordinates in their CRS's unit, usually m).
+    method : {"svd", "quaternion", "dual-quaternion", "gauss-helmert"}
+        Estimator working from the moments.
+    with_scale : bool
+        False fixes the scale to 1 (rigid transformation).
+    check_every : int
+        Every k-th pair is a check pair (k >= 2), or 0 for none.
+    chunk_size : int
+        Pairs per Dask task (memory is proportional to it).
+    scheduler : str, optional
+        As in :func:`map_items`; ``"threads"`` (this process) by default.
+
+    Returns
+    -------
+    CloudRegistration
+        The fit and the check-pair statistics (target units).
     """
     from .io.cloud import _check_chunk, cloud_info
     from .orientation.absolute_chunked import fit_from_moments, merge_moments
