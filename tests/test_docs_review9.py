@@ -38,19 +38,23 @@ def test_residual_grid_in_adjustment_snippet_node_std(tmp_path, monkeypatch):
     # ('NoneType' object is not subscriptable) on its own 500 px grids: node_std is None
     # above 5000 unknowns after the points unless std=True.
     monkeypatch.chdir(tmp_path)
-    sim = pg.simulate.uav_block("ILCE-7RM2", seed=1, strips=2, images_per_strip=4)
+    # the case of the page's own block: more unknowns than the default limit of the dense
+    # node covariance (here by lowering the limit, to keep the test small)
+    from photogeom.calibration import in_adjustment
+
+    monkeypatch.setattr(in_adjustment, "STD_MAX", 0)
+    sim = pg.simulate.uav_block("ILCE-7RM2", seed=1, strips=2, images_per_strip=3)
     res = pg.bundle_adjust(sim.block)
     block = doc_block("residual-grid.md", "adjust_with_grids(res.block, 500")
     ns = run_block(block, {"pg": pg, "res": res}, "residual-grid.md")
     ga, image_id, uv = ns["ga"], ns["image_id"], ns["uv"]
     assert ga.grids[image_id].evaluate(uv).shape == (5, 2)
-    if ga.node_std is not None:
-        grid = ga.grids[image_id]
-        assert ga.node_std[image_id].shape == grid.nodes.shape
+    assert ga.node_std is None
     text = (DOCS / "residual-grid.md").read_text(encoding="utf-8")
     assert "ga.node_std[image_id]" not in text
 
 
+@pytest.mark.slow
 def test_residual_grid_node_std_limit_as_documented():
     # the page: on the 21-image ILCE-7RM2 block 500 px grids give None by default, 1000 px
     # grids node standard deviations of shape (ny, nx, 2) = (7, 9, 2)
