@@ -74,3 +74,12 @@ def test_every_parameter_is_documented(func):
     }
     missing = sorted(params - documented(func))
     assert not missing, f"{func.__qualname__}: not in the docstring's Parameters: {missing}"
+
+
+@pytest.mark.parametrize(
+    "method",
+    [pg.simulate.SimulatedBlock.summary, pg.calibration.GridLayout.to_dict],
+    ids=lambda m: m.__qualname__,
+)
+def test_public_methods_have_a_docstring(method):
+    assert inspect.getdoc(method), f"{method.__qualname__} has no docstring"

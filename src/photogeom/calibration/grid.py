@@ -219,6 +219,7 @@ class GridLayout:
         return self.n_nodes - (1 if border == "mean" else 4)
 
     def to_dict(self) -> dict:
+        """``{"width", "height"}`` of the image (px) and the node ``"spacing"`` (px)."""
         return {"width": self.width, "height": self.height, "spacing": self.spacing}
 
 

@@ -157,6 +157,9 @@ class SimulatedBlock:
         return b.with_observations(uv=self.ideal + self.local + noise)
 
     def summary(self) -> str:
+        """A few lines on the simulated block: camera, GSD (cm), flying height (m),
+        overlaps, terrain, the block's counts (:meth:`Block.summary`), the noise (px), the
+        RMS of the local field (px) and the number of blunders."""
         o = self.options
         lines = [
             f"simulated {self.preset.name} block: GSD {self.gsd * 100:.2f} cm, flying height "
