@@ -83,3 +83,14 @@ def test_every_parameter_is_documented(func):
 )
 def test_public_methods_have_a_docstring(method):
     assert inspect.getdoc(method), f"{method.__qualname__} has no docstring"
+
+
+@pytest.mark.parametrize("module", ["photogeom.crs", "photogeom.orientation.absolute_batch"])
+def test_docstring_examples_run(module):
+    # their examples used names never defined (lat, lon, h, adjusted_enu; src, dst): a
+    # reader pasting them got NameError; they now run as doctests
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0 and result.failed == 0

@@ -377,9 +377,14 @@ class LocalFrame:
 
     Examples
     --------
-    >>> frame = LocalFrame.at_centroid(lat, lon, h)       # GNSS camera positions
-    >>> enu = frame.from_geodetic(lat, lon, h)            # (n, 3) for the adjustment
-    >>> lat2, lon2, h2 = frame.to_geodetic(adjusted_enu)  # back to WGS 84
+    >>> lat, lon, h = [47.10, 47.11], [8.50, 8.52], [520.0, 540.0]   # GNSS positions
+    >>> frame = LocalFrame.at_centroid(lat, lon, h)
+    >>> enu = frame.from_geodetic(lat, lon, h)            # (n, 3) m, for the adjustment
+    >>> enu.shape
+    (2, 3)
+    >>> lat2, lon2, h2 = frame.to_geodetic(enu)           # back to WGS 84
+    >>> bool(np.allclose(lat2, lat, atol=1e-12) and np.allclose(h2, h, atol=1e-6))
+    True
     """
 
     lat0: float
