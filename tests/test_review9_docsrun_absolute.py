@@ -45,3 +45,19 @@ def test_iterate_with_gauss_helmert_is_used(pairs):
     iterative = pg.absolute_orientation(*pairs, "gauss-helmert", iterate=True)
     assert iterative.iterations >= 1
     assert iterative.scale == pytest.approx(direct.scale, rel=1e-9)
+
+
+@pytest.mark.parametrize("robust", [False, True])
+def test_overflowing_coordinates_are_refused_by_name(pairs, robust):
+    # docs/absolute-orientation.md (Bad input): coordinates whose sums of squares overflow
+    # give an InputError naming the overflow. RANSAC said instead that every sample was
+    # degenerate (coincident or collinear points), and the direct methods emitted numpy's
+    # RuntimeWarning first: with warnings as errors that, not the InputError, was raised
+    import warnings
+
+    source, target = pairs
+    kw = {"robust": "ransac", "threshold": 0.1} if robust else {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(pg.InputError, match="overflow float64"):
+            pg.absolute_orientation(source * 1e200, target, **kw)

@@ -723,10 +723,13 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
 def _moments(x, X, w, statistics: bool) -> PairMoments:
     """Centred moments (with the source scatter when ``statistics``)."""
     n = x.shape[0]
-    if n >= LARGE_N:
-        pm = PairMoments.from_moments(large_moments(x, X, w, scatter=statistics))
-    else:
-        pm = PairMoments.of(x, X, w)
+    # sums that overflow (coordinates too large) are caught below and reported as an
+    # InputError naming the overflow, not left to numpy's RuntimeWarning
+    with np.errstate(over="ignore", invalid="ignore"):
+        if n >= LARGE_N:
+            pm = PairMoments.from_moments(large_moments(x, X, w, scatter=statistics))
+        else:
+            pm = PairMoments.of(x, X, w)
     if not pm.finite():
         _finite_or_raise(x, X)
     return pm
