@@ -176,8 +176,21 @@ def geodetic_to_ecef(lat, lon, h, *, ellipsoid="WGS84"):
 
     ``X = (N + h) cos(lat) cos(lon)``, ``Y = (N + h) cos(lat) sin(lon)``,
     ``Z = (N (1 - e^2) + h) sin(lat)`` with ``N = a / sqrt(1 - e^2 sin^2(lat))``.
-    Inputs broadcast against each other; returns a tuple ``(X, Y, Z)`` of arrays of their
-    shape (floats for scalar inputs).
+
+    Parameters
+    ----------
+    lat, lon : float or array_like
+        Geodetic latitude (within [-90, 90]) and longitude, degrees; latitude first.
+    h : float or array_like
+        Ellipsoidal height, m. The three broadcast against each other.
+    ellipsoid : str or (float, float)
+        ``"WGS84"`` (default), ``"GRS80"``, ``"Bessel1841"``, ... or any ellipsoid name
+        PROJ knows, or ``(a, 1/f)`` with ``a`` in metres.
+
+    Returns
+    -------
+    (X, Y, Z) : tuple of numpy.ndarray (or floats for scalar inputs)
+        Geocentric coordinates, m, of the broadcast shape.
     """
     lat, lon, h = _arrays(lat, lon, h, names=("lat", "lon", "h"))
     if np.any(np.abs(lat) > 90.0):
@@ -202,7 +215,19 @@ def ecef_to_geodetic(X, Y, Z, *, ellipsoid="WGS84"):
     and by round trips: 5e-10 m RMS, below the 9.3e-10 m spacing of doubles at 6.4e6 m); the
     height ``h = (p - N cos(lat)) cos(lat) + (Z - N (1 - e^2) sin(lat)) sin(lat)`` has no
     singularity at the poles. Longitude in (-180, 180].
-    Returns a tuple ``(lat, lon, h)``.
+
+    Parameters
+    ----------
+    X, Y, Z : float or array_like
+        Geocentric coordinates, m (broadcast against each other).
+    ellipsoid : str or (float, float)
+        ``"WGS84"`` (default), ``"GRS80"``, ``"Bessel1841"``, ... or any ellipsoid name
+        PROJ knows, or ``(a, 1/f)`` with ``a`` in metres.
+
+    Returns
+    -------
+    (lat, lon, h) : tuple of numpy.ndarray (or floats for scalar inputs)
+        Latitude and longitude in degrees, ellipsoidal height in m.
     """
     X, Y, Z = _arrays(X, Y, Z, names=("X", "Y", "Z"))
     ell = get_ellipsoid(ellipsoid)
@@ -264,8 +289,25 @@ def _points3(values, name: str) -> tuple[np.ndarray, bool]:
 
 
 def ecef_to_enu(xyz, lat0, lon0, h0, *, ellipsoid="WGS84") -> np.ndarray:
-    """ECEF points ``xyz`` (n, 3) or (3,) (m) to local east, north, up (m) at the origin
-    (lat0, lon0 in degrees, h0 in metres, on ``ellipsoid``)."""
+    """ECEF points to local east, north, up at an origin.
+
+    Parameters
+    ----------
+    xyz : array_like, shape (n, 3) or (3,)
+        Geocentric coordinates, m.
+    lat0, lon0 : float
+        Origin, geodetic degrees.
+    h0 : float
+        Origin ellipsoidal height, m.
+    ellipsoid : str or (float, float)
+        ``"WGS84"`` (default), ``"GRS80"``, ``"Bessel1841"``, ... or any ellipsoid name
+        PROJ knows, or ``(a, 1/f)`` with ``a`` in metres.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3) or (3,)
+        East, north, up (m); up along the ellipsoid normal at the origin.
+    """
     pts, single = _points3(xyz, "xyz")
     R = enu_rotation(lat0, lon0)
     o = np.array(geodetic_to_ecef(lat0, lon0, h0, ellipsoid=ellipsoid))
@@ -274,8 +316,25 @@ def ecef_to_enu(xyz, lat0, lon0, h0, *, ellipsoid="WGS84") -> np.ndarray:
 
 
 def enu_to_ecef(enu, lat0, lon0, h0, *, ellipsoid="WGS84") -> np.ndarray:
-    """Local east, north, up (m) at the origin (lat0, lon0 degrees, h0 m) to ECEF (m);
-    the inverse of :func:`ecef_to_enu`."""
+    """Local east, north, up at an origin to ECEF: the inverse of :func:`ecef_to_enu`.
+
+    Parameters
+    ----------
+    enu : array_like, shape (n, 3) or (3,)
+        East, north, up, m.
+    lat0, lon0 : float
+        Origin, geodetic degrees.
+    h0 : float
+        Origin ellipsoidal height, m.
+    ellipsoid : str or (float, float)
+        ``"WGS84"`` (default), ``"GRS80"``, ``"Bessel1841"``, ... or any ellipsoid name
+        PROJ knows, or ``(a, 1/f)`` with ``a`` in metres.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3) or (3,)
+        Geocentric coordinates, m.
+    """
     pts, single = _points3(enu, "enu")
     R = enu_rotation(lat0, lon0)
     o = np.array(geodetic_to_ecef(lat0, lon0, h0, ellipsoid=ellipsoid))
@@ -318,9 +377,14 @@ class LocalFrame:
 
     Examples
     --------
-    >>> frame = LocalFrame.at_centroid(lat, lon, h)       # GNSS camera positions
-    >>> enu = frame.from_geodetic(lat, lon, h)            # (n, 3) for the adjustment
-    >>> lat2, lon2, h2 = frame.to_geodetic(adjusted_enu)  # back to WGS 84
+    >>> lat, lon, h = [47.10, 47.11], [8.50, 8.52], [520.0, 540.0]   # GNSS positions
+    >>> frame = LocalFrame.at_centroid(lat, lon, h)
+    >>> enu = frame.from_geodetic(lat, lon, h)            # (n, 3) m, for the adjustment
+    >>> enu.shape
+    (2, 3)
+    >>> lat2, lon2, h2 = frame.to_geodetic(enu)           # back to WGS 84
+    >>> bool(np.allclose(lat2, lat, atol=1e-12) and np.allclose(h2, h, atol=1e-6))
+    True
     """
 
     lat0: float
@@ -331,7 +395,21 @@ class LocalFrame:
     @classmethod
     def at_centroid(cls, lat, lon, h, *, ellipsoid="WGS84") -> LocalFrame:
         """The frame at the geodetic point below the ECEF centroid of the given points
-        (its height: the mean height), so that the points sit around E = N = 0."""
+        (its height: the mean height), so that the points sit around E = N = 0.
+
+        Parameters
+        ----------
+        lat, lon : array_like
+            Geodetic latitude and longitude of the points, degrees.
+        h : array_like
+            Their ellipsoidal heights, m.
+        ellipsoid : str or (float, float)
+            As in :func:`geodetic_to_ecef`.
+
+        Returns
+        -------
+        LocalFrame
+        """
         X, Y, Z = geodetic_to_ecef(lat, lon, h, ellipsoid=ellipsoid)
         c = [float(np.mean(v)) for v in (X, Y, Z)]
         la, lo, _ = ecef_to_geodetic(*c, ellipsoid=ellipsoid)
@@ -348,25 +426,60 @@ class LocalFrame:
         return np.array(geodetic_to_ecef(self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid))
 
     def from_ecef(self, xyz) -> np.ndarray:
-        """ECEF (n, 3) -> ENU (n, 3)."""
+        """ECEF (n, 3) or (3,), m -> ENU of the same shape, m (:func:`ecef_to_enu`)."""
         return ecef_to_enu(xyz, self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid)
 
     def to_ecef(self, enu) -> np.ndarray:
-        """ENU (n, 3) -> ECEF (n, 3)."""
+        """ENU (n, 3) or (3,), m -> ECEF of the same shape, m (:func:`enu_to_ecef`)."""
         return enu_to_ecef(enu, self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid)
 
     def from_geodetic(self, lat, lon, h) -> np.ndarray:
-        """Geodetic (degrees, m) -> ENU (n, 3)."""
+        """Geodetic coordinates to ENU.
+
+        Parameters
+        ----------
+        lat, lon : float or array_like
+            Geodetic latitude and longitude, degrees (on the frame's ellipsoid).
+        h : float or array_like
+            Ellipsoidal height, m.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3)
+            East, north, up, m (one row per point, also for scalar inputs).
+        """
         X, Y, Z = geodetic_to_ecef(lat, lon, h, ellipsoid=self.ellipsoid)
         return self.from_ecef(np.column_stack([np.ravel(X), np.ravel(Y), np.ravel(Z)]))
 
     def to_geodetic(self, enu) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """ENU (n, 3) -> ``(lat, lon, h)`` (degrees, m)."""
+        """ENU coordinates to geodetic ones.
+
+        Parameters
+        ----------
+        enu : array_like, shape (n, 3) or (3,)
+            East, north, up, m.
+
+        Returns
+        -------
+        (lat, lon, h) : tuple of numpy.ndarray, shape (n,)
+            Latitude and longitude in degrees, ellipsoidal height in m.
+        """
         xyz = np.atleast_2d(self.to_ecef(enu))
         return ecef_to_geodetic(xyz[:, 0], xyz[:, 1], xyz[:, 2], ellipsoid=self.ellipsoid)
 
     def covariance_from_ecef(self, cov) -> np.ndarray:
-        """Rotate covariance matrices (..., 3, 3) of ECEF coordinates into ENU."""
+        """Rotate covariance matrices of ECEF coordinates into ENU: ``R C R.T``.
+
+        Parameters
+        ----------
+        cov : array_like, shape (..., 3, 3)
+            Covariances of geocentric coordinates, m^2.
+
+        Returns
+        -------
+        numpy.ndarray, shape (..., 3, 3)
+            The same covariances in east, north, up, m^2.
+        """
         R = self.rotation
         return R @ np.asarray(cov, dtype=float) @ R.T
 
@@ -441,6 +554,21 @@ def transform_points(points, src_crs, dst_crs, *, allow_ballpark: bool = False) 
     definition says. ``allow_ballpark=False`` (default) refuses a transformation PROJ can
     only do approximately (a "ballpark" datum shift without the grids or parameters it needs)
     instead of returning coordinates metres off; points PROJ cannot transform raise.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2) or (n, 3)
+        Coordinates in ``src_crs``, x/easting/longitude first (degrees for geographic,
+        the CRS's unit otherwise).
+    src_crs, dst_crs : str or int
+        EPSG code (``"EPSG:25832"``, ``4979``), WKT or PROJ string.
+    allow_ballpark : bool
+        Accept an approximate datum shift.
+
+    Returns
+    -------
+    numpy.ndarray, shape of ``points``
+        Coordinates in ``dst_crs``, x first.
     """
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):

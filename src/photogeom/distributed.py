@@ -208,6 +208,17 @@ def connect_to_scheduler(address: str):
     return _connect(_distributed(), _check_address(address, address.strip()), CONNECT_TIMEOUT)
 
 
+def _local_cluster_message(n: int, exc: BaseException) -> str:
+    """Why a local cluster of ``n`` worker processes did not start, and what to do."""
+    return (
+        f"a local Dask cluster of {n} worker process(es) (scheduler 'local', --scheduler "
+        f"local) did not start ({type(exc).__name__}: {exc}). Its workers are new Python "
+        "processes that import the program's main module again: in a script, put the code "
+        "that calls photogeom under 'if __name__ == \"__main__\":'; or run in this process "
+        "with scheduler='threads' (--scheduler threads)"
+    )
+
+
 @contextmanager
 def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for ``scheduler`` (None for ``"threads"``/``"sync"``).
@@ -229,7 +240,11 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
     PhotogeomError
         The client did not connect to the address within :data:`CONNECT_TIMEOUT` seconds of
         wall time (nothing listening, a server that does not answer or is not a Dask
-        scheduler); the message names the address and what to check.
+        scheduler); the message names the address and what to check. Or a local cluster did
+        not start its worker processes (most often a script without an
+        ``if __name__ == "__main__":`` guard: the workers import the main module again and
+        would start a cluster of their own); the message names the guard and
+        ``scheduler="threads"``.
     """
     kind, arg = _parse_scheduler(scheduler)
     if kind in ("threads", "sync"):
@@ -247,13 +262,16 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
             client.close()
         return
     n = arg or max(1, os.cpu_count() or 1)
-    cluster = distributed.LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=40,
-    )
+    try:
+        cluster = distributed.LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=40,
+        )
+    except Exception as exc:
+        raise PhotogeomError(_local_cluster_message(n, exc)) from exc
     client = distributed.Client(cluster)
     try:
         yield client
@@ -465,10 +483,18 @@ def absolute_orientation(
     source, target : dask.array or numpy.ndarray, shape (n, 3)
         Corresponding points (target is rechunked to the source's row blocks if needed).
     method : {"svd", "quaternion", "dual-quaternion", "gauss-helmert"}
+    with_scale : bool
+        False estimates the rigid (6-parameter) transformation, ``s = 1``.
     weights : dask.array or numpy.ndarray, shape (n,), optional
+        Point weights (unitless), as in :func:`photogeom.absolute_orientation`.
+    scale_method : {"least-squares", "symmetric"}
+        Scale of the SVD / quaternion / dual-quaternion methods: the least-squares scale
+        (Umeyama) or Horn's ``sqrt(sum |X'|^2 / sum |x'|^2)``.
     scheduler : str
         See the module docstring; ``"threads"`` (this process) by default, ``"local"`` for a
         local cluster of processes, or a scheduler address.
+    unit : str
+        Length unit of the target coordinates (labels of the shift and the residual sum).
 
     Returns
     -------
@@ -658,6 +684,27 @@ def register_clouds(
     Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``. The CRS records of the
     files go into ``fit.crs`` (target) and ``fit.source_crs``; a geographic one (degrees)
     is refused: the orientation is computed in Cartesian coordinates.
+
+    Parameters
+    ----------
+    source, target : str or path
+        LAS/LAZ files with the same number of points, corresponding in file order
+        (coordinates in their CRS's unit, usually m).
+    method : {"svd", "quaternion", "dual-quaternion", "gauss-helmert"}
+        Estimator working from the moments.
+    with_scale : bool
+        False fixes the scale to 1 (rigid transformation).
+    check_every : int
+        Every k-th pair is a check pair (k >= 2), or 0 for none.
+    chunk_size : int
+        Pairs per Dask task (memory is proportional to it).
+    scheduler : str, optional
+        As in :func:`map_items`; ``"threads"`` (this process) by default.
+
+    Returns
+    -------
+    CloudRegistration
+        The fit and the check-pair statistics (target units).
     """
     from .io.cloud import _check_chunk, cloud_info
     from .orientation.absolute_chunked import fit_from_moments, merge_moments
@@ -771,6 +818,10 @@ def localize_files(
     points : tuple (col, row, h) or sequence of such tuples
         Image points (pixels, centre of the first pixel at (0, 0)) and ellipsoidal heights
         (m): one tuple for all files, or one per file.
+    scheduler : str, optional
+        Where the tasks run, as in :func:`map_items` (default: a local cluster).
+    progress : callable, optional
+        ``progress(done, total)``, called on the client as files finish.
     options
         Passed to :meth:`photogeom.RPC.localize` (``tol``, ``max_iter``, ``on_failure``...).
 
@@ -824,6 +875,10 @@ def resect_images(
         optionally the image's own interior orientation.
     io : InteriorOrientation, optional
         Interior orientation of every image without its own.
+    scheduler : str, optional
+        Where the tasks run, as in :func:`map_items` (default: a local cluster).
+    progress : callable, optional
+        ``progress(done, total)``, called on the client as images finish.
     options
         Passed to :func:`photogeom.space_resection` (``system``, ``calibrate``, ...).
 

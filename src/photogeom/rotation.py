@@ -252,9 +252,16 @@ def quaternion_from_matrix(R, *, scalar_first: bool = True) -> np.ndarray:
 
     Parameters
     ----------
+    R : array_like, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or a stack of them).
     scalar_first : bool
         ``True``: ``(w, x, y, z)`` (Hamilton, Horn); ``False``: ``(x, y, z, w)`` (scipy, ROS).
         The sign is chosen with ``w >= 0``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (4,) or (..., 4)
+        Unit quaternion(s), unitless.
     """
     q = _as_rotation(R).as_quat(canonical=True)  # scalar last
     return np.roll(q, 1, axis=-1) if scalar_first else q

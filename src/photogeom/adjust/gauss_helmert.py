@@ -122,6 +122,8 @@ def gauss_helmert(
         sparse matrix above this number of conditions (default :data:`DENSE_LIMIT`; 0 always
         for sparse ``B``, e.g. point-wise conditions whose ``M`` is diagonal). The sparse
         path does not compute redundancy numbers or normalised residuals.
+    what : str
+        Name of the problem, used in error messages (e.g. ``"relative orientation"``).
 
     Returns
     -------

@@ -480,6 +480,8 @@ def gauss_markov(
         ``False`` skips the evaluation at the solution: the same estimate (the same
         iterations), with ``residuals`` empty, ``cofactor`` and ``vtpv`` NaN and no
         redundancy numbers or normalised residuals.
+    what : str
+        Name of the problem, used in error messages (e.g. ``"space resection"``).
 
     Returns
     -------

@@ -255,6 +255,10 @@ class Block:
             Calibration parameters to estimate (default: f, cx, cy, k1, k2, k3, p1, p2).
         image_variant : sequence of names, or mapping group -> names, optional
             Subset of f, cx, cy estimated per image (default: none).
+        crs : str, optional
+            CRS of the object coordinates (exterior orientations, points, GNSS): an EPSG
+            code, WKT, PROJ string or ``"enu:LAT,LON,H"``. Recorded, not converted:
+            ``fit.crs`` of the adjustment and the ``# crs:`` line of a CSV block written.
         """
         cam_ids = _ids(list(cameras.keys()), "cameras")
         _unique_check(cam_ids, "cameras")

@@ -219,6 +219,7 @@ class GridLayout:
         return self.n_nodes - (1 if border == "mean" else 4)
 
     def to_dict(self) -> dict:
+        """``{"width", "height"}`` of the image (px) and the node ``"spacing"`` (px)."""
         return {"width": self.width, "height": self.height, "spacing": self.spacing}
 
 
@@ -535,6 +536,10 @@ def fit_grid(
         Standard deviation of the pseudo-observations ``0 = z - mean(neighbours)`` (px), or
         ``"vce"`` to estimate both variances (Förstner's iteration; ``sigma_obs`` is then
         the start and only its relative values matter).
+    max_vce_iterations, vce_tol : int, float
+        With ``"vce"``: at most ``max_vce_iterations`` solves of the grid
+        (:class:`ConvergenceError` beyond); converged when the ratio of the two estimated
+        variance factors is within ``(1 + vce_tol)^2`` of 1 (unitless).
     border : {"mean", "linear"}
         Constraint of border and corner nodes (see the module).
     min_observations : int
@@ -543,10 +548,10 @@ def fit_grid(
         A node is supported when its adjacent cells hold at least this many observations.
     folds : int
         k of the k-fold cross-validation (0 or 1: none).
-    snooping : bool
-        Data snooping (Baarda's w-test with the a-priori sigmas, level ``alpha``); per
-        round the largest flagged point of each cell is removed, up to
-        ``max_snooping_rounds`` rounds.
+    snooping, alpha, max_snooping_rounds : bool, float, int
+        Data snooping (Baarda's w-test with the a-priori sigmas, level ``alpha``, two-sided:
+        0.001 gives the critical value 3.29); per round the largest flagged point of each
+        cell is removed, up to ``max_snooping_rounds`` rounds.
     seed : int
         Seed of the random split into folds.
     image_id : object

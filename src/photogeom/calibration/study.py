@@ -229,6 +229,9 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
         ``sim``: the survey the adjusted block keeps (``before.block.surveyed``), if it has
         check points; a block read from a folder written before the survey was kept has
         none, and these errors are then left out.
+    overlap : float
+        Target forward overlap (fraction) of the stereo models whose steps are measured
+        (:func:`model_steps`; the study: 0.6).
 
     Returns
     -------
@@ -298,6 +301,9 @@ def sweep_spacings(
         The first adjustment.
     spacings : sequence of float
         At least two spacings (px).
+    overlap : float
+        Target forward overlap (fraction) of the stereo models whose steps are measured
+        (:func:`model_steps`; the study: 0.6).
     rematched : Block, optional
         ``fit.block`` with its observations measured again (same rows), e.g.
         ``sim.rematch(fit.block)`` (:meth:`~photogeom.simulate.SimulatedBlock.rematch`): the

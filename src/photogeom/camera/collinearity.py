@@ -127,6 +127,12 @@ def image_rays(
         Image coordinates in the unit of ``io`` (or pixels with ``system="pixel"``).
     io, eo
         Orientation of the image.
+    system : {"image", "pixel"}
+        ``"image"``: ``(x, y)`` in the unit of ``io`` (right-handed, y up); ``"pixel"``:
+        ``(col, row)``, converted by ``io.pixel_to_image`` (needs pixel geometry).
+    pixel_origin : {"center", "corner"}
+        Pixel convention for ``system="pixel"``: ``"center"`` puts the centre of the
+        top-left pixel at (0, 0), ``"corner"`` its top-left corner.
     tol : float
         Undistortion tolerance in the unit of ``io``; points that do not converge raise
         :class:`~photogeom.errors.ConvergenceError`.
@@ -167,10 +173,13 @@ def ground_at_height(
     Parameters
     ----------
     image_xy : array_like, shape (n, 2)
+        Image coordinates in the unit of ``io`` (or pixels with ``system="pixel"``).
     io, eo
         Orientation of the image.
     Z : float or array_like, shape (n,)
         Height of the plane per point, in object units.
+    system, pixel_origin
+        As in :func:`image_rays`.
     behind : {"raise", "nan"}
         A plane that the ray meets behind the camera (or never: ray parallel to it):
         raise :class:`DegenerateGeometryError` or return NaN for the point.

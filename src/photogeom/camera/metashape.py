@@ -243,6 +243,9 @@ class MetashapeCalibration:
         ----------
         uv : array_like, shape (n, 2)
             Pixel coordinates in the ``pixel_origin`` convention.
+        pixel_origin : {"center", "corner"}
+            ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
+            ``"corner"``: its top-left corner is (0, 0) (Metashape).
         tol : float
             Tolerance in pixels on the re-projected position.
         max_iter : int

@@ -34,6 +34,20 @@ SchedulerOpt = Annotated[
 ]
 
 
+def _check_scheduler(scheduler: str | None) -> None:
+    """Refuse a ``--scheduler`` value of a form photogeom does not take, naming the option
+    (the library's message names its keyword ``scheduler``); nothing connects here."""
+    if scheduler is None:
+        return
+    from ..distributed import _parse_scheduler
+
+    try:
+        _parse_scheduler(scheduler)
+    except InputError as exc:
+        text = str(exc)
+        raise InputError("--" + text if text.startswith("scheduler ") else text) from None
+
+
 class CloudMethod(str, Enum):
     """Absolute orientation methods that work from moments (out of core)."""
 
@@ -143,6 +157,7 @@ def transform(
     kept, offsets recomputed; the output is written atomically."""
     from ..io.cloud import transform_cloud
 
+    _check_scheduler(scheduler)
     if (params is None) == (to_crs is None):
         raise InputError("give either --params FILE or --from-crs and --to-crs")
     if inverse and params is None:
@@ -198,7 +213,8 @@ def transform(
         bar.start()
     try:
         res = transform_cloud(
-            source, output, T, chunk_size=chunk_size, scales=sc, crs=crs, progress=progress
+            source, output, T, chunk_size=chunk_size, scales=sc, crs=crs, progress=progress,
+            scheduler=scheduler,
         )
     finally:
         if not quiet:
@@ -298,6 +314,7 @@ def register(
     from ._common import write_outputs
     from .bundle import check_targets
 
+    _check_scheduler(scheduler)
     if check_every < 0 or check_every == 1:
         raise InputError(f"--check-every {check_every}: give 0 (no check pairs) or k >= 2")
     check_targets(files=[("--output-params", output_params), ("--report", report)])

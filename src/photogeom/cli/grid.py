@@ -690,6 +690,33 @@ def _csv_column(cells) -> list[str]:
     return list(map(_csv_cell, cells))
 
 
+def _scheduler_mode(scheduler: str, workers: int) -> tuple[bool | str, int]:
+    """``(dask, workers)`` of ``correct_folder`` for ``--scheduler``: True and the worker
+    count for ``local`` / ``local:N``, the checked address for an address; other forms (and
+    ``threads`` / ``sync``, which have no workers to resample on) are refused by name."""
+    from ..distributed import _parse_scheduler
+
+    try:
+        kind, arg = _parse_scheduler(scheduler)
+    except InputError as exc:
+        text = str(exc).replace("'local', 'local:N', 'threads', 'sync' or", "'local', 'local:N' or")
+        raise InputError("--" + text if text.startswith("scheduler ") else text) from None
+    if kind == "address":
+        return arg, workers
+    if kind == "local":
+        if arg is not None and workers not in (1, arg):
+            raise InputError(
+                f"--scheduler {scheduler} and --workers {workers} both give the number of "
+                "workers: give one of them"
+            )
+        return True, arg or workers
+    raise InputError(
+        f"--scheduler {scheduler}: grid correct-images resamples in worker processes; give "
+        "'local', 'local:N' or the address of a running scheduler (tcp://host:8786), or leave "
+        "--scheduler out (--workers N processes)"
+    )
+
+
 @app.command("correct-images")
 def correct_images(
     grids_file: Annotated[Path, typer.Argument(help="Grids file written by 'photogeom grid fit'.")],
@@ -704,7 +731,11 @@ def correct_images(
         bool, typer.Option("--dask", help="Run on a Dask local cluster of --workers workers.")
     ] = False,
     scheduler: Annotated[
-        str | None, typer.Option(help="Address of a running Dask scheduler (tcp://host:8786).")
+        str | None,
+        typer.Option(
+            help="Dask scheduler: the address of a running one (tcp://host:8786), or 'local' / "
+            "'local:N' (as --dask, with --workers or N workers)."
+        ),
     ] = None,
     interpolation: Annotated[Interp, typer.Option(help="Resampling.")] = Interp.bilinear,
     as_json: JsonOpt = False,
@@ -712,8 +743,10 @@ def correct_images(
     """Resample every image that has a grid; failures are listed, the rest processed."""
     from ..calibration import correct_folder, load_grids
 
+    mode: bool | str = dask
+    if scheduler:
+        mode, workers = _scheduler_mode(scheduler, workers)
     grids = load_grids(grids_file)
-    mode: bool | str = scheduler if scheduler else dask
     try:
         res = correct_folder(
             src_dir,

@@ -21,7 +21,6 @@ from ..errors import InputError
 from ._common import (
     AngleUnit,
     IdColOpt,
-    OutputCsvOpt,
     column_options,
     console,
     json_text,
@@ -155,7 +154,15 @@ def relative(
         Path | None,
         typer.Option(help="Write an HTML report with the y-parallax vectors on the image frame."),
     ] = None,
-    output: OutputCsvOpt = None,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Write the model coordinates with their standard deviations (CSV) to this "
+            "file (default: not written; the summary goes to stdout).",
+        ),
+    ] = None,
     output_cameras: Annotated[
         tuple[Path, Path] | None,
         typer.Option(

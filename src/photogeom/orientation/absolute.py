@@ -402,7 +402,7 @@ def absolute_orientation(
     sigma_source, sigma_target : float or array_like, optional
         Standard deviations of the coordinates (target units): one per system, (n,) per
         point, or (n, 3) per coordinate. ``sigma_source`` only for ``"gauss-helmert"``.
-    covariance_source, covariance_target : array_like, optional
+    covariance_source, covariance_target, covariance : array_like, optional
         Covariances per point (n, 3, 3) or full (3n, 3n). ``covariance`` is an alias of
         ``covariance_target``.
     sigma0_prior : float
@@ -416,8 +416,9 @@ def absolute_orientation(
         :data:`~photogeom.orientation.absolute_direct.COPLANAR_THRESHOLD` = 0.3; 0 augments
         only for n = 3).
     iterate : bool, optional
-        ``"gauss-helmert"``: ``None`` uses the exact direct solution for at most one sigma per
-        system and the iterative adjustment otherwise; ``True`` always iterates.
+        ``"gauss-helmert"`` without ``robust`` only (refused otherwise): ``None`` uses the exact
+        direct solution for at most one sigma per system and the iterative adjustment
+        otherwise; ``True`` always iterates.
     max_iter, tol : int, float
         Iteration limit and convergence tolerance of E/F (see
         :func:`photogeom.adjust.gauss_markov`).
@@ -427,6 +428,9 @@ def absolute_orientation(
     robust : {"ransac"}, optional
         Run :func:`~photogeom.orientation.ransac_absolute_orientation` with ``threshold``
         (target units) and ``robust_options``; ``method`` refines on the inliers.
+    threshold : float, optional
+        With ``robust="ransac"`` (required there, refused without it): the inlier distance,
+        3D, in target units.
     ids : sequence, optional
         Point ids for the residual rows.
     unit : str
@@ -441,6 +445,12 @@ def absolute_orientation(
     TooFewPointsError, InputError, DegenerateGeometryError, ReflectionError, ConvergenceError
     """
     method = normalize_method(method)
+    if iterate is not None and (method != "gauss-helmert" or robust is not None):
+        raise InputError(
+            "iterate applies to method='gauss-helmert' without robust= only, not to "
+            f"method={method!r}{' with robust=' + repr(robust) if robust is not None else ''} "
+            "(a direct, always iterative or RANSAC estimate): leave iterate out"
+        )
     if robust is not None:
         if str(robust).lower() != "ransac":
             raise InputError(f"robust must be 'ransac' or None, not {robust!r}")
@@ -455,6 +465,11 @@ def absolute_orientation(
         )
     if robust_options:
         raise InputError(f"unexpected keyword argument(s): {', '.join(sorted(robust_options))}")
+    if threshold is not None:
+        raise InputError(
+            "threshold is the RANSAC inlier distance and applies only with robust='ransac': "
+            "add robust='ransac' or leave threshold out"
+        )
     t0 = time.perf_counter()
     x, X = _as_pair(source, target)
     n = x.shape[0]
@@ -713,10 +728,13 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
 def _moments(x, X, w, statistics: bool) -> PairMoments:
     """Centred moments (with the source scatter when ``statistics``)."""
     n = x.shape[0]
-    if n >= LARGE_N:
-        pm = PairMoments.from_moments(large_moments(x, X, w, scatter=statistics))
-    else:
-        pm = PairMoments.of(x, X, w)
+    # sums that overflow (coordinates too large) are caught below and reported as an
+    # InputError naming the overflow, not left to numpy's RuntimeWarning
+    with np.errstate(over="ignore", invalid="ignore"):
+        if n >= LARGE_N:
+            pm = PairMoments.from_moments(large_moments(x, X, w, scatter=statistics))
+        else:
+            pm = PairMoments.of(x, X, w)
     if not pm.finite():
         _finite_or_raise(x, X)
     return pm

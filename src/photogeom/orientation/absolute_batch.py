@@ -1,7 +1,13 @@
 """Many independent absolute orientations in one vectorised call.
 
->>> res = absolute_orientation_batch(src, dst, method="svd")   # src, dst: (B, n, 3)
->>> res.scale, res.rotation, res.translation, res.valid        # doctest: +SKIP
+>>> import numpy as np
+>>> src = np.random.default_rng(0).normal(size=(4, 10, 3))    # B = 4 problems of 10 points
+>>> dst = 2.0 * src + 1.0
+>>> res = absolute_orientation_batch(src, dst, method="svd")  # src, dst: (B, n, 3)
+>>> res.scale.round(12).tolist(), res.valid.tolist()
+([2.0, 2.0, 2.0, 2.0], [True, True, True, True])
+>>> res.rotation.shape, res.translation.shape
+((4, 3, 3), (4, 3))
 
 Used for Monte-Carlo studies, RANSAC hypotheses and per-tile registrations: the direct methods
 of :mod:`.absolute_direct` run on all B problems at once (no Python loop over problems).

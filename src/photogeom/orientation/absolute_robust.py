@@ -16,7 +16,13 @@ import numpy as np
 
 from ..adjust import ransac
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
-from .absolute import AbsoluteOrientationFit, _as_pair, absolute_orientation, normalize_method
+from .absolute import (
+    AbsoluteOrientationFit,
+    _as_pair,
+    _check_finite_pair,
+    absolute_orientation,
+    normalize_method,
+)
 from .absolute_direct import solve_three_points
 
 #: Minimal samples whose source triangle has ``|cross| / max_edge^2`` below this are skipped.
@@ -124,11 +130,9 @@ def ransac_absolute_orientation(
     method = normalize_method(method)
     x, X = _as_pair(source, target)
     n = x.shape[0]
-    if not (np.isfinite(x).all() and np.isfinite(X).all()):
-        from ..validation import check_finite
-
-        check_finite(x, "source")
-        check_finite(X, "target")
+    # NaN / inf named by rows, and coordinates whose sums of squares overflow named as such
+    # (the samples' solutions would otherwise all come out degenerate)
+    _check_finite_pair(x, X)
     if not (threshold is not None and np.isfinite(threshold) and threshold > 0):
         raise InputError(
             f"RANSAC: the inlier threshold must be a positive distance, got {threshold}"
@@ -214,8 +218,16 @@ def snooping_absolute_orientation(
 
     Parameters
     ----------
+    source, target : array_like, shape (n, 3)
+        Corresponding points, as in :func:`absolute_orientation`.
+    method : str
+        Estimator of every round (default ``"gauss-markov"``).
     alpha : float
         Significance level of each test (0.001: Baarda's 3.29 for the w-test).
+    sigma : {"posterior", "prior"}
+        ``"posterior"``: Pope's tau-test with the a-posteriori sigma0; ``"prior"``:
+        Baarda's w-test with ``sigma0_prior`` (needs realistic precisions in
+        ``fit_options``).
     max_remove : int, optional
         Upper bound on removed points (default: no bound besides ``min_points``).
     min_points : int

@@ -83,6 +83,8 @@ def residual_figure(
         Check points, drawn in another colour.
     y_down : bool
         Draw the second axis downwards (pixel systems: row grows down).
+    title : str, optional
+        Line above the plot, before the note on the arrows' exaggeration.
     point_unit : str, optional
         Unit of the positions (axis labels); defaults to ``unit``.
 

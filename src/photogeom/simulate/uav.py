@@ -157,6 +157,9 @@ class SimulatedBlock:
         return b.with_observations(uv=self.ideal + self.local + noise)
 
     def summary(self) -> str:
+        """A few lines on the simulated block: camera, GSD (cm), flying height (m),
+        overlaps, terrain, the block's counts (:meth:`Block.summary`), the noise (px), the
+        RMS of the local field (px) and the number of blunders."""
         o = self.options
         lines = [
             f"simulated {self.preset.name} block: GSD {self.gsd * 100:.2f} cm, flying height "
@@ -460,7 +463,7 @@ def uav_block(
         Without GNSS: standard deviation of the initial projection centres, metres.
     initial_attitude_error_deg : float
         Without IMU: standard deviation of the initial angles, degrees.
-    blunders : int
+    blunders, blunder_size : int, float
         Number of tie observations given a blunder of ``blunder_size`` pixels (random
         direction); their rows are :attr:`SimulatedBlock.blunder_rows`.
     brown : bool or mapping
@@ -484,10 +487,10 @@ def uav_block(
     local_field_slope : float
         The fields' coefficients fall as ``1 / |k|**slope`` with the wave number (>= 0;
         default 1: about equal variance per octave; 3: nearly all in the longest waves).
-    calibration_variation : float or (3,) or None
+    calibration_variation, calibration_correlation : float or (3,) or None, float
         Standard deviations of image-variant offsets of f, cx, cy, pixels (AR(1) along the
-        flight with ``calibration_correlation``); the blocks then estimate those names per
-        image (``image_variant``).
+        flight with correlation ``calibration_correlation`` between consecutive images);
+        the blocks then estimate those names per image (``image_variant``).
     free : sequence of str, optional
         Calibration parameters the block marks free (default: Metashape's f, cx, cy, k1-k3,
         p1, p2).
