@@ -704,7 +704,8 @@ def register_clouds(
     Returns
     -------
     CloudRegistration
-        The fit and the check-pair statistics (target units).
+        The fit (parameters, sigma0 and their covariance from the moments) and the
+        check-pair statistics (target units).
     """
     from .io.cloud import _check_chunk, cloud_info
     from .orientation.absolute_chunked import fit_from_moments, merge_moments
