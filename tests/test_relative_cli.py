@@ -140,3 +140,27 @@ def test_output_cameras_intersect_the_model_points_again(cli, matches, tmp_path)
         "orient", "relative", f1, f2, "--f", "100", "--output-cameras", c1, c1
     )
     assert code == 2 and "--output-cameras: give two different files" in err
+
+
+def test_ambiguous_five_points_name_no_option_the_command_lacks(cli, tmp_path):
+    """Five tie points with several exact relative orientations: the library asks for start
+    values (initial=), which the command has no option for; the message says where they
+    can be given instead."""
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        pts = np.column_stack(
+            [rng.uniform(-30, 90, 5), rng.uniform(-40, 40, 5), rng.uniform(-10, 10, 5)]
+        )
+        xy1, xy2 = pg.project(pts, IO, E1), pg.project(pts, IO, E2)
+        try:
+            pg.relative_orientation(xy1, xy2, IO)
+        except pg.DegenerateGeometryError as exc:
+            if "(initial=)" in str(exc):
+                break
+    else:
+        pytest.fail("no ambiguous five-point case drawn")
+    path = tmp_path / "five.csv"
+    path.write_text(_csv("id,x1,y1,x2,y2", [f"P{i}" for i in range(5)], xy1, xy2))
+    code, _out, err = cli("orient", "relative", str(path), "--f", "100")
+    assert code != 0
+    assert "(initial=)" not in err and "photogeom.relative_orientation(..., initial=)" in err

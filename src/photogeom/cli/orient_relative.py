@@ -17,7 +17,7 @@ from typing import Annotated
 import typer
 
 from .._lazy import LazyModule
-from ..errors import InputError
+from ..errors import InputError, PhotogeomError
 from ._common import (
     AngleUnit,
     IdColOpt,
@@ -205,17 +205,20 @@ def relative(
     ids, xy1, xy2, unmatched = _read_matches(points, image2, cols, pixel, id_col)
     if pixel:
         xy1, xy2 = io1.pixel_to_image(xy1), io2.pixel_to_image(xy2)
-    fit = relative_orientation(
-        xy1,
-        xy2,
-        io1,
-        io2,
-        method=Method(method).value,
-        sigma=sigma,
-        ids=ids,
-        robust=robust,
-        threshold=threshold,
-    )
+    try:
+        fit = relative_orientation(
+            xy1,
+            xy2,
+            io1,
+            io2,
+            method=Method(method).value,
+            sigma=sigma,
+            ids=ids,
+            robust=robust,
+            threshold=threshold,
+        )
+    except PhotogeomError as exc:
+        raise _without_start_values(exc) from None
     au = AngleUnit(angle_unit).value
     model_unit = "bx" if fit.pair.method == "dependent" else "the base length"
     par = fit.parallax_report(worst=worst)
@@ -382,3 +385,18 @@ def _parallax_figure(fit, xy1):
     ax.set_title(f"residual y-parallaxes, arrows x{ex}", fontsize=9.5, loc="left")
     fig.tight_layout()
     return fig
+
+
+def _without_start_values(exc):
+    """``exc`` with the library's advice to pass start values (``initial=``), which the
+    command has no option for, pointing to the Python function that takes them."""
+    if exc.args and isinstance(exc.args[0], str) and "(initial=)" in exc.args[0]:
+        exc.args = (
+            exc.args[0]
+            .replace(" or pass start values (initial=)", "")
+            .replace(" start from better values (initial=) or", "")
+            + " (start values: photogeom.relative_orientation(..., initial=) in Python; the "
+            "command has no option for them)",
+            *exc.args[1:],
+        )
+    return exc
