@@ -124,3 +124,18 @@ def test_a_true_transformation_of_the_origin_to_infinity_is_told_to_shift(n):
     fit = pg.estimate_transform("projective2d", src + 10.0, _proj(H, src))
     probe = np.array([[0.5, 2.0], [-1.5, 0.3]])
     np.testing.assert_allclose(fit.model.apply(probe + 10.0), _proj(H, probe), atol=1e-8)
+
+
+def test_affine2d_fitted_to_collinear_targets_says_it_is_singular():
+    """A 2D affinity onto collinear target points maps the plane onto a line: the fit says
+    so (as the 3D affinity onto a plane does), and a regular fit does not."""
+    rng = np.random.default_rng(0)
+    x = rng.uniform(0, 100, (10, 2))
+    t = rng.uniform(0, 1, 10)
+    fit = pg.estimate_transform("affine2d", x, np.c_[t * 50 + 3, t * 20 + 1])
+    assert fit.model.singular and fit.model.textbook()["sx"] == pytest.approx(0, abs=1e-12)
+    assert any("singular" in n and "collinear" in n for n in fit.notes)
+    with pytest.raises(DegenerateGeometryError, match="singular"):
+        fit.model.inverse()
+    regular = pg.estimate_transform("affine2d", x, x @ [[1.1, 0.2], [-0.1, 0.9]] + 5)
+    assert not regular.model.singular and not any("singular" in n for n in regular.notes)

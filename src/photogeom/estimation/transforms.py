@@ -1148,6 +1148,13 @@ _SINGULAR_AFFINE3D_NOTE = (
 )
 
 
+_SINGULAR_AFFINE2D_NOTE = (
+    "the fitted linear part is singular (the target points are collinear): the affinity maps "
+    "the plane onto a line, so it has no inverse (textbook sx = 0); the parameters "
+    "a1..a3, b1..b3 are the estimate"
+)
+
+
 def _textbook(model, cofactor: np.ndarray, sigma0: float):
     """Textbook parameters with standard deviations: name -> (value, std); NaN (value, std
     and cofactor) for a singular 3D affinity, whose decomposition is undefined."""
@@ -1359,6 +1366,8 @@ def estimate_transform(
             method = _METHOD_LINEAR
             if key == "affine3d" and tf.singular:
                 notes.append(_SINGULAR_AFFINE3D_NOTE)
+            elif key == "affine2d" and tf.singular:
+                notes.append(_SINGULAR_AFFINE2D_NOTE)
         elif key.startswith("polynomial"):
             tf, adj, p, J = _fit_polynomial(sc, dc, order, obs, sigma0_prior, what,
                                             statistics=statistics)

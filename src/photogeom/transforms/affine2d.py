@@ -105,6 +105,14 @@ class Affine2D(Parametric, Transform):
         """``det`` of the linear part: the area scale (negative for a reflection)."""
         return float(self.a1 * self.b2 - self.a2 * self.b1)
 
+    @property
+    def singular(self) -> bool:
+        """``True`` when the linear part is singular to rounding (``|det(A)| <= 1e-14
+        max|A|^2``): the transformation maps the plane onto a line (e.g. fitted to collinear
+        target points) and has no inverse; its textbook ``sx`` is then 0."""
+        A = self.linear
+        return bool(abs(self.det) <= 1e-14 * max(float(np.max(np.abs(A))) ** 2, 1e-300))
+
     def textbook(self) -> dict[str, float]:
         """``sx``, ``sy``, ``theta`` (rad), ``e`` (rad), ``x0``, ``y0``."""
         theta = float(np.arctan2(self.b1, self.b2))
