@@ -27,6 +27,7 @@ from ._common import (
     json_text,
     options_in_errors,
     say,
+    stage_spinner,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -395,26 +396,38 @@ def fit(
     residuals: Annotated[
         Path,
         typer.Argument(
-            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed)."
+            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed), "
+            "or an adjusted block (a CSV block folder or COLMAP text model, a .bal file): "
+            "the reprojection residuals of its tie points, the image sizes of its cameras."
         ),
-    ],
-    image_size: Annotated[
-        str, typer.Option("--image-size", help="Image size WIDTHxHEIGHT in pixels (all images).")
     ],
     output: Annotated[
         Path, typer.Option("--output", "-o", help="Grids file: .npz, or JSON for any other suffix.")
     ],
+    image_size: Annotated[
+        str | None,
+        typer.Option(
+            "--image-size",
+            help="Image size WIDTHxHEIGHT in pixels (all images; a residuals CSV only).",
+        ),
+    ] = None,
     spacing: Annotated[float, typer.Option(help="Node spacing in pixels.")] = 100.0,
     sigma_obs: Annotated[
-        float, typer.Option(help="Standard deviation of the residuals (px).")
-    ] = 1.0,
-    sigma_constraint: Annotated[
-        str,
+        float | None,
         typer.Option(
-            help="Standard deviation of the smoothness pseudo-observations (px), "
-            "or 'vce' to estimate both variances."
+            help="Standard deviation of the residuals (px); default: 1 px for a residuals "
+            "CSV, each observation's sigma for a block."
         ),
-    ] = "1.0",
+    ] = None,
+    sigma_constraint: Annotated[
+        str | None,
+        typer.Option(
+            help="Standard deviation of the smoothness pseudo-observations: px, 'scaled' "
+            "(0.1 px x (spacing / 100 px)^2) or 'vce' (estimate both variances); default: "
+            "1 px for a residuals CSV, 'scaled' for a block (as 'grid evaluate' and "
+            "'grid sweep')."
+        ),
+    ] = None,
     border: Annotated[
         Border,
         typer.Option(
@@ -444,59 +457,21 @@ def fit(
     # threads only wait on each other (12 images of 42 Mpx at 100 px: 10.4 s with, 3.0 s
     # without them on 2 cores)
     single_threaded_blas()
-    from ..calibration import GridLayout, fit_grids, save_grids
+    from ..calibration import save_grids
 
-    size = _image_size(image_size)
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(
             f"--folds {folds}: give the number of cross-validation folds, 2 or more, or 0 "
             "for no cross-validation"
         )
-    if sigma_constraint.strip().lower() == "vce":
-        s_c: float | str = "vce"
-    else:
-        try:
-            s_c = float(sigma_constraint)
-        except ValueError:
-            raise InputError(
-                f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
-            ) from None
-    _h, columns, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
-    if not lines.size:
-        raise FileFormatError(
-            f"no residuals in {residuals}: the file has a header and no rows; it needs one "
-            "row per observation (image_id, u, v, rx, ry)"
-        )
-    ids = list(map(str.strip, columns[col["image_id"]]))
-    data = np.stack(
-        [_numbers(residuals, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
-        axis=1,
+    s_c = _fit_sigma_constraint(sigma_constraint)
+    options = dict(
+        border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
     )
-    try:  # the image size and the spacing are refused first, as fit_grids does
-        GridLayout(size[0], size[1], spacing)
-    except PhotogeomError as exc:
-        raise _reworded(exc, _cli_words) from None
-    _refuse_outside(
-        residuals, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
-        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
-    )  # fmt: skip
-    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
-    try:
-        grids = fit_grids(
-            per_image,
-            size,
-            spacing,
-            sigma_obs=sigma_obs,
-            sigma_constraint=s_c,
-            border=border.value,
-            folds=folds,
-            snooping=snooping,
-            alpha=alpha,
-            min_support=min_support,
-            progress=console(stderr=True).is_terminal,
-        )
-    except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
-        raise _reworded(exc, _cli_words) from None
+    if _is_block(residuals):
+        grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options)
+    else:
+        grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options)
     save_grids(output, grids, std=std)
     stats = {k: g.to_dict() for k, g in grids.items()}
     if report is not None:
@@ -538,6 +513,119 @@ def fit(
     say(f"wrote {len(stats)} grid(s) to {output}", out)
     if report is not None:
         say(f"wrote {report}", out)
+
+
+#: Suffixes of a BAL file, the one block format stored in a single file
+_BLOCK_SUFFIXES = (".bal", ".bz2")
+
+
+def _is_block(path: Path) -> bool:
+    """Whether ``grid fit``'s input is an adjusted block (a folder or a BAL file) rather
+    than a residuals CSV."""
+    return path.is_dir() or path.suffix.lower() in _BLOCK_SUFFIXES
+
+
+def _fit_sigma_constraint(text: str | None) -> float | str | None:
+    """The --sigma-constraint of ``grid fit``: None (the input's default), a positive number
+    of px, ``"scaled"`` or ``"vce"``."""
+    if text is None:
+        return None
+    t = text.strip().lower()
+    if t in ("vce", "scaled"):
+        return t
+    try:
+        return float(t)
+    except ValueError:
+        raise InputError(
+            f"--sigma-constraint: a number (px), 'scaled' or 'vce', not {text!r}"
+        ) from None
+
+
+def _fit_block(
+    path: Path,
+    image_size: str | None,
+    spacing: float,
+    sigma_obs: float | None,
+    sigma_constraint: float | str | None,
+    options: dict,
+) -> dict:
+    """The grids of an adjusted block's tie-point residuals (``fit_residual_grids``, the
+    fit of ``grid evaluate``), each image's size from its camera."""
+    import photogeom as pg
+
+    from ..calibration import fit_residual_grids
+
+    if image_size is not None:
+        raise InputError(
+            f"--image-size applies to a residuals CSV; {path} is a block, whose cameras "
+            "give the image sizes: leave --image-size out"
+        )
+    with stage_spinner(f"reading {path}"):
+        block = pg.bundle.read_block(path)
+    try:
+        with stage_spinner(f"fitting grids of {spacing:g} px"):
+            return fit_residual_grids(
+                block,
+                spacing,
+                sigma_obs="block" if sigma_obs is None else sigma_obs,
+                sigma_constraint="scaled" if sigma_constraint is None else sigma_constraint,
+                **options,
+            )
+    except PhotogeomError as exc:
+        raise _reworded(exc, _cli_words) from None
+
+
+def _fit_csv(
+    path: Path,
+    image_size: str | None,
+    spacing: float,
+    sigma_obs: float | None,
+    sigma_constraint: float | str | None,
+    options: dict,
+) -> dict:
+    """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size."""
+    from ..calibration import GridLayout, fit_grids
+    from ..calibration.blocks import scaled_constraint_sigma
+
+    if image_size is None:
+        raise InputError(
+            f"{path}: a residuals CSV needs the images' size: give --image-size "
+            "WIDTHxHEIGHT (pixels)"
+        )
+    size = _image_size(image_size)
+    s_c = 1.0 if sigma_constraint is None else sigma_constraint
+    _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"))
+    if not lines.size:
+        raise FileFormatError(
+            f"no residuals in {path}: the file has a header and no rows; it needs one "
+            "row per observation (image_id, u, v, rx, ry)"
+        )
+    ids = list(map(str.strip, columns[col["image_id"]]))
+    data = np.stack(
+        [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
+        axis=1,
+    )
+    try:  # the image size and the spacing are refused first, as fit_grids does
+        GridLayout(size[0], size[1], spacing)
+    except PhotogeomError as exc:
+        raise _reworded(exc, _cli_words) from None
+    _refuse_outside(
+        path, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
+        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
+    )  # fmt: skip
+    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
+    try:
+        return fit_grids(
+            per_image,
+            size,
+            spacing,
+            sigma_obs=1.0 if sigma_obs is None else sigma_obs,
+            sigma_constraint=scaled_constraint_sigma(s_c, spacing),
+            progress=console(stderr=True).is_terminal,
+            **options,
+        )
+    except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
+        raise _reworded(exc, _cli_words) from None
 
 
 def _cli_words(msg: str) -> str:

@@ -1,0 +1,86 @@
+"""Review 9: the residual-grid workflow end to end from the command line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+
+
+@pytest.fixture(scope="module")
+def adjusted_folder(tmp_path_factory):
+    """A small simulated ILCE-7RM2 block, adjusted, written as a CSV block folder."""
+    sim = pg.simulate.uav_block(
+        "ILCE-7RM2", seed=2, strips=1, images_per_strip=4, tie_points_per_image=150
+    )
+    fit = pg.bundle_adjust(sim.block, snooping=False)
+    d = tmp_path_factory.mktemp("block") / "adjusted"
+    pg.bundle.write_csv_block(fit.block, d)
+    return d
+
+
+def test_grid_fit_takes_an_adjusted_block_and_fits_the_grids_of_grid_evaluate(
+    cli, adjusted_folder, tmp_path
+):
+    # the grids file of a block: before, 'grid fit' read only a residuals CSV, which no
+    # command writes, so a block's grids could not reach 'correct-images' from the CLI
+    out = tmp_path / "grids.npz"
+    code, text, err = cli(
+        "grid", "fit", adjusted_folder, "--spacing", "1000", "-o", out, "--folds", "0", "--json"
+    )
+    assert code == 0, err
+    assert out.is_file()
+    block = pg.bundle.read_block(adjusted_folder)
+    want = pg.calibration.fit_residual_grids(block, 1000, folds=0)  # what 'evaluate' fits
+    got = pg.calibration.load_grids(out)
+    assert list(got) == list(want)
+    for k, g in want.items():
+        np.testing.assert_allclose(got[k].nodes, g.nodes, rtol=0, atol=1e-12)
+        assert got[k].image_size == g.image_size
+    assert set(json.loads(text)["images"]) == {str(k) for k in want}
+    # the grids read back into the next step: the block's observations corrected
+    corrected = tmp_path / "corrected.csv"
+    code, _, err = cli("grid", "apply", out, adjusted_folder / "observations.csv", "-o", corrected)
+    assert code == 0, err
+
+
+def test_grid_fit_of_a_block_options(cli, adjusted_folder, tmp_path):
+    out = tmp_path / "g.json"
+    code, _, err = cli(
+        "grid", "fit", adjusted_folder, "--image-size", "100x100", "--spacing", "1000", "-o", out
+    )
+    assert code == 2 and "--image-size applies to a residuals CSV" in err
+    assert not out.exists()
+    code, _, err = cli(
+        "grid", "fit", adjusted_folder, "--spacing", "1000", "-o", out, "--folds", "0",
+        "--sigma-constraint", "0.5", "--sigma-obs", "0.3",
+    )  # fmt: skip
+    assert code == 0, err
+    block = pg.bundle.read_block(adjusted_folder)
+    want = pg.calibration.fit_residual_grids(
+        block, 1000, folds=0, sigma_obs=0.3, sigma_constraint=0.5
+    )
+    got = pg.calibration.load_grids(out)
+    for k, g in want.items():
+        np.testing.assert_allclose(got[k].nodes, g.nodes, rtol=0, atol=1e-12)
+
+
+def test_grid_fit_of_a_csv_needs_the_image_size_and_takes_scaled(cli, tmp_path):
+    rng = np.random.default_rng(3)
+    uv = rng.uniform([0, 0], [299, 199], (200, 2))
+    lines = ["image_id,u,v,rx,ry"] + [f"a,{u},{v},{0.01 * u},{-0.02 * v}" for u, v in uv]
+    src = tmp_path / "res.csv"
+    src.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "g.npz"
+    code, _, err = cli("grid", "fit", src, "-o", out)
+    assert code == 2 and "--image-size WIDTHxHEIGHT" in err
+    code, _, err = cli(
+        "grid", "fit", src, "-o", out, "--image-size", "300x200", "--spacing", "50",
+        "--sigma-constraint", "scaled", "--folds", "0",
+    )  # fmt: skip
+    assert code == 0, err
+    g = pg.calibration.load_grids(out)["a"]
+    assert g.sigma_constraint == pytest.approx(0.1 * 0.5**2)
