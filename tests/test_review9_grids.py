@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,3 +85,62 @@ def test_grid_fit_of_a_csv_needs_the_image_size_and_takes_scaled(cli, tmp_path):
     assert code == 0, err
     g = pg.calibration.load_grids(out)["a"]
     assert g.sigma_constraint == pytest.approx(0.1 * 0.5**2)
+
+
+def _small_grids_and_folder(tmp_path):
+    """A grid for a 60 x 40 px image and a folder holding that image as PNG."""
+    import cv2
+
+    rng = np.random.default_rng(5)
+    uv = rng.uniform([0, 0], [59, 39], (60, 2))
+    grid = pg.calibration.fit_grid(uv, np.full((60, 2), 0.5), (60, 40), 20, folds=0)
+    src = tmp_path / "images"
+    src.mkdir()
+    cv2.imwrite(str(src / "a.png"), np.arange(2400, dtype=np.uint8).reshape(40, 60))
+    grids_file = tmp_path / "g.npz"
+    pg.calibration.save_grids(grids_file, {"a": grid})
+    return grids_file, src
+
+
+def test_correct_images_output_folder_that_cannot_be_created_is_a_named_error(cli, tmp_path):
+    # before: a traceback (FileExistsError / NotADirectoryError from mkdir) and exit code 1,
+    # the code of "some images failed"
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    in_the_way = tmp_path / "taken"
+    in_the_way.write_text("a file")
+    for dst in (in_the_way, in_the_way / "sub"):
+        code, _, err = cli("grid", "correct-images", grids_file, src, dst)
+        assert code == 2, err
+        assert err.startswith("error: output folder") and "Traceback" not in err
+        assert "choose another output folder" in err
+    assert in_the_way.read_text() == "a file"
+
+
+def test_correct_folder_refuses_an_unwritable_output_folder_before_reading_images(
+    tmp_path, monkeypatch
+):
+    import os
+
+    import photogeom.calibration.images as images
+    from photogeom.errors import OutputError
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    dst = tmp_path / "out"
+    dst.mkdir()
+    real = os.access
+    monkeypatch.setattr(  # as for a user without write permission (tests may run as root)
+        images.os, "access", lambda p, m: False if Path(p) == dst else real(p, m)
+    )
+    monkeypatch.setattr(images, "_read", lambda p: pytest.fail("an image was read"))
+    with pytest.raises(OutputError, match="is not writable"):
+        pg.calibration.correct_folder(src, dst, pg.calibration.load_grids(grids_file))
+    assert list(dst.iterdir()) == []
+
+
+def test_correct_folder_equal_folders_refused_before_anything_is_made(tmp_path):
+    from photogeom.errors import InputError
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    with pytest.raises(InputError, match="must differ"):
+        pg.calibration.correct_folder(src, src / ".", pg.calibration.load_grids(grids_file))
+    assert sorted(p.name for p in src.iterdir()) == ["a.png"]

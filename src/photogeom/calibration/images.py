@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomicfile import atomic_write_bytes
-from ..errors import FileFormatError, InputError, PhotogeomError
+from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
 from .correction import correct_image
 from .grid import ResidualGrid
 
@@ -427,6 +427,14 @@ def correct_folder(
     FolderResult
         Images written, failures (missing or corrupt files: listed, the rest processed),
         image files without a grid.
+
+    Raises
+    ------
+    InputError
+        No input folder, the output folder equal to it, bad ``workers`` or
+        ``interpolation``.
+    OutputError
+        The output folder cannot be created or written (checked before any image is read).
     """
     src, dst = Path(src_dir), Path(dst_dir)
     if not src.is_dir():
@@ -435,9 +443,9 @@ def correct_folder(
         raise InputError(f"interpolation must be bilinear or bicubic, not {interpolation!r}")
     if workers < 1:
         raise InputError(f"workers must be at least 1, not {workers}")
-    dst.mkdir(parents=True, exist_ok=True)
     if src.resolve() == dst.resolve():
         raise InputError("the output folder must differ from the input folder (originals are kept)")
+    _output_folder(dst)
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
@@ -460,6 +468,37 @@ def correct_folder(
         else:
             result.failures[key] = msg
     return result
+
+
+def _output_folder(dst: Path) -> None:
+    """Create the output folder and check that files can be made in it, before any image
+    is read: a folder that cannot be written fails once, by name, not once per image.
+
+    Raises
+    ------
+    OutputError
+        ``dst`` cannot be created (a file in the way, no permission) or written.
+    """
+    from ..atomicfile import _failure
+
+    try:
+        dst.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if isinstance(exc, FileExistsError):
+            reason = "a file of that name is in the way"
+        else:
+            reason = str(_failure(dst, exc)).split(": ", 1)[-1]
+        raise OutputError(
+            f"output folder {dst} cannot be created ({reason}); choose another output folder",
+            exc.errno,
+        ) from None
+    if not dst.is_dir():
+        raise OutputError(f"output folder {dst} is not a folder; choose another output folder")
+    if not os.access(dst, os.W_OK | os.X_OK):
+        raise OutputError(
+            f"output folder {dst} is not writable (permission denied); choose another "
+            "output folder or make it writable"
+        )
 
 
 def _progress(enabled: bool, total: int):
