@@ -144,3 +144,38 @@ def test_correct_folder_equal_folders_refused_before_anything_is_made(tmp_path):
     with pytest.raises(InputError, match="must differ"):
         pg.calibration.correct_folder(src, src / ".", pg.calibration.load_grids(grids_file))
     assert sorted(p.name for p in src.iterdir()) == ["a.png"]
+
+
+def test_grid_evaluate_takes_the_grids_file_that_corrects_the_images(
+    cli, adjusted_folder, tmp_path
+):
+    # before: 'grid evaluate' and 'grid report' fitted their own grids only, so the grids
+    # file given to 'correct-images' could not be re-adjusted and evaluated from the CLI
+    grids = tmp_path / "g.json"
+    code, _, err = cli("grid", "fit", adjusted_folder, "--spacing", "1000", "-o", grids)
+    assert code == 0, err
+    code, from_file, err = cli("grid", "evaluate", adjusted_folder, "--grids", grids, "--json")
+    assert code == 0, err
+    code, fitted, err = cli("grid", "evaluate", adjusted_folder, "--spacing", "1000", "--json")
+    assert code == 0, err
+    assert json.loads(from_file) == json.loads(fitted)
+    out = tmp_path / "r.html"
+    code, _, err = cli(
+        "grid", "report", adjusted_folder, "--grids", grids, "--spacings", "500,1000", "-o", out
+    )
+    assert code == 0, err
+    assert out.read_text().count("<img") == 4
+
+
+def test_grid_evaluate_grids_refusals(cli, adjusted_folder, tmp_path):
+    grids = tmp_path / "g.npz"
+    other = {"x": pg.calibration.fit_grid(np.full((5, 2), 10.0), np.zeros((5, 2)), (60, 40), 20)}
+    pg.calibration.save_grids(grids, other)
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", grids)
+    assert code == 2 and "give --grids a file with a grid for every image" in err
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", grids, "--spacing", "300")
+    assert code == 2 and "leave them out" in err
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", grids, "--in-adjustment")
+    assert code == 2 and "give one of them" in err
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", tmp_path / "none.npz")
+    assert code == 2 and "does not exist" in err

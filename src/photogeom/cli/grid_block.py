@@ -36,6 +36,12 @@ PresetOpt = Annotated[
     typer.Option(help="Simulated block instead: ILCE-7RM2, FC6310 or FC300S (then adjusted)."),
 ]
 SpacingOpt = Annotated[float, typer.Option(help="Node spacing of the grids in pixels.")]
+#: --spacing of the commands that also take --grids (None: not given, 100 px)
+FitSpacingOpt = Annotated[
+    float | None,
+    typer.Option(help="Node spacing of the grids in pixels (default 100; not with --grids)."),
+]
+DEFAULT_SPACING = 100.0
 SigmaCOpt = Annotated[
     str,
     typer.Option(
@@ -127,6 +133,15 @@ CheckOpt = Annotated[
         "check points): their errors before and after, triangulated minus surveyed.",
     ),
 ]
+GridsOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--grids",
+        help="Grids file (from 'photogeom grid fit') to evaluate instead of fitting grids: "
+        "the BLOCK's observations corrected with it and re-adjusted (orientation and "
+        "calibration fixed); --spacing and --sigma-constraint do not apply.",
+    ),
+]
 SpacingsOpt = Annotated[
     str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
 ]
@@ -176,6 +191,12 @@ def _cli(msg: str) -> str:
         .replace("sigma_amplitude", "--sigma-amplitude")
         .replace("per must be one of", "--per must be one of")
         .replace("surveyed: none of", "--check-points: none of")
+        .replace(
+            "fit grids for every image of the block (fit_residual_grids) to correct its "
+            "observations",
+            "give --grids a file with a grid for every image of the BLOCK "
+            "('photogeom grid fit BLOCK')",
+        )
     )
 
 
@@ -195,15 +216,32 @@ def _evaluate(
     post_spacing=None,
     check_points=None,
     sigma_amplitude="residuals",
+    grids_file=None,
+    spacing_given=True,
 ):
     from ..calibration import (
         adjust_with_grids,
         evaluate_readjustment,
         fit_residual_grids,
+        load_grids,
         readjust,
     )
 
     sigma_constraint = _sigma_c(sigma_constraint)
+    if grids_file is not None:
+        if in_adjustment:
+            raise InputError(
+                "--grids evaluates grids fitted after the adjustment; --in-adjustment "
+                "estimates its own: give one of them"
+            )
+        if spacing_given or sigma_constraint != "scaled":
+            raise InputError(
+                "--spacing and --sigma-constraint set the grids that are fitted; with --grids "
+                "the grids of the file are used: leave them out (or fit with "
+                "'photogeom grid fit BLOCK --spacing ...')"
+            )
+        if not grids_file.is_file():
+            raise InputError(f"--grids: {grids_file} does not exist")
     if check_points is not None and preset is not None:
         raise InputError(
             "--check-points applies to a BLOCK folder (a --preset is checked against its truth)"
@@ -244,6 +282,10 @@ def _evaluate(
             if post_spacing is not None:
                 grids = fit_residual_grids(re.block, post_spacing, folds=0)
                 re = readjust(re.block, grids, snooping=False)
+        elif grids_file is not None:
+            grids = load_grids(grids_file)
+            with stage_spinner("re-adjusting with the corrected observations"):
+                re = readjust(fit.block, grids, snooping=False)
         else:
             with stage_spinner(f"fitting grids of {spacing:g} px") as step:
                 grids = fit_residual_grids(
@@ -293,7 +335,7 @@ def _ev_json(ev) -> dict:
 def evaluate(
     block: BlockArg = None,
     preset: PresetOpt = None,
-    spacing: SpacingOpt = 100.0,
+    spacing: FitSpacingOpt = None,
     sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
@@ -306,6 +348,7 @@ def evaluate(
     sigma_amplitude: SigmaAOpt = "residuals",
     post_spacing: PostOpt = None,
     check_points: CheckOpt = None,
+    grids_file: GridsOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -314,7 +357,7 @@ def evaluate(
     _, _, _, ev, _ = _evaluate(
         block,
         preset,
-        spacing,
+        DEFAULT_SPACING if spacing is None else spacing,
         sigma_constraint,
         seed,
         strips,
@@ -326,6 +369,8 @@ def evaluate(
         sigma_amplitude=sigma_amplitude,
         post_spacing=post_spacing,
         check_points=check_points,
+        grids_file=grids_file,
+        spacing_given=spacing is not None,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
@@ -455,7 +500,7 @@ def report(
     output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")],
     block: BlockArg = None,
     preset: PresetOpt = None,
-    spacing: SpacingOpt = 100.0,
+    spacing: FitSpacingOpt = None,
     spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
     sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
@@ -468,6 +513,7 @@ def report(
     sigma_temporal: SigmaTOpt = None,
     sigma_amplitude: SigmaAOpt = "residuals",
     check_points: CheckOpt = None,
+    grids_file: GridsOpt = None,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
@@ -479,7 +525,7 @@ def report(
     fit, re, grids, ev, _ = _evaluate(
         block,
         preset,
-        spacing,
+        DEFAULT_SPACING if spacing is None else spacing,
         sigma_constraint,
         seed,
         strips,
@@ -490,6 +536,8 @@ def report(
         sigma_temporal=sigma_temporal,
         sigma_amplitude=sigma_amplitude,
         check_points=check_points,
+        grids_file=grids_file,
+        spacing_given=spacing is not None,
     )
     sc = _sigma_c(sigma_constraint)
     with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
