@@ -179,3 +179,36 @@ def test_grid_evaluate_grids_refusals(cli, adjusted_folder, tmp_path):
     assert code == 2 and "give one of them" in err
     code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", tmp_path / "none.npz")
     assert code == 2 and "does not exist" in err
+
+
+def test_grid_fit_exclude_leaves_out_an_image_with_too_few_residuals(cli, tmp_path):
+    # before: the error said "leave the image out", which a block could not do from the CLI
+    rng = np.random.default_rng(4)
+    uv = rng.uniform([0, 0], [299, 199], (40, 2))
+    rows = [f"a,{u},{v},0.1,0.2" for u, v in uv] + ["b,10,10,0.1,0.1", "b,20,20,0.1,0.1"]
+    src = tmp_path / "res.csv"
+    src.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "g.npz"
+    base = ("grid", "fit", src, "-o", out, "--image-size", "300x200", "--spacing", "50")
+    code, _, err = cli(*base, "--folds", "0")
+    assert code == 2 and "image b" in err and "leave the image out with --exclude ID" in err
+    assert not out.exists()
+    code, _, err = cli(*base, "--folds", "0", "--exclude", "b")
+    assert code == 0, err
+    assert list(pg.calibration.load_grids(out)) == ["a"]
+    code, _, err = cli(*base, "--exclude", "c")
+    assert code == 2 and "--exclude: no image c" in err
+    code, _, err = cli(*base, "--exclude", "a,b")
+    assert code == 2 and "leaves no image" in err
+
+
+def test_grid_fit_exclude_on_a_block(cli, adjusted_folder, tmp_path):
+    out = tmp_path / "g.npz"
+    block = pg.bundle.read_block(adjusted_folder)
+    ids = block.image_ids.tolist()
+    code, _, err = cli(
+        "grid", "fit", adjusted_folder, "--spacing", "1000", "-o", out, "--folds", "0",
+        "--exclude", str(ids[1]),
+    )  # fmt: skip
+    assert code == 0, err
+    assert list(pg.calibration.load_grids(out)) == [k for k in ids if k != ids[1]]

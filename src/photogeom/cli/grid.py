@@ -27,6 +27,7 @@ from ._common import (
     json_text,
     options_in_errors,
     say,
+    split_names,
     stage_spinner,
 )
 
@@ -447,6 +448,13 @@ def fit(
     std: Annotated[
         bool, typer.Option("--std/--no-std", help="Compute and store node standard deviations.")
     ] = True,
+    exclude: Annotated[
+        str | None,
+        typer.Option(
+            help="Image ids to leave out, comma-separated (e.g. images with too few "
+            "residuals for the spacing); they get no grid."
+        ),
+    ] = None,
     report: ReportOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
@@ -468,10 +476,11 @@ def fit(
     options = dict(
         border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
     )
+    left_out = split_names(exclude) or []
     if _is_block(residuals):
-        grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options)
+        grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
     else:
-        grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options)
+        grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
     save_grids(output, grids, std=std)
     stats = {k: g.to_dict() for k, g in grids.items()}
     if report is not None:
@@ -548,9 +557,11 @@ def _fit_block(
     sigma_obs: float | None,
     sigma_constraint: float | str | None,
     options: dict,
+    exclude: list[str],
 ) -> dict:
     """The grids of an adjusted block's tie-point residuals (``fit_residual_grids``, the
-    fit of ``grid evaluate``), each image's size from its camera."""
+    fit of ``grid evaluate``), each image's size from its camera; the images of
+    ``exclude`` (ids as text, --exclude) left out."""
     import photogeom as pg
 
     from ..calibration import fit_residual_grids
@@ -562,11 +573,15 @@ def _fit_block(
         )
     with stage_spinner(f"reading {path}"):
         block = pg.bundle.read_block(path)
+    ids = block.image_ids.tolist()
+    _refuse_unknown(exclude, [str(k) for k in ids], path)
+    keep = [k for k in ids if str(k) not in set(exclude)]
     try:
         with stage_spinner(f"fitting grids of {spacing:g} px"):
             return fit_residual_grids(
                 block,
                 spacing,
+                images=keep,
                 sigma_obs="block" if sigma_obs is None else sigma_obs,
                 sigma_constraint="scaled" if sigma_constraint is None else sigma_constraint,
                 **options,
@@ -582,8 +597,10 @@ def _fit_csv(
     sigma_obs: float | None,
     sigma_constraint: float | str | None,
     options: dict,
+    exclude: list[str],
 ) -> dict:
-    """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size."""
+    """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size; the
+    images of ``exclude`` (--exclude) left out."""
     from ..calibration import GridLayout, fit_grids
     from ..calibration.blocks import scaled_constraint_sigma
 
@@ -613,7 +630,11 @@ def _fit_csv(
         path, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
         "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
     )  # fmt: skip
-    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
+    groups = _groups(ids)
+    _refuse_unknown(exclude, list(groups), path)
+    for k in exclude:
+        del groups[k]
+    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
     try:
         return fit_grids(
             per_image,
@@ -628,6 +649,18 @@ def _fit_csv(
         raise _reworded(exc, _cli_words) from None
 
 
+def _refuse_unknown(exclude: list[str], ids: list[str], path: Path) -> None:
+    """Refuse --exclude ids that name no image of the input (a typo would fit them)."""
+    unknown = [k for k in exclude if k not in set(ids)]
+    if unknown:
+        raise InputError(
+            f"--exclude: no image {', '.join(unknown[:5])} in {path} (its images: "
+            f"{', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})"
+        )
+    if ids and set(ids) <= set(exclude):
+        raise InputError(f"--exclude leaves no image of {path} to fit")
+
+
 def _cli_words(msg: str) -> str:
     return (
         msg.replace("sigma_constraint", "--sigma-constraint")
@@ -640,6 +673,7 @@ def _cli_words(msg: str) -> str:
         .replace("a larger spacing", "a larger --spacing")
         .replace("choose a spacing", "choose a --spacing")
         .replace("a larger alpha", "a larger --alpha")
+        .replace("leave the image out", "leave the image out with --exclude ID")
     )
 
 
