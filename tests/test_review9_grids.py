@@ -212,3 +212,20 @@ def test_grid_fit_exclude_on_a_block(cli, adjusted_folder, tmp_path):
     )  # fmt: skip
     assert code == 0, err
     assert list(pg.calibration.load_grids(out)) == [k for k in ids if k != ids[1]]
+
+
+def test_correct_folder_names_ambiguous_and_unsupported_files(tmp_path):
+    # before: both were "no image file named a (or a.<ext>)", though a.png and a.tif were
+    # there (two candidates) or b.bmp was (a format not read)
+    import shutil
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    shutil.copy(src / "a.png", src / "a.tif")
+    (src / "b.bmp").write_bytes(b"BM")
+    grids = pg.calibration.load_grids(grids_file)
+    grids["b"] = grids["a"]
+    res = pg.calibration.correct_folder(src, tmp_path / "out", grids, progress=False)
+    assert not res.written
+    assert "matches 2 files" in res.failures["a"] and "a.png, a.tif" in res.failures["a"]
+    assert "in a supported format" in res.failures["b"] and "b.bmp" in res.failures["b"]
+    assert list((tmp_path / "out").iterdir()) == []

@@ -30,6 +30,7 @@ import os
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
@@ -394,6 +395,26 @@ def find_images(folder: Path, ids) -> tuple[dict, list, list]:
     return found, missing, [p.name for p in files if p not in used]
 
 
+def _missing_message(folder: Path, key) -> str:
+    """Why image id ``key`` has no file in ``folder``: none of that name, or several files
+    with that stem (the id does not say which one), or only files of unsupported formats."""
+    k = str(key)
+    same = sorted(p.name for p in folder.glob(f"{glob_escape(k)}.*") if p.is_file())
+    usable = [n for n in same if Path(n).suffix.lower() in IMAGE_SUFFIXES]
+    if len(usable) > 1:
+        return (
+            f"image id {k} matches {len(usable)} files in {folder} ({', '.join(usable)}): "
+            "keep one of them in the folder, or name the file in the grid's id "
+            f"(e.g. {usable[0]})"
+        )
+    if same:
+        return (
+            f"no image file named {k} (or {k}.<ext>) in {folder} in a supported format "
+            f"({', '.join(IMAGE_SUFFIXES)}); found {', '.join(same[:5])}"
+        )
+    return f"no image file named {k} (or {k}.<ext>) in {folder}"
+
+
 def correct_folder(
     src_dir: str | os.PathLike,
     dst_dir: str | os.PathLike,
@@ -449,7 +470,7 @@ def correct_folder(
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
-        result.failures[key] = f"no image file named {key} (or {key}.<ext>) in {src}"
+        result.failures[key] = _missing_message(src, key)
     result.skipped = extra
     jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
     # threads inside a job: only when the jobs do not already fill the machine
