@@ -229,3 +229,45 @@ def test_correct_folder_names_ambiguous_and_unsupported_files(tmp_path):
     assert "matches 2 files" in res.failures["a"] and "a.png, a.tif" in res.failures["a"]
     assert "in a supported format" in res.failures["b"] and "b.bmp" in res.failures["b"]
     assert list((tmp_path / "out").iterdir()) == []
+
+
+@pytest.mark.parametrize("outside", ["replicate", "constant", "reflect"])
+def test_correct_images_outside_option_reaches_the_remap(cli, tmp_path, outside):
+    # before: correct_image had border= but correct_image_file, correct_folder and
+    # 'grid correct-images' always replicated the edge
+    import cv2
+
+    rng = np.random.default_rng(6)
+    uv = rng.uniform([0, 0], [59, 39], (80, 2))
+    grid = pg.calibration.fit_grid(uv, np.tile([3.0, 0.0], (80, 1)), (60, 40), 20, folds=0)
+    src = tmp_path / "images"
+    src.mkdir()
+    img = (np.arange(60, dtype=np.uint8)[None, :] * 4 + 10).repeat(40, axis=0)
+    cv2.imwrite(str(src / "a.png"), img)
+    grids_file = tmp_path / "g.npz"
+    pg.calibration.save_grids(grids_file, {"a": grid})
+    dst = tmp_path / "out"
+    code, _, err = cli("grid", "correct-images", grids_file, src, dst, "--outside", outside)
+    assert code == 0, err
+    got = cv2.imread(str(dst / "a.png"), cv2.IMREAD_UNCHANGED)
+    want = pg.calibration.correct_image(img, grid, border=outside)
+    np.testing.assert_array_equal(got, want)
+    assert (got[:, 0] == 0).all() == (outside == "constant")
+
+
+def test_correct_folder_border_in_worker_processes(tmp_path):
+    import cv2
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grids = pg.calibration.load_grids(grids_file)
+    res = pg.calibration.correct_folder(
+        src, tmp_path / "out", grids, workers=2, border="constant", progress=False
+    )
+    assert res.ok, res.failures
+    img = cv2.imread(str(src / "a.png"), cv2.IMREAD_UNCHANGED)
+    got = cv2.imread(str(tmp_path / "out" / "a.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(
+        got, pg.calibration.correct_image(img, grids["a"], border="constant")
+    )
+    with pytest.raises(pg.errors.InputError, match="border must be one of"):
+        pg.calibration.correct_folder(src, tmp_path / "o2", grids, border="wrap")

@@ -41,6 +41,8 @@ from .correction import correct_image
 from .grid import ResidualGrid
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".tif", ".tiff", ".png")
+#: Values of output pixels whose source lies outside the image (``correct_image``'s border)
+BORDER_MODES = ("replicate", "constant", "reflect")
 
 
 @dataclass
@@ -304,8 +306,22 @@ def correct_image_file(
     *,
     interpolation: str = "bilinear",
     threads: int | None = None,
+    border: str = "replicate",
 ) -> str | None:
     """Correct one image file into ``dst`` (same format, metadata kept where possible).
+
+    Parameters
+    ----------
+    src, dst : path
+        Image file to read and file to write (atomically).
+    grid : ResidualGrid
+        The grid of this image (fitted for its size, px).
+    interpolation : {"bilinear", "bicubic"}
+    threads : int, optional
+        Threads over chunks of rows (see :func:`correct_image`).
+    border : {"replicate", "constant", "reflect"}
+        Values of output pixels whose source lies outside the image (see
+        :func:`correct_image`; ``"constant"``: 0).
 
     Returns
     -------
@@ -327,7 +343,9 @@ def correct_image_file(
             f"{src.name}: the image is {w} x {h} px, its grid was fitted for "
             f"{grid.image_size[0]} x {grid.image_size[1]} px"
         )
-    out = correct_image(pixels, grid, interpolation=interpolation, threads=threads)  # type: ignore[arg-type]
+    out = correct_image(  # type: ignore[arg-type]
+        pixels, grid, interpolation=interpolation, threads=threads, border=border
+    )
     data, note = _encode(out, meta, src.suffix.lower() or ".png")
     atomic_write_bytes(dst, data)
     return note
@@ -346,6 +364,7 @@ def _task(
     interpolation: str,
     threads: int | None,
     cv_single: bool = False,
+    border: str = "replicate",
 ):
     """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
 
@@ -359,7 +378,9 @@ def _task(
     try:
         if cv_single:
             cv2.setNumThreads(1)
-        note = correct_image_file(src, dst, grid, interpolation=interpolation, threads=threads)
+        note = correct_image_file(
+            src, dst, grid, interpolation=interpolation, threads=threads, border=border
+        )
         return True, note
     except (PhotogeomError, OSError) as exc:
         return False, str(exc)
@@ -424,6 +445,7 @@ def correct_folder(
     dask: bool | str = False,
     interpolation: str = "bilinear",
     progress: bool = True,
+    border: str = "replicate",
 ) -> FolderResult:
     """Correct every image of a folder that has a grid, in parallel.
 
@@ -442,6 +464,9 @@ def correct_folder(
     interpolation : {"bilinear", "bicubic"}
     progress : bool
         A rich progress bar on the terminal.
+    border : {"replicate", "constant", "reflect"}
+        Values of output pixels whose source lies outside the image (see
+        :func:`correct_image`; ``"constant"``: 0).
 
     Returns
     -------
@@ -462,6 +487,8 @@ def correct_folder(
         raise InputError(f"input folder {src} does not exist")
     if interpolation not in ("bilinear", "bicubic"):
         raise InputError(f"interpolation must be bilinear or bicubic, not {interpolation!r}")
+    if border not in BORDER_MODES:
+        raise InputError(f"border must be one of {', '.join(BORDER_MODES)}, not {border!r}")
     if workers < 1:
         raise InputError(f"workers must be at least 1, not {workers}")
     if src.resolve() == dst.resolve():
@@ -476,11 +503,11 @@ def correct_folder(
     # threads inside a job: only when the jobs do not already fill the machine
     threads = 1 if (workers > 1 or dask) else None
     if dask:
-        outcomes = _run_dask(jobs, workers, dask, interpolation, progress)
+        outcomes = _run_dask(jobs, workers, dask, interpolation, progress, border)
     elif workers == 1:
-        outcomes = _run_serial(jobs, interpolation, threads, progress)
+        outcomes = _run_serial(jobs, interpolation, threads, progress, border)
     else:
-        outcomes = _run_processes(jobs, workers, interpolation, progress)
+        outcomes = _run_processes(jobs, workers, interpolation, progress, border)
     for (key, _s, d, _g), (ok, msg) in zip(jobs, outcomes):
         if ok:
             result.written[key] = Path(d)
@@ -536,24 +563,25 @@ def _progress(enabled: bool, total: int):
     return prog
 
 
-def _run_serial(jobs, interpolation, threads, progress):
+def _run_serial(jobs, interpolation, threads, progress, border):
     out = []
     with _progress(progress, len(jobs)) as prog:
         t = prog.add_task("correcting images", total=len(jobs))
         for _key, s, d, g in jobs:
-            out.append(_task(s, d, g, interpolation, threads))
+            out.append(_task(s, d, g, interpolation, threads, border=border))
             prog.advance(t)
     return out
 
 
-def _run_processes(jobs, workers, interpolation, progress):
+def _run_processes(jobs, workers, interpolation, progress, border):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     out: list = [None] * len(jobs)
     with _progress(progress, len(jobs)) as prog, ProcessPoolExecutor(workers) as ex:
         t = prog.add_task("correcting images", total=len(jobs))
         futs = {
-            ex.submit(_task, s, d, g, interpolation, 1): i for i, (_k, s, d, g) in enumerate(jobs)
+            ex.submit(_task, s, d, g, interpolation, 1, border=border): i
+            for i, (_k, s, d, g) in enumerate(jobs)
         }
         for f in as_completed(futs):
             out[futs[f]] = f.result()
@@ -561,7 +589,7 @@ def _run_processes(jobs, workers, interpolation, progress):
     return out
 
 
-def _run_dask(jobs, workers, dask, interpolation, progress):
+def _run_dask(jobs, workers, dask, interpolation, progress, border):
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -589,7 +617,7 @@ def _run_dask(jobs, workers, dask, interpolation, progress):
         with _progress(progress, len(jobs)) as prog:
             t = prog.add_task("correcting images (dask)", total=len(jobs))
             futs = [
-                client.submit(_task, s, d, g, interpolation, 1, True, pure=False)
+                client.submit(_task, s, d, g, interpolation, 1, True, border, pure=False)
                 for _k, s, d, g in jobs
             ]
             index = {f.key: i for i, f in enumerate(futs)}

@@ -50,6 +50,12 @@ class Interp(str, Enum):
     bicubic = "bicubic"
 
 
+class Outside(str, Enum):
+    replicate = "replicate"
+    constant = "constant"
+    reflect = "reflect"
+
+
 #: Columns of at least this many cells are converted to numbers by pyarrow (fewer: by
 #: :func:`float`, without importing pyarrow, which takes longer than converting them).
 ARROW_CELLS = 20_000
@@ -829,6 +835,13 @@ def correct_images(
         str | None, typer.Option(help="Address of a running Dask scheduler (tcp://host:8786).")
     ] = None,
     interpolation: Annotated[Interp, typer.Option(help="Resampling.")] = Interp.bilinear,
+    outside: Annotated[
+        Outside,
+        typer.Option(
+            help="Pixels whose source lies outside the image: replicate the edge, "
+            "constant (0) or reflect."
+        ),
+    ] = Outside.replicate,
     as_json: JsonOpt = False,
 ) -> None:
     """Resample every image that has a grid; failures are listed, the rest processed."""
@@ -845,6 +858,7 @@ def correct_images(
             dask=mode,
             interpolation=interpolation.value,
             progress=console(stderr=True).is_terminal,
+            border=outside.value,
         )
     except InputError as exc:
         raise InputError(str(exc).replace("workers must", "--workers must")) from None
