@@ -78,6 +78,8 @@ def test_grid_fit_of_a_csv_needs_the_image_size_and_takes_scaled(cli, tmp_path):
     out = tmp_path / "g.npz"
     code, _, err = cli("grid", "fit", src, "-o", out)
     assert code == 2 and "--image-size WIDTHxHEIGHT" in err
+    code, _, err = cli("grid", "fit", tmp_path / "nowhere", "-o", out)  # not: --image-size
+    assert code == 2 and "nowhere: no such file or folder" in err
     code, _, err = cli(
         "grid", "fit", src, "-o", out, "--image-size", "300x200", "--spacing", "50",
         "--sigma-constraint", "scaled", "--folds", "0",

@@ -483,6 +483,10 @@ def fit(
         border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
     )
     left_out = split_names(exclude) or []
+    if not residuals.exists():
+        raise FileFormatError(
+            f"{residuals}: no such file or folder (give a residuals CSV or an adjusted block)"
+        )
     if _is_block(residuals):
         grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
     else:
