@@ -273,3 +273,63 @@ def test_correct_folder_border_in_worker_processes(tmp_path):
     )
     with pytest.raises(pg.errors.InputError, match="border must be one of"):
         pg.calibration.correct_folder(src, tmp_path / "o2", grids, border="wrap")
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    import struct
+    import zlib
+
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def test_png_metadata_kept_for_16_bit_colour_and_after_the_image_data(tmp_path):
+    # before: a 16-bit colour PNG was written by OpenCV without its EXIF (orientation), ICC
+    # profile, resolution and XMP (a note said so); an 8-bit PNG whose eXIf and text chunks
+    # follow the image data lost them without a note (Pillow reads them only on decoding)
+    import struct
+    import zlib
+
+    import cv2
+    from PIL import Image, ImageCms
+
+    rng = np.random.default_rng(7)
+    uv = rng.uniform([0, 0], [59, 39], (80, 2))
+    grid = pg.calibration.fit_grid(uv, np.tile([0.7, -0.4], (80, 1)), (60, 40), 20, folds=0)
+    exif = Image.Exif()
+    exif[274], exif[271] = 6, "ILCE-7RM2"
+    icc = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
+    xmp = b'<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF/></x:xmpmeta>'
+    early = [
+        _png_chunk(b"iCCP", b"sRGB profile\x00\x00" + zlib.compress(icc)),
+        _png_chunk(b"pHYs", struct.pack(">IIB", 11811, 11811, 1)),  # 300 dpi
+        _png_chunk(b"iTXt", b"XML:com.adobe.xmp\x00\x00\x00\x00\x00" + xmp),
+    ]
+    late = [_png_chunk(b"eXIf", exif.tobytes()), _png_chunk(b"tEXt", b"Software\x00flight-tool")]
+    src = tmp_path / "images"
+    src.mkdir()
+    images = {
+        "rgb16": rng.integers(0, 65535, (40, 60, 3)).astype(np.uint16),
+        "rgb8": rng.integers(0, 255, (40, 60, 3)).astype(np.uint8),
+    }
+    for name, pixels in images.items():
+        png = cv2.imencode(".png", pixels)[1].tobytes()
+        head, iend = 33, png.rindex(b"IEND") - 4  # after IHDR; the IEND chunk
+        (src / f"{name}.png").write_bytes(
+            png[:head] + b"".join(early) + png[head:iend] + b"".join(late) + png[iend:]
+        )
+    dst = tmp_path / "out"
+    res = pg.calibration.correct_folder(src, dst, {k: grid for k in images}, progress=False)
+    assert res.ok and not res.notes, (res.failures, res.notes)
+    for name, pixels in images.items():
+        got = cv2.imread(str(dst / f"{name}.png"), cv2.IMREAD_UNCHANGED)
+        assert got.dtype == pixels.dtype and got.shape == pixels.shape
+        np.testing.assert_array_equal(got, pg.calibration.correct_image(pixels, grid))
+        with Image.open(dst / f"{name}.png") as im:
+            im.load()
+            assert im.getexif()[274] == 6 and im.getexif()[271] == "ILCE-7RM2"
+            assert im.info["icc_profile"] == icc
+            assert im.info["dpi"] == pytest.approx((300, 300), abs=0.01)
+            assert im.info["XML:com.adobe.xmp"].encode() == xmp
+            assert im.info["Software"] == "flight-tool"
+        data = (dst / f"{name}.png").read_bytes()
+        assert data.index(b"eXIf") < data.index(b"IDAT")  # where readers look for it

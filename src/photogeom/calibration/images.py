@@ -9,10 +9,13 @@ written in the original format:
 
 * JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
   subsampling (the quality is kept), EXIF, XMP and ICC profile;
-* TIFF and PNG with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (TIFF tag 700,
-  PNG iTXt ``XML:com.adobe.xmp``) and ICC profile, TIFF with its compression;
-* anything else (16-bit colour, other formats): OpenCV, pixels exact, metadata not kept
-  (said in the result's ``notes``).
+* TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
+  profile, with its compression;
+* PNG (any bit depth and channels): the pixels by OpenCV, the original's metadata chunks
+  copied unchanged (EXIF, ICC profile, colour space, resolution, text and XMP), also those
+  that follow the image data;
+* anything else (16-bit colour TIFF): OpenCV, pixels exact, metadata not kept (said in the
+  result's ``notes``).
 
 Every file is encoded in memory and written atomically (temporary file, then rename):
 an interrupted or failed image leaves no partial file.
@@ -138,6 +141,8 @@ def _read(path: Path):
     except Exception:
         # OpenCV decoded it; Pillow cannot read it: pixels only.
         meta = {}
+    if raw[:8] == _PNG_SIGNATURE:
+        meta["png_chunks"] = _png_metadata_chunks(raw)
     stored_size = meta.get("stored_size")
     if stored_size is not None and stored_size != (pixels.shape[1], pixels.shape[0]):
         raise FileFormatError(  # pragma: no cover - OpenCV turned the pixels after all
@@ -145,6 +150,48 @@ def _read(path: Path):
             f"{stored_size[0]} x {stored_size[1]} px: the pixels were turned on reading"
         )
     return pixels, meta
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# PNG chunks of metadata that do not depend on how the pixels are coded (colour type,
+# palette, compression): colour space and ICC profile, resolution, EXIF, text and XMP
+_PNG_BEFORE_IDAT = (b"iCCP", b"sRGB", b"gAMA", b"cHRM", b"cICP", b"mDCV", b"cLLI", b"pHYs")
+_PNG_ANYWHERE = (b"tEXt", b"zTXt", b"iTXt", b"tIME")
+
+
+def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
+    """The metadata chunks of a PNG file, whole (length, type, data, CRC): those that must
+    come before the image data (colour space, ICC profile, resolution; EXIF, which some
+    writers put after the image data and libpng then ignores) and the text chunks (text,
+    XMP, time), wherever they are in the file. A damaged chunk list ends the walk (the
+    decoders report the damage)."""
+    before: list[bytes] = []
+    text: list[bytes] = []
+    at = len(_PNG_SIGNATURE)
+    while at + 12 <= len(data):
+        (length,) = struct.unpack(">I", data[at : at + 4])
+        kind = data[at + 4 : at + 8]
+        end = at + 12 + length
+        if end > len(data):
+            break
+        if kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
+            before.append(data[at:end])
+        elif kind in _PNG_ANYWHERE:
+            text.append(data[at:end])
+        elif kind == b"IEND":
+            break
+        at = end
+    return before, text
+
+
+def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> bytes:
+    """``png`` (an encoder's output without metadata) with the original's metadata chunks:
+    colour space, ICC, resolution and EXIF right after IHDR, text before IEND."""
+    before, text = chunks
+    (ihdr_length,) = struct.unpack(">I", png[8:12])
+    head = 8 + 12 + ihdr_length  # signature and IHDR
+    tail = png.rindex(b"IEND") - 4  # the IEND chunk: length, type, CRC
+    return png[:head] + b"".join(before) + png[head:tail] + b"".join(text) + png[tail:]
 
 
 _TIFF_ORIENTATION = 274
@@ -229,6 +276,16 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
 
     fmt = meta.get("format")
     channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    if meta.get("png_chunks") is not None:
+        # PNG: the pixels by OpenCV (any depth and channels, exact), the original's metadata
+        # chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of 16-bit colour
+        # images, and those after the image data, which Pillow reads only on decoding)
+        ok, enc = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+        if not ok:  # pragma: no cover - OpenCV decoded these pixels from a PNG
+            raise FileFormatError(
+                f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
+            )
+        return _png_with_chunks(enc.tobytes(), meta["png_chunks"]), None
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
@@ -275,12 +332,6 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                         tags.load(meta["exif"])
                 tags[700] = xmp
                 kw["exif"] = tags
-        elif fmt == "PNG" and xmp:
-            from PIL.PngImagePlugin import PngInfo
-
-            pinfo = PngInfo()
-            pinfo.add_itxt("XML:com.adobe.xmp", xmp.decode("utf-8", "replace"))
-            kw["pnginfo"] = pinfo
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
         return buf.getvalue(), None
