@@ -333,3 +333,118 @@ def test_png_metadata_kept_for_16_bit_colour_and_after_the_image_data(tmp_path):
             assert im.info["Software"] == "flight-tool"
         data = (dst / f"{name}.png").read_bytes()
         assert data.index(b"eXIf") < data.index(b"IDAT")  # where readers look for it
+
+
+def test_tiff_16_bit_colour_keeps_orientation_resolution_icc_xmp(tmp_path):
+    # before: written by OpenCV without any of them (a note said so); now the original's tags
+    # are grafted onto OpenCV's file, the compression kept
+    import tifffile
+    from PIL import Image, ImageCms
+
+    rng = np.random.default_rng(8)
+    uv = rng.uniform([0, 0], [59, 39], (80, 2))
+    grid = pg.calibration.fit_grid(uv, np.tile([0.6, 0.3], (80, 1)), (60, 40), 20, folds=0)
+    pixels = rng.integers(0, 65535, (40, 60, 3)).astype(np.uint16)
+    icc = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
+    xmp = b'<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF/></x:xmpmeta>'
+    src = tmp_path / "images"
+    src.mkdir()
+    tifffile.imwrite(
+        src / "a.tif", pixels, photometric="rgb", compression="zlib", resolution=(300, 300),
+        resolutionunit="INCH", metadata=None,
+        extratags=[
+            (274, "H", 1, 6, True), (34675, "B", len(icc), icc, True),
+            (700, "B", len(xmp), xmp, True), (271, "s", 0, "Sony", True),
+        ],
+    )  # fmt: skip
+    dst = tmp_path / "out"
+    res = pg.calibration.correct_folder(src, dst, {"a": grid}, progress=False)
+    assert res.ok and not res.notes, (res.failures, res.notes)
+    with tifffile.TiffFile(dst / "a.tif") as t:
+        tags = {tag.code: tag.value for tag in t.pages[0].tags.values()}
+        got = t.pages[0].asarray()  # as stored (the orientation is not applied)
+    assert got.dtype == np.uint16
+    np.testing.assert_array_equal(got, pg.calibration.correct_image(pixels, grid))
+    assert tags[274] == 6 and tags[271] == "Sony" and tags[259] == 8
+    assert tags[282] == (300, 1) and tags[283] == (300, 1) and tags[296] == 2
+    assert bytes(tags[34675]) == icc and bytes(tags[700]) == xmp
+    with Image.open(dst / "a.tif") as im:
+        assert im.info["icc_profile"] == icc and im.info["dpi"] == (300, 300)
+    # and the corrected file is read again like the original
+    again = pg.calibration.correct_image_file(dst / "a.tif", tmp_path / "b.tif", grid)
+    assert again is None
+
+
+def _tiff_with_exif(pixels: np.ndarray, big_endian: bool = False) -> bytes:
+    """A TIFF (one uncompressed strip) with Orientation 6, Make, an EXIF IFD (ExposureTime
+    1/800 s, FocalLength 8.8 mm) and a GPS IFD (latitude ref N, altitude 123.4 m)."""
+    import struct
+
+    e = ">" if big_endian else "<"
+    h, w = pixels.shape[:2]
+    spp = 1 if pixels.ndim == 2 else pixels.shape[2]
+    out = bytearray((b"MM\x00*" if big_endian else b"II*\x00") + b"\x00" * 4)
+
+    def put(b: bytes) -> int:
+        out.extend(b"\x00" * (len(out) % 2))
+        out.extend(b)
+        return len(out) - len(b)
+
+    def ifd(entries: list) -> int:
+        out.extend(b"\x00" * (len(out) % 2))
+        at = len(out)
+        out.extend(struct.pack(e + "H", len(entries)))
+        for tag, typ, count, value in sorted(entries):
+            v = struct.pack(e + "H", value) + b"\x00\x00" if typ == 3 and count == 1 else None
+            v = v if v is not None else value if isinstance(value, bytes) else None
+            v = v if v is not None else struct.pack(e + "I", value)
+            out.extend(struct.pack(e + "HHI", tag, typ, count) + v)
+        out.extend(b"\x00" * 4)
+        return at
+
+    data = pixels.astype(pixels.dtype.newbyteorder(e)).tobytes()
+    strip = put(data)
+    bits = put(struct.pack(e + "H" * spp, *[pixels.dtype.itemsize * 8] * spp))
+    make = put(b"Sony\x00")
+    expo, focal = put(struct.pack(e + "II", 1, 800)), put(struct.pack(e + "II", 88, 10))
+    alt = put(struct.pack(e + "II", 1234, 10))
+    exif_ifd = ifd([(33434, 5, 1, expo), (37386, 5, 1, focal)])
+    gps_ifd = ifd([(1, 2, 2, b"N\x00\x00\x00"), (6, 5, 1, alt)])
+    first = ifd(
+        [
+            (256, 3, 1, w), (257, 3, 1, h), (258, 3, spp, bits), (259, 3, 1, 1),
+            (262, 3, 1, 2 if spp == 3 else 1), (271, 2, 5, make), (273, 4, 1, strip),
+            (274, 3, 1, 6), (277, 3, 1, spp), (278, 3, 1, h), (279, 4, 1, len(data)),
+            (284, 3, 1, 1), (34665, 4, 1, exif_ifd), (34853, 4, 1, gps_ifd),
+        ]
+    )  # fmt: skip
+    out[4:8] = struct.pack(e + "I", first)
+    return bytes(out)
+
+
+def test_tiff_16_bit_colour_keeps_the_exif_and_gps_ifds(tmp_path):
+    from PIL import Image
+
+    rng = np.random.default_rng(9)
+    uv = rng.uniform([0, 0], [59, 39], (80, 2))
+    grid = pg.calibration.fit_grid(uv, np.tile([-0.4, 0.8], (80, 1)), (60, 40), 20, folds=0)
+    pixels = rng.integers(0, 65535, (40, 60, 3)).astype(np.uint16)
+    src = tmp_path / "images"
+    src.mkdir()
+    (src / "a.tif").write_bytes(_tiff_with_exif(pixels))
+    (src / "b.tif").write_bytes(_tiff_with_exif(pixels, big_endian=True))
+    dst = tmp_path / "out"
+    res = pg.calibration.correct_folder(src, dst, {"a": grid, "b": grid}, progress=False)
+    assert not res.failures and list(res.notes) == ["b"]  # big-endian: not grafted (said)
+    assert "not kept" in res.notes["b"]
+    with Image.open(dst / "a.tif") as im:
+        e = im.getexif()
+        assert e[274] == 6 and e[271] == "Sony"
+        assert float(e.get_ifd(0x8769)[33434]) == 1 / 800
+        assert float(e.get_ifd(0x8769)[37386]) == 8.8
+        assert e.get_ifd(0x8825)[1] == "N" and float(e.get_ifd(0x8825)[6]) == 123.4
+    from photogeom.calibration.images import _read  # the pixels as stored, BGR
+
+    for name in ("a", "b"):
+        got, _ = _read(dst / f"{name}.tif")
+        np.testing.assert_array_equal(got[..., ::-1], pg.calibration.correct_image(pixels, grid))

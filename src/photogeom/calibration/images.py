@@ -14,8 +14,11 @@ written in the original format:
 * PNG (any bit depth and channels): the pixels by OpenCV, the original's metadata chunks
   copied unchanged (EXIF, ICC profile, colour space, resolution, text and XMP), also those
   that follow the image data;
-* anything else (16-bit colour TIFF): OpenCV, pixels exact, metadata not kept (said in the
-  result's ``notes``).
+* other TIFFs (16-bit colour, float): the pixels by OpenCV (its compression kept where
+  OpenCV writes it: none, LZW, Deflate, PackBits), the original's tags grafted onto its file
+  (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; little-endian TIFFs);
+* anything else (a big-endian or BigTIFF 16-bit colour TIFF): OpenCV, pixels exact,
+  metadata not kept (said in the result's ``notes``).
 
 Every file is encoded in memory and written atomically (temporary file, then rename):
 an interrupted or failed image leaves no partial file.
@@ -143,6 +146,10 @@ def _read(path: Path):
         meta = {}
     if raw[:8] == _PNG_SIGNATURE:
         meta["png_chunks"] = _png_metadata_chunks(raw)
+    elif meta.get("format") == "TIFF" and not (
+        pixels.dtype == np.uint8 or (pixels.dtype == np.uint16 and pixels.ndim == 2)
+    ):  # written by OpenCV, not Pillow: the tags are grafted onto its file (see _encode)
+        meta["tiff_bytes"] = raw
     stored_size = meta.get("stored_size")
     if stored_size is not None and stored_size != (pixels.shape[1], pixels.shape[0]):
         raise FileFormatError(  # pragma: no cover - OpenCV turned the pixels after all
@@ -260,6 +267,119 @@ _TIFF_LAYOUT_TAGS = frozenset(
 )
 
 
+# TIFF field types: bytes per value (13: IFD, an offset)
+_TIFF_TYPE_SIZES = dict(zip(range(1, 14), (1, 1, 2, 4, 8, 1, 1, 2, 4, 8, 4, 8, 4), strict=True))
+# tags whose value is the offset of another IFD: EXIF, GPS, interoperability
+_TIFF_SUB_IFDS = frozenset({34665, 34853, 40965})
+# offsets into the original file that are not metadata: SubIFDs (thumbnails, DNG) and an
+# old-style JPEG thumbnail; not copied
+_TIFF_OTHER_OFFSETS = frozenset({330, 513, 514})
+# resolution: a layout tag for the writer, but the image's DPI for its user
+_TIFF_RESOLUTION = frozenset({282, 283, 296})
+# the original's compressions that OpenCV writes as well: none, LZW, Deflate, PackBits
+_TIFF_COMPRESSIONS = frozenset({1, 5, 8, 32773, 32946})
+
+
+def _tiff_ifd(data: bytes, at: int) -> list[tuple[int, int, int, int]]:
+    """The entries ``(tag, type, count, value or offset)`` of the classic little-endian
+    TIFF IFD at offset ``at``."""
+    (n,) = struct.unpack_from("<H", data, at)
+    return [struct.unpack_from("<HHII", data, at + 2 + 12 * k) for k in range(n)]
+
+
+def _tiff_first_ifd(data: bytes) -> list[tuple[int, int, int, int]] | None:
+    """The first IFD of a classic little-endian TIFF, or None for other files."""
+    if data[:4] != b"II*\x00":
+        return None
+    return _tiff_ifd(data, struct.unpack_from("<I", data, 4)[0])
+
+
+def _tiff_write_options(original: bytes) -> list[int]:
+    """``cv2.imencode`` parameters that keep the original TIFF's compression (and
+    predictor) where OpenCV writes them."""
+    import cv2
+
+    try:
+        tags = {t: v for t, typ, c, v in _tiff_first_ifd(original) or () if c == 1 and typ == 3}
+    except struct.error:
+        return []
+    params = []
+    if tags.get(259) in _TIFF_COMPRESSIONS:
+        params += [cv2.IMWRITE_TIFF_COMPRESSION, tags[259]]
+        if tags.get(317) in (1, 2) and hasattr(cv2, "IMWRITE_TIFF_PREDICTOR"):
+            params += [cv2.IMWRITE_TIFF_PREDICTOR, tags[317]]
+    return params
+
+
+def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
+    """OpenCV's TIFF ``encoded`` with the metadata tags of the ``original`` TIFF.
+
+    A new first IFD is appended: OpenCV's layout tags (size, samples, compression, strips)
+    and every other tag of the original's first IFD (orientation, resolution, ICC profile,
+    XMP, make and model, ...), their values copied after the pixel data, the EXIF, GPS and
+    interoperability IFDs copied whole with their offsets moved. Vendor maker notes are
+    copied as they are (internal offsets of some vendors then point elsewhere, as with any
+    TIFF editor that moves them). Returns None (metadata not kept) unless both files are
+    classic little-endian TIFFs that can be walked.
+    """
+    if original[:4] != b"II*\x00" or encoded[:4] != b"II*\x00":
+        return None
+    out = bytearray(encoded)
+
+    def align() -> None:
+        if len(out) % 2:  # TIFF offsets are even
+            out.append(0)
+
+    def copy_entries(at: int, depth: int, keep=lambda tag: True) -> list:
+        entries = []
+        for tag, typ, count, value in _tiff_ifd(original, at):
+            if not keep(tag):
+                continue
+            size = _TIFF_TYPE_SIZES.get(typ, 0) * count
+            if not size:
+                continue  # an unknown type: its size is not known, so it cannot be copied
+            if tag in _TIFF_SUB_IFDS and count == 1 and depth < 3:
+                value = write_ifd(copy_entries(value, depth + 1))
+            elif size > 4:
+                data = original[value : value + size]
+                if len(data) != size:
+                    raise struct.error("value beyond the end of the file")
+                align()
+                value = len(out)
+                out.extend(data)
+            entries.append((tag, typ, count, value))
+        return entries
+
+    def write_ifd(entries: list) -> int:
+        align()
+        at = len(out)
+        out.extend(struct.pack("<H", len(entries)))
+        for e in sorted(entries):
+            out.extend(struct.pack("<HHII", *e))
+        out.extend(struct.pack("<I", 0))
+        return at
+
+    try:
+        first = struct.unpack_from("<I", original, 4)[0]
+        layout = [
+            e
+            for e in _tiff_first_ifd(encoded) or ()
+            if e[0] in _TIFF_LAYOUT_TAGS and e[0] not in _TIFF_RESOLUTION
+        ]
+        ours = {e[0] for e in layout}
+
+        def metadata(tag: int) -> bool:  # the original's first IFD but its layout
+            if tag in ours or tag in _TIFF_OTHER_OFFSETS:
+                return False
+            return tag not in _TIFF_LAYOUT_TAGS or tag in _TIFF_RESOLUTION
+
+        ifd = write_ifd(layout + copy_entries(first, 0, metadata))
+    except (struct.error, IndexError):
+        return None
+    out[4:8] = struct.pack("<I", ifd)
+    return bytes(out)
+
+
 def _has_metadata(exif) -> bool:
     """Whether EXIF data holds metadata (a TIFF's tag set: more than its layout tags)."""
     from PIL import Image
@@ -335,11 +455,17 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
         return buf.getvalue(), None
-    ok, enc = cv2.imencode(suffix, pixels)
+    original = meta.get("tiff_bytes")
+    params = _tiff_write_options(original) if original is not None else []
+    ok, enc = cv2.imencode(suffix, pixels, params)
     if not ok:
         raise FileFormatError(
             f"cannot encode a {pixels.dtype} image with {channels} channel(s) as {suffix}"
         )
+    if original is not None:
+        grafted = _tiff_graft_metadata(enc.tobytes(), original)
+        if grafted is not None:
+            return grafted, None
     lost = _has_metadata(meta.get("exif")) or meta.get("xmp") or meta.get("icc_profile")
     note = (
         f"metadata (EXIF/XMP/ICC) not kept: {fmt or suffix} with {pixels.dtype} x {channels} "
