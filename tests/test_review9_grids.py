@@ -448,3 +448,22 @@ def test_tiff_16_bit_colour_keeps_the_exif_and_gps_ifds(tmp_path):
     for name in ("a", "b"):
         got, _ = _read(dst / f"{name}.tif")
         np.testing.assert_array_equal(got[..., ::-1], pg.calibration.correct_image(pixels, grid))
+
+
+def test_image_and_coordinate_corrections_agree_up_to_remap_resolution():
+    # docs/residual-grid.md, Resampling: the output pixel q takes the input at q - r(q); the
+    # maps are exact, and OpenCV's remap rounds the source position to 1/32 px
+    from dataclasses import replace
+
+    rng = np.random.default_rng(10)
+    uv = rng.uniform([0, 0], [199, 149], (50, 2))
+    grid = pg.calibration.fit_grid(uv, np.zeros((50, 2)), (200, 150), 50, folds=0)
+    u, v = grid.layout.node_coordinates()
+    grid = replace(grid, nodes=np.stack([0.5 + 0.01 * u - 0.004 * v, 0.006 * u - 0.3], -1))
+    yy, xx = np.mgrid[0:150, 0:200].astype(float)
+    source = pg.calibration.correct_image(np.dstack([xx, yy]), grid)  # a ramp: its position
+    q = np.column_stack([xx.ravel(), yy.ravel()])
+    err = source.reshape(-1, 2) - (q - grid.evaluate(q))
+    inside = ((q - grid.evaluate(q)) > 1).all(1) & ((q - grid.evaluate(q)) < [198, 148]).all(1)
+    assert np.abs(err[inside]).max() <= 1 / 64 + 1e-6
+    assert 0.005 < np.sqrt(np.mean(err[inside] ** 2)) < 0.011
