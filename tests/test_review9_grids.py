@@ -467,3 +467,35 @@ def test_image_and_coordinate_corrections_agree_up_to_remap_resolution():
     inside = ((q - grid.evaluate(q)) > 1).all(1) & ((q - grid.evaluate(q)) < [198, 148]).all(1)
     assert np.abs(err[inside]).max() <= 1 / 64 + 1e-6
     assert 0.005 < np.sqrt(np.mean(err[inside] ** 2)) < 0.011
+
+
+def test_sensor_mean_residuals_uses_the_images_of_one_sensor_size():
+    # before: every image's pixels were put in cells of the first camera's sensor, those of a
+    # second camera of another size too (the figure 'mean residual vectors over the sensor')
+    from dataclasses import replace
+
+    from photogeom.report.grid_study import sensor_mean_residuals
+
+    sim = pg.simulate.uav_block("FC300S", seed=3, strips=1, images_per_strip=4)
+    block = sim.block
+    wide = replace(block.calibrations[0], width=9000, height=6000)
+    two = replace(
+        block,
+        camera_ids=np.array(["a", "b"], dtype=object),
+        calibrations=(block.calibrations[0], wide),
+        image_camera=np.array([0, 1, 0, 1]),
+        free={"a": block.free[block.camera_ids[0]], "b": block.free[block.camera_ids[0]]},
+        image_variant={"a": (), "b": ()},
+    )
+    per = pg.calibration.block_residuals(two)
+    first = [k for k, c in zip(two.image_ids.tolist(), two.image_camera) if c == 0]
+    uv = np.concatenate([per[k][0] for k in first])
+    r = np.concatenate([per[k][1] for k in first])
+    _, mean, counts = sensor_mean_residuals(two, cells=(4, 3))
+    assert counts.sum() == len(uv)
+    w, h = two.image_sizes()[0]
+    cell = np.clip((uv[:, 1] / h * 3).astype(int), 0, 2) * 4 + np.clip(
+        (uv[:, 0] / w * 4).astype(int), 0, 3
+    )
+    want = np.array([r[cell == k].mean(axis=0) for k in np.unique(cell)])
+    np.testing.assert_allclose(mean, want, rtol=0, atol=1e-12)

@@ -40,15 +40,19 @@ PUBLISHED = {
 
 
 def sensor_mean_residuals(block, cells: tuple[int, int] = (12, 8)):
-    """Mean tie-point residual vector per sensor cell over all images of one camera size.
+    """Mean tie-point residual vector per sensor cell over the images of the first image's
+    size (a block of several cameras: the images of other sizes are left out, their pixels
+    lie on another sensor).
 
     Returns ``(centres (k, 2), mean residuals (k, 2), counts (k,))`` for the cells holding
     observations; pixels.
     """
-    per = block_residuals(block)
-    uv = np.concatenate([v[0] for v in per.values()])
-    r = np.concatenate([v[1] for v in per.values()])
-    w, h = block.image_sizes()[0]
+    sizes = block.image_sizes()
+    w, h = sizes[0]
+    same = np.all(sizes == sizes[0], axis=1)  # the images of the first image's size only
+    per = [v for v, s in zip(block_residuals(block).values(), same.tolist(), strict=True) if s]
+    uv = np.concatenate([v[0] for v in per])
+    r = np.concatenate([v[1] for v in per])
     nx, ny = cells
     ix = np.clip((uv[:, 0] / w * nx).astype(int), 0, nx - 1)
     iy = np.clip((uv[:, 1] / h * ny).astype(int), 0, ny - 1)
