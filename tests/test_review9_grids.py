@@ -499,3 +499,24 @@ def test_sensor_mean_residuals_uses_the_images_of_one_sensor_size():
     )
     want = np.array([r[cell == k].mean(axis=0) for k in np.unique(cell)])
     np.testing.assert_allclose(mean, want, rtol=0, atol=1e-12)
+
+
+def test_spacings_errors_name_the_option_typed(cli, adjusted_folder, tmp_path):
+    # before: 'grid sweep --spacings 0,500' said '--spacing must be ...'; 'grid report'
+    # said 'grid spacing ...' and 'sweep_spacings: give at least two spacings' (the
+    # library's words) after evaluating the block; '500,500' swept one spacing twice;
+    # 'grid evaluate --spacing 20000' said 'choose a spacing'
+    report = ("grid", "report", adjusted_folder, "-o", tmp_path / "r.html", "--spacings")
+    for args in (("grid", "sweep", adjusted_folder, "--spacings"), report):
+        code, _, err = cli(*args, "0,500")
+        assert code == 2 and "--spacings: every spacing must be a positive" in err, err
+        code, _, err = cli(*args, "500")
+        assert code == 2 and "--spacings: give at least two" in err, err
+        code, _, err = cli(*args, "500,500")
+        assert code == 2 and "--spacings: 500 given twice" in err, err
+        code, _, err = cli(*args, "500,20000")
+        assert code == 2 and "--spacings: 20000 px is larger" in err, err
+        assert "choose --spacings of at most" in err
+    assert not (tmp_path / "r.html").exists()
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--spacing", "20000")
+    assert code == 2 and "choose a --spacing of at most" in err

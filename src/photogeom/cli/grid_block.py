@@ -184,6 +184,7 @@ def _cli(msg: str) -> str:
         msg.replace("sigma_constraint", "--sigma-constraint")
         .replace("grid spacing", "--spacing")
         .replace("a larger spacing", "a larger --spacing")
+        .replace("choose a spacing", "choose a --spacing")
         .replace("overlap must", "--overlap must")
         .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
         .replace("sigma_temporal", "--sigma-temporal")
@@ -298,6 +299,33 @@ def _evaluate(
         exc.args = (_cli(str(exc)),)
         raise
     return fit, re, grids, ev, sim
+
+
+def _spacings(text: str) -> list[float]:
+    """The --spacings of ``sweep`` and ``report``: at least two positive, distinct numbers
+    of pixels (checked before the block is read or adjusted)."""
+    g = split_numbers(text, None, "--spacings")
+    if len(g) < 2:
+        raise InputError(f"--spacings: give at least two spacings (px), not {text!r}")
+    bad = [x for x in g if not x > 0]
+    if bad:
+        raise InputError(
+            f"--spacings: every spacing must be a positive number of pixels, not {bad[0]:g}"
+        )
+    twice = sorted({x for x in g if g.count(x) > 1})
+    if twice:
+        raise InputError(f"--spacings: {', '.join(f'{x:g}' for x in twice)} given twice")
+    return g
+
+
+def _sweep_words(msg: str) -> str:
+    """A library error of ``sweep_spacings`` in the words of --spacings."""
+    return (
+        _cli(msg)
+        .replace("choose a --spacing of at most", "choose --spacings of at most")
+        .replace("--spacing ", "--spacings: ")
+        .replace("sweep_spacings: give at least two spacings", "--spacings: give at least two")
+    )
 
 
 def _surveyed(path: Path) -> dict:
@@ -446,7 +474,7 @@ def sweep(
     from ..calibration import sweep_spacings
 
     images = images if images_old is None else images_old  # --images: the former name
-    g = split_numbers(spacings, None, "--spacings")
+    g = _spacings(spacings)
     sigma_constraint = _sigma_c(sigma_constraint)
     fit, _ = _source(block, preset, seed, strips, images)
     try:
@@ -455,11 +483,7 @@ def sweep(
                 fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0
             )
     except PhotogeomError as exc:
-        exc.args = (
-            _cli(str(exc)).replace(
-                "sweep_spacings: give at least two spacings", "--spacings: give at least two"
-            ),
-        )
+        exc.args = (_sweep_words(str(exc)),)
         raise
     if as_json:
         typer.echo(
@@ -521,7 +545,7 @@ def report(
     from ..report.grid_study import grid_study_report
 
     images = images if images_old is None else images_old  # --images: the former name
-    g = split_numbers(spacings, None, "--spacings")
+    g = _spacings(spacings)
     fit, re, grids, ev, _ = _evaluate(
         block,
         preset,
@@ -540,8 +564,12 @@ def report(
         spacing_given=spacing is not None,
     )
     sc = _sigma_c(sigma_constraint)
-    with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
-        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
+    try:
+        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+            sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
+    except PhotogeomError as exc:
+        exc.args = (_sweep_words(str(exc)),)
+        raise
     res = {
         "preset": (preset or str(block)) + (" (grids in the adjustment)" if in_adjustment else ""),
         "evaluation": ev,
