@@ -520,3 +520,21 @@ def test_spacings_errors_name_the_option_typed(cli, adjusted_folder, tmp_path):
     assert not (tmp_path / "r.html").exists()
     code, _, err = cli("grid", "evaluate", adjusted_folder, "--spacing", "20000")
     assert code == 2 and "choose a --spacing of at most" in err
+
+
+def test_grid_fit_writes_grids_and_report_together_or_not_at_all(cli, tmp_path):
+    # before: the grids file was written, then the report failed (exit 2, the grids left)
+    rng = np.random.default_rng(11)
+    uv = rng.uniform([0, 0], [299, 199], (100, 2))
+    src = tmp_path / "res.csv"
+    src.write_text("image_id,u,v,rx,ry\n" + "".join(f"a,{u},{v},0.1,0.2\n" for u, v in uv))
+    out = tmp_path / "g.npz"
+    base = ("grid", "fit", src, "--image-size", "300x200", "--spacing", "50", "-o", out)
+    code, _, err = cli(*base, "--report", tmp_path / "no" / "r.html")
+    assert code == 2 and "--report" in err
+    assert not out.exists()
+    code, _, err = cli(*base, "--report", tmp_path)  # a folder
+    assert code == 2 and "--report" in err and not out.exists()
+    code, _, err = cli(*base, "--report", tmp_path / "r.html")
+    assert code == 0, err
+    assert out.is_file() and "<img" in (tmp_path / "r.html").read_text()

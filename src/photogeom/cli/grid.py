@@ -471,7 +471,12 @@ def fit(
     # threads only wait on each other (12 images of 42 Mpx at 100 px: 10.4 s with, 3.0 s
     # without them on 2 cores)
     single_threaded_blas()
-    from ..calibration import save_grids
+    from ..atomicfile import atomic_write_many
+    from ..calibration.gridfile import grids_file_bytes
+    from .bundle import check_targets
+
+    # both outputs checked before the fit and written together: all or none
+    check_targets(files=[("--output", output), ("--report", report)])
 
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(
@@ -491,10 +496,11 @@ def fit(
         grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
     else:
         grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
-    save_grids(output, grids, std=std)
+    outputs = [(output, grids_file_bytes(output, grids, std=std))]
     stats = {k: g.to_dict() for k, g in grids.items()}
     if report is not None:
-        _write_report(report, grids)
+        outputs.append((report, _report_html(grids).encode("utf-8")))
+    atomic_write_many(outputs)
     if as_json:
         typer.echo(json_text({"output": str(output), "images": stats}), nl=False)
         return
@@ -701,7 +707,7 @@ def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f} %"
 
 
-def _write_report(path: Path, grids: dict) -> None:
+def _report_html(grids: dict) -> str:
     from matplotlib.figure import Figure
 
     from ..report import Report
@@ -751,7 +757,7 @@ def _write_report(path: Path, grids: dict) -> None:
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
     rep.add_figure(f"Mean grid of {len(same)} image(s) (node vectors, not to scale)", fig)
-    rep.write(path)
+    return rep.to_html()
 
 
 @app.command("apply")
