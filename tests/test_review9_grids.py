@@ -538,3 +538,18 @@ def test_grid_fit_writes_grids_and_report_together_or_not_at_all(cli, tmp_path):
     code, _, err = cli(*base, "--report", tmp_path / "r.html")
     assert code == 0, err
     assert out.is_file() and "<img" in (tmp_path / "r.html").read_text()
+
+
+def test_grid_report_checks_its_output_before_evaluating(
+    cli, adjusted_folder, tmp_path, monkeypatch
+):
+    # before: the block was evaluated and swept, then the report could not be written
+    import photogeom.cli.grid_block as gb
+
+    monkeypatch.setattr(gb, "_evaluate", lambda *a, **k: pytest.fail("evaluated"))
+    code, _, err = cli(
+        "grid", "report", adjusted_folder, "-o", tmp_path / "no" / "r.html", "--spacings", "1,2"
+    )
+    assert code == 2 and "--output: cannot write" in err
+    code, _, err = cli("grid", "report", adjusted_folder, "-o", tmp_path, "--spacings", "1,2")
+    assert code == 2 and "--output: cannot write" in err and "it is a folder" in err

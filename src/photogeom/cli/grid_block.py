@@ -544,8 +544,11 @@ def report(
     from ..calibration import sweep_spacings
     from ..report.grid_study import grid_study_report
 
+    from .bundle import check_targets
+
     images = images if images_old is None else images_old  # --images: the former name
     g = _spacings(spacings)
+    check_targets(files=[("--output", output)])  # before the evaluation and the sweep
     fit, re, grids, ev, _ = _evaluate(
         block,
         preset,
