@@ -543,7 +543,6 @@ def report(
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
     from ..calibration import sweep_spacings
     from ..report.grid_study import grid_study_report
-
     from .bundle import check_targets
 
     images = images if images_old is None else images_old  # --images: the former name
