@@ -553,3 +553,28 @@ def test_grid_report_checks_its_output_before_evaluating(
     assert code == 2 and "--output: cannot write" in err
     code, _, err = cli("grid", "report", adjusted_folder, "-o", tmp_path, "--spacings", "1,2")
     assert code == 2 and "--output: cannot write" in err and "it is a folder" in err
+
+
+def test_jpeg_without_a_resolution_does_not_get_72_dpi(tmp_path):
+    # before: Pillow's default of 72 dpi (EXIF without XResolution, JFIF without a unit)
+    # was written as the corrected JPEG's resolution (JFIF unit 1, 72 x 72)
+    from PIL import Image
+
+    grids_file, _ = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    src = tmp_path / "jpegs"
+    src.mkdir()
+    pixels = np.random.default_rng(12).integers(0, 255, (40, 60, 3)).astype(np.uint8)
+    exif = Image.Exif()
+    exif[271] = "DJI"
+    Image.fromarray(pixels).save(src / "a.jpg", exif=exif, quality=90)
+    with_dpi = Image.Exif()
+    with_dpi[282], with_dpi[283], with_dpi[296] = 350.0, 350.0, 2
+    Image.fromarray(pixels).save(src / "b.jpg", exif=with_dpi, quality=90)
+    res = pg.calibration.correct_folder(src, tmp_path / "out", {"a": grid, "b": grid})
+    assert res.ok
+    with Image.open(tmp_path / "out" / "a.jpg") as im:
+        assert im.info["jfif_unit"] == 0 and im.info["jfif_density"] == (1, 1)
+        assert im.getexif()[271] == "DJI"
+    with Image.open(tmp_path / "out" / "b.jpg") as im:
+        assert im.info["dpi"] == (350, 350)

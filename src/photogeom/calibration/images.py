@@ -141,6 +141,11 @@ def _read(path: Path):
             meta["exif"] = exif
             meta["icc_profile"] = info.get("icc_profile")
             meta["dpi"] = info.get("dpi")
+            if im.format == "JPEG" and info.get("jfif_unit") not in (1, 2):
+                # Pillow's dpi of a JPEG without a JFIF unit comes from the EXIF resolution,
+                # or is its default of 72 when the EXIF has none: not the image's, not kept
+                if _TIFF_XRESOLUTION not in im.getexif():
+                    meta["dpi"] = None
     except Exception:
         # OpenCV decoded it; Pillow cannot read it: pixels only.
         meta = {}
@@ -202,6 +207,7 @@ def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> byt
 
 
 _TIFF_ORIENTATION = 274
+_TIFF_XRESOLUTION = 282
 # TIFF field types that hold one integer in an IFD entry's value field: size, format
 _TIFF_INTEGERS = {
     1: (1, "B"),  # BYTE and SBYTE: written by some tools for small tags
