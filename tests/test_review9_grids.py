@@ -578,3 +578,41 @@ def test_jpeg_without_a_resolution_does_not_get_72_dpi(tmp_path):
         assert im.getexif()[271] == "DJI"
     with Image.open(tmp_path / "out" / "b.jpg") as im:
         assert im.info["dpi"] == (350, 350)
+
+
+def _report_rows(path) -> dict:
+    """The rows of the HTML report's tables: first cell -> the other cells' text."""
+    import html
+    import re
+
+    text = path.read_text()
+    rows = {}
+    for row in re.findall(r"<tr>(.*?)</tr>", text, flags=re.S):
+        cells = [
+            html.unescape(re.sub(r"<[^>]+>", "", c)).strip()
+            for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", row, flags=re.S)
+        ]
+        if cells:
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+def test_grid_report_shows_the_per_axis_numbers_of_grid_evaluate(cli, tmp_path):
+    # before: the report showed the check points as one 3D RMSE, a number 'grid evaluate'
+    # neither prints nor writes, and left out the tie points against the truth of a preset
+    common = ("--preset", "ILCE-7RM2", "--strips", "1", "--images-per-strip", "4")
+    code, text, err = cli("grid", "evaluate", *common, "--spacing", "1000", "--json")
+    assert code == 0, err
+    ev = json.loads(text)
+    out = tmp_path / "r.html"
+    code, _, err = cli(
+        "grid", "report", *common, "--spacing", "1000", "--spacings", "500,1000", "-o", out
+    )
+    assert code == 0, err
+    rows = _report_rows(out)
+    for key, label in (("check", "check RMSE"), ("tie", "tie-point RMSE vs truth")):
+        for k, ax in enumerate("XYZ"):
+            before, after = (float(c) for c in rows[f"{label} {ax} (GSD)"][:2])
+            assert before == pytest.approx(ev[f"{key}_rmse_gsd_before"][k], rel=1e-8)
+            assert after == pytest.approx(ev[f"{key}_rmse_gsd_after"][k], rel=1e-8)
+    assert float(rows["mean step (GSD)"][0]) == pytest.approx(ev["mean_step_before"], rel=1e-8)
