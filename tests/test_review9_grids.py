@@ -616,3 +616,41 @@ def test_grid_report_shows_the_per_axis_numbers_of_grid_evaluate(cli, tmp_path):
             assert before == pytest.approx(ev[f"{key}_rmse_gsd_before"][k], rel=1e-8)
             assert after == pytest.approx(ev[f"{key}_rmse_gsd_after"][k], rel=1e-8)
     assert float(rows["mean step (GSD)"][0]) == pytest.approx(ev["mean_step_before"], rel=1e-8)
+
+
+def _icc(space: bytes) -> bytes:
+    """An ICC profile header (128 bytes, no tags) of colour space ``space``."""
+    head = bytearray(128)
+    head[0:4] = (128).to_bytes(4, "big")
+    head[12:20] = b"mntr" + space
+    head[36:40] = b"acsp"
+    return bytes(head)
+
+
+def test_icc_profile_of_another_colour_space_is_not_attached(tmp_path):
+    # before: a CMYK JPEG (decoded by OpenCV as RGB) was written as RGB with its CMYK
+    # profile, and a grey+alpha PNG (decoded as BGRA) as RGBA with its grey profile,
+    # without a note: colour-managed viewers misread or reject such files
+    import cv2
+    from PIL import Image
+
+    grids_file, _ = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    src = tmp_path / "icc"
+    src.mkdir()
+    rgb = np.random.default_rng(13).integers(0, 255, (40, 60, 3)).astype(np.uint8)
+    Image.fromarray(rgb).convert("CMYK").save(src / "cmyk.jpg", icc_profile=_icc(b"CMYK"))
+    la = np.random.default_rng(14).integers(0, 255, (40, 60, 2)).astype(np.uint8)
+    Image.fromarray(la, "LA").save(src / "la.png", icc_profile=_icc(b"GRAY"))
+    Image.fromarray(rgb).save(src / "rgb.jpg", icc_profile=_icc(b"RGB "))
+    res = pg.calibration.correct_folder(
+        src, tmp_path / "out", {k: grid for k in ("cmyk", "la", "rgb")}, progress=False
+    )
+    assert res.ok and sorted(res.notes) == ["cmyk", "la"]
+    assert all("ICC profile not kept" in n for n in res.notes.values())
+    for name in ("cmyk.jpg", "la.png"):
+        with Image.open(tmp_path / "out" / name) as im:
+            assert "icc_profile" not in im.info
+    with Image.open(tmp_path / "out" / "rgb.jpg") as im:
+        assert im.info["icc_profile"] == _icc(b"RGB ")
+    assert cv2.imread(str(tmp_path / "out" / "la.png"), cv2.IMREAD_UNCHANGED).shape == (40, 60, 4)

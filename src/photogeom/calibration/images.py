@@ -395,6 +395,39 @@ def _has_metadata(exif) -> bool:
     return bool(exif)
 
 
+# ICC colour spaces (header bytes 16-19) of pixels that OpenCV may turn into others
+_ICC_SPACES = frozenset({b"RGB ", b"GRAY", b"CMYK", b"CMY "})
+
+
+def _icc_other(profile: bytes | None, space: bytes) -> bool:
+    """Whether an ICC profile describes another of the colour spaces of ``_ICC_SPACES``
+    than ``space`` (a profile that does not say is kept as it is)."""
+    if profile is None or len(profile) < 20:
+        return False
+    own = bytes(profile[16:20])
+    return own in _ICC_SPACES and own != space
+
+
+def _png_icc(chunk: bytes) -> bytes | None:
+    """The ICC profile of a whole PNG iCCP chunk (name, 0, method, zlib data), or None."""
+    import zlib
+
+    data = chunk[8:-4]
+    try:
+        return zlib.decompress(data[data.index(b"\x00") + 2 :])
+    except (ValueError, zlib.error):
+        return None
+
+
+def _icc_note(space: bytes) -> str:
+    """Why an ICC profile was not kept: it describes other pixels than those written."""
+    kind = "grey" if space == b"GRAY" else "RGB"
+    return (
+        f"ICC profile not kept: it describes another colour space than the {kind} pixels "
+        "written (OpenCV decodes CMYK images and grey images with alpha as RGB)"
+    )
+
+
 def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | None]:
     """Encoded file bytes in the original format, and a note when metadata is lost."""
     import cv2
@@ -402,6 +435,7 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
 
     fmt = meta.get("format")
     channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    space = b"GRAY" if channels == 1 else b"RGB "  # the colour space of what is written
     if meta.get("png_chunks") is not None:
         # PNG: the pixels by OpenCV (any depth and channels, exact), the original's metadata
         # chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of 16-bit colour
@@ -411,7 +445,10 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
             raise FileFormatError(
                 f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
             )
-        return _png_with_chunks(enc.tobytes(), meta["png_chunks"]), None
+        before, text = meta["png_chunks"]
+        keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
+        note = _icc_note(space) if len(keep) < len(before) else None
+        return _png_with_chunks(enc.tobytes(), (keep, text)), note
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
@@ -429,10 +466,14 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
             arr = pixels
         im = Image.fromarray(arr)
         kw: dict = {}
+        note = None
         if meta.get("exif") is not None:
             kw["exif"] = meta["exif"]
         if meta.get("icc_profile"):
-            kw["icc_profile"] = meta["icc_profile"]
+            if not _icc_other(meta["icc_profile"], space):
+                kw["icc_profile"] = meta["icc_profile"]
+            else:
+                note = _icc_note(space)
         if meta.get("dpi"):
             kw["dpi"] = meta["dpi"]
         xmp = meta.get("xmp")
@@ -460,7 +501,7 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["exif"] = tags
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
-        return buf.getvalue(), None
+        return buf.getvalue(), note
     original = meta.get("tiff_bytes")
     params = _tiff_write_options(original) if original is not None else []
     ok, enc = cv2.imencode(suffix, pixels, params)

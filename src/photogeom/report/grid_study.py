@@ -12,8 +12,9 @@ self-contained HTML file with:
   observations when the results have them;
 * the normalised cost and accuracy of every spacing with the chosen one (Figure 13);
 * the step per model before and after (Figure 14);
-* tables: residual RMS and mean length, steps (also re-matched), check points, published
-  numbers beside ours.
+* tables: residual RMS and mean length, steps (also re-matched), check points (X, Y, Z and
+  3D) and, for a simulated block, every tie point against the truth, published numbers
+  beside ours.
 """
 
 from __future__ import annotations
