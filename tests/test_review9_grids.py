@@ -654,3 +654,33 @@ def test_icc_profile_of_another_colour_space_is_not_attached(tmp_path):
     with Image.open(tmp_path / "out" / "rgb.jpg") as im:
         assert im.info["icc_profile"] == _icc(b"RGB ")
     assert cv2.imread(str(tmp_path / "out" / "la.png"), cv2.IMREAD_UNCHANGED).shape == (40, 60, 4)
+
+
+def test_correct_images_scheduler_local_as_in_the_other_dask_commands(cli, tmp_path, monkeypatch):
+    # before: '--scheduler local' (which the message of an unreachable scheduler suggests,
+    # and which the other Dask commands take) was refused as 'not a scheduler address'
+    import photogeom.calibration as calibration
+
+    calls = []
+
+    def fake(src, dst, grids, **kw):
+        calls.append((kw["dask"], kw["workers"]))
+        return calibration.FolderResult()
+
+    monkeypatch.setattr(calibration, "correct_folder", fake)
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    dst = tmp_path / "out"
+    for args, want in (
+        (("--scheduler", "local"), (True, 1)),
+        (("--scheduler", "local", "--workers", "3"), (True, 3)),
+        (("--scheduler", "local:2"), (True, 2)),
+        (("--scheduler", "tcp://127.0.0.1:8786"), ("tcp://127.0.0.1:8786", 1)),
+        (("--dask", "--workers", "2"), (True, 2)),
+    ):
+        code, _, err = cli("grid", "correct-images", grids_file, src, dst, *args)
+        assert code == 0, err
+        assert calls.pop() == want
+    code, _, err = cli("grid", "correct-images", grids_file, src, dst, "--scheduler", "threads")
+    assert code == 2 and "--workers N" in err
+    code, _, err = cli("grid", "correct-images", grids_file, src, dst, "--scheduler", "foo")
+    assert code == 2 and "--scheduler 'foo'" in err and "threads" not in err

@@ -842,7 +842,11 @@ def correct_images(
         bool, typer.Option("--dask", help="Run on a Dask local cluster of --workers workers.")
     ] = False,
     scheduler: Annotated[
-        str | None, typer.Option(help="Address of a running Dask scheduler (tcp://host:8786).")
+        str | None,
+        typer.Option(
+            help="Address of a running Dask scheduler (tcp://host:8786), or 'local' / "
+            "'local:N' for a Dask local cluster of --workers / N workers (as --dask)."
+        ),
     ] = None,
     interpolation: Annotated[Interp, typer.Option(help="Resampling.")] = Interp.bilinear,
     outside: Annotated[
@@ -858,7 +862,7 @@ def correct_images(
     from ..calibration import correct_folder, load_grids
 
     grids = load_grids(grids_file)
-    mode: bool | str = scheduler if scheduler else dask
+    mode, workers = _scheduler_mode(scheduler, dask, workers)
     try:
         res = correct_folder(
             src_dir,
@@ -887,6 +891,30 @@ def correct_images(
             say(f"failed {k}: {msg}", stderr=True)
     if res.failures:
         raise typer.Exit(1)
+
+
+def _scheduler_mode(scheduler: str | None, dask: bool, workers: int) -> tuple[bool | str, int]:
+    """``correct_folder``'s ``dask`` and ``workers`` from --scheduler, --dask and --workers:
+    'local' and 'local:N' are the local cluster of --dask (the values of --scheduler in the
+    other Dask commands; the message of an unreachable scheduler suggests 'local')."""
+    if scheduler is None:
+        return dask, workers
+    from ..distributed import _parse_scheduler
+
+    try:
+        kind, value = _parse_scheduler(scheduler)
+    except InputError as exc:
+        msg = str(exc).replace("scheduler ", "--scheduler ", 1)
+        raise InputError(msg.replace("'local:N', 'threads', 'sync' or", "'local:N' or")) from None
+    if kind == "local":
+        return True, workers if value is None else value
+    if kind in ("threads", "sync"):
+        raise InputError(
+            f"--scheduler {scheduler}: images are corrected in processes; give --workers N "
+            "(local processes), --scheduler local[:N] (a Dask local cluster) or a scheduler "
+            "address"
+        )
+    return scheduler, workers
 
 
 # block-level commands (evaluate, sweep, report) live in their own module
