@@ -684,3 +684,40 @@ def test_correct_images_scheduler_local_as_in_the_other_dask_commands(cli, tmp_p
     assert code == 2 and "--workers N" in err
     code, _, err = cli("grid", "correct-images", grids_file, src, dst, "--scheduler", "foo")
     assert code == 2 and "--scheduler 'foo'" in err and "threads" not in err
+
+
+def test_rematch_from_the_command_line_equals_run_study(cli, tmp_path):
+    # before: the re-matched evaluation (run_study's 'rematched', the honest measure of the
+    # docs) had no CLI option; 'grid report' always showed '-' in its re-matched column
+    common = ("--preset", "ILCE-7RM2", "--strips", "1", "--images-per-strip", "4", "--seed", "2")
+    code, text, err = cli("grid", "evaluate", *common, "--spacing", "1000", "--rematch", "--json")
+    assert code == 0, err
+    got = json.loads(text)["rematched"]
+    study = pg.calibration.run_study(
+        "ILCE-7RM2", seed=2, strips=1, images_per_strip=4, spacing=1000, sweep=None
+    )
+    want = study["rematched"]
+    assert got["mean_step_before"] == pytest.approx(want["mean_step_before"], rel=1e-9)
+    assert got["mean_step_after"] == pytest.approx(want["mean_step_after"], rel=1e-9)
+    code, text, err = cli("grid", "sweep", *common, "--spacings", "500,1000", "--rematch", "--json")
+    assert code == 0, err
+    sw = json.loads(text)
+    assert sw["spacing_rematched"] in (500.0, 1000.0) and len(sw["step_rematched"][0]) == 2
+    out = tmp_path / "r.html"
+    code, _, err = cli(
+        "grid", "report", *common, "--spacing", "1000", "--spacings", "500,1000", "--rematch",
+        "-o", out,
+    )  # fmt: skip
+    assert code == 0, err
+    row = _report_rows(out)["ILCE-7RM2"]
+    assert row[1] == f"{want['mean_step_after']:.2f}"  # the 're-matched: after' column
+    assert "mean step, re-matched (GSD)" in _report_rows(out)
+
+
+def test_rematch_refusals(cli, adjusted_folder):
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--rematch")
+    assert code == 2 and "--rematch needs --preset" in err
+    code, _, err = cli("grid", "sweep", adjusted_folder, "--rematch")
+    assert code == 2 and "--rematch needs --preset" in err
+    code, _, err = cli("grid", "evaluate", "--preset", "FC300S", "--rematch", "--in-adjustment")
+    assert code == 2 and "--in-adjustment" in err

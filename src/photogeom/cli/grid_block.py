@@ -142,6 +142,15 @@ GridsOpt = Annotated[
         "calibration fixed); --spacing and --sigma-constraint do not apply.",
     ),
 ]
+RematchOpt = Annotated[
+    bool,
+    typer.Option(
+        "--rematch",
+        help="With --preset: also evaluate on re-matched observations (the same points "
+        "measured again with fresh noise, as the study matched its corrected images anew), "
+        "so that the grids are not credited with the noise they fitted.",
+    ),
+]
 SpacingsOpt = Annotated[
     str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
 ]
@@ -219,6 +228,7 @@ def _evaluate(
     sigma_amplitude="residuals",
     grids_file=None,
     spacing_given=True,
+    rematch=False,
 ):
     from ..calibration import (
         adjust_with_grids,
@@ -246,6 +256,17 @@ def _evaluate(
     if check_points is not None and preset is not None:
         raise InputError(
             "--check-points applies to a BLOCK folder (a --preset is checked against its truth)"
+        )
+    if rematch and preset is None:
+        raise InputError(
+            "--rematch needs --preset: re-matching draws new measurements of a simulated "
+            "block's points (on a real block, match the corrected images again and give "
+            "that block)"
+        )
+    if rematch and in_adjustment:
+        raise InputError(
+            "--rematch evaluates grids fitted after the adjustment; with --in-adjustment use "
+            "photogeom.calibration.compare_in_adjustment"
         )
     fit, sim = _source(block, preset, seed, strips, images)
     surveyed = _surveyed(check_points) if check_points is not None else None
@@ -295,6 +316,12 @@ def _evaluate(
                 step("re-adjusting with the corrected observations")
                 re = readjust(fit.block, grids, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
+        if rematch:  # as run_study: the same grids on a second measurement of the points
+            with stage_spinner("re-matched observations: correcting and re-adjusting"):
+                rem = sim.rematch(fit.block, seed=(seed, 1))
+                ev["rematched"] = evaluate_readjustment(
+                    fit, readjust(rem, grids, snooping=False), sim=sim, overlap=overlap
+                )
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         exc.args = (_cli(str(exc)),)
         raise
@@ -357,6 +384,15 @@ def _ev_json(ev) -> dict:
     if ev.get("tie_before"):
         out["tie_rmse_gsd_before"] = ev["tie_before"]["rmse_gsd"].tolist()
         out["tie_rmse_gsd_after"] = ev["tie_after"]["rmse_gsd"].tolist()
+    if ev.get("rematched"):
+        rm = ev["rematched"]
+        out["rematched"] = {
+            "steps_before": {f"{a}-{b}": v for (a, b), v in rm["steps_before"].items()},
+            "steps_after": {f"{a}-{b}": v for (a, b), v in rm["steps_after"].items()},
+            "mean_step_before": rm["mean_step_before"],
+            "mean_step_after": rm["mean_step_after"],
+            "step_reduction": rm["step_reduction"],
+        }
     return out
 
 
@@ -377,6 +413,7 @@ def evaluate(
     post_spacing: PostOpt = None,
     check_points: CheckOpt = None,
     grids_file: GridsOpt = None,
+    rematch: RematchOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -399,6 +436,7 @@ def evaluate(
         check_points=check_points,
         grids_file=grids_file,
         spacing_given=spacing is not None,
+        rematch=rematch,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
@@ -428,6 +466,14 @@ def evaluate(
         f"{ev['mean_step_after']:.3f}",
         f"{100 * ev['step_reduction']:.1f} %",
     )
+    if ev.get("rematched"):
+        rm = ev["rematched"]
+        t.add_row(
+            "mean step, re-matched",
+            f"{rm['mean_step_before']:.3f}",
+            f"{rm['mean_step_after']:.3f}",
+            f"{100 * rm['step_reduction']:.1f} %",
+        )
     out.print(t)
     m = Table(title="step per model pair (GSD)")
     for c in ("first model", "before", "after"):
@@ -465,6 +511,7 @@ def sweep(
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
     images_old: ImagesOldOpt = None,
+    rematch: RematchOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
@@ -476,12 +523,19 @@ def sweep(
     images = images if images_old is None else images_old  # --images: the former name
     g = _spacings(spacings)
     sigma_constraint = _sigma_c(sigma_constraint)
-    fit, _ = _source(block, preset, seed, strips, images)
+    if rematch and preset is None:
+        raise InputError(
+            "--rematch needs --preset: re-matching draws new measurements of a simulated "
+            "block's points"
+        )
+    fit, sim = _source(block, preset, seed, strips, images)
+    rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None  # as grid evaluate
     try:
         with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
             sw = sweep_spacings(
-                fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0
-            )
+                fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0,
+                rematched=rem,
+            )  # fmt: skip
     except PhotogeomError as exc:
         exc.args = (_sweep_words(str(exc)),)
         raise
@@ -496,6 +550,17 @@ def sweep(
                     "step_before": sw["step_before"].tolist(),
                     "chosen": np.asarray(sw["choice"]["spacing"]).tolist(),
                     "spacing": sw["spacing"],
+                    **(
+                        {
+                            "step_rematched": sw["step_rematched"].tolist(),
+                            "chosen_rematched": np.asarray(
+                                sw["choice_rematched"]["spacing"]
+                            ).tolist(),
+                            "spacing_rematched": sw["spacing_rematched"],
+                        }
+                        if rem is not None
+                        else {}
+                    ),
                 }
             )
         )
@@ -518,6 +583,16 @@ def sweep(
         f"{sw['spacing']:g} px ({int(np.sum(ch == sw['spacing']))} of {ch.size} models)",
         out,
     )
+    if rem is not None:
+        steps = ", ".join(
+            f"{s:g} px {np.mean(sw['step_rematched'][:, c]):.3f}"
+            for c, s in enumerate(sw["spacings"])
+        )
+        say(
+            f"re-matched observations: mean step {steps} GSD; chosen spacing "
+            f"{sw['spacing_rematched']:g} px",
+            out,
+        )
 
 
 def report(
@@ -538,6 +613,7 @@ def report(
     sigma_amplitude: SigmaAOpt = "residuals",
     check_points: CheckOpt = None,
     grids_file: GridsOpt = None,
+    rematch: RematchOpt = False,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
@@ -548,7 +624,7 @@ def report(
     images = images if images_old is None else images_old  # --images: the former name
     g = _spacings(spacings)
     check_targets(files=[("--output", output)])  # before the evaluation and the sweep
-    fit, re, grids, ev, _ = _evaluate(
+    fit, re, grids, ev, sim = _evaluate(
         block,
         preset,
         DEFAULT_SPACING if spacing is None else spacing,
@@ -564,11 +640,16 @@ def report(
         check_points=check_points,
         grids_file=grids_file,
         spacing_given=spacing is not None,
+        rematch=rematch,
     )
     sc = _sigma_c(sigma_constraint)
+    # the re-matched block of the evaluation (the same seed draws the same measurement)
+    rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None
     try:
         with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
-            sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
+            sw = sweep_spacings(
+                fit, g, overlap=overlap, sigma_constraint=sc, folds=0, rematched=rem
+            )
     except PhotogeomError as exc:
         exc.args = (_sweep_words(str(exc)),)
         raise
@@ -580,6 +661,8 @@ def report(
         "grids": grids,
         "sweep": sw,
     }
+    if ev.get("rematched"):
+        res["rematched"] = ev["rematched"]
     path = grid_study_report(res, output)
     say(f"wrote {path}")
 
