@@ -721,3 +721,34 @@ def test_rematch_refusals(cli, adjusted_folder):
     assert code == 2 and "--rematch needs --preset" in err
     code, _, err = cli("grid", "evaluate", "--preset", "FC300S", "--rematch", "--in-adjustment")
     assert code == 2 and "--in-adjustment" in err
+
+
+def test_grid_fit_of_a_bal_file_takes_the_image_size(cli, tmp_path):
+    # before: a BAL block (no image size in the format) was fitted for the smallest even size
+    # holding its observations (3892 x 2988 px here for 4000 x 3000 px images), with the
+    # pixel origin there, silently, and --image-size was refused for a block
+    sim, adj, bal = tmp_path / "sim", tmp_path / "adj", tmp_path / "block.bal"
+    for args in (
+        ("bundle", "simulate", sim, "--preset", "FC300S", "--strips", "1",
+         "--images-per-strip", "3", "--free", "f,k1,k2", "--tie-points-per-image", "80"),
+        ("bundle", "adjust", sim, "-o", adj),
+        ("bundle", "convert", adj, bal, "--drop-extras"),
+    ):  # fmt: skip
+        code, _, err = cli(*args)
+        assert code == 0, err
+    out = tmp_path / "g.npz"
+    code, _, err = cli("grid", "fit", bal, "--spacing", "1000", "-o", out, "--folds", "0")
+    assert code == 0, err
+    assert "a BAL file holds no image size" in err and "--image-size" in err
+    code, _, err = cli(
+        "grid", "fit", bal, "--spacing", "1000", "-o", out, "--folds", "0",
+        "--image-size", "4000x3000",
+    )  # fmt: skip
+    assert code == 0, err
+    assert "warning" not in err
+    grids = pg.calibration.load_grids(out)
+    block = pg.bundle.read_block(bal, image_size=(4000, 3000))
+    want = pg.calibration.fit_residual_grids(block, 1000, folds=0)
+    for k, g in want.items():
+        assert grids[k].image_size == (4000, 3000)
+        np.testing.assert_allclose(grids[k].nodes, g.nodes, rtol=0, atol=1e-12)

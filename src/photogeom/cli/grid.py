@@ -415,7 +415,8 @@ def fit(
         str | None,
         typer.Option(
             "--image-size",
-            help="Image size WIDTHxHEIGHT in pixels (all images; a residuals CSV only).",
+            help="Image size WIDTHxHEIGHT in pixels (all images) of a residuals CSV or a "
+            "BAL file (BAL holds none).",
         ),
     ] = None,
     spacing: Annotated[float, typer.Option(help="Node spacing in pixels.")] = 100.0,
@@ -580,15 +581,26 @@ def _fit_block(
     ``exclude`` (ids as text, --exclude) left out."""
     import photogeom as pg
 
+    from ..bundle.io_formats import detect_format
     from ..calibration import fit_residual_grids
 
-    if image_size is not None:
+    bal = detect_format(path) == "bal"
+    if image_size is not None and not bal:
         raise InputError(
-            f"--image-size applies to a residuals CSV; {path} is a block, whose cameras "
-            "give the image sizes: leave --image-size out"
+            f"--image-size applies to a residuals CSV or a BAL file; {path} is a block "
+            "whose cameras give the image sizes: leave --image-size out"
         )
+    options_read = {"image_size": _image_size(image_size)} if image_size is not None else {}
     with stage_spinner(f"reading {path}"):
-        block = pg.bundle.read_block(path)
+        block = pg.bundle.read_block(path, **options_read)
+    if bal and image_size is None:  # the pixel origin, and so the grids, follow that size
+        w, h = (int(x) for x in block.image_sizes()[0])
+        say(
+            f"warning: {path}: a BAL file holds no image size; the grids are fitted for "
+            f"{w} x {h} px, the smallest even size holding the observations, and fit only "
+            "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
+            stderr=True,
+        )
     ids = block.image_ids.tolist()
     _refuse_unknown(exclude, [str(k) for k in ids], path)
     keep = [k for k in ids if str(k) not in set(exclude)]
