@@ -148,6 +148,12 @@ def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Pat
     InputError
         An image id that is neither an integer nor text.
     """
+    return atomic_write_bytes(path, grids_file_bytes(path, grids, std=std))
+
+
+def grids_file_bytes(path: str | os.PathLike, grids: dict, *, std: bool = True) -> bytes:
+    """The content :func:`save_grids` writes to ``path`` (NPZ for ``.npz``, else JSON), for
+    writing it together with other files (:func:`photogeom.atomicfile.atomic_write_many`)."""
     path = Path(path)
     stats = [_stats(k, g) for k, g in grids.items()]
     arrays = [_arrays(g, std) for g in grids.values()]
@@ -159,12 +165,12 @@ def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Pat
                 payload[f"{name}_{k}"] = np.asarray(val)
         buf = io.BytesIO()
         np.savez_compressed(buf, **payload)
-        return atomic_write_bytes(path, buf.getvalue())
+        return buf.getvalue()
     images = []
     for st, arr in zip(stats, arrays):
         images.append({**st, **{n: _json_array(v) for n, v in arr.items()}})
     text = json.dumps({**meta, "images": images}, allow_nan=False) + "\n"
-    return atomic_write_bytes(path, text.encode("utf-8"))
+    return text.encode("utf-8")
 
 
 _ARRAYS = ("nodes", "node_std", "node_cofactor", "support", "counts", "sigma_obs", "outliers")

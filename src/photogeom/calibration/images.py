@@ -9,10 +9,16 @@ written in the original format:
 
 * JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
   subsampling (the quality is kept), EXIF, XMP and ICC profile;
-* TIFF and PNG with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (TIFF tag 700,
-  PNG iTXt ``XML:com.adobe.xmp``) and ICC profile, TIFF with its compression;
-* anything else (16-bit colour, other formats): OpenCV, pixels exact, metadata not kept
-  (said in the result's ``notes``).
+* TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
+  profile, with its compression;
+* PNG (any bit depth and channels): the pixels by OpenCV, the original's metadata chunks
+  copied unchanged (EXIF, ICC profile, colour space, resolution, text and XMP), also those
+  that follow the image data;
+* other TIFFs (16-bit colour, float): the pixels by OpenCV (its compression kept where
+  OpenCV writes it: none, LZW, Deflate, PackBits), the original's tags grafted onto its file
+  (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; little-endian TIFFs);
+* anything else (a big-endian or BigTIFF 16-bit colour TIFF): OpenCV, pixels exact,
+  metadata not kept (said in the result's ``notes``).
 
 Every file is encoded in memory and written atomically (temporary file, then rename):
 an interrupted or failed image leaves no partial file.
@@ -30,16 +36,19 @@ import os
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
 
 from ..atomicfile import atomic_write_bytes
-from ..errors import FileFormatError, InputError, PhotogeomError
+from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
 from .correction import correct_image
 from .grid import ResidualGrid
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".tif", ".tiff", ".png")
+#: Values of output pixels whose source lies outside the image (``correct_image``'s border)
+BORDER_MODES = ("replicate", "constant", "reflect")
 
 
 @dataclass
@@ -132,9 +141,20 @@ def _read(path: Path):
             meta["exif"] = exif
             meta["icc_profile"] = info.get("icc_profile")
             meta["dpi"] = info.get("dpi")
+            if im.format == "JPEG" and info.get("jfif_unit") not in (1, 2):
+                # Pillow's dpi of a JPEG without a JFIF unit comes from the EXIF resolution,
+                # or is its default of 72 when the EXIF has none: not the image's, not kept
+                if _TIFF_XRESOLUTION not in im.getexif():
+                    meta["dpi"] = None
     except Exception:
         # OpenCV decoded it; Pillow cannot read it: pixels only.
         meta = {}
+    if raw[:8] == _PNG_SIGNATURE:
+        meta["png_chunks"] = _png_metadata_chunks(raw)
+    elif meta.get("format") == "TIFF" and not (
+        pixels.dtype == np.uint8 or (pixels.dtype == np.uint16 and pixels.ndim == 2)
+    ):  # written by OpenCV, not Pillow: the tags are grafted onto its file (see _encode)
+        meta["tiff_bytes"] = raw
     stored_size = meta.get("stored_size")
     if stored_size is not None and stored_size != (pixels.shape[1], pixels.shape[0]):
         raise FileFormatError(  # pragma: no cover - OpenCV turned the pixels after all
@@ -144,7 +164,50 @@ def _read(path: Path):
     return pixels, meta
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# PNG chunks of metadata that do not depend on how the pixels are coded (colour type,
+# palette, compression): colour space and ICC profile, resolution, EXIF, text and XMP
+_PNG_BEFORE_IDAT = (b"iCCP", b"sRGB", b"gAMA", b"cHRM", b"cICP", b"mDCV", b"cLLI", b"pHYs")
+_PNG_ANYWHERE = (b"tEXt", b"zTXt", b"iTXt", b"tIME")
+
+
+def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
+    """The metadata chunks of a PNG file, whole (length, type, data, CRC): those that must
+    come before the image data (colour space, ICC profile, resolution; EXIF, which some
+    writers put after the image data and libpng then ignores) and the text chunks (text,
+    XMP, time), wherever they are in the file. A damaged chunk list ends the walk (the
+    decoders report the damage)."""
+    before: list[bytes] = []
+    text: list[bytes] = []
+    at = len(_PNG_SIGNATURE)
+    while at + 12 <= len(data):
+        (length,) = struct.unpack(">I", data[at : at + 4])
+        kind = data[at + 4 : at + 8]
+        end = at + 12 + length
+        if end > len(data):
+            break
+        if kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
+            before.append(data[at:end])
+        elif kind in _PNG_ANYWHERE:
+            text.append(data[at:end])
+        elif kind == b"IEND":
+            break
+        at = end
+    return before, text
+
+
+def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> bytes:
+    """``png`` (an encoder's output without metadata) with the original's metadata chunks:
+    colour space, ICC, resolution and EXIF right after IHDR, text before IEND."""
+    before, text = chunks
+    (ihdr_length,) = struct.unpack(">I", png[8:12])
+    head = 8 + 12 + ihdr_length  # signature and IHDR
+    tail = png.rindex(b"IEND") - 4  # the IEND chunk: length, type, CRC
+    return png[:head] + b"".join(before) + png[head:tail] + b"".join(text) + png[tail:]
+
+
 _TIFF_ORIENTATION = 274
+_TIFF_XRESOLUTION = 282
 # TIFF field types that hold one integer in an IFD entry's value field: size, format
 _TIFF_INTEGERS = {
     1: (1, "B"),  # BYTE and SBYTE: written by some tools for small tags
@@ -210,6 +273,119 @@ _TIFF_LAYOUT_TAGS = frozenset(
 )
 
 
+# TIFF field types: bytes per value (13: IFD, an offset)
+_TIFF_TYPE_SIZES = dict(zip(range(1, 14), (1, 1, 2, 4, 8, 1, 1, 2, 4, 8, 4, 8, 4), strict=True))
+# tags whose value is the offset of another IFD: EXIF, GPS, interoperability
+_TIFF_SUB_IFDS = frozenset({34665, 34853, 40965})
+# offsets into the original file that are not metadata: SubIFDs (thumbnails, DNG) and an
+# old-style JPEG thumbnail; not copied
+_TIFF_OTHER_OFFSETS = frozenset({330, 513, 514})
+# resolution: a layout tag for the writer, but the image's DPI for its user
+_TIFF_RESOLUTION = frozenset({282, 283, 296})
+# the original's compressions that OpenCV writes as well: none, LZW, Deflate, PackBits
+_TIFF_COMPRESSIONS = frozenset({1, 5, 8, 32773, 32946})
+
+
+def _tiff_ifd(data: bytes, at: int) -> list[tuple[int, int, int, int]]:
+    """The entries ``(tag, type, count, value or offset)`` of the classic little-endian
+    TIFF IFD at offset ``at``."""
+    (n,) = struct.unpack_from("<H", data, at)
+    return [struct.unpack_from("<HHII", data, at + 2 + 12 * k) for k in range(n)]
+
+
+def _tiff_first_ifd(data: bytes) -> list[tuple[int, int, int, int]] | None:
+    """The first IFD of a classic little-endian TIFF, or None for other files."""
+    if data[:4] != b"II*\x00":
+        return None
+    return _tiff_ifd(data, struct.unpack_from("<I", data, 4)[0])
+
+
+def _tiff_write_options(original: bytes) -> list[int]:
+    """``cv2.imencode`` parameters that keep the original TIFF's compression (and
+    predictor) where OpenCV writes them."""
+    import cv2
+
+    try:
+        tags = {t: v for t, typ, c, v in _tiff_first_ifd(original) or () if c == 1 and typ == 3}
+    except struct.error:
+        return []
+    params = []
+    if tags.get(259) in _TIFF_COMPRESSIONS:
+        params += [cv2.IMWRITE_TIFF_COMPRESSION, tags[259]]
+        if tags.get(317) in (1, 2) and hasattr(cv2, "IMWRITE_TIFF_PREDICTOR"):
+            params += [cv2.IMWRITE_TIFF_PREDICTOR, tags[317]]
+    return params
+
+
+def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
+    """OpenCV's TIFF ``encoded`` with the metadata tags of the ``original`` TIFF.
+
+    A new first IFD is appended: OpenCV's layout tags (size, samples, compression, strips)
+    and every other tag of the original's first IFD (orientation, resolution, ICC profile,
+    XMP, make and model, ...), their values copied after the pixel data, the EXIF, GPS and
+    interoperability IFDs copied whole with their offsets moved. Vendor maker notes are
+    copied as they are (internal offsets of some vendors then point elsewhere, as with any
+    TIFF editor that moves them). Returns None (metadata not kept) unless both files are
+    classic little-endian TIFFs that can be walked.
+    """
+    if original[:4] != b"II*\x00" or encoded[:4] != b"II*\x00":
+        return None
+    out = bytearray(encoded)
+
+    def align() -> None:
+        if len(out) % 2:  # TIFF offsets are even
+            out.append(0)
+
+    def copy_entries(at: int, depth: int, keep=lambda tag: True) -> list:
+        entries = []
+        for tag, typ, count, value in _tiff_ifd(original, at):
+            if not keep(tag):
+                continue
+            size = _TIFF_TYPE_SIZES.get(typ, 0) * count
+            if not size:
+                continue  # an unknown type: its size is not known, so it cannot be copied
+            if tag in _TIFF_SUB_IFDS and count == 1 and depth < 3:
+                value = write_ifd(copy_entries(value, depth + 1))
+            elif size > 4:
+                data = original[value : value + size]
+                if len(data) != size:
+                    raise struct.error("value beyond the end of the file")
+                align()
+                value = len(out)
+                out.extend(data)
+            entries.append((tag, typ, count, value))
+        return entries
+
+    def write_ifd(entries: list) -> int:
+        align()
+        at = len(out)
+        out.extend(struct.pack("<H", len(entries)))
+        for e in sorted(entries):
+            out.extend(struct.pack("<HHII", *e))
+        out.extend(struct.pack("<I", 0))
+        return at
+
+    try:
+        first = struct.unpack_from("<I", original, 4)[0]
+        layout = [
+            e
+            for e in _tiff_first_ifd(encoded) or ()
+            if e[0] in _TIFF_LAYOUT_TAGS and e[0] not in _TIFF_RESOLUTION
+        ]
+        ours = {e[0] for e in layout}
+
+        def metadata(tag: int) -> bool:  # the original's first IFD but its layout
+            if tag in ours or tag in _TIFF_OTHER_OFFSETS:
+                return False
+            return tag not in _TIFF_LAYOUT_TAGS or tag in _TIFF_RESOLUTION
+
+        ifd = write_ifd(layout + copy_entries(first, 0, metadata))
+    except (struct.error, IndexError):
+        return None
+    out[4:8] = struct.pack("<I", ifd)
+    return bytes(out)
+
+
 def _has_metadata(exif) -> bool:
     """Whether EXIF data holds metadata (a TIFF's tag set: more than its layout tags)."""
     from PIL import Image
@@ -219,6 +395,39 @@ def _has_metadata(exif) -> bool:
     return bool(exif)
 
 
+# ICC colour spaces (header bytes 16-19) of pixels that OpenCV may turn into others
+_ICC_SPACES = frozenset({b"RGB ", b"GRAY", b"CMYK", b"CMY "})
+
+
+def _icc_other(profile: bytes | None, space: bytes) -> bool:
+    """Whether an ICC profile describes another of the colour spaces of ``_ICC_SPACES``
+    than ``space`` (a profile that does not say is kept as it is)."""
+    if profile is None or len(profile) < 20:
+        return False
+    own = bytes(profile[16:20])
+    return own in _ICC_SPACES and own != space
+
+
+def _png_icc(chunk: bytes) -> bytes | None:
+    """The ICC profile of a whole PNG iCCP chunk (name, 0, method, zlib data), or None."""
+    import zlib
+
+    data = chunk[8:-4]
+    try:
+        return zlib.decompress(data[data.index(b"\x00") + 2 :])
+    except (ValueError, zlib.error):
+        return None
+
+
+def _icc_note(space: bytes) -> str:
+    """Why an ICC profile was not kept: it describes other pixels than those written."""
+    kind = "grey" if space == b"GRAY" else "RGB"
+    return (
+        f"ICC profile not kept: it describes another colour space than the {kind} pixels "
+        "written (OpenCV decodes CMYK images and grey images with alpha as RGB)"
+    )
+
+
 def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | None]:
     """Encoded file bytes in the original format, and a note when metadata is lost."""
     import cv2
@@ -226,6 +435,20 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
 
     fmt = meta.get("format")
     channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    space = b"GRAY" if channels == 1 else b"RGB "  # the colour space of what is written
+    if meta.get("png_chunks") is not None:
+        # PNG: the pixels by OpenCV (any depth and channels, exact), the original's metadata
+        # chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of 16-bit colour
+        # images, and those after the image data, which Pillow reads only on decoding)
+        ok, enc = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+        if not ok:  # pragma: no cover - OpenCV decoded these pixels from a PNG
+            raise FileFormatError(
+                f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
+            )
+        before, text = meta["png_chunks"]
+        keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
+        note = _icc_note(space) if len(keep) < len(before) else None
+        return _png_with_chunks(enc.tobytes(), (keep, text)), note
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
@@ -243,10 +466,14 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
             arr = pixels
         im = Image.fromarray(arr)
         kw: dict = {}
+        note = None
         if meta.get("exif") is not None:
             kw["exif"] = meta["exif"]
         if meta.get("icc_profile"):
-            kw["icc_profile"] = meta["icc_profile"]
+            if not _icc_other(meta["icc_profile"], space):
+                kw["icc_profile"] = meta["icc_profile"]
+            else:
+                note = _icc_note(space)
         if meta.get("dpi"):
             kw["dpi"] = meta["dpi"]
         xmp = meta.get("xmp")
@@ -272,20 +499,20 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                         tags.load(meta["exif"])
                 tags[700] = xmp
                 kw["exif"] = tags
-        elif fmt == "PNG" and xmp:
-            from PIL.PngImagePlugin import PngInfo
-
-            pinfo = PngInfo()
-            pinfo.add_itxt("XML:com.adobe.xmp", xmp.decode("utf-8", "replace"))
-            kw["pnginfo"] = pinfo
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
-        return buf.getvalue(), None
-    ok, enc = cv2.imencode(suffix, pixels)
+        return buf.getvalue(), note
+    original = meta.get("tiff_bytes")
+    params = _tiff_write_options(original) if original is not None else []
+    ok, enc = cv2.imencode(suffix, pixels, params)
     if not ok:
         raise FileFormatError(
             f"cannot encode a {pixels.dtype} image with {channels} channel(s) as {suffix}"
         )
+    if original is not None:
+        grafted = _tiff_graft_metadata(enc.tobytes(), original)
+        if grafted is not None:
+            return grafted, None
     lost = _has_metadata(meta.get("exif")) or meta.get("xmp") or meta.get("icc_profile")
     note = (
         f"metadata (EXIF/XMP/ICC) not kept: {fmt or suffix} with {pixels.dtype} x {channels} "
@@ -303,8 +530,22 @@ def correct_image_file(
     *,
     interpolation: str = "bilinear",
     threads: int | None = None,
+    border: str = "replicate",
 ) -> str | None:
     """Correct one image file into ``dst`` (same format, metadata kept where possible).
+
+    Parameters
+    ----------
+    src, dst : path
+        Image file to read and file to write (atomically).
+    grid : ResidualGrid
+        The grid of this image (fitted for its size, px).
+    interpolation : {"bilinear", "bicubic"}
+    threads : int, optional
+        Threads over chunks of rows (see :func:`correct_image`).
+    border : {"replicate", "constant", "reflect"}
+        Values of output pixels whose source lies outside the image (see
+        :func:`correct_image`; ``"constant"``: 0).
 
     Returns
     -------
@@ -326,7 +567,9 @@ def correct_image_file(
             f"{src.name}: the image is {w} x {h} px, its grid was fitted for "
             f"{grid.image_size[0]} x {grid.image_size[1]} px"
         )
-    out = correct_image(pixels, grid, interpolation=interpolation, threads=threads)  # type: ignore[arg-type]
+    out = correct_image(  # type: ignore[arg-type]
+        pixels, grid, interpolation=interpolation, threads=threads, border=border
+    )
     data, note = _encode(out, meta, src.suffix.lower() or ".png")
     atomic_write_bytes(dst, data)
     return note
@@ -345,6 +588,7 @@ def _task(
     interpolation: str,
     threads: int | None,
     cv_single: bool = False,
+    border: str = "replicate",
 ):
     """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
 
@@ -358,7 +602,9 @@ def _task(
     try:
         if cv_single:
             cv2.setNumThreads(1)
-        note = correct_image_file(src, dst, grid, interpolation=interpolation, threads=threads)
+        note = correct_image_file(
+            src, dst, grid, interpolation=interpolation, threads=threads, border=border
+        )
         return True, note
     except (PhotogeomError, OSError) as exc:
         return False, str(exc)
@@ -394,6 +640,26 @@ def find_images(folder: Path, ids) -> tuple[dict, list, list]:
     return found, missing, [p.name for p in files if p not in used]
 
 
+def _missing_message(folder: Path, key) -> str:
+    """Why image id ``key`` has no file in ``folder``: none of that name, or several files
+    with that stem (the id does not say which one), or only files of unsupported formats."""
+    k = str(key)
+    same = sorted(p.name for p in folder.glob(f"{glob_escape(k)}.*") if p.is_file())
+    usable = [n for n in same if Path(n).suffix.lower() in IMAGE_SUFFIXES]
+    if len(usable) > 1:
+        return (
+            f"image id {k} matches {len(usable)} files in {folder} ({', '.join(usable)}): "
+            "keep one of them in the folder, or name the file in the grid's id "
+            f"(e.g. {usable[0]})"
+        )
+    if same:
+        return (
+            f"no image file named {k} (or {k}.<ext>) in {folder} in a supported format "
+            f"({', '.join(IMAGE_SUFFIXES)}); found {', '.join(same[:5])}"
+        )
+    return f"no image file named {k} (or {k}.<ext>) in {folder}"
+
+
 def correct_folder(
     src_dir: str | os.PathLike,
     dst_dir: str | os.PathLike,
@@ -403,6 +669,7 @@ def correct_folder(
     dask: bool | str = False,
     interpolation: str = "bilinear",
     progress: bool = True,
+    border: str = "replicate",
 ) -> FolderResult:
     """Correct every image of a folder that has a grid, in parallel.
 
@@ -421,37 +688,50 @@ def correct_folder(
     interpolation : {"bilinear", "bicubic"}
     progress : bool
         A rich progress bar on the terminal.
+    border : {"replicate", "constant", "reflect"}
+        Values of output pixels whose source lies outside the image (see
+        :func:`correct_image`; ``"constant"``: 0).
 
     Returns
     -------
     FolderResult
         Images written, failures (missing or corrupt files: listed, the rest processed),
         image files without a grid.
+
+    Raises
+    ------
+    InputError
+        No input folder, the output folder equal to it, bad ``workers`` or
+        ``interpolation``.
+    OutputError
+        The output folder cannot be created or written (checked before any image is read).
     """
     src, dst = Path(src_dir), Path(dst_dir)
     if not src.is_dir():
         raise InputError(f"input folder {src} does not exist")
     if interpolation not in ("bilinear", "bicubic"):
         raise InputError(f"interpolation must be bilinear or bicubic, not {interpolation!r}")
+    if border not in BORDER_MODES:
+        raise InputError(f"border must be one of {', '.join(BORDER_MODES)}, not {border!r}")
     if workers < 1:
         raise InputError(f"workers must be at least 1, not {workers}")
-    dst.mkdir(parents=True, exist_ok=True)
     if src.resolve() == dst.resolve():
         raise InputError("the output folder must differ from the input folder (originals are kept)")
+    _output_folder(dst)
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
-        result.failures[key] = f"no image file named {key} (or {key}.<ext>) in {src}"
+        result.failures[key] = _missing_message(src, key)
     result.skipped = extra
     jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
     # threads inside a job: only when the jobs do not already fill the machine
     threads = 1 if (workers > 1 or dask) else None
     if dask:
-        outcomes = _run_dask(jobs, workers, dask, interpolation, progress)
+        outcomes = _run_dask(jobs, workers, dask, interpolation, progress, border)
     elif workers == 1:
-        outcomes = _run_serial(jobs, interpolation, threads, progress)
+        outcomes = _run_serial(jobs, interpolation, threads, progress, border)
     else:
-        outcomes = _run_processes(jobs, workers, interpolation, progress)
+        outcomes = _run_processes(jobs, workers, interpolation, progress, border)
     for (key, _s, d, _g), (ok, msg) in zip(jobs, outcomes):
         if ok:
             result.written[key] = Path(d)
@@ -460,6 +740,37 @@ def correct_folder(
         else:
             result.failures[key] = msg
     return result
+
+
+def _output_folder(dst: Path) -> None:
+    """Create the output folder and check that files can be made in it, before any image
+    is read: a folder that cannot be written fails once, by name, not once per image.
+
+    Raises
+    ------
+    OutputError
+        ``dst`` cannot be created (a file in the way, no permission) or written.
+    """
+    from ..atomicfile import _failure
+
+    try:
+        dst.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if isinstance(exc, FileExistsError):
+            reason = "a file of that name is in the way"
+        else:
+            reason = str(_failure(dst, exc)).split(": ", 1)[-1]
+        raise OutputError(
+            f"output folder {dst} cannot be created ({reason}); choose another output folder",
+            exc.errno,
+        ) from None
+    if not dst.is_dir():
+        raise OutputError(f"output folder {dst} is not a folder; choose another output folder")
+    if not os.access(dst, os.W_OK | os.X_OK):
+        raise OutputError(
+            f"output folder {dst} is not writable (permission denied); choose another "
+            "output folder or make it writable"
+        )
 
 
 def _progress(enabled: bool, total: int):
@@ -476,24 +787,25 @@ def _progress(enabled: bool, total: int):
     return prog
 
 
-def _run_serial(jobs, interpolation, threads, progress):
+def _run_serial(jobs, interpolation, threads, progress, border):
     out = []
     with _progress(progress, len(jobs)) as prog:
         t = prog.add_task("correcting images", total=len(jobs))
         for _key, s, d, g in jobs:
-            out.append(_task(s, d, g, interpolation, threads))
+            out.append(_task(s, d, g, interpolation, threads, border=border))
             prog.advance(t)
     return out
 
 
-def _run_processes(jobs, workers, interpolation, progress):
+def _run_processes(jobs, workers, interpolation, progress, border):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     out: list = [None] * len(jobs)
     with _progress(progress, len(jobs)) as prog, ProcessPoolExecutor(workers) as ex:
         t = prog.add_task("correcting images", total=len(jobs))
         futs = {
-            ex.submit(_task, s, d, g, interpolation, 1): i for i, (_k, s, d, g) in enumerate(jobs)
+            ex.submit(_task, s, d, g, interpolation, 1, border=border): i
+            for i, (_k, s, d, g) in enumerate(jobs)
         }
         for f in as_completed(futs):
             out[futs[f]] = f.result()
@@ -501,7 +813,7 @@ def _run_processes(jobs, workers, interpolation, progress):
     return out
 
 
-def _run_dask(jobs, workers, dask, interpolation, progress):
+def _run_dask(jobs, workers, dask, interpolation, progress, border):
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -529,7 +841,7 @@ def _run_dask(jobs, workers, dask, interpolation, progress):
         with _progress(progress, len(jobs)) as prog:
             t = prog.add_task("correcting images (dask)", total=len(jobs))
             futs = [
-                client.submit(_task, s, d, g, interpolation, 1, True, pure=False)
+                client.submit(_task, s, d, g, interpolation, 1, True, border, pure=False)
                 for _k, s, d, g in jobs
             ]
             index = {f.key: i for i, f in enumerate(futs)}

@@ -27,6 +27,8 @@ from ._common import (
     json_text,
     options_in_errors,
     say,
+    split_names,
+    stage_spinner,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -46,6 +48,12 @@ class Border(str, Enum):
 class Interp(str, Enum):
     bilinear = "bilinear"
     bicubic = "bicubic"
+
+
+class Outside(str, Enum):
+    replicate = "replicate"
+    constant = "constant"
+    reflect = "reflect"
 
 
 #: Columns of at least this many cells are converted to numbers by pyarrow (fewer: by
@@ -395,26 +403,39 @@ def fit(
     residuals: Annotated[
         Path,
         typer.Argument(
-            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed)."
+            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed), "
+            "or an adjusted block (a CSV block folder or COLMAP text model, a .bal file): "
+            "the reprojection residuals of its tie points, the image sizes of its cameras."
         ),
-    ],
-    image_size: Annotated[
-        str, typer.Option("--image-size", help="Image size WIDTHxHEIGHT in pixels (all images).")
     ],
     output: Annotated[
         Path, typer.Option("--output", "-o", help="Grids file: .npz, or JSON for any other suffix.")
     ],
+    image_size: Annotated[
+        str | None,
+        typer.Option(
+            "--image-size",
+            help="Image size WIDTHxHEIGHT in pixels (all images) of a residuals CSV or a "
+            "BAL file (BAL holds none).",
+        ),
+    ] = None,
     spacing: Annotated[float, typer.Option(help="Node spacing in pixels.")] = 100.0,
     sigma_obs: Annotated[
-        float, typer.Option(help="Standard deviation of the residuals (px).")
-    ] = 1.0,
-    sigma_constraint: Annotated[
-        str,
+        float | None,
         typer.Option(
-            help="Standard deviation of the smoothness pseudo-observations (px), "
-            "or 'vce' to estimate both variances."
+            help="Standard deviation of the residuals (px); default: 1 px for a residuals "
+            "CSV, each observation's sigma for a block."
         ),
-    ] = "1.0",
+    ] = None,
+    sigma_constraint: Annotated[
+        str | None,
+        typer.Option(
+            help="Standard deviation of the smoothness pseudo-observations: px, 'scaled' "
+            "(0.1 px x (spacing / 100 px)^2) or 'vce' (estimate both variances); default: "
+            "1 px for a residuals CSV, 'scaled' for a block (as 'grid evaluate' and "
+            "'grid sweep')."
+        ),
+    ] = None,
     border: Annotated[
         Border,
         typer.Option(
@@ -434,6 +455,13 @@ def fit(
     std: Annotated[
         bool, typer.Option("--std/--no-std", help="Compute and store node standard deviations.")
     ] = True,
+    exclude: Annotated[
+        str | None,
+        typer.Option(
+            help="Image ids to leave out, comma-separated (e.g. images with too few "
+            "residuals for the spacing); they get no grid."
+        ),
+    ] = None,
     report: ReportOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
@@ -444,63 +472,36 @@ def fit(
     # threads only wait on each other (12 images of 42 Mpx at 100 px: 10.4 s with, 3.0 s
     # without them on 2 cores)
     single_threaded_blas()
-    from ..calibration import GridLayout, fit_grids, save_grids
+    from ..atomicfile import atomic_write_many
+    from ..calibration.gridfile import grids_file_bytes
+    from .bundle import check_targets
 
-    size = _image_size(image_size)
+    # both outputs checked before the fit and written together: all or none
+    check_targets(files=[("--output", output), ("--report", report)])
+
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(
             f"--folds {folds}: give the number of cross-validation folds, 2 or more, or 0 "
             "for no cross-validation"
         )
-    if sigma_constraint.strip().lower() == "vce":
-        s_c: float | str = "vce"
-    else:
-        try:
-            s_c = float(sigma_constraint)
-        except ValueError:
-            raise InputError(
-                f"--sigma-constraint: a number (px) or 'vce', not {sigma_constraint!r}"
-            ) from None
-    _h, columns, col, lines = _read_csv(residuals, ("image_id", "u", "v", "rx", "ry"))
-    if not lines.size:
-        raise FileFormatError(
-            f"no residuals in {residuals}: the file has a header and no rows; it needs one "
-            "row per observation (image_id, u, v, rx, ry)"
-        )
-    ids = list(map(str.strip, columns[col["image_id"]]))
-    data = np.stack(
-        [_numbers(residuals, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
-        axis=1,
+    s_c = _fit_sigma_constraint(sigma_constraint)
+    options = dict(
+        border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
     )
-    try:  # the image size and the spacing are refused first, as fit_grids does
-        GridLayout(size[0], size[1], spacing)
-    except PhotogeomError as exc:
-        raise _reworded(exc, _cli_words) from None
-    _refuse_outside(
-        residuals, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
-        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
-    )  # fmt: skip
-    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in _groups(ids).items()}
-    try:
-        grids = fit_grids(
-            per_image,
-            size,
-            spacing,
-            sigma_obs=sigma_obs,
-            sigma_constraint=s_c,
-            border=border.value,
-            folds=folds,
-            snooping=snooping,
-            alpha=alpha,
-            min_support=min_support,
-            progress=console(stderr=True).is_terminal,
+    left_out = split_names(exclude) or []
+    if not residuals.exists():
+        raise FileFormatError(
+            f"{residuals}: no such file or folder (give a residuals CSV or an adjusted block)"
         )
-    except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
-        raise _reworded(exc, _cli_words) from None
-    save_grids(output, grids, std=std)
+    if _is_block(residuals):
+        grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
+    else:
+        grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
+    outputs = [(output, grids_file_bytes(output, grids, std=std))]
     stats = {k: g.to_dict() for k, g in grids.items()}
     if report is not None:
-        _write_report(report, grids)
+        outputs.append((report, _report_html(grids).encode("utf-8")))
+    atomic_write_many(outputs)
     if as_json:
         typer.echo(json_text({"output": str(output), "images": stats}), nl=False)
         return
@@ -540,6 +541,154 @@ def fit(
         say(f"wrote {report}", out)
 
 
+#: Suffixes of a BAL file, the one block format stored in a single file
+_BLOCK_SUFFIXES = (".bal", ".bz2")
+
+
+def _is_block(path: Path) -> bool:
+    """Whether ``grid fit``'s input is an adjusted block (a folder or a BAL file) rather
+    than a residuals CSV."""
+    return path.is_dir() or path.suffix.lower() in _BLOCK_SUFFIXES
+
+
+def _fit_sigma_constraint(text: str | None) -> float | str | None:
+    """The --sigma-constraint of ``grid fit``: None (the input's default), a positive number
+    of px, ``"scaled"`` or ``"vce"``."""
+    if text is None:
+        return None
+    t = text.strip().lower()
+    if t in ("vce", "scaled"):
+        return t
+    try:
+        return float(t)
+    except ValueError:
+        raise InputError(
+            f"--sigma-constraint: a number (px), 'scaled' or 'vce', not {text!r}"
+        ) from None
+
+
+def _fit_block(
+    path: Path,
+    image_size: str | None,
+    spacing: float,
+    sigma_obs: float | None,
+    sigma_constraint: float | str | None,
+    options: dict,
+    exclude: list[str],
+) -> dict:
+    """The grids of an adjusted block's tie-point residuals (``fit_residual_grids``, the
+    fit of ``grid evaluate``), each image's size from its camera; the images of
+    ``exclude`` (ids as text, --exclude) left out."""
+    import photogeom as pg
+
+    from ..bundle.io_formats import detect_format
+    from ..calibration import fit_residual_grids
+
+    bal = detect_format(path) == "bal"
+    if image_size is not None and not bal:
+        raise InputError(
+            f"--image-size applies to a residuals CSV or a BAL file; {path} is a block "
+            "whose cameras give the image sizes: leave --image-size out"
+        )
+    options_read = {"image_size": _image_size(image_size)} if image_size is not None else {}
+    with stage_spinner(f"reading {path}"):
+        block = pg.bundle.read_block(path, **options_read)
+    if bal and image_size is None:  # the pixel origin, and so the grids, follow that size
+        w, h = (int(x) for x in block.image_sizes()[0])
+        say(
+            f"warning: {path}: a BAL file holds no image size; the grids are fitted for "
+            f"{w} x {h} px, the smallest even size holding the observations, and fit only "
+            "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
+            stderr=True,
+        )
+    ids = block.image_ids.tolist()
+    _refuse_unknown(exclude, [str(k) for k in ids], path)
+    keep = [k for k in ids if str(k) not in set(exclude)]
+    try:
+        with stage_spinner(f"fitting grids of {spacing:g} px"):
+            return fit_residual_grids(
+                block,
+                spacing,
+                images=keep,
+                sigma_obs="block" if sigma_obs is None else sigma_obs,
+                sigma_constraint="scaled" if sigma_constraint is None else sigma_constraint,
+                **options,
+            )
+    except PhotogeomError as exc:
+        raise _reworded(exc, _cli_words) from None
+
+
+def _fit_csv(
+    path: Path,
+    image_size: str | None,
+    spacing: float,
+    sigma_obs: float | None,
+    sigma_constraint: float | str | None,
+    options: dict,
+    exclude: list[str],
+) -> dict:
+    """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size; the
+    images of ``exclude`` (--exclude) left out."""
+    from ..calibration import GridLayout, fit_grids
+    from ..calibration.blocks import scaled_constraint_sigma
+
+    if image_size is None:
+        raise InputError(
+            f"{path}: a residuals CSV needs the images' size: give --image-size "
+            "WIDTHxHEIGHT (pixels)"
+        )
+    size = _image_size(image_size)
+    s_c = 1.0 if sigma_constraint is None else sigma_constraint
+    _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"))
+    if not lines.size:
+        raise FileFormatError(
+            f"no residuals in {path}: the file has a header and no rows; it needs one "
+            "row per observation (image_id, u, v, rx, ry)"
+        )
+    ids = list(map(str.strip, columns[col["image_id"]]))
+    data = np.stack(
+        [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
+        axis=1,
+    )
+    try:  # the image size and the spacing are refused first, as fit_grids does
+        GridLayout(size[0], size[1], spacing)
+    except PhotogeomError as exc:
+        raise _reworded(exc, _cli_words) from None
+    _refuse_outside(
+        path, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
+        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
+    )  # fmt: skip
+    groups = _groups(ids)
+    _refuse_unknown(exclude, list(groups), path)
+    for k in exclude:
+        del groups[k]
+    per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
+    try:
+        return fit_grids(
+            per_image,
+            size,
+            spacing,
+            sigma_obs=1.0 if sigma_obs is None else sigma_obs,
+            sigma_constraint=scaled_constraint_sigma(s_c, spacing),
+            progress=console(stderr=True).is_terminal,
+            **options,
+        )
+    except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
+        raise _reworded(exc, _cli_words) from None
+
+
+def _refuse_unknown(exclude: list[str], ids: list[str], path: Path) -> None:
+    """Refuse --exclude ids that name no image of the input (a typo would fit them)."""
+    unknown = [k for k in exclude if k not in set(ids)]
+    if unknown:
+        raise InputError(
+            f"--exclude: no image {', '.join(unknown[:5])} in {path} (its images: "
+            f"{', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})"
+        )
+    if ids and set(ids) <= set(exclude):
+        raise InputError(f"--exclude leaves no image of {path} to fit")
+
+
 def _cli_words(msg: str) -> str:
     return (
         msg.replace("sigma_constraint", "--sigma-constraint")
@@ -552,6 +701,7 @@ def _cli_words(msg: str) -> str:
         .replace("a larger spacing", "a larger --spacing")
         .replace("choose a spacing", "choose a --spacing")
         .replace("a larger alpha", "a larger --alpha")
+        .replace("leave the image out", "leave the image out with --exclude ID")
     )
 
 
@@ -569,7 +719,7 @@ def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f} %"
 
 
-def _write_report(path: Path, grids: dict) -> None:
+def _report_html(grids: dict) -> str:
     from matplotlib.figure import Figure
 
     from ..report import Report
@@ -619,7 +769,7 @@ def _write_report(path: Path, grids: dict) -> None:
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
     rep.add_figure(f"Mean grid of {len(same)} image(s) (node vectors, not to scale)", fig)
-    rep.write(path)
+    return rep.to_html()
 
 
 @app.command("apply")
@@ -738,6 +888,13 @@ def correct_images(
         ),
     ] = None,
     interpolation: Annotated[Interp, typer.Option(help="Resampling.")] = Interp.bilinear,
+    outside: Annotated[
+        Outside,
+        typer.Option(
+            help="Pixels whose source lies outside the image: replicate the edge, "
+            "constant (0) or reflect."
+        ),
+    ] = Outside.replicate,
     as_json: JsonOpt = False,
 ) -> None:
     """Resample every image that has a grid; failures are listed, the rest processed."""
@@ -756,6 +913,7 @@ def correct_images(
             dask=mode,
             interpolation=interpolation.value,
             progress=console(stderr=True).is_terminal,
+            border=outside.value,
         )
     except InputError as exc:
         raise InputError(str(exc).replace("workers must", "--workers must")) from None

@@ -36,6 +36,12 @@ PresetOpt = Annotated[
     typer.Option(help="Simulated block instead: ILCE-7RM2, FC6310 or FC300S (then adjusted)."),
 ]
 SpacingOpt = Annotated[float, typer.Option(help="Node spacing of the grids in pixels.")]
+#: --spacing of the commands that also take --grids (None: not given, 100 px)
+FitSpacingOpt = Annotated[
+    float | None,
+    typer.Option(help="Node spacing of the grids in pixels (default 100; not with --grids)."),
+]
+DEFAULT_SPACING = 100.0
 SigmaCOpt = Annotated[
     str,
     typer.Option(
@@ -127,6 +133,24 @@ CheckOpt = Annotated[
         "check points): their errors before and after, triangulated minus surveyed.",
     ),
 ]
+GridsOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--grids",
+        help="Grids file (from 'photogeom grid fit') to evaluate instead of fitting grids: "
+        "the BLOCK's observations corrected with it and re-adjusted (orientation and "
+        "calibration fixed); --spacing and --sigma-constraint do not apply.",
+    ),
+]
+RematchOpt = Annotated[
+    bool,
+    typer.Option(
+        "--rematch",
+        help="With --preset: also evaluate on re-matched observations (the same points "
+        "measured again with fresh noise, as the study matched its corrected images anew), "
+        "so that the grids are not credited with the noise they fitted.",
+    ),
+]
 SpacingsOpt = Annotated[
     str, typer.Option(help="Spacings to try, comma-separated pixels (at least two).")
 ]
@@ -169,6 +193,7 @@ def _cli(msg: str) -> str:
         msg.replace("sigma_constraint", "--sigma-constraint")
         .replace("grid spacing", "--spacing")
         .replace("a larger spacing", "a larger --spacing")
+        .replace("choose a spacing", "choose a --spacing")
         .replace("overlap must", "--overlap must")
         .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
         .replace("sigma_temporal", "--sigma-temporal")
@@ -176,6 +201,12 @@ def _cli(msg: str) -> str:
         .replace("sigma_amplitude", "--sigma-amplitude")
         .replace("per must be one of", "--per must be one of")
         .replace("surveyed: none of", "--check-points: none of")
+        .replace(
+            "fit grids for every image of the block (fit_residual_grids) to correct its "
+            "observations",
+            "give --grids a file with a grid for every image of the BLOCK "
+            "('photogeom grid fit BLOCK')",
+        )
     )
 
 
@@ -195,18 +226,47 @@ def _evaluate(
     post_spacing=None,
     check_points=None,
     sigma_amplitude="residuals",
+    grids_file=None,
+    spacing_given=True,
+    rematch=False,
 ):
     from ..calibration import (
         adjust_with_grids,
         evaluate_readjustment,
         fit_residual_grids,
+        load_grids,
         readjust,
     )
 
     sigma_constraint = _sigma_c(sigma_constraint)
+    if grids_file is not None:
+        if in_adjustment:
+            raise InputError(
+                "--grids evaluates grids fitted after the adjustment; --in-adjustment "
+                "estimates its own: give one of them"
+            )
+        if spacing_given or sigma_constraint != "scaled":
+            raise InputError(
+                "--spacing and --sigma-constraint set the grids that are fitted; with --grids "
+                "the grids of the file are used: leave them out (or fit with "
+                "'photogeom grid fit BLOCK --spacing ...')"
+            )
+        if not grids_file.is_file():
+            raise InputError(f"--grids: {grids_file} does not exist")
     if check_points is not None and preset is not None:
         raise InputError(
             "--check-points applies to a BLOCK folder (a --preset is checked against its truth)"
+        )
+    if rematch and preset is None:
+        raise InputError(
+            "--rematch needs --preset: re-matching draws new measurements of a simulated "
+            "block's points (on a real block, match the corrected images again and give "
+            "that block)"
+        )
+    if rematch and in_adjustment:
+        raise InputError(
+            "--rematch evaluates grids fitted after the adjustment; with --in-adjustment use "
+            "photogeom.calibration.compare_in_adjustment"
         )
     fit, sim = _source(block, preset, seed, strips, images)
     surveyed = _surveyed(check_points) if check_points is not None else None
@@ -244,6 +304,10 @@ def _evaluate(
             if post_spacing is not None:
                 grids = fit_residual_grids(re.block, post_spacing, folds=0)
                 re = readjust(re.block, grids, snooping=False)
+        elif grids_file is not None:
+            grids = load_grids(grids_file)
+            with stage_spinner("re-adjusting with the corrected observations"):
+                re = readjust(fit.block, grids, snooping=False)
         else:
             with stage_spinner(f"fitting grids of {spacing:g} px") as step:
                 grids = fit_residual_grids(
@@ -252,10 +316,43 @@ def _evaluate(
                 step("re-adjusting with the corrected observations")
                 re = readjust(fit.block, grids, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
+        if rematch:  # as run_study: the same grids on a second measurement of the points
+            with stage_spinner("re-matched observations: correcting and re-adjusting"):
+                rem = sim.rematch(fit.block, seed=(seed, 1))
+                ev["rematched"] = evaluate_readjustment(
+                    fit, readjust(rem, grids, snooping=False), sim=sim, overlap=overlap
+                )
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         exc.args = (_cli(str(exc)),)
         raise
     return fit, re, grids, ev, sim
+
+
+def _spacings(text: str) -> list[float]:
+    """The --spacings of ``sweep`` and ``report``: at least two positive, distinct numbers
+    of pixels (checked before the block is read or adjusted)."""
+    g = split_numbers(text, None, "--spacings")
+    if len(g) < 2:
+        raise InputError(f"--spacings: give at least two spacings (px), not {text!r}")
+    bad = [x for x in g if not x > 0]
+    if bad:
+        raise InputError(
+            f"--spacings: every spacing must be a positive number of pixels, not {bad[0]:g}"
+        )
+    twice = sorted({x for x in g if g.count(x) > 1})
+    if twice:
+        raise InputError(f"--spacings: {', '.join(f'{x:g}' for x in twice)} given twice")
+    return g
+
+
+def _sweep_words(msg: str) -> str:
+    """A library error of ``sweep_spacings`` in the words of --spacings."""
+    return (
+        _cli(msg)
+        .replace("choose a --spacing of at most", "choose --spacings of at most")
+        .replace("--spacing ", "--spacings: ")
+        .replace("sweep_spacings: give at least two spacings", "--spacings: give at least two")
+    )
 
 
 def _surveyed(path: Path) -> dict:
@@ -287,13 +384,22 @@ def _ev_json(ev) -> dict:
     if ev.get("tie_before"):
         out["tie_rmse_gsd_before"] = ev["tie_before"]["rmse_gsd"].tolist()
         out["tie_rmse_gsd_after"] = ev["tie_after"]["rmse_gsd"].tolist()
+    if ev.get("rematched"):
+        rm = ev["rematched"]
+        out["rematched"] = {
+            "steps_before": {f"{a}-{b}": v for (a, b), v in rm["steps_before"].items()},
+            "steps_after": {f"{a}-{b}": v for (a, b), v in rm["steps_after"].items()},
+            "mean_step_before": rm["mean_step_before"],
+            "mean_step_after": rm["mean_step_after"],
+            "step_reduction": rm["step_reduction"],
+        }
     return out
 
 
 def evaluate(
     block: BlockArg = None,
     preset: PresetOpt = None,
-    spacing: SpacingOpt = 100.0,
+    spacing: FitSpacingOpt = None,
     sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
@@ -306,6 +412,8 @@ def evaluate(
     sigma_amplitude: SigmaAOpt = "residuals",
     post_spacing: PostOpt = None,
     check_points: CheckOpt = None,
+    grids_file: GridsOpt = None,
+    rematch: RematchOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -314,7 +422,7 @@ def evaluate(
     _, _, _, ev, _ = _evaluate(
         block,
         preset,
-        spacing,
+        DEFAULT_SPACING if spacing is None else spacing,
         sigma_constraint,
         seed,
         strips,
@@ -326,6 +434,9 @@ def evaluate(
         sigma_amplitude=sigma_amplitude,
         post_spacing=post_spacing,
         check_points=check_points,
+        grids_file=grids_file,
+        spacing_given=spacing is not None,
+        rematch=rematch,
     )
     if as_json:
         typer.echo(json_text(_ev_json(ev)))
@@ -355,6 +466,14 @@ def evaluate(
         f"{ev['mean_step_after']:.3f}",
         f"{100 * ev['step_reduction']:.1f} %",
     )
+    if ev.get("rematched"):
+        rm = ev["rematched"]
+        t.add_row(
+            "mean step, re-matched",
+            f"{rm['mean_step_before']:.3f}",
+            f"{rm['mean_step_after']:.3f}",
+            f"{100 * rm['step_reduction']:.1f} %",
+        )
     out.print(t)
     m = Table(title="step per model pair (GSD)")
     for c in ("first model", "before", "after"):
@@ -392,6 +511,7 @@ def sweep(
     strips: StripsOpt = 2,
     images: ImagesOpt = 6,
     images_old: ImagesOldOpt = None,
+    rematch: RematchOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
@@ -401,20 +521,23 @@ def sweep(
     from ..calibration import sweep_spacings
 
     images = images if images_old is None else images_old  # --images: the former name
-    g = split_numbers(spacings, None, "--spacings")
+    g = _spacings(spacings)
     sigma_constraint = _sigma_c(sigma_constraint)
-    fit, _ = _source(block, preset, seed, strips, images)
+    if rematch and preset is None:
+        raise InputError(
+            "--rematch needs --preset: re-matching draws new measurements of a simulated "
+            "block's points"
+        )
+    fit, sim = _source(block, preset, seed, strips, images)
+    rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None  # as grid evaluate
     try:
         with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
             sw = sweep_spacings(
-                fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0
-            )
+                fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0,
+                rematched=rem,
+            )  # fmt: skip
     except PhotogeomError as exc:
-        exc.args = (
-            _cli(str(exc)).replace(
-                "sweep_spacings: give at least two spacings", "--spacings: give at least two"
-            ),
-        )
+        exc.args = (_sweep_words(str(exc)),)
         raise
     if as_json:
         typer.echo(
@@ -427,6 +550,17 @@ def sweep(
                     "step_before": sw["step_before"].tolist(),
                     "chosen": np.asarray(sw["choice"]["spacing"]).tolist(),
                     "spacing": sw["spacing"],
+                    **(
+                        {
+                            "step_rematched": sw["step_rematched"].tolist(),
+                            "chosen_rematched": np.asarray(
+                                sw["choice_rematched"]["spacing"]
+                            ).tolist(),
+                            "spacing_rematched": sw["spacing_rematched"],
+                        }
+                        if rem is not None
+                        else {}
+                    ),
                 }
             )
         )
@@ -449,13 +583,23 @@ def sweep(
         f"{sw['spacing']:g} px ({int(np.sum(ch == sw['spacing']))} of {ch.size} models)",
         out,
     )
+    if rem is not None:
+        steps = ", ".join(
+            f"{s:g} px {np.mean(sw['step_rematched'][:, c]):.3f}"
+            for c, s in enumerate(sw["spacings"])
+        )
+        say(
+            f"re-matched observations: mean step {steps} GSD; chosen spacing "
+            f"{sw['spacing_rematched']:g} px",
+            out,
+        )
 
 
 def report(
     output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")],
     block: BlockArg = None,
     preset: PresetOpt = None,
-    spacing: SpacingOpt = 100.0,
+    spacing: FitSpacingOpt = None,
     spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
     sigma_constraint: SigmaCOpt = "scaled",
     overlap: OverlapOpt = 0.6,
@@ -468,18 +612,22 @@ def report(
     sigma_temporal: SigmaTOpt = None,
     sigma_amplitude: SigmaAOpt = "residuals",
     check_points: CheckOpt = None,
+    grids_file: GridsOpt = None,
+    rematch: RematchOpt = False,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
     from ..calibration import sweep_spacings
     from ..report.grid_study import grid_study_report
+    from .bundle import check_targets
 
     images = images if images_old is None else images_old  # --images: the former name
-    g = split_numbers(spacings, None, "--spacings")
-    fit, re, grids, ev, _ = _evaluate(
+    g = _spacings(spacings)
+    check_targets(files=[("--output", output)])  # before the evaluation and the sweep
+    fit, re, grids, ev, sim = _evaluate(
         block,
         preset,
-        spacing,
+        DEFAULT_SPACING if spacing is None else spacing,
         sigma_constraint,
         seed,
         strips,
@@ -490,10 +638,21 @@ def report(
         sigma_temporal=sigma_temporal,
         sigma_amplitude=sigma_amplitude,
         check_points=check_points,
+        grids_file=grids_file,
+        spacing_given=spacing is not None,
+        rematch=rematch,
     )
     sc = _sigma_c(sigma_constraint)
-    with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
-        sw = sweep_spacings(fit, g, overlap=overlap, sigma_constraint=sc, folds=0)
+    # the re-matched block of the evaluation (the same seed draws the same measurement)
+    rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None
+    try:
+        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+            sw = sweep_spacings(
+                fit, g, overlap=overlap, sigma_constraint=sc, folds=0, rematched=rem
+            )
+    except PhotogeomError as exc:
+        exc.args = (_sweep_words(str(exc)),)
+        raise
     res = {
         "preset": (preset or str(block)) + (" (grids in the adjustment)" if in_adjustment else ""),
         "evaluation": ev,
@@ -502,6 +661,8 @@ def report(
         "grids": grids,
         "sweep": sw,
     }
+    if ev.get("rematched"):
+        res["rematched"] = ev["rematched"]
     path = grid_study_report(res, output)
     say(f"wrote {path}")
 
