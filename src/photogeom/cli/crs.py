@@ -158,16 +158,39 @@ def convert(
     comments.append(f"crs: {dst}")
 
     geographic = not enu_in and _is_geographic(src)
+    import numpy as np
+
+    area = None if enu_out else _crs.projected_area_of_use(dst)
+    to_lonlat = None
+    if area is not None and not geographic:  # where the output points are, from the output
+        to_lonlat = _crs.points_converter(dst, _crs.parse_crs(dst).geodetic_crs)
+    outside = [0, None]  # count, first id
 
     def compute(block):
         if geographic:
             _check_geographic(block.ids, block.coords, blocks.columns, src, points)
-        return convert_points(block.coords), {}
+        out = convert_points(block.coords)
+        if area is not None:
+            lonlat = block.coords if to_lonlat is None else to_lonlat(out[:, :2])
+            mask = area.outside(lonlat[:, 0], lonlat[:, 1])
+            if mask.any():
+                outside[0] += int(mask.sum())
+                if outside[1] is None:
+                    outside[1] = block.ids[int(np.argmax(mask))]
+        return out, {}
 
     n = run_point_job(
         blocks, output, names, compute, comments=comments, description="crs convert",
         keep_roles=True,
     )  # fmt: skip
+    if outside[0]:
+        say(
+            f"warning: {outside[0]} of {n} point(s) (first: {outside[1]}) lie outside the area "
+            f"of use of {area.describe()}; the projection's distortion grows away from it, "
+            "and points far outside usually mean the wrong CRS (e.g. the wrong UTM zone): "
+            "check --to",
+            stderr=True,
+        )
     if output is not None:
         say(f"wrote {n} point(s) to {output}", stderr=True)
 
