@@ -124,3 +124,20 @@ def test_no_metadata_note_for_a_tiff_without_metadata(tmp_path):
     assert note is None
     with tifffile.TiffFile(tmp_path / "d.tif") as t:
         assert t.pages[0].tags[272].value == "ILCE-7RM2"
+
+
+def test_a_damaged_tiff_fails_by_name_without_libtiff_lines(tmp_path, capfd):
+    """A cut TIFF is a named failure of photogeom; OpenCV's own "TIFF_Error ..." log lines
+    (libtiff, printed on stderr by the C library) no longer appear beside it, and OpenCV's
+    log level is restored afterwards."""
+    good = tmp_path / "a.tif"
+    cv2.imwrite(str(good), _pattern(3))
+    bad = tmp_path / "b.tif"
+    bad.write_bytes(good.read_bytes()[:3000])
+    level = cv2.utils.logging.getLogLevel()
+    capfd.readouterr()
+    with pytest.raises(FileFormatError, match="not a readable image"):
+        correct_image_file(bad, tmp_path / "out.tif", _shift_grid())
+    err = capfd.readouterr().err
+    assert "TIFF_Error" not in err and "ERROR" not in err, err
+    assert cv2.utils.logging.getLogLevel() == level

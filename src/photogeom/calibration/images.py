@@ -87,6 +87,21 @@ class FolderResult:
 
 
 # --------------------------------------------------------------------------- one file
+def _decode_quietly(cv2, data: np.ndarray):
+    """``cv2.imdecode(data, IMREAD_UNCHANGED)`` with OpenCV's own log lines silenced while it
+    runs (a damaged TIFF prints libtiff's "TIFF_Error ..." lines on stderr beside the named
+    failure photogeom reports). The log level is process-wide: restored afterwards."""
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging is None:  # pragma: no cover - OpenCV builds without the logging module
+        return cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    level = logging.getLogLevel()
+    logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+    try:
+        return cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    finally:
+        logging.setLogLevel(level)
+
+
 def _read(path: Path):
     """Pixels (OpenCV order: BGR[A]) and the Pillow metadata of an image file."""
     import cv2
@@ -107,7 +122,7 @@ def _read(path: Path):
         )
     if stored is not raw:
         data = np.frombuffer(stored, dtype=np.uint8)
-    pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    pixels = _decode_quietly(cv2, data) if data.size else None
     if pixels is None:
         raise FileFormatError(f"{path}: not a readable image (corrupt or unknown format)")
     meta: dict = {}
