@@ -148,7 +148,7 @@ def test_cli_register_with_dashboard_url(cli, tmp_path):
     pg.io.write_cloud(b, x + 1.0)
     code, _out, err = cli("cloud", "register", a, b, "--scheduler", "http://127.0.0.1:8787")
     assert code == 2, err
-    assert err.startswith("error: scheduler 'http://127.0.0.1:8787' is a web address")
+    assert err.startswith("error: --scheduler 'http://127.0.0.1:8787' is a web address")
     assert "Traceback" not in err
 
 
@@ -161,3 +161,34 @@ def test_cli_register_with_silent_listener(cli, tmp_path, short_deadline, silent
     code, _out, err = cli("cloud", "register", a, b, "--scheduler", silent_listener)
     assert code == 2, err
     assert err.startswith(f"error: Dask scheduler at {silent_listener}: no answer")
+
+
+def test_folder_correction_on_an_unreachable_scheduler_leaves_no_folder(
+    tmp_path, short_deadline, silent_listener
+):
+    """The output folder (and the parents made for it) is removed again when the job
+    cannot start: nothing half-made is left (an empty folder was, before)."""
+    import sys
+    from pathlib import Path
+
+    import cv2
+
+    from photogeom.calibration import GridLayout, correct_folder
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from residual_grids import grid_with_nodes
+
+    layout = GridLayout(40, 30, 20)
+    grid = grid_with_nodes(layout, np.zeros((*layout.shape, 2)))
+    src = tmp_path / "in"
+    src.mkdir()
+    cv2.imwrite(str(src / "a.png"), np.zeros((30, 40), np.uint8))
+    out = tmp_path / "new" / "out"
+    with pytest.raises(PhotogeomError, match="Dask scheduler"):
+        correct_folder(src, out, {"a": grid}, dask=silent_listener)
+    assert not (tmp_path / "new").exists()
+    # a folder that existed before stays
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(PhotogeomError, match="Dask scheduler"):
+        correct_folder(src, tmp_path / "kept", {"a": grid}, dask=silent_listener)
+    assert (tmp_path / "kept").is_dir()

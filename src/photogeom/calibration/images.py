@@ -732,7 +732,23 @@ def correct_folder(
         raise InputError(f"workers must be at least 1, not {workers}")
     if src.resolve() == dst.resolve():
         raise InputError("the output folder must differ from the input folder (originals are kept)")
+    made = [d for d in (dst, *dst.parents) if not d.exists()]  # created here, innermost first
     _output_folder(dst)
+    try:
+        return _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border)
+    except BaseException:
+        # a job that could not start (an unreachable scheduler, an interruption): folders
+        # made for it and still empty are removed again, nothing is left half-made
+        for d in made:
+            try:
+                d.rmdir()
+            except OSError:
+                break
+        raise
+
+
+def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border):
+    """The body of :func:`correct_folder` once the output folder exists."""
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
