@@ -141,3 +141,13 @@ def test_a_damaged_tiff_fails_by_name_without_libtiff_lines(tmp_path, capfd):
     err = capfd.readouterr().err
     assert "TIFF_Error" not in err and "ERROR" not in err, err
     assert cv2.utils.logging.getLogLevel() == level
+
+
+def test_an_image_of_another_size_names_its_path_and_the_fix(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    cv2.imwrite(str(src / "a.png"), np.zeros((H + 2, W, 3), np.uint8))
+    res = correct_folder(src, tmp_path / "out", {"a": _shift_grid()})
+    msg = res.failures["a"]
+    assert str(src / "a.png") in msg and f"{W} x {H + 2} px" in msg
+    assert "resized or cropped" in msg

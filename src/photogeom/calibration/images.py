@@ -579,8 +579,9 @@ def correct_image_file(
     h, w = pixels.shape[:2]
     if (w, h) != grid.image_size:
         raise InputError(
-            f"{src.name}: the image is {w} x {h} px, its grid was fitted for "
-            f"{grid.image_size[0]} x {grid.image_size[1]} px"
+            f"{src}: the image is {w} x {h} px, its grid was fitted for "
+            f"{grid.image_size[0]} x {grid.image_size[1]} px: correct the original image of "
+            "that size (not a resized or cropped copy), or fit the grids for this size"
         )
     out = correct_image(  # type: ignore[arg-type]
         pixels, grid, interpolation=interpolation, threads=threads, border=border
