@@ -599,6 +599,10 @@ def relative_orientation(
                 adj = adjust(mask, adj.x)
         stat, crit, test = statistics(adj, mask)
         _check_conditioning(adj, what)
+        if method == "dependent":
+            # the start may allow bx and the adjustment still run to a base across x (by, bz
+            # in units of bx growing without bound): refused as for such a start
+            _start_parameters(method, np.eye(3), np.array([sx, adj.x[0], adj.x[1]]))
         g, _A, B = cop.evaluate(adj.x, L_all)
         parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
         # unit normal of the epipolar line in image 1, oriented so that parallax * normal is

@@ -136,6 +136,7 @@ def essential_start(
     K = np.eye(3)
     best = []
     n_candidates = 0
+    n_inliers = 0  # most RANSAC inliers of any method
     # RANSAC, and MAGSAC++ where OpenCV has it: near-planar scenes with a misfit above the
     # threshold can make RANSAC prefer a spurious solution (base along the viewing axis) that
     # puts many of its inliers behind the cameras; the decision below is by the number of
@@ -152,10 +153,23 @@ def essential_start(
         Es = E.reshape(-1, 3, 3)
         n_candidates += len(Es)
         mask0 = None if mask is None else mask.reshape(-1).astype(np.uint8)
+        n_inliers = max(n_inliers, len(p1) if mask0 is None else int(mask0.sum()))
         for Ek in Es:
             m = None if mask0 is None else mask0.copy()
             count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
             best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
+    # a plane (flat terrain, a facade) is fitted by two essential matrices equally well, the
+    # true one and its twin (base and plane normal exchanged), and RANSAC may return the twin
+    # alone: then about half its inliers fall behind the images. The decompositions of the
+    # plane's homography hold both; when the best candidate leaves more than a tenth of its
+    # inliers behind the images they compete like the candidates above (inliers of their
+    # essential matrix, points in front of both images)
+    behind = bool(best) and max(b[0] for b in best) < 0.9 * n_inliers
+    for Ek in _homography_essentials(p1, p2, threshold) if behind else ():
+        n_candidates += 1
+        m = _epipolar_inliers(Ek, p1, p2, threshold).astype(np.uint8)
+        count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
+        best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     if not best:
         raise DegenerateGeometryError(
             f"{what}: the five-point solver found no essential matrix (too few consistent "
@@ -186,3 +200,40 @@ def essential_start(
         candidates=n_candidates,
         alternatives=tuple(distinct[1:]),
     )
+
+
+def _epipolar_inliers(E: np.ndarray, p1: np.ndarray, p2: np.ndarray, threshold: float):
+    """Matches within ``threshold`` (normalised units) of ``E`` by the Sampson distance (the
+    error OpenCV's five-point RANSAC tests)."""
+    x1 = np.column_stack([p1, np.ones(len(p1))])
+    x2 = np.column_stack([p2, np.ones(len(p2))])
+    Ex1 = x1 @ E.T
+    Etx2 = x2 @ E
+    e = np.einsum("ij,ij->i", x2, Ex1)
+    den = Ex1[:, 0] ** 2 + Ex1[:, 1] ** 2 + Etx2[:, 0] ** 2 + Etx2[:, 1] ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return e**2 <= threshold**2 * den
+
+
+def _homography_essentials(p1: np.ndarray, p2: np.ndarray, threshold: float) -> list:
+    """Essential matrices ``[t]x R`` of the decompositions of the homography of the
+    dominant plane (RANSAC, ``threshold`` in normalised units); none when no homography is
+    found (fewer than four matches, no plane)."""
+    import cv2
+
+    if len(p1) < 4:
+        return []
+    H, _ = cv2.findHomography(p1, p2, cv2.RANSAC, threshold)
+    if H is None or H.shape != (3, 3) or not np.all(np.isfinite(H)):
+        return []
+    _, Rs, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
+    out = []
+    for R, t in zip(Rs, ts):
+        t = np.asarray(t, dtype=float).reshape(3)
+        norm = np.linalg.norm(t)
+        if not norm > 1e-12:  # a rotation only: no base, no essential matrix
+            continue
+        t = t / norm
+        tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+        out.append(tx @ np.asarray(R, dtype=float))
+    return out
