@@ -87,6 +87,16 @@ class Problem:
             iv = block.image_variant[gid]
             for c, nm in enumerate(CALIBRATION_NAMES):
                 gf[gi * NCAL + c] = nm in free and nm not in iv
+        # a camera group without images has no observation of its calibration: held at its
+        # values (named in the notes) instead of a singular reduced camera system
+        used = np.bincount(block.image_camera, minlength=ng) > 0
+        #: ids of the camera groups with free parameters but no images (not adjusted)
+        self.unused_groups = tuple(
+            gid
+            for gi, gid in enumerate(block.camera_ids.tolist())
+            if not used[gi] and gf[gi * NCAL : (gi + 1) * NCAL].any()
+        )
+        gf.reshape(ng, NCAL)[~used] = False
         self.local_free, self.global_free = lf, gf
         self.local_global = block.image_camera[:, None] * NCAL + np.arange(NCAL)[None, :]
         self.free_datum: tuple[int, int, int] | None = None

@@ -783,6 +783,11 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
                 f"{state.cal[gi, 0]:.6g} px): the block's geometry cannot separate it from "
                 "the flying height (add GNSS positions, oblique images or height differences)"
             )
+    if problem.unused_groups:
+        notes.append(
+            f"camera group(s) {', '.join(map(str, problem.unused_groups))} have no images: "
+            "their calibration is not adjusted (it stays at its given values)"
+        )
     if high:
         notes.append(
             f"{len(high)} calibration correlation(s) above {opts.correlation_threshold}: those "

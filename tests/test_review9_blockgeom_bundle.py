@@ -1,0 +1,37 @@
+"""Review 9 (image blocks in hard conditions): bundle adjustment of awkward blocks."""
+
+import math
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+
+
+@pytest.fixture(scope="module")
+def small():
+    return pg.simulate.uav_block("FC300S", seed=1, strips=2, images_per_strip=4).block
+
+
+def test_camera_group_without_images_is_held_and_named(small):
+    """A camera group that no image uses (a spare camera listed in cameras.csv) has no
+    observation of its calibration. Before: DegenerateGeometryError '8 unknown(s) have no
+    observation (first index 71)' blaming the geometry; now the group is held at its values,
+    named in the notes, and the block adjusts as without it."""
+    b = small
+    g0 = b.camera_ids[0]
+    spare = b.replace(
+        camera_ids=np.array([*b.camera_ids.tolist(), "spare"], dtype=object),
+        calibrations=(*b.calibrations, b.calibrations[0]),
+        free={**b.free, "spare": b.free[g0]},
+        image_variant={**b.image_variant, "spare": ()},
+    )
+    fit = pg.bundle_adjust(spare)
+    ref = pg.bundle_adjust(b)
+    assert fit.converged
+    assert fit.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
+    assert np.allclose(fit.block.exterior, ref.block.exterior, atol=1e-9)
+    assert all(math.isnan(v) for v in fit.calibration_std["spare"].values())
+    assert fit.block.calibrations[1] == b.calibrations[0]
+    assert any("spare" in n and "no images" in n for n in fit.notes)
+
