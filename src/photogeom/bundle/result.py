@@ -429,6 +429,11 @@ class BundleFit:
         )
 
 
+
+#: Largest standard deviation of the focal length (px) not flagged as poorly determined: an
+#: error of the focal length of df px moves the heights by about df GSD.
+F_STD_MAX = 10.0
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
@@ -776,12 +781,18 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             for c in range(a + 1, len(names)):
                 if abs(R[a, c]) > opts.correlation_threshold:
                     high.append((gid, names[a], names[c], float(R[a, c])))
-        # weak determinability: standard deviation larger than the value's plausible range
-        if free[0] and std[0] > 0.05 * state.cal[gi, 0]:
+        # weak determinability. An error df of f moves the depths by df / f: by df GSD
+        # (GSD = depth / f), the points' heights where GNSS holds the cameras, the cameras'
+        # where control holds the ground. A std above F_STD_MAX px (or 5 % of f) is a focal
+        # length the block does not determine
+        if free[0] and (std[0] > F_STD_MAX or std[0] > 0.05 * state.cal[gi, 0]):
             notes.append(
                 f"camera {gid}: the focal length is poorly determined (std {std[0]:.3g} px of "
-                f"{state.cal[gi, 0]:.6g} px): the block's geometry cannot separate it from "
-                "the flying height (add GNSS positions, oblique images or height differences)"
+                f"{state.cal[gi, 0]:.6g} px: heights uncertain by about {std[0]:.3g} GSD): "
+                "the block's geometry cannot separate it from the flying height; hold f (leave "
+                "it out of the free parameters, at a known calibration) or add what separates "
+                "it: oblique images, a second flying height, height differences in the "
+                "terrain, or both GNSS positions and control points"
             )
     if problem.unused_groups:
         notes.append(
