@@ -43,7 +43,13 @@ from ..adjust import Fit, gauss_helmert
 from ..adjust.snooping import tau_critical_value
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
-from ..errors import DegenerateGeometryError, InputError, PhotogeomError, TooFewPointsError
+from ..errors import (
+    ConvergenceError,
+    DegenerateGeometryError,
+    InputError,
+    PhotogeomError,
+    TooFewPointsError,
+)
 from ..rotation import opk_from_matrix, opk_matrix, opk_matrix_and_derivatives
 from ..validation import as_points
 from .relative_start import check_base, check_not_collinear, essential_start
@@ -62,6 +68,9 @@ PARAMETER_NAMES = {
 }
 #: ``|bx| / |b|`` below which the dependent parameterisation (bx fixed) is refused.
 MIN_BX_RATIO = 0.05
+#: A start base closer than this (degrees) to image 1's viewing axis whose adjustment fails
+#: is refused as forward motion (the elements are singular on the axis).
+FORWARD_MOTION_DEG = 5.0
 #: Relative (to the principal distance) image noise below which data count as noise-free
 #: in the tau-test.
 NUMERICAL_FLOOR = 1e-10
@@ -532,7 +541,18 @@ def relative_orientation(
                     what=what,
                     dense_limit=0,
                 )
-            except DegenerateGeometryError as exc:
+            except (DegenerateGeometryError, ConvergenceError) as exc:
+                off_axis = math.degrees(math.acos(min(1.0, abs(base[2]) / np.linalg.norm(base))))
+                if off_axis < FORWARD_MOTION_DEG:
+                    raise DegenerateGeometryError(
+                        f"{what}: the base runs {off_axis:.2g} degrees from the viewing axis of "
+                        "image 1 (forward or backward motion), where the elements of both methods "
+                        "are singular (kappa1 of the independent ones, bx of the dependent ones) "
+                        f"and the adjustment fails ({exc}); orient a pair whose base runs across "
+                        "the viewing direction"
+                    ) from exc
+                if isinstance(exc, ConvergenceError):
+                    raise
                 raise DegenerateGeometryError(
                     f"{what}: the points do not determine the orientation ({exc}); they lie on a "
                     "critical surface (e.g. a cylinder through both projection centres, or a "
@@ -640,7 +660,7 @@ def relative_orientation(
             for R_k, b_k, inl_k in ((ess.rotation, ess.base, ess.inliers), *ess.alternatives):
                 try:
                     results.append(solve(R_k, b_k, inl_k if robust else np.ones(n, bool)))
-                except DegenerateGeometryError as exc:
+                except (DegenerateGeometryError, ConvergenceError) as exc:
                     first_error = first_error or exc
             if not results:
                 continue
