@@ -53,3 +53,16 @@ def test_flat_nadir_block_with_gnss_only_says_the_focal_length_is_undetermined()
     assert "GSD" in note and "hold f" in note and "oblique" in note
     ok = pg.bundle_adjust(pg.simulate.uav_block("FC300S", seed=2).block, snooping=False)
     assert not any("focal length" in n for n in ok.notes)
+
+
+def test_correlation_note_names_the_pairs_and_the_fix():
+    """The note on high calibration correlations gave only their count ('6 calibration
+    correlation(s) above 0.9: those parameters are not separated well by this block'); it
+    now names the worst pairs with their correlation and says what to do."""
+    sim = pg.simulate.uav_block("FC300S", seed=3, terrain="flat", gcps="none")
+    res = pg.bundle_adjust(sim.block, snooping=False)
+    assert res.high_correlations
+    (note,) = [n for n in res.notes if "calibration correlation(s) above" in n]
+    g, n1, n2, rho = max(res.high_correlations, key=lambda h: abs(h[3]))
+    assert f"{n1} / {n2} {rho:+.3f} (camera {g})" in note
+    assert "hold one of each pair" in note and "oblique images" in note

@@ -800,9 +800,14 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             "their calibration is not adjusted (it stays at its given values)"
         )
     if high:
+        worst = sorted(high, key=lambda h: -abs(h[3]))[:4]
+        pairs = ", ".join(f"{n1} / {n2} {rho:+.3f} (camera {g})" for g, n1, n2, rho in worst)
+        more = f" and {len(high) - len(worst)} more" if len(high) > len(worst) else ""
         notes.append(
-            f"{len(high)} calibration correlation(s) above {opts.correlation_threshold}: those "
-            "parameters are not separated well by this block"
+            f"{len(high)} calibration correlation(s) above {opts.correlation_threshold}: "
+            f"{pairs}{more}; those parameters are not separated well by this block: hold one "
+            "of each pair (leave it out of the free parameters) or add images that separate "
+            "them (oblique images, a second flying height, points out to the image corners)"
         )
     # points: adjusted and check points
     adjusted = problem.to_block(state)
