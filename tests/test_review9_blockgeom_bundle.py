@@ -66,3 +66,20 @@ def test_correlation_note_names_the_pairs_and_the_fix():
     g, n1, n2, rho = max(res.high_correlations, key=lambda h: abs(h[3]))
     assert f"{n1} / {n2} {rho:+.3f} (camera {g})" in note
     assert "hold one of each pair" in note and "oblique images" in note
+
+
+def test_disconnected_free_network_names_the_parts_by_image(small):
+    """Two strips that share no tie point, adjusted as a free network. Before: 'the block
+    falls into 2 parts that share no points' without saying which images; now each part is
+    listed by its image ids (as the weighted datum's message does)."""
+    b = small.without_datum_observations()
+    second = np.isin(b.image_ids, b.image_ids[4:])
+    in_second = second[b.obs_image]
+    seen_first = np.bincount(b.obs_point[~in_second], minlength=b.n_points) > 0
+    cut = b.select_observations(~(in_second & seen_first[b.obs_point]))
+    cut = cut.drop_weak_points(surveyed=True)
+    ids1 = ", ".join(map(str, b.image_ids[:4].tolist()))
+    ids2 = ", ".join(map(str, b.image_ids[4:].tolist()))
+    with pytest.raises(pg.DegenerateGeometryError, match="2 parts") as info:
+        pg.bundle_adjust(cut, datum="free")
+    assert f"images {ids1}" in str(info.value) and f"images {ids2}" in str(info.value)

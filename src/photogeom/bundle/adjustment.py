@@ -218,12 +218,21 @@ class Problem:
             held.append(f"GNSS positions of {int(self.has_gnss.sum())} image(s)")
         if np.any(self.has_imu):
             held.append(f"IMU attitudes of {int(self.has_imu.sum())} image(s)")
-        parts = np.unique(self._image_components()[: self.m]).size
+        label = self._image_components()[: self.m]
+        parts = np.unique(label).size
         if parts > 1 and not held:
+            # the parts by their images, largest first (at most three parts, five ids each)
+            ids, counts = np.unique(label, return_counts=True)
+            listed = []
+            for k in ids[np.argsort(-counts, kind="stable")][:3]:
+                imgs = self.block.image_ids[label == k]
+                more = f" and {imgs.size - 5} more" if imgs.size > 5 else ""
+                listed.append(f"images {', '.join(map(str, imgs[:5].tolist()))}{more}")
+            rest = f"; {parts - 3} more part(s)" if parts > 3 else ""
             raise DegenerateGeometryError(
                 f"a free network must be connected, but the block falls into {parts} parts "
-                "that share no points: link them by common tie points or adjust each part as "
-                "a block of its own"
+                f"that share no points ({'; '.join(listed)}{rest}): link them by common tie "
+                "points or adjust each part as a block of its own"
             )
         if held:
             raise InputError(
