@@ -83,3 +83,16 @@ def test_disconnected_free_network_names_the_parts_by_image(small):
     with pytest.raises(pg.DegenerateGeometryError, match="2 parts") as info:
         pg.bundle_adjust(cut, datum="free")
     assert f"images {ids1}" in str(info.value) and f"images {ids2}" in str(info.value)
+
+
+def test_image_with_too_few_observations_is_named_with_the_fix(small):
+    """An image with two observations: the error named it but said nothing about what to
+    do; it now says to measure more points in it or to delete it."""
+    b = small
+    rows = np.flatnonzero(b.obs_image == 2)
+    keep = np.ones(b.n_observations, dtype=bool)
+    keep[rows[2:]] = False
+    weak = b.select_observations(keep).drop_weak_points()
+    with pytest.raises(pg.InputError, match="cannot be oriented: 2 ") as info:
+        pg.bundle_adjust(weak)
+    assert "measure more" in str(info.value) and "delete the images" in str(info.value)
