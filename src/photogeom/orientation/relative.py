@@ -52,7 +52,7 @@ from ..errors import (
 )
 from ..rotation import opk_from_matrix, opk_matrix, opk_matrix_and_derivatives
 from ..validation import as_points
-from .relative_start import check_base, check_not_collinear, essential_start
+from .relative_start import PointsBehindError, check_base, check_not_collinear, essential_start
 
 __all__ = [
     "METHODS",
@@ -652,15 +652,30 @@ def relative_orientation(
         # flagged: RANSAC chose a wrong solution because the threshold was below the real
         # misfit, e.g. of a start calibration) is retried with a 3 and 9 times larger threshold
         ladder = (thr_n,) if user_threshold else (thr_n, 3 * thr_n, 9 * thr_n)
+        # when every start of the five-point solver puts points behind the images, the
+        # decompositions of the homography of a plane: RANSAC may return only the twin of a
+        # plane's essential matrix (flat terrain, a facade), which does that
+        attempts = [(t, False) for t in ladder] + [(t, True) for t in ladder]
         first_error = None
-        for t in ladder:
-            ess = essential_start(xn1, xn2, t, seed=seed, what=what)
+        behind = False
+        no_essential = False  # the five-point solver gave nothing usable: no larger threshold
+        for t, planar in attempts:
+            if (planar and not behind) or (not planar and no_essential):
+                continue
+            try:
+                ess = essential_start(xn1, xn2, t, seed=seed, what=what, homography=planar)
+            except DegenerateGeometryError as exc:
+                behind |= isinstance(exc, PointsBehindError)
+                no_essential |= not planar
+                first_error = first_error or exc
+                continue
             check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
             results = []
             for R_k, b_k, inl_k in ((ess.rotation, ess.base, ess.inliers), *ess.alternatives):
                 try:
                     results.append(solve(R_k, b_k, inl_k if robust else np.ones(n, bool)))
                 except (DegenerateGeometryError, ConvergenceError) as exc:
+                    behind |= isinstance(exc, PointsBehindError)
                     first_error = first_error or exc
             if not results:
                 continue
@@ -670,10 +685,20 @@ def relative_orientation(
                     "exactly, each with every point in front of both images; add points or "
                     "pass start values (initial=)"
                 )
-            # several solutions: the one keeping the most points, then the smaller misfit
-            result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
+            # several solutions: the one keeping the most points, then the smaller misfit.
+            # The decompositions of a plane's homography give its twin too, which can keep a
+            # few wrong matches more (its own larger sigma0 accepts them, tau-test): among
+            # those keeping at least 90 % of the most points, the smaller sigma0 wins
+            if planar:
+                most = max(int(r[1].sum()) for r in results)
+                results = [r for r in results if int(r[1].sum()) >= 0.9 * most]
+                result = min(results, key=lambda r: (r[0].vtpv / max(r[0].redundancy, 1)))
+            else:
+                result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
             start_info.update(
-                source="essential matrix (five-point RANSAC)",
+                source="homography of a plane (decomposition)"
+                if planar
+                else "essential matrix (five-point RANSAC)",
                 candidates=ess.candidates,
                 threshold=t * fmean,
             )
@@ -768,7 +793,7 @@ def _check_in_front(pair: ImagePair, q1, q2, what: str) -> None:
             max_iter=5,
         )
     except PhotogeomError as exc:
-        raise DegenerateGeometryError(
+        raise PointsBehindError(
             f"{what}: the adjusted orientation does not put every point in front of both "
             f"images ({exc}); start from better values (initial=) or check the matches"
         ) from exc

@@ -39,6 +39,11 @@ SAME = 0.05
 COLLINEAR_RATIO = 1e-3
 
 
+class PointsBehindError(DegenerateGeometryError):
+    """A start or adjusted relative orientation that puts matches behind the images (for a
+    plane, the signature of the twin of its essential matrix)."""
+
+
 @dataclass(frozen=True)
 class EssentialStart:
     """Relative orientation from the essential matrix.
@@ -110,6 +115,7 @@ def essential_start(
     max_iter: int = 2000,
     seed: int | None = 0,
     what: str = "relative orientation",
+    homography: bool = False,
 ) -> EssentialStart:
     """Start values from the essential matrix of normalised coordinates (n >= 5).
 
@@ -121,6 +127,13 @@ def essential_start(
     confidence, max_iter : RANSAC controls.
     seed : int or None
         Seed of OpenCV's random generator (``cv2.setRNGSeed``) for reproducible runs.
+    homography : bool
+        Candidates from the decompositions of the homography of the dominant plane
+        (``cv2.findHomography``, ``cv2.decomposeHomographyMat``) instead of the five-point
+        solver: a plane (flat terrain, a facade) is fitted equally well by the true essential
+        matrix and its twin (base and plane normal exchanged), RANSAC may return the twin
+        alone, and the decompositions hold both. Each is counted by the matches within
+        ``threshold`` of its essential matrix (Sampson distance) in front of both images.
 
     Raises
     ------
@@ -136,12 +149,18 @@ def essential_start(
     K = np.eye(3)
     best = []
     n_candidates = 0
-    n_inliers = 0  # most RANSAC inliers of any method
     # RANSAC, and MAGSAC++ where OpenCV has it: near-planar scenes with a misfit above the
     # threshold can make RANSAC prefer a spurious solution (base along the viewing axis) that
     # puts many of its inliers behind the cameras; the decision below is by the number of
     # points in front of both images
     methods = [cv2.RANSAC] + ([cv2.USAC_MAGSAC] if hasattr(cv2, "USAC_MAGSAC") else [])
+    if homography:
+        methods = []
+        for Ek in _homography_essentials(p1, p2, threshold):
+            n_candidates += 1
+            m = _epipolar_inliers(Ek, p1, p2, threshold).astype(np.uint8)
+            count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
+            best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     for method in methods:
         if seed is not None:
             cv2.setRNGSeed(int(seed))
@@ -153,31 +172,19 @@ def essential_start(
         Es = E.reshape(-1, 3, 3)
         n_candidates += len(Es)
         mask0 = None if mask is None else mask.reshape(-1).astype(np.uint8)
-        n_inliers = max(n_inliers, len(p1) if mask0 is None else int(mask0.sum()))
         for Ek in Es:
             m = None if mask0 is None else mask0.copy()
             count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
             best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
-    # a plane (flat terrain, a facade) is fitted by two essential matrices equally well, the
-    # true one and its twin (base and plane normal exchanged), and RANSAC may return the twin
-    # alone: then about half its inliers fall behind the images. The decompositions of the
-    # plane's homography hold both; when the best candidate leaves more than a tenth of its
-    # inliers behind the images they compete like the candidates above (inliers of their
-    # essential matrix, points in front of both images)
-    behind = bool(best) and max(b[0] for b in best) < 0.9 * n_inliers
-    for Ek in _homography_essentials(p1, p2, threshold) if behind else ():
-        n_candidates += 1
-        m = _epipolar_inliers(Ek, p1, p2, threshold).astype(np.uint8)
-        count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
-        best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     if not best:
+        solver = "the plane's homography gave" if homography else "the five-point solver found"
         raise DegenerateGeometryError(
-            f"{what}: the five-point solver found no essential matrix (too few consistent "
+            f"{what}: {solver} no essential matrix (too few consistent "
             "matches, or the points do not determine the orientation)"
         )
     top = max(b[0] for b in best)
     if top < 5:
-        raise DegenerateGeometryError(
+        raise PointsBehindError(
             f"{what}: no essential matrix has five or more points in front of both cameras; "
             "check the matches (and that the images overlap)"
         )
