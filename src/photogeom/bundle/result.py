@@ -434,6 +434,10 @@ class BundleFit:
 #: error of the focal length of df px moves the heights by about df GSD.
 F_STD_MAX = 10.0
 
+#: sigma0 above this many times its a-priori value, at convergence, gets a note naming the
+#: causes (blunders, sigmas, a local minimum from poor start values).
+SIGMA0_FAR = 3.0
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
@@ -936,6 +940,17 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             )
     if not run.converged:
         notes.append(run.message)
+    elif sigma0 > SIGMA0_FAR * s0p:
+        # a converged run far above the a-priori sigmas: blunders, sigmas too small, or a
+        # local minimum (a start with the calibration free and the attitudes 5 degrees off
+        # stopped at sigma0 24 where the calibration held first reached 1.04)
+        notes.append(
+            f"sigma0 {sigma0:.3g} is more than {SIGMA0_FAR:g} times its a-priori "
+            f"{s0p:g}: blunders (see the w-test), a-priori sigmas too small, or start values "
+            "so far off that the adjustment stopped in a local minimum; for the last, adjust "
+            "with the calibration held first (no free parameters) and then free it from "
+            "that result"
+        )
     vc = None
     if vce is not None:
         vc = vce
