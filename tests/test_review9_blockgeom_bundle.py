@@ -120,3 +120,16 @@ def test_local_minimum_from_a_poor_start_is_named():
     again = pg.bundle_adjust(held.block, snooping=False, free=b.free[b.camera_ids[0]])
     assert again.sigma0 < 1.2
     assert not any("local minimum" in n for n in again.notes)
+
+
+def test_cli_point_behind_camera_names_the_angle_unit_of_the_files(small, cli, tmp_path):
+    """A tie point above the cameras at the start of a CSV block (angles in images.csv in
+    degrees, omega_deg ...): the command line said 'check the initial exterior orientations
+    (angles in radians, ...)', the unit of the library, not of the files it read."""
+    xyz = small.xyz.copy()
+    j = int(np.flatnonzero(small.role == "tie")[0])
+    xyz[j, 2] += 150.0
+    pg.bundle.write_csv_block(small.replace(xyz=xyz), tmp_path / "b")
+    code, _, err = cli("bundle", "adjust", tmp_path / "b")
+    assert code == 2 and "behind the camera" in err
+    assert "radians" not in err and "omega_deg" in err
