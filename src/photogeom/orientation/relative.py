@@ -52,7 +52,13 @@ from ..errors import (
 )
 from ..rotation import opk_from_matrix, opk_matrix, opk_matrix_and_derivatives
 from ..validation import as_points
-from .relative_start import PointsBehindError, check_base, check_not_collinear, essential_start
+from .relative_start import (
+    PointsBehindError,
+    check_base,
+    check_not_collinear,
+    essential_start,
+    plane_inliers,
+)
 
 __all__ = [
     "METHODS",
@@ -685,16 +691,36 @@ def relative_orientation(
                     "exactly, each with every point in front of both images; add points or "
                     "pass start values (initial=)"
                 )
-            # several solutions: the one keeping the most points, then the smaller misfit.
-            # The decompositions of a plane's homography give its twin too, which can keep a
-            # few wrong matches more (its own larger sigma0 accepts them, tau-test): among
-            # those keeping at least 90 % of the most points, the smaller sigma0 wins
+            # several solutions: the one keeping the most points, then the smaller misfit;
+            # between the decompositions of a plane's homography (and in a nearly planar
+            # scene, between them and the five-point solver's), see _least_misfit
             if planar:
-                most = max(int(r[1].sum()) for r in results)
-                results = [r for r in results if int(r[1].sum()) >= 0.9 * most]
-                result = min(results, key=lambda r: (r[0].vtpv / max(r[0].redundancy, 1)))
+                result = _least_misfit(results)
             else:
                 result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
+                if n > 5 and plane_inliers(xn1, xn2, t) >= 0.9 * int(result[1].sum()):
+                    # a (nearly) planar scene: the five-point solver's start may be a
+                    # distorted twin that a sigma0 of its own lets keep a few wrong matches
+                    # (tau-test); the plane's decompositions compete with it
+                    rivals = []
+                    try:
+                        pess = essential_start(xn1, xn2, t, seed=seed, what=what, homography=True)
+                        for R_k, b_k, inl_k in (
+                            (pess.rotation, pess.base, pess.inliers),
+                            *pess.alternatives,
+                        ):
+                            try:
+                                rivals.append(
+                                    solve(R_k, b_k, inl_k if robust else np.ones(n, bool))
+                                )
+                            except (DegenerateGeometryError, ConvergenceError):
+                                pass
+                    except DegenerateGeometryError:
+                        pass
+                    if rivals:
+                        chosen = _least_misfit([result, *rivals])
+                        planar = chosen is not result
+                        result = chosen
             start_info.update(
                 source="homography of a plane (decomposition)"
                 if planar
@@ -758,6 +784,15 @@ def relative_orientation(
         },
     )
     return replace(fit, normalized_residuals=wobs, redundancy_numbers=rnum)
+
+
+def _least_misfit(results: list) -> tuple:
+    """Among adjusted candidates keeping at least 90 % of the most points, the one with the
+    smallest sigma0 (the twin of a plane keeps a few wrong matches more under the tau-test,
+    its own larger sigma0 accepting them)."""
+    most = max(int(r[1].sum()) for r in results)
+    pool = [r for r in results if int(r[1].sum()) >= 0.9 * most]
+    return min(pool, key=lambda r: r[0].vtpv / max(r[0].redundancy, 1))
 
 
 def _norm_critical(alpha: float) -> float:

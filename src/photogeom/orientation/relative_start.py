@@ -222,6 +222,24 @@ def _epipolar_inliers(E: np.ndarray, p1: np.ndarray, p2: np.ndarray, threshold: 
         return e**2 <= threshold**2 * den
 
 
+def plane_inliers(xn1: np.ndarray, xn2: np.ndarray, threshold: float) -> int:
+    """Number of matches that one homography (RANSAC, ``threshold`` in normalised units)
+    maps from image 1 to image 2: all of the right ones in a planar scene."""
+    import cv2
+
+    if len(xn1) < 4:
+        return 0
+    p1 = np.ascontiguousarray(xn1, dtype=np.float64)
+    p2 = np.ascontiguousarray(xn2, dtype=np.float64)
+    # a plane worth the question holds most matches: 100 samples of four find it (an
+    # inlier ratio of 0.6 misses it with probability 1e-6), where RANSAC's default of 2000
+    # on a scene without one took 28 ms, as long as the whole relative orientation
+    H, mask = cv2.findHomography(p1, p2, cv2.RANSAC, threshold, maxIters=100)
+    if H is None or mask is None:
+        return 0
+    return int(mask.sum())
+
+
 def _homography_essentials(p1: np.ndarray, p2: np.ndarray, threshold: float) -> list:
     """Essential matrices ``[t]x R`` of the decompositions of the homography of the
     dominant plane (RANSAC, ``threshold`` in normalised units); none when no homography is
