@@ -87,6 +87,16 @@ class Problem:
             iv = block.image_variant[gid]
             for c, nm in enumerate(CALIBRATION_NAMES):
                 gf[gi * NCAL + c] = nm in free and nm not in iv
+        # a camera group without images has no observation of its calibration: held at its
+        # values (named in the notes) instead of a singular reduced camera system
+        used = np.bincount(block.image_camera, minlength=ng) > 0
+        #: ids of the camera groups with free parameters but no images (not adjusted)
+        self.unused_groups = tuple(
+            gid
+            for gi, gid in enumerate(block.camera_ids.tolist())
+            if not used[gi] and gf[gi * NCAL : (gi + 1) * NCAL].any()
+        )
+        gf.reshape(ng, NCAL)[~used] = False
         self.local_free, self.global_free = lf, gf
         self.local_global = block.image_camera[:, None] * NCAL + np.arange(NCAL)[None, :]
         self.free_datum: tuple[int, int, int] | None = None
@@ -208,12 +218,21 @@ class Problem:
             held.append(f"GNSS positions of {int(self.has_gnss.sum())} image(s)")
         if np.any(self.has_imu):
             held.append(f"IMU attitudes of {int(self.has_imu.sum())} image(s)")
-        parts = np.unique(self._image_components()[: self.m]).size
+        label = self._image_components()[: self.m]
+        parts = np.unique(label).size
         if parts > 1 and not held:
+            # the parts by their images, largest first (at most three parts, five ids each)
+            ids, counts = np.unique(label, return_counts=True)
+            listed = []
+            for k in ids[np.argsort(-counts, kind="stable")][:3]:
+                imgs = self.block.image_ids[label == k]
+                more = f" and {imgs.size - 5} more" if imgs.size > 5 else ""
+                listed.append(f"images {', '.join(map(str, imgs[:5].tolist()))}{more}")
+            rest = f"; {parts - 3} more part(s)" if parts > 3 else ""
             raise DegenerateGeometryError(
                 f"a free network must be connected, but the block falls into {parts} parts "
-                "that share no points: link them by common tie points or adjust each part as "
-                "a block of its own"
+                f"that share no points ({'; '.join(listed)}{rest}): link them by common tie "
+                "points or adjust each part as a block of its own"
             )
         if held:
             raise InputError(

@@ -575,7 +575,8 @@ class Block:
             ids = self.image_ids[few]
             raise InputError(
                 f"{ids.size} image(s) have fewer than {min_image_observations} observations "
-                f"and cannot be oriented: {_some(ids)}"
+                f"and cannot be oriented: {_some(ids)} (measure more tie or control points in "
+                "them, or delete the images and their observations from the block's files)"
             )
 
     def drop_weak_points(self, *, surveyed: bool = False) -> Block:

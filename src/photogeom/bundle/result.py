@@ -429,6 +429,15 @@ class BundleFit:
         )
 
 
+
+#: Largest standard deviation of the focal length (px) not flagged as poorly determined: an
+#: error of the focal length of df px moves the heights by about df GSD.
+F_STD_MAX = 10.0
+
+#: sigma0 above this many times its a-priori value, at convergence, gets a note naming the
+#: causes (blunders, sigmas, a local minimum from poor start values).
+SIGMA0_FAR = 3.0
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
@@ -776,17 +785,33 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             for c in range(a + 1, len(names)):
                 if abs(R[a, c]) > opts.correlation_threshold:
                     high.append((gid, names[a], names[c], float(R[a, c])))
-        # weak determinability: standard deviation larger than the value's plausible range
-        if free[0] and std[0] > 0.05 * state.cal[gi, 0]:
+        # weak determinability. An error df of f moves the depths by df / f: by df GSD
+        # (GSD = depth / f), the points' heights where GNSS holds the cameras, the cameras'
+        # where control holds the ground. A std above F_STD_MAX px (or 5 % of f) is a focal
+        # length the block does not determine
+        if free[0] and (std[0] > F_STD_MAX or std[0] > 0.05 * state.cal[gi, 0]):
             notes.append(
                 f"camera {gid}: the focal length is poorly determined (std {std[0]:.3g} px of "
-                f"{state.cal[gi, 0]:.6g} px): the block's geometry cannot separate it from "
-                "the flying height (add GNSS positions, oblique images or height differences)"
+                f"{state.cal[gi, 0]:.6g} px: heights uncertain by about {std[0]:.3g} GSD): "
+                "the block's geometry cannot separate it from the flying height; hold f (leave "
+                "it out of the free parameters, at a known calibration) or add what separates "
+                "it: oblique images, a second flying height, height differences in the "
+                "terrain, or both GNSS positions and control points"
             )
-    if high:
+    if problem.unused_groups:
         notes.append(
-            f"{len(high)} calibration correlation(s) above {opts.correlation_threshold}: those "
-            "parameters are not separated well by this block"
+            f"camera group(s) {', '.join(map(str, problem.unused_groups))} have no images: "
+            "their calibration is not adjusted (it stays at its given values)"
+        )
+    if high:
+        worst = sorted(high, key=lambda h: -abs(h[3]))[:4]
+        pairs = ", ".join(f"{n1} / {n2} {rho:+.3f} (camera {g})" for g, n1, n2, rho in worst)
+        more = f" and {len(high) - len(worst)} more" if len(high) > len(worst) else ""
+        notes.append(
+            f"{len(high)} calibration correlation(s) above {opts.correlation_threshold}: "
+            f"{pairs}{more}; those parameters are not separated well by this block: hold one "
+            "of each pair (leave it out of the free parameters) or add images that separate "
+            "them (oblique images, a second flying height, points out to the image corners)"
         )
     # points: adjusted and check points
     adjusted = problem.to_block(state)
@@ -915,6 +940,17 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             )
     if not run.converged:
         notes.append(run.message)
+    elif sigma0 > SIGMA0_FAR * s0p:
+        # a converged run far above the a-priori sigmas: blunders, sigmas too small, or a
+        # local minimum (a start with the calibration free and the attitudes 5 degrees off
+        # stopped at sigma0 24 where the calibration held first reached 1.04)
+        notes.append(
+            f"sigma0 {sigma0:.3g} is more than {SIGMA0_FAR:g} times its a-priori "
+            f"{s0p:g}: blunders (see the w-test), a-priori sigmas too small, or start values "
+            "so far off that the adjustment stopped in a local minimum; for the last, adjust "
+            "with the calibration held first (no free parameters) and then free it from "
+            "that result"
+        )
     vc = None
     if vce is not None:
         vc = vce

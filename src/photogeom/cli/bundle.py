@@ -68,6 +68,11 @@ _BAL_SUFFIXES = (".txt", ".bal", ".bz2")
 #: Library words in error messages and the command-line options that say the same.
 _CLI_WORDS = (
     ("pass drop_extras=True", "use --drop-extras"),
+    (
+        "(angles in radians, M = M3(kappa) M2(phi) M1(omega))",
+        "(the attitudes in the unit their columns name, e.g. omega_deg of images.csv, with "
+        "M = M3(kappa) M2(phi) M1(omega); or in the convention of the BAL or COLMAP file)",
+    ),
     ("drop_extras=True", "--drop-extras"),
     (
         "(control points as check points, GNSS and IMU set to NaN: "

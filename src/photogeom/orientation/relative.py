@@ -43,10 +43,22 @@ from ..adjust import Fit, gauss_helmert
 from ..adjust.snooping import tau_critical_value
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
-from ..errors import DegenerateGeometryError, InputError, PhotogeomError, TooFewPointsError
+from ..errors import (
+    ConvergenceError,
+    DegenerateGeometryError,
+    InputError,
+    PhotogeomError,
+    TooFewPointsError,
+)
 from ..rotation import opk_from_matrix, opk_matrix, opk_matrix_and_derivatives
 from ..validation import as_points
-from .relative_start import check_base, check_not_collinear, essential_start
+from .relative_start import (
+    PointsBehindError,
+    check_base,
+    check_not_collinear,
+    essential_start,
+    plane_inliers,
+)
 
 __all__ = [
     "METHODS",
@@ -62,6 +74,9 @@ PARAMETER_NAMES = {
 }
 #: ``|bx| / |b|`` below which the dependent parameterisation (bx fixed) is refused.
 MIN_BX_RATIO = 0.05
+#: A start base closer than this (degrees) to image 1's viewing axis whose adjustment fails
+#: is refused as forward motion (the elements are singular on the axis).
+FORWARD_MOTION_DEG = 5.0
 #: Relative (to the principal distance) image noise below which data count as noise-free
 #: in the tau-test.
 NUMERICAL_FLOOR = 1e-10
@@ -563,7 +578,12 @@ def relative_orientation(
                     what=what,
                     dense_limit=0,
                 )
-            except DegenerateGeometryError as exc:
+            except (DegenerateGeometryError, ConvergenceError) as exc:
+                forward = _forward_motion_error(base, exc, what)
+                if forward is not None:
+                    raise forward from exc
+                if isinstance(exc, ConvergenceError):
+                    raise
                 raise DegenerateGeometryError(
                     f"{what}: the points do not determine the orientation ({exc}); they lie on a "
                     "critical surface (e.g. a cylinder through both projection centres, or a "
@@ -629,7 +649,17 @@ def relative_orientation(
                 removed.append(all_ids[j])
                 adj = adjust(mask, adj.x)
         stat, crit, test = statistics(adj, mask)
-        _check_conditioning(adj, what)
+        try:
+            _check_conditioning(adj, what)
+        except DegenerateGeometryError as exc:
+            forward = _forward_motion_error(base, exc, what)
+            if forward is not None:
+                raise forward from exc
+            raise
+        if method == "dependent":
+            # the start may allow bx and the adjustment still run to a base across x (by, bz
+            # in units of bx growing without bound): refused as for such a start
+            _start_parameters(method, np.eye(3), np.array([sx, adj.x[0], adj.x[1]]))
         g, _A, B = cop.evaluate(adj.x, L_all)
         parallax = -math.sqrt(2.0) * g / np.linalg.norm(B, axis=1)
         # unit normal of the epipolar line in image 1, oriented so that parallax * normal is
@@ -659,25 +689,40 @@ def relative_orientation(
         # flagged: RANSAC chose a wrong solution because the threshold was below the real
         # misfit, e.g. of a start calibration) is retried with a 3 and 9 times larger threshold
         ladder = (thr_n,) if user_threshold else (thr_n, 3 * thr_n, 9 * thr_n)
+        # when every start of the five-point solver puts points behind the images, the
+        # decompositions of the homography of a plane: RANSAC may return only the twin of a
+        # plane's essential matrix (flat terrain, a facade), which does that
+        attempts = [(t, False) for t in ladder] + [(t, True) for t in ladder]
         first_error = None
-        for t in ladder:
-            if n_distinct == 5 < n:
-                # repeated points add no geometry; the five-point solver lists all the
-                # solutions only when given exactly five points
-                ess = essential_start(xn1[first], xn2[first], t, seed=seed, what=what)
-                ess = replace(
-                    ess,
-                    inliers=ess.inliers[group],
-                    alternatives=tuple((R, b, i[group]) for R, b, i in ess.alternatives),
-                )
-            else:
-                ess = essential_start(xn1, xn2, t, seed=seed, what=what)
+        behind = False
+        no_essential = False  # the five-point solver gave nothing usable: no larger threshold
+        for t, planar in attempts:
+            if (planar and not behind) or (not planar and no_essential):
+                continue
+            try:
+                if n_distinct == 5 < n and not planar:
+                    # repeated points add no geometry; the five-point solver lists all the
+                    # solutions only when given exactly five points
+                    ess = essential_start(xn1[first], xn2[first], t, seed=seed, what=what)
+                    ess = replace(
+                        ess,
+                        inliers=ess.inliers[group],
+                        alternatives=tuple((R, b, i[group]) for R, b, i in ess.alternatives),
+                    )
+                else:
+                    ess = essential_start(xn1, xn2, t, seed=seed, what=what, homography=planar)
+            except DegenerateGeometryError as exc:
+                behind |= isinstance(exc, PointsBehindError)
+                no_essential |= not planar
+                first_error = first_error or exc
+                continue
             check_base(d1[ess.inliers], d2[ess.inliers], thr_n, what)
             results = []
             for R_k, b_k, inl_k in ((ess.rotation, ess.base, ess.inliers), *ess.alternatives):
                 try:
                     results.append(solve(R_k, b_k, inl_k if robust else np.ones(n, bool)))
-                except DegenerateGeometryError as exc:
+                except (DegenerateGeometryError, ConvergenceError) as exc:
+                    behind |= isinstance(exc, PointsBehindError)
                     first_error = first_error or exc
             if not results:
                 continue
@@ -688,10 +733,40 @@ def relative_orientation(
                     f"{repeated} exactly, each with every point in front of both images; add "
                     "points or pass start values (initial=)"
                 )
-            # several solutions: the one keeping the most points, then the smaller misfit
-            result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
+            # several solutions: the one keeping the most points, then the smaller misfit;
+            # between the decompositions of a plane's homography (and in a nearly planar
+            # scene, between them and the five-point solver's), see _least_misfit
+            if planar:
+                result = _least_misfit(results)
+            else:
+                result = min(results, key=lambda r: (-int(r[1].sum()), r[0].vtpv))
+                if n > 5 and plane_inliers(xn1, xn2, t) >= 0.9 * int(result[1].sum()):
+                    # a (nearly) planar scene: the five-point solver's start may be a
+                    # distorted twin that a sigma0 of its own lets keep a few wrong matches
+                    # (tau-test); the plane's decompositions compete with it
+                    rivals = []
+                    try:
+                        pess = essential_start(xn1, xn2, t, seed=seed, what=what, homography=True)
+                        for R_k, b_k, inl_k in (
+                            (pess.rotation, pess.base, pess.inliers),
+                            *pess.alternatives,
+                        ):
+                            try:
+                                rivals.append(
+                                    solve(R_k, b_k, inl_k if robust else np.ones(n, bool))
+                                )
+                            except (DegenerateGeometryError, ConvergenceError):
+                                pass
+                    except DegenerateGeometryError:
+                        pass
+                    if rivals:
+                        chosen = _least_misfit([result, *rivals])
+                        planar = chosen is not result
+                        result = chosen
             start_info.update(
-                source="essential matrix (five-point RANSAC)",
+                source="homography of a plane (decomposition)"
+                if planar
+                else "essential matrix (five-point RANSAC)",
                 candidates=ess.candidates,
                 threshold=t * fmean,
             )
@@ -753,10 +828,36 @@ def relative_orientation(
     return replace(fit, normalized_residuals=wobs, redundancy_numbers=rnum)
 
 
+def _least_misfit(results: list) -> tuple:
+    """Among adjusted candidates keeping at least 90 % of the most points, the one with the
+    smallest sigma0 (the twin of a plane keeps a few wrong matches more under the tau-test,
+    its own larger sigma0 accepting them)."""
+    most = max(int(r[1].sum()) for r in results)
+    pool = [r for r in results if int(r[1].sum()) >= 0.9 * most]
+    return min(pool, key=lambda r: r[0].vtpv / max(r[0].redundancy, 1))
+
+
 def _norm_critical(alpha: float) -> float:
     from scipy import stats
 
     return float(stats.norm.ppf(1 - alpha / 2))
+
+
+def _forward_motion_error(base, exc: Exception, what: str) -> DegenerateGeometryError | None:
+    """The named error of a start base within :data:`FORWARD_MOTION_DEG` of image 1's
+    viewing axis whose adjustment failed with ``exc`` (None for other bases): on that axis
+    the elements of both methods are singular, whichever way the failure shows (no
+    convergence, or a correlation matrix near singular after it)."""
+    b = np.asarray(base, dtype=float)
+    off_axis = math.degrees(math.acos(min(1.0, abs(float(b[2])) / float(np.linalg.norm(b)))))
+    if off_axis >= FORWARD_MOTION_DEG:
+        return None
+    return DegenerateGeometryError(
+        f"{what}: the base runs {off_axis:.2g} degrees from the viewing axis of image 1 "
+        "(forward or backward motion), where the elements of both methods are singular "
+        "(kappa1 of the independent ones, bx of the dependent ones) and the adjustment fails "
+        f"({exc}); orient a pair whose base runs across the viewing direction"
+    )
 
 
 def _check_conditioning(adj, what: str) -> None:
@@ -786,7 +887,7 @@ def _check_in_front(pair: ImagePair, q1, q2, what: str) -> None:
             max_iter=5,
         )
     except PhotogeomError as exc:
-        raise DegenerateGeometryError(
+        raise PointsBehindError(
             f"{what}: the adjusted orientation does not put every point in front of both "
             f"images ({exc}); start from better values (initial=) or check the matches"
         ) from exc

@@ -43,6 +43,11 @@ COLLINEAR_RATIO = 1e-3
 OPENCV_FAR = 50.0
 
 
+class PointsBehindError(DegenerateGeometryError):
+    """A start or adjusted relative orientation that puts matches behind the images (for a
+    plane, the signature of the twin of its essential matrix)."""
+
+
 @dataclass(frozen=True)
 class EssentialStart:
     """Relative orientation from the essential matrix.
@@ -114,6 +119,7 @@ def essential_start(
     max_iter: int = 2000,
     seed: int | None = 0,
     what: str = "relative orientation",
+    homography: bool = False,
 ) -> EssentialStart:
     """Start values from the essential matrix of normalised coordinates (n >= 5).
 
@@ -125,6 +131,13 @@ def essential_start(
     confidence, max_iter : RANSAC controls.
     seed : int or None
         Seed of OpenCV's random generator (``cv2.setRNGSeed``) for reproducible runs.
+    homography : bool
+        Candidates from the decompositions of the homography of the dominant plane
+        (``cv2.findHomography``, ``cv2.decomposeHomographyMat``) instead of the five-point
+        solver: a plane (flat terrain, a facade) is fitted equally well by the true essential
+        matrix and its twin (base and plane normal exchanged), RANSAC may return the twin
+        alone, and the decompositions hold both. Each is counted by the matches within
+        ``threshold`` of its essential matrix (Sampson distance) in front of both images.
 
     Raises
     ------
@@ -146,6 +159,13 @@ def essential_start(
     # puts many of its inliers behind the cameras; the decision below is by the number of
     # points in front of both images
     methods = [cv2.RANSAC] + ([cv2.USAC_MAGSAC] if hasattr(cv2, "USAC_MAGSAC") else [])
+    if homography:
+        methods = []
+        for Ek in _homography_essentials(p1, p2, threshold):
+            n_candidates += 1
+            m = _epipolar_inliers(Ek, p1, p2, threshold).astype(np.uint8)
+            count, R, t, m2 = cv2.recoverPose(Ek, p1, p2, K, mask=m)
+            best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     for method in methods:
         if seed is not None:
             cv2.setRNGSeed(int(seed))
@@ -165,13 +185,14 @@ def essential_start(
             count, R, t, m2, _ = cv2.recoverPose(Ek, p1, p2, K, distanceThresh=far, mask=m)
             best.append((int(count), R, t.reshape(3), m2.reshape(-1).astype(bool)))
     if not best:
+        solver = "the plane's homography gave" if homography else "the five-point solver found"
         raise DegenerateGeometryError(
-            f"{what}: the five-point solver found no essential matrix (too few consistent "
+            f"{what}: {solver} no essential matrix (too few consistent "
             "matches, or the points do not determine the orientation)"
         )
     top = max(b[0] for b in best)
     if top < 5:
-        raise DegenerateGeometryError(
+        raise PointsBehindError(
             f"{what}: no essential matrix has five or more points in front of both cameras; "
             "check the matches (and that the images overlap)"
         )
@@ -194,3 +215,58 @@ def essential_start(
         candidates=n_candidates,
         alternatives=tuple(distinct[1:]),
     )
+
+
+def _epipolar_inliers(E: np.ndarray, p1: np.ndarray, p2: np.ndarray, threshold: float):
+    """Matches within ``threshold`` (normalised units) of ``E`` by the Sampson distance (the
+    error OpenCV's five-point RANSAC tests)."""
+    x1 = np.column_stack([p1, np.ones(len(p1))])
+    x2 = np.column_stack([p2, np.ones(len(p2))])
+    Ex1 = x1 @ E.T
+    Etx2 = x2 @ E
+    e = np.einsum("ij,ij->i", x2, Ex1)
+    den = Ex1[:, 0] ** 2 + Ex1[:, 1] ** 2 + Etx2[:, 0] ** 2 + Etx2[:, 1] ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return e**2 <= threshold**2 * den
+
+
+def plane_inliers(xn1: np.ndarray, xn2: np.ndarray, threshold: float) -> int:
+    """Number of matches that one homography (RANSAC, ``threshold`` in normalised units)
+    maps from image 1 to image 2: all of the right ones in a planar scene."""
+    import cv2
+
+    if len(xn1) < 4:
+        return 0
+    p1 = np.ascontiguousarray(xn1, dtype=np.float64)
+    p2 = np.ascontiguousarray(xn2, dtype=np.float64)
+    # a plane worth the question holds most matches: 100 samples of four find it (an
+    # inlier ratio of 0.6 misses it with probability 1e-6), where RANSAC's default of 2000
+    # on a scene without one took 28 ms, as long as the whole relative orientation
+    H, mask = cv2.findHomography(p1, p2, cv2.RANSAC, threshold, maxIters=100)
+    if H is None or mask is None:
+        return 0
+    return int(mask.sum())
+
+
+def _homography_essentials(p1: np.ndarray, p2: np.ndarray, threshold: float) -> list:
+    """Essential matrices ``[t]x R`` of the decompositions of the homography of the
+    dominant plane (RANSAC, ``threshold`` in normalised units); none when no homography is
+    found (fewer than four matches, no plane)."""
+    import cv2
+
+    if len(p1) < 4:
+        return []
+    H, _ = cv2.findHomography(p1, p2, cv2.RANSAC, threshold)
+    if H is None or H.shape != (3, 3) or not np.all(np.isfinite(H)):
+        return []
+    _, Rs, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
+    out = []
+    for R, t in zip(Rs, ts):
+        t = np.asarray(t, dtype=float).reshape(3)
+        norm = np.linalg.norm(t)
+        if not norm > 1e-12:  # a rotation only: no base, no essential matrix
+            continue
+        t = t / norm
+        tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+        out.append(tx @ np.asarray(R, dtype=float))
+    return out
