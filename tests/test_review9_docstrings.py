@@ -1,0 +1,602 @@
+"""Numpy-style docstrings of the public API (review 9).
+
+The scanner lists the public callables: the names exported by :mod:`photogeom` and by each
+of its sub-packages (``__all__``, or for a module without one its own public names), and
+the public methods of the exported classes. It checks that
+
+* every callable has a docstring;
+* a function or method with parameters has a "Parameters" section naming every parameter
+  of its signature and none that is not in it (for a class: the parameters of its
+  constructor, in a "Parameters" or "Attributes" section of the class or ``__init__``);
+* a function or method that returns something has a "Returns" (or "Yields") section.
+
+``ALLOWED`` holds the callables not yet brought to that standard. The list must only
+shrink: a name that passes is reported so that it is taken off.
+"""
+
+from __future__ import annotations
+
+import ast
+import enum
+import importlib
+import inspect
+import re
+import textwrap
+import types
+import typing
+
+PACKAGES = (
+    "photogeom",
+    "photogeom.calibration",
+    "photogeom.camera",
+    "photogeom.crs",
+    "photogeom.datasets",
+    "photogeom.distributed",
+    "photogeom.estimation",
+    "photogeom.imagecoords",
+    "photogeom.io",
+    "photogeom.orientation",
+    "photogeom.report",
+    "photogeom.rotation",
+    "photogeom.rpc",
+    "photogeom.simulate",
+    "photogeom.transforms",
+    "photogeom.units",
+)
+
+_SECTION = re.compile(
+    r"^[ \t]*(Parameters|Other Parameters|Returns|Yields|Raises|Warns|Attributes|Notes|"
+    r"Examples|See Also|References|Methods)[ \t]*\n[ \t]*-{3,}[ \t]*$",
+    re.M,
+)
+
+
+def _sections(doc: str) -> dict[str, str]:
+    doc = inspect.cleandoc(doc)
+    found = list(_SECTION.finditer(doc))
+    out: dict[str, str] = {}
+    for i, m in enumerate(found):
+        end = found[i + 1].start() if i + 1 < len(found) else len(doc)
+        out[m.group(1)] = out.get(m.group(1), "") + doc[m.end() : end]
+    return out
+
+
+def _names_in(block: str) -> set[str]:
+    """The entry names of a numpy section: the lines at its smallest indentation."""
+    lines = [ln for ln in block.splitlines() if ln.strip()]
+    if not lines:
+        return set()
+    indent = min(len(ln) - len(ln.lstrip()) for ln in lines)
+    names: set[str] = set()
+    for ln in lines:
+        if len(ln) - len(ln.lstrip()) != indent:
+            continue
+        head = ln.strip().split(" : ")[0].rstrip(":").strip()
+        for part in head.split(","):
+            names.add(part.strip().lstrip("*"))
+    return names
+
+
+def _params(func) -> list[str]:
+    try:
+        sig = inspect.signature(func)
+    except (TypeError, ValueError):
+        return []
+    return [p for p in sig.parameters if p not in ("self", "cls")]
+
+
+def _returns_value(func) -> bool:
+    func = inspect.unwrap(func)
+    try:
+        hints = typing.get_type_hints(func)
+    except Exception:  # unresolvable annotations: fall back to the source
+        hints = {}
+    ann = getattr(func, "__annotations__", {}).get("return", inspect.Signature.empty)
+    if "return" in hints:
+        return hints["return"] is not type(None)
+    if ann not in (inspect.Signature.empty, None, "None"):
+        return True
+    if ann in (None, "None"):
+        return False
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(func)))
+    except (OSError, TypeError, SyntaxError):
+        return False
+    top = tree.body[0]
+    for node in ast.walk(top):
+        if isinstance(node, (ast.Yield, ast.YieldFrom)):
+            return True
+        if isinstance(node, ast.Return) and node.value is not None:
+            # a return inside a nested function does not count
+            return True
+    return False
+
+
+def _problems_function(func, *, what: str = "function") -> list[str]:
+    doc = inspect.getdoc(func)
+    if not doc or not doc.strip():
+        return ["no docstring"]
+    secs = _sections(doc)
+    out = []
+    params = _params(func)
+    if params:
+        if "Parameters" not in secs:
+            out.append("no Parameters section")
+        else:
+            named = _names_in(secs["Parameters"] + secs.get("Other Parameters", ""))
+            missing = [p for p in params if p not in named]
+            extra = sorted(named - set(params))
+            if missing:
+                out.append(f"parameters not described: {missing}")
+            if extra:
+                out.append(f"described but not in the signature: {extra}")
+    if what != "class" and _returns_value(func) and not ({"Returns", "Yields"} & set(secs)):
+        out.append("no Returns section")
+    return out
+
+
+def _problems_class(cls) -> list[str]:
+    doc = cls.__doc__
+    if not doc or not doc.strip():
+        return ["no docstring"]
+    if issubclass(cls, (BaseException, enum.Enum)):
+        return []
+    init = cls.__dict__.get("__init__")
+    params = _params(cls) if init is not None or "__dataclass_fields__" in vars(cls) else []
+    if not params:
+        return []
+    secs = _sections(doc)
+    init_doc = inspect.getdoc(init) if init is not None and init.__doc__ else ""
+    init_secs = _sections(init_doc) if init_doc else {}
+    blocks = [s.get(k, "") for s in (secs, init_secs) for k in ("Parameters", "Attributes")]
+    if not any(blocks):
+        return ["no Parameters or Attributes section for the constructor"]
+    named = set().union(*(_names_in(b) for b in blocks if b))
+    missing = [p for p in params if p not in named and not p.startswith("_")]
+    return [f"constructor parameters not described: {missing}"] if missing else []
+
+
+def _exported(pkg: str) -> list[tuple[str, object]]:
+    mod = importlib.import_module(pkg)
+    names = getattr(mod, "__all__", None)
+    if names is None:
+        names = [
+            n
+            for n, v in vars(mod).items()
+            if not n.startswith("_") and getattr(v, "__module__", None) == pkg
+        ]
+    out = []
+    for n in names:
+        if n.startswith("_"):
+            continue
+        v = getattr(mod, n)
+        if isinstance(v, types.ModuleType):
+            continue
+        if inspect.isclass(v) or inspect.isfunction(v) or inspect.isbuiltin(v):
+            out.append((n, v))
+    return out
+
+
+def public_callables() -> dict[str, object]:
+    """``{qualified name: object}`` of every public callable the scanner checks."""
+    found: dict[str, object] = {}
+    for pkg in PACKAGES:
+        for name, obj in _exported(pkg):
+            key = f"{pkg}.{name}"
+            if any(obj is v for v in found.values()):
+                continue  # re-exported: checked once, under its first name
+            found[key] = obj
+            if inspect.isclass(obj) and not issubclass(obj, (BaseException, enum.Enum)):
+                for mname, member in vars(obj).items():
+                    if mname.startswith("_"):
+                        continue
+                    if isinstance(member, (staticmethod, classmethod)):
+                        member = member.__func__
+                    if inspect.isfunction(member):
+                        found[f"{key}.{mname}"] = member
+    return found
+
+
+def problems(obj) -> list[str]:
+    if inspect.isclass(obj):
+        return _problems_class(obj)
+    return _problems_function(obj)
+
+
+# Callables not yet documented to the standard. Sources being edited by other sessions
+# during review 9 (photogeom.bundle, photogeom.adjust, photogeom.orientation.relative*)
+# were left alone. The list must only shrink.
+ALLOWED: frozenset[str] = frozenset(
+    {
+        "photogeom.AbsoluteOrientationFit",
+        "photogeom.AbsoluteOrientationFit.angles",
+        "photogeom.Affine2D.apply",
+        "photogeom.Affine2D.from_dict",
+        "photogeom.Affine2D.from_matrix",
+        "photogeom.Affine2D.from_textbook",
+        "photogeom.Affine2D.inverse",
+        "photogeom.Affine2D.textbook",
+        "photogeom.Affine2D.textbook_jacobian",
+        "photogeom.Affine2D.to_dict",
+        "photogeom.Affine2D.with_parameters",
+        "photogeom.Affine3D.decompose",
+        "photogeom.Affine3D.from_dict",
+        "photogeom.Affine3D.from_matrix",
+        "photogeom.Affine3D.from_textbook",
+        "photogeom.Affine3D.inverse",
+        "photogeom.Affine3D.textbook",
+        "photogeom.Affine3D.to_dict",
+        "photogeom.AffineCamera.from_dict",
+        "photogeom.AffineCamera.project",
+        "photogeom.AffineCamera.to_dict",
+        "photogeom.BatchOrientation.angles",
+        "photogeom.BatchOrientation.apply",
+        "photogeom.BatchOrientation.transform",
+        "photogeom.BatchResection.exterior",
+        "photogeom.Block",
+        "photogeom.Block.calibration_matrix",
+        "photogeom.Block.drop_weak_points",
+        "photogeom.Block.from_arrays",
+        "photogeom.Block.gsd",
+        "photogeom.Block.image_calibration",
+        "photogeom.Block.image_sizes",
+        "photogeom.Block.observation_counts",
+        "photogeom.Block.replace",
+        "photogeom.Block.rotations",
+        "photogeom.Block.same_observation_rows",
+        "photogeom.Block.select_observations",
+        "photogeom.Block.summary",
+        "photogeom.Block.validate",
+        "photogeom.Block.with_calibrations",
+        "photogeom.Block.with_observations",
+        "photogeom.Block.without_datum_observations",
+        "photogeom.BrownDistortion.coefficient_jacobian",
+        "photogeom.BrownDistortion.from_dict",
+        "photogeom.BrownDistortion.jacobian",
+        "photogeom.BrownDistortion.to_dict",
+        "photogeom.BundleFit",
+        "photogeom.BundleFit.calibration_covariance",
+        "photogeom.BundleFit.image_calibration",
+        "photogeom.BundleFit.image_covariance",
+        "photogeom.BundleFit.orientation_residual_rms",
+        "photogeom.BundleFit.point_covariance",
+        "photogeom.BundleFit.points_in",
+        "photogeom.BundleFit.positions_in",
+        "photogeom.BundleFit.summary",
+        "photogeom.BundleFit.to_dict",
+        "photogeom.BundleOptions.updated",
+        "photogeom.BundleOptions.validate",
+        "photogeom.DLT.from_dict",
+        "photogeom.DLT.from_matrix",
+        "photogeom.DLT.orientation",
+        "photogeom.DLT.project",
+        "photogeom.DLT.to_dict",
+        "photogeom.ExteriorOrientation.angles_in",
+        "photogeom.ExteriorOrientation.from_degrees",
+        "photogeom.ExteriorOrientation.from_dict",
+        "photogeom.ExteriorOrientation.from_matrix",
+        "photogeom.ExteriorOrientation.to_camera",
+        "photogeom.ExteriorOrientation.to_dict",
+        "photogeom.Fit.from_adjustment",
+        "photogeom.Fit.parameter_table",
+        "photogeom.Fit.shown_parameter_table",
+        "photogeom.Fit.snooping",
+        "photogeom.Fit.summary",
+        "photogeom.Fit.to_dict",
+        "photogeom.Fit.with_checks",
+        "photogeom.Fit.with_crs",
+        "photogeom.Fit.without_statistics",
+        "photogeom.FrameCamera.from_dict",
+        "photogeom.FrameCamera.ground_at_height",
+        "photogeom.FrameCamera.project",
+        "photogeom.FrameCamera.rays",
+        "photogeom.FrameCamera.to_dict",
+        "photogeom.ImagePair.to_dict",
+        "photogeom.ImageVariantInteriorOrientation.for_image",
+        "photogeom.ImageVariantInteriorOrientation.to_dict",
+        "photogeom.InteriorOrientation.digital",
+        "photogeom.InteriorOrientation.for_image",
+        "photogeom.InteriorOrientation.from_dict",
+        "photogeom.InteriorOrientation.from_focal_lengths",
+        "photogeom.InteriorOrientation.image_from_normalized",
+        "photogeom.InteriorOrientation.image_to_pixel",
+        "photogeom.InteriorOrientation.pixel_to_image",
+        "photogeom.InteriorOrientation.principal_point_px",
+        "photogeom.InteriorOrientation.to_dict",
+        "photogeom.InteriorOrientation.undistort_image",
+        "photogeom.InteriorOrientation.with_distortion",
+        "photogeom.LocalizationResult.counts",
+        "photogeom.MetashapeCalibration.distort_pixels",
+        "photogeom.MetashapeCalibration.from_interior_orientation",
+        "photogeom.MetashapeCalibration.from_opencv",
+        "photogeom.MetashapeCalibration.from_xml_string",
+        "photogeom.MetashapeCalibration.interior_orientation",
+        "photogeom.MetashapeCalibration.principal_point",
+        "photogeom.MetashapeCalibration.project_camera",
+        "photogeom.MetashapeCalibration.project_normalized",
+        "photogeom.MetashapeCalibration.to_dict",
+        "photogeom.MetashapeCalibration.to_opencv",
+        "photogeom.MetashapeCalibration.to_xml_string",
+        "photogeom.MetashapeCalibration.undistort_pixels",
+        "photogeom.MethodComparison",
+        "photogeom.MethodComparison.columns",
+        "photogeom.MethodComparison.row",
+        "photogeom.MethodComparison.table_rows",
+        "photogeom.MethodComparison.to_dict",
+        "photogeom.MethodComparison.to_text",
+        "photogeom.Polynomial3D",
+        "photogeom.RPC.footprint",
+        "photogeom.RPC.from_dict",
+        "photogeom.RPC.from_file",
+        "photogeom.RPC.jacobian",
+        "photogeom.RPC.localize_direct",
+        "photogeom.RPC.normalize_ground",
+        "photogeom.RPC.normalize_image",
+        "photogeom.RPC.same_as",
+        "photogeom.RPC.summary",
+        "photogeom.RPC.to_dict",
+        "photogeom.RPC.to_gdal_metadata",
+        "photogeom.RPC.with_correction",
+        "photogeom.RPC.with_correction_folded",
+        "photogeom.RPC.write",
+        "photogeom.RPCIntersection.std_metric",
+        "photogeom.RPCIntersection.to_dict",
+        "photogeom.RelativeOrientationFit",
+        "photogeom.RelativeOrientationFit.model_points",
+        "photogeom.RelativeOrientationFit.parallax_report",
+        "photogeom.ResectionFit",
+        "photogeom.Rigid3D.angles",
+        "photogeom.Rigid3D.from_angles",
+        "photogeom.Rigid3D.from_dict",
+        "photogeom.Rigid3D.inverse",
+        "photogeom.Rigid3D.textbook",
+        "photogeom.Rigid3D.to_dict",
+        "photogeom.Similarity2D.apply",
+        "photogeom.Similarity2D.from_dict",
+        "photogeom.Similarity2D.from_textbook",
+        "photogeom.Similarity2D.inverse",
+        "photogeom.Similarity2D.textbook",
+        "photogeom.Similarity2D.textbook_jacobian",
+        "photogeom.Similarity2D.to_dict",
+        "photogeom.Similarity2D.with_parameters",
+        "photogeom.Similarity3D.angles",
+        "photogeom.Similarity3D.apply",
+        "photogeom.Similarity3D.from_angles",
+        "photogeom.Similarity3D.from_dict",
+        "photogeom.Similarity3D.from_helmert",
+        "photogeom.Similarity3D.helmert_parameters",
+        "photogeom.Similarity3D.inverse",
+        "photogeom.Similarity3D.to_dict",
+        "photogeom.Similarity3D.to_proj_string",
+        "photogeom.absolute_orientation",
+        "photogeom.bundle_adjust",
+        "photogeom.calibration.FiniteElementSystem.observation_cofactors",
+        "photogeom.calibration.FiniteElementSystem.solve",
+        "photogeom.calibration.FolderResult.to_dict",
+        "photogeom.calibration.GridAdjustment.to_dict",
+        "photogeom.calibration.GridLayout.cell_index",
+        "photogeom.calibration.GridLayout.check_inside",
+        "photogeom.calibration.GridLayout.constraint_matrix",
+        "photogeom.calibration.GridLayout.constraint_rank",
+        "photogeom.calibration.GridLayout.design_matrix",
+        "photogeom.calibration.GridLayout.locate",
+        "photogeom.calibration.GridLayout.node_coordinates",
+        "photogeom.calibration.GridLayout.to_dict",
+        "photogeom.calibration.ResidualGrid",
+        "photogeom.calibration.ResidualGrid.correct",
+        "photogeom.calibration.ResidualGrid.to_dict",
+        "photogeom.calibration.adjust_with_grids",
+        "photogeom.calibration.compare_in_adjustment",
+        "photogeom.calibration.correct_block_observations",
+        "photogeom.calibration.correct_observations",
+        "photogeom.calibration.correct_points",
+        "photogeom.calibration.field_at_pixels",
+        "photogeom.calibration.field_recovery",
+        "photogeom.calibration.fit_grid",
+        "photogeom.calibration.image_overlap",
+        "photogeom.calibration.load_grids",
+        "photogeom.calibration.min_max_normalise",
+        "photogeom.calibration.most_frequent_spacing",
+        "photogeom.calibration.residual_statistics",
+        "photogeom.calibration.run_study",
+        "photogeom.calibration.save_grids",
+        "photogeom.calibration.stereo_models",
+        "photogeom.calibration.visible_recovery",
+        "photogeom.camera.DLTFit",
+        "photogeom.camera.DLTFit.orientation_covariance",
+        "photogeom.camera.DLTFit.orientation_std",
+        "photogeom.camera.UndistortResult.describe_failures",
+        "photogeom.camera.orthogonality_conditions",
+        "photogeom.camera.projection_derivatives",
+        "photogeom.camera_matrix",
+        "photogeom.compare_absolute_methods",
+        "photogeom.crs.CrsInfo.to_dict",
+        "photogeom.crs.LocalFrame.describe",
+        "photogeom.crs.LocalFrame.from_ecef",
+        "photogeom.crs.LocalFrame.to_dict",
+        "photogeom.crs.LocalFrame.to_ecef",
+        "photogeom.crs.LocalFrame.to_text",
+        "photogeom.crs.ProjTransform.apply",
+        "photogeom.crs.cartesian_crs",
+        "photogeom.crs.crs_label",
+        "photogeom.crs.crs_name",
+        "photogeom.crs.curvature_drop",
+        "photogeom.crs.curvature_note",
+        "photogeom.crs.enu_rotation",
+        "photogeom.crs.frame_from_text",
+        "photogeom.crs.get_ellipsoid",
+        "photogeom.crs.parse_crs",
+        "photogeom.crs.points_between",
+        "photogeom.data_snooping",
+        "photogeom.datasets.header",
+        "photogeom.datasets.names",
+        "photogeom.datasets.path",
+        "photogeom.datasets.point_pairs",
+        "photogeom.distributed.CloudRegistration.to_dict",
+        "photogeom.distributed.scheduler_client",
+        "photogeom.distributed.transform_array",
+        "photogeom.imagecoords.HandednessPlan",
+        "photogeom.imagecoords.HandednessPlan.apply",
+        "photogeom.imagecoords.PixelSystem.centered",
+        "photogeom.imagecoords.PixelSystem.to_image",
+        "photogeom.imagecoords.PixelSystem.to_pixel",
+        "photogeom.imagecoords.PixelSystem.with_origin",
+        "photogeom.imagecoords.convert_pixel_origin",
+        "photogeom.imagecoords.flip_y",
+        "photogeom.imagecoords.handedness",
+        "photogeom.imagecoords.handedness_plan",
+        "photogeom.imagecoords.image_center",
+        "photogeom.imagecoords.image_to_fiducial",
+        "photogeom.imagecoords.image_to_pixel",
+        "photogeom.imagecoords.pixel_to_image",
+        "photogeom.in_front",
+        "photogeom.io.CloudInfo",
+        "photogeom.io.CloudInfo.to_dict",
+        "photogeom.io.PointWriter.write",
+        "photogeom.io.atomic_write_bytes",
+        "photogeom.io.atomic_write_text",
+        "photogeom.io.cloud_dask_xyz",
+        "photogeom.io.format_points_csv",
+        "photogeom.io.iter_cloud_xyz",
+        "photogeom.io.parse_points",
+        "photogeom.io.read_point_pairs",
+        "photogeom.io.transform_cloud",
+        "photogeom.io.transform_cloud_dask",
+        "photogeom.io.write_points",
+        "photogeom.orient_strip",
+        "photogeom.orientation.ModelPoints.as_dict",
+        "photogeom.orientation.ParallaxReport",
+        "photogeom.orientation.ParallaxReport.text",
+        "photogeom.orientation.ParallaxReport.to_dict",
+        "photogeom.orientation.model_points",
+        "photogeom.orientation.parallax_report",
+        "photogeom.read_metashape_xml",
+        "photogeom.read_rpc",
+        "photogeom.report.Report",
+        "photogeom.report.Report.add_figure",
+        "photogeom.report.Report.add_fit",
+        "photogeom.report.Report.add_heading",
+        "photogeom.report.Report.add_residual_plot",
+        "photogeom.report.Report.add_table",
+        "photogeom.report.Report.add_text",
+        "photogeom.report.Report.to_html",
+        "photogeom.report.Report.truncate",
+        "photogeom.report.Report.write",
+        "photogeom.report.add_bundle_fit",
+        "photogeom.report.add_bundle_result",
+        "photogeom.report.bundle_report",
+        "photogeom.report.figure_to_png",
+        "photogeom.report.fit_renderable",
+        "photogeom.report.fit_text",
+        "photogeom.report.nice_length",
+        "photogeom.report.print_fit",
+        "photogeom.report.print_table",
+        "photogeom.report.read_bundle_result",
+        "photogeom.report.write_bundle_result",
+        "photogeom.rpc.DirectModel",
+        "photogeom.rpc.approximate_inverse",
+        "photogeom.rpc.format_rpc",
+        "photogeom.simulate.CameraPreset.flying_height",
+        "photogeom.simulate.CameraPreset.nominal_camera",
+        "photogeom.simulate.CameraPreset.true_camera",
+        "photogeom.simulate.LocalDistortionField.basis",
+        "photogeom.simulate.LocalDistortionField.coefficient_std",
+        "photogeom.simulate.LocalDistortionField.image_covariance",
+        "photogeom.simulate.LocalDistortionField.image_rows",
+        "photogeom.simulate.LocalDistortionField.random",
+        "photogeom.simulate.LocalDistortionField.rows",
+        "photogeom.simulate.LocalDistortionField.zero",
+        "photogeom.simulate.SimulatedBlock",
+        "photogeom.simulate.SimulatedBlock.local_field",
+        "photogeom.simulate.SimulatedBlock.summary",
+        "photogeom.simulate.WaveTerrain.random",
+        "photogeom.simulate.preset",
+        "photogeom.simulate.uav_block",
+        "photogeom.transforms.AffineDecomposition.compose",
+        "photogeom.transforms.Polynomial2DInverse",
+        "photogeom.transforms.Polynomial3DInverse",
+        "photogeom.transforms.Transform.apply",
+        "photogeom.transforms.Transform.from_dict",
+        "photogeom.transforms.Transform.inverse",
+        "photogeom.transforms.Transform.to_dict",
+        "photogeom.transforms.from_dict",
+        "photogeom.transforms.polynomial_exponents",
+        "photogeom.transforms.polynomial_term_count",
+        "photogeom.transforms.polynomial_terms",
+        "photogeom.transforms.registered_models",
+        "photogeom.write_metashape_xml",
+    }
+)
+
+
+def _scan() -> dict[str, list[str]]:
+    return {k: p for k, obj in public_callables().items() if (p := problems(obj))}
+
+
+def test_scanner_finds_the_public_api():
+    found = public_callables()
+    assert "photogeom.space_resection" in found
+    assert "photogeom.Similarity3D.apply" in found
+    assert len(found) > 300
+
+
+def test_scanner_detects_missing_sections():
+    def bare(a, b=1):
+        """Does something with a and b."""
+        return a + b
+
+    def wrong(a):
+        """Do it.
+
+        Parameters
+        ----------
+        a : float
+            A, in m.
+        c : int
+            Not a parameter.
+
+        Returns
+        -------
+        float
+            The result, m.
+        """
+        return a
+
+    def good(a, *, b=2):
+        """Do it.
+
+        Parameters
+        ----------
+        a, b : float
+            Values, m.
+
+        Returns
+        -------
+        float
+            Sum, m.
+        """
+        return a + b
+
+    assert problems(bare) == ["no Parameters section", "no Returns section"]
+    assert problems(wrong) == ["described but not in the signature: ['c']"]
+    assert problems(good) == []
+
+
+def test_public_api_docstrings_are_numpy_style():
+    bad = _scan()
+    new = {k: v for k, v in bad.items() if k not in ALLOWED}
+    assert not new, "public callables without numpy-style docstrings:\n" + "\n".join(
+        f"  {k}: {'; '.join(v)}" for k, v in sorted(new.items())
+    )
+
+
+def test_allow_list_only_shrinks():
+    bad = _scan()
+    found = public_callables()
+    stale = sorted(k for k in ALLOWED if k not in bad or k not in found)
+    assert not stale, "documented now (or gone): take off ALLOWED:\n" + "\n".join(stale)
+
+
+if __name__ == "__main__":  # pragma: no cover - prints the current list
+    for key, probs in sorted(_scan().items()):
+        print(f"{key}\t{'; '.join(probs)}")
