@@ -50,7 +50,25 @@ def _exponents_cached(order: int, dim: int) -> tuple[tuple[int, ...], ...]:
 
 
 def polynomial_exponents(order: int, dim: int) -> np.ndarray:
-    """Exponents (n_terms, dim) of the monomials of total degree ``<= order``."""
+    """Exponents of the monomials of total degree ``<= order``.
+
+    Parameters
+    ----------
+    order : int
+        Highest total degree, >= 1.
+    dim : {2, 3}
+        Number of coordinates.
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (n_terms, dim)
+        One row of exponents per monomial, in the module's monomial order.
+
+    Raises
+    ------
+    InputError
+        For ``dim`` other than 2 or 3, or ``order`` not an integer >= 1.
+    """
     if dim not in (2, 3):
         raise InputError(f"polynomial: dimension must be 2 or 3, got {dim}")
     if int(order) != order or order < 1:
@@ -59,13 +77,38 @@ def polynomial_exponents(order: int, dim: int) -> np.ndarray:
 
 
 def polynomial_term_count(order: int, dim: int) -> int:
-    """Number of monomials: ``(k+1)(k+2)/2`` in 2D, ``(k+1)(k+2)(k+3)/6`` in 3D."""
+    """Number of monomials: ``(k+1)(k+2)/2`` in 2D, ``(k+1)(k+2)(k+3)/6`` in 3D.
+
+    Parameters
+    ----------
+    order : int
+        Highest total degree ``k``.
+    dim : {2, 3}
+        Number of coordinates (any value other than 2 counts as 3; not checked).
+
+    Returns
+    -------
+    int
+    """
     k = int(order)
     return (k + 1) * (k + 2) // 2 if dim == 2 else (k + 1) * (k + 2) * (k + 3) // 6
 
 
 def polynomial_terms(u: np.ndarray, exponents: np.ndarray) -> np.ndarray:
-    """Monomials ``u^e`` of points ``u`` (n, dim): matrix (n, n_terms)."""
+    """Monomials ``u^e`` of points ``u``.
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (n, dim)
+        (Reduced) coordinates.
+    exponents : numpy.ndarray of int, shape (n_terms, dim)
+        From :func:`polynomial_exponents`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n_terms)
+        Design-matrix rows, one per point.
+    """
     n, dim = u.shape
     kmax = int(exponents.max()) if exponents.size else 0
     powers = np.empty((dim, kmax + 1, n))
@@ -394,6 +437,15 @@ class Polynomial2DInverse(_PolynomialInverse):
 
     ``apply`` raises :class:`~photogeom.errors.ConvergenceError` for points that do not
     converge; ``apply_with_status`` returns an :class:`InverseResult` with a per-point status.
+
+    Parameters
+    ----------
+    forward : Polynomial2D
+        The polynomial to invert.
+    tol : float, default 1e-9
+        Convergence tolerance, target units; > 0.
+    max_iter : int, default 50
+        Newton iterations at most; >= 1.
     """
 
     name = "polynomial2d_inverse"
@@ -402,7 +454,17 @@ class Polynomial2DInverse(_PolynomialInverse):
 
 @dataclass(frozen=True, repr=False)
 class Polynomial3DInverse(_PolynomialInverse):
-    """Iterative inverse of a :class:`Polynomial3D`; see :class:`Polynomial2DInverse`."""
+    """Iterative inverse of a :class:`Polynomial3D`; see :class:`Polynomial2DInverse`.
+
+    Parameters
+    ----------
+    forward : Polynomial3D
+        The polynomial to invert.
+    tol : float, default 1e-9
+        Convergence tolerance, target units; > 0.
+    max_iter : int, default 50
+        Newton iterations at most; >= 1.
+    """
 
     name = "polynomial3d_inverse"
     dim = 3
@@ -431,8 +493,21 @@ class Polynomial2D(_Polynomial):
 
 @dataclass(frozen=True, repr=False)
 class Polynomial3D(_Polynomial):
-    """3D polynomial transformation of order ``k`` (3 x (k+1)(k+2)(k+3)/6 coefficients);
-    see :class:`Polynomial2D` (rows ``a``, ``b``, ``c`` for X, Y, Z)."""
+    """3D polynomial transformation of order ``k`` (3 x (k+1)(k+2)(k+3)/6 coefficients).
+
+    See :class:`Polynomial2D`.
+
+    Parameters
+    ----------
+    order : int
+        Highest total degree (1 = affine).
+    coefficients : array_like, shape (3, n_terms)
+        Rows ``a``, ``b``, ``c`` for X, Y, Z, in monomial order (module docstring).
+    centre : array_like, shape (3,), optional
+        Reduction centre (source units); default 0.
+    scale : float
+        Reduction scale (source units); default 1.
+    """
 
     name = "polynomial3d"
     dim = 3
