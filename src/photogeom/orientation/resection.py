@@ -886,7 +886,18 @@ class BatchResection:
         return self.sigma0_prior * np.sqrt(np.einsum("bii->bi", self.cofactor))
 
     def exterior(self, i: int) -> ExteriorOrientation:
-        """Exterior orientation of problem ``i``."""
+        """Exterior orientation of problem ``i``.
+
+        Parameters
+        ----------
+        i : int
+            Index of the problem.
+
+        Returns
+        -------
+        ExteriorOrientation
+            Object units, angles in rad.
+        """
         return ExteriorOrientation(*self.parameters[i])
 
 
