@@ -308,22 +308,6 @@ ALLOWED: frozenset[str] = frozenset(
         "photogeom.report.print_table",
         "photogeom.report.read_bundle_result",
         "photogeom.report.write_bundle_result",
-        "photogeom.simulate.CameraPreset.flying_height",
-        "photogeom.simulate.CameraPreset.nominal_camera",
-        "photogeom.simulate.CameraPreset.true_camera",
-        "photogeom.simulate.LocalDistortionField.basis",
-        "photogeom.simulate.LocalDistortionField.coefficient_std",
-        "photogeom.simulate.LocalDistortionField.image_covariance",
-        "photogeom.simulate.LocalDistortionField.image_rows",
-        "photogeom.simulate.LocalDistortionField.random",
-        "photogeom.simulate.LocalDistortionField.rows",
-        "photogeom.simulate.LocalDistortionField.zero",
-        "photogeom.simulate.SimulatedBlock",
-        "photogeom.simulate.SimulatedBlock.local_field",
-        "photogeom.simulate.SimulatedBlock.summary",
-        "photogeom.simulate.WaveTerrain.random",
-        "photogeom.simulate.preset",
-        "photogeom.simulate.uav_block",
     }
 )
 
