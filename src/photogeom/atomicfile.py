@@ -248,6 +248,18 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     any error the temporary file is removed and ``path`` is left as it was. See the module
     docstring for symbolic links, read-only files and permissions.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write or replace.
+    data : bytes
+        The complete new content.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+
     Raises
     ------
     OutputError
@@ -257,7 +269,27 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> Path:
-    """Text version of :func:`atomic_write_bytes`."""
+    """Text version of :func:`atomic_write_bytes`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write or replace.
+    text : str
+        The complete new content.
+    encoding : str, default "utf-8"
+        Encoding of the file.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+
+    Raises
+    ------
+    OutputError
+        As :func:`atomic_write_bytes`.
+    """
     return atomic_write_bytes(path, text.encode(encoding))
 
 

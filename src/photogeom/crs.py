@@ -121,6 +121,21 @@ def get_ellipsoid(ellipsoid: str | tuple[float, float] | Ellipsoid = "WGS84") ->
 
     Names not in :data:`ELLIPSOIDS` are looked up in PROJ (``pyproj.get_ellps_map``), e.g.
     ``"helmert"`` or ``"evrst30"``.
+
+    Parameters
+    ----------
+    ellipsoid : str, (float, float) or Ellipsoid, default "WGS84"
+        Name (case-insensitive), or semi-major axis ``a`` in m and inverse flattening
+        ``1/f`` (``inf`` for a sphere).
+
+    Returns
+    -------
+    Ellipsoid
+
+    Raises
+    ------
+    InputError
+        For an unknown name, or a pair with ``a <= 0`` or ``1/f <= 1``.
     """
     if isinstance(ellipsoid, Ellipsoid):
         return ellipsoid
@@ -257,10 +272,24 @@ def ecef_to_geodetic(X, Y, Z, *, ellipsoid="WGS84"):
 
 
 def enu_rotation(lat0: float, lon0: float) -> np.ndarray:
-    """The rotation ``R`` (3, 3) with ``enu = R @ (xyz - origin)`` at (lat0, lon0) degrees.
+    """The rotation ``R`` with ``enu = R @ (xyz - origin)`` at (lat0, lon0).
 
     Rows: east ``(-sin lon, cos lon, 0)``, north ``(-sin lat cos lon, -sin lat sin lon,
     cos lat)``, up (the ellipsoid normal) ``(cos lat cos lon, cos lat sin lon, sin lat)``.
+
+    Parameters
+    ----------
+    lat0, lon0 : float
+        Geodetic latitude and longitude of the origin, deg.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+
+    Raises
+    ------
+    InputError
+        For non-finite values or ``|lat0| > 90``.
     """
     lat0, lon0 = float(lat0), float(lon0)
     if not (math.isfinite(lat0) and math.isfinite(lon0)) or abs(lat0) > 90.0:
@@ -345,13 +374,27 @@ def enu_to_ecef(enu, lat0, lon0, h0, *, ellipsoid="WGS84") -> np.ndarray:
 def curvature_drop(distance, *, lat0: float = 45.0, ellipsoid="WGS84"):
     """How far below the local horizontal plane the ellipsoid lies at a horizontal distance.
 
-    ``distance`` (m) from the origin of an ENU frame on the ellipsoid; returns the magnitude
-    of the (negative) U coordinate of the ellipsoid point there, ``~ d^2 / (2 R)`` with the
+    The magnitude of the (negative) U coordinate of the ellipsoid point at ``distance``
+    from the origin of an ENU frame on the ellipsoid, ``~ d^2 / (2 R)`` with the
     Gaussian mean radius ``R = sqrt(M N)`` at ``lat0`` (about 7.8 cm at 1 km, 7.8 m at
     10 km; the radius of curvature depends on the direction, from the meridian radius M
     to N, so the true drop differs by up to 0.7 %). It is what a block adjusted in a local
     Cartesian frame must carry as height, not an error of the frame
     (see ``docs/crs-and-clouds.md``).
+
+    Parameters
+    ----------
+    distance : float or array_like
+        Horizontal distance(s) from the frame origin, m.
+    lat0 : float, default 45.0
+        Latitude of the origin, deg.
+    ellipsoid : str, (a, 1/f) or Ellipsoid, default "WGS84"
+        As :func:`get_ellipsoid` takes it.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The drop(s), m (>= 0), of the shape of ``distance``.
     """
     d = np.asarray(distance, dtype=float)
     ell = get_ellipsoid(ellipsoid)
@@ -426,11 +469,33 @@ class LocalFrame:
         return np.array(geodetic_to_ecef(self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid))
 
     def from_ecef(self, xyz) -> np.ndarray:
-        """ECEF (n, 3) or (3,), m -> ENU of the same shape, m (:func:`ecef_to_enu`)."""
+        """ECEF -> ENU of the same shape (:func:`ecef_to_enu`).
+
+        Parameters
+        ----------
+        xyz : array_like, shape (n, 3) or (3,)
+            Geocentric coordinates on this frame's ellipsoid, m.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3) or (3,)
+            East, north, up, m.
+        """
         return ecef_to_enu(xyz, self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid)
 
     def to_ecef(self, enu) -> np.ndarray:
-        """ENU (n, 3) or (3,), m -> ECEF of the same shape, m (:func:`enu_to_ecef`)."""
+        """ENU -> ECEF of the same shape (:func:`enu_to_ecef`).
+
+        Parameters
+        ----------
+        enu : array_like, shape (n, 3) or (3,)
+            East, north, up in this frame, m.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3) or (3,)
+            Geocentric coordinates, m.
+        """
         return enu_to_ecef(enu, self.lat0, self.lon0, self.h0, ellipsoid=self.ellipsoid)
 
     def from_geodetic(self, lat, lon, h) -> np.ndarray:
@@ -484,9 +549,20 @@ class LocalFrame:
         return R @ np.asarray(cov, dtype=float) @ R.T
 
     def to_text(self) -> str:
-        """The frame as a CRS text, ``"enu:lat0,lon0,h0"`` (WGS 84 only): what the
-        ``# crs:`` line of a point or block file and ``--crs`` options take for a local frame
-        (see :func:`frame_from_text`)."""
+        """The frame as a CRS text, ``"enu:lat0,lon0,h0"`` (WGS 84 only).
+
+        What the ``# crs:`` line of a point or block file and ``--crs`` options take for a
+        local frame (see :func:`frame_from_text`).
+
+        Returns
+        -------
+        str
+
+        Raises
+        ------
+        InputError
+            For a frame on another ellipsoid (it has no text form).
+        """
         if get_ellipsoid(self.ellipsoid).name != "WGS84":
             raise InputError(
                 "only local frames on WGS 84 have a text form (enu:lat0,lon0,h0); this one is "
@@ -495,14 +571,25 @@ class LocalFrame:
         return f"enu:{self.lat0!r},{self.lon0!r},{self.h0!r}"
 
     def describe(self) -> str:
-        """``"local ENU frame at lat 47.1, lon 8.5, h 500 m (WGS 84)"``."""
+        """``"local ENU frame at lat 47.1, lon 8.5, h 500 m (WGS 84)"``.
+
+        Returns
+        -------
+        str
+        """
         return (
             f"local ENU frame at lat {self.lat0:.9g}, lon {self.lon0:.9g}, h {self.h0:.6g} m "
             f"({get_ellipsoid(self.ellipsoid).name})"
         )
 
     def to_dict(self) -> dict:
-        """JSON-ready description (for results and reports)."""
+        """JSON-ready description (for results and reports).
+
+        Returns
+        -------
+        dict
+            ``frame`` ("ENU"), ``lat0_deg``, ``lon0_deg``, ``h0_m``, ``ellipsoid`` (name).
+        """
         return {
             "frame": "ENU",
             "lat0_deg": self.lat0,
@@ -526,8 +613,24 @@ def _pyproj():
 
 
 def parse_crs(crs, *, what: str = "crs"):
-    """A ``pyproj.CRS`` from an EPSG code (``"EPSG:4979"``, ``4979``), WKT, a PROJ string or
-    a ``pyproj.CRS``; ``what`` names the option in the error message."""
+    """A ``pyproj.CRS`` from an EPSG code, WKT, a PROJ string or a ``pyproj.CRS``.
+
+    Parameters
+    ----------
+    crs : str, int or pyproj.CRS
+        ``"EPSG:4979"``, ``4979``, WKT or a PROJ string.
+    what : str, default "crs"
+        The option or argument that gave it, named in the error message.
+
+    Returns
+    -------
+    pyproj.CRS
+
+    Raises
+    ------
+    InputError
+        For a CRS PROJ does not know.
+    """
     pyproj = _pyproj()
     if isinstance(crs, pyproj.CRS):
         return crs
@@ -541,7 +644,22 @@ def parse_crs(crs, *, what: str = "crs"):
 
 
 def crs_name(crs) -> str:
-    """A short readable name: ``"EPSG:32632 (WGS 84 / UTM zone 32N)"`` or the CRS's name."""
+    """A short readable name: ``"EPSG:32632 (WGS 84 / UTM zone 32N)"`` or the CRS's name.
+
+    Parameters
+    ----------
+    crs : str, int or pyproj.CRS
+        As :func:`parse_crs` takes it.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    InputError
+        For a CRS PROJ does not know.
+    """
     c = parse_crs(crs)
     auth = c.to_authority()
     return f"{auth[0]}:{auth[1]} ({c.name})" if auth else c.name
@@ -654,7 +772,23 @@ class ProjTransform:
         return self.transformer.description
 
     def apply(self, points) -> np.ndarray:
-        """Transform points (n, 3) (or one point (3,))."""
+        """Transform points (n, 3) (or one point (3,)).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3) or (3,)
+            Coordinates in the source CRS, x/easting/longitude first.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3) or (3,)
+            Coordinates in the target CRS, x first.
+
+        Raises
+        ------
+        InputError
+            For points of another shape, or points PROJ cannot transform.
+        """
         pts, single = _points3(points, "points")
         pyproj = _pyproj()
         try:
@@ -684,8 +818,24 @@ _UNIT_WORDS = {
 
 
 def frame_from_text(text) -> LocalFrame | None:
-    """The :class:`LocalFrame` of a CRS text ``"enu:lat0,lon0,h0"`` (degrees, metres, WGS 84),
-    or None when ``text`` is not of that form (then it is an EPSG code, WKT, ...)."""
+    """The :class:`LocalFrame` of a CRS text ``"enu:lat0,lon0,h0"`` (degrees, metres, WGS 84).
+
+    Parameters
+    ----------
+    text : str or LocalFrame or object
+        The CRS text; a :class:`LocalFrame` is returned as it is.
+
+    Returns
+    -------
+    LocalFrame or None
+        None when ``text`` is not of that form (then it is an EPSG code, WKT, ...).
+
+    Raises
+    ------
+    InputError
+        For an ``enu:`` text without three numbers, or an origin that is not finite or has
+        ``|lat0| > 90``.
+    """
     if isinstance(text, LocalFrame):
         return text
     if not isinstance(text, str) or not text.strip().lower().startswith("enu:"):
@@ -733,7 +883,13 @@ class CrsInfo:
     dim: int
 
     def to_dict(self) -> dict:
-        """JSON-ready."""
+        """JSON-ready.
+
+        Returns
+        -------
+        dict
+            ``{"crs": text, "name", "kind", "unit"}``.
+        """
         return {"crs": self.text, "name": self.name, "kind": self.kind, "unit": self.unit}
 
 
@@ -780,8 +936,20 @@ def _crs_info(crs, what: str) -> CrsInfo:
 
 
 def crs_label(crs) -> str:
-    """A readable name of a recorded CRS text (falls back to the text itself when PROJ is not
-    installed or does not know it): for reports."""
+    """A readable name of a recorded CRS text, for reports.
+
+    Falls back to the text itself when PROJ is not installed or does not know it.
+
+    Parameters
+    ----------
+    crs : str or pyproj.CRS or LocalFrame
+        The recorded CRS (``"enu:lat0,lon0,h0"`` gives the frame's description).
+
+    Returns
+    -------
+    str
+        Never raises for an unknown CRS.
+    """
     frame = frame_from_text(crs) if isinstance(crs, str) else None
     if frame is not None:
         return frame.describe()
@@ -810,6 +978,11 @@ def cartesian_crs(
     fix : str, optional
         How to convert the coordinates, for the message refusing a geographic CRS (default:
         ``photogeom crs convert`` to a local ENU frame or a projected CRS).
+
+    Returns
+    -------
+    CrsInfo
+        The CRS as recorded in results: text, readable name, kind, unit, dimension.
 
     Raises
     ------
@@ -859,11 +1032,26 @@ def _short(text: str) -> str:
 
 
 def curvature_note(info: CrsInfo, points, *, what: str = "coordinates") -> str | None:
-    """A note on how far map coordinates with heights (a projected CRS used in 3D) are from
-    Cartesian over the extent of ``points`` (n, 3): the Earth-curvature drop at the largest
-    horizontal distance from their centre (see ``docs/crs-and-clouds.md``); None for other
-    systems, fewer than 2 points, or a drop under 1 mm (points within 113 m of their
-    centre)."""
+    """A note on how far map coordinates with heights are from Cartesian.
+
+    For a projected CRS used in 3D: the Earth-curvature drop at the largest horizontal
+    distance of ``points`` from their centre (see ``docs/crs-and-clouds.md``).
+
+    Parameters
+    ----------
+    info : CrsInfo
+        The CRS of the points (from :func:`cartesian_crs`).
+    points : array_like, shape (n, 3)
+        The coordinates, in the CRS's unit (m, ft or US survey ft).
+    what : str, default "coordinates"
+        What the points are, for the note.
+
+    Returns
+    -------
+    str or None
+        None for other systems, fewer than 2 points, or a drop under 1 mm (points within
+        113 m of their centre).
+    """
     pts = np.asarray(points, dtype=float)
     if info.kind != "projected" or pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2:
         return None
@@ -885,9 +1073,31 @@ def curvature_note(info: CrsInfo, points, *, what: str = "coordinates") -> str |
 
 
 def points_between(points, src, dst, *, allow_ballpark: bool = False) -> np.ndarray:
-    """Points (n, 3) from ``src`` to ``dst``, either of which may be a local ENU frame
-    (``"enu:lat0,lon0,h0"`` or a :class:`LocalFrame`; through geocentric WGS 84, EPSG:4978)
-    or any CRS PROJ knows. x/easting/longitude first."""
+    """Points from ``src`` to ``dst``.
+
+    Either may be a local ENU frame (``"enu:lat0,lon0,h0"`` or a :class:`LocalFrame`;
+    through geocentric WGS 84, EPSG:4978) or any CRS PROJ knows. x/easting/longitude first.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        Coordinates in ``src`` (deg for geographic, the CRS's unit otherwise).
+    src, dst : str, int, pyproj.CRS or LocalFrame
+        Source and target CRS.
+    allow_ballpark : bool, default False
+        Accept an approximate ("ballpark") datum shift.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3)
+        Coordinates in ``dst``, x first (an empty copy for no points).
+
+    Raises
+    ------
+    InputError
+        For points of another shape, an unknown CRS, or a conversion PROJ can only do
+        approximately (unless ``allow_ballpark``).
+    """
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise InputError(f"points must have shape (n, 3), got {pts.shape}")

@@ -232,6 +232,12 @@ def scheduler_client(scheduler: str | None = None) -> Iterator[Any]:
         See the module docstring. An address is ``tcp://host:port``, ``tls://host:port``
         or ``host:port`` (``tcp://`` then).
 
+    Yields
+    ------
+    distributed.Client or None
+        The client (closed with its local cluster, if one was started, when the block
+        ends); None for ``"threads"`` and ``"sync"``.
+
     Raises
     ------
     InputError
@@ -450,8 +456,30 @@ def _as_dask_points(arr, name: str):
 
 
 def transform_array(transform, points):
-    """``transform.apply`` over a ``dask.array`` of points (n, 3), block by block (lazy:
-    nothing is computed until the result is). Returns a ``dask.array`` of the same chunks."""
+    """``transform.apply`` over a ``dask.array`` of points, block by block.
+
+    Lazy: nothing is computed until the result is.
+
+    Parameters
+    ----------
+    transform : transformation
+        Anything with ``apply((n, 3)) -> (n, 3)``, a ``Fit`` (its ``transform``) or a
+        function.
+    points : dask.array.Array or array_like, shape (n, 3)
+        Points in the source system; an in-memory array is wrapped in blocks of 1 000 000
+        points.
+
+    Returns
+    -------
+    dask.array.Array, shape (n, 3)
+        Of the same chunks, in the target system.
+
+    Raises
+    ------
+    InputError
+        For ``points`` not of shape (n, 3), or a ``transform`` that is neither a
+        transformation nor a function.
+    """
     from .io.cloud import _as_apply
 
     fn = _as_apply(transform)
@@ -637,7 +665,15 @@ class CloudRegistration:
     crs_name: str | None = None
 
     def to_dict(self) -> dict:
-        """JSON-ready (NaN where there are no check pairs)."""
+        """JSON-ready (NaN where there are no check pairs).
+
+        Returns
+        -------
+        dict
+            The fitted similarity (scale, rotation, translation, angles in rad, parameters with
+            standard deviations and covariance, sigma0, redundancy), control and check pair
+            counts and RMSEs (target units), the CRSs and the transformation's ``to_dict``.
+        """
         f = self.fit
         return {
             "method": f.method,

@@ -101,6 +101,16 @@ def convert_pixel_origin(points, from_origin: PixelOrigin, to_origin: PixelOrigi
         Pixel coordinates (col, row) in pixels.
     from_origin, to_origin : {"center", "corner"}
         Convention of the input and of the output.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2) or (2,)
+        Pixel coordinates in ``to_origin``, px.
+
+    Raises
+    ------
+    InputError
+        For an unknown origin, or points not of shape (n, 2) / (2,) or not finite.
     """
     _check_origin(from_origin)
     _check_origin(to_origin)
@@ -117,10 +127,20 @@ def image_center(image_size, origin: PixelOrigin = "center") -> np.ndarray:
     Parameters
     ----------
     image_size : (width, height)
-        Number of columns and rows (pixels).
-    origin : {"center", "corner"}
+        Number of columns and rows (pixels); one number for a square image.
+    origin : {"center", "corner"}, default "center"
         Pixel-origin convention of the result: ``((w - 1) / 2, (h - 1) / 2)`` for
         ``"center"``, ``(w / 2, h / 2)`` for ``"corner"``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        ``(col, row)`` in px.
+
+    Raises
+    ------
+    InputError
+        For an unknown origin or a size that is not positive.
     """
     _check_origin(origin)
     size = _pair(image_size, "image_size")
@@ -165,14 +185,48 @@ class PixelSystem:
         focal_length: float | None = None,
         origin: PixelOrigin = "center",
     ) -> PixelSystem:
-        """A pixel system whose principal point is the image centre (see :func:`image_center`)."""
+        """A pixel system whose principal point is the image centre (see :func:`image_center`).
+
+        Parameters
+        ----------
+        image_size : (width, height)
+            Image size, px.
+        pixel_size : float or (dx, dy)
+            mm per pixel.
+        focal_length : float, optional
+            Principal distance ``f``, mm.
+        origin : {"center", "corner"}, default "center"
+            Pixel-origin convention.
+
+        Returns
+        -------
+        PixelSystem
+
+        Raises
+        ------
+        InputError
+            For an unknown pixel origin, a pixel size that is not positive, a focal length that
+            is not positive, or points not of shape (n, 2) / (2,) or not finite.
+        """
         return cls(pixel_size, image_center(image_size, origin), focal_length, origin)
 
     def to_image(self, pixels) -> np.ndarray:
         """Pixel (col, row) -> image coordinates in mm.
 
-        Returns ``(x, y)`` of shape (n, 2), or ``(x, y, -f)`` of shape (n, 3) when the
-        focal length is known (a single point in gives a single point out).
+        Parameters
+        ----------
+        pixels : array_like, shape (n, 2) or (2,)
+            Pixel coordinates (col, row) in this system's ``origin`` convention.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (n, 3), or (2,) / (3,) for one point
+            ``(x, y)`` in mm, or ``(x, y, -f)`` when the focal length is known.
+
+        Raises
+        ------
+        InputError
+            For points not of shape (n, 2) / (2,) or not finite.
         """
         arr = as_float64(pixels, "pixel coordinates (col, row)")
         p = as_points(arr, 2, "pixel coordinates (col, row)")
@@ -186,7 +240,22 @@ class PixelSystem:
     def to_pixel(self, image_points) -> np.ndarray:
         """Image coordinates in mm, (x, y) or (x, y, z), -> pixel (col, row).
 
-        A third coordinate, when given, must equal ``-f`` (points on the image plane).
+        Parameters
+        ----------
+        image_points : array_like, shape (n, 2), (n, 3), (2,) or (3,)
+            Image coordinates in mm; a third coordinate, when given, must equal ``-f`` (points
+            on the image plane).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            ``(col, row)`` in px, this system's ``origin`` convention.
+
+        Raises
+        ------
+        InputError
+            For a z column without a focal length or with values other than ``-f``, or points
+            of another shape or not finite.
         """
         arr = as_float64(image_points, "image coordinates (mm)")
         p = as_points(arr, (2, 3), "image coordinates (mm)")
@@ -207,7 +276,23 @@ class PixelSystem:
         return out[0] if arr.ndim == 1 else out
 
     def with_origin(self, origin: PixelOrigin) -> PixelSystem:
-        """The same system with pixel coordinates in another origin convention."""
+        """The same system with pixel coordinates in another origin convention.
+
+        Parameters
+        ----------
+        origin : {"center", "corner"}
+            The new convention.
+
+        Returns
+        -------
+        PixelSystem
+            With the principal point re-expressed in ``origin``.
+
+        Raises
+        ------
+        InputError
+            For an unknown origin.
+        """
         pp = convert_pixel_origin(self.principal_point, self.origin, origin)
         return PixelSystem(self.pixel_size, pp, self.focal_length, origin)
 
@@ -232,8 +317,19 @@ def pixel_to_image(
         Pixels, in the ``origin`` convention (as ``pixels``).
     focal_length : float, optional
         mm; adds the column ``z = -f``.
-    origin : {"center", "corner"}
+    origin : {"center", "corner"}, default "center"
         Pixel-origin convention of ``pixels`` and ``principal_point``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2) or (n, 3), or (2,) / (3,) for one point
+        Image coordinates in mm.
+
+    Raises
+    ------
+    InputError
+        For an unknown pixel origin, a pixel size that is not positive, a focal length that
+        is not positive, or points not of shape (n, 2) / (2,) or not finite.
     """
     return PixelSystem(pixel_size, principal_point, focal_length, origin).to_image(pixels)
 
@@ -246,7 +342,32 @@ def image_to_pixel(
     focal_length: float | None = None,
     origin: PixelOrigin = "center",
 ) -> np.ndarray:
-    """Image coordinates in mm -> pixel (col, row); inverse of :func:`pixel_to_image`."""
+    """Image coordinates in mm -> pixel (col, row); inverse of :func:`pixel_to_image`.
+
+    Parameters
+    ----------
+    image_points : array_like, shape (n, 2), (n, 3), (2,) or (3,)
+        Image coordinates in mm; a z column must equal ``-focal_length``.
+    pixel_size : float or (dx, dy)
+        mm per pixel.
+    principal_point : (col_pp, row_pp)
+        Pixels, in the ``origin`` convention.
+    focal_length : float, optional
+        mm; needed when ``image_points`` has a z column.
+    origin : {"center", "corner"}, default "center"
+        Pixel-origin convention of ``principal_point`` and of the result.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2) or (2,)
+        ``(col, row)`` in px.
+
+    Raises
+    ------
+    InputError
+        For an unknown pixel origin, a pixel size that is not positive, a focal length that
+        is not positive, or points not of shape (n, 2) / (2,) or not finite.
+    """
     return PixelSystem(pixel_size, principal_point, focal_length, origin).to_pixel(image_points)
 
 
@@ -277,7 +398,26 @@ def fiducial_to_image(points, principal_point, focal_length: float) -> np.ndarra
 
 
 def image_to_fiducial(points, principal_point) -> np.ndarray:
-    """Image coordinates (x, y[, z]) in mm -> fiducial coordinates ``(x + x0, y + y0)``."""
+    """Image coordinates (x, y[, z]) in mm -> fiducial coordinates ``(x + x0, y + y0)``.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2), (n, 3), (2,) or (3,)
+        Image coordinates in mm (a z column is dropped).
+    principal_point : (x0, y0)
+        Principal point in the fiducial system, mm.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2) or (2,)
+        Fiducial coordinates in mm.
+
+    Raises
+    ------
+    InputError
+        For points of another shape or not finite, or a principal point that is not a
+        finite pair.
+    """
     arr = as_float64(points, "image coordinates (mm)")
     p = as_points(arr, (2, 3), "image coordinates (mm)")
     out = p[:, :2] + _pair(principal_point, "principal_point")
@@ -288,7 +428,23 @@ def image_to_fiducial(points, principal_point) -> np.ndarray:
 
 
 def handedness(system: str) -> str:
-    """``"left"`` or ``"right"`` for a named 2D system (see :data:`HANDEDNESS`)."""
+    """``"left"`` or ``"right"`` for a named 2D system (see :data:`HANDEDNESS`).
+
+    Parameters
+    ----------
+    system : str
+        System name, case-insensitive (``"pixel"``, ``"image"``, ``"fiducial"``, ...).
+
+    Returns
+    -------
+    str
+        ``"left"`` or ``"right"``.
+
+    Raises
+    ------
+    InputError
+        For an unknown name (the known ones are listed).
+    """
     key = str(system).lower()
     if key not in HANDEDNESS:
         raise InputError(
@@ -298,8 +454,25 @@ def handedness(system: str) -> str:
 
 
 def flip_y(points) -> np.ndarray:
-    """Negate the second coordinate (row or y): turns a left-handed 2D system right-handed and
-    back. Works on (n, 2) and (2,) arrays; returns a new array."""
+    """Negate the second coordinate (row or y).
+
+    Turns a left-handed 2D system right-handed and back.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2) or (2,)
+        Coordinates, any unit.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2) or (2,)
+        A new array.
+
+    Raises
+    ------
+    InputError
+        For points of another shape or not finite.
+    """
     arr = as_float64(points, "points")
     p = as_points(arr, 2, "points").copy()
     p[:, 1] = -p[:, 1]
@@ -310,8 +483,15 @@ def flip_y(points) -> np.ndarray:
 class HandednessPlan:
     """What to do with two named 2D systems before fitting a transformation between them.
 
-    ``flip_source`` / ``flip_target`` say whether the second coordinate of that side is negated
-    (the left-handed side of a mixed pair is the one flipped); ``note`` explains it for reports.
+    Parameters
+    ----------
+    source_system, target_system : str or None
+        Names of the two systems (None when not named).
+    flip_source, flip_target : bool
+        Whether the second coordinate of that side is negated (the left-handed side of a
+        mixed pair is the one flipped).
+    note : str
+        Explanation for reports (empty when nothing is flipped).
     """
 
     source_system: str | None
@@ -321,7 +501,17 @@ class HandednessPlan:
     note: str
 
     def apply(self, source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The point sets with the planned flips applied (copies where flipped)."""
+        """The point sets with the planned flips applied (copies where flipped).
+
+        Parameters
+        ----------
+        source, target : numpy.ndarray, shape (n, 2)
+            The two point sets.
+
+        Returns
+        -------
+        source, target : numpy.ndarray, shape (n, 2)
+        """
         return (flip_y(source) if self.flip_source else source,
                 flip_y(target) if self.flip_target else target)
 
@@ -337,6 +527,20 @@ def handedness_plan(source_system: str | None, target_system: str | None) -> Han
     * same handedness: nothing is flipped;
     * mixed handedness: the second coordinate of the left-handed (pixel) side is negated, and
       the note says so. The fitted transformation then maps ``(col, -row)``.
+
+    Parameters
+    ----------
+    source_system, target_system : str or None
+        System names (see :data:`HANDEDNESS`).
+
+    Returns
+    -------
+    HandednessPlan
+
+    Raises
+    ------
+    InputError
+        When only one system is named, or a name is unknown.
     """
     if source_system is None and target_system is None:
         return _UNNAMED

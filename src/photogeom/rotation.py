@@ -53,21 +53,54 @@ def _stack(rows) -> np.ndarray:
 
 
 def m1(omega) -> np.ndarray:
-    """Elementary axis rotation about x: ``[[1,0,0],[0,c,s],[0,-s,c]]`` (radians)."""
+    """Elementary axis rotation about x: ``[[1,0,0],[0,c,s],[0,-s,c]]``.
+
+    Parameters
+    ----------
+    omega : float or array_like
+        Angle(s) in rad.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3, 3)
+        One matrix per angle (shape ``(3, 3)`` for a scalar).
+    """
     c, s = np.cos(omega), np.sin(omega)
     z, o = np.zeros_like(c), np.ones_like(c)
     return _stack([[o, z, z], [z, c, s], [z, -s, c]])
 
 
 def m2(phi) -> np.ndarray:
-    """Elementary axis rotation about y: ``[[c,0,-s],[0,1,0],[s,0,c]]`` (radians)."""
+    """Elementary axis rotation about y: ``[[c,0,-s],[0,1,0],[s,0,c]]``.
+
+    Parameters
+    ----------
+    phi : float or array_like
+        Angle(s) in rad.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3, 3)
+        One matrix per angle (shape ``(3, 3)`` for a scalar).
+    """
     c, s = np.cos(phi), np.sin(phi)
     z, o = np.zeros_like(c), np.ones_like(c)
     return _stack([[c, z, -s], [z, o, z], [s, z, c]])
 
 
 def m3(kappa) -> np.ndarray:
-    """Elementary axis rotation about z: ``[[c,s,0],[-s,c,0],[0,0,1]]`` (radians)."""
+    """Elementary axis rotation about z: ``[[c,s,0],[-s,c,0],[0,0,1]]``.
+
+    Parameters
+    ----------
+    kappa : float or array_like
+        Angle(s) in rad.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3, 3)
+        One matrix per angle (shape ``(3, 3)`` for a scalar).
+    """
     c, s = np.cos(kappa), np.sin(kappa)
     z, o = np.zeros_like(c), np.ones_like(c)
     return _stack([[c, s, z], [-s, c, z], [z, z, o]])
@@ -79,12 +112,12 @@ def opk_matrix(omega, phi, kappa) -> np.ndarray:
     Parameters
     ----------
     omega, phi, kappa : float or array_like
-        Angles in radians (broadcast together).
+        Angles in rad (broadcast together).
 
     Returns
     -------
-    numpy.ndarray
-        Shape ``(..., 3, 3)``.
+    numpy.ndarray, shape (..., 3, 3)
+        ``M``, one matrix per broadcast angle triple (shape ``(3, 3)`` for scalars).
     """
     sw, cw = np.sin(omega), np.cos(omega)
     sp, cp = np.sin(phi), np.cos(phi)
@@ -101,11 +134,23 @@ def opk_matrix(omega, phi, kappa) -> np.ndarray:
 def opk_matrix_and_derivatives(
     omega: float, phi: float, kappa: float
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``M = M3(kappa) M2(phi) M1(omega)`` and ``dM/domega, dM/dphi, dM/dkappa`` (radians).
+    """``M = M3(kappa) M2(phi) M1(omega)`` and ``dM/domega, dM/dphi, dM/dkappa``.
 
     Scalar arithmetic for one attitude: each derivative replaces one elementary factor by
     its derivative. Cheaper than the broadcasting builders where it is called once per
     iteration (resection, absolute orientation).
+
+    Parameters
+    ----------
+    omega, phi, kappa : float
+        Angles in rad (scalars only).
+
+    Returns
+    -------
+    M : numpy.ndarray, shape (3, 3)
+        The orientation matrix.
+    derivatives : tuple of three numpy.ndarray, shape (3, 3)
+        ``(dM/domega, dM/dphi, dM/dkappa)``, per rad.
     """
     cw, sw = math.cos(omega), math.sin(omega)
     cp, sp = math.cos(phi), math.sin(phi)
@@ -143,16 +188,25 @@ def opk_from_matrix(
     ----------
     M : array_like, shape (..., 3, 3)
         Rotation matrix (or batch).
-    on_gimbal_lock : {"raise", "omega-zero"}
+    on_gimbal_lock : {"raise", "omega-zero"}, default "raise"
         At phi = +-90 deg only omega +- kappa is defined. ``"raise"`` raises
         :class:`GimbalLockError`; ``"omega-zero"`` sets omega = 0 and puts the whole
         rotation about the vertical into kappa.
-    tolerance : float
-        Gimbal lock is declared when ``cos(phi) < tolerance``.
+    tolerance : float, default GIMBAL_TOLERANCE (1e-9)
+        Gimbal lock is declared when ``cos(phi) < tolerance`` (unitless).
 
     Returns
     -------
     omega, phi, kappa : float or numpy.ndarray
+        Angles in rad: floats for one matrix, arrays of shape ``(...)`` for a batch.
+
+    Raises
+    ------
+    InputError
+        When ``M`` is not of shape ``(..., 3, 3)``, or (at gimbal lock) ``on_gimbal_lock`` is
+        neither value.
+    GimbalLockError
+        At gimbal lock with ``on_gimbal_lock="raise"``.
     """
     M = np.asarray(M, dtype=float)
     if M.shape[-2:] != (3, 3):
@@ -209,8 +263,25 @@ def rotation_from_angles(
 ) -> np.ndarray:
     """Rotation ``R`` of a similarity ``X = s R x + t`` from its angles.
 
-    ``convention="transposed"``: ``R = M(omega, phi, kappa).T = R1(omega) R2(phi) R3(kappa)``;
-    ``convention="direct"``: ``R = M(omega, phi, kappa)``.
+    Parameters
+    ----------
+    omega, phi, kappa : float or array_like
+        Angles in ``unit`` (broadcast together).
+    convention : {"transposed", "direct"}, default "transposed"
+        ``"transposed"``: ``R = M(omega, phi, kappa).T = R1(omega) R2(phi) R3(kappa)``
+        (Wolf, Mikhail, Kraus); ``"direct"``: ``R = M(omega, phi, kappa)``.
+    unit : str, default "rad"
+        Angle unit: ``"rad"``, ``"deg"``, ``"gon"``, ``"arcsec"``, ``"mrad"``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3, 3)
+        ``R`` (shape ``(3, 3)`` for scalar angles).
+
+    Raises
+    ------
+    InputError
+        For an unknown ``convention`` or ``unit``.
     """
     _check_convention(convention)
     w, p, k = (to_radians(a, unit) for a in (omega, phi, kappa))
@@ -228,6 +299,29 @@ def angles_from_rotation(
     """Angles (omega, phi, kappa) of a similarity rotation ``R`` in ``unit``.
 
     Inverse of :func:`rotation_from_angles` (phi in [-90, 90] degrees).
+
+    Parameters
+    ----------
+    R : array_like, shape (..., 3, 3)
+        Rotation matrix (or batch) of ``X = s R x + t``.
+    convention : {"transposed", "direct"}, default "transposed"
+        As in :func:`rotation_from_angles`.
+    unit : str, default "rad"
+        Unit of the returned angles: ``"rad"``, ``"deg"``, ``"gon"``, ``"arcsec"``, ``"mrad"``.
+    on_gimbal_lock : {"raise", "omega-zero"}, default "raise"
+        As in :func:`opk_from_matrix`.
+
+    Returns
+    -------
+    omega, phi, kappa : float or numpy.ndarray
+        Angles in ``unit``: floats for one matrix, arrays of shape ``(...)`` for a batch.
+
+    Raises
+    ------
+    InputError
+        For an unknown ``convention`` or ``unit``, or ``R`` not of shape ``(..., 3, 3)``.
+    GimbalLockError
+        At phi = +-90 deg with ``on_gimbal_lock="raise"``.
     """
     _check_convention(convention)
     R = np.asarray(R, dtype=float)
@@ -254,7 +348,7 @@ def quaternion_from_matrix(R, *, scalar_first: bool = True) -> np.ndarray:
     ----------
     R : array_like, shape (3, 3) or (..., 3, 3)
         Rotation matrix (or a stack of them).
-    scalar_first : bool
+    scalar_first : bool, default True
         ``True``: ``(w, x, y, z)`` (Hamilton, Horn); ``False``: ``(x, y, z, w)`` (scipy, ROS).
         The sign is chosen with ``w >= 0``.
 
@@ -262,13 +356,36 @@ def quaternion_from_matrix(R, *, scalar_first: bool = True) -> np.ndarray:
     -------
     numpy.ndarray, shape (4,) or (..., 4)
         Unit quaternion(s), unitless.
+
+    Raises
+    ------
+    InputError
+        When ``R`` is not of shape ``(..., 3, 3)``.
     """
     q = _as_rotation(R).as_quat(canonical=True)  # scalar last
     return np.roll(q, 1, axis=-1) if scalar_first else q
 
 
 def matrix_from_quaternion(q, *, scalar_first: bool = True) -> np.ndarray:
-    """Rotation matrix of a quaternion (normalised first); see :func:`quaternion_from_matrix`."""
+    """Rotation matrix of a quaternion (normalised first); see :func:`quaternion_from_matrix`.
+
+    Parameters
+    ----------
+    q : array_like, shape (4,) or (..., 4)
+        Quaternion(s), any non-zero length (unitless).
+    scalar_first : bool, default True
+        ``True``: ``q`` is ``(w, x, y, z)``; ``False``: ``(x, y, z, w)``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack), acting as ``R @ x``.
+
+    Raises
+    ------
+    InputError
+        When the last axis of ``q`` is not 4 long, or a quaternion is zero.
+    """
     q = np.asarray(q, dtype=float)
     if q.shape[-1] != 4:
         raise InputError(f"quaternion: expected shape (..., 4), got {q.shape}")
@@ -281,8 +398,27 @@ def matrix_from_quaternion(q, *, scalar_first: bool = True) -> np.ndarray:
 
 
 def axis_angle_from_matrix(R) -> tuple[np.ndarray, np.ndarray]:
-    """Unit rotation axis and angle (radians, in [0, pi]) of ``R``: ``R @ x`` rotates ``x``
-    counter-clockwise by the angle about the axis (right-hand rule)."""
+    """Unit rotation axis and angle of ``R``.
+
+    ``R @ x`` rotates ``x`` counter-clockwise by the angle about the axis (right-hand rule).
+
+    Parameters
+    ----------
+    R : array_like, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack).
+
+    Returns
+    -------
+    axis : numpy.ndarray, shape (3,) or (..., 3)
+        Unit axis; ``(0, 0, 1)`` for the identity (angle 0).
+    angle : numpy.float64 or numpy.ndarray, shape (...)
+        Angle in rad, in [0, pi].
+
+    Raises
+    ------
+    InputError
+        When ``R`` is not of shape ``(..., 3, 3)``.
+    """
     rv = _as_rotation(R).as_rotvec()
     angle = np.linalg.norm(rv, axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -291,7 +427,25 @@ def axis_angle_from_matrix(R) -> tuple[np.ndarray, np.ndarray]:
 
 
 def matrix_from_axis_angle(axis, angle) -> np.ndarray:
-    """Rotation matrix from an axis (normalised here) and an angle in radians."""
+    """Rotation matrix from an axis (normalised here) and an angle.
+
+    Parameters
+    ----------
+    axis : array_like, shape (3,) or (..., 3)
+        Rotation axis, any non-zero length (unitless).
+    angle : float or array_like, shape (...)
+        Angle(s) in rad, counter-clockwise about ``axis`` (right-hand rule).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack), acting as ``R @ x``.
+
+    Raises
+    ------
+    InputError
+        When an axis has zero length.
+    """
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis, axis=-1, keepdims=True)
     if np.any(norm < 1e-15):
@@ -302,7 +456,24 @@ def matrix_from_axis_angle(axis, angle) -> np.ndarray:
 
 
 def rodrigues_from_matrix(R) -> np.ndarray:
-    """Rodrigues (Gibbs) vector ``g = tan(angle / 2) * axis``; infinite at 180 degrees."""
+    """Rodrigues (Gibbs) vector ``g = tan(angle / 2) * axis`` of ``R``.
+
+    Parameters
+    ----------
+    R : array_like, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,) or (..., 3)
+        Gibbs vector(s), unitless.
+
+    Raises
+    ------
+    InputError
+        When ``R`` is not of shape ``(..., 3, 3)``, or a rotation is of 180 degrees (where
+        the vector is infinite).
+    """
     axis, angle = axis_angle_from_matrix(R)
     if np.any(np.isclose(angle, np.pi, atol=1e-12)):
         raise InputError("Rodrigues/Gibbs vector is infinite for a rotation of 180 degrees")
@@ -310,8 +481,20 @@ def rodrigues_from_matrix(R) -> np.ndarray:
 
 
 def matrix_from_rodrigues(g) -> np.ndarray:
-    """Rotation matrix from a Rodrigues (Gibbs) vector ``g = tan(angle / 2) * axis``:
-    ``R = I + 2 / (1 + g.g) * ([g]x + [g]x^2)``."""
+    """Rotation matrix from a Rodrigues (Gibbs) vector ``g = tan(angle / 2) * axis``.
+
+    ``R = I + 2 / (1 + g.g) * ([g]x + [g]x^2)``.
+
+    Parameters
+    ----------
+    g : array_like, shape (3,) or (..., 3)
+        Gibbs vector(s), unitless.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack), acting as ``R @ x``.
+    """
     g = np.asarray(g, dtype=float)
     gx = skew(g)
     eye = np.broadcast_to(np.eye(3), gx.shape)
@@ -322,12 +505,55 @@ def euler_from_matrix(R, seq: str, unit: str = "rad") -> np.ndarray:
     """Euler angles of ``R`` for any scipy sequence (``"xyz"`` extrinsic, ``"XYZ"`` intrinsic).
 
     These are angles of *active* rotations composing ``R``; see scipy's documentation.
+
+    Parameters
+    ----------
+    R : array_like, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack).
+    seq : str
+        Three axis letters, all lower case (extrinsic) or all upper case (intrinsic).
+    unit : str, default "rad"
+        Unit of the returned angles: ``"rad"``, ``"deg"``, ``"gon"``, ``"arcsec"``, ``"mrad"``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,) or (..., 3)
+        The three angles in ``unit``, in the order of ``seq``.
+
+    Raises
+    ------
+    InputError
+        When ``R`` is not of shape ``(..., 3, 3)`` or ``unit`` is unknown.
+    ValueError
+        From scipy, for an invalid ``seq``.
     """
     return from_radians(_as_rotation(R).as_euler(seq), unit)
 
 
 def matrix_from_euler(seq: str, angles, unit: str = "rad") -> np.ndarray:
-    """Rotation matrix from Euler angles of an scipy sequence (active rotations)."""
+    """Rotation matrix from Euler angles of a scipy sequence (active rotations).
+
+    Parameters
+    ----------
+    seq : str
+        Three axis letters, all lower case (extrinsic) or all upper case (intrinsic).
+    angles : array_like, shape (3,) or (..., 3)
+        The angles in ``unit``, in the order of ``seq``.
+    unit : str, default "rad"
+        Unit of ``angles``: ``"rad"``, ``"deg"``, ``"gon"``, ``"arcsec"``, ``"mrad"``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        Rotation matrix (or stack), acting as ``R @ x``.
+
+    Raises
+    ------
+    InputError
+        For an unknown ``unit``.
+    ValueError
+        From scipy, for an invalid ``seq`` or ``angles`` of the wrong length.
+    """
     return _Rotation().from_euler(seq, to_radians(angles, unit)).as_matrix()
 
 
@@ -335,7 +561,18 @@ def matrix_from_euler(seq: str, angles, unit: str = "rad") -> np.ndarray:
 
 
 def skew(v) -> np.ndarray:
-    """Cross-product matrix ``[v]x`` with ``[v]x @ u = v x u``; shape (..., 3, 3)."""
+    """Cross-product matrix ``[v]x`` with ``[v]x @ u = v x u``.
+
+    Parameters
+    ----------
+    v : array_like, shape (3,) or (..., 3)
+        Vector(s), any unit.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        The skew-symmetric matrix (or stack), in the unit of ``v``.
+    """
     v = np.asarray(v, dtype=float)
     z = np.zeros_like(v[..., 0])
     return _stack(
@@ -344,14 +581,36 @@ def skew(v) -> np.ndarray:
 
 
 def orthogonality_defect(R) -> np.ndarray | float:
-    """Frobenius norm ``|R.T R - I|`` (0 for an exact rotation)."""
+    """Frobenius norm ``|R.T R - I|`` (0 for an exact rotation).
+
+    Parameters
+    ----------
+    R : array_like, shape (3, 3) or (..., 3, 3)
+        Matrix (or stack) to test.
+
+    Returns
+    -------
+    float or numpy.ndarray, shape (...)
+        The defect, unitless: a float for one matrix.
+    """
     R = np.asarray(R, dtype=float)
     d = np.linalg.norm(np.swapaxes(R, -1, -2) @ R - np.eye(3), axis=(-2, -1))
     return float(d) if np.ndim(d) == 0 else d
 
 
 def nearest_rotation(A) -> np.ndarray:
-    """Closest proper rotation to ``A`` in the Frobenius norm (polar decomposition, det = +1)."""
+    """Closest proper rotation to ``A`` in the Frobenius norm (polar decomposition, det = +1).
+
+    Parameters
+    ----------
+    A : array_like, shape (3, 3) or (..., 3, 3)
+        Matrix (or stack), e.g. a rotation spoilt by rounding or a linear estimate.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        Orthonormal matrix (or stack) with determinant +1.
+    """
     U, _, Vt = np.linalg.svd(np.asarray(A, dtype=float))
     d = np.sign(np.linalg.det(U @ Vt))
     d = np.where(d == 0, 1.0, d)
@@ -361,7 +620,19 @@ def nearest_rotation(A) -> np.ndarray:
 
 
 def is_rotation(R, tol: float = 1e-9) -> bool:
-    """``True`` when every matrix of ``R`` is orthonormal with determinant +1 (within ``tol``)."""
+    """``True`` when every matrix of ``R`` is orthonormal with determinant +1 (within ``tol``).
+
+    Parameters
+    ----------
+    R : array_like, shape (3, 3) or (..., 3, 3)
+        Matrix (or stack) to test.
+    tol : float, default 1e-9
+        Tolerance on the orthogonality defect and on ``|det R - 1|`` (unitless).
+
+    Returns
+    -------
+    bool
+    """
     R = np.asarray(R, dtype=float)
     return bool(
         np.all(np.asarray(orthogonality_defect(R)) < tol)

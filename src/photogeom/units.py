@@ -30,7 +30,25 @@ ANGLE_UNITS = tuple(_TO_RAD)
 
 
 def normalize_angle_unit(unit: str) -> str:
-    """Return the canonical name of an angle unit ('rad', 'deg', 'gon', 'arcsec', 'mrad')."""
+    """Canonical name of an angle unit.
+
+    Parameters
+    ----------
+    unit : str
+        Unit name, case-insensitive, surrounding blanks ignored: ``"rad"``, ``"deg"``,
+        ``"gon"``, ``"arcsec"``, ``"mrad"`` or an alias (``"radians"``, ``"degrees"``,
+        ``"°"``, ``"grad"``, ``"gons"``, ``"as"``, ``'"'``, ...).
+
+    Returns
+    -------
+    str
+        One of ``'rad'``, ``'deg'``, ``'gon'``, ``'arcsec'``, ``'mrad'``.
+
+    Raises
+    ------
+    InputError
+        When ``unit`` is none of these; the message lists the accepted units.
+    """
     key = str(unit).strip().lower()
     key = _ALIASES.get(key, key)
     if key not in _TO_RAD:
@@ -39,27 +57,105 @@ def normalize_angle_unit(unit: str) -> str:
 
 
 def to_radians(value, unit: str):
-    """Convert angle(s) in ``unit`` to radians."""
+    """Convert angle(s) in ``unit`` to radians.
+
+    Parameters
+    ----------
+    value : float or array_like
+        Angle(s) in ``unit``; any shape.
+    unit : str
+        Unit of ``value``: ``"rad"``, ``"deg"``, ``"gon"``, ``"arcsec"``, ``"mrad"`` or an
+        alias accepted by :func:`normalize_angle_unit`.
+
+    Returns
+    -------
+    numpy.float64 or numpy.ndarray
+        Angle(s) in rad, float, the shape of ``value`` (a numpy float for a scalar).
+
+    Raises
+    ------
+    InputError
+        For an unknown ``unit``.
+    """
     return np.asarray(value, dtype=float) * _TO_RAD[normalize_angle_unit(unit)]
 
 
 def from_radians(value, unit: str):
-    """Convert angle(s) in radians to ``unit``."""
+    """Convert angle(s) in radians to ``unit``.
+
+    Parameters
+    ----------
+    value : float or array_like
+        Angle(s) in rad; any shape.
+    unit : str
+        Target unit: ``"rad"``, ``"deg"``, ``"gon"``, ``"arcsec"``, ``"mrad"`` or an alias
+        accepted by :func:`normalize_angle_unit`.
+
+    Returns
+    -------
+    numpy.float64 or numpy.ndarray
+        Angle(s) in ``unit``, float, the shape of ``value`` (a numpy float for a scalar).
+
+    Raises
+    ------
+    InputError
+        For an unknown ``unit``.
+    """
     return np.asarray(value, dtype=float) / _TO_RAD[normalize_angle_unit(unit)]
 
 
 def deg2gon(value):
-    """Degrees to gon (400 gon per turn)."""
+    """Degrees to gon (400 gon per turn).
+
+    Parameters
+    ----------
+    value : float or array_like
+        Angle(s) in deg; any shape.
+
+    Returns
+    -------
+    numpy.float64 or numpy.ndarray
+        Angle(s) in gon, float, the shape of ``value`` (a numpy float for a scalar).
+    """
     return np.asarray(value, dtype=float) * (400.0 / 360.0)
 
 
 def gon2deg(value):
-    """Gon to degrees."""
+    """Gon to degrees (360 deg per turn).
+
+    Parameters
+    ----------
+    value : float or array_like
+        Angle(s) in gon; any shape.
+
+    Returns
+    -------
+    numpy.float64 or numpy.ndarray
+        Angle(s) in deg, float, the shape of ``value`` (a numpy float for a scalar).
+    """
     return np.asarray(value, dtype=float) * (360.0 / 400.0)
 
 
 def wrap_angle(value, unit: str = "rad"):
-    """Wrap angle(s) to the half-open interval [-half turn, +half turn)."""
+    """Wrap angle(s) to the half-open interval [-half turn, +half turn).
+
+    Parameters
+    ----------
+    value : float or array_like
+        Angle(s) in ``unit``; any shape.
+    unit : str, default "rad"
+        Unit of ``value`` and of the result (half a turn is pi rad, 180 deg, 200 gon).
+
+    Returns
+    -------
+    numpy.float64 or numpy.ndarray
+        The wrapped angle(s) in ``unit``, the shape of ``value`` (a numpy float for a scalar).
+
+    Raises
+    ------
+    InputError
+        For an unknown ``unit``.
+    """
     half = float(from_radians(np.pi, unit))
     v = np.asarray(value, dtype=float)
     return (v + half) % (2 * half) - half
@@ -78,10 +174,21 @@ def display_angle(value, unit: str = "rad", name: str = ""):
     ----------
     value : float or array_like
         Angle(s) in ``unit``.
-    unit : str
+    unit : str, default "rad"
         Angle unit of ``value`` (and of the result).
-    name : str
+    name : str, default ""
         Parameter name; ``"kappa"`` selects the [0, one turn) range.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The angle(s) in ``unit`` in the printed range: a float for a scalar ``value``, else
+        an array of its shape.
+
+    Raises
+    ------
+    InputError
+        For an unknown ``unit``.
     """
     full = 2.0 * float(from_radians(np.pi, unit))
     v = np.asarray(value, dtype=float)

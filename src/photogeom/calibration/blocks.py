@@ -218,6 +218,17 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
     A grid is found by the image id, else by its text when that is unambiguous (grids
     files written before image ids kept their type hold text ids).
 
+    Parameters
+    ----------
+    block : Block
+        The block whose observations (px) are corrected.
+    grids : Mapping
+        ``image id -> ResidualGrid``; each grid's image size must be its camera's.
+
+    Returns
+    -------
+    Block
+
     Raises
     ------
     InputError

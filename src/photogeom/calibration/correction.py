@@ -28,7 +28,20 @@ _CV_MAX = 32767  # OpenCV remap: image sides below SHRT_MAX
 
 
 def correct_points(uv, grid: ResidualGrid) -> np.ndarray:
-    """Corrected image coordinates ``uv + r(uv)`` (px), shape (n, 2). See the module."""
+    """Corrected image coordinates ``uv + r(uv)``. See the module.
+
+    Parameters
+    ----------
+    uv : array_like, shape (n, 2)
+        Observed pixels (col, row) inside the image.
+    grid : ResidualGrid
+        The grid of the image.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2)
+        px.
+    """
     return grid.correct(uv)
 
 
@@ -81,10 +94,22 @@ def _column_profiles(grid: ResidualGrid) -> tuple[np.ndarray, np.ndarray]:
 
 
 def field_at_pixels(grid: ResidualGrid, rows: slice | None = None) -> np.ndarray:
-    """The modelled residual at every pixel centre (px), shape (rows, width, 2), float64.
+    """The modelled residual at every pixel centre.
 
     Separable evaluation: node rows interpolated to the pixel columns once, then linear
     between node rows, so the cost is two operations per pixel and component.
+
+    Parameters
+    ----------
+    grid : ResidualGrid
+        The grid of the image.
+    rows : slice, optional
+        Image rows to evaluate; default all.
+
+    Returns
+    -------
+    numpy.ndarray, shape (rows, width, 2)
+        Computed minus observed, px, float64.
     """
     L = grid.layout
     rows = rows or slice(0, L.height)

@@ -25,6 +25,11 @@ def correct_observations(observations, grids: Mapping):
     grids : mapping
         ``image id -> ResidualGrid``.
 
+    Returns
+    -------
+    Block or dict
+        Of the kind of ``observations``.
+
     Raises
     ------
     InputError

@@ -18,10 +18,23 @@ from ..errors import InputError
 
 
 def residual_statistics(residuals) -> dict:
-    """Statistics of 2D residual vectors (n, 2), px.
+    """Statistics of 2D residual vectors.
 
-    Returns a dict with ``n``, ``rms`` (``sqrt(mean |v|^2)``, the per-point RMSE),
-    ``mean_length`` (``mean |v|``), ``rms_x``, ``rms_y``.
+    Parameters
+    ----------
+    residuals : array_like, shape (n, 2)
+        Finite residual vectors, px.
+
+    Returns
+    -------
+    dict
+        ``n``, ``rms`` (``sqrt(mean |v|^2)``, the per-point RMSE), ``mean_length``
+        (``mean |v|``), ``rms_x``, ``rms_y`` (px; NaN for n = 0).
+
+    Raises
+    ------
+    InputError
+        For another shape or NaN/infinite values.
     """
     v = np.asarray(residuals, dtype=float)
     if v.ndim != 2 or v.shape[1] != 2:
@@ -93,7 +106,25 @@ def _pair(b: np.ndarray, a: np.ndarray) -> dict:
 
 
 def min_max_normalise(values, axis: int = -1) -> np.ndarray:
-    """``(x - min) / (max - min)`` along ``axis``; 0 where all values are equal."""
+    """``(x - min) / (max - min)`` along ``axis``; 0 where all values are equal.
+
+    Parameters
+    ----------
+    values : array_like
+        Finite values.
+    axis : int, default -1
+        Axis along which to normalise.
+
+    Returns
+    -------
+    numpy.ndarray
+        In [0, 1], the shape of ``values``.
+
+    Raises
+    ------
+    InputError
+        For NaN or infinite values.
+    """
     x = np.asarray(values, dtype=float)
     if not np.all(np.isfinite(x)):
         raise InputError("min-max normalisation: NaN or infinite values")
@@ -156,8 +187,26 @@ def most_frequent_spacing(chosen, distance=None) -> float:
     """The most frequent spacing among the models' choices.
 
     Ties are broken by the smaller sum of the models' normalised distances at the tied
-    spacings when ``distance`` (models, s) and the choices come from :func:`choose_spacing`
-    (pass its result dict as ``chosen``), else by the smaller spacing.
+    spacings when the choices come from :func:`choose_spacing` (pass its result dict as
+    ``chosen``), else by the smaller spacing.
+
+    Parameters
+    ----------
+    chosen : array_like or Mapping
+        The spacing (px) chosen by each model, or the result dict of :func:`choose_spacing`
+        (then ``distance`` is taken from it).
+    distance : array_like, shape (models, s), optional
+        Ignored unless ``chosen`` is a result dict (which supplies it).
+
+    Returns
+    -------
+    float
+        Spacing, px.
+
+    Raises
+    ------
+    InputError
+        When no choices are given.
     """
     if isinstance(chosen, Mapping):
         res = chosen

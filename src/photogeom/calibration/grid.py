@@ -117,12 +117,31 @@ class GridLayout:
         return self.nx * self.ny
 
     def node_coordinates(self) -> tuple[np.ndarray, np.ndarray]:
-        """Node positions ``(u, v)`` in pixels, each of shape (ny, nx)."""
+        """Node positions ``(u, v)`` in pixels.
+
+        Returns
+        -------
+        u, v : numpy.ndarray, shape (ny, nx)
+            px.
+        """
         g = self.spacing
         return np.meshgrid(np.arange(self.nx) * g, np.arange(self.ny) * g)
 
     def check_inside(self, uv: np.ndarray, what: str = "uv") -> None:
-        """Refuse points outside the image area ``[-0.5, width - 0.5] x [-0.5, height - 0.5]``."""
+        """Refuse points outside the image area ``[-0.5, width - 0.5] x [-0.5, height - 0.5]``.
+
+        Parameters
+        ----------
+        uv : numpy.ndarray, shape (n, 2)
+            Pixels (col, row), centre convention.
+        what : str, default "uv"
+            Name of the points in the message.
+
+        Raises
+        ------
+        InputError
+            Counting the points outside and naming the first.
+        """
         out = (
             (uv[:, 0] < -0.5)
             | (uv[:, 0] > self.width - 0.5)
@@ -139,13 +158,15 @@ class GridLayout:
     def locate(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Element nodes and bilinear weights of points.
 
+        Parameters
+        ----------
+        uv : numpy.ndarray, shape (n, 2)
+            Pixels (col, row) inside the image.
+
         Returns
         -------
         nodes : numpy.ndarray of int, shape (n, 4)
-            Node indices ``i * nx + j`` of the cell corners: (i, j), (i, j+1), (i+1, j),
-            (i+1, j+1).
         weights : numpy.ndarray, shape (n, 4)
-            Bilinear weights (summing to 1).
         """
         g, nx = self.spacing, self.nx
         x = uv[:, 0] / g
@@ -160,21 +181,58 @@ class GridLayout:
         return nodes, weights
 
     def cell_index(self, uv: np.ndarray) -> np.ndarray:
-        """Index ``i * (nx - 1) + j`` of the cell holding each point, shape (n,)."""
+        """Index ``i * (nx - 1) + j`` of the cell holding each point.
+
+        Parameters
+        ----------
+        uv : numpy.ndarray, shape (n, 2)
+            Pixels (col, row) inside the image.
+
+        Returns
+        -------
+        numpy.ndarray of int, shape (n,)
+        """
         g = self.spacing
         j = np.clip(np.floor(uv[:, 0] / g).astype(np.int64), 0, self.nx - 2)
         i = np.clip(np.floor(uv[:, 1] / g).astype(np.int64), 0, self.ny - 2)
         return i * (self.nx - 1) + j
 
     def design_matrix(self, uv: np.ndarray) -> sp.csr_matrix:
-        """Sparse ``A`` (n, n_nodes) of the bilinear interpolation at ``uv``."""
+        """Sparse ``A`` of the bilinear interpolation at ``uv``.
+
+        Parameters
+        ----------
+        uv : numpy.ndarray, shape (n, 2)
+            Pixels (col, row) inside the image.
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix, shape (n, n_nodes)
+            Four weights per row, summing to 1.
+        """
         nodes, w = self.locate(uv)
         n = uv.shape[0]
         indptr = np.arange(0, 4 * n + 1, 4)
         return sp.csr_matrix((w.ravel(), nodes.ravel(), indptr), shape=(n, self.n_nodes))
 
     def constraint_matrix(self, border: Border = "mean") -> sp.csr_matrix:
-        """Sparse ``C`` (m, n_nodes): rows ``z_ij - mean(neighbours)`` (see the module)."""
+        """Sparse ``C``: rows ``z_ij - mean(neighbours)`` (see the module).
+
+        Parameters
+        ----------
+        border : {"mean", "linear"}, default "mean"
+            Smoothness condition at the border nodes (see the module).
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix, shape (m, n_nodes)
+            ``m = n_nodes`` for ``"mean"``, ``n_nodes - 4`` for ``"linear"``.
+
+        Raises
+        ------
+        InputError
+            For another ``border``.
+        """
         if border not in BORDERS:
             raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
         ny, nx = self.shape
@@ -213,13 +271,32 @@ class GridLayout:
         independent (the constant field is the one null vector). With ``"linear"`` the
         ``n_nodes - 4`` rows are independent (the bilinear fields are the null space).
         The redundancy and the variance components count these, not the rows.
+
+        Parameters
+        ----------
+        border : {"mean", "linear"}, default "mean"
+            Smoothness condition at the border nodes (see the module).
+
+        Returns
+        -------
+        int
+
+        Raises
+        ------
+        InputError
+            For another ``border``.
         """
         if border not in BORDERS:
             raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
         return self.n_nodes - (1 if border == "mean" else 4)
 
     def to_dict(self) -> dict:
-        """``{"width", "height"}`` of the image (px) and the node ``"spacing"`` (px)."""
+        """``{"width", "height"}`` of the image (px) and the node ``"spacing"`` (px).
+
+        Returns
+        -------
+        dict
+        """
         return {"width": self.width, "height": self.height, "spacing": self.spacing}
 
 
@@ -284,7 +361,20 @@ class FiniteElementSystem:
             ) from None
 
     def solve(self, l: np.ndarray, lc: np.ndarray | None = None) -> np.ndarray:
-        """Node values (n_nodes, 2) for observations ``l`` (n, 2) [and pseudo-observations]."""
+        """Node values for observations ``l`` (and pseudo-observations).
+
+        Parameters
+        ----------
+        l : numpy.ndarray, shape (n, 2)
+            Observed residuals (x, y), px.
+        lc : numpy.ndarray, shape (m, 2), optional
+            Values of the smoothness pseudo-observations, px; default zero.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n_nodes, 2)
+            px.
+        """
         rhs = self._AtP @ l
         if lc is not None:
             rhs = rhs + self.constraint_weight * (self.C.T @ lc)
@@ -301,7 +391,13 @@ class FiniteElementSystem:
         return BlockSelectedInverse(self.N, s, perm, what="normal matrix of the residual grid")
 
     def observation_cofactors(self) -> np.ndarray:
-        """``a_k' N^-1 a_k`` for every observation (n,): cofactor of the modelled residual."""
+        """``a_k' N^-1 a_k`` for every observation: cofactor of the modelled residual.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            px^2 per unit weight.
+        """
         nodes, w = self.layout.locate(self.uv)
         Z = self.selected_inverse.entries(nodes[:, :, None], nodes[:, None, :])
         return np.einsum("ki,kij,kj->k", w, Z, w)
@@ -344,6 +440,9 @@ class ResidualGrid:
     vce_iterations : int
         Variance-component iterations (0: weights given).
     border : str
+    uv : numpy.ndarray, shape (n_input, 2), optional
+        Pixel positions of the input points (px), kept to compute :attr:`node_std` on first
+        use; None for a grid read without them (saved with ``std=False``).
     """
 
     layout: GridLayout
@@ -391,8 +490,21 @@ class ResidualGrid:
         return evaluate_nodes(self.layout, self.nodes, uv)
 
     def correct(self, uv) -> np.ndarray:
-        """Corrected image coordinates ``uv + r(uv)`` (px): the observation moved by the
-        modelled residual, i.e. the local displacement field ``-r`` subtracted."""
+        """Corrected image coordinates ``uv + r(uv)``.
+
+        The observation moved by the modelled residual, i.e. the local displacement field
+        ``-r`` subtracted.
+
+        Parameters
+        ----------
+        uv : array_like, shape (n, 2)
+            Observed pixels (col, row).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            px.
+        """
         uv = _as_uv(uv, "uv", "correcting them")
         return uv + self.evaluate(uv)
 
@@ -439,8 +551,14 @@ class ResidualGrid:
         return self._std[0]
 
     def to_dict(self) -> dict:
-        """JSON-ready summary (without the node arrays); ``sigma_obs_rms`` is the RMS of the
-        observations' standard deviations (px), estimated with ``sigma_constraint="vce"``."""
+        """JSON-ready summary (without the node arrays).
+
+        Returns
+        -------
+        dict
+            Layout, sigma0, redundancy, RMS values (px), counts; ``sigma_obs_rms`` is the RMS of
+            the observations' standard deviations (px), estimated with ``sigma_constraint="vce"``.
+        """
         return {
             **self.layout.to_dict(),
             "shape": list(self.layout.shape),
@@ -556,6 +674,13 @@ def fit_grid(
         Seed of the random split into folds.
     image_id : object
         Named in error messages.
+
+    Returns
+    -------
+    ResidualGrid
+        Node values (px), sigma0, redundancy, the observations' and pseudo-observations'
+        standard deviations, support, outliers and the RMS before/after (also
+        cross-validated).
 
     Raises
     ------

@@ -143,10 +143,26 @@ def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Pat
     node standard deviations (about 0.1-0.2 s per image of 4000 nodes). Image ids keep
     their type (integers or text; see the module).
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; ``.npz`` or JSON (any other suffix).
+    grids : dict
+        ``image id -> ResidualGrid``.
+    std : bool, default True
+        Store the node standard deviations (px).
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
     Raises
     ------
     InputError
         An image id that is neither an integer nor text.
+    OutputError
+        The file cannot be written.
     """
     return atomic_write_bytes(path, grids_file_bytes(path, grids, std=std))
 
@@ -283,6 +299,16 @@ def load_grids(path: str | os.PathLike) -> dict:
 
     Image ids come back with the type they were saved with (integers or text; older files:
     text).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.npz`` or JSON grids file.
+
+    Returns
+    -------
+    dict
+        ``image id -> ResidualGrid``.
 
     Raises
     ------

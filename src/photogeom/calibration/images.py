@@ -78,6 +78,14 @@ class FolderResult:
         return not self.failures
 
     def to_dict(self) -> dict:
+        """JSON-ready summary.
+
+        Returns
+        -------
+        dict
+            ``written`` (image -> output path), ``failures`` (image -> reason), ``skipped``,
+            ``notes``; keys as text.
+        """
         return {
             "written": {str(k): str(v) for k, v in self.written.items()},
             "failures": {str(k): v for k, v in self.failures.items()},

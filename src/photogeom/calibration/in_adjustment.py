@@ -167,7 +167,15 @@ class GridAdjustment:
     sigma_amplitude: float = float("nan")
 
     def to_dict(self) -> dict:
-        """JSON-ready summary."""
+        """JSON-ready summary.
+
+        Returns
+        -------
+        dict
+            Settings (``per``, ``spacing`` px, ``datum``, sigmas px; None where not used),
+            ``sigma0``, ``redundancy``, ``n_unknowns``, convergence, ``elapsed_s`` and the number
+            of distinct grids.
+        """
         return {
             "per": self.per,
             "spacing": self.spacing,
@@ -610,6 +618,9 @@ def adjust_with_grids(
         adjustment's 1e-4 needed 10 or more).
     progress : callable, optional
         ``progress(iteration, cost, damping)`` after each accepted step.
+    **kwargs
+        Fields of :class:`~photogeom.bundle.BundleOptions` overriding those of
+        ``options`` (e.g. ``max_iter``).
 
     Returns
     -------

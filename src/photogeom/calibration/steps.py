@@ -45,7 +45,20 @@ def _image_gsd(block: Block) -> np.ndarray:
 
 
 def image_overlap(block: Block, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Forward overlap of image rows ``a`` with rows ``b`` (see the module), fractions (k,)."""
+    """Forward overlap of image rows ``a`` with rows ``b`` (see the module).
+
+    Parameters
+    ----------
+    block : Block
+        The block (its exterior orientations, camera sizes and GSD).
+    a, b : numpy.ndarray of int, shape (k,)
+        Image rows of the pairs.
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+        Fractions (1 for coincident projection centres; negative without overlap).
+    """
     a, b = np.asarray(a, int), np.asarray(b, int)
     C = block.exterior[:, :3]
     base = C[b, :2] - C[a, :2]
@@ -83,7 +96,27 @@ class StereoModels:
 
 
 def stereo_models(block: Block, *, overlap: float = 0.6, min_overlap: float = 0.2) -> StereoModels:
-    """Strips, stereo models at about ``overlap`` forward overlap, and consecutive pairs."""
+    """Strips, stereo models at about ``overlap`` forward overlap, and consecutive pairs.
+
+    Parameters
+    ----------
+    block : Block
+        The block, images in flight order.
+    overlap : float, default 0.6
+        Target forward overlap of the models, in (0, 1).
+    min_overlap : float, default 0.2
+        Consecutive images overlapping less (or turning by more than 30 deg) start a new
+        strip; in [0, 1).
+
+    Returns
+    -------
+    StereoModels
+
+    Raises
+    ------
+    InputError
+        For ``block`` not a Block or a fraction out of range.
+    """
     if not isinstance(block, Block):
         raise InputError(f"model_steps needs a photogeom.bundle.Block, got {type(block).__name__}")
     if not (0 < overlap < 1):

@@ -55,6 +55,13 @@ def field_recovery(sim, grids) -> dict:
     compared with ``-sim.local_field(image, node)`` (the modelled residual is computed
     minus observed, the field is added to the observations).
 
+    Parameters
+    ----------
+    sim : SimulatedBlock
+        The simulated block (its true local field).
+    grids : mapping
+        ``image id -> ResidualGrid`` fitted to it.
+
     Returns
     -------
     dict
@@ -138,6 +145,16 @@ def visible_field(sim, *, hold_points: bool = False, **options) -> np.ndarray:
 
 def visible_recovery(sim, grids, visible: np.ndarray | None = None) -> dict:
     """Fitted grids against :func:`visible_field` at the tie observations.
+
+    Parameters
+    ----------
+    sim : SimulatedBlock
+        The simulated block.
+    grids : mapping
+        ``image id -> ResidualGrid`` fitted to it.
+    visible : numpy.ndarray, shape (n_observations, 2), optional
+        The visible field (px) if already computed; default :func:`visible_field` of
+        ``sim``.
 
     Returns
     -------
@@ -404,6 +421,27 @@ def run_study(
     correct it and it is re-adjusted the same way. Correcting the first observations
     themselves (``evaluation``) credits the grids with the noise they fitted.
 
+    Parameters
+    ----------
+    preset : str, default "ILCE-7RM2"
+        Camera preset (:func:`photogeom.simulate.preset`).
+    seed : int, default 1
+        Seed of the simulation.
+    size : {"small", "study"}, default "small"
+        Block size, as in :func:`~photogeom.simulate.uav_block`.
+    spacing : float, default 100.0
+        Node spacing of the fine grids, px.
+    coarse_spacing : float, default 2000.0
+        Node spacing of the coarse grids, px.
+    sweep : sequence of float or None, default (100, 150, 200, 300, 500, 1000, 2000)
+        Spacings (px) of the grid-size sweep; None skips it.
+    fit_options : dict, optional
+        Keywords of :func:`fit_residual_grids` (default: ``folds=0``).
+    rematch : bool, default True
+        Also evaluate on re-matched observations (see above).
+    **simulate
+        Further keywords of :func:`~photogeom.simulate.uav_block`.
+
     Returns
     -------
     dict
@@ -497,6 +535,27 @@ def compare_in_adjustment(
     (:meth:`~photogeom.simulate.SimulatedBlock.rematch`, the same fresh noise for all
     runs): its grids correct them and they are re-adjusted with its orientation and
     calibration, so that no run is credited with the noise it fitted.
+
+    Parameters
+    ----------
+    sim : SimulatedBlock
+        The simulated block.
+    spacing : float, default 500.0
+        Grid node spacing, px.
+    sigma_constraint : float, default 1.0
+        Smoothness standard deviation, px.
+    sigma_temporal : float or None, default 0.3
+        As in :func:`~photogeom.calibration.adjust_with_grids` (``per="image"`` only).
+    sigma_amplitude : float, "residuals" or None, default "residuals"
+        As in :func:`~photogeom.calibration.adjust_with_grids`.
+    per : {"image", "camera"}, default "image"
+        As in :func:`~photogeom.calibration.adjust_with_grids`.
+    overlap : float, default 0.6
+        Forward overlap of the stereo models of the step measure.
+    combined_spacing : float or None, default 300.0
+        Spacing (px) of the post-processing after the in-adjustment run; None: not run.
+    rematch_seed : int or None, default 1
+        Seed of the re-matched observations; None: not evaluated on them.
 
     Returns
     -------

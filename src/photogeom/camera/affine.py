@@ -57,7 +57,23 @@ class AffineCamera:
         return np.concatenate([self.a, self.b])
 
     def project(self, ground_xyz) -> np.ndarray:
-        """Image coordinates (n, 2) of ground points (n, 3)."""
+        """Image coordinates of ground points.
+
+        Parameters
+        ----------
+        ground_xyz : array_like, shape (n, 3) or (3,)
+            Object coordinates, object units.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            Image coordinates in :attr:`unit`.
+
+        Raises
+        ------
+        InputError
+            When ``ground_xyz`` is not of shape (n, 3) or holds NaN/infinite values.
+        """
         arr = as_float64(ground_xyz, "ground points")
         single = arr.ndim == 1
         g = as_points(arr, 3, "ground points")
@@ -65,7 +81,13 @@ class AffineCamera:
         return xy[0] if single else xy
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters."""
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``{"model": "affine_camera", "unit": ..., <the eight parameters by name>}``.
+        """
         return {
             "model": "affine_camera",
             "unit": self.unit,
@@ -74,7 +96,22 @@ class AffineCamera:
 
     @classmethod
     def from_dict(cls, data) -> AffineCamera:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : Mapping
+            The eight parameters by name and optionally ``"unit"`` (default ``"px"``).
+
+        Returns
+        -------
+        AffineCamera
+
+        Raises
+        ------
+        InputError
+            When a parameter is missing (named in the message).
+        """
         missing = [n for n in NAMES if n not in data]
         if missing:
             raise InputError(f"affine camera: missing parameter(s) {', '.join(missing)}")

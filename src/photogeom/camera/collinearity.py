@@ -34,7 +34,25 @@ def _check_behind(behind: str) -> None:
 
 
 def in_front(ground, eo: ExteriorOrientation) -> np.ndarray:
-    """Boolean mask: which ground points (n, 3) lie in front of the camera (``w < 0``)."""
+    """Which ground points lie in front of the camera (camera-frame ``w < 0``).
+
+    Parameters
+    ----------
+    ground : array_like, shape (n, 3) or (3,)
+        Object-space coordinates, object units (e.g. m).
+    eo : ExteriorOrientation
+        Orientation of the image.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (n,)
+        ``True`` for points in front of the camera.
+
+    Raises
+    ------
+    InputError
+        When ``ground`` is not of shape (n, 3) or holds NaN/infinite values.
+    """
     g = as_points(ground, 3, "ground points")
     return eo.to_camera(g)[:, 2] < 0
 
@@ -244,10 +262,18 @@ def projection_derivatives(
     Parameters
     ----------
     ground : array_like, shape (n, 3)
+        Object-space coordinates, object units (e.g. m).
     io, eo
         Orientation.
-    io_parameters : sequence of str
+    io_parameters : sequence of str, default ()
         Interior parameters to differentiate, from :data:`IO_PARAMETERS`.
+
+    Returns
+    -------
+    ProjectionDerivatives
+        Image coordinates ``xy`` (n, 2) in the unit of ``io`` and their derivatives
+        ``d_eo`` (n, 2, 6; per object unit and per rad), ``d_io`` (n, 2, k), ``d_ground``
+        (n, 2, 3), with the camera-frame depth ``w`` (n,).
     """
     g = np.asarray(ground, dtype=float).reshape(-1, 3)
     return _projection_derivatives(
@@ -337,19 +363,77 @@ class FrameCamera:
     exterior: ExteriorOrientation
 
     def project(self, ground_xyz, **kwargs) -> np.ndarray:
-        """:func:`project` with this camera's orientations."""
+        """:func:`project` with this camera's orientations.
+
+        Parameters
+        ----------
+        ground_xyz : array_like, shape (n, 3) or (3,)
+            Object-space coordinates, object units (e.g. m).
+        **kwargs
+            ``system``, ``behind``, ``pixel_origin`` of :func:`project`.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            Image coordinates in the unit of the interior orientation (or pixels with
+            ``system="pixel"``).
+        """
         return project(ground_xyz, self.interior, self.exterior, **kwargs)
 
     def rays(self, image_xy, **kwargs):
-        """:func:`image_rays` with this camera's orientations."""
+        """:func:`image_rays` with this camera's orientations.
+
+        Parameters
+        ----------
+        image_xy : array_like, shape (n, 2)
+            Image coordinates in the unit of the interior orientation (or pixels with
+            ``system="pixel"``).
+        **kwargs
+            ``system``, ``pixel_origin``, ``tol`` of :func:`image_rays`.
+
+        Returns
+        -------
+        origin : numpy.ndarray, shape (3,)
+            The projection centre, object units.
+        directions : numpy.ndarray, shape (n, 3)
+            Unit direction vectors in the object system, pointing into the scene.
+        """
         return image_rays(image_xy, self.interior, self.exterior, **kwargs)
 
     def ground_at_height(self, image_xy, Z, **kwargs) -> np.ndarray:
-        """:func:`ground_at_height` with this camera's orientations."""
+        """:func:`ground_at_height` with this camera's orientations.
+
+        Parameters
+        ----------
+        image_xy : array_like, shape (n, 2)
+            Image coordinates in the unit of the interior orientation (or pixels with
+            ``system="pixel"``).
+        Z : float or array_like, shape (n,)
+            Height of the plane per point, object units.
+        **kwargs
+            ``system``, ``pixel_origin``, ``behind`` of :func:`ground_at_height`.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3)
+            Ground points, object units.
+        """
         return ground_at_height(image_xy, self.interior, self.exterior, Z, **kwargs)
 
     def to_dict(self, angle_unit: str = "rad") -> dict:
-        """JSON-ready parameters."""
+        """JSON-ready parameters.
+
+        Parameters
+        ----------
+        angle_unit : str, default "rad"
+            Unit of the exterior angles in the result (``"rad"``, ``"deg"``, ``"gon"``, ...).
+
+        Returns
+        -------
+        dict
+            ``{"model": "frame_camera", "interior": {...}, "exterior": {...}}`` as written by
+            :meth:`InteriorOrientation.to_dict` and :meth:`ExteriorOrientation.to_dict`.
+        """
         return {
             "model": "frame_camera",
             "interior": self.interior.to_dict(),
@@ -358,7 +442,22 @@ class FrameCamera:
 
     @classmethod
     def from_dict(cls, data) -> FrameCamera:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : Mapping
+            With the keys ``"interior"`` and ``"exterior"``.
+
+        Returns
+        -------
+        FrameCamera
+
+        Raises
+        ------
+        InputError
+            When a key is missing (named in the message), or from the orientations' ``from_dict``.
+        """
         try:
             return cls(
                 InteriorOrientation.from_dict(data["interior"]),

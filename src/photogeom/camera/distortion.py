@@ -75,7 +75,17 @@ class UndistortResult:
         return bool(np.all(self.status == STATUS_CONVERGED))
 
     def describe_failures(self, limit: int = 5) -> str:
-        """One line naming the failed points and why (empty when all converged)."""
+        """One line naming the failed points and why (empty when all converged).
+
+        Parameters
+        ----------
+        limit : int, default 5
+            Failed points named at most; the others are counted.
+
+        Returns
+        -------
+        str
+        """
         bad = np.flatnonzero(self.status != STATUS_CONVERGED)
         if bad.size == 0:
             return ""
@@ -117,12 +127,33 @@ class BrownDistortion:
         return all(getattr(self, n) == 0.0 for n in COEFFICIENTS)
 
     def to_dict(self) -> dict:
-        """Coefficients by name."""
+        """Coefficients by name.
+
+        Returns
+        -------
+        dict
+            ``{"k1", "k2", "k3", "k4", "p1", "p2"}`` (unitless).
+        """
         return {n: getattr(self, n) for n in COEFFICIENTS}
 
     @classmethod
     def from_dict(cls, data: dict) -> BrownDistortion:
-        """Inverse of :meth:`to_dict` (missing coefficients are zero; unknown keys refused)."""
+        """Inverse of :meth:`to_dict` (missing coefficients are zero; unknown keys refused).
+
+        Parameters
+        ----------
+        data : dict
+            Coefficients by name.
+
+        Returns
+        -------
+        BrownDistortion
+
+        Raises
+        ------
+        InputError
+            For an unknown key (the message lists the known ones).
+        """
         unknown = set(data) - set(COEFFICIENTS)
         if unknown:
             raise InputError(
@@ -165,6 +196,11 @@ class BrownDistortion:
     def jacobian(self, xy) -> np.ndarray:
         """Derivative of the distorted w.r.t. the ideal normalised coordinates.
 
+        Parameters
+        ----------
+        xy : array_like, shape (n, 2) or (2,)
+            Ideal normalised coordinates, unitless.
+
         Returns
         -------
         numpy.ndarray, shape (n, 2, 2)
@@ -187,9 +223,21 @@ class BrownDistortion:
     def coefficient_jacobian(self, xy, names=COEFFICIENTS) -> np.ndarray:
         """Derivative of ``(x', y')`` w.r.t. the named coefficients.
 
+        Parameters
+        ----------
+        xy : array_like, shape (n, 2) or (2,)
+            Ideal normalised coordinates, unitless.
+        names : sequence of str, default COEFFICIENTS
+            Coefficients to differentiate, from ``("k1", "k2", "k3", "k4", "p1", "p2")``.
+
         Returns
         -------
         numpy.ndarray, shape (n, 2, len(names))
+
+        Raises
+        ------
+        InputError
+            For an unknown coefficient name.
         """
         a = np.asarray(xy, dtype=float).reshape(-1, 2)
         x, y = a[:, 0], a[:, 1]

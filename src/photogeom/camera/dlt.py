@@ -70,7 +70,26 @@ class DLT:
 
     @classmethod
     def from_matrix(cls, P, unit: str = "mm") -> DLT:
-        """From a 3x4 camera matrix (any scale; normalised to ``P[2, 3] = 1``)."""
+        """From a 3x4 camera matrix (any scale; normalised to ``P[2, 3] = 1``).
+
+        Parameters
+        ----------
+        P : array_like, shape (3, 4) (or 12 values)
+            Camera matrix mapping homogeneous object points to homogeneous image points.
+        unit : str, default "mm"
+            Unit of the image coordinates (informational; used by :meth:`orientation`).
+
+        Returns
+        -------
+        DLT
+
+        Raises
+        ------
+        InputError
+            When ``P`` holds NaN or infinite values.
+        DegenerateGeometryError
+            When ``P[2, 3] = 0`` (the object origin lies in the principal plane).
+        """
         return cls(_as_L(np.asarray(P, dtype=float).reshape(3, 4)), unit)
 
     @property
@@ -79,7 +98,23 @@ class DLT:
         return np.append(self.L, 1.0).reshape(3, 4)
 
     def project(self, ground_xyz) -> np.ndarray:
-        """Image coordinates (n, 2) of ground points (n, 3)."""
+        """Image coordinates of ground points.
+
+        Parameters
+        ----------
+        ground_xyz : array_like, shape (n, 3) or (3,)
+            Object coordinates, object units.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            Image coordinates in :attr:`unit`; inf/NaN for points in the principal plane.
+
+        Raises
+        ------
+        InputError
+            When ``ground_xyz`` is not of shape (n, 3) or holds NaN/infinite values.
+        """
         arr = as_float64(ground_xyz, "ground points")
         single = arr.ndim == 1
         g = as_points(arr, 3, "ground points")
@@ -89,7 +124,20 @@ class DLT:
         return xy[0] if single else xy
 
     def orientation(self, points=None) -> tuple[InteriorOrientation, ExteriorOrientation]:
-        """``orientation_from_dlt(self, unit=self.unit, points=points)``."""
+        """``orientation_from_dlt(self, unit=self.unit, points=points)``.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3), optional
+            Object points the camera is known to see; see :func:`orientation_from_dlt`.
+
+        Returns
+        -------
+        io : InteriorOrientation
+            In :attr:`unit`.
+        eo : ExteriorOrientation
+            Projection centre in object units, angles in rad.
+        """
         return orientation_from_dlt(self, unit=self.unit, points=points)
 
     @property
@@ -99,12 +147,33 @@ class DLT:
         return -np.linalg.solve(P[:, :3], P[:, 3])
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters."""
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``{"model": "dlt", "unit": ..., "L1": ..., ..., "L11": ...}``.
+        """
         return {"model": "dlt", "unit": self.unit, **{n: float(v) for n, v in zip(NAMES, self.L)}}
 
     @classmethod
     def from_dict(cls, data) -> DLT:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : Mapping
+            With the keys ``"L1"`` .. ``"L11"`` and optionally ``"unit"`` (default ``"mm"``).
+
+        Returns
+        -------
+        DLT
+
+        Raises
+        ------
+        InputError
+            When a parameter is missing (named in the message) or not finite.
+        """
         missing = [n for n in NAMES if n not in data]
         if missing:
             raise InputError(f"DLT: missing parameter(s) {', '.join(missing)}")
@@ -112,7 +181,25 @@ class DLT:
 
 
 def camera_matrix(io: InteriorOrientation, eo: ExteriorOrientation) -> np.ndarray:
-    """The 3x4 camera matrix ``K M [I | -X0]`` (not normalised) of a distortion-free camera."""
+    """The 3x4 camera matrix ``K M [I | -X0]`` (not normalised) of a distortion-free camera.
+
+    Parameters
+    ----------
+    io : InteriorOrientation
+        Interior orientation without distortion; its unit is that of the image coordinates.
+    eo : ExteriorOrientation
+        Exterior orientation (object units, rad).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 4)
+        ``P`` with ``(x, y, 1) ~ P (X, Y, Z, 1)``.
+
+    Raises
+    ------
+    InputError
+        When ``io`` has lens distortion (remove it with ``io.with_distortion(None)``).
+    """
     if io.distortion is not None:
         raise InputError(
             "the DLT / camera matrix has no lens distortion terms; remove the distortion from "

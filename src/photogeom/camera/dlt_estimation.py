@@ -63,14 +63,25 @@ class DLTFit(Fit):
         return self.extras["exterior"]
 
     def orientation_covariance(self, *, prior: bool = False) -> np.ndarray:
-        """Covariance (11, 11) of the decomposed orientation, in the order of
-        :data:`ORIENTATION_NAMES`: ``cx, cy, x0, y0, b2`` (image unit), ``X0, Y0, Z0``
-        (object units), ``omega, phi, kappa`` (radians).
+        """Covariance of the decomposed orientation.
+
+        Order of :data:`ORIENTATION_NAMES`: ``cx, cy, x0, y0, b2`` (image unit), ``X0, Y0, Z0``
+        (object units), ``omega, phi, kappa`` (rad).
 
         Propagated from the covariance of ``L1 .. L11`` (a posteriori, or with ``prior``
         a priori: the one defined at redundancy 0) by the Jacobian of the decomposition
         (:func:`~photogeom.camera.orientation_from_dlt`), taken by central differences
         with steps of a thousandth of each parameter's standard deviation.
+
+        Parameters
+        ----------
+        prior : bool, default False
+            Use the a priori covariance ``sigma0_prior^2 Qxx`` instead of the a posteriori one.
+
+        Returns
+        -------
+        numpy.ndarray, shape (11, 11)
+            All NaN when a standard deviation of ``L1 .. L11`` is not finite.
         """
         C = self.covariance_prior if prior else self.covariance
         C = np.asarray(C, dtype=float)
@@ -90,9 +101,23 @@ class DLTFit(Fit):
         return J @ C @ J.T
 
     def orientation_std(self, angle_unit: str = "deg", *, prior: bool = False) -> dict:
-        """Standard deviations of the decomposed orientation by name
-        (:data:`ORIENTATION_NAMES`; angles in ``angle_unit``); see
-        :meth:`orientation_covariance`."""
+        """Standard deviations of the decomposed orientation by name.
+
+        Names of :data:`ORIENTATION_NAMES`; see :meth:`orientation_covariance`.
+
+        Parameters
+        ----------
+        angle_unit : str, default "deg"
+            Unit of the angle standard deviations (``"deg"``, ``"gon"``, ``"rad"``, ...).
+        prior : bool, default False
+            From the a priori covariance instead of the a posteriori one.
+
+        Returns
+        -------
+        dict of str to float
+            ``cx, cy, x0, y0, b2`` in the image unit, ``X0, Y0, Z0`` in object units,
+            ``omega, phi, kappa`` in ``angle_unit``.
+        """
         from ..units import from_radians
 
         s = np.sqrt(np.clip(np.diag(self.orientation_covariance(prior=prior)), 0.0, None))
@@ -186,6 +211,16 @@ def orthogonality_conditions(L) -> np.ndarray:
 
     ``h1 = |a|^2 - |b|^2 + ((b.c)^2 - (a.c)^2) / |c|^2``, ``h2 = a.b - (a.c)(b.c) / |c|^2``
     with ``a = (L1, L2, L3)``, ``b = (L5, L6, L7)``, ``c = (L9, L10, L11)``.
+
+    Parameters
+    ----------
+    L : array_like, shape (11,)
+        DLT parameters ``L1 .. L11``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        ``(h1, h2)``.
     """
     L = np.asarray(L, dtype=float)
     a, b, c = L[0:3], L[4:7], L[8:11]

@@ -45,7 +45,28 @@ class ExteriorOrientation:
 
     @classmethod
     def from_matrix(cls, position, M, *, on_gimbal_lock: str = "raise") -> ExteriorOrientation:
-        """From a projection centre (3,) and a rotation matrix ``M`` (camera <- object)."""
+        """From a projection centre and a rotation matrix ``M`` (camera <- object).
+
+        Parameters
+        ----------
+        position : array_like, shape (3,)
+            Projection centre ``(X0, Y0, Z0)``, object units.
+        M : array_like, shape (3, 3)
+            ``M = M3(kappa) M2(phi) M1(omega)``.
+        on_gimbal_lock : {"raise", "omega-zero"}, default "raise"
+            As in :func:`photogeom.opk_from_matrix`.
+
+        Returns
+        -------
+        ExteriorOrientation
+
+        Raises
+        ------
+        InputError
+            When ``position`` has not 3 values or ``M`` not the shape (3, 3).
+        GimbalLockError
+            At phi = +-90 deg with ``on_gimbal_lock="raise"``.
+        """
         p = np.asarray(position, dtype=float).reshape(-1)
         if p.size != 3:
             raise InputError(f"projection centre must have 3 coordinates, got {p.size}")
@@ -54,7 +75,21 @@ class ExteriorOrientation:
 
     @classmethod
     def from_degrees(cls, X0, Y0, Z0, omega, phi, kappa, unit: str = "deg") -> ExteriorOrientation:
-        """From angles in degrees (or ``unit``)."""
+        """From angles in degrees (or ``unit``).
+
+        Parameters
+        ----------
+        X0, Y0, Z0 : float
+            Projection centre, object units.
+        omega, phi, kappa : float
+            Angles in ``unit``.
+        unit : str, default "deg"
+            Angle unit (``"deg"``, ``"gon"``, ``"rad"``, ...).
+
+        Returns
+        -------
+        ExteriorOrientation
+        """
         return cls(X0, Y0, Z0, *(float(to_radians(a, unit)) for a in (omega, phi, kappa)))
 
     @property
@@ -78,16 +113,49 @@ class ExteriorOrientation:
         return np.array([getattr(self, n) for n in NAMES])
 
     def angles_in(self, unit: str = "deg") -> np.ndarray:
-        """Angles converted to ``unit``."""
+        """Angles converted to ``unit``.
+
+        Parameters
+        ----------
+        unit : str, default "deg"
+            Angle unit (``"deg"``, ``"gon"``, ``"rad"``, ...).
+
+        Returns
+        -------
+        numpy.ndarray, shape (3,)
+            ``(omega, phi, kappa)`` in ``unit``.
+        """
         return np.asarray(from_radians(self.angles, unit), dtype=float)
 
     def to_camera(self, ground) -> np.ndarray:
-        """Camera-frame coordinates ``M (X - X0)`` of ground points (n, 3)."""
+        """Camera-frame coordinates ``M (X - X0)`` of ground points.
+
+        Parameters
+        ----------
+        ground : array_like, shape (n, 3) or (3,)
+            Object coordinates, object units.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3) or (3,)
+            ``(u, v, w)``, object units; ``w < 0`` in front of the camera.
+        """
         g = np.asarray(ground, dtype=float)
         return (g - self.position) @ self.matrix.T
 
     def to_dict(self, angle_unit: str = "rad") -> dict:
-        """JSON-ready parameters (angles in ``angle_unit``, labelled)."""
+        """JSON-ready parameters (angles in ``angle_unit``, labelled).
+
+        Parameters
+        ----------
+        angle_unit : str, default "rad"
+            Unit of the angles in the result.
+
+        Returns
+        -------
+        dict
+            ``{"X0", "Y0", "Z0", "omega", "phi", "kappa", "angle_unit"}``.
+        """
         a = self.angles_in(angle_unit)
         return {
             "X0": self.X0,
@@ -101,7 +169,22 @@ class ExteriorOrientation:
 
     @classmethod
     def from_dict(cls, data: Mapping) -> ExteriorOrientation:
-        """Inverse of :meth:`to_dict` (``angle_unit`` defaults to radians)."""
+        """Inverse of :meth:`to_dict` (``angle_unit`` defaults to radians).
+
+        Parameters
+        ----------
+        data : Mapping
+            With the keys ``X0, Y0, Z0, omega, phi, kappa`` and optionally ``angle_unit``.
+
+        Returns
+        -------
+        ExteriorOrientation
+
+        Raises
+        ------
+        InputError
+            When a key is missing (named in the message) or ``angle_unit`` is unknown.
+        """
         missing = [n for n in NAMES if n not in data]
         if missing:
             raise InputError(f"exterior orientation: missing {', '.join(missing)}")

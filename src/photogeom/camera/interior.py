@@ -175,6 +175,11 @@ class InteriorOrientation:
             As in the class.
         pixel_origin : {"center", "corner"}
             Convention of ``col_pp, row_pp``.
+
+        Returns
+        -------
+        InteriorOrientation
+            With ``x0 = y0 = 0`` and ``origin_px`` at the principal point.
         """
         unit = normalize_unit(unit)
         if unit == "mm" and pixel_size is None:
@@ -196,7 +201,22 @@ class InteriorOrientation:
 
     @classmethod
     def from_focal_lengths(cls, fx: float, fy: float, x0: float = 0.0, y0: float = 0.0, **kw):
-        """Orientation with different principal distances along x and y (``b1 = fx - fy``)."""
+        """Orientation with different principal distances along x and y (``b1 = fx - fy``).
+
+        Parameters
+        ----------
+        fx, fy : float
+            Principal distances along x and y, in the orientation's unit.
+        x0, y0 : float, default 0.0
+            Principal point, same unit.
+        **kw
+            Other fields of :class:`InteriorOrientation` (``unit``, ``b2``, ``distortion``, ...).
+
+        Returns
+        -------
+        InteriorOrientation
+            With ``f = fy`` and ``b1 = fx - fy``.
+        """
         return cls(f=fy, x0=x0, y0=y0, b1=float(fx) - float(fy), **kw)
 
     # --- derived -----------------------------------------------------------------------------
@@ -226,12 +246,33 @@ class InteriorOrientation:
         return np.array([[-self.fx, self.b2, self.x0], [0.0, -self.f, self.y0], [0.0, 0.0, 1.0]])
 
     def for_image(self, dx0: float = 0.0, dy0: float = 0.0, dc: float = 0.0) -> InteriorOrientation:
-        """Image-variant orientation: principal point ``(x0 + dx0, y0 + dy0)``, distance
-        ``f + dc``."""
+        """Image-variant orientation: principal point ``(x0 + dx0, y0 + dy0)``, distance ``f + dc``.
+
+        Parameters
+        ----------
+        dx0, dy0 : float, default 0.0
+            Principal-point offsets, unit of this orientation.
+        dc : float, default 0.0
+            Principal-distance offset, unit of this orientation.
+
+        Returns
+        -------
+        InteriorOrientation
+        """
         return replace(self, x0=self.x0 + dx0, y0=self.y0 + dy0, f=self.f + dc)
 
     def with_distortion(self, distortion: BrownDistortion | None) -> InteriorOrientation:
-        """A copy with other distortion terms."""
+        """A copy with other distortion terms.
+
+        Parameters
+        ----------
+        distortion : BrownDistortion or None
+            The new terms; ``None`` for a distortion-free camera.
+
+        Returns
+        -------
+        InteriorOrientation
+        """
         return replace(self, distortion=distortion)
 
     # --- normalised <-> image ---------------------------------------------------------------
@@ -241,6 +282,16 @@ class InteriorOrientation:
 
         ``xy_norm`` are ``(xn, yn) = (-u/w, v/w)`` (Metashape axes, y down); distortion, the
         principal distance, b1, b2 and the principal point are applied.
+
+        Parameters
+        ----------
+        xy_norm : array_like, shape (n, 2) or (2,)
+            Ideal normalised coordinates, unitless.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            Image coordinates ``(x, y)`` in the unit of this orientation (y up).
         """
         a = np.asarray(xy_norm, dtype=float).reshape(-1, 2)
         if self.distortion is not None:
@@ -300,7 +351,24 @@ class InteriorOrientation:
     def undistort_image(self, xy, *, tol: float = 1e-9, max_iter: int = 30):
         """Undistort image coordinates; return :class:`UndistortResult` of normalised points.
 
-        ``tol`` is in the unit of this orientation; ``status`` flags each point.
+        Parameters
+        ----------
+        xy : array_like, shape (n, 2) or (2,)
+            Image coordinates in the unit of this orientation.
+        tol : float, default 1e-9
+            Convergence tolerance, in the unit of this orientation.
+        max_iter : int, default 30
+            Newton iterations at most.
+
+        Returns
+        -------
+        UndistortResult
+            ``points`` (n, 2) ideal normalised coordinates (unitless), with a ``status`` per point.
+
+        Raises
+        ------
+        InputError
+            When ``xy`` holds NaN/infinite values or is not made of pairs.
         """
         from .distortion import UndistortResult
 
@@ -341,6 +409,24 @@ class InteriorOrientation:
 
         ``col = col_o + x / dx``, ``row = row_o - y / dy`` (:mod:`photogeom.imagecoords`);
         rows holding NaN stay NaN.
+
+        Parameters
+        ----------
+        xy : array_like, shape (n, 2) or (2,)
+            Image coordinates in the unit of this orientation.
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0); ``"corner"``: its corner.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            ``(col, row)`` in px.
+
+        Raises
+        ------
+        InputError
+            When the orientation has no pixel geometry (``origin_px``; with ``unit="mm"`` also
+            ``pixel_size``), or ``pixel_origin`` is neither value.
         """
         return self._convert(xy, self._pixel_system(pixel_origin).to_pixel)
 
@@ -349,6 +435,24 @@ class InteriorOrientation:
 
         ``x = dx (col - col_o)``, ``y = -dy (row - row_o)`` (the minus sign makes the image
         system right-handed); rows holding NaN stay NaN.
+
+        Parameters
+        ----------
+        colrow : array_like, shape (n, 2) or (2,)
+            Pixel positions ``(col, row)``, px.
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0); ``"corner"``: its corner.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            ``(x, y)`` in the unit of this orientation (y up).
+
+        Raises
+        ------
+        InputError
+            When the orientation has no pixel geometry (``origin_px``; with ``unit="mm"`` also
+            ``pixel_size``), or ``pixel_origin`` is neither value.
         """
         return self._convert(colrow, self._pixel_system(pixel_origin).to_image)
 
@@ -364,14 +468,38 @@ class InteriorOrientation:
         return out[0] if single else out
 
     def principal_point_px(self, pixel_origin: str = "center") -> tuple[float, float]:
-        """Principal point as pixel ``(col, row)``."""
+        """Principal point as pixel ``(col, row)``.
+
+        Parameters
+        ----------
+        pixel_origin : {"center", "corner"}, default "center"
+            Pixel convention, as in :meth:`image_to_pixel`.
+
+        Returns
+        -------
+        tuple of float
+            ``(col, row)`` in px.
+
+        Raises
+        ------
+        InputError
+            When the orientation has no pixel geometry (``origin_px``; with ``unit="mm"`` also
+            ``pixel_size``), or ``pixel_origin`` is neither value.
+        """
         c = self.image_to_pixel(np.array([self.x0, self.y0]), pixel_origin)
         return float(c[0]), float(c[1])
 
     # --- serialisation -----------------------------------------------------------------------
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters."""
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``f, x0, y0, unit``; ``b1, b2`` when either is non-zero; ``distortion``,
+            ``pixel_size_mm``, ``origin_px``, ``image_size`` when set.
+        """
         out: dict = {"f": self.f, "x0": self.x0, "y0": self.y0, "unit": self.unit}
         if self.b1 or self.b2:
             out["b1"], out["b2"] = self.b1, self.b2
@@ -387,7 +515,23 @@ class InteriorOrientation:
 
     @classmethod
     def from_dict(cls, data: Mapping) -> InteriorOrientation:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : Mapping
+            Keys of :meth:`to_dict`; ``f`` is required.
+
+        Returns
+        -------
+        InteriorOrientation
+
+        Raises
+        ------
+        InputError
+            For an unknown key (named) or a missing ``f``, and for values the constructor
+            refuses.
+        """
         known = {
             "f",
             "x0",
@@ -444,12 +588,30 @@ class ImageVariantInteriorOrientation:
         object.__setattr__(self, "offsets", clean)
 
     def for_image(self, image_id) -> InteriorOrientation:
-        """The interior orientation of one image."""
+        """The interior orientation of one image.
+
+        Parameters
+        ----------
+        image_id : hashable
+            Image key of :attr:`offsets`; an image without offsets gets the base orientation.
+
+        Returns
+        -------
+        InteriorOrientation
+            The base orientation with the image's ``(dx0, dy0, dc)`` added to ``x0, y0, f``.
+        """
         dx0, dy0, dc = self.offsets.get(image_id, (0.0, 0.0, 0.0))
         return self.base.for_image(dx0, dy0, dc)
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters."""
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``{"base": {...}, "offsets": {image id (str): [dx0, dy0, dc]}}``, offsets in the unit
+            of the base orientation.
+        """
         return {
             "base": self.base.to_dict(),
             "offsets": {str(k): list(v) for k, v in self.offsets.items()},

@@ -149,7 +149,24 @@ class MetashapeCalibration:
         return BrownDistortion(self.k1, self.k2, self.k3, self.k4, self.p1, self.p2)
 
     def principal_point(self, pixel_origin: str = "center") -> tuple[float, float]:
-        """Absolute principal point ``(w/2 + cx, h/2 + cy)`` shifted to ``pixel_origin``."""
+        """Absolute principal point ``(w/2 + cx, h/2 + cy)`` shifted to ``pixel_origin``.
+
+        Parameters
+        ----------
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
+            ``"corner"``: its top-left corner is (0, 0) (Metashape).
+
+        Returns
+        -------
+        tuple of float
+            ``(u, v)`` in px.
+
+        Raises
+        ------
+        InputError
+            For an unknown ``pixel_origin``.
+        """
         s = 0.5 - _pixel_shift(pixel_origin)
         return self.width / 2 + self.cx - s, self.height / 2 + self.cy - s
 
@@ -158,7 +175,20 @@ class MetashapeCalibration:
     def project_normalized(self, xy, *, pixel_origin: str = "center") -> np.ndarray:
         """Pixels ``(u, v)`` of ideal normalised coordinates ``(X/Z, Y/Z)`` (Metashape axes).
 
-        Vectorised over points; ``xy`` shape (n, 2).
+        Vectorised over points.
+
+        Parameters
+        ----------
+        xy : array_like, shape (n, 2) or (2,)
+            Ideal normalised coordinates, unitless (x right, y down).
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
+            ``"corner"``: its top-left corner is (0, 0) (Metashape).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            Pixels ``(u, v)`` with distortion, B1, B2 applied.
         """
         a = np.asarray(xy, dtype=float).reshape(-1, 2)
         out = np.empty_like(a)
@@ -203,8 +233,28 @@ class MetashapeCalibration:
     ) -> np.ndarray:
         """Pixels of camera-frame points (Metashape axes: x right, y down, z forward).
 
-        Points with ``Z <= 0`` are behind the camera: ``behind="raise"`` raises
-        :class:`~photogeom.errors.DegenerateGeometryError`, ``"nan"`` returns NaN for them.
+        Parameters
+        ----------
+        xyz : array_like, shape (n, 3)
+            Camera-frame coordinates, any length unit.
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
+            ``"corner"``: its top-left corner is (0, 0) (Metashape).
+        behind : {"raise", "nan"}, default "raise"
+            Points with ``Z <= 0`` are behind the camera: ``"raise"`` raises
+            :class:`~photogeom.errors.DegenerateGeometryError`, ``"nan"`` returns NaN for them.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            Pixels ``(u, v)``.
+
+        Raises
+        ------
+        InputError
+            When ``xyz`` is not of shape (n, 3) or holds NaN/infinite values.
+        DegenerateGeometryError
+            For points behind the camera with ``behind="raise"``.
         """
         p = as_points(xyz, 3, "camera-frame points")
         Z = p[:, 2]
@@ -227,6 +277,19 @@ class MetashapeCalibration:
         """Distorted pixels of ideal pixels (a distortion-free camera with the same f, cx, cy).
 
         The ideal camera has no distortion and no B1, B2: ``u = w/2 + cx + x f``.
+
+        Parameters
+        ----------
+        uv_ideal : array_like, shape (n, 2) or (2,)
+            Ideal pixels ``(u, v)``.
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
+            ``"corner"``: its top-left corner is (0, 0) (Metashape).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            Observed (distorted) pixels ``(u, v)``.
         """
         a = np.asarray(uv_ideal, dtype=float).reshape(-1, 2)
         u0, v0 = self.principal_point(pixel_origin)
@@ -269,8 +332,23 @@ class MetashapeCalibration:
     ) -> UndistortResult:
         """Ideal pixels (distortion-free camera with the same f, cx, cy) of observed pixels.
 
-        Returns an :class:`UndistortResult` whose ``points`` are pixels and ``status`` flags
-        points that did not converge (their values are the last iterate).
+        Parameters
+        ----------
+        uv : array_like, shape (n, 2)
+            Observed pixels ``(u, v)``.
+        pixel_origin : {"center", "corner"}, default "center"
+            ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
+            ``"corner"``: its top-left corner is (0, 0) (Metashape).
+        tol : float, default 1e-9
+            Convergence tolerance, as in :meth:`unproject`.
+        max_iter : int, default 30
+            Newton iterations at most.
+
+        Returns
+        -------
+        UndistortResult
+            ``points`` are ideal pixels (n, 2); ``status`` flags points that did not converge
+            (their values are the last iterate).
         """
         res = self.unproject(uv, pixel_origin=pixel_origin, tol=tol, max_iter=max_iter)
         u0, v0 = self.principal_point(pixel_origin)
@@ -285,6 +363,11 @@ class MetashapeCalibration:
         Image system origin at the image centre (pixel ``(w/2 - 0.5, h/2 - 0.5)``, centre
         convention), y up: ``x0 = cx``, ``y0 = -cy``, ``f``, ``b1``, ``b2`` and the distortion
         unchanged.
+
+        Returns
+        -------
+        InteriorOrientation
+            ``unit="px"``, with ``origin_px`` and ``image_size`` set.
         """
         return InteriorOrientation(
             f=self.f,
@@ -302,7 +385,24 @@ class MetashapeCalibration:
     def from_interior_orientation(
         cls, io: InteriorOrientation, image_size=None
     ) -> MetashapeCalibration:
-        """Inverse of :meth:`interior_orientation` (needs ``unit="px"``, pixel geometry, size)."""
+        """Inverse of :meth:`interior_orientation` (needs ``unit="px"``, pixel geometry, size).
+
+        Parameters
+        ----------
+        io : InteriorOrientation
+            In px, with pixel geometry (``origin_px``).
+        image_size : (int, int), optional
+            ``(width, height)`` in px; default ``io.image_size``.
+
+        Returns
+        -------
+        MetashapeCalibration
+
+        Raises
+        ------
+        InputError
+            When ``io`` is not in px, has no pixel geometry, or no image size is known.
+        """
         if io.unit != "px":
             raise InputError(
                 "a Metashape calibration is in pixels: convert the orientation to 'px'"
@@ -323,6 +423,13 @@ class MetashapeCalibration:
         Exact: ``fx = f + B1``, ``fy = f``, ``cx_cv = w/2 + cx - 0.5``,
         ``cy_cv = h/2 + cy - 0.5`` (OpenCV's pixel origin is the top-left pixel's centre),
         OpenCV ``p1 = P2``, ``p2 = P1``.
+
+        Returns
+        -------
+        camera_matrix : numpy.ndarray, shape (3, 3)
+            ``[[fx, 0, cx_cv], [0, fy, cy_cv], [0, 0, 1]]``, px.
+        dist_coeffs : numpy.ndarray, shape (5,)
+            ``(k1, k2, p1, p2, k3)``, unitless.
 
         Raises
         ------
@@ -348,9 +455,27 @@ class MetashapeCalibration:
     ) -> MetashapeCalibration:
         """From an OpenCV camera matrix and distortion vector (4, 5, 8, 12 or 14 terms).
 
-        Raises :class:`InputError` when terms without a Metashape equivalent are non-zero
-        (rational k4..k6, thin prism s1..s4, tilt, or a non-zero skew / fy > fx + B1 layout
-        is fine: ``B1 = fx - fy``).
+        ``fx != fy`` is kept as ``B1 = fx - fy``; OpenCV ``p1, p2`` become ``P2, P1``.
+
+        Parameters
+        ----------
+        camera_matrix : array_like, shape (3, 3)
+            ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``, px, OpenCV's pixel-centre origin.
+        dist_coeffs : array_like
+            OpenCV distortion vector of 4, 5, 8, 12 or 14 terms.
+        width, height : int
+            Image size, px.
+
+        Returns
+        -------
+        MetashapeCalibration
+
+        Raises
+        ------
+        InputError
+            When ``camera_matrix`` is not a finite 3x3 matrix of that layout (a skew entry is
+            refused), ``dist_coeffs`` has another length, or terms without a Metashape equivalent
+            (rational k4..k6, thin prism s1..s4, tilt) are non-zero.
         """
         K = np.asarray(camera_matrix, dtype=float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)):
@@ -390,7 +515,13 @@ class MetashapeCalibration:
     # --- XML -----------------------------------------------------------------------------------
 
     def to_xml_string(self) -> str:
-        """Metashape calibration XML (``<calibration>`` with projection, width, height, ...)."""
+        """Metashape calibration XML (``<calibration>`` with projection, width, height, ...).
+
+        Returns
+        -------
+        str
+            The document, UTF-8 declaration included.
+        """
         root = ET.Element("calibration")
         for tag in XML_TAGS:
             el = ET.SubElement(root, tag)
@@ -413,8 +544,24 @@ class MetashapeCalibration:
     ) -> MetashapeCalibration:
         """Parse Metashape calibration XML; see :func:`read_metashape_xml`.
 
-        ``text`` may be bytes (the encoding declared in the document is used: UTF-8, UTF-16
-        with a byte-order mark, ISO-8859-1, ...).
+        Parameters
+        ----------
+        text : str or bytes
+            The document; bytes are decoded by the encoding declared in it (UTF-8, UTF-16
+            with a byte-order mark, ISO-8859-1, ...).
+        strict : bool, default False
+            Refuse unknown tags (else they are ignored with a ``MetashapeXMLWarning``).
+        source : str, default "calibration XML"
+            Name of the document in error messages (e.g. the file path).
+
+        Returns
+        -------
+        MetashapeCalibration
+
+        Raises
+        ------
+        FileFormatError
+            As :func:`read_metashape_xml`.
         """
         from ..xmlsafe import parse_xml
 
@@ -499,7 +646,13 @@ class MetashapeCalibration:
             raise FileFormatError(f"{source}: {exc}") from exc
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters."""
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``{"model": "metashape_frame", <every field by name>}`` (px; coefficients unitless).
+        """
         return {
             "model": "metashape_frame",
             **{fl.name: getattr(self, fl.name) for fl in fields(self)},
@@ -514,11 +667,24 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
     ``<resolution width=".." height=".."/>``) are read. Missing optional terms are zero;
     ``<date>`` and ``<covariance>`` are ignored.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The XML file (at most ``MAX_XML_BYTES``).
+    strict : bool, default False
+        Refuse unknown tags instead of warning and ignoring them.
+
+    Returns
+    -------
+    MetashapeCalibration
+        Pixels; coefficients unitless.
+
     Raises
     ------
     FileFormatError
-        Unreadable XML, missing ``width``/``height``/``f``, non-numeric values, a projection
-        other than ``frame``, or (with ``strict=True``) unknown tags.
+        Unreadable file or XML, a file larger than ``MAX_XML_BYTES``, missing
+        ``width``/``height``/``f``, non-numeric values, a projection other than ``frame``,
+        or (with ``strict=True``) unknown tags.
 
     Warns
     -----
@@ -538,7 +704,20 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
 
 
 def write_metashape_xml(calibration: MetashapeCalibration, path: str | os.PathLike) -> None:
-    """Write a Metashape calibration XML file (atomically: old or complete new file)."""
+    """Write a Metashape calibration XML file (atomically: old or complete new file).
+
+    Parameters
+    ----------
+    calibration : MetashapeCalibration
+        The calibration to write.
+    path : str or os.PathLike
+        Output file; replaced if it exists.
+
+    Raises
+    ------
+    OutputError
+        When the file cannot be written.
+    """
     from ..atomicfile import atomic_write_text
 
     atomic_write_text(path, calibration.to_xml_string())

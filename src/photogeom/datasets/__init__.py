@@ -62,7 +62,13 @@ _REINSTALL = (
 
 
 def names() -> list[str]:
-    """Names of the bundled point data sets."""
+    """Names of the bundled point data sets.
+
+    Returns
+    -------
+    list of str
+        Sorted; each accepted by :func:`load`, :func:`header` and :func:`path`.
+    """
     return sorted(DESCRIPTIONS)
 
 
@@ -77,6 +83,17 @@ def path(name: str) -> Path:
 
     The file of a point data set (:func:`names`) is checked as :func:`load` checks it, so
     that a damaged copy is named as such whichever reader then reads it.
+
+    Parameters
+    ----------
+    name : str
+        Data set name (:func:`names`), ``RPC_FILES`` or ``BUNDLE_FILES`` key, file name or
+        ``rpc/<file>``.
+
+    Returns
+    -------
+    pathlib.Path
+        The installed file.
 
     Raises
     ------
@@ -134,7 +151,23 @@ def _decoded_lines(p: Path) -> list[str]:
 
 
 def header(name: str) -> str:
-    """The comment header of a bundled CSV (its source and meaning)."""
+    """The comment header of a bundled CSV (its source and meaning).
+
+    Parameters
+    ----------
+    name : str
+        Data set name or file, as :func:`path` takes it.
+
+    Returns
+    -------
+    str
+        The ``#`` lines at the top of the file, without the ``#``, joined by newlines.
+
+    Raises
+    ------
+    InputError
+        For an unknown name (the message lists the known ones).
+    """
     lines = []
     for line in _decoded_lines(_find(name)):
         if not line.startswith("#"):
@@ -233,6 +266,13 @@ def point_pairs(name: str, kind: str | None = None) -> tuple[np.ndarray, np.ndar
         A data set with the columns ``id, x, y, z, X, Y, Z``.
     kind : {"true", "noisy"}, optional
         Selects rows of ``afary2024_simulated`` (the data sets with a ``kind`` column).
+
+    Returns
+    -------
+    ids : numpy.ndarray
+        Point ids.
+    source, target : numpy.ndarray, shape (n, 3)
+        The two coordinate sets, in the units the data set's header states.
 
     Raises
     ------

@@ -231,6 +231,8 @@ class CloudInfo:
     crs_error : str or None
         Why the file's CRS record could not be read (``crs`` is then None although the file
         has a record); None when it was read or there is none.
+    vlrs : tuple of str
+        The type names of the file's variable-length records, in file order.
     """
 
     path: str
@@ -250,7 +252,13 @@ class CloudInfo:
     crs_error: str | None = None
 
     def to_dict(self) -> dict:
-        """JSON-ready."""
+        """JSON-ready.
+
+        Returns
+        -------
+        dict
+            Every attribute by name; arrays as lists.
+        """
         return {
             "path": self.path,
             "point_count": self.point_count,
@@ -340,10 +348,27 @@ def _xyz(points) -> np.ndarray:
 
 
 def iter_cloud_xyz(path, chunk_size: int = DEFAULT_CHUNK) -> Iterator[np.ndarray]:
-    """Coordinates (m, 3) of a LAS/LAZ file, ``chunk_size`` points at a time.
+    """Coordinates of a LAS/LAZ file, ``chunk_size`` points at a time.
 
-    Raises :class:`FileFormatError` naming the file when it holds fewer points than its
-    header says (see :func:`read_cloud_xyz`).
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The LAS/LAZ file.
+    chunk_size : int, default DEFAULT_CHUNK
+        Points per chunk, >= 1.
+
+    Yields
+    ------
+    numpy.ndarray, shape (m, 3)
+        X, Y, Z in the file's CRS unit; ``m <= chunk_size``.
+
+    Raises
+    ------
+    FileFormatError
+        Naming the file, when it holds fewer points than its header says (see
+        :func:`read_cloud_xyz`) or cannot be read.
+    InputError
+        For a ``chunk_size`` below 1.
     """
     chunk_size = _check_chunk(chunk_size)
     with _open_read(path) as reader:
@@ -705,6 +730,11 @@ def transform_cloud(
         are Dask tasks (:func:`transform_cloud_dask`): ``"local"``, ``"local:N"``, a
         scheduler address, ``"threads"``; the output is the same.
 
+    Returns
+    -------
+    CloudTransformResult
+        What was written: the path, point count, bounds, scales, offsets and CRS.
+
     Notes
     -----
     Kept: point format and LAS version, every dimension including extra bytes, all VLRs
@@ -911,8 +941,29 @@ def write_cloud(
 
 
 def cloud_dask_xyz(path, chunk_size: int = DEFAULT_CHUNK):
-    """The coordinates of a LAS/LAZ file as a lazy ``dask.array`` (n, 3), one block per
-    ``chunk_size`` points, each read (seeking in the file) when computed."""
+    """The coordinates of a LAS/LAZ file as a lazy ``dask.array``.
+
+    One block per ``chunk_size`` points, each read (seeking in the file) when computed.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The LAS/LAZ file; every Dask worker must see it.
+    chunk_size : int, default DEFAULT_CHUNK
+        Points per block, >= 1.
+
+    Returns
+    -------
+    dask.array.Array, shape (n, 3)
+        X, Y, Z in the file's CRS unit (scaled and offset), float64.
+
+    Raises
+    ------
+    InputError
+        For a ``chunk_size`` below 1.
+    FileFormatError
+        When the file cannot be read as LAS/LAZ.
+    """
     from ..distributed import _dask
 
     da, delayed = _dask()
@@ -1075,18 +1126,44 @@ def transform_cloud_dask(
     crs=None,
     progress: Callable[[int, int], None] | None = None,
 ) -> CloudTransformResult:
-    """:func:`transform_cloud` as Dask tasks: each task transforms a piece of the file into
-    a complete LAS/LAZ file of its own (pieces are whole multiples of the LAZ chunk of 50 000
-    points), and the pieces are joined into ``dst`` without recompression (one chunk table).
+    """:func:`transform_cloud` as Dask tasks.
 
-    ``scheduler`` as in :mod:`photogeom.distributed` (a local cluster by default); every
-    worker must see ``src`` and the directory of ``dst`` (a shared file system on a real
-    cluster). The output equals :func:`transform_cloud`'s point for point (same header
-    fields, VLRs and integers; only the optional min/max statistics of extra-bytes
-    descriptors, which laspy's writer updates per written chunk, can differ); the pieces
-    take as much disk space as the output until they are joined.
-    ``progress(done, total)`` counts points of finished pieces. Files with extended VLRs
-    (EVLRs, LAS 1.4) are refused: use :func:`transform_cloud`.
+    Each task transforms a piece of the file into a complete LAS/LAZ file of its own
+    (pieces are whole multiples of the LAZ chunk of 50 000 points), and the pieces are
+    joined into ``dst`` without recompression (one chunk table). The output equals
+    :func:`transform_cloud`'s point for point (same header fields, VLRs and integers; only
+    the optional min/max statistics of extra-bytes descriptors, which laspy's writer
+    updates per written chunk, can differ); the pieces take as much disk space as the
+    output until they are joined.
+
+    Parameters
+    ----------
+    src, dst : str or os.PathLike
+        Input and output LAS/LAZ files (compression from ``dst``'s suffix); every worker
+        must see ``src`` and the directory of ``dst`` (a shared file system on a real
+        cluster).
+    transform : transformation
+        As in :func:`transform_cloud`.
+    chunk_size : int, default DEFAULT_CHUNK
+        Points per chunk within a piece.
+    scheduler : str, optional
+        As in :mod:`photogeom.distributed` (a local cluster by default).
+    scales : sequence of 3 floats, optional
+        Output coordinate resolution, as in :func:`transform_cloud`.
+    crs : str, optional
+        CRS to record in the output, as in :func:`transform_cloud`.
+    progress : callable(done, total), optional
+        Called with the points of finished pieces and the total.
+
+    Returns
+    -------
+    CloudTransformResult
+
+    Raises
+    ------
+    InputError
+        When ``dst`` is ``src``, or the file has extended VLRs (EVLRs, LAS 1.4; use
+        :func:`transform_cloud`).
     """
     from ..distributed import map_items
 

@@ -505,7 +505,34 @@ def parse_points(
     sigma_column: str | None = None,
     auto_weights: bool = True,
 ) -> PointTable:
-    """:func:`read_points` on CSV text instead of a file (same arguments)."""
+    """:func:`read_points` on CSV text instead of a file (same arguments).
+
+    Parameters
+    ----------
+    text : str
+        CSV text with a header line.
+    columns : sequence of str or comma-separated str, optional
+        Coordinate columns; default: the first complete set of :data:`DEFAULT_COLUMN_SETS`.
+    id_column : str, optional
+        Name of the id column (default: ``id``, ``point``, ``point_id`` or ``name``).
+    role_column : str or None, default "role"
+        Column with ``control`` / ``check`` (ignored when absent; None: ignore roles).
+    weight_column, sigma_column : str, optional
+        Column of per-point weights (unitless) or standard deviations (coordinate unit;
+        weight = 1 / sigma^2).
+    auto_weights : bool, default True
+        Without an explicit column, use a column named ``weight``/``w`` or ``sigma``/``sd``/
+        ``std`` if there is one.
+
+    Returns
+    -------
+    PointTable
+
+    Raises
+    ------
+    FileFormatError, InputError
+        As :func:`read_points`.
+    """
     raw = _Source(None, text.encode("utf-8"))
     return _table(raw, columns, id_column, role_column, weight_column, sigma_column, auto_weights)
 
@@ -674,12 +701,34 @@ def read_point_pairs(
 
     Default columns: the first pair of :data:`DEFAULT_PAIR_COLUMN_SETS` present in the
     header (``x,y,z`` -> ``X,Y,Z``; ``x,y`` -> ``X,Y``; ``x1,y1`` -> ``x2,y2``; ...).
-    The other arguments are those of :func:`read_points`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        CSV file with a header line.
+    source_columns, target_columns : sequence of str or comma-separated str, optional
+        Coordinate columns of the source and of the target system (both or neither).
+    id_column : str, optional
+        Name of the id column (default: ``id``, ``point``, ``point_id`` or ``name``).
+    role_column : str or None, default "role"
+        Column with ``control`` / ``check`` (ignored when absent; None: ignore roles).
+    weight_column, sigma_column : str, optional
+        Column of per-point weights (unitless) or standard deviations (coordinate unit;
+        weight = 1 / sigma^2).
+    auto_weights : bool, default True
+        Without an explicit column, use a column named ``weight``/``w`` or ``sigma``/``sd``/
+        ``std`` if there is one.
+
+    Returns
+    -------
+    PointPairs
+        Unpacks as ``ids, source, target, roles, weights``.
 
     Raises
     ------
     FileFormatError, InputError
-        As :func:`read_points`; also when source and target columns overlap.
+        As :func:`read_points`; also when source and target columns overlap or cannot be
+        told from the header.
     """
     raw = _source(path)
     id_name = _id_column(raw, id_column)
@@ -985,12 +1034,27 @@ class PointWriter:
         return buf.getvalue()
 
     def write(self, ids, coords: np.ndarray, extra: dict | None = None) -> None:
-        """Write rows: ``ids`` (sequence of str or a pyarrow string array), ``coords`` of shape
-        (n, len(columns)), ``extra`` a mapping of the extra column names to sequences.
+        """Write rows.
 
         Large chunks are formatted in worker threads while the caller prepares the next
         one; their bytes reach the file in row order (all of them when the ``with`` block
-        ends)."""
+        ends).
+
+        Parameters
+        ----------
+        ids : sequence of str or pyarrow string array
+            One id per row (other types are written as text).
+        coords : numpy.ndarray, shape (n, len(columns))
+            Coordinates; written with the shortest representation that reads back exactly.
+        extra : dict, optional
+            The declared extra column names -> sequences of n values (numbers or text).
+
+        Raises
+        ------
+        InputError
+            When the shapes or lengths do not match the declared columns, or the extra column
+            names differ from those declared.
+        """
         import pyarrow as pa
 
         from .csvrows import text_column
@@ -1110,6 +1174,28 @@ def format_points_csv(
 
     Numbers are written with the shortest representation that reads back to the same
     float64 (lossless round trip). See :class:`PointWriter` for files of any size.
+
+    Parameters
+    ----------
+    ids : sequence
+        One id per point.
+    coords : numpy.ndarray, shape (n, len(columns))
+        Coordinates.
+    columns : sequence of str
+        Coordinate column names.
+    extra : dict of str to sequence, optional
+        Further columns, after the coordinates.
+    comments : sequence of str, default ()
+        Lines written as ``# <line>`` before the header.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    InputError
+        As :meth:`PointWriter.write`.
     """
     import io
 
@@ -1129,7 +1215,35 @@ def write_points(
     extra: dict[str, Sequence] | None = None,
     comments: Sequence[str] = (),
 ) -> Path:
-    """Write points as CSV, atomically (see :class:`PointWriter` for the layout)."""
+    """Write points as CSV, atomically (see :class:`PointWriter` for the layout).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; replaced if it exists.
+    ids : sequence
+        One id per point.
+    coords : numpy.ndarray, shape (n, len(columns))
+        Coordinates.
+    columns : sequence of str
+        Coordinate column names.
+    extra : dict of str to sequence, optional
+        Further columns, after the coordinates.
+    comments : sequence of str, default ()
+        Lines written as ``# <line>`` before the header.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        As :meth:`PointWriter.write`.
+    OutputError
+        When the file cannot be written.
+    """
     extra = dict(extra or {})
     with PointWriter(path, columns, extra=list(extra), comments=comments) as w:
         w.write(ids, coords, extra)

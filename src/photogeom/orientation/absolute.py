@@ -134,13 +134,29 @@ class AbsoluteOrientationFit(Fit):
         return self.model.translation
 
     def angles(self, convention: str = "transposed", unit: str = "rad") -> tuple:
-        """``(omega, phi, kappa)`` of ``R`` in ``convention`` (``"transposed"``: ``R =
-        M.T``, ``"direct"``: ``R = M``) and ``unit`` (``"rad"``, ``"deg"``, ``"gon"``).
+        """``(omega, phi, kappa)`` of ``R`` in ``convention`` and ``unit``.
 
         For the raw closed-form matrix (not orthogonal) the angles are read as its paper
         reads them, ``phi = asin(m31)`` (:func:`~photogeom.orientation.absolute_direct.
         published_angles`); for a rotation by the formulas of
-        :func:`~photogeom.rotation.opk_from_matrix`.
+        :func:`~photogeom.rotation.opk_from_matrix` (omega set to zero at gimbal lock).
+
+        Parameters
+        ----------
+        convention : {"transposed", "direct"}, default "transposed"
+            ``"transposed"``: ``R = M.T``; ``"direct"``: ``R = M``.
+        unit : str, default "rad"
+            Angle unit (``"rad"``, ``"deg"``, ``"gon"``, ...).
+
+        Returns
+        -------
+        tuple of float
+            ``(omega, phi, kappa)`` in ``unit``.
+
+        Raises
+        ------
+        InputError
+            For an unknown ``convention`` or ``unit``.
         """
         if not self.model.check:
             if convention not in ("transposed", "direct"):
@@ -435,6 +451,10 @@ def absolute_orientation(
         Point ids for the residual rows.
     unit : str
         Length unit of the target system (labels only).
+    **robust_options
+        Further keywords of :func:`~photogeom.orientation.ransac_absolute_orientation`
+        (``confidence``, ``max_trials``, ``batch_size``, ``rng``, ``max_refinements``),
+        accepted only with ``robust="ransac"``; otherwise they raise :class:`InputError`.
 
     Returns
     -------

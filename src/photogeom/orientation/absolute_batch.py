@@ -83,7 +83,20 @@ class BatchOrientation:
         return orthogonality_defect(self.rotation)
 
     def angles(self, convention: str = "transposed", unit: str = "rad") -> tuple:
-        """``(omega, phi, kappa)`` arrays (B,) in ``convention`` and ``unit`` (NaN if invalid)."""
+        """``(omega, phi, kappa)`` of every problem in ``convention`` and ``unit``.
+
+        Parameters
+        ----------
+        convention : {"transposed", "direct"}, default "transposed"
+            As in :func:`photogeom.rotation_from_angles`.
+        unit : str, default "rad"
+            Angle unit.
+
+        Returns
+        -------
+        tuple of three numpy.ndarray, shape (B,)
+            ``omega, phi, kappa`` in ``unit``; NaN for invalid problems (omega 0 at gimbal lock).
+        """
         R = np.where(self.valid[:, None, None], self.rotation, np.eye(3))
         w, p, k = angles_from_rotation(R, convention=convention, unit=unit,
                                        on_gimbal_lock="omega-zero")
@@ -91,7 +104,23 @@ class BatchOrientation:
         return tuple(np.where(bad, np.nan, np.asarray(a, dtype=float)) for a in (w, p, k))
 
     def transform(self, i: int) -> Similarity3D:
-        """Problem ``i`` as a :class:`Similarity3D` (raises for invalid problems)."""
+        """Problem ``i`` as a :class:`Similarity3D`.
+
+        Parameters
+        ----------
+        i : int
+            Index of the problem, ``0 <= i < B``.
+
+        Returns
+        -------
+        Similarity3D
+            With ``check=False`` for a closed-form matrix that is not orthogonal.
+
+        Raises
+        ------
+        InputError
+            When problem ``i`` has no valid estimate (degenerate points or a reflection).
+        """
         if not bool(self.valid[i]):
             why = "collinear or coincident points" if self.degenerate[i] else "a reflection"
             raise InputError(f"problem {i} has no valid estimate ({why})")
@@ -99,7 +128,18 @@ class BatchOrientation:
         return Similarity3D(self.scale[i], self.rotation[i], self.translation[i], check=check)
 
     def apply(self, points: np.ndarray) -> np.ndarray:
-        """``s R x + t`` for points (B, m, 3) (or (m, 3), the same points for every problem)."""
+        """``s R x + t`` of every problem.
+
+        Parameters
+        ----------
+        points : array_like, shape (B, m, 3) or (m, 3)
+            Source points per problem, or the same points for every problem (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (B, m, 3)
+            Target coordinates (target units); NaN rows for invalid problems.
+        """
         p = np.asarray(points, dtype=float)
         out = np.matmul(p, np.swapaxes(self.rotation, 1, 2))
         return self.scale[:, None, None] * out + self.translation[:, None, :]

@@ -53,7 +53,21 @@ class MethodRow:
 
 @dataclass(frozen=True)
 class MethodComparison:
-    """Result of :func:`compare_absolute_methods`."""
+    """Result of :func:`compare_absolute_methods`.
+
+    Attributes
+    ----------
+    rows : tuple of MethodRow
+        One per method compared, in the order asked.
+    reference : str
+        Method the differences refer to.
+    convention : str
+        Angle convention of the values (``"transposed"`` or ``"direct"``).
+    unit : str
+        Angle unit of the values.
+    length_unit : str, default "m"
+        Unit of the target coordinates (labels).
+    """
 
     rows: tuple[MethodRow, ...]
     reference: str
@@ -62,7 +76,24 @@ class MethodComparison:
     length_unit: str = "m"
 
     def row(self, method: str) -> MethodRow:
-        """The row of ``method``."""
+        """The row of ``method``.
+
+        Parameters
+        ----------
+        method : str
+            Method name or alias (normalised as in :func:`absolute_orientation`).
+
+        Returns
+        -------
+        MethodRow
+
+        Raises
+        ------
+        InputError
+            For an unknown method name.
+        KeyError
+            For a known method that was not compared.
+        """
         method = normalize_method(method)
         for r in self.rows:
             if r.method == method:
@@ -70,7 +101,13 @@ class MethodComparison:
         raise KeyError(method)
 
     def columns(self) -> list[str]:
-        """Column headings of :meth:`table_rows` (units included)."""
+        """Column headings of :meth:`table_rows` (units included).
+
+        Returns
+        -------
+        list of str
+            13 headings.
+        """
         u, L = self.unit, self.length_unit
         return [
             "method", f"tx [{L}]", f"ty [{L}]", f"tz [{L}]", "scale",
@@ -80,7 +117,14 @@ class MethodComparison:
         ]
 
     def table_rows(self) -> list[list]:
-        """One list per method (None for values of a failed method)."""
+        """One list per method (None for values of a failed method).
+
+        Returns
+        -------
+        list of list
+            Rows of the 13 :meth:`columns`: shifts in :attr:`length_unit`, angles in
+            :attr:`unit`, time per solve in microseconds.
+        """
         out = []
         for r in self.rows:
             if r.fit is None:
@@ -97,7 +141,12 @@ class MethodComparison:
         return out
 
     def to_text(self) -> str:
-        """Plain-text table (differences are to the reference method)."""
+        """Plain-text table (differences are to the reference method).
+
+        Returns
+        -------
+        str
+        """
         head = (
             f"{'method':<16}{'scale':>16}{'omega':>12}{'phi':>12}{'kappa':>12}"
             f"{'|d shift|':>11}{'|d scale|':>11}{'|d angle|':>11}{'defect':>10}{'us/solve':>10}"
@@ -129,7 +178,15 @@ class MethodComparison:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """JSON-ready form."""
+        """JSON-ready form.
+
+        Returns
+        -------
+        dict
+            ``reference``, ``convention``, ``angle_unit`` and ``methods``: per method its
+            ``parameters``, ``differences_to_reference``, ``orthogonality_defect``,
+            ``time_per_solve_s`` (None when not measured), ``repeats`` and ``error``.
+        """
         return {
             "reference": self.reference,
             "convention": self.convention,
@@ -213,8 +270,14 @@ def compare_absolute_methods(
         False skips the timing (faster, for tests).
     length_unit : str
         Unit of the target coordinates (labels).
-    options
+    **options
         Passed to every :func:`absolute_orientation` call (e.g. ``with_scale``, ``weights``).
+
+    Returns
+    -------
+    MethodComparison
+        One row per method: its parameters, differences to ``reference``, orthogonality
+        defect and time per solve (a method that fails has its error instead).
     """
     unit = angle_unit
     options["unit"] = length_unit

@@ -57,6 +57,12 @@ class ResectionFit(Fit):
     ``suspect_reason`` is empty for a plausible adjustment; otherwise it says why the result
     should not be trusted as it is (``suspect`` is then True, the reason is among ``notes``
     and a :class:`~photogeom.errors.SuspectResultWarning` was issued).
+
+    Attributes
+    ----------
+    suspect_reason : str, default ""
+        Why the result should not be trusted as it is; empty for a plausible adjustment.
+        The other fields are those of :class:`~photogeom.adjust.Fit`.
     """
 
     crs_role = "ground"
@@ -886,7 +892,18 @@ class BatchResection:
         return self.sigma0_prior * np.sqrt(np.einsum("bii->bi", self.cofactor))
 
     def exterior(self, i: int) -> ExteriorOrientation:
-        """Exterior orientation of problem ``i``."""
+        """Exterior orientation of problem ``i``.
+
+        Parameters
+        ----------
+        i : int
+            Index of the problem.
+
+        Returns
+        -------
+        ExteriorOrientation
+            Object units, angles in rad.
+        """
         return ExteriorOrientation(*self.parameters[i])
 
 

@@ -71,7 +71,13 @@ class ModelPoints:
         return np.sqrt(np.einsum("nii->ni", self.covariance))
 
     def as_dict(self) -> dict:
-        """``{id: xyz}``."""
+        """``{id: xyz}``.
+
+        Returns
+        -------
+        dict
+            Point id -> model coordinates (3,), model unit.
+        """
         return dict(zip(self.ids, self.points))
 
 
@@ -88,9 +94,20 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
     Parameters
     ----------
     fit : RelativeOrientationFit
-    which : {"inliers", "all"}
+    which : {"inliers", "all"}, default "inliers"
         The points used in the adjustment, or every input point (wrong matches may then fail
         to intersect in front of the images).
+
+    Returns
+    -------
+    ModelPoints
+        Ids, model coordinates (n, 3) in the model unit (bx or the base length) and their
+        cofactors (n, 3, 3).
+
+    Raises
+    ------
+    InputError
+        For another ``which``.
     """
     from .intersection import space_intersection
     from .relative import _ideal_and_derivative
@@ -166,6 +183,7 @@ class ParallaxReport:
     used : (n,) bool, points in the adjustment.
     statistic : (n,) test statistic (w or tau) per point.
     critical_value : float
+    test : str, name of the test statistic (``"w"`` or ``"tau"``).
     rms : float, RMS of the y-parallaxes of the points used.
     unit : str
     worst : tuple of int, indices of the largest |parallax|, largest first.
@@ -182,7 +200,14 @@ class ParallaxReport:
     worst: tuple
 
     def to_dict(self) -> dict:
-        """JSON-ready report."""
+        """JSON-ready report.
+
+        Returns
+        -------
+        dict
+            ``unit``, ``rms``, ``max_abs``, ``test``, ``critical_value``, ``points`` (id,
+            parallax, statistic, used per point) and ``worst`` (ids); non-finite numbers as None.
+        """
 
         def num(v):
             return float(v) if np.isfinite(v) else None
@@ -206,7 +231,12 @@ class ParallaxReport:
         }
 
     def text(self) -> str:
-        """The table a photogrammetrist reads: RMS, then the worst points."""
+        """The table a photogrammetrist reads: RMS, then the worst points.
+
+        Returns
+        -------
+        str
+        """
         lines = [
             f"residual y-parallaxes [{self.unit}]: RMS {self.rms:.4g} over {int(self.used.sum())} "
             f"point(s); {int((~self.used).sum())} left out as wrong matches",
@@ -221,7 +251,20 @@ class ParallaxReport:
 
 
 def parallax_report(fit, worst: int = 10) -> ParallaxReport:
-    """Per-point residual y-parallaxes, their RMS over the points used and the worst points."""
+    """Per-point residual y-parallaxes, their RMS over the points used and the worst points.
+
+    Parameters
+    ----------
+    fit : RelativeOrientationFit
+        A relative orientation.
+    worst : int, default 10
+        Points listed in :attr:`ParallaxReport.worst` at most (largest ``|parallax|`` first).
+
+    Returns
+    -------
+    ParallaxReport
+        Parallaxes in the image unit of the fit.
+    """
     p = np.asarray(fit.parallax)
     used = np.asarray(fit.inliers)
     rms = float(np.sqrt(np.mean(p[used] ** 2))) if used.any() else float("nan")

@@ -116,6 +116,12 @@ def orient_strip(
         Points that two consecutive models must share for the scale transfer.
     seed : int or None
         RANSAC seed of the relative orientations.
+
+    Returns
+    -------
+    StripModel
+        Exterior orientations and points in the system of the first model, the relative
+        orientations and the scale transfers.
     """
     imgs = tuple(images)
     if len(imgs) < 2:

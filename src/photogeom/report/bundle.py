@@ -225,14 +225,48 @@ def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: 
 
 
 def write_bundle_result(data: Mapping, path: str | os.PathLike) -> Path:
-    """Write a result record (from :func:`bundle_result_data`) as JSON, atomically."""
+    """Write a result record (from :func:`bundle_result_data`) as JSON, atomically.
+
+    Parameters
+    ----------
+    data : Mapping
+        The record (no NaN: undefined values are None).
+    path : str or os.PathLike
+        Output file; replaced if it exists.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    OutputError
+        When the file cannot be written.
+    """
     from ..io.atomic import atomic_write_text
 
     return atomic_write_text(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
 def read_bundle_result(path: str | os.PathLike) -> dict:
-    """Read a result record written by :func:`write_bundle_result` (or ``--result``)."""
+    """Read a result record written by :func:`write_bundle_result` (or ``--result``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The JSON file.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    InputError
+        When the file does not exist.
+    FileFormatError
+        When it is not JSON or not a bundle adjustment result record.
+    """
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
@@ -863,6 +897,17 @@ def add_bundle_result(
     there are more); control and check points; residual vectors binned over the sensor;
     RMS residual per image; point precision (when computed); convergence; flagged
     observations; variance components (when estimated); notes.
+
+    Parameters
+    ----------
+    report : Report
+        The report to add to.
+    data : Mapping
+        A result record (:func:`bundle_result_data` or :func:`read_bundle_result`).
+    title : str, optional
+        Chapter heading.
+    max_rows : int, default MAX_ROWS
+        Rows of the long tables at most.
     """
     d = data
     p = f"{title}: " if title else ""
@@ -979,8 +1024,28 @@ def add_bundle_fit(
     angle_unit: str = "deg",
     max_rows: int = MAX_ROWS,
 ) -> dict:
-    """Add the sections of a :class:`~photogeom.bundle.BundleFit` to ``report``; returns the
-    result record (see :func:`bundle_result_data`) it was rendered from."""
+    """Add the sections of a :class:`~photogeom.bundle.BundleFit` to ``report``.
+
+    Parameters
+    ----------
+    report : Report
+        The report to add to.
+    fit : BundleFit
+        The adjustment.
+    title : str, optional
+        Chapter heading.
+    unit : str, default "m"
+        Length unit of the object coordinates (labels).
+    angle_unit : str, default "deg"
+        Unit of the angles shown.
+    max_rows : int, default MAX_ROWS
+        Rows of the long tables at most.
+
+    Returns
+    -------
+    dict
+        The result record (see :func:`bundle_result_data`) the sections were rendered from.
+    """
     data = bundle_result_data(fit, unit=unit, angle_unit=angle_unit)
     add_bundle_result(report, data, title, max_rows=max_rows)
     return data
@@ -997,6 +1062,23 @@ def bundle_report(
     """A complete HTML report of a bundle adjustment (a ``BundleFit`` or a result record).
 
     >>> bundle_report(fit).write("bundle.html")                      # doctest: +SKIP
+
+    Parameters
+    ----------
+    fit_or_data : BundleFit or Mapping
+        The adjustment, or its result record (:func:`read_bundle_result`).
+    title : str, default "Bundle adjustment"
+        Title of the report.
+    unit : str, default "m"
+        Length unit of the object coordinates (for a ``BundleFit``).
+    angle_unit : str, default "deg"
+        Unit of the angles shown (for a ``BundleFit``).
+    max_rows : int, default MAX_ROWS
+        Rows of the long tables at most.
+
+    Returns
+    -------
+    Report
     """
     if isinstance(fit_or_data, Mapping):
         data = fit_or_data

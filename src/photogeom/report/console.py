@@ -116,7 +116,21 @@ class PointTable:
 
 
 def fit_renderable(fit, title: str | None = None, angle_unit: str = "deg") -> Group:
-    """Rich renderable of a fit: parameters, statistics, residuals, check points, notes."""
+    """Rich renderable of a fit: parameters, statistics, residuals, check points, notes.
+
+    Parameters
+    ----------
+    fit : Fit
+        The estimate.
+    title : str, optional
+        Title; default the model name and method.
+    angle_unit : str, default "deg"
+        Unit of the angle parameters.
+
+    Returns
+    -------
+    rich.console.Group
+    """
     title = title or f"{F.model_name(fit)} ({fit.method})"
     items: list = []
 
@@ -171,11 +185,22 @@ def print_fit(
     angle_unit: str = "deg",
     title: str | None = None,
 ) -> None:
-    """Print a fit as rich tables (parameters with std. dev. and units, statistics,
-    residuals v = computed - observed, check points, notes).
+    """Print a fit as rich tables.
 
-    Never fails on undefined statistics (e.g. sigma0 when the redundancy is 0: shown as
-    "undefined").
+    Parameters with std. dev. and units, statistics, residuals v = computed - observed,
+    check points, notes. Never fails on undefined statistics (e.g. sigma0 when the
+    redundancy is 0: shown as "undefined").
+
+    Parameters
+    ----------
+    fit : Fit
+        The estimate.
+    console : rich.console.Console, optional
+        Where to print; default a new console (standard output).
+    angle_unit : str, default "deg"
+        Unit of the angle parameters.
+    title : str, optional
+        Title; default the model name and method.
     """
     console = console or Console()
     console.print(fit_renderable(fit, title=title, angle_unit=angle_unit))
@@ -187,9 +212,22 @@ def print_table(
     rows: Sequence[Sequence],
     console: Console | None = None,
 ) -> None:
-    """Print a simple table (first column left-aligned, the others right-aligned). Cells are
-    shown as they are (text, not rich markup: they hold point ids); column names may hold
-    markup."""
+    """Print a simple table (first column left-aligned, the others right-aligned).
+
+    Cells are shown as they are (text, not rich markup: they hold point ids); column names
+    may hold markup.
+
+    Parameters
+    ----------
+    title : str or None
+        Table title.
+    columns : sequence of str
+        Column headings.
+    rows : sequence of sequences
+        Cells; floats are formatted, other values shown with ``str``.
+    console : rich.console.Console, optional
+        Where to print; default a new console (standard output).
+    """
     console = console or Console()
     t = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", title_style="bold")
     for j, c in enumerate(columns):
@@ -204,7 +242,23 @@ def print_table(
 
 
 def fit_text(fit, title: str | None = None, angle_unit: str = "deg", width: int = 110) -> str:
-    """The :func:`print_fit` output as plain text (no colour codes)."""
+    """The :func:`print_fit` output as plain text (no colour codes).
+
+    Parameters
+    ----------
+    fit : Fit
+        The estimate.
+    title : str, optional
+        Title; default the model name and method.
+    angle_unit : str, default "deg"
+        Unit of the angle parameters.
+    width : int, default 110
+        Line width, characters.
+
+    Returns
+    -------
+    str
+    """
     console = Console(
         width=width, record=True, color_system=None, force_terminal=False, file=_Null()
     )

@@ -70,7 +70,19 @@ def _slug(text: str, used: set[str]) -> str:
 
 
 def figure_to_png(fig, dpi: int = 110) -> bytes:
-    """PNG bytes of a matplotlib figure (closed afterwards if pyplot manages it)."""
+    """PNG bytes of a matplotlib figure (closed afterwards if pyplot manages it).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    dpi : int, default 110
+        Resolution, dots per inch.
+
+    Returns
+    -------
+    bytes
+    """
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt = sys.modules.get("matplotlib.pyplot")
@@ -84,6 +96,13 @@ class Report:
 
     The file has inline CSS and figures embedded as base64 PNG: it can be mailed or archived
     alone. ``write`` replaces the target atomically (never a half-written file).
+
+    Parameters
+    ----------
+    title : str
+        Title of the document (``<h1>`` and ``<title>``).
+    subtitle : str, optional
+        A line under the title.
 
     Examples
     --------
@@ -114,6 +133,11 @@ class Report:
 
         Take ``n = len(report)`` before a step that may fail: a step that failed then leaves
         none of its sections half-way in the report.
+
+        Parameters
+        ----------
+        n : int
+            Sections to keep.
         """
         del self._blocks[int(n) :]
 
@@ -122,13 +146,30 @@ class Report:
         self._blocks.append((level, heading or "", anchor, body))
 
     def add_heading(self, title: str, text: str | None = None) -> None:
-        """Start a chapter (a top-level heading; sections added after it belong to it)."""
+        """Start a chapter (a top-level heading; sections added after it belong to it).
+
+        Parameters
+        ----------
+        title : str
+            Heading.
+        text : str, optional
+            Paragraphs under the heading (separated by blank lines).
+        """
         body = "" if not text else "".join(f"<p>{_esc(p)}</p>" for p in _paragraphs(text))
         self._add(2, title, body)
 
     def add_text(self, heading: str | None, text: str, *, pre: bool | None = None) -> None:
-        """A section of text. Paragraphs are separated by blank lines; with ``pre=True`` (or,
-        by default, when the text has aligned columns) it is shown preformatted."""
+        """A section of text.
+
+        Parameters
+        ----------
+        heading : str or None
+            Section heading; None: no heading.
+        text : str
+            Paragraphs separated by blank lines (HTML-escaped).
+        pre : bool, optional
+            Show preformatted; default: when the text has aligned columns.
+        """
         if pre is None:
             pre = bool(re.search(r"\S {2,}\S", text)) or "\n  " in text
         body = (
@@ -146,11 +187,33 @@ class Report:
         *,
         note: str | None = None,
     ) -> None:
-        """A table; numbers are printed with up to 10 significant digits."""
+        """A table; numbers are printed with up to 10 significant digits.
+
+        Parameters
+        ----------
+        title : str or None
+            Section heading.
+        columns : sequence of str
+            Column headings (units in them).
+        rows : sequence of sequences
+            Cells (numbers, text, None).
+        note : str, optional
+            A note under the table.
+        """
         self._add(3, title, _table_html(columns, [[_cell(c) for c in r] for r in rows], note=note))
 
     def add_figure(self, title: str | None, figure, *, caption: str | None = None) -> None:
-        """A matplotlib figure, embedded as PNG."""
+        """A matplotlib figure, embedded as PNG.
+
+        Parameters
+        ----------
+        title : str or None
+            Section heading (also the image's alternative text).
+        figure : matplotlib.figure.Figure
+            The figure (closed afterwards if pyplot manages it).
+        caption : str, optional
+            Caption under the figure.
+        """
         self._add(3, title, _img_html(figure_to_png(figure), title or "figure", caption))
 
     def add_residual_plot(
@@ -165,8 +228,23 @@ class Report:
     ) -> None:
         """Residual vectors at their points with a labelled scale arrow and the ids.
 
-        Extra keyword arguments go to :func:`~photogeom.report.plots.residual_figure`
-        (``check_points``, ``check_residuals``, ``check_ids``, ``y_down``, ``point_unit``).
+        Parameters
+        ----------
+        title : str or None
+            Section heading.
+        points_xy : array_like, shape (n, 2)
+            Positions of the residuals.
+        residuals_xy : array_like, shape (n, 2)
+            Residual vectors (computed minus observed), in ``unit``.
+        ids : sequence, optional
+            Point labels.
+        unit : str, default ""
+            Unit of the residuals (scale arrow).
+        labels : (str, str), default ("x", "y")
+            Axis labels.
+        **kwargs
+            Passed to :func:`~photogeom.report.plots.residual_figure` (``check_points``,
+            ``check_residuals``, ``check_ids``, ``y_down``, ``point_unit``).
         """
         fig = residual_figure(points_xy, residuals_xy, ids, unit=unit, labels=labels, **kwargs)
         self._add(3, title, _img_html(figure_to_png(fig), title or "residuals", None))
@@ -191,6 +269,27 @@ class Report:
         table (v = computed - observed) with data-snooping statistics when available, the
         check-point table and RMSE, notes, and - when ``points`` gives the (n, 2) positions
         of the residual rows - a residual vector plot (``check_points`` adds the check points).
+
+        Parameters
+        ----------
+        fit : Fit
+            The estimate.
+        title : str, optional
+            Section heading; default the model name and method.
+        angle_unit : str, default "deg"
+            Unit of the angle parameters.
+        points : array_like, shape (n, 2), optional
+            Positions of the residual rows, for the plot.
+        check_points : array_like, shape (k, 2), optional
+            Positions of the check points, for the plot.
+        point_labels : (str, str), optional
+            Axis labels of the plot; default the fit's first two axis labels.
+        point_unit : str, optional
+            Unit of the positions (axis labels); default the residual unit.
+        y_down : bool, default False
+            Draw the second axis downwards (pixel systems).
+        description : str, optional
+            Paragraphs shown before the tables.
         """
         title = title or f"{F.model_name(fit)} ({fit.method})"
         parts: list[str] = []
@@ -283,7 +382,12 @@ class Report:
     # --- output ------------------------------------------------------------------------------
 
     def to_html(self) -> str:
-        """The complete HTML document."""
+        """The complete HTML document.
+
+        Returns
+        -------
+        str
+        """
         from .. import __version__
 
         now = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
@@ -329,7 +433,22 @@ class Report:
         return "".join(items).replace("<ul></ul>", "")
 
     def write(self, path: str | os.PathLike) -> Path:
-        """Write the report atomically to ``path`` (``.html``) and return the path."""
+        """Write the report atomically to ``path`` (``.html``) and return the path.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Output file; replaced if it exists.
+
+        Returns
+        -------
+        pathlib.Path
+
+        Raises
+        ------
+        OutputError
+            When the file cannot be written.
+        """
         return atomic_write_text(path, self.to_html())
 
 

@@ -12,7 +12,18 @@ from ..errors import InputError
 
 
 def nice_length(value: float) -> float:
-    """The largest 1, 2 or 5 times a power of ten not above ``value`` (> 0)."""
+    """The largest 1, 2 or 5 times a power of ten not above ``value``.
+
+    Parameters
+    ----------
+    value : float
+        A length, any unit.
+
+    Returns
+    -------
+    float
+        In the unit of ``value``; 1.0 for a value that is not positive and finite.
+    """
     if not (value > 0 and math.isfinite(value)):
         return 1.0
     exp = math.floor(math.log10(value))

@@ -90,7 +90,13 @@ class LocalizationResult:
         return bool(np.all(self.converged))
 
     def counts(self) -> dict[str, int]:
-        """Number of points per status."""
+        """Number of points per status.
+
+        Returns
+        -------
+        dict of str to int
+            Lower-case :class:`LocalizationStatus` name -> count (every status present, 0 too).
+        """
         return {s.name.lower(): int(np.count_nonzero(self.status == s)) for s in LocalizationStatus}
 
 
@@ -280,7 +286,24 @@ def _image_domain(rpc: RPC) -> tuple[float, float, float, float]:
 
 
 def approximate_inverse(rpc: RPC) -> ApproximateInverse:
-    """The (cached) approximate inverse of ``rpc``'s projection (uncorrected model)."""
+    """The (cached) approximate inverse of ``rpc``'s projection (uncorrected model).
+
+    Parameters
+    ----------
+    rpc : RPC
+        The model; the result is cached on it.
+
+    Returns
+    -------
+    ApproximateInverse
+        Cubic polynomials ``(col_n, row_n, h_n) -> (L, P)`` and a solved centre point.
+
+    Raises
+    ------
+    DegenerateGeometryError
+        When the projection is undefined at the ground offsets or no centre solution is
+        found (the coefficients are probably wrong).
+    """
     cached = rpc._cache.get("inverse")
     if cached is not None:
         return cached

@@ -98,6 +98,12 @@ class DirectModel:
     and scales of the :class:`RPC` it belongs to. It approximates the inverse of the
     projection (its accuracy is the vendor's fit error); :meth:`RPC.localize` does not use it
     and inverts the projection exactly instead.
+
+    Parameters
+    ----------
+    lon_num, lon_den, lat_num, lat_den : array_like, shape (20,)
+        Coefficients in RPC00B term order; a denominator with all 20 coefficients zero
+    raises :class:`InputError`.
     """
 
     lon_num: np.ndarray
@@ -229,6 +235,20 @@ class RPC:
         Formats: IKONOS-style ``_RPC.TXT`` (numbered keys), ``KEY: value`` text with
         coefficient lists, DigitalGlobe ``.RPB``, DIMAP XML (Pleiades/SPOT), DigitalGlobe/Maxar
         XML with an ``RPB`` block (WorldView), GeoTIFF RPC tags (needs the ``geotiff`` extra).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file.
+
+        Returns
+        -------
+        RPC
+
+        Raises
+        ------
+        FileFormatError
+            As :func:`photogeom.rpc.read_rpc`.
         """
         from .readers import read_rpc
 
@@ -240,6 +260,23 @@ class RPC:
 
         Values may be numbers, strings, lists, or space-separated strings of 20 coefficients
         (as in GDAL's / rasterio's ``RPC`` metadata domain).
+
+        Parameters
+        ----------
+        d : Mapping
+            The keys and values (``IMAGE_CORRECTION`` as written by :meth:`to_dict` accepted).
+        source : str, default "dictionary"
+            Name of the data in error messages and in :attr:`source`.
+
+        Returns
+        -------
+        RPC
+
+        Raises
+        ------
+        FileFormatError
+            For a missing key (named), a coefficient vector without 20 values, or a value that
+            is not a number.
         """
         from .readers import rpc_from_mapping
 
@@ -251,6 +288,12 @@ class RPC:
         A correction that folds into the offsets (shift, per-axis scale) is folded; any other
         is given as ``IMAGE_CORRECTION`` (``[[a1, a2, a0], [b1, b2, b0]]``, read back by
         :meth:`from_dict`; not a GDAL key).
+
+        Returns
+        -------
+        dict
+            Offsets/scales (px, deg, m), the four ``*_COEFF`` lists, ``ERR_BIAS``/``ERR_RAND``
+            (m) when known, the vendor's direct model and ``IMAGE_CORRECTION`` when present.
         """
         if self.correction is not None and self.correction_is_foldable:
             return self.with_correction_folded().to_dict()
@@ -271,8 +314,16 @@ class RPC:
     def to_gdal_metadata(self) -> dict[str, str]:
         """GDAL RPC metadata as strings (for ``rasterio``'s ``update_tags(ns="RPC", ...)``).
 
-        Raises :class:`InputError` for a correction with cross terms (GDAL has no place for
-        it; re-fit the corrected model first).
+        Returns
+        -------
+        dict of str to str
+            GDAL keys; coefficient vectors as 20 space-separated numbers.
+
+        Raises
+        ------
+        InputError
+            For a correction with cross terms (GDAL has no place for it; re-fit the corrected
+            model first).
         """
         d = self.with_correction_folded().to_dict()
         keys = (*GDAL_KEYS.values(), *GDAL_COEFF_KEYS.values(), "ERR_BIAS", "ERR_RAND")
@@ -283,7 +334,25 @@ class RPC:
         }
 
     def write(self, path: str | Path, style: str = "ikonos") -> Path:
-        """Write as text (see :func:`photogeom.rpc.writer.write_rpc`)."""
+        """Write as text (see :func:`photogeom.rpc.writer.write_rpc`).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            Output file; replaced atomically.
+        style : {"ikonos", "lists"}, default "ikonos"
+            Text layout, as in :func:`~photogeom.rpc.writer.write_rpc`.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Raises
+        ------
+        InputError
+            Unknown style, or an image-space correction with cross terms.
+        """
         from .writer import write_rpc
 
         return write_rpc(self, path, style=style)
@@ -313,7 +382,21 @@ class RPC:
         return (self.height_off - s, self.height_off + s)
 
     def same_as(self, other: RPC, rtol: float = 0.0) -> bool:
-        """True when offsets, scales and all coefficients agree (exactly for ``rtol=0``)."""
+        """True when offsets, scales and all coefficients agree (exactly for ``rtol=0``).
+
+        The direct model and the image-space correction are compared too.
+
+        Parameters
+        ----------
+        other : RPC
+            The model to compare with.
+        rtol : float, default 0.0
+            Relative tolerance per value.
+
+        Returns
+        -------
+        bool
+        """
         for name in _FIELDS_OFF_SCALE:
             a, b = getattr(self, name), getattr(other, name)
             if abs(a - b) > rtol * max(abs(a), abs(b)):
@@ -333,7 +416,20 @@ class RPC:
     # --- normalisation -------------------------------------------------------------------------
 
     def normalize_ground(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(L, P, H)`` normalised ground coordinates (arrays of the broadcast shape)."""
+        """``(L, P, H)`` normalised ground coordinates (arrays of the broadcast shape).
+
+        Parameters
+        ----------
+        lon, lat : float or array_like
+            Longitude and latitude, deg (longitude differences taken across the antimeridian).
+        h : float or array_like
+            Ellipsoidal height, m.
+
+        Returns
+        -------
+        L, P, H : numpy.ndarray
+            Unitless, of the broadcast shape of the inputs.
+        """
         lon, lat, h = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (lon, lat, h)))
         return (
             longitude_difference(lon, self.long_off) / self.long_scale,
@@ -342,7 +438,18 @@ class RPC:
         )
 
     def normalize_image(self, col, row) -> tuple[np.ndarray, np.ndarray]:
-        """Normalised image coordinates of the RPC itself (before any correction)."""
+        """Normalised image coordinates of the RPC itself (before any correction).
+
+        Parameters
+        ----------
+        col, row : float or array_like
+            Pixel coordinates (px, (0, 0) = centre of the first pixel).
+
+        Returns
+        -------
+        col_n, row_n : numpy.ndarray
+            Unitless.
+        """
         col = np.asarray(col, dtype=np.float64)
         row = np.asarray(row, dtype=np.float64)
         return (col - self.samp_off) / self.samp_scale, (row - self.line_off) / self.line_scale
@@ -406,10 +513,23 @@ class RPC:
     def jacobian(self, lon, lat, h) -> np.ndarray:
         """Partial derivatives of ``(col, row)`` w.r.t. ``(lon, lat, h)``.
 
+        Parameters
+        ----------
+        lon, lat : float or array_like
+            Longitude and latitude, deg.
+        h : float or array_like
+            Ellipsoidal height, m (broadcast with ``lon``, ``lat``).
+
         Returns
         -------
         numpy.ndarray, shape (n, 2, 3)
-            Rows col, row; columns d/dlon (px/deg), d/dlat (px/deg), d/dh (px/m).
+            One row per broadcast point (n = 1 for scalars); rows col, row; columns d/dlon
+            (px/deg), d/dlat (px/deg), d/dh (px/m).
+
+        Raises
+        ------
+        InputError
+            For a missing ``h``, non-finite values or shapes that do not broadcast.
         """
         lon, lat, h, _ = _prepare(("lon", lon), ("lat", lat), ("h", h), what="RPC Jacobian")
         return self._jacobian_flat(lon, lat, h)[2]
@@ -500,7 +620,24 @@ class RPC:
         """Evaluate the vendor's image-to-ground polynomials (:class:`DirectModel`).
 
         Approximate (the vendor's fit error); only for files that ship them (DIMAP).
-        Returns ``(lon, lat)`` in degrees.
+
+        Parameters
+        ----------
+        col, row : float or array_like
+            Pixel coordinates (px, (0, 0) = centre of the first pixel).
+        h : float or array_like
+            Ellipsoidal height, m (broadcast with ``col``, ``row``).
+
+        Returns
+        -------
+        lon, lat : float or numpy.ndarray
+            Degrees, of the broadcast shape of the inputs.
+
+        Raises
+        ------
+        InputError
+            When the RPC has no image-to-ground polynomials (use :meth:`localize`), ``h`` is
+            missing, or the inputs are not finite or do not broadcast.
         """
         if self.direct is None:
             raise InputError(
@@ -523,8 +660,21 @@ class RPC:
     def with_correction(self, correction) -> RPC:
         """A copy whose projection is followed by an image-space affine correction.
 
-        ``correction`` is ``[[a1, a2, a0], [b1, b2, b0]]`` (see the class docstring); it is
-        composed with an existing correction (the new one applied last).
+        ``correction`` is composed with an existing correction (the new one applied last).
+
+        Parameters
+        ----------
+        correction : array_like, shape (2, 3)
+            ``[[a1, a2, a0], [b1, b2, b0]]`` (see the class docstring); ``a0, b0`` in px.
+
+        Returns
+        -------
+        RPC
+
+        Raises
+        ------
+        InputError
+            For another shape.
         """
         D = np.asarray(correction, dtype=np.float64)
         if D.shape != (2, 3):
@@ -557,10 +707,19 @@ class RPC:
     def with_correction_folded(self) -> RPC:
         """An equivalent RPC with the correction written into SAMP/LINE offsets and scales.
 
-        Exact for shifts and per-axis scales; raises :class:`InputError` for cross terms
-        (re-fit the corrected model with :func:`photogeom.rpc.fitting.fit_rpc` instead).
-        The vendor's ``err_bias`` (m) described the bias the correction removes, so the folded
-        model has none (unknown); ``err_rand`` is kept.
+        Exact for shifts and per-axis scales. The vendor's ``err_bias`` (m) described the bias
+        the correction removes, so the folded model has none (unknown); ``err_rand`` is kept.
+
+        Returns
+        -------
+        RPC
+            ``self`` when there is no correction.
+
+        Raises
+        ------
+        InputError
+            For cross terms (re-fit the corrected model with :func:`photogeom.rpc.fitting.fit_rpc`
+            instead).
         """
         if self.correction is None:
             return self
@@ -594,10 +753,17 @@ class RPC:
     # --- description ----------------------------------------------------------------------------
 
     def footprint(self, h: float | None = None) -> np.ndarray:
-        """Ground positions (lon, lat in degrees) of the four image corners at height ``h``.
+        """Ground positions of the four image corners at height ``h``.
 
-        ``h`` defaults to ``HEIGHT_OFF``. Returns shape (4, 2): top-left, top-right,
-        bottom-right, bottom-left.
+        Parameters
+        ----------
+        h : float, optional
+            Ellipsoidal height, m; default ``HEIGHT_OFF``.
+
+        Returns
+        -------
+        numpy.ndarray, shape (4, 2)
+            ``(lon, lat)`` in deg of top-left, top-right, bottom-right, bottom-left.
         """
         c0, c1, r0, r1 = self.image_bounds
         hh = self.height_off if h is None else float(h)
@@ -605,7 +771,12 @@ class RPC:
         return np.column_stack([lon, lat])
 
     def summary(self) -> str:
-        """Plain-text description: offsets, scales, image and ground extent."""
+        """Plain-text description: offsets, scales, image and ground extent.
+
+        Returns
+        -------
+        str
+        """
         c0, c1, r0, r1 = self.image_bounds
         lines = [f"RPC00B model ({self.source or 'unknown source'})"]
         lines.append("  pixel convention: (0, 0) = centre of the first pixel; col right, row down")

@@ -660,11 +660,23 @@ def detect_format(path: Path, head: bytes) -> str:
 def read_rpc(path: str | Path) -> RPC:
     """Read an RPC file of any supported format (detected from the content).
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        IKONOS-style ``_RPC.TXT``, ``KEY: value`` text, DigitalGlobe ``.RPB``, DIMAP XML,
+        DigitalGlobe/Maxar XML or a GeoTIFF with RPC tags (needs the ``geotiff`` extra).
+
+    Returns
+    -------
+    RPC
+        Offsets/scales in px, deg and m; ``source`` names the file.
+
     Raises
     ------
     FileFormatError
-        Unknown format, missing keys (named), coefficient vectors that do not have 20 values,
-        keys without a value, numbers that cannot be read.
+        No such file, an empty or too large file, unknown format, missing keys (named),
+        coefficient vectors that do not have 20 values, keys without a value, numbers that
+        cannot be read.
     """
     p = Path(path)
     if not p.is_file():

@@ -101,13 +101,32 @@ class RPCIntersection:
         return self.sigma0[:, None] * self.std_prior
 
     def std_metric(self, prior: bool = True) -> np.ndarray:
-        """Standard deviations in metres (n, 3): east, north, up (WGS84 radii of curvature)."""
+        """Standard deviations in metres: east, north, up (WGS84 radii of curvature).
+
+        Parameters
+        ----------
+        prior : bool, default True
+            From the a-priori cofactor (``std_prior``); False scales by ``sigma0`` (``std``).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3)
+            East, north, up in m.
+        """
         s = self.std_prior if prior else self.std
         east, north = metres_per_degree(self.ground[:, 1], self.ground[:, 2])
         return np.column_stack([s[:, 0] * east, s[:, 1] * north, s[:, 2]])
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary (NaN -> None)."""
+        """JSON-ready dictionary (NaN -> None).
+
+        Returns
+        -------
+        dict
+            ``ground`` (lon deg, lat deg, h m), ``std_prior``, ``std_prior_metric_enu_m``,
+            ``sigma0``, ``redundancy``, ``converged``, ``degenerate`` per point, with the units
+            and the residual convention.
+        """
 
         def clean(a):
             a = np.asarray(a, dtype=float)

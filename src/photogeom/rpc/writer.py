@@ -30,7 +30,25 @@ def _num(v: float) -> str:
 
 
 def format_rpc(rpc: RPC, style: str = "ikonos") -> str:
-    """The text of :func:`write_rpc` (see there)."""
+    """The text of :func:`write_rpc` (see there).
+
+    Parameters
+    ----------
+    rpc : RPC
+        The model; a foldable image-space correction is folded into its offsets.
+    style : {"ikonos", "lists"}, default "ikonos"
+        Text layout, as in :func:`write_rpc`.
+
+    Returns
+    -------
+    str
+        The file content, ending with a newline.
+
+    Raises
+    ------
+    InputError
+        Unknown style, or an image-space correction with cross terms (re-fit first).
+    """
     if style not in STYLES:
         raise InputError(f"unknown RPC text style {style!r}; use one of {', '.join(STYLES)}")
     model = rpc.with_correction_folded()

@@ -45,9 +45,27 @@ class WaveTerrain:
         base: float = 0.0,
         waves: int = 6,
     ) -> WaveTerrain:
-        """Random hills over ``extent = (xmin, xmax, ymin, ymax)`` (m) whose peak-to-peak
-        height on the extent is ``relief`` (m); wavelengths 0.4 to 1.5 times the extent's
-        diagonal."""
+        """Random hills over an extent.
+
+        Wavelengths 0.4 to 1.5 times the extent's diagonal.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the random waves.
+        extent : (xmin, xmax, ymin, ymax)
+            Ground extent, m.
+        relief : float
+            Peak-to-peak height on the extent, m.
+        base : float, default 0.0
+            Height halfway between the lowest and the highest point on the extent, m.
+        waves : int, default 6
+            Number of cosine waves summed.
+
+        Returns
+        -------
+        WaveTerrain
+        """
         xmin, xmax, ymin, ymax = extent
         diag = float(np.hypot(xmax - xmin, ymax - ymin)) or 1.0
         lam = rng.uniform(0.4, 1.5, waves) * diag
@@ -150,8 +168,35 @@ class LocalDistortionField:
     ) -> LocalDistortionField:
         """Random fields for images in flight order (see the class docstring).
 
-        ``static`` in [0, 1] is the share of the variance common to all images; ``slope``
-        (>= 0) the exponent of the coefficients' fall with the wave number.
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the random coefficients.
+        image_ids : sequence
+            Image ids, in flight order.
+        width, height : float
+            Image size, px.
+        rms : float
+            RMS of the displacement, px (>= 0).
+        modes : int, default 6
+            Highest wave number (>= 1).
+        correlation : float, default 0.9
+            Correlation of a coefficient between consecutive images.
+        static : float, default 0.0
+            Share of the variance common to all images, in [0, 1].
+        slope : float, default 1.0
+            Exponent (>= 0) of the coefficients' fall with the wave number.
+
+        Returns
+        -------
+        LocalDistortionField
+
+        Raises
+        ------
+        InputError
+            For a value out of range (the message names the :func:`uav_block` option:
+            ``local_field``, ``local_field_modes``, ``local_field_static``,
+            ``local_field_slope``).
         """
         if modes < 1:
             raise InputError(f"local_field_modes must be >= 1, got {modes}")
@@ -185,27 +230,71 @@ class LocalDistortionField:
 
     @classmethod
     def zero(cls, image_ids, width: float, height: float) -> LocalDistortionField:
-        """No local displacement in any image."""
+        """No local displacement in any image.
+
+        Parameters
+        ----------
+        image_ids : sequence
+            Image ids.
+        width, height : float
+            Image size, px.
+
+        Returns
+        -------
+        LocalDistortionField
+        """
         ids = np.asarray(image_ids)
         return cls(
             ids, float(width), float(height), np.zeros((0, 2)), np.zeros((ids.size, 0, 2, 2)), 0.0
         )
 
     def coefficient_std(self) -> np.ndarray:
-        """(2K,) standard deviation (px) of the cos, then the sin coefficients of each wave,
-        as drawn (the same for du and dv)."""
+        """Standard deviation of the cos, then the sin coefficients of each wave, as drawn.
+
+        The same for du and dv.
+
+        Returns
+        -------
+        numpy.ndarray, shape (2K,)
+            px.
+        """
         return np.tile(_wave_std(self.waves, self.rms, self.slope), 2)
 
     def image_covariance(self, image_rows: np.ndarray) -> np.ndarray:
-        """(n, n) correlation of one coefficient between the images at flight positions
-        ``image_rows``: ``(1 - static) correlation^|i - j| + static``."""
+        """Correlation of one coefficient between images.
+
+        ``(1 - static) correlation^|i - j| + static`` for the images at flight positions ``i``,
+        ``j``.
+
+        Parameters
+        ----------
+        image_rows : numpy.ndarray of int, shape (n,)
+            Flight positions of the images (see :meth:`image_rows`).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, n)
+            Unitless.
+        """
         r = np.asarray(image_rows)
         lag = np.abs(r[:, None] - r[None, :])
         return (1.0 - self.static) * self.correlation**lag + self.static
 
     def basis(self, uv) -> np.ndarray:
-        """(n, 2K): ``cos(t_k)`` then ``sin(t_k)`` at pixels ``uv`` (n, 2), the functions the
-        coefficients multiply (``d = basis @ [c[:, 0, j]; c[:, 1, j]]`` for coordinate j)."""
+        """The functions the coefficients multiply.
+
+        ``d = basis @ [c[:, 0, j]; c[:, 1, j]]`` for coordinate j.
+
+        Parameters
+        ----------
+        uv : array_like, shape (n, 2)
+            Pixels (col, row).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2K)
+            ``cos(t_k)`` then ``sin(t_k)`` of the K waves, unitless.
+        """
         a = np.asarray(uv, dtype=float).reshape(-1, 2)
         t = 2.0 * np.pi * (
             np.outer(a[:, 0], self.waves[:, 0]) / self.width
@@ -214,8 +303,22 @@ class LocalDistortionField:
         return np.concatenate([np.cos(t), np.sin(t)], axis=1)
 
     def image_rows(self, image_ids) -> np.ndarray:
-        """Flight positions (rows of :attr:`coef`) of ``image_ids``; named error for an id
-        that is not an image of the field."""
+        """Flight positions (rows of :attr:`coef`) of ``image_ids``.
+
+        Parameters
+        ----------
+        image_ids : sequence or numpy.ndarray
+            Image ids of the field.
+
+        Returns
+        -------
+        numpy.ndarray of int, shape (n,)
+
+        Raises
+        ------
+        InputError
+            Naming the first id that is not an image of the field.
+        """
         flat = np.asarray(image_ids).reshape(-1)
         order = np.argsort(self.image_ids, kind="stable")
         keys = self.image_ids[order]
@@ -228,8 +331,20 @@ class LocalDistortionField:
         return order[pos]
 
     def rows(self, image_rows: np.ndarray, uv) -> np.ndarray:
-        """Displacements (n, 2) px at pixels ``uv`` (n, 2) of image rows ``image_rows`` (n,)
-        (positions in :attr:`image_ids`), vectorised over observations."""
+        """Displacements at pixels of given image rows, vectorised over observations.
+
+        Parameters
+        ----------
+        image_rows : numpy.ndarray of int, shape (n,)
+            Positions in :attr:`image_ids` of each observation's image.
+        uv : array_like, shape (n, 2)
+            Pixels (col, row).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            ``(du, dv)``, px.
+        """
         uv_all = np.asarray(uv, dtype=float).reshape(-1, 2)
         r = np.asarray(image_rows, dtype=np.int64).reshape(-1)
         out = np.zeros((uv_all.shape[0], 2))

@@ -70,17 +70,45 @@ class CameraPreset:
         return int(sum(self.study_strips))
 
     def flying_height(self, gsd: float | None = None) -> float:
-        """Flying height above the terrain for a GSD (m/px): ``H = GSD * f_px`` (nominal f)."""
+        """Flying height above the terrain for a GSD: ``H = GSD * f_px`` (nominal f).
+
+        Parameters
+        ----------
+        gsd : float, optional
+            Ground sample distance, m/px; default the preset's :attr:`gsd`.
+
+        Returns
+        -------
+        float
+            m.
+        """
         return (self.gsd if gsd is None else gsd) * self.focal_px
 
     def nominal_camera(self) -> MetashapeCalibration:
-        """The camera as its data sheet gives it: nominal f, centred principal point, no
-        distortion."""
+        """The camera as its data sheet gives it: nominal f, centred principal point, no distortion.
+
+        Returns
+        -------
+        MetashapeCalibration
+            px.
+        """
         return MetashapeCalibration(self.width, self.height, self.focal_px)
 
     def true_camera(self, brown: bool = True) -> MetashapeCalibration:
-        """The simulated true camera: the preset's f, principal point, affinity and (with
-        ``brown``) its Brown distortion."""
+        """The simulated true camera.
+
+        The preset's f, principal point, affinity and (with ``brown``) its Brown distortion.
+
+        Parameters
+        ----------
+        brown : bool, default True
+            Include the Brown distortion terms ``k1 .. k4, p1, p2``.
+
+        Returns
+        -------
+        MetashapeCalibration
+            px.
+        """
         t = dict(self.true_calibration)
         f = self.focal_px * t.pop("f_scale", 1.0)
         if not brown:
@@ -168,7 +196,22 @@ PRESETS: dict[str, CameraPreset] = {
 
 
 def preset(name: str | CameraPreset) -> CameraPreset:
-    """The preset of a camera name (``"ILCE-7RM2"``, ``"FC6310"``, ``"FC300S"``)."""
+    """The preset of a camera name (``"ILCE-7RM2"``, ``"FC6310"``, ``"FC300S"``).
+
+    Parameters
+    ----------
+    name : str or CameraPreset
+        A key of :data:`PRESETS`; a :class:`CameraPreset` is returned as it is.
+
+    Returns
+    -------
+    CameraPreset
+
+    Raises
+    ------
+    InputError
+        For an unknown name (the presets are listed).
+    """
     if isinstance(name, CameraPreset):
         return name
     try:

@@ -69,7 +69,8 @@ class SimulatedBlock:
     ideal, local, noise : (n, 2)
         Per observation (block order): the true projection, the local-field displacement at
         the ideal pixel and the measurement noise, pixels.
-    blunder_rows : (b,) observation rows that carry a blunder; ``blunder_offsets`` (b, 2) px.
+    blunder_rows : (b,) observation rows that carry a blunder.
+    blunder_offsets : (b, 2) the blunders added to those rows, px.
     control_ids, check_ids, tie_ids : ids of the points by role.
     options : dict
         The resolved options (units as in :func:`uav_block`).
@@ -106,9 +107,27 @@ class SimulatedBlock:
         return out
 
     def local_field(self, image_id, uv) -> np.ndarray:
-        """The true local displacement (n, 2) px that the simulator added to observations at
-        ideal pixels ``uv`` (n, 2) of image ``image_id`` (one id, or one id per row):
-        ``observed = ideal + local_field(image, ideal) + noise (+ blunder)``."""
+        """The true local displacement that the simulator added to observations.
+
+        ``observed = ideal + local_field(image, ideal) + noise (+ blunder)``.
+
+        Parameters
+        ----------
+        image_id : hashable or sequence
+            One image id, or one id per row of ``uv``.
+        uv : array_like, shape (n, 2)
+            Ideal pixels (col, row).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            ``(du, dv)``, px.
+
+        Raises
+        ------
+        InputError
+            For an id that is not an image of the block.
+        """
         return self.field(image_id, uv)
 
     def rematch(self, block: Block | None = None, *, seed=None) -> Block:
@@ -157,9 +176,16 @@ class SimulatedBlock:
         return b.with_observations(uv=self.ideal + self.local + noise)
 
     def summary(self) -> str:
-        """A few lines on the simulated block: camera, GSD (cm), flying height (m),
-        overlaps, terrain, the block's counts (:meth:`Block.summary`), the noise (px), the
-        RMS of the local field (px) and the number of blunders."""
+        """A few lines on the simulated block.
+
+        Camera, GSD (cm), flying height (m), overlaps, terrain, the block's counts
+        (:meth:`Block.summary`), the noise (px), the RMS of the local field (px) and the number
+        of blunders.
+
+        Returns
+        -------
+        str
+        """
         o = self.options
         lines = [
             f"simulated {self.preset.name} block: GSD {self.gsd * 100:.2f} cm, flying height "
@@ -417,7 +443,10 @@ def uav_block(
     size : {"small", "study"}
         ``"small"``: ``strips`` x ``images_per_strip``; ``"study"``: the study's block
         (250 / 195 / 82 images for ILCE-7RM2 / FC6310 / FC300S).
-    strips : int; images_per_strip : int or sequence of int (one count per strip)
+    strips : int
+        Number of strips (>= 1) with ``size="small"``.
+    images_per_strip : int or sequence of int
+        Images per strip (>= 2), or one count per strip (then ``strips`` is not used).
     forward_overlap, side_overlap : float, optional
         Fractions (default: the preset's, 0.7 / 0.4 for ILCE-7RM2, 0.8 / 0.7 otherwise).
     terrain : {"hilly", "flat"} or callable

@@ -71,7 +71,25 @@ class Affine2D(Parametric, Transform):
         *,
         unit: str = "rad",
     ) -> Affine2D:
-        """From scales, rotation ``theta``, non-orthogonality ``e`` (both in ``unit``), shifts."""
+        """From scales, rotation ``theta``, non-orthogonality ``e`` (both in ``unit``), shifts.
+
+        Parameters
+        ----------
+        sx, sy : float
+            Scales along x and y (unitless).
+        theta : float
+            Rotation, in ``unit``.
+        e : float
+            Non-orthogonality (shear angle) of the axes, in ``unit``.
+        x0, y0 : float
+            Shifts, target units.
+        unit : str, default "rad"
+            Unit of ``theta`` and ``e``.
+
+        Returns
+        -------
+        Affine2D
+        """
         t = float(to_radians(theta, unit))
         ee = float(to_radians(e, unit))
         S = np.array([[1.0, np.sin(ee)], [0.0, np.cos(ee)]])
@@ -80,7 +98,19 @@ class Affine2D(Parametric, Transform):
 
     @classmethod
     def from_matrix(cls, A, translation) -> Affine2D:
-        """From the 2x2 linear part and the shift vector."""
+        """From the 2x2 linear part and the shift vector.
+
+        Parameters
+        ----------
+        A : array_like, shape (2, 2)
+            Linear part ``[[a1, a2], [b1, b2]]``.
+        translation : array_like, shape (2,)
+            Shifts ``(a3, b3)``, target units.
+
+        Returns
+        -------
+        Affine2D
+        """
         A = np.asarray(A, dtype=float)
         t = vector(translation, 2, "Affine2D translation")
         return cls(A[0, 0], A[0, 1], t[0], A[1, 0], A[1, 1], t[1])
@@ -114,7 +144,13 @@ class Affine2D(Parametric, Transform):
         return bool(abs(self.det) <= 1e-14 * max(float(np.max(np.abs(A))) ** 2, 1e-300))
 
     def textbook(self) -> dict[str, float]:
-        """``sx``, ``sy``, ``theta`` (rad), ``e`` (rad), ``x0``, ``y0``."""
+        """``sx``, ``sy``, ``theta`` (rad), ``e`` (rad), ``x0``, ``y0``.
+
+        Returns
+        -------
+        dict of str to float
+            Scales unitless, angles in rad, shifts in target units.
+        """
         theta = float(np.arctan2(self.b1, self.b2))
         T = self.linear @ _rot(theta).T  # [[sx, sy sin e], [0, sy cos e]]
         sy = float(np.hypot(T[0, 1], T[1, 1]))
@@ -132,6 +168,11 @@ class Affine2D(Parametric, Transform):
         With ``rho = hypot(b1, b2)``, ``t = (a1 b1 + a2 b2) / rho`` (``= sy sin e``) and
         ``D = a1 b2 - a2 b1``: ``theta = atan2(b1, b2)``, ``sx = D / rho``,
         ``e = atan2(t, rho)``, ``sy = hypot(t, rho)``.
+
+        Returns
+        -------
+        numpy.ndarray, shape (6, 6)
+            Rows ``sx, sy, theta, e, x0, y0`` (angles in rad), columns ``a1 .. b3``.
         """
         a1, a2, b1, b2 = self.a1, self.a2, self.b1, self.b2
         rho2 = b1 * b1 + b2 * b2
@@ -164,27 +205,86 @@ class Affine2D(Parametric, Transform):
         return np.array([getattr(self, n) for n in _NAMES])
 
     def with_parameters(self, values) -> Affine2D:
+        """The same model with other parameter values.
+
+        Parameters
+        ----------
+        values : array_like, shape (6,)
+            ``a1, a2, a3, b1, b2, b3``.
+
+        Returns
+        -------
+        Affine2D
+        """
         return Affine2D(*vector(values, 6, "Affine2D"))
 
     # --- Transform interface ------------------------------------------------------------------
 
     def apply(self, points) -> np.ndarray:
-        """Transform points (n, 2) or one point (2,)."""
+        """Transform points (n, 2) or one point (2,).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 2) or (2,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2) or (2,)
+            Target coordinates (target units); one point for one point.
+
+        Raises
+        ------
+        InputError
+            When ``points`` is not of shape (n, 2) or (2,) or holds NaN/infinite values.
+        """
         p, single = self._points(points)
         out = p @ self.linear.T + self.translation
         return out[0] if single else out
 
     def inverse(self) -> Affine2D:
-        """Closed form ``x' = A^-1 (x - t)``."""
+        """Closed form ``x' = A^-1 (x - t)``.
+
+        Returns
+        -------
+        Affine2D
+
+        Raises
+        ------
+        DegenerateGeometryError
+            When the linear part is singular.
+        """
         Ai = invertible(self.linear, "Affine2D")
         return Affine2D.from_matrix(Ai, -Ai @ self.translation)
 
     def to_dict(self) -> dict:
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``{"model": "affine2d", "a1", ..., "b3", "textbook": {...}}`` (see :meth:`textbook`).
+        """
         return {"model": self.name, **self.parametric(), "textbook": self.textbook()}
 
     @classmethod
     def from_dict(cls, data: dict) -> Affine2D:
-        """From :meth:`to_dict` output or textbook ``sx, sy, theta, e, x0, y0`` (radians)."""
+        """From :meth:`to_dict` output or textbook ``sx, sy, theta, e, x0, y0`` (radians).
+
+        Parameters
+        ----------
+        data : dict
+            ``a1 .. b3`` (when ``a1`` is present), else ``sx, sy, theta, e, x0, y0``.
+
+        Returns
+        -------
+        Affine2D
+
+        Raises
+        ------
+        KeyError
+            When a parameter of the chosen form is missing.
+        """
         if "a1" in data:
             return cls(*(data[n] for n in _NAMES))
         return cls.from_textbook(data["sx"], data["sy"], data["theta"], data["e"],

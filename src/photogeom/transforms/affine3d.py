@@ -49,7 +49,12 @@ class AffineDecomposition:
         return np.array([[1.0, xy, xz], [0.0, 1.0, yz], [0.0, 0.0, 1.0]])
 
     def compose(self) -> np.ndarray:
-        """``shear @ diag(scales) @ rotation`` (= the original ``A``)."""
+        """``shear @ diag(scales) @ rotation`` (= the original ``A``).
+
+        Returns
+        -------
+        numpy.ndarray, shape (3, 3)
+        """
         return self.shear_matrix @ np.diag(self.scales) @ self.rotation
 
 
@@ -89,7 +94,22 @@ class Affine3D(MatrixShift3D, Transform):
 
     @classmethod
     def from_matrix(cls, M) -> Affine3D:
-        """From a 3x4 ``[A | t]`` or a homogeneous 4x4 matrix (last row ``0 0 0 1``)."""
+        """From a 3x4 ``[A | t]`` or a homogeneous 4x4 matrix (last row ``0 0 0 1``).
+
+        Parameters
+        ----------
+        M : array_like, shape (3, 4) or (4, 4)
+            The matrix; translation in target units.
+
+        Returns
+        -------
+        Affine3D
+
+        Raises
+        ------
+        InputError
+            For another shape, or a 4x4 matrix whose last row is not ``0 0 0 1``.
+        """
         M = np.asarray(M, dtype=float)
         if M.shape == (4, 4):
             if not np.allclose(M[3], [0, 0, 0, 1]):
@@ -112,8 +132,29 @@ class Affine3D(MatrixShift3D, Transform):
         convention: Convention = DEFAULT_CONVENTION,
         unit: str = "rad",
     ) -> Affine3D:
-        """From scales ``(sx, sy, sz)``, shears ``(xy, xz, yz)``, angles (``unit``,
-        ``convention``) and translation."""
+        """From scales, shears, angles (``unit``, ``convention``) and translation.
+
+        ``A = shear @ diag(scales) @ R(omega, phi, kappa)``.
+
+        Parameters
+        ----------
+        scales : array_like, shape (3,)
+            ``(sx, sy, sz)``, unitless.
+        shears : array_like, shape (3,)
+            ``(xy, xz, yz)``: the upper entries of the unit upper-triangular shear matrix.
+        omega, phi, kappa : float
+            Rotation angles in ``unit``.
+        translation : array_like, shape (3,)
+            ``t``, target units.
+        convention : {"transposed", "direct"}, default "transposed"
+            As in :func:`photogeom.rotation_from_angles`.
+        unit : str, default "rad"
+            Angle unit.
+
+        Returns
+        -------
+        Affine3D
+        """
         s = vector(scales, 3, "Affine3D scales")
         xy, xz, yz = vector(shears, 3, "Affine3D shears")
         S = np.array([[1.0, xy, xz], [0.0, 1.0, yz], [0.0, 0.0, 1.0]])
@@ -137,7 +178,17 @@ class Affine3D(MatrixShift3D, Transform):
         """``A = shear @ diag(scales) @ rotation`` by an RQ decomposition.
 
         Unique with ``sx, sy > 0``, a proper rotation, and ``sz`` carrying the sign of
-        ``det(A)``. Raises :class:`InputError` for a singular ``A`` (see :attr:`singular`).
+        ``det(A)``.
+
+        Returns
+        -------
+        AffineDecomposition
+            ``scales``, ``shears``, ``rotation`` (and ``shear_matrix``).
+
+        Raises
+        ------
+        InputError
+            For a singular ``A`` (see :attr:`singular`).
         """
         A = self.linear
         if self.singular:
@@ -194,7 +245,25 @@ class Affine3D(MatrixShift3D, Transform):
         }
 
     def textbook(self, convention: Convention = DEFAULT_CONVENTION) -> dict[str, float]:
-        """Scales, shears, rotation angles (rad, ``convention``) and shifts."""
+        """Scales, shears, rotation angles (rad, ``convention``) and shifts.
+
+        Parameters
+        ----------
+        convention : {"transposed", "direct"}, default "transposed"
+            Convention of the angles (see :func:`photogeom.rotation_from_angles`); at gimbal
+            lock omega is set to zero.
+
+        Returns
+        -------
+        dict of str to float
+            ``sx, sy, sz, shear_xy, shear_xz, shear_yz`` (unitless), ``omega, phi, kappa``
+            (rad), ``tx, ty, tz`` (target units).
+
+        Raises
+        ------
+        InputError
+            For a singular linear part (see :meth:`decompose`).
+        """
         dec = self.decompose()
         w, p, k = angles_from_rotation(dec.rotation, convention=convention,
                                        on_gimbal_lock="omega-zero")
@@ -217,11 +286,28 @@ class Affine3D(MatrixShift3D, Transform):
         return self.linear
 
     def inverse(self) -> Affine3D:
-        """Closed form ``x = A^-1 (X - t)``."""
+        """Closed form ``x = A^-1 (X - t)``.
+
+        Returns
+        -------
+        Affine3D
+
+        Raises
+        ------
+        DegenerateGeometryError
+            When the linear part is singular.
+        """
         Ai = invertible(self.linear, "Affine3D")
         return Affine3D(Ai, -Ai @ self.translation)
 
     def to_dict(self) -> dict:
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``model, linear (3x3 list), translation, det``.
+        """
         return {
             "model": self.name,
             "linear": self.linear.tolist(),
@@ -231,7 +317,24 @@ class Affine3D(MatrixShift3D, Transform):
 
     @classmethod
     def from_dict(cls, data: dict) -> Affine3D:
-        """From :meth:`to_dict` output or a ``matrix`` (3x4 or 4x4)."""
+        """From :meth:`to_dict` output or a ``matrix`` (3x4 or 4x4).
+
+        Parameters
+        ----------
+        data : dict
+            ``matrix``, else ``linear`` and ``translation``.
+
+        Returns
+        -------
+        Affine3D
+
+        Raises
+        ------
+        InputError
+            For a ``matrix`` of the wrong shape (see :meth:`from_matrix`).
+        KeyError
+            When ``linear`` or ``translation`` is missing.
+        """
         if "matrix" in data:
             return cls.from_matrix(data["matrix"])
         return cls(data["linear"], data["translation"])

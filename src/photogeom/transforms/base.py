@@ -40,24 +40,74 @@ class Transform(ABC):
 
     @abstractmethod
     def apply(self, points) -> np.ndarray:
-        """Transform points of shape ``(n, dim)`` (or one point ``(dim,)``)."""
+        """Transform points of shape ``(n, dim)`` (or one point ``(dim,)``).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim) or (dim,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim) or (dim,)
+            Target coordinates (target units).
+        """
 
     @abstractmethod
     def inverse(self) -> Transform:
-        """The inverse transformation (closed form where one exists)."""
+        """The inverse transformation (closed form where one exists).
+
+        Returns
+        -------
+        Transform
+            Maps target coordinates back to source coordinates.
+        """
 
     @abstractmethod
     def to_dict(self) -> dict:
-        """JSON-ready parameters, with ``"model": name``."""
+        """JSON-ready parameters, with ``"model": name``.
+
+        Returns
+        -------
+        dict
+        """
 
     @classmethod
     @abstractmethod
     def from_dict(cls, data: dict) -> Transform:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : dict
+            Output of :meth:`to_dict` (the subclass documents its other accepted forms).
+
+        Returns
+        -------
+        Transform
+        """
 
 
 def from_dict(data: dict) -> Transform:
-    """Rebuild any transformation from :meth:`Transform.to_dict` output."""
+    """Rebuild any transformation from :meth:`Transform.to_dict` output.
+
+    Parameters
+    ----------
+    data : dict
+        Parameters with a ``"model"`` entry naming one of :func:`registered_models`.
+
+    Returns
+    -------
+    Transform
+        An instance of the named model.
+
+    Raises
+    ------
+    InputError
+        Without a ``"model"`` entry, or for an unknown model (the known ones are listed).
+    KeyError
+        From the model's ``from_dict``, when a parameter it needs is missing.
+    """
     try:
         name = data["model"]
     except (KeyError, TypeError) as exc:
@@ -70,5 +120,11 @@ def from_dict(data: dict) -> Transform:
 
 
 def registered_models() -> list[str]:
-    """Names of all transformation models."""
+    """Names of all transformation models.
+
+    Returns
+    -------
+    list of str
+        Sorted; the values accepted as ``"model"`` by :func:`from_dict`.
+    """
     return sorted(_REGISTRY)

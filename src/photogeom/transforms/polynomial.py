@@ -50,7 +50,25 @@ def _exponents_cached(order: int, dim: int) -> tuple[tuple[int, ...], ...]:
 
 
 def polynomial_exponents(order: int, dim: int) -> np.ndarray:
-    """Exponents (n_terms, dim) of the monomials of total degree ``<= order``."""
+    """Exponents of the monomials of total degree ``<= order``.
+
+    Parameters
+    ----------
+    order : int
+        Highest total degree, >= 1.
+    dim : {2, 3}
+        Number of coordinates.
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (n_terms, dim)
+        One row of exponents per monomial, in the module's monomial order.
+
+    Raises
+    ------
+    InputError
+        For ``dim`` other than 2 or 3, or ``order`` not an integer >= 1.
+    """
     if dim not in (2, 3):
         raise InputError(f"polynomial: dimension must be 2 or 3, got {dim}")
     if int(order) != order or order < 1:
@@ -59,13 +77,38 @@ def polynomial_exponents(order: int, dim: int) -> np.ndarray:
 
 
 def polynomial_term_count(order: int, dim: int) -> int:
-    """Number of monomials: ``(k+1)(k+2)/2`` in 2D, ``(k+1)(k+2)(k+3)/6`` in 3D."""
+    """Number of monomials: ``(k+1)(k+2)/2`` in 2D, ``(k+1)(k+2)(k+3)/6`` in 3D.
+
+    Parameters
+    ----------
+    order : int
+        Highest total degree ``k``.
+    dim : {2, 3}
+        Number of coordinates (any value other than 2 counts as 3; not checked).
+
+    Returns
+    -------
+    int
+    """
     k = int(order)
     return (k + 1) * (k + 2) // 2 if dim == 2 else (k + 1) * (k + 2) * (k + 3) // 6
 
 
 def polynomial_terms(u: np.ndarray, exponents: np.ndarray) -> np.ndarray:
-    """Monomials ``u^e`` of points ``u`` (n, dim): matrix (n, n_terms)."""
+    """Monomials ``u^e`` of points ``u``.
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (n, dim)
+        (Reduced) coordinates.
+    exponents : numpy.ndarray of int, shape (n_terms, dim)
+        From :func:`polynomial_exponents`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n_terms)
+        Design-matrix rows, one per point.
+    """
     n, dim = u.shape
     kmax = int(exponents.max()) if exponents.size else 0
     powers = np.empty((dim, kmax + 1, n))
@@ -153,17 +196,52 @@ class _Polynomial(Parametric, Transform):
         return polynomial_term_count(self.order, self.dim)
 
     def reduce(self, points: np.ndarray) -> np.ndarray:
-        """Reduced coordinates ``(x - centre) / scale``."""
+        """Reduced coordinates ``(x - centre) / scale``.
+
+        Parameters
+        ----------
+        points : numpy.ndarray, shape (n, dim)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim)
+            Unitless.
+        """
         return (points - self.centre) / self.scale
 
     def design(self, points) -> np.ndarray:
-        """Monomials of the reduced points: (n, n_terms)."""
+        """Monomials of the reduced points.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim) or (dim,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, n_terms)
+        """
         p, _ = self._points(points)
         return polynomial_terms(self.reduce(p), self.exponents)
 
     @classmethod
     def identity(cls, order: int = 1, centre=None, scale: float = 1.0) -> _Polynomial:
-        """The identity mapping written as a polynomial of ``order`` with the given reduction."""
+        """The identity mapping written as a polynomial of ``order`` with the given reduction.
+
+        Parameters
+        ----------
+        order : int, default 1
+            Highest total degree (>= 1).
+        centre : array_like, shape (dim,), optional
+            Reduction centre (source units); default 0.
+        scale : float, default 1.0
+            Reduction scale (source units).
+
+        Returns
+        -------
+        Polynomial2D or Polynomial3D
+        """
         d = cls.dim
         exps = polynomial_exponents(order, d)
         c0 = np.zeros(d) if centre is None else vector(centre, d, "centre")
@@ -184,12 +262,41 @@ class _Polynomial(Parametric, Transform):
         return self.coefficients.reshape(-1).copy()
 
     def with_parameters(self, values) -> _Polynomial:
+        """The same model with other coefficients (same order and reduction).
+
+        Parameters
+        ----------
+        values : array_like, shape (dim * n_terms,)
+            Coefficients, row by row (``a..`` then ``b..`` (then ``c..``)).
+
+        Returns
+        -------
+        Polynomial2D or Polynomial3D
+        """
         v = vector(values, self.dim * self.n_terms, type(self).__name__)
         return type(self)(self.order, v.reshape(self.dim, -1), self.centre, self.scale)
 
     def reduction_matrix(self, centre=None, scale: float = 1.0) -> np.ndarray:
-        """``T`` with ``coefficients_new = coefficients @ T`` for another reduction
-        (``centre``, ``scale``) of the same mapping (linear in the coefficients)."""
+        """``T`` with ``coefficients_new = coefficients @ T`` for another reduction.
+
+        The same mapping with reduction (``centre``, ``scale``); linear in the coefficients.
+
+        Parameters
+        ----------
+        centre : array_like, shape (dim,), optional
+            New reduction centre (source units); default 0.
+        scale : float, default 1.0
+            New reduction scale (source units), > 0.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n_terms, n_terms)
+
+        Raises
+        ------
+        InputError
+            For a scale that is not > 0.
+        """
         d = self.dim
         c_new = np.zeros(d) if centre is None else vector(centre, d, "centre")
         s_new = float(scale)
@@ -200,18 +307,46 @@ class _Polynomial(Parametric, Transform):
         return _rereduction(self.exponents, alpha, beta)
 
     def with_reduction(self, centre=None, scale: float = 1.0) -> _Polynomial:
-        """The same mapping with coefficients for another reduction ``(x - centre) / scale``."""
+        """The same mapping with coefficients for another reduction ``(x - centre) / scale``.
+
+        Parameters
+        ----------
+        centre : array_like, shape (dim,), optional
+            New reduction centre (source units); default 0.
+        scale : float, default 1.0
+            New reduction scale (source units), > 0.
+
+        Returns
+        -------
+        Polynomial2D or Polynomial3D
+
+        Raises
+        ------
+        InputError
+            For a scale that is not > 0.
+        """
         T = self.reduction_matrix(centre, scale)
         c_new = np.zeros(self.dim) if centre is None else centre
         return type(self)(self.order, self.coefficients @ T, c_new, scale)
 
     def to_plain(self) -> _Polynomial:
-        """The same mapping in plain coefficients (``centre = 0``, ``scale = 1``): the
-        textbook form ``x = sum a_ij x'^i y'^j``."""
+        """The same mapping in plain coefficients (``centre = 0``, ``scale = 1``).
+
+        The textbook form ``x = sum a_ij x'^i y'^j``.
+
+        Returns
+        -------
+        Polynomial2D or Polynomial3D
+        """
         return self.with_reduction(None, 1.0)
 
     def textbook(self) -> dict[str, float]:
-        """Plain coefficients of ``x'^i y'^j (z'^k)`` by name (see :meth:`to_plain`)."""
+        """Plain coefficients of ``x'^i y'^j (z'^k)`` by name (see :meth:`to_plain`).
+
+        Returns
+        -------
+        dict of str to float
+        """
         plain = self.to_plain()
         return dict(zip(plain.parameter_names, (float(v) for v in plain.parameters)))
 
@@ -220,20 +355,52 @@ class _Polynomial(Parametric, Transform):
         return dict.fromkeys(self.parameter_names, "")
 
     def textbook_jacobian(self) -> np.ndarray:
-        """Exact derivatives of the plain coefficients by the reduced ones (a linear map)."""
+        """Exact derivatives of the plain coefficients by the reduced ones (a linear map).
+
+        Returns
+        -------
+        numpy.ndarray, shape (dim * n_terms, dim * n_terms)
+        """
         T = self.reduction_matrix(None, 1.0)
         return np.kron(np.eye(self.dim), T.T)
 
     # --- Transform interface ------------------------------------------------------------------
 
     def apply(self, points) -> np.ndarray:
-        """Transform points (n, dim) or one point (dim,)."""
+        """Transform points (n, dim) or one point (dim,).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim) or (dim,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim) or (dim,)
+            Target coordinates (target units).
+
+        Raises
+        ------
+        InputError
+            For points of another shape or not finite.
+        """
         p, single = self._points(points)
         out = polynomial_terms(self.reduce(p), self.exponents) @ self.coefficients.T
         return out[0] if single else out
 
     def jacobian(self, points) -> np.ndarray:
-        """Derivatives ``d out / d in`` at points (n, dim): array (n, dim, dim)."""
+        """Derivatives ``d out / d in`` at points.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim) or (dim,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim, dim) or (dim, dim)
+            Target units per source unit.
+        """
         p, single = self._points(points)
         u = self.reduce(p)
         E = self.exponents
@@ -247,10 +414,29 @@ class _Polynomial(Parametric, Transform):
         return J[0] if single else J
 
     def inverse(self, tol: float = 1e-9, max_iter: int = 50) -> _PolynomialInverse:
-        """Iterative (Newton) inverse; see :class:`Polynomial2DInverse`."""
+        """Iterative (Newton) inverse; see :class:`Polynomial2DInverse`.
+
+        Parameters
+        ----------
+        tol : float, default 1e-9
+            Convergence tolerance, target units (> 0).
+        max_iter : int, default 50
+            Newton iterations at most (>= 1).
+
+        Returns
+        -------
+        Polynomial2DInverse or Polynomial3DInverse
+        """
         return self.inverse_class(self, tol, max_iter)
 
     def to_dict(self) -> dict:
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``model, order, coefficients, centre, scale, names``.
+        """
         return {
             "model": self.name,
             "order": self.order,
@@ -262,7 +448,24 @@ class _Polynomial(Parametric, Transform):
 
     @classmethod
     def from_dict(cls, data: dict) -> _Polynomial:
-        """From :meth:`to_dict` output (``centre``/``scale`` optional: plain form)."""
+        """From :meth:`to_dict` output (``centre``/``scale`` optional: plain form).
+
+        Parameters
+        ----------
+        data : dict
+            ``order``, ``coefficients`` and optionally ``centre``, ``scale``.
+
+        Returns
+        -------
+        Polynomial2D or Polynomial3D
+
+        Raises
+        ------
+        InputError
+            For coefficients of the wrong shape or not finite, or a bad order or scale.
+        KeyError
+            When ``order`` or ``coefficients`` is missing.
+        """
         return cls(int(data["order"]), data["coefficients"], data.get("centre"),
                    data.get("scale", 1.0))
 
@@ -303,6 +506,22 @@ class _PolynomialInverse(Transform):
         Starts from the inverse of the linearisation at the reduction centre; a point has
         converged when ``|forward(x) - X|_inf <= tol + 16 eps (|X|_inf + 1)`` (target units).
         Points that do not converge are flagged, not dropped.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim) or (dim,)
+            Target points (target units).
+
+        Returns
+        -------
+        InverseResult
+            ``points`` (n, dim) in source units, ``converged`` (n,), ``residual`` (n,) in
+            target units, ``iterations``.
+
+        Raises
+        ------
+        ConvergenceError
+            When the Jacobian at the reduction centre is singular.
         """
         X, _ = self._points(points, "target points")
         f = self.forward
@@ -353,8 +572,24 @@ class _PolynomialInverse(Transform):
         return InverseResult(x, done.copy(), err, it)
 
     def apply(self, points) -> np.ndarray:
-        """Inverse-transform points; raises :class:`ConvergenceError` naming rows that do not
-        converge (the full :class:`InverseResult` is in the error's ``result``)."""
+        """Inverse-transform points.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim) or (dim,)
+            Target points (target units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim) or (dim,)
+            Source coordinates (source units).
+
+        Raises
+        ------
+        ConvergenceError
+            Naming rows that do not converge (the full :class:`InverseResult` is in the
+            error's ``result``).
+        """
         arr = as_float64(points, "points")
         res = self.apply_with_status(arr)
         if not np.all(res.converged):
@@ -371,15 +606,38 @@ class _PolynomialInverse(Transform):
         return res.points[0] if arr.ndim == 1 else res.points
 
     def inverse(self) -> _Polynomial:
-        """The forward polynomial."""
+        """The forward polynomial.
+
+        Returns
+        -------
+        Polynomial2D or Polynomial3D
+        """
         return self.forward
 
     def to_dict(self) -> dict:
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``model``, ``forward`` (its :meth:`to_dict`), ``tol``, ``max_iter``.
+        """
         return {"model": self.name, "forward": self.forward.to_dict(), "tol": self.tol,
                 "max_iter": int(self.max_iter)}
 
     @classmethod
     def from_dict(cls, data: dict) -> _PolynomialInverse:
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : dict
+            ``forward`` and optionally ``tol`` (default 1e-9), ``max_iter`` (default 50).
+
+        Returns
+        -------
+        Polynomial2DInverse or Polynomial3DInverse
+        """
         fwd_cls = Polynomial2D if cls.dim == 2 else Polynomial3D
         return cls(fwd_cls.from_dict(data["forward"]), float(data.get("tol", 1e-9)),
                    int(data.get("max_iter", 50)))
@@ -394,6 +652,15 @@ class Polynomial2DInverse(_PolynomialInverse):
 
     ``apply`` raises :class:`~photogeom.errors.ConvergenceError` for points that do not
     converge; ``apply_with_status`` returns an :class:`InverseResult` with a per-point status.
+
+    Parameters
+    ----------
+    forward : Polynomial2D
+        The polynomial to invert.
+    tol : float, default 1e-9
+        Convergence tolerance, target units; > 0.
+    max_iter : int, default 50
+        Newton iterations at most; >= 1.
     """
 
     name = "polynomial2d_inverse"
@@ -402,7 +669,17 @@ class Polynomial2DInverse(_PolynomialInverse):
 
 @dataclass(frozen=True, repr=False)
 class Polynomial3DInverse(_PolynomialInverse):
-    """Iterative inverse of a :class:`Polynomial3D`; see :class:`Polynomial2DInverse`."""
+    """Iterative inverse of a :class:`Polynomial3D`; see :class:`Polynomial2DInverse`.
+
+    Parameters
+    ----------
+    forward : Polynomial3D
+        The polynomial to invert.
+    tol : float, default 1e-9
+        Convergence tolerance, target units; > 0.
+    max_iter : int, default 50
+        Newton iterations at most; >= 1.
+    """
 
     name = "polynomial3d_inverse"
     dim = 3
@@ -431,8 +708,21 @@ class Polynomial2D(_Polynomial):
 
 @dataclass(frozen=True, repr=False)
 class Polynomial3D(_Polynomial):
-    """3D polynomial transformation of order ``k`` (3 x (k+1)(k+2)(k+3)/6 coefficients);
-    see :class:`Polynomial2D` (rows ``a``, ``b``, ``c`` for X, Y, Z)."""
+    """3D polynomial transformation of order ``k`` (3 x (k+1)(k+2)(k+3)/6 coefficients).
+
+    See :class:`Polynomial2D`.
+
+    Parameters
+    ----------
+    order : int
+        Highest total degree (1 = affine).
+    coefficients : array_like, shape (3, n_terms)
+        Rows ``a``, ``b``, ``c`` for X, Y, Z, in monomial order (module docstring).
+    centre : array_like, shape (3,), optional
+        Reduction centre (source units); default 0.
+    scale : float
+        Reduction scale (source units); default 1.
+    """
 
     name = "polynomial3d"
     dim = 3

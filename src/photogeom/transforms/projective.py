@@ -49,7 +49,22 @@ class _Projective(Parametric, Transform):
 
     @classmethod
     def from_parameters(cls, values) -> _Projective:
-        """From the ``(d + 1)^2 - 1`` parameters in the order of :attr:`parameter_names`."""
+        """From the ``(d + 1)^2 - 1`` parameters in the order of :attr:`parameter_names`.
+
+        Parameters
+        ----------
+        values : array_like, shape ((d + 1)^2 - 1,)
+            8 values in 2D, 15 in 3D; the last matrix element is 1.
+
+        Returns
+        -------
+        Projective2D or Projective3D
+
+        Raises
+        ------
+        InputError
+            For another number of values, or values that are not finite.
+        """
         d = cls.dim
         v = vector(values, (d + 1) ** 2 - 1, cls.__name__)
         return cls(np.append(v, 1.0).reshape(d + 1, d + 1))
@@ -63,27 +78,81 @@ class _Projective(Parametric, Transform):
         return self.matrix.reshape(-1)[:-1].copy()
 
     def with_parameters(self, values) -> _Projective:
+        """The same model with other parameter values (see :meth:`from_parameters`).
+
+        Parameters
+        ----------
+        values : array_like, shape ((d + 1)^2 - 1,)
+            In the order of :attr:`parameter_names`.
+
+        Returns
+        -------
+        Projective2D or Projective3D
+        """
         return type(self).from_parameters(values)
 
     def textbook_jacobian(self) -> np.ndarray:
-        """Identity: the textbook and parametric forms coincide."""
+        """Identity: the textbook and parametric forms coincide.
+
+        Returns
+        -------
+        numpy.ndarray, shape (p, p)
+            ``p`` = number of parameters.
+        """
         return np.eye(len(self.names))
 
     def apply_homogeneous(self, points) -> np.ndarray:
-        """``H @ [x, 1]`` for points (n, d): homogeneous results (n, d + 1) (or (d + 1,))."""
+        """``H @ [x, 1]`` for points: homogeneous results.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, d) or (d,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, d + 1) or (d + 1,)
+        """
         p, single = self._points(points)
         out = p @ self.matrix[:, :-1].T + self.matrix[:, -1]
         return out[0] if single else out
 
     def apply(self, points) -> np.ndarray:
-        """Transform points (n, d) or one point (d,); points mapped to infinity raise."""
+        """Transform points (n, d) or one point (d,).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, d) or (d,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, d) or (d,)
+            Target coordinates (target units).
+
+        Raises
+        ------
+        InputError
+            For points of another shape or not finite, or points mapped to infinity (on
+            the vanishing line/plane; their rows are named).
+        """
         p, single = self._points(points)
         h = p @ self.matrix[:, :-1].T + self.matrix[:, -1]
         out = divide_homogeneous(h[:, :-1], h[:, -1], type(self).__name__)
         return out[0] if single else out
 
     def inverse(self) -> _Projective:
-        """Closed form: the inverse matrix, normalised."""
+        """Closed form: the inverse matrix, normalised.
+
+        Returns
+        -------
+        Projective2D or Projective3D
+
+        Raises
+        ------
+        DegenerateGeometryError
+            When the matrix is singular, or its inverse maps the origin to infinity.
+        """
         return type(self)(invertible(self.matrix, type(self).__name__))
 
     def to_dict(self) -> dict:
@@ -91,7 +160,24 @@ class _Projective(Parametric, Transform):
 
     @classmethod
     def from_dict(cls, data: dict) -> _Projective:
-        """From :meth:`to_dict` output: ``matrix`` or the named parameters."""
+        """From :meth:`to_dict` output: ``matrix`` or the named parameters.
+
+        Parameters
+        ----------
+        data : dict
+            ``matrix``, else the parameters by name (:attr:`parameter_names`).
+
+        Returns
+        -------
+        Projective2D or Projective3D
+
+        Raises
+        ------
+        InputError
+            For a matrix of the wrong shape or not finite.
+        KeyError
+            When a named parameter is missing.
+        """
         if "matrix" in data:
             return cls(data["matrix"])
         return cls.from_parameters([data[n] for n in cls.names])

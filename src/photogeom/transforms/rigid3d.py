@@ -53,12 +53,46 @@ class Rigid3D(MatrixShift3D, Transform):
         convention: Convention = DEFAULT_CONVENTION,
         unit: str = "rad",
     ) -> Rigid3D:
-        """From angles (in ``unit``, ``convention``) and translation."""
+        """From angles (in ``unit``, ``convention``) and translation.
+
+        Parameters
+        ----------
+        omega, phi, kappa : float
+            Rotation angles in ``unit``.
+        translation : array_like, shape (3,)
+            ``t``, target units.
+        convention : {"transposed", "direct"}, default "transposed"
+            As in :func:`photogeom.rotation_from_angles`.
+        unit : str, default "rad"
+            Angle unit.
+
+        Returns
+        -------
+        Rigid3D
+        """
         return cls(rotation_from_angles(omega, phi, kappa, convention=convention, unit=unit),
                    translation)
 
     def angles(self, convention: Convention = DEFAULT_CONVENTION, unit: str = "rad") -> tuple:
-        """(omega, phi, kappa) of ``rotation`` in ``convention`` and ``unit``."""
+        """(omega, phi, kappa) of ``rotation`` in ``convention`` and ``unit``.
+
+        Parameters
+        ----------
+        convention : {"transposed", "direct"}, default "transposed"
+            As in :func:`photogeom.rotation_from_angles`.
+        unit : str, default "rad"
+            Angle unit (``"rad"``, ``"deg"``, ``"gon"``, ...).
+
+        Returns
+        -------
+        tuple of float
+            ``(omega, phi, kappa)`` in ``unit``.
+
+        Raises
+        ------
+        GimbalLockError
+            At phi = +-90 deg (omega and kappa not separable).
+        """
         return angles_from_rotation(self.rotation, convention=convention, unit=unit)
 
     @property
@@ -67,7 +101,19 @@ class Rigid3D(MatrixShift3D, Transform):
         return 1.0
 
     def textbook(self, convention: Convention = DEFAULT_CONVENTION) -> dict[str, float]:
-        """``omega, phi, kappa`` (rad, ``convention``) and ``tx, ty, tz``."""
+        """``omega, phi, kappa`` (rad, ``convention``) and ``tx, ty, tz``.
+
+        Parameters
+        ----------
+        convention : {"transposed", "direct"}, default "transposed"
+            Convention of the angles (see :func:`photogeom.rotation_from_angles`); at gimbal
+            lock omega is set to zero.
+
+        Returns
+        -------
+        dict of str to float
+            Angles in rad, shifts in target units.
+        """
         w, p, k = angles_from_rotation(self.rotation, convention=convention,
                                        on_gimbal_lock="omega-zero")
         tx, ty, tz = (float(v) for v in self.translation)
@@ -86,10 +132,23 @@ class Rigid3D(MatrixShift3D, Transform):
         return self.rotation
 
     def inverse(self) -> Rigid3D:
-        """Closed form ``x = R.T (X - t)``."""
+        """Closed form ``x = R.T (X - t)``.
+
+        Returns
+        -------
+        Rigid3D
+        """
         return Rigid3D(self.rotation.T, -(self.rotation.T @ self.translation))
 
     def to_dict(self) -> dict:
+        """JSON-ready parameters.
+
+        Returns
+        -------
+        dict
+            ``model, rotation (3x3 list), translation, angles_transposed_rad`` (omega set to zero
+            at gimbal lock).
+        """
         w, p, k = angles_from_rotation(self.rotation, on_gimbal_lock="omega-zero")
         return {
             "model": self.name,
@@ -100,8 +159,25 @@ class Rigid3D(MatrixShift3D, Transform):
 
     @classmethod
     def from_dict(cls, data: dict) -> Rigid3D:
-        """From :meth:`to_dict` output or ``omega, phi, kappa`` (rad, optional ``convention``)
-        and ``translation``."""
+        """From :meth:`to_dict` output or angles (rad, optional ``convention``) and translation.
+
+        Parameters
+        ----------
+        data : dict
+            ``rotation, translation`` when ``rotation`` is present, else
+            ``omega, phi, kappa, translation`` (and ``convention``).
+
+        Returns
+        -------
+        Rigid3D
+
+        Raises
+        ------
+        InputError
+            When ``rotation`` is not a proper rotation.
+        KeyError
+            When a parameter of the chosen form is missing.
+        """
         if "rotation" in data:
             return cls(data["rotation"], data["translation"])
         return cls.from_angles(data["omega"], data["phi"], data["kappa"], data["translation"],

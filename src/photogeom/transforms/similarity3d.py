@@ -77,12 +77,48 @@ class Similarity3D(Transform):
         convention: Convention = DEFAULT_CONVENTION,
         unit: str = "rad",
     ) -> Similarity3D:
-        """From scale, angles (in ``unit``, ``convention``) and translation."""
+        """From scale, angles (in ``unit``, ``convention``) and translation.
+
+        Parameters
+        ----------
+        scale : float
+            Scale factor (unitless).
+        omega, phi, kappa : float
+            Rotation angles in ``unit``.
+        translation : array_like, shape (3,)
+            ``t``, target units.
+        convention : {"transposed", "direct"}, default "transposed"
+            As in :func:`photogeom.rotation_from_angles`.
+        unit : str, default "rad"
+            Angle unit.
+
+        Returns
+        -------
+        Similarity3D
+        """
         R = rotation_from_angles(omega, phi, kappa, convention=convention, unit=unit)
         return cls(scale, R, translation)
 
     def angles(self, convention: Convention = DEFAULT_CONVENTION, unit: str = "rad") -> tuple:
-        """(omega, phi, kappa) of ``rotation`` in ``convention`` and ``unit``."""
+        """(omega, phi, kappa) of ``rotation`` in ``convention`` and ``unit``.
+
+        Parameters
+        ----------
+        convention : {"transposed", "direct"}, default "transposed"
+            As in :func:`photogeom.rotation_from_angles`.
+        unit : str, default "rad"
+            Angle unit (``"rad"``, ``"deg"``, ``"gon"``, ...).
+
+        Returns
+        -------
+        tuple of float
+            ``(omega, phi, kappa)`` in ``unit``.
+
+        Raises
+        ------
+        GimbalLockError
+            At phi = +-90 deg (omega and kappa not separable).
+        """
         return angles_from_rotation(self.rotation, convention=convention, unit=unit)
 
     @property
@@ -137,8 +173,18 @@ class Similarity3D(Transform):
             Exact rotation matrix or the linearised (small-angle) one the published parameters
             may have been fitted with. A small-angle matrix is not orthogonal and is kept as
             given (``check=False``).
-        angle_unit : str
+        angle_unit : str, default "arcsec"
             Unit of ``rx, ry, rz``.
+
+        Returns
+        -------
+        Similarity3D
+            With ``check=False`` for ``rotation="small-angle"``.
+
+        Raises
+        ------
+        InputError
+            For an unknown ``convention``, ``rotation`` or ``angle_unit``.
         """
         conv = _helmert_convention(convention)
         kind = _helmert_rotation(rotation)
@@ -157,12 +203,30 @@ class Similarity3D(Transform):
     ) -> dict[str, float]:
         """The 7 Helmert parameters of this similarity in geodetic units and an EPSG convention.
 
-        Returns ``tx, ty, tz`` (metres/target units), ``rx, ry, rz`` (``angle_unit``, default
-        arc-seconds) and ``ds`` (ppm), such that :meth:`from_helmert` with the same
-        ``convention`` and ``rotation`` gives this transformation back. ``rotation="exact"``
-        needs a proper rotation matrix; ``"small-angle"`` reads the angles from the
-        antisymmetric part ``(R - R.T) / 2`` (exact for a small-angle matrix, a
-        first-order approximation otherwise).
+        Such that :meth:`from_helmert` with the same ``convention`` and ``rotation`` gives this
+        transformation back. ``rotation="exact"`` needs a proper rotation matrix;
+        ``"small-angle"`` reads the angles from the antisymmetric part ``(R - R.T) / 2`` (exact
+        for a small-angle matrix, a first-order approximation otherwise).
+
+        Parameters
+        ----------
+        convention : str
+            ``"position_vector"`` or ``"coordinate_frame"`` (aliases as in :meth:`from_helmert`).
+        rotation : {"exact", "small-angle"}, default "exact"
+            How the angles are read from the matrix.
+        angle_unit : str, default "arcsec"
+            Unit of ``rx, ry, rz``.
+
+        Returns
+        -------
+        dict of str to float
+            ``tx, ty, tz`` (metres/target units), ``rx, ry, rz`` (``angle_unit``), ``ds`` (ppm).
+
+        Raises
+        ------
+        InputError
+            For an unknown ``convention`` or ``rotation``, or ``rotation="exact"`` with a
+            non-orthogonal matrix.
         """
         conv = _helmert_convention(convention)
         kind = _helmert_rotation(rotation)
@@ -182,8 +246,27 @@ class Similarity3D(Transform):
                 "ds": (self.scale - 1.0) * 1e6}
 
     def to_proj_string(self, convention: str = "position_vector", rotation: str = "exact") -> str:
-        """A PROJ ``+proj=helmert`` definition of this transformation (rotations in
-        arc-seconds, scale in ppm), e.g. for ``pyproj.Transformer.from_pipeline``."""
+        """A PROJ ``+proj=helmert`` definition of this transformation.
+
+        Rotations in arc-seconds, scale in ppm, e.g. for ``pyproj.Transformer.from_pipeline``.
+
+        Parameters
+        ----------
+        convention : str, default "position_vector"
+            ``"position_vector"`` or ``"coordinate_frame"`` (aliases as in :meth:`from_helmert`).
+        rotation : {"exact", "small-angle"}, default "exact"
+            ``"exact"`` adds ``+exact``.
+
+        Returns
+        -------
+        str
+            ``"+proj=helmert +x=.. +y=.. +z=.. +rx=.. +ry=.. +rz=.. +s=.. +convention=.."``.
+
+        Raises
+        ------
+        InputError
+            As :meth:`helmert_parameters`.
+        """
         conv = _helmert_convention(convention)
         kind = _helmert_rotation(rotation)
         p = self.helmert_parameters(conv, kind, "arcsec")
@@ -209,22 +292,52 @@ class Similarity3D(Transform):
     # --- Transform interface ------------------------------------------------------------------
 
     def apply(self, points) -> np.ndarray:
-        """``s R x + t`` for points (n, 3) or one point (3,)."""
+        """``s R x + t`` for points (n, 3) or one point (3,).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3) or (3,)
+            Source coordinates (source units).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3) or (3,)
+            Target coordinates (target units); one point for one point.
+
+        Raises
+        ------
+        InputError
+            When ``points`` is not of shape (n, 3) or (3,) or holds NaN/infinite values.
+        """
         p, single = self._points(points)
         out = self.scale * (p @ self.rotation.T) + self.translation
         return out[0] if single else out
 
     def inverse(self) -> Similarity3D:
-        """``x = (1/s) R^-1 (X - t)``; for a non-orthogonal R the true inverse matrix is used."""
+        """``x = (1/s) R^-1 (X - t)``; for a non-orthogonal R the true inverse matrix is used.
+
+        Returns
+        -------
+        Similarity3D
+        """
         Rinv = self.rotation.T if self.check else np.linalg.inv(self.rotation)
         return Similarity3D(
             1.0 / self.scale, Rinv, -(Rinv @ self.translation) / self.scale, check=self.check
         )
 
     def to_dict(self) -> dict:
-        """JSON-ready parameters: scale, rotation, translation, ``check`` (``False`` for a
-        non-orthogonal matrix kept as given) and, for a proper rotation, its angles in both
-        conventions (radians; at gimbal lock omega is set to zero)."""
+        """JSON-ready parameters.
+
+        Scale, rotation, translation, ``check`` (``False`` for a non-orthogonal matrix kept as
+        given) and, for a proper rotation, its angles in both conventions (radians; at gimbal
+        lock omega is set to zero).
+
+        Returns
+        -------
+        dict
+            ``model, scale, rotation (3x3 list), translation, check`` and, with ``check``,
+            ``angles_transposed_rad``, ``angles_direct_rad``.
+        """
         d = {
             "model": self.name,
             "scale": self.scale,
@@ -246,7 +359,26 @@ class Similarity3D(Transform):
         (radians, optional ``convention``) and ``translation``.
 
         ``check`` (default ``True``) must be ``true`` or ``false``; ``false`` keeps a
-        non-orthogonal ``rotation`` (small-angle Helmert, closed-form absolute orientation)."""
+        non-orthogonal ``rotation`` (small-angle Helmert, closed-form absolute orientation).
+
+        Parameters
+        ----------
+        data : dict
+            ``scale, rotation, translation`` (and ``check``) when ``rotation`` is present,
+            else ``scale, omega, phi, kappa, translation`` (and ``convention``).
+
+        Returns
+        -------
+        Similarity3D
+
+        Raises
+        ------
+        InputError
+            For a ``check`` that is not a boolean, or a ``rotation`` that is not a proper
+            rotation with ``check`` true.
+        KeyError
+            When a parameter of the chosen form is missing.
+        """
         if "rotation" in data:
             check = data.get("check", True)
             if not isinstance(check, bool | np.bool_):
