@@ -139,3 +139,12 @@ def test_affine2d_fitted_to_collinear_targets_says_it_is_singular():
         fit.model.inverse()
     regular = pg.estimate_transform("affine2d", x, x @ [[1.1, 0.2], [-0.1, 0.9]] + 5)
     assert not regular.model.singular and not any("singular" in n for n in regular.notes)
+
+
+def test_from_dict_names_a_missing_parameter():
+    """A parameter set without one of its model's entries: an InputError naming the entry
+    (a bare KeyError 'omega' before)."""
+    with pytest.raises(InputError, match="similarity3d parameters without the entry 'omega'"):
+        tr.from_dict({"model": "similarity3d", "scale": 1.0})
+    with pytest.raises(InputError, match="affine2d parameters without the entry"):
+        tr.from_dict({"model": "affine2d", "a1": 1.0})

@@ -104,9 +104,8 @@ def from_dict(data: dict) -> Transform:
     Raises
     ------
     InputError
-        Without a ``"model"`` entry, or for an unknown model (the known ones are listed).
-    KeyError
-        From the model's ``from_dict``, when a parameter it needs is missing.
+        Without a ``"model"`` entry, for an unknown model (the known ones are listed), or
+        without a parameter the model needs (named).
     """
     try:
         name = data["model"]
@@ -116,7 +115,14 @@ def from_dict(data: dict) -> Transform:
         raise InputError(
             f"unknown transformation model {name!r}; known: {', '.join(sorted(_REGISTRY))}"
         )
-    return _REGISTRY[name].from_dict(data)
+    try:
+        return _REGISTRY[name].from_dict(data)
+    except KeyError as exc:
+        key = exc.args[0] if exc.args else "?"
+        raise InputError(
+            f"{name} parameters without the entry {key!r}: give every parameter of the model "
+            "(as to_dict() writes them)"
+        ) from None
 
 
 def registered_models() -> list[str]:
