@@ -494,8 +494,15 @@ def matrix_from_rodrigues(g) -> np.ndarray:
     -------
     numpy.ndarray, shape (3, 3) or (..., 3, 3)
         Rotation matrix (or stack), acting as ``R @ x``.
+
+    Raises
+    ------
+    InputError
+        When ``g`` is not of shape ``(..., 3)``.
     """
     g = np.asarray(g, dtype=float)
+    if g.ndim == 0 or g.shape[-1] != 3:
+        raise InputError(f"Rodrigues vector: expected shape (3,) or (..., 3), got {g.shape}")
     gx = skew(g)
     eye = np.broadcast_to(np.eye(3), gx.shape)
     return eye + (2.0 / (1.0 + np.sum(g * g, axis=-1)))[..., None, None] * (gx + gx @ gx)
@@ -523,10 +530,10 @@ def euler_from_matrix(R, seq: str, unit: str = "rad") -> np.ndarray:
     Raises
     ------
     InputError
-        When ``R`` is not of shape ``(..., 3, 3)`` or ``unit`` is unknown.
-    ValueError
-        From scipy, for an invalid ``seq``.
+        When ``R`` is not of shape ``(..., 3, 3)``, ``seq`` is not three axis letters of one
+        case, or ``unit`` is unknown.
     """
+    _check_sequence(seq)
     return from_radians(_as_rotation(R).as_euler(seq), unit)
 
 
@@ -550,11 +557,29 @@ def matrix_from_euler(seq: str, angles, unit: str = "rad") -> np.ndarray:
     Raises
     ------
     InputError
-        For an unknown ``unit``.
-    ValueError
-        From scipy, for an invalid ``seq`` or ``angles`` of the wrong length.
+        For an invalid ``seq``, ``angles`` whose last axis is not 3, or an unknown ``unit``.
     """
-    return _Rotation().from_euler(seq, to_radians(angles, unit)).as_matrix()
+    _check_sequence(seq)
+    a = to_radians(angles, unit)
+    if np.ndim(a) == 0 or np.shape(a)[-1] != 3:
+        raise InputError(f"Euler angles: expected shape (3,) or (..., 3), got {np.shape(a)}")
+    return _Rotation().from_euler(seq, a).as_matrix()
+
+
+def _check_sequence(seq) -> None:
+    """Refuse an Euler sequence scipy would not take, in photogeom's words."""
+    ok = (
+        isinstance(seq, str)
+        and len(seq) == 3
+        and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
+        and seq[0] != seq[1] != seq[2]
+    )
+    if not ok:
+        raise InputError(
+            f"Euler sequence {seq!r}: give three axis letters from x, y, z, all lower case "
+            "(extrinsic) or all upper case (intrinsic), no axis twice in a row (e.g. 'xyz', "
+            "'ZYX', 'zxz')"
+        )
 
 
 # --- helpers ---------------------------------------------------------------------------------
@@ -610,8 +635,16 @@ def nearest_rotation(A) -> np.ndarray:
     -------
     numpy.ndarray, shape (3, 3) or (..., 3, 3)
         Orthonormal matrix (or stack) with determinant +1.
+
+    Raises
+    ------
+    InputError
+        When ``A`` is not of shape ``(..., 3, 3)``.
     """
-    U, _, Vt = np.linalg.svd(np.asarray(A, dtype=float))
+    A = np.asarray(A, dtype=float)
+    if A.ndim < 2 or A.shape[-2:] != (3, 3):
+        raise InputError(f"nearest_rotation: expected shape (3, 3) or (..., 3, 3), got {A.shape}")
+    U, _, Vt = np.linalg.svd(A)
     d = np.sign(np.linalg.det(U @ Vt))
     d = np.where(d == 0, 1.0, d)
     D = np.ones((*np.shape(d), 3))
