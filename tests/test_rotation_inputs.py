@@ -33,3 +33,22 @@ def test_wrong_shapes():
     with pytest.raises(InputError, match="nearest_rotation"):
         pg.nearest_rotation(np.eye(2))
     np.testing.assert_allclose(pg.nearest_rotation(np.eye(3) * 1.001), np.eye(3), atol=1e-12)
+
+
+def test_polynomial_term_count_checks_its_dimension():
+    from photogeom.transforms.polynomial import polynomial_term_count
+
+    assert polynomial_term_count(2, 2) == 6 and polynomial_term_count(2, 3) == 10
+    with pytest.raises(InputError, match="dim must be 2 or 3"):
+        polynomial_term_count(2, 5)
+    with pytest.raises(InputError, match="order must be >= 0"):
+        polynomial_term_count(-1, 2)
+
+
+def test_comparison_row_of_a_method_not_compared():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-10, 10, (8, 3))
+    cmp = pg.compare_absolute_methods(x, x + 1.0, methods=["svd", "quaternion"])
+    assert cmp.row("svd").method == "svd"
+    with pytest.raises(InputError, match="was not compared"):
+        cmp.row("closed-form")

@@ -13,7 +13,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ..errors import PhotogeomError
+from ..errors import InputError, PhotogeomError
 from ..units import display_angle, from_radians
 from .absolute import METHODS, AbsoluteOrientationFit, absolute_orientation, normalize_method
 
@@ -90,15 +90,16 @@ class MethodComparison:
         Raises
         ------
         InputError
-            For an unknown method name.
-        KeyError
-            For a known method that was not compared.
+            For an unknown method name, or a known method that was not compared.
         """
         method = normalize_method(method)
         for r in self.rows:
             if r.method == method:
                 return r
-        raise KeyError(method)
+        raise InputError(
+            f"method {method!r} was not compared; the rows are "
+            f"{', '.join(r.method for r in self.rows)}"
+        )
 
     def columns(self) -> list[str]:
         """Column headings of :meth:`table_rows` (units included).

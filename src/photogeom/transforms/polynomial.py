@@ -84,13 +84,22 @@ def polynomial_term_count(order: int, dim: int) -> int:
     order : int
         Highest total degree ``k``.
     dim : {2, 3}
-        Number of coordinates (any value other than 2 counts as 3; not checked).
+        Number of coordinates.
 
     Returns
     -------
     int
+
+    Raises
+    ------
+    InputError
+        For a ``dim`` other than 2 or 3, or a negative ``order``.
     """
+    if dim not in (2, 3):
+        raise InputError(f"polynomial_term_count: dim must be 2 or 3, not {dim!r}")
     k = int(order)
+    if k < 0:
+        raise InputError(f"polynomial_term_count: order must be >= 0, not {order!r}")
     return (k + 1) * (k + 2) // 2 if dim == 2 else (k + 1) * (k + 2) * (k + 3) // 6
 
 
