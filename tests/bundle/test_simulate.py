@@ -304,6 +304,8 @@ def test_bad_options_are_named(kwargs, match):
 def test_local_field_unknown_image_is_named(sim):
     with pytest.raises(InputError, match="unknown image id"):
         sim.local_field(10**6, [[0.0, 0.0]])
+    with pytest.raises(InputError, match=r"unknown image id 'zz' \("):  # not np.str_('zz')
+        sim.local_field("zz", [[0.0, 0.0]])
 
 
 def test_tie_points_the_initial_cameras_cannot_intersect_are_dropped_consistently():
