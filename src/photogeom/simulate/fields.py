@@ -326,7 +326,8 @@ class LocalDistortionField:
         if keys.size == 0 or not np.all(keys[pos] == flat):
             bad = flat[~(keys[pos] == flat)] if keys.size else flat
             raise InputError(
-                f"local_field: unknown image id {str(bad[0])!r} (not an image of the simulated block)"
+                f"local_field: unknown image id {str(bad[0])!r} (not an image of the "
+                "simulated block)"
             )
         return order[pos]
 
