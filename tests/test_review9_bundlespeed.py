@@ -86,3 +86,54 @@ def test_the_bundle_needs_fewer_factorisations_to_the_same_minimum(monkeypatch):
     assert res.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
     # both stop at ftol 1e-10 (on either side of the minimum): 1.6e-6 m apart here
     np.testing.assert_allclose(res.block.xyz, ref.block.xyz, atol=1e-4)
+
+
+@pytest.mark.parametrize("chunk", [schur.CHUNK, 2 * schur.PAIR_GROUP])
+def test_the_grouped_pair_products_give_the_dense_schur_complement(monkeypatch, chunk):
+    """Blocks of 40 and 41 shared points (three groups of 16 pairs, the last padded), and
+    with a small ``CHUNK`` groups of one block in several chunks."""
+    monkeypatch.setattr(schur, "CHUNK", chunk)
+    rng = np.random.default_rng(7)
+    L, b, g, p = 3, 6, 2, 41
+    loc = np.r_[np.zeros(p), np.ones(p), np.full(p - 1, 2)].astype(int)
+    pt = np.r_[np.arange(p), np.arange(p), np.arange(1, p)]
+    n = loc.size
+    A, G, P = rng.normal(size=(n, 2, b)), rng.normal(size=(n, 2, g)), rng.normal(size=(n, 2, 3))
+    r = rng.normal(size=(n, 2))
+    lin = schur.Linearization(
+        r,
+        A,
+        G,
+        P,
+        np.zeros((L, b, b)),
+        np.zeros((L, b)),
+        np.zeros((p, 3, 3)),
+        np.zeros((p, 3)),
+        np.zeros((g, g)),
+        np.zeros(g),
+        0.0,
+    )
+    local_global = np.tile(np.arange(g), (L, 1))
+    sysm = schur.SchurSystem(
+        L,
+        b,
+        g,
+        p,
+        loc,
+        pt,
+        local_global,
+        np.ones((L, b), bool),
+        np.ones(g, bool),
+        backend="dense",
+    )
+    assert sysm.n_groups == 3 + 3 + 3  # blocks (0,1): 41 pairs, (0,2), (1,2): 40 each
+    J = np.zeros((2 * n, L * b + g + 3 * p))
+    for k in range(n):  # the dense Jacobian of a tiny test problem
+        J[2 * k : 2 * k + 2, loc[k] * b : loc[k] * b + b] = A[k]
+        J[2 * k : 2 * k + 2, L * b : L * b + g] = G[k]
+        J[2 * k : 2 * k + 2, L * b + g + 3 * pt[k] : L * b + g + 3 * pt[k] + 3] = P[k]
+    N = J.T @ J
+    c = L * b + g
+    S = N[:c, :c] - N[:c, c:] @ np.linalg.solve(N[c:, c:], N[c:, :c])
+    got = sysm.normal_equations(lin).S.toarray()
+    np.testing.assert_allclose(got, S, rtol=1e-10, atol=1e-10 * np.abs(S).max())
