@@ -10,12 +10,12 @@ accepted step.
   ``rho = actual / predicted decrease``: ``lam * max(1/10, 1 - (2 rho - 1)^3)`` (at least
   1e-15), Nielsen's rule with the fall per step bounded by :data:`MIN_DAMPING_FACTOR`
   (1/10) instead of his 1/3; a rejected step multiplies it by ``nu`` (2, doubling on each
-  rejection in a row). With 1/3, a damping that starts too high (the bundle's 1e-4 of the
-  diagonal) needs several steps that the model predicts well (``rho`` near 1) to stop
-  holding back the weakly determined directions (the calibration): 11 instead of 8
-  iterations on a simulated 250-image block, 14 instead of 9 from a poorer start, to the
-  same minimum. Steps the model predicts less well (``rho`` below about 0.9) lower the
-  damping as in Nielsen's rule.
+  rejection in a row). With 1/3, a damping that starts high (1e-4 of the diagonal) needs
+  several steps that the model predicts well (``rho`` near 1) to stop holding back the
+  weakly determined directions (the calibration): 11 instead of 8 iterations on a
+  simulated 250-image block, 14 instead of 9 from a poorer start, to the same minimum.
+  Steps the model predicts less well (``rho`` below about 0.9) lower the damping as in
+  Nielsen's rule.
 * Converged: an accepted step lowering the cost by at most ``ftol`` times the cost, an
   accepted step below ``xtol`` (the problem's test), a rejected finite trial whose step is
   below ``xtol``, or a cost of zero to rounding (``exact_cost``). Stopped: the damping grew
