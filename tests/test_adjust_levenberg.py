@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from photogeom.adjust.levenberg import levenberg_marquardt_loop
+from photogeom.adjust.levenberg import MIN_DAMPING_FACTOR, levenberg_marquardt_loop
 from photogeom.errors import DegenerateGeometryError
 
 OPTIONS = SimpleNamespace(initial_damping=1e-4, max_iterations=100, ftol=1e-14, xtol=1e-14)
@@ -80,7 +80,7 @@ def test_an_exact_fit_stops_at_once_and_a_singular_system_raises_the_damping():
         p, x0, p.cost(x0), OPTIONS, progress=lambda it, c, lam: seen.append((it, lam))
     )
     assert run.converged and seen[0][0] == 4  # three iterations went to raising it
-    assert 6.4e-3 / 3.0 <= seen[0][1] <= 6.4e-3
+    assert 6.4e-3 * MIN_DAMPING_FACTOR <= seen[0][1] <= 6.4e-3
     p = Curve(t, y, x0, singular_solves=10**6)
     with pytest.raises(DegenerateGeometryError):
         levenberg_marquardt_loop(p, x0, p.cost(x0), OPTIONS)

@@ -7,9 +7,15 @@ accepted step.
 
 * A step is accepted when the trial is valid (e.g. every point in front of its cameras),
   its cost finite and lower. The damping then falls with the gain ratio
-  ``rho = actual / predicted decrease``: ``lam * max(1/3, 1 - (2 rho - 1)^3)`` (at least
-  1e-15), as in Nielsen's rule; a rejected step multiplies it by ``nu`` (2, doubling on
-  each rejection in a row).
+  ``rho = actual / predicted decrease``: ``lam * max(1/10, 1 - (2 rho - 1)^3)`` (at least
+  1e-15), Nielsen's rule with the fall per step bounded by :data:`MIN_DAMPING_FACTOR`
+  (1/10) instead of his 1/3; a rejected step multiplies it by ``nu`` (2, doubling on each
+  rejection in a row). With 1/3, a damping that starts high (1e-4 of the diagonal) needs
+  several steps that the model predicts well (``rho`` near 1) to stop holding back the
+  weakly determined directions (the calibration): 11 instead of 8 iterations on a
+  simulated 250-image block, 14 instead of 9 from a poorer start, to the same minimum.
+  Steps the model predicts less well (``rho`` below about 0.9) lower the damping as in
+  Nielsen's rule.
 * Converged: an accepted step lowering the cost by at most ``ftol`` times the cost, an
   accepted step below ``xtol`` (the problem's test), a rejected finite trial whose step is
   below ``xtol``, or a cost of zero to rounding (``exact_cost``). Stopped: the damping grew
@@ -27,7 +33,10 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 
-__all__ = ["DampedProblem", "LoopResult", "levenberg_marquardt_loop"]
+__all__ = ["MIN_DAMPING_FACTOR", "DampedProblem", "LoopResult", "levenberg_marquardt_loop"]
+
+#: The damping falls after an accepted step by at most this factor (Nielsen: 1/3).
+MIN_DAMPING_FACTOR = 0.1
 
 
 class DampedProblem(Protocol):
@@ -112,7 +121,7 @@ def levenberg_marquardt_loop(
             decrease = cost - new_cost
             state, cost = trial, new_cost
             history.append(cost)
-            lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
+            lam = max(lam * max(MIN_DAMPING_FACTOR, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
             nu = 2.0
             problem.accept(state)
             if progress is not None:

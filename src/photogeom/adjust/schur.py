@@ -36,6 +36,10 @@ from .sparse import SparseFactor, factorize
 
 #: Observation rows processed at once (bounds temporary memory).
 CHUNK = 32768
+#: Pairs of observations of one point summed by one matrix product into an off-diagonal
+#: block of the reduced system (a block's pairs in groups of this many, the last padded
+#: with zeros). One product per pair (a 6x3 by 3x6 product each) cost twice the time.
+PAIR_GROUP = 16
 
 
 def _segments(keys: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -177,6 +181,29 @@ class SchurSystem:
         self.pair_block = inv.astype(np.int64)  # index into self.blocks of each pair
         self.pair_order, self.pair_starts, self.pair_keys = _segments(inv, uniq.size)
         self.n_pairs = k1.size
+        self._pair_groups()
+
+    def _pair_groups(self) -> None:
+        """The pairs of each off-diagonal block in groups of :data:`PAIR_GROUP` (the last
+        padded with row ``n``, a zero row): ``_group_k1``, ``_group_k2`` (n_groups *
+        PAIR_GROUP,) observation rows, ``_group_block`` (n_groups,) the block of each."""
+        t = PAIR_GROUP
+        nb = self.blocks.shape[0]
+        po = self.pair_order
+        blk = self.pair_block[po]  # block of each pair, in block order
+        count = np.bincount(blk, minlength=nb)
+        groups = -(-count // t)
+        first_group = np.cumsum(groups) - groups
+        first_pair = np.cumsum(count) - count
+        pos = np.arange(self.n_pairs) - first_pair[blk]
+        dest = (first_group[blk] + pos // t) * t + pos % t
+        self.n_groups = int(groups.sum())
+        dtype = np.int32 if self.n < np.iinfo(np.int32).max else np.int64
+        self._group_k1 = np.full(self.n_groups * t, self.n, dtype=dtype)
+        self._group_k2 = np.full(self.n_groups * t, self.n, dtype=dtype)
+        self._group_k1[dest] = self.pair_k1[po]
+        self._group_k2[dest] = self.pair_k2[po]
+        self._group_block = np.repeat(np.arange(nb), groups)
 
     def _pattern(self) -> None:
         """Index arrays of the reduced matrix in CSC order (assembled from block data)."""
@@ -365,19 +392,25 @@ class _Normal:
             if g:
                 LG[key] -= Yi.T @ Hs[3 * lo : 3 * hi]
         del Ys, Ws, Hs
-        # off-diagonal blocks: - sum over pairs Y_k1 W_k2'
+        # off-diagonal blocks: - sum over pairs Y_k1 W_k2', one (b, 3t) x (3t, b) product per
+        # group of t pairs of a block (rows of Yt, Wt: the columns of Y_k, W_k; row n zero)
         nb = s.blocks.shape[0]
         off = np.zeros((nb, b * b))
         if s.n_pairs:
-            k1, k2 = s.pair_k1, s.pair_k2
-            _segment_sum(
-                lambda rows: (Y[k1[rows]] @ W[k2[rows]].transpose(0, 2, 1)).reshape(rows.size, -1),
-                s.pair_order,
-                s.pair_starts,
-                s.pair_keys,
-                s.n_pairs,
-                off,
-            )
+            t = PAIR_GROUP
+            zero = np.zeros((1, 3, b))
+            Yt = np.concatenate([Y.transpose(0, 2, 1), zero])
+            Wt = np.concatenate([W.transpose(0, 2, 1), zero])
+            per = max(1, CHUNK // t)
+            for g0 in range(0, s.n_groups, per):  # chunks of groups: bounded temporaries
+                g1 = min(s.n_groups, g0 + per)
+                y = Yt[s._group_k1[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, b)
+                w = Wt[s._group_k2[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, b)
+                prod = (y.transpose(0, 2, 1) @ w).reshape(g1 - g0, b * b)
+                key = s._group_block[g0:g1]
+                first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+                off[key[first]] += np.add.reduceat(prod, first, axis=0)
+            del Yt, Wt
         off = -off
         # local-global: U_lg (scattered into the global columns)
         if g:

@@ -27,7 +27,11 @@ class BundleOptions:
         Convergence when every step component is below ``xtol`` relative to its scale
         (the block's extent for coordinates, 1 rad for angles, the value for calibration).
     initial_damping : float
-        Initial Marquardt damping (relative to the diagonal of the normal matrix).
+        Initial Marquardt damping (relative to the diagonal of the normal matrix). The
+        default 1e-8 starts with nearly Gauss-Newton steps, as GTSAM does: on the simulated
+        benchmark blocks 6, 6 and 7 iterations for 50, 250 and 2000 images where 1e-4 took
+        15, 8 and 21 (the damping then falls at most tenfold per step); from a poorer start
+        (5 m, 2 degrees, 250 images) 12 instead of 9, each failed step raising the damping.
     loss : {"squared", "huber", "cauchy"}
         Loss of the image observations (iteratively reweighted least squares).
     loss_scale : float or None
@@ -67,7 +71,7 @@ class BundleOptions:
     max_iterations: int = 100
     ftol: float = 1e-10
     xtol: float = 1e-12
-    initial_damping: float = 1e-4
+    initial_damping: float = 1e-8
     loss: str = "squared"
     loss_scale: float | None = None
     datum: str = "auto"

@@ -93,9 +93,9 @@ DENSE_REDUCED_MAX = 10000
 STD_MAX = 5000
 #: Marquardt damping at the start (relative to the diagonal of the normal matrix) when no
 #: ``options`` are given. The grids' weak directions (the near null space between per-image
-#: fields and the object) have eigenvalues far below 1e-4 of the diagonal, so the bundle
-#: adjustment's 1e-4 damped them for 10 or more iterations; a failed step raises the damping
-#: as usual when a block starts far from its solution.
+#: fields and the object) have eigenvalues far below 1e-4 of the diagonal, so a start at
+#: 1e-4 damped them for 10 or more iterations; a failed step raises the damping as usual
+#: when a block starts far from its solution. (The bundle adjustment's default is the same.)
 INITIAL_DAMPING = 1e-8
 
 
@@ -614,8 +614,8 @@ def adjust_with_grids(
         Settings of the adjustment; keyword arguments override fields. The loss must be
         ``"squared"``; variance components and free networks are not supported here.
         Default: ``BundleOptions(initial_damping=1e-8)`` (:data:`INITIAL_DAMPING`; the
-        grids' weak directions converge in a few Gauss-Newton steps, where the bundle
-        adjustment's 1e-4 needed 10 or more).
+        grids' weak directions converge in a few Gauss-Newton steps, where a start at 1e-4
+        needed 10 or more; the bundle adjustment's default since review 9).
     progress : callable, optional
         ``progress(iteration, cost, damping)`` after each accepted step.
     **kwargs
