@@ -255,8 +255,6 @@ ALLOWED: frozenset[str] = frozenset(
         "photogeom.BundleFit.positions_in",
         "photogeom.BundleFit.summary",
         "photogeom.BundleFit.to_dict",
-        "photogeom.BundleOptions.updated",
-        "photogeom.BundleOptions.validate",
         "photogeom.Fit.from_adjustment",
         "photogeom.Fit.parameter_table",
         "photogeom.Fit.shown_parameter_table",
@@ -269,8 +267,6 @@ ALLOWED: frozenset[str] = frozenset(
         "photogeom.ImagePair.to_dict",
         "photogeom.RelativeOrientationFit.model_points",
         "photogeom.RelativeOrientationFit.parallax_report",
-        "photogeom.bundle_adjust",
-        "photogeom.data_snooping",
     }
 )
 
