@@ -264,9 +264,6 @@ ALLOWED: frozenset[str] = frozenset(
         "photogeom.Fit.with_checks",
         "photogeom.Fit.with_crs",
         "photogeom.Fit.without_statistics",
-        "photogeom.ImagePair.to_dict",
-        "photogeom.RelativeOrientationFit.model_points",
-        "photogeom.RelativeOrientationFit.parallax_report",
     }
 )
 
