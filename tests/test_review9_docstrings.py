@@ -255,15 +255,6 @@ ALLOWED: frozenset[str] = frozenset(
         "photogeom.BundleFit.positions_in",
         "photogeom.BundleFit.summary",
         "photogeom.BundleFit.to_dict",
-        "photogeom.Fit.from_adjustment",
-        "photogeom.Fit.parameter_table",
-        "photogeom.Fit.shown_parameter_table",
-        "photogeom.Fit.snooping",
-        "photogeom.Fit.summary",
-        "photogeom.Fit.to_dict",
-        "photogeom.Fit.with_checks",
-        "photogeom.Fit.with_crs",
-        "photogeom.Fit.without_statistics",
     }
 )
 
