@@ -245,16 +245,6 @@ ALLOWED: frozenset[str] = frozenset(
         "photogeom.Block.with_calibrations",
         "photogeom.Block.with_observations",
         "photogeom.Block.without_datum_observations",
-        "photogeom.BundleFit",
-        "photogeom.BundleFit.calibration_covariance",
-        "photogeom.BundleFit.image_calibration",
-        "photogeom.BundleFit.image_covariance",
-        "photogeom.BundleFit.orientation_residual_rms",
-        "photogeom.BundleFit.point_covariance",
-        "photogeom.BundleFit.points_in",
-        "photogeom.BundleFit.positions_in",
-        "photogeom.BundleFit.summary",
-        "photogeom.BundleFit.to_dict",
     }
 )
 
