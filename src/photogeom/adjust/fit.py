@@ -148,10 +148,23 @@ class Fit:
 
     @classmethod
     def without_statistics(cls, values: dict, point_dim: int) -> Fit:
-        """The Fit of ``statistics=False``: the estimate and its labels from ``values`` (field
-        name -> value, completed in place), with the stand-ins for what was not computed:
-        NaN covariance, cofactor and sigma0 (shared read-only arrays), no residuals (shape
-        (0, ``point_dim``)), and :data:`NO_STATISTICS_NOTE` after the given notes."""
+        """The Fit of ``statistics=False``: the estimate without its statistics.
+
+        Parameters
+        ----------
+        values : dict
+            Field name -> value of the estimate and its labels (at least ``parameters``);
+            completed in place with the stand-ins for what was not computed: NaN
+            ``covariance``, ``cofactor`` (shared read-only arrays) and ``sigma0``, no
+            ``residuals`` and :data:`NO_STATISTICS_NOTE` after the given ``notes``.
+        point_dim : int
+            Columns of the (empty) residual array, shape (0, ``point_dim``).
+
+        Returns
+        -------
+        Fit
+            An instance of ``cls`` built from ``values``.
+        """
         u = len(values["parameters"])
         nan = not_computed((u, u))
         values["covariance"] = values["cofactor"] = nan
@@ -179,6 +192,35 @@ class Fit:
         in another parametrisation (e.g. back from normalised coordinates, or textbook form):
         the cofactor is propagated as ``J Qxx J.T``. Residuals are reshaped to
         ``(n, point_dim)``.
+
+        Parameters
+        ----------
+        adjustment : Adjustment
+            The least-squares solution: unknowns, cofactor, sigma0, redundancy, residuals
+            (with normalised residuals and redundancy numbers when computed), iterations.
+        model : object
+            The fitted model (``Fit.model``).
+        method : str
+            Name of the estimation method (``Fit.method``).
+        point_dim : int
+            Coordinates per point: the residuals, normalised residuals and redundancy
+            numbers are reshaped to (n, ``point_dim``).
+        parameters : numpy.ndarray, optional
+            Parameters in the other parametrisation; default the adjusted unknowns
+            ``adjustment.x``.
+        parameter_names : sequence of str, optional
+            Their names; default ``adjustment.names``.
+        jacobian : numpy.ndarray, optional
+            ``J``, shape (n_parameters, n_unknowns): derivatives of the reported parameters
+            by the adjusted unknowns. Without it the cofactor is taken unchanged.
+        **kwargs
+            Further fields of the Fit (e.g. ``ids``, ``residual_unit``, ``parameter_units``,
+            ``notes``, ``extras``).
+
+        Returns
+        -------
+        Fit
+            An instance of ``cls`` with covariance ``sigma0^2 Q``.
         """
         Q = adjustment.cofactor
         if jacobian is not None:
@@ -211,7 +253,20 @@ class Fit:
         )
 
     def with_checks(self, check_residuals: np.ndarray, check_ids: Sequence | None = None) -> Fit:
-        """A copy with check-point residuals (computed minus observed) attached."""
+        """A copy with check-point residuals attached.
+
+        Parameters
+        ----------
+        check_residuals : array_like, shape (m, d)
+            Residuals of the check points (computed minus observed), in ``residual_unit``.
+        check_ids : sequence, optional
+            Their point ids (stored as a tuple); default None.
+
+        Returns
+        -------
+        Fit
+            The copy; ``self`` is not modified.
+        """
         return replace(
             self,
             check_residuals=np.asarray(check_residuals, dtype=float),
@@ -219,10 +274,32 @@ class Fit:
         )
 
     def with_crs(self, crs=None, source_crs=None) -> Fit:
-        """A copy recording the CRS of the target (``crs``) and source (``source_crs``)
-        coordinates; each validated by PROJ (pyproj) and refused when geographic (degrees:
-        the estimate was computed as if the coordinates were Cartesian), see
-        :func:`photogeom.crs.cartesian_crs`. None leaves a record as it is."""
+        """A copy recording the CRS of the target and source coordinates.
+
+        Each is validated by PROJ (pyproj) and refused when geographic (degrees: the
+        estimate was computed as if the coordinates were Cartesian), see
+        :func:`photogeom.crs.cartesian_crs`; the dimension checked is the number of residual
+        columns (3 without 2-D residuals).
+
+        Parameters
+        ----------
+        crs : str, int, pyproj.CRS or LocalFrame, optional
+            CRS of the target (observation) coordinates: an EPSG code, WKT or PROJ string,
+            or ``"enu:lat0,lon0,h0"``. None leaves the record as it is.
+        source_crs : str, int, pyproj.CRS or LocalFrame, optional
+            CRS of the source coordinates of a transformation, as ``crs``.
+
+        Returns
+        -------
+        Fit
+            The copy with the validated CRS texts, or ``self`` when both are None.
+
+        Raises
+        ------
+        InputError
+            A CRS that :func:`photogeom.crs.cartesian_crs` refuses (unknown, geographic,
+            vertical alone, ...).
+        """
         from ..crs import cartesian_crs
 
         dim = int(np.asarray(self.residuals).shape[1]) if np.ndim(self.residuals) == 2 else 3
@@ -288,7 +365,27 @@ class Fit:
         return None if self.check_residuals is None else _rms_axes(self.check_residuals)
 
     def snooping(self, alpha: float = 0.001, sigma: str = "prior") -> SnoopingResult:
-        """Baarda's w-test (``sigma="prior"``) or Pope's tau-test (``"posterior"``) per residual."""
+        """Baarda's w-test (``sigma="prior"``) or Pope's tau-test (``"posterior"``) per residual.
+
+        Parameters
+        ----------
+        alpha : float, default 0.001
+            Significance level of each single test.
+        sigma : {"prior", "posterior"}, default "prior"
+            A-priori sigma0 (w-test) or a-posteriori sigma0 (tau-test); see
+            :func:`photogeom.adjust.data_snooping`.
+
+        Returns
+        -------
+        SnoopingResult
+            One statistic per residual component, in the row-major order of ``residuals``.
+
+        Raises
+        ------
+        InputError
+            The fit has no normalised residuals, or as :func:`data_snooping` (bad ``alpha``
+            or ``sigma``, no finite sigma0 or redundancy below 2 for the tau-test).
+        """
         if self.normalized_residuals is None:
             from ..errors import InputError
 
@@ -311,10 +408,25 @@ class Fit:
     def parameter_table(
         self, angle_unit: str = "deg", *, prior: bool = False
     ) -> list[tuple[str, float, float, str]]:
-        """Rows ``(name, value, std, unit)`` with angles converted to ``angle_unit`` and
-        normalised for printing (:func:`photogeom.units.display_angle`: kappa in [0, one
-        turn), other angles in [-half turn, +half turn)); ``std`` a posteriori, or with
-        ``prior`` a priori (``sigma0_prior`` times the cofactors)."""
+        """Rows ``(name, value, std, unit)`` of the parameters.
+
+        Angles (parameters of unit ``"rad"``) are converted to ``angle_unit`` and normalised
+        for printing (:func:`photogeom.units.display_angle`: kappa in [0, one turn), other
+        angles in [-half turn, +half turn)); other parameters keep their value and unit.
+
+        Parameters
+        ----------
+        angle_unit : str, default "deg"
+            Unit of the angles and their standard deviations (e.g. ``"rad"``, ``"gon"``).
+        prior : bool, default False
+            ``std`` a priori (``sigma0_prior`` times the square roots of the cofactors)
+            instead of a posteriori.
+
+        Returns
+        -------
+        list of tuple (str, float, float, str)
+            One row per parameter, in the order of ``parameter_names``.
+        """
         rows = []
         std = self.std_errors_prior if prior else self.std_errors
         for name, value in zip(self.parameter_names, self.parameters):
@@ -332,9 +444,21 @@ class Fit:
     def shown_parameter_table(
         self, angle_unit: str = "deg"
     ) -> list[tuple[str, float, float, str, bool]]:
-        """Rows ``(name, value, std, unit, a_priori)`` as tables print them: the
-        a-posteriori standard deviation, or the a-priori one (``a_priori`` True) where the
-        a-posteriori one is undefined (redundancy 0)."""
+        """Rows ``(name, value, std, unit, a_priori)`` as tables print them.
+
+        ``std`` is the a-posteriori standard deviation, or the a-priori one (``a_priori``
+        True) where the a-posteriori one is not finite (redundancy 0) and the a-priori one is.
+
+        Parameters
+        ----------
+        angle_unit : str, default "deg"
+            Unit of the angles, as in :meth:`parameter_table`.
+
+        Returns
+        -------
+        list of tuple (str, float, float, str, bool)
+            One row per parameter, in the order of ``parameter_names``.
+        """
         prior = [r[2] for r in self.parameter_table(angle_unit, prior=True)]
         rows = []
         for (name, value, s, unit), p in zip(self.parameter_table(angle_unit), prior):
@@ -343,7 +467,19 @@ class Fit:
         return rows
 
     def summary(self, angle_unit: str = "deg") -> str:
-        """Plain-text report: parameters with standard deviations, statistics, residuals."""
+        """Plain-text report: parameters with standard deviations, statistics, residuals.
+
+        Parameters
+        ----------
+        angle_unit : str, default "deg"
+            Unit of the angles in the parameter table.
+
+        Returns
+        -------
+        str
+            The report: parameters (:meth:`shown_parameter_table`), sigma0 a posteriori and
+            a priori, residuals in ``residual_unit`` with RMSE, check points, CRS and notes.
+        """
         lines = [f"{type(self.model).__name__} estimated by {self.method}"]
         if self.message:
             lines.append(f"  {self.message}")
@@ -387,9 +523,18 @@ class Fit:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary (NaN becomes None; angles stay in radians). Each parameter
-        has ``std`` (a posteriori: undefined at redundancy 0) and ``std_prior``
-        (``sigma0_prior`` times the cofactor's)."""
+        """JSON-ready dictionary (NaN becomes None; angles stay in radians).
+
+        Returns
+        -------
+        dict
+            Model name, method, ``parameters`` by name with ``value``, ``std`` (a
+            posteriori: undefined at redundancy 0), ``std_prior`` (``sigma0_prior`` times the
+            cofactor's) and ``unit``; sigma0, redundancy, covariance, residuals with ids,
+            RMSE and unit, iteration diagnostics, ``elapsed_s`` (s), notes; the CRS, the
+            normalised residuals, the check points, ``model_parameters`` (the model's own
+            ``to_dict``) and the plain-valued ``extras`` when present.
+        """
         std = self.std_errors
         prior = self.std_errors_prior
         out = {

@@ -96,6 +96,19 @@ def data_snooping(
     sigma : {"prior", "posterior"}
         ``"prior"``: Baarda's w-test with sigma0_prior (needs realistic a-priori weights);
         ``"posterior"``: Pope's tau-test with the a-posteriori sigma0.
+
+    Returns
+    -------
+    SnoopingResult
+        The test statistic of every observation (dimensionless), the critical value and the
+        flagged observations.
+
+    Raises
+    ------
+    InputError
+        The adjustment has no normalised residuals; ``alpha`` not in (0, 1); ``sigma`` is
+        neither ``"prior"`` nor ``"posterior"``; for the tau-test, an a-posteriori sigma0
+        that is not finite or is zero, or a redundancy below 2.
     """
     if adjustment.normalized_residuals is None:
         raise InputError(

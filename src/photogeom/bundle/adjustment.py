@@ -566,10 +566,14 @@ def bundle_adjust(block: Block, options: BundleOptions | None = None, *, progres
     block : Block
         The block with initial values (see :class:`photogeom.bundle.Block`).
     options : BundleOptions, optional
-        Settings; keyword arguments override single fields (e.g. ``loss="huber"``,
-        ``point_covariance=True``, ``free=("f", "cx", "cy", "k1", "k2")``).
+        Settings; default ``BundleOptions()``.
     progress : callable, optional
-        Called as ``progress(iteration, cost, damping)`` after each accepted step.
+        Called as ``progress(iteration, cost, damping)`` after each accepted step. With
+        ``verbose=True`` and no ``progress``, one line per iteration is printed.
+    **kwargs
+        Single fields of :class:`BundleOptions` overriding ``options`` (e.g.
+        ``loss="huber"``, ``point_covariance=True``, ``free=("f", "cx", "cy", "k1", "k2")``);
+        an unknown name raises :class:`InputError`.
 
     Returns
     -------

@@ -156,25 +156,56 @@ class Observations:
 class Block:
     """An image block (see the module docstring). Build with :meth:`from_arrays`.
 
-    Array attributes (row order = the order of the ids):
+    Array rows are in the order of the ids: m images, p points, n image observations.
 
-    ``image_ids`` (m,), ``image_camera`` (m,) group ids, ``exterior`` (m, 6) X0, Y0, Z0 and
-    omega, phi, kappa in radians, ``calibration_offset`` (m, 3) per-image offsets of f, cx, cy
-    (image-variant calibration; zero otherwise), ``gnss`` / ``gnss_sigma`` (m, 3) with NaN
-    where an image has none, ``imu`` / ``imu_sigma`` (m, 3) radians; ``point_ids`` (p,),
-    ``xyz`` (p, 3), ``role`` (p,) strings, ``point_sigma`` (p, 3) (NaN for tie points);
-    ``observations`` (:class:`Observations`) with the integer ``obs_image`` / ``obs_point``
-    rows they refer to.
-
-    ``surveyed`` (p, 3) or None: the surveyed coordinates of control and check points (NaN
-    for tie points) when ``xyz`` holds something else for them. The adjustment sets it: its
-    block's ``xyz`` are the estimates (control points adjusted, check points triangulated),
-    so an adjusted block adjusted again observes its control points where they were
-    surveyed, not where the first adjustment put them, and compares its check points with
-    the survey (:attr:`surveyed_xyz`). None: ``xyz`` is the survey.
-
-    ``free`` maps each camera group to the calibration parameters that the adjustment
-    estimates; ``image_variant`` maps groups to the parameters estimated per image.
+    Attributes
+    ----------
+    camera_ids : numpy.ndarray, shape (g,)
+        Camera group ids.
+    calibrations : tuple of MetashapeCalibration
+        The calibration of each group, in the order of ``camera_ids`` (f, cx, cy, b1, b2 in
+        pixels).
+    image_ids : numpy.ndarray, shape (m,)
+        Image ids.
+    image_camera : numpy.ndarray of int, shape (m,)
+        Row of each image's group in ``camera_ids``.
+    exterior : numpy.ndarray, shape (m, 6)
+        X0, Y0, Z0 (object units) and omega, phi, kappa (rad) per image.
+    calibration_offset : numpy.ndarray, shape (m, 3)
+        Per-image offsets of f, cx, cy (px) of image-variant calibration; zero otherwise.
+    gnss, gnss_sigma : numpy.ndarray, shape (m, 3)
+        Observed projection centres (object units) and their standard deviations; NaN rows
+        for images without GNSS.
+    imu, imu_sigma : numpy.ndarray, shape (m, 3)
+        Observed omega, phi, kappa (rad) and their standard deviations; NaN rows for images
+        without IMU.
+    point_ids : numpy.ndarray, shape (p,)
+        Point ids.
+    xyz : numpy.ndarray, shape (p, 3)
+        Object coordinates (approximate for tie points before an adjustment).
+    role : numpy.ndarray of str, shape (p,)
+        ``"tie"``, ``"control"`` or ``"check"`` per point.
+    point_sigma : numpy.ndarray, shape (p, 3)
+        Standard deviations of the surveyed coordinates; NaN where none were given
+        (:meth:`from_arrays` broadcasts a given ``point_sigma`` to tie points too).
+    observations : Observations
+        The image observations: image and point ids, pixels ``uv`` (n, 2) and their sigma
+        (n,), px.
+    obs_image, obs_point : numpy.ndarray of int, shape (n,)
+        Rows of the image and point of each observation.
+    free : mapping group id -> tuple of str
+        The calibration parameters the adjustment estimates for each group.
+    image_variant : mapping group id -> tuple of str
+        The parameters (of f, cx, cy) estimated per image for each group.
+    crs : str or None
+        CRS of the object coordinates, recorded and never used to compute; default None.
+    surveyed : numpy.ndarray, shape (p, 3), or None
+        The surveyed coordinates of control and check points (NaN for tie points) when
+        ``xyz`` holds something else for them; default None (``xyz`` is the survey). The
+        adjustment sets it: its block's ``xyz`` are the estimates (control points adjusted,
+        check points triangulated), so an adjusted block adjusted again observes its
+        control points where they were surveyed, not where the first adjustment put them,
+        and compares its check points with the survey (:attr:`surveyed_xyz`).
     """
 
     camera_ids: np.ndarray
@@ -235,13 +266,17 @@ class Block:
             Image ids and the camera group of each image.
         exterior : array_like (m, 6)
             X0, Y0, Z0, omega, phi, kappa (radians) per image: the current (initial) values.
-        point_ids : sequence (p,); xyz : array_like (p, 3)
-            Point ids and (approximate for tie points) object coordinates.
-        obs_image_ids, obs_point_ids : sequences (n,); uv : array_like (n, 2)
+        point_ids : sequence (p,)
+            Point ids.
+        xyz : array_like (p, 3)
+            Object coordinates (approximate for tie points).
+        obs_image_ids, obs_point_ids : sequences (n,)
+            Image and point id of each image observation.
+        uv : array_like (n, 2)
             Image observations in pixels (centre of the first pixel at (0, 0)).
-        sigma : float or array_like (n,)
+        sigma : float or array_like (n,), default 0.5
             Standard deviation of u and v of each observation, pixels.
-        role : str or sequence (p,)
+        role : str or sequence (p,), default "tie"
             ``"tie"``, ``"control"`` or ``"check"`` per point.
         point_sigma : array_like (p, 3) or (3,), optional
             Standard deviations of surveyed coordinates (control and check points).
@@ -259,6 +294,21 @@ class Block:
             CRS of the object coordinates (exterior orientations, points, GNSS): an EPSG
             code, WKT, PROJ string or ``"enu:LAT,LON,H"``. Recorded, not converted:
             ``fit.crs`` of the adjustment and the ``# crs:`` line of a CSV block written.
+
+        Returns
+        -------
+        Block
+            The block; ids must be flat sequences of integers or strings.
+
+        Raises
+        ------
+        InputError
+            Duplicate camera, image or point ids; a camera that is not a
+            :class:`MetashapeCalibration`; an unknown group, image or point id referenced;
+            tables of the wrong shape or holding NaN or infinity; an unknown role; control
+            or check points without positive, finite ``point_sigma``; sigmas that are not
+            positive and finite; GNSS or IMU without their sigmas or with partly-NaN rows;
+            unknown groups or parameter names in ``free`` or ``image_variant``.
         """
         cam_ids = _ids(list(cameras.keys()), "cameras")
         _unique_check(cam_ids, "cameras")
@@ -399,7 +449,19 @@ class Block:
         return len(self.observations)
 
     def image_calibration(self, i: int) -> MetashapeCalibration:
-        """The calibration of image row ``i`` (its group's, plus its image-variant offsets)."""
+        """The calibration of image row ``i`` (its group's, plus its image-variant offsets).
+
+        Parameters
+        ----------
+        i : int
+            Row of the image (not its id).
+
+        Returns
+        -------
+        MetashapeCalibration
+            The group's calibration itself when the image has no offsets, else a copy with
+            f, cx, cy (px) shifted by them.
+        """
         c = self.calibrations[self.image_camera[i]]
         d = self.calibration_offset[i]
         if not np.any(d):
@@ -407,32 +469,63 @@ class Block:
         return replace(c, f=c.f + d[0], cx=c.cx + d[1], cy=c.cy + d[2])
 
     def calibration_matrix(self) -> np.ndarray:
-        """Per-image calibration vectors (m, 11) in the order of ``CALIBRATION_NAMES``."""
+        """Per-image calibration vectors in the order of ``CALIBRATION_NAMES``.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, 11)
+            The group's values plus the image-variant offsets of f, cx, cy (px).
+        """
         G = np.array([[getattr(c, n) for n in CALIBRATION_NAMES] for c in self.calibrations])
         C = G[self.image_camera].copy() if G.size else np.zeros((0, 11))
         C[:, :3] += self.calibration_offset
         return C
 
     def image_sizes(self) -> np.ndarray:
-        """Per-image (width, height) in pixels (m, 2)."""
+        """Per-image (width, height) in pixels.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, 2)
+            Width and height of each image's camera group, px (float).
+        """
         S = np.array([[c.width, c.height] for c in self.calibrations], dtype=float)
         return S[self.image_camera]
 
     def rotations(self) -> np.ndarray:
-        """Rotation matrices ``M`` (object -> image system) per image (m, 3, 3)."""
+        """Rotation matrices ``M`` (object -> image system) per image.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, 3, 3)
+            From omega, phi, kappa of ``exterior``.
+        """
         e = self.exterior
         return np.asarray(opk_matrix(e[:, 3], e[:, 4], e[:, 5])).reshape(-1, 3, 3)
 
     def observation_counts(self) -> tuple[np.ndarray, np.ndarray]:
-        """Number of observations per image (m,) and per point (p,)."""
+        """Number of observations per image and per point.
+
+        Returns
+        -------
+        per_image : numpy.ndarray of int, shape (m,)
+        per_point : numpy.ndarray of int, shape (p,)
+        """
         return (
             np.bincount(self.obs_image, minlength=self.n_images),
             np.bincount(self.obs_point, minlength=self.n_points),
         )
 
     def gsd(self) -> float:
-        """Mean ground sample distance (object units per pixel): mean over observations of
-        the depth of the point below the camera divided by the focal length."""
+        """Mean ground sample distance.
+
+        Returns
+        -------
+        float
+            Object units per pixel: the mean over the observations of the absolute depth of
+            the point along the camera's viewing axis divided by the focal length (px, with
+            the image-variant offset); NaN without observations.
+        """
         if self.n_observations == 0:
             return float("nan")
         M = self.rotations()
@@ -448,6 +541,24 @@ class Block:
 
         On a block without :attr:`surveyed` a new ``xyz`` is a new survey of its control and
         check points; on an adjusted block it changes the estimates and the survey stays.
+        Only ``surveyed`` is checked; other values are taken as given.
+
+        Parameters
+        ----------
+        **changes
+            New values of fields of the block by name (see the class attributes).
+
+        Returns
+        -------
+        Block
+            The new block; ``self`` is not modified.
+
+        Raises
+        ------
+        InputError
+            ``surveyed`` not of shape (p, 3), p the number of (new) point ids.
+        TypeError
+            An unknown field name.
         """
         s = changes.get("surveyed")
         if s is not None:
@@ -473,9 +584,15 @@ class Block:
         return np.where((self.role != "tie")[:, None], self.surveyed_xyz, np.nan)
 
     def without_datum_observations(self) -> Block:
-        """A copy for a free network (``datum="free"``): control points become check points
-        (kept out of the adjustment and compared with their survey afterwards), GNSS
-        positions and IMU attitudes are removed (NaN)."""
+        """A copy for a free network (``datum="free"``).
+
+        Returns
+        -------
+        Block
+            Control points become check points (kept out of the adjustment and compared
+            with their survey, kept in ``surveyed``, afterwards); GNSS positions and IMU
+            attitudes are removed (NaN).
+        """
         return self.replace(
             role=np.where(self.role == "control", "check", self.role),
             gnss=np.full_like(self.gnss, np.nan),
@@ -484,7 +601,23 @@ class Block:
         )
 
     def with_calibrations(self, cameras: Mapping[object, MetashapeCalibration]) -> Block:
-        """A new block with the calibrations of the given groups replaced."""
+        """A new block with the calibrations of the given groups replaced.
+
+        Parameters
+        ----------
+        cameras : mapping group id -> MetashapeCalibration
+            The new calibrations (not type-checked); other groups keep theirs.
+
+        Returns
+        -------
+        Block
+            The new block; ``free`` and ``image_variant`` are unchanged.
+
+        Raises
+        ------
+        InputError
+            An unknown group id.
+        """
         cals = list(self.calibrations)
         for k, c in cameras.items():
             idx = _lookup(self.camera_ids, _ids([k], "cameras"), "cameras", "cameras")[0]
@@ -492,7 +625,18 @@ class Block:
         return replace(self, calibrations=tuple(cals))
 
     def select_observations(self, mask: np.ndarray) -> Block:
-        """A new block keeping the observation rows where ``mask`` is true."""
+        """A new block keeping the observation rows where ``mask`` is true.
+
+        Parameters
+        ----------
+        mask : array_like of bool, shape (n,)
+            One value per observation row.
+
+        Returns
+        -------
+        Block
+            Images and points unchanged (points may be left with fewer observations).
+        """
         mask = np.asarray(mask, dtype=bool)
         o = self.observations
         return replace(
@@ -519,6 +663,11 @@ class Block:
         InputError
             ``uv`` of another shape or not finite; a ``sigma`` that is not positive and
             finite (the same checks as :meth:`from_arrays`).
+
+        Returns
+        -------
+        Block
+            The new block; the unchanged one of ``uv`` and ``sigma`` is kept.
         """
         o = self.observations
         n = len(o)
@@ -527,8 +676,19 @@ class Block:
         return replace(self, observations=Observations(o.image_ids, o.point_ids, UV, sg))
 
     def same_observation_rows(self, other: Block) -> bool:
-        """True when ``other`` observes the same point in the same image in every row of
-        its observations as this block (ids compared; pixels and sigmas may differ)."""
+        """Whether ``other`` has the same observation rows as this block.
+
+        Parameters
+        ----------
+        other : Block
+            The block to compare with.
+
+        Returns
+        -------
+        bool
+            True when ``other`` observes the same point in the same image in every row of
+            its observations as this block (ids compared; pixels and sigmas may differ).
+        """
         return self.obs_image.size == other.obs_image.size and bool(
             np.array_equal(self.image_ids[self.obs_image], other.image_ids[other.obs_image])
             and np.array_equal(self.point_ids[self.obs_point], other.point_ids[other.obs_point])
@@ -537,10 +697,18 @@ class Block:
     def validate(self, *, min_image_observations: int = 3) -> None:
         """Refuse a block that no adjustment can solve, naming the ids at fault.
 
-        Raises :class:`InputError` for duplicate observations (an image observing a point
-        twice), tie or control points observed in fewer than two images, check points with
-        fewer than two observations (they cannot be triangulated) and images with fewer
-        than ``min_image_observations`` observations.
+        Parameters
+        ----------
+        min_image_observations : int, default 3
+            Fewest observations an image must have.
+
+        Raises
+        ------
+        InputError
+            Duplicate observations (an image observing a point twice), tie or control points
+            observed in fewer than two images, check points with fewer than two observations
+            (they cannot be triangulated) and images with fewer than
+            ``min_image_observations`` observations.
         """
         key = self.obs_image.astype(np.int64) * max(self.n_points, 1) + self.obs_point
         u, c = np.unique(key, return_counts=True)
@@ -589,6 +757,11 @@ class Block:
             Drop control and check points observed in fewer than two images too (the block
             then has fewer of them). Default: tie points only; such control and check
             points stay, and :meth:`validate` refuses them.
+
+        Returns
+        -------
+        Block
+            ``self`` when nothing is dropped, else the new block.
         """
         _, per_pt = self.observation_counts()
         keep_pt = (per_pt >= 2) | ((self.role != "tie") & (not surveyed))
@@ -607,7 +780,14 @@ class Block:
         )
 
     def summary(self) -> str:
-        """A few lines: sizes, roles, observations per image and per point."""
+        """A few lines: sizes, roles, observations per image and per point.
+
+        Returns
+        -------
+        str
+            The lines joined by newlines (min, median, max per image and per point when
+            there are images and points).
+        """
         per_img, per_pt = self.observation_counts()
         roles = {r: int(np.sum(self.role == r)) for r in ROLES}
         lines = [

@@ -87,7 +87,22 @@ class BundleOptions:
     verbose: bool = False
 
     def validate(self) -> BundleOptions:
-        """Return self, or raise :class:`InputError` naming the bad setting."""
+        """Check every setting.
+
+        Returns
+        -------
+        BundleOptions
+            ``self``, unchanged.
+
+        Raises
+        ------
+        InputError
+            Naming the bad setting: ``max_iterations`` not a positive integer; ``ftol``,
+            ``xtol``, ``initial_damping`` or ``sigma0_prior`` not positive and finite; an
+            unknown ``loss``, ``datum`` or ``backend``; ``loss_scale`` not positive and
+            finite; ``free`` a single string or with unknown calibration parameter names;
+            ``alpha`` not in (0, 0.5); ``correlation_threshold`` not in (0, 1].
+        """
         if int(self.max_iterations) != self.max_iterations or self.max_iterations < 1:
             raise InputError(
                 f"max_iterations must be a positive integer, not {self.max_iterations}"
@@ -135,7 +150,25 @@ class BundleOptions:
         return DEFAULT_LOSS_SCALE.get(self.loss, 1.0)
 
     def updated(self, **changes) -> BundleOptions:
-        """A copy with some settings changed (unknown names refused)."""
+        """A copy with some settings changed.
+
+        Parameters
+        ----------
+        **changes
+            New values of fields of :class:`BundleOptions` by name; ``free`` may be any
+            sequence of calibration parameter names (stored as a tuple).
+
+        Returns
+        -------
+        BundleOptions
+            The changed copy, validated (:meth:`validate`); ``self`` is not modified.
+
+        Raises
+        ------
+        InputError
+            An unknown option name, ``free`` given as a single string, or any setting that
+            :meth:`validate` refuses.
+        """
         names = {f.name for f in fields(self)}
         unknown = sorted(set(changes) - names)
         if unknown:

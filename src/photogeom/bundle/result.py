@@ -87,6 +87,9 @@ class BundleFit:
         linearisation, all observations at full weight: :func:`least_squares_square_sum`;
         it fails on blunders the robust weights have muted).
     notes : tuple of str
+    gsd : float
+        Mean ground sample distance of the adjusted block (object units per pixel,
+        :meth:`Block.gsd`).
     elapsed : float (s)
     solver : dict
         The sparse backend and sizes of the reduced system.
@@ -128,7 +131,23 @@ class BundleFit:
     # --- queries -----------------------------------------------------------------------------
 
     def image_covariance(self, image_id) -> np.ndarray:
-        """Covariance (6, 6) of X0, Y0, Z0, omega, phi, kappa of one image (a-posteriori)."""
+        """Covariance (6, 6) of X0, Y0, Z0, omega, phi, kappa of one image (a-posteriori).
+
+        Parameters
+        ----------
+        image_id : hashable
+            Id of the image in ``block.image_ids``.
+
+        Returns
+        -------
+        numpy.ndarray, shape (6, 6)
+            A copy; object units squared for the position, rad^2 for the angles.
+
+        Raises
+        ------
+        InputError
+            For an unknown image id.
+        """
         try:
             i = {k: n for n, k in enumerate(self.block.image_ids.tolist())}[image_id]
         except KeyError:
@@ -136,8 +155,24 @@ class BundleFit:
         return self._image_cov[i].copy()
 
     def point_covariance(self, point_id) -> np.ndarray:
-        """Marginal covariance (3, 3) of one point (a-posteriori; needs
-        ``point_covariance=True``)."""
+        """Marginal covariance (3, 3) of one point (a-posteriori).
+
+        Parameters
+        ----------
+        point_id : hashable
+            Id of the point in ``block.point_ids``.
+
+        Returns
+        -------
+        numpy.ndarray, shape (3, 3)
+            A copy, object units squared.
+
+        Raises
+        ------
+        InputError
+            When the adjustment ran without ``point_covariance=True``, or for an unknown
+            point id.
+        """
         if self._point_cov is None:
             raise InputError(
                 "point covariances were not computed: run bundle_adjust(..., point_covariance=True)"
@@ -149,15 +184,42 @@ class BundleFit:
         return self._point_cov[j].copy()
 
     def calibration_covariance(self, group) -> tuple[tuple[str, ...], np.ndarray]:
-        """Names of the free calibration parameters of ``group`` and their covariance."""
+        """Names of the free calibration parameters of ``group`` and their covariance.
+
+        Parameters
+        ----------
+        group : hashable
+            Camera group id (``block.camera_ids``).
+
+        Returns
+        -------
+        names : tuple of str
+            The free calibration parameters of the group (empty when none is free).
+        covariance : numpy.ndarray, shape (k, k)
+            Their a-posteriori covariance (px^2 for f, cx, cy, b1, b2; distortion terms
+            dimensionless), in the order of ``names``; the stored array, not a copy.
+
+        Raises
+        ------
+        KeyError
+            For an unknown group (the lookup is not checked).
+        """
         return self._cal_cov[group]
 
     def image_calibration(self) -> dict:
-        """Image-variant calibration of each group: ``{group: {name: {"rms_offset",
-        "rms_std"}}}`` over the group's images, pixels, for the names estimated per image
-        (offsets of f, cx, cy from the group's value; empty for block-invariant groups).
+        """Image-variant calibration of each group, summarised over the group's images.
+
         The per-image values are ``block.calibration_offset`` and
-        :attr:`image_calibration_std`."""
+        :attr:`image_calibration_std`.
+
+        Returns
+        -------
+        dict
+            ``{group: {name: {"rms_offset", "rms_std"}}}``, pixels, for the names estimated
+            per image (offsets of f, cx, cy from the group's value). Groups without a
+            parameter estimated per image are left out; empty when
+            ``image_calibration_std`` is None.
+        """
         from .block import IMAGE_VARIANT_NAMES
 
         out: dict = {}
@@ -186,14 +248,53 @@ class BundleFit:
         return self.block.crs
 
     def positions_in(self, crs, *, allow_ballpark: bool = False) -> np.ndarray:
-        """Adjusted projection centres (m, 3) in another CRS (``"EPSG:4979"``: lon, lat, h),
-        from the block's CRS (:func:`photogeom.bundle.georef.positions_in`)."""
+        """Adjusted projection centres in another CRS, from the block's CRS.
+
+        See :func:`photogeom.bundle.georef.positions_in`.
+
+        Parameters
+        ----------
+        crs : str, int or LocalFrame
+            The target CRS (e.g. ``"EPSG:4979"``: lon, lat, h) or a local ENU frame
+            (``"enu:lat0,lon0,h0"``).
+        allow_ballpark : bool, default False
+            Accept an approximate ("ballpark") datum shift.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, 3)
+            One row per image, x/easting/longitude first.
+
+        Raises
+        ------
+        InputError
+            The block records no CRS; an unknown CRS; a conversion PROJ can only do
+            approximately (unless ``allow_ballpark``).
+        """
         from .georef import positions_in
 
         return positions_in(self.block, crs, allow_ballpark=allow_ballpark)
 
     def points_in(self, crs, *, allow_ballpark: bool = False) -> np.ndarray:
-        """Adjusted object points (p, 3) in another CRS (see :meth:`positions_in`)."""
+        """Adjusted object points in another CRS (see :meth:`positions_in`).
+
+        Parameters
+        ----------
+        crs : str, int or LocalFrame
+            The target CRS, as in :meth:`positions_in`.
+        allow_ballpark : bool, default False
+            Accept an approximate ("ballpark") datum shift.
+
+        Returns
+        -------
+        numpy.ndarray, shape (p, 3)
+            One row per point of ``block.point_ids``, x/easting/longitude first.
+
+        Raises
+        ------
+        InputError
+            As :meth:`positions_in`.
+        """
         from .georef import points_in
 
         return points_in(self.block, crs, allow_ballpark=allow_ballpark)
@@ -235,9 +336,15 @@ class BundleFit:
         return wrap_angle(b.exterior[:, 3:6] - b.imu)
 
     def orientation_residual_rms(self) -> dict:
-        """RMS per axis of the GNSS (object units) and IMU (radians) residuals over the images
-        that have them: ``{"gnss": (3,), "gnss_images": k, "imu": (3,), "imu_images": k}``
-        (a group without observations is left out)."""
+        """RMS per axis of the GNSS and IMU residuals over the images that have them.
+
+        Returns
+        -------
+        dict
+            ``{"gnss": (3,), "gnss_images": k, "imu": (3,), "imu_images": k}``: the RMS of
+            X, Y, Z (object units) and of omega, phi, kappa (rad), and the number of images
+            with the observation; a group without observations is left out.
+        """
         out: dict = {}
         for key, r in (("gnss", self.gnss_residuals), ("imu", self.imu_residuals)):
             has = np.all(np.isfinite(r), axis=1)
@@ -247,7 +354,19 @@ class BundleFit:
         return out
 
     def summary(self, angle_unit: str = "deg") -> str:
-        """A text report: convergence, sigma0, calibration, check points, outliers."""
+        """A text report: convergence, sigma0, calibration, check points, outliers.
+
+        Parameters
+        ----------
+        angle_unit : str, default "deg"
+            Unit of the angles shown (IMU residual RMS, standard deviations of the
+            exterior orientation angles).
+
+        Returns
+        -------
+        str
+            The report, one line per item.
+        """
         from ..units import from_radians
 
         b = self.block
@@ -349,10 +468,24 @@ class BundleFit:
         return "\n".join(L)
 
     def to_dict(self, angle_unit: str = "deg") -> dict:
-        """JSON-ready summary (without the per-observation arrays). Per image: the
-        exterior orientation, its standard deviations, the RMS image residual and the GNSS
-        and IMU residuals (computed minus observed; object units and ``angle_unit``, None
-        without the observation); ``orientation_residual_rms`` their RMS per axis."""
+        """JSON-ready summary (without the per-observation arrays).
+
+        Parameters
+        ----------
+        angle_unit : str, default "deg"
+            Unit of the exterior orientation angles, their standard deviations and the IMU
+            residuals and their RMS.
+
+        Returns
+        -------
+        dict
+            Convergence, sigma0, redundancy, chi-square test, RMSE (px), GSD, calibrations
+            and their standard deviations, check and control points, snooping, variance
+            components, solver and CRS. Per image (``"images"``): the exterior orientation,
+            its standard deviations, the RMS image residual (px) and the GNSS and IMU
+            residuals (computed minus observed; object units and ``angle_unit``, None without
+            the observation); ``orientation_residual_rms`` their RMS per axis.
+        """
         from ..adjust.fit import _jsonable
         from ..units import from_radians
 

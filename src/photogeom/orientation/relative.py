@@ -121,7 +121,20 @@ class ImagePair:
         return b / np.linalg.norm(b)
 
     def to_dict(self, angle_unit: str = "rad") -> dict:
-        """JSON-ready exterior orientations of both images in the model system."""
+        """JSON-ready exterior orientations of both images in the model system.
+
+        Parameters
+        ----------
+        angle_unit : str, default "rad"
+            Unit of the angles (any unit of :meth:`ExteriorOrientation.angles_in`, e.g.
+            ``"deg"``).
+
+        Returns
+        -------
+        dict
+            ``{"method", "exterior1", "exterior2"}``, each exterior orientation as by
+            :meth:`ExteriorOrientation.to_dict` (projection centre in the model unit).
+        """
         return {
             "method": self.method,
             "exterior1": self.exterior1.to_dict(angle_unit),
@@ -186,15 +199,46 @@ class RelativeOrientationFit(Fit):
         return self.extras["all_ids"]
 
     def model_points(self, which: str = "inliers"):
-        """Model coordinates by intersection, with covariance: see
-        :func:`photogeom.orientation.stereo_model.model_points`."""
+        """Model coordinates by intersection, with covariance.
+
+        See :func:`photogeom.orientation.stereo_model.model_points`.
+
+        Parameters
+        ----------
+        which : {"inliers", "all"}, default "inliers"
+            The points used in the adjustment, or every input point.
+
+        Returns
+        -------
+        ModelPoints
+            Ids, model coordinates (n, 3) in the model unit and their cofactors (n, 3, 3).
+
+        Raises
+        ------
+        InputError
+            For another ``which``.
+        """
         from .stereo_model import model_points
 
         return model_points(self, which=which)
 
     def parallax_report(self, worst: int = 10):
-        """Residual y-parallaxes per point, RMS and the worst points: see
-        :func:`photogeom.orientation.stereo_model.parallax_report`."""
+        """Residual y-parallaxes per point, RMS and the worst points.
+
+        See :func:`photogeom.orientation.stereo_model.parallax_report`.
+
+        Parameters
+        ----------
+        worst : int, default 10
+            Points listed as the worst at most (largest ``|parallax|`` first; a negative
+            value lists none).
+
+        Returns
+        -------
+        ParallaxReport
+            Parallaxes of every input point in the image unit of the fit, their RMS over
+            the points used, the test statistics and critical value.
+        """
         from .stereo_model import parallax_report
 
         return parallax_report(self, worst=worst)
