@@ -198,6 +198,10 @@ def test_grid_fit_exclude_leaves_out_an_image_with_too_few_residuals(cli, tmp_pa
     code, _, err = cli(*base, "--folds", "0", "--exclude", "b")
     assert code == 0, err
     assert list(pg.calibration.load_grids(out)) == ["a"]
+    # an id given twice is left out once (a KeyError traceback before)
+    code, _, err = cli(*base, "--folds", "0", "--exclude", "b,b")
+    assert code == 0, err
+    assert list(pg.calibration.load_grids(out)) == ["a"]
     code, _, err = cli(*base, "--exclude", "c")
     assert code == 2 and "--exclude: no image c" in err
     code, _, err = cli(*base, "--exclude", "a,b")

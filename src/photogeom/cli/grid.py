@@ -488,7 +488,7 @@ def fit(
     options = dict(
         border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
     )
-    left_out = split_names(exclude) or []
+    left_out = list(dict.fromkeys(split_names(exclude) or []))  # an id given twice: once
     if not residuals.exists():
         raise FileFormatError(
             f"{residuals}: no such file or folder (give a residuals CSV or an adjusted block)"
@@ -603,7 +603,8 @@ def _fit_block(
         )
     ids = block.image_ids.tolist()
     _refuse_unknown(exclude, [str(k) for k in ids], path)
-    keep = [k for k in ids if str(k) not in set(exclude)]
+    left_out = set(exclude)
+    keep = [k for k in ids if str(k) not in left_out]
     try:
         with stage_spinner(f"fitting grids of {spacing:g} px"):
             return fit_residual_grids(
@@ -679,13 +680,14 @@ def _fit_csv(
 
 def _refuse_unknown(exclude: list[str], ids: list[str], path: Path) -> None:
     """Refuse --exclude ids that name no image of the input (a typo would fit them)."""
-    unknown = [k for k in exclude if k not in set(ids)]
+    known = set(ids)
+    unknown = [k for k in exclude if k not in known]
     if unknown:
         raise InputError(
             f"--exclude: no image {', '.join(unknown[:5])} in {path} (its images: "
             f"{', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})"
         )
-    if ids and set(ids) <= set(exclude):
+    if ids and known <= set(exclude):
         raise InputError(f"--exclude leaves no image of {path} to fit")
 
 
