@@ -32,12 +32,13 @@ from .absolute import (
     _GIMBAL_NOTE,
     AbsoluteOrientationFit,
     _check_solution,
-    _param_units,
+    _Context,
     _params,
     _similarity,
+    _stat_fit,
 )
 from .absolute_direct import PairMoments, large_moments, solve_single
-from .absolute_stats import _cofactor, opk_transposed
+from .absolute_stats import LinearisedStatistics, _cofactor, opk_transposed
 
 #: Methods that work from moments alone.
 MOMENT_METHODS = ("svd", "quaternion", "dual-quaternion", "gauss-helmert")
@@ -170,16 +171,13 @@ def fit_from_moments(
         # the cofactor (1 + s^2) I, which scales v'Pv and the cofactor of the parameters
         m2 = 1.0 + s * s
         vtv, Q, n_obs = vtv / m2, Q * m2, 6 * n
-    s0 = math.sqrt(vtv / r) if r > 0 and math.isfinite(vtv) else math.nan
-    fit = AbsoluteOrientationFit._construct(
-        model=_similarity(s, R, t), method=method, parameter_names=names, parameters=params,
-        covariance=s0**2 * Q, cofactor=Q, sigma0=s0, sigma0_prior=1.0, redundancy=r,
-        n_observations=n_obs, residuals=not_computed((0, 3)), ids=None,
-        residual_labels=("X", "Y", "Z"), residual_unit=unit,
-        parameter_units=_param_units(with_scale, unit), elapsed=time.perf_counter() - t0,
-        notes=tuple(notes), extras={"sum_squared_residuals": ssr},
+    # the Fit of the in-memory statistics, without what needs the points one by one
+    st = LinearisedStatistics(Q, vtv, None, None, None)
+    ctx = _Context(n=n, ids=None, unit=unit, t0=t0)
+    return _stat_fit(
+        _similarity(s, R, t), method, names, params, st, r, n_obs, not_computed((0, 3)),
+        with_scale, ctx, notes, extras={"sum_squared_residuals": ssr},
     )
-    return fit
 
 
 def absolute_orientation_chunks(
