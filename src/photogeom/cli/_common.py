@@ -472,6 +472,19 @@ def options_in_errors(**names: str):
 CRS_FORMS = "EPSG code (EPSG:25832), WKT, PROJ string, or enu:LAT,LON,H (a local ENU frame)"
 
 
+def scheduler_option(text: str) -> tuple:
+    """``(kind, value)`` of a ``--scheduler`` value (the library's parse; nothing connects
+    here), a form photogeom does not take refused by the option's name (the library's
+    message names its keyword ``scheduler``)."""
+    from ..distributed import _parse_scheduler
+
+    try:
+        return _parse_scheduler(text)
+    except InputError as exc:
+        msg = str(exc)
+        raise InputError("--" + msg if msg.startswith("scheduler ") else msg) from None
+
+
 def cartesian_crs_option(text: str | None, option: str, *, dim: int = 3, unit: str | None = None):
     """The :class:`~photogeom.crs.CrsInfo` of a CRS option (None when not given), validated by
     PROJ and refused when geographic (pyproj is imported only here, when the option is used)."""

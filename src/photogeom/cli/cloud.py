@@ -16,7 +16,15 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._common import AngleUnit, JsonOpt, json_text, options_in_errors, say, split_numbers
+from ._common import (
+    AngleUnit,
+    JsonOpt,
+    json_text,
+    options_in_errors,
+    say,
+    scheduler_option,
+    split_numbers,
+)
 
 app = typer.Typer(
     help="LAS/LAZ point clouds chunk by chunk: info, transform, register (laspy; LAZ by lazrs).",
@@ -37,15 +45,8 @@ SchedulerOpt = Annotated[
 def _check_scheduler(scheduler: str | None) -> None:
     """Refuse a ``--scheduler`` value of a form photogeom does not take, naming the option
     (the library's message names its keyword ``scheduler``); nothing connects here."""
-    if scheduler is None:
-        return
-    from ..distributed import _parse_scheduler
-
-    try:
-        _parse_scheduler(scheduler)
-    except InputError as exc:
-        text = str(exc)
-        raise InputError("--" + text if text.startswith("scheduler ") else text) from None
+    if scheduler is not None:
+        scheduler_option(scheduler)
 
 
 class CloudMethod(str, Enum):

@@ -27,6 +27,7 @@ from ._common import (
     json_text,
     options_in_errors,
     say,
+    scheduler_option,
     split_names,
     stage_spinner,
 )
@@ -846,13 +847,11 @@ def _scheduler_mode(scheduler: str, workers: int) -> tuple[bool | str, int]:
     """``(dask, workers)`` of ``correct_folder`` for ``--scheduler``: True and the worker
     count for ``local`` / ``local:N``, the checked address for an address; other forms (and
     ``threads`` / ``sync``, which have no workers to resample on) are refused by name."""
-    from ..distributed import _parse_scheduler
-
     try:
-        kind, arg = _parse_scheduler(scheduler)
-    except InputError as exc:
+        kind, arg = scheduler_option(scheduler)
+    except InputError as exc:  # threads and sync are no choice here
         text = str(exc).replace("'local', 'local:N', 'threads', 'sync' or", "'local', 'local:N' or")
-        raise InputError("--" + text if text.startswith("scheduler ") else text) from None
+        raise InputError(text) from None
     if kind == "address":
         return arg, workers
     if kind == "local":
