@@ -508,10 +508,92 @@ def matrix_from_rodrigues(g) -> np.ndarray:
     return eye + (2.0 / (1.0 + np.sum(g * g, axis=-1)))[..., None, None] * (gx + gx @ gx)
 
 
+#: Below this value of the sine (proper Euler sequences) or cosine (Tait-Bryan) of the
+#: middle angle :func:`euler_from_matrix` declares gimbal lock: the rotation's entries that
+#: separate the outer angles are then at the level of rounding.
+EULER_LOCK_TOLERANCE = 1e-15
+
+_AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+def _elementary(axis: int, angle: np.ndarray) -> np.ndarray:
+    """Active rotation(s) (..., 3, 3) by ``angle`` (rad) about coordinate axis 0, 1 or 2."""
+    c, s = np.cos(angle), np.sin(angle)
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    R = np.zeros((*np.shape(angle), 3, 3))
+    R[..., axis, axis] = 1.0
+    R[..., i, i] = c
+    R[..., j, j] = c
+    R[..., j, i] = s
+    R[..., i, j] = -s
+    return R
+
+
+def _euler_angles(R: np.ndarray, seq: str) -> np.ndarray:
+    """Closed-form Euler angles (..., 3) in rad of rotation matrices (..., 3, 3).
+
+    The matrix is written as a product ``Rp(alpha) Rq(beta) Rr(gamma)`` (extrinsic ``"abc"``:
+    ``Rc Rb Ra``; intrinsic ``"ABC"``: ``RA RB RC``) and its axes permuted onto ``z y x``
+    (Tait-Bryan) or ``x y x`` (proper), angles changing sign for an odd permutation. The middle
+    angle comes from ``atan2`` of entries of order one; the angle scipy sets to zero at gimbal
+    lock (the third of ``seq``) from the textbook ``atan2``; the remaining one from the matrix
+    with the other two rotations taken off, whose entries are of order one, so that the angles
+    give ``R`` back to rounding however close to the lock.
+    """
+    extrinsic = seq.islower()
+    axes = [_AXIS[a] for a in seq.lower()]
+    p, q, r = axes[::-1] if extrinsic else axes
+    proper = p == r
+    k = 3 - p - q if proper else r
+    P = np.zeros((3, 3))
+    if proper:  # p -> x, q -> y, the other -> +-z: a rotation, the angles unchanged
+        P[0, p] = P[1, q] = 1.0
+        P[2, k] = 1.0 if (q - p) % 3 == 1 else -1.0
+        sign = 1.0
+    else:  # p -> z, q -> y, r -> x: an odd permutation changes the angles' signs
+        P[2, p] = P[1, q] = P[0, r] = 1.0
+        sign = 1.0 if (q - p) % 3 == 2 else -1.0
+    S = P @ R @ P.T  # = Rp'(sign alpha) Rq'(sign beta) Rr'(sign gamma) in the standard axes
+    if proper:  # S = Rx(a) Ry(b) Rx(g)
+        sb = np.hypot(S[..., 0, 1], S[..., 0, 2])
+        beta = np.arctan2(sb, S[..., 0, 0])
+        locked = sb < EULER_LOCK_TOLERANCE
+        left_axis, right_axis = 0, 0
+        left = np.arctan2(S[..., 1, 0], -S[..., 2, 0])
+        right = np.arctan2(S[..., 0, 1], S[..., 0, 2])
+    else:  # S = Rz(a) Ry(b) Rx(g)
+        cb = np.hypot(S[..., 2, 1], S[..., 2, 2])
+        beta = np.arctan2(-S[..., 2, 0], cb)
+        locked = cb < EULER_LOCK_TOLERANCE
+        left_axis, right_axis = 2, 0
+        left = np.arctan2(S[..., 1, 0], S[..., 0, 0])
+        right = np.arctan2(S[..., 2, 1], S[..., 2, 2])
+    Rb = _elementary(1, beta)
+    if extrinsic:  # scipy zeroes the third angle of seq: alpha, the left one
+        left = np.where(locked, 0.0, left)
+        X = np.swapaxes(Rb, -1, -2) @ np.swapaxes(_elementary(left_axis, left), -1, -2) @ S
+        right = np.arctan2(X[..., 2, 1], X[..., 1, 1])  # X = Rx(gamma)
+    else:  # the third of seq is gamma, the right one
+        right = np.where(locked, 0.0, right)
+        Y = S @ np.swapaxes(_elementary(right_axis, right), -1, -2) @ np.swapaxes(Rb, -1, -2)
+        i, j = (left_axis + 1) % 3, (left_axis + 2) % 3  # Y = R_left(alpha)
+        left = np.arctan2(Y[..., j, i], Y[..., i, i])
+    out = sign * np.stack([left, beta, right], axis=-1)
+    return out[..., ::-1] if extrinsic else out
+
+
 def euler_from_matrix(R, seq: str, unit: str = "rad") -> np.ndarray:
     """Euler angles of ``R`` for any scipy sequence (``"xyz"`` extrinsic, ``"XYZ"`` intrinsic).
 
-    These are angles of *active* rotations composing ``R``; see scipy's documentation.
+    These are angles of *active* rotations composing ``R``, in scipy's conventions and
+    ranges (the first and third angle in [-pi, pi], the middle one in [-pi/2, pi/2] for
+    Tait-Bryan sequences such as ``"xyz"``, in [0, pi] for proper ones such as ``"zxz"``);
+    at gimbal lock (the middle angle's cosine, or sine, below
+    :data:`EULER_LOCK_TOLERANCE`) the third angle is 0, as scipy sets it. Computed in closed
+    form here (scipy's ``as_euler`` declares the lock within 1e-7 rad of it, so that its
+    angles gave ``R`` back only to 2e-7 there): the angles give ``R`` back to rounding
+    (1e-15) at any distance from the lock, for every sequence. A matrix that is not
+    orthogonal is first replaced by the nearest rotation (as scipy's ``from_matrix`` does).
 
     Parameters
     ----------
@@ -534,7 +616,9 @@ def euler_from_matrix(R, seq: str, unit: str = "rad") -> np.ndarray:
         case, or ``unit`` is unknown.
     """
     _check_sequence(seq)
-    return from_radians(_as_rotation(R).as_euler(seq), unit)
+    R = np.asarray(R, dtype=float)
+    M = _as_rotation(R).as_matrix().reshape(R.shape)
+    return from_radians(_euler_angles(M, seq), unit)
 
 
 def matrix_from_euler(seq: str, angles, unit: str = "rad") -> np.ndarray:

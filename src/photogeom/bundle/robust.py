@@ -16,7 +16,12 @@ weights ``w(e^2)`` of the squared whitened 2-D residual norm of each image point
 * :func:`expected_weighted_squares` - per image point ``2 r_i kappa(r_i s^2)``, ``r_i`` its
   redundancy number;
 * :func:`consistent_variance_factor` - solves ``v'PWv = s^2 D(s^2)`` for ``s^2``, ``D`` the
-  points' expectations plus the redundancy of the prior observations.
+  points' expectations plus the redundancy of the prior observations;
+* :func:`influence_factors`, :func:`covariance_weights` - the covariance of the robust
+  estimate, the M-estimator's sandwich ``H^-1 B H^-1``: per image point the expected slope
+  and spread of its score, and the weight ``slope^2 / spread`` with which it enters the
+  normal matrix whose inverse times ``s^2`` is the reported covariance (the IRLS weights
+  gave standard deviations up to 10 % too large with Cauchy's loss).
 """
 
 from __future__ import annotations
@@ -28,8 +33,10 @@ from scipy import special
 
 __all__ = [
     "consistent_variance_factor",
+    "covariance_weights",
     "expected_weighted_squares",
     "image_point_leverage",
+    "influence_factors",
     "weighted_square_factor",
 ]
 
@@ -68,16 +75,112 @@ def weighted_square_factor(loss: str, scale: float, a):
             tail = scale / np.sqrt(a[pos]) * math.sqrt(2.0) * special.gamma(1.5)
             out[pos] = 0.5 * (inner + tail * special.gammaincc(1.5, 0.5 * t))
         else:  # E[t q / (t + q)] = t (1 - x e^x E1(x)), x = t / 2
-            x = 0.5 * t
-            small = x < 50.0
-            rest = np.empty_like(x)
-            xs = x[small]
-            rest[small] = 1.0 - xs * np.exp(xs) * special.exp1(xs)
-            # 1 - x e^x E1(x) ~ sum_k (-1)^(k+1) k! / x^k, relative error below 1e-13
-            xl = x[~small]
-            rest[~small] = sum((-1) ** (k + 1) * math.factorial(k) / xl**k for k in range(1, 20))
-            out[pos] = 0.5 * t * rest
+            out[pos] = 0.5 * t * _cauchy_rest(0.5 * t)
     return float(out) if out.ndim == 0 else out
+
+
+def _cauchy_rest(x: np.ndarray) -> np.ndarray:
+    """``1 - x e^x E1(x)`` for ``x > 0`` (the asymptotic series from ``x = 50`` on)."""
+    x = np.asarray(x, dtype=float)
+    out = np.empty_like(x)
+    small = x < 50.0
+    xs = x[small]
+    out[small] = 1.0 - xs * np.exp(xs) * special.exp1(xs)
+    # 1 - x e^x E1(x) ~ sum_k (-1)^(k+1) k! / x^k, relative error below 1e-13
+    xl = x[~small]
+    out[~small] = sum((-1) ** (k + 1) * math.factorial(k) / xl**k for k in range(1, 20))
+    return out
+
+
+def influence_factors(loss: str, scale: float, a) -> tuple[np.ndarray, np.ndarray]:
+    """Slope and spread of the robust score ``psi(e) = w(|e|^2) e`` of an image point whose
+    whitened residual ``e`` is ``N(0, a I)`` (closed forms).
+
+    The covariance of an M-estimator is the sandwich ``H^-1 B H^-1`` with ``H`` from the
+    derivative of the score and ``B`` from its variance; per image point, in expectation
+    under normal errors, ``H = slope J'J`` and ``B = spread J'J`` (``J`` whitened, ``q =
+    |e|^2 / a`` chi-square with 2 degrees of freedom):
+
+    * ``slope = E[w + w'(|e|^2) |e|^2]`` (half the trace of ``d psi / d e``);
+    * ``spread = E[w^2 |e|^2] / (2 a)``.
+
+    Huber (``w = min(1, c / |e|)``, ``t = c^2 / a``): ``spread = 1 - exp(-t / 2)``, ``slope =
+    spread + sqrt(pi t / 8) erfc(sqrt(t / 2))``. Cauchy (``w = 1 / (1 + |e|^2 / c^2)``, ``x =
+    c^2 / (2 a)``, ``R = 1 - x e^x E1(x)``): ``slope = x R``, ``spread = x (1 - R) - x^2 R``
+    (its asymptotic series ``sum_m (-1)^(m+1) m m! / x^(m-1)`` from ``x = 50`` on).
+
+    Parameters
+    ----------
+    loss : {"squared", "huber", "cauchy"}
+    scale : float
+        The loss scale ``c`` (whitened units).
+    a : float or array_like
+        Variance of each whitened coordinate of the residual.
+
+    Returns
+    -------
+    (slope, spread) : numpy.ndarray, each of the shape of ``a``
+        Both 1 for the squared loss (and ``a <= 0``), below 1 for a robust one; the
+        point's weight in the covariance is ``slope^2 / spread`` (:func:`covariance_weights`).
+    """
+    if loss not in ("squared", "huber", "cauchy"):
+        raise ValueError(f"unknown loss {loss!r}")
+    a = np.asarray(a, dtype=float)
+    slope = np.ones(a.shape)
+    spread = np.ones(a.shape)
+    pos = a > 0
+    if loss != "squared" and np.any(pos):
+        if loss == "huber":
+            t = scale * scale / a[pos]
+            sp = -np.expm1(-0.5 * t)
+            spread[pos] = sp
+            slope[pos] = sp + np.sqrt(math.pi * t / 8.0) * special.erfc(np.sqrt(0.5 * t))
+        else:
+            x = 0.5 * scale * scale / a[pos]
+            r = _cauchy_rest(x)
+            slope[pos] = x * r
+            sp = np.empty_like(x)
+            small = x < 50.0
+            xs, rs = x[small], r[small]
+            sp[small] = xs * (1.0 - rs) - xs * xs * rs
+            xl = x[~small]
+            sp[~small] = sum(
+                (-1) ** (m + 1) * m * math.factorial(m) / xl ** (m - 1) for m in range(1, 20)
+            )
+            spread[pos] = sp
+    return slope, spread
+
+
+def covariance_weights(leverage, loss: str, scale: float, s2: float = 1.0) -> np.ndarray:
+    """Per image point, the weight ``slope^2 / spread`` (:func:`influence_factors`) with
+    which it enters the normal matrix whose inverse, times ``sigma0^2``, is the covariance
+    of a robust estimate.
+
+    The sandwich ``H^-1 B H^-1`` with ``H = sum slope_i J_i'J_i + N_prior`` and ``B = sum
+    spread_i J_i'J_i + N_prior`` is replaced by ``(sum (slope_i^2 / spread_i) J_i'J_i +
+    N_prior)^-1``: equal to it when the image points or the prior observations dominate,
+    smaller in variance by at most 4 % (Cauchy) and 1.3 % (Huber) in between (a scalar
+    problem, points of redundancy 1), and a single inverse of the block structure the
+    adjustment already factorises. The expectations are taken at the point's residual
+    variance ``r_i s^2`` (``r_i = 1 - h_i``, as in :func:`expected_weighted_squares`).
+
+    Parameters
+    ----------
+    leverage : array_like (k,)
+        Per image point, the leverage ``h_i`` at unit weight.
+    loss, scale
+        As in :func:`influence_factors`.
+    s2 : float
+        The variance factor (sigma0^2).
+
+    Returns
+    -------
+    numpy.ndarray (k,)
+        Positive weights; 1 for the squared loss.
+    """
+    r = 1.0 - np.clip(np.asarray(leverage, dtype=float), 0.0, 1.0)
+    slope, spread = influence_factors(loss, scale, r * s2)
+    return np.where(spread > 0, slope * slope / np.where(spread > 0, spread, 1.0), 1.0)
 
 
 def expected_weighted_squares(leverage, loss: str, scale: float, s2: float = 1.0) -> np.ndarray:
