@@ -52,3 +52,72 @@ def test_absolute_orientation_parameter_units_are_not_shared_between_fits():
         "scale": "1",
     }
     assert a.parameter_units is not b.parameter_units
+
+
+@pytest.fixture(scope="module")
+def small_block():
+    return pg.simulate.uav_block(
+        "FC300S", seed=1, strips=2, images_per_strip=4, tie_points_per_image=40
+    ).block
+
+
+def _tables(b):
+    return dict(
+        cameras=b.cameras,
+        image_ids=np.array(b.image_ids),
+        image_camera=b.camera_ids[b.image_camera],
+        exterior=np.array(b.exterior),
+        point_ids=np.array(b.point_ids),
+        xyz=np.array(b.xyz),
+        obs_image_ids=np.array(b.observations.image_ids),
+        obs_point_ids=np.array(b.observations.point_ids),
+        uv=np.array(b.observations.uv),
+        sigma=np.array(b.observations.sigma),
+        role=np.array(b.role),
+        point_sigma=np.array(b.point_sigma),
+    )
+
+
+def test_block_from_arrays_keeps_no_reference_to_the_callers_ids_and_roles(small_block):
+    # before: the id and role arrays were kept as given, so reusing them changed the block
+    # (point 0 vanished from block.points while obs_point still pointed at its row)
+    t = _tables(small_block)
+    b = pg.bundle.Block.from_arrays(**t)
+    first = b.point_ids[0].item()
+    for key in ("image_ids", "point_ids", "obs_image_ids", "obs_point_ids"):
+        t[key][...] = t[key][1]
+    t["role"][...] = "check"
+    assert b.point_ids[0] == first and first in b.points
+    np.testing.assert_array_equal(b.image_ids, small_block.image_ids)
+    np.testing.assert_array_equal(b.observations.point_ids, small_block.observations.point_ids)
+    np.testing.assert_array_equal(b.role, small_block.role)
+
+
+def test_block_arrays_are_read_only_so_derived_blocks_cannot_change_each_other(small_block):
+    # before: replace / with_observations / bundle_adjust's block shared writable arrays with
+    # the block they came from: res.block.observations.uv[0] = ... changed sim.block too
+    b = small_block
+    uv0 = b.observations.uv.copy()
+    derived = [
+        b.replace(xyz=b.xyz + 1.0),
+        b.with_observations(sigma=0.7),
+        b.select_observations(np.ones(b.n_observations, dtype=bool)),
+        b.without_datum_observations(),
+        pg.bundle_adjust(b, snooping=False).block,
+    ]
+    for d in (b, *derived):
+        for name in ("image_ids", "point_ids", "exterior", "xyz", "role", "point_sigma", "gnss",
+                     "obs_image", "obs_point", "calibration_offset"):
+            assert not getattr(d, name).flags.writeable, name
+        for name in ("image_ids", "point_ids", "uv", "sigma"):
+            assert not getattr(d.observations, name).flags.writeable, name
+        with pytest.raises(ValueError, match="read-only"):
+            d.observations.uv[0] = 0.0
+    np.testing.assert_array_equal(b.observations.uv, uv0)
+
+
+def test_block_replace_leaves_the_callers_array_writable(small_block):
+    xyz = small_block.xyz + 1.0
+    b = small_block.replace(xyz=xyz)
+    assert xyz.flags.writeable and not b.xyz.flags.writeable
+    np.testing.assert_array_equal(b.xyz, xyz)

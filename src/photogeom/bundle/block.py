@@ -39,7 +39,7 @@ EO_NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
 
 
 def _ids(values, what: str) -> np.ndarray:
-    a = np.asarray(values)
+    a = np.array(values)  # a copy: the block must not share the caller's array
     if a.ndim != 1:
         raise InputError(f"{what}: ids must be a flat sequence, got shape {a.shape}")
     if a.dtype.kind not in "iuUO":
@@ -79,6 +79,20 @@ def _lookup(keys: np.ndarray, ids: np.ndarray, what: str, table: str) -> np.ndar
             f"{what}: unknown {table} id(s) {', '.join(map(str, bad))} (not in block.{table})"
         )
     return order[pos].astype(np.int64)
+
+
+def _freeze_arrays(obj) -> None:
+    """Replace every writable array field of the frozen dataclass ``obj`` by a read-only
+    view of it, so that blocks derived from one another (``replace``, ``with_observations``,
+    the adjusted block of :func:`~photogeom.bundle_adjust`) can share their arrays without
+    a write through one of them changing the others. The given arrays keep their flags."""
+    d = obj.__dict__
+    for f in fields(obj):
+        v = d[f.name]
+        if isinstance(v, np.ndarray) and v.flags.writeable:
+            v = v.view()
+            v.flags.writeable = False
+            d[f.name] = v
 
 
 @dataclass(frozen=True)
@@ -148,6 +162,9 @@ class Observations:
     uv: np.ndarray
     sigma: np.ndarray
 
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
+
     def __len__(self) -> int:
         return int(self.uv.shape[0])
 
@@ -156,7 +173,9 @@ class Observations:
 class Block:
     """An image block (see the module docstring). Build with :meth:`from_arrays`.
 
-    Array rows are in the order of the ids: m images, p points, n image observations.
+    Array rows are in the order of the ids: m images, p points, n image observations. The
+    arrays are read-only views (blocks derived from one another share them); copy one to
+    change it and pass the copy to :meth:`replace`.
 
     Attributes
     ----------
@@ -229,6 +248,9 @@ class Block:
     image_variant: Mapping[object, tuple[str, ...]]
     crs: str | None = None
     surveyed: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
 
     # --- construction --------------------------------------------------------------------
 
@@ -332,7 +354,7 @@ class Block:
         if isinstance(role, str):
             roles = np.full(p, role, dtype="<U7")
         else:
-            roles = np.asarray(role, dtype="<U7")
+            roles = np.array(role, dtype="<U7")  # a copy, as for the ids
             if roles.shape != (p,):
                 raise InputError(f"role has shape {roles.shape}, expected ({p},)")
         bad = ~np.isin(roles, ROLES)
