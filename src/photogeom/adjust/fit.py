@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..records import build
+from ..records import build, compact_repr
 from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
@@ -50,7 +50,7 @@ def _jsonable(value):
     return value
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Fit:
     """Result of an estimation: model, parameters, statistics, residuals, diagnostics.
 
@@ -136,6 +136,10 @@ class Fit:
 
     #: What ``crs`` is the system of, in reports ("target CRS"; "ground CRS" of a resection).
     crs_role = "target"
+
+    def __repr__(self) -> str:
+        # bounded (records.compact_repr): the dataclass repr printed every id and extra
+        return compact_repr(self)
 
     # --- construction ----------------------------------------------------------------------
 

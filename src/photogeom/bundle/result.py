@@ -16,6 +16,7 @@ from ..adjust.schur import (
 )
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
+from ..records import compact_repr
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
@@ -25,7 +26,7 @@ from .robust import consistent_variance_factor, image_point_leverage
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class BundleFit:
     """Adjusted block and the statistics of a bundle adjustment.
 
@@ -127,6 +128,11 @@ class BundleFit:
     _image_cov: np.ndarray | None = None
     _point_cov: np.ndarray | None = None
     _cal_cov: Mapping | None = None
+
+    def __repr__(self) -> str:
+        # bounded (records.compact_repr): the dataclass repr printed every flagged
+        # observation and the covariance arrays of up to 1000 elements in full
+        return compact_repr(self)
 
     # --- queries -----------------------------------------------------------------------------
 

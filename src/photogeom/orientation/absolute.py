@@ -103,7 +103,7 @@ def normalize_method(method: str) -> str:
     return _ALIASES[key]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class AbsoluteOrientationFit(Fit):
     """Result of :func:`absolute_orientation` (a :class:`~photogeom.adjust.Fit`).
 

@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class ResectionFit(Fit):
     """Result of :func:`space_resection`; ``model`` is the oriented :class:`FrameCamera`.
 
