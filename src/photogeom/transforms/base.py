@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import fields
 from typing import ClassVar
 
 import numpy as np
@@ -37,6 +38,35 @@ class Transform(ABC):
 
     def __call__(self, points) -> np.ndarray:
         return self.apply(points)
+
+    def _key(self) -> tuple:
+        """The compared fields of the dataclass, arrays as (shape, bytes) with -0.0 made 0.0
+        (equal arrays give equal keys)."""
+        out = []
+        for f in fields(self):  # type: ignore[arg-type]
+            if not f.compare:
+                continue
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray):
+                v = (v.shape, (v + 0.0).tobytes() if v.dtype.kind == "f" else v.tobytes())
+            elif isinstance(v, Transform):
+                v = (type(v), v._key())
+            out.append(v)
+        return tuple(out)
+
+    def __eq__(self, other: object) -> bool:
+        """Same model class and the same values (arrays compared element by element).
+
+        The generated dataclass ``==`` compared arrays with ``==`` and raised "the truth
+        value of an array ... is ambiguous" for every model holding arrays.
+        """
+        if type(other) is not type(self):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        """Consistent with ``==`` (the model's arrays are read-only)."""
+        return hash((type(self), self._key()))
 
     @abstractmethod
     def apply(self, points) -> np.ndarray:
