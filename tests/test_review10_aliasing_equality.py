@@ -70,3 +70,22 @@ def test_negative_zero_equals_zero_and_hashes_alike():
     a = T.Rigid3D(np.eye(3), [0.0, 0.0, 0.0])
     b = T.Rigid3D(np.eye(3), [-0.0, 0.0, -0.0])
     assert a == b and hash(a) == hash(b)
+
+
+def test_pixel_system_keeps_its_own_read_only_pairs_and_compares_by_value():
+    from photogeom.imagecoords import PixelSystem
+
+    # before: the caller's principal-point array was kept, so changing it moved the
+    # principal point of the pixel system (to_image of (100, 200) gave (0.4, 0) mm)
+    pp = np.array([100.0, 200.0])
+    size = np.array([0.004, 0.004])
+    ps = PixelSystem(size, pp, focal_length=35.0)
+    pp[0] = 0.0
+    size[1] = 1.0
+    np.testing.assert_array_equal(ps.principal_point, [100.0, 200.0])
+    np.testing.assert_array_equal(ps.pixel_size, [0.004, 0.004])
+    assert not ps.principal_point.flags.writeable
+    twin = PixelSystem(0.004, (100, 200), focal_length=35.0)
+    assert ps == twin and hash(ps) == hash(twin) and ps == copy.deepcopy(ps)
+    assert ps != PixelSystem(0.004, (100, 201), focal_length=35.0)
+

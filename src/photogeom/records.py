@@ -131,3 +131,48 @@ def compact_repr(obj) -> str:
         if f.repr and not f.name.startswith("_")
     ]
     return f"{type(obj).__name__}({', '.join(parts)})"
+
+
+def value_key(obj) -> tuple:
+    """The compared fields of dataclass ``obj`` as a tuple that ``==`` and ``hash`` can use:
+    arrays as (shape, dtype, bytes) with -0.0 made 0.0 (element-wise equal arrays give equal
+    keys), nested dataclasses as (class, their key).
+
+    The generated dataclass ``==`` compares arrays with ``==`` and raises "the truth value of
+    an array ... is ambiguous"; value records compare with this key instead.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+
+    Returns
+    -------
+    tuple
+    """
+    out = []
+    for f in fields(obj):
+        if not f.compare:
+            continue
+        v = getattr(obj, f.name)
+        if isinstance(v, np.ndarray):
+            v = (v.shape, v.dtype.str, (v + 0.0).tobytes() if v.dtype.kind == "f" else v.tobytes())
+        elif hasattr(type(v), "__dataclass_fields__") and not isinstance(v, type):
+            v = (type(v), value_key(v))
+        out.append(v)
+    return tuple(out)
+
+
+def value_eq(self, other) -> bool:
+    """``==`` of value records: the same class and equal :func:`value_key`.
+
+    Parameters
+    ----------
+    self, other : object
+
+    Returns
+    -------
+    bool or NotImplemented
+    """
+    if type(other) is not type(self):
+        return NotImplemented
+    return value_key(self) == value_key(other)

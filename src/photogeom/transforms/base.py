@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import fields
 from typing import ClassVar
 
 import numpy as np
 
 from ..errors import InputError
+from ..records import value_key
 from ..validation import as_float64, as_points
 
 _REGISTRY: dict[str, type[Transform]] = {}
@@ -40,19 +40,8 @@ class Transform(ABC):
         return self.apply(points)
 
     def _key(self) -> tuple:
-        """The compared fields of the dataclass, arrays as (shape, bytes) with -0.0 made 0.0
-        (equal arrays give equal keys)."""
-        out = []
-        for f in fields(self):  # type: ignore[arg-type]
-            if not f.compare:
-                continue
-            v = getattr(self, f.name)
-            if isinstance(v, np.ndarray):
-                v = (v.shape, (v + 0.0).tobytes() if v.dtype.kind == "f" else v.tobytes())
-            elif isinstance(v, Transform):
-                v = (type(v), v._key())
-            out.append(v)
-        return tuple(out)
+        """The compared fields (:func:`photogeom.records.value_key`)."""
+        return value_key(self)
 
     def __eq__(self, other: object) -> bool:
         """Same model class and the same values (arrays compared element by element).
