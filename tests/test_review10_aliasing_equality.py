@@ -89,3 +89,33 @@ def test_pixel_system_keeps_its_own_read_only_pairs_and_compares_by_value():
     assert ps == twin and hash(ps) == hash(twin) and ps == copy.deepcopy(ps)
     assert ps != PixelSystem(0.004, (100, 201), focal_length=35.0)
 
+
+@pytest.fixture(scope="module")
+def block():
+    return pg.simulate.uav_block(
+        "FC300S", seed=1, strips=2, images_per_strip=4, tie_points_per_image=40
+    ).block
+
+
+def test_block_image_and_point_records_compare_by_value(block):
+    # before: == raised ValueError (array fields) for two views of the same image or point
+    i, j = block.image_ids[:2].tolist()
+    p, q = block.point_ids[:2].tolist()
+    assert block.images[i] == block.images[i] and block.images[i] != block.images[j]
+    assert block.points[p] == block.points[p] and block.points[p] != block.points[q]
+    moved = block.replace(xyz=block.xyz + 1.0)
+    assert moved.points[p] != block.points[p]
+
+
+def test_result_records_compare_by_identity_without_error():
+    io = pg.InteriorOrientation(100.0)
+    e1 = pg.ExteriorOrientation.from_degrees(0, 0, 800, 1, -2, 3)
+    e2 = pg.ExteriorOrientation.from_degrees(300, 10, 805, -2, 1, 5)
+    g = np.array([[0.0, 0.0, 10.0], [100.0, 50.0, 20.0], [200.0, -30.0, 0.0]])
+    xy = np.stack([pg.project(g, io, e1), pg.project(g, io, e2)])
+    r = pg.space_intersection(xy, [(io, e1), (io, e2)])
+    x, X = np.random.default_rng(0).uniform(-5, 5, (2, 2, 10, 3))
+    b = pg.absolute_orientation_batch(x, X * 1.1 + 1.0)
+    for res in (r, b):
+        twin = copy.deepcopy(res)
+        assert res == res and res != twin and len({res, twin}) == 2

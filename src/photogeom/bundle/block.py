@@ -26,6 +26,7 @@ import numpy as np
 from ..camera.exterior import ExteriorOrientation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
+from ..records import value_eq
 from ..rotation import opk_matrix
 
 #: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
@@ -95,7 +96,7 @@ def _freeze_arrays(obj) -> None:
             d[f.name] = v
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Image:
     """One image of a block (a view; the block stores arrays)."""
 
@@ -108,8 +109,11 @@ class Image:
     imu_sigma: np.ndarray | None = None
     calibration_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
+    __eq__ = value_eq  # by value, arrays element by element (not hashable: arrays writable)
+    __hash__ = None  # type: ignore[assignment]
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, eq=False)
 class Point:
     """One object point of a block (a view)."""
 
@@ -117,6 +121,9 @@ class Point:
     xyz: np.ndarray
     role: str
     sigma: np.ndarray | None = None
+
+    __eq__ = value_eq  # by value, arrays element by element (not hashable: arrays writable)
+    __hash__ = None  # type: ignore[assignment]
 
 
 class _View(Mapping):

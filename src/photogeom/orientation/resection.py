@@ -856,7 +856,7 @@ def _io_value(io: InteriorOrientation, name: str) -> float:
 # --- many resections at once -------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BatchResection:
     """Results of :func:`space_resection_batch` for B problems.
 
