@@ -54,7 +54,9 @@ GDAL_COEFF_KEYS = {
 
 
 def _coeff_vector(values, name: str) -> np.ndarray:
-    arr = np.asarray(values, dtype=np.float64).reshape(-1)
+    # a read-only copy: a view of the caller's array would change with it while the stacked
+    # coefficients the model computes with (RPC._cache["C"]) would not
+    arr = np.array(values, dtype=np.float64).reshape(-1)
     if arr.size != poly.N_TERMS:
         raise InputError(
             f"RPC {name}: {arr.size} coefficient(s) given, a cubic RPC polynomial has exactly "
@@ -204,7 +206,7 @@ class RPC:
         object.__setattr__(self, "err_bias", _check_error(self.err_bias, "ERR_BIAS"))
         object.__setattr__(self, "err_rand", _check_error(self.err_rand, "ERR_RAND"))
         if self.correction is not None:
-            D = np.asarray(self.correction, dtype=np.float64)
+            D = np.array(self.correction, dtype=np.float64)  # a copy: made read-only below
             if D.shape != (2, 3) or not np.all(np.isfinite(D)):
                 raise InputError("RPC correction: expected a finite (2, 3) array")
             if abs(np.linalg.det(np.eye(2) + D[:, :2])) < 1e-12:

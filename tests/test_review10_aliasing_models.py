@@ -1,0 +1,43 @@
+"""Camera models keep arrays of their own: the caller's arrays are neither kept nor changed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogeom.rpc.model import RPC
+
+
+def _rpc_tables():
+    line_num = np.zeros(20)
+    line_num[2] = 1.0
+    den = np.zeros(20)
+    den[0] = 1.0
+    samp_num = np.zeros(20)
+    samp_num[1] = 1.0
+    return line_num, den, samp_num
+
+
+def test_rpc_copies_its_coefficients_and_correction():
+    # before: line_num etc. were views of the caller's arrays while the stacked copy the
+    # model computes with was not: after line_num[2] = 2.0 the RPC showed line_num[2] == 2
+    # but still projected with 1; and the caller's correction array was made read-only
+    line_num, den, samp_num = _rpc_tables()
+    correction = np.zeros((2, 3))
+    rpc = RPC(1000, 1000, 45, 7, 100, 1000, 1000, 0.1, 0.1, 500,
+              line_num, den, samp_num, den, correction=correction)
+    col, row = rpc.project(7.01, 45.01, 100.0)
+    assert correction.flags.writeable and line_num.flags.writeable
+    line_num[2] = 2.0
+    correction[0, 2] = 5.0
+    assert rpc.line_num[2] == 1.0 and rpc.correction[0, 2] == 0.0
+    assert rpc.project(7.01, 45.01, 100.0) == (col, row)
+    assert not rpc.line_num.flags.writeable and not rpc.correction.flags.writeable
+
+
+def test_rpc_direct_model_copies_its_coefficients():
+    from photogeom.rpc.model import DirectModel
+
+    line_num, den, samp_num = _rpc_tables()
+    d = DirectModel(line_num, den, samp_num, den)
+    line_num[2] = 7.0
+    assert d.lon_num[2] == 1.0
