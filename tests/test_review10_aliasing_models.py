@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+import photogeom as pg
 from photogeom.rpc.model import RPC
 
 
@@ -41,3 +42,38 @@ def test_rpc_direct_model_copies_its_coefficients():
     d = DirectModel(line_num, den, samp_num, den)
     line_num[2] = 7.0
     assert d.lon_num[2] == 1.0
+
+
+def _camera_data(n=12, seed=0):
+    rng = np.random.default_rng(seed)
+    g = np.column_stack([rng.uniform(-300, 300, (n, 2)), rng.uniform(0, 80, n)])
+    io = pg.InteriorOrientation(100.0)
+    eo = pg.ExteriorOrientation.from_degrees(10, 20, 800, 2, -3, 40)
+    return g, pg.project(g, io, eo)
+
+
+def test_dlt_keeps_parameters_of_its_own():
+    # before: DLT(L) kept the caller's array: L[0] *= 2 afterwards changed the projection
+    g, xy = _camera_data()
+    L = np.array(pg.estimate_dlt(g, xy).model.L)
+    dlt = pg.DLT(L)
+    before = dlt.project(g)
+    L[0] *= 2.0
+    np.testing.assert_array_equal(dlt.project(g), before)
+    assert L.flags.writeable and not dlt.L.flags.writeable
+    P = dlt.matrix
+    from_matrix = pg.DLT.from_matrix(P)
+    P[0, 0] = 0.0
+    np.testing.assert_array_equal(from_matrix.project(g), before)
+
+
+def test_affine_camera_keeps_coefficients_of_its_own():
+    g, xy = _camera_data()
+    cam = pg.estimate_affine_camera(g, xy).model
+    a, b = np.array(cam.a), np.array(cam.b)
+    copy_cam = pg.AffineCamera(a, b)
+    before = copy_cam.project(g)
+    a[0] += 1.0
+    b[3] += 5.0
+    np.testing.assert_array_equal(copy_cam.project(g), before)
+    assert not copy_cam.a.flags.writeable and not copy_cam.b.flags.writeable

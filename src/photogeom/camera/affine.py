@@ -41,9 +41,10 @@ class AffineCamera:
 
     def __post_init__(self) -> None:
         for name in ("a", "b"):
-            v = np.asarray(getattr(self, name), dtype=float).reshape(-1)
+            v = np.array(getattr(self, name), dtype=float).reshape(-1)  # the camera's own
             if v.size != 4 or not np.all(np.isfinite(v)):
                 raise InputError(f"affine camera: {name} must be 4 finite numbers")
+            v.flags.writeable = False
             object.__setattr__(self, name, v)
 
     @property
