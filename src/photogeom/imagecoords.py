@@ -37,7 +37,7 @@ from typing import Literal
 import numpy as np
 
 from .errors import InputError
-from .records import value_eq, value_key
+from .records import setstate_read_only, value_eq, value_key
 from .validation import as_float64, as_points
 
 PixelOrigin = Literal["center", "corner"]
@@ -180,6 +180,9 @@ class PixelSystem:
 
     def __hash__(self) -> int:
         return hash((type(self), value_key(self)))
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the pairs stay read-only
 
     def __post_init__(self) -> None:
         _check_origin(self.origin)

@@ -176,3 +176,24 @@ def value_eq(self, other) -> bool:
     if type(other) is not type(self):
         return NotImplemented
     return value_key(self) == value_key(other)
+
+
+def setstate_read_only(obj, state: dict) -> None:
+    """``__setstate__`` of immutable models whose arrays are read-only: restore the instance
+    dictionary (pickle, :func:`copy.deepcopy`), then make its arrays read-only again.
+
+    Pickle and deepcopy rebuild arrays writable; without this a copied model could be changed
+    through its arrays (and an RPC's coefficients then disagreed with the stacked copy it
+    computes with, a Similarity3D's hash changed).
+
+    Parameters
+    ----------
+    obj : object
+        The instance being restored.
+    state : dict
+        Its instance dictionary as pickled.
+    """
+    obj.__dict__.update(state)
+    for value in obj.__dict__.values():
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False

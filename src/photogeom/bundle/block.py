@@ -26,7 +26,7 @@ import numpy as np
 from ..camera.exterior import ExteriorOrientation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
-from ..records import value_eq
+from ..records import setstate_read_only, value_eq
 from ..rotation import opk_matrix
 
 #: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
@@ -172,6 +172,9 @@ class Observations:
     def __post_init__(self) -> None:
         _freeze_arrays(self)
 
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
+
     def __len__(self) -> int:
         return int(self.uv.shape[0])
 
@@ -258,6 +261,9 @@ class Block:
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
 
     # --- construction --------------------------------------------------------------------
 

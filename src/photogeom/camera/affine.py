@@ -17,6 +17,7 @@ import numpy as np
 
 from ..adjust import Fit, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError
+from ..records import setstate_read_only
 from ..validation import as_float64, as_points, check_count, check_same_length
 from ._checks import with_check_points
 
@@ -46,6 +47,9 @@ class AffineCamera:
                 raise InputError(f"affine camera: {name} must be 4 finite numbers")
             v.flags.writeable = False
             object.__setattr__(self, name, v)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: a, b stay read-only
 
     @property
     def matrix(self) -> np.ndarray:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError, ReflectionError
+from ..records import setstate_read_only
 from ..validation import as_float64, as_points
 from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
@@ -71,6 +72,9 @@ class DLT:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "L", _as_L(self.L))
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: L stays read-only
 
     @classmethod
     def from_matrix(cls, P, unit: str = "mm") -> DLT:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, PrecisionWarning
+from ..records import setstate_read_only
 from ..validation import _caller_level, as_float64
 from . import polynomial as poly
 from .domain import DOMAIN_LIMIT, check_domain, longitude_difference, wrap_longitude
@@ -118,6 +119,9 @@ class DirectModel:
             object.__setattr__(self, name, _coeff_vector(getattr(self, name), name))
         for name in ("lon_den", "lat_den"):
             _check_denominator(getattr(self, name), f"{name.upper()}_COEFF")
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: arrays stay read-only
 
     @property
     def coefficients(self) -> np.ndarray:
@@ -227,6 +231,14 @@ class RPC:
         C = np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den])
         C.setflags(write=False)
         self._cache["C"] = C
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: make them read-only again, the stacked
+        # coefficients of the cache too (a changed coefficient would leave them stale)
+        setstate_read_only(self, state)
+        for value in self._cache.values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
 
     # --- construction and files --------------------------------------------------------------
 

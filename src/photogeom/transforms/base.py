@@ -8,7 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InputError
-from ..records import value_key
+from ..records import setstate_read_only, value_key
 from ..validation import as_float64, as_points
 
 _REGISTRY: dict[str, type[Transform]] = {}
@@ -56,6 +56,10 @@ class Transform(ABC):
     def __hash__(self) -> int:
         """Consistent with ``==`` (the model's arrays are read-only)."""
         return hash((type(self), self._key()))
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy: the arrays stay read-only (records.setstate_read_only)
+        setstate_read_only(self, state)
 
     @abstractmethod
     def apply(self, points) -> np.ndarray:
