@@ -121,3 +121,14 @@ def test_block_replace_leaves_the_callers_array_writable(small_block):
     b = small_block.replace(xyz=xyz)
     assert xyz.flags.writeable and not b.xyz.flags.writeable
     np.testing.assert_array_equal(b.xyz, xyz)
+
+
+def test_block_replace_keeps_no_reference_to_the_callers_array(small_block):
+    # before: replace(xyz=arr) kept a view of arr, so arr[0] = ... moved point 0 of the block
+    xyz = small_block.xyz + 1.0
+    exterior = small_block.exterior.copy()
+    b = small_block.replace(xyz=xyz, exterior=exterior)
+    xyz[0] = 99.0
+    exterior[0, :3] = 0.0
+    np.testing.assert_array_equal(b.xyz[0], small_block.xyz[0] + 1.0)
+    np.testing.assert_array_equal(b.exterior, small_block.exterior)

@@ -576,7 +576,9 @@ class Block:
 
         On a block without :attr:`surveyed` a new ``xyz`` is a new survey of its control and
         check points; on an adjusted block it changes the estimates and the survey stays.
-        Only ``surveyed`` is checked; other values are taken as given.
+        Only ``surveyed`` is checked; other values are taken as given, except that a writable
+        array is copied (the block's arrays are read-only and its own: changing the array
+        given afterwards does not change the block).
 
         Parameters
         ----------
@@ -602,6 +604,9 @@ class Block:
             if s.shape != (p, 3):
                 raise InputError(f"surveyed must have shape ({p}, 3), got {s.shape}")
             changes["surveyed"] = s
+        for key, value in changes.items():
+            if isinstance(value, np.ndarray) and value.flags.writeable:
+                changes[key] = value.copy()
         return replace(self, **changes)
 
     @property
