@@ -132,3 +132,16 @@ def test_block_replace_keeps_no_reference_to_the_callers_array(small_block):
     exterior[0, :3] = 0.0
     np.testing.assert_array_equal(b.xyz[0], small_block.xyz[0] + 1.0)
     np.testing.assert_array_equal(b.exterior, small_block.exterior)
+
+
+def test_fit_with_checks_keeps_a_copy_of_the_check_residuals():
+    # before: the Fit kept the caller's array, so changing it afterwards changed
+    # fit.check_residuals and fit.check_rmse
+    x, X = _pairs()
+    fit = pg.absolute_orientation(x, X)
+    v = np.full((2, 3), 0.01)
+    checked = fit.with_checks(v, ["a", "b"])
+    rmse = checked.check_rmse
+    v[:] = 100.0
+    np.testing.assert_array_equal(checked.check_residuals, np.full((2, 3), 0.01))
+    assert checked.check_rmse == rmse

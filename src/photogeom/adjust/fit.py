@@ -262,7 +262,8 @@ class Fit:
         Parameters
         ----------
         check_residuals : array_like, shape (m, d)
-            Residuals of the check points (computed minus observed), in ``residual_unit``.
+            Residuals of the check points (computed minus observed), in ``residual_unit``;
+            copied.
         check_ids : sequence, optional
             Their point ids (stored as a tuple); default None.
 
@@ -273,7 +274,7 @@ class Fit:
         """
         return replace(
             self,
-            check_residuals=np.asarray(check_residuals, dtype=float),
+            check_residuals=np.array(check_residuals, dtype=float),  # the Fit's own copy
             check_ids=None if check_ids is None else tuple(check_ids),
         )
 
