@@ -145,3 +145,16 @@ def test_fit_with_checks_keeps_a_copy_of_the_check_residuals():
     v[:] = 100.0
     np.testing.assert_array_equal(checked.check_residuals, np.full((2, 3), 0.01))
     assert checked.check_rmse == rmse
+
+
+def test_bundle_calibration_covariance_cannot_be_changed_for_later_calls(small_block):
+    # before: the stored array was returned writable; C[...] = 0 changed what every later
+    # call (and a report built from the fit) returned
+    fit = pg.bundle_adjust(small_block, snooping=False)
+    group = small_block.camera_ids[0].item()
+    names, C = fit.calibration_covariance(group)
+    before = C.copy()
+    with pytest.raises(ValueError, match="read-only"):
+        C[...] = 0.0
+    np.testing.assert_array_equal(fit.calibration_covariance(group)[1], before)
+    assert names and before.shape == (len(names), len(names))

@@ -203,7 +203,8 @@ class BundleFit:
             The free calibration parameters of the group (empty when none is free).
         covariance : numpy.ndarray, shape (k, k)
             Their a-posteriori covariance (px^2 for f, cx, cy, b1, b2; distortion terms
-            dimensionless), in the order of ``names``; the stored array, not a copy.
+            dimensionless), in the order of ``names``; the stored array, not a copy, so
+            read-only.
 
         Raises
         ------
@@ -919,6 +920,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         d = np.sqrt(np.clip(np.diag(C), 1e-300, None))
         R = C / np.outer(d, d)
         cal_corr[gid] = (names, R)
+        C.flags.writeable = False  # returned as stored by calibration_covariance
         cal_cov[gid] = (names, C)
         for a in range(len(names)):
             for c in range(a + 1, len(names)):
