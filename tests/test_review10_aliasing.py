@@ -158,3 +158,18 @@ def test_bundle_calibration_covariance_cannot_be_changed_for_later_calls(small_b
         C[...] = 0.0
     np.testing.assert_array_equal(fit.calibration_covariance(group)[1], before)
     assert names and before.shape == (len(names), len(names))
+
+
+def test_block_free_and_image_variant_are_read_only_mappings(small_block):
+    # before: plain dicts shared by derived blocks: b2.free[g] = () changed the free
+    # parameters of the block b2 was made from
+    b2 = small_block.replace(xyz=small_block.xyz + 1.0)
+    group = small_block.camera_ids[0].item()
+    free = small_block.free[group]
+    with pytest.raises(TypeError):
+        b2.free[group] = ()
+    with pytest.raises(TypeError):
+        b2.image_variant[group] = ("f",)
+    assert small_block.free[group] == free and b2.free == {group: free}
+    for twin in (pickle.loads(pickle.dumps(b2)), copy.deepcopy(b2)):
+        assert twin.free == b2.free and twin.image_variant == b2.image_variant

@@ -197,3 +197,33 @@ def setstate_read_only(obj, state: dict) -> None:
     for value in obj.__dict__.values():
         if isinstance(value, np.ndarray):
             value.flags.writeable = False
+
+
+class FrozenMapping(Mapping):
+    """A read-only dict that pickles and deep-copies (``types.MappingProxyType`` does not).
+
+    For the mappings held by immutable records (e.g. ``Block.free``): shared between the
+    records derived from one another, so none may change them.
+
+    Parameters
+    ----------
+    data : mapping or iterable of (key, value), optional
+        The entries (copied).
+    """
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data=()) -> None:
+        self._data = dict(data)
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return repr(self._data)

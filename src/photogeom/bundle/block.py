@@ -26,7 +26,7 @@ import numpy as np
 from ..camera.exterior import ExteriorOrientation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
-from ..records import setstate_read_only, value_eq
+from ..records import FrozenMapping, setstate_read_only, value_eq
 from ..rotation import opk_matrix
 
 #: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
@@ -223,9 +223,10 @@ class Block:
     obs_image, obs_point : numpy.ndarray of int, shape (n,)
         Rows of the image and point of each observation.
     free : mapping group id -> tuple of str
-        The calibration parameters the adjustment estimates for each group.
+        The calibration parameters the adjustment estimates for each group (read-only;
+        ``replace(free=...)`` for others).
     image_variant : mapping group id -> tuple of str
-        The parameters (of f, cx, cy) estimated per image for each group.
+        The parameters (of f, cx, cy) estimated per image for each group (read-only).
     crs : str or None
         CRS of the object coordinates, recorded and never used to compute; default None.
     surveyed : numpy.ndarray, shape (p, 3), or None
@@ -261,6 +262,10 @@ class Block:
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)
+        d = self.__dict__
+        for name in ("free", "image_variant"):  # shared by derived blocks: read-only
+            if not isinstance(d[name], FrozenMapping):
+                d[name] = FrozenMapping(d[name])
 
     def __setstate__(self, state: dict) -> None:
         setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
