@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import photogeom as pg
 from photogeom.rpc.model import RPC
@@ -77,3 +78,22 @@ def test_affine_camera_keeps_coefficients_of_its_own():
     b[3] += 5.0
     np.testing.assert_array_equal(copy_cam.project(g), before)
     assert not copy_cam.a.flags.writeable and not copy_cam.b.flags.writeable
+
+
+def test_space_resection_batch_takes_a_list_of_start_orientations():
+    # before: a list of ExteriorOrientation ended in "TypeError: float() argument must be ...
+    # not 'ExteriorOrientation'", a start of the wrong shape in a numpy broadcast ValueError
+    g, xy = _camera_data()
+    io = pg.InteriorOrientation(100.0)
+    eo = pg.ExteriorOrientation.from_degrees(10, 20, 800, 2, -3, 40)
+    images = np.stack([xy] * 3)
+    one = pg.space_resection_batch(g, images, io, eo)
+    listed = pg.space_resection_batch(g, images, io, [eo] * 3)
+    np.testing.assert_array_equal(listed.parameters, one.parameters)
+    for bad, what in (
+        (np.zeros((3, 5)), r"got shape \(3, 5\)"),
+        (np.zeros((2, 6)), r"got shape \(2, 6\)"),
+        ([eo, 1.0, eo], "mixing"),
+    ):
+        with pytest.raises(pg.InputError, match=r"initial: expected .*" + what):
+            pg.space_resection_batch(g, images, io, bad)
