@@ -627,7 +627,7 @@ def _check_sums(block, transform) -> tuple:
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CloudRegistration:
     """Result of :func:`register_clouds`.
 

@@ -37,6 +37,7 @@ from typing import Literal
 import numpy as np
 
 from .errors import InputError
+from .records import setstate_read_only, value_eq, value_key
 from .validation import as_float64, as_points
 
 PixelOrigin = Literal["center", "corner"]
@@ -66,11 +67,13 @@ def _check_origin(origin: str) -> None:
 
 
 def _pair(value, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float).reshape(-1)
+    """``value`` as a read-only float pair of its own (never a view of the caller's array)."""
+    arr = np.array(value, dtype=float).reshape(-1)
     if arr.size == 1:
         arr = np.repeat(arr, 2)
     if arr.shape != (2,) or not np.all(np.isfinite(arr)):
         raise InputError(f"{name}: expected one finite number or a pair, got {value!r}")
+    arr.flags.writeable = False
     return arr
 
 
@@ -149,7 +152,7 @@ def image_center(image_size, origin: PixelOrigin = "center") -> np.ndarray:
     return size / 2.0 - (0.5 if origin == "center" else 0.0)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PixelSystem:
     """A digital image's pixel system and its link to image (photo-centre) coordinates in mm.
 
@@ -170,6 +173,16 @@ class PixelSystem:
     principal_point: np.ndarray
     focal_length: float | None = None
     origin: PixelOrigin = "center"
+
+    # value equality (arrays element by element) and a hash agreeing with it: the pair
+    # arrays are read-only copies
+    __eq__ = value_eq
+
+    def __hash__(self) -> int:
+        return hash((type(self), value_key(self)))
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the pairs stay read-only
 
     def __post_init__(self) -> None:
         _check_origin(self.origin)

@@ -4,13 +4,18 @@ A frozen dataclass's constructor sets each field with ``object.__setattr__``; fo
 with a dozen or more fields that costs more than a small least-squares solve. :func:`build`
 gives the same object (defaults and default factories applied, required and unknown fields
 refused as the constructor would) by filling the instance dictionary once. Classes with a
-``__post_init__`` or ``__slots__`` go through their constructor.
+``__post_init__`` or ``__slots__`` go through their constructor. :func:`compact_repr` is
+their ``repr``, bounded whatever the size of the problem.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import MISSING, fields
+from itertools import islice
 from typing import TypeVar
+
+import numpy as np
 
 T = TypeVar("T")
 
@@ -68,3 +73,157 @@ def build(cls: type[T], values: dict) -> T:
             d[name] = factory()
     d.update(values)
     return obj
+
+
+#: Longest sequence or mapping, and largest array, that :func:`compact_repr` shows in full.
+REPR_ITEMS = 16
+
+
+def _brief(value, depth: int = 0) -> str:
+    """A bounded repr: arrays of more than :data:`REPR_ITEMS` elements by shape and dtype,
+    long sequences and mappings by their first items and their length."""
+    if isinstance(value, np.ndarray):
+        if value.size <= REPR_ITEMS:
+            return " ".join(repr(value).split())
+        return f"<array {value.shape} {value.dtype}>"
+    if isinstance(value, (tuple, list)):
+        left, right = ("(", ")") if isinstance(value, tuple) else ("[", "]")
+        if depth > 2:
+            return f"{left}<{len(value)} items>{right}"
+        shown = [_brief(v, depth + 1) for v in value[:REPR_ITEMS]]
+        if len(value) > REPR_ITEMS:
+            shown = [*shown[:3], f"... <{len(value)} items>"]
+        tail = "," if isinstance(value, tuple) and len(value) == 1 else ""
+        return left + ", ".join(shown) + tail + right
+    if isinstance(value, Mapping):
+        if depth > 2:
+            return f"{{<{len(value)} entries>}}"
+        items = list(islice(value.items(), REPR_ITEMS + 1))
+        shown = [f"{k!r}: {_brief(v, depth + 1)}" for k, v in items[:REPR_ITEMS]]
+        if len(value) > REPR_ITEMS:
+            shown = [*shown[:3], f"... <{len(value)} entries>"]
+        return "{" + ", ".join(shown) + "}"
+    return repr(value)
+
+
+def compact_repr(obj) -> str:
+    """``ClassName(field=value, ...)`` of a dataclass result, of bounded length whatever the
+    size of the problem.
+
+    The dataclass ``repr`` prints every id of a tuple and every entry of a dict (and arrays
+    of up to 1000 elements in full), so the repr of a result of a large problem ran to
+    megabytes. Here arrays of more than :data:`REPR_ITEMS` elements show as their shape and
+    dtype and long sequences and mappings as their first items and their length; fields
+    whose name starts with an underscore and fields declared with ``repr=False`` are left
+    out.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+
+    Returns
+    -------
+    str
+    """
+    parts = [
+        f"{f.name}={_brief(getattr(obj, f.name))}"
+        for f in fields(obj)
+        if f.repr and not f.name.startswith("_")
+    ]
+    return f"{type(obj).__name__}({', '.join(parts)})"
+
+
+def value_key(obj) -> tuple:
+    """The compared fields of dataclass ``obj`` as a tuple that ``==`` and ``hash`` can use:
+    arrays as (shape, dtype, bytes) with -0.0 made 0.0 (element-wise equal arrays give equal
+    keys), nested dataclasses as (class, their key).
+
+    The generated dataclass ``==`` compares arrays with ``==`` and raises "the truth value of
+    an array ... is ambiguous"; value records compare with this key instead.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+
+    Returns
+    -------
+    tuple
+    """
+    out = []
+    for f in fields(obj):
+        if not f.compare:
+            continue
+        v = getattr(obj, f.name)
+        if isinstance(v, np.ndarray):
+            v = (v.shape, v.dtype.str, (v + 0.0).tobytes() if v.dtype.kind == "f" else v.tobytes())
+        elif hasattr(type(v), "__dataclass_fields__") and not isinstance(v, type):
+            v = (type(v), value_key(v))
+        out.append(v)
+    return tuple(out)
+
+
+def value_eq(self, other) -> bool:
+    """``==`` of value records: the same class and equal :func:`value_key`.
+
+    Parameters
+    ----------
+    self, other : object
+
+    Returns
+    -------
+    bool or NotImplemented
+    """
+    if type(other) is not type(self):
+        return NotImplemented
+    return value_key(self) == value_key(other)
+
+
+def setstate_read_only(obj, state: dict) -> None:
+    """``__setstate__`` of immutable models whose arrays are read-only: restore the instance
+    dictionary (pickle, :func:`copy.deepcopy`), then make its arrays read-only again.
+
+    Pickle and deepcopy rebuild arrays writable; without this a copied model could be changed
+    through its arrays (and an RPC's coefficients then disagreed with the stacked copy it
+    computes with, a Similarity3D's hash changed).
+
+    Parameters
+    ----------
+    obj : object
+        The instance being restored.
+    state : dict
+        Its instance dictionary as pickled.
+    """
+    obj.__dict__.update(state)
+    for value in obj.__dict__.values():
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+
+
+class FrozenMapping(Mapping):
+    """A read-only dict that pickles and deep-copies (``types.MappingProxyType`` does not).
+
+    For the mappings held by immutable records (e.g. ``Block.free``): shared between the
+    records derived from one another, so none may change them.
+
+    Parameters
+    ----------
+    data : mapping or iterable of (key, value), optional
+        The entries (copied).
+    """
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data=()) -> None:
+        self._data = dict(data)
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return repr(self._data)

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..records import build
+from ..records import build, compact_repr
 from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
@@ -50,7 +50,7 @@ def _jsonable(value):
     return value
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Fit:
     """Result of an estimation: model, parameters, statistics, residuals, diagnostics.
 
@@ -136,6 +136,10 @@ class Fit:
 
     #: What ``crs`` is the system of, in reports ("target CRS"; "ground CRS" of a resection).
     crs_role = "target"
+
+    def __repr__(self) -> str:
+        # bounded (records.compact_repr): the dataclass repr printed every id and extra
+        return compact_repr(self)
 
     # --- construction ----------------------------------------------------------------------
 
@@ -258,7 +262,8 @@ class Fit:
         Parameters
         ----------
         check_residuals : array_like, shape (m, d)
-            Residuals of the check points (computed minus observed), in ``residual_unit``.
+            Residuals of the check points (computed minus observed), in ``residual_unit``;
+            copied.
         check_ids : sequence, optional
             Their point ids (stored as a tuple); default None.
 
@@ -269,7 +274,7 @@ class Fit:
         """
         return replace(
             self,
-            check_residuals=np.asarray(check_residuals, dtype=float),
+            check_residuals=np.array(check_residuals, dtype=float),  # the Fit's own copy
             check_ids=None if check_ids is None else tuple(check_ids),
         )
 

@@ -11,7 +11,7 @@ from ..errors import InputError
 from .result import Adjustment
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SnoopingResult:
     """Outcome of data snooping over all observations.
 

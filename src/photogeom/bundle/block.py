@@ -26,6 +26,7 @@ import numpy as np
 from ..camera.exterior import ExteriorOrientation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
+from ..records import FrozenMapping, setstate_read_only, value_eq
 from ..rotation import opk_matrix
 
 #: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
@@ -39,7 +40,7 @@ EO_NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
 
 
 def _ids(values, what: str) -> np.ndarray:
-    a = np.asarray(values)
+    a = np.array(values)  # a copy: the block must not share the caller's array
     if a.ndim != 1:
         raise InputError(f"{what}: ids must be a flat sequence, got shape {a.shape}")
     if a.dtype.kind not in "iuUO":
@@ -81,7 +82,21 @@ def _lookup(keys: np.ndarray, ids: np.ndarray, what: str, table: str) -> np.ndar
     return order[pos].astype(np.int64)
 
 
-@dataclass(frozen=True)
+def _freeze_arrays(obj) -> None:
+    """Replace every writable array field of the frozen dataclass ``obj`` by a read-only
+    view of it, so that blocks derived from one another (``replace``, ``with_observations``,
+    the adjusted block of :func:`~photogeom.bundle_adjust`) can share their arrays without
+    a write through one of them changing the others. The given arrays keep their flags."""
+    d = obj.__dict__
+    for f in fields(obj):
+        v = d[f.name]
+        if isinstance(v, np.ndarray) and v.flags.writeable:
+            v = v.view()
+            v.flags.writeable = False
+            d[f.name] = v
+
+
+@dataclass(frozen=True, eq=False)
 class Image:
     """One image of a block (a view; the block stores arrays)."""
 
@@ -94,8 +109,11 @@ class Image:
     imu_sigma: np.ndarray | None = None
     calibration_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
+    __eq__ = value_eq  # by value, arrays element by element (not hashable: arrays writable)
+    __hash__ = None  # type: ignore[assignment]
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, eq=False)
 class Point:
     """One object point of a block (a view)."""
 
@@ -103,6 +121,9 @@ class Point:
     xyz: np.ndarray
     role: str
     sigma: np.ndarray | None = None
+
+    __eq__ = value_eq  # by value, arrays element by element (not hashable: arrays writable)
+    __hash__ = None  # type: ignore[assignment]
 
 
 class _View(Mapping):
@@ -148,6 +169,12 @@ class Observations:
     uv: np.ndarray
     sigma: np.ndarray
 
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
+
     def __len__(self) -> int:
         return int(self.uv.shape[0])
 
@@ -156,7 +183,9 @@ class Observations:
 class Block:
     """An image block (see the module docstring). Build with :meth:`from_arrays`.
 
-    Array rows are in the order of the ids: m images, p points, n image observations.
+    Array rows are in the order of the ids: m images, p points, n image observations. The
+    arrays are read-only views (blocks derived from one another share them); copy one to
+    change it and pass the copy to :meth:`replace`.
 
     Attributes
     ----------
@@ -194,9 +223,10 @@ class Block:
     obs_image, obs_point : numpy.ndarray of int, shape (n,)
         Rows of the image and point of each observation.
     free : mapping group id -> tuple of str
-        The calibration parameters the adjustment estimates for each group.
+        The calibration parameters the adjustment estimates for each group (read-only;
+        ``replace(free=...)`` for others).
     image_variant : mapping group id -> tuple of str
-        The parameters (of f, cx, cy) estimated per image for each group.
+        The parameters (of f, cx, cy) estimated per image for each group (read-only).
     crs : str or None
         CRS of the object coordinates, recorded and never used to compute; default None.
     surveyed : numpy.ndarray, shape (p, 3), or None
@@ -229,6 +259,16 @@ class Block:
     image_variant: Mapping[object, tuple[str, ...]]
     crs: str | None = None
     surveyed: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
+        d = self.__dict__
+        for name in ("free", "image_variant"):  # shared by derived blocks: read-only
+            if not isinstance(d[name], FrozenMapping):
+                d[name] = FrozenMapping(d[name])
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
 
     # --- construction --------------------------------------------------------------------
 
@@ -332,7 +372,7 @@ class Block:
         if isinstance(role, str):
             roles = np.full(p, role, dtype="<U7")
         else:
-            roles = np.asarray(role, dtype="<U7")
+            roles = np.array(role, dtype="<U7")  # a copy, as for the ids
             if roles.shape != (p,):
                 raise InputError(f"role has shape {roles.shape}, expected ({p},)")
         bad = ~np.isin(roles, ROLES)
@@ -541,7 +581,9 @@ class Block:
 
         On a block without :attr:`surveyed` a new ``xyz`` is a new survey of its control and
         check points; on an adjusted block it changes the estimates and the survey stays.
-        Only ``surveyed`` is checked; other values are taken as given.
+        Only ``surveyed`` is checked; other values are taken as given, except that a writable
+        array is copied (the block's arrays are read-only and its own: changing the array
+        given afterwards does not change the block).
 
         Parameters
         ----------
@@ -567,6 +609,9 @@ class Block:
             if s.shape != (p, 3):
                 raise InputError(f"surveyed must have shape ({p}, 3), got {s.shape}")
             changes["surveyed"] = s
+        for key, value in changes.items():
+            if isinstance(value, np.ndarray) and value.flags.writeable:
+                changes[key] = value.copy()
         return replace(self, **changes)
 
     @property

@@ -16,6 +16,7 @@ from ..adjust.schur import (
 )
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
+from ..records import compact_repr
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
@@ -25,7 +26,7 @@ from .robust import consistent_variance_factor, covariance_weights, image_point_
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class BundleFit:
     """Adjusted block and the statistics of a bundle adjustment.
 
@@ -128,6 +129,11 @@ class BundleFit:
     _point_cov: np.ndarray | None = None
     _cal_cov: Mapping | None = None
 
+    def __repr__(self) -> str:
+        # bounded (records.compact_repr): the dataclass repr printed every flagged
+        # observation and the covariance arrays of up to 1000 elements in full
+        return compact_repr(self)
+
     # --- queries -----------------------------------------------------------------------------
 
     def image_covariance(self, image_id) -> np.ndarray:
@@ -197,7 +203,8 @@ class BundleFit:
             The free calibration parameters of the group (empty when none is free).
         covariance : numpy.ndarray, shape (k, k)
             Their a-posteriori covariance (px^2 for f, cx, cy, b1, b2; distortion terms
-            dimensionless), in the order of ``names``; the stored array, not a copy.
+            dimensionless), in the order of ``names``; the stored array, not a copy, so
+            read-only.
 
         Raises
         ------
@@ -920,6 +927,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         d = np.sqrt(np.clip(np.diag(C), 1e-300, None))
         R = C / np.outer(d, d)
         cal_corr[gid] = (names, R)
+        C.flags.writeable = False  # returned as stored by calibration_covariance
         cal_cov[gid] = (names, C)
         for a in range(len(names)):
             for c in range(a + 1, len(names)):

@@ -529,7 +529,8 @@ class ResidualGrid:
 
     @property
     def node_cofactor(self) -> np.ndarray:
-        """``diag(N^-1)`` reshaped (ny, nx), px^2 per unit weight; computed on first use."""
+        """``diag(N^-1)`` reshaped (ny, nx), px^2 per unit weight; computed on first use
+        and kept (read-only)."""
         if not self._std:
             if self.uv is None:
                 raise InputError(
@@ -547,7 +548,9 @@ class ResidualGrid:
                     factor=False,
                 )
                 diag = sysm.selected_inverse.diagonal()
-            self._std.append(diag.reshape(self.layout.shape))
+            cof = diag.reshape(self.layout.shape)
+            cof.flags.writeable = False  # the cache itself is returned: never written into
+            self._std.append(cof)
         return self._std[0]
 
     def to_dict(self) -> dict:

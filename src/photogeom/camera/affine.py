@@ -17,6 +17,7 @@ import numpy as np
 
 from ..adjust import Fit, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError
+from ..records import setstate_read_only
 from ..validation import as_float64, as_points, check_count, check_same_length
 from ._checks import with_check_points
 
@@ -41,10 +42,14 @@ class AffineCamera:
 
     def __post_init__(self) -> None:
         for name in ("a", "b"):
-            v = np.asarray(getattr(self, name), dtype=float).reshape(-1)
+            v = np.array(getattr(self, name), dtype=float).reshape(-1)  # the camera's own
             if v.size != 4 or not np.all(np.isfinite(v)):
                 raise InputError(f"affine camera: {name} must be 4 finite numbers")
+            v.flags.writeable = False
             object.__setattr__(self, name, v)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: a, b stay read-only
 
     @property
     def matrix(self) -> np.ndarray:

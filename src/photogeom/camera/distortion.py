@@ -41,7 +41,7 @@ COEFFICIENTS = ("k1", "k2", "k3", "k4", "p1", "p2")
 CHUNK = 1 << 14
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class UndistortResult:
     """Result of an iterative undistortion.
 

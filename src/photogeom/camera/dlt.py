@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError, ReflectionError
+from ..records import setstate_read_only
 from ..validation import as_float64, as_points
 from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
@@ -29,9 +30,10 @@ NAMES = tuple(f"L{i}" for i in range(1, 12))
 
 
 def _as_L(L) -> np.ndarray:
+    """The 11 parameters as a read-only array of their own (never a view of the caller's)."""
     if isinstance(L, DLT):
-        return L.L.copy()
-    a = np.asarray(L, dtype=float)
+        return L.L
+    a = np.array(L, dtype=float)
     if a.shape == (3, 4):
         if not np.all(np.isfinite(a)):
             raise InputError("camera matrix contains NaN or infinite values")
@@ -40,12 +42,15 @@ def _as_L(L) -> np.ndarray:
                 "camera matrix has P[2, 3] = 0 (the object-system origin lies in the camera's "
                 "principal plane); the DLT normalisation L12 = 1 is impossible: shift the origin"
             )
-        return (a / a[2, 3]).reshape(-1)[:11]
+        out = (a / a[2, 3]).reshape(-1)[:11]
+        out.flags.writeable = False
+        return out
     a = a.reshape(-1)
     if a.size != 11:
         raise InputError(f"a DLT has 11 parameters L1..L11 (or a 3x4 matrix), got {a.size} values")
     if not np.all(np.isfinite(a)):
         raise InputError("DLT parameters contain NaN or infinite values")
+    a.flags.writeable = False
     return a
 
 
@@ -67,6 +72,9 @@ class DLT:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "L", _as_L(self.L))
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: L stays read-only
 
     @classmethod
     def from_matrix(cls, P, unit: str = "mm") -> DLT:

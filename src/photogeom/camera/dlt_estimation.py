@@ -36,7 +36,7 @@ from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class DLTFit(Fit):
     """A :class:`~photogeom.adjust.Fit` of a DLT with named access to the camera."""
 

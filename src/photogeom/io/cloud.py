@@ -202,7 +202,7 @@ def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterato
         yield pts
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CloudInfo:
     """What the header of a LAS/LAZ file says.
 
@@ -531,7 +531,7 @@ def _unlink(path: Path) -> None:
         pass
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CloudTransformResult:
     """What :func:`transform_cloud` wrote.
 

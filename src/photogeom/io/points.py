@@ -79,7 +79,7 @@ SIGMA_COLUMNS = ("sigma", "sd", "std")
 ROLES = ("control", "check")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PointTable:
     """Points read from a file.
 
@@ -134,7 +134,7 @@ class PointTable:
         return _check_mask(self.roles, len(self.ids))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PointPairs:
     """Corresponding points of a source and a target system.
 
@@ -550,7 +550,7 @@ def _as_names(columns: Sequence[str] | str | None) -> tuple[str, ...] | None:
     return names
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PointBlock:
     """One block of points read by :class:`PointBlocks`.
 

@@ -25,9 +25,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from types import MappingProxyType
 
 import numpy as np
 
@@ -104,7 +103,7 @@ def normalize_method(method: str) -> str:
     return _ALIASES[key]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class AbsoluteOrientationFit(Fit):
     """Result of :func:`absolute_orientation` (a :class:`~photogeom.adjust.Fit`).
 
@@ -626,14 +625,18 @@ def _check_spread(x, X, w, pm: PairMoments, sv, method: str) -> None:
 _UNITS: dict = {}
 
 
-def _param_units(with_scale: bool, unit: str) -> Mapping[str, str]:
+def _param_units(with_scale: bool, unit: str) -> dict[str, str]:
+    """Unit of each parameter: a new dict per Fit (a plain dict pickles, for Dask and
+    multiprocessing; a shared read-only view did not)."""
     key = (with_scale, unit)
     if key not in _UNITS:
+        if len(_UNITS) > 256:  # units are caller-supplied strings: keep the cache small
+            _UNITS.clear()
         u = {"tx": unit, "ty": unit, "tz": unit, "omega": "rad", "phi": "rad", "kappa": "rad"}
         if with_scale:
             u["scale"] = "1"
-        _UNITS[key] = MappingProxyType(u)
-    return _UNITS[key]
+        _UNITS[key] = u
+    return dict(_UNITS[key])
 
 
 _CONVENTION_NOTE = "angles: transposed convention, R = M(omega, phi, kappa).T (radians inside)"

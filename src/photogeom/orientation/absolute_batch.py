@@ -41,7 +41,7 @@ from .absolute_direct import (
 BATCH_METHODS = ("closed-form", "svd", "quaternion", "dual-quaternion", "gauss-helmert")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BatchOrientation:
     """Results of :func:`absolute_orientation_batch`.
 

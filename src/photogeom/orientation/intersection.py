@@ -31,7 +31,7 @@ from ..validation import as_float64
 __all__ = ["IntersectionResult", "space_intersection"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class IntersectionResult:
     """Intersected object points with per-point statistics.
 

@@ -142,7 +142,7 @@ class ImagePair:
         }
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class RelativeOrientationFit(Fit):
     """Result of :func:`relative_orientation` (a :class:`~photogeom.adjust.Fit`).
 

@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class ResectionFit(Fit):
     """Result of :func:`space_resection`; ``model`` is the oriented :class:`FrameCamera`.
 
@@ -856,7 +856,7 @@ def _io_value(io: InteriorOrientation, name: str) -> float:
 # --- many resections at once -------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BatchResection:
     """Results of :func:`space_resection_batch` for B problems.
 
@@ -987,6 +987,29 @@ def _batched_projection(gc: np.ndarray, x: np.ndarray, io: InteriorOrientation):
     return xy, J, w
 
 
+def _batch_start(initial, B: int) -> np.ndarray:
+    """Start values (B, 6) from one ExteriorOrientation, a sequence of B of them, or numbers
+    of shape (6,) or (B, 6); :class:`InputError` naming ``initial`` otherwise."""
+    want = (
+        f"initial: expected an ExteriorOrientation, a sequence of {B} of them, or start values "
+        f"X0, Y0, Z0, omega, phi, kappa of shape (6,) or ({B}, 6)"
+    )
+    if isinstance(initial, ExteriorOrientation):
+        return np.broadcast_to(initial.parameters, (B, 6))
+    if isinstance(initial, Sequence) and any(isinstance(e, ExteriorOrientation) for e in initial):
+        if not all(isinstance(e, ExteriorOrientation) for e in initial):
+            raise InputError(f"{want}; got a sequence mixing them with other values")
+        x0 = np.array([e.parameters for e in initial], dtype=float)
+    else:
+        try:
+            x0 = np.asarray(initial, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{want}; got {type(initial).__name__}") from None
+    if x0.shape not in ((6,), (B, 6)):
+        raise InputError(f"{want}; got shape {x0.shape}")
+    return np.broadcast_to(x0, (B, 6))
+
+
 def space_resection_batch(
     ground,
     image,
@@ -1010,7 +1033,7 @@ def space_resection_batch(
     image : array_like, shape (B, n, 2)
         Image coordinates in the unit of ``io``.
     io : InteriorOrientation
-    initial : ExteriorOrientation or array_like (B, 6) or (6,)
+    initial : ExteriorOrientation, sequence of B ExteriorOrientation, or array_like (B, 6) or (6,)
         Start values ``X0, Y0, Z0, omega, phi, kappa`` (radians).
     sigma : float, optional
         Standard deviation of every image coordinate (weights ``1/sigma^2``).
@@ -1034,12 +1057,7 @@ def space_resection_batch(
     if not (np.all(np.isfinite(g)) and np.all(np.isfinite(im))):
         raise InputError("ground/image: NaN or infinite values")
     check_count(n, 3, "space resection", "6 exterior parameters, 2 observations per point")
-    x0 = (
-        initial.parameters
-        if isinstance(initial, ExteriorOrientation)
-        else np.asarray(initial, float)
-    )
-    x = np.array(np.broadcast_to(x0, (B, 6)), dtype=float)
+    x = np.array(_batch_start(initial, B), dtype=float)
     s = 1.0 if sigma is None else float(sigma)
     if not s > 0:
         raise InputError("sigma must be > 0")

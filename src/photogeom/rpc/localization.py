@@ -55,7 +55,7 @@ class LocalizationStatus(enum.IntEnum):
     DIVERGED = 2
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LocalizationResult:
     """Localisation of a set of image points.
 

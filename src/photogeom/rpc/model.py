@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, PrecisionWarning
+from ..records import setstate_read_only
 from ..validation import _caller_level, as_float64
 from . import polynomial as poly
 from .domain import DOMAIN_LIMIT, check_domain, longitude_difference, wrap_longitude
@@ -54,7 +55,9 @@ GDAL_COEFF_KEYS = {
 
 
 def _coeff_vector(values, name: str) -> np.ndarray:
-    arr = np.asarray(values, dtype=np.float64).reshape(-1)
+    # a read-only copy: a view of the caller's array would change with it while the stacked
+    # coefficients the model computes with (RPC._cache["C"]) would not
+    arr = np.array(values, dtype=np.float64).reshape(-1)
     if arr.size != poly.N_TERMS:
         raise InputError(
             f"RPC {name}: {arr.size} coefficient(s) given, a cubic RPC polynomial has exactly "
@@ -116,6 +119,9 @@ class DirectModel:
             object.__setattr__(self, name, _coeff_vector(getattr(self, name), name))
         for name in ("lon_den", "lat_den"):
             _check_denominator(getattr(self, name), f"{name.upper()}_COEFF")
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: arrays stay read-only
 
     @property
     def coefficients(self) -> np.ndarray:
@@ -204,7 +210,7 @@ class RPC:
         object.__setattr__(self, "err_bias", _check_error(self.err_bias, "ERR_BIAS"))
         object.__setattr__(self, "err_rand", _check_error(self.err_rand, "ERR_RAND"))
         if self.correction is not None:
-            D = np.asarray(self.correction, dtype=np.float64)
+            D = np.array(self.correction, dtype=np.float64)  # a copy: made read-only below
             if D.shape != (2, 3) or not np.all(np.isfinite(D)):
                 raise InputError("RPC correction: expected a finite (2, 3) array")
             if abs(np.linalg.det(np.eye(2) + D[:, :2])) < 1e-12:
@@ -225,6 +231,14 @@ class RPC:
         C = np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den])
         C.setflags(write=False)
         self._cache["C"] = C
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: make them read-only again, the stacked
+        # coefficients of the cache too (a changed coefficient would leave them stale)
+        setstate_read_only(self, state)
+        for value in self._cache.values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
 
     # --- construction and files --------------------------------------------------------------
 

@@ -31,7 +31,7 @@ COND_LIMIT = 1e12
 
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RPCIntersection:
     """Ground points intersected from several RPC images, with their statistics.
 

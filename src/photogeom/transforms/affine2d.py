@@ -18,7 +18,7 @@ def _rot(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Affine2D(Parametric, Transform):
     """2D affine transformation.
 

@@ -20,7 +20,7 @@ _TEXTBOOK_NAMES = (
 )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class AffineDecomposition:
     """``A = shear @ diag(scales) @ rotation`` (see :meth:`Affine3D.decompose`).
 
@@ -58,7 +58,7 @@ class AffineDecomposition:
         return self.shear_matrix @ np.diag(self.scales) @ self.rotation
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Affine3D(MatrixShift3D, Transform):
     """3D affine transformation ``X = A @ x + t``.
 

@@ -8,6 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InputError
+from ..records import setstate_read_only, value_key
 from ..validation import as_float64, as_points
 
 _REGISTRY: dict[str, type[Transform]] = {}
@@ -37,6 +38,28 @@ class Transform(ABC):
 
     def __call__(self, points) -> np.ndarray:
         return self.apply(points)
+
+    def _key(self) -> tuple:
+        """The compared fields (:func:`photogeom.records.value_key`)."""
+        return value_key(self)
+
+    def __eq__(self, other: object) -> bool:
+        """Same model class and the same values (arrays compared element by element).
+
+        The generated dataclass ``==`` compared arrays with ``==`` and raised "the truth
+        value of an array ... is ambiguous" for every model holding arrays.
+        """
+        if type(other) is not type(self):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        """Consistent with ``==`` (the model's arrays are read-only)."""
+        return hash((type(self), self._key()))
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy: the arrays stay read-only (records.setstate_read_only)
+        setstate_read_only(self, state)
 
     @abstractmethod
     def apply(self, points) -> np.ndarray:

@@ -153,7 +153,7 @@ def _rereduction(exponents: np.ndarray, alpha: float, beta: np.ndarray) -> np.nd
     return np.where(valid, T, 0.0)
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class _Polynomial(Parametric, Transform):
     order: int
     coefficients: np.ndarray
@@ -497,7 +497,7 @@ class InverseResult(NamedTuple):
     iterations: int
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class _PolynomialInverse(Transform):
     forward: _Polynomial
     tol: float = 1e-9
@@ -655,7 +655,7 @@ class _PolynomialInverse(Transform):
         return f"{type(self).__name__}(forward={self.forward!r}, tol={self.tol:g})"
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Polynomial2DInverse(_PolynomialInverse):
     """Iterative inverse of a :class:`Polynomial2D` (Newton with step halving).
 
@@ -676,7 +676,7 @@ class Polynomial2DInverse(_PolynomialInverse):
     dim = 2
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Polynomial3DInverse(_PolynomialInverse):
     """Iterative inverse of a :class:`Polynomial3D`; see :class:`Polynomial2DInverse`.
 
@@ -694,7 +694,7 @@ class Polynomial3DInverse(_PolynomialInverse):
     dim = 3
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Polynomial2D(_Polynomial):
     """2D polynomial transformation of order ``k`` (2 x (k+1)(k+2)/2 coefficients).
 
@@ -715,7 +715,7 @@ class Polynomial2D(_Polynomial):
     inverse_class: ClassVar[type] = Polynomial2DInverse
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Polynomial3D(_Polynomial):
     """3D polynomial transformation of order ``k`` (3 x (k+1)(k+2)(k+3)/6 coefficients).
 

@@ -28,7 +28,7 @@ def _normalise(H: np.ndarray, what: str) -> np.ndarray:
     return H / h
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class _Projective(Parametric, Transform):
     """Common code; subclasses fix ``dim`` and the parameter names."""
 
@@ -186,7 +186,7 @@ class _Projective(Parametric, Transform):
         return f"{type(self).__name__}({fmt_params(self.names, self.parameters)})"
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Projective2D(_Projective):
     """2D projective transformation (8 parameters)::
 
@@ -205,7 +205,7 @@ class Projective2D(_Projective):
     names: ClassVar[tuple[str, ...]] = ("a1", "a2", "a3", "b1", "b2", "b3", "c1", "c2")
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Projective3D(_Projective):
     """3D projective transformation (15 parameters): a homogeneous 4x4 matrix with ``h44 = 1``::
 

@@ -14,7 +14,7 @@ from .base import Transform
 _PARAM_NAMES = (*(f"r{i}{j}" for i in range(1, 4) for j in range(1, 4)), "tx", "ty", "tz")
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Rigid3D(MatrixShift3D, Transform):
     """Rotation and translation ``X = rotation @ x + translation`` (no scale).
 

@@ -12,7 +12,7 @@ from ._common import Parametric, fmt_params, vector
 from .base import Transform
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Similarity2D(Parametric, Transform):
     """2D similarity ``[x, y] = s R(theta) [x', y'] + [x0, y0]``.
 

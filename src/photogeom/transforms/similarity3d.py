@@ -20,7 +20,7 @@ from ._common import check_proper_rotation, homogeneous, matrix_and_shift
 from .base import Transform
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Similarity3D(Transform):
     """3D similarity ``X = scale * rotation @ x + translation``.
 
