@@ -18,6 +18,9 @@ Policy (the same for every file photogeom writes):
   are removed and the destinations are left as they were.
 * :func:`atomic_write_many` writes several files as one: when any of them cannot be written,
   none is changed.
+* The temporary file is named ``.<name>.<random>.tmp``, with ``<name>`` shortened when needed
+  so that the name fits the file system's limit (255 bytes on most): any destination name
+  that a plain ``open()`` accepts is accepted.
 """
 
 from __future__ import annotations
@@ -42,6 +45,48 @@ _HINTS = {
     errno.ENOTDIR: "a part of the path is not a directory",
     errno.ENAMETOOLONG: "the file name is too long",
 }
+
+
+#: Longest file name (bytes) assumed where the file system does not say (ext4, XFS, APFS, ...).
+_NAME_MAX = 255
+
+
+def _temporary_name(directory: Path, name: str, tail: str) -> Path:
+    """``directory / ("." + name + tail)``, ``name`` cut so that the file name fits the
+    directory's file-name limit in bytes.
+
+    Parameters
+    ----------
+    directory : Path
+        Where the temporary file or folder is made (beside its destination).
+    name : str
+        The destination's file name.
+    tail : str
+        What follows it, e.g. ``".<random>.tmp"`` (kept whole).
+
+    Returns
+    -------
+    Path
+        A name no longer than the limit, so that a destination name of up to the limit does
+        not fail as too long only because of its temporary name.
+    """
+    try:
+        limit = int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (AttributeError, OSError, ValueError):  # no pathconf (Windows), or no answer
+        limit = _NAME_MAX
+    if limit <= 0:
+        limit = _NAME_MAX
+    room = max(1, limit - 1 - len(os.fsencode(tail)))
+    raw = os.fsencode(name)
+    if len(raw) > room:
+        cut = raw[:room]
+        # whole UTF-8 characters only: drop a multi-byte sequence cut in the middle
+        while cut and (cut[-1] & 0xC0) == 0x80:
+            cut = cut[:-1]
+        if cut and cut[-1] >= 0xC0:
+            cut = cut[:-1]
+        name = os.fsdecode(cut)
+    return directory / f".{name}{tail}"
 
 
 def _failure(target: Path, exc: OSError) -> OutputError:
@@ -92,7 +137,7 @@ class _Staged:
             raise _failure(given, exc) from exc
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
         for _ in range(100):
-            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
             try:
                 # 0o666: the kernel applies the umask, exactly as for open(path, "w")
                 fd = os.open(tmp, flags, 0o666)

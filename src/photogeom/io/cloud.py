@@ -20,7 +20,6 @@ import os
 import secrets
 import shutil
 import struct
-import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -481,7 +480,7 @@ def _atomic_target(dst: Path):
     succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
     ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
     file) for files written by a library that needs a path."""
-    from ..atomicfile import _destination, _failure, _fsync_directory
+    from ..atomicfile import _destination, _failure, _fsync_directory, _temporary_name
 
     given, target = _destination(dst)
     directory = target.parent if str(target.parent) else Path(".")
@@ -491,7 +490,7 @@ def _atomic_target(dst: Path):
         mode = None
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
     for _ in range(100):
-        tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+        tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
         try:
             fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask, as open() does
             break
@@ -1200,10 +1199,7 @@ def transform_cloud_dask(
         bounds = (lo, hi) if n else (np.zeros(3), np.zeros(3))
         passes = 2
     header = output_header(src_header, transform, scales, crs, bounds)
-    directory = dst.parent if str(dst.parent) else Path(".")
-    if not directory.is_dir():
-        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{dst.name}.pieces.", dir=directory))
+    tmpdir = _pieces_folder(dst)
     try:
         parts = [tmpdir / f"piece-{k:06d}{dst.suffix}" for k in range(len(ranges))]
         items = [(str(p), a, b) for p, (a, b) in zip(parts, ranges)]
@@ -1234,6 +1230,26 @@ def transform_cloud_dask(
         info.crs_name,
         len(ranges),
         passes,
+    )
+
+
+def _pieces_folder(dst: Path) -> Path:
+    """A new folder for the pieces beside ``dst``, its name fitted to the file-name limit
+    (a destination name that a plain ``open()`` accepts is accepted)."""
+    from ..atomicfile import _temporary_name
+
+    directory = dst.parent if str(dst.parent) else Path(".")
+    if not directory.is_dir():
+        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
+    for _ in range(100):
+        folder = _temporary_name(directory, dst.name, f".{secrets.token_hex(6)}.pieces")
+        try:
+            os.mkdir(folder, 0o700)
+            return folder
+        except FileExistsError:
+            continue
+    raise PhotogeomError(  # pragma: no cover - 100 collisions of 48 random bits
+        f"cannot write {dst}: no free temporary folder name"
     )
 
 

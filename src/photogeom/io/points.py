@@ -984,7 +984,7 @@ class PointWriter:
         one)."""
         import secrets
 
-        from ..atomicfile import _destination, _failure
+        from ..atomicfile import _destination, _failure, _temporary_name
 
         given, target = _destination(self.path)
         self._given, self._target = given, target
@@ -997,7 +997,7 @@ class PointWriter:
         directory = target.parent if str(target.parent) else Path(".")
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
         for _ in range(100):
-            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
             try:
                 fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask
                 break
