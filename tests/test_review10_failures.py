@@ -3,6 +3,8 @@ writes name the destination, and nothing is left behind."""
 
 from __future__ import annotations
 
+import errno
+import json
 import os
 
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 
 import photogeom as pg
 from photogeom.atomicfile import _temporary_name, atomic_write_text
+from photogeom.errors import OutputError
 from photogeom.io import PointWriter, write_points
 
 posix = pytest.mark.skipif(os.name != "posix", reason="POSIX file names")
@@ -89,3 +92,88 @@ def test_cli_output_with_the_longest_name(cli, tmp_path):
     code, _, err = cli("transform", "apply", params, src, "-o", out)
     assert code == 0, err
     assert out.read_text().splitlines()[-2] == "id,X,Y"
+
+
+# --- cloud transform --scheduler: failures name the output, nothing is left behind ---------
+
+
+@pytest.fixture
+def cloud_job(tmp_path):
+    """(input cloud, parameter file, output folder holding an old output file)."""
+    pytest.importorskip("laspy")
+    pytest.importorskip("lazrs")
+    xyz = np.random.default_rng(2).uniform(0, 50, (400, 3))
+    src = tmp_path / "in.las"
+    pg.io.write_cloud(src, xyz)
+    T = pg.Similarity3D.from_angles(1.0, 0.0, 0.0, 0.1, [10.0, 20.0, 30.0])
+    params = tmp_path / "p.json"
+    params.write_text(json.dumps({"model_parameters": T.to_dict()}))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "o.las").write_bytes(b"old")
+    return src, params, out
+
+
+def _run_cloud(cli, src, params, dst):
+    return cli("cloud", "transform", src, dst, "--params", params, "-q", "--scheduler", "threads")
+
+
+def test_scheduler_unwritable_output_folder_is_one_error_line(cli, cloud_job, monkeypatch):
+    """A folder where no file may be made: PermissionError traceback from the folder of the
+    pieces (mkdtemp), before; now the output is named."""
+    src, params, out = cloud_job
+
+    def refused(path, *args, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied", str(path))
+
+    monkeypatch.setattr(os, "mkdir", refused)
+    code, _, err = _run_cloud(cli, src, params, out / "new.las")
+    monkeypatch.undo()
+    assert code == 2, err
+    assert err.strip() == (
+        f"error: cannot write {out / 'new.las'}: permission denied; choose a writable location"
+    )
+    assert _names(out) == ["o.las"]
+
+
+def test_scheduler_piece_that_cannot_be_written_names_the_output(cli, cloud_job, monkeypatch):
+    """Disk full in a worker: the message named the (removed) temporary piece over two
+    lines; now one line names the output; the old output and no piece are left."""
+    import photogeom.io.cloud as cloud
+
+    src, params, out = cloud_job
+
+    def full(src, part, *args):
+        with open(part, "wb") as fh:
+            fh.write(b"half a piece")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(cloud, "_write_piece", full)
+    code, _, err = _run_cloud(cli, src, params, out / "o.las")
+    assert code == 2, err
+    assert err.strip() == (
+        f"error: cannot write {out / 'o.las'}: no space left on the device; free some space "
+        "or write elsewhere"
+    )
+    assert _names(out) == ["o.las"] and (out / "o.las").read_bytes() == b"old"
+
+
+@pytest.mark.parametrize("kind", ["folder", "read-only"])
+def test_scheduler_refuses_the_destination_before_any_piece(cloud_job, monkeypatch, kind):
+    import photogeom.distributed as distributed
+
+    src, _params, out = cloud_job
+    dst = out / "o.las"
+    if kind == "folder":
+        dst = out
+    else:
+        dst.chmod(0o444)
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("pieces computed for an output that cannot be written")
+
+    monkeypatch.setattr(distributed, "map_items", no_work)
+    T = pg.Similarity3D.from_angles(1.0, 0.0, 0.0, 0.1, [10.0, 20.0, 30.0])
+    with pytest.raises(OutputError, match="cannot write"):
+        pg.io.transform_cloud(src, dst, T, scheduler="threads")
+    assert _names(out) == ["o.las"]

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError, PhotogeomError
+from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
 
 #: Points per chunk unless ``chunk_size=`` says otherwise (about 30-60 MB of records).
 DEFAULT_CHUNK = 1_000_000
@@ -1163,6 +1163,11 @@ def transform_cloud_dask(
     InputError
         When ``dst`` is ``src``, or the file has extended VLRs (EVLRs, LAS 1.4; use
         :func:`transform_cloud`).
+    OutputError
+        ``dst`` cannot be written (a folder, a read-only file, a missing folder: refused
+        before any piece is computed; no room for the pieces or the output, a folder where
+        no file may be made): one message naming ``dst``; the pieces are removed and an
+        existing ``dst`` is left as it was.
     """
     from ..distributed import map_items
 
@@ -1172,6 +1177,9 @@ def transform_cloud_dask(
     dst = Path(dst)
     if dst.resolve() == src.resolve():
         raise InputError(f"output {dst} is the input file; write to a new file")
+    from ..atomicfile import _destination
+
+    _destination(dst)  # a folder, a read-only file, no such folder: refused before any work
     if crs is None:
         crs = getattr(transform, "target_crs", None)
     compress = dst.suffix.lower() == ".laz"
@@ -1208,13 +1216,17 @@ def transform_cloud_dask(
             if progress is not None:
                 progress(min(n, k * piece), n)
 
-        map_items(
+        done = map_items(
             functools.partial(_piece_item, str(src), transform, header, chunk_size, compress),
             items,
             scheduler=scheduler,
             progress=_progress,
-            raise_on_failure=True,
         )
+        tag = f"{PieceNotWritten.__name__}: "
+        unwritten = [f.error for f in done.failures if f.error.startswith(tag)]
+        if unwritten:  # disk full, ...: said of the output, not of a temporary piece
+            raise OutputError(f"cannot write {dst}: {unwritten[0].removeprefix(tag)}")
+        done.raise_failures()
         with _atomic_target(dst) as tmp:
             _merge_pieces(parts, tmp, compress)
     finally:
@@ -1235,21 +1247,28 @@ def transform_cloud_dask(
 
 def _pieces_folder(dst: Path) -> Path:
     """A new folder for the pieces beside ``dst``, its name fitted to the file-name limit
-    (a destination name that a plain ``open()`` accepts is accepted)."""
-    from ..atomicfile import _temporary_name
+    (a destination name that a plain ``open()`` accepts is accepted).
 
-    directory = dst.parent if str(dst.parent) else Path(".")
-    if not directory.is_dir():
-        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
+    Raises
+    ------
+    OutputError
+        Naming ``dst`` when the folder cannot be made (a read-only folder, a full disk).
+    """
+    from ..atomicfile import _destination, _failure, _temporary_name
+
+    given, target = _destination(dst)
+    directory = target.parent if str(target.parent) else Path(".")
     for _ in range(100):
-        folder = _temporary_name(directory, dst.name, f".{secrets.token_hex(6)}.pieces")
+        folder = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.pieces")
         try:
             os.mkdir(folder, 0o700)
             return folder
         except FileExistsError:
             continue
+        except OSError as exc:
+            raise _failure(given, exc) from exc
     raise PhotogeomError(  # pragma: no cover - 100 collisions of 48 random bits
-        f"cannot write {dst}: no free temporary folder name"
+        f"cannot write {given}: no free temporary folder name"
     )
 
 
@@ -1257,6 +1276,20 @@ def _bounds_item(src, transform, chunk_size, rng):
     return _piece_bounds(src, rng[0], rng[1], transform, chunk_size)
 
 
+class PieceNotWritten(Exception):
+    """A worker could not write its piece (an ``OSError`` of the file system: disk full,
+    ...); the message is the reason, which :func:`transform_cloud_dask` reports for the
+    output file rather than for the temporary piece."""
+
+
 def _piece_item(src, transform, header, chunk_size, compress, item):
+    from ..atomicfile import _failure
+
     part, a, b = item
-    return _write_piece(src, part, a, b, transform, header, chunk_size, compress)
+    try:
+        return _write_piece(src, part, a, b, transform, header, chunk_size, compress)
+    except PhotogeomError:  # the input (read errors are FileFormatError), the transformation
+        raise
+    except OSError as exc:
+        reason = str(_failure(Path(part), exc)).removeprefix(f"cannot write {part}: ")
+        raise PieceNotWritten(reason) from exc
