@@ -177,3 +177,97 @@ def test_scheduler_refuses_the_destination_before_any_piece(cloud_job, monkeypat
     with pytest.raises(OutputError, match="cannot write"):
         pg.io.transform_cloud(src, dst, T, scheduler="threads")
     assert _names(out) == ["o.las"]
+
+
+# --- a standard output that cannot be written ---------------------------------------------
+
+
+class _FullStream:
+    """A standard output on a full disk: every write fails with ENOSPC."""
+
+    encoding = "utf-8"
+    errors = "strict"
+
+    def __init__(self) -> None:
+        self.buffer = self
+
+    def write(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def flush(self) -> None:
+        pass
+
+    def isatty(self) -> bool:
+        return False
+
+    def fileno(self) -> int:
+        raise OSError(errno.EBADF, "no file descriptor")
+
+
+def _main_with_full_stdout(monkeypatch, capsys, args) -> tuple[int, str]:
+    import sys
+
+    from photogeom.cli.main import main
+
+    monkeypatch.setattr(sys, "stdout", _FullStream())
+    try:
+        main([str(a) for a in args])
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    monkeypatch.undo()
+    return code, capsys.readouterr().err
+
+
+FIDUCIALS = pg.datasets.path("lecture_fiducials")
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["transform", "estimate", "similarity2d", FIDUCIALS],  # rich console: a traceback
+        ["orient", "absolute", pg.datasets.path("lidar_wang2014"), "--json"],  # typer.echo
+        ["transform", "apply", "PARAMS", "POINTS"],  # PointWriter: "cannot write None"
+    ],
+    ids=["estimate", "absolute-json", "apply"],
+)
+def test_full_standard_output_is_one_error_line(monkeypatch, capsys, tmp_path, args):
+    params = tmp_path / "p.json"
+    fit = pg.estimate_transform("similarity2d", *_pairs())
+    params.write_text(json.dumps({"model_parameters": fit.transform.to_dict()}))
+    points = tmp_path / "in.csv"
+    points.write_text("id,x,y\na,1,2\n")
+    args = [{"PARAMS": params, "POINTS": points}.get(a, a) for a in args]
+    code, err = _main_with_full_stdout(monkeypatch, capsys, args)
+    assert code == 2, err
+    assert err.strip() == (
+        "error: cannot write the standard output: no space left on the device; free some "
+        "space or write elsewhere"
+    )
+
+
+def _pairs():
+    pairs = pg.io.read_point_pairs(FIDUCIALS)
+    return pairs.source, pairs.target
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_stdout_redirected_to_a_full_device(tmp_path):
+    """``photogeom ... > /dev/full``: one line, exit 2, no traceback, no second message
+    from the interpreter flushing the standard output at exit."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = dict(os.environ, PYTHONPATH=str(Path(pg.__file__).parents[1]))
+    with open("/dev/full", "w") as full:
+        res = subprocess.run(
+            [sys.executable, "-m", "photogeom", "transform", "estimate", "similarity2d",
+             str(FIDUCIALS)],
+            stdout=full, stderr=subprocess.PIPE, text=True, env=env, timeout=120,
+        )  # fmt: skip
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.strip().splitlines() == [
+        "error: cannot write the standard output: no space left on the device; free some "
+        "space or write elsewhere"
+    ]

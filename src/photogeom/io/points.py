@@ -1020,6 +1020,9 @@ class PointWriter:
     def _failure(self, exc: OSError):
         from ..atomicfile import _failure
 
+        if self.path is None:  # the standard output, or the stream given
+            where = "the standard output" if self._stream is None else "the output stream"
+            return _failure(Path(where), exc)
         return _failure(getattr(self, "_given", self.path), exc)
 
     def _head(self) -> str:
