@@ -271,3 +271,105 @@ def test_stdout_redirected_to_a_full_device(tmp_path):
         "error: cannot write the standard output: no space left on the device; free some "
         "space or write elsewhere"
     ]
+
+
+# --- devices and named pipes as destinations ------------------------------------------------
+
+
+class _Fifo:
+    """A named pipe whose read end is open (non-blocking) before anything writes to it, so
+    that a writer neither blocks nor needs a thread; outputs must fit the pipe's buffer."""
+
+    def __init__(self, path) -> None:
+        os.mkfifo(path)
+        self.path = path
+        self.fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+
+    def read(self) -> bytes:
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(self.fd, 1 << 16)
+            except BlockingIOError:
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        return b"".join(chunks)
+
+    def still_a_pipe(self) -> bool:
+        import stat
+
+        return stat.S_ISFIFO(os.lstat(self.path).st_mode)
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+@pytest.fixture
+def fifo(tmp_path):
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("named pipes")
+    f = _Fifo(tmp_path / "pipe")
+    yield f
+    f.close()
+
+
+def test_text_into_a_named_pipe(fifo):
+    """The pipe was replaced by a regular file (a rename over it); now it is written."""
+    atomic_write_text(fifo.path, "hello\n")
+    assert fifo.still_a_pipe()
+    assert fifo.read() == b"hello\n"
+
+
+def test_points_into_a_named_pipe(fifo):
+    write_points(fifo.path, ["a"], np.array([[1.0, 2.0]]), ["x", "y"])
+    assert fifo.still_a_pipe()
+    assert fifo.read() == b"id,x,y\na,1.0,2.0\n"
+
+
+def test_cli_outputs_into_a_named_pipe(cli, fifo, tmp_path):
+    report = tmp_path / "report.html"
+    code, _, err = cli(
+        "transform", "estimate", "similarity2d", FIDUCIALS, "--output-params", fifo.path,
+        "--report", report,
+    )  # fmt: skip
+    assert code == 0, err
+    assert fifo.still_a_pipe()
+    assert json.loads(fifo.read())["model"]
+    assert report.read_text().startswith("<!DOCTYPE html>")
+    assert _names(tmp_path) == ["pipe", "report.html"]
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="mknod needs root")
+def test_a_null_device_stays_a_device(cli, tmp_path):
+    """``--output-params /dev/null`` (here a copy of its device node): replaced by a
+    regular file, before (as root: the system's /dev/null)."""
+    import stat
+
+    null = tmp_path / "null"
+    os.mknod(null, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    code, _, err = cli("transform", "estimate", "similarity2d", FIDUCIALS, "--output-params", null)
+    assert code == 0, err
+    assert stat.S_ISCHR(os.lstat(null).st_mode)
+    points = tmp_path / "in.csv"
+    points.write_text("id,x,y\na,1,2\n")
+    params = tmp_path / "p.json"
+    cli("transform", "estimate", "similarity2d", FIDUCIALS, "--output-params", params)
+    code, _, err = cli("transform", "apply", params, points, "-o", null)
+    assert code == 0, err
+    assert stat.S_ISCHR(os.lstat(null).st_mode)
+    assert _names(tmp_path) == ["in.csv", "null", "p.json"]
+
+
+@pytest.mark.parametrize("scheduler", [None, "threads"])
+def test_cloud_into_a_named_pipe_is_refused(fifo, tmp_path, scheduler):
+    pytest.importorskip("laspy")
+    pytest.importorskip("lazrs")
+    src = tmp_path / "in.las"
+    pg.io.write_cloud(src, np.random.default_rng(3).uniform(0, 9, (50, 3)))
+    T = pg.Similarity3D.from_angles(1.0, 0.0, 0.0, 0.0, [1.0, 2.0, 3.0])
+    with pytest.raises(OutputError, match="a device or a named pipe; a LAS/LAZ output must"):
+        pg.io.transform_cloud(src, fifo.path, T, scheduler=scheduler)
+    assert fifo.still_a_pipe() and fifo.read() == b""
+    assert _names(tmp_path) == ["in.las", "pipe"]

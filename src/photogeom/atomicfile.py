@@ -13,6 +13,10 @@ Policy (the same for every file photogeom writes):
   writable by this user) is **refused**, as a plain ``open()`` would refuse it: a rename
   would otherwise replace a file its owner protected.
 * A destination that is a directory, or in a directory that does not exist, is refused.
+* A destination that is a **character device or a named pipe** (``/dev/null``,
+  ``/dev/stdout``, a FIFO) is written in place, as a plain ``open()`` writes it (a rename
+  would put a regular file where the device or the pipe was); with several files, after the
+  regular files are in place. A block device or a socket is refused.
 * Every failure (permissions, disk full, file-size limit, ...) raises
   :class:`~photogeom.errors.OutputError` naming the file and the cause; the temporary files
   are removed and the destinations are left as they were.
@@ -29,6 +33,7 @@ import errno
 import os
 import secrets
 import shutil
+import stat
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -96,11 +101,47 @@ def _failure(target: Path, exc: OSError) -> OutputError:
     return OutputError(f"cannot write {target}: {reason}", exc.errno)
 
 
+def _stream(path: Path) -> bool:
+    """``path`` is (or links to) a character device or a named pipe: ``/dev/null``,
+    ``/dev/stdout``, a FIFO. Such a destination is written in place, as a plain ``open()``
+    writes it: it cannot be replaced by a renamed file (that would put a regular file where
+    the device or the pipe was)."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)
+
+
+def _write_stream(given: Path, data: bytes) -> None:
+    """Write ``data`` into the device or named pipe ``given`` (see :func:`_stream`)."""
+    try:
+        with open(given, "wb") as fh:
+            fh.write(data)
+    except OSError as exc:
+        raise _failure(given, exc) from exc
+
+
 def _destination(path: str | os.PathLike) -> tuple[Path, Path]:
-    """(name as given, real file to replace): symbolic links are followed."""
+    """(name as given, real file to replace): symbolic links are followed. A device or a
+    named pipe (:func:`_stream`) is returned as given; a block device or a socket is
+    refused."""
     given = Path(os.fspath(path))
     if not given.name:
         raise OutputError(f"cannot write {given}: give a file name, not a directory")
+    try:
+        mode = os.stat(given).st_mode
+    except (OSError, ValueError):
+        mode = None
+    if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
+            if not os.access(given, os.W_OK):
+                raise OutputError(
+                    f"cannot write {given}: permission denied; choose a writable location"
+                )
+            return given, given
+        kind = "a block device" if stat.S_ISBLK(mode) else "a socket or special file"
+        raise OutputError(f"cannot write {given}: it is {kind}, not a file; give a file name")
     target = Path(os.path.realpath(given)) if given.is_symlink() else given
     directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
@@ -247,9 +288,11 @@ def atomic_write_many(items: Sequence[tuple[str | os.PathLike, bytes]]) -> list[
         if key in seen:
             raise InputError(f"{given} and {seen[key]} are the same file: give different outputs")
         seen[key] = given
+    streams = [(given, data) for (given, target), data in prepared if _stream(target)]
+    prepared_files = [item for item in prepared if not _stream(item[0][1])]
     staged: list[_Staged] = []
     try:
-        for (given, target), data in prepared:
+        for (given, target), data in prepared_files:
             staged.append(_Staged(given, target, data))
         if len(staged) > 1:
             for s in staged:
@@ -282,6 +325,8 @@ def atomic_write_many(items: Sequence[tuple[str | os.PathLike, bytes]]) -> list[
     finally:
         for s in staged:
             s.discard()
+    for given, data in streams:  # devices and pipes last: they cannot be rolled back
+        _write_stream(given, data)
     return [given for (given, _), _ in prepared]
 
 

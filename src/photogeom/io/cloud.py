@@ -474,15 +474,30 @@ def _new_offsets(
     return off
 
 
+def _cloud_destination(dst) -> tuple[Path, Path]:
+    """:func:`photogeom.atomicfile._destination` for a LAS/LAZ output: a device or a named
+    pipe (``/dev/null``, ``/dev/stdout``) is refused too, since a LAS/LAZ file is written
+    with seeks and read back, and renaming over it would replace the device or pipe."""
+    from ..atomicfile import _destination, _stream
+
+    given, target = _destination(dst)
+    if _stream(target):
+        raise OutputError(
+            f"cannot write {given}: it is a device or a named pipe; a LAS/LAZ output must be "
+            "a file: give a file name"
+        )
+    return given, target
+
+
 @contextmanager
 def _atomic_target(dst: Path):
     """A temporary path beside ``dst``, fsynced and renamed over it when the ``with`` block
     succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
     ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
     file) for files written by a library that needs a path."""
-    from ..atomicfile import _destination, _failure, _fsync_directory, _temporary_name
+    from ..atomicfile import _failure, _fsync_directory, _temporary_name
 
-    given, target = _destination(dst)
+    given, target = _cloud_destination(dst)
     directory = target.parent if str(target.parent) else Path(".")
     try:
         mode = target.stat().st_mode & 0o7777
@@ -734,6 +749,15 @@ def transform_cloud(
     CloudTransformResult
         What was written: the path, point count, bounds, scales, offsets and CRS.
 
+    Raises
+    ------
+    InputError
+        ``dst`` is ``src``.
+    OutputError
+        ``dst`` cannot be written: a folder, a read-only file, a missing folder, a device or
+        a named pipe (``/dev/null``: a LAS/LAZ file is written with seeks and read back),
+        refused before the first pass; a full disk while writing (nothing is left).
+
     Notes
     -----
     Kept: point format and LAS version, every dimension including extra bytes, all VLRs
@@ -761,6 +785,7 @@ def transform_cloud(
     dst = Path(dst)
     if dst.resolve() == src.resolve():
         raise InputError(f"output {dst} is the input file; write to a new file")
+    _cloud_destination(dst)  # a folder, a read-only file, a device: refused before any pass
     if crs is None:
         crs = getattr(transform, "target_crs", None)
     passes = 1
@@ -1177,9 +1202,7 @@ def transform_cloud_dask(
     dst = Path(dst)
     if dst.resolve() == src.resolve():
         raise InputError(f"output {dst} is the input file; write to a new file")
-    from ..atomicfile import _destination
-
-    _destination(dst)  # a folder, a read-only file, no such folder: refused before any work
+    _cloud_destination(dst)  # a folder, a read-only file, no such folder: refused at once
     if crs is None:
         crs = getattr(transform, "target_crs", None)
     compress = dst.suffix.lower() == ".laz"
@@ -1254,9 +1277,9 @@ def _pieces_folder(dst: Path) -> Path:
     OutputError
         Naming ``dst`` when the folder cannot be made (a read-only folder, a full disk).
     """
-    from ..atomicfile import _destination, _failure, _temporary_name
+    from ..atomicfile import _failure, _temporary_name
 
-    given, target = _destination(dst)
+    given, target = _cloud_destination(dst)
     directory = target.parent if str(target.parent) else Path(".")
     for _ in range(100):
         folder = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.pieces")

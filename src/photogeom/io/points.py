@@ -951,6 +951,7 @@ class PointWriter:
         self._fh = None
         self._tmp: str | None = None
         self._rows = None
+        self._direct = False  # a device or a named pipe, written in place
         self.n_written = 0
 
     def __enter__(self) -> PointWriter:
@@ -984,10 +985,17 @@ class PointWriter:
         one)."""
         import secrets
 
-        from ..atomicfile import _destination, _failure, _temporary_name
+        from ..atomicfile import _destination, _failure, _stream, _temporary_name
 
         given, target = _destination(self.path)
         self._given, self._target = given, target
+        if _stream(target):  # /dev/null, /dev/stdout, a named pipe: written in place
+            try:
+                self._fh = open(given, "wb")  # closed in __exit__ / _abort
+            except OSError as exc:
+                raise _failure(given, exc) from exc
+            self._direct = True
+            return
         try:
             mode = target.stat().st_mode & 0o7777
         except FileNotFoundError:
@@ -1117,6 +1125,17 @@ class PointWriter:
             return
         from ..atomicfile import _fsync_directory
 
+        if self._direct:
+            try:
+                self._rows.close()
+                self._fh.close()
+            except OSError as exc:
+                self._abort()
+                raise self._failure(exc) from exc
+            except BaseException:
+                self._abort()
+                raise
+            return
         try:
             self._rows.close()
             self._fh.flush()
@@ -1135,6 +1154,12 @@ class PointWriter:
     def _abort(self) -> None:
         if self._rows is not None:
             self._rows.close(discard=True)
+        if self._direct:
+            try:
+                self._fh.close()
+            except OSError:  # pragma: no cover - closing a broken pipe
+                pass
+            return
         if self.path is None or self._tmp is None:
             return
         try:
