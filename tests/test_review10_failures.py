@@ -373,3 +373,75 @@ def test_cloud_into_a_named_pipe_is_refused(fifo, tmp_path, scheduler):
         pg.io.transform_cloud(src, fifo.path, T, scheduler=scheduler)
     assert fifo.still_a_pipe() and fifo.read() == b""
     assert _names(tmp_path) == ["in.las", "pipe"]
+
+
+# --- owner and group of a replaced file -------------------------------------------------------
+
+
+def _writers(tmp_path):
+    """Each writer of photogeom (single files, point CSVs, clouds) replacing ``path``."""
+    xyz = np.random.default_rng(4).uniform(0, 9, (20, 3))
+    out = {
+        "text": lambda p: atomic_write_text(p, "new\n"),
+        "points": lambda p: write_points(p, ["a"], np.array([[1.0, 2.0]]), ["x", "y"]),
+    }
+    try:
+        import laspy  # noqa: F401
+        import lazrs  # noqa: F401
+    except ImportError:
+        return out
+    out["cloud"] = lambda p: pg.io.write_cloud(p, xyz)
+    return out
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="chown needs root")
+@pytest.mark.parametrize("writer", ["text", "points", "cloud"])
+def test_replaced_file_keeps_its_owner_and_group(tmp_path, writer):
+    """Rewritten by root (sudo), a user's file became root's (a plain write keeps its owner
+    and group)."""
+    write = _writers(tmp_path).get(writer)
+    if write is None:
+        pytest.skip("laspy/lazrs")
+    p = tmp_path / ("out.las" if writer == "cloud" else "out.txt")
+    p.write_text("old\n")
+    os.chown(p, 65534, 65534)
+    p.chmod(0o664)
+    write(p)
+    st = os.stat(p)
+    assert (st.st_uid, st.st_gid, st.st_mode & 0o777) == (65534, 65534, 0o664)
+    assert p.read_bytes() != b"old\n"
+
+
+@pytest.mark.skipif(not hasattr(os, "fchown"), reason="POSIX owners")
+@pytest.mark.parametrize("writer", ["text", "points", "cloud"])
+def test_group_is_kept_when_the_owner_cannot_be(tmp_path, writer, monkeypatch):
+    """A user in a shared project group: its files kept the group only with a plain write."""
+    write = _writers(tmp_path).get(writer)
+    if write is None:
+        pytest.skip("laspy/lazrs")
+    p = tmp_path / ("out.las" if writer == "cloud" else "out.txt")
+    p.write_text("old\n")
+    st = os.stat(p)
+    other_uid, other_gid = st.st_uid + 1, st.st_gid + 1
+    real_stat = os.stat
+    calls = []
+
+    def stat_(path, *a, **k):  # the destination as if it belonged to another user and group
+        res = real_stat(path, *a, **k)
+        if os.fspath(path) == os.fspath(p):
+            fields = list(res)
+            fields[4], fields[5] = other_uid, other_gid
+            return os.stat_result(fields)
+        return res
+
+    def fchown(fd, uid, gid):  # this user may set the group, not the owner
+        calls.append((uid, gid))
+        if uid != -1:
+            raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(os, "stat", stat_)
+    monkeypatch.setattr(os, "fchown", fchown)
+    write(p)
+    monkeypatch.undo()
+    assert calls == [(other_uid, other_gid), (-1, other_gid)]
+    assert _names(tmp_path) == [p.name]

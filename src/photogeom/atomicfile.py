@@ -6,7 +6,9 @@ Policy (the same for every file photogeom writes):
   partial file. The data are fsynced before the rename and the directory after it.
 * A new file gets the mode a plain ``open(path, "w")`` would give it: ``0666`` minus the
   umask, applied by the operating system when the temporary file is created (the umask is
-  never read or changed, so other threads are not affected). A replaced file keeps its mode.
+  never read or changed, so other threads are not affected). A replaced file keeps its mode,
+  and its owner and group as far as this user may set them (see :func:`_take_over`), as a
+  plain ``open()`` rewriting it in place would.
 * A destination that is a **symbolic link** is followed: the file it points to is replaced
   and the link stays, as a plain ``open()`` would do.
 * A destination that exists but may not be written (no write permission bit, or not
@@ -94,6 +96,37 @@ def _temporary_name(directory: Path, name: str, tail: str) -> Path:
     return directory / f".{name}{tail}"
 
 
+def _take_over(fd: int, old: os.stat_result | None) -> None:
+    """Give the new file ``fd`` the owner, group and mode of the file it replaces.
+
+    A plain ``open()`` rewrites a file in place and keeps all three; a renamed temporary
+    file would otherwise belong to this user and primary group (a file of a shared project
+    group would lose its group, a file rewritten with ``sudo`` would become root's). The
+    owner is kept where this user may set it (root, or the owner itself), the group where
+    this user belongs to it; the mode always.
+
+    Parameters
+    ----------
+    fd : int
+        The temporary file, open for writing.
+    old : os.stat_result or None
+        The destination's status; None for a new file (which keeps ``0666`` minus umask).
+    """
+    if old is None:
+        return
+    if hasattr(os, "fchown"):
+        now = os.fstat(fd)
+        if (now.st_uid, now.st_gid) != (old.st_uid, old.st_gid):
+            for uid in (old.st_uid, -1):  # owner and group, else the group alone
+                try:
+                    os.fchown(fd, uid, old.st_gid)
+                    break
+                except OSError:  # not permitted (or not supported by the file system)
+                    continue
+    if hasattr(os, "fchmod"):  # after fchown, which may clear the set-id bits
+        os.fchmod(fd, stat.S_IMODE(old.st_mode))
+
+
 def _failure(target: Path, exc: OSError) -> OutputError:
     reason = _HINTS.get(exc.errno) if exc.errno is not None else None
     if reason is None:
@@ -169,9 +202,9 @@ class _Staged:
         self.tmp: Path | None = None
         self.backup: Path | None = None
         directory = target.parent if str(target.parent) else Path(".")
-        mode = None
+        old = None
         try:
-            mode = target.stat().st_mode & 0o7777
+            old = target.stat()
         except FileNotFoundError:
             pass
         except OSError as exc:
@@ -192,8 +225,7 @@ class _Staged:
         self.tmp = tmp
         try:
             with os.fdopen(fd, "wb") as fh:
-                if mode is not None and hasattr(os, "fchmod"):
-                    os.fchmod(fh.fileno(), mode)
+                _take_over(fh.fileno(), old)
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())

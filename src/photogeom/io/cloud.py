@@ -495,14 +495,14 @@ def _atomic_target(dst: Path):
     succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
     ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
     file) for files written by a library that needs a path."""
-    from ..atomicfile import _failure, _fsync_directory, _temporary_name
+    from ..atomicfile import _failure, _fsync_directory, _take_over, _temporary_name
 
     given, target = _cloud_destination(dst)
     directory = target.parent if str(target.parent) else Path(".")
     try:
-        mode = target.stat().st_mode & 0o7777
+        old = target.stat()
     except FileNotFoundError:
-        mode = None
+        old = None
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
     for _ in range(100):
         tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
@@ -516,8 +516,7 @@ def _atomic_target(dst: Path):
     else:  # pragma: no cover - 100 collisions of 48 random bits
         raise PhotogeomError(f"cannot write {given}: no free temporary file name")
     try:
-        if mode is not None and hasattr(os, "fchmod"):
-            os.fchmod(fd, mode)
+        _take_over(fd, old)
         os.close(fd)
         yield tmp
         fd = os.open(tmp, os.O_RDONLY)

@@ -981,11 +981,11 @@ class PointWriter:
     def _open_temporary(self) -> None:
         """A temporary file beside the destination, by the policy of
         :mod:`photogeom.atomicfile` (symbolic links followed, read-only files and missing
-        directories refused, the mode of a replaced file kept, 0666 minus umask for a new
-        one)."""
+        directories refused, the mode, owner and group of a replaced file kept, 0666 minus
+        umask for a new one; a device or a named pipe written in place)."""
         import secrets
 
-        from ..atomicfile import _destination, _failure, _stream, _temporary_name
+        from ..atomicfile import _destination, _failure, _stream, _take_over, _temporary_name
 
         given, target = _destination(self.path)
         self._given, self._target = given, target
@@ -997,9 +997,9 @@ class PointWriter:
             self._direct = True
             return
         try:
-            mode = target.stat().st_mode & 0o7777
+            old = target.stat()
         except FileNotFoundError:
-            mode = None
+            old = None
         except OSError as exc:
             raise _failure(given, exc) from exc
         directory = target.parent if str(target.parent) else Path(".")
@@ -1017,8 +1017,7 @@ class PointWriter:
             raise PhotogeomError(f"cannot write {given}: no free temporary file name")
         self._tmp = str(tmp)
         try:
-            if mode is not None and hasattr(os, "fchmod"):
-                os.fchmod(fd, mode)
+            _take_over(fd, old)
             self._fh = os.fdopen(fd, "wb")
         except BaseException:
             os.close(fd)
