@@ -445,3 +445,45 @@ def test_group_is_kept_when_the_owner_cannot_be(tmp_path, writer, monkeypatch):
     monkeypatch.undo()
     assert calls == [(other_uid, other_gid), (-1, other_gid)]
     assert _names(tmp_path) == [p.name]
+
+
+# --- an interrupted folder of images ----------------------------------------------------------
+
+
+def test_interrupted_correct_folder_leaves_whole_images_and_no_temporary(tmp_path, monkeypatch):
+    """docs/cli.md said that Ctrl-C changes no output file; grid correct-images writes one
+    image at a time: those finished stay (complete), the others are untouched."""
+    import sys
+    from pathlib import Path
+
+    pytest.importorskip("cv2")
+    Image = pytest.importorskip("PIL.Image")
+    import photogeom.calibration.images as images
+    from photogeom.calibration import GridLayout, correct_folder
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from residual_grids import grid_with_nodes
+
+    layout = GridLayout(60, 40, 20)
+    grid = grid_with_nodes(layout, np.full((*layout.shape, 2), 1.0))
+    src, dst = tmp_path / "in", tmp_path / "out"
+    src.mkdir()
+    dst.mkdir()
+    for k in "abc":
+        Image.fromarray(np.zeros((40, 60), np.uint8)).save(src / f"{k}.png")
+        (dst / f"{k}.png").write_bytes(b"old")
+    real = images.atomic_write_bytes
+    calls = []
+
+    def interrupted(path, data):
+        calls.append(path)
+        if len(calls) == 2:  # Ctrl-C while the second image is written
+            raise KeyboardInterrupt
+        return real(path, data)
+
+    monkeypatch.setattr(images, "atomic_write_bytes", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        correct_folder(src, dst, {k: grid for k in "abc"}, progress=False)
+    assert _names(dst) == ["a.png", "b.png", "c.png"]
+    assert (dst / "a.png").read_bytes().startswith(b"\x89PNG")
+    assert (dst / "b.png").read_bytes() == b"old" and (dst / "c.png").read_bytes() == b"old"
