@@ -487,3 +487,41 @@ def test_interrupted_correct_folder_leaves_whole_images_and_no_temporary(tmp_pat
     assert _names(dst) == ["a.png", "b.png", "c.png"]
     assert (dst / "a.png").read_bytes().startswith(b"\x89PNG")
     assert (dst / "b.png").read_bytes() == b"old" and (dst / "c.png").read_bytes() == b"old"
+
+
+# --- file systems without modes (FAT, exFAT: chmod refused) ----------------------------------
+
+
+def _no_chmod(monkeypatch):
+    def refused(fd, mode):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(os, "fchmod", refused)
+
+
+@pytest.mark.parametrize("writer", ["text", "points", "cloud"])
+def test_replacing_a_file_of_the_same_mode_needs_no_chmod(tmp_path, writer, monkeypatch):
+    """On a FAT/exFAT stick every chmod fails: replacing a file whose mode the new one
+    already has made the point writer end in a PermissionError traceback."""
+    write = _writers(tmp_path).get(writer)
+    if write is None:
+        pytest.skip("laspy/lazrs")
+    p = tmp_path / ("out.las" if writer == "cloud" else "out.txt")
+    write(p)  # a first version: the mode of a new file
+    _no_chmod(monkeypatch)
+    write(p)
+    assert _names(tmp_path) == [p.name]
+
+
+@pytest.mark.parametrize("writer", ["text", "points", "cloud"])
+def test_a_mode_that_cannot_be_kept_is_an_output_error(tmp_path, writer, monkeypatch):
+    write = _writers(tmp_path).get(writer)
+    if write is None:
+        pytest.skip("laspy/lazrs")
+    p = tmp_path / ("out.las" if writer == "cloud" else "out.txt")
+    p.write_bytes(b"old")
+    p.chmod(0o600)
+    _no_chmod(monkeypatch)
+    with pytest.raises(OutputError, match=f"cannot write {p}: operation not permitted"):
+        write(p)
+    assert _names(tmp_path) == [p.name] and p.read_bytes() == b"old"

@@ -114,8 +114,8 @@ def _take_over(fd: int, old: os.stat_result | None) -> None:
     """
     if old is None:
         return
+    now = os.fstat(fd)
     if hasattr(os, "fchown"):
-        now = os.fstat(fd)
         if (now.st_uid, now.st_gid) != (old.st_uid, old.st_gid):
             for uid in (old.st_uid, -1):  # owner and group, else the group alone
                 try:
@@ -123,8 +123,11 @@ def _take_over(fd: int, old: os.stat_result | None) -> None:
                     break
                 except OSError:  # not permitted (or not supported by the file system)
                     continue
-    if hasattr(os, "fchmod"):  # after fchown, which may clear the set-id bits
-        os.fchmod(fd, stat.S_IMODE(old.st_mode))
+    mode = stat.S_IMODE(old.st_mode)
+    # only a change: file systems with fixed modes (FAT, exFAT) refuse any chmod (EPERM);
+    # after fchown, which may clear the set-id bits
+    if hasattr(os, "fchmod") and stat.S_IMODE(os.fstat(fd).st_mode) != mode:
+        os.fchmod(fd, mode)
 
 
 def _failure(target: Path, exc: OSError) -> OutputError:

@@ -1019,9 +1019,12 @@ class PointWriter:
         try:
             _take_over(fd, old)
             self._fh = os.fdopen(fd, "wb")
-        except BaseException:
+        except BaseException as exc:
             os.close(fd)
             os.unlink(self._tmp)
+            self._tmp = None
+            if isinstance(exc, OSError):
+                raise _failure(given, exc) from exc
             raise
 
     def _failure(self, exc: OSError):
