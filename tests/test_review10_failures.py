@@ -525,3 +525,57 @@ def test_a_mode_that_cannot_be_kept_is_an_output_error(tmp_path, writer, monkeyp
     with pytest.raises(OutputError, match=f"cannot write {p}: operation not permitted"):
         write(p)
     assert _names(tmp_path) == [p.name] and p.read_bytes() == b"old"
+
+
+# --- two outputs of one command in one file -----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small_block(tmp_path_factory):
+    from photogeom.cli.main import main
+
+    d = tmp_path_factory.mktemp("block") / "blk"
+    args = ["bundle", "simulate", str(d), "--strips", "2", "--images-per-strip", "3",
+            "--tie-points-per-image", "40"]  # fmt: skip
+    try:
+        main(args)
+    except SystemExit as exc:
+        assert exc.code in (0, None)
+    return d
+
+
+def test_report_and_result_in_one_file_are_refused_before_adjusting(
+    cli, small_block, tmp_path, monkeypatch
+):
+    """bundle adjust --report F --result F: exit 0, the report silently replaced the result
+    record (one dict entry per path); now refused by both option names, before the work."""
+    import photogeom.bundle as bundle
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("adjusted although the outputs collide")
+
+    monkeypatch.setattr(bundle, "bundle_adjust", no_work)
+    same = tmp_path / "same.out"
+    code, _, err = cli("bundle", "adjust", small_block, "--report", same, "--result", same)
+    assert code == 2, err
+    assert err.strip() == (
+        f"error: --report and --result both name {same}: one output would replace the other; "
+        "give different files"
+    )
+    code, _, err = cli("bundle", "adjust", small_block, "-o", tmp_path / "b.bal",
+                       "--output-format", "bal", "--drop-extras",
+                       "--result", tmp_path / "b.bal")  # fmt: skip
+    assert code == 2 and "--output and --result both name" in err, err
+    assert _names(tmp_path) == []
+
+
+def test_report_named_like_a_file_of_the_output_block(cli, small_block, tmp_path):
+    """-o adj --report adj/images.csv: exit 0 and a block whose images.csv was the HTML
+    report; now one error line and nothing written."""
+    out = tmp_path / "adj"
+    out.mkdir()
+    code, _, err = cli("bundle", "adjust", small_block, "-o", out, "--report",
+                       out / "images.csv")  # fmt: skip
+    assert code == 2, err
+    assert "would be written twice, as a file of the output block" in err
+    assert _names(out) == []
