@@ -579,3 +579,66 @@ def test_report_named_like_a_file_of_the_output_block(cli, small_block, tmp_path
     assert code == 2, err
     assert "would be written twice, as a file of the output block" in err
     assert _names(out) == []
+
+
+# --- Ctrl-C stops the items not yet started ---------------------------------------------------
+
+
+def test_interrupted_thread_jobs_drop_the_items_not_started():
+    """map_items(scheduler='threads') (cloud transform --scheduler threads): after Ctrl-C
+    every queued item still ran (40 of 40) before the interrupt took effect."""
+    import threading
+
+    from photogeom.distributed import map_items
+
+    workers = os.cpu_count() or 1
+    total = 4 * workers + 20
+    ran = []
+    lock = threading.Lock()
+    never = threading.Event()
+
+    def item(i):
+        if i:
+            never.wait(0.2)  # bounded: items 1.. are still running or queued at the Ctrl-C
+        with lock:
+            ran.append(i)
+        return i
+
+    def interrupt(done, n):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        map_items(item, range(total), scheduler="threads", progress=interrupt)
+    assert len(ran) <= 1 + 2 * workers < total
+
+
+def test_interrupted_image_processes_drop_the_images_not_started(tmp_path, monkeypatch):
+    """grid correct-images --workers N: Ctrl-C in the main process waited for every queued
+    image (30 of 30 written); the pool is now shut down with its queued jobs cancelled."""
+    import concurrent.futures as cf
+
+    import photogeom.calibration.images as images
+
+    shutdowns = []
+
+    class Pool(cf.ThreadPoolExecutor):  # in-process, recording how it is shut down
+        def __init__(self, workers):
+            super().__init__(workers)
+
+        def shutdown(self, wait=True, *, cancel_futures=False):
+            shutdowns.append(cancel_futures)
+            super().shutdown(wait=wait, cancel_futures=cancel_futures)
+
+    real_as_completed = cf.as_completed
+
+    def first_then_interrupt(fs):
+        yield next(iter(real_as_completed(fs)))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cf, "ProcessPoolExecutor", Pool)
+    monkeypatch.setattr(cf, "as_completed", first_then_interrupt)
+    monkeypatch.setattr(images, "_task", lambda *a, **k: (True, None))
+    jobs = [(k, "src", "dst", None) for k in range(6)]
+    with pytest.raises(KeyboardInterrupt):
+        images._run_processes(jobs, 2, "bilinear", False, "replicate")
+    assert shutdowns[0] is True
