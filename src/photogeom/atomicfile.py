@@ -6,18 +6,27 @@ Policy (the same for every file photogeom writes):
   partial file. The data are fsynced before the rename and the directory after it.
 * A new file gets the mode a plain ``open(path, "w")`` would give it: ``0666`` minus the
   umask, applied by the operating system when the temporary file is created (the umask is
-  never read or changed, so other threads are not affected). A replaced file keeps its mode.
+  never read or changed, so other threads are not affected). A replaced file keeps its mode,
+  and its owner and group as far as this user may set them (see :func:`_take_over`), as a
+  plain ``open()`` rewriting it in place would.
 * A destination that is a **symbolic link** is followed: the file it points to is replaced
   and the link stays, as a plain ``open()`` would do.
 * A destination that exists but may not be written (no write permission bit, or not
   writable by this user) is **refused**, as a plain ``open()`` would refuse it: a rename
   would otherwise replace a file its owner protected.
 * A destination that is a directory, or in a directory that does not exist, is refused.
+* A destination that is a **character device or a named pipe** (``/dev/null``,
+  ``/dev/stdout``, a FIFO) is written in place, as a plain ``open()`` writes it (a rename
+  would put a regular file where the device or the pipe was); with several files, after the
+  regular files are in place. A block device or a socket is refused.
 * Every failure (permissions, disk full, file-size limit, ...) raises
   :class:`~photogeom.errors.OutputError` naming the file and the cause; the temporary files
   are removed and the destinations are left as they were.
 * :func:`atomic_write_many` writes several files as one: when any of them cannot be written,
   none is changed.
+* The temporary file is named ``.<name>.<random>.tmp``, with ``<name>`` shortened when needed
+  so that the name fits the file system's limit (255 bytes on most): any destination name
+  that a plain ``open()`` accepts is accepted.
 """
 
 from __future__ import annotations
@@ -26,6 +35,7 @@ import errno
 import os
 import secrets
 import shutil
+import stat
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -44,6 +54,82 @@ _HINTS = {
 }
 
 
+#: Longest file name (bytes) assumed where the file system does not say (ext4, XFS, APFS, ...).
+_NAME_MAX = 255
+
+
+def _temporary_name(directory: Path, name: str, tail: str) -> Path:
+    """``directory / ("." + name + tail)``, ``name`` cut so that the file name fits the
+    directory's file-name limit in bytes.
+
+    Parameters
+    ----------
+    directory : Path
+        Where the temporary file or folder is made (beside its destination).
+    name : str
+        The destination's file name.
+    tail : str
+        What follows it, e.g. ``".<random>.tmp"`` (kept whole).
+
+    Returns
+    -------
+    Path
+        A name no longer than the limit, so that a destination name of up to the limit does
+        not fail as too long only because of its temporary name.
+    """
+    try:
+        limit = int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (AttributeError, OSError, ValueError):  # no pathconf (Windows), or no answer
+        limit = _NAME_MAX
+    if limit <= 0:
+        limit = _NAME_MAX
+    room = max(1, limit - 1 - len(os.fsencode(tail)))
+    raw = os.fsencode(name)
+    if len(raw) > room:
+        cut = raw[:room]
+        # whole UTF-8 characters only: drop a multi-byte sequence cut in the middle
+        while cut and (cut[-1] & 0xC0) == 0x80:
+            cut = cut[:-1]
+        if cut and cut[-1] >= 0xC0:
+            cut = cut[:-1]
+        name = os.fsdecode(cut)
+    return directory / f".{name}{tail}"
+
+
+def _take_over(fd: int, old: os.stat_result | None) -> None:
+    """Give the new file ``fd`` the owner, group and mode of the file it replaces.
+
+    A plain ``open()`` rewrites a file in place and keeps all three; a renamed temporary
+    file would otherwise belong to this user and primary group (a file of a shared project
+    group would lose its group, a file rewritten with ``sudo`` would become root's). The
+    owner is kept where this user may set it (root, or the owner itself), the group where
+    this user belongs to it; the mode always.
+
+    Parameters
+    ----------
+    fd : int
+        The temporary file, open for writing.
+    old : os.stat_result or None
+        The destination's status; None for a new file (which keeps ``0666`` minus umask).
+    """
+    if old is None:
+        return
+    now = os.fstat(fd)
+    if hasattr(os, "fchown"):
+        if (now.st_uid, now.st_gid) != (old.st_uid, old.st_gid):
+            for uid in (old.st_uid, -1):  # owner and group, else the group alone
+                try:
+                    os.fchown(fd, uid, old.st_gid)
+                    break
+                except OSError:  # not permitted (or not supported by the file system)
+                    continue
+    mode = stat.S_IMODE(old.st_mode)
+    # only a change: file systems with fixed modes (FAT, exFAT) refuse any chmod (EPERM);
+    # after fchown, which may clear the set-id bits
+    if hasattr(os, "fchmod") and stat.S_IMODE(os.fstat(fd).st_mode) != mode:
+        os.fchmod(fd, mode)
+
+
 def _failure(target: Path, exc: OSError) -> OutputError:
     reason = _HINTS.get(exc.errno) if exc.errno is not None else None
     if reason is None:
@@ -51,11 +137,47 @@ def _failure(target: Path, exc: OSError) -> OutputError:
     return OutputError(f"cannot write {target}: {reason}", exc.errno)
 
 
+def _stream(path: Path) -> bool:
+    """``path`` is (or links to) a character device or a named pipe: ``/dev/null``,
+    ``/dev/stdout``, a FIFO. Such a destination is written in place, as a plain ``open()``
+    writes it: it cannot be replaced by a renamed file (that would put a regular file where
+    the device or the pipe was)."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)
+
+
+def _write_stream(given: Path, data: bytes) -> None:
+    """Write ``data`` into the device or named pipe ``given`` (see :func:`_stream`)."""
+    try:
+        with open(given, "wb") as fh:
+            fh.write(data)
+    except OSError as exc:
+        raise _failure(given, exc) from exc
+
+
 def _destination(path: str | os.PathLike) -> tuple[Path, Path]:
-    """(name as given, real file to replace): symbolic links are followed."""
+    """(name as given, real file to replace): symbolic links are followed. A device or a
+    named pipe (:func:`_stream`) is returned as given; a block device or a socket is
+    refused."""
     given = Path(os.fspath(path))
     if not given.name:
         raise OutputError(f"cannot write {given}: give a file name, not a directory")
+    try:
+        mode = os.stat(given).st_mode
+    except (OSError, ValueError):
+        mode = None
+    if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
+            if not os.access(given, os.W_OK):
+                raise OutputError(
+                    f"cannot write {given}: permission denied; choose a writable location"
+                )
+            return given, given
+        kind = "a block device" if stat.S_ISBLK(mode) else "a socket or special file"
+        raise OutputError(f"cannot write {given}: it is {kind}, not a file; give a file name")
     target = Path(os.path.realpath(given)) if given.is_symlink() else given
     directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
@@ -83,16 +205,16 @@ class _Staged:
         self.tmp: Path | None = None
         self.backup: Path | None = None
         directory = target.parent if str(target.parent) else Path(".")
-        mode = None
+        old = None
         try:
-            mode = target.stat().st_mode & 0o7777
+            old = target.stat()
         except FileNotFoundError:
             pass
         except OSError as exc:
             raise _failure(given, exc) from exc
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
         for _ in range(100):
-            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
             try:
                 # 0o666: the kernel applies the umask, exactly as for open(path, "w")
                 fd = os.open(tmp, flags, 0o666)
@@ -106,8 +228,7 @@ class _Staged:
         self.tmp = tmp
         try:
             with os.fdopen(fd, "wb") as fh:
-                if mode is not None and hasattr(os, "fchmod"):
-                    os.fchmod(fh.fileno(), mode)
+                _take_over(fh.fileno(), old)
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
@@ -202,9 +323,11 @@ def atomic_write_many(items: Sequence[tuple[str | os.PathLike, bytes]]) -> list[
         if key in seen:
             raise InputError(f"{given} and {seen[key]} are the same file: give different outputs")
         seen[key] = given
+    streams = [(given, data) for (given, target), data in prepared if _stream(target)]
+    prepared_files = [item for item in prepared if not _stream(item[0][1])]
     staged: list[_Staged] = []
     try:
-        for (given, target), data in prepared:
+        for (given, target), data in prepared_files:
             staged.append(_Staged(given, target, data))
         if len(staged) > 1:
             for s in staged:
@@ -237,6 +360,8 @@ def atomic_write_many(items: Sequence[tuple[str | os.PathLike, bytes]]) -> list[
     finally:
         for s in staged:
             s.discard()
+    for given, data in streams:  # devices and pipes last: they cannot be rolled back
+        _write_stream(given, data)
     return [given for (given, _), _ in prepared]
 
 

@@ -411,12 +411,17 @@ def map_items(
         else:
             from concurrent.futures import ThreadPoolExecutor, as_completed
 
-            with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
+            ex = ThreadPoolExecutor(max_workers=os.cpu_count() or 1)
+            try:
                 futs = {ex.submit(_guarded, func, it): i for i, it in enumerate(items)}
                 for done, fut in enumerate(as_completed(futs), 1):
                     outcomes[futs[fut]] = fut.result()
                     if progress is not None:
                         progress(done, total)
+            except BaseException:  # Ctrl-C, a failing progress: the items not started are
+                ex.shutdown(wait=True, cancel_futures=True)  # dropped, not run to the end
+                raise
+            ex.shutdown(wait=True)
     elif total:
         distributed = _distributed()
         with scheduler_client(scheduler) as client:

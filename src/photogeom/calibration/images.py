@@ -841,15 +841,21 @@ def _run_processes(jobs, workers, interpolation, progress, border):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     out: list = [None] * len(jobs)
-    with _progress(progress, len(jobs)) as prog, ProcessPoolExecutor(workers) as ex:
-        t = prog.add_task("correcting images", total=len(jobs))
-        futs = {
-            ex.submit(_task, s, d, g, interpolation, 1, border=border): i
-            for i, (_k, s, d, g) in enumerate(jobs)
-        }
-        for f in as_completed(futs):
-            out[futs[f]] = f.result()
-            prog.advance(t)
+    with _progress(progress, len(jobs)) as prog:
+        ex = ProcessPoolExecutor(workers)
+        try:
+            t = prog.add_task("correcting images", total=len(jobs))
+            futs = {
+                ex.submit(_task, s, d, g, interpolation, 1, border=border): i
+                for i, (_k, s, d, g) in enumerate(jobs)
+            }
+            for f in as_completed(futs):
+                out[futs[f]] = f.result()
+                prog.advance(t)
+        except BaseException:  # Ctrl-C: the images not started are dropped (the running
+            ex.shutdown(wait=True, cancel_futures=True)  # ones finish, each written whole)
+            raise
+        ex.shutdown(wait=True)
     return out
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import re
 from enum import Enum
 from pathlib import Path
@@ -205,10 +206,25 @@ def check_targets(blocks=(), files=(), made=()) -> None:
     ``blocks``: ``(option, path, format)`` of blocks to write; ``files``: ``(option, path)``
     of single files; ``made``: folders the command creates (files may go into them). A CSV
     or COLMAP block onto an existing file, a file onto a folder or into a folder that does
-    not exist raise :class:`~photogeom.errors.OutputError` naming the option.
+    not exist raise :class:`~photogeom.errors.OutputError` naming the option; two options
+    naming one file (``--report r --result r``; a file and a BAL block) raise
+    :class:`~photogeom.errors.InputError` naming both (one output would silently replace
+    the other).
     """
     from ..bundle.io_formats import check_block_target
 
+    named: dict[str, str] = {}
+    singles = [(o, p) for o, p, f in blocks if f == "bal"] + list(files)
+    for opt, path in singles:
+        if path is None:
+            continue
+        key = os.path.normcase(os.path.realpath(path))
+        if key in named and named[key] != opt:
+            raise InputError(
+                f"{named[key]} and {opt} both name {path}: one output would replace the other; "
+                "give different files"
+            )
+        named.setdefault(key, opt)
     for opt, path, fmt in blocks:
         if path is not None:
             check_block_target(path, fmt, opt)
@@ -230,6 +246,11 @@ def write_all(files: dict, texts=(), folders=()) -> None:
 
     batch = dict(files)
     for path, text in texts:
+        if path in batch:  # a report or result named like a file of the output block
+            raise InputError(
+                f"{path} would be written twice, as a file of the output block and as another "
+                "output: give that output a file outside the block, or another name"
+            )
         batch[path] = text.encode("utf-8")
     write_files(batch, folders)
 

@@ -5,7 +5,10 @@ Each part registers its command group from its own module; this file only wires 
 
 from __future__ import annotations
 
+import errno
+import os
 import sys
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -77,8 +80,9 @@ _register()
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the CLI; photogeom errors (and running out of memory) become a one-line message
-    and exit code 2.
+    """Run the CLI; photogeom errors, running out of memory and a standard output that
+    cannot be written (a full disk, a file-size limit) become a one-line message and exit
+    code 2.
 
     Usage errors, ``--help`` and the help shown without arguments are handled by click
     (standalone mode), so they print the usual usage text and exit codes.
@@ -110,12 +114,53 @@ def main(argv: list[str] | None = None) -> None:
             fg=typer.colors.RED,
         )
         sys.exit(2)
+    except OSError as exc:
+        if not _standard_output_full(exc):
+            raise
+        from ..atomicfile import _failure
+
+        reason = str(_failure(Path("-"), exc)).removeprefix("cannot write -: ")
+        _quiet_stdout()
+        typer.secho(
+            f"error: cannot write the standard output: {reason}", err=True, fg=typer.colors.RED
+        )
+        sys.exit(2)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         sys.exit(130)
     finally:
         warnings.showwarning = shown
         if not failed:
             numeric.show()
+
+
+#: Errors that only a write can raise: without a file name (photogeom names its own files in
+#: an OutputError), they come from the standard output (a redirection to a full disk, a
+#: file-size limit, /dev/full).
+_WRITE_ONLY_ERRNOS = frozenset(
+    e for e in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG) if e is not None
+)
+
+
+def _standard_output_full(exc: OSError) -> bool:
+    """``exc`` is a failed write of the standard output (no file name, a write-only errno)."""
+    return exc.filename is None and exc.errno in _WRITE_ONLY_ERRNOS
+
+
+def _quiet_stdout() -> None:
+    """Drop what the standard output still holds: it cannot be written, and flushing it at
+    exit would print a second error ("Exception ignored ... OSError")."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # not a file (captured, replaced)
+        return
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # pragma: no cover - no /dev/null
+        return
+    try:
+        os.dup2(null, fd)
+    finally:
+        os.close(null)
 
 
 class NumericWarnings:

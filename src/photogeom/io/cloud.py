@@ -20,7 +20,6 @@ import os
 import secrets
 import shutil
 import struct
-import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -28,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError, PhotogeomError
+from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
 
 #: Points per chunk unless ``chunk_size=`` says otherwise (about 30-60 MB of records).
 DEFAULT_CHUNK = 1_000_000
@@ -475,23 +474,38 @@ def _new_offsets(
     return off
 
 
+def _cloud_destination(dst) -> tuple[Path, Path]:
+    """:func:`photogeom.atomicfile._destination` for a LAS/LAZ output: a device or a named
+    pipe (``/dev/null``, ``/dev/stdout``) is refused too, since a LAS/LAZ file is written
+    with seeks and read back, and renaming over it would replace the device or pipe."""
+    from ..atomicfile import _destination, _stream
+
+    given, target = _destination(dst)
+    if _stream(target):
+        raise OutputError(
+            f"cannot write {given}: it is a device or a named pipe; a LAS/LAZ output must be "
+            "a file: give a file name"
+        )
+    return given, target
+
+
 @contextmanager
 def _atomic_target(dst: Path):
     """A temporary path beside ``dst``, fsynced and renamed over it when the ``with`` block
     succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
     ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
     file) for files written by a library that needs a path."""
-    from ..atomicfile import _destination, _failure, _fsync_directory
+    from ..atomicfile import _failure, _fsync_directory, _take_over, _temporary_name
 
-    given, target = _destination(dst)
+    given, target = _cloud_destination(dst)
     directory = target.parent if str(target.parent) else Path(".")
     try:
-        mode = target.stat().st_mode & 0o7777
+        old = target.stat()
     except FileNotFoundError:
-        mode = None
+        old = None
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
     for _ in range(100):
-        tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+        tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
         try:
             fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask, as open() does
             break
@@ -502,8 +516,7 @@ def _atomic_target(dst: Path):
     else:  # pragma: no cover - 100 collisions of 48 random bits
         raise PhotogeomError(f"cannot write {given}: no free temporary file name")
     try:
-        if mode is not None and hasattr(os, "fchmod"):
-            os.fchmod(fd, mode)
+        _take_over(fd, old)
         os.close(fd)
         yield tmp
         fd = os.open(tmp, os.O_RDONLY)
@@ -735,6 +748,15 @@ def transform_cloud(
     CloudTransformResult
         What was written: the path, point count, bounds, scales, offsets and CRS.
 
+    Raises
+    ------
+    InputError
+        ``dst`` is ``src``.
+    OutputError
+        ``dst`` cannot be written: a folder, a read-only file, a missing folder, a device or
+        a named pipe (``/dev/null``: a LAS/LAZ file is written with seeks and read back),
+        refused before the first pass; a full disk while writing (nothing is left).
+
     Notes
     -----
     Kept: point format and LAS version, every dimension including extra bytes, all VLRs
@@ -762,6 +784,7 @@ def transform_cloud(
     dst = Path(dst)
     if dst.resolve() == src.resolve():
         raise InputError(f"output {dst} is the input file; write to a new file")
+    _cloud_destination(dst)  # a folder, a read-only file, a device: refused before any pass
     if crs is None:
         crs = getattr(transform, "target_crs", None)
     passes = 1
@@ -1164,6 +1187,11 @@ def transform_cloud_dask(
     InputError
         When ``dst`` is ``src``, or the file has extended VLRs (EVLRs, LAS 1.4; use
         :func:`transform_cloud`).
+    OutputError
+        ``dst`` cannot be written (a folder, a read-only file, a missing folder: refused
+        before any piece is computed; no room for the pieces or the output, a folder where
+        no file may be made): one message naming ``dst``; the pieces are removed and an
+        existing ``dst`` is left as it was.
     """
     from ..distributed import map_items
 
@@ -1173,6 +1201,7 @@ def transform_cloud_dask(
     dst = Path(dst)
     if dst.resolve() == src.resolve():
         raise InputError(f"output {dst} is the input file; write to a new file")
+    _cloud_destination(dst)  # a folder, a read-only file, no such folder: refused at once
     if crs is None:
         crs = getattr(transform, "target_crs", None)
     compress = dst.suffix.lower() == ".laz"
@@ -1200,10 +1229,7 @@ def transform_cloud_dask(
         bounds = (lo, hi) if n else (np.zeros(3), np.zeros(3))
         passes = 2
     header = output_header(src_header, transform, scales, crs, bounds)
-    directory = dst.parent if str(dst.parent) else Path(".")
-    if not directory.is_dir():
-        raise PhotogeomError(f"cannot write {dst}: directory {directory} does not exist")
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{dst.name}.pieces.", dir=directory))
+    tmpdir = _pieces_folder(dst)
     try:
         parts = [tmpdir / f"piece-{k:06d}{dst.suffix}" for k in range(len(ranges))]
         items = [(str(p), a, b) for p, (a, b) in zip(parts, ranges)]
@@ -1212,13 +1238,17 @@ def transform_cloud_dask(
             if progress is not None:
                 progress(min(n, k * piece), n)
 
-        map_items(
+        done = map_items(
             functools.partial(_piece_item, str(src), transform, header, chunk_size, compress),
             items,
             scheduler=scheduler,
             progress=_progress,
-            raise_on_failure=True,
         )
+        tag = f"{PieceNotWritten.__name__}: "
+        unwritten = [f.error for f in done.failures if f.error.startswith(tag)]
+        if unwritten:  # disk full, ...: said of the output, not of a temporary piece
+            raise OutputError(f"cannot write {dst}: {unwritten[0].removeprefix(tag)}")
+        done.raise_failures()
         with _atomic_target(dst) as tmp:
             _merge_pieces(parts, tmp, compress)
     finally:
@@ -1237,10 +1267,51 @@ def transform_cloud_dask(
     )
 
 
+def _pieces_folder(dst: Path) -> Path:
+    """A new folder for the pieces beside ``dst``, its name fitted to the file-name limit
+    (a destination name that a plain ``open()`` accepts is accepted).
+
+    Raises
+    ------
+    OutputError
+        Naming ``dst`` when the folder cannot be made (a read-only folder, a full disk).
+    """
+    from ..atomicfile import _failure, _temporary_name
+
+    given, target = _cloud_destination(dst)
+    directory = target.parent if str(target.parent) else Path(".")
+    for _ in range(100):
+        folder = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.pieces")
+        try:
+            os.mkdir(folder, 0o700)
+            return folder
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+    raise PhotogeomError(  # pragma: no cover - 100 collisions of 48 random bits
+        f"cannot write {given}: no free temporary folder name"
+    )
+
+
 def _bounds_item(src, transform, chunk_size, rng):
     return _piece_bounds(src, rng[0], rng[1], transform, chunk_size)
 
 
+class PieceNotWritten(Exception):
+    """A worker could not write its piece (an ``OSError`` of the file system: disk full,
+    ...); the message is the reason, which :func:`transform_cloud_dask` reports for the
+    output file rather than for the temporary piece."""
+
+
 def _piece_item(src, transform, header, chunk_size, compress, item):
+    from ..atomicfile import _failure
+
     part, a, b = item
-    return _write_piece(src, part, a, b, transform, header, chunk_size, compress)
+    try:
+        return _write_piece(src, part, a, b, transform, header, chunk_size, compress)
+    except PhotogeomError:  # the input (read errors are FileFormatError), the transformation
+        raise
+    except OSError as exc:
+        reason = str(_failure(Path(part), exc)).removeprefix(f"cannot write {part}: ")
+        raise PieceNotWritten(reason) from exc

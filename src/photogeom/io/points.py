@@ -951,6 +951,7 @@ class PointWriter:
         self._fh = None
         self._tmp: str | None = None
         self._rows = None
+        self._direct = False  # a device or a named pipe, written in place
         self.n_written = 0
 
     def __enter__(self) -> PointWriter:
@@ -980,24 +981,31 @@ class PointWriter:
     def _open_temporary(self) -> None:
         """A temporary file beside the destination, by the policy of
         :mod:`photogeom.atomicfile` (symbolic links followed, read-only files and missing
-        directories refused, the mode of a replaced file kept, 0666 minus umask for a new
-        one)."""
+        directories refused, the mode, owner and group of a replaced file kept, 0666 minus
+        umask for a new one; a device or a named pipe written in place)."""
         import secrets
 
-        from ..atomicfile import _destination, _failure
+        from ..atomicfile import _destination, _failure, _stream, _take_over, _temporary_name
 
         given, target = _destination(self.path)
         self._given, self._target = given, target
+        if _stream(target):  # /dev/null, /dev/stdout, a named pipe: written in place
+            try:
+                self._fh = open(given, "wb")  # closed in __exit__ / _abort
+            except OSError as exc:
+                raise _failure(given, exc) from exc
+            self._direct = True
+            return
         try:
-            mode = target.stat().st_mode & 0o7777
+            old = target.stat()
         except FileNotFoundError:
-            mode = None
+            old = None
         except OSError as exc:
             raise _failure(given, exc) from exc
         directory = target.parent if str(target.parent) else Path(".")
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
         for _ in range(100):
-            tmp = directory / f".{target.name}.{secrets.token_hex(6)}.tmp"
+            tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
             try:
                 fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask
                 break
@@ -1009,17 +1017,22 @@ class PointWriter:
             raise PhotogeomError(f"cannot write {given}: no free temporary file name")
         self._tmp = str(tmp)
         try:
-            if mode is not None and hasattr(os, "fchmod"):
-                os.fchmod(fd, mode)
+            _take_over(fd, old)
             self._fh = os.fdopen(fd, "wb")
-        except BaseException:
+        except BaseException as exc:
             os.close(fd)
             os.unlink(self._tmp)
+            self._tmp = None
+            if isinstance(exc, OSError):
+                raise _failure(given, exc) from exc
             raise
 
     def _failure(self, exc: OSError):
         from ..atomicfile import _failure
 
+        if self.path is None:  # the standard output, or the stream given
+            where = "the standard output" if self._stream is None else "the output stream"
+            return _failure(Path(where), exc)
         return _failure(getattr(self, "_given", self.path), exc)
 
     def _head(self) -> str:
@@ -1114,6 +1127,17 @@ class PointWriter:
             return
         from ..atomicfile import _fsync_directory
 
+        if self._direct:
+            try:
+                self._rows.close()
+                self._fh.close()
+            except OSError as exc:
+                self._abort()
+                raise self._failure(exc) from exc
+            except BaseException:
+                self._abort()
+                raise
+            return
         try:
             self._rows.close()
             self._fh.flush()
@@ -1132,6 +1156,12 @@ class PointWriter:
     def _abort(self) -> None:
         if self._rows is not None:
             self._rows.close(discard=True)
+        if self._direct:
+            try:
+                self._fh.close()
+            except OSError:  # pragma: no cover - closing a broken pipe
+                pass
+            return
         if self.path is None or self._tmp is None:
             return
         try:
