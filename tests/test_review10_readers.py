@@ -60,3 +60,64 @@ def test_block_csv_messages_list_a_bounded_number_of_columns(tmp_path):
     msg = str(err.value)
     assert "c19, ... (4980 more)" in msg
     assert len(msg) < 400 + len(str(tmp_path))
+
+
+# ------------------------------------------------------------------ grids files (JSON)
+
+
+def _grids_json(tmp_path) -> bytes:
+    import numpy as np
+
+    from photogeom.calibration import GridLayout, ResidualGrid, save_grids
+
+    layout = GridLayout(90, 60, 30)
+    counts = np.full(layout.shape, 4)
+    g = ResidualGrid(layout=layout, nodes=np.zeros((*layout.shape, 2)), sigma0=1.0,
+                     redundancy=5, sigma_obs=np.ones(3), sigma_constraint=0.1,
+                     support=counts >= 3, counts=counts, rms_before=1.0, rms_after=0.5,
+                     outliers=np.zeros(4, bool))  # fmt: skip
+    return save_grids(tmp_path / "good.json", {"a": g}).read_bytes()
+
+
+@pytest.mark.parametrize(
+    "content, match",
+    [
+        (b"[" * 100_000 + b"]" * 100_000, "nested more than 64 levels"),
+        (b'{"format": ' + b"[" * 5000 + b"]" * 5000 + b"}", "nested more than 64 levels"),
+        (b'{"format": 1' + b"0" * 5000 + b"}", "integer of 5001 digits"),
+        (b"\xff\xfe\x00\xd8", "not UTF-8 text"),
+    ],
+)
+def test_grids_json_hostile_content_is_named(tmp_path, content, match):
+    """Deep nesting ended in a RecursionError traceback, a huge integer in Python's
+    ValueError about int digits (text mentioning sys.set_int_max_str_digits)."""
+    from photogeom.calibration import load_grids
+
+    p = tmp_path / "g.json"
+    p.write_bytes(content)
+    with pytest.raises(FileFormatError, match=match) as err:
+        load_grids(p)
+    assert "grid fit" in str(err.value)
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16", "utf-16-le", "utf-32"])
+def test_grids_json_in_other_unicode_encodings_is_read(tmp_path, encoding):
+    """A byte-order mark or UTF-16 (a file re-saved by an editor) was refused as 'not a
+    grids JSON file (Unexpected UTF-8 BOM ...)'; JSON allows them and they are now read."""
+    from photogeom.calibration import load_grids
+
+    text = _grids_json(tmp_path).decode("utf-8")
+    p = tmp_path / "g.json"
+    p.write_bytes(text.encode(encoding))
+    assert list(load_grids(p)) == ["a"]
+
+
+def test_grids_npz_with_deeply_nested_meta_is_named(tmp_path):
+    import numpy as np
+
+    from photogeom.calibration import load_grids
+
+    p = tmp_path / "g.npz"
+    np.savez(p, meta=np.array("[" * 100_000 + "]" * 100_000))
+    with pytest.raises(FileFormatError, match="nested more than 64 levels"):
+        load_grids(p)

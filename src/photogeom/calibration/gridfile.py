@@ -40,6 +40,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError
+from ..io.jsonfile import parse_json_bytes
 from .grid import GridLayout, ResidualGrid
 
 FORMAT = "photogeom-residual-grids"
@@ -328,7 +329,7 @@ def load_grids(path: str | os.PathLike) -> dict:
             )
         try:
             with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
+                meta = parse_json_bytes(str(z["meta"]).encode("utf-8"), str(path), allow_nan=True)
                 data = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
             raise FileFormatError(
@@ -342,9 +343,15 @@ def load_grids(path: str | os.PathLike) -> dict:
             _add(out, k, st, arr, path)
         return out
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:  # UnicodeDecodeError is a ValueError
-        raise FileFormatError(f"{path}: not a grids JSON file ({exc})") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise FileFormatError(f"{path}: cannot read the grids file ({exc.strerror})") from None
+    try:  # bounded: deep nesting, huge integers and encodings are named, never a traceback
+        meta = parse_json_bytes(raw, str(path), allow_nan=True)
+    except FileFormatError as exc:
+        raise FileFormatError(
+            f"{exc} (not a grids JSON file: write it again with save_grids or photogeom grid fit)"
+        ) from None
     _check(meta, path)
     out = {}
     for k, st in enumerate(meta["images"]):
