@@ -121,3 +121,57 @@ def test_grids_npz_with_deeply_nested_meta_is_named(tmp_path):
     np.savez(p, meta=np.array("[" * 100_000 + "]" * 100_000))
     with pytest.raises(FileFormatError, match="nested more than 64 levels"):
         load_grids(p)
+
+
+# ------------------------------------------------------------------ bundle result records
+
+
+@pytest.mark.parametrize(
+    "content, match",
+    [
+        (b"\xff\xfe" + '{"a": 1}'.encode("utf-16-le"), "not a bundle adjustment result"),
+        (b"[" * 100_000 + b"]" * 100_000, "nested more than 64 levels"),
+        (b'{"format": 1' + b"0" * 5000 + b"}", "integer of 5001 digits"),
+        (b'{"format": "photogeom-bundle-result", "version": 1}', "no converged, message"),
+        (
+            b'{"format": "photogeom-bundle-result", "version": 1, "images": 3}',
+            "images is not a list",
+        ),
+        (b"\xe9t\xe9", "not UTF-8 text"),
+    ],
+)
+def test_bundle_result_hostile_content_is_named(tmp_path, content, match):
+    """UTF-16 and Latin-1 ended in UnicodeDecodeError, deep nesting in RecursionError, a huge
+    integer in ValueError, a record without its entries in KeyError (in 'bundle report')."""
+    from photogeom.report.bundle import read_bundle_result
+
+    p = tmp_path / "r.json"
+    p.write_bytes(content)
+    with pytest.raises(FileFormatError, match=match):
+        read_bundle_result(p)
+
+
+def test_bundle_result_that_is_a_folder_is_named(tmp_path):
+    from photogeom.report.bundle import read_bundle_result
+
+    (tmp_path / "r.json").mkdir()
+    with pytest.raises(FileFormatError, match="cannot read"):
+        read_bundle_result(tmp_path / "r.json")
+
+
+def test_bundle_report_cli_names_a_damaged_record(tmp_path, cli):
+    """A record with its top-level entries but damaged below them ended in a KeyError
+    traceback of 'photogeom bundle report'."""
+    import json
+
+    record = {"format": "photogeom-bundle-result", "version": 1, "converged": True,
+              "message": "m", "unit": "m", "angle_unit": "deg", "redundancy": 3, "sigma0": 1.0,
+              "sigma0_prior": 1.0, "rmse_px": 1.0, "gsd": None, "block": {}, "chi2": {},
+              "calibration": {}, "calibration_std": {}, "calibration_correlation": {},
+              "images": []}  # fmt: skip
+    p = tmp_path / "r.json"
+    p.write_text(json.dumps(record))
+    code, out, err = cli("bundle", "report", p, "-o", tmp_path / "r.html")
+    assert code != 0
+    assert "without the entry 'n_images'" in err
+    assert "Traceback" not in out + err
