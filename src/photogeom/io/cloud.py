@@ -64,19 +64,17 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
             reader = laspy.open(p)
     except laspy.errors.LaspyException as exc:
         raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
-    except (OSError, ValueError, EOFError, MemoryError) as exc:  # a header cut short or
-        # damaged (a VLR count or length of gigabytes), lazrs errors
+    except (OSError, ValueError, EOFError, MemoryError, struct.error, OverflowError) as exc:
+        # a header cut short or damaged (a VLR count or length of gigabytes, a creation date
+        # out of range), lazrs errors
         raise FileFormatError(
             f"{p}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc}); is it "
             "complete? (an interrupted copy or download: copy it again)"
         ) from None
     version = reader.header.version
-    if version.major != 1 or version.minor > 5:
+    if version.major != 1 or version.minor > MAX_LAS_MINOR:
         reader.close()
-        raise FileFormatError(
-            f"{p}: the header says LAS version {version.major}.{version.minor}; LAS versions "
-            "are 1.0 to 1.4: the header is damaged (copy the file again)"
-        )
+        raise FileFormatError(_bad_version(p, version.major, version.minor))
     if check_size:
         problem = _truncation(p, reader.header)
         if problem:
@@ -86,13 +84,20 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
 
 
 def _damaged_vlr_count(path: Path) -> str | None:
-    """Why the VLR count of the header cannot be right, or None: the VLRs (54 bytes each at
-    least) lie between the header and the point data. laspy would otherwise read a damaged
-    count of 2^31 VLRs one by one (minutes)."""
+    """Why the version or the VLR count of the header cannot be right, or None.
+
+    The version is checked before laspy reads the header: laspy reads the fields of the
+    version the header names, so a damaged version (1.255) made it read past the header into
+    a ``struct.error``. The VLRs (54 bytes each at least) lie between the header and the
+    point data: laspy would otherwise read a damaged count of 2^31 VLRs one by one
+    (minutes)."""
     with open(path, "rb") as f:
         raw = f.read(104)
     if len(raw) < 104 or raw[:4] != b"LASF":
         return None  # laspy reports it
+    major, minor = raw[24], raw[25]
+    if major != 1 or minor > MAX_LAS_MINOR:
+        return _bad_version(path, major, minor)
     header_size, start, n_vlrs = struct.unpack_from("<HII", raw, 94)
     if n_vlrs * 54 > max(0, start - header_size):
         return (
@@ -100,7 +105,27 @@ def _damaged_vlr_count(path: Path) -> str | None:
             f"least) between its end at byte {header_size} and the point data at byte "
             f"{start}; copy the file again"
         )
+    # the VLRs lie in the file too: a damaged offset of the point data (4 GB) would let a
+    # damaged count through, and laspy read millions of empty VLRs (minutes)
+    size = path.stat().st_size
+    if n_vlrs * 54 > max(0, size - header_size):
+        return (
+            f"{path}: the header is damaged: it announces {n_vlrs} VLRs (54 bytes each at "
+            f"least) after its end at byte {header_size}, but the file has {size} bytes; "
+            "copy the file again"
+        )
     return None
+
+
+#: Highest minor version of LAS 1.x read (laspy reads 1.0 to 1.4, and the fields of 1.5).
+MAX_LAS_MINOR = 5
+
+
+def _bad_version(path, major: int, minor: int) -> str:
+    return (
+        f"{path}: the header says LAS version {major}.{minor}; LAS versions are 1.0 to "
+        f"1.{MAX_LAS_MINOR}: the header is damaged (copy the file again)"
+    )
 
 
 def _truncation(path: Path, header) -> str | None:
@@ -175,6 +200,12 @@ def _read_error(reader, path, start: int, stop: int, exc: BaseException) -> File
     )
 
 
+#: What a failed read of points may raise: any exception, and the ``PanicException`` of
+#: lazrs (a Rust panic on damaged compressed data, e.g. a division by zero), which derives
+#: from ``BaseException`` and would otherwise end the program in a traceback.
+_NOT_READ = (KeyboardInterrupt, SystemExit, GeneratorExit)
+
+
 def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterator:
     """laspy point records ``start:stop`` of an open ``reader``, at most ``chunk_size`` at a
     time; a read that fails or comes back short is a :class:`FileFormatError` naming the
@@ -183,13 +214,17 @@ def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterato
     try:
         if start:
             reader.seek(start)
-    except Exception as exc:
+    except _NOT_READ:
+        raise
+    except BaseException as exc:  # lazrs panics too (see _NOT_READ)
         raise _read_error(reader, path, start, stop, exc) from None
     while pos < stop:
         want = min(chunk_size, stop - pos)
         try:
             pts = reader.read_points(want)
-        except Exception as exc:
+        except _NOT_READ:
+            raise
+        except BaseException as exc:  # lazrs panics too (see _NOT_READ)
             raise _read_error(reader, path, pos, pos + want, exc) from None
         got = len(pts)
         if got < want:
