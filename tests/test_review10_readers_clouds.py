@@ -109,6 +109,43 @@ def test_interrupt_still_stops_a_read(tmp_path, monkeypatch):
         pg.io.read_cloud_xyz(path)
 
 
+def test_huge_laz_chunk_size_is_refused_not_allocated(tmp_path):
+    """A chunk size of 10^9 points in the LASzip VLR: lazrs allocated the chunk (28 GB) and
+    the process aborted ('memory allocation of ... bytes failed')."""
+    path = _cloud(tmp_path, ".laz")
+    _patch(path, _laszip_record(path) + 12, "<I", 1_000_000_000)
+    run = _read_in_a_child(path)
+    assert run.returncode == 0, run.stderr[-500:]
+    assert "LAZ chunks hold 1000000000 points each" in run.stdout
+    with pytest.raises(FileFormatError, match="re-compress the file"):
+        pg.io.cloud_info(path)
+
+
+def test_damaged_laz_chunk_table_count_is_refused_not_allocated(tmp_path):
+    """A chunk table announcing 3 x 10^9 chunks: lazrs allocated its entries (46 GB) and the
+    process aborted."""
+    path = _cloud(tmp_path, ".laz")
+    data = path.read_bytes()
+    start = struct.unpack_from("<I", data, 96)[0]
+    (table,) = struct.unpack_from("<q", data, start)
+    _patch(path, table, "<II", 0, 3_000_000_000)
+    run = _read_in_a_child(path)
+    assert run.returncode == 0, run.stderr[-500:]
+    assert "says version 0 and 3000000000 chunks" in run.stdout
+
+
+def test_laz_point_count_of_billions_fails_before_allocating(tmp_path):
+    """A LAZ header promising 2.3 x 10^9 points (no chunk table to check it against):
+    read_cloud_xyz allocated the (n, 3) result first and ended in MemoryError (52 GiB)."""
+    path = _cloud(tmp_path, ".laz")
+    data = path.read_bytes()
+    start = struct.unpack_from("<I", data, 96)[0]
+    _patch(path, 107, "<I", 2_348_815_240)  # legacy point count (LAS 1.2)
+    _patch(path, start, "<q", -1)  # no chunk table
+    with pytest.raises(FileFormatError, match="2348815240 points its header promises"):
+        pg.io.read_cloud_xyz(path)
+
+
 def test_laz_still_reads_whole_and_in_slices(tmp_path):
     path = _cloud(tmp_path, ".laz", n=2500)
     x = np.random.default_rng(5).uniform(0, 100, (2500, 3))

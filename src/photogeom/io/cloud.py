@@ -128,13 +128,44 @@ def _bad_version(path, major: int, minor: int) -> str:
     )
 
 
+#: Most bytes one LAZ chunk may decompress to. LASzip, PDAL and laspy write chunks of
+#: 50,000 points (a few MB); lazrs allocates a whole chunk before decoding it, so the chunk
+#: size of a damaged header (10^9 points: 31 GB) aborted the process instead of failing.
+MAX_LAZ_CHUNK_BYTES = 1 << 30
+
+
+def _laz_fixed_chunk_size(header) -> int | None:
+    """The chunk size (points) of the LASzip VLR, or None (variable chunks, no VLR): a
+    ``uint32`` at byte 12 of the record (after compressor, coder, version and options)."""
+    raw = next((v.record_data for v in header.vlrs if type(v).__name__ == "LasZipVlr"), None)
+    if raw is None or len(raw) < 16:
+        return None
+    (size,) = struct.unpack_from("<I", bytes(raw), 12)
+    return None if size == 0xFFFFFFFF else int(size)
+
+
+def _huge_chunk(path: Path, points: int, rec: int, n: int) -> str | None:
+    """Why a LAZ chunk of ``points`` records of ``rec`` bytes cannot be decoded, or None."""
+    if points * rec <= MAX_LAZ_CHUNK_BYTES:
+        return None
+    return (
+        f"{path}: its LAZ chunks hold {points} points each ({points * rec / 1e9:.3g} GB to "
+        f"decompress at once, more than the {MAX_LAZ_CHUNK_BYTES >> 20} MiB photogeom decodes "
+        f"at once; the header promises {n} points in all). LAZ writers use chunks of 50,000 "
+        "points: the header or the chunk table is damaged (copy the file again), or "
+        "re-compress the file with a standard chunk size"
+    )
+
+
 def _truncation(path: Path, header) -> str | None:
     """Why the file ``path`` is shorter than its ``header`` says, or None.
 
     Cheap (the file's size and, for LAZ, one 8-byte read): an uncompressed file must hold
     ``point_count`` records of ``point_format.size`` bytes from ``offset_to_point_data``; a
     LAZ file must reach its chunk table (the offset stored at the start of the point data;
-    LAZ without a chunk table cannot be checked this way).
+    LAZ without a chunk table cannot be checked this way), and no chunk (the LASzip VLR's
+    chunk size, the largest entry of the chunk table) may decompress to more than
+    :data:`MAX_LAZ_CHUNK_BYTES`.
     """
     size = path.stat().st_size
     start = int(header.offset_to_point_data)
@@ -154,6 +185,10 @@ def _truncation(path: Path, header) -> str | None:
         return None
     if n == 0:
         return None
+    rec = int(header.point_format.size)
+    fixed = _laz_fixed_chunk_size(header)
+    if fixed is not None and (problem := _huge_chunk(path, fixed, rec, n)):
+        return problem
     if size < start + 8:
         return (
             f"{path} is truncated: its header promises {n} compressed points from byte "
@@ -167,7 +202,12 @@ def _truncation(path: Path, header) -> str | None:
             f"{path} is truncated: its LAZ chunk table should start at byte {table} but the "
             f"file has {size} bytes (header: {n} points); {fix}"
         )
-    held = _laz_chunk_points(path, header, start) if table > 0 else None
+    if table > 0 and (problem := _damaged_chunk_table(path, start, table)):
+        return problem
+    chunks = _laz_chunk_points(path, header, start) if table > 0 else None
+    held, biggest = chunks if chunks is not None else (None, 0)
+    if problem := _huge_chunk(path, biggest, rec, n):
+        return problem
     if held is not None and n > held:
         return (
             f"{path} is damaged: its header promises {n} points but its LAZ chunk table "
@@ -176,10 +216,29 @@ def _truncation(path: Path, header) -> str | None:
     return None
 
 
-def _laz_chunk_points(path: Path, header, start: int) -> int | None:
+def _damaged_chunk_table(path: Path, start: int, table: int) -> str | None:
+    """Why the head of a LAZ chunk table (version 0, number of chunks) cannot be right, or
+    None. Each chunk holds at least one byte of the point data between ``start + 8`` and the
+    table; lazrs allocates the entries of the announced count before reading them, so a
+    damaged count (3 * 10^9) aborted the process (46 GB) instead of failing."""
+    with open(path, "rb") as f:
+        f.seek(table)
+        version, count = struct.unpack("<II", f.read(8))
+    room = table - (start + 8)
+    if version != 0 or count > room:
+        return (
+            f"{path} is damaged: its LAZ chunk table at byte {table} says version {version} "
+            f"and {count} chunks (LAZ tables are version 0, and the {room} bytes of point data "
+            f"hold at most {max(room, 0)} chunks): copy the file again"
+        )
+    return None
+
+
+def _laz_chunk_points(path: Path, header, start: int) -> tuple[int, int] | None:
     """The most points the chunk table of a LAZ file can hold (the sum of its chunks' point
-    counts: exact for variable chunks, chunks x chunk size for fixed ones), or None when
-    the table cannot be read (left to the reader to report)."""
+    counts: exact for variable chunks, chunks x chunk size for fixed ones) and the point
+    count of its largest chunk, or None when the table cannot be read (left to the reader
+    to report)."""
     try:
         import lazrs
 
@@ -187,7 +246,8 @@ def _laz_chunk_points(path: Path, header, start: int) -> int | None:
         with open(path, "rb") as f:
             f.seek(start)
             entries = lazrs.read_chunk_table(f, lazrs.LazVlr(bytes(raw)))
-        return int(sum(int(e[0]) for e in entries))
+        counts = [int(e[0]) for e in entries]
+        return sum(counts), max(counts, default=0)
     except Exception:  # no lazrs, no LASzip VLR, a table lazrs cannot read
         return None
 
@@ -439,12 +499,19 @@ def read_cloud_xyz(path, start: int = 0, stop: int | None = None) -> np.ndarray:
         start = int(start)
         if not 0 <= start <= stop:
             raise InputError(f"point range {start}:{stop} outside 0:{n}")
-        out = np.empty((stop - start, 3))
-        i = 0
-        for pts in _read_range(reader, path, start, stop, max(1, stop - start)):
-            out[i : i + len(pts)] = _xyz(pts)
-            i += len(pts)
-        return out
+        if not getattr(reader.header, "are_points_compressed", False):
+            # the size check bounds the count by the file's size: one read into one array
+            out = np.empty((stop - start, 3))
+            i = 0
+            for pts in _read_range(reader, path, start, stop, max(1, stop - start)):
+                out[i : i + len(pts)] = _xyz(pts)
+                i += len(pts)
+            return out
+        # LAZ: nothing bounds the header's count but the points themselves; read them a
+        # chunk at a time, so a damaged count (2 x 10^9) fails on the first missing chunk
+        # instead of allocating 50 GB first
+        parts = [_xyz(pts) for pts in _read_range(reader, path, start, stop, DEFAULT_CHUNK)]
+        return np.concatenate(parts) if parts else np.empty((0, 3))
 
 
 def _check_chunk(chunk_size) -> int:
