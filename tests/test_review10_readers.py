@@ -175,3 +175,35 @@ def test_bundle_report_cli_names_a_damaged_record(tmp_path, cli):
     assert code != 0
     assert "without the entry 'n_images'" in err
     assert "Traceback" not in out + err
+
+
+# ------------------------------------------------------------------ grid fit: residual CSVs
+
+
+@pytest.mark.parametrize(
+    "sep, words", [("\t", "separated by tabs"), (";", "separated by semicolons")]
+)
+def test_grid_csv_in_another_dialect_names_the_separator(tmp_path, cli, sep, words):
+    """A tab- or semicolon-separated residuals file was refused as "no column 'image_id'
+    (columns: image_id	u	v	rx	ry)", the tabs printed raw and no fix named."""
+    p = tmp_path / "r.csv"
+    p.write_text(sep.join(["image_id", "u", "v", "rx", "ry"]) + "\n" + sep.join("a1234") + "\n")
+    code, _out, err = cli("grid", "fit", p, "--image-size", "100x100", "-o", tmp_path / "g.json")
+    assert code == 2
+    assert words in err and "replace the separators with commas" in err
+    if sep == "\t":
+        assert "image_id\\tu\\tv" in err
+
+
+@pytest.mark.parametrize("line", ["a,1,2,0.1," + "9" * 200_000, 'b,1,2,"0.1,0.2'])
+def test_grid_csv_field_over_the_limit_is_not_called_an_encoding_problem(tmp_path, cli, line):
+    """A field over the csv module's 128 KiB limit (or a quote left open, which swallows
+    the lines after it) was reported as 'not a UTF-8 CSV file (field larger than field
+    limit (131072))', without a line."""
+    p = tmp_path / "r.csv"
+    rows = ["image_id,u,v,rx,ry", "a,1,2,0.1,0.2", line] + ["c,1,2,0.1,0.2"] * 20_000
+    p.write_text("\n".join(rows) + "\n")
+    code, _out, err = cli("grid", "fit", p, "--image-size", "100x100", "-o", tmp_path / "g.json")
+    assert code == 2
+    assert "UTF-8" not in err
+    assert f"{p}, line 3: cannot split the line into fields" in err
