@@ -152,3 +152,24 @@ def test_laz_still_reads_whole_and_in_slices(tmp_path):
     np.testing.assert_allclose(pg.io.read_cloud_xyz(path), x, atol=0.01)
     np.testing.assert_allclose(pg.io.read_cloud_xyz(path, 100, 300), x[100:300], atol=0.01)
     assert pg.io.read_cloud_xyz(path, 7, 7).shape == (0, 3)
+
+
+@pytest.mark.parametrize("scale", [0.0, float("nan"), float("inf"), 1e308])
+def test_damaged_scales_are_refused_not_read_silently(tmp_path, scale):
+    """An X scale of 0 read every X as the offset (50.0), NaN/inf/1e308 read NaN or
+    infinite X: all without a word."""
+    path = _cloud(tmp_path, ".las")
+    _patch(path, 131, "<d", scale)  # the X scale factor
+    with pytest.raises(FileFormatError, match=r"X scale .* cannot give coordinates"):
+        pg.io.read_cloud_xyz(path)
+    with pytest.raises(FileFormatError, match="header is damaged"):
+        list(pg.io.iter_cloud_xyz(path))
+    info = pg.io.cloud_info(path, check_size=False)  # the header can still be looked at
+    assert info.scales[0] == scale or np.isnan(scale)
+
+
+def test_damaged_offset_is_refused(tmp_path):
+    path = _cloud(tmp_path, ".laz")
+    _patch(path, 155 + 8, "<d", float("inf"))  # the Y offset
+    with pytest.raises(FileFormatError, match=r"Y scale 0\.001 and offset inf"):
+        pg.io.cloud_info(path)

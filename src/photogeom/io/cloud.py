@@ -49,7 +49,8 @@ def _laspy():
 def _open_read(path, single_thread: bool = False, check_size: bool = True):
     """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
     core each) instead of lazrs's parallel decoder. A file shorter than its header says
-    (:func:`_truncation`) is refused unless ``check_size`` is False."""
+    (:func:`_truncation`), or whose scales and offsets give no coordinates
+    (:func:`_bad_scaling`), is refused unless ``check_size`` is False."""
     laspy = _laspy()
     p = Path(path)
     if not p.is_file():
@@ -76,11 +77,31 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
         reader.close()
         raise FileFormatError(_bad_version(p, version.major, version.minor))
     if check_size:
-        problem = _truncation(p, reader.header)
+        problem = _truncation(p, reader.header) or _bad_scaling(p, reader.header)
         if problem:
             reader.close()
             raise FileFormatError(problem)
     return reader
+
+
+def _bad_scaling(path: Path, header) -> str | None:
+    """Why the scales and offsets of a header cannot turn the stored integers into
+    coordinates, or None: a scale of 0 (every coordinate equal to its offset), NaN or
+    infinite values, or a scale so large that a 32-bit integer overflows to infinity. Such
+    headers were read silently into constant or non-finite coordinates."""
+    scales = np.asarray(header.scales, dtype=float)
+    offsets = np.asarray(header.offsets, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = np.abs(scales) * 2.0**31 + np.abs(offsets)
+    bad = ~np.isfinite(reach) | (scales == 0)
+    if not np.any(bad):
+        return None
+    k = int(np.flatnonzero(bad)[0])
+    return (
+        f"{path}: the header's {'XYZ'[k]} scale {float(scales[k])!r} and offset "
+        f"{float(offsets[k])!r} cannot give coordinates (a scale must be finite and non-zero, "
+        "and scale x 2^31 + offset finite): the header is damaged (copy the file again)"
+    )
 
 
 def _damaged_vlr_count(path: Path) -> str | None:
@@ -396,8 +417,9 @@ def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
         The LAS/LAZ file.
     check_size : bool
         Refuse a file shorter than its header says (``point_count`` records of the point
-        format's size for LAS; the chunk table for LAZ), a cheap check of the file's size.
-        False reads the header of such a file anyway.
+        format's size for LAS; the chunk table for LAZ), a cheap check of the file's size,
+        and a header whose scales and offsets give no coordinates (a scale of 0, NaN or
+        infinite values). False reads the header of such a file anyway.
 
     Returns
     -------
@@ -406,8 +428,9 @@ def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
     Raises
     ------
     FileFormatError
-        Not a LAS/LAZ file, or (``check_size``) a truncated one: the message names the file,
-        the point count its header promises and the bytes present.
+        Not a LAS/LAZ file, or (``check_size``) a truncated one (the message names the file,
+        the point count its header promises and the bytes present) or one with damaged
+        scales or offsets.
     """
     with _open_read(path, check_size=check_size) as reader:
         h = reader.header
