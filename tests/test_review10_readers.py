@@ -207,3 +207,50 @@ def test_grid_csv_field_over_the_limit_is_not_called_an_encoding_problem(tmp_pat
     assert code == 2
     assert "UTF-8" not in err
     assert f"{p}, line 3: cannot split the line into fields" in err
+
+
+# ------------------------------------------------------------------ UTF-16 / UTF-32 text
+
+_WIDE = ["utf-16", "utf-16-le", "utf-16-be", "utf-32", "utf-32-le"]
+
+
+@pytest.mark.parametrize("encoding", _WIDE)
+def test_point_csv_in_utf16_is_refused_with_the_fix(tmp_path, encoding):
+    """A point CSV saved as 'Unicode text' was refused as 'it looks like a binary file, not
+    a CSV text file': true of neither the file nor the fix."""
+    from photogeom.io import read_points
+
+    p = tmp_path / "p.csv"
+    p.write_bytes("id,X,Y,Z\na,1,2,3\n".encode(encoding))
+    with pytest.raises(FileFormatError, match=r"text .*; photogeom reads CSV files as UTF-8: save"):
+        read_points(p)
+
+
+@pytest.mark.parametrize("encoding", _WIDE)
+def test_block_files_in_utf16_are_read(tmp_path, encoding):
+    """BAL and CSV block files (COLMAP: the same reader) in UTF-16/32 were refused as 'it is
+    a binary file, not text'; they are text, and are now read as such."""
+    import photogeom as pg
+    from photogeom.bundle import read_bal, write_bal, write_csv_block
+
+    block = read_bal(pg.datasets.path("dubrovnik-3-7"))
+    bal = write_bal(block, tmp_path / "b.txt")
+    bal.write_bytes(bal.read_text().encode(encoding))
+    assert read_bal(bal).n_observations == block.n_observations
+    folder = tmp_path / "csv"
+    write_csv_block(block, folder)
+    obs = folder / "observations.csv"
+    obs.write_bytes(obs.read_text().encode(encoding))
+    assert read_csv_block(folder).n_observations == block.n_observations
+
+
+def test_binary_files_are_still_refused_as_binary(tmp_path):
+    from photogeom.bundle import read_bal
+    from photogeom.io import read_points
+
+    p = tmp_path / "x.bin"
+    p.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(FileFormatError, match="binary file"):
+        read_bal(p)
+    with pytest.raises(FileFormatError, match="binary file"):
+        read_points(p)
