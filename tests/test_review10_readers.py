@@ -254,3 +254,26 @@ def test_binary_files_are_still_refused_as_binary(tmp_path):
         read_bal(p)
     with pytest.raises(FileFormatError, match="binary file"):
         read_points(p)
+
+
+# ------------------------------------------------------------------ images: PNG metadata
+
+
+def test_png_icc_chunk_is_not_inflated_whole():
+    """The iCCP chunk of a PNG was decompressed whole without a bound: a 1 MB file whose
+    profile inflates to 1 GiB (a zlib bomb) took 2 GB of memory in 'grid correct-images'.
+    Only the profile's header (its colour space) is needed, and only it is decompressed."""
+    import struct
+    import zlib
+
+    from photogeom.calibration import images
+
+    header = bytes(16) + b"GRAY" + bytes(108)
+    profile = header + bytes(64 << 20)  # 64 MiB
+    data = b"icc\x00\x00" + zlib.compress(profile, 9)
+    chunk = struct.pack(">I", len(data)) + b"iCCP" + data + b"\x00\x00\x00\x00"
+    head = images._png_icc(chunk)
+    assert head is not None and len(head) <= images._ICC_HEAD
+    assert head[16:20] == b"GRAY"
+    assert images._icc_other(head, b"RGB ")
+    assert images._png_icc(b"\x00\x00\x00\x05iCCPnoNUL\x00\x00\x00\x00") is None

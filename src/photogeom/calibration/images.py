@@ -431,13 +431,22 @@ def _icc_other(profile: bytes | None, space: bytes) -> bool:
     return own in _ICC_SPACES and own != space
 
 
+#: Bytes of an ICC profile decompressed from a PNG iCCP chunk: its header, which names the
+#: colour space at bytes 16-19 (all :func:`_icc_other` looks at).
+_ICC_HEAD = 128
+
+
 def _png_icc(chunk: bytes) -> bytes | None:
-    """The ICC profile of a whole PNG iCCP chunk (name, 0, method, zlib data), or None."""
+    """The first :data:`_ICC_HEAD` bytes of the ICC profile of a whole PNG iCCP chunk (name,
+    0, method, zlib data), or None.
+
+    Only the header is decompressed: the whole profile was, without a bound, so a PNG of
+    1 MB whose iCCP chunk inflates to 1 GiB (a zlib bomb) took 2 GB of memory to read."""
     import zlib
 
     data = chunk[8:-4]
     try:
-        return zlib.decompress(data[data.index(b"\x00") + 2 :])
+        return zlib.decompressobj().decompress(data[data.index(b"\x00") + 2 :], _ICC_HEAD)
     except (ValueError, zlib.error):
         return None
 
