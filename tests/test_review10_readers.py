@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from photogeom.bundle import io_csv, read_csv_block
 from photogeom.errors import FileFormatError
@@ -277,3 +279,43 @@ def test_png_icc_chunk_is_not_inflated_whole():
     assert head[16:20] == b"GRAY"
     assert images._icc_other(head, b"RGB ")
     assert images._png_icc(b"\x00\x00\x00\x05iCCPnoNUL\x00\x00\x00\x00") is None
+
+
+# ------------------------------------------------------------------ property: named errors only
+
+_TOKENS = st.sampled_from(
+    ["0", "1", "2", "-1", "3.5", "1e308", "1e400", "nan", "inf", "", " ", "\t", "\n", "\r\n",
+     ",", ";", '"', "#", "\ufeff", "\x00", "é", "1,5", "99999999999999999999999", "x" * 300]
+)  # fmt: skip
+
+
+@settings(max_examples=80, derandomize=True, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(tokens=st.lists(_TOKENS, max_size=60), head=st.sampled_from(["", "3 7 19\n", "1 1 1\n"]))
+def test_bal_reader_raises_only_named_errors(tmp_path, tokens, head):
+    from photogeom.bundle import read_bal
+
+    p = tmp_path / "b.txt"
+    p.write_bytes((head + " ".join(tokens)).encode("utf-8"))
+    try:
+        read_bal(p)
+    except FileFormatError:
+        pass
+
+
+@settings(max_examples=80, derandomize=True, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(
+    cells=st.lists(st.lists(_TOKENS, min_size=1, max_size=6), max_size=6),
+    which=st.sampled_from(sorted(_BLOCK)),
+    encoding=st.sampled_from(["utf-8", "utf-16"]),
+)
+def test_csv_block_reader_raises_only_named_errors(tmp_path, cells, which, encoding):
+    header = _BLOCK[which].splitlines()[0]
+    text = header + "\n" + "\n".join(",".join(row) for row in cells) + "\n"
+    folder = _block_folder(tmp_path)
+    (folder / which).write_bytes(text.encode(encoding, errors="surrogatepass"))
+    try:
+        read_csv_block(folder)
+    except FileFormatError:
+        pass
