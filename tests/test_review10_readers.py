@@ -319,3 +319,44 @@ def test_csv_block_reader_raises_only_named_errors(tmp_path, cells, which, encod
         read_csv_block(folder)
     except FileFormatError:
         pass
+
+
+def test_grids_npz_with_a_huge_array_header_is_named_before_allocating(tmp_path):
+    """A 1 kB NPZ whose nodes header announced 10^10 values ended in MemoryError ('Unable
+    to allocate 74.5 GiB'): numpy allocates the array before reading it."""
+    import io
+    import json
+    import zipfile
+
+    import numpy as np
+    from numpy.lib import format as npy
+
+    from photogeom.calibration import gridfile, load_grids
+
+    p = tmp_path / "g.npz"
+    meta = {"format": gridfile.FORMAT, "version": gridfile.VERSION, "images": []}
+    with zipfile.ZipFile(p, "w", zipfile.ZIP_DEFLATED) as z:
+        b = io.BytesIO()
+        np.save(b, np.array(json.dumps(meta)))
+        z.writestr("meta.npy", b.getvalue())
+        h = io.BytesIO()
+        npy.write_array_header_1_0(h, {"descr": "<f8", "fortran_order": False,
+                                       "shape": (10**10,)})  # fmt: skip
+        z.writestr("nodes_0.npy", h.getvalue() + bytes(64))
+    with pytest.raises(FileFormatError, match=r"nodes_0 announces shape \(10000000000,\)"):
+        load_grids(p)
+
+
+def test_grids_npz_of_highly_compressible_arrays_still_reads(tmp_path):
+    import numpy as np
+
+    from photogeom.calibration import GridLayout, ResidualGrid, load_grids, save_grids
+
+    layout = GridLayout(3000, 2000, 10)
+    counts = np.zeros(layout.shape, dtype=np.int64)
+    g = ResidualGrid(layout=layout, nodes=np.zeros((*layout.shape, 2)), sigma0=1.0,
+                     redundancy=5, sigma_obs=np.ones(200_000), sigma_constraint=0.1,
+                     support=counts >= 3, counts=counts, rms_before=1.0, rms_after=0.5,
+                     outliers=np.zeros(2_000_000, bool))  # fmt: skip
+    back = load_grids(save_grids(tmp_path / "g.npz", {"a": g}))
+    assert back["a"].outliers.size == 2_000_000
