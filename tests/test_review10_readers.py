@@ -360,3 +360,36 @@ def test_grids_npz_of_highly_compressible_arrays_still_reads(tmp_path):
                      outliers=np.zeros(2_000_000, bool))  # fmt: skip
     back = load_grids(save_grids(tmp_path / "g.npz", {"a": g}))
     assert back["a"].outliers.size == 2_000_000
+
+
+def test_image_with_a_width_over_opencv_limit_is_a_named_error(tmp_path):
+    """A TIFF whose ImageWidth tag is damaged (2^31 - 1) ended in cv2.error ('Assertion
+    failed ... CV_IO_MAX_IMAGE_WIDTH') from correct_image_file, documented to raise
+    FileFormatError for corrupt files."""
+    import struct
+
+    import numpy as np
+    from PIL import Image
+
+    from photogeom.calibration import GridLayout, ResidualGrid
+    from photogeom.calibration.images import correct_image_file
+
+    src = tmp_path / "a.tif"
+    Image.fromarray(np.zeros((24, 32, 3), np.uint8)).save(src)
+    data = bytearray(src.read_bytes())
+    (ifd,) = struct.unpack_from("<I", data, 4)
+    (count,) = struct.unpack_from("<H", data, ifd)
+    for k in range(count):
+        at = ifd + 2 + 12 * k
+        (tag,) = struct.unpack_from("<H", data, at)
+        if tag == 256:  # ImageWidth
+            struct.pack_into("<HHII", data, at, 256, 4, 1, 2**31 - 1)
+    src.write_bytes(bytes(data))
+    layout = GridLayout(32, 24, 8)
+    counts = np.zeros(layout.shape, np.int64)
+    grid = ResidualGrid(layout=layout, nodes=np.zeros((*layout.shape, 2)), sigma0=1.0,
+                        redundancy=1, sigma_obs=np.ones(1), sigma_constraint=0.1,
+                        support=counts >= 3, counts=counts, rms_before=1.0, rms_after=1.0,
+                        outliers=np.zeros(1, bool))  # fmt: skip
+    with pytest.raises(FileFormatError, match=r"not a readable image .*OpenCV refuses it"):
+        correct_image_file(src, tmp_path / "b.tif", grid)

@@ -130,7 +130,14 @@ def _read(path: Path):
         )
     if stored is not raw:
         data = np.frombuffer(stored, dtype=np.uint8)
-    pixels = _decode_quietly(cv2, data) if data.size else None
+    try:
+        pixels = _decode_quietly(cv2, data) if data.size else None
+    except cv2.error as exc:  # a damaged header: e.g. a width over OpenCV's limit
+        msg = str(exc).strip().splitlines()[-1]
+        raise FileFormatError(
+            f"{path}: not a readable image (OpenCV refuses it: {msg}); the file is damaged "
+            "or not an image"
+        ) from None
     if pixels is None:
         raise FileFormatError(f"{path}: not a readable image (corrupt or unknown format)")
     meta: dict = {}
