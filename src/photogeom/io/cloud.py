@@ -145,7 +145,7 @@ MAX_LAS_MINOR = 5
 def _bad_version(path, major: int, minor: int) -> str:
     return (
         f"{path}: the header says LAS version {major}.{minor}; LAS versions are 1.0 to "
-        f"1.{MAX_LAS_MINOR}: the header is damaged (copy the file again)"
+        "1.4: the header is damaged (copy the file again)"
     )
 
 
