@@ -393,3 +393,28 @@ def test_image_with_a_width_over_opencv_limit_is_a_named_error(tmp_path):
                         outliers=np.zeros(1, bool))  # fmt: skip
     with pytest.raises(FileFormatError, match=r"not a readable image .*OpenCV refuses it"):
         correct_image_file(src, tmp_path / "b.tif", grid)
+
+
+def test_png_chunk_longer_than_the_file_is_refused_before_decoding(tmp_path, monkeypatch):
+    """A 2 kB PNG whose image data chunk claimed 1.3 GB: OpenCV allocated it before
+    reading and needed 2.3 s and 1.2 GB of memory to find the file unreadable."""
+    import struct
+
+    import cv2
+    import numpy as np
+
+    from photogeom.calibration import images
+
+    _ok, png = cv2.imencode(".png", np.zeros((24, 32, 3), np.uint8))
+    data = bytearray(png.tobytes())
+    idat = data.index(b"IDAT") - 4
+    struct.pack_into(">I", data, idat, 1_309_280_547)
+    src = tmp_path / "a.png"
+    src.write_bytes(bytes(data))
+
+    def no_decoding(*_a):
+        raise AssertionError("decoded")
+
+    monkeypatch.setattr(images, "_decode_quietly", no_decoding)
+    with pytest.raises(FileFormatError, match="PNG chunk 'IDAT' at byte 33 announces 1309280547"):
+        images._read(src)
