@@ -46,8 +46,14 @@ def _old_read_csv(path, need, comments=None):
                 start = reader.line_num
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
+    except UnicodeDecodeError as exc:
         raise FileFormatError(f"{path}: not a UTF-8 CSV file ({exc})") from None
+    except csv.Error as exc:  # review10: was also "not a UTF-8 CSV file", without a line
+        line = physical[min(start, len(physical) - 1)] if physical else 1
+        raise FileFormatError(
+            f"{path}, line {line}: cannot split the line into fields ({exc}); an id or a "
+            'number is a few characters: a quote (") left open, or not a CSV file?'
+        ) from None
     if not rows:
         raise FileFormatError(f"{path}: empty file")
     header = [c.strip() for c in rows[0]]
@@ -56,10 +62,21 @@ def _old_read_csv(path, need, comments=None):
     for name in need:
         aliases = {"image_id": ("image_id", "image", "id")}.get(name, (name,))
         hit = next((low.index(a) for a in aliases if a in low), None)
-        if hit is None:
+        if hit is None:  # review10: names shown as repr (tabs visible), at most 20, and
+            # the separator of a one-column header named
+            other = next(
+                (w for c, w in gridcli._OTHER_SEPARATORS if len(header) == 1 and c in header[0]),
+                None,
+            )
             raise FileFormatError(
-                f"{path}: no column {name!r} (columns: {', '.join(header)}); "
+                f"{path}: no column {name!r} (columns: {gridcli._listing(header)}); "
                 f"the file needs {', '.join(need)}"
+                + (
+                    f"; its header is separated by {other}: photogeom reads this file "
+                    "comma-separated (replace the separators with commas)"
+                    if other
+                    else ""
+                )
             )
         col[name] = hit
     body, lines = rows[1:], lines[1:]

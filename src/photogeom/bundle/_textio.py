@@ -18,6 +18,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError
+from ..io.csvblocks import wide_unicode
 from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
@@ -25,7 +26,10 @@ _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?
 
 
 def read_text(path: str | os.PathLike, what: str) -> str:
-    """The text of ``path`` (bzip2-compressed files are recognised by their magic bytes)."""
+    """The text of ``path``: UTF-8 (a byte-order mark dropped; other bytes read as
+    Latin-1), or UTF-16/32 with a byte-order mark or, for ASCII text, without one
+    (:func:`photogeom.io.csvblocks.wide_unicode`). bzip2-compressed files are recognised by
+    their magic bytes; other files with NUL bytes are refused as binary."""
     p = Path(path)
     try:
         data = p.read_bytes()
@@ -42,6 +46,17 @@ def read_text(path: str | os.PathLike, what: str) -> str:
             raise FileFormatError(
                 f"{p}: a bzip2 file that cannot be decompressed ({exc}); the file is damaged "
                 "or truncated"
+            ) from None
+    wide = wide_unicode(data[:4096])
+    if wide is not None:  # UTF-16/32 text (Windows tools, spreadsheets): read it
+        name, bom = wide
+        codec = name.lower() if bom else name.lower() + ("-le" if data[1:2] == b"\x00" else "-be")
+        try:
+            return data.decode(codec)
+        except UnicodeDecodeError as exc:
+            raise FileFormatError(
+                f"cannot read {what} {p}: it begins as {name} text but byte {exc.start} is "
+                f"not {name}; save it as UTF-8"
             ) from None
     if b"\x00" in data[:4096]:
         raise FileFormatError(f"cannot read {what} {p}: it is a binary file, not text")

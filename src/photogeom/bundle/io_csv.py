@@ -44,6 +44,7 @@ are formatted before any is replaced.
 
 from __future__ import annotations
 
+import collections
 import csv
 import functools
 import operator
@@ -93,7 +94,7 @@ class _Table:
         if k is None:
             raise FileFormatError(
                 f"{self.path}: column {name!r} not found; the file has columns "
-                f"{', '.join(self.header)}"
+                f"{_listing(self.header)}"
             )
         return self.columns[k].tolist()
 
@@ -221,6 +222,23 @@ def _simple_cells(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return (quotes == 0) | quoted, quoted, inner
 
 
+#: Column names a message lists at most (a header of thousands of names is a wrong file).
+MAX_LISTED_COLUMNS = 20
+
+
+def _listing(names: list[str]) -> str:
+    """``names`` joined by commas for a message; after :data:`MAX_LISTED_COLUMNS` names, the
+    count of the others."""
+    shown = ", ".join(_short(n) for n in names[:MAX_LISTED_COLUMNS])
+    more = len(names) - MAX_LISTED_COLUMNS
+    return shown + (f", ... ({more} more)" if more > 0 else "")
+
+
+def _repeated(names: list[str]) -> list[str]:
+    """The names that occur more than once, sorted (one pass: linear in the header)."""
+    return sorted(n for n, c in collections.Counter(names).items() if c > 1)
+
+
 def _read_table(path: Path) -> _Table:
     """The cells of a CSV file as columns, with the line number of each row.
 
@@ -254,9 +272,11 @@ def _read_table(path: Path) -> _Table:
     header, _ = _split_line(first, sep, path, int(numbers[0]))
     if any(not h for h in header):
         raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
-    dup = sorted({h for h in header if header.count(h) > 1})
+    dup = _repeated(header)
     if dup:
-        raise FileFormatError(f"{path}: column(s) {', '.join(dup)} appear more than once")
+        raise FileFormatError(
+            f"{path}: column(s) {_listing(dup)} appear more than once; give each column once"
+        )
     width = len(header)
     body = [all_lines[k] for k in keep[1:].tolist()]
     del all_lines
@@ -310,7 +330,7 @@ def _read_table(path: Path) -> _Table:
         k, got = bad
         raise FileFormatError(
             f"{path}, line {lines[k]}: {got} field(s) but the header has {width} "
-            f"({', '.join(header)})"
+            f"({_listing(header)})"
         )
     return _Table(path, header, columns, lines, comments, quoted_cols)
 
@@ -414,7 +434,7 @@ def _angles(
         raise FileFormatError(
             f"{table.path}: angle column(s) {', '.join(missing)} not found: name them with "
             f"their unit ({missing[0]}_deg, {missing[0]}_gon or {missing[0]}_rad); the file has "
-            f"columns {', '.join(table.header)}"
+            f"columns {_listing(table.header)}"
         )
     return np.column_stack(
         [to_radians(table.floats(n, optional_cells=empty_cells), u) for n, u in found]

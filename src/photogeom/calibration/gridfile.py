@@ -40,6 +40,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError
+from ..io.jsonfile import parse_json_bytes
 from .grid import GridLayout, ResidualGrid
 
 FORMAT = "photogeom-residual-grids"
@@ -326,11 +327,16 @@ def load_grids(path: str | os.PathLike) -> dict:
                 f"{path}: not a grids NPZ file (not a zip archive: truncated, or another "
                 "format); write it again with save_grids or photogeom grid fit"
             )
+        problem = _npz_array_too_large(path)
+        if problem:
+            raise FileFormatError(problem)
         try:
             with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
+                meta = parse_json_bytes(str(z["meta"]).encode("utf-8"), str(path), allow_nan=True)
                 data = {k: z[k] for k in z.files if k != "meta"}
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        except (
+            OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error, MemoryError
+        ) as exc:  # fmt: skip
             raise FileFormatError(
                 f"{path}: not a readable grids NPZ file ({type(exc).__name__}: {exc}); "
                 "write it again with save_grids or photogeom grid fit"
@@ -342,14 +348,62 @@ def load_grids(path: str | os.PathLike) -> dict:
             _add(out, k, st, arr, path)
         return out
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:  # UnicodeDecodeError is a ValueError
-        raise FileFormatError(f"{path}: not a grids JSON file ({exc})") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise FileFormatError(f"{path}: cannot read the grids file ({exc.strerror})") from None
+    try:  # bounded: deep nesting, huge integers and encodings are named, never a traceback
+        meta = parse_json_bytes(raw, str(path), allow_nan=True)
+    except FileFormatError as exc:
+        raise FileFormatError(
+            f"{exc} (not a grids JSON file: write it again with save_grids or photogeom grid fit)"
+        ) from None
     _check(meta, path)
     out = {}
     for k, st in enumerate(meta["images"]):
         _add(out, k, st, st, path)
     return out
+
+
+#: Most bytes a deflated member of an NPZ file can inflate to per byte stored (deflate's
+#: limit is about 1032; a little more for the member's header).
+_MAX_DEFLATE_RATIO = 1100
+
+
+def _npz_array_too_large(path: Path) -> str | None:
+    """Why an array of the NPZ file ``path`` cannot be as large as its ``.npy`` header says,
+    or None (also None for what :func:`numpy.load` reports itself).
+
+    numpy allocates the array of the header's shape before it reads the data, so a 1 kB
+    file whose header announced 10^10 values ended in a MemoryError (74.5 GiB) instead of a
+    named error. A member holds at most its stored size (uncompressed) or
+    :data:`_MAX_DEFLATE_RATIO` times it (deflated): a header announcing more is damage.
+    """
+    from numpy.lib import format as npy
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                with zf.open(info) as fh:
+                    version = npy.read_magic(fh)
+                    read = npy.read_array_header_1_0 if version == (1, 0) else (
+                        npy.read_array_header_2_0)  # fmt: skip
+                    shape, _fortran, dtype = read(fh, max_header_size=10_000)
+                need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                room = info.compress_size * (
+                    1 if info.compress_type == zipfile.ZIP_STORED else _MAX_DEFLATE_RATIO
+                )
+                if need > room:
+                    return (
+                        f"{path}: array {info.filename[:-4]} announces shape {tuple(shape)} "
+                        f"({need} bytes) but its member stores {info.compress_size} bytes: "
+                        "the file is damaged; write it again with save_grids or photogeom "
+                        "grid fit"
+                    )
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, TypeError):
+        return None  # reported by numpy.load below
+    return None
 
 
 def _add(out: dict, k: int, st, arr: dict, path: Path) -> None:

@@ -809,7 +809,15 @@ def report_cmd(
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
     if str(output.parent) and not output.parent.is_dir():
         raise InputError(f"--output: cannot write {output}: folder {output.parent} does not exist")
+    from ..io.jsonfile import build_from_json
+
     data = read_bundle_result(result)
-    rep = bundle_report(data, title or f"Bundle adjustment: {result.stem}", max_rows=max_rows)
+    # a record edited or damaged below its top-level entries: named, never a traceback
+    rep = build_from_json(
+        lambda d: bundle_report(d, title or f"Bundle adjustment: {result.stem}", max_rows=max_rows),
+        data,
+        result,
+        "a bundle adjustment result",
+    )
     path = rep.write(output)
     say(f"wrote {path}")

@@ -229,10 +229,10 @@ def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
             physical.append(number)
             yield line
 
+    start = 0  # the csv reader's count of lines before the row being read
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             reader = csv.reader(data_lines(fh))
-            start = 0
             for r in reader:
                 if r and any(c.strip() for c in r):
                     rows.append(r)
@@ -240,8 +240,15 @@ def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
                 start = reader.line_num
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
+    except UnicodeDecodeError as exc:
         raise FileFormatError(f"{path}: not a UTF-8 CSV file ({exc})") from None
+    except csv.Error as exc:  # a field over the csv module's limit, e.g. an unclosed quote
+        raise FileFormatError(
+            f"{path}, line {physical[min(start, len(physical) - 1)] if physical else 1}: "
+            "cannot split the line into "
+            f'fields ({exc}); an id or a number is a few characters: a quote (") left '
+            "open, or not a CSV file?"
+        ) from None
     if not rows:
         raise FileFormatError(f"{path}: empty file")
     body = rows[1:]
@@ -251,6 +258,17 @@ def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
         np.asarray(lines[1:], dtype=np.int64),
         rows=body,
     )
+
+
+#: Separators of other CSV dialects, named in the message of a header that holds one.
+_OTHER_SEPARATORS = ((";", "semicolons"), ("\t", "tabs"), (" ", "spaces"))
+
+
+def _listing(names: list[str], most: int = 20) -> str:
+    """Column names for a message: at most ``most``, then the count of the others; each
+    shown as Python shows text (a tab or a NUL visible)."""
+    shown = ", ".join(repr(n)[1:-1][:40] for n in names[:most])
+    return shown + (f", ... ({len(names) - most} more)" if len(names) > most else "")
 
 
 def _read_csv(
@@ -272,9 +290,17 @@ def _read_csv(
         aliases = {"image_id": ("image_id", "image", "id")}.get(name, (name,))
         hit = next((low.index(a) for a in aliases if a in low), None)
         if hit is None:
+            other = next((w for c, w in _OTHER_SEPARATORS if len(header) == 1 and c in
+                          header[0]), None)  # fmt: skip
             raise FileFormatError(
-                f"{path}: no column {name!r} (columns: {', '.join(header)}); "
+                f"{path}: no column {name!r} (columns: {_listing(header)}); "
                 f"the file needs {', '.join(need)}"
+                + (
+                    f"; its header is separated by {other}: photogeom reads this file "
+                    "comma-separated (replace the separators with commas)"
+                    if other
+                    else ""
+                )
             )
         col[name] = hit
     bad = np.flatnonzero(cells.widths != len(header))

@@ -48,7 +48,8 @@ def _laspy():
 def _open_read(path, single_thread: bool = False, check_size: bool = True):
     """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
     core each) instead of lazrs's parallel decoder. A file shorter than its header says
-    (:func:`_truncation`) is refused unless ``check_size`` is False."""
+    (:func:`_truncation`), or whose scales and offsets give no coordinates
+    (:func:`_bad_scaling`), is refused unless ``check_size`` is False."""
     laspy = _laspy()
     p = Path(path)
     if not p.is_file():
@@ -63,35 +64,60 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
             reader = laspy.open(p)
     except laspy.errors.LaspyException as exc:
         raise FileFormatError(f"{p}: not a readable LAS/LAZ file ({exc})") from None
-    except (OSError, ValueError, EOFError, MemoryError) as exc:  # a header cut short or
-        # damaged (a VLR count or length of gigabytes), lazrs errors
+    except (OSError, ValueError, EOFError, MemoryError, struct.error, OverflowError) as exc:
+        # a header cut short or damaged (a VLR count or length of gigabytes, a creation date
+        # out of range), lazrs errors
         raise FileFormatError(
             f"{p}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc}); is it "
             "complete? (an interrupted copy or download: copy it again)"
         ) from None
     version = reader.header.version
-    if version.major != 1 or version.minor > 5:
+    if version.major != 1 or version.minor > MAX_LAS_MINOR:
         reader.close()
-        raise FileFormatError(
-            f"{p}: the header says LAS version {version.major}.{version.minor}; LAS versions "
-            "are 1.0 to 1.4: the header is damaged (copy the file again)"
-        )
+        raise FileFormatError(_bad_version(p, version.major, version.minor))
     if check_size:
-        problem = _truncation(p, reader.header)
+        problem = _truncation(p, reader.header) or _bad_scaling(p, reader.header)
         if problem:
             reader.close()
             raise FileFormatError(problem)
     return reader
 
 
+def _bad_scaling(path: Path, header) -> str | None:
+    """Why the scales and offsets of a header cannot turn the stored integers into
+    coordinates, or None: a scale of 0 (every coordinate equal to its offset), NaN or
+    infinite values, or a scale so large that a 32-bit integer overflows to infinity. Such
+    headers were read silently into constant or non-finite coordinates."""
+    scales = np.asarray(header.scales, dtype=float)
+    offsets = np.asarray(header.offsets, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = np.abs(scales) * 2.0**31 + np.abs(offsets)
+    bad = ~np.isfinite(reach) | (scales == 0)
+    if not np.any(bad):
+        return None
+    k = int(np.flatnonzero(bad)[0])
+    return (
+        f"{path}: the header's {'XYZ'[k]} scale {float(scales[k])!r} and offset "
+        f"{float(offsets[k])!r} cannot give coordinates (a scale must be finite and non-zero, "
+        "and scale x 2^31 + offset finite): the header is damaged (copy the file again)"
+    )
+
+
 def _damaged_vlr_count(path: Path) -> str | None:
-    """Why the VLR count of the header cannot be right, or None: the VLRs (54 bytes each at
-    least) lie between the header and the point data. laspy would otherwise read a damaged
-    count of 2^31 VLRs one by one (minutes)."""
+    """Why the version or the VLR count of the header cannot be right, or None.
+
+    The version is checked before laspy reads the header: laspy reads the fields of the
+    version the header names, so a damaged version (1.255) made it read past the header into
+    a ``struct.error``. The VLRs (54 bytes each at least) lie between the header and the
+    point data: laspy would otherwise read a damaged count of 2^31 VLRs one by one
+    (minutes)."""
     with open(path, "rb") as f:
         raw = f.read(104)
     if len(raw) < 104 or raw[:4] != b"LASF":
         return None  # laspy reports it
+    major, minor = raw[24], raw[25]
+    if major != 1 or minor > MAX_LAS_MINOR:
+        return _bad_version(path, major, minor)
     header_size, start, n_vlrs = struct.unpack_from("<HII", raw, 94)
     if n_vlrs * 54 > max(0, start - header_size):
         return (
@@ -99,7 +125,56 @@ def _damaged_vlr_count(path: Path) -> str | None:
             f"least) between its end at byte {header_size} and the point data at byte "
             f"{start}; copy the file again"
         )
+    # the VLRs lie in the file too: a damaged offset of the point data (4 GB) would let a
+    # damaged count through, and laspy read millions of empty VLRs (minutes)
+    size = path.stat().st_size
+    if n_vlrs * 54 > max(0, size - header_size):
+        return (
+            f"{path}: the header is damaged: it announces {n_vlrs} VLRs (54 bytes each at "
+            f"least) after its end at byte {header_size}, but the file has {size} bytes; "
+            "copy the file again"
+        )
     return None
+
+
+#: Highest minor version of LAS 1.x read (laspy reads 1.0 to 1.4, and the fields of 1.5).
+MAX_LAS_MINOR = 5
+
+
+def _bad_version(path, major: int, minor: int) -> str:
+    return (
+        f"{path}: the header says LAS version {major}.{minor}; LAS versions are 1.0 to "
+        "1.4: the header is damaged (copy the file again)"
+    )
+
+
+#: Most bytes one LAZ chunk may decompress to. LASzip, PDAL and laspy write chunks of
+#: 50,000 points (a few MB); lazrs allocates a whole chunk before decoding it, so the chunk
+#: size of a damaged header (10^9 points: 31 GB) aborted the process instead of failing.
+MAX_LAZ_CHUNK_BYTES = 1 << 30
+
+
+def _laz_fixed_chunk_size(header) -> int | None:
+    """The chunk size (points) of the LASzip VLR, or None (variable chunks, no VLR): a
+    ``uint32`` at byte 12 of the record (after compressor, coder, version and options)."""
+    raw = next((v.record_data for v in header.vlrs if type(v).__name__ == "LasZipVlr"), None)
+    if raw is None or len(raw) < 16:
+        return None
+    (size,) = struct.unpack_from("<I", bytes(raw), 12)
+    return None if size == 0xFFFFFFFF else int(size)
+
+
+def _huge_chunk(path: Path, points: int, rec: int, n: int) -> str | None:
+    """Why a LAZ chunk of ``points`` records of ``rec`` bytes cannot be decoded, or None."""
+    if points * rec <= MAX_LAZ_CHUNK_BYTES:
+        return None
+    return (
+        f"{path}: its LAZ chunks hold {points} points each ({points * rec / 1e9:.3g} GB to "
+        f"decompress at once, more than the {MAX_LAZ_CHUNK_BYTES >> 20} MiB photogeom decodes "
+        f"at once; the header promises {n} points in all). LAZ writers use chunks of 50,000 "
+        "points: the header or the chunk table is damaged (copy the file again), or "
+        "re-compress the file with a standard chunk size"
+    )
 
 
 def _truncation(path: Path, header) -> str | None:
@@ -108,7 +183,9 @@ def _truncation(path: Path, header) -> str | None:
     Cheap (the file's size and, for LAZ, one 8-byte read): an uncompressed file must hold
     ``point_count`` records of ``point_format.size`` bytes from ``offset_to_point_data``; a
     LAZ file must reach its chunk table (the offset stored at the start of the point data;
-    LAZ without a chunk table cannot be checked this way).
+    LAZ without a chunk table cannot be checked this way), and no chunk (the LASzip VLR's
+    chunk size, the largest entry of the chunk table) may decompress to more than
+    :data:`MAX_LAZ_CHUNK_BYTES`.
     """
     size = path.stat().st_size
     start = int(header.offset_to_point_data)
@@ -128,6 +205,10 @@ def _truncation(path: Path, header) -> str | None:
         return None
     if n == 0:
         return None
+    rec = int(header.point_format.size)
+    fixed = _laz_fixed_chunk_size(header)
+    if fixed is not None and (problem := _huge_chunk(path, fixed, rec, n)):
+        return problem
     if size < start + 8:
         return (
             f"{path} is truncated: its header promises {n} compressed points from byte "
@@ -141,7 +222,12 @@ def _truncation(path: Path, header) -> str | None:
             f"{path} is truncated: its LAZ chunk table should start at byte {table} but the "
             f"file has {size} bytes (header: {n} points); {fix}"
         )
-    held = _laz_chunk_points(path, header, start) if table > 0 else None
+    if table > 0 and (problem := _damaged_chunk_table(path, start, table)):
+        return problem
+    chunks = _laz_chunk_points(path, header, start) if table > 0 else None
+    held, biggest = chunks if chunks is not None else (None, 0)
+    if problem := _huge_chunk(path, biggest, rec, n):
+        return problem
     if held is not None and n > held:
         return (
             f"{path} is damaged: its header promises {n} points but its LAZ chunk table "
@@ -150,10 +236,29 @@ def _truncation(path: Path, header) -> str | None:
     return None
 
 
-def _laz_chunk_points(path: Path, header, start: int) -> int | None:
+def _damaged_chunk_table(path: Path, start: int, table: int) -> str | None:
+    """Why the head of a LAZ chunk table (version 0, number of chunks) cannot be right, or
+    None. Each chunk holds at least one byte of the point data between ``start + 8`` and the
+    table; lazrs allocates the entries of the announced count before reading them, so a
+    damaged count (3 * 10^9) aborted the process (46 GB) instead of failing."""
+    with open(path, "rb") as f:
+        f.seek(table)
+        version, count = struct.unpack("<II", f.read(8))
+    room = table - (start + 8)
+    if version != 0 or count > room:
+        return (
+            f"{path} is damaged: its LAZ chunk table at byte {table} says version {version} "
+            f"and {count} chunks (LAZ tables are version 0, and the {room} bytes of point data "
+            f"hold at most {max(room, 0)} chunks): copy the file again"
+        )
+    return None
+
+
+def _laz_chunk_points(path: Path, header, start: int) -> tuple[int, int] | None:
     """The most points the chunk table of a LAZ file can hold (the sum of its chunks' point
-    counts: exact for variable chunks, chunks x chunk size for fixed ones), or None when
-    the table cannot be read (left to the reader to report)."""
+    counts: exact for variable chunks, chunks x chunk size for fixed ones) and the point
+    count of its largest chunk, or None when the table cannot be read (left to the reader
+    to report)."""
     try:
         import lazrs
 
@@ -161,7 +266,8 @@ def _laz_chunk_points(path: Path, header, start: int) -> int | None:
         with open(path, "rb") as f:
             f.seek(start)
             entries = lazrs.read_chunk_table(f, lazrs.LazVlr(bytes(raw)))
-        return int(sum(int(e[0]) for e in entries))
+        counts = [int(e[0]) for e in entries]
+        return sum(counts), max(counts, default=0)
     except Exception:  # no lazrs, no LASzip VLR, a table lazrs cannot read
         return None
 
@@ -174,6 +280,12 @@ def _read_error(reader, path, start: int, stop: int, exc: BaseException) -> File
     )
 
 
+#: What a failed read of points may raise: any exception, and the ``PanicException`` of
+#: lazrs (a Rust panic on damaged compressed data, e.g. a division by zero), which derives
+#: from ``BaseException`` and would otherwise end the program in a traceback.
+_NOT_READ = (KeyboardInterrupt, SystemExit, GeneratorExit)
+
+
 def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterator:
     """laspy point records ``start:stop`` of an open ``reader``, at most ``chunk_size`` at a
     time; a read that fails or comes back short is a :class:`FileFormatError` naming the
@@ -182,13 +294,17 @@ def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterato
     try:
         if start:
             reader.seek(start)
-    except Exception as exc:
+    except _NOT_READ:
+        raise
+    except BaseException as exc:  # lazrs panics too (see _NOT_READ)
         raise _read_error(reader, path, start, stop, exc) from None
     while pos < stop:
         want = min(chunk_size, stop - pos)
         try:
             pts = reader.read_points(want)
-        except Exception as exc:
+        except _NOT_READ:
+            raise
+        except BaseException as exc:  # lazrs panics too (see _NOT_READ)
             raise _read_error(reader, path, pos, pos + want, exc) from None
         got = len(pts)
         if got < want:
@@ -300,8 +416,9 @@ def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
         The LAS/LAZ file.
     check_size : bool
         Refuse a file shorter than its header says (``point_count`` records of the point
-        format's size for LAS; the chunk table for LAZ), a cheap check of the file's size.
-        False reads the header of such a file anyway.
+        format's size for LAS; the chunk table for LAZ), a cheap check of the file's size,
+        and a header whose scales and offsets give no coordinates (a scale of 0, NaN or
+        infinite values). False reads the header of such a file anyway.
 
     Returns
     -------
@@ -310,8 +427,9 @@ def cloud_info(path, *, check_size: bool = True) -> CloudInfo:
     Raises
     ------
     FileFormatError
-        Not a LAS/LAZ file, or (``check_size``) a truncated one: the message names the file,
-        the point count its header promises and the bytes present.
+        Not a LAS/LAZ file, or (``check_size``) a truncated one (the message names the file,
+        the point count its header promises and the bytes present) or one with damaged
+        scales or offsets.
     """
     with _open_read(path, check_size=check_size) as reader:
         h = reader.header
@@ -403,12 +521,19 @@ def read_cloud_xyz(path, start: int = 0, stop: int | None = None) -> np.ndarray:
         start = int(start)
         if not 0 <= start <= stop:
             raise InputError(f"point range {start}:{stop} outside 0:{n}")
-        out = np.empty((stop - start, 3))
-        i = 0
-        for pts in _read_range(reader, path, start, stop, max(1, stop - start)):
-            out[i : i + len(pts)] = _xyz(pts)
-            i += len(pts)
-        return out
+        if not getattr(reader.header, "are_points_compressed", False):
+            # the size check bounds the count by the file's size: one read into one array
+            out = np.empty((stop - start, 3))
+            i = 0
+            for pts in _read_range(reader, path, start, stop, max(1, stop - start)):
+                out[i : i + len(pts)] = _xyz(pts)
+                i += len(pts)
+            return out
+        # LAZ: nothing bounds the header's count but the points themselves; read them a
+        # chunk at a time, so a damaged count (2 x 10^9) fails on the first missing chunk
+        # instead of allocating 50 GB first
+        parts = [_xyz(pts) for pts in _read_range(reader, path, start, stop, DEFAULT_CHUNK)]
+        return np.concatenate(parts) if parts else np.empty((0, 3))
 
 
 def _check_chunk(chunk_size) -> int:

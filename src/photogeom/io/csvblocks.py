@@ -51,6 +51,60 @@ _RUNS_OF_SPACE = re.compile(rb"[ \t]+")
 _EDGE_TABS = re.compile(rb"(?m)^\t|\t(?=\r?$)")
 
 
+#: Byte-order marks of the Unicode encodings wider than UTF-8 (UTF-32 first: its
+#: little-endian mark begins with UTF-16's).
+_WIDE_BOMS = (
+    (b"\xff\xfe\x00\x00", "UTF-32"),
+    (b"\x00\x00\xfe\xff", "UTF-32"),
+    (b"\xff\xfe", "UTF-16"),
+    (b"\xfe\xff", "UTF-16"),
+)
+
+
+def wide_unicode(head: bytes) -> tuple[str, bool] | None:
+    """The encoding of text in UTF-16 or UTF-32 (a spreadsheet's "Unicode text", Windows
+    tools), and whether it has a byte-order mark, or None.
+
+    Without a mark, ASCII text in UTF-16 is recognised by its pattern: a NUL in every
+    second byte of the first bytes, and nowhere else.
+
+    Parameters
+    ----------
+    head : bytes
+        The first bytes of the file (a few kB).
+
+    Returns
+    -------
+    tuple of (str, bool) or None
+        ``("UTF-16", True)``, ``("UTF-32", False)``, ...; None for other bytes.
+    """
+    for bom, name in _WIDE_BOMS:
+        if head.startswith(bom):
+            return name, True
+    a = np.frombuffer(head[: len(head) - len(head) % 4], dtype=np.uint8)
+    if a.size < 4:
+        return None
+    if np.all(a[1::4] == 0) and np.all(a[2::4] == 0) and np.all(a[3::4] == 0) and a[0::4].all():
+        return "UTF-32", False
+    for nul, text in ((a[1::2], a[0::2]), (a[0::2], a[1::2])):
+        if np.all(nul == 0) and text.all():
+            return "UTF-16", False
+    return None
+
+
+def wide_unicode_message(label: str, head: bytes, what: str) -> str | None:
+    """The refusal of a UTF-16/32 file read as UTF-8 text (naming the fix), or None."""
+    wide = wide_unicode(head)
+    if wide is None:
+        return None
+    name, bom = wide
+    how = "with a byte-order mark" if bom else "without a byte-order mark"
+    return (
+        f"cannot read {label}: it is {name} text ({how}); photogeom reads {what} as UTF-8: "
+        "save it as UTF-8 (in a spreadsheet: 'CSV UTF-8'; in an editor: encoding UTF-8)"
+    )
+
+
 def _pa():
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -162,6 +216,9 @@ class DelimitedText:
                 ) from None
             except OSError as exc:
                 raise FileFormatError(f"cannot read {self.label}: {exc.strerror or exc}") from None
+        wide = wide_unicode_message(self.label, head, "CSV files")
+        if wide:
+            raise FileFormatError(wide)
         if b"\x00" in head:
             raise FileFormatError(
                 f"cannot read {self.label}: it looks like a binary file, not a CSV text file"

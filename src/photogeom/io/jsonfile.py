@@ -81,6 +81,51 @@ def _parse_constant(name: str):
     raise ValueError(f"{name} is not a JSON number; write null or a finite number")
 
 
+def _keep_constant(name: str) -> float:
+    return float(name)
+
+
+def parse_json_bytes(data: bytes, where: str, *, allow_nan: bool = False) -> object:
+    """The JSON value of ``data`` (the bytes of a file), parsed with the bounds of the module
+    docstring except the size (the caller bounds what it reads).
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content: UTF-8 (a byte-order mark is dropped), or UTF-16 / UTF-32.
+    where : str
+        The file, for messages.
+    allow_nan : bool, default False
+        Read ``NaN``/``Infinity`` as floats (files of photogeom's own writers that predate
+        their refusal) instead of refusing them.
+
+    Returns
+    -------
+    object
+        The parsed value (any JSON type).
+
+    Raises
+    ------
+    FileFormatError
+        Not UTF-8/16/32, not valid JSON, nested more than :data:`MAX_DEPTH` levels, an
+        integer of more than :data:`MAX_INT_DIGITS` digits, or (unless ``allow_nan``)
+        ``NaN``/``Infinity``.
+    """
+    if _max_depth(data) > MAX_DEPTH:
+        raise FileFormatError(
+            f"{where}: JSON nested more than {MAX_DEPTH} levels deep; not a file photogeom "
+            "writes or reads: wrong file?"
+        )
+    text = _decode(data, where)
+    constant = _keep_constant if allow_nan else _parse_constant
+    try:
+        return json.loads(text, parse_int=_parse_int, parse_constant=constant)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except (ValueError, RecursionError) as exc:
+        raise FileFormatError(f"{where}: not accepted: {exc}") from None
+
+
 def read_json_object(path: str | os.PathLike) -> dict:
     """The top-level JSON object of ``path``; see the module docstring.
 
@@ -102,17 +147,7 @@ def read_json_object(path: str | os.PathLike) -> dict:
         raise FileFormatError(
             f"{where}: more than {MAX_JSON_BYTES} bytes; a parameter file is a few kB: wrong file?"
         )
-    if _max_depth(data) > MAX_DEPTH:
-        raise FileFormatError(
-            f"{where}: JSON nested more than {MAX_DEPTH} levels deep; not a parameter file"
-        )
-    text = _decode(data, where)
-    try:
-        obj = json.loads(text, parse_int=_parse_int, parse_constant=_parse_constant)
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    except (ValueError, RecursionError) as exc:
-        raise FileFormatError(f"{where}: not accepted: {exc}") from None
+    obj = parse_json_bytes(data, where)
     if not isinstance(obj, dict):
         raise FileFormatError(
             f"{where}: expected a JSON object {{...}}, found {type(obj).__name__}"

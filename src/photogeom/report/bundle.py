@@ -265,17 +265,28 @@ def read_bundle_result(path: str | os.PathLike) -> dict:
     InputError
         When the file does not exist.
     FileFormatError
-        When it is not JSON or not a bundle adjustment result record.
+        When it cannot be read (a folder, no permission), is not JSON (UTF-8, or UTF-16/32;
+        nested more than 64 levels, an integer of more than 40 digits and NaN are refused),
+        is not a bundle adjustment result record, or lacks an entry the report needs (or
+        holds one of the wrong kind): the message names the entries and how to write the
+        record again.
     """
+    from ..io.jsonfile import parse_json_bytes
+
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        raw = p.read_bytes()
     except FileNotFoundError:
         raise InputError(f"no file {p}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{p}: not JSON ({exc})") from None
+    except OSError as exc:  # a folder, no permission, ...
+        raise FileFormatError(f"cannot read {p}: {exc.strerror or exc}") from None
+    try:  # bounded: deep nesting, huge integers, UTF-16/32 and a byte-order mark handled
+        data = parse_json_bytes(raw, str(p))
+    except FileFormatError as exc:
+        raise FileFormatError(
+            f"{exc}; not JSON photogeom reads as a bundle adjustment result (write one with "
+            "'photogeom bundle adjust ... --result FILE.json')"
+        ) from None
     if not isinstance(data, dict) or data.get("format") != RESULT_FORMAT:
         raise FileFormatError(
             f'{p}: not a bundle adjustment result (expected "format": "{RESULT_FORMAT}"; '
@@ -286,7 +297,30 @@ def read_bundle_result(path: str | os.PathLike) -> dict:
             f"{p}: result version {data.get('version')!r}; this photogeom reads version "
             f"{RESULT_VERSION}"
         )
+    missing = [k for k in _RECORD_ENTRIES if k not in data]
+    wrong = [
+        k for k, kind in _RECORD_ENTRIES.items() if k in data and not isinstance(data[k], kind)
+    ]
+    if missing or wrong:
+        what = [f"no {', '.join(missing)}"] if missing else []
+        what += [f"{k} is not {_KIND_WORDS[_RECORD_ENTRIES[k]]}" for k in wrong]
+        raise FileFormatError(
+            f"{p}: an incomplete or damaged bundle adjustment result ({'; '.join(what)}); "
+            "write it again with 'photogeom bundle adjust ... --result FILE.json'"
+        )
     return data
+
+
+_NUMBER = (int, float, type(None))  # NaN is written as null
+#: Entries the report needs, with their JSON kind (checked by :func:`read_bundle_result`).
+_RECORD_ENTRIES: dict[str, type | tuple[type, ...]] = {
+    "converged": bool, "message": str, "unit": str, "angle_unit": str, "redundancy": int,
+    "sigma0": _NUMBER, "sigma0_prior": _NUMBER, "rmse_px": _NUMBER, "gsd": _NUMBER,
+    "block": dict, "chi2": dict, "calibration": dict, "calibration_std": dict,
+    "calibration_correlation": dict, "images": list,
+}  # fmt: skip
+_KIND_WORDS = {bool: "true/false", str: "text", int: "an integer", _NUMBER: "a number or null",
+               dict: "an object", list: "a list"}  # fmt: skip
 
 
 # --- figures -------------------------------------------------------------------------------------
