@@ -1,0 +1,119 @@
+"""Review 10: the HTML reports as documents to hand in (the numbers of the printed tables
+and the JSON, units, scales of the figures, inputs named, outputs refused early)."""
+
+from __future__ import annotations
+
+import html
+import json
+import re
+
+import numpy as np
+import pytest
+
+W, H = 300, 200
+
+
+def _rows(text: str) -> dict[str, list[str]]:
+    """Table rows of an HTML report: first cell -> the other cells (text)."""
+    rows = {}
+    for row in re.findall(r"<tr>(.*?)</tr>", text, flags=re.S):
+        cells = [
+            html.unescape(re.sub(r"<[^>]+>", "", c)).strip()
+            for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", row, flags=re.S)
+        ]
+        if cells:
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+@pytest.fixture(scope="module")
+def residual_csv(tmp_path_factory):
+    rng = np.random.default_rng(5)
+    lines = ["image_id,u,v,rx,ry"]
+    for im in ("IMG_1", "IMG_2"):
+        uv = np.column_stack([rng.uniform(0, W - 1, 300), rng.uniform(0, H - 1, 300)])
+        r = np.column_stack([np.sin(uv[:, 0] / 80), np.cos(uv[:, 1] / 60)])
+        r += rng.normal(0, 0.1, r.shape)
+        lines += [f"{im},{a:.4f},{b:.4f},{c:.5f},{d:.5f}" for a, b, c, d in np.c_[uv, r]]
+    p = tmp_path_factory.mktemp("grid") / "residuals.csv"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def test_grid_fit_report_shows_the_printed_numbers(cli, residual_csv, tmp_path):
+    # before: the report showed the reductions as fractions under the label "reduction"
+    # (0.8556808414 where the printed table and its reader see "85.6 %") and sigma0 and
+    # the RMS values to 10 digits; it did not name the node spacing
+    args = ("grid", "fit", residual_csv, "--image-size", f"{W}x{H}", "--spacing", "50")
+    code, text, err = cli(*args, "-o", tmp_path / "g.npz", "--json")
+    assert code == 0, err
+    stats = json.loads(text)["images"]
+    rep = tmp_path / "r.html"
+    code, printed, err = cli(*args, "-o", tmp_path / "g.npz", "--report", rep)
+    assert code == 0, err
+    page = rep.read_text(encoding="utf-8")
+    rows = _rows(page)
+    for image, s in stats.items():
+        row = rows[image]
+        assert row[4:9] == [
+            f"{s['sigma0']:.4f}",
+            f"{s['rms_before']:.4f}",
+            f"{s['rms_after']:.4f}",
+            f"{100 * s['reduction']:.1f} %",
+            f"{100 * s['reduction_cv']:.1f} %",
+        ]
+        assert f"{100 * s['reduction']:.1f} %" in printed
+    assert "RMS before [px]" in rows["image"] and "50 px node spacing" in page
+
+
+def test_grid_fit_report_figure_has_a_scale_arrow(residual_csv, monkeypatch):
+    # before: the mean grid was drawn "not to scale": arrows of an automatic length and no
+    # scale arrow, so the figure gave no size of the correction
+    from matplotlib.quiver import QuiverKey
+
+    from photogeom.calibration import fit_grids
+    from photogeom.cli import grid as grid_cli
+    from photogeom.report import html as report_html
+
+    rng = np.random.default_rng(1)
+    uv = np.column_stack([rng.uniform(0, W - 1, 400), rng.uniform(0, H - 1, 400)])
+    r = np.column_stack([0.5 + 0 * uv[:, 0], -0.25 + 0 * uv[:, 1]])
+    grids = fit_grids({"a": (uv, r)}, (W, H), 50.0, folds=0)
+    figures = []
+    real = report_html.figure_to_png
+
+    def keep(fig, dpi=110):
+        figures.append(fig)
+        return real(fig, dpi)
+
+    monkeypatch.setattr(report_html, "figure_to_png", keep)
+    page = grid_cli._report_html(grids)
+    (fig,) = figures
+    (ax,) = fig.axes
+    keys = [a for a in ax.artists if isinstance(a, QuiverKey)]
+    assert len(keys) == 1 and keys[0].text.get_text() == "0.5 px"
+    assert "[px]" in ax.get_xlabel() and "[px]" in ax.get_ylabel()
+    assert "arrows x" in ax.get_title(loc="left") and "scale arrow" in page
+
+
+def test_grid_report_reductions_in_per_cent_as_grid_evaluate_prints_them(cli, tmp_path):
+    # before: the block table showed "reduction 0.3358452321" beside "34 %" in the summary
+    # of the same report, and 'grid evaluate' prints "33.6 %"; every number to 10 digits
+    common = ("--preset", "FC300S", "--strips", "1", "--images-per-strip", "4")
+    code, printed, err = cli("grid", "evaluate", *common, "--spacing", "1000")
+    assert code == 0, err
+    out = tmp_path / "r.html"
+    code, _, err = cli(
+        "grid", "report", *common, "--spacing", "1000", "--spacings", "500,1000", "-o", out
+    )
+    assert code == 0, err
+    rows = _rows(out.read_text(encoding="utf-8"))
+    for label, printed_label in (
+        ("RMS (px)", "RMS"),
+        ("mean length (px)", "mean length"),
+        ("mean step (GSD)", "mean step"),
+    ):
+        line = next(x for x in printed.splitlines() if re.search(rf"│ +{printed_label} │", x))
+        assert [c.strip() for c in line.split("│")[2:5]] == rows[label][:3]
+    assert rows["FC300S"][3] == rows["RMS (px)"][2]  # the summary: the same reduction
+    assert all(re.fullmatch(r"\d+\.\d{4}", c) for c in rows["0"])  # per image, px
