@@ -117,3 +117,40 @@ def test_grid_report_reductions_in_per_cent_as_grid_evaluate_prints_them(cli, tm
         assert [c.strip() for c in line.split("│")[2:5]] == rows[label][:3]
     assert rows["FC300S"][3] == rows["RMS (px)"][2]  # the summary: the same reduction
     assert all(re.fullmatch(r"\d+\.\d{4}", c) for c in rows["0"])  # per image, px
+
+
+def test_relative_report_prints_the_w_of_the_console_and_the_model_orientations(cli, tmp_path):
+    # before: the report's worst y-parallaxes had w to 3 significant digits ("195", "1.7")
+    # where the console prints "194.94", "1.70", the critical value 3.29 beside the 3.291 of
+    # the residual table above it, and the report lacked the orientation of the images in
+    # the model system that the console prints
+    import photogeom as pg
+
+    io = pg.InteriorOrientation(100.0, unit="mm")
+    e1 = pg.ExteriorOrientation(0.0, 0.0, 100.0, 0.02, -0.03, 0.01)
+    e2 = pg.ExteriorOrientation(60.0, 3.0, 101.0, -0.01, 0.02, 0.05)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-30, -40, -10], [90, 40, 10], (40, 3))
+    xy1 = pg.project(pts, io, e1) + rng.normal(0, 0.004, (40, 2))
+    xy2 = pg.project(pts, io, e2) + rng.normal(0, 0.004, (40, 2))
+    xy2[5] += [0.8, -1.2]  # a wrong match: a large w
+    src = tmp_path / "m.csv"
+    lines = [f"P{i}," + ",".join(map(repr, map(float, r))) for i, r in enumerate(np.c_[xy1, xy2])]
+    src.write_text("id,x1,y1,x2,y2\n" + "\n".join(lines) + "\n")
+    rep = tmp_path / "ro.html"
+    code, out, err = cli("orient", "relative", src, "--f", "100", "--sigma", "0.004",
+                         "--report", rep)  # fmt: skip
+    assert code == 0, err
+    page = rep.read_text(encoding="utf-8")
+    rows = _rows(page)
+    printed = {
+        m.group(1): m.group(2)
+        for m in re.finditer(r"^  (P\d+) +\S+ +(\S+) +(?:used|left out)$", out, flags=re.M)
+    }
+    assert len(printed) == 10
+    for pid, w in printed.items():
+        assert rows[pid][1] == w
+    assert "critical value of the w-test: 3.291" in page
+    for line in out.splitlines():
+        if "in the model system:" in line:
+            assert html.escape(line) in page
