@@ -154,3 +154,42 @@ def test_relative_report_prints_the_w_of_the_console_and_the_model_orientations(
     for line in out.splitlines():
         if "in the model system:" in line:
             assert html.escape(line) in page
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (("examples", "run", "--all"), "--report"),
+        (("orient", "relative", "MATCHES", "--f", "100"), "--report"),
+        (("orient", "relative", "MATCHES", "--f", "100"), "--output-cameras"),
+        (("transform", "estimate", "similarity2d", "FIDUCIALS"), "--output-params"),
+        (("orient", "absolute", "LIDAR"), "--report"),
+        (("camera", "dlt", "estimate", "MATCHES"), "--report"),
+    ],
+)
+def test_unwritable_report_refused_before_the_computation(cli, tmp_path, args, option):
+    # before: these commands computed first (examples run --all: every example, half a
+    # minute) and then failed on the write with "cannot write ...", not naming the option
+    import photogeom.datasets as ds
+
+    files = {
+        "MATCHES": tmp_path / "no_such_input.csv",  # refused before the input is read
+        "FIDUCIALS": ds.path("lecture_fiducials"),
+        "LIDAR": ds.path("lidar_wang2014"),
+    }
+    argv = [files.get(a, a) for a in args]
+    missing = tmp_path / "no_folder" / "out.html"
+    if option == "--output-cameras":
+        argv += [option, tmp_path / "c1.json", missing]
+    else:
+        argv += [option, missing]
+    code, out, err = cli(*argv)
+    assert code == 2
+    assert err.startswith(f"error: {option}: cannot write {missing}") and "does not exist" in err
+    assert "ok" not in out  # no example ran
+    code, out, err = cli(*argv[:-1], tmp_path)  # a folder
+    assert code == 2 and f"{option}: cannot write {tmp_path}: it is a folder" in err
+    below_a_file = tmp_path / "plain.txt"
+    below_a_file.write_text("x")
+    code, out, err = cli(*argv[:-1], below_a_file / "out.html")
+    assert code == 2 and f"{below_a_file} is a file, not a folder" in err

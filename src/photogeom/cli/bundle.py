@@ -217,6 +217,10 @@ def check_targets(blocks=(), files=(), made=()) -> None:
             continue
         if path.is_dir():
             raise OutputError(f"{opt}: cannot write {path}: it is a folder; give a file name")
+        if path.parent.exists() and not path.parent.is_dir():
+            raise OutputError(
+                f"{opt}: cannot write {path}: {path.parent} is a file, not a folder"
+            )
         if str(path.parent) and not path.parent.is_dir() and path.parent not in made:
             raise OutputError(
                 f"{opt}: cannot write {path}: folder {path.parent} does not exist; create it first"

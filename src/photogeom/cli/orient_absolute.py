@@ -21,6 +21,7 @@ from ._common import (
     CRS_FORMS,
     AngleUnit,
     check_mask,
+    check_outputs,
     console,
     file_crs,
     json_text,
@@ -255,6 +256,7 @@ def register(app: typer.Typer) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
 
+        check_outputs(report=report, output_params=output_params)
         _check_option_combinations(
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
             sigma_source=sigma_source, initial=initial, output_params=output_params,

@@ -21,6 +21,7 @@ from ..errors import InputError, PhotogeomError
 from ._common import (
     AngleUnit,
     IdColOpt,
+    check_outputs,
     column_options,
     console,
     json_text,
@@ -185,6 +186,10 @@ def relative(
     """
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
+
+    check_outputs(report=report, output=output)
+    for path in output_cameras or ():
+        check_outputs(output_cameras=path)
 
     io1 = interior_from_options(
         camera=camera,
