@@ -193,3 +193,38 @@ def test_unwritable_report_refused_before_the_computation(cli, tmp_path, args, o
     below_a_file.write_text("x")
     code, out, err = cli(*argv[:-1], below_a_file / "out.html")
     assert code == 2 and f"{below_a_file} is a file, not a folder" in err
+
+
+def test_reports_name_the_command_line_that_made_them(cli, tmp_path):
+    # before: the reports of orient absolute, camera dlt estimate and grid fit named no input
+    # file at all, and no report named the options (method, units, convention, sigmas)
+    import photogeom.datasets as ds
+    from photogeom.report import Report
+
+    lidar = ds.path("lidar_wang2014")
+    rep = tmp_path / "a b.html"  # quoted in the line
+    args = ("orient", "absolute", lidar, "--method", "gauss-helmert", "--sigma-source",
+            "0.01", "--angle-unit", "gon", "--report", rep)  # fmt: skip
+    code, _, err = cli(*args)
+    assert code == 0, err
+    page = rep.read_text(encoding="utf-8")
+    line = f"photogeom orient absolute {lidar} --method gauss-helmert --sigma-source 0.01 "
+    line += f"--angle-unit gon --report '{rep}'"
+    assert f"command: <code>{html.escape(line)}</code>" in page
+    assert "command:" not in Report("made in Python").to_html()
+
+
+def test_bundle_report_of_a_saved_record_names_the_adjustment(cli, tmp_path):
+    block = tmp_path / "blk"
+    code, _, err = cli("bundle", "simulate", block, "--preset", "FC300S", "--strips", "1",
+                       "--images-per-strip", "3", "--tie-points-per-image", "30")  # fmt: skip
+    assert code == 0, err
+    record = tmp_path / "r.json"
+    code, _, err = cli("bundle", "adjust", block, "--free", "f", "--result", record)
+    assert code == 0, err
+    assert json.loads(record.read_text())["command"].endswith(f"--free f --result {record}")
+    out = tmp_path / "again.html"
+    code, _, err = cli("bundle", "report", record, "-o", out)
+    assert code == 0, err
+    rows = _rows(out.read_text(encoding="utf-8"))
+    assert rows["adjusted by"] == [f"photogeom bundle adjust {block} --free f --result {record}"]

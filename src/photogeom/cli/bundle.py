@@ -584,8 +584,12 @@ def adjust(
         georef = _georef_back(fit, georef, allow_ballpark)
     texts: list[tuple[Path, str]] = []
     if report is not None or result is not None:
+        from ..report.invocation import cli_command
+
         data = bundle_result_data(fit, unit=unit, angle_unit=angle)
         _add_georef(data, georef)
+        # the adjustment's inputs and options, shown by 'bundle report' of the saved record
+        data["command"] = cli_command()
         if result is not None:
             texts.append((result, json.dumps(data, indent=1, allow_nan=False) + "\n"))
         if report is not None:

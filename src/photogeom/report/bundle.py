@@ -581,6 +581,7 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             )
             or "none (free network)",
         ],
+        *([["adjusted by", str(d["command"])]] if d.get("command") else []),
         *_crs_rows(d),
         ["sigma0 a posteriori", _f(d["sigma0"])],
         ["sigma0 a priori", _f(d["sigma0_prior"])],

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..io.atomic import atomic_write_text
 from . import format as F
+from .invocation import cli_command
 from .plots import residual_figure
 
 _CSS = """
@@ -104,6 +105,13 @@ class Report:
     subtitle : str, optional
         A line under the title.
 
+    Attributes
+    ----------
+    command : str or None
+        The command line that made the report
+        (:func:`photogeom.report.invocation.cli_command`), shown under the title; None (not
+        shown) outside the command line.
+
     Examples
     --------
     >>> rep = Report("Interior orientation")
@@ -115,6 +123,7 @@ class Report:
     def __init__(self, title: str, subtitle: str | None = None) -> None:
         self.title = str(title)
         self.subtitle = subtitle
+        self.command = cli_command()
         self._blocks: list[tuple[int, str, str, str]] = []  # (level, heading, anchor, html)
         self._used: set[str] = set()
 
@@ -401,6 +410,8 @@ class Report:
         if self.subtitle:
             out.append(f'<p class="note">{_esc(self.subtitle)}</p>')
         out.append(f'<p class="note">photogeom {_esc(__version__)} &middot; {_esc(now)}</p>')
+        if self.command:
+            out.append(f'<p class="note">command: <code>{_esc(self.command)}</code></p>')
         if sum(1 for b in self._blocks if b[1]) >= 4:
             out.append(self._toc())
         for level, heading, anchor, body in self._blocks:
