@@ -228,3 +228,34 @@ def test_bundle_report_of_a_saved_record_names_the_adjustment(cli, tmp_path):
     assert code == 0, err
     rows = _rows(out.read_text(encoding="utf-8"))
     assert rows["adjusted by"] == [f"photogeom bundle adjust {block} --free f --result {record}"]
+
+
+def test_bundle_report_summary_has_the_digits_of_the_printed_summary(cli, tmp_path):
+    # before: the report rounded sigma0 to 4 significant digits (3.138) where the printed
+    # summary gives 4 decimals (3.1383), the RMS residual 0.3606 beside 0.361, the IMU
+    # residuals 1.147 beside 1.15, the critical value 3.291 beside 3.29, |w| 91.53 beside
+    # 91.5, and the check-point RMSE only to 4 decimals of a metre (0.0081 for 0.008068)
+    block = tmp_path / "blk"
+    code, _, err = cli("bundle", "simulate", block, "--preset", "FC300S", "--strips", "2",
+                       "--images-per-strip", "4", "--blunders", "2", "--seed", "3")  # fmt: skip
+    assert code == 0, err
+    rep = tmp_path / "b.html"
+    code, out, err = cli("bundle", "adjust", block, "--report", rep)
+    assert code == 0, err
+    rep_text = rep.read_text(encoding="utf-8")
+    page = html.unescape(re.sub(r"<[^>]+>", " ", rep_text))
+    rows = _rows(rep.read_text(encoding="utf-8"))
+    sigma0 = re.search(r"sigma0 a posteriori (\S+) \(a priori", out).group(1)
+    assert rows["sigma0 a posteriori"] == [sigma0]
+    rms = re.search(r"RMS (\S+) px; GSD", out).group(1)
+    assert rows["RMS image residual"] == [f"{rms} px"]
+    imu = re.search(r"IMU residuals .*?: (omega .* deg)", out).group(1)
+    assert any(v == [imu] for k, v in rows.items() if k.startswith("RMS IMU residual"))
+    check = re.search(r"check points \(\d+\), [^:]*: RMSE (X \S+, Y \S+, Z \S+) \(([^)]*)\)", out)
+    assert f"RMSE {check.group(1)} m ({check.group(2)};" in page
+    crit = re.search(r"critical (\S+)\)", out).group(1)
+    assert f"critical value {crit}:" in page
+    flagged = re.findall(r"image (\S+) point (\S+): \|w\| = (\S+)", out)
+    assert flagged
+    for image, point, w in flagged:
+        assert re.search(rf"<tr><td>{image}</td><td>{point}</td><td[^>]*>{w}</td>", str(rep_text))
