@@ -259,3 +259,43 @@ def test_bundle_report_summary_has_the_digits_of_the_printed_summary(cli, tmp_pa
     assert flagged
     for image, point, w in flagged:
         assert re.search(rf"<tr><td>{image}</td><td>{point}</td><td[^>]*>{w}</td>", str(rep_text))
+
+
+def _tables(text: str) -> list[list[list[str]]]:
+    """Every table of an HTML report as rows of cell texts."""
+    out = []
+    for table in re.findall(r"<table[^>]*>(.*?)</table>", text, flags=re.S):
+        rows = []
+        for row in re.findall(r"<tr>(.*?)</tr>", table, flags=re.S):
+            rows.append(
+                [
+                    html.unescape(re.sub(r"<[^>]+>", "", c)).strip()
+                    for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", row, flags=re.S)
+                ]
+            )
+        out.append(rows)
+    return out
+
+
+def test_absolute_compare_report_has_the_printed_digits(cli, tmp_path):
+    # before: the console cut wide cells ("-1424.5862…", "8071.83065…": digits lost) and
+    # the report printed the same numbers to 10 significant digits (0.3108127688 where the
+    # console printed 3.11e-01, 710.0829971 us beside 710.1)
+    import photogeom.datasets as ds
+
+    rep = tmp_path / "c.html"
+    code, out, err = cli("orient", "absolute", ds.path("kraus_absolute_orientation"),
+                         "--compare", "--angle-unit", "gon", "--report", rep)  # fmt: skip
+    assert code == 0, err
+    assert "…" not in out
+    printed = {}
+    for line in out.splitlines():
+        words = line.split()
+        if words and words[0] in ("closed-form", "svd", "gauss-markov", "gauss-helmert"):
+            printed.setdefault(words[0], []).append(words[1:])
+    params, diffs = _tables(rep.read_text(encoding="utf-8"))[:2]
+    for table, k in ((params, 0), (diffs, 1)):
+        for row in table[1:]:
+            if row[0] in printed:
+                assert printed[row[0]][k][:-1 if k else None] == row[1:-1 if k else None]
+    assert any(re.fullmatch(r"\d\.\d\de[-+]\d\d", c) for c in diffs[1][1:4])
