@@ -299,3 +299,33 @@ def test_absolute_compare_report_has_the_printed_digits(cli, tmp_path):
             if row[0] in printed:
                 assert printed[row[0]][k][:-1 if k else None] == row[1:-1 if k else None]
     assert any(re.fullmatch(r"\d\.\d\de[-+]\d\d", c) for c in diffs[1][1:4])
+
+
+def test_cloud_register_console_and_report_show_the_same_parameters(cli, tmp_path):
+    # before: the console printed the translation to 4 decimals (479999.9999), kappa to 6
+    # (40.107021) and the standard deviations to 3 digits (0.000115) where the report's
+    # table shows 479999.999912, 40.1070207 and 0.00011; the report gave sigma0 no unit
+    import photogeom as pg
+
+    rng = np.random.default_rng(8)
+    x = rng.uniform([0, 0, 0], [400, 300, 30], (1500, 3))
+    t = pg.Similarity3D.from_angles(1.00004, 0.01, -0.02, 0.7, [480000.0, 5300000.0, 250.0])
+    src, dst = tmp_path / "scan.las", tmp_path / "ref.las"
+    pg.io.write_cloud(src, x, scales=(1e-5,) * 3)
+    pg.io.write_cloud(dst, t.apply(x) + rng.normal(0, 0.01, x.shape), scales=(1e-5,) * 3,
+                      crs="EPSG:32633")  # fmt: skip
+    rep = tmp_path / "r.html"
+    code, out, err = cli("cloud", "register", src, dst, "--check-every", "10", "--scheduler",
+                         "sync", "--report", rep)  # fmt: skip
+    assert code == 0, err
+    rows = _rows(rep.read_text(encoding="utf-8"))
+    tr = re.search(r"translation (\S+), (\S+), (\S+) m\n  std. dev. (\S+), (\S+), (\S+) m", out)
+    for k, name in enumerate(("tx", "ty", "tz")):
+        assert rows[name][:2] == [tr.group(1 + k), tr.group(4 + k)]
+    ang = re.search(r"omega (\S+) deg  phi (\S+) deg  kappa (\S+) deg", out)
+    sd = re.search(r"std. dev. (\S+) / (\S+) / (\S+) deg", out)
+    for k, name in enumerate(("omega", "phi", "kappa")):
+        assert rows[name][:2] == [ang.group(1 + k), sd.group(1 + k)]
+    assert rows["scale"][:2] == list(re.search(r"scale (\S+) \+- (\S+)", out).groups())
+    sigma0 = re.search(r"sigma0 (\S+) m", out).group(1)
+    assert rows["sigma0 [m] (one target coordinate)"] == [sigma0]
