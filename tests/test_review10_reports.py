@@ -329,3 +329,13 @@ def test_cloud_register_console_and_report_show_the_same_parameters(cli, tmp_pat
     assert rows["scale"][:2] == list(re.search(r"scale (\S+) \+- (\S+)", out).groups())
     sigma0 = re.search(r"sigma0 (\S+) m", out).group(1)
     assert rows["sigma0 [m] (one target coordinate)"] == [sigma0]
+
+
+def test_grid_report_step_per_model_figure_labels_its_x_axis():
+    # before: the bars of the step per model pair had ticks "0-2", "2-4" and no axis label
+    from photogeom.report.grid_study import _fig_models
+
+    ev = {"steps_before": {(0, 2): 1.5, (2, 4): 1.4}, "steps_after": {(0, 2): 1.1, (2, 4): 1.0}}
+    (ax,) = _fig_models(ev).axes
+    assert "model pair" in ax.get_xlabel() and ax.get_ylabel() == "step (GSD)"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["before", "after"]

@@ -204,6 +204,7 @@ def _fig_models(ev) -> Figure:
     ax.bar(x + 0.2, [ev["steps_after"][k] for k in keys], 0.4, label="after")
     ax.set_xticks(x)
     ax.set_xticklabels([plain(f"{a}-{b}") for a, b in keys], rotation=90, fontsize=7)
+    ax.set_xlabel("model pair: the first model's images (a-b)")
     ax.set_ylabel("step (GSD)")
     ax.set_title(
         "step per model pair (first model's images), before and after (Fig. 14)", fontsize=9
