@@ -339,3 +339,27 @@ def test_grid_report_step_per_model_figure_labels_its_x_axis():
     (ax,) = _fig_models(ev).axes
     assert "model pair" in ax.get_xlabel() and ax.get_ylabel() == "step (GSD)"
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["before", "after"]
+
+
+def test_dlt_report_gives_the_unit_of_the_projection_centre(cli, tmp_path):
+    # before: the report's decomposed orientation read "Z0 = 1603.3757; omega" and
+    # "Z0 3.4; omega" where the console prints "[m]" after both
+    import photogeom as pg
+
+    io = pg.InteriorOrientation(152.14, 0.008, -0.12)
+    eo = pg.ExteriorOrientation.from_degrees(1000, 800, 1600, 2, 3, 10)
+    rng = np.random.default_rng(0)
+    g = rng.uniform([1050, 750, 100], [1550, 1100, 300], (12, 3))
+    xy = pg.project(g, io, eo) + rng.normal(0, 0.003, (12, 2))
+    ctl = tmp_path / "c.csv"
+    ctl.write_text("id,X,Y,Z,x,y\n" + "".join(
+        f"P{i}," + ",".join(map(repr, map(float, [*g[i], *xy[i]]))) + "\n" for i in range(12)
+    ))  # fmt: skip
+    rep = tmp_path / "dlt.html"
+    code, out, err = cli("camera", "dlt", "estimate", ctl, "--report", rep)
+    assert code == 0, err
+    page = html.unescape(rep.read_text(encoding="utf-8"))
+    for line in out.splitlines():
+        if line.startswith(("exterior:", "std. dev. (")):
+            assert "[m]" in line
+    assert re.search(r"Z0 = \S+ \[m\]; omega", page) and re.search(r"Z0 \S+ \[m\]; omega", page)
