@@ -363,3 +363,20 @@ def test_dlt_report_gives_the_unit_of_the_projection_centre(cli, tmp_path):
         if line.startswith(("exterior:", "std. dev. (")):
             assert "[m]" in line
     assert re.search(r"Z0 = \S+ \[m\]; omega", page) and re.search(r"Z0 \S+ \[m\]; omega", page)
+
+
+def test_zero_redundancy_report_does_not_call_its_shown_std_undefined(tmp_path):
+    # before: under a table of "0.0063 (a priori)" standard deviations the note read
+    # "std. dev. undefined: redundancy 0"
+    import photogeom as pg
+    from photogeom.report import Report
+
+    src = np.array([[113.016, 0.002], [-112.977, -0.002]])
+    dst = np.array([[243.031, 130.007], [17.028, 130.009]])
+    fit = pg.estimate_transform("similarity2d", src, dst)
+    assert fit.redundancy == 0
+    rep = Report("zero redundancy")
+    rep.add_fit(fit)
+    page = rep.to_html()
+    assert "(a priori)" in page and "undefined: redundancy 0" not in page
+    assert "std. dev. a priori (from sigma0 a priori; redundancy 0" in page

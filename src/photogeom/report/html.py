@@ -310,9 +310,7 @@ class Report:
             ["parameter", "value", "std. dev.", "unit"],
             [list(r) for r in prows],
             text_cols={3},
-            note="std. dev. from sigma0 a posteriori"
-            if np.isfinite(fit.sigma0)
-            else "std. dev. undefined: redundancy 0 (no a-posteriori sigma0)",
+            note=_std_note(fit, prows),
         )
         right = "<h4>Adjustment</h4>" + _table_html(
             ["quantity", "value"], [list(r) for r in stats], cls="stats", header=False
@@ -464,6 +462,19 @@ class Report:
 
 
 # ------------------------------------------------------------------------------------------------
+
+
+def _std_note(fit, rows) -> str:
+    """The note under a parameter table: where its standard deviations come from."""
+    if np.isfinite(fit.sigma0):
+        return "std. dev. from sigma0 a posteriori"
+    if any(r[2].endswith("(a priori)") for r in rows):
+        # the table shows numbers: saying "undefined" above them contradicted them
+        return (
+            "std. dev. a priori (from sigma0 a priori; redundancy 0: no a-posteriori "
+            "sigma0 to scale them)"
+        )
+    return "std. dev. undefined: redundancy 0 (no a-posteriori sigma0)"
 
 
 def _paragraphs(text: str) -> list[str]:
