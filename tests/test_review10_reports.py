@@ -380,3 +380,18 @@ def test_zero_redundancy_report_does_not_call_its_shown_std_undefined(tmp_path):
     page = rep.to_html()
     assert "(a priori)" in page and "undefined: redundancy 0" not in page
     assert "std. dev. a priori (from sigma0 a priori; redundancy 0" in page
+
+
+def test_residual_figure_draws_no_ids_beyond_its_limit():
+    # before: every id was written beside its point: a transform estimate of 5000 pairs
+    # spent 40 of its 53 s drawing the labels of the report's figure (an unreadable mass)
+    from photogeom.report.plots import MAX_ID_LABELS, residual_figure
+
+    rng = np.random.default_rng(2)
+    n = MAX_ID_LABELS + 1
+    pts, res = rng.uniform(0, 100, (n, 2)), rng.normal(0, 0.01, (n, 2))
+    (ax,) = residual_figure(pts, res, [f"P{i}" for i in range(n)], unit="mm").axes
+    assert len(ax.texts) == 0 and f"ids not drawn ({n} points" in ax.get_title(loc="left")
+    (ax,) = residual_figure(pts[:5], res[:5], [f"P{i}" for i in range(5)], unit="mm").axes
+    assert [t.get_text() for t in ax.texts] == [f"P{i}" for i in range(5)]
+    assert "ids not drawn" not in ax.get_title(loc="left")

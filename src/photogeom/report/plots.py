@@ -10,6 +10,10 @@ from matplotlib.figure import Figure
 
 from ..errors import InputError
 
+#: Points whose ids :func:`residual_figure` writes beside them at most (all groups together);
+#: with more, no id is drawn and the figure says so.
+MAX_ID_LABELS = 200
+
 
 def nice_length(value: float) -> float:
     """The largest 1, 2 or 5 times a power of ten not above ``value``.
@@ -85,7 +89,8 @@ def residual_figure(
     residuals_xy : array_like, shape (n, 2)
         Residuals (computed minus observed) at those positions, unit ``unit``.
     ids : sequence, optional
-        Point ids written next to the points.
+        Point ids written next to the points (with at most :data:`MAX_ID_LABELS` points in
+        all; with more, none is written and the figure says so).
     unit : str
         Residual unit, shown on the scale arrow.
     labels : (str, str)
@@ -130,6 +135,10 @@ def residual_figure(
     ax = fig.add_subplot(1, 1, 1)
     handles = []
     shown_by_number = []
+    n_points = sum(g[0].shape[0] for g in groups)
+    # more ids than a figure can show legibly: none drawn (drawing thousands of labels took
+    # most of a report's time, 40 s for 5000 points, and covered the arrows)
+    label = n_points <= MAX_ID_LABELS
     for p, r, pid, name, colour in groups:
         ax.plot(p[:, 0], p[:, 1], "o", color=colour, ms=4, zorder=3)
         q = ax.quiver(
@@ -146,7 +155,7 @@ def residual_figure(
             label=plain(f"{name} ({p.shape[0]})"),
         )
         handles.append(q)
-        if pid is not None:
+        if pid is not None and label:
             texts, font, missing = point_labels([str(t) for t in pid], name)
             shown_by_number += missing
             for (x, y), t in zip(p, texts):
@@ -191,6 +200,8 @@ def residual_figure(
     note = (
         f"v = computed - observed, arrows x{exaggeration}" if vmax > 0 else "all residuals are zero"
     )
+    if not label and any(g[2] is not None for g in groups):
+        note += f"\nids not drawn ({n_points} points, more than {MAX_ID_LABELS})"
     if shown_by_number:
         # the ids themselves cannot be drawn: refer to the rows of the residual tables
         note += (
