@@ -395,3 +395,41 @@ def test_residual_figure_draws_no_ids_beyond_its_limit():
     (ax,) = residual_figure(pts[:5], res[:5], [f"P{i}" for i in range(5)], unit="mm").axes
     assert [t.get_text() for t in ax.texts] == [f"P{i}" for i in range(5)]
     assert "ids not drawn" not in ax.get_title(loc="left")
+
+
+def test_intersection_report_legend_does_not_call_object_points_control(cli, tmp_path):
+    # before: the residual plots of 'orient intersection' had the legend "control (12)":
+    # the intersected points are neither control nor check points
+    import photogeom as pg
+
+    io = pg.InteriorOrientation(152.14, 0.008, -0.12)
+    eos = [pg.ExteriorOrientation.from_degrees(1000, 800, 1600, 2, 3, 10),
+           pg.ExteriorOrientation.from_degrees(1600, 820, 1620, -1, 2, 8)]  # fmt: skip
+    rng = np.random.default_rng(0)
+    g = rng.uniform([1050, 750, 100], [1550, 1100, 300], (6, 3))
+    images, cams = [], []
+    for k, eo in enumerate(eos):
+        xy = pg.project(g, io, eo) + rng.normal(0, 0.003, (6, 2))
+        f = tmp_path / f"i{k}.csv"
+        rows = [f"P{i},{a!r},{b!r}" for i, (a, b) in enumerate(xy.tolist())]
+        f.write_text("id,x,y\n" + "\n".join(rows) + "\n")
+        images.append(f)
+        cam = tmp_path / f"c{k}.json"
+        cam.write_text(json.dumps({"interior": io.to_dict(), "exterior": eo.to_dict("deg")}))
+        cams += ["--camera", cam]
+    from matplotlib.figure import Figure
+
+    legends = []
+    real = Figure.savefig
+
+    def keep(fig, *a, **k):
+        legends.extend(t.get_text() for ax in fig.axes if ax.get_legend()
+                       for t in ax.get_legend().get_texts())  # fmt: skip
+        return real(fig, *a, **k)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Figure, "savefig", keep)
+        code, _, err = cli("orient", "intersection", *images, *cams, "--report",
+                           tmp_path / "i.html")  # fmt: skip
+    assert code == 0, err
+    assert legends == ["object points (6)", "object points (6)"]

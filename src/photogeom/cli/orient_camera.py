@@ -476,5 +476,6 @@ def _intersection_report(res, ids, images, obs, cams, crs=None) -> str:
             res.residuals[i][ok],
             ids=[p for p, k in zip(ids, ok) if k],
             unit=cams[i][0].unit,
+            name="object points",  # intersected, neither control nor check points
         )
     return rep.to_html()

@@ -253,7 +253,7 @@ class Report:
             Axis labels.
         **kwargs
             Passed to :func:`~photogeom.report.plots.residual_figure` (``check_points``,
-            ``check_residuals``, ``check_ids``, ``y_down``, ``point_unit``).
+            ``check_residuals``, ``check_ids``, ``y_down``, ``point_unit``, ``name``).
         """
         fig = residual_figure(points_xy, residuals_xy, ids, unit=unit, labels=labels, **kwargs)
         self._add(3, title, _img_html(figure_to_png(fig), title or "residuals", None))
