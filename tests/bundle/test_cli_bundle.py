@@ -100,7 +100,10 @@ def test_adjust_text_json_outputs_and_report(simulated, cli, tmp_path):
     )
     assert code == 0, err
     strip = lambda s: "\n".join(  # noqa: E731
-        ln for ln in s.splitlines() if not ln.startswith('<p class="note">photogeom ')
+        ln
+        for ln in s.splitlines()
+        # the version and date, and the command that wrote the file (adjust, then report)
+        if not ln.startswith(('<p class="note">photogeom ', '<p class="note">command: '))
     )
     assert strip(rep2.read_text()) == strip(html)
 

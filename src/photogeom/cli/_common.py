@@ -286,6 +286,26 @@ def load_pairs(
     return join_points(src, dst, allow_unmatched=allow_unmatched)
 
 
+def check_outputs(**options: Path | None) -> None:
+    """Refuse, before anything is read or computed, output files that cannot be written.
+
+    Parameters
+    ----------
+    **options : pathlib.Path or None
+        Output paths by option name, the underscores of the name read as dashes
+        (``report=path`` is ``--report``); None: the option was not given.
+
+    Raises
+    ------
+    OutputError
+        For a path that is a folder or lies in a folder that does not exist; the message
+        names the option (``--report: cannot write ...``).
+    """
+    from .bundle import check_targets
+
+    check_targets(files=[("--" + k.replace("_", "-"), v) for k, v in options.items()])
+
+
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
     """Write every ``(path, text)`` as one: all files are replaced, or none is changed.
 

@@ -233,6 +233,10 @@ def check_targets(blocks=(), files=(), made=()) -> None:
             continue
         if path.is_dir():
             raise OutputError(f"{opt}: cannot write {path}: it is a folder; give a file name")
+        if path.parent.exists() and not path.parent.is_dir():
+            raise OutputError(
+                f"{opt}: cannot write {path}: {path.parent} is a file, not a folder"
+            )
         if str(path.parent) and not path.parent.is_dir() and path.parent not in made:
             raise OutputError(
                 f"{opt}: cannot write {path}: folder {path.parent} does not exist; create it first"
@@ -601,8 +605,12 @@ def adjust(
         georef = _georef_back(fit, georef, allow_ballpark)
     texts: list[tuple[Path, str]] = []
     if report is not None or result is not None:
+        from ..report.invocation import cli_command
+
         data = bundle_result_data(fit, unit=unit, angle_unit=angle)
         _add_georef(data, georef)
+        # the adjustment's inputs and options, shown by 'bundle report' of the saved record
+        data["command"] = cli_command()
         if result is not None:
             texts.append((result, json.dumps(data, indent=1, allow_nan=False) + "\n"))
         if report is not None:

@@ -29,6 +29,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     check_mask,
+    check_outputs,
     column_options,
     console,
     emit_points,
@@ -529,6 +530,7 @@ def dlt_estimate(
     from ..camera import estimate_dlt
     from ._common import file_crs
 
+    check_outputs(report=report, output_params=output_params)
     ground_crs = file_crs(crs, "--crs", points)
     unmatched: dict = {}
     ids, g, im, mask, sigma = load_control(
@@ -568,6 +570,7 @@ def dlt_estimate(
         }
         fit = replace(fit, crs=ground_crs.text, parameter_units=units)
     au = AngleUnit(angle_unit).value
+    gu = (ground_crs.unit if ground_crs is not None else None) or "m"  # of X0, Y0, Z0
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()
     std = _dlt_std(fit, au)  # once: each is a propagation through the decomposition
@@ -577,7 +580,7 @@ def dlt_estimate(
     if output_params is not None:
         outputs.append((output_params, json_text(data)))
     if report is not None:
-        outputs.append((report, _dlt_report(fit, im_ctrl, kw.get("check_image"), au, std)))
+        outputs.append((report, _dlt_report(fit, im_ctrl, kw.get("check_image"), au, std, gu)))
     write_outputs(outputs)
     if as_json:
         typer.echo(json_text(data), nl=False)
@@ -586,7 +589,6 @@ def dlt_estimate(
 
     out = console()
     print_fit(fit, console=out, angle_unit=au)
-    gu = (ground_crs.unit if ground_crs is not None else None) or "m"
     out.print(
         _orientation_text(fit.interior, fit.exterior, au, std, gu),
         markup=False,
@@ -640,7 +642,9 @@ def _orientation_text(
     )
 
 
-def _dlt_report(fit, image_ctrl, image_check, au: str, std: tuple[dict, str]) -> str:
+def _dlt_report(
+    fit, image_ctrl, image_check, au: str, std: tuple[dict, str], ground_unit: str
+) -> str:
     from ..report import Report
 
     rep = Report("DLT estimation", subtitle=fit.method)
@@ -655,7 +659,8 @@ def _dlt_report(fit, image_ctrl, image_check, au: str, std: tuple[dict, str]) ->
     )
     rep.add_text(
         "Decomposed orientation",
-        _orientation_text(fit.interior, fit.exterior, au, std),
+        # the ground unit of X0, Y0, Z0 as the console prints it
+        _orientation_text(fit.interior, fit.exterior, au, std, ground_unit),
     )
     return rep.to_html()
 

@@ -308,10 +308,8 @@ def register(
     out of core (one pass for the estimate, one for the check pairs), with sigma0 and the
     parameters' standard deviations from the moments. Lengths are in the unit of the target
     cloud's CRS (unlabelled when it records none)."""
-    import numpy as np
 
     from ..distributed import register_clouds
-    from ..units import display_angle, from_radians
     from ._common import write_outputs
     from .bundle import check_targets
 
@@ -340,23 +338,25 @@ def register(
     if json_out:
         typer.echo(json_text(_nan_to_none(d)), nl=False)
         return
+    from ..report.format import parameter_rows
+
     f = reg.fit
     au = angle_unit.value
-    sd = dict(zip(f.parameter_names, np.sqrt(np.diag(f.covariance))))
-    om, ph, ka = (
-        display_angle(a, au, name)
-        for a, name in zip(f.angles("transposed", au), ("omega", "phi", "kappa"))
-    )
+    # values and standard deviations with the digits of the report's parameter table
+    # (each value to two digits beyond its standard deviation's first)
+    shown = {name: (value, std) for name, value, std, _ in parameter_rows(f, au)}
     u = _length_unit(f.crs)
-    sda = [from_radians(sd[k], au) for k in ("omega", "phi", "kappa")]
+    ang = [shown[k] for k in ("omega", "phi", "kappa")]
+    tr = [shown[k] for k in ("tx", "ty", "tz")]
     lines = [
         f"absolute orientation ({f.method}) of {reg.n_control} control pairs",
-        f"scale {f.scale:.10f}" + (f" +- {sd['scale']:.3g}" if "scale" in sd else " (fixed)"),
-        f"omega {om:+.6f} {au}  phi {ph:+.6f} {au}  kappa {ka:+.6f} {au} (transposed "
+        "scale "
+        + (" +- ".join(shown["scale"]) if "scale" in shown else f"{f.scale:.10f} (fixed)"),
+        f"omega {ang[0][0]} {au}  phi {ang[1][0]} {au}  kappa {ang[2][0]} {au} (transposed "
         "convention)",
-        f"  std. dev. {sda[0]:.3g} / {sda[1]:.3g} / {sda[2]:.3g} {au}",
-        f"translation {_fmt3(f.translation, '.4f')}{u}",
-        f"  std. dev. {_fmt3([sd['tx'], sd['ty'], sd['tz']], '.3g')}{u}",
+        f"  std. dev. {ang[0][1]} / {ang[1][1]} / {ang[2][1]} {au}",
+        f"translation {', '.join(v for v, _ in tr)}{u}",
+        f"  std. dev. {', '.join(s for _, s in tr)}{u}",
         f"sigma0 {f.sigma0:.4g}{u} (one target coordinate; redundancy {f.redundancy}; "
         "from the moments)",
         f"control RMSE {reg.control_rmse:.4g}{u} (per point, from the moments)",
@@ -382,6 +382,8 @@ def _register_report(reg, source: Path, target: Path, angle_unit: str) -> str:
                 angle_unit=angle_unit)
     u = f" [{unit}]" if unit else ""
     rows = [
+        # sigma0 in the unit the console gives it (unweighted: one target coordinate's)
+        [f"sigma0{u} (one target coordinate)", f"{reg.fit.sigma0:.4g}"],
         ["control pairs", f"{reg.n_control}"],
         [f"control RMSE{u} (per point)", f"{reg.control_rmse:.4g}"],
         ["check pairs", f"{reg.n_check}"],

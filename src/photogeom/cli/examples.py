@@ -86,8 +86,11 @@ def run_examples(
             subtitle="Computed on the bundled published data sets; each example compares "
             "its results with the published numbers.",
         )
-        if not report.parent.exists() and str(report.parent):
-            raise InputError(f"cannot write {report}: directory {report.parent} does not exist")
+        from ._common import check_outputs
+
+        # before any example runs (--all takes half a minute): a folder, or a file in a
+        # folder that does not exist
+        check_outputs(report=report)
 
     out = console()
     timings: list[tuple[str, float, str]] = []

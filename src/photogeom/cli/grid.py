@@ -749,25 +749,35 @@ def _pct(x) -> str:
 
 
 def _report_html(grids: dict) -> str:
+    """The HTML report of ``grid fit``: the per-image table with the numbers and rounding of
+    the printed table (RMS in px to 4 decimals, reductions in per cent) and the mean node
+    vectors of the images of the first image's layout, with a scale arrow of their true
+    length (px)."""
     from matplotlib.figure import Figure
 
     from ..report import Report
+    from ..report.plots import nice_length
 
-    rep = Report("Finite-element residual grids", "image residuals computed minus observed, px")
+    first = next(iter(grids.values()))
+    rep = Report(
+        "Finite-element residual grids",
+        f"{first.layout.spacing:g} px node spacing; image residuals computed minus observed, px",
+    )
     rows = []
     for k, g in grids.items():
         s = g.to_dict()
         rows.append(
             [
-                k,
-                s["n_observations"],
-                s["n_outliers"],
-                s["supported_nodes"],
-                s["sigma0"],
-                s["rms_before"],
-                s["rms_after"],
-                s["reduction"],
-                s["reduction_cv"],
+                str(k),
+                str(s["n_observations"]),
+                str(s["n_outliers"]),
+                f"{s['shape'][0]}x{s['shape'][1]}",
+                str(s["supported_nodes"]),
+                _f(s["sigma0"]),
+                _f(s["rms_before"]),
+                _f(s["rms_after"]),
+                _pct(s["reduction"]),
+                _pct(s["reduction_cv"]),
             ]
         )
     rep.add_table(
@@ -776,28 +786,50 @@ def _report_html(grids: dict) -> str:
             "image",
             "n",
             "outliers",
-            "supported nodes",
+            "nodes",
+            "supported",
             "sigma0",
-            "RMS before (px)",
-            "RMS after (px)",
+            "RMS before [px]",
+            "RMS after [px]",
             "reduction",
-            "reduction (cross-validation)",
+            "CV reduction",
         ],
         rows,
+        note="sigma0: a-posteriori standard deviation of unit weight (unitless); reduction: "
+        "1 - RMS after / RMS before; CV reduction: the same from the k-fold cross-validation",
     )
-    first = next(iter(grids.values()))
     same = [g for g in grids.values() if g.layout == first.layout]
     mean = np.mean([g.nodes for g in same], axis=0)
     u, v = first.layout.node_coordinates()
+    length = np.hypot(mean[..., 0], mean[..., 1])
+    vmax = float(np.nanmax(length)) if np.isfinite(length).any() else 0.0
+    # arrows exaggerated by a round factor (the longest about 0.8 node spacings), a scale
+    # arrow of their true length in px
+    factor = nice_length(0.8 * first.layout.spacing / vmax) if vmax > 0 else 1.0
     fig = Figure(figsize=(8, 8 * first.layout.height / first.layout.width + 0.6))
     ax = fig.add_subplot()
-    ax.quiver(u, v, mean[..., 0], mean[..., 1], angles="xy")
+    q = ax.quiver(
+        u, v, mean[..., 0], mean[..., 1], angles="xy", scale_units="xy", scale=1.0 / factor
+    )
+    if vmax > 0:
+        key = nice_length(vmax)
+        ax.quiverkey(
+            q, X=0.78, Y=1.03, U=key, label=f"{key:g} px", labelpos="E", coordinates="axes"
+        )
     ax.set_xlim(-0.5, first.layout.width - 0.5)
     ax.set_ylim(first.layout.height - 0.5, -0.5)
     ax.set_aspect("equal")
-    ax.set_xlabel("u (px)")
-    ax.set_ylabel("v (px)")
-    rep.add_figure(f"Mean grid of {len(same)} image(s) (node vectors, not to scale)", fig)
+    ax.set_xlabel("u (column) [px]")
+    ax.set_ylabel("v (row) [px]")
+    ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
+    ax.set_title(f"mean node vector, arrows x{ex}", fontsize=9, loc="left")
+    rep.add_figure(
+        f"Mean grid of {len(same)} image(s)",
+        fig,
+        caption="Mean node vector (rx, ry) of the grids over the images of "
+        f"{first.layout.width} x {first.layout.height} px, exaggerated by the factor in the "
+        "title; the scale arrow gives the true length.",
+    )
     return rep.to_html()
 
 

@@ -94,8 +94,12 @@ def main(argv: list[str] | None = None) -> None:
     numeric = NumericWarnings()
     warnings.showwarning = partial(_show_warning, shown, numeric)
     failed = True
+    from ..report.invocation import command_line
+
     try:
-        app(args=argv, prog_name="photogeom")
+        # the reports a command writes show the command line (their inputs and options)
+        with command_line(sys.argv[1:] if argv is None else argv):
+            app(args=argv, prog_name="photogeom")
         failed = False
     except SystemExit as exc:  # click's standalone mode ends every run with SystemExit
         failed = exc.code not in (0, None)

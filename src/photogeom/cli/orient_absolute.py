@@ -21,6 +21,7 @@ from ._common import (
     CRS_FORMS,
     AngleUnit,
     check_mask,
+    check_outputs,
     console,
     file_crs,
     json_text,
@@ -255,6 +256,7 @@ def register(app: typer.Typer) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
 
+        check_outputs(report=report, output_params=output_params)
         _check_option_combinations(
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
             sigma_source=sigma_source, initial=initial, output_params=output_params,
@@ -311,19 +313,17 @@ def register(app: typer.Typer) -> None:
                 from rich.markup import escape
 
                 cols = [escape(c) for c in cmp.columns()]
-                rows = cmp.table_rows()
+                rows = cmp.display_rows()  # the digits of the report's tables
                 print_table(
                     "Absolute orientation: parameters of every method",
                     cols[:8],
-                    [[r[0], *[_fmt(v, 6) for v in r[1:4]], _fmt(r[4], 10),
-                      *[_fmt(v, 6) for v in r[5:8]]] for r in rows],
+                    [r[:8] for r in rows],
                     console=out,
                 )
                 print_table(
                     f"Differences to the converged {cmp.reference} solution, speed",
                     [cols[0], *cols[8:]],
-                    [[r[0], *[_fmt(v, 2, sci=True) for v in r[8:12]], _fmt(r[12], 1)]
-                     for r in rows],
+                    [[r[0], *r[8:]] for r in rows],
                     console=out,
                 )
                 for r in cmp.rows:
@@ -583,14 +583,3 @@ def _outliers(fit, x, X, row_ids) -> list[dict]:
 
 def _outlier_rows(outliers: list[dict]) -> list[list[str]]:
     return [[o["id"], *(f"{c:.4f}" for c in o["v"]), f"{o['norm']:.4f}"] for o in outliers]
-
-
-def _fmt(v, decimals: int, sci: bool = False) -> str:
-    if v is None:
-        return "-"
-    v = float(v)
-    if not np.isfinite(v):
-        return "-"
-    if sci:
-        return f"{v:.{decimals}e}"
-    return f"{v:.{decimals}f}"

@@ -23,6 +23,7 @@ from ._common import (
     OutputCsvOpt,
     cartesian_crs_option,
     check_mask,
+    check_outputs,
     column_options,
     console,
     file_crs,
@@ -141,6 +142,8 @@ def resection(
     """
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
+
+    check_outputs(report=report, output_params=output_params)
 
     io = interior_from_options(
         camera=camera,
@@ -293,6 +296,8 @@ def intersection(
     """
     from ..io import format_points_csv, read_points
     from ..orientation.intersection import space_intersection
+
+    check_outputs(report=report, output=output)
 
     if len(images) < 2:
         raise InputError("space intersection needs >= 2 image files")
@@ -471,5 +476,6 @@ def _intersection_report(res, ids, images, obs, cams, crs=None) -> str:
             res.residuals[i][ok],
             ids=[p for p, k in zip(ids, ok) if k],
             unit=cams[i][0].unit,
+            name="object points",  # intersected, neither control nor check points
         )
     return rep.to_html()

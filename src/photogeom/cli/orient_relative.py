@@ -21,6 +21,7 @@ from ..errors import InputError, PhotogeomError
 from ._common import (
     AngleUnit,
     IdColOpt,
+    check_outputs,
     column_options,
     console,
     json_text,
@@ -186,6 +187,10 @@ def relative(
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
 
+    check_outputs(report=report, output=output)
+    for path in output_cameras or ():
+        check_outputs(output_cameras=path)
+
     io1 = interior_from_options(
         camera=camera,
         calibration=calibration,
@@ -293,17 +298,25 @@ def relative(
     )
     print_fit(fit, console=out, angle_unit=au)
     say(par.text(), out)
-    for e, name in ((fit.exterior1, "image 1"), (fit.exterior2, "image 2")):
-        a = e.angles_in(au)
-        say(
-            f"{name} in the model system: X0 {e.X0:.6g}, Y0 {e.Y0:.6g}, Z0 {e.Z0:.6g}, "
-            f"omega {a[0]:.6g}, phi {a[1]:.6g}, kappa {a[2]:.6g} {au}",
-            out,
-        )
+    for line in _model_lines(fit, au):
+        say(line, out)
     for n in notes:
         say(f"note: {n}", out)
     for path, _ in outputs:
         say(f"wrote {path}", out)
+
+
+def _model_lines(fit, au: str) -> list[str]:
+    """The orientations of both images in the model system, one line each (the console
+    and the report print the same)."""
+    lines = []
+    for e, name in ((fit.exterior1, "image 1"), (fit.exterior2, "image 2")):
+        a = e.angles_in(au)
+        lines.append(
+            f"{name} in the model system: X0 {e.X0:.6g}, Y0 {e.Y0:.6g}, Z0 {e.Z0:.6g}, "
+            f"omega {a[0]:.6g}, phi {a[1]:.6g}, kappa {a[2]:.6g} {au}"
+        )
+    return lines
 
 
 def _report(fit, par, xy1, au: str, source: Path) -> str:
@@ -328,7 +341,9 @@ def _report(fit, par, xy1, au: str, source: Path) -> str:
         [
             par.ids[k],
             f"{par.parallax[k]:.5g}",
-            f"{par.statistic[k]:.3g}" if np.isfinite(par.statistic[k]) else "-",
+            # the rounding of the printed table (ParallaxReport.text) and of the residual
+            # table's w and tau columns
+            f"{par.statistic[k]:.2f}" if np.isfinite(par.statistic[k]) else "-",
             "used" if par.used[k] else "left out",
         ]
         for k in par.worst
@@ -337,7 +352,13 @@ def _report(fit, par, xy1, au: str, source: Path) -> str:
         f"Worst y-parallaxes (RMS {par.rms:.4g} {par.unit} over the points used)",
         ["id", f"py [{par.unit}]", par.test, "status"],
         rows,
-        note=f"critical value of the {par.test}-test: {par.critical_value:.3g}",
+        note=f"critical value of the {par.test}-test: {par.critical_value:.3f}",
+    )
+    rep.add_text(
+        "Orientations in the model system",
+        "\n\n".join(_model_lines(fit, au))
+        + f"\n\nX0, Y0, Z0 in the unit of the model system (see the notes above); angles in {au}.",
+        pre=False,
     )
     return rep.to_html()
 

@@ -29,6 +29,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     check_mask,
+    check_outputs,
     column_options,
     console,
     crs_column_names,
@@ -580,6 +581,8 @@ def fit(
     from ..rpc import fit_rpc_to_points
     from ..rpc.fitting import UnstableFitError, unstable_fit_message
 
+    check_outputs(output=output, report=report)
+
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     sig = _sigmas(pairs, mask, sigma, points)
     if np.ndim(sig):
@@ -641,6 +644,7 @@ def refine(
     """
     from ..rpc import refine_rpc
 
+    check_outputs(output=output, report=report)
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)

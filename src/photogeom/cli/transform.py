@@ -23,6 +23,7 @@ from ._common import (
     IdColOpt,
     cartesian_crs_option,
     check_mask,
+    check_outputs,
     column_options,
     console,
     crs_from_comments,
@@ -199,6 +200,7 @@ def estimate(
     """
     from ..estimation import estimate_transform
 
+    check_outputs(report=report, output_params=output_params)
     model = Model(model).value
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value

@@ -63,7 +63,7 @@ def comparison_figure(cmp: MethodComparison):
 def add_comparison(report, cmp: MethodComparison, title: str) -> None:
     """Add the comparison table and its figure to an HTML report."""
     cols = cmp.columns()
-    rows = cmp.table_rows()
+    rows = cmp.display_rows()  # the digits 'orient absolute --compare' prints
     # two tables of at most 8 columns (as on the console): one page width, no scrolling
     report.add_table(
         title,

@@ -141,6 +141,29 @@ class MethodComparison:
             ])
         return out
 
+    def display_rows(self) -> list[list[str]]:
+        """:meth:`table_rows` as text, with the digits the command line and the HTML
+        report both show.
+
+        Shifts and angles to 6 decimals, the scale to 10, the differences and the
+        orthogonality defect with 3 significant digits (exponent form), the time to 0.1 us;
+        "-" for the values of a failed method.
+
+        Returns
+        -------
+        list of list of str
+            Rows of the 13 :meth:`columns`.
+        """
+
+        def fmt(v, spec: str) -> str:
+            return "-" if v is None or not math.isfinite(v) else format(float(v), spec)
+
+        specs = [".6f"] * 3 + [".10f"] + [".6f"] * 3 + [".2e"] * 4 + [".1f"]
+        return [
+            [r[0], *(fmt(v, spec) for v, spec in zip(r[1:], specs, strict=True))]
+            for r in self.table_rows()
+        ]
+
     def to_text(self) -> str:
         """Plain-text table (differences are to the reference method).
 

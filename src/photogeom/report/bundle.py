@@ -548,6 +548,12 @@ def _f(x, digits: int = 4) -> str:
     return F.fmt_stat(_nan(x), digits)
 
 
+def _gsd(x) -> str:
+    """Two decimals ("-" when undefined): lengths in GSD and the critical value of the
+    w-test, as the printed summary gives them."""
+    return F.fmt_fixed(_nan(x), 2)
+
+
 def _std(x) -> str:
     return F.fmt_std(_nan(x))
 
@@ -615,13 +621,16 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             )
             or "none (free network)",
         ],
+        *([["adjusted by", str(d["command"])]] if d.get("command") else []),
         *_crs_rows(d),
-        ["sigma0 a posteriori", _f(d["sigma0"])],
+        # sigma0, the RMS residual, the IMU residuals, the critical value and |w| with the
+        # rounding of the printed summary (BundleFit.summary), so both show the same digits
+        ["sigma0 a posteriori", F.fmt_fixed(_nan(d["sigma0"]), 4)],
         ["sigma0 a priori", _f(d["sigma0_prior"])],
         ["observations / unknowns", f"{d['n_observations']} / {d['n_unknowns']}"],
         ["redundancy r", str(d["redundancy"])],
         ["chi-square test of v'Pv / sigma0_prior^2", test],
-        ["RMS image residual", f"{_f(d['rmse_px'])} px"],
+        ["RMS image residual", f"{F.fmt_fixed(_nan(d['rmse_px']), 3)} px"],
         *_orientation_residual_rows(d),
         ["mean GSD", f"{_f(d['gsd'])} {d['unit']}/px"],
         [
@@ -657,7 +666,8 @@ def _orientation_residual_rows(d: Mapping) -> list[list[str]]:
         rows.append(
             [
                 f"RMS IMU residual (adjusted - IMU, {orr['imu_images']} images)",
-                f"omega {_f(a[0])}, phi {_f(a[1])}, kappa {_f(a[2])} {d['angle_unit']}",
+                f"omega {_f(a[0], 3)}, phi {_f(a[1], 3)}, kappa {_f(a[2], 3)} "
+                f"{d['angle_unit']}",
             ]
         )
     return rows
@@ -853,8 +863,10 @@ def _points_section(d: Mapping) -> str:
             + _table_html(
                 ["point", f"dX [{u}]", f"dY [{u}]", f"dZ [{u}]", f"|d| [{u}]", "|d| [GSD]"], rows
             )
-            + f'<p class="note">{_esc(conv)}; RMSE in GSD: X {_f(rg[0], 3)}, Y {_f(rg[1], 3)}, '
-            f"Z {_f(rg[2], 3)} (GSD {_f(gsd)} {_esc(u)}/px)</p>"
+            # the RMSE as the printed summary gives it: 4 significant digits, GSD 2 decimals
+            + f'<p class="note">{_esc(conv)}; RMSE X {_f(rm[0])}, Y {_f(rm[1])}, '
+            f"Z {_f(rm[2])} {_esc(u)} ({_gsd(rg[0])}, {_gsd(rg[1])}, {_gsd(rg[2])} GSD; "
+            f"GSD {_f(gsd)} {_esc(u)}/px)</p>"
         )
     return "".join(parts)
 
@@ -867,7 +879,7 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
     n = int(d.get("n_flagged", len(fl)))
     head = (
         f"<p>Baarda's w-test per image observation (the larger |w| of u and v), "
-        f"alpha {sn['alpha']} per test, critical value {_f(sn['critical_value'])}: "
+        f"alpha {sn['alpha']} per test, critical value {_gsd(sn['critical_value'])}: "
         f"<strong>{n}</strong> observation(s) flagged. Flagged observations are listed, "
         "not removed: the largest |w| is the most likely blunder; remove it and adjust "
         "again.</p>"
@@ -879,7 +891,7 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
         [
             str(r["image"]),
             str(r["point"]),
-            f"{r['w']:.2f}",
+            f"{r['w']:.1f}",
             F.fmt_fixed(_nan(r["v"][0]), 3),
             F.fmt_fixed(_nan(r["v"][1]), 3),
             _f(r["sigma"], 3),

@@ -231,14 +231,23 @@ def print_table(
     console = console or Console()
     t = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", title_style="bold")
     for j, c in enumerate(columns):
-        t.add_column(str(c), justify="left" if j == 0 else "right")
+        # a cell too wide for the console wraps onto a second line, never ends in an
+        # ellipsis (a number cut to "-1424.5862…" has lost digits)
+        t.add_column(str(c), justify="left" if j == 0 else "right", overflow="fold")
     for r in rows:
         cells = (
             c if isinstance(c, str) else F.fmt_value(c) if isinstance(c, float) else str(c)
             for c in r
         )
         t.add_row(*(Text(c) for c in cells))
-    console.print(t)
+    width = console.width
+    if not console.is_terminal:  # a file or a pipe: as wide as the table needs
+        wide = console.options.update(width=10_000)
+        console.width = max(width, console.measure(t, options=wide).maximum)
+    try:
+        console.print(t)
+    finally:
+        console.width = width
 
 
 def fit_text(fit, title: str | None = None, angle_unit: str = "deg", width: int = 110) -> str:

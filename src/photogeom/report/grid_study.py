@@ -180,6 +180,16 @@ def _fig_sweep(sweep) -> Figure:
     return fig
 
 
+def _fixed(x, decimals: int) -> str:
+    """``x`` with ``decimals`` decimals ("-" when undefined)."""
+    return "-" if x is None or not np.isfinite(x) else f"{float(x):.{decimals}f}"
+
+
+def _pct(x) -> str:
+    """A fraction in per cent with one decimal, as 'grid evaluate' prints it."""
+    return "-" if x is None or not np.isfinite(x) else f"{100 * float(x):.1f} %"
+
+
 def _rematched_step(res) -> str:
     rm = res.get("rematched")
     return f"{rm['mean_step_after']:.2f}" if rm else "-"
@@ -194,6 +204,7 @@ def _fig_models(ev) -> Figure:
     ax.bar(x + 0.2, [ev["steps_after"][k] for k in keys], 0.4, label="after")
     ax.set_xticks(x)
     ax.set_xticklabels([plain(f"{a}-{b}") for a, b in keys], rotation=90, fontsize=7)
+    ax.set_xlabel("model pair: the first model's images (a-b)")
     ax.set_ylabel("step (GSD)")
     ax.set_title(
         "step per model pair (first model's images), before and after (Fig. 14)", fontsize=9
@@ -224,7 +235,7 @@ def grid_study_report(
                 f"{ev['mean_step_before']:.2f} -> {ev['mean_step_after']:.2f}",
                 _rematched_step(res),
                 pub[0],
-                f"{100 * ev['residuals']['block']['reduction_rms']:.0f} %",
+                _pct(ev["residuals"]["block"]["reduction_rms"]),
                 f"{sw['spacing']:g} px" if sw else "-",
                 pub[2],
             ]
@@ -253,19 +264,26 @@ def grid_study_report(
         fit, refit, grids = res["fit"], res["refit"], res["grids"]
         rep.add_heading(str(name))
         blk = ev["residuals"]["block"]
+        # the numbers and rounding 'grid evaluate' prints: px to 4 decimals, GSD to 3,
+        # reductions in per cent
         rows = [
-            ["RMS (px)", blk["before"]["rms"], blk["after"]["rms"], blk["reduction_rms"]],
+            [
+                "RMS (px)",
+                _fixed(blk["before"]["rms"], 4),
+                _fixed(blk["after"]["rms"], 4),
+                _pct(blk["reduction_rms"]),
+            ],
             [
                 "mean length (px)",
-                blk["before"]["mean_length"],
-                blk["after"]["mean_length"],
-                blk["reduction_mean_length"],
+                _fixed(blk["before"]["mean_length"], 4),
+                _fixed(blk["after"]["mean_length"], 4),
+                _pct(blk["reduction_mean_length"]),
             ],
             [
                 "mean step (GSD)",
-                ev["mean_step_before"],
-                ev["mean_step_after"],
-                ev["step_reduction"],
+                _fixed(ev["mean_step_before"], 3),
+                _fixed(ev["mean_step_after"], 3),
+                _pct(ev["step_reduction"]),
             ],
         ]
         if res.get("rematched"):
@@ -273,9 +291,9 @@ def grid_study_report(
             rows.append(
                 [
                     "mean step, re-matched (GSD)",
-                    rm["mean_step_before"],
-                    rm["mean_step_after"],
-                    rm["step_reduction"],
+                    _fixed(rm["mean_step_before"], 3),
+                    _fixed(rm["mean_step_after"], 3),
+                    _pct(rm["step_reduction"]),
                 ]
             )
         for key, what in (("check", "check RMSE"), ("tie", "tie-point RMSE vs truth")):
@@ -284,23 +302,40 @@ def grid_study_report(
                 continue
             b, a = np.asarray(before["rmse_gsd"]), np.asarray(after["rmse_gsd"])
             rows.append(
-                [f"{what} (GSD, 3D)", float(np.linalg.norm(b)), float(np.linalg.norm(a)), ""]
+                [
+                    f"{what} (GSD, 3D)",
+                    _fixed(np.linalg.norm(b), 3),
+                    _fixed(np.linalg.norm(a), 3),
+                    "",
+                ]
             )
             # per axis: the numbers 'grid evaluate' prints and writes with --json
             rows.extend(
-                [f"{what} {ax} (GSD)", float(x), float(y), ""] for ax, x, y in zip("XYZ", b, a)
+                [f"{what} {ax} (GSD)", _fixed(x, 3), _fixed(y, 3), ""]
+                for ax, x, y in zip("XYZ", b, a)
             )
-        rep.add_table("Block", ["quantity", "before", "after", "reduction"], rows)
+        rep.add_table(
+            "Block",
+            ["quantity", "before", "after", "reduction"],
+            rows,
+            note="reduction: 1 - after / before",
+        )
         rep.add_table(
             "Per image",
-            ["image", "RMS before", "RMS after", "mean length before", "mean length after"],
+            [
+                "image",
+                "RMS before (px)",
+                "RMS after (px)",
+                "mean length before (px)",
+                "mean length after (px)",
+            ],
             [
                 [
-                    k,
-                    v["before"]["rms"],
-                    v["after"]["rms"],
-                    v["before"]["mean_length"],
-                    v["after"]["mean_length"],
+                    str(k),
+                    _fixed(v["before"]["rms"], 4),
+                    _fixed(v["after"]["rms"], 4),
+                    _fixed(v["before"]["mean_length"], 4),
+                    _fixed(v["after"]["mean_length"], 4),
                 ]
                 for k, v in ev["residuals"]["images"].items()
             ],

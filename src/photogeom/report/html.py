@@ -16,6 +16,7 @@ import numpy as np
 
 from ..io.atomic import atomic_write_text
 from . import format as F
+from .invocation import cli_command
 from .plots import residual_figure
 
 _CSS = """
@@ -104,6 +105,13 @@ class Report:
     subtitle : str, optional
         A line under the title.
 
+    Attributes
+    ----------
+    command : str or None
+        The command line that made the report
+        (:func:`photogeom.report.invocation.cli_command`), shown under the title; None (not
+        shown) outside the command line.
+
     Examples
     --------
     >>> rep = Report("Interior orientation")
@@ -115,6 +123,7 @@ class Report:
     def __init__(self, title: str, subtitle: str | None = None) -> None:
         self.title = str(title)
         self.subtitle = subtitle
+        self.command = cli_command()
         self._blocks: list[tuple[int, str, str, str]] = []  # (level, heading, anchor, html)
         self._used: set[str] = set()
 
@@ -244,7 +253,7 @@ class Report:
             Axis labels.
         **kwargs
             Passed to :func:`~photogeom.report.plots.residual_figure` (``check_points``,
-            ``check_residuals``, ``check_ids``, ``y_down``, ``point_unit``).
+            ``check_residuals``, ``check_ids``, ``y_down``, ``point_unit``, ``name``).
         """
         fig = residual_figure(points_xy, residuals_xy, ids, unit=unit, labels=labels, **kwargs)
         self._add(3, title, _img_html(figure_to_png(fig), title or "residuals", None))
@@ -301,9 +310,7 @@ class Report:
             ["parameter", "value", "std. dev.", "unit"],
             [list(r) for r in prows],
             text_cols={3},
-            note="std. dev. from sigma0 a posteriori"
-            if np.isfinite(fit.sigma0)
-            else "std. dev. undefined: redundancy 0 (no a-posteriori sigma0)",
+            note=_std_note(fit, prows),
         )
         right = "<h4>Adjustment</h4>" + _table_html(
             ["quantity", "value"], [list(r) for r in stats], cls="stats", header=False
@@ -401,6 +408,8 @@ class Report:
         if self.subtitle:
             out.append(f'<p class="note">{_esc(self.subtitle)}</p>')
         out.append(f'<p class="note">photogeom {_esc(__version__)} &middot; {_esc(now)}</p>')
+        if self.command:
+            out.append(f'<p class="note">command: <code>{_esc(self.command)}</code></p>')
         if sum(1 for b in self._blocks if b[1]) >= 4:
             out.append(self._toc())
         for level, heading, anchor, body in self._blocks:
@@ -453,6 +462,19 @@ class Report:
 
 
 # ------------------------------------------------------------------------------------------------
+
+
+def _std_note(fit, rows) -> str:
+    """The note under a parameter table: where its standard deviations come from."""
+    if np.isfinite(fit.sigma0):
+        return "std. dev. from sigma0 a posteriori"
+    if any(r[2].endswith("(a priori)") for r in rows):
+        # the table shows numbers: saying "undefined" above them contradicted them
+        return (
+            "std. dev. a priori (from sigma0 a priori; redundancy 0: no a-posteriori "
+            "sigma0 to scale them)"
+        )
+    return "std. dev. undefined: redundancy 0 (no a-posteriori sigma0)"
 
 
 def _paragraphs(text: str) -> list[str]:

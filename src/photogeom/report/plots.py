@@ -10,6 +10,10 @@ from matplotlib.figure import Figure
 
 from ..errors import InputError
 
+#: Points whose ids :func:`residual_figure` writes beside them at most (all groups together);
+#: with more, no id is drawn and the figure says so.
+MAX_ID_LABELS = 200
+
 
 def nice_length(value: float) -> float:
     """The largest 1, 2 or 5 times a power of ten not above ``value``.
@@ -75,6 +79,7 @@ def residual_figure(
     y_down: bool = False,
     title: str | None = None,
     point_unit: str | None = None,
+    name: str = "control",
 ) -> Figure:
     """Quiver plot of residual vectors at their points, with a labelled scale arrow.
 
@@ -85,7 +90,8 @@ def residual_figure(
     residuals_xy : array_like, shape (n, 2)
         Residuals (computed minus observed) at those positions, unit ``unit``.
     ids : sequence, optional
-        Point ids written next to the points.
+        Point ids written next to the points (with at most :data:`MAX_ID_LABELS` points in
+        all; with more, none is written and the figure says so).
     unit : str
         Residual unit, shown on the scale arrow.
     labels : (str, str)
@@ -98,6 +104,9 @@ def residual_figure(
         Line above the plot, before the note on the arrows' exaggeration.
     point_unit : str, optional
         Unit of the positions (axis labels); defaults to ``unit``.
+    name : str, default "control"
+        What the points are, in the legend (``"control (12)"``); e.g. ``"object points"``
+        for the rays of an intersection, which are neither control nor check points.
 
     Returns
     -------
@@ -109,7 +118,7 @@ def residual_figure(
     res = _xy(residuals_xy, "residuals")
     if pts.shape[0] != res.shape[0]:
         raise InputError(f"{pts.shape[0]} point(s) but {res.shape[0]} residual row(s)")
-    groups = [(pts, res, ids, "control", "#1f5fa8")]
+    groups = [(pts, res, ids, name, "#1f5fa8")]
     if check_points is not None and check_residuals is not None:
         cp, cr = _xy(check_points, "check points"), _xy(check_residuals, "check residuals")
         if cp.shape[0] != cr.shape[0]:
@@ -130,7 +139,11 @@ def residual_figure(
     ax = fig.add_subplot(1, 1, 1)
     handles = []
     shown_by_number = []
-    for p, r, pid, name, colour in groups:
+    n_points = sum(g[0].shape[0] for g in groups)
+    # more ids than a figure can show legibly: none drawn (drawing thousands of labels took
+    # most of a report's time, 40 s for 5000 points, and covered the arrows)
+    label = n_points <= MAX_ID_LABELS
+    for p, r, pid, group, colour in groups:
         ax.plot(p[:, 0], p[:, 1], "o", color=colour, ms=4, zorder=3)
         q = ax.quiver(
             p[:, 0],
@@ -143,11 +156,11 @@ def residual_figure(
             color=colour,
             width=0.005,
             zorder=4,
-            label=plain(f"{name} ({p.shape[0]})"),
+            label=plain(f"{group} ({p.shape[0]})"),
         )
         handles.append(q)
-        if pid is not None:
-            texts, font, missing = point_labels([str(t) for t in pid], name)
+        if pid is not None and label:
+            texts, font, missing = point_labels([str(t) for t in pid], group)
             shown_by_number += missing
             for (x, y), t in zip(p, texts):
                 ax.annotate(
@@ -191,6 +204,8 @@ def residual_figure(
     note = (
         f"v = computed - observed, arrows x{exaggeration}" if vmax > 0 else "all residuals are zero"
     )
+    if not label and any(g[2] is not None for g in groups):
+        note += f"\nids not drawn ({n_points} points, more than {MAX_ID_LABELS})"
     if shown_by_number:
         # the ids themselves cannot be drawn: refer to the rows of the residual tables
         note += (
