@@ -113,6 +113,29 @@ def say(text: str, out=None, *, stderr: bool = False) -> None:
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
 
 
+#: Exit code of a batch command that ran every item and some failed (docs/cli.md).
+BATCH_FAILED = 1
+
+
+def batch_failed(message: str) -> None:
+    """End a batch command whose items all ran and some failed: ``error: message`` on
+    stderr, exit code :data:`BATCH_FAILED` (1; bad input that stops a command before it
+    runs anything is exit 2, see :func:`photogeom.cli.main.main`).
+
+    Parameters
+    ----------
+    message : str
+        What failed and what was done, in the words of the command line.
+
+    Raises
+    ------
+    typer.Exit
+        Always, with code 1.
+    """
+    typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
+    raise typer.Exit(BATCH_FAILED)
+
+
 def split_names(text: str | None) -> list[str] | None:
     """Comma- (or semicolon-) separated names; None for no or an empty option."""
     if text is None:

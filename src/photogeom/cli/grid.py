@@ -22,6 +22,7 @@ from ._common import (
     JsonOpt,
     OutputCsvOpt,
     ReportOpt,
+    batch_failed,
     console,
     emit_points,
     json_text,
@@ -898,7 +899,8 @@ def correct_images(
     ] = Outside.replicate,
     as_json: JsonOpt = False,
 ) -> None:
-    """Resample every image that has a grid; failures are listed, the rest processed."""
+    """Resample every image that has a grid; failures are listed, the rest processed (exit
+    1 when some image failed)."""
     from ..calibration import correct_folder, load_grids
 
     mode: bool | str = dask
@@ -932,7 +934,11 @@ def correct_images(
         for k, msg in res.failures.items():
             say(f"failed {k}: {msg}", stderr=True)
     if res.failures:
-        raise typer.Exit(1)
+        failed = len(res.failures)
+        batch_failed(
+            f"{failed} of {failed + len(res.written)} image(s) failed (listed above; the "
+            f"other {len(res.written)} corrected into {dst_dir})"
+        )
 
 
 # block-level commands (evaluate, sweep, report) live in their own module
