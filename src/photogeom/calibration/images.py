@@ -11,9 +11,12 @@ written in the original format:
   subsampling (the quality is kept), EXIF, XMP and ICC profile;
 * TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
   profile, with its compression;
-* PNG (any bit depth and channels): the pixels by OpenCV, the original's metadata chunks
-  copied unchanged (EXIF, ICC profile, colour space, resolution, text and XMP), also those
-  that follow the image data;
+* PNG (any bit depth and channels): in its own colour type and bit depth, the original's
+  metadata chunks copied unchanged (EXIF, ICC profile, colour space, resolution, text and
+  XMP), also those that follow the image data. Grey with alpha stays grey with alpha (OpenCV
+  decodes it as RGBA); a palette image keeps its palette and transparency and is resampled
+  by nearest neighbour (blending indices would give unrelated colours; said in a note); a
+  transparent colour (tRNS) of a grey or RGB image is kept;
 * other TIFFs (16-bit colour, float): the pixels by OpenCV (its compression kept where
   OpenCV writes it: none, LZW, Deflate, PackBits), the original's tags grafted onto its file
   (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; little-endian TIFFs);
@@ -43,7 +46,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
-from .correction import correct_image
+from .correction import INTERPOLATIONS, correct_image
 from .grid import ResidualGrid
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".tif", ".tiff", ".png")
@@ -174,6 +177,7 @@ def _read(path: Path):
         meta = {}
     if raw[:8] == _PNG_SIGNATURE:
         meta["png_chunks"] = _png_metadata_chunks(raw)
+        pixels = _png_own_coding(raw, pixels, meta)
     elif meta.get("format") == "TIFF" and not (
         pixels.dtype == np.uint8 or (pixels.dtype == np.uint16 and pixels.ndim == 2)
     ):  # written by OpenCV, not Pillow: the tags are grafted onto its file (see _encode)
@@ -217,6 +221,96 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
             break
         at = end
     return before, text
+
+
+def _png_chunk(data: bytes, kind: bytes) -> bytes | None:
+    """The first whole chunk (length, type, data, CRC) of type ``kind`` before the image
+    data of a PNG file, or None."""
+    at = len(_PNG_SIGNATURE)
+    while at + 12 <= len(data):
+        (length,) = struct.unpack(">I", data[at : at + 4])
+        end = at + 12 + length
+        if data[at + 4 : at + 8] == kind and end <= len(data):
+            return data[at:end]
+        if data[at + 4 : at + 8] in (b"IDAT", b"IEND") or end > len(data):
+            return None
+        at = end
+    return None
+
+
+def _png_own_coding(raw: bytes, pixels: np.ndarray, meta: dict) -> np.ndarray:
+    """The pixels of a PNG in its own colour type where OpenCV decodes another.
+
+    * palette (colour type 3): the indices (Pillow), the palette and its transparency
+      kept in ``meta["png_palette"]`` (bit depth, PLTE chunk, tRNS chunk or None); OpenCV
+      gives RGB(A);
+    * grey with alpha (type 4): the grey and alpha channels ((h, w, 2); the bit depth in
+      ``meta["png_grey_alpha"]``); OpenCV gives RGBA;
+    * grey or RGB with a transparent colour (tRNS, types 0 and 2, 8 or 16 bits): OpenCV
+      drops the chunk; it is kept in ``meta["png_trns"]`` (a colour key, valid for the
+      pixels written in the same type and depth).
+    """
+    from PIL import Image
+
+    if len(raw) < 33 or raw[12:16] != b"IHDR":
+        return pixels
+    depth, ctype = raw[24], raw[25]
+    if ctype == 3:
+        with Image.open(io.BytesIO(raw)) as im:
+            if im.mode != "P":  # pragma: no cover - Pillow reads every palette PNG as P
+                return pixels
+            index = np.asarray(im, dtype=np.uint8)
+        if index.shape != pixels.shape[:2]:  # pragma: no cover - the same file
+            return pixels
+        meta["png_palette"] = (depth, _png_chunk(raw, b"PLTE"), _png_chunk(raw, b"tRNS"))
+        return np.ascontiguousarray(index)
+    if ctype == 4 and pixels.ndim == 3 and pixels.shape[2] == 4:
+        meta["png_grey_alpha"] = depth
+        return np.ascontiguousarray(pixels[..., [0, 3]])
+    if ctype in (0, 2) and depth in (8, 16):
+        trns = _png_chunk(raw, b"tRNS")
+        if trns is not None and pixels.shape[2:] == (() if ctype == 0 else (3,)):
+            meta["png_trns"] = trns
+    return pixels
+
+
+def _png_whole_chunk(kind: bytes, data: bytes) -> bytes:
+    """A PNG chunk: length, type, data, CRC."""
+    import zlib
+
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _png_encode(pixels: np.ndarray, depth: int, colour_type: int, chunks: list) -> bytes:
+    """A PNG of palette indices (colour type 3, bit depth 1-8) or grey and alpha (type 4,
+    8 or 16 bits: ``pixels`` (h, w, 2)) with ``chunks`` (PLTE, tRNS) before the image data.
+
+    Rows are filtered with "None" for indices (as the PNG specification advises for
+    palettes) and "Up" otherwise, and compressed with zlib level 6.
+    """
+    import zlib
+
+    h, w = pixels.shape[:2]
+    if depth < 8:
+        per = 8 // depth
+        a = np.pad(pixels.astype(np.uint8), ((0, 0), (0, (-w) % per))).reshape(h, -1, per)
+        shifts = (depth * np.arange(per - 1, -1, -1)).astype(np.uint8)
+        rows = np.bitwise_or.reduce(a << shifts, axis=2).astype(np.uint8)
+    else:
+        big = pixels.astype(">u2" if depth == 16 else np.uint8)
+        rows = np.ascontiguousarray(big).reshape(h, -1).view(np.uint8)
+    filtered = rows.copy()
+    kind = 0 if colour_type == 3 else 2
+    if kind == 2:
+        filtered[1:] -= rows[:-1]  # "Up": the byte above subtracted, modulo 256
+    body = np.hstack([np.full((h, 1), kind, np.uint8), filtered])
+    return b"".join([
+        _PNG_SIGNATURE,
+        _png_whole_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, depth, colour_type, 0, 0, 0)),
+        *[c for c in chunks if c is not None],
+        _png_whole_chunk(b"IDAT", zlib.compress(body.tobytes(), 6)),
+        _png_whole_chunk(b"IEND", b""),
+    ])  # fmt: skip
 
 
 def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> bytes:
@@ -458,20 +552,33 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
 
     fmt = meta.get("format")
     channels = 1 if pixels.ndim == 2 else pixels.shape[2]
-    space = b"GRAY" if channels == 1 else b"RGB "  # the colour space of what is written
+    # the colour space of what is written (palette indices stand for RGB colours)
+    grey = channels in (1, 2) and meta.get("png_palette") is None
+    space = b"GRAY" if grey else b"RGB "
     if meta.get("png_chunks") is not None:
-        # PNG: the pixels by OpenCV (any depth and channels, exact), the original's metadata
-        # chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of 16-bit colour
-        # images, and those after the image data, which Pillow reads only on decoding)
-        ok, enc = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 6])
-        if not ok:  # pragma: no cover - OpenCV decoded these pixels from a PNG
-            raise FileFormatError(
-                f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
-            )
+        # PNG: in its own colour type and bit depth (palette indices and grey with alpha by
+        # _png_encode, the others by OpenCV: any depth and channels, exact), the original's
+        # metadata chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of
+        # 16-bit colour images, and those after the image data, which Pillow reads only on
+        # decoding), a transparent colour (tRNS) too
+        palette = meta.get("png_palette")
+        if palette is not None:
+            png = _png_encode(pixels, palette[0], 3, [palette[1], palette[2]])
+        elif meta.get("png_grey_alpha") is not None:
+            png = _png_encode(pixels, meta["png_grey_alpha"], 4, [])
+        else:
+            ok, enc = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+            if not ok:  # pragma: no cover - OpenCV decoded these pixels from a PNG
+                raise FileFormatError(
+                    f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
+                )
+            png = enc.tobytes()
         before, text = meta["png_chunks"]
         keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
         note = _icc_note(space) if len(keep) < len(before) else None
-        return _png_with_chunks(enc.tobytes(), (keep, text)), note
+        if meta.get("png_trns") is not None:
+            keep = [*keep, meta["png_trns"]]  # after the colour space chunks, before IDAT
+        return _png_with_chunks(png, (keep, text)), note
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
@@ -563,7 +670,9 @@ def correct_image_file(
         Image file to read and file to write (atomically).
     grid : ResidualGrid
         The grid of this image (fitted for its size, px).
-    interpolation : {"bilinear", "bicubic"}
+    interpolation : {"bilinear", "bicubic", "nearest"}
+        Resampling (see :func:`correct_image`); a palette PNG is always resampled by
+        nearest neighbour, its palette kept (said in the note returned).
     threads : int, optional
         Threads over chunks of rows (see :func:`correct_image`).
     border : {"replicate", "constant", "reflect"}
@@ -591,11 +700,21 @@ def correct_image_file(
             f"{grid.image_size[0]} x {grid.image_size[1]} px: correct the original image of "
             "that size (not a resized or cropped copy), or fit the grids for this size"
         )
+    palette_note = None
+    if meta.get("png_palette") is not None and interpolation != "nearest":
+        # blending palette indices gives colours of unrelated entries: nearest neighbour
+        interpolation = "nearest"
+        palette_note = (
+            "palette image: resampled by nearest neighbour, its palette and colour type "
+            "kept (bilinear or bicubic would blend palette indices into unrelated colours)"
+        )
     out = correct_image(  # type: ignore[arg-type]
         pixels, grid, interpolation=interpolation, threads=threads, border=border
     )
     data, note = _encode(out, meta, src.suffix.lower() or ".png")
     atomic_write_bytes(dst, data)
+    if palette_note is not None:
+        note = palette_note if note is None else f"{palette_note}; {note}"
     return note
 
 
@@ -709,7 +828,8 @@ def correct_folder(
         False: local processes; True: a ``dask.distributed.LocalCluster`` with
         ``workers`` single-threaded workers; a string: the address of a running scheduler
         (``"tcp://host:8786"``).
-    interpolation : {"bilinear", "bicubic"}
+    interpolation : {"bilinear", "bicubic", "nearest"}
+        As :func:`correct_image_file` (palette PNGs: nearest neighbour).
     progress : bool
         A rich progress bar on the terminal.
     border : {"replicate", "constant", "reflect"}
@@ -733,8 +853,10 @@ def correct_folder(
     src, dst = Path(src_dir), Path(dst_dir)
     if not src.is_dir():
         raise InputError(f"input folder {src} does not exist")
-    if interpolation not in ("bilinear", "bicubic"):
-        raise InputError(f"interpolation must be bilinear or bicubic, not {interpolation!r}")
+    if interpolation not in INTERPOLATIONS:
+        raise InputError(
+            f"interpolation must be one of {', '.join(INTERPOLATIONS)}, not {interpolation!r}"
+        )
     if border not in BORDER_MODES:
         raise InputError(f"border must be one of {', '.join(BORDER_MODES)}, not {border!r}")
     if workers < 1:
