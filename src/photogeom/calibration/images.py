@@ -37,7 +37,7 @@ import io
 import logging
 import os
 import struct
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from glob import escape as glob_escape
 from pathlib import Path
@@ -811,7 +811,7 @@ def correct_folder(
     workers: int = 1,
     dask: bool | str = False,
     interpolation: str = "bilinear",
-    progress: bool = True,
+    progress: bool | Callable[[int, int], None] = True,
     border: str = "replicate",
 ) -> FolderResult:
     """Correct every image of a folder that has a grid, in parallel.
@@ -830,8 +830,9 @@ def correct_folder(
         (``"tcp://host:8786"``).
     interpolation : {"bilinear", "bicubic", "nearest"}
         As :func:`correct_image_file` (palette PNGs: nearest neighbour).
-    progress : bool
-        A rich progress bar on the terminal.
+    progress : bool or callable
+        ``True``: a rich progress bar on the terminal; a callable: called as
+        ``progress(done, total)`` (images) before the first and after every image.
     border : {"replicate", "constant", "reflect"}
         Values of output pixels whose source lies outside the image (see
         :func:`correct_image`; ``"constant"``: 0).
@@ -935,7 +936,31 @@ def _output_folder(dst: Path) -> None:
         )
 
 
-def _progress(enabled: bool, total: int):
+class _CallbackProgress:
+    """The part of rich's Progress that the runners use, reporting to
+    ``report(done, total)`` (images) instead of drawing."""
+
+    def __init__(self, report, total: int) -> None:
+        self.report, self.total, self.done = report, total, 0
+
+    def __enter__(self) -> _CallbackProgress:
+        self.report(0, self.total)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def add_task(self, *args, **kwargs) -> int:
+        return 0
+
+    def advance(self, task: int, n: int = 1) -> None:
+        self.done += n
+        self.report(self.done, self.total)
+
+
+def _progress(enabled, total: int):
+    if callable(enabled):
+        return _CallbackProgress(enabled, total)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
     prog = Progress(
