@@ -19,9 +19,10 @@ written in the original format:
   transparent colour (tRNS) of a grey or RGB image is kept;
 * other TIFFs (16-bit colour, float): the pixels by OpenCV (its compression kept where
   OpenCV writes it: none, LZW, Deflate, PackBits), the original's tags grafted onto its file
-  (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; little-endian TIFFs);
-* anything else (a big-endian or BigTIFF 16-bit colour TIFF): OpenCV, pixels exact,
-  metadata not kept (said in the result's ``notes``).
+  (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; from little- and
+  big-endian TIFFs, written little-endian as OpenCV writes);
+* anything else (a BigTIFF 16-bit colour TIFF): OpenCV, pixels exact, metadata not kept
+  (said in the result's ``notes``).
 
 Every file is encoded in memory and written atomically (temporary file, then rename):
 an interrupted or failed image leaves no partial file.
@@ -403,18 +404,53 @@ _TIFF_RESOLUTION = frozenset({282, 283, 296})
 _TIFF_COMPRESSIONS = frozenset({1, 5, 8, 32773, 32946})
 
 
-def _tiff_ifd(data: bytes, at: int) -> list[tuple[int, int, int, int]]:
-    """The entries ``(tag, type, count, value or offset)`` of the classic little-endian
-    TIFF IFD at offset ``at``."""
-    (n,) = struct.unpack_from("<H", data, at)
-    return [struct.unpack_from("<HHII", data, at + 2 + 12 * k) for k in range(n)]
+# bytes of one element of each TIFF field type: the unit whose byte order the file sets
+_TIFF_ELEMENT_SIZES = dict(zip(range(1, 14), (1, 1, 2, 4, 4, 1, 1, 2, 4, 4, 4, 8, 4), strict=True))
+
+
+def _tiff_order(data: bytes) -> str | None:
+    """``"<"`` or ``">"``: the byte order of a classic TIFF; None for other files."""
+    if data[:4] == b"II*\x00":
+        return "<"
+    if data[:4] == b"MM\x00*":
+        return ">"
+    return None
+
+
+def _tiff_raw_ifd(data: bytes, at: int, order: str) -> list[tuple[int, int, int, bytes]]:
+    """The entries ``(tag, type, count, value field)`` of the classic TIFF IFD at offset
+    ``at`` in byte order ``order``; the value field as its 4 bytes."""
+    (n,) = struct.unpack_from(order + "H", data, at)
+    out = []
+    for k in range(n):  # entries of one IFD (tens), not pixels
+        p = at + 2 + 12 * k
+        if p + 12 > len(data):
+            raise struct.error("IFD beyond the end of the file")
+        out.append((*struct.unpack_from(order + "HHI", data, p), bytes(data[p + 8 : p + 12])))
+    return out
+
+
+def _tiff_ifd(data: bytes, at: int, order: str = "<") -> list[tuple[int, int, int, int]]:
+    """The entries ``(tag, type, count, value or offset)`` of the classic TIFF IFD at offset
+    ``at``: one SHORT or BYTE as its value, anything else as the field read as a LONG."""
+    out = []
+    for tag, typ, count, raw in _tiff_raw_ifd(data, at, order):
+        if count == 1 and typ in (3, 8):
+            (value,) = struct.unpack(order + "H", raw[:2])
+        elif count == 1 and typ in (1, 6):
+            value = raw[0]
+        else:
+            (value,) = struct.unpack(order + "I", raw)
+        out.append((tag, typ, count, value))
+    return out
 
 
 def _tiff_first_ifd(data: bytes) -> list[tuple[int, int, int, int]] | None:
-    """The first IFD of a classic little-endian TIFF, or None for other files."""
-    if data[:4] != b"II*\x00":
+    """The first IFD of a classic TIFF (either byte order), or None for other files."""
+    order = _tiff_order(data)
+    if order is None:
         return None
-    return _tiff_ifd(data, struct.unpack_from("<I", data, 4)[0])
+    return _tiff_ifd(data, struct.unpack_from(order + "I", data, 4)[0], order)
 
 
 def _tiff_write_options(original: bytes) -> list[int]:
@@ -440,12 +476,16 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
     A new first IFD is appended: OpenCV's layout tags (size, samples, compression, strips)
     and every other tag of the original's first IFD (orientation, resolution, ICC profile,
     XMP, make and model, ...), their values copied after the pixel data, the EXIF, GPS and
-    interoperability IFDs copied whole with their offsets moved. Vendor maker notes are
-    copied as they are (internal offsets of some vendors then point elsewhere, as with any
-    TIFF editor that moves them). Returns None (metadata not kept) unless both files are
-    classic little-endian TIFFs that can be walked.
+    interoperability IFDs copied whole with their offsets moved. The values of a
+    big-endian original are converted to OpenCV's little-endian byte order element by
+    element (SHORT, LONG, RATIONAL, DOUBLE, ...; bytes, text and undefined data as they
+    are). Vendor maker notes are copied as they are (internal offsets of some vendors then
+    point elsewhere, as with any TIFF editor that moves them). Returns None (metadata not
+    kept) unless the original is a classic TIFF (not BigTIFF) and ``encoded`` a classic
+    little-endian one, both of which can be walked.
     """
-    if original[:4] != b"II*\x00" or encoded[:4] != b"II*\x00":
+    order = _tiff_order(original)
+    if order is None or encoded[:4] != b"II*\x00":
         return None
     out = bytearray(encoded)
 
@@ -453,23 +493,32 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
         if len(out) % 2:  # TIFF offsets are even
             out.append(0)
 
+    def little_endian(data: bytes, unit: int) -> bytes:
+        if order == "<" or unit == 1:
+            return data
+        return np.frombuffer(data, dtype=f">u{unit}").astype(f"<u{unit}").tobytes()
+
     def copy_entries(at: int, depth: int, keep=lambda tag: True) -> list:
         entries = []
-        for tag, typ, count, value in _tiff_ifd(original, at):
+        for tag, typ, count, raw in _tiff_raw_ifd(original, at, order):
             if not keep(tag):
                 continue
+            unit = _TIFF_ELEMENT_SIZES.get(typ, 0)  # a RATIONAL: two LONGs of 4 bytes
             size = _TIFF_TYPE_SIZES.get(typ, 0) * count
             if not size:
                 continue  # an unknown type: its size is not known, so it cannot be copied
+            (offset,) = struct.unpack(order + "I", raw)
             if tag in _TIFF_SUB_IFDS and count == 1 and depth < 3:
-                value = write_ifd(copy_entries(value, depth + 1))
+                value = struct.pack("<I", write_ifd(copy_entries(offset, depth + 1)))
             elif size > 4:
-                data = original[value : value + size]
+                data = original[offset : offset + size]
                 if len(data) != size:
                     raise struct.error("value beyond the end of the file")
                 align()
-                value = len(out)
-                out.extend(data)
+                value = struct.pack("<I", len(out))
+                out.extend(little_endian(data, unit))
+            else:  # in the entry, left-justified in either byte order
+                value = little_endian(raw[:size], unit).ljust(4, b"\x00")
             entries.append((tag, typ, count, value))
         return entries
 
@@ -477,16 +526,16 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
         align()
         at = len(out)
         out.extend(struct.pack("<H", len(entries)))
-        for e in sorted(entries):
-            out.extend(struct.pack("<HHII", *e))
+        for tag, typ, count, value in sorted(entries):
+            out.extend(struct.pack("<HHI", tag, typ, count) + value)
         out.extend(struct.pack("<I", 0))
         return at
 
     try:
-        first = struct.unpack_from("<I", original, 4)[0]
+        first = struct.unpack_from(order + "I", original, 4)[0]
         layout = [
             e
-            for e in _tiff_first_ifd(encoded) or ()
+            for e in _tiff_raw_ifd(encoded, struct.unpack_from("<I", encoded, 4)[0], "<")
             if e[0] in _TIFF_LAYOUT_TAGS and e[0] not in _TIFF_RESOLUTION
         ]
         ours = {e[0] for e in layout}
@@ -497,7 +546,7 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
             return tag not in _TIFF_LAYOUT_TAGS or tag in _TIFF_RESOLUTION
 
         ifd = write_ifd(layout + copy_entries(first, 0, metadata))
-    except (struct.error, IndexError):
+    except (struct.error, IndexError, ValueError):
         return None
     out[4:8] = struct.pack("<I", ifd)
     return bytes(out)
