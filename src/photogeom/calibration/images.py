@@ -15,8 +15,9 @@ written in the original format:
   metadata chunks copied unchanged (EXIF, ICC profile, colour space, resolution, text and
   XMP), also those that follow the image data. Grey with alpha stays grey with alpha (OpenCV
   decodes it as RGBA); a palette image keeps its palette and transparency and is resampled
-  by nearest neighbour (blending indices would give unrelated colours; said in a note); a
-  transparent colour (tRNS) of a grey or RGB image is kept;
+  by nearest neighbour (blending indices would give unrelated colours; said in a note); the
+  transparent colour (tRNS) of a grey image is kept (that of an RGB image is decoded by
+  OpenCV as alpha and written as RGBA);
 * other TIFFs (16-bit colour, float): the pixels by OpenCV (its compression kept where
   OpenCV writes it: none, LZW, Deflate, PackBits), the original's tags grafted onto its file
   (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; from little- and
