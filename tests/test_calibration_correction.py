@@ -112,7 +112,7 @@ def test_correct_image_bad_input(grid):
     with pytest.raises(InputError, match="type"):
         correct_image(np.zeros((H, W), np.int64), grid)
     with pytest.raises(InputError, match="interpolation"):
-        correct_image(np.zeros((H, W), np.uint8), grid, interpolation="nearest")
+        correct_image(np.zeros((H, W), np.uint8), grid, interpolation="lanczos")
 
 
 # ------------------------------------------------------------------ files and folders

@@ -439,14 +439,15 @@ def test_tiff_16_bit_colour_keeps_the_exif_and_gps_ifds(tmp_path):
     (src / "b.tif").write_bytes(_tiff_with_exif(pixels, big_endian=True))
     dst = tmp_path / "out"
     res = pg.calibration.correct_folder(src, dst, {"a": grid, "b": grid}, progress=False)
-    assert not res.failures and list(res.notes) == ["b"]  # big-endian: not grafted (said)
-    assert "not kept" in res.notes["b"]
-    with Image.open(dst / "a.tif") as im:
-        e = im.getexif()
-        assert e[274] == 6 and e[271] == "Sony"
-        assert float(e.get_ifd(0x8769)[33434]) == 1 / 800
-        assert float(e.get_ifd(0x8769)[37386]) == 8.8
-        assert e.get_ifd(0x8825)[1] == "N" and float(e.get_ifd(0x8825)[6]) == 123.4
+    # big-endian: grafted too since review 10 (before: not kept, with a note)
+    assert not res.failures and not res.notes
+    for name in ("a", "b"):
+        with Image.open(dst / f"{name}.tif") as im:
+            e = im.getexif()
+            assert e[274] == 6 and e[271] == "Sony"
+            assert float(e.get_ifd(0x8769)[33434]) == 1 / 800
+            assert float(e.get_ifd(0x8769)[37386]) == 8.8
+            assert e.get_ifd(0x8825)[1] == "N" and float(e.get_ifd(0x8825)[6]) == 123.4
     from photogeom.calibration.images import _read  # the pixels as stored, BGR
 
     for name in ("a", "b"):
@@ -651,11 +652,13 @@ def test_icc_profile_of_another_colour_space_is_not_attached(tmp_path):
     res = pg.calibration.correct_folder(
         src, tmp_path / "out", {k: grid for k in ("cmyk", "la", "rgb")}, progress=False
     )
-    assert res.ok and sorted(res.notes) == ["cmyk", "la"]
+    # review 10: grey+alpha PNGs stay grey+alpha, so their grey profile is kept
+    assert res.ok and sorted(res.notes) == ["cmyk"]
     assert all("ICC profile not kept" in n for n in res.notes.values())
-    for name in ("cmyk.jpg", "la.png"):
-        with Image.open(tmp_path / "out" / name) as im:
-            assert "icc_profile" not in im.info
+    with Image.open(tmp_path / "out" / "cmyk.jpg") as im:
+        assert "icc_profile" not in im.info
+    with Image.open(tmp_path / "out" / "la.png") as im:
+        assert im.mode == "LA" and im.info["icc_profile"] == _icc(b"GRAY")
     with Image.open(tmp_path / "out" / "rgb.jpg") as im:
         assert im.info["icc_profile"] == _icc(b"RGB ")
     assert cv2.imread(str(tmp_path / "out" / "la.png"), cv2.IMREAD_UNCHANGED).shape == (40, 60, 4)

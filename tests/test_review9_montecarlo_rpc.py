@@ -10,32 +10,27 @@ was 0.07-0.2 times their reported standard deviations (those 5-14 times too larg
 
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-import photogeom as pg
-from photogeom.rpc import RPC, fit_rpc_to_points
+from photogeom.rpc import fit_rpc_to_points
 from photogeom.rpc.fitting import NOISY_REGULARIZATION
 
-IKONOS = RPC.from_file(pg.datasets.path("ikonos"))
+sys.path.insert(0, str(Path(__file__).parent))
+from rpc_samples import ikonos_points
+
 SIGMA = 0.5  # px
-
-
-def _points(rng, n):
-    c0, c1, r0, r1 = IKONOS.image_bounds
-    cols, rows = rng.uniform(c0, c1, n), rng.uniform(r0, r1, n)
-    h = rng.uniform(*IKONOS.height_range, n)
-    lon, lat = IKONOS.localize(cols, rows, h)
-    return np.column_stack([lon, lat, h]), np.column_stack([cols, rows])
 
 
 @pytest.fixture(scope="module")
 def scene():
     """40 points whose image positions an order-2 RPC fits exactly (the regularised fit to
     the vendor model's positions, evaluated at the points)."""
-    G, im = _points(np.random.default_rng(240), 40)
+    G, im = ikonos_points(np.random.default_rng(240), 40)
     truth = fit_rpc_to_points(G, im, order=2, regularization=NOISY_REGULARIZATION).model
     return G, np.column_stack(truth.project(*G.T, domain_limit=None))
 

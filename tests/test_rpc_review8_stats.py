@@ -4,26 +4,20 @@ the suggested larger regularization gives a usable RPC."""
 
 from __future__ import annotations
 
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-import photogeom as pg
 from photogeom.errors import DegenerateGeometryError
 from photogeom.io import write_points
-from photogeom.rpc import RPC, fit_rpc_to_points
+from photogeom.rpc import fit_rpc_to_points
 from photogeom.rpc.fitting import NOISY_REGULARIZATION, UnstableFitError
 
-IKONOS = RPC.from_file(pg.datasets.path("ikonos"))
-
-
-def _points(rng, n):
-    c0, c1, r0, r1 = IKONOS.image_bounds
-    cols, rows = rng.uniform(c0, c1, n), rng.uniform(r0, r1, n)
-    h = rng.uniform(*IKONOS.height_range, n)
-    lon, lat = IKONOS.localize(cols, rows, h)
-    return np.column_stack([lon, lat, h]), np.column_stack([cols, rows])
+sys.path.insert(0, str(Path(__file__).parent))
+from rpc_samples import ikonos_points
 
 
 @pytest.mark.parametrize(("order", "n", "seed"), [(2, 25, 0), (2, 40, 2), (3, 45, 0)])
@@ -31,7 +25,7 @@ def test_unstable_noisy_fit_is_refused(order, n, seed):
     """Before: returned with check RMSEs of 7-360 px (errors up to 7000 px) for 0.5 px
     noise, sigma0 0.4-0.8, and only a note about the denominator (20 fits per case)."""
     rng = np.random.default_rng(seed)
-    G, im = _points(rng, n)
+    G, im = ikonos_points(rng, n)
     noisy = im + rng.normal(0, 0.5, im.shape)
     with pytest.raises(UnstableFitError, match=r"unstable fit .* regularization .*0\.001") as e:
         fit_rpc_to_points(G, noisy, order=order, sigma=0.5)
@@ -41,8 +35,8 @@ def test_unstable_noisy_fit_is_refused(order, n, seed):
 
 def test_the_suggested_regularization_fits_noisy_points():
     rng = np.random.default_rng(3)
-    G, im = _points(rng, 40)
-    gc, ic = _points(rng, 300)
+    G, im = ikonos_points(rng, 40)
+    gc, ic = ikonos_points(rng, 300)
     noisy = im + rng.normal(0, 0.5, im.shape)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a few check points just outside the box
@@ -56,14 +50,14 @@ def test_the_suggested_regularization_fits_noisy_points():
 
 def test_noise_free_points_still_fit_order_3():
     rng = np.random.default_rng(5)
-    G, im = _points(rng, 45)
+    G, im = ikonos_points(rng, 45)
     fit = fit_rpc_to_points(G, im, order=3)
     assert fit.rmse < 1e-3
 
 
 def test_cli_names_its_options(cli, tmp_path):
     rng = np.random.default_rng(0)
-    G, im = _points(rng, 25)
+    G, im = ikonos_points(rng, 25)
     im = im + rng.normal(0, 0.5, im.shape)
     p = tmp_path / "noisy.csv"
     write_points(p, [f"P{i}" for i in range(25)], np.column_stack([G, im]),
@@ -77,7 +71,7 @@ def test_sigma0_of_a_regularised_fit_uses_its_effective_redundancy():
     """Before: v'Pv / (2n - u) although the penalty holds part of the coefficients: mean
     sigma0 1.06 (order 2, 40 points) and 1.09 (order 3, 80 points) over 100 redraws of
     0.5 px noise with regularization 1e-3; now 0.99 for both (2n - tr(H))."""
-    G, im = _points(np.random.default_rng(240), 80)
+    G, im = ikonos_points(np.random.default_rng(240), 80)
     rng = np.random.default_rng(7)
     s0 = []
     for _ in range(30):

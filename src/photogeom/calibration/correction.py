@@ -22,8 +22,8 @@ import numpy as np
 from ..errors import InputError
 from .grid import ResidualGrid, _as_uv
 
-Interpolation = Literal["bilinear", "bicubic"]
-INTERPOLATIONS = ("bilinear", "bicubic")
+Interpolation = Literal["bilinear", "bicubic", "nearest"]
+INTERPOLATIONS = ("bilinear", "bicubic", "nearest")
 _CV_MAX = 32767  # OpenCV remap: image sides below SHRT_MAX
 
 
@@ -148,7 +148,9 @@ def correct_image(
         uint8, uint16, int16, float32 or float64; up to 4 channels.
     grid : ResidualGrid
         Fitted for an image of this size.
-    interpolation : {"bilinear", "bicubic"}
+    interpolation : {"bilinear", "bicubic", "nearest"}
+        ``"nearest"`` takes the nearest source pixel (no value is blended: for label,
+        mask and palette-index images; the geometry then holds to half a pixel).
     border : {"replicate", "constant", "reflect"}
         Values for output pixels whose source lies outside the image.
     threads : int, optional
@@ -188,7 +190,9 @@ def correct_image(
     }
     if border not in modes:
         raise InputError(f"border must be one of {', '.join(modes)}, not {border!r}")
-    flag = cv2.INTER_LINEAR if interpolation == "bilinear" else cv2.INTER_CUBIC
+    flag = {"bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}.get(
+        interpolation, cv2.INTER_NEAREST
+    )
     mode = modes[border]
     img = np.ascontiguousarray(img)
     out = np.empty_like(img)

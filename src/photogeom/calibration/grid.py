@@ -23,6 +23,7 @@ unconstrained). ``N = A' P A + C' P_c C`` is factorised once for both components
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
@@ -1028,7 +1029,7 @@ def fit_grids(
     image_size,
     spacing: float,
     *,
-    progress: bool = False,
+    progress: bool | Callable[[int, int], None] = False,
     **options,
 ) -> dict:
     """Fit the residual grids of many images, one sparse factorisation each.
@@ -1041,8 +1042,9 @@ def fit_grids(
         ``(width, height)`` for all images, or ``image id -> (width, height)``.
     spacing : float
         Node spacing (px).
-    progress : bool
-        Show a progress bar (rich) on the terminal.
+    progress : bool or callable
+        ``True``: a progress bar (rich) on the terminal; a callable: called as
+        ``progress(done, total)`` (images) before the first and after every image.
     **options
         Passed to :func:`fit_grid` (weights, border, folds, snooping, ...).
 
@@ -1063,6 +1065,13 @@ def fit_grids(
         size = image_size[key] if isinstance(image_size, dict) else image_size
         _image_inputs(uv, res, size, spacing, min_obs, f"image {key}: ")
         items.append((key, uv, res, size))
+    if callable(progress):
+        out = {}
+        progress(0, len(items))
+        for done, (key, uv, res, size) in enumerate(items, 1):  # images, one system each
+            out[key] = fit_grid(uv, res, size, spacing, image_id=key, **options)
+            progress(done, len(items))
+        return out
     it = items
     if progress:
         from rich.progress import track

@@ -11,14 +11,19 @@ written in the original format:
   subsampling (the quality is kept), EXIF, XMP and ICC profile;
 * TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
   profile, with its compression;
-* PNG (any bit depth and channels): the pixels by OpenCV, the original's metadata chunks
-  copied unchanged (EXIF, ICC profile, colour space, resolution, text and XMP), also those
-  that follow the image data;
+* PNG (any bit depth and channels): in its own colour type and bit depth, the original's
+  metadata chunks copied unchanged (EXIF, ICC profile, colour space, resolution, text and
+  XMP), also those that follow the image data. Grey with alpha stays grey with alpha (OpenCV
+  decodes it as RGBA); a palette image keeps its palette and transparency and is resampled
+  by nearest neighbour (blending indices would give unrelated colours; said in a note); the
+  transparent colour (tRNS) of a grey image is kept (that of an RGB image is decoded by
+  OpenCV as alpha and written as RGBA);
 * other TIFFs (16-bit colour, float): the pixels by OpenCV (its compression kept where
   OpenCV writes it: none, LZW, Deflate, PackBits), the original's tags grafted onto its file
-  (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; little-endian TIFFs);
-* anything else (a big-endian or BigTIFF 16-bit colour TIFF): OpenCV, pixels exact,
-  metadata not kept (said in the result's ``notes``).
+  (orientation, resolution, ICC profile, XMP, EXIF and GPS IFDs; from little- and
+  big-endian TIFFs, written little-endian as OpenCV writes);
+* anything else (a BigTIFF 16-bit colour TIFF): OpenCV, pixels exact, metadata not kept
+  (said in the result's ``notes``).
 
 Every file is encoded in memory and written atomically (temporary file, then rename):
 an interrupted or failed image leaves no partial file.
@@ -34,7 +39,7 @@ import io
 import logging
 import os
 import struct
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from glob import escape as glob_escape
 from pathlib import Path
@@ -43,7 +48,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
-from .correction import correct_image
+from .correction import INTERPOLATIONS, correct_image
 from .grid import ResidualGrid
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".tif", ".tiff", ".png")
@@ -184,6 +189,7 @@ def _read(path: Path):
         meta = {}
     if raw[:8] == _PNG_SIGNATURE:
         meta["png_chunks"] = _png_metadata_chunks(raw)
+        pixels = _png_own_coding(raw, pixels, meta)
     elif meta.get("format") == "TIFF" and not (
         pixels.dtype == np.uint8 or (pixels.dtype == np.uint16 and pixels.ndim == 2)
     ):  # written by OpenCV, not Pillow: the tags are grafted onto its file (see _encode)
@@ -251,6 +257,96 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
             break
         at = end
     return before, text
+
+
+def _png_chunk(data: bytes, kind: bytes) -> bytes | None:
+    """The first whole chunk (length, type, data, CRC) of type ``kind`` before the image
+    data of a PNG file, or None."""
+    at = len(_PNG_SIGNATURE)
+    while at + 12 <= len(data):
+        (length,) = struct.unpack(">I", data[at : at + 4])
+        end = at + 12 + length
+        if data[at + 4 : at + 8] == kind and end <= len(data):
+            return data[at:end]
+        if data[at + 4 : at + 8] in (b"IDAT", b"IEND") or end > len(data):
+            return None
+        at = end
+    return None
+
+
+def _png_own_coding(raw: bytes, pixels: np.ndarray, meta: dict) -> np.ndarray:
+    """The pixels of a PNG in its own colour type where OpenCV decodes another.
+
+    * palette (colour type 3): the indices (Pillow), the palette and its transparency
+      kept in ``meta["png_palette"]`` (bit depth, PLTE chunk, tRNS chunk or None); OpenCV
+      gives RGB(A);
+    * grey with alpha (type 4): the grey and alpha channels ((h, w, 2); the bit depth in
+      ``meta["png_grey_alpha"]``); OpenCV gives RGBA;
+    * grey or RGB with a transparent colour (tRNS, types 0 and 2, 8 or 16 bits): OpenCV
+      drops the chunk; it is kept in ``meta["png_trns"]`` (a colour key, valid for the
+      pixels written in the same type and depth).
+    """
+    from PIL import Image
+
+    if len(raw) < 33 or raw[12:16] != b"IHDR":
+        return pixels
+    depth, ctype = raw[24], raw[25]
+    if ctype == 3:
+        with Image.open(io.BytesIO(raw)) as im:
+            if im.mode != "P":  # pragma: no cover - Pillow reads every palette PNG as P
+                return pixels
+            index = np.asarray(im, dtype=np.uint8)
+        if index.shape != pixels.shape[:2]:  # pragma: no cover - the same file
+            return pixels
+        meta["png_palette"] = (depth, _png_chunk(raw, b"PLTE"), _png_chunk(raw, b"tRNS"))
+        return np.ascontiguousarray(index)
+    if ctype == 4 and pixels.ndim == 3 and pixels.shape[2] == 4:
+        meta["png_grey_alpha"] = depth
+        return np.ascontiguousarray(pixels[..., [0, 3]])
+    if ctype in (0, 2) and depth in (8, 16):
+        trns = _png_chunk(raw, b"tRNS")
+        if trns is not None and pixels.shape[2:] == (() if ctype == 0 else (3,)):
+            meta["png_trns"] = trns
+    return pixels
+
+
+def _png_whole_chunk(kind: bytes, data: bytes) -> bytes:
+    """A PNG chunk: length, type, data, CRC."""
+    import zlib
+
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _png_encode(pixels: np.ndarray, depth: int, colour_type: int, chunks: list) -> bytes:
+    """A PNG of palette indices (colour type 3, bit depth 1-8) or grey and alpha (type 4,
+    8 or 16 bits: ``pixels`` (h, w, 2)) with ``chunks`` (PLTE, tRNS) before the image data.
+
+    Rows are filtered with "None" for indices (as the PNG specification advises for
+    palettes) and "Up" otherwise, and compressed with zlib level 6.
+    """
+    import zlib
+
+    h, w = pixels.shape[:2]
+    if depth < 8:
+        per = 8 // depth
+        a = np.pad(pixels.astype(np.uint8), ((0, 0), (0, (-w) % per))).reshape(h, -1, per)
+        shifts = (depth * np.arange(per - 1, -1, -1)).astype(np.uint8)
+        rows = np.bitwise_or.reduce(a << shifts, axis=2).astype(np.uint8)
+    else:
+        big = pixels.astype(">u2" if depth == 16 else np.uint8)
+        rows = np.ascontiguousarray(big).reshape(h, -1).view(np.uint8)
+    filtered = rows.copy()
+    kind = 0 if colour_type == 3 else 2
+    if kind == 2:
+        filtered[1:] -= rows[:-1]  # "Up": the byte above subtracted, modulo 256
+    body = np.hstack([np.full((h, 1), kind, np.uint8), filtered])
+    return b"".join([
+        _PNG_SIGNATURE,
+        _png_whole_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, depth, colour_type, 0, 0, 0)),
+        *[c for c in chunks if c is not None],
+        _png_whole_chunk(b"IDAT", zlib.compress(body.tobytes(), 6)),
+        _png_whole_chunk(b"IEND", b""),
+    ])  # fmt: skip
 
 
 def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> bytes:
@@ -343,18 +439,53 @@ _TIFF_RESOLUTION = frozenset({282, 283, 296})
 _TIFF_COMPRESSIONS = frozenset({1, 5, 8, 32773, 32946})
 
 
-def _tiff_ifd(data: bytes, at: int) -> list[tuple[int, int, int, int]]:
-    """The entries ``(tag, type, count, value or offset)`` of the classic little-endian
-    TIFF IFD at offset ``at``."""
-    (n,) = struct.unpack_from("<H", data, at)
-    return [struct.unpack_from("<HHII", data, at + 2 + 12 * k) for k in range(n)]
+# bytes of one element of each TIFF field type: the unit whose byte order the file sets
+_TIFF_ELEMENT_SIZES = dict(zip(range(1, 14), (1, 1, 2, 4, 4, 1, 1, 2, 4, 4, 4, 8, 4), strict=True))
+
+
+def _tiff_order(data: bytes) -> str | None:
+    """``"<"`` or ``">"``: the byte order of a classic TIFF; None for other files."""
+    if data[:4] == b"II*\x00":
+        return "<"
+    if data[:4] == b"MM\x00*":
+        return ">"
+    return None
+
+
+def _tiff_raw_ifd(data: bytes, at: int, order: str) -> list[tuple[int, int, int, bytes]]:
+    """The entries ``(tag, type, count, value field)`` of the classic TIFF IFD at offset
+    ``at`` in byte order ``order``; the value field as its 4 bytes."""
+    (n,) = struct.unpack_from(order + "H", data, at)
+    out = []
+    for k in range(n):  # entries of one IFD (tens), not pixels
+        p = at + 2 + 12 * k
+        if p + 12 > len(data):
+            raise struct.error("IFD beyond the end of the file")
+        out.append((*struct.unpack_from(order + "HHI", data, p), bytes(data[p + 8 : p + 12])))
+    return out
+
+
+def _tiff_ifd(data: bytes, at: int, order: str = "<") -> list[tuple[int, int, int, int]]:
+    """The entries ``(tag, type, count, value or offset)`` of the classic TIFF IFD at offset
+    ``at``: one SHORT or BYTE as its value, anything else as the field read as a LONG."""
+    out = []
+    for tag, typ, count, raw in _tiff_raw_ifd(data, at, order):
+        if count == 1 and typ in (3, 8):
+            (value,) = struct.unpack(order + "H", raw[:2])
+        elif count == 1 and typ in (1, 6):
+            value = raw[0]
+        else:
+            (value,) = struct.unpack(order + "I", raw)
+        out.append((tag, typ, count, value))
+    return out
 
 
 def _tiff_first_ifd(data: bytes) -> list[tuple[int, int, int, int]] | None:
-    """The first IFD of a classic little-endian TIFF, or None for other files."""
-    if data[:4] != b"II*\x00":
+    """The first IFD of a classic TIFF (either byte order), or None for other files."""
+    order = _tiff_order(data)
+    if order is None:
         return None
-    return _tiff_ifd(data, struct.unpack_from("<I", data, 4)[0])
+    return _tiff_ifd(data, struct.unpack_from(order + "I", data, 4)[0], order)
 
 
 def _tiff_write_options(original: bytes) -> list[int]:
@@ -380,12 +511,16 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
     A new first IFD is appended: OpenCV's layout tags (size, samples, compression, strips)
     and every other tag of the original's first IFD (orientation, resolution, ICC profile,
     XMP, make and model, ...), their values copied after the pixel data, the EXIF, GPS and
-    interoperability IFDs copied whole with their offsets moved. Vendor maker notes are
-    copied as they are (internal offsets of some vendors then point elsewhere, as with any
-    TIFF editor that moves them). Returns None (metadata not kept) unless both files are
-    classic little-endian TIFFs that can be walked.
+    interoperability IFDs copied whole with their offsets moved. The values of a
+    big-endian original are converted to OpenCV's little-endian byte order element by
+    element (SHORT, LONG, RATIONAL, DOUBLE, ...; bytes, text and undefined data as they
+    are). Vendor maker notes are copied as they are (internal offsets of some vendors then
+    point elsewhere, as with any TIFF editor that moves them). Returns None (metadata not
+    kept) unless the original is a classic TIFF (not BigTIFF) and ``encoded`` a classic
+    little-endian one, both of which can be walked.
     """
-    if original[:4] != b"II*\x00" or encoded[:4] != b"II*\x00":
+    order = _tiff_order(original)
+    if order is None or encoded[:4] != b"II*\x00":
         return None
     out = bytearray(encoded)
 
@@ -393,23 +528,32 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
         if len(out) % 2:  # TIFF offsets are even
             out.append(0)
 
+    def little_endian(data: bytes, unit: int) -> bytes:
+        if order == "<" or unit == 1:
+            return data
+        return np.frombuffer(data, dtype=f">u{unit}").astype(f"<u{unit}").tobytes()
+
     def copy_entries(at: int, depth: int, keep=lambda tag: True) -> list:
         entries = []
-        for tag, typ, count, value in _tiff_ifd(original, at):
+        for tag, typ, count, raw in _tiff_raw_ifd(original, at, order):
             if not keep(tag):
                 continue
+            unit = _TIFF_ELEMENT_SIZES.get(typ, 0)  # a RATIONAL: two LONGs of 4 bytes
             size = _TIFF_TYPE_SIZES.get(typ, 0) * count
             if not size:
                 continue  # an unknown type: its size is not known, so it cannot be copied
+            (offset,) = struct.unpack(order + "I", raw)
             if tag in _TIFF_SUB_IFDS and count == 1 and depth < 3:
-                value = write_ifd(copy_entries(value, depth + 1))
+                value = struct.pack("<I", write_ifd(copy_entries(offset, depth + 1)))
             elif size > 4:
-                data = original[value : value + size]
+                data = original[offset : offset + size]
                 if len(data) != size:
                     raise struct.error("value beyond the end of the file")
                 align()
-                value = len(out)
-                out.extend(data)
+                value = struct.pack("<I", len(out))
+                out.extend(little_endian(data, unit))
+            else:  # in the entry, left-justified in either byte order
+                value = little_endian(raw[:size], unit).ljust(4, b"\x00")
             entries.append((tag, typ, count, value))
         return entries
 
@@ -417,16 +561,16 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
         align()
         at = len(out)
         out.extend(struct.pack("<H", len(entries)))
-        for e in sorted(entries):
-            out.extend(struct.pack("<HHII", *e))
+        for tag, typ, count, value in sorted(entries):
+            out.extend(struct.pack("<HHI", tag, typ, count) + value)
         out.extend(struct.pack("<I", 0))
         return at
 
     try:
-        first = struct.unpack_from("<I", original, 4)[0]
+        first = struct.unpack_from(order + "I", original, 4)[0]
         layout = [
             e
-            for e in _tiff_first_ifd(encoded) or ()
+            for e in _tiff_raw_ifd(encoded, struct.unpack_from("<I", encoded, 4)[0], "<")
             if e[0] in _TIFF_LAYOUT_TAGS and e[0] not in _TIFF_RESOLUTION
         ]
         ours = {e[0] for e in layout}
@@ -437,7 +581,7 @@ def _tiff_graft_metadata(encoded: bytes, original: bytes) -> bytes | None:
             return tag not in _TIFF_LAYOUT_TAGS or tag in _TIFF_RESOLUTION
 
         ifd = write_ifd(layout + copy_entries(first, 0, metadata))
-    except (struct.error, IndexError):
+    except (struct.error, IndexError, ValueError):
         return None
     out[4:8] = struct.pack("<I", ifd)
     return bytes(out)
@@ -501,20 +645,33 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
 
     fmt = meta.get("format")
     channels = 1 if pixels.ndim == 2 else pixels.shape[2]
-    space = b"GRAY" if channels == 1 else b"RGB "  # the colour space of what is written
+    # the colour space of what is written (palette indices stand for RGB colours)
+    grey = channels in (1, 2) and meta.get("png_palette") is None
+    space = b"GRAY" if grey else b"RGB "
     if meta.get("png_chunks") is not None:
-        # PNG: the pixels by OpenCV (any depth and channels, exact), the original's metadata
-        # chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of 16-bit colour
-        # images, and those after the image data, which Pillow reads only on decoding)
-        ok, enc = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 6])
-        if not ok:  # pragma: no cover - OpenCV decoded these pixels from a PNG
-            raise FileFormatError(
-                f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
-            )
+        # PNG: in its own colour type and bit depth (palette indices and grey with alpha by
+        # _png_encode, the others by OpenCV: any depth and channels, exact), the original's
+        # metadata chunks copied as they were (EXIF, ICC, resolution, text, XMP: also of
+        # 16-bit colour images, and those after the image data, which Pillow reads only on
+        # decoding), a transparent colour (tRNS) too
+        palette = meta.get("png_palette")
+        if palette is not None:
+            png = _png_encode(pixels, palette[0], 3, [palette[1], palette[2]])
+        elif meta.get("png_grey_alpha") is not None:
+            png = _png_encode(pixels, meta["png_grey_alpha"], 4, [])
+        else:
+            ok, enc = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+            if not ok:  # pragma: no cover - OpenCV decoded these pixels from a PNG
+                raise FileFormatError(
+                    f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
+                )
+            png = enc.tobytes()
         before, text = meta["png_chunks"]
         keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
         note = _icc_note(space) if len(keep) < len(before) else None
-        return _png_with_chunks(enc.tobytes(), (keep, text)), note
+        if meta.get("png_trns") is not None:
+            keep = [*keep, meta["png_trns"]]  # after the colour space chunks, before IDAT
+        return _png_with_chunks(png, (keep, text)), note
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
@@ -606,7 +763,9 @@ def correct_image_file(
         Image file to read and file to write (atomically).
     grid : ResidualGrid
         The grid of this image (fitted for its size, px).
-    interpolation : {"bilinear", "bicubic"}
+    interpolation : {"bilinear", "bicubic", "nearest"}
+        Resampling (see :func:`correct_image`); a palette PNG is always resampled by
+        nearest neighbour, its palette kept (said in the note returned).
     threads : int, optional
         Threads over chunks of rows (see :func:`correct_image`).
     border : {"replicate", "constant", "reflect"}
@@ -634,11 +793,21 @@ def correct_image_file(
             f"{grid.image_size[0]} x {grid.image_size[1]} px: correct the original image of "
             "that size (not a resized or cropped copy), or fit the grids for this size"
         )
+    palette_note = None
+    if meta.get("png_palette") is not None and interpolation != "nearest":
+        # blending palette indices gives colours of unrelated entries: nearest neighbour
+        interpolation = "nearest"
+        palette_note = (
+            "palette image: resampled by nearest neighbour, its palette and colour type "
+            "kept (bilinear or bicubic would blend palette indices into unrelated colours)"
+        )
     out = correct_image(  # type: ignore[arg-type]
         pixels, grid, interpolation=interpolation, threads=threads, border=border
     )
     data, note = _encode(out, meta, src.suffix.lower() or ".png")
     atomic_write_bytes(dst, data)
+    if palette_note is not None:
+        note = palette_note if note is None else f"{palette_note}; {note}"
     return note
 
 
@@ -735,7 +904,7 @@ def correct_folder(
     workers: int = 1,
     dask: bool | str = False,
     interpolation: str = "bilinear",
-    progress: bool = True,
+    progress: bool | Callable[[int, int], None] = True,
     border: str = "replicate",
 ) -> FolderResult:
     """Correct every image of a folder that has a grid, in parallel.
@@ -752,9 +921,11 @@ def correct_folder(
         False: local processes; True: a ``dask.distributed.LocalCluster`` with
         ``workers`` single-threaded workers; a string: the address of a running scheduler
         (``"tcp://host:8786"``).
-    interpolation : {"bilinear", "bicubic"}
-    progress : bool
-        A rich progress bar on the terminal.
+    interpolation : {"bilinear", "bicubic", "nearest"}
+        As :func:`correct_image_file` (palette PNGs: nearest neighbour).
+    progress : bool or callable
+        ``True``: a rich progress bar on the terminal; a callable: called as
+        ``progress(done, total)`` (images) before the first and after every image.
     border : {"replicate", "constant", "reflect"}
         Values of output pixels whose source lies outside the image (see
         :func:`correct_image`; ``"constant"``: 0).
@@ -776,8 +947,10 @@ def correct_folder(
     src, dst = Path(src_dir), Path(dst_dir)
     if not src.is_dir():
         raise InputError(f"input folder {src} does not exist")
-    if interpolation not in ("bilinear", "bicubic"):
-        raise InputError(f"interpolation must be bilinear or bicubic, not {interpolation!r}")
+    if interpolation not in INTERPOLATIONS:
+        raise InputError(
+            f"interpolation must be one of {', '.join(INTERPOLATIONS)}, not {interpolation!r}"
+        )
     if border not in BORDER_MODES:
         raise InputError(f"border must be one of {', '.join(BORDER_MODES)}, not {border!r}")
     if workers < 1:
@@ -856,7 +1029,31 @@ def _output_folder(dst: Path) -> None:
         )
 
 
-def _progress(enabled: bool, total: int):
+class _CallbackProgress:
+    """The part of rich's Progress that the runners use, reporting to
+    ``report(done, total)`` (images) instead of drawing."""
+
+    def __init__(self, report, total: int) -> None:
+        self.report, self.total, self.done = report, total, 0
+
+    def __enter__(self) -> _CallbackProgress:
+        self.report(0, self.total)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def add_task(self, *args, **kwargs) -> int:
+        return 0
+
+    def advance(self, task: int, n: int = 1) -> None:
+        self.done += n
+        self.report(self.done, self.total)
+
+
+def _progress(enabled, total: int):
+    if callable(enabled):
+        return _CallbackProgress(enabled, total)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
     prog = Progress(

@@ -51,16 +51,111 @@ def console(stderr: bool = False):
     return c
 
 
+#: Seconds a job runs, with stderr not a terminal (a pipe, a log file), before its first
+#: progress line, and seconds between the lines that follow (:class:`LogProgress`).
+LOG_PROGRESS_DELAY = 10.0
+LOG_PROGRESS_INTERVAL = 30.0
+
+
+class LogProgress:
+    """Progress of a long job as plain lines on stderr, for pipes and log files.
+
+    A job that runs longer than :data:`LOG_PROGRESS_DELAY` seconds gets a line
+    ``photogeom: <stage> (<elapsed> s)`` then, and one every :data:`LOG_PROGRESS_INTERVAL`
+    seconds, from a background thread (so also while one long step runs), and a last line
+    ``photogeom: <stage>: done (<elapsed> s)`` when it ends; shorter jobs print nothing. No
+    cursor movement or redrawing: every line stays readable in a log.
+
+    Parameters
+    ----------
+    text : str
+        The stage shown first; :meth:`update` changes it.
+    """
+
+    def __init__(self, text: str) -> None:
+        import sys
+        import threading
+
+        self.text = text
+        self._stream = sys.stderr
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._printed = False
+        self._t0 = 0.0
+        self._thread: threading.Thread | None = None
+
+    def update(self, text: str) -> None:
+        """Name the current stage (shown in the next line).
+
+        Parameters
+        ----------
+        text : str
+            The stage, e.g. ``fitting grids: 12 of 250 images``.
+        """
+        with self._lock:
+            self.text = text
+
+    def _line(self, suffix: str = "") -> None:
+        import time
+
+        with self._lock:
+            text = self.text
+            elapsed = time.monotonic() - self._t0
+            self._stream.write(f"photogeom: {text}{suffix} ({elapsed:.0f} s)\n")
+            self._stream.flush()
+            self._printed = True
+
+    def _run(self, delay: float) -> None:
+        if delay > 0:
+            if self._stop.wait(delay):
+                return
+            self._line()
+        while not self._stop.wait(LOG_PROGRESS_INTERVAL):
+            self._line()
+
+    def __enter__(self) -> LogProgress:
+        import threading
+        import time
+
+        self._t0 = time.monotonic()
+        delay = LOG_PROGRESS_DELAY
+        if delay <= 0:
+            self._line()
+        self._thread = threading.Thread(target=self._run, args=(delay,), daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, kind, value, tb) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        if self._printed and kind is None:
+            self._line(": done")
+
+    def start(self) -> None:
+        """Start the clock and the lines (as entering the context)."""
+        self.__enter__()
+
+    def stop(self) -> None:
+        """Stop the lines; a last ``done`` line if any was printed."""
+        self.__exit__(None, None, None)
+
+
 def iteration_progress(max_iterations: int, label: str = "adjusting"):
-    """A rich display of an adjustment's iterations on a terminal (stderr).
+    """A display of an adjustment's iterations on stderr.
 
     Returns ``(display, progress)``: the display to enter as a context manager and the
-    ``progress(iteration, cost, damping)`` callback of the adjustment; ``(None, None)``
-    when stderr is not a terminal.
+    ``progress(iteration, cost, damping)`` callback of the adjustment. On a terminal a rich
+    bar; otherwise (pipes, logs) a :class:`LogProgress` whose lines name the iteration.
     """
     err = console(stderr=True)
     if not err.is_terminal:
-        return None, None
+        log = LogProgress(label)
+
+        def log_progress(it, cost, lam):
+            log.update(f"{label}: iteration {it} of at most {max_iterations}, cost {cost:.6e}")
+
+        return log, log_progress
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     prog = Progress(
@@ -88,11 +183,13 @@ def stage_spinner(description: str):
 
     For long steps whose progress cannot be counted (an adjustment without an iteration
     callback, a grid-size sweep). Yields ``step(text)``, which names the current stage; the
-    display is removed when the block ends (and never drawn in pipes, logs and scripts).
+    display is removed when the block ends. In pipes, logs and scripts nothing is drawn: a
+    step that runs long gets plain lines instead (:class:`LogProgress`).
     """
     err = console(stderr=True)
     if not err.is_terminal:
-        yield lambda text: None
+        with LogProgress(description) as log:
+            yield log.update
         return
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
@@ -111,6 +208,29 @@ def stage_spinner(description: str):
 def say(text: str, out=None, *, stderr: bool = False) -> None:
     """Print plain text (no markup, no highlighting, no wrapping) to ``out`` or a new console."""
     (out or console(stderr)).print(text, markup=False, highlight=False, soft_wrap=True)
+
+
+#: Exit code of a batch command that ran every item and some failed (docs/cli.md).
+BATCH_FAILED = 1
+
+
+def batch_failed(message: str) -> None:
+    """End a batch command whose items all ran and some failed: ``error: message`` on
+    stderr, exit code :data:`BATCH_FAILED` (1; bad input that stops a command before it
+    runs anything is exit 2, see :func:`photogeom.cli.main.main`).
+
+    Parameters
+    ----------
+    message : str
+        What failed and what was done, in the words of the command line.
+
+    Raises
+    ------
+    typer.Exit
+        Always, with code 1.
+    """
+    typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
+    raise typer.Exit(BATCH_FAILED)
 
 
 def split_names(text: str | None) -> list[str] | None:

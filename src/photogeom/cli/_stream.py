@@ -4,7 +4,8 @@ Used by the commands that treat each point on its own (``rpc project``, ``rpc lo
 ``transform apply``, ``camera project``, ``crs convert``). Memory use is that of one block
 whatever the size of the file; the output file appears (atomically) only when every block is
 done. On a terminal, a job on a file large enough to take more than about a second shows a
-progress bar on standard error; in pipes and logs nothing is drawn.
+progress bar on standard error; in pipes and logs nothing is drawn, and a job that runs long
+prints plain progress lines instead.
 """
 
 from __future__ import annotations
@@ -41,6 +42,15 @@ def single_threaded_blas() -> bool:
     return True
 
 
+def _in_a_log(stream=None) -> bool:
+    """Whether ``stream`` (default stderr) is not a terminal: a pipe, a file, a log."""
+    stream = sys.stderr if stream is None else stream
+    try:
+        return not stream.isatty()
+    except (AttributeError, ValueError):
+        return True
+
+
 def _wants_progress(size: int, stream=None) -> bool:
     stream = sys.stderr if stream is None else stream
     try:
@@ -54,9 +64,26 @@ def progress_bar(total: int, description: str, *, force: bool | None = None):
     """A callable ``advance(done_bytes)`` drawing a rich progress bar on standard error.
 
     Drawn only on a terminal and for ``total`` >= :data:`PROGRESS_BYTES` (``force``
-    overrides the decision); otherwise ``advance`` does nothing.
+    overrides the decision). In pipes and logs a job that runs long gets plain lines
+    (:class:`~photogeom.cli._common.LogProgress`: bytes and points done); otherwise
+    ``advance`` does nothing.
     """
     show = _wants_progress(total) if force is None else force
+    if not show and force is None and _in_a_log():
+        from ._common import LogProgress
+
+        with LogProgress(description) as log:
+            counted = {"n": 0}
+
+            def advance_log(done: int, n_points: int = 0) -> None:
+                counted["n"] += n_points
+                log.update(
+                    f"{description}: {min(done, total) / 1e6:.1f} of {total / 1e6:.1f} MB, "
+                    f"{counted['n']:,} points"
+                )
+
+            yield advance_log
+        return
     if not show:
         yield lambda done, n_points=0: None
         return
@@ -135,8 +162,9 @@ def busy(description: str, *paths, force: bool | None = None):
 
     For jobs whose progress cannot be counted (reading a whole file, then one estimate):
     shown on a terminal when the input files together hold at least
-    :data:`PROGRESS_BYTES` (``force`` overrides). Yields ``step(text)``, which names the
-    current stage; removed when the job ends.
+    :data:`PROGRESS_BYTES` (``force`` overrides); in pipes and logs a job that runs long
+    gets plain lines instead (:class:`~photogeom.cli._common.LogProgress`). Yields
+    ``step(text)``, which names the current stage; removed when the job ends.
     """
     size = 0
     for p in paths:
@@ -145,6 +173,12 @@ def busy(description: str, *paths, force: bool | None = None):
         except OSError:
             pass
     show = _wants_progress(size) if force is None else force
+    if not show and force is None and _in_a_log():
+        from ._common import LogProgress
+
+        with LogProgress(description) as log:
+            yield log.update
+        return
     if not show:
         yield lambda text: None
         return

@@ -32,6 +32,7 @@ from ._common import (
     options_in_errors,
     say,
     split_names,
+    stage_spinner,
 )
 
 app = typer.Typer(
@@ -413,7 +414,8 @@ def simulate(
         files=[("OUTPUT", output / "simulation.json")],
         made=[output],
     )
-    sim = sim_mod.uav_block(preset.value, **kwargs)
+    with stage_spinner(f"simulating the {preset.value} block"):
+        sim = sim_mod.uav_block(preset.value, **kwargs)
     o = sim.block.observations
     from ..adjust.fit import _jsonable
 
@@ -578,7 +580,8 @@ def adjust(
         blocks=[("--output", output, out_fmt)],
         files=[("--report", report), ("--result", result)],
     )
-    block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
+    with stage_spinner(f"reading {source}"):
+        block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     options = dict(
         loss=loss.value,
@@ -770,8 +773,11 @@ def convert(
             "the column headers); choose one of them"
         )
     check_targets(blocks=[("TARGET", target, dst)])
-    block = read_block(source, src, sigma=sigma, image_key=image_key)
-    files = block_files(block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value)
+    with stage_spinner(f"converting {source} to {dst}"):
+        block = read_block(source, src, sigma=sigma, image_key=image_key)
+        files = block_files(
+            block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value
+        )
     write_all(files, folders=[target] if dst in ("csv", "colmap") else [])
     info = {
         "source": str(source),

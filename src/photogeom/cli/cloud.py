@@ -19,11 +19,14 @@ from ..errors import InputError
 from ._common import (
     AngleUnit,
     JsonOpt,
+    LogProgress,
+    console,
     json_text,
     options_in_errors,
     say,
     scheduler_option,
     split_numbers,
+    stage_spinner,
 )
 
 app = typer.Typer(
@@ -202,7 +205,14 @@ def transform(
         T = ProjTransform(src_crs, to_crs, allow_ballpark=allow_ballpark)
     sc = split_numbers(scales, 3, "--scales")
     progress = None
-    if not quiet:
+    if not quiet and not console(stderr=True).is_terminal:  # pipes and logs: plain lines
+        bar = LogProgress("transforming")
+
+        def progress(done: int, total: int) -> None:
+            bar.update(f"transforming: {done:,} of {total:,} points")
+
+        bar.start()
+    elif not quiet:
         from rich.progress import Progress
 
         bar = Progress(transient=True)
@@ -317,15 +327,16 @@ def register(
     if check_every < 0 or check_every == 1:
         raise InputError(f"--check-every {check_every}: give 0 (no check pairs) or k >= 2")
     check_targets(files=[("--output-params", output_params), ("--report", report)])
-    reg = register_clouds(
-        source,
-        target,
-        method=method.value,
-        with_scale=not (rigid or no_scale),
-        check_every=check_every,
-        chunk_size=chunk_size,
-        scheduler=scheduler,
-    )
+    with stage_spinner(f"registering {source.name} to {target.name}"):
+        reg = register_clouds(
+            source,
+            target,
+            method=method.value,
+            with_scale=not (rigid or no_scale),
+            check_every=check_every,
+            chunk_size=chunk_size,
+            scheduler=scheduler,
+        )
     d = reg.to_dict()
     outputs: list[tuple[Path, str]] = []
     if output_params is not None:

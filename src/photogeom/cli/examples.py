@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError, PhotogeomError
-from ._common import console, say
+from ._common import batch_failed, console, say
 
 app = typer.Typer(
     help="List and run the bundled worked examples.", no_args_is_help=True, rich_markup_mode=None
@@ -56,7 +56,8 @@ def run_examples(
     report with parameter and residual tables and residual vector plots is written
     (atomically, after all examples have run). An example that fails (a damaged bundled
     file, ...) is reported as failed, in the output and the report, and the others still
-    run; the command then ends with an error naming the failed examples (exit 2).
+    run; the command then ends with an error naming the failed examples (exit 1, as every
+    batch command with failed items; exit 2 is bad input, nothing run).
     """
     from rich import box
     from rich.progress import (
@@ -152,7 +153,7 @@ def run_examples(
         others = len(chosen) - len(failures)
         if others:
             what += f" (the other {others} ran" + (", see the report)" if rep else ")")
-        raise PhotogeomError(what)
+        batch_failed(what)
 
 
 def _error_text(exc: Exception) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import operator
+from contextlib import nullcontext
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -20,8 +21,10 @@ from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError, PhotogeomError
 from ._common import (
     JsonOpt,
+    LogProgress,
     OutputCsvOpt,
     ReportOpt,
+    batch_failed,
     console,
     emit_points,
     json_text,
@@ -691,16 +694,23 @@ def _fit_csv(
     for k in exclude:
         del groups[k]
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
+    terminal = console(stderr=True).is_terminal
+    what = f"fitting grids of {spacing:g} px"
     try:
-        return fit_grids(
-            per_image,
-            size,
-            spacing,
-            sigma_obs=1.0 if sigma_obs is None else sigma_obs,
-            sigma_constraint=scaled_constraint_sigma(s_c, spacing),
-            progress=console(stderr=True).is_terminal,
-            **options,
-        )
+        with nullcontext() if terminal else LogProgress(what) as log:
+
+            def counted(done: int, total: int) -> None:
+                log.update(f"{what}: {done} of {total} images")
+
+            return fit_grids(
+                per_image,
+                size,
+                spacing,
+                sigma_obs=1.0 if sigma_obs is None else sigma_obs,
+                sigma_constraint=scaled_constraint_sigma(s_c, spacing),
+                progress=True if terminal else counted,
+                **options,
+            )
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         raise _reworded(exc, _cli_words) from None
 
@@ -956,24 +966,31 @@ def correct_images(
     ] = Outside.replicate,
     as_json: JsonOpt = False,
 ) -> None:
-    """Resample every image that has a grid; failures are listed, the rest processed."""
+    """Resample every image that has a grid; failures are listed, the rest processed (exit
+    1 when some image failed)."""
     from ..calibration import correct_folder, load_grids
 
     mode: bool | str = dask
     if scheduler:
         mode, workers = _scheduler_mode(scheduler, workers)
     grids = load_grids(grids_file)
+    terminal = console(stderr=True).is_terminal
     try:
-        res = correct_folder(
-            src_dir,
-            dst_dir,
-            grids,
-            workers=workers,
-            dask=mode,
-            interpolation=interpolation.value,
-            progress=console(stderr=True).is_terminal,
-            border=outside.value,
-        )
+        with nullcontext() if terminal else LogProgress("correcting images") as log:
+
+            def counted(done: int, total: int) -> None:
+                log.update(f"correcting images: {done} of {total} done")
+
+            res = correct_folder(
+                src_dir,
+                dst_dir,
+                grids,
+                workers=workers,
+                dask=mode,
+                interpolation=interpolation.value,
+                progress=True if terminal else counted,
+                border=outside.value,
+            )
     except InputError as exc:
         raise InputError(str(exc).replace("workers must", "--workers must")) from None
     if as_json:
@@ -990,7 +1007,11 @@ def correct_images(
         for k, msg in res.failures.items():
             say(f"failed {k}: {msg}", stderr=True)
     if res.failures:
-        raise typer.Exit(1)
+        failed = len(res.failures)
+        batch_failed(
+            f"{failed} of {failed + len(res.written)} image(s) failed (listed above; the "
+            f"other {len(res.written)} corrected into {dst_dir})"
+        )
 
 
 # block-level commands (evaluate, sweep, report) live in their own module

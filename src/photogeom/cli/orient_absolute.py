@@ -225,7 +225,8 @@ def register(app: typer.Typer) -> None:
         unit: Annotated[
             str | None,
             typer.Option(
-                help="Length unit of the target system [default: the --target-crs unit, else m].",
+                help="Length unit of the target coordinates, labelling shifts, residuals and "
+                "RMS (e.g. mm, m, ft) [default: the --target-crs unit, else m].",
                 show_default=False,
             ),
         ] = None,

@@ -126,7 +126,11 @@ def estimate(
     ] = 1.0,
     unit: Annotated[
         str,
-        typer.Option(help="Unit of the target coordinates, to label residuals (e.g. mm, m, px)."),
+        typer.Option(
+            help="Length unit of the target coordinates, labelling shifts, residuals and RMS "
+            "(e.g. mm, m, px) [default: the --target-crs unit, else none].",
+            show_default=False,
+        ),
     ] = "",
     source_unit: Annotated[
         str,

@@ -1091,16 +1091,17 @@ def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics
     try:
         return absolute_orientation(
             src, dst, method, with_scale=model == "similarity3d", statistics=statistics,
-            ids=ids, unit=unit or "m", **kwargs,
+            ids=ids, unit=unit, **kwargs,
         )
     except DegenerateGeometryError:
         _validate_geometry(model, src, dst, need)
         raise
 
 
-def _helmert_extras(fit: Fit) -> dict:
+def _helmert_extras(fit: Fit, unit: str = "") -> dict:
     """Geodetic Helmert parameters (EPSG conventions) of a fitted 3D similarity, name ->
-    (value, std): shifts in target units, rotations in arc-seconds, scale difference in ppm.
+    (value, std): shifts in target units (labelled ``unit``, the label of the fit's shifts),
+    rotations in arc-seconds, scale difference in ppm.
 
     Position-vector rotations are the ``"transposed"`` angles omega, phi, kappa, so their
     standard deviations are those of the fit. The coordinate-frame rotations are the angles of
@@ -1132,7 +1133,7 @@ def _helmert_extras(fit: Fit) -> dict:
     for conv, sds in (("position_vector", sd), ("coordinate_frame", sd_cf)):
         hp = m.helmert_parameters(conv)
         out[conv] = {k: (float(hp[k]), float(sds[k])) for k in hp}
-    out["units"] = {"tx": "m", "ty": "m", "tz": "m", "rx": "arcsec", "ry": "arcsec",
+    out["units"] = {"tx": unit, "ty": unit, "tz": unit, "rx": "arcsec", "ry": "arcsec",
                     "rz": "arcsec", "ds": "ppm"}
     return out
 
@@ -1355,7 +1356,7 @@ def estimate_transform(
             _set(fit, model=Rigid3D(m.rotation, m.translation))
         extras.update(fit.extras or {})
         if key == "similarity3d" and statistics:
-            extras["helmert"] = _helmert_extras(fit)
+            extras["helmert"] = _helmert_extras(fit, unit)
     else:
         pair = _validate_geometry(key, sc, dc, need)
         if key == "similarity2d":

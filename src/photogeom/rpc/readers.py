@@ -8,6 +8,9 @@ Formats:
   (as GDAL's RPC metadata domain). Extended files with ``LON_NUM_COEFF``/``LAT_NUM_COEFF``
   (image-to-ground polynomials) are read too. ``#`` starts a comment line.
 * **RPB** -- DigitalGlobe/Maxar ``.RPB`` (``lineOffset = ...;``, ``lineNumCoef = (...);``).
+* **OSSIM keyword list** -- ``.geom`` files of OSSIM and the Orfeo ToolBox with an
+  ``ossimRpcModel`` (``line_off: ...``, ``line_num_coeff_00`` .. ``_19``, 0-based;
+  ``polynomial_format`` A or B, A reordered to B): :func:`read_ossim_geom`.
 * **DIMAP XML** -- Pleiades / SPOT 6-7 ``RPC_*.XML``: v2 (``Inverse_Model`` = ground to image,
   ``Direct_Model`` = image to ground) and v3 / Pleiades Neo (``GroundtoImage_Values``,
   ``ImagetoGround_Values``). DIMAP v2 counts pixels from 1 (the centre of the first pixel is
@@ -71,6 +74,7 @@ MAX_XML_BYTES = 64 << 20
 
 FORMATS = (
     "KEY: value text (IKONOS-style _RPC.TXT or coefficient lists), DigitalGlobe .RPB, "
+    "OSSIM/Orfeo ToolBox keyword list (.geom, ossimRpcModel), "
     "DIMAP XML (Pleiades/SPOT), DigitalGlobe/Maxar XML with an RPB block (WorldView), "
     "GeoTIFF/NITF RPC metadata (with rasterio)"
 )
@@ -304,6 +308,119 @@ def read_key_value_text(text: str, where: str) -> RPC:
     numbered = any(k.startswith("LINE_NUM_COEFF_") for k in d)
     source = "KEY: value text, numbered coefficients" if numbered else "KEY: value text, lists"
     return rpc_from_mapping(d, source=source, where=where)
+
+
+# --- OSSIM keyword lists (.geom) ---------------------------------------------------------------
+
+#: OSSIM keyword (ossimRpcModel) -> GDAL key, offsets, scales and errors.
+_OSSIM_KEYS = {
+    "line_off": "LINE_OFF", "samp_off": "SAMP_OFF", "lat_off": "LAT_OFF",
+    "long_off": "LONG_OFF", "height_off": "HEIGHT_OFF", "line_scale": "LINE_SCALE",
+    "samp_scale": "SAMP_SCALE", "lat_scale": "LAT_SCALE", "long_scale": "LONG_SCALE",
+    "height_scale": "HEIGHT_SCALE", "bias_error": "ERR_BIAS", "rand_error": "ERR_RAND",
+}  # fmt: skip
+#: RPC00A term order in RPC00B positions: the A polynomial's term i is B's term OSSIM_A_TO_B[i]
+#: (A: 1 L P H LP LH PH LPH L2 P2 H2 L3 L2P L2H LP2 P3 P2H LH2 PH2 H3; B: as the spec).
+OSSIM_A_TO_B = (0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 14, 17, 12, 15, 18, 13, 16, 19)
+_OSSIM_LINE = re.compile(r"[ \t]*([A-Za-z0-9_.]+)[ \t]*:(.*)")
+_OSSIM_HINT = re.compile(
+    r"^[ \t]*(?:[A-Za-z0-9_]+\.)*(?:type[ \t]*:[ \t]*ossim[A-Za-z]*RpcModel\b"
+    r"|line_num_coeff_00[ \t]*:)",
+    re.M | re.I,
+)
+
+
+def read_ossim_geom(text: str, where: str) -> RPC:
+    """Read the RPC of an OSSIM keyword list (``.geom``, as written by OSSIM and the Orfeo
+    ToolBox for an ``ossimRpcModel`` and its vendor subclasses).
+
+    Keys ``line_off`` ... ``height_scale``, ``bias_error``, ``rand_error``,
+    ``polynomial_format`` (``A``: RPC00A term order, reordered to RPC00B here; ``B``) and
+    ``line_num_coeff_00`` .. ``_19`` (0-based), ``line_den_coeff_``, ``samp_num_coeff_``,
+    ``samp_den_coeff_``; a prefix before the keys (``projection.line_off``) is allowed.
+    Other keys (sensor, image size, support data) are ignored; ``//`` and ``#`` start
+    comment lines. Offsets are taken as they are (OSSIM, like RPC00B, puts the centre of
+    the first pixel at (0, 0)).
+
+    Parameters
+    ----------
+    text : str
+        The file's text.
+    where : str
+        The file's name, for messages.
+
+    Returns
+    -------
+    RPC
+        ``source`` names the format and the polynomial format.
+
+    Raises
+    ------
+    FileFormatError
+        A line that is not ``key: value``, a key given twice, another model type, a
+        polynomial format other than A or B, missing keys (named), numbers that cannot be
+        read.
+    """
+    d: dict[str, str] = {}
+    seen: dict[str, int] = {}
+    types: list[str] = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith(("//", "#")):
+            continue
+        m = _OSSIM_LINE.fullmatch(s)
+        if m is None:
+            raise FileFormatError(
+                f"{where}, line {lineno}: expected 'keyword: value' (OSSIM keyword list), "
+                f"found {s[:60]!r}"
+            )
+        key = m.group(1).rsplit(".", 1)[-1].lower()
+        value = m.group(2).strip()
+        if key == "type":  # also of other objects in the list (datum, support data, ...)
+            types.append(value)
+            continue
+        if key in seen and (key in _OSSIM_KEYS or key == "polynomial_format" or "coeff_" in key):
+            raise FileFormatError(
+                f"{where}, line {lineno}: keyword {key} appears twice (first on line "
+                f"{seen[key]})"
+            )
+        seen.setdefault(key, lineno)
+        d[key] = value
+    if types and not any(re.fullmatch(r"ossim[A-Za-z]*RpcModel", t) for t in types):
+        raise FileFormatError(
+            f"{where}: an OSSIM geometry of type {types[0][:60]!r}, not an RPC model "
+            "(type: ossimRpcModel)"
+        )
+    fmt = d.get("polynomial_format", "").upper()
+    if fmt not in ("A", "B"):
+        raise FileFormatError(
+            f"{where}: polynomial_format is {d.get('polynomial_format')!r}; an OSSIM RPC "
+            "keyword list needs polynomial_format: A (RPC00A) or B (RPC00B)"
+        )
+    mapping: dict[str, object] = {_OSSIM_KEYS[k]: v for k, v in d.items() if k in _OSSIM_KEYS}
+    for vector in ("line_num_coeff", "line_den_coeff", "samp_num_coeff", "samp_den_coeff"):
+        keys = [f"{vector}_{i:02d}" for i in range(20)]
+        missing = [k for k in keys if k not in d]
+        if missing:
+            raise FileFormatError(
+                f"{where}: missing {', '.join(missing[:4])}{' ...' if len(missing) > 4 else ''}"
+                f" (an OSSIM RPC has {vector}_00 .. {vector}_19)"
+            )
+        values = [_numbers(d[k], k, where) for k in keys]
+        bad = [k for k, v in zip(keys, values) if len(v) != 1]
+        if bad:
+            raise FileFormatError(f"{where}: {bad[0]} holds {len(values[keys.index(bad[0])])} "
+                                  "values, expected one number")
+        coeffs = np.array([v[0] for v in values])
+        if fmt == "A":
+            coeffs = coeffs[np.argsort(OSSIM_A_TO_B)]  # B's term j is A's term argsort[j]
+        mapping[vector.upper()] = coeffs.tolist()
+    for key in ("ERR_BIAS", "ERR_RAND"):
+        if key in mapping and _numbers(mapping[key], key, where) == [0.0]:
+            del mapping[key]  # OSSIM writes 0 for "not given"
+    return rpc_from_mapping(
+        mapping, source=f"OSSIM keyword list (.geom), polynomial format {fmt}", where=where
+    )
 
 
 _RPB_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -638,7 +755,7 @@ def decode_text(data: bytes) -> str:
 
 
 def detect_format(path: Path, head: bytes) -> str:
-    """``"raster"``, ``"xml"``, ``"rpb"``, ``"text"`` or ``"unknown"``.
+    """``"raster"``, ``"xml"``, ``"rpb"``, ``"ossim"``, ``"text"`` or ``"unknown"``.
 
     Every pattern is anchored to one line (``[ \\t]``, not ``\\s``), so the detection is
     linear in the head it looks at.
@@ -652,6 +769,8 @@ def detect_format(path: Path, head: bytes) -> str:
         return "xml"
     if _RPB_HINT.search(text):
         return "rpb"
+    if _OSSIM_HINT.search(text):
+        return "ossim"
     if _TEXT_LINE.search(text) and _TEXT_HINT.search(text):
         return "text"
     return "unknown"
@@ -663,7 +782,8 @@ def read_rpc(path: str | Path) -> RPC:
     Parameters
     ----------
     path : str or pathlib.Path
-        IKONOS-style ``_RPC.TXT``, ``KEY: value`` text, DigitalGlobe ``.RPB``, DIMAP XML,
+        IKONOS-style ``_RPC.TXT``, ``KEY: value`` text, DigitalGlobe ``.RPB``, OSSIM / Orfeo
+        ToolBox ``.geom`` keyword lists (``ossimRpcModel``), DIMAP XML,
         DigitalGlobe/Maxar XML or a GeoTIFF with RPC tags (needs the ``geotiff`` extra).
 
     Returns
@@ -714,6 +834,8 @@ def read_rpc(path: str | Path) -> RPC:
     text = decode_text(data)
     if kind == "rpb":
         return read_rpb(text, where)
+    if kind == "ossim":
+        return read_ossim_geom(text, where)
     if kind == "text":
         return read_key_value_text(text, where)
     raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")

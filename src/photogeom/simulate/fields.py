@@ -13,7 +13,7 @@ from scipy.signal import lfilter
 
 from ..errors import InputError
 
-__all__ = ["LocalDistortionField", "WaveTerrain", "ar1_along_flight"]
+__all__ = ["LocalDistortionField", "WaveTerrain", "ar1_along_flight", "check_field_options"]
 
 #: Rows per chunk when evaluating many modes at many points (bounds the temporaries).
 _CHUNK = 1 << 15
@@ -90,13 +90,44 @@ class WaveTerrain:
 
 
 def ar1_along_flight(
-    rng: np.random.Generator, n: int, shape: tuple[int, ...], correlation: float
+    rng: np.random.Generator,
+    n: int,
+    shape: tuple[int, ...],
+    correlation: float,
+    *,
+    name: str = "correlation",
 ) -> np.ndarray:
-    """Stationary unit-variance AR(1) sequences along the first axis: ``x_0 ~ N(0, 1)``,
-    ``x_i = rho x_{i-1} + sqrt(1 - rho^2) e_i`` (array (n, *shape))."""
+    """Stationary unit-variance AR(1) sequences along the first axis.
+
+    ``x_0 ~ N(0, 1)``, ``x_i = rho x_{i-1} + sqrt(1 - rho^2) e_i``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the draws.
+    n : int
+        Length of the sequences (images along the flight).
+    shape : tuple of int
+        Shape of one element of the sequences.
+    correlation : float
+        ``rho``, the correlation between consecutive elements, in [0, 1).
+    name : str, default "correlation"
+        The caller's name of ``correlation``, used in the error for a value out of range.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, *shape)
+        Unitless.
+
+    Raises
+    ------
+    InputError
+        For ``correlation`` outside [0, 1) (the message names ``name``).
+    """
     if not 0.0 <= correlation < 1.0:
         raise InputError(
-            f"the correlation between consecutive images must be in [0, 1), got {correlation}"
+            f"{name} must be in [0, 1) (the correlation between consecutive images), "
+            f"got {correlation}"
         )
     e = rng.standard_normal((n, *shape))
     if n == 0 or correlation == 0.0:
@@ -104,6 +135,58 @@ def ar1_along_flight(
     s = np.sqrt(1.0 - correlation**2)
     e[0] /= s
     return lfilter([s], [1.0, -correlation], e, axis=0)
+
+
+#: The parameters of :meth:`LocalDistortionField.random` checked by
+#: :func:`check_field_options`, by their names there.
+_FIELD_NAMES = {n: n for n in ("rms", "modes", "correlation", "static", "slope")}
+
+
+def check_field_options(
+    rms: float,
+    modes: int,
+    correlation: float,
+    static: float,
+    slope: float,
+    names: dict[str, str] | None = None,
+) -> None:
+    """Refuse field settings :meth:`LocalDistortionField.random` cannot draw from.
+
+    Parameters
+    ----------
+    rms : float
+        RMS of the displacement, px (>= 0).
+    modes : int
+        Highest wave number (a whole number >= 1).
+    correlation : float
+        Correlation between consecutive images, in [0, 1).
+    static : float
+        Share of the variance common to all images, in [0, 1].
+    slope : float
+        Exponent of the coefficients' fall with the wave number (>= 0).
+    names : dict, optional
+        The caller's names of these parameters (keys ``rms``, ``modes``, ``correlation``,
+        ``static``, ``slope``), used in the messages; default: the names above.
+
+    Raises
+    ------
+    InputError
+        For the first value out of range, named with ``names``.
+    """
+    nm = {**_FIELD_NAMES, **(names or {})}
+    if isinstance(modes, bool) or not float(modes).is_integer() or modes < 1:
+        raise InputError(f"{nm['modes']} must be a whole number >= 1, got {modes}")
+    if not (np.isfinite(rms) and rms >= 0):
+        raise InputError(f"{nm['rms']} must be >= 0 (RMS, pixels), got {rms}")
+    if not 0.0 <= correlation < 1.0:
+        raise InputError(
+            f"{nm['correlation']} must be in [0, 1) (the correlation between consecutive "
+            f"images), got {correlation}"
+        )
+    if not 0.0 <= static <= 1.0:
+        raise InputError(f"{nm['static']} must be in [0, 1], got {static}")
+    if not (np.isfinite(slope) and slope >= 0):
+        raise InputError(f"{nm['slope']} must be >= 0, got {slope}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,19 +277,16 @@ class LocalDistortionField:
         Raises
         ------
         InputError
-            For a value out of range (the message names the :func:`uav_block` option:
-            ``local_field``, ``local_field_modes``, ``local_field_static``,
-            ``local_field_slope``).
+            For a value out of range; the message names the parameter of this method
+            (:func:`check_field_options` with the names of the caller's options).
         """
-        if modes < 1:
-            raise InputError(f"local_field_modes must be >= 1, got {modes}")
-        if rms < 0 or not np.isfinite(rms):
-            raise InputError(f"local_field must be >= 0 (RMS, pixels), got {rms}")
-        if not 0.0 <= static <= 1.0:
-            raise InputError(f"local_field_static must be in [0, 1], got {static}")
-        if not (np.isfinite(slope) and slope >= 0):
-            raise InputError(f"local_field_slope must be >= 0, got {slope}")
+        check_field_options(rms, modes, correlation, static, slope)
+        if not all(np.isfinite(v) and v > 0 for v in (width, height)):
+            raise InputError(
+                f"width and height must be > 0 (image size, pixels), got {width}, {height}"
+            )
         ids = np.asarray(image_ids)
+        modes = int(modes)
         kx, ky = np.meshgrid(np.arange(0, modes + 1), np.arange(-modes, modes + 1), indexing="ij")
         kx, ky = kx.ravel(), ky.ravel()
         half = (kx > 0) | ((kx == 0) & (ky > 0))

@@ -28,7 +28,7 @@ from ..camera.frame_kernel import project_rows
 from ..camera.metashape import MetashapeCalibration
 from ..errors import DegenerateGeometryError, InputError
 from ..rotation import opk_matrix
-from .fields import LocalDistortionField, WaveTerrain, ar1_along_flight
+from .fields import LocalDistortionField, WaveTerrain, ar1_along_flight, check_field_options
 from .presets import CameraPreset, preset
 
 __all__ = ["SimulatedBlock", "uav_block"]
@@ -559,8 +559,20 @@ def uav_block(
             f"tie_points_per_image must be > 0 (a mean number of points), got "
             f"{tie_points_per_image}"
         )
-    if local_field is not None and not (np.isfinite(local_field) and local_field >= 0):
-        raise InputError(f"local_field must be >= 0 (RMS, pixels), got {local_field}")
+    check_field_options(
+        0.0 if local_field is None else local_field,
+        local_field_modes,
+        local_field_correlation,
+        local_field_static,
+        local_field_slope,
+        names={
+            "rms": "local_field",
+            "modes": "local_field_modes",
+            "correlation": "local_field_correlation",
+            "static": "local_field_static",
+            "slope": "local_field_slope",
+        },
+    )
     # --- cameras ---------------------------------------------------------------------------
     if true_camera is not None:
         cam = true_camera
@@ -663,7 +675,9 @@ def uav_block(
     offsets = np.zeros((m, 3))
     variant: tuple[str, ...] = ()
     if cv is not None and np.any(cv > 0):
-        offsets = ar1_along_flight(rng, m, (3,), calibration_correlation) * cv
+        name = "calibration_correlation"
+        ar1 = ar1_along_flight(rng, m, (3,), calibration_correlation, name=name)
+        offsets = ar1 * cv
         variant = tuple(n for n, s in zip(IMAGE_VARIANT_NAMES, cv) if s > 0)
         offsets[:, cv == 0] = 0.0
     cal_rows = np.tile(calv, (m, 1))
