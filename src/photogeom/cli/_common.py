@@ -7,6 +7,7 @@ the console width off a terminal) so that the commands of every group behave ali
 from __future__ import annotations
 
 import json
+import os
 from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
@@ -406,11 +407,15 @@ def load_pairs(
     return join_points(src, dst, allow_unmatched=allow_unmatched)
 
 
-def check_outputs(**options: Path | None) -> None:
+def check_outputs(inputs: dict[str, Path | None] | None = None, **options: Path | None) -> None:
     """Refuse, before anything is read or computed, output files that cannot be written.
 
     Parameters
     ----------
+    inputs : dict of str to pathlib.Path or None, optional
+        The command's input files by argument name (``{"SOURCE": path}``); an output naming
+        one of them is refused (the report or the parameters would replace the data they
+        were computed from).
     **options : pathlib.Path or None
         Output paths by option name, the underscores of the name read as dashes
         (``report=path`` is ``--report``); None: the option was not given.
@@ -420,10 +425,22 @@ def check_outputs(**options: Path | None) -> None:
     OutputError
         For a path that is a folder or lies in a folder that does not exist; the message
         names the option (``--report: cannot write ...``).
+    InputError
+        For an output that is one of ``inputs``, naming the option and the argument.
     """
     from .bundle import check_targets
 
-    check_targets(files=[("--" + k.replace("_", "-"), v) for k, v in options.items()])
+    files = [("--" + k.replace("_", "-"), v) for k, v in options.items()]
+    for opt, path in files:
+        if path is None or not path.is_file():
+            continue
+        for arg, given in (inputs or {}).items():
+            if given is not None and given.is_file() and os.path.samefile(path, given):
+                raise InputError(
+                    f"{opt} {path} is the input file {arg}: writing it would replace the data "
+                    f"it is computed from; give {opt} another file"
+                )
+    check_targets(files=files)
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:

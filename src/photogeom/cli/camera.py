@@ -530,7 +530,7 @@ def dlt_estimate(
     from ..camera import estimate_dlt
     from ._common import file_crs
 
-    check_outputs(report=report, output_params=output_params)
+    check_outputs({"POINTS": points, "IMAGE": image}, report=report, output_params=output_params)
     ground_crs = file_crs(crs, "--crs", points)
     unmatched: dict = {}
     ids, g, im, mask, sigma = load_control(

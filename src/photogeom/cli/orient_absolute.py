@@ -257,7 +257,9 @@ def register(app: typer.Typer) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
         from ..report import Report, print_fit, print_table
 
-        check_outputs(report=report, output_params=output_params)
+        check_outputs(
+            {"SOURCE": source, "TARGET": target}, report=report, output_params=output_params
+        )
         _check_option_combinations(
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
             sigma_source=sigma_source, initial=initial, output_params=output_params,

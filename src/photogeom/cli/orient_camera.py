@@ -143,7 +143,7 @@ def resection(
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
 
-    check_outputs(report=report, output_params=output_params)
+    check_outputs({"POINTS": points, "IMAGE": image}, report=report, output_params=output_params)
 
     io = interior_from_options(
         camera=camera,
@@ -297,7 +297,7 @@ def intersection(
     from ..io import format_points_csv, read_points
     from ..orientation.intersection import space_intersection
 
-    check_outputs(report=report, output=output)
+    check_outputs({f"IMAGES ({p})": p for p in images}, report=report, output=output)
 
     if len(images) < 2:
         raise InputError("space intersection needs >= 2 image files")

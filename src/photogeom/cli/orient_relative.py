@@ -187,7 +187,7 @@ def relative(
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
 
-    check_outputs(report=report, output=output)
+    check_outputs({"POINTS": points, "IMAGE2": image2}, report=report, output=output)
     for path in output_cameras or ():
         check_outputs(output_cameras=path)
 

@@ -204,7 +204,7 @@ def estimate(
     """
     from ..estimation import estimate_transform
 
-    check_outputs(report=report, output_params=output_params)
+    check_outputs({"SOURCE": source, "TARGET": target}, report=report, output_params=output_params)
     model = Model(model).value
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value
