@@ -24,6 +24,7 @@ import csv
 import io
 import os
 import re
+import stat
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -172,6 +173,11 @@ class DelimitedText:
         self._data = data
         self.block_bytes = int(block_bytes)
         self.comments: list[str] = []
+        if data is None and _is_pipe(self.path):
+            # a pipe (`<(cat f.csv)`, `... | photogeom ... /dev/stdin`) can be read once: the
+            # header, the blocks and the diagnostics each open the input, so it is kept
+            with self._open() as fh:
+                data = self._data = fh.read()
         if data is None:
             self.size = _stat_size(self.path)
         else:
@@ -694,6 +700,15 @@ def _shorten(s: str, n: int = 60) -> str:
 def _names(header: Sequence[str], limit: int = 30) -> str:
     shown = ", ".join(header[:limit])
     return shown + (f" ... ({len(header)} in all)" if len(header) > limit else "")
+
+
+def _is_pipe(path: Path) -> bool:
+    """True for a named or anonymous pipe (or a socket): input that can be read only once."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return False  # the reader's own open names the problem
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
 
 
 def _stat_size(path: Path) -> int:
