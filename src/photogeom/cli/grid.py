@@ -552,18 +552,7 @@ def fit(
     ):
         t.add_column(c, justify="right")
     for k, s in stats.items():
-        t.add_row(
-            str(k),
-            str(s["n_observations"]),
-            str(s["n_outliers"]),
-            f"{s['shape'][0]}x{s['shape'][1]}",
-            str(s["supported_nodes"]),
-            _f(s["sigma0"]),
-            _f(s["rms_before"]),
-            _f(s["rms_after"]),
-            _pct(s["reduction"]),
-            _pct(s["reduction_cv"]),
-        )
+        t.add_row(*_grid_row(k, s))
     out = console()
     out.print(t)
     say(f"wrote {len(stats)} grid(s) to {output}", out)
@@ -758,6 +747,24 @@ def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f} %"
 
 
+def _grid_row(image_id, s: dict) -> list[str]:
+    """One image's row of ``grid fit``'s table (printed and in the report) from
+    :meth:`ResidualGrid.to_dict`: id, observations, outliers, nodes, supported nodes,
+    sigma0, RMS before and after (px), reductions (per cent)."""
+    return [
+        str(image_id),
+        str(s["n_observations"]),
+        str(s["n_outliers"]),
+        f"{s['shape'][0]}x{s['shape'][1]}",
+        str(s["supported_nodes"]),
+        _f(s["sigma0"]),
+        _f(s["rms_before"]),
+        _f(s["rms_after"]),
+        _pct(s["reduction"]),
+        _pct(s["reduction_cv"]),
+    ]
+
+
 def _report_html(grids: dict) -> str:
     """The HTML report of ``grid fit``: the per-image table with the numbers and rounding of
     the printed table (RMS in px to 4 decimals, reductions in per cent) and the mean node
@@ -773,23 +780,7 @@ def _report_html(grids: dict) -> str:
         "Finite-element residual grids",
         f"{first.layout.spacing:g} px node spacing; image residuals computed minus observed, px",
     )
-    rows = []
-    for k, g in grids.items():
-        s = g.to_dict()
-        rows.append(
-            [
-                str(k),
-                str(s["n_observations"]),
-                str(s["n_outliers"]),
-                f"{s['shape'][0]}x{s['shape'][1]}",
-                str(s["supported_nodes"]),
-                _f(s["sigma0"]),
-                _f(s["rms_before"]),
-                _f(s["rms_after"]),
-                _pct(s["reduction"]),
-                _pct(s["reduction_cv"]),
-            ]
-        )
+    rows = [_grid_row(k, g.to_dict()) for k, g in grids.items()]
     rep.add_table(
         "Per image",
         [
