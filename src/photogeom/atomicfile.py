@@ -96,6 +96,54 @@ def _temporary_name(directory: Path, name: str, tail: str) -> Path:
     return directory / f".{name}{tail}"
 
 
+def _create_temporary(given: Path, target: Path) -> tuple[int, Path, os.stat_result | None]:
+    """Create a new temporary file beside ``target`` (``O_EXCL``, mode 0666 minus the umask,
+    as ``open(path, "w")``; the name by :func:`_temporary_name`).
+
+    Parameters
+    ----------
+    given : Path
+        The destination as the user named it (for messages).
+    target : Path
+        The destination with symbolic links resolved (:func:`_destination`).
+
+    Returns
+    -------
+    fd : int
+        The open file descriptor (write only).
+    tmp : Path
+        The temporary file's path.
+    old : os.stat_result or None
+        The status of the file ``target`` will replace (for :func:`_take_over`); None when
+        there is none.
+
+    Raises
+    ------
+    OutputError
+        Naming ``given``, when the destination or the folder cannot be used.
+    """
+    directory = target.parent if str(target.parent) else Path(".")
+    try:
+        old = target.stat()
+    except FileNotFoundError:
+        old = None
+    except OSError as exc:
+        raise _failure(given, exc) from exc
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
+        try:
+            # 0o666: the kernel applies the umask, exactly as for open(path, "w")
+            return os.open(tmp, flags, 0o666), tmp, old
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise _failure(given, exc) from exc
+    raise OutputError(  # pragma: no cover - 100 collisions of 48 random bits
+        f"cannot write {given}: no free temporary file name"
+    )
+
+
 def _take_over(fd: int, old: os.stat_result | None) -> None:
     """Give the new file ``fd`` the owner, group and mode of the file it replaces.
 
@@ -204,27 +252,7 @@ class _Staged:
         self.target = target
         self.tmp: Path | None = None
         self.backup: Path | None = None
-        directory = target.parent if str(target.parent) else Path(".")
-        old = None
-        try:
-            old = target.stat()
-        except FileNotFoundError:
-            pass
-        except OSError as exc:
-            raise _failure(given, exc) from exc
-        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
-        for _ in range(100):
-            tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
-            try:
-                # 0o666: the kernel applies the umask, exactly as for open(path, "w")
-                fd = os.open(tmp, flags, 0o666)
-                break
-            except FileExistsError:
-                continue
-            except OSError as exc:
-                raise _failure(given, exc) from exc
-        else:  # pragma: no cover - 100 collisions of 48 random bits
-            raise OutputError(f"cannot write {given}: no free temporary file name")
+        fd, tmp, old = _create_temporary(given, target)
         self.tmp = tmp
         try:
             with os.fdopen(fd, "wb") as fh:

@@ -620,26 +620,11 @@ def _atomic_target(dst: Path):
     succeeds (removed otherwise): the policy of :mod:`photogeom.atomicfile` (mode of a plain
     ``open``, symbolic links followed, read-only files refused, ``OutputError`` naming the
     file) for files written by a library that needs a path."""
-    from ..atomicfile import _failure, _fsync_directory, _take_over, _temporary_name
+    from ..atomicfile import _create_temporary, _failure, _fsync_directory, _take_over
 
     given, target = _cloud_destination(dst)
     directory = target.parent if str(target.parent) else Path(".")
-    try:
-        old = target.stat()
-    except FileNotFoundError:
-        old = None
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
-    for _ in range(100):
-        tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
-        try:
-            fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask, as open() does
-            break
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise _failure(given, exc) from exc
-    else:  # pragma: no cover - 100 collisions of 48 random bits
-        raise PhotogeomError(f"cannot write {given}: no free temporary file name")
+    fd, tmp, old = _create_temporary(given, target)
     try:
         _take_over(fd, old)
         os.close(fd)

@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError, PhotogeomError
+from ..errors import FileFormatError, InputError
 from .csvblocks import DelimitedText
 
 #: Coordinate column sets tried, in this order, when none is given.
@@ -983,9 +983,7 @@ class PointWriter:
         :mod:`photogeom.atomicfile` (symbolic links followed, read-only files and missing
         directories refused, the mode, owner and group of a replaced file kept, 0666 minus
         umask for a new one; a device or a named pipe written in place)."""
-        import secrets
-
-        from ..atomicfile import _destination, _failure, _stream, _take_over, _temporary_name
+        from ..atomicfile import _create_temporary, _destination, _failure, _stream, _take_over
 
         given, target = _destination(self.path)
         self._given, self._target = given, target
@@ -996,25 +994,7 @@ class PointWriter:
                 raise _failure(given, exc) from exc
             self._direct = True
             return
-        try:
-            old = target.stat()
-        except FileNotFoundError:
-            old = None
-        except OSError as exc:
-            raise _failure(given, exc) from exc
-        directory = target.parent if str(target.parent) else Path(".")
-        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
-        for _ in range(100):
-            tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
-            try:
-                fd = os.open(tmp, flags, 0o666)  # the kernel applies the umask
-                break
-            except FileExistsError:
-                continue
-            except OSError as exc:
-                raise _failure(given, exc) from exc
-        else:  # pragma: no cover - 100 collisions of 48 random bits
-            raise PhotogeomError(f"cannot write {given}: no free temporary file name")
+        fd, tmp, old = _create_temporary(given, target)
         self._tmp = str(tmp)
         try:
             _take_over(fd, old)
