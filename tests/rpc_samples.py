@@ -33,3 +33,22 @@ def ikonos_points(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndar
     h = rng.uniform(*IKONOS.height_range, n)
     lon, lat = IKONOS.localize(cols, rows, h)
     return np.column_stack([lon, lat, h]), np.column_stack([cols, rows])
+
+
+def unit_rpc_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coefficients of the simplest RPC: line = normalised latitude, sample = normalised
+    longitude, denominators 1.
+
+    Returns
+    -------
+    line_num, den, samp_num : ndarray, shape (20,)
+        Line numerator, denominator (for line and sample) and sample numerator, in the
+        standard term order.
+    """
+    line_num = np.zeros(20)
+    line_num[2] = 1.0
+    den = np.zeros(20)
+    den[0] = 1.0
+    samp_num = np.zeros(20)
+    samp_num[1] = 1.0
+    return line_num, den, samp_num

@@ -2,28 +2,24 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import photogeom as pg
 from photogeom.rpc.model import RPC
 
-
-def _rpc_tables():
-    line_num = np.zeros(20)
-    line_num[2] = 1.0
-    den = np.zeros(20)
-    den[0] = 1.0
-    samp_num = np.zeros(20)
-    samp_num[1] = 1.0
-    return line_num, den, samp_num
+sys.path.insert(0, str(Path(__file__).parent))
+from rpc_samples import unit_rpc_tables
 
 
 def test_rpc_copies_its_coefficients_and_correction():
     # before: line_num etc. were views of the caller's arrays while the stacked copy the
     # model computes with was not: after line_num[2] = 2.0 the RPC showed line_num[2] == 2
     # but still projected with 1; and the caller's correction array was made read-only
-    line_num, den, samp_num = _rpc_tables()
+    line_num, den, samp_num = unit_rpc_tables()
     correction = np.zeros((2, 3))
     rpc = RPC(1000, 1000, 45, 7, 100, 1000, 1000, 0.1, 0.1, 500,
               line_num, den, samp_num, den, correction=correction)
@@ -39,7 +35,7 @@ def test_rpc_copies_its_coefficients_and_correction():
 def test_rpc_direct_model_copies_its_coefficients():
     from photogeom.rpc.model import DirectModel
 
-    line_num, den, samp_num = _rpc_tables()
+    line_num, den, samp_num = unit_rpc_tables()
     d = DirectModel(line_num, den, samp_num, den)
     line_num[2] = 7.0
     assert d.lon_num[2] == 1.0

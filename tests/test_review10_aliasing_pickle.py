@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import copy
 import pickle
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,14 +14,12 @@ import photogeom as pg
 from photogeom.imagecoords import PixelSystem
 from photogeom.rpc.model import RPC
 
+sys.path.insert(0, str(Path(__file__).parent))
+from rpc_samples import unit_rpc_tables
+
 
 def _rpc():
-    line_num = np.zeros(20)
-    line_num[2] = 1.0
-    den = np.zeros(20)
-    den[0] = 1.0
-    samp_num = np.zeros(20)
-    samp_num[1] = 1.0
+    line_num, den, samp_num = unit_rpc_tables()
     return RPC(1000, 1000, 45, 7, 100, 1000, 1000, 0.1, 0.1, 500,
                line_num, den, samp_num, den, correction=np.zeros((2, 3)))
 

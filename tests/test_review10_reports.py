@@ -6,24 +6,16 @@ from __future__ import annotations
 import html
 import json
 import re
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+sys.path.insert(0, str(Path(__file__).parent))
+from html_tables import table_rows
+
 W, H = 300, 200
-
-
-def _rows(text: str) -> dict[str, list[str]]:
-    """Table rows of an HTML report: first cell -> the other cells (text)."""
-    rows = {}
-    for row in re.findall(r"<tr>(.*?)</tr>", text, flags=re.S):
-        cells = [
-            html.unescape(re.sub(r"<[^>]+>", "", c)).strip()
-            for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", row, flags=re.S)
-        ]
-        if cells:
-            rows[cells[0]] = cells[1:]
-    return rows
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +44,7 @@ def test_grid_fit_report_shows_the_printed_numbers(cli, residual_csv, tmp_path):
     code, printed, err = cli(*args, "-o", tmp_path / "g.npz", "--report", rep)
     assert code == 0, err
     page = rep.read_text(encoding="utf-8")
-    rows = _rows(page)
+    rows = table_rows(page)
     for image, s in stats.items():
         row = rows[image]
         assert row[4:9] == [
@@ -107,7 +99,7 @@ def test_grid_report_reductions_in_per_cent_as_grid_evaluate_prints_them(cli, tm
         "grid", "report", *common, "--spacing", "1000", "--spacings", "500,1000", "-o", out
     )
     assert code == 0, err
-    rows = _rows(out.read_text(encoding="utf-8"))
+    rows = table_rows(out.read_text(encoding="utf-8"))
     for label, printed_label in (
         ("RMS (px)", "RMS"),
         ("mean length (px)", "mean length"),
@@ -142,7 +134,7 @@ def test_relative_report_prints_the_w_of_the_console_and_the_model_orientations(
                          "--report", rep)  # fmt: skip
     assert code == 0, err
     page = rep.read_text(encoding="utf-8")
-    rows = _rows(page)
+    rows = table_rows(page)
     printed = {
         m.group(1): m.group(2)
         for m in re.finditer(r"^  (P\d+) +\S+ +(\S+) +(?:used|left out)$", out, flags=re.M)
@@ -226,7 +218,7 @@ def test_bundle_report_of_a_saved_record_names_the_adjustment(cli, tmp_path):
     out = tmp_path / "again.html"
     code, _, err = cli("bundle", "report", record, "-o", out)
     assert code == 0, err
-    rows = _rows(out.read_text(encoding="utf-8"))
+    rows = table_rows(out.read_text(encoding="utf-8"))
     assert rows["adjusted by"] == [f"photogeom bundle adjust {block} --free f --result {record}"]
 
 
@@ -244,7 +236,7 @@ def test_bundle_report_summary_has_the_digits_of_the_printed_summary(cli, tmp_pa
     assert code == 0, err
     rep_text = rep.read_text(encoding="utf-8")
     page = html.unescape(re.sub(r"<[^>]+>", " ", rep_text))
-    rows = _rows(rep.read_text(encoding="utf-8"))
+    rows = table_rows(rep.read_text(encoding="utf-8"))
     sigma0 = re.search(r"sigma0 a posteriori (\S+) \(a priori", out).group(1)
     assert rows["sigma0 a posteriori"] == [sigma0]
     rms = re.search(r"RMS (\S+) px; GSD", out).group(1)
@@ -318,7 +310,7 @@ def test_cloud_register_console_and_report_show_the_same_parameters(cli, tmp_pat
     code, out, err = cli("cloud", "register", src, dst, "--check-every", "10", "--scheduler",
                          "sync", "--report", rep)  # fmt: skip
     assert code == 0, err
-    rows = _rows(rep.read_text(encoding="utf-8"))
+    rows = table_rows(rep.read_text(encoding="utf-8"))
     tr = re.search(r"translation (\S+), (\S+), (\S+) m\n  std. dev. (\S+), (\S+), (\S+) m", out)
     for k, name in enumerate(("tx", "ty", "tz")):
         assert rows[name][:2] == [tr.group(1 + k), tr.group(4 + k)]

@@ -587,19 +587,12 @@ def test_jpeg_without_a_resolution_does_not_get_72_dpi(tmp_path):
 
 def _report_rows(path) -> dict:
     """The rows of the HTML report's tables: first cell -> the other cells' text."""
-    import html
-    import re
+    import sys
 
-    text = path.read_text()
-    rows = {}
-    for row in re.findall(r"<tr>(.*?)</tr>", text, flags=re.S):
-        cells = [
-            html.unescape(re.sub(r"<[^>]+>", "", c)).strip()
-            for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", row, flags=re.S)
-        ]
-        if cells:
-            rows[cells[0]] = cells[1:]
-    return rows
+    sys.path.insert(0, str(Path(__file__).parent))
+    from html_tables import table_rows
+
+    return table_rows(path.read_text())
 
 
 def test_grid_report_shows_the_per_axis_numbers_of_grid_evaluate(cli, tmp_path):
