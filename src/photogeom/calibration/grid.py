@@ -1024,6 +1024,15 @@ def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):
     return s_obs_new, s_c_new, state["its"], system, system.solve(l)
 
 
+def _reporting(items: list, report: Callable[[int, int], None]):
+    """``items`` one by one, calling ``report(done, total)`` before the first and after each
+    (when the next is asked for: after the caller's work on it)."""
+    report(0, len(items))
+    for done, item in enumerate(items, 1):
+        yield item
+        report(done, len(items))
+
+
 def fit_grids(
     per_image: dict,
     image_size,
@@ -1065,15 +1074,10 @@ def fit_grids(
         size = image_size[key] if isinstance(image_size, dict) else image_size
         _image_inputs(uv, res, size, spacing, min_obs, f"image {key}: ")
         items.append((key, uv, res, size))
-    if callable(progress):
-        out = {}
-        progress(0, len(items))
-        for done, (key, uv, res, size) in enumerate(items, 1):  # images, one system each
-            out[key] = fit_grid(uv, res, size, spacing, image_id=key, **options)
-            progress(done, len(items))
-        return out
     it = items
-    if progress:
+    if callable(progress):
+        it = _reporting(items, progress)
+    elif progress:
         from rich.progress import track
 
         it = track(items, description="fitting residual grids", transient=True)
