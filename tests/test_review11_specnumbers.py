@@ -5,8 +5,16 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+import pytest
+
+import photogeom as pg
 from photogeom.examples import get
+from photogeom.examples.grid import PUBLISHED as EXAMPLE_STUDY
 from photogeom.examples.transforms import agreement
+from photogeom.report import Report
+from photogeom.report.grid_study import PUBLISHED as REPORT_STUDY
+from photogeom.simulate import PRESETS
 
 # 02-transformations.md, worked examples 1-3 and 6-10, as printed there (typed out again here,
 # independent of the example's own table of published values)
@@ -63,10 +71,60 @@ def test_agreement_names_truncation_and_still_refuses_a_wrong_number():
 
 
 def test_lecture_models_report_has_the_comparison_table():
-    from photogeom.report import Report
-
     rep = Report("examples")
     get("lecture-models").run(rep)
     html = rep.to_html()
     assert "-0.1677312" in html and "10.5965" in html and "truncated (not rounded)" in html
 
+
+
+# --- spec numbers that had no test on the quantity the spec names ----------------------------
+
+
+@pytest.mark.parametrize(
+    "name,width,height,pixel_mm,gsd_m,images",
+    [
+        # 05-residual-grid.md, table of the study (also 06-bundle-adjustment.md, Simulation)
+        ("ILCE-7RM2", 7952, 5304, 0.0045, 0.04, 250),
+        ("FC6310", 4864, 3648, 0.0026, 0.02, 195),
+        ("FC300S", 4000, 3000, 0.0016, 0.025, 82),
+    ],
+)
+def test_simulator_presets_are_the_study_cameras(name, width, height, pixel_mm, gsd_m, images):
+    p = PRESETS[name]
+    assert (p.width, p.height) == (width, height)
+    assert p.pixel_size == pixel_mm and p.gsd == gsd_m and p.study_images == images
+    cam = p.nominal_camera()
+    assert (cam.width, cam.height) == (width, height)
+
+
+def test_published_study_numbers_shown_beside_ours_are_the_spec_table():
+    # step before -> after (GSD), grid used, optimal grid (models): 05-residual-grid.md
+    assert REPORT_STUDY == {
+        "ILCE-7RM2": ("25 -> 10 (one model)", "100", "200 px (7 of 11)"),
+        "FC6310": ("3.2 -> 2.7 (mean)", "70", "150 px (7 of 10)"),
+        "FC300S": ("1.4 -> 1.2 (mean)", "70", "150 px (2 of 5)"),
+    }
+    assert EXAMPLE_STUDY["ILCE-7RM2"].startswith("25 -> 10 GSD (one model)")
+    assert EXAMPLE_STUDY["ILCE-7RM2"].endswith("optimal 200 px")
+    assert EXAMPLE_STUDY["FC300S"].startswith("1.4 -> 1.2 GSD (mean)")
+    assert EXAMPLE_STUDY["FC300S"].endswith("optimal 150 px")
+
+
+def test_digital_camera_example_needs_x0_1160_not_the_slides_1162():
+    io = pg.InteriorOrientation.digital(10000, 3840, 6912, pixel_size=0.012)
+    ground = np.array([1300.0, 650.0, 169.0])
+    right = pg.project(ground, io, pg.ExteriorOrientation.from_degrees(1160, 792, 1500, 1.5, 2, 4),
+                       system="pixel")
+    typo = pg.project(ground, io, pg.ExteriorOrientation.from_degrees(1162, 792, 1500, 1.5, 2, 4),
+                      system="pixel")
+    assert round(right[0], 1) == 5152.8 and round(right[1], 1) == 8345.3
+    assert round(typo[0], 1) != 5152.8  # 5137.6: the slide's 1162 is the typo
+
+
+def test_dlt_example_l5_to_l8_come_from_y0_minus_0_12_not_minus_0_012():
+    eo = pg.ExteriorOrientation.from_degrees(1114, 862, 1600, 2, 3, 10)
+    L = pg.dlt_from_orientation(pg.InteriorOrientation(152.14, 0.008, -0.12), eo)
+    assert [round(v, 4) for v in L[4:8]] == [-0.0162, 0.0921, 0.0041, -67.9431]
+    L_typo = pg.dlt_from_orientation(pg.InteriorOrientation(152.14, 0.008, -0.012), eo)
+    assert round(L_typo[7], 4) != -67.9431  # -67.8351
