@@ -128,3 +128,12 @@ def test_dlt_example_l5_to_l8_come_from_y0_minus_0_12_not_minus_0_012():
     assert [round(v, 4) for v in L[4:8]] == [-0.0162, 0.0921, 0.0041, -67.9431]
     L_typo = pg.dlt_from_orientation(pg.InteriorOrientation(152.14, 0.008, -0.012), eo)
     assert round(L_typo[7], 4) != -67.9431  # -67.8351
+
+
+def test_comparison_tables_print_no_negative_zero():
+    # before: the fiducials comparison printed v_y of mark 3 (-1.9e-7 mm) as '-0.0000' beside
+    # the published '0.0', where the library's tables print a value that rounds to zero unsigned
+    text = get("fiducials").run(None)
+    (row,) = [r for r in _comparison_rows(text) if r[0] == "v_y control 3 [mm]"]
+    assert row[1:] == ("0.0000", "0.0", "yes")
+    assert not re.search(r"\s-0\.0+\s", text.split("Comparison with the lecture")[1])

@@ -24,7 +24,7 @@ from ..estimation import estimate_transform
 from ..imagecoords import fiducial_to_image, pixel_to_image
 from ..io import read_point_pairs
 from ..report.console import fit_text
-from ..report.format import as_text_table
+from ..report.format import as_text_table, fmt_fixed
 from ..rotation import opk_matrix
 from ..transforms import (
     Affine2D,
@@ -91,7 +91,7 @@ def _comparison(rows: Sequence[tuple[str, float, str]]) -> tuple[list, list]:
     cols = ["quantity", "photogeom", "published", "agrees to the printed digits"]
     out = []
     for name, value, pub in rows:
-        out.append([name, f"{value:.{_decimals(pub) + 3}f}", pub, agreement(value, pub)])
+        out.append([name, fmt_fixed(value, _decimals(pub) + 3), pub, agreement(value, pub)])
     return cols, out
 
 
