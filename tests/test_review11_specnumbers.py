@@ -137,3 +137,16 @@ def test_comparison_tables_print_no_negative_zero():
     (row,) = [r for r in _comparison_rows(text) if r[0] == "v_y control 3 [mm]"]
     assert row[1:] == ("0.0000", "0.0", "yes")
     assert not re.search(r"\s-0\.0+\s", text.split("Comparison with the lecture")[1])
+
+
+def test_grid_study_example_shows_every_camera_of_the_study_table():
+    # before: the FC6310 row of the study (3.2 -> 2.7 GSD, optimal 150 px) was not shown
+    text = get("grid-study").run(None)
+    for name, published in (
+        ("ILCE-7RM2", "25 -> 10 GSD (one model); optimal 200 px"),
+        ("FC6310", "3.2 -> 2.7 GSD (mean); optimal 150 px"),
+        ("FC300S", "1.4 -> 1.2 GSD (mean); optimal 150 px"),
+    ):
+        (line,) = [row for row in text.splitlines() if row.startswith(name)]
+        assert line.rstrip().endswith(published)
+        assert re.search(r"\d+\.\d\d -> \d+\.\d\d", line)  # ours beside
