@@ -26,7 +26,7 @@ from ..camera import (
 from ..camera.dlt import NAMES as DLT_NAMES
 from ..orientation.resection import space_resection
 from ..report.console import fit_text
-from ..report.format import as_text_table
+from ..report.format import as_text_table, fmt_fixed
 from . import Example
 
 GROUND = np.array([1300.0, 650.0, 169.0])
@@ -57,7 +57,7 @@ def _agrees(value: float, published: str) -> str:
 def _compare(rows) -> tuple[list[str], list[list[str]], str]:
     cols = ["quantity", "photogeom", "published", "agrees to the printed digits"]
     table = [
-        [name, f"{value:.{_decimals(pub) + 3}f}", pub, _agrees(value, pub)]
+        [name, fmt_fixed(value, _decimals(pub) + 3), pub, _agrees(value, pub)]
         for name, value, pub in rows
     ]
     n_ok = sum(r[3] == "yes" for r in table)

@@ -6,8 +6,10 @@ import textwrap
 
 from . import Example
 
+#: The study's published steps and optimal grids (05-residual-grid.md), one per camera.
 PUBLISHED = {
     "ILCE-7RM2": "25 -> 10 GSD (one model); optimal 200 px",
+    "FC6310": "3.2 -> 2.7 GSD (mean); optimal 150 px",
     "FC300S": "1.4 -> 1.2 GSD (mean); optimal 150 px",
 }
 
@@ -17,7 +19,7 @@ def run_grid_study(report=None) -> str:
     from ..calibration import run_study
 
     rows, results = [], []
-    for name in ("ILCE-7RM2", "FC300S"):
+    for name in PUBLISHED:
         r = run_study(name, strips=1, images_per_strip=6, sweep=(100, 200, 500, 2000))
         ev = r["evaluation"]
         results.append(r)
@@ -42,8 +44,9 @@ def run_grid_study(report=None) -> str:
         "study",
     ]
     intro = (
-        "Simulated blocks of the study's unstable camera (ILCE-7RM2, strong image-variant "
-        "local fields) and a stable one (FC300S, weak fields), one strip of 6 images each: "
+        "Simulated blocks of the study's three cameras: the unstable one (ILCE-7RM2, strong "
+        "image-variant local fields) and the stable ones (FC6310, FC300S, weak fields), one "
+        "strip of 6 images each: "
         "bundle adjustment with Brown self-calibration, 100 px residual grids per image "
         "from the tie-point residuals, observations corrected, re-adjusted with the "
         "orientation and calibration fixed. Steps between consecutive stereo models (about "

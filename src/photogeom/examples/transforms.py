@@ -3,7 +3,11 @@
 * ``fiducials`` - interior orientation of an analog photo: 2D similarity from four fiducial
   marks (control), checked on four others (lecture example 4);
 * ``two-images`` - six tie points on two digital images: 2D similarity, affine and
-  projective (lecture example 5).
+  projective (lecture example 5);
+* ``lecture-models`` - the lecture's examples with given parameters: parametric forms of a
+  2D similarity and affine (1, 2), the three 2D models applied to points (3), fiducial and
+  pixel to image coordinates (6, 7), the rotation matrix and a 3D similarity (8), a 3D affine
+  (9) and a 3D projective (10).
 
 Each example prints the fit and compares it with the published numbers, digit by digit.
 """
@@ -17,9 +21,19 @@ import numpy as np
 
 from .. import datasets
 from ..estimation import estimate_transform
+from ..imagecoords import fiducial_to_image, pixel_to_image
 from ..io import read_point_pairs
 from ..report.console import fit_text
-from ..report.format import as_text_table
+from ..report.format import as_text_table, fmt_fixed
+from ..rotation import opk_matrix
+from ..transforms import (
+    Affine2D,
+    Affine3D,
+    Projective2D,
+    Projective3D,
+    Similarity2D,
+    Similarity3D,
+)
 from . import Example
 
 # Published values (analytical photogrammetry lecture; see the transformations spec).
@@ -58,12 +72,17 @@ def agrees(value: float, published: str) -> bool:
 
 def agreement(value: float, published: str) -> str:
     """``"yes"``; ``"yes, rounded via R"`` when the published figure results from rounding
-    twice (first to one more digit, R); else ``"NO"``."""
+    twice (first to one more digit, R); ``"yes, truncated (not rounded)"`` when it is the
+    value cut off after its printed digits; else ``"NO"``."""
     if agrees(value, published):
         return "yes"
-    via = round(float(value), _decimals(published) + 1)
+    decimals = _decimals(published)
+    via = round(float(value), decimals + 1)
     if agrees(via, published):
         return f"yes, rounded via {via:g}"
+    cut = np.trunc(float(value) * 10.0**decimals) / 10.0**decimals
+    if abs(cut - float(published)) <= 1e-9 * 10.0**-decimals:
+        return "yes, truncated (not rounded)"
     return "NO"
 
 
@@ -72,7 +91,7 @@ def _comparison(rows: Sequence[tuple[str, float, str]]) -> tuple[list, list]:
     cols = ["quantity", "photogeom", "published", "agrees to the printed digits"]
     out = []
     for name, value, pub in rows:
-        out.append([name, f"{value:.{_decimals(pub) + 3}f}", pub, agreement(value, pub)])
+        out.append([name, fmt_fixed(value, _decimals(pub) + 3), pub, agreement(value, pub)])
     return cols, out
 
 
@@ -219,6 +238,125 @@ def run_two_images(report=None) -> str:
         report.add_table("Comparison with the published numbers", cols, table, note=verdict)
     return "\n\n".join(blocks)
 
+# --- examples 1-3 and 6-10: models with given parameters ---------------------------------------
+
+#: The points of lecture example 3, (x', y').
+EX3_POINTS = np.array([(113.02, 0.002), (-112.99, 112.99), (113.01, -113.01)])
+#: Published results of lecture examples 1-3 and 6-10 (02-transformations.md).
+EX1_PARAMETERS = {"a": "0.9962", "b": "-0.0872", "c": "125", "d": "130"}
+EX2_PARAMETERS = {
+    "a1": "0.9472",
+    "a2": "-0.0738",
+    "b1": "0.0898",
+    "b2": "1.0260",
+    "a3": "125",
+    "b3": "130",
+}
+EX3_POINTS_OUT = {
+    "similarity": (("243.1196", "152.6060"), ("-5.488", "220.3920"), ("265.712", "39.5920")),
+    "affine": (("232.2388", "133.7531"), ("18.6595", "241.5420"), ("233.3595", "14.6380")),
+    "projective": (("173.4458", "99.8925"), ("-4.2182", "-54.6040"), ("36.3235", "2.2785")),
+}
+EX6_IMAGE = ("83.094", "63.474", "-152")
+EX7_IMAGE = ("-41.808", "-31.548", "-120")
+EX8_MATRIX = (
+    ("0.620885", "0.7832956", "-0.030816"),
+    ("-0.739942", "0.5985935", "0.306874"),
+    ("0.258819", "-0.1677312", "0.951251"),
+)
+EX8_POINT = ("270.8707", "1501.3692", "443.5540")
+EX9_ROWS = [[0.6, -0.7, 0.3, -200.0], [0.8, 0.6, 0.2, 136.0], [-0.1, 0.3, 0.9, 189.0]]
+EX9_POINT = ("270", "1574.4", "339.2")
+EX10_HOMOGENEOUS = ("270", "1574.4", "339.2", "25.48")
+EX10_POINT = ("10.5965", "61.7896", "13.3124")
+
+
+def _rows(label: str, values, published) -> list[tuple[str, float, str]]:
+    """Comparison rows ``(label name, value, published)`` of flat values and names."""
+    flat = np.asarray(values, dtype=float).reshape(-1)
+    return [(f"{label} {name}", float(v), pub) for (name, pub), v in zip(published, flat)]
+
+
+def run_lecture_models(report=None) -> str:
+    """Lecture examples 1-3 and 6-10: models with given parameters, against the printed
+    numbers (parameters unitless, coordinates mm or the lecture's units, angles deg)."""
+    sim = Similarity2D.from_textbook(1.0, 5.0, 125.0, 130.0, unit="deg")
+    aff = Affine2D.from_textbook(0.95, 1.03, 5.0, 0.5, 125.0, 130.0, unit="deg")
+    models3 = {
+        "similarity": Similarity2D(1.0, -0.2, 130.1, 130.0),
+        "affine": Affine2D(0.94, -0.01, 126.0, 0.05, 1.054, 128.1),
+        "projective": Projective2D.from_parameters(
+            [0.94, -0.01, 126.0, 0.05, 1.054, 128.1, 0.003, -0.045]
+        ),
+    }
+    fid = fiducial_to_image((83.106, 63.466), (0.012, -0.008), 152.0)
+    pix = pixel_to_image(
+        (356.0, 9541.0), pixel_size=0.012, principal_point=(3840.0, 6912.0), focal_length=120.0
+    )
+    M = opk_matrix(*np.radians([10.0, 15.0, 50.0]))
+    sim3 = Similarity3D.from_angles(
+        1.0, 10.0, 15.0, 50.0, [-200.0, 136.0, 189.0], convention="transposed", unit="deg"
+    )
+    point3 = np.array([1354.0, 547.0, 135.0])
+    aff3 = Affine3D.from_matrix(EX9_ROWS)
+    proj3 = Projective3D(np.vstack([EX9_ROWS, [0.01, 0.02, 0.0, 1.0]]))
+
+    rows = _rows("1: similarity", [sim.a, sim.b, sim.c, sim.d], EX1_PARAMETERS.items())
+    rows += _rows(
+        "2: affine",
+        [getattr(aff, n) for n in EX2_PARAMETERS],
+        EX2_PARAMETERS.items(),
+    )
+    for name, model in models3.items():
+        out = model.apply(EX3_POINTS)
+        for i, pub in enumerate(EX3_POINTS_OUT[name]):
+            rows += _rows(f"3: {name}, point {i + 1}", out[i], zip(("x", "y"), pub))
+    rows += _rows("6: fiducial -> image [mm]", fid, zip(("x", "y", "z"), EX6_IMAGE))
+    rows += _rows("7: pixel -> image [mm]", pix, zip(("x", "y", "z"), EX7_IMAGE))
+    names = [f"m{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+    rows += _rows("8: M", M, zip(names, np.ravel(EX8_MATRIX)))
+    rows += _rows("8: M.T x + t", sim3.apply(point3), zip(("X", "Y", "Z"), EX8_POINT))
+    rows += _rows("9: affine", aff3.apply(point3), zip(("X", "Y", "Z"), EX9_POINT))
+    rows += _rows(
+        "10: homogeneous",
+        proj3.apply_homogeneous(point3),
+        zip(("X", "Y", "Z", "W"), EX10_HOMOGENEOUS),
+    )
+    rows += _rows("10: projective", proj3.apply(point3), zip(("X", "Y", "Z"), EX10_POINT))
+
+    intro = (
+        "The lecture's examples with given parameters: 1, the parametric form of a 2D "
+        "similarity (theta = 5 deg, s = 1, shifts 125 and 130 mm); 2, of a 2D affine (sx 0.95, "
+        "sy 1.03, e 0.5 deg, theta 5 deg); 3, a similarity, an affine and a projective "
+        "applied to three points; 6, a fiducial point to image coordinates (principal point "
+        "(0.012, -0.008) mm, f = 152 mm; the slide's 83.94 is a typo); 7, pixel (col 356, row "
+        "9541) to image coordinates (principal point col 3840, row 6912, 12 um, f = 120 mm); "
+        "8, M(omega, phi, kappa) of 10/15/50 deg and X = M.T x + t (the transposed "
+        "convention); 9, a 3D affine; 10, a 3D projective."
+    )
+    cols, table = _comparison(rows)
+    n_ok = sum(r[3].startswith("yes") for r in table)
+    verdict = f"{n_ok} of {len(table)} published numbers reproduced to the printed digits."
+    note = (
+        "m32 = -0.16773126 is printed -0.1677312 (cut off after 7 decimals; every other "
+        "element is rounded)."
+    )
+    text = "\n\n".join(
+        [
+            textwrap.fill(intro, 100),
+            "Comparison with the lecture:",
+            as_text_table(cols, table),
+            verdict,
+            note,
+        ]
+    )
+    if report is not None:
+        report.add_text("Lecture examples 1-3 and 6-10", intro)
+        report.add_table(
+            "Comparison with the published numbers", cols, table, note=f"{verdict} {note}"
+        )
+    return text
+
 
 EXAMPLES = [
     Example(
@@ -231,5 +369,10 @@ EXAMPLES = [
         "two-images",
         "Two images: 2D similarity, affine and projective from 6 tie points (lecture example 5)",
         run_two_images,
+    ),
+    Example(
+        "lecture-models",
+        "Lecture examples 1-3, 6-10: 2D and 3D models, image coordinates, rotation",
+        run_lecture_models,
     ),
 ]
