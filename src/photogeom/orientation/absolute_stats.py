@@ -623,7 +623,9 @@ def _closed_form_setup(
         )
         aug = None
         if ratio < thr or nu <= 3:
-            lq, kq = _perpendicular_pair(xb[None], np.ones((1, nu), dtype=bool))
+            lq, kq = _perpendicular_pair(
+                xb[None], Xb[None], np.ones((1, nu), dtype=bool), (dx[idx] * dX[idx])[None]
+            )
             lq, kq = int(lq[0]), int(kq[0])
             xp = np.cross(xb[lq], xb[kq])
             c = np.cross(Xb[lq], Xb[kq])
