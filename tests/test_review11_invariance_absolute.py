@@ -40,7 +40,7 @@ def test_closed_form_of_a_coplanar_set_does_not_depend_on_the_point_order(source
         assert fit.scale == pytest.approx(ref.scale, rel=1e-12)
         assert fit.sigma0 == pytest.approx(ref.sigma0, rel=1e-9)
         got = np.array([fit.std_errors[k] for k in sorted(fit.std_errors)])
-        np.testing.assert_allclose(got, se, rtol=1e-6)
+        np.testing.assert_allclose(got, se, rtol=1e-8)
         np.testing.assert_allclose(fit.residuals, ref.residuals[perm], rtol=0, atol=1e-9)
 
 
@@ -69,3 +69,20 @@ def test_chunked_closed_form_of_a_flat_set_does_not_depend_on_the_point_order():
     fit = pg.absolute_orientation(x[perm], X[perm], "closed-form", statistics=False)
     np.testing.assert_allclose(fit.rotation, ref.rotation, rtol=0, atol=1e-12)
     np.testing.assert_allclose(fit.translation, ref.translation, rtol=1e-13)
+
+
+@pytest.mark.parametrize("offset", [[512_000.0, 5_000_000.0, 100.0], [4.1e6, 1.2e6, 4.7e6]])
+def test_closed_form_std_errors_of_a_far_away_target_equal_the_reduced_ones(offset):
+    # the closed form's standard deviations come from central differences of t = Xg - s R xg:
+    # with the target 5e6 m from the origin, t's rounding (~1e-9 m) over steps of 1e-7 |xg|
+    # put the std error of ty 1.7e-6 (relative) off the reduced problem's; now ~1e-9, as
+    # sigma0 (the data's own precision at that offset)
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(12, 3)) * 50.0
+    x = x - x.mean(axis=0) + 0.3  # a source centroid near its origin: t hangs on Xg alone
+    X = _noisy_target(x, 2)
+    ref = pg.absolute_orientation(x, X, "closed-form")
+    far = pg.absolute_orientation(x, X + np.array(offset), "closed-form")
+    assert far.sigma0 == pytest.approx(ref.sigma0, rel=1e-8)
+    for key, value in ref.std_errors.items():
+        assert far.std_errors[key] == pytest.approx(value, rel=1e-8), key
