@@ -62,3 +62,47 @@ def test_command_line_names_its_option_for_unmatched_ids(cli, tmp_path, command)
     code, out, err = cli(*command, src, dst, "--allow-unmatched", "--json")
     assert code == 0, err
     assert json.loads(out)
+
+
+@pytest.mark.parametrize(
+    ("written", "known"),
+    [(NFD, NFC), ("P\u00a01", "P 1"), ("\uff17", "7x")],
+    ids=["decomposed", "no-break-space", "full-width"],
+)
+def test_csv_block_names_look_alike_ids(tmp_path, written, known):
+    # the error printed 'é' is not one of the point ids, with 'é' among them
+    from photogeom.bundle import read_csv_block
+    from photogeom.errors import FileFormatError
+
+    if known == "7x":  # a full-width 7 against a text id 7 (text column: quoted)
+        known = '"7"'
+    files = {
+        "cameras.csv": "camera,width,height,f\nc,100,80,90\n",
+        "images.csv": "id,camera,X0,Y0,Z0,omega_deg,phi_deg,kappa_deg\n1,c,0,0,10,0,0,0\n",
+        "points.csv": f"id,role,X,Y,Z\nq,tie,0,0,0\n{known},tie,1,1,0\n",
+        "observations.csv": f"image_id,point_id,u,v\n1,q,49.5,39.5\n1,{written},58,31\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    with pytest.raises(FileFormatError) as exc:
+        read_csv_block(tmp_path)
+    msg = str(exc.value)
+    assert "line 3: point_id" in msg
+    assert f"written with other characters: {written!a}" in msg
+
+
+def test_csv_block_unknown_id_without_a_look_alike_has_no_hint(tmp_path):
+    from photogeom.bundle import read_csv_block
+    from photogeom.errors import FileFormatError
+
+    files = {
+        "cameras.csv": "camera,width,height,f\nc,100,80,90\n",
+        "images.csv": "id,camera,X0,Y0,Z0,omega_deg,phi_deg,kappa_deg\n1,c,0,0,10,0,0,0\n",
+        "points.csv": "id,role,X,Y,Z\nq,tie,0,0,0\nr,tie,1,1,0\n",
+        "observations.csv": f"image_id,point_id,u,v\n1,q,49.5,39.5\n1,{NFC},58,31\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    with pytest.raises(FileFormatError) as exc:
+        read_csv_block(tmp_path)
+    assert "other characters" not in str(exc.value)
