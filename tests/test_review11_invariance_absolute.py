@@ -3,6 +3,8 @@ point pairs."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import photogeom as pg
 
@@ -86,3 +88,27 @@ def test_closed_form_std_errors_of_a_far_away_target_equal_the_reduced_ones(offs
     assert far.sigma0 == pytest.approx(ref.sigma0, rel=1e-8)
     for key, value in ref.std_errors.items():
         assert far.std_errors[key] == pytest.approx(value, rel=1e-8), key
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(4, 120),
+    flat=st.sampled_from([0.0, 0.01, 0.2, 1.0]),
+    grid=st.booleans(),
+)
+def test_closed_form_is_invariant_to_the_order_of_the_pairs(seed, n, flat, grid):
+    rng = np.random.default_rng(seed)
+    if grid:  # regular layouts tie many pairs in the source alone
+        k = max(2, int(np.sqrt(n)))
+        g = np.arange(k) * 10.0
+        x = np.array([(a, b, 0.0) for a in g for b in g])
+        x[:, 2] = flat * rng.normal(size=len(x))
+    else:
+        x = rng.normal(size=(n, 3)) * [50.0, 40.0, 50.0 * flat]
+    X = _noisy_target(x, seed % 1000)
+    ref = pg.absolute_orientation(x, X, "closed-form", statistics=False)
+    perm = rng.permutation(len(x))
+    got = pg.absolute_orientation(x[perm], X[perm], "closed-form", statistics=False)
+    np.testing.assert_allclose(got.rotation, ref.rotation, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(got.translation, ref.translation, rtol=0, atol=1e-8)
