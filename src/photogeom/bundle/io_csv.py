@@ -50,6 +50,7 @@ import functools
 import operator
 import os
 import re
+import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -408,8 +409,26 @@ def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what
         k = int(np.flatnonzero(~known)[0])
         raise FileFormatError(
             f"{table.path}, line {table.lines[k]}: {name} {cells[k]!r} is not one of the {what} ids"
+            + _look_alike_hint(cells[k], keys)
         )
     return ids
+
+
+def _look_alike_hint(cell: str, keys: np.ndarray) -> str:
+    """For an unknown text id that prints like a known one but is written with other
+    characters (composed 'é' against 'e' + combining accent, a no-break space, full-width
+    digits: equal compatibility normal forms, NFKC), both spellings escaped; else ''. Ids are
+    compared as written, never merged."""
+    if keys.dtype.kind != "U":
+        return ""
+    form = unicodedata.normalize("NFKC", cell)
+    for key in keys.tolist():
+        if key != cell and unicodedata.normalize("NFKC", key) == form:
+            return (
+                f" (it looks like {key!a} but is written with other characters: {cell!a}; "
+                "write the id alike in both files)"
+            )
+    return ""
 
 
 def _angle_column(table: _Table, base: str) -> tuple[str, str] | None:

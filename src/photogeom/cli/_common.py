@@ -404,7 +404,11 @@ def load_pairs(
             weight_column=weights_col,
             sigma_column=sigma_col,
         )
-    return join_points(src, dst, allow_unmatched=allow_unmatched)
+    try:
+        return join_points(src, dst, allow_unmatched=allow_unmatched)
+    except InputError as exc:  # the library's keyword as the command's option
+        text = str(exc).replace("pass allow_unmatched=True", "give --allow-unmatched")
+        raise InputError(text) from None
 
 
 def check_outputs(inputs: dict[str, Path | None] | None = None, **options: Path | None) -> None:

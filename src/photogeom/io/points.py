@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import os
 import re
+import unicodedata
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -830,10 +831,17 @@ def join_points(
             parts.append(f"only in {s_label}: {_list(only_s)}")
         if only_t:
             parts.append(f"only in {t_label}: {_list(only_t)}")
+        alike = _look_alike(only_s, only_t)
+        if alike:
+            parts.append(
+                "ids that look alike are written with different characters (Unicode forms: "
+                + ", ".join(f"{a!a} in {s_label} vs {b!a} in {t_label}" for a, b in alike)
+                + "); write them alike in both files"
+            )
         if not allow_unmatched:
             raise InputError(
                 "point ids do not match between the files (" + "; ".join(parts) + "); "
-                "fix the ids, or allow unmatched points to leave them out"
+                "fix the ids, or pass allow_unmatched=True to leave them out"
             )
         notes.append("left out, no partner: " + "; ".join(parts))
     si = np.array([k for k, pid in enumerate(source.ids) if pid in t_index], dtype=int)
@@ -890,6 +898,25 @@ def _numeric_weights(weights, label: str) -> np.ndarray:
     if not np.all(np.isfinite(w) & (w > 0)):
         raise InputError(f"{label}: weights must be positive finite numbers")
     return w
+
+
+def _look_alike(a: Sequence[str], b: Sequence[str], limit: int = 5) -> list[tuple[str, str]]:
+    """Pairs of ids from ``a`` and ``b`` that differ as text but not in their compatibility
+    normal form (NFKC: a composed 'é' against 'e' + combining accent, a no-break space, a
+    full-width digit), at most ``limit``: ids are compared as written, never merged."""
+    if not a or not b:
+        return []
+    by_form: dict[str, str] = {}
+    for pid in b:
+        by_form.setdefault(unicodedata.normalize("NFKC", str(pid)), pid)
+    out = []
+    for pid in a:
+        other = by_form.get(unicodedata.normalize("NFKC", str(pid)))
+        if other is not None and other != pid:
+            out.append((pid, other))
+            if len(out) == limit:
+                break
+    return out
 
 
 def _list(ids: Sequence[str], limit: int = 20) -> str:

@@ -996,26 +996,51 @@ def _sym_eigvals(x: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(ev, 0.0, None))
 
 
-def _perpendicular_pair(u: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Indices (l, k) per problem of the two unit vectors closest to perpendicular.
+def _perpendicular_pair(
+    xb: np.ndarray, Xb: np.ndarray, usable: np.ndarray, size: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (l, k) per problem of the pair of points whose unit vectors are closest to
+    perpendicular in both sets: smallest ``(xb_l . xb_k)^2 + (Xb_l . Xb_k)^2``.
 
-    Exhaustive over all pairs for n <= 64; for larger n, ``l`` is the usable point farthest
-    from the centroid's direction set (the first usable one) and ``k`` the point whose unit
-    vector is closest to perpendicular to it (O(n) instead of O(n^2)).
+    Exhaustive over all pairs for n <= 64; for larger n, ``l`` is the usable point with the
+    largest product of its centroid distances ``size = |x'_l| |X'_l|`` and ``k`` the point
+    closest to perpendicular to it (O(n) instead of O(n^2)). Both rules depend on the points,
+    not on their order, and the target term separates pairs that a symmetric source layout
+    (a regular grid) ties; every term is computed alike wherever its pair lies in the input.
+
+    Parameters
+    ----------
+    xb, Xb : numpy.ndarray, shape (B, n, 3)
+        Unit vectors from the centroids (source, target); anything where not usable.
+    usable : numpy.ndarray of bool, shape (B, n)
+    size : numpy.ndarray, shape (B, n)
+        ``|x'_i| |X'_i|`` (squared lengths, m^2 in the units of the points; only its order
+        matters).
     """
-    B, n, _ = u.shape
+    B, n, _ = xb.shape
     if n <= 64:
-        G = np.abs(np.matmul(u, np.swapaxes(u, 1, 2)))
+        def dots(u: np.ndarray) -> np.ndarray:  # elementwise: the same rounding for any order
+            c = (
+                u[:, :, None, 0] * u[:, None, :, 0]
+                + u[:, :, None, 1] * u[:, None, :, 1]
+                + u[:, :, None, 2] * u[:, None, :, 2]
+            )
+            return c * c
+
+        G = dots(xb) + dots(Xb)
         bad = ~(usable[:, :, None] & usable[:, None, :]) | np.eye(n, dtype=bool)[None]
         G = np.where(bad, np.inf, G)
         flat = np.argmin(G.reshape(B, -1), axis=1)
         return flat // n, flat % n
-    first = np.argmax(usable, axis=1)
-    ul = u[np.arange(B), first]
-    dots = np.abs(np.einsum("bni,bi->bn", u, ul))
-    dots = np.where(usable, dots, np.inf)
-    dots[np.arange(B), first] = np.inf
-    return first, np.argmin(dots, axis=1)
+    rows = np.arange(B)
+    first = np.argmax(np.where(usable, size, -np.inf), axis=1)
+    xl, Xl = xb[rows, first], Xb[rows, first]
+    cx = xb[..., 0] * xl[:, None, 0] + xb[..., 1] * xl[:, None, 1] + xb[..., 2] * xl[:, None, 2]
+    cX = Xb[..., 0] * Xl[:, None, 0] + Xb[..., 1] * Xl[:, None, 1] + Xb[..., 2] * Xl[:, None, 2]
+    cost = cx * cx + cX * cX
+    cost = np.where(usable, cost, np.inf)
+    cost[rows, first] = np.inf
+    return first, np.argmin(cost, axis=1)
 
 
 def solve_closed_form(
@@ -1069,7 +1094,7 @@ def solve_closed_form(
     )
     augment = (sv < coplanar_threshold) | (nu <= 3)
     if np.any(augment):
-        l, k = _perpendicular_pair(xb, usable)
+        l, k = _perpendicular_pair(xb, Xb, usable, np.where(usable, dx * dX, 0.0))
         idx = np.arange(B)
         xp = np.cross(xb[idx, l], xb[idx, k])
         Xp = np.cross(Xb[idx, l], Xb[idx, k])
@@ -1148,7 +1173,9 @@ def closed_form_single(
     )
     augment = ratio < coplanar_threshold or nu <= 3
     if augment:
-        l_, k_ = _perpendicular_pair(xb[None], np.ones((1, nu), dtype=bool))
+        l_, k_ = _perpendicular_pair(
+            xb[None], Xb[None], np.ones((1, nu), dtype=bool), (dx_u * dX_u)[None]
+        )
         l_, k_ = int(l_[0]), int(k_[0])
         xp = np.cross(xb[l_], xb[k_])
         Xp = np.cross(Xb[l_], Xb[k_])
@@ -1270,13 +1297,15 @@ def closed_form_sums(
 ) -> ClosedFormSums | None:
     """The sums of the closed form in chunks: the centroids (first pass), then the centroid
     distances, length ratios, ``M M.T``, ``N M.T``, both scatter matrices (coplanarity) and
-    the unit vector closest to perpendicular to the first usable one (second pass).
+    the point farthest from the centroids (second pass); for a (nearly) coplanar set a third
+    pass finds the point closest to perpendicular to it (the plane-normal augmentation,
+    :func:`_perpendicular_pair`: chosen by the points, not by their order).
 
     Two passes are the least: every unit vector ``(X_i - Xg) / |X_i - Xg|`` depends on the
     centroid through its norm, so no sums of powers of the raw coordinates give ``M M.T``,
     ``N M.T`` or the length ratios. The second pass takes every point off the centroid; only
     if some point then lies within :data:`CENTROID_TOLERANCE` of the largest centroid distance
-    (known at the end of the pass) a third pass repeats it with the exact thresholds. The same
+    (known at the end of the pass) another pass repeats it with the exact thresholds. The same
     estimate as :func:`closed_form_single` for n > 64 (its O(n) pair search) to rounding.
     """
     centres = centroid_about_reference(x), centroid_about_reference(X)
@@ -1286,9 +1315,9 @@ def closed_form_sums(
     _, (dx_max, dX_max, dx_min, dX_min) = res
     tx, tX = CENTROID_TOLERANCE * dx_max, CENTROID_TOLERANCE * dX_max
     if dx_min > tx and dX_min > tX:
-        return _finish(res[0], tx, tX, coplanar_threshold)
+        return _finish(res[0], tx, tX, coplanar_threshold, x, X, centres)
     exact = _closed_form_pass(x, X, centres, tx, tX)  # some point lies at the centroid
-    return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold)
+    return None if exact is None else _finish(exact[0], tx, tX, coplanar_threshold, x, X, centres)
 
 
 def _centre(p: np.ndarray, ref: np.ndarray | None, c: np.ndarray) -> np.ndarray:
@@ -1296,17 +1325,51 @@ def _centre(p: np.ndarray, ref: np.ndarray | None, c: np.ndarray) -> np.ndarray:
     return p - c if ref is None else (p - ref) - c
 
 
-def _first_usable(x, X, centres, tx, tX):
-    """Index and unit vectors (source, target) of the first point off both centroids."""
+def _unit_pair(x, X, centres, i: int):
+    """Unit vectors (source, target) from the centroids to point ``i``."""
+    xr, Xr = _centre(x[i], *centres[0]), _centre(X[i], *centres[1])
+    return xr / math.sqrt(float(xr @ xr)), Xr / math.sqrt(float(Xr @ Xr))
+
+
+def _perpendicular_to(x, X, centres, tx, tX, l_idx: int) -> int:
+    """Index of the usable point closest to perpendicular to point ``l_idx`` in both sets,
+    ``min (xb_l . x')^2 / |x'|^2 + (Xb_l . X')^2 / |X'|^2`` (the ``k`` of
+    :func:`_perpendicular_pair`); one pass in chunks, -1 if there is none."""
+    xb_l, Xb_l = _unit_pair(x, X, centres, l_idx)
+    C = CLOSED_FORM_CHUNK
+    buf = np.empty((6, C))
+    d = np.empty((2, C))
+    best, where = math.inf, -1
     for a, b in _chunks(x.shape[0]):
-        xr, Xr = _centre(x[a:b], *centres[0]), _centre(X[a:b], *centres[1])
-        dx = np.sqrt(np.einsum("ni,ni->n", xr, xr))
-        dX = np.sqrt(np.einsum("ni,ni->n", Xr, Xr))
-        ok = np.flatnonzero((dx > tx) & (dX > tX))
-        if ok.size:
-            i = int(ok[0])
-            return a + i, xr[i] / dx[i], Xr[i] / dX[i]
-    return None
+        m = b - a
+        for p, (ref, c), rows in ((x, centres[0], buf[0:3, :m]), (X, centres[1], buf[3:6, :m])):
+            if ref is None:
+                np.subtract(p[a:b].T, c[:, None], out=rows)
+            else:  # (p - ref) - c, as in _closed_form_pass
+                np.subtract(p[a:b].T, ref[:, None], out=rows)
+                rows -= c[:, None]
+        cx, cX = xb_l @ buf[0:3, :m], Xb_l @ buf[3:6, :m]
+        np.multiply(buf[:, :m], buf[:, :m], out=buf[:, :m])
+        dd = np.add(buf[0::3, :m], buf[1::3, :m], out=d[:, :m])  # squared distances
+        dd += buf[2::3, :m]
+        # points at the centroid (as _closed_form_pass: sqrt(|x'|^2) <= tx) are left out
+        off = (dd[0] > 0.0) & (dd[1] > 0.0)
+        if tx > 0.0 or tX > 0.0:
+            off &= (np.sqrt(dd[0]) > tx) & (np.sqrt(dd[1]) > tX)
+        if not off.all():
+            dd[:, ~off] = 1.0
+            cx[~off] = math.inf
+        np.multiply(cx, cx, out=cx)
+        np.divide(cx, dd[0], out=cx)
+        np.multiply(cX, cX, out=cX)
+        np.divide(cX, dd[1], out=cX)
+        cost = np.add(cx, cX, out=cx)
+        if a <= l_idx < b:
+            cost[l_idx - a] = math.inf
+        j = int(np.argmin(cost))
+        if cost[j] < best:
+            best, where = float(cost[j]), a + j
+    return where
 
 
 def _closed_form_pass(x, X, centres, tx, tX):
@@ -1316,10 +1379,6 @@ def _closed_form_pass(x, X, centres, tx, tX):
     ``N M.T`` of the chunk; per point only the two squared distances, one square root and
     two reciprocals."""
     n = x.shape[0]
-    first = _first_usable(x, X, centres, tx, tX)
-    if first is None:
-        return None
-    l_idx, xb_l, Xb_l = first
     C = CLOSED_FORM_CHUNK
     buf = np.empty((12, C))
     sq = np.empty((6, C))
@@ -1335,7 +1394,7 @@ def _closed_form_pass(x, X, centres, tx, tX):
     xg, Xg = (cx if rx is None else rx + cx), (cX if rX is None else rX + cX)
     ratio_sum = 0.0
     nu = 0
-    best = (math.inf, -1)
+    best = (-math.inf, -1)  # the point with the largest |x'| |X'| (see _perpendicular_pair)
     hi = np.zeros(2)  # largest squared distances (source, target)
     lo = np.full(2, math.inf)  # smallest squared distances of the usable points
     t2 = np.array([tx, tX])
@@ -1383,32 +1442,23 @@ def _closed_form_pass(x, X, centres, tx, tX):
             for k in range(0, m, P):
                 e = min(k + P, m)
                 G += buf[:, k:e] @ buf[:6, k:e].T
-        # the direction closest to perpendicular to the first usable one: min (xb_l.x')^2/|x'|^2
-        if full:
-            p = np.matmul(xb_l, stacked[0][:, 0:3]).reshape(-1)
-        else:
-            p = np.add.reduce(buf[0:3, :m] * xb_l[:, None], axis=0)
-        np.multiply(p, p, out=p)
-        np.divide(p, dx2, out=p)
-        if a <= l_idx < b:
-            p[(l_idx - a) if gidx is None else (gidx == l_idx)] = np.inf
-        j = int(np.argmin(p))
-        if p[j] < best[0]:
-            best = (float(p[j]), a + j if gidx is None else int(gidx[j]))
+        size = np.multiply(dx2, dX2, out=w)  # squared: the same order as |x'| |X'|
+        j = int(np.argmax(size))
+        if size[j] > best[0]:
+            best = (float(size[j]), a + j if gidx is None else int(gidx[j]))
     dx_max, dX_max = math.sqrt(float(hi[0])), math.sqrt(float(hi[1]))
     dx_min, dX_min = math.sqrt(float(lo[0])), math.sqrt(float(lo[1]))
-    k_idx = best[1]
-    xb_k = Xb_k = None
-    if k_idx >= 0:
-        xr, Xr = _centre(x[k_idx], *centres[0]), _centre(X[k_idx], *centres[1])
-        xb_k, Xb_k = xr / math.sqrt(float(xr @ xr)), Xr / math.sqrt(float(Xr @ Xr))
+    if best[1] < 0:
+        return None
     sums = dict(n=n, xg=xg, Xg=Xg, nu=nu, ratio_sum=ratio_sum, MMt=G[6:9, 3:6].copy(),
                 NMt=G[9:12, 3:6].copy(), Sx=G[0:3, 0:3].copy(), SX=G[3:6, 3:6].copy(),
-                pair=(l_idx, xb_l, Xb_l, k_idx, xb_k, Xb_k))
+                farthest=best[1])
     return sums, (dx_max, dX_max, dx_min, dX_min)
 
 
-def _finish(sums: dict, tx: float, tX: float, coplanar_threshold: float) -> ClosedFormSums:
+def _finish(
+    sums: dict, tx: float, tX: float, coplanar_threshold: float, x, X, centres
+) -> ClosedFormSums:
     ev_x = np.linalg.eigvalsh(sums["Sx"])
     ev_X = np.linalg.eigvalsh(sums["SX"])
     ratio = min(
@@ -1419,8 +1469,11 @@ def _finish(sums: dict, tx: float, tX: float, coplanar_threshold: float) -> Clos
     augment = ratio < coplanar_threshold or nu <= 3
     MMt, NMt = sums["MMt"], sums["NMt"]
     aug = None
-    l_idx, xb_l, Xb_l, k_idx, xb_k, Xb_k = sums["pair"]
-    if augment and k_idx >= 0:
+    l_idx = sums["farthest"]
+    k_idx = _perpendicular_to(x, X, centres, tx, tX, l_idx) if augment else -1
+    if k_idx >= 0:  # a third pass, only for (nearly) coplanar sets
+        xb_l, Xb_l = _unit_pair(x, X, centres, l_idx)
+        xb_k, Xb_k = _unit_pair(x, X, centres, k_idx)
         xp = np.cross(xb_l, xb_k)
         c = np.cross(Xb_l, Xb_k)
         nx, nc = float(np.linalg.norm(xp)), float(np.linalg.norm(c))

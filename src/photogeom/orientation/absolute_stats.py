@@ -531,7 +531,10 @@ def _skew_rows(v: np.ndarray) -> np.ndarray:
 
 
 def _closed_form_outputs(z: np.ndarray, xg: np.ndarray, nearest: bool, with_scale: bool):
-    """``(t, [s,] omega, phi, kappa)`` of the closed form from ``z = (vec R_raw, s, Xg)``."""
+    """``(t - Xg0, [s,] omega, phi, kappa)`` of the closed form from ``z = (vec R_raw, s,
+    Xg - Xg0)``, ``Xg0`` the target centroid of the estimate: the translation about it, so
+    that central differences of ``t`` do not lose the digits of far-away targets (UTM, ECEF;
+    the derivatives are those of ``t``)."""
     from .absolute_direct import published_angles
 
     R = z[:9].reshape(3, 3)
@@ -623,7 +626,9 @@ def _closed_form_setup(
         )
         aug = None
         if ratio < thr or nu <= 3:
-            lq, kq = _perpendicular_pair(xb[None], np.ones((1, nu), dtype=bool))
+            lq, kq = _perpendicular_pair(
+                xb[None], Xb[None], np.ones((1, nu), dtype=bool), (dx[idx] * dX[idx])[None]
+            )
             lq, kq = int(lq[0]), int(kq[0])
             xp = np.cross(xb[lq], xb[kq])
             c = np.cross(Xb[lq], Xb[kq])
@@ -646,7 +651,10 @@ def _closed_form_setup(
     else:
         s = 1.0
     # outputs as a function of z = (vec R_raw, s, Xg): Jacobian by central differences
-    z = np.concatenate([R_raw.ravel(), [s], Xg])
+    # z[10:13] is the shift of the target centroid from Xg (see _closed_form_outputs): with
+    # Xg itself, t ~ 5e6 m of a UTM target took ~1e-9 m of rounding into differences of
+    # ~1e-7 |xg| (std errors of t 1e-5 off, relative)
+    z = np.concatenate([R_raw.ravel(), [s], np.zeros(3)])
     steps = np.concatenate(
         [np.full(9, 1e-7), [1e-7 * max(abs(s), 1.0)], 1e-7 * np.maximum(np.abs(Xg), 1.0)]
     )
