@@ -383,7 +383,9 @@ class Fit:
         Returns
         -------
         SnoopingResult
-            One statistic per residual component, in the row-major order of ``residuals``.
+            One statistic per residual component, in the row-major order of ``residuals``,
+            with the redundancy numbers and minimal detectable biases when the fit has
+            redundancy numbers.
 
         Raises
         ------
@@ -405,6 +407,10 @@ class Fit:
             vtpv=self.sigma0**2 * self.redundancy if self.redundancy > 0 else 0.0,
             sigma0_prior=self.sigma0_prior,
             normalized_residuals=self.normalized_residuals.reshape(-1),
+            redundancy_numbers=None
+            if self.redundancy_numbers is None
+            or np.size(self.redundancy_numbers) != np.size(self.normalized_residuals)
+            else np.asarray(self.redundancy_numbers, dtype=float).reshape(-1),
         )
         return data_snooping(adj, alpha=alpha, sigma=sigma)
 

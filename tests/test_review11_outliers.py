@@ -1,0 +1,78 @@
+"""Review 11 (outlier tests and reliability): minimal detectable bias, power of the w-test,
+poorly controlled observations named in the reports."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import photogeom as pg
+from photogeom.adjust.snooping import POORLY_CONTROLLED, noncentrality
+from photogeom.report import format as F
+
+
+def test_noncentrality_matches_the_noncentral_chi_square():
+    d0 = noncentrality(0.001, 0.8)
+    assert d0 == pytest.approx(4.13, abs=0.01)  # Baarda: 3.29 + 0.84
+    c = stats.norm.ppf(1 - 0.0005)
+    assert stats.ncx2.sf(c * c, 1, d0 * d0) == pytest.approx(0.8, abs=1e-9)
+    for alpha, power in ((0.05, 0.5), (0.01, 0.9), (1e-4, 0.8)):
+        d = noncentrality(alpha, power)
+        c = stats.norm.ppf(1 - alpha / 2)
+        assert stats.ncx2.sf(c * c, 1, d * d) == pytest.approx(power, abs=1e-9)
+
+
+def _line_fit():
+    """A straight line with one far-out point (low redundancy) and unequal weights."""
+    t = np.array([0.0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30.0])
+    A = np.column_stack([np.ones_like(t), t])
+    sig = np.where(np.arange(t.size) % 2 == 0, 0.5, 1.0)
+    return A, sig
+
+
+def test_mdb_is_found_with_the_documented_power():
+    """H1: a bias of the reported MDB on one observation is flagged with probability 0.8."""
+    A, sig = _line_fit()
+    rng = np.random.default_rng(11)
+    alpha = 0.01
+    clean = pg.solve_linear(A, A @ [1.0, 2.0], weights=1 / sig**2)
+    sn0 = pg.data_snooping(clean, alpha=alpha)
+    assert np.isclose(sn0.redundancy_numbers.sum(), clean.redundancy)
+    for i in (3, 10):  # a well and a poorly controlled observation (r 0.96 and 0.07)
+        bias = sn0.mdb[i] * sig[i]
+        hits = 0
+        trials = 1000
+        for _ in range(trials):
+            L = A @ [1.0, 2.0] + rng.normal(0, sig)
+            L[i] += bias
+            sn = pg.data_snooping(pg.solve_linear(A, L, weights=1 / sig**2), alpha=alpha)
+            hits += bool(sn.flagged[i])
+        se = np.sqrt(0.8 * 0.2 / trials)
+        assert abs(hits / trials - 0.8) < 4 * se, (i, hits / trials)
+
+
+def test_uncontrolled_observation_is_reported_not_silently_passed():
+    """Kraus's three control points: the Z coordinates have r ~ 0.001, a 1 m (20 sigma) blunder
+    in Z passes both tests; the residual table says these components are poorly controlled."""
+    ids, x, X = pg.datasets.point_pairs("kraus_absolute_orientation")
+    X = X.copy()
+    X[0, 2] += 1.0
+    fit = pg.absolute_orientation(x, X, "gauss-markov", sigma_target=0.05, ids=ids)
+    sn = fit.snooping()
+    assert not sn.flagged.any()  # the blunder is not flagged ...
+    poor = sn.poorly_controlled.reshape(-1, 3)
+    assert poor[:, 2].all() and not poor[:, :2].any()
+    assert np.all(sn.mdb.reshape(-1, 3)[:, 2] > 50)  # ... and cannot be: MDB > 50 sigma
+    assert sn.to_dict()["poorly_controlled"] == [2, 5, 8]
+    footer = " ".join(F.residual_table(fit).footer)
+    assert "poorly controlled" in footer
+    assert f"{ids[0]} Z" in footer and f"{ids[0]} X" not in footer
+    assert POORLY_CONTROLLED == 0.1
+
+
+def test_well_controlled_fit_has_no_such_footer():
+    ids, x, X = pg.datasets.point_pairs("lidar_wang2014")
+    fit = pg.absolute_orientation(x, X, "gauss-markov", ids=ids)
+    assert not fit.snooping().poorly_controlled.any()
+    assert not any("poorly controlled" in f for f in F.residual_table(fit).footer)
