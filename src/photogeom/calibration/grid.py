@@ -23,7 +23,7 @@ unconstrained). ``N = A' P A + C' P_c C`` is factorised once for both components
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
@@ -444,6 +444,11 @@ class ResidualGrid:
     uv : numpy.ndarray, shape (n_input, 2), optional
         Pixel positions of the input points (px), kept to compute :attr:`node_std` on first
         use; None for a grid read without them (saved with ``std=False``).
+    snooping : dict, optional
+        With ``snooping=True``: ``"test"`` (``"w"``), ``"alpha"``, ``"critical_value"``
+        and ``"w"`` (n_input,), the larger ``|w|`` of the two components of every rejected
+        point in the round that rejected it (NaN for the points kept); None otherwise (and
+        for grids read from a file).
     """
 
     layout: GridLayout
@@ -462,6 +467,7 @@ class ResidualGrid:
     vce_iterations: int = 0
     border: str = "mean"
     uv: np.ndarray | None = field(default=None, repr=False)
+    snooping: Mapping | None = field(default=None, repr=False)
     _std: list = field(default_factory=list, repr=False)
 
     # -------------------------------------------------------------- evaluation
@@ -784,6 +790,7 @@ def _fit_grid(
     crit = w_critical_value(alpha) if snooping else math.inf
     cells = layout.cell_index(uv)
     vce_its = 0
+    w_rejected = np.full(n, np.nan)
     for _round in range(max_snooping_rounds + 1 if snooping else 1):
         k_used = int(used.sum())
         if k_used < max(1, min_observations):
@@ -832,6 +839,7 @@ def _fit_grid(
         first = np.ones(order.size, bool)
         first[1:] = cells[fi][order][1:] != cells[fi][order][:-1]
         used[fi[order][first]] = False
+        w_rejected[fi[order][first]] = fw[order][first]
 
     u_uv, u_l = uv[used], res[used]
     A = system.A
@@ -866,6 +874,11 @@ def _fit_grid(
         vce_iterations=vce_its,
         border=border,
         uv=uv,
+        snooping=(
+            {"test": "w", "alpha": float(alpha), "critical_value": crit, "w": w_rejected}
+            if snooping
+            else None
+        ),
     )
 
 
