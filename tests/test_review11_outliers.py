@@ -145,3 +145,20 @@ def test_iterated_snooping_removes_gross_errors_and_only_them(sigma, missed_at_m
         extra += len(set(fit.extras["removed"]) - set(bad.tolist()))
     assert missed <= missed_at_most
     assert extra <= 12  # expected 0.024 per redraw at alpha 0.001: 3.6 (Poisson sd 1.9)
+
+
+def test_untestable_components_are_not_reported_as_passing(cli):
+    """Six tie points, no --sigma: the tau-test needs a redundancy of 2, the pair has 1, so
+    every statistic is NaN ('-'); the footer said 'no component flagged' as if all had
+    passed."""
+    path = pg.datasets.path("lecture_two_images")
+    code, text, err = cli("orient", "relative", str(path), "--f", "3000", "--unit", "px")
+    assert code == 0, err
+    flat = " ".join(text.split())
+    assert "no component could be tested (shown as -)" in flat
+    assert "no component flagged" not in flat
+    code, text, err = cli("orient", "relative", str(path), "--f", "3000", "--unit", "px",
+                          "--sigma", "0.5")  # fmt: skip
+    assert code == 0, err
+    flat = " ".join(text.split())
+    assert "no component flagged" in flat and "could not be tested" not in flat

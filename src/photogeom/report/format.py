@@ -258,7 +258,12 @@ def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
                 cells[k].extend(fmt_fixed(x, 2) for x in stat[k])
                 flags[k].extend(bool(f) for f in flagged[k])
             n_flag = int(flagged.sum())
+            n_untested = int(np.sum(~np.isfinite(stat)))
             verdict = f"{n_flag} component(s) flagged" if n_flag else "no component flagged"
+            if n_untested == stat.size:
+                verdict = "no component could be tested (shown as -)"
+            elif n_untested:
+                verdict += f"; {n_untested} component(s) could not be tested (shown as -)"
             footer.append(
                 f"{label}: critical value {test.critical_value:.3f} at alpha = {test.alpha:g}; "
                 f"{verdict}"
