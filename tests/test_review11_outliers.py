@@ -162,3 +162,39 @@ def test_untestable_components_are_not_reported_as_passing(cli):
     assert code == 0, err
     flat = " ".join(text.split())
     assert "no component flagged" in flat and "could not be tested" not in flat
+
+
+def test_json_names_the_tests_and_the_flagged_components(cli, tmp_path):
+    """The --json of the estimators carried the normalised residuals only: no test, alpha,
+    critical value, tau or flagged list (the text and HTML had them)."""
+    ids, x, X = pg.datasets.point_pairs("lidar_wang2014")
+    X = X.copy()
+    X[4, 1] += 0.5
+    p = tmp_path / "pairs.csv"
+    rows = ["id,x,y,z,X,Y,Z"] + [
+        ",".join([str(i), *(f"{c:.6f}" for c in (*a, *b))]) for i, a, b in zip(ids, x, X)
+    ]
+    p.write_text("\n".join(rows) + "\n")
+    code, text, err = cli("orient", "absolute", str(p), "-m", "gauss-markov", "--json")
+    assert code == 0, err
+    import json
+
+    sn = json.loads(text)["snooping"]
+    assert sn["alpha"] == 0.001
+    assert sn["w"]["critical_value"] == pytest.approx(3.2905, abs=1e-4)
+    assert sn["tau"]["critical_value"] == pytest.approx(
+        np.sqrt(47 * stats.beta.ppf(0.999, 0.5, 23)), rel=1e-9
+    )  # redundancy 3 * 18 - 7 = 47
+    hit = [f for f in sn["tau"]["flagged"] if f["id"] == str(ids[4])]
+    assert hit and hit[0]["component"] == "Y" and abs(hit[0]["statistic"]) > 3.15
+    assert sn["poorly_controlled"] == []
+
+
+def test_tau_critical_value_against_the_beta_distribution():
+    """tau^2 / r follows Beta(1/2, (r - 1)/2) (Pope 1976): an independent quantile."""
+    from photogeom.adjust.snooping import tau_critical_value
+
+    for r in (2, 3, 5, 10, 47, 500):
+        for alpha in (0.05, 0.01, 0.001):
+            ref = np.sqrt(r * stats.beta.ppf(1 - alpha, 0.5, (r - 1) / 2))
+            assert tau_critical_value(alpha, r) == pytest.approx(ref, rel=1e-9)
