@@ -125,3 +125,42 @@ def test_snooping_rejects_the_blunders_not_their_neighbours():
         assert g.outliers[bad].all()
         false += int(g.outliers.sum()) - 3
     assert false <= 35, false  # H0 level: about 0.8 per image (16); before 75
+
+
+def _many_blunders(seed=9, n=400, k=80):
+    rng = np.random.default_rng(seed)
+    uv = rng.uniform(0, [999, 799], (n, 2))
+    res = rng.normal(scale=0.5, size=(n, 2)) + np.c_[np.sin(uv[:, 0] / 150), np.cos(uv[:, 1] / 130)]
+    bad = rng.choice(n, k, replace=False)
+    res[bad, 0] += 20.0 * rng.choice([-1.0, 1.0], k)
+    return uv, res, bad
+
+
+def test_points_still_flagged_after_the_last_round_are_named(cli, tmp_path):
+    """80 blunders in 400 points: 10 rounds reject 70; the other 10 (and 33 points they
+    pull) still failed the test, stayed in the grid and nothing said so."""
+    uv, res, bad = _many_blunders()
+    kw = dict(sigma_obs=0.5, sigma_constraint=0.2266, snooping=True, folds=0)
+    g = fit_grid(uv, res, (1000, 800), 100.0, **kw)
+    still = g.snooping["still_flagged"]
+    assert g.snooping["rounds"] == 10
+    assert still.any() and not (still & g.outliers).any()
+    assert set(bad[~g.outliers[bad]].tolist()) <= set(np.flatnonzero(still).tolist())
+    g30 = fit_grid(uv, res, (1000, 800), 100.0, max_snooping_rounds=30, **kw)
+    assert g30.outliers[bad].all() and not g30.snooping["still_flagged"].any()
+
+    p = tmp_path / "many.csv"
+    p.write_text("\n".join(["image_id,u,v,rx,ry"] + [
+        f"A,{u:.3f},{v:.3f},{a:.4f},{b:.4f}" for (u, v), (a, b) in zip(uv, res)
+    ]) + "\n")  # fmt: skip
+    args = (*("grid", "fit", str(p), "-o", str(tmp_path / "g.npz"), "--image-size", "1000x800"),
+            *("--sigma-obs", "0.5", "--sigma-constraint", "0.2266", "--snooping"))  # fmt: skip
+    code, text, err = cli(*args)
+    assert code == 0, err
+    flat = " ".join(text.split())
+    assert "still fail the w-test after 10 rounds" in flat and "--max-snooping-rounds" in flat
+    code, text, err = cli(*args, "--max-snooping-rounds", "30", "--json")
+    assert code == 0, err
+    sn = json.loads(text)["snooping"]
+    assert sn["still_flagged"] == [] and sn["max_rounds"] == 30
+    assert len(sn["rejected"]) == 80

@@ -447,8 +447,10 @@ class ResidualGrid:
     snooping : dict, optional
         With ``snooping=True``: ``"test"`` (``"w"``), ``"alpha"``, ``"critical_value"``
         and ``"w"`` (n_input,), the larger ``|w|`` of the two components of every rejected
-        point in the round that rejected it (NaN for the points kept); None otherwise (and
-        for grids read from a file).
+        point in the round that rejected it (NaN for the points kept); ``"rounds"``, the
+        rounds that removed points, and ``"still_flagged"`` (n_input,), the points still
+        failing the test when ``max_snooping_rounds`` ended the removal (kept in the fit);
+        None otherwise (and for grids read from a file).
     """
 
     layout: GridLayout
@@ -678,8 +680,10 @@ def fit_grid(
         k of the k-fold cross-validation (0 or 1: none).
     snooping, alpha, max_snooping_rounds : bool, float, int
         Data snooping (Baarda's w-test with the a-priori sigmas, level ``alpha``, two-sided:
-        0.001 gives the critical value 3.29); per round the largest flagged point of each
-        cell is removed, up to ``max_snooping_rounds`` rounds.
+        0.001 gives the critical value 3.29); per round every flagged point whose ``|w|`` is
+        the largest of the flagged points in its cell and the 8 cells around it is removed,
+        up to ``max_snooping_rounds`` rounds; points still flagged then are marked in
+        ``snooping["still_flagged"]`` of the result.
     seed : int
         Seed of the random split into folds.
     image_id : object
@@ -791,6 +795,8 @@ def _fit_grid(
     cells = layout.cell_index(uv)
     vce_its = 0
     w_rejected = np.full(n, np.nan)
+    still = np.zeros(n, dtype=bool)
+    rounds = 0
     for _round in range(max_snooping_rounds + 1 if snooping else 1):
         k_used = int(used.sum())
         if k_used < max(1, min_observations):
@@ -831,7 +837,9 @@ def _fit_grid(
         wmax = np.nanmax(np.where(np.isfinite(w), w, -1.0), axis=1)
         flagged = wmax > crit
         if not np.any(flagged) or _round == max_snooping_rounds:  # the last fit stands
+            still[np.flatnonzero(used)[flagged]] = True
             break
+        rounds += 1
         idx_used = np.flatnonzero(used)
         fi = idx_used[flagged]
         fw = wmax[flagged]
@@ -873,7 +881,14 @@ def _fit_grid(
         border=border,
         uv=uv,
         snooping=(
-            {"test": "w", "alpha": float(alpha), "critical_value": crit, "w": w_rejected}
+            {
+                "test": "w",
+                "alpha": float(alpha),
+                "critical_value": crit,
+                "w": w_rejected,
+                "rounds": rounds,
+                "still_flagged": still,
+            }
             if snooping
             else None
         ),

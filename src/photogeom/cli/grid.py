@@ -479,6 +479,14 @@ def fit(
         typer.Option("--snooping/--no-snooping", help="Reject outliers by data snooping (w-test)."),
     ] = False,
     alpha: Annotated[float, typer.Option(help="Significance level of the w-test.")] = 0.001,
+    max_snooping_rounds: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="Most refits of data snooping per image; points still flagged after them "
+            "are named.",
+        ),
+    ] = 10,
     min_support: Annotated[
         int, typer.Option(help="Observations in a node's cells for it to count as supported.")
     ] = 3,
@@ -516,8 +524,9 @@ def fit(
         )
     s_c = _fit_sigma_constraint(sigma_constraint)
     options = dict(
-        border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
-    )
+        border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support,
+        max_snooping_rounds=max_snooping_rounds,
+    )  # fmt: skip
     left_out = list(dict.fromkeys(split_names(exclude) or []))  # an id given twice: once
     if not residuals.exists():
         raise FileFormatError(
@@ -532,7 +541,7 @@ def fit(
         grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out, where)
     outputs = [(output, grids_file_bytes(output, grids, std=std))]
     stats = {k: g.to_dict() for k, g in grids.items()}
-    rejected = _rejected(grids, where, alpha) if snooping else None
+    rejected = _rejected(grids, where, alpha, max_snooping_rounds) if snooping else None
     if report is not None:
         outputs.append((report, _report_html(grids, rejected).encode("utf-8")))
     atomic_write_many(outputs)
@@ -564,6 +573,19 @@ def fit(
     out.print(t)
     if rejected is not None:
         say(_snooping_heading(rejected), out)
+        if rejected["still_flagged"]:
+            kind = rejected["located_by"]
+            shown = ", ".join(
+                f"image {r['image']} {kind} {r[kind]}" for r in rejected["still_flagged"][:10]
+            )
+            more = len(rejected["still_flagged"]) - 10
+            say(
+                f"warning: {len(rejected['still_flagged'])} point(s) still fail the w-test "
+                f"after {rejected['max_rounds']} rounds and stay in the grids: {shown}"
+                + (f" and {more} more" if more > 0 else "")
+                + "; give a larger --max-snooping-rounds",
+                out,
+            )
         if rejected["rejected"]:
             r = Table(title="Rejected by data snooping (largest |w| first)")
             for c in ("image", rejected["located_by"], "|w|"):
@@ -583,10 +605,10 @@ def fit(
 _SHOWN_REJECTED = 50
 
 
-def _rejected(grids: dict, where: dict, alpha: float) -> dict:
-    """The data-snooping summary of ``grid fit``: the test, alpha, the critical value and
+def _rejected(grids: dict, where: dict, alpha: float, max_rounds: int) -> dict:
+    """The data-snooping summary of ``grid fit``: the test, alpha, the critical value,
     every rejected point (image id, its CSV line or point id, |w| at rejection), largest
-    |w| first."""
+    |w| first, and the points still flagged after ``max_rounds`` rounds."""
     from ..adjust.snooping import w_critical_value
 
     kind = "line"
@@ -602,12 +624,22 @@ def _rejected(grids: dict, where: dict, alpha: float) -> dict:
             rows.append({"image": k, kind: label.item() if hasattr(label, "item") else label,
                          "w": float(w)})  # fmt: skip
     rows.sort(key=lambda r: -r["w"])
+    still = []
+    for k, g in grids.items():
+        if g.snooping is None or k not in where:
+            continue
+        labels = where[k][1]
+        for i in np.flatnonzero(g.snooping["still_flagged"]).tolist():  # flagged only
+            label = labels[i]
+            still.append({"image": k, kind: label.item() if hasattr(label, "item") else label})
     return {
         "test": "w",
         "alpha": float(alpha),
         "critical_value": w_critical_value(alpha),
         "located_by": kind,
         "rejected": rows,
+        "max_rounds": int(max_rounds),
+        "still_flagged": still,
     }
 
 
@@ -879,7 +911,14 @@ def _report_html(grids: dict, rejected: dict | None = None) -> str:
             "Rejected by data snooping",
             ["image", kind, "|w|"],
             [[str(r["image"]), str(r[kind]), f"{r['w']:.2f}"] for r in rejected["rejected"]],
-            note=_snooping_heading(rejected) + "; largest |w| first",
+            note=_snooping_heading(rejected)
+            + "; largest |w| first"
+            + (
+                f"; {len(rejected['still_flagged'])} point(s) still fail the test after the "
+                "last round and stay in the grids"
+                if rejected["still_flagged"]
+                else ""
+            ),
         )
     same = [g for g in grids.values() if g.layout == first.layout]
     mean = np.mean([g.nodes for g in same], axis=0)
