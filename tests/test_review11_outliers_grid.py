@@ -164,3 +164,24 @@ def test_points_still_flagged_after_the_last_round_are_named(cli, tmp_path):
     sn = json.loads(text)["snooping"]
     assert sn["still_flagged"] == [] and sn["max_rounds"] == 30
     assert len(sn["rejected"]) == 80
+
+
+def test_grid_snooping_false_alarms_under_h0():
+    """500 images of 200 points, a smooth field and normal noise of the given sigma, alpha
+    0.01 per component: a clean point fails with probability 1 - 0.99^2 = 0.0199; iterated
+    snooping rejected 0.0184 (a point flagged beside a larger |w| waits a round and may
+    then pass), not more."""
+    rng = np.random.default_rng(12)
+    images, n, rejected = 500, 200, 0
+    for _ in range(images):
+        uv = rng.uniform(0, [599, 399], (n, 2))
+        res = rng.normal(scale=0.5, size=(n, 2)) + np.c_[
+            np.sin(uv[:, 0] / 150), np.cos(uv[:, 1] / 130)
+        ]
+        g = fit_grid(uv, res, (600, 400), 100.0, sigma_obs=0.5, sigma_constraint=0.2266,
+                     snooping=True, alpha=0.01, folds=0)  # fmt: skip
+        rejected += int(g.outliers.sum())
+    p = 1 - 0.99**2
+    se = np.sqrt(p * (1 - p) / (images * n))
+    rate = rejected / (images * n)
+    assert p - 8 * se < rate < p + 4 * se, rate
