@@ -383,7 +383,9 @@ class Fit:
         Returns
         -------
         SnoopingResult
-            One statistic per residual component, in the row-major order of ``residuals``.
+            One statistic per residual component, in the row-major order of ``residuals``,
+            with the redundancy numbers and minimal detectable biases when the fit has
+            redundancy numbers.
 
         Raises
         ------
@@ -405,10 +407,66 @@ class Fit:
             vtpv=self.sigma0**2 * self.redundancy if self.redundancy > 0 else 0.0,
             sigma0_prior=self.sigma0_prior,
             normalized_residuals=self.normalized_residuals.reshape(-1),
+            redundancy_numbers=None
+            if self.redundancy_numbers is None
+            or np.size(self.redundancy_numbers) != np.size(self.normalized_residuals)
+            else np.asarray(self.redundancy_numbers, dtype=float).reshape(-1),
         )
         return data_snooping(adj, alpha=alpha, sigma=sigma)
 
     # --- output ------------------------------------------------------------------------------
+
+    def _snooping_summary(self) -> dict:
+        """The tests of the reports for ``to_dict``: alpha, and per test (``"w"``,
+        ``"tau"``; None when it cannot be formed) the critical value and the flagged
+        components by id and label; the poorly controlled components with their redundancy
+        number and minimal detectable bias (a-priori sigmas)."""
+        from ..errors import InputError
+        from ..report.format import SNOOPING_ALPHA
+
+        res = np.asarray(self.residuals, dtype=float)
+        shape = res.shape if res.ndim == 2 else (res.size, 1)
+        ids = list(self.ids) if self.ids is not None else [str(k + 1) for k in range(shape[0])]
+        labels = list(self.residual_labels)
+        if len(labels) != shape[1]:
+            labels = [f"v{j}" for j in range(shape[1])]
+
+        def where(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return np.nonzero(np.asarray(mask, dtype=bool).reshape(shape))
+
+        out: dict = {"alpha": SNOOPING_ALPHA}
+        first = None
+        for name, sigma in (("w", "prior"), ("tau", "posterior")):
+            try:
+                sn = self.snooping(alpha=SNOOPING_ALPHA, sigma=sigma)
+            except InputError:  # e.g. the tau-test below a redundancy of 2
+                out[name] = None
+                continue
+            first = first or sn
+            stat = np.asarray(sn.statistic, dtype=float).reshape(shape)
+            rows, cols = where(sn.flagged)
+            out[name] = {
+                "critical_value": sn.critical_value,
+                "flagged": [
+                    {"id": ids[k], "component": labels[j], "statistic": float(stat[k, j])}
+                    for k, j in zip(rows.tolist(), cols.tolist())  # flagged only
+                ],
+                "not_tested": int(np.sum(~np.isfinite(stat))),
+            }
+        if first is not None and first.mdb is not None:
+            red = np.asarray(first.redundancy_numbers, dtype=float).reshape(shape)
+            mdb = np.asarray(first.mdb, dtype=float).reshape(shape)
+            rows, cols = where(first.poorly_controlled)
+            out["poorly_controlled"] = [
+                {
+                    "id": ids[k],
+                    "component": labels[j],
+                    "redundancy_number": float(red[k, j]),
+                    "mdb": float(mdb[k, j]) if np.isfinite(mdb[k, j]) else None,
+                }
+                for k, j in zip(rows.tolist(), cols.tolist())  # poorly controlled only
+            ]
+        return out
 
     def parameter_table(
         self, angle_unit: str = "deg", *, prior: bool = False
@@ -577,6 +635,7 @@ class Fit:
             out["source_crs"] = self.source_crs
         if self.normalized_residuals is not None:
             out["normalized_residuals"] = self.normalized_residuals
+            out["snooping"] = self._snooping_summary()
         if self.check_residuals is not None:
             out["check_residuals"] = self.check_residuals
             out["check_ids"] = list(self.check_ids) if self.check_ids is not None else None

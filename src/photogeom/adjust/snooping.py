@@ -10,6 +10,14 @@ import numpy as np
 from ..errors import InputError
 from .result import Adjustment
 
+#: Power of the w-test at which the minimal detectable bias is given (Baarda's 80 %).
+POWER = 0.8
+#: Redundancy number below which an observation is reported as poorly controlled: a gross
+#: error there shows in its own residual with less than a tenth of its size (in units of the
+#: residual's standard deviation, ``sqrt(r_i)`` of it), so its minimal detectable bias exceeds
+#: ``3.2 delta0`` (13 standard deviations of the observation at alpha 0.001, power 0.8).
+POORLY_CONTROLLED = 0.1
+
 
 @dataclass(frozen=True, eq=False)
 class SnoopingResult:
@@ -26,6 +34,15 @@ class SnoopingResult:
     critical_value : float
     flagged : numpy.ndarray of bool
         ``|statistic| > critical_value``.
+    redundancy_numbers : numpy.ndarray or None, shape (n_obs,)
+        ``r_i = (Qvv P)_ii`` (dimensionless, summing to the redundancy), when the adjustment
+        carries them.
+    mdb : numpy.ndarray or None, shape (n_obs,)
+        Minimal detectable bias of every observation, in units of its own a-priori
+        standard deviation: ``delta0 / sqrt(r_i)``, the gross error that the w-test at
+        ``alpha`` finds with probability :data:`POWER` (internal reliability; exact for
+        uncorrelated observations of a least-squares adjustment). Infinite where ``r_i`` is
+        ~0 (the error is absorbed by the parameters: undetectable).
     """
 
     statistic: np.ndarray
@@ -33,6 +50,17 @@ class SnoopingResult:
     alpha: float
     critical_value: float
     flagged: np.ndarray
+    redundancy_numbers: np.ndarray | None = None
+    mdb: np.ndarray | None = None
+
+    @property
+    def poorly_controlled(self) -> np.ndarray:
+        """Mask of observations with ``r_i`` below :data:`POORLY_CONTROLLED` (all False
+        without redundancy numbers): a gross error there can pass the test unnoticed."""
+        if self.redundancy_numbers is None:
+            return np.zeros(np.shape(self.statistic), dtype=bool)
+        with np.errstate(invalid="ignore"):
+            return ~(np.asarray(self.redundancy_numbers, dtype=float) >= POORLY_CONTROLLED)
 
     @property
     def largest(self) -> int | None:
@@ -56,6 +84,11 @@ class SnoopingResult:
             "critical_value": self.critical_value,
             "statistic": [None if not np.isfinite(x) else float(x) for x in self.statistic],
             "flagged": [int(i) for i in np.flatnonzero(self.flagged)],
+            "power": POWER,
+            "mdb": None if self.mdb is None else [
+                None if not np.isfinite(x) else float(x) for x in self.mdb
+            ],
+            "poorly_controlled": [int(i) for i in np.flatnonzero(self.poorly_controlled)],
         }
 
 
@@ -66,6 +99,25 @@ def w_critical_value(alpha: float) -> float:
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
     return float(ndtri(1 - alpha / 2))
+
+
+def noncentrality(alpha: float, power: float = POWER) -> float:
+    """Baarda's ``delta0``: the shift of a unit normal statistic that the two-sided test at
+    level ``alpha`` detects with probability ``power`` (``lambda0 = delta0^2``).
+
+    Solves ``Phi(delta0 - c) + Phi(-delta0 - c) = power`` with ``c`` the critical value
+    (alpha 0.001, power 0.8: 4.13, the textbook ``3.29 + 0.84``).
+    """
+    from scipy.optimize import brentq
+    from scipy.special import ndtr, ndtri
+
+    if not 0 < power < 1:
+        raise InputError(f"power must be in (0, 1), got {power}")
+    c = w_critical_value(alpha)
+    if power <= alpha:
+        return 0.0
+    lo, hi = 0.0, c + float(ndtri(power)) + 1.0
+    return float(brentq(lambda d: ndtr(d - c) + ndtr(-d - c) - power, lo, hi, xtol=1e-12))
 
 
 def tau_critical_value(alpha: float, redundancy: int) -> float:
@@ -100,8 +152,10 @@ def data_snooping(
     Returns
     -------
     SnoopingResult
-        The test statistic of every observation (dimensionless), the critical value and the
-        flagged observations.
+        The test statistic of every observation (dimensionless), the critical value, the
+        flagged observations and, when the adjustment has redundancy numbers, the minimal
+        detectable bias of every observation (units of its standard deviation) and the
+        poorly controlled ones (``r_i`` below :data:`POORLY_CONTROLLED`).
 
     Raises
     ------
@@ -131,6 +185,19 @@ def data_snooping(
         raise InputError(f"sigma must be 'prior' or 'posterior', not {sigma!r}")
     with np.errstate(invalid="ignore"):
         flagged = np.abs(stat) > crit
+    red = adjustment.redundancy_numbers
+    mdb = None
+    if red is not None:
+        red = np.asarray(red, dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mdb = np.where(red > 1e-14, noncentrality(alpha) / np.sqrt(np.abs(red)), np.inf)
+        mdb[np.isnan(red)] = np.nan
     return SnoopingResult(
-        statistic=stat, test=test, alpha=alpha, critical_value=crit, flagged=flagged
+        statistic=stat,
+        test=test,
+        alpha=alpha,
+        critical_value=crit,
+        flagged=flagged,
+        redundancy_numbers=red,
+        mdb=mdb,
     )

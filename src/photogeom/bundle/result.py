@@ -14,6 +14,7 @@ from ..adjust.schur import (
     observation_cofactors,
     point_covariances,
 )
+from ..adjust.snooping import POORLY_CONTROLLED, noncentrality
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
 from ..records import compact_repr
@@ -79,7 +80,9 @@ class BundleFit:
         (object units and GSD) and the surveyed standard deviations (k, 3).
     snooping : dict or None
         Baarda's w per observation (n, 2), the critical value and the flagged observations
-        as (image id, point id, w).
+        as (image id, point id, w); ``"mdb"`` (n, 2), the minimal detectable bias of every
+        coordinate in units of its a-priori sigma (power 80 %), and ``"poorly_controlled"``,
+        the (image id, point id) of observations with a redundancy number below 0.1.
     variance_components : dict or None
         Estimated standard deviation factor of each observation group.
     chi2 : dict
@@ -557,6 +560,9 @@ class BundleFit:
                     "alpha": self.snooping["alpha"],
                     "critical_value": self.snooping["critical_value"],
                     "flagged": [list(x) for x in self.snooping["flagged"]],
+                    "poorly_controlled": [
+                        list(x) for x in self.snooping.get("poorly_controlled", [])
+                    ],
                 },
                 "variance_components": self.variance_components,
                 "cost_history": list(self.cost_history),
@@ -1073,18 +1079,43 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             for k in order
             if mx[k] > crit
         ]
+        # internal reliability: the minimal detectable bias of every coordinate (units of its
+        # a-priori sigma) and the poorly controlled observations, where a blunder hardly
+        # shows in the residuals (e.g. along the base of a point seen in two images)
+        d0 = noncentrality(opts.alpha)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mdb = np.where(red_num > 1e-14, d0 / np.sqrt(np.abs(red_num)), np.inf)
+            poor = np.any(red_num < POORLY_CONTROLLED, axis=1)
+        mdb[np.isnan(red_num)] = np.nan
+        poor_rows = np.flatnonzero(poor)
         snoop = {
             "w": wall,
             "redundancy_numbers": red_num,
             "alpha": opts.alpha,
             "critical_value": crit,
             "flagged": flagged,
+            "mdb": mdb,
+            "poorly_controlled": [
+                (block.observations.image_ids[k].item(), block.observations.point_ids[k].item())
+                for k in poor_rows.tolist()  # observations with r < 0.1 only
+            ],
         }
         if flagged:
             notes.append(
                 f"{len(flagged)} image observation(s) fail the w-test (largest |w| "
                 f"{flagged[0][2]:.1f} at image {flagged[0][0]}, point {flagged[0][1]}); they "
                 "are listed, not removed"
+            )
+        if poor_rows.size:
+            rays = np.bincount(block.obs_point[in_adj], minlength=block.n_points)
+            two = int(np.sum(rays[block.obs_point[poor_rows]] <= 2))
+            notes.append(
+                f"{poor_rows.size} image observation(s) are poorly controlled (a redundancy "
+                f"number below {POORLY_CONTROLLED:g} in x or y: the smallest blunder the "
+                f"w-test finds there exceeds {d0 / math.sqrt(POORLY_CONTROLLED):.0f} sigma, "
+                f"smaller ones pass unnoticed), {two} of them of points seen in two images "
+                "(an error along the base moves the point instead); they are listed in "
+                "snooping['poorly_controlled']: measure those points in more images"
             )
     if not run.converged:
         notes.append(run.message)

@@ -23,7 +23,7 @@ unconstrained). ``N = A' P A + C' P_c C`` is factorised once for both components
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
@@ -444,6 +444,13 @@ class ResidualGrid:
     uv : numpy.ndarray, shape (n_input, 2), optional
         Pixel positions of the input points (px), kept to compute :attr:`node_std` on first
         use; None for a grid read without them (saved with ``std=False``).
+    snooping : dict, optional
+        With ``snooping=True``: ``"test"`` (``"w"``), ``"alpha"``, ``"critical_value"``
+        and ``"w"`` (n_input,), the larger ``|w|`` of the two components of every rejected
+        point in the round that rejected it (NaN for the points kept); ``"rounds"``, the
+        rounds that removed points, and ``"still_flagged"`` (n_input,), the points still
+        failing the test when ``max_snooping_rounds`` ended the removal (kept in the fit);
+        None otherwise (and for grids read from a file).
     """
 
     layout: GridLayout
@@ -462,6 +469,7 @@ class ResidualGrid:
     vce_iterations: int = 0
     border: str = "mean"
     uv: np.ndarray | None = field(default=None, repr=False)
+    snooping: Mapping | None = field(default=None, repr=False)
     _std: list = field(default_factory=list, repr=False)
 
     # -------------------------------------------------------------- evaluation
@@ -672,8 +680,10 @@ def fit_grid(
         k of the k-fold cross-validation (0 or 1: none).
     snooping, alpha, max_snooping_rounds : bool, float, int
         Data snooping (Baarda's w-test with the a-priori sigmas, level ``alpha``, two-sided:
-        0.001 gives the critical value 3.29); per round the largest flagged point of each
-        cell is removed, up to ``max_snooping_rounds`` rounds.
+        0.001 gives the critical value 3.29); per round every flagged point whose ``|w|`` is
+        the largest of the flagged points in its cell and the 8 cells around it is removed,
+        up to ``max_snooping_rounds`` rounds; points still flagged then are marked in
+        ``snooping["still_flagged"]`` of the result.
     seed : int
         Seed of the pseudo-random split into folds (a hash of each observation's values
         salted by the seed: the split does not depend on the order of the observations).
@@ -785,6 +795,9 @@ def _fit_grid(
     crit = w_critical_value(alpha) if snooping else math.inf
     cells = layout.cell_index(uv)
     vce_its = 0
+    w_rejected = np.full(n, np.nan)
+    still = np.zeros(n, dtype=bool)
+    rounds = 0
     for _round in range(max_snooping_rounds + 1 if snooping else 1):
         k_used = int(used.sum())
         if k_used < max(1, min_observations):
@@ -825,14 +838,15 @@ def _fit_grid(
         wmax = np.nanmax(np.where(np.isfinite(w), w, -1.0), axis=1)
         flagged = wmax > crit
         if not np.any(flagged) or _round == max_snooping_rounds:  # the last fit stands
+            still[np.flatnonzero(used)[flagged]] = True
             break
+        rounds += 1
         idx_used = np.flatnonzero(used)
         fi = idx_used[flagged]
         fw = wmax[flagged]
-        order = np.lexsort((-fw, cells[fi]))
-        first = np.ones(order.size, bool)
-        first[1:] = cells[fi][order][1:] != cells[fi][order][:-1]
-        used[fi[order][first]] = False
+        drop = _local_maxima(layout, cells[fi], fw)
+        used[fi[drop]] = False
+        w_rejected[fi[drop]] = fw[drop]
 
     u_uv, u_l = uv[used], res[used]
     A = system.A
@@ -867,6 +881,18 @@ def _fit_grid(
         vce_iterations=vce_its,
         border=border,
         uv=uv,
+        snooping=(
+            {
+                "test": "w",
+                "alpha": float(alpha),
+                "critical_value": crit,
+                "w": w_rejected,
+                "rounds": rounds,
+                "still_flagged": still,
+            }
+            if snooping
+            else None
+        ),
     )
 
 
@@ -957,6 +983,42 @@ def _cross_validate(system, uv, l, p, A, folds, seed):
         zf = fac.solve(np.asarray(bf))
         pred[m] = np.asarray(Af @ zf)
     return _rms_len(l), _rms_len(l - pred)
+
+
+def _local_maxima(layout: GridLayout, cells: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Mask of the flagged points to reject in one snooping round: those whose ``|w|`` is
+    the largest of all flagged points in their cell and the 8 cells around it.
+
+    Points of neighbouring cells share nodes, so a blunder inflates their ``|w|`` too; one
+    rejection per 3 x 3 cells leaves them to the next round, refitted without the blunder.
+
+    Parameters
+    ----------
+    layout : GridLayout
+    cells : numpy.ndarray of int, shape (k,)
+        Cell index (:meth:`GridLayout.cell_index`) of every flagged point.
+    w : numpy.ndarray, shape (k,)
+        Their ``|w|`` (dimensionless).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (k,)
+    """
+    ny, nx = layout.ny - 1, layout.nx - 1
+    best = np.full(ny * nx, -np.inf)
+    np.maximum.at(best, cells, w)
+    padded = np.full((ny + 2, nx + 2), -np.inf)
+    padded[1:-1, 1:-1] = best.reshape(ny, nx)
+    around = np.max(
+        [padded[a : a + ny, b : b + nx] for a in range(3) for b in range(3)], axis=0
+    ).reshape(-1)
+    keep_first = w >= around[cells]
+    # one point per cell even when two share the largest |w|
+    order = np.flatnonzero(keep_first)
+    _, first = np.unique(cells[order], return_index=True)
+    out = np.zeros(w.size, dtype=bool)
+    out[order[first]] = True
+    return out
 
 
 def _vce(layout, uv, l, s_obs, s_c, border, A, C, max_it, tol, where):

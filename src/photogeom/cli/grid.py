@@ -479,6 +479,14 @@ def fit(
         typer.Option("--snooping/--no-snooping", help="Reject outliers by data snooping (w-test)."),
     ] = False,
     alpha: Annotated[float, typer.Option(help="Significance level of the w-test.")] = 0.001,
+    max_snooping_rounds: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="Most refits of data snooping per image; points still flagged after them "
+            "are named.",
+        ),
+    ] = 10,
     min_support: Annotated[
         int, typer.Option(help="Observations in a node's cells for it to count as supported.")
     ] = 3,
@@ -516,24 +524,32 @@ def fit(
         )
     s_c = _fit_sigma_constraint(sigma_constraint)
     options = dict(
-        border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support
-    )
+        border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support,
+        max_snooping_rounds=max_snooping_rounds,
+    )  # fmt: skip
     left_out = list(dict.fromkeys(split_names(exclude) or []))  # an id given twice: once
     if not residuals.exists():
         raise FileFormatError(
             f"{residuals}: no such file or folder (give a residuals CSV or an adjusted block)"
         )
+    where: dict = {}  # image id -> (kind, label of every input row)
     if _is_block(residuals):
-        grids = _fit_block(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
+        grids = _fit_block(
+            residuals, image_size, spacing, sigma_obs, s_c, options, left_out, where
+        )
     else:
-        grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out)
+        grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out, where)
     outputs = [(output, grids_file_bytes(output, grids, std=std))]
     stats = {k: g.to_dict() for k, g in grids.items()}
+    rejected = _rejected(grids, where, alpha, max_snooping_rounds) if snooping else None
     if report is not None:
-        outputs.append((report, _report_html(grids).encode("utf-8")))
+        outputs.append((report, _report_html(grids, rejected).encode("utf-8")))
     atomic_write_many(outputs)
     if as_json:
-        typer.echo(json_text({"output": str(output), "images": stats}), nl=False)
+        doc = {"output": str(output), "images": stats}
+        if rejected is not None:
+            doc["snooping"] = rejected
+        typer.echo(json_text(doc), nl=False)
         return
     from rich.table import Table
 
@@ -555,9 +571,85 @@ def fit(
         t.add_row(*_grid_row(k, s))
     out = console()
     out.print(t)
+    if rejected is not None:
+        say(_snooping_heading(rejected), out)
+        if rejected["still_flagged"]:
+            kind = rejected["located_by"]
+            shown = ", ".join(
+                f"image {r['image']} {kind} {r[kind]}" for r in rejected["still_flagged"][:10]
+            )
+            more = len(rejected["still_flagged"]) - 10
+            say(
+                f"warning: {len(rejected['still_flagged'])} point(s) still fail the w-test "
+                f"after {rejected['max_rounds']} rounds and stay in the grids: {shown}"
+                + (f" and {more} more" if more > 0 else "")
+                + "; give a larger --max-snooping-rounds",
+                out,
+            )
+        if rejected["rejected"]:
+            r = Table(title="Rejected by data snooping (largest |w| first)")
+            for c in ("image", rejected["located_by"], "|w|"):
+                r.add_column(c, justify="right")
+            for row in rejected["rejected"][:_SHOWN_REJECTED]:
+                r.add_row(str(row["image"]), str(row[rejected["located_by"]]), f"{row['w']:.2f}")
+            out.print(r)
+            more = len(rejected["rejected"]) - _SHOWN_REJECTED
+            if more > 0:
+                say(f"... and {more} more (all in --json)", out)
     say(f"wrote {len(stats)} grid(s) to {output}", out)
     if report is not None:
         say(f"wrote {report}", out)
+
+
+#: Rejected points listed in the printed table (all in --json and the report).
+_SHOWN_REJECTED = 50
+
+
+def _rejected(grids: dict, where: dict, alpha: float, max_rounds: int) -> dict:
+    """The data-snooping summary of ``grid fit``: the test, alpha, the critical value,
+    every rejected point (image id, its CSV line or point id, |w| at rejection), largest
+    |w| first, and the points still flagged after ``max_rounds`` rounds."""
+    from ..adjust.snooping import w_critical_value
+
+    kind = "line"
+    rows = []
+    for k, g in grids.items():
+        sn = g.snooping
+        if sn is None or k not in where:
+            continue
+        kind, labels = where[k]
+        idx = np.flatnonzero(g.outliers)
+        for i, w in zip(idx.tolist(), np.asarray(sn["w"])[idx].tolist()):  # rejected only
+            label = labels[i]
+            rows.append({"image": k, kind: label.item() if hasattr(label, "item") else label,
+                         "w": float(w)})  # fmt: skip
+    rows.sort(key=lambda r: -r["w"])
+    still = []
+    for k, g in grids.items():
+        if g.snooping is None or k not in where:
+            continue
+        labels = where[k][1]
+        for i in np.flatnonzero(g.snooping["still_flagged"]).tolist():  # flagged only
+            label = labels[i]
+            still.append({"image": k, kind: label.item() if hasattr(label, "item") else label})
+    return {
+        "test": "w",
+        "alpha": float(alpha),
+        "critical_value": w_critical_value(alpha),
+        "located_by": kind,
+        "rejected": rows,
+        "max_rounds": int(max_rounds),
+        "still_flagged": still,
+    }
+
+
+def _snooping_heading(rejected: dict) -> str:
+    """One line naming the test, alpha, the critical value and the count rejected."""
+    return (
+        f"data snooping: Baarda's w-test per component (the larger |w| of rx, ry), alpha "
+        f"{rejected['alpha']:g}, critical value {rejected['critical_value']:.2f}: "
+        f"{len(rejected['rejected'])} point(s) rejected"
+    )
 
 
 #: Suffixes of a BAL file, the one block format stored in a single file
@@ -594,10 +686,12 @@ def _fit_block(
     sigma_constraint: float | str | None,
     options: dict,
     exclude: list[str],
+    where: dict | None = None,
 ) -> dict:
     """The grids of an adjusted block's tie-point residuals (``fit_residual_grids``, the
     fit of ``grid evaluate``), each image's size from its camera; the images of
-    ``exclude`` (ids as text, --exclude) left out."""
+    ``exclude`` (ids as text, --exclude) left out. ``where`` receives, per image, ``("point",
+    the point id of each of its rows)``."""
     import photogeom as pg
 
     from ..bundle.io_formats import detect_format
@@ -624,6 +718,14 @@ def _fit_block(
     _refuse_unknown(exclude, [str(k) for k in ids], path)
     left_out = set(exclude)
     keep = [k for k in ids if str(k) not in left_out]
+    if where is not None:  # the rows of each image as block_residuals orders them
+        tie = np.flatnonzero(block.role[block.obs_point] == "tie")
+        tie = tie[np.argsort(block.obs_image[tie], kind="stable")]
+        cuts = np.cumsum(np.bincount(block.obs_image[tie], minlength=block.n_images))[:-1]
+        pids = block.observations.point_ids
+        where.update(
+            {k: ("point", pids[r]) for k, r in zip(ids, np.split(tie, cuts), strict=True)}
+        )
     try:
         with stage_spinner(f"fitting grids of {spacing:g} px"):
             return fit_residual_grids(
@@ -646,9 +748,11 @@ def _fit_csv(
     sigma_constraint: float | str | None,
     options: dict,
     exclude: list[str],
+    where: dict | None = None,
 ) -> dict:
     """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size; the
-    images of ``exclude`` (--exclude) left out."""
+    images of ``exclude`` (--exclude) left out. ``where`` receives, per image, ``("line",
+    the CSV line of each of its rows)``."""
     from ..calibration import GridLayout, fit_grids
     from ..calibration.blocks import scaled_constraint_sigma
 
@@ -683,6 +787,8 @@ def _fit_csv(
     for k in exclude:
         del groups[k]
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
+    if where is not None:
+        where.update({k: ("line", np.asarray(lines)[r]) for k, r in groups.items()})
     terminal = console(stderr=True).is_terminal
     what = f"fitting grids of {spacing:g} px"
     try:
@@ -765,7 +871,7 @@ def _grid_row(image_id, s: dict) -> list[str]:
     ]
 
 
-def _report_html(grids: dict) -> str:
+def _report_html(grids: dict, rejected: dict | None = None) -> str:
     """The HTML report of ``grid fit``: the per-image table with the numbers and rounding of
     the printed table (RMS in px to 4 decimals, reductions in per cent) and the mean node
     vectors of the images of the first image's layout, with a scale arrow of their true
@@ -799,6 +905,21 @@ def _report_html(grids: dict) -> str:
         note="sigma0: a-posteriori standard deviation of unit weight (unitless); reduction: "
         "1 - RMS after / RMS before; CV reduction: the same from the k-fold cross-validation",
     )
+    if rejected is not None:
+        kind = rejected["located_by"]
+        rep.add_table(
+            "Rejected by data snooping",
+            ["image", kind, "|w|"],
+            [[str(r["image"]), str(r[kind]), f"{r['w']:.2f}"] for r in rejected["rejected"]],
+            note=_snooping_heading(rejected)
+            + "; largest |w| first"
+            + (
+                f"; {len(rejected['still_flagged'])} point(s) still fail the test after the "
+                "last round and stay in the grids"
+                if rejected["still_flagged"]
+                else ""
+            ),
+        )
     same = [g for g in grids.values() if g.layout == first.layout]
     mean = np.mean([g.nodes for g in same], axis=0)
     u, v = first.layout.node_coordinates()

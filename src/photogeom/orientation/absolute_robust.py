@@ -240,7 +240,10 @@ def snooping_absolute_orientation(
     -------
     AbsoluteOrientationFit
         The final adjustment; ``extras["removed"]`` lists the removed input indices in order,
-        ``extras["kept"]`` is the mask of kept points, ``extras["snooping"]`` the final test.
+        ``extras["kept"]`` is the mask of kept points, ``extras["snooping"]`` the final test,
+        ``extras["stopped_by"]`` ``"max_remove=..."`` or ``"min_points=..."`` when a limit
+        ended the removal while points still failed the test (they are then named in
+        ``notes``), else None.
     """
     x, X = _as_pair(source, target)
     n = x.shape[0]
@@ -265,6 +268,7 @@ def snooping_absolute_orientation(
             return a[np.ix_(idx, idx)]
         return a
 
+    stopped_by = None
     while True:
         opts = {k: sub(v) for k, v in fit_options.items()}
         fit = absolute_orientation(
@@ -280,16 +284,34 @@ def snooping_absolute_orientation(
         j = int(np.argmax(worst))
         if not flagged[j]:
             break
-        if keep.sum() <= min_points or (max_remove is not None and len(removed) >= max_remove):
+        stopped_by = (
+            f"min_points={min_points}" if keep.sum() <= min_points
+            else f"max_remove={max_remove}"
+            if max_remove is not None and len(removed) >= max_remove else None
+        )  # fmt: skip
+        if stopped_by is not None:
             break
         orig = int(np.flatnonzero(keep)[j])
         removed.append(orig)
         keep[orig] = False
     extras = dict(fit.extras)
-    extras.update(removed=removed, kept=keep.copy(), snooping=sn)
+    extras.update(removed=removed, kept=keep.copy(), snooping=sn, stopped_by=stopped_by)
     notes = fit.notes
+
+    def name(i: int):
+        return i if all_ids is None else all_ids[i]
+
     if removed:
-        shown = removed if all_ids is None else [all_ids[i] for i in removed]
         notes = (*notes, f"data snooping ({sn.test}-test, alpha {alpha}) removed: "
-                 + ", ".join(str(i) for i in shown))
+                 + ", ".join(str(name(i)) for i in removed))
+    if stopped_by is not None:
+        left = np.flatnonzero(keep)[flagged]
+        order = np.argsort(-worst[flagged])
+        shown = ", ".join(
+            f"{name(int(i))} (|{sn.test}| {w:.2f})"
+            for i, w in zip(left[order][:10], worst[flagged][order][:10])
+        )
+        notes = (*notes, f"data snooping stopped by {stopped_by} with {int(flagged.sum())} "
+                 f"point(s) still failing the {sn.test}-test (critical value "
+                 f"{sn.critical_value:.2f}): {shown}; they are in the final adjustment")
     return replace(fit, extras=extras, notes=notes)

@@ -186,6 +186,34 @@ def _snooping(fit, sigma: str):
         return None
 
 
+def _poorly_controlled(test, ids, labels, shape) -> str | None:
+    """Footer naming the components whose redundancy number is below
+    ``POORLY_CONTROLLED``: a gross error there hardly changes the residuals, so passing the
+    test says little about it."""
+    from ..adjust.snooping import POORLY_CONTROLLED, POWER
+
+    if test is None or test.redundancy_numbers is None or test.mdb is None:
+        return None
+    poor = np.asarray(test.poorly_controlled, dtype=bool).reshape(shape)
+    if not poor.any():
+        return None
+    red = np.asarray(test.redundancy_numbers, dtype=float).reshape(shape)
+    mdb = np.asarray(test.mdb, dtype=float).reshape(shape)
+    rows, cols = np.nonzero(poor)
+    shown = [
+        f"{ids[k]} {labels[j]} (r {red[k, j]:.2g}, "
+        + (f"{mdb[k, j]:.0f} sigma)" if np.isfinite(mdb[k, j]) else "undetectable)")
+        for k, j in zip(rows[:12], cols[:12])
+    ]
+    more = f" and {rows.size - 12} more" if rows.size > 12 else ""
+    return (
+        f"poorly controlled (redundancy number r below {POORLY_CONTROLLED:g}; a gross error "
+        "there is largely absorbed by the parameters and may pass the tests; minimal "
+        f"detectable error at alpha = {test.alpha:g}, power {POWER:.0%}, in standard deviations "
+        f"of the observation): {', '.join(shown)}{more}"
+    )
+
+
 def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
     """Rows of the control (or check) residuals with |v| and, for control points, the
     w-test (a-priori sigma0) and tau-test (a-posteriori sigma0) statistics per component."""
@@ -230,11 +258,19 @@ def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
                 cells[k].extend(fmt_fixed(x, 2) for x in stat[k])
                 flags[k].extend(bool(f) for f in flagged[k])
             n_flag = int(flagged.sum())
+            n_untested = int(np.sum(~np.isfinite(stat)))
             verdict = f"{n_flag} component(s) flagged" if n_flag else "no component flagged"
+            if n_untested == stat.size:
+                verdict = "no component could be tested (shown as -)"
+            elif n_untested:
+                verdict += f"; {n_untested} component(s) could not be tested (shown as -)"
             footer.append(
                 f"{label}: critical value {test.critical_value:.3f} at alpha = {test.alpha:g}; "
                 f"{verdict}"
             )
+        poor = _poorly_controlled(w if w is not None else tau, ids, labels, res.shape)
+        if poor:
+            footer.append(poor)
         if w is not None and _finite(fit.sigma0) and fit.sigma0_prior > 0:
             ratio = fit.sigma0 / fit.sigma0_prior
             if ratio < 0.1 or ratio > 10:
