@@ -32,14 +32,14 @@ def correct_points(uv, grid: ResidualGrid) -> np.ndarray:
 
     Parameters
     ----------
-    uv : array_like, shape (n, 2)
+    uv : array_like, shape (n, 2) or (2,)
         Observed pixels (col, row) inside the image.
     grid : ResidualGrid
         The grid of the image.
 
     Returns
     -------
-    numpy.ndarray, shape (n, 2)
+    numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
         px.
     """
     return grid.correct(uv)

@@ -479,16 +479,19 @@ class ResidualGrid:
 
         Parameters
         ----------
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Pixel coordinates (column, row) inside the image.
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
+            px.
         """
+        single = np.ndim(uv) == 1
         uv = _as_uv(uv, "uv", "evaluating the grid")
         self.layout.check_inside(uv)
-        return evaluate_nodes(self.layout, self.nodes, uv)
+        out = evaluate_nodes(self.layout, self.nodes, uv)
+        return out[0] if single else out
 
     def correct(self, uv) -> np.ndarray:
         """Corrected image coordinates ``uv + r(uv)``.
@@ -498,16 +501,18 @@ class ResidualGrid:
 
         Parameters
         ----------
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Observed pixels (col, row).
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             px.
         """
+        single = np.ndim(uv) == 1
         uv = _as_uv(uv, "uv", "correcting them")
-        return uv + self.evaluate(uv)
+        out = uv + self.evaluate(uv)
+        return out[0] if single else out
 
     @property
     def reduction(self) -> float:
@@ -609,7 +614,7 @@ def _as_uv(values, name: str, action: str = "fitting") -> np.ndarray:
     if arr.ndim == 1 and arr.shape[0] == 2:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise InputError(f"{name}: expected shape (n, 2), got {arr.shape}")
+        raise InputError(f"{name}: expected shape (n, 2) or (2,), got {arr.shape}")
     bad = ~np.isfinite(arr).all(axis=1)
     if np.any(bad):
         raise InputError(

@@ -115,18 +115,19 @@ class SimulatedBlock:
         ----------
         image_id : hashable or sequence
             One image id, or one id per row of ``uv``.
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Ideal pixels (col, row).
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             ``(du, dv)``, px.
 
         Raises
         ------
         InputError
-            For an id that is not an image of the block.
+            For an id that is not an image of the block, or ``uv`` not of shape (n, 2) or
+            (2,).
         """
         return self.field(image_id, uv)
 
