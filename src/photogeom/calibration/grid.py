@@ -444,6 +444,14 @@ class ResidualGrid:
     uv : numpy.ndarray, shape (n_input, 2), optional
         Pixel positions of the input points (px), kept to compute :attr:`node_std` on first
         use; None for a grid read without them (saved with ``std=False``).
+
+    Notes
+    -----
+    The arrays are read-only views (the node cofactors are computed once from ``uv``,
+    ``sigma_obs`` and ``outliers`` and kept): change a grid with
+    :func:`dataclasses.replace`, which gives a grid whose kept cofactors are those of its own
+    observations, weights and layout (kept when these are unchanged, computed again
+    otherwise).
     """
 
     layout: GridLayout
@@ -463,6 +471,46 @@ class ResidualGrid:
     border: str = "mean"
     uv: np.ndarray | None = field(default=None, repr=False)
     _std: list = field(default_factory=list, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in _GRID_ARRAYS:
+            value = getattr(self, name)
+            if isinstance(value, np.ndarray) and value.flags.writeable:
+                object.__setattr__(self, name, _read_only_view(value))
+        # The cache holds (inputs, cofactor) pairs; dataclasses.replace hands the original's
+        # list over: keep only what was computed for this grid's inputs, in a list of its own
+        # (a bare array is a cofactor given for this grid: read from a file, or computed by
+        # the adjustment with grids).
+        key = self._cofactor_key()
+        kept = [
+            (key, _read_only_view(entry))
+            if isinstance(entry, np.ndarray)
+            else (key, entry[1])
+            for entry in self._std
+            if isinstance(entry, np.ndarray) or _same_inputs(entry[0], key)
+        ]
+        object.__setattr__(self, "_std", kept[:1])
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: read-only again (the cache included)
+        self.__dict__.update(state)
+        for name in _GRID_ARRAYS:
+            value = self.__dict__.get(name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        for _, cof in self.__dict__.get("_std", ()):
+            cof.flags.writeable = False
+
+    def _cofactor_key(self) -> tuple:
+        """What the node cofactors derive from (arrays compared by identity: read-only)."""
+        return (
+            self.layout,
+            self.border,
+            self.sigma_constraint,
+            self.uv,
+            self.sigma_obs,
+            self.outliers,
+        )
 
     # -------------------------------------------------------------- evaluation
     @property
@@ -541,7 +589,8 @@ class ResidualGrid:
             if self.uv is None:
                 raise InputError(
                     "node standard deviations were not stored with this grid (saved with "
-                    "std=False / --no-std): fit the grid again to compute them"
+                    "std=False / --no-std, or its weights or layout replaced after reading): "
+                    "fit the grid again to compute them"
                 )
             used = ~self.outliers if self.outliers.size else np.ones(len(self.uv), bool)
             with single_threaded_blas():
@@ -556,8 +605,8 @@ class ResidualGrid:
                 diag = sysm.selected_inverse.diagonal()
             cof = diag.reshape(self.layout.shape)
             cof.flags.writeable = False  # the cache itself is returned: never written into
-            self._std.append(cof)
-        return self._std[0]
+            self._std.append((self._cofactor_key(), cof))
+        return self._std[0][1]
 
     def to_dict(self) -> dict:
         """JSON-ready summary (without the node arrays).
@@ -595,6 +644,28 @@ class ResidualGrid:
 
 def _num(x) -> float | None:
     return float(x) if np.isfinite(x) else None
+
+
+#: The array fields of :class:`ResidualGrid` (read-only).
+_GRID_ARRAYS = ("nodes", "sigma_obs", "support", "counts", "outliers", "uv")
+
+
+def _read_only_view(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (``a`` itself when it is read-only already)."""
+    if not a.flags.writeable:
+        return a
+    v = a.view()
+    v.flags.writeable = False
+    return v
+
+
+def _same_inputs(a: tuple, b: tuple) -> bool:
+    """Two :meth:`ResidualGrid._cofactor_key` tuples name the same inputs."""
+    (la, ba, sa, *arrays_a), (lb, bb, sb, *arrays_b) = a, b
+    same_scalar = sa == sb or (sa != sa and sb != sb)  # NaN equals NaN here
+    return la == lb and ba == bb and same_scalar and all(
+        x is y for x, y in zip(arrays_a, arrays_b)
+    )
 
 
 def evaluate_nodes(layout: GridLayout, nodes: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -870,7 +941,7 @@ def _fit_grid(
         outliers=~used,
         vce_iterations=vce_its,
         border=border,
-        uv=uv,
+        uv=np.array(uv),  # its own copy (may be the caller's array): the cofactors derive from it
     )
 
 
