@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..records import build, compact_repr
+from ..records import build, compact_repr, read_only_fields, setstate_read_only
 from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
@@ -104,6 +104,13 @@ class Fit:
         residuals, check points and transformed points are, and of the source coordinates of
         a transformation: an EPSG code, WKT or PROJ string, or ``"enu:lat0,lon0,h0"`` (see
         :meth:`with_crs`); None when not given. Recorded, never used to compute.
+
+    Notes
+    -----
+    The arrays are read-only views (``parameters``, ``covariance``, ``cofactor``,
+    ``residuals``, ...): they agree with ``model`` and with each other, and copies made by
+    :meth:`with_checks`, :meth:`with_crs` or :func:`dataclasses.replace` share them. Take a
+    copy (``np.array(fit.residuals)``) to change one.
     """
 
     model: object
@@ -136,10 +143,19 @@ class Fit:
 
     #: What ``crs`` is the system of, in reports ("target CRS"; "ground CRS" of a resection).
     crs_role = "target"
+    #: :func:`photogeom.records.build` may fill the fields and call ``__post_init__``.
+    _build_post_init = True
 
     def __repr__(self) -> str:
         # bounded (records.compact_repr): the dataclass repr printed every id and extra
         return compact_repr(self)
+
+    def __post_init__(self) -> None:
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: read-only again
+        setstate_read_only(self, state)
 
     # --- construction ----------------------------------------------------------------------
 
