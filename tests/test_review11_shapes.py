@@ -5,10 +5,12 @@ point axis, a list as the array; any other shape is refused, not reshaped.
 Before, ``image_rays``, ``ground_at_height``, a residual grid's ``evaluate`` / ``correct``,
 ``correct_points``, ``sim.local_field``, ``InteriorOrientation.image_from_normalized`` /
 ``normalized_from_image``, ``MetashapeCalibration.project_normalized`` /
-``project_camera`` / ``distort_pixels`` and ``BrownDistortion.jacobian`` /
-``coefficient_jacobian`` returned (1, ...) for one point (``project`` and ``apply`` gave
-(k,)), ``in_front`` gave (1,); and the functions that reshaped their input to (-1, 2) read a
-transposed (2, 3) array or a flat list of four numbers as points.
+``project_camera`` / ``distort_pixels``, ``BrownDistortion.jacobian`` /
+``coefficient_jacobian`` and ``camera.measured_to_fiducial`` returned (1, ...) for one
+point (``project`` and ``apply`` gave (k,)), ``in_front`` gave (1,); and the functions
+that reshaped their input to (-1, 2) read a transposed (2, 3) array or a flat list of four
+numbers as points (``ExteriorOrientation.to_camera`` raised numpy's broadcasting
+ValueError).
 """
 
 from __future__ import annotations
@@ -54,6 +56,12 @@ def _sim():
 
 
 SIM = _sim()
+_AFFINE_GROUND = np.random.default_rng(5).normal(size=(10, 3)) * [50.0, 50.0, 5.0]
+AFFINE = pg.estimate_affine_camera(_AFFINE_GROUND, pg.project(_AFFINE_GROUND, IO, EO)).model
+FIDUCIALS = pg.fit_fiducials(
+    np.array([[0.0, 0.0], [4000.0, 0.0], [4000.0, 3000.0], [0.0, 3000.0]]),
+    np.array([[-10.0, 7.5], [10.0, 7.5], [10.0, -7.5], [-10.0, -7.5]]),
+)
 IMAGE = sorted(SIM.block.images)[0]
 
 #: name -> (function of the points, points (n = 3), shape of one result)
@@ -93,6 +101,13 @@ FUNCTIONS = {
     "sim.local_field": (lambda p: SIM.local_field(IMAGE, p), GRID_UV, (2,)),
     "PixelSystem.to_image": (
         pg.imagecoords.PixelSystem(0.005, (2000, 1500)).to_image,
+        PIXELS,
+        (2,),
+    ),
+    "ExteriorOrientation.to_camera": (EO.to_camera, GROUND, (3,)),
+    "AffineCamera.project": (AFFINE.project, GROUND, (2,)),
+    "measured_to_fiducial": (
+        lambda p: pg.camera.measured_to_fiducial(FIDUCIALS, p),
         PIXELS,
         (2,),
     ),
@@ -147,3 +162,12 @@ def test_other_shapes_are_refused(name):
 def test_transposed_points_are_named():
     with pytest.raises(InputError, match="transpose"):
         MS.distort_pixels(PIXELS.T)
+
+
+@pytest.mark.parametrize("name", sorted(n for n in FUNCTIONS if not _two_column(n)))
+def test_other_shapes_of_3d_points_are_refused(name):
+    fn, points = FUNCTIONS[name][:2]
+    with pytest.raises(InputError, match=r"\(n, 3\)"):
+        fn(points[:2].T)  # two points transposed: (3, 2)
+    with pytest.raises(InputError, match=r"\(n, 3\)"):
+        fn(points[:2].ravel())  # a flat list of two points
