@@ -36,6 +36,7 @@ from ..adjust.snooping import w_critical_value
 from ..adjust.sparse import factorize
 from ..adjust.variance_components import update_variance_factors
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
+from ..records import read_only_fields
 
 Border = Literal["mean", "linear"]
 BORDERS = ("mean", "linear")
@@ -473,10 +474,7 @@ class ResidualGrid:
     _std: list = field(default_factory=list, repr=False)
 
     def __post_init__(self) -> None:
-        for name in _GRID_ARRAYS:
-            value = getattr(self, name)
-            if isinstance(value, np.ndarray) and value.flags.writeable:
-                object.__setattr__(self, name, _read_only_view(value))
+        read_only_fields(self)
         # The cache holds (inputs, cofactor) pairs; dataclasses.replace hands the original's
         # list over: keep only what was computed for this grid's inputs, in a list of its own
         # (a bare array is a cofactor given for this grid: read from a file, or computed by
