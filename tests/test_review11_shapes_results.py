@@ -103,3 +103,29 @@ def test_bundle_fit_arrays_are_read_only():
         pg.bundle.reprojection_residuals(res.block)[res.in_adjustment],
         atol=1e-9,
     )
+
+
+def _ransac_fit():
+    rng = np.random.default_rng(1)
+    s = rng.normal(size=(20, 3)) * 100
+    t = s * 1.5 + 1 + rng.normal(size=(20, 3)) * 0.01
+    t[3] += 50
+    return pg.absolute_orientation(s, t, robust="ransac", threshold=0.1)
+
+
+def test_extras_of_a_copy_cannot_change_the_original():
+    """Before: writing False into a with_crs copy's inlier mask left the original with 0
+    inliers instead of 19; adding a key to the copy's extras added it to the original's."""
+    fit = _ransac_fit()
+    copy_ = fit.with_crs("EPSG:25832")
+    with pytest.raises(ValueError, match="read-only"):
+        copy_.extras["inliers"][:] = False
+    assert int(fit.extras["inliers"].sum()) == 19
+    copy_.extras["note"] = 1
+    assert "note" not in fit.extras
+
+
+@pytest.mark.parametrize("clone", [copy.deepcopy, lambda f: pickle.loads(pickle.dumps(f))])
+def test_extras_of_copies_stay_read_only(clone):
+    fit = clone(_ransac_fit())
+    assert not fit.extras["inliers"].flags.writeable

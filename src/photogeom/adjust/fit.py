@@ -20,6 +20,14 @@ def propagate_covariance(C: np.ndarray, J: np.ndarray) -> np.ndarray:
     return J @ np.asarray(C, dtype=float) @ J.T
 
 
+def _read_only_view(value):
+    """``value``, or a read-only view of it when it is a writable array."""
+    if isinstance(value, np.ndarray) and value.flags.writeable:
+        value = value.view()
+        value.flags.writeable = False
+    return value
+
+
 def _jsonable(value):
     """``value`` with numpy arrays and scalars as Python lists and numbers, NaN and
     infinities as None (JSON has neither), mapping keys as str."""
@@ -110,7 +118,8 @@ class Fit:
     The arrays are read-only views (``parameters``, ``covariance``, ``cofactor``,
     ``residuals``, ...): they agree with ``model`` and with each other, and copies made by
     :meth:`with_checks`, :meth:`with_crs` or :func:`dataclasses.replace` share them. Take a
-    copy (``np.array(fit.residuals)``) to change one.
+    copy (``np.array(fit.residuals)``) to change one. ``extras`` is a dict of each Fit's own
+    whose arrays (e.g. the inlier mask of RANSAC) are read-only views too.
     """
 
     model: object
@@ -152,10 +161,19 @@ class Fit:
 
     def __post_init__(self) -> None:
         read_only_fields(self)
+        # extras: a dict of its own (copies made by replace do not share it) whose arrays are
+        # read-only views (an inlier mask written through a copy changed the original's)
+        d = self.__dict__
+        extras = d.get("extras")
+        if isinstance(extras, Mapping):
+            d["extras"] = {k: _read_only_view(v) for k, v in extras.items()}
 
     def __setstate__(self, state: dict) -> None:
-        # pickle / deepcopy rebuild arrays writable: read-only again
+        # pickle / deepcopy rebuild arrays writable: read-only again (those of extras too)
         setstate_read_only(self, state)
+        for value in (self.__dict__.get("extras") or {}).values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
 
     # --- construction ----------------------------------------------------------------------
 
