@@ -10,7 +10,7 @@ Before, ``image_rays``, ``ground_at_height``, a residual grid's ``evaluate`` / `
 point (``project`` and ``apply`` gave (k,)), ``in_front`` gave (1,); and the functions
 that reshaped their input to (-1, 2) read a transposed (2, 3) array or a flat list of four
 numbers as points (``ExteriorOrientation.to_camera`` raised numpy's broadcasting
-ValueError).
+ValueError); ``crs.transform_points`` and ``crs.points_between`` refused one point.
 """
 
 from __future__ import annotations
@@ -38,6 +38,8 @@ IMAGE_MM = np.array([[1.0, 2.0], [-3.0, 1.5], [0.5, -0.5]])
 PIXELS = np.array([[100.0, 200.0], [1000.0, 1500.0], [3000.0, 2000.0]])
 NORMALISED = np.array([[0.1, 0.2], [-0.1, 0.05], [0.0, 0.0]])
 CAMERA_FRAME = np.array([[0.1, 0.2, 1.0], [0.0, 0.1, 2.0], [0.3, 0.2, 1.5]])
+GEOGRAPHIC = np.array([[11.0, 48.0, 500.0], [11.1, 48.1, 600.0], [10.9, 47.9, 400.0]])
+ECEF = np.array([[4.2e6, 8.1e5, 4.7e6], [4.1e6, 8.2e5, 4.8e6], [4.3e6, 8.0e5, 4.6e6]])
 GRID_UV = np.array([[100.0, 200.0], [1000.0, 700.0], [500.0, 500.0]])
 
 
@@ -105,6 +107,22 @@ FUNCTIONS = {
         (2,),
     ),
     "ExteriorOrientation.to_camera": (EO.to_camera, GROUND, (3,)),
+    "crs.transform_points": (
+        lambda p: pg.crs.transform_points(p, "EPSG:4979", "EPSG:4978"),
+        GEOGRAPHIC,
+        (3,),
+    ),
+    "crs.transform_points 2-D": (
+        lambda p: pg.crs.transform_points(p, "EPSG:4326", "EPSG:32632"),
+        GEOGRAPHIC[:, :2],
+        (2,),
+    ),
+    "crs.points_between": (
+        lambda p: pg.crs.points_between(p, "EPSG:4979", "EPSG:4978"),
+        GEOGRAPHIC,
+        (3,),
+    ),
+    "crs.ecef_to_enu": (lambda p: pg.crs.ecef_to_enu(p, 48.0, 11.0, 0.0), ECEF, (3,)),
     "AffineCamera.project": (AFFINE.project, GROUND, (2,)),
     "measured_to_fiducial": (
         lambda p: pg.camera.measured_to_fiducial(FIDUCIALS, p),
@@ -150,7 +168,14 @@ def _two_column(name) -> bool:
     return FUNCTIONS[name][1].shape[1] == 2 if name in FUNCTIONS else True
 
 
-@pytest.mark.parametrize("name", sorted([n for n in FUNCTIONS if _two_column(n)]) + sorted(RESULTS))
+#: Functions of 2-D or 3-D points: a transposed array is a valid array of the other kind.
+EITHER_DIMENSION = ("crs.transform_points", "crs.transform_points 2-D")
+
+
+@pytest.mark.parametrize(
+    "name",
+    sorted(n for n in FUNCTIONS if _two_column(n) and n not in EITHER_DIMENSION) + sorted(RESULTS),
+)
 def test_other_shapes_are_refused(name):
     fn, points = (FUNCTIONS[name][:2]) if name in FUNCTIONS else RESULTS[name]
     with pytest.raises(InputError, match=r"\(n, 2\)"):
@@ -164,7 +189,9 @@ def test_transposed_points_are_named():
         MS.distort_pixels(PIXELS.T)
 
 
-@pytest.mark.parametrize("name", sorted(n for n in FUNCTIONS if not _two_column(n)))
+@pytest.mark.parametrize(
+    "name", sorted(n for n in FUNCTIONS if not _two_column(n) and n not in EITHER_DIMENSION)
+)
 def test_other_shapes_of_3d_points_are_refused(name):
     fn, points = FUNCTIONS[name][:2]
     with pytest.raises(InputError, match=r"\(n, 3\)"):
