@@ -3,14 +3,15 @@ points"): (n, k) in gives n rows out, (0, k) none, one point (k,) one result wit
 point axis, a list as the array; any other shape is refused, not reshaped.
 
 Before, ``image_rays``, ``ground_at_height``, a residual grid's ``evaluate`` / ``correct``,
-``correct_points``, ``sim.local_field``, ``InteriorOrientation.image_from_normalized`` /
-``normalized_from_image``, ``MetashapeCalibration.project_normalized`` /
-``project_camera`` / ``distort_pixels``, ``BrownDistortion.jacobian`` /
-``coefficient_jacobian`` and ``camera.measured_to_fiducial`` returned (1, ...) for one
-point (``project`` and ``apply`` gave (k,)), ``in_front`` gave (1,); and the functions
-that reshaped their input to (-1, 2) read a transposed (2, 3) array or a flat list of four
-numbers as points (``ExteriorOrientation.to_camera`` raised numpy's broadcasting
-ValueError); ``crs.transform_points`` and ``crs.points_between`` refused one point.
+``correct_points``, ``calibration.correct_observations`` (of arrays), ``sim.local_field``,
+``InteriorOrientation.image_from_normalized`` / ``normalized_from_image``,
+``MetashapeCalibration.project_normalized`` / ``project_camera`` / ``distort_pixels``,
+``BrownDistortion.jacobian`` / ``coefficient_jacobian`` and ``camera.measured_to_fiducial``
+returned (1, ...) for one point (``project`` and ``apply`` gave (k,)), ``in_front`` gave
+(1,); and the functions that reshaped their input to (-1, 2) read a transposed (2, 3) array
+or a flat list of four numbers as points (``ExteriorOrientation.to_camera`` raised numpy's
+broadcasting ValueError); ``crs.transform_points`` and ``crs.points_between`` refused one
+point.
 """
 
 from __future__ import annotations
@@ -100,6 +101,11 @@ FUNCTIONS = {
     "ResidualGrid.evaluate": (GRID.evaluate, GRID_UV, (2,)),
     "ResidualGrid.correct": (GRID.correct, GRID_UV, (2,)),
     "correct_points": (lambda p: correct_points(p, GRID), GRID_UV, (2,)),
+    "calibration.correct_observations": (
+        lambda p: pg.calibration.correct_observations({7: p}, {7: GRID})[7],
+        GRID_UV,
+        (2,),
+    ),
     "sim.local_field": (lambda p: SIM.local_field(IMAGE, p), GRID_UV, (2,)),
     "PixelSystem.to_image": (
         pg.imagecoords.PixelSystem(0.005, (2000, 1500)).to_image,
