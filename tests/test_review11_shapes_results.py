@@ -129,3 +129,14 @@ def test_extras_of_a_copy_cannot_change_the_original():
 def test_extras_of_copies_stay_read_only(clone):
     fit = clone(_ransac_fit())
     assert not fit.extras["inliers"].flags.writeable
+
+
+def test_simulated_truth_is_read_only():
+    """Before: zeros written into ``sim.field.coef`` turned ``sim.local_field`` at (100, 200)
+    from (0.046, 0.226) px into (0, 0) while the block's observations kept the old field."""
+    sim = pg.simulate.uav_block("FC300S", seed=1, strips=2, images_per_strip=3)
+    for obj in (sim, sim.field):
+        for key, a in _arrays(obj).items():
+            assert not a.flags.writeable, key
+    clone = pickle.loads(pickle.dumps(sim))
+    assert not clone.field.coef.flags.writeable and not clone.local.flags.writeable

@@ -12,6 +12,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..errors import InputError
+from ..records import read_only_fields, setstate_read_only
 from ..validation import as_points_single, one_or_many
 
 __all__ = ["LocalDistortionField", "WaveTerrain", "ar1_along_flight", "check_field_options"]
@@ -235,6 +236,13 @@ class LocalDistortionField:
     correlation: float = 0.0
     static: float = 0.0
     slope: float = 1.0
+
+    def __post_init__(self) -> None:
+        # read-only views: the simulated observations were made from these coefficients
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
 
     @classmethod
     def random(

@@ -27,6 +27,7 @@ from ..bundle.triangulate import triangulate
 from ..camera.frame_kernel import project_rows
 from ..camera.metashape import MetashapeCalibration
 from ..errors import DegenerateGeometryError, InputError
+from ..records import read_only_fields, setstate_read_only
 from ..rotation import opk_matrix
 from .fields import LocalDistortionField, WaveTerrain, ar1_along_flight, check_field_options
 from .presets import CameraPreset, preset
@@ -93,6 +94,13 @@ class SimulatedBlock:
     check_ids: np.ndarray
     tie_ids: np.ndarray
     options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        # the truth is read-only: the block's observations were made from these arrays
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
 
     @property
     def observed(self) -> np.ndarray:
