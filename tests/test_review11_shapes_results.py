@@ -140,3 +140,22 @@ def test_simulated_truth_is_read_only():
             assert not a.flags.writeable, key
     clone = pickle.loads(pickle.dumps(sim))
     assert not clone.field.coef.flags.writeable and not clone.local.flags.writeable
+
+
+def test_adjustment_arrays_are_read_only():
+    """Before: ``adj.cofactor[0, 0] *= 4`` after ``Fit.from_adjustment(adj, ...)`` changed the
+    Fit's cofactor but not its covariance (computed from it): their ratio went from sigma0^2
+    = 4.79e-5 to 1.20e-5."""
+    t = np.linspace(0.0, 1.0, 10)
+    y = 2.0 * t + 1.0 + 0.01 * np.sin(7.0 * t)
+    adj = pg.gauss_markov(
+        lambda x: x[0] * t + x[1], [1.0, 0.0], y, jacobian=lambda x: np.column_stack([t, t**0])
+    )
+    fit = Fit.from_adjustment(adj, None, "line", point_dim=1)
+    for key, a in _arrays(adj).items():
+        assert not a.flags.writeable, key
+    with pytest.raises(ValueError, match="read-only"):
+        adj.cofactor[0, 0] *= 4
+    assert fit.covariance[0, 0] / fit.cofactor[0, 0] == pytest.approx(fit.sigma0**2)
+    bare = pg.gauss_markov(lambda x: x[0] * t + x[1], [1.0, 0.0], y, statistics=False)
+    assert not bare.x.flags.writeable
