@@ -110,9 +110,9 @@ def test_standard_deviations_round_trip_exactly(sigma0, rms_cv, seed):
         **{**{f: getattr(g, f) for f in ("layout", "nodes", "redundancy", "sigma_obs")},
            **{f: getattr(g, f) for f in ("sigma_constraint", "support", "counts")},
            "sigma0": sigma0, "rms_before": 1.0, "rms_after": 0.5,
-           "rms_cv_before": rms_cv, "rms_cv_after": rms_cv},
+           "rms_cv_before": rms_cv, "rms_cv_after": rms_cv,
+           "_std": [rng.uniform(0.01, 5, g.layout.shape)]},  # a given cofactor
     )  # fmt: skip
-    g._std.append(rng.uniform(0.01, 5, g.layout.shape))
     with tempfile.TemporaryDirectory() as tmp:
         for suffix in SUFFIXES:
             path = save_grids(Path(tmp) / f"g{suffix}", {"a": g})

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .validation import as_points_single, one_or_many
 
 __all__ = [
     "ELLIPSOIDS",
@@ -675,7 +676,7 @@ def transform_points(points, src_crs, dst_crs, *, allow_ballpark: bool = False) 
 
     Parameters
     ----------
-    points : array_like, shape (n, 2) or (n, 3)
+    points : array_like, shape (n, 2) or (n, 3), or (2,) / (3,) for one point
         Coordinates in ``src_crs``, x/easting/longitude first (degrees for geographic,
         the CRS's unit otherwise).
     src_crs, dst_crs : str or int
@@ -687,11 +688,16 @@ def transform_points(points, src_crs, dst_crs, *, allow_ballpark: bool = False) 
     -------
     numpy.ndarray, shape of ``points``
         Coordinates in ``dst_crs``, x first.
+
+    Raises
+    ------
+    InputError
+        For points of another shape, an unknown CRS, a ballpark transformation (unless
+        allowed), or points PROJ cannot transform.
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
-        raise InputError(f"points must have shape (n, 2) or (n, 3), got {pts.shape}")
-    return _proj_apply(_proj_transformer(src_crs, dst_crs, allow_ballpark), pts)
+    pts, single = as_points_single(points, (2, 3), "points", finite=False)
+    out = _proj_apply(_proj_transformer(src_crs, dst_crs, allow_ballpark), pts)
+    return one_or_many(out, single)
 
 
 def _proj_transformer(src_crs, dst_crs, allow_ballpark: bool):
@@ -1080,7 +1086,7 @@ def points_between(points, src, dst, *, allow_ballpark: bool = False) -> np.ndar
 
     Parameters
     ----------
-    points : array_like, shape (n, 3)
+    points : array_like, shape (n, 3) or (3,)
         Coordinates in ``src`` (deg for geographic, the CRS's unit otherwise).
     src, dst : str, int, pyproj.CRS or LocalFrame
         Source and target CRS.
@@ -1089,7 +1095,7 @@ def points_between(points, src, dst, *, allow_ballpark: bool = False) -> np.ndar
 
     Returns
     -------
-    numpy.ndarray, shape (n, 3)
+    numpy.ndarray, shape (n, 3) (or (3,) for one point (3,))
         Coordinates in ``dst``, x first (an empty copy for no points).
 
     Raises
@@ -1098,12 +1104,10 @@ def points_between(points, src, dst, *, allow_ballpark: bool = False) -> np.ndar
         For points of another shape, an unknown CRS, or a conversion PROJ can only do
         approximately (unless ``allow_ballpark``).
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise InputError(f"points must have shape (n, 3), got {pts.shape}")
+    pts, single = as_points_single(points, 3, "points", finite=False)
     if not len(pts):
         return pts.copy()
-    return points_converter(src, dst, allow_ballpark=allow_ballpark)(pts)
+    return one_or_many(points_converter(src, dst, allow_ballpark=allow_ballpark)(pts), single)
 
 
 def points_converter(

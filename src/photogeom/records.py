@@ -4,7 +4,10 @@ A frozen dataclass's constructor sets each field with ``object.__setattr__``; fo
 with a dozen or more fields that costs more than a small least-squares solve. :func:`build`
 gives the same object (defaults and default factories applied, required and unknown fields
 refused as the constructor would) by filling the instance dictionary once. Classes with a
-``__post_init__`` or ``__slots__`` go through their constructor. :func:`compact_repr` is
+``__post_init__`` or ``__slots__`` go through their constructor, unless they set the class
+attribute ``_build_post_init = True``: then :func:`build` fills the dictionary and calls
+their ``__post_init__`` (one that only works on the filled fields, such as
+:func:`read_only_fields`). :func:`compact_repr` is
 their ``repr``, bounded whatever the size of the problem.
 """
 
@@ -28,7 +31,8 @@ def _spec(cls) -> tuple | None:
     if cls in _SPECS:
         return _SPECS[cls]
     spec = None
-    if not (hasattr(cls, "__post_init__") or hasattr(cls, "__slots__")):
+    lean_post_init = getattr(cls, "_build_post_init", False)
+    if lean_post_init or not (hasattr(cls, "__post_init__") or hasattr(cls, "__slots__")):
         plain, factories, required = {}, {}, set()
         for f in fields(cls):
             if f.default is not MISSING:
@@ -37,7 +41,8 @@ def _spec(cls) -> tuple | None:
                 factories[f.name] = f.default_factory
             else:
                 required.add(f.name)
-        spec = (plain, factories, frozenset(required), frozenset(f.name for f in fields(cls)))
+        names = frozenset(f.name for f in fields(cls))
+        spec = (plain, factories, frozenset(required), names, lean_post_init)
     _SPECS[cls] = spec
     return spec
 
@@ -53,7 +58,7 @@ def build(cls: type[T], values: dict) -> T:
     spec = _SPECS.get(cls) or _spec(cls)
     if spec is None:
         return cls(**values)
-    plain, factories, required, names = spec
+    plain, factories, required, names, post_init = spec
     keys = values.keys()
     if not (keys >= required and names.issuperset(keys)):
         missing, unknown = sorted(required - keys), sorted(keys - names)
@@ -72,6 +77,8 @@ def build(cls: type[T], values: dict) -> T:
         if name not in values:
             d[name] = factory()
     d.update(values)
+    if post_init:
+        obj.__post_init__()
     return obj
 
 
@@ -197,6 +204,32 @@ def setstate_read_only(obj, state: dict) -> None:
     for value in obj.__dict__.values():
         if isinstance(value, np.ndarray):
             value.flags.writeable = False
+
+
+def read_only_fields(obj: T) -> T:
+    """Make the array attributes of a result record read-only (in place) and return it.
+
+    A writable array is replaced by a read-only view of it: the record cannot be changed
+    through its arrays (nor a copy made with :func:`dataclasses.replace`, which shares them),
+    and the caller's own arrays stay writable.
+
+    Parameters
+    ----------
+    obj : object
+        A frozen dataclass instance (its ``__dict__`` is updated directly).
+
+    Returns
+    -------
+    object
+        ``obj``.
+    """
+    d = obj.__dict__
+    for name, value in d.items():
+        if isinstance(value, np.ndarray) and value.flags.writeable:
+            view = value.view()
+            view.flags.writeable = False
+            d[name] = view
+    return obj
 
 
 class FrozenMapping(Mapping):

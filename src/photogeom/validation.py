@@ -132,10 +132,60 @@ def as_points(
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] not in dims:
         want = " or ".join(f"(n, {d})" for d in dims)
-        raise InputError(f"{name}: expected an array of shape {want}, got shape {arr.shape}")
+        if allow_single:
+            want += " (or " + " or ".join(f"({d},)" for d in dims) + " for one point)"
+        hint = (
+            "; one point per row: transpose the array"
+            if arr.ndim == 2 and arr.shape[0] in dims
+            else ""
+        )
+        raise InputError(
+            f"{name}: expected an array of shape {want}, got shape {arr.shape}{hint}"
+        )
     if finite:
         check_finite(arr, name)
     return arr
+
+
+def as_points_single(
+    values: object, dim: int | Sequence[int], name: str = "points", *, finite: bool = True
+) -> tuple[np.ndarray, bool]:
+    """``values`` as an ``(n, dim)`` float64 array and whether it was one point ``(dim,)``.
+
+    The library's shape rule for functions of points: ``(n, dim)`` in gives ``n`` rows out
+    (``(0, dim)`` gives none), one point ``(dim,)`` gives one result without the point axis.
+    Pass the flag to :func:`one_or_many` on the way out.
+
+    Parameters
+    ----------
+    values : array_like
+        Coordinates, shape ``(n, dim)`` or ``(dim,)``.
+    dim : int or sequence of int
+        Accepted coordinate dimension(s).
+    name : str
+        Name used in error messages.
+    finite : bool
+        Refuse NaN / infinite values (see :func:`as_points`).
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (n, dim)
+    single : bool
+        True for one point given as ``(dim,)``.
+
+    Raises
+    ------
+    InputError
+        As :func:`as_points`: any other shape (a flat list of several points, a transposed
+        ``(dim, n)`` array), NaN / infinite values, masked or complex entries.
+    """
+    arr = as_float64(values, name)
+    return as_points(arr, dim, name, finite=finite), arr.ndim == 1
+
+
+def one_or_many(out: np.ndarray, single: bool) -> np.ndarray:
+    """``out[0]`` (the point axis dropped) when the input was one point, else ``out``."""
+    return out[0] if single else out
 
 
 def as_finite_scalar(value: object, name: str) -> float:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..records import build, compact_repr
+from ..records import build, compact_repr, read_only_fields, setstate_read_only
 from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
@@ -18,6 +18,14 @@ def propagate_covariance(C: np.ndarray, J: np.ndarray) -> np.ndarray:
     """Covariance of ``g(x)`` from that of ``x``: ``J C J.T`` (J = dg/dx)."""
     J = np.asarray(J, dtype=float)
     return J @ np.asarray(C, dtype=float) @ J.T
+
+
+def _read_only_view(value):
+    """``value``, or a read-only view of it when it is a writable array."""
+    if isinstance(value, np.ndarray) and value.flags.writeable:
+        value = value.view()
+        value.flags.writeable = False
+    return value
 
 
 def _jsonable(value):
@@ -104,6 +112,14 @@ class Fit:
         residuals, check points and transformed points are, and of the source coordinates of
         a transformation: an EPSG code, WKT or PROJ string, or ``"enu:lat0,lon0,h0"`` (see
         :meth:`with_crs`); None when not given. Recorded, never used to compute.
+
+    Notes
+    -----
+    The arrays are read-only views (``parameters``, ``covariance``, ``cofactor``,
+    ``residuals``, ...): they agree with ``model`` and with each other, and copies made by
+    :meth:`with_checks`, :meth:`with_crs` or :func:`dataclasses.replace` share them. Take a
+    copy (``np.array(fit.residuals)``) to change one. ``extras`` is a dict of each Fit's own
+    whose arrays (e.g. the inlier mask of RANSAC) are read-only views too.
     """
 
     model: object
@@ -136,10 +152,28 @@ class Fit:
 
     #: What ``crs`` is the system of, in reports ("target CRS"; "ground CRS" of a resection).
     crs_role = "target"
+    #: :func:`photogeom.records.build` may fill the fields and call ``__post_init__``.
+    _build_post_init = True
 
     def __repr__(self) -> str:
         # bounded (records.compact_repr): the dataclass repr printed every id and extra
         return compact_repr(self)
+
+    def __post_init__(self) -> None:
+        read_only_fields(self)
+        # extras: a dict of its own (copies made by replace do not share it) whose arrays are
+        # read-only views (an inlier mask written through a copy changed the original's)
+        d = self.__dict__
+        extras = d.get("extras")
+        if isinstance(extras, Mapping):
+            d["extras"] = {k: _read_only_view(v) for k, v in extras.items()}
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: read-only again (those of extras too)
+        setstate_read_only(self, state)
+        for value in (self.__dict__.get("extras") or {}).values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
 
     # --- construction ----------------------------------------------------------------------
 

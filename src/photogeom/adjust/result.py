@@ -8,6 +8,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..records import read_only_fields, setstate_read_only
+
 
 @dataclass(frozen=True)
 class Adjustment:
@@ -43,6 +45,10 @@ class Adjustment:
         ``v.T P v`` after each iteration (for diagnostics).
     message : str
         Human-readable account of convergence or problems.
+
+    Notes
+    -----
+    The arrays are read-only views (take a copy to change one).
     """
 
     x: np.ndarray
@@ -60,6 +66,17 @@ class Adjustment:
     cost_history: tuple[float, ...] = field(default_factory=tuple)
     message: str = ""
     corrected_observations: np.ndarray | None = None
+
+    #: :func:`photogeom.records.build` may fill the fields and call ``__post_init__``.
+    _build_post_init = True
+
+    def __post_init__(self) -> None:
+        # read-only views: a Fit built from this adjustment holds its arrays (its covariance
+        # was computed from the cofactor: a write into it made the two disagree)
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
 
     @property
     def sigma0(self) -> float:

@@ -26,7 +26,7 @@ import numpy as np
 from ..camera.exterior import ExteriorOrientation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
-from ..records import FrozenMapping, setstate_read_only, value_eq
+from ..records import FrozenMapping, read_only_fields, setstate_read_only, value_eq
 from ..rotation import opk_matrix
 
 #: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
@@ -82,18 +82,11 @@ def _lookup(keys: np.ndarray, ids: np.ndarray, what: str, table: str) -> np.ndar
     return order[pos].astype(np.int64)
 
 
-def _freeze_arrays(obj) -> None:
-    """Replace every writable array field of the frozen dataclass ``obj`` by a read-only
-    view of it, so that blocks derived from one another (``replace``, ``with_observations``,
-    the adjusted block of :func:`~photogeom.bundle_adjust`) can share their arrays without
-    a write through one of them changing the others. The given arrays keep their flags."""
-    d = obj.__dict__
-    for f in fields(obj):
-        v = d[f.name]
-        if isinstance(v, np.ndarray) and v.flags.writeable:
-            v = v.view()
-            v.flags.writeable = False
-            d[f.name] = v
+#: Replace every writable array field of a frozen dataclass by a read-only view of it, so
+#: that blocks derived from one another (``replace``, ``with_observations``, the adjusted
+#: block of :func:`~photogeom.bundle_adjust`) can share their arrays without a write through
+#: one of them changing the others. The given arrays keep their flags.
+_freeze_arrays = read_only_fields
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,7 @@ from ..adjust.schur import (
 from ..adjust.snooping import POORLY_CONTROLLED, noncentrality
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
-from ..records import compact_repr
+from ..records import compact_repr, read_only_fields, setstate_read_only
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
@@ -97,6 +97,12 @@ class BundleFit:
     elapsed : float (s)
     solver : dict
         The sparse backend and sizes of the reduced system.
+
+    Notes
+    -----
+    The array attributes (``residuals``, ``in_adjustment``, ``exterior_std``,
+    ``point_std``, ...) are read-only views, as the block's arrays: take a copy to change
+    one.
     """
 
     block: Block
@@ -136,6 +142,14 @@ class BundleFit:
         # bounded (records.compact_repr): the dataclass repr printed every flagged
         # observation and the covariance arrays of up to 1000 elements in full
         return compact_repr(self)
+
+    def __post_init__(self) -> None:
+        # read-only views: the residuals agree with the block, copies share the arrays
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: read-only again
+        setstate_read_only(self, state)
 
     # --- queries -----------------------------------------------------------------------------
 

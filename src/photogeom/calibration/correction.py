@@ -32,14 +32,14 @@ def correct_points(uv, grid: ResidualGrid) -> np.ndarray:
 
     Parameters
     ----------
-    uv : array_like, shape (n, 2)
+    uv : array_like, shape (n, 2) or (2,)
         Observed pixels (col, row) inside the image.
     grid : ResidualGrid
         The grid of the image.
 
     Returns
     -------
-    numpy.ndarray, shape (n, 2)
+    numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
         px.
     """
     return grid.correct(uv)
@@ -52,14 +52,14 @@ def correct_observations(per_image: Mapping, grids: Mapping) -> dict:
     ----------
     per_image : mapping
         ``image id -> uv (n, 2)`` observed pixel coordinates (any block, also points that
-        were not in the fit).
+        were not in the fit); ``(2,)`` for one point.
     grids : mapping
         ``image id -> ResidualGrid``.
 
     Returns
     -------
     dict
-        ``image id -> corrected uv (n, 2)``.
+        ``image id -> corrected uv (n, 2)`` (``(2,)`` for one point ``(2,)``), px.
 
     Raises
     ------
@@ -75,7 +75,8 @@ def correct_observations(per_image: Mapping, grids: Mapping) -> dict:
     out = {}
     for key, uv in per_image.items():
         try:
-            out[key] = grids[key].correct(_as_uv(uv, f"image {key}: uv", "correcting them"))
+            corrected = grids[key].correct(_as_uv(uv, f"image {key}: uv", "correcting them"))
+            out[key] = corrected[0] if np.ndim(uv) == 1 else corrected
         except InputError as exc:
             msg = str(exc)
             raise InputError(msg if msg.startswith("image ") else f"image {key}: {msg}") from None

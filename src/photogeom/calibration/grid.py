@@ -36,6 +36,7 @@ from ..adjust.snooping import w_critical_value
 from ..adjust.sparse import factorize
 from ..adjust.variance_components import update_variance_factors
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
+from ..records import read_only_fields
 
 Border = Literal["mean", "linear"]
 BORDERS = ("mean", "linear")
@@ -451,6 +452,14 @@ class ResidualGrid:
         rounds that removed points, and ``"still_flagged"`` (n_input,), the points still
         failing the test when ``max_snooping_rounds`` ended the removal (kept in the fit);
         None otherwise (and for grids read from a file).
+
+    Notes
+    -----
+    The arrays are read-only views (the node cofactors are computed once from ``uv``,
+    ``sigma_obs`` and ``outliers`` and kept): change a grid with
+    :func:`dataclasses.replace`, which gives a grid whose kept cofactors are those of its own
+    observations, weights and layout (kept when these are unchanged, computed again
+    otherwise).
     """
 
     layout: GridLayout
@@ -472,6 +481,43 @@ class ResidualGrid:
     snooping: Mapping | None = field(default=None, repr=False)
     _std: list = field(default_factory=list, repr=False)
 
+    def __post_init__(self) -> None:
+        read_only_fields(self)
+        # The cache holds (inputs, cofactor) pairs; dataclasses.replace hands the original's
+        # list over: keep only what was computed for this grid's inputs, in a list of its own
+        # (a bare array is a cofactor given for this grid: read from a file, or computed by
+        # the adjustment with grids).
+        key = self._cofactor_key()
+        kept = [
+            (key, _read_only_view(entry))
+            if isinstance(entry, np.ndarray)
+            else (key, entry[1])
+            for entry in self._std
+            if isinstance(entry, np.ndarray) or _same_inputs(entry[0], key)
+        ]
+        object.__setattr__(self, "_std", kept[:1])
+
+    def __setstate__(self, state: dict) -> None:
+        # pickle / deepcopy rebuild arrays writable: read-only again (the cache included)
+        self.__dict__.update(state)
+        for name in _GRID_ARRAYS:
+            value = self.__dict__.get(name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        for _, cof in self.__dict__.get("_std", ()):
+            cof.flags.writeable = False
+
+    def _cofactor_key(self) -> tuple:
+        """What the node cofactors derive from (arrays compared by identity: read-only)."""
+        return (
+            self.layout,
+            self.border,
+            self.sigma_constraint,
+            self.uv,
+            self.sigma_obs,
+            self.outliers,
+        )
+
     # -------------------------------------------------------------- evaluation
     @property
     def spacing(self) -> float:
@@ -487,16 +533,19 @@ class ResidualGrid:
 
         Parameters
         ----------
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Pixel coordinates (column, row) inside the image.
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
+            px.
         """
+        single = np.ndim(uv) == 1
         uv = _as_uv(uv, "uv", "evaluating the grid")
         self.layout.check_inside(uv)
-        return evaluate_nodes(self.layout, self.nodes, uv)
+        out = evaluate_nodes(self.layout, self.nodes, uv)
+        return out[0] if single else out
 
     def correct(self, uv) -> np.ndarray:
         """Corrected image coordinates ``uv + r(uv)``.
@@ -506,16 +555,18 @@ class ResidualGrid:
 
         Parameters
         ----------
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Observed pixels (col, row).
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             px.
         """
+        single = np.ndim(uv) == 1
         uv = _as_uv(uv, "uv", "correcting them")
-        return uv + self.evaluate(uv)
+        out = uv + self.evaluate(uv)
+        return out[0] if single else out
 
     @property
     def reduction(self) -> float:
@@ -544,7 +595,8 @@ class ResidualGrid:
             if self.uv is None:
                 raise InputError(
                     "node standard deviations were not stored with this grid (saved with "
-                    "std=False / --no-std): fit the grid again to compute them"
+                    "std=False / --no-std, or its weights or layout replaced after reading): "
+                    "fit the grid again to compute them"
                 )
             used = ~self.outliers if self.outliers.size else np.ones(len(self.uv), bool)
             with single_threaded_blas():
@@ -559,8 +611,8 @@ class ResidualGrid:
                 diag = sysm.selected_inverse.diagonal()
             cof = diag.reshape(self.layout.shape)
             cof.flags.writeable = False  # the cache itself is returned: never written into
-            self._std.append(cof)
-        return self._std[0]
+            self._std.append((self._cofactor_key(), cof))
+        return self._std[0][1]
 
     def to_dict(self) -> dict:
         """JSON-ready summary (without the node arrays).
@@ -600,6 +652,28 @@ def _num(x) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
+#: The array fields of :class:`ResidualGrid` (read-only).
+_GRID_ARRAYS = ("nodes", "sigma_obs", "support", "counts", "outliers", "uv")
+
+
+def _read_only_view(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (``a`` itself when it is read-only already)."""
+    if not a.flags.writeable:
+        return a
+    v = a.view()
+    v.flags.writeable = False
+    return v
+
+
+def _same_inputs(a: tuple, b: tuple) -> bool:
+    """Two :meth:`ResidualGrid._cofactor_key` tuples name the same inputs."""
+    (la, ba, sa, *arrays_a), (lb, bb, sb, *arrays_b) = a, b
+    same_scalar = sa == sb or (sa != sa and sb != sb)  # NaN equals NaN here
+    return la == lb and ba == bb and same_scalar and all(
+        x is y for x, y in zip(arrays_a, arrays_b)
+    )
+
+
 def evaluate_nodes(layout: GridLayout, nodes: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Bilinear interpolation of node values (ny, nx, 2) at points (n, 2); no checks."""
     idx, w = layout.locate(uv)
@@ -617,7 +691,7 @@ def _as_uv(values, name: str, action: str = "fitting") -> np.ndarray:
     if arr.ndim == 1 and arr.shape[0] == 2:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise InputError(f"{name}: expected shape (n, 2), got {arr.shape}")
+        raise InputError(f"{name}: expected shape (n, 2) or (2,), got {arr.shape}")
     bad = ~np.isfinite(arr).all(axis=1)
     if np.any(bad):
         raise InputError(
@@ -880,7 +954,7 @@ def _fit_grid(
         outliers=~used,
         vce_iterations=vce_its,
         border=border,
-        uv=uv,
+        uv=np.array(uv),  # its own copy (may be the caller's array): the cofactors derive from it
         snooping=(
             {
                 "test": "w",

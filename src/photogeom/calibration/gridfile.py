@@ -34,6 +34,7 @@ import os
 import zipfile
 import zlib
 from collections.abc import Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -287,11 +288,11 @@ def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
         border=border,
     )
     if arr.get("node_cofactor") is not None:
-        g._std.append(_array(arr, "node_cofactor", shape, "f", where))
+        g = replace(g, _std=[_array(arr, "node_cofactor", shape, "f", where)])
     elif arr.get("node_std") is not None:  # a file from before the cofactors were stored
         sd = _array(arr, "node_std", shape, "f", where)
         with np.errstate(invalid="ignore", divide="ignore"):
-            g._std.append((sd / g.sigma0) ** 2)
+            g = replace(g, _std=[(sd / g.sigma0) ** 2])
     return g
 
 

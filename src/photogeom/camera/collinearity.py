@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
 from ..rotation import opk_matrix_and_derivatives
-from ..validation import as_float64, as_points
+from ..validation import as_float64, as_points, as_points_single, one_or_many
 from .distortion import CHUNK
 from .exterior import ExteriorOrientation
 from .interior import InteriorOrientation
@@ -45,7 +45,7 @@ def in_front(ground, eo: ExteriorOrientation) -> np.ndarray:
 
     Returns
     -------
-    numpy.ndarray of bool, shape (n,)
+    numpy.ndarray of bool, shape (n,) (or a 0-d bool for a single point (3,))
         ``True`` for points in front of the camera.
 
     Raises
@@ -53,8 +53,8 @@ def in_front(ground, eo: ExteriorOrientation) -> np.ndarray:
     InputError
         When ``ground`` is not of shape (n, 3) or holds NaN/infinite values.
     """
-    g = as_points(ground, 3, "ground points")
-    return eo.to_camera(g)[:, 2] < 0
+    g, single = as_points_single(ground, 3, "ground points")
+    return one_or_many(eo.to_camera(g)[:, 2] < 0, single)
 
 
 def _behind_error(mask_behind: np.ndarray) -> DegenerateGeometryError:
@@ -141,7 +141,7 @@ def image_rays(
 
     Parameters
     ----------
-    image_xy : array_like, shape (n, 2)
+    image_xy : array_like, shape (n, 2) or (2,)
         Image coordinates in the unit of ``io`` (or pixels with ``system="pixel"``).
     io, eo
         Orientation of the image.
@@ -159,11 +159,11 @@ def image_rays(
     -------
     origin : numpy.ndarray, shape (3,)
         The projection centre.
-    directions : numpy.ndarray, shape (n, 3)
+    directions : numpy.ndarray, shape (n, 3) (or (3,) for a single point (2,))
         Unit direction vectors in the object system, pointing away from the camera into
         the scene.
     """
-    a = as_points(image_xy, 2, "image points")
+    a, single = as_points_single(image_xy, 2, "image points")
     if system == "pixel":
         a = io.pixel_to_image(a, pixel_origin)
     elif system != "image":
@@ -173,7 +173,7 @@ def image_rays(
     pc = np.stack([xn[:, 0], -xn[:, 1], -np.ones(len(xn))], axis=1)
     d = pc @ eo.matrix  # M.T @ pc for each row
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return eo.position, d
+    return eo.position, one_or_many(d, single)
 
 
 def ground_at_height(
@@ -190,7 +190,7 @@ def ground_at_height(
 
     Parameters
     ----------
-    image_xy : array_like, shape (n, 2)
+    image_xy : array_like, shape (n, 2) or (2,)
         Image coordinates in the unit of ``io`` (or pixels with ``system="pixel"``).
     io, eo
         Orientation of the image.
@@ -204,11 +204,13 @@ def ground_at_height(
 
     Returns
     -------
-    numpy.ndarray, shape (n, 3)
+    numpy.ndarray, shape (n, 3) (or (3,) for a single point (2,))
+        Ground points, object units.
     """
     if behind not in ("raise", "nan"):
         raise InputError("behind must be 'raise' or 'nan' for ground_at_height")
-    C, d = image_rays(image_xy, io, eo, system=system, pixel_origin=pixel_origin)
+    a, single = as_points_single(image_xy, 2, "image points")
+    C, d = image_rays(a, io, eo, system=system, pixel_origin=pixel_origin)
     Zs = (
         np.broadcast_to(as_float64(Z, "heights Z", coordinates=False).reshape(-1), (d.shape[0],))
         if np.ndim(Z)
@@ -228,7 +230,7 @@ def ground_at_height(
         )
     out = C + t[:, None] * d
     out[bad] = np.nan
-    return out
+    return one_or_many(out, single)
 
 
 # --- derivatives (used by resection, intersection and self-calibration) --------------------
@@ -385,7 +387,7 @@ class FrameCamera:
 
         Parameters
         ----------
-        image_xy : array_like, shape (n, 2)
+        image_xy : array_like, shape (n, 2) or (2,)
             Image coordinates in the unit of the interior orientation (or pixels with
             ``system="pixel"``).
         **kwargs
@@ -395,7 +397,7 @@ class FrameCamera:
         -------
         origin : numpy.ndarray, shape (3,)
             The projection centre, object units.
-        directions : numpy.ndarray, shape (n, 3)
+        directions : numpy.ndarray, shape (n, 3) or (3,)
             Unit direction vectors in the object system, pointing into the scene.
         """
         return image_rays(image_xy, self.interior, self.exterior, **kwargs)
@@ -405,7 +407,7 @@ class FrameCamera:
 
         Parameters
         ----------
-        image_xy : array_like, shape (n, 2)
+        image_xy : array_like, shape (n, 2) or (2,)
             Image coordinates in the unit of the interior orientation (or pixels with
             ``system="pixel"``).
         Z : float or array_like, shape (n,)
@@ -415,7 +417,7 @@ class FrameCamera:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 3)
+        numpy.ndarray, shape (n, 3) or (3,)
             Ground points, object units.
         """
         return ground_at_height(image_xy, self.interior, self.exterior, Z, **kwargs)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import InputError
-from ..validation import as_finite_scalar
+from ..validation import as_finite_scalar, as_points, as_points_single, one_or_many
 
 #: Status codes of :class:`UndistortResult`.
 STATUS_CONVERGED = 0
@@ -176,8 +176,18 @@ class BrownDistortion:
         -------
         numpy.ndarray, shape like ``xy``
             Distorted normalised coordinates ``(x', y')``.
+
+        Raises
+        ------
+        InputError
+            When the last axis of ``xy`` is not of length 2.
         """
         a = np.asarray(xy, dtype=float)
+        if a.ndim == 0 or a.shape[-1] != 2:
+            raise InputError(
+                f"normalised coordinates: expected an array of shape (n, 2) (or (2,) for one "
+                f"point), got shape {a.shape}"
+            )
         x, y = a[..., 0], a[..., 1]
         xd, yd = self._distort_xy(x, y)
         return np.stack([xd, yd], axis=-1)
@@ -203,12 +213,18 @@ class BrownDistortion:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2, 2)
+        numpy.ndarray, shape (n, 2, 2) (or (2, 2) for a single point (2,))
             ``[[dx'/dx, dx'/dy], [dy'/dx, dy'/dy]]`` per point.
+
+        Raises
+        ------
+        InputError
+            When ``xy`` is not of shape (n, 2) or (2,).
         """
-        a = np.asarray(xy, dtype=float).reshape(-1, 2)
+        a, single = as_points_single(xy, 2, "normalised coordinates", finite=False)
         j00, j01, j10, j11 = self._jacobian_xy(a[:, 0], a[:, 1])
-        return np.stack([np.stack([j00, j01], -1), np.stack([j10, j11], -1)], axis=-2)
+        J = np.stack([np.stack([j00, j01], -1), np.stack([j10, j11], -1)], axis=-2)
+        return one_or_many(J, single)
 
     def _jacobian_xy(self, x, y):
         r2 = x * x + y * y
@@ -232,14 +248,15 @@ class BrownDistortion:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2, len(names))
+        numpy.ndarray, shape (n, 2, len(names)) (or (2, len(names)) for a single point (2,))
+            Unitless.
 
         Raises
         ------
         InputError
-            For an unknown coefficient name.
+            For an unknown coefficient name, or ``xy`` not of shape (n, 2) or (2,).
         """
-        a = np.asarray(xy, dtype=float).reshape(-1, 2)
+        a, single = as_points_single(xy, 2, "normalised coordinates", finite=False)
         x, y = a[:, 0], a[:, 1]
         r2 = x * x + y * y
         out = np.empty((a.shape[0], 2, len(names)))
@@ -253,7 +270,7 @@ class BrownDistortion:
                 out[:, 0, j], out[:, 1, j] = 2.0 * x * y, r2 + 2.0 * y * y
             else:
                 raise InputError(f"unknown distortion coefficient {name!r}")
-        return out
+        return one_or_many(out, single)
 
     # --- inverse ------------------------------------------------------------------------------
 
@@ -269,7 +286,7 @@ class BrownDistortion:
 
         Parameters
         ----------
-        xy_distorted : array_like, shape (n, 2)
+        xy_distorted : array_like, shape (n, 2) or (2,)
             Distorted normalised coordinates ``(x', y')``.
         tol : float
             Convergence tolerance on ``|distort(x) - x'|`` measured after multiplying the two
@@ -283,9 +300,15 @@ class BrownDistortion:
         -------
         UndistortResult
             ``points`` are the ideal normalised coordinates; ``residual`` is in the units of
-            ``tol``; ``status`` flags points that did not converge.
+            ``tol``; ``status`` flags points that did not converge. The arrays keep the point
+            axis, also for a single point (2,) (n = 1).
+
+        Raises
+        ------
+        InputError
+            When ``xy_distorted`` is not of shape (n, 2) or (2,).
         """
-        t = np.asarray(xy_distorted, dtype=float).reshape(-1, 2)
+        t = as_points(xy_distorted, 2, "distorted normalised coordinates", finite=False)
         n = t.shape[0]
         out = np.empty((n, 2))
         status = np.empty(n, dtype=np.int8)

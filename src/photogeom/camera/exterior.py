@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import InputError
 from ..rotation import opk_from_matrix, opk_matrix
 from ..units import from_radians, to_radians
-from ..validation import as_finite_scalar
+from ..validation import as_finite_scalar, as_points_single, one_or_many
 
 NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
 
@@ -139,9 +139,14 @@ class ExteriorOrientation:
         -------
         numpy.ndarray, shape (n, 3) or (3,)
             ``(u, v, w)``, object units; ``w < 0`` in front of the camera.
+
+        Raises
+        ------
+        InputError
+            When ``ground`` is not of shape (n, 3) or (3,).
         """
-        g = np.asarray(ground, dtype=float)
-        return (g - self.position) @ self.matrix.T
+        g, single = as_points_single(ground, 3, "ground points", finite=False)
+        return one_or_many((g - self.position) @ self.matrix.T, single)
 
     def to_dict(self, angle_unit: str = "rad") -> dict:
         """JSON-ready parameters (angles in ``angle_unit``, labelled).

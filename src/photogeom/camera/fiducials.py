@@ -14,7 +14,7 @@ import numpy as np
 
 from ..adjust import Fit
 from ..errors import InputError
-from ..validation import as_points
+from ..validation import as_points, as_points_single, one_or_many
 
 MODELS = {"similarity": "similarity2d", "affine": "affine2d", "projective": "projective2d"}
 
@@ -91,16 +91,22 @@ def measured_to_fiducial(fit: Fit, points) -> np.ndarray:
     ----------
     fit : Fit
         From :func:`fit_fiducials`.
-    points : array_like, shape (n, 2)
+    points : array_like, shape (n, 2) or (2,)
         Measured coordinates in the same system as the fiducial marks.
 
     Returns
     -------
-    numpy.ndarray, shape (n, 2)
+    numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
         Fiducial coordinates (mm, right-handed).
+
+    Raises
+    ------
+    InputError
+        When ``points`` is not of shape (n, 2) or (2,) or holds NaN/infinite values.
     """
-    p = as_points(points, 2, "measured points").copy()
+    p, single = as_points_single(points, 2, "measured points")
+    p = p.copy()
     hand = fit.extras.get("handedness") or {}
     if hand.get("source_flip_y", False):
         p[:, 1] = -p[:, 1]
-    return fit.model.apply(p)
+    return one_or_many(fit.model.apply(p), single)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import InputError
-from ..validation import as_finite_scalar, as_float64
+from ..validation import as_finite_scalar, as_points, as_points_single, one_or_many
 from .distortion import BrownDistortion
 
 UNITS = ("mm", "px")
@@ -290,10 +290,15 @@ class InteriorOrientation:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             Image coordinates ``(x, y)`` in the unit of this orientation (y up).
+
+        Raises
+        ------
+        InputError
+            When ``xy_norm`` is not of shape (n, 2) or (2,).
         """
-        a = np.asarray(xy_norm, dtype=float).reshape(-1, 2)
+        a, single = as_points_single(xy_norm, 2, "normalised coordinates", finite=False)
         if self.distortion is not None:
             a = self.distortion.distort(a)
         else:
@@ -305,7 +310,7 @@ class InteriorOrientation:
         xd += self.x0
         yd *= -self.f
         yd += self.y0
-        return a
+        return one_or_many(a, single)
 
     def normalized_from_image(
         self, xy, *, tol: float = 1e-9, max_iter: int = 30, on_failure="raise"
@@ -316,7 +321,7 @@ class InteriorOrientation:
 
         Parameters
         ----------
-        xy : array_like, shape (n, 2)
+        xy : array_like, shape (n, 2) or (2,)
             Image coordinates in the unit of this orientation.
         tol : float
             Undistortion tolerance in the unit of this orientation.
@@ -327,8 +332,10 @@ class InteriorOrientation:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
+            Unitless.
         """
+        xy, single = as_points_single(xy, 2, "image coordinates", finite=False)
         res = self.undistort_image(xy, tol=tol, max_iter=max_iter)
         pts = res.points
         if not res.all_converged:
@@ -346,7 +353,7 @@ class InteriorOrientation:
                 pts[~res.converged] = np.nan
             elif on_failure != "keep":
                 raise InputError("on_failure must be 'raise', 'nan' or 'keep'")
-        return pts
+        return one_or_many(pts, single)
 
     def undistort_image(self, xy, *, tol: float = 1e-9, max_iter: int = 30):
         """Undistort image coordinates; return :class:`UndistortResult` of normalised points.
@@ -363,16 +370,18 @@ class InteriorOrientation:
         Returns
         -------
         UndistortResult
-            ``points`` (n, 2) ideal normalised coordinates (unitless), with a ``status`` per point.
+            ``points`` (n, 2) ideal normalised coordinates (unitless), with a ``status`` per
+            point; a result keeps the point axis, also for a single point (2,) (then n = 1).
+            Points holding NaN/infinite values get status 2.
 
         Raises
         ------
         InputError
-            When ``xy`` holds NaN/infinite values or is not made of pairs.
+            When ``xy`` is not of shape (n, 2) or (2,).
         """
         from .distortion import UndistortResult
 
-        a = as_float64(xy, "image coordinates").reshape(-1, 2)
+        a = as_points(xy, 2, "image coordinates", finite=False)
         yd = (self.y0 - a[:, 1]) / self.f
         xd = (a[:, 0] - self.x0 - self.b2 * yd) / self.fx
         d = np.stack([xd, yd], axis=1)
@@ -458,14 +467,12 @@ class InteriorOrientation:
 
     @staticmethod
     def _convert(points, fn) -> np.ndarray:
-        a = as_float64(points, "image or pixel coordinates")
-        single = a.ndim == 1
-        a2 = a.reshape(-1, 2)
+        a2, single = as_points_single(points, 2, "image or pixel coordinates", finite=False)
         ok = np.all(np.isfinite(a2), axis=1)
         out = np.full(a2.shape, np.nan)
         if np.any(ok):
             out[ok] = fn(a2[ok])
-        return out[0] if single else out
+        return one_or_many(out, single)
 
     def principal_point_px(self, pixel_origin: str = "center") -> tuple[float, float]:
         """Principal point as pixel ``(col, row)``.

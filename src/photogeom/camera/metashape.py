@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError, FileFormatError, InputError
 from ..numbers import parse_decimal
-from ..validation import as_finite_scalar, as_points
+from ..validation import as_finite_scalar, as_points, as_points_single, one_or_many
 from .distortion import CHUNK, BrownDistortion, UndistortResult
 from .interior import InteriorOrientation, _pixel_shift
 
@@ -187,15 +187,20 @@ class MetashapeCalibration:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             Pixels ``(u, v)`` with distortion, B1, B2 applied.
+
+        Raises
+        ------
+        InputError
+            When ``xy`` is not of shape (n, 2) or (2,).
         """
-        a = np.asarray(xy, dtype=float).reshape(-1, 2)
+        a, single = as_points_single(xy, 2, "normalised coordinates", finite=False)
         out = np.empty_like(a)
         for s in range(0, a.shape[0], CHUNK):  # blocks, not points
             e = min(s + CHUNK, a.shape[0])
             out[s:e] = self._pixels_from_xy(a[s:e, 0], a[s:e, 1], pixel_origin)
-        return out
+        return one_or_many(out, single)
 
     def _pixels_from_xy(self, x: np.ndarray, y: np.ndarray, pixel_origin: str) -> np.ndarray:
         # Written for speed on 1e7 points: few temporaries, in-place updates.
@@ -235,7 +240,7 @@ class MetashapeCalibration:
 
         Parameters
         ----------
-        xyz : array_like, shape (n, 3)
+        xyz : array_like, shape (n, 3) or (3,)
             Camera-frame coordinates, any length unit.
         pixel_origin : {"center", "corner"}, default "center"
             ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
@@ -246,17 +251,17 @@ class MetashapeCalibration:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (3,))
             Pixels ``(u, v)``.
 
         Raises
         ------
         InputError
-            When ``xyz`` is not of shape (n, 3) or holds NaN/infinite values.
+            When ``xyz`` is not of shape (n, 3) or (3,) or holds NaN/infinite values.
         DegenerateGeometryError
             For points behind the camera with ``behind="raise"``.
         """
-        p = as_points(xyz, 3, "camera-frame points")
+        p, single = as_points_single(xyz, 3, "camera-frame points")
         Z = p[:, 2]
         back = ~(Z > 0)
         if np.any(back) and behind == "raise":
@@ -271,7 +276,7 @@ class MetashapeCalibration:
                 iz = 1.0 / Z[s:e]
                 uv[s:e] = self._pixels_from_xy(p[s:e, 0] * iz, p[s:e, 1] * iz, pixel_origin)
         uv[back] = np.nan
-        return uv
+        return one_or_many(uv, single)
 
     def distort_pixels(self, uv_ideal, *, pixel_origin: str = "center") -> np.ndarray:
         """Distorted pixels of ideal pixels (a distortion-free camera with the same f, cx, cy).
@@ -288,12 +293,18 @@ class MetashapeCalibration:
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             Observed (distorted) pixels ``(u, v)``.
+
+        Raises
+        ------
+        InputError
+            When ``uv_ideal`` is not of shape (n, 2) or (2,).
         """
-        a = np.asarray(uv_ideal, dtype=float).reshape(-1, 2)
+        a, single = as_points_single(uv_ideal, 2, "ideal pixels", finite=False)
         u0, v0 = self.principal_point(pixel_origin)
-        return self.project_normalized((a - np.array([u0, v0])) / self.f, pixel_origin=pixel_origin)
+        out = self.project_normalized((a - np.array([u0, v0])) / self.f, pixel_origin=pixel_origin)
+        return one_or_many(out, single)
 
     # --- inverse -----------------------------------------------------------------------------
 
@@ -304,7 +315,7 @@ class MetashapeCalibration:
 
         Parameters
         ----------
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Pixel coordinates in the ``pixel_origin`` convention.
         pixel_origin : {"center", "corner"}
             ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);
@@ -317,9 +328,15 @@ class MetashapeCalibration:
         Returns
         -------
         UndistortResult
-            ``points`` normalised; ``status`` per point (0 = converged); ``residual`` in px.
+            ``points`` (n, 2) normalised; ``status`` per point (0 = converged); ``residual``
+            in px. A result keeps the point axis, also for a single point (2,) (n = 1).
+
+        Raises
+        ------
+        InputError
+            When ``uv`` is not of shape (n, 2) or (2,).
         """
-        a = np.asarray(uv, dtype=float).reshape(-1, 2)
+        a = as_points(uv, 2, "pixels", finite=False)
         u0, v0 = self.principal_point(pixel_origin)
         yd = (a[:, 1] - v0) / self.f
         xd = (a[:, 0] - u0 - self.b2 * yd) / (self.f + self.b1)
@@ -334,7 +351,7 @@ class MetashapeCalibration:
 
         Parameters
         ----------
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Observed pixels ``(u, v)``.
         pixel_origin : {"center", "corner"}, default "center"
             ``"center"``: the centre of the top-left pixel is (0, 0) (photogeom, OpenCV);

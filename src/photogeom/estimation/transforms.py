@@ -45,6 +45,7 @@ from ..adjust.gauss_markov import NORMAL_FROM, r_factor
 from ..adjust.result import BareSolution
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
+from ..records import read_only_fields
 from ..transforms import (
     Affine2D,
     Affine3D,
@@ -1439,6 +1440,7 @@ def _set(fit: Fit, **values) -> None:
     fields are set in place instead of copying all of them with ``dataclasses.replace``."""
     for name, value in values.items():
         object.__setattr__(fit, name, value)
+    read_only_fields(fit)  # as the constructor leaves them
 
 
 _UNITS: dict = {}

@@ -12,6 +12,8 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..errors import InputError
+from ..records import read_only_fields, setstate_read_only
+from ..validation import as_points_single, one_or_many
 
 __all__ = ["LocalDistortionField", "WaveTerrain", "ar1_along_flight", "check_field_options"]
 
@@ -235,6 +237,13 @@ class LocalDistortionField:
     static: float = 0.0
     slope: float = 1.0
 
+    def __post_init__(self) -> None:
+        # read-only views: the simulated observations were made from these coefficients
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
+
     @classmethod
     def random(
         cls,
@@ -457,12 +466,12 @@ class LocalDistortionField:
         return out
 
     def __call__(self, image_id, uv) -> np.ndarray:
-        """Displacement (n, 2) px at pixels ``uv`` of image ``image_id`` (one id, or one per
-        row of ``uv``)."""
-        a = np.asarray(uv, dtype=float).reshape(-1, 2)
+        """Displacement (n, 2) px at pixels ``uv`` (n, 2) of image ``image_id`` (one id, or
+        one per row of ``uv``); (2,) for a single point ``uv`` (2,)."""
+        a, single = as_points_single(uv, 2, "uv", finite=False)
         ids = np.asarray(image_id)
         flat = np.broadcast_to(ids.reshape(-1) if ids.ndim else ids, (a.shape[0],))
-        return self.rows(self.image_rows(flat), a)
+        return one_or_many(self.rows(self.image_rows(flat), a), single)
 
 
 def _wave_std(waves: np.ndarray, rms: float, slope: float = 1.0) -> np.ndarray:

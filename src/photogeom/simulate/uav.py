@@ -27,6 +27,7 @@ from ..bundle.triangulate import triangulate
 from ..camera.frame_kernel import project_rows
 from ..camera.metashape import MetashapeCalibration
 from ..errors import DegenerateGeometryError, InputError
+from ..records import read_only_fields, setstate_read_only
 from ..rotation import opk_matrix
 from .fields import LocalDistortionField, WaveTerrain, ar1_along_flight, check_field_options
 from .presets import CameraPreset, preset
@@ -94,6 +95,13 @@ class SimulatedBlock:
     tie_ids: np.ndarray
     options: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # the truth is read-only: the block's observations were made from these arrays
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
+
     @property
     def observed(self) -> np.ndarray:
         """(n, 2) observed pixels (the block's observations)."""
@@ -115,18 +123,19 @@ class SimulatedBlock:
         ----------
         image_id : hashable or sequence
             One image id, or one id per row of ``uv``.
-        uv : array_like, shape (n, 2)
+        uv : array_like, shape (n, 2) or (2,)
             Ideal pixels (col, row).
 
         Returns
         -------
-        numpy.ndarray, shape (n, 2)
+        numpy.ndarray, shape (n, 2) (or (2,) for a single point (2,))
             ``(du, dv)``, px.
 
         Raises
         ------
         InputError
-            For an id that is not an image of the block.
+            For an id that is not an image of the block, or ``uv`` not of shape (n, 2) or
+            (2,).
         """
         return self.field(image_id, uv)
 
