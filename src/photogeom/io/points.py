@@ -280,6 +280,20 @@ def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
     )
 
 
+def _preferred_columns(raw: _Source, preferred: tuple[str, ...]) -> tuple[str, ...]:
+    """``preferred`` when the header has them all (exact names) and the usual names are
+    missing or as many (a file with x,y,z read as x,y would lose its z: it stays x,y,z and
+    the caller names the mismatch); else the usual names (:func:`_auto_columns`)."""
+    present = bool(preferred) and all(c in raw.header for c in preferred)
+    try:
+        found = _auto_columns(raw)
+    except FileFormatError:
+        if present:
+            return preferred
+        raise
+    return preferred if present and len(found) == len(preferred) else found
+
+
 def _names(header: Sequence[str], limit: int = 30) -> str:
     shown = ", ".join(header[:limit])
     return shown + (f" ... ({len(header)} in all)" if len(header) > limit else "")
@@ -592,13 +606,19 @@ class PointBlocks:
     path : path-like
         Point CSV (format of :func:`read_points`).
     columns : sequence of str or comma-separated str, optional
-        Coordinate columns (default: found by name as in :func:`read_points`).
+        Coordinate columns (default: ``prefer_columns`` when the file has all of them, else
+        found by name as in :func:`read_points`).
     id_column : str, optional
         Id column (default: ``id``, ``point``, ``point_id`` or ``name``).
     role_column : str or None
         Role column to pass through (``role`` by default, when present).
     block_bytes : int
         Bytes of text per block.
+    prefer_columns : sequence of str, optional
+        Coordinate columns to read without ``columns`` when the header has every one of
+        them (exact names) and the usual names are missing or as many: the input columns
+        of a saved estimate, which a file holding both sets of coordinates must not lose to
+        ``x,y`` or ``X,Y``.
 
     Attributes
     ----------
@@ -618,6 +638,7 @@ class PointBlocks:
         id_column: str | None = None,
         role_column: str | None = ROLE_COLUMN,
         block_bytes: int = 1 << 20,
+        prefer_columns: Sequence[str] | None = None,
     ) -> None:
         self._raw = _Source(Path(path))
         self._raw.text.block_bytes = int(block_bytes)
@@ -626,9 +647,10 @@ class PointBlocks:
         self.header = self._raw.header
         self._id = _id_column(self._raw, id_column)
         names = _as_names(columns)
-        self.columns = (
-            _resolve_columns(self._raw, names, "coordinate") if names else _auto_columns(self._raw)
-        )
+        if names:
+            self.columns = _resolve_columns(self._raw, names, "coordinate")
+        else:
+            self.columns = _preferred_columns(self._raw, tuple(prefer_columns or ()))
         self._role = _role_column(self._raw, role_column)
         self.has_roles = self._role is not None
         self.size = self._raw.text.size
