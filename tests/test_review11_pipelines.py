@@ -106,3 +106,72 @@ def test_recorded_columns_are_found_in_a_pipe(cli, tmp_path):
         os.close(os.open(fifo, os.O_RDONLY | os.O_NONBLOCK))  # release the feeder
     assert code == 0, err
     assert _table(from_pipe) == _table(from_file)
+
+
+# -- RPC text files keep the image size ------------------------------------------------------
+
+RPC_DIR = Path(datasets.path("lecture_fiducials")).parent / "rpc"
+
+
+@pytest.mark.parametrize("name", ["rpc_WV2.xml", "rpc_PLEIADES.xml"])
+@pytest.mark.parametrize("style", ["ikonos", "lists"])
+def test_rpc_text_round_trip_keeps_the_image_size(tmp_path, name, style):
+    """write_rpc dropped the image size of an XML RPC: read back, WV2's image bounds became
+    the normalised domain (cols -160..28368 instead of 0..28243) and its footprint moved."""
+    from photogeom.rpc import read_rpc, write_rpc
+
+    rpc = read_rpc(RPC_DIR / name)
+    assert rpc.image_size is not None
+    path = write_rpc(rpc, tmp_path / "out_RPC.TXT", style=style)
+    back = read_rpc(path)
+    assert back.same_as(rpc)
+    assert back.image_size == rpc.image_size
+    assert back.image_bounds == rpc.image_bounds
+    np.testing.assert_array_equal(back.footprint(), rpc.footprint())
+
+
+def test_rpc_text_without_image_size_writes_none(tmp_path):
+    from photogeom.rpc import read_rpc, write_rpc
+
+    rpc = read_rpc(RPC_DIR / "rpc_IKONOS.txt")
+    path = write_rpc(rpc, tmp_path / "out_RPC.TXT")
+    assert "NUM_COLUMNS" not in path.read_text()
+    assert read_rpc(path).image_size is None
+
+
+def test_rpc_text_image_size_needs_both_keys_and_whole_pixels(tmp_path):
+    from photogeom import FileFormatError
+    from photogeom.rpc import read_rpc, write_rpc
+
+    text = write_rpc(read_rpc(RPC_DIR / "rpc_WV2.xml"), tmp_path / "a.rpc").read_text()
+    one = tmp_path / "one.rpc"
+    one.write_text("\n".join(ln for ln in text.splitlines() if "NUM_ROWS" not in ln) + "\n")
+    with pytest.raises(FileFormatError, match="NUM_COLUMNS is given without NUM_ROWS"):
+        read_rpc(one)
+    half = tmp_path / "half.rpc"
+    half.write_text(text.replace("NUM_ROWS: 20289", "NUM_ROWS: 20289.5"))
+    with pytest.raises(FileFormatError, match=r"NUM_ROWS = 20289\.5 is not an image size"):
+        read_rpc(half)
+
+
+def test_rpc_refine_output_keeps_the_image_size(cli, tmp_path):
+    """rpc refine WV2.xml ... -o: 'rpc info' of the written RPC said 'image size: not given'."""
+    from photogeom.rpc import read_rpc
+
+    rpc = read_rpc(RPC_DIR / "rpc_WV2.xml")
+    cols = np.array([800.0, 27000.0, 14000.0, 2000.0, 25000.0, 9000.0])
+    rows = np.array([900.0, 1500.0, 10000.0, 19000.0, 18500.0, 6000.0])
+    h = np.array([10.0, 150.0, 80.0, 40.0, 120.0, 60.0])
+    lon, lat = (np.asarray(v).tolist() for v in rpc.localize(cols, rows, h)[:2])
+    gcp = tmp_path / "gcp.csv"
+    gcp.write_text("id,lon,lat,h,col,row\n" + "".join(
+        f"{k},{lon[k]!r},{lat[k]!r},{float(h[k])!r},{float(cols[k]) + 2.0!r},"
+        f"{float(rows[k]) - 1.0!r}\n"
+        for k in range(len(h))
+    ))  # fmt: skip
+    out = tmp_path / "refined_RPC.TXT"
+    code, _, err = cli("rpc", "refine", RPC_DIR / "rpc_WV2.xml", gcp, "-o", out)
+    assert code == 0, err
+    code, info, err = cli("rpc", "info", out)
+    assert code == 0, err
+    assert "image size: 28244 x 20289 px" in info
