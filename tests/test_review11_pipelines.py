@@ -175,3 +175,15 @@ def test_rpc_refine_output_keeps_the_image_size(cli, tmp_path):
     code, info, err = cli("rpc", "info", out)
     assert code == 0, err
     assert "image size: 28244 x 20289 px" in info
+
+
+def test_rpc_info_of_a_refined_rpc_names_a_missing_bias_error():
+    """A refined RPC keeps ERR_RAND but drops ERR_BIAS: 'rpc info' printed 'bias None m'."""
+    from dataclasses import replace
+
+    from photogeom.rpc import read_rpc
+
+    rpc = replace(read_rpc(RPC_DIR / "rpc_WV2.xml"), err_bias=None)
+    text = rpc.summary()
+    assert "vendor errors: bias not given, random 0.14 m" in text
+    assert "None" not in text
