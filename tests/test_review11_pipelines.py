@@ -187,3 +187,80 @@ def test_rpc_info_of_a_refined_rpc_names_a_missing_bias_error():
     text = rpc.summary()
     assert "vendor errors: bias not given, random 0.14 m" in text
     assert "None" not in text
+
+
+# -- one concept, one name: aliases of options named differently by other commands -----------
+
+
+def _ground_file(tmp_path: Path) -> Path:
+    path = tmp_path / "ground.csv"
+    path.write_text("id,X,Y,Z\nA,10.0,20.0,5.0\nB,-30.0,15.0,2.0\nC,5.0,-25.0,8.0\n")
+    return path
+
+
+def test_camera_project_takes_ground_cols_as_resection_does(cli, tmp_path):
+    ground = _ground_file(tmp_path)
+    args = ["camera", "project", ground, "--f", "153.2", "--eo", "0,0,1500,0,0,0"]
+    code, plain, err = cli(*args, "--cols", "X,Y,Z")
+    assert code == 0, err
+    code, alias, err = cli(*args, "--ground-cols", "X,Y,Z")
+    assert code == 0, err
+    assert alias == plain
+    code, _, err = cli(*args, "--ground-cols", "E,N,H")
+    assert code == 2 and "choose others with --ground-cols" in err
+
+
+def test_rpc_project_and_localize_take_the_column_names_of_rpc_fit(cli, tmp_path):
+    rpc = RPC_DIR / "rpc_IKONOS.txt"
+    pix = tmp_path / "pix.csv"
+    pix.write_text("id,c,r,height\na,100,200,50\nb,3000,4000,120.5\n")
+    code, ground, err = cli("rpc", "localize", rpc, pix, "--image-cols", "c,r,height")
+    assert code == 0, err
+    code, same, err = cli("rpc", "localize", rpc, pix, "--cols", "c,r,height")
+    assert code == 0 and same == ground, err
+    gfile = tmp_path / "ground.csv"
+    gfile.write_text(ground.replace("id,lon,lat,h,", "id,LO,LA,HH,"))
+    code, out, err = cli("rpc", "project", rpc, gfile, "--ground-cols", "LO,LA,HH")
+    assert code == 0, err
+    _, got = _table(out)
+    np.testing.assert_allclose(got["a"], [100.0, 200.0], atol=1e-6)
+    code, _, err = cli("rpc", "localize", rpc, pix, "--image-cols", "u,v")
+    assert code == 2 and "choose others with --image-cols" in err
+
+
+def test_crs_convert_takes_the_crs_option_names_of_cloud_transform(cli, tmp_path):
+    geo = tmp_path / "geo.csv"
+    geo.write_text("id,lon,lat,h\n1,9.5,48.1,300.25\n")
+    code, plain, err = cli("crs", "convert", geo, "--from", "EPSG:4979", "--to", "EPSG:25832")
+    assert code == 0, err
+    code, alias, err = cli("crs", "convert", geo, "--from-crs", "EPSG:4979", "--to-crs",
+                           "EPSG:25832")  # fmt: skip
+    assert code == 0, err
+    assert alias == plain
+    code, _, err = cli("crs", "convert", geo, "--from-crs", "EPSG:99999", "--to-crs", "EPSG:25832")
+    assert code == 2 and err.startswith("error: --from-crs:")
+
+
+def test_grid_fit_takes_sigma_as_bundle_adjust_does(cli, tmp_path):
+    rng = np.random.default_rng(3)
+    uv = rng.uniform(0, 400, (60, 2))
+    res = rng.normal(0, 0.3, (60, 2))
+    csv_file = tmp_path / "res.csv"
+    csv_file.write_text("image_id,u,v,rx,ry\n" + "".join(
+        f"1,{float(a)!r},{float(b)!r},{float(c)!r},{float(d)!r}\n"
+        for (a, b), (c, d) in zip(uv, res)
+    ))  # fmt: skip
+    base = ["grid", "fit", csv_file, "--image-size", "401x401", "--spacing", "200", "--json"]
+    code, _, err = cli(*base, "-o", tmp_path / "a.json", "--sigma-obs", "0.3")
+    assert code == 0, err
+    code, _, err = cli(*base, "-o", tmp_path / "b.json", "--sigma", "0.3")
+    assert code == 0, err
+    assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes()
+    code, _, err = cli(*base, "-o", tmp_path / "c.json", "--sigma", "-1")
+    assert code == 2 and "--sigma must be positive" in err
+
+
+def test_bundle_report_takes_report_as_bundle_adjust_does(cli, tmp_path):
+    code, _, err = cli("bundle", "report", tmp_path / "none.json", "--report",
+                       tmp_path / "no" / "r.html")  # fmt: skip
+    assert code == 2 and "--report: cannot write" in err

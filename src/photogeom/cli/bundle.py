@@ -33,6 +33,7 @@ from ._common import (
     say,
     split_names,
     stage_spinner,
+    typed_option,
 )
 
 app = typer.Typer(
@@ -808,7 +809,15 @@ def report_cmd(
     result: Annotated[
         Path, typer.Argument(help="Result record written by 'photogeom bundle adjust --result'.")
     ],
-    output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")] = Path(
+    output: Annotated[
+        Path,
+        typer.Option(
+            "--output",
+            "-o",
+            "--report",
+            help="HTML report to write (--report: the same option, the name of bundle adjust).",
+        ),
+    ] = Path(
         "bundle-report.html"
     ),
     title: Annotated[str | None, typer.Option(help="Title of the report.")] = None,
@@ -822,7 +831,8 @@ def report_cmd(
     if max_rows < 1:
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
     if str(output.parent) and not output.parent.is_dir():
-        raise InputError(f"--output: cannot write {output}: folder {output.parent} does not exist")
+        name = typed_option("--output", "-o", "--report")
+        raise InputError(f"{name}: cannot write {output}: folder {output.parent} does not exist")
     from ..io.jsonfile import build_from_json
 
     data = read_bundle_result(result)
