@@ -264,3 +264,31 @@ def test_bundle_report_takes_report_as_bundle_adjust_does(cli, tmp_path):
     code, _, err = cli("bundle", "report", tmp_path / "none.json", "--report",
                        tmp_path / "no" / "r.html")  # fmt: skip
     assert code == 2 and "--report: cannot write" in err
+
+
+# -- write_points writes only ids that read_points gives back ---------------------------------
+
+
+@pytest.mark.parametrize("bad", ["b\nc", "b\r\nc", " 7", "7 ", "\t7"])
+def test_write_points_refuses_ids_that_would_not_read_back(tmp_path, bad):
+    """An id with a line break was written quoted over two lines, which read_points refuses
+    ('a quoted field cannot span lines'); ' 7 ' was written as it is and read back as '7'."""
+    from photogeom import InputError
+    from photogeom.io import write_points
+
+    out = tmp_path / "p.csv"
+    with pytest.raises(InputError, match="would not read back"):
+        write_points(out, ["a", bad], np.zeros((2, 2)), ["x", "y"])
+    assert not out.exists()
+
+
+def test_write_points_round_trips_awkward_ids_exactly(tmp_path):
+    from photogeom.io import read_points, write_points
+
+    ids = ["007", "a,b", 'q"x', "#c", "é", "7.0", "-", "nan", "x;y", "in ner"]
+    xyz = np.array([[0.1, -0.0, 5e-324], [1e308, -1e-310, 2.5e-8], [1 / 3, 2 / 3, 1e22]] * 3
+                   + [[np.pi, np.e, -1.0]])  # fmt: skip
+    path = write_points(tmp_path / "p.csv", ids, xyz, ["x", "y", "z"])
+    back = read_points(path, "x,y,z")
+    assert list(back.ids) == ids
+    assert np.array_equal(back.coords, xyz) and np.signbit(back.coords[0, 1])

@@ -1089,12 +1089,7 @@ class PointWriter:
             raise InputError(
                 f"extra columns {', '.join(extra)} given, {', '.join(self.extra)} declared"
             )
-        if isinstance(ids, pa.ChunkedArray):
-            ids = ids.combine_chunks()
-        if not isinstance(ids, pa.Array):
-            ids = pa.array(_texts(ids), pa.string())
-        elif not pa.types.is_string(ids.type):
-            ids = text_column(ids)
+        ids = _id_array(ids)
         extras = []
         for name in self.extra:
             v = extra[name]
@@ -1190,6 +1185,36 @@ class _TextSink:
         self.stream.flush()
 
 
+def _id_array(ids):
+    """The ids as a pyarrow string array (other types written as text)."""
+    import pyarrow as pa
+
+    from .csvrows import text_column
+
+    if isinstance(ids, pa.ChunkedArray):
+        ids = ids.combine_chunks()
+    if not isinstance(ids, pa.Array):
+        return pa.array(_texts(ids), pa.string())
+    return ids if pa.types.is_string(ids.type) else text_column(ids)
+
+
+def _check_ids_read_back(ids) -> None:
+    """Refuse ids that a point CSV cannot give back: a line break (the readers refuse a
+    quoted field over two lines) or white space at either end (the readers trim it)."""
+    import pyarrow.compute as pc
+
+    broken = pc.match_substring_regex(ids, r"[\r\n]")
+    padded = pc.not_equal(ids, pc.utf8_trim_whitespace(ids))
+    bad = pc.fill_null(pc.or_(broken, padded), False)
+    if pc.any(bad).as_py():
+        k = int(np.flatnonzero(bad.to_numpy(zero_copy_only=False))[0])
+        raise InputError(
+            f"point id {ids[k].as_py()!r} (row {k + 1}) would not read back: point files "
+            "trim white space at the ends of an id and refuse a line break in one; remove "
+            "them from the id"
+        )
+
+
 def _texts(values) -> list[str]:
     return [str(v) for v in values]
 
@@ -1272,11 +1297,15 @@ def write_points(
     Raises
     ------
     InputError
-        As :meth:`PointWriter.write`.
+        As :meth:`PointWriter.write`; also an id with a line break or white space at its
+        ends, which :func:`read_points` would not give back (it trims white space and
+        refuses a quoted field over two lines).
     OutputError
         When the file cannot be written.
     """
     extra = dict(extra or {})
+    ids = _id_array(ids)
+    _check_ids_read_back(ids)  # a file for read_points: only ids it gives back
     with PointWriter(path, columns, extra=list(extra), comments=comments) as w:
         w.write(ids, coords, extra)
     return Path(path)
