@@ -292,3 +292,86 @@ def test_write_points_round_trips_awkward_ids_exactly(tmp_path):
     back = read_points(path, "x,y,z")
     assert list(back.ids) == ids
     assert np.array_equal(back.coords, xyz) and np.signbit(back.coords[0, 1])
+
+
+# -- cloud transform labels its output as transform apply does ------------------------------
+
+
+@pytest.fixture
+def lidar_clouds(tmp_path):
+    pytest.importorskip("laspy")
+    import photogeom as pg
+
+    rng = np.random.default_rng(4)
+    scan = rng.uniform([-60.0, -10.0, -5.0], [0.0, 60.0, 10.0], (500, 3))
+    src = tmp_path / "scan.las"
+    pg.io.write_cloud(src, scan, scales=(1e-3, 1e-3, 1e-3))
+    return src
+
+
+def _cloud_crs(cli, path) -> str:
+    code, out, err = cli("cloud", "info", path, "--json")
+    assert code == 0, err
+    import json
+
+    return json.loads(out)["crs"]
+
+
+def test_cloud_transform_inverse_drops_a_crs_the_points_leave(cli, tmp_path, lidar_clouds):
+    """Parameters recording the target CRS only (orient absolute --target-crs): 'cloud
+    transform --inverse' of a cloud in that CRS labelled the scan-frame result EPSG:25832
+    (the input's record), while 'transform apply --inverse' writes no CRS."""
+    params = tmp_path / "oa.json"
+    code, _, err = cli("orient", "absolute", LIDAR, "--target-crs", "EPSG:25832",
+                       "--output-params", params)  # fmt: skip
+    assert code == 0, err
+    utm = tmp_path / "utm.las"
+    code, _, err = cli("cloud", "transform", lidar_clouds, utm, "--params", params, "-q")
+    assert code == 0, err
+    assert "25832" in str(_cloud_crs(cli, utm))
+    back = tmp_path / "back.las"
+    code, _, err = cli("cloud", "transform", utm, back, "--params", params, "--inverse", "-q")
+    assert code == 0, err
+    assert _cloud_crs(cli, back) is None
+    code, out, err = cli("transform", "apply", params, LIDAR, "--inverse")
+    assert code == 0 and "# crs:" not in out, err
+    # --crs still names it when the user knows it
+    named = tmp_path / "named.las"
+    code, _, err = cli("cloud", "transform", utm, named, "--params", params, "--inverse", "-q",
+                       "--crs", "EPSG:32632")  # fmt: skip
+    assert code == 0, err
+    assert "32632" in str(_cloud_crs(cli, named))
+
+
+def test_cloud_transform_forward_with_only_a_source_crs(cli, tmp_path, lidar_clouds):
+    """Parameters recording the source CRS only: the cloud in that CRS was written with its
+    record unchanged, though its points are now in the target system."""
+    params = tmp_path / "oa.json"
+    code, _, err = cli("orient", "absolute", LIDAR, "--source-crs", "EPSG:25832",
+                       "--output-params", params)  # fmt: skip
+    assert code == 0, err
+    import photogeom as pg
+
+    labelled = tmp_path / "in.las"
+    pts = pg.io.read_cloud_xyz(lidar_clouds)
+    pg.io.write_cloud(labelled, pts, scales=(1e-3, 1e-3, 1e-3), crs="EPSG:25832")
+    out = tmp_path / "out.las"
+    code, _, err = cli("cloud", "transform", labelled, out, "--params", params, "-q")
+    assert code == 0, err
+    assert _cloud_crs(cli, out) is None
+
+
+def test_cloud_transform_without_crs_records_keeps_the_input_record(cli, tmp_path, lidar_clouds):
+    """No CRS in the parameters: the input's record is kept, as documented."""
+    params = tmp_path / "t.json"
+    code, _, err = cli("transform", "estimate", "similarity3d", LIDAR, "--output-params", params)
+    assert code == 0, err
+    import photogeom as pg
+
+    labelled = tmp_path / "in.las"
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    pg.io.write_cloud(labelled, pts, scales=(1e-3, 1e-3, 1e-3), crs="EPSG:25832")
+    out = tmp_path / "out.las"
+    code, _, err = cli("cloud", "transform", labelled, out, "--params", params, "-q")
+    assert code == 0, err
+    assert "25832" in str(_cloud_crs(cli, out))
