@@ -375,3 +375,9 @@ def test_cloud_transform_without_crs_records_keeps_the_input_record(cli, tmp_pat
     code, _, err = cli("cloud", "transform", labelled, out, "--params", params, "-q")
     assert code == 0, err
     assert "25832" in str(_cloud_crs(cli, out))
+
+
+def test_grid_report_takes_report_as_grid_fit_does(cli, tmp_path):
+    code, _, err = cli("grid", "report", "--preset", "FC300S", "--report",
+                       tmp_path / "no" / "r.html")  # fmt: skip
+    assert code == 2 and "--report: cannot write" in err

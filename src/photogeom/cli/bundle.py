@@ -831,7 +831,7 @@ def report_cmd(
     if max_rows < 1:
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
     if str(output.parent) and not output.parent.is_dir():
-        name = typed_option("--output", "-o", "--report")
+        name = typed_option("--output", "--report")
         raise InputError(f"{name}: cannot write {output}: folder {output.parent} does not exist")
     from ..io.jsonfile import build_from_json
 
