@@ -381,3 +381,26 @@ def test_grid_report_takes_report_as_grid_fit_does(cli, tmp_path):
     code, _, err = cli("grid", "report", "--preset", "FC300S", "--report",
                        tmp_path / "no" / "r.html")  # fmt: skip
     assert code == 2 and "--report: cannot write" in err
+
+
+def test_forward_reads_the_source_columns_col_row_beside_x_y(cli, tmp_path):
+    """--source-cols col,row --target-cols x,y and a file holding both: the forward apply read
+    x,y (the first usual names) as pixels (mark 1: (-111.11, 91.84) instead of (-100, 100))."""
+    pts = tmp_path / "fid.csv"
+    pts.write_text("id,col,row,x,y\n1,10,20,-100.0,100.0\n2,1990,20,100.0,100.0\n"
+                   "3,1990,1980,100.0,-100.0\n4,10,1980,-100.0,-100.0\n5,1000,1000,0.01,0.0\n")
+    params = tmp_path / "p.json"
+    code, _, err = cli("transform", "estimate", "affine2d", pts, "--source-system", "pixel",
+                       "--target-system", "fiducial", "--source-cols", "col,row",
+                       "--target-cols", "x,y", "--output-params", params)  # fmt: skip
+    assert code == 0, err
+    code, out, err = cli("transform", "apply", params, pts)
+    assert code == 0, err
+    header, got = _table(out)
+    assert header == ["id", "x", "y"]
+    np.testing.assert_allclose(got["1"], [-100.0, 100.0], atol=0.01)
+    code, out, err = cli("transform", "apply", params, pts, "--inverse")
+    assert code == 0, err
+    header, got = _table(out)
+    assert header == ["id", "col", "row"]
+    np.testing.assert_allclose(got["3"], [1990.0, 1980.0], atol=0.05)
