@@ -404,3 +404,29 @@ def test_forward_reads_the_source_columns_col_row_beside_x_y(cli, tmp_path):
     header, got = _table(out)
     assert header == ["id", "col", "row"]
     np.testing.assert_allclose(got["3"], [1990.0, 1980.0], atol=0.05)
+
+
+# -- bundle adjust labels lengths in the unit of the block's CRS ----------------------------
+
+
+def test_bundle_adjust_unit_follows_the_crs_and_survives_the_written_block(cli, tmp_path):
+    """bundle adjust --crs EPSG:2263 (US feet) labelled its lengths 'm' (JSON 'unit': 'm'
+    beside crs_name '... (ftUS)'), where orient absolute and transform estimate take the
+    unit of the CRS; the block written with -o records the CRS, so its re-adjustment too."""
+    import json
+
+    blk = tmp_path / "blk"
+    code, _, err = cli("bundle", "simulate", blk, "--strips", "2", "--images-per-strip", "3",
+                       "--tie-points-per-image", "60", "--seed", "2")  # fmt: skip
+    assert code == 0, err
+    adjusted = tmp_path / "adj"
+    code, out, err = cli("bundle", "adjust", blk, "--crs", "EPSG:2263", "--json", "-o", adjusted)
+    assert code == 0, err
+    assert json.loads(out)["unit"] == "ftUS"
+    code, out, err = cli("bundle", "adjust", adjusted, "--json")
+    assert code == 0, err
+    assert json.loads(out)["unit"] == "ftUS"
+    code, out, err = cli("bundle", "adjust", adjusted, "--json", "--unit", "usft")
+    assert code == 0 and json.loads(out)["unit"] == "usft", err
+    code, out, err = cli("bundle", "adjust", blk, "--json")  # no CRS: metres, as before
+    assert code == 0 and json.loads(out)["unit"] == "m", err
