@@ -269,15 +269,15 @@ def test_bundle_report_takes_report_as_bundle_adjust_does(cli, tmp_path):
 # -- write_points writes only ids that read_points gives back ---------------------------------
 
 
-@pytest.mark.parametrize("bad", ["b\nc", "b\r\nc", " 7", "7 ", "\t7"])
+@pytest.mark.parametrize("bad", ["b\nc", "b\r\nc", "b\r"])
 def test_write_points_refuses_ids_that_would_not_read_back(tmp_path, bad):
     """An id with a line break was written quoted over two lines, which read_points refuses
-    ('a quoted field cannot span lines'); ' 7 ' was written as it is and read back as '7'."""
+    ('a quoted field cannot span lines')."""
     from photogeom import InputError
     from photogeom.io import write_points
 
     out = tmp_path / "p.csv"
-    with pytest.raises(InputError, match="would not read back"):
+    with pytest.raises(InputError, match="holds a line break"):
         write_points(out, ["a", bad], np.zeros((2, 2)), ["x", "y"])
     assert not out.exists()
 

@@ -1199,19 +1199,18 @@ def _id_array(ids):
 
 
 def _check_ids_read_back(ids) -> None:
-    """Refuse ids that a point CSV cannot give back: a line break (the readers refuse a
-    quoted field over two lines) or white space at either end (the readers trim it)."""
+    """Refuse ids that a point CSV cannot hold: a line break (the readers refuse a quoted
+    field over two lines). White space at the ends is written and trimmed on reading, as
+    in any point file (``' #3'`` reads back as ``'#3'``)."""
     import pyarrow.compute as pc
 
-    broken = pc.match_substring_regex(ids, r"[\r\n]")
-    padded = pc.not_equal(ids, pc.utf8_trim_whitespace(ids))
-    bad = pc.fill_null(pc.or_(broken, padded), False)
+    bad = pc.fill_null(pc.match_substring_regex(ids, r"[\r\n]"), False)
     if pc.any(bad).as_py():
         k = int(np.flatnonzero(bad.to_numpy(zero_copy_only=False))[0])
         raise InputError(
-            f"point id {ids[k].as_py()!r} (row {k + 1}) would not read back: point files "
-            "trim white space at the ends of an id and refuse a line break in one; remove "
-            "them from the id"
+            f"point id {ids[k].as_py()!r} (row {k + 1}) holds a line break, which a point "
+            "file cannot hold (the readers refuse a quoted field over two lines); remove it "
+            "from the id"
         )
 
 
@@ -1297,9 +1296,9 @@ def write_points(
     Raises
     ------
     InputError
-        As :meth:`PointWriter.write`; also an id with a line break or white space at its
-        ends, which :func:`read_points` would not give back (it trims white space and
-        refuses a quoted field over two lines).
+        As :meth:`PointWriter.write`; also an id with a line break, which
+        :func:`read_points` would refuse (a quoted field over two lines). White space at
+        the ends of an id is trimmed on reading.
     OutputError
         When the file cannot be written.
     """
