@@ -203,7 +203,7 @@ def test_streamed_jobs_equal_the_api_on_arrays(cli, tmp_path, monkeypatch):
     pix = np.column_stack([rng.uniform(c0, c1, n), rng.uniform(r0, r1, n), rng.uniform(0, 50, n)])
     src = tmp_path / "pix.csv"
     write_points(src, [f"q{i}" for i in range(n)], pix, ["col", "row", "h"])
-    small_blocks = {"id_column": None, "role_column": "role", "block_bytes": 4096}
+    small_blocks = {**PointBlocks.__init__.__kwdefaults__, "block_bytes": 4096}
     monkeypatch.setattr(PointBlocks.__init__, "__kwdefaults__", small_blocks)
     out = tmp_path / "g.csv"
     code, _, err = cli("rpc", "localize", IKONOS, src, "-o", out)

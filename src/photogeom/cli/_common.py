@@ -518,6 +518,28 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
 )
 
 
+def typed_option(*names: str) -> str:
+    """The name of an option with aliases as the running command gives it, for messages.
+
+    Parameters
+    ----------
+    *names : str
+        The option's names, the documented one first (``"--cols", "--ground-cols"``).
+
+    Returns
+    -------
+    str
+        The last of ``names`` given on the command line (``--name VALUE`` or
+        ``--name=VALUE``), else the first.
+    """
+    from ..report.invocation import cli_arguments
+
+    given = [
+        a.split("=", 1)[0] for a in cli_arguments() or () if a.split("=", 1)[0] in names
+    ]
+    return given[-1] if given else names[0]
+
+
 @contextmanager
 def column_options(coordinates: str, **kinds: str):
     """Name the command's options in a 'column(s) ... not found' error of the reads inside.

@@ -33,6 +33,7 @@ from ._common import (
     say,
     split_names,
     stage_spinner,
+    typed_option,
 )
 
 app = typer.Typer(
@@ -527,7 +528,14 @@ def adjust(
             help="Write the result record (JSON) that 'photogeom bundle report' renders.",
         ),
     ] = None,
-    unit: Annotated[str, typer.Option(help="Length unit of the object coordinates.")] = "m",
+    unit: Annotated[
+        str | None,
+        typer.Option(
+            help="Length unit of the object coordinates [default: the unit of the block's CRS "
+            "(--crs or the '# crs:' line of points.csv), else m].",
+            show_default=False,
+        ),
+    ] = None,
     angle_unit: Annotated[
         AngleUnit,
         typer.Option(
@@ -583,6 +591,8 @@ def adjust(
     with stage_spinner(f"reading {source}"):
         block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
+    if unit is None:  # the CRS's unit, as orient absolute and transform estimate label it
+        unit = _crs_length_unit(block.crs) or "m"
     options = dict(
         loss=loss.value,
         loss_scale=loss_scale,
@@ -649,6 +659,20 @@ def adjust(
         say(f"adjusted block written to {output} ({out_fmt})", out)
     for path, _ in texts:
         say(f"wrote {path}", out)
+
+
+def _crs_length_unit(crs: str | None) -> str | None:
+    """The length unit of the block's CRS (``ftUS`` for EPSG:2263), or None without a CRS
+    or when PROJ cannot tell."""
+    if not crs:
+        return None
+    from ..crs import cartesian_crs
+    from ..errors import PhotogeomError
+
+    try:
+        return cartesian_crs(crs, what="--crs").unit or None
+    except PhotogeomError:
+        return None
 
 
 def _block_crs(block, crs: str | None, gnss_crs: str | None, allow_ballpark: bool):
@@ -808,7 +832,15 @@ def report_cmd(
     result: Annotated[
         Path, typer.Argument(help="Result record written by 'photogeom bundle adjust --result'.")
     ],
-    output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")] = Path(
+    output: Annotated[
+        Path,
+        typer.Option(
+            "--output",
+            "-o",
+            "--report",
+            help="HTML report to write (--report: the same option, the name of bundle adjust).",
+        ),
+    ] = Path(
         "bundle-report.html"
     ),
     title: Annotated[str | None, typer.Option(help="Title of the report.")] = None,
@@ -822,7 +854,8 @@ def report_cmd(
     if max_rows < 1:
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
     if str(output.parent) and not output.parent.is_dir():
-        raise InputError(f"--output: cannot write {output}: folder {output.parent} does not exist")
+        name = typed_option("--output", "--report")
+        raise InputError(f"{name}: cannot write {output}: folder {output.parent} does not exist")
     from ..io.jsonfile import build_from_json
 
     data = read_bundle_result(result)

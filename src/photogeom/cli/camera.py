@@ -40,6 +40,7 @@ from ._common import (
     split_control,
     split_names,
     split_numbers,
+    typed_option,
     write_outputs,
 )
 
@@ -336,7 +337,13 @@ def project_cmd(
     eo: EOOpt = None,
     angle_unit: AngleOpt = AngleUnit.deg,
     cols: Annotated[
-        str | None, typer.Option(help="Ground coordinate columns (default X,Y,Z).")
+        str | None,
+        typer.Option(
+            "--cols",
+            "--ground-cols",
+            help="Ground coordinate columns (default X,Y,Z); --ground-cols is the same option "
+            "(the name of orient resection and camera dlt estimate).",
+        ),
     ] = None,
     pixel: Annotated[
         bool, typer.Option("--pixel", help="Output pixel (col, row) instead of image (x, y).")
@@ -366,7 +373,7 @@ def project_cmd(
         principal_point=principal_point,
     )
     ext = build_exterior(eo, angle_unit, camera)
-    with column_options("--cols"):
+    with column_options(typed_option("--cols", "--ground-cols")):
         table = read_points(points, split_names(cols) or ["X", "Y", "Z"], auto_weights=False)
     xy = project(
         table.coords, io, ext, system="pixel" if pixel else "image", behind=Behind(behind).value

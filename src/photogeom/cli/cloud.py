@@ -129,8 +129,9 @@ def transform(
         typer.Option(
             "--crs",
             help="CRS to record in the output (default: --to-crs, else the target CRS of "
-            "--params, else the input's record); refused when it contradicts --to-crs or the "
-            "target CRS of --params.",
+            "--params (its source CRS with --inverse); none when --params records the CRS of "
+            "the input side only; else the input's record); refused when it contradicts "
+            "--to-crs or the target CRS of --params.",
         ),
     ] = None,
     scales: Annotated[
@@ -187,6 +188,12 @@ def transform(
             _check_output_crs(crs, to_rec, f"the parameters of {params} transform to")
         if crs is None and to_rec is not None:
             crs = to_rec
+        elif crs is None and from_rec is not None:
+            # the file names the CRS of the input side only: the points leave it for a
+            # system it does not name, and the input's record would mislabel them
+            from ..io.cloud import NO_CRS
+
+            crs = NO_CRS
     else:
         if crs is not None:
             _check_output_crs(crs, to_crs, "--to-crs says")

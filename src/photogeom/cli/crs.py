@@ -21,6 +21,7 @@ from ._common import (
     say,
     split_names,
     split_numbers,
+    typed_option,
 )
 from ._stream import run_point_job, single_threaded_blas
 
@@ -70,11 +71,20 @@ def _read_input(points: Path, cols: str | None, id_col: str | None):
 @app.command("convert")
 def convert(
     points: Annotated[Path, typer.Argument(help="CSV of points.")],
-    to_crs: Annotated[str, typer.Option("--to", help="CRS of the output, 'enu' or enu:LAT,LON,H.")],
+    to_crs: Annotated[
+        str,
+        typer.Option(
+            "--to",
+            "--to-crs",
+            help="CRS of the output, 'enu' or enu:LAT,LON,H (--to-crs: the same option, the "
+            "name of cloud transform).",
+        ),
+    ],
     from_crs: Annotated[
         str | None,
         typer.Option(
             "--from",
+            "--from-crs",
             help="CRS of the input (EPSG:4979, WKT, PROJ string), 'enu' (a local frame at "
             "--origin) or enu:LAT,LON,H. Default: the '# crs:' line of POINTS; a --from "
             "naming another CRS than that line is refused.",
@@ -115,6 +125,8 @@ def convert(
     single_threaded_blas()
     from .. import crs as _crs
 
+    opt_from = typed_option("--from", "--from-crs")  # the names given, for messages
+    opt_to = typed_option("--to", "--to-crs")
     blocks = _read_input(points, cols, id_col)
     frame = None
     if origin is not None:
@@ -132,17 +144,17 @@ def convert(
         return t
 
     src = option_or_file_crs(
-        None if from_crs is None else resolve(from_crs, "--from"),
-        "--from",
+        None if from_crs is None else resolve(from_crs, opt_from),
+        opt_from,
         points,
-        fix="leave --from out (the file's line is the default) or correct the line",
+        fix=f"leave {opt_from} out (the file's line is the default) or correct the line",
     )
     if src is None:
         raise InputError(
             f"{points} records no CRS (no '# crs:' line): give the CRS of its coordinates "
-            "with --from (e.g. --from EPSG:4979)"
+            f"with {opt_from} (e.g. {opt_from} EPSG:4979)"
         )
-    dst = resolve(to_crs, "--to")
+    dst = resolve(to_crs, opt_to)
     enu_in = _crs.frame_from_text(src) is not None
     enu_out = _crs.frame_from_text(dst) is not None
     if (enu_in or enu_out) and blocks.dim != 3:
@@ -151,7 +163,7 @@ def convert(
             f"{', '.join(blocks.columns)}; choose them with --cols"
         )
     convert_points = _crs.points_converter(src, dst, allow_ballpark=allow_ballpark)
-    names = split_names(out_cols) or list(crs_column_names(dst, "--to")[: blocks.dim])
+    names = split_names(out_cols) or list(crs_column_names(dst, opt_to)[: blocks.dim])
     if len(names) != blocks.dim:
         raise InputError(f"--out-cols: {len(names)} name(s) for {blocks.dim} coordinates")
     comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
@@ -188,7 +200,7 @@ def convert(
             f"warning: {outside[0]} of {n} point(s) (first: {outside[1]}) lie outside the area "
             f"of use of {area.describe()}; the projection's distortion grows away from it, "
             "and points far outside usually mean the wrong CRS (e.g. the wrong UTM zone): "
-            "check --to",
+            f"check {opt_to}",
             stderr=True,
         )
     if output is not None:
@@ -200,7 +212,7 @@ def _is_geographic(src: str) -> bool:
     part."""
     from .. import crs as _crs
 
-    c = _crs.parse_crs(src, what="--from")
+    c = _crs.parse_crs(src, what=typed_option("--from", "--from-crs"))
     return bool(
         c.is_geographic
         or (c.is_compound and bool(c.sub_crs_list) and c.sub_crs_list[0].is_geographic)
@@ -228,6 +240,7 @@ def _check_geographic(ids, coords, columns, src: str, points: Path) -> None:
     raise InputError(
         f"{points}: {bad.size} point(s) are not longitude, latitude in degrees ({cols} read as "
         f"lon,lat in {src}): {shown}; if they are projected or local coordinates, give their "
-        "CRS with --from (or the file's '# crs:' line); if the columns are in another order, "
+        f"CRS with {typed_option('--from', '--from-crs')} (or the file's '# crs:' line); if the "
+        "columns are in another order, "
         "choose them with --cols LON,LAT[,H]"
     )

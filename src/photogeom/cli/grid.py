@@ -33,6 +33,7 @@ from ._common import (
     scheduler_option,
     split_names,
     stage_spinner,
+    typed_option,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -453,8 +454,11 @@ def fit(
     sigma_obs: Annotated[
         float | None,
         typer.Option(
+            "--sigma-obs",
+            "--sigma",
             help="Standard deviation of the residuals (px); default: 1 px for a residuals "
-            "CSV, each observation's sigma for a block."
+            "CSV, each observation's sigma for a block. --sigma is the same option (the name "
+            "of bundle adjust).",
         ),
     ] = None,
     sigma_constraint: Annotated[
@@ -828,7 +832,7 @@ def _cli_words(msg: str) -> str:
         msg.replace("sigma_constraint", "--sigma-constraint")
         .replace("image width must be", "--image-size: the width must be")
         .replace("image height must be", "--image-size: the height must be")
-        .replace("sigma_obs", "--sigma-obs")
+        .replace("sigma_obs", typed_option("--sigma-obs", "--sigma"))
         .replace("min_observations", "observations")
         .replace("min_support", "--min-support")
         .replace("grid spacing", "--spacing")

@@ -25,6 +25,7 @@ from ._common import (
     say,
     split_numbers,
     stage_spinner,
+    typed_option,
 )
 
 BlockArg = Annotated[
@@ -596,7 +597,15 @@ def sweep(
 
 
 def report(
-    output: Annotated[Path, typer.Option("--output", "-o", help="HTML report to write.")],
+    output: Annotated[
+        Path,
+        typer.Option(
+            "--output",
+            "-o",
+            "--report",
+            help="HTML report to write (--report: the same option, the name of grid fit).",
+        ),
+    ],
     block: BlockArg = None,
     preset: PresetOpt = None,
     spacing: FitSpacingOpt = None,
@@ -623,7 +632,8 @@ def report(
 
     images = images if images_old is None else images_old  # --images: the former name
     g = _spacings(spacings)
-    check_targets(files=[("--output", output)])  # before the evaluation and the sweep
+    # before the evaluation and the sweep
+    check_targets(files=[(typed_option("--output", "--report"), output)])
     fit, re, grids, ev, sim = _evaluate(
         block,
         preset,

@@ -39,6 +39,7 @@ from ._common import (
     say,
     split_control,
     split_names,
+    typed_option,
     write_outputs,
 )
 from ._stream import run_point_job, single_threaded_blas
@@ -89,8 +90,9 @@ def _blocks_with(path: Path, cols: str | None, candidates, what: str, id_col: st
     """Point blocks of the first candidate column set present in the file (or ``--cols``)."""
     from ..io import PointBlocks
 
+    option = typed_option("--cols", "--ground-cols", "--image-cols")  # the name given
     if cols is not None:
-        with column_options("--cols"):
+        with column_options(option):
             return PointBlocks(path, split_names(cols), id_column=id_col, role_column=None)
     for cand in candidates:
         try:
@@ -101,7 +103,7 @@ def _blocks_with(path: Path, cols: str | None, candidates, what: str, id_col: st
     raise InputError(
         f"{path}: cannot find the {what} columns; expected "
         + " or ".join(",".join(c) for c in candidates)
-        + " (or name them with --cols)"
+        + f" (or name them with {option})"
     )
 
 
@@ -165,7 +167,13 @@ def project(
     points: Annotated[Path, typer.Argument(help="CSV of ground points: id, lon, lat, h.")],
     output: OutputCsvOpt = None,
     cols: Annotated[
-        str | None, typer.Option(help="Ground columns lon,lat,h (default: found by name).")
+        str | None,
+        typer.Option(
+            "--cols",
+            "--ground-cols",
+            help="Ground columns lon,lat,h (default: found by name); --ground-cols is the same "
+            "option (the name of rpc fit and rpc refine).",
+        ),
     ] = None,
     id_col: IdColOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of CSV.")] = False,
@@ -269,7 +277,12 @@ def localize(
     ] = None,
     cols: Annotated[
         str | None,
-        typer.Option(help="Image columns col,row (or col,row,h) (default: found by name)."),
+        typer.Option(
+            "--cols",
+            "--image-cols",
+            help="Image columns col,row (or col,row,h) (default: found by name); --image-cols "
+            "is the same option (the name of rpc fit and rpc refine).",
+        ),
     ] = None,
     id_col: IdColOpt = None,
     tol: Annotated[float, typer.Option(help="Convergence tolerance (px).")] = 1e-6,

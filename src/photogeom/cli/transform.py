@@ -542,8 +542,9 @@ def apply(
     cols: Annotated[
         str | None,
         typer.Option(
-            help="Coordinate columns of POINTS (default: found by name; else "
-            "the columns the estimate read)."
+            help="Coordinate columns of POINTS (default: the columns the estimate read on "
+            "this side, its target columns with --inverse, when POINTS has them; else found "
+            "by name)."
         ),
     ] = None,
     out_cols: Annotated[
@@ -574,7 +575,6 @@ def apply(
     """
     single_threaded_blas()
     from ..io import PointBlocks
-    from ..io.points import AUTO_COLUMN_HINT
 
     transform, to_crs, from_crs, (from_cols, to_cols) = load_transform_record(params)
     if inverse:
@@ -589,16 +589,9 @@ def apply(
             "leave --crs out, or convert the output with photogeom crs convert"
         )
     with column_options("--cols"):
-        try:
-            blocks = PointBlocks(points, split_names(cols), id_column=id_col)
-        except FileFormatError as exc:
-            # no usual column names: the columns the estimate read (x2,y2 ...), if present
-            if cols is not None or from_cols is None or AUTO_COLUMN_HINT not in str(exc):
-                raise
-            try:
-                blocks = PointBlocks(points, from_cols, id_column=id_col)
-            except FileFormatError:
-                raise exc from None
+        # without --cols: the columns the estimate read on this side (x2,y2; X,Y with
+        # --inverse) when POINTS has them, before the usual names (a file with x,y and X,Y)
+        blocks = PointBlocks(points, split_names(cols), id_column=id_col, prefer_columns=from_cols)
     in_crs = crs_from_comments(blocks.comments)
     if in_crs is not None:
         cartesian_crs_option(in_crs, f"{points} ('# crs:' line)")

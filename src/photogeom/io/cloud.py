@@ -741,7 +741,7 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     output bounds (``bounds`` = (lo, hi), else the transformed corners of the source box of
     an affine-like transformation), and ``crs`` (a pyproj-readable CRS) replacing the CRS
     record when given (also a CRS record among the extended VLRs, EVLRs, is replaced: LAS 1.4
-    allows the WKT there)."""
+    allows the WKT there); ``crs=NO_CRS`` removes the record."""
     h = src_header.copy() if hasattr(src_header, "copy") else src_header
     sc = np.array(unit_scales(h.scales, transform) if scales is None else scales, dtype=float)
     if sc.shape != (3,) or not np.all(sc > 0):
@@ -753,7 +753,12 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
     lo, hi = (np.asarray(b, dtype=float) for b in bounds)
     h.scales = sc
     h.offsets = _new_offsets(lo, hi, sc)
-    if crs is not None:
+    if crs == NO_CRS:  # the points leave the input's CRS for one nobody recorded
+        h.vlrs = type(h.vlrs)(v for v in h.vlrs if type(v).__name__ not in _CRS_VLRS)
+        evlrs = getattr(h, "evlrs", None)
+        if evlrs:
+            h.evlrs = type(evlrs)(v for v in evlrs if type(v).__name__ not in _CRS_VLRS)
+    elif crs is not None:
         from ..crs import parse_crs
 
         # the record replaced in the encoding the global-encoding WKT bit announces: a LAS
@@ -775,6 +780,9 @@ def output_header(src_header, transform, scales=None, crs=None, bounds=None):
 _COPY_TEXT = "replace"
 
 #: laspy's classes of the records that hold a CRS (WKT or GeoTIFF keys).
+#: ``crs`` of :func:`transform_cloud` that removes the CRS record of the output.
+NO_CRS = ""
+
 _CRS_VLRS = (
     "WktCoordinateSystemVlr",
     "GeoKeyDirectoryVlr",
@@ -846,6 +854,8 @@ def transform_cloud(
     crs : str, optional
         CRS to record in the output (EPSG code, WKT, PROJ string); default: the
         transformation's ``target_crs`` if it has one, else the input's record unchanged.
+        ``NO_CRS`` (``""``) writes no record: the points are no longer in the input's CRS
+        and their own is unknown.
     progress : callable(done, total), optional
         Called after each chunk with points done and total.
     scheduler : str, optional

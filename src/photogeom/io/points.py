@@ -281,6 +281,20 @@ def _auto_columns(raw: _Source, exclude: Sequence[str] = ()) -> tuple[str, ...]:
     )
 
 
+def _preferred_columns(raw: _Source, preferred: tuple[str, ...]) -> tuple[str, ...]:
+    """``preferred`` when the header has them all (exact names) and the usual names are
+    missing or as many (a file with x,y,z read as x,y would lose its z: it stays x,y,z and
+    the caller names the mismatch); else the usual names (:func:`_auto_columns`)."""
+    present = bool(preferred) and all(c in raw.header for c in preferred)
+    try:
+        found = _auto_columns(raw)
+    except FileFormatError:
+        if present:
+            return preferred
+        raise
+    return preferred if present and len(found) == len(preferred) else found
+
+
 def _names(header: Sequence[str], limit: int = 30) -> str:
     shown = ", ".join(header[:limit])
     return shown + (f" ... ({len(header)} in all)" if len(header) > limit else "")
@@ -593,13 +607,19 @@ class PointBlocks:
     path : path-like
         Point CSV (format of :func:`read_points`).
     columns : sequence of str or comma-separated str, optional
-        Coordinate columns (default: found by name as in :func:`read_points`).
+        Coordinate columns (default: ``prefer_columns`` when the file has all of them, else
+        found by name as in :func:`read_points`).
     id_column : str, optional
         Id column (default: ``id``, ``point``, ``point_id`` or ``name``).
     role_column : str or None
         Role column to pass through (``role`` by default, when present).
     block_bytes : int
         Bytes of text per block.
+    prefer_columns : sequence of str, optional
+        Coordinate columns to read without ``columns`` when the header has every one of
+        them (exact names) and the usual names are missing or as many: the input columns
+        of a saved estimate, which a file holding both sets of coordinates must not lose to
+        ``x,y`` or ``X,Y``.
 
     Attributes
     ----------
@@ -619,6 +639,7 @@ class PointBlocks:
         id_column: str | None = None,
         role_column: str | None = ROLE_COLUMN,
         block_bytes: int = 1 << 20,
+        prefer_columns: Sequence[str] | None = None,
     ) -> None:
         self._raw = _Source(Path(path))
         self._raw.text.block_bytes = int(block_bytes)
@@ -627,9 +648,10 @@ class PointBlocks:
         self.header = self._raw.header
         self._id = _id_column(self._raw, id_column)
         names = _as_names(columns)
-        self.columns = (
-            _resolve_columns(self._raw, names, "coordinate") if names else _auto_columns(self._raw)
-        )
+        if names:
+            self.columns = _resolve_columns(self._raw, names, "coordinate")
+        else:
+            self.columns = _preferred_columns(self._raw, tuple(prefer_columns or ()))
         self._role = _role_column(self._raw, role_column)
         self.has_roles = self._role is not None
         self.size = self._raw.text.size
@@ -1094,12 +1116,7 @@ class PointWriter:
             raise InputError(
                 f"extra columns {', '.join(extra)} given, {', '.join(self.extra)} declared"
             )
-        if isinstance(ids, pa.ChunkedArray):
-            ids = ids.combine_chunks()
-        if not isinstance(ids, pa.Array):
-            ids = pa.array(_texts(ids), pa.string())
-        elif not pa.types.is_string(ids.type):
-            ids = text_column(ids)
+        ids = _id_array(ids)
         extras = []
         for name in self.extra:
             v = extra[name]
@@ -1195,6 +1212,35 @@ class _TextSink:
         self.stream.flush()
 
 
+def _id_array(ids):
+    """The ids as a pyarrow string array (other types written as text)."""
+    import pyarrow as pa
+
+    from .csvrows import text_column
+
+    if isinstance(ids, pa.ChunkedArray):
+        ids = ids.combine_chunks()
+    if not isinstance(ids, pa.Array):
+        return pa.array(_texts(ids), pa.string())
+    return ids if pa.types.is_string(ids.type) else text_column(ids)
+
+
+def _check_ids_read_back(ids) -> None:
+    """Refuse ids that a point CSV cannot hold: a line break (the readers refuse a quoted
+    field over two lines). White space at the ends is written and trimmed on reading, as
+    in any point file (``' #3'`` reads back as ``'#3'``)."""
+    import pyarrow.compute as pc
+
+    bad = pc.fill_null(pc.match_substring_regex(ids, r"[\r\n]"), False)
+    if pc.any(bad).as_py():
+        k = int(np.flatnonzero(bad.to_numpy(zero_copy_only=False))[0])
+        raise InputError(
+            f"point id {ids[k].as_py()!r} (row {k + 1}) holds a line break, which a point "
+            "file cannot hold (the readers refuse a quoted field over two lines); remove it "
+            "from the id"
+        )
+
+
 def _texts(values) -> list[str]:
     return [str(v) for v in values]
 
@@ -1277,11 +1323,15 @@ def write_points(
     Raises
     ------
     InputError
-        As :meth:`PointWriter.write`.
+        As :meth:`PointWriter.write`; also an id with a line break, which
+        :func:`read_points` would refuse (a quoted field over two lines). White space at
+        the ends of an id is trimmed on reading.
     OutputError
         When the file cannot be written.
     """
     extra = dict(extra or {})
+    ids = _id_array(ids)
+    _check_ids_read_back(ids)  # a file for read_points: only ids it gives back
     with PointWriter(path, columns, extra=list(extra), comments=comments) as w:
         w.write(ids, coords, extra)
     return Path(path)

@@ -43,3 +43,9 @@ def cli_command() -> str | None:
         word quoted for a POSIX shell where needed.
     """
     return None if _ARGS is None else shlex.join(["photogeom", *_ARGS])
+
+
+def cli_arguments() -> tuple[str, ...] | None:
+    """The arguments of the running ``photogeom`` command (after the program name), or None
+    outside the command line."""
+    return None if _ARGS is None else tuple(_ARGS)

@@ -810,7 +810,10 @@ class RPC:
         )
         lines.append(f"  image size: {size}; cols {c0:g}..{c1:g}, rows {r0:g}..{r1:g}")
         if self.err_bias is not None or self.err_rand is not None:
-            lines.append(f"  vendor errors: bias {self.err_bias} m, random {self.err_rand} m")
+            bias, rand = (
+                "not given" if v is None else f"{v:g} m" for v in (self.err_bias, self.err_rand)
+            )
+            lines.append(f"  vendor errors: bias {bias}, random {rand}")
         if self.direct is not None:
             lines.append("  image-to-ground polynomials: present (vendor's approximation)")
         if self.correction is not None:

@@ -43,6 +43,9 @@ _UNITS = {
     "metres", "m",
 }  # fmt: skip
 
+#: Keys of the image size (columns, rows) in ``KEY: value`` text written by photogeom.
+IMAGE_SIZE_KEYS = ("NUM_COLUMNS", "NUM_ROWS")
+
 _OFFSET_SCALE_KEYS = tuple(GDAL_KEYS.values())
 _COEFF_KEYS = tuple(GDAL_COEFF_KEYS.values())
 _DIRECT_KEYS = ("LON_NUM_COEFF", "LON_DEN_COEFF", "LAT_NUM_COEFF", "LAT_DEN_COEFF")
@@ -221,6 +224,21 @@ def _optional_error(d: Mapping[str, object], key: str, where: str) -> float | No
     return vals[0]
 
 
+def _optional_image_size(d: Mapping[str, object], where: str) -> tuple[int, int] | None:
+    """``(columns, rows)`` from ``NUM_COLUMNS`` and ``NUM_ROWS`` (pixels), None without."""
+    given = [k for k in IMAGE_SIZE_KEYS if k in d]
+    if not given:
+        return None
+    if len(given) == 1:
+        other = IMAGE_SIZE_KEYS[1 - IMAGE_SIZE_KEYS.index(given[0])]
+        raise FileFormatError(
+            f"{where}: {given[0]} is given without {other}; give both (the image size in "
+            "pixels) or neither"
+        )
+    cols, rows = (_image_side(_scalar(d, k, where), k, where) for k in IMAGE_SIZE_KEYS)
+    return cols, rows
+
+
 def rpc_from_mapping(
     d: Mapping[str, object],
     source: str = "dictionary",
@@ -234,7 +252,9 @@ def rpc_from_mapping(
     d : mapping
         ``LINE_OFF``, ..., ``HEIGHT_SCALE`` (numbers or strings), ``LINE_NUM_COEFF``, ...
         (20 values as a list or a space-separated string, or numbered keys ``_1`` .. ``_20``),
-        optional ``ERR_BIAS``, ``ERR_RAND`` and ``LON_NUM_COEFF``, ... (image-to-ground).
+        optional ``ERR_BIAS``, ``ERR_RAND``, ``LON_NUM_COEFF``, ... (image-to-ground) and
+        ``NUM_COLUMNS``, ``NUM_ROWS`` (the image size in pixels, as :func:`write_rpc` writes
+        it; both or neither).
     source : str
         Format name stored in the model.
     where : str, optional
@@ -264,6 +284,8 @@ def rpc_from_mapping(
         if len(vals) != 6:
             raise FileFormatError(f"{where}: IMAGE_CORRECTION needs 6 values, got {len(vals)}")
         extra["correction"] = np.reshape(vals, (2, 3))
+    if extra.get("image_size") is None:
+        extra["image_size"] = _optional_image_size(up, where)
     extra.setdefault("err_bias", _optional_error(up, "ERR_BIAS", where))
     extra.setdefault("err_rand", _optional_error(up, "ERR_RAND", where))
     try:

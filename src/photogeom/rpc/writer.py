@@ -5,7 +5,9 @@ back gives exactly the same model. Offsets use the library's (and RPC00B's) pixe
 the centre of the first pixel is (0, 0). Image-to-ground polynomials (DIMAP) are written as
 ``LON_NUM_COEFF_1`` ... (the "extended IKONOS" form that rpcm also reads). An image-space
 correction from bias compensation is written into the offsets and scales when that is exact
-(shift, per-axis scale); other corrections must be re-fitted first.
+(shift, per-axis scale); other corrections must be re-fitted first. A known image size
+(DIMAP, DigitalGlobe XML, GeoTIFF) is written as ``NUM_COLUMNS`` and ``NUM_ROWS``, which
+:func:`~photogeom.rpc.read_rpc` reads back (GDAL and rpcm skip keys they do not know).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..io.atomic import atomic_write_text
 from .model import RPC
+from .readers import IMAGE_SIZE_KEYS
 
 _UNIT = {
     "LINE_OFF": "pixels", "SAMP_OFF": "pixels", "LAT_OFF": "degrees", "LONG_OFF": "degrees",
@@ -73,6 +76,9 @@ def format_rpc(rpc: RPC, style: str = "ikonos") -> str:
         lines.append(f"ERR_BIAS: {_num(model.err_bias)}" + (" meters" if style == "ikonos" else ""))
     if model.err_rand is not None:
         lines.append(f"ERR_RAND: {_num(model.err_rand)}" + (" meters" if style == "ikonos" else ""))
+    if model.image_size is not None:  # read back by read_rpc; other readers skip unknown keys
+        for key, side in zip(IMAGE_SIZE_KEYS, model.image_size):
+            lines.append(f"{key}: {int(side)}" + (" pixels" if style == "ikonos" else ""))
     return "\n".join(lines) + "\n"
 
 
