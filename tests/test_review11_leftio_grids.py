@@ -73,3 +73,67 @@ def test_a_device_or_a_folder_is_named(tmp_path: Path):
     if Path("/dev/null").exists():
         with pytest.raises(FileFormatError, match="/dev/null: it is a device"):
             load_grids("/dev/null")
+
+
+@pytest.fixture
+def fifo_read_once(tmp_path: Path):
+    """``make(data, name)``: a named pipe that gives ``data`` to its first reader and an
+    empty stream to any later one (a reader that opened it again used to wait for ever for a
+    writer; now such a reader fails instead of hanging the test)."""
+    stop = threading.Event()
+
+    def make(data: bytes, name: str) -> Path:
+        fifo = tmp_path / name
+        os.mkfifo(fifo)
+
+        def feed() -> None:
+            with open(fifo, "wb") as fh:
+                fh.write(data)
+            while not stop.is_set():  # wake any later open of the pipe with an empty stream
+                try:
+                    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+                except OSError:  # no reader now
+                    pass
+                stop.wait(0.005)
+
+        threading.Thread(target=feed, daemon=True).start()
+        return fifo
+
+    yield make
+    stop.set()
+
+
+@needs_fifo
+@pytest.mark.parametrize(
+    "text",
+    [
+        b'image_id,u,v,name\n0,100,200,"two\nlines"\n1,300,400,x\n',  # quoted line break
+        b"image_id,u,v,name\n0,100,200,x\n1,300,400," + b"y" * 200_000 + b"\n",  # refused
+        b"image_id,u,v,name\n0,100,200,caf\xe9\n",  # Latin-1: refused
+    ],
+    ids=["quoted-line-break", "long-field", "latin-1"],
+)
+def test_grid_apply_reads_observations_from_a_pipe_once(
+    cli, tmp_path: Path, grids, fifo_read_once, text
+):
+    """The CSV reader of ``grid fit`` / ``grid apply`` read the file whole, then opened it
+    again for its line-wise reader (a quoted line break, a long field, text that is not
+    UTF-8): on a pipe that second open waited for ever."""
+    f = tmp_path / "grids.npz"
+    save_grids(f, grids)
+    obs = tmp_path / "obs.csv"
+    obs.write_bytes(text)
+    want = cli("grid", "apply", f, obs)
+    fifo = fifo_read_once(text, "obs.pipe")
+    got = cli("grid", "apply", f, fifo)
+    assert got == (want[0], want[1], want[2].replace(str(obs), str(fifo)))
+
+
+def test_grid_apply_refuses_a_device(cli, tmp_path: Path, grids):
+    if not Path("/dev/null").exists():
+        pytest.skip("no /dev/null")
+    f = tmp_path / "grids.npz"
+    save_grids(f, grids)
+    code, _, err = cli("grid", "apply", f, "/dev/null")
+    assert code == 2
+    assert "/dev/null: it is a device" in err

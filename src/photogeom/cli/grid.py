@@ -9,6 +9,7 @@ of images into another folder (in parallel, optionally on a Dask cluster).
 from __future__ import annotations
 
 import csv
+import io
 import operator
 from contextlib import nullcontext
 from enum import Enum
@@ -131,13 +132,24 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     quote, a field over its size limit, text that is not UTF-8) is read by
     :func:`_read_rows_linewise`, with the same rules and messages.
     """
+    from ..io.sources import device_message, input_kind
+
+    kind = input_kind(path)
+    if kind == "device":
+        raise FileFormatError(device_message(path, "CSV file"))
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            text = fh.read()
+        with open(path, "rb") as fh:
+            raw = fh.read()
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
+    # a pipe can be read once: its bytes are kept for the line-wise reader; a file is opened
+    # again by it (only when needed, and without holding the bytes meanwhile)
+    kept = raw if kind == "pipe" else None
+    try:
+        text = raw.decode("utf-8-sig")  # newline="" as the csv module wants: no translation
     except UnicodeDecodeError:
-        return _read_rows_linewise(path, comments)
+        return _read_rows_linewise(path, comments, kept)
+    del raw
     if "\r" in text:  # the line ends of a file read with newline="": \n, \r\n and \r
         text = text.replace("\r\n", "\n").replace("\r", "\n")
     any_quote = '"' in text
@@ -155,7 +167,7 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     del all_lines
     n = len(data)
     if n and max(map(len, data)) >= csv.field_size_limit():
-        return _read_rows_linewise(path, comments)
+        return _read_rows_linewise(path, comments, kept)
     widths = np.fromiter(map(operator.methodcaller("count", ","), data), dtype=np.int64, count=n)
     widths += 1
     starts = np.zeros(n + 1, dtype=np.int64)
@@ -182,9 +194,9 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
             try:  # strict: a quote left open or text after a closing one is read line-wise
                 parsed = list(csv.reader([data[k] for k in other.tolist()], strict=True))
             except csv.Error:
-                return _read_rows_linewise(path, comments)
+                return _read_rows_linewise(path, comments, kept)
             if len(parsed) != other.size:  # a quoted cell spans lines
-                return _read_rows_linewise(path, comments)
+                return _read_rows_linewise(path, comments, kept)
             others = dict(zip(other.tolist(), parsed, strict=True))
             widths[other] = np.fromiter(map(len, parsed), dtype=np.int64, count=other.size)
     del data
@@ -217,9 +229,10 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     )
 
 
-def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
+def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | None) -> _Cells:
     """:func:`_read_cells` for the files it does not split itself: the csv module over the
-    whole file, line by line (quoted line breaks counted in the line numbers)."""
+    whole file, line by line (quoted line breaks counted in the line numbers); ``data``: the
+    bytes of a pipe already read (a pipe cannot be opened again), else the file is opened."""
     rows, lines = [], []
     physical: list[int] = []  # file line of each line handed to the csv reader
 
@@ -234,7 +247,11 @@ def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
 
     start = 0  # the csv reader's count of lines before the row being read
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        if data is None:
+            fh = open(path, newline="", encoding="utf-8-sig")
+        else:
+            fh = io.TextIOWrapper(io.BytesIO(data), newline="", encoding="utf-8-sig")
+        with fh:
             reader = csv.reader(data_lines(fh))
             for r in reader:
                 if r and any(c.strip() for c in r):
