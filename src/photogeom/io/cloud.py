@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
+from .sources import device_message, input_kind, pipe_message
 
 #: Points per chunk unless ``chunk_size=`` says otherwise (about 30-60 MB of records).
 DEFAULT_CHUNK = 1_000_000
@@ -49,11 +50,21 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
     """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
     core each) instead of lazrs's parallel decoder. A file shorter than its header says
     (:func:`_truncation`), or whose scales and offsets give no coordinates
-    (:func:`_bad_scaling`), is refused unless ``check_size`` is False."""
+    (:func:`_bad_scaling`), is refused unless ``check_size`` is False. A pipe or a device is
+    refused by name (:mod:`photogeom.io.sources`): a LAS/LAZ file is read with seeks."""
     laspy = _laspy()
     p = Path(path)
-    if not p.is_file():
+    kind = input_kind(p)
+    if kind == "missing":
         raise InputError(f"point cloud {p} does not exist")
+    if kind == "folder":
+        raise InputError(f"point cloud {p} is a folder; give a LAS/LAZ file")
+    if kind == "device":
+        raise InputError(device_message(p, "point cloud"))
+    if kind == "pipe":  # the header, the size check and every pass open the file again
+        raise InputError(
+            pipe_message(p, "point cloud", "a LAS/LAZ file is read with seeks, in chunks")
+        )
     problem = _damaged_vlr_count(p)
     if problem:
         raise FileFormatError(problem)
