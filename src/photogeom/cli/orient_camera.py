@@ -413,12 +413,12 @@ def _crs_label(crs: str) -> str:
 def _cameras_crs(camera: list[Path], crs: str | None) -> str | None:
     """The CRS of the ground coordinates: ``--crs`` or the one the camera files record
     (they must agree)."""
-    from ..io.jsonfile import read_json_object
     from ._common import same_crs
+    from .camera import read_json
 
     recorded = {}
     for path in camera:
-        data = read_json_object(path)
+        data = read_json(path)  # a pipe: read once, kept for camera_from_json
         value = data.get("crs") if isinstance(data, dict) else None
         if value is not None:
             recorded[str(path)] = str(value)
