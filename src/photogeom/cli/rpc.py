@@ -581,7 +581,7 @@ def fit(
     from ..rpc import fit_rpc_to_points
     from ..rpc.fitting import UnstableFitError, unstable_fit_message
 
-    check_outputs(output=output, report=report)
+    check_outputs({"POINTS": points}, output=output, report=report)
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     sig = _sigmas(pairs, mask, sigma, points)
@@ -644,7 +644,8 @@ def refine(
     """
     from ..rpc import refine_rpc
 
-    check_outputs(output=output, report=report)
+    # the vendor RPC too: a refined RPC written over it could not be refined again
+    check_outputs({"RPC_FILE": rpc_file, "POINTS": points}, output=output, report=report)
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
