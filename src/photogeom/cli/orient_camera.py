@@ -297,7 +297,9 @@ def intersection(
     from ..io import format_points_csv, read_points
     from ..orientation.intersection import space_intersection
 
-    check_outputs({f"IMAGES ({p})": p for p in images}, report=report, output=output)
+    inputs = {f"IMAGES ({p})": p for p in images}
+    inputs.update({f"--camera {p}": p for p in camera or ()})  # not replaced either
+    check_outputs(inputs, report=report, output=output)
 
     if len(images) < 2:
         raise InputError("space intersection needs >= 2 image files")
