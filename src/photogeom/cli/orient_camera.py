@@ -143,7 +143,8 @@ def resection(
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
 
-    check_outputs({"POINTS": points, "IMAGE": image}, report=report, output_params=output_params)
+    inputs = {"POINTS": points, "IMAGE": image, "--camera": camera, "--calibration": calibration}
+    check_outputs(inputs, report=report, output_params=output_params)
 
     io = interior_from_options(
         camera=camera,

@@ -188,7 +188,8 @@ def relative(
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
 
-    inputs = {"POINTS": points, "IMAGE2": image2}
+    inputs = {"POINTS": points, "IMAGE2": image2, "--camera": camera, "--camera2": camera2,
+              "--calibration": calibration}  # fmt: skip
     if output_cameras is None:
         check_outputs(inputs, report=report, output=output)
     else:  # each camera file against the inputs and the other options, then the two
