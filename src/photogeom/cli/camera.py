@@ -377,6 +377,9 @@ def project_cmd(
     from ..camera import project
     from ..io import format_points_csv, read_points
 
+    # the camera files are no destination (-o POINTS is: the points are read before it)
+    check_outputs({"--camera": camera, "--calibration": calibration}, output=output)
+
     io = interior_from_options(
         camera=camera,
         calibration=calibration,

@@ -26,6 +26,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     batch_failed,
+    check_outputs,
     console,
     emit_points,
     json_text,
@@ -521,10 +522,10 @@ def fit(
     single_threaded_blas()
     from ..atomicfile import atomic_write_many
     from ..calibration.gridfile import grids_file_bytes
-    from .bundle import check_targets
 
-    # both outputs checked before the fit and written together: all or none
-    check_targets(files=[("--output", output), ("--report", report)])
+    # both outputs checked before the fit and written together: all or none; neither may
+    # replace the residuals CSV
+    check_outputs({"RESIDUALS": residuals}, output=output, report=report)
 
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(
@@ -862,6 +863,8 @@ def apply(
     """Correct image coordinates: u, v replaced by u + rx(u, v), v + ry(u, v)."""
     from ..calibration import correct_observations, load_grids
     from ..calibration.gridfile import match_grid_ids
+
+    check_outputs({"GRIDS_FILE": grids_file}, output=output)  # -o OBSERVATIONS is allowed
 
     grids = load_grids(grids_file)
     comments: list[str] = []

@@ -189,6 +189,7 @@ def project(
     """
     from ._common import option_or_file_crs
 
+    check_outputs({"RPC_FILE": rpc_file}, output=output)  # -o POINTS is allowed (read first)
     single_threaded_blas()
     rpc = _load_rpc(rpc_file)
     given = crs is not None
@@ -300,6 +301,7 @@ def localize(
     diverged (empty lon/lat, 'nan': nothing is guessed). Files of any size are read and
     written block by block (a progress bar on a terminal).
     """
+    check_outputs({"RPC_FILE": rpc_file}, output=output)  # -o POINTS is allowed (read first)
     single_threaded_blas()
     import math
 
