@@ -79,3 +79,24 @@ def test_camera_project(cli, tmp_path: Path):
     pts = tmp_path / "ground.csv"
     pts.write_text("id,X,Y,Z\n1,10,20,0\n2,-30,5,1\n")
     _refused(cli, ("camera", "project", pts, "--camera", cam, "-o", cam), cam, "--camera")
+
+
+def test_cloud_transform_keeps_its_parameters(cli, tmp_path: Path):
+    """cloud transform c.las p.json --params p.json wrote the cloud over the parameters."""
+    laspy = pytest.importorskip("laspy")
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = [0.001] * 3
+    header.offsets = [0.0] * 3
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = np.random.default_rng(0).uniform(0, 100, (3, 200))
+    cloud = tmp_path / "c.las"
+    las.write(cloud)
+    params = tmp_path / "p.json"
+    code, _, err = cli("orient", "absolute", datasets.path("kraus_absolute_orientation"),
+                       "--output-params", params)
+    assert code == 0, err
+    before = params.read_bytes()
+    code, _, err = cli("cloud", "transform", cloud, params, "--params", params)
+    assert code == 2
+    assert f"OUTPUT {params} is the --params file" in err
+    assert params.read_bytes() == before
