@@ -100,3 +100,18 @@ def test_cloud_transform_keeps_its_parameters(cli, tmp_path: Path):
     assert code == 2
     assert f"OUTPUT {params} is the --params file" in err
     assert params.read_bytes() == before
+
+
+def test_grid_fit_keeps_the_files_of_its_block(cli, tmp_path: Path):
+    """grid fit BLOCK -o BLOCK/observations.csv wrote the grids over the block's file."""
+    from photogeom.bundle import read_bal, write_csv_block
+
+    block = tmp_path / "block"
+    write_csv_block(read_bal(Path(datasets.__file__).parent / "data" / "bundle"
+                             / "dubrovnik-3-7-pre.txt"), block)
+    victim = block / "observations.csv"
+    before = victim.read_bytes()
+    code, _, err = cli("grid", "fit", block, "--spacing", "200", "-o", victim)
+    assert code == 2
+    assert f"--output {victim} is the input file RESIDUALS (observations.csv of the block)" in err
+    assert victim.read_bytes() == before

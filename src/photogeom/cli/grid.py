@@ -525,7 +525,11 @@ def fit(
 
     # both outputs checked before the fit and written together: all or none; neither may
     # replace the residuals CSV
-    check_outputs({"RESIDUALS": residuals}, output=output, report=report)
+    inputs = {"RESIDUALS": residuals}
+    if residuals.is_dir():  # a block folder: its files are inputs
+        inputs = {f"RESIDUALS ({f.name} of the block)": f for f in residuals.iterdir()
+                  if f.name in _BLOCK_FILES}  # fmt: skip
+    check_outputs(inputs, output=output, report=report)
 
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(
@@ -580,6 +584,13 @@ def fit(
 
 #: Suffixes of a BAL file, the one block format stored in a single file
 _BLOCK_SUFFIXES = (".bal", ".bz2")
+
+
+#: Files of a CSV block folder and of a COLMAP text model (inputs of ``grid fit BLOCK``).
+_BLOCK_FILES = frozenset(
+    ("cameras.csv", "images.csv", "points.csv", "observations.csv", "cameras.txt",
+     "images.txt", "points3D.txt")
+)  # fmt: skip
 
 
 def _is_block(path: Path) -> bool:
