@@ -10,7 +10,7 @@ from __future__ import annotations
 import bz2
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from itertools import chain
 from pathlib import Path
 
@@ -19,39 +19,141 @@ import numpy as np
 from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError
 from ..io.csvblocks import wide_unicode
+from ..io.sources import device_message, input_kind
 from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)")
 
 
-def read_text(path: str | os.PathLike, what: str) -> str:
+#: Bytes of a text input looked at before the rest is read: its header (the size limit of
+#: a BAL file), and whether it is binary.
+HEAD_BYTES = 64 << 10
+#: Bytes read (or decompressed) at a time.
+_CHUNK = 1 << 20
+
+
+def read_text(
+    path: str | os.PathLike,
+    what: str,
+    *,
+    limit: Callable[[str], tuple[int, str]] | None = None,
+) -> str:
     """The text of ``path``: UTF-8 (a byte-order mark dropped; other bytes read as
     Latin-1), or UTF-16/32 with a byte-order mark or, for ASCII text, without one
     (:func:`photogeom.io.csvblocks.wide_unicode`). bzip2-compressed files are recognised by
-    their magic bytes; other files with NUL bytes are refused as binary."""
+    their magic bytes and decompressed as they are read; other files with NUL bytes are
+    refused as binary.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A regular file or a pipe (read once). A device (``/dev/zero``) is refused.
+    what : str
+        What the file is (``"BAL file"``), for messages.
+    limit : callable, optional
+        ``limit(head) -> (bytes, message)``: given the text of the first
+        :data:`HEAD_BYTES` bytes (decompressed) of an input longer than that, the most
+        bytes the input may hold (decompressed) and the message of the
+        :class:`FileFormatError` raised when it holds more. It may raise a
+        :class:`FileFormatError` itself (a header that is not one). Without it, the input is
+        read whole.
+
+    Returns
+    -------
+    str
+        The decoded text.
+
+    Raises
+    ------
+    FileFormatError
+        No such file, a folder, a device, no permission, a damaged bzip2 stream, binary
+        content, UTF-16/32 text with bytes of another encoding, or more bytes than
+        ``limit`` allows.
+    """
     p = Path(path)
+    if input_kind(p) == "device":
+        raise FileFormatError(device_message(p, what))
     try:
-        data = p.read_bytes()
+        with open(p, "rb") as fh:
+            data = _read_limited(fh, p, what, limit)
     except FileNotFoundError:
         raise FileFormatError(f"cannot read {what} {p}: no such file") from None
     except IsADirectoryError:
         raise FileFormatError(f"cannot read {what} {p}: it is a directory, not a file") from None
     except OSError as exc:
         raise FileFormatError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
-    if data[:3] == b"BZh":
-        try:
-            data = bz2.decompress(data)
-        except (OSError, ValueError, EOFError) as exc:
-            raise FileFormatError(
-                f"{p}: a bzip2 file that cannot be decompressed ({exc}); the file is damaged "
-                "or truncated"
-            ) from None
+    return _decode_text(data, p, what)
+
+
+def _raw_chunks(fh) -> Iterator[bytes]:
+    while chunk := fh.read(_CHUNK):
+        yield chunk
+
+
+def _bz2_chunks(raw: Iterator[bytes]) -> Iterator[bytes]:
+    """The decompressed bytes of bzip2 data, at most :data:`_CHUNK` at a time (several
+    concatenated streams, as ``pbzip2`` writes them, one after the other)."""
+    dec = bz2.BZ2Decompressor()
+    for data in raw:
+        while data or not (dec.eof or dec.needs_input):
+            if dec.eof:  # the next stream
+                dec = bz2.BZ2Decompressor()
+            out = dec.decompress(data, _CHUNK)
+            data = dec.unused_data if dec.eof else b""
+            if out:
+                yield out
+    if not dec.eof:
+        raise EOFError("the data ends before the end-of-stream marker")
+
+
+def _read_limited(fh, p: Path, what: str, limit) -> bytes:
+    """The (decompressed) bytes of an open input, refused as binary from its head and, with
+    ``limit``, beyond the size its head allows; see :func:`read_text`."""
+    chunks = _raw_chunks(fh)
+    first = next(chunks, b"")
+    packed = first[:3] == b"BZh"
+    if packed:
+        chunks = _bz2_chunks(chain([first], chunks))
+    else:
+        chunks = chain([first], chunks)
+    parts: list[bytes] = []
+    total = 0
+    head_seen = False
+    bound: tuple[int, str] | None = None
+    try:
+        for chunk in chunks:
+            parts.append(chunk)
+            total += len(chunk)
+            if not head_seen and total >= HEAD_BYTES:
+                head_seen = True  # binary content is refused before the rest is read
+                text = _decode_text(b"".join(parts)[:HEAD_BYTES], p, what, partial=True)
+                if limit is not None:
+                    bound = limit(text)
+            if bound is not None and total > bound[0]:
+                raise FileFormatError(bound[1])
+    except (OSError, ValueError, EOFError) as exc:
+        if not packed or isinstance(exc, FileFormatError):
+            raise
+        raise FileFormatError(
+            f"{p}: a bzip2 file that cannot be decompressed ({exc}); the file is damaged "
+            "or truncated"
+        ) from None
+    return b"".join(parts)
+
+
+def _decode_text(data: bytes, p: Path, what: str, *, partial: bool = False) -> str:
+    """Text of the bytes of an input (see :func:`read_text`); ``partial``: the bytes are the
+    head of a longer input (a character cut at the end is dropped)."""
+    errors = "ignore" if partial else "strict"
     wide = wide_unicode(data[:4096])
     if wide is not None:  # UTF-16/32 text (Windows tools, spreadsheets): read it
         name, bom = wide
         codec = name.lower() if bom else name.lower() + ("-le" if data[1:2] == b"\x00" else "-be")
         try:
+            if partial:  # a character cut at the end of the head is dropped
+                step = 4 if "32" in name else 2
+                data = data[: len(data) // step * step]
             return data.decode(codec)
         except UnicodeDecodeError as exc:
             raise FileFormatError(
@@ -61,7 +163,7 @@ def read_text(path: str | os.PathLike, what: str) -> str:
     if b"\x00" in data[:4096]:
         raise FileFormatError(f"cannot read {what} {p}: it is a binary file, not text")
     try:
-        return data.decode("utf-8-sig")
+        return data.decode("utf-8-sig", errors=errors)
     except UnicodeDecodeError:
         return data.decode("latin-1")
 

@@ -53,6 +53,51 @@ from .block import CALIBRATION_NAMES, Block
 
 #: Calibration parameters a BAL camera holds (the free ones of a block read from BAL).
 BAL_FREE = ("f", "k1", "k2")
+#: Most characters a value of a BAL file may take with the white space around it: the
+#: header's counts bound the size of the file (a number is at most 24 characters).
+BAL_VALUE_CHARS = 64
+
+
+def _header_message(label: str, head: np.ndarray | list[str]) -> str:
+    got = " ".join(format_floats(head)) if isinstance(head, np.ndarray) else " ".join(head)
+    return (
+        f"{label}, line 1: the header must be three non-negative integers "
+        f"(num_cameras num_points num_observations), got {got}"
+    )
+
+
+def _size_limit(label: str):
+    """The ``limit`` of :func:`read_text` for a BAL file: the most bytes the counts of its
+    header leave room for (:data:`BAL_VALUE_CHARS` characters a value, 4 bytes a character
+    for UTF-32 text), so that a stream that never ends (a pipe), a bzip2 bomb or a file far
+    longer than its header says is refused after reading at most that much."""
+
+    def limit(head: str) -> tuple[int, str]:
+        tokens = head.split(None, 3)
+        if len(tokens) < 4:  # no three tokens before the end of the head
+            raise FileFormatError(
+                f"{label}: no header (num_cameras num_points num_observations) in its first "
+                f"{len(head)} characters; not a BAL file"
+            )
+        try:
+            counts = np.array(tokens[:3], dtype=float)
+        except ValueError:
+            counts = None
+        if counts is None or not np.all(np.isfinite(counts)):
+            raise FileFormatError(_header_message(label, tokens[:3]))
+        if np.any(counts != np.round(counts)) or np.any(counts < 0):
+            raise FileFormatError(_header_message(label, counts))
+        m, p, n = (int(v) for v in counts)
+        need = 3 + 4 * n + 9 * m + 3 * p
+        most = 4 * BAL_VALUE_CHARS * need + len(head)
+        return most, (
+            f"{label}: more than {most} bytes, more than the {need} values its header "
+            f"announces ({m} cameras, {p} points, {n} observations) can take at "
+            f"{BAL_VALUE_CHARS} characters each: the header does not match the file (or "
+            "it is not a BAL file)"
+        )
+
+    return limit
 
 
 def read_bal(
@@ -66,7 +111,8 @@ def read_bal(
     Parameters
     ----------
     path : path-like
-        The BAL file (bzip2-compressed files are recognised by content, any name).
+        The BAL file (bzip2-compressed files are recognised by content, any name), or a
+        pipe (read once). A device (``/dev/zero``) is refused.
     image_size : (width, height), optional
         Pixel size of every image. Default: the smallest even sizes that hold every
         observation (BAL stores none; see the module docstring).
@@ -84,10 +130,12 @@ def read_bal(
     FileFormatError
         A token that is not a number, counts that do not match the header, a truncated
         file, camera or point indices out of range, a non-positive focal length or
-        non-finite values, each naming the line.
+        non-finite values, each naming the line; a file (decompressed) longer than its
+        header's counts leave room for (:data:`BAL_VALUE_CHARS` characters a value): a
+        stream that never ends or a bzip2 bomb is refused after reading that much.
     """
     label = str(path)
-    text = read_text(path, "BAL file")
+    text = read_text(path, "BAL file", limit=_size_limit(label))
     vals = numbers(text, label)
     if vals.size < 3:
         raise FileFormatError(
@@ -96,10 +144,7 @@ def read_bal(
         )
     head = vals[:3]
     if not np.all(np.isfinite(head)) or np.any(head != np.round(head)) or np.any(head < 0):
-        raise FileFormatError(
-            f"{label}, line 1: the header must be three non-negative integers "
-            "(num_cameras num_points num_observations), got " + " ".join(format_floats(head))
-        )
+        raise FileFormatError(_header_message(label, head))
     m, p, n = (int(v) for v in head)
     if m == 0:
         raise FileFormatError(

@@ -609,6 +609,7 @@ def read_csv_block(
     to = _read_table(d / "observations.csv")
     oi = _ids_like(to.col("image_id"), img_ids, to, "image_id", "image (images.csv)")
     op = _ids_like(to.col("point_id"), pt_ids, to, "point_id", "point (points.csv)")
+    _refuse_repeated_observations(oi, op, to)
     uv = np.column_stack([to.floats("u"), to.floats("v")])
     sg = to.floats("sigma") if to.has("sigma") else sigma
     if np.any(np.asarray(sg) <= 0):
@@ -640,6 +641,29 @@ def read_csv_block(
     except InputError as exc:
         raise FileFormatError(f"{d}: {exc}") from None
     return block if surveyed is None else block.replace(surveyed=surveyed)
+
+
+def _refuse_repeated_observations(image: np.ndarray, point: np.ndarray, table: _Table) -> None:
+    """Refuse two rows of observations.csv with the same (image_id, point_id), naming both
+    lines (the first such pair in the file); the block's own check names no file or line.
+
+    Vectorised: one stable sort of the pairs' codes."""
+    if image.size < 2:
+        return
+    ci = np.unique(image, return_inverse=True)[1].ravel().astype(np.int64)
+    cp = np.unique(point, return_inverse=True)[1].ravel().astype(np.int64)
+    key = ci * (int(cp.max()) + 1) + cp
+    order = np.argsort(key, kind="stable")  # equal pairs stay in file order
+    same = np.flatnonzero(key[order[1:]] == key[order[:-1]])
+    if not same.size:
+        return
+    j = same[int(np.argmin(order[same + 1]))]  # the pair whose repetition comes first
+    a, b = int(order[j]), int(order[j + 1])
+    raise FileFormatError(
+        f"{table.path}, lines {table.lines[a]} and {table.lines[b]}: both are image "
+        f"{image[a]}'s observation of point {point[a]}; an image observes a point once: "
+        "remove one of the two rows"
+    )
 
 
 def _csv(header: list[str], columns: list[list[str]], comments: list[str] = ()) -> str:

@@ -160,10 +160,10 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
 
 
 def detect_format(path: str | os.PathLike) -> str:
-    """``"bal"``, ``"colmap"`` or ``"csv"`` for an existing file or folder (see the module
+    """``"bal"``, ``"colmap"`` or ``"csv"`` for an existing file (or pipe) or folder (see the module
     docstring); :class:`FileFormatError` when it is none of them."""
     p = Path(path)
-    if p.is_file():
+    if p.exists() and not p.is_dir():  # a file, or a pipe (read once); read_bal refuses devices
         return "bal"
     if p.is_dir():
         if (p / "images.txt").is_file() or (p / "cameras.txt").is_file() or is_binary_model(p):

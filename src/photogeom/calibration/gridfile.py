@@ -42,6 +42,7 @@ import numpy as np
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError
 from ..io.jsonfile import parse_json_bytes
+from ..io.sources import device_message, input_kind
 from .grid import GridLayout, ResidualGrid
 
 FORMAT = "photogeom-residual-grids"
@@ -305,7 +306,8 @@ def load_grids(path: str | os.PathLike) -> dict:
     Parameters
     ----------
     path : str or os.PathLike
-        A ``.npz`` or JSON grids file.
+        A ``.npz`` or JSON grids file, or a pipe (read once; an NPZ is recognised by its
+        content). A device (``/dev/zero``) is refused.
 
     Returns
     -------
@@ -315,24 +317,40 @@ def load_grids(path: str | os.PathLike) -> dict:
     Raises
     ------
     FileFormatError
-        Not a grids file (or a damaged one: truncated, not a zip archive, not JSON), or a
-        malformed entry: no id, missing values, arrays whose shape does not fit the
-        layout (the message names the file and the image).
+        No such file, a folder, a device, not a grids file (or a damaged one: truncated,
+        not a zip archive, not JSON), or a malformed entry: no id, missing values, arrays
+        whose shape does not fit the layout (the message names the file and the image).
     """
     path = Path(path)
-    if not path.is_file():
+    kind = input_kind(path)
+    if kind == "missing":
         raise FileFormatError(f"{path}: no such grids file")
-    if path.suffix.lower() == ".npz":
-        if not zipfile.is_zipfile(path):
+    if kind == "folder":
+        raise FileFormatError(f"{path}: a folder, not a grids file")
+    if kind == "device":
+        raise FileFormatError(device_message(path, "grids file"))
+    raw = None
+    if kind == "pipe":  # read once; an NPZ (a zip archive) is then read from memory
+        try:
+            with open(path, "rb") as fh:
+                raw = fh.read()
+        except OSError as exc:
+            raise FileFormatError(f"{path}: cannot read the grids file ({exc.strerror})") from None
+    source = path if raw is None else io.BytesIO(raw)
+    npz = path.suffix.lower() == ".npz" or (raw is not None and raw[:4] == b"PK\x03\x04")
+    if npz:
+        if not zipfile.is_zipfile(source):
             raise FileFormatError(
                 f"{path}: not a grids NPZ file (not a zip archive: truncated, or another "
                 "format); write it again with save_grids or photogeom grid fit"
             )
-        problem = _npz_array_too_large(path)
+        problem = _npz_array_too_large(path, source)
         if problem:
             raise FileFormatError(problem)
+        if raw is not None:
+            source.seek(0)  # np.load reads the zip magic where the checks above left off
         try:
-            with np.load(path, allow_pickle=False) as z:
+            with np.load(source, allow_pickle=False) as z:
                 meta = parse_json_bytes(str(z["meta"]).encode("utf-8"), str(path), allow_nan=True)
                 data = {k: z[k] for k in z.files if k != "meta"}
         except (
@@ -349,7 +367,8 @@ def load_grids(path: str | os.PathLike) -> dict:
             _add(out, k, st, arr, path)
         return out
     try:
-        raw = path.read_bytes()
+        if raw is None:
+            raw = path.read_bytes()
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read the grids file ({exc.strerror})") from None
     try:  # bounded: deep nesting, huge integers and encodings are named, never a traceback
@@ -370,9 +389,10 @@ def load_grids(path: str | os.PathLike) -> dict:
 _MAX_DEFLATE_RATIO = 1100
 
 
-def _npz_array_too_large(path: Path) -> str | None:
-    """Why an array of the NPZ file ``path`` cannot be as large as its ``.npy`` header says,
-    or None (also None for what :func:`numpy.load` reports itself).
+def _npz_array_too_large(path: Path, source: Path | io.BytesIO | None = None) -> str | None:
+    """Why an array of the NPZ file ``path`` (read from ``source``: the path, or the bytes of
+    a pipe) cannot be as large as its ``.npy`` header says, or None (also None for what
+    :func:`numpy.load` reports itself).
 
     numpy allocates the array of the header's shape before it reads the data, so a 1 kB
     file whose header announced 10^10 values ended in a MemoryError (74.5 GiB) instead of a
@@ -382,7 +402,7 @@ def _npz_array_too_large(path: Path) -> str | None:
     from numpy.lib import format as npy
 
     try:
-        with zipfile.ZipFile(path) as zf:
+        with zipfile.ZipFile(path if source is None else source) as zf:
             for info in zf.infolist():
                 if not info.filename.endswith(".npy"):
                     continue

@@ -137,7 +137,7 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
         raise InputError(f"no file or folder {path}")
     if given is not None:
         return given.value
-    if path.is_file():
+    if not path.is_dir():  # a file or a pipe (read once); the BAL reader refuses a device
         if path.suffix.lower() == ".json":
             raise InputError(
                 f"{path} is JSON, not a block: a result record is rendered with "

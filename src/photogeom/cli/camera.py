@@ -14,6 +14,7 @@ and ``--principal-point`` for a digital camera), by a Metashape calibration XML
 
 from __future__ import annotations
 
+import os
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -71,11 +72,30 @@ class Behind(str, Enum):
     nan = "nan"
 
 
-def read_json(path: Path) -> dict:
-    """A JSON object from a file, with clear errors (see :mod:`photogeom.io.jsonfile`)."""
-    from ..io.jsonfile import read_json_object
+#: JSON objects read from pipes in this command, by (path, device, inode): a command reads
+#: a camera file up to three times (its CRS, the interior, the exterior orientation), and a
+#: pipe gives its content once.
+_FROM_PIPES: dict[tuple[str, int, int], dict] = {}
 
-    return read_json_object(path)
+
+def read_json(path: Path) -> dict:
+    """A JSON object from a file, with clear errors (see :mod:`photogeom.io.jsonfile`).
+
+    A pipe (``--camera <(cat cam.json)``, a named pipe) is read once: what it gave is kept
+    for the other reads of the same pipe in this command (a second read used to wait for
+    ever)."""
+    import copy
+
+    from ..io.jsonfile import read_json_object
+    from ..io.sources import input_kind
+
+    if input_kind(path) != "pipe":
+        return read_json_object(path)
+    st = os.stat(path)
+    key = (os.path.abspath(path), st.st_dev, st.st_ino)
+    if key not in _FROM_PIPES:
+        _FROM_PIPES[key] = read_json_object(path)
+    return copy.deepcopy(_FROM_PIPES[key])  # callers may change what they get
 
 
 def read_parameters_json(path: Path) -> dict:
@@ -98,7 +118,9 @@ def camera_from_json(path: Path):
     from ..io.jsonfile import build_from_json
 
     raw = read_json(path)
-    data = read_parameters_json(path)
+    data = raw
+    if isinstance(raw.get("model_parameters"), dict):  # as read_parameters_json, one read
+        data = raw["model_parameters"]
     orientation = raw.get("orientation") if isinstance(raw, dict) else None
     if (
         not any(k in data for k in ("interior", "exterior", "f"))
@@ -361,6 +383,9 @@ def project_cmd(
     """
     from ..camera import project
     from ..io import format_points_csv, read_points
+
+    # the camera files are no destination (-o POINTS is: the points are read before it)
+    check_outputs({"--camera": camera, "--calibration": calibration}, output=output)
 
     io = interior_from_options(
         camera=camera,

@@ -165,6 +165,14 @@ def transform(
     _check_scheduler(scheduler)
     if (params is None) == (to_crs is None):
         raise InputError("give either --params FILE or --from-crs and --to-crs")
+    if params is not None and params.is_file() and output.is_file():
+        import os
+
+        if os.path.samefile(params, output):  # the cloud would replace its parameters
+            raise InputError(
+                f"OUTPUT {output} is the --params file: writing the cloud would replace the "
+                "parameters it is transformed with; give another OUTPUT"
+            )
     if inverse and params is None:
         raise InputError(
             "--inverse inverts the parameters of --params; a PROJ transformation (--to-crs) "

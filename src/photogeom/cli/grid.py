@@ -9,6 +9,7 @@ of images into another folder (in parallel, optionally on a Dask cluster).
 from __future__ import annotations
 
 import csv
+import io
 import operator
 from contextlib import nullcontext
 from enum import Enum
@@ -25,6 +26,7 @@ from ._common import (
     OutputCsvOpt,
     ReportOpt,
     batch_failed,
+    check_outputs,
     console,
     emit_points,
     json_text,
@@ -132,13 +134,24 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     quote, a field over its size limit, text that is not UTF-8) is read by
     :func:`_read_rows_linewise`, with the same rules and messages.
     """
+    from ..io.sources import device_message, input_kind
+
+    kind = input_kind(path)
+    if kind == "device":
+        raise FileFormatError(device_message(path, "CSV file"))
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            text = fh.read()
+        with open(path, "rb") as fh:
+            raw = fh.read()
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
+    # a pipe can be read once: its bytes are kept for the line-wise reader; a file is opened
+    # again by it (only when needed, and without holding the bytes meanwhile)
+    kept = raw if kind == "pipe" else None
+    try:
+        text = raw.decode("utf-8-sig")  # newline="" as the csv module wants: no translation
     except UnicodeDecodeError:
-        return _read_rows_linewise(path, comments)
+        return _read_rows_linewise(path, comments, kept)
+    del raw
     if "\r" in text:  # the line ends of a file read with newline="": \n, \r\n and \r
         text = text.replace("\r\n", "\n").replace("\r", "\n")
     any_quote = '"' in text
@@ -156,7 +169,7 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     del all_lines
     n = len(data)
     if n and max(map(len, data)) >= csv.field_size_limit():
-        return _read_rows_linewise(path, comments)
+        return _read_rows_linewise(path, comments, kept)
     widths = np.fromiter(map(operator.methodcaller("count", ","), data), dtype=np.int64, count=n)
     widths += 1
     starts = np.zeros(n + 1, dtype=np.int64)
@@ -183,9 +196,9 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
             try:  # strict: a quote left open or text after a closing one is read line-wise
                 parsed = list(csv.reader([data[k] for k in other.tolist()], strict=True))
             except csv.Error:
-                return _read_rows_linewise(path, comments)
+                return _read_rows_linewise(path, comments, kept)
             if len(parsed) != other.size:  # a quoted cell spans lines
-                return _read_rows_linewise(path, comments)
+                return _read_rows_linewise(path, comments, kept)
             others = dict(zip(other.tolist(), parsed, strict=True))
             widths[other] = np.fromiter(map(len, parsed), dtype=np.int64, count=other.size)
     del data
@@ -218,9 +231,10 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     )
 
 
-def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
+def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | None) -> _Cells:
     """:func:`_read_cells` for the files it does not split itself: the csv module over the
-    whole file, line by line (quoted line breaks counted in the line numbers)."""
+    whole file, line by line (quoted line breaks counted in the line numbers); ``data``: the
+    bytes of a pipe already read (a pipe cannot be opened again), else the file is opened."""
     rows, lines = [], []
     physical: list[int] = []  # file line of each line handed to the csv reader
 
@@ -235,7 +249,11 @@ def _read_rows_linewise(path: Path, comments: list[str] | None) -> _Cells:
 
     start = 0  # the csv reader's count of lines before the row being read
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        if data is None:
+            fh = open(path, newline="", encoding="utf-8-sig")
+        else:
+            fh = io.TextIOWrapper(io.BytesIO(data), newline="", encoding="utf-8-sig")
+        with fh:
             reader = csv.reader(data_lines(fh))
             for r in reader:
                 if r and any(c.strip() for c in r):
@@ -516,10 +534,14 @@ def fit(
     single_threaded_blas()
     from ..atomicfile import atomic_write_many
     from ..calibration.gridfile import grids_file_bytes
-    from .bundle import check_targets
 
-    # both outputs checked before the fit and written together: all or none
-    check_targets(files=[("--output", output), ("--report", report)])
+    # both outputs checked before the fit and written together: all or none; neither may
+    # replace the residuals CSV
+    inputs = {"RESIDUALS": residuals}
+    if residuals.is_dir():  # a block folder: its files are inputs
+        inputs = {f"RESIDUALS ({f.name} of the block)": f for f in residuals.iterdir()
+                  if f.name in _BLOCK_FILES}  # fmt: skip
+    check_outputs(inputs, output=output, report=report)
 
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(
@@ -658,6 +680,13 @@ def _snooping_heading(rejected: dict) -> str:
 
 #: Suffixes of a BAL file, the one block format stored in a single file
 _BLOCK_SUFFIXES = (".bal", ".bz2")
+
+
+#: Files of a CSV block folder and of a COLMAP text model (inputs of ``grid fit BLOCK``).
+_BLOCK_FILES = frozenset(
+    ("cameras.csv", "images.csv", "points.csv", "observations.csv", "cameras.txt",
+     "images.txt", "points3D.txt")
+)  # fmt: skip
 
 
 def _is_block(path: Path) -> bool:
@@ -970,6 +999,8 @@ def apply(
     """Correct image coordinates: u, v replaced by u + rx(u, v), v + ry(u, v)."""
     from ..calibration import correct_observations, load_grids
     from ..calibration.gridfile import match_grid_ids
+
+    check_outputs({"GRIDS_FILE": grids_file}, output=output)  # -o OBSERVATIONS is allowed
 
     grids = load_grids(grids_file)
     comments: list[str] = []

@@ -252,7 +252,7 @@ def _evaluate(
                 "the grids of the file are used: leave them out (or fit with "
                 "'photogeom grid fit BLOCK --spacing ...')"
             )
-        if not grids_file.is_file():
+        if not grids_file.exists():  # a file or a pipe (read once by load_grids)
             raise InputError(f"--grids: {grids_file} does not exist")
     if check_points is not None and preset is not None:
         raise InputError(

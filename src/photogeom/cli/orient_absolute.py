@@ -20,6 +20,7 @@ from ..errors import InputError
 from ._common import (
     CRS_FORMS,
     AngleUnit,
+    batch_failed,
     check_mask,
     check_outputs,
     console,
@@ -348,6 +349,16 @@ def register(app: typer.Typer) -> None:
                 rep.write(report)
                 if not as_json:
                     say(f"wrote {report}", out)
+            failed = [r.method for r in cmp.rows if r.error]
+            if failed:  # every method ran: a batch with failed items (docs/cli.md)
+                where = "in the JSON" if as_json else "above"
+                others = len(cmp.rows) - len(failed)
+                batch_failed(
+                    f"{len(failed)} of {len(cmp.rows)} methods failed: {', '.join(failed)} "
+                    f"(their errors are {where}"
+                    + (f"; the other {others} are compared" if others else "")
+                    + (", see the report)" if report is not None else ")")
+                )
             return
         if sigma_source is not None:
             options["sigma_source"] = sigma_source

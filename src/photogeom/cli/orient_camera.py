@@ -143,7 +143,8 @@ def resection(
     from ..camera import ExteriorOrientation
     from ..orientation.resection import space_resection
 
-    check_outputs({"POINTS": points, "IMAGE": image}, report=report, output_params=output_params)
+    inputs = {"POINTS": points, "IMAGE": image, "--camera": camera, "--calibration": calibration}
+    check_outputs(inputs, report=report, output_params=output_params)
 
     io = interior_from_options(
         camera=camera,
@@ -297,7 +298,9 @@ def intersection(
     from ..io import format_points_csv, read_points
     from ..orientation.intersection import space_intersection
 
-    check_outputs({f"IMAGES ({p})": p for p in images}, report=report, output=output)
+    inputs = {f"IMAGES ({p})": p for p in images}
+    inputs.update({f"--camera {p}": p for p in camera or ()})  # not replaced either
+    check_outputs(inputs, report=report, output=output)
 
     if len(images) < 2:
         raise InputError("space intersection needs >= 2 image files")
@@ -413,12 +416,12 @@ def _crs_label(crs: str) -> str:
 def _cameras_crs(camera: list[Path], crs: str | None) -> str | None:
     """The CRS of the ground coordinates: ``--crs`` or the one the camera files record
     (they must agree)."""
-    from ..io.jsonfile import read_json_object
     from ._common import same_crs
+    from .camera import read_json
 
     recorded = {}
     for path in camera:
-        data = read_json_object(path)
+        data = read_json(path)  # a pipe: read once, kept for camera_from_json
         value = data.get("crs") if isinstance(data, dict) else None
         if value is not None:
             recorded[str(path)] = str(value)

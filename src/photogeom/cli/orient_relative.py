@@ -10,6 +10,7 @@ frame, ``--output`` for the model coordinates with their standard deviations.
 
 from __future__ import annotations
 
+import os
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -187,9 +188,16 @@ def relative(
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
 
-    check_outputs({"POINTS": points, "IMAGE2": image2}, report=report, output=output)
-    for path in output_cameras or ():
-        check_outputs(output_cameras=path)
+    inputs = {"POINTS": points, "IMAGE2": image2, "--camera": camera, "--camera2": camera2,
+              "--calibration": calibration}  # fmt: skip
+    if output_cameras is None:
+        check_outputs(inputs, report=report, output=output)
+    else:  # each camera file against the inputs and the other options, then the two
+        for path in output_cameras:
+            check_outputs(inputs, report=report, output=output, output_cameras=path)
+        one, two = (os.path.normcase(os.path.realpath(p)) for p in output_cameras)
+        if one == two:
+            raise InputError("--output-cameras: give two different files, image 1's first")
 
     io1 = interior_from_options(
         camera=camera,
@@ -248,8 +256,6 @@ def relative(
             )
         )
     if output_cameras is not None:
-        if len(set(map(str, output_cameras))) != 2:
-            raise InputError("--output-cameras: give two different files, image 1's first")
         for k, (path, io, eo) in enumerate(
             zip(output_cameras, (io1, io2), (fit.exterior1, fit.exterior2)), start=1
         ):

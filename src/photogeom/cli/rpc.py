@@ -197,6 +197,7 @@ def project(
     """
     from ._common import option_or_file_crs
 
+    check_outputs({"RPC_FILE": rpc_file}, output=output)  # -o POINTS is allowed (read first)
     single_threaded_blas()
     rpc = _load_rpc(rpc_file)
     given = crs is not None
@@ -313,6 +314,7 @@ def localize(
     diverged (empty lon/lat, 'nan': nothing is guessed). Files of any size are read and
     written block by block (a progress bar on a terminal).
     """
+    check_outputs({"RPC_FILE": rpc_file}, output=output)  # -o POINTS is allowed (read first)
     single_threaded_blas()
     import math
 
@@ -594,7 +596,7 @@ def fit(
     from ..rpc import fit_rpc_to_points
     from ..rpc.fitting import UnstableFitError, unstable_fit_message
 
-    check_outputs(output=output, report=report)
+    check_outputs({"POINTS": points}, output=output, report=report)
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     sig = _sigmas(pairs, mask, sigma, points)
@@ -657,7 +659,8 @@ def refine(
     """
     from ..rpc import refine_rpc
 
-    check_outputs(output=output, report=report)
+    # the vendor RPC too: a refined RPC written over it could not be refined again
+    check_outputs({"RPC_FILE": rpc_file, "POINTS": points}, output=output, report=report)
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)

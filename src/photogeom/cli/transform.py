@@ -573,6 +573,8 @@ def apply(
     has one; numbers are written losslessly. The CRS of the output is recorded in a
     '# crs: ...' line; a '# crs:' line of POINTS must name the input side of the parameters.
     """
+    # the parameters are no destination (-o POINTS is: the points are read before it)
+    check_outputs({"PARAMS": params}, output=output)
     single_threaded_blas()
     from ..io import PointBlocks
 

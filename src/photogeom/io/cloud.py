@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
+from .sources import device_message, input_kind, pipe_message
 
 #: Points per chunk unless ``chunk_size=`` says otherwise (about 30-60 MB of records).
 DEFAULT_CHUNK = 1_000_000
@@ -48,12 +49,23 @@ def _laspy():
 def _open_read(path, single_thread: bool = False, check_size: bool = True):
     """A laspy reader; ``single_thread`` decompresses LAZ on one thread (Dask workers: one
     core each) instead of lazrs's parallel decoder. A file shorter than its header says
-    (:func:`_truncation`), or whose scales and offsets give no coordinates
-    (:func:`_bad_scaling`), is refused unless ``check_size`` is False."""
+    (:func:`_truncation`), whose scales and offsets give no coordinates
+    (:func:`_bad_scaling`) or whose LASzip VLR lists no items (:func:`_bad_laszip_vlr`) is
+    refused unless ``check_size`` is False. A pipe or a device is
+    refused by name (:mod:`photogeom.io.sources`): a LAS/LAZ file is read with seeks."""
     laspy = _laspy()
     p = Path(path)
-    if not p.is_file():
+    kind = input_kind(p)
+    if kind == "missing":
         raise InputError(f"point cloud {p} does not exist")
+    if kind == "folder":
+        raise InputError(f"point cloud {p} is a folder; give a LAS/LAZ file")
+    if kind == "device":
+        raise InputError(device_message(p, "point cloud"))
+    if kind == "pipe":  # the header, the size check and every pass open the file again
+        raise InputError(
+            pipe_message(p, "point cloud", "a LAS/LAZ file is read with seeks, in chunks")
+        )
     problem = _damaged_vlr_count(p)
     if problem:
         raise FileFormatError(problem)
@@ -76,11 +88,54 @@ def _open_read(path, single_thread: bool = False, check_size: bool = True):
         reader.close()
         raise FileFormatError(_bad_version(p, version.major, version.minor))
     if check_size:
-        problem = _truncation(p, reader.header) or _bad_scaling(p, reader.header)
+        problem = (  # the LASzip VLR before lazrs decodes (it would panic)
+            _bad_laszip_vlr(p, reader.header)
+            or _truncation(p, reader.header)
+            or _bad_scaling(p, reader.header)
+        )
         if problem:
             reader.close()
             raise FileFormatError(problem)
     return reader
+
+
+#: LASzip VLR: user id, record id, bytes before the item list, bytes per item.
+_LASZIP_VLR = ("laszip encoded", 22204, 34, 6)
+
+
+def _bad_laszip_vlr(path: Path, header) -> str | None:
+    """Why the LASzip VLR of a LAZ header cannot describe the points, or None.
+
+    A LASzip VLR holding no items made lazrs divide by zero when the first points were
+    decoded: a Rust panic, which prints Rust's panic message (and, with
+    ``RUST_BACKTRACE=1``, a backtrace) on the process's standard error before it reaches
+    Python as a ``PanicException``; that output cannot be caught from Python (it is written
+    by Rust's panic hook straight to file descriptor 2, by whatever thread panics), so the
+    damage is refused from the header, before lazrs runs. The item count must be at least
+    one and fit the record's length (34 bytes and 6 per item).
+    """
+    import struct
+
+    user, record, fixed, per_item = _LASZIP_VLR
+    for vlr in getattr(header, "vlrs", ()):
+        if getattr(vlr, "user_id", "") != user or getattr(vlr, "record_id", None) != record:
+            continue
+        data = getattr(vlr, "record_data", None)
+        if not isinstance(data, (bytes, bytearray)):
+            return None  # laspy could not keep the bytes: lazrs names what it finds
+        if len(data) < fixed:
+            return (
+                f"{path}: the LASzip VLR holds {len(data)} bytes, fewer than the {fixed} of "
+                "its fixed part: the header is damaged (copy the file again)"
+            )
+        (items,) = struct.unpack_from("<H", data, fixed - 2)
+        if items == 0 or len(data) != fixed + per_item * items:
+            return (
+                f"{path}: the LASzip VLR announces {items} compressed item(s) in "
+                f"{len(data)} bytes (a point needs at least one item; {fixed} + {per_item} "
+                "bytes per item): the header is damaged (copy the file again)"
+            )
+    return None
 
 
 def _bad_scaling(path: Path, header) -> str | None:

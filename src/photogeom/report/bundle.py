@@ -265,17 +265,20 @@ def read_bundle_result(path: str | os.PathLike) -> dict:
     InputError
         When the file does not exist.
     FileFormatError
-        When it cannot be read (a folder, no permission), is not JSON (UTF-8, or UTF-16/32;
-        nested more than 64 levels, an integer of more than 40 digits and NaN are refused),
-        is not a bundle adjustment result record, or lacks an entry the report needs (or
+        When it cannot be read (a folder, a device, no permission), is not JSON (UTF-8, or
+        UTF-16/32; nested more than 64 levels, an integer of more than 40 digits and NaN are
+        refused), is not a bundle adjustment result record, or lacks an entry the report needs (or
         holds one of the wrong kind): the message names the entries and how to write the
         record again.
     """
     from ..io.jsonfile import parse_json_bytes
+    from ..io.sources import device_message, input_kind
 
     p = Path(path)
+    if input_kind(p) == "device":  # /dev/zero never ends: it was read until memory ran out
+        raise FileFormatError(device_message(p, "result record"))
     try:
-        raw = p.read_bytes()
+        raw = p.read_bytes()  # a file, or a pipe read once
     except FileNotFoundError:
         raise InputError(f"no file {p}") from None
     except OSError as exc:  # a folder, no permission, ...

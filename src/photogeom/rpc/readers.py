@@ -33,6 +33,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import FileFormatError, InputError
+from ..io.sources import device_message, input_kind, pipe_message
 from ..numbers import decimal_comma_hint, parse_decimal
 from ..xmlsafe import parse_xml
 from . import polynomial as poly
@@ -807,6 +808,8 @@ def read_rpc(path: str | Path) -> RPC:
         IKONOS-style ``_RPC.TXT``, ``KEY: value`` text, DigitalGlobe ``.RPB``, OSSIM / Orfeo
         ToolBox ``.geom`` keyword lists (``ossimRpcModel``), DIMAP XML,
         DigitalGlobe/Maxar XML or a GeoTIFF with RPC tags (needs the ``geotiff`` extra).
+        The text and XML formats may come from a pipe (read once); a raster may not (GDAL
+        reads it with seeks), nor may a device.
 
     Returns
     -------
@@ -816,15 +819,20 @@ def read_rpc(path: str | Path) -> RPC:
     Raises
     ------
     FileFormatError
-        No such file, an empty or too large file, unknown format, missing keys (named),
-        coefficient vectors that do not have 20 values, keys without a value, numbers that
-        cannot be read.
+        No such file, a folder, a device, a raster from a pipe, an empty or too large file,
+        unknown format, missing keys (named), coefficient vectors that do not have 20
+        values, keys without a value, numbers that cannot be read.
     """
     p = Path(path)
-    if not p.is_file():
+    source = input_kind(p)
+    if source == "missing":
         raise FileFormatError(f"{p}: no such file")
+    if source == "folder":
+        raise FileFormatError(f"{p}: a folder, not an RPC file")
+    if source == "device":
+        raise FileFormatError(device_message(p, "RPC file"))
     try:
-        size = p.stat().st_size
+        size = p.stat().st_size  # 0 for a pipe: it is read once, bounded below
         with open(p, "rb") as fh:
             head = fh.read(65536)
             if not head.strip() and size <= len(head):
@@ -832,6 +840,10 @@ def read_rpc(path: str | Path) -> RPC:
             kind = detect_format(p, head)
             if kind == "unknown":
                 raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")
+            if kind == "raster" and source == "pipe":
+                raise FileFormatError(
+                    pipe_message(p, "the raster", "GDAL reads a GeoTIFF or NITF with seeks")
+                )
             if kind == "raster":
                 data = b""
             else:

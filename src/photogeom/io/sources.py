@@ -1,0 +1,65 @@
+"""What an input path names, for the readers: a regular file, a pipe, a folder or a device.
+
+Inputs given on the command line may be pipes (``<(grep ... f.csv)``, ``... | photogeom ...
+/dev/stdin``, a named pipe): a pipe can be read once, so a reader that opens its input
+twice (a header first, the rest later) would wait for ever on the second open, or read
+nothing. The readers either read a pipe once into memory, or, when the format needs seeks
+(LAS/LAZ, rasters), refuse it with :func:`pipe_message`. A device (``/dev/zero``,
+``/dev/urandom``) never ends: it is refused by every reader (:func:`device_message`) rather
+than read until memory runs out.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+
+#: The kinds :func:`input_kind` returns.
+KINDS = ("file", "pipe", "folder", "device", "missing")
+
+
+def input_kind(path: str | os.PathLike) -> str:
+    """What ``path`` names, following links.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input.
+
+    Returns
+    -------
+    str
+        ``"file"`` (a regular file; also when it cannot be examined, so that the reader's
+        own ``open`` names the problem), ``"pipe"`` (a named or anonymous pipe, or a
+        socket: input that can be read once), ``"folder"``, ``"device"`` (a character or
+        block device) or ``"missing"``.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return "missing"
+    except (OSError, ValueError):
+        return "file"
+    if stat.S_ISDIR(mode):
+        return "folder"
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+        return "pipe"
+    if stat.S_ISREG(mode):
+        return "file"
+    return "device"
+
+
+def device_message(path: str | os.PathLike, what: str) -> str:
+    """The refusal of a device as the input ``what`` (``/dev/zero`` never ends)."""
+    return (
+        f"cannot read {what} {path}: it is a device, not a file (a device such as /dev/zero "
+        "never ends); give a regular file or a pipe"
+    )
+
+
+def pipe_message(path: str | os.PathLike, what: str, why: str) -> str:
+    """The refusal of a pipe as the input ``what`` of a format read with seeks (``why``)."""
+    return (
+        f"cannot read {what} {path}: it is a pipe, and {why}; save the stream to a regular "
+        "file and give that file"
+    )
