@@ -1,0 +1,392 @@
+"""Calibration files for other tools: Metashape XML, photogeom camera JSON, OpenCV YAML.
+
+A frame-camera calibration (:class:`~photogeom.camera.metashape.MetashapeCalibration`, e.g.
+one adjusted by :func:`photogeom.bundle.bundle_adjust`) is written, with its standard
+deviations and covariance where the format has a place for them, as
+
+* ``.xml``: Agisoft Metashape's calibration XML (``f``, ``cx``, ``cy`` in px, ``cx, cy``
+  offsets from the image centre, ``b1``, ``b2`` in px, ``k1..k4``, ``p1``, ``p2`` in
+  Metashape's order) with Metashape's ``<covariance>`` (``<params>`` the free parameters,
+  ``<coeffs>`` their covariance row by row) when a covariance is given;
+* ``.json``: photogeom's camera JSON, read by ``--camera`` of ``camera project``, ``orient
+  resection`` and ``orient intersection`` (its ``interior``) and by :func:`read_calibration`
+  (its ``calibration``, the Metashape terms), with ``std`` and ``covariance``;
+* ``.yaml`` / ``.yml``: OpenCV's ``cv2.FileStorage`` YAML: ``image_width``,
+  ``image_height``, ``camera_matrix`` ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (px, the
+  top-left pixel's centre at (0, 0): ``cx = w/2 + cx_metashape - 0.5``, ``fx = f + b1``,
+  ``fy = f``), ``distortion_coefficients`` ``(k1, k2, p1, p2, k3)`` (OpenCV's ``p1, p2``
+  are Metashape's ``p2, p1``) and, with a covariance, ``std_deviations_intrinsics``
+  ``(fx, fy, cx, cy, k1, k2, p1, p2, k3)`` as ``cv2.calibrateCameraExtended`` orders them
+  (0 for parameters that were held). Exact only when ``k4 = b2 = 0``; otherwise refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+from .metashape import MetashapeCalibration, read_metashape_xml
+
+#: File-name suffix -> calibration file format.
+CALIBRATION_SUFFIXES = {".xml": "metashape", ".json": "json", ".yaml": "opencv", ".yml": "opencv"}
+#: Calibration parameters, Metashape's names, in the order of ``photogeom.bundle``.
+PARAMETERS = ("f", "cx", "cy", "k1", "k2", "k3", "k4", "p1", "p2", "b1", "b2")
+#: Order of the parameters in Metashape's ``<covariance>``.
+METASHAPE_ORDER = ("f", "cx", "cy", "b1", "b2", "k1", "k2", "k3", "k4", "p1", "p2")
+#: OpenCV intrinsics of ``std_deviations_intrinsics``, in OpenCV's order.
+OPENCV_INTRINSICS = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
+#: ``d OpenCV intrinsic / d Metashape parameter`` (constant: the conversion is linear).
+_OPENCV_FROM = {
+    "fx": {"f": 1.0, "b1": 1.0},
+    "fy": {"f": 1.0},
+    "cx": {"cx": 1.0},
+    "cy": {"cy": 1.0},
+    "k1": {"k1": 1.0},
+    "k2": {"k2": 1.0},
+    "p1": {"p2": 1.0},
+    "p2": {"p1": 1.0},
+    "k3": {"k3": 1.0},
+}
+
+
+def calibration_format(path: str | os.PathLike, option: str = "path") -> str:
+    """The calibration file format named by the suffix of ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file name ending in ``.xml``, ``.json``, ``.yaml`` or ``.yml``.
+    option : str, default "path"
+        Name of the argument in the error message (a CLI option name in the CLI).
+
+    Returns
+    -------
+    str
+        ``"metashape"``, ``"json"`` or ``"opencv"``.
+
+    Raises
+    ------
+    InputError
+        For another suffix.
+    """
+    fmt = CALIBRATION_SUFFIXES.get(Path(path).suffix.lower())
+    if fmt is None:
+        raise InputError(
+            f"{option} {path}: the suffix names the format; end the name in .xml (Metashape "
+            "calibration XML), .json (photogeom camera JSON) or .yaml/.yml (OpenCV "
+            "FileStorage)"
+        )
+    return fmt
+
+
+def _checked_covariance(covariance) -> tuple[tuple[str, ...], np.ndarray] | None:
+    if covariance is None:
+        return None
+    names, matrix = covariance
+    names = tuple(str(n) for n in names)
+    unknown = [n for n in names if n not in PARAMETERS]
+    if unknown or len(set(names)) != len(names):
+        raise InputError(
+            f"covariance names {', '.join(names)}: give distinct calibration parameters "
+            f"({', '.join(PARAMETERS)})"
+        )
+    C = np.asarray(matrix, dtype=float)
+    if C.shape != (len(names), len(names)) or not np.all(np.isfinite(C)):
+        raise InputError(
+            f"covariance: a finite {len(names)} x {len(names)} matrix for the names "
+            f"{', '.join(names) or '(none)'} is needed, got shape {C.shape}"
+        )
+    return names, C
+
+
+def _std_of(
+    std: Mapping[str, float] | None, cov: tuple[tuple[str, ...], np.ndarray] | None
+) -> dict[str, float]:
+    """Standard deviations of the estimated parameters (finite ones only), px / unitless."""
+    out: dict[str, float] = {}
+    if cov is not None:
+        names, C = cov
+        out.update({n: math.sqrt(max(float(C[i, i]), 0.0)) for i, n in enumerate(names)})
+    for name, value in (std or {}).items():
+        if name not in PARAMETERS:
+            raise InputError(
+                f"std: unknown calibration parameter {name!r} ({', '.join(PARAMETERS)})"
+            )
+        v = float(value)
+        if math.isfinite(v):  # NaN: a parameter that was held (not estimated)
+            if v < 0:
+                raise InputError(f"std of {name} is negative ({v!r})")
+            out.setdefault(name, v)
+    return {n: out[n] for n in PARAMETERS if n in out}
+
+
+def metashape_xml_text(
+    calibration: MetashapeCalibration,
+    covariance: tuple[Sequence[str], np.ndarray] | None = None,
+) -> str:
+    """Metashape calibration XML, with ``<covariance>`` when a covariance is given.
+
+    Parameters
+    ----------
+    calibration : MetashapeCalibration
+        The calibration (px; coefficients unitless).
+    covariance : (names, matrix), optional
+        Free parameters (Metashape's names) and their covariance (px^2 for ``f, cx, cy,
+        b1, b2``), e.g. ``BundleFit.calibration_covariance(group)``; written in Metashape's
+        order (``f cx cy b1 b2 k1 k2 k3 k4 p1 p2``, the free ones).
+
+    Returns
+    -------
+    str
+        The document. photogeom's reader ignores ``<covariance>``; Metashape reads it.
+    """
+    text = calibration.to_xml_string()
+    cov = _checked_covariance(covariance)
+    if cov is None or not cov[0]:
+        return text
+    order = [i for n in METASHAPE_ORDER for i, m in enumerate(cov[0]) if m == n]
+    names = [cov[0][i] for i in order]
+    C = cov[1][np.ix_(order, order)]
+    root = ET.fromstring(text)
+    el = ET.SubElement(root, "covariance")
+    ET.SubElement(el, "params").text = " ".join(names)
+    ET.SubElement(el, "coeffs").text = " ".join(repr(float(v)) for v in C.ravel())
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def calibration_json(
+    calibration: MetashapeCalibration,
+    *,
+    std: Mapping[str, float] | None = None,
+    covariance: tuple[Sequence[str], np.ndarray] | None = None,
+) -> dict:
+    """photogeom's camera JSON of a calibration.
+
+    Parameters
+    ----------
+    calibration : MetashapeCalibration
+        The calibration.
+    std : mapping name -> float, optional
+        Standard deviations (px for ``f, cx, cy, b1, b2``; NaN for held parameters, which
+        are left out), e.g. ``BundleFit.calibration_std[group]``.
+    covariance : (names, matrix), optional
+        Covariance of the free parameters (its diagonal gives ``std`` where ``std`` is not
+        given).
+
+    Returns
+    -------
+    dict
+        ``interior``: :meth:`InteriorOrientation.to_dict` (px, y up, origin at the image
+        centre: ``x0 = cx``, ``y0 = -cy``), what ``--camera`` reads; ``calibration``: the
+        Metashape terms (px); ``std``: standard deviations of the estimated Metashape
+        parameters (px; ``x0``, ``y0`` of ``interior`` have those of ``cx``, ``cy``);
+        ``covariance``: ``{"names", "matrix"}``; ``opencv``: camera matrix and distortion
+        vector when the conversion is exact (``k4 = b2 = 0``).
+    """
+    cov = _checked_covariance(covariance)
+    out: dict = {
+        "interior": calibration.interior_orientation().to_dict(),
+        "calibration": calibration.to_dict(),
+        "unit": "px",
+    }
+    s = _std_of(std, cov)
+    if s:
+        out["std"] = s
+    if cov is not None and cov[0]:
+        out["covariance"] = {"names": list(cov[0]), "matrix": cov[1].tolist()}
+    if calibration.k4 == 0.0 and calibration.b2 == 0.0:
+        K, dist = calibration.to_opencv()
+        out["opencv"] = {
+            "image_size": [calibration.width, calibration.height],
+            "camera_matrix": K.tolist(),
+            "dist_coeffs": dist.tolist(),
+        }
+    return out
+
+
+def _opencv_matrix(name: str, values: np.ndarray) -> str:
+    rows, cols = values.shape
+    data = ", ".join(repr(float(v)) for v in values.ravel())
+    return (
+        f"{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n"
+        f"   data: [ {data} ]\n"
+    )
+
+
+def opencv_yaml_text(
+    calibration: MetashapeCalibration,
+    covariance: tuple[Sequence[str], np.ndarray] | None = None,
+) -> str:
+    """OpenCV ``cv2.FileStorage`` YAML of a calibration (see the module docstring).
+
+    Parameters
+    ----------
+    calibration : MetashapeCalibration
+        The calibration; ``k4`` and ``b2`` must be zero.
+    covariance : (names, matrix), optional
+        Covariance of the free parameters: adds ``std_deviations_intrinsics``.
+
+    Returns
+    -------
+    str
+        The document (``%YAML:1.0``), numbers with 17 significant digits.
+
+    Raises
+    ------
+    InputError
+        When ``k4`` or ``b2`` is non-zero (OpenCV has no such terms).
+    """
+    K, dist = calibration.to_opencv()
+    cov = _checked_covariance(covariance)
+    text = (
+        "%YAML:1.0\n---\n"
+        f"image_width: {calibration.width}\nimage_height: {calibration.height}\n"
+        + _opencv_matrix("camera_matrix", K)
+        + _opencv_matrix("distortion_coefficients", dist.reshape(1, -1))
+    )
+    if cov is not None:
+        names, C = cov
+        A = np.zeros((len(OPENCV_INTRINSICS), len(names)))
+        for i, cv in enumerate(OPENCV_INTRINSICS):
+            for j, n in enumerate(names):
+                A[i, j] = _OPENCV_FROM[cv].get(n, 0.0)
+        var = np.einsum("ij,jk,ik->i", A, C, A)
+        text += _opencv_matrix("std_deviations_intrinsics", np.sqrt(np.maximum(var, 0.0))[None])
+    return text
+
+
+def calibration_text(
+    calibration: MetashapeCalibration,
+    fmt: str,
+    *,
+    std: Mapping[str, float] | None = None,
+    covariance: tuple[Sequence[str], np.ndarray] | None = None,
+) -> str:
+    """The text of a calibration file in format ``fmt``.
+
+    Parameters
+    ----------
+    calibration : MetashapeCalibration
+        The calibration.
+    fmt : {"metashape", "json", "opencv"}
+        The format (:func:`calibration_format` gives it from a file name).
+    std, covariance
+        As in :func:`calibration_json` (Metashape XML and OpenCV YAML use the covariance
+        only).
+
+    Returns
+    -------
+    str
+        The file's text.
+
+    Raises
+    ------
+    InputError
+        For an unknown format, or ``k4``/``b2`` non-zero in OpenCV's.
+    """
+    if fmt == "metashape":
+        return metashape_xml_text(calibration, covariance)
+    if fmt == "json":
+        data = calibration_json(calibration, std=std, covariance=covariance)
+        return json.dumps(data, indent=1, allow_nan=False) + "\n"
+    if fmt == "opencv":
+        return opencv_yaml_text(calibration, covariance)
+    raise InputError(f"unknown calibration format {fmt!r}; use 'metashape', 'json' or 'opencv'")
+
+
+def write_calibration(
+    calibration: MetashapeCalibration,
+    path: str | os.PathLike,
+    *,
+    std: Mapping[str, float] | None = None,
+    covariance: tuple[Sequence[str], np.ndarray] | None = None,
+) -> str:
+    """Write a calibration file, format by suffix (atomically: old or complete new file).
+
+    Parameters
+    ----------
+    calibration : MetashapeCalibration
+        The calibration (px).
+    path : str or os.PathLike
+        ``.xml`` (Metashape), ``.json`` (photogeom camera JSON), ``.yaml``/``.yml`` (OpenCV).
+    std : mapping name -> float, optional
+        Standard deviations, px / unitless (NaN: held; JSON only).
+    covariance : (names, matrix), optional
+        Covariance of the free parameters, e.g. ``fit.calibration_covariance(group)``.
+
+    Returns
+    -------
+    str
+        The format written: ``"metashape"``, ``"json"`` or ``"opencv"``.
+
+    Raises
+    ------
+    InputError
+        Another suffix; ``k4`` or ``b2`` non-zero for OpenCV.
+    OutputError
+        The file cannot be written (nothing is changed then).
+    """
+    from ..atomicfile import atomic_write_text
+
+    fmt = calibration_format(path)
+    atomic_write_text(path, calibration_text(calibration, fmt, std=std, covariance=covariance))
+    return fmt
+
+
+def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
+    """Read a calibration written by :func:`write_calibration` (Metashape XML or JSON).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.xml``: a Metashape calibration XML (:func:`read_metashape_xml`); ``.json``: a
+        photogeom camera JSON with ``calibration`` (Metashape terms), or with ``interior``
+        in px with ``origin_px`` and ``image_size``.
+
+    Returns
+    -------
+    MetashapeCalibration
+
+    Raises
+    ------
+    InputError
+        For an OpenCV YAML (read it with ``cv2.FileStorage`` and
+        :meth:`MetashapeCalibration.from_opencv`) or another suffix.
+    FileFormatError
+        An unreadable file, or a JSON without a calibration.
+    """
+    fmt = calibration_format(path)
+    if fmt == "metashape":
+        return read_metashape_xml(path)
+    if fmt == "opencv":
+        raise InputError(
+            f"{path}: OpenCV YAML is written, not read; read it with cv2.FileStorage and "
+            "MetashapeCalibration.from_opencv"
+        )
+    from ..io.jsonfile import build_from_json, read_json_object
+    from .interior import InteriorOrientation
+
+    data = read_json_object(path)
+    cal = data.get("calibration")
+    if isinstance(cal, dict):
+        terms = {k: v for k, v in cal.items() if k != "model"}
+        return build_from_json(lambda d: MetashapeCalibration(**d), terms, path, "calibration")
+    if isinstance(data.get("interior"), dict):
+        io = build_from_json(
+            InteriorOrientation.from_dict, data["interior"], path, "interior orientation"
+        )
+        return build_from_json(
+            lambda _: MetashapeCalibration.from_interior_orientation(io), {}, path, "interior"
+        )
+    raise FileFormatError(
+        f"{path}: no calibration found (expected 'calibration' or 'interior', as written by "
+        "write_calibration or 'photogeom bundle adjust --output-calibration')"
+    )
