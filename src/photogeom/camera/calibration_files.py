@@ -341,6 +341,145 @@ def write_calibration(
     return fmt
 
 
+def calibration_from_json(
+    data: Mapping, where: str | os.PathLike = "camera JSON", image_size=None
+) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
+    """The calibration of a camera JSON object, with its standard deviations and covariance.
+
+    Parameters
+    ----------
+    data : Mapping
+        The JSON object: with ``calibration`` (Metashape terms, px), as
+        :func:`calibration_json` writes it, or with an ``interior`` in px (the ``--camera``
+        files of ``orient resection --output-params``, ``orient relative --output-cameras``,
+        also inside ``model_parameters``), or a bare interior orientation.
+    where : str or os.PathLike, default "camera JSON"
+        Name of the file in error messages.
+    image_size : (int, int), optional
+        ``(width, height)`` in px, for an interior orientation that does not record it.
+
+    Returns
+    -------
+    calibration : MetashapeCalibration
+    std : dict
+        Standard deviations (Metashape names, px) of a file written by
+        :func:`calibration_json`; empty otherwise.
+    covariance : (names, matrix) or None
+        Likewise.
+
+    Raises
+    ------
+    FileFormatError
+        No calibration in ``data``, or one that cannot be a Metashape calibration (not in
+        px, without pixel geometry or image size).
+    """
+    from ..io.jsonfile import build_from_json
+    from .interior import InteriorOrientation
+
+    where = str(where)
+    cal = data.get("calibration")
+    if isinstance(cal, Mapping):
+        terms = {k: v for k, v in cal.items() if k != "model"}
+        calib = build_from_json(lambda d: MetashapeCalibration(**d), terms, where, "calibration")
+
+        def extras(d: dict):
+            std = _std_of(d.get("std") or {}, None)
+            cov = d.get("covariance")
+            return std, None if cov is None else _checked_covariance(
+                (cov["names"], cov["matrix"])
+            )
+
+        std, cov = build_from_json(extras, dict(data), where, "std or covariance")
+        return calib, std, cov
+    if isinstance(data.get("model_parameters"), Mapping):
+        data = data["model_parameters"]
+    interior = data.get("interior") if isinstance(data.get("interior"), Mapping) else None
+    if interior is None and "f" in data:
+        interior = data
+    if interior is None:
+        raise FileFormatError(
+            f"{where}: no calibration found (expected 'calibration' or 'interior', as written by "
+            "write_calibration, 'bundle adjust --output-calibration' or 'orient resection "
+            "--output-params')"
+        )
+    io = build_from_json(InteriorOrientation.from_dict, interior, where, "interior orientation")
+    if io.unit != "px" or io.origin_px is None:
+        raise FileFormatError(
+            f"{where}: the interior orientation is in {io.unit}"
+            + (" without pixel geometry (origin_px)" if io.origin_px is None else "")
+            + ": a calibration file needs it in px with origin_px (a camera of a pixel "
+            "calibration: --calibration, --principal-point and --unit px)"
+        )
+    if image_size is None and io.image_size is None:
+        raise FileFormatError(
+            f"{where}: the interior orientation records no image size; give it (image_size, "
+            "--image-size WIDTH,HEIGHT at the command line)"
+        )
+    calib = build_from_json(
+        lambda _: MetashapeCalibration.from_interior_orientation(io, image_size), {}, where,
+        "interior orientation",
+    )
+    return calib, {}, None
+
+
+def read_metashape_covariance(
+    path: str | os.PathLike,
+) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """The ``<covariance>`` of a Metashape calibration XML (which :func:`read_metashape_xml`
+    ignores), or None when the file has none.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The XML file.
+
+    Returns
+    -------
+    (names, matrix) or None
+        The parameters of ``<params>`` (Metashape's names) and their covariance from
+        ``<coeffs>`` (row by row; px^2 for ``f, cx, cy, b1, b2``). Terms photogeom's model
+        has not (``p3``, ``p4``) are left out.
+
+    Raises
+    ------
+    FileFormatError
+        An unreadable file, or a ``<covariance>`` whose ``<coeffs>`` are not ``n x n``
+        finite numbers for the ``n`` names of ``<params>``.
+    """
+    from ..numbers import parse_decimal
+    from ..xmlsafe import parse_xml
+    from .metashape import MAX_XML_BYTES
+
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_XML_BYTES + 1)
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
+    if len(data) > MAX_XML_BYTES:
+        raise FileFormatError(f"{path}: more than {MAX_XML_BYTES} bytes; wrong file?")
+    root = parse_xml(data, str(path))
+    el = root.find("covariance")
+    if el is None:
+        return None
+    names = ((el.findtext("params") or "").split())
+    try:
+        values = [parse_decimal(t) for t in (el.findtext("coeffs") or "").split()]
+    except ValueError:
+        raise FileFormatError(f"{path}: <covariance><coeffs> holds a non-number") from None
+    n = len(names)
+    if len(values) != n * n or not all(math.isfinite(v) for v in values):
+        raise FileFormatError(
+            f"{path}: <covariance> has {len(values)} finite <coeffs> for {n} <params>; "
+            f"expected {n * n}"
+        )
+    keep = [i for i, name in enumerate(names) if name in PARAMETERS]
+    C = np.array(values, dtype=float).reshape(n, n)[np.ix_(keep, keep)]
+    try:
+        return _checked_covariance(([names[i] for i in keep], C))
+    except InputError as exc:
+        raise FileFormatError(f"{path}: <covariance>: {exc}") from exc
+
+
 def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
     """Read a calibration written by :func:`write_calibration` (Metashape XML or JSON).
 
@@ -348,8 +487,7 @@ def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
     ----------
     path : str or os.PathLike
         ``.xml``: a Metashape calibration XML (:func:`read_metashape_xml`); ``.json``: a
-        photogeom camera JSON with ``calibration`` (Metashape terms), or with ``interior``
-        in px with ``origin_px`` and ``image_size``.
+        photogeom camera JSON (:func:`calibration_from_json`).
 
     Returns
     -------
@@ -371,22 +509,6 @@ def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
             f"{path}: OpenCV YAML is written, not read; read it with cv2.FileStorage and "
             "MetashapeCalibration.from_opencv"
         )
-    from ..io.jsonfile import build_from_json, read_json_object
-    from .interior import InteriorOrientation
+    from ..io.jsonfile import read_json_object
 
-    data = read_json_object(path)
-    cal = data.get("calibration")
-    if isinstance(cal, dict):
-        terms = {k: v for k, v in cal.items() if k != "model"}
-        return build_from_json(lambda d: MetashapeCalibration(**d), terms, path, "calibration")
-    if isinstance(data.get("interior"), dict):
-        io = build_from_json(
-            InteriorOrientation.from_dict, data["interior"], path, "interior orientation"
-        )
-        return build_from_json(
-            lambda _: MetashapeCalibration.from_interior_orientation(io), {}, path, "interior"
-        )
-    raise FileFormatError(
-        f"{path}: no calibration found (expected 'calibration' or 'interior', as written by "
-        "write_calibration or 'photogeom bundle adjust --output-calibration')"
-    )
+    return calibration_from_json(read_json_object(path), path)[0]
