@@ -80,7 +80,7 @@ def test_convert_refusals(cli, tmp_path):
     code, _, err = cli("camera", "convert", tmp_path / "a.xml", tmp_path / "b.txt")
     assert code == 2 and "TARGET" in err and ".yaml" in err
     code, _, err = cli("camera", "convert", tmp_path / "a.yaml", tmp_path / "b.xml")
-    assert code == 2 and "SOURCE" in err
+    assert code == 2 and "OpenCV YAML is written, not read" in err
     code, _, err = cli(
         "camera", "convert", tmp_path / "a.xml", tmp_path / "b.json", "--image-size", "4,3"
     )
@@ -108,3 +108,22 @@ def test_covariance_with_p3_is_read_without_it(tmp_path):
     p.write_text(p.read_text().replace("4 0.5 0.5 1", "4 0.5 0.5"))
     with pytest.raises(pg.FileFormatError, match="expected 4"):
         read_metashape_covariance(p)
+
+
+def test_convert_reads_a_pipe_once(cli, tmp_path):
+    """SOURCE from a pipe (no suffix: the format by content; the XML and its covariance
+    from one read)."""
+    import os
+
+    pg.write_calibration(CAL, tmp_path / "a.xml", covariance=(NAMES, COV))
+    r, w = os.pipe()
+    os.write(w, (tmp_path / "a.xml").read_bytes())
+    os.close(w)
+    try:
+        code, _, err = cli("camera", "convert", f"/dev/fd/{r}", tmp_path / "b.json")
+    finally:
+        os.close(r)
+    assert code == 0, err
+    d = json.loads((tmp_path / "b.json").read_text())
+    assert pg.read_calibration(tmp_path / "b.json") == CAL
+    assert set(d["covariance"]["names"]) == set(NAMES)

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from .metashape import MetashapeCalibration, read_metashape_xml
+from .metashape import MetashapeCalibration
 
 #: File-name suffix -> calibration file format.
 CALIBRATION_SUFFIXES = {".xml": "metashape", ".json": "json", ".yaml": "opencv", ".yml": "opencv"}
@@ -422,16 +422,38 @@ def calibration_from_json(
     return calib, {}, None
 
 
-def read_metashape_covariance(
-    path: str | os.PathLike,
+def _read_bytes(path: str | os.PathLike, limit: int) -> bytes:
+    """The bytes of a calibration file, read once (a pipe gives its content once)."""
+    from ..io.sources import device_message, input_kind
+
+    kind = input_kind(path)
+    if kind == "device":
+        raise FileFormatError(device_message(path, "the calibration"))
+    if kind == "folder":
+        raise FileFormatError(f"cannot read {path}: it is a folder; give a calibration file")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
+    if len(data) > limit:
+        raise FileFormatError(
+            f"{path}: more than {limit} bytes; a calibration file is a few kB: wrong file?"
+        )
+    return data
+
+
+def metashape_covariance_from_xml(
+    data: bytes | str, where: str = "calibration XML"
 ) -> tuple[tuple[str, ...], np.ndarray] | None:
-    """The ``<covariance>`` of a Metashape calibration XML (which :func:`read_metashape_xml`
-    ignores), or None when the file has none.
+    """The ``<covariance>`` of a Metashape calibration XML document, or None without one.
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The XML file.
+    data : bytes or str
+        The document.
+    where : str, default "calibration XML"
+        Its name in error messages.
 
     Returns
     -------
@@ -443,33 +465,24 @@ def read_metashape_covariance(
     Raises
     ------
     FileFormatError
-        An unreadable file, or a ``<covariance>`` whose ``<coeffs>`` are not ``n x n``
-        finite numbers for the ``n`` names of ``<params>``.
+        Not XML, or a ``<covariance>`` whose ``<coeffs>`` are not ``n x n`` finite numbers
+        for the ``n`` names of ``<params>``.
     """
     from ..numbers import parse_decimal
     from ..xmlsafe import parse_xml
-    from .metashape import MAX_XML_BYTES
 
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_XML_BYTES + 1)
-    except OSError as exc:
-        raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    if len(data) > MAX_XML_BYTES:
-        raise FileFormatError(f"{path}: more than {MAX_XML_BYTES} bytes; wrong file?")
-    root = parse_xml(data, str(path))
-    el = root.find("covariance")
+    el = parse_xml(data, where).find("covariance")
     if el is None:
         return None
-    names = ((el.findtext("params") or "").split())
+    names = (el.findtext("params") or "").split()
     try:
         values = [parse_decimal(t) for t in (el.findtext("coeffs") or "").split()]
     except ValueError:
-        raise FileFormatError(f"{path}: <covariance><coeffs> holds a non-number") from None
+        raise FileFormatError(f"{where}: <covariance><coeffs> holds a non-number") from None
     n = len(names)
     if len(values) != n * n or not all(math.isfinite(v) for v in values):
         raise FileFormatError(
-            f"{path}: <covariance> has {len(values)} finite <coeffs> for {n} <params>; "
+            f"{where}: <covariance> has {len(values)} finite <coeffs> for {n} <params>; "
             f"expected {n * n}"
         )
     keep = [i for i, name in enumerate(names) if name in PARAMETERS]
@@ -477,7 +490,91 @@ def read_metashape_covariance(
     try:
         return _checked_covariance(([names[i] for i in keep], C))
     except InputError as exc:
-        raise FileFormatError(f"{path}: <covariance>: {exc}") from exc
+        raise FileFormatError(f"{where}: <covariance>: {exc}") from exc
+
+
+def read_metashape_covariance(
+    path: str | os.PathLike,
+) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """The ``<covariance>`` of a Metashape calibration XML file (which
+    :func:`read_metashape_xml` ignores), or None when the file has none.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The XML file.
+
+    Returns
+    -------
+    (names, matrix) or None
+        As :func:`metashape_covariance_from_xml`.
+
+    Raises
+    ------
+    FileFormatError
+        An unreadable file, or as :func:`metashape_covariance_from_xml`.
+    """
+    from .metashape import MAX_XML_BYTES
+
+    return metashape_covariance_from_xml(_read_bytes(path, MAX_XML_BYTES), str(path))
+
+
+def read_calibration_file(
+    path: str | os.PathLike, image_size=None
+) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
+    """A calibration with its standard deviations and covariance, from a Metashape XML or a
+    camera JSON (read once, so a pipe works; the format by its content).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file: a document starting with ``<`` is a Metashape XML
+        (:meth:`MetashapeCalibration.from_xml_string`, its ``<covariance>``), one starting
+        with ``{`` a camera JSON (:func:`calibration_from_json`).
+    image_size : (int, int), optional
+        ``(width, height)`` in px for a camera JSON that does not record it.
+
+    Returns
+    -------
+    calibration, std, covariance
+        As :func:`calibration_from_json` (for an XML, ``std`` is empty and ``covariance``
+        its ``<covariance>`` or None).
+
+    Raises
+    ------
+    InputError
+        ``image_size`` given for a Metashape XML (which records the size).
+    FileFormatError
+        An unreadable file, one that is neither, an OpenCV YAML (written, not read).
+    """
+    from ..io.jsonfile import MAX_JSON_BYTES, parse_json_bytes
+
+    where = str(path)
+    data = _read_bytes(path, MAX_JSON_BYTES)
+    head = data.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
+    if head == b"<" or data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        if image_size is not None:
+            raise InputError(
+                f"{where} is a Metashape XML, which records the image size (<width>, "
+                "<height>); leave the image size out"
+            )
+        return (
+            MetashapeCalibration.from_xml_string(data, source=where),
+            {},
+            metashape_covariance_from_xml(data, where),
+        )
+    if head == b"{":
+        obj = parse_json_bytes(data, where)
+        return calibration_from_json(obj, where, image_size)
+    hint = (
+        " (an OpenCV YAML is written, not read: read it with cv2.FileStorage and "
+        "MetashapeCalibration.from_opencv)"
+        if data.lstrip().startswith((b"%YAML", b"---"))
+        else ""
+    )
+    raise FileFormatError(
+        f"{where}: neither a Metashape calibration XML nor a camera JSON{hint}"
+    )
 
 
 def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
@@ -486,8 +583,8 @@ def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
     Parameters
     ----------
     path : str or os.PathLike
-        ``.xml``: a Metashape calibration XML (:func:`read_metashape_xml`); ``.json``: a
-        photogeom camera JSON (:func:`calibration_from_json`).
+        A Metashape calibration XML or a photogeom camera JSON
+        (:func:`calibration_from_json`), told apart by their content.
 
     Returns
     -------
@@ -495,20 +592,8 @@ def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
 
     Raises
     ------
-    InputError
-        For an OpenCV YAML (read it with ``cv2.FileStorage`` and
-        :meth:`MetashapeCalibration.from_opencv`) or another suffix.
     FileFormatError
-        An unreadable file, or a JSON without a calibration.
+        An unreadable file, an OpenCV YAML (read it with ``cv2.FileStorage`` and
+        :meth:`MetashapeCalibration.from_opencv`), or a JSON without a calibration.
     """
-    fmt = calibration_format(path)
-    if fmt == "metashape":
-        return read_metashape_xml(path)
-    if fmt == "opencv":
-        raise InputError(
-            f"{path}: OpenCV YAML is written, not read; read it with cv2.FileStorage and "
-            "MetashapeCalibration.from_opencv"
-        )
-    from ..io.jsonfile import read_json_object
-
-    return calibration_from_json(read_json_object(path), path)[0]
+    return read_calibration_file(path)[0]

@@ -457,19 +457,11 @@ def convert_cmd(
     """
     from ..camera.calibration_files import (
         calibration_format,
-        calibration_from_json,
         calibration_text,
-        read_metashape_covariance,
+        read_calibration_file,
     )
-    from ..camera.metashape import read_metashape_xml
     from .bundle import check_targets
 
-    src_fmt = calibration_format(source, "SOURCE")
-    if src_fmt == "opencv":
-        raise InputError(
-            f"SOURCE {source}: OpenCV YAML is written, not read; give a Metashape XML or a "
-            "camera JSON"
-        )
     dst_fmt = calibration_format(target, "TARGET")
     check_targets(files=[("TARGET", target)])
     size = None
@@ -478,17 +470,15 @@ def convert_cmd(
         if not (w == int(w) and h == int(h) and w > 0 and h > 0):
             raise InputError(f"--image-size {image_size}: give two whole numbers of pixels > 0")
         size = (int(w), int(h))
-    std, cov = {}, None
-    if src_fmt == "metashape":
-        if size is not None:
-            raise InputError(
-                f"--image-size: {source} records the image size (<width>, <height>); leave "
-                "--image-size out"
-            )
-        cal = read_metashape_xml(source)
-        cov = read_metashape_covariance(source)
-    else:
-        cal, std, cov = calibration_from_json(read_json(source), source, size)
+    try:
+        cal, std, cov = read_calibration_file(source, size)
+    except InputError as exc:  # only an image size given for an XML
+        if size is None:
+            raise
+        raise InputError(
+            f"--image-size: {source} is a Metashape XML, which records the image size "
+            "(<width>, <height>); leave --image-size out"
+        ) from exc
     text = calibration_text(cal, dst_fmt, std=std, covariance=cov)
     write_outputs([(target, text)])
     say(f"wrote {target} ({dst_fmt})", console())
