@@ -127,3 +127,40 @@ def test_convert_reads_a_pipe_once(cli, tmp_path):
     d = json.loads((tmp_path / "b.json").read_text())
     assert pg.read_calibration(tmp_path / "b.json") == CAL
     assert set(d["covariance"]["names"]) == set(NAMES)
+
+
+def test_convert_keeps_the_std_of_a_self_calibrating_resection(cli, tmp_path):
+    """orient resection --calibrate f,x0,y0 --output-params -> camera convert: the std and
+    covariance of f, x0, y0 become those of f, cx, cy (y0's sign turned: cy = -y0)."""
+    pg.write_calibration(CAL, tmp_path / "cal.xml")
+    io = CAL.interior_orientation()
+    eo = pg.ExteriorOrientation.from_degrees(10, 20, 120, 1, 2, 30)
+    rng = np.random.default_rng(0)
+    G = np.column_stack(
+        [rng.uniform(-60, 80, 25), rng.uniform(-50, 90, 25), rng.uniform(0, 30, 25)]
+    )
+    px = pg.project(G, io, eo, system="pixel") + rng.normal(0, 0.5, (25, 2))
+    lines = ["id,X,Y,Z,col,row"] + [
+        f"p{i}," + ",".join(f"{v:.17g}" for v in (*g, *p)) for i, (g, p) in enumerate(zip(G, px))
+    ]
+    (tmp_path / "ctl.csv").write_text("\n".join(lines) + "\n")
+    code, _, err = cli(
+        "orient", "resection", tmp_path / "ctl.csv", "--calibration", tmp_path / "cal.xml",
+        "--pixel", "--calibrate", "f,x0,y0", "--output-params", tmp_path / "res.json",
+    )
+    assert code == 0, err
+    res = json.loads((tmp_path / "res.json").read_text())
+    code, _, err = cli("camera", "convert", tmp_path / "res.json", tmp_path / "cam.json")
+    assert code == 0, err
+    cam = json.loads((tmp_path / "cam.json").read_text())
+    p = res["parameters"]
+    assert cam["std"] == {"f": p["f"]["std"], "cx": p["x0"]["std"], "cy": p["y0"]["std"]}
+    assert cam["covariance"]["names"] == ["f", "cx", "cy"]
+    k = list(p).index("f")
+    R = np.array(res["covariance"])[k : k + 3, k : k + 3]
+    C = np.array(cam["covariance"]["matrix"])
+    np.testing.assert_array_equal(C * np.outer([1, 1, -1], [1, 1, -1]), R)
+    assert R[0, 2] != 0
+    back = pg.read_calibration(tmp_path / "cam.json")
+    assert back.f == pytest.approx(p["f"]["value"], rel=1e-12)
+    assert back.cy == pytest.approx(-p["y0"]["value"], rel=1e-9)

@@ -363,9 +363,10 @@ def calibration_from_json(
     calibration : MetashapeCalibration
     std : dict
         Standard deviations (Metashape names, px) of a file written by
-        :func:`calibration_json`; empty otherwise.
+        :func:`calibration_json` or of the parameters an ``orient resection --calibrate``
+        estimated (``x0, y0`` as ``cx, cy``); empty otherwise.
     covariance : (names, matrix) or None
-        Likewise.
+        Likewise (the sign of ``y0``'s covariances turned for ``cy``).
 
     Raises
     ------
@@ -391,6 +392,7 @@ def calibration_from_json(
 
         std, cov = build_from_json(extras, dict(data), where, "std or covariance")
         return calib, std, cov
+    outer = data
     if isinstance(data.get("model_parameters"), Mapping):
         data = data["model_parameters"]
     interior = data.get("interior") if isinstance(data.get("interior"), Mapping) else None
@@ -419,7 +421,36 @@ def calibration_from_json(
         lambda _: MetashapeCalibration.from_interior_orientation(io, image_size), {}, where,
         "interior orientation",
     )
-    return calib, {}, None
+    cov = build_from_json(_resection_covariance, dict(outer), where, "parameters or covariance")
+    return calib, _std_of(None, cov), cov
+
+
+#: Interior-orientation names of a self-calibrating resection -> Metashape's, and the sign
+#: (``cy = -y0 + const``: the image y axis is up, Metashape's rows down).
+_FROM_INTERIOR = {
+    "f": ("f", 1.0), "x0": ("cx", 1.0), "y0": ("cy", -1.0), "b1": ("b1", 1.0),
+    "b2": ("b2", 1.0), "k1": ("k1", 1.0), "k2": ("k2", 1.0), "k3": ("k3", 1.0),
+    "k4": ("k4", 1.0), "p1": ("p1", 1.0), "p2": ("p2", 1.0),
+}
+
+
+def _resection_covariance(data: dict) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """The covariance of the calibrated interior parameters of an ``orient resection
+    --output-params`` file (``parameters`` by name, ``covariance`` in their order), in
+    Metashape's names and signs; None when nothing was calibrated."""
+    params, cov = data.get("parameters"), data.get("covariance")
+    if not isinstance(params, Mapping) or cov is None:
+        return None
+    order = list(params)
+    C = np.asarray(cov, dtype=float)
+    if C.shape != (len(order), len(order)):
+        raise ValueError(f"covariance of shape {C.shape} for {len(order)} parameters")
+    idx = [i for i, n in enumerate(order) if n in _FROM_INTERIOR]
+    if not idx:
+        return None
+    sign = np.array([_FROM_INTERIOR[order[i]][1] for i in idx])
+    names = [_FROM_INTERIOR[order[i]][0] for i in idx]
+    return _checked_covariance((names, C[np.ix_(idx, idx)] * np.outer(sign, sign)))
 
 
 def _read_bytes(path: str | os.PathLike, limit: int) -> bytes:
