@@ -193,3 +193,11 @@ def test_several_groups_get_one_file_each(tmp_path):
     ]
     with pytest.raises(pg.InputError, match="both be written"):
         calibration_targets(p, ["a/b", "a_b"])
+
+
+def test_opencv_without_estimated_parameters_has_no_std(tmp_path):
+    cv2 = pytest.importorskip("cv2")
+    pg.write_calibration(CAL, tmp_path / "c.yaml", covariance=((), np.zeros((0, 0))))
+    fs = cv2.FileStorage(str(tmp_path / "c.yaml"), cv2.FILE_STORAGE_READ)
+    assert fs.getNode("std_deviations_intrinsics").empty()  # before: nine zeros
+    fs.release()

@@ -232,7 +232,8 @@ def opencv_yaml_text(
     calibration : MetashapeCalibration
         The calibration; ``k4`` and ``b2`` must be zero.
     covariance : (names, matrix), optional
-        Covariance of the free parameters: adds ``std_deviations_intrinsics``.
+        Covariance of the free parameters: adds ``std_deviations_intrinsics`` (not when it
+        names no parameter).
 
     Returns
     -------
@@ -252,7 +253,7 @@ def opencv_yaml_text(
         + _opencv_matrix("camera_matrix", K)
         + _opencv_matrix("distortion_coefficients", dist.reshape(1, -1))
     )
-    if cov is not None:
+    if cov is not None and cov[0]:  # nothing estimated: no standard deviations
         names, C = cov
         A = np.zeros((len(OPENCV_INTRINSICS), len(names)))
         for i, cv in enumerate(OPENCV_INTRINSICS):
