@@ -201,3 +201,23 @@ def test_opencv_without_estimated_parameters_has_no_std(tmp_path):
     fs = cv2.FileStorage(str(tmp_path / "c.yaml"), cv2.FILE_STORAGE_READ)
     assert fs.getNode("std_deviations_intrinsics").empty()  # before: nine zeros
     fs.release()
+
+
+def test_image_variant_group_is_noted(block, cli, tmp_path):
+    """A file holds one calibration: for a group estimated per image, the group's value;
+    the command says so (the images' offsets are in --json / --result)."""
+    import shutil
+
+    b = tmp_path / "iv"
+    shutil.copytree(block, b)
+    cams = (b / "cameras.csv").read_text().splitlines()
+    head = cams[1].split(",")
+    k = head.index("image_variant")
+    row = cams[2].split(",")
+    row[k] = "f cx cy"
+    cams[2] = ",".join(row)
+    (b / "cameras.csv").write_text("\n".join(cams) + "\n")
+    code, _, err = cli("bundle", "adjust", b, "--output-calibration", tmp_path / "c.json")
+    assert code == 0, err
+    assert "per image" in err and "offsets" in err
+    assert "f" not in json.loads((tmp_path / "c.json").read_text())["std"]

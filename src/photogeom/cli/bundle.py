@@ -659,6 +659,14 @@ def adjust(
 
         cams = fit.block.cameras
         for group, path in cal_files:
+            per_image = sorted(fit.block.image_variant.get(group, ()))
+            if per_image:  # a file holds one calibration: the group's, offsets left out
+                typer.echo(
+                    f"note: camera group {group!r} estimates {', '.join(per_image)} per image: "
+                    f"{path} holds the group's value, without the images' offsets (they are "
+                    "in --result and --json: images[].f_offset, ...)",
+                    err=True,
+                )
             texts.append(
                 (
                     path,
