@@ -7,12 +7,15 @@
   analytic derivatives, :class:`FrameCamera`;
 * :mod:`.distortion` - :class:`BrownDistortion` (Metashape's K1-K4, P1, P2) and its inverse;
 * :mod:`.metashape` - :class:`MetashapeCalibration`, its XML file and OpenCV conversion;
+* :mod:`.calibration_files` - :func:`write_calibration` (Metashape XML, camera JSON, OpenCV
+  YAML, with standard deviations) and :func:`read_calibration`;
 * :mod:`.dlt`, :mod:`.dlt_estimation` - the DLT, the camera matrix and their estimation;
 * :mod:`.affine` - the 8-parameter affine camera;
 * :mod:`.fiducials` - interior orientation from fiducial marks.
 """
 
 from .affine import AffineCamera, estimate_affine_camera
+from .calibration_files import read_calibration, write_calibration
 from .collinearity import (
     FrameCamera,
     ground_at_height,
@@ -59,6 +62,8 @@ __all__ = [
     "orthogonality_conditions",
     "project",
     "projection_derivatives",
+    "read_calibration",
     "read_metashape_xml",
+    "write_calibration",
     "write_metashape_xml",
 ]

@@ -4,8 +4,9 @@
   ``OUT/truth/`` and the simulation's settings and blunders in ``OUT/simulation.json``;
 * ``adjust INPUT``: the bundle adjustment of a CSV block folder, a BAL file or a COLMAP text
   folder (format detected, or ``--format``), with the adjusted block (``--output``), the
-  summary as JSON (``--json``), an HTML report (``--report``) and the result record
-  (``--result``) that ``report`` renders again;
+  summary as JSON (``--json``), an HTML report (``--report``), the result record
+  (``--result``) that ``report`` renders again and the adjusted calibration as Metashape XML,
+  camera JSON or OpenCV YAML (``--output-calibration``);
 * ``convert INPUT OUTPUT``: between BAL, COLMAP text and CSV blocks;
 * ``report RESULT.json``: the HTML report of a saved result record.
 """
@@ -571,6 +572,16 @@ def adjust(
     allow_ballpark: Annotated[
         bool, typer.Option(help="Accept an approximate PROJ datum shift (--gnss-crs).")
     ] = False,
+    output_calibration: Annotated[
+        Path | None,
+        typer.Option(
+            "--output-calibration",
+            help="Write the adjusted calibration with its standard deviations, format by "
+            "suffix: .xml Metashape, .json photogeom camera (--camera), .yaml/.yml OpenCV; "
+            "several camera groups: NAME-GROUP.SUFFIX each.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Bundle adjustment with self-calibration of a block read from a file.
 
@@ -588,9 +599,22 @@ def adjust(
         blocks=[("--output", output, out_fmt)],
         files=[("--report", report), ("--result", result)],
     )
+    if output_calibration is not None:
+        from ..camera.calibration_files import calibration_format
+
+        cal_fmt = calibration_format(output_calibration, "--output-calibration")
     with stage_spinner(f"reading {source}"):
         block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
+    cal_files: list[tuple[object, Path]] = []
+    if output_calibration is not None:
+        cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
+        if cal_fmt == "opencv":
+            _refuse_opencv_terms(block, free_names(free), output_calibration)
+        check_targets(
+            files=[("--report", report), ("--result", result)]
+            + [("--output-calibration", p) for _, p in cal_files]
+        )
     if unit is None:  # the CRS's unit, as orient absolute and transform estimate label it
         unit = _crs_length_unit(block.crs) or "m"
     options = dict(
@@ -630,6 +654,30 @@ def adjust(
             texts.append(
                 (report, bundle_report(data, f"Bundle adjustment: {source.name}").to_html())
             )
+    if cal_files:
+        from ..camera.calibration_files import calibration_text
+
+        cams = fit.block.cameras
+        for group, path in cal_files:
+            per_image = sorted(fit.block.image_variant.get(group, ()))
+            if per_image:  # a file holds one calibration: the group's, offsets left out
+                typer.echo(
+                    f"note: camera group {group!r} estimates {', '.join(per_image)} per image: "
+                    f"{path} holds the group's value, without the images' offsets (they are "
+                    "in --result and --json: images[].f_offset, ...)",
+                    err=True,
+                )
+            texts.append(
+                (
+                    path,
+                    calibration_text(
+                        cams[group],
+                        cal_fmt,
+                        std=fit.calibration_std[group],
+                        covariance=fit.calibration_covariance(group),
+                    ),
+                )
+            )
     files = {}
     if output is not None:  # a CSV block holds deg, gon or rad: arcsec is shown, deg written
         block_angle = "deg" if angle == "arcsec" else angle
@@ -659,6 +707,43 @@ def adjust(
         say(f"adjusted block written to {output} ({out_fmt})", out)
     for path, _ in texts:
         say(f"wrote {path}", out)
+
+
+def calibration_targets(path: Path, groups: list) -> list[tuple[object, Path]]:
+    """The file of each camera group for ``--output-calibration PATH``: PATH itself for one
+    group, ``STEM-GROUP.SUFFIX`` beside it for several (characters other than letters,
+    digits, ``.``, ``_`` and ``-`` of a group id become ``_``); two groups given one name
+    are refused."""
+    if len(groups) == 1:
+        return [(groups[0], path)]
+    out: list[tuple[object, Path]] = []
+    seen: dict[Path, object] = {}
+    for g in groups:
+        tag = re.sub(r"[^A-Za-z0-9._-]", "_", str(g))
+        p = path.with_name(f"{path.stem}-{tag}{path.suffix}")
+        if p in seen:
+            raise InputError(
+                f"--output-calibration: camera groups {seen[p]!r} and {g!r} would both be "
+                f"written to {p}; rename one of the groups in the block"
+            )
+        seen[p] = g
+        out.append((g, p))
+    return out
+
+
+def _refuse_opencv_terms(block, free: tuple[str, ...] | None, path: Path) -> None:
+    """Refuse, before the adjustment, an OpenCV ``--output-calibration`` of a block whose
+    calibration has (or will estimate) K4 or B2, which OpenCV's model has not."""
+    for g, cal in block.cameras.items():
+        names = set(block.free[g] if free is None else free)
+        bad = [n.upper() for n in ("k4", "b2") if n in names or getattr(cal, n) != 0.0]
+        if bad:
+            raise InputError(
+                f"--output-calibration {path}: OpenCV's camera model has no "
+                f"{' and no '.join(bad)}, which camera group {g!r} estimates or holds non-zero: "
+                "hold them at zero (--free without k4 and b2) or write the calibration as "
+                ".xml or .json"
+            )
 
 
 def _crs_length_unit(crs: str | None) -> str | None:

@@ -3,7 +3,8 @@
 * ``camera project``: ground points -> image coordinates with the collinearity equations;
 * ``camera dlt estimate``: the 11 DLT parameters from control points (linear, rigorous or
   constrained), with statistics, residuals and a report;
-* ``camera dlt convert``: interior + exterior orientation -> DLT, or DLT -> orientations.
+* ``camera dlt convert``: interior + exterior orientation -> DLT, or DLT -> orientations;
+* ``camera convert``: a calibration between Metashape XML, camera JSON and OpenCV YAML.
 
 The camera is given by options (``--f``, ``--x0``, ``--y0``, ``--unit``, or ``--pixel-size``
 and ``--principal-point`` for a digital camera), by a Metashape calibration XML
@@ -48,7 +49,9 @@ from ._common import (
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
 app = typer.Typer(
-    help="Frame camera models: projection, DLT.", no_args_is_help=True, rich_markup_mode=None
+    help="Frame camera models: projection, DLT, calibration files.",
+    no_args_is_help=True,
+    rich_markup_mode=None,
 )
 dlt_app = typer.Typer(
     help="Direct linear transformation: estimate, convert.",
@@ -416,6 +419,69 @@ def project_cmd(
         table.ids, xy, names, comments=[f"collinearity projection of {points}; {unit_txt}"]
     )
     emit_points(text, output, len(table.ids))
+
+
+# --- camera convert ---------------------------------------------------------------------------
+
+
+@app.command("convert")
+def convert_cmd(
+    source: Annotated[
+        Path,
+        typer.Argument(
+            help="Calibration to read: Metashape XML (.xml) or camera JSON (.json: "
+            "'bundle adjust --output-calibration', 'orient resection --output-params', ...)."
+        ),
+    ],
+    target: Annotated[
+        Path,
+        typer.Argument(
+            help="File to write, format by suffix: .xml Metashape, .json photogeom camera "
+            "(--camera), .yaml/.yml OpenCV FileStorage."
+        ),
+    ],
+    image_size: Annotated[
+        str | None,
+        typer.Option(
+            "--image-size",
+            help="WIDTH,HEIGHT in px, for a camera JSON that does not record the image size.",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Convert a frame-camera calibration between Metashape XML, camera JSON and OpenCV YAML.
+
+    Standard deviations and the covariance (of a camera JSON written by 'bundle adjust
+    --output-calibration', the <covariance> of a Metashape XML) are carried over where the
+    target format has a place for them.
+    """
+    from ..camera.calibration_files import (
+        calibration_format,
+        calibration_text,
+        read_calibration_file,
+    )
+    from .bundle import check_targets
+
+    dst_fmt = calibration_format(target, "TARGET")
+    check_targets(files=[("TARGET", target)])
+    size = None
+    if image_size is not None:
+        w, h = split_numbers(image_size, 2, "--image-size WIDTH,HEIGHT")
+        if not (w == int(w) and h == int(h) and w > 0 and h > 0):
+            raise InputError(f"--image-size {image_size}: give two whole numbers of pixels > 0")
+        size = (int(w), int(h))
+    try:
+        cal, std, cov = read_calibration_file(source, size)
+    except InputError as exc:  # only an image size given for an XML
+        if size is None:
+            raise
+        raise InputError(
+            f"--image-size: {source} is a Metashape XML, which records the image size "
+            "(<width>, <height>); leave --image-size out"
+        ) from exc
+    text = calibration_text(cal, dst_fmt, std=std, covariance=cov)
+    write_outputs([(target, text)])
+    say(f"wrote {target} ({dst_fmt})", console())
 
 
 # --- camera dlt estimate ----------------------------------------------------------------------
