@@ -47,6 +47,9 @@ from .camera import (
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
+#: Largest ``--seed``: OpenCV's generator (``cv2.setRNGSeed``) takes a C int.
+SEED_MAX = 2**31 - 1
+
 
 class Method(str, Enum):
     """Parameterisations of the relative orientation."""
@@ -94,7 +97,8 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
 
 
 @options_in_errors(
-    sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method"
+    sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method",
+    seed="--seed",
 )
 def relative(
     points: Annotated[
@@ -147,6 +151,15 @@ def relative(
             help="Remove wrong matches (RANSAC start, data snooping); --no-robust keeps all.",
         ),
     ] = True,
+    seed: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=SEED_MAX,
+            help="Random seed of the RANSAC start (same seed, same result), an integer in "
+            f"0..{SEED_MAX}.",
+        ),
+    ] = 0,
     worst: Annotated[
         int, typer.Option(min=0, help="Number of worst y-parallaxes listed (>= 0).")
     ] = 10,
@@ -229,6 +242,7 @@ def relative(
             ids=ids,
             robust=robust,
             threshold=threshold,
+            seed=seed,
         )
     except PhotogeomError as exc:
         raise _without_start_values(exc) from None
