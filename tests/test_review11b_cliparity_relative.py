@@ -76,3 +76,44 @@ def test_library_refuses_a_seed_opencv_cannot_take(pair):
     _, xy1, xy2 = pair
     with pytest.raises(pg.InputError, match=r"seed must be an integer in 0\.\.2147483647"):
         pg.relative_orientation(xy1, xy2, IO, seed=2**31)  # was ValueError from OpenCV
+
+
+def test_alpha_drives_snooping_and_the_tables(cli, pair, spy, tmp_path):
+    path, _, _ = pair
+    base = ("orient", "relative", path, "--f", "100", "--sigma", "0.004")
+    code, out, err = cli(*base, "--json")
+    assert code == 0, err
+    assert spy["alpha"] == 0.001
+    d = json.loads(out)
+    assert d["flagged"] == ["P5"] and d["snooping"]["alpha"] == 0.001
+    code, out, err = cli(*base, "--alpha", "0.01", "--json")
+    assert code == 0, err
+    assert spy["alpha"] == 0.01
+    d = json.loads(out)
+    # |w| 2.91 of P24 passes at 0.001 (3.29) and fails at 0.01 (2.58)
+    assert d["flagged"] == ["P5", "P24"]
+    assert d["snooping"]["alpha"] == 0.01
+    assert d["snooping"]["w"]["critical_value"] == pytest.approx(2.5758, abs=1e-4)
+    assert d["parallax"]["critical_value"] == pytest.approx(2.5758, abs=1e-4)
+    rep = tmp_path / "ro.html"
+    code, out, err = cli(*base, "--alpha", "0.01", "--report", rep)
+    assert code == 0, err
+    # the printed residual table tests at the level snooping used, not at 0.001
+    assert "critical value 2.576 at alpha = 0.01" in out
+    assert "alpha = 0.001" not in out
+    assert "alpha = 0.01" in rep.read_text()
+
+
+@pytest.mark.parametrize("value", ["0", "1", "nan", "-0.1"])
+def test_alpha_outside_0_1_is_refused_by_its_name(cli, pair, value):
+    path, _, _ = pair
+    code, _, err = cli("orient", "relative", path, "--f", "100", "--alpha", value)
+    assert code == 2
+    assert "--alpha must be in (0, 1)" in err
+
+
+def test_library_fit_records_its_alpha(pair):
+    _, xy1, xy2 = pair
+    fit = pg.relative_orientation(xy1, xy2, IO, sigma=0.004, alpha=0.01)
+    assert fit.extras["alpha"] == 0.01
+    assert fit.to_dict()["snooping"]["alpha"] == 0.01

@@ -90,6 +90,7 @@ _CLI_WORDS = (
     ("point_covariance=True", "--point-covariance"),
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
+    ("alpha must be in (0, 0.5)", "--alpha must be in (0, 0.5)"),
     ("read with image_key='id'", "read with --image-key id"),
 )
 
@@ -504,6 +505,13 @@ def adjust(
     snooping: Annotated[
         bool, typer.Option("--snooping/--no-snooping", help="Baarda's w-test per observation.")
     ] = True,
+    alpha: Annotated[
+        float,
+        typer.Option(
+            help="Significance level of each observation's w-test, in (0, 0.5) (0.001: "
+            "critical w 3.29); the summary, --json, --report and --result flag at it.",
+        ),
+    ] = 0.001,
     max_iterations: Annotated[int, typer.Option(help="Iterations at most.")] = 100,
     output: Annotated[
         Path | None,
@@ -600,6 +608,7 @@ def adjust(
         point_covariance=point_covariance,
         variance_components=variance_components,
         snooping=snooping,
+        alpha=alpha,
         max_iterations=max_iterations,
     )
     names = free_names(free)

@@ -98,7 +98,7 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
 
 @options_in_errors(
     sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method",
-    seed="--seed",
+    seed="--seed", alpha="--alpha",
 )
 def relative(
     points: Annotated[
@@ -151,6 +151,14 @@ def relative(
             help="Remove wrong matches (RANSAC start, data snooping); --no-robust keeps all.",
         ),
     ] = True,
+    alpha: Annotated[
+        float,
+        typer.Option(
+            help="Significance level of each point's test (w-test with --sigma, else the "
+            "tau-test), in (0, 1): data snooping and the tables flag at it (0.001: critical "
+            "w 3.29).",
+        ),
+    ] = 0.001,
     seed: Annotated[
         int,
         typer.Option(
@@ -243,6 +251,7 @@ def relative(
             robust=robust,
             threshold=threshold,
             seed=seed,
+            alpha=alpha,
         )
     except PhotogeomError as exc:
         raise _without_start_values(exc) from None

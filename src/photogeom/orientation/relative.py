@@ -153,7 +153,8 @@ class RelativeOrientationFit(Fit):
     ``"parallax"``, ``"inliers"``, ``"statistic"`` (w or tau), ``"all_ids"``; and
     ``"epipolar_normal1"`` (unit normals of the epipolar lines in image 1: the parallax
     vector of a point is ``parallax * normal``); ``"start"`` (the essential-matrix start),
-    ``"critical_value"``, ``"test"``,
+    ``"critical_value"``, ``"alpha"`` (the significance level of the tests, which the
+    residual tables of the reports and ``to_dict()["snooping"]`` use too), ``"test"``,
     ``"removed"`` (ids removed by data snooping, in order).
     """
 
@@ -865,6 +866,7 @@ def relative_orientation(
             "statistic": stat,
             "test": test,
             "critical_value": crit,
+            "alpha": float(alpha),
             "all_ids": all_ids,
             "removed": tuple(removed),
             "start": start_info,
