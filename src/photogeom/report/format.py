@@ -34,6 +34,7 @@ def snooping_alpha(fit) -> float:
         return float(value)
     return SNOOPING_ALPHA
 
+
 RESIDUAL_CONVENTION = "v = computed - observed"
 
 
