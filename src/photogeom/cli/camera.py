@@ -112,7 +112,9 @@ def camera_from_json(path: Path):
 
     Accepts a ``FrameCamera.to_dict()``, the ``--output-params``/``--json`` output of
     ``orient resection`` (its ``model_parameters``) or of ``camera dlt estimate`` (the
-    orientation decomposed from the DLT, its ``orientation``), or a bare interior orientation.
+    orientation decomposed from the DLT, its ``orientation``), a bare interior orientation,
+    or a DLT (``L1..L11`` with its ``unit``, the ``--json`` output of ``camera dlt convert``
+    from a camera), decomposed into interior and exterior orientation.
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
     from ..io.jsonfile import build_from_json
@@ -142,6 +144,20 @@ def camera_from_json(path: Path):
     if "f" in data:
         io = build_from_json(InteriorOrientation.from_dict, data, path, "interior orientation")
         return io, None
+    if str(data.get("model", "")).lower() == "dlt" or all(f"L{k}" in data for k in range(1, 12)):
+        # a DLT (camera dlt convert --json): the camera it holds, decomposed as camera dlt
+        # convert --params does
+        from ..camera import DLT, orientation_from_dlt
+        from ..errors import PhotogeomError
+
+        try:
+            dlt = DLT.from_dict(data)
+            return orientation_from_dlt(dlt, unit=dlt.unit)
+        except PhotogeomError as exc:
+            raise FileFormatError(
+                f"{path}: a DLT (L1..L11) that gives no camera: {exc}; give a camera JSON "
+                "(interior and exterior orientation)"
+            ) from None
     raise FileFormatError(
         f"{path}: no camera found (expected 'interior'/'exterior' entries, e.g. the output of "
         "'photogeom orient resection --output-params' or 'camera dlt estimate --output-params')"
