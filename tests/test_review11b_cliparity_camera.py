@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 
 def _projected(text: str) -> np.ndarray:
@@ -65,3 +66,49 @@ def test_singular_dlt_names_the_problem(cli, tmp_path):
     code, _, err = cli("camera", "project", ground, "--camera", bad)
     assert code == 2
     assert "a DLT (L1..L11) that gives no camera" in err and "Traceback" not in err
+
+
+def _pixel_control(cli, tmp_path):
+    rng = np.random.default_rng(3)
+    g = np.column_stack(
+        [rng.uniform(-100, 100, 12), rng.uniform(-100, 100, 12), rng.uniform(-20, 20, 12)]
+    )
+    ground = tmp_path / "gr.csv"
+    ground.write_text("id,X,Y,Z\n" + "".join(f"{i},{a!r},{b!r},{c!r}\n" for i, (a, b, c) in
+                                              enumerate(g.tolist())))  # fmt: skip
+    pix = tmp_path / "pix.csv"
+    code, _, err = cli("camera", "project", ground, "--f", "1000", "--unit", "px",
+                       "--principal-point", "500,300", "--eo", "10,20,800,1,2,3", "--pixel",
+                       "-o", pix)  # fmt: skip
+    assert code == 0, err
+    return ground, pix
+
+
+def test_dlt_estimate_takes_the_pixels_of_camera_project(cli, tmp_path):
+    ground, pix = _pixel_control(cli, tmp_path)
+    # before: no --pixel; with --image-cols col,row "left-handed ... convert them" (by hand)
+    code, _, err = cli("camera", "dlt", "estimate", ground, pix, "--unit", "px",
+                       "--image-cols", "col,row")  # fmt: skip
+    assert code == 2 and "give --pixel" in err
+    params = tmp_path / "dlt.json"
+    code, out, err = cli("camera", "dlt", "estimate", ground, pix, "--pixel", "--output-params",
+                         params)  # fmt: skip
+    assert code == 0, err
+    assert "principal point col 500.000000, row 300.000000 px" in out
+    data = json.loads(params.read_text())
+    assert data["pixel"]["principal_point_px"] == pytest.approx([500.0, 300.0], abs=1e-6)
+    io = data["orientation"]["interior"]
+    assert io["f"] == pytest.approx(1000.0, abs=1e-6) and io["unit"] == "px"
+    # the camera written projects back to the pixels it was estimated from
+    code, back, err = cli("camera", "project", ground, "--camera", params, "--pixel")
+    assert code == 0, err
+    from photogeom.io import read_points
+
+    want = read_points(pix, ["col", "row"]).coords
+    np.testing.assert_allclose(_projected(back), want, atol=1e-6)
+
+
+def test_dlt_estimate_pixel_refuses_mm(cli, tmp_path):
+    ground, pix = _pixel_control(cli, tmp_path)
+    code, _, err = cli("camera", "dlt", "estimate", ground, pix, "--pixel", "--unit", "mm")
+    assert code == 2 and "--unit mm with --pixel" in err
