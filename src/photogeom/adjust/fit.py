@@ -456,7 +456,7 @@ class Fit:
         components by id and label; the poorly controlled components with their redundancy
         number and minimal detectable bias (a-priori sigmas)."""
         from ..errors import InputError
-        from ..report.format import SNOOPING_ALPHA
+        from ..report.format import snooping_alpha
 
         res = np.asarray(self.residuals, dtype=float)
         shape = res.shape if res.ndim == 2 else (res.size, 1)
@@ -468,11 +468,12 @@ class Fit:
         def where(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return np.nonzero(np.asarray(mask, dtype=bool).reshape(shape))
 
-        out: dict = {"alpha": SNOOPING_ALPHA}
+        alpha = snooping_alpha(self)
+        out: dict = {"alpha": alpha}
         first = None
         for name, sigma in (("w", "prior"), ("tau", "posterior")):
             try:
-                sn = self.snooping(alpha=SNOOPING_ALPHA, sigma=sigma)
+                sn = self.snooping(alpha=alpha, sigma=sigma)
             except InputError:  # e.g. the tau-test below a redundancy of 2
                 out[name] = None
                 continue

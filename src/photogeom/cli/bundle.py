@@ -91,6 +91,7 @@ _CLI_WORDS = (
     ("point_covariance=True", "--point-covariance"),
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
+    ("alpha must be in (0, 0.5)", "--alpha must be in (0, 0.5)"),
     ("read with image_key='id'", "read with --image-key id"),
 )
 
@@ -505,6 +506,13 @@ def adjust(
     snooping: Annotated[
         bool, typer.Option("--snooping/--no-snooping", help="Baarda's w-test per observation.")
     ] = True,
+    alpha: Annotated[
+        float,
+        typer.Option(
+            help="Significance level of each observation's w-test, in (0, 0.5) (0.001: "
+            "critical w 3.29); the summary, --json, --report and --result flag at it.",
+        ),
+    ] = 0.001,
     max_iterations: Annotated[int, typer.Option(help="Iterations at most.")] = 100,
     output: Annotated[
         Path | None,
@@ -624,6 +632,7 @@ def adjust(
         point_covariance=point_covariance,
         variance_components=variance_components,
         snooping=snooping,
+        alpha=alpha,
         max_iterations=max_iterations,
     )
     names = free_names(free)
@@ -680,7 +689,7 @@ def adjust(
             )
     files = {}
     if output is not None:  # a CSV block holds deg, gon or rad: arcsec is shown, deg written
-        block_angle = "deg" if angle == "arcsec" else angle
+        block_angle = block_angle_unit(angle)
         files = block_files(
             fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=block_angle
         )
@@ -704,7 +713,10 @@ def adjust(
             out,
         )
     if output is not None:
-        say(f"adjusted block written to {output} ({out_fmt})", out)
+        say(
+            f"adjusted block written to {output} ({out_fmt})" + _angles_written(out_fmt, angle),
+            out,
+        )
     for path, _ in texts:
         say(f"wrote {path}", out)
 
@@ -852,6 +864,19 @@ def _add_georef(d: dict, georef: dict | None) -> None:
 # --- convert -------------------------------------------------------------------------------------
 
 
+def block_angle_unit(angle_unit: str) -> str:
+    """The angle unit a CSV block is written in for ``--angle-unit``: the unit itself, deg
+    for arcsec (a CSV block holds deg, gon or rad, named in its column headers)."""
+    return "deg" if angle_unit == "arcsec" else angle_unit
+
+
+def _angles_written(fmt: str | None, angle_unit: str) -> str:
+    """The words of the output line when ``--angle-unit arcsec`` wrote a CSV block in deg."""
+    if fmt == "csv" and angle_unit == "arcsec":
+        return "; angles written in deg (a CSV block holds deg, gon or rad)"
+    return ""
+
+
 @app.command("convert")
 @_cli_words
 def convert(
@@ -866,7 +891,11 @@ def convert(
     ] = None,
     angle_unit: Annotated[
         AngleUnit,
-        typer.Option("--angle-unit", help="Angle unit of a CSV block written (deg, gon, rad)."),
+        typer.Option(
+            "--angle-unit",
+            help="Angle unit of a CSV block written (arcsec: written in deg, as bundle "
+            "adjust -o does; a CSV block holds deg, gon or rad).",
+        ),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
     image_key: ImageKeyOpt = "name",
@@ -876,16 +905,14 @@ def convert(
     """Convert a block between BAL, COLMAP text and CSV (conventions converted exactly)."""
     src = detect_format(source, from_fmt, "--from")
     dst = output_format(target, to_fmt, None, "--to")
-    if dst == "csv" and angle_unit.value == "arcsec":
-        raise InputError(
-            "--angle-unit arcsec: a CSV block holds its angles in deg, gon or rad (named in "
-            "the column headers); choose one of them"
-        )
+    # a CSV block holds deg, gon or rad (named in its column headers): arcsec, accepted by
+    # every bundle command, is written in deg, as bundle adjust -o does
+    block_angle = block_angle_unit(angle_unit.value)
     check_targets(blocks=[("TARGET", target, dst)])
     with stage_spinner(f"converting {source} to {dst}"):
         block = read_block(source, src, sigma=sigma, image_key=image_key)
         files = block_files(
-            block, target, dst, drop_extras=drop_extras, angle_unit=angle_unit.value
+            block, target, dst, drop_extras=drop_extras, angle_unit=block_angle
         )
     write_all(files, folders=[target] if dst in ("csv", "colmap") else [])
     info = {
@@ -898,13 +925,15 @@ def convert(
         "points": block.n_points,
         "observations": block.n_observations,
     }
+    if dst == "csv":
+        info["angle_unit"] = block_angle
     if as_json:
         typer.echo(json_text(info), nl=False)
         return
     say(
         f"{source} ({src}) -> {target} ({dst}): {info['camera_groups']} camera group(s), "
         f"{info['images']} images, {info['points']} points, {info['observations']} image "
-        "observations"
+        "observations" + _angles_written(dst, angle_unit.value)
     )
 
 

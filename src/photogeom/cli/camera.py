@@ -115,7 +115,9 @@ def camera_from_json(path: Path):
 
     Accepts a ``FrameCamera.to_dict()``, the ``--output-params``/``--json`` output of
     ``orient resection`` (its ``model_parameters``) or of ``camera dlt estimate`` (the
-    orientation decomposed from the DLT, its ``orientation``), or a bare interior orientation.
+    orientation decomposed from the DLT, its ``orientation``), a bare interior orientation,
+    or a DLT (``L1..L11`` with its ``unit``, the ``--json`` output of ``camera dlt convert``
+    from a camera), decomposed into interior and exterior orientation.
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
     from ..io.jsonfile import build_from_json
@@ -145,6 +147,20 @@ def camera_from_json(path: Path):
     if "f" in data:
         io = build_from_json(InteriorOrientation.from_dict, data, path, "interior orientation")
         return io, None
+    if str(data.get("model", "")).lower() == "dlt" or all(f"L{k}" in data for k in range(1, 12)):
+        # a DLT (camera dlt convert --json): the camera it holds, decomposed as camera dlt
+        # convert --params does
+        from ..camera import DLT, orientation_from_dlt
+        from ..errors import PhotogeomError
+
+        try:
+            dlt = DLT.from_dict(data)
+            return orientation_from_dlt(dlt, unit=dlt.unit)
+        except PhotogeomError as exc:
+            raise FileFormatError(
+                f"{path}: a DLT (L1..L11) that gives no camera: {exc}; give a camera JSON "
+                "(interior and exterior orientation)"
+            ) from None
     raise FileFormatError(
         f"{path}: no camera found (expected 'interior'/'exterior' entries, e.g. the output of "
         "'photogeom orient resection --output-params' or 'camera dlt estimate --output-params')"
@@ -573,7 +589,23 @@ def dlt_estimate(
     image: Annotated[
         Path | None, typer.Argument(help="CSV with image x,y joined to POINTS by id.")
     ] = None,
-    unit: UnitOpt = ImageUnit.mm,
+    unit: Annotated[
+        ImageUnit | None,
+        typer.Option(
+            help="Unit of f, x0, y0 and image coordinates (default mm; px with --pixel).",
+            show_default=False,
+        ),
+    ] = None,
+    pixel: Annotated[
+        bool,
+        typer.Option(
+            "--pixel",
+            help="Image coordinates are pixels col,row (top-left pixel centre = 0,0), as "
+            "camera project --pixel writes them (default columns col,row): estimated in the "
+            "right-handed x = col, y = -row (px); the camera written (--output-params) "
+            "records that pixel system, so camera project --camera F --pixel gives col,row.",
+        ),
+    ] = False,
     constrained: Annotated[
         bool,
         typer.Option(help="Impose the two orthogonality conditions (>= 5 points)."),
@@ -582,7 +614,9 @@ def dlt_estimate(
         bool, typer.Option(help="Linear solution only (no refinement of image residuals).")
     ] = False,
     ground_cols: Annotated[str | None, typer.Option(help="Ground columns (default X,Y,Z).")] = None,
-    image_cols: Annotated[str | None, typer.Option(help="Image columns (default x,y).")] = None,
+    image_cols: Annotated[
+        str | None, typer.Option(help="Image columns (default x,y; col,row with --pixel).")
+    ] = None,
     id_col: IdColOpt = None,
     sigma_col: Annotated[
         str | None, typer.Option(help="Column of image standard deviations (unit of --unit).")
@@ -621,25 +655,33 @@ def dlt_estimate(
 ) -> None:
     """Estimate the 11 DLT parameters (and the orientations they imply) from control points.
 
-    Image coordinates must be right-handed (x right, y up). Prints L1..L11 with standard
-    deviations, sigma0, the residuals (computed - observed) and the decomposed interior and
-    exterior orientation.
+    Image coordinates must be right-handed (x right, y up), or pixels col,row with --pixel.
+    Prints L1..L11 with standard deviations, sigma0, the residuals (computed - observed) and
+    the decomposed interior and exterior orientation.
     """
     from ..camera import estimate_dlt
     from ._common import file_crs
 
     check_outputs({"POINTS": points, "IMAGE": image}, report=report, output_params=output_params)
+    if pixel and unit is not None and ImageUnit(unit).value != "px":
+        raise InputError(
+            f"--unit {ImageUnit(unit).value} with --pixel: pixel coordinates are in px (a DLT "
+            "needs no pixel size); leave --unit out or give --unit px"
+        )
+    unit = ImageUnit.px if pixel else (unit or ImageUnit.mm)
     ground_crs = file_crs(crs, "--crs", points)
     unmatched: dict = {}
     ids, g, im, mask, sigma = load_control(
         points,
         image,
         ground_cols=ground_cols,
-        image_cols=image_cols,
+        image_cols=image_cols or ("col,row" if pixel else None),
         id_col=id_col,
         sigma_col=sigma_col,
         unmatched=unmatched,
     )
+    if pixel:  # (col, row) -> the right-handed (x, y) = (col, -row) of the pixel system
+        im = im * np.array([1.0, -1.0])
     say_unmatched(unmatched, as_json)
     if sigma_all is not None:
         if sigma is not None:
@@ -647,15 +689,26 @@ def dlt_estimate(
         sigma = np.full(len(ids), float(sigma_all))
     mask = check_mask(ids, mask, check_ids)
     g_ctrl, im_ctrl, kw = split_control(ids, g, im, mask)
-    fit = estimate_dlt(
-        g_ctrl,
-        im_ctrl,
-        constrained=constrained,
-        refine=not linear,
-        unit=ImageUnit(unit).value,
-        sigma=None if sigma is None else sigma[~mask],
-        **kw,
-    )
+    from ..errors import ReflectionError
+
+    try:
+        fit = estimate_dlt(
+            g_ctrl,
+            im_ctrl,
+            constrained=constrained,
+            refine=not linear,
+            unit=ImageUnit(unit).value,
+            sigma=None if sigma is None else sigma[~mask],
+            **kw,
+        )
+    except ReflectionError as exc:  # the library's advice, and the option that does it
+        if not pixel and exc.args and isinstance(exc.args[0], str):
+            exc.args = (
+                exc.args[0] + "; for pixel coordinates (col, row, as camera project --pixel "
+                "writes them) give --pixel",
+                *exc.args[1:],
+            )
+        raise
     if ground_crs is not None:
         from dataclasses import replace
 
@@ -672,7 +725,16 @@ def dlt_estimate(
     outputs: list[tuple[Path, str]] = []
     data = fit.to_dict()
     std = _dlt_std(fit, au)  # once: each is a propagation through the decomposition
-    data["orientation"] = _orientation_json(fit.interior, fit.exterior, au, std)
+    interior = fit.interior
+    if pixel:  # image x = col, y = -row: the pixel system's origin is the image origin
+        from dataclasses import replace as _replace
+
+        interior = _replace(interior, origin_px=(0.0, 0.0))
+        data["pixel"] = {
+            "image_system": "x = col, y = -row (px; top-left pixel centre = 0,0)",
+            "principal_point_px": [float(interior.x0), float(-interior.y0)],
+        }
+    data["orientation"] = _orientation_json(interior, fit.exterior, au, std)
     if unmatched:
         data["unmatched"] = unmatched
     if output_params is not None:
@@ -692,6 +754,13 @@ def dlt_estimate(
         markup=False,
         highlight=False,
     )
+    if pixel:
+        out.print(
+            "--pixel: estimated in x = col, y = -row (px); principal point col "
+            f"{interior.x0:.6f}, row {-interior.y0:.6f} px",
+            markup=False,
+            highlight=False,
+        )
     for path, _ in outputs:
         say(f"wrote {path}", out)
 

@@ -186,7 +186,7 @@ def transform(
     if params is not None:
         from .transform import load_transform_record
 
-        T, to_rec, from_rec, _ = load_transform_record(params)
+        T, to_rec, from_rec, _, _ = load_transform_record(params)
         if inverse:
             T = T.inverse()
             to_rec, from_rec = from_rec, to_rec

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import io
 import operator
+import re
 from contextlib import nullcontext
 from enum import Enum
 from pathlib import Path
@@ -314,6 +315,14 @@ def _read_csv(
         if hit is None:
             other = next((w for c, w in _OTHER_SEPARATORS if len(header) == 1 and c in
                           header[0]), None)  # fmt: skip
+            if len(header) == 1 and _looks_like_bal(header[0]):
+                raise FileFormatError(
+                    f"{path}: its first line holds three integers ({header[0].strip()}), "
+                    "the header of a BAL file (cameras, points, observations), but it was "
+                    "read as a residuals CSV (image_id, u, v, rx, ry): a pipe cannot be "
+                    "looked at before it is read; give the BAL file itself, or save the "
+                    "stream to a file (e.g. block.bal) and give that"
+                )
             raise FileFormatError(
                 f"{path}: no column {name!r} (columns: {_listing(header)}); "
                 f"the file needs {', '.join(need)}"
@@ -453,7 +462,8 @@ def fit(
         Path,
         typer.Argument(
             help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed), "
-            "or an adjusted block (a CSV block folder or COLMAP text model, a .bal file): "
+            "or an adjusted block (a CSV block folder or COLMAP text model, a BAL file: "
+            ".bal, .bz2 or any name by its content; a pipe is read as a residuals CSV): "
             "the reprojection residuals of its tie points, the image sizes of its cameras."
         ),
     ],
@@ -691,8 +701,35 @@ _BLOCK_FILES = frozenset(
 
 def _is_block(path: Path) -> bool:
     """Whether ``grid fit``'s input is an adjusted block (a folder or a BAL file) rather
-    than a residuals CSV."""
-    return path.is_dir() or path.suffix.lower() in _BLOCK_SUFFIXES
+    than a residuals CSV: a folder, a name ending in .bal or .bz2, or a regular file whose
+    content is BAL (bzip2-compressed, or a first line of three integers: cameras, points,
+    observations). A pipe is read once and cannot be looked at first: it is a residuals
+    CSV, and :func:`_looks_like_bal` words its error."""
+    if path.is_dir() or path.suffix.lower() in _BLOCK_SUFFIXES:
+        return True
+    from ..io.sources import input_kind
+
+    if input_kind(path) != "file":
+        return False
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False  # the CSV reader names the problem
+    return head.startswith(b"BZh") or _looks_like_bal(head.decode("latin-1"))
+
+
+def _looks_like_bal(text: str) -> bool:
+    """Whether the first non-blank line of ``text`` holds three integers and nothing else,
+    as the header of a BAL file (cameras, points, observations)."""
+    for line in text.splitlines():
+        if line.strip():
+            return bool(_BAL_HEADER.fullmatch(line.strip()))
+    return False
+
+
+#: The first line of a BAL file: three non-negative integers separated by blanks.
+_BAL_HEADER = re.compile(r"\d+[ \t]+\d+[ \t]+\d+")
 
 
 def _fit_sigma_constraint(text: str | None) -> float | str | None:

@@ -407,6 +407,7 @@ def register(app: typer.Typer) -> None:
             }
         # the columns the estimate read, so that 'transform apply' names its output columns
         data["input"] = _input_record(source, target, pairs, is_check)
+        data["input"]["unit"] = unit  # of the target: the '# unit:' line of transform apply
 
         # Build every output in memory first; the files are then replaced as one.
         outputs: list[tuple[Path, str]] = []

@@ -47,6 +47,9 @@ from .camera import (
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
 
+#: Largest ``--seed``: OpenCV's generator (``cv2.setRNGSeed``) takes a C int.
+SEED_MAX = 2**31 - 1
+
 
 class Method(str, Enum):
     """Parameterisations of the relative orientation."""
@@ -94,7 +97,8 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
 
 
 @options_in_errors(
-    sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method"
+    sigma="--sigma", threshold="--threshold", pixel_size="--pixel-size", method="--method",
+    seed="--seed", alpha="--alpha",
 )
 def relative(
     points: Annotated[
@@ -147,6 +151,23 @@ def relative(
             help="Remove wrong matches (RANSAC start, data snooping); --no-robust keeps all.",
         ),
     ] = True,
+    alpha: Annotated[
+        float,
+        typer.Option(
+            help="Significance level of each point's test (w-test with --sigma, else the "
+            "tau-test), in (0, 1): data snooping and the tables flag at it (0.001: critical "
+            "w 3.29).",
+        ),
+    ] = 0.001,
+    seed: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=SEED_MAX,
+            help="Random seed of the RANSAC start (same seed, same result), an integer in "
+            f"0..{SEED_MAX}.",
+        ),
+    ] = 0,
     worst: Annotated[
         int, typer.Option(min=0, help="Number of worst y-parallaxes listed (>= 0).")
     ] = 10,
@@ -229,6 +250,8 @@ def relative(
             ids=ids,
             robust=robust,
             threshold=threshold,
+            seed=seed,
+            alpha=alpha,
         )
     except PhotogeomError as exc:
         raise _without_start_values(exc) from None

@@ -270,6 +270,9 @@ def estimate(
         "n_check": int(mask.sum()),
         "unmatched_source": list(pairs.unmatched_source),
         "unmatched_target": list(pairs.unmatched_target),
+        # the units of both sides, for the '# unit:' line of 'transform apply' (None: not given)
+        "unit": unit or None,
+        "source_unit": _source_unit(unit, source_unit, source_system) or None,
     }
 
     params = fit.to_dict()
@@ -319,7 +322,7 @@ def _check_sigma_units(
     defaults to ``px`` with ``--source-system pixel``, else to ``--unit``)."""
     if errors_in != "both" or not pairs.weights_from_sigma:
         return
-    src = source_unit or ("px" if (source_system or "").lower() == "pixel" else unit)
+    src = _source_unit(unit, source_unit, source_system)
     if src.strip().lower() == (unit or "").strip().lower():
         return
     raise InputError(
@@ -340,6 +343,12 @@ def _check_dimensions(model: str, pairs: PointPairs) -> None:
                 f"{model} works on {need}D points but the {side} columns are {','.join(cols)} "
                 f"({len(cols)}D); choose {need} columns with --{side}-cols"
             )
+
+
+def _source_unit(unit: str, source_unit: str, source_system: str | None) -> str:
+    """The unit of the source coordinates as ``--source-unit`` documents it: the option, else
+    ``px`` with ``--source-system pixel``, else ``--unit`` ("" when none is known)."""
+    return source_unit or ("px" if (source_system or "").lower() == "pixel" else unit)
 
 
 def _input_line(inputs: dict, model: str) -> str:
@@ -390,9 +399,10 @@ def load_transform(path: Path):
 
 
 def load_transform_record(path: Path):
-    """``(transformation, target CRS, source CRS, (source columns, target columns))`` of a
-    parameter JSON (see :func:`load_transform`); the CRSs and columns are None where the file
-    records none (the columns are those of the estimate, in its ``input`` section).
+    """``(transformation, target CRS, source CRS, (source columns, target columns), (source
+    unit, target unit))`` of a parameter JSON (see :func:`load_transform`); the CRSs, columns
+    and units are None where the file records none (the columns and units are those of the
+    estimate, in its ``input`` section; the target unit else its ``residual_unit``).
 
     Where the file records a row/y flip (``extras.handedness``, written by ``transform
     estimate`` for a left-handed system such as ``pixel`` paired with a right-handed one),
@@ -405,6 +415,7 @@ def load_transform_record(path: Path):
     data = read_json_object(path)
     crs = {"crs": None, "source_crs": None}
     columns = _recorded_columns(data)
+    units = _recorded_units(data)
     if isinstance(data, dict):
         for key in crs:
             value = data.get(key)
@@ -429,7 +440,22 @@ def load_transform_record(path: Path):
                 f"transformations only, but the model is {transform.name}"
             )
         transform = HandedTransform(transform, *flips)
-    return transform, crs["crs"], crs["source_crs"], columns
+    return transform, crs["crs"], crs["source_crs"], columns, units
+
+
+def _recorded_units(data) -> tuple[str | None, str | None]:
+    """``(source unit, target unit)`` of a result JSON: ``input.source_unit`` and
+    ``input.unit`` of ``transform estimate`` (and ``orient absolute``), the target unit else
+    the fit's ``residual_unit`` (None where the file records none)."""
+    if not isinstance(data, dict):
+        return None, None
+    inputs = data.get("input") if isinstance(data.get("input"), dict) else {}
+
+    def text(value) -> str | None:
+        return value.strip() if isinstance(value, str) and value.strip() else None
+
+    target = text(inputs.get("unit")) if "unit" in inputs else text(data.get("residual_unit"))
+    return text(inputs.get("source_unit")), target
 
 
 def _recorded_columns(data) -> tuple[list[str] | None, list[str] | None]:
@@ -516,6 +542,24 @@ def _flip_comment(t) -> str:
     return f"; {' and '.join(sides)} row/y negated as in the estimate (extras.handedness)"
 
 
+def _output_unit(given: str | None, recorded: str | None, params: Path, inverse: bool):
+    """The unit of the output coordinates of ``transform apply``: ``--unit``, else the one the
+    parameter file records for that side (None when neither says)."""
+    if given is None:
+        return recorded
+    text = given.strip()
+    if not text or any(c in text for c in "\r\n"):
+        raise InputError(f"--unit {given!r}: give a unit name on one line, e.g. m, mm or px")
+    if recorded is not None and text != recorded:
+        side = "source unit (--inverse transforms to it)" if inverse else "target unit"
+        raise InputError(
+            f"--unit {text}: {params} records the {side} {recorded}, the unit of the "
+            "transformed points; --unit names the unit of the output coordinates, it does "
+            "not convert them: leave --unit out"
+        )
+    return text
+
+
 def _output_columns(columns: tuple[str, ...]) -> list[str]:
     swapped = []
     for c in columns:
@@ -566,6 +610,17 @@ def apply(
             show_default=False,
         ),
     ] = None,
+    unit: Annotated[
+        str | None,
+        typer.Option(
+            "--unit",
+            help="Length unit of the output coordinates, recorded in a '# unit:' line "
+            "(default: the target unit the parameter file records, --unit of transform "
+            "estimate or orient absolute; its source unit with --inverse); refused when it "
+            "contradicts that record (it names the unit, it does not convert).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Transform the points of a CSV with saved parameters (or their inverse).
 
@@ -578,10 +633,14 @@ def apply(
     single_threaded_blas()
     from ..io import PointBlocks
 
-    transform, to_crs, from_crs, (from_cols, to_cols) = load_transform_record(params)
+    transform, to_crs, from_crs, (from_cols, to_cols), (from_unit, to_unit) = (
+        load_transform_record(params)
+    )
     if inverse:
         to_crs, from_crs = from_crs, to_crs
         to_cols, from_cols = from_cols, to_cols
+        to_unit, from_unit = from_unit, to_unit
+    out_unit = _output_unit(unit, to_unit, params, inverse)
     out_info = cartesian_crs_option(crs or to_crs, "--crs" if crs else f"{params}: crs")
     if crs is not None and to_crs is not None and not same_crs(to_crs, out_info.text):
         side = "source CRS (--inverse transforms to it)" if inverse else "target CRS"
@@ -626,6 +685,8 @@ def apply(
     ]
     if out_info is not None:
         comments.append(f"crs: {out_info.text}")
+    if out_unit is not None:
+        comments.append(f"unit: {out_unit}")
 
     def compute(block):
         return t.apply(block.coords), {}

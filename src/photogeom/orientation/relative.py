@@ -153,7 +153,8 @@ class RelativeOrientationFit(Fit):
     ``"parallax"``, ``"inliers"``, ``"statistic"`` (w or tau), ``"all_ids"``; and
     ``"epipolar_normal1"`` (unit normals of the epipolar lines in image 1: the parallax
     vector of a point is ``parallax * normal``); ``"start"`` (the essential-matrix start),
-    ``"critical_value"``, ``"test"``,
+    ``"critical_value"``, ``"alpha"`` (the significance level of the tests, which the
+    residual tables of the reports and ``to_dict()["snooping"]`` use too), ``"test"``,
     ``"removed"`` (ids removed by data snooping, in order).
     """
 
@@ -511,7 +512,8 @@ def relative_orientation(
         Largest fraction of the points that may be left out (RANSAC and data snooping
         together) before data snooping gives up and the pair is refused.
     seed : int or None
-        Seed of the RANSAC generator (reproducible results).
+        Seed of the RANSAC generator (reproducible results): an integer in 0..2**31 - 1
+        (OpenCV's generator takes a C int), or None to leave the generator as it is.
     max_iter, tol
         Gauss-Helmert controls (see :func:`~photogeom.adjust.gauss_helmert`).
 
@@ -527,7 +529,8 @@ def relative_orientation(
         Points on a line or on a critical surface, no base (pure rotation), several
         solutions (five points), a base the chosen parameterisation cannot describe.
     InputError
-        Mismatched shapes, NaN, different image units, unknown method.
+        Mismatched shapes, NaN, different image units, unknown method, ``alpha`` not in
+        (0, 1), ``seed`` not an integer in 0..2**31 - 1.
     """
     t0 = time.perf_counter()
     what = "relative orientation"
@@ -563,6 +566,10 @@ def relative_orientation(
             "points are repeated; give five or more different tie points",
         )  # fmt: skip
     sig = _sigmas(sigma, n)
+    if seed is not None and not (
+        isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**31
+    ):
+        raise InputError(f"seed must be an integer in 0..{2**31 - 1} or None, got {seed!r}")
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
     q1, q2 = _ideal(io1, p1, "xy1"), _ideal(io2, p2, "xy2")
@@ -859,6 +866,7 @@ def relative_orientation(
             "statistic": stat,
             "test": test,
             "critical_value": crit,
+            "alpha": float(alpha),
             "all_ids": all_ids,
             "removed": tuple(removed),
             "start": start_info,

@@ -4,13 +4,36 @@ console and HTML reports (so both show the same digits)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 #: Significance level of the data-snooping tests shown in reports.
 SNOOPING_ALPHA = 0.001
+
+
+def snooping_alpha(fit) -> float:
+    """Significance level of the tests shown for ``fit``: the level its estimator tested at
+    when it records one (``extras["alpha"]``, e.g. :func:`photogeom.relative_orientation`
+    with ``alpha=``), else :data:`SNOOPING_ALPHA`.
+
+    Parameters
+    ----------
+    fit : Fit
+        Any fit.
+
+    Returns
+    -------
+    float
+        The level, in (0, 1) (unitless).
+    """
+    extras = getattr(fit, "extras", None)
+    value = extras.get("alpha") if isinstance(extras, Mapping) else None
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value < 1:
+        return float(value)
+    return SNOOPING_ALPHA
+
 
 RESIDUAL_CONVENTION = "v = computed - observed"
 
@@ -181,7 +204,7 @@ def _snooping(fit, sigma: str):
     if sigma == "posterior" and not _finite(fit.sigma0):
         return None
     try:
-        return fit.snooping(alpha=SNOOPING_ALPHA, sigma=sigma)
+        return fit.snooping(alpha=snooping_alpha(fit), sigma=sigma)
     except Exception:  # a statistic that cannot be formed is simply not shown
         return None
 
