@@ -81,11 +81,14 @@ class _Cells:
         split: tuple | None = None,
     ) -> None:
         self.header = header
+        #: per column, whether each cell was quoted (set by :meth:`columns`)
+        self.quoted: list = []
         #: fields of each body row (numpy int array)
         self.widths = widths
         #: file line on which each body row starts (numpy int array)
         self.lines = lines
         self._rows = rows  # the body as rows of cells (the line-wise reader)
+        self._rows_quoted: dict[int, set[int]] = {}  # body row -> its quoted cells (rows)
         # the body as (cells of all lines split at once, index of each body row's first
         # cell there or -1, {body row: its cells} of the rows read by the csv module)
         self._split = split
@@ -94,11 +97,15 @@ class _Cells:
         """The cells of each header field, one list per column (every row must have them
         all; called once: the cells are let go)."""
         width = len(self.header)
+        self.quoted = [np.zeros(self.lines.size, dtype=bool) for _ in range(width)]
         if self._rows is not None:
             if not self._rows:
                 return [[] for _ in range(width)]
+            for i, q in self._rows_quoted.items():
+                for j in q:
+                    self.quoted[j][i] = True
             return [list(c) for c in zip(*self._rows, strict=True)]
-        pieces, first, others = self._split
+        pieces, first, others, marks = self._split
         self._split = None
         if isinstance(pieces, list):  # no quotes: the rows are slices of the cells
             if not first.size:
@@ -110,17 +117,24 @@ class _Cells:
                 return [block[j::width] for j in range(width)]
             pieces = np.array(pieces, dtype=object)
         split = np.flatnonzero(first >= 0)
-        table = pieces[first[split][:, None] + np.arange(width)]  # one gather: (rows, width)
+        at = first[split][:, None] + np.arange(width)
+        table = pieces[at]  # one gather: (rows, width)
         del pieces
+        if marks is not None:  # the whole quoted cells of the split lines
+            for j in range(width):
+                self.quoted[j][split] = marks[at[:, j]]
         if not others:
             return [table[:, j].tolist() for j in range(width)]
         out = []
         rows = np.fromiter(others, dtype=np.intp, count=len(others))
-        for j, cells in enumerate(zip(*others.values(), strict=True)):
+        for j, cells in enumerate(zip(*(c for c, _ in others.values()), strict=True)):
             column = np.empty(self.lines.size, dtype=object)
             column[split] = table[:, j]
             column[rows] = cells
             out.append(column.tolist())
+        for i, (_, q) in others.items():
+            for j in q:
+                self.quoted[j][i] = True
         return out
 
 
@@ -175,7 +189,8 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     starts = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(widths, out=starts[1:])
     pieces: list | np.ndarray = ",".join(data).split(",")  # every line at once: linear
-    others: dict[int, list[str]] = {}  # lines read by the csv module, by data line
+    others: dict[int, tuple[list[str], set[int]]] = {}  # lines read by the csv module
+    marks = None  # which pieces are whole quoted cells
     if any_quote:
         pieces = np.array(pieces, dtype=object)
         quotes = np.fromiter(
@@ -189,6 +204,8 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
             map(operator.methodcaller("count", '"'), inner), dtype=np.int64, count=two.size
         )
         pieces[two[whole == 0]] = inner[whole == 0]
+        marks = np.zeros(pieces.size, dtype=bool)
+        marks[two[whole == 0]] = True
         simple = quotes == 0
         simple[two[whole == 0]] = True
         other = np.flatnonzero(~np.logical_and.reduceat(simple, starts[:-1]))
@@ -199,7 +216,9 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
                 return _read_rows_linewise(path, comments, kept)
             if len(parsed) != other.size:  # a quoted cell spans lines
                 return _read_rows_linewise(path, comments, kept)
-            others = dict(zip(other.tolist(), parsed, strict=True))
+            others = {
+                k: (r, _quoted_fields(data[k])) for k, r in zip(other.tolist(), parsed, strict=True)
+            }
             widths[other] = np.fromiter(map(len, parsed), dtype=np.int64, count=other.size)
     del data
     # rows whose cells are all blank are skipped, as blank lines are: only a row whose first
@@ -210,7 +229,7 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     is_other[list(others)] = True
     empty = np.zeros(n, dtype=bool)
     for k in np.flatnonzero(first_blank | is_other).tolist():
-        cells = others[k] if k in others else pieces[starts[k] : starts[k + 1]]
+        cells = others[k][0] if k in others else pieces[starts[k] : starts[k + 1]]
         empty[k] = not "".join(list(cells)).strip()
     rows = np.flatnonzero(~empty)
     if comments is not None:
@@ -218,7 +237,7 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     if not rows.size:
         raise FileFormatError(f"{path}: empty file")
     top = int(rows[0])
-    header = others[top] if top in others else list(pieces[starts[top] : starts[top + 1]])
+    header = others[top][0] if top in others else list(pieces[starts[top] : starts[top + 1]])
     body = rows[1:]
     first_cell = starts[body]
     in_body = np.flatnonzero(is_other[body])  # body rows read by the csv module
@@ -227,8 +246,33 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
         [c.strip() for c in header],
         widths[body],
         keep[body] + 1,
-        split=(pieces, first_cell, {i: others[int(body[i])] for i in in_body.tolist()}),
+        split=(pieces, first_cell, {i: others[int(body[i])] for i in in_body.tolist()}, marks),
     )
+
+
+def _quoted_fields(record: str) -> set[int]:
+    """Which cells of a CSV record (a line, or the lines of a record with a quoted line
+    break) are quoted: those whose first character is a quote, as the csv module reads
+    them; the record is one the csv module has read."""
+    out: set[int] = set()
+    pos, k, n = 0, 0, len(record)
+    try:
+        while True:
+            if pos < n and record[pos] == '"':
+                out.add(k)
+                pos += 1
+                while True:  # to the closing quote (a doubled quote is one inside)
+                    q = record.index('"', pos)
+                    if record[q + 1 : q + 2] != '"':
+                        pos = q + 1
+                        break
+                    pos = q + 2
+            c = record.find(",", pos)
+            if c < 0:
+                return out
+            pos, k = c + 1, k + 1
+    except ValueError:  # a quote left open: the csv module's reading stands, unmarked
+        return out
 
 
 def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | None) -> _Cells:
@@ -237,6 +281,8 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
     bytes of a pipe already read (a pipe cannot be opened again), else the file is opened."""
     rows, lines = [], []
     physical: list[int] = []  # file line of each line handed to the csv reader
+    raw: list[str] = []  # and its text
+    quoted: list[set[int]] = []  # the quoted cells of each row
 
     def data_lines(fh):
         for number, line in enumerate(fh, start=1):
@@ -245,6 +291,7 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
                     comments.append(line.strip()[1:].strip())
                 continue
             physical.append(number)
+            raw.append(line)
             yield line
 
     start = 0  # the csv reader's count of lines before the row being read
@@ -259,6 +306,8 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
                 if r and any(c.strip() for c in r):
                     rows.append(r)
                     lines.append(physical[start])
+                    text = "".join(raw[start : reader.line_num]) if '"' in raw[start] else ""
+                    quoted.append(_quoted_fields(text) if '"' in text else set())
                 start = reader.line_num
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
@@ -274,12 +323,14 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
     if not rows:
         raise FileFormatError(f"{path}: empty file")
     body = rows[1:]
-    return _Cells(
+    cells = _Cells(
         [c.strip() for c in rows[0]],
         np.fromiter(map(len, body), dtype=np.int64, count=len(body)),
         np.asarray(lines[1:], dtype=np.int64),
         rows=body,
     )
+    cells._rows_quoted = {i: q for i, q in enumerate(quoted[1:]) if q}
+    return cells
 
 
 #: Separators of other CSV dialects, named in the message of a header that holds one.
@@ -294,7 +345,10 @@ def _listing(names: list[str], most: int = 20) -> str:
 
 
 def _read_csv(
-    path: Path, need: tuple[str, ...], comments: list[str] | None = None
+    path: Path,
+    need: tuple[str, ...],
+    comments: list[str] | None = None,
+    quoted: list | None = None,
 ) -> tuple[list[str], list, dict, np.ndarray]:
     """Header, columns (one object array of str per header field), the column index of each
     needed column (case-insensitive) and the file line on which each row starts (blank lines
@@ -302,8 +356,10 @@ def _read_csv(
 
     Lines that begin with ``#`` are comments, as in every point file of photogeom (the
     observations.csv of a block folder starts with one); their text is appended to
-    ``comments`` when a list is given. Reading is linear in the file size: see
-    :func:`_read_cells`."""
+    ``comments`` when a list is given. ``quoted``, when a list is given, receives one
+    boolean array per column: which of its cells were quoted (a quoted cell is its text
+    exactly, as in a block folder: see :func:`_ids`). Reading is linear in the file size:
+    see :func:`_read_cells`."""
     cells = _read_cells(path, comments)
     header = cells.header
     low = [c.lower() for c in header]
@@ -331,7 +387,21 @@ def _read_csv(
         raise FileFormatError(
             f"{path}: line {cells.lines[k]} has {cells.widths[k]} fields, the header {len(header)}"
         )
-    return header, cells.columns(), col, cells.lines
+    columns = cells.columns()
+    if quoted is not None:
+        quoted.extend(cells.quoted)
+    return header, columns, col, cells.lines
+
+
+def _ids(cells: list[str], quoted: np.ndarray) -> list[str]:
+    """Image ids of a CSV column by the rules of a block folder: a quoted cell is its text
+    exactly (white space at its ends kept), an unquoted one is stripped of white space."""
+    if not np.any(quoted):
+        return list(map(str.strip, cells))
+    out = np.array(cells, dtype=object)
+    plain = np.flatnonzero(~quoted)
+    out[plain] = list(map(str.strip, out[plain].tolist()))
+    return out.tolist()
 
 
 def _numbers(path: Path, cells, name: str, lines: np.ndarray) -> np.ndarray:
@@ -796,13 +866,14 @@ def _fit_csv(
         )
     size = _image_size(image_size)
     s_c = 1.0 if sigma_constraint is None else sigma_constraint
-    _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"))
+    quoted: list = []
+    _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"), None, quoted)
     if not lines.size:
         raise FileFormatError(
             f"no residuals in {path}: the file has a header and no rows; it needs one "
             "row per observation (image_id, u, v, rx, ry)"
         )
-    ids = list(map(str.strip, columns[col["image_id"]]))
+    ids = _ids(columns[col["image_id"]], quoted[col["image_id"]])
     data = np.stack(
         [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
         axis=1,
@@ -1004,8 +1075,11 @@ def apply(
 
     grids = load_grids(grids_file)
     comments: list[str] = []
-    header, columns, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
-    ids = list(map(str.strip, columns[col["image_id"]]))
+    quoted: list = []
+    header, columns, col, lines = _read_csv(
+        observations, ("image_id", "u", "v"), comments, quoted
+    )
+    ids = _ids(columns[col["image_id"]], quoted[col["image_id"]])
     uv = np.stack([_numbers(observations, columns[col[c]], c, lines) for c in ("u", "v")], axis=1)
     per_image = _groups(ids)
     key_of, missing = match_grid_ids(per_image, grids)  # CSV text against integer ids too
@@ -1028,9 +1102,10 @@ def apply(
     new = uv.copy()
     for k, r in per_image.items():
         new[r] = corrected[k]
-    # the cells as read, u and v replaced; each column formatted at once, rows joined
+    # the cells as read (quoted ones quoted again), u and v replaced; each column formatted
+    # at once, rows joined
     for j in range(len(columns)):
-        columns[j] = _csv_column(columns[j])
+        columns[j] = _csv_column(columns[j], quoted[j])
     columns[col["u"]] = list(map(repr, new[:, 0].tolist()))
     columns[col["v"]] = list(map(repr, new[:, 1].tolist()))
     out = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
@@ -1049,13 +1124,21 @@ def _csv_cell(text: str) -> str:
     return text
 
 
-def _csv_column(cells) -> list[str]:
-    """The cells of one column formatted by :func:`_csv_cell`; a column without a character
-    that needs quotes (one search of its joined text) is returned as it is."""
+def _csv_column(cells, quoted=None) -> list[str]:
+    """The cells of one column formatted by :func:`_csv_cell`, the cells marked in
+    ``quoted`` (the ones quoted in the file read: their text is exact, white space at the
+    ends and integer form included) quoted in any case; a column without a character that
+    needs quotes (one search of its joined text) and without marks is returned as it is."""
     joined = "".join(cells)
-    if not any(ch in joined for ch in ',"\r\n#'):
+    marked = quoted is not None and bool(np.any(quoted))
+    if not marked and not any(ch in joined for ch in ',"\r\n#'):
         return cells
-    return list(map(_csv_cell, cells))
+    if not marked:
+        return list(map(_csv_cell, cells))
+    out = np.array(list(map(_csv_cell, cells)), dtype=object)
+    again = np.array(cells, dtype=object)[quoted]
+    out[quoted] = ['"' + c + '"' for c in map(operator.methodcaller("replace", '"', '""'), again)]
+    return out.tolist()
 
 
 def _scheduler_mode(scheduler: str, workers: int) -> tuple[bool | str, int]:
