@@ -31,7 +31,7 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
   v down; ``sigma`` pixels (optional column; default ``sigma`` of the reader).
 * Ids are integers when every id of a column is written as one (``7``, not ``07`` or
   ``+7``) and none is quoted, otherwise text; the observations' ids are read as the kind of
-  the ids they refer to.
+  the ids they refer to. ``-0`` reads as 0; ``-0`` and ``0`` in one id column are refused.
 * A cell in double quotes (inner quotes doubled) is its text exactly: not a comment, not
   stripped, text even in integer form. The writer quotes the text ids the reader would
   otherwise change (white space at either end, a leading ``#``, a comma, a quote, integer
@@ -372,6 +372,13 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     if np.any(counts > 1):
         k = int(first[counts > 1][0])
         again = int(np.flatnonzero(ids == ids[k])[1])
+        if cells[again] != cells[k]:  # "-0" and "0": one integer, two spellings
+            raise FileFormatError(
+                f"{table.path}, line {table.lines[again]}: {name} {cells[again]!r} is the "
+                f"integer {int(ids[k])}, as {cells[k]!r} on line {table.lines[k]}: the ids of "
+                "an integer column are numbers, so the two rows would be one; give them "
+                "different ids, or quote the ids to make them text"
+            )
         raise FileFormatError(
             f"{table.path}, line {table.lines[again]}: {name} {cells[k]!r} appears twice "
             f"(first on line {table.lines[k]})"
