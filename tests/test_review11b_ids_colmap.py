@@ -119,3 +119,43 @@ def test_renamed_images_are_numbered_as_before(tmp_path):
     out = write_colmap(b, tmp_path / "out")
     assert [h[0] for h in _heads(out)] == [1, 2, 3, 4, 5, 6]
     assert [h[2] for h in _heads(out)] == [f"new{k}" for k in range(6)]
+
+
+@pytest.mark.parametrize("image_key", ["name", "id"])
+def test_colmap_csv_adjust_colmap_keeps_ids(tmp_path, image_key):
+    """Through a CSV block (a person edits it), the images.csv columns colmap_image_id and
+    colmap_name carry IMAGE_ID and NAME back to COLMAP."""
+    src = _model(tmp_path / "in")
+    block = read_colmap(src, image_key=image_key)
+    pg.bundle.write_csv_block(block, tmp_path / "csv")
+    text = (tmp_path / "csv" / "images.csv").read_text()
+    assert "colmap_image_id,colmap_name" in text
+    fit = pg.bundle_adjust(pg.bundle.read_csv_block(tmp_path / "csv"), datum="free")
+    out = write_colmap(fit.block, tmp_path / "out")
+    assert _heads(out) == list(zip(IMAGE_IDS, CAMERA_IDS, NAMES))
+    assert _point_ids(out) == _point_ids(src)
+
+
+def _csv_with(tmp_path, edit) -> Path:
+    pg.bundle.write_csv_block(read_colmap(_model(tmp_path / "in")), tmp_path / "csv")
+    f = tmp_path / "csv" / "images.csv"
+    f.write_text(edit(f.read_text()))
+    return tmp_path / "csv"
+
+
+@pytest.mark.parametrize(
+    "edit,match",
+    [
+        (lambda t: t.replace(",colmap_name", ",name"), "colmap_name is missing"),
+        (lambda t: t.replace(",205,", ",101,"), r"line 4: colmap_image_id '101'"),
+        (lambda t: t.replace(",205,", ",-1,"), r"colmap_image_id '-1': COLMAP image ids"),
+        (lambda t: t.replace(",205,", ',"205",'), r"quoted cells.*write them unquoted"),
+        (lambda t: t.replace(",205,", ",0205,"), r"line 4: colmap_image_id '0205'"),
+    ],
+)
+def test_colmap_columns_refused_with_named_errors(tmp_path, edit, match):
+    from photogeom.errors import FileFormatError
+
+    d = _csv_with(tmp_path, edit)
+    with pytest.raises(FileFormatError, match=match):
+        pg.bundle.read_csv_block(d)

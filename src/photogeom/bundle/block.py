@@ -289,9 +289,10 @@ class Block:
         and compares its check points with the survey (:attr:`surveyed_xyz`).
     colmap_images : ColmapImages or None
         COLMAP's ``IMAGE_ID`` and ``NAME`` of the images of a block read from a COLMAP text
-        model (the one of them that is not the image id), which
+        model (both, whichever of them the image ids are), which
         :func:`~photogeom.bundle.write_colmap` writes back; default None. Kept by
-        :meth:`replace` and the adjustment; ignored by the other writers.
+        :meth:`replace` and the adjustment; a CSV block keeps it in the ``images.csv``
+        columns ``colmap_image_id`` and ``colmap_name``; BAL has no place for it.
     """
 
     camera_ids: np.ndarray
