@@ -121,3 +121,17 @@ def test_reader_marks_quoted_cells_on_every_path(tmp_path, body):
     assert ids[:2] == [" a ", "b"]
     if len(ids) > 2:
         assert ids[2] in ("c,d", "c\nd")
+
+
+def test_apply_minus_zero_finds_the_grid_of_integer_image_zero(cli, tmp_path):
+    """A block folder reads an observation's -0 as image 0 of an integer column; grid apply
+    found no grid for it ("no grid ... for image(s) -0") although grid fit had fitted it."""
+    grids = _grids(tmp_path, [0, 1])
+    obs = tmp_path / "obs.csv"
+    obs.write_text("image_id,point_id,u,v\n-0,1,10,20\n1,2,30,40\n")
+    code, _, err = cli("grid", "apply", grids, obs, "-o", tmp_path / "out.csv")
+    assert code == 0, err
+    (tmp_path / "t").mkdir()
+    text_grids = _grids(tmp_path / "t", ["0", "1"])
+    code, _, err = cli("grid", "apply", text_grids, obs, "-o", tmp_path / "out2.csv")
+    assert code != 0 and "for image(s) -0" in err  # the text "0" is another id
