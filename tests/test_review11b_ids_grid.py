@@ -135,3 +135,17 @@ def test_apply_minus_zero_finds_the_grid_of_integer_image_zero(cli, tmp_path):
     text_grids = _grids(tmp_path / "t", ["0", "1"])
     code, _, err = cli("grid", "apply", text_grids, obs, "-o", tmp_path / "out2.csv")
     assert code != 0 and "for image(s) -0" in err  # the text "0" is another id
+
+
+def test_exclude_takes_quoted_ids(cli, tmp_path, block_dir):
+    """--exclude " im0 " was stripped to im0: "no image im0 (its images:  im0 , ...)"; a
+    quoted id is now taken exactly, as in the CSV, and the message quotes the ids."""
+    grids = tmp_path / "g.json"
+    code, _, err = cli("grid", "fit", block_dir, "-o", grids, "--spacing", "400",
+                       "--exclude", '" im0 ","a,b"')  # fmt: skip
+    assert code == 0, err
+    assert sorted(load_grids(grids)) == sorted(set(IDS) - {" im0 ", "a,b"})
+    code, _, err = cli("grid", "fit", block_dir, "-o", grids, "--spacing", "400",
+                       "--exclude", " im0 ")  # fmt: skip
+    assert code == 2
+    assert 'no image im0' in err and '" im0 "' in err and '"a,b"' in err

@@ -589,7 +589,8 @@ def fit(
         str | None,
         typer.Option(
             help="Image ids to leave out, comma-separated (e.g. images with too few "
-            "residuals for the spacing); they get no grid."
+            'residuals for the spacing); they get no grid. Quote an id with white space at '
+            "its ends or a comma, as in the CSV: '\" im0 \",IMG_7'."
         ),
     ] = None,
     report: ReportOpt = None,
@@ -623,7 +624,7 @@ def fit(
         border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support,
         max_snooping_rounds=max_snooping_rounds,
     )  # fmt: skip
-    left_out = list(dict.fromkeys(split_names(exclude) or []))  # an id given twice: once
+    left_out = list(dict.fromkeys(_exclude_ids(exclude)))  # an id given twice: once
     if not residuals.exists():
         raise FileFormatError(
             f"{residuals}: no such file or folder (give a residuals CSV or an adjusted block)"
@@ -914,14 +915,43 @@ def _fit_csv(
         raise _reworded(exc, _cli_words) from None
 
 
+def _exclude_ids(text: str | None) -> list[str]:
+    """The image ids of --exclude: comma-separated as a CSV line, a quoted id exactly
+    (``" im0 ",IMG_7``: white space at the ends, commas kept), others stripped; without a
+    quote, semicolons separate too (as in the other name lists)."""
+    if text is None:
+        return []
+    if '"' not in text:
+        return split_names(text) or []
+    try:
+        cells = next(csv.reader([text], strict=True), [])
+    except csv.Error:
+        raise InputError(
+            f"--exclude {text!r}: a quote is not closed, or text follows a closing quote; "
+            'quote an id whole, inner quotes doubled (" im0 ",IMG_7)'
+        ) from None
+    quoted = _quoted_fields(text)
+    ids = [c if k in quoted else c.strip() for k, c in enumerate(cells)]
+    return [c for k, c in enumerate(ids) if c or k in quoted]
+
+
+def _id_text(image_id: str) -> str:
+    """An id as --exclude takes it: quoted when white space at its ends, a comma, a quote
+    or a semicolon would change it."""
+    if image_id != image_id.strip() or any(ch in image_id for ch in ',";') or not image_id:
+        return '"' + image_id.replace('"', '""') + '"'
+    return image_id
+
+
 def _refuse_unknown(exclude: list[str], ids: list[str], path: Path) -> None:
     """Refuse --exclude ids that name no image of the input (a typo would fit them)."""
     known = set(ids)
     unknown = [k for k in exclude if k not in known]
     if unknown:
         raise InputError(
-            f"--exclude: no image {', '.join(unknown[:5])} in {path} (its images: "
-            f"{', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})"
+            f"--exclude: no image {', '.join(map(_id_text, unknown[:5]))} in {path} (its "
+            f"images: {', '.join(map(_id_text, ids[:10]))}{' ...' if len(ids) > 10 else ''}; "
+            'quote ids with white space at the ends or a comma: --exclude \'" im0 ",IMG_7\')'
         )
     if ids and known <= set(exclude):
         raise InputError(f"--exclude leaves no image of {path} to fit")
