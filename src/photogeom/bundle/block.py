@@ -173,6 +173,64 @@ class Observations:
 
 
 @dataclass(frozen=True, eq=False)
+class ColmapImages:
+    """The COLMAP identity of the images of a block read from a COLMAP text model.
+
+    COLMAP's ``IMAGE_ID`` and ``CAMERA_ID`` are keys of its database and ``NAME`` the image's
+    file name; a block keys its images by one of ``IMAGE_ID`` and ``NAME`` only
+    (``read_colmap(image_key=...)``). :func:`~photogeom.bundle.write_colmap` writes the other
+    one back from here, so that a read-adjust-write round trip keeps both.
+
+    Attributes
+    ----------
+    keys : numpy.ndarray, shape (k,)
+        Block image ids (``Block.image_ids`` as read).
+    image_id : numpy.ndarray of int64, shape (k,)
+        COLMAP's ``IMAGE_ID`` of each key.
+    name : numpy.ndarray of str, shape (k,)
+        COLMAP's ``NAME`` of each key.
+    """
+
+    keys: np.ndarray
+    image_id: np.ndarray
+    name: np.ndarray
+
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
+
+    def lookup(self, image_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``IMAGE_ID`` and ``NAME`` of each of ``image_ids`` (vectorised).
+
+        Parameters
+        ----------
+        image_ids : numpy.ndarray, shape (m,)
+            Block image ids.
+
+        Returns
+        -------
+        tuple of numpy.ndarray (m,), or None
+            The COLMAP ids and names, or None when one of ``image_ids`` is not a key (a
+            block whose images were renamed or added after reading).
+        """
+        keys = self.keys
+        if image_ids.size == 0 or keys.size == 0:
+            return None
+        if keys.dtype.kind != image_ids.dtype.kind and not (
+            keys.dtype.kind in "iu" and image_ids.dtype.kind in "iu"
+        ):
+            return None
+        order = np.argsort(keys, kind="stable")
+        pos = np.clip(np.searchsorted(keys[order], image_ids), 0, keys.size - 1)
+        if not np.all(keys[order][pos] == image_ids):
+            return None
+        row = order[pos]
+        return self.image_id[row], self.name[row]
+
+
+@dataclass(frozen=True, eq=False)
 class Block:
     """An image block (see the module docstring). Build with :meth:`from_arrays`.
 
@@ -229,6 +287,12 @@ class Block:
         check points triangulated), so an adjusted block adjusted again observes its
         control points where they were surveyed, not where the first adjustment put them,
         and compares its check points with the survey (:attr:`surveyed_xyz`).
+    colmap_images : ColmapImages or None
+        COLMAP's ``IMAGE_ID`` and ``NAME`` of the images of a block read from a COLMAP text
+        model (both, whichever of them the image ids are), which
+        :func:`~photogeom.bundle.write_colmap` writes back; default None. Kept by
+        :meth:`replace` and the adjustment; a CSV block keeps it in the ``images.csv``
+        columns ``colmap_image_id`` and ``colmap_name``; BAL has no place for it.
     """
 
     camera_ids: np.ndarray
@@ -252,6 +316,7 @@ class Block:
     image_variant: Mapping[object, tuple[str, ...]]
     crs: str | None = None
     surveyed: np.ndarray | None = None
+    colmap_images: ColmapImages | None = None
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)

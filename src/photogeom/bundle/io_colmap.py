@@ -36,9 +36,11 @@ COLMAP's conventions and how photogeom maps them:
   point (``POINT3D_ID = -1``) are not observations and are not kept. Colours and COLMAP's ``ERROR``
   are not kept (written as 0 and -1).
 * Ids: camera groups are COLMAP's ``CAMERA_ID``, points its ``POINT3D_ID``; images are keyed
-  by ``NAME`` (default) or ``IMAGE_ID`` (``image_key="id"``). The writer keeps integer ids
-  (non-negative) and numbers other ids 1, 2, ... in block order (image ids that are text go
-  to ``NAME``).
+  by ``NAME`` (default) or ``IMAGE_ID`` (``image_key="id"``), and the block keeps both in
+  ``Block.colmap_images``. The writer writes the ``IMAGE_ID`` and ``NAME`` kept there when
+  every image of the block has them (a read-adjust-write round trip keeps every id and name
+  whichever the key); otherwise it keeps integer ids (non-negative) and numbers other ids
+  1, 2, ... in block order (image ids that are text go to ``NAME``).
 """
 
 from __future__ import annotations
@@ -60,7 +62,7 @@ from ._textio import (
     split_numeric_lines,
     split_numeric_tokens,
 )
-from .block import Block
+from .block import Block, ColmapImages
 from .io_bal import refuse_extras
 
 #: Parameters of each supported COLMAP model (COLMAP's order).
@@ -496,7 +498,7 @@ def read_colmap(
     exterior = np.column_stack([X0, opk_from_rotations(M)])
     m = image_id.size
     ids = names if image_key == "name" else image_id
-    return Block.from_arrays(
+    block = Block.from_arrays(
         cameras=cams,
         image_ids=ids,
         image_camera=cam_id,
@@ -509,6 +511,8 @@ def read_colmap(
         sigma=sigma,
         free=free,
     )
+    # the other one of IMAGE_ID and NAME, for the writer (database keys and file names)
+    return block.replace(colmap_images=ColmapImages(block.image_ids, image_id, names))
 
 
 # --- writing ---------------------------------------------------------------------------------
@@ -599,10 +603,19 @@ def colmap_texts(
         cams_txt.append(f"{cid} {mdl} {c.width} {c.height} {' '.join(q)}")
     # images
     m = block.n_images
-    iid = _int_ids(block.image_ids, _UINT32_MAX)
-    if iid is None:
-        iid = np.arange(1, m + 1, dtype=np.int64)
-    inames = block.image_ids.astype(str)
+    kept = None if block.colmap_images is None else block.colmap_images.lookup(block.image_ids)
+    if kept is not None:  # read from COLMAP: its IMAGE_ID and NAME, whichever was the key
+        iid, inames = kept[0].astype(np.int64), kept[1].astype(str)
+        if iid.min() < 0 or iid.max() >= _UINT32_MAX or np.unique(iid).size != m:
+            raise InputError(
+                "block.colmap_images gives IMAGE_IDs that are repeated or not COLMAP ids "
+                f"{_ID_RANGE}; pass block.replace(colmap_images=None) to number the images"
+            )
+    else:
+        iid = _int_ids(block.image_ids, _UINT32_MAX)
+        if iid is None:
+            iid = np.arange(1, m + 1, dtype=np.int64)
+        inames = block.image_ids.astype(str)
     spaced = [s for s in inames.tolist() if not s or len(s.split()) != 1]
     if spaced:
         raise InputError(

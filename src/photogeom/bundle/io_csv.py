@@ -31,7 +31,9 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
   v down; ``sigma`` pixels (optional column; default ``sigma`` of the reader).
 * Ids are integers when every id of a column is written as one (``7``, not ``07`` or
   ``+7``) and none is quoted, otherwise text; the observations' ids are read as the kind of
-  the ids they refer to.
+  the ids they refer to. ``-0`` reads as 0; ``-0`` and ``0`` in one id column are refused.
+* ``images.csv`` columns ``colmap_image_id`` and ``colmap_name`` (both or neither) hold
+  ``Block.colmap_images`` (COLMAP's IMAGE_ID and NAME of a block read from COLMAP).
 * A cell in double quotes (inner quotes doubled) is its text exactly: not a comment, not
   stripped, text even in integer form. The writer quotes the text ids the reader would
   otherwise change (white space at either end, a leading ``#``, a comma, a quote, integer
@@ -62,7 +64,7 @@ from ..errors import FileFormatError, InputError, OutputError
 from ..numbers import decimal_comma_hint
 from ..units import from_radians, normalize_angle_unit, to_radians
 from ._textio import format_floats, read_text
-from .block import CALIBRATION_NAMES, Block
+from .block import CALIBRATION_NAMES, Block, ColmapImages
 
 FILES = ("cameras.csv", "images.csv", "points.csv", "observations.csv")
 _INT = re.compile(r"-?(?:0|[1-9][0-9]*)")
@@ -372,6 +374,13 @@ def _id_array(cells: list[str], table: _Table, name: str) -> np.ndarray:
     if np.any(counts > 1):
         k = int(first[counts > 1][0])
         again = int(np.flatnonzero(ids == ids[k])[1])
+        if cells[again] != cells[k]:  # "-0" and "0": one integer, two spellings
+            raise FileFormatError(
+                f"{table.path}, line {table.lines[again]}: {name} {cells[again]!r} is the "
+                f"integer {int(ids[k])}, as {cells[k]!r} on line {table.lines[k]}: the ids of "
+                "an integer column are numbers, so the two rows would be one; give them "
+                "different ids, or quote the ids to make them text"
+            )
         raise FileFormatError(
             f"{table.path}, line {table.lines[again]}: {name} {cells[k]!r} appears twice "
             f"(first on line {table.lines[k]})"
@@ -577,6 +586,7 @@ def read_csv_block(
     imu = _angles(ti, [f"imu_{a}" for a in _EO_ANGLES], optional=True)
     if imu is not None:
         imu_s = _angles(ti, [f"imu_s{a}" for a in _EO_ANGLES], optional=False, empty_cells=True)
+    colmap = _colmap_images(ti, img_ids)
     tp = _read_table(d / "points.csv")
     pt_ids = _id_array(tp.col("id"), tp, "id")
     xyz = np.column_stack([tp.floats(n) for n in ("X", "Y", "Z")])
@@ -640,7 +650,49 @@ def read_csv_block(
         )
     except InputError as exc:
         raise FileFormatError(f"{d}: {exc}") from None
+    if colmap is not None:
+        block = block.replace(colmap_images=colmap)
     return block if surveyed is None else block.replace(surveyed=surveyed)
+
+
+def _colmap_images(ti: _Table, img_ids: np.ndarray) -> ColmapImages | None:
+    """``Block.colmap_images`` from the columns ``colmap_image_id`` and ``colmap_name`` of
+    images.csv (both or neither), or None."""
+    has = [ti.has(n) for n in ("colmap_image_id", "colmap_name")]
+    if not any(has):
+        return None
+    if not all(has):
+        missing = "colmap_name" if has[0] else "colmap_image_id"
+        raise FileFormatError(
+            f"{ti.path}: a COLMAP image identity needs both columns colmap_image_id and "
+            f"colmap_name; {missing} is missing (add it, or remove the other)"
+        )
+    cells = ti.col("colmap_image_id")
+    if ti.any_quoted("colmap_image_id"):
+        raise FileFormatError(
+            f"{ti.path}: column colmap_image_id holds quoted cells; COLMAP image ids are "
+            "integers: write them unquoted"
+        )
+    num = _canonical_ints(cells)
+    if num is None:  # not integers as written, or beyond 64 bits
+        bad = np.array(
+            [len(c) > 10 or not _INT.fullmatch(c) or c != str(int(c)) for c in cells], dtype=bool
+        )
+        k = int(np.argmax(bad))  # the first such cell
+    else:
+        bad = (num < 0) | (num >= 2**32 - 1)
+        _, first, counts = np.unique(num, return_index=True, return_counts=True)
+        for j in first[counts > 1].tolist():  # a repeated id: its second row
+            bad[np.flatnonzero(num == num[j])[1]] = True
+        k = int(np.argmax(bad))
+    if num is None or np.any(bad):
+        raise FileFormatError(
+            f"{ti.path}, line {ti.lines[k]}: colmap_image_id {_short(cells[k])!r}: COLMAP "
+            "image ids are distinct integers from 0 to 4294967294 (written as such, "
+            "unquoted)"
+        )
+    names = np.array(ti.col("colmap_name"), dtype=str)
+    return ColmapImages(img_ids, num, names)
 
 
 def _refuse_repeated_observations(image: np.ndarray, point: np.ndarray, table: _Table) -> None:
@@ -763,6 +815,13 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
         header += [f"imu_s{a}_{unit}" for a in _EO_ANGLES]
         im, ims = from_radians(block.imu, unit), from_radians(block.imu_sigma, unit)
         cols += [_cells(im[:, k]) for k in range(3)] + [_cells(ims[:, k]) for k in range(3)]
+    kept = None if block.colmap_images is None else block.colmap_images.lookup(block.image_ids)
+    if kept is not None:  # read from COLMAP: its IMAGE_ID and NAME, for write_colmap
+        header += ["colmap_image_id", "colmap_name"]
+        cols += [
+            list(map(str, kept[0].tolist())),
+            _id_cells(np.asarray(kept[1]).astype(str), "COLMAP image name"),
+        ]
     imgs = _csv(
         header,
         cols,

@@ -76,7 +76,8 @@ def match_grid_ids(ids: Iterable, grids: Mapping) -> tuple[dict, list]:
 
     The text match serves grids files written before image ids kept their type (text ids
     against a block's integer ids) and text ids (a CSV's) against integer grid ids. It is
-    used only when unambiguous: one grid key with that text, one id with that text.
+    used only when unambiguous: one grid key with that text, one id with that text. A text
+    id ``-0`` is the integer grid id 0, as a CSV block folder reads it.
 
     Parameters
     ----------
@@ -104,6 +105,8 @@ def match_grid_ids(ids: Iterable, grids: Mapping) -> tuple[dict, list]:
             found[i] = i
             continue
         same = by_text.get(str(i), [])
+        if not same and i == "-0":  # integer form: the integer 0 (never the text "0")
+            same = [k for k in by_text.get("0", []) if isinstance(k, (int, np.integer))]
         if len(same) == 1 and texts[str(i)] == 1:
             found[i] = same[0]
         else:

@@ -82,11 +82,14 @@ class _Cells:
         split: tuple | None = None,
     ) -> None:
         self.header = header
+        #: per column, whether each cell was quoted (set by :meth:`columns`)
+        self.quoted: list = []
         #: fields of each body row (numpy int array)
         self.widths = widths
         #: file line on which each body row starts (numpy int array)
         self.lines = lines
         self._rows = rows  # the body as rows of cells (the line-wise reader)
+        self._rows_quoted: dict[int, set[int]] = {}  # body row -> its quoted cells (rows)
         # the body as (cells of all lines split at once, index of each body row's first
         # cell there or -1, {body row: its cells} of the rows read by the csv module)
         self._split = split
@@ -95,11 +98,15 @@ class _Cells:
         """The cells of each header field, one list per column (every row must have them
         all; called once: the cells are let go)."""
         width = len(self.header)
+        self.quoted = [np.zeros(self.lines.size, dtype=bool) for _ in range(width)]
         if self._rows is not None:
             if not self._rows:
                 return [[] for _ in range(width)]
+            for i, q in self._rows_quoted.items():
+                for j in q:
+                    self.quoted[j][i] = True
             return [list(c) for c in zip(*self._rows, strict=True)]
-        pieces, first, others = self._split
+        pieces, first, others, marks = self._split
         self._split = None
         if isinstance(pieces, list):  # no quotes: the rows are slices of the cells
             if not first.size:
@@ -111,17 +118,24 @@ class _Cells:
                 return [block[j::width] for j in range(width)]
             pieces = np.array(pieces, dtype=object)
         split = np.flatnonzero(first >= 0)
-        table = pieces[first[split][:, None] + np.arange(width)]  # one gather: (rows, width)
+        at = first[split][:, None] + np.arange(width)
+        table = pieces[at]  # one gather: (rows, width)
         del pieces
+        if marks is not None:  # the whole quoted cells of the split lines
+            for j in range(width):
+                self.quoted[j][split] = marks[at[:, j]]
         if not others:
             return [table[:, j].tolist() for j in range(width)]
         out = []
         rows = np.fromiter(others, dtype=np.intp, count=len(others))
-        for j, cells in enumerate(zip(*others.values(), strict=True)):
+        for j, cells in enumerate(zip(*(c for c, _ in others.values()), strict=True)):
             column = np.empty(self.lines.size, dtype=object)
             column[split] = table[:, j]
             column[rows] = cells
             out.append(column.tolist())
+        for i, (_, q) in others.items():
+            for j in q:
+                self.quoted[j][i] = True
         return out
 
 
@@ -176,7 +190,8 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     starts = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(widths, out=starts[1:])
     pieces: list | np.ndarray = ",".join(data).split(",")  # every line at once: linear
-    others: dict[int, list[str]] = {}  # lines read by the csv module, by data line
+    others: dict[int, tuple[list[str], set[int]]] = {}  # lines read by the csv module
+    marks = None  # which pieces are whole quoted cells
     if any_quote:
         pieces = np.array(pieces, dtype=object)
         quotes = np.fromiter(
@@ -190,6 +205,8 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
             map(operator.methodcaller("count", '"'), inner), dtype=np.int64, count=two.size
         )
         pieces[two[whole == 0]] = inner[whole == 0]
+        marks = np.zeros(pieces.size, dtype=bool)
+        marks[two[whole == 0]] = True
         simple = quotes == 0
         simple[two[whole == 0]] = True
         other = np.flatnonzero(~np.logical_and.reduceat(simple, starts[:-1]))
@@ -200,7 +217,9 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
                 return _read_rows_linewise(path, comments, kept)
             if len(parsed) != other.size:  # a quoted cell spans lines
                 return _read_rows_linewise(path, comments, kept)
-            others = dict(zip(other.tolist(), parsed, strict=True))
+            others = {
+                k: (r, _quoted_fields(data[k])) for k, r in zip(other.tolist(), parsed, strict=True)
+            }
             widths[other] = np.fromiter(map(len, parsed), dtype=np.int64, count=other.size)
     del data
     # rows whose cells are all blank are skipped, as blank lines are: only a row whose first
@@ -211,7 +230,7 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     is_other[list(others)] = True
     empty = np.zeros(n, dtype=bool)
     for k in np.flatnonzero(first_blank | is_other).tolist():
-        cells = others[k] if k in others else pieces[starts[k] : starts[k + 1]]
+        cells = others[k][0] if k in others else pieces[starts[k] : starts[k + 1]]
         empty[k] = not "".join(list(cells)).strip()
     rows = np.flatnonzero(~empty)
     if comments is not None:
@@ -219,7 +238,7 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     if not rows.size:
         raise FileFormatError(f"{path}: empty file")
     top = int(rows[0])
-    header = others[top] if top in others else list(pieces[starts[top] : starts[top + 1]])
+    header = others[top][0] if top in others else list(pieces[starts[top] : starts[top + 1]])
     body = rows[1:]
     first_cell = starts[body]
     in_body = np.flatnonzero(is_other[body])  # body rows read by the csv module
@@ -228,8 +247,33 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
         [c.strip() for c in header],
         widths[body],
         keep[body] + 1,
-        split=(pieces, first_cell, {i: others[int(body[i])] for i in in_body.tolist()}),
+        split=(pieces, first_cell, {i: others[int(body[i])] for i in in_body.tolist()}, marks),
     )
+
+
+def _quoted_fields(record: str) -> set[int]:
+    """Which cells of a CSV record (a line, or the lines of a record with a quoted line
+    break) are quoted: those whose first character is a quote, as the csv module reads
+    them; the record is one the csv module has read."""
+    out: set[int] = set()
+    pos, k, n = 0, 0, len(record)
+    try:
+        while True:
+            if pos < n and record[pos] == '"':
+                out.add(k)
+                pos += 1
+                while True:  # to the closing quote (a doubled quote is one inside)
+                    q = record.index('"', pos)
+                    if record[q + 1 : q + 2] != '"':
+                        pos = q + 1
+                        break
+                    pos = q + 2
+            c = record.find(",", pos)
+            if c < 0:
+                return out
+            pos, k = c + 1, k + 1
+    except ValueError:  # a quote left open: the csv module's reading stands, unmarked
+        return out
 
 
 def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | None) -> _Cells:
@@ -238,6 +282,8 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
     bytes of a pipe already read (a pipe cannot be opened again), else the file is opened."""
     rows, lines = [], []
     physical: list[int] = []  # file line of each line handed to the csv reader
+    raw: list[str] = []  # and its text
+    quoted: list[set[int]] = []  # the quoted cells of each row
 
     def data_lines(fh):
         for number, line in enumerate(fh, start=1):
@@ -246,6 +292,7 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
                     comments.append(line.strip()[1:].strip())
                 continue
             physical.append(number)
+            raw.append(line)
             yield line
 
     start = 0  # the csv reader's count of lines before the row being read
@@ -260,6 +307,8 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
                 if r and any(c.strip() for c in r):
                     rows.append(r)
                     lines.append(physical[start])
+                    text = "".join(raw[start : reader.line_num]) if '"' in raw[start] else ""
+                    quoted.append(_quoted_fields(text) if '"' in text else set())
                 start = reader.line_num
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
@@ -275,12 +324,14 @@ def _read_rows_linewise(path: Path, comments: list[str] | None, data: bytes | No
     if not rows:
         raise FileFormatError(f"{path}: empty file")
     body = rows[1:]
-    return _Cells(
+    cells = _Cells(
         [c.strip() for c in rows[0]],
         np.fromiter(map(len, body), dtype=np.int64, count=len(body)),
         np.asarray(lines[1:], dtype=np.int64),
         rows=body,
     )
+    cells._rows_quoted = {i: q for i, q in enumerate(quoted[1:]) if q}
+    return cells
 
 
 #: Separators of other CSV dialects, named in the message of a header that holds one.
@@ -295,7 +346,10 @@ def _listing(names: list[str], most: int = 20) -> str:
 
 
 def _read_csv(
-    path: Path, need: tuple[str, ...], comments: list[str] | None = None
+    path: Path,
+    need: tuple[str, ...],
+    comments: list[str] | None = None,
+    quoted: list | None = None,
 ) -> tuple[list[str], list, dict, np.ndarray]:
     """Header, columns (one object array of str per header field), the column index of each
     needed column (case-insensitive) and the file line on which each row starts (blank lines
@@ -303,8 +357,10 @@ def _read_csv(
 
     Lines that begin with ``#`` are comments, as in every point file of photogeom (the
     observations.csv of a block folder starts with one); their text is appended to
-    ``comments`` when a list is given. Reading is linear in the file size: see
-    :func:`_read_cells`."""
+    ``comments`` when a list is given. ``quoted``, when a list is given, receives one
+    boolean array per column: which of its cells were quoted (a quoted cell is its text
+    exactly, as in a block folder: see :func:`_ids`). Reading is linear in the file size:
+    see :func:`_read_cells`."""
     cells = _read_cells(path, comments)
     header = cells.header
     low = [c.lower() for c in header]
@@ -340,7 +396,21 @@ def _read_csv(
         raise FileFormatError(
             f"{path}: line {cells.lines[k]} has {cells.widths[k]} fields, the header {len(header)}"
         )
-    return header, cells.columns(), col, cells.lines
+    columns = cells.columns()
+    if quoted is not None:
+        quoted.extend(cells.quoted)
+    return header, columns, col, cells.lines
+
+
+def _ids(cells: list[str], quoted: np.ndarray) -> list[str]:
+    """Image ids of a CSV column by the rules of a block folder: a quoted cell is its text
+    exactly (white space at its ends kept), an unquoted one is stripped of white space."""
+    if not np.any(quoted):
+        return list(map(str.strip, cells))
+    out = np.array(cells, dtype=object)
+    plain = np.flatnonzero(~quoted)
+    out[plain] = list(map(str.strip, out[plain].tolist()))
+    return out.tolist()
 
 
 def _numbers(path: Path, cells, name: str, lines: np.ndarray) -> np.ndarray:
@@ -529,7 +599,8 @@ def fit(
         str | None,
         typer.Option(
             help="Image ids to leave out, comma-separated (e.g. images with too few "
-            "residuals for the spacing); they get no grid."
+            'residuals for the spacing); they get no grid. Quote an id with white space at '
+            "its ends or a comma, as in the CSV: '\" im0 \",IMG_7'."
         ),
     ] = None,
     report: ReportOpt = None,
@@ -563,7 +634,7 @@ def fit(
         border=border.value, folds=folds, snooping=snooping, alpha=alpha, min_support=min_support,
         max_snooping_rounds=max_snooping_rounds,
     )  # fmt: skip
-    left_out = list(dict.fromkeys(split_names(exclude) or []))  # an id given twice: once
+    left_out = list(dict.fromkeys(_exclude_ids(exclude)))  # an id given twice: once
     if not residuals.exists():
         raise FileFormatError(
             f"{residuals}: no such file or folder (give a residuals CSV or an adjusted block)"
@@ -833,13 +904,14 @@ def _fit_csv(
         )
     size = _image_size(image_size)
     s_c = 1.0 if sigma_constraint is None else sigma_constraint
-    _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"))
+    quoted: list = []
+    _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"), None, quoted)
     if not lines.size:
         raise FileFormatError(
             f"no residuals in {path}: the file has a header and no rows; it needs one "
             "row per observation (image_id, u, v, rx, ry)"
         )
-    ids = list(map(str.strip, columns[col["image_id"]]))
+    ids = _ids(columns[col["image_id"]], quoted[col["image_id"]])
     data = np.stack(
         [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
         axis=1,
@@ -880,14 +952,43 @@ def _fit_csv(
         raise _reworded(exc, _cli_words) from None
 
 
+def _exclude_ids(text: str | None) -> list[str]:
+    """The image ids of --exclude: comma-separated as a CSV line, a quoted id exactly
+    (``" im0 ",IMG_7``: white space at the ends, commas kept), others stripped; without a
+    quote, semicolons separate too (as in the other name lists)."""
+    if text is None:
+        return []
+    if '"' not in text:
+        return split_names(text) or []
+    try:
+        cells = next(csv.reader([text], strict=True), [])
+    except csv.Error:
+        raise InputError(
+            f"--exclude {text!r}: a quote is not closed, or text follows a closing quote; "
+            'quote an id whole, inner quotes doubled (" im0 ",IMG_7)'
+        ) from None
+    quoted = _quoted_fields(text)
+    ids = [c if k in quoted else c.strip() for k, c in enumerate(cells)]
+    return [c for k, c in enumerate(ids) if c or k in quoted]
+
+
+def _id_text(image_id: str) -> str:
+    """An id as --exclude takes it: quoted when white space at its ends, a comma, a quote
+    or a semicolon would change it."""
+    if image_id != image_id.strip() or any(ch in image_id for ch in ',";') or not image_id:
+        return '"' + image_id.replace('"', '""') + '"'
+    return image_id
+
+
 def _refuse_unknown(exclude: list[str], ids: list[str], path: Path) -> None:
     """Refuse --exclude ids that name no image of the input (a typo would fit them)."""
     known = set(ids)
     unknown = [k for k in exclude if k not in known]
     if unknown:
         raise InputError(
-            f"--exclude: no image {', '.join(unknown[:5])} in {path} (its images: "
-            f"{', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})"
+            f"--exclude: no image {', '.join(map(_id_text, unknown[:5]))} in {path} (its "
+            f"images: {', '.join(map(_id_text, ids[:10]))}{' ...' if len(ids) > 10 else ''}; "
+            'quote ids with white space at the ends or a comma: --exclude \'" im0 ",IMG_7\')'
         )
     if ids and known <= set(exclude):
         raise InputError(f"--exclude leaves no image of {path} to fit")
@@ -1041,8 +1142,11 @@ def apply(
 
     grids = load_grids(grids_file)
     comments: list[str] = []
-    header, columns, col, lines = _read_csv(observations, ("image_id", "u", "v"), comments)
-    ids = list(map(str.strip, columns[col["image_id"]]))
+    quoted: list = []
+    header, columns, col, lines = _read_csv(
+        observations, ("image_id", "u", "v"), comments, quoted
+    )
+    ids = _ids(columns[col["image_id"]], quoted[col["image_id"]])
     uv = np.stack([_numbers(observations, columns[col[c]], c, lines) for c in ("u", "v")], axis=1)
     per_image = _groups(ids)
     key_of, missing = match_grid_ids(per_image, grids)  # CSV text against integer ids too
@@ -1065,9 +1169,10 @@ def apply(
     new = uv.copy()
     for k, r in per_image.items():
         new[r] = corrected[k]
-    # the cells as read, u and v replaced; each column formatted at once, rows joined
+    # the cells as read (quoted ones quoted again), u and v replaced; each column formatted
+    # at once, rows joined
     for j in range(len(columns)):
-        columns[j] = _csv_column(columns[j])
+        columns[j] = _csv_column(columns[j], quoted[j])
     columns[col["u"]] = list(map(repr, new[:, 0].tolist()))
     columns[col["v"]] = list(map(repr, new[:, 1].tolist()))
     out = [f"# {c}" for c in comments if c]  # the conventions of the input stay with it
@@ -1086,13 +1191,21 @@ def _csv_cell(text: str) -> str:
     return text
 
 
-def _csv_column(cells) -> list[str]:
-    """The cells of one column formatted by :func:`_csv_cell`; a column without a character
-    that needs quotes (one search of its joined text) is returned as it is."""
+def _csv_column(cells, quoted=None) -> list[str]:
+    """The cells of one column formatted by :func:`_csv_cell`, the cells marked in
+    ``quoted`` (the ones quoted in the file read: their text is exact, white space at the
+    ends and integer form included) quoted in any case; a column without a character that
+    needs quotes (one search of its joined text) and without marks is returned as it is."""
     joined = "".join(cells)
-    if not any(ch in joined for ch in ',"\r\n#'):
+    marked = quoted is not None and bool(np.any(quoted))
+    if not marked and not any(ch in joined for ch in ',"\r\n#'):
         return cells
-    return list(map(_csv_cell, cells))
+    if not marked:
+        return list(map(_csv_cell, cells))
+    out = np.array(list(map(_csv_cell, cells)), dtype=object)
+    again = np.array(cells, dtype=object)[quoted]
+    out[quoted] = ['"' + c + '"' for c in map(operator.methodcaller("replace", '"', '""'), again)]
+    return out.tolist()
 
 
 def _scheduler_mode(scheduler: str, workers: int) -> tuple[bool | str, int]:
