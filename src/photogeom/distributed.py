@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FileFormatError, InputError, PhotogeomError
+from .records import ReadOnlyRecord
 
 __all__ = [
     "CloudRegistration",
@@ -633,7 +634,7 @@ def _check_sums(block, transform) -> tuple:
 
 
 @dataclass(frozen=True, eq=False)
-class CloudRegistration:
+class CloudRegistration(ReadOnlyRecord):
     """Result of :func:`register_clouds`.
 
     Attributes

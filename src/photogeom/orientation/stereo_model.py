@@ -23,6 +23,7 @@ import numpy as np
 
 from ..camera.collinearity import projection_derivatives
 from ..errors import InputError
+from ..records import ReadOnlyRecord
 
 __all__ = ["ModelPoints", "ParallaxReport", "model_points", "parallax_report"]
 
@@ -35,7 +36,7 @@ _PARAMETER_COLUMNS = {
 
 
 @dataclass(frozen=True)
-class ModelPoints:
+class ModelPoints(ReadOnlyRecord):
     """Model coordinates of the points of a relative orientation.
 
     Attributes
@@ -173,7 +174,7 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
 
 
 @dataclass(frozen=True)
-class ParallaxReport:
+class ParallaxReport(ReadOnlyRecord):
     """Residual y-parallaxes of a relative orientation.
 
     Attributes

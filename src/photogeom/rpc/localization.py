@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
+from ..records import ReadOnlyRecord
 from . import polynomial as poly
 from .domain import DOMAIN_LIMIT, LocalizationWarning, check_domain, wrap_longitude
 
@@ -56,7 +57,7 @@ class LocalizationStatus(enum.IntEnum):
 
 
 @dataclass(frozen=True, eq=False)
-class LocalizationResult:
+class LocalizationResult(ReadOnlyRecord):
     """Localisation of a set of image points.
 
     Attributes
