@@ -176,7 +176,14 @@ def _cloud_registration(tmp_path):
     return pg.distributed.register_clouds(path, target, check_every=5, scheduler="sync")
 
 
+def _approximate_inverse():
+    from photogeom.rpc import approximate_inverse
+
+    return approximate_inverse(_rpc())
+
+
 RECORDS = {
+    "ApproximateInverse": lambda tmp: _approximate_inverse(),
     "IntersectionResult": lambda tmp: _intersection(),
     "BatchOrientation": lambda tmp: _batch_orientation(),
     "BatchResection": lambda tmp: _batch_resection(),
@@ -232,6 +239,21 @@ def test_a_write_cannot_change_an_intersections_statistics():
     with pytest.raises(ValueError, match="read-only"):
         res.sigma0[:] = 0.0
     np.testing.assert_array_equal(res.std, std)
+
+
+def test_the_cached_inverse_of_an_rpc_cannot_be_changed():
+    """Before: zeros written into ``approximate_inverse(rpc).coefficients`` changed the
+    inverse cached on ``rpc``: its localisations then took 2 Newton iterations instead of 1."""
+    from photogeom.rpc import approximate_inverse
+
+    rpc = _rpc()
+    c0, c1, r0, r1 = rpc.image_bounds
+    col, row = np.linspace(c0, c1, 5), np.linspace(r0, r1, 5)
+    before = rpc.localize(col, row, 50.0, full_output=True).iterations
+    with pytest.raises(ValueError, match="read-only"):
+        approximate_inverse(rpc).coefficients[:] = 0.0
+    np.testing.assert_array_equal(rpc.localize(col, row, 50.0, full_output=True).iterations,
+                                  before)
 
 
 def test_callers_arrays_stay_their_own():

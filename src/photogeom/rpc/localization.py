@@ -253,8 +253,11 @@ def _continuation(C, scales, sn, ln, hn, start, tol, max_iter, steps=CONTINUATIO
 
 
 @dataclass(frozen=True)
-class ApproximateInverse:
+class ApproximateInverse(ReadOnlyRecord):
     """Cubic polynomials ``(col_n, row_n, h_n) -> (L, P)`` and the centre solution.
+
+    Cached on its RPC (:func:`approximate_inverse`) and shared by every later localisation,
+    so its coefficients are read-only.
 
     Attributes
     ----------
