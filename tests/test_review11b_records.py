@@ -232,6 +232,18 @@ def test_result_record_arrays_are_read_only(name, tmp_path):
             np.testing.assert_array_equal(a, arrays[key])
 
 
+@pytest.mark.parametrize(
+    "name", ["ApproximateInverse", "ModelPoints", "ParallaxReport", "PointNormalization",
+             "RansacResult"]
+)
+def test_records_compare_by_identity(name, tmp_path):
+    """Before: ``==`` of two of these raised "the truth value of an array with more than one
+    element is ambiguous" and ``hash`` "unhashable type: 'numpy.ndarray'"."""
+    a, b = RECORDS[name](tmp_path), RECORDS[name](tmp_path)
+    assert a == a and a != b
+    assert len({a, b, a}) == 2
+
+
 def test_a_write_cannot_change_an_intersections_statistics():
     """Before: ``res.sigma0[:] = 0`` zeroed ``res.covariance`` and ``res.std``."""
     res = _intersection()

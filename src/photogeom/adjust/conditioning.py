@@ -10,7 +10,7 @@ import numpy as np
 from ..records import ReadOnlyRecord
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PointNormalization(ReadOnlyRecord):
     """``p_n = (p - centre) / scale``: centroid reduction and one isotropic scale.
 

@@ -17,7 +17,7 @@ from ..errors import DegenerateGeometryError, InputError
 from ..records import ReadOnlyRecord
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RansacResult(ReadOnlyRecord):
     """Best hypothesis of a RANSAC run.
 

@@ -35,7 +35,7 @@ _PARAMETER_COLUMNS = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ModelPoints(ReadOnlyRecord):
     """Model coordinates of the points of a relative orientation.
 
@@ -173,7 +173,7 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
     return ModelPoints(ids, X, Q, Qi, fit.sigma0, fit.sigma0_prior)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ParallaxReport(ReadOnlyRecord):
     """Residual y-parallaxes of a relative orientation.
 

@@ -252,7 +252,7 @@ def _continuation(C, scales, sn, ln, hn, start, tol, max_iter, steps=CONTINUATIO
 # --- the approximate inverse ----------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ApproximateInverse(ReadOnlyRecord):
     """Cubic polynomials ``(col_n, row_n, h_n) -> (L, P)`` and the centre solution.
 
