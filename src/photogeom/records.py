@@ -260,3 +260,23 @@ class FrozenMapping(Mapping):
 
     def __repr__(self) -> str:
         return repr(self._data)
+
+
+class ReadOnlyRecord:
+    """Base of result dataclasses whose array fields are read-only views.
+
+    ``__post_init__`` applies :func:`read_only_fields` (the arrays given to the constructor
+    stay the caller's and writable) and ``__setstate__`` :func:`setstate_read_only` (pickled
+    and deep-copied records keep read-only arrays). :func:`build` may fill such a record's
+    dictionary and call ``__post_init__``. A subclass with a ``__post_init__`` of its own
+    calls this one last.
+    """
+
+    #: :func:`build` may fill the fields and call ``__post_init__``.
+    _build_post_init = True
+
+    def __post_init__(self) -> None:
+        read_only_fields(self)
+
+    def __setstate__(self, state: dict) -> None:
+        setstate_read_only(self, state)

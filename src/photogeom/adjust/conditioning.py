@@ -7,9 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..records import ReadOnlyRecord
 
-@dataclass(frozen=True)
-class PointNormalization:
+
+@dataclass(frozen=True, eq=False)
+class PointNormalization(ReadOnlyRecord):
     """``p_n = (p - centre) / scale``: centroid reduction and one isotropic scale.
 
     ``scale`` is the RMS distance of the points from their centroid divided by

@@ -14,10 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
+from ..records import ReadOnlyRecord
 
 
-@dataclass(frozen=True)
-class RansacResult:
+@dataclass(frozen=True, eq=False)
+class RansacResult(ReadOnlyRecord):
     """Best hypothesis of a RANSAC run.
 
     Attributes

@@ -8,6 +8,7 @@ from typing import Literal
 import numpy as np
 
 from ..errors import InputError
+from ..records import ReadOnlyRecord
 from .result import Adjustment
 
 #: Power of the w-test at which the minimal detectable bias is given (Baarda's 80 %).
@@ -20,7 +21,7 @@ POORLY_CONTROLLED = 0.1
 
 
 @dataclass(frozen=True, eq=False)
-class SnoopingResult:
+class SnoopingResult(ReadOnlyRecord):
     """Outcome of data snooping over all observations.
 
     Attributes

@@ -26,7 +26,7 @@ import numpy as np
 from ..camera.exterior import ExteriorOrientation
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
-from ..records import FrozenMapping, read_only_fields, setstate_read_only, value_eq
+from ..records import FrozenMapping, ReadOnlyRecord, read_only_fields, setstate_read_only, value_eq
 from ..rotation import opk_matrix
 
 #: Calibration parameters of the Metashape frame model, in the order of the flat vectors.
@@ -90,7 +90,7 @@ _freeze_arrays = read_only_fields
 
 
 @dataclass(frozen=True, eq=False)
-class Image:
+class Image(ReadOnlyRecord):
     """One image of a block (a view; the block stores arrays)."""
 
     id: object
@@ -107,7 +107,7 @@ class Image:
 
 
 @dataclass(frozen=True, eq=False)
-class Point:
+class Point(ReadOnlyRecord):
     """One object point of a block (a view)."""
 
     id: object

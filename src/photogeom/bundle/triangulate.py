@@ -21,6 +21,7 @@ import numpy as np
 
 from ..camera.frame_kernel import project_rows
 from ..errors import InputError
+from ..records import ReadOnlyRecord
 from .block import Block, _ids, _lookup
 
 __all__ = [
@@ -54,7 +55,7 @@ STATUS_TEXT = {
 
 
 @dataclass(frozen=True, eq=False)
-class Triangulation:
+class Triangulation(ReadOnlyRecord):
     """Triangulated points (see :func:`triangulate`).
 
     Attributes

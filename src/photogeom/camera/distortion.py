@@ -21,6 +21,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import InputError
+from ..records import ReadOnlyRecord
 from ..validation import as_finite_scalar, as_points, as_points_single, one_or_many
 
 #: Status codes of :class:`UndistortResult`.
@@ -42,7 +43,7 @@ CHUNK = 1 << 14
 
 
 @dataclass(frozen=True, eq=False)
-class UndistortResult:
+class UndistortResult(ReadOnlyRecord):
     """Result of an iterative undistortion.
 
     Attributes

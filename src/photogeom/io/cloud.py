@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
+from ..records import ReadOnlyRecord
 from .sources import device_message, input_kind, pipe_message
 
 #: Points per chunk unless ``chunk_size=`` says otherwise (about 30-60 MB of records).
@@ -373,7 +374,7 @@ def _read_range(reader, path, start: int, stop: int, chunk_size: int) -> Iterato
 
 
 @dataclass(frozen=True, eq=False)
-class CloudInfo:
+class CloudInfo(ReadOnlyRecord):
     """What the header of a LAS/LAZ file says.
 
     Attributes
@@ -710,7 +711,7 @@ def _unlink(path: Path) -> None:
 
 
 @dataclass(frozen=True, eq=False)
-class CloudTransformResult:
+class CloudTransformResult(ReadOnlyRecord):
     """What :func:`transform_cloud` wrote.
 
     Attributes

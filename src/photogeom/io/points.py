@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
+from ..records import ReadOnlyRecord
 from .csvblocks import DelimitedText
 
 #: Coordinate column sets tried, in this order, when none is given.
@@ -81,7 +82,7 @@ ROLES = ("control", "check")
 
 
 @dataclass(frozen=True, eq=False)
-class PointTable:
+class PointTable(ReadOnlyRecord):
     """Points read from a file.
 
     Attributes
@@ -136,7 +137,7 @@ class PointTable:
 
 
 @dataclass(frozen=True, eq=False)
-class PointPairs:
+class PointPairs(ReadOnlyRecord):
     """Corresponding points of a source and a target system.
 
     Unpacks as ``ids, source, target, roles, weights`` (so
@@ -566,7 +567,7 @@ def _as_names(columns: Sequence[str] | str | None) -> tuple[str, ...] | None:
 
 
 @dataclass(frozen=True, eq=False)
-class PointBlock:
+class PointBlock(ReadOnlyRecord):
     """One block of points read by :class:`PointBlocks`.
 
     Attributes

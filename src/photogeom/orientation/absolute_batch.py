@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, TooFewPointsError
+from ..records import ReadOnlyRecord
 from ..rotation import angles_from_rotation, orthogonality_defect
 from ..transforms import Similarity3D
 from ..validation import as_float64
@@ -42,7 +43,7 @@ BATCH_METHODS = ("closed-form", "svd", "quaternion", "dual-quaternion", "gauss-h
 
 
 @dataclass(frozen=True, eq=False)
-class BatchOrientation:
+class BatchOrientation(ReadOnlyRecord):
     """Results of :func:`absolute_orientation_batch`.
 
     Attributes

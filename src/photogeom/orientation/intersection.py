@@ -26,13 +26,14 @@ from ..camera.distortion import CHUNK
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
+from ..records import ReadOnlyRecord
 from ..validation import as_float64
 
 __all__ = ["IntersectionResult", "space_intersection"]
 
 
 @dataclass(frozen=True, eq=False)
-class IntersectionResult:
+class IntersectionResult(ReadOnlyRecord):
     """Intersected object points with per-point statistics.
 
     Attributes

@@ -32,6 +32,7 @@ from ..camera.exterior import NAMES as EO_NAMES
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
 from ..errors import DegenerateGeometryError, InputError, PhotogeomError, SuspectResultWarning
+from ..records import ReadOnlyRecord
 from ..validation import (
     as_float64,
     as_points,
@@ -857,7 +858,7 @@ def _io_value(io: InteriorOrientation, name: str) -> float:
 
 
 @dataclass(frozen=True, eq=False)
-class BatchResection:
+class BatchResection(ReadOnlyRecord):
     """Results of :func:`space_resection_batch` for B problems.
 
     Attributes

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..camera.collinearity import projection_derivatives
 from ..errors import InputError
+from ..records import ReadOnlyRecord
 
 __all__ = ["ModelPoints", "ParallaxReport", "model_points", "parallax_report"]
 
@@ -34,8 +35,8 @@ _PARAMETER_COLUMNS = {
 }
 
 
-@dataclass(frozen=True)
-class ModelPoints:
+@dataclass(frozen=True, eq=False)
+class ModelPoints(ReadOnlyRecord):
     """Model coordinates of the points of a relative orientation.
 
     Attributes
@@ -172,8 +173,8 @@ def model_points(fit, which: str = "inliers") -> ModelPoints:
     return ModelPoints(ids, X, Q, Qi, fit.sigma0, fit.sigma0_prior)
 
 
-@dataclass(frozen=True)
-class ParallaxReport:
+@dataclass(frozen=True, eq=False)
+class ParallaxReport(ReadOnlyRecord):
     """Residual y-parallaxes of a relative orientation.
 
     Attributes

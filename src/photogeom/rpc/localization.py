@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
+from ..records import ReadOnlyRecord
 from . import polynomial as poly
 from .domain import DOMAIN_LIMIT, LocalizationWarning, check_domain, wrap_longitude
 
@@ -56,7 +57,7 @@ class LocalizationStatus(enum.IntEnum):
 
 
 @dataclass(frozen=True, eq=False)
-class LocalizationResult:
+class LocalizationResult(ReadOnlyRecord):
     """Localisation of a set of image points.
 
     Attributes
@@ -251,9 +252,12 @@ def _continuation(C, scales, sn, ln, hn, start, tol, max_iter, steps=CONTINUATIO
 # --- the approximate inverse ----------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class ApproximateInverse:
+@dataclass(frozen=True, eq=False)
+class ApproximateInverse(ReadOnlyRecord):
     """Cubic polynomials ``(col_n, row_n, h_n) -> (L, P)`` and the centre solution.
+
+    Cached on its RPC (:func:`approximate_inverse`) and shared by every later localisation,
+    so its coefficients are read-only.
 
     Attributes
     ----------

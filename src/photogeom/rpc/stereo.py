@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError, TooFewPointsError
+from ..records import ReadOnlyRecord
 from ..validation import as_float64
 from .domain import LocalizationWarning, wrap_longitude
 from .geodesy import metres_per_degree
@@ -32,7 +33,7 @@ COND_LIMIT = 1e12
 
 
 @dataclass(frozen=True, eq=False)
-class RPCIntersection:
+class RPCIntersection(ReadOnlyRecord):
     """Ground points intersected from several RPC images, with their statistics.
 
     Attributes
@@ -67,6 +68,7 @@ class RPCIntersection:
     def __post_init__(self) -> None:
         if self.degenerate is None:
             object.__setattr__(self, "degenerate", np.zeros(len(self.ground), dtype=bool))
+        super().__post_init__()  # read-only views of the arrays
 
     @property
     def lon(self) -> np.ndarray:

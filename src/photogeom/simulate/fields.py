@@ -12,7 +12,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..errors import InputError
-from ..records import read_only_fields, setstate_read_only
+from ..records import ReadOnlyRecord, read_only_fields, setstate_read_only
 from ..validation import as_points_single, one_or_many
 
 __all__ = ["LocalDistortionField", "WaveTerrain", "ar1_along_flight", "check_field_options"]
@@ -22,7 +22,7 @@ _CHUNK = 1 << 15
 
 
 @dataclass(frozen=True, eq=False)
-class WaveTerrain:
+class WaveTerrain(ReadOnlyRecord):
     """Hilly terrain ``Z(X, Y) = base + sum_k a_k cos(2 pi (kx_k X + ky_k Y) + phase_k)``.
 
     Attributes

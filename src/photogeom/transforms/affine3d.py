@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..records import ReadOnlyRecord
 from ..rotation import DEFAULT_CONVENTION, Convention, angles_from_rotation, rotation_from_angles
 from ._common import MatrixShift3D, fmt_params, frozen, invertible, matrix_and_shift, vector
 from .base import Transform
@@ -21,7 +22,7 @@ _TEXTBOOK_NAMES = (
 
 
 @dataclass(frozen=True, eq=False)
-class AffineDecomposition:
+class AffineDecomposition(ReadOnlyRecord):
     """``A = shear @ diag(scales) @ rotation`` (see :meth:`Affine3D.decompose`).
 
     Attributes
