@@ -28,7 +28,6 @@ Dask is an optional extra: ``pip install "photogeom[dask]"``.
 
 from __future__ import annotations
 
-import math
 import os
 import time
 import traceback
@@ -618,29 +617,19 @@ def _pair_block(src: str, dst: str, start: int, stop: int, check_every: int, wan
         from .orientation.absolute_chunked import chunk_moments
 
         return chunk_moments(x[~is_check], X[~is_check])
-    return x, X, is_check
+    return x[is_check], X[is_check]
 
 
-def _residual_block(block, fit, moments) -> tuple:
-    """``(control sum |v|^2, check count, check sum v, check sum v^2, check max |v|)`` of one
-    block ``(x, X, is_check)`` of :func:`_pair_block` under ``fit``."""
-    from .orientation.absolute_chunked import residuals_about_centroids
-
-    x, X, is_check = block
+def _check_sums(block, transform) -> tuple:
+    x, X = block
     if x.shape[0] == 0:
-        return 0.0, 0, np.zeros(3), np.zeros(3), 0.0
-    v = residuals_about_centroids(x, X, fit, moments)
-    v2 = np.square(v)
-    if not is_check.any():
-        return float(v2.sum()), 0, np.zeros(3), np.zeros(3), 0.0  # pairwise summation
-    ssr = float(v2[~is_check].sum())
-    v, v2 = v[is_check], v2[is_check]
+        return 0, np.zeros(3), np.zeros(3), 0.0
+    v = transform.apply(x) - X
     return (
-        ssr,
-        v.shape[0],
+        x.shape[0],
         v.sum(axis=0),
-        v2.sum(axis=0),
-        float(np.sqrt(v2.sum(axis=1)).max()),
+        (v * v).sum(axis=0),
+        float(np.sqrt((v * v).sum(axis=1)).max()),
     )
 
 
@@ -651,10 +640,9 @@ class CloudRegistration(ReadOnlyRecord):
     Attributes
     ----------
     fit : AbsoluteOrientationFit
-        From the control pairs: parameters and their cofactor (from the moments), sigma0
-        (from the residuals; unit weights, so sigma0 is the standard deviation of one target
-        coordinate in target units when the source is exact) and the covariance; no
-        per-point residuals or tests.
+        From the control pairs: parameters, sigma0 and their covariance (from the moments;
+        unit weights, so sigma0 is the standard deviation of one target coordinate in target
+        units when the source is exact); no per-point residuals or tests.
     n_control, n_check : int
     check_rms : numpy.ndarray, shape (3,)
         Per-axis RMS of the check-pair residuals (computed minus observed, target units).
@@ -665,8 +653,7 @@ class CloudRegistration(ReadOnlyRecord):
     check_max : float
         Largest residual length.
     control_rmse : float
-        ``sqrt(sum_squared_residuals / n_control)`` of the control pairs (from their
-        residuals, the second pass).
+        ``sqrt(sum_squared_residuals / n_control)`` of the control pairs (from the moments).
     crs_name : str or None
         The CRS recorded in the target (reference) cloud: the system of the parameters'
         output and of the residuals (``fit.crs`` holds it as an EPSG code or WKT, and
@@ -735,13 +722,8 @@ def register_clouds(
 
     Every ``check_every``-th pair (indices 0, k, 2k, ...) is kept out of the estimate and its
     residuals are reported (``0``: no check pairs). Two passes over the files: the moments of
-    the control pairs (the estimate), then the residuals of every pair under it: the control
-    pairs' sum of squares gives sigma0 (exact and the same whatever ``chunk_size``; from the
-    moments it lost ~1e-16 spread^2 / residual^2 of itself to cancellation, 1e-7 relative on
-    3e5 UTM points with 1 cm noise), the check pairs' their statistics. The second pass
-    reads the files again: 0.65 s -> 1.45 s of CPU for 5e6 pairs without check pairs,
-    1.2 s -> 1.5 s with them. Blocks of ``chunk_size`` pairs are Dask tasks on
-    ``scheduler``. The CRS records of the
+    the control pairs, then the residuals of the check pairs (skipped without check pairs).
+    Blocks of ``chunk_size`` pairs are Dask tasks on ``scheduler``. The CRS records of the
     files go into ``fit.crs`` (target) and ``fit.source_crs``; a geographic one (degrees)
     is refused: the orientation is computed in Cartesian coordinates.
 
@@ -764,8 +746,8 @@ def register_clouds(
     Returns
     -------
     CloudRegistration
-        The fit (parameters and their cofactor from the moments, sigma0 from the residuals)
-        and the check-pair statistics (target units).
+        The fit (parameters, sigma0 and their covariance from the moments) and the
+        check-pair statistics (target units).
     """
     from .io.cloud import _check_chunk, cloud_info
     from .orientation.absolute_chunked import fit_from_moments, merge_moments
@@ -800,34 +782,27 @@ def register_clouds(
         parts = [delayed(merge_moments)(parts[i : i + 16]) for i in range(0, len(parts), 16)]
     n_check = 0 if not check_every else len(range(0, n, check_every))
     (moments,) = _compute(parts[0], scheduler=scheduler)
-    ctrl = n - n_check
-    options = {"method": method, "with_scale": with_scale, "t0": t0}
-    fit = fit_from_moments(moments, ctrl, **options)
-    # second pass: the residuals of this solution, one by one. v'v from the moments loses
-    # ~1e-16 spread^2 / residual^2 of itself to cancellation (sigma0 moved by 1e-7 relative
-    # with --chunk-size on 3e5 UTM points); summed over the residuals it is exact
-    sums = [
-        delayed(_residual_block)(
-            delayed(_pair_block)(src, dst, a, b, check_every, "pairs"), fit, moments
-        )
-        for a, b in ranges
-    ]
-    (out,) = _compute(delayed(list)(sums), scheduler=scheduler)
-    ssr = math.fsum(o[0] for o in out)
-    fit = fit_from_moments(moments, ctrl, sum_squared_residuals=ssr, **options)
+    fit = fit_from_moments(moments, n - n_check, method=method, with_scale=with_scale, t0=t0)
     if any(crs_records.values()):
         from dataclasses import replace
 
         fit = replace(fit, **crs_records)
     if n_check:
-        cnt = sum(o[1] for o in out)
-        s1 = np.sum([o[2] for o in out], axis=0)
-        s2 = np.sum([o[3] for o in out], axis=0)
-        vmax = max(o[4] for o in out)
+        T = fit.transform
+        sums = [
+            delayed(_check_sums)(delayed(_pair_block)(src, dst, a, b, check_every, "checks"), T)
+            for a, b in ranges
+        ]
+        (out,) = _compute(delayed(list)(sums), scheduler=scheduler)
+        cnt = sum(o[0] for o in out)
+        s1 = np.sum([o[1] for o in out], axis=0)
+        s2 = np.sum([o[2] for o in out], axis=0)
+        vmax = max(o[3] for o in out)
         rms, rmse, mean = np.sqrt(s2 / cnt), float(np.sqrt(s2.sum() / cnt)), s1 / cnt
     else:
         rms = mean = np.full(3, np.nan)
         rmse = vmax = float("nan")
+    ctrl = n - n_check
     return CloudRegistration(
         fit,
         ctrl,

@@ -330,8 +330,8 @@ def register(
     json_out: JsonOpt = False,
 ) -> None:
     """Absolute orientation target ~ s R source + t of two clouds of corresponding points,
-    out of core (one pass for the estimate, one over the residuals: sigma0 and the check
-    pairs), with the parameters' standard deviations. Lengths are in the unit of the target
+    out of core (one pass for the estimate, one for the check pairs), with sigma0 and the
+    parameters' standard deviations from the moments. Lengths are in the unit of the target
     cloud's CRS (unlabelled when it records none)."""
 
     from ..distributed import register_clouds
@@ -383,8 +383,9 @@ def register(
         f"  std. dev. {ang[0][1]} / {ang[1][1]} / {ang[2][1]} {au}",
         f"translation {', '.join(v for v, _ in tr)}{u}",
         f"  std. dev. {', '.join(s for _, s in tr)}{u}",
-        f"sigma0 {f.sigma0:.4g}{u} (one target coordinate; redundancy {f.redundancy})",
-        f"control RMSE {reg.control_rmse:.4g}{u} (per point)",
+        f"sigma0 {f.sigma0:.4g}{u} (one target coordinate; redundancy {f.redundancy}; "
+        "from the moments)",
+        f"control RMSE {reg.control_rmse:.4g}{u} (per point, from the moments)",
         f"target CRS: {reg.crs_name or 'none recorded'}",
     ]
     if reg.n_check:

@@ -117,7 +117,6 @@ def fit_from_moments(
     scale_method: str = "least-squares",
     unit: str = "m",
     t0: float | None = None,
-    sum_squared_residuals: float | None = None,
 ) -> AbsoluteOrientationFit:
     """The absolute orientation from merged moments (:func:`merge_moments`) of ``n`` pairs.
 
@@ -129,10 +128,7 @@ def fit_from_moments(
     ``v'Pv = s^2 a - 2 s trace(R H) + b`` (weighted; also ``extras["sum_squared_residuals"]``)
     comes from the moments: accurate when the residuals are not tiny compared with the point
     spread (relative error ~1e-16 spread^2 / residual^2, e.g. 1e-6 for 1 cm residuals over
-    1 km), and it changes with the chunking at that level. Where the points can be read
-    again, ``sum_squared_residuals`` (the weighted ``sum |s R x + t - X|^2`` of a pass over
-    the residuals of this solution, target units squared: :func:`residual_sums`) replaces
-    it, and sigma0 and the covariance are exact (``photogeom.distributed.register_clouds``).
+    1 km).
     """
     t0 = time.perf_counter() if t0 is None else t0
     if method not in MOMENT_METHODS:
@@ -156,10 +152,7 @@ def fit_from_moments(
     notes = [
         _CONVENTION_NOTE,
         f"out of core: moments merged from chunks ({n} pairs); sigma0 and the covariance of "
-        "the parameters from the moments, no per-point residuals or tests"
-        if sum_squared_residuals is None
-        else f"out of core: moments merged from chunks ({n} pairs), sigma0 from a second pass "
-        "over the residuals; no per-point residuals or tests kept",
+        "the parameters from the moments, no per-point residuals or tests",
     ]
     omega, phi, kappa, gimbal = opk_transposed(R)
     if gimbal:
@@ -168,10 +161,7 @@ def fit_from_moments(
     u = len(names)
     params = _params(t, s, (omega, phi, kappa), with_scale)
     r = 3 * n - u
-    if sum_squared_residuals is None:
-        vtv = s * s * pm.a - 2.0 * s * float(np.trace(R @ pm.H)) + pm.b
-    else:
-        vtv = float(sum_squared_residuals)
+    vtv = s * s * pm.a - 2.0 * s * float(np.trace(R @ pm.H)) + pm.b
     vtv = ssr = max(vtv, 0.0) if math.isfinite(vtv) else math.nan
     Q, _ = _cofactor(pm.S, pm.weight, scale=s, angles=(omega, phi, kappa),
                      source_centroid=pm.source_centroid, with_scale=with_scale)
@@ -188,71 +178,6 @@ def fit_from_moments(
         _similarity(s, R, t), method, names, params, st, r, n_obs, not_computed((0, 3)),
         with_scale, ctx, notes, extras={"sum_squared_residuals": ssr},
     )
-
-
-def residuals_about_centroids(x, X, fit: AbsoluteOrientationFit, moments: tuple) -> np.ndarray:
-    """Residuals ``v = s R x + t - X`` (computed minus observed, target units) of pairs
-    ``x``, ``X`` (m, 3) under the transformation of ``fit`` (from :func:`fit_from_moments`
-    on ``moments``), formed about the centroids of ``moments``.
-
-    ``v = s R (x - xg) - (X - Xg) + (s R xg + t - Xg)``: for coordinates far from the origin
-    (UTM) the differences ``x - xg`` are exact and the last term is one small vector, so no
-    digits of the residuals are lost to the size of the coordinates (``s R x + t - X``
-    directly loses ~1e-16 |X|, 5e-10 m at 5e6 m, in every residual).
-
-    Parameters
-    ----------
-    x, X : numpy.ndarray, shape (m, 3)
-        Source and target points (target units for ``X``).
-    fit : AbsoluteOrientationFit
-        Its ``scale``, ``rotation`` and ``translation`` are used.
-    moments : tuple
-        The merged moments the fit was computed from (their centroids are used).
-
-    Returns
-    -------
-    numpy.ndarray, shape (m, 3)
-        The residuals, target units.
-    """
-    x = np.asarray(x, dtype=float)
-    X = np.asarray(X, dtype=float)
-    xg, Xg = np.asarray(moments[1], dtype=float), np.asarray(moments[2], dtype=float)
-    sR = fit.scale * np.asarray(fit.rotation)
-    c = sR @ xg + np.asarray(fit.translation) - Xg
-    v = (x - xg) @ sR.T
-    v -= X - Xg
-    v += c
-    return v
-
-
-def residual_sums(x, X, fit: AbsoluteOrientationFit, moments: tuple) -> float:
-    """Unweighted ``sum |s R x + t - X|^2`` (target units squared) of one chunk of pairs
-    ``x``, ``X`` (m, 3) under the transformation of ``fit``, for the
-    ``sum_squared_residuals`` of :func:`fit_from_moments`.
-
-    The residuals are those of :func:`residuals_about_centroids` and the sum is pairwise: the
-    total over the chunks is that of the solution's residuals whatever the chunking (1e-15
-    relative).
-
-    Parameters
-    ----------
-    x, X : numpy.ndarray, shape (m, 3)
-        Source and target points of the chunk (target units for ``X``).
-    fit : AbsoluteOrientationFit
-        From :func:`fit_from_moments` on ``moments``.
-    moments : tuple
-        The merged moments the fit was computed from.
-
-    Returns
-    -------
-    float
-        The sum of squared residual lengths, target units squared.
-    """
-    if np.shape(x)[0] == 0:
-        return 0.0
-    v = residuals_about_centroids(x, X, fit, moments)
-    np.square(v, out=v)
-    return float(v.sum())  # pairwise summation
 
 
 def absolute_orientation_chunks(
