@@ -199,3 +199,58 @@ def test_alpha_outside_0_1_is_refused_by_its_name_before_reading(cli, tmp_path, 
     code, _, err = cli(*command, tmp_path / "missing.csv", "--alpha", value)
     assert code == 2
     assert f"--alpha must be in (0, 1), got {float(value)}" in err
+
+
+# --- a level given where no test runs is refused, not silently ignored ----------------------
+
+
+@pytest.mark.parametrize(
+    ("args", "names"),
+    [
+        (("grid", "fit", "{d}/res.csv", "-o", "{d}/g.npz", "--alpha", "0.01"),
+         ("--alpha 0.01", "is off without --snooping", "add --snooping", "leave --alpha out")),
+        (("bundle", "adjust", "{d}/blk", "--no-snooping", "--alpha", "0.05"),
+         ("--alpha 0.05", "--no-snooping turns off", "leave out --no-snooping or --alpha")),
+    ],
+)  # fmt: skip
+def test_alpha_without_snooping_is_refused_naming_both_options(cli, tmp_path, args, names):
+    code, out, err = cli(*(a.format(d=tmp_path) for a in args))
+    assert code == 2, (out, err)
+    for words in names:
+        assert words in err
+    assert not (tmp_path / "g.npz").exists()
+
+
+def test_grid_fit_alpha_with_snooping_still_sets_the_level(cli, tmp_path):
+    rng = np.random.default_rng(1)
+    uv = rng.uniform(0, [999, 799], (300, 2))
+    r = rng.normal(scale=0.3, size=(300, 2))
+    _csv(tmp_path / "res.csv", ["A"] * 300, "u,v,rx,ry", np.column_stack([uv, r]))
+    (tmp_path / "res.csv").write_text(
+        (tmp_path / "res.csv").read_text().replace("id,u,v", "image_id,u,v", 1)
+    )
+    base = ("grid", "fit", tmp_path / "res.csv", "-o", tmp_path / "g.npz", "--image-size",
+            "1000x800", "--sigma-obs", "0.3", "--folds", "0", "--json")  # fmt: skip
+    code, out, err = cli(*base)  # no --alpha, no --snooping: as before
+    assert code == 0, err
+    assert "snooping" not in json.loads(out)
+    code, out, err = cli(*base, "--snooping", "--alpha", "0.05")
+    assert code == 0, err
+    sn = json.loads(out)["snooping"]
+    assert sn["alpha"] == 0.05 and sn["critical_value"] == pytest.approx(W_005, abs=1e-12)
+
+
+_GRID = ("grid", "fit", "{d}/res.csv", "-o", "{d}/g.npz", "--snooping")
+_BUNDLE = ("bundle", "adjust", "{d}/blk")
+_RELATIVE = ("orient", "relative", "{d}/m.csv")
+
+
+@pytest.mark.parametrize(
+    ("command", "upper", "value"),
+    [(c, "1", v) for c in (_GRID, _RELATIVE) for v in ("0", "1", "nan")]
+    + [(_BUNDLE, "0.5", v) for v in ("0", "0.5", "nan")],
+)
+def test_every_alpha_is_refused_in_the_same_words(cli, tmp_path, command, upper, value):
+    code, _, err = cli(*(a.format(d=tmp_path) for a in command), "--alpha", value)
+    assert code == 2
+    assert f"--alpha must be in (0, {upper}), got {float(value)}" in err

@@ -41,15 +41,21 @@ ReportOpt = Annotated[Path | None, typer.Option(help="Write an HTML report here.
 DEFAULT_ALPHA = 0.001
 
 
-def alpha_help(test: str = "w-test (tau-test without a-priori sigmas)", upper: float = 1.0) -> str:
+def alpha_help(
+    test: str,
+    upper: float = 1.0,
+    uses: str = "the residual table, --json (snooping) and --report flag at it",
+) -> str:
     """Help text of ``--alpha``, the same words in every command that has it.
 
     Parameters
     ----------
     test : str
-        The test the level applies to, as the command runs it.
+        The test the level applies to, as the command runs it (``"w-test and tau-test"``).
     upper : float
         Upper bound of the level (unitless; exclusive).
+    uses : str
+        What the command does at the level.
 
     Returns
     -------
@@ -57,7 +63,7 @@ def alpha_help(test: str = "w-test (tau-test without a-priori sigmas)", upper: f
     """
     return (
         f"Significance level of each {test}, in (0, {upper:g}) [default: {DEFAULT_ALPHA:g}: "
-        "critical w 3.29]; the residual table, --json (snooping) and --report flag at it."
+        f"critical w 3.29]; {uses}."
     )
 
 
