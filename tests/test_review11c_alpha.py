@@ -254,3 +254,19 @@ def test_every_alpha_is_refused_in_the_same_words(cli, tmp_path, command, upper,
     code, _, err = cli(*(a.format(d=tmp_path) for a in command), "--alpha", value)
     assert code == 2
     assert f"--alpha must be in (0, {upper}), got {float(value)}" in err
+
+
+def test_snooping_absolute_orientation_records_its_level(tmp_path):
+    """Snooping at 0.05 removed four points while the fit's residual table and
+    ``to_dict()["snooping"]`` said alpha 0.001, critical value 3.29."""
+    from photogeom.orientation import snooping_absolute_orientation
+    from photogeom.report.format import residual_table
+
+    _, ids, x, X = _absolute_points(tmp_path)
+    X[4] += [0.04, 0.0, 0.0]
+    fit = snooping_absolute_orientation(x, X, alpha=0.05, sigma="prior", sigma_target=0.01,
+                                        ids=ids)  # fmt: skip
+    assert fit.extras["removed"][0] == 4 and fit.extras["alpha"] == 0.05
+    d = fit.to_dict()["snooping"]
+    assert d["alpha"] == 0.05 and d["w"]["critical_value"] == pytest.approx(W_005, abs=1e-12)
+    assert "critical value 1.960 at alpha = 0.05" in residual_table(fit).footer[1]
