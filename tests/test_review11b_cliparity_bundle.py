@@ -43,4 +43,4 @@ def test_alpha_sets_the_level_of_the_tests(cli, block, tmp_path):
 def test_alpha_out_of_range_is_refused_by_its_name(cli, block, value):
     code, _, err = cli("bundle", "adjust", block, "--alpha", value)
     assert code == 2
-    assert f"--alpha must be in (0, 0.5), not {float(value)!r}" in err
+    assert f"--alpha must be in (0, 0.5), got {float(value)}" in err

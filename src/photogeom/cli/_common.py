@@ -36,6 +36,100 @@ IdColOpt = Annotated[str | None, typer.Option(help="Id column.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON.")]
 #: ``--report`` of the commands that write one HTML report.
 ReportOpt = Annotated[Path | None, typer.Option(help="Write an HTML report here.")]
+#: Significance level of the data-snooping tests when ``--alpha`` is not given: Baarda's
+#: 0.001 (critical w 3.29), the library's default (``photogeom.report.format.SNOOPING_ALPHA``).
+DEFAULT_ALPHA = 0.001
+
+
+def alpha_help(
+    test: str,
+    upper: float = 1.0,
+    uses: str = "the residual table, --json (snooping) and --report flag at it",
+) -> str:
+    """Help text of ``--alpha``, the same words in every command that has it.
+
+    Parameters
+    ----------
+    test : str
+        The test the level applies to, as the command runs it (``"w-test and tau-test"``).
+    upper : float
+        Upper bound of the level (unitless; exclusive).
+    uses : str
+        What the command does at the level.
+
+    Returns
+    -------
+    str
+    """
+    return (
+        f"Significance level of each {test}, in (0, {upper:g}) [default: {DEFAULT_ALPHA:g}: "
+        f"critical w 3.29]; {uses}."
+    )
+
+
+#: ``--alpha`` of the estimating commands whose residual tables show Baarda's w-test and
+#: Pope's tau-test (None: not given, :data:`DEFAULT_ALPHA`).
+AlphaOpt = Annotated[
+    float | None,
+    typer.Option("--alpha", help=alpha_help("w-test and tau-test"), show_default=False),
+]
+
+
+def check_alpha(alpha: float | None, *, upper: float = 1.0, off: str | None = None) -> float:
+    """The level of ``--alpha`` (:data:`DEFAULT_ALPHA` when not given), checked before any file
+    is read.
+
+    Parameters
+    ----------
+    alpha : float or None
+        The value given (None: the option was left out).
+    upper : float
+        Exclusive upper bound (``bundle adjust``: 0.5, that of ``BundleOptions.alpha``).
+    off : str, optional
+        When the command runs no test: the words saying why and what to do, e.g. ``"is off
+        without --snooping: add --snooping or leave --alpha out"``. A level given then is
+        refused, not silently ignored.
+
+    Returns
+    -------
+    float
+        The level to test at (unitless).
+
+    Raises
+    ------
+    InputError
+        ``--alpha`` outside (0, upper) or NaN; given while ``off``.
+    """
+    if alpha is None:
+        return DEFAULT_ALPHA
+    if off is not None:
+        raise InputError(f"--alpha {alpha:g} sets the level of the data-snooping test, which {off}")
+    if not 0 < alpha < upper:
+        raise InputError(f"--alpha must be in (0, {upper:g}), got {alpha}")
+    return float(alpha)
+
+
+def with_alpha(fit, alpha: float):
+    """``fit`` whose residual tables, ``to_dict()["snooping"]`` and reports test at ``alpha``:
+    the level recorded in ``extras["alpha"]`` (read by
+    :func:`photogeom.report.format.snooping_alpha`), for estimators without an ``alpha``.
+
+    Parameters
+    ----------
+    fit : Fit
+    alpha : float
+        Significance level (unitless), already checked by :func:`check_alpha`.
+
+    Returns
+    -------
+    Fit
+        A copy; ``fit`` is unchanged.
+    """
+    from dataclasses import replace
+
+    return replace(fit, extras={**dict(fit.extras or {}), "alpha": float(alpha)})
+
+
 #: ``--output/-o`` of the commands that write a point CSV (or print it).
 OutputCsvOpt = Annotated[
     Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")

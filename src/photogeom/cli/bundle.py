@@ -27,6 +27,8 @@ from ..errors import InputError, OutputError
 from ._common import (
     CRS_FORMS,
     AngleUnit,
+    alpha_help,
+    check_alpha,
     console,
     iteration_progress,
     json_text,
@@ -91,7 +93,6 @@ _CLI_WORDS = (
     ("point_covariance=True", "--point-covariance"),
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
-    ("alpha must be in (0, 0.5)", "--alpha must be in (0, 0.5)"),
     ("read with image_key='id'", "read with --image-key id"),
 )
 
@@ -507,12 +508,17 @@ def adjust(
         bool, typer.Option("--snooping/--no-snooping", help="Baarda's w-test per observation.")
     ] = True,
     alpha: Annotated[
-        float,
+        float | None,
         typer.Option(
-            help="Significance level of each observation's w-test, in (0, 0.5) (0.001: "
-            "critical w 3.29); the summary, --json, --report and --result flag at it.",
+            help=alpha_help(
+                "observation's w-test",
+                upper=0.5,
+                uses="the summary, --json, --report and --result flag at it; refused with "
+                "--no-snooping",
+            ),
+            show_default=False,
         ),
-    ] = 0.001,
+    ] = None,
     max_iterations: Annotated[int, typer.Option(help="Iterations at most.")] = 100,
     output: Annotated[
         Path | None,
@@ -599,6 +605,11 @@ def adjust(
     from ..bundle import bundle_adjust
     from ..report.bundle import bundle_report, bundle_result_data
 
+    # a level is refused where no test runs, not silently ignored (as grid fit, orient absolute)
+    alpha = check_alpha(
+        alpha, upper=0.5, off=None if snooping else "--no-snooping turns off: leave out "
+        "--no-snooping or --alpha",
+    )  # fmt: skip
     src_fmt = detect_format(source, fmt)
     out_fmt = (
         None if output is None else output_format(output, output_fmt, src_fmt, "--output-format")

@@ -25,11 +25,13 @@ import typer
 from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
 from ._common import (
+    AlphaOpt,
     AngleUnit,
     IdColOpt,
     JsonOpt,
     OutputCsvOpt,
     ReportOpt,
+    check_alpha,
     check_mask,
     check_outputs,
     column_options,
@@ -43,6 +45,7 @@ from ._common import (
     split_names,
     split_numbers,
     typed_option,
+    with_alpha,
     write_outputs,
 )
 
@@ -632,6 +635,7 @@ def dlt_estimate(
     check_ids: Annotated[
         str | None, typer.Option(help="Comma-separated ids of check points.")
     ] = None,
+    alpha: AlphaOpt = None,
     angle_unit: AngleOpt = AngleUnit.deg,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: ReportOpt = None,
@@ -663,6 +667,7 @@ def dlt_estimate(
     from ._common import file_crs
 
     check_outputs({"POINTS": points, "IMAGE": image}, report=report, output_params=output_params)
+    alpha = check_alpha(alpha)
     if pixel and unit is not None and ImageUnit(unit).value != "px":
         raise InputError(
             f"--unit {ImageUnit(unit).value} with --pixel: pixel coordinates are in px (a DLT "
@@ -709,6 +714,7 @@ def dlt_estimate(
                 *exc.args[1:],
             )
         raise
+    fit = with_alpha(fit, alpha)  # the level of the residual table, JSON and report
     if ground_crs is not None:
         from dataclasses import replace
 

@@ -26,7 +26,9 @@ from ._common import (
     LogProgress,
     OutputCsvOpt,
     ReportOpt,
+    alpha_help,
     batch_failed,
+    check_alpha,
     check_outputs,
     console,
     emit_points,
@@ -580,7 +582,17 @@ def fit(
         bool,
         typer.Option("--snooping/--no-snooping", help="Reject outliers by data snooping (w-test)."),
     ] = False,
-    alpha: Annotated[float, typer.Option(help="Significance level of the w-test.")] = 0.001,
+    alpha: Annotated[
+        float | None,
+        typer.Option(
+            help=alpha_help(
+                "point's w-test of --snooping",
+                uses="--snooping rejects at it, --json and --report list what it rejected; "
+                "refused without --snooping",
+            ),
+            show_default=False,
+        ),
+    ] = None,
     max_snooping_rounds: Annotated[
         int,
         typer.Option(
@@ -623,6 +635,11 @@ def fit(
         inputs = {f"RESIDUALS ({f.name} of the block)": f for f in residuals.iterdir()
                   if f.name in _BLOCK_FILES}  # fmt: skip
     check_outputs(inputs, output=output, report=report)
+    # a level is refused where no test runs, not silently ignored (as bundle adjust)
+    alpha = check_alpha(
+        alpha, off=None if snooping else "is off without --snooping: add --snooping or leave "
+        "--alpha out",
+    )  # fmt: skip
 
     if folds < 0 or folds == 1:  # the library reads both as "no cross-validation"
         raise InputError(

@@ -19,8 +19,10 @@ from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import (
     CRS_FORMS,
+    AlphaOpt,
     AngleUnit,
     batch_failed,
+    check_alpha,
     check_mask,
     check_outputs,
     console,
@@ -29,6 +31,7 @@ from ._common import (
     load_pairs,
     options_in_errors,
     say,
+    with_alpha,
     write_outputs,
 )
 from ._stream import busy
@@ -237,6 +240,7 @@ def register(app: typer.Typer) -> None:
         seed: Annotated[
             int | None, typer.Option(min=0, help="Random seed of RANSAC, an integer >= 0.")
         ] = None,
+        alpha: AlphaOpt = None,
         source_crs: Annotated[
             str | None,
             typer.Option(
@@ -265,6 +269,12 @@ def register(app: typer.Typer) -> None:
             ransac=ransac, compare=compare, threshold=threshold, seed=seed,
             sigma_source=sigma_source, initial=initial, output_params=output_params,
             method=method.value,
+        )
+        alpha = check_alpha(
+            alpha,
+            off=None if not compare else "--compare does not run (it compares the methods' "
+            "parameters; no residual is tested): leave --alpha out, or drop --compare and "
+            "choose the method with --method",
         )
 
         tcrs = file_crs(target_crs, "--target-crs", target, unit=unit)
@@ -381,6 +391,7 @@ def register(app: typer.Typer) -> None:
 
             with busy(f"{meth}: {len(x)} point pairs", source, target):
                 fit = absolute_orientation(x, X, meth, ids=row_ids, **options)
+        fit = with_alpha(fit, alpha)  # the level of the residual table, JSON and report
         if is_check.any():
             chk = fit.transform.apply(pairs.source[is_check]) - pairs.target[is_check]
             fit = fit.with_checks(chk, [str(i) for i in ids[is_check]])

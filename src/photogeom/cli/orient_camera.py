@@ -18,10 +18,12 @@ from .._lazy import LazyModule
 from ..errors import InputError
 from ._common import (
     CRS_FORMS,
+    AlphaOpt,
     AngleUnit,
     IdColOpt,
     OutputCsvOpt,
     cartesian_crs_option,
+    check_alpha,
     check_mask,
     check_outputs,
     column_options,
@@ -34,6 +36,7 @@ from ._common import (
     split_control,
     split_names,
     split_numbers,
+    with_alpha,
     write_outputs,
 )
 from .camera import (
@@ -114,6 +117,7 @@ def resection(
     check_ids: Annotated[
         str | None, typer.Option(help="Comma-separated ids of check points.")
     ] = None,
+    alpha: AlphaOpt = None,
     angle_unit: AngleOpt = AngleUnit.deg,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON results.")] = False,
     report: Annotated[
@@ -145,6 +149,7 @@ def resection(
 
     inputs = {"POINTS": points, "IMAGE": image, "--camera": camera, "--calibration": calibration}
     check_outputs(inputs, report=report, output_params=output_params)
+    alpha = check_alpha(alpha)
 
     io = interior_from_options(
         camera=camera,
@@ -189,6 +194,7 @@ def resection(
         sigma=None if sig is None else sig[~mask],
         **kw,
     )
+    fit = with_alpha(fit, alpha)  # the level of the residual table, JSON and report
     if ground_crs is not None:
         from dataclasses import replace
 

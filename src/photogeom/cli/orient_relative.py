@@ -22,6 +22,8 @@ from ..errors import InputError, PhotogeomError
 from ._common import (
     AngleUnit,
     IdColOpt,
+    alpha_help,
+    check_alpha,
     check_outputs,
     column_options,
     console,
@@ -152,13 +154,15 @@ def relative(
         ),
     ] = True,
     alpha: Annotated[
-        float,
+        float | None,
         typer.Option(
-            help="Significance level of each point's test (w-test with --sigma, else the "
-            "tau-test), in (0, 1): data snooping and the tables flag at it (0.001: critical "
-            "w 3.29).",
+            help=alpha_help(
+                "point's test (w-test with --sigma, else the tau-test)",
+                uses="data snooping removes, and the tables, --json and --report flag, at it",
+            ),
+            show_default=False,
         ),
-    ] = 0.001,
+    ] = None,
     seed: Annotated[
         int,
         typer.Option(
@@ -219,6 +223,7 @@ def relative(
         one, two = (os.path.normcase(os.path.realpath(p)) for p in output_cameras)
         if one == two:
             raise InputError("--output-cameras: give two different files, image 1's first")
+    alpha = check_alpha(alpha)  # before any file is read, as the other commands
 
     io1 = interior_from_options(
         camera=camera,

@@ -24,10 +24,12 @@ import typer
 from .._lazy import LazyModule
 from ..errors import DegenerateGeometryError, FileFormatError, InputError
 from ._common import (
+    AlphaOpt,
     IdColOpt,
     JsonOpt,
     OutputCsvOpt,
     ReportOpt,
+    check_alpha,
     check_mask,
     check_outputs,
     column_options,
@@ -40,6 +42,7 @@ from ._common import (
     split_control,
     split_names,
     typed_option,
+    with_alpha,
     write_outputs,
 )
 from ._stream import run_point_job, single_threaded_blas
@@ -585,6 +588,7 @@ def fit(
     id_col: IdColOpt = None,
     check_ids: CheckIdsOpt = None,
     style: StyleOpt = TextStyle.ikonos,
+    alpha: AlphaOpt = None,
     as_json: JsonOpt = False,
     report: ReportOpt = None,
 ) -> None:
@@ -597,6 +601,7 @@ def fit(
     from ..rpc.fitting import UnstableFitError, unstable_fit_message
 
     check_outputs({"POINTS": points}, output=output, report=report)
+    alpha = check_alpha(alpha)
 
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     sig = _sigmas(pairs, mask, sigma, points)
@@ -614,7 +619,8 @@ def fit(
             unstable_fit_message(*exc.details, option="--regularization", order_option="--order")
         ) from exc
     _finish(
-        result, output, style, as_json, report, points, pairs, mask, "Terrain-dependent RPC fit"
+        with_alpha(result, alpha), output, style, as_json, report, points, pairs, mask,
+        "Terrain-dependent RPC fit",
     )
 
 
@@ -649,6 +655,7 @@ def refine(
     id_col: IdColOpt = None,
     check_ids: CheckIdsOpt = None,
     style: StyleOpt = TextStyle.ikonos,
+    alpha: AlphaOpt = None,
     as_json: JsonOpt = False,
     report: ReportOpt = None,
 ) -> None:
@@ -661,6 +668,7 @@ def refine(
 
     # the vendor RPC too: a refined RPC written over it could not be refined again
     check_outputs({"RPC_FILE": rpc_file, "POINTS": points}, output=output, report=report)
+    alpha = check_alpha(alpha)
     rpc = _load_rpc(rpc_file)
     pairs, mask = _control(points, ground_cols, image_cols, id_col, check_ids)
     ground, image, kw = split_control(pairs.ids, pairs.source, pairs.target, mask)
@@ -669,8 +677,8 @@ def refine(
     result = refine_rpc(
         rpc, ground, image, model=BiasModel(model).value, sigma=sig, ground_sigma=gsig, **kw
     )
-    _finish(result, output, style, as_json, report, points, pairs, mask, "RPC bias compensation",
-            source_rpc=rpc_file)  # fmt: skip
+    _finish(with_alpha(result, alpha), output, style, as_json, report, points, pairs, mask,
+            "RPC bias compensation", source_rpc=rpc_file)  # fmt: skip
 
 
 def _ground_sigma(text: str) -> np.ndarray:

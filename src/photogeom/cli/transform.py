@@ -19,9 +19,11 @@ from .._lazy import LazyModule
 from ..errors import FileFormatError, InputError
 from ._common import (
     CRS_FORMS,
+    AlphaOpt,
     AngleUnit,
     IdColOpt,
     cartesian_crs_option,
+    check_alpha,
     check_mask,
     check_outputs,
     column_options,
@@ -34,6 +36,7 @@ from ._common import (
     same_crs,
     say,
     split_names,
+    with_alpha,
     write_outputs,
 )
 from ._stream import busy, run_point_job, single_threaded_blas
@@ -162,6 +165,7 @@ def estimate(
             "stopping with an error."
         ),
     ] = False,
+    alpha: AlphaOpt = None,
     as_json: Annotated[
         bool,
         typer.Option("--json", help="Print machine-readable results (JSON) instead of tables."),
@@ -205,6 +209,7 @@ def estimate(
     from ..estimation import estimate_transform
 
     check_outputs({"SOURCE": source, "TARGET": target}, report=report, output_params=output_params)
+    alpha = check_alpha(alpha)
     model = Model(model).value
     angle_unit = AngleUnit(angle_unit).value
     errors_in = ErrorsIn(errors_in).value
@@ -259,6 +264,7 @@ def estimate(
         )
     if pairs.notes:
         fit = replace(fit, notes=tuple(fit.notes) + tuple(pairs.notes))
+    fit = with_alpha(fit, alpha)
     if tcrs is not None or scrs is not None:
         fit = _with_crs(fit, tcrs, scrs, pairs)
     files = [str(source)] + ([str(target)] if target is not None else [])

@@ -241,9 +241,10 @@ def snooping_absolute_orientation(
     AbsoluteOrientationFit
         The final adjustment; ``extras["removed"]`` lists the removed input indices in order,
         ``extras["kept"]`` is the mask of kept points, ``extras["snooping"]`` the final test,
-        ``extras["stopped_by"]`` ``"max_remove=..."`` or ``"min_points=..."`` when a limit
-        ended the removal while points still failed the test (they are then named in
-        ``notes``), else None.
+        ``extras["alpha"]`` its level (the residual tables of the reports and
+        ``to_dict()["snooping"]`` test at it too), ``extras["stopped_by"]``
+        ``"max_remove=..."`` or ``"min_points=..."`` when a limit ended the removal while
+        points still failed the test (they are then named in ``notes``), else None.
     """
     x, X = _as_pair(source, target)
     n = x.shape[0]
@@ -295,7 +296,8 @@ def snooping_absolute_orientation(
         removed.append(orig)
         keep[orig] = False
     extras = dict(fit.extras)
-    extras.update(removed=removed, kept=keep.copy(), snooping=sn, stopped_by=stopped_by)
+    extras.update(removed=removed, kept=keep.copy(), snooping=sn, stopped_by=stopped_by,
+                  alpha=float(alpha))  # fmt: skip
     notes = fit.notes
 
     def name(i: int):
