@@ -333,3 +333,18 @@ def test_bundle_adjust_writes_a_colmap_camera(cli, tmp_path):
     np.testing.assert_allclose(
         txt.project_camera(X), xml.project_camera(X), rtol=0, atol=1e-9
     )
+
+
+def test_opencv_json_and_yaml_without_header(tmp_path):
+    """cv2.FileStorage's JSON (before: 'no calibration found (expected calibration or
+    interior...)') and a hand-written FileStorage YAML without its %YAML line (before: 'not a
+    calibration file photogeom reads') are OpenCV calibrations too."""
+    _write_fs(tmp_path / "cv.json", DIST5)
+    cal = pg.read_calibration(tmp_path / "cv.json")
+    np.testing.assert_allclose(cal.project_camera(X), _cv_project(K, DIST5), rtol=0, atol=1e-9)
+    (tmp_path / "bare.yml").write_text(
+        "image_width: 1280\nimage_height: 960\ncamera_matrix: !!opencv-matrix\n  rows: 3\n"
+        "  cols: 3\n  dt: d\n  data: [1002.5, 0, 641.3, 0, 998.75, 479.2, 0, 0, 1]\n"
+        "dist_coeffs: [0.1, -0.05, 0.001, -0.002, 0.01]\n"
+    )
+    assert pg.read_calibration(tmp_path / "bare.yml") == cal

@@ -34,6 +34,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -617,7 +618,8 @@ def opencv_calibration_from_text(
     Parameters
     ----------
     data : bytes or str
-        The document (``%YAML`` or ``<?xml``/``<opencv_storage>``).
+        The document: YAML (``%YAML``, or a mapping without it), XML
+        (``<?xml``/``<opencv_storage>``) or FileStorage's JSON.
     where : str, default "OpenCV calibration"
         Its name in error messages.
     image_size : (int, int), optional
@@ -843,6 +845,10 @@ def read_calibration_file(
         )
     if fmt == "json":
         obj = parse_json_bytes(data, where)
+        if "camera_matrix" in obj and not any(k in obj for k in ("calibration", "interior")):
+            # cv2.FileStorage's JSON (a .json written by OpenCV)
+            calib, std = opencv_calibration_from_text(data, where, image_size)
+            return calib, std, None
         return calibration_from_json(obj, where, image_size)
     if fmt == "colmap":
         from ..bundle._textio import _decode_text
@@ -858,7 +864,10 @@ def read_calibration_file(
 def calibration_content_format(data: bytes) -> str | None:
     """The calibration format of a document by its first bytes: ``"opencv"``
     (``%YAML``, or XML whose root is ``<opencv_storage>``), ``"metashape"`` (other XML),
-    ``"json"`` (``{``), ``"colmap"`` (a ``#`` comment or a ``CAMERA_ID`` digit), else None."""
+    ``"json"`` (``{``; a JSON with ``camera_matrix`` is OpenCV's, told by
+    :func:`read_calibration_file` once parsed), ``"colmap"`` (a ``#`` comment or a
+    ``CAMERA_ID`` digit), ``"opencv"`` again for a YAML mapping with ``camera_matrix`` but
+    without ``%YAML``; else None."""
     if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
         return "metashape"  # UTF-16 XML: Metashape's reader decodes it
     body = data.lstrip(b"\xef\xbb\xbf \t\r\n")
@@ -871,6 +880,8 @@ def calibration_content_format(data: bytes) -> str | None:
         return "json"
     if head == b"#" or head.isdigit():
         return "colmap"
+    if re.match(rb"[A-Za-z_]\w*[ \t]*:", body) and b"camera_matrix" in body:
+        return "opencv"  # a FileStorage YAML without its %YAML line
     return None
 
 
