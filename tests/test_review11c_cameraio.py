@@ -348,3 +348,15 @@ def test_opencv_json_and_yaml_without_header(tmp_path):
         "dist_coeffs: [0.1, -0.05, 0.001, -0.002, 0.01]\n"
     )
     assert pg.read_calibration(tmp_path / "bare.yml") == cal
+
+
+def test_intersection_names_what_a_calibration_lacks(cli, tmp_path):
+    """Before: 'cam.yml: not valid JSON' (the CRS look-up read every --camera as JSON)."""
+    _write_fs(tmp_path / "cam.yml", DIST5)
+    for k in (1, 2):
+        (tmp_path / f"i{k}.csv").write_text("id,x,y\na,1,2\n")
+    code, _, err = cli(
+        "orient", "intersection", tmp_path / "i1.csv", tmp_path / "i2.csv",
+        "--camera", tmp_path / "cam.yml", "--camera", tmp_path / "cam.yml",
+    )  # fmt: skip
+    assert code == 2 and "interior only" in err and "exterior" in err
