@@ -114,7 +114,7 @@ def test_opencv_refuses_k4_and_b2_and_other_suffixes(tmp_path):
     with pytest.raises(pg.InputError, match="B2"):
         pg.write_calibration(pg.MetashapeCalibration(400, 300, 500.0, b2=0.1), tmp_path / "c.yml")
     with pytest.raises(pg.InputError, match=r"\.xml .*\.json .*\.yaml"):
-        pg.write_calibration(CAL, tmp_path / "c.txt")
+        pg.write_calibration(CAL, tmp_path / "c.dat")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -168,7 +168,7 @@ def test_bundle_adjust_writes_the_adjusted_calibration(block, cli, tmp_path):
 
 
 def test_bundle_adjust_refusals_come_before_the_adjustment(block, cli, tmp_path):
-    code, _, err = cli("bundle", "adjust", block, "--output-calibration", tmp_path / "c.txt")
+    code, _, err = cli("bundle", "adjust", block, "--output-calibration", tmp_path / "c.dat")
     assert code == 2 and "--output-calibration" in err and ".yaml" in err
     code, _, err = cli(
         "bundle", "adjust", block, "--free", "f,b2", "--output-calibration", tmp_path / "c.yaml"

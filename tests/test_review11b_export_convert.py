@@ -77,10 +77,13 @@ def test_convert_refusals(cli, tmp_path):
     pg.write_calibration(CAL, tmp_path / "a.xml")
     pg.write_calibration(CAL, tmp_path / "a.yaml")
     before = sorted(p.name for p in tmp_path.iterdir())
-    code, _, err = cli("camera", "convert", tmp_path / "a.xml", tmp_path / "b.txt")
+    code, _, err = cli("camera", "convert", tmp_path / "a.xml", tmp_path / "b.dat")
     assert code == 2 and "TARGET" in err and ".yaml" in err
-    code, _, err = cli("camera", "convert", tmp_path / "a.yaml", tmp_path / "b.xml")
-    assert code == 2 and "OpenCV YAML is written, not read" in err
+    a_yaml = tmp_path / "a.yaml"
+    text = a_yaml.read_text()
+    a_yaml.write_text(text.replace("image_width: 4000\n", "").replace("image_height: 3000\n", ""))
+    code, _, err = cli("camera", "convert", a_yaml, tmp_path / "b.xml")  # read since 11c
+    assert code == 2 and "image_width" in err and "--image-size" in err
     code, _, err = cli(
         "camera", "convert", tmp_path / "a.xml", tmp_path / "b.json", "--image-size", "4,3"
     )

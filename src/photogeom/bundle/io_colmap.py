@@ -128,6 +128,41 @@ def _colmap_from_calibration(model: str, c: MetashapeCalibration) -> list[float]
     return [*q, c.k3, 0.0, 0.0, 0.0]
 
 
+def camera_line(camera_id: int, model: str, c: MetashapeCalibration) -> str:
+    """One ``cameras.txt`` line ``CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]`` (px, COLMAP's
+    corner origin), ``model`` one of :data:`COLMAP_MODELS` that holds ``c``."""
+    q = format_floats(np.array(_colmap_from_calibration(model, c)))
+    return f"{camera_id} {model} {c.width} {c.height} {' '.join(q)}"
+
+
+def colmap_camera_text(c: MetashapeCalibration, camera_id: int = 1) -> str:
+    """A COLMAP ``cameras.txt`` holding one camera, in the smallest model that holds ``c``.
+
+    Parameters
+    ----------
+    c : MetashapeCalibration
+        The calibration (px); ``k4`` and ``b2`` must be zero.
+    camera_id : int, default 1
+        Its ``CAMERA_ID``.
+
+    Returns
+    -------
+    str
+        The file's text (COLMAP's comment header, one data line).
+
+    Raises
+    ------
+    InputError
+        Non-zero ``k4`` or ``b2`` (no COLMAP model has them).
+    """
+    model = colmap_model_for(c)
+    return (
+        "# Camera list with one line of data per camera:\n"
+        "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+        "# Number of cameras: 1\n" + camera_line(camera_id, model, c) + "\n"
+    )
+
+
 def _nonzero(c: MetashapeCalibration) -> set[str]:
     return {n for n in ("b1", "b2", "k1", "k2", "k3", "k4", "p1", "p2") if getattr(c, n) != 0.0}
 
@@ -169,7 +204,37 @@ def _data_lines(text: str, keep_blank: bool = False) -> tuple[list[str], list[in
 
 
 def _read_cameras(path: Path, refine_pp: bool):
-    text = read_text(path, "COLMAP cameras file")
+    return cameras_from_text(read_text(path, "COLMAP cameras file"), str(path), refine_pp)
+
+
+def cameras_from_text(
+    text: str, where_file: str = "cameras.txt", refine_pp: bool = False
+) -> tuple[dict[int, MetashapeCalibration], dict[int, tuple[str, ...]]]:
+    """The cameras of the text of a COLMAP ``cameras.txt``.
+
+    Parameters
+    ----------
+    text : str
+        The file's text (``CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]`` lines, ``#`` comments).
+    where_file : str, default "cameras.txt"
+        The file's name in error messages.
+    refine_pp : bool, default False
+        Count the principal point among the free parameters.
+
+    Returns
+    -------
+    cameras : dict CAMERA_ID -> MetashapeCalibration
+        Each camera (px; the table of the module docstring).
+    free : dict CAMERA_ID -> tuple of str
+        The parameters COLMAP's bundle adjuster refines for the camera's model.
+
+    Raises
+    ------
+    FileFormatError
+        A malformed line, an unsupported model, FULL_OPENCV with non-zero k4..k6, a
+        repeated id, or no camera.
+    """
+    path = where_file
     lines, nums = _data_lines(text)
     cams: dict[int, MetashapeCalibration] = {}
     free: dict[int, tuple[str, ...]] = {}
@@ -598,9 +663,7 @@ def colmap_texts(
         "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
         f"# Number of cameras: {len(cam_lines)}",
     ]
-    for cid, mdl, c in cam_lines:
-        q = format_floats(np.array(_colmap_from_calibration(mdl, c)))
-        cams_txt.append(f"{cid} {mdl} {c.width} {c.height} {' '.join(q)}")
+    cams_txt += [camera_line(cid, mdl, c) for cid, mdl, c in cam_lines]
     # images
     m = block.n_images
     kept = None if block.colmap_images is None else block.colmap_images.lookup(block.image_ids)

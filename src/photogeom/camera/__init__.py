@@ -8,7 +8,8 @@
 * :mod:`.distortion` - :class:`BrownDistortion` (Metashape's K1-K4, P1, P2) and its inverse;
 * :mod:`.metashape` - :class:`MetashapeCalibration`, its XML file and OpenCV conversion;
 * :mod:`.calibration_files` - :func:`write_calibration` (Metashape XML, camera JSON, OpenCV
-  YAML, with standard deviations) and :func:`read_calibration`;
+  YAML, COLMAP ``cameras.txt``, with standard deviations where they fit) and
+  :func:`read_calibration` (the same, and OpenCV's FileStorage XML);
 * :mod:`.dlt`, :mod:`.dlt_estimation` - the DLT, the camera matrix and their estimation;
 * :mod:`.affine` - the 8-parameter affine camera;
 * :mod:`.fiducials` - interior orientation from fiducial marks.

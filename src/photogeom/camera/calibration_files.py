@@ -1,4 +1,5 @@
-"""Calibration files for other tools: Metashape XML, photogeom camera JSON, OpenCV YAML.
+"""Calibration files for other tools: Metashape XML, photogeom camera JSON, OpenCV YAML,
+COLMAP ``cameras.txt``.
 
 A frame-camera calibration (:class:`~photogeom.camera.metashape.MetashapeCalibration`, e.g.
 one adjusted by :func:`photogeom.bundle.bundle_adjust`) is written, with its standard
@@ -18,6 +19,14 @@ deviations and covariance where the format has a place for them, as
   are Metashape's ``p2, p1``) and, with a covariance, ``std_deviations_intrinsics``
   ``(fx, fy, cx, cy, k1, k2, p1, p2, k3)`` as ``cv2.calibrateCameraExtended`` orders them
   (0 for parameters that were held). Exact only when ``k4 = b2 = 0``; otherwise refused.
+* ``.txt``: a COLMAP ``cameras.txt`` of one camera (``1 MODEL WIDTH HEIGHT PARAMS``, the
+  smallest model that holds the calibration; as :mod:`photogeom.bundle.io_colmap`
+  converts cameras). Exact only when ``k4 = b2 = 0``; no standard deviations.
+
+All four are read by :func:`read_calibration` / :func:`read_calibration_file`, the format by
+the content; OpenCV's ``cv2.FileStorage`` XML too. Terms without an exact Brown equivalent
+(OpenCV's rational, thin-prism, tilt, fisheye or skew terms; COLMAP's other models) are
+refused by name.
 """
 
 from __future__ import annotations
@@ -25,6 +34,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -35,7 +45,13 @@ from ..errors import FileFormatError, InputError
 from .metashape import MetashapeCalibration
 
 #: File-name suffix -> calibration file format.
-CALIBRATION_SUFFIXES = {".xml": "metashape", ".json": "json", ".yaml": "opencv", ".yml": "opencv"}
+CALIBRATION_SUFFIXES = {
+    ".xml": "metashape",
+    ".json": "json",
+    ".yaml": "opencv",
+    ".yml": "opencv",
+    ".txt": "colmap",
+}
 #: Calibration parameters, Metashape's names, in the order of ``photogeom.bundle``.
 PARAMETERS = ("f", "cx", "cy", "k1", "k2", "k3", "k4", "p1", "p2", "b1", "b2")
 #: Order of the parameters in Metashape's ``<covariance>``.
@@ -62,14 +78,14 @@ def calibration_format(path: str | os.PathLike, option: str = "path") -> str:
     Parameters
     ----------
     path : str or os.PathLike
-        A file name ending in ``.xml``, ``.json``, ``.yaml`` or ``.yml``.
+        A file name ending in ``.xml``, ``.json``, ``.yaml``, ``.yml`` or ``.txt``.
     option : str, default "path"
         Name of the argument in the error message (a CLI option name in the CLI).
 
     Returns
     -------
     str
-        ``"metashape"``, ``"json"`` or ``"opencv"``.
+        ``"metashape"``, ``"json"``, ``"opencv"`` or ``"colmap"`` (a COLMAP ``cameras.txt``).
 
     Raises
     ------
@@ -80,8 +96,8 @@ def calibration_format(path: str | os.PathLike, option: str = "path") -> str:
     if fmt is None:
         raise InputError(
             f"{option} {path}: the suffix names the format; end the name in .xml (Metashape "
-            "calibration XML), .json (photogeom camera JSON) or .yaml/.yml (OpenCV "
-            "FileStorage)"
+            "calibration XML), .json (photogeom camera JSON), .yaml/.yml (OpenCV "
+            "FileStorage) or .txt (COLMAP cameras.txt)"
         )
     return fmt
 
@@ -277,11 +293,11 @@ def calibration_text(
     ----------
     calibration : MetashapeCalibration
         The calibration.
-    fmt : {"metashape", "json", "opencv"}
+    fmt : {"metashape", "json", "opencv", "colmap"}
         The format (:func:`calibration_format` gives it from a file name).
     std, covariance
         As in :func:`calibration_json` (Metashape XML and OpenCV YAML use the covariance
-        only).
+        only; a COLMAP ``cameras.txt`` has no place for either).
 
     Returns
     -------
@@ -291,7 +307,7 @@ def calibration_text(
     Raises
     ------
     InputError
-        For an unknown format, or ``k4``/``b2`` non-zero in OpenCV's.
+        For an unknown format, or ``k4``/``b2`` non-zero in OpenCV's or COLMAP's.
     """
     if fmt == "metashape":
         return metashape_xml_text(calibration, covariance)
@@ -300,7 +316,13 @@ def calibration_text(
         return json.dumps(data, indent=1, allow_nan=False) + "\n"
     if fmt == "opencv":
         return opencv_yaml_text(calibration, covariance)
-    raise InputError(f"unknown calibration format {fmt!r}; use 'metashape', 'json' or 'opencv'")
+    if fmt == "colmap":
+        from ..bundle.io_colmap import colmap_camera_text
+
+        return colmap_camera_text(calibration)
+    raise InputError(
+        f"unknown calibration format {fmt!r}; use 'metashape', 'json', 'opencv' or 'colmap'"
+    )
 
 
 def write_calibration(
@@ -317,7 +339,9 @@ def write_calibration(
     calibration : MetashapeCalibration
         The calibration (px).
     path : str or os.PathLike
-        ``.xml`` (Metashape), ``.json`` (photogeom camera JSON), ``.yaml``/``.yml`` (OpenCV).
+        ``.xml`` (Metashape), ``.json`` (photogeom camera JSON), ``.yaml``/``.yml`` (OpenCV),
+        ``.txt`` (COLMAP ``cameras.txt``, one camera, ``CAMERA_ID`` 1, the smallest of
+        SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV that holds it).
     std : mapping name -> float, optional
         Standard deviations, px / unitless (NaN: held; JSON only).
     covariance : (names, matrix), optional
@@ -326,12 +350,12 @@ def write_calibration(
     Returns
     -------
     str
-        The format written: ``"metashape"``, ``"json"`` or ``"opencv"``.
+        The format written: ``"metashape"``, ``"json"``, ``"opencv"`` or ``"colmap"``.
 
     Raises
     ------
     InputError
-        Another suffix; ``k4`` or ``b2`` non-zero for OpenCV.
+        Another suffix; ``k4`` or ``b2`` non-zero for OpenCV or COLMAP.
     OutputError
         The file cannot be written (nothing is changed then).
     """
@@ -551,40 +575,264 @@ def read_metashape_covariance(
     return metashape_covariance_from_xml(_read_bytes(path, MAX_XML_BYTES), str(path))
 
 
+#: OpenCV's distortion terms, in the order of its distortion vector.
+OPENCV_DISTORTION = (
+    "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty",
+)  # fmt: skip
+
+
+def _fs_numbers(node, where: str, key: str) -> np.ndarray | None:
+    """The numbers of a ``cv2.FileStorage`` node (a matrix, a sequence or a number), or None
+    for a missing node."""
+    if node.empty() or node.isNone():
+        return None
+    if node.isInt() or node.isReal():
+        return np.array([node.real()])
+    try:
+        if node.isMap():  # !!opencv-matrix / type_id="opencv-matrix"
+            m = node.mat()
+            if m is not None:
+                return np.asarray(m, dtype=float).reshape(-1)
+        elif node.isSeq():
+            items = [node.at(i) for i in range(node.size())]
+            if all(it.isInt() or it.isReal() for it in items):
+                return np.array([it.real() for it in items], dtype=float)
+    except Exception:  # cv2.error: a map that is no matrix
+        pass
+    raise FileFormatError(f"{where}: {key} is not a matrix or list of numbers")
+
+
+def opencv_calibration_from_text(
+    data: bytes | str, where: str = "OpenCV calibration", image_size=None
+) -> tuple[MetashapeCalibration, dict[str, float]]:
+    """The calibration of an OpenCV ``cv2.FileStorage`` YAML or XML document.
+
+    Reads what OpenCV's calibration samples and :func:`write_calibration` write:
+    ``camera_matrix`` ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (px, the top-left pixel's
+    centre at (0, 0)), ``distortion_coefficients`` (or ``dist_coeffs``) of 4, 5, 8, 12 or
+    14 terms, ``image_width`` and ``image_height`` (px), and ``std_deviations_intrinsics``
+    when present. Converted exactly by :meth:`MetashapeCalibration.from_opencv`
+    (``f = fy``, ``b1 = fx - fy``, ``cx = cx_cv + 0.5 - w/2``, OpenCV ``p1, p2`` as
+    Metashape's ``p2, p1``).
+
+    Parameters
+    ----------
+    data : bytes or str
+        The document: YAML (``%YAML``, or a mapping without it), XML
+        (``<?xml``/``<opencv_storage>``) or FileStorage's JSON.
+    where : str, default "OpenCV calibration"
+        Its name in error messages.
+    image_size : (int, int), optional
+        ``(width, height)`` in px for a document without ``image_width``/``image_height``.
+
+    Returns
+    -------
+    calibration : MetashapeCalibration
+    std : dict
+        Standard deviations (px; Metashape names) from ``std_deviations_intrinsics``
+        (``cv2.calibrateCameraExtended``'s order ``fx, fy, cx, cy, k1, k2, p1, p2, k3, ...``):
+        ``f`` from ``fy``, ``cx``, ``cy``, ``k1..k3``, ``p1, p2`` (zeros, held parameters, and
+        ``b1``, which needs the covariance of ``fx`` and ``fy``, left out).
+
+    Raises
+    ------
+    FileFormatError
+        Not a FileStorage document; no ``camera_matrix`` or distortion vector; a fisheye
+        calibration (``fisheye_model`` non-zero); a skew in the camera matrix; non-zero
+        rational (k4..k6), thin-prism (s1..s4) or tilt (tx, ty) terms, named.
+    InputError
+        ``image_size`` given for a document that records the size.
+    """
+    import cv2
+
+    text = data.decode("utf-8-sig", errors="replace") if isinstance(data, bytes) else data
+    text = text.lstrip("\ufeff \t\r\n")
+    if text.startswith("<") and not text.startswith("<?xml"):
+        text = '<?xml version="1.0"?>\n' + text  # FileStorage tells XML by its declaration
+    try:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+        ok = fs.isOpened()
+    except Exception as exc:  # cv2.error (raised as SystemError by the bindings)
+        cause = exc.__cause__ or exc
+        raise FileFormatError(
+            f"{where}: not an OpenCV FileStorage YAML/XML: {str(cause).strip()[-200:]}"
+        ) from None
+    if not ok:
+        raise FileFormatError(f"{where}: not an OpenCV FileStorage YAML/XML")
+    try:
+        fisheye = _fs_numbers(fs.getNode("fisheye_model"), where, "fisheye_model")
+        if fisheye is not None and np.any(fisheye != 0):
+            raise FileFormatError(
+                f"{where}: a fisheye calibration (fisheye_model: 1; cv2.fisheye's k1..k4 of the "
+                "angle): the Brown model has no equivalent; calibrate with cv2.calibrateCamera"
+            )
+        K = _fs_numbers(fs.getNode("camera_matrix"), where, "camera_matrix")
+        dist_key = "distortion_coefficients"
+        dist = _fs_numbers(fs.getNode(dist_key), where, dist_key)
+        if dist is None:
+            dist_key = "dist_coeffs"
+            dist = _fs_numbers(fs.getNode(dist_key), where, dist_key)
+        size = [
+            _fs_numbers(fs.getNode(k), where, k) for k in ("image_width", "image_height")
+        ]
+        sd_key = "std_deviations_intrinsics"
+        sd = _fs_numbers(fs.getNode(sd_key), where, sd_key)
+    finally:
+        fs.release()
+    if K is None or K.size != 9:
+        raise FileFormatError(
+            f"{where}: "
+            + ("no camera_matrix" if K is None else f"camera_matrix has {K.size} entries, not 9")
+            + " (an OpenCV calibration has camera_matrix, a 3x3 matrix, and "
+            "distortion_coefficients)"
+        )
+    if dist is None:
+        raise FileFormatError(
+            f"{where}: no distortion_coefficients (or dist_coeffs); an OpenCV calibration has "
+            "both camera_matrix and the distortion vector"
+        )
+    if dist.size not in (4, 5, 8, 12, 14):
+        raise FileFormatError(
+            f"{where}: {dist_key} has {dist.size} terms; OpenCV's distortion vectors have 4, 5, "
+            "8, 12 or 14"
+        )
+    extra = [
+        f"{n} = {v!r}" for n, v in zip(OPENCV_DISTORTION[5:], dist[5:].tolist()) if v != 0.0
+    ]
+    if extra:
+        raise FileFormatError(
+            f"{where}: {dist_key} has {', '.join(extra)}: OpenCV's rational (k4, k5, k6), "
+            "thin-prism (s1..s4) and tilt (tx, ty) terms have no equivalent in photogeom's "
+            "Brown model (k1..k4, p1, p2, b1, b2); only calibrations with them zero convert "
+            "exactly"
+        )
+    if any(v is not None for v in size):
+        if any(v is None or v.size != 1 for v in size):
+            raise FileFormatError(f"{where}: give both image_width and image_height (px)")
+        if image_size is not None:
+            raise InputError(
+                f"{where} records the image size (image_width, image_height); leave the image "
+                "size out"
+            )
+        w, h = float(size[0][0]), float(size[1][0])
+    elif image_size is None:
+        raise FileFormatError(
+            f"{where}: no image_width and image_height; give the image size (image_size, "
+            "--image-size WIDTH,HEIGHT at the command line)"
+        )
+    else:
+        w, h = (float(v) for v in image_size)
+    if not (math.isfinite(w) and math.isfinite(h) and w == int(w) and h == int(h)):
+        raise FileFormatError(f"{where}: image size {w:g} x {h:g} is not whole pixels")
+    K = K.reshape(3, 3)
+    if K[0, 1] != 0.0:
+        raise FileFormatError(
+            f"{where}: camera_matrix has a skew entry ({K[0, 1]!r}); OpenCV's projection "
+            "(cv2.projectPoints, cv2.undistortPoints) ignores it, so the calibration has no "
+            "exact Brown equivalent; set it to 0 if the camera was calibrated without skew"
+        )
+    try:
+        calib = MetashapeCalibration.from_opencv(K, dist, int(w), int(h))
+    except InputError as exc:
+        raise FileFormatError(f"{where}: {exc}") from None
+    std: dict[str, float] = {}
+    if sd is not None and sd.size >= 9:
+        _fx, fy_, cx_, cy_, k1_, k2_, p1_, p2_, k3_ = sd[:9].tolist()
+        pairs = {"f": fy_, "cx": cx_, "cy": cy_, "k1": k1_, "k2": k2_, "k3": k3_,
+                 "p1": p2_, "p2": p1_}  # fmt: skip
+        std = {n: v for n, v in pairs.items() if math.isfinite(v) and v > 0}
+    return calib, _std_of(std, None)
+
+
+def colmap_calibration_from_text(
+    text: str, where: str = "cameras.txt", image_size=None
+) -> MetashapeCalibration:
+    """The camera of a COLMAP ``cameras.txt`` holding one camera.
+
+    Parameters
+    ----------
+    text : str
+        The file's text; models SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV and
+        FULL_OPENCV (k4 = k5 = k6 = 0), converted as :mod:`photogeom.bundle.io_colmap` does
+        (``cx = cx_colmap - w/2``: COLMAP's principal point is absolute, from the image's
+        top-left corner; ``f = fy``, ``b1 = fx - fy``; COLMAP ``p1, p2`` as Metashape's
+        ``p2, p1``).
+    where : str, default "cameras.txt"
+        The file's name in error messages.
+    image_size : None
+        Must be None: the file records the size.
+
+    Returns
+    -------
+    MetashapeCalibration
+
+    Raises
+    ------
+    FileFormatError
+        As :func:`photogeom.bundle.io_colmap.cameras_from_text`, or more than one camera.
+    InputError
+        ``image_size`` given.
+    """
+    from ..bundle.io_colmap import cameras_from_text
+
+    cams, _ = cameras_from_text(text, where)
+    if len(cams) != 1:
+        ids = ", ".join(str(k) for k in list(cams)[:10])
+        raise FileFormatError(
+            f"{where}: {len(cams)} cameras (CAMERA_ID {ids}{', ...' if len(cams) > 10 else ''}); "
+            "a calibration file holds one: keep the camera's line only"
+        )
+    if image_size is not None:
+        raise InputError(
+            f"{where} is a COLMAP cameras.txt, which records the image size (WIDTH, HEIGHT); "
+            "leave the image size out"
+        )
+    return next(iter(cams.values()))
+
+
 def read_calibration_file(
     path: str | os.PathLike, image_size=None
 ) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
-    """A calibration with its standard deviations and covariance, from a Metashape XML or a
-    camera JSON (read once, so a pipe works; the format by its content).
+    """A calibration with its standard deviations and covariance, from a Metashape XML, a
+    camera JSON, an OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one camera
+    (read once, so a pipe works; the format by its content,
+    :func:`calibration_content_format`).
 
     Parameters
     ----------
     path : str or os.PathLike
-        The file: a document starting with ``<`` is a Metashape XML
-        (:meth:`MetashapeCalibration.from_xml_string`, its ``<covariance>``), one starting
-        with ``{`` a camera JSON (:func:`calibration_from_json`).
+        The file: a Metashape XML (:meth:`MetashapeCalibration.from_xml_string`, its
+        ``<covariance>``), a camera JSON (:func:`calibration_from_json`), an OpenCV
+        document (:func:`opencv_calibration_from_text`) or a COLMAP ``cameras.txt``
+        (:func:`colmap_calibration_from_text`).
     image_size : (int, int), optional
-        ``(width, height)`` in px for a camera JSON that does not record it.
+        ``(width, height)`` in px for a camera JSON or OpenCV document that does not record
+        it.
 
     Returns
     -------
     calibration, std, covariance
         As :func:`calibration_from_json` (for an XML, ``std`` is empty and ``covariance``
-        its ``<covariance>`` or None).
+        its ``<covariance>`` or None; for an OpenCV document the standard deviations of its
+        ``std_deviations_intrinsics`` and no covariance; for a ``cameras.txt`` neither).
 
     Raises
     ------
     InputError
-        ``image_size`` given for a Metashape XML (which records the size).
+        ``image_size`` given for a file that records the size.
     FileFormatError
-        An unreadable file, one that is neither, an OpenCV YAML (written, not read).
+        An unreadable file, one of none of these formats, or a calibration without an exact
+        Brown equivalent (the terms named).
     """
     from ..io.jsonfile import MAX_JSON_BYTES, parse_json_bytes
 
     where = str(path)
     data = _read_bytes(path, MAX_JSON_BYTES)
-    head = data.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
-    if head == b"<" or data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+    fmt = calibration_content_format(data)
+    if fmt == "opencv":
+        calib, std = opencv_calibration_from_text(data, where, image_size)
+        return calib, std, None
+    if fmt == "metashape":
         if image_size is not None:
             raise InputError(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
@@ -595,37 +843,70 @@ def read_calibration_file(
             {},
             metashape_covariance_from_xml(data, where),
         )
-    if head == b"{":
+    if fmt == "json":
         obj = parse_json_bytes(data, where)
+        if "camera_matrix" in obj and not any(k in obj for k in ("calibration", "interior")):
+            # cv2.FileStorage's JSON (a .json written by OpenCV)
+            calib, std = opencv_calibration_from_text(data, where, image_size)
+            return calib, std, None
         return calibration_from_json(obj, where, image_size)
-    hint = (
-        " (an OpenCV YAML is written, not read: read it with cv2.FileStorage and "
-        "MetashapeCalibration.from_opencv)"
-        if data.lstrip().startswith((b"%YAML", b"---"))
-        else ""
-    )
+    if fmt == "colmap":
+        from ..bundle._textio import _decode_text
+
+        text = _decode_text(data, Path(where), "COLMAP cameras file")
+        return colmap_calibration_from_text(text, where, image_size), {}, None
     raise FileFormatError(
-        f"{where}: neither a Metashape calibration XML nor a camera JSON{hint}"
+        f"{where}: not a calibration file photogeom reads (Metashape calibration XML, camera "
+        "JSON, OpenCV FileStorage YAML/XML, COLMAP cameras.txt)"
     )
+
+
+def calibration_content_format(data: bytes) -> str | None:
+    """The calibration format of a document by its first bytes: ``"opencv"``
+    (``%YAML``, or XML whose root is ``<opencv_storage>``), ``"metashape"`` (other XML),
+    ``"json"`` (``{``; a JSON with ``camera_matrix`` is OpenCV's, told by
+    :func:`read_calibration_file` once parsed), ``"colmap"`` (a ``#`` comment or a
+    ``CAMERA_ID`` digit), ``"opencv"`` again for a YAML mapping with ``camera_matrix`` but
+    without ``%YAML``; else None."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return "metashape"  # UTF-16 XML: Metashape's reader decodes it
+    body = data.lstrip(b"\xef\xbb\xbf \t\r\n")
+    head = body[:1]
+    if body.startswith((b"%YAML", b"---")):
+        return "opencv"
+    if head == b"<":
+        return "opencv" if b"<opencv_storage" in body[:4096] else "metashape"
+    if head == b"{":
+        return "json"
+    if head == b"#" or head.isdigit():
+        return "colmap"
+    if re.match(rb"[A-Za-z_]\w*[ \t]*:", body) and b"camera_matrix" in body:
+        return "opencv"  # a FileStorage YAML without its %YAML line
+    return None
 
 
 def read_calibration(path: str | os.PathLike) -> MetashapeCalibration:
-    """Read a calibration written by :func:`write_calibration` (Metashape XML or JSON).
+    """Read a calibration: Metashape XML, photogeom camera JSON, OpenCV ``cv2.FileStorage``
+    YAML/XML or a COLMAP ``cameras.txt`` of one camera (what :func:`write_calibration`
+    writes, and the other tools' files), told apart by their content.
 
     Parameters
     ----------
     path : str or os.PathLike
-        A Metashape calibration XML or a photogeom camera JSON
-        (:func:`calibration_from_json`), told apart by their content.
+        The file (see :func:`read_calibration_file`).
 
     Returns
     -------
     MetashapeCalibration
+        The calibration (px), converted exactly.
 
     Raises
     ------
     FileFormatError
-        An unreadable file, an OpenCV YAML (read it with ``cv2.FileStorage`` and
-        :meth:`MetashapeCalibration.from_opencv`), or a JSON without a calibration.
+        An unreadable file, one of another format, a JSON without a calibration, a file
+        without its image size (use :func:`read_calibration_file` with ``image_size``), or
+        terms without an exact Brown equivalent: OpenCV's rational k4..k6, thin-prism s1..s4,
+        tilt tx, ty, fisheye model or camera-matrix skew; COLMAP's other models or
+        FULL_OPENCV's k4..k6; several COLMAP cameras.
     """
     return read_calibration_file(path)[0]

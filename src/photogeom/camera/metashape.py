@@ -497,10 +497,16 @@ class MetashapeCalibration:
         K = np.asarray(camera_matrix, dtype=float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)):
             raise InputError("camera_matrix must be a finite 3x3 matrix")
-        if K[0, 1] != 0 or K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+        if K[0, 1] != 0:
             raise InputError(
-                "camera_matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]: OpenCV's projection "
-                "ignores a skew entry, so it cannot be converted exactly"
+                f"camera_matrix has a skew entry ({K[0, 1]!r}): OpenCV's projection ignores it, "
+                "so it cannot be converted exactly; it must be [[fx, 0, cx], [0, fy, cy], "
+                "[0, 0, 1]]"
+            )
+        if K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+            raise InputError(
+                "camera_matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], got rows "
+                f"{K[1].tolist()} and {K[2].tolist()} below the first"
             )
         d = np.asarray(dist_coeffs, dtype=float).reshape(-1)
         if d.size not in (4, 5, 8, 12, 14):

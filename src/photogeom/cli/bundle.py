@@ -591,8 +591,9 @@ def adjust(
         typer.Option(
             "--output-calibration",
             help="Write the adjusted calibration with its standard deviations, format by "
-            "suffix: .xml Metashape, .json photogeom camera (--camera), .yaml/.yml OpenCV; "
-            "several camera groups: NAME-GROUP.SUFFIX each.",
+            "suffix: .xml Metashape, .json photogeom camera (--camera), .yaml/.yml OpenCV, "
+            ".txt COLMAP cameras.txt (no standard deviations); several camera groups: "
+            "NAME-GROUP.SUFFIX each.",
             show_default=False,
         ),
     ] = None,
@@ -628,8 +629,8 @@ def adjust(
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
         cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
-        if cal_fmt == "opencv":
-            _refuse_opencv_terms(block, free_names(free), output_calibration)
+        if cal_fmt in ("opencv", "colmap"):
+            _refuse_opencv_terms(block, free_names(free), output_calibration, cal_fmt)
         check_targets(
             files=[("--report", report), ("--result", result)]
             + [("--output-calibration", p) for _, p in cal_files]
@@ -754,15 +755,19 @@ def calibration_targets(path: Path, groups: list) -> list[tuple[object, Path]]:
     return out
 
 
-def _refuse_opencv_terms(block, free: tuple[str, ...] | None, path: Path) -> None:
-    """Refuse, before the adjustment, an OpenCV ``--output-calibration`` of a block whose
-    calibration has (or will estimate) K4 or B2, which OpenCV's model has not."""
+def _refuse_opencv_terms(
+    block, free: tuple[str, ...] | None, path: Path, fmt: str = "opencv"
+) -> None:
+    """Refuse, before the adjustment, an OpenCV or COLMAP (``fmt``) ``--output-calibration``
+    of a block whose calibration has (or will estimate) K4 or B2, which their models have
+    not."""
+    tool = "OpenCV" if fmt == "opencv" else "COLMAP"
     for g, cal in block.cameras.items():
         names = set(block.free[g] if free is None else free)
         bad = [n.upper() for n in ("k4", "b2") if n in names or getattr(cal, n) != 0.0]
         if bad:
             raise InputError(
-                f"--output-calibration {path}: OpenCV's camera model has no "
+                f"--output-calibration {path}: {tool}'s camera models have no "
                 f"{' and no '.join(bad)}, which camera group {g!r} estimates or holds non-zero: "
                 "hold them at zero (--free without k4 and b2) or write the calibration as "
                 ".xml or .json"

@@ -4,12 +4,15 @@
 * ``camera dlt estimate``: the 11 DLT parameters from control points (linear, rigorous or
   constrained), with statistics, residuals and a report;
 * ``camera dlt convert``: interior + exterior orientation -> DLT, or DLT -> orientations;
-* ``camera convert``: a calibration between Metashape XML, camera JSON and OpenCV YAML.
+* ``camera convert``: a calibration between Metashape XML, camera JSON, OpenCV YAML/XML and
+  COLMAP ``cameras.txt``.
 
 The camera is given by options (``--f``, ``--x0``, ``--y0``, ``--unit``, or ``--pixel-size``
-and ``--principal-point`` for a digital camera), by a Metashape calibration XML
-(``--calibration``) or by a JSON file (``--camera``: the output of ``--output-params``, or
-``{"interior": {...}, "exterior": {...}}``). Angles on the command line are in
+and ``--principal-point`` for a digital camera), by a calibration file (``--calibration``:
+Metashape XML, camera JSON, OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one
+camera, told apart by content) or by a JSON file (``--camera``: the output of
+``--output-params``, or ``{"interior": {...}, "exterior": {...}}``; a calibration of another
+tool gives the interior orientation only). Angles on the command line are in
 ``--angle-unit`` (degrees by default); inside the library they are radians.
 """
 
@@ -113,6 +116,16 @@ def read_parameters_json(path: Path) -> dict:
     return data
 
 
+def _is_foreign_calibration(path: Path, content_format) -> bool:
+    """Whether a regular file is a calibration in another tool's format (not JSON)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False  # read_json reports it
+    return content_format(head) in ("opencv", "colmap", "metashape")
+
+
 def camera_from_json(path: Path):
     """(InteriorOrientation or None, ExteriorOrientation or None) from a JSON file.
 
@@ -123,8 +136,12 @@ def camera_from_json(path: Path):
     from a camera), decomposed into interior and exterior orientation.
     """
     from ..camera import ExteriorOrientation, InteriorOrientation
+    from ..camera.calibration_files import calibration_content_format
     from ..io.jsonfile import build_from_json
 
+    if path.is_file() and _is_foreign_calibration(path, calibration_content_format):
+        # an OpenCV YAML/XML, a COLMAP cameras.txt or a Metashape XML: the interior only
+        return read_calibration_option(path, "--camera").interior_orientation(), None
     raw = read_json(path)
     data = raw
     if isinstance(raw.get("model_parameters"), dict):  # as read_parameters_json, one read
@@ -170,6 +187,36 @@ def camera_from_json(path: Path):
     )
 
 
+def read_calibration_option(path: Path, option: str):
+    """The calibration of a ``--calibration``/``--camera`` file: Metashape XML, camera JSON,
+    OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one camera (by content).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    option : str
+        The option's name, for messages.
+
+    Returns
+    -------
+    MetashapeCalibration
+        The frame-camera calibration (px).
+
+    Raises
+    ------
+    FileFormatError
+        As :func:`photogeom.camera.calibration_files.read_calibration_file`, the message
+        starting with the option's name.
+    """
+    from ..camera.calibration_files import read_calibration_file
+
+    try:
+        return read_calibration_file(path)[0]
+    except FileFormatError as exc:
+        raise FileFormatError(f"{option} {exc}") from None
+
+
 def build_interior(
     *,
     camera: Path | None,
@@ -183,14 +230,14 @@ def build_interior(
     required: bool = True,
 ):
     """The interior orientation from the command-line options (see the module docstring)."""
-    from ..camera import InteriorOrientation, read_metashape_xml
+    from ..camera import InteriorOrientation
 
     sources = [s for s in (camera, calibration, f) if s is not None]
     if len(sources) > 1:
         raise InputError("give the camera once: --camera, --calibration or --f")
     unit = ImageUnit(unit).value
     if calibration is not None:
-        return read_metashape_xml(calibration).interior_orientation()
+        return read_calibration_option(calibration, "--calibration").interior_orientation()
     if camera is not None:
         io, _ = camera_from_json(camera)
         if io is None and required:
@@ -324,10 +371,18 @@ def build_exterior(eo_text: str | None, angle_unit: AngleUnit, camera: Path | No
 # --- shared option types ----------------------------------------------------------------------
 
 CameraOpt = Annotated[
-    Path | None, typer.Option(help="Camera JSON (interior and/or exterior orientation).")
+    Path | None,
+    typer.Option(
+        help="Camera JSON (interior and/or exterior orientation), or a calibration of another "
+        "tool (interior only): Metashape XML, OpenCV YAML/XML, COLMAP cameras.txt."
+    ),
 ]
 CalibrationOpt = Annotated[
-    Path | None, typer.Option(help="Metashape calibration XML (frame camera, pixels).")
+    Path | None,
+    typer.Option(
+        help="Frame-camera calibration (pixels): Metashape XML, camera JSON, OpenCV "
+        "FileStorage YAML/XML or COLMAP cameras.txt (one camera); format by content."
+    ),
 ]
 FOpt = Annotated[float | None, typer.Option("--f", help="Principal distance (in --unit).")]
 X0Opt = Annotated[float, typer.Option("--x0", help="Principal point x0 (in --unit).")]
@@ -448,27 +503,31 @@ def convert_cmd(
     source: Annotated[
         Path,
         typer.Argument(
-            help="Calibration to read: Metashape XML (.xml) or camera JSON (.json: "
-            "'bundle adjust --output-calibration', 'orient resection --output-params', ...)."
+            help="Calibration to read, format by content: Metashape XML, camera JSON "
+            "('bundle adjust --output-calibration', 'orient resection --output-params', ...), "
+            "OpenCV FileStorage YAML/XML (camera_matrix, distortion_coefficients), COLMAP "
+            "cameras.txt (one camera)."
         ),
     ],
     target: Annotated[
         Path,
         typer.Argument(
             help="File to write, format by suffix: .xml Metashape, .json photogeom camera "
-            "(--camera), .yaml/.yml OpenCV FileStorage."
+            "(--camera), .yaml/.yml OpenCV FileStorage, .txt COLMAP cameras.txt."
         ),
     ],
     image_size: Annotated[
         str | None,
         typer.Option(
             "--image-size",
-            help="WIDTH,HEIGHT in px, for a camera JSON that does not record the image size.",
+            help="WIDTH,HEIGHT in px, for a camera JSON or OpenCV file that does not record "
+            "the image size.",
             show_default=False,
         ),
     ] = None,
 ) -> None:
-    """Convert a frame-camera calibration between Metashape XML, camera JSON and OpenCV YAML.
+    """Convert a frame-camera calibration between Metashape XML, camera JSON, OpenCV YAML and
+    COLMAP cameras.txt.
 
     Standard deviations and the covariance (of a camera JSON written by 'bundle adjust
     --output-calibration', the <covariance> of a Metashape XML) are carried over where the
@@ -491,13 +550,11 @@ def convert_cmd(
         size = (int(w), int(h))
     try:
         cal, std, cov = read_calibration_file(source, size)
-    except InputError as exc:  # only an image size given for an XML
+    except InputError as exc:  # only an image size given for a file that records it
         if size is None:
             raise
-        raise InputError(
-            f"--image-size: {source} is a Metashape XML, which records the image size "
-            "(<width>, <height>); leave --image-size out"
-        ) from exc
+        text = str(exc).replace("leave the image size out", "leave --image-size out")
+        raise InputError(f"--image-size: {text}") from exc
     text = calibration_text(cal, dst_fmt, std=std, covariance=cov)
     write_outputs([(target, text)])
     say(f"wrote {target} ({dst_fmt})", console())

@@ -322,7 +322,15 @@ def intersection(
     for path in camera:
         io, eo = camera_from_json(path)
         if io is None or eo is None:
-            raise InputError(f"{path}: needs both interior and exterior orientation")
+            raise InputError(
+                f"--camera {path}: needs both interior and exterior orientation"
+                + (
+                    " (a calibration file gives the interior only: give a camera JSON with "
+                    "'exterior', e.g. from orient resection --output-params)"
+                    if eo is None
+                    else ""
+                )
+            )
         cams.append((io, eo))
     cols = split_names(image_cols) or (["col", "row"] if pixel else ["x", "y"])
     with column_options("--image-cols"):
@@ -426,7 +434,12 @@ def _cameras_crs(camera: list[Path], crs: str | None) -> str | None:
     from .camera import read_json
 
     recorded = {}
+    from ..camera.calibration_files import calibration_content_format
+    from .camera import _is_foreign_calibration
+
     for path in camera:
+        if path.is_file() and _is_foreign_calibration(path, calibration_content_format):
+            continue  # a calibration of another tool: no CRS (camera_from_json reads it)
         data = read_json(path)  # a pipe: read once, kept for camera_from_json
         value = data.get("crs") if isinstance(data, dict) else None
         if value is not None:
