@@ -270,3 +270,25 @@ def test_snooping_absolute_orientation_records_its_level(tmp_path):
     d = fit.to_dict()["snooping"]
     assert d["alpha"] == 0.05 and d["w"]["critical_value"] == pytest.approx(W_005, abs=1e-12)
     assert "critical value 1.960 at alpha = 0.05" in residual_table(fit).footer[1]
+
+
+def test_fit_snooping_defaults_to_the_level_the_fit_was_tested_at(tmp_path):
+    """``Fit.snooping()`` tested at 0.001 whatever the fit's estimator recorded, while the
+    same fit's tables and ``to_dict()`` tested at the recorded level: a fit of
+    ``snooping_absolute_orientation(alpha=0.05)`` gave two answers to "which points fail"."""
+    from photogeom.orientation import snooping_absolute_orientation
+
+    _, ids, x, X = _absolute_points(tmp_path)
+    X[4] += [0.04, 0.0, 0.0]
+    fit = snooping_absolute_orientation(x, X, alpha=0.05, sigma="prior", sigma_target=0.01,
+                                        ids=ids)  # fmt: skip
+    assert fit.test_level == 0.05
+    sn = fit.snooping()
+    assert sn.alpha == 0.05 and sn.critical_value == pytest.approx(W_005, abs=1e-12)
+    rows, cols = np.nonzero(np.asarray(sn.flagged).reshape(np.shape(fit.residuals)))
+    by_default = {(str(fit.ids[k]), fit.residual_labels[j]) for k, j in zip(rows, cols)}
+    assert by_default == _flagged(fit.to_dict()["snooping"]["w"])
+    # an explicit level still wins, and a fit that records none tests at 0.001
+    assert fit.snooping(alpha=0.001).critical_value == pytest.approx(3.2905267, abs=1e-6)
+    plain = snooping_absolute_orientation(x, X, sigma="prior", sigma_target=0.01, ids=ids)
+    assert plain.test_level == 0.001 and plain.snooping().alpha == 0.001

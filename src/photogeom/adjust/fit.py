@@ -13,6 +13,10 @@ from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
 
+#: Significance level of the outlier tests of a fit that records none (Baarda's 0.001:
+#: critical w 3.29).
+DEFAULT_ALPHA = 0.001
+
 
 def propagate_covariance(C: np.ndarray, J: np.ndarray) -> np.ndarray:
     """Covariance of ``g(x)`` from that of ``x``: ``J C J.T`` (J = dg/dx)."""
@@ -403,13 +407,27 @@ class Fit:
         """RMS per axis of check-point residuals."""
         return None if self.check_residuals is None else _rms_axes(self.check_residuals)
 
-    def snooping(self, alpha: float = 0.001, sigma: str = "prior") -> SnoopingResult:
+    @property
+    def test_level(self) -> float:
+        """Significance level of the fit's outlier tests (unitless): the level its estimator
+        tested at when it records one (``extras["alpha"]``, e.g.
+        :func:`photogeom.relative_orientation` with ``alpha=``), else :data:`DEFAULT_ALPHA`.
+        The residual tables, ``to_dict()["snooping"]`` and :meth:`snooping` use it."""
+        value = self.extras.get("alpha") if isinstance(self.extras, Mapping) else None
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value < 1:
+            return float(value)
+        return DEFAULT_ALPHA
+
+    def snooping(self, alpha: float | None = None, sigma: str = "prior") -> SnoopingResult:
         """Baarda's w-test (``sigma="prior"``) or Pope's tau-test (``"posterior"``) per residual.
 
         Parameters
         ----------
-        alpha : float, default 0.001
-            Significance level of each single test.
+        alpha : float, optional
+            Significance level of each single test; default :attr:`test_level`, the level
+            the fit was tested at (0.001 unless its estimator recorded another). Before, the
+            default was always 0.001, so a fit of ``relative_orientation(alpha=0.01)`` was
+            tested at 0.001 here and at 0.01 in its own tables.
         sigma : {"prior", "posterior"}, default "prior"
             A-priori sigma0 (w-test) or a-posteriori sigma0 (tau-test); see
             :func:`photogeom.adjust.data_snooping`.
@@ -431,6 +449,8 @@ class Fit:
             from ..errors import InputError
 
             raise InputError(f"{self.method}: normalised residuals were not computed for this fit")
+        if alpha is None:
+            alpha = self.test_level
         adj = Adjustment(
             x=self.parameters,
             names=self.parameter_names,

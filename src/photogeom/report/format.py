@@ -4,35 +4,32 @@ console and HTML reports (so both show the same digits)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-#: Significance level of the data-snooping tests shown in reports.
-SNOOPING_ALPHA = 0.001
+from ..adjust.fit import DEFAULT_ALPHA
+
+#: Significance level of the data-snooping tests shown in reports for a fit that records none.
+SNOOPING_ALPHA = DEFAULT_ALPHA
 
 
 def snooping_alpha(fit) -> float:
-    """Significance level of the tests shown for ``fit``: the level its estimator tested at
-    when it records one (``extras["alpha"]``, e.g. :func:`photogeom.relative_orientation`
-    with ``alpha=``), else :data:`SNOOPING_ALPHA`.
+    """Significance level of the tests shown for ``fit``: :attr:`photogeom.adjust.Fit.test_level`
+    (the level its estimator recorded in ``extras["alpha"]``, else :data:`SNOOPING_ALPHA`).
 
     Parameters
     ----------
     fit : Fit
-        Any fit.
+        Any fit (an object without ``test_level``: :data:`SNOOPING_ALPHA`).
 
     Returns
     -------
     float
         The level, in (0, 1) (unitless).
     """
-    extras = getattr(fit, "extras", None)
-    value = extras.get("alpha") if isinstance(extras, Mapping) else None
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value < 1:
-        return float(value)
-    return SNOOPING_ALPHA
+    return float(getattr(fit, "test_level", SNOOPING_ALPHA))
 
 
 RESIDUAL_CONVENTION = "v = computed - observed"
