@@ -63,3 +63,67 @@ def pipe_message(path: str | os.PathLike, what: str, why: str) -> str:
         f"cannot read {what} {path}: it is a pipe, and {why}; save the stream to a regular "
         "file and give that file"
     )
+
+
+#: The bytes read from pipes in this process, by (path, device, inode): a command may read
+#: one input several times (its format, a CRS it records, its content) and a pipe gives its
+#: content once.
+_PIPE_BYTES: dict[tuple[str, int, int], bytes] = {}
+
+
+def pipe_bytes(path: str | os.PathLike, limit: int) -> bytes:
+    """The content of the pipe ``path``, read once per process.
+
+    The first call reads at most ``limit + 1`` bytes (so that the caller can tell a stream
+    longer than ``limit`` from one of ``limit`` bytes) and keeps them; a later call for the
+    same pipe returns what the first one read instead of waiting for a second writer.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A pipe (:func:`input_kind` gives ``"pipe"``).
+    limit : int
+        Most bytes the caller accepts (bytes); the caller refuses a longer result.
+
+    Returns
+    -------
+    bytes
+        The pipe's content (up to ``limit + 1`` bytes).
+
+    Raises
+    ------
+    OSError
+        The pipe cannot be opened or read.
+    """
+    st = os.stat(path)
+    key = (os.path.abspath(path), st.st_dev, st.st_ino)
+    if key not in _PIPE_BYTES:
+        with open(path, "rb") as fh:
+            _PIPE_BYTES[key] = fh.read(limit + 1)
+    return _PIPE_BYTES[key]
+
+
+def read_input_bytes(path: str | os.PathLike, limit: int) -> bytes:
+    """The bytes of a regular file or of a pipe (read once, :func:`pipe_bytes`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input.
+    limit : int
+        Most bytes the caller accepts (bytes); at most ``limit + 1`` are read.
+
+    Returns
+    -------
+    bytes
+        The content, up to ``limit + 1`` bytes (the caller refuses a longer one).
+
+    Raises
+    ------
+    OSError
+        The input cannot be opened or read.
+    """
+    if input_kind(path) == "pipe":
+        return pipe_bytes(path, limit)
+    with open(path, "rb") as fh:
+        return fh.read(limit + 1)
