@@ -137,6 +137,9 @@ def camera_from_json(path: Path):
         # an OpenCV YAML/XML, a COLMAP cameras.txt or a Metashape XML: the interior only
         return read_calibration_option(path, "--camera").interior_orientation(), None
     raw = read_json(path)
+    if "camera_matrix" in raw and not any(k in raw for k in ("calibration", "interior")):
+        # cv2.FileStorage's JSON (a .json written by OpenCV), as --calibration reads it
+        return read_calibration_option(path, "--camera").interior_orientation(), None
     data = raw
     if isinstance(raw.get("model_parameters"), dict):  # as read_parameters_json, one read
         data = raw["model_parameters"]
@@ -368,7 +371,7 @@ CameraOpt = Annotated[
     Path | None,
     typer.Option(
         help="Camera JSON (interior and/or exterior orientation), or a calibration of another "
-        "tool (interior only): Metashape XML, OpenCV YAML/XML, COLMAP cameras.txt."
+        "tool (interior only): Metashape XML, OpenCV YAML/XML/JSON, COLMAP cameras.txt."
     ),
 ]
 CalibrationOpt = Annotated[
