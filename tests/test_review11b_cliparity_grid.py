@@ -2,9 +2,8 @@
 
 The bundled ``dubrovnik-3-7-pre.txt`` (a BAL file, a name ``bundle adjust`` reads as BAL)
 was read by ``grid fit`` as a residuals CSV: ``no column 'image_id' (columns: 3 7 19) ...
-replace the separators with commas``. A regular file is now recognised by its content; a
-pipe, which can be read only once, is still a residuals CSV, and the error says it holds a
-BAL header and asks for the file.
+replace the separators with commas``. A regular file is now recognised by its content (and,
+since review 11d, a pipe: read once, its bytes kept for the reader).
 """
 
 from __future__ import annotations
@@ -59,7 +58,9 @@ def test_a_residuals_csv_is_still_a_csv(cli, tmp_path):
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
-def test_a_bal_pipe_is_named_in_the_error(cli, tmp_path):
+def test_a_bal_pipe_is_a_block(cli, tmp_path):
+    # review 11d: a pipe is now read once and recognised by content as well (before: the
+    # error named the BAL header and asked for the file; test_review11d_pipes2_grid.py)
     fifo = tmp_path / "stream"
     os.mkfifo(fifo)
 
@@ -68,7 +69,8 @@ def test_a_bal_pipe_is_named_in_the_error(cli, tmp_path):
             fh.write(BAL.read_bytes())
 
     threading.Thread(target=feed, daemon=True).start()
-    code, _, err, _ = _grids(cli, fifo, tmp_path)
-    assert code == 2
-    assert "the header of a BAL file" in err and "save the stream to a file" in err
-    assert "replace the separators with commas" not in err
+    code, _, err, out = _grids(cli, fifo, tmp_path)
+    assert code == 0, err
+    code2, _, err2, out2 = _grids(cli, BAL, tmp_path, "g2.json")
+    assert code2 == 0, err2
+    assert out.read_bytes() == out2.read_bytes()

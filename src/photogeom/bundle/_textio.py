@@ -8,6 +8,7 @@ pass that finds the line to name.
 from __future__ import annotations
 
 import bz2
+import io
 import os
 import re
 from collections.abc import Callable, Iterator, Mapping
@@ -19,7 +20,7 @@ import numpy as np
 from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError
 from ..io.csvblocks import wide_unicode
-from ..io.sources import device_message, input_kind
+from ..io.sources import device_message, input_kind, kept_pipe_bytes
 from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
@@ -74,8 +75,9 @@ def read_text(
     p = Path(path)
     if input_kind(p) == "device":
         raise FileFormatError(device_message(p, what))
+    kept = kept_pipe_bytes(p)  # a pipe another reader read already (grid fit's format)
     try:
-        with open(p, "rb") as fh:
+        with open(p, "rb") if kept is None else io.BytesIO(kept) as fh:
             data = _read_limited(fh, p, what, limit)
     except FileNotFoundError:
         raise FileFormatError(f"cannot read {what} {p}: no such file") from None

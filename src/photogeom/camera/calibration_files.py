@@ -480,7 +480,7 @@ def _resection_covariance(data: dict) -> tuple[tuple[str, ...], np.ndarray] | No
 
 def _read_bytes(path: str | os.PathLike, limit: int) -> bytes:
     """The bytes of a calibration file, read once (a pipe gives its content once)."""
-    from ..io.sources import device_message, input_kind
+    from ..io.sources import device_message, input_kind, read_input_bytes
 
     kind = input_kind(path)
     if kind == "device":
@@ -488,8 +488,7 @@ def _read_bytes(path: str | os.PathLike, limit: int) -> bytes:
     if kind == "folder":
         raise FileFormatError(f"cannot read {path}: it is a folder; give a calibration file")
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(limit + 1)
+        data = read_input_bytes(path, limit)  # a pipe: read once, kept for later reads
     except OSError as exc:
         raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
     if len(data) > limit:

@@ -18,7 +18,6 @@ tool gives the interior orientation only). Angles on the command line are in
 
 from __future__ import annotations
 
-import os
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -81,30 +80,15 @@ class Behind(str, Enum):
     nan = "nan"
 
 
-#: JSON objects read from pipes in this command, by (path, device, inode): a command reads
-#: a camera file up to three times (its CRS, the interior, the exterior orientation), and a
-#: pipe gives its content once.
-_FROM_PIPES: dict[tuple[str, int, int], dict] = {}
-
-
 def read_json(path: Path) -> dict:
     """A JSON object from a file, with clear errors (see :mod:`photogeom.io.jsonfile`).
 
-    A pipe (``--camera <(cat cam.json)``, a named pipe) is read once: what it gave is kept
-    for the other reads of the same pipe in this command (a second read used to wait for
-    ever)."""
-    import copy
-
+    A pipe (``--camera <(cat cam.json)``, a named pipe) is read once: its bytes are kept
+    for the other reads of the same pipe in this command (its format, its CRS, the interior
+    and the exterior orientation; a second read used to wait for ever)."""
     from ..io.jsonfile import read_json_object
-    from ..io.sources import input_kind
 
-    if input_kind(path) != "pipe":
-        return read_json_object(path)
-    st = os.stat(path)
-    key = (os.path.abspath(path), st.st_dev, st.st_ino)
-    if key not in _FROM_PIPES:
-        _FROM_PIPES[key] = read_json_object(path)
-    return copy.deepcopy(_FROM_PIPES[key])  # callers may change what they get
+    return read_json_object(path)
 
 
 def read_parameters_json(path: Path) -> dict:
@@ -117,10 +101,20 @@ def read_parameters_json(path: Path) -> dict:
 
 
 def _is_foreign_calibration(path: Path, content_format) -> bool:
-    """Whether a regular file is a calibration in another tool's format (not JSON)."""
+    """Whether a regular file or a pipe is a calibration in another tool's format (not
+    JSON), told by its content; a pipe is read once, its bytes kept for the reader."""
+    from ..io.jsonfile import MAX_JSON_BYTES
+    from ..io.sources import input_kind, pipe_bytes
+
+    kind = input_kind(path)
     try:
-        with open(path, "rb") as fh:
-            head = fh.read(4096)
+        if kind == "pipe":
+            head = pipe_bytes(path, MAX_JSON_BYTES)[:4096]
+        elif kind == "file":
+            with open(path, "rb") as fh:
+                head = fh.read(4096)
+        else:
+            return False  # read_json reports it
     except OSError:
         return False  # read_json reports it
     return content_format(head) in ("opencv", "colmap", "metashape")
@@ -139,10 +133,13 @@ def camera_from_json(path: Path):
     from ..camera.calibration_files import calibration_content_format
     from ..io.jsonfile import build_from_json
 
-    if path.is_file() and _is_foreign_calibration(path, calibration_content_format):
+    if _is_foreign_calibration(path, calibration_content_format):
         # an OpenCV YAML/XML, a COLMAP cameras.txt or a Metashape XML: the interior only
         return read_calibration_option(path, "--camera").interior_orientation(), None
     raw = read_json(path)
+    if "camera_matrix" in raw and not any(k in raw for k in ("calibration", "interior")):
+        # cv2.FileStorage's JSON (a .json written by OpenCV), as --calibration reads it
+        return read_calibration_option(path, "--camera").interior_orientation(), None
     data = raw
     if isinstance(raw.get("model_parameters"), dict):  # as read_parameters_json, one read
         data = raw["model_parameters"]
@@ -374,7 +371,7 @@ CameraOpt = Annotated[
     Path | None,
     typer.Option(
         help="Camera JSON (interior and/or exterior orientation), or a calibration of another "
-        "tool (interior only): Metashape XML, OpenCV YAML/XML, COLMAP cameras.txt."
+        "tool (interior only): Metashape XML, OpenCV YAML/XML/JSON, COLMAP cameras.txt."
     ),
 ]
 CalibrationOpt = Annotated[

@@ -156,11 +156,16 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     kind = input_kind(path)
     if kind == "device":
         raise FileFormatError(device_message(path, "CSV file"))
+    from ..io.sources import pipe_bytes
+
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
+        if kind == "pipe":  # read once: _is_block may have read it already
+            raw = pipe_bytes(path, None)
+        else:
+            with open(path, "rb") as fh:
+                raw = fh.read()
     except OSError as exc:
-        raise FileFormatError(f"{path}: cannot read ({exc.strerror})") from None
+        raise FileFormatError(f"{path}: cannot read ({exc.strerror or exc})") from None
     # a pipe can be read once: its bytes are kept for the line-wise reader; a file is opened
     # again by it (only when needed, and without holding the bytes meanwhile)
     kept = raw if kind == "pipe" else None
@@ -376,10 +381,9 @@ def _read_csv(
             if len(header) == 1 and _looks_like_bal(header[0]):
                 raise FileFormatError(
                     f"{path}: its first line holds three integers ({header[0].strip()}), "
-                    "the header of a BAL file (cameras, points, observations), but it was "
-                    "read as a residuals CSV (image_id, u, v, rx, ry): a pipe cannot be "
-                    "looked at before it is read; give the BAL file itself, or save the "
-                    "stream to a file (e.g. block.bal) and give that"
+                    "the header of a BAL file (cameras, points, observations), not a CSV "
+                    f"with the columns {', '.join(need)}; a BAL file is a block for 'grid "
+                    "fit BLOCK', not an input here: give the CSV"
                 )
             raise FileFormatError(
                 f"{path}: no column {name!r} (columns: {_listing(header)}); "
@@ -535,7 +539,7 @@ def fit(
         typer.Argument(
             help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed), "
             "or an adjusted block (a CSV block folder or COLMAP text model, a BAL file: "
-            ".bal, .bz2 or any name by its content; a pipe is read as a residuals CSV): "
+            ".bal, .bz2 or any name or pipe by its content): "
             "the reprojection residuals of its tie points, the image sizes of its cameras."
         ),
     ],
@@ -789,19 +793,23 @@ _BLOCK_FILES = frozenset(
 
 def _is_block(path: Path) -> bool:
     """Whether ``grid fit``'s input is an adjusted block (a folder or a BAL file) rather
-    than a residuals CSV: a folder, a name ending in .bal or .bz2, or a regular file whose
-    content is BAL (bzip2-compressed, or a first line of three integers: cameras, points,
-    observations). A pipe is read once and cannot be looked at first: it is a residuals
-    CSV, and :func:`_looks_like_bal` words its error."""
+    than a residuals CSV: a folder, a name ending in .bal or .bz2, or a regular file or a
+    pipe whose content is BAL (bzip2-compressed, or a first line of three integers: cameras,
+    points, observations). A pipe is read once, whole, and its bytes kept
+    (:func:`photogeom.io.sources.pipe_bytes`) for the BAL or CSV reader."""
     if path.is_dir() or path.suffix.lower() in _BLOCK_SUFFIXES:
         return True
-    from ..io.sources import input_kind
+    from ..io.sources import input_kind, pipe_bytes
 
-    if input_kind(path) != "file":
-        return False
+    kind = input_kind(path)
     try:
-        with open(path, "rb") as fh:
-            head = fh.read(4096)
+        if kind == "pipe":  # read once, whole (as the CSV reader would), kept for the reader
+            head = pipe_bytes(path, None)[:4096]
+        elif kind == "file":
+            with open(path, "rb") as fh:
+                head = fh.read(4096)
+        else:
+            return False
     except OSError:
         return False  # the CSV reader names the problem
     return head.startswith(b"BZh") or _looks_like_bal(head.decode("latin-1"))

@@ -438,7 +438,7 @@ def _cameras_crs(camera: list[Path], crs: str | None) -> str | None:
     from .camera import _is_foreign_calibration
 
     for path in camera:
-        if path.is_file() and _is_foreign_calibration(path, calibration_content_format):
+        if _is_foreign_calibration(path, calibration_content_format):
             continue  # a calibration of another tool: no CRS (camera_from_json reads it)
         data = read_json(path)  # a pipe: read once, kept for camera_from_json
         value = data.get("crs") if isinstance(data, dict) else None

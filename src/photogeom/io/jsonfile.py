@@ -136,9 +136,10 @@ def read_json_object(path: str | os.PathLike) -> dict:
         NaN/Infinity, or a top level that is not an object.
     """
     where = str(path)
+    from .sources import read_input_bytes
+
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_JSON_BYTES + 1)
+        data = read_input_bytes(path, MAX_JSON_BYTES)  # a pipe: read once, kept
     except FileNotFoundError:
         raise FileFormatError(f"cannot read {where}: no such file") from None
     except OSError as exc:

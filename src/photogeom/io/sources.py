@@ -63,3 +63,95 @@ def pipe_message(path: str | os.PathLike, what: str, why: str) -> str:
         f"cannot read {what} {path}: it is a pipe, and {why}; save the stream to a regular "
         "file and give that file"
     )
+
+
+#: The bytes read from pipes in this process, by (path, device, inode), with the limit they
+#: were read to (None: the whole stream): a command may read one input several times (its
+#: format, a CRS it records, its content) and a pipe gives its content once.
+_PIPE_BYTES: dict[tuple[str, int, int], tuple[bytes, int | None]] = {}
+
+
+def _pipe_key(path: str | os.PathLike) -> tuple[str, int, int]:
+    st = os.stat(path)
+    return (os.path.abspath(path), st.st_dev, st.st_ino)
+
+
+def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
+    """The content of the pipe ``path``, read once per process.
+
+    The first call reads at most ``limit + 1`` bytes (so that the caller can tell a stream
+    longer than ``limit`` from one of ``limit`` bytes; ``None``: the whole stream) and keeps
+    them; a later call for the same pipe returns what the first one read instead of waiting
+    for a second writer.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A pipe (:func:`input_kind` gives ``"pipe"``).
+    limit : int or None
+        Most bytes the caller accepts (bytes); the caller refuses a longer result. None
+        reads the whole stream.
+
+    Returns
+    -------
+    bytes
+        The pipe's content (up to ``limit + 1`` bytes).
+
+    Raises
+    ------
+    OSError
+        The pipe cannot be opened or read, or an earlier read of it stopped before the
+        ``limit`` asked for now (its end was not kept).
+    """
+    key = _pipe_key(path)
+    if key not in _PIPE_BYTES:
+        with open(path, "rb") as fh:
+            data = fh.read() if limit is None else fh.read(limit + 1)
+        _PIPE_BYTES[key] = (data, limit)
+    data, read_to = _PIPE_BYTES[key]
+    cut = read_to is not None and len(data) > read_to
+    if cut and (limit is None or limit > read_to):
+        raise OSError(
+            f"the pipe was read once to {read_to} bytes and holds more; save the stream to a "
+            "regular file and give that file"
+        )
+    return data
+
+
+def kept_pipe_bytes(path: str | os.PathLike) -> bytes | None:
+    """What :func:`pipe_bytes` read from the pipe ``path`` in this process, whole; None when
+    it has not read it (or read only a part)."""
+    try:
+        key = _pipe_key(path)
+    except (OSError, ValueError):
+        return None
+    data, read_to = _PIPE_BYTES.get(key, (None, None))
+    if data is None or (read_to is not None and len(data) > read_to):
+        return None
+    return data
+
+
+def read_input_bytes(path: str | os.PathLike, limit: int) -> bytes:
+    """The bytes of a regular file or of a pipe (read once, :func:`pipe_bytes`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input.
+    limit : int
+        Most bytes the caller accepts (bytes); at most ``limit + 1`` are read.
+
+    Returns
+    -------
+    bytes
+        The content, up to ``limit + 1`` bytes (the caller refuses a longer one).
+
+    Raises
+    ------
+    OSError
+        The input cannot be opened or read.
+    """
+    if input_kind(path) == "pipe":
+        return pipe_bytes(path, limit)
+    with open(path, "rb") as fh:
+        return fh.read(limit + 1)
