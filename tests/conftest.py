@@ -12,6 +12,7 @@ database).
 """
 
 import os
+import threading
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -70,3 +71,31 @@ def terminal_stderr(monkeypatch):
         return buf
 
     return start
+
+
+@pytest.fixture
+def fifo_read_once(tmp_path):
+    """``make(data, name)``: a named pipe that gives ``data`` to its first reader and an
+    empty stream to any later one (a reader that opened it again used to wait for ever for a
+    writer; now such a reader fails instead of hanging the test)."""
+    stop = threading.Event()
+
+    def make(data: bytes, name: str):
+        fifo = tmp_path / name
+        os.mkfifo(fifo)
+
+        def feed() -> None:
+            with open(fifo, "wb") as fh:
+                fh.write(data)
+            while not stop.is_set():  # wake any later open of the pipe with an empty stream
+                try:
+                    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+                except OSError:  # no reader now
+                    pass
+                stop.wait(0.005)
+
+        threading.Thread(target=feed, daemon=True).start()
+        return fifo
+
+    yield make
+    stop.set()

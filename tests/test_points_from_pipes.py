@@ -5,7 +5,7 @@ diagnostics; it used to report the pipe as empty."""
 from __future__ import annotations
 
 import os
-import threading
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,27 +14,18 @@ import pytest
 from photogeom import datasets
 from photogeom.io import read_points
 
+sys.path.insert(0, str(Path(__file__).parent))  # the tests' helper modules
+from fifos import fifo_with
+
 FIDUCIALS = datasets.path("lecture_fiducials")
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
 
 
-def _fifo_with(tmp_path: Path, data: bytes, name: str = "points.pipe") -> Path:
-    fifo = tmp_path / name
-    os.mkfifo(fifo)
-
-    def feed() -> None:
-        with open(fifo, "wb") as fh:  # blocks until the reader opens the pipe
-            fh.write(data)
-
-    threading.Thread(target=feed, daemon=True).start()
-    return fifo
-
-
 def test_read_points_from_a_named_pipe_equals_the_file(tmp_path: Path):
     data = Path(FIDUCIALS).read_bytes()
     from_file = read_points(FIDUCIALS, "x,y")
-    from_pipe = read_points(_fifo_with(tmp_path, data), "x,y")
+    from_pipe = read_points(fifo_with(tmp_path, data, "points.pipe"), "x,y")
     np.testing.assert_array_equal(from_pipe.coords, from_file.coords)
     assert list(from_pipe.ids) == list(from_file.ids)
 
@@ -46,7 +37,7 @@ def test_transform_apply_reads_points_from_a_pipe(cli, tmp_path: Path):
     assert code == 0, err
     code, from_file, err = cli("transform", "apply", params, FIDUCIALS)
     assert code == 0, err
-    fifo = _fifo_with(tmp_path, Path(FIDUCIALS).read_bytes())
+    fifo = fifo_with(tmp_path, Path(FIDUCIALS).read_bytes(), "points.pipe")
     code, from_pipe, err = cli("transform", "apply", params, fifo)
     assert code == 0, err
     def rows(text: str) -> list[str]:  # the comment line names the input path
@@ -59,4 +50,4 @@ def test_an_empty_pipe_is_still_named_empty(tmp_path: Path):
     from photogeom.errors import FileFormatError
 
     with pytest.raises(FileFormatError, match="no header line and no data"):
-        read_points(_fifo_with(tmp_path, b""), "x,y")
+        read_points(fifo_with(tmp_path, b"", "points.pipe"), "x,y")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import bz2
 import os
-import threading
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,26 +21,17 @@ from photogeom import datasets
 from photogeom.bundle import read_bal, read_block
 from photogeom.errors import FileFormatError
 
+sys.path.insert(0, str(Path(__file__).parent))  # the tests' helper modules
+from fifos import fifo_with
+
 BAL = Path(datasets.__file__).parent / "data" / "bundle" / "dubrovnik-3-7-pre.txt"
 
 needs_fifo = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
 
 
-def _fifo_with(tmp_path: Path, data: bytes, name: str = "problem.pipe") -> Path:
-    fifo = tmp_path / name
-    os.mkfifo(fifo)
-
-    def feed() -> None:
-        with open(fifo, "wb") as fh:  # blocks until the reader opens the pipe
-            fh.write(data)
-
-    threading.Thread(target=feed, daemon=True).start()
-    return fifo
-
-
 @needs_fifo
 def test_read_block_detects_a_bal_pipe(tmp_path: Path):
-    block = read_block(_fifo_with(tmp_path, bz2.compress(BAL.read_bytes())))
+    block = read_block(fifo_with(tmp_path, bz2.compress(BAL.read_bytes()), "problem.pipe"))
     want = read_bal(BAL)
     np.testing.assert_array_equal(block.observations.uv, want.observations.uv)
     np.testing.assert_array_equal(block.xyz, want.xyz)
@@ -49,8 +40,8 @@ def test_read_block_detects_a_bal_pipe(tmp_path: Path):
 @needs_fifo
 def test_bundle_convert_reads_a_bal_pipe(cli, tmp_path: Path):
     out = tmp_path / "out"
-    code, _, err = cli("bundle", "convert", _fifo_with(tmp_path, BAL.read_bytes()), out,
-                       "--to", "csv")
+    fifo = fifo_with(tmp_path, BAL.read_bytes(), "problem.pipe")
+    code, _, err = cli("bundle", "convert", fifo, out, "--to", "csv")
     assert code == 0, err
     assert (out / "observations.csv").is_file()
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import threading
 from pathlib import Path
 
 import pytest
@@ -15,33 +14,6 @@ import pytest
 from photogeom.camera import ExteriorOrientation, InteriorOrientation
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
-
-
-@pytest.fixture
-def fifo_read_once(tmp_path: Path):
-    """``make(data, name)``: a named pipe that gives ``data`` to its first reader and an
-    empty stream to any later one (which used to wait for ever for a writer)."""
-    stop = threading.Event()
-
-    def make(data: bytes, name: str) -> Path:
-        fifo = tmp_path / name
-        os.mkfifo(fifo)
-
-        def feed() -> None:
-            with open(fifo, "wb") as fh:
-                fh.write(data)
-            while not stop.is_set():  # wake any later open of the pipe with an empty stream
-                try:
-                    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
-                except OSError:  # no reader now
-                    pass
-                stop.wait(0.005)
-
-        threading.Thread(target=feed, daemon=True).start()
-        return fifo
-
-    yield make
-    stop.set()
 
 
 def test_camera_project_reads_the_camera_from_a_pipe(cli, tmp_path: Path, fifo_read_once):

@@ -6,7 +6,7 @@ recognised by its content), a device is refused."""
 from __future__ import annotations
 
 import os
-import threading
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,19 +15,10 @@ import pytest
 from photogeom.calibration import fit_grids, load_grids, save_grids
 from photogeom.errors import FileFormatError
 
+sys.path.insert(0, str(Path(__file__).parent))  # the tests' helper modules
+from fifos import fifo_with
+
 needs_fifo = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
-
-
-def _fifo_with(tmp_path: Path, data: bytes, name: str) -> Path:
-    fifo = tmp_path / name
-    os.mkfifo(fifo)
-
-    def feed() -> None:
-        with open(fifo, "wb") as fh:  # blocks until the reader opens the pipe
-            fh.write(data)
-
-    threading.Thread(target=feed, daemon=True).start()
-    return fifo
 
 
 @pytest.fixture
@@ -47,7 +38,7 @@ def test_load_grids_from_a_pipe_equals_the_file(tmp_path: Path, grids, suffix, p
     f = tmp_path / f"grids{suffix}"
     save_grids(f, grids)
     want = load_grids(f)
-    got = load_grids(_fifo_with(tmp_path, f.read_bytes(), pipe_name))  # no .npz suffix
+    got = load_grids(fifo_with(tmp_path, f.read_bytes(), pipe_name))  # no .npz suffix
     assert sorted(got) == sorted(want)
     uv = np.array([[10.0, 20.0], [500.0, 400.0]])
     for k in want:
@@ -62,7 +53,7 @@ def test_grid_apply_reads_the_grids_from_a_pipe(cli, tmp_path: Path, grids):
     obs.write_text("image_id,u,v\n0,100,200\n1,300,400\n")
     code, want, err = cli("grid", "apply", f, obs)
     assert code == 0, err
-    code, got, err = cli("grid", "apply", _fifo_with(tmp_path, f.read_bytes(), "g.npz"), obs)
+    code, got, err = cli("grid", "apply", fifo_with(tmp_path, f.read_bytes(), "g.npz"), obs)
     assert code == 0, err
     assert got == want
 
@@ -73,34 +64,6 @@ def test_a_device_or_a_folder_is_named(tmp_path: Path):
     if Path("/dev/null").exists():
         with pytest.raises(FileFormatError, match="/dev/null: it is a device"):
             load_grids("/dev/null")
-
-
-@pytest.fixture
-def fifo_read_once(tmp_path: Path):
-    """``make(data, name)``: a named pipe that gives ``data`` to its first reader and an
-    empty stream to any later one (a reader that opened it again used to wait for ever for a
-    writer; now such a reader fails instead of hanging the test)."""
-    stop = threading.Event()
-
-    def make(data: bytes, name: str) -> Path:
-        fifo = tmp_path / name
-        os.mkfifo(fifo)
-
-        def feed() -> None:
-            with open(fifo, "wb") as fh:
-                fh.write(data)
-            while not stop.is_set():  # wake any later open of the pipe with an empty stream
-                try:
-                    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
-                except OSError:  # no reader now
-                    pass
-                stop.wait(0.005)
-
-        threading.Thread(target=feed, daemon=True).start()
-        return fifo
-
-    yield make
-    stop.set()
 
 
 @needs_fifo

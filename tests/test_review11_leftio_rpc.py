@@ -6,7 +6,7 @@ are refused by name."""
 from __future__ import annotations
 
 import os
-import threading
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,43 +16,31 @@ from photogeom import datasets
 from photogeom.errors import FileFormatError
 from photogeom.rpc.readers import read_rpc
 
+sys.path.insert(0, str(Path(__file__).parent))  # the tests' helper modules
+from fifos import fifo_with
+
 DATA = Path(datasets.__file__).parent / "data" / "rpc"
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
 
 
-def _fifo_with(tmp_path: Path, data: bytes, name: str = "rpc.pipe") -> Path:
-    fifo = tmp_path / name
-    os.mkfifo(fifo)
-
-    def feed() -> None:
-        try:
-            with open(fifo, "wb") as fh:  # blocks until the reader opens the pipe
-                fh.write(data)
-        except BrokenPipeError:  # the reader stopped early (a refused raster)
-            pass
-
-    threading.Thread(target=feed, daemon=True).start()
-    return fifo
-
-
 @pytest.mark.parametrize("name", ["rpc_IKONOS.txt", "rpc_WV2.xml", "rpc_PLEIADES.xml"])
 def test_read_rpc_from_a_pipe_equals_the_file(tmp_path: Path, name: str):
     want = read_rpc(DATA / name)
-    got = read_rpc(_fifo_with(tmp_path, (DATA / name).read_bytes()))
+    got = read_rpc(fifo_with(tmp_path, (DATA / name).read_bytes(), "rpc.pipe"))
     lon, lat, h = want.long_off, want.lat_off, want.height_off
     np.testing.assert_array_equal(got.project(lon, lat, h), want.project(lon, lat, h))
 
 
 def test_rpc_info_reads_a_pipe(cli, tmp_path: Path):
-    fifo = _fifo_with(tmp_path, (DATA / "rpc_IKONOS.txt").read_bytes())
+    fifo = fifo_with(tmp_path, (DATA / "rpc_IKONOS.txt").read_bytes(), "rpc.pipe")
     code, out, err = cli("rpc", "info", fifo)
     assert code == 0, err
     assert "RPC00B" in out
 
 
 def test_a_raster_from_a_pipe_is_refused(tmp_path: Path):
-    fifo = _fifo_with(tmp_path, b"II*\x00" + b"\x00" * 64, name="image.tif")
+    fifo = fifo_with(tmp_path, b"II*\x00" + b"\x00" * 64, name="image.tif")
     with pytest.raises(FileFormatError, match="it is a pipe, and GDAL reads a GeoTIFF"):
         read_rpc(fifo)
 

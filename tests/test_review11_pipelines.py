@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -77,7 +76,7 @@ def test_inverse_with_cols_still_reads_the_named_columns(cli, tmp_path):
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
-def test_recorded_columns_are_found_in_a_pipe(cli, tmp_path):
+def test_recorded_columns_are_found_in_a_pipe(cli, tmp_path, fifo_read_once):
     """x2,y2 (no usual names) from a pipe: the fallback to the estimate's columns opened the
     input a second time and found it empty ('no coordinate columns found')."""
     params = tmp_path / "p.json"
@@ -86,24 +85,9 @@ def test_recorded_columns_are_found_in_a_pipe(cli, tmp_path):
     assert code == 0, err
     code, from_file, err = cli("transform", "apply", params, TWO_IMAGES)
     assert code == 0, err
-    fifo = tmp_path / "pts.pipe"
-    os.mkfifo(fifo)
-    data = Path(TWO_IMAGES).read_bytes()
-    done = threading.Event()
-
-    def feed() -> None:
-        with open(fifo, "wb") as fh:
-            fh.write(data)
-        while not done.is_set():  # a second opening sees an empty pipe instead of hanging
-            with open(fifo, "wb"):
-                pass
-
-    threading.Thread(target=feed, daemon=True).start()
-    try:
-        code, from_pipe, err = cli("transform", "apply", params, fifo)
-    finally:
-        done.set()
-        os.close(os.open(fifo, os.O_RDONLY | os.O_NONBLOCK))  # release the feeder
+    # a second opening of the pipe sees an empty stream instead of hanging
+    fifo = fifo_read_once(Path(TWO_IMAGES).read_bytes(), "pts.pipe")
+    code, from_pipe, err = cli("transform", "apply", params, fifo)
     assert code == 0, err
     assert _table(from_pipe) == _table(from_file)
 

@@ -11,12 +11,15 @@ from __future__ import annotations
 import bz2
 import os
 import shutil
-import threading
+import sys
 from pathlib import Path
 
 import pytest
 
 from photogeom import datasets
+
+sys.path.insert(0, str(Path(__file__).parent))  # the tests' helper modules
+from fifos import fifo_with
 
 BAL = Path(datasets.__file__).parent / "data" / "bundle" / "dubrovnik-3-7-pre.txt"
 
@@ -61,15 +64,7 @@ def test_a_residuals_csv_is_still_a_csv(cli, tmp_path):
 def test_a_bal_pipe_is_a_block(cli, tmp_path):
     # review 11d: a pipe is now read once and recognised by content as well (before: the
     # error named the BAL header and asked for the file; test_review11d_pipes2_grid.py)
-    fifo = tmp_path / "stream"
-    os.mkfifo(fifo)
-
-    def feed() -> None:
-        with open(fifo, "wb") as fh:
-            fh.write(BAL.read_bytes())
-
-    threading.Thread(target=feed, daemon=True).start()
-    code, _, err, out = _grids(cli, fifo, tmp_path)
+    code, _, err, out = _grids(cli, fifo_with(tmp_path, BAL.read_bytes(), "stream"), tmp_path)
     assert code == 0, err
     code2, _, err2, out2 = _grids(cli, BAL, tmp_path, "g2.json")
     assert code2 == 0, err2

@@ -13,7 +13,6 @@ it is now read as the calibration it is there too.
 from __future__ import annotations
 
 import os
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -42,33 +41,6 @@ OPENCV_JSON = b"""{"image_width": 1280, "image_height": 960,
 "distortion_coefficients": {"type_id": "opencv-matrix", "rows": 5, "cols": 1, "dt": "d",
  "data": [0.1, 0.0, 0.0, 0.001, 0.0]}}
 """
-
-
-@pytest.fixture
-def fifo_read_once(tmp_path: Path):
-    """``make(data, name)``: a named pipe that gives ``data`` to its first reader and an
-    empty stream to any later one (which would otherwise wait for ever for a writer)."""
-    stop = threading.Event()
-
-    def make(data: bytes, name: str) -> Path:
-        fifo = tmp_path / name
-        os.mkfifo(fifo)
-
-        def feed() -> None:
-            with open(fifo, "wb") as fh:
-                fh.write(data)
-            while not stop.is_set():
-                try:
-                    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
-                except OSError:  # no reader now
-                    pass
-                stop.wait(0.005)
-
-        threading.Thread(target=feed, daemon=True).start()
-        return fifo
-
-    yield make
-    stop.set()
 
 
 def _calibration_files(tmp_path: Path) -> dict[str, bytes]:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import bz2
 import os
-import threading
 from pathlib import Path
 
 import pytest
@@ -20,33 +19,6 @@ from photogeom import datasets
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
 
 BAL = Path(datasets.__file__).parent / "data" / "bundle" / "dubrovnik-3-7-pre.txt"
-
-
-@pytest.fixture
-def fifo_read_once(tmp_path: Path):
-    """``make(data, name)``: a named pipe that gives ``data`` to its first reader and an
-    empty stream to any later one (which would otherwise wait for ever for a writer)."""
-    stop = threading.Event()
-
-    def make(data: bytes, name: str) -> Path:
-        fifo = tmp_path / name
-        os.mkfifo(fifo)
-
-        def feed() -> None:
-            with open(fifo, "wb") as fh:
-                fh.write(data)
-            while not stop.is_set():
-                try:
-                    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
-                except OSError:  # no reader now
-                    pass
-                stop.wait(0.005)
-
-        threading.Thread(target=feed, daemon=True).start()
-        return fifo
-
-    yield make
-    stop.set()
 
 
 def _fit(cli, source, out: Path) -> tuple[int, str]:
