@@ -24,7 +24,6 @@ import csv
 import io
 import os
 import re
-import stat
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 from ..numbers import decimal_comma_hint, is_decimal_number
+from .sources import input_kind
 
 #: Bytes of text parsed at a time.
 BLOCK_BYTES = 8 << 20
@@ -173,7 +173,7 @@ class DelimitedText:
         self._data = data
         self.block_bytes = int(block_bytes)
         self.comments: list[str] = []
-        if data is None and _is_pipe(self.path):
+        if data is None and input_kind(self.path) == "pipe":
             # a pipe (`<(cat f.csv)`, `... | photogeom ... /dev/stdin`) can be read once: the
             # header, the blocks and the diagnostics each open the input, so it is kept
             with self._open() as fh:
@@ -700,15 +700,6 @@ def _shorten(s: str, n: int = 60) -> str:
 def _names(header: Sequence[str], limit: int = 30) -> str:
     shown = ", ".join(header[:limit])
     return shown + (f" ... ({len(header)} in all)" if len(header) > limit else "")
-
-
-def _is_pipe(path: Path) -> bool:
-    """True for a named or anonymous pipe (or a socket): input that can be read only once."""
-    try:
-        mode = path.stat().st_mode
-    except OSError:
-        return False  # the reader's own open names the problem
-    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
 
 
 def _stat_size(path: Path) -> int:
