@@ -37,6 +37,7 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _root(
+    ctx: typer.Context,
     version: Annotated[
         bool,
         typer.Option(
@@ -52,6 +53,11 @@ def _root(
     Angles are labelled with their unit; residuals are computed minus observed. Each command
     has --help; shell completion: photogeom --install-completion.
     """
+    from ..io.sources import pipe_reads
+
+    # a command may read a pipe given as input more than once (its format, then its
+    # content): each pipe is read once and its bytes are kept until the command ends
+    ctx.with_resource(pipe_reads())
 
 
 _GROUPS = (

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 #: The kinds :func:`input_kind` returns.
 KINDS = ("file", "pipe", "folder", "device", "missing")
@@ -65,10 +67,40 @@ def pipe_message(path: str | os.PathLike, what: str, why: str) -> str:
     )
 
 
-#: The bytes read from pipes in this process, by (path, device, inode), with the limit they
-#: were read to (None: the whole stream): a command may read one input several times (its
-#: format, a CRS it records, its content) and a pipe gives its content once.
-_PIPE_BYTES: dict[tuple[str, int, int], tuple[bytes, int | None]] = {}
+#: The pipes read in the current scope (:func:`pipe_reads`), by (path, device, inode), with
+#: the limit they were read to (None: the whole stream): a command may read one input several
+#: times (its format, a CRS it records, its content) and a pipe gives its content once. None
+#: outside every scope: a pipe is then read by each call and nothing is kept. One for the
+#: process, not per thread: the worker threads of a command see the command's scope.
+_PIPE_BYTES: dict[tuple[str, int, int], tuple[bytes, int | None]] | None = None
+
+
+@contextmanager
+def pipe_reads() -> Iterator[None]:
+    """A scope in which each pipe is read once and its bytes are kept for later reads.
+
+    Every command of the ``photogeom`` CLI runs in one such scope, so that a command which
+    reads one pipe several times (its format first, then its content) gets the same bytes
+    each time; the bytes are dropped when the scope ends. A scope inside a scope is the
+    outer one. Outside every scope each read of a pipe reads the stream (what a new writer
+    wrote) and keeps nothing, so a long-running program that reads many pipes through the
+    library holds none of them.
+
+    Examples
+    --------
+    >>> from photogeom.io.sources import pipe_reads
+    >>> with pipe_reads():
+    ...     pass  # read a pipe several times here
+    """
+    global _PIPE_BYTES
+    if _PIPE_BYTES is not None:
+        yield
+        return
+    _PIPE_BYTES = {}
+    try:
+        yield
+    finally:
+        _PIPE_BYTES = None
 
 
 def _pipe_key(path: str | os.PathLike) -> tuple[str, int, int]:
@@ -76,13 +108,19 @@ def _pipe_key(path: str | os.PathLike) -> tuple[str, int, int]:
     return (os.path.abspath(path), st.st_dev, st.st_ino)
 
 
-def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
-    """The content of the pipe ``path``, read once per process.
+def _read_pipe(path: str | os.PathLike, limit: int | None) -> bytes:
+    with open(path, "rb") as fh:
+        return fh.read() if limit is None else fh.read(limit + 1)
 
-    The first call reads at most ``limit + 1`` bytes (so that the caller can tell a stream
-    longer than ``limit`` from one of ``limit`` bytes; ``None``: the whole stream) and keeps
-    them; a later call for the same pipe returns what the first one read instead of waiting
-    for a second writer.
+
+def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
+    """The content of the pipe ``path``, read once per :func:`pipe_reads` scope.
+
+    Reads at most ``limit + 1`` bytes (so that the caller can tell a stream longer than
+    ``limit`` from one of ``limit`` bytes; ``None``: the whole stream). Inside a
+    :func:`pipe_reads` scope the first call keeps them and a later call for the same pipe
+    returns what the first one read instead of waiting for a second writer; outside every
+    scope each call reads the pipe.
 
     Parameters
     ----------
@@ -100,15 +138,16 @@ def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
     Raises
     ------
     OSError
-        The pipe cannot be opened or read, or an earlier read of it stopped before the
-        ``limit`` asked for now (its end was not kept).
+        The pipe cannot be opened or read, or an earlier read of it in this scope stopped
+        before the ``limit`` asked for now (its end was not kept).
     """
+    kept = _PIPE_BYTES
+    if kept is None:
+        return _read_pipe(path, limit)
     key = _pipe_key(path)
-    if key not in _PIPE_BYTES:
-        with open(path, "rb") as fh:
-            data = fh.read() if limit is None else fh.read(limit + 1)
-        _PIPE_BYTES[key] = (data, limit)
-    data, read_to = _PIPE_BYTES[key]
+    if key not in kept:
+        kept[key] = (_read_pipe(path, limit), limit)
+    data, read_to = kept[key]
     cut = read_to is not None and len(data) > read_to
     if cut and (limit is None or limit > read_to):
         raise OSError(
@@ -119,20 +158,24 @@ def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
 
 
 def kept_pipe_bytes(path: str | os.PathLike) -> bytes | None:
-    """What :func:`pipe_bytes` read from the pipe ``path`` in this process, whole; None when
-    it has not read it (or read only a part)."""
+    """What :func:`pipe_bytes` read from the pipe ``path`` in the current
+    :func:`pipe_reads` scope, whole; None when it has not read it (or read only a part), or
+    outside every scope."""
+    kept = _PIPE_BYTES
+    if kept is None:
+        return None
     try:
         key = _pipe_key(path)
     except (OSError, ValueError):
         return None
-    data, read_to = _PIPE_BYTES.get(key, (None, None))
+    data, read_to = kept.get(key, (None, None))
     if data is None or (read_to is not None and len(data) > read_to):
         return None
     return data
 
 
 def read_input_bytes(path: str | os.PathLike, limit: int) -> bytes:
-    """The bytes of a regular file or of a pipe (read once, :func:`pipe_bytes`).
+    """The bytes of a regular file or of a pipe (read once per scope, :func:`pipe_bytes`).
 
     Parameters
     ----------
