@@ -114,7 +114,7 @@ def test_variance_component_of_the_images_with_huber(clean_block):
 
 @pytest.mark.parametrize("loss", ["huber", "cauchy"])
 def test_global_test_is_the_least_squares_one(clean_block, loss):
-    """Review 8: the global test of a robust fit used v'PWv / kappa, whose mean was 6.5 %
+    """The global test of a robust fit used v'PWv / kappa, whose mean was 6.5 %
     above r with Cauchy's loss and whose spread was 1.24 times chi-square's (kappa taken at
     the estimated variance): 63 % (Cauchy) and 91 % (Huber) of 300 clean redraws passed at
     5 %. It now tests the least-squares v'Pv of the final linearisation: on clean data the

@@ -615,7 +615,7 @@ def adjust_with_grids(
         ``"squared"``; variance components and free networks are not supported here.
         Default: ``BundleOptions(initial_damping=1e-8)`` (:data:`INITIAL_DAMPING`; the
         grids' weak directions converge in a few Gauss-Newton steps, where a start at 1e-4
-        needed 10 or more; the bundle adjustment's default since review 9).
+        needed 10 or more; the bundle adjustment's default too).
     progress : callable, optional
         ``progress(iteration, cost, damping)`` after each accepted step.
     **kwargs
