@@ -10,7 +10,24 @@ from __future__ import annotations
 
 
 class PhotogeomError(Exception):
-    """Base class of all photogeom errors."""
+    """Base class of all photogeom errors.
+
+    Instances pickle and copy with their message and attributes, whatever the signature of
+    the subclass's ``__init__`` (an error raised in a worker process reaches the caller,
+    e.g. through :class:`concurrent.futures.ProcessPoolExecutor`).
+    """
+
+    def __reduce__(self) -> tuple:
+        return _rebuilt, (type(self), self.args), dict(self.__dict__) or None
+
+
+def _rebuilt(cls: type[BaseException], args: tuple) -> BaseException:
+    """An exception of class ``cls`` with ``args``, without calling its ``__init__`` (whose
+    parameters need not be its ``args``): the unpickling half of
+    :meth:`PhotogeomError.__reduce__`; the attributes follow from the pickled state."""
+    exc = cls.__new__(cls)
+    exc.args = args
+    return exc
 
 
 class InputError(PhotogeomError, ValueError):
@@ -67,6 +84,11 @@ class OutputError(PhotogeomError, OSError):
 
     def __str__(self) -> str:
         return str(self.args[0]) if self.args else ""
+
+    def __reduce__(self) -> tuple:
+        rebuild, args, state = super().__reduce__()
+        # errno is a slot of OSError, not in the instance dict
+        return rebuild, args, {**(state or {}), "errno": self.errno}
 
 
 class SuspectResultWarning(UserWarning):
