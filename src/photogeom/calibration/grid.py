@@ -351,9 +351,6 @@ class FiniteElementSystem:
         self.factor = None
         if not factor:  # only the selected inverse is wanted
             return
-        self.factor = None
-        if not factor:  # only the selected inverse is wanted
-            return
         try:
             self.factor = factorize(self.N, what="normal matrix of the residual grid")
         except DegenerateGeometryError as exc:
