@@ -1158,8 +1158,9 @@ def _flag(adj, msg):
 
 def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     n = ctx.n
-    sx = 1.0 if prec.sig_s is None else float(prec.sig_s)
-    sX = 1.0 if prec.sig_t is None else float(prec.sig_t)
+    # a system without a stated precision has weight 1: standard deviation sigma0_prior
+    sx = ctx.sigma0_prior if prec.sig_s is None else float(prec.sig_s)
+    sX = ctx.sigma0_prior if prec.sig_t is None else float(prec.sig_t)
     k = sX / sx
     pm = _moments(x, X, None, statistics)
     sol = solve_single(pm, "gauss-helmert", with_scale=with_scale, ratio=k)
@@ -1190,12 +1191,14 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
                      notes, extras=extras)
 
 
-def _gh_observation_precision(prec: _Precision, n: int):
-    """Weights (6n,) or covariance ((n, 6, 6) / (6n, 6n)) of ``[x_1, X_1, x_2, X_2, ...]``."""
+def _gh_observation_precision(prec: _Precision, n: int, sigma0_prior: float):
+    """Inverse variances (6n,) or covariance ((n, 6, 6) / (6n, 6n)) of
+    ``[x_1, X_1, x_2, X_2, ...]`` in squared coordinate units; a system without a stated
+    precision has weight 1, i.e. the variance ``sigma0_prior^2`` per coordinate."""
 
     def per_coord(sig):
         if sig is None:
-            return np.ones((n, 3))
+            return np.full((n, 3), sigma0_prior**2)
         a = np.asarray(sig, dtype=float)
         if a.ndim == 0:
             return np.full((n, 3), float(a) ** 2)
@@ -1258,7 +1261,7 @@ def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max
     _check_finite_pair(x, X)
     _geometry_check(x, X, None, with_scale, "gauss-helmert")
     n = ctx.n
-    w_obs, cov = _gh_observation_precision(prec, n)
+    w_obs, cov = _gh_observation_precision(prec, n, ctx.sigma0_prior)
     if w_obs is not None:
         w_obs = w_obs * ctx.sigma0_prior**2
     if initial is None:
