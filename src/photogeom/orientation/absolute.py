@@ -442,7 +442,8 @@ def absolute_orientation(
         (``converged=False``) is returned. A solution with scale <= 0 always raises.
     robust : {"ransac"}, optional
         Run :func:`~photogeom.orientation.ransac_absolute_orientation` with ``threshold``
-        (target units) and ``robust_options``; ``method`` refines on the inliers.
+        (target units) and ``robust_options``; ``method`` refines on the inliers with the
+        other options given here (precisions and covariances selected for the inliers).
     threshold : float, optional
         With ``robust="ransac"`` (required there, refused without it): the inlier distance,
         3D, in target units.
@@ -477,10 +478,23 @@ def absolute_orientation(
             raise InputError("robust='ransac' needs an inlier threshold (target units)")
         from .absolute_robust import ransac_absolute_orientation
 
+        # the refinement on the inliers takes the precision and the method's options
+        given = {
+            "sigma_source": (sigma_source, None), "covariance_source": (covariance_source, None),
+            "covariance_target": (covariance_target, None), "covariance": (covariance, None),
+            "sigma0_prior": (sigma0_prior, 1.0), "scale_method": (scale_method, None),
+            "initial": (initial, None), "nearest_rotation": (nearest_rotation, False),
+            "coplanar_threshold": (coplanar_threshold, None), "max_iter": (max_iter, 50),
+            "tol": (tol, 1e-10), "raise_on_failure": (raise_on_failure, True),
+        }  # fmt: skip
+        refine = {
+            k: v for k, (v, default) in given.items()
+            if v is not default and not (isinstance(v, (bool, int, float)) and v == default)
+        }  # fmt: skip
         return ransac_absolute_orientation(
             source, target, threshold, method=method, with_scale=with_scale,
             statistics=statistics, weights=weights, sigma_target=sigma_target, ids=ids,
-            unit=unit, **robust_options,
+            unit=unit, **robust_options, **refine,
         )
     if robust_options:
         raise InputError(f"unexpected keyword argument(s): {', '.join(sorted(robust_options))}")
