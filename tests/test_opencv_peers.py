@@ -98,3 +98,28 @@ def test_similarity2d_is_opencvs_estimate_affine_partial_2d():
     scale, theta = fit.extras["textbook"]["scale"][0], fit.extras["textbook"]["theta"][0]
     assert scale == pytest.approx(np.hypot(*Scv[:, 0]), rel=1e-7)
     assert np.cos(theta - np.arctan2(Scv[1, 0], Scv[0, 0])) == pytest.approx(1.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("angles", [(2.0, 3.0, 10.0), (179.5, 10.0, -179.5), (30.0, -60.0, 170.0)])
+def test_dlt_decomposition_is_opencvs_decompose_projection_matrix(angles):
+    """The interior and exterior orientation decomposed from an estimated DLT against
+    ``cv2.decomposeProjectionMatrix`` of the same 3x4 matrix (image y up -> OpenCV's rows
+    down; OpenCV's RQ leaves the signs of the focal lengths free: normalised here)."""
+    rng = np.random.default_rng(4)
+    io = pg.InteriorOrientation(100.0, -0.05, 0.03)
+    eo = pg.ExteriorOrientation(100.0, 200.0, 900.0, *np.radians(angles))
+    n = 20
+    xn = rng.uniform(-0.45, 0.45, (n, 2))
+    rays = np.column_stack([xn[:, 0], -xn[:, 1], -np.ones(n)]) * rng.uniform(300, 1500, (n, 1))
+    g = eo.position + rays @ eo.matrix
+    fit = pg.estimate_dlt(g, pg.project(g, io, eo) + rng.normal(0.0, 0.005, (n, 2)), sigma=0.005)
+    K, R, C = cv2.decomposeProjectionMatrix(np.diag([1.0, -1.0, 1.0]) @ fit.camera_matrix)[:3]
+    K = K / K[2, 2]
+    S = np.diag([np.sign(K[0, 0]), np.sign(K[1, 1]), 1.0])
+    K, R = K @ S, S @ R
+    i, e = fit.interior, fit.exterior
+    np.testing.assert_allclose(e.position, C[:3, 0] / C[3, 0], atol=1e-9)
+    np.testing.assert_allclose(e.matrix, FLIP @ R, atol=1e-12)
+    np.testing.assert_allclose([i.fx, i.fy, i.x0, -i.y0, i.b2],
+                               [K[0, 0], K[1, 1], K[0, 2], K[1, 2], K[0, 1]], atol=1e-9)
+    assert i.fx == pytest.approx(100.0, rel=1e-3) and i.x0 == pytest.approx(-0.05, abs=0.1)
