@@ -223,6 +223,22 @@ def gauss_helmert(
         red = qvv * p
         with np.errstate(invalid="ignore", divide="ignore"):
             wnorm = np.where(red > 1e-14, v / np.sqrt(np.abs(qvv)) / sigma0_prior, np.nan)
+    elif ms is not None and not ms.sparse and n <= 20000:
+        # correlated observations (per-block or full covariance), as the Gauss-Markov engine
+        # does: diag(Qvv P) and w = (P v)_i / (sigma0_prior sqrt((P Qvv P)_ii)), with
+        # Qvv = Qll B' M^-1 (B Qll - A Qxx A' M^-1 B Qll) and P Qll = I
+        BQ = np.asarray(ms.BQ)
+        Bd = B.toarray() if not isinstance(B, np.ndarray) else np.asarray(B, dtype=float)
+        S = ms.solve(BQ)  # M^-1 B Qll
+        T = ms.solve(Bd)  # M^-1 B
+        K, K2 = A.T @ S, A.T @ T
+        red = np.sum(BQ * T, axis=0) - np.sum(K * (Qxx @ K2), axis=0)
+        pqvvp = np.sum(Bd * T, axis=0) - np.sum(K2 * (Qxx @ K2), axis=0)
+        pv = wh.apply_t(vw)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wnorm = np.where(
+                pqvvp > 1e-14 * wh.diag_p(), pv / np.sqrt(np.abs(pqvvp)) / sigma0_prior, np.nan
+            )
     return Adjustment(
         x=x,
         names=names,

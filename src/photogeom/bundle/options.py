@@ -57,7 +57,10 @@ class BundleOptions:
     variance_components : bool
         Estimate one variance factor per observation group (Förstner/Helmert, iterated).
     sigma0_prior : float
-        A-priori standard deviation of unit weight.
+        A-priori standard deviation of unit weight: the weights are
+        ``P = sigma0_prior^2 / sigma^2`` for observations of standard deviation ``sigma``, so
+        sigma0 is about ``sigma0_prior`` when the sigmas are right; the standard deviations,
+        the global test and the w-test do not depend on it.
     backend : {"auto", "cholmod", "superlu", "dense", "cg"}
         Solver of the reduced camera system (:mod:`photogeom.adjust.sparse`): ``"auto"``
         takes a dense Cholesky for small systems, else CHOLMOD (or SuperLU); ``"cg"``

@@ -37,10 +37,12 @@ class BundleFit:
         The adjusted block (exterior orientations, calibrations, points; check points
         triangulated from their image observations with the adjusted cameras).
     sigma0, sigma0_prior : float
-        A-posteriori ``sqrt(v'Pv / r)`` and a-priori standard deviation of unit weight.
+        A-posteriori ``sqrt(v'Pv / r)`` and a-priori standard deviation of unit weight, with
+        ``P = sigma0_prior^2 / sigma^2`` for observations of standard deviation ``sigma``.
         With a robust loss ``sqrt(v'PWv / (r kappa))``, ``kappa`` the expected weighted
         square sum under normal errors over ``r`` (:mod:`photogeom.bundle.robust`), so that
-        sigma0 is about 1 on clean data with correct a-priori sigmas.
+        sigma0 is about ``sigma0_prior`` (1 by default) on clean data with correct a-priori
+        sigmas.
     redundancy, n_observations, n_unknowns : int
         ``r = n_observations - n_unknowns`` (scalar observations: 2 per image point, 3 per
         control point, GNSS position and IMU attitude).
@@ -890,7 +892,11 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     # normal errors (robust.py); kappa is 1 for the squared loss
     leverage = None if Cobs is None else image_point_leverage(Cobs, run.weights)
     var, _ = consistent_variance_factor(vtpv, red, leverage, run.weights, opts.loss, opts.scale)
-    sigma0 = math.sqrt(var) if red > 0 else math.nan
+    # the observations are whitened by their a-priori sigmas (weights 1 / sigma^2, in which
+    # every cofactor, var and v'Pv here are); with P = sigma0_prior^2 / sigma^2 (the library's
+    # convention) sigma0 is sigma0_prior sqrt(var), the global test v'Pv / sigma0_prior^2 and
+    # the w-test do not depend on sigma0_prior, and the covariances are var times the cofactors
+    sigma0 = s0p * math.sqrt(var) if red > 0 else math.nan
     # the global test: with a robust loss v'PWv / kappa neither has expectation r (kappa's
     # model is a few per cent off) nor the spread of chi-square(r) (kappa is evaluated at
     # the estimated variance); the least-squares v'Pv of the final linearisation has both
@@ -1076,7 +1082,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         qvv = 1.0 - 2.0 * h + h / wt
         rw = lin.r / np.sqrt(wt)  # whitened residuals without the robust weights
         with np.errstate(invalid="ignore", divide="ignore"):
-            w = np.where(qvv > 1e-10, rw / np.sqrt(np.clip(qvv, 1e-300, None)), np.nan) / s0p
+            w = np.where(qvv > 1e-10, rw / np.sqrt(np.clip(qvv, 1e-300, None)), np.nan)
         crit = float(special.ndtri(1 - opts.alpha / 2))
         wall = np.full((block.n_observations, 2), np.nan)
         wall[problem.obs_rows] = w
@@ -1180,7 +1186,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         check=check,
         snooping=snoop,
         variance_components=vc,
-        chi2=_chi2(test_vtpv, red, s0p),
+        chi2=_chi2(test_vtpv, red, 1.0),  # v'Pv / sigma0_prior^2 with P = sigma0_prior^2 / sigma^2
         gsd=float(adjusted.gsd()),
         notes=tuple(notes),
         elapsed=elapsed,

@@ -442,7 +442,8 @@ def absolute_orientation(
         (``converged=False``) is returned. A solution with scale <= 0 always raises.
     robust : {"ransac"}, optional
         Run :func:`~photogeom.orientation.ransac_absolute_orientation` with ``threshold``
-        (target units) and ``robust_options``; ``method`` refines on the inliers.
+        (target units) and ``robust_options``; ``method`` refines on the inliers with the
+        other options given here (precisions and covariances selected for the inliers).
     threshold : float, optional
         With ``robust="ransac"`` (required there, refused without it): the inlier distance,
         3D, in target units.
@@ -477,10 +478,23 @@ def absolute_orientation(
             raise InputError("robust='ransac' needs an inlier threshold (target units)")
         from .absolute_robust import ransac_absolute_orientation
 
+        # the refinement on the inliers takes the precision and the method's options
+        given = {
+            "sigma_source": (sigma_source, None), "covariance_source": (covariance_source, None),
+            "covariance_target": (covariance_target, None), "covariance": (covariance, None),
+            "sigma0_prior": (sigma0_prior, 1.0), "scale_method": (scale_method, None),
+            "initial": (initial, None), "nearest_rotation": (nearest_rotation, False),
+            "coplanar_threshold": (coplanar_threshold, None), "max_iter": (max_iter, 50),
+            "tol": (tol, 1e-10), "raise_on_failure": (raise_on_failure, True),
+        }  # fmt: skip
+        refine = {
+            k: v for k, (v, default) in given.items()
+            if v is not default and not (isinstance(v, (bool, int, float)) and v == default)
+        }  # fmt: skip
         return ransac_absolute_orientation(
             source, target, threshold, method=method, with_scale=with_scale,
             statistics=statistics, weights=weights, sigma_target=sigma_target, ids=ids,
-            unit=unit, **robust_options,
+            unit=unit, **robust_options, **refine,
         )
     if robust_options:
         raise InputError(f"unexpected keyword argument(s): {', '.join(sorted(robust_options))}")
@@ -1158,8 +1172,9 @@ def _flag(adj, msg):
 
 def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
     n = ctx.n
-    sx = 1.0 if prec.sig_s is None else float(prec.sig_s)
-    sX = 1.0 if prec.sig_t is None else float(prec.sig_t)
+    # a system without a stated precision has weight 1: standard deviation sigma0_prior
+    sx = ctx.sigma0_prior if prec.sig_s is None else float(prec.sig_s)
+    sX = ctx.sigma0_prior if prec.sig_t is None else float(prec.sig_t)
     k = sX / sx
     pm = _moments(x, X, None, statistics)
     sol = solve_single(pm, "gauss-helmert", with_scale=with_scale, ratio=k)
@@ -1190,12 +1205,14 @@ def _gh_direct_fit(x, X, prec, with_scale, statistics, ctx):
                      notes, extras=extras)
 
 
-def _gh_observation_precision(prec: _Precision, n: int):
-    """Weights (6n,) or covariance ((n, 6, 6) / (6n, 6n)) of ``[x_1, X_1, x_2, X_2, ...]``."""
+def _gh_observation_precision(prec: _Precision, n: int, sigma0_prior: float):
+    """Inverse variances (6n,) or covariance ((n, 6, 6) / (6n, 6n)) of
+    ``[x_1, X_1, x_2, X_2, ...]`` in squared coordinate units; a system without a stated
+    precision has weight 1, i.e. the variance ``sigma0_prior^2`` per coordinate."""
 
     def per_coord(sig):
         if sig is None:
-            return np.ones((n, 3))
+            return np.full((n, 3), sigma0_prior**2)
         a = np.asarray(sig, dtype=float)
         if a.ndim == 0:
             return np.full((n, 3), float(a) ** 2)
@@ -1258,7 +1275,7 @@ def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max
     _check_finite_pair(x, X)
     _geometry_check(x, X, None, with_scale, "gauss-helmert")
     n = ctx.n
-    w_obs, cov = _gh_observation_precision(prec, n)
+    w_obs, cov = _gh_observation_precision(prec, n, ctx.sigma0_prior)
     if w_obs is not None:
         w_obs = w_obs * ctx.sigma0_prior**2
     if initial is None:

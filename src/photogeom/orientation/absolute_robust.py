@@ -75,6 +75,48 @@ def _per_pair(values, n: int, name: str) -> np.ndarray | None:
     )
 
 
+#: Keywords of :func:`absolute_orientation` that the refinement on the inliers takes from
+#: :func:`ransac_absolute_orientation` (the others are RANSAC's own or refused there).
+REFINE_OPTIONS = (
+    "sigma_source", "covariance_source", "covariance_target", "covariance", "sigma0_prior",
+    "scale_method", "initial", "nearest_rotation", "coplanar_threshold", "max_iter", "tol",
+    "raise_on_failure",
+)  # fmt: skip
+
+
+#: The refinement keywords with values per point pair (selected for the inliers).
+PER_PAIR = ("sigma_source", "covariance_source", "covariance_target", "covariance")
+
+
+def _refine_options(options: dict, n: int) -> dict:
+    """The refinement keywords, checked against ``n`` pairs; precisions of the source and
+    covariances kept in a form whose pairs can be selected (see :func:`_select`)."""
+    from .absolute import _cov_array, _sigma_array
+
+    unknown = sorted(set(options) - set(REFINE_OPTIONS))
+    if unknown:
+        raise InputError(f"unexpected keyword argument(s): {', '.join(unknown)}")
+    out = dict(options)
+    if options.get("sigma_source") is not None:
+        out["sigma_source"] = _sigma_array(options["sigma_source"], n, "sigma_source")
+    for name in ("covariance_source", "covariance_target", "covariance"):
+        if options.get(name) is not None:
+            out[name] = _cov_array(options[name], n, name)
+    return out
+
+
+def _select(value, mask: np.ndarray):
+    """``value`` of the pairs in ``mask``: scalars and None unchanged, per-pair arrays
+    (leading axis n) by row, full (3n, 3n) covariances by their coordinate rows and columns."""
+    if value is None or np.ndim(value) == 0:
+        return value
+    n = mask.shape[0]
+    if value.shape == (3 * n, 3 * n):
+        idx = np.repeat(mask, 3)
+        return value[np.ix_(idx, idx)]
+    return value[mask]
+
+
 def ransac_absolute_orientation(
     source,
     target,
@@ -92,6 +134,7 @@ def ransac_absolute_orientation(
     sigma_target=None,
     ids=None,
     unit: str = "m",
+    **refine_options,
 ) -> AbsoluteOrientationFit:
     """RANSAC absolute orientation with refinement on the inliers.
 
@@ -118,6 +161,13 @@ def ransac_absolute_orientation(
         ``sigma_target`` a number, per point (n,) or per coordinate (n, 3).
     ids : sequence, optional
     unit : str
+    **refine_options
+        Further keywords of :func:`~photogeom.orientation.absolute_orientation` for the
+        refinement: ``sigma_source``, ``covariance_source``, ``covariance_target`` (or
+        ``covariance``), ``sigma0_prior``, ``scale_method``, ``initial``,
+        ``nearest_rotation``, ``coplanar_threshold``, ``max_iter``, ``tol``,
+        ``raise_on_failure``; per-pair values are subset to the inliers. Any other keyword
+        raises :class:`InputError`.
 
     Returns
     -------
@@ -141,6 +191,7 @@ def ransac_absolute_orientation(
         raise InputError(f"ids: {len(ids)} id(s) for {n} point pair(s)")
     w_all = _per_pair(weights, n, "weights")
     st_all = _per_pair(sigma_target, n, "sigma_target")
+    refine = _refine_options(refine_options, n)
     if batch_size is None:
         batch_size = int(np.clip(2_000_000 // max(n, 1), 16, 1024))
     solve, errors = _minimal_solver(x, X, with_scale)
@@ -161,6 +212,7 @@ def ransac_absolute_orientation(
             kw["weights"] = w_all[mask]
         if st_all is not None:
             kw["sigma_target"] = st_all if np.ndim(st_all) == 0 else st_all[mask]
+        kw.update({k: _select(v, mask) if k in PER_PAIR else v for k, v in refine.items()})
         sub_ids = None if ids is None else tuple(np.asarray(ids, dtype=object)[mask])
         return absolute_orientation(
             x[mask], X[mask], method, with_scale=with_scale, statistics=stats, ids=sub_ids,
