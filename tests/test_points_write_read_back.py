@@ -77,3 +77,32 @@ def test_what_is_written_reads_back_exactly(tmp_path_factory, ids, data):
     table = read_points(path)
     assert list(table.ids) == [i.strip() for i in ids]
     assert table.coords.tobytes() == xyz.tobytes()
+
+
+@pytest.mark.parametrize(
+    "columns,extra,match",
+    [
+        (["X", "X", "Z"], {}, r"column names 'X' and 'X' read back as the same name 'X'"),
+        (["X ", "X", "Z"], {}, r"column names 'X ' and 'X' read back as the same name 'X'"),
+        (["id", "Y", "Z"], {}, r"column names 'id' and 'id' read back as the same name"),
+        (["X", "Y", "Z"], {"X": [1.0]}, r"column names 'X' and 'X' read back as the same"),
+        (["", "Y", "Z"], {}, r"column name '' is empty or only white space"),
+        (["X", "\u3000", "Z"], {}, r"column name '\\u3000' is empty or only white space"),
+        (["a\nb", "Y", "Z"], {}, r"column name 'a\\nb' holds a line break"),
+    ],
+)
+def test_header_names_the_reader_refuses_are_refused(tmp_path, columns, extra, match):
+    """Before: written, and read_points refused the header ("column name(s) X appear more
+    than once in the header", "the header has an empty column name")."""
+    with pytest.raises(InputError, match=match):
+        write_points(tmp_path / "p.csv", ["A"], np.zeros((1, 3)), columns, extra=extra)
+    assert not (tmp_path / "p.csv").exists()
+
+
+@pytest.mark.parametrize("columns", [["X,1", 'Y"', "Z"], ["#X", "\xfc", "Z"], [" X", "Y", "Z"]])
+def test_unusual_header_names_read_back(tmp_path, columns):
+    write_points(tmp_path / "p.csv", ["A"], np.ones((1, 3)), columns)
+    table = read_points(tmp_path / "p.csv", [c.strip() for c in columns])
+    assert table.columns == tuple(c.strip() for c in columns) and table.coords.tolist() == [
+        [1.0, 1.0, 1.0]
+    ]

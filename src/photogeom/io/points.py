@@ -1268,6 +1268,32 @@ def _check_ids_read_back(ids) -> None:
         )
 
 
+def _check_header_read_back(names: Sequence[str]) -> None:
+    """Refuse column names the readers refuse in a header: empty or white space only, with a
+    line break or a NUL character, or two names that read back as one (white space at the
+    ends is trimmed; ``id`` is the first column's)."""
+    seen: dict[str, str] = {}
+    for name in names:
+        if re.search("[\r\n\x00]", name):
+            raise InputError(
+                f"column name {name!r} holds a line break or a NUL character, which a point "
+                "file's header cannot hold; rename the column"
+            )
+        key = name.strip()
+        if not key:
+            raise InputError(
+                f"column name {name!r} is empty or only white space, which the readers "
+                "refuse in a header; name the column"
+            )
+        if key in seen:
+            raise InputError(
+                f"column names {seen[key]!r} and {name!r} read back as the same name {key!r} "
+                "(the readers trim white space at the ends and refuse repeated column "
+                "names; the first column is 'id'); rename one"
+            )
+        seen[key] = name
+
+
 def _check_text_read_back(extra: dict, comments: Sequence[str]) -> None:
     """Refuse text a point CSV cannot hold in the further columns (a line break or a NUL
     character) and in the comment lines (a NUL character; comments are split into lines)."""
@@ -1383,7 +1409,9 @@ def write_points(
         with a line break (a quoted field over two lines) or a NUL character (a binary
         file), an empty or white-space-only id, two ids that read back as one (``"a"`` and
         ``" a"``: white space at the ends of an id is trimmed on reading), a line break or
-        a NUL character in a text column of ``extra``, a NUL character in ``comments``.
+        a NUL character in a text column of ``extra``, a NUL character in ``comments``;
+        column names (``columns`` and those of ``extra``) that are empty, hold a line break
+        or a NUL, or read back as one another or as ``id``.
     OutputError
         When the file cannot be written.
     """
@@ -1391,6 +1419,7 @@ def write_points(
     ids = _id_array(ids)
     _check_ids_read_back(ids)  # a file for read_points: only ids it gives back
     _check_text_read_back(extra, comments)
+    _check_header_read_back(["id", *map(str, columns), *map(str, extra)])
     with PointWriter(path, columns, extra=list(extra), comments=comments) as w:
         w.write(ids, coords, extra)
     return Path(path)
