@@ -232,6 +232,59 @@ def read_only_fields(obj: T) -> T:
     return obj
 
 
+def frozen_value(value):
+    """``value`` made read-only all the way down: mappings as :class:`FrozenMapping`, lists
+    and tuples as tuples, writable arrays as read-only views; other values as they are.
+
+    For the nested results of a record (e.g. ``BundleFit.check``, whose arrays its
+    ``summary`` and ``to_dict`` read): writing into them would change the record's later
+    answers, and those of the copies :func:`dataclasses.replace` makes (which share them).
+
+    Parameters
+    ----------
+    value : object
+
+    Returns
+    -------
+    object
+        A new container where ``value`` holds one (the caller's own stays as it is), else
+        ``value`` or a read-only view of it.
+    """
+    if isinstance(value, np.ndarray):
+        if value.flags.writeable:
+            value = value.view()
+            value.flags.writeable = False
+        return value
+    if isinstance(value, Mapping):
+        return FrozenMapping({k: frozen_value(v) for k, v in value.items()})
+    if isinstance(value, (list, tuple)) and not hasattr(value, "_fields"):  # not namedtuples
+        return tuple(map(frozen_value, value))
+    return value
+
+
+def freeze_fields(obj: T, names) -> T:
+    """Apply :func:`frozen_value` to the fields ``names`` of ``obj`` (in place: its
+    ``__dict__``) and return it.
+
+    Parameters
+    ----------
+    obj : object
+        A frozen dataclass instance.
+    names : iterable of str
+        The fields holding nested mappings, sequences or arrays.
+
+    Returns
+    -------
+    object
+        ``obj``.
+    """
+    d = obj.__dict__
+    for name in names:
+        if name in d:
+            d[name] = frozen_value(d[name])
+    return obj
+
+
 class FrozenMapping(Mapping):
     """A read-only dict that pickles and deep-copies (``types.MappingProxyType`` does not).
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..records import build, compact_repr, read_only_fields, setstate_read_only
+from ..records import FrozenMapping, build, compact_repr, read_only_fields, setstate_read_only
 from ..units import display_angle, from_radians
 from .result import NO_STATISTICS_NOTE, Adjustment, not_computed
 from .snooping import SnoopingResult, data_snooping
@@ -96,8 +96,9 @@ class Fit:
         Axis names of the residual columns.
     residual_unit : str
         Unit of the residuals (e.g. ``"m"``, ``"mm"``, ``"px"``).
-    parameter_units : dict
-        Unit of each parameter (``"rad"`` for angles, ``"1"`` for unitless).
+    parameter_units : mapping
+        Unit of each parameter (``"rad"`` for angles, ``"1"`` for unitless); read-only
+        (``dict(fit.parameter_units)`` is a dict of one's own).
     check_residuals, check_ids
         Residuals of check points (computed minus observed) and their ids.
     normalized_residuals : numpy.ndarray or None, shape (n, d)
@@ -171,6 +172,11 @@ class Fit:
         extras = d.get("extras")
         if isinstance(extras, Mapping):
             d["extras"] = {k: _read_only_view(v) for k, v in extras.items()}
+        # parameter_units: read-only (the parameter table, summary and to_dict read it; a
+        # unit written into a with_crs copy's dict changed the original's table)
+        units = d.get("parameter_units")
+        if isinstance(units, Mapping) and not isinstance(units, FrozenMapping):
+            d["parameter_units"] = FrozenMapping(units)
 
     def __setstate__(self, state: dict) -> None:
         # pickle / deepcopy rebuild arrays writable: read-only again (those of extras too)

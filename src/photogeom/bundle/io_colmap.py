@@ -697,7 +697,7 @@ def colmap_texts(
     start = np.concatenate([[0], np.cumsum(per_img)[:-1]]).astype(np.int64)
     idx2d = np.empty(n, dtype=np.int64)
     idx2d[by_img] = np.arange(n) - np.repeat(start, per_img)
-    pid = _int_ids(block.point_ids, 2**63 - 1)
+    pid = _int_ids(block.point_ids, 2**63)  # 0 .. 2^63 - 1: every id the reader gives
     if pid is None:
         pid = np.arange(1, block.n_points + 1, dtype=np.int64)
     uvc = block.observations.uv[by_img] + 0.5

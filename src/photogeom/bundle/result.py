@@ -17,12 +17,28 @@ from ..adjust.schur import (
 from ..adjust.snooping import POORLY_CONTROLLED, noncentrality
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
-from ..records import compact_repr, read_only_fields, setstate_read_only
+from ..records import compact_repr, freeze_fields, read_only_fields, setstate_read_only
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
 from .residuals import reprojection_residuals
 from .robust import consistent_variance_factor, covariance_weights, image_point_leverage
+
+#: The fields of :class:`BundleFit` holding nested mappings, sequences and arrays (frozen by
+#: :func:`photogeom.records.freeze_fields`).
+_NESTED_FIELDS = (
+    "calibration",
+    "calibration_std",
+    "calibration_correlation",
+    "high_correlations",
+    "check",
+    "snooping",
+    "variance_components",
+    "chi2",
+    "solver",
+    "control",
+    "_cal_cov",
+)
 
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
@@ -53,12 +69,12 @@ class BundleFit:
         ``block.observations`` (check-point rows with their triangulated points).
     in_adjustment : numpy.ndarray (n,) bool
         Rows that entered the adjustment (not check points).
-    calibration, calibration_std : dict group -> dict name -> value
+    calibration, calibration_std : mapping group -> mapping name -> value
         Calibration of each camera group and the standard deviations of the free parameters
         (pixels; distortion terms dimensionless); NaN for fixed parameters.
-    calibration_correlation : dict group -> (names, matrix)
+    calibration_correlation : mapping group -> (names, matrix)
         Correlation matrix of the free calibration parameters of each group.
-    high_correlations : list of (group, name, name, rho)
+    high_correlations : tuple of (group, name, name, rho)
         Calibration correlations above the threshold of the options.
     correlation_threshold : float
         That threshold (``BundleOptions.correlation_threshold``).
@@ -72,22 +88,22 @@ class BundleFit:
         parameter is not estimated per image.
     point_std : numpy.ndarray (p, 3) or None
         Standard deviations of every point's coordinates (``point_covariance=True``).
-    check : dict
+    check : mapping
         Check-point ids, errors ``adjusted - surveyed`` (k, 3), RMSE X, Y, Z (object units
         and GSD); in a free network after the 7-parameter similarity transformation of the
         check points onto their survey (:func:`similarity_residuals`), their ``point_std``
         in that datum (:func:`free_check_point_covariance`).
-    control : dict
+    control : mapping
         Control-point ids, their adjusted minus surveyed coordinates (k, 3), RMSE X, Y, Z
         (object units and GSD) and the surveyed standard deviations (k, 3).
-    snooping : dict or None
+    snooping : mapping or None
         Baarda's w per observation (n, 2), the critical value and the flagged observations
         as (image id, point id, w); ``"mdb"`` (n, 2), the minimal detectable bias of every
         coordinate in units of its a-priori sigma (power 80 %), and ``"poorly_controlled"``,
         the (image id, point id) of observations with a redundancy number below 0.1.
-    variance_components : dict or None
+    variance_components : mapping or None
         Estimated standard deviation factor of each observation group.
-    chi2 : dict
+    chi2 : mapping
         Global test of ``v'Pv / sigma0_prior^2`` against chi-square with r degrees of freedom
         (with a robust loss ``v'Pv`` of the least-squares solution of the final
         linearisation, all observations at full weight: :func:`least_squares_square_sum`;
@@ -97,14 +113,18 @@ class BundleFit:
         Mean ground sample distance of the adjusted block (object units per pixel,
         :meth:`Block.gsd`).
     elapsed : float (s)
-    solver : dict
+    solver : mapping
         The sparse backend and sizes of the reduced system.
 
     Notes
     -----
     The array attributes (``residuals``, ``in_adjustment``, ``exterior_std``,
     ``point_std``, ...) are read-only views, as the block's arrays: take a copy to change
-    one.
+    one. The nested results (``calibration``, ``check``, ``control``, ``snooping``,
+    ``chi2``, ...) are read-only too, all the way down: their mappings are read-only
+    mappings (``dict(fit.check)`` is a dict of one's own), their lists tuples and their
+    arrays read-only views, so that ``summary``, ``to_dict`` and the reports of a fit, and
+    of the copies :func:`dataclasses.replace` makes, always show the adjustment's numbers.
     """
 
     block: Block
@@ -122,7 +142,7 @@ class BundleFit:
     calibration: Mapping
     calibration_std: Mapping
     calibration_correlation: Mapping
-    high_correlations: list
+    high_correlations: tuple
     exterior_std: np.ndarray
     point_std: np.ndarray | None
     check: Mapping
@@ -146,12 +166,15 @@ class BundleFit:
         return compact_repr(self)
 
     def __post_init__(self) -> None:
-        # read-only views: the residuals agree with the block, copies share the arrays
+        # read-only views: the residuals agree with the block, copies share the arrays; the
+        # nested results (read by summary, to_dict and the reports) read-only all the way down
         read_only_fields(self)
+        freeze_fields(self, _NESTED_FIELDS)
 
     def __setstate__(self, state: dict) -> None:
-        # pickle / deepcopy rebuild arrays writable: read-only again
+        # pickle / deepcopy rebuild arrays writable: read-only again (the nested ones too)
         setstate_read_only(self, state)
+        freeze_fields(self, _NESTED_FIELDS)
 
     # --- queries -----------------------------------------------------------------------------
 

@@ -36,7 +36,7 @@ from ..adjust.snooping import w_critical_value
 from ..adjust.sparse import factorize
 from ..adjust.variance_components import update_variance_factors
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
-from ..records import read_only_fields
+from ..records import freeze_fields, read_only_fields
 
 Border = Literal["mean", "linear"]
 BORDERS = ("mean", "linear")
@@ -442,12 +442,13 @@ class ResidualGrid:
     uv : numpy.ndarray, shape (n_input, 2), optional
         Pixel positions of the input points (px), kept to compute :attr:`node_std` on first
         use; None for a grid read without them (saved with ``std=False``).
-    snooping : dict, optional
-        With ``snooping=True``: ``"test"`` (``"w"``), ``"alpha"``, ``"critical_value"``
-        and ``"w"`` (n_input,), the larger ``|w|`` of the two components of every rejected
-        point in the round that rejected it (NaN for the points kept); ``"rounds"``, the
-        rounds that removed points, and ``"still_flagged"`` (n_input,), the points still
-        failing the test when ``max_snooping_rounds`` ended the removal (kept in the fit);
+    snooping : mapping, optional
+        Read-only (its arrays too). With ``snooping=True``: ``"test"`` (``"w"``),
+        ``"alpha"``, ``"critical_value"`` and ``"w"`` (n_input,), the larger ``|w|`` of
+        the two components of every rejected point in the round that rejected it (NaN for
+        the points kept); ``"rounds"``, the rounds that removed points, and
+        ``"still_flagged"`` (n_input,), the points still failing the test when
+        ``max_snooping_rounds`` ended the removal (kept in the fit);
         None otherwise (and for grids read from a file).
 
     Notes
@@ -480,6 +481,7 @@ class ResidualGrid:
 
     def __post_init__(self) -> None:
         read_only_fields(self)
+        freeze_fields(self, ("snooping",))  # its "w" and "still_flagged" read-only too
         # The cache holds (inputs, cofactor) pairs; dataclasses.replace hands the original's
         # list over: keep only what was computed for this grid's inputs, in a list of its own
         # (a bare array is a cofactor given for this grid: read from a file, or computed by
@@ -503,6 +505,7 @@ class ResidualGrid:
                 value.flags.writeable = False
         for _, cof in self.__dict__.get("_std", ()):
             cof.flags.writeable = False
+        freeze_fields(self, ("snooping",))
 
     def _cofactor_key(self) -> tuple:
         """What the node cofactors derive from (arrays compared by identity: read-only)."""

@@ -125,7 +125,16 @@ def _checked_covariance(covariance) -> tuple[tuple[str, ...], np.ndarray] | None
 def _std_of(
     std: Mapping[str, float] | None, cov: tuple[tuple[str, ...], np.ndarray] | None
 ) -> dict[str, float]:
-    """Standard deviations of the estimated parameters (finite ones only), px / unitless."""
+    """Standard deviations of the estimated parameters (finite ones only), px / unitless:
+    those of ``std``, and the square roots of the covariance's diagonal for the others.
+
+    Raises
+    ------
+    InputError
+        An unknown name or a negative value in ``std``; a value of ``std`` that is not the
+        square root of the covariance's diagonal (relative 1e-9): the file would hold
+        one of them silently replaced by the other.
+    """
     out: dict[str, float] = {}
     if cov is not None:
         names, C = cov
@@ -139,7 +148,13 @@ def _std_of(
         if math.isfinite(v):  # NaN: a parameter that was held (not estimated)
             if v < 0:
                 raise InputError(f"std of {name} is negative ({v!r})")
-            out.setdefault(name, v)
+            if name in out and not math.isclose(v, out[name], rel_tol=1e-9):
+                raise InputError(
+                    f"std of {name} is {v!r} but the covariance gives {out[name]!r} (the "
+                    "square root of its diagonal): give the standard deviations and the "
+                    "covariance of one adjustment, or only one of them"
+                )
+            out[name] = v
     return {n: out[n] for n in PARAMETERS if n in out}
 
 
@@ -195,7 +210,7 @@ def calibration_json(
         are left out), e.g. ``BundleFit.calibration_std[group]``.
     covariance : (names, matrix), optional
         Covariance of the free parameters (its diagonal gives ``std`` where ``std`` is not
-        given).
+        given; where both are given they must agree).
 
     Returns
     -------
@@ -297,7 +312,8 @@ def calibration_text(
         The format (:func:`calibration_format` gives it from a file name).
     std, covariance
         As in :func:`calibration_json` (Metashape XML and OpenCV YAML use the covariance
-        only; a COLMAP ``cameras.txt`` has no place for either).
+        only; a COLMAP ``cameras.txt`` has no place for either); where both are given they
+        must agree, in every format.
 
     Returns
     -------
@@ -307,8 +323,11 @@ def calibration_text(
     Raises
     ------
     InputError
-        For an unknown format, or ``k4``/``b2`` non-zero in OpenCV's or COLMAP's.
+        For an unknown format, ``k4``/``b2`` non-zero in OpenCV's or COLMAP's, or ``std``
+        and ``covariance`` that disagree.
     """
+    if std is not None and covariance is not None:  # they agree, whatever the format keeps
+        _std_of(std, _checked_covariance(covariance))
     if fmt == "metashape":
         return metashape_xml_text(calibration, covariance)
     if fmt == "json":
@@ -355,7 +374,8 @@ def write_calibration(
     Raises
     ------
     InputError
-        Another suffix; ``k4`` or ``b2`` non-zero for OpenCV or COLMAP.
+        Another suffix; ``k4`` or ``b2`` non-zero for OpenCV or COLMAP; a value of ``std``
+        that is not the square root of the covariance's diagonal (relative 1e-9).
     OutputError
         The file cannot be written (nothing is changed then).
     """

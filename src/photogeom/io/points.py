@@ -1226,20 +1226,101 @@ def _id_array(ids):
     return ids if pa.types.is_string(ids.type) else text_column(ids)
 
 
+#: Python's white space (``str.isspace``), which the readers trim from the ends of a field:
+#: the body of an RE2 character class, for pyarrow.
+_SPACE = "\t\n\x0b\x0c\r\x1c-\x1f \x85\xa0\u1680\u2000-\u200a\u2028\u2029\u202f\u205f\u3000"
+#: An id made of these characters only reads back empty.
+_BLANK_ID = f"^[{_SPACE}]*$"
+
+
 def _check_ids_read_back(ids) -> None:
     """Refuse ids that a point CSV cannot hold: a line break (the readers refuse a quoted
-    field over two lines). White space at the ends is written and trimmed on reading, as
-    in any point file (``' #3'`` reads back as ``'#3'``)."""
+    field over two lines), a NUL character (the readers take the file for a binary one),
+    nothing but white space (read back as an empty id) and ids that read back as one (the
+    readers refuse repeated ids). White space at the ends is written and trimmed on
+    reading, as in any point file (``' #3'`` reads back as ``'#3'``)."""
     import pyarrow.compute as pc
 
-    bad = pc.fill_null(pc.match_substring_regex(ids, r"[\r\n]"), False)
-    if pc.any(bad).as_py():
-        k = int(np.flatnonzero(bad.to_numpy(zero_copy_only=False))[0])
-        raise InputError(
-            f"point id {ids[k].as_py()!r} (row {k + 1}) holds a line break, which a point "
-            "file cannot hold (the readers refuse a quoted field over two lines); remove it "
-            "from the id"
+    for pattern, why in (
+        (r"[\r\n]", "holds a line break, which a point file cannot hold (the readers refuse "
+         "a quoted field over two lines); remove it from the id"),
+        ("\x00", "holds a NUL character, which a point file cannot hold (the readers take "
+         "the file for a binary one); remove it from the id"),
+        (_BLANK_ID, "is empty or only white space, which reads back as an empty id (the "
+         "readers refuse it); give the point a name"),
+    ):
+        bad = pc.fill_null(pc.match_substring_regex(ids, pattern), False)
+        if pc.any(bad).as_py():
+            k = int(np.flatnonzero(bad.to_numpy(zero_copy_only=False))[0])
+            raise InputError(f"point id {ids[k].as_py()!r} (row {k + 1}) {why}")
+    read = pc.replace_substring_regex(ids, f"^[{_SPACE}]+|[{_SPACE}]+$", "")
+    if len(pc.unique(read)) < len(read):
+        _, first, inverse = np.unique(
+            read.to_numpy(zero_copy_only=False).astype(str), return_index=True,
+            return_inverse=True,
         )
+        k = int(np.flatnonzero(first[inverse] != np.arange(len(read)))[0])  # a repeat
+        j = int(first[inverse[k]])
+        raise InputError(
+            f"point ids {ids[j].as_py()!r} (row {j + 1}) and {ids[k].as_py()!r} (row {k + 1}) "
+            f"read back as the same id {read[k].as_py()!r} (the readers trim white space at "
+            "the ends and refuse repeated ids); make them distinct"
+        )
+
+
+def _check_header_read_back(names: Sequence[str]) -> None:
+    """Refuse column names the readers refuse in a header: empty or white space only, with a
+    line break or a NUL character, or two names that read back as one (white space at the
+    ends is trimmed; ``id`` is the first column's)."""
+    seen: dict[str, str] = {}
+    for name in names:
+        if re.search("[\r\n\x00]", name):
+            raise InputError(
+                f"column name {name!r} holds a line break or a NUL character, which a point "
+                "file's header cannot hold; rename the column"
+            )
+        key = name.strip()
+        if not key:
+            raise InputError(
+                f"column name {name!r} is empty or only white space, which the readers "
+                "refuse in a header; name the column"
+            )
+        if key in seen:
+            raise InputError(
+                f"column names {seen[key]!r} and {name!r} read back as the same name {key!r} "
+                "(the readers trim white space at the ends and refuse repeated column "
+                "names; the first column is 'id'); rename one"
+            )
+        seen[key] = name
+
+
+def _check_text_read_back(extra: dict, comments: Sequence[str]) -> None:
+    """Refuse text a point CSV cannot hold in the further columns (a line break or a NUL
+    character) and in the comment lines (a NUL character; comments are split into lines)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from .csvrows import text_column
+
+    for name, values in extra.items():
+        numbers = not isinstance(values, (pa.Array, pa.ChunkedArray))
+        if numbers and np.asarray(values).dtype.kind in "iufb":
+            continue
+        values = text_column(values)
+        bad = pc.fill_null(pc.match_substring_regex(values, "[\r\n\x00]"), False)
+        if pc.any(bad).as_py():
+            k = int(np.flatnonzero(bad.to_numpy(zero_copy_only=False))[0])
+            raise InputError(
+                f"column {name}: value {values[k].as_py()!r} (row {k + 1}) holds a line break "
+                "or a NUL character, which a point file cannot hold (the readers refuse a "
+                "quoted field over two lines, and a file with NUL as binary); remove it"
+            )
+    for line in comments:
+        if "\x00" in str(line):
+            raise InputError(
+                f"comment {str(line)!r} holds a NUL character, which a point file cannot "
+                "hold (the readers take the file for a binary one); remove it"
+            )
 
 
 def _texts(values) -> list[str]:
@@ -1324,15 +1405,21 @@ def write_points(
     Raises
     ------
     InputError
-        As :meth:`PointWriter.write`; also an id with a line break, which
-        :func:`read_points` would refuse (a quoted field over two lines). White space at
-        the ends of an id is trimmed on reading.
+        As :meth:`PointWriter.write`; also what :func:`read_points` would refuse: an id
+        with a line break (a quoted field over two lines) or a NUL character (a binary
+        file), an empty or white-space-only id, two ids that read back as one (``"a"`` and
+        ``" a"``: white space at the ends of an id is trimmed on reading), a line break or
+        a NUL character in a text column of ``extra``, a NUL character in ``comments``;
+        column names (``columns`` and those of ``extra``) that are empty, hold a line break
+        or a NUL, or read back as one another or as ``id``.
     OutputError
         When the file cannot be written.
     """
     extra = dict(extra or {})
     ids = _id_array(ids)
     _check_ids_read_back(ids)  # a file for read_points: only ids it gives back
+    _check_text_read_back(extra, comments)
+    _check_header_read_back(["id", *map(str, columns), *map(str, extra)])
     with PointWriter(path, columns, extra=list(extra), comments=comments) as w:
         w.write(ids, coords, extra)
     return Path(path)

@@ -14,10 +14,12 @@ deviations, overlaps and the strength of the image-variant local fields are our 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from ..camera.metashape import MetashapeCalibration
 from ..errors import InputError
+from ..records import FrozenMapping
 
 __all__ = ["PRESETS", "CameraPreset", "preset"]
 
@@ -41,9 +43,10 @@ class CameraPreset:
         Images per strip of the study-sized block (their sum is the study's image count).
     forward_overlap, side_overlap : float
         Default overlaps (fractions).
-    true_calibration : dict
+    true_calibration : mapping
         The true camera's deviations from the nominal one: ``f_scale`` (true f / nominal f),
-        ``cx``, ``cy``, ``b1``, ``b2`` (pixels) and ``k1 .. k4``, ``p1``, ``p2``.
+        ``cx``, ``cy``, ``b1``, ``b2`` (pixels) and ``k1 .. k4``, ``p1``, ``p2``; read-only
+        (a copy of the mapping given).
     local_field_rms : float
         Default RMS length of the image-variant local displacement field, pixels.
     """
@@ -57,8 +60,14 @@ class CameraPreset:
     study_strips: tuple[int, ...]
     forward_overlap: float
     side_overlap: float
-    true_calibration: dict = field(default_factory=dict)
+    true_calibration: Mapping[str, float] = field(default_factory=dict)
     local_field_rms: float = 0.1
+
+    def __post_init__(self) -> None:
+        # read-only, a copy of the mapping given: the presets are shared by every simulation
+        # of the process (a value written into sim.preset.true_calibration changed the
+        # truth of every later uav_block of that camera)
+        object.__setattr__(self, "true_calibration", FrozenMapping(self.true_calibration))
 
     @property
     def focal_px(self) -> float:

@@ -27,7 +27,7 @@ from ..bundle.triangulate import triangulate
 from ..camera.frame_kernel import project_rows
 from ..camera.metashape import MetashapeCalibration
 from ..errors import DegenerateGeometryError, InputError
-from ..records import read_only_fields, setstate_read_only
+from ..records import freeze_fields, read_only_fields, setstate_read_only
 from ..rotation import opk_matrix
 from .fields import LocalDistortionField, WaveTerrain, ar1_along_flight, check_field_options
 from .presets import CameraPreset, preset
@@ -73,8 +73,8 @@ class SimulatedBlock:
     blunder_rows : (b,) observation rows that carry a blunder.
     blunder_offsets : (b, 2) the blunders added to those rows, px.
     control_ids, check_ids, tie_ids : ids of the points by role.
-    options : dict
-        The resolved options (units as in :func:`uav_block`).
+    options : mapping
+        The resolved options (units as in :func:`uav_block`); read-only.
     """
 
     block: Block
@@ -93,14 +93,17 @@ class SimulatedBlock:
     control_ids: np.ndarray
     check_ids: np.ndarray
     tie_ids: np.ndarray
-    options: dict = field(default_factory=dict)
+    options: Mapping = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        # the truth is read-only: the block's observations were made from these arrays
+        # the truth is read-only: the block's observations were made from these arrays (and
+        # the options, which summary reads)
         read_only_fields(self)
+        freeze_fields(self, ("options",))
 
     def __setstate__(self, state: dict) -> None:
         setstate_read_only(self, state)  # pickle / deepcopy: the arrays stay read-only
+        freeze_fields(self, ("options",))
 
     @property
     def observed(self) -> np.ndarray:
