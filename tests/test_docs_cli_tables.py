@@ -42,3 +42,56 @@ def test_output_calibration_row_names_every_suffix():
         if suffix != ".yml":  # the short form of .yaml, described beside it
             assert suffix in first.replace("\\", ""), f"{suffix} not in {first}"
             assert suffix in synopsis, f"{suffix} not in the synopsis {synopsis}"
+
+
+def _cli_params() -> dict:
+    """``{"group command": [click parameter, ...]}`` of the whole command line."""
+    import click
+    import typer
+
+    from photogeom.cli.main import app
+
+    out: dict = {}
+
+    def walk(cmd, path):
+        if hasattr(cmd, "list_commands"):
+            ctx = click.Context(cmd)
+            for name in cmd.list_commands(ctx):
+                walk(cmd.get_command(ctx, name), [*path, name])
+        else:
+            out[" ".join(path)] = list(cmd.params)
+
+    walk(typer.main.get_command(app), [])
+    return out
+
+
+def _cli_md_sections() -> dict:
+    """``{"group command": section text}`` of the command sections of docs/cli.md."""
+    sections: dict = {}
+    name = None
+    for line in (DOCS / "cli.md").read_text(encoding="utf-8").splitlines():
+        if line.startswith("#"):
+            m = re.match(r"#+ `photogeom ([a-z-]+) ([a-z-]+)", line)
+            name = f"{m.group(1)} {m.group(2)}" if m else None
+            if name:
+                sections[name] = []
+        elif name:
+            sections[name].append(line)
+    return {k: "\n".join(v) for k, v in sections.items()}
+
+
+def test_cli_md_option_tables_are_complete():
+    # the table of transform estimate had no --source-crs, that of orient relative no
+    # --id-col: a section that gives a command's option table names every option of it
+    params = _cli_params()
+    problems = []
+    for command, text in _cli_md_sections().items():
+        if command not in params or "| option | meaning |" not in text:
+            continue
+        for p in params[command]:
+            names = [o for o in (*p.opts, *p.secondary_opts) if o.startswith("-")]
+            if not names or names == ["--help"] or p.param_type_name == "argument":
+                continue
+            if not any(re.search(re.escape(n) + r"(?![\w-])", text) for n in names):
+                problems.append(f"{command}: {'/'.join(names)} is not in its table")
+    assert not problems, problems
