@@ -94,3 +94,21 @@ def test_pages_speak_of_the_product_not_of_its_development_rounds():
             line = text.count("\n", 0, m.start()) + 1
             problems.append(f"{page.name}:{line}: {m.group(0)}")
     assert not problems, problems
+
+
+def test_residual_grid_page_node_counts_are_the_layouts():
+    # the page said "a 42 Mpx image at 100 px has 4 300" nodes beside MAX_NODES, where a
+    # 7952 x 5304 px image at 100 px has 55 x 81 = 4455 (as the README and the page's own
+    # speed table say, and as grid fit prints: "nodes 55x81")
+    from photogeom.calibration.grid import MAX_NODES, GridLayout
+
+    text = (ROOT / "docs" / "residual-grid.md").read_text(encoding="utf-8")
+    layout = GridLayout(7952, 5304, 100)
+    ny, nx = layout.shape
+    assert (ny, nx) == (55, 81)
+    assert "a 7952 x 5304 image at 100 px has 55 x 81 nodes" in text
+    m = re.search(r"at most ([\d,]+) nodes[^)]*?has (\d+) x (\d+) = ([\d ]+)\)", text)
+    assert m, "the MAX_NODES sentence"
+    assert int(m.group(1).replace(",", "")) == MAX_NODES
+    assert (int(m.group(2)), int(m.group(3))) == (ny, nx)
+    assert int(m.group(4).replace(" ", "")) == layout.n_nodes
