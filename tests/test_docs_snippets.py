@@ -112,3 +112,31 @@ def test_residual_grid_page_node_counts_are_the_layouts():
     assert int(m.group(1).replace(",", "")) == MAX_NODES
     assert (int(m.group(2)), int(m.group(3))) == (ny, nx)
     assert int(m.group(4).replace(" ", "")) == layout.n_nodes
+
+
+def test_bundle_page_undetectable_blunder_block_is_the_one_named():
+    # the page named uav_block("FC300S", seed=3) for "a 20 px (40 sigma) error ... gave |w|
+    # 2.5 and was not flagged"; on that block (0.3 px noise) the same error gives |w| 3.8 and
+    # is flagged: the numbers are those of the block with 0.5 px noise and no local field
+    import numpy as np
+
+    import photogeom as pg
+
+    text = (ROOT / "docs" / "bundle-adjustment.md").read_text(encoding="utf-8")
+    m = re.search(r"`(uav_block\([^`]*\))` \(0\.5 px\s+noise, no local field\) (\d+) image", text)
+    assert m, "the block of the undetectable blunder"
+    call = ast.parse(m.group(1), mode="eval").body  # the page's own call, literals only
+    args = [ast.literal_eval(a) for a in call.args]
+    kwargs = {k.arg: ast.literal_eval(k.value) for k in call.keywords}
+    sim = pg.simulate.uav_block(*args, **kwargs)
+    fit = pg.bundle_adjust(sim.block)
+    assert len(fit.snooping["poorly_controlled"]) == int(m.group(2))
+    red = fit.snooping["redundancy_numbers"]
+    k = int(np.flatnonzero(np.nan_to_num(red[:, 0], nan=1.0) < 0.01)[0])
+    sigma = float(sim.block.observations.sigma[k])
+    assert 20.0 / sigma == pytest.approx(40.0)  # "20 px (40 sigma)"
+    uv = sim.block.observations.uv.copy()
+    uv[k, 0] += 20.0
+    bad = pg.bundle_adjust(sim.block.with_observations(uv=uv))
+    w = float(np.max(np.abs(bad.snooping["w"][k])))
+    assert round(w, 1) == 2.5 and w < bad.snooping["critical_value"]
