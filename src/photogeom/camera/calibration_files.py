@@ -832,6 +832,13 @@ def read_calibration_file(
         calib, std = opencv_calibration_from_text(data, where, image_size)
         return calib, std, None
     if fmt == "metashape":
+        from .metashape import MAX_XML_BYTES
+
+        if len(data) > MAX_XML_BYTES:  # the limit of read_metashape_xml, on every path
+            raise FileFormatError(
+                f"{where}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: "
+                "wrong file?"
+            )
         if image_size is not None:
             raise InputError(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
