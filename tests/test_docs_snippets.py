@@ -140,3 +140,26 @@ def test_bundle_page_undetectable_blunder_block_is_the_one_named():
     bad = pg.bundle_adjust(sim.block.with_observations(uv=uv))
     w = float(np.max(np.abs(bad.snooping["w"][k])))
     assert round(w, 1) == 2.5 and w < bad.snooping["critical_value"]
+
+
+def test_simulation_page_preset_table_is_the_presets():
+    # the table gave the FC300S flying height as 56.3 m, a rounding of 56.25 m that the
+    # simulator's summary prints as 56.2 m: the table's numbers are the presets' to the
+    # digits shown, and no rounding of a half
+    import photogeom as pg
+
+    text = (ROOT / "docs" / "simulation.md").read_text(encoding="utf-8")
+    checked = 0
+    for name, preset in pg.simulate.PRESETS.items():
+        row = next(line for line in text.splitlines() if line.startswith(f'| `"{name}"` | '))
+        cells = [c.strip() for c in row.split("|")[1:-1]]
+        f_px, gsd, height = cells[4], cells[5], cells[6]
+        assert float(f_px) == pytest.approx(preset.focal_px, abs=0.05)
+        assert float(gsd.split()[0]) / 100 == pytest.approx(preset.gsd)
+        shown = height.split()[0]
+        digits = len(shown.split(".")[1]) if "." in shown else 0
+        value = preset.flying_height(preset.gsd)
+        assert float(shown) == round(value, digits), (name, shown, value)
+        assert f"{value:.{digits}f}" == shown, (name, shown, value)  # as Python prints it
+        checked += 1
+    assert checked == 3
