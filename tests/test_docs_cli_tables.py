@@ -115,3 +115,36 @@ def test_every_option_is_named_in_the_documentation():
             if not any(re.search(re.escape(n) + r"(?![\w-])", text) for n in names):
                 problems.append(f"{command} {'/'.join(names)}")
     assert not problems, problems
+
+
+def test_opencv_json_calibration_is_named_where_calibrations_are_listed(cli, tmp_path):
+    # an OpenCV FileStorage JSON (camera_matrix, ...) is read by camera convert, --camera and
+    # --calibration, but their help and docs/cli.md listed "OpenCV YAML/XML" only
+    import cv2
+    import numpy as np
+
+    path = tmp_path / "opencv.json"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", 4000)
+    fs.write("image_height", 3000)
+    fs.write("camera_matrix", np.array([[2000.0, 0, 1999.5], [0, 2000.0, 1499.5], [0, 0, 1]]))
+    fs.write("distortion_coefficients", np.array([[0.1, 0.01, 0.0, 0.0, 0.001]]))
+    fs.release()
+    code, out, err = cli("camera", "convert", path, tmp_path / "cal.xml")
+    assert code == 0, err  # read, as the help should say
+    helps = {
+        ("camera", "convert"): "source <path>",
+        ("camera", "project"): "--calibration <path>",
+        ("orient", "resection"): "--calibration <path>",
+        ("orient", "relative"): "--calibration <path>",
+    }
+    for command, what in helps.items():
+        code, out, _ = cli(*command, "--help")
+        assert code == 0
+        block = " ".join(out[out.index(what) :].split())[:400]
+        assert "YAML/XML/JSON" in block, (command, block)
+    text = (DOCS / "cli.md").read_text(encoding="utf-8")
+    listed = re.findall(
+        r"OpenCV (?:`cv2\.FileStorage` )?YAML(?:/XML(?:/JSON)?|, XML or JSON| or XML)", text
+    )
+    assert listed and all("JSON" in s for s in listed), listed

@@ -793,7 +793,7 @@ def read_calibration_file(
     path: str | os.PathLike, image_size=None
 ) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
     """A calibration with its standard deviations and covariance, from a Metashape XML, a
-    camera JSON, an OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one camera
+    camera JSON, an OpenCV FileStorage YAML/XML/JSON or a COLMAP ``cameras.txt`` of one camera
     (read once, so a pipe works; the format by its content,
     :func:`calibration_content_format`).
 
@@ -863,7 +863,7 @@ def read_calibration_file(
         return colmap_calibration_from_text(text, where, image_size), {}, None
     raise FileFormatError(
         f"{where}: not a calibration file photogeom reads (Metashape calibration XML, camera "
-        "JSON, OpenCV FileStorage YAML/XML, COLMAP cameras.txt)"
+        "JSON, OpenCV FileStorage YAML/XML/JSON, COLMAP cameras.txt)"
     )
 
 
