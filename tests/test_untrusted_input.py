@@ -280,6 +280,7 @@ def test_cli_reports_a_bad_json_in_one_line(cli, tmp_path):
 
 # --- point CSV -----------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(("text", "words"), [
     ('id,x,y\n1,"2,3\n4,5,6\n7,8,9\n10,11,12\n', "quote"),
     ('id,x,y\n1,"2\n3",4\n', "quote"),
@@ -331,3 +332,30 @@ def test_json_depth_scan_matches_the_parsed_structure(obj, ascii_only):
     finally:
         jsonfile.MAX_DEPTH = limit
     assert got == _depth(obj)
+
+
+def test_metashape_xml_size_limit_holds_on_every_path(tmp_path, cli):
+    # the README's limit of a Metashape XML (1 MiB) held for read_metashape_xml only:
+    # read_calibration (--calibration, --camera, camera convert) read a 2 MiB one, under
+    # the 16 MiB of a JSON
+    from photogeom.camera.calibration_files import read_calibration_file
+    from photogeom.camera.metashape import MAX_XML_BYTES
+    from photogeom.errors import FileFormatError
+
+    cal = pg.MetashapeCalibration(width=6000, height=4000, f=4000.0, cx=12.5, cy=-7.25, k1=-0.05)
+    text = cal.to_xml_string()
+    at = text.index("<calibration")
+
+    def padded(n: int) -> Path:
+        path = tmp_path / f"cal-{n}.xml"
+        path.write_text(text[:at] + f"<!--{'x' * n}-->\n" + text[at:], encoding="utf-8")
+        return path
+
+    small, big = padded(1000), padded(MAX_XML_BYTES)
+    assert pg.read_calibration(small) == pg.read_metashape_xml(small) == cal
+    for read in (pg.read_metashape_xml, pg.read_calibration, read_calibration_file):
+        with pytest.raises(FileFormatError, match=f"more than {MAX_XML_BYTES} bytes"):
+            read(big)
+    code, _, err = cli("camera", "convert", big, tmp_path / "out.yaml")
+    assert code == 2 and f"more than {MAX_XML_BYTES} bytes" in err
+    assert not (tmp_path / "out.yaml").exists()

@@ -82,6 +82,36 @@ def _metashape_seeds() -> list[bytes]:
     return [text.encode(), text.replace('encoding="UTF-8"', 'encoding="UTF-16"').encode("utf-16")]
 
 
+def _calibration_seeds(fmt: str) -> list[bytes]:
+    """A calibration written as ``fmt`` (``"opencv"`` YAML, ``"colmap"`` cameras.txt), with
+    standard deviations and a covariance where the format has a place for them."""
+    from photogeom.camera.calibration_files import calibration_text
+
+    cal = pg.MetashapeCalibration(width=4000, height=3000, f=2238.75, cx=4.0, cy=-7.0,
+                                  k1=-0.11, k2=0.1, k3=-0.035, p1=3e-4, p2=-2e-4)  # fmt: skip
+    names = ("f", "cx", "cy", "k1")
+    cov = (names, np.diag([0.25, 0.04, 0.04, 1e-8]))
+    std = {"f": 0.5, "cx": 0.2, "cy": 0.2, "k1": 1e-4}
+    return [calibration_text(cal, fmt, std=std, covariance=cov).encode()]
+
+
+def _opencv_xml_seeds() -> list[bytes]:
+    """An OpenCV ``cv2.FileStorage`` XML calibration, as OpenCV's calibration sample writes."""
+    import tempfile
+
+    import cv2
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "camera.xml")
+        fs = cv2.FileStorage(path, cv2.FILE_STORAGE_WRITE)
+        fs.write("image_width", 4000)
+        fs.write("image_height", 3000)
+        fs.write("camera_matrix", np.array([[2238.0, 0, 2003.5], [0, 2238.0, 1492.5], [0, 0, 1]]))
+        fs.write("distortion_coefficients", np.array([[-0.11, 0.1, -2e-4, 3e-4, -0.035]]))
+        fs.release()
+        return [Path(path).read_bytes()]
+
+
 def _bundled(*names: str) -> list[bytes]:
     return [pg.datasets.path(n).read_bytes() for n in names]
 
@@ -131,6 +161,14 @@ def _read_point_pairs(p: Path):
     return read_point_pairs(p)
 
 
+def _read_calibration(p: Path):
+    return pg.read_calibration(p)
+
+
+def _read_bal(p: Path):
+    return pg.bundle.read_bal(p)
+
+
 def _rpc_dir() -> Path:
     return pg.datasets.path("ikonos").parent
 
@@ -172,6 +210,10 @@ TARGETS: dict[str, Target] = {
         Target("camera-json", _read_camera_json, _camera_seeds, ".json"),
         Target("points-csv", _read_points, _points_seeds, ".csv"),
         Target("point-pairs-csv", _read_point_pairs, _pairs_seeds, ".csv"),
+        Target("opencv-yaml", _read_calibration, lambda: _calibration_seeds("opencv"), ".yaml"),
+        Target("opencv-xml", _read_calibration, _opencv_xml_seeds, ".xml"),
+        Target("colmap-cameras", _read_calibration, lambda: _calibration_seeds("colmap"), ".txt"),
+        Target("bal", _read_bal, lambda: _bundled("dubrovnik-3-7"), ".txt"),
     )
 }
 

@@ -47,3 +47,13 @@ def test_mutated_inputs_raise_only_photogeom_errors(name, seed):
     with tempfile.TemporaryDirectory() as tmp:
         out = run_one(TARGETS[name], data, Path(tmp))
     assert out.ok, f"{type(out.error).__name__}: {out.error}"
+
+
+def test_the_readers_of_every_calibration_format_and_of_bal_are_fuzzed():
+    # the README says the fuzzing feeds every reader; the calibration files of other tools
+    # (OpenCV YAML/XML, COLMAP cameras.txt) and BAL had no target
+    from photogeom.camera.calibration_files import CALIBRATION_SUFFIXES
+
+    by_format = {"metashape": "metashape-xml", "json": "camera-json", "colmap": "colmap-cameras"}
+    wanted = {by_format.get(f, "opencv-yaml") for f in CALIBRATION_SUFFIXES.values()}
+    assert wanted | {"opencv-xml", "bal"} <= set(TARGETS)

@@ -813,7 +813,7 @@ def read_calibration_file(
     path: str | os.PathLike, image_size=None
 ) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
     """A calibration with its standard deviations and covariance, from a Metashape XML, a
-    camera JSON, an OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one camera
+    camera JSON, an OpenCV FileStorage YAML/XML/JSON or a COLMAP ``cameras.txt`` of one camera
     (read once, so a pipe works; the format by its content,
     :func:`calibration_content_format`).
 
@@ -852,6 +852,13 @@ def read_calibration_file(
         calib, std = opencv_calibration_from_text(data, where, image_size)
         return calib, std, None
     if fmt == "metashape":
+        from .metashape import MAX_XML_BYTES
+
+        if len(data) > MAX_XML_BYTES:  # the limit of read_metashape_xml, on every path
+            raise FileFormatError(
+                f"{where}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: "
+                "wrong file?"
+            )
         if image_size is not None:
             raise InputError(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
@@ -876,7 +883,7 @@ def read_calibration_file(
         return colmap_calibration_from_text(text, where, image_size), {}, None
     raise FileFormatError(
         f"{where}: not a calibration file photogeom reads (Metashape calibration XML, camera "
-        "JSON, OpenCV FileStorage YAML/XML, COLMAP cameras.txt)"
+        "JSON, OpenCV FileStorage YAML/XML/JSON, COLMAP cameras.txt)"
     )
 
 

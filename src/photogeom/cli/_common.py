@@ -818,9 +818,17 @@ def file_crs(
 def leading_comments(path: Path, max_lines: int = 1000) -> list[str]:
     """The ``#`` comment lines before the header of a text file (none when it cannot be read:
     the reader of the file reports that)."""
+    import io
+
+    from ..io.sources import input_kind, pipe_bytes
+
     out: list[str] = []
     try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        if input_kind(path) == "pipe":  # read once and kept: the point reader reads it next
+            fh = io.StringIO(pipe_bytes(path, None).decode("utf-8", errors="replace"))
+        else:
+            fh = open(path, encoding="utf-8", errors="replace")
+        with fh:
             for _, line in zip(range(max_lines), fh):
                 t = line.strip().lstrip("\ufeff")
                 if t.startswith("#"):

@@ -9,7 +9,7 @@
 
 The camera is given by options (``--f``, ``--x0``, ``--y0``, ``--unit``, or ``--pixel-size``
 and ``--principal-point`` for a digital camera), by a calibration file (``--calibration``:
-Metashape XML, camera JSON, OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one
+Metashape XML, camera JSON, OpenCV FileStorage YAML/XML/JSON or a COLMAP ``cameras.txt`` of one
 camera, told apart by content) or by a JSON file (``--camera``: the output of
 ``--output-params``, or ``{"interior": {...}, "exterior": {...}}``; a calibration of another
 tool gives the interior orientation only). Angles on the command line are in
@@ -186,7 +186,7 @@ def camera_from_json(path: Path):
 
 def read_calibration_option(path: Path, option: str):
     """The calibration of a ``--calibration``/``--camera`` file: Metashape XML, camera JSON,
-    OpenCV FileStorage YAML/XML or a COLMAP ``cameras.txt`` of one camera (by content).
+    OpenCV FileStorage YAML/XML/JSON or a COLMAP ``cameras.txt`` of one camera (by content).
 
     Parameters
     ----------
@@ -378,7 +378,7 @@ CalibrationOpt = Annotated[
     Path | None,
     typer.Option(
         help="Frame-camera calibration (pixels): Metashape XML, camera JSON, OpenCV "
-        "FileStorage YAML/XML or COLMAP cameras.txt (one camera); format by content."
+        "FileStorage YAML/XML/JSON or COLMAP cameras.txt (one camera); format by content."
     ),
 ]
 FOpt = Annotated[float | None, typer.Option("--f", help="Principal distance (in --unit).")]
@@ -502,7 +502,7 @@ def convert_cmd(
         typer.Argument(
             help="Calibration to read, format by content: Metashape XML, camera JSON "
             "('bundle adjust --output-calibration', 'orient resection --output-params', ...), "
-            "OpenCV FileStorage YAML/XML (camera_matrix, distortion_coefficients), COLMAP "
+            "OpenCV FileStorage YAML/XML/JSON (camera_matrix, distortion_coefficients), COLMAP "
             "cameras.txt (one camera)."
         ),
     ],

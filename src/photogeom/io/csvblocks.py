@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 from ..numbers import decimal_comma_hint, is_decimal_number
-from .sources import input_kind
+from .sources import input_kind, pipe_bytes
 
 #: Bytes of text parsed at a time.
 BLOCK_BYTES = 8 << 20
@@ -175,9 +175,13 @@ class DelimitedText:
         self.comments: list[str] = []
         if data is None and input_kind(self.path) == "pipe":
             # a pipe (`<(cat f.csv)`, `... | photogeom ... /dev/stdin`) can be read once: the
-            # header, the blocks and the diagnostics each open the input, so it is kept
-            with self._open() as fh:
-                data = self._data = fh.read()
+            # header, the blocks and the diagnostics each open the input, and a command may
+            # read the file again (its '# crs:' line, a second set of columns), so its bytes
+            # are kept for the whole process (io.sources.pipe_bytes)
+            try:
+                data = self._data = pipe_bytes(self.path, None)
+            except OSError as exc:
+                raise FileFormatError(f"cannot read {self.path}: {exc.strerror or exc}") from None
         if data is None:
             self.size = _stat_size(self.path)
         else:
