@@ -177,7 +177,7 @@ class DelimitedText:
             # a pipe (`<(cat f.csv)`, `... | photogeom ... /dev/stdin`) can be read once: the
             # header, the blocks and the diagnostics each open the input, and a command may
             # read the file again (its '# crs:' line, a second set of columns), so its bytes
-            # are kept for the whole process (io.sources.pipe_bytes)
+            # are kept for the whole command (io.sources.pipe_reads; in Python, by this object)
             try:
                 data = self._data = pipe_bytes(self.path, None)
             except OSError as exc:
