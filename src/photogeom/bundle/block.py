@@ -41,6 +41,8 @@ EO_NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
 
 def _ids(values, what: str) -> np.ndarray:
     a = np.array(values)  # a copy: the block must not share the caller's array
+    if a.size == 0 and a.dtype.kind == "f":  # [] (numpy makes it float64): no ids
+        a = a.astype(np.int64)
     if a.ndim != 1:
         raise InputError(f"{what}: ids must be a flat sequence, got shape {a.shape}")
     if a.dtype.kind not in "iuUO":

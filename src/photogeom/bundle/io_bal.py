@@ -208,6 +208,11 @@ def read_bal(
             f"{cams[k, 6]:g}; the Metashape model needs f > 0"
         )
     xy = obs[:, 2:]
+    if image_size is None and len(xy) == 0:
+        raise FileFormatError(
+            f"{label}: the file has no observations, and a BAL file states no image size, "
+            "which is taken from the observations; give image_size=(width, height) (px)"
+        )
     if image_size is None:
         w = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 0]), initial=0.0))))
         h = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 1]), initial=0.0))))
