@@ -49,7 +49,7 @@ def test_a_named_pipe_read_twice_through_the_library_gives_each_writers_content(
     assert pg.read_calibration(fifo).f == 4000.0
     _serve(fifo, second)
     assert pg.read_calibration(fifo).f == 5000.0
-    assert sources._PIPE_BYTES is None  # nothing kept outside a command
+    assert sources.kept_pipes() is None  # nothing kept outside a command
 
 
 def test_a_scope_keeps_a_pipe_once_and_drops_it_at_its_end(tmp_path):
@@ -61,7 +61,7 @@ def test_a_scope_keeps_a_pipe_once_and_drops_it_at_its_end(tmp_path):
             assert sources.pipe_bytes(fifo, None) == data
         assert sources.kept_pipe_bytes(fifo) == data  # read once, kept for the scope
         assert sources.pipe_bytes(fifo, None) == data
-    assert sources._PIPE_BYTES is None
+    assert sources.kept_pipes() is None
     assert sources.kept_pipe_bytes(fifo) is None
     _serve(fifo, b"second writer")
     assert sources.pipe_bytes(fifo, None) == b"second writer"
@@ -80,4 +80,4 @@ def test_a_command_keeps_nothing_after_it_ends(tmp_path):
     result = CliRunner().invoke(app, ["camera", "convert", str(fifo), str(out)])
     assert result.exit_code == 0, result.output
     assert np.isclose(pg.read_calibration(out).f, 4000.0)
-    assert sources._PIPE_BYTES is None
+    assert sources.kept_pipes() is None

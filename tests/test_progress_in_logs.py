@@ -101,3 +101,18 @@ def _pairs(tmp_path):
         f"{i}," + ",".join(repr(float(v)) for v in row) + "\n"
         for i, row in enumerate(both)))  # fmt: skip
     return p
+
+
+def test_grid_fit_of_a_block_counts_images_in_a_log(cli, tmp_path, at_once):
+    # from an adjusted block folder the log said only "fitting grids of 500 px (0 s)", where
+    # a residuals CSV counted its images
+    block, adjusted = tmp_path / "b", tmp_path / "adjusted"
+    code, _, err = cli("bundle", "simulate", block, "--strips", "1", "--images-per-strip", "3")
+    assert code == 0, err
+    code, _, err = cli("bundle", "adjust", block, "-o", adjusted)
+    assert code == 0, err
+    code, _, err = cli("grid", "fit", adjusted, "--spacing", "500", "--folds", "0",
+                       "-o", tmp_path / "g.npz")  # fmt: skip
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("photogeom: fitting grids")]
+    assert lines[-1].startswith("photogeom: fitting grids of 500 px: 3 of 3 images: done (")

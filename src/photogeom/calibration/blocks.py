@@ -19,14 +19,14 @@ contract"):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from ..bundle.block import ROLES, Block
 from ..bundle.residuals import reprojection_residuals
 from ..errors import InputError
-from .grid import ResidualGrid, fit_grids
+from .grid import _MIN_OBSERVATIONS, ResidualGrid, _image_inputs, fit_grids, progress_over
 from .gridfile import match_grid_ids
 
 __all__ = [
@@ -93,6 +93,7 @@ def fit_residual_grids(
     images: Sequence | None = None,
     sigma_obs: float | str = "block",
     sigma_constraint: float | str = "scaled",
+    progress: bool | Callable[[int, int], None] = False,
     **options,
 ) -> dict[object, ResidualGrid]:
     """Fit one finite-element residual grid per image of an adjusted block.
@@ -123,6 +124,10 @@ def fit_residual_grids(
         suits observation sigmas of a few tenths of a pixel and a few hundred tie points per
         image (with 1 px a 100 px grid nearly interpolates the residuals, noise included).
         ``"vce"`` estimates it (variance components).
+    progress : bool or callable
+        ``True``: a progress bar (rich) on the terminal; a callable: called as
+        ``progress(done, total)`` (images) before the first and after every image, as
+        :func:`~photogeom.calibration.fit_grids` does.
     **options
         Passed to :func:`~photogeom.calibration.fit_grid` (``sigma_constraint`` - a number
         in px or ``"vce"`` -, ``border``, ``min_observations``, ``min_support``, ``folds``,
@@ -168,11 +173,15 @@ def fit_residual_grids(
         if sigma_obs != "block":
             raise InputError(f"sigma_obs must be 'block' or a number of pixels, not {sigma_obs!r}")
         sig = _sigmas_per_image(block, roles)
+        # every image's inputs are checked before the first fit, as fit_grids does
+        min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
+        for k, (uv, res) in per.items():
+            _image_inputs(uv, res, size_of[k], spacing, min_obs, f"image {k}: ")
         out = {}
-        for k, val in per.items():  # images, not points
+        for k in progress_over(list(per), progress):  # images, not points
             out.update(
                 fit_grids(
-                    {k: val},
+                    {k: per[k]},
                     size_of,
                     spacing,
                     sigma_obs=sig[k],
@@ -182,7 +191,13 @@ def fit_residual_grids(
             )
         return out
     return fit_grids(
-        per, size_of, spacing, sigma_obs=sigma_obs, sigma_constraint=sigma_constraint, **options
+        per,
+        size_of,
+        spacing,
+        sigma_obs=sigma_obs,
+        sigma_constraint=sigma_constraint,
+        progress=progress,
+        **options,
     )
 
 

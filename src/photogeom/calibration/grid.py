@@ -23,7 +23,7 @@ unconstrained). ``N = A' P A + C' P_c C`` is factorised once for both components
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
@@ -1204,6 +1204,19 @@ def _reporting(items: list, report: Callable[[int, int], None]):
         report(done, len(items))
 
 
+def progress_over(items: list, progress: bool | Callable[[int, int], None]) -> Iterable:
+    """``items`` one by one with the progress of :func:`fit_grids`: ``True`` a progress bar
+    (rich) on the terminal, a callable called as ``progress(done, total)`` before the first
+    item and after each, ``False`` none."""
+    if callable(progress):
+        return _reporting(items, progress)
+    if progress:
+        from rich.progress import track
+
+        return track(items, description="fitting residual grids", transient=True)
+    return items
+
+
 def fit_grids(
     per_image: dict,
     image_size,
@@ -1245,14 +1258,7 @@ def fit_grids(
         size = image_size[key] if isinstance(image_size, dict) else image_size
         _image_inputs(uv, res, size, spacing, min_obs, f"image {key}: ")
         items.append((key, uv, res, size))
-    it = items
-    if callable(progress):
-        it = _reporting(items, progress)
-    elif progress:
-        from rich.progress import track
-
-        it = track(items, description="fitting residual grids", transient=True)
     return {
         key: fit_grid(uv, res, size, spacing, image_id=key, **options)
-        for key, uv, res, size in it
+        for key, uv, res, size in progress_over(items, progress)
     }

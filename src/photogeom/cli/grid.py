@@ -12,7 +12,8 @@ import csv
 import io
 import operator
 import re
-from contextlib import nullcontext
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, nullcontext
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -893,17 +894,33 @@ def _fit_block(
             {k: ("point", pids[r]) for k, r in zip(ids, np.split(tie, cuts), strict=True)}
         )
     try:
-        with stage_spinner(f"fitting grids of {spacing:g} px"):
+        with _images_progress(f"fitting grids of {spacing:g} px") as progress:
             return fit_residual_grids(
                 block,
                 spacing,
                 images=keep,
                 sigma_obs="block" if sigma_obs is None else sigma_obs,
                 sigma_constraint="scaled" if sigma_constraint is None else sigma_constraint,
+                progress=progress,
                 **options,
             )
     except PhotogeomError as exc:
         raise _reworded(exc, _cli_words) from None
+
+
+@contextmanager
+def _images_progress(what: str) -> Iterator[bool | Callable[[int, int], None]]:
+    """The ``progress`` argument of the grid fits: a bar on a terminal, else lines
+    ``WHAT: N of M images`` in pipes and logs (:class:`LogProgress`)."""
+    if console(stderr=True).is_terminal:
+        yield True
+        return
+    with LogProgress(what) as log:
+
+        def counted(done: int, total: int) -> None:
+            log.update(f"{what}: {done} of {total} images")
+
+        yield counted
 
 
 def _fit_csv(
@@ -956,21 +973,15 @@ def _fit_csv(
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
     if where is not None:
         where.update({k: ("line", np.asarray(lines)[r]) for k, r in groups.items()})
-    terminal = console(stderr=True).is_terminal
-    what = f"fitting grids of {spacing:g} px"
     try:
-        with nullcontext() if terminal else LogProgress(what) as log:
-
-            def counted(done: int, total: int) -> None:
-                log.update(f"{what}: {done} of {total} images")
-
+        with _images_progress(f"fitting grids of {spacing:g} px") as progress:
             return fit_grids(
                 per_image,
                 size,
                 spacing,
                 sigma_obs=1.0 if sigma_obs is None else sigma_obs,
                 sigma_constraint=scaled_constraint_sigma(s_c, spacing),
-                progress=True if terminal else counted,
+                progress=progress,
                 **options,
             )
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words

@@ -53,7 +53,7 @@ def _root(
     Angles are labelled with their unit; residuals are computed minus observed. Each command
     has --help; shell completion: photogeom --install-completion.
     """
-    from ..io.sources import pipe_reads
+    from .._pipe_scope import pipe_reads  # not ..io: numpy loads after the BLAS setting
 
     # a command may read a pipe given as input more than once (its format, then its
     # content): each pipe is read once and its bytes are kept until the command ends

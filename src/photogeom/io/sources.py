@@ -13,11 +13,22 @@ from __future__ import annotations
 
 import os
 import stat
-from collections.abc import Iterator
-from contextlib import contextmanager
+
+from .._pipe_scope import kept_pipes, pipe_reads
 
 #: The kinds :func:`input_kind` returns.
 KINDS = ("file", "pipe", "folder", "device", "missing")
+
+__all__ = [
+    "KINDS",
+    "device_message",
+    "input_kind",
+    "kept_pipe_bytes",
+    "pipe_bytes",
+    "pipe_message",
+    "pipe_reads",
+    "read_input_bytes",
+]
 
 
 def input_kind(path: str | os.PathLike) -> str:
@@ -67,42 +78,6 @@ def pipe_message(path: str | os.PathLike, what: str, why: str) -> str:
     )
 
 
-#: The pipes read in the current scope (:func:`pipe_reads`), by (path, device, inode), with
-#: the limit they were read to (None: the whole stream): a command may read one input several
-#: times (its format, a CRS it records, its content) and a pipe gives its content once. None
-#: outside every scope: a pipe is then read by each call and nothing is kept. One for the
-#: process, not per thread: the worker threads of a command see the command's scope.
-_PIPE_BYTES: dict[tuple[str, int, int], tuple[bytes, int | None]] | None = None
-
-
-@contextmanager
-def pipe_reads() -> Iterator[None]:
-    """A scope in which each pipe is read once and its bytes are kept for later reads.
-
-    Every command of the ``photogeom`` CLI runs in one such scope, so that a command which
-    reads one pipe several times (its format first, then its content) gets the same bytes
-    each time; the bytes are dropped when the scope ends. A scope inside a scope is the
-    outer one. Outside every scope each read of a pipe reads the stream (what a new writer
-    wrote) and keeps nothing, so a long-running program that reads many pipes through the
-    library holds none of them.
-
-    Examples
-    --------
-    >>> from photogeom.io.sources import pipe_reads
-    >>> with pipe_reads():
-    ...     pass  # read a pipe several times here
-    """
-    global _PIPE_BYTES
-    if _PIPE_BYTES is not None:
-        yield
-        return
-    _PIPE_BYTES = {}
-    try:
-        yield
-    finally:
-        _PIPE_BYTES = None
-
-
 def _pipe_key(path: str | os.PathLike) -> tuple[str, int, int]:
     st = os.stat(path)
     return (os.path.abspath(path), st.st_dev, st.st_ino)
@@ -141,7 +116,7 @@ def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
         The pipe cannot be opened or read, or an earlier read of it in this scope stopped
         before the ``limit`` asked for now (its end was not kept).
     """
-    kept = _PIPE_BYTES
+    kept = kept_pipes()
     if kept is None:
         return _read_pipe(path, limit)
     key = _pipe_key(path)
@@ -161,7 +136,7 @@ def kept_pipe_bytes(path: str | os.PathLike) -> bytes | None:
     """What :func:`pipe_bytes` read from the pipe ``path`` in the current
     :func:`pipe_reads` scope, whole; None when it has not read it (or read only a part), or
     outside every scope."""
-    kept = _PIPE_BYTES
+    kept = kept_pipes()
     if kept is None:
         return None
     try:
