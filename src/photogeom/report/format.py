@@ -114,13 +114,19 @@ class ResidualTable:
     """Residual rows of control or check points, ready for display.
 
     ``columns`` are headings; ``rows`` are strings; ``flags`` marks cells whose snooping
-    statistic exceeds its critical value (same shape as rows).
+    statistic exceeds its critical value (same shape as rows); ``n_points`` counts the
+    points of the fit, also when ``rows`` shows only the worst of them.
     """
 
     columns: list[str]
     rows: list[list[str]]
     flags: list[list[bool]]
     footer: list[str]
+    n_points: int = -1
+
+    def __post_init__(self) -> None:
+        if self.n_points < 0:
+            object.__setattr__(self, "n_points", len(self.rows))
 
 
 def parameter_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str]]:
@@ -234,9 +240,28 @@ def _poorly_controlled(test, ids, labels, shape) -> str | None:
     )
 
 
-def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
+def residual_table(
+    fit, *, check: bool = False, max_rows: int | None = None
+) -> ResidualTable | None:
     """Rows of the control (or check) residuals with |v| and, for control points, the
-    w-test (a-priori sigma0) and tau-test (a-posteriori sigma0) statistics per component."""
+    w-test (a-priori sigma0) and tau-test (a-posteriori sigma0) statistics per component.
+
+    Parameters
+    ----------
+    fit : Fit
+        The estimate.
+    check : bool, default False
+        The check points instead of the control points.
+    max_rows : int, optional
+        Rows at most: with more points, the ``max_rows`` with the largest test statistic
+        (|w|, else |tau|; |v| for check points and fits without tests) are kept, largest
+        first, and a footer line says so. None: every point, in the fit's order.
+
+    Returns
+    -------
+    ResidualTable or None
+        None when the fit has no such residuals.
+    """
     res = fit.check_residuals if check else fit.residuals
     if res is None:
         return None
@@ -298,7 +323,26 @@ def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
                     f"sigma0 a posteriori / a priori = {ratio:.3g}: the a-priori accuracy does not "
                     "match the data, so read the tau-test (or give realistic weights/sigmas)"
                 )
-    return ResidualTable(cols, cells, flags, footer)
+    n_points = len(cells)
+    if max_rows is not None and n_points > max_rows:
+        test = None if check else (w if w is not None else tau)
+        if test is not None:
+            key = np.abs(np.asarray(test.statistic, dtype=float).reshape(res.shape))
+            what = "|w|" if test is w else "|tau|"
+        else:
+            key, what = np.abs(res), "|v|"
+        with np.errstate(invalid="ignore"):
+            key = np.max(np.where(np.isfinite(key), key, -np.inf), axis=1)
+        keep = np.argsort(-key, kind="stable")[: int(max_rows)]
+        cells = [cells[k] for k in keep.tolist()]
+        flags = [flags[k] for k in keep.tolist()]
+        kind = "check" if check else "control"
+        footer.insert(
+            0,
+            f"the {len(keep)} of {n_points} {kind} points with the largest {what} (largest "
+            "first); the fit's JSON (Fit.to_dict, --json) holds all",
+        )
+    return ResidualTable(cols, cells, flags, footer, n_points)
 
 
 def as_text_table(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
