@@ -641,7 +641,8 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             (f"{d['message']}" if d["converged"] else f"NOT CONVERGED ({d['message']})")
             + f" after {d['iterations']} iteration(s)",
         ],
-        ["time", f"{_f(d['elapsed_s'], 3)} s"],
+        # seconds to 2 decimals as the printed summary (3 significant digits wrote 1.5e+03)
+        ["time", f"{F.fmt_fixed(_nan(d['elapsed_s']), 2)} s"],
         [
             "solver",
             f"{solver.get('backend', '?')}, reduced camera system "

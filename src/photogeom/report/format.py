@@ -97,6 +97,32 @@ def fmt_stat(x: float, digits: int = 4) -> str:
     return f"{float(x):.{digits}g}"
 
 
+def fmt_duration(seconds: float) -> str:
+    """A run time with three significant digits and never an exponent: milliseconds below
+    one second (``"14.6 ms"``), else seconds (``"2.85 s"``, ``"1500 s"``); "-" when
+    undefined.
+
+    Parameters
+    ----------
+    seconds : float
+        The duration (s).
+
+    Returns
+    -------
+    str
+    """
+    if not _finite(seconds) or float(seconds) < 0:
+        return "-"
+    value, unit = float(seconds), "s"
+    if value < 0.9995:  # what rounds to 1000 ms is shown as 1.00 s
+        value, unit = value * 1e3, "ms"
+    if value == 0.0:
+        return f"0 {unit}"
+    # decimals from the value rounded to three digits: 9.997 s is "10.0 s", not "10.00 s"
+    decimals = max(0, 2 - math.floor(math.log10(float(f"{value:.3g}"))))
+    return f"{value:.{decimals}f} {unit}"
+
+
 def unit_suffix(unit: str) -> str:
     """`` [unit]`` or an empty string."""
     return f" [{unit}]" if unit else ""
@@ -190,7 +216,7 @@ def statistics_rows(fit) -> list[tuple[str, str]]:
     if fit.message:
         rows.append(("message", str(fit.message)))
     if getattr(fit, "elapsed", 0.0):
-        rows.append(("time", f"{fit.elapsed * 1e3:.3g} ms"))
+        rows.append(("time", fmt_duration(fit.elapsed)))
     return rows
 
 
