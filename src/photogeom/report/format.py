@@ -302,10 +302,11 @@ def residual_table(
     labels = axis_labels(fit)
     unit = getattr(fit, "residual_unit", "") or ""
     dec = residual_decimals(np.concatenate([np.asarray(fit.residuals, float).ravel(), res.ravel()]))
-    cols = ["id", *(f"v_{lab}" for lab in labels)]
+    # the unit in each residual heading (the w and tau statistics are unitless)
+    cols = ["id", *(f"v_{lab}{unit_suffix(unit)}" for lab in labels)]
     norm = np.sqrt(np.sum(res * res, axis=1))
     if res.shape[1] > 1:
-        cols.append("|v|")
+        cols.append(f"|v|{unit_suffix(unit)}")
     cells = [
         [str(pid), *(fmt_fixed(x, dec) for x in row)]
         + ([fmt_fixed(nv, dec)] if res.shape[1] > 1 else [])
