@@ -56,18 +56,22 @@ def fmt_std(s: float) -> str:
 def fmt_value(v: float, std: float | None = None) -> str:
     """A value with two digits beyond the leading digit of its standard deviation.
 
-    Without a usable standard deviation: ten significant digits.
+    Without a usable standard deviation: ten significant digits. A value that rounds to
+    zero is shown without a sign ("0.0000", never "-0.0000").
     """
     if not _finite(v):
         return "nan" if v is not None else "-"
     v = float(v)
+    text = f"{v:.10g}"
     if std is not None and _finite(std) and float(std) > 0:
         decimals = 2 - math.floor(math.log10(float(std)))
         if 0 <= decimals <= 15:
-            return f"{v:.{decimals}f}"
-        if decimals < 0:
-            return f"{v:.{max(3, math.floor(math.log10(abs(v) + 1e-300)) + 1 + decimals)}g}"
-    return f"{v:.10g}"
+            text = f"{v:.{decimals}f}"
+        elif decimals < 0:
+            text = f"{v:.{max(3, math.floor(math.log10(abs(v) + 1e-300)) + 1 + decimals)}g}"
+    if text.startswith("-") and not text.strip("-0."):
+        text = text[1:]  # -4e-9 +- 2.5e-5 is "0.0000000", -0.0 is "0"
+    return text
 
 
 def residual_decimals(values: np.ndarray) -> int:
