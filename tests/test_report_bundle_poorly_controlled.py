@@ -75,3 +75,18 @@ def test_a_record_without_the_list_renders_without_the_section(adjusted, no_png)
     text = bundle_report(old).to_html()
     assert "Poorly controlled observations" not in text
     assert table_rows(text)["redundancy r"] == [str(data["redundancy"])]
+
+
+def test_max_rows_of_bundle_report_limits_the_section(cli, adjusted, tmp_path):
+    from photogeom.report.bundle import write_bundle_result
+
+    _, data, _ = adjusted
+    rec, out = tmp_path / "r.json", tmp_path / "r.html"
+    write_bundle_result(data, rec)
+    code, _, err = cli("bundle", "report", rec, "-o", out, "--max-rows", "3")
+    assert code == 0, err
+    part = _section(out.read_text(encoding="utf-8"), "Poorly controlled observations")
+    assert len(re.findall(r"<tr><td>", part)) == 3
+    assert f"the 3 least controlled of {data['n_poorly_controlled']}" in part
+    code, text, _ = cli("bundle", "report", "--help")
+    assert "poorly controlled" in " ".join(text.split())  # the help names the table it limits

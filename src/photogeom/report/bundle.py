@@ -31,7 +31,8 @@ from .plots import nice_length, plain
 #: Identifies a saved result record (``"format"``) and its layout (``"version"``).
 RESULT_FORMAT = "photogeom-bundle-result"
 RESULT_VERSION = 1
-#: Rows of the image, calibration-group and flagged-observation tables at most.
+#: Rows of the image, calibration-group, flagged and poorly controlled observation tables at
+#: most.
 MAX_ROWS = 50
 #: Flagged observations kept in the record at most.
 MAX_FLAGGED = 200
