@@ -90,3 +90,15 @@ def test_max_rows_of_bundle_report_limits_the_section(cli, adjusted, tmp_path):
     assert f"the 3 least controlled of {data['n_poorly_controlled']}" in part
     code, text, _ = cli("bundle", "report", "--help")
     assert "poorly controlled" in " ".join(text.split())  # the help names the table it limits
+
+
+def test_an_observation_with_r_zero_is_undetectable(adjusted, no_png):
+    # the MDB of r = 0 is infinite, which the JSON record holds as null: it read "-"
+    _, data, _ = adjusted
+    rows = [dict(r) for r in data["poorly_controlled"]]
+    rows[0] = {**rows[0], "r": [0.0, rows[0]["r"][1]], "mdb": [None, rows[0]["mdb"][1]]}
+    text = bundle_report({**data, "poorly_controlled": rows}).to_html()
+    first = re.search(r"<tr><td>[^<]*</td><td>[^<]*</td>(.*?)</tr>",
+                      _section(text, "Poorly controlled observations")).group(1)  # fmt: skip
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", first)
+    assert cells[0] == "0.000" and cells[2:4] == ["undetectable", "undetectable"]

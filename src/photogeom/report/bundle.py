@@ -969,9 +969,10 @@ def _poorly_controlled_section(d: Mapping, max_rows: int) -> str:
         return head
     shown = pc[:max_rows]
 
-    def mdb(x, sigma) -> list[str]:
+    def mdb(x, r, sigma) -> list[str]:
+        # an infinite MDB (r = 0: no error shows in the residual) is null in the record
         x = _nan(x)
-        if math.isinf(x):
+        if not math.isfinite(x) and math.isfinite(_nan(r)):
             return ["undetectable", "undetectable"]
         return [F.fmt_fixed(x, 1), F.fmt_fixed(x * _nan(sigma), 2)]
 
@@ -981,8 +982,8 @@ def _poorly_controlled_section(d: Mapping, max_rows: int) -> str:
             str(r["point"]),
             F.fmt_fixed(_nan(r["r"][0]), 3),
             F.fmt_fixed(_nan(r["r"][1]), 3),
-            *mdb(r["mdb"][0], r["sigma"]),
-            *mdb(r["mdb"][1], r["sigma"]),
+            *mdb(r["mdb"][0], r["r"][0], r["sigma"]),
+            *mdb(r["mdb"][1], r["r"][1], r["sigma"]),
         ]
         for r in shown
     ]
