@@ -251,8 +251,8 @@ def grid_study_report(
         [
             "block",
             "step before -> after (GSD)",
-            "re-matched: after",
-            "published",
+            "re-matched: after (GSD)",
+            "published step (GSD)",
             "residual RMS reduction",
             "optimal spacing",
             "published optimum",
