@@ -975,7 +975,10 @@ def report_cmd(
     ),
     title: Annotated[str | None, typer.Option(help="Title of the report.")] = None,
     max_rows: Annotated[
-        int, typer.Option(help="Rows of the image and flagged-observation tables at most.")
+        int,
+        typer.Option(
+            help="Rows of the image, flagged and poorly controlled observation tables at most."
+        ),
     ] = 50,
 ) -> None:
     """Render the HTML report of a saved bundle adjustment result (JSON record)."""

@@ -480,9 +480,17 @@ def _intersection_report(res, ids, images, obs, cams, crs=None) -> str:
         ]
         for pid, p, sd, k, s0 in zip(ids, res.points, res.std, res.n_rays, res.sigma0)
     ]
+    # the unit of the ground CRS in the headings; without a CRS the cameras' ground unit is
+    # not known by name (the note says so)
+    unit = None
+    if crs:
+        from ..crs import cartesian_crs
+
+        unit = cartesian_crs(crs, what="the ground CRS").unit
+    u = f" [{unit}]" if unit else ""
     rep.add_table(
         "Object points",
-        ["id", "X", "Y", "Z", "sX", "sY", "sZ", "rays", "sigma0"],
+        ["id", *(f"{c}{u}" for c in ("X", "Y", "Z", "sX", "sY", "sZ")), "rays", "sigma0"],
         rows,
         note="X, Y, Z and their standard deviations sX, sY, sZ in the ground unit of the "
         "cameras (that of X0, Y0, Z0); sigma0 a posteriori / a priori (unitless)."

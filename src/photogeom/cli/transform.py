@@ -366,6 +366,20 @@ def _input_line(inputs: dict, model: str) -> str:
     )
 
 
+#: Ids of points without a partner named in the report, per file, at most.
+_SHOWN_IDS = 20
+
+
+def _ids_shown(ids) -> str:
+    """``ids`` for the report: at most :data:`_SHOWN_IDS`, then how many there are in all
+    (as the note of the text output); "-" for none."""
+    ids = list(ids)
+    if not ids:
+        return "-"
+    more = f" ... ({len(ids)} in all)" if len(ids) > _SHOWN_IDS else ""
+    return ", ".join(ids[:_SHOWN_IDS]) + more
+
+
 def _report_html(fit, pairs: PointPairs, mask: np.ndarray, inputs: dict, model: str, angle_unit):
     from ..report import Report
 
@@ -377,8 +391,13 @@ def _report_html(fit, pairs: PointPairs, mask: np.ndarray, inputs: dict, model: 
         f"{', '.join(pairs.source_columns)}; target columns {', '.join(pairs.target_columns)}."
         + (
             f"\n\nLeft out (no partner in the other file): source only "
-            f"{', '.join(pairs.unmatched_source) or '-'}; target only "
-            f"{', '.join(pairs.unmatched_target) or '-'}."
+            f"{_ids_shown(pairs.unmatched_source)}; target only "
+            f"{_ids_shown(pairs.unmatched_target)}"
+            + (
+                " (all in --json: input.unmatched_source, input.unmatched_target)."
+                if max(len(pairs.unmatched_source), len(pairs.unmatched_target)) > _SHOWN_IDS
+                else "."
+            )
             if pairs.unmatched_source or pairs.unmatched_target
             else ""
         ),

@@ -38,7 +38,7 @@ def run_grid_study(report=None) -> str:
         "camera",
         "step (GSD)",
         "step reduction",
-        "re-matched: after",
+        "re-matched: after (GSD)",
         "residual reduction",
         "optimal",
         "study",

@@ -31,7 +31,8 @@ from .plots import nice_length, plain
 #: Identifies a saved result record (``"format"``) and its layout (``"version"``).
 RESULT_FORMAT = "photogeom-bundle-result"
 RESULT_VERSION = 1
-#: Rows of the image, calibration-group and flagged-observation tables at most.
+#: Rows of the image, calibration-group, flagged and poorly controlled observation tables at
+#: most.
 MAX_ROWS = 50
 #: Flagged observations kept in the record at most.
 MAX_FLAGGED = 200
@@ -157,6 +158,36 @@ def _flagged(fit) -> tuple[list[dict], int]:
     return out, int(rows.size)
 
 
+def _poorly_controlled(fit) -> tuple[list[dict], int]:
+    """The poorly controlled observations (a redundancy number below
+    :data:`~photogeom.adjust.snooping.POORLY_CONTROLLED` in u or v), the least controlled
+    first: image and point id, the redundancy numbers and minimal detectable biases of u and v
+    (a-priori sigmas) and the sigma (px); at most :data:`MAX_FLAGGED`, and their count."""
+    from ..adjust.snooping import POORLY_CONTROLLED
+
+    sn = fit.snooping
+    if sn is None or sn.get("redundancy_numbers") is None or sn.get("mdb") is None:
+        return [], 0
+    red = np.asarray(sn["redundancy_numbers"], dtype=float)
+    mdb = np.asarray(sn["mdb"], dtype=float)
+    with np.errstate(invalid="ignore"):
+        least = np.nanmin(np.where(np.isfinite(red), red, np.inf), axis=1)
+    rows = np.flatnonzero(least < POORLY_CONTROLLED)
+    rows = rows[np.argsort(least[rows], kind="stable")]
+    o = fit.block.observations
+    out = [
+        {
+            "image": o.image_ids[k].item(),
+            "point": o.point_ids[k].item(),
+            "r": [float(red[k, 0]), float(red[k, 1])],
+            "mdb": [float(mdb[k, 0]), float(mdb[k, 1])],
+            "sigma": float(o.sigma[k]),
+        }
+        for k in rows[:MAX_FLAGGED].tolist()
+    ]
+    return out, int(rows.size)
+
+
 def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: int = 10) -> dict:
     """The JSON-ready record of a bundle adjustment that :func:`add_bundle_result` renders.
 
@@ -178,7 +209,10 @@ def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: 
         per image ``camera`` and ``n_obs``, ``calibration_correlation`` (names and matrix per
         group), ``sensor_grid``, ``point_precision`` (histogram of the point standard
         deviations, or None), ``flagged`` (at most 200 observations, largest |w| first) and
-        ``n_flagged``. NaN is written as None (JSON null).
+        ``n_flagged``, ``poorly_controlled`` (at most 200 observations with a redundancy
+        number below 0.1, the least controlled first: ``image``, ``point``, ``r`` and
+        ``mdb`` of u and v, ``sigma``) and ``n_poorly_controlled``. NaN is written as None
+        (JSON null).
     """
     from ..adjust.fit import _jsonable
 
@@ -194,6 +228,7 @@ def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: 
         row["n_obs"] = int(in_adj[k])
         row["n_obs_all"] = int(per_img[k])
     flagged, n_flagged = _flagged(fit)
+    poor, n_poor = _poorly_controlled(fit)
     d.update(
         {
             "format": RESULT_FORMAT,
@@ -218,6 +253,8 @@ def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: 
             "point_precision": _point_histogram(fit),
             "flagged": flagged,
             "n_flagged": n_flagged,
+            "poorly_controlled": poor,
+            "n_poorly_controlled": n_poor,
             "correlation_threshold": fit.correlation_threshold,
         }
     )
@@ -641,7 +678,8 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             (f"{d['message']}" if d["converged"] else f"NOT CONVERGED ({d['message']})")
             + f" after {d['iterations']} iteration(s)",
         ],
-        ["time", f"{_f(d['elapsed_s'], 3)} s"],
+        # seconds to 2 decimals as the printed summary (3 significant digits wrote 1.5e+03)
+        ["time", f"{F.fmt_fixed(_nan(d['elapsed_s']), 2)} s"],
         [
             "solver",
             f"{solver.get('backend', '?')}, reduced camera system "
@@ -910,6 +948,56 @@ def _flagged_section(d: Mapping, max_rows: int) -> str:
     )
 
 
+def _poorly_controlled_section(d: Mapping, max_rows: int) -> str:
+    """The observations a blunder could hide in (redundancy number below 0.1), with their
+    redundancy numbers and minimal detectable biases; empty for a record without them."""
+    from ..adjust.snooping import POORLY_CONTROLLED, POWER
+
+    sn = d.get("snooping")
+    if sn is None or "poorly_controlled" not in d:  # no test, or a record without the list
+        return ""
+    pc = d["poorly_controlled"] or []
+    n = int(d.get("n_poorly_controlled", len(pc)))
+    head = (
+        f"<p>Observations with a redundancy number r below {POORLY_CONTROLLED:g} in u or v: "
+        f"<strong>{n}</strong>. A gross error there is largely absorbed by the parameters "
+        "(e.g. along the base of a point seen in two images) and may pass the w-test; the "
+        f"minimal detectable bias (MDB) is the error the test finds with probability "
+        f"{POWER:.0%} at alpha {sn['alpha']}. Measure those points in more images.</p>"
+    )
+    if not pc:
+        return head
+    shown = pc[:max_rows]
+
+    def mdb(x, r, sigma) -> list[str]:
+        # an infinite MDB (r = 0: no error shows in the residual) is null in the record
+        x = _nan(x)
+        if not math.isfinite(x) and math.isfinite(_nan(r)):
+            return ["undetectable", "undetectable"]
+        return [F.fmt_fixed(x, 1), F.fmt_fixed(x * _nan(sigma), 2)]
+
+    rows = [
+        [
+            str(r["image"]),
+            str(r["point"]),
+            F.fmt_fixed(_nan(r["r"][0]), 3),
+            F.fmt_fixed(_nan(r["r"][1]), 3),
+            *mdb(r["mdb"][0], r["r"][0], r["sigma"]),
+            *mdb(r["mdb"][1], r["r"][1], r["sigma"]),
+        ]
+        for r in shown
+    ]
+    return head + _table_html(
+        ["image", "point", "r_u", "r_v", "MDB_u [sigma]", "MDB_u [px]", "MDB_v [sigma]",
+         "MDB_v [px]"],
+        rows,
+        note=(f"the {len(shown)} least controlled of {n}" if n > len(shown) else f"all {n}")
+        + " (smallest r first); r: redundancy number, the share of an error of the "
+        "observation that shows in its residual (unitless); MDB in a-priori standard "
+        "deviations (sigma) and in pixels",
+    )  # fmt: skip
+
+
 def _variance_section(vc: Mapping) -> str:
     f = vc.get("factors") or {}
     red = vc.get("redundancy") or {}
@@ -1052,6 +1140,9 @@ def add_bundle_result(
             ),
         )
     report._add(3, f"{p}Flagged observations (w-test)", _flagged_section(d, max_rows))
+    poor = _poorly_controlled_section(d, max_rows)
+    if poor:
+        report._add(3, f"{p}Poorly controlled observations", poor)
     if d.get("variance_components"):
         report._add(3, f"{p}Variance components", _variance_section(d["variance_components"]))
     notes = d.get("notes") or []

@@ -56,18 +56,22 @@ def fmt_std(s: float) -> str:
 def fmt_value(v: float, std: float | None = None) -> str:
     """A value with two digits beyond the leading digit of its standard deviation.
 
-    Without a usable standard deviation: ten significant digits.
+    Without a usable standard deviation: ten significant digits. A value that rounds to
+    zero is shown without a sign ("0.0000", never "-0.0000").
     """
     if not _finite(v):
         return "nan" if v is not None else "-"
     v = float(v)
+    text = f"{v:.10g}"
     if std is not None and _finite(std) and float(std) > 0:
         decimals = 2 - math.floor(math.log10(float(std)))
         if 0 <= decimals <= 15:
-            return f"{v:.{decimals}f}"
-        if decimals < 0:
-            return f"{v:.{max(3, math.floor(math.log10(abs(v) + 1e-300)) + 1 + decimals)}g}"
-    return f"{v:.10g}"
+            text = f"{v:.{decimals}f}"
+        elif decimals < 0:
+            text = f"{v:.{max(3, math.floor(math.log10(abs(v) + 1e-300)) + 1 + decimals)}g}"
+    if text.startswith("-") and not text.strip("-0."):
+        text = text[1:]  # -4e-9 +- 2.5e-5 is "0.0000000", -0.0 is "0"
+    return text
 
 
 def residual_decimals(values: np.ndarray) -> int:
@@ -97,6 +101,32 @@ def fmt_stat(x: float, digits: int = 4) -> str:
     return f"{float(x):.{digits}g}"
 
 
+def fmt_duration(seconds: float) -> str:
+    """A run time with three significant digits and never an exponent: milliseconds below
+    one second (``"14.6 ms"``), else seconds (``"2.85 s"``, ``"1500 s"``); "-" when
+    undefined.
+
+    Parameters
+    ----------
+    seconds : float
+        The duration (s).
+
+    Returns
+    -------
+    str
+    """
+    if not _finite(seconds) or float(seconds) < 0:
+        return "-"
+    value, unit = float(seconds), "s"
+    if value < 0.9995:  # what rounds to 1000 ms is shown as 1.00 s
+        value, unit = value * 1e3, "ms"
+    if value == 0.0:
+        return f"0 {unit}"
+    # decimals from the value rounded to three digits: 9.997 s is "10.0 s", not "10.00 s"
+    decimals = max(0, 2 - math.floor(math.log10(float(f"{value:.3g}"))))
+    return f"{value:.{decimals}f} {unit}"
+
+
 def unit_suffix(unit: str) -> str:
     """`` [unit]`` or an empty string."""
     return f" [{unit}]" if unit else ""
@@ -114,13 +144,19 @@ class ResidualTable:
     """Residual rows of control or check points, ready for display.
 
     ``columns`` are headings; ``rows`` are strings; ``flags`` marks cells whose snooping
-    statistic exceeds its critical value (same shape as rows).
+    statistic exceeds its critical value (same shape as rows); ``n_points`` counts the
+    points of the fit, also when ``rows`` shows only the worst of them.
     """
 
     columns: list[str]
     rows: list[list[str]]
     flags: list[list[bool]]
     footer: list[str]
+    n_points: int = -1
+
+    def __post_init__(self) -> None:
+        if self.n_points < 0:
+            object.__setattr__(self, "n_points", len(self.rows))
 
 
 def parameter_rows(fit, angle_unit: str = "deg") -> list[tuple[str, str, str, str]]:
@@ -184,7 +220,7 @@ def statistics_rows(fit) -> list[tuple[str, str]]:
     if fit.message:
         rows.append(("message", str(fit.message)))
     if getattr(fit, "elapsed", 0.0):
-        rows.append(("time", f"{fit.elapsed * 1e3:.3g} ms"))
+        rows.append(("time", fmt_duration(fit.elapsed)))
     return rows
 
 
@@ -234,9 +270,28 @@ def _poorly_controlled(test, ids, labels, shape) -> str | None:
     )
 
 
-def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
+def residual_table(
+    fit, *, check: bool = False, max_rows: int | None = None
+) -> ResidualTable | None:
     """Rows of the control (or check) residuals with |v| and, for control points, the
-    w-test (a-priori sigma0) and tau-test (a-posteriori sigma0) statistics per component."""
+    w-test (a-priori sigma0) and tau-test (a-posteriori sigma0) statistics per component.
+
+    Parameters
+    ----------
+    fit : Fit
+        The estimate.
+    check : bool, default False
+        The check points instead of the control points.
+    max_rows : int, optional
+        Rows at most: with more points, the ``max_rows`` with the largest test statistic
+        (|w|, else |tau|; |v| for check points and fits without tests) are kept, largest
+        first, and a footer line says so. None: every point, in the fit's order.
+
+    Returns
+    -------
+    ResidualTable or None
+        None when the fit has no such residuals.
+    """
     res = fit.check_residuals if check else fit.residuals
     if res is None:
         return None
@@ -251,10 +306,11 @@ def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
     labels = axis_labels(fit)
     unit = getattr(fit, "residual_unit", "") or ""
     dec = residual_decimals(np.concatenate([np.asarray(fit.residuals, float).ravel(), res.ravel()]))
-    cols = ["id", *(f"v_{lab}" for lab in labels)]
+    # the unit in each residual heading (the w and tau statistics are unitless)
+    cols = ["id", *(f"v_{lab}{unit_suffix(unit)}" for lab in labels)]
     norm = np.sqrt(np.sum(res * res, axis=1))
     if res.shape[1] > 1:
-        cols.append("|v|")
+        cols.append(f"|v|{unit_suffix(unit)}")
     cells = [
         [str(pid), *(fmt_fixed(x, dec) for x in row)]
         + ([fmt_fixed(nv, dec)] if res.shape[1] > 1 else [])
@@ -298,7 +354,26 @@ def residual_table(fit, *, check: bool = False) -> ResidualTable | None:
                     f"sigma0 a posteriori / a priori = {ratio:.3g}: the a-priori accuracy does not "
                     "match the data, so read the tau-test (or give realistic weights/sigmas)"
                 )
-    return ResidualTable(cols, cells, flags, footer)
+    n_points = len(cells)
+    if max_rows is not None and n_points > max_rows:
+        test = None if check else (w if w is not None else tau)
+        if test is not None:
+            key = np.abs(np.asarray(test.statistic, dtype=float).reshape(res.shape))
+            what = "|w|" if test is w else "|tau|"
+        else:
+            key, what = np.abs(res), "|v|"
+        with np.errstate(invalid="ignore"):
+            key = np.max(np.where(np.isfinite(key), key, -np.inf), axis=1)
+        keep = np.argsort(-key, kind="stable")[: int(max_rows)]
+        cells = [cells[k] for k in keep.tolist()]
+        flags = [flags[k] for k in keep.tolist()]
+        kind = "check" if check else "control"
+        footer.insert(
+            0,
+            f"the {len(keep)} of {n_points} {kind} points with the largest {what} (largest "
+            "first); the fit's JSON (Fit.to_dict, --json) holds all",
+        )
+    return ResidualTable(cols, cells, flags, footer, n_points)
 
 
 def as_text_table(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> str:

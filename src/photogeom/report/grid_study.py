@@ -169,13 +169,19 @@ def _fig_sweep(sweep) -> Figure:
     a1.legend(fontsize=8)
     ch = sweep["choice"]
     sn, tn, idx = np.asarray(ch["step_norm"]), np.asarray(ch["time_norm"]), ch["index"]
-    for m in range(sn.shape[0]):
-        a2.plot(tn[m], sn[m], ".-", color="#9aaabb", lw=0.6)
-        a2.plot(tn[m, idx[m]], sn[m, idx[m]], "o", color="#a01d12")
+    # one grey curve per stereo model through its spacings, its own choice (the point
+    # closest to the origin) in red; the legend says so (before: no legend)
+    n_models = sn.shape[0]
+    for m in range(n_models):
+        a2.plot(tn[m], sn[m], ".-", color="#9aaabb", lw=0.6,
+                label=f"one stereo model ({n_models})" if m == 0 else None)
+        a2.plot(tn[m, idx[m]], sn[m, idx[m]], "o", color="#a01d12",
+                label="its spacing closest to (0, 0)" if m == 0 else None)
     for c, sp in enumerate(g):
-        a2.annotate(f"{sp:g}", (tn[:, c].mean(), sn[:, c].mean()), fontsize=7)
+        a2.annotate(f"{sp:g} px", (tn[:, c].mean(), sn[:, c].mean()), fontsize=7)
     a2.set_xlabel("normalised computing time")
     a2.set_ylabel("normalised step")
+    a2.legend(fontsize=8, loc="upper right")
     a2.set_title(f"cost against accuracy; chosen {sweep['spacing']:g} px (Fig. 13)", fontsize=9)
     return fig
 
@@ -245,8 +251,8 @@ def grid_study_report(
         [
             "block",
             "step before -> after (GSD)",
-            "re-matched: after",
-            "published",
+            "re-matched: after (GSD)",
+            "published step (GSD)",
             "residual RMS reduction",
             "optimal spacing",
             "published optimum",

@@ -47,6 +47,10 @@ footer{margin-top:3em;border-top:1px solid #c8d3df;color:#6b7b8c;font-size:.85em
 .grid{display:flex;flex-wrap:wrap;gap:2em;align-items:flex-start}
 """
 
+#: Rows of a residual table in :meth:`Report.add_fit` at most: with more points, those with the
+#: largest test statistic (|w|, else |tau|, else |v|), largest first, and a note.
+MAX_RESIDUAL_ROWS = 100
+
 _CONVENTIONS = (
     "Residuals are computed minus observed (v = A x - L), in the target system. "
     "sigma0 is the a-posteriori standard deviation of unit weight, sqrt(v'Pv / r), undefined "
@@ -278,6 +282,9 @@ class Report:
         table (v = computed - observed) with data-snooping statistics when available, the
         check-point table and RMSE, notes, and - when ``points`` gives the (n, 2) positions
         of the residual rows - a residual vector plot (``check_points`` adds the check points).
+        A residual table of more than :data:`MAX_RESIDUAL_ROWS` points shows the
+        :data:`MAX_RESIDUAL_ROWS` with the largest |w| (else |tau|, else |v|), largest first,
+        and says so; the statistics and the plot use every point.
 
         Parameters
         ----------
@@ -336,17 +343,17 @@ class Report:
                     text_cols={3},
                 )
             )
-        ctab = F.residual_table(fit)
+        ctab = F.residual_table(fit, max_rows=MAX_RESIDUAL_ROWS)
         if ctab is not None:
             parts.append(
-                f"<h4>Control point residuals ({len(ctab.rows)})</h4>"
+                f"<h4>Control point residuals ({ctab.n_points})</h4>"
                 + _table_html(ctab.columns, ctab.rows, flags=ctab.flags)
                 + "".join(f'<p class="note">{_esc(n)}</p>' for n in ctab.footer)
             )
-        ktab = F.residual_table(fit, check=True)
+        ktab = F.residual_table(fit, check=True, max_rows=MAX_RESIDUAL_ROWS)
         if ktab is not None:
             parts.append(
-                f"<h4>Check point residuals ({len(ktab.rows)}, not in the estimate)</h4>"
+                f"<h4>Check point residuals ({ktab.n_points}, not in the estimate)</h4>"
                 + _table_html(ktab.columns, ktab.rows)
                 + "".join(f'<p class="note">{_esc(n)}</p>' for n in ktab.footer)
             )
