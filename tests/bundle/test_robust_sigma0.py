@@ -143,3 +143,19 @@ def test_global_test_still_fails_on_a_muted_blunder(clean_block):
     assert fit.sigma0 < 1.15
     assert not fit.chi2["passed"] and fit.chi2["statistic"] > fit.chi2["upper"]
     assert fit.snooping["flagged"][0][1] == b.observations.point_ids[k]
+
+
+def test_results_name_the_loss_and_its_scale(clean_block):
+    """summary(), to_dict() and the HTML report say which loss and scale the adjustment
+    used (before: the summary named no loss, to_dict() and the report no scale)."""
+    from photogeom.report.bundle import bundle_report
+
+    b = clean_block.block
+    fit = pg.bundle_adjust(b, loss="cauchy", loss_scale=3.0, snooping=False)
+    d = fit.to_dict()
+    assert d["solver"]["loss"] == "cauchy" and d["solver"]["loss_scale"] == 3.0
+    assert "loss: cauchy, scale 3 a-priori sigmas" in fit.summary()
+    assert "loss cauchy (scale 3 a-priori sigmas)" in bundle_report(fit).to_html()
+    ls = pg.bundle_adjust(b, snooping=False)
+    assert ls.to_dict()["solver"]["loss_scale"] is None
+    assert "loss: squared (least squares)" in ls.summary()

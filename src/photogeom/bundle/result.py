@@ -96,7 +96,9 @@ class BundleFit:
         :meth:`Block.gsd`).
     elapsed : float (s)
     solver : dict
-        The sparse backend and sizes of the reduced system.
+        The sparse backend and sizes of the reduced system, the loss (``"loss"``) and the
+        scale of a robust loss in a-priori sigmas (``"loss_scale"``, None for the squared
+        loss).
 
     Notes
     -----
@@ -401,6 +403,7 @@ class BundleFit:
             f"(solver: {self.solver.get('backend', '?')})",
             f"observations {self.n_observations}, unknowns {self.n_unknowns}, redundancy "
             f"{self.redundancy}",
+            _loss_line(self.solver),
             f"sigma0 a posteriori {self.sigma0:.4f} (a priori {self.sigma0_prior:g}); chi-square "
             f"test: {'passed' if self.chi2.get('passed') else 'failed'} "
             f"(p = {self.chi2.get('p_value', math.nan):.3g})",
@@ -588,6 +591,18 @@ class BundleFit:
             }
         )
 
+
+def _loss_line(solver: Mapping) -> str:
+    """The loss of the adjustment for :meth:`BundleFit.summary`: with a robust one its
+    scale and how sigma0 and the standard deviations are made consistent with it."""
+    loss = solver.get("loss", "squared")
+    if loss == "squared":
+        return "loss: squared (least squares)"
+    return (
+        f"loss: {loss}, scale {solver.get('loss_scale', math.nan):g} a-priori sigmas "
+        "(sigma0: weighted square sum over its expectation under normal errors; "
+        "covariance: M-estimator sandwich)"
+    )
 
 
 #: Largest standard deviation of the focal length (px) not flagged as poorly determined: an
@@ -1157,6 +1172,8 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         "reduced_system_size": int(problem.sys.nc),
         "reduced_system_nonzeros": int(ne.S.nnz),
         "loss": opts.loss,
+        # the scale of a robust loss, in a-priori sigmas of the image coordinates
+        "loss_scale": None if opts.loss == "squared" else float(opts.scale),
     }
     return BundleFit(
         block=adjusted,
