@@ -22,7 +22,13 @@ from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
 from .residuals import reprojection_residuals
-from .robust import consistent_variance_factor, covariance_weights, image_point_leverage
+from .robust import (
+    covariance_weights,
+    image_point_leverage,
+    point_trace_correction,
+    score_slopes,
+    stein_redundancy,
+)
 
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
@@ -38,9 +44,10 @@ class BundleFit:
         triangulated from their image observations with the adjusted cameras).
     sigma0, sigma0_prior : float
         A-posteriori ``sqrt(v'Pv / r)`` and a-priori standard deviation of unit weight.
-        With a robust loss ``sqrt(v'PWv / (r kappa))``, ``kappa`` the expected weighted
-        square sum under normal errors over ``r`` (:mod:`photogeom.bundle.robust`), so that
-        sigma0 is about 1 on clean data with correct a-priori sigmas.
+        With a robust loss ``sqrt(v'PWv / r_s)``, ``r_s`` the Stein redundancy
+        (:func:`photogeom.bundle.robust.stein_redundancy`, whose expectation times the
+        variance factor is that of ``v'PWv`` under normal errors), so that sigma0 is about
+        1 on clean data with correct a-priori sigmas.
     redundancy, n_observations, n_unknowns : int
         ``r = n_observations - n_unknowns`` (scalar observations: 2 per image point, 3 per
         control point, GNSS position and IMU attitude).
@@ -901,10 +908,19 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     red = n_obs - n_unk
     vtpv = float(lin.cost)
     s0p = opts.sigma0_prior
-    # with a robust loss v'PWv is consistent only after dividing by its expectation under
-    # normal errors (robust.py); kappa is 1 for the squared loss
+    # with a robust loss v'PWv is divided by its Stein redundancy, whose expectation times
+    # the variance factor is that of v'PWv under normal errors (robust.stein_redundancy)
     leverage = None if Cobs is None else image_point_leverage(Cobs, run.weights)
-    var, _ = consistent_variance_factor(vtpv, red, leverage, run.weights, opts.loss, opts.scale)
+    var = vtpv / red if red > 0 else math.nan
+    if opts.loss != "squared" and red > 0:
+        sw = np.sqrt(run.weights)
+        e = lin.r / sw[:, None]  # whitened residuals without the robust weights
+        slopes = score_slopes(opts.loss, opts.scale, np.einsum("nd,nd->n", e, e))
+        _, _, _, _, _, Cd = statistics_pass(problem, state, slopes, pairs=True, cofactors=True)
+        r_s = stein_redundancy(red, slopes, Cd) + point_trace_correction(
+            opts.loss, opts.scale, e, lin.P / sw[:, None, None], problem.obs_j, lin.point_info
+        )
+        var = vtpv / r_s
     sigma0 = math.sqrt(var) if red > 0 else math.nan
     # the global test: with a robust loss v'PWv / kappa neither has expectation r (kappa's
     # model is a few per cent off) nor the spread of chi-square(r) (kappa is evaluated at
