@@ -22,7 +22,13 @@ from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
 from .residuals import reprojection_residuals
-from .robust import consistent_variance_factor, covariance_weights, image_point_leverage
+from .robust import (
+    covariance_weights,
+    image_point_leverage,
+    point_trace_correction,
+    score_slopes,
+    stein_redundancy,
+)
 
 #: The fields of :class:`BundleFit` holding nested mappings, sequences and arrays (frozen by
 #: :func:`photogeom.records.freeze_fields`).
@@ -55,10 +61,10 @@ class BundleFit:
     sigma0, sigma0_prior : float
         A-posteriori ``sqrt(v'Pv / r)`` and a-priori standard deviation of unit weight, with
         ``P = sigma0_prior^2 / sigma^2`` for observations of standard deviation ``sigma``.
-        With a robust loss ``sqrt(v'PWv / (r kappa))``, ``kappa`` the expected weighted
-        square sum under normal errors over ``r`` (:mod:`photogeom.bundle.robust`), so that
-        sigma0 is about ``sigma0_prior`` (1 by default) on clean data with correct a-priori
-        sigmas.
+        With a robust loss ``sqrt(v'PWv / r_s)``, ``r_s`` the Stein redundancy
+        (:func:`photogeom.bundle.robust.stein_redundancy`, whose expectation times the
+        variance factor is that of ``v'PWv`` under normal errors), so that sigma0 is about
+        ``sigma0_prior`` (1 by default) on clean data with correct a-priori sigmas.
     redundancy, n_observations, n_unknowns : int
         ``r = n_observations - n_unknowns`` (scalar observations: 2 per image point, 3 per
         control point, GNSS position and IMU attitude).
@@ -114,7 +120,9 @@ class BundleFit:
         :meth:`Block.gsd`).
     elapsed : float (s)
     solver : mapping
-        The sparse backend and sizes of the reduced system.
+        The sparse backend and sizes of the reduced system, the loss (``"loss"``) and the
+        scale of a robust loss in a-priori sigmas (``"loss_scale"``, None for the squared
+        loss).
 
     Notes
     -----
@@ -426,6 +434,7 @@ class BundleFit:
             f"(solver: {self.solver.get('backend', '?')})",
             f"observations {self.n_observations}, unknowns {self.n_unknowns}, redundancy "
             f"{self.redundancy}",
+            _loss_line(self.solver),
             f"sigma0 a posteriori {self.sigma0:.4f} (a priori {self.sigma0_prior:g}); chi-square "
             f"test: {'passed' if self.chi2.get('passed') else 'failed'} "
             f"(p = {self.chi2.get('p_value', math.nan):.3g})",
@@ -613,6 +622,18 @@ class BundleFit:
             }
         )
 
+
+def _loss_line(solver: Mapping) -> str:
+    """The loss of the adjustment for :meth:`BundleFit.summary`: with a robust one its
+    scale and how sigma0 and the standard deviations are made consistent with it."""
+    loss = solver.get("loss", "squared")
+    if loss == "squared":
+        return "loss: squared (least squares)"
+    return (
+        f"loss: {loss}, scale {solver.get('loss_scale', math.nan):g} a-priori sigmas "
+        "(sigma0: weighted square sum over its expectation under normal errors; "
+        "covariance: M-estimator sandwich)"
+    )
 
 
 #: Largest standard deviation of the focal length (px) not flagged as poorly determined: an
@@ -911,10 +932,19 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     red = n_obs - n_unk
     vtpv = float(lin.cost)
     s0p = opts.sigma0_prior
-    # with a robust loss v'PWv is consistent only after dividing by its expectation under
-    # normal errors (robust.py); kappa is 1 for the squared loss
+    # with a robust loss v'PWv is divided by its Stein redundancy, whose expectation times
+    # the variance factor is that of v'PWv under normal errors (robust.stein_redundancy)
     leverage = None if Cobs is None else image_point_leverage(Cobs, run.weights)
-    var, _ = consistent_variance_factor(vtpv, red, leverage, run.weights, opts.loss, opts.scale)
+    var = vtpv / red if red > 0 else math.nan
+    if opts.loss != "squared" and red > 0:
+        sw = np.sqrt(run.weights)
+        e = lin.r / sw[:, None]  # whitened residuals without the robust weights
+        slopes = score_slopes(opts.loss, opts.scale, np.einsum("nd,nd->n", e, e))
+        _, _, _, _, _, Cd = statistics_pass(problem, state, slopes, pairs=True, cofactors=True)
+        r_s = stein_redundancy(red, slopes, Cd) + point_trace_correction(
+            opts.loss, opts.scale, e, lin.P / sw[:, None, None], problem.obs_j, lin.point_info
+        )
+        var = vtpv / r_s
     # the observations are whitened by their a-priori sigmas (weights 1 / sigma^2, in which
     # every cofactor, var and v'Pv here are); with P = sigma0_prior^2 / sigma^2 (the library's
     # convention) sigma0 is sigma0_prior sqrt(var), the global test v'Pv / sigma0_prior^2 and
@@ -1186,6 +1216,8 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         "reduced_system_size": int(problem.sys.nc),
         "reduced_system_nonzeros": int(ne.S.nnz),
         "loss": opts.loss,
+        # the scale of a robust loss, in a-priori sigmas of the image coordinates
+        "loss_scale": None if opts.loss == "squared" else float(opts.scale),
     }
     return BundleFit(
         block=adjusted,

@@ -4,9 +4,11 @@ Groups: image observations of tie points, image observations of control points, 
 point coordinates, GNSS positions, IMU attitudes. For each group k with whitened residuals
 ``v_k`` and redundancy contribution ``r_k = n_k - tr(P_k J Q J')`` the variance factor is
 updated as ``f_k <- f_k * v_k'P_k v_k / r_k`` and the adjustment repeated until every ratio
-is 1 within the tolerance. With a robust loss ``r_k`` of the image groups is their expected
-weighted square sum under normal errors
-(:func:`photogeom.bundle.robust.expected_weighted_squares`). The estimated standard
+is 1 within the tolerance. With a robust loss ``v_k'P_k v_k`` holds the robust weights and
+``r_k`` is the group's share of the Stein redundancy
+(:func:`photogeom.bundle.robust.stein_redundancy`), from the adjustment weighted by the
+score slopes: the expectation of ``v_k'P_k v_k`` over the group's variance factor under
+normal errors. The estimated standard
 deviation of a group is its a-priori one times ``sqrt(f_k)``. A group without redundancy,
 or whose iterated estimate runs to zero (its redundancy contribution collapsing), keeps its
 a-priori sigmas and is listed in ``not_estimated``.
@@ -20,7 +22,7 @@ from ..adjust.variance_components import update_variance_factors
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ._angles import opk_from_rotations
 from .adjustment import levenberg_marquardt
-from .robust import expected_weighted_squares, image_point_leverage
+from .robust import point_trace_shares, score_slopes
 
 #: Stop when every group's ratio v'Pv / r is within this of 1.
 TOLERANCE = 0.01
@@ -63,16 +65,25 @@ def _inestimable(names, vtpv, red, first_red, held) -> dict:
 def _contributions(problem, run):
     from .result import statistics_pass
 
-    lin, _, _, Q, Qpp, Cobs = statistics_pass(
-        problem, run.state, run.weights, pairs=True, cofactors=True
-    )
-    out = {}
-    r_img = np.einsum("nd,nd->n", lin.r, lin.r)
-    # with the squared loss the points' redundancy 2 - tr(J Q J'); with a robust loss the
-    # expected weighted square sum of each point under normal errors (robust.py)
     opts = problem.options
-    lev = image_point_leverage(Cobs, run.weights)
-    red_img = expected_weighted_squares(lev, opts.loss, opts.scale)
+    # per image point v'PWv and its Stein redundancy (robust.stein_redundancy): with the
+    # squared loss 2 - tr(J Q J'); with a robust loss d_i (2 - tr C_i) in the adjustment
+    # weighted by the score slopes d_i, plus the point's share of the full derivative's
+    # trace; the prior groups' redundancy from that adjustment too
+    lin1 = problem.linearize(run.state, np.ones(problem.obs_i.size))
+    e2 = np.einsum("nd,nd->n", lin1.r, lin1.r)
+    r_img = run.weights * e2
+    d = score_slopes(opts.loss, opts.scale, e2)
+    _, _, _, Q, Qpp, Cobs = statistics_pass(problem, run.state, d, pairs=True, cofactors=True)
+    red_img = d * (2.0 - np.einsum("ndd->n", Cobs))
+    ctrl_extra = 0.0
+    if opts.loss != "squared":
+        per_obs, per_point = point_trace_shares(
+            opts.loss, opts.scale, lin1.r, lin1.P, problem.obs_j, lin1.point_info
+        )
+        red_img = red_img + per_obs
+        ctrl_extra = float(np.sum(per_point))
+    out = {}
     ctrl = problem.obs_is_control
     if np.any(~ctrl):
         out["image_tie"] = (float(r_img[~ctrl].sum()), float(red_img[~ctrl].sum()))
@@ -95,7 +106,10 @@ def _contributions(problem, run):
         c = problem.control
         w = 1.0 / (problem.control_sigma**2 * gf["control"])
         q = np.einsum("kii->ki", Qpp[c])
-        out["control"] = (float((parts["control"] ** 2).sum()), float((1.0 - w * q).sum()))
+        out["control"] = (
+            float((parts["control"] ** 2).sum()),
+            float((1.0 - w * q).sum()) + ctrl_extra,
+        )
     return out
 
 

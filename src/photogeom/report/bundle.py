@@ -685,7 +685,12 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
             f"{solver.get('backend', '?')}, reduced camera system "
             f"{solver.get('reduced_system_size', '?')} unknowns, "
             f"{solver.get('reduced_system_nonzeros', '?')} non-zeros; loss "
-            f"{solver.get('loss', '?')}",
+            f"{solver.get('loss', '?')}"
+            + (
+                f" (scale {_f(solver['loss_scale'])} a-priori sigmas)"
+                if solver.get("loss_scale") is not None
+                else ""
+            ),
         ],
     ]
 
