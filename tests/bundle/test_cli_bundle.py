@@ -242,3 +242,27 @@ def test_free_datum_on_a_block_with_control_is_refused_in_option_words(simulated
     assert code == 2 and err.startswith("error: --datum free (a free network)")
     assert "--datum weighted" in err and "images.csv" in err
     assert "datum='" not in err and "without_datum_observations" not in err
+
+
+def test_summary_labels_every_length_with_the_unit_option(simulated, cli):
+    """The printed summary labels its object lengths with --unit (default m): the GSD, the
+    GNSS residuals, the standard deviations of centres and points, the check-point RMSE."""
+    import re
+
+    for args, unit in (((), "m"), (("--unit", "ft"), "ft")):
+        code, out, err = cli("bundle", "adjust", simulated, "--point-covariance", *args)
+        assert code == 0, err
+        assert "object units" not in out
+        assert re.search(rf"GSD [0-9.]+ {unit} per px", out), out
+        for label in (
+            "GNSS residuals",
+            "exterior orientation, RMS of the standard deviations",
+            "points, RMS of the standard deviations",
+            "check points",
+        ):
+            line = next(x for x in out.splitlines() if x.startswith(label))
+            # every X, Y, Z triple ends in the unit: Z0 0.04 m / Z 0.02 m
+            assert re.search(rf"Z0? [0-9.e+-]+ {unit}\b", line), line
+    # the Python default is the metre, the unit the report and --result use
+    fit = pg.bundle.bundle_adjust(pg.bundle.read_csv_block(simulated))
+    assert " m per px" in fit.summary() and " ft per px" in fit.summary(unit="ft")

@@ -377,7 +377,7 @@ class BundleFit:
                 out[f"{key}_images"] = int(has.sum())
         return out
 
-    def summary(self, angle_unit: str = "deg") -> str:
+    def summary(self, angle_unit: str = "deg", unit: str = "m") -> str:
         """A text report: convergence, sigma0, calibration, check points, outliers.
 
         Parameters
@@ -385,6 +385,10 @@ class BundleFit:
         angle_unit : str, default "deg"
             Unit of the angles shown (IMU residual RMS, standard deviations of the
             exterior orientation angles).
+        unit : str, default "m"
+            Name of the object-space length unit that labels the GSD, the GNSS residuals,
+            the standard deviations of the projection centres and points and the check-point
+            RMSE (a label only: the block's coordinates are not converted).
 
         Returns
         -------
@@ -405,7 +409,7 @@ class BundleFit:
             f"test: {'passed' if self.chi2.get('passed') else 'failed'} "
             f"(p = {self.chi2.get('p_value', math.nan):.3g})",
             f"image residuals (computed - observed): RMS {self.rmse:.3f} px; GSD "
-            f"{self.gsd:.4g} object units per px",
+            f"{self.gsd:.4g} {unit} per px",
             *([f"object coordinates: {_crs_label(self.crs)}"] if self.crs else []),
             "",
             "calibration (px; distortion dimensionless), standard deviations a posteriori:",
@@ -438,7 +442,7 @@ class BundleFit:
             g = orr["gnss"]
             L.append(
                 f"GNSS residuals (adjusted - GNSS), RMS over {orr['gnss_images']} image(s): "
-                f"X0 {g[0]:.4g}, Y0 {g[1]:.4g}, Z0 {g[2]:.4g}"
+                f"X0 {g[0]:.4g}, Y0 {g[1]:.4g}, Z0 {g[2]:.4g} {unit}"
             )
         if "imu" in orr:
             a = np.asarray(from_radians(orr["imu"], angle_unit))
@@ -449,19 +453,21 @@ class BundleFit:
         if es.size and not np.any(es):
             L.append("exterior orientation: held fixed (no standard deviations)")
         elif es.size:
-            unit = angle_unit
             rms_pos = np.sqrt(np.nanmean(es[:, :3] ** 2, axis=0))
-            rms_ang = np.sqrt(np.nanmean(np.asarray(from_radians(es[:, 3:], unit)) ** 2, axis=0))
+            rms_ang = np.sqrt(
+                np.nanmean(np.asarray(from_radians(es[:, 3:], angle_unit)) ** 2, axis=0)
+            )
             L.append(
                 "exterior orientation, RMS of the standard deviations: "
-                f"X0 {rms_pos[0]:.4g}, Y0 {rms_pos[1]:.4g}, Z0 {rms_pos[2]:.4g}; omega "
-                f"{rms_ang[0]:.3g}, phi {rms_ang[1]:.3g}, kappa {rms_ang[2]:.3g} {unit}"
+                f"X0 {rms_pos[0]:.4g}, Y0 {rms_pos[1]:.4g}, Z0 {rms_pos[2]:.4g} {unit}; omega "
+                f"{rms_ang[0]:.3g}, phi {rms_ang[1]:.3g}, kappa {rms_ang[2]:.3g} {angle_unit}"
             )
         if self.point_std is not None:
             ps = self.point_std[b.role != "check"]
             r = np.sqrt(np.nanmean(ps**2, axis=0))
             L.append(
-                f"points, RMS of the standard deviations: X {r[0]:.4g}, Y {r[1]:.4g}, Z {r[2]:.4g}"
+                "points, RMS of the standard deviations: "
+                f"X {r[0]:.4g}, Y {r[1]:.4g}, Z {r[2]:.4g} {unit}"
             )
         c = self.check
         if c.get("ids"):
@@ -472,7 +478,7 @@ class BundleFit:
                 how += " after the similarity transformation onto the survey"
             L.append(
                 f"check points ({len(c['ids'])}), {how}: RMSE X {r[0]:.4g}, "
-                f"Y {r[1]:.4g}, Z {r[2]:.4g} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
+                f"Y {r[1]:.4g}, Z {r[2]:.4g} {unit} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
             )
         if self.snooping is not None:
             fl = self.snooping["flagged"]
