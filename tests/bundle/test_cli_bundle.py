@@ -266,3 +266,37 @@ def test_summary_labels_every_length_with_the_unit_option(simulated, cli):
     # the Python default is the metre, the unit the report and --result use
     fit = pg.bundle.bundle_adjust(pg.bundle.read_csv_block(simulated))
     assert " m per px" in fit.summary() and " ft per px" in fit.summary(unit="ft")
+
+
+def test_summary_calibration_is_a_table_with_aligned_decimals(simulated, cli):
+    """The calibration of the printed summary is a table (parameter, value, std. dev.,
+    unit) whose decimal points line up per unit, and whose numbers read back as the
+    adjusted calibration (px to 1e-4, distortion to 1e-9)."""
+    code, out, err = cli("bundle", "adjust", simulated, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    cal, std = d["calibration"]["FC300S"], d["calibration_std"]["FC300S"]
+    code, out, err = cli("bundle", "adjust", simulated)
+    assert code == 0, err
+    lines = out.splitlines()
+    head = next(k for k, x in enumerate(lines) if x.split()[:1] == ["parameter"])
+    assert lines[head].split() == ["parameter", "value", "std.", "dev.", "unit"]
+    rows = [x.split() for x in lines[head + 1 : head + 12]]
+    assert [r[0] for r in rows] == list(pg.bundle.CALIBRATION_NAMES)
+    points: dict[str, set] = {"px": set(), "1": set()}
+    for line, (name, value, s, unit) in zip(lines[head + 1 : head + 12], rows):
+        assert unit == ("px" if name in ("f", "cx", "cy", "b1", "b2") else "1"), line
+        tol = 1e-4 if unit == "px" else 1e-9
+        assert float(value) == pytest.approx(cal[name], abs=tol), line
+        if std[name] is None:
+            assert s == "fixed", line
+        else:
+            assert float(s) == pytest.approx(std[name], abs=tol), line
+        # the value's and the standard deviation's decimal points, per unit
+        v_end = line.index(value) + len(value)
+        points[unit].add((line.index(value) + value.index("."), v_end))
+        if s != "fixed":
+            points[unit].add(line.rindex(s) + s.index("."))
+    for unit, cols in points.items():
+        assert len({c for c in cols if isinstance(c, int)}) == 1, (unit, cols)
+        assert len({c for c in cols if isinstance(c, tuple)}) == 1, (unit, cols)

@@ -27,6 +27,30 @@ from .robust import consistent_variance_factor, covariance_weights, image_point_
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
 
+def _cal_number(value: float, unit: str) -> str:
+    """A calibration value or standard deviation for the summary's table.
+
+    Parameters
+    ----------
+    value : float
+        The number, in ``unit``.
+    unit : str
+        ``"px"`` (f, cx, cy, b1, b2: 4 decimals, 0.0001 px) or ``"1"`` (the dimensionless
+        distortion coefficients: 9 decimals; a non-zero magnitude below 1e-5 in
+        scientific notation with 4 significant digits, so that no digit is lost).
+
+    Returns
+    -------
+    str
+        Fixed-point text, so that the decimal points of a unit's rows line up.
+    """
+    if unit == "px":
+        return f"{value:.4f}"
+    if value != 0 and abs(value) < 1e-5:
+        return f"{value:.3e}"
+    return f"{value:.9f}"
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class BundleFit:
     """Adjusted block and the statistics of a bundle adjustment.
@@ -417,13 +441,16 @@ class BundleFit:
         per_image = self.image_calibration()
         for g, vals in self.calibration.items():
             L.append(f"  camera {g}")
+            L.append(f"    {'parameter':<9}{'value':>17}{'std. dev.':>15}  unit")
             iv = per_image.get(g, {})
             for n in CALIBRATION_NAMES:
                 s = self.calibration_std[g][n]
-                std = f"{s:.3e}" if math.isfinite(s) else "fixed"
+                std = _cal_number(s, CAL_UNITS[n]) if math.isfinite(s) else "fixed"
                 if n in iv:
-                    std = "per image (below)"
-                L.append(f"    {n:>3} = {vals[n]: .9g}  +- {std} {CAL_UNITS[n]}")
+                    std = "per image"
+                L.append(
+                    f"    {n:<9}{_cal_number(vals[n], CAL_UNITS[n]):>17}{std:>15}  {CAL_UNITS[n]}"
+                )
             if iv:
                 L.append(
                     "    estimated per image (value = the above + the image's offset), RMS of "
