@@ -224,8 +224,28 @@ def test_worked_example_finds_the_blunder_and_fills_the_report():
     text = get("bundle-uav").run(rep)
     assert "(the simulated blunder); removed, adjusted again" in text
     assert "chi-square test: passed" in text
-    z = [float(ln.split("(")[-1].split()[0]) for ln in text.splitlines() if "sigma)" in ln]
-    assert len(z) == 8 and max(abs(v) for v in z) < 4
+    # the comparison with the truth is a table: a header, one row per free parameter with
+    # its unit, the difference and its ratio to the standard deviation consistent
+    lines = text.splitlines()
+    k = next(i for i, x in enumerate(lines) if x.split()[:2] == ["parameter", "estimate"])
+    assert lines[k].split()[-1] == "unit" and "estimate - true" in lines[k]
+    rows = [x.split() for x in lines[k + 1 : k + 9]]
+    assert [r[0] for r in rows] == ["f", "cx", "cy", "k1", "k2", "k3", "p1", "p2"]
+    for name, est, true, diff, std, z, unit in rows:
+        assert unit == ("px" if name in ("f", "cx", "cy") else "1")
+        tol = 1e-4 if unit == "px" else 1e-9
+        assert float(diff) == pytest.approx(float(est) - float(true), abs=tol)
+        assert float(z) == pytest.approx(float(diff) / float(std), abs=0.01)
+        assert abs(float(z)) < 4
+    # the decimal points of a unit's numbers line up
+    for unit in ("px", "1"):
+        cols = {
+            x.index(c) + c.index(".")
+            for x, r in zip(lines[k + 1 : k + 9], rows)
+            if r[-1] == unit
+            for c in r[1:2]
+        }
+        assert len(cols) == 1, (unit, cols)
     for h in (
         "Calibration against the truth",
         "FC300S block: Calibration",
