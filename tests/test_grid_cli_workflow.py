@@ -753,3 +753,21 @@ def test_grid_fit_of_a_bal_file_takes_the_image_size(cli, tmp_path):
     for k, g in want.items():
         assert grids[k].image_size == (4000, 3000)
         np.testing.assert_allclose(grids[k].nodes, g.nodes, rtol=0, atol=1e-12)
+
+
+def test_grid_apply_on_a_folder_names_the_csv_to_give(cli, adjusted_folder, tmp_path):
+    """OBSERVATIONS of 'grid apply' is a CSV: a block folder given instead is refused naming
+    its observations.csv (before: 'cannot read (Is a directory)'), and the file so named
+    gives the corrected observations; another folder is refused naming the columns."""
+    grids = tmp_path / "grids.npz"
+    code, _, err = cli("grid", "fit", adjusted_folder, "--spacing", "1000", "-o", grids)
+    assert code == 0, err
+    out = tmp_path / "corrected.csv"
+    code, _, err = cli("grid", "apply", grids, adjusted_folder, "-o", out)
+    assert code == 2 and not out.exists()
+    named = str(adjusted_folder / "observations.csv")
+    assert err.startswith("error: ") and named in err and "Is a directory" not in err
+    code, _, err = cli("grid", "apply", grids, named, "-o", out)
+    assert code == 0, err
+    code, _, err = cli("grid", "apply", grids, tmp_path, "-o", out)  # no observations.csv
+    assert code == 2 and "image_id, u, v" in err
