@@ -771,3 +771,32 @@ def test_grid_apply_on_a_folder_names_the_csv_to_give(cli, adjusted_folder, tmp_
     assert code == 0, err
     code, _, err = cli("grid", "apply", grids, tmp_path, "-o", out)  # no observations.csv
     assert code == 2 and "image_id, u, v" in err
+
+
+def test_grids_of_a_block_not_adjusted_are_warned_about(cli, adjusted_folder, tmp_path):
+    """'grid fit' and 'grid evaluate' of a block folder whose orientation is the start
+    values (bundle simulate's block, before 'bundle adjust') warn, naming the residuals
+    against their sigmas and the command that adjusts it; an adjusted block does not."""
+    sim = pg.simulate.uav_block(
+        "ILCE-7RM2", seed=2, strips=1, images_per_strip=4, tie_points_per_image=150
+    )
+    raw = tmp_path / "to-adjust"
+    pg.bundle.write_csv_block(sim.block, raw)
+    v = pg.bundle.reprojection_residuals(sim.block)
+    assert np.sqrt(np.mean(v**2)) > 10 * 0.3  # start values: far above the 0.3 px noise
+    for args in (
+        ("grid", "fit", raw, "--spacing", "1000", "--folds", "0", "-o", tmp_path / "g.npz"),
+        ("grid", "evaluate", raw, "--spacing", "1000"),
+    ):
+        code, _, err = cli(*args)
+        assert code == 0, err
+        assert "warning:" in err and "not adjusted" in err, err
+        assert f"photogeom bundle adjust {raw}" in err
+    for args in (
+        ("grid", "fit", adjusted_folder, "--spacing", "1000", "--folds", "0",
+         "-o", tmp_path / "h.npz"),
+        ("grid", "evaluate", adjusted_folder, "--spacing", "1000"),
+    ):  # fmt: skip
+        code, _, err = cli(*args)
+        assert code == 0, err
+        assert "not adjusted" not in err, err

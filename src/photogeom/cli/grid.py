@@ -880,6 +880,9 @@ def _fit_block(
             "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
             stderr=True,
         )
+    from .grid_block import warn_if_unadjusted
+
+    warn_if_unadjusted(block, path)
     ids = block.image_ids.tolist()
     _refuse_unknown(exclude, [str(k) for k in ids], path)
     left_out = set(exclude)
