@@ -800,3 +800,23 @@ def test_grids_of_a_block_not_adjusted_are_warned_about(cli, adjusted_folder, tm
         code, _, err = cli(*args)
         assert code == 0, err
         assert "not adjusted" not in err, err
+
+
+def test_a_folder_given_as_grids_file_names_where_grids_come_from(
+    cli, adjusted_folder, tmp_path
+):
+    """GRIDS_FILE of 'grid apply' and 'grid correct-images' given a folder (the block, say)
+    is refused naming the command that writes a grids file; load_grids says it in Python's
+    words (save_grids)."""
+    obs = adjusted_folder / "observations.csv"
+    for args in (
+        ("grid", "apply", adjusted_folder, obs, "-o", tmp_path / "c.csv"),
+        ("grid", "correct-images", adjusted_folder, tmp_path, tmp_path / "out"),
+    ):
+        code, _, err = cli(*args)
+        assert code == 2 and "a folder, not a grids file" in err, err
+        assert "photogeom grid fit BLOCK -o grids.npz" in err and "save_grids" not in err
+    with pytest.raises(pg.errors.FileFormatError, match="save_grids writes"):
+        pg.calibration.load_grids(adjusted_folder)
+    with pytest.raises(pg.errors.FileFormatError, match=r"no such grids file .*save_grids"):
+        pg.calibration.load_grids(tmp_path / "none.npz")
