@@ -320,3 +320,25 @@ def test_summary_calibration_is_a_table_with_aligned_decimals(simulated, cli):
     for unit, cols in points.items():
         assert len({c for c in cols if isinstance(c, int)}) == 1, (unit, cols)
         assert len({c for c in cols if isinstance(c, tuple)}) == 1, (unit, cols)
+
+
+def test_summary_counts_the_flagged_observations_it_does_not_list(tmp_path, cli):
+    """The summary lists the 20 largest |w| and says how many more fail the w-test and
+    where they all are (before: 69 flagged, 20 lines, nothing about the other 49)."""
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=5, blunders=2, strips=2, images_per_strip=4, tie_points_per_image=60
+    )
+    d = tmp_path / "block"
+    pg.bundle.write_csv_block(sim.block, d)
+    code, out, err = cli("bundle", "adjust", d, "--json")
+    assert code == 0, err
+    flagged = json.loads(out)["snooping"]["flagged"]
+    assert len(flagged) > 20
+    code, out, err = cli("bundle", "adjust", d)
+    assert code == 0, err
+    lines = out.splitlines()
+    listed = [x for x in lines if x.startswith("  image ") and "|w| =" in x]
+    assert len(listed) == 20
+    assert f"{len(flagged)} observation(s) flagged" in out
+    more = next(x for x in lines if x.startswith("  ... and "))
+    assert more.startswith(f"  ... and {len(flagged) - 20} more") and "--json" in more

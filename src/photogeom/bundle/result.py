@@ -513,8 +513,13 @@ class BundleFit:
                 f"data snooping (w-test, alpha {self.snooping['alpha']}, critical "
                 f"{self.snooping['critical_value']:.2f}): {len(fl)} observation(s) flagged"
             )
-            for img, pt, w in fl[:20]:
+            for img, pt, w in fl[:SUMMARY_FLAGGED]:
                 L.append(f"  image {img} point {pt}: |w| = {w:.1f}")
+            if len(fl) > SUMMARY_FLAGGED:
+                L.append(
+                    f"  ... and {len(fl) - SUMMARY_FLAGGED} more with smaller |w| (all of "
+                    "them in snooping['flagged'] of the result; --json lists them too)"
+                )
         if self.variance_components:
             L.append("variance components (estimated sigma = factor x a-priori sigma):")
             held = self.variance_components.get("not_estimated", {})
@@ -622,6 +627,9 @@ class BundleFit:
         )
 
 
+
+#: Flagged observations the summary lists (largest |w| first); the rest are counted.
+SUMMARY_FLAGGED = 20
 
 #: Largest standard deviation of the focal length (px) not flagged as poorly determined: an
 #: error of the focal length of df px moves the heights by about df GSD.
