@@ -753,3 +753,70 @@ def test_grid_fit_of_a_bal_file_takes_the_image_size(cli, tmp_path):
     for k, g in want.items():
         assert grids[k].image_size == (4000, 3000)
         np.testing.assert_allclose(grids[k].nodes, g.nodes, rtol=0, atol=1e-12)
+
+
+def test_grid_apply_on_a_folder_names_the_csv_to_give(cli, adjusted_folder, tmp_path):
+    """OBSERVATIONS of 'grid apply' is a CSV: a block folder given instead is refused naming
+    its observations.csv (before: 'cannot read (Is a directory)'), and the file so named
+    gives the corrected observations; another folder is refused naming the columns."""
+    grids = tmp_path / "grids.npz"
+    code, _, err = cli("grid", "fit", adjusted_folder, "--spacing", "1000", "-o", grids)
+    assert code == 0, err
+    out = tmp_path / "corrected.csv"
+    code, _, err = cli("grid", "apply", grids, adjusted_folder, "-o", out)
+    assert code == 2 and not out.exists()
+    named = str(adjusted_folder / "observations.csv")
+    assert err.startswith("error: ") and named in err and "Is a directory" not in err
+    code, _, err = cli("grid", "apply", grids, named, "-o", out)
+    assert code == 0, err
+    code, _, err = cli("grid", "apply", grids, tmp_path, "-o", out)  # no observations.csv
+    assert code == 2 and "image_id, u, v" in err
+
+
+def test_grids_of_a_block_not_adjusted_are_warned_about(cli, adjusted_folder, tmp_path):
+    """'grid fit' and 'grid evaluate' of a block folder whose orientation is the start
+    values (bundle simulate's block, before 'bundle adjust') warn, naming the residuals
+    against their sigmas and the command that adjusts it; an adjusted block does not."""
+    sim = pg.simulate.uav_block(
+        "ILCE-7RM2", seed=2, strips=1, images_per_strip=4, tie_points_per_image=150
+    )
+    raw = tmp_path / "to-adjust"
+    pg.bundle.write_csv_block(sim.block, raw)
+    v = pg.bundle.reprojection_residuals(sim.block)
+    assert np.sqrt(np.mean(v**2)) > 10 * 0.3  # start values: far above the 0.3 px noise
+    for args in (
+        ("grid", "fit", raw, "--spacing", "1000", "--folds", "0", "-o", tmp_path / "g.npz"),
+        ("grid", "evaluate", raw, "--spacing", "1000"),
+    ):
+        code, _, err = cli(*args)
+        assert code == 0, err
+        assert "warning:" in err and "not adjusted" in err, err
+        assert f"photogeom bundle adjust {raw}" in err
+    for args in (
+        ("grid", "fit", adjusted_folder, "--spacing", "1000", "--folds", "0",
+         "-o", tmp_path / "h.npz"),
+        ("grid", "evaluate", adjusted_folder, "--spacing", "1000"),
+    ):  # fmt: skip
+        code, _, err = cli(*args)
+        assert code == 0, err
+        assert "not adjusted" not in err, err
+
+
+def test_a_folder_given_as_grids_file_names_where_grids_come_from(
+    cli, adjusted_folder, tmp_path
+):
+    """GRIDS_FILE of 'grid apply' and 'grid correct-images' given a folder (the block, say)
+    is refused naming the command that writes a grids file; load_grids says it in Python's
+    words (save_grids)."""
+    obs = adjusted_folder / "observations.csv"
+    for args in (
+        ("grid", "apply", adjusted_folder, obs, "-o", tmp_path / "c.csv"),
+        ("grid", "correct-images", adjusted_folder, tmp_path, tmp_path / "out"),
+    ):
+        code, _, err = cli(*args)
+        assert code == 2 and "a folder, not a grids file" in err, err
+        assert "photogeom grid fit BLOCK -o grids.npz" in err and "save_grids" not in err
+    with pytest.raises(pg.errors.FileFormatError, match="save_grids writes"):
+        pg.calibration.load_grids(adjusted_folder)
+    with pytest.raises(pg.errors.FileFormatError, match=r"no such grids file .*save_grids"):
+        pg.calibration.load_grids(tmp_path / "none.npz")

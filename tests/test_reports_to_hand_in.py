@@ -243,7 +243,7 @@ def test_bundle_report_summary_has_the_digits_of_the_printed_summary(cli, tmp_pa
     assert rows["RMS image residual"] == [f"{rms} px"]
     imu = re.search(r"IMU residuals .*?: (omega .* deg)", out).group(1)
     assert any(v == [imu] for k, v in rows.items() if k.startswith("RMS IMU residual"))
-    check = re.search(r"check points \(\d+\), [^:]*: RMSE (X \S+, Y \S+, Z \S+) \(([^)]*)\)", out)
+    check = re.search(r"check points \(\d+\), [^:]*: RMSE (X \S+, Y \S+, Z \S+) m \(([^)]*)\)", out)
     assert f"RMSE {check.group(1)} m ({check.group(2)};" in page
     crit = re.search(r"critical (\S+)\)", out).group(1)
     assert f"critical value {crit}:" in page

@@ -459,3 +459,25 @@ def test_projective_minimal_point_sets_are_exact():
     src3 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
     fit3 = pg.estimate_transform("projective3d", src3, true3.apply(src3))
     np.testing.assert_allclose(fit3.model.matrix, H, atol=1e-12)
+
+
+def test_summary_parameter_header_sits_over_its_columns_and_rms_has_its_unit():
+    """Fit.summary(): the right edges of 'value', 'std. dev.' and 'unit' in the header are
+    those of the numbers below them, and the RMS per axis carries the residual unit."""
+    from photogeom.io import read_point_pairs
+
+    pairs = read_point_pairs(pg.datasets.path("lecture_fiducials"))
+    fit = pg.estimate_transform(
+        "similarity2d", pairs.source, pairs.target, check=pairs.check_mask, unit="mm"
+    )
+    lines = fit.summary().splitlines()
+    k = next(i for i, x in enumerate(lines) if x.split()[:1] == ["parameter"])
+    head = lines[k]
+    ends = [head.index(w) + len(w) for w in ("value", "std. dev.", "unit")]
+    for row in lines[k + 1 : k + 5]:
+        name, value, std, unit = row.split()
+        assert [row.index(value) + len(value), row.index(std) + len(std), len(row)] == ends
+        assert float(value) == pytest.approx(fit.params[name], rel=1e-9)
+        assert unit == ("mm" if name in ("c", "d") else "1"), row
+    rms = next(x for x in lines if "RMS per axis" in x)
+    assert rms.endswith(" mm"), rms

@@ -224,8 +224,28 @@ def test_worked_example_finds_the_blunder_and_fills_the_report():
     text = get("bundle-uav").run(rep)
     assert "(the simulated blunder); removed, adjusted again" in text
     assert "chi-square test: passed" in text
-    z = [float(ln.split("(")[-1].split()[0]) for ln in text.splitlines() if "sigma)" in ln]
-    assert len(z) == 8 and max(abs(v) for v in z) < 4
+    # the comparison with the truth is a table: a header, one row per free parameter with
+    # its unit, the difference and its ratio to the standard deviation consistent
+    lines = text.splitlines()
+    k = next(i for i, x in enumerate(lines) if x.split()[:2] == ["parameter", "estimate"])
+    assert lines[k].split()[-1] == "unit" and "estimate - true" in lines[k]
+    rows = [x.split() for x in lines[k + 1 : k + 9]]
+    assert [r[0] for r in rows] == ["f", "cx", "cy", "k1", "k2", "k3", "p1", "p2"]
+    for name, est, true, diff, std, z, unit in rows:
+        assert unit == ("px" if name in ("f", "cx", "cy") else "1")
+        tol = 1e-4 if unit == "px" else 1e-9
+        assert float(diff) == pytest.approx(float(est) - float(true), abs=tol)
+        assert float(z) == pytest.approx(float(diff) / float(std), abs=0.01)
+        assert abs(float(z)) < 4
+    # the decimal points of a unit's numbers line up
+    for unit in ("px", "1"):
+        cols = {
+            x.index(c) + c.index(".")
+            for x, r in zip(lines[k + 1 : k + 9], rows)
+            if r[-1] == unit
+            for c in r[1:2]
+        }
+        assert len(cols) == 1, (unit, cols)
     for h in (
         "Calibration against the truth",
         "FC300S block: Calibration",
@@ -242,3 +262,83 @@ def test_free_datum_on_a_block_with_control_is_refused_in_option_words(simulated
     assert code == 2 and err.startswith("error: --datum free (a free network)")
     assert "--datum weighted" in err and "images.csv" in err
     assert "datum='" not in err and "without_datum_observations" not in err
+
+
+def test_summary_labels_every_length_with_the_unit_option(simulated, cli):
+    """The printed summary labels its object lengths with --unit (default m): the GSD, the
+    GNSS residuals, the standard deviations of centres and points, the check-point RMSE."""
+    import re
+
+    for args, unit in (((), "m"), (("--unit", "ft"), "ft")):
+        code, out, err = cli("bundle", "adjust", simulated, "--point-covariance", *args)
+        assert code == 0, err
+        assert "object units" not in out
+        assert re.search(rf"GSD [0-9.]+ {unit} per px", out), out
+        for label in (
+            "GNSS residuals",
+            "exterior orientation, RMS of the standard deviations",
+            "points, RMS of the standard deviations",
+            "check points",
+        ):
+            line = next(x for x in out.splitlines() if x.startswith(label))
+            # every X, Y, Z triple ends in the unit: Z0 0.04 m / Z 0.02 m
+            assert re.search(rf"Z0? [0-9.e+-]+ {unit}\b", line), line
+    # the Python default is the metre, the unit the report and --result use
+    fit = pg.bundle.bundle_adjust(pg.bundle.read_csv_block(simulated))
+    assert " m per px" in fit.summary() and " ft per px" in fit.summary(unit="ft")
+
+
+def test_summary_calibration_is_a_table_with_aligned_decimals(simulated, cli):
+    """The calibration of the printed summary is a table (parameter, value, std. dev.,
+    unit) whose decimal points line up per unit, and whose numbers read back as the
+    adjusted calibration (px to 1e-4, distortion to 1e-9)."""
+    code, out, err = cli("bundle", "adjust", simulated, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    cal, std = d["calibration"]["FC300S"], d["calibration_std"]["FC300S"]
+    code, out, err = cli("bundle", "adjust", simulated)
+    assert code == 0, err
+    lines = out.splitlines()
+    head = next(k for k, x in enumerate(lines) if x.split()[:1] == ["parameter"])
+    assert lines[head].split() == ["parameter", "value", "std.", "dev.", "unit"]
+    rows = [x.split() for x in lines[head + 1 : head + 12]]
+    assert [r[0] for r in rows] == list(pg.bundle.CALIBRATION_NAMES)
+    points: dict[str, set] = {"px": set(), "1": set()}
+    for line, (name, value, s, unit) in zip(lines[head + 1 : head + 12], rows):
+        assert unit == ("px" if name in ("f", "cx", "cy", "b1", "b2") else "1"), line
+        tol = 1e-4 if unit == "px" else 1e-9
+        assert float(value) == pytest.approx(cal[name], abs=tol), line
+        if std[name] is None:
+            assert s == "fixed", line
+        else:
+            assert float(s) == pytest.approx(std[name], abs=tol), line
+        # the value's and the standard deviation's decimal points, per unit
+        v_end = line.index(value) + len(value)
+        points[unit].add((line.index(value) + value.index("."), v_end))
+        if s != "fixed":
+            points[unit].add(line.rindex(s) + s.index("."))
+    for unit, cols in points.items():
+        assert len({c for c in cols if isinstance(c, int)}) == 1, (unit, cols)
+        assert len({c for c in cols if isinstance(c, tuple)}) == 1, (unit, cols)
+
+
+def test_summary_counts_the_flagged_observations_it_does_not_list(tmp_path, cli):
+    """The summary lists the 20 largest |w| and says how many more fail the w-test and
+    where they all are (before: 69 flagged, 20 lines, nothing about the other 49)."""
+    sim = pg.simulate.uav_block(
+        "FC300S", seed=5, blunders=2, strips=2, images_per_strip=4, tie_points_per_image=60
+    )
+    d = tmp_path / "block"
+    pg.bundle.write_csv_block(sim.block, d)
+    code, out, err = cli("bundle", "adjust", d, "--json")
+    assert code == 0, err
+    flagged = json.loads(out)["snooping"]["flagged"]
+    assert len(flagged) > 20
+    code, out, err = cli("bundle", "adjust", d)
+    assert code == 0, err
+    lines = out.splitlines()
+    listed = [x for x in lines if x.startswith("  image ") and "|w| =" in x]
+    assert len(listed) == 20
+    assert f"{len(flagged)} observation(s) flagged" in out
+    more = next(x for x in lines if x.startswith("  ... and "))
+    assert more.startswith(f"  ... and {len(flagged) - 20} more") and "--json" in more

@@ -613,7 +613,7 @@ class Fit:
         )
         s0 = "undefined (redundancy 0)" if not math.isfinite(self.sigma0) else f"{self.sigma0:.6g}"
         lines.append(f"  sigma0 (a posteriori) {s0}   sigma0 (a priori) {self.sigma0_prior:g}")
-        lines.append("  parameter            value              std. dev.        unit")
+        lines.append(f"  {'parameter':<16} {'value':>18} {'std. dev.':>18} {'unit':>8}")
         for name, value, s, unit, a_priori in self.shown_parameter_table(angle_unit):
             sd = "-" if not math.isfinite(s) else f"{s:.6g}" + (" (a priori)" if a_priori else "")
             lines.append(f"  {name:<16} {value:>18.10g} {sd:>18} {unit:>8}")
@@ -633,6 +633,7 @@ class Fit:
             lines.append(
                 f"  RMSE (per point) {self.rmse:.6g}{unit}; RMS per axis "
                 + ", ".join(f"{lab} {x:.6g}" for lab, x in zip(labels, self.rms_per_axis))
+                + unit
             )
         if self.check_residuals is not None:
             lines.append("  check points (not in the estimate), v = computed - observed")

@@ -49,6 +49,30 @@ _NESTED_FIELDS = (
 CAL_UNITS = {n: ("px" if n in ("f", "cx", "cy", "b1", "b2") else "1") for n in CALIBRATION_NAMES}
 
 
+def _cal_number(value: float, unit: str) -> str:
+    """A calibration value or standard deviation for the summary's table.
+
+    Parameters
+    ----------
+    value : float
+        The number, in ``unit``.
+    unit : str
+        ``"px"`` (f, cx, cy, b1, b2: 4 decimals, 0.0001 px) or ``"1"`` (the dimensionless
+        distortion coefficients: 9 decimals; a non-zero magnitude below 1e-5 in
+        scientific notation with 4 significant digits, so that no digit is lost).
+
+    Returns
+    -------
+    str
+        Fixed-point text, so that the decimal points of a unit's rows line up.
+    """
+    if unit == "px":
+        return f"{value:.4f}"
+    if value != 0 and abs(value) < 1e-5:
+        return f"{value:.3e}"
+    return f"{value:.9f}"
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class BundleFit:
     """Adjusted block and the statistics of a bundle adjustment.
@@ -410,7 +434,7 @@ class BundleFit:
                 out[f"{key}_images"] = int(has.sum())
         return out
 
-    def summary(self, angle_unit: str = "deg") -> str:
+    def summary(self, angle_unit: str = "deg", unit: str = "m") -> str:
         """A text report: convergence, sigma0, calibration, check points, outliers.
 
         Parameters
@@ -418,6 +442,10 @@ class BundleFit:
         angle_unit : str, default "deg"
             Unit of the angles shown (IMU residual RMS, standard deviations of the
             exterior orientation angles).
+        unit : str, default "m"
+            Name of the object-space length unit that labels the GSD, the GNSS residuals,
+            the standard deviations of the projection centres and points and the check-point
+            RMSE (a label only: the block's coordinates are not converted).
 
         Returns
         -------
@@ -439,7 +467,7 @@ class BundleFit:
             f"test: {'passed' if self.chi2.get('passed') else 'failed'} "
             f"(p = {self.chi2.get('p_value', math.nan):.3g})",
             f"image residuals (computed - observed): RMS {self.rmse:.3f} px; GSD "
-            f"{self.gsd:.4g} object units per px",
+            f"{self.gsd:.4g} {unit} per px",
             *([f"object coordinates: {_crs_label(self.crs)}"] if self.crs else []),
             "",
             "calibration (px; distortion dimensionless), standard deviations a posteriori:",
@@ -447,13 +475,16 @@ class BundleFit:
         per_image = self.image_calibration()
         for g, vals in self.calibration.items():
             L.append(f"  camera {g}")
+            L.append(f"    {'parameter':<9}{'value':>17}{'std. dev.':>15}  unit")
             iv = per_image.get(g, {})
             for n in CALIBRATION_NAMES:
                 s = self.calibration_std[g][n]
-                std = f"{s:.3e}" if math.isfinite(s) else "fixed"
+                std = _cal_number(s, CAL_UNITS[n]) if math.isfinite(s) else "fixed"
                 if n in iv:
-                    std = "per image (below)"
-                L.append(f"    {n:>3} = {vals[n]: .9g}  +- {std} {CAL_UNITS[n]}")
+                    std = "per image"
+                L.append(
+                    f"    {n:<9}{_cal_number(vals[n], CAL_UNITS[n]):>17}{std:>15}  {CAL_UNITS[n]}"
+                )
             if iv:
                 L.append(
                     "    estimated per image (value = the above + the image's offset), RMS of "
@@ -472,7 +503,7 @@ class BundleFit:
             g = orr["gnss"]
             L.append(
                 f"GNSS residuals (adjusted - GNSS), RMS over {orr['gnss_images']} image(s): "
-                f"X0 {g[0]:.4g}, Y0 {g[1]:.4g}, Z0 {g[2]:.4g}"
+                f"X0 {g[0]:.4g}, Y0 {g[1]:.4g}, Z0 {g[2]:.4g} {unit}"
             )
         if "imu" in orr:
             a = np.asarray(from_radians(orr["imu"], angle_unit))
@@ -483,19 +514,21 @@ class BundleFit:
         if es.size and not np.any(es):
             L.append("exterior orientation: held fixed (no standard deviations)")
         elif es.size:
-            unit = angle_unit
             rms_pos = np.sqrt(np.nanmean(es[:, :3] ** 2, axis=0))
-            rms_ang = np.sqrt(np.nanmean(np.asarray(from_radians(es[:, 3:], unit)) ** 2, axis=0))
+            rms_ang = np.sqrt(
+                np.nanmean(np.asarray(from_radians(es[:, 3:], angle_unit)) ** 2, axis=0)
+            )
             L.append(
                 "exterior orientation, RMS of the standard deviations: "
-                f"X0 {rms_pos[0]:.4g}, Y0 {rms_pos[1]:.4g}, Z0 {rms_pos[2]:.4g}; omega "
-                f"{rms_ang[0]:.3g}, phi {rms_ang[1]:.3g}, kappa {rms_ang[2]:.3g} {unit}"
+                f"X0 {rms_pos[0]:.4g}, Y0 {rms_pos[1]:.4g}, Z0 {rms_pos[2]:.4g} {unit}; omega "
+                f"{rms_ang[0]:.3g}, phi {rms_ang[1]:.3g}, kappa {rms_ang[2]:.3g} {angle_unit}"
             )
         if self.point_std is not None:
             ps = self.point_std[b.role != "check"]
             r = np.sqrt(np.nanmean(ps**2, axis=0))
             L.append(
-                f"points, RMS of the standard deviations: X {r[0]:.4g}, Y {r[1]:.4g}, Z {r[2]:.4g}"
+                "points, RMS of the standard deviations: "
+                f"X {r[0]:.4g}, Y {r[1]:.4g}, Z {r[2]:.4g} {unit}"
             )
         c = self.check
         if c.get("ids"):
@@ -506,7 +539,7 @@ class BundleFit:
                 how += " after the similarity transformation onto the survey"
             L.append(
                 f"check points ({len(c['ids'])}), {how}: RMSE X {r[0]:.4g}, "
-                f"Y {r[1]:.4g}, Z {r[2]:.4g} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
+                f"Y {r[1]:.4g}, Z {r[2]:.4g} {unit} ({g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f} GSD)"
             )
         if self.snooping is not None:
             fl = self.snooping["flagged"]
@@ -514,8 +547,13 @@ class BundleFit:
                 f"data snooping (w-test, alpha {self.snooping['alpha']}, critical "
                 f"{self.snooping['critical_value']:.2f}): {len(fl)} observation(s) flagged"
             )
-            for img, pt, w in fl[:20]:
+            for img, pt, w in fl[:SUMMARY_FLAGGED]:
                 L.append(f"  image {img} point {pt}: |w| = {w:.1f}")
+            if len(fl) > SUMMARY_FLAGGED:
+                L.append(
+                    f"  ... and {len(fl) - SUMMARY_FLAGGED} more with smaller |w| (all of "
+                    "them in snooping['flagged'] of the result; --json lists them too)"
+                )
         if self.variance_components:
             L.append("variance components (estimated sigma = factor x a-priori sigma):")
             held = self.variance_components.get("not_estimated", {})
@@ -635,6 +673,9 @@ def _loss_line(solver: Mapping) -> str:
         "covariance: M-estimator sandwich)"
     )
 
+
+#: Flagged observations the summary lists (largest |w| first); the rest are counted.
+SUMMARY_FLAGGED = 20
 
 #: Largest standard deviation of the focal length (px) not flagged as poorly determined: an
 #: error of the focal length of df px moves the heights by about df GSD.

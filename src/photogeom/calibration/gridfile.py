@@ -142,6 +142,11 @@ def _json_array(values) -> list:
     return obj.tolist()
 
 
+#: Where a grids file comes from, said when a path given as one is missing or a folder
+#: (the command line says it in its words: ``photogeom grid fit ... -o``).
+GRIDS_FILE_SOURCE = "(give the .npz or JSON file that save_grids writes)"
+
+
 def save_grids(path: str | os.PathLike, grids: dict, *, std: bool = True) -> Path:
     """Write grids (``image id -> ResidualGrid``) to ``path`` atomically.
 
@@ -327,9 +332,9 @@ def load_grids(path: str | os.PathLike) -> dict:
     path = Path(path)
     kind = input_kind(path)
     if kind == "missing":
-        raise FileFormatError(f"{path}: no such grids file")
+        raise FileFormatError(f"{path}: no such grids file {GRIDS_FILE_SOURCE}")
     if kind == "folder":
-        raise FileFormatError(f"{path}: a folder, not a grids file")
+        raise FileFormatError(f"{path}: a folder, not a grids file {GRIDS_FILE_SOURCE}")
     if kind == "device":
         raise FileFormatError(device_message(path, "grids file"))
     raw = None

@@ -606,6 +606,10 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
     (" (photogeom.orientation.p3p lists them)", ""),
     ("(see fit.snooping())", "(see the w-test of the residuals)"),
     (
+        "(give the .npz or JSON file that save_grids writes)",
+        "(give the grids file that 'photogeom grid fit BLOCK -o grids.npz' writes)",
+    ),
+    (
         "(try initial= from another source)",
         "(try --initial X0,Y0,Z0,OMEGA,PHI,KAPPA from another source)",
     ),

@@ -715,7 +715,7 @@ def adjust(
         return
     out = console()
     say(f"{source} ({src_fmt})", out)
-    say(fit.summary(angle), out)
+    say(fit.summary(angle, unit), out)
     if georef is not None:
         say(
             f"GNSS positions of {georef['n_gnss']} image(s) converted from "

@@ -881,6 +881,9 @@ def _fit_block(
             "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
             stderr=True,
         )
+    from .grid_block import warn_if_unadjusted
+
+    warn_if_unadjusted(block, path)
     ids = block.image_ids.tolist()
     _refuse_unknown(exclude, [str(k) for k in ids], path)
     left_out = set(exclude)
@@ -1175,6 +1178,7 @@ def apply(
     from ..calibration.gridfile import match_grid_ids
 
     check_outputs({"GRIDS_FILE": grids_file}, output=output)  # -o OBSERVATIONS is allowed
+    _refuse_folder_observations(observations)
 
     grids = load_grids(grids_file)
     comments: list[str] = []
@@ -1216,6 +1220,34 @@ def apply(
     out.extend(map(",".join, zip(*columns, strict=True)))
     del columns
     emit_points("\n".join(out) + "\n", output, int(lines.size))
+
+
+def _refuse_folder_observations(path: Path) -> None:
+    """Refuse a folder as the OBSERVATIONS of ``grid apply``, naming the CSV file to give.
+
+    Parameters
+    ----------
+    path : Path
+        The OBSERVATIONS argument.
+
+    Raises
+    ------
+    InputError
+        ``path`` is a folder: the message names its ``observations.csv`` when it is a CSV
+        block folder, else the columns the CSV needs.
+    """
+    if not path.is_dir():
+        return
+    inner = path / "observations.csv"
+    if inner.is_file():
+        raise InputError(
+            f"{path}: a block folder, not an observations CSV; give its observations file "
+            f"{inner} (image_id, u, v in px; written again with u, v corrected)"
+        )
+    raise InputError(
+        f"{path}: a folder, not an observations CSV; give a CSV file with the columns "
+        "image_id, u, v (px; other columns are kept)"
+    )
 
 
 def _csv_cell(text: str) -> str:

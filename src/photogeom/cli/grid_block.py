@@ -186,7 +186,52 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
     if not block.exists():
         raise InputError(f"BLOCK: {block} does not exist")
     with stage_spinner(f"reading {block}"):
-        return _Fit(pg.bundle.read_block(block)), None
+        read = pg.bundle.read_block(block)
+    warn_if_unadjusted(read, block)
+    return _Fit(read), None
+
+
+#: RMS of the tie-point residuals in units of their sigmas above which a block read as
+#: adjusted is taken for one that was not (an adjustment that converged gives about
+#: sigma0, a few at most with blunders; the start values of a block to adjust give tens to
+#: hundreds).
+UNADJUSTED_RMS = 10.0
+
+
+def warn_if_unadjusted(block, path: Path) -> None:
+    """Warn on stderr when the block's tie-point residuals are far above their sigmas.
+
+    The grids commands model the residuals of an adjusted block; the residuals of a block
+    not yet adjusted (its initial orientation, e.g. ``bundle simulate``'s block folder) are
+    the errors of the start values, and grids fitted to them "remove" tens of pixels.
+
+    Parameters
+    ----------
+    block : Block
+        The block read from ``path``.
+    path : Path
+        The BLOCK argument, named in the warning.
+    """
+    import numpy as np
+
+    from ..bundle import reprojection_residuals
+
+    tie = block.role[block.obs_point] == "tie"
+    if not np.any(tie):
+        return
+    v = reprojection_residuals(block, behind="nan")[tie]
+    w = v / block.observations.sigma[tie, None]
+    rms_w = float(np.sqrt(np.nanmean(w**2)))
+    if np.isfinite(rms_w) and rms_w <= UNADJUSTED_RMS:  # NaN: every point behind, warns
+        return
+    rms_px = float(np.sqrt(np.nanmean(v**2)))
+    say(
+        f"warning: {path}: the tie-point residuals (RMS {rms_px:.3g} px, {rms_w:.3g} times "
+        "their sigmas) are those of a block not adjusted: the grids model the residuals of "
+        f"an adjusted block; adjust it first ('photogeom bundle adjust {path} -o "
+        "adjusted/') and give the adjusted folder",
+        stderr=True,
+    )
 
 
 def _cli(msg: str) -> str:

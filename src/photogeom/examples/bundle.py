@@ -41,6 +41,7 @@ def _truth_rows(sim, fit) -> tuple[list[list], dict]:
 
 def _uav(report) -> str:
     from .. import bundle, simulate
+    from ..bundle.result import CAL_UNITS, _cal_number
 
     sim = simulate.uav_block(
         "FC300S",
@@ -78,9 +79,13 @@ def _uav(report) -> str:
         "",
         fit.summary(),
         "",
-        "against the simulator's truth (estimate - true, and in standard deviations):",
+        "against the simulator's truth (px; distortion dimensionless):",
+        f"  {'parameter':<9}{'estimate':>17}{'true':>17}{'estimate - true':>17}"
+        f"{'std. dev.':>15}{'in std. dev.':>14}  unit",
         *[
-            f"  {n:>3}  {e: .7g}  true {t: .7g}  diff {d: .3g}  ({z:+.2f} sigma)"
+            f"  {n:<9}{_cal_number(e, CAL_UNITS[n]):>17}{_cal_number(t, CAL_UNITS[n]):>17}"
+            f"{_cal_number(d, CAL_UNITS[n]):>17}{_cal_number(s, CAL_UNITS[n]):>15}"
+            f"{z:>+14.2f}  {CAL_UNITS[n]}"
             for n, e, t, d, s, z in rows
         ],
         f"  projection centres: RMS error X {info['centre_rms'][0]:.4f}, Y "
