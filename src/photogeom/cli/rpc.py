@@ -238,7 +238,7 @@ def project(
         for block in blocks:
             xy, _ = compute(block)
             rows += [
-                {"id": i, "col": float(c), "row": float(r)}
+                {"id": i, "col": finite_or_none(c), "row": finite_or_none(r)}
                 for i, (c, r) in zip(block.ids.to_pylist(), xy)
             ]
         data = {

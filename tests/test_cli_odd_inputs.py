@@ -1,0 +1,48 @@
+"""The command line under odd input: values a computation cannot give a number for, option
+values that are refused, output names that are no file. Each command either does its job or
+stops with one ``error:`` line and exit code 2, and prints or writes nothing half-done."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+
+import photogeom as pg
+
+IKONOS = pg.datasets.path("ikonos")
+
+
+def _strict_json(text: str):
+    """``json.loads`` refusing the NaN and Infinity tokens that JSON does not have."""
+
+    def refuse(token):
+        raise AssertionError(f"{token} in JSON output")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_rpc_project_json_writes_null_where_the_projection_has_no_number(cli, tmp_path):
+    # a height of 1e308 m overflows the cubic terms of the RPC: the projection is NaN, which
+    # the CSV writes as nan and JSON (no NaN) must write as null; it used to stop with a
+    # ValueError traceback ("Out of range float values are not JSON compliant")
+    lonlath = np.array([[-56.17, -34.90, 30.0], [-56.16, -34.91, 1e308]])
+    pts = tmp_path / "g.csv"
+    pts.write_text("id,lon,lat,h\np1,-56.17,-34.9,30.0\np2,-56.16,-34.91,1e308\n")
+    rpc = pg.RPC.from_file(IKONOS)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the RPC's extrapolation warning
+        col, row = rpc.project(*lonlath.T)
+    assert np.isfinite(col[0]) and np.isnan(col[1])  # the premise: one point has no pixel
+    code, out, err = cli("rpc", "project", IKONOS, pts, "--json")
+    assert code == 0, err
+    assert "Traceback" not in err
+    points = _strict_json(out)["points"]
+    assert [p["id"] for p in points] == ["p1", "p2"]
+    np.testing.assert_allclose([points[0]["col"], points[0]["row"]], [col[0], row[0]], atol=1e-9)
+    assert points[1]["col"] is None and points[1]["row"] is None
+    # the CSV of the same run says nan for the same point
+    code, out, _ = cli("rpc", "project", IKONOS, pts)
+    assert code == 0 and out.splitlines()[-1] == "p2,nan,nan"
+
