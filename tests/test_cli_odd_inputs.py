@@ -46,3 +46,51 @@ def test_rpc_project_json_writes_null_where_the_projection_has_no_number(cli, tm
     code, out, _ = cli("rpc", "project", IKONOS, pts)
     assert code == 0 and out.splitlines()[-1] == "p2,nan,nan"
 
+
+
+def _fiducials_params(cli, tmp_path):
+    params = tmp_path / "p.json"
+    fid = pg.datasets.path("lecture_fiducials")
+    code, _, err = cli("transform", "estimate", "similarity2d", fid, "--output-params", params)
+    assert code == 0, err
+    return fid, params
+
+
+def test_dash_output_of_a_printing_command_is_the_standard_output(cli, tmp_path, monkeypatch):
+    # '-o -' wrote a file named '-' in the current folder ("wrote 8 point(s) to -"), where a
+    # command line means the standard output, which these commands print to without -o
+    fid, params = _fiducials_params(cli, tmp_path)
+    monkeypatch.chdir(tmp_path)
+    code, printed, err = cli("transform", "apply", params, fid)
+    assert code == 0, err
+    for cmd in (("transform", "apply", params, fid), ("crs", "convert", fid, "--from",
+                "EPSG:32632", "--to", "EPSG:32632", "--cols", "x,y")):  # fmt: skip
+        code, out, err = cli(*cmd, "-o", "-")
+        assert code == 0, err
+        assert not (tmp_path / "-").exists()
+        if cmd[0] == "transform":
+            assert out == printed and out.count("\n") == 1 + 1 + 8  # comment, header, rows
+
+
+def test_dash_for_an_output_that_is_a_file_or_folder_is_refused(cli, tmp_path, monkeypatch):
+    fid = pg.datasets.path("lecture_fiducials")
+    grids = tmp_path / "g.json"  # not read: the refusal comes first
+    monkeypatch.chdir(tmp_path)
+    cases = [
+        (("transform", "estimate", "similarity2d", fid, "--report", "-"), "--report -", "file"),
+        (("transform", "estimate", "similarity2d", fid, "--output-params", "-"),
+         "--output-params -", "file"),
+        (("orient", "absolute", pg.datasets.path("lidar_wang2014"), "--report", "-"),
+         "--report -", "file"),
+        (("bundle", "simulate", "-", "--strips", "2", "--images-per-strip", "3"), "OUTPUT -",
+         "folder"),
+        (("grid", "correct-images", grids, tmp_path, "-"), "DST_DIR -", "folder"),
+        (("examples", "run", "fiducials", "--report", "-"), "--report -", "file"),
+    ]  # fmt: skip
+    for args, named, kind in cases:
+        code, out, err = cli(*args)
+        assert code == 2, (args, err)
+        assert err.startswith(f"error: {named}: this output is written to a {kind}"), err
+        assert f"give a {kind} name" in err and len(err.strip().splitlines()) == 1
+        assert out == ""
+        assert not (tmp_path / "-").exists(), args

@@ -130,9 +130,47 @@ def with_alpha(fit, alpha: float):
     return replace(fit, extras={**dict(fit.extras or {}), "alpha": float(alpha)})
 
 
+def dash_is_stdout(value: Path | None) -> Path | None:
+    """``-o -``: the standard output, as when ``-o`` is left out (None), for the options whose
+    default is to print; any other path unchanged."""
+    return None if value is not None and str(value) == STDOUT_DASH else value
+
+
+#: The name that means the standard output on a command line.
+STDOUT_DASH = "-"
+
+
+def refuse_stdout_dash(
+    option: str, path: Path | None, *, folder: bool = False, seekable: bool = False
+) -> None:
+    """Refuse ``-`` for an output that is always written to disk (a report, a parameter
+    file, a block folder): a file or folder named ``-`` in the current folder is not what a
+    command line means by it, the standard output.
+
+    ``folder``: the output is a folder; ``seekable``: a file written with seeks (a LAS/LAZ
+    cloud), which ``/dev/stdout`` cannot take either.
+
+    Raises
+    ------
+    InputError
+        Naming ``option`` and what to give instead.
+    """
+    if path is None or str(path) != STDOUT_DASH:
+        return
+    if folder:
+        what = "a folder, not to the standard output; give a folder name"
+    elif seekable:
+        what = "a file, not to the standard output; give a file name"
+    else:
+        what = "a file, not to the standard output; give a file name (/dev/stdout prints its text)"
+    raise InputError(f"{option} -: this output is written to {what}")
+
 #: ``--output/-o`` of the commands that write a point CSV (or print it).
 OutputCsvOpt = Annotated[
-    Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+    Path | None,
+    typer.Option(
+        "--output", "-o", help="Output CSV (default, or -: stdout).", callback=dash_is_stdout
+    ),
 ]
 
 

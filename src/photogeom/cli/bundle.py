@@ -33,6 +33,7 @@ from ._common import (
     iteration_progress,
     json_text,
     options_in_errors,
+    refuse_stdout_dash,
     say,
     split_names,
     stage_spinner,
@@ -211,13 +212,18 @@ def check_targets(blocks=(), files=(), made=()) -> None:
     ``blocks``: ``(option, path, format)`` of blocks to write; ``files``: ``(option, path)``
     of single files; ``made``: folders the command creates (files may go into them). A CSV
     or COLMAP block onto an existing file, a file onto a folder or into a folder that does
-    not exist raise :class:`~photogeom.errors.OutputError` naming the option; two options
+    not exist raise :class:`~photogeom.errors.OutputError` naming the option; ``-`` (the
+    standard output of the options that print) raises
+    :class:`~photogeom.errors.InputError`; two options
     naming one file (``--report r --result r``; a file and a BAL block) raise
     :class:`~photogeom.errors.InputError` naming both (one output would silently replace
     the other).
     """
     from ..bundle.io_formats import check_block_target
-
+    for opt, path, fmt in blocks:
+        refuse_stdout_dash(opt, path, folder=fmt != "bal")
+    for opt, path in files:
+        refuse_stdout_dash(opt, path)
     named: dict[str, str] = {}
     singles = [(o, p) for o, p, f in blocks if f == "bal"] + list(files)
     for opt, path in singles:
@@ -983,6 +989,7 @@ def report_cmd(
 
     if max_rows < 1:
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
+    refuse_stdout_dash(typed_option("--output", "--report"), output)
     if str(output.parent) and not output.parent.is_dir():
         name = typed_option("--output", "--report")
         raise InputError(f"{name}: cannot write {output}: folder {output.parent} does not exist")

@@ -34,6 +34,7 @@ from ._common import (
     emit_points,
     json_text,
     options_in_errors,
+    refuse_stdout_dash,
     say,
     scheduler_option,
     split_names,
@@ -1292,6 +1293,7 @@ def correct_images(
     1 when some image failed)."""
     from ..calibration import correct_folder, load_grids
 
+    refuse_stdout_dash("DST_DIR", dst_dir, folder=True)
     mode: bool | str = dask
     if scheduler:
         mode, workers = _scheduler_mode(scheduler, workers)

@@ -29,6 +29,7 @@ from ._common import (
     column_options,
     console,
     crs_from_comments,
+    dash_is_stdout,
     file_crs,
     json_text,
     load_pairs,
@@ -584,7 +585,13 @@ def apply(
     ],
     points: Annotated[Path, typer.Argument(help="CSV of points to transform.")],
     output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Output CSV (default: print to stdout).")
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Output CSV (default, or -: print to stdout).",
+            callback=dash_is_stdout,
+        ),
     ] = None,
     inverse: Annotated[
         bool, typer.Option("--inverse", help="Apply the inverse transformation (target -> source).")
