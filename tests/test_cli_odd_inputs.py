@@ -94,3 +94,25 @@ def test_dash_for_an_output_that_is_a_file_or_folder_is_refused(cli, tmp_path, m
         assert f"give a {kind} name" in err and len(err.strip().splitlines()) == 1
         assert out == ""
         assert not (tmp_path / "-").exists(), args
+
+
+def test_out_cols_that_the_readers_would_refuse_are_refused(cli, tmp_path):
+    # '--out-cols a,a' and '--out-cols id,b' wrote headers 'id,a,a' and 'id,id,b' (exit 0),
+    # files that every point reader refuses ("column name(s) a appear more than once")
+    fid, params = _fiducials_params(cli, tmp_path)  # columns id, role, x, y, X, Y
+    apply = ("transform", "apply", params, fid, "--cols", "x,y")
+    convert = ("crs", "convert", fid, "--from", "EPSG:32632", "--to", "EPSG:32632", "--cols",
+               "x,y")  # fmt: skip
+    for cmd in (apply, convert):
+        for names, fault in (("a,a", "a named more than once"), ("id,b", "id is already"),
+                             ("b,role", "role is already")):  # fmt: skip
+            out_csv = tmp_path / "out.csv"
+            code, out, err = cli(*cmd, "--out-cols", names, "-o", out_csv)
+            assert code == 2 and out == "", (cmd, names, err)
+            assert err.startswith("error: --out-cols: ") and fault in err, err
+            assert not out_csv.exists()
+        # names the readers take: written, and read back by the same reader
+        code, _, err = cli(*cmd, "--out-cols", "E,N", "-o", tmp_path / "ok.csv")
+        assert code == 0, err
+        table = pg.io.read_points(tmp_path / "ok.csv", ["E", "N"])
+        assert list(table.ids) == [str(i) for i in range(1, 9)]

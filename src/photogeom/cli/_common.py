@@ -374,6 +374,34 @@ def split_names(text: str | None) -> list[str] | None:
     return parts or None
 
 
+def check_out_cols(names: list[str], n: int, *, role: bool = False) -> None:
+    """The ``--out-cols`` names of a point CSV: ``n`` of them, each once, none that of the id
+    column (``id``) or, when the output has one (``role``), of the role column. A header
+    naming a column twice is refused by every point reader, so such a file could not be read
+    back.
+
+    Raises
+    ------
+    InputError
+        Naming ``--out-cols`` and the names to change.
+    """
+    if len(names) != n:
+        raise InputError(f"--out-cols: {len(names)} name(s) for {n} coordinates")
+    twice = sorted({c for c in names if names.count(c) > 1})
+    if twice:
+        raise InputError(
+            f"--out-cols: {', '.join(twice)} named more than once; give every coordinate column "
+            "its own name"
+        )
+    others = ["id", "role"] if role else ["id"]
+    taken = [c for c in others if c in names]
+    if taken:
+        raise InputError(
+            f"--out-cols: {', '.join(taken)} is already a column of the output "
+            f"({', '.join(others)}); give the coordinates other names"
+        )
+
+
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
     """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
 

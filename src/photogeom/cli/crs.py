@@ -15,6 +15,7 @@ from ..errors import InputError
 from ._common import (
     IdColOpt,
     OutputCsvOpt,
+    check_out_cols,
     column_options,
     crs_column_names,
     option_or_file_crs,
@@ -164,8 +165,7 @@ def convert(
         )
     convert_points = _crs.points_converter(src, dst, allow_ballpark=allow_ballpark)
     names = split_names(out_cols) or list(crs_column_names(dst, opt_to)[: blocks.dim])
-    if len(names) != blocks.dim:
-        raise InputError(f"--out-cols: {len(names)} name(s) for {blocks.dim} coordinates")
+    check_out_cols(names, blocks.dim, role=blocks.has_roles)
     comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
     comments.append(f"crs: {dst}")
 

@@ -25,6 +25,7 @@ from ._common import (
     cartesian_crs_option,
     check_alpha,
     check_mask,
+    check_out_cols,
     check_outputs,
     column_options,
     console,
@@ -688,8 +689,7 @@ def apply(
     if names is None:  # the column names of the estimate's output side, else x <-> X
         recorded = to_cols is not None and len(to_cols) == n_out
         names = list(to_cols) if recorded else _output_columns(blocks.columns)
-    if len(names) != n_out:
-        raise InputError(f"--out-cols: {len(names)} name(s) for {n_out} coordinates")
+    check_out_cols(names, n_out, role=blocks.has_roles)
     direction = "inverse of" if inverse else "forward"
     comments = [
         f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "
