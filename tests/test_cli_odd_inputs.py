@@ -116,3 +116,42 @@ def test_out_cols_that_the_readers_would_refuse_are_refused(cli, tmp_path):
         assert code == 0, err
         table = pg.io.read_points(tmp_path / "ok.csv", ["E", "N"])
         assert list(table.ids) == [str(i) for i in range(1, 9)]
+
+
+def test_a_streamed_job_that_stops_at_its_first_block_prints_nothing(cli, tmp_path):
+    # the comment and header lines were printed before the error (a script's '> out.csv'
+    # kept a header-only file beside exit code 2): '--tol 0', a NaN on line 3
+    pixels = tmp_path / "px.csv"
+    pixels.write_text("id,col,row,h\np1,6000,5000,30\np2,6100,5100,31\n")
+    for args in (("--tol", "0"), ("--max-iter", "0")):
+        code, out, err = cli("rpc", "localize", IKONOS, pixels, *args)
+        assert code == 2 and err.startswith(f"error: {args[0]} ") and out == "", (args, err)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("id,col,row,h\np1,6000,5000,30\np2,6100,nan,31\n")
+    code, out, err = cli("rpc", "localize", IKONOS, bad)
+    assert code == 2 and "line 3" in err and out == ""
+    # a job without rows still prints its comments and header, and a good one is unchanged
+    empty = tmp_path / "empty.csv"
+    empty.write_text("id,col,row,h\n")
+    code, out, _ = cli("rpc", "localize", IKONOS, empty)
+    assert code == 0 and out.splitlines()[-1] == "id,lon,lat,h,status"
+    code, out, _ = cli("rpc", "localize", IKONOS, pixels)
+    lines = out.splitlines()
+    assert code == 0 and lines[-3] == "id,lon,lat,h,status" and lines[-1].startswith("p2,")
+
+
+def test_point_writer_to_a_stream_writes_nothing_before_its_rows():
+    import io
+
+    from photogeom.io import PointWriter
+
+    buf = io.BytesIO()
+    try:
+        with PointWriter(None, ["x", "y"], comments=["c"], stream=buf):
+            raise RuntimeError("the first block failed")
+    except RuntimeError:
+        pass
+    assert buf.getvalue() == b""
+    with PointWriter(None, ["x", "y"], comments=["c"], stream=buf) as w:
+        w.write(["a"], np.array([[1.0, 2.5]]))
+    assert buf.getvalue() == b"# c\nid,x,y\na,1.0,2.5\n"
