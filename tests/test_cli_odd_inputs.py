@@ -155,3 +155,21 @@ def test_point_writer_to_a_stream_writes_nothing_before_its_rows():
     with PointWriter(None, ["x", "y"], comments=["c"], stream=buf) as w:
         w.write(["a"], np.array([[1.0, 2.5]]))
     assert buf.getvalue() == b"# c\nid,x,y\na,1.0,2.5\n"
+
+
+def test_correct_images_names_a_file_given_as_the_image_folder(cli, tmp_path):
+    # a file as SRC_DIR was reported as "input folder F does not exist", though it exists
+    grids = tmp_path / "g.json"
+    res = tmp_path / "r.csv"
+    rows = [f"a,{u},{v},0.1,-0.1" for u in range(50, 1000, 100) for v in range(50, 800, 100)]
+    res.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
+    code, _, err = cli("grid", "fit", res, "--image-size", "1000x800", "--spacing", "500",
+                       "--folds", "0", "-o", grids)  # fmt: skip
+    assert code == 0, err
+    code, out, err = cli("grid", "correct-images", grids, res, tmp_path / "out")
+    assert code == 2 and out == ""
+    assert err == f"error: input folder {res} is a file, not a folder: give the folder that " \
+        "holds the images\n"  # fmt: skip
+    assert not (tmp_path / "out").exists()
+    code, _, err = cli("grid", "correct-images", grids, tmp_path / "none", tmp_path / "out")
+    assert code == 2 and err == f"error: input folder {tmp_path / 'none'} does not exist\n"
