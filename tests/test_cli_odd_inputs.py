@@ -173,3 +173,25 @@ def test_correct_images_names_a_file_given_as_the_image_folder(cli, tmp_path):
     assert not (tmp_path / "out").exists()
     code, _, err = cli("grid", "correct-images", grids, tmp_path / "none", tmp_path / "out")
     assert code == 2 and err == f"error: input folder {tmp_path / 'none'} does not exist\n"
+
+
+def test_pixel_without_pixel_geometry_is_explained_in_options(cli, tmp_path):
+    # '--pixel' with a camera given by --f alone said "set origin_px ..., e.g. with
+    # InteriorOrientation.digital(...)": Python words, no option to use
+    ground = tmp_path / "g.csv"
+    ground.write_text("id,X,Y,Z\n1,990,1010,5\n2,1020,980,0\n")
+    eo = ("--eo", "1000,1000,1500,0,0,0")
+    code, out, err = cli("camera", "project", ground, "--f", "152", *eo, "--pixel")
+    assert code == 2 and out == "" and len(err.splitlines()) == 1
+    assert "InteriorOrientation" not in err and "--principal-point COL,ROW" in err, err
+    assert "--pixel-size" in err and "leave out --pixel" in err
+    # the advice works: the principal point at pixel (5000, 4000) with 10 um pixels puts the
+    # nadir point (1000, 1000) there and a point 10 m east 152 / 1500 * 10 mm = 100 px right
+    ground.write_text("id,X,Y,Z\n1,1000,1000,0\n2,1010,1000,0\n")
+    code, out, err = cli("camera", "project", ground, "--f", "152", *eo, "--pixel",
+                         "--principal-point", "5000,4000", "--pixel-size", "0.01")  # fmt: skip
+    assert code == 0, err
+    rows = [r.split(",") for r in out.splitlines() if r[:2] in ("1,", "2,")]
+    np.testing.assert_allclose(np.array(rows, dtype=float)[:, 1:],
+                               [[5000, 4000], [5000 + 152 / 1500 * 10 / 0.01, 4000]],
+                               atol=1e-6)  # fmt: skip

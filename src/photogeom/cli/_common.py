@@ -655,6 +655,15 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
         "angles in --angle-unit)",
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
+    # --pixel with a camera that does not know where its principal point lies in pixels
+    (
+        "has no pixel geometry: set origin_px (the pixel position of the image-system origin), "
+        "e.g. with InteriorOrientation.digital(...)",
+        "has no pixel geometry, which --pixel needs: give the principal point with "
+        "--principal-point COL,ROW (px; with --pixel-size for a camera in mm) or a camera in "
+        "pixels (--calibration, or a --camera file with origin_px); or leave out --pixel "
+        "(image coordinates in the camera's unit)",
+    ),
     ("(allow_ballpark=True / --allow-ballpark)", "(--allow-ballpark)"),
     # no command drops weak points: the fix on the command line is the block's files
     (
