@@ -195,3 +195,21 @@ def test_pixel_without_pixel_geometry_is_explained_in_options(cli, tmp_path):
     np.testing.assert_allclose(np.array(rows, dtype=float)[:, 1:],
                                [[5000, 4000], [5000 + 152 / 1500 * 10 / 0.01, 4000]],
                                atol=1e-6)  # fmt: skip
+
+
+def test_grid_apply_names_an_empty_image_id_without_a_grid(cli, tmp_path):
+    # a row with an empty image_id said "no grid in g.json for image(s) " and named nothing
+    res = tmp_path / "r.csv"
+    rows = [f"a,{u},{v},0.1,-0.1" for u in range(50, 1000, 100) for v in range(50, 800, 100)]
+    res.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
+    grids = tmp_path / "g.json"
+    code, _, err = cli("grid", "fit", res, "--image-size", "1000x800", "--spacing", "500",
+                       "--folds", "0", "-o", grids)  # fmt: skip
+    assert code == 0, err
+    obs = tmp_path / "o.csv"
+    obs.write_text("image_id,u,v\na,10,10\n,20,20\na,30,30\n")
+    out_csv = tmp_path / "out.csv"
+    code, out, err = cli("grid", "apply", grids, obs, "-o", out_csv)
+    assert code == 2 and out == "" and not out_csv.exists()
+    assert err == (f"error: {obs}: no grid in {grids} for image(s) '' (first row: line 3); fit "
+                   "their grids with photogeom grid fit, or remove their rows\n")  # fmt: skip
