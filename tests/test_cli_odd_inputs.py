@@ -213,3 +213,24 @@ def test_grid_apply_names_an_empty_image_id_without_a_grid(cli, tmp_path):
     assert code == 2 and out == "" and not out_csv.exists()
     assert err == (f"error: {obs}: no grid in {grids} for image(s) '' (first row: line 3); fit "
                    "their grids with photogeom grid fit, or remove their rows\n")  # fmt: skip
+
+
+def test_an_unknown_image_key_is_refused(cli, tmp_path):
+    # '--image-key bogus' ran (exit 0) on a CSV block and stopped with Python words
+    # ("image_key must be 'name' or 'id'") on a COLMAP model; it is a choice of two now
+    blk = tmp_path / "blk"
+    small = ("--strips", "2", "--images-per-strip", "3", "--tie-points-per-image", "20")
+    code, _, err = cli("bundle", "simulate", blk, *small, "--gcps", "none", "--checks", "0")
+    assert code == 0, err
+    for cmd in (("adjust", blk), ("convert", blk, tmp_path / "b.bal", "--drop-extras")):
+        code, out, err = cli("bundle", *cmd, "--image-key", "bogus")
+        assert code == 2 and out == "", (cmd, err)
+        assert "Invalid value for '--image-key'" in err and "'name', 'id'" in err, err
+    assert not (tmp_path / "b.bal").exists()
+    colmap = tmp_path / "colmap"
+    code, _, err = cli("bundle", "convert", blk, colmap, "--to", "colmap", "--drop-extras")
+    assert code == 0, err
+    code, out, err = cli("bundle", "convert", colmap, tmp_path / "back", "--to", "csv",
+                         "--image-key", "id", "--json")  # fmt: skip
+    assert code == 0, err
+    assert _strict_json(out)["images"] == 6

@@ -193,7 +193,7 @@ def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
     if fmt == "colmap":
-        return bundle.read_colmap(path, image_key=image_key, **kw)
+        return bundle.read_colmap(path, image_key=ImageKey(image_key).value, **kw)
     return bundle.read_csv_block(path, **kw)
 
 
@@ -298,8 +298,15 @@ SigmaOpt = Annotated[
         "COLMAP, 0.5 for CSV blocks without a sigma column).",
     ),
 ]
+class ImageKey(str, Enum):
+    """How the images of a COLMAP model are named in the block."""
+
+    by_name = "name"
+    by_id = "id"
+
+
 ImageKeyOpt = Annotated[
-    str, typer.Option("--image-key", help="COLMAP: image ids from 'name' or 'id'.")
+    ImageKey, typer.Option("--image-key", help="COLMAP: image ids from 'name' or 'id'.")
 ]
 DropExtrasOpt = Annotated[
     bool,
@@ -566,7 +573,7 @@ def adjust(
         ),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
-    image_key: ImageKeyOpt = "name",
+    image_key: ImageKeyOpt = ImageKey.by_name,
     drop_extras: DropExtrasOpt = False,
     crs: Annotated[
         str | None,
@@ -920,7 +927,7 @@ def convert(
         ),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
-    image_key: ImageKeyOpt = "name",
+    image_key: ImageKeyOpt = ImageKey.by_name,
     drop_extras: DropExtrasOpt = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
