@@ -234,3 +234,25 @@ def test_an_unknown_image_key_is_refused(cli, tmp_path):
                          "--image-key", "id", "--json")  # fmt: skip
     assert code == 0, err
     assert _strict_json(out)["images"] == 6
+
+
+def test_bundle_simulate_refuses_in_the_words_of_its_options(cli, tmp_path):
+    # '--terrain bogus' said "terrain must be ... or a callable Z(X, Y)", '--gsd nan' "gsd /
+    # flying_height must be > 0, got nan / nan", '--gcps bogus' offered "an (n, 2) array":
+    # Python words and values no command line can give
+    out_dir = tmp_path / "blk"
+    cases = [
+        (("--terrain", "bogus"), "error: --terrain must be 'flat' or 'hilly', got 'bogus'"),
+        (("--gsd", "nan"), "error: --gsd must be a positive number of metres per pixel, got nan"),
+        (("--gsd", "-0.01"), "error: --gsd must be a positive number of metres per pixel"),
+        (("--gcps", "bogus"), "error: --gcps: unknown layout 'bogus'; use 'corners', "),
+        (("--checks", "-1"), "error: --checks: unknown layout '-1'; use 'corners', "),
+    ]
+    for args, start in cases:
+        code, out, err = cli("bundle", "simulate", out_dir, *args)
+        assert code == 2 and out == "" and err.startswith(start), (args, err)
+        for python in ("callable", "flying_height", "array", "terrain="):
+            assert python not in err, (args, err)
+        assert not out_dir.exists()
+    code, _, err = cli("bundle", "simulate", out_dir, "--checks", "bogus")
+    assert err.rstrip().endswith("or a count of points at random positions (0 or more)")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import re
 from enum import Enum
@@ -95,6 +96,15 @@ _CLI_WORDS = (
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
     ("read with image_key='id'", "read with --image-key id"),
+    # bundle simulate: the layouts and terrains a command line can give
+    (
+        ", a count (random positions) or an (n, 2) array of X, Y",
+        " or a count of points at random positions (0 or more)",
+    ),
+    (
+        "terrain must be 'flat', 'hilly' or a callable Z(X, Y)",
+        "--terrain must be 'flat' or 'hilly'",
+    ),
 )
 
 #: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
@@ -405,6 +415,8 @@ def simulate(
         t = text.strip()
         return int(t) if t.isdigit() else t
 
+    if gsd is not None and not (math.isfinite(gsd) and gsd > 0):
+        raise InputError(f"--gsd must be a positive number of metres per pixel, got {gsd}")
     kwargs = dict(
         seed=seed,
         size=size,
