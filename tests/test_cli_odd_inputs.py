@@ -8,6 +8,9 @@ import json
 import warnings
 
 import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import photogeom as pg
 
@@ -256,3 +259,83 @@ def test_bundle_simulate_refuses_in_the_words_of_its_options(cli, tmp_path):
         assert not out_dir.exists()
     code, _, err = cli("bundle", "simulate", out_dir, "--checks", "bogus")
     assert err.rstrip().endswith("or a count of points at random positions (0 or more)")
+
+
+# --- garbage lines through the point readers of the command line -------------------------------
+
+_GARBAGE = st.lists(
+    st.one_of(
+        st.text(alphabet='0123456789.,;"# \t-+eEnaifé\ufeff\r', max_size=12),
+        st.sampled_from(["a,nan,1", "a,1,inf", "7;1,5;2", '"p,1', "id,x,y", "#", ""]),
+    ),
+    min_size=1,
+    max_size=3,
+)
+
+
+@pytest.fixture(scope="module")
+def garbage_models(tmp_path_factory):
+    """The parameter file of ``transform apply`` and the grids file of ``grid apply``, made
+    once for the garbage-line test."""
+    from photogeom.cli.main import main
+
+    tmp = tmp_path_factory.mktemp("models")
+    params = tmp / "p.json"
+    params.write_text(json.dumps({"model_parameters": pg.Similarity2D(1.0, 0.1, 5.0, -2.0)
+                                  .to_dict()}))  # fmt: skip
+    res = tmp / "r.csv"
+    res.write_text("image_id,u,v,rx,ry\n" + "\n".join(
+        f"a,{u},{v},0.1,-0.1" for u in range(50, 400, 100) for v in range(50, 400, 100)
+    ) + "\n")  # fmt: skip
+    grids = tmp / "g.json"
+    try:
+        main(["grid", "fit", str(res), "--image-size", "400x400", "--spacing", "200",
+              "--folds", "0", "-o", str(grids)])  # fmt: skip
+    except SystemExit as done:
+        assert done.code in (0, None)
+    return {
+        "transform apply": ("transform", "apply", params),
+        "grid apply": ("grid", "apply", grids),
+        "rpc localize": ("rpc", "localize", IKONOS),
+    }
+
+
+_GOOD_LINES = {
+    "transform apply": ["id,x,y", "1,0.5,1.5", "2,3,4", "3,-1,2.25"],
+    "grid apply": ["image_id,u,v", "a,10,20", "a,200.5,100", "a,300,399"],
+    "rpc localize": ["id,col,row,h", "p1,6000,5000,30", "p2,6100,5100,31", "p3,100,200,20"],
+}
+
+
+@settings(
+    max_examples=12,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(
+    garbage=_GARBAGE,
+    where=st.integers(min_value=0, max_value=5),
+    encoding=st.sampled_from(["utf-8", "utf-8-sig", "latin-1"]),
+    command=st.sampled_from(sorted(_GOOD_LINES)),
+)
+def test_garbage_lines_give_a_result_or_one_error_line(
+    cli, tmp_path_factory, garbage_models, garbage, where, encoding, command
+):
+    # any line a spreadsheet or an editor may leave in a point CSV: the command either works
+    # (exit 0) or stops with one 'error:' line (exit 2), never a traceback, and a failed run
+    # leaves no output file and no temporary file
+    tmp = tmp_path_factory.mktemp("garbage")
+    lines = list(_GOOD_LINES[command])
+    lines[where % (len(lines) + 1):where % (len(lines) + 1)] = garbage
+    pts = tmp / "pts.csv"
+    pts.write_bytes("\n".join(lines).encode(encoding, errors="replace") + b"\n")
+    out_csv = tmp / "out.csv"
+    code, _, err = cli(*garbage_models[command], pts, "-o", out_csv)
+    assert code in (0, 2), err
+    assert "Traceback" not in err
+    if code == 2:
+        assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, err
+        assert not out_csv.exists()
+    else:
+        assert out_csv.exists()
+    assert not [p.name for p in tmp.iterdir() if p.name.startswith(".")]
