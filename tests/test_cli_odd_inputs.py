@@ -339,3 +339,21 @@ def test_garbage_lines_give_a_result_or_one_error_line(
     else:
         assert out_csv.exists()
     assert not [p.name for p in tmp.iterdir() if p.name.startswith(".")]
+
+
+def test_rpc_project_refuses_lon_lat_columns_read_in_a_cartesian_crs(cli, tmp_path):
+    # columns lon, lat, h with --crs EPSG:32721 were read as easting, northing in metres:
+    # pixels four million pixels off the image (exit 0, an extrapolation warning only)
+    pts = tmp_path / "g.csv"
+    pts.write_text("id,lon,lat,h\np1,-56.17,-34.9,30.0\n")
+    for crs in ("EPSG:32721", "enu:-34.9,-56.1,0"):
+        code, out, err = cli("rpc", "project", IKONOS, pts, "--crs", crs)
+        assert code == 2 and out == "", err
+        assert err.startswith(f"error: {pts}: columns lon, lat, h hold longitude and latitude, "
+                              f"but --crs {crs} has Cartesian coordinates")  # fmt: skip
+    # a geographic --crs takes them
+    code, out, err = cli("rpc", "project", IKONOS, pts, "--crs", "EPSG:4979", "--json")
+    assert code == 0, err
+    col, row = pg.RPC.from_file(IKONOS).project(-56.17, -34.9, 30.0)
+    got = _strict_json(out)["points"][0]
+    np.testing.assert_allclose([got["col"], got["row"]], [col, row], atol=1e-6)

@@ -219,6 +219,15 @@ def project(
     else:
         blocks = _blocks_with(points, cols, _CRS_COLS, "ground (x, y, z)", id_col)
         to_wgs84 = _input_crs(crs, allow_ballpark)
+        names = crs_column_names(crs.strip(), "--crs")
+        if cols is None and list(blocks.columns) in GROUND_COLS and names[0] != "lon":
+            # degrees read as metres: pixels far outside the image, with no error
+            raise InputError(
+                f"{points}: columns {', '.join(blocks.columns)} hold longitude and latitude, "
+                f"but --crs {crs} has Cartesian coordinates ({', '.join(names)}); give the "
+                "CRS of the points (leave --crs out for lon, lat, h of WGS 84), or name "
+                "their columns with --cols"
+            )
     if blocks.dim != 3:
         raise InputError(
             f"--cols: need three ground columns lon,lat,h, got {', '.join(blocks.columns)}"
