@@ -351,6 +351,11 @@ def test_rpc_project_refuses_lon_lat_columns_read_in_a_cartesian_crs(cli, tmp_pa
         assert code == 2 and out == "", err
         assert err.startswith(f"error: {pts}: columns lon, lat, h hold longitude and latitude, "
                               f"but --crs {crs} has Cartesian coordinates")  # fmt: skip
+    lined = tmp_path / "lined.csv"
+    lined.write_text("# crs: EPSG:32721\n" + pts.read_text())
+    code, out, err = cli("rpc", "project", IKONOS, lined)
+    assert code == 2 and "but the file's CRS EPSG:32721 has Cartesian" in err
+    assert "correct the file's '# crs:' line" in err and "leave --crs out" not in err
     # a geographic --crs takes them
     code, out, err = cli("rpc", "project", IKONOS, pts, "--crs", "EPSG:4979", "--json")
     assert code == 0, err

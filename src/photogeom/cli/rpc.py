@@ -222,10 +222,15 @@ def project(
         names = crs_column_names(crs.strip(), "--crs")
         if cols is None and list(blocks.columns) in GROUND_COLS and names[0] != "lon":
             # degrees read as metres: pixels far outside the image, with no error
+            where = f"--crs {crs}" if given else f"the file's CRS {crs}"
+            fix = (
+                "give the CRS of the points (leave --crs out for lon, lat, h of WGS 84)"
+                if given
+                else "correct the file's '# crs:' line (e.g. '# crs: EPSG:4979')"
+            )
             raise InputError(
                 f"{points}: columns {', '.join(blocks.columns)} hold longitude and latitude, "
-                f"but --crs {crs} has Cartesian coordinates ({', '.join(names)}); give the "
-                "CRS of the points (leave --crs out for lon, lat, h of WGS 84), or name "
+                f"but {where} has Cartesian coordinates ({', '.join(names)}); {fix}, or name "
                 "their columns with --cols"
             )
     if blocks.dim != 3:
