@@ -362,3 +362,29 @@ def test_rpc_project_refuses_lon_lat_columns_read_in_a_cartesian_crs(cli, tmp_pa
     col, row = pg.RPC.from_file(IKONOS).project(-56.17, -34.9, 30.0)
     got = _strict_json(out)["points"][0]
     np.testing.assert_allclose([got["col"], got["row"]], [col, row], atol=1e-6)
+
+
+def test_crs_convert_refuses_lon_lat_columns_in_a_cartesian_crs(cli, tmp_path):
+    # 'crs convert g.csv --from EPSG:32721 --to EPSG:4979' with columns lon,lat,h read the
+    # degrees as metres and wrote lon -147.2, lat -85.5 for a point at -56.17, -34.9 (exit 0)
+    pts = tmp_path / "g.csv"
+    pts.write_text("id,lon,lat,h\np1,-56.17,-34.9,30.0\n")
+    out_csv = tmp_path / "out.csv"
+    code, out, err = cli("crs", "convert", pts, "--from", "EPSG:32721", "--to", "EPSG:4979",
+                         "-o", out_csv)  # fmt: skip
+    assert code == 2 and out == "" and not out_csv.exists()
+    assert err.startswith(f"error: {pts}: columns lon, lat, h hold longitude and latitude, but "
+                          "its CRS EPSG:32721 has Cartesian coordinates (x, y, z); give the CRS "
+                          "of the points with --from (e.g. --from EPSG:4979)")  # fmt: skip
+    lined = tmp_path / "lined.csv"
+    lined.write_text("# crs: enu:-34.9,-56.1,0\n" + pts.read_text())
+    code, _, err = cli("crs", "convert", lined, "--to-crs", "EPSG:4979")
+    assert code == 2 and "correct the file's '# crs:' line" in err
+    # with the CRS of the points the same file converts, and back again to the same numbers
+    code, out, err = cli("crs", "convert", pts, "--from", "EPSG:4979", "--to", "EPSG:32721",
+                         "-o", out_csv)  # fmt: skip
+    assert code == 0, err
+    code, out, err = cli("crs", "convert", out_csv, "--to", "EPSG:4979")
+    assert code == 0, err
+    np.testing.assert_allclose([float(v) for v in out.splitlines()[-1].split(",")[1:]],
+                               [-56.17, -34.9, 30.0], atol=1e-9)  # fmt: skip

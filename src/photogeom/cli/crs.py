@@ -155,6 +155,19 @@ def convert(
             f"{points} records no CRS (no '# crs:' line): give the CRS of its coordinates "
             f"with {opt_from} (e.g. {opt_from} EPSG:4979)"
         )
+    src_names = crs_column_names(src, opt_from)
+    if cols is None and tuple(blocks.columns) in GEOGRAPHIC_COLS and src_names[0] != "lon":
+        # degrees read as metres: points on another continent, with no error
+        raise InputError(
+            f"{points}: columns {', '.join(blocks.columns)} hold longitude and latitude, but "
+            f"its CRS {src} has Cartesian coordinates ({', '.join(src_names)}); "
+            + (
+                f"give the CRS of the points with {opt_from} (e.g. {opt_from} EPSG:4979)"
+                if from_crs is not None
+                else "correct the file's '# crs:' line (e.g. '# crs: EPSG:4979')"
+            )
+            + ", or name their columns with --cols"
+        )
     dst = resolve(to_crs, opt_to)
     enu_in = _crs.frame_from_text(src) is not None
     enu_out = _crs.frame_from_text(dst) is not None
