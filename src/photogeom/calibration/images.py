@@ -946,6 +946,11 @@ def correct_folder(
     """
     src, dst = Path(src_dir), Path(dst_dir)
     if not src.is_dir():
+        if src.exists():
+            raise InputError(
+                f"input folder {src} is a file, not a folder: give the folder that holds the "
+                "images"
+            )
         raise InputError(f"input folder {src} does not exist")
     if interpolation not in INTERPOLATIONS:
         raise InputError(

@@ -130,9 +130,47 @@ def with_alpha(fit, alpha: float):
     return replace(fit, extras={**dict(fit.extras or {}), "alpha": float(alpha)})
 
 
+def dash_is_stdout(value: Path | None) -> Path | None:
+    """``-o -``: the standard output, as when ``-o`` is left out (None), for the options whose
+    default is to print; any other path unchanged."""
+    return None if value is not None and str(value) == STDOUT_DASH else value
+
+
+#: The name that means the standard output on a command line.
+STDOUT_DASH = "-"
+
+
+def refuse_stdout_dash(
+    option: str, path: Path | None, *, folder: bool = False, seekable: bool = False
+) -> None:
+    """Refuse ``-`` for an output that is always written to disk (a report, a parameter
+    file, a block folder): a file or folder named ``-`` in the current folder is not what a
+    command line means by it, the standard output.
+
+    ``folder``: the output is a folder; ``seekable``: a file written with seeks (a LAS/LAZ
+    cloud), which ``/dev/stdout`` cannot take either.
+
+    Raises
+    ------
+    InputError
+        Naming ``option`` and what to give instead.
+    """
+    if path is None or str(path) != STDOUT_DASH:
+        return
+    if folder:
+        what = "a folder, not to the standard output; give a folder name"
+    elif seekable:
+        what = "a file, not to the standard output; give a file name"
+    else:
+        what = "a file, not to the standard output; give a file name (/dev/stdout prints its text)"
+    raise InputError(f"{option} -: this output is written to {what}")
+
 #: ``--output/-o`` of the commands that write a point CSV (or print it).
 OutputCsvOpt = Annotated[
-    Path | None, typer.Option("--output", "-o", help="Output CSV (default: stdout).")
+    Path | None,
+    typer.Option(
+        "--output", "-o", help="Output CSV (default, or -: stdout).", callback=dash_is_stdout
+    ),
 ]
 
 
@@ -334,6 +372,34 @@ def split_names(text: str | None) -> list[str] | None:
         return None
     parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
     return parts or None
+
+
+def check_out_cols(names: list[str], n: int, *, role: bool = False) -> None:
+    """The ``--out-cols`` names of a point CSV: ``n`` of them, each once, none that of the id
+    column (``id``) or, when the output has one (``role``), of the role column. A header
+    naming a column twice is refused by every point reader, so such a file could not be read
+    back.
+
+    Raises
+    ------
+    InputError
+        Naming ``--out-cols`` and the names to change.
+    """
+    if len(names) != n:
+        raise InputError(f"--out-cols: {len(names)} name(s) for {n} coordinates")
+    twice = sorted({c for c in names if names.count(c) > 1})
+    if twice:
+        raise InputError(
+            f"--out-cols: {', '.join(twice)} named more than once; give every coordinate column "
+            "its own name"
+        )
+    others = ["id", "role"] if role else ["id"]
+    taken = [c for c in others if c in names]
+    if taken:
+        raise InputError(
+            f"--out-cols: {', '.join(taken)} is already a column of the output "
+            f"({', '.join(others)}); give the coordinates other names"
+        )
 
 
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
@@ -589,6 +655,15 @@ CLI_WORDS: tuple[tuple[str, str], ...] = (
         "angles in --angle-unit)",
     ),
     ("(order=1, 2, 3, ...)", "(--order 1, 2, 3, ...)"),
+    # --pixel with a camera that does not know where its principal point lies in pixels
+    (
+        "has no pixel geometry: set origin_px (the pixel position of the image-system origin), "
+        "e.g. with InteriorOrientation.digital(...)",
+        "has no pixel geometry, which --pixel needs: give the principal point with "
+        "--principal-point COL,ROW (px; with --pixel-size for a camera in mm) or a camera in "
+        "pixels (--calibration, or a --camera file with origin_px); or leave out --pixel "
+        "(image coordinates in the camera's unit)",
+    ),
     ("(allow_ballpark=True / --allow-ballpark)", "(--allow-ballpark)"),
     # no command drops weak points: the fix on the command line is the block's files
     (

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import re
 from enum import Enum
@@ -33,6 +34,7 @@ from ._common import (
     iteration_progress,
     json_text,
     options_in_errors,
+    refuse_stdout_dash,
     say,
     split_names,
     stage_spinner,
@@ -94,6 +96,15 @@ _CLI_WORDS = (
     ("max_iterations", "--max-iterations"),
     ("loss_scale", "--loss-scale"),
     ("read with image_key='id'", "read with --image-key id"),
+    # bundle simulate: the layouts and terrains a command line can give
+    (
+        ", a count (random positions) or an (n, 2) array of X, Y",
+        " or a count of points at random positions (0 or more)",
+    ),
+    (
+        "terrain must be 'flat', 'hilly' or a callable Z(X, Y)",
+        "--terrain must be 'flat' or 'hilly'",
+    ),
 )
 
 #: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
@@ -192,7 +203,7 @@ def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
     if fmt == "colmap":
-        return bundle.read_colmap(path, image_key=image_key, **kw)
+        return bundle.read_colmap(path, image_key=ImageKey(image_key).value, **kw)
     return bundle.read_csv_block(path, **kw)
 
 
@@ -211,13 +222,18 @@ def check_targets(blocks=(), files=(), made=()) -> None:
     ``blocks``: ``(option, path, format)`` of blocks to write; ``files``: ``(option, path)``
     of single files; ``made``: folders the command creates (files may go into them). A CSV
     or COLMAP block onto an existing file, a file onto a folder or into a folder that does
-    not exist raise :class:`~photogeom.errors.OutputError` naming the option; two options
+    not exist raise :class:`~photogeom.errors.OutputError` naming the option; ``-`` (the
+    standard output of the options that print) raises
+    :class:`~photogeom.errors.InputError`; two options
     naming one file (``--report r --result r``; a file and a BAL block) raise
     :class:`~photogeom.errors.InputError` naming both (one output would silently replace
     the other).
     """
     from ..bundle.io_formats import check_block_target
-
+    for opt, path, fmt in blocks:
+        refuse_stdout_dash(opt, path, folder=fmt != "bal")
+    for opt, path in files:
+        refuse_stdout_dash(opt, path)
     named: dict[str, str] = {}
     singles = [(o, p) for o, p, f in blocks if f == "bal"] + list(files)
     for opt, path in singles:
@@ -292,8 +308,15 @@ SigmaOpt = Annotated[
         "COLMAP, 0.5 for CSV blocks without a sigma column).",
     ),
 ]
+class ImageKey(str, Enum):
+    """How the images of a COLMAP model are named in the block."""
+
+    by_name = "name"
+    by_id = "id"
+
+
 ImageKeyOpt = Annotated[
-    str, typer.Option("--image-key", help="COLMAP: image ids from 'name' or 'id'.")
+    ImageKey, typer.Option("--image-key", help="COLMAP: image ids from 'name' or 'id'.")
 ]
 DropExtrasOpt = Annotated[
     bool,
@@ -392,6 +415,8 @@ def simulate(
         t = text.strip()
         return int(t) if t.isdigit() else t
 
+    if gsd is not None and not (math.isfinite(gsd) and gsd > 0):
+        raise InputError(f"--gsd must be a positive number of metres per pixel, got {gsd}")
     kwargs = dict(
         seed=seed,
         size=size,
@@ -560,7 +585,7 @@ def adjust(
         ),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
-    image_key: ImageKeyOpt = "name",
+    image_key: ImageKeyOpt = ImageKey.by_name,
     drop_extras: DropExtrasOpt = False,
     crs: Annotated[
         str | None,
@@ -914,7 +939,7 @@ def convert(
         ),
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
-    image_key: ImageKeyOpt = "name",
+    image_key: ImageKeyOpt = ImageKey.by_name,
     drop_extras: DropExtrasOpt = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
@@ -986,6 +1011,7 @@ def report_cmd(
 
     if max_rows < 1:
         raise InputError(f"--max-rows must be at least 1, not {max_rows}")
+    refuse_stdout_dash(typed_option("--output", "--report"), output)
     if str(output.parent) and not output.parent.is_dir():
         name = typed_option("--output", "--report")
         raise InputError(f"{name}: cannot write {output}: folder {output.parent} does not exist")

@@ -23,6 +23,7 @@ from ._common import (
     console,
     json_text,
     options_in_errors,
+    refuse_stdout_dash,
     say,
     scheduler_option,
     split_numbers,
@@ -162,6 +163,7 @@ def transform(
     kept, offsets recomputed; the output is written atomically."""
     from ..io.cloud import transform_cloud
 
+    refuse_stdout_dash("OUTPUT", output, seekable=True)
     _check_scheduler(scheduler)
     if (params is None) == (to_crs is None):
         raise InputError("give either --params FILE or --from-crs and --to-crs")

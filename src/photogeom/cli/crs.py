@@ -15,6 +15,7 @@ from ..errors import InputError
 from ._common import (
     IdColOpt,
     OutputCsvOpt,
+    check_out_cols,
     column_options,
     crs_column_names,
     option_or_file_crs,
@@ -154,6 +155,19 @@ def convert(
             f"{points} records no CRS (no '# crs:' line): give the CRS of its coordinates "
             f"with {opt_from} (e.g. {opt_from} EPSG:4979)"
         )
+    src_names = crs_column_names(src, opt_from)
+    if cols is None and tuple(blocks.columns) in GEOGRAPHIC_COLS and src_names[0] != "lon":
+        # degrees read as metres: points on another continent, with no error
+        raise InputError(
+            f"{points}: columns {', '.join(blocks.columns)} hold longitude and latitude, but "
+            f"its CRS {src} has Cartesian coordinates ({', '.join(src_names)}); "
+            + (
+                f"give the CRS of the points with {opt_from} (e.g. {opt_from} EPSG:4979)"
+                if from_crs is not None
+                else "correct the file's '# crs:' line (e.g. '# crs: EPSG:4979')"
+            )
+            + ", or name their columns with --cols"
+        )
     dst = resolve(to_crs, opt_to)
     enu_in = _crs.frame_from_text(src) is not None
     enu_out = _crs.frame_from_text(dst) is not None
@@ -164,8 +178,7 @@ def convert(
         )
     convert_points = _crs.points_converter(src, dst, allow_ballpark=allow_ballpark)
     names = split_names(out_cols) or list(crs_column_names(dst, opt_to)[: blocks.dim])
-    if len(names) != blocks.dim:
-        raise InputError(f"--out-cols: {len(names)} name(s) for {blocks.dim} coordinates")
+    check_out_cols(names, blocks.dim, role=blocks.has_roles)
     comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
     comments.append(f"crs: {dst}")
 

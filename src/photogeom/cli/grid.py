@@ -35,6 +35,7 @@ from ._common import (
     emit_points,
     json_text,
     options_in_errors,
+    refuse_stdout_dash,
     say,
     scheduler_option,
     split_names,
@@ -1191,8 +1192,14 @@ def apply(
     per_image = _groups(ids)
     key_of, missing = match_grid_ids(per_image, grids)  # CSV text against integer ids too
     if missing:
+        # an empty id (or one with white space at its ends, quoted) shown quoted, so that
+        # the message names it; the first row of the first one by its line
+        shown = [repr(m) if not m or m != m.strip() else m for m in map(str, missing[:10])]
+        more = f" ({len(missing)} in all)" if len(missing) > 10 else ""
         raise InputError(
-            f"{observations}: no grid in {grids_file} for image(s) {', '.join(missing[:10])}"
+            f"{observations}: no grid in {grids_file} for image(s) {', '.join(shown)}{more} "
+            f"(first row: line {int(lines[per_image[missing[0]][0]])}); fit their grids with "
+            "photogeom grid fit, or remove their rows"
         )
     width, height = np.empty(len(ids)), np.empty(len(ids))
     for k, r in per_image.items():  # per image, not per point
@@ -1335,6 +1342,7 @@ def correct_images(
     1 when some image failed)."""
     from ..calibration import correct_folder, load_grids
 
+    refuse_stdout_dash("DST_DIR", dst_dir, folder=True)
     mode: bool | str = dask
     if scheduler:
         mode, workers = _scheduler_mode(scheduler, workers)

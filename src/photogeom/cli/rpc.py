@@ -219,6 +219,20 @@ def project(
     else:
         blocks = _blocks_with(points, cols, _CRS_COLS, "ground (x, y, z)", id_col)
         to_wgs84 = _input_crs(crs, allow_ballpark)
+        names = crs_column_names(crs.strip(), "--crs")
+        if cols is None and list(blocks.columns) in GROUND_COLS and names[0] != "lon":
+            # degrees read as metres: pixels far outside the image, with no error
+            where = f"--crs {crs}" if given else f"the file's CRS {crs}"
+            fix = (
+                "give the CRS of the points (leave --crs out for lon, lat, h of WGS 84)"
+                if given
+                else "correct the file's '# crs:' line (e.g. '# crs: EPSG:4979')"
+            )
+            raise InputError(
+                f"{points}: columns {', '.join(blocks.columns)} hold longitude and latitude, "
+                f"but {where} has Cartesian coordinates ({', '.join(names)}); {fix}, or name "
+                "their columns with --cols"
+            )
     if blocks.dim != 3:
         raise InputError(
             f"--cols: need three ground columns lon,lat,h, got {', '.join(blocks.columns)}"
@@ -238,7 +252,7 @@ def project(
         for block in blocks:
             xy, _ = compute(block)
             rows += [
-                {"id": i, "col": float(c), "row": float(r)}
+                {"id": i, "col": finite_or_none(c), "row": finite_or_none(r)}
                 for i, (c, r) in zip(block.ids.to_pylist(), xy)
             ]
         data = {

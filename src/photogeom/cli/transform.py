@@ -25,10 +25,12 @@ from ._common import (
     cartesian_crs_option,
     check_alpha,
     check_mask,
+    check_out_cols,
     check_outputs,
     column_options,
     console,
     crs_from_comments,
+    dash_is_stdout,
     file_crs,
     json_text,
     load_pairs,
@@ -603,7 +605,13 @@ def apply(
     ],
     points: Annotated[Path, typer.Argument(help="CSV of points to transform.")],
     output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Output CSV (default: print to stdout).")
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Output CSV (default, or -: print to stdout).",
+            callback=dash_is_stdout,
+        ),
     ] = None,
     inverse: Annotated[
         bool, typer.Option("--inverse", help="Apply the inverse transformation (target -> source).")
@@ -700,8 +708,7 @@ def apply(
     if names is None:  # the column names of the estimate's output side, else x <-> X
         recorded = to_cols is not None and len(to_cols) == n_out
         names = list(to_cols) if recorded else _output_columns(blocks.columns)
-    if len(names) != n_out:
-        raise InputError(f"--out-cols: {len(names)} name(s) for {n_out} coordinates")
+    check_out_cols(names, n_out, role=blocks.has_roles)
     direction = "inverse of" if inverse else "forward"
     comments = [
         f"{direction} {getattr(transform, 'name', 'transformation')} from {params}; "

@@ -960,7 +960,9 @@ class PointWriter:
     comma, a quote or a line break or begin with ``#`` (which would make the row a comment
     line when read back). A file is written atomically: rows go to a temporary
     file beside it, renamed over ``path`` when the ``with`` block ends without an error (and
-    removed when it ends with one), so a failed job never leaves a half-written file. Large
+    removed when it ends with one), so a failed job never leaves a half-written file. To the
+    standard output (or ``stream``) the comments and the header go out with the first rows,
+    so a job that fails before its first rows prints nothing. Large
     chunks are formatted by pyarrow in worker threads (see :mod:`photogeom.io.csvrows`)
     while the caller prepares the next chunk; memory use is that of a few chunks.
 
@@ -1002,6 +1004,7 @@ class PointWriter:
         self._tmp: str | None = None
         self._rows = None
         self._direct = False  # a device or a named pipe, written in place
+        self._pending_head = False  # the header is still to be printed (standard output)
         self.n_written = 0
 
     def __enter__(self) -> PointWriter:
@@ -1018,6 +1021,16 @@ class PointWriter:
         from .csvrows import OrderedRows
 
         self._rows = OrderedRows(self._put)
+        if self.path is None:
+            # printed with the first rows (or at the end of a job without rows): a job that
+            # stops at its first block, on an option or a row it cannot take, prints nothing
+            self._pending_head = True
+            return self
+        self._write_head()
+        return self
+
+    def _write_head(self) -> None:
+        self._pending_head = False
         try:
             self._fh.write(self._head().encode("utf-8"))
         except OSError as exc:
@@ -1026,7 +1039,6 @@ class PointWriter:
         except BaseException:
             self._abort()
             raise
-        return self
 
     def _open_temporary(self) -> None:
         """A temporary file beside the destination, by the policy of
@@ -1127,6 +1139,8 @@ class PointWriter:
                 arr = np.array(v)  # a copy, as the coordinates
                 v = arr if arr.dtype.kind in "iuf" else text_column(v)
             extras.append(v)
+        if self._pending_head:
+            self._write_head()
         try:
             self._rows.add([ids], coords, extras)
         except OSError as exc:
@@ -1143,6 +1157,8 @@ class PointWriter:
             self._abort()
             return
         if self.path is None:
+            if self._pending_head:  # no rows: the comments and the header alone
+                self._write_head()
             try:
                 self._rows.close()
             except BaseException:
