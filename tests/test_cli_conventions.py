@@ -63,6 +63,31 @@ def test_nothing_heavy_is_imported_before_it_is_needed():
     assert proc.stdout.split() == ["False", "False"]
 
 
+def test_commands_without_blocks_do_not_load_the_bundle_package(tmp_path, xy_pairs):
+    # checking the output options (--output-params, -o) must not import the block readers,
+    # writers and the adjustment: a quarter of the CPU time of a small 'transform estimate'
+    params, out = tmp_path / "t.json", tmp_path / "out.csv"
+    probe = (
+        "import runpy, sys\n"
+        "sys.argv = ['photogeom'] + sys.argv[1:]\n"
+        "try:\n"
+        "    runpy.run_module('photogeom', run_name='__main__')\n"
+        "except SystemExit as e:\n"
+        "    assert not e.code, e.code\n"
+        "print(sorted(m for m in ('photogeom.bundle', 'photogeom.simulate') if m in sys.modules),"
+        " file=sys.stderr)\n"
+    )
+    for args in (
+        ["transform", "estimate", "similarity2d", str(xy_pairs), "--output-params", str(params)],
+        ["transform", "apply", str(params), str(xy_pairs), "-o", str(out), "--cols", "x,y"],
+    ):
+        proc = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
+                              text=True, timeout=120)  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        assert proc.stderr.strip().splitlines()[-1] == "[]", (args, proc.stderr)
+    assert out.read_text().count("\n") >= 7
+
+
 def test_public_names_import_as_before():
     for name in pg.__all__:
         assert getattr(pg, name) is not None, name

@@ -216,8 +216,6 @@ def check_targets(blocks=(), files=(), made=()) -> None:
     :class:`~photogeom.errors.InputError` naming both (one output would silently replace
     the other).
     """
-    from ..bundle.io_formats import check_block_target
-
     named: dict[str, str] = {}
     singles = [(o, p) for o, p, f in blocks if f == "bal"] + list(files)
     for opt, path in singles:
@@ -232,6 +230,10 @@ def check_targets(blocks=(), files=(), made=()) -> None:
         named.setdefault(key, opt)
     for opt, path, fmt in blocks:
         if path is not None:
+            # the block readers and writers (and the adjustment the package imports with
+            # them) load only for a command that writes a block
+            from ..bundle.io_formats import check_block_target
+
             check_block_target(path, fmt, opt)
     for opt, path in files:
         if path is None:
