@@ -64,9 +64,16 @@ def test_nothing_heavy_is_imported_before_it_is_needed():
 
 
 def test_commands_without_blocks_do_not_load_the_bundle_package(tmp_path, xy_pairs):
-    # checking the output options (--output-params, -o) must not import the block readers,
-    # writers and the adjustment: a quarter of the CPU time of a small 'transform estimate'
+    # checking the output options (--output-params, -o) and fitting or applying grids to a
+    # CSV must not import the block readers, writers and the adjustment (0.25-0.4 s of CPU:
+    # a quarter of a small 'transform estimate')
     params, out = tmp_path / "t.json", tmp_path / "out.csv"
+    rng = np.random.default_rng(5)
+    uv = rng.uniform(1, 999, (600, 2))
+    rows = [f"IMG_{k // 300},{u:.3f},{v:.3f},{rng.normal(0, 0.3):.4f},{rng.normal(0, 0.3):.4f}"
+            for k, (u, v) in enumerate(uv)]  # fmt: skip
+    residuals, grids = tmp_path / "residuals.csv", tmp_path / "grids.npz"
+    residuals.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
     probe = (
         "import runpy, sys\n"
         "sys.argv = ['photogeom'] + sys.argv[1:]\n"
@@ -80,6 +87,9 @@ def test_commands_without_blocks_do_not_load_the_bundle_package(tmp_path, xy_pai
     for args in (
         ["transform", "estimate", "similarity2d", str(xy_pairs), "--output-params", str(params)],
         ["transform", "apply", str(params), str(xy_pairs), "-o", str(out), "--cols", "x,y"],
+        ["grid", "fit", str(residuals), "--image-size", "1000x1000", "--spacing", "250",
+         "-o", str(grids)],
+        ["grid", "apply", str(grids), str(residuals), "-o", str(tmp_path / "corrected.csv")],
     ):
         proc = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
                               text=True, timeout=120)  # fmt: skip
