@@ -5,6 +5,7 @@ resection with tie points, RANSAC outliers by id."""
 
 from __future__ import annotations
 
+import ast
 import io
 import json
 import subprocess
@@ -63,6 +64,23 @@ def test_nothing_heavy_is_imported_before_it_is_needed():
     assert proc.stdout.split() == ["False", "False"]
 
 
+def _loaded_by(args: list[str], modules: tuple[str, ...]) -> list[str]:
+    """Which of ``modules`` the command ``photogeom ARGS`` imported (run in a fresh process)."""
+    probe = (
+        "import runpy, sys\n"
+        "sys.argv = ['photogeom'] + sys.argv[1:]\n"
+        "try:\n"
+        "    runpy.run_module('photogeom', run_name='__main__')\n"
+        "except SystemExit as e:\n"
+        "    assert not e.code, e.code\n"
+        f"print(sorted(m for m in {modules!r} if m in sys.modules), file=sys.stderr)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", probe, *map(str, args)], capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return ast.literal_eval(proc.stderr.strip().splitlines()[-1])
+
+
 def test_commands_without_blocks_do_not_load_the_bundle_package(tmp_path, xy_pairs):
     # checking the output options (--output-params, -o) and fitting or applying grids to a
     # CSV must not import the block readers, writers and the adjustment (0.25-0.4 s of CPU:
@@ -74,28 +92,29 @@ def test_commands_without_blocks_do_not_load_the_bundle_package(tmp_path, xy_pai
             for k, (u, v) in enumerate(uv)]  # fmt: skip
     residuals, grids = tmp_path / "residuals.csv", tmp_path / "grids.npz"
     residuals.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
-    probe = (
-        "import runpy, sys\n"
-        "sys.argv = ['photogeom'] + sys.argv[1:]\n"
-        "try:\n"
-        "    runpy.run_module('photogeom', run_name='__main__')\n"
-        "except SystemExit as e:\n"
-        "    assert not e.code, e.code\n"
-        "print(sorted(m for m in ('photogeom.bundle', 'photogeom.simulate') if m in sys.modules),"
-        " file=sys.stderr)\n"
-    )
     for args in (
-        ["transform", "estimate", "similarity2d", str(xy_pairs), "--output-params", str(params)],
-        ["transform", "apply", str(params), str(xy_pairs), "-o", str(out), "--cols", "x,y"],
-        ["grid", "fit", str(residuals), "--image-size", "1000x1000", "--spacing", "250",
-         "-o", str(grids)],
-        ["grid", "apply", str(grids), str(residuals), "-o", str(tmp_path / "corrected.csv")],
+        ["transform", "estimate", "similarity2d", xy_pairs, "--output-params", params],
+        ["transform", "apply", params, xy_pairs, "-o", out, "--cols", "x,y"],
+        ["grid", "fit", residuals, "--image-size", "1000x1000", "--spacing", "250", "-o", grids],
+        ["grid", "apply", grids, residuals, "-o", tmp_path / "corrected.csv"],
     ):
-        proc = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
-                              text=True, timeout=120)  # fmt: skip
-        assert proc.returncode == 0, proc.stderr
-        assert proc.stderr.strip().splitlines()[-1] == "[]", (args, proc.stderr)
+        assert _loaded_by(args, ("photogeom.bundle", "photogeom.simulate")) == [], args
     assert out.read_text().count("\n") >= 7
+
+
+def test_orient_absolute_loads_matplotlib_only_for_a_report(tmp_path):
+    rng = np.random.default_rng(2)
+    x = rng.uniform(0, 100, (8, 3))
+    X = 1.2 * x + 5 + rng.normal(0, 0.01, x.shape)
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text("id,x,y,z,X,Y,Z\n" + "".join(
+        f"{i},{','.join(f'{v:.4f}' for v in (*x[i], *X[i]))}\n" for i in range(8)))  # fmt: skip
+    for extra in ([], ["--output-params", tmp_path / "p.json"], ["--compare"]):
+        assert _loaded_by(["orient", "absolute", pairs, *extra], ("matplotlib",)) == [], extra
+    report = tmp_path / "r.html"
+    args = ["orient", "absolute", pairs, "--compare", "--report", report]
+    assert _loaded_by(args, ("matplotlib",)) == ["matplotlib"]
+    assert "<svg" in report.read_text() or "<img" in report.read_text()
 
 
 def test_public_names_import_as_before():
