@@ -117,6 +117,20 @@ def test_orient_absolute_loads_matplotlib_only_for_a_report(tmp_path):
     assert "<svg" in report.read_text() or "<img" in report.read_text()
 
 
+def test_bundle_adjust_loads_matplotlib_only_for_a_report(tmp_path):
+    block = tmp_path / "block"
+    assert _loaded_by(["bundle", "simulate", block, "--strips", "1", "--images-per-strip", "3",
+                       "--tie-points-per-image", "60"], ("matplotlib",)) == []  # fmt: skip
+    result = tmp_path / "result.json"
+    assert _loaded_by(["bundle", "adjust", block, "--result", result], ("matplotlib",)) == []
+    assert json.loads(result.read_text())["format"] == "photogeom-bundle-result"
+    report = tmp_path / "r.html"
+    assert _loaded_by(["bundle", "report", result, "-o", report], ("matplotlib",)) == [
+        "matplotlib"
+    ]
+    assert "<img" in report.read_text()
+
+
 def test_public_names_import_as_before():
     for name in pg.__all__:
         assert getattr(pg, name) is not None, name

@@ -606,7 +606,7 @@ def adjust(
     run. Everything is computed before any file is written.
     """
     from ..bundle import bundle_adjust
-    from ..report.bundle import bundle_report, bundle_result_data
+    from ..report.bundle_record import bundle_result_data
 
     # a level is refused where no test runs, not silently ignored (as grid fit, orient absolute)
     alpha = check_alpha(
@@ -674,6 +674,8 @@ def adjust(
         if result is not None:
             texts.append((result, json.dumps(data, indent=1, allow_nan=False) + "\n"))
         if report is not None:
+            from ..report.bundle import bundle_report  # matplotlib: only for --report
+
             texts.append(
                 (report, bundle_report(data, f"Bundle adjustment: {source.name}").to_html())
             )
