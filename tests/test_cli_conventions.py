@@ -131,6 +131,15 @@ def test_bundle_adjust_loads_matplotlib_only_for_a_report(tmp_path):
     assert "<img" in report.read_text()
 
 
+def test_a_small_estimate_does_not_import_scipy_optimize():
+    # the minimal detectable bias of the snooping summary needs one scalar root, not
+    # scipy.optimize (0.3-0.5 s of CPU to import, half again of an 8-point estimate)
+    fiducials = pg.datasets.path("lecture_fiducials")
+    for model in ("similarity2d", "affine2d"):
+        args = ["transform", "estimate", model, fiducials]
+        assert _loaded_by(args, ("scipy.optimize",)) == [], model
+
+
 def test_public_names_import_as_before():
     for name in pg.__all__:
         assert getattr(pg, name) is not None, name
