@@ -5,6 +5,7 @@ resection with tie points, RANSAC outliers by id."""
 
 from __future__ import annotations
 
+import ast
 import io
 import json
 import subprocess
@@ -61,6 +62,82 @@ def test_nothing_heavy_is_imported_before_it_is_needed():
     proc = _run(code="import photogeom as pg, sys; pg.opk_matrix(0, 0, 0); "
                 "print('matplotlib' in sys.modules, 'scipy.stats' in sys.modules)")  # fmt: skip
     assert proc.stdout.split() == ["False", "False"]
+
+
+def _loaded_by(args: list[str], modules: tuple[str, ...]) -> list[str]:
+    """Which of ``modules`` the command ``photogeom ARGS`` imported (run in a fresh process)."""
+    probe = (
+        "import runpy, sys\n"
+        "sys.argv = ['photogeom'] + sys.argv[1:]\n"
+        "try:\n"
+        "    runpy.run_module('photogeom', run_name='__main__')\n"
+        "except SystemExit as e:\n"
+        "    assert not e.code, e.code\n"
+        f"print(sorted(m for m in {modules!r} if m in sys.modules), file=sys.stderr)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", probe, *map(str, args)], capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return ast.literal_eval(proc.stderr.strip().splitlines()[-1])
+
+
+def test_commands_without_blocks_do_not_load_the_bundle_package(tmp_path, xy_pairs):
+    # checking the output options (--output-params, -o) and fitting or applying grids to a
+    # CSV must not import the block readers, writers and the adjustment (0.25-0.4 s of CPU:
+    # a quarter of a small 'transform estimate')
+    params, out = tmp_path / "t.json", tmp_path / "out.csv"
+    rng = np.random.default_rng(5)
+    uv = rng.uniform(1, 999, (600, 2))
+    rows = [f"IMG_{k // 300},{u:.3f},{v:.3f},{rng.normal(0, 0.3):.4f},{rng.normal(0, 0.3):.4f}"
+            for k, (u, v) in enumerate(uv)]  # fmt: skip
+    residuals, grids = tmp_path / "residuals.csv", tmp_path / "grids.npz"
+    residuals.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
+    for args in (
+        ["transform", "estimate", "similarity2d", xy_pairs, "--output-params", params],
+        ["transform", "apply", params, xy_pairs, "-o", out, "--cols", "x,y"],
+        ["grid", "fit", residuals, "--image-size", "1000x1000", "--spacing", "250", "-o", grids],
+        ["grid", "apply", grids, residuals, "-o", tmp_path / "corrected.csv"],
+    ):
+        assert _loaded_by(args, ("photogeom.bundle", "photogeom.simulate")) == [], args
+    assert out.read_text().count("\n") >= 7
+
+
+def test_orient_absolute_loads_matplotlib_only_for_a_report(tmp_path):
+    rng = np.random.default_rng(2)
+    x = rng.uniform(0, 100, (8, 3))
+    X = 1.2 * x + 5 + rng.normal(0, 0.01, x.shape)
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text("id,x,y,z,X,Y,Z\n" + "".join(
+        f"{i},{','.join(f'{v:.4f}' for v in (*x[i], *X[i]))}\n" for i in range(8)))  # fmt: skip
+    for extra in ([], ["--output-params", tmp_path / "p.json"], ["--compare"]):
+        assert _loaded_by(["orient", "absolute", pairs, *extra], ("matplotlib",)) == [], extra
+    report = tmp_path / "r.html"
+    args = ["orient", "absolute", pairs, "--compare", "--report", report]
+    assert _loaded_by(args, ("matplotlib",)) == ["matplotlib"]
+    assert "<svg" in report.read_text() or "<img" in report.read_text()
+
+
+def test_bundle_adjust_loads_matplotlib_only_for_a_report(tmp_path):
+    block = tmp_path / "block"
+    assert _loaded_by(["bundle", "simulate", block, "--strips", "1", "--images-per-strip", "3",
+                       "--tie-points-per-image", "60"], ("matplotlib",)) == []  # fmt: skip
+    result = tmp_path / "result.json"
+    assert _loaded_by(["bundle", "adjust", block, "--result", result], ("matplotlib",)) == []
+    assert json.loads(result.read_text())["format"] == "photogeom-bundle-result"
+    report = tmp_path / "r.html"
+    assert _loaded_by(["bundle", "report", result, "-o", report], ("matplotlib",)) == [
+        "matplotlib"
+    ]
+    assert "<img" in report.read_text()
+
+
+def test_a_small_estimate_does_not_import_scipy_optimize():
+    # the minimal detectable bias of the snooping summary needs one scalar root, not
+    # scipy.optimize (0.3-0.5 s of CPU to import, half again of an 8-point estimate)
+    fiducials = pg.datasets.path("lecture_fiducials")
+    for model in ("similarity2d", "affine2d"):
+        args = ["transform", "estimate", model, fiducials]
+        assert _loaded_by(args, ("scipy.optimize",)) == [], model
 
 
 def test_public_names_import_as_before():

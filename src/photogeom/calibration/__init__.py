@@ -21,31 +21,71 @@ bilinear interpolation; the field corrects image coordinates and images.
   field (the floor of any method; :mod:`photogeom.calibration.field_bound`).
 """
 
-from .blocks import block_residuals, correct_block_observations, fit_residual_grids, readjust
-from .correction import correct_image, correct_points, field_at_pixels
-from .dispatch import correct_observations
-from .evaluate import (
-    choose_spacing,
-    compare_residuals,
-    min_max_normalise,
-    most_frequent_spacing,
-    residual_statistics,
-)
-from .field_bound import field_bound
-from .grid import FiniteElementSystem, GridLayout, ResidualGrid, fit_grid, fit_grids
-from .gridfile import load_grids, save_grids
-from .images import FolderResult, correct_folder, correct_image_file
-from .in_adjustment import GridAdjustment, adjust_with_grids
-from .steps import StereoModels, image_overlap, model_steps, stereo_models
-from .study import (
-    compare_in_adjustment,
-    evaluate_readjustment,
-    field_recovery,
-    run_study,
-    sweep_spacings,
-    visible_field,
-    visible_recovery,
-)
+# Each public name is imported from its module on first use (module-level __getattr__), so
+# that a command that only applies or fits grids does not import the block readers and the
+# bundle adjustment the block-level functions need; ``from photogeom.calibration import X``
+# and ``photogeom.calibration.X`` work as for an eager import.
+_LAZY: dict[str, str] = {
+    "block_residuals": ".blocks",
+    "correct_block_observations": ".blocks",
+    "fit_residual_grids": ".blocks",
+    "readjust": ".blocks",
+    "correct_image": ".correction",
+    "correct_points": ".correction",
+    "field_at_pixels": ".correction",
+    "correct_observations": ".dispatch",
+    "choose_spacing": ".evaluate",
+    "compare_residuals": ".evaluate",
+    "min_max_normalise": ".evaluate",
+    "most_frequent_spacing": ".evaluate",
+    "residual_statistics": ".evaluate",
+    "field_bound": ".field_bound",
+    "FiniteElementSystem": ".grid",
+    "GridLayout": ".grid",
+    "ResidualGrid": ".grid",
+    "fit_grid": ".grid",
+    "fit_grids": ".grid",
+    "load_grids": ".gridfile",
+    "save_grids": ".gridfile",
+    "FolderResult": ".images",
+    "correct_folder": ".images",
+    "correct_image_file": ".images",
+    "GridAdjustment": ".in_adjustment",
+    "adjust_with_grids": ".in_adjustment",
+    "StereoModels": ".steps",
+    "image_overlap": ".steps",
+    "model_steps": ".steps",
+    "stereo_models": ".steps",
+    "compare_in_adjustment": ".study",
+    "evaluate_readjustment": ".study",
+    "field_recovery": ".study",
+    "run_study": ".study",
+    "sweep_spacings": ".study",
+    "visible_field": ".study",
+    "visible_recovery": ".study",
+}
+
+
+def __getattr__(name: str):
+    import importlib
+
+    if name not in _LAZY and not name.startswith("__"):
+        # a submodule not imported yet (``photogeom.calibration.grid``)
+        try:
+            return importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "FiniteElementSystem",

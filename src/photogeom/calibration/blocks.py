@@ -18,7 +18,6 @@ contract"):
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
@@ -26,7 +25,14 @@ import numpy as np
 from ..bundle.block import ROLES, Block
 from ..bundle.residuals import reprojection_residuals
 from ..errors import InputError
-from .grid import _MIN_OBSERVATIONS, ResidualGrid, _image_inputs, fit_grids, progress_over
+from .grid import (
+    _MIN_OBSERVATIONS,
+    ResidualGrid,
+    _image_inputs,
+    fit_grids,
+    progress_over,
+    scaled_constraint_sigma,
+)
 from .gridfile import match_grid_ids
 
 __all__ = [
@@ -199,18 +205,6 @@ def fit_residual_grids(
         progress=progress,
         **options,
     )
-
-
-def scaled_constraint_sigma(sigma_constraint, spacing) -> float | str:
-    """``sigma_constraint`` with ``"scaled"`` resolved to ``0.1 px * (spacing / 100 px)^2``
-    (numbers and ``"vce"`` pass through)."""
-    if isinstance(sigma_constraint, str) and sigma_constraint == "scaled":
-        try:
-            g = float(spacing)
-        except (TypeError, ValueError):
-            return 0.1  # the layout names the bad spacing
-        return 0.1 * (g / 100.0) ** 2 if math.isfinite(g) and g > 0 else 0.1
-    return sigma_constraint
 
 
 def _sigmas_per_image(block: Block, roles) -> dict:

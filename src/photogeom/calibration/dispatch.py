@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..bundle.block import Block
 from ..errors import InputError
-from .blocks import correct_block_observations
 from .correction import correct_observations as correct_array_observations
 
 __all__ = ["correct_observations"]
@@ -36,10 +34,15 @@ def correct_observations(observations, grids: Mapping):
         Neither a Block nor a mapping; an image without a grid (named); points outside an
         image.
     """
-    if isinstance(observations, Block):
-        return correct_block_observations(observations, grids)
     if isinstance(observations, Mapping):
         return correct_array_observations(observations, grids)
+    # the block level (and the bundle package it needs) is imported for a Block only
+    from ..bundle.block import Block
+
+    if isinstance(observations, Block):
+        from .blocks import correct_block_observations
+
+        return correct_block_observations(observations, grids)
     raise InputError(
         "correct_observations needs a photogeom.bundle.Block or a mapping image id -> uv "
         f"(n, 2), not {type(observations).__name__}"

@@ -1262,3 +1262,15 @@ def fit_grids(
         key: fit_grid(uv, res, size, spacing, image_id=key, **options)
         for key, uv, res, size in progress_over(items, progress)
     }
+
+
+def scaled_constraint_sigma(sigma_constraint, spacing) -> float | str:
+    """``sigma_constraint`` with ``"scaled"`` resolved to ``0.1 px * (spacing / 100 px)^2``
+    (numbers and ``"vce"`` pass through)."""
+    if isinstance(sigma_constraint, str) and sigma_constraint == "scaled":
+        try:
+            g = float(spacing)
+        except (TypeError, ValueError):
+            return 0.1  # the layout names the bad spacing
+        return 0.1 * (g / 100.0) ** 2 if math.isfinite(g) and g > 0 else 0.1
+    return sigma_constraint

@@ -650,7 +650,7 @@ def adjust_with_grids(
     if border not in BORDERS:
         raise InputError(f"border must be one of {', '.join(BORDERS)}, not {border!r}")
     check_min_support(min_support)
-    from .blocks import scaled_constraint_sigma
+    from .grid import scaled_constraint_sigma
 
     sc = _positive(scaled_constraint_sigma(sigma_constraint, spacing), "sigma_constraint")
     st = None if sigma_temporal is None else _positive(sigma_temporal, "sigma_temporal")

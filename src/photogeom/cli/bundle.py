@@ -229,7 +229,6 @@ def check_targets(blocks=(), files=(), made=()) -> None:
     :class:`~photogeom.errors.InputError` naming both (one output would silently replace
     the other).
     """
-    from ..bundle.io_formats import check_block_target
     for opt, path, fmt in blocks:
         refuse_stdout_dash(opt, path, folder=fmt != "bal")
     for opt, path in files:
@@ -248,6 +247,10 @@ def check_targets(blocks=(), files=(), made=()) -> None:
         named.setdefault(key, opt)
     for opt, path, fmt in blocks:
         if path is not None:
+            # the block readers and writers (and the adjustment the package imports with
+            # them) load only for a command that writes a block
+            from ..bundle.io_formats import check_block_target
+
             check_block_target(path, fmt, opt)
     for opt, path in files:
         if path is None:
@@ -629,7 +632,7 @@ def adjust(
     run. Everything is computed before any file is written.
     """
     from ..bundle import bundle_adjust
-    from ..report.bundle import bundle_report, bundle_result_data
+    from ..report.bundle_record import bundle_result_data
 
     # a level is refused where no test runs, not silently ignored (as grid fit, orient absolute)
     alpha = check_alpha(
@@ -697,6 +700,8 @@ def adjust(
         if result is not None:
             texts.append((result, json.dumps(data, indent=1, allow_nan=False) + "\n"))
         if report is not None:
+            from ..report.bundle import bundle_report  # matplotlib: only for --report
+
             texts.append(
                 (report, bundle_report(data, f"Bundle adjustment: {source.name}").to_html())
             )

@@ -941,7 +941,7 @@ def _fit_csv(
     images of ``exclude`` (--exclude) left out. ``where`` receives, per image, ``("line",
     the CSV line of each of its rows)``."""
     from ..calibration import GridLayout, fit_grids
-    from ..calibration.blocks import scaled_constraint_sigma
+    from ..calibration.grid import scaled_constraint_sigma
 
     if image_size is None:
         raise InputError(

@@ -260,7 +260,7 @@ def register(app: typer.Typer) -> None:
         ] = None,
     ) -> None:
         """Absolute orientation: X = s R x + t from corresponding 3D points."""
-        from ..report import Report, print_fit, print_table
+        from ..report import print_fit, print_table
 
         check_outputs(
             {"SOURCE": source, "TARGET": target}, report=report, output_params=output_params
@@ -351,6 +351,7 @@ def register(app: typer.Typer) -> None:
                     out.print(line, markup=False, highlight=False)
             if report is not None:
                 from ..examples.absolute import add_comparison
+                from ..report import Report  # matplotlib: only for --report
 
                 rep = Report("Absolute orientation: method comparison")
                 add_comparison(rep, cmp, title=f"{source.name}: all methods")

@@ -20,9 +20,9 @@ _LAZY = {
     "add_bundle_fit": "bundle",
     "add_bundle_result": "bundle",
     "bundle_report": "bundle",
-    "bundle_result_data": "bundle",
-    "read_bundle_result": "bundle",
-    "write_bundle_result": "bundle",
+    "bundle_result_data": "bundle_record",
+    "read_bundle_result": "bundle_record",
+    "write_bundle_result": "bundle_record",
 }
 
 
