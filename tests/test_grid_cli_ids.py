@@ -136,3 +136,19 @@ def test_fit_errors_in_cli_words(cli, tmp_path):
     code, _, err = cli(*base, "--spacing", "30", "--min-support", "-1")
     assert code == 2 and "--min-support must be 0 or more" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("cell", ["", "  ", '""'])
+def test_fit_refuses_an_empty_image_id_naming_its_line(cli, tmp_path, cell):
+    # the empty cell made an image called "" with a grid of its own (exit 0)
+    rng = np.random.default_rng(2)
+    rows = [f"A,{u:.2f},{v:.2f},0.1,-0.1" for u, v in rng.uniform(0, [89, 59], (12, 2))]
+    rows.insert(4, f"{cell},40,30,0.2,0.1")
+    path = tmp_path / "v.csv"
+    path.write_text("image_id,u,v,rx,ry\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "g.npz"
+    code, _, err = cli("grid", "fit", path, "--image-size", f"{W}x{H}", "--spacing", "30",
+                       "-o", out)
+    assert code == 2, err
+    assert f"{path}: empty image_id on line(s) 6; give each row the id of its image" in err, err
+    assert not out.exists()

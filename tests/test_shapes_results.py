@@ -10,6 +10,7 @@ away from its block's.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import pickle
 
 import numpy as np
@@ -159,3 +160,47 @@ def test_adjustment_arrays_are_read_only():
     assert fit.covariance[0, 0] / fit.cofactor[0, 0] == pytest.approx(fit.sigma0**2)
     bare = pg.gauss_markov(lambda x: x[0] * t + x[1], [1.0, 0.0], y, statistics=False)
     assert not bare.x.flags.writeable
+
+
+def _snooped_fit():
+    ids, x, X = pg.datasets.point_pairs("lidar_wang2014")
+    X = X.copy()
+    X[3, 0] += 1.0  # a 1 m blunder: removed by the snooping
+    return pg.snooping_absolute_orientation(x, X, "gauss-markov", ids=ids)
+
+
+@pytest.mark.parametrize("make_copy", [
+    lambda f: f.with_crs("EPSG:25832"),
+    lambda f: f.with_checks(np.zeros((1, 3))),
+    lambda f: dataclasses.replace(f, notes=()),
+])
+def test_nested_extras_of_a_copy_cannot_change_the_original(make_copy):
+    """Before: the copies of with_crs / with_checks / replace shared the lists and dicts
+    inside ``extras``: appending 9 to a copy's ``extras["removed"]`` turned the original's
+    [3] into [3, 9], and a value written into a copy's ``extras["textbook"]`` changed the
+    original's."""
+    fit = _snooped_fit()
+    assert fit.extras["removed"] == [3]  # still a list, compared as one
+    copy_ = make_copy(fit)
+    copy_.extras["removed"].append(9)
+    assert fit.extras["removed"] == [3]
+    rng = np.random.default_rng(4)
+    x = rng.uniform(-100, 100, (10, 2))
+    T = pg.Similarity2D.from_textbook(1.2, 0.3, 5.0, -3.0)
+    tfit = pg.estimate_transform("similarity2d", x, T.apply(x) + rng.normal(0, 0.01, (10, 2)))
+    expected = tfit.model.textbook()  # the model's own, an independent copy of the numbers
+    tcopy = make_copy(tfit)
+    for key in list(tcopy.extras["textbook"]):
+        tcopy.extras["textbook"][key] = (0.0, 0.0)
+    assert {k: v[0] for k, v in tfit.extras["textbook"].items()} == pytest.approx(
+        {k: expected[k] for k in tfit.extras["textbook"]}
+    )
+
+
+def test_nested_extras_arrays_stay_read_only_through_copies():
+    fit = Fit._construct(**{
+        **{f.name: getattr(_ransac_fit(), f.name) for f in dataclasses.fields(Fit)},
+        "extras": {"per_image": {"a": [np.arange(3.0)]}},
+    })
+    for f in (fit, copy.deepcopy(fit), pickle.loads(pickle.dumps(fit)), fit.with_crs("EPSG:25832")):
+        assert not f.extras["per_image"]["a"][0].flags.writeable

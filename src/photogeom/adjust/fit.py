@@ -32,6 +32,28 @@ def _read_only_view(value):
     return value
 
 
+def _own_extra(value):
+    """``value`` as a Fit keeps it in ``extras``: dicts, lists and sets (also inside tuples)
+    copied all the way down, writable arrays as read-only views; other values as they are.
+
+    Each Fit (and each copy :meth:`Fit.with_crs`, :meth:`Fit.with_checks` or
+    :func:`dataclasses.replace` makes) holds containers of its own, of the same types (so
+    ``extras["removed"] == [3]`` still compares as a list): writing into one Fit's nested
+    extras cannot change another's.
+    """
+    if isinstance(value, np.ndarray):
+        return _read_only_view(value)
+    if type(value) is dict:
+        return {k: _own_extra(v) for k, v in value.items()}
+    if type(value) is list:
+        return [_own_extra(v) for v in value]
+    if type(value) is set:
+        return set(value)  # members are hashable, hence not containers to copy
+    if type(value) is tuple:
+        return tuple(_own_extra(v) for v in value)
+    return value
+
+
 def _jsonable(value):
     """``value`` with numpy arrays and scalars as Python lists and numbers, NaN and
     infinities as None (JSON has neither), mapping keys as str."""
@@ -123,8 +145,9 @@ class Fit:
     The arrays are read-only views (``parameters``, ``covariance``, ``cofactor``,
     ``residuals``, ...): they agree with ``model`` and with each other, and copies made by
     :meth:`with_checks`, :meth:`with_crs` or :func:`dataclasses.replace` share them. Take a
-    copy (``np.array(fit.residuals)``) to change one. ``extras`` is a dict of each Fit's own
-    whose arrays (e.g. the inlier mask of RANSAC) are read-only views too.
+    copy (``np.array(fit.residuals)``) to change one. ``extras`` is a dict of each Fit's own,
+    its nested dicts and lists too (``extras["removed"]`` is a list, compared as one), whose
+    arrays (e.g. the inlier mask of RANSAC) are read-only views.
     """
 
     model: object
@@ -166,12 +189,14 @@ class Fit:
 
     def __post_init__(self) -> None:
         read_only_fields(self)
-        # extras: a dict of its own (copies made by replace do not share it) whose arrays are
-        # read-only views (an inlier mask written through a copy changed the original's)
+        # extras: a dict of its own, its nested dicts, lists and sets too (copies made by
+        # replace do not share them: a list written through a with_crs copy changed the
+        # original's), whose arrays are read-only views (an inlier mask written through a
+        # copy changed the original's)
         d = self.__dict__
         extras = d.get("extras")
         if isinstance(extras, Mapping):
-            d["extras"] = {k: _read_only_view(v) for k, v in extras.items()}
+            d["extras"] = {k: _own_extra(v) for k, v in extras.items()}
         # parameter_units: read-only (the parameter table, summary and to_dict read it; a
         # unit written into a with_crs copy's dict changed the original's table)
         units = d.get("parameter_units")
@@ -181,9 +206,9 @@ class Fit:
     def __setstate__(self, state: dict) -> None:
         # pickle / deepcopy rebuild arrays writable: read-only again (those of extras too)
         setstate_read_only(self, state)
-        for value in (self.__dict__.get("extras") or {}).values():
-            if isinstance(value, np.ndarray):
-                value.flags.writeable = False
+        extras = self.__dict__.get("extras")
+        if isinstance(extras, Mapping):  # nested arrays too
+            self.__dict__["extras"] = {k: _own_extra(v) for k, v in extras.items()}
 
     # --- construction ----------------------------------------------------------------------
 

@@ -48,6 +48,17 @@ _MIN_OBSERVATIONS = 4
 #: Most nodes of one grid (a 3162 x 3162 node grid): beyond, the arrays of the nodes and of
 #: the normal equations alone need tens of gigabytes.
 MAX_NODES = 10_000_000
+#: A fit of more nodes than this needs at least one observation per
+#: :data:`MAX_NODES_PER_OBSERVATION` nodes (below, a fit takes at most about 1.5 s and
+#: 300 MB whatever the observations).
+FREE_NODES = 50_000
+#: Most nodes per observation of a grid of more than :data:`FREE_NODES` nodes: a 42 Mpx image
+#: at 100 px (4455 nodes) with 120 observations has 37. Beyond, the smoothness constraints
+#: alone fix nearly every node, and the cost grows with the nodes (measured with 5 folds:
+#: 200 901 nodes 8 s and 1.2 GB; 801 801 nodes 3 GB and minutes).
+MAX_NODES_PER_OBSERVATION = 100
+#: Bytes of memory per node of a fit with cross-validation (measured, 200 901 nodes).
+_BYTES_PER_NODE = 6_000
 
 
 @dataclass(frozen=True)
@@ -823,7 +834,49 @@ def _image_inputs(uv, residuals, image_size, spacing, min_observations: int, whe
             max(1, min_observations),
             "use a larger spacing or leave the image out",
         )
+    _refuse_sparse_data(layout, n, where)
     return uv, res, layout
+
+
+def supported_spacing(width: int, height: int, n_observations: int) -> float:
+    """The smallest spacing (px, 3 significant digits) whose grid the observations support.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size (px).
+    n_observations : int
+        Residuals of the image.
+
+    Returns
+    -------
+    float
+        px: the grid has at most ``max(FREE_NODES, MAX_NODES_PER_OBSERVATION *
+        n_observations)`` nodes.
+    """
+    most = max(FREE_NODES, MAX_NODES_PER_OBSERVATION * int(n_observations))
+    g = float(f"{math.sqrt(width * height / most):.3g}")
+    step = 10.0 ** (math.floor(math.log10(g)) - 2)
+    while (math.ceil((width - 0.5) / g) + 1) * (math.ceil((height - 0.5) / g) + 1) > most:
+        g = round(g + step, 12)  # a few steps at most: the estimate is within a node row
+    return g
+
+
+def _refuse_sparse_data(layout: GridLayout, n: int, where: str) -> None:
+    """Refuse a grid of more than ``FREE_NODES`` nodes with more than
+    ``MAX_NODES_PER_OBSERVATION`` nodes per observation (``n`` observations)."""
+    nodes = layout.n_nodes
+    if nodes <= max(FREE_NODES, MAX_NODES_PER_OBSERVATION * n):
+        return
+    g = supported_spacing(layout.width, layout.height, n)
+    raise InputError(
+        f"{where}grid spacing {layout.spacing:g} px on a {layout.width} x {layout.height} px "
+        f"image gives {layout.ny} x {layout.nx} = {nodes:,} nodes for {n} observations "
+        f"({nodes / n:,.0f} nodes per observation; at most {MAX_NODES_PER_OBSERVATION} on "
+        f"grids of more than {FREE_NODES:,} nodes): the fit would need about "
+        f"{nodes * _BYTES_PER_NODE / 1e9:.1f} GB of memory and the constraints alone would "
+        f"fix the nodes; choose a spacing of at least {g:g} px for {n} observations"
+    )
 
 
 def _fit_grid(

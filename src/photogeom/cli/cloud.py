@@ -161,7 +161,7 @@ def transform(
     """Transform a cloud with saved parameters (--params) or between CRSs (--from-crs,
     --to-crs), chunk by chunk; point format, extra dimensions, VLRs and the CRS record are
     kept, offsets recomputed; the output is written atomically."""
-    from ..io.cloud import transform_cloud
+    from ..io.cloud import check_cloud_suffix, transform_cloud
 
     refuse_stdout_dash("OUTPUT", output, seekable=True)
     _check_scheduler(scheduler)
@@ -175,6 +175,7 @@ def transform(
                 f"OUTPUT {output} is the --params file: writing the cloud would replace the "
                 "parameters it is transformed with; give another OUTPUT"
             )
+    check_cloud_suffix(output, "OUTPUT")  # after the clash with --params, the more telling
     if inverse and params is None:
         raise InputError(
             "--inverse inverts the parameters of --params; a PROJ transformation (--to-crs) "

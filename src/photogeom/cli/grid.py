@@ -421,6 +421,19 @@ def _ids(cells: list[str], quoted: np.ndarray) -> list[str]:
     return out.tolist()
 
 
+def _refuse_empty_ids(path: Path, ids: list[str], lines: np.ndarray) -> None:
+    """Refuse rows whose image_id cell is empty (or white space only, or ``""``): they would
+    make an image named by the empty text, a grid no image of a block folder can have."""
+    empty = np.flatnonzero(np.fromiter(map(len, ids), dtype=np.intp, count=len(ids)) == 0)
+    if empty.size:
+        shown = ", ".join(str(int(x)) for x in np.asarray(lines)[empty[:10]])
+        more = f" ({empty.size} rows in all)" if empty.size > 10 else ""
+        raise FileFormatError(
+            f"{path}: empty image_id on line(s) {shown}{more}; give each row the id of its "
+            "image, or remove those rows"
+        )
+
+
 def _numbers(path: Path, cells, name: str, lines: np.ndarray) -> np.ndarray:
     """The cells of one column as finite numbers; a FileFormatError names the file line of
     the first cell that is not one (NaN and infinities included).
@@ -958,6 +971,7 @@ def _fit_csv(
             "row per observation (image_id, u, v, rx, ry)"
         )
     ids = _ids(columns[col["image_id"]], quoted[col["image_id"]])
+    _refuse_empty_ids(path, ids, lines)
     data = np.stack(
         [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
         axis=1,

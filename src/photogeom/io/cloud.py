@@ -667,7 +667,38 @@ def _cloud_destination(dst) -> tuple[Path, Path]:
             f"cannot write {given}: it is a device or a named pipe; a LAS/LAZ output must be "
             "a file: give a file name"
         )
+    check_cloud_suffix(given)
     return given, target
+
+
+#: Name endings of the point-cloud files written (LAZ compressed), lower case.
+CLOUD_SUFFIXES = (".las", ".laz")
+
+
+def check_cloud_suffix(path, what: str = "output") -> None:
+    """Refuse an output name that does not end in ``.las`` or ``.laz`` (any case): the file
+    is LAS (LAZ when ``.laz``) whatever its name, so ``out.txt`` or ``out`` would hold a
+    binary cloud under a name that says otherwise.
+
+    Parameters
+    ----------
+    path : str or path
+        Output file name.
+    what : str, default "output"
+        How the message names it (``"OUTPUT"`` in the command line).
+
+    Raises
+    ------
+    InputError
+        Naming the suffix found and the two accepted.
+    """
+    suffix = Path(path).suffix
+    if suffix.lower() not in CLOUD_SUFFIXES:
+        found = f"ends in {suffix!r}" if suffix else "has no suffix"
+        raise InputError(
+            f"{what} {path} {found}: a point cloud is written as LAS or LAZ, and its name "
+            "must say which: give a name ending in .las (uncompressed) or .laz (compressed)"
+        )
 
 
 @contextmanager
