@@ -39,7 +39,7 @@ def test_image_variant_offsets_have_standard_deviations_everywhere():
     assert std.shape == (sim.block.n_images, 3)
     assert np.all(np.isfinite(std)) and np.all(std > 0)
     text = fit.summary()
-    f_line = next(line for line in text.splitlines() if line.strip().startswith("f ="))
+    f_line = next(line for line in text.splitlines() if line.split()[:1] == ["f"])  # its row
     assert "fixed" not in f_line and "per image" in f_line
     d = json.loads(json.dumps(fit.to_dict()))
     row = d["images"][0]
