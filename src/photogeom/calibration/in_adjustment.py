@@ -50,6 +50,7 @@ The system is solved by Levenberg-Marquardt on the sparse normal equations of al
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -226,6 +227,7 @@ class _GridProblem:
                 raise InputError(f"camera {block.camera_ids[c]}: {exc}") from None
         self.layouts = [layouts_cam.get(int(c)) for c in grid_cam]
         nn = np.array([0 if L is None else L.n_nodes for L in self.layouts], dtype=np.int64)
+        _check_memory(nn, spacing)
         self.goff = np.r_[0, np.cumsum(2 * nn)]
         self.n_grid = int(self.goff[-1])
         self.nl, self.ncal = m * b, ng * NCAL
@@ -421,6 +423,39 @@ def _free_field_dims(L: GridLayout, D: np.ndarray, border: str) -> int:
     B /= np.linalg.norm(B, axis=0)
     Dn = D / np.linalg.norm(D, axis=1, keepdims=True)
     return B.shape[1] - int(np.linalg.matrix_rank(Dn @ B, tol=1e-9))
+
+
+#: Memory per entry of the grids' datum blocks, bytes: each grid's datum conditions couple
+#: all of its unknowns, so the normal equations and their factor hold a dense block of
+#: (2 nodes)^2 entries per grid. Measured: 6 images of 4000 x 3000 px with 100 px grids
+#: (6 blocks of 2542^2 entries) took 4.4 GB.
+BYTES_PER_DATUM_ENTRY = 120
+
+
+def _physical_memory() -> int | None:
+    """This machine's memory (bytes), None when the system does not say."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def _check_memory(nodes: np.ndarray, spacing: float) -> None:
+    """Refuse grids whose dense datum blocks would need more memory than the machine has
+    (before: numpy's "Unable to allocate 27.5 GiB" at 20 px, or minutes of swapping)."""
+    need = BYTES_PER_DATUM_ENTRY * float(np.sum((2.0 * nodes) ** 2))
+    have = _physical_memory()
+    if have is None or need <= have:
+        return
+    raise InputError(
+        f"grids in the adjustment at spacing {spacing:g} px: {int(nodes.max())} nodes per "
+        f"grid over {int(np.count_nonzero(nodes))} grid(s); each grid's datum conditions "
+        f"couple all of its nodes, which needs about {need / 2**30:.1f} GiB of memory, more "
+        f"than this machine's {have / 2**30:.1f} GiB: grids inside the adjustment are meant "
+        "to be coarse (500 px in the documented runs); use a larger spacing, per='camera' "
+        "(one grid per camera group), or fine grids after the adjustment "
+        "(fit_residual_grids)"
+    )
 
 
 def _datum_rows(L: GridLayout, datum: str) -> np.ndarray:
