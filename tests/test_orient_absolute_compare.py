@@ -115,3 +115,20 @@ def test_reference_std_of_direct_angles_matches_sampling():
     got = np.array([std["omega"], std["phi"], std["kappa"]])
     assert got == pytest.approx(sampled, rel=0.03)
     assert not np.allclose(got, np.degrees(np.sqrt(np.diag(cov))), rtol=0.03)
+
+
+def test_examples_text_has_the_digits_of_the_compare_table():
+    # before: 'examples run absolute-kraus' printed the scale as 8071.8438023223 and the
+    # reference's differences to itself as 0.00e+00, beside a --compare table of other digits
+    import photogeom as pg
+
+    _, x, X = datasets.point_pairs("kraus_absolute_orientation", None)
+    cmp = pg.compare_absolute_methods(x, X, angle_unit="gon", timing=False)
+    text = cmp.to_text()
+    rows = {ln.split()[0]: ln.split() for ln in text.splitlines()[2:] if "shift:" not in ln}
+    for r in cmp.display_rows():
+        assert rows[r[0]][1:9] == [*r[4:8], *r[8:12]]
+    assert rows["gauss-markov"][1] == "8071.844"
+    assert rows["gauss-markov"][5:8] == ["0", "0", "0"]
+    assert "gauss-markov shift: (-1424.406, 3715.597, 213.753) m" in text
+    assert "0.00e+00" not in text

@@ -228,7 +228,8 @@ class MethodComparison:
         return out
 
     def to_text(self) -> str:
-        """Plain-text table (differences are to the reference method).
+        """Plain-text table (differences are to the reference method), with the digits of
+        :meth:`display_rows` (those of ``orient absolute --compare`` and the report).
 
         Returns
         -------
@@ -243,25 +244,20 @@ class MethodComparison:
             f"{self.unit} ({self.convention} convention), shifts in {self.length_unit}",
             head,
         ]
+        cells = {row[0]: row for row in self.display_rows()}
         for r in self.rows:
             if r.fit is None:
                 lines.append(f"{r.method:<16}  failed: {r.error}")
                 continue
-            v, d = r.values, r.differences
-            ds = max(abs(d["tx"]), abs(d["ty"]), abs(d["tz"]))
-            da = max(abs(d["omega"]), abs(d["phi"]), abs(d["kappa"]))
+            c = cells[r.method]
             lines.append(
-                f"{r.method:<16}{v['scale']:>16.10f}{v['omega']:>12.6f}{v['phi']:>12.6f}"
-                f"{v['kappa']:>12.6f}{ds:>11.2e}{abs(d['scale']):>11.2e}{da:>11.2e}"
-                f"{r.orthogonality_defect:>10.1e}{r.time_per_solve * 1e6:>10.1f}"
+                f"{r.method:<16}{c[4]:>16}{c[5]:>12}{c[6]:>12}{c[7]:>12}"
+                f"{c[8]:>11}{c[9]:>11}{c[10]:>11}{c[11]:>10}{c[12]:>10}"
             )
         ref = self.row(self.reference)
         if ref.fit is not None:
-            v = ref.values
-            lines.append(
-                f"{self.reference} shift: ({v['tx']:.6f}, {v['ty']:.6f}, {v['tz']:.6f}) "
-                f"{self.length_unit}"
-            )
+            c = cells[ref.method]
+            lines.append(f"{self.reference} shift: ({c[1]}, {c[2]}, {c[3]}) {self.length_unit}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
