@@ -164,3 +164,42 @@ def test_ambiguous_five_points_name_no_option_the_command_lacks(cli, tmp_path):
     code, _out, err = cli("orient", "relative", str(path), "--f", "100")
     assert code != 0
     assert "(initial=)" not in err and "photogeom.relative_orientation(..., initial=)" in err
+
+
+def test_parallax_figure_of_many_matches_is_thinned():
+    """The y-parallax figure drew every one of 3300 matches (a solid blob) and scaled the
+    arrows to the longest; it now draws 3000 (the 600 longest always), says "3000 of 3300
+    shown", follows the 90th percentile of the lengths, and the scale arrow's label is its
+    true length."""
+    from matplotlib.quiver import Quiver, QuiverKey
+
+    from photogeom.cli.orient_relative import _parallax_figure
+    from photogeom.report.plots import LONGEST_ALWAYS_SHOWN, MAX_ARROWS
+
+    rng = np.random.default_rng(6)
+    n = 3300
+    pts = np.column_stack(
+        [rng.uniform(-30, 90, n), rng.uniform(-40, 40, n), rng.uniform(-10, 10, n)]
+    )
+    xy1 = pg.project(pts, IO, E1) + rng.normal(0, 0.004, (n, 2))
+    xy2 = pg.project(pts, IO, E2) + rng.normal(0, 0.004, (n, 2))
+    fit = pg.relative_orientation(xy1, xy2, IO, sigma=0.004)
+    used = np.asarray(fit.inliers)
+    fig = _parallax_figure(fit, xy1)
+    (ax,) = fig.axes
+    (q,) = [c for c in ax.collections if isinstance(c, Quiver)]  # nothing clipped
+    assert q.N == MAX_ARROWS
+    title = ax.get_title(loc="left")
+    assert f"arrows: {MAX_ARROWS} of {int(used.sum())} shown" in title and "clipped" not in title
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert f"used ({MAX_ARROWS} of {int(used.sum())} shown)" in legend
+    # the longest parallaxes are among the drawn arrows
+    py = np.abs(np.asarray(fit.parallax))[used]
+    drawn = np.sort(np.hypot(q.U, q.V))[::-1]
+    assert np.allclose(drawn[:LONGEST_ALWAYS_SHOWN], np.sort(py)[::-1][:LONGEST_ALWAYS_SHOWN])
+    # the scale follows the 90th percentile; its arrow's label is its length
+    width = abs(np.diff(ax.get_xlim())[0])
+    assert np.median(py) / q.scale / width > 0.015
+    (key,) = [a for a in ax.artists if isinstance(a, QuiverKey)]
+    p90 = np.quantile(py, 0.9)
+    assert key.text.get_text() == f"{key.U:g} mm" and 0.4 * p90 <= key.U <= p90

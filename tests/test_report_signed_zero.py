@@ -51,3 +51,35 @@ def test_parameter_table_shows_no_negative_zero():
 )
 def test_fmt_value_sign(value, std, text):
     assert fmt_value(value, std) == text
+
+
+@pytest.mark.parametrize(
+    ("value", "std", "text"),
+    [
+        # exact data: the std is rounding noise, a value within it is zero (was
+        # "9.900075136e-17", ten digits of noise)
+        (9.900075136e-17, 9.99e-17, "0"),
+        (-6.720573213e-17, 3e-14, "0"),
+        # a tiny value known beyond its std keeps the digits its std gives, not ten
+        (-6.720573213e-17, 1e-17, "-6.72e-17"),
+        (1.23456789e-20, 4e-22, "1.2346e-20"),
+        # values of ordinary size with a tiny std: at most ten significant digits
+        (100.00000000000001, 9.31e-15, "100"),
+        (1.0000000000000002, 9.99e-17, "1"),
+        (1234.56789012345678, 1e-14, "1234.56789"),
+    ],
+)
+def test_fmt_value_with_a_std_below_1e_13(value, std, text):
+    assert fmt_value(value, std) == text
+
+
+def test_exact_similarity_parameter_table():
+    """Exact data: the rotation parameter b is rounding noise and shown as 0, a and the
+    shifts without spurious digits."""
+    src = np.array([[0.0, 0.0], [100, 0], [0, 100], [100, 100], [50, 30]])
+    fit = pg.estimate_transform("similarity2d", src, src + np.array([100.0, 200.0]))
+    assert fit.std_errors["b"] < 1e-13 and abs(fit.params["b"]) <= fit.std_errors["b"]
+    rep = Report("t")
+    rep.add_fit(fit)
+    rows = table_rows(rep.to_html())
+    assert rows["b"][0] == "0" and rows["a"][0] == "1" and rows["c"][0] == "100"

@@ -401,25 +401,47 @@ def _parallax_figure(fit, xy1):
     """Image 1 frame with the y-parallax vectors of the points used and the points left out."""
     from matplotlib.figure import Figure
 
-    from ..report.plots import nice_length, plain
+    from ..report.plots import CLIPPED_COLOUR, arrow_scale, plain
 
     used = np.asarray(fit.inliers)
     vec = fit.parallax[:, None] * np.nan_to_num(fit.extras["epipolar_normal1"])
     ids = list(fit.all_ids)
     extent = float(np.ptp(xy1, axis=0).max()) or 1.0
-    vmax = float(np.sqrt((vec[used] ** 2).sum(axis=1)).max()) if used.any() else 0.0
-    factor = nice_length(0.15 * extent / vmax) if vmax > 0 else 1.0
+    p, v = xy1[used], vec[used]
+    # the scale follows the 90th percentile of the lengths (at most 7.5 % of the extent, the
+    # longest drawn arrow 15 %): a few large parallaxes are drawn clipped, in orange
+    sc = arrow_scale(v, 0.5 * extent)
+    factor, unit = sc.factor, fit.residual_unit
+    length = np.hypot(v[:, 0], v[:, 1])
+    shrink = np.ones(length.size)
+    shrink[sc.clipped] = sc.clip / length[sc.clipped]
+    v = v * shrink[:, None]
+    shown = sc.shown & ~sc.clipped
+    n_shown, n_used = int(sc.shown.sum()), int(used.sum())
     fig = Figure(figsize=(6.4, 5.6), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
-    p, v = xy1[used], vec[used]
-    ax.plot(p[:, 0], p[:, 1], "o", color="#1f5fa8", ms=4, label=f"used ({int(used.sum())})")
+    count = f"{n_shown} of {n_used} shown" if n_shown < n_used else f"{n_used}"
+    ax.plot(p[sc.shown, 0], p[sc.shown, 1], "o", color="#1f5fa8", ms=4 if n_shown == n_used
+            else 2, label=f"used ({count})")  # fmt: skip
     q = ax.quiver(
-        p[:, 0], p[:, 1], v[:, 0], v[:, 1], angles="xy", scale_units="xy",
+        p[shown, 0], p[shown, 1], v[shown, 0], v[shown, 1], angles="xy", scale_units="xy",
         scale=1.0 / factor, color="#1f5fa8", width=0.005,
     )  # fmt: skip
-    if vmax > 0:
-        key = nice_length(vmax)
-        ax.quiverkey(q, X=0.76, Y=1.035, U=key, label=f"{key:g} {fit.residual_unit}",
+    notes = []
+    if sc.clipped.any():
+        k = int(sc.clipped.sum())
+        c = sc.clipped & sc.shown
+        ax.quiver(
+            p[c, 0], p[c, 1], v[c, 0], v[c, 1], angles="xy", scale_units="xy",
+            scale=1.0 / factor, color=CLIPPED_COLOUR, width=0.005,
+            label=f"longer than {sc.clip:.3g} {unit}, clipped ({k})",
+        )  # fmt: skip
+        notes.append(f"{k} longer than {sc.clip:.3g} {unit} drawn clipped (orange)")
+    if n_shown < n_used:
+        notes.append(f"arrows: {n_shown} of {n_used} shown (the longest and a random sample)")
+    if sc.key > 0:
+        key = sc.key
+        ax.quiverkey(q, X=0.76, Y=1.035, U=key, label=f"{key:g} {unit}",
                      labelpos="E", coordinates="axes", color="black")  # fmt: skip
     if (~used).any():
         o = xy1[~used]
@@ -437,7 +459,9 @@ def _parallax_figure(fit, xy1):
     ax.grid(True, color="#dddddd", lw=0.6)
     ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
     ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
-    ax.set_title(f"residual y-parallaxes, arrows x{ex}", fontsize=9.5, loc="left")
+    ax.set_title(
+        "\n".join([*notes, f"residual y-parallaxes, arrows x{ex}"]), fontsize=9.5, loc="left"
+    )
     fig.tight_layout()
     return fig
 

@@ -13,9 +13,12 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..errors import InputError, PhotogeomError
 from ..units import display_angle, from_radians
 from .absolute import METHODS, AbsoluteOrientationFit, absolute_orientation, normalize_method
+from .absolute_stats import transpose_angles
 
 PARAMETERS = ("tx", "ty", "tz", "scale", "omega", "phi", "kappa")
 
@@ -141,31 +144,92 @@ class MethodComparison:
             ])
         return out
 
+    def reference_std(self) -> dict:
+        """Standard deviations of the reference method's parameters, in the units and angle
+        convention of the table.
+
+        Shifts in :attr:`length_unit`, the scale unitless, the angles in :attr:`unit` of
+        :attr:`convention` (the direct convention's propagated from the transposed angles'
+        covariance with :func:`~photogeom.orientation.absolute_stats.transpose_angles`).
+
+        Returns
+        -------
+        dict
+            ``tx, ty, tz, scale, omega, phi, kappa``; NaN each where undefined (the reference
+            failed, or has no redundancy); empty when the reference failed.
+        """
+        ref = next((r for r in self.rows if r.method == self.reference), None)
+        if ref is None or ref.fit is None:
+            return {}
+        fit = ref.fit
+        names = list(fit.parameter_names)
+        cov = np.asarray(getattr(fit, "covariance", None), dtype=float)
+        if cov.shape != (len(names), len(names)):
+            return {name: math.nan for name in PARAMETERS}
+        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        sd[~np.isfinite(np.diag(cov))] = np.nan
+        out = {name: float(sd[names.index(name)]) for name in ("tx", "ty", "tz", "scale")}
+        idx = [names.index(a) for a in ("omega", "phi", "kappa")]
+        c_ang = cov[np.ix_(idx, idx)]
+        if self.convention == "direct" and not fit.model.check:
+            c_ang = np.full((3, 3), np.nan)  # raw closed form: the direct reading differs
+        elif self.convention == "direct":
+            _, jac = transpose_angles(*(float(fit.params[a]) for a in ("omega", "phi", "kappa")))
+            c_ang = jac @ c_ang @ jac.T  # NaN at gimbal lock: the rule without a std
+        with np.errstate(invalid="ignore"):
+            s_ang = np.sqrt(np.clip(np.diag(c_ang), 0.0, None))
+        s_ang[~np.isfinite(np.diag(c_ang))] = np.nan
+        for a, v in zip(("omega", "phi", "kappa"), s_ang, strict=True):
+            out[a] = float(from_radians(float(v), self.unit))
+        return out
+
     def display_rows(self) -> list[list[str]]:
         """:meth:`table_rows` as text, with the digits the command line and the HTML
         report both show.
 
-        Shifts and angles to 6 decimals, the scale to 10, the differences and the
-        orthogonality defect with 3 significant digits (exponent form), the time to 0.1 us;
-        "-" for the values of a failed method.
+        Parameters have the digits of the parameter tables: two beyond the leading digit of
+        the reference method's standard deviation (:meth:`reference_std`,
+        :func:`photogeom.report.format.fmt_value`; Kraus' scale 8071.844 for a std of 0.30,
+        not 8071.8438023223); without one, shifts and angles to 6 decimals and the scale
+        to 10. The differences and the orthogonality defect have 3 significant digits
+        (exponent form), an exact zero is ``0`` (the reference's differences to itself);
+        the time to 0.1 us; "-" for the values of a failed method.
 
         Returns
         -------
         list of list of str
             Rows of the 13 :meth:`columns`.
         """
+        from ..report.format import fmt_value
 
         def fmt(v, spec: str) -> str:
-            return "-" if v is None or not math.isfinite(v) else format(float(v), spec)
+            if v is None or not math.isfinite(v):
+                return "-"
+            if spec.endswith("e") and v == 0.0:
+                return "0"
+            return format(float(v), spec)
 
-        specs = [".6f"] * 3 + [".10f"] + [".6f"] * 3 + [".2e"] * 4 + [".1f"]
-        return [
-            [r[0], *(fmt(v, spec) for v, spec in zip(r[1:], specs, strict=True))]
-            for r in self.table_rows()
-        ]
+        std = self.reference_std()
+
+        def value(v, name: str, spec: str) -> str:
+            s = std.get(name, math.nan)
+            if v is None or not math.isfinite(v) or not (math.isfinite(s) and s > 0):
+                return fmt(v, spec)
+            return fmt_value(v, s)
+
+        specs = [".2e"] * 4 + [".1f"]
+        out = []
+        for r in self.table_rows():
+            params = [
+                value(v, name, ".10f" if name == "scale" else ".6f")
+                for v, name in zip(r[1:8], PARAMETERS, strict=True)
+            ]
+            out.append([r[0], *params, *(fmt(v, sp) for v, sp in zip(r[8:], specs, strict=True))])
+        return out
 
     def to_text(self) -> str:
-        """Plain-text table (differences are to the reference method).
+        """Plain-text table (differences are to the reference method), with the digits of
+        :meth:`display_rows` (those of ``orient absolute --compare`` and the report).
 
         Returns
         -------
@@ -180,25 +244,20 @@ class MethodComparison:
             f"{self.unit} ({self.convention} convention), shifts in {self.length_unit}",
             head,
         ]
+        cells = {row[0]: row for row in self.display_rows()}
         for r in self.rows:
             if r.fit is None:
                 lines.append(f"{r.method:<16}  failed: {r.error}")
                 continue
-            v, d = r.values, r.differences
-            ds = max(abs(d["tx"]), abs(d["ty"]), abs(d["tz"]))
-            da = max(abs(d["omega"]), abs(d["phi"]), abs(d["kappa"]))
+            c = cells[r.method]
             lines.append(
-                f"{r.method:<16}{v['scale']:>16.10f}{v['omega']:>12.6f}{v['phi']:>12.6f}"
-                f"{v['kappa']:>12.6f}{ds:>11.2e}{abs(d['scale']):>11.2e}{da:>11.2e}"
-                f"{r.orthogonality_defect:>10.1e}{r.time_per_solve * 1e6:>10.1f}"
+                f"{r.method:<16}{c[4]:>16}{c[5]:>12}{c[6]:>12}{c[7]:>12}"
+                f"{c[8]:>11}{c[9]:>11}{c[10]:>11}{c[11]:>10}{c[12]:>10}"
             )
         ref = self.row(self.reference)
         if ref.fit is not None:
-            v = ref.values
-            lines.append(
-                f"{self.reference} shift: ({v['tx']:.6f}, {v['ty']:.6f}, {v['tz']:.6f}) "
-                f"{self.length_unit}"
-            )
+            c = cells[ref.method]
+            lines.append(f"{self.reference} shift: ({c[1]}, {c[2]}, {c[3]}) {self.length_unit}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:

@@ -56,18 +56,40 @@ def fmt_std(s: float) -> str:
 def fmt_value(v: float, std: float | None = None) -> str:
     """A value with two digits beyond the leading digit of its standard deviation.
 
+    Fixed-point while that needs at most 15 decimals (std >= 1e-13). A smaller standard
+    deviation (exact or nearly exact data: the std is rounding noise) gives ``"0"`` for a
+    value within one std of zero, else the value with the same digits in ``g`` notation
+    (at most ten significant digits, trailing zeros dropped): ``9.9e-17 +- 1e-16`` is
+    ``"0"``, ``1.23456e-20 +- 4e-22`` is ``"1.2346e-20"``, ``100 +- 9e-15`` is ``"100"``.
     Without a usable standard deviation: ten significant digits. A value that rounds to
     zero is shown without a sign ("0.0000", never "-0.0000").
+
+    Parameters
+    ----------
+    v : float
+        The value, any unit.
+    std : float, optional
+        Its standard deviation, unit of ``v``.
+
+    Returns
+    -------
+    str
     """
     if not _finite(v):
         return "nan" if v is not None else "-"
     v = float(v)
     text = f"{v:.10g}"
     if std is not None and _finite(std) and float(std) > 0:
-        decimals = 2 - math.floor(math.log10(float(std)))
+        s = float(std)
+        decimals = 2 - math.floor(math.log10(s))
         if 0 <= decimals <= 15:
             text = f"{v:.{decimals}f}"
-        elif decimals < 0:
+        elif decimals > 15:
+            if abs(v) <= s:
+                return "0"  # zero within a std at the level of rounding errors
+            digits = math.floor(math.log10(abs(v))) + 1 + decimals
+            text = f"{v:.{min(10, max(1, digits))}g}"
+        else:
             text = f"{v:.{max(3, math.floor(math.log10(abs(v) + 1e-300)) + 1 + decimals)}g}"
     if text.startswith("-") and not text.strip("-0."):
         text = text[1:]  # -4e-9 +- 2.5e-5 is "0.0000000", -0.0 is "0"

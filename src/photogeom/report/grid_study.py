@@ -28,7 +28,7 @@ from matplotlib.figure import Figure
 
 from ..calibration.blocks import block_residuals
 from .html import Report
-from .plots import nice_length, plain
+from .plots import CLIPPED_COLOUR, arrow_scale, nice_length, plain
 
 __all__ = ["PUBLISHED", "grid_study_report", "sensor_mean_residuals"]
 
@@ -69,37 +69,67 @@ def sensor_mean_residuals(block, cells: tuple[int, int] = (12, 8)):
 
 
 def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> None:
-    """Vectors exaggerated so that a vector of length ``ref`` (px; default the longest)
-    is 8 % of the image width."""
+    """Vectors exaggerated so that a vector of length ``ref`` (px) is 8 % of the image
+    width.
+
+    Without ``ref`` the scale follows the 90th percentile of the lengths
+    (:func:`~photogeom.report.plots.arrow_scale`: at most 7.5 % of the width, the longest
+    drawn arrow at most 15 %): vectors longer than 3 times it (blunders) are drawn clipped in
+    :data:`~photogeom.report.plots.CLIPPED_COLOUR`, at most
+    :data:`~photogeom.report.plots.MAX_ARROWS` are drawn (the longest always), and the title
+    says how many of each.
+    """
     w, h = size
+    v = np.asarray(v, dtype=float).reshape(-1, 2)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    notes = []
     if ref is None:
-        ref = float(np.max(np.hypot(v[:, 0], v[:, 1]))) if v.size else 0.0
-    ref = max(ref, 1e-12)
-    k = 0.08 * w / ref  # the longest vector is 8 % of the image width
-    ax.quiver(
-        xy[:, 0],
-        xy[:, 1],
-        v[:, 0] * k,
-        v[:, 1] * k,  # v down the image: the axis is inverted, so down on the page too
-        angles="xy",
-        scale_units="xy",
-        scale=1,
-        color=color,
-        width=0.003,
-    )
-    L = nice_length(ref)
-    ax.quiver(
-        [0.05 * w],
-        [1.06 * h],
-        [L * k],
-        [0],
-        angles="xy",
-        scale_units="xy",
-        scale=1,
-        color="k",
-        width=0.004,
-    )
-    ax.text(0.05 * w, 1.1 * h, f"{L:g} px", fontsize=8)
+        sc = arrow_scale(v, 0.5 * w)
+        k, L = sc.factor, sc.key
+        length = np.hypot(v[:, 0], v[:, 1])
+        shrink = np.ones(length.size)
+        shrink[sc.clipped] = sc.clip / length[sc.clipped]
+        v = v * shrink[:, None]
+        show, clipped = sc.shown, sc.clipped
+        if clipped.any():
+            notes.append(f"{int(clipped.sum())} longer than {sc.clip:.3g} px clipped (orange)")
+        if show.sum() < np.isfinite(length).sum():
+            notes.append(f"{int(show.sum())} of {int(np.isfinite(length).sum())} shown")
+    else:
+        ref = max(ref, 1e-12)
+        k = 0.08 * w / ref  # a vector of length ref is 8 % of the image width
+        L = nice_length(ref)
+        show = np.ones(len(v), dtype=bool)
+        clipped = np.zeros(len(v), dtype=bool)
+    for sel, colour in ((show & ~clipped, color), (show & clipped, CLIPPED_COLOUR)):
+        if colour == CLIPPED_COLOUR and not sel.any():
+            continue
+        ax.quiver(
+            xy[sel, 0],
+            xy[sel, 1],
+            v[sel, 0] * k,
+            v[sel, 1] * k,  # v down the image: the axis is inverted, so down on the page too
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color=colour,
+            width=0.003,
+        )
+    if L > 0:
+        ax.quiver(
+            [0.05 * w],
+            [1.06 * h],
+            [L * k],
+            [0],
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color="k",
+            width=0.004,
+        )
+        ax.text(0.05 * w, 1.1 * h, f"{L:g} px", fontsize=8)
+    if notes:
+        title = f"{title}\n{'; '.join(notes)}"
     ax.set_xlim(-0.02 * w, 1.02 * w)
     ax.set_ylim(1.15 * h, -0.02 * h)
     ax.set_aspect("equal")

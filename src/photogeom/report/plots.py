@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -13,6 +14,22 @@ from ..errors import InputError
 #: Points whose ids :func:`residual_figure` writes beside them at most (all groups together);
 #: with more, no id is drawn and the figure says so.
 MAX_ID_LABELS = 200
+
+#: Arrows :func:`residual_figure` draws at most (all groups together); with more points, the
+#: :data:`LONGEST_ALWAYS_SHOWN` longest and an even random sample of the others are drawn and
+#: the figure says "N of M shown".
+MAX_ARROWS = 3000
+
+#: Arrows always drawn when the points are thinned: this many of the longest.
+LONGEST_ALWAYS_SHOWN = 600
+
+#: Residuals longer than this multiple of the 90th percentile of the lengths are drawn clipped
+#: to it, in :data:`CLIPPED_COLOUR`. For normal noise (Rayleigh lengths) a residual 3 times
+#: the 90th percentile has a probability of about 1e-9: only blunders are clipped.
+CLIP_RATIO = 3.0
+
+#: Colour of the clipped arrows.
+CLIPPED_COLOUR = "#e69f00"
 
 
 def nice_length(value: float) -> float:
@@ -64,6 +81,89 @@ def _xy(a, name: str) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] < 2:
         raise InputError(f"{name}: expected shape (n, 2), got {arr.shape}")
     return arr[:, :2]
+
+
+@dataclass(frozen=True)
+class ArrowScale:
+    """How :func:`residual_figure` draws residual arrows (see :func:`arrow_scale`).
+
+    Attributes
+    ----------
+    factor : float
+        Exaggeration: a residual of length 1 (residual unit) is drawn ``factor`` position
+        units long.
+    key : float
+        True length of the scale arrow (residual unit), drawn ``key * factor`` long; 0 when
+        every residual is zero.
+    typical : float
+        90th percentile of the residual lengths (residual unit) the scale follows.
+    clip : float
+        Residuals longer than this (residual unit) are drawn this long, in
+        :data:`CLIPPED_COLOUR`; ``inf`` when none is.
+    clipped : numpy.ndarray of bool, shape (n,)
+        Rows longer than ``clip``.
+    shown : numpy.ndarray of bool, shape (n,)
+        Rows drawn (finite, and chosen when there are more than ``max_arrows``).
+    """
+
+    factor: float
+    key: float
+    typical: float
+    clip: float
+    clipped: np.ndarray
+    shown: np.ndarray
+
+
+def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> ArrowScale:
+    """Exaggeration, scale arrow, clipping and thinning of residual arrows.
+
+    The scale follows the 90th percentile of the lengths (not the longest: a few blunders
+    would shrink every other arrow to a dot): it is drawn 15 % of ``extent`` long, but no
+    drawn arrow is longer than 30 % of it. Residuals longer than :data:`CLIP_RATIO` times
+    the 90th percentile are drawn clipped to that length. With more than ``max_arrows``
+    finite rows, the :data:`LONGEST_ALWAYS_SHOWN` longest and a random sample of the others
+    (fixed seed: the same figure every run) are shown.
+
+    Parameters
+    ----------
+    residuals_xy : array_like, shape (n, 2)
+        Residual vectors, any unit.
+    extent : float
+        Size of the plotted area (position unit, > 0).
+    max_arrows : int, default :data:`MAX_ARROWS`
+        Arrows drawn at most.
+
+    Returns
+    -------
+    ArrowScale
+    """
+    r = np.asarray(residuals_xy, dtype=float)[:, :2]
+    length = np.hypot(r[:, 0], r[:, 1])
+    finite = np.isfinite(length)
+    n = length.size
+    none = np.zeros(n, dtype=bool)
+    if not finite.any() or not (length[finite] > 0).any():
+        return ArrowScale(1.0, 0.0, 0.0, math.inf, none, finite)
+    good = length[finite]
+    vmax = float(good.max())
+    typical = float(np.quantile(good, 0.9))
+    if typical <= 0:  # nearly all zero: the few others set the scale
+        typical = float(np.quantile(good[good > 0], 0.9))
+    clip = CLIP_RATIO * typical if vmax > CLIP_RATIO * typical else math.inf
+    longest = min(vmax, clip)
+    factor = nice_length(min(0.15 * extent / typical, 0.3 * extent / longest))
+    key = nice_length(typical)
+    clipped = finite & (length > clip)
+    shown = finite.copy()
+    idx = np.flatnonzero(finite)
+    if idx.size > max_arrows:
+        order = idx[np.argsort(-length[idx], kind="stable")]
+        big = min(LONGEST_ALWAYS_SHOWN, max_arrows)
+        rest = np.random.default_rng(0).choice(order[big:], max_arrows - big, replace=False)
+        shown = none.copy()
+        shown[order[:big]] = True
+        shown[rest] = True
+    return ArrowScale(factor, key, typical, clip, clipped, shown)
 
 
 def residual_figure(
@@ -131,32 +231,46 @@ def residual_figure(
     extent = float(np.ptp(all_p[finite], axis=0).max()) if finite.any() else 1.0
     if extent <= 0:
         extent = 1.0
-    vmax = float(np.sqrt((all_r[finite] ** 2).sum(axis=1)).max()) if finite.any() else 0.0
-    factor = nice_length(0.15 * extent / vmax) if vmax > 0 else 1.0
-    key = nice_length(vmax) if vmax > 0 else 0.0
+    draw_r = np.where(finite[:, None], all_r, np.nan)
+    sc = arrow_scale(draw_r, extent)
+    factor, key = sc.factor, sc.key
+    vmax = float(np.hypot(draw_r[finite, 0], draw_r[finite, 1]).max()) if finite.any() else 0.0
+    # clipped arrows: drawn CLIP_RATIO x typical long, in their direction
+    length = np.hypot(draw_r[:, 0], draw_r[:, 1])
+    shrink = np.ones(length.size)
+    shrink[sc.clipped] = sc.clip / length[sc.clipped]
+    drawn_r = draw_r * shrink[:, None]
+    starts = np.cumsum([0] + [g[0].shape[0] for g in groups])
 
     fig = Figure(figsize=(6.4, 5.6), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
     handles = []
     shown_by_number = []
     n_points = sum(g[0].shape[0] for g in groups)
+    n_shown = int(sc.shown.sum())
+    thinned = n_shown < int(finite.sum())
     # more ids than a figure can show legibly: none drawn (drawing thousands of labels took
     # most of a report's time, 40 s for 5000 points, and covered the arrows)
     label = n_points <= MAX_ID_LABELS
-    for p, r, pid, group, colour in groups:
-        ax.plot(p[:, 0], p[:, 1], "o", color=colour, ms=4, zorder=3)
+    for k, (p, _r, pid, group, colour) in enumerate(groups):
+        rows = slice(starts[k], starts[k + 1])
+        show = sc.shown[rows]
+        plain_rows = show & ~sc.clipped[rows]
+        d = drawn_r[rows]
+        ax.plot(p[show, 0], p[show, 1], "o", color=colour, ms=4 if not thinned else 2, zorder=3)
+        count = f"{int(show.sum())} of {p.shape[0]} shown" if thinned else f"{p.shape[0]}"
         q = ax.quiver(
-            p[:, 0],
-            p[:, 1],
-            r[:, 0],
-            r[:, 1],
+            p[plain_rows, 0],
+            p[plain_rows, 1],
+            d[plain_rows, 0],
+            d[plain_rows, 1],
             angles="xy",
             scale_units="xy",
             scale=1.0 / factor,
             color=colour,
-            width=0.005,
+            width=0.005 if not thinned else 0.003,
             zorder=4,
-            label=plain(f"{group} ({p.shape[0]})"),
+            label=plain(f"{group} ({count})"),
         )
         handles.append(q)
         if pid is not None and label:
@@ -172,6 +286,23 @@ def residual_figure(
                     color=colour,
                     fontproperties=font,
                 )
+    n_clipped = int(sc.clipped.sum())
+    clip_text = f"{sc.clip:.3g} {unit}".strip()
+    if n_clipped:
+        sel = sc.clipped & sc.shown
+        ax.quiver(
+            all_p[sel, 0],
+            all_p[sel, 1],
+            drawn_r[sel, 0],
+            drawn_r[sel, 1],
+            angles="xy",
+            scale_units="xy",
+            scale=1.0 / factor,
+            color=CLIPPED_COLOUR,
+            width=0.005 if not thinned else 0.003,
+            zorder=5,
+            label=plain(f"longer than {clip_text}, clipped ({n_clipped})"),
+        )
     if key > 0:
         # the scale arrow in the lower-left corner inside the axes (kept free by the padding
         # below), away from the title above and the legend in the lower right
@@ -186,7 +317,7 @@ def residual_figure(
             color="black",
             fontproperties={"size": 8.5},
         )
-    pad = 0.12 * extent + (0.15 * extent if vmax > 0 else 0)
+    pad = 0.12 * extent + (min(vmax, sc.clip) * factor if vmax > 0 else 0)
     lo = all_p[finite].min(axis=0) if finite.any() else np.zeros(2)
     hi = all_p[finite].max(axis=0) if finite.any() else np.ones(2)
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
@@ -204,6 +335,16 @@ def residual_figure(
     note = (
         f"v = computed - observed, arrows x{exaggeration}" if vmax > 0 else "all residuals are zero"
     )
+    if n_clipped:
+        note += (
+            f"\n{n_clipped} arrow(s) longer than {clip_text} drawn clipped to it"
+            f" ({CLIP_RATIO:g} x the 90th percentile), in orange"
+        )
+    if thinned:
+        note += (
+            f"\narrows: {n_shown} of {int(finite.sum())} shown"
+            f" (the {min(LONGEST_ALWAYS_SHOWN, n_shown)} longest and a random sample)"
+        )
     if not label and any(g[2] is not None for g in groups):
         note += f"\nids not drawn ({n_points} points, more than {MAX_ID_LABELS})"
     if shown_by_number:
