@@ -7,8 +7,10 @@ updated as ``f_k <- f_k * v_k'P_k v_k / r_k`` and the adjustment repeated until 
 is 1 within the tolerance. With a robust loss ``v_k'P_k v_k`` holds the robust weights and
 ``r_k`` is the group's share of the Stein redundancy
 (:func:`photogeom.bundle.robust.stein_redundancy`), from the adjustment weighted by the
-score slopes: the expectation of ``v_k'P_k v_k`` over the group's variance factor under
-normal errors. The estimated standard
+score slopes, less the part of ``v_k'P_k v_k`` that cancels only over all groups
+(:func:`_cross_terms`; for GNSS, IMU, the control points and their image observations,
+the tie points' image observations taking the rest): the expectation of ``v_k'P_k v_k`` over
+the group's variance factor under normal errors. The estimated standard
 deviation of a group is its a-priori one times ``sqrt(f_k)``. A group without redundancy,
 or whose iterated estimate runs to zero (its redundancy contribution collapsing), keeps its
 a-priori sigmas and is listed in ``not_estimated``.
@@ -22,7 +24,11 @@ from ..adjust.variance_components import update_variance_factors
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ._angles import opk_from_rotations
 from .adjustment import levenberg_marquardt
-from .robust import point_trace_shares, score_slopes
+from .robust import (
+    influence_factors,
+    point_trace_shares,
+    score_slopes,
+)
 
 #: Stop when every group's ratio v'Pv / r is within this of 1.
 TOLERANCE = 0.01
@@ -32,6 +38,8 @@ MAX_ROUNDS = 20
 COLLAPSE = 1e-3
 #: A redundancy contribution at most this is none (nothing controls the group).
 NO_REDUNDANCY = 1e-6
+#: Step of the difference quotient of the robust cross terms (:func:`_cross_terms`).
+CROSS_STEP = 0.125
 
 GROUP_TEXT = {
     "image_tie": "image observations of tie points",
@@ -62,7 +70,32 @@ def _inestimable(names, vtpv, red, first_red, held) -> dict:
     return out
 
 
+def _prior_cofactor_traces(problem, run, Q, Qpp) -> dict:
+    """Per prior group (GNSS, IMU, control) ``tr(N_k Q)``: the trace of its whitened
+    observations' cofactors ``A_k Q A_k'`` for the inverse normal matrix ``Q`` (camera
+    blocks ``Q``, point blocks ``Qpp``)."""
+    _, _, _, _, _, parts = problem.prior_terms(run.state)
+    gf = problem.group_factor
+    out = {}
+    if "gnss" in parts:
+        k = problem.has_gnss
+        w = 1.0 / (problem.block.gnss_sigma[k] ** 2 * gf["gnss"])
+        out["gnss"] = float((w * np.einsum("kii->ki", Q.local[k][:, :3, :3])).sum())
+    if "imu" in parts:
+        k = problem.has_imu
+        s = problem.block.imu_sigma[k] * np.sqrt(gf["imu"])
+        J = opk_from_increment_jacobian(opk_from_rotations(run.state.M[k])) / s[:, :, None]
+        out["imu"] = float(np.einsum("kai,kij,kaj->", J, Q.local[k][:, 3:6, 3:6], J))
+    if "control" in parts:
+        c = problem.control
+        w = 1.0 / (problem.control_sigma**2 * gf["control"])
+        out["control"] = float((w * np.einsum("kii->ki", Qpp[c])).sum())
+    return out
+
+
 def _contributions(problem, run):
+    """Per group ``(v_k'P_k W_k v_k, r_k)``: its weighted square sum and the redundancy
+    whose expectation times the group's variance factor is that sum's expectation."""
     from .result import statistics_pass
 
     opts = problem.options
@@ -76,41 +109,91 @@ def _contributions(problem, run):
     d = score_slopes(opts.loss, opts.scale, e2)
     _, _, _, Q, Qpp, Cobs = statistics_pass(problem, run.state, d, pairs=True, cofactors=True)
     red_img = d * (2.0 - np.einsum("ndd->n", Cobs))
-    ctrl_extra = 0.0
+    prior_tr = _prior_cofactor_traces(problem, run, Q, Qpp)
+    n_prior = {
+        "gnss": 3.0 * int(problem.has_gnss.sum()),
+        "imu": 3.0 * int(problem.has_imu.sum()),
+        "control": 3.0 * problem.control.size,
+    }
+    red_prior = {k: n_prior[k] - t for k, t in prior_tr.items()}
     if opts.loss != "squared":
         per_obs, per_point = point_trace_shares(
             opts.loss, opts.scale, lin1.r, lin1.P, problem.obs_j, lin1.point_info
         )
         red_img = red_img + per_obs
-        ctrl_extra = float(np.sum(per_point))
-    out = {}
+        if "control" in red_prior:
+            red_prior["control"] += float(np.sum(per_point))
     ctrl = problem.obs_is_control
+    red_tie, red_ctrl = float(red_img[~ctrl].sum()), float(red_img[ctrl].sum())
+    if opts.loss != "squared":
+        cross_ctrl, cross_prior = _cross_terms(problem, run, d, Cobs, prior_tr)
+        for k, x in cross_prior.items():
+            red_prior[k] -= x
+        # the cross terms add up to zero over all groups: the tie points' image
+        # observations (the largest group, whose own first-order term is least accurate:
+        # points of two rays) take the rest, the total staying the Stein redundancy
+        rest = sum(cross_prior.values())
+        if np.any(~ctrl):
+            red_ctrl -= cross_ctrl
+            red_tie += rest + cross_ctrl
+        else:
+            red_ctrl += rest
+    out = {}
     if np.any(~ctrl):
-        out["image_tie"] = (float(r_img[~ctrl].sum()), float(red_img[~ctrl].sum()))
+        out["image_tie"] = (float(r_img[~ctrl].sum()), red_tie)
     if np.any(ctrl):
-        out["image_control"] = (float(r_img[ctrl].sum()), float(red_img[ctrl].sum()))
+        out["image_control"] = (float(r_img[ctrl].sum()), red_ctrl)
     _, _, _, _, _, parts = problem.prior_terms(run.state)
-    gf = problem.group_factor
-    if "gnss" in parts:
-        k = problem.has_gnss
-        w = 1.0 / (problem.block.gnss_sigma[k] ** 2 * gf["gnss"])
-        q = np.einsum("kii->ki", Q.local[k][:, :3, :3])
-        out["gnss"] = (float((parts["gnss"] ** 2).sum()), float((1.0 - w * q).sum()))
-    if "imu" in parts:
-        k = problem.has_imu
-        s = problem.block.imu_sigma[k] * np.sqrt(gf["imu"])
-        J = opk_from_increment_jacobian(opk_from_rotations(run.state.M[k])) / s[:, :, None]
-        q = np.einsum("kai,kij,kaj->ka", J, Q.local[k][:, 3:6, 3:6], J)
-        out["imu"] = (float((parts["imu"] ** 2).sum()), float((1.0 - q).sum()))
-    if "control" in parts:
-        c = problem.control
-        w = 1.0 / (problem.control_sigma**2 * gf["control"])
-        q = np.einsum("kii->ki", Qpp[c])
-        out["control"] = (
-            float((parts["control"] ** 2).sum()),
-            float((1.0 - w * q).sum()) + ctrl_extra,
-        )
+    for k in ("gnss", "imu", "control"):
+        if k in parts:
+            out[k] = (float((parts[k] ** 2).sum()), float(red_prior[k]))
     return out
+
+
+def _cross_terms(problem, run, d, Cobs, prior_tr):
+    """The part of the robust ``v_k'P_k W_k v_k`` of the control points' image observations
+    and of each prior group (GNSS, IMU, control) that its share of the Stein redundancy
+    misses, in variance-factor units.
+
+    With ``v = eps - A delta`` (``delta`` the error of the estimate) a group's ``psi_k'v_k =
+    psi_k'eps_k - psi_k'A_k delta``. Stein's identity gives the first term's expectation
+    (the group's share of :func:`~photogeom.bundle.robust.stein_redundancy`); the second
+    adds up to zero over the groups (``A'psi = 0``) but not within one. To first order, with
+    ``H = A'DA`` the normal matrix weighted by the score slopes, ``B = H + J'(S - D)J`` the
+    one whose image points are weighted by the scores' spreads ``S`` instead and ``Sigma =
+    H^-1 B H^-1`` the covariance of the estimate, its expectation is ``tr(H^-1 B_k) - tr(H_k
+    Sigma)``: for a prior group (weight 1) ``tr(N_k (H^-1 - Sigma))``, positive since the
+    spread of a robust score is below its slope; for image point ``i`` ``d_i tr(J_i (H^-1 -
+    Sigma) J_i') + (spread_i - slope_i) tr(J_i H^-1 J_i')``. ``H^-1 - Sigma = -H^-1 J'(S -
+    D)J H^-1`` is the derivative of ``(H + t J'(S - D)J)^-1`` at ``t = 0``, taken as its
+    difference quotient at ``t =`` :data:`CROSS_STEP` (one more factorisation; the
+    quotient's error is below ``t (1 - spread / slope)`` of the term). ``spread`` and
+    ``slope`` are the expectations of :func:`~photogeom.bundle.robust.influence_factors` at
+    each image point's residual variance ``1 - h_i`` (its leverage in the slope-weighted
+    adjustment, variance factor 1: the fixed point of the iteration). Without these terms
+    the control points' factor came out 0.76 (Huber) and 0.58 (Cauchy) against 0.95 for
+    least squares on the same draws.
+
+    Returns
+    -------
+    (control_images, per_prior_group) : float, dict
+    """
+    from .result import statistics_pass
+
+    opts = problem.options
+    dd = np.clip(d, 1e-12, None)
+    tr_d = np.einsum("ndd->n", Cobs) / dd  # tr(J_i H^-1 J_i')
+    h = np.clip(0.5 * tr_d, 0.0, 1.0)
+    slope, spread = influence_factors(opts.loss, opts.scale, 1.0 - h)
+    wt = np.clip(d + CROSS_STEP * (spread - slope), 1e-12, None)
+    _, _, _, Qt, Qppt, Ct = statistics_pass(problem, run.state, wt, pairs=True, cofactors=True)
+    tr_t = np.einsum("ndd->n", Ct) / wt  # tr(J_i (H + t J'(S - D)J)^-1 J_i')
+    c = problem.obs_is_control
+    diff = (tr_t[c] - tr_d[c]) / CROSS_STEP  # tr(J_i (H^-1 - Sigma) J_i')
+    cross_ctrl = float(np.sum(d[c] * diff + (spread[c] - slope[c]) * tr_d[c]))
+    t_tr = _prior_cofactor_traces(problem, run, Qt, Qppt)
+    cross_prior = {k: (t_tr[k] - prior_tr[k]) / CROSS_STEP for k in prior_tr}
+    return cross_ctrl, cross_prior
 
 
 def iterate_variance_components(problem, run, opts, progress=None):
