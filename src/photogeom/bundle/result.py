@@ -1247,6 +1247,14 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
     vc = None
     if vce is not None:
         vc = vce
+        if not vce.get("converged", True):
+            notes.append(
+                f"variance components did not converge in {vce.get('rounds')} round(s) (the "
+                "factors still changed by more than the tolerance): the factors and the "
+                "standard deviations depend on where the iteration stopped; a group with few "
+                "observations (a handful of control points) may be collapsing toward factor 0: "
+                "hold it at its a-priori sigmas, or adjust without variance components"
+            )
         for k, why in vce.get("not_estimated", {}).items():
             notes.append(
                 f"variance components: the group '{k}' is not estimated ({why}); it keeps "
