@@ -1,0 +1,108 @@
+"""Per-call overhead of small fits: checks without array round trips or Python-level calls.
+
+A 10-point 2D affine fit takes a fraction of a millisecond, so the conversions around the
+arithmetic matter: the model's six parameters (already floats) went through a numpy array
+and back, ``Affine2D.singular`` built the 2x2 matrix for a maximum of four numbers, and the
+finite-magnitude check of each input went through numpy's Python-level reduction wrappers.
+The checks themselves must stay (their errors are tested here as well).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import types
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+from photogeom.errors import InputError
+from photogeom.transforms import Affine2D, Similarity2D, _common, affine2d, similarity2d
+from photogeom.validation import MAX_MAGNITUDE, check_finite_magnitude
+
+
+def _no_arrays(monkeypatch, *modules):
+    """Make ``np.array`` / ``np.asarray`` raise inside ``modules``."""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("array built")
+
+    for mod in modules:
+        proxy = types.SimpleNamespace(**{k: getattr(np, k) for k in dir(np) if not k[:1] == "_"})
+        proxy.array = proxy.asarray = refuse
+        monkeypatch.setattr(mod, "np", proxy)
+
+
+def test_affine2d_from_floats_builds_no_array(monkeypatch):
+    p = np.array([0.95, -0.07, 125.0, 0.09, 1.03, 130.0])
+    _no_arrays(monkeypatch, _common, affine2d, similarity2d)
+    tf = Affine2D(*p)  # numpy floats, as an estimate gives them
+    assert all(type(getattr(tf, n)) is float for n in ("a1", "a2", "a3", "b1", "b2", "b3"))
+    assert tf.singular is False
+    s = Similarity2D(*p[:4])
+    assert all(type(getattr(s, n)) is float for n in "abcd")
+
+
+def test_parameter_checks_stay():
+    with pytest.raises(InputError, match="Affine2D: parameters must be finite"):
+        Affine2D(1.0, 0.0, 0.0, 0.0, float("nan"), 0.0)
+    with pytest.raises(InputError, match="Affine2D: parameters must be finite"):
+        Affine2D(1.0, 0.0, 0.0, 0.0, np.float64(np.inf), 0.0)
+    with pytest.raises(InputError, match="Similarity2D: parameters must be finite"):
+        Similarity2D(1.0, math.inf, 0.0, 0.0)
+    # other scalar types still convert as before (ints, 0-d arrays, strings of numbers)
+    tf = Affine2D(1, np.array(0.5), "2", 0, 1, np.int64(3))
+    assert (tf.a1, tf.a2, tf.a3, tf.b3) == (1.0, 0.5, 2.0, 3.0)
+    assert all(type(getattr(tf, n)) is float for n in ("a1", "a2", "a3", "b1", "b2", "b3"))
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-160, 1e140])
+def test_singular_as_defined(scale):
+    """``singular`` is ``|det A| <= 1e-14 max|A|^2``, whatever the magnitude."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        A = rng.normal(size=(2, 2)) * scale
+        if rng.uniform() < 0.5:  # rank one to rounding
+            A[1] = A[0] * rng.normal() * (1 + rng.choice([0.0, 1e-16, 1e-13, 1e-6]))
+        tf = Affine2D(A[0, 0], A[0, 1], 0.0, A[1, 0], A[1, 1], 0.0)
+        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+        assert tf.singular == bool(abs(det) <= 1e-14 * max(np.abs(A).max() ** 2, 1e-300))
+
+
+def _python_calls(fn) -> int:
+    """Python-level function calls made by ``fn()`` (C functions not counted)."""
+    calls = []
+
+    def prof(frame, event, arg):
+        if event == "call":
+            calls.append(frame.f_code.co_name)
+
+    sys.setprofile(prof)
+    try:
+        fn()
+    finally:
+        sys.setprofile(None)
+    return len(calls) - 1  # fn itself
+
+
+def test_finite_magnitude_check_calls_no_python_wrappers():
+    pts = np.random.default_rng(0).uniform(0, 4000, (10, 2))
+    assert _python_calls(lambda: check_finite_magnitude(pts, "source", "affine2d")) == 1
+
+
+def test_finite_magnitude_errors_stay():
+    pts = np.ones((10, 2))
+    pts[3, 1] = np.nan
+    with pytest.raises(InputError, match=r"1 row\(s\) contain NaN or infinite values \(row"):
+        check_finite_magnitude(pts, "source", "affine2d")
+    pts[3, 1] = -np.inf
+    with pytest.raises(InputError, match="source: 1 row"):
+        check_finite_magnitude(pts, "source", "affine2d")
+    pts[3, 1] = -MAX_MAGNITUDE / 2  # sqrt(20) * 5e149 > 1e150
+    with pytest.raises(InputError, match="overflow float64"):
+        check_finite_magnitude(pts, "target", "affine2d")
+    pts[3, 1] = -MAX_MAGNITUDE / 5  # 4.47 * 2e149 < 1e150
+    check_finite_magnitude(pts, "target", "affine2d")
+    with pytest.raises(InputError, match="overflow float64"):
+        pg.estimate_transform("affine2d", pts * 10, pts)
