@@ -26,6 +26,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -45,7 +46,7 @@ from ..adjust.gauss_markov import NORMAL_FROM, r_factor
 from ..adjust.result import BareSolution
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
-from ..records import read_only_fields
+from ..records import read_only_view
 from ..transforms import (
     Affine2D,
     Affine3D,
@@ -1437,10 +1438,13 @@ def estimate_transform(
 
 def _set(fit: Fit, **values) -> None:
     """Complete a Fit this function has just built (no one else holds it yet): the frozen
-    fields are set in place instead of copying all of them with ``dataclasses.replace``."""
+    fields are set in place instead of copying all of them with ``dataclasses.replace``, and
+    left as the constructor leaves them: arrays as read-only views, ``extras`` a dict of its
+    own whose arrays are read-only views (the other fields are so already)."""
     for name, value in values.items():
-        object.__setattr__(fit, name, value)
-    read_only_fields(fit)  # as the constructor leaves them
+        if name == "extras" and isinstance(value, Mapping):
+            value = {k: read_only_view(v) for k, v in value.items()}
+        object.__setattr__(fit, name, read_only_view(value))
 
 
 _UNITS: dict = {}
