@@ -23,6 +23,7 @@ Observation order for weights and covariances: point by point, ``x1, y1, x2, y2,
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
@@ -1068,6 +1069,26 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
 # --- the 3D similarity and rigid models ----------------------------------------------------------
 
 
+@functools.cache
+def _absolute_orientation():
+    """:func:`~photogeom.orientation.absolute_orientation`, imported on first use (the
+    command ``transform estimate`` of the 2D models does not load the orientation package);
+    an import statement in the function body costs several microseconds on every call, some
+    5 % of a 10-point fit."""
+    from ..orientation.absolute import absolute_orientation
+
+    return absolute_orientation
+
+
+@functools.cache
+def _transpose_angles():
+    """:func:`~photogeom.orientation.absolute_stats.transpose_angles`, imported on first use
+    (as :func:`_absolute_orientation`)."""
+    from ..orientation.absolute_stats import transpose_angles
+
+    return transpose_angles
+
+
 def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics, ids, unit,
                   what, need):
     """The 3D similarity / rigid model by :func:`~photogeom.orientation.absolute_orientation`,
@@ -1078,8 +1099,7 @@ def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics
     per coordinate (n, 3) or a covariance (n, 3, 3) / (3n, 3n) use the Gauss-Markov
     adjustment started from it, the least-squares solution for that stochastic model (the SVD
     takes one weight per point only)."""
-    from ..orientation.absolute import absolute_orientation
-
+    absolute_orientation = _absolute_orientation()
     method = "svd"
     if covariance is not None or (weights is not None and np.ndim(weights) > 1):
         method = "gauss-markov"
@@ -1111,8 +1131,7 @@ def _helmert_extras(fit: Fit, unit: str = "") -> dict:
     Jacobian, :func:`~photogeom.orientation.absolute_stats.transpose_angles`), not copied
     (equal only to first order in the rotation).
     """
-    from ..orientation.absolute_stats import transpose_angles
-
+    transpose_angles = _transpose_angles()
     m = fit.model
     if not isinstance(m, Similarity3D) or not m.check:
         return {}
@@ -1441,10 +1460,11 @@ def _set(fit: Fit, **values) -> None:
     fields are set in place instead of copying all of them with ``dataclasses.replace``, and
     left as the constructor leaves them: arrays as read-only views, ``extras`` a dict of its
     own whose arrays are read-only views (the other fields are so already)."""
+    d = fit.__dict__  # as records.build fills it
     for name, value in values.items():
-        if name == "extras" and isinstance(value, Mapping):
+        if name == "extras" and isinstance(value, (dict, Mapping)):  # dict: no ABC check
             value = {k: read_only_view(v) for k, v in value.items()}
-        object.__setattr__(fit, name, read_only_view(value))
+        d[name] = read_only_view(value)
 
 
 _UNITS: dict = {}
