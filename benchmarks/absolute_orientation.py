@@ -3,13 +3,17 @@
 Run:  python benchmarks/absolute_orientation.py            (about two minutes)
       python benchmarks/absolute_orientation.py --quick    (smaller sizes, for a smoke run)
 
-Prints, from one run on this machine (times are medians of repeated calls in this process):
+Prints, from one run on this machine:
 
 1. single solves at n = 3, 18, 1000 of every method (parameters only, ``statistics=False``;
    also the SVD with statistics), and of the peers that are installed: scikit-image
    ``SimilarityTransform.from_estimate`` (3D), OpenCV ``estimateAffine3D(..., force_rotation)``
    (Umeyama with scale), Open3D ``TransformationEstimationPointToPoint(with_scaling=True)``;
-   ratios peer / ours (SVD);
+   ratios peer / ours (SVD). All of them are timed in interleaved rounds (a block of calls
+   of each in turn, the order rotating) and each reports its fastest block: on a shared
+   machine the speed drifts by tens of per cent within seconds, which separate blocks per
+   method would mistake for a difference between them (sections 2 and 3 report medians
+   of repeated calls);
 2. 1e5 three-point problems solved in one batched call vs a Python loop of single solves;
 3. n = 1e6 and 1e7: time of every method (without and with statistics) against the time numpy
    needs to sum both input arrays once and against the SVD, peak memory (tracemalloc) against
@@ -111,29 +115,59 @@ def svd_floor(x, X):
     return s, R, mu[3:] - s * (R @ mu[:3])
 
 
-def section_single(sizes, min_time):
-    print("\n1. single solves: microseconds per call (median)")
+def interleaved_fastest(fns: dict, rounds: int, block_time: float = 2e-3) -> dict:
+    """Fastest seconds per call of each function, timed in interleaved rounds.
+
+    Each round times a block of calls of every function in turn (the order rotating from
+    round to round), so that all of them see the same machine state: on a shared machine the
+    speed drifts by tens of per cent within seconds, which blocks of one function after the
+    other would mistake for a difference between the functions. A block lasts about
+    ``block_time`` seconds (its number of calls from a warm-up call); the result for each
+    function is its fastest block over the rounds, per call.
+    """
+    names = list(fns)
+    block = {}
+    for name in names:  # warm-up, and the calls per block
+        fns[name]()
+        t0 = time.perf_counter()
+        fns[name]()
+        block[name] = max(1, round(block_time / max(time.perf_counter() - t0, 1e-7)))
+    best = dict.fromkeys(names, float("inf"))
+    for r in range(rounds):
+        k = r % len(names)
+        for name in names[k:] + names[:k]:
+            f, m = fns[name], block[name]
+            t0 = time.perf_counter()
+            for _ in range(m):
+                f()
+            best[name] = min(best[name], (time.perf_counter() - t0) / m)
+    return best
+
+
+def single_contenders(x, X, peer_fns: dict) -> dict:
+    """name -> call of every method, the SVD with statistics, the peers and the floor."""
+    fns = {m: (lambda m=m: pg.absolute_orientation(x, X, m, statistics=False)) for m in METHODS}
+    fns["svd with statistics"] = lambda: pg.absolute_orientation(x, X, "svd")
+    for name, fn in peer_fns.items():
+        fns[name] = lambda fn=fn: fn(x, X)
+    fns[FLOOR] = lambda: svd_floor(x, X)
+    return fns
+
+
+def section_single(sizes, rounds):
+    print(f"\n1. single solves: microseconds per call (fastest of {rounds} interleaved rounds)")
     peer_fns = peers()
     head = f"{'method':<48}" + "".join(f"{f'n={n}':>12}" for n in sizes)
     print(head)
     rows = {}
-    data = {n: problem(n, seed=n) for n in sizes}
-    for m in METHODS:
-        rows[m] = [
-            median_time(lambda n=n, m=m: pg.absolute_orientation(*data[n][:2], m,
-                                                                 statistics=False), min_time)
-            for n in sizes
-        ]
-    rows["svd with statistics"] = [
-        median_time(lambda n=n: pg.absolute_orientation(*data[n][:2], "svd"), min_time)
-        for n in sizes
-    ]
-    for name, fn in peer_fns.items():
-        rows[name] = [median_time(lambda n=n, fn=fn: fn(*data[n][:2]), min_time) for n in sizes]
-    rows[FLOOR] = [median_time(lambda n=n: svd_floor(*data[n][:2]), min_time) for n in sizes]
+    for n in sizes:
+        x, X, _ = problem(n, seed=n)
+        for name, t in interleaved_fastest(single_contenders(x, X, peer_fns), rounds).items():
+            rows.setdefault(name, []).append(t)
     for name, ts in rows.items():
         print(f"{name:<48}" + "".join(f"{t * 1e6:>12.1f}" for t in ts))
-    print("ratios (time of the other / time of our SVD, parameters only; > 1: ours faster)")
+    print("ratios (fastest time of the other / fastest time of our SVD, parameters only; "
+          "> 1: ours faster)")
     ours = rows["svd"]
     for name, ts in rows.items():
         if name == "svd":
@@ -232,11 +266,11 @@ def main(argv=None) -> None:
     if args.large_only:
         section_large((1_000_000, 10_000_000))
     elif args.quick:
-        section_single((3, 18), 0.05)
+        section_single((3, 18), 10)
         section_batch(2000, 500, 0.05)
         section_large((100_000,))
     else:
-        section_single((3, 18, 1000), 0.3)
+        section_single((3, 18, 1000), 60)
         section_batch(100_000, 10_000, 0.5)
         section_large((1_000_000, 10_000_000))
 

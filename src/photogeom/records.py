@@ -232,6 +232,24 @@ def read_only_fields(obj: T) -> T:
     return obj
 
 
+def read_only_view(value):
+    """``value``, or a read-only view of it when it is a writable array (the caller's array
+    stays writable).
+
+    Parameters
+    ----------
+    value : object
+
+    Returns
+    -------
+    object
+    """
+    if isinstance(value, np.ndarray) and value.flags.writeable:
+        value = value.view()
+        value.flags.writeable = False
+    return value
+
+
 def frozen_value(value):
     """``value`` made read-only all the way down: mappings as :class:`FrozenMapping`, lists
     and tuples as tuples, writable arrays as read-only views; other values as they are.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 
@@ -228,10 +229,12 @@ def check_finite_magnitude(arr: np.ndarray, name: str, what: str) -> None:
     over the data: the largest magnitude, whose finiteness implies that of every value)."""
     if arr.size == 0:
         return
-    big = max(float(np.max(arr)), -float(np.min(arr)))  # no temporary copy
-    if not np.isfinite(big):
+    # no temporary copy; the ufunc reductions directly (ndarray.max and np.max add Python-level
+    # calls that cost as much as the reduction of a few points)
+    big = max(float(np.maximum.reduce(arr, axis=None)), -float(np.minimum.reduce(arr, axis=None)))
+    if not math.isfinite(big):
         check_finite(arr, name)
-    if big * np.sqrt(arr.size) > MAX_MAGNITUDE:
+    if big * math.sqrt(arr.size) > MAX_MAGNITUDE:
         raise InputError(
             f"{what}: {name} coordinates up to {big:.3g} overflow float64 in the sums of "
             f"squares the estimate needs (limit {MAX_MAGNITUDE:.0e} / sqrt(number of values)); "

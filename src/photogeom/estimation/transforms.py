@@ -23,9 +23,11 @@ Observation order for weights and covariances: point by point, ``x1, y1, x2, y2,
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -45,7 +47,7 @@ from ..adjust.gauss_markov import NORMAL_FROM, r_factor
 from ..adjust.result import BareSolution
 from ..errors import DegenerateGeometryError, InputError
 from ..imagecoords import handedness_plan
-from ..records import read_only_fields
+from ..records import read_only_view
 from ..transforms import (
     Affine2D,
     Affine3D,
@@ -1067,6 +1069,26 @@ def _fit_projective(src, dst, obs, sigma0_prior, what, errors_in, max_iter, tol,
 # --- the 3D similarity and rigid models ----------------------------------------------------------
 
 
+@functools.cache
+def _absolute_orientation():
+    """:func:`~photogeom.orientation.absolute_orientation`, imported on first use (the
+    command ``transform estimate`` of the 2D models does not load the orientation package);
+    an import statement in the function body costs several microseconds on every call, some
+    5 % of a 10-point fit."""
+    from ..orientation.absolute import absolute_orientation
+
+    return absolute_orientation
+
+
+@functools.cache
+def _transpose_angles():
+    """:func:`~photogeom.orientation.absolute_stats.transpose_angles`, imported on first use
+    (as :func:`_absolute_orientation`)."""
+    from ..orientation.absolute_stats import transpose_angles
+
+    return transpose_angles
+
+
 def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics, ids, unit,
                   what, need):
     """The 3D similarity / rigid model by :func:`~photogeom.orientation.absolute_orientation`,
@@ -1077,8 +1099,7 @@ def _fit_absolute(model, src, dst, weights, covariance, sigma0_prior, statistics
     per coordinate (n, 3) or a covariance (n, 3, 3) / (3n, 3n) use the Gauss-Markov
     adjustment started from it, the least-squares solution for that stochastic model (the SVD
     takes one weight per point only)."""
-    from ..orientation.absolute import absolute_orientation
-
+    absolute_orientation = _absolute_orientation()
     method = "svd"
     if covariance is not None or (weights is not None and np.ndim(weights) > 1):
         method = "gauss-markov"
@@ -1110,8 +1131,7 @@ def _helmert_extras(fit: Fit, unit: str = "") -> dict:
     Jacobian, :func:`~photogeom.orientation.absolute_stats.transpose_angles`), not copied
     (equal only to first order in the rotation).
     """
-    from ..orientation.absolute_stats import transpose_angles
-
+    transpose_angles = _transpose_angles()
     m = fit.model
     if not isinstance(m, Similarity3D) or not m.check:
         return {}
@@ -1437,10 +1457,14 @@ def estimate_transform(
 
 def _set(fit: Fit, **values) -> None:
     """Complete a Fit this function has just built (no one else holds it yet): the frozen
-    fields are set in place instead of copying all of them with ``dataclasses.replace``."""
+    fields are set in place instead of copying all of them with ``dataclasses.replace``, and
+    left as the constructor leaves them: arrays as read-only views, ``extras`` a dict of its
+    own whose arrays are read-only views (the other fields are so already)."""
+    d = fit.__dict__  # as records.build fills it
     for name, value in values.items():
-        object.__setattr__(fit, name, value)
-    read_only_fields(fit)  # as the constructor leaves them
+        if name == "extras" and isinstance(value, (dict, Mapping)):  # dict: no ABC check
+            value = {k: read_only_view(v) for k, v in value.items()}
+        d[name] = read_only_view(value)
 
 
 _UNITS: dict = {}

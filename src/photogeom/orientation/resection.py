@@ -432,7 +432,15 @@ def _distinct_points(g: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     if not extent > 0.0:
         return np.zeros(1, dtype=np.intp)
     cells = np.round((g - lo) / (rel_tol * extent))
-    return np.unique(cells, axis=0, return_index=True)[1]
+    # np.unique(cells, axis=0, return_index=True)[1], the same indices in the same order,
+    # without its structured-array detour (which cost a tenth of a 20-point resection):
+    # a stable lexicographic sort of the rows, then the first row of each run of equal ones
+    order = np.lexsort(cells.T[::-1])
+    s = cells[order]
+    first = np.empty(order.size, dtype=bool)
+    first[0] = True
+    np.any(s[1:] != s[:-1], axis=1, out=first[1:])
+    return order[first]
 
 
 def start_candidates(

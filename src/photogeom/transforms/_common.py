@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -158,6 +159,17 @@ def vector(values, n: int, what: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{what}: parameters must be finite")
     return arr
+
+
+def scalars(values: list, n: int, what: str) -> list[float]:
+    """``values`` (a list of ``n`` scalars) as finite Python floats: :func:`vector`'s checks,
+    without the round trip through an array when every value already is a float (Python or
+    numpy float; the parameters of an estimate)."""
+    if len(values) == n and all(isinstance(v, float) for v in values):
+        if not all(map(math.isfinite, values)):
+            raise InputError(f"{what}: parameters must be finite")
+        return [float(v) for v in values]
+    return vector(values, n, what).tolist()
 
 
 def matrix(values, shape: tuple[int, int], what: str) -> np.ndarray:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..units import from_radians, to_radians
-from ._common import Parametric, fmt_params, homogeneous, invertible, vector
+from ._common import Parametric, fmt_params, homogeneous, invertible, scalars, vector
 from .base import Transform
 
 _NAMES = ("a1", "a2", "a3", "b1", "b2", "b3")
@@ -53,9 +53,9 @@ class Affine2D(Parametric, Transform):
     b3: float
 
     def __post_init__(self) -> None:
-        v = vector([getattr(self, n) for n in _NAMES], 6, "Affine2D")
+        v = scalars([self.a1, self.a2, self.a3, self.b1, self.b2, self.b3], 6, "Affine2D")
         for key, val in zip(_NAMES, v):
-            object.__setattr__(self, key, float(val))
+            object.__setattr__(self, key, val)
 
     # --- parameter forms ------------------------------------------------------------------------
 
@@ -140,8 +140,8 @@ class Affine2D(Parametric, Transform):
         """``True`` when the linear part is singular to rounding (``|det(A)| <= 1e-14
         max|A|^2``): the transformation maps the plane onto a line (e.g. fitted to collinear
         target points) and has no inverse; its textbook ``sx`` is then 0."""
-        A = self.linear
-        return bool(abs(self.det) <= 1e-14 * max(float(np.max(np.abs(A))) ** 2, 1e-300))
+        big = max(abs(self.a1), abs(self.a2), abs(self.b1), abs(self.b2))
+        return abs(self.det) <= 1e-14 * max(big * big, 1e-300)
 
     def textbook(self) -> dict[str, float]:
         """``sx``, ``sy``, ``theta`` (rad), ``e`` (rad), ``x0``, ``y0``.

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..units import from_radians, to_radians
-from ._common import Parametric, fmt_params, vector
+from ._common import Parametric, fmt_params, scalars, vector
 from .base import Transform
 
 
@@ -43,9 +43,9 @@ class Similarity2D(Parametric, Transform):
     d: float
 
     def __post_init__(self) -> None:
-        v = vector([self.a, self.b, self.c, self.d], 4, "Similarity2D")
+        v = scalars([self.a, self.b, self.c, self.d], 4, "Similarity2D")
         for key, val in zip("abcd", v):
-            object.__setattr__(self, key, float(val))
+            object.__setattr__(self, key, val)
 
     # --- parameter forms ------------------------------------------------------------------------
 
