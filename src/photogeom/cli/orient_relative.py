@@ -412,10 +412,7 @@ def _parallax_figure(fit, xy1):
     # longest drawn arrow 15 %): a few large parallaxes are drawn clipped, in orange
     sc = arrow_scale(v, 0.5 * extent)
     factor, unit = sc.factor, fit.residual_unit
-    length = np.hypot(v[:, 0], v[:, 1])
-    shrink = np.ones(length.size)
-    shrink[sc.clipped] = sc.clip / length[sc.clipped]
-    v = v * shrink[:, None]
+    v = sc.drawn(v)
     shown = sc.shown & ~sc.clipped
     n_shown, n_used = int(sc.shown.sum()), int(used.sum())
     fig = Figure(figsize=(6.4, 5.6), dpi=110)

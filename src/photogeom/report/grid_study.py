@@ -86,15 +86,13 @@ def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> 
     if ref is None:
         sc = arrow_scale(v, 0.5 * w)
         k, L = sc.factor, sc.key
-        length = np.hypot(v[:, 0], v[:, 1])
-        shrink = np.ones(length.size)
-        shrink[sc.clipped] = sc.clip / length[sc.clipped]
-        v = v * shrink[:, None]
+        finite = int(np.isfinite(np.hypot(v[:, 0], v[:, 1])).sum())
+        v = sc.drawn(v)
         show, clipped = sc.shown, sc.clipped
         if clipped.any():
             notes.append(f"{int(clipped.sum())} longer than {sc.clip:.3g} px clipped (orange)")
-        if show.sum() < np.isfinite(length).sum():
-            notes.append(f"{int(show.sum())} of {int(np.isfinite(length).sum())} shown")
+        if show.sum() < finite:
+            notes.append(f"{int(show.sum())} of {finite} shown")
     else:
         ref = max(ref, 1e-12)
         k = 0.08 * w / ref  # a vector of length ref is 8 % of the image width

@@ -113,6 +113,15 @@ class ArrowScale:
     clipped: np.ndarray
     shown: np.ndarray
 
+    def drawn(self, residuals_xy) -> np.ndarray:
+        """The residuals as drawn (residual unit): the clipped rows shortened to
+        :attr:`clip` in their direction, the others as they are."""
+        r = np.asarray(residuals_xy, dtype=float)
+        length = np.hypot(r[:, 0], r[:, 1])
+        shrink = np.ones(length.size)
+        shrink[self.clipped] = self.clip / length[self.clipped]
+        return r * shrink[:, None]
+
 
 def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> ArrowScale:
     """Exaggeration, scale arrow, clipping and thinning of residual arrows.
@@ -235,11 +244,7 @@ def residual_figure(
     sc = arrow_scale(draw_r, extent)
     factor, key = sc.factor, sc.key
     vmax = float(np.hypot(draw_r[finite, 0], draw_r[finite, 1]).max()) if finite.any() else 0.0
-    # clipped arrows: drawn CLIP_RATIO x typical long, in their direction
-    length = np.hypot(draw_r[:, 0], draw_r[:, 1])
-    shrink = np.ones(length.size)
-    shrink[sc.clipped] = sc.clip / length[sc.clipped]
-    drawn_r = draw_r * shrink[:, None]
+    drawn_r = sc.drawn(draw_r)  # clipped arrows: CLIP_RATIO x typical long, in their direction
     starts = np.cumsum([0] + [g[0].shape[0] for g in groups])
 
     fig = Figure(figsize=(6.4, 5.6), dpi=110)
