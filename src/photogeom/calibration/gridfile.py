@@ -42,7 +42,7 @@ import numpy as np
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError
 from ..io.jsonfile import parse_json_bytes
-from ..io.sources import device_message, input_kind
+from ..io.sources import device_message, input_kind, pipe_bytes
 from .grid import GridLayout, ResidualGrid
 
 FORMAT = "photogeom-residual-grids"
@@ -340,8 +340,7 @@ def load_grids(path: str | os.PathLike) -> dict:
     raw = None
     if kind == "pipe":  # read once; an NPZ (a zip archive) is then read from memory
         try:
-            with open(path, "rb") as fh:
-                raw = fh.read()
+            raw = pipe_bytes(path, None)
         except OSError as exc:
             raise FileFormatError(f"{path}: cannot read the grids file ({exc.strerror})") from None
     source = path if raw is None else io.BytesIO(raw)

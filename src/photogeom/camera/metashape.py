@@ -714,9 +714,10 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
     MetashapeXMLWarning
         Unknown tags (ignored) when ``strict`` is False.
     """
+    from ..io.sources import read_input_bytes
+
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_XML_BYTES + 1)
+        data = read_input_bytes(path, MAX_XML_BYTES)  # a pipe: read once per command
     except OSError as exc:
         raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
     if len(data) > MAX_XML_BYTES:

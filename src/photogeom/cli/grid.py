@@ -158,14 +158,10 @@ def _read_cells(path: Path, comments: list[str] | None) -> _Cells:
     kind = input_kind(path)
     if kind == "device":
         raise FileFormatError(device_message(path, "CSV file"))
-    from ..io.sources import pipe_bytes
+    from ..io.sources import read_input_bytes
 
     try:
-        if kind == "pipe":  # read once: _is_block may have read it already
-            raw = pipe_bytes(path, None)
-        else:
-            with open(path, "rb") as fh:
-                raw = fh.read()
+        raw = read_input_bytes(path, None)  # a pipe read once: _is_block may have read it
     except OSError as exc:
         raise FileFormatError(f"{path}: cannot read ({exc.strerror or exc})") from None
     # a pipe can be read once: its bytes are kept for the line-wise reader; a file is opened

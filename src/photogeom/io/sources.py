@@ -149,15 +149,16 @@ def kept_pipe_bytes(path: str | os.PathLike) -> bytes | None:
     return data
 
 
-def read_input_bytes(path: str | os.PathLike, limit: int) -> bytes:
+def read_input_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
     """The bytes of a regular file or of a pipe (read once per scope, :func:`pipe_bytes`).
 
     Parameters
     ----------
     path : str or os.PathLike
         The input.
-    limit : int
-        Most bytes the caller accepts (bytes); at most ``limit + 1`` are read.
+    limit : int or None
+        Most bytes the caller accepts (bytes); at most ``limit + 1`` are read. None reads
+        the whole input.
 
     Returns
     -------
@@ -172,4 +173,4 @@ def read_input_bytes(path: str | os.PathLike, limit: int) -> bytes:
     if input_kind(path) == "pipe":
         return pipe_bytes(path, limit)
     with open(path, "rb") as fh:
-        return fh.read(limit + 1)
+        return fh.read() if limit is None else fh.read(limit + 1)
