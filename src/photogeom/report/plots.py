@@ -122,6 +122,44 @@ class ArrowScale:
         shrink[self.clipped] = self.clip / length[self.clipped]
         return r * shrink[:, None]
 
+    def applied_to(self, residuals_xy, max_arrows: int = MAX_ARROWS) -> ArrowScale:
+        """The same exaggeration, scale arrow and clipping length for other residuals (a
+        second panel drawn at the same scale): their own clipped and shown rows.
+
+        Parameters
+        ----------
+        residuals_xy : array_like, shape (m, 2)
+            Residual vectors, in the unit of the ones the scale was made for.
+        max_arrows : int, default :data:`MAX_ARROWS`
+            Arrows drawn at most (thinned as in :func:`arrow_scale`).
+
+        Returns
+        -------
+        ArrowScale
+            :attr:`factor`, :attr:`key`, :attr:`typical` and :attr:`clip` of this one.
+        """
+        r = np.asarray(residuals_xy, dtype=float)[:, :2]
+        length = np.hypot(r[:, 0], r[:, 1])
+        finite = np.isfinite(length)
+        clipped = finite & (length > self.clip)
+        shown = _thinned(length, finite, max_arrows)
+        return ArrowScale(self.factor, self.key, self.typical, self.clip, clipped, shown)
+
+
+def _thinned(length: np.ndarray, finite: np.ndarray, max_arrows: int) -> np.ndarray:
+    """Rows drawn: every finite one, or with more than ``max_arrows`` the
+    :data:`LONGEST_ALWAYS_SHOWN` longest and a seeded random sample of the others."""
+    idx = np.flatnonzero(finite)
+    if idx.size <= max_arrows:
+        return finite.copy()
+    order = idx[np.argsort(-length[idx], kind="stable")]
+    big = min(LONGEST_ALWAYS_SHOWN, max_arrows)
+    rest = np.random.default_rng(0).choice(order[big:], max_arrows - big, replace=False)
+    shown = np.zeros(length.size, dtype=bool)
+    shown[order[:big]] = True
+    shown[rest] = True
+    return shown
+
 
 def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> ArrowScale:
     """Exaggeration, scale arrow, clipping and thinning of residual arrows.
@@ -163,16 +201,7 @@ def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> Ar
     factor = nice_length(min(0.15 * extent / typical, 0.3 * extent / longest))
     key = nice_length(typical)
     clipped = finite & (length > clip)
-    shown = finite.copy()
-    idx = np.flatnonzero(finite)
-    if idx.size > max_arrows:
-        order = idx[np.argsort(-length[idx], kind="stable")]
-        big = min(LONGEST_ALWAYS_SHOWN, max_arrows)
-        rest = np.random.default_rng(0).choice(order[big:], max_arrows - big, replace=False)
-        shown = none.copy()
-        shown[order[:big]] = True
-        shown[rest] = True
-    return ArrowScale(factor, key, typical, clip, clipped, shown)
+    return ArrowScale(factor, key, typical, clip, clipped, _thinned(length, finite, max_arrows))
 
 
 def residual_figure(
