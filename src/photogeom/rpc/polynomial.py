@@ -147,17 +147,6 @@ def terms(L, P, H) -> np.ndarray:
     return T.T
 
 
-def derivative_terms(L, P, H) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """d(terms)/dL, d(terms)/dP, d(terms)/dH of the points, each of shape ``(n, 20)``."""
-    L, P, H = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (L, P, H))
-    n = L.size
-    T = np.empty((N_TERMS, n))
-    fill_terms(T, L, P, H)
-    dL, dP, dH = (np.empty((N_TERMS, n)) for _ in range(3))
-    fill_derivative_terms(T, dL, dP, dH, L, P, H)
-    return dL.T, dP.T, dH.T
-
-
 def evaluate(coefficients: np.ndarray, L, P, H) -> np.ndarray:
     """Evaluate ``k`` polynomials at ``n`` points.
 
