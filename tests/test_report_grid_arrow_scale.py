@@ -120,3 +120,77 @@ def test_sensor_figures_with_one_long_cell_mean_keep_the_others_visible(monkeypa
         (label,) = [t.get_text() for t in ax.texts if t.get_text().endswith(" px")]
         assert _drawn(key)[0] / k_before == pytest.approx(float(label.split()[0]))
     assert 0.5 * np.quantile(lengths, 0.9) <= float(label.split()[0]) <= np.quantile(lengths, 0.9)
+
+
+@pytest.mark.parametrize("strong_outlier", [True, False])
+def test_bundle_sensor_grid_with_a_long_cell_mean_keeps_the_others_visible(strong_outlier):
+    """The bundle report's residuals over the sensor, cell means of 0.3 px: one
+    well-observed cell of 20 px shrank the others to 3 % of a cell (the scale was bounded by
+    the longest well-observed cell), and a cell of 2 observations with a 30 px mean, left out
+    of the scale, was drawn 30 cells long across the figure (3 with the 20 px cell). Now the
+    typical arrow is drawn 0.3-1.2 cells long, the long means clipped in orange and counted,
+    no arrow over 3 cells."""
+    from photogeom.report.bundle import sensor_grid_figure
+
+    rng = np.random.default_rng(2)
+    nx, ny, w, h = 10, 8, 5000, 4000
+    mean = rng.normal(0, 0.3, (nx * ny, 2))
+    count = np.full(nx * ny, 40)
+    if strong_outlier:
+        mean[12] = [20.0, 0.0]
+    mean[0], count[0] = [0.0, 30.0], 2
+    grid = {
+        "label": "camera A",
+        "width": w,
+        "height": h,
+        "nx": nx,
+        "ny": ny,
+        "mean": mean.tolist(),
+        "count": count.tolist(),
+        "n_observations": int(count.sum()),
+        "n_images": 6,
+        "rms": 0.5,
+    }
+    fig = sensor_grid_figure([grid])
+    (ax,) = fig.axes
+    cell = w / nx
+    qs = _quivers(ax)
+    assert np.median(_drawn(qs[0])) / cell > 0.25
+    assert max(_drawn(q).max() for q in qs) <= 3 * cell
+    n_long = 2 if strong_outlier else 1
+    strong = qs[0]
+    assert strong.N == nx * ny - n_long
+    (clipped,) = [q for q in qs if np.allclose(q.get_facecolor()[0], to_rgba(CLIPPED_COLOUR))]
+    assert clipped.N == n_long
+    lengths = np.hypot(mean[:, 0], mean[:, 1])
+    clip = 3 * np.quantile(np.delete(lengths, 0), 0.9)  # the well-observed cells
+    assert f"{n_long} longer than {clip:.3g} px clipped" in ax.get_title(loc="left")
+    (key,) = [a for a in ax.artists if isinstance(a, QuiverKey)]
+    assert key.text.get_text() == f"{key.U:g} px"
+    assert key.Q.scale == pytest.approx(strong.scale)
+
+
+def test_sensor_after_panel_clips_a_long_mean_the_before_panel_lacks(monkeypatch):
+    """The after panel is drawn at the before panel's scale: a 40 px cell mean after the
+    correction, longer than every mean before, was drawn unclipped, half the sensor width
+    long. It is clipped to 3 times the typical length before, in orange, and counted."""
+    from photogeom.report import grid_study
+
+    rng = np.random.default_rng(9)
+    gx, gy = np.meshgrid((np.arange(12) + 0.5) * 4000 / 12, (np.arange(8) + 0.5) * 3000 / 8)
+    centres = np.column_stack([gx.ravel(), gy.ravel()])
+    before = rng.normal(0, 1.5, (96, 2))
+    after = rng.normal(0, 0.5, (96, 2))
+    after[40] = [0.0, -40.0]
+    monkeypatch.setattr(
+        grid_study,
+        "sensor_mean_residuals",
+        lambda block: (centres, block.means, np.full(96, 50)),
+    )
+    fig = grid_study._fig_sensor(_Sensor(before), _Sensor(after))
+    _, ax_after = fig.axes
+    qs = _quivers(ax_after)
+    assert max(_drawn(q).max() for q in qs) < 0.3 * 4000
+    (clipped,) = [q for q in qs if np.allclose(q.get_facecolor()[0], to_rgba(CLIPPED_COLOUR))]
+    assert clipped.N == 1
+    assert "1 longer than" in ax_after.get_title()

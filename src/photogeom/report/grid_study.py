@@ -68,9 +68,7 @@ def sensor_mean_residuals(block, cells: tuple[int, int] = (12, 8)):
     return centres, mean, cnt[ok]
 
 
-def _quiver(
-    ax, xy, v, scale: ArrowScale | None, size, title: str, color="#1f5fa8"
-) -> ArrowScale:
+def _quiver(ax, xy, v, scale: ArrowScale | None, size, title: str, color="#1f5fa8") -> None:
     """Vectors (px) at their positions on an image, exaggerated, with a scale arrow.
 
     The scale follows the 90th percentile of the lengths
@@ -78,13 +76,9 @@ def _quiver(
     drawn arrow at most 15 %): vectors longer than 3 times it (blunders, cells or nodes of
     little support) are drawn clipped in :data:`~photogeom.report.plots.CLIPPED_COLOUR`, at
     most :data:`~photogeom.report.plots.MAX_ARROWS` are drawn (the longest always), and the
-    title says how many of each. With ``scale`` (the one returned for another panel) the
-    vectors are drawn at that panel's exaggeration and clipping length instead.
-
-    Returns
-    -------
-    ArrowScale
-        The scale used, for a panel to be drawn at the same scale.
+    title says how many of each. With ``scale`` (from :func:`arrow_scale` with these
+    vectors as ``drawn_too``) they are drawn at its exaggeration and clipping length
+    instead.
     """
     w, h = size
     v = np.asarray(v, dtype=float).reshape(-1, 2)
@@ -134,7 +128,6 @@ def _quiver(
     ax.set_title(plain(title), fontsize=9)
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
-    return sc
 
 
 def _fig_sensor(before, after) -> Figure:
@@ -142,12 +135,15 @@ def _fig_sensor(before, after) -> Figure:
     size = tuple(before.image_sizes()[0])
     # both panels at the scale of the residuals before the correction (90th percentile;
     # a cell of few observations with a long mean is clipped, not the scale of all others)
-    scale = None
-    for ax, blk, t in zip(
-        fig.subplots(1, 2), (before, after), ("before (Fig. 7)", "after the correction (Fig. 9)")
+    (cb, mb, _), (ca, ma, _) = sensor_mean_residuals(before), sensor_mean_residuals(after)
+    scale = arrow_scale(mb, 0.5 * size[0], drawn_too=ma)
+    for ax, (c, m), t in zip(
+        fig.subplots(1, 2),
+        ((cb, mb), (ca, ma)),
+        ("before (Fig. 7)", "after the correction (Fig. 9)"),
+        strict=True,
     ):
-        c, m, _ = sensor_mean_residuals(blk)
-        scale = _quiver(ax, c, m, scale, size, f"mean residual vectors, {t} (same scale)")
+        _quiver(ax, c, m, scale, size, f"mean residual vectors, {t} (same scale)")
     return fig
 
 

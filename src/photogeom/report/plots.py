@@ -123,8 +123,9 @@ class ArrowScale:
         return r * shrink[:, None]
 
     def applied_to(self, residuals_xy, max_arrows: int = MAX_ARROWS) -> ArrowScale:
-        """The same exaggeration, scale arrow and clipping length for other residuals (a
-        second panel drawn at the same scale): their own clipped and shown rows.
+        """The same exaggeration, scale arrow and clipping length for other residuals:
+        those given as ``drawn_too`` to :func:`arrow_scale` (a second panel at the same
+        scale, rows that do not set it), with their own clipped and shown rows.
 
         Parameters
         ----------
@@ -161,7 +162,9 @@ def _thinned(length: np.ndarray, finite: np.ndarray, max_arrows: int) -> np.ndar
     return shown
 
 
-def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> ArrowScale:
+def arrow_scale(
+    residuals_xy, extent: float, max_arrows: int = MAX_ARROWS, *, drawn_too=None
+) -> ArrowScale:
     """Exaggeration, scale arrow, clipping and thinning of residual arrows.
 
     The scale follows the 90th percentile of the lengths (not the longest: a few blunders
@@ -179,6 +182,11 @@ def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> Ar
         Size of the plotted area (position unit, > 0).
     max_arrows : int, default :data:`MAX_ARROWS`
         Arrows drawn at most.
+    drawn_too : array_like, shape (m, 2), optional
+        Residuals drawn at the same scale that do not set it (another panel, cells of few
+        observations): the 90th percentile is that of ``residuals_xy`` alone, the clipping
+        and the longest drawn arrow count these too. Draw them with
+        :meth:`ArrowScale.applied_to`.
 
     Returns
     -------
@@ -193,6 +201,12 @@ def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> Ar
         return ArrowScale(1.0, 0.0, 0.0, math.inf, none, finite)
     good = length[finite]
     vmax = float(good.max())
+    if drawn_too is not None:
+        t = np.asarray(drawn_too, dtype=float).reshape(-1, 2)
+        extra = np.hypot(t[:, 0], t[:, 1])
+        extra = extra[np.isfinite(extra)]
+        if extra.size:
+            vmax = max(vmax, float(extra.max()))
     typical = float(np.quantile(good, 0.9))
     if typical <= 0:  # nearly all zero: the few others set the scale
         typical = float(np.quantile(good[good > 0], 0.9))
