@@ -26,9 +26,6 @@ TERM_NAMES = (
     "PLH", "L3", "LP2", "LH2", "L2P", "P3", "PH2", "L2H", "P2H", "H3",
 )  # fmt: skip
 
-#: Total degree of each term.
-TERM_DEGREE = np.array([0, 1, 1, 1, 2, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3, 3, 3, 3])
-
 #: Number of terms of a polynomial of total degree 1, 2, 3 (the first terms of the order).
 TERMS_OF_ORDER = {1: 4, 2: 10, 3: 20}
 
