@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 import photogeom as pg
 from photogeom.cli.camera import camera_from_json
-from photogeom.cli.transform import load_transform
+from photogeom.cli.transform import load_transform_record
 from photogeom.errors import InputError, PhotogeomError
 from photogeom.rpc import RPC, read_rpc
 
@@ -28,6 +28,11 @@ from harness import _rpb_text
 IKONOS = pg.datasets.path("ikonos").read_text()
 PLEIADES = pg.datasets.path("pleiades").read_text()
 WV2 = pg.datasets.path("worldview2").read_text()
+
+
+def load_transform(path):
+    """The transformation of a parameter JSON, as the command line reads it."""
+    return load_transform_record(path)[0]
 
 
 def _file(tmp_path: Path, name: str, data: str | bytes) -> Path:

@@ -257,14 +257,3 @@ def check_same_length(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str) ->
         )
 
 
-def as_weights(weights: object, n: int, name: str = "weights") -> np.ndarray | None:
-    """Return per-point positive weights of shape ``(n,)`` or ``None``."""
-    if weights is None:
-        return None
-    w = as_float64(weights, name, coordinates=False).reshape(-1)
-    if w.shape[0] != n:
-        raise InputError(f"{name}: {w.shape[0]} value(s) for {n} point(s)")
-    check_finite(w, name)
-    if np.any(w <= 0):
-        raise InputError(f"{name}: every weight must be > 0 (found {w.min():g})")
-    return w

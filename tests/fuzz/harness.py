@@ -138,9 +138,9 @@ def _read_metashape(p: Path):
 
 
 def _read_transform_json(p: Path):
-    from photogeom.cli.transform import load_transform
+    from photogeom.cli.transform import load_transform_record
 
-    return load_transform(p)
+    return load_transform_record(p)[0]
 
 
 def _read_camera_json(p: Path):

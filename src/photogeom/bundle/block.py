@@ -19,7 +19,7 @@ Conventions (06-bundle-adjustment.md, 01-conventions.md):
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -1006,8 +1006,3 @@ def _per_group(value, cam_ids, default, allowed, name) -> dict:
             )
         out[k] = tuple(n for n in allowed if n in names)  # canonical order
     return out
-
-
-def block_fields() -> tuple[str, ...]:
-    """Names of the stored arrays of a :class:`Block` (for writers and tests)."""
-    return tuple(f.name for f in fields(Block))

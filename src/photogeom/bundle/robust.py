@@ -14,12 +14,6 @@ weights ``w(e^2)`` of the squared whitened 2-D residual norm of each image point
   expectation times the variance factor is that of ``v'PWv`` under normal errors,
   computed from the realised residuals (before, a normal model of each point's residual,
   ``N(0, r_i s^2 I)``, gave sigma0^2 6-7 % high with Cauchy's loss);
-* :func:`weighted_square_factor` - ``kappa(a) = E[w(a q) q] / 2`` for ``q`` chi-square with
-  2 degrees of freedom: the expected weighted squared norm of an image point whose
-  whitened residual is ``N(0, a I)``, over ``2 a``;
-* :func:`expected_weighted_squares` - per image point ``2 r_i kappa(r_i s^2)``, ``r_i`` its
-  redundancy number: the normal model of ``v'PWv`` that sigma0 and the variance
-  components used before the Stein redundancy (6-7 % high in sigma0^2 with Cauchy's loss);
 * :func:`influence_factors`, :func:`covariance_weights` - the covariance of the robust
   estimate, the M-estimator's sandwich ``H^-1 B H^-1``: per image point the expected slope
   and spread of its score, and the weight ``slope^2 / spread`` with which it enters the
@@ -36,50 +30,13 @@ from scipy import special
 
 __all__ = [
     "covariance_weights",
-    "expected_weighted_squares",
     "image_point_leverage",
     "influence_factors",
     "point_trace_correction",
     "point_trace_shares",
     "score_slopes",
     "stein_redundancy",
-    "weighted_square_factor",
 ]
-
-
-def weighted_square_factor(loss: str, scale: float, a):
-    """``kappa(a) = E[w(a q) q] / 2`` with ``q ~ chi-square(2)`` (closed forms).
-
-    Parameters
-    ----------
-    loss : {"squared", "huber", "cauchy"}
-    scale : float
-        The loss scale ``c`` (whitened units: weights ``min(1, c / e)`` and
-        ``1 / (1 + e^2 / c^2)`` of the squared 2-D norm ``e^2 = a q``).
-    a : float or array_like
-        Variance of each whitened coordinate.
-
-    Returns
-    -------
-    float or numpy.ndarray
-        The shape of ``a``: 1 for the squared loss (and ``a <= 0``), below 1 for a robust
-        one.
-    """
-    if loss not in ("squared", "huber", "cauchy"):
-        raise ValueError(f"unknown loss {loss!r}")
-    a = np.asarray(a, dtype=float)
-    out = np.ones(a.shape)
-    pos = a > 0
-    if loss != "squared" and np.any(pos):
-        t = scale * scale / a[pos]  # Huber: q below t keeps weight 1; Cauchy: w = t / (t + q)
-        if loss == "huber":
-            inner = 2.0 - (t + 2.0) * np.exp(-0.5 * t)  # E[q; q < t]
-            # E[c sqrt(q / a); q > t] = c / sqrt(a) sqrt(2) Gamma(3/2) Q(3/2, t / 2)
-            tail = scale / np.sqrt(a[pos]) * math.sqrt(2.0) * special.gamma(1.5)
-            out[pos] = 0.5 * (inner + tail * special.gammaincc(1.5, 0.5 * t))
-        else:  # E[t q / (t + q)] = t (1 - x e^x E1(x)), x = t / 2
-            out[pos] = 0.5 * t * _cauchy_rest(0.5 * t)
-    return float(out) if out.ndim == 0 else out
 
 
 def _cauchy_rest(x: np.ndarray) -> np.ndarray:
@@ -165,7 +122,7 @@ def covariance_weights(leverage, loss: str, scale: float, s2: float = 1.0) -> np
     smaller in variance by at most 4 % (Cauchy) and 1.3 % (Huber) in between (a scalar
     problem, points of redundancy 1), and a single inverse of the block structure the
     adjustment already factorises. The expectations are taken at the point's residual
-    variance ``r_i s^2`` (``r_i = 1 - h_i``, as in :func:`expected_weighted_squares`).
+    variance ``r_i s^2`` (``r_i = 1 - h_i`` the point's redundancy number).
 
     Parameters
     ----------
@@ -184,35 +141,6 @@ def covariance_weights(leverage, loss: str, scale: float, s2: float = 1.0) -> np
     r = 1.0 - np.clip(np.asarray(leverage, dtype=float), 0.0, 1.0)
     slope, spread = influence_factors(loss, scale, r * s2)
     return np.where(spread > 0, slope * slope / np.where(spread > 0, spread, 1.0), 1.0)
-
-
-def expected_weighted_squares(leverage, loss: str, scale: float, s2: float = 1.0) -> np.ndarray:
-    """Expected ``w e^2`` of each image point over ``s^2``, under normal errors of variance
-    ``s^2`` (whitened units).
-
-    The point's residual is taken as ``N(0, r_i s^2 I)`` with its redundancy number
-    ``r_i = 1 - h_i`` at unit weight, so its expected weighted square is
-    ``2 r_i kappa(r_i s^2) s^2`` (:func:`weighted_square_factor`); with the squared loss
-    ``2 r_i s^2``, the point's redundancy. The residuals of down-weighted points are in
-    truth a little larger than that and those of the others a little smaller: on simulated
-    blocks the resulting sigma0 is within 1 % of the truth for Huber's loss and 4 % above it
-    for Cauchy's (``tests/bundle/test_robust_sigma0.py``).
-
-    Parameters
-    ----------
-    leverage : array_like (k,)
-        Per image point, the leverage ``h_i`` at unit weight (mean of its two coordinates).
-    loss, scale
-        As in :func:`weighted_square_factor`.
-    s2 : float
-        The variance factor of the errors relative to the whitening.
-
-    Returns
-    -------
-    numpy.ndarray (k,)
-    """
-    r = 1.0 - np.clip(np.asarray(leverage, dtype=float), 0.0, 1.0)
-    return 2.0 * r * weighted_square_factor(loss, scale, r * s2)
 
 
 def image_point_leverage(cofactors: np.ndarray, weights: np.ndarray) -> np.ndarray:

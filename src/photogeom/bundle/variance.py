@@ -41,14 +41,6 @@ NO_REDUNDANCY = 1e-6
 #: Step of the difference quotient of the robust cross terms (:func:`_cross_terms`).
 CROSS_STEP = 0.125
 
-GROUP_TEXT = {
-    "image_tie": "image observations of tie points",
-    "image_control": "image observations of control points",
-    "control": "control-point coordinates",
-    "gnss": "GNSS positions",
-    "imu": "IMU attitudes",
-}
-
 
 def _inestimable(names, vtpv, red, first_red, held) -> dict:
     """Groups (not yet held) whose variance cannot be estimated, with the reason: no

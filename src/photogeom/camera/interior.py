@@ -37,7 +37,6 @@ from ..errors import InputError
 from ..validation import as_finite_scalar, as_points, as_points_single, one_or_many
 from .distortion import BrownDistortion
 
-UNITS = ("mm", "px")
 _UNIT_ALIASES = {"mm": "mm", "px": "px", "pixel": "px", "pixels": "px", "pix": "px"}
 PIXEL_ORIGINS = ("center", "corner")
 

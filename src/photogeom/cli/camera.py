@@ -382,9 +382,6 @@ CalibrationOpt = Annotated[
     ),
 ]
 FOpt = Annotated[float | None, typer.Option("--f", help="Principal distance (in --unit).")]
-X0Opt = Annotated[float, typer.Option("--x0", help="Principal point x0 (in --unit).")]
-Y0Opt = Annotated[float, typer.Option("--y0", help="Principal point y0 (in --unit).")]
-UnitOpt = Annotated[ImageUnit, typer.Option(help="Unit of f, x0, y0 and image coordinates.")]
 PixelSizeOpt = Annotated[
     float | None, typer.Option(help="Pixel size in mm (digital camera, mm <-> pixels).")
 ]

@@ -1100,7 +1100,7 @@ def _report_html(grids: dict, rejected: dict | None = None) -> str:
     from matplotlib.figure import Figure
 
     from ..report import Report
-    from ..report.plots import nice_length
+    from ..report.plots import CLIPPED_COLOUR, arrow_scale
 
     first = next(iter(grids.values()))
     rep = Report(
@@ -1144,18 +1144,43 @@ def _report_html(grids: dict, rejected: dict | None = None) -> str:
     same = [g for g in grids.values() if g.layout == first.layout]
     mean = np.mean([g.nodes for g in same], axis=0)
     u, v = first.layout.node_coordinates()
-    length = np.hypot(mean[..., 0], mean[..., 1])
-    vmax = float(np.nanmax(length)) if np.isfinite(length).any() else 0.0
-    # arrows exaggerated by a round factor (the longest about 0.8 node spacings), a scale
-    # arrow of their true length in px
-    factor = nice_length(0.8 * first.layout.spacing / vmax) if vmax > 0 else 1.0
+    nodes = np.column_stack([u.ravel(), v.ravel()])
+    vec = mean.reshape(-1, 2)
+    # the scale follows the 90th percentile of the node vectors (a node of little support
+    # with a long vector would otherwise shrink every other to a dot): with an extent of 4
+    # node spacings the typical vector is drawn at most 0.6 spacings long and the longest
+    # at most 1.2; longer vectors are drawn clipped in their own colour and counted
+    sc = arrow_scale(vec, 4.0 * first.layout.spacing)
+    factor, key = sc.factor, sc.key
+    drawn = sc.drawn(vec)
     fig = Figure(figsize=(8, 8 * first.layout.height / first.layout.width + 0.6))
     ax = fig.add_subplot()
+    plain_rows = sc.shown & ~sc.clipped
     q = ax.quiver(
-        u, v, mean[..., 0], mean[..., 1], angles="xy", scale_units="xy", scale=1.0 / factor
+        nodes[plain_rows, 0],
+        nodes[plain_rows, 1],
+        drawn[plain_rows, 0],
+        drawn[plain_rows, 1],
+        angles="xy",
+        scale_units="xy",
+        scale=1.0 / factor,
     )
-    if vmax > 0:
-        key = nice_length(vmax)
+    n_clipped = int(sc.clipped.sum())
+    if n_clipped:
+        sel = sc.shown & sc.clipped
+        ax.quiver(
+            nodes[sel, 0],
+            nodes[sel, 1],
+            drawn[sel, 0],
+            drawn[sel, 1],
+            angles="xy",
+            scale_units="xy",
+            scale=1.0 / factor,
+            color=CLIPPED_COLOUR,
+            label=f"longer than {sc.clip:.3g} px, clipped ({n_clipped})",
+        )
+        ax.legend(loc="lower right", fontsize=8)
+    if key > 0:
         ax.quiverkey(
             q, X=0.78, Y=1.03, U=key, label=f"{key:g} px", labelpos="E", coordinates="axes"
         )
@@ -1165,13 +1190,18 @@ def _report_html(grids: dict, rejected: dict | None = None) -> str:
     ax.set_xlabel("u (column) [px]")
     ax.set_ylabel("v (row) [px]")
     ex = f"{factor:,.0f}" if factor >= 10 else f"{factor:.3g}"
-    ax.set_title(f"mean node vector, arrows x{ex}", fontsize=9, loc="left")
+    clipped_note = (
+        f"; {n_clipped} longer than {sc.clip:.3g} px clipped (orange)" if n_clipped else ""
+    )
+    ax.set_title(f"mean node vector, arrows x{ex}{clipped_note}", fontsize=9, loc="left")
     rep.add_figure(
         f"Mean grid of {len(same)} image(s)",
         fig,
         caption="Mean node vector (rx, ry) of the grids over the images of "
         f"{first.layout.width} x {first.layout.height} px, exaggerated by the factor in the "
-        "title; the scale arrow gives the true length.",
+        "title (set by the 90th percentile of their lengths); the scale arrow gives the true "
+        "length. Vectors longer than 3 times that percentile are drawn clipped to it, in "
+        "orange.",
     )
     return rep.to_html()
 

@@ -36,7 +36,6 @@ PresetOpt = Annotated[
     str | None,
     typer.Option(help="Simulated block instead: ILCE-7RM2, FC6310 or FC300S (then adjusted)."),
 ]
-SpacingOpt = Annotated[float, typer.Option(help="Node spacing of the grids in pixels.")]
 #: --spacing of the commands that also take --grids (None: not given, 100 px)
 FitSpacingOpt = Annotated[
     float | None,

@@ -419,15 +419,10 @@ def _report_html(fit, pairs: PointPairs, mask: np.ndarray, inputs: dict, model: 
     return rep.to_html()
 
 
-def load_transform(path: Path):
-    """A transformation from a parameter JSON: the output of ``--output-params`` or
-    ``--json`` of ``transform estimate``, or a bare ``Transform.to_dict()``."""
-    return load_transform_record(path)[0]
-
-
 def load_transform_record(path: Path):
     """``(transformation, target CRS, source CRS, (source columns, target columns), (source
-    unit, target unit))`` of a parameter JSON (see :func:`load_transform`); the CRSs, columns
+    unit, target unit))`` of a parameter JSON: the output of ``--output-params`` or
+    ``--json`` of ``transform estimate``, or a bare ``Transform.to_dict()``; the CRSs, columns
     and units are None where the file records none (the columns and units are those of the
     estimate, in its ``input`` section; the target unit else its ``residual_unit``).
 

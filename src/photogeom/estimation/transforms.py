@@ -704,18 +704,6 @@ def _proj_back(
     return tf, p, J
 
 
-def _proj_forward(p_raw: np.ndarray, ns, nt, d: int) -> np.ndarray:
-    """Normalised parameters of a raw projective transformation: H_n = Tt H Ts^-1 / h_last."""
-    H = np.append(p_raw, 1.0).reshape(d + 1, d + 1)
-    Hn = nt.matrix @ H @ np.linalg.inv(ns.matrix)
-    if abs(Hn[-1, -1]) <= 1e-14 * np.max(np.abs(Hn)):
-        raise DegenerateGeometryError(
-            "projective: the start sends the centroid of the source points to infinity; the "
-            "points do not determine a projective transformation"
-        )
-    return (Hn / Hn[-1, -1]).reshape(-1)[:-1]
-
-
 def _linearised_start(
     u1: np.ndarray, X: np.ndarray, ns, what: str, reweight: bool = False
 ) -> tuple[np.ndarray, float, np.ndarray]:

@@ -411,14 +411,6 @@ class PairMoments:
             float(m.a[i]), float(m.b[i]), None if S is None else S[i],
         )
 
-    def as_batch(self) -> Moments:
-        """A batch of one (moments about the centroids)."""
-        z = np.zeros((1, 3))
-        return Moments(
-            np.array([self.weight]), self.source_centroid[None], self.target_centroid[None],
-            z, z, self.H[None], np.array([self.a]), np.array([self.b]),
-        )
-
     def finite(self) -> bool:
         """False when NaN/inf entered the sums (bad input or overflow)."""
         return math.isfinite(self.a + self.b + float(self.H.sum()))
@@ -1252,12 +1244,6 @@ def centred_chunk(p: np.ndarray, a: int, b: int, tiled: np.ndarray):
     r = (p[a:b].reshape(-1) - tiled[:m]).reshape(-1, 3)
     sq = r * r
     return r, sq[:, 0] + sq[:, 1] + sq[:, 2]
-
-
-def chunked_centroid(p: np.ndarray) -> np.ndarray:
-    """Centroid of ``p`` (n, 3) in one chunked pass (see :func:`centroid_about_reference`)."""
-    ref, c = centroid_about_reference(p)
-    return c if ref is None else ref + c
 
 
 def centroid_about_reference(p: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:

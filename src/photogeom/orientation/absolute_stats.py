@@ -514,17 +514,8 @@ def gauss_helmert_statistics(
 
 
 _EYE3 = np.eye(3)
-#: Points per chunk of :func:`closed_form_cofactor` (its per-chunk arrays are (u, chunk, 3)).
+#: Points per chunk of :func:`closed_form_statistics` (its per-chunk arrays are (u, chunk, 3)).
 COFACTOR_CHUNK = 8192
-
-
-def _skew_rows(v: np.ndarray) -> np.ndarray:
-    """``[v_i]x`` for rows v (k, 3) -> (k, 3, 3), ``[v]x u = v x u``."""
-    Z = np.zeros((v.shape[0], 3, 3))
-    Z[:, 0, 1], Z[:, 0, 2] = -v[:, 2], v[:, 1]
-    Z[:, 1, 0], Z[:, 1, 2] = v[:, 2], -v[:, 0]
-    Z[:, 2, 0], Z[:, 2, 1] = -v[:, 1], v[:, 0]
-    return Z
 
 
 # --- the closed form: propagation through the estimator itself -------------------------------
@@ -576,7 +567,7 @@ def _closed_form_setup(
     with_scale: bool,
     coplanar_threshold: float | None,
 ) -> _ClosedFormSetup:
-    """Sums, ``R_raw``, ``s`` and ``Jz`` of the closed form (see :func:`closed_form_cofactor`)."""
+    """Sums, ``R_raw``, ``s`` and ``Jz`` of the closed form (see :func:`closed_form_statistics`)."""
     from .absolute_direct import (
         CENTROID_TOLERANCE,
         CLOSED_FORM_CHUNKED_N,
@@ -726,37 +717,6 @@ def _closed_form_sums(cf: _ClosedFormSetup, Jo: np.ndarray):
     return S2 + S1 @ bvec.T + bvec @ S1.T + n * bvec @ bvec.T, bvec
 
 
-def closed_form_cofactor(
-    x: np.ndarray,
-    X: np.ndarray,
-    *,
-    nearest: bool = False,
-    with_scale: bool = True,
-    weights: np.ndarray | None = None,
-    coplanar_threshold: float | None = None,
-) -> np.ndarray:
-    """Cofactor matrix of the closed-form (Afary 2024) estimate, propagated through the
-    estimator itself: ``Q = sum_i J_i J_i.T / w_i`` with ``J_i`` the Jacobian of the
-    parameters ``(tx, ty, tz[, scale], omega, phi, kappa)`` with respect to the target point
-    ``X_i`` (isotropic target errors, weight ``w_i``; source coordinates error-free, as in the
-    Gauss-Markov model).
-
-    The closed form is not a least-squares estimator, so the linearised least-squares
-    cofactor is not its covariance (it is too small by up to a factor 1.6 in the standard
-    deviations). The Jacobian follows the estimator step by step: centroid, scale (the mean
-    length ratio), unit vectors, ``R = (M M.T) inv(N M.T)`` with the plane-normal
-    augmentation where used, then the angles as read (published reading of the raw R, or of
-    its nearest rotation) and ``t = Xg - s R xg``; the last 3x3 map is differentiated
-    numerically (central differences on 13 inputs), the per-point part analytically. O(n),
-    in chunks.
-    """
-    cf = _closed_form_setup(x, X, nearest, with_scale, coplanar_threshold)
-    Q, _ = _closed_form_sums(cf, cf.Jz)
-    if weights is not None:  # the closed form takes uniform weights only
-        Q = Q / float(np.mean(np.asarray(weights, dtype=float)))
-    return Q
-
-
 def _used_rotation(R_raw: np.ndarray, nearest: bool) -> np.ndarray:
     """The R the closed form reports: ``R_raw`` or its nearest rotation."""
     if not nearest:
@@ -803,6 +763,18 @@ def closed_form_statistics(
     """Cofactor, expected ``v'Pv`` and residual tests of the closed-form estimate, all
     propagated through the estimator itself.
 
+    The cofactor is ``Q = sum_i J_i J_i.T / w_i`` with ``J_i`` the Jacobian of the
+    parameters ``(tx, ty, tz[, scale], omega, phi, kappa)`` with respect to the target point
+    ``X_i`` (isotropic target errors, weight ``w_i``; source coordinates error-free, as in the
+    Gauss-Markov model). The closed form (Afary 2024) is not a least-squares estimator, so
+    the linearised least-squares cofactor is not its covariance (it is too small by up to a
+    factor 1.6 in the standard deviations). The Jacobian follows the estimator step by step:
+    centroid, scale (the mean length ratio), unit vectors, ``R = (M M.T) inv(N M.T)`` with
+    the plane-normal augmentation where used, then the angles as read (published reading of
+    the raw R, or of its nearest rotation) and ``t = Xg - s R xg``; the last 3x3 map is
+    differentiated numerically (central differences on 13 inputs), the per-point part
+    analytically. O(n), in chunks.
+
     The residuals ``v_i = F_i(z) - X_i`` (``F_i = s R x'_i + Xg`` with the reported R) are a
     function of the target points through ``z = (vec R_raw, s, Xg)``: to first order
     ``v = (H - I) e`` with ``H = D Z`` (``D_i = d F_i / d z``, ``Z_j = d z / d X_j``), so the
@@ -832,7 +804,7 @@ def closed_form_statistics(
     Returns
     -------
     cofactor : numpy.ndarray, shape (u, u)
-        As :func:`closed_form_cofactor`.
+        Of ``(tx, ty, tz[, scale], omega, phi, kappa)`` (see above).
     redundancy : float
         Expected ``v'Pv / sigma0^2`` (not an integer).
     redundancy_numbers, normalized_residuals : numpy.ndarray, shape (n, 3)

@@ -6,7 +6,6 @@ operations on (B,) arrays (structure of arrays), in chunks that stay in the CPU 
 
 * :func:`svd3` - singular value decomposition by one-sided Jacobi rotations (Hestenes):
   accurate to a few units of round-off, any rank.
-* :func:`det3`, :func:`inv3` - determinant and inverse by cofactors.
 """
 
 from __future__ import annotations
@@ -90,31 +89,3 @@ def svd3(H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _svd3_chunk(H)
     parts = [_svd3_chunk(H[i : i + CHUNK]) for i in range(0, H.shape[0], CHUNK)]
     return tuple(np.concatenate(p, axis=0) for p in zip(*parts))
-
-
-def det3(M: np.ndarray) -> np.ndarray:
-    """Determinants of (B, 3, 3) by cofactor expansion."""
-    return (
-        M[:, 0, 0] * (M[:, 1, 1] * M[:, 2, 2] - M[:, 1, 2] * M[:, 2, 1])
-        - M[:, 0, 1] * (M[:, 1, 0] * M[:, 2, 2] - M[:, 1, 2] * M[:, 2, 0])
-        + M[:, 0, 2] * (M[:, 1, 0] * M[:, 2, 1] - M[:, 1, 1] * M[:, 2, 0])
-    )
-
-
-def inv3(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverses of (B, 3, 3) by the adjugate, and the determinants (inverse is inf/NaN where
-    the determinant is 0)."""
-    m = M
-    C = np.empty_like(m)
-    C[:, 0, 0] = m[:, 1, 1] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 1]
-    C[:, 0, 1] = m[:, 0, 2] * m[:, 2, 1] - m[:, 0, 1] * m[:, 2, 2]
-    C[:, 0, 2] = m[:, 0, 1] * m[:, 1, 2] - m[:, 0, 2] * m[:, 1, 1]
-    C[:, 1, 0] = m[:, 1, 2] * m[:, 2, 0] - m[:, 1, 0] * m[:, 2, 2]
-    C[:, 1, 1] = m[:, 0, 0] * m[:, 2, 2] - m[:, 0, 2] * m[:, 2, 0]
-    C[:, 1, 2] = m[:, 0, 2] * m[:, 1, 0] - m[:, 0, 0] * m[:, 1, 2]
-    C[:, 2, 0] = m[:, 1, 0] * m[:, 2, 1] - m[:, 1, 1] * m[:, 2, 0]
-    C[:, 2, 1] = m[:, 0, 1] * m[:, 2, 0] - m[:, 0, 0] * m[:, 2, 1]
-    C[:, 2, 2] = m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
-    d = m[:, 0, 0] * C[:, 0, 0] + m[:, 0, 1] * C[:, 1, 0] + m[:, 0, 2] * C[:, 2, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return C / d[:, None, None], d

@@ -509,13 +509,6 @@ def start_candidates(
     return out
 
 
-def initial_exterior(
-    ground, image, io: InteriorOrientation
-) -> list[tuple[float, ExteriorOrientation]]:
-    """Candidate start values, best first (see :func:`start_candidates`)."""
-    return start_candidates(ground, image, io)
-
-
 # --- resection ---------------------------------------------------------------------------------
 
 

@@ -42,55 +42,69 @@ from .bundle_record import (  # noqa: F401 - the record's names, as before
     write_bundle_result,
 )
 from .html import Report, _esc, _img_html, _table_html, figure_to_png
-from .plots import nice_length, plain
+from .plots import CLIPPED_COLOUR, arrow_scale, plain
 
 # --- figures -------------------------------------------------------------------------------------
 
 
 def sensor_grid_figure(grids: list[Mapping]) -> Figure:
     """Mean residual vector per sensor cell, one panel per camera group, arrows exaggerated
-    by a common factor with a scale arrow of their true length (pixels)."""
+    by a common factor with a scale arrow of their true length (pixels).
+
+    The factor follows the 90th percentile of the lengths of the cells with at least
+    :data:`MIN_CELL_COUNT` observations over all panels (:func:`~.plots.arrow_scale`: that
+    length is drawn at most 1.2 cells long, the longest drawn arrow at most 2.4); means
+    longer than 3 times it (a systematic corner, or a cell of few observations with a
+    blunder) are drawn clipped to it in :data:`~.plots.CLIPPED_COLOUR` and counted in the
+    panel's title.
+    """
     n = len(grids)
     cols = min(n, 2)
     rows = math.ceil(n / cols)
     fig = Figure(figsize=(6.2 * cols, 4.9 * rows), dpi=110)
-    lengths = []
+    means, strong_rows, cells = [], [], []
     for g in grids:
-        m = np.array([[_nan(a), _nan(b)] for a, b in g["mean"]])
-        ok = np.isfinite(m).all(axis=1) & (np.asarray(g["count"]) >= MIN_CELL_COUNT)
-        lengths.append(np.hypot(m[ok, 0], m[ok, 1]))
-    lengths = np.concatenate(lengths) if lengths else np.zeros(0)
-    # the scale follows the typical cell (90th percentile), not a single blunder-driven one,
-    # but no arrow is longer than three cells
-    vmax = float(lengths.max()) if lengths.size else 0.0
-    v90 = float(np.quantile(lengths, 0.9)) if lengths.size else 0.0
+        m = np.array([[_nan(a), _nan(b)] for a, b in g["mean"]]).reshape(-1, 2)
+        means.append(m)
+        strong_rows.append(np.isfinite(m).all(axis=1) & (np.asarray(g["count"]) >= MIN_CELL_COUNT))
+        cells.append(min(g["width"] / g["nx"], g["height"] / g["ny"]))
+    # one scale for all panels, from the well-observed cells (with none, from all): an
+    # extent of 8 cells of the smallest, the typical mean drawn at most 1.2 cells long, the
+    # longest (clipped) at most 2.4
+    ref = np.concatenate([m[s] for m, s in zip(means, strong_rows, strict=True)])
+    if not len(ref):
+        ref = np.concatenate(means)
+    everything = np.concatenate(means)
+    base = arrow_scale(ref, 8.0 * min(cells), drawn_too=everything) if len(ref) else None
     for k, g in enumerate(grids):
         ax = fig.add_subplot(rows, cols, k + 1)
         w, h, nx, ny = g["width"], g["height"], g["nx"], g["ny"]
         cw, ch = w / nx, h / ny
-        m = np.array([[_nan(a), _nan(b)] for a, b in g["mean"]])
+        m = means[k]
         cnt = np.asarray(g["count"])
         iy, ix = np.divmod(np.arange(nx * ny), nx)
         xc = (ix + 0.5) * cw - 0.5
         yc = (iy + 0.5) * ch - 0.5
         ok = np.isfinite(m).all(axis=1)
-        cell = min(cw, ch)
-        factor = nice_length(min(0.8 * cell / v90, 3.0 * cell / vmax)) if v90 > 0 else 1.0
+        sc = base.applied_to(m) if base is not None else None
+        factor = sc.factor if sc is not None else 1.0
+        drawn = sc.drawn(m) if sc is not None else m
+        clipped = sc.clipped if sc is not None else np.zeros(len(m), dtype=bool)
         for x in np.arange(nx + 1) * cw - 0.5:
             ax.axvline(x, color="#e3e8ee", lw=0.6, zorder=1)
         for y in np.arange(ny + 1) * ch - 0.5:
             ax.axhline(y, color="#e3e8ee", lw=0.6, zorder=1)
         ax.plot(xc[ok], yc[ok], ".", color="#8a99a8", ms=2, zorder=2)
-        strong = ok & (cnt >= MIN_CELL_COUNT)
-        weak = ok & (cnt < MIN_CELL_COUNT)
+        strong = ok & (cnt >= MIN_CELL_COUNT) & ~clipped
+        weak = ok & (cnt < MIN_CELL_COUNT) & ~clipped
         q = None
-        for sel, colour in ((strong, "#1f5fa8"), (weak, "#a9bcd0")):
+        for sel, colour in ((strong, "#1f5fa8"), (weak, "#a9bcd0"), (clipped, CLIPPED_COLOUR)):
             if sel.any():
                 qq = ax.quiver(
                     xc[sel],
                     yc[sel],
-                    m[sel, 0],
-                    m[sel, 1],
+                    drawn[sel, 0],
+                    drawn[sel, 1],
                     angles="xy",
                     scale_units="xy",
                     scale=1.0 / factor,
@@ -99,8 +113,8 @@ def sensor_grid_figure(grids: list[Mapping]) -> Figure:
                     zorder=3,
                 )
                 q = q or qq
-        if q is not None and vmax > 0:
-            key = nice_length(max(v90, 0.8 * cell / factor))
+        if q is not None and sc is not None and sc.key > 0:
+            key = sc.key
             ax.quiverkey(
                 q,
                 X=0.70,
@@ -122,6 +136,11 @@ def sensor_grid_figure(grids: list[Mapping]) -> Figure:
             plain(
                 f"{g['label']}: {g['n_observations']} obs. in {g['n_images']} images, RMS "
                 f"{g['rms']:.3g} px\nmean v per {nx} x {ny} cell, arrows x{ex}"
+                + (
+                    f"; {int(clipped.sum())} longer than {sc.clip:.3g} px clipped (orange)"
+                    if clipped.any()
+                    else ""
+                )
             ),
             fontsize=9,
             loc="left",

@@ -299,13 +299,13 @@ def read_bundle_result(path: str | os.PathLike) -> dict:
         record again.
     """
     from ..io.jsonfile import parse_json_bytes
-    from ..io.sources import device_message, input_kind
+    from ..io.sources import device_message, input_kind, read_input_bytes
 
     p = Path(path)
     if input_kind(p) == "device":  # /dev/zero never ends: it was read until memory ran out
         raise FileFormatError(device_message(p, "result record"))
     try:
-        raw = p.read_bytes()  # a file, or a pipe read once
+        raw = read_input_bytes(p, None)  # a file, or a pipe read once per command
     except FileNotFoundError:
         raise InputError(f"no file {p}") from None
     except OSError as exc:  # a folder, no permission, ...

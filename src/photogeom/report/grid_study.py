@@ -28,7 +28,7 @@ from matplotlib.figure import Figure
 
 from ..calibration.blocks import block_residuals
 from .html import Report
-from .plots import CLIPPED_COLOUR, arrow_scale, nice_length, plain
+from .plots import CLIPPED_COLOUR, ArrowScale, arrow_scale, plain
 
 __all__ = ["PUBLISHED", "grid_study_report", "sensor_mean_residuals"]
 
@@ -68,37 +68,31 @@ def sensor_mean_residuals(block, cells: tuple[int, int] = (12, 8)):
     return centres, mean, cnt[ok]
 
 
-def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> None:
-    """Vectors exaggerated so that a vector of length ``ref`` (px) is 8 % of the image
-    width.
+def _quiver(ax, xy, v, scale: ArrowScale | None, size, title: str, color="#1f5fa8") -> None:
+    """Vectors (px) at their positions on an image, exaggerated, with a scale arrow.
 
-    Without ``ref`` the scale follows the 90th percentile of the lengths
+    The scale follows the 90th percentile of the lengths
     (:func:`~photogeom.report.plots.arrow_scale`: at most 7.5 % of the width, the longest
-    drawn arrow at most 15 %): vectors longer than 3 times it (blunders) are drawn clipped in
-    :data:`~photogeom.report.plots.CLIPPED_COLOUR`, at most
-    :data:`~photogeom.report.plots.MAX_ARROWS` are drawn (the longest always), and the title
-    says how many of each.
+    drawn arrow at most 15 %): vectors longer than 3 times it (blunders, cells or nodes of
+    little support) are drawn clipped in :data:`~photogeom.report.plots.CLIPPED_COLOUR`, at
+    most :data:`~photogeom.report.plots.MAX_ARROWS` are drawn (the longest always), and the
+    title says how many of each. With ``scale`` (from :func:`arrow_scale` with these
+    vectors as ``drawn_too``) they are drawn at its exaggeration and clipping length
+    instead.
     """
     w, h = size
     v = np.asarray(v, dtype=float).reshape(-1, 2)
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     notes = []
-    if ref is None:
-        sc = arrow_scale(v, 0.5 * w)
-        k, L = sc.factor, sc.key
-        finite = int(np.isfinite(np.hypot(v[:, 0], v[:, 1])).sum())
-        v = sc.drawn(v)
-        show, clipped = sc.shown, sc.clipped
-        if clipped.any():
-            notes.append(f"{int(clipped.sum())} longer than {sc.clip:.3g} px clipped (orange)")
-        if show.sum() < finite:
-            notes.append(f"{int(show.sum())} of {finite} shown")
-    else:
-        ref = max(ref, 1e-12)
-        k = 0.08 * w / ref  # a vector of length ref is 8 % of the image width
-        L = nice_length(ref)
-        show = np.ones(len(v), dtype=bool)
-        clipped = np.zeros(len(v), dtype=bool)
+    sc = arrow_scale(v, 0.5 * w) if scale is None else scale.applied_to(v)
+    k, L = sc.factor, sc.key
+    finite = int(np.isfinite(np.hypot(v[:, 0], v[:, 1])).sum())
+    v = sc.drawn(v)
+    show, clipped = sc.shown, sc.clipped
+    if clipped.any():
+        notes.append(f"{int(clipped.sum())} longer than {sc.clip:.3g} px clipped (orange)")
+    if show.sum() < finite:
+        notes.append(f"{int(show.sum())} of {finite} shown")
     for sel, colour in ((show & ~clipped, color), (show & clipped, CLIPPED_COLOUR)):
         if colour == CLIPPED_COLOUR and not sel.any():
             continue
@@ -139,13 +133,17 @@ def _quiver(ax, xy, v, ref: float | None, size, title: str, color="#1f5fa8") -> 
 def _fig_sensor(before, after) -> Figure:
     fig = Figure(figsize=(10, 4))
     size = tuple(before.image_sizes()[0])
-    _, mb, _ = sensor_mean_residuals(before)
-    ref = float(np.max(np.hypot(mb[:, 0], mb[:, 1]))) if mb.size else None
-    for ax, blk, t in zip(
-        fig.subplots(1, 2), (before, after), ("before (Fig. 7)", "after the correction (Fig. 9)")
+    # both panels at the scale of the residuals before the correction (90th percentile;
+    # a cell of few observations with a long mean is clipped, not the scale of all others)
+    (cb, mb, _), (ca, ma, _) = sensor_mean_residuals(before), sensor_mean_residuals(after)
+    scale = arrow_scale(mb, 0.5 * size[0], drawn_too=ma)
+    for ax, (c, m), t in zip(
+        fig.subplots(1, 2),
+        ((cb, mb), (ca, ma)),
+        ("before (Fig. 7)", "after the correction (Fig. 9)"),
+        strict=True,
     ):
-        c, m, _ = sensor_mean_residuals(blk)
-        _quiver(ax, c, m, ref, size, f"mean residual vectors, {t} (same scale)")
+        _quiver(ax, c, m, scale, size, f"mean residual vectors, {t} (same scale)")
     return fig
 
 

@@ -122,8 +122,49 @@ class ArrowScale:
         shrink[self.clipped] = self.clip / length[self.clipped]
         return r * shrink[:, None]
 
+    def applied_to(self, residuals_xy, max_arrows: int = MAX_ARROWS) -> ArrowScale:
+        """The same exaggeration, scale arrow and clipping length for other residuals:
+        those given as ``drawn_too`` to :func:`arrow_scale` (a second panel at the same
+        scale, rows that do not set it), with their own clipped and shown rows.
 
-def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> ArrowScale:
+        Parameters
+        ----------
+        residuals_xy : array_like, shape (m, 2)
+            Residual vectors, in the unit of the ones the scale was made for.
+        max_arrows : int, default :data:`MAX_ARROWS`
+            Arrows drawn at most (thinned as in :func:`arrow_scale`).
+
+        Returns
+        -------
+        ArrowScale
+            :attr:`factor`, :attr:`key`, :attr:`typical` and :attr:`clip` of this one.
+        """
+        r = np.asarray(residuals_xy, dtype=float)[:, :2]
+        length = np.hypot(r[:, 0], r[:, 1])
+        finite = np.isfinite(length)
+        clipped = finite & (length > self.clip)
+        shown = _thinned(length, finite, max_arrows)
+        return ArrowScale(self.factor, self.key, self.typical, self.clip, clipped, shown)
+
+
+def _thinned(length: np.ndarray, finite: np.ndarray, max_arrows: int) -> np.ndarray:
+    """Rows drawn: every finite one, or with more than ``max_arrows`` the
+    :data:`LONGEST_ALWAYS_SHOWN` longest and a seeded random sample of the others."""
+    idx = np.flatnonzero(finite)
+    if idx.size <= max_arrows:
+        return finite.copy()
+    order = idx[np.argsort(-length[idx], kind="stable")]
+    big = min(LONGEST_ALWAYS_SHOWN, max_arrows)
+    rest = np.random.default_rng(0).choice(order[big:], max_arrows - big, replace=False)
+    shown = np.zeros(length.size, dtype=bool)
+    shown[order[:big]] = True
+    shown[rest] = True
+    return shown
+
+
+def arrow_scale(
+    residuals_xy, extent: float, max_arrows: int = MAX_ARROWS, *, drawn_too=None
+) -> ArrowScale:
     """Exaggeration, scale arrow, clipping and thinning of residual arrows.
 
     The scale follows the 90th percentile of the lengths (not the longest: a few blunders
@@ -141,6 +182,11 @@ def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> Ar
         Size of the plotted area (position unit, > 0).
     max_arrows : int, default :data:`MAX_ARROWS`
         Arrows drawn at most.
+    drawn_too : array_like, shape (m, 2), optional
+        Residuals drawn at the same scale that do not set it (another panel, cells of few
+        observations): the 90th percentile is that of ``residuals_xy`` alone, the clipping
+        and the longest drawn arrow count these too. Draw them with
+        :meth:`ArrowScale.applied_to`.
 
     Returns
     -------
@@ -155,6 +201,12 @@ def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> Ar
         return ArrowScale(1.0, 0.0, 0.0, math.inf, none, finite)
     good = length[finite]
     vmax = float(good.max())
+    if drawn_too is not None:
+        t = np.asarray(drawn_too, dtype=float).reshape(-1, 2)
+        extra = np.hypot(t[:, 0], t[:, 1])
+        extra = extra[np.isfinite(extra)]
+        if extra.size:
+            vmax = max(vmax, float(extra.max()))
     typical = float(np.quantile(good, 0.9))
     if typical <= 0:  # nearly all zero: the few others set the scale
         typical = float(np.quantile(good[good > 0], 0.9))
@@ -163,16 +215,7 @@ def arrow_scale(residuals_xy, extent: float, max_arrows: int = MAX_ARROWS) -> Ar
     factor = nice_length(min(0.15 * extent / typical, 0.3 * extent / longest))
     key = nice_length(typical)
     clipped = finite & (length > clip)
-    shown = finite.copy()
-    idx = np.flatnonzero(finite)
-    if idx.size > max_arrows:
-        order = idx[np.argsort(-length[idx], kind="stable")]
-        big = min(LONGEST_ALWAYS_SHOWN, max_arrows)
-        rest = np.random.default_rng(0).choice(order[big:], max_arrows - big, replace=False)
-        shown = none.copy()
-        shown[order[:big]] = True
-        shown[rest] = True
-    return ArrowScale(factor, key, typical, clip, clipped, shown)
+    return ArrowScale(factor, key, typical, clip, clipped, _thinned(length, finite, max_arrows))
 
 
 def residual_figure(

@@ -26,9 +26,6 @@ TERM_NAMES = (
     "PLH", "L3", "LP2", "LH2", "L2P", "P3", "PH2", "L2H", "P2H", "H3",
 )  # fmt: skip
 
-#: Total degree of each term.
-TERM_DEGREE = np.array([0, 1, 1, 1, 2, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3, 3, 3, 3])
-
 #: Number of terms of a polynomial of total degree 1, 2, 3 (the first terms of the order).
 TERMS_OF_ORDER = {1: 4, 2: 10, 3: 20}
 
@@ -145,17 +142,6 @@ def terms(L, P, H) -> np.ndarray:
     T = np.empty((N_TERMS, L.size))
     fill_terms(T, L, P, H)
     return T.T
-
-
-def derivative_terms(L, P, H) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """d(terms)/dL, d(terms)/dP, d(terms)/dH of the points, each of shape ``(n, 20)``."""
-    L, P, H = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (L, P, H))
-    n = L.size
-    T = np.empty((N_TERMS, n))
-    fill_terms(T, L, P, H)
-    dL, dP, dH = (np.empty((N_TERMS, n)) for _ in range(3))
-    fill_derivative_terms(T, dL, dP, dH, L, P, H)
-    return dL.T, dP.T, dH.T
 
 
 def evaluate(coefficients: np.ndarray, L, P, H) -> np.ndarray:

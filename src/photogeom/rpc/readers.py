@@ -33,7 +33,13 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..io.sources import device_message, input_kind, pipe_message
+from ..io.sources import (
+    device_message,
+    input_kind,
+    pipe_bytes,
+    pipe_message,
+    read_input_bytes,
+)
 from ..numbers import decimal_comma_hint, parse_decimal
 from ..xmlsafe import parse_xml
 from . import polynomial as poly
@@ -808,8 +814,9 @@ def read_rpc(path: str | Path) -> RPC:
         IKONOS-style ``_RPC.TXT``, ``KEY: value`` text, DigitalGlobe ``.RPB``, OSSIM / Orfeo
         ToolBox ``.geom`` keyword lists (``ossimRpcModel``), DIMAP XML,
         DigitalGlobe/Maxar XML or a GeoTIFF with RPC tags (needs the ``geotiff`` extra).
-        The text and XML formats may come from a pipe (read once); a raster may not (GDAL
-        reads it with seeks), nor may a device.
+        The text and XML formats may come from a pipe (read once per
+        :func:`photogeom.io.sources.pipe_reads` scope: a command that reads it again gets
+        the same bytes); a raster may not (GDAL reads it with seeks), nor may a device.
 
     Returns
     -------
@@ -832,30 +839,37 @@ def read_rpc(path: str | Path) -> RPC:
     if source == "device":
         raise FileFormatError(device_message(p, "RPC file"))
     try:
-        size = p.stat().st_size  # 0 for a pipe: it is read once, bounded below
-        with open(p, "rb") as fh:
-            head = fh.read(65536)
-            if not head.strip() and size <= len(head):
-                raise FileFormatError(f"{p}: the file is empty")
-            kind = detect_format(p, head)
-            if kind == "unknown":
-                raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")
-            if kind == "raster" and source == "pipe":
-                raise FileFormatError(
-                    pipe_message(p, "the raster", "GDAL reads a GeoTIFF or NITF with seeks")
-                )
-            if kind == "raster":
-                data = b""
-            else:
-                limit = MAX_XML_BYTES if kind == "xml" else MAX_TEXT_BYTES
+        if source == "pipe":
+            # read once per command (io.sources.pipe_reads): a second read of the pipe in
+            # the command, by this reader or another, gets the same bytes
+            data = pipe_bytes(p, max(MAX_XML_BYTES, MAX_TEXT_BYTES))
+            head, size = data[:65536], len(data)
+        else:
+            size = p.stat().st_size
+            with open(p, "rb") as fh:
+                head = fh.read(65536)
+        if not head.strip() and size <= len(head):
+            raise FileFormatError(f"{p}: the file is empty")
+        kind = detect_format(p, head)
+        if kind == "unknown":
+            raise FileFormatError(f"{p}: not a known RPC file format; supported: {FORMATS}")
+        if kind == "raster" and source == "pipe":
+            raise FileFormatError(
+                pipe_message(p, "the raster", "GDAL reads a GeoTIFF or NITF with seeks")
+            )
+        if kind == "raster":
+            data = b""
+        else:
+            limit = MAX_XML_BYTES if kind == "xml" else MAX_TEXT_BYTES
+            if source != "pipe":
                 if size > limit:
                     raise FileFormatError(
-                        f"{p}: {size} bytes is too large for an RPC file of this kind (at most "
-                        f"{limit} bytes; an RPC is a few kB): wrong file?"
+                        f"{p}: {size} bytes is too large for an RPC file of this kind (at "
+                        f"most {limit} bytes; an RPC is a few kB): wrong file?"
                     )
-                data = head + fh.read(limit + 1 - len(head))
-                if len(data) > limit:
-                    raise FileFormatError(f"{p}: more than {limit} bytes; wrong file?")
+                data = read_input_bytes(p, limit)
+            if len(data) > limit:
+                raise FileFormatError(f"{p}: more than {limit} bytes; wrong file?")
     except OSError as exc:
         raise FileFormatError(f"cannot read {p}: {exc.strerror or exc}") from None
     where = str(p)
