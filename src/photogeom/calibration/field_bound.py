@@ -69,7 +69,7 @@ def field_bound(sim, options: BundleOptions | None = None) -> dict:
     """
     F = sim.field
     K = int(F.waves.shape[0])
-    if K == 0 or F.rms <= 0:
+    if K == 0 or F.total_rms <= 0:
         raise InputError("field_bound: the simulated block has no local field (local_field=0)")
     block = sim.truth.with_observations(uv=sim.ideal + sim.local)
     bp = Problem(block, options or BundleOptions())

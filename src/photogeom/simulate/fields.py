@@ -141,7 +141,11 @@ def ar1_along_flight(
 
 #: The parameters of :meth:`LocalDistortionField.random` checked by
 #: :func:`check_field_options`, by their names there.
-_FIELD_NAMES = {n: n for n in ("rms", "modes", "correlation", "static", "slope")}
+_FIELD_NAMES = {n: n for n in ("rms", "modes", "correlation", "static", "slope", "smooth")}
+
+#: Highest wave number of the smooth component (:meth:`LocalDistortionField.random`,
+#: ``smooth``): the four waves one cycle long across the image.
+SMOOTH_MODES = 1
 
 
 def check_field_options(
@@ -151,6 +155,8 @@ def check_field_options(
     static: float,
     slope: float,
     names: dict[str, str] | None = None,
+    *,
+    smooth: float = 0.0,
 ) -> None:
     """Refuse field settings :meth:`LocalDistortionField.random` cannot draw from.
 
@@ -168,7 +174,9 @@ def check_field_options(
         Exponent of the coefficients' fall with the wave number (>= 0).
     names : dict, optional
         The caller's names of these parameters (keys ``rms``, ``modes``, ``correlation``,
-        ``static``, ``slope``), used in the messages; default: the names above.
+        ``static``, ``slope``, ``smooth``), used in the messages; default: the names above.
+    smooth : float, default 0.0
+        RMS of the smooth component, px (>= 0).
 
     Raises
     ------
@@ -189,6 +197,8 @@ def check_field_options(
         raise InputError(f"{nm['static']} must be in [0, 1], got {static}")
     if not (np.isfinite(slope) and slope >= 0):
         raise InputError(f"{nm['slope']} must be >= 0, got {slope}")
+    if not (np.isfinite(smooth) and smooth >= 0):
+        raise InputError(f"{nm['smooth']} must be >= 0 (RMS, pixels), got {smooth}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,6 +220,13 @@ class LocalDistortionField:
     stationary AR(1) process with the given correlation between consecutive images, plus an
     optional static part shared by all images.
 
+    An optional smooth component of RMS ``smooth`` adds to the four longest waves
+    (``max(|kx|, |ky|) <= 1``, one cycle across the image) coefficients drawn the same way
+    (standard deviation ``1 / |k|``, the same correlation and static share) and independent
+    of the first: a smooth image-variant deformation beside a finer field. The two add up to
+    one field of the same form whose coefficients have the variances of both
+    (:meth:`coefficient_std`), and an expected mean square length of ``rms**2 + smooth**2``.
+
     Attributes
     ----------
     image_ids : (m,) ids of the images, in flight order.
@@ -218,13 +235,16 @@ class LocalDistortionField:
     waves : (K, 2) integer wave numbers (kx, ky).
     coef : (m, K, 2, 2) coefficients: image, mode, (cos, sin), (du, dv), pixels.
     rms : float
-        The nominal RMS length, pixels.
+        The nominal RMS length of the first component (spectrum ``1 / |k|**slope`` up to
+        ``modes``), pixels.
     correlation, static : float
         The distribution the coefficients were drawn from along the flight: AR(1)
         correlation between consecutive images and the share of the variance common to all
         images (:meth:`image_covariance`).
     slope : float
         Exponent of the coefficients' fall with the wave number (:meth:`coefficient_std`).
+    smooth : float
+        The nominal RMS length of the smooth component, pixels (0: none).
     """
 
     image_ids: np.ndarray
@@ -236,6 +256,7 @@ class LocalDistortionField:
     correlation: float = 0.0
     static: float = 0.0
     slope: float = 1.0
+    smooth: float = 0.0
 
     def __post_init__(self) -> None:
         # read-only views: the simulated observations were made from these coefficients
@@ -257,6 +278,7 @@ class LocalDistortionField:
         correlation: float = 0.9,
         static: float = 0.0,
         slope: float = 1.0,
+        smooth: float = 0.0,
     ) -> LocalDistortionField:
         """Random fields for images in flight order (see the class docstring).
 
@@ -278,6 +300,11 @@ class LocalDistortionField:
             Share of the variance common to all images, in [0, 1].
         slope : float, default 1.0
             Exponent (>= 0) of the coefficients' fall with the wave number.
+        smooth : float, default 0.0
+            RMS of the smooth component, px (>= 0): independent coefficients of the four
+            longest waves, drawn after the first component's (0 draws nothing, so the
+            first component and everything drawn later from ``rng`` are as without it).
+            With ``rms`` 0 the field has only these four waves.
 
         Returns
         -------
@@ -289,13 +316,13 @@ class LocalDistortionField:
             For a value out of range; the message names the parameter of this method
             (:func:`check_field_options` with the names of the caller's options).
         """
-        check_field_options(rms, modes, correlation, static, slope)
+        check_field_options(rms, modes, correlation, static, slope, smooth=smooth)
         if not all(np.isfinite(v) and v > 0 for v in (width, height)):
             raise InputError(
                 f"width and height must be > 0 (image size, pixels), got {width}, {height}"
             )
         ids = np.asarray(image_ids)
-        modes = int(modes)
+        modes = int(modes) if rms > 0 or smooth == 0 else SMOOTH_MODES
         kx, ky = np.meshgrid(np.arange(0, modes + 1), np.arange(-modes, modes + 1), indexing="ij")
         kx, ky = kx.ravel(), ky.ravel()
         half = (kx > 0) | ((kx == 0) & (ky > 0))
@@ -305,6 +332,13 @@ class LocalDistortionField:
         common = rng.standard_normal((1, K, 2, 2))
         c = np.sqrt(1.0 - static) * varying + np.sqrt(static) * common
         coef = c * _wave_std(waves, rms, slope)[None, :, None, None]
+        if smooth > 0:
+            sel = _smooth_waves(waves)
+            ks = int(np.sum(sel))
+            varying = ar1_along_flight(rng, ids.size, (ks, 2, 2), correlation)
+            common = rng.standard_normal((1, ks, 2, 2))
+            c = np.sqrt(1.0 - static) * varying + np.sqrt(static) * common
+            coef[:, sel] += c * _wave_std(waves[sel], smooth)[None, :, None, None]
         return cls(
             ids,
             float(width),
@@ -315,6 +349,7 @@ class LocalDistortionField:
             correlation,
             static,
             float(slope),
+            float(smooth),
         )
 
     @classmethod
@@ -340,14 +375,26 @@ class LocalDistortionField:
     def coefficient_std(self) -> np.ndarray:
         """Standard deviation of the cos, then the sin coefficients of each wave, as drawn.
 
-        The same for du and dv.
+        The same for du and dv; with a smooth component, the root sum of squares of both
+        components' (they are independent).
 
         Returns
         -------
         numpy.ndarray, shape (2K,)
             px.
         """
-        return np.tile(_wave_std(self.waves, self.rms, self.slope), 2)
+        std = _wave_std(self.waves, self.rms, self.slope)
+        if self.smooth > 0:
+            sel = _smooth_waves(self.waves)
+            add = np.zeros_like(std)
+            add[sel] = _wave_std(self.waves[sel], self.smooth)
+            std = np.sqrt(std**2 + add**2)
+        return np.tile(std, 2)
+
+    @property
+    def total_rms(self) -> float:
+        """The expected RMS length of the whole field, ``sqrt(rms**2 + smooth**2)``, px."""
+        return float(np.hypot(self.rms, self.smooth))
 
     def image_covariance(self, image_rows: np.ndarray) -> np.ndarray:
         """Correlation of one coefficient between images.
@@ -472,6 +519,11 @@ class LocalDistortionField:
         ids = np.asarray(image_id)
         flat = np.broadcast_to(ids.reshape(-1) if ids.ndim else ids, (a.shape[0],))
         return one_or_many(self.rows(self.image_rows(flat), a), single)
+
+
+def _smooth_waves(waves: np.ndarray) -> np.ndarray:
+    """(K,) bool: the waves of the smooth component, ``max(|kx|, |ky|) <= SMOOTH_MODES``."""
+    return np.max(np.abs(waves), axis=1) <= SMOOTH_MODES
 
 
 def _wave_std(waves: np.ndarray, rms: float, slope: float = 1.0) -> np.ndarray:

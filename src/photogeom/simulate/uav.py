@@ -205,9 +205,15 @@ class SimulatedBlock:
             f"{o['side_overlap']:.0%}, terrain {o['terrain']}",
             self.block.summary(),
             f"noise {o['sigma']} px (tie), {o['gcp_sigma']} px (control/check); local field "
-            f"RMS {self.field.rms} px; {self.blunder_rows.size} blunder(s)",
+            f"RMS {self.field.rms} px{self._smooth_note()}; {self.blunder_rows.size} "
+            "blunder(s)",
         ]
         return "\n".join(lines)
+
+    def _smooth_note(self) -> str:
+        if self.field.smooth <= 0:
+            return ""
+        return f" + smooth {self.field.smooth} px (total {self.field.total_rms:.3g} px)"
 
     def __repr__(self) -> str:
         return f"SimulatedBlock({self.preset.name}, {self.block!r})"
@@ -435,6 +441,7 @@ def uav_block(
     local_field_correlation: float = 0.9,
     local_field_static: float = 0.0,
     local_field_slope: float = 1.0,
+    local_field_smooth: float = 0.0,
     calibration_variation=None,
     calibration_correlation: float = 0.9,
     free: Sequence[str] | None = None,
@@ -528,6 +535,16 @@ def uav_block(
     local_field_slope : float
         The fields' coefficients fall as ``1 / |k|**slope`` with the wave number (>= 0;
         default 1: about equal variance per octave; 3: nearly all in the longest waves).
+    local_field_smooth : float
+        RMS of a second, smooth component of the local fields, pixels (default 0: none): the
+        four waves one cycle long across the image (coefficients falling as ``1 / |k|``),
+        drawn independently of the first component with the same
+        ``local_field_correlation`` and ``local_field_static``; the fields' expected RMS is
+        then ``sqrt(local_field**2 + local_field_smooth**2)``. A smooth deformation that
+        changes from image to image beside a finer one (a stand-in for, e.g., a sensor that
+        moves slightly between images; its form is the field's longest waves, not a tilt's
+        projective one); it is part of :attr:`SimulatedBlock.field`, ``local`` and the
+        observations.
     calibration_variation, calibration_correlation : float or (3,) or None, float
         Standard deviations of image-variant offsets of f, cx, cy, pixels (AR(1) along the
         flight with correlation ``calibration_correlation`` between consecutive images);
@@ -577,12 +594,14 @@ def uav_block(
         local_field_correlation,
         local_field_static,
         local_field_slope,
+        smooth=local_field_smooth,
         names={
             "rms": "local_field",
             "modes": "local_field_modes",
             "correlation": "local_field_correlation",
             "static": "local_field_static",
             "slope": "local_field_slope",
+            "smooth": "local_field_smooth",
         },
     )
     # --- cameras ---------------------------------------------------------------------------
@@ -738,7 +757,7 @@ def uav_block(
     n = ci.size
     # --- observation errors --------------------------------------------------------------------
     rms_field = P.local_field_rms if local_field is None else float(local_field)
-    if rms_field > 0:
+    if rms_field > 0 or local_field_smooth > 0:
         fld = LocalDistortionField.random(
             rng,
             image_ids,
@@ -749,6 +768,7 @@ def uav_block(
             correlation=local_field_correlation,
             static=local_field_static,
             slope=local_field_slope,
+            smooth=float(local_field_smooth),
         )
     else:
         if rms_field < 0:
@@ -887,6 +907,7 @@ def uav_block(
         local_field_correlation=local_field_correlation,
         local_field_static=float(local_field_static),
         local_field_slope=float(local_field_slope),
+        local_field_smooth=float(local_field_smooth),
         calibration_variation=None if cv is None else cv.tolist(),
         initial_camera=initial_camera if isinstance(initial_camera, str) else "given",
     )
