@@ -264,6 +264,33 @@ def test_folder_on_a_dask_scheduler(folder, grid, tmp_path):
     assert (tmp_path / "out" / "IMG_1.JPG").read_bytes() == ref.read_bytes()
 
 
+@pytest.mark.parametrize("dask", [True, "tcp://127.0.0.1:8786"])
+def test_dask_tasks_ship_the_nodes_not_the_observations(folder, tmp_path, monkeypatch, dask):
+    """What a Dask task is given does not grow with the residuals of the fit: the nodes
+    (and the per-node support and counts), not the positions, standard deviations, outlier
+    flags and data-snooping statistics of every observation."""
+    import pickle
+
+    import photogeom.calibration.images as images
+
+    src, _ = folder
+    rng = np.random.default_rng(5)
+    shipped = {}
+    for n in (300, 30000):
+        uv = np.column_stack([rng.uniform(0, W - 1, n), rng.uniform(0, H - 1, n)])
+        fitted = fit_grid(uv, field(uv), (W, H), 30, folds=0, snooping=True)
+
+        def run(jobs, *args, n=n):
+            shipped[n] = max(len(pickle.dumps(job, protocol=5)) for job in jobs)
+            return [(True, None)] * len(jobs)
+
+        monkeypatch.setattr(images, "_run_dask", run)
+        correct_folder(src, tmp_path / f"out{n}", {"IMG_1": fitted}, dask=dask, progress=False)
+        node_bytes = fitted.nodes.nbytes + fitted.counts.nbytes + fitted.support.nbytes
+        assert shipped[n] < node_bytes + 4096, (n, shipped[n], node_bytes)
+    assert abs(shipped[30000] - shipped[300]) < 64, shipped
+
+
 def test_missing_dask_is_named(folder, grid, tmp_path, monkeypatch):
     src, _ = folder
     monkeypatch.setitem(sys.modules, "distributed", None)
