@@ -167,6 +167,46 @@ def _exif():
     return ex
 
 
+@pytest.mark.parametrize(("fmt", "channels"), [("JPEG", 3), ("TIFF", 3), ("TIFF", 4)])
+def test_colour_images_are_encoded_without_a_converted_copy(fmt, channels):
+    """Pillow takes the pixels in OpenCV's channel order as it copies them into its image:
+    no colour-converted copy of the whole image is made before (the memory traced beyond
+    what Pillow's own encoder takes stays well under the image's size; a conversion first
+    was one more full-size array), and the file holds the same pixels."""
+    import io
+    import tracemalloc
+
+    from photogeom.calibration.images import _encode
+
+    def traced(make):
+        tracemalloc.start()
+        try:
+            return make(), tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    yy, xx = np.mgrid[0:600, 0:800] // 100  # blocks of one colour
+    bgr = np.dstack([xx * 40, yy * 40, (xx + yy) * 20, 255 - xx * 30][:channels])
+    bgr = bgr.astype(np.uint8)
+    want = np.ascontiguousarray(bgr[..., [2, 1, 0, 3][:channels]])  # as RGB(A)
+    meta, suffix = {"format": fmt, "compression": "tiff_lzw"}, ".tif"
+    kw = {"compression": "tiff_lzw"}
+    if fmt == "JPEG":
+        meta, suffix, kw = {"format": fmt}, ".jpg", {"quality": 95}  # _encode's quality
+    ready = Image.fromarray(want)
+    ready.save(io.BytesIO(), format=fmt, **kw)  # the encoder's modules loaded, untraced
+    _, encoder = traced(lambda: ready.save(io.BytesIO(), format=fmt, **kw))
+    (data, note), peak = traced(lambda: _encode(bgr, meta, suffix))
+    assert note is None
+    assert peak - encoder < bgr.nbytes / 2, (peak, encoder, bgr.nbytes)
+    with Image.open(io.BytesIO(data)) as im:
+        got = np.asarray(im)
+    if fmt == "JPEG":
+        assert np.abs(got.astype(int) - want).mean() < 2.0
+    else:
+        np.testing.assert_array_equal(got, want)
+
+
 @pytest.fixture
 def folder(tmp_path):
     rng = np.random.default_rng(2)
