@@ -331,6 +331,49 @@ def test_dask_tasks_ship_the_nodes_not_the_observations(folder, tmp_path, monkey
     assert abs(shipped[30000] - shipped[300]) < 64, shipped
 
 
+def test_concurrent_dask_tasks_keep_opencv_single_threaded_and_restore_it(monkeypatch):
+    """Tasks running at once in one worker process (a Dask worker of 2 threads): OpenCV
+    stays single-threaded while any of them runs, and gets its own thread count back when
+    the last one ends, whichever ends first (each task restoring the count it had found
+    left the process at 1 thread, or gave a running task the full count)."""
+    import threading
+
+    import photogeom.calibration.images as images
+
+    inside = {"a": threading.Event(), "b": threading.Event()}
+    leave = {"a": threading.Event(), "b": threading.Event()}
+    seen = {}
+
+    def work(src, dst, grid, **kw):
+        inside[src].set()
+        assert leave[src].wait(30)
+        seen[src] = cv2.getNumThreads()
+
+    monkeypatch.setattr(images, "correct_image_file", work)
+    own = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        runs = {
+            k: threading.Thread(target=images._task, args=(k, "", None, "bilinear", 1, True))
+            for k in "ab"
+        }
+        runs["a"].start()
+        assert inside["a"].wait(30)
+        runs["b"].start()
+        assert inside["b"].wait(30)
+        leave["a"].set()  # the first task to start ends first
+        runs["a"].join(30)
+        while_b_runs = cv2.getNumThreads()
+        leave["b"].set()
+        runs["b"].join(30)
+        after = cv2.getNumThreads()
+    finally:
+        cv2.setNumThreads(own)
+    assert seen == {"a": 1, "b": 1}
+    assert while_b_runs == 1
+    assert after == 3
+
+
 def test_missing_dask_is_named(folder, grid, tmp_path, monkeypatch):
     src, _ = folder
     monkeypatch.setitem(sys.modules, "distributed", None)

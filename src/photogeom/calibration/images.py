@@ -39,7 +39,9 @@ import io
 import logging
 import os
 import struct
+import threading
 from collections.abc import Callable, Mapping
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field, replace
 from glob import escape as glob_escape
 from pathlib import Path
@@ -832,6 +834,39 @@ def _portable(grid: ResidualGrid) -> ResidualGrid:
     )
 
 
+#: Tasks of this process inside :func:`_opencv_single_threaded`, and the OpenCV thread count
+#: to restore when the last of them leaves (a Dask worker runs several tasks at once)
+_OPENCV_SINGLE = {"inside": 0, "restore": 0}
+_OPENCV_LOCK = threading.Lock()
+
+
+@contextmanager
+def _opencv_single_threaded():
+    """OpenCV single-threaded while any task of the process is inside; the thread count it
+    had before the first of them is restored when the last one leaves.
+
+    OpenCV's thread count is one setting of the whole process: a task that set it to 1 and
+    put back the count it had found could find the 1 of a task still running, and restore
+    it after that task had restored its own (the process left single-threaded: an
+    in-process cluster of 2 threads left OpenCV at 1 thread in the calling program), or
+    give the running task the full count (as many OpenCV threads per task as cores).
+    """
+    import cv2
+
+    with _OPENCV_LOCK:
+        if _OPENCV_SINGLE["inside"] == 0:
+            _OPENCV_SINGLE["restore"] = cv2.getNumThreads()
+            cv2.setNumThreads(1)
+        _OPENCV_SINGLE["inside"] += 1
+    try:
+        yield
+    finally:
+        with _OPENCV_LOCK:
+            _OPENCV_SINGLE["inside"] -= 1
+            if _OPENCV_SINGLE["inside"] == 0:
+                cv2.setNumThreads(_OPENCV_SINGLE["restore"])
+
+
 def _task(
     src: str,
     dst: str,
@@ -843,27 +878,21 @@ def _task(
 ):
     """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
 
-    ``cv_single``: OpenCV runs single-threaded for the task (Dask workers already fill the
-    cores); its thread count is restored afterwards. Not in forked processes, where
-    changing OpenCV's thread pool can deadlock.
+    ``cv_single``: OpenCV runs single-threaded while the task runs (Dask workers already
+    fill the cores; see :func:`_opencv_single_threaded`), its thread count restored when
+    the last task of the process ends. Not in forked processes, where changing OpenCV's
+    thread pool can deadlock.
     """
-    import cv2
-
-    before = cv2.getNumThreads() if cv_single else 0
     try:
-        if cv_single:
-            cv2.setNumThreads(1)
-        note = correct_image_file(
-            src, dst, grid, interpolation=interpolation, threads=threads, border=border
-        )
+        with _opencv_single_threaded() if cv_single else nullcontext():
+            note = correct_image_file(
+                src, dst, grid, interpolation=interpolation, threads=threads, border=border
+            )
         return True, note
     except (PhotogeomError, OSError) as exc:
         return False, str(exc)
     except Exception as exc:  # cv2/Pillow errors on damaged files
         return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
-    finally:
-        if cv_single:
-            cv2.setNumThreads(before)
 
 
 def find_images(folder: Path, ids) -> tuple[dict, list, list]:
