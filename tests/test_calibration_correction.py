@@ -374,6 +374,51 @@ def test_concurrent_dask_tasks_keep_opencv_single_threaded_and_restore_it(monkey
     assert after == 3
 
 
+_NO_GUARD = """
+import sys
+import numpy as np
+from PIL import Image
+from photogeom import PhotogeomError
+from photogeom.calibration import correct_folder, fit_grid
+
+rng = np.random.default_rng(0)
+uv = np.column_stack([rng.uniform(0, 59, 50), rng.uniform(0, 39, 50)])
+grid = fit_grid(uv, rng.normal(0, 0.5, (50, 2)), (60, 40), 20.0, folds=0)
+Image.fromarray(np.zeros((40, 60, 3), np.uint8)).save(sys.argv[1] + "/IMG.jpg")
+try:
+    correct_folder(sys.argv[1], sys.argv[2], {"IMG": grid}, dask=True, progress=False)
+except PhotogeomError as exc:
+    print("PhotogeomError:", exc)
+"""
+
+
+def test_folder_cluster_started_without_main_guard_names_the_guard(tmp_path):
+    """A script that corrects a folder on a local cluster at its top level: the workers
+    import the script again and cannot start; the error says why and what to do (it was
+    distributed's ``RuntimeError: Nanny failed to start.``)."""
+    import os
+    import subprocess
+
+    pytest.importorskip("distributed")
+    script = tmp_path / "job.py"
+    script.write_text(_NO_GUARD, encoding="utf-8")
+    (tmp_path / "in").mkdir()
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    env["PYTHONPATH"] = os.pathsep.join([*sys.path, env.get("PYTHONPATH", "")])
+    out = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "in"), str(tmp_path / "out")],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    said = [line for line in out.stdout.splitlines() if line.startswith("PhotogeomError:")]
+    assert said, (out.stdout[-2000:], out.stderr[-2000:])
+    assert "did not start" in said[-1] and 'if __name__ == "__main__":' in said[-1]
+    assert "dask=False" in said[-1] and "--dask" in said[-1]
+
+
 def test_missing_dask_is_named(folder, grid, tmp_path, monkeypatch):
     src, _ = folder
     monkeypatch.setitem(sys.modules, "distributed", None)

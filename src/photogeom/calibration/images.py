@@ -1148,6 +1148,18 @@ def _run_processes(jobs, workers, interpolation, progress, border):
     return out
 
 
+def _local_cluster_message(workers: int, exc: BaseException) -> str:
+    """Why the local Dask cluster of ``correct_folder(dask=True)`` did not start, and what
+    to do (distributed says only ``Nanny failed to start``)."""
+    return (
+        f"a local Dask cluster of {workers} worker process(es) (dask=True, --dask) did not "
+        f"start ({type(exc).__name__}: {exc}). Its workers are new Python processes that "
+        "import the program's main module again: in a script, put the code that calls "
+        "photogeom under 'if __name__ == \"__main__\":'; or correct the folder without "
+        "Dask (dask=False, --workers N without --dask)"
+    )
+
+
 def _run_dask(jobs, workers, dask, interpolation, progress, border):
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -1164,13 +1176,16 @@ def _run_dask(jobs, workers, dask, interpolation, progress, border):
         # the address checked and the start bounded in time (a silent or foreign server)
         client = connect_to_scheduler(dask)
     else:
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",
-            silence_logs=logging.ERROR,
-        )
+        try:
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",
+                silence_logs=logging.ERROR,
+            )
+        except Exception as exc:
+            raise PhotogeomError(_local_cluster_message(workers, exc)) from exc
         client = Client(cluster)
     try:
         with _progress(progress, len(jobs)) as prog:
