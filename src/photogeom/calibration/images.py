@@ -124,8 +124,8 @@ def _read(path: Path):
 
     if not path.is_file():
         raise FileFormatError(f"{path}: no such image file")
-    data = np.fromfile(path, dtype=np.uint8)
-    raw = data.tobytes()
+    raw = path.read_bytes()  # once: the decoders see it, not a copy of it
+    data = np.frombuffer(raw, dtype=np.uint8)
     # OpenCV turns TIFF pixels by their Orientation tag (274) even with IMREAD_UNCHANGED
     # (and IMREAD_IGNORE_ORIENTATION): decode a copy whose tag says "as stored" instead.
     stored = _tiff_as_stored(raw)
