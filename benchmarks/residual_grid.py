@@ -18,8 +18,10 @@ Measured in one run on the same machine:
    Target: at least 1.6x.
 
 Run: ``python benchmarks/residual_grid.py`` (a few minutes). On a shared machine, the
-parallel speed-up is bounded by the cores other processes leave free; the script prints
-the load average next to the ratios.
+parallel speed-up is bounded by the share of the cores this session gets: with Linux's
+autogroup the cores are shared between sessions, so while another session is busy the
+two workers (processes of this session) get no more CPU than one. The script prints the
+load average next to the ratios.
 """
 
 from __future__ import annotations

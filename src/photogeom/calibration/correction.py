@@ -13,6 +13,7 @@ the local field is removed: the Brown distortion of the camera stays in the imag
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Literal
@@ -156,7 +157,8 @@ def correct_image(
         Values for output pixels whose source lies outside the image.
     threads : int, optional
         Threads over chunks of rows (default: 2). The maps of each chunk are built and
-        used at once, so the full-size maps are never held in memory.
+        used at once, in one pair of buffers per thread, so the full-size maps are never
+        held in memory.
     chunk_rows : int
         Rows per chunk (whole cell rows, at least this many).
 
@@ -219,11 +221,18 @@ def correct_image(
         chunks.append(cur)
 
     ones = np.ones(L.width, np.float32)
+    # the maps of a chunk go into buffers of the thread that remaps it, made once and used
+    # for all its chunks: a pair per chunk was freshly mapped memory for every chunk where
+    # the allocator returns large blocks to the system (Dask workers set
+    # MALLOC_TRIM_THRESHOLD_): 26 500 page faults and 40 % of the CPU time for 12 Mpx
+    longest = max(c[-1][2] - c[0][1] for c in chunks)
+    local = threading.local()
 
     def run(chunk):
         c0, c1 = chunk[0][1], chunk[-1][2]
-        mx = np.empty((c1 - c0, L.width), np.float32)
-        my = np.empty_like(mx)
+        if not hasattr(local, "maps"):
+            local.maps = np.empty((2, longest, L.width), np.float32)
+        mx, my = local.maps[:, : c1 - c0]
         for k, y0, y1 in chunk:
             # in a band the maps are linear in the row: [b, 1, y] times the rows of the two
             # node rows, one product that writes each map element once (einsum's own loop:

@@ -39,7 +39,9 @@ import io
 import logging
 import os
 import struct
+import threading
 from collections.abc import Callable, Mapping
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field, replace
 from glob import escape as glob_escape
 from pathlib import Path
@@ -122,8 +124,8 @@ def _read(path: Path):
 
     if not path.is_file():
         raise FileFormatError(f"{path}: no such image file")
-    data = np.fromfile(path, dtype=np.uint8)
-    raw = data.tobytes()
+    raw = path.read_bytes()  # once: the decoders see it, not a copy of it
+    data = np.frombuffer(raw, dtype=np.uint8)
     # OpenCV turns TIFF pixels by their Orientation tag (274) even with IMREAD_UNCHANGED
     # (and IMREAD_IGNORE_ORIENTATION): decode a copy whose tag says "as stored" instead.
     stored = _tiff_as_stored(raw)
@@ -681,13 +683,15 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
         or (pixels.dtype == np.uint16 and channels == 1 and fmt in ("TIFF", "PNG"))
     )
     if pil_ok:
-        if channels == 3:
-            arr = cv2.cvtColor(pixels, cv2.COLOR_BGR2RGB)
-        elif channels == 4:
-            arr = cv2.cvtColor(pixels, cv2.COLOR_BGRA2RGBA)
+        if channels in (3, 4):
+            # Pillow copies the pixels into its own image in any case: it takes them in
+            # OpenCV's channel order (raw mode BGR[A]) while copying; a colour conversion
+            # before it was one more full-size copy (36 MB for 12 Mpx)
+            mode, order = ("RGB", "BGR") if channels == 3 else ("RGBA", "BGRA")
+            h, w = pixels.shape[:2]
+            im = Image.frombuffer(mode, (w, h), np.ascontiguousarray(pixels), "raw", order, 0, 1)
         else:
-            arr = pixels
-        im = Image.fromarray(arr)
+            im = Image.fromarray(pixels)
         kw: dict = {}
         note = None
         if meta.get("exif") is not None:
@@ -813,8 +817,54 @@ def correct_image_file(
 
 # --------------------------------------------------------------------------- folders
 def _portable(grid: ResidualGrid) -> ResidualGrid:
-    """The grid without its observations (what a worker needs: layout and nodes)."""
-    return replace(grid, uv=None, _std=[])
+    """The grid without its observations (what a worker needs: layout and nodes).
+
+    Every array of one value per observation is left out (positions, standard deviations,
+    outlier flags, data snooping): they were shipped with every image, so a task's arguments
+    grew with the residuals of the fit (570 kB for 30 000 of them with data snooping, of
+    which the worker uses the 20 kB of nodes); the arrays of one value per node stay.
+    """
+    return replace(
+        grid,
+        uv=None,
+        _std=[],
+        sigma_obs=np.zeros(0),
+        outliers=np.zeros(0, bool),
+        snooping=None,
+    )
+
+
+#: Tasks of this process inside :func:`_opencv_single_threaded`, and the OpenCV thread count
+#: to restore when the last of them leaves (a Dask worker runs several tasks at once)
+_OPENCV_SINGLE = {"inside": 0, "restore": 0}
+_OPENCV_LOCK = threading.Lock()
+
+
+@contextmanager
+def _opencv_single_threaded():
+    """OpenCV single-threaded while any task of the process is inside; the thread count it
+    had before the first of them is restored when the last one leaves.
+
+    OpenCV's thread count is one setting of the whole process: a task that set it to 1 and
+    put back the count it had found could find the 1 of a task still running, and restore
+    it after that task had restored its own (the process left single-threaded: an
+    in-process cluster of 2 threads left OpenCV at 1 thread in the calling program), or
+    give the running task the full count (as many OpenCV threads per task as cores).
+    """
+    import cv2
+
+    with _OPENCV_LOCK:
+        if _OPENCV_SINGLE["inside"] == 0:
+            _OPENCV_SINGLE["restore"] = cv2.getNumThreads()
+            cv2.setNumThreads(1)
+        _OPENCV_SINGLE["inside"] += 1
+    try:
+        yield
+    finally:
+        with _OPENCV_LOCK:
+            _OPENCV_SINGLE["inside"] -= 1
+            if _OPENCV_SINGLE["inside"] == 0:
+                cv2.setNumThreads(_OPENCV_SINGLE["restore"])
 
 
 def _task(
@@ -828,27 +878,21 @@ def _task(
 ):
     """Worker: correct one file; returns (ok, note or message). Never raises for bad files.
 
-    ``cv_single``: OpenCV runs single-threaded for the task (Dask workers already fill the
-    cores); its thread count is restored afterwards. Not in forked processes, where
-    changing OpenCV's thread pool can deadlock.
+    ``cv_single``: OpenCV runs single-threaded while the task runs (Dask workers already
+    fill the cores; see :func:`_opencv_single_threaded`), its thread count restored when
+    the last task of the process ends. Not in forked processes, where changing OpenCV's
+    thread pool can deadlock.
     """
-    import cv2
-
-    before = cv2.getNumThreads() if cv_single else 0
     try:
-        if cv_single:
-            cv2.setNumThreads(1)
-        note = correct_image_file(
-            src, dst, grid, interpolation=interpolation, threads=threads, border=border
-        )
+        with _opencv_single_threaded() if cv_single else nullcontext():
+            note = correct_image_file(
+                src, dst, grid, interpolation=interpolation, threads=threads, border=border
+            )
         return True, note
     except (PhotogeomError, OSError) as exc:
         return False, str(exc)
     except Exception as exc:  # cv2/Pillow errors on damaged files
         return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
-    finally:
-        if cv_single:
-            cv2.setNumThreads(before)
 
 
 def find_images(folder: Path, ids) -> tuple[dict, list, list]:
@@ -1104,6 +1148,18 @@ def _run_processes(jobs, workers, interpolation, progress, border):
     return out
 
 
+def _local_cluster_message(workers: int, exc: BaseException) -> str:
+    """Why the local Dask cluster of ``correct_folder(dask=True)`` did not start, and what
+    to do (distributed says only ``Nanny failed to start``)."""
+    return (
+        f"a local Dask cluster of {workers} worker process(es) (dask=True, --dask) did not "
+        f"start ({type(exc).__name__}: {exc}). Its workers are new Python processes that "
+        "import the program's main module again: in a script, put the code that calls "
+        "photogeom under 'if __name__ == \"__main__\":'; or correct the folder without "
+        "Dask (dask=False, --workers N without --dask)"
+    )
+
+
 def _run_dask(jobs, workers, dask, interpolation, progress, border):
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -1120,13 +1176,16 @@ def _run_dask(jobs, workers, dask, interpolation, progress, border):
         # the address checked and the start bounded in time (a silent or foreign server)
         client = connect_to_scheduler(dask)
     else:
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",
-            silence_logs=logging.ERROR,
-        )
+        try:
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",
+                silence_logs=logging.ERROR,
+            )
+        except Exception as exc:
+            raise PhotogeomError(_local_cluster_message(workers, exc)) from exc
         client = Client(cluster)
     try:
         with _progress(progress, len(jobs)) as prog:
