@@ -99,14 +99,27 @@ def _raw_chunks(fh) -> Iterator[bytes]:
 
 def _bz2_chunks(raw: Iterator[bytes]) -> Iterator[bytes]:
     """The decompressed bytes of bzip2 data, at most :data:`_CHUNK` at a time (several
-    concatenated streams, as ``pbzip2`` writes them, one after the other)."""
+    concatenated streams, as ``pbzip2`` writes them, one after the other).
+
+    Compressed bytes beyond twice the decompressed ones plus :data:`HEAD_BYTES` are refused
+    (:class:`ValueError`): text compresses, so only streams that decompress to (almost)
+    nothing get there, and the readers' bounds, on decompressed bytes, would never stop a
+    stream of them that never ends (14 bytes each, read for ever)."""
     dec = bz2.BZ2Decompressor()
+    fed = made = 0  # compressed bytes given to the decompressors, decompressed bytes
     for data in raw:
         while data or not (dec.eof or dec.needs_input):
             if dec.eof:  # the next stream
                 dec = bz2.BZ2Decompressor()
+            fed += len(data)
             out = dec.decompress(data, _CHUNK)
             data = dec.unused_data if dec.eof else b""
+            fed -= len(data)
+            made += len(out)
+            if fed > 2 * made + HEAD_BYTES:
+                raise ValueError(
+                    f"its first {fed} bytes decompress to {made} bytes: empty bzip2 streams?"
+                )
             if out:
                 yield out
     if not dec.eof:
