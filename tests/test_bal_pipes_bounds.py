@@ -85,3 +85,28 @@ def test_compressed_files_still_read(tmp_path: Path):
     cut.write_bytes(bz2.compress(raw)[:-10])
     with pytest.raises(FileFormatError, match="damaged or truncated"):
         read_bal(cut)
+
+
+@needs_fifo
+def test_a_stream_of_empty_bzip2_streams_is_refused_early(tmp_path: Path):
+    """bzip2 streams that decompress to nothing (14 bytes each) were read on and on: the
+    header's bound applies to decompressed bytes, and none came, so a stream of them that
+    never ends was read for ever (and, kept for the command, held in memory). Compressed
+    bytes beyond twice the decompressed ones plus 64 KiB are refused: 1 MB of empty
+    streams is refused after 64 KiB, and a legitimate file (even incompressible text) is
+    read as before."""
+    empty = bz2.compress(b"")
+    assert len(empty) == 14
+    fifo = fifo_with(tmp_path, empty * (1_000_000 // 14), "problem.pipe")
+    with pytest.raises(FileFormatError, match=r"decompress to 0 bytes: empty bzip2 streams"):
+        read_bal(fifo)
+    # random digits compress about 2.3 times only; a header announcing them all: the 3 MB
+    # (1.3 MB compressed, two 1 MiB reads) are read whole, to the index check
+    rng = np.random.default_rng(1)
+    digits = " ".join(map(str, rng.integers(0, 10**9, 300_000))).encode()
+    noisy = tmp_path / "noisy.bz2"
+    noisy.write_bytes(bz2.compress(b"1 1 74997\n" + digits))
+    assert noisy.stat().st_size > (1 << 20)
+    with pytest.raises(FileFormatError, match="refers to camera") as info:
+        read_bal(noisy)
+    assert "empty bzip2" not in str(info.value)

@@ -8,7 +8,6 @@ pass that finds the line to name.
 from __future__ import annotations
 
 import bz2
-import io
 import os
 import re
 from collections.abc import Callable, Iterator, Mapping
@@ -20,7 +19,7 @@ import numpy as np
 from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError
 from ..io.csvblocks import wide_unicode
-from ..io.sources import device_message, input_kind, kept_pipe_bytes
+from ..io.sources import device_message, input_kind, open_input
 from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
@@ -49,7 +48,11 @@ def read_text(
     Parameters
     ----------
     path : str or os.PathLike
-        A regular file or a pipe (read once). A device (``/dev/zero``) is refused.
+        A regular file or a pipe. Inside a :func:`photogeom.io.sources.pipe_reads` scope
+        (every command) a pipe is read once: its bytes (as read, compressed or not; at most
+        what ``limit`` allows, plus the chunk that went over it) are kept for any later
+        read of it in the scope (:func:`photogeom.io.sources.open_input`). A device
+        (``/dev/zero``) is refused.
     what : str
         What the file is (``"BAL file"``), for messages.
     limit : callable, optional
@@ -75,9 +78,10 @@ def read_text(
     p = Path(path)
     if input_kind(p) == "device":
         raise FileFormatError(device_message(p, what))
-    kept = kept_pipe_bytes(p)  # a pipe another reader read already (grid fit's format)
     try:
-        with open(p, "rb") if kept is None else io.BytesIO(kept) as fh:
+        # a pipe is read once per command: from the bytes an earlier reader kept (grid
+        # fit's format), or streamed and kept for the later readers
+        with open_input(p) as fh:
             data = _read_limited(fh, p, what, limit)
     except FileNotFoundError:
         raise FileFormatError(f"cannot read {what} {p}: no such file") from None
@@ -95,14 +99,27 @@ def _raw_chunks(fh) -> Iterator[bytes]:
 
 def _bz2_chunks(raw: Iterator[bytes]) -> Iterator[bytes]:
     """The decompressed bytes of bzip2 data, at most :data:`_CHUNK` at a time (several
-    concatenated streams, as ``pbzip2`` writes them, one after the other)."""
+    concatenated streams, as ``pbzip2`` writes them, one after the other).
+
+    Compressed bytes beyond twice the decompressed ones plus :data:`HEAD_BYTES` are refused
+    (:class:`ValueError`): text compresses, so only streams that decompress to (almost)
+    nothing get there, and the readers' bounds, on decompressed bytes, would never stop a
+    stream of them that never ends (14 bytes each, read for ever)."""
     dec = bz2.BZ2Decompressor()
+    fed = made = 0  # compressed bytes given to the decompressors, decompressed bytes
     for data in raw:
         while data or not (dec.eof or dec.needs_input):
             if dec.eof:  # the next stream
                 dec = bz2.BZ2Decompressor()
+            fed += len(data)
             out = dec.decompress(data, _CHUNK)
             data = dec.unused_data if dec.eof else b""
+            fed -= len(data)
+            made += len(out)
+            if fed > 2 * made + HEAD_BYTES:
+                raise ValueError(
+                    f"its first {fed} bytes decompress to {made} bytes: empty bzip2 streams?"
+                )
             if out:
                 yield out
     if not dec.eof:

@@ -50,6 +50,7 @@ import numpy as np
 
 from ..atomicfile import atomic_write_bytes
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
+from ..io.sources import device_message, input_kind, read_input_bytes
 from .correction import INTERPOLATIONS, correct_image
 from .grid import ResidualGrid
 
@@ -122,9 +123,17 @@ def _read(path: Path):
     import cv2
     from PIL import Image
 
-    if not path.is_file():
+    kind = input_kind(path)
+    if kind == "missing":
         raise FileFormatError(f"{path}: no such image file")
-    raw = path.read_bytes()  # once: the decoders see it, not a copy of it
+    if kind == "folder":
+        raise FileFormatError(f"{path}: a folder, not an image file")
+    if kind == "device":
+        raise FileFormatError(device_message(path, "image"))
+    try:  # decoded from memory, read once (a pipe once per command): no copy of the bytes
+        raw = read_input_bytes(path, None)
+    except OSError as exc:
+        raise FileFormatError(f"cannot read image {path}: {exc.strerror or exc}") from None
     data = np.frombuffer(raw, dtype=np.uint8)
     # OpenCV turns TIFF pixels by their Orientation tag (274) even with IMREAD_UNCHANGED
     # (and IMREAD_IGNORE_ORIENTATION): decode a copy whose tag says "as stored" instead.
@@ -764,7 +773,10 @@ def correct_image_file(
     Parameters
     ----------
     src, dst : path
-        Image file to read and file to write (atomically).
+        Image file to read and file to write (atomically). ``src`` may be a pipe
+        (``<(curl ...)``, a named pipe): it is read once, whole (inside
+        :func:`photogeom.io.sources.pipe_reads`, once per scope). A folder or a device is
+        refused by name.
     grid : ResidualGrid
         The grid of this image (fitted for its size, px).
     interpolation : {"bilinear", "bicubic", "nearest"}
@@ -784,7 +796,7 @@ def correct_image_file(
     Raises
     ------
     FileFormatError
-        Missing, empty, corrupt or unwritable file.
+        Missing, empty, corrupt or unwritable file; a folder or a device as ``src``.
     InputError
         The image size differs from the grid's.
     """

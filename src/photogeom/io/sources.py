@@ -11,8 +11,12 @@ than read until memory runs out.
 
 from __future__ import annotations
 
+import io
 import os
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import BinaryIO
 
 from .._pipe_scope import kept_pipes, pipe_reads
 
@@ -24,6 +28,7 @@ __all__ = [
     "device_message",
     "input_kind",
     "kept_pipe_bytes",
+    "open_input",
     "pipe_bytes",
     "pipe_message",
     "pipe_reads",
@@ -88,6 +93,13 @@ def _read_pipe(path: str | os.PathLike, limit: int | None) -> bytes:
         return fh.read() if limit is None else fh.read(limit + 1)
 
 
+def _cut_message(read_to: int) -> str:
+    return (
+        f"the pipe was read once to {max(read_to, 0)} bytes and holds more; save the stream to a "
+        "regular file and give that file"
+    )
+
+
 def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
     """The content of the pipe ``path``, read once per :func:`pipe_reads` scope.
 
@@ -125,10 +137,7 @@ def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
     data, read_to = kept[key]
     cut = read_to is not None and len(data) > read_to
     if cut and (limit is None or limit > read_to):
-        raise OSError(
-            f"the pipe was read once to {read_to} bytes and holds more; save the stream to a "
-            "regular file and give that file"
-        )
+        raise OSError(_cut_message(read_to))
     return data
 
 
@@ -174,3 +183,79 @@ def read_input_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
         return pipe_bytes(path, limit)
     with open(path, "rb") as fh:
         return fh.read() if limit is None else fh.read(limit + 1)
+
+
+class _KeepingReader:
+    """A pipe's file object that keeps every byte read from it, and whether its end was
+    reached (:func:`open_input`)."""
+
+    def __init__(self, fh: BinaryIO) -> None:
+        self._fh = fh
+        self.chunks: list[bytes] = []
+        self.ended = False
+
+    def read(self, size: int = -1) -> bytes:
+        data = self._fh.read(size)
+        if data:
+            self.chunks.append(data)
+        if (not data and size != 0) or size is None or size < 0:
+            self.ended = True  # an empty read, or one to the end
+        return data
+
+    def kept(self) -> tuple[bytes, int | None]:
+        """The bytes read and the limit :func:`pipe_bytes` records them with: None when
+        they are the whole stream; one byte less than their length when the stream was
+        left before its end (so that a later read that needs the rest is refused)."""
+        data = b"".join(self.chunks)
+        return data, (None if self.ended else len(data) - 1)
+
+
+@contextmanager
+def open_input(path: str | os.PathLike) -> Iterator[BinaryIO]:
+    """A binary file object for a reader that streams its input (a regular file, or a pipe
+    read once per :func:`pipe_reads` scope).
+
+    A regular file (and anything :func:`input_kind` does not call a pipe) is opened as it
+    is. Inside a :func:`pipe_reads` scope a pipe that an earlier reader read is served from
+    the bytes kept then; a pipe read first here is streamed and every byte read is kept
+    when the reader closes it, so that a later read of the same pipe in that scope (by any
+    reader: :func:`pipe_bytes`, :func:`read_input_bytes`, this function) gets the same
+    bytes instead of waiting for a new writer or reading what it wrote. The memory kept is
+    the bytes read from the pipe (the compressed ones for a compressed stream), which the
+    reader bounds with its own limit. Outside every scope a pipe is opened and nothing is
+    kept.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input.
+
+    Yields
+    ------
+    BinaryIO
+        An object with ``read(size)``.
+
+    Raises
+    ------
+    OSError
+        The input cannot be opened, or an earlier reader in this scope left the pipe before
+        its end (its end was not kept).
+    """
+    kept = kept_pipes()
+    if kept is None or input_kind(path) != "pipe":
+        with open(path, "rb") as fh:
+            yield fh
+        return
+    key = _pipe_key(path)
+    if key in kept:
+        data, read_to = kept[key]
+        if read_to is not None and len(data) > read_to:
+            raise OSError(_cut_message(read_to))
+        yield io.BytesIO(data)
+        return
+    with open(path, "rb") as fh:
+        reader = _KeepingReader(fh)
+        try:
+            yield reader  # type: ignore[misc]
+        finally:
+            kept[key] = reader.kept()
