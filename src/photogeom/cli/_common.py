@@ -427,6 +427,18 @@ def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | N
     return vals
 
 
+def nan_to_none(value):
+    """``value`` with every NaN, also inside lists and dicts (statistics of
+    what a run did not have: check pairs, stereo models), replaced by None (JSON null)."""
+    if isinstance(value, dict):
+        return {k: nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [nan_to_none(v) for v in value]
+    if isinstance(value, float) and value != value:
+        return None
+    return value
+
+
 def json_text(data) -> str:
     """Indented JSON with a final newline (NaN refused).
 

@@ -22,6 +22,7 @@ from ._common import (
     LogProgress,
     console,
     json_text,
+    nan_to_none,
     options_in_errors,
     refuse_stdout_dash,
     say,
@@ -365,7 +366,7 @@ def register(
         outputs.append((report, _register_report(reg, source, target, angle_unit.value)))
     write_outputs(outputs)
     if json_out:
-        typer.echo(json_text(_nan_to_none(d)), nl=False)
+        typer.echo(json_text(nan_to_none(d)), nl=False)
         return
     from ..report.format import parameter_rows
 
@@ -446,15 +447,3 @@ def _length_unit(crs: str | None) -> str:
     except PhotogeomError:
         return ""
     return f" {unit}" if unit else ""
-
-
-def _nan_to_none(value):
-    """``value`` with every NaN, also inside lists and dicts (the per-axis check statistics
-    without check pairs), replaced by None (JSON null)."""
-    if isinstance(value, dict):
-        return {k: _nan_to_none(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_nan_to_none(v) for v in value]
-    if isinstance(value, float) and value != value:
-        return None
-    return value

@@ -22,6 +22,7 @@ from ._common import (
     console,
     iteration_progress,
     json_text,
+    nan_to_none,
     say,
     split_numbers,
     stage_spinner,
@@ -397,6 +398,13 @@ def _sweep_words(msg: str) -> str:
         .replace("choose a --spacing of at most", "choose --spacings of at most")
         .replace("--spacing ", "--spacings: ")
         .replace("sweep_spacings: give at least two spacings", "--spacings: give at least two")
+        .replace(
+            "sweep_spacings: the block has no pair of consecutive stereo models",
+            "the block has no pair of consecutive stereo models (strips of images overlapping "
+            "by about --overlap, each model sharing points with the next): the sweep ranks "
+            "spacings by the height step between models; 'photogeom grid evaluate' compares "
+            "the residuals of a block without models",
+        )
     )
 
 
@@ -483,12 +491,17 @@ def evaluate(
         spacing_given=spacing is not None,
         rematch=rematch,
     )
-    if as_json:
-        typer.echo(json_text(_ev_json(ev)))
+    if as_json:  # no stereo model pair: the steps are null
+        typer.echo(json_text(nan_to_none(_ev_json(ev))))
         return
     from rich.table import Table
 
     out = console()
+    if not ev["steps_before"]:
+        say(
+            f"no pair of consecutive stereo models in the block (--overlap {overlap:g}): "
+            "no height steps, only the residuals are compared"
+        )
     t = Table(title="tie-point residuals (px) and steps (GSD)")
     for c in ("quantity", "before", "after", "reduction"):
         t.add_column(c, justify="right")
@@ -505,12 +518,13 @@ def evaluate(
         f"{blk['after']['mean_length']:.4f}",
         f"{100 * blk['reduction_mean_length']:.1f} %",
     )
-    t.add_row(
-        "mean step",
-        f"{ev['mean_step_before']:.3f}",
-        f"{ev['mean_step_after']:.3f}",
-        f"{100 * ev['step_reduction']:.1f} %",
-    )
+    if ev["steps_before"]:
+        t.add_row(
+            "mean step",
+            f"{ev['mean_step_before']:.3f}",
+            f"{ev['mean_step_after']:.3f}",
+            f"{100 * ev['step_reduction']:.1f} %",
+        )
     if ev.get("rematched"):
         rm = ev["rematched"]
         t.add_row(
@@ -520,13 +534,14 @@ def evaluate(
             f"{100 * rm['step_reduction']:.1f} %",
         )
     out.print(t)
-    m = Table(title="step per model pair (GSD)")
-    for c in ("first model", "before", "after"):
-        m.add_column(c, justify="right")
-    for k, v in ev["steps_before"].items():
-        a = ev["steps_after"].get(k, float("nan"))
-        m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
-    out.print(m)
+    if ev["steps_before"]:
+        m = Table(title="step per model pair (GSD)")
+        for c in ("first model", "before", "after"):
+            m.add_column(c, justify="right")
+        for k, v in ev["steps_before"].items():
+            a = ev["steps_after"].get(k, float("nan"))
+            m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
+        out.print(m)
     cb, ca = ev.get("check_before"), ev.get("check_after")
     if cb and ca:
         c = Table(title="check-point RMSE (GSD)")
