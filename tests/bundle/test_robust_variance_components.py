@@ -114,3 +114,28 @@ def test_slowly_converging_control_group_stays_estimated(sim):
         assert "control" not in v["not_estimated"], k
     h, s = vc["huber"]["factors"]["control"], vc["squared"]["factors"]["control"]
     assert 0.2 < h < 0.35 and abs(h / s - 1) < 0.1, (h, s)
+
+
+def test_huber_variance_components_converge_where_a_point_crosses_the_loss_scale(sim):
+    """With Huber's loss a control image observation whose residual sits at the loss scale
+    switches its score slope between 1 and 1/2 from one round to the next, and the control
+    images' ratio v'Pv / r with it between 1.019 and 0.981: the iteration alternated
+    between sigma factors 1.827 and 1.844 until its 20 rounds ran out, not converged. The
+    root lies between the two; bisected, the iteration converges, its factors close to
+    least squares on the same draw (image noise twice its a-priori sigma)."""
+    rng = np.random.default_rng(5)
+    uv = sim.ideal + rng.normal(0, 1, sim.ideal.shape) * sim.block.observations.sigma[:, None] * 2
+    block = sim.block.with_observations(uv=uv)
+    huber = pg.bundle_adjust(block, loss="huber", variance_components=True, snooping=False)
+    ls = pg.bundle_adjust(block, variance_components=True, snooping=False)
+    vc = huber.variance_components
+    assert vc["converged"], vc["ratio_history"][-2:]
+    assert vc["rounds"] < 20
+    assert not any("did not converge" in n for n in huber.notes)
+    last = vc["ratio_history"][-1]
+    for g, r in last.items():
+        assert abs(r - 1) < 0.01 or g in vc["bracketed"], (g, r)
+    assert 1.827 < vc["factors"]["image_control"] < 1.845
+    for g in ("image_tie", "image_control", "gnss", "control"):
+        h, s = vc["factors"][g], ls.variance_components["factors"][g]
+        assert abs(h / s - 1) < 0.05, (g, h, s)

@@ -4,8 +4,10 @@ Groups: image observations of tie points, image observations of control points, 
 point coordinates, GNSS positions, IMU attitudes. For each group k with whitened residuals
 ``v_k`` and redundancy contribution ``r_k = n_k - tr(P_k J Q J')`` the variance factor is
 updated as ``f_k <- f_k * v_k'P_k v_k / r_k`` and the adjustment repeated until every ratio
-is 1 within the tolerance. With a robust loss ``v_k'P_k v_k`` holds the robust weights and
-``r_k`` is the group's share of the Stein redundancy
+is 1 within the tolerance (a group whose ratio jumps across 1, as Huber's loss makes it
+where an image point's residual crosses the loss scale, is bisected between the factors
+around its root, :func:`_bound_root`). With a robust loss ``v_k'P_k v_k`` holds the
+robust weights and ``r_k`` is the group's share of the Stein redundancy
 (:func:`photogeom.bundle.robust.stein_redundancy`), from the adjustment weighted by the
 score slopes, less the part of ``v_k'P_k v_k`` that cancels only over all groups
 (:func:`_cross_terms`; for GNSS, IMU, the control points and their image observations,
@@ -243,6 +245,47 @@ def _cross_terms(problem, run, d, Cobs, prior_tr):
     return cross_ctrl, cross_prior
 
 
+def _bound_root(k: str, trail: list, bounds: dict) -> dict:
+    """Bounds ``(lo, hi)`` of the root of ``v'Pv = r`` in a group's factor: set when its
+    ratio has jumped across 1, outside :data:`TOLERANCE`, in each of its last two updates
+    (the iteration alternating around the root), narrowed after that by each new ratio.
+
+    A group's ratio ``v'Pv / r`` need not be continuous in its factor: with Huber's loss an
+    image point's score slope (:func:`~photogeom.bundle.robust.score_slopes`) drops from 1
+    to 1/2 where its residual crosses the loss scale, and its share of the group's
+    redundancy with it (in a control points' image group of redundancy 38 the ratio jumps
+    from 0.981 to 1.019). The plain update then alternates between two factors around the
+    root for the remaining rounds, never within the tolerance. Only a repeated crossing
+    sets the bounds: a single one is also the first rounds' overshoot, whose factors bound
+    the root only for the other groups' factors of then.
+    """
+    bounds = dict(bounds)
+    f, q = trail[-1]
+    if k in bounds:
+        lo, hi = bounds[k]
+        bounds[k] = (max(lo, f), hi) if q > 1.0 else (lo, min(hi, f))
+    elif len(trail) >= 3:
+        out = [abs(r - 1.0) >= TOLERANCE for _, r in trail[-3:]]
+        side = [r > 1.0 for _, r in trail[-3:]]
+        if all(out) and side[0] != side[1] != side[2]:
+            (f1, q1), (f2, _) = trail[-2], trail[-1]
+            bounds[k] = (f1, f2) if q1 > 1.0 else (f2, f1)
+    return bounds
+
+
+def _bounded_update(new: float, bounds: tuple[float, float] | None) -> float:
+    """The next variance factor of a group: ``f_k v_k'P_k v_k / r_k``, or, for a group whose
+    root is bounded (:func:`_bound_root`) and that update falls outside the bounds, their
+    geometric mean. Bisected so, the bounds close in on the root; once they are within ``2
+    TOLERANCE`` of each other their geometric mean is within :data:`TOLERANCE` of it, as
+    close as the tolerance on the ratio puts a factor whose ratio falls at most in
+    proportion to it."""
+    if bounds is None:
+        return new
+    lo, hi = bounds
+    return new if lo < new < hi else float(np.sqrt(lo * hi))
+
+
 def iterate_variance_components(problem, run, opts, progress=None):
     """Alternate adjustment and variance-factor updates; returns the last run and a dict
     with the factors (sigma multipliers), redundancy contributions and rounds."""
@@ -253,6 +296,9 @@ def iterate_variance_components(problem, run, opts, progress=None):
     converged = False
     budget = MAX_ROUNDS  # rounds from the start, or from the last group held
     previous: dict[str, tuple[float, float]] = {}  # per group (ratio, f_k) of the last round
+    trail: dict[str, list[tuple[float, float]]] = {}  # per group (f_k, ratio) of each update
+    bounds: dict[str, tuple[float, float]] = {}  # per cycling group, factors around its root
+    bracketed: dict[str, list[float]] = {}
     while rounds < budget:
         rounds += 1
         contrib = _contributions(problem, run)
@@ -272,6 +318,7 @@ def iterate_variance_components(problem, run, opts, progress=None):
         est = np.array([k not in held for k in names])
         if gone:
             previous = {}  # the other groups' contributions change with the held one
+            bounds, trail = {}, {}
             budget = rounds + MAX_ROUNDS
             history.append({})
             run = levenberg_marquardt(problem, run.state, opts, progress)
@@ -283,11 +330,33 @@ def iterate_variance_components(problem, run, opts, progress=None):
         old = np.array([problem.group_factor[k] for k in keys])
         new, ratio = update_variance_factors(old, vtpv[est], red[est])
         history.append({k: float(r) for k, r in zip(keys, ratio)})
-        if np.all(np.abs(ratio - 1.0) < TOLERANCE):
+        within = np.abs(ratio - 1.0) < TOLERANCE
+        for k, f, q in zip(keys, old, ratio):
+            trail.setdefault(k, []).append((float(f), float(q)))
+            bounds = _bound_root(k, trail[k], bounds)
+        narrow = np.array(
+            [k in bounds and bounds[k][1] < (1.0 + 2.0 * TOLERANCE) * bounds[k][0] for k in keys]
+        )
+        if np.all(within | narrow):
             converged = True
+            between = narrow & ~within
+            if not np.any(between):
+                break
+            # the ratio jumps across 1 between two factors less than 2 TOLERANCE apart
+            # (_bounded_update): adjust once more at their geometric mean, within
+            # TOLERANCE of the root
+            for k in np.array(keys)[between]:
+                lo, hi = bounds[k]
+                bracketed[k] = [float(np.sqrt(lo)), float(np.sqrt(hi))]
+                problem.group_factor[k] = float(np.sqrt(lo * hi))
+            run = levenberg_marquardt(problem, run.state, opts, progress)
+            iters += run.iterations
+            rounds += 1
+            contrib = _contributions(problem, run)
+            history.append({k: contrib[k][0] / contrib[k][1] for k in keys})
             break
         for k, v in zip(keys, new):
-            problem.group_factor[k] = float(v)
+            problem.group_factor[k] = _bounded_update(float(v), bounds.get(k))
         run = levenberg_marquardt(problem, run.state, opts, progress)
         iters += run.iterations
     run.iterations = iters
@@ -298,6 +367,7 @@ def iterate_variance_components(problem, run, opts, progress=None):
         "converged": converged,
         "ratio_history": history,
         "not_estimated": dict(held),
+        "bracketed": bracketed,
         "meaning": "estimated sigma of each group = factor x its a-priori sigma; groups in "
         "not_estimated keep their a-priori sigmas (factor 1)",
     }
