@@ -20,8 +20,8 @@ that no method is credited with the noise its grids fitted.
 Run: ``python benchmarks/residual_grid_in_adjustment.py`` (about half a minute on an idle
 2-core machine; the in-adjustment time grows with the cube of images x nodes on small,
 fully connected blocks), or ``--size study --spacing 1000`` for the study's blocks (250 /
-195 / 82 images; a few minutes; 500 px grids there take about 6 minutes per iteration and
-8 GB on ILCE-7RM2).
+195 / 82 images; a few minutes; 500 px grids there take 1-2 minutes per iteration and
+2.4 GB on ILCE-7RM2, see ``residual_grid_in_adjustment_memory.py``).
 """
 
 from __future__ import annotations

@@ -109,3 +109,17 @@ def test_blas_binding_can_be_switched_off_and_needs_no_opencv(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     assert sparse._optimised_blas() is None
     assert sparse._bind_optimised_blas().startswith("reference")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_inverse_gram_matches_dense(backend):
+    """``B' N^-1 B`` by half solves (Cholesky backends) or solves, in batches of a few
+    columns, with a sparse ``B`` whose columns touch few rows."""
+    N = _spd()
+    B = sp.random(60, 7, density=0.1, random_state=3, format="csc") + sp.eye(60, 7)
+    f = factorize(N, backend=backend)
+    ref = B.toarray().T @ np.linalg.solve(N.toarray(), B.toarray())
+    tol = 1e-8 if backend == "cg" else 1e-12
+    for batch in (8 * 60 * 3, 2**26):  # 3 columns per batch, all at once
+        np.testing.assert_allclose(f.inverse_gram(B, batch), ref, rtol=tol, atol=tol)
+    np.testing.assert_allclose(f.solve(np.ones(60)), np.linalg.solve(N.toarray(), np.ones(60)))

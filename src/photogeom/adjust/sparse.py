@@ -84,6 +84,9 @@ except Exception:  # pragma: no cover - any import failure means: not available
     HAVE_CHOLMOD = False
     CHOLMOD_BLAS = None
 
+#: CHOLMOD's solve mode ``L x = b`` (of an LL' factor, without the permutation).
+_CHOLMOD_L = 4
+
 BACKENDS = ("auto", "cholmod", "superlu", "dense", "cg")
 #: "auto" factorises systems up to this size densely (LAPACK): faster than a sparse
 #: factorisation there, and the memory (n^2 doubles, 50 MB at 2500) is small.
@@ -270,6 +273,48 @@ class SparseFactor:
         rhs = np.ascontiguousarray(b * s)
         out = self._solve(rhs)
         return out * s
+
+    def inverse_gram(self, B, batch_bytes: int = 64 * 2**20) -> np.ndarray:
+        """``B' N^-1 B`` (k, k) for ``B`` of shape (n, k), dense or sparse.
+
+        With a Cholesky factor (CHOLMOD or LAPACK) as ``W' W`` with ``W = L^-1 P B`` (the
+        factor ``P N P' = L L'``, with the diagonal scaling of the class): one triangular
+        solve per column instead of two.
+        ``W`` is kept sparse (its columns are zero outside the rows that the nonzeros of
+        ``B`` reach in the elimination tree), so the memory is that of its nonzeros plus a
+        batch of dense columns of at most ``batch_bytes``. Other backends: solves.
+        """
+        n, k = B.shape
+        if n != self.n:
+            raise ValueError(f"{self.what}: B has {n} rows, the matrix {self.n}")
+        B = sp.csc_matrix(B, dtype=float)
+        step = max(1, min(max(k, 1), batch_bytes // (8 * max(n, 1))))
+        if self.backend not in ("cholmod", "dense"):
+            out = np.empty((k, k))
+            for j in range(0, k, step):  # batches of columns
+                out[:, j : j + step] = B.T @ self.solve(B[:, j : j + step].toarray())
+            return 0.5 * (out + out.T)
+        Bs = sp.csc_matrix(sp.diags(self._scale) @ B)
+        if self.backend == "cholmod":
+            self._f._ensure_L_or_LD_inplace(True)  # LL' (supernodal stays supernodal)
+            perm = self._f.P().astype(np.int64)
+        out = np.empty((k, k))
+        done = []  # (columns, W) of the batches so far, W sparse
+        for j in range(0, k, step):  # batches of columns
+            rhs = Bs[:, j : j + step].toarray()
+            if self.backend == "cholmod":
+                W = self._f._solve(np.ascontiguousarray(rhs[perm]), _CHOLMOD_L)
+            else:
+                from scipy.linalg import solve_triangular
+
+                W = solve_triangular(self._f[0], rhs, lower=True, check_finite=False)
+            cols = slice(j, j + W.shape[1])
+            out[cols, cols] = W.T @ W
+            for prev, Wp in done:  # batches, not points
+                out[prev, cols] = Wp.T @ W
+                out[cols, prev] = out[prev, cols].T
+            done.append((cols, sp.csr_matrix(W)))
+        return out
 
     def dense_inverse(self) -> np.ndarray:
         """The whole inverse ``N^-1`` (n, n) by LAPACK's Cholesky inverse (``potrf`` +

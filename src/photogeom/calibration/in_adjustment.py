@@ -43,8 +43,11 @@ Pseudo-observations of the grids, all with observed value 0:
   the node chosen.
 
 The system is solved by Levenberg-Marquardt on the sparse normal equations of all unknowns
-(CHOLMOD). It suits blocks of tens to a few hundred images with grids of some hundred nodes
-(spacings of 300-1000 px on 20-40 Mpx images); finer grids belong to the post-processing.
+(CHOLMOD). With an amplitude the datum conditions stay out of the factorised matrix: they
+are a low-rank term (4 or 6 columns per grid) added by the Woodbury identity, so the
+normal equations hold no dense block per grid. It suits blocks of tens to a few hundred
+images with grids of some hundred nodes (spacings of 300-1000 px on 20-40 Mpx images); finer
+grids belong to the post-processing.
 """
 
 from __future__ import annotations
@@ -227,7 +230,10 @@ class _GridProblem:
                 raise InputError(f"camera {block.camera_ids[c]}: {exc}") from None
         self.layouts = [layouts_cam.get(int(c)) for c in grid_cam]
         nn = np.array([0 if L is None else L.n_nodes for L in self.layouts], dtype=np.int64)
-        _check_memory(nn, spacing)
+        #: the datum conditions as a low-rank term (with an amplitude), else dense blocks
+        self.low_rank = sa is not None
+        if not self.low_rank:
+            _check_memory(nn, spacing)
         self.goff = np.r_[0, np.cumsum(2 * nn)]
         self.n_grid = int(self.goff[-1])
         self.nl, self.ncal = m * b, ng * NCAL
@@ -249,7 +255,7 @@ class _GridProblem:
             nodes[sel], wts[sel] = L.locate(bp.uv[sel])
         self.obs_nodes, self.obs_w = nodes, wts
         self.sc, self.st = sc, st
-        self.R, self.n_pseudo = self._regularisation(datum, sc, st, sa, border, per)
+        self.R, self.U, self.n_pseudo = self._regularisation(datum, sc, st, sa, border, per)
         free = np.zeros(self.ntot, dtype=bool)
         free[: self.nl] = bp.local_free.ravel()
         free[self.nl : self.off_g] = bp.global_free
@@ -280,11 +286,28 @@ class _GridProblem:
             [sp.csr_matrix((g0, g0)), self.R, sp.csr_matrix((nf - g0 - self.n_grid,) * 2)],
             format="csr",
         )
+        # the datum columns in the camera-side free unknowns (the points, last, excluded)
+        self.U_free = None
+        if self.U is not None:
+            nc = nf - 3 * bp.p
+            k = self.U.shape[1]
+            self.U_free = sp.vstack(
+                [sp.csr_matrix((g0, k)), self.U, sp.csr_matrix((nc - g0 - self.n_grid, k))],
+                format="csc",
+            )
 
     # -------------------------------------------------------------- pseudo-observations
     def _regularisation(self, datum, sc, st, sa, border, per):
-        """The grids' pseudo-observations as one precision matrix ``R`` (n_grid x n_grid)
-        and the number of observations they add to the redundancy: the rank of ``R``.
+        """The grids' pseudo-observations as one precision matrix ``R + U U'``
+        (n_grid x n_grid) and the number of observations they add to the redundancy: its
+        rank.
+
+        ``U`` (n_grid x conditions, sparse) holds the datum conditions divided by
+        :data:`DATUM_SIGMA`, one column per condition and grid, when the grids have an
+        amplitude (``sa``): ``R`` is then sparse and positive definite, and the solver adds
+        ``U U'`` as a low-rank term. Without an amplitude ``R`` alone is singular, so the
+        datum is added to it (a dense block of (2 nodes)^2 entries per grid) and ``U`` is
+        None.
 
         All groups (smoothness, datum, amplitude, temporal) act on the same nodes, so they
         are one prior on the field, as the signal of least-squares collocation: however
@@ -293,8 +316,8 @@ class _GridProblem:
         number minus the unknowns the prior leaves free, not of the rows' number (the rows
         counted, sigma0 came out 0.83 on a block simulated from the model itself).
         """
-        blocks, datum_diag, null = [], [], []
-        for L in self.layouts:
+        blocks, datum_diag, null, u_rows, u_cols, u_vals, k = [], [], [], [], [], [], 0
+        for g, L in enumerate(self.layouts):  # grids, not points
             if L is None:
                 blocks.append(sp.csr_matrix((0, 0)))
                 null.append(0)
@@ -302,14 +325,35 @@ class _GridProblem:
             C = L.constraint_matrix(border)
             CC = sp.kron(C.T @ C, sp.identity(2), format="csr") / sc**2
             D = _datum_rows(L, datum)
-            blocks.append((CC + sp.csr_matrix(D.T @ D) / DATUM_SIGMA**2).tocsr())
-            datum_diag.append(np.sum(D * D, axis=0) / DATUM_SIGMA**2)
+            if self.low_rank:
+                blocks.append(CC)
+                nz = np.nonzero(D)
+                u_rows.append(self.goff[g] + nz[1])
+                u_cols.append(k + nz[0])
+                u_vals.append(D[nz] / DATUM_SIGMA)
+                k += D.shape[0]
+            else:
+                blocks.append((CC + sp.csr_matrix(D.T @ D) / DATUM_SIGMA**2).tocsr())
+                datum_diag.append(np.sum(D * D, axis=0) / DATUM_SIGMA**2)
             null.append(_free_field_dims(L, D, border))
         R = sp.block_diag(blocks, format="csr") if blocks else sp.csr_matrix((0, 0))
         if sa is not None and self.n_grid:
             R = (R + sp.identity(self.n_grid, format="csr") / sa**2).tocsr()
             null = [0] * len(null)  # the amplitude leaves no node value free
+        U = None
+        if self.low_rank:
+            U = sp.csr_matrix(
+                (
+                    np.concatenate(u_vals) if u_vals else np.zeros(0),
+                    (
+                        np.concatenate(u_rows) if u_rows else np.zeros(0, np.int64),
+                        np.concatenate(u_cols) if u_cols else np.zeros(0, np.int64),
+                    ),
+                ),
+                shape=(self.n_grid, k),
+            )
         # the datum conditions are (numerically) hard: no Marquardt damping scaled by them
+        # (with the low-rank term they are not in the normal matrix that is damped)
         dd = np.zeros(self.ntot)
         if datum_diag:
             dd[self.off_g : self.off_p] = np.concatenate(datum_diag)
@@ -337,7 +381,7 @@ class _GridProblem:
                 # set per run of consecutive images of a camera group
                 for i, _k in pairs:  # images, not points
                     null[i] = 0
-        return R, self.n_grid - int(sum(null))
+        return R, U, self.n_grid - int(sum(null))
 
     # -------------------------------------------------------------- model
     def grid_values(self, z: np.ndarray) -> np.ndarray:
@@ -356,10 +400,14 @@ class _GridProblem:
         sw = 1.0 / self.bp.sigma_obs()
         c = float(np.sum((v * sw[:, None]) ** 2))
         c += self.bp.prior_terms(s)[4] + float(z @ (self.R @ z))
+        if self.U is not None:
+            uz = self.U.T @ z
+            c += float(uz @ uz)
         return c, depth
 
     def normal_equations(self, s, z):
-        """``N`` (free unknowns, sparse) and the gradient ``J'r`` of all terms."""
+        """``N`` (free unknowns, sparse) and the gradient ``J'r`` of all terms; with the
+        low-rank datum (``U`` not None) ``N`` leaves ``U U'`` out, the gradient not."""
         bp = self.bp
         X, M, C, cal = bp._rows(s)
         pr = project_rows(X, M, C, cal, bp.size, jacobian=True)
@@ -390,7 +438,8 @@ class _GridProblem:
             format="csr",
         )
         N = (N + priors[fi][:, fi] + self._R_free).tocsr()
-        g_priors = np.concatenate([lg.ravel(), np.zeros(self.ncal), self.R @ z, pgr.ravel()])
+        Rz = self.R @ z if self.U is None else self.R @ z + self.U @ (self.U.T @ z)
+        g_priors = np.concatenate([lg.ravel(), np.zeros(self.ncal), Rz, pgr.ravel()])
         return N, g + g_priors[fi]
 
     def split(self, dx_free: np.ndarray):
@@ -425,10 +474,10 @@ def _free_field_dims(L: GridLayout, D: np.ndarray, border: str) -> int:
     return B.shape[1] - int(np.linalg.matrix_rank(Dn @ B, tol=1e-9))
 
 
-#: Memory per entry of the grids' datum blocks, bytes: each grid's datum conditions couple
-#: all of its unknowns, so the normal equations and their factor hold a dense block of
-#: (2 nodes)^2 entries per grid. Measured: 6 images of 4000 x 3000 px with 100 px grids
-#: (6 blocks of 2542^2 entries) took 4.4 GB.
+#: Memory per entry of the grids' dense datum blocks (without an amplitude), bytes: each
+#: grid's datum conditions couple all of its unknowns, so the normal equations and their
+#: factor hold a dense block of (2 nodes)^2 entries per grid. Measured: 6 images of
+#: 4000 x 3000 px with 100 px grids (6 blocks of 2542^2 entries) took 4.4 GB.
 BYTES_PER_DATUM_ENTRY = 120
 
 
@@ -441,20 +490,22 @@ def _physical_memory() -> int | None:
 
 
 def _check_memory(nodes: np.ndarray, spacing: float) -> None:
-    """Refuse grids whose dense datum blocks would need more memory than the machine has
-    (before: numpy's "Unable to allocate 27.5 GiB" at 20 px, or minutes of swapping)."""
+    """Refuse grids without an amplitude whose dense datum blocks would need more memory
+    than the machine has (before: numpy's "Unable to allocate 27.5 GiB" at 20 px, or
+    minutes of swapping). With an amplitude the datum is a low-rank term: no dense block."""
     need = BYTES_PER_DATUM_ENTRY * float(np.sum((2.0 * nodes) ** 2))
     have = _physical_memory()
     if have is None or need <= have:
         return
     raise InputError(
         f"grids in the adjustment at spacing {spacing:g} px: {int(nodes.max())} nodes per "
-        f"grid over {int(np.count_nonzero(nodes))} grid(s); each grid's datum conditions "
-        f"couple all of its nodes, which needs about {need / 2**30:.1f} GiB of memory, more "
-        f"than this machine's {have / 2**30:.1f} GiB: grids inside the adjustment are meant "
-        "to be coarse (500 px in the documented runs); use a larger spacing, per='camera' "
-        "(one grid per camera group), or fine grids after the adjustment "
-        "(fit_residual_grids)"
+        f"grid over {int(np.count_nonzero(nodes))} grid(s); without sigma_amplitude each "
+        f"grid's datum conditions couple all of its nodes, which needs about "
+        f"{need / 2**30:.1f} GiB of memory, more than this machine's {have / 2**30:.1f} GiB: "
+        "give sigma_amplitude (px, or 'residuals'; the datum then adds no dense block), "
+        "use a larger spacing (grids inside the adjustment are meant to be coarse, 500 px "
+        "in the documented runs), per='camera' (one grid per camera group), or fine grids "
+        "after the adjustment (fit_residual_grids)"
     )
 
 
@@ -495,7 +546,7 @@ class _GridSteps:
         gp = self.gp
         d = np.maximum(self.N.diagonal() - gp.datum_diag[gp.free_idx], 1e-12)
         Nd = (self.N + sp.diags(damping * d)).tocsr()
-        dx = _solve_by_points(Nd, self.g, 3 * gp.bp.p, self.opts.backend)
+        dx = _solve_by_points(Nd, self.g, 3 * gp.bp.p, self.opts.backend, gp.U_free)
         pred = float(-(self.g @ dx) + damping * np.sum(d * dx * dx))
         return self.gp.split(dx), pred
 
@@ -555,29 +606,63 @@ def _reduce_points(N: sp.csr_matrix, npt: int):
     return S, Ncp, Vinv
 
 
-def _solve_by_points(N: sp.csr_matrix, g: np.ndarray, npt: int, backend: str) -> np.ndarray:
-    """``N dx = -g`` with the points eliminated first (3x3 blocks); the reduced system is
-    factorised by :func:`~photogeom.adjust.sparse.factorize` (dense up to a few thousand
-    unknowns, else CHOLMOD; densely up to :data:`DENSE_REDUCED_MAX` where CHOLMOD is
-    missing, as SuperLU is slower there)."""
+def _solve_by_points(
+    N: sp.csr_matrix,
+    g: np.ndarray,
+    npt: int,
+    backend: str,
+    U: sp.csc_matrix | None = None,
+) -> np.ndarray:
+    """``(N + U U') dx = -g`` with the points eliminated first (3x3 blocks); the reduced
+    system is factorised by :func:`~photogeom.adjust.sparse.factorize` (dense up to a few
+    thousand unknowns, else CHOLMOD; densely up to :data:`DENSE_REDUCED_MAX` where CHOLMOD
+    is missing, as SuperLU is slower there).
+
+    ``U`` (camera-side unknowns x k, sparse; None: no such term) is the grids' datum, k
+    conditions in all: it enters by the Sherman-Morrison-Woodbury identity,
+    ``(S + U U')^-1 = S^-1 - S^-1 U (I + U' S^-1 U)^-1 U' S^-1``, so that only ``S``
+    (without the dense (2 nodes)^2 block per grid) is factorised; k triangular solves
+    form the k x k capacitance matrix (:meth:`~photogeom.adjust.sparse.SparseFactor.inverse_gram`).
+    With ``backend="cg"`` (no factor to reuse for the k solves) ``U U'`` is added to ``S``.
+    """
     nc = N.shape[0] - npt
     S, Ncp, Vinv = _reduce_points(N, npt)
     gc, gp_ = g[:nc], g[nc:]
     rhs = -gc + Ncp @ (Vinv @ gp_)
+    del gc
     if backend == "auto" and not HAVE_CHOLMOD and nc <= DENSE_REDUCED_MAX:
         backend = "dense"
-    F = factorize(S.tocsc(), backend=backend, what="normal equations with residual grids")
-    dc = F.solve(rhs)
+    low_rank = U is not None and U.shape[1] > 0
+    if low_rank and backend == "cg":  # iterations on the operator: no factor to reuse
+        S = S + U @ U.T
+        low_rank = False
+    S = S.tocsc()
+    F = factorize(S, backend=backend, what="normal equations with residual grids")
+    del S
+    dc = _woodbury_solve(F, U, rhs) if low_rank else F.solve(rhs)
     dp = -(Vinv @ (gp_ + Ncp.T @ dc))
     return np.concatenate([dc, dp])
 
 
+def _woodbury_solve(F, U: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
+    """``(S + U U')^-1 b`` from the factor ``F`` of ``S`` (see :func:`_solve_by_points`)."""
+    # I + W'W >= I: positive definite whenever the factor of S is
+    c = sla.cho_factor(np.eye(U.shape[1]) + F.inverse_gram(U), lower=True, check_finite=False)
+    y = F.solve(b)
+    return y - F.solve(U @ sla.cho_solve(c, U.T @ y, check_finite=False))
+
+
 def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix) -> np.ndarray:
-    """``diag(N^-1)`` of the grid unknowns: the points (3x3 blocks, last) are eliminated,
-    the reduced system inverted densely."""
+    """``diag(N^-1)`` of the grid unknowns (``N`` with the low-rank datum ``U U'`` added
+    when it is kept apart): the points (3x3 blocks, last) are eliminated, the reduced
+    system inverted densely."""
     fi = gp.free_idx
     nc = fi.size - 3 * gp.bp.p
     S = _reduce_points(N, 3 * gp.bp.p)[0].toarray()
+    if gp.U_free is not None:  # the low-rank datum, added densely as S is dense anyway
+        Ud = gp.U_free.toarray()
+        S += Ud @ Ud.T
+        del Ud
     try:
         c = sla.cho_factor(S, lower=True, check_finite=False)
     except np.linalg.LinAlgError:
@@ -633,7 +718,9 @@ def adjust_with_grids(
         the grids of this spacing and smoothness fitted to the tie-point residuals of
         ``block`` at its given values - pass an adjusted block (as from a first
         adjustment), or a number where the block starts far from its solution. None: no
-        amplitude (only smoothness, temporal constraints and datum).
+        amplitude (only smoothness, temporal constraints and datum; the datum conditions
+        are then a dense block of (2 nodes)^2 entries per grid in the normal equations,
+        refused where they cannot fit in memory).
     datum : {"similarity", "affine"}, optional
         Components of every grid held at zero (see the module); default ``"similarity"``
         per image, ``"affine"`` per camera.
