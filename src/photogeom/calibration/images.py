@@ -751,7 +751,10 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["icc_profile"] = meta["icc_profile"]
             else:
                 note = _icc_note(space)
-        if meta.get("dpi"):
+        if meta.get("dpi") and fmt != "TIFF":
+            # a TIFF's resolution tags (282, 283, 296) travel with its other tags (the
+            # "exif" set) as stored; Pillow's dpi of a TIFF is (1, 1) where it has none,
+            # and converted to inches where the file states centimetres
             kw["dpi"] = meta["dpi"]
         xmp = meta.get("xmp")
         if isinstance(xmp, str):
