@@ -13,7 +13,8 @@ written in the original format:
   profile, with its compression;
 * PNG (any bit depth and channels): in its own colour type and bit depth, the original's
   metadata chunks copied unchanged (EXIF, ICC profile, colour space, resolution, text and
-  XMP), also those that follow the image data. Grey with alpha stays grey with alpha (OpenCV
+  XMP; text and XMP on their side of the image data), also those that follow the image
+  data. Grey with alpha stays grey with alpha (OpenCV
   decodes it as RGBA); a palette image keeps its palette and transparency and is resampled
   by nearest neighbour (blending indices would give unrelated colours; said in a note); the
   transparent colour (tRNS) of a grey image is kept (that of an RGB image is decoded by
@@ -288,14 +289,16 @@ def _png_chunk_beyond_end(data: bytes) -> str | None:
     return None
 
 
-def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
+def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[bytes]]:
     """The metadata chunks of a PNG file, whole (length, type, data, CRC): those that must
     come before the image data (colour space, ICC profile, resolution; EXIF, which some
-    writers put after the image data and libpng then ignores) and the text chunks (text,
-    XMP, time), wherever they are in the file. A damaged chunk list ends the walk (the
-    decoders report the damage)."""
+    writers put after the image data and libpng then ignores), the text chunks (text,
+    XMP, time) before the image data and those after it. A damaged chunk list ends the walk
+    (the decoders report the damage)."""
     before: list[bytes] = []
+    text_before: list[bytes] = []
     text: list[bytes] = []
+    seen_data = False
     at = len(_PNG_SIGNATURE)
     while at + 12 <= len(data):
         (length,) = struct.unpack(">I", data[at : at + 4])
@@ -306,11 +309,13 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
         if kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
             before.append(data[at:end])
         elif kind in _PNG_ANYWHERE:
-            text.append(data[at:end])
+            (text if seen_data else text_before).append(data[at:end])
+        elif kind == b"IDAT":
+            seen_data = True
         elif kind == b"IEND":
             break
         at = end
-    return before, text
+    return before, text_before, text
 
 
 def _png_chunk(data: bytes, kind: bytes) -> bytes | None:
@@ -403,14 +408,20 @@ def _png_encode(pixels: np.ndarray, depth: int, colour_type: int, chunks: list) 
     ])  # fmt: skip
 
 
-def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> bytes:
+def _png_with_chunks(
+    png: bytes, chunks: tuple[list[bytes], list[bytes], list[bytes]]
+) -> bytes:
     """``png`` (an encoder's output without metadata) with the original's metadata chunks:
-    colour space, ICC, resolution and EXIF right after IHDR, text before IEND."""
-    before, text = chunks
+    colour space, ICC, resolution and EXIF right after IHDR, then the text chunks that
+    came before the image data (XMP there, where readers that stop at the image data find
+    it, as the XMP specification encourages), the others before IEND."""
+    before, text_before, text = chunks
     (ihdr_length,) = struct.unpack(">I", png[8:12])
     head = 8 + 12 + ihdr_length  # signature and IHDR
     tail = png.rindex(b"IEND") - 4  # the IEND chunk: length, type, CRC
-    return png[:head] + b"".join(before) + png[head:tail] + b"".join(text) + png[tail:]
+    return b"".join(
+        [png[:head], *before, *text_before, png[head:tail], *text, png[tail:]]
+    )
 
 
 _TIFF_ORIENTATION = 274
@@ -720,12 +731,12 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                     f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
                 )
             png = enc.tobytes()
-        before, text = meta["png_chunks"]
+        before, text_before, text = meta["png_chunks"]
         keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
         note = _icc_note(space) if len(keep) < len(before) else None
         if meta.get("png_trns") is not None:
             keep = [*keep, meta["png_trns"]]  # after the colour space chunks, before IDAT
-        return _png_with_chunks(png, (keep, text)), note
+        return _png_with_chunks(png, (keep, text_before, text)), note
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
