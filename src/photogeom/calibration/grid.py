@@ -832,7 +832,7 @@ def _image_inputs(uv, residuals, image_size, spacing, min_observations: int, whe
             f"{where}residual grid of {layout.ny} x {layout.nx} nodes",
             n,
             max(1, min_observations),
-            "use a larger spacing or leave the image out",
+            "a grid of any spacing needs them: leave the image out",
         )
     _refuse_sparse_data(layout, n, where)
     return uv, res, layout

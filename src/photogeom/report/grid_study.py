@@ -348,11 +348,19 @@ def grid_study_report(
                 [f"{what} {ax} (GSD)", _fixed(x, 3), _fixed(y, 3), ""]
                 for ax, x, y in zip("XYZ", b, a)
             )
+        left = ev.get("excluded") or []
         rep.add_table(
             "Block",
             ["quantity", "before", "after", "reduction"],
             rows,
-            note="reduction: 1 - after / before",
+            note="reduction: 1 - after / before"
+            + (
+                f"; left out (no grid, observations uncorrected): {len(left)} image(s): "
+                + ", ".join(map(str, left[:20]))
+                + (" ..." if len(left) > 20 else "")
+                if left
+                else ""
+            ),
         )
         rep.add_table(
             "Per image",
