@@ -149,6 +149,14 @@ def _fig_sensor(before, after) -> Figure:
     return fig
 
 
+def _every(step: int) -> str:
+    """"every node", "every 2nd node", "every 3rd node", "every 11th node", ..."""
+    if step == 1:
+        return "every node"
+    last = {1: "st", 2: "nd", 3: "rd"}.get(step % 10, "th")
+    return f"every {step}{'th' if 11 <= step % 100 <= 13 else last} node"
+
+
 def _fig_image(block, grids, image_id) -> Figure:
     per = block_residuals(block)
     uv, r = per[image_id]
@@ -156,7 +164,9 @@ def _fig_image(block, grids, image_id) -> Figure:
     fig = Figure(figsize=(10, 4))
     a1, a2 = fig.subplots(1, 2)
     size = g.image_size
-    _quiver(a1, uv, r, None, size, f"image {image_id}: tie-point residuals (exaggerated)")
+    _quiver(
+        a1, uv, r, None, size, f"image {image_id}: tie-point residuals, exaggerated (Fig. 8)"
+    )
     u, v = g.layout.node_coordinates()
     nodes = np.column_stack([u.ravel(), v.ravel()])
     step = max(1, int(np.ceil(max(g.layout.shape) / 25)))  # at most ~25 arrows per side
@@ -169,7 +179,7 @@ def _fig_image(block, grids, image_id) -> Figure:
         g.nodes.reshape(-1, 2)[sel],
         None,
         size,
-        f"fitted grid ({g.spacing:g} px, every {step}. node)",
+        f"fitted grid, {g.spacing:g} px, {_every(step)} (Fig. 8)",
         color="#a01d12",
     )
     return fig
