@@ -167,3 +167,24 @@ def test_text_chunks_keep_their_side_of_the_image_data(tmp_path, grid, channels)
         assert "Comment" not in im.info
         im.load()
         assert im.info["Comment"] == "written last"
+
+
+def test_a_damaged_png_names_libpngs_reason_without_its_line(tmp_path, grid, capfd):
+    """A PNG libpng refuses: the failure gives libpng's reason, and libpng's own
+    "libpng error: ..." line (printed on stderr by the C library) no longer appears
+    beside it, as for TIFF."""
+    import cv2
+
+    from photogeom.errors import FileFormatError
+
+    pixels = np.random.default_rng(5).integers(0, 255, (H, W, 3)).astype(np.uint8)
+    png = bytearray(cv2.imencode(".png", pixels)[1].tobytes())
+    at = png.index(b"IDAT") + 4 + 40  # inside the compressed image data
+    png[at : at + 20] = bytes(20)
+    src = tmp_path / "a.png"
+    src.write_bytes(bytes(png))
+    capfd.readouterr()
+    with pytest.raises(FileFormatError, match=r"not a readable image \(libpng: .+\)"):
+        correct_image_file(src, tmp_path / "b.png", grid)
+    assert "libpng" not in capfd.readouterr().err
+    assert not (tmp_path / "b.png").exists()

@@ -124,15 +124,11 @@ _JPEG_DAMAGE = (b"Corrupt JPEG data", b"Premature end of JPEG file")
 _STDERR_LOCK = threading.Lock()
 
 
-def _decode_jpeg_checked(cv2, data: np.ndarray, path: Path):
-    """``_decode_quietly`` for a JPEG, refusing one whose data libjpeg found damaged.
-
-    OpenCV's JPEG decoder returns an image whatever libjpeg warns: a JPEG with damaged
-    scan data decodes to pixels that are partly garbage (in a test, half of a 640 x 480
-    image off by 57 grey levels on average), which would be "corrected" and written as a
-    good image. libjpeg prints its warnings with ``fprintf(stderr)`` and OpenCV does not
-    pass them on, so standard error (file descriptor 2) is read while the file decodes;
-    lines that are not libjpeg's damage warnings are written back to it."""
+def _decode_capturing(cv2, data: np.ndarray, taken: tuple[bytes, ...]):
+    """``_decode_quietly`` with the lines of standard error (file descriptor 2) that the
+    codec libraries print with ``fprintf(stderr)`` while it runs and OpenCV does not pass
+    on: ``(pixels, lines)``, the lines that start with one of ``taken`` (bytes, stripped);
+    the others are written back to standard error."""
     import sys
     import tempfile
 
@@ -150,10 +146,21 @@ def _decode_jpeg_checked(cv2, data: np.ndarray, path: Path):
         captured.seek(0)
         text = captured.read()
     lines = text.splitlines(keepends=True)
-    damage = [ln.strip() for ln in lines if ln.startswith(_JPEG_DAMAGE)]
-    other = b"".join(ln for ln in lines if not ln.startswith(_JPEG_DAMAGE))
+    other = b"".join(ln for ln in lines if not ln.startswith(taken))
     if other:
         os.write(2, other)
+    return pixels, [ln.strip() for ln in lines if ln.startswith(taken)]
+
+
+def _decode_jpeg_checked(cv2, data: np.ndarray, path: Path):
+    """``_decode_quietly`` for a JPEG, refusing one whose data libjpeg found damaged.
+
+    OpenCV's JPEG decoder returns an image whatever libjpeg warns: a JPEG with damaged
+    scan data decodes to pixels that are partly garbage (in a test, half of a 640 x 480
+    image off by 57 grey levels on average), which would be "corrected" and written as a
+    good image. libjpeg prints its warnings on standard error, read while the file
+    decodes (:func:`_decode_capturing`)."""
+    pixels, damage = _decode_capturing(cv2, data, _JPEG_DAMAGE)
     if damage and pixels is not None:
         first = damage[0].decode("latin-1")
         more = f" (and {len(damage) - 1} more warning(s))" if len(damage) > 1 else ""
@@ -162,6 +169,21 @@ def _decode_jpeg_checked(cv2, data: np.ndarray, path: Path):
             "be partly wrong, so it is not corrected: copy the file again from the camera "
             "or the original source"
         )
+    return pixels
+
+
+def _decode_png_named(cv2, data: np.ndarray, path: Path):
+    """``_decode_quietly`` for a PNG; a file libpng refuses is a named failure with
+    libpng's reason, and its "libpng error: ..." line no longer appears beside it on
+    standard error."""
+    pixels, errors = _decode_capturing(cv2, data, (b"libpng error",))
+    if pixels is None and errors:
+        why = b"; ".join(e.split(b":", 1)[-1].strip() for e in errors).decode("latin-1")
+        raise FileFormatError(
+            f"{path}: not a readable image (libpng: {why}); the file is damaged"
+        )
+    for e in errors:  # decoded all the same: the lines go where they were going
+        os.write(2, e + b"\n")
     return pixels
 
 
@@ -193,6 +215,8 @@ def _read(path: Path):
             pixels = None
         elif raw[:3] == b"\xff\xd8\xff":  # JPEG
             pixels = _decode_jpeg_checked(cv2, data, path)
+        elif raw[:8] == _PNG_SIGNATURE:
+            pixels = _decode_png_named(cv2, data, path)
         else:
             pixels = _decode_quietly(cv2, data)
     except cv2.error as exc:  # a damaged header: e.g. a width over OpenCV's limit
