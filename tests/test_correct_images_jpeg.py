@@ -8,6 +8,7 @@ is corrected.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -87,8 +88,6 @@ def test_a_folder_corrects_the_good_jpegs_and_lists_the_damaged(tmp_path, grid, 
 def test_other_lines_on_stderr_are_kept(tmp_path, grid, capfd, monkeypatch):
     """Only libjpeg's damage warnings are taken from standard error; what else is printed
     there while a JPEG decodes reaches it."""
-    import os
-
     from photogeom.calibration import images
 
     real = images._decode_quietly
@@ -103,3 +102,34 @@ def test_other_lines_on_stderr_are_kept(tmp_path, grid, capfd, monkeypatch):
     capfd.readouterr()
     correct_image_file(src, tmp_path / "out.jpg", grid)
     assert capfd.readouterr().err == "a line of another library\n"
+
+
+def test_a_process_without_standard_error_reads_and_refuses_as_well(tmp_path):
+    """Standard error is read while a JPEG decodes; a process started without one (file
+    descriptor 2 closed, as under some service managers) still corrects a good JPEG and
+    refuses a damaged one, instead of failing on the missing descriptor."""
+    import subprocess
+
+    good = _jpeg()
+    (tmp_path / "good.jpg").write_bytes(good)
+    (tmp_path / "bad.jpg").write_bytes(_damaged(good))
+    code = (
+        "import os, sys\n"
+        "os.close(2)\n"
+        "sys.stderr = None\n"
+        "from pathlib import Path\n"
+        "from photogeom.calibration.images import _read\n"
+        "from photogeom.errors import FileFormatError\n"
+        f"print(_read(Path({str(tmp_path / 'good.jpg')!r}))[0].shape)\n"
+        "try:\n"
+        f"    _read(Path({str(tmp_path / 'bad.jpg')!r}))\n"
+        "except FileFormatError as exc:\n"
+        "    print('refused:', exc)\n"
+    )
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    env = {**os.environ, "PYTHONPATH": src}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert lines[0] == f"({H}, {W}, 3)"
+    assert lines[1].startswith("refused:") and "damaged JPEG data" in lines[1]

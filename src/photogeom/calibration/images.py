@@ -36,6 +36,7 @@ optional dependency (``pip install "photogeom[dask]"``).
 
 from __future__ import annotations
 
+import contextlib
 import io
 import logging
 import os
@@ -133,21 +134,29 @@ def _decode_capturing(cv2, data: np.ndarray, taken: tuple[bytes, ...]):
     import tempfile
 
     with _STDERR_LOCK, tempfile.TemporaryFile() as captured:
-        sys.stderr.flush()
-        saved = os.dup(2)
+        if sys.stderr is not None:
+            sys.stderr.flush()
+        try:
+            saved: int | None = os.dup(2)
+        except OSError:  # no standard error (a process started without one)
+            saved = None
         try:
             os.dup2(captured.fileno(), 2)
             try:
                 pixels = _decode_quietly(cv2, data)
             finally:
-                os.dup2(saved, 2)
+                if saved is None:
+                    os.close(2)
+                else:
+                    os.dup2(saved, 2)
         finally:
-            os.close(saved)
+            if saved is not None:
+                os.close(saved)
         captured.seek(0)
         text = captured.read()
     lines = text.splitlines(keepends=True)
     other = b"".join(ln for ln in lines if not ln.startswith(taken))
-    if other:
+    if other and saved is not None:
         os.write(2, other)
     return pixels, [ln.strip() for ln in lines if ln.startswith(taken)]
 
@@ -182,8 +191,9 @@ def _decode_png_named(cv2, data: np.ndarray, path: Path):
         raise FileFormatError(
             f"{path}: not a readable image (libpng: {why}); the file is damaged"
         )
-    for e in errors:  # decoded all the same: the lines go where they were going
-        os.write(2, e + b"\n")
+    if errors:  # decoded all the same: the lines go where they were going
+        with contextlib.suppress(OSError):
+            os.write(2, b"".join(e + b"\n" for e in errors))
     return pixels
 
 
