@@ -131,3 +131,60 @@ def test_folder_and_nearest_option(tmp_path, grid):
     img = np.arange(W * H, dtype=np.float32).reshape(H, W)
     out = correct_image(img, grid, interpolation="nearest")
     assert np.array_equal(out[: H - 1, 2:], img[1:, : W - 2])
+
+
+def _chunk_types(png: bytes) -> list[bytes]:
+    """The chunk types of a PNG file in order (its chunk list walked)."""
+    at, kinds = 8, []
+    while at < len(png):
+        (length,) = struct.unpack(">I", png[at : at + 4])
+        kinds.append(png[at + 4 : at + 8])
+        at += 12 + length
+    return kinds
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+def test_text_chunks_keep_their_side_of_the_image_data(tmp_path, grid, channels):
+    """XMP before the image data stays there (the XMP specification encourages it at the
+    beginning; Pillow's ``Image.open().info`` reads only what precedes the image data),
+    a text chunk after the image data stays after it. Before, every text chunk was moved
+    after the image data: the XMP of a camera's PNG was no longer in ``info``."""
+    import cv2
+
+    xmp = b'<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF/></x:xmpmeta>'
+    pixels = np.random.default_rng(3).integers(0, 255, (H, W, channels)).astype(np.uint8)
+    png = cv2.imencode(".png", pixels)[1].tobytes()
+    head, iend = 33, png.rindex(b"IEND") - 4  # after IHDR; the IEND chunk
+    early = _chunk(b"iTXt", b"XML:com.adobe.xmp\x00\x00\x00\x00\x00" + xmp)
+    late = _chunk(b"tEXt", b"Comment\x00written last")
+    src = tmp_path / "a.png"
+    src.write_bytes(png[:head] + early + png[head:iend] + late + png[iend:])
+    assert correct_image_file(src, tmp_path / "b.png", grid) is None
+    kinds = _chunk_types((tmp_path / "b.png").read_bytes())
+    assert kinds.index(b"iTXt") < kinds.index(b"IDAT") < kinds.index(b"tEXt")
+    with Image.open(tmp_path / "b.png") as im:  # not decoded: what precedes the data
+        assert im.info["XML:com.adobe.xmp"].encode() == xmp
+        assert "Comment" not in im.info
+        im.load()
+        assert im.info["Comment"] == "written last"
+
+
+def test_a_damaged_png_names_libpngs_reason_without_its_line(tmp_path, grid, capfd):
+    """A PNG libpng refuses: the failure gives libpng's reason, and libpng's own
+    "libpng error: ..." line (printed on stderr by the C library) no longer appears
+    beside it, as for TIFF."""
+    import cv2
+
+    from photogeom.errors import FileFormatError
+
+    pixels = np.random.default_rng(5).integers(0, 255, (H, W, 3)).astype(np.uint8)
+    png = bytearray(cv2.imencode(".png", pixels)[1].tobytes())
+    at = png.index(b"IDAT") + 4 + 40  # inside the compressed image data
+    png[at : at + 20] = bytes(20)
+    src = tmp_path / "a.png"
+    src.write_bytes(bytes(png))
+    capfd.readouterr()
+    with pytest.raises(FileFormatError, match=r"not a readable image \(libpng: .+\)"):
+        correct_image_file(src, tmp_path / "b.png", grid)
+    assert "libpng" not in capfd.readouterr().err
+    assert not (tmp_path / "b.png").exists()

@@ -52,3 +52,43 @@ def test_tags_of_either_byte_order_are_kept(tmp_path, byteorder):
         assert page.tags["XResolution"].value == (300, 1)
     got, _ = _read(dst)  # BGR, as stored
     np.testing.assert_array_equal(got[: H - 1, 2:, ::-1], pixels[1:, : W - 2])
+
+
+def _resolution(path) -> tuple:
+    """The resolution tags (282, 283, 296) as stored, None where absent (tifffile)."""
+    with tifffile.TiffFile(path) as tif:
+        tags = tif.pages[0].tags
+        return tuple(
+            (tuple(tags[c].value) if c != 296 else int(tags[c].value)) if c in tags else None
+            for c in (282, 283, 296)
+        )
+
+
+@pytest.mark.parametrize(
+    "write",
+    [
+        {},  # no resolution: Pillow's dpi (1, 1) was written as 1 dpi
+        {"resolution": (118, 118), "resolutionunit": 3},  # per cm: was turned into inches
+        {"resolution": (2, 1), "resolutionunit": 1},  # no unit (an aspect ratio)
+        {"resolution": (300, 300), "resolutionunit": 2},
+    ],
+)
+@pytest.mark.parametrize("channels", [1, 3])
+def test_resolution_tags_are_kept_as_stored(tmp_path, write, channels):
+    """8-bit TIFFs (written by Pillow): the resolution of the original, tag for tag."""
+    layout = GridLayout(W, H, 20)
+    grid = grid_with_nodes(layout, np.zeros((*layout.shape, 2)))
+    pixels = np.random.default_rng(1).integers(0, 255, (H, W, channels)).astype(np.uint8)
+    src, dst = tmp_path / "a.tif", tmp_path / "b.tif"
+    if write:
+        tifffile.imwrite(
+            src, pixels.squeeze(), metadata=None, software=False, **write,
+            photometric="rgb" if channels == 3 else "minisblack",
+        )  # fmt: skip
+    else:
+        from PIL import Image
+
+        Image.fromarray(pixels.squeeze()).save(src)  # no resolution tags
+    assert (_resolution(src)[0] is None) == (not write)
+    correct_image_file(src, dst, grid)
+    assert _resolution(dst) == _resolution(src)

@@ -18,7 +18,7 @@ contract"):
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -150,8 +150,8 @@ def fit_residual_grids(
         Not a block, unknown roles or image ids, check points in ``roles``, a spacing of
         0, negative or larger than an image, residuals outside the image.
     TooFewPointsError
-        An image with fewer residuals than ``min_observations`` (named): fit with a larger
-        spacing, or leave the image out with ``images=``.
+        An image with fewer residuals than ``min_observations`` (named; at any spacing):
+        leave the image out with ``images=`` (and ``readjust(..., uncorrected=)``).
     """
     _check_block(block, "fit_residual_grids")
     roles = _roles(roles)
@@ -219,7 +219,24 @@ def _sigmas_per_image(block: Block, roles) -> dict:
     }
 
 
-def correct_block_observations(block: Block, grids: Mapping) -> Block:
+def _uncorrected_ids(block: Block, uncorrected) -> set:
+    """The image ids of ``uncorrected`` (ids of the block), unknown ids refused."""
+    if isinstance(uncorrected, str | bytes) or not isinstance(uncorrected, Iterable):
+        raise InputError(
+            f"uncorrected must be a sequence of image ids, not {type(uncorrected).__name__}"
+        )
+    left = list(uncorrected)
+    known = set(block.image_ids.tolist())
+    unknown = [k for k in left if k not in known]
+    if unknown:
+        raise InputError(
+            f"uncorrected: unknown image id(s) {', '.join(map(str, unknown[:5]))} "
+            "(not in block.image_ids)"
+        )
+    return set(left)
+
+
+def correct_block_observations(block: Block, grids: Mapping, *, uncorrected=()) -> Block:
     """A new block with every observation corrected by its image's grid: ``uv + r(uv)``.
 
     All roles are corrected (the local field displaces every measurement of an image). The
@@ -233,6 +250,10 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
         The block whose observations (px) are corrected.
     grids : Mapping
         ``image id -> ResidualGrid``; each grid's image size must be its camera's.
+    uncorrected : sequence of image ids
+        Images left out of the correction: their observations are kept as they are and
+        they need no grid (e.g. images with too few residuals for a grid, left out of
+        :func:`fit_residual_grids` with ``images=``).
 
     Returns
     -------
@@ -241,23 +262,25 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
     Raises
     ------
     InputError
-        Images holding observations but no grid (named), or observations outside their
-        image.
+        Images holding observations but no grid (named) and not ``uncorrected``, unknown
+        ids in ``uncorrected``, or observations outside their image.
     """
     _check_block(block, "correct_observations")
     if not isinstance(grids, Mapping):
         raise InputError(
             f"grids must be a mapping image id -> ResidualGrid, not {type(grids).__name__}"
         )
+    kept = _uncorrected_ids(block, uncorrected)
     counts, _ = block.observation_counts()
     ids = block.image_ids.tolist()
     key_of, _ = match_grid_ids(ids, grids)
-    missing = [iid for iid, c in zip(ids, counts) if c and iid not in key_of]
+    missing = [iid for iid, c in zip(ids, counts) if c and iid not in key_of and iid not in kept]
     if missing:
         raise InputError(
             f"no residual grid for image(s) {', '.join(map(str, missing[:10]))}"
             f"{' ...' if len(missing) > 10 else ''}: fit grids for every image of the block "
-            "(fit_residual_grids) to correct its observations"
+            "(fit_residual_grids) to correct its observations, or leave images out of the "
+            "correction with uncorrected="
         )
     uv = block.observations.uv
     out = uv.copy()
@@ -266,7 +289,7 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
     sizes = block.image_sizes().astype(int)
     for i, iid in enumerate(ids):  # images, not points
         sel = order[starts[i] : starts[i + 1]]
-        if sel.size == 0:
+        if sel.size == 0 or iid in kept:
             continue
         g = grids[key_of[iid]]
         if not isinstance(g, ResidualGrid):
@@ -284,7 +307,7 @@ def correct_block_observations(block: Block, grids: Mapping) -> Block:
     return block.with_observations(uv=out)
 
 
-def readjust(block: Block, grids: Mapping, **options):
+def readjust(block: Block, grids: Mapping, *, uncorrected=(), **options):
     """Correct the observations with the grids and adjust again with the exterior
     orientation and the Brown coefficients held at their first values.
 
@@ -297,7 +320,12 @@ def readjust(block: Block, grids: Mapping, **options):
     block : Block
         The adjusted block the grids were fitted to.
     grids : mapping
-        ``image id -> ResidualGrid`` for every image with observations.
+        ``image id -> ResidualGrid`` for every image with observations but those of
+        ``uncorrected``.
+    uncorrected : sequence of image ids
+        Images whose observations are not corrected (no grid needed; see
+        :func:`correct_block_observations`); they take part in the re-adjustment as they
+        are.
     **options
         Passed to :func:`photogeom.bundle_adjust` (``loss``, ``snooping``, ...);
         ``fix_exterior`` and ``free`` are set by this function and refused.
@@ -315,5 +343,5 @@ def readjust(block: Block, grids: Mapping, **options):
             f"{', '.join(fixed)} (call photogeom.bundle_adjust on correct_observations(...) "
             "for another setting)"
         )
-    corrected = correct_block_observations(block, grids)
+    corrected = correct_block_observations(block, grids, uncorrected=uncorrected)
     return bundle_adjust(corrected, fix_exterior=True, free=(), **options)

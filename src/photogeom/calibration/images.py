@@ -13,7 +13,8 @@ written in the original format:
   profile, with its compression;
 * PNG (any bit depth and channels): in its own colour type and bit depth, the original's
   metadata chunks copied unchanged (EXIF, ICC profile, colour space, resolution, text and
-  XMP), also those that follow the image data. Grey with alpha stays grey with alpha (OpenCV
+  XMP; text and XMP on their side of the image data), also those that follow the image
+  data. Grey with alpha stays grey with alpha (OpenCV
   decodes it as RGBA); a palette image keeps its palette and transparency and is resampled
   by nearest neighbour (blending indices would give unrelated colours; said in a note); the
   transparent colour (tRNS) of a grey image is kept (that of an RGB image is decoded by
@@ -35,6 +36,7 @@ optional dependency (``pip install "photogeom[dask]"``).
 
 from __future__ import annotations
 
+import contextlib
 import io
 import logging
 import os
@@ -118,6 +120,85 @@ def _decode_quietly(cv2, data: np.ndarray):
         logging.setLogLevel(level)
 
 
+# libjpeg's warnings about the entropy-coded data (it decodes on, with grey or smeared
+# blocks where the data is damaged): "Corrupt JPEG data: bad Huffman code", "...: premature
+# end of data segment", "...: N extraneous bytes before marker", "Premature end of JPEG file"
+_JPEG_DAMAGE = (b"Corrupt JPEG data", b"Premature end of JPEG file")
+_STDERR_LOCK = threading.Lock()
+
+
+def _decode_capturing(cv2, data: np.ndarray, taken: tuple[bytes, ...]):
+    """``_decode_quietly`` with the lines of standard error (file descriptor 2) that the
+    codec libraries print with ``fprintf(stderr)`` while it runs and OpenCV does not pass
+    on: ``(pixels, lines)``, the lines that start with one of ``taken`` (bytes, stripped);
+    the others are written back to standard error."""
+    import sys
+    import tempfile
+
+    with _STDERR_LOCK, tempfile.TemporaryFile() as captured:
+        if sys.stderr is not None:
+            sys.stderr.flush()
+        try:
+            saved: int | None = os.dup(2)
+        except OSError:  # no standard error (a process started without one)
+            saved = None
+        try:
+            os.dup2(captured.fileno(), 2)
+            try:
+                pixels = _decode_quietly(cv2, data)
+            finally:
+                if saved is None:
+                    os.close(2)
+                else:
+                    os.dup2(saved, 2)
+        finally:
+            if saved is not None:
+                os.close(saved)
+        captured.seek(0)
+        text = captured.read()
+    lines = text.splitlines(keepends=True)
+    other = b"".join(ln for ln in lines if not ln.startswith(taken))
+    if other and saved is not None:
+        os.write(2, other)
+    return pixels, [ln.strip() for ln in lines if ln.startswith(taken)]
+
+
+def _decode_jpeg_checked(cv2, data: np.ndarray, path: Path):
+    """``_decode_quietly`` for a JPEG, refusing one whose data libjpeg found damaged.
+
+    OpenCV's JPEG decoder returns an image whatever libjpeg warns: a JPEG with damaged
+    scan data decodes to pixels that are partly garbage (in a test, half of a 640 x 480
+    image off by 57 grey levels on average), which would be "corrected" and written as a
+    good image. libjpeg prints its warnings on standard error, read while the file
+    decodes (:func:`_decode_capturing`)."""
+    pixels, damage = _decode_capturing(cv2, data, _JPEG_DAMAGE)
+    if damage and pixels is not None:
+        first = damage[0].decode("latin-1")
+        more = f" (and {len(damage) - 1} more warning(s))" if len(damage) > 1 else ""
+        raise FileFormatError(
+            f"{path}: damaged JPEG data (libjpeg: {first}{more}); its decoded pixels would "
+            "be partly wrong, so it is not corrected: copy the file again from the camera "
+            "or the original source"
+        )
+    return pixels
+
+
+def _decode_png_named(cv2, data: np.ndarray, path: Path):
+    """``_decode_quietly`` for a PNG; a file libpng refuses is a named failure with
+    libpng's reason, and its "libpng error: ..." line no longer appears beside it on
+    standard error."""
+    pixels, errors = _decode_capturing(cv2, data, (b"libpng error",))
+    if pixels is None and errors:
+        why = b"; ".join(e.split(b":", 1)[-1].strip() for e in errors).decode("latin-1")
+        raise FileFormatError(
+            f"{path}: not a readable image (libpng: {why}); the file is damaged"
+        )
+    if errors:  # decoded all the same: the lines go where they were going
+        with contextlib.suppress(OSError):
+            os.write(2, b"".join(e + b"\n" for e in errors))
+    return pixels
+
+
 def _read(path: Path):
     """Pixels (OpenCV order: BGR[A]) and the Pillow metadata of an image file."""
     import cv2
@@ -150,7 +231,14 @@ def _read(path: Path):
     if damage:
         raise FileFormatError(f"{path}: {damage}; the file is damaged or cut short")
     try:
-        pixels = _decode_quietly(cv2, data) if data.size else None
+        if not data.size:
+            pixels = None
+        elif raw[:3] == b"\xff\xd8\xff":  # JPEG
+            pixels = _decode_jpeg_checked(cv2, data, path)
+        elif raw[:8] == _PNG_SIGNATURE:
+            pixels = _decode_png_named(cv2, data, path)
+        else:
+            pixels = _decode_quietly(cv2, data)
     except cv2.error as exc:  # a damaged header: e.g. a width over OpenCV's limit
         msg = str(exc).strip().splitlines()[-1]
         raise FileFormatError(
@@ -245,14 +333,16 @@ def _png_chunk_beyond_end(data: bytes) -> str | None:
     return None
 
 
-def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
+def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[bytes]]:
     """The metadata chunks of a PNG file, whole (length, type, data, CRC): those that must
     come before the image data (colour space, ICC profile, resolution; EXIF, which some
-    writers put after the image data and libpng then ignores) and the text chunks (text,
-    XMP, time), wherever they are in the file. A damaged chunk list ends the walk (the
-    decoders report the damage)."""
+    writers put after the image data and libpng then ignores), the text chunks (text,
+    XMP, time) before the image data and those after it. A damaged chunk list ends the walk
+    (the decoders report the damage)."""
     before: list[bytes] = []
+    text_before: list[bytes] = []
     text: list[bytes] = []
+    seen_data = False
     at = len(_PNG_SIGNATURE)
     while at + 12 <= len(data):
         (length,) = struct.unpack(">I", data[at : at + 4])
@@ -263,11 +353,13 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes]]:
         if kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
             before.append(data[at:end])
         elif kind in _PNG_ANYWHERE:
-            text.append(data[at:end])
+            (text if seen_data else text_before).append(data[at:end])
+        elif kind == b"IDAT":
+            seen_data = True
         elif kind == b"IEND":
             break
         at = end
-    return before, text
+    return before, text_before, text
 
 
 def _png_chunk(data: bytes, kind: bytes) -> bytes | None:
@@ -360,14 +452,20 @@ def _png_encode(pixels: np.ndarray, depth: int, colour_type: int, chunks: list) 
     ])  # fmt: skip
 
 
-def _png_with_chunks(png: bytes, chunks: tuple[list[bytes], list[bytes]]) -> bytes:
+def _png_with_chunks(
+    png: bytes, chunks: tuple[list[bytes], list[bytes], list[bytes]]
+) -> bytes:
     """``png`` (an encoder's output without metadata) with the original's metadata chunks:
-    colour space, ICC, resolution and EXIF right after IHDR, text before IEND."""
-    before, text = chunks
+    colour space, ICC, resolution and EXIF right after IHDR, then the text chunks that
+    came before the image data (XMP there, where readers that stop at the image data find
+    it, as the XMP specification encourages), the others before IEND."""
+    before, text_before, text = chunks
     (ihdr_length,) = struct.unpack(">I", png[8:12])
     head = 8 + 12 + ihdr_length  # signature and IHDR
     tail = png.rindex(b"IEND") - 4  # the IEND chunk: length, type, CRC
-    return png[:head] + b"".join(before) + png[head:tail] + b"".join(text) + png[tail:]
+    return b"".join(
+        [png[:head], *before, *text_before, png[head:tail], *text, png[tail:]]
+    )
 
 
 _TIFF_ORIENTATION = 274
@@ -677,12 +775,12 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                     f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
                 )
             png = enc.tobytes()
-        before, text = meta["png_chunks"]
+        before, text_before, text = meta["png_chunks"]
         keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
         note = _icc_note(space) if len(keep) < len(before) else None
         if meta.get("png_trns") is not None:
             keep = [*keep, meta["png_trns"]]  # after the colour space chunks, before IDAT
-        return _png_with_chunks(png, (keep, text)), note
+        return _png_with_chunks(png, (keep, text_before, text)), note
     pil_ok = fmt in ("JPEG", "TIFF", "PNG") and (
         (
             pixels.dtype == np.uint8
@@ -710,7 +808,10 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["icc_profile"] = meta["icc_profile"]
             else:
                 note = _icc_note(space)
-        if meta.get("dpi"):
+        if meta.get("dpi") and fmt != "TIFF":
+            # a TIFF's resolution tags (282, 283, 296) travel with its other tags (the
+            # "exif" set) as stored; Pillow's dpi of a TIFF is (1, 1) where it has none,
+            # and converted to inches where the file states centimetres
             kw["dpi"] = meta["dpi"]
         xmp = meta.get("xmp")
         if isinstance(xmp, str):

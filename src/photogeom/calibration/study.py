@@ -29,7 +29,13 @@ import numpy as np
 
 from ..bundle.block import Block, _lookup
 from ..errors import InputError
-from .blocks import block_residuals, correct_block_observations, fit_residual_grids, readjust
+from .blocks import (
+    _uncorrected_ids,
+    block_residuals,
+    correct_block_observations,
+    fit_residual_grids,
+    readjust,
+)
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
 from .grid import _rms_len
 from .steps import model_steps
@@ -304,6 +310,7 @@ def sweep_spacings(
     *,
     overlap: float = 0.6,
     rematched: Block | None = None,
+    exclude: Sequence = (),
     **options,
 ) -> dict:
     """The grid-size sweep on an adjusted block.
@@ -326,6 +333,9 @@ def sweep_spacings(
         ``sim.rematch(fit.block)`` (:meth:`~photogeom.simulate.SimulatedBlock.rematch`): the
         grids fitted to ``fit``'s residuals also correct these observations, which are
         re-adjusted the same way; their steps and choice are returned beside the others.
+    exclude : sequence of image ids
+        Images that get no grid (e.g. too few residuals for one): their observations are
+        re-adjusted as they are (``readjust(..., uncorrected=exclude)``).
     **options
         Passed to :func:`fit_residual_grids`.
 
@@ -347,18 +357,24 @@ def sweep_spacings(
     keys = list(before)
     if not keys:
         raise InputError("sweep_spacings: the block has no pair of consecutive stereo models")
+    left_out = _uncorrected_ids(fit.block, exclude)
+    if left_out:
+        if "images" in options:
+            raise InputError("sweep_spacings: give exclude= or images=, not both")
+        options["images"] = [k for k in fit.block.image_ids.tolist() if k not in left_out]
     runs = 1 if rematched is None else 2
     step = np.full((runs, len(keys), len(g)), np.nan)
     times = np.zeros(len(g))
     for c, sp in enumerate(g):  # spacings, not points
         t0 = time.perf_counter()
         grids = fit_residual_grids(fit.block, sp, **options)
-        re = readjust(fit.block, grids, snooping=False)
+        re = readjust(fit.block, grids, uncorrected=exclude, snooping=False)
         times[c] = time.perf_counter() - t0
         s = model_steps(re.block, overlap=overlap)
         step[0, :, c] = [s.get(k, np.nan) for k in keys]
         if rematched is not None:
-            s = model_steps(readjust(rematched, grids, snooping=False).block, overlap=overlap)
+            again = readjust(rematched, grids, uncorrected=exclude, snooping=False)
+            s = model_steps(again.block, overlap=overlap)
             step[1, :, c] = [s.get(k, np.nan) for k in keys]
     ok = np.all(np.isfinite(step), axis=(0, 2))
     t = np.broadcast_to(times, step[0, ok].shape)

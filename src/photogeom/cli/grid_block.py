@@ -43,6 +43,14 @@ FitSpacingOpt = Annotated[
     typer.Option(help="Node spacing of the grids in pixels (default 100; not with --grids)."),
 ]
 DEFAULT_SPACING = 100.0
+ExcludeOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Image ids that get no grid, comma-separated (e.g. images with too few tie "
+        "points for a grid): their observations are re-adjusted uncorrected. Quote an id "
+        "with white space at its ends or a comma: '\" im0 \",IMG_7'."
+    ),
+]
 SigmaCOpt = Annotated[
     str,
     typer.Option(
@@ -240,6 +248,8 @@ def _cli(msg: str) -> str:
         .replace("grid spacing", "--spacing")
         .replace("a larger spacing", "a larger --spacing")
         .replace("choose a spacing", "choose a --spacing")
+        .replace("leave the image out", "leave the image out with --exclude ID")
+        .replace("with uncorrected=", "with --exclude ID")
         .replace("overlap must", "--overlap must")
         .replace("sigma_temporal needs per='image'", "--sigma-temporal needs --per image")
         .replace("sigma_temporal", "--sigma-temporal")
@@ -254,6 +264,18 @@ def _cli(msg: str) -> str:
             "('photogeom grid fit BLOCK')",
         )
     )
+
+
+def _left_out(fit, exclude: str | None, block: Path | None, preset: str | None) -> list:
+    """The block's image ids named by --exclude (text), unknown ids refused."""
+    from .grid import _exclude_ids, _refuse_unknown
+
+    named = list(dict.fromkeys(_exclude_ids(exclude)))
+    if not named:
+        return []
+    ids = fit.block.image_ids.tolist()
+    _refuse_unknown(named, [str(k) for k in ids], Path(preset) if block is None else block)
+    return [k for k in ids if str(k) in set(named)]
 
 
 def _evaluate(
@@ -275,6 +297,7 @@ def _evaluate(
     grids_file=None,
     spacing_given=True,
     rematch=False,
+    exclude=None,
 ):
     from ..calibration import (
         adjust_with_grids,
@@ -314,7 +337,14 @@ def _evaluate(
             "--rematch evaluates grids fitted after the adjustment; with --in-adjustment use "
             "photogeom.calibration.compare_in_adjustment"
         )
+    if exclude is not None and in_adjustment:
+        raise InputError(
+            "--exclude leaves images out of the grids fitted after the adjustment; "
+            "--in-adjustment estimates a grid for every image: give one of them"
+        )
     fit, sim = _source(block, preset, seed, strips, images)
+    left = _left_out(fit, exclude, block, preset)
+    fitted = [k for k in fit.block.image_ids.tolist() if k not in left]
     surveyed = _surveyed(check_points) if check_points is not None else None
     if in_adjustment and sigma_constraint == "vce":
         raise InputError("--sigma-constraint vce does not apply with --in-adjustment")
@@ -353,24 +383,25 @@ def _evaluate(
         elif grids_file is not None:
             grids = load_grids(grids_file)
             with stage_spinner("re-adjusting with the corrected observations"):
-                re = readjust(fit.block, grids, snooping=False)
+                re = readjust(fit.block, grids, uncorrected=left, snooping=False)
         else:
             with stage_spinner(f"fitting grids of {spacing:g} px") as step:
                 grids = fit_residual_grids(
-                    fit.block, spacing, sigma_constraint=sigma_constraint, folds=0
-                )
+                    fit.block, spacing, sigma_constraint=sigma_constraint, folds=0,
+                    images=fitted,
+                )  # fmt: skip
                 step("re-adjusting with the corrected observations")
-                re = readjust(fit.block, grids, snooping=False)
+                re = readjust(fit.block, grids, uncorrected=left, snooping=False)
         ev = evaluate_readjustment(fit, re, sim=sim, surveyed=surveyed, overlap=overlap)
         if rematch:  # as run_study: the same grids on a second measurement of the points
             with stage_spinner("re-matched observations: correcting and re-adjusting"):
                 rem = sim.rematch(fit.block, seed=(seed, 1))
-                ev["rematched"] = evaluate_readjustment(
-                    fit, readjust(rem, grids, snooping=False), sim=sim, overlap=overlap
-                )
+                again = readjust(rem, grids, uncorrected=left, snooping=False)
+                ev["rematched"] = evaluate_readjustment(fit, again, sim=sim, overlap=overlap)
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         exc.args = (_cli(str(exc)),)
         raise
+    ev["excluded"] = left
     return fit, re, grids, ev, sim
 
 
@@ -430,6 +461,7 @@ def _ev_json(ev) -> dict:
         "mean_step_before": ev["mean_step_before"],
         "mean_step_after": ev["mean_step_after"],
         "step_reduction": ev["step_reduction"],
+        "excluded": [str(k) for k in ev.get("excluded", [])],
     }
     if ev.get("check_before"):
         out["check_rmse_gsd_before"] = ev["check_before"]["rmse_gsd"].tolist()
@@ -467,6 +499,7 @@ def evaluate(
     check_points: CheckOpt = None,
     grids_file: GridsOpt = None,
     rematch: RematchOpt = False,
+    exclude: ExcludeOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -490,6 +523,7 @@ def evaluate(
         grids_file=grids_file,
         spacing_given=spacing is not None,
         rematch=rematch,
+        exclude=exclude,
     )
     if as_json:  # no stereo model pair: the steps are null
         typer.echo(json_text(nan_to_none(_ev_json(ev))))
@@ -559,6 +593,15 @@ def evaluate(
         t.add_row("before", *(f"{x:.3f}" for x in tb["rmse_gsd"]))
         t.add_row("after", *(f"{x:.3f}" for x in ta["rmse_gsd"]))
         out.print(t)
+    if ev["excluded"]:
+        say(_excluded_words(ev["excluded"]), out)
+
+
+def _excluded_words(left: list) -> str:
+    return (
+        f"left out (--exclude; no grid, observations uncorrected): {len(left)} image(s): "
+        f"{', '.join(map(str, left[:20]))}{' ...' if len(left) > 20 else ''}"
+    )
 
 
 def sweep(
@@ -572,6 +615,7 @@ def sweep(
     images: ImagesOpt = 6,
     images_old: ImagesOldOpt = None,
     rematch: RematchOpt = False,
+    exclude: ExcludeOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice."""
@@ -589,12 +633,13 @@ def sweep(
             "block's points"
         )
     fit, sim = _source(block, preset, seed, strips, images)
+    left = _left_out(fit, exclude, block, preset)
     rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None  # as grid evaluate
     try:
         with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
             sw = sweep_spacings(
                 fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0,
-                rematched=rem,
+                rematched=rem, exclude=left,
             )  # fmt: skip
     except PhotogeomError as exc:
         exc.args = (_sweep_words(str(exc)),)
@@ -610,6 +655,7 @@ def sweep(
                     "step_before": sw["step_before"].tolist(),
                     "chosen": np.asarray(sw["choice"]["spacing"]).tolist(),
                     "spacing": sw["spacing"],
+                    "excluded": [str(k) for k in left],
                     **(
                         {
                             "step_rematched": sw["step_rematched"].tolist(),
@@ -653,6 +699,8 @@ def sweep(
             f"{sw['spacing_rematched']:g} px",
             out,
         )
+    if left:
+        say(_excluded_words(left), out)
 
 
 def report(
@@ -682,6 +730,7 @@ def report(
     check_points: CheckOpt = None,
     grids_file: GridsOpt = None,
     rematch: RematchOpt = False,
+    exclude: ExcludeOpt = None,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
@@ -710,6 +759,7 @@ def report(
         grids_file=grids_file,
         spacing_given=spacing is not None,
         rematch=rematch,
+        exclude=exclude,
     )
     sc = _sigma_c(sigma_constraint)
     # the re-matched block of the evaluation (the same seed draws the same measurement)
@@ -717,8 +767,9 @@ def report(
     try:
         with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
             sw = sweep_spacings(
-                fit, g, overlap=overlap, sigma_constraint=sc, folds=0, rematched=rem
-            )
+                fit, g, overlap=overlap, sigma_constraint=sc, folds=0, rematched=rem,
+                exclude=ev["excluded"],
+            )  # fmt: skip
     except PhotogeomError as exc:
         exc.args = (_sweep_words(str(exc)),)
         raise

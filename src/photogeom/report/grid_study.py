@@ -147,6 +147,14 @@ def _fig_sensor(before, after) -> Figure:
     return fig
 
 
+def _every(step: int) -> str:
+    """"every node", "every 2nd node", "every 3rd node", "every 11th node", ..."""
+    if step == 1:
+        return "every node"
+    last = {1: "st", 2: "nd", 3: "rd"}.get(step % 10, "th")
+    return f"every {step}{'th' if 11 <= step % 100 <= 13 else last} node"
+
+
 def _fig_image(block, grids, image_id) -> Figure:
     per = block_residuals(block)
     uv, r = per[image_id]
@@ -154,7 +162,9 @@ def _fig_image(block, grids, image_id) -> Figure:
     fig = Figure(figsize=(10, 4))
     a1, a2 = fig.subplots(1, 2)
     size = g.image_size
-    _quiver(a1, uv, r, None, size, f"image {image_id}: tie-point residuals (exaggerated)")
+    _quiver(
+        a1, uv, r, None, size, f"image {image_id}: tie-point residuals, exaggerated (Fig. 8)"
+    )
     u, v = g.layout.node_coordinates()
     nodes = np.column_stack([u.ravel(), v.ravel()])
     step = max(1, int(np.ceil(max(g.layout.shape) / 25)))  # at most ~25 arrows per side
@@ -167,7 +177,7 @@ def _fig_image(block, grids, image_id) -> Figure:
         g.nodes.reshape(-1, 2)[sel],
         None,
         size,
-        f"fitted grid ({g.spacing:g} px, every {step}. node)",
+        f"fitted grid, {g.spacing:g} px, {_every(step)} (Fig. 8)",
         color="#a01d12",
     )
     return fig
@@ -189,6 +199,9 @@ def _fig_sweep(sweep) -> Figure:
         )
     a1.axhline(before.mean(), color="#a01d12", ls="--", label="before")
     a1.set_xscale("log")
+    # ticks at the spacings tried, in pixels (the log axis labelled "10^2", "2 x 10^2")
+    a1.set_xticks(g, [f"{x:g}" for x in g], fontsize=8)
+    a1.minorticks_off()
     a1.set_xlabel("grid spacing (px)")
     a1.set_ylabel("step (GSD)")
     a1.set_title("step against grid size (Fig. 10)", fontsize=9)
@@ -346,11 +359,19 @@ def grid_study_report(
                 [f"{what} {ax} (GSD)", _fixed(x, 3), _fixed(y, 3), ""]
                 for ax, x, y in zip("XYZ", b, a)
             )
+        left = ev.get("excluded") or []
         rep.add_table(
             "Block",
             ["quantity", "before", "after", "reduction"],
             rows,
-            note="reduction: 1 - after / before",
+            note="reduction: 1 - after / before"
+            + (
+                f"; left out (no grid, observations uncorrected): {len(left)} image(s): "
+                + ", ".join(map(str, left[:20]))
+                + (" ..." if len(left) > 20 else "")
+                if left
+                else ""
+            ),
         )
         rep.add_table(
             "Per image",
