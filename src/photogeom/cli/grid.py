@@ -1156,26 +1156,15 @@ def _report_html(grids: dict, rejected: dict | None = None) -> str:
     fig = Figure(figsize=(8, 8 * first.layout.height / first.layout.width + 0.6))
     ax = fig.add_subplot()
     plain_rows = sc.shown & ~sc.clipped
-    q = ax.quiver(
-        nodes[plain_rows, 0],
-        nodes[plain_rows, 1],
-        drawn[plain_rows, 0],
-        drawn[plain_rows, 1],
-        angles="xy",
-        scale_units="xy",
-        scale=1.0 / factor,
-    )
+    q = sc.quiver(ax, nodes, drawn, plain_rows)
     n_clipped = int(sc.clipped.sum())
     if n_clipped:
         sel = sc.shown & sc.clipped
-        ax.quiver(
-            nodes[sel, 0],
-            nodes[sel, 1],
-            drawn[sel, 0],
-            drawn[sel, 1],
-            angles="xy",
-            scale_units="xy",
-            scale=1.0 / factor,
+        sc.quiver(
+            ax,
+            nodes,
+            drawn,
+            sel,
             color=CLIPPED_COLOUR,
             label=f"longer than {sc.clip:.3g} px, clipped ({n_clipped})",
         )

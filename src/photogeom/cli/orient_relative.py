@@ -420,19 +420,13 @@ def _parallax_figure(fit, xy1):
     count = f"{n_shown} of {n_used} shown" if n_shown < n_used else f"{n_used}"
     ax.plot(p[sc.shown, 0], p[sc.shown, 1], "o", color="#1f5fa8", ms=4 if n_shown == n_used
             else 2, label=f"used ({count})")  # fmt: skip
-    q = ax.quiver(
-        p[shown, 0], p[shown, 1], v[shown, 0], v[shown, 1], angles="xy", scale_units="xy",
-        scale=1.0 / factor, color="#1f5fa8", width=0.005,
-    )  # fmt: skip
+    q = sc.quiver(ax, p, v, shown, color="#1f5fa8", width=0.005)
     notes = []
     if sc.clipped.any():
         k = int(sc.clipped.sum())
         c = sc.clipped & sc.shown
-        ax.quiver(
-            p[c, 0], p[c, 1], v[c, 0], v[c, 1], angles="xy", scale_units="xy",
-            scale=1.0 / factor, color=CLIPPED_COLOUR, width=0.005,
-            label=f"longer than {sc.clip:.3g} {unit}, clipped ({k})",
-        )  # fmt: skip
+        sc.quiver(ax, p, v, c, color=CLIPPED_COLOUR, width=0.005,
+                  label=f"longer than {sc.clip:.3g} {unit}, clipped ({k})")  # fmt: skip
         notes.append(f"{k} longer than {sc.clip:.3g} {unit} drawn clipped (orange)")
     if n_shown < n_used:
         notes.append(f"arrows: {n_shown} of {n_used} shown (the longest and a random sample)")

@@ -122,6 +122,22 @@ class ArrowScale:
         shrink[self.clipped] = self.clip / length[self.clipped]
         return r * shrink[:, None]
 
+    def quiver(self, ax, positions, drawn, rows, **style):
+        """Draw arrows at this scale on ``ax``: ``drawn`` (residual unit, as from
+        :meth:`drawn`) at ``positions`` (position unit), the ``rows`` selected; ``style``
+        goes to matplotlib's ``quiver`` (colour, width, label, zorder). Returns the quiver
+        (for a scale arrow)."""
+        return ax.quiver(
+            positions[rows, 0],
+            positions[rows, 1],
+            drawn[rows, 0],
+            drawn[rows, 1],
+            angles="xy",
+            scale_units="xy",
+            scale=1.0 / self.factor,
+            **style,
+        )
+
     def applied_to(self, residuals_xy, max_arrows: int = MAX_ARROWS) -> ArrowScale:
         """The same exaggeration, scale arrow and clipping length for other residuals:
         those given as ``drawn_too`` to :func:`arrow_scale` (a second panel at the same
@@ -307,14 +323,11 @@ def residual_figure(
         d = drawn_r[rows]
         ax.plot(p[show, 0], p[show, 1], "o", color=colour, ms=4 if not thinned else 2, zorder=3)
         count = f"{int(show.sum())} of {p.shape[0]} shown" if thinned else f"{p.shape[0]}"
-        q = ax.quiver(
-            p[plain_rows, 0],
-            p[plain_rows, 1],
-            d[plain_rows, 0],
-            d[plain_rows, 1],
-            angles="xy",
-            scale_units="xy",
-            scale=1.0 / factor,
+        q = sc.quiver(
+            ax,
+            p,
+            d,
+            plain_rows,
             color=colour,
             width=0.005 if not thinned else 0.003,
             zorder=4,
@@ -338,14 +351,11 @@ def residual_figure(
     clip_text = f"{sc.clip:.3g} {unit}".strip()
     if n_clipped:
         sel = sc.clipped & sc.shown
-        ax.quiver(
-            all_p[sel, 0],
-            all_p[sel, 1],
-            drawn_r[sel, 0],
-            drawn_r[sel, 1],
-            angles="xy",
-            scale_units="xy",
-            scale=1.0 / factor,
+        sc.quiver(
+            ax,
+            all_p,
+            drawn_r,
+            sel,
             color=CLIPPED_COLOUR,
             width=0.005 if not thinned else 0.003,
             zorder=5,
