@@ -23,7 +23,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from .blocks import (
     readjust,
 )
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
-from .grid import _rms_len
+from .grid import _rms_len, check_spacing
 from .steps import model_steps
 
 __all__ = [
@@ -348,7 +348,12 @@ def sweep_spacings(
         ``step_rematched``, ``choice_rematched`` and ``spacing_rematched`` (the same
         models; the times are those of the first re-adjustment).
     """
-    g = [float(s) for s in spacings]
+    if isinstance(spacings, (str, bytes)) or not isinstance(spacings, Iterable):
+        raise InputError(
+            f"sweep_spacings: spacings must be a list of numbers of pixels, not {spacings!r}"
+        )
+    # every spacing checked before the first is fitted (a sweep takes minutes)
+    g = [check_spacing(s, f"sweep_spacings: spacings[{i}]") for i, s in enumerate(spacings)]
     if len(g) < 2:
         raise InputError("sweep_spacings: give at least two spacings")
     if rematched is not None:
