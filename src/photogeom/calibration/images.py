@@ -8,7 +8,9 @@ corrected and written in its stored layout, the original tag kept. The corrected
 written in the original format:
 
 * JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
-  subsampling (the quality is kept), EXIF, XMP and ICC profile;
+  subsampling (the quality is kept), EXIF, XMP and ICC profile; of a JPEG with preview
+  images (a multi-picture index, APP2 "MPF") the main image, the previews left out (said
+  in a note);
 * TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
   profile, with its compression;
 * PNG (any bit depth and channels): in its own colour type and bit depth, the original's
@@ -250,10 +252,16 @@ def _read(path: Path):
     meta: dict = {}
     try:
         with Image.open(io.BytesIO(raw)) as im:
-            meta["format"] = im.format
+            # a JPEG with a multi-picture index (APP2 "MPF": a camera's preview image after
+            # the main one, as Sony and DJI cameras write) opens as "MPO": the main image
+            # is an ordinary JPEG, written as one (the previews, of the uncorrected image,
+            # are left out with their index); it was written by OpenCV, its EXIF, XMP, ICC
+            # profile and quantisation tables lost
+            meta["format"] = "JPEG" if im.format == "MPO" else im.format
             meta["mode"] = im.mode
             info = im.info
-            if im.format == "JPEG":
+            if im.format in ("JPEG", "MPO"):
+                meta["jpeg_previews"] = getattr(im, "n_frames", 1) - 1
                 from PIL import JpegImagePlugin
 
                 meta["qtables"] = getattr(im, "quantization", None)
@@ -278,7 +286,7 @@ def _read(path: Path):
             meta["exif"] = exif
             meta["icc_profile"] = info.get("icc_profile")
             meta["dpi"] = info.get("dpi")
-            if im.format == "JPEG" and info.get("jfif_unit") not in (1, 2):
+            if meta["format"] == "JPEG" and info.get("jfif_unit") not in (1, 2):
                 # Pillow's dpi of a JPEG without a JFIF unit comes from the EXIF resolution,
                 # or is its default of 72 when the EXIF has none: not the image's, not kept
                 if _TIFF_XRESOLUTION not in im.getexif():
@@ -825,6 +833,12 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["quality"] = 95
             if xmp:
                 kw["xmp"] = xmp
+            if meta.get("jpeg_previews"):
+                note = (
+                    f"{meta['jpeg_previews']} preview image(s) after the main image (APP2 "
+                    "MPF index) not kept: they show the uncorrected image"
+                    + ("" if note is None else f"; {note}")
+                )
         elif fmt == "TIFF":
             if meta.get("compression") and meta["compression"] != "raw":
                 kw["compression"] = meta["compression"]
