@@ -8,7 +8,8 @@ corrected and written in its stored layout, the original tag kept. The corrected
 written in the original format:
 
 * JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
-  subsampling (the quality is kept), EXIF, XMP and ICC profile; of a JPEG with preview
+  subsampling (the quality is kept), EXIF, XMP and ICC profile, its other APPn and comment
+  segments copied (comments, extended XMP, IPTC, vendors' segments); of a JPEG with preview
   images (a multi-picture index, APP2 "MPF") the main image, the previews left out (said
   in a note);
 * TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
@@ -262,6 +263,7 @@ def _read(path: Path):
             info = im.info
             if im.format in ("JPEG", "MPO"):
                 meta["jpeg_previews"] = getattr(im, "n_frames", 1) - 1
+                meta["jpeg_segments"] = _jpeg_metadata_segments(raw)
                 from PIL import JpegImagePlugin
 
                 meta["qtables"] = getattr(im, "quantization", None)
@@ -308,6 +310,74 @@ def _read(path: Path):
             f"{stored_size[0]} x {stored_size[1]} px: the pixels were turned on reading"
         )
     return pixels, meta
+
+
+# JPEG header segments Pillow writes itself from what it read (JFIF, the EXIF it took,
+# the main XMP packet, the ICC profile) or that describe how the original was coded or
+# what follows it (Adobe APP14: the colour transform of the original coding; MPF: the
+# offsets of preview images that are not written); every other APPn and comment (COM)
+# segment is copied as it was.
+_JPEG_WRITTEN_BY_PILLOW = (
+    (0xE0, b"JFIF\0"),
+    (0xE2, b"ICC_PROFILE\0"),
+    (0xE2, b"MPF\0"),
+    (0xEE, b"Adobe"),
+)
+_JPEG_EXIF = b"Exif\0\0"
+_JPEG_XMP = b"http://ns.adobe.com/xap/1.0/\0"
+
+
+def _jpeg_header_segments(data: bytes) -> list[tuple[int, int, int]]:
+    """``(marker, start, end)`` of the marker segments before the first scan (SOS) or the
+    first frame header's tables, bytes ``data[start:end]`` with marker and length; the
+    walk stops at a malformed length (the decoder has accepted the file)."""
+    out, i, n = [], 2, len(data)
+    while i + 4 <= n and data[i] == 0xFF:
+        marker = data[i + 1]
+        if marker == 0xFF:  # fill byte before a marker
+            i += 1
+            continue
+        if marker == 0xDA or marker == 0xD9 or 0xD0 <= marker <= 0xD7 or marker == 0x01:
+            break
+        end = i + 2 + struct.unpack(">H", data[i + 2 : i + 4])[0]
+        if end > n or end < i + 4:
+            break
+        out.append((marker, i, end))
+        i = end
+    return out
+
+
+def _jpeg_metadata_segments(data: bytes) -> list[bytes]:
+    """The original's APPn and COM segments (whole, marker and length included, in their
+    order) that Pillow does not write: comments, extended XMP (the part of an XMP packet
+    over 64 KB, APP1 ``http://ns.adobe.com/xmp/extension/``), IPTC (APP13), vendors' own
+    segments (APP3-APP15 of cameras), a second EXIF segment."""
+    segs = _jpeg_header_segments(data)
+    pay = [(m, data[a + 4 : b]) for m, a, b in segs]
+    exif = next((k for k, (m, p) in enumerate(pay) if m == 0xE1 and p[:6] == _JPEG_EXIF), None)
+    xmps = [k for k, (m, p) in enumerate(pay) if m == 0xE1 and p[:29] == _JPEG_XMP]
+    taken = {exif, xmps[-1] if xmps else None}  # the ones Pillow reads (first EXIF, last XMP)
+    keep = []
+    for k, (m, p) in enumerate(pay):
+        if not (0xE0 <= m <= 0xEF or m == 0xFE) or k in taken:
+            continue
+        if any(m == wm and p.startswith(wp) for wm, wp in _JPEG_WRITTEN_BY_PILLOW):
+            continue
+        keep.append(data[segs[k][1] : segs[k][2]])
+    return keep
+
+
+def _jpeg_with_segments(encoded: bytes, segments: list[bytes]) -> bytes:
+    """``encoded`` (Pillow's JPEG) with ``segments`` after its own APPn and COM segments,
+    before its tables (so an extended XMP follows the main packet)."""
+    if not segments:
+        return encoded
+    at = 2
+    for m, _a, b in _jpeg_header_segments(encoded):
+        if not (0xE0 <= m <= 0xEF or m == 0xFE):
+            break
+        at = b
+    return encoded[:at] + b"".join(segments) + encoded[at:]
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -852,6 +922,8 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["exif"] = tags
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
+        if fmt == "JPEG":  # comments, extended XMP, IPTC, vendors' segments
+            return _jpeg_with_segments(buf.getvalue(), meta.get("jpeg_segments", [])), note
         return buf.getvalue(), note
     original = meta.get("tiff_bytes")
     params = _tiff_write_options(original) if original is not None else []
