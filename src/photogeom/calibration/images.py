@@ -45,6 +45,7 @@ import logging
 import os
 import struct
 import threading
+import zlib
 from collections.abc import Callable, Mapping
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field, replace
@@ -190,7 +191,21 @@ def _decode_png_named(cv2, data: np.ndarray, path: Path):
     """``_decode_quietly`` for a PNG; a file libpng refuses is a named failure with
     libpng's reason, and its "libpng error: ..." line no longer appears beside it on
     standard error."""
-    pixels, errors = _decode_capturing(cv2, data, (b"libpng error",))
+    pixels, lines = _decode_capturing(cv2, data, (b"libpng error", b"libpng warning"))
+    errors = [e for e in lines if e.startswith(b"libpng error")]
+    # a metadata chunk with a wrong CRC is left out and said in the image's note
+    # (_png_metadata_chunks); libpng's "libpng warning: iTXt: CRC error" beside it went
+    # to standard error without the file's name
+    copied = {*_PNG_BEFORE_IDAT, b"eXIf", *_PNG_ANYWHERE}
+    other = [
+        e
+        for e in lines
+        if e.startswith(b"libpng warning")
+        and not (e.endswith(b": CRC error") and e.split(b":")[1].strip() in copied)
+    ]
+    if other:
+        with contextlib.suppress(OSError):
+            os.write(2, b"".join(e + b"\n" for e in other))
     if pixels is None and errors:
         why = b"; ".join(e.split(b":", 1)[-1].strip() for e in errors).decode("latin-1")
         raise FileFormatError(
@@ -411,15 +426,20 @@ def _png_chunk_beyond_end(data: bytes) -> str | None:
     return None
 
 
-def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[bytes]]:
+def _png_metadata_chunks(
+    data: bytes,
+) -> tuple[list[bytes], list[bytes], list[bytes], list[str]]:
     """The metadata chunks of a PNG file, whole (length, type, data, CRC): those that must
     come before the image data (colour space, ICC profile, resolution; EXIF, which some
     writers put after the image data and libpng then ignores), the text chunks (text,
-    XMP, time) before the image data and those after it. A damaged chunk list ends the walk
+    XMP, time) before the image data and those after it; and the metadata chunks left out
+    because their CRC is wrong (``'iTXt' at byte 33``: libpng warns and ignores them, and
+    copied they made the written file damaged in turn). A damaged chunk list ends the walk
     (the decoders report the damage)."""
     before: list[bytes] = []
     text_before: list[bytes] = []
     text: list[bytes] = []
+    damaged: list[str] = []
     seen_data = False
     at = len(_PNG_SIGNATURE)
     while at + 12 <= len(data):
@@ -428,7 +448,11 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[by
         end = at + 12 + length
         if end > len(data):
             break
-        if kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
+        kept = kind in _PNG_BEFORE_IDAT or kind == b"eXIf" or kind in _PNG_ANYWHERE
+        (crc,) = struct.unpack(">I", data[end - 4 : end])
+        if kept and zlib.crc32(data[at + 4 : end - 4]) != crc:
+            damaged.append(f"{kind.decode('latin-1')!r} at byte {at}")
+        elif kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
             before.append(data[at:end])
         elif kind in _PNG_ANYWHERE:
             (text if seen_data else text_before).append(data[at:end])
@@ -437,7 +461,7 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[by
         elif kind == b"IEND":
             break
         at = end
-    return before, text_before, text
+    return before, text_before, text, damaged
 
 
 def _png_chunk(data: bytes, kind: bytes) -> bytes | None:
@@ -853,9 +877,15 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                     f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
                 )
             png = enc.tobytes()
-        before, text_before, text = meta["png_chunks"]
+        before, text_before, text, damaged = meta["png_chunks"]
         keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
-        note = _icc_note(space) if len(keep) < len(before) else None
+        notes = [_icc_note(space)] if len(keep) < len(before) else []
+        if damaged:
+            notes.append(
+                f"PNG metadata chunk(s) {', '.join(damaged)} left out: their CRC is wrong "
+                "(damaged in the original)"
+            )
+        note = "; ".join(notes) or None
         if meta.get("png_trns") is not None:
             keep = [*keep, meta["png_trns"]]  # after the colour space chunks, before IDAT
         return _png_with_chunks(png, (keep, text_before, text)), note
