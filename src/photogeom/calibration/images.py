@@ -1356,10 +1356,18 @@ def _run_serial(jobs, interpolation, threads, progress, border):
 
 
 def _run_processes(jobs, workers, interpolation, progress, border):
+    """``jobs`` on a pool of ``workers`` local processes (forked), one image per task.
+
+    OpenCV is single-threaded in this process while the pool lives (its count restored
+    after): the processes fork with it and run one OpenCV thread each. Before, each ran
+    as many OpenCV threads as cores (``workers`` x cores threads). The processes cannot set
+    it themselves: in a process forked from one whose OpenCV had started its threads,
+    ``cv2.setNumThreads`` waits for threads that do not exist (a deadlock).
+    """
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     out: list = [None] * len(jobs)
-    with _progress(progress, len(jobs)) as prog:
+    with _progress(progress, len(jobs)) as prog, _opencv_single_threaded():
         ex = ProcessPoolExecutor(workers)
         try:
             t = prog.add_task("correcting images", total=len(jobs))
