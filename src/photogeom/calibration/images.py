@@ -1153,6 +1153,18 @@ def _missing_message(folder: Path, key) -> str:
     """Why image id ``key`` has no file in ``folder``: none of that name, or several files
     with that stem (the id does not say which one), or only files of unsupported formats."""
     k = str(key)
+    # a pipe, folder or device of that name: read one by one, a folder holds files (a
+    # named pipe blocks until something writes to it); it was "no image file named ..."
+    kinds = {"pipe": "a named pipe (FIFO) or socket", "folder": "a folder", "device": "a device"}
+    named = [folder / k, *folder.glob(f"{glob_escape(k)}.*")]
+    other = sorted((p.name, input_kind(p)) for p in named if input_kind(p) in kinds)
+    if other:
+        name, kind = other[0]
+        why = " (a named pipe would wait for a writer)" if kind == "pipe" else ""
+        return (
+            f"{name} in {folder} is {kinds[kind]}, not an image file: the images of a folder "
+            f"are read as regular files{why}; write the image to a regular file of that name"
+        )
     same = sorted(p.name for p in folder.glob(f"{glob_escape(k)}.*") if p.is_file())
     usable = [n for n in same if Path(n).suffix.lower() in IMAGE_SUFFIXES]
     if len(usable) > 1:
