@@ -94,3 +94,26 @@ def test_a_pipe_or_a_folder_in_a_folder_of_images_is_named(tmp_path: Path):
     assert res.failures["IMG_2"].startswith(f"IMG_2.tif in {src} is a folder, not an image")
     assert res.failures["IMG_3"] == f"no image file named IMG_3 (or IMG_3.<ext>) in {src}"
 
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("transform", "apply", "-", "points.csv"),
+        ("grid", "fit", "-", "--image-size", "60x40", "-o", "g.npz"),
+        ("bundle", "adjust", "-"),
+        ("rpc", "info", "-"),
+    ],
+)
+def test_a_dash_as_an_input_says_what_dash_means(cli, tmp_path, monkeypatch, args):
+    """``-`` as an input file was "cannot read -: no such file" (or "-: no such file"):
+    it now says that '-' is the standard output, for outputs only, and names /dev/stdin."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli(*args)
+    assert code == 2
+    assert err.rstrip().endswith(
+        "'-' stands for the standard output, and only where a command writes (-o -): to "
+        "read the standard input, give /dev/stdin"
+    ), err
+    # not said for another missing input
+    code, _, err = cli(*[a if a != "-" else "missing.csv" for a in args])
+    assert code == 2 and "/dev/stdin" not in err
