@@ -426,3 +426,21 @@ def test_the_block_functions_refuse_a_spacing_that_is_not_a_number():
         sweep(fit, [True, 500])
     with pytest.raises(InputError, match="spacings must be a list of numbers"):
         sweep(fit, "300,500")
+
+
+def test_the_study_pipelines_check_their_spacings_before_any_work():
+    """run_study and compare_in_adjustment met a bad spacing only when fitting its grids,
+    after the simulation and the adjustments (minutes); the sweep's after the fine and
+    coarse grids."""
+    from photogeom.calibration.study import compare_in_adjustment, run_study
+
+    with pytest.raises(InputError, match=r"^run_study: spacing must be a number of pixels"):
+        run_study("no such preset", spacing=True)
+    with pytest.raises(InputError, match=r"^run_study: coarse_spacing must be a number"):
+        run_study("no such preset", coarse_spacing="2000")
+    with pytest.raises(InputError, match=r"^run_study: sweep\[2\] must be a positive number"):
+        run_study("no such preset", sweep=[100, 200, 0])
+    with pytest.raises(InputError, match=r"^compare_in_adjustment: spacing must be a number"):
+        compare_in_adjustment(None, "500")
+    with pytest.raises(InputError, match=r"^compare_in_adjustment: combined_spacing must be"):
+        compare_in_adjustment(None, 500, combined_spacing=True)
