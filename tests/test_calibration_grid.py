@@ -4,6 +4,8 @@ properties, variance components, data snooping and bad input."""
 from __future__ import annotations
 
 import math
+import re
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -388,3 +390,57 @@ def test_bad_input():
         grid.evaluate([[400.0, 10.0]])
     with pytest.raises(InputError, match="NaN"):
         grid.evaluate([[np.nan, 10.0]])
+
+
+@pytest.mark.parametrize("bad", [True, np.True_, "100", b"100", [100], None])
+def test_a_spacing_that_is_not_a_number_is_refused_by_name(bad):
+    """``True`` (an int) and ``"100"`` (converts) were taken as 1 px and 100 px."""
+    rng = np.random.default_rng(1)
+    uv = scattered(rng, 400, 600, 400)
+    l = rng.normal(0, 0.1, (400, 2))
+    want = f"grid spacing must be a number of pixels, not {bad!r}"
+    with pytest.raises(InputError, match=f"^{re.escape(want)}$"):
+        GridLayout(600, 400, bad)
+    with pytest.raises(InputError, match=re.escape(want)):
+        fit_grid(uv, l, (600, 400), bad, folds=0)
+    with pytest.raises(InputError, match=re.escape(want)):
+        fit_grids({"a": (uv, l)}, (600, 400), bad, folds=0)
+    # numbers of any real type (and a 0-d array read from a file) are kept
+    for g in (100, 100.0, np.float32(100), np.int64(100), np.array(100.0)):
+        assert GridLayout(600, 400, g).spacing == 100.0
+
+
+def test_the_block_functions_refuse_a_spacing_that_is_not_a_number():
+    import photogeom as pg
+
+    sim = pg.simulate.uav_block("FC300S", seed=1, strips=2, images_per_strip=3)
+    for bad in (True, "1000"):
+        with pytest.raises(InputError, match="grid spacing must be a number of pixels"):
+            pg.calibration.fit_residual_grids(sim.block, bad, folds=0)
+    # the sweep checks every spacing before it fits the first (it takes minutes)
+    fit = SimpleNamespace(block=sim.block)
+    sweep = pg.calibration.sweep_spacings
+    with pytest.raises(InputError, match=r"spacings\[1\] must be a number of pixels, not '500'"):
+        sweep(fit, [300, "500"])
+    with pytest.raises(InputError, match=r"spacings\[0\] must be a number of pixels, not True"):
+        sweep(fit, [True, 500])
+    with pytest.raises(InputError, match="spacings must be a list of numbers"):
+        sweep(fit, "300,500")
+
+
+def test_the_study_pipelines_check_their_spacings_before_any_work():
+    """run_study and compare_in_adjustment met a bad spacing only when fitting its grids,
+    after the simulation and the adjustments (minutes); the sweep's after the fine and
+    coarse grids."""
+    from photogeom.calibration.study import compare_in_adjustment, run_study
+
+    with pytest.raises(InputError, match=r"^run_study: spacing must be a number of pixels"):
+        run_study("no such preset", spacing=True)
+    with pytest.raises(InputError, match=r"^run_study: coarse_spacing must be a number"):
+        run_study("no such preset", coarse_spacing="2000")
+    with pytest.raises(InputError, match=r"^run_study: sweep\[2\] must be a positive number"):
+        run_study("no such preset", sweep=[100, 200, 0])
+    with pytest.raises(InputError, match=r"^compare_in_adjustment: spacing must be a number"):
+        compare_in_adjustment(None, "500")
+    with pytest.raises(InputError, match=r"^compare_in_adjustment: combined_spacing must be"):
+        compare_in_adjustment(None, 500, combined_spacing=True)

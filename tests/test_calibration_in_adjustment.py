@@ -183,6 +183,8 @@ def test_the_small_starting_damping_reaches_the_same_minimum_in_fewer_iterations
     "kwargs, match",
     [
         ({"spacing": 0}, "positive number of pixels"),
+        ({"spacing": True}, "spacing must be a number of pixels, not True"),
+        ({"spacing": "1000"}, "spacing must be a number of pixels, not '1000'"),
         ({"spacing": 5000}, "larger than the image"),
         ({"spacing": 1000, "per": "strip"}, "per must be one of"),
         ({"spacing": 1000, "datum": "none"}, "datum must be one of"),

@@ -188,3 +188,43 @@ def test_a_damaged_png_names_libpngs_reason_without_its_line(tmp_path, grid, cap
         correct_image_file(src, tmp_path / "b.png", grid)
     assert "libpng" not in capfd.readouterr().err
     assert not (tmp_path / "b.png").exists()
+
+
+def _crc_ok(png: bytes) -> bool:
+    """Every chunk's CRC matches its type and data."""
+    at = 8
+    while at < len(png):
+        (length,) = struct.unpack(">I", png[at : at + 4])
+        end = at + 12 + length
+        if zlib.crc32(png[at + 4 : end - 4]) != struct.unpack(">I", png[end - 4 : end])[0]:
+            return False
+        at = end
+    return True
+
+
+def test_a_metadata_chunk_with_a_wrong_crc_is_left_out_and_said(tmp_path, grid, capfd):
+    """libpng warns "iTXt: CRC error" and ignores the chunk; it was copied with its wrong
+    CRC, so the written file was damaged in turn (no note). Now it is left out, named in
+    the image's note; the good chunks and the pixels are kept."""
+    import cv2
+
+    pixels = np.random.default_rng(4).integers(0, 255, (H, W, 3)).astype(np.uint8)
+    png = cv2.imencode(".png", pixels)[1].tobytes()
+    bad = bytearray(_chunk(b"iTXt", b"XML:com.adobe.xmp\x00\x00\x00\x00\x00<x:xmpmeta/>"))
+    bad[-1] ^= 0xFF  # the CRC
+    good = _chunk(b"tEXt", b"Comment\x00kept")
+    src = tmp_path / "a.png"
+    src.write_bytes(png[:33] + bytes(bad) + good + png[33:])
+    assert not _crc_ok(src.read_bytes())  # the premise
+    capfd.readouterr()
+    note = correct_image_file(src, tmp_path / "b.png", grid)
+    assert note == (
+        "PNG metadata chunk(s) 'iTXt' at byte 33 left out: their CRC is wrong (damaged in "
+        "the original)"
+    )
+    assert "libpng" not in capfd.readouterr().err  # said in the note, with the file
+    out = (tmp_path / "b.png").read_bytes()
+    assert _crc_ok(out)
+    assert b"iTXt" not in _chunk_types(out) and b"tEXt" in _chunk_types(out)
+    decoded = cv2.imdecode(np.frombuffer(out, np.uint8), cv2.IMREAD_UNCHANGED)
+    assert _shifted_equal(decoded, pixels)

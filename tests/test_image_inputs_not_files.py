@@ -69,3 +69,51 @@ def test_a_folder_and_a_missing_file_are_named(tmp_path: Path):
     with pytest.raises(FileFormatError, match="no such image file"):
         correct_image_file(tmp_path / "none.png", tmp_path / "out.png", _grid())
     assert not (tmp_path / "out.png").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
+def test_a_pipe_or_a_folder_in_a_folder_of_images_is_named(tmp_path: Path):
+    """In a folder, a named pipe or a folder with an image's name was "no image file named
+    IMG_1 (or IMG_1.<ext>)", though it is there."""
+    from photogeom.calibration import correct_folder
+
+    src = tmp_path / "in"
+    src.mkdir()
+    path, _ = _image(tmp_path)
+    os.replace(path, src / "IMG_0.png")
+    os.mkfifo(src / "IMG_1.jpg")
+    (src / "IMG_2.tif").mkdir()
+    grid = _grid()
+    res = correct_folder(src, tmp_path / "out", {f"IMG_{k}": grid for k in range(4)})
+    assert list(res.written) == ["IMG_0"]
+    assert res.failures["IMG_1"] == (
+        f"IMG_1.jpg in {src} is a named pipe (FIFO) or socket, not an image file: the "
+        "images of a folder are read as regular files (a named pipe would wait for a "
+        "writer); write the image to a regular file of that name"
+    )
+    assert res.failures["IMG_2"].startswith(f"IMG_2.tif in {src} is a folder, not an image")
+    assert res.failures["IMG_3"] == f"no image file named IMG_3 (or IMG_3.<ext>) in {src}"
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("transform", "apply", "-", "points.csv"),
+        ("grid", "fit", "-", "--image-size", "60x40", "-o", "g.npz"),
+        ("bundle", "adjust", "-"),
+        ("rpc", "info", "-"),
+    ],
+)
+def test_a_dash_as_an_input_says_what_dash_means(cli, tmp_path, monkeypatch, args):
+    """``-`` as an input file was "cannot read -: no such file" (or "-: no such file"):
+    it now says that '-' is the standard output, for outputs only, and names /dev/stdin."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli(*args)
+    assert code == 2
+    assert err.rstrip().endswith(
+        "'-' stands for the standard output, and only where a command writes (-o -): to "
+        "read the standard input, give /dev/stdin"
+    ), err
+    # not said for another missing input
+    code, _, err = cli(*[a if a != "-" else "missing.csv" for a in args])
+    assert code == 2 and "/dev/stdin" not in err

@@ -66,7 +66,9 @@ def test_correct_images_counts_images_in_a_log(cli, residual_csv, tmp_path, at_o
         Image.fromarray(np.zeros((H, W), np.uint8)).save(src / f"IMG_{k}.png")
     code, _, err = cli("grid", "correct-images", grids, src, tmp_path / "out")
     assert code == 0, err
-    assert "photogeom: correcting images: 2 of 2 done: done (" in err
+    # the last line read "2 of 2 done: done": the count names images, as grid fit's does
+    assert "photogeom: correcting images: 2 of 2 images: done (" in err
+    assert "done: done" not in err
 
 
 def test_streamed_job_reports_bytes_and_points(cli, tmp_path, at_once):

@@ -66,3 +66,24 @@ def test_the_sweep_axis_is_labelled_with_the_spacings():
     assert minor == []
     assert ax.get_xlabel() == "grid spacing (px)"
     assert ax.get_title() == "step against grid size (Fig. 10)"
+
+
+def test_each_spacing_is_labelled_at_its_point_closest_to_the_origin():
+    """Figure 13 put each spacing's label at the mean of the models' points: for 300 px,
+    models at (time, step) = (0.4, 0.1) and (0.4, 0.9), at (0.4, 0.5), away from both."""
+    spacings = [100.0, 300.0, 1000.0]
+    tn = np.array([[1.0, 0.4, 0.0], [1.0, 0.4, 0.0], [1.0, 0.4, 0.0]])  # one time per spacing
+    sn = np.array([[0.0, 0.1, 1.0], [0.0, 0.9, 1.0], [0.2, np.nan, 1.0]])
+    sweep = {
+        "spacings": spacings,
+        "step": [[1.0, 1.1, 1.2]] * 3,
+        "step_before": [1.5] * 3,
+        "choice": {"step_norm": sn, "time_norm": tn, "index": [1, 1, 0]},
+        "spacing": 300.0,
+    }
+    ax = _fig_sweep(sweep).axes[1]
+    labels = {a.get_text(): tuple(map(float, a.xy)) for a in ax.texts}
+    # at the point of each spacing nearest (0, 0), a NaN left out
+    assert labels == {"100 px": (1.0, 0.0), "300 px": (0.4, 0.1), "1000 px": (0.0, 1.0)}
+    for a in ax.texts:  # drawn beside its point, a few points off
+        assert a.anncoords == "offset points" and a.xyann == (3, 3)

@@ -23,6 +23,7 @@ unconstrained). ``N = A' P A + C' P_c C`` is factorised once for both components
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -61,6 +62,41 @@ MAX_NODES_PER_OBSERVATION = 100
 _BYTES_PER_NODE = 6_000
 
 
+def check_spacing(value: object, name: str = "grid spacing") -> float:
+    """``value`` as a positive finite node spacing in pixels.
+
+    Parameters
+    ----------
+    value : object
+        The spacing (px): a real number (int, float, numpy number); booleans and text
+        are refused (``True`` is an int, ``"100"`` converts, and both were taken as
+        1 px and 100 px).
+    name : str
+        How the error names the value.
+
+    Returns
+    -------
+    float
+        The spacing, px.
+
+    Raises
+    ------
+    InputError
+        Not a real number, or not finite and positive.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()  # a 0-d array, e.g. a value read from a file
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(f"{name} must be a number of pixels, not {value!r}")
+    try:
+        g = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number of pixels, not {value!r}") from None
+    if not math.isfinite(g) or g <= 0:
+        raise InputError(f"{name} must be a positive number of pixels, not {value!r}")
+    return g
+
+
 @dataclass(frozen=True)
 class GridLayout:
     """Node layout of a residual grid over an image.
@@ -84,16 +120,7 @@ class GridLayout:
                 raise InputError(
                     f"image {name} must be a positive whole number of pixels, not {val!r}"
                 )
-        try:
-            g = float(g)
-        except (TypeError, ValueError):
-            raise InputError(
-                f"grid spacing must be a number of pixels, not {self.spacing!r}"
-            ) from None
-        if not math.isfinite(g) or g <= 0:
-            raise InputError(
-                f"grid spacing must be a positive number of pixels, not {self.spacing!r}"
-            )
+        g = check_spacing(g)
         if g > max(w, h):
             raise InputError(
                 f"grid spacing {g:g} px is larger than the image ({w} x {h} px): choose a "

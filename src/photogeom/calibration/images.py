@@ -8,7 +8,10 @@ corrected and written in its stored layout, the original tag kept. The corrected
 written in the original format:
 
 * JPEG (8-bit grey or colour): Pillow, with the original quantisation tables and chroma
-  subsampling (the quality is kept), EXIF, XMP and ICC profile;
+  subsampling (the quality is kept), EXIF, XMP and ICC profile, its other APPn and comment
+  segments copied (comments, extended XMP, IPTC, vendors' segments); of a JPEG with preview
+  images (a multi-picture index, APP2 "MPF") the main image, the previews left out (said
+  in a note);
 * TIFF with 8-bit channels or 16-bit grey: Pillow, with EXIF, XMP (tag 700) and ICC
   profile, with its compression;
 * PNG (any bit depth and channels): in its own colour type and bit depth, the original's
@@ -42,6 +45,7 @@ import logging
 import os
 import struct
 import threading
+import zlib
 from collections.abc import Callable, Mapping
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field, replace
@@ -187,7 +191,21 @@ def _decode_png_named(cv2, data: np.ndarray, path: Path):
     """``_decode_quietly`` for a PNG; a file libpng refuses is a named failure with
     libpng's reason, and its "libpng error: ..." line no longer appears beside it on
     standard error."""
-    pixels, errors = _decode_capturing(cv2, data, (b"libpng error",))
+    pixels, lines = _decode_capturing(cv2, data, (b"libpng error", b"libpng warning"))
+    errors = [e for e in lines if e.startswith(b"libpng error")]
+    # a metadata chunk with a wrong CRC is left out and said in the image's note
+    # (_png_metadata_chunks); libpng's "libpng warning: iTXt: CRC error" beside it went
+    # to standard error without the file's name
+    copied = {*_PNG_BEFORE_IDAT, b"eXIf", *_PNG_ANYWHERE}
+    other = [
+        e
+        for e in lines
+        if e.startswith(b"libpng warning")
+        and not (e.endswith(b": CRC error") and e.split(b":")[1].strip() in copied)
+    ]
+    if other:
+        with contextlib.suppress(OSError):
+            os.write(2, b"".join(e + b"\n" for e in other))
     if pixels is None and errors:
         why = b"; ".join(e.split(b":", 1)[-1].strip() for e in errors).decode("latin-1")
         raise FileFormatError(
@@ -250,10 +268,17 @@ def _read(path: Path):
     meta: dict = {}
     try:
         with Image.open(io.BytesIO(raw)) as im:
-            meta["format"] = im.format
+            # a JPEG with a multi-picture index (APP2 "MPF": a camera's preview image after
+            # the main one, as Sony and DJI cameras write) opens as "MPO": the main image
+            # is an ordinary JPEG, written as one (the previews, of the uncorrected image,
+            # are left out with their index); it was written by OpenCV, its EXIF, XMP, ICC
+            # profile and quantisation tables lost
+            meta["format"] = "JPEG" if im.format == "MPO" else im.format
             meta["mode"] = im.mode
             info = im.info
-            if im.format == "JPEG":
+            if im.format in ("JPEG", "MPO"):
+                meta["jpeg_previews"] = getattr(im, "n_frames", 1) - 1
+                meta["jpeg_segments"] = _jpeg_metadata_segments(raw)
                 from PIL import JpegImagePlugin
 
                 meta["qtables"] = getattr(im, "quantization", None)
@@ -278,7 +303,7 @@ def _read(path: Path):
             meta["exif"] = exif
             meta["icc_profile"] = info.get("icc_profile")
             meta["dpi"] = info.get("dpi")
-            if im.format == "JPEG" and info.get("jfif_unit") not in (1, 2):
+            if meta["format"] == "JPEG" and info.get("jfif_unit") not in (1, 2):
                 # Pillow's dpi of a JPEG without a JFIF unit comes from the EXIF resolution,
                 # or is its default of 72 when the EXIF has none: not the image's, not kept
                 if _TIFF_XRESOLUTION not in im.getexif():
@@ -300,6 +325,74 @@ def _read(path: Path):
             f"{stored_size[0]} x {stored_size[1]} px: the pixels were turned on reading"
         )
     return pixels, meta
+
+
+# JPEG header segments Pillow writes itself from what it read (JFIF, the EXIF it took,
+# the main XMP packet, the ICC profile) or that describe how the original was coded or
+# what follows it (Adobe APP14: the colour transform of the original coding; MPF: the
+# offsets of preview images that are not written); every other APPn and comment (COM)
+# segment is copied as it was.
+_JPEG_WRITTEN_BY_PILLOW = (
+    (0xE0, b"JFIF\0"),
+    (0xE2, b"ICC_PROFILE\0"),
+    (0xE2, b"MPF\0"),
+    (0xEE, b"Adobe"),
+)
+_JPEG_EXIF = b"Exif\0\0"
+_JPEG_XMP = b"http://ns.adobe.com/xap/1.0/\0"
+
+
+def _jpeg_header_segments(data: bytes) -> list[tuple[int, int, int]]:
+    """``(marker, start, end)`` of the marker segments before the first scan (SOS) or the
+    first frame header's tables, bytes ``data[start:end]`` with marker and length; the
+    walk stops at a malformed length (the decoder has accepted the file)."""
+    out, i, n = [], 2, len(data)
+    while i + 4 <= n and data[i] == 0xFF:
+        marker = data[i + 1]
+        if marker == 0xFF:  # fill byte before a marker
+            i += 1
+            continue
+        if marker == 0xDA or marker == 0xD9 or 0xD0 <= marker <= 0xD7 or marker == 0x01:
+            break
+        end = i + 2 + struct.unpack(">H", data[i + 2 : i + 4])[0]
+        if end > n or end < i + 4:
+            break
+        out.append((marker, i, end))
+        i = end
+    return out
+
+
+def _jpeg_metadata_segments(data: bytes) -> list[bytes]:
+    """The original's APPn and COM segments (whole, marker and length included, in their
+    order) that Pillow does not write: comments, extended XMP (the part of an XMP packet
+    over 64 KB, APP1 ``http://ns.adobe.com/xmp/extension/``), IPTC (APP13), vendors' own
+    segments (APP3-APP15 of cameras), a second EXIF segment."""
+    segs = _jpeg_header_segments(data)
+    pay = [(m, data[a + 4 : b]) for m, a, b in segs]
+    exif = next((k for k, (m, p) in enumerate(pay) if m == 0xE1 and p[:6] == _JPEG_EXIF), None)
+    xmps = [k for k, (m, p) in enumerate(pay) if m == 0xE1 and p[:29] == _JPEG_XMP]
+    taken = {exif, xmps[-1] if xmps else None}  # the ones Pillow reads (first EXIF, last XMP)
+    keep = []
+    for k, (m, p) in enumerate(pay):
+        if not (0xE0 <= m <= 0xEF or m == 0xFE) or k in taken:
+            continue
+        if any(m == wm and p.startswith(wp) for wm, wp in _JPEG_WRITTEN_BY_PILLOW):
+            continue
+        keep.append(data[segs[k][1] : segs[k][2]])
+    return keep
+
+
+def _jpeg_with_segments(encoded: bytes, segments: list[bytes]) -> bytes:
+    """``encoded`` (Pillow's JPEG) with ``segments`` after its own APPn and COM segments,
+    before its tables (so an extended XMP follows the main packet)."""
+    if not segments:
+        return encoded
+    at = 2
+    for m, _a, b in _jpeg_header_segments(encoded):
+        if not (0xE0 <= m <= 0xEF or m == 0xFE):
+            break
+        at = b
+    return encoded[:at] + b"".join(segments) + encoded[at:]
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -333,15 +426,20 @@ def _png_chunk_beyond_end(data: bytes) -> str | None:
     return None
 
 
-def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[bytes]]:
+def _png_metadata_chunks(
+    data: bytes,
+) -> tuple[list[bytes], list[bytes], list[bytes], list[str]]:
     """The metadata chunks of a PNG file, whole (length, type, data, CRC): those that must
     come before the image data (colour space, ICC profile, resolution; EXIF, which some
     writers put after the image data and libpng then ignores), the text chunks (text,
-    XMP, time) before the image data and those after it. A damaged chunk list ends the walk
+    XMP, time) before the image data and those after it; and the metadata chunks left out
+    because their CRC is wrong (``'iTXt' at byte 33``: libpng warns and ignores them, and
+    copied they made the written file damaged in turn). A damaged chunk list ends the walk
     (the decoders report the damage)."""
     before: list[bytes] = []
     text_before: list[bytes] = []
     text: list[bytes] = []
+    damaged: list[str] = []
     seen_data = False
     at = len(_PNG_SIGNATURE)
     while at + 12 <= len(data):
@@ -350,7 +448,11 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[by
         end = at + 12 + length
         if end > len(data):
             break
-        if kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
+        kept = kind in _PNG_BEFORE_IDAT or kind == b"eXIf" or kind in _PNG_ANYWHERE
+        (crc,) = struct.unpack(">I", data[end - 4 : end])
+        if kept and zlib.crc32(data[at + 4 : end - 4]) != crc:
+            damaged.append(f"{kind.decode('latin-1')!r} at byte {at}")
+        elif kind in _PNG_BEFORE_IDAT or kind == b"eXIf":
             before.append(data[at:end])
         elif kind in _PNG_ANYWHERE:
             (text if seen_data else text_before).append(data[at:end])
@@ -359,7 +461,7 @@ def _png_metadata_chunks(data: bytes) -> tuple[list[bytes], list[bytes], list[by
         elif kind == b"IEND":
             break
         at = end
-    return before, text_before, text
+    return before, text_before, text, damaged
 
 
 def _png_chunk(data: bytes, kind: bytes) -> bytes | None:
@@ -775,9 +877,15 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                     f"cannot encode a {pixels.dtype} image with {channels} channel(s) as PNG"
                 )
             png = enc.tobytes()
-        before, text_before, text = meta["png_chunks"]
+        before, text_before, text, damaged = meta["png_chunks"]
         keep = [c for c in before if c[4:8] != b"iCCP" or not _icc_other(_png_icc(c), space)]
-        note = _icc_note(space) if len(keep) < len(before) else None
+        notes = [_icc_note(space)] if len(keep) < len(before) else []
+        if damaged:
+            notes.append(
+                f"PNG metadata chunk(s) {', '.join(damaged)} left out: their CRC is wrong "
+                "(damaged in the original)"
+            )
+        note = "; ".join(notes) or None
         if meta.get("png_trns") is not None:
             keep = [*keep, meta["png_trns"]]  # after the colour space chunks, before IDAT
         return _png_with_chunks(png, (keep, text_before, text)), note
@@ -825,6 +933,12 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["quality"] = 95
             if xmp:
                 kw["xmp"] = xmp
+            if meta.get("jpeg_previews"):
+                note = (
+                    f"{meta['jpeg_previews']} preview image(s) after the main image (APP2 "
+                    "MPF index) not kept: they show the uncorrected image"
+                    + ("" if note is None else f"; {note}")
+                )
         elif fmt == "TIFF":
             if meta.get("compression") and meta["compression"] != "raw":
                 kw["compression"] = meta["compression"]
@@ -838,6 +952,8 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["exif"] = tags
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
+        if fmt == "JPEG":  # comments, extended XMP, IPTC, vendors' segments
+            return _jpeg_with_segments(buf.getvalue(), meta.get("jpeg_segments", [])), note
         return buf.getvalue(), note
     original = meta.get("tiff_bytes")
     params = _tiff_write_options(original) if original is not None else []
@@ -1037,6 +1153,18 @@ def _missing_message(folder: Path, key) -> str:
     """Why image id ``key`` has no file in ``folder``: none of that name, or several files
     with that stem (the id does not say which one), or only files of unsupported formats."""
     k = str(key)
+    # a pipe, folder or device of that name: read one by one, a folder holds files (a
+    # named pipe blocks until something writes to it); it was "no image file named ..."
+    kinds = {"pipe": "a named pipe (FIFO) or socket", "folder": "a folder", "device": "a device"}
+    named = [folder / k, *folder.glob(f"{glob_escape(k)}.*")]
+    other = sorted((p.name, input_kind(p)) for p in named if input_kind(p) in kinds)
+    if other:
+        name, kind = other[0]
+        why = " (a named pipe would wait for a writer)" if kind == "pipe" else ""
+        return (
+            f"{name} in {folder} is {kinds[kind]}, not an image file: the images of a folder "
+            f"are read as regular files{why}; write the image to a regular file of that name"
+        )
     same = sorted(p.name for p in folder.glob(f"{glob_escape(k)}.*") if p.is_file())
     usable = [n for n in same if Path(n).suffix.lower() in IMAGE_SUFFIXES]
     if len(usable) > 1:
@@ -1240,10 +1368,18 @@ def _run_serial(jobs, interpolation, threads, progress, border):
 
 
 def _run_processes(jobs, workers, interpolation, progress, border):
+    """``jobs`` on a pool of ``workers`` local processes (forked), one image per task.
+
+    OpenCV is single-threaded in this process while the pool lives (its count restored
+    after): the processes fork with it and run one OpenCV thread each. Before, each ran
+    as many OpenCV threads as cores (``workers`` x cores threads). The processes cannot set
+    it themselves: in a process forked from one whose OpenCV had started its threads,
+    ``cv2.setNumThreads`` waits for threads that do not exist (a deadlock).
+    """
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     out: list = [None] * len(jobs)
-    with _progress(progress, len(jobs)) as prog:
+    with _progress(progress, len(jobs)) as prog, _opencv_single_threaded():
         ex = ProcessPoolExecutor(workers)
         try:
             t = prog.add_task("correcting images", total=len(jobs))

@@ -23,7 +23,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from .blocks import (
     readjust,
 )
 from .evaluate import choose_spacing, compare_residuals, most_frequent_spacing
-from .grid import _rms_len
+from .grid import _rms_len, check_spacing
 from .steps import model_steps
 
 __all__ = [
@@ -304,6 +304,14 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
     return out
 
 
+def _spacings(values, name: str) -> list[float]:
+    """``values`` as a list of spacings (px), each checked (:func:`check_spacing`); text
+    and booleans are refused by ``name``."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
+        raise InputError(f"{name} must be a list of numbers of pixels, not {values!r}")
+    return [check_spacing(s, f"{name}[{i}]") for i, s in enumerate(values)]
+
+
 def sweep_spacings(
     fit,
     spacings: Sequence[float],
@@ -348,7 +356,8 @@ def sweep_spacings(
         ``step_rematched``, ``choice_rematched`` and ``spacing_rematched`` (the same
         models; the times are those of the first re-adjustment).
     """
-    g = [float(s) for s in spacings]
+    # every spacing checked before the first is fitted (a sweep takes minutes)
+    g = _spacings(spacings, "sweep_spacings: spacings")
     if len(g) < 2:
         raise InputError("sweep_spacings: give at least two spacings")
     if rematched is not None:
@@ -472,6 +481,11 @@ def run_study(
     from ..bundle.adjustment import bundle_adjust
     from ..simulate import uav_block
 
+    # the spacings checked before the simulation and the adjustment (minutes)
+    spacing = check_spacing(spacing, "run_study: spacing")
+    coarse_spacing = check_spacing(coarse_spacing, "run_study: coarse_spacing")
+    if sweep is not None:
+        sweep = _spacings(sweep, "run_study: sweep")
     opts = {"folds": 0, **(fit_options or {})}
     times = {}
     t0 = time.perf_counter()
@@ -588,6 +602,12 @@ def compare_in_adjustment(
     from ..bundle.adjustment import bundle_adjust
     from .in_adjustment import adjust_with_grids
 
+    # the spacings checked before the adjustments (minutes)
+    spacing = check_spacing(spacing, "compare_in_adjustment: spacing")
+    if combined_spacing is not None:
+        combined_spacing = check_spacing(
+            combined_spacing, "compare_in_adjustment: combined_spacing"
+        )
     t0 = time.perf_counter()
     fit = bundle_adjust(sim.block, snooping=False)
     t_first = time.perf_counter() - t0

@@ -1381,7 +1381,7 @@ def correct_images(
         with nullcontext() if terminal else LogProgress("correcting images") as log:
 
             def counted(done: int, total: int) -> None:
-                log.update(f"correcting images: {done} of {total} done")
+                log.update(f"correcting images: {done} of {total} images")
 
             res = correct_folder(
                 src_dir,

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -85,6 +86,25 @@ def _register() -> None:
 _register()
 
 
+#: A missing input named ``-`` in an error: ``-: no such file``, ``cannot read -: no such
+#: file``, ``no file or folder -`` (the readers' words differ).
+_DASH_MISSING = re.compile(r"(?<![^\s(])-(?=[:\s,;)]|$)")
+
+
+def _dash_input_hint(message: str, argv: list[str]) -> str:
+    """What ``-`` means, when ``message`` says that an input ``-`` does not exist and
+    ``-`` was given on the command line (no file of that name): ``-`` is the standard
+    output, and only for outputs; the standard input is read as ``/dev/stdin``."""
+    if "-" not in argv or os.path.lexists("-"):
+        return ""
+    if not ("no such" in message or "no file" in message) or not _DASH_MISSING.search(message):
+        return ""
+    return (
+        "; '-' stands for the standard output, and only where a command writes (-o -): "
+        "to read the standard input, give /dev/stdin"
+    )
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI; photogeom errors, running out of memory and a standard output that
     cannot be written (a full disk, a file-size limit) become a one-line message and exit
@@ -113,7 +133,9 @@ def main(argv: list[str] | None = None) -> None:
     except PhotogeomError as exc:
         from ._common import in_cli_words
 
-        typer.secho(f"error: {in_cli_words(str(exc))}", err=True, fg=typer.colors.RED)
+        message = in_cli_words(str(exc))
+        message += _dash_input_hint(message, sys.argv[1:] if argv is None else argv)
+        typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
         sys.exit(2)
     except MemoryError as exc:  # numpy's _ArrayMemoryError too: one line, not a traceback
         detail = f" ({exc})" if str(exc) else ""

@@ -216,8 +216,15 @@ def _fig_sweep(sweep) -> Figure:
                 label=f"one stereo model ({n_models})" if m == 0 else None)
         a2.plot(tn[m, idx[m]], sn[m, idx[m]], "o", color="#a01d12",
                 label="its spacing closest to (0, 0)" if m == 0 else None)
+    # each spacing labelled at its own point closest to the origin (where the choice is
+    # made), a few points off it; at the mean over the models, the label could stand far
+    # from every point of its spacing (models (0, 1) and (1, 0): at (0.5, 0.5))
+    d = np.where(np.isfinite(tn) & np.isfinite(sn), np.hypot(tn, sn), np.inf)
     for c, sp in enumerate(g):
-        a2.annotate(f"{sp:g} px", (tn[:, c].mean(), sn[:, c].mean()), fontsize=7)
+        m = int(np.argmin(d[:, c]))
+        if np.isfinite(d[m, c]):
+            a2.annotate(f"{sp:g} px", (tn[m, c], sn[m, c]), xytext=(3, 3),
+                        textcoords="offset points", fontsize=7)  # fmt: skip
     a2.set_xlabel("normalised computing time")
     a2.set_ylabel("normalised step")
     a2.legend(fontsize=8, loc="upper right")
