@@ -6,7 +6,8 @@ grids per image, correct the observations, re-adjust with the exterior orientati
 calibration fixed, and measure: the mean height step between consecutive stereo models
 (GSD) before and after, the reduction of the tie-point residual RMS, the share of the
 100 px grid's step gain that a 2000 px grid gives, the closest-to-origin spacing of the
-sweep (most frequent over the models), the fitted field against the true local field, and
+sweep (most frequent over the models; its cost is the CPU time of the grid fit and the
+correction, ``sweep_spacings``), the fitted field against the true local field, and
 the check-point RMSE against the truth. The step, the 2000 px share and the spacing are
 measured twice: on the corrected first observations, and on the observations measured again
 (``sim.rematch``: fresh noise, as the study's re-matching of the corrected images), where

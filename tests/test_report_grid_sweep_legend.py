@@ -27,4 +27,4 @@ def test_cost_against_accuracy_panel_has_a_legend():
         "its spacing closest to (0, 0)",
     ]
     assert sorted(t.get_text() for t in ax.texts) == ["1000 px", "200 px", "500 px"]
-    assert ax.get_xlabel() == "normalised computing time"
+    assert ax.get_xlabel() == "normalised CPU time (grid fit and correction)"

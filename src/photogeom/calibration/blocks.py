@@ -334,8 +334,6 @@ def readjust(block: Block, grids: Mapping, *, uncorrected=(), **options):
     -------
     BundleFit
     """
-    from ..bundle.adjustment import bundle_adjust
-
     fixed = sorted({"fix_exterior", "free"} & set(options))
     if fixed:
         raise InputError(
@@ -344,4 +342,12 @@ def readjust(block: Block, grids: Mapping, *, uncorrected=(), **options):
             "for another setting)"
         )
     corrected = correct_block_observations(block, grids, uncorrected=uncorrected)
+    return _adjust_corrected(corrected, **options)
+
+
+def _adjust_corrected(corrected: Block, **options):
+    """The adjustment of :func:`readjust` on observations already corrected: exterior
+    orientation and Brown coefficients fixed, the points re-triangulated."""
+    from ..bundle.adjustment import bundle_adjust
+
     return bundle_adjust(corrected, fix_exterior=True, free=(), **options)

@@ -10,7 +10,8 @@ self-contained HTML file with:
 * one image's residuals and its fitted grid, exaggerated (Figure 8);
 * the step against the grid size, before and after (Figure 10), also on re-matched
   observations when the results have them;
-* the normalised cost and accuracy of every spacing with the chosen one (Figure 13);
+* the normalised cost (CPU time of the grid fit and the correction) and accuracy of every
+  spacing with the chosen one (Figure 13);
 * the step per model before and after (Figure 14);
 * tables: residual RMS and mean length, steps (also re-matched), check points (X, Y, Z and
   3D) and, for a simulated block, every tie point against the truth, published numbers
@@ -225,7 +226,7 @@ def _fig_sweep(sweep) -> Figure:
         if np.isfinite(d[m, c]):
             a2.annotate(f"{sp:g} px", (tn[m, c], sn[m, c]), xytext=(3, 3),
                         textcoords="offset points", fontsize=7)  # fmt: skip
-    a2.set_xlabel("normalised computing time")
+    a2.set_xlabel("normalised CPU time (grid fit and correction)")
     a2.set_ylabel("normalised step")
     a2.legend(fontsize=8, loc="upper right")
     a2.set_title(f"cost against accuracy; chosen {sweep['spacing']:g} px (Fig. 13)", fontsize=9)
