@@ -63,12 +63,13 @@ _BYTES_PER_NODE = 6_000
 
 
 def check_spacing(value: object, name: str = "grid spacing") -> float:
-    """``value`` as a positive finite node spacing in pixels.
+    """``value`` as a positive finite length in pixels: a node spacing, or a standard
+    deviation of the grids' pseudo-observations.
 
     Parameters
     ----------
     value : object
-        The spacing (px): a real number (int, float, numpy number); booleans and text
+        The length (px): a real number (int, float, numpy number); booleans and text
         are refused (``True`` is an int, ``"100"`` converts, and both were taken as
         1 px and 100 px).
     name : str
@@ -77,7 +78,7 @@ def check_spacing(value: object, name: str = "grid spacing") -> float:
     Returns
     -------
     float
-        The spacing, px.
+        The length, px.
 
     Raises
     ------

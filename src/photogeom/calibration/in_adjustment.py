@@ -76,6 +76,7 @@ from .grid import (
     _node_counts,
     _rms_len,
     check_min_support,
+    check_spacing,
 )
 
 __all__ = ["GridAdjustment", "adjust_with_grids"]
@@ -774,8 +775,8 @@ def adjust_with_grids(
     check_min_support(min_support)
     from .grid import scaled_constraint_sigma
 
-    sc = _positive(scaled_constraint_sigma(sigma_constraint, spacing), "sigma_constraint")
-    st = None if sigma_temporal is None else _positive(sigma_temporal, "sigma_temporal")
+    sc = check_spacing(scaled_constraint_sigma(sigma_constraint, spacing), "sigma_constraint")
+    st = None if sigma_temporal is None else check_spacing(sigma_temporal, "sigma_temporal")
     if st is not None and per != "image":
         raise InputError("sigma_temporal needs per='image' (temporal constraints join images)")
     opts = options or BundleOptions(initial_damping=INITIAL_DAMPING)
@@ -885,7 +886,7 @@ def _amplitude(block: Block, value, spacing: float, sc: float, border: str) -> f
                 f"{AMPLITUDE_FROM_RESIDUALS!r} or None, not {value!r}"
             )
         return AMPLITUDE_FACTOR * _smooth_residual_rms(block, spacing, sc, border)
-    return _positive(value, "sigma_amplitude")
+    return check_spacing(value, "sigma_amplitude")
 
 
 def _smooth_residual_rms(block: Block, spacing: float, sc: float, border: str) -> float:
@@ -910,13 +911,3 @@ def _smooth_residual_rms(block: Block, spacing: float, sc: float, border: str) -
             "from (fewer than 4 per image, or all zero); give sigma_amplitude in pixels or None"
         )
     return rms
-
-
-def _positive(value, name: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a positive number of pixels, not {value!r}") from None
-    if not math.isfinite(x) or x <= 0:
-        raise InputError(f"{name} must be a positive number of pixels, not {value!r}")
-    return x
