@@ -225,10 +225,7 @@ def read_only_fields(obj: T) -> T:
     """
     d = obj.__dict__
     for name, value in d.items():
-        if isinstance(value, np.ndarray) and value.flags.writeable:
-            view = value.view()
-            view.flags.writeable = False
-            d[name] = view
+        d[name] = read_only_view(value)
     return obj
 
 
@@ -269,10 +266,7 @@ def frozen_value(value):
         ``value`` or a read-only view of it.
     """
     if isinstance(value, np.ndarray):
-        if value.flags.writeable:
-            value = value.view()
-            value.flags.writeable = False
-        return value
+        return read_only_view(value)
     if isinstance(value, Mapping):
         return FrozenMapping({k: frozen_value(v) for k, v in value.items()})
     if isinstance(value, (list, tuple)) and not hasattr(value, "_fields"):  # not namedtuples
