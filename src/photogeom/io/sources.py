@@ -88,7 +88,8 @@ def _pipe_key(path: str | os.PathLike) -> tuple[str, int, int]:
     return (os.path.abspath(path), st.st_dev, st.st_ino)
 
 
-def _read_pipe(path: str | os.PathLike, limit: int | None) -> bytes:
+def _read_upto(path: str | os.PathLike, limit: int | None) -> bytes:
+    """The bytes of ``path`` (a file or a pipe), at most ``limit + 1`` (None: all)."""
     with open(path, "rb") as fh:
         return fh.read() if limit is None else fh.read(limit + 1)
 
@@ -130,10 +131,10 @@ def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
     """
     kept = kept_pipes()
     if kept is None:
-        return _read_pipe(path, limit)
+        return _read_upto(path, limit)
     key = _pipe_key(path)
     if key not in kept:
-        kept[key] = (_read_pipe(path, limit), limit)
+        kept[key] = (_read_upto(path, limit), limit)
     data, read_to = kept[key]
     cut = read_to is not None and len(data) > read_to
     if cut and (limit is None or limit > read_to):
@@ -181,8 +182,7 @@ def read_input_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
     """
     if input_kind(path) == "pipe":
         return pipe_bytes(path, limit)
-    with open(path, "rb") as fh:
-        return fh.read() if limit is None else fh.read(limit + 1)
+    return _read_upto(path, limit)
 
 
 class _KeepingReader:
