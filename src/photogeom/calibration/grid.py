@@ -89,10 +89,7 @@ def check_spacing(value: object, name: str = "grid spacing") -> float:
         value = value.item()  # a 0-d array, e.g. a value read from a file
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InputError(f"{name} must be a number of pixels, not {value!r}")
-    try:
-        g = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number of pixels, not {value!r}") from None
+    g = float(value)  # every numbers.Real converts
     if not math.isfinite(g) or g <= 0:
         raise InputError(f"{name} must be a positive number of pixels, not {value!r}")
     return g
