@@ -1,14 +1,20 @@
 """The ``<covariance>`` of a Metashape calibration XML as read back: a malformed one
 (an unknown term in ``<params>``, an asymmetric matrix, a negative variance) is refused by
-name instead of being read as it stands or with the unknown term dropped."""
+name instead of being read as it stands or with the unknown term dropped; a well-formed one
+comes back from ``read_calibration_file`` as written, with its standard deviations (before:
+none for an XML)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import photogeom as pg
 from photogeom.camera.calibration_files import (
+    METASHAPE_ORDER,
+    PARAMETERS,
     metashape_covariance_from_xml,
     read_calibration_file,
 )
@@ -72,3 +78,47 @@ def test_writer_refuses_what_the_reader_refuses(tmp_path, suffix):
             CAL, tmp_path / f"c{suffix}", covariance=(("f", "cx"), [[1.0, 0.0], [0.0, -2.0]])
         )
     assert not any(tmp_path.iterdir())
+
+
+# --- round trip: write_calibration (.xml) -> read_calibration_file -------------------------
+
+#: Typical standard deviations of each parameter (px for f, cx, cy, b1, b2; unitless else).
+_SCALE = {"f": 2.0, "cx": 0.8, "cy": 0.9, "b1": 0.3, "b2": 0.1, "k1": 1e-3, "k2": 1e-3,
+          "k3": 1e-4, "k4": 1e-5, "p1": 1e-5, "p2": 2e-5}  # fmt: skip
+_NO_OPENCV = ("b1", "b2", "k4")  # OpenCV's std_deviations_intrinsics cannot hold them alone
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    names=st.lists(st.sampled_from(PARAMETERS), min_size=1, max_size=11, unique=True),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_round_trip_keeps_covariance_and_gives_std(tmp_path_factory, names, seed):
+    rng = np.random.default_rng(seed)
+    n = len(names)
+    A = rng.normal(size=(n, n))
+    s = np.array([_SCALE[v] for v in names])
+    C = (A @ A.T + 0.1 * np.eye(n)) * np.outer(s, s)  # symmetric positive definite
+    d = tmp_path_factory.mktemp("rt")
+    pg.write_calibration(CAL, d / "c.xml", covariance=(names, C))
+    cal, std, (got, G) = read_calibration_file(d / "c.xml")
+    assert cal == CAL
+    assert list(got) == [v for v in METASHAPE_ORDER if v in names]  # Metashape's order
+    idx = [names.index(v) for v in got]
+    np.testing.assert_array_equal(G, C[np.ix_(idx, idx)])  # 17 digits: exact
+    assert set(std) == set(names)
+    for k, v in enumerate(names):
+        assert std[v] == pytest.approx(np.sqrt(C[k, k]), rel=1e-15)
+    # Metashape's p1, p2 are photogeom's (no swap); OpenCV's are swapped. The OpenCV YAML of
+    # the same covariance, read by cv2.FileStorage, gives the same standard deviations
+    if not set(names) & set(_NO_OPENCV):
+        pg.write_calibration(CAL, d / "c.yaml", covariance=(names, C))
+        _, std_cv, _ = read_calibration_file(d / "c.yaml")
+        assert set(std_cv) == set(std)
+        for v in std:
+            assert std_cv[v] == pytest.approx(std[v], rel=1e-12)
+
+
+def test_xml_without_covariance_has_no_std(tmp_path):
+    pg.write_calibration(CAL, tmp_path / "c.xml")
+    assert read_calibration_file(tmp_path / "c.xml")[1:] == ({}, None)

@@ -859,8 +859,10 @@ def read_calibration_file(
     Returns
     -------
     calibration, std, covariance
-        As :func:`calibration_from_json` (for an XML, ``std`` is empty and ``covariance``
-        its ``<covariance>`` or None; for an OpenCV document the standard deviations of its
+        As :func:`calibration_from_json` (for an XML, ``covariance`` its ``<covariance>``
+        in the order of its ``<params>`` and ``std`` the square roots of its diagonal, px /
+        unitless, or None and empty without one; for an OpenCV document the standard
+        deviations of its
         ``std_deviations_intrinsics`` and no covariance; for a ``cameras.txt`` neither).
 
     Raises
@@ -892,11 +894,9 @@ def read_calibration_file(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
                 "<height>); leave the image size out"
             )
-        return (
-            MetashapeCalibration.from_xml_string(data, source=where),
-            {},
-            metashape_covariance_from_xml(data, where),
-        )
+        calib = MetashapeCalibration.from_xml_string(data, source=where)
+        cov = metashape_covariance_from_xml(data, where)
+        return calib, _std_of(None, cov), cov
     if fmt == "json":
         obj = parse_json_bytes(data, where)
         if "camera_matrix" in obj and not any(k in obj for k in ("calibration", "interior")):
