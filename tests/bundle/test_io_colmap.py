@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from photogeom.bundle import (
     Block,
+    bundle_adjust,
     projected_pixels,
     read_colmap,
     reprojection_residuals,
@@ -180,6 +181,112 @@ def test_image_variant_groups_become_one_camera_per_image(tmp_path):
     back = read_colmap(tmp_path, image_key="id")
     np.testing.assert_allclose(back.calibration_matrix(), b.calibration_matrix(), atol=1e-12)
     np.testing.assert_allclose(reprojection_residuals(back), reprojection_residuals(b), atol=1e-9)
+
+
+def _variant_block(rng, m=8, p=40):
+    """One OPENCV group with image-variant f, cx, cy (offsets of a few px) and a second,
+    ordinary group."""
+    b = _block(
+        rng,
+        {0: CALS["OPENCV"], 1: CALS["RADIAL"]},
+        m=m,
+        p=p,
+        free={0: MODEL_FREE["OPENCV"], 1: MODEL_FREE["RADIAL"]},
+    )
+    off = np.zeros((b.n_images, 3))
+    rows = b.image_camera == 0
+    off[rows, 0] = rng.normal(0, 2, rows.sum())
+    off[rows, 1:] = rng.normal(0, 1, (rows.sum(), 2))
+    return b.replace(calibration_offset=off, image_variant={0: ("f", "cx", "cy"), 1: ()})
+
+
+def test_image_variant_group_is_one_group_again_on_reading(tmp_path):
+    """Written as one COLMAP camera per image, read back as the one group with image-variant
+    f, cx, cy it was (before: one group per image, each with its own distortion free): the
+    adjustment of the read block solves the problem of the written one."""
+    b = _variant_block(np.random.default_rng(11))
+    write_colmap(b, tmp_path)
+    rec = pycolmap.Reconstruction(str(tmp_path))  # COLMAP skips the group's comment line
+    assert len(rec.cameras) == 4 + 1
+    proj, _ = _pycolmap_pixels(rec, b, image_key="id")
+    assert np.abs(proj - projected_pixels(b)[0]).max() < 1e-9
+    back = read_colmap(tmp_path, image_key="id")
+    assert len(back.calibrations) == 2
+    g = back.camera_ids[back.image_camera[0]]
+    assert back.image_variant[g] == ("f", "cx", "cy")
+    assert back.calibrations[back.image_camera[0]] == b.calibrations[0]  # the group's value
+    np.testing.assert_allclose(back.calibration_offset, b.calibration_offset, atol=1e-12)
+    np.testing.assert_allclose(back.calibration_matrix(), b.calibration_matrix(), atol=1e-12)
+    assert [len(back.free[k]) for k in back.camera_ids.tolist()] == [6, 3]
+    fits = [bundle_adjust(x, datum="free") for x in (b, back)]
+    assert fits[0].redundancy == fits[1].redundancy  # before: 344, not 351 (4 x 6 vs 5 + 4 x 3)
+    assert fits[1].sigma0 == pytest.approx(fits[0].sigma0, rel=1e-9)
+    np.testing.assert_allclose(
+        fits[1].block.calibration_matrix(), fits[0].block.calibration_matrix(), atol=1e-6
+    )
+    # written again: the same cameras.txt (ids, values, the group's line)
+    write_colmap(back, tmp_path / "again")
+    again = (tmp_path / "again" / "cameras.txt").read_text()
+    assert again == (tmp_path / "cameras.txt").read_text()
+
+
+def test_image_variant_names_without_offsets_are_kept(tmp_path):
+    rng = np.random.default_rng(12)
+    b = _block(rng, {5: CALS["RADIAL"]}, free=MODEL_FREE["RADIAL"])
+    b = b.replace(image_variant={5: ("f",)})
+    write_colmap(b, tmp_path)
+    assert len(pycolmap.Reconstruction(str(tmp_path)).cameras) == 1
+    back = read_colmap(tmp_path, image_key="id")
+    assert dict(back.image_variant) == {5: ("f",)}  # before: {5: ()}
+    _assert_same(b, back)
+
+
+def test_offsets_without_image_variant_names_are_kept_as_offsets(tmp_path):
+    b = _variant_block(np.random.default_rng(15))
+    b = b.replace(image_variant={0: (), 1: ()})  # offsets held at their values
+    write_colmap(b, tmp_path)
+    assert "image_variant none;" in (tmp_path / "cameras.txt").read_text()
+    back = read_colmap(tmp_path, image_key="id")
+    assert len(back.calibrations) == 2 and not any(back.image_variant.values())
+    np.testing.assert_allclose(back.calibration_offset, b.calibration_offset, atol=1e-12)
+
+
+def test_a_model_colmap_wrote_again_has_one_group_per_camera(tmp_path):
+    """COLMAP does not keep the comment: its model is read as COLMAP adjusts it, one group
+    per camera with its model's parameters free."""
+    b = _variant_block(np.random.default_rng(13))
+    write_colmap(b, tmp_path / "ours")
+    (tmp_path / "colmap").mkdir()
+    pycolmap.Reconstruction(str(tmp_path / "ours")).write_text(str(tmp_path / "colmap"))
+    back = read_colmap(tmp_path / "colmap", image_key="id")
+    assert len(back.calibrations) == 5 and not any(back.image_variant.values())
+    assert all(set(back.free[k]) == set(MODEL_FREE["OPENCV"]) for k in range(1, 5))
+    np.testing.assert_allclose(back.calibration_matrix(), b.calibration_matrix(), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (lambda t: t.replace("-0.05 0.02", "-0.06 0.02", 1), r"cameras 1 and 2 .* k1 differ"),
+        (lambda t: t.replace("CAMERA_ID 1 2 3 4", "CAMERA_ID 1 2 3 4 99"), r"CAMERA_ID 99"),
+        (lambda t: t.replace("image_variant f cx cy", "image_variant f k1"), r"f, cx, cy"),
+        (lambda t: t.replace("; f 3100.0", "; f=3100.0"), r"must read"),
+        (
+            lambda t: t.replace("CAMERA_ID 1 2 3 4", "CAMERA_ID 1 2 3 4 5"),
+            r"cameras 1 and 5 .* model or image size",
+        ),
+    ],
+)
+def test_edited_group_comment_is_refused(tmp_path, edit, match):
+    b = _variant_block(np.random.default_rng(14))
+    write_colmap(b, tmp_path)
+    cams = tmp_path / "cameras.txt"
+    text = cams.read_text()
+    assert "CAMERA_ID 1 2 3 4\n" in text
+    cams.write_text(edit(text))
+    with pytest.raises(FileFormatError, match=match) as info:
+        read_colmap(tmp_path, image_key="id")
+    assert "line 4" in str(info.value)
 
 
 def test_reads_models_written_by_colmap(tmp_path):

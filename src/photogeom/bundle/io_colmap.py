@@ -30,6 +30,17 @@ COLMAP's conventions and how photogeom maps them:
 * Free parameters: a block read from COLMAP refines what COLMAP's bundle adjuster refines by
   default: the focal length(s) and the distortion terms of the camera's model, the principal
   point fixed (``refine_principal_point=True`` frees it).
+* Image-variant groups: COLMAP has no camera shared by images with per-image f, cx, cy; such a
+  group is written as one camera per image (its f, cx, cy plus the image's offsets, the rest
+  the group's) and a comment line ``# photogeom camera group: image_variant f cx cy; f F cx
+  CX cy CY b1 B1; CAMERA_ID 1 2 ...`` (:func:`group_comment`; also for a group with
+  image-variant names and no offsets yet, written as one camera), which COLMAP skips. The
+  reader joins the cameras of such a line into one group again (id: the smallest of them;
+  the group's f, cx, cy, b1 from the line, the images' offsets from their cameras, its
+  image-variant names; free as for any camera of that model), so a write-read round trip
+  adjusts the same problem; cameras of the line that differ in anything but f, cx, cy
+  (an edited file) are refused by name. A model COLMAP wrote again has no such line: each
+  camera is then its own group, as COLMAP adjusts it.
 * Observations: each track element ``(IMAGE_ID, POINT2D_IDX)`` of ``points3D.txt`` is one
   observation, at that 2D point of ``images.txt``; they come in the order of ``images.txt``
   (image by image, 2D point by 2D point), the order the writer keeps. 2D points without a 3D
@@ -46,6 +57,7 @@ COLMAP's conventions and how photogeom maps them:
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -163,6 +175,46 @@ def colmap_camera_text(c: MetashapeCalibration, camera_id: int = 1) -> str:
     )
 
 
+#: Start of the comment line of ``cameras.txt`` that joins image-variant cameras into one
+#: photogeom camera group (COLMAP skips ``#`` lines).
+GROUP_COMMENT = "# photogeom camera group:"
+_GROUP_RE = re.compile(
+    r"#\s*photogeom camera group:\s*image_variant\s+(?P<iv>\S+(?:\s+\S+)*?)\s*;"
+    r"\s*f\s+(?P<f>\S+)\s+cx\s+(?P<cx>\S+)\s+cy\s+(?P<cy>\S+)\s+b1\s+(?P<b1>\S+)\s*;"
+    r"\s*CAMERA_ID\s+(?P<ids>\d+(?:\s+\d+)*)\s*"
+)
+#: Terms that the cameras of one group share (besides the image size and the model).
+_SHARED = ("b1", "k1", "k2", "k3", "k4", "p1", "p2", "b2")
+
+
+def group_comment(image_variant, c: MetashapeCalibration, camera_ids) -> str:
+    """The ``cameras.txt`` comment that makes ``camera_ids`` one camera group again on reading.
+
+    Parameters
+    ----------
+    image_variant : sequence of str
+        The group's image-variant parameters (of f, cx, cy); ``none`` when empty.
+    c : MetashapeCalibration
+        The group's calibration: its f, cx, cy (px, Metashape's ``cx, cy`` from the image
+        centre) are the values the images' offsets are measured from; its b1 (px) is the
+        cameras' ``fx - fy`` before rounding.
+    camera_ids : sequence of int
+        The ``CAMERA_ID`` of each camera written for the group (one per image).
+
+    Returns
+    -------
+    str
+        ``# photogeom camera group: image_variant f cx cy; f F cx CX cy CY b1 B1; CAMERA_ID
+        1 2 ...`` (one line).
+    """
+    f, cx, cy, b1 = format_floats(np.array([c.f, c.cx, c.cy, c.b1]))
+    names = " ".join(image_variant) or "none"
+    ids = " ".join(str(int(i)) for i in camera_ids)
+    return (
+        f"{GROUP_COMMENT} image_variant {names}; f {f} cx {cx} cy {cy} b1 {b1}; CAMERA_ID {ids}"
+    )
+
+
 def _nonzero(c: MetashapeCalibration) -> set[str]:
     return {n for n in ("b1", "b2", "k1", "k2", "k3", "k4", "p1", "p2") if getattr(c, n) != 0.0}
 
@@ -204,7 +256,110 @@ def _data_lines(text: str, keep_blank: bool = False) -> tuple[list[str], list[in
 
 
 def _read_cameras(path: Path, refine_pp: bool):
-    return cameras_from_text(read_text(path, "COLMAP cameras file"), str(path), refine_pp)
+    text = read_text(path, "COLMAP cameras file")
+    return (*cameras_from_text(text, str(path), refine_pp), _camera_groups(text, str(path)))
+
+
+def _camera_groups(text: str, where_file: str) -> list[tuple[int, tuple[str, ...], tuple, list]]:
+    """The ``# photogeom camera group:`` lines of a ``cameras.txt`` (see
+    :func:`group_comment`): ``(line, image_variant, (f, cx, cy, b1), camera ids)`` each."""
+    out = []
+    for k, ln in enumerate(text.splitlines(), start=1):
+        s = ln.strip()
+        if not s.startswith("#") or "photogeom camera group" not in s:
+            continue
+        where = f"{where_file}, line {k}"
+        mt = _GROUP_RE.fullmatch(s)
+        if mt is None:
+            raise FileFormatError(
+                f"{where}: a photogeom camera group line must read '{GROUP_COMMENT} "
+                "image_variant NAMES; f F cx CX cy CY b1 B1; CAMERA_ID ID ID ...', got "
+                f"{s[:120]!r}; delete the line to read its cameras as separate groups"
+            )
+        names = tuple(mt["iv"].split())
+        names = () if names == ("none",) else names
+        bad = [n for n in names if n not in ("f", "cx", "cy")]
+        if bad or len(set(names)) != len(names):
+            raise FileFormatError(
+                f"{where}: image_variant {' '.join(names)}: give distinct names of f, cx, cy "
+                "(or none)"
+            )
+        try:
+            base = tuple(float(mt[n]) for n in ("f", "cx", "cy", "b1"))
+        except ValueError:
+            raise FileFormatError(
+                f"{where}: f, cx, cy or b1 is not a number: {s[:120]!r}"
+            ) from None
+        if not all(np.isfinite(base)):
+            raise FileFormatError(f"{where}: f, cx, cy or b1 is NaN or infinite")
+        out.append((k, names, base, [int(t) for t in mt["ids"].split()]))
+    return out
+
+
+def _regroup(cams, free, cam_id, groups, where_file):
+    """Join the cameras of each photogeom camera group into one group (id: its smallest
+    ``CAMERA_ID``) whose images have f, cx, cy offsets: ``(cameras, free, image cameras,
+    offsets (m, 3) px, image_variant)``."""
+    from dataclasses import replace
+
+    offset = np.zeros((cam_id.size, 3))
+    image_cam = cam_id.copy()
+    variant: dict[int, tuple[str, ...]] = {}
+    seen: dict[int, int] = {}
+    for line, names, base, ids in groups:
+        where = f"{where_file}, line {line}"
+        for i in ids:
+            if i not in cams:
+                raise FileFormatError(
+                    f"{where}: the camera group lists CAMERA_ID {i}, which is not a camera of "
+                    "the file; delete the line to read the cameras as separate groups"
+                )
+            if i in seen:
+                raise FileFormatError(
+                    f"{where}: CAMERA_ID {i} is listed in the camera group of line {seen[i]} too"
+                )
+            seen[i] = line
+        c0 = cams[ids[0]]
+        for i in ids:
+            c = cams[i]
+            if (c.width, c.height) != (c0.width, c0.height) or free[i] != free[ids[0]]:
+                what = "the model or image size differs"
+            else:
+                diff = [
+                    n for n in _SHARED
+                    if getattr(c, n) != (base[3] if n == "b1" else getattr(c0, n))
+                    and not (n == "b1" and abs(c.b1 - base[3]) <= 1e-9)  # fx - fy: rounding
+                ]  # fmt: skip
+                if not diff:
+                    continue
+                what = f"{', '.join(diff)} differ"
+            raise FileFormatError(
+                f"{where}: cameras {ids[0]} and {i} of one camera group must differ in f, cx, "
+                f"cy only, but {what} (edited?); delete the line to read the cameras as "
+                "separate groups"
+            )
+        gid = min(ids)
+        try:
+            group = replace(c0, f=base[0], cx=base[1], cy=base[2], b1=base[3])
+        except InputError as exc:
+            raise FileFormatError(f"{where}: the group's f, cx, cy: {exc}") from None
+        member = np.isin(cam_id, ids)
+        vals = np.array([[cams[i].f, cams[i].cx, cams[i].cy] for i in ids])
+        pos = np.searchsorted(np.sort(ids), cam_id[member])
+        offset[member] = vals[np.argsort(ids)][pos] - np.array(base[:3])
+        image_cam[member] = gid
+        group_free = free[ids[0]]
+        for i in ids:
+            del cams[i], free[i]
+        cams[gid], free[gid], variant[gid] = group, group_free, names
+    order = sorted(cams)
+    return (
+        {i: cams[i] for i in order},
+        {i: free[i] for i in order},
+        image_cam,
+        offset,
+        variant,
+    )
 
 
 def cameras_from_text(
@@ -453,15 +608,19 @@ def read_colmap(
     -------
     Block
         One camera group per COLMAP camera (group id = ``CAMERA_ID``) with the parameters of
-        its COLMAP model free, images with their poses, tie points (ids ``POINT3D_ID``) and
-        one observation per track element, in the order of ``images.txt`` (see the module
-        docstring).
+        its COLMAP model free, except that the cameras of a ``# photogeom camera group:``
+        line (an image-variant group :func:`write_colmap` wrote) are one group with
+        image-variant f, cx, cy again; images with their poses, tie points (ids
+        ``POINT3D_ID``) and one observation per track element, in the order of
+        ``images.txt`` (see the module docstring).
 
     Raises
     ------
     FileFormatError
         Missing files, malformed lines (naming file and line), camera models the Metashape
         model cannot represent, unknown ids, and tracks that disagree with ``images.txt``;
+        a ``# photogeom camera group:`` line that is malformed, names unknown cameras or
+        cameras that differ in more than f, cx, cy;
         a folder with COLMAP's binary model (``cameras.bin``, ...) instead of the text model
         (the message names the conversion).
     """
@@ -472,7 +631,7 @@ def read_colmap(
         raise FileFormatError(f"{d}: not a directory (a COLMAP text model is a folder)")
     pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
     refuse_binary_model(d)
-    cams, free = _read_cameras(pc, refine_principal_point)
+    cams, free, groups = _read_cameras(pc, refine_principal_point)
     image_id, cam_id, names, pose, p2d, p3d, n2d, head_no = _read_images(pi)
     u, c = np.unique(image_id, return_counts=True)
     if np.any(c > 1):
@@ -563,10 +722,15 @@ def read_colmap(
     exterior = np.column_stack([X0, opk_from_rotations(M)])
     m = image_id.size
     ids = names if image_key == "name" else image_id
+    offset, variant = None, None
+    if groups:  # cameras written one per image for a group with image-variant f, cx, cy
+        cams, free, cam_id, offset, variant = _regroup(cams, free, cam_id, groups, str(pc))
     block = Block.from_arrays(
         cameras=cams,
         image_ids=ids,
         image_camera=cam_id,
+        calibration_offset=offset,
+        image_variant=variant,
         exterior=exterior.reshape(m, 6),
         point_ids=pid,
         xyz=head[:, 1:4],
@@ -643,10 +807,12 @@ def colmap_texts(
     variant[np.unique(block.image_camera[offs])] = True
     keep_ids = _int_ids(block.camera_ids, _UINT32_MAX) if not np.any(variant) else None
     cam_lines = []
+    group_lines = []  # the group of image-variant cameras, for read_colmap (COLMAP skips it)
     img_cam = np.empty(block.n_images, dtype=np.int64)
     next_id = 1
     for k in range(g):
         rows = np.flatnonzero(block.image_camera == k)
+        first = len(cam_lines)
         if variant[k]:
             for i in rows.tolist():
                 c = block.image_calibration(i)
@@ -658,10 +824,16 @@ def colmap_texts(
             next_id += 1
             cam_lines.append((cid, models[k], block.calibrations[k]))
             img_cam[rows] = cid
+        iv = block.image_variant.get(gid[k], ())
+        if variant[k] or iv:
+            group_lines.append(
+                group_comment(iv, block.calibrations[k], [t[0] for t in cam_lines[first:]])
+            )
     cams_txt = [
         "# Camera list with one line of data per camera:",
         "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
         f"# Number of cameras: {len(cam_lines)}",
+        *group_lines,
     ]
     cams_txt += [camera_line(cid, mdl, c) for cid, mdl, c in cam_lines]
     # images
@@ -818,9 +990,11 @@ def write_colmap(
 
     Notes
     -----
-    A group with image-variant offsets is written as one COLMAP camera per image. Ids: see
-    the module docstring. Writing over a model that COLMAP wrote replaces its ``rigs.txt``
-    and ``frames.txt`` too, so COLMAP reads the new poses, not its old frames.
+    A group with image-variant offsets is written as one COLMAP camera per image, and a
+    comment line that makes them one group again for :func:`read_colmap` (see the module
+    docstring). Ids: see the module docstring. Writing over a model that COLMAP wrote
+    replaces its ``rigs.txt`` and ``frames.txt`` too, so COLMAP reads the new poses, not its
+    old frames.
 
     Raises
     ------

@@ -56,6 +56,11 @@ CALIBRATION_SUFFIXES = {
 PARAMETERS = ("f", "cx", "cy", "k1", "k2", "k3", "k4", "p1", "p2", "b1", "b2")
 #: Order of the parameters in Metashape's ``<covariance>``.
 METASHAPE_ORDER = ("f", "cx", "cy", "b1", "b2", "k1", "k2", "k3", "k4", "p1", "p2")
+#: Largest asymmetry of a covariance accepted, relative to ``sqrt(var_i var_j)``.
+SYMMETRY_TOL = 1e-9
+#: Terms of Metashape's ``<covariance>`` that photogeom's model has not (a calibration with
+#: them non-zero is refused); their rows and columns are left out (the marginal covariance).
+METASHAPE_EXTRA = ("p3", "p4")
 #: OpenCV intrinsics of ``std_deviations_intrinsics``, in OpenCV's order.
 OPENCV_INTRINSICS = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
 #: ``d OpenCV intrinsic / d Metashape parameter`` (constant: the conversion is linear).
@@ -118,6 +123,21 @@ def _checked_covariance(covariance) -> tuple[tuple[str, ...], np.ndarray] | None
         raise InputError(
             f"covariance: a finite {len(names)} x {len(names)} matrix for the names "
             f"{', '.join(names) or '(none)'} is needed, got shape {C.shape}"
+        )
+    d = np.diagonal(C)
+    if np.any(d < 0):
+        i = int(np.flatnonzero(d < 0)[0])
+        raise InputError(
+            f"covariance: the variance of {names[i]} is negative ({float(d[i])!r}); a "
+            "covariance matrix has variances >= 0 on its diagonal"
+        )
+    # symmetric to 1e-9 of the entries' scale (sqrt(var_i var_j) bounds |C_ij|)
+    asym = np.abs(C - C.T) > SYMMETRY_TOL * np.sqrt(np.outer(d, d))
+    if np.any(asym):
+        i, j = (int(v) for v in np.argwhere(asym)[0])
+        raise InputError(
+            f"covariance is not symmetric: entry ({names[i]}, {names[j]}) is {float(C[i, j])!r} "
+            f"but ({names[j]}, {names[i]}) is {float(C[j, i])!r}"
         )
     return names, C
 
@@ -541,7 +561,9 @@ def metashape_covariance_from_xml(
     ------
     FileFormatError
         Not XML, or a ``<covariance>`` whose ``<coeffs>`` are not ``n x n`` finite numbers
-        for the ``n`` names of ``<params>``.
+        for the ``n`` names of ``<params>``, whose ``<params>`` name a term that is not
+        Metashape's (or one twice), or whose matrix is not symmetric (to 1e-9 of
+        ``sqrt(var_i var_j)``) or has a negative variance; each named.
     """
     from ..numbers import parse_decimal
     from ..xmlsafe import parse_xml
@@ -559,6 +581,12 @@ def metashape_covariance_from_xml(
         raise FileFormatError(
             f"{where}: <covariance> has {len(values)} finite <coeffs> for {n} <params>; "
             f"expected {n * n}"
+        )
+    unknown = [name for name in names if name not in PARAMETERS + METASHAPE_EXTRA]
+    if unknown:
+        raise FileFormatError(
+            f"{where}: <covariance><params> names {', '.join(unknown)}, not parameters of "
+            f"Metashape's frame calibration ({' '.join(METASHAPE_ORDER + METASHAPE_EXTRA)})"
         )
     keep = [i for i, name in enumerate(names) if name in PARAMETERS]
     C = np.array(values, dtype=float).reshape(n, n)[np.ix_(keep, keep)]
@@ -831,8 +859,10 @@ def read_calibration_file(
     Returns
     -------
     calibration, std, covariance
-        As :func:`calibration_from_json` (for an XML, ``std`` is empty and ``covariance``
-        its ``<covariance>`` or None; for an OpenCV document the standard deviations of its
+        As :func:`calibration_from_json` (for an XML, ``covariance`` its ``<covariance>``
+        in the order of its ``<params>`` and ``std`` the square roots of its diagonal, px /
+        unitless, or None and empty without one; for an OpenCV document the standard
+        deviations of its
         ``std_deviations_intrinsics`` and no covariance; for a ``cameras.txt`` neither).
 
     Raises
@@ -864,11 +894,9 @@ def read_calibration_file(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
                 "<height>); leave the image size out"
             )
-        return (
-            MetashapeCalibration.from_xml_string(data, source=where),
-            {},
-            metashape_covariance_from_xml(data, where),
-        )
+        calib = MetashapeCalibration.from_xml_string(data, source=where)
+        cov = metashape_covariance_from_xml(data, where)
+        return calib, _std_of(None, cov), cov
     if fmt == "json":
         obj = parse_json_bytes(data, where)
         if "camera_matrix" in obj and not any(k in obj for k in ("calibration", "interior")):
