@@ -641,9 +641,11 @@ class Block:
 
         On a block without :attr:`surveyed` a new ``xyz`` is a new survey of its control and
         check points; on an adjusted block it changes the estimates and the survey stays.
-        Only ``surveyed`` is checked; other values are taken as given, except that a writable
-        array is copied (the block's arrays are read-only and its own: changing the array
-        given afterwards does not change the block).
+        ``surveyed``, ``free`` and ``image_variant`` are checked; other values are taken as
+        given, except that a writable array is copied (the block's arrays are read-only and
+        its own: changing the array given afterwards does not change the block). ``free`` and
+        ``image_variant`` take a sequence of names for every camera group or a mapping for
+        some: groups the mapping leaves out keep the block's current names.
 
         Parameters
         ----------
@@ -658,10 +660,24 @@ class Block:
         Raises
         ------
         InputError
-            ``surveyed`` not of shape (p, 3), p the number of (new) point ids.
+            ``surveyed`` not of shape (p, 3), p the number of (new) point ids; ``free`` or
+            ``image_variant`` naming an unknown camera group or parameter.
         TypeError
             An unknown field name.
         """
+        cam_ids = np.asarray(changes.get("camera_ids", self.camera_ids))
+        same_groups = "camera_ids" not in changes
+        for name, default, allowed in (
+            ("free", DEFAULT_FREE, CALIBRATION_NAMES),
+            ("image_variant", (), IMAGE_VARIANT_NAMES),
+        ):
+            if name not in changes:
+                continue
+            value = changes[name]
+            if isinstance(value, Mapping) and same_groups:
+                # groups left out keep their names (unknown groups are refused below)
+                value = {**getattr(self, name), **value}
+            changes[name] = _per_group(value, cam_ids, default, allowed, name)
         s = changes.get("surveyed")
         if s is not None:
             s = np.array(s, dtype=float)
