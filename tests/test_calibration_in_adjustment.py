@@ -107,6 +107,27 @@ def test_a_tiny_amplitude_gives_the_bundle_adjustment(small):
     np.testing.assert_allclose(ga.block.exterior[:, 3:], ref.block.exterior[:, 3:], atol=1e-8)
 
 
+def test_sigma0_follows_the_a_priori_sigma0_of_the_options(small):
+    """The weights are ``sigma0_prior^2 / sigma^2`` as in the bundle adjustment: with the
+    grids held at zero by a tiny amplitude the joint sigma0 is the bundle adjustment's
+    (same redundancy, same square sum) for any sigma0_prior, and the standard deviations
+    do not change with it. sigma0_prior was ignored: with 2 the bundle adjustment gave
+    sigma0 2.02 and the joint adjustment 1.01."""
+    kw = dict(sigma_constraint=1e3, sigma_amplitude=1e-7, std=True, max_iterations=30)
+    one = adjust_with_grids(small.block, 1000.0, **kw)
+    ref = pg.bundle_adjust(small.block, snooping=False, sigma0_prior=2.0)
+    ga = adjust_with_grids(small.block, 1000.0, sigma0_prior=2.0, **kw)
+    assert ga.redundancy == ref.redundancy == one.redundancy
+    assert ga.sigma0 == pytest.approx(ref.sigma0, rel=1e-6)
+    assert ga.sigma0 == pytest.approx(2.0 * one.sigma0, rel=1e-9)
+    assert ga.fit.sigma0 == pytest.approx(2.0 * one.fit.sigma0, rel=1e-9)
+    for iid, g in ga.grids.items():
+        assert g.sigma0 == ga.sigma0
+        np.testing.assert_allclose(ga.node_std[iid], one.node_std[iid], rtol=1e-9)
+        # the grid's own standard deviations: its sigma0 times its cofactors' root
+        np.testing.assert_allclose(g.node_std, one.grids[iid].node_std, rtol=1e-9)
+
+
 def test_the_default_amplitude_follows_smooth_residuals_not_noise(small):
     """At the true parameters the residuals are exactly what the observations were given:
     a smooth field in the grid's function space gives an amplitude of twice its RMS, white

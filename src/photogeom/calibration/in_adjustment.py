@@ -133,7 +133,10 @@ class GridAdjustment:
         Standard deviations of the pseudo-observations (px); ``sigma_temporal`` NaN without
         temporal constraints, ``sigma_amplitude`` NaN without the amplitude.
     sigma0 : float
-        A-posteriori standard deviation of unit weight of the joint adjustment.
+        A-posteriori standard deviation of unit weight of the joint adjustment, with the
+        weights ``P = sigma0_prior^2 / sigma^2`` of the options, as in
+        :class:`~photogeom.bundle.BundleFit`: about ``sigma0_prior`` (1 by default) when the
+        a-priori sigmas are right. The standard deviations do not depend on ``sigma0_prior``.
     redundancy, n_unknowns : int
         Redundancy: scalar observations (image, GNSS, IMU, control) plus the rank of the
         grids' pseudo-observations, minus the free unknowns. The pseudo-observations are
@@ -799,7 +802,13 @@ def adjust_with_grids(
     s, z, N, cost, it, converged, message, history = _levenberg_marquardt(gp, opts, progress)
     n_obs = 2 * gp.n + _prior_count(gp.bp) + gp.n_pseudo
     redundancy = int(n_obs - gp.free_idx.size)
-    sigma0 = math.sqrt(cost / redundancy) if redundancy > 0 else float("nan")
+    # the cost is whitened by the sigmas alone; with the weights P = sigma0_prior^2 / sigma^2
+    # of the options (the bundle adjustment's convention) sigma0 is sigma0_prior times its
+    # root, the cofactors are the sigmas' divided by sigma0_prior^2, and the standard
+    # deviations do not depend on sigma0_prior
+    var = cost / redundancy if redundancy > 0 else float("nan")
+    s0p = float(opts.sigma0_prior)
+    sigma0 = s0p * math.sqrt(var)
     est = gp.bp.to_block(s)
     # grids as ResidualGrid objects, with the image's residuals at the joint solution
     v, _ = gp.residuals(s, z)
@@ -818,8 +827,8 @@ def adjust_with_grids(
         std_g = []
         if cof is not None:
             c = cof[gp.goff[g] : gp.goff[g + 1]].reshape(L.shape[0], L.shape[1], 2)
-            node_std[key] = sigma0 * np.sqrt(c)
-            std_g = [c.mean(axis=2)]
+            node_std[key] = np.sqrt(var * c)
+            std_g = [c.mean(axis=2) / s0p**2]
         objs[key] = ResidualGrid(
             layout=L,
             nodes=nodes,
