@@ -220,6 +220,10 @@ def test_the_small_starting_damping_reaches_the_same_minimum_in_fewer_iterations
         ({"spacing": 1000, "datum_": "free"}, "free"),
         ({"spacing": 1000, "min_support": -1}, "min_support must be 0 or more"),
         ({"spacing": 1000, "min_support": 2.5}, "min_support must be a whole number"),
+        # settings the joint adjustment does not apply (accepted and left out before)
+        ({"spacing": 1000, "snooping": True}, "snooping=True is not supported"),
+        ({"spacing": 1000, "alpha": 0.01}, "alpha=0.01 is not supported"),
+        ({"spacing": 1000, "point_covariance": True}, "point_covariance=True is not supp"),
     ],
 )
 def test_bad_input_is_named(small, kwargs, match):

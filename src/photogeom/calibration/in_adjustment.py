@@ -738,7 +738,9 @@ def adjust_with_grids(
         points.
     options : BundleOptions, optional
         Settings of the adjustment; keyword arguments override fields. The loss must be
-        ``"squared"``; variance components and free networks are not supported here.
+        ``"squared"``; variance components, free networks and point covariances are not
+        supported here, nor data snooping (``snooping=True`` or ``alpha`` as keywords are
+        refused; ``options.snooping`` is not applied).
         Default: ``BundleOptions(initial_damping=1e-8)`` (:data:`INITIAL_DAMPING`; the
         grids' weak directions converge in a few Gauss-Newton steps, where a start at 1e-4
         needed 10 or more; the bundle adjustment's default too).
@@ -791,6 +793,7 @@ def adjust_with_grids(
         )
     if opts.variance_components:
         raise InputError("adjust_with_grids: variance_components=True is not supported")
+    _refuse_unapplied(opts, kwargs)
     if opts.datum == "free":
         raise InputError(
             "adjust_with_grids needs a datum by control points or GNSS positions "
@@ -878,6 +881,27 @@ def adjust_with_grids(
         cost_history=history,
         elapsed=time.perf_counter() - t0,
     )
+
+
+def _refuse_unapplied(opts: BundleOptions, asked: dict) -> None:
+    """Refuse the settings of the bundle adjustment that the joint adjustment does not
+    apply, when asked for: data snooping (``snooping=True`` or ``alpha`` given as keywords;
+    the ``snooping`` of an ``options`` object, True by default there, is not applied) and
+    point covariances (``point_covariance=True``). Both were accepted and silently left
+    out: no w-test, no ``point_std``."""
+    if asked.get("snooping") or "alpha" in asked:
+        given = "snooping=True" if asked.get("snooping") else f"alpha={asked['alpha']!r}"
+        raise InputError(
+            f"adjust_with_grids: {given} is not supported (the joint adjustment with grids "
+            "runs no data snooping); remove blunders first (photogeom.bundle_adjust with "
+            "snooping=True), then adjust with grids without snooping or alpha"
+        )
+    if opts.point_covariance:
+        raise InputError(
+            "adjust_with_grids: point_covariance=True is not supported (the joint adjustment "
+            "reports the node standard deviations, std=True; its final fit holds the "
+            "orientation fixed): leave point_covariance out"
+        )
 
 
 def _prior_count(bp: Problem) -> int:
