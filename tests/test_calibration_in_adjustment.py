@@ -128,6 +128,31 @@ def test_sigma0_follows_the_a_priori_sigma0_of_the_options(small):
         np.testing.assert_allclose(g.node_std, one.grids[iid].node_std, rtol=1e-9)
 
 
+def test_temporal_constraints_join_consecutive_images_of_a_camera_interleaved_with_another(
+    small,
+):
+    """Two cameras taking turns (A, B, A, B, ...: a rig's images in the order of
+    acquisition): the temporal constraints join the consecutive images of each camera, so
+    stiff ones make the grids of a camera equal. Only images next to each other in the
+    block were joined: here none, and the grids of a camera differed by 0.3-0.6 px."""
+    b = small.block
+    gid = b.camera_ids[0]
+    two = b.replace(
+        camera_ids=np.array(["A", "B"], dtype=object),
+        calibrations=(b.calibrations[0],) * 2,
+        image_camera=np.arange(b.n_images) % 2,
+        free={"A": b.free[gid], "B": b.free[gid]},
+        image_variant={"A": (), "B": ()},
+    )
+    ga = adjust_with_grids(
+        two, 1000.0, sigma_temporal=1e-6, sigma_constraint=1.0, sigma_amplitude=0.5, std=False
+    )
+    nodes = np.array([ga.grids[i].nodes for i in two.image_ids.tolist()])
+    for cam in (0, 1):
+        np.testing.assert_allclose(nodes[cam::2], nodes[cam : cam + 1].repeat(4, 0), atol=1e-6)
+    assert np.abs(nodes[0] - nodes[1]).max() > 0.1  # the two cameras' grids are not joined
+
+
 def test_the_default_amplitude_follows_smooth_residuals_not_noise(small):
     """At the true parameters the residuals are exactly what the observations were given:
     a smooth field in the grid's function space gives an amplitude of twice its RMS, white

@@ -363,10 +363,13 @@ class _GridProblem:
             dd[self.off_g : self.off_p] = np.concatenate(datum_diag)
         self.datum_diag = dd
         if per == "image" and st is not None:
+            # consecutive images of each camera group, in block order: the images of a
+            # group need not be next to each other in the block (cameras of a rig
+            # interleaved in the order of acquisition)
             cam = self.block.image_camera
-            pairs = [
-                (i, i + 1) for i in range(self.bp.m - 1) if cam[i] == cam[i + 1]
-            ]  # images, not points
+            order = np.argsort(cam, kind="stable")
+            same = cam[order[:-1]] == cam[order[1:]]
+            pairs = list(zip(order[:-1][same].tolist(), order[1:][same].tolist()))
             if pairs:
                 rows, cols, vals, start = [], [], [], 0
                 for i, k in pairs:  # images, not points
@@ -715,7 +718,8 @@ def adjust_with_grids(
         ``0.1 px * (spacing / 100 px)^2`` (see :func:`fit_residual_grids`).
     sigma_temporal : float, optional
         Standard deviation (px) of the equality of the grids of consecutive images (block
-        order) of one camera group; ``per="image"`` only. None: no temporal constraints.
+        order) of one camera group, also where the images of other groups come between
+        them; ``per="image"`` only. None: no temporal constraints.
     sigma_amplitude : float or "residuals" or None
         Standard deviation (px) of every node's value about zero: the expected size of the
         field (see the module). ``"residuals"`` (default): twice the RMS per coordinate of
