@@ -107,6 +107,52 @@ def test_a_tiny_amplitude_gives_the_bundle_adjustment(small):
     np.testing.assert_allclose(ga.block.exterior[:, 3:], ref.block.exterior[:, 3:], atol=1e-8)
 
 
+def test_sigma0_follows_the_a_priori_sigma0_of_the_options(small):
+    """The weights are ``sigma0_prior^2 / sigma^2`` as in the bundle adjustment: with the
+    grids held at zero by a tiny amplitude the joint sigma0 is the bundle adjustment's
+    (same redundancy, same square sum) for any sigma0_prior, and the standard deviations
+    do not change with it. sigma0_prior was ignored: with 2 the bundle adjustment gave
+    sigma0 2.02 and the joint adjustment 1.01."""
+    kw = dict(sigma_constraint=1e3, sigma_amplitude=1e-7, std=True, max_iterations=30)
+    one = adjust_with_grids(small.block, 1000.0, **kw)
+    ref = pg.bundle_adjust(small.block, snooping=False, sigma0_prior=2.0)
+    ga = adjust_with_grids(small.block, 1000.0, sigma0_prior=2.0, **kw)
+    assert ga.redundancy == ref.redundancy == one.redundancy
+    assert ga.sigma0 == pytest.approx(ref.sigma0, rel=1e-6)
+    assert ga.sigma0 == pytest.approx(2.0 * one.sigma0, rel=1e-9)
+    assert ga.fit.sigma0 == pytest.approx(2.0 * one.fit.sigma0, rel=1e-9)
+    for iid, g in ga.grids.items():
+        assert g.sigma0 == ga.sigma0
+        np.testing.assert_allclose(ga.node_std[iid], one.node_std[iid], rtol=1e-9)
+        # the grid's own standard deviations: its sigma0 times its cofactors' root
+        np.testing.assert_allclose(g.node_std, one.grids[iid].node_std, rtol=1e-9)
+
+
+def test_temporal_constraints_join_consecutive_images_of_a_camera_interleaved_with_another(
+    small,
+):
+    """Two cameras taking turns (A, B, A, B, ...: a rig's images in the order of
+    acquisition): the temporal constraints join the consecutive images of each camera, so
+    stiff ones make the grids of a camera equal. Only images next to each other in the
+    block were joined: here none, and the grids of a camera differed by 0.3-0.6 px."""
+    b = small.block
+    gid = b.camera_ids[0]
+    two = b.replace(
+        camera_ids=np.array(["A", "B"], dtype=object),
+        calibrations=(b.calibrations[0],) * 2,
+        image_camera=np.arange(b.n_images) % 2,
+        free={"A": b.free[gid], "B": b.free[gid]},
+        image_variant={"A": (), "B": ()},
+    )
+    ga = adjust_with_grids(
+        two, 1000.0, sigma_temporal=1e-6, sigma_constraint=1.0, sigma_amplitude=0.5, std=False
+    )
+    nodes = np.array([ga.grids[i].nodes for i in two.image_ids.tolist()])
+    for cam in (0, 1):
+        np.testing.assert_allclose(nodes[cam::2], nodes[cam : cam + 1].repeat(4, 0), atol=1e-6)
+    assert np.abs(nodes[0] - nodes[1]).max() > 0.1  # the two cameras' grids are not joined
+
+
 def test_the_default_amplitude_follows_smooth_residuals_not_noise(small):
     """At the true parameters the residuals are exactly what the observations were given:
     a smooth field in the grid's function space gives an amplitude of twice its RMS, white
@@ -199,6 +245,10 @@ def test_the_small_starting_damping_reaches_the_same_minimum_in_fewer_iterations
         ({"spacing": 1000, "datum_": "free"}, "free"),
         ({"spacing": 1000, "min_support": -1}, "min_support must be 0 or more"),
         ({"spacing": 1000, "min_support": 2.5}, "min_support must be a whole number"),
+        # settings the joint adjustment does not apply (accepted and left out before)
+        ({"spacing": 1000, "snooping": True}, "snooping=True is not supported"),
+        ({"spacing": 1000, "alpha": 0.01}, "alpha=0.01 is not supported"),
+        ({"spacing": 1000, "point_covariance": True}, "point_covariance=True is not supp"),
     ],
 )
 def test_bad_input_is_named(small, kwargs, match):

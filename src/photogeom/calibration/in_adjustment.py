@@ -133,7 +133,10 @@ class GridAdjustment:
         Standard deviations of the pseudo-observations (px); ``sigma_temporal`` NaN without
         temporal constraints, ``sigma_amplitude`` NaN without the amplitude.
     sigma0 : float
-        A-posteriori standard deviation of unit weight of the joint adjustment.
+        A-posteriori standard deviation of unit weight of the joint adjustment, with the
+        weights ``P = sigma0_prior^2 / sigma^2`` of the options, as in
+        :class:`~photogeom.bundle.BundleFit`: about ``sigma0_prior`` (1 by default) when the
+        a-priori sigmas are right. The standard deviations do not depend on ``sigma0_prior``.
     redundancy, n_unknowns : int
         Redundancy: scalar observations (image, GNSS, IMU, control) plus the rank of the
         grids' pseudo-observations, minus the free unknowns. The pseudo-observations are
@@ -360,10 +363,13 @@ class _GridProblem:
             dd[self.off_g : self.off_p] = np.concatenate(datum_diag)
         self.datum_diag = dd
         if per == "image" and st is not None:
+            # consecutive images of each camera group, in block order: the images of a
+            # group need not be next to each other in the block (cameras of a rig
+            # interleaved in the order of acquisition)
             cam = self.block.image_camera
-            pairs = [
-                (i, i + 1) for i in range(self.bp.m - 1) if cam[i] == cam[i + 1]
-            ]  # images, not points
+            order = np.argsort(cam, kind="stable")
+            same = cam[order[:-1]] == cam[order[1:]]
+            pairs = list(zip(order[:-1][same].tolist(), order[1:][same].tolist()))
             if pairs:
                 rows, cols, vals, start = [], [], [], 0
                 for i, k in pairs:  # images, not points
@@ -712,7 +718,8 @@ def adjust_with_grids(
         ``0.1 px * (spacing / 100 px)^2`` (see :func:`fit_residual_grids`).
     sigma_temporal : float, optional
         Standard deviation (px) of the equality of the grids of consecutive images (block
-        order) of one camera group; ``per="image"`` only. None: no temporal constraints.
+        order) of one camera group, also where the images of other groups come between
+        them; ``per="image"`` only. None: no temporal constraints.
     sigma_amplitude : float or "residuals" or None
         Standard deviation (px) of every node's value about zero: the expected size of the
         field (see the module). ``"residuals"`` (default): twice the RMS per coordinate of
@@ -735,7 +742,9 @@ def adjust_with_grids(
         points.
     options : BundleOptions, optional
         Settings of the adjustment; keyword arguments override fields. The loss must be
-        ``"squared"``; variance components and free networks are not supported here.
+        ``"squared"``; variance components, free networks and point covariances are not
+        supported here, nor data snooping (``snooping=True`` or ``alpha`` as keywords are
+        refused; ``options.snooping`` is not applied).
         Default: ``BundleOptions(initial_damping=1e-8)`` (:data:`INITIAL_DAMPING`; the
         grids' weak directions converge in a few Gauss-Newton steps, where a start at 1e-4
         needed 10 or more; the bundle adjustment's default too).
@@ -788,6 +797,7 @@ def adjust_with_grids(
         )
     if opts.variance_components:
         raise InputError("adjust_with_grids: variance_components=True is not supported")
+    _refuse_unapplied(opts, kwargs)
     if opts.datum == "free":
         raise InputError(
             "adjust_with_grids needs a datum by control points or GNSS positions "
@@ -799,7 +809,13 @@ def adjust_with_grids(
     s, z, N, cost, it, converged, message, history = _levenberg_marquardt(gp, opts, progress)
     n_obs = 2 * gp.n + _prior_count(gp.bp) + gp.n_pseudo
     redundancy = int(n_obs - gp.free_idx.size)
-    sigma0 = math.sqrt(cost / redundancy) if redundancy > 0 else float("nan")
+    # the cost is whitened by the sigmas alone; with the weights P = sigma0_prior^2 / sigma^2
+    # of the options (the bundle adjustment's convention) sigma0 is sigma0_prior times its
+    # root, the cofactors are the sigmas' divided by sigma0_prior^2, and the standard
+    # deviations do not depend on sigma0_prior
+    var = cost / redundancy if redundancy > 0 else float("nan")
+    s0p = float(opts.sigma0_prior)
+    sigma0 = s0p * math.sqrt(var)
     est = gp.bp.to_block(s)
     # grids as ResidualGrid objects, with the image's residuals at the joint solution
     v, _ = gp.residuals(s, z)
@@ -818,8 +834,8 @@ def adjust_with_grids(
         std_g = []
         if cof is not None:
             c = cof[gp.goff[g] : gp.goff[g + 1]].reshape(L.shape[0], L.shape[1], 2)
-            node_std[key] = sigma0 * np.sqrt(c)
-            std_g = [c.mean(axis=2)]
+            node_std[key] = np.sqrt(var * c)
+            std_g = [c.mean(axis=2) / s0p**2]
         objs[key] = ResidualGrid(
             layout=L,
             nodes=nodes,
@@ -869,6 +885,27 @@ def adjust_with_grids(
         cost_history=history,
         elapsed=time.perf_counter() - t0,
     )
+
+
+def _refuse_unapplied(opts: BundleOptions, asked: dict) -> None:
+    """Refuse the settings of the bundle adjustment that the joint adjustment does not
+    apply, when asked for: data snooping (``snooping=True`` or ``alpha`` given as keywords;
+    the ``snooping`` of an ``options`` object, True by default there, is not applied) and
+    point covariances (``point_covariance=True``). Both were accepted and silently left
+    out: no w-test, no ``point_std``."""
+    if asked.get("snooping") or "alpha" in asked:
+        given = "snooping=True" if asked.get("snooping") else f"alpha={asked['alpha']!r}"
+        raise InputError(
+            f"adjust_with_grids: {given} is not supported (the joint adjustment with grids "
+            "runs no data snooping); remove blunders first (photogeom.bundle_adjust with "
+            "snooping=True), then adjust with grids without snooping or alpha"
+        )
+    if opts.point_covariance:
+        raise InputError(
+            "adjust_with_grids: point_covariance=True is not supported (the joint adjustment "
+            "reports the node standard deviations, std=True; its final fit holds the "
+            "orientation fixed): leave point_covariance out"
+        )
 
 
 def _prior_count(bp: Problem) -> int:
