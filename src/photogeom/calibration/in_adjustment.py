@@ -63,12 +63,12 @@ import scipy.sparse as sp
 
 from ..adjust.levenberg import levenberg_marquardt_loop
 from ..adjust.schur import invert_point_blocks
-from ..adjust.sparse import HAVE_CHOLMOD, factorize
+from ..adjust.sparse import HAVE_CHOLMOD, CGNotConvergedError, factorize
 from ..bundle.adjustment import NCAL, Problem, _step_small
 from ..bundle.block import Block
 from ..bundle.options import BundleOptions
 from ..camera.frame_kernel import project_rows
-from ..errors import DegenerateGeometryError, InputError
+from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from .grid import (
     BORDERS,
     GridLayout,
@@ -287,6 +287,21 @@ class _GridProblem:
             [sp.csr_matrix((g0, g0)), self.R, sp.csr_matrix((nf - g0 - self.n_grid,) * 2)],
             format="csr",
         )
+        # the preconditioner's blocks of backend="cg" in the camera-side free unknowns (the
+        # points, last, excluded): each grid's nodes (which its datum term couples) with
+        # the unknowns it competes with, the orientation of its image (per="image") or the
+        # calibration of its camera group (per="camera"); the other images' orientations
+        # and camera groups' calibrations one block each
+        fc = self.free_idx[: nf - 3 * bp.p]
+        grid = np.searchsorted(self.goff, fc - self.off_g, side="right") - 1
+        own = self.grid_of_image if per == "image" else m + grid_cam  # image or calibration
+        owner = np.where(
+            fc < self.nl,
+            fc // max(b, 1),
+            np.where(fc < self.off_g, m + (fc - self.nl) // NCAL, own[np.maximum(grid, 0)]),
+        )
+        #: the preconditioner's block of every camera-side free unknown
+        self.cg_blocks = owner
         # the datum columns in the camera-side free unknowns (the points, last, excluded)
         self.U_free = None
         if self.U is not None:
@@ -547,7 +562,19 @@ class _GridSteps:
         gp = self.gp
         d = np.maximum(self.N.diagonal() - gp.datum_diag[gp.free_idx], 1e-12)
         Nd = (self.N + sp.diags(damping * d)).tocsr()
-        dx = _solve_by_points(Nd, self.g, 3 * gp.bp.p, self.opts.backend, gp.U_free)
+        try:
+            dx = _solve_by_points(
+                Nd, self.g, 3 * gp.bp.p, self.opts.backend, gp.U_free, gp.cg_blocks
+            )
+        except CGNotConvergedError as exc:
+            # not a singular system to be damped: a step that conjugate gradients cannot
+            # deliver would end the adjustment away from its minimum
+            raise ConvergenceError(
+                f"adjust_with_grids: backend='cg' did not solve the normal equations with "
+                f"residual grids ({exc.iterations} iterations, {Nd.shape[0] - 3 * gp.bp.p} "
+                "unknowns without the points): use backend='cholmod' or 'auto' (a direct "
+                "factorisation, which also names a singular system)"
+            ) from exc
         pred = float(-(self.g @ dx) + damping * np.sum(d * dx * dx))
         return self.gp.split(dx), pred
 
@@ -613,6 +640,7 @@ def _solve_by_points(
     npt: int,
     backend: str,
     U: sp.csc_matrix | None = None,
+    blocks: np.ndarray | None = None,
 ) -> np.ndarray:
     """``(N + U U') dx = -g`` with the points eliminated first (3x3 blocks); the reduced
     system is factorised by :func:`~photogeom.adjust.sparse.factorize` (dense up to a few
@@ -624,7 +652,14 @@ def _solve_by_points(
     ``(S + U U')^-1 = S^-1 - S^-1 U (I + U' S^-1 U)^-1 U' S^-1``, so that only ``S``
     (without the dense (2 nodes)^2 block per grid) is factorised; k triangular solves
     form the k x k capacitance matrix (:meth:`~photogeom.adjust.sparse.SparseFactor.inverse_gram`).
-    With ``backend="cg"`` (no factor to reuse for the k solves) ``U U'`` is added to ``S``.
+    With ``backend="cg"`` (no factor to reuse for the k solves) ``U U'`` is added to ``S``,
+    and the preconditioner inverts the diagonal blocks that ``blocks`` names (one label per
+    camera-side unknown; :attr:`_GridProblem.cg_blocks`: each grid's nodes with its datum
+    term and its image's orientation or camera group's calibration, each other
+    orientation and calibration). Preconditioned by the
+    diagonal alone, the datum's stiff rank-4 or rank-6 term per grid and a camera grid's
+    coupling to every image of its group kept conjugate gradients from converging in
+    ``10 n`` iterations at the Marquardt damping of a converging adjustment.
     """
     nc = N.shape[0] - npt
     S, Ncp, Vinv = _reduce_points(N, npt)
@@ -638,7 +673,12 @@ def _solve_by_points(
         S = S + U @ U.T
         low_rank = False
     S = S.tocsc()
-    F = factorize(S, backend=backend, what="normal equations with residual grids")
+    F = factorize(
+        S,
+        backend=backend,
+        what="normal equations with residual grids",
+        blocks=blocks if backend == "cg" else None,
+    )
     del S
     dc = _woodbury_solve(F, U, rhs) if low_rank else F.solve(rhs)
     dp = -(Vinv @ (gp_ + Ncp.T @ dc))
@@ -757,6 +797,9 @@ def adjust_with_grids(
     DegenerateGeometryError
         As :func:`photogeom.bundle_adjust` (datum defect, points behind cameras), or a
         singular system.
+    ConvergenceError
+        ``backend="cg"``: conjugate gradients did not solve the normal equations in
+        ``10 n`` iterations (the message names the direct backends).
     """
     from ..bundle.adjustment import bundle_adjust
 
