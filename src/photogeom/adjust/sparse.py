@@ -346,6 +346,56 @@ class SparseFactor:
             done.append((cols, sp.csr_matrix(W)))
         return out
 
+    def inverse_diagonal(self, idx=None, batch_bytes: int = 64 * 2**20) -> np.ndarray:
+        """Entries ``idx`` (default: all) of the diagonal of ``N^-1``, never the whole
+        inverse.
+
+        With a Cholesky factor (CHOLMOD or LAPACK) ``(N^-1)_ii = |L^-1 P e_i|^2`` (the
+        factor ``P N P' = L L'``, with the diagonal scaling of the class): one triangular
+        solve per entry, in batches of unit vectors of at most ``batch_bytes`` (the memory
+        beyond the factor). Other backends: solves.
+
+        Parameters
+        ----------
+        idx : array of int, optional
+            Indices of the wanted diagonal entries.
+        batch_bytes : int
+            Memory of one batch of dense right-hand sides (bytes).
+
+        Returns
+        -------
+        ndarray, shape (len(idx),)
+            ``diag(N^-1)[idx]`` (in the units of ``N^-1``).
+        """
+        idx = np.arange(self.n) if idx is None else np.asarray(idx, dtype=np.int64).ravel()
+        out = np.empty(idx.size)
+        step = max(1, batch_bytes // (8 * max(self.n, 1)))
+        factor = self.backend in ("cholmod", "dense")
+        if self.backend == "cholmod":
+            self._f._ensure_L_or_LD_inplace(True)  # LL' (supernodal stays supernodal)
+            perm = self._f.P().astype(np.int64)
+            where = np.empty(self.n, dtype=np.int64)
+            where[perm] = np.arange(self.n)  # row of unknown i in the permuted system
+        else:
+            where = np.arange(self.n)
+        for j in range(0, idx.size, step):  # batches of columns, not points
+            part = idx[j : j + step]
+            cols = np.arange(part.size)
+            E = np.zeros((self.n, part.size))
+            if not factor:
+                E[part, cols] = 1.0
+                out[j : j + part.size] = self.solve(E)[part, cols]
+                continue
+            E[where[part], cols] = 1.0
+            if self.backend == "cholmod":
+                W = self._f._solve(E, _CHOLMOD_L)
+            else:
+                from scipy.linalg import solve_triangular
+
+                W = solve_triangular(self._f[0], E, lower=True, check_finite=False)
+            out[j : j + part.size] = np.einsum("ij,ij->j", W, W) * self._scale[part] ** 2
+        return out
+
     def dense_inverse(self) -> np.ndarray:
         """The whole inverse ``N^-1`` (n, n) by LAPACK's Cholesky inverse (``potrf`` +
         ``potri``); for ``n`` up to :data:`DENSE_INVERSE_MAX`."""
