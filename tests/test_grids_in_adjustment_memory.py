@@ -75,10 +75,11 @@ def test_the_low_rank_solve_equals_a_dense_solve_of_the_full_system(block, kw):
     Ufull[: gp.U_free.shape[0]] = gp.U_free.toarray()
     full = N.toarray() + Ufull @ Ufull.T
     ref = np.linalg.solve(full, -g)
-    # conjugate gradients on the whole system with the datum (as before the low-rank term):
-    # converge with per-image grids, not in 840 iterations on the affine camera grid
-    for backend in ("auto", "dense", "superlu") + (("cg",) if not kw else ()):
-        dx = ia._solve_by_points(N, g, 3 * gp.bp.p, backend, gp.U_free)
+    # conjugate gradients on the whole system with the datum (as before the low-rank term),
+    # preconditioned by each grid's block with its image's orientation or camera's
+    # calibration (by the diagonal alone: not in 840 iterations on the affine camera grid)
+    for backend in ("auto", "dense", "superlu", "cg"):
+        dx = ia._solve_by_points(N, g, 3 * gp.bp.p, backend, gp.U_free, gp.cg_blocks)
         tol = 1e-6 if backend == "cg" else 1e-9  # conjugate gradients: iterative accuracy
         assert np.max(np.abs(dx - ref)) < tol * np.max(np.abs(ref))
     # the gradient includes the datum term: the cost's derivative by finite differences

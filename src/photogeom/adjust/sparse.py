@@ -84,6 +84,12 @@ except Exception:  # pragma: no cover - any import failure means: not available
     HAVE_CHOLMOD = False
     CHOLMOD_BLAS = None
 
+
+class CGNotConvergedError(DegenerateGeometryError):
+    """``backend="cg"``: a solve did not reach its tolerance in ``10 n`` iterations (a
+    singular or badly conditioned system)."""
+
+
 #: CHOLMOD's solve mode ``L x = b`` (of an LL' factor, without the permutation).
 _CHOLMOD_L = 4
 
@@ -107,11 +113,21 @@ class SparseFactor:
     backend : {"auto", "cholmod", "superlu", "dense", "cg"}
         ``"auto"`` takes LAPACK's dense Cholesky up to :data:`DENSE_MAX` unknowns, else
         CHOLMOD when available, else SuperLU. ``"cg"``: no factorisation; conjugate
-        gradients preconditioned by the diagonal blocks of size ``block_size`` (for systems
-        too large to factorise; each solve iterates to a relative residual of ``cg_tol``; it
-        cannot certify that the matrix is positive definite).
+        gradients preconditioned by the inverses of diagonal blocks of ``N`` (of size
+        ``block_size``, or the sets of unknowns that ``blocks`` names; for systems too large to
+        factorise; each solve iterates to a relative residual of ``cg_tol``; it cannot
+        certify that the matrix is positive definite).
     what : str
         What the matrix is, for error messages (e.g. ``"reduced camera system"``).
+    block_size : int
+        ``"cg"``: size of the preconditioner's diagonal blocks (the unknowns past the last
+        whole block form one more block).
+    cg_tol : float
+        ``"cg"``: relative residual (2-norm, of the diagonally scaled system) of each solve.
+    blocks : array of int, shape (n,), optional
+        ``"cg"``: the block of the preconditioner of every unknown (integers; blocks of any
+        size, not necessarily contiguous), e.g. one image's orientation with all nodes of
+        its grid. Overrides ``block_size``.
 
     Raises
     ------
@@ -128,6 +144,7 @@ class SparseFactor:
         what: str = "normal matrix",
         block_size: int = 1,
         cg_tol: float = 1e-12,
+        blocks: np.ndarray | None = None,
     ) -> None:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
@@ -159,7 +176,7 @@ class SparseFactor:
         self.backend = "dense" if use_dense else ("cholmod" if use_cholmod else "superlu")
         if backend == "cg":
             self.backend = "cg"
-            self._setup_cg(Ns, block_size, cg_tol)
+            self._setup_cg(Ns, _block_labels(self.n, block_size, blocks), cg_tol)
             return
         if use_dense:
             from scipy.linalg import LinAlgError, cho_factor, cho_solve
@@ -208,29 +225,40 @@ class SparseFactor:
                 )
         self._check()
 
-    def _setup_cg(self, Ns, block_size: int, tol: float) -> None:
+    def _setup_cg(self, Ns, label: np.ndarray, tol: float) -> None:
         from scipy.sparse.linalg import LinearOperator, cg
 
-        n, bs = self.n, max(1, int(block_size))
-        nb = n // bs
-        head = nb * bs
-        blocks = np.zeros((nb, bs, bs))
-        if nb:
-            T = Ns[:head, :head].tocoo()
-            same = (T.row // bs) == (T.col // bs)
-            blocks[T.row[same] // bs, T.row[same] % bs, T.col[same] % bs] = T.data[same]
-        try:
-            inv_blocks = np.linalg.inv(blocks)
-        except np.linalg.LinAlgError as exc:
-            raise DegenerateGeometryError(f"{self.what}: a diagonal block is singular") from exc
-        tail = Ns[head:, head:].toarray()
-        inv_tail = np.linalg.inv(tail) if tail.size else tail
+        n = self.n
+        nblk = int(label.max()) + 1 if n else 0
+        sizes = np.bincount(label, minlength=nblk)
+        order = np.argsort(label, kind="stable")  # the unknowns of each block, in order
+        first = np.r_[0, np.cumsum(sizes)[:-1]]
+        pos = np.empty(n, dtype=np.int64)  # place of every unknown within its block
+        pos[order] = np.arange(n) - np.repeat(first, sizes)
+        T = Ns.tocoo()
+        same = label[T.row] == label[T.col]
+        r, c, v = T.row[same], T.col[same], T.data[same]
+        # blocks of one size are inverted together: a loop over the distinct sizes only
+        groups = []
+        for size in np.unique(sizes[sizes > 0]).tolist():  # distinct sizes, not unknowns
+            which = np.flatnonzero(sizes == size)
+            idx = order[first[which][:, None] + np.arange(size)[None, :]]  # (blocks, size)
+            slot = np.full(nblk, -1)
+            slot[which] = np.arange(which.size)
+            mine = sizes[label[r]] == size
+            dense = np.zeros((which.size, size, size))
+            dense[slot[label[r[mine]]], pos[r[mine]], pos[c[mine]]] = v[mine]
+            try:
+                inv = np.linalg.inv(dense)
+            except np.linalg.LinAlgError as exc:
+                raise DegenerateGeometryError(f"{self.what}: a diagonal block is singular") from exc
+            groups.append((idx, inv))
 
         def precond(x):
             x = np.asarray(x).reshape(n, -1)
             out = np.empty_like(x)
-            out[:head] = (inv_blocks @ x[:head].reshape(nb, bs, -1)).reshape(head, -1)
-            out[head:] = inv_tail @ x[head:]
+            for idx, inv in groups:  # distinct block sizes, not unknowns
+                out[idx] = inv @ x[idx]
             return out if out.shape[1] > 1 else out[:, 0]
 
         Mop = LinearOperator((n, n), matvec=precond, dtype=float)
@@ -242,10 +270,12 @@ class SparseFactor:
             for j in range(cols.shape[1]):  # columns, not points
                 x, info = cg(Ns, cols[:, j], rtol=tol, atol=0.0, M=Mop, maxiter=10 * n)
                 if info != 0:
-                    raise DegenerateGeometryError(
+                    exc = CGNotConvergedError(
                         f"{self.what}: conjugate gradients did not converge ({info} "
                         "iterations); the system may be singular (a datum defect)"
                     )
+                    exc.iterations = int(info)
+                    raise exc
                 out[:, j] = x
             return out.reshape(rhs.shape)
 
@@ -316,6 +346,56 @@ class SparseFactor:
             done.append((cols, sp.csr_matrix(W)))
         return out
 
+    def inverse_diagonal(self, idx=None, batch_bytes: int = 64 * 2**20) -> np.ndarray:
+        """Entries ``idx`` (default: all) of the diagonal of ``N^-1``, never the whole
+        inverse.
+
+        With a Cholesky factor (CHOLMOD or LAPACK) ``(N^-1)_ii = |L^-1 P e_i|^2`` (the
+        factor ``P N P' = L L'``, with the diagonal scaling of the class): one triangular
+        solve per entry, in batches of unit vectors of at most ``batch_bytes`` (the memory
+        beyond the factor). Other backends: solves.
+
+        Parameters
+        ----------
+        idx : array of int, optional
+            Indices of the wanted diagonal entries.
+        batch_bytes : int
+            Memory of one batch of dense right-hand sides (bytes).
+
+        Returns
+        -------
+        ndarray, shape (len(idx),)
+            ``diag(N^-1)[idx]`` (in the units of ``N^-1``).
+        """
+        idx = np.arange(self.n) if idx is None else np.asarray(idx, dtype=np.int64).ravel()
+        out = np.empty(idx.size)
+        step = max(1, batch_bytes // (8 * max(self.n, 1)))
+        factor = self.backend in ("cholmod", "dense")
+        if self.backend == "cholmod":
+            self._f._ensure_L_or_LD_inplace(True)  # LL' (supernodal stays supernodal)
+            perm = self._f.P().astype(np.int64)
+            where = np.empty(self.n, dtype=np.int64)
+            where[perm] = np.arange(self.n)  # row of unknown i in the permuted system
+        else:
+            where = np.arange(self.n)
+        for j in range(0, idx.size, step):  # batches of columns, not points
+            part = idx[j : j + step]
+            cols = np.arange(part.size)
+            E = np.zeros((self.n, part.size))
+            if not factor:
+                E[part, cols] = 1.0
+                out[j : j + part.size] = self.solve(E)[part, cols]
+                continue
+            E[where[part], cols] = 1.0
+            if self.backend == "cholmod":
+                W = self._f._solve(E, _CHOLMOD_L)
+            else:
+                from scipy.linalg import solve_triangular
+
+                W = solve_triangular(self._f[0], E, lower=True, check_finite=False)
+            out[j : j + part.size] = np.einsum("ij,ij->j", W, W) * self._scale[part] ** 2
+        return out
+
     def dense_inverse(self) -> np.ndarray:
         """The whole inverse ``N^-1`` (n, n) by LAPACK's Cholesky inverse (``potrf`` +
         ``potri``); for ``n`` up to :data:`DENSE_INVERSE_MAX`."""
@@ -358,8 +438,27 @@ class SparseFactor:
         return out
 
 
+def _block_labels(n: int, block_size: int, blocks) -> np.ndarray:
+    """The block of the cg preconditioner of every unknown (see :class:`SparseFactor`):
+    ``blocks`` checked, or blocks of ``block_size`` and one of the rest."""
+    if blocks is None:
+        bs = max(1, int(block_size))
+        return np.minimum(np.arange(n) // bs, n // bs)
+    label = np.asarray(blocks).ravel()
+    if label.shape != (n,) or (n and (label.dtype.kind not in "iu" or label.min() < 0)):
+        raise ValueError(
+            f"blocks must hold the block (an integer from 0) of each of the {n} unknowns"
+        )
+    return np.unique(label, return_inverse=True)[1].ravel() if n else label.astype(np.int64)
+
+
 def factorize(
-    N, *, backend: str = "auto", what: str = "normal matrix", block_size: int = 1
+    N,
+    *,
+    backend: str = "auto",
+    what: str = "normal matrix",
+    block_size: int = 1,
+    blocks: np.ndarray | None = None,
 ) -> SparseFactor:
     """Factorise a sparse SPD matrix; see :class:`SparseFactor`."""
-    return SparseFactor(N, backend=backend, what=what, block_size=block_size)
+    return SparseFactor(N, backend=backend, what=what, block_size=block_size, blocks=blocks)
