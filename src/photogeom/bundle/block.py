@@ -268,7 +268,8 @@ class Block:
     role : numpy.ndarray of str, shape (p,)
         ``"tie"``, ``"control"`` or ``"check"`` per point.
     point_sigma : numpy.ndarray, shape (p, 3)
-        Standard deviations of the surveyed coordinates; NaN where none were given
+        Standard deviations of the surveyed coordinates, object units (those of ``xyz``);
+        NaN where none were given
         (:meth:`from_arrays` broadcasts a given ``point_sigma`` to tie points too).
     observations : Observations
         The image observations: image and point ids, pixels ``uv`` (n, 2) and their sigma
@@ -379,9 +380,11 @@ class Block:
         role : str or sequence (p,), default "tie"
             ``"tie"``, ``"control"`` or ``"check"`` per point.
         point_sigma : array_like (p, 3) or (3,), optional
-            Standard deviations of surveyed coordinates (control and check points).
+            Standard deviations of surveyed coordinates (control and check points), in the
+            object units of ``xyz``.
         gnss, gnss_sigma : array_like (m, 3), optional
-            Observed projection centres and their standard deviations (NaN: none).
+            Observed projection centres and their standard deviations, in the object units
+            of ``xyz`` (NaN: none).
         imu, imu_sigma : array_like (m, 3), optional
             Observed omega, phi, kappa (radians) and standard deviations (NaN: none).
         calibration_offset : array_like (m, 3), optional
