@@ -167,7 +167,7 @@ def test_residual_grid_contract(unstable):
         assert np.allclose([a.X0, a.Y0, a.Z0], [b.X0, b.Y0, b.Z0], atol=1e-9)
     steps = pg.calibration.model_steps(block)
     order = list(block.image_ids)
-    for a, b in steps:  # consecutive images of the flight
+    for a, b in steps:  # stereo models of about 60 % overlap: at 70 %, neighbouring images
         assert order.index(b) - order.index(a) == 1
     assert all(np.isfinite(s) and s >= 0 for s in steps.values())
 
