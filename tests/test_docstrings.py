@@ -29,6 +29,8 @@ import typing
 
 PACKAGES = (
     "photogeom",
+    "photogeom.adjust",
+    "photogeom.bundle",
     "photogeom.calibration",
     "photogeom.camera",
     "photogeom.crs",

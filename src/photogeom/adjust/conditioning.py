@@ -16,17 +16,46 @@ class PointNormalization(ReadOnlyRecord):
 
     ``scale`` is the RMS distance of the points from their centroid divided by
     ``sqrt(dim)`` (so normalised coordinates have unit RMS per axis); 1 when all points coincide.
+
+    Attributes
+    ----------
+    centre : numpy.ndarray, shape (dim,)
+        The (weighted) centroid, units of the points.
+    scale : float
+        The isotropic scale, units of the points.
     """
 
     centre: np.ndarray
     scale: float
 
     def apply(self, points: np.ndarray) -> np.ndarray:
-        """Normalise points (n, dim)."""
+        """Normalise points.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, dim)
+            Points in their own units.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim)
+            ``(points - centre) / scale``, unitless.
+        """
         return (np.asarray(points, dtype=float) - self.centre) / self.scale
 
     def undo(self, points_n: np.ndarray) -> np.ndarray:
-        """Back from normalised to original coordinates."""
+        """Back from normalised to original coordinates.
+
+        Parameters
+        ----------
+        points_n : array_like, shape (n, dim)
+            Normalised points, unitless.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, dim)
+            ``points_n * scale + centre``, in the units of the original points.
+        """
         return np.asarray(points_n, dtype=float) * self.scale + self.centre
 
     @property
@@ -40,7 +69,21 @@ class PointNormalization(ReadOnlyRecord):
 
 
 def normalize_points(points: np.ndarray, weights: np.ndarray | None = None) -> PointNormalization:
-    """Normalisation of ``points`` (n, dim), optionally with per-point weights for the centroid."""
+    """The normalisation of a point set: centroid reduction and one isotropic scale.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, dim)
+        Points in any unit.
+    weights : array_like, shape (n,), optional
+        Per-point weights of the centroid (unitless).
+
+    Returns
+    -------
+    PointNormalization
+        ``centre`` and ``scale`` (units of the points); normalised points have unit RMS
+        per axis.
+    """
     p = np.asarray(points, dtype=float)
     n, dim = p.shape
     if weights is None:

@@ -19,7 +19,20 @@ DEFAULT_ALPHA = 0.001
 
 
 def propagate_covariance(C: np.ndarray, J: np.ndarray) -> np.ndarray:
-    """Covariance of ``g(x)`` from that of ``x``: ``J C J.T`` (J = dg/dx)."""
+    """Covariance of ``g(x)`` from that of ``x``: ``J C J.T`` (J = dg/dx).
+
+    Parameters
+    ----------
+    C : array_like, shape (u, u)
+        Covariance of ``x``, in the squared units of ``x``.
+    J : array_like, shape (k, u)
+        Jacobian ``dg/dx`` (units of ``g`` per unit of ``x``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (k, k)
+        Covariance of ``g``, in the squared units of ``g``.
+    """
     J = np.asarray(J, dtype=float)
     return J @ np.asarray(C, dtype=float) @ J.T
 

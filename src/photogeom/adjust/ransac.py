@@ -80,6 +80,12 @@ def ransac(
         Hypotheses per vectorised call.
     rng : numpy Generator, int or None
         Random source (seed for reproducible runs).
+
+    Returns
+    -------
+    RansacResult
+        The best hypothesis (MSAC score), its inlier mask (errors within ``threshold``) and
+        the number of hypotheses drawn.
     """
     if n < sample_size:
         raise InputError(f"RANSAC: {n} point(s), a minimal sample needs {sample_size}")

@@ -45,6 +45,8 @@ class Adjustment:
         ``v.T P v`` after each iteration (for diagnostics).
     message : str
         Human-readable account of convergence or problems.
+    corrected_observations : numpy.ndarray or None, shape (n_obs,)
+        Gauss-Helmert: the adjusted observations ``L + v``; None for Gauss-Markov.
 
     Notes
     -----

@@ -79,7 +79,15 @@ class SnoopingResult(ReadOnlyRecord):
         return i if i is not None and bool(self.flagged[i]) else None
 
     def to_dict(self) -> dict:
-        """JSON-ready summary."""
+        """JSON-ready summary.
+
+        Returns
+        -------
+        dict
+            ``test``, ``alpha``, ``critical_value``, ``statistic`` per observation (None
+            where it cannot be formed), ``flagged`` indices, ``power``, ``mdb`` (minimal
+            detectable errors, in standard deviations) and ``poorly_controlled`` indices.
+        """
         return {
             "test": self.test,
             "alpha": self.alpha,

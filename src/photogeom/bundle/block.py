@@ -93,7 +93,24 @@ _freeze_arrays = read_only_fields
 
 @dataclass(frozen=True, eq=False)
 class Image(ReadOnlyRecord):
-    """One image of a block (a view; the block stores arrays)."""
+    """One image of a block (a view; the block stores arrays).
+
+    Attributes
+    ----------
+    id : object
+        Image id.
+    camera : object
+        Id of its camera group (a key of ``Block.cameras``).
+    exterior : ExteriorOrientation
+        Projection centre (object units) and omega, phi, kappa (radians).
+    gnss, gnss_sigma : numpy.ndarray, shape (3,), or None
+        Observed projection centre and its standard deviations, object units; None
+        without GNSS.
+    imu, imu_sigma : numpy.ndarray, shape (3,), or None
+        Observed omega, phi, kappa and their standard deviations, radians; None without IMU.
+    calibration_offset : numpy.ndarray, shape (3,)
+        The image's offsets of f, cx, cy from its group's calibration, px.
+    """
 
     id: object
     camera: object
@@ -110,7 +127,20 @@ class Image(ReadOnlyRecord):
 
 @dataclass(frozen=True, eq=False)
 class Point(ReadOnlyRecord):
-    """One object point of a block (a view)."""
+    """One object point of a block (a view).
+
+    Attributes
+    ----------
+    id : object
+        Point id.
+    xyz : numpy.ndarray, shape (3,)
+        Object coordinates, object units.
+    role : {"tie", "control", "check"}
+        The point's role.
+    sigma : numpy.ndarray, shape (3,), or None
+        Standard deviations of the surveyed coordinates, object units; None when none
+        were given.
+    """
 
     id: object
     xyz: np.ndarray
@@ -268,7 +298,8 @@ class Block:
     role : numpy.ndarray of str, shape (p,)
         ``"tie"``, ``"control"`` or ``"check"`` per point.
     point_sigma : numpy.ndarray, shape (p, 3)
-        Standard deviations of the surveyed coordinates; NaN where none were given
+        Standard deviations of the surveyed coordinates, object units (those of ``xyz``);
+        NaN where none were given
         (:meth:`from_arrays` broadcasts a given ``point_sigma`` to tie points too).
     observations : Observations
         The image observations: image and point ids, pixels ``uv`` (n, 2) and their sigma
@@ -379,9 +410,11 @@ class Block:
         role : str or sequence (p,), default "tie"
             ``"tie"``, ``"control"`` or ``"check"`` per point.
         point_sigma : array_like (p, 3) or (3,), optional
-            Standard deviations of surveyed coordinates (control and check points).
+            Standard deviations of surveyed coordinates (control and check points), in the
+            object units of ``xyz``.
         gnss, gnss_sigma : array_like (m, 3), optional
-            Observed projection centres and their standard deviations (NaN: none).
+            Observed projection centres and their standard deviations, in the object units
+            of ``xyz`` (NaN: none).
         imu, imu_sigma : array_like (m, 3), optional
             Observed omega, phi, kappa (radians) and standard deviations (NaN: none).
         calibration_offset : array_like (m, 3), optional

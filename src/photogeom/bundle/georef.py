@@ -106,13 +106,44 @@ def _block_crs(block: Block) -> str:
 
 
 def positions_in(block: Block, crs, *, allow_ballpark: bool = False) -> np.ndarray:
-    """Projection centres (m, 3) of ``block`` (e.g. ``BundleFit.block``) in ``crs``,
-    x/easting/longitude first (``lon, lat, h`` for ``EPSG:4979``)."""
+    """Projection centres of ``block`` (e.g. ``BundleFit.block``) in another CRS.
+
+    Parameters
+    ----------
+    block : Block
+        A block that records the CRS of its coordinates (``block.crs``).
+    crs : str
+        The CRS to convert to: EPSG code, WKT, PROJ string or ``enu:LAT,LON,H``.
+    allow_ballpark : bool
+        Accept an approximate ("ballpark") datum shift; refused by default.
+
+    Returns
+    -------
+    numpy.ndarray, shape (m, 3)
+        One row per image, x/easting/longitude first, in the units of ``crs`` (``lon, lat``
+        in degrees and ``h`` in m for ``EPSG:4979``).
+    """
     return points_between(
         block.exterior[:, :3], _block_crs(block), crs, allow_ballpark=allow_ballpark
     )
 
 
 def points_in(block: Block, crs, *, allow_ballpark: bool = False) -> np.ndarray:
-    """Object points (p, 3) of ``block`` in ``crs`` (see :func:`positions_in`)."""
+    """Object points of ``block`` in another CRS (as :func:`positions_in` converts).
+
+    Parameters
+    ----------
+    block : Block
+        A block that records the CRS of its coordinates (``block.crs``).
+    crs : str
+        The CRS to convert to: EPSG code, WKT, PROJ string or ``enu:LAT,LON,H``.
+    allow_ballpark : bool
+        Accept an approximate ("ballpark") datum shift; refused by default.
+
+    Returns
+    -------
+    numpy.ndarray, shape (p, 3)
+        One row per point of ``block.point_ids``, x/easting/longitude first, in the units
+        of ``crs``.
+    """
     return points_between(block.xyz, _block_crs(block), crs, allow_ballpark=allow_ballpark)

@@ -322,6 +322,21 @@ def write_bal(block: Block, path: str | os.PathLike, *, drop_extras: bool = Fals
     position). Observations are measured from each image's principal point (BAL's origin),
     so a fixed principal point off the image centre is written exactly.
 
+    Parameters
+    ----------
+    block : Block
+        The block to write.
+    path : path-like
+        The file (compressed with bzip2 when the name ends in ``.bz2``).
+    drop_extras : bool
+        Write a block with control or check points, GNSS/IMU observations or unequal
+        observation standard deviations anyway, without them.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
     Raises
     ------
     InputError

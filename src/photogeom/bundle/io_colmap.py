@@ -988,6 +988,11 @@ def write_colmap(
         Write a block with control or check points, GNSS/IMU observations or unequal
         observation standard deviations anyway (COLMAP's text model has none of them).
 
+    Returns
+    -------
+    pathlib.Path
+        The folder.
+
     Notes
     -----
     A group with image-variant offsets is written as one COLMAP camera per image, and a

@@ -518,6 +518,11 @@ def read_csv_block(
     sigma : float
         Standard deviation of observations without a ``sigma`` column, pixels.
 
+    Returns
+    -------
+    Block
+        The block (angles converted to radians, pixels from the centre of the first pixel).
+
     Raises
     ------
     FileFormatError
@@ -874,8 +879,21 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
 def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: str = "deg") -> Path:
     """Write a block as a folder of CSV files (created if missing; see the module docstring).
 
-    All four files are formatted first, then each is replaced atomically. Angles are written
-    in ``angle_unit`` (``"deg"``, ``"gon"`` or ``"rad"``, named in the column headers).
+    All four files are formatted first, then each is replaced atomically.
+
+    Parameters
+    ----------
+    block : Block
+        The block to write.
+    directory : path-like
+        The folder (created with its parents when missing).
+    angle_unit : {"deg", "gon", "rad"}
+        Unit of the angles written, named in the column headers.
+
+    Returns
+    -------
+    pathlib.Path
+        The folder.
 
     Raises
     ------

@@ -160,8 +160,23 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
 
 
 def detect_format(path: str | os.PathLike) -> str:
-    """``"bal"``, ``"colmap"`` or ``"csv"`` for an existing file (or pipe) or folder (see the module
-    docstring); :class:`FileFormatError` when it is none of them."""
+    """The block format of an existing file (or pipe) or folder (see the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        A BAL file (or pipe), or a folder holding a COLMAP text model or a CSV block.
+
+    Returns
+    -------
+    str
+        ``"bal"``, ``"colmap"`` or ``"csv"``.
+
+    Raises
+    ------
+    FileFormatError
+        ``path`` does not exist, or is a folder holding neither model.
+    """
     p = Path(path)
     if p.exists() and not p.is_dir():  # a file, or a pipe (read once); read_bal refuses devices
         return "bal"
@@ -187,8 +202,19 @@ def _check(kind: str) -> str:
 def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> Block:
     """Read a block from a BAL file, a COLMAP text model or a CSV folder.
 
-    ``kind`` (``"bal"``, ``"colmap"``, ``"csv"``) defaults to :func:`detect_format`;
-    ``options`` go to :func:`read_bal`, :func:`read_colmap` or :func:`read_csv_block`.
+    Parameters
+    ----------
+    path : path-like
+        The file or folder.
+    kind : {"bal", "colmap", "csv"}, optional
+        The format; default :func:`detect_format`.
+    **options
+        Keywords of :func:`read_bal`, :func:`read_colmap` or :func:`read_csv_block`.
+
+    Returns
+    -------
+    Block
+        The block, in photogeom's conventions (pixels from the centre of the first pixel).
     """
     k = detect_format(path) if kind is None else _check(kind)
     reader = {"bal": read_bal, "colmap": read_colmap, "csv": read_csv_block}[k]
@@ -198,9 +224,22 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
 def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, **options):
     """Write a block as a BAL file, a COLMAP text model or a CSV folder.
 
-    Without ``kind``: an existing path's format (:func:`detect_format`), else BAL for names
-    ending in ``.bal``, ``.txt`` or ``.bz2``; a new folder needs ``kind``. ``options`` go to
-    :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
+    Parameters
+    ----------
+    block : Block
+        The block to write.
+    path : path-like
+        The file or folder.
+    kind : {"bal", "colmap", "csv"}, optional
+        The format. Without it: an existing path's format (:func:`detect_format`), else BAL
+        for names ending in ``.bal``, ``.txt`` or ``.bz2``; a new folder needs ``kind``.
+    **options
+        Keywords of :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
+
+    Returns
+    -------
+    pathlib.Path
+        The file or folder written.
     """
     p = Path(path)
     if kind is None:

@@ -10,10 +10,21 @@ from .block import Block
 
 
 def projected_pixels(block: Block, xyz: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels ``(u, v)`` of every observation's point projected into its image, and the
-    depth of the point in front of the camera (positive in front), in observation order.
+    """Every observation's point projected into its image, in observation order.
 
-    ``xyz`` (p, 3) replaces the block's point coordinates when given.
+    Parameters
+    ----------
+    block : Block
+        Cameras, images and observations.
+    xyz : numpy.ndarray, shape (p, 3), optional
+        Object coordinates replacing the block's points (same order), object units.
+
+    Returns
+    -------
+    uv : numpy.ndarray, shape (n, 2)
+        Projected pixels (centre of the first pixel at (0, 0)), px.
+    depth : numpy.ndarray, shape (n,)
+        Depth of the point in front of the camera (positive in front), object units.
     """
     X = block.xyz if xyz is None else xyz
     i, j = block.obs_image, block.obs_point
@@ -38,6 +49,11 @@ def reprojection_residuals(block: Block, *, behind: str = "raise") -> np.ndarray
     behind : {"raise", "nan"}
         Observations whose point lies behind its camera: raise
         :class:`~photogeom.errors.DegenerateGeometryError` naming them, or give NaN.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2)
+        Computed minus observed ``(u, v)``, px, one row per observation.
     """
     uv, depth = projected_pixels(block)
     back = ~(depth > 0)

@@ -100,7 +100,18 @@ class Triangulation(ReadOnlyRecord):
         return np.sqrt(np.einsum("kii->ki", self.covariance))
 
     def describe_failures(self, limit: int = 5) -> str:
-        """One line naming the points that failed and why (empty when all are triangulated)."""
+        """One line naming the points that failed and why.
+
+        Parameters
+        ----------
+        limit : int
+            Points named at most; the others are counted.
+
+        Returns
+        -------
+        str
+            The line; empty when every point was triangulated.
+        """
         bad = np.flatnonzero(self.status != STATUS_OK)
         if bad.size == 0:
             return ""
@@ -124,6 +135,11 @@ class Triangulation(ReadOnlyRecord):
         on_failure : {"raise", "keep"}
             Points that were not triangulated: raise :class:`InputError` naming them, or keep
             their coordinates in ``block``.
+
+        Returns
+        -------
+        Block
+            The new block.
         """
         if on_failure not in ("raise", "keep"):
             raise InputError(f"on_failure must be 'raise' or 'keep', got {on_failure!r}")

@@ -146,7 +146,7 @@ def estimate_affine_camera(
     unit : str
         Unit of the image coordinates.
     sigma : float or array_like (n,) or (n, 2), optional
-        Standard deviations of the image coordinates.
+        Standard deviations of the image coordinates, in ``unit``.
     ids, check_ground, check_image, check_ids
         Point ids and check points (residuals reported, not in the estimate).
 

@@ -340,7 +340,7 @@ def estimate_dlt(
     unit : {"mm", "px"}
         Unit of the image coordinates.
     sigma : float or array_like (n,) or (n, 2), optional
-        Standard deviation of the image coordinates (weights ``1 / sigma^2``).
+        Standard deviation of the image coordinates, in ``unit`` (weights ``1 / sigma^2``).
     ids : sequence, optional
         Point ids of the control points.
     check_ground, check_image, check_ids : optional

@@ -230,7 +230,8 @@ def absolute_orientation_batch(
     scale_method : {"least-squares", "symmetric"}
         As in :func:`~photogeom.orientation.absolute_orientation`.
     sigma_source, sigma_target : float, optional
-        ``"gauss-helmert"``: one standard deviation per system (prescaling).
+        ``"gauss-helmert"``: one standard deviation per system, in the units of the source
+        and the target coordinates (prescaling).
     nearest_rotation : bool
         Closed form: orthogonalise R.
     residual_rms : bool

@@ -158,7 +158,8 @@ def ransac_absolute_orientation(
     weights, sigma_target : optional
         Precision for the refinement, subset to the inliers: ``weights`` per point (n,) or
         per coordinate (n, 3) / (3n,) (the latter two need ``method="gauss-markov"``),
-        ``sigma_target`` a number, per point (n,) or per coordinate (n, 3).
+        ``sigma_target`` a number, per point (n,) or per coordinate (n, 3), in the units of
+        the target coordinates.
     ids : sequence, optional
     unit : str
     **refine_options

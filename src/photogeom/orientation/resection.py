@@ -1038,7 +1038,8 @@ def space_resection_batch(
     initial : ExteriorOrientation, sequence of B ExteriorOrientation, or array_like (B, 6) or (6,)
         Start values ``X0, Y0, Z0, omega, phi, kappa`` (radians).
     sigma : float, optional
-        Standard deviation of every image coordinate (weights ``1/sigma^2``).
+        Standard deviation of every image coordinate, in the unit of ``io`` (weights
+        ``1/sigma^2``).
     max_iter, tol
         Iteration limit; a problem has converged when its step changes the whitened computed
         observations by at most ``tol (1 + rms(v_w))``.

@@ -111,7 +111,8 @@ def orient_strip(
         Parameterisation of each relative orientation (the strip does not depend on it; the
         default, independent, takes a base in any direction of the image plane).
     sigma : float, optional
-        A-priori standard deviation of the image coordinates.
+        A-priori standard deviation of the image coordinates, in the unit of the interior
+        orientations.
     min_common : int
         Points that two consecutive models must share for the scale transfer.
     seed : int or None
