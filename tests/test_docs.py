@@ -71,7 +71,6 @@ def test_residual_grid_node_std_limit_as_documented():
 
 def _cli_params() -> dict:
     """``{"group command": {option name: click parameter}}`` of the whole command line."""
-    import click
     import typer
 
     from photogeom.cli.main import app
@@ -80,7 +79,7 @@ def _cli_params() -> dict:
 
     def walk(cmd, path):
         if hasattr(cmd, "list_commands"):
-            ctx = click.Context(cmd)
+            ctx = cmd.context_class(cmd)  # the click of the command itself (typer vendors one)
             for name in cmd.list_commands(ctx):
                 walk(cmd.get_command(ctx, name), [*path, name])
         else:

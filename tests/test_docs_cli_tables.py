@@ -46,7 +46,6 @@ def test_output_calibration_row_names_every_suffix():
 
 def _cli_params() -> dict:
     """``{"group command": [click parameter, ...]}`` of the whole command line."""
-    import click
     import typer
 
     from photogeom.cli.main import app
@@ -55,7 +54,7 @@ def _cli_params() -> dict:
 
     def walk(cmd, path):
         if hasattr(cmd, "list_commands"):
-            ctx = click.Context(cmd)
+            ctx = cmd.context_class(cmd)  # the click of the command itself (typer vendors one)
             for name in cmd.list_commands(ctx):
                 walk(cmd.get_command(ctx, name), [*path, name])
         else:
