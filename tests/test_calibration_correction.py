@@ -447,3 +447,52 @@ def test_missing_dask_is_named(folder, grid, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(PhotogeomError, match=r"photogeom\[dask\]"):
         correct_folder(src, tmp_path / "out", {"IMG_1": grid}, dask=True, progress=False)
+
+
+def test_dask_folder_is_one_graph_and_one_gather(folder, grid, tmp_path):
+    """The images of a folder go to the scheduler as one graph and their outcomes come back
+    in one gather (a submit and a result per image were a graph update and a gather through
+    the scheduler each: Dask's CPU taken from the workers' cores); the progress still
+    counts every image, and the files equal those corrected one by one."""
+    distributed = pytest.importorskip("distributed")
+    src, _ = folder
+    for k in (5, 6):
+        (src / f"IMG_{k}.JPG").write_bytes((src / "IMG_1.JPG").read_bytes())
+    calls = {"update_graph": 0, "gather": 0}
+
+    class Graphs(distributed.diagnostics.plugin.SchedulerPlugin):
+        def update_graph(self, scheduler, **kwargs):
+            calls["update_graph"] += 1
+
+    cluster = distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    )
+    try:
+        scheduler = cluster.scheduler
+        scheduler.add_plugin(Graphs())
+        gather = scheduler.handlers["gather"]
+
+        def counted(*args, **kwargs):
+            calls["gather"] += 1
+            return gather(*args, **kwargs)
+
+        scheduler.handlers["gather"] = counted
+        seen = []
+        grids = {"IMG_1": grid, "IMG_4": grid, "IMG_5": grid, "IMG_6": grid}
+        res = correct_folder(
+            src,
+            tmp_path / "out",
+            grids,
+            dask=cluster.scheduler_address,
+            progress=lambda done, total: seen.append((done, total)),
+        )
+    finally:
+        cluster.close()
+    assert calls == {"update_graph": 1, "gather": 1}
+    assert seen == [(k, 4) for k in range(5)]
+    assert set(res.written) == {"IMG_1", "IMG_5", "IMG_6"} and set(res.failures) == {"IMG_4"}
+    assert "not a readable image" in res.failures["IMG_4"]
+    ref = tmp_path / "ref.jpg"
+    correct_image_file(src / "IMG_1.JPG", ref, grid)
+    for name in ("IMG_1.JPG", "IMG_5.JPG", "IMG_6.JPG"):
+        assert (tmp_path / "out" / name).read_bytes() == ref.read_bytes()

@@ -1417,7 +1417,6 @@ def _run_dask(jobs, workers, dask, interpolation, progress, border):
             "correcting images on a Dask cluster needs dask.distributed: "
             'pip install "photogeom[dask]" (or run without --dask/--scheduler)'
         ) from None
-    out: list = [None] * len(jobs)
     cluster = None
     if isinstance(dask, str):
         from ..distributed import connect_to_scheduler
@@ -1439,14 +1438,25 @@ def _run_dask(jobs, workers, dask, interpolation, progress, border):
     try:
         with _progress(progress, len(jobs)) as prog:
             t = prog.add_task("correcting images (dask)", total=len(jobs))
-            futs = [
-                client.submit(_task, s, d, g, interpolation, 1, True, border, pure=False)
-                for _k, s, d, g in jobs
-            ]
-            index = {f.key: i for i, f in enumerate(futs)}
-            for f in as_completed(futs):
-                out[index[f.key]] = f.result()
+            # the folder is one graph and its outcomes one gather: a submit and a result
+            # per image were a graph update and a gather through the scheduler each (8
+            # images of no work on 2 workers: 62 ms of the client's and scheduler's CPU and
+            # 50 ms of the workers', against 31 and 33 ms), CPU taken from the cores that
+            # correct the images when the workers fill them
+            futs = client.map(
+                _task,
+                [s for _k, s, _d, _g in jobs],
+                [d for _k, _s, d, _g in jobs],
+                [g for _k, _s, _d, g in jobs],
+                interpolation=interpolation,
+                threads=1,
+                cv_single=True,
+                border=border,
+                pure=False,
+            )
+            for _f in as_completed(futs):
                 prog.advance(t)
+            out: list = client.gather(futs)
     finally:
         client.close()
         if cluster is not None:
