@@ -1272,12 +1272,20 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
     # threads inside a job: only when the jobs do not already fill the machine
     threads = 1 if (workers > 1 or dask) else None
-    if dask:
-        outcomes = _run_dask(jobs, workers, dask, interpolation, progress, border)
-    elif workers == 1:
-        outcomes = _run_serial(jobs, interpolation, threads, progress, border)
+    if dask or workers > 1:
+        # the largest images first: the workers then end together, not one of them
+        # correcting a large image alone after the others have run out of work
+        order = _largest_first(jobs)
+        queued = [jobs[i] for i in order]
+        if dask:
+            done = _run_dask(queued, workers, dask, interpolation, progress, border)
+        else:
+            done = _run_processes(queued, workers, interpolation, progress, border)
+        outcomes: list = [None] * len(jobs)
+        for i, outcome in zip(order, done):
+            outcomes[i] = outcome
     else:
-        outcomes = _run_processes(jobs, workers, interpolation, progress, border)
+        outcomes = _run_serial(jobs, interpolation, threads, progress, border)
     for (key, _s, d, _g), (ok, msg) in zip(jobs, outcomes):
         if ok:
             result.written[key] = Path(d)
@@ -1286,6 +1294,33 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
         else:
             result.failures[key] = msg
     return result
+
+
+def _largest_first(jobs: list) -> list[int]:
+    """Positions of ``jobs`` by decreasing work: pixels of the image (its grid's size), then
+    bytes of the file; jobs of equal work keep their order.
+
+    Parameters
+    ----------
+    jobs : list of (key, source path, output path, ResidualGrid)
+        The images of a folder.
+
+    Returns
+    -------
+    list of int
+        Indices into ``jobs``.
+    """
+
+    def work(i: int) -> tuple[int, int]:
+        _key, path, _dst, grid = jobs[i]
+        w, h = grid.image_size
+        try:
+            size = os.stat(path).st_size
+        except OSError:  # gone meanwhile: its task says so
+            size = 0
+        return w * h, size
+
+    return sorted(range(len(jobs)), key=work, reverse=True)
 
 
 def _output_folder(dst: Path) -> None:
