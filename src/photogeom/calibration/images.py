@@ -1473,11 +1473,10 @@ def _run_dask(jobs, workers, dask, interpolation, progress, border):
     try:
         with _progress(progress, len(jobs)) as prog:
             t = prog.add_task("correcting images (dask)", total=len(jobs))
-            # the folder is one graph and its outcomes one gather: a submit and a result
-            # per image were a graph update and a gather through the scheduler each (8
-            # images of no work on 2 workers: 62 ms of the client's and scheduler's CPU and
-            # 50 ms of the workers', against 31 and 33 ms), CPU taken from the cores that
-            # correct the images when the workers fill them
+            # the folder is one graph: a submit per image was a graph update each (with a
+            # result fetched per image, 8 images of no work on 2 workers: 62 ms of the
+            # client's and scheduler's CPU and 50 ms of the workers', against 34 and 37 ms),
+            # CPU taken from the cores that correct the images when the workers fill them
             futs = client.map(
                 _task,
                 [s for _k, s, _d, _g in jobs],
@@ -1489,11 +1488,55 @@ def _run_dask(jobs, workers, dask, interpolation, progress, border):
                 border=border,
                 pure=False,
             )
-            for _f in as_completed(futs):
+            index = {f.key: i for i, f in enumerate(futs)}
+            out: list = [None] * len(jobs)
+            # each outcome fetched as its task ends: one kept on its worker until the end
+            # would be lost with that worker (and the image corrected again)
+            for f, value in as_completed(futs, with_results=True, raise_errors=False):
+                i = index[f.key]
+                out[i] = value if f.status == "finished" else _dask_failure(jobs[i][1], value)
                 prog.advance(t)
-            out: list = client.gather(futs)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
     return out
+
+
+def _dask_failure(src: str, error) -> tuple[bool, str]:
+    """The outcome of the task of image ``src`` that Dask could not run: a worker that died
+    while correcting it (``KilledWorker``) is a failure of that image; anything else is
+    raised (not one image's problem: the workers cannot import photogeom, ...).
+
+    A worker process that dies in a task (out of memory, or a crash inside a decoder on a
+    hostile file) makes the scheduler give the task up after its ``allowed-failures``
+    retries: that raised out of :func:`correct_folder`, and the outcomes of all the other
+    images, written meanwhile, were lost with it.
+
+    Parameters
+    ----------
+    src : str
+        The image file.
+    error : tuple or BaseException
+        ``(type, exception, traceback)`` of an erred task, or the ``CancelledError`` of a
+        cancelled one (as ``as_completed(..., raise_errors=False)`` gives them).
+
+    Returns
+    -------
+    tuple
+        ``(False, message)``.
+    """
+    from distributed import KilledWorker
+
+    exc = error[1] if isinstance(error, tuple) else error
+    if isinstance(exc, KilledWorker):
+        return (
+            False,
+            f"{src}: the Dask worker correcting it died (out of memory, or a crash in a "
+            "decoder); nothing was written for it. Correct it alone with correct_image_file "
+            "(grid correct-images on a folder of that image, without --dask) to see the "
+            "error, or give the workers more memory",
+        )
+    if isinstance(error, tuple):
+        raise exc.with_traceback(error[2])
+    raise exc

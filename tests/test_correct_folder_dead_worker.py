@@ -1,0 +1,62 @@
+"""``correct_folder`` on Dask when a worker process dies in one image's task."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from photogeom.calibration import correct_folder, correct_image_file, fit_grid
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from dying_grids import PARENT, DyingGrid
+
+
+def test_a_worker_dying_in_one_image_fails_that_image_only(tmp_path, monkeypatch):
+    """A worker that dies while correcting an image (out of memory, a decoder's crash on a
+    hostile file): that image is a failure that says so, and the others are listed as
+    written (the scheduler's ``KilledWorker`` raised out of ``correct_folder`` before, and
+    the outcomes of the images written meanwhile were lost with it)."""
+    distributed = pytest.importorskip("distributed")
+    import dask
+
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(6)
+    for k in ("a", "b", "c"):
+        # b, of one grey level, is the smallest file: queued last (largest first), so the
+        # other images are done when its worker dies
+        pixels = rng.integers(0, 256, (40, 60, 3), dtype=np.uint8) if k != "b" else 128
+        Image.fromarray(np.broadcast_to(np.uint8(pixels), (40, 60, 3))).save(
+            src / f"{k}.jpg", quality=90
+        )
+    uv = np.column_stack([rng.uniform(0, 59, 80), rng.uniform(0, 39, 80)])
+    grid = fit_grid(uv, rng.normal(0, 0.3, (80, 2)), (60, 40), 20.0, folds=0)
+    dying = DyingGrid(**{f.name: getattr(grid, f.name) for f in dataclasses.fields(grid)})
+    monkeypatch.setenv(PARENT, str(os.getpid()))
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        cluster = distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
+        )
+        try:
+            res = correct_folder(
+                src,
+                tmp_path / "out",
+                {"a": grid, "b": dying, "c": grid},
+                dask=cluster.scheduler_address,
+                progress=False,
+            )
+        finally:
+            cluster.close()
+    assert set(res.written) == {"a", "c"} and set(res.failures) == {"b"}
+    assert "the Dask worker correcting it died" in res.failures["b"]
+    assert "correct_image_file" in res.failures["b"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a.jpg", "c.jpg"]
+    correct_image_file(src / "a.jpg", tmp_path / "ref.jpg", grid)
+    assert (tmp_path / "out" / "a.jpg").read_bytes() == (tmp_path / "ref.jpg").read_bytes()
