@@ -40,7 +40,14 @@ def test_a_worker_dying_in_one_image_fails_that_image_only(tmp_path, monkeypatch
     grid = fit_grid(uv, rng.normal(0, 0.3, (80, 2)), (60, 40), 20.0, folds=0)
     dying = DyingGrid(**{f.name: getattr(grid, f.name) for f in dataclasses.fields(grid)})
     monkeypatch.setenv(PARENT, str(os.getpid()))
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+    # no retry of a task whose worker died; one task at a time on the worker, so that the
+    # scheduler knows the images before b done when b's worker dies (with a second one
+    # queued on it, an image done but not yet reported would be given up with it)
+    settings = {
+        "distributed.scheduler.allowed-failures": 0,
+        "distributed.scheduler.worker-saturation": 1.0,
+    }
+    with dask.config.set(settings):
         cluster = distributed.LocalCluster(
             n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
         )
