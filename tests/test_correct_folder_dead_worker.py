@@ -67,3 +67,40 @@ def test_a_worker_dying_in_one_image_fails_that_image_only(tmp_path, monkeypatch
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a.jpg", "c.jpg"]
     correct_image_file(src / "a.jpg", tmp_path / "ref.jpg", grid)
     assert (tmp_path / "out" / "a.jpg").read_bytes() == (tmp_path / "ref.jpg").read_bytes()
+
+
+def test_a_process_dying_in_one_image_fails_that_image_only(tmp_path, monkeypatch):
+    """``workers=2`` (a pool of local processes): a process that dies while correcting an
+    image broke the pool, ``BrokenProcessPool`` was raised out of ``correct_folder`` and
+    the pool's other processes, terminated, could leave their temporary files in the output
+    folder. Now the images not finished run again, each on its own: the one whose process
+    dies again is a failure of that image, the others are written, and no temporary file
+    stays."""
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(7)
+    for k in "abcd":
+        pixels = rng.integers(0, 256, (40, 60, 3), dtype=np.uint8)
+        Image.fromarray(pixels).save(src / f"{k}.jpg", quality=90)
+    uv = np.column_stack([rng.uniform(0, 59, 80), rng.uniform(0, 39, 80)])
+    grid = fit_grid(uv, rng.normal(0, 0.3, (80, 2)), (60, 40), 20.0, folds=0)
+    dying = DyingGrid(**{f.name: getattr(grid, f.name) for f in dataclasses.fields(grid)})
+    monkeypatch.setenv(PARENT, str(os.getpid()))
+    out = tmp_path / "out"
+    out.mkdir()
+    # what a writer terminated in the middle of b would leave
+    (out / ".b.jpg.0123456789ab.tmp").write_bytes(b"part of an image")
+    seen = []
+    res = correct_folder(
+        src,
+        out,
+        {"a": grid, "b": dying, "c": grid, "d": grid},
+        workers=2,
+        progress=lambda done, total: seen.append(done),
+    )
+    assert set(res.written) == {"a", "c", "d"} and set(res.failures) == {"b"}
+    assert "the process correcting it died" in res.failures["b"]
+    assert sorted(p.name for p in out.iterdir()) == ["a.jpg", "c.jpg", "d.jpg"]
+    assert seen == [0, 1, 2, 3, 4]
+    correct_image_file(src / "a.jpg", tmp_path / "ref.jpg", grid)
+    assert (out / "a.jpg").read_bytes() == (tmp_path / "ref.jpg").read_bytes()

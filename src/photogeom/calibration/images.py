@@ -1410,26 +1410,94 @@ def _run_processes(jobs, workers, interpolation, progress, border):
     as many OpenCV threads as cores (``workers`` x cores threads). The processes cannot set
     it themselves: in a process forked from one whose OpenCV had started its threads,
     ``cv2.setNumThreads`` waits for threads that do not exist (a deadlock).
-    """
-    from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    A process that dies in a task (killed for memory, a crash inside a decoder) breaks the
+    pool, whose other processes are terminated: the images not finished then run again,
+    each in a pool of its own, and the one whose process dies again is a failure of that
+    image; the temporary files of the terminated writers are removed. Before, the pool's
+    ``BrokenProcessPool`` was raised out of :func:`correct_folder` (the outcomes of the
+    images written meanwhile lost with it) and temporary files were left in the output
+    folder.
+    """
     out: list = [None] * len(jobs)
     with _progress(progress, len(jobs)) as prog, _opencv_single_threaded():
-        ex = ProcessPoolExecutor(workers)
-        try:
-            t = prog.add_task("correcting images", total=len(jobs))
-            futs = {
-                ex.submit(_task, s, d, g, interpolation, 1, border=border): i
-                for i, (_k, s, d, g) in enumerate(jobs)
-            }
-            for f in as_completed(futs):
-                out[futs[f]] = f.result()
+        t = prog.add_task("correcting images", total=len(jobs))
+        unfinished = _pool_run(jobs, range(len(jobs)), workers, interpolation, border, out, prog, t)
+        for i in unfinished:
+            _remove_partial(jobs[i][2])
+            if _pool_run(jobs, [i], 1, interpolation, border, out, prog, t):
+                _remove_partial(jobs[i][2])
+                out[i] = (
+                    False,
+                    f"{jobs[i][1]}: the process correcting it died (out of memory, or a crash "
+                    "in a decoder); nothing was written for it. Correct it alone with "
+                    "correct_image_file (grid correct-images on a folder of that image, "
+                    "without --workers) to see the error",
+                )
                 prog.advance(t)
-        except BaseException:  # Ctrl-C: the images not started are dropped (the running
-            ex.shutdown(wait=True, cancel_futures=True)  # ones finish, each written whole)
-            raise
-        ex.shutdown(wait=True)
     return out
+
+
+def _pool_run(jobs, indices, workers, interpolation, border, out, prog, t) -> list[int]:
+    """Run ``jobs[i]`` for ``i`` in ``indices`` on a new pool of ``workers`` processes,
+    their outcomes into ``out[i]`` (``prog`` advanced for each); the indices of the jobs
+    not finished because a process of the pool died (empty when none did).
+
+    Parameters
+    ----------
+    jobs : list
+        ``(key, source, destination, grid)`` per image.
+    indices : iterable of int
+        The jobs to run.
+    workers : int
+        Processes of the pool.
+    interpolation, border : str
+        As :func:`correct_folder`.
+    out : list
+        Outcomes by job index, filled in.
+    prog, t
+        The progress display and its task.
+
+    Returns
+    -------
+    list of int
+        Jobs to run again, in their order.
+    """
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    unfinished = []
+    ex = ProcessPoolExecutor(workers)
+    try:
+        futs = {
+            ex.submit(_task, jobs[i][1], jobs[i][2], jobs[i][3], interpolation, 1, border=border): i
+            for i in indices
+        }
+        for f in as_completed(futs):
+            try:
+                out[futs[f]] = f.result()
+            except BrokenProcessPool:
+                unfinished.append(futs[f])
+                continue
+            prog.advance(t)
+    except BaseException:  # Ctrl-C: the images not started are dropped (the running
+        ex.shutdown(wait=True, cancel_futures=True)  # ones finish, each written whole)
+        raise
+    ex.shutdown(wait=True)  # the processes have ended: none writes any more
+    return sorted(unfinished)
+
+
+def _remove_partial(dst: str) -> None:
+    """Remove the temporary files that :func:`~photogeom.atomicfile.atomic_write_bytes`
+    made for ``dst`` in a process that ended before renaming or removing them."""
+    from ..atomicfile import _temporary_name
+
+    target = Path(dst)
+    tail = "." + "0" * 12 + ".tmp"  # the form of the random part: 12 hexadecimal digits
+    head = _temporary_name(target.parent, target.name, tail).name[: -len(tail)]
+    for p in target.parent.glob(glob_escape(head) + "." + "[0-9a-f]" * 12 + ".tmp"):
+        with contextlib.suppress(OSError):
+            p.unlink()
 
 
 def _local_cluster_message(workers: int, exc: BaseException) -> str:
