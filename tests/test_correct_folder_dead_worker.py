@@ -104,3 +104,53 @@ def test_a_process_dying_in_one_image_fails_that_image_only(tmp_path, monkeypatc
     assert seen == [0, 1, 2, 3, 4]
     correct_image_file(src / "a.jpg", tmp_path / "ref.jpg", grid)
     assert (out / "a.jpg").read_bytes() == (tmp_path / "ref.jpg").read_bytes()
+
+
+def test_after_a_process_died_the_other_images_keep_the_pool(tmp_path, monkeypatch):
+    """After a death, only the images that the broken pool may have handed to its
+    processes (the first ``workers + 1`` not finished) run one by one; the others run on a
+    new pool of ``workers`` processes (all of them one by one lost the parallel run of a
+    large folder after one bad image)."""
+    import concurrent.futures
+
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(8)
+    names = [f"i{k}" for k in range(12)]
+    for k in names:
+        pixels = rng.integers(0, 256, (40, 60, 3), dtype=np.uint8)
+        Image.fromarray(pixels).save(src / f"{k}.jpg", quality=90)
+    uv = np.column_stack([rng.uniform(0, 59, 80), rng.uniform(0, 39, 80)])
+    grid = fit_grid(uv, rng.normal(0, 0.3, (80, 2)), (60, 40), 20.0, folds=0)
+    dying = DyingGrid(**{f.name: getattr(grid, f.name) for f in dataclasses.fields(grid)})
+    grids = {k: grid for k in names}
+    # the largest image, first in the queue: its process dies at once
+    big = fit_grid(uv * 2, rng.normal(0, 0.3, (80, 2)), (120, 80), 20.0, folds=0)
+    big = DyingGrid(**{f.name: getattr(big, f.name) for f in dataclasses.fields(dying)})
+    Image.fromarray(rng.integers(0, 256, (80, 120, 3), dtype=np.uint8)).save(src / "i3.jpg")
+    grids["i3"] = big
+    monkeypatch.setenv(PARENT, str(os.getpid()))
+    pools = []
+
+    class Pool(concurrent.futures.ProcessPoolExecutor):
+        def __init__(self, max_workers=None, *args, **kwargs):
+            super().__init__(max_workers, *args, **kwargs)
+            pools.append([max_workers, 0])
+
+        def submit(self, *args, **kwargs):
+            pools[-1][1] += 1
+            return super().submit(*args, **kwargs)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", Pool)
+    res = correct_folder(src, tmp_path / "out", grids, workers=2, progress=False)
+    assert set(res.failures) == {"i3"} and set(res.written) == set(names) - {"i3"}
+    assert pools[0] == [2, 12]
+    # the images not finished when the pool broke (its first image died at once): the
+    # first 3 of them alone, the dead one among them, the others on a pool of 2
+    alone = [p for p in pools[1:] if p == [1, 1]]
+    rest = [p for p in pools[1:] if p != [1, 1]]
+    assert len(alone) == 3
+    assert len(rest) == 1 and rest[0][0] == 2 and 1 <= rest[0][1] <= 9
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
+        f"{k}.jpg" for k in names if k != "i3"
+    )

@@ -1412,30 +1412,42 @@ def _run_processes(jobs, workers, interpolation, progress, border):
     ``cv2.setNumThreads`` waits for threads that do not exist (a deadlock).
 
     A process that dies in a task (killed for memory, a crash inside a decoder) breaks the
-    pool, whose other processes are terminated: the images not finished then run again,
-    each in a pool of its own, and the one whose process dies again is a failure of that
-    image; the temporary files of the terminated writers are removed. Before, the pool's
-    ``BrokenProcessPool`` was raised out of :func:`correct_folder` (the outcomes of the
-    images written meanwhile lost with it) and temporary files were left in the output
-    folder.
+    pool, whose other processes are terminated. The pool hands the images to its processes
+    in order, at most one more than it has processes, so the image of the process that
+    died is one of the first ``workers + 1`` not finished: those run again each in a pool
+    of its own (the one whose process dies again is a failure of that image; the temporary
+    files of the terminated writers are removed), the others on a new pool of ``workers``
+    processes. Before, the pool's ``BrokenProcessPool`` was raised out of
+    :func:`correct_folder` (the outcomes of the images written meanwhile lost with it) and
+    temporary files were left in the output folder.
     """
     out: list = [None] * len(jobs)
     with _progress(progress, len(jobs)) as prog, _opencv_single_threaded():
         t = prog.add_task("correcting images", total=len(jobs))
-        unfinished = _pool_run(jobs, range(len(jobs)), workers, interpolation, border, out, prog, t)
-        for i in unfinished:
-            _remove_partial(jobs[i][2])
-            if _pool_run(jobs, [i], 1, interpolation, border, out, prog, t):
-                _remove_partial(jobs[i][2])
-                out[i] = (
-                    False,
-                    f"{jobs[i][1]}: the process correcting it died (out of memory, or a crash "
-                    "in a decoder); nothing was written for it. Correct it alone with "
-                    "correct_image_file (grid correct-images on a folder of that image, "
-                    "without --workers) to see the error",
-                )
-                prog.advance(t)
+        pending = list(range(len(jobs)))
+        while pending:
+            unfinished = _pool_run(jobs, pending, workers, interpolation, border, out, prog, t)
+            suspects, pending = unfinished[: workers + 1], unfinished[workers + 1 :]
+            _run_alone(jobs, suspects, interpolation, border, out, prog, t)
     return out
+
+
+def _run_alone(jobs, indices, interpolation, border, out, prog, t) -> None:
+    """Run each of ``jobs[i]``, ``i`` in ``indices``, in a pool of one process of its own,
+    after removing its temporary files left by a terminated process; one whose process
+    dies is a failure of that image (see :func:`_run_processes`)."""
+    for i in indices:
+        _remove_partial(jobs[i][2])
+        if _pool_run(jobs, [i], 1, interpolation, border, out, prog, t):
+            _remove_partial(jobs[i][2])
+            out[i] = (
+                False,
+                f"{jobs[i][1]}: the process correcting it died (out of memory, or a crash "
+                "in a decoder); nothing was written for it. Correct it alone with "
+                "correct_image_file (grid correct-images on a folder of that image, "
+                "without --workers) to see the error",
+            )
+            prog.advance(t)
 
 
 def _pool_run(jobs, indices, workers, interpolation, border, out, prog, t) -> list[int]:
