@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -399,6 +400,7 @@ def test_concurrent_dask_tasks_keep_opencv_single_threaded_and_restore_it(monkey
 
 _NO_GUARD = """
 import sys
+from pathlib import Path
 import numpy as np
 from PIL import Image
 from photogeom import PhotogeomError
@@ -447,3 +449,86 @@ def test_missing_dask_is_named(folder, grid, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(PhotogeomError, match=r"photogeom\[dask\]"):
         correct_folder(src, tmp_path / "out", {"IMG_1": grid}, dask=True, progress=False)
+
+
+def test_dask_folder_is_one_graph(folder, grid, tmp_path):
+    """The images of a folder go to the scheduler as one graph (a submit per image was a
+    graph update each: Dask's CPU taken from the workers' cores); each outcome is fetched
+    once, as its task ends (one kept on its worker until the end would be lost with that
+    worker); the progress counts every image, and the files equal those corrected one by
+    one."""
+    distributed = pytest.importorskip("distributed")
+    src, _ = folder
+    for k in (5, 6):
+        (src / f"IMG_{k}.JPG").write_bytes((src / "IMG_1.JPG").read_bytes())
+    calls = {"update_graph": 0, "gather": 0}
+
+    class Graphs(distributed.diagnostics.plugin.SchedulerPlugin):
+        def update_graph(self, scheduler, **kwargs):
+            calls["update_graph"] += 1
+
+    cluster = distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    )
+    try:
+        scheduler = cluster.scheduler
+        scheduler.add_plugin(Graphs())
+        gather = scheduler.handlers["gather"]
+
+        def counted(*args, **kwargs):
+            calls["gather"] += 1
+            return gather(*args, **kwargs)
+
+        scheduler.handlers["gather"] = counted
+        seen = []
+        grids = {"IMG_1": grid, "IMG_4": grid, "IMG_5": grid, "IMG_6": grid}
+        res = correct_folder(
+            src,
+            tmp_path / "out",
+            grids,
+            dask=cluster.scheduler_address,
+            progress=lambda done, total: seen.append((done, total)),
+        )
+    finally:
+        cluster.close()
+    assert calls == {"update_graph": 1, "gather": 4}
+    assert seen == [(k, 4) for k in range(5)]
+    assert set(res.written) == {"IMG_1", "IMG_5", "IMG_6"} and set(res.failures) == {"IMG_4"}
+    assert "not a readable image" in res.failures["IMG_4"]
+    ref = tmp_path / "ref.jpg"
+    correct_image_file(src / "IMG_1.JPG", ref, grid)
+    for name in ("IMG_1.JPG", "IMG_5.JPG", "IMG_6.JPG"):
+        assert (tmp_path / "out" / name).read_bytes() == ref.read_bytes()
+
+
+@pytest.mark.parametrize("how", [{"workers": 2}, {"dask": True}])
+def test_parallel_folder_queues_the_largest_images_first(tmp_path, monkeypatch, how):
+    """Parallel workers take the images largest first (pixels, then file bytes; equal ones
+    in their order), so that they end together: in name order, a large image that came
+    last was corrected by one worker alone after the others had run out of work. The
+    outcomes still go to their own images."""
+    import photogeom.calibration.images as images
+
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(3)
+    sizes = {"a": (60, 40), "b": (120, 80), "c": (60, 40), "d": (90, 60), "e": (60, 40)}
+    grids = {}
+    for k, (w, h) in sizes.items():
+        uv = np.column_stack([rng.uniform(0, w - 1, 60), rng.uniform(0, h - 1, 60)])
+        grids[k] = fit_grid(uv, rng.normal(0, 0.3, (60, 2)), (w, h), 20.0, folds=0)
+        # file bytes: c larger than a and e (of as many pixels), a and e equal
+        (src / f"{k}.jpg").write_bytes(b"\xff\xd8" + bytes(500 if k == "c" else 100))
+    queued = []
+
+    def run(jobs, *args):
+        queued.extend(Path(s).stem for _k, s, _d, _g in jobs)
+        return [(True, f"note of {Path(s).stem}") for _k, s, _d, _g in jobs]
+
+    monkeypatch.setattr(images, "_run_dask", run)
+    monkeypatch.setattr(images, "_run_processes", run)
+    res = correct_folder(src, tmp_path / "out", grids, progress=False, **how)
+    assert queued == ["b", "d", "c", "a", "e"]
+    assert list(res.written) == list("abcde")  # in the order of the grids, as before
+    assert res.notes == {k: f"note of {k}" for k in "abcde"}
+    assert all(res.written[k] == tmp_path / "out" / f"{k}.jpg" for k in "abcde")
