@@ -238,9 +238,17 @@ def main() -> None:
         kind, src, dst, chunk = args.run_one
         run_one(kind, src, dst, int(chunk))
         return
+    if args.dir is not None:
+        args.dir.mkdir(parents=True, exist_ok=True)
+        benchmark(args, args.dir)
+        return
+    with tempfile.TemporaryDirectory(prefix="photogeom-scale-") as work:  # removed after
+        benchmark(args, Path(work))
+
+
+def benchmark(args: argparse.Namespace, work: Path) -> None:
+    """The benchmark of ``main`` with its files in ``work``."""
     n = int(args.points)
-    work = args.dir or Path(tempfile.mkdtemp(prefix="photogeom-scale-"))
-    work.mkdir(parents=True, exist_ok=True)
     src = work / f"cloud-{n}.laz"
     if not src.exists() or pg.io.cloud_info(src).point_count != n:
         t0 = time.perf_counter()
