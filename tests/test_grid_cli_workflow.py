@@ -820,3 +820,35 @@ def test_a_folder_given_as_grids_file_names_where_grids_come_from(
         pg.calibration.load_grids(adjusted_folder)
     with pytest.raises(pg.errors.FileFormatError, match=r"no such grids file .*save_grids"):
         pg.calibration.load_grids(tmp_path / "none.npz")
+
+
+def test_correct_images_names_a_file_that_differs_from_the_id_in_case_or_extension(
+    cli, tmp_path
+):
+    # before: "no image file named DSC1.JPG (or DSC1.JPG.<ext>)" and, on another line, the
+    # file among those "without a grid", with no word that the two were the same image
+    import shutil
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    ids = ["DSC1.JPG", "img_2", "a", "b.png"]
+    pg.calibration.save_grids(grids_file, dict.fromkeys(ids, grid))
+    shutil.move(src / "a.png", src / "DSC1.png")  # COLMAP's name, a copy in another format
+    shutil.copy(src / "DSC1.png", src / "IMG_2.png")  # letter case
+    shutil.copy(src / "DSC1.png", src / "a.png")  # matched by its stem: no hint
+    shutil.copy(src / "DSC1.png", src / "B.PNG")  # the whole name in another case
+    code, _, err = cli("grid", "correct-images", grids_file, src, tmp_path / "out")
+    assert code == 1
+    assert (
+        "failed DSC1.JPG: no image file named DSC1.JPG (or DSC1.JPG.<ext>) in "
+        f"{src} (file names are matched exactly, letter case included); DSC1.png has its "
+        "name with another extension: rename it to DSC1.JPG.png"
+    ) in err
+    assert "IMG_2.png differs from it in letter case only: rename it to img_2.png" in err
+    assert "B.PNG differs from it in letter case only: rename it to b.png" in err
+    assert "failed a:" not in err and "a.png" not in err.replace("b.png", "")
+    res = pg.calibration.correct_folder(
+        src, tmp_path / "out2", pg.calibration.load_grids(grids_file), progress=False
+    )
+    assert list(res.written) == ["a"]
+    assert "rename it to img_2.png" in res.failures["img_2"]

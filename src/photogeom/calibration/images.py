@@ -1149,9 +1149,31 @@ def find_images(folder: Path, ids) -> tuple[dict, list, list]:
     return found, missing, [p.name for p in files if p not in used]
 
 
-def _missing_message(folder: Path, key) -> str:
+def _near_names(key: str, unmatched) -> list[tuple[str, str]]:
+    """Image files left without an id whose name is the id's but for letter case or the
+    extension: ``(file name, the name that matches the id)`` pairs.
+
+    ``DSC1.JPG`` for the id ``dsc1.jpg`` (case), ``DSC1.tif`` for the id ``DSC1.JPG`` (a
+    copy in another format: COLMAP names an image with its extension), ``a.PNG`` for ``A``.
+    """
+    k = key.lower()
+    k_path = Path(key)
+    k_stem = k_path.stem.lower() if k_path.suffix.lower() in IMAGE_SUFFIXES else None
+    pairs = []
+    for name in unmatched:
+        p = Path(name)
+        if name.lower() == k:
+            pairs.append((name, key))
+        elif p.stem.lower() == k or (k_stem is not None and p.stem.lower() == k_stem):
+            pairs.append((name, key + p.suffix))
+    return pairs
+
+
+def _missing_message(folder: Path, key, unmatched=()) -> str:
     """Why image id ``key`` has no file in ``folder``: none of that name, or several files
-    with that stem (the id does not say which one), or only files of unsupported formats."""
+    with that stem (the id does not say which one), or only files of unsupported formats;
+    a file of ``unmatched`` (image files without an id) whose name differs from the id in
+    letter case or extension only is named, with the name to give it."""
     k = str(key)
     # a pipe, folder or device of that name: read one by one, a folder holds files (a
     # named pipe blocks until something writes to it); it was "no image file named ..."
@@ -1177,6 +1199,18 @@ def _missing_message(folder: Path, key) -> str:
         return (
             f"no image file named {k} (or {k}.<ext>) in {folder} in a supported format "
             f"({', '.join(IMAGE_SUFFIXES)}); found {', '.join(same[:5])}"
+        )
+    near = _near_names(k, unmatched)
+    if near:
+        found = "; ".join(
+            f"{name} differs from it in letter case only: rename it to {want}"
+            if name.lower() == want.lower()
+            else f"{name} has its name with another extension: rename it to {want}"
+            for name, want in near[:5]
+        )
+        return (
+            f"no image file named {k} (or {k}.<ext>) in {folder} (file names are matched "
+            f"exactly, letter case included); {found}"
         )
     return f"no image file named {k} (or {k}.<ext>) in {folder}"
 
@@ -1267,7 +1301,7 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
-        result.failures[key] = _missing_message(src, key)
+        result.failures[key] = _missing_message(src, key, extra)
     result.skipped = extra
     jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
     # threads inside a job: only when the jobs do not already fill the machine
