@@ -852,3 +852,48 @@ def test_correct_images_names_a_file_that_differs_from_the_id_in_case_or_extensi
     )
     assert list(res.written) == ["a"]
     assert "rename it to img_2.png" in res.failures["img_2"]
+
+
+def test_pixel_options_written_with_their_unit_name_the_number_to_give(cli, tmp_path):
+    # before: --spacing 100px was "Input should be a valid number, unable to parse string as
+    # a number", --spacings 100px,200px "expected comma-separated numbers", and
+    # --image-size 7952x5304px "expected WIDTHxHEIGHT": none said to leave out the unit
+    res = tmp_path / "r.csv"
+    rows = "".join(f"a,{u},{v},0.1,0.2\n" for u, v in [(1, 2), (50, 3), (4, 30), (40, 35)])
+    res.write_text("image_id,u,v,rx,ry\n" + rows)
+    out = tmp_path / "g.npz"
+    base = ("grid", "fit", res, "-o", out)
+    cases = [
+        (
+            (*base, "--image-size", "60x40", "--spacing", "100px"),
+            "'100px' is not a number; --spacing is in px: give the number alone (--spacing 100)",
+        ),
+        (
+            (*base, "--image-size", "7952 x 5304 px"),
+            "--image-size is in px: give the numbers alone (--image-size 7952x5304)",
+        ),
+        (
+            (*base, "--image-size", "60x40", "--sigma-constraint", "0.5 px"),
+            "--sigma-constraint is in px: give the number alone (--sigma-constraint 0.5)",
+        ),
+        (
+            ("grid", "evaluate", tmp_path, "--spacing", "100mm"),
+            "'100mm' is not a number; --spacing is in px, not mm: give it in px, without a unit",
+        ),
+        (
+            ("grid", "sweep", tmp_path, "--spacings", "100px, 200 px"),
+            "--spacings is in px: give the numbers alone (--spacings 100,200)",
+        ),
+        (
+            ("grid", "evaluate", tmp_path, "--sigma-constraint", "0.1px"),
+            "--sigma-constraint is in px: give the number alone (--sigma-constraint 0.1)",
+        ),
+    ]
+    for args, want in cases:
+        code, _, err = cli(*args)
+        assert code == 2 and want in " ".join(err.split()), (args, err)
+    assert not out.exists()
+    # a plain number still works
+    code, _, err = cli(*base, "--image-size", "60x40", "--spacing", "20", "--folds", "0")
+    assert code == 0, err
+    assert pg.calibration.load_grids(out)["a"].layout.spacing == 20

@@ -35,12 +35,14 @@ from ._common import (
     emit_points,
     json_text,
     options_in_errors,
+    pixels,
     refuse_stdout_dash,
     say,
     scheduler_option,
     split_names,
     stage_spinner,
     typed_option,
+    unit_hint,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -538,6 +540,7 @@ def _image_size(text: str) -> tuple[int, int]:
     except ValueError:
         raise InputError(
             f"--image-size: expected WIDTHxHEIGHT in pixels, e.g. 7952x5304, not {text!r}"
+            + unit_hint(text, "--image-size")
         ) from None
     return w, h
 
@@ -565,7 +568,9 @@ def fit(
             "BAL file (BAL holds none).",
         ),
     ] = None,
-    spacing: Annotated[float, typer.Option(help="Node spacing in pixels.")] = 100.0,
+    spacing: Annotated[
+        float, typer.Option(help="Node spacing in pixels.", parser=pixels("--spacing"))
+    ] = 100.0,
     sigma_obs: Annotated[
         float | None,
         typer.Option(
@@ -852,6 +857,7 @@ def _fit_sigma_constraint(text: str | None) -> float | str | None:
     except ValueError:
         raise InputError(
             f"--sigma-constraint: a number (px), 'scaled' or 'vce', not {text!r}"
+            + unit_hint(text, "--sigma-constraint")
         ) from None
 
 

@@ -23,10 +23,12 @@ from ._common import (
     iteration_progress,
     json_text,
     nan_to_none,
+    pixels,
     say,
     split_numbers,
     stage_spinner,
     typed_option,
+    unit_hint,
 )
 
 BlockArg = Annotated[
@@ -40,7 +42,10 @@ PresetOpt = Annotated[
 #: --spacing of the commands that also take --grids (None: not given, 100 px)
 FitSpacingOpt = Annotated[
     float | None,
-    typer.Option(help="Node spacing of the grids in pixels (default 100; not with --grids)."),
+    typer.Option(
+        help="Node spacing of the grids in pixels (default 100; not with --grids).",
+        parser=pixels("--spacing"),
+    ),
 ]
 DEFAULT_SPACING = 100.0
 ExcludeOpt = Annotated[
@@ -70,7 +75,10 @@ def _sigma_option(text: str, option: str, words: dict):
         x = float(t)
     except ValueError:
         names = " or ".join(repr(w) for w in words)
-        raise InputError(f"{option} must be a number of pixels, {names}, not {text!r}") from None
+        raise InputError(
+            f"{option} must be a number of pixels, {names}, not {text!r}"
+            + unit_hint(text, option)
+        ) from None
     if not x > 0 or x == float("inf"):
         raise InputError(f"{option} must be a positive number of pixels, not {text!r}")
     return x
@@ -408,7 +416,11 @@ def _evaluate(
 def _spacings(text: str) -> list[float]:
     """The --spacings of ``sweep`` and ``report``: at least two positive, distinct numbers
     of pixels (checked before the block is read or adjusted)."""
-    g = split_numbers(text, None, "--spacings")
+    try:
+        g = split_numbers(text, None, "--spacings")
+    except InputError as exc:
+        exc.args = (str(exc) + unit_hint(text, "--spacings"),)
+        raise
     if len(g) < 2:
         raise InputError(f"--spacings: give at least two spacings (px), not {text!r}")
     bad = [x for x in g if not x > 0]
