@@ -897,3 +897,34 @@ def test_pixel_options_written_with_their_unit_name_the_number_to_give(cli, tmp_
     code, _, err = cli(*base, "--image-size", "60x40", "--spacing", "20", "--folds", "0")
     assert code == 0, err
     assert pg.calibration.load_grids(out)["a"].layout.spacing == 20
+
+
+def test_grids_of_another_camera_name_the_grids_file_as_the_fix(cli, adjusted_folder, tmp_path):
+    # before: 'grid apply' advised "remove those rows" (most rows of a 7952 x 5304 px
+    # camera lie outside a 4000 x 3000 px grid), 'grid evaluate --grids' said only "the grid
+    # was fitted for a 4000 x 3000 px image, the block's camera is 7952 x 5304 px"
+    block = pg.bundle.read_block(adjusted_folder)
+    rng = np.random.default_rng(8)
+    uv = rng.uniform([0, 0], [3999, 2999], (40, 2))
+    other = pg.calibration.fit_grid(uv, np.full((40, 2), 0.2), (4000, 3000), 1000, folds=0)
+    grids_file = tmp_path / "other.npz"
+    pg.calibration.save_grids(grids_file, dict.fromkeys(block.image_ids.tolist(), other))
+    obs = block.observations.uv
+    code, _, err = cli(
+        "grid", "apply", grids_file, adjusted_folder / "observations.csv", "-o", tmp_path / "c.csv"
+    )
+    assert code == 2
+    assert (
+        f"remove those rows, or, when {grids_file} holds the grids of another camera or block "
+        f"(the rows reach u = {obs[:, 0].max():g}, v = {obs[:, 1].max():g} px), give the grids "
+        "fitted for these observations (photogeom grid fit)"
+    ) in " ".join(err.split())
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", grids_file)
+    assert code == 2
+    assert (
+        "the grid was fitted for a 4000 x 3000 px image, the block's camera is 7952 x 5304 px: "
+        "the grids are of another camera or block; give --grids the grids file of this BLOCK "
+        "('photogeom grid fit BLOCK')"
+    ) in " ".join(err.split())
+    with pytest.raises(pg.InputError, match=r"fit the grids of this block \(fit_residual_grids"):
+        pg.calibration.correct_observations(block, dict.fromkeys(block.image_ids.tolist(), other))

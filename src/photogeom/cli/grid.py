@@ -1240,9 +1240,12 @@ def apply(
     for k, r in per_image.items():  # per image, not per point
         layout = grids[key_of[k]].layout
         width[r], height[r] = layout.width, layout.height
+    reach = f"u = {uv[:, 0].max():g}, v = {uv[:, 1].max():g} px" if len(uv) else ""
     _refuse_outside(
         observations, ids, uv, lines, width, height,
-        f"a grid of {grids_file} covers its image only: remove those rows",
+        f"a grid of {grids_file} covers its image only: remove those rows, or, when "
+        f"{grids_file} holds the grids of another camera or block (the rows reach {reach}), "
+        "give the grids fitted for these observations (photogeom grid fit)",
     )  # fmt: skip
     corrected = correct_observations(
         {k: uv[r] for k, r in per_image.items()},

@@ -271,6 +271,10 @@ def _cli(msg: str) -> str:
             "give --grids a file with a grid for every image of the BLOCK "
             "('photogeom grid fit BLOCK')",
         )
+        .replace(
+            "fit the grids of this block (fit_residual_grids)",
+            "give --grids the grids file of this BLOCK ('photogeom grid fit BLOCK')",
+        )
     )
 
 
