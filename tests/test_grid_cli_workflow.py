@@ -928,3 +928,25 @@ def test_grids_of_another_camera_name_the_grids_file_as_the_fix(cli, adjusted_fo
     ) in " ".join(err.split())
     with pytest.raises(pg.InputError, match=r"fit the grids of this block \(fit_residual_grids"):
         pg.calibration.correct_observations(block, dict.fromkeys(block.image_ids.tolist(), other))
+
+
+def test_grid_fit_table_prints_every_image_id_whole(cli, tmp_path):
+    # before: in a pipe (110 columns) the image column was cut to "DSC00100.…", so the
+    # ids a user gives --exclude or names the image files with could not be read
+    long_id = "flight_2024-05-01_DJI_20240501123456_0001_V.JPG"
+    ids = ["DSC00100.JPG", long_id]
+    rng = np.random.default_rng(9)
+    uv = rng.uniform([0, 0], [599, 399], (40, 2))
+    res = tmp_path / "r.csv"
+    res.write_text(
+        "image_id,u,v,rx,ry\n"
+        + "".join(f"{k},{u},{v},0.1,{u / 4000}\n" for k in ids for u, v in uv.tolist())
+    )
+    code, text, err = cli(
+        "grid", "fit", res, "--image-size", "600x400", "--spacing", "200", "-o", tmp_path / "g.npz"
+    )
+    assert code == 0, err
+    rows = [line for line in text.splitlines() if line.startswith("│")]
+    assert [line.split("│")[1].strip() for line in rows] == ids
+    assert all("…" not in line for line in text.splitlines())
+

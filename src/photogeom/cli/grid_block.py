@@ -591,7 +591,9 @@ def evaluate(
         for k, v in ev["steps_before"].items():
             a = ev["steps_after"].get(k, float("nan"))
             m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
-        out.print(m)
+        from .grid import _print_id_table
+
+        _print_id_table(out, m)
     cb, ca = ev.get("check_before"), ev.get("check_after")
     if cb and ca:
         c = Table(title="check-point RMSE (GSD)")
