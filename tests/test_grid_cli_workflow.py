@@ -950,3 +950,29 @@ def test_grid_fit_table_prints_every_image_id_whole(cli, tmp_path):
     assert [line.split("│")[1].strip() for line in rows] == ids
     assert all("…" not in line for line in text.splitlines())
 
+
+def test_a_block_of_one_image_is_named_as_such(cli, adjusted_folder, tmp_path):
+    # before: "302 tie point(s) are observed in fewer than two images and cannot be
+    # intersected: ... (delete their rows from the block's files)", advice that deletes
+    # every point of the block
+    import shutil
+
+    one = tmp_path / "one"
+    shutil.copytree(adjusted_folder, one)
+    first = str(pg.bundle.read_block(adjusted_folder).image_ids[0])
+    for name in ("images.csv", "observations.csv"):
+        lines = (one / name).read_text().splitlines(keepends=True)
+        keep = ("id", "image_id", first)
+        kept = [x for x in lines if x.startswith("#") or x.split(",")[0] in keep]
+        (one / name).write_text("".join(kept))
+    want = (
+        f"the block has one image with observations ({first}): a bundle adjustment needs at "
+        "least two images that observe the same points; add the block's other images and "
+        "their observations"
+    )
+    for args in (("bundle", "adjust", one), ("grid", "evaluate", one, "--spacing", "1000")):
+        code, _, err = cli(*args)
+        assert code == 2 and err == f"error: {want}\n", (args, err)
+    block = pg.bundle.read_block(one)
+    with pytest.raises(pg.InputError, match="the block has one image with observations"):
+        block.validate()
