@@ -976,3 +976,46 @@ def test_a_block_of_one_image_is_named_as_such(cli, adjusted_folder, tmp_path):
     block = pg.bundle.read_block(one)
     with pytest.raises(pg.InputError, match="the block has one image with observations"):
         block.validate()
+
+
+def test_a_sigma_column_of_a_residuals_csv_weighs_its_residuals_as_a_block_does(
+    cli, adjusted_folder, tmp_path
+):
+    # before: the sigma column (px, as in a block's observations.csv) was ignored and every
+    # residual had 1 px, so the CSV of a block's residuals gave other grids (sigma0 0.85
+    # for 0.3 px residuals) than the block itself; --sigma-obs still sets them all
+    block = pg.bundle.read_block(adjusted_folder)
+    obs = block.observations
+    tie = block.role[block.obs_point] == "tie"
+    res = pg.bundle.reprojection_residuals(block)[tie]
+    rows = zip(obs.image_ids[tie].tolist(), obs.uv[tie].tolist(), res.tolist(),
+               obs.sigma[tie].tolist(), strict=True)  # fmt: skip
+    path = tmp_path / "residuals.csv"
+    path.write_text(
+        "image_id,u,v,rx,ry,sigma\n"
+        + "".join(f"{k},{u!r},{v!r},{a!r},{b!r},{s!r}\n" for k, (u, v), (a, b), s in rows)
+    )
+    w, h = (int(x) for x in block.image_sizes()[0])
+    fits = {}
+    for name, source, more in (
+        ("block", adjusted_folder, ()),
+        ("csv", path, ("--image-size", f"{w}x{h}", "--sigma-constraint", "scaled")),
+        ("csv 1 px", path, ("--image-size", f"{w}x{h}", "--sigma-constraint", "scaled",
+                            "--sigma-obs", "1")),
+    ):  # fmt: skip
+        out = tmp_path / f"{name}.npz"
+        code, _, err = cli("grid", "fit", source, "--spacing", "1000", "-o", out, *more)
+        assert code == 0, err
+        fits[name] = pg.calibration.load_grids(out)
+    assert np.allclose(np.unique(obs.sigma[tie]), 0.3)
+    for k, g in fits["block"].items():
+        c = fits["csv"][str(k)]
+        np.testing.assert_allclose(c.nodes, g.nodes, atol=1e-9)
+        assert c.sigma0 == pytest.approx(g.sigma0, rel=1e-9)
+        assert c.rms_cv_after == pytest.approx(g.rms_cv_after, rel=1e-9)
+        assert np.all(fits["csv 1 px"][str(k)].sigma_obs == 1.0)
+        assert np.allclose(c.sigma_obs, 0.3)
+    bad = tmp_path / "bad.csv"
+    bad.write_text(path.read_text().replace(",0.3\n", ",0\n", 1))
+    code, _, err = cli("grid", "fit", bad, "--image-size", f"{w}x{h}", "-o", tmp_path / "b.npz")
+    assert code == 2 and "line 2, column sigma: 0 is not a positive number of pixels" in err

@@ -551,7 +551,8 @@ def fit(
     residuals: Annotated[
         Path,
         typer.Argument(
-            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed), "
+            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed) "
+            "and optionally sigma (px), "
             "or an adjusted block (a CSV block folder or COLMAP text model, a BAL file: "
             ".bal, .bz2 or any name or pipe by its content): "
             "the reprojection residuals of its tie points, the image sizes of its cameras."
@@ -576,9 +577,9 @@ def fit(
         typer.Option(
             "--sigma-obs",
             "--sigma",
-            help="Standard deviation of the residuals (px); default: 1 px for a residuals "
-            "CSV, each observation's sigma for a block. --sigma is the same option (the name "
-            "of bundle adjust).",
+            help="Standard deviation of the residuals (px); default: the sigma column of a "
+            "residuals CSV (px; 1 px without one), each observation's sigma for a block. "
+            "--sigma is the same option (the name of bundle adjust).",
         ),
     ] = None,
     sigma_constraint: Annotated[
@@ -952,11 +953,19 @@ def _fit_csv(
     exclude: list[str],
     where: dict | None = None,
 ) -> dict:
-    """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size; the
-    images of ``exclude`` (--exclude) left out. ``where`` receives, per image, ``("line",
-    the CSV line of each of its rows)``."""
+    """The grids of a residuals CSV (image_id, u, v, rx, ry, and optionally sigma: each
+    residual's standard deviation in px, as in a block's observations.csv) of images of one
+    size; the images of ``exclude`` (--exclude) left out. Without --sigma-obs a sigma column
+    weighs each residual, as the observations' sigmas do for a block (before, it was
+    ignored and every residual had 1 px). ``where`` receives, per image, ``("line", the CSV
+    line of each of its rows)``."""
     from ..calibration import GridLayout, fit_grids
-    from ..calibration.grid import scaled_constraint_sigma
+    from ..calibration.grid import (
+        _MIN_OBSERVATIONS,
+        _image_inputs,
+        progress_over,
+        scaled_constraint_sigma,
+    )
 
     if image_size is None:
         raise InputError(
@@ -978,6 +987,17 @@ def _fit_csv(
         [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
         axis=1,
     )
+    sigma = None
+    at = [i for i, c in enumerate(_h) if c.strip().lower() == "sigma"]
+    if at and sigma_obs is None:
+        sigma = _numbers(path, columns[at[0]], "sigma", lines)
+        bad = np.flatnonzero(~(sigma > 0))
+        if bad.size:
+            raise FileFormatError(
+                f"{path}: line {int(lines[bad[0]])}, column sigma: {sigma[bad[0]]:g} is not a "
+                "positive number of pixels; give each residual's standard deviation (px), or "
+                "--sigma-obs for all of them"
+            )
     try:  # the image size and the spacing are refused first, as fit_grids does
         GridLayout(size[0], size[1], spacing)
     except PhotogeomError as exc:
@@ -993,17 +1013,28 @@ def _fit_csv(
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
     if where is not None:
         where.update({k: ("line", np.asarray(lines)[r]) for k, r in groups.items()})
+    common = {"sigma_constraint": scaled_constraint_sigma(s_c, spacing), **options}
     try:
         with _images_progress(f"fitting grids of {spacing:g} px") as progress:
-            return fit_grids(
-                per_image,
-                size,
-                spacing,
-                sigma_obs=1.0 if sigma_obs is None else sigma_obs,
-                sigma_constraint=scaled_constraint_sigma(s_c, spacing),
-                progress=progress,
-                **options,
-            )
+            if sigma is None:
+                return fit_grids(
+                    per_image,
+                    size,
+                    spacing,
+                    sigma_obs=1.0 if sigma_obs is None else sigma_obs,
+                    progress=progress,
+                    **common,
+                )
+            # each residual its sigma: every image's inputs checked before the first fit,
+            # as fit_grids does, then one image at a time with its rows' sigmas
+            min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
+            for k, (uv, res) in per_image.items():
+                _image_inputs(uv, res, size, spacing, min_obs, f"image {k}: ")
+            out = {}
+            for k in progress_over(list(per_image), progress):  # images, not points
+                one = {k: per_image[k]}
+                out.update(fit_grids(one, size, spacing, sigma_obs=sigma[groups[k]], **common))
+            return out
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         raise _reworded(exc, _cli_words) from None
 
