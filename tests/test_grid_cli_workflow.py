@@ -1019,3 +1019,36 @@ def test_a_sigma_column_of_a_residuals_csv_weighs_its_residuals_as_a_block_does(
     bad.write_text(path.read_text().replace(",0.3\n", ",0\n", 1))
     code, _, err = cli("grid", "fit", bad, "--image-size", f"{w}x{h}", "-o", tmp_path / "b.npz")
     assert code == 2 and "line 2, column sigma: 0 is not a positive number of pixels" in err
+
+
+def test_grid_json_outputs_state_the_residual_convention_and_units(
+    cli, adjusted_folder, tmp_path
+):
+    # before: the --json of grid fit, evaluate and sweep held bare numbers (px, GSD, CPU s,
+    # fractions) without a word of their units or of the residuals' sign, which the printed
+    # tables and the grids file state
+    code, text, err = cli(
+        "grid", "fit", adjusted_folder, "--spacing", "1000", "-o", tmp_path / "g.npz", "--json"
+    )
+    assert code == 0, err
+    fit = json.loads(text)
+    assert fit["residual_convention"] == "computed minus observed"
+    for stats in fit["images"].values():
+        numbers = {k for k, v in stats.items() if isinstance(v, float)}
+        assert numbers <= set(fit["units"]), numbers - set(fit["units"])
+    assert fit["units"]["rms_after"] == "px" and fit["units"]["reduction"] == "1"
+    code, text, err = cli("grid", "evaluate", adjusted_folder, "--spacing", "1000", "--json")
+    assert code == 0, err
+    ev = json.loads(text)
+    assert ev["residual_convention"] == "computed minus observed"
+    floats = {k for k, v in ev["residuals"]["block"]["before"].items() if isinstance(v, float)}
+    assert floats <= set(ev["units"])
+    assert {k for k in ev if k.startswith(("mean_step", "steps_", "check_"))} <= set(ev["units"])
+    assert ev["units"]["rms"] == "px" and ev["units"]["mean_step_after"] == "GSD"
+    code, text, err = cli(
+        "grid", "sweep", adjusted_folder, "--spacings", "500,1000", "--json"
+    )
+    assert code == 0, err
+    sw = json.loads(text)
+    assert sw["units"]["spacings"] == "px" and sw["units"]["step"] == "GSD"
+    assert sw["units"]["time"] == "s (CPU)"

@@ -691,7 +691,21 @@ def fit(
         outputs.append((report, _report_html(grids, rejected).encode("utf-8")))
     atomic_write_many(outputs)
     if as_json:
-        doc = {"output": str(output), "images": stats}
+        doc = {
+            "output": str(output),
+            # as the table's title says, and the grids file's "convention"
+            "residual_convention": "computed minus observed",
+            "units": {
+                **dict.fromkeys(
+                    ("width", "height", "spacing", "sigma_constraint", "sigma_obs_rms",
+                     "rms_before", "rms_after", "rms_cv_before", "rms_cv_after"),
+                    "px",
+                ),
+                **dict.fromkeys(("sigma0", "reduction", "reduction_cv"), "1"),
+            },
+            "spacing": spacing,
+            "images": stats,
+        }
         if rejected is not None:
             doc["snooping"] = rejected
         typer.echo(json_text(doc), nl=False)

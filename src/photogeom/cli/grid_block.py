@@ -468,6 +468,19 @@ def _surveyed(path: Path) -> dict:
 def _ev_json(ev) -> dict:
     blk = ev["residuals"]["block"]
     out = {
+        "residual_convention": "computed minus observed",
+        "units": {
+            **dict.fromkeys(("rms", "mean_length", "rms_x", "rms_y"), "px"),
+            **dict.fromkeys(
+                ("steps_before", "steps_after", "mean_step_before", "mean_step_after",
+                 "check_rmse_gsd_before", "check_rmse_gsd_after", "tie_rmse_gsd_before",
+                 "tie_rmse_gsd_after"),
+                "GSD",
+            ),
+            **dict.fromkeys(
+                ("reduction_rms", "reduction_mean_length", "step_reduction"), "1"
+            ),
+        },
         "residuals": {
             "block": blk,
             "images": {str(k): v for k, v in ev["residuals"]["images"].items()},
@@ -671,6 +684,11 @@ def sweep(
         typer.echo(
             json_text(
                 {
+                    "units": {
+                        **dict.fromkeys(("spacings", "chosen", "spacing"), "px"),
+                        **dict.fromkeys(("step", "step_before", "step_rematched"), "GSD"),
+                        **dict.fromkeys(("time", "time_readjust"), "s (CPU)"),
+                    },
                     "spacings": sw["spacings"],
                     "time": sw["time"].tolist(),
                     "time_readjust": sw["time_readjust"].tolist(),
