@@ -1052,3 +1052,35 @@ def test_grid_json_outputs_state_the_residual_convention_and_units(
     sw = json.loads(text)
     assert sw["units"]["spacings"] == "px" and sw["units"]["step"] == "GSD"
     assert sw["units"]["time"] == "s (CPU)"
+
+
+def test_correct_images_finds_ids_that_name_a_file_below_the_folder(cli, tmp_path):
+    # COLMAP names an image by its path below the image folder (cam1/0001.jpg of a rig);
+    # before: "no image file named cam1/a.png in images" though images/cam1/a.png was there
+    import shutil
+
+    import cv2
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    for sub in ("cam1", "cam2"):
+        (src / sub).mkdir()
+    shutil.copy(src / "a.png", src / "cam1" / "a.png")
+    img2 = np.full((40, 60), 200, np.uint8)
+    cv2.imwrite(str(src / "cam2" / "a.png"), img2)  # the same name, another image
+    (tmp_path / "outside.png").write_bytes((src / "a.png").read_bytes())
+    ids = ["cam1/a.png", "cam2/a", "a", "../outside.png"]
+    pg.calibration.save_grids(grids_file, dict.fromkeys(ids, grid))
+    dst = tmp_path / "out"
+    code, _, err = cli("grid", "correct-images", grids_file, src, dst)
+    assert code == 1  # the id that leaves the folder is not read
+    assert "failed ../outside.png: no image file named ../outside.png" in err
+    assert sorted(str(p.relative_to(dst)) for p in dst.rglob("*.png")) == [
+        "a.png", "cam1/a.png", "cam2/a.png"
+    ]  # fmt: skip
+    first = cv2.imread(str(src / "a.png"), cv2.IMREAD_UNCHANGED)
+    want = pg.calibration.correct_image(first, grid)
+    np.testing.assert_array_equal(cv2.imread(str(dst / "cam1" / "a.png"), -1), want)
+    np.testing.assert_array_equal(
+        cv2.imread(str(dst / "cam2" / "a.png"), -1), pg.calibration.correct_image(img2, grid)
+    )

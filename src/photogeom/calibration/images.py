@@ -1124,22 +1124,62 @@ def _task(
         return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
 
 
-def find_images(folder: Path, ids) -> tuple[dict, list, list]:
-    """Match image ids to files of ``folder`` (the file name, or its stem).
+def _subfolder_id(k: str) -> tuple[str, str] | None:
+    """``(subfolder, name)`` of an image id that is a relative path below the folder
+    (``cam1/DSC00100.JPG``: COLMAP names an image by its path below the image folder, as
+    rigs and multi-folder projects write them); None for a plain name, and for an id that
+    would leave the folder (an absolute path, ``..``)."""
+    if "/" not in k:
+        return None
+    parts = k.split("/")
+    if k.startswith("/") or any(q in ("", ".", "..") for q in parts):
+        return None
+    return "/".join(parts[:-1]), parts[-1]
 
-    Returns ``(id -> path, ids without a file, files without an id)``.
+
+def _image_files(folder: Path) -> list[Path]:
+    """The regular files of ``folder`` with an image suffix, sorted."""
+    try:
+        entries = list(folder.iterdir())
+    except OSError:  # a sub-folder named by an id that is not one
+        return []
+    return sorted(p for p in entries if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def _match(files: list[Path], k: str) -> Path | None:
+    """The file of ``files`` named ``k``, or the only one whose stem is ``k``."""
+    named = [p for p in files if p.name == k]
+    if named:
+        return named[0]
+    stems = [p for p in files if p.stem == k]
+    return stems[0] if len(stems) == 1 else None
+
+
+def find_images(folder: Path, ids) -> tuple[dict, list, list]:
+    """Match image ids to files of ``folder`` (the file name, or its stem; an id that is a
+    relative path, ``cam1/DSC00100.JPG``, to the file below ``folder``).
+
+    Returns ``(id -> path, ids without a file, files of folder without an id)``.
     """
-    files = sorted(
-        p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
-    )
+    files = _image_files(folder)
     by_name = {p.name: p for p in files}
     by_stem: dict = {}
     for p in files:
         by_stem.setdefault(p.stem, []).append(p)
+    below: dict = {}  # sub-folder -> its image files, listed once
     found, missing = {}, []
     for key in ids:
         k = str(key)
-        if k in by_name:
+        sub = _subfolder_id(k)
+        if sub is not None:
+            if sub[0] not in below:
+                below[sub[0]] = _image_files(folder / sub[0])
+            hit = _match(below[sub[0]], sub[1])
+            if hit is not None:
+                found[key] = hit
+            else:
+                missing.append(key)
+        elif k in by_name:
             found[key] = by_name[k]
         elif len(by_stem.get(k, [])) == 1:
             found[key] = by_stem[k][0]
@@ -1303,7 +1343,16 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     for key in missing:
         result.failures[key] = _missing_message(src, key, extra)
     result.skipped = extra
-    jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
+    # an image below the input folder (an id cam1/DSC00100.JPG) is written below the output
+    # folder alike: cam1/0001.jpg and cam2/0001.jpg are two images
+    out = {key: dst / p.relative_to(src) for key, p in found.items()}
+    for key, d in list(out.items()):
+        try:
+            d.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            result.failures[key] = f"cannot create the output folder {d.parent}: {exc.strerror}"
+            del out[key]
+    jobs = [(key, str(found[key]), str(d), _portable(grids[key])) for key, d in out.items()]
     # threads inside a job: only when the jobs do not already fill the machine
     threads = 1 if (workers > 1 or dask) else None
     if dask:
