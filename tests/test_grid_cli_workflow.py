@@ -1084,3 +1084,21 @@ def test_correct_images_finds_ids_that_name_a_file_below_the_folder(cli, tmp_pat
     np.testing.assert_array_equal(
         cv2.imread(str(dst / "cam2" / "a.png"), -1), pg.calibration.correct_image(img2, grid)
     )
+
+
+def test_overlap_in_per_cent_and_sigmas_with_their_unit_name_the_value_to_give(cli, tmp_path):
+    # before: "Input should be a valid number, unable to parse string as a number" for
+    # --overlap 60%, --sigma-obs 0.3px and --sigma-temporal 0.1px
+    cases = [
+        (("grid", "evaluate", tmp_path, "--overlap", "60%"),
+         "'60%' is not a number; --overlap is a fraction: give 0.6 for 60 %"),
+        (("grid", "sweep", tmp_path, "--overlap", "0.6x"),
+         "'0.6x' is not a number; --overlap is a fraction, such as 0.6"),
+        (("grid", "fit", tmp_path, "-o", tmp_path / "g.npz", "--sigma", "0.3 px"),
+         "--sigma-obs is in px: give the number alone (--sigma-obs 0.3)"),
+        (("grid", "report", tmp_path, "-o", tmp_path / "r.html", "--sigma-temporal", "0.1px"),
+         "--sigma-temporal is in px: give the number alone (--sigma-temporal 0.1)"),
+    ]  # fmt: skip
+    for args, want in cases:
+        code, _, err = cli(*args)
+        assert code == 2 and want in " ".join(err.split()), (args, err)

@@ -475,6 +475,42 @@ def pixels(option: str):
     return parse
 
 
+def fraction(option: str):
+    """Parser of a float option that is a fraction: a number, refused with the fraction to
+    give when written in per cent (``--overlap 60%``: give 0.6; before: click's "Input
+    should be a valid number, unable to parse string as a number").
+
+    Parameters
+    ----------
+    option : str
+        The option's name (``--overlap``).
+
+    Returns
+    -------
+    callable
+        ``str -> float`` for ``typer.Option(parser=...)``.
+    """
+    import re
+
+    def parse(text) -> float:
+        if isinstance(text, int | float):  # a default value
+            return float(text)
+        try:
+            return float(text)
+        except ValueError:
+            pass
+        m = re.fullmatch(r"\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*%\s*", text)
+        hint = (
+            f"; {option} is a fraction: give {float(m[1]) / 100:g} for {m[1]} %"
+            if m
+            else f"; {option} is a fraction, such as 0.6"
+        )
+        raise typer.BadParameter(f"{text!r} is not a number{hint}") from None
+
+    parse.__name__ = "float"
+    return parse
+
+
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
     """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
 

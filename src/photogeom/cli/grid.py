@@ -580,6 +580,7 @@ def fit(
             help="Standard deviation of the residuals (px); default: the sigma column of a "
             "residuals CSV (px; 1 px without one), each observation's sigma for a block. "
             "--sigma is the same option (the name of bundle adjust).",
+            parser=pixels("--sigma-obs"),
         ),
     ] = None,
     sigma_constraint: Annotated[

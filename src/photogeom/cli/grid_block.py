@@ -20,6 +20,7 @@ from ..errors import InputError, PhotogeomError
 from ._common import (
     JsonOpt,
     console,
+    fraction,
     iteration_progress,
     json_text,
     nan_to_none,
@@ -108,7 +109,12 @@ ImagesOpt = Annotated[
 ImagesOldOpt = Annotated[
     int | None, typer.Option("--images", hidden=True, help="Former name of --images-per-strip.")
 ]
-OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]
+OverlapOpt = Annotated[
+    float,
+    typer.Option(
+        help="Forward overlap of a stereo model (fraction).", parser=fraction("--overlap")
+    ),
+]
 InAdjOpt = Annotated[
     bool,
     typer.Option(
@@ -124,7 +130,8 @@ SigmaTOpt = Annotated[
     float | None,
     typer.Option(
         help="With --in-adjustment --per image: standard deviation (px) of the equality of "
-        "consecutive images' grids (temporal constraints); omit for none."
+        "consecutive images' grids (temporal constraints); omit for none.",
+        parser=pixels("--sigma-temporal"),
     ),
 ]
 SigmaAOpt = Annotated[
