@@ -820,3 +820,285 @@ def test_a_folder_given_as_grids_file_names_where_grids_come_from(
         pg.calibration.load_grids(adjusted_folder)
     with pytest.raises(pg.errors.FileFormatError, match=r"no such grids file .*save_grids"):
         pg.calibration.load_grids(tmp_path / "none.npz")
+
+
+def test_correct_images_names_a_file_that_differs_from_the_id_in_case_or_extension(
+    cli, tmp_path
+):
+    # before: "no image file named DSC1.JPG (or DSC1.JPG.<ext>)" and, on another line, the
+    # file among those "without a grid", with no word that the two were the same image
+    import shutil
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    ids = ["DSC1.JPG", "img_2", "a", "b.png"]
+    pg.calibration.save_grids(grids_file, dict.fromkeys(ids, grid))
+    shutil.move(src / "a.png", src / "DSC1.png")  # COLMAP's name, a copy in another format
+    shutil.copy(src / "DSC1.png", src / "IMG_2.png")  # letter case
+    shutil.copy(src / "DSC1.png", src / "a.png")  # matched by its stem: no hint
+    shutil.copy(src / "DSC1.png", src / "B.PNG")  # the whole name in another case
+    code, _, err = cli("grid", "correct-images", grids_file, src, tmp_path / "out")
+    assert code == 1
+    assert (
+        "failed DSC1.JPG: no image file named DSC1.JPG (or DSC1.JPG.<ext>) in "
+        f"{src} (file names are matched exactly, letter case included); DSC1.png has its "
+        "name with another extension: rename it to DSC1.JPG.png"
+    ) in err
+    assert "IMG_2.png differs from it in letter case only: rename it to img_2.png" in err
+    assert "B.PNG differs from it in letter case only: rename it to b.png" in err
+    assert "failed a:" not in err and "a.png" not in err.replace("b.png", "")
+    res = pg.calibration.correct_folder(
+        src, tmp_path / "out2", pg.calibration.load_grids(grids_file), progress=False
+    )
+    assert list(res.written) == ["a"]
+    assert "rename it to img_2.png" in res.failures["img_2"]
+
+
+def test_pixel_options_written_with_their_unit_name_the_number_to_give(cli, tmp_path):
+    # before: --spacing 100px was "Input should be a valid number, unable to parse string as
+    # a number", --spacings 100px,200px "expected comma-separated numbers", and
+    # --image-size 7952x5304px "expected WIDTHxHEIGHT": none said to leave out the unit
+    res = tmp_path / "r.csv"
+    rows = "".join(f"a,{u},{v},0.1,0.2\n" for u, v in [(1, 2), (50, 3), (4, 30), (40, 35)])
+    res.write_text("image_id,u,v,rx,ry\n" + rows)
+    out = tmp_path / "g.npz"
+    base = ("grid", "fit", res, "-o", out)
+    cases = [
+        (
+            (*base, "--image-size", "60x40", "--spacing", "100px"),
+            "'100px' is not a number; --spacing is in px: give the number alone (--spacing 100)",
+        ),
+        (
+            (*base, "--image-size", "7952 x 5304 px"),
+            "--image-size is in px: give the numbers alone (--image-size 7952x5304)",
+        ),
+        (
+            (*base, "--image-size", "60x40", "--sigma-constraint", "0.5 px"),
+            "--sigma-constraint is in px: give the number alone (--sigma-constraint 0.5)",
+        ),
+        (
+            ("grid", "evaluate", tmp_path, "--spacing", "100mm"),
+            "'100mm' is not a number; --spacing is in px, not mm: give it in px, without a unit",
+        ),
+        (
+            ("grid", "sweep", tmp_path, "--spacings", "100px, 200 px"),
+            "--spacings is in px: give the numbers alone (--spacings 100,200)",
+        ),
+        (
+            ("grid", "evaluate", tmp_path, "--sigma-constraint", "0.1px"),
+            "--sigma-constraint is in px: give the number alone (--sigma-constraint 0.1)",
+        ),
+    ]
+    for args, want in cases:
+        code, _, err = cli(*args)
+        assert code == 2 and want in " ".join(err.split()), (args, err)
+    assert not out.exists()
+    # a plain number still works
+    code, _, err = cli(*base, "--image-size", "60x40", "--spacing", "20", "--folds", "0")
+    assert code == 0, err
+    assert pg.calibration.load_grids(out)["a"].layout.spacing == 20
+
+
+def test_grids_of_another_camera_name_the_grids_file_as_the_fix(cli, adjusted_folder, tmp_path):
+    # before: 'grid apply' advised "remove those rows" (most rows of a 7952 x 5304 px
+    # camera lie outside a 4000 x 3000 px grid), 'grid evaluate --grids' said only "the grid
+    # was fitted for a 4000 x 3000 px image, the block's camera is 7952 x 5304 px"
+    block = pg.bundle.read_block(adjusted_folder)
+    rng = np.random.default_rng(8)
+    uv = rng.uniform([0, 0], [3999, 2999], (40, 2))
+    other = pg.calibration.fit_grid(uv, np.full((40, 2), 0.2), (4000, 3000), 1000, folds=0)
+    grids_file = tmp_path / "other.npz"
+    pg.calibration.save_grids(grids_file, dict.fromkeys(block.image_ids.tolist(), other))
+    obs = block.observations.uv
+    code, _, err = cli(
+        "grid", "apply", grids_file, adjusted_folder / "observations.csv", "-o", tmp_path / "c.csv"
+    )
+    assert code == 2
+    assert (
+        f"remove those rows, or, when {grids_file} holds the grids of another camera or block "
+        f"(the rows reach u = {obs[:, 0].max():g}, v = {obs[:, 1].max():g} px), give the grids "
+        "fitted for these observations (photogeom grid fit)"
+    ) in " ".join(err.split())
+    code, _, err = cli("grid", "evaluate", adjusted_folder, "--grids", grids_file)
+    assert code == 2
+    assert (
+        "the grid was fitted for a 4000 x 3000 px image, the block's camera is 7952 x 5304 px: "
+        "the grids are of another camera or block; give --grids the grids file of this BLOCK "
+        "('photogeom grid fit BLOCK')"
+    ) in " ".join(err.split())
+    with pytest.raises(pg.InputError, match=r"fit the grids of this block \(fit_residual_grids"):
+        pg.calibration.correct_observations(block, dict.fromkeys(block.image_ids.tolist(), other))
+
+
+def test_grid_fit_table_prints_every_image_id_whole(cli, tmp_path):
+    # before: in a pipe (110 columns) the image column was cut to "DSC00100.…", so the
+    # ids a user gives --exclude or names the image files with could not be read
+    long_id = "flight_2024-05-01_DJI_20240501123456_0001_V.JPG"
+    ids = ["DSC00100.JPG", long_id]
+    rng = np.random.default_rng(9)
+    uv = rng.uniform([0, 0], [599, 399], (40, 2))
+    res = tmp_path / "r.csv"
+    res.write_text(
+        "image_id,u,v,rx,ry\n"
+        + "".join(f"{k},{u},{v},0.1,{u / 4000}\n" for k in ids for u, v in uv.tolist())
+    )
+    code, text, err = cli(
+        "grid", "fit", res, "--image-size", "600x400", "--spacing", "200", "-o", tmp_path / "g.npz"
+    )
+    assert code == 0, err
+    rows = [line for line in text.splitlines() if line.startswith("│")]
+    assert [line.split("│")[1].strip() for line in rows] == ids
+    assert all("…" not in line for line in text.splitlines())
+
+
+def test_a_block_of_one_image_is_named_as_such(cli, adjusted_folder, tmp_path):
+    # before: "302 tie point(s) are observed in fewer than two images and cannot be
+    # intersected: ... (delete their rows from the block's files)", advice that deletes
+    # every point of the block
+    import shutil
+
+    one = tmp_path / "one"
+    shutil.copytree(adjusted_folder, one)
+    first = str(pg.bundle.read_block(adjusted_folder).image_ids[0])
+    for name in ("images.csv", "observations.csv"):
+        lines = (one / name).read_text().splitlines(keepends=True)
+        keep = ("id", "image_id", first)
+        kept = [x for x in lines if x.startswith("#") or x.split(",")[0] in keep]
+        (one / name).write_text("".join(kept))
+    want = (
+        f"the block has one image with observations ({first}): a bundle adjustment needs at "
+        "least two images that observe the same points; add the block's other images and "
+        "their observations"
+    )
+    for args in (("bundle", "adjust", one), ("grid", "evaluate", one, "--spacing", "1000")):
+        code, _, err = cli(*args)
+        assert code == 2 and err == f"error: {want}\n", (args, err)
+    block = pg.bundle.read_block(one)
+    with pytest.raises(pg.InputError, match="the block has one image with observations"):
+        block.validate()
+
+
+def test_a_sigma_column_of_a_residuals_csv_weighs_its_residuals_as_a_block_does(
+    cli, adjusted_folder, tmp_path
+):
+    # before: the sigma column (px, as in a block's observations.csv) was ignored and every
+    # residual had 1 px, so the CSV of a block's residuals gave other grids (sigma0 0.85
+    # for 0.3 px residuals) than the block itself; --sigma-obs still sets them all
+    block = pg.bundle.read_block(adjusted_folder)
+    obs = block.observations
+    tie = block.role[block.obs_point] == "tie"
+    res = pg.bundle.reprojection_residuals(block)[tie]
+    rows = zip(obs.image_ids[tie].tolist(), obs.uv[tie].tolist(), res.tolist(),
+               obs.sigma[tie].tolist(), strict=True)  # fmt: skip
+    path = tmp_path / "residuals.csv"
+    path.write_text(
+        "image_id,u,v,rx,ry,sigma\n"
+        + "".join(f"{k},{u!r},{v!r},{a!r},{b!r},{s!r}\n" for k, (u, v), (a, b), s in rows)
+    )
+    w, h = (int(x) for x in block.image_sizes()[0])
+    fits = {}
+    for name, source, more in (
+        ("block", adjusted_folder, ()),
+        ("csv", path, ("--image-size", f"{w}x{h}", "--sigma-constraint", "scaled")),
+        ("csv 1 px", path, ("--image-size", f"{w}x{h}", "--sigma-constraint", "scaled",
+                            "--sigma-obs", "1")),
+    ):  # fmt: skip
+        out = tmp_path / f"{name}.npz"
+        code, _, err = cli("grid", "fit", source, "--spacing", "1000", "-o", out, *more)
+        assert code == 0, err
+        fits[name] = pg.calibration.load_grids(out)
+    assert np.allclose(np.unique(obs.sigma[tie]), 0.3)
+    for k, g in fits["block"].items():
+        c = fits["csv"][str(k)]
+        np.testing.assert_allclose(c.nodes, g.nodes, atol=1e-9)
+        assert c.sigma0 == pytest.approx(g.sigma0, rel=1e-9)
+        assert c.rms_cv_after == pytest.approx(g.rms_cv_after, rel=1e-9)
+        assert np.all(fits["csv 1 px"][str(k)].sigma_obs == 1.0)
+        assert np.allclose(c.sigma_obs, 0.3)
+    bad = tmp_path / "bad.csv"
+    bad.write_text(path.read_text().replace(",0.3\n", ",0\n", 1))
+    code, _, err = cli("grid", "fit", bad, "--image-size", f"{w}x{h}", "-o", tmp_path / "b.npz")
+    assert code == 2 and "line 2, column sigma: 0 is not a positive number of pixels" in err
+
+
+def test_grid_json_outputs_state_the_residual_convention_and_units(
+    cli, adjusted_folder, tmp_path
+):
+    # before: the --json of grid fit, evaluate and sweep held bare numbers (px, GSD, CPU s,
+    # fractions) without a word of their units or of the residuals' sign, which the printed
+    # tables and the grids file state
+    code, text, err = cli(
+        "grid", "fit", adjusted_folder, "--spacing", "1000", "-o", tmp_path / "g.npz", "--json"
+    )
+    assert code == 0, err
+    fit = json.loads(text)
+    assert fit["residual_convention"] == "computed minus observed"
+    for stats in fit["images"].values():
+        numbers = {k for k, v in stats.items() if isinstance(v, float)}
+        assert numbers <= set(fit["units"]), numbers - set(fit["units"])
+    assert fit["units"]["rms_after"] == "px" and fit["units"]["reduction"] == "1"
+    code, text, err = cli("grid", "evaluate", adjusted_folder, "--spacing", "1000", "--json")
+    assert code == 0, err
+    ev = json.loads(text)
+    assert ev["residual_convention"] == "computed minus observed"
+    floats = {k for k, v in ev["residuals"]["block"]["before"].items() if isinstance(v, float)}
+    assert floats <= set(ev["units"])
+    assert {k for k in ev if k.startswith(("mean_step", "steps_", "check_"))} <= set(ev["units"])
+    assert ev["units"]["rms"] == "px" and ev["units"]["mean_step_after"] == "GSD"
+    code, text, err = cli(
+        "grid", "sweep", adjusted_folder, "--spacings", "500,1000", "--json"
+    )
+    assert code == 0, err
+    sw = json.loads(text)
+    assert sw["units"]["spacings"] == "px" and sw["units"]["step"] == "GSD"
+    assert sw["units"]["time"] == "s (CPU)"
+
+
+def test_correct_images_finds_ids_that_name_a_file_below_the_folder(cli, tmp_path):
+    # COLMAP names an image by its path below the image folder (cam1/0001.jpg of a rig);
+    # before: "no image file named cam1/a.png in images" though images/cam1/a.png was there
+    import shutil
+
+    import cv2
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    for sub in ("cam1", "cam2"):
+        (src / sub).mkdir()
+    shutil.copy(src / "a.png", src / "cam1" / "a.png")
+    img2 = np.full((40, 60), 200, np.uint8)
+    cv2.imwrite(str(src / "cam2" / "a.png"), img2)  # the same name, another image
+    (tmp_path / "outside.png").write_bytes((src / "a.png").read_bytes())
+    ids = ["cam1/a.png", "cam2/a", "a", "../outside.png"]
+    pg.calibration.save_grids(grids_file, dict.fromkeys(ids, grid))
+    dst = tmp_path / "out"
+    code, _, err = cli("grid", "correct-images", grids_file, src, dst)
+    assert code == 1  # the id that leaves the folder is not read
+    assert "failed ../outside.png: no image file named ../outside.png" in err
+    assert sorted(str(p.relative_to(dst)) for p in dst.rglob("*.png")) == [
+        "a.png", "cam1/a.png", "cam2/a.png"
+    ]  # fmt: skip
+    first = cv2.imread(str(src / "a.png"), cv2.IMREAD_UNCHANGED)
+    want = pg.calibration.correct_image(first, grid)
+    np.testing.assert_array_equal(cv2.imread(str(dst / "cam1" / "a.png"), -1), want)
+    np.testing.assert_array_equal(
+        cv2.imread(str(dst / "cam2" / "a.png"), -1), pg.calibration.correct_image(img2, grid)
+    )
+
+
+def test_overlap_in_per_cent_and_sigmas_with_their_unit_name_the_value_to_give(cli, tmp_path):
+    # before: "Input should be a valid number, unable to parse string as a number" for
+    # --overlap 60%, --sigma-obs 0.3px and --sigma-temporal 0.1px
+    cases = [
+        (("grid", "evaluate", tmp_path, "--overlap", "60%"),
+         "'60%' is not a number; --overlap is a fraction: give 0.6 for 60 %"),
+        (("grid", "sweep", tmp_path, "--overlap", "0.6x"),
+         "'0.6x' is not a number; --overlap is a fraction, such as 0.6"),
+        (("grid", "fit", tmp_path, "-o", tmp_path / "g.npz", "--sigma", "0.3 px"),
+         "--sigma-obs is in px: give the number alone (--sigma-obs 0.3)"),
+        (("grid", "report", tmp_path, "-o", tmp_path / "r.html", "--sigma-temporal", "0.1px"),
+         "--sigma-temporal is in px: give the number alone (--sigma-temporal 0.1)"),
+    ]  # fmt: skip
+    for args, want in cases:
+        code, _, err = cli(*args)
+        assert code == 2 and want in " ".join(err.split()), (args, err)

@@ -106,3 +106,26 @@ def test_csv_block_unknown_id_without_a_look_alike_has_no_hint(tmp_path):
     with pytest.raises(FileFormatError) as exc:
         read_csv_block(tmp_path)
     assert "other characters" not in str(exc.value)
+
+
+def test_csv_block_names_an_id_that_differs_in_letter_case_only(tmp_path):
+    # before: "image_id 'dsc1.jpg' is not one of the image (images.csv) ids", with
+    # 'DSC1.JPG' among them and no word of it (an id typed by hand, a name from another tool)
+    from photogeom.bundle import read_csv_block
+    from photogeom.errors import FileFormatError
+
+    files = {
+        "cameras.csv": "camera,width,height,f\nc,100,80,90\n",
+        "images.csv": "id,camera,X0,Y0,Z0,omega_deg,phi_deg,kappa_deg\nDSC1.JPG,c,0,0,10,0,0,0\n",
+        "points.csv": "id,role,X,Y,Z\nq,tie,0,0,0\n",
+        "observations.csv": "image_id,point_id,u,v\nDSC1.JPG,q,49.5,39.5\ndsc1.jpg,q,58,31\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    with pytest.raises(FileFormatError) as exc:
+        read_csv_block(tmp_path)
+    assert str(exc.value).endswith(
+        "line 3: image_id 'dsc1.jpg' is not one of the image (images.csv) ids (it differs from "
+        "the id 'DSC1.JPG' in letter case only; ids are compared as written: write the id "
+        "alike in both files)"
+    )

@@ -859,7 +859,8 @@ class Block:
         Raises
         ------
         InputError
-            Duplicate observations (an image observing a point twice), tie or control points
+            Duplicate observations (an image observing a point twice), a block with one
+            image that has observations, tie or control points
             observed in fewer than two images, check points with fewer than two observations
             (they cannot be triangulated) and images with fewer than
             ``min_image_observations`` observations.
@@ -874,6 +875,13 @@ class Block:
                 f"{int(c[c > 1][0])} times: remove the duplicate observation(s)"
             )
         per_img, per_pt = self.observation_counts()
+        seen = np.flatnonzero(per_img > 0)
+        if seen.size == 1:  # every point "in fewer than two images": delete them all?
+            raise InputError(
+                f"the block has one image with observations ({self.image_ids[seen[0]]}): a "
+                "bundle adjustment needs at least two images that observe the same points; "
+                "add the block's other images and their observations"
+            )
         once = per_pt < 2
         if np.any(once):
             tie = once & (self.role == "tie")

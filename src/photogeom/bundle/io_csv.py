@@ -426,8 +426,9 @@ def _ids_like(cells: list[str], keys: np.ndarray, table: _Table, name: str, what
 def _look_alike_hint(cell: str, keys: np.ndarray) -> str:
     """For an unknown text id that prints like a known one but is written with other
     characters (composed 'é' against 'e' + combining accent, a no-break space, full-width
-    digits: equal compatibility normal forms, NFKC), both spellings escaped; else ''. Ids are
-    compared as written, never merged."""
+    digits: equal compatibility normal forms, NFKC), both spellings escaped; for one that
+    differs from a known one in letter case only (``dsc1.jpg``, ``DSC1.JPG``), the known
+    one; else ''. Ids are compared as written, never merged."""
     if keys.dtype.kind != "U":
         return ""
     form = unicodedata.normalize("NFKC", cell)
@@ -436,6 +437,14 @@ def _look_alike_hint(cell: str, keys: np.ndarray) -> str:
             return (
                 f" (it looks like {key!a} but is written with other characters: {cell!a}; "
                 "write the id alike in both files)"
+            )
+    # letter case: an id typed by hand, or a file name from another tool (DSC1.JPG, dsc1.jpg)
+    folded = form.casefold()
+    for key in keys.tolist():
+        if unicodedata.normalize("NFKC", key).casefold() == folded:
+            return (
+                f" (it differs from the id {key!r} in letter case only; ids are compared as "
+                "written: write the id alike in both files)"
             )
     return ""
 

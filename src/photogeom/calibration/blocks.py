@@ -299,7 +299,8 @@ def correct_block_observations(block: Block, grids: Mapping, *, uncorrected=()) 
         if g.image_size != (w, h):
             raise InputError(
                 f"image {iid}: the grid was fitted for a {g.image_size[0]} x {g.image_size[1]} "
-                f"px image, the block's camera is {w} x {h} px"
+                f"px image, the block's camera is {w} x {h} px: the grids are of another "
+                "camera or block; fit the grids of this block (fit_residual_grids)"
             )
         try:
             out[sel] = g.correct(uv[sel])

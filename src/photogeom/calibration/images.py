@@ -1124,22 +1124,62 @@ def _task(
         return False, f"{Path(src).name}: {type(exc).__name__}: {exc}"
 
 
-def find_images(folder: Path, ids) -> tuple[dict, list, list]:
-    """Match image ids to files of ``folder`` (the file name, or its stem).
+def _subfolder_id(k: str) -> tuple[str, str] | None:
+    """``(subfolder, name)`` of an image id that is a relative path below the folder
+    (``cam1/DSC00100.JPG``: COLMAP names an image by its path below the image folder, as
+    rigs and multi-folder projects write them); None for a plain name, and for an id that
+    would leave the folder (an absolute path, ``..``)."""
+    if "/" not in k:
+        return None
+    parts = k.split("/")
+    if k.startswith("/") or any(q in ("", ".", "..") for q in parts):
+        return None
+    return "/".join(parts[:-1]), parts[-1]
 
-    Returns ``(id -> path, ids without a file, files without an id)``.
+
+def _image_files(folder: Path) -> list[Path]:
+    """The regular files of ``folder`` with an image suffix, sorted."""
+    try:
+        entries = list(folder.iterdir())
+    except OSError:  # a sub-folder named by an id that is not one
+        return []
+    return sorted(p for p in entries if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def _match(files: list[Path], k: str) -> Path | None:
+    """The file of ``files`` named ``k``, or the only one whose stem is ``k``."""
+    named = [p for p in files if p.name == k]
+    if named:
+        return named[0]
+    stems = [p for p in files if p.stem == k]
+    return stems[0] if len(stems) == 1 else None
+
+
+def find_images(folder: Path, ids) -> tuple[dict, list, list]:
+    """Match image ids to files of ``folder`` (the file name, or its stem; an id that is a
+    relative path, ``cam1/DSC00100.JPG``, to the file below ``folder``).
+
+    Returns ``(id -> path, ids without a file, files of folder without an id)``.
     """
-    files = sorted(
-        p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
-    )
+    files = _image_files(folder)
     by_name = {p.name: p for p in files}
     by_stem: dict = {}
     for p in files:
         by_stem.setdefault(p.stem, []).append(p)
+    below: dict = {}  # sub-folder -> its image files, listed once
     found, missing = {}, []
     for key in ids:
         k = str(key)
-        if k in by_name:
+        sub = _subfolder_id(k)
+        if sub is not None:
+            if sub[0] not in below:
+                below[sub[0]] = _image_files(folder / sub[0])
+            hit = _match(below[sub[0]], sub[1])
+            if hit is not None:
+                found[key] = hit
+            else:
+                missing.append(key)
+        elif k in by_name:
             found[key] = by_name[k]
         elif len(by_stem.get(k, [])) == 1:
             found[key] = by_stem[k][0]
@@ -1149,9 +1189,31 @@ def find_images(folder: Path, ids) -> tuple[dict, list, list]:
     return found, missing, [p.name for p in files if p not in used]
 
 
-def _missing_message(folder: Path, key) -> str:
+def _near_names(key: str, unmatched) -> list[tuple[str, str]]:
+    """Image files left without an id whose name is the id's but for letter case or the
+    extension: ``(file name, the name that matches the id)`` pairs.
+
+    ``DSC1.JPG`` for the id ``dsc1.jpg`` (case), ``DSC1.tif`` for the id ``DSC1.JPG`` (a
+    copy in another format: COLMAP names an image with its extension), ``a.PNG`` for ``A``.
+    """
+    k = key.lower()
+    k_path = Path(key)
+    k_stem = k_path.stem.lower() if k_path.suffix.lower() in IMAGE_SUFFIXES else None
+    pairs = []
+    for name in unmatched:
+        p = Path(name)
+        if name.lower() == k:
+            pairs.append((name, key))
+        elif p.stem.lower() == k or (k_stem is not None and p.stem.lower() == k_stem):
+            pairs.append((name, key + p.suffix))
+    return pairs
+
+
+def _missing_message(folder: Path, key, unmatched=()) -> str:
     """Why image id ``key`` has no file in ``folder``: none of that name, or several files
-    with that stem (the id does not say which one), or only files of unsupported formats."""
+    with that stem (the id does not say which one), or only files of unsupported formats;
+    a file of ``unmatched`` (image files without an id) whose name differs from the id in
+    letter case or extension only is named, with the name to give it."""
     k = str(key)
     # a pipe, folder or device of that name: read one by one, a folder holds files (a
     # named pipe blocks until something writes to it); it was "no image file named ..."
@@ -1177,6 +1239,18 @@ def _missing_message(folder: Path, key) -> str:
         return (
             f"no image file named {k} (or {k}.<ext>) in {folder} in a supported format "
             f"({', '.join(IMAGE_SUFFIXES)}); found {', '.join(same[:5])}"
+        )
+    near = _near_names(k, unmatched)
+    if near:
+        found = "; ".join(
+            f"{name} differs from it in letter case only: rename it to {want}"
+            if name.lower() == want.lower()
+            else f"{name} has its name with another extension: rename it to {want}"
+            for name, want in near[:5]
+        )
+        return (
+            f"no image file named {k} (or {k}.<ext>) in {folder} (file names are matched "
+            f"exactly, letter case included); {found}"
         )
     return f"no image file named {k} (or {k}.<ext>) in {folder}"
 
@@ -1267,9 +1341,18 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
-        result.failures[key] = _missing_message(src, key)
+        result.failures[key] = _missing_message(src, key, extra)
     result.skipped = extra
-    jobs = [(key, str(p), str(dst / p.name), _portable(grids[key])) for key, p in found.items()]
+    # an image below the input folder (an id cam1/DSC00100.JPG) is written below the output
+    # folder alike: cam1/0001.jpg and cam2/0001.jpg are two images
+    out = {key: dst / p.relative_to(src) for key, p in found.items()}
+    for key, d in list(out.items()):
+        try:
+            d.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            result.failures[key] = f"cannot create the output folder {d.parent}: {exc.strerror}"
+            del out[key]
+    jobs = [(key, str(found[key]), str(d), _portable(grids[key])) for key, d in out.items()]
     # threads inside a job: only when the jobs do not already fill the machine
     threads = 1 if (workers > 1 or dask) else None
     if dask or workers > 1:

@@ -402,6 +402,115 @@ def check_out_cols(names: list[str], n: int, *, role: bool = False) -> None:
         )
 
 
+def unit_hint(text: str, option: str, unit: str = "px") -> str:
+    """The fix for a value of ``option`` (in ``unit``) written with a unit (``100px``,
+    ``0.3 px``, ``100,150px``, ``7952x5304px``): the same value without it, else ''.
+
+    Parameters
+    ----------
+    text : str
+        The value as typed.
+    option : str
+        The option's name, as the user typed it (``--spacing``).
+    unit : str
+        The unit the option's numbers are in (px).
+
+    Returns
+    -------
+    str
+        ``"; --spacing is in px: give the number alone (--spacing 100)"``, or ``""`` when
+        ``text`` has no letters after a number.
+    """
+    import re
+
+    pieces = re.split(r"(\s*[,;]\s*|(?<=[^\s,;])\s*[xX]\s*(?=\d))", text.strip())
+    bare, units = [], set()
+    for k, piece in enumerate(pieces):
+        if k % 2:  # a separator, kept as typed
+            bare.append(piece.strip())
+            continue
+        m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\W\d_]*)", piece)
+        if m is None:
+            return ""
+        bare.append(m[1])
+        if m[2]:
+            units.add(m[2])
+    if not units:
+        return ""
+    value = "".join(bare)
+    if units == {unit}:
+        what = "numbers" if len(pieces) > 1 else "number"
+        return f"; {option} is in {unit}: give the {what} alone ({option} {value})"
+    said = ", ".join(sorted(units))
+    return f"; {option} is in {unit}, not {said}: give it in {unit}, without a unit"
+
+
+def pixels(option: str):
+    """Parser of a float option in pixels: a number, refused with :func:`unit_hint`'s fix
+    when written with a unit (``--spacing 100px``; before: click's "Input should be a
+    valid number, unable to parse string as a number").
+
+    Parameters
+    ----------
+    option : str
+        The option's name (``--spacing``).
+
+    Returns
+    -------
+    callable
+        ``str -> float`` for ``typer.Option(parser=...)``.
+    """
+
+    def parse(text) -> float:
+        if isinstance(text, int | float):  # a default value
+            return float(text)
+        try:
+            return float(text)
+        except ValueError:
+            raise typer.BadParameter(
+                f"{text!r} is not a number{unit_hint(text, option)}"
+            ) from None
+
+    parse.__name__ = "float"
+    return parse
+
+
+def fraction(option: str):
+    """Parser of a float option that is a fraction: a number, refused with the fraction to
+    give when written in per cent (``--overlap 60%``: give 0.6; before: click's "Input
+    should be a valid number, unable to parse string as a number").
+
+    Parameters
+    ----------
+    option : str
+        The option's name (``--overlap``).
+
+    Returns
+    -------
+    callable
+        ``str -> float`` for ``typer.Option(parser=...)``.
+    """
+    import re
+
+    def parse(text) -> float:
+        if isinstance(text, int | float):  # a default value
+            return float(text)
+        try:
+            return float(text)
+        except ValueError:
+            pass
+        m = re.fullmatch(r"\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*%\s*", text)
+        hint = (
+            f"; {option} is a fraction: give {float(m[1]) / 100:g} for {m[1]} %"
+            if m
+            else f"; {option} is a fraction, such as 0.6"
+        )
+        raise typer.BadParameter(f"{text!r} is not a number{hint}") from None
+
+    parse.__name__ = "float"
+    return parse
+
+
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
     """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
 

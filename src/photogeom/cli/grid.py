@@ -35,12 +35,14 @@ from ._common import (
     emit_points,
     json_text,
     options_in_errors,
+    pixels,
     refuse_stdout_dash,
     say,
     scheduler_option,
     split_names,
     stage_spinner,
     typed_option,
+    unit_hint,
 )
 
 np = LazyModule("numpy")  # imported when a command needs it: quick start-up
@@ -538,6 +540,7 @@ def _image_size(text: str) -> tuple[int, int]:
     except ValueError:
         raise InputError(
             f"--image-size: expected WIDTHxHEIGHT in pixels, e.g. 7952x5304, not {text!r}"
+            + unit_hint(text, "--image-size")
         ) from None
     return w, h
 
@@ -548,7 +551,8 @@ def fit(
     residuals: Annotated[
         Path,
         typer.Argument(
-            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed), "
+            help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed) "
+            "and optionally sigma (px), "
             "or an adjusted block (a CSV block folder or COLMAP text model, a BAL file: "
             ".bal, .bz2 or any name or pipe by its content): "
             "the reprojection residuals of its tie points, the image sizes of its cameras."
@@ -565,15 +569,18 @@ def fit(
             "BAL file (BAL holds none).",
         ),
     ] = None,
-    spacing: Annotated[float, typer.Option(help="Node spacing in pixels.")] = 100.0,
+    spacing: Annotated[
+        float, typer.Option(help="Node spacing in pixels.", parser=pixels("--spacing"))
+    ] = 100.0,
     sigma_obs: Annotated[
         float | None,
         typer.Option(
             "--sigma-obs",
             "--sigma",
-            help="Standard deviation of the residuals (px); default: 1 px for a residuals "
-            "CSV, each observation's sigma for a block. --sigma is the same option (the name "
-            "of bundle adjust).",
+            help="Standard deviation of the residuals (px); default: the sigma column of a "
+            "residuals CSV (px; 1 px without one), each observation's sigma for a block. "
+            "--sigma is the same option (the name of bundle adjust).",
+            parser=pixels("--sigma-obs"),
         ),
     ] = None,
     sigma_constraint: Annotated[
@@ -685,7 +692,21 @@ def fit(
         outputs.append((report, _report_html(grids, rejected).encode("utf-8")))
     atomic_write_many(outputs)
     if as_json:
-        doc = {"output": str(output), "images": stats}
+        doc = {
+            "output": str(output),
+            # as the table's title says, and the grids file's "convention"
+            "residual_convention": "computed minus observed",
+            "units": {
+                **dict.fromkeys(
+                    ("width", "height", "spacing", "sigma_constraint", "sigma_obs_rms",
+                     "rms_before", "rms_after", "rms_cv_before", "rms_cv_after"),
+                    "px",
+                ),
+                **dict.fromkeys(("sigma0", "reduction", "reduction_cv"), "1"),
+            },
+            "spacing": spacing,
+            "images": stats,
+        }
         if rejected is not None:
             doc["snooping"] = rejected
         typer.echo(json_text(doc), nl=False)
@@ -709,7 +730,7 @@ def fit(
     for k, s in stats.items():
         t.add_row(*_grid_row(k, s))
     out = console()
-    out.print(t)
+    _print_id_table(out, t)
     if rejected is not None:
         say(_snooping_heading(rejected), out)
         if rejected["still_flagged"]:
@@ -731,7 +752,7 @@ def fit(
                 r.add_column(c, justify="right")
             for row in rejected["rejected"][:_SHOWN_REJECTED]:
                 r.add_row(str(row["image"]), str(row[rejected["located_by"]]), f"{row['w']:.2f}")
-            out.print(r)
+            _print_id_table(out, r)
             more = len(rejected["rejected"]) - _SHOWN_REJECTED
             if more > 0:
                 say(f"... and {more} more (all in --json)", out)
@@ -852,6 +873,7 @@ def _fit_sigma_constraint(text: str | None) -> float | str | None:
     except ValueError:
         raise InputError(
             f"--sigma-constraint: a number (px), 'scaled' or 'vce', not {text!r}"
+            + unit_hint(text, "--sigma-constraint")
         ) from None
 
 
@@ -946,11 +968,19 @@ def _fit_csv(
     exclude: list[str],
     where: dict | None = None,
 ) -> dict:
-    """The grids of a residuals CSV (image_id, u, v, rx, ry) of images of one size; the
-    images of ``exclude`` (--exclude) left out. ``where`` receives, per image, ``("line",
-    the CSV line of each of its rows)``."""
+    """The grids of a residuals CSV (image_id, u, v, rx, ry, and optionally sigma: each
+    residual's standard deviation in px, as in a block's observations.csv) of images of one
+    size; the images of ``exclude`` (--exclude) left out. Without --sigma-obs a sigma column
+    weighs each residual, as the observations' sigmas do for a block (before, it was
+    ignored and every residual had 1 px). ``where`` receives, per image, ``("line", the CSV
+    line of each of its rows)``."""
     from ..calibration import GridLayout, fit_grids
-    from ..calibration.grid import scaled_constraint_sigma
+    from ..calibration.grid import (
+        _MIN_OBSERVATIONS,
+        _image_inputs,
+        progress_over,
+        scaled_constraint_sigma,
+    )
 
     if image_size is None:
         raise InputError(
@@ -972,6 +1002,17 @@ def _fit_csv(
         [_numbers(path, columns[col[c]], c, lines) for c in ("u", "v", "rx", "ry")],
         axis=1,
     )
+    sigma = None
+    at = [i for i, c in enumerate(_h) if c.strip().lower() == "sigma"]
+    if at and sigma_obs is None:
+        sigma = _numbers(path, columns[at[0]], "sigma", lines)
+        bad = np.flatnonzero(~(sigma > 0))
+        if bad.size:
+            raise FileFormatError(
+                f"{path}: line {int(lines[bad[0]])}, column sigma: {sigma[bad[0]]:g} is not a "
+                "positive number of pixels; give each residual's standard deviation (px), or "
+                "--sigma-obs for all of them"
+            )
     try:  # the image size and the spacing are refused first, as fit_grids does
         GridLayout(size[0], size[1], spacing)
     except PhotogeomError as exc:
@@ -987,17 +1028,28 @@ def _fit_csv(
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
     if where is not None:
         where.update({k: ("line", np.asarray(lines)[r]) for k, r in groups.items()})
+    common = {"sigma_constraint": scaled_constraint_sigma(s_c, spacing), **options}
     try:
         with _images_progress(f"fitting grids of {spacing:g} px") as progress:
-            return fit_grids(
-                per_image,
-                size,
-                spacing,
-                sigma_obs=1.0 if sigma_obs is None else sigma_obs,
-                sigma_constraint=scaled_constraint_sigma(s_c, spacing),
-                progress=progress,
-                **options,
-            )
+            if sigma is None:
+                return fit_grids(
+                    per_image,
+                    size,
+                    spacing,
+                    sigma_obs=1.0 if sigma_obs is None else sigma_obs,
+                    progress=progress,
+                    **common,
+                )
+            # each residual its sigma: every image's inputs checked before the first fit,
+            # as fit_grids does, then one image at a time with its rows' sigmas
+            min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
+            for k, (uv, res) in per_image.items():
+                _image_inputs(uv, res, size, spacing, min_obs, f"image {k}: ")
+            out = {}
+            for k in progress_over(list(per_image), progress):  # images, not points
+                one = {k: per_image[k]}
+                out.update(fit_grids(one, size, spacing, sigma_obs=sigma[groups[k]], **common))
+            return out
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         raise _reworded(exc, _cli_words) from None
 
@@ -1072,6 +1124,26 @@ def _f(x) -> str:
 
 def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f} %"
+
+
+def _print_id_table(out, table) -> None:
+    """Print a table whose first column holds image ids, none of them cut to
+    ``DSC00100.…``: the ids are what ``--exclude`` and the image files take. In a pipe or a
+    file (no terminal width to keep) the table gets the width it needs; on a terminal too
+    narrow for it an id folds onto more lines, whole.
+
+    Parameters
+    ----------
+    out : rich.console.Console
+        Where to print.
+    table : rich.table.Table
+        The table; its first column is set to fold.
+    """
+    table.columns[0].overflow = "fold"
+    if not out.is_terminal:
+        wide = out.options.update_width(10_000)  # measured without the console's width
+        out.width = max(out.width, out.measure(table, options=wide).maximum)
+    out.print(table)
 
 
 def _grid_row(image_id, s: dict) -> list[str]:
@@ -1234,9 +1306,12 @@ def apply(
     for k, r in per_image.items():  # per image, not per point
         layout = grids[key_of[k]].layout
         width[r], height[r] = layout.width, layout.height
+    reach = f"u = {uv[:, 0].max():g}, v = {uv[:, 1].max():g} px" if len(uv) else ""
     _refuse_outside(
         observations, ids, uv, lines, width, height,
-        f"a grid of {grids_file} covers its image only: remove those rows",
+        f"a grid of {grids_file} covers its image only: remove those rows, or, when "
+        f"{grids_file} holds the grids of another camera or block (the rows reach {reach}), "
+        "give the grids fitted for these observations (photogeom grid fit)",
     )  # fmt: skip
     corrected = correct_observations(
         {k: uv[r] for k, r in per_image.items()},

@@ -20,13 +20,16 @@ from ..errors import InputError, PhotogeomError
 from ._common import (
     JsonOpt,
     console,
+    fraction,
     iteration_progress,
     json_text,
     nan_to_none,
+    pixels,
     say,
     split_numbers,
     stage_spinner,
     typed_option,
+    unit_hint,
 )
 
 BlockArg = Annotated[
@@ -40,7 +43,10 @@ PresetOpt = Annotated[
 #: --spacing of the commands that also take --grids (None: not given, 100 px)
 FitSpacingOpt = Annotated[
     float | None,
-    typer.Option(help="Node spacing of the grids in pixels (default 100; not with --grids)."),
+    typer.Option(
+        help="Node spacing of the grids in pixels (default 100; not with --grids).",
+        parser=pixels("--spacing"),
+    ),
 ]
 DEFAULT_SPACING = 100.0
 ExcludeOpt = Annotated[
@@ -70,7 +76,10 @@ def _sigma_option(text: str, option: str, words: dict):
         x = float(t)
     except ValueError:
         names = " or ".join(repr(w) for w in words)
-        raise InputError(f"{option} must be a number of pixels, {names}, not {text!r}") from None
+        raise InputError(
+            f"{option} must be a number of pixels, {names}, not {text!r}"
+            + unit_hint(text, option)
+        ) from None
     if not x > 0 or x == float("inf"):
         raise InputError(f"{option} must be a positive number of pixels, not {text!r}")
     return x
@@ -100,7 +109,12 @@ ImagesOpt = Annotated[
 ImagesOldOpt = Annotated[
     int | None, typer.Option("--images", hidden=True, help="Former name of --images-per-strip.")
 ]
-OverlapOpt = Annotated[float, typer.Option(help="Forward overlap of a stereo model (fraction).")]
+OverlapOpt = Annotated[
+    float,
+    typer.Option(
+        help="Forward overlap of a stereo model (fraction).", parser=fraction("--overlap")
+    ),
+]
 InAdjOpt = Annotated[
     bool,
     typer.Option(
@@ -116,7 +130,8 @@ SigmaTOpt = Annotated[
     float | None,
     typer.Option(
         help="With --in-adjustment --per image: standard deviation (px) of the equality of "
-        "consecutive images' grids (temporal constraints); omit for none."
+        "consecutive images' grids (temporal constraints); omit for none.",
+        parser=pixels("--sigma-temporal"),
     ),
 ]
 SigmaAOpt = Annotated[
@@ -263,6 +278,10 @@ def _cli(msg: str) -> str:
             "give --grids a file with a grid for every image of the BLOCK "
             "('photogeom grid fit BLOCK')",
         )
+        .replace(
+            "fit the grids of this block (fit_residual_grids)",
+            "give --grids the grids file of this BLOCK ('photogeom grid fit BLOCK')",
+        )
     )
 
 
@@ -408,7 +427,11 @@ def _evaluate(
 def _spacings(text: str) -> list[float]:
     """The --spacings of ``sweep`` and ``report``: at least two positive, distinct numbers
     of pixels (checked before the block is read or adjusted)."""
-    g = split_numbers(text, None, "--spacings")
+    try:
+        g = split_numbers(text, None, "--spacings")
+    except InputError as exc:
+        exc.args = (str(exc) + unit_hint(text, "--spacings"),)
+        raise
     if len(g) < 2:
         raise InputError(f"--spacings: give at least two spacings (px), not {text!r}")
     bad = [x for x in g if not x > 0]
@@ -452,6 +475,19 @@ def _surveyed(path: Path) -> dict:
 def _ev_json(ev) -> dict:
     blk = ev["residuals"]["block"]
     out = {
+        "residual_convention": "computed minus observed",
+        "units": {
+            **dict.fromkeys(("rms", "mean_length", "rms_x", "rms_y"), "px"),
+            **dict.fromkeys(
+                ("steps_before", "steps_after", "mean_step_before", "mean_step_after",
+                 "check_rmse_gsd_before", "check_rmse_gsd_after", "tie_rmse_gsd_before",
+                 "tie_rmse_gsd_after"),
+                "GSD",
+            ),
+            **dict.fromkeys(
+                ("reduction_rms", "reduction_mean_length", "step_reduction"), "1"
+            ),
+        },
         "residuals": {
             "block": blk,
             "images": {str(k): v for k, v in ev["residuals"]["images"].items()},
@@ -575,7 +611,9 @@ def evaluate(
         for k, v in ev["steps_before"].items():
             a = ev["steps_after"].get(k, float("nan"))
             m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
-        out.print(m)
+        from .grid import _print_id_table
+
+        _print_id_table(out, m)
     cb, ca = ev.get("check_before"), ev.get("check_after")
     if cb and ca:
         c = Table(title="check-point RMSE (GSD)")
@@ -653,6 +691,11 @@ def sweep(
         typer.echo(
             json_text(
                 {
+                    "units": {
+                        **dict.fromkeys(("spacings", "chosen", "spacing"), "px"),
+                        **dict.fromkeys(("step", "step_before", "step_rematched"), "GSD"),
+                        **dict.fromkeys(("time", "time_readjust"), "s (CPU)"),
+                    },
                     "spacings": sw["spacings"],
                     "time": sw["time"].tolist(),
                     "time_readjust": sw["time_readjust"].tolist(),
