@@ -128,3 +128,33 @@ def test_choose_spacing_is_invariant_to_permutations(n, models, seed, rounded):
     r1 = choose_spacing(g, step, time)
     r2 = choose_spacing(g[p], step[:, p], time[:, p])
     np.testing.assert_array_equal(r1["spacing"], r2["spacing"])
+
+
+@pytest.mark.parametrize(
+    ("spacings", "step", "time", "message"),
+    [
+        # numpy converted each of these and the rule ranked them as numbers
+        (["100", "200"], [[1, 2]], [[3, 1]], r"spacings\[0\] must be a number of pixels, not '1"),
+        ([100, True], [[1, 2]], [[3, 1]], r"spacings\[1\] must be a number of pixels, not True"),
+        ("100,200", [[1, 2]], [[3, 1]], "spacings must be a list of numbers of pixels"),
+        ([100, 200], [["1.5", "2"]], [[3, 1]], r"step \(GSD\) must be numbers, not text"),
+        ([100, 200], [[1, 2]], [[b"3", b"1"]], r"time \(s\) must be numbers, not text"),
+        ([100, 200], [[1, 2]], [[True, False]], r"time \(s\) must be numbers, not booleans"),
+        ([100, 200], [[1, 2]], [[1 + 0j, 2]], r"time \(s\) must be numbers, not complex"),
+        ([100, 0], [[1, 2]], [[3, 1]], r"spacings\[1\] must be a positive number of pixels"),
+    ],
+)
+def test_choose_spacing_refuses_what_is_not_a_number(spacings, step, time, message):
+    with pytest.raises(InputError, match=r"^choose_spacing: " + message):
+        choose_spacing(spacings, step, time)
+
+
+def test_choose_spacing_takes_numbers_of_any_real_type():
+    ref = choose_spacing([100.0, 200.0, 500.0], [[1.0, 2.0, 4.0]], [[3.0, 1.0, 0.5]])
+    got = choose_spacing(
+        np.array([100, 200, 500], dtype=np.int32),
+        np.array([[1, 2, 4]], dtype=np.int64),
+        np.array([[3, 1, 0.5]], dtype=np.float32),
+    )
+    np.testing.assert_array_equal(got["spacing"], ref["spacing"])
+    np.testing.assert_allclose(got["distance"], ref["distance"], rtol=1e-7)

@@ -88,7 +88,8 @@ def test_times_come_from_the_clock_without_warm_up_or_readjustment(monkeypatch, 
     # the warm-up fitted one image's grid at the first spacing before the timed fits
     first_image = adjusted.block.image_ids.tolist()[0]
     assert clock.fits[0] == (SPACINGS[0], [first_image])
-    assert [g for g, _ in clock.fits[1:]] == SPACINGS
+    # then every spacing, once per timing (the minimum is the cost)
+    assert [g for g, _ in clock.fits[1:]] == SPACINGS * sw["timings"]
 
 
 def test_the_warm_up_keeps_to_the_images_of_the_sweep(monkeypatch, adjusted):

@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..errors import InputError
+from .grid import check_spacing
 
 
 def residual_statistics(residuals) -> dict:
@@ -138,6 +139,22 @@ def min_max_normalise(values, axis: int = -1) -> np.ndarray:
 TIE_TOLERANCE = 1e-12
 
 
+#: How an error names the values of a non-numeric array (``dtype.kind``).
+_KINDS = {"U": "text", "S": "text", "b": "booleans", "c": "complex numbers", "O": "objects"}
+
+
+def _real_array(values, name: str) -> np.ndarray:
+    """``values`` as a float array; text, booleans and other non-numbers refused by
+    ``name`` (``numpy.asarray(..., dtype=float)`` converts ``"1.5"`` and ``True``)."""
+    a = np.asarray(values)
+    if a.dtype.kind not in "iuf":
+        what = _KINDS.get(a.dtype.kind, f"{a.dtype.name} values")
+        raise InputError(
+            f"choose_spacing: {name} must be numbers, not {what}: {a.ravel()[:4].tolist()!r}"
+        )
+    return a.astype(float)
+
+
 def choose_spacing(spacings: Sequence[float], step, time) -> dict:
     """The closest-to-origin spacing of each test model.
 
@@ -159,11 +176,24 @@ def choose_spacing(spacings: Sequence[float], step, time) -> dict:
         ``spacing`` (models,), ``index`` (models,), ``step_norm``, ``time_norm`` and
         ``distance`` (models, s): ``sqrt(step_norm^2 + time_norm^2)``. One model: the
         arrays keep a leading axis of length 1.
+
+    Raises
+    ------
+    InputError
+        Fewer than two spacings, a spacing that is not a positive number of pixels
+        (:func:`~photogeom.calibration.grid.check_spacing`), steps or times that are not
+        numbers (text, booleans), NaN or infinite, or of other shapes.
     """
-    g = np.asarray(spacings, dtype=float)
-    s = np.atleast_2d(np.asarray(step, dtype=float))
-    t = np.atleast_2d(np.asarray(time, dtype=float))
-    if g.ndim != 1 or g.size < 2:
+    if isinstance(spacings, (str, bytes)) or np.ndim(spacings) != 1:
+        raise InputError(
+            f"choose_spacing: spacings must be a list of numbers of pixels, not {spacings!r}"
+        )
+    g = np.array(
+        [check_spacing(x, f"choose_spacing: spacings[{i}]") for i, x in enumerate(spacings)]
+    )
+    s = np.atleast_2d(_real_array(step, "step (GSD)"))
+    t = np.atleast_2d(_real_array(time, "time (s)"))
+    if g.size < 2:
         raise InputError("choose_spacing: give at least two spacings")
     if s.shape != t.shape or s.shape[1] != g.size:
         raise InputError(

@@ -22,6 +22,7 @@
 
 from __future__ import annotations
 
+import numbers
 import time
 from collections.abc import Iterable, Sequence
 
@@ -53,6 +54,10 @@ __all__ = [
 
 #: Standard deviation (m) of the tie points held at their truth by ``visible_field``.
 HELD_POINT_SIGMA = 1e-6
+
+#: Timings of each spacing's grid fit and correction in the grid-size sweep, at most; the
+#: cost is their minimum (:func:`sweep_spacings`, ``repeats``).
+TIMING_REPEATS = 3
 
 #: The clock of the grid-size sweep's computing time (s): the CPU time of this process,
 #: every thread (BLAS, OpenCV) counted, and not the wall clock, which also counts the other
@@ -325,6 +330,7 @@ def sweep_spacings(
     overlap: float = 0.6,
     rematched: Block | None = None,
     exclude: Sequence = (),
+    repeats: int = TIMING_REPEATS,
     **options,
 ) -> dict:
     """The grid-size sweep on an adjusted block.
@@ -343,6 +349,21 @@ def sweep_spacings(
     first spacing one image's grid is fitted and applied untimed (a warm-up), so that the
     first call's costs are not counted.
 
+    CPU time still varies with the load of a shared machine (caches and memory shared with
+    other processes: one spacing's fit can take twice as long), and a spacing's time is
+    common to every model, so one slow timing moved many models' choices at once. The fit
+    and the correction are therefore timed up to ``repeats`` times per spacing and the
+    cost is the minimum (the work itself does not vary; the load only adds to it). The
+    repeats interleave the spacings (every spacing once, then every spacing again), so a
+    burst of load falls on one timing of several spacings, not on every timing of one.
+    Only the timing is repeated: the grids of the first pass give the re-adjustment and
+    the steps. A further pass is made only while the repeated passes so far and this one
+    (estimated as the sum of the current minima) stay within the CPU time of the first
+    pass (fits, corrections, re-adjustments and steps), so the repeats add about the first
+    pass's CPU time at most (a pass can take longer than its estimate; measured on a 2 x 6
+    image block: the sweep took 1.4-2.4 times, on average 1.84 times, the CPU time of one
+    timing); ``timings`` in the result says how many were made.
+
     Parameters
     ----------
     fit : BundleFit
@@ -360,6 +381,9 @@ def sweep_spacings(
     exclude : sequence of image ids
         Images that get no grid (e.g. too few residuals for one): their observations are
         re-adjusted as they are (``readjust(..., uncorrected=exclude)``).
+    repeats : int, default ``TIMING_REPEATS`` (3)
+        Timings of each spacing's fit and correction at most (an integer >= 1); the cost
+        is their minimum. 1: one timing, no repeated pass.
     **options
         Passed to :func:`fit_residual_grids`.
 
@@ -367,8 +391,9 @@ def sweep_spacings(
     -------
     dict
         ``spacings``, ``models`` (keys), ``step`` (models, s) GSD, ``time`` (s,) CPU
-        seconds of the grid fit and the correction (the cost), ``time_readjust`` (s,) CPU
-        seconds of the re-adjustment (not in the cost), ``step_before`` (models,),
+        seconds of the grid fit and the correction, the minimum over the timings (the
+        cost), ``timings`` (int) the number of timings per spacing, ``time_readjust`` (s,)
+        CPU seconds of the re-adjustment (not in the cost), ``step_before`` (models,),
         ``choice`` (the dict of :func:`choose_spacing`),
         ``spacing`` (the most frequent choice); with ``rematched`` also
         ``step_rematched``, ``choice_rematched`` and ``spacing_rematched`` (the same
@@ -378,6 +403,11 @@ def sweep_spacings(
     g = _spacings(spacings, "sweep_spacings: spacings")
     if len(g) < 2:
         raise InputError("sweep_spacings: give at least two spacings")
+    if isinstance(repeats, bool) or not isinstance(repeats, numbers.Integral) or repeats < 1:
+        raise InputError(
+            f"sweep_spacings: repeats must be an integer >= 1 (timings per spacing), "
+            f"not {repeats!r}"
+        )
     if rematched is not None:
         _check_rematched(fit.block, rematched)
     before = model_steps(fit.block, overlap=overlap)
@@ -394,6 +424,7 @@ def sweep_spacings(
     times = np.zeros(len(g))
     times_re = np.zeros(len(g))
     _warm_up(fit.block, g[0], left_out, options)
+    start = _clock()
     for c, sp in enumerate(g):  # spacings, not points
         t0 = _clock()
         grids = fit_residual_grids(fit.block, sp, **options)
@@ -407,6 +438,7 @@ def sweep_spacings(
             again = readjust(rematched, grids, uncorrected=exclude, snooping=False)
             s = model_steps(again.block, overlap=overlap)
             step[1, :, c] = [s.get(k, np.nan) for k in keys]
+    timings = _repeat_timings(fit.block, g, times, repeats, _clock() - start, exclude, options)
     ok = np.all(np.isfinite(step), axis=(0, 2))
     t = np.broadcast_to(times, step[0, ok].shape)
     choice = choose_spacing(g, step[0, ok], t)
@@ -415,6 +447,7 @@ def sweep_spacings(
         "models": [k for k, o in zip(keys, ok) if o],
         "step": step[0, ok],
         "time": times,
+        "timings": timings,
         "time_readjust": times_re,
         "step_before": np.array([before[k] for k, o in zip(keys, ok) if o]),
         "choice": choice,
@@ -425,6 +458,54 @@ def sweep_spacings(
         out["choice_rematched"] = choose_spacing(g, step[1, ok], t)
         out["spacing_rematched"] = most_frequent_spacing(out["choice_rematched"])
     return out
+
+
+def _repeat_timings(
+    block: Block,
+    spacings: list[float],
+    times: np.ndarray,
+    repeats: int,
+    budget: float,
+    exclude: Sequence,
+    options: dict,
+) -> int:
+    """Time every spacing's fit and correction again, in passes over all spacings, and
+    keep each spacing's minimum in ``times`` (in place).
+
+    Parameters
+    ----------
+    block : Block
+        The adjusted block of the sweep.
+    spacings : list of float
+        The sweep's spacings, px, in its order (every pass takes them in this order).
+    times : numpy.ndarray, shape (s,)
+        The first pass's CPU seconds per spacing; lowered to the minimum over the passes.
+    repeats : int
+        Timings per spacing at most (the first pass's included).
+    budget : float
+        CPU seconds the repeated passes may take together: a pass is started only if the
+        passes so far plus this one (estimated as ``times.sum()``) stay within it.
+    exclude : sequence
+        Images that get no grid (their observations are not corrected).
+    options : dict
+        The sweep's options of :func:`fit_residual_grids`.
+
+    Returns
+    -------
+    int
+        The timings made per spacing (1 to ``repeats``).
+    """
+    spent, made = 0.0, 1
+    while made < repeats and spent + float(times.sum()) <= budget:
+        begin = _clock()
+        for c, sp in enumerate(spacings):  # spacings, not points
+            t0 = _clock()
+            grids = fit_residual_grids(block, sp, **options)
+            correct_block_observations(block, grids, uncorrected=exclude)
+            times[c] = min(times[c], _clock() - t0)
+        spent += _clock() - begin
+        made += 1
+    return made
 
 
 def _warm_up(block: Block, spacing: float, left_out: set, options: dict) -> None:

@@ -226,7 +226,10 @@ def _fig_sweep(sweep) -> Figure:
         if np.isfinite(d[m, c]):
             a2.annotate(f"{sp:g} px", (tn[m, c], sn[m, c]), xytext=(3, 3),
                         textcoords="offset points", fontsize=7)  # fmt: skip
-    a2.set_xlabel("normalised CPU time (grid fit and correction)")
+    # the cost: the least CPU time of the spacing's timings (sweep_spacings, repeats)
+    n = sweep.get("timings", 1)
+    least = f", least of {n} timings" if n > 1 else ""
+    a2.set_xlabel(f"normalised CPU time (grid fit and correction{least})")
     a2.set_ylabel("normalised step")
     a2.legend(fontsize=8, loc="upper right")
     a2.set_title(f"cost against accuracy; chosen {sweep['spacing']:g} px (Fig. 13)", fontsize=9)
