@@ -539,16 +539,19 @@ def _read_bytes(path: str | os.PathLike, limit: int) -> bytes:
 
 
 def metashape_covariance_from_xml(
-    data: bytes | str, where: str = "calibration XML"
+    data: bytes | str, where: str = "calibration XML", sensor: int | str | None = None
 ) -> tuple[tuple[str, ...], np.ndarray] | None:
     """The ``<covariance>`` of a Metashape calibration XML document, or None without one.
 
     Parameters
     ----------
     data : bytes or str
-        The document.
+        The document: a calibration XML, or a camera export (root ``<document>``), whose
+        sensor's ``<covariance>`` (beside its adjusted ``<calibration>``) is read.
     where : str, default "calibration XML"
         Its name in error messages.
+    sensor : int or str, optional
+        The sensor of a camera export, by id or label (needed when it has several).
 
     Returns
     -------
@@ -565,10 +568,28 @@ def metashape_covariance_from_xml(
         Metashape's (or one twice), or whose matrix is not symmetric (to 1e-9 of
         ``sqrt(var_i var_j)``) or has a negative variance; each named.
     """
-    from ..numbers import parse_decimal
     from ..xmlsafe import parse_xml
 
-    el = parse_xml(data, where).find("covariance")
+    root = parse_xml(data, where)
+    if root.tag in ("document", "chunk"):  # a camera export: the chosen sensor's
+        from .metashape_export import sensor_calibration
+
+        return sensor_calibration(root, where, sensor).covariance
+    if sensor is not None:
+        raise InputError(
+            f"sensor {sensor!r}: {where} is a calibration XML of one camera (root "
+            "<calibration>), not a camera export with sensors; leave the sensor out"
+        )
+    return covariance_from_element(root.find("covariance"), where)
+
+
+def covariance_from_element(
+    el: ET.Element | None, where: str
+) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """The covariance of a Metashape ``<covariance>`` element (None for None); see
+    :func:`metashape_covariance_from_xml`."""
+    from ..numbers import parse_decimal
+
     if el is None:
         return None
     names = (el.findtext("params") or "").split()
@@ -597,15 +618,17 @@ def metashape_covariance_from_xml(
 
 
 def read_metashape_covariance(
-    path: str | os.PathLike,
+    path: str | os.PathLike, sensor: int | str | None = None
 ) -> tuple[tuple[str, ...], np.ndarray] | None:
-    """The ``<covariance>`` of a Metashape calibration XML file (which
+    """The ``<covariance>`` of a Metashape calibration XML file or camera export (which
     :func:`read_metashape_xml` ignores), or None when the file has none.
 
     Parameters
     ----------
     path : str or os.PathLike
         The XML file.
+    sensor : int or str, optional
+        The sensor of a camera export, by id or label (needed when it has several).
 
     Returns
     -------
@@ -619,7 +642,7 @@ def read_metashape_covariance(
     """
     from .metashape import MAX_XML_BYTES
 
-    return metashape_covariance_from_xml(_read_bytes(path, MAX_XML_BYTES), str(path))
+    return metashape_covariance_from_xml(_read_bytes(path, MAX_XML_BYTES), str(path), sensor)
 
 
 #: OpenCV's distortion terms, in the order of its distortion vector.
@@ -838,7 +861,7 @@ def colmap_calibration_from_text(
 
 
 def read_calibration_file(
-    path: str | os.PathLike, image_size=None
+    path: str | os.PathLike, image_size=None, *, sensor: int | str | None = None
 ) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
     """A calibration with its standard deviations and covariance, from a Metashape XML, a
     camera JSON, an OpenCV FileStorage YAML/XML/JSON or a COLMAP ``cameras.txt`` of one camera
@@ -855,6 +878,10 @@ def read_calibration_file(
     image_size : (int, int), optional
         ``(width, height)`` in px for a camera JSON or OpenCV document that does not record
         it.
+    sensor : int or str, optional
+        For a Metashape camera export (File > Export > Export Cameras, root ``<document>``)
+        with several sensors: the sensor's id or label (a single sensor is taken without
+        it); see :func:`photogeom.camera.metashape_export.sensor_calibration`.
 
     Returns
     -------
@@ -868,16 +895,23 @@ def read_calibration_file(
     Raises
     ------
     InputError
-        ``image_size`` given for a file that records the size.
+        ``image_size`` given for a file that records the size; ``sensor`` given for a file
+        that is no camera export.
     FileFormatError
-        An unreadable file, one of none of these formats, or a calibration without an exact
-        Brown equivalent (the terms named).
+        An unreadable file, one of none of these formats, a calibration without an exact
+        Brown equivalent (the terms named), or a camera export whose sensor cannot be read
+        (as :func:`~photogeom.camera.metashape_export.sensor_calibration`).
     """
     from ..io.jsonfile import MAX_JSON_BYTES, parse_json_bytes
 
     where = str(path)
     data = _read_bytes(path, MAX_JSON_BYTES)
     fmt = calibration_content_format(data)
+    if sensor is not None and fmt != "metashape":
+        raise InputError(
+            f"sensor {sensor!r}: {where} is not a Metashape camera export (it has no sensors); "
+            "leave the sensor out"
+        )
     if fmt == "opencv":
         calib, std = opencv_calibration_from_text(data, where, image_size)
         return calib, std, None
@@ -894,7 +928,15 @@ def read_calibration_file(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
                 "<height>); leave the image size out"
             )
-        calib = MetashapeCalibration.from_xml_string(data, source=where)
+        from ..xmlsafe import parse_xml
+
+        root = parse_xml(data, where)
+        if root.tag in ("document", "chunk"):  # a camera export: one sensor's, parsed once
+            from .metashape_export import sensor_calibration
+
+            read = sensor_calibration(root, where, sensor)
+            return read.calibration, _std_of(None, read.covariance), read.covariance
+        calib = MetashapeCalibration.from_xml_string(data, source=where, sensor=sensor)
         cov = metashape_covariance_from_xml(data, where)
         return calib, _std_of(None, cov), cov
     if fmt == "json":

@@ -69,6 +69,14 @@ MAX_FOCAL_DIAGONALS = 1000.0
 IGNORED_TAGS = ("date", "covariance")
 
 
+def parse_decimal_or_none(text: str) -> float | None:
+    """``text`` as a number, or None when it is not one (compared, not reported)."""
+    try:
+        return parse_decimal(text)
+    except ValueError:
+        return None
+
+
 class MetashapeXMLWarning(UserWarning):
     """A calibration XML holds tags photogeom does not know (they are ignored)."""
 
@@ -563,9 +571,14 @@ class MetashapeCalibration:
 
     @classmethod
     def from_xml_string(
-        cls, text: str | bytes, *, strict: bool = False, source: str = "calibration XML"
+        cls,
+        text: str | bytes,
+        *,
+        strict: bool = False,
+        source: str = "calibration XML",
+        sensor: int | str | None = None,
     ) -> MetashapeCalibration:
-        """Parse Metashape calibration XML; see :func:`read_metashape_xml`.
+        """Parse Metashape calibration XML or camera export; see :func:`read_metashape_xml`.
 
         Parameters
         ----------
@@ -576,6 +589,10 @@ class MetashapeCalibration:
             Refuse unknown tags (else they are ignored with a ``MetashapeXMLWarning``).
         source : str, default "calibration XML"
             Name of the document in error messages (e.g. the file path).
+        sensor : int or str, optional
+            For a camera export (root ``<document>`` or ``<chunk>``) with several sensors:
+            the sensor's id or label (see
+            :func:`photogeom.camera.metashape_export.sensor_calibration`).
 
         Returns
         -------
@@ -585,12 +602,40 @@ class MetashapeCalibration:
         ------
         FileFormatError
             As :func:`read_metashape_xml`.
+        InputError
+            ``sensor`` given for a calibration XML (root ``<calibration>``).
         """
         from ..xmlsafe import parse_xml
 
         root = parse_xml(text, source)
+        if root.tag in ("document", "chunk"):
+            from .metashape_export import sensor_calibration
+
+            return sensor_calibration(root, source, sensor, strict=strict).calibration
+        if sensor is not None:
+            raise InputError(
+                f"sensor {sensor!r}: {source} is a calibration XML of one camera (root "
+                "<calibration>), not a camera export with sensors; leave the sensor out"
+            )
+        return cls._from_calibration_element(root, strict=strict, source=source)
+
+    @classmethod
+    def _from_calibration_element(
+        cls,
+        root: ET.Element,
+        *,
+        strict: bool,
+        source: str,
+        size: tuple[str, str] | None = None,
+    ) -> MetashapeCalibration:
+        """The calibration of a ``<calibration>`` element (the root of a calibration XML, or
+        a sensor's in a camera export, whose ``size``, ``(width, height)`` as written in
+        the sensor's ``<resolution>``, is taken when the element has none)."""
         if root.tag != "calibration":
-            raise FileFormatError(f"{source}: root element is <{root.tag}>, expected <calibration>")
+            raise FileFormatError(
+                f"{source}: root element is <{root.tag}>, expected <calibration> (a Metashape "
+                "calibration XML) or <document> (a Metashape camera export)"
+            )
         values: dict[str, str] = {}
         unknown: list[str] = []
         projection = root.get("type")
@@ -628,6 +673,16 @@ class MetashapeCalibration:
             if strict:
                 raise FileFormatError(msg)
             warnings.warn(msg, MetashapeXMLWarning, stacklevel=3)
+        if size is not None:
+            for k, v in zip(("width", "height"), size):
+                if k not in values:
+                    values[k] = v
+                elif parse_decimal_or_none(values[k]) != parse_decimal_or_none(v):
+                    raise FileFormatError(
+                        f"{source}: the calibration's <resolution> {k}={values[k]!r} differs "
+                        f"from the sensor's {k}={v!r}; a calibration holds for the sensor's "
+                        "image size"
+                    )
         if projection is None:
             raise FileFormatError(f"{source}: missing <projection> (expected 'frame')")
         if projection != "frame":
@@ -682,13 +737,18 @@ class MetashapeCalibration:
         }
 
 
-def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> MetashapeCalibration:
-    """Read a Metashape camera calibration XML file (frame camera).
+def read_metashape_xml(
+    path: str | os.PathLike, *, strict: bool = False, sensor: int | str | None = None
+) -> MetashapeCalibration:
+    """Read a Metashape camera calibration XML file or camera export (frame camera).
 
-    Both the exported file (``<projection>``, ``<width>``, ``<height>`` children) and the
-    form inside project/camera exports (``<calibration type="frame">`` with
+    Both the exported calibration (``<projection>``, ``<width>``, ``<height>`` children) and
+    the form inside project/camera exports (``<calibration type="frame">`` with
     ``<resolution width=".." height=".."/>``) are read. Missing optional terms are zero;
-    ``<date>`` and ``<covariance>`` are ignored.
+    ``<date>`` and ``<covariance>`` are ignored. A camera export (File > Export > Export
+    Cameras, root ``<document>``) gives the calibration of one sensor: the adjusted one, or
+    the initial one when the sensor has no adjusted calibration (with a
+    ``MetashapeXMLWarning``); see :func:`photogeom.camera.metashape_export.sensor_calibration`.
 
     Parameters
     ----------
@@ -696,6 +756,8 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
         The XML file (at most ``MAX_XML_BYTES``).
     strict : bool, default False
         Refuse unknown tags instead of warning and ignoring them.
+    sensor : int or str, optional
+        The sensor of a camera export, by id or label (needed when it has several).
 
     Returns
     -------
@@ -707,7 +769,11 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
     FileFormatError
         Unreadable file or XML, a file larger than ``MAX_XML_BYTES``, missing
         ``width``/``height``/``f``, non-numeric values, a projection other than ``frame``,
-        or (with ``strict=True``) unknown tags.
+        (with ``strict=True``) unknown tags; for a camera export, several sensors and no
+        ``sensor``, an unknown or ambiguous ``sensor`` (the sensors are listed), a sensor
+        without a calibration, or of another camera type (named).
+    InputError
+        ``sensor`` given for a calibration XML of one camera.
 
     Warns
     -----
@@ -724,7 +790,9 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
         raise FileFormatError(
             f"{path}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: wrong file?"
         )
-    return MetashapeCalibration.from_xml_string(data, strict=strict, source=str(path))
+    return MetashapeCalibration.from_xml_string(
+        data, strict=strict, source=str(path), sensor=sensor
+    )
 
 
 def write_metashape_xml(calibration: MetashapeCalibration, path: str | os.PathLike) -> None:

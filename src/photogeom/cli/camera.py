@@ -207,11 +207,17 @@ def read_calibration_option(path: Path, option: str):
         starting with the option's name.
     """
     from ..camera.calibration_files import read_calibration_file
+    from ..camera.metashape_export import CHOOSE_SENSOR
 
     try:
         return read_calibration_file(path)[0]
     except FileFormatError as exc:
-        raise FileFormatError(f"{option} {exc}") from None
+        text = str(exc).replace(
+            CHOOSE_SENSOR,
+            f"write its calibration first with 'photogeom camera convert {path} --sensor ID "
+            f"camera.xml' and give {option} camera.xml",
+        )
+        raise FileFormatError(f"{option} {text}") from None
 
 
 def build_interior(
@@ -519,13 +525,24 @@ def convert_cmd(
             show_default=False,
         ),
     ] = None,
+    sensor: Annotated[
+        str | None,
+        typer.Option(
+            "--sensor",
+            help="The sensor of a Metashape camera export (File > Export > Export Cameras) "
+            "with several, by its id or label.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Convert a frame-camera calibration between Metashape XML, camera JSON, OpenCV YAML and
     COLMAP cameras.txt.
 
-    Standard deviations and the covariance (of a camera JSON written by 'bundle adjust
-    --output-calibration', the <covariance> of a Metashape XML) are carried over where the
-    target format has a place for them.
+    A Metashape camera export (File > Export > Export Cameras, Agisoft XML) gives the
+    calibration of one sensor (--sensor when it has several): the adjusted one, else the
+    initial one (with a warning). Standard deviations and the covariance (of a camera JSON
+    written by 'bundle adjust --output-calibration', the <covariance> of a Metashape XML or
+    camera export) are carried over where the target format has a place for them.
     """
     from ..camera.calibration_files import (
         calibration_format,
@@ -542,16 +559,50 @@ def convert_cmd(
         if not (w == int(w) and h == int(h) and w > 0 and h > 0):
             raise InputError(f"--image-size {image_size}: give two whole numbers of pixels > 0")
         size = (int(w), int(h))
+    from ..camera.metashape_export import CHOOSE_SENSOR
+
     try:
-        cal, std, cov = read_calibration_file(source, size)
-    except InputError as exc:  # only an image size given for a file that records it
+        cal, std, cov = read_calibration_file(source, size, sensor=sensor)
+    except InputError as exc:  # an image size or sensor given for a file without them
+        text = str(exc)
+        if text.startswith("sensor "):
+            text = "--sensor " + text.removeprefix("sensor ").replace(
+                "leave the sensor out", "leave --sensor out"
+            )
+            raise InputError(text) from exc
         if size is None:
             raise
-        text = str(exc).replace("leave the image size out", "leave --image-size out")
+        text = text.replace("leave the image size out", "leave --image-size out")
         raise InputError(f"--image-size: {text}") from exc
+    except FileFormatError as exc:
+        text = str(exc).replace(CHOOSE_SENSOR, "choose one with --sensor ID or --sensor LABEL")
+        text = text.replace("choose one by its id", "give --sensor its id")
+        raise FileFormatError(text) from None
     text = calibration_text(cal, dst_fmt, std=std, covariance=cov)
     write_outputs([(target, text)])
-    say(f"wrote {target} ({dst_fmt})", console())
+    say(f"wrote {target} ({dst_fmt}){_sensor_note(source, sensor)}", console())
+
+
+def _sensor_note(source: Path, sensor: str | None) -> str:
+    """`` from sensor ID 'LABEL' (adjusted calibration)`` for a Metashape camera export, the
+    sensor and calibration read; empty for other files."""
+    import warnings
+
+    from ..camera.calibration_files import _read_bytes, calibration_content_format
+    from ..camera.metashape import MAX_XML_BYTES
+    from ..camera.metashape_export import sensor_calibration
+    from ..xmlsafe import parse_xml
+
+    data = _read_bytes(source, MAX_XML_BYTES)  # a pipe: its bytes kept from the first read
+    if calibration_content_format(data) != "metashape":
+        return ""
+    root = parse_xml(data, str(source))
+    if root.tag not in ("document", "chunk"):
+        return ""
+    with warnings.catch_warnings():  # already shown by the read
+        warnings.simplefilter("ignore")
+        read = sensor_calibration(root, str(source), sensor)
+    return f" from sensor {read.sensor_id} {read.label!r} ({read.calibration_class} calibration)"
 
 
 # --- camera dlt estimate ----------------------------------------------------------------------
