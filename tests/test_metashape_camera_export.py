@@ -235,7 +235,7 @@ def test_several_sensors_need_a_choice_which_lists_them(tmp_path):
         (
             'label="FC300S (3.61mm)" type="frame"',
             'label="FC300S (3.61mm)" type="fisheye"',
-            r"<sensor id=\"0\" label=\"FC300S \(3.61mm\)\"> is a 'fisheye' camera "
+            r"<sensor id=\"0\" label=\"FC300S \(3.61mm\)\"> \(line 5\) is a 'fisheye' camera "
             r"\(the equidistant fisheye",
         ),
         (
@@ -256,7 +256,8 @@ def test_several_sensors_need_a_choice_which_lists_them(tmp_path):
         (
             "<params>f cx cy b1 k1</params>",
             "<params>f cx cy b1 q1</params>",
-            r'<sensor id="0" .*<covariance><params> names q1, not parameters',
+            r'<sensor id="0" label="FC300S \(3.61mm\)"> \(line 35\): '
+            r"<covariance><params> names q1, not",
         ),
         (
             "<coeffs>4 0.1",
@@ -274,17 +275,21 @@ def test_several_sensors_need_a_choice_which_lists_them(tmp_path):
             '<resolution width="4001" height="3000"/>\n          <f>2312.5',
             r"<resolution> width='4001' differs from the sensor's width='4000'",
         ),
-        ("<cx>11.25</cx>", "<cx>11.25</cx><fx>3</fx>", r'class="adjusted">: unknown tag\(s\) <fx>'),
+        (
+            "<cx>11.25</cx>",
+            "<cx>11.25</cx><fx>3</fx>",
+            r'class="adjusted"> \(line 21\): unknown tag\(s\) <fx>',
+        ),
         ("<k4>0.002</k4>", "<k4>0.002</k4><p3>0.001</p3>", r"<p3> is non-zero"),
         (
             '<calibration type="frame" class="initial">',
             '<calibration type="frame" class="adjusted">',
-            r"two <calibration class=\'adjusted\'> elements",
+            r"two <calibration class='adjusted'> elements \(line 17\) and \(line 21\)",
         ),
         (
             'class="initial">\n          <resolution',
             'class="other">\n          <resolution',
-            r"<calibration class='other'>; Metashape writes class",
+            r"<calibration class='other'> \(line 17\); Metashape writes class",
         ),
         (
             "<chunk ",
@@ -332,7 +337,8 @@ def test_a_sensor_without_calibration_or_an_orphan_covariance_is_refused(tmp_pat
         "",
     )
     with pytest.raises(
-        pg.FileFormatError, match=r'<sensor id="1" label="FC6310 \(8.8mm\)"> has no <calibration>'
+        pg.FileFormatError,
+        match=r'<sensor id="1" label="FC6310 \(8.8mm\)"> \(line 44\) has no <calibration>',
     ):
         read_calibration_file(_write(tmp_path, bare), sensor=1)
     orphan = EXPORT.replace(
@@ -342,7 +348,9 @@ def test_a_sensor_without_calibration_or_an_orphan_covariance_is_refused(tmp_pat
         'height="3000"/>\n          <f>2314.1</f>\n        </calibration>',
         "",
     )
-    with pytest.raises(pg.FileFormatError, match=r"a <covariance> but no adjusted calibration"):
+    with pytest.raises(
+        pg.FileFormatError, match=r"a <covariance> \(line 32\) but no adjusted calibration"
+    ):
         read_calibration_file(_write(tmp_path, orphan), sensor=0)
 
 
@@ -431,3 +439,22 @@ def test_round_trip_equals_the_calibration_xml(f, pp, terms, b, free, seed):
     names_x, C_x = metashape_covariance_from_xml(written)
     assert names_x == names
     np.testing.assert_array_equal(C_x, C)
+
+
+@pytest.mark.parametrize("encoding", ["utf-8", "utf-16"])
+def test_the_lines_parser_builds_the_tree_of_elementtree(encoding):
+    import xml.etree.ElementTree as ET
+
+    from photogeom.xmlsafe import parse_xml_lines
+
+    data = EXPORT.replace('encoding="UTF-8"', f'encoding="{encoding}"').encode(encoding)
+    root, lines = parse_xml_lines(data, "cameras.xml")
+    assert ET.tostring(root) == ET.tostring(parse_xml(data, "cameras.xml"))
+    # each element's line: the newlines before its start tag, counted in the text
+    text = EXPORT
+    for el in root.iter("sensor"):
+        at = text.index(f'<sensor id="{el.get("id")}"')
+        assert lines[id(el)] == text.count("\n", 0, at) + 1
+    for bad, match in ((b"<a>", "not well-formed"), (b"", "not well-formed")):
+        with pytest.raises(pg.FileFormatError, match=match):
+            parse_xml_lines(bad, "x.xml")

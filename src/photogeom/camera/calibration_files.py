@@ -572,9 +572,9 @@ def metashape_covariance_from_xml(
 
     root = parse_xml(data, where)
     if root.tag in ("document", "chunk"):  # a camera export: the chosen sensor's
-        from .metashape_export import sensor_calibration
+        from .metashape_export import read_sensor
 
-        return sensor_calibration(root, where, sensor).covariance
+        return read_sensor(data, where, sensor).covariance
     if sensor is not None:
         raise InputError(
             f"sensor {sensor!r}: {where} is a calibration XML of one camera (root "
@@ -930,11 +930,10 @@ def read_calibration_file(
             )
         from ..xmlsafe import parse_xml
 
-        root = parse_xml(data, where)
-        if root.tag in ("document", "chunk"):  # a camera export: one sensor's, parsed once
-            from .metashape_export import sensor_calibration
+        if parse_xml(data, where).tag in ("document", "chunk"):  # a camera export
+            from .metashape_export import read_sensor
 
-            read = sensor_calibration(root, where, sensor)
+            read = read_sensor(data, where, sensor)  # calibration and covariance, one parse
             return read.calibration, _std_of(None, read.covariance), read.covariance
         calib = MetashapeCalibration.from_xml_string(data, source=where, sensor=sensor)
         cov = metashape_covariance_from_xml(data, where)

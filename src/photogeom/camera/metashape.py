@@ -609,9 +609,9 @@ class MetashapeCalibration:
 
         root = parse_xml(text, source)
         if root.tag in ("document", "chunk"):
-            from .metashape_export import sensor_calibration
+            from .metashape_export import read_sensor
 
-            return sensor_calibration(root, source, sensor, strict=strict).calibration
+            return read_sensor(text, source, sensor, strict=strict).calibration
         if sensor is not None:
             raise InputError(
                 f"sensor {sensor!r}: {source} is a calibration XML of one camera (root "

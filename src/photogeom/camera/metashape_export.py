@@ -71,6 +71,12 @@ class SensorCalibration:
     covariance: tuple[tuple[str, ...], np.ndarray] | None
 
 
+def _line(el: ET.Element | None, lines: dict[int, int] | None) -> str:
+    """`` (line N)`` of an element, empty when unknown."""
+    n = None if el is None or lines is None else lines.get(id(el))
+    return "" if n is None else f" (line {n})"
+
+
 def _name(sensor: ET.Element) -> str:
     label = sensor.get("label")
     return f'<sensor id="{sensor.get("id", "")}"' + (f' label="{label}">' if label else ">")
@@ -133,8 +139,44 @@ def _choose(sensors: list[ET.Element], sensor: int | str | None, where: str) -> 
     )
 
 
+def read_sensor(
+    data: bytes | str, where: str, sensor: int | str | None = None, *, strict: bool = False
+) -> SensorCalibration:
+    """:func:`sensor_calibration` of a camera export's text, the messages naming lines.
+
+    Parameters
+    ----------
+    data : bytes or str
+        The document (bytes in the encoding it declares).
+    where : str
+        Its name in messages (the file).
+    sensor : int or str, optional
+        The sensor's ``id`` or ``label``; needed when the chunk has several sensors.
+    strict : bool, default False
+        Refuse unknown tags in the ``<calibration>``.
+
+    Returns
+    -------
+    SensorCalibration
+
+    Raises
+    ------
+    FileFormatError
+        As :func:`photogeom.xmlsafe.parse_xml` and :func:`sensor_calibration`.
+    """
+    from ..xmlsafe import parse_xml_lines
+
+    root, lines = parse_xml_lines(data, where)
+    return sensor_calibration(root, where, sensor, strict=strict, lines=lines)
+
+
 def sensor_calibration(
-    root: ET.Element, where: str, sensor: int | str | None = None, *, strict: bool = False
+    root: ET.Element,
+    where: str,
+    sensor: int | str | None = None,
+    *,
+    strict: bool = False,
+    lines: dict[int, int] | None = None,
 ) -> SensorCalibration:
     """The calibration and covariance of one sensor of a parsed Metashape camera export.
 
@@ -150,6 +192,9 @@ def sensor_calibration(
     strict : bool, default False
         Refuse unknown tags in the ``<calibration>`` (else they are ignored with a
         ``MetashapeXMLWarning``), as :func:`photogeom.camera.read_metashape_xml`.
+    lines : dict, optional
+        ``id(element)`` -> line, as :func:`photogeom.xmlsafe.parse_xml_lines` gives it: the
+        messages then name the line of the element refused.
 
     Returns
     -------
@@ -176,7 +221,7 @@ def sensor_calibration(
     from .calibration_files import covariance_from_element
 
     chosen = _choose(_sensors(root, where), sensor, where)
-    name = f"{where}: {_name(chosen)}"
+    name = f"{where}: {_name(chosen)}{_line(chosen, lines)}"
     kind = chosen.get("type", "frame")
     if kind != "frame":
         model = OTHER_SENSOR_TYPES.get(kind, "a camera model")
@@ -189,11 +234,14 @@ def sensor_calibration(
         cls = el.get("class", "adjusted")  # a lone calibration without class: the sensor's
         if cls not in ("adjusted", "initial"):
             raise FileFormatError(
-                f'{name}: <calibration class={cls!r}>; Metashape writes class "adjusted" or '
-                '"initial"'
+                f"{name}: <calibration class={cls!r}>{_line(el, lines)}; Metashape writes "
+                'class "adjusted" or "initial"'
             )
         if cls in calibrations:
-            raise FileFormatError(f"{name}: two <calibration class={cls!r}> elements")
+            raise FileFormatError(
+                f"{name}: two <calibration class={cls!r}> elements"
+                f"{_line(calibrations[cls], lines)}{_line(el, lines).replace(' (', ' and (')}"
+            )
         calibrations[cls] = el
     if not calibrations:
         raise FileFormatError(
@@ -205,7 +253,8 @@ def sensor_calibration(
     size = None if res is None else (res.get("width"), res.get("height"))
     if size is not None and None in size:
         raise FileFormatError(f"{name}: <resolution> needs both width and height (px)")
-    source = f'{name} <calibration class="{cls}">'
+    line = _line(calibrations[cls], lines)
+    source = f'{where}: {_name(chosen)} <calibration class="{cls}">{line}'
     calib = MetashapeCalibration._from_calibration_element(
         calibrations[cls], strict=strict, source=source, size=size
     )
@@ -213,15 +262,15 @@ def sensor_calibration(
     if cls == "initial":
         if cov_el is not None:
             raise FileFormatError(
-                f"{name}: a <covariance> but no adjusted calibration; Metashape writes the "
-                "covariance of the calibration its alignment estimated"
+                f"{name}: a <covariance>{_line(cov_el, lines)} but no adjusted calibration; "
+                "Metashape writes the covariance of the calibration its alignment estimated"
             )
         warnings.warn(
             f"{name} has no adjusted calibration: its initial one (before any alignment) was read",
             MetashapeXMLWarning,
             stacklevel=3,
         )
-    cov = covariance_from_element(cov_el, f"{name}")
+    cov = covariance_from_element(cov_el, f"{where}: {_name(chosen)}{_line(cov_el, lines)}")
     return SensorCalibration(
         sensor_id=chosen.get("id", ""),
         label=chosen.get("label", ""),

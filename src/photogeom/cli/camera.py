@@ -590,7 +590,7 @@ def _sensor_note(source: Path, sensor: str | None) -> str:
 
     from ..camera.calibration_files import _read_bytes, calibration_content_format
     from ..camera.metashape import MAX_XML_BYTES
-    from ..camera.metashape_export import sensor_calibration
+    from ..camera.metashape_export import read_sensor
     from ..xmlsafe import parse_xml
 
     data = _read_bytes(source, MAX_XML_BYTES)  # a pipe: its bytes kept from the first read
@@ -601,7 +601,7 @@ def _sensor_note(source: Path, sensor: str | None) -> str:
         return ""
     with warnings.catch_warnings():  # already shown by the read
         warnings.simplefilter("ignore")
-        read = sensor_calibration(root, str(source), sensor)
+        read = read_sensor(data, str(source), sensor)
     return f" from sensor {read.sensor_id} {read.label!r} ({read.calibration_class} calibration)"
 
 
