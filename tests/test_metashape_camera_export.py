@@ -458,3 +458,49 @@ def test_the_lines_parser_builds_the_tree_of_elementtree(encoding):
     for bad, match in ((b"<a>", "not well-formed"), (b"", "not well-formed")):
         with pytest.raises(pg.FileFormatError, match=match):
             parse_xml_lines(bad, "x.xml")
+
+
+_POSE = """      <camera id="{i}" sensor_id="0" component_id="0" label="DJI_{i:05d}">
+        <transform>-0.12310895267876176 -0.99222946444830074 0.018024307225944669
+          -29.677549141381292 -0.97579423991461833 0.12433783620472236 0.17990470765763514
+          -8.9185737325389045 -0.18074785509042671 0.0045598649721814155 -0.98351889687572625
+          -2.5813933981741113 0 0 0 1</transform>
+        <rotation_covariance>2.2379243963339504e-08 -2.4391806918735771e-09
+          -8.3346207902797458e-10 -2.439180691873578e-09 9.7130495805281601e-09
+          4.3318462943809853e-10 -8.334620790279752e-10 4.3318462943809838e-10
+          9.2393829603982969e-10</rotation_covariance>
+        <location_covariance>1.0374823876600216e-06 1.1424223684349538e-06
+          -5.5892400680936419e-06 1.1424223684349538e-06 4.973670658522419e-06
+          -2.3456960881169798e-05 -5.5892400680936419e-06 -2.3456960881169798e-05
+          0.00012152005057046991</location_covariance>
+        <orientation>1</orientation>
+        <reference x="119.153465857" y="31.623520850999999" z="62.052"
+          yaw="101.99999999999999" pitch="0.099999999999993788" roll="-0" enabled="true"/>
+      </camera>
+"""
+
+
+def test_an_export_of_a_thousand_images_is_read(tmp_path, cli, monkeypatch):
+    # 936 images with their poses and pose covariances, as Metashape writes them: 1.1 MB,
+    # over the 1 MiB of a calibration XML (before: "more than 1048576 bytes; a calibration
+    # XML is about 1 kB: wrong file?")
+    poses = "".join(_POSE.format(i=i) for i in range(936))
+    text = EXPORT.replace("    </cameras>", poses + "    </cameras>")
+    assert len(text.encode()) > 1 << 20
+    path = _write(tmp_path, text)
+    assert pg.read_metashape_xml(path, sensor=0) == CAL0
+    cal, _, (names, C) = read_calibration_file(path, sensor=0)
+    assert cal == CAL0 and names == NAMES0
+    np.testing.assert_array_equal(C, COV0)
+    np.testing.assert_array_equal(read_metashape_covariance(path, sensor=0)[1], COV0)
+    code, out, err = cli("camera", "convert", path, tmp_path / "a.json", "--sensor", "0")
+    assert code == 0 and "from sensor 0" in out, err
+    # a calibration XML of that size is still refused, and an export over its own limit
+    big = CAL0.to_xml_string().replace("<f>", "<!--" + "x" * (1 << 20) + "--><f>")
+    with pytest.raises(pg.FileFormatError, match=r"more than 1048576 bytes; a calibration XML"):
+        pg.read_calibration(_write(tmp_path, big, "big.xml"))
+    from photogeom.camera import metashape
+
+    monkeypatch.setattr(metashape, "MAX_CAMERA_EXPORT_BYTES", 1 << 20)
+    with pytest.raises(pg.FileFormatError, match=r"more than 1048576 bytes; .* camera exports"):
+        read_calibration_file(path, sensor=0)

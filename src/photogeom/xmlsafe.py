@@ -117,3 +117,26 @@ def parse_xml_lines(data: bytes | str, where: str) -> tuple[ElementTree.Element,
     except (ValueError, LookupError, AssertionError) as exc:  # encoding; no root element
         raise FileFormatError(f"{where}: cannot read this XML ({exc})") from None
     return root, lines
+
+
+def root_tag(data: bytes | str) -> str | None:
+    """The name of a document's first element, read from its start only (the prolog and the
+    start tag), or None when there is none there or the start is not XML."""
+    parser = expat.ParserCreate()
+    found: list[str] = []
+
+    def first_element(name: str, *_args) -> None:
+        found.append(name)
+        raise _PrologDone
+
+    parser.StartElementHandler = first_element
+    step = 4096
+    try:
+        for at in range(0, len(data), step):  # stops at the first element
+            parser.Parse(data[at : at + step], False)
+        parser.Parse(data[:0], True)
+    except _PrologDone:
+        pass
+    except (expat.ExpatError, ValueError, LookupError):
+        pass
+    return found[0] if found else None

@@ -640,9 +640,11 @@ def read_metashape_covariance(
     FileFormatError
         An unreadable file, or as :func:`metashape_covariance_from_xml`.
     """
-    from .metashape import MAX_XML_BYTES
+    from .metashape import MAX_CAMERA_EXPORT_BYTES, check_xml_size
 
-    return metashape_covariance_from_xml(_read_bytes(path, MAX_XML_BYTES), str(path), sensor)
+    data = _read_bytes(path, MAX_CAMERA_EXPORT_BYTES)
+    check_xml_size(data, str(path))
+    return metashape_covariance_from_xml(data, str(path), sensor)
 
 
 #: OpenCV's distortion terms, in the order of its distortion vector.
@@ -903,10 +905,16 @@ def read_calibration_file(
         (as :func:`~photogeom.camera.metashape_export.sensor_calibration`).
     """
     from ..io.jsonfile import MAX_JSON_BYTES, parse_json_bytes
+    from .metashape import MAX_CAMERA_EXPORT_BYTES, check_xml_size
 
     where = str(path)
-    data = _read_bytes(path, MAX_JSON_BYTES)
+    data = _read_bytes(path, max(MAX_JSON_BYTES, MAX_CAMERA_EXPORT_BYTES))
     fmt = calibration_content_format(data)
+    if fmt != "metashape" and len(data) > MAX_JSON_BYTES:
+        raise FileFormatError(
+            f"{path}: more than {MAX_JSON_BYTES} bytes; a calibration file is a few kB: wrong "
+            "file?"
+        )
     if sensor is not None and fmt != "metashape":
         raise InputError(
             f"sensor {sensor!r}: {where} is not a Metashape camera export (it has no sensors); "
@@ -916,13 +924,7 @@ def read_calibration_file(
         calib, std = opencv_calibration_from_text(data, where, image_size)
         return calib, std, None
     if fmt == "metashape":
-        from .metashape import MAX_XML_BYTES
-
-        if len(data) > MAX_XML_BYTES:  # the limit of read_metashape_xml, on every path
-            raise FileFormatError(
-                f"{where}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: "
-                "wrong file?"
-            )
+        check_xml_size(data, where)  # the limits of read_metashape_xml, on every path
         if image_size is not None:
             raise InputError(
                 f"{where} is a Metashape XML, which records the image size (<width>, "

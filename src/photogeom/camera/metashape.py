@@ -60,6 +60,9 @@ XML_TAGS = (
 )
 #: Largest calibration XML read (bytes); Metashape writes about 1 kB.
 MAX_XML_BYTES = 1 << 20
+#: Largest Metashape camera export read (bytes): about 1.1 kB per image with the poses and
+#: their covariances, so some 55 000 images.
+MAX_CAMERA_EXPORT_BYTES = 64 << 20
 #: Largest image side accepted (pixels); a larger value is a corrupt file.
 MAX_IMAGE_SIDE = 10**6
 #: Largest focal length accepted, in image diagonals (a field of view of ~0.06 degree).
@@ -67,6 +70,32 @@ MAX_FOCAL_DIAGONALS = 1000.0
 
 #: Tags that are read but carry nothing photogeom uses (Metashape writes them).
 IGNORED_TAGS = ("date", "covariance")
+
+
+def check_xml_size(data: bytes, where: str) -> None:
+    """Refuse a calibration XML over ``MAX_XML_BYTES`` or a camera export (root
+    ``<document>`` or ``<chunk>``) over ``MAX_CAMERA_EXPORT_BYTES``.
+
+    Raises
+    ------
+    FileFormatError
+        For a document over its limit, naming the limit.
+    """
+    if len(data) <= MAX_XML_BYTES:
+        return
+    from ..xmlsafe import root_tag
+
+    if root_tag(data) in ("document", "chunk"):
+        if len(data) <= MAX_CAMERA_EXPORT_BYTES:
+            return
+        raise FileFormatError(
+            f"{where}: more than {MAX_CAMERA_EXPORT_BYTES} bytes; photogeom reads Metashape "
+            "camera exports of up to 64 MiB (some 55 000 images): export a chunk of fewer "
+            "images, or the calibration alone (Tools > Camera Calibration, Export)"
+        )
+    raise FileFormatError(
+        f"{where}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: wrong file?"
+    )
 
 
 def parse_decimal_or_none(text: str) -> float | None:
@@ -753,7 +782,8 @@ def read_metashape_xml(
     Parameters
     ----------
     path : str or os.PathLike
-        The XML file (at most ``MAX_XML_BYTES``).
+        The XML file (at most ``MAX_XML_BYTES``; a camera export at most
+        ``MAX_CAMERA_EXPORT_BYTES``).
     strict : bool, default False
         Refuse unknown tags instead of warning and ignoring them.
     sensor : int or str, optional
@@ -767,7 +797,8 @@ def read_metashape_xml(
     Raises
     ------
     FileFormatError
-        Unreadable file or XML, a file larger than ``MAX_XML_BYTES``, missing
+        Unreadable file or XML, a file larger than ``MAX_XML_BYTES`` (a camera export:
+        ``MAX_CAMERA_EXPORT_BYTES``), missing
         ``width``/``height``/``f``, non-numeric values, a projection other than ``frame``,
         (with ``strict=True``) unknown tags; for a camera export, several sensors and no
         ``sensor``, an unknown or ambiguous ``sensor`` (the sensors are listed), a sensor
@@ -783,13 +814,10 @@ def read_metashape_xml(
     from ..io.sources import read_input_bytes
 
     try:
-        data = read_input_bytes(path, MAX_XML_BYTES)  # a pipe: read once per command
+        data = read_input_bytes(path, MAX_CAMERA_EXPORT_BYTES)  # a pipe: read once per command
     except OSError as exc:
         raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    if len(data) > MAX_XML_BYTES:
-        raise FileFormatError(
-            f"{path}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: wrong file?"
-        )
+    check_xml_size(data, str(path))
     return MetashapeCalibration.from_xml_string(
         data, strict=strict, source=str(path), sensor=sensor
     )

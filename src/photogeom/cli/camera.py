@@ -589,11 +589,13 @@ def _sensor_note(source: Path, sensor: str | None) -> str:
     import warnings
 
     from ..camera.calibration_files import _read_bytes, calibration_content_format
-    from ..camera.metashape import MAX_XML_BYTES
+    from ..camera.metashape import MAX_CAMERA_EXPORT_BYTES
     from ..camera.metashape_export import read_sensor
+    from ..io.jsonfile import MAX_JSON_BYTES
     from ..xmlsafe import parse_xml
 
-    data = _read_bytes(source, MAX_XML_BYTES)  # a pipe: its bytes kept from the first read
+    # the limit of read_calibration_file: a pipe gives the bytes of its first read
+    data = _read_bytes(source, max(MAX_JSON_BYTES, MAX_CAMERA_EXPORT_BYTES))
     if calibration_content_format(data) != "metashape":
         return ""
     root = parse_xml(data, str(source))
