@@ -504,3 +504,24 @@ def test_an_export_of_a_thousand_images_is_read(tmp_path, cli, monkeypatch):
     monkeypatch.setattr(metashape, "MAX_CAMERA_EXPORT_BYTES", 1 << 20)
     with pytest.raises(pg.FileFormatError, match=r"more than 1048576 bytes; .* camera exports"):
         read_calibration_file(path, sensor=0)
+
+
+def test_camera_convert_parses_an_export_once(tmp_path, cli, monkeypatch):
+    # the whole document is parsed once (before: four times, 6.4 s and 477 MB for a 53 MB
+    # export of 46 800 images; now 2.7 s and 297 MB); the root is told from the prolog
+    import photogeom.xmlsafe as xs
+
+    calls = []
+    lines, fromstring = xs.parse_xml_lines, xs.ElementTree.fromstring
+    monkeypatch.setattr(xs, "parse_xml_lines", lambda *a: calls.append("lines") or lines(*a))
+    monkeypatch.setattr(
+        xs.ElementTree, "fromstring", lambda *a, **k: calls.append("tree") or fromstring(*a, **k)
+    )
+    path = _write(tmp_path, EXPORT)
+    code, out, err = cli("camera", "convert", path, tmp_path / "a.json", "--sensor", "0")
+    assert code == 0 and "from sensor 0" in out, err
+    assert calls == ["lines"]
+    calls.clear()
+    assert read_calibration_file(path, sensor=0)[0] == CAL0
+    assert pg.read_metashape_xml(path, sensor=0) == CAL0
+    assert calls == ["lines", "lines"]

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 from .metashape import MetashapeCalibration
+from .metashape_export import SensorCalibration
 
 #: File-name suffix -> calibration file format.
 CALIBRATION_SUFFIXES = {
@@ -568,13 +569,13 @@ def metashape_covariance_from_xml(
         Metashape's (or one twice), or whose matrix is not symmetric (to 1e-9 of
         ``sqrt(var_i var_j)``) or has a negative variance; each named.
     """
-    from ..xmlsafe import parse_xml
+    from ..xmlsafe import parse_xml, root_tag
 
-    root = parse_xml(data, where)
-    if root.tag in ("document", "chunk"):  # a camera export: the chosen sensor's
+    if root_tag(data) in ("document", "chunk"):  # a camera export: the chosen sensor's
         from .metashape_export import read_sensor
 
         return read_sensor(data, where, sensor).covariance
+    root = parse_xml(data, where)
     if sensor is not None:
         raise InputError(
             f"sensor {sensor!r}: {where} is a calibration XML of one camera (root "
@@ -904,7 +905,39 @@ def read_calibration_file(
         Brown equivalent (the terms named), or a camera export whose sensor cannot be read
         (as :func:`~photogeom.camera.metashape_export.sensor_calibration`).
     """
+    return read_calibration_source(path, image_size, sensor=sensor)[:3]
+
+
+def read_calibration_source(
+    path: str | os.PathLike, image_size=None, *, sensor: int | str | None = None
+) -> tuple[
+    MetashapeCalibration,
+    dict[str, float],
+    tuple[tuple[str, ...], np.ndarray] | None,
+    SensorCalibration | None,
+]:
+    """As :func:`read_calibration_file`, and the sensor read from a Metashape camera export.
+
+    Parameters
+    ----------
+    path, image_size, sensor
+        As :func:`read_calibration_file`.
+
+    Returns
+    -------
+    calibration, std, covariance
+        As :func:`read_calibration_file`.
+    sensor : SensorCalibration or None
+        For a camera export, the sensor read (its id, label and the class of the calibration
+        read); None for other files.
+
+    Raises
+    ------
+    InputError, FileFormatError
+        As :func:`read_calibration_file`.
+    """
     from ..io.jsonfile import MAX_JSON_BYTES, parse_json_bytes
+    from ..xmlsafe import root_tag
     from .metashape import MAX_CAMERA_EXPORT_BYTES, check_xml_size
 
     where = str(path)
@@ -922,7 +955,7 @@ def read_calibration_file(
         )
     if fmt == "opencv":
         calib, std = opencv_calibration_from_text(data, where, image_size)
-        return calib, std, None
+        return calib, std, None, None
     if fmt == "metashape":
         check_xml_size(data, where)  # the limits of read_metashape_xml, on every path
         if image_size is not None:
@@ -930,28 +963,26 @@ def read_calibration_file(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
                 "<height>); leave the image size out"
             )
-        from ..xmlsafe import parse_xml
-
-        if parse_xml(data, where).tag in ("document", "chunk"):  # a camera export
+        if root_tag(data) in ("document", "chunk"):  # a camera export
             from .metashape_export import read_sensor
 
             read = read_sensor(data, where, sensor)  # calibration and covariance, one parse
-            return read.calibration, _std_of(None, read.covariance), read.covariance
+            return read.calibration, _std_of(None, read.covariance), read.covariance, read
         calib = MetashapeCalibration.from_xml_string(data, source=where, sensor=sensor)
         cov = metashape_covariance_from_xml(data, where)
-        return calib, _std_of(None, cov), cov
+        return calib, _std_of(None, cov), cov, None
     if fmt == "json":
         obj = parse_json_bytes(data, where)
         if "camera_matrix" in obj and not any(k in obj for k in ("calibration", "interior")):
             # cv2.FileStorage's JSON (a .json written by OpenCV)
             calib, std = opencv_calibration_from_text(data, where, image_size)
-            return calib, std, None
-        return calibration_from_json(obj, where, image_size)
+            return calib, std, None, None
+        return (*calibration_from_json(obj, where, image_size), None)
     if fmt == "colmap":
         from ..bundle._textio import _decode_text
 
         text = _decode_text(data, Path(where), "COLMAP cameras file")
-        return colmap_calibration_from_text(text, where, image_size), {}, None
+        return colmap_calibration_from_text(text, where, image_size), {}, None, None
     raise FileFormatError(
         f"{where}: not a calibration file photogeom reads (Metashape calibration XML, camera "
         "JSON, OpenCV FileStorage YAML/XML/JSON, COLMAP cameras.txt)"

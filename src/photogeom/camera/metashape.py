@@ -634,13 +634,13 @@ class MetashapeCalibration:
         InputError
             ``sensor`` given for a calibration XML (root ``<calibration>``).
         """
-        from ..xmlsafe import parse_xml
+        from ..xmlsafe import parse_xml, root_tag
 
-        root = parse_xml(text, source)
-        if root.tag in ("document", "chunk"):
+        if root_tag(text) in ("document", "chunk"):  # a camera export, parsed once
             from .metashape_export import read_sensor
 
             return read_sensor(text, source, sensor, strict=strict).calibration
+        root = parse_xml(text, source)
         if sensor is not None:
             raise InputError(
                 f"sensor {sensor!r}: {source} is a calibration XML of one camera (root "

@@ -547,7 +547,7 @@ def convert_cmd(
     from ..camera.calibration_files import (
         calibration_format,
         calibration_text,
-        read_calibration_file,
+        read_calibration_source,
     )
     from .bundle import check_targets
 
@@ -562,7 +562,7 @@ def convert_cmd(
     from ..camera.metashape_export import CHOOSE_SENSOR
 
     try:
-        cal, std, cov = read_calibration_file(source, size, sensor=sensor)
+        cal, std, cov, read = read_calibration_source(source, size, sensor=sensor)
     except InputError as exc:  # an image size or sensor given for a file without them
         text = str(exc)
         if text.startswith("sensor "):
@@ -580,31 +580,11 @@ def convert_cmd(
         raise FileFormatError(text) from None
     text = calibration_text(cal, dst_fmt, std=std, covariance=cov)
     write_outputs([(target, text)])
-    say(f"wrote {target} ({dst_fmt}){_sensor_note(source, sensor)}", console())
-
-
-def _sensor_note(source: Path, sensor: str | None) -> str:
-    """`` from sensor ID 'LABEL' (adjusted calibration)`` for a Metashape camera export, the
-    sensor and calibration read; empty for other files."""
-    import warnings
-
-    from ..camera.calibration_files import _read_bytes, calibration_content_format
-    from ..camera.metashape import MAX_CAMERA_EXPORT_BYTES
-    from ..camera.metashape_export import read_sensor
-    from ..io.jsonfile import MAX_JSON_BYTES
-    from ..xmlsafe import parse_xml
-
-    # the limit of read_calibration_file: a pipe gives the bytes of its first read
-    data = _read_bytes(source, max(MAX_JSON_BYTES, MAX_CAMERA_EXPORT_BYTES))
-    if calibration_content_format(data) != "metashape":
-        return ""
-    root = parse_xml(data, str(source))
-    if root.tag not in ("document", "chunk"):
-        return ""
-    with warnings.catch_warnings():  # already shown by the read
-        warnings.simplefilter("ignore")
-        read = read_sensor(data, str(source), sensor)
-    return f" from sensor {read.sensor_id} {read.label!r} ({read.calibration_class} calibration)"
+    note = ""
+    if read is not None:  # a Metashape camera export: which sensor and calibration
+        note = f" from sensor {read.sensor_id} {read.label!r}"
+        note += f" ({read.calibration_class} calibration)"
+    say(f"wrote {target} ({dst_fmt}){note}", console())
 
 
 # --- camera dlt estimate ----------------------------------------------------------------------
