@@ -525,3 +525,9 @@ def test_camera_convert_parses_an_export_once(tmp_path, cli, monkeypatch):
     assert read_calibration_file(path, sensor=0)[0] == CAL0
     assert pg.read_metashape_xml(path, sensor=0) == CAL0
     assert calls == ["lines", "lines"]
+
+
+def test_the_help_names_the_camera_export(cli):
+    for args in (("camera", "convert"), ("camera", "project"), ("orient", "resection")):
+        code, out, _ = cli(*args, "--help")
+        assert code == 0 and "camera export" in " ".join(out.split()), args

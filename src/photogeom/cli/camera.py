@@ -377,14 +377,16 @@ CameraOpt = Annotated[
     Path | None,
     typer.Option(
         help="Camera JSON (interior and/or exterior orientation), or a calibration of another "
-        "tool (interior only): Metashape XML, OpenCV YAML/XML/JSON, COLMAP cameras.txt."
+        "tool (interior only): Metashape XML or camera export (one sensor), OpenCV "
+        "YAML/XML/JSON, COLMAP cameras.txt."
     ),
 ]
 CalibrationOpt = Annotated[
     Path | None,
     typer.Option(
-        help="Frame-camera calibration (pixels): Metashape XML, camera JSON, OpenCV "
-        "FileStorage YAML/XML/JSON or COLMAP cameras.txt (one camera); format by content."
+        help="Frame-camera calibration (pixels): Metashape XML or camera export (one sensor), "
+        "camera JSON, OpenCV FileStorage YAML/XML/JSON or COLMAP cameras.txt (one camera); "
+        "format by content."
     ),
 ]
 FOpt = Annotated[float | None, typer.Option("--f", help="Principal distance (in --unit).")]
@@ -503,7 +505,8 @@ def convert_cmd(
     source: Annotated[
         Path,
         typer.Argument(
-            help="Calibration to read, format by content: Metashape XML, camera JSON "
+            help="Calibration to read, format by content: Metashape XML or camera export "
+            "(File > Export > Export Cameras; --sensor), camera JSON "
             "('bundle adjust --output-calibration', 'orient resection --output-params', ...), "
             "OpenCV FileStorage YAML/XML/JSON (camera_matrix, distortion_coefficients), COLMAP "
             "cameras.txt (one camera)."
