@@ -531,3 +531,16 @@ def test_the_help_names_the_camera_export(cli):
     for args in (("camera", "convert"), ("camera", "project"), ("orient", "resection")):
         code, out, _ = cli(*args, "--help")
         assert code == 0 and "camera export" in " ".join(out.split()), args
+
+
+def test_an_id_that_is_another_sensors_label_is_chosen_with_a_prefix(tmp_path, cli):
+    # sensor 1 labelled "0": "0" names two sensors; an int or id:/label: names one
+    path = _write(tmp_path, EXPORT.replace('label="FC6310 (8.8mm)"', 'label="0"'))
+    with pytest.raises(pg.FileFormatError, match=r"write id:0 for .* or label:0 for"):
+        read_calibration_file(path, sensor="0")
+    assert read_calibration_file(path, sensor=0)[0] == CAL0
+    assert read_calibration_file(path, sensor="id:0")[0] == CAL0
+    with pytest.warns(MetashapeXMLWarning):
+        assert read_calibration_file(path, sensor="label:0")[0] == CAL1
+    code, out, err = cli("camera", "convert", path, tmp_path / "a.xml", "--sensor", "label:0")
+    assert code == 0 and "from sensor 1 '0' (initial calibration)" in out, err

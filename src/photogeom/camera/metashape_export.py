@@ -124,8 +124,15 @@ def _choose(sensors: list[ET.Element], sensor: int | str | None, where: str) -> 
             f"{where}: a Metashape camera export with {len(sensors)} sensors "
             f"({_listing(sensors)}); {CHOOSE_SENSOR}"
         )
-    key = str(sensor).strip()
-    found = [s for s in sensors if key in (s.get("id"), s.get("label"))]
+    key = str(sensor)
+    if isinstance(sensor, int) or key.startswith("id:"):  # an id only
+        key = key.removeprefix("id:")
+        found = [s for s in sensors if s.get("id") == key]
+    elif key.startswith("label:"):  # a label only
+        key = key.removeprefix("label:")
+        found = [s for s in sensors if s.get("label") == key]
+    else:
+        found = [s for s in sensors if key in (s.get("id"), s.get("label"))]
     if len(found) == 1:
         return found[0]
     if not found:
@@ -133,9 +140,14 @@ def _choose(sensors: list[ET.Element], sensor: int | str | None, where: str) -> 
             f"{where}: no sensor with id or label {key!r}; the sensors (id 'label') are "
             f"{_listing(sensors)}"
         )
+    ids = {s.get("id") for s in found}
     raise FileFormatError(
         f"{where}: {len(found)} sensors have the id or label {key!r} ({_listing(found)}); "
-        "choose one by its id"
+        + (
+            f"write id:{key} for the sensor of that id or label:{key} for the one of that label"
+            if key in ids and len(ids) == len(found)
+            else "choose one by its id"
+        )
     )
 
 
@@ -188,7 +200,9 @@ def sensor_calibration(
     where : str
         The document's name in messages (the file).
     sensor : int or str, optional
-        The sensor's ``id`` or ``label``; needed when the chunk has several sensors.
+        The sensor's ``id`` or ``label``; needed when the chunk has several sensors. An int,
+        or a text ``"id:ID"``, matches ids only; ``"label:LABEL"`` labels only; other text
+        either (refused when it is one sensor's id and another's label).
     strict : bool, default False
         Refuse unknown tags in the ``<calibration>`` (else they are ignored with a
         ``MetashapeXMLWarning``), as :func:`photogeom.camera.read_metashape_xml`.

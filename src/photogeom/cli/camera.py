@@ -533,7 +533,7 @@ def convert_cmd(
         typer.Option(
             "--sensor",
             help="The sensor of a Metashape camera export (File > Export > Export Cameras) "
-            "with several, by its id or label.",
+            "with several, by its id or label (id:ID or label:LABEL to match one of them).",
             show_default=False,
         ),
     ] = None,
