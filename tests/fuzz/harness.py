@@ -82,6 +82,37 @@ def _metashape_seeds() -> list[bytes]:
     return [text.encode(), text.replace('encoding="UTF-8"', 'encoding="UTF-16"').encode("utf-16")]
 
 
+def _camera_export_seeds() -> list[bytes]:
+    """A Metashape camera export (File > Export > Export Cameras) of two sensors: the first
+    with an initial and an adjusted calibration and the covariance, the second with an
+    initial calibration without its own resolution; one image with its pose."""
+    cal = pg.MetashapeCalibration(width=4000, height=3000, f=2312.5, cx=11.25, cy=-7.5,
+                                  k1=-0.09, k2=0.07, p1=3e-4, b1=0.5, b2=-0.25)  # fmt: skip
+    terms = "".join(f"<{n}>{getattr(cal, n)!r}</{n}>" for n in ("f", "cx", "cy", "b1", "b2", "k1",
+                                                                 "k2", "p1"))  # fmt: skip
+    text = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n<document version="2.0.0">\n'
+        '<chunk label="Chunk 1" enabled="true">\n<sensors next_id="2">\n'
+        '<sensor id="0" label="FC300S (3.61mm)" type="frame">\n'
+        '<resolution width="4000" height="3000"/>\n'
+        '<property name="pixel_width" value="0.00156"/>\n'
+        '<bands><band label="Red"/><band label="Green"/><band label="Blue"/></bands>\n'
+        '<calibration type="frame" class="initial"><resolution width="4000" height="3000"/>'
+        "<f>2300</f></calibration>\n"
+        '<calibration type="frame" class="adjusted">\n<resolution width="4000" height="3000"/>'
+        f"\n{terms}\n</calibration>\n"
+        "<covariance><params>f cx cy k1</params>"
+        "<coeffs>4 0.1 0.2 1e-5 0.1 1 0.01 0 0.2 0.01 1.5 0 1e-5 0 0 1e-8</coeffs></covariance>\n"
+        '</sensor>\n<sensor id="1" label="other" type="frame">\n'
+        '<resolution width="6000" height="4000"/>\n'
+        '<calibration type="frame" class="initial"><f>9000</f><k1>0.01</k1></calibration>\n'
+        "</sensor>\n</sensors>\n<cameras next_id=\"1\">\n"
+        '<camera id="0" sensor_id="0" label="IMG_1"><transform>1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1'
+        "</transform></camera>\n</cameras>\n</chunk>\n</document>\n"
+    )
+    return [text.encode(), text.replace('encoding="UTF-8"', 'encoding="UTF-16"').encode("utf-16")]
+
+
 def _calibration_seeds(fmt: str) -> list[bytes]:
     """A calibration written as ``fmt`` (``"opencv"`` YAML, ``"colmap"`` cameras.txt), with
     standard deviations and a covariance where the format has a place for them."""
@@ -135,6 +166,16 @@ def _read_rpc(p: Path):
 
 def _read_metashape(p: Path):
     return pg.read_metashape_xml(p)
+
+
+def _read_camera_export(p: Path):
+    import warnings
+
+    from photogeom.camera.calibration_files import read_calibration_file
+
+    with warnings.catch_warnings():  # the initial calibration of sensor 1 warns
+        warnings.simplefilter("ignore")
+        return read_calibration_file(p, sensor="0"), read_calibration_file(p, sensor="other")
 
 
 def _read_transform_json(p: Path):
@@ -206,6 +247,7 @@ TARGETS: dict[str, Target] = {
         Target("rpc-dimap", _read_rpc, _dimap_seeds, ".XML"),
         Target("rpc-worldview", _read_rpc, _worldview_seeds, ".XML"),
         Target("metashape-xml", _read_metashape, _metashape_seeds, ".xml"),
+        Target("metashape-cameras", _read_camera_export, _camera_export_seeds, ".xml"),
         Target("transform-json", _read_transform_json, _transform_seeds, ".json"),
         Target("camera-json", _read_camera_json, _camera_seeds, ".json"),
         Target("points-csv", _read_points, _points_seeds, ".csv"),

@@ -521,9 +521,11 @@ def read_csv_block(
         Folder with ``images.csv``, ``points.csv``, ``observations.csv`` and (unless
         ``calibrations`` gives every camera) ``cameras.csv``.
     calibrations : mapping camera id -> MetashapeCalibration or path of a Metashape
-        calibration XML, optional
+        calibration XML or camera export, optional
         Starting cameras; they replace the calibration of ``cameras.csv`` for those ids
-        (``free`` and ``image_variant`` stay those of ``cameras.csv``, or the defaults).
+        (``free`` and ``image_variant`` stay those of ``cameras.csv``, or the defaults). A
+        camera export with several sensors is given as ``(path, sensor)``, the sensor's id
+        or label (:func:`photogeom.camera.read_metashape_xml`).
     sigma : float
         Standard deviation of observations without a ``sigma`` column, pixels.
 
@@ -545,8 +547,20 @@ def read_csv_block(
     for k, v in (calibrations or {}).items():
         if isinstance(v, MetashapeCalibration):
             given[k] = v
+        elif isinstance(v, tuple) and len(v) == 2:  # (camera export, its sensor)
+            given[k] = read_metashape_xml(v[0], sensor=v[1])
         else:
-            given[k] = read_metashape_xml(v)
+            try:
+                given[k] = read_metashape_xml(v)
+            except FileFormatError as exc:
+                from ..camera.metashape_export import CHOOSE_SENSOR
+
+                raise FileFormatError(
+                    str(exc).replace(
+                        CHOOSE_SENSOR,
+                        f"choose one with calibrations={{{k!r}: (path, sensor id or label)}}",
+                    )
+                ) from None
     cam_path = d / "cameras.csv"
     free = variant = None
     if cam_path.exists():

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 from .metashape import MetashapeCalibration
+from .metashape_export import SensorCalibration
 
 #: File-name suffix -> calibration file format.
 CALIBRATION_SUFFIXES = {
@@ -539,16 +540,19 @@ def _read_bytes(path: str | os.PathLike, limit: int) -> bytes:
 
 
 def metashape_covariance_from_xml(
-    data: bytes | str, where: str = "calibration XML"
+    data: bytes | str, where: str = "calibration XML", sensor: int | str | None = None
 ) -> tuple[tuple[str, ...], np.ndarray] | None:
     """The ``<covariance>`` of a Metashape calibration XML document, or None without one.
 
     Parameters
     ----------
     data : bytes or str
-        The document.
+        The document: a calibration XML, or a camera export (root ``<document>``), whose
+        sensor's ``<covariance>`` (beside its adjusted ``<calibration>``) is read.
     where : str, default "calibration XML"
         Its name in error messages.
+    sensor : int or str, optional
+        The sensor of a camera export, by id or label (needed when it has several).
 
     Returns
     -------
@@ -565,10 +569,28 @@ def metashape_covariance_from_xml(
         Metashape's (or one twice), or whose matrix is not symmetric (to 1e-9 of
         ``sqrt(var_i var_j)``) or has a negative variance; each named.
     """
-    from ..numbers import parse_decimal
-    from ..xmlsafe import parse_xml
+    from ..xmlsafe import parse_xml, root_tag
 
-    el = parse_xml(data, where).find("covariance")
+    if root_tag(data) in ("document", "chunk"):  # a camera export: the chosen sensor's
+        from .metashape_export import read_sensor
+
+        return read_sensor(data, where, sensor).covariance
+    root = parse_xml(data, where)
+    if sensor is not None:
+        raise InputError(
+            f"sensor {sensor!r}: {where} is a calibration XML of one camera (root "
+            "<calibration>), not a camera export with sensors; leave the sensor out"
+        )
+    return covariance_from_element(root.find("covariance"), where)
+
+
+def covariance_from_element(
+    el: ET.Element | None, where: str
+) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """The covariance of a Metashape ``<covariance>`` element (None for None); see
+    :func:`metashape_covariance_from_xml`."""
+    from ..numbers import parse_decimal
+
     if el is None:
         return None
     names = (el.findtext("params") or "").split()
@@ -597,15 +619,17 @@ def metashape_covariance_from_xml(
 
 
 def read_metashape_covariance(
-    path: str | os.PathLike,
+    path: str | os.PathLike, sensor: int | str | None = None
 ) -> tuple[tuple[str, ...], np.ndarray] | None:
-    """The ``<covariance>`` of a Metashape calibration XML file (which
+    """The ``<covariance>`` of a Metashape calibration XML file or camera export (which
     :func:`read_metashape_xml` ignores), or None when the file has none.
 
     Parameters
     ----------
     path : str or os.PathLike
         The XML file.
+    sensor : int or str, optional
+        The sensor of a camera export, by id or label (needed when it has several).
 
     Returns
     -------
@@ -617,9 +641,11 @@ def read_metashape_covariance(
     FileFormatError
         An unreadable file, or as :func:`metashape_covariance_from_xml`.
     """
-    from .metashape import MAX_XML_BYTES
+    from .metashape import MAX_CAMERA_EXPORT_BYTES, check_xml_size
 
-    return metashape_covariance_from_xml(_read_bytes(path, MAX_XML_BYTES), str(path))
+    data = _read_bytes(path, MAX_CAMERA_EXPORT_BYTES)
+    check_xml_size(data, str(path))
+    return metashape_covariance_from_xml(data, str(path), sensor)
 
 
 #: OpenCV's distortion terms, in the order of its distortion vector.
@@ -838,7 +864,7 @@ def colmap_calibration_from_text(
 
 
 def read_calibration_file(
-    path: str | os.PathLike, image_size=None
+    path: str | os.PathLike, image_size=None, *, sensor: int | str | None = None
 ) -> tuple[MetashapeCalibration, dict[str, float], tuple[tuple[str, ...], np.ndarray] | None]:
     """A calibration with its standard deviations and covariance, from a Metashape XML, a
     camera JSON, an OpenCV FileStorage YAML/XML/JSON or a COLMAP ``cameras.txt`` of one camera
@@ -855,6 +881,10 @@ def read_calibration_file(
     image_size : (int, int), optional
         ``(width, height)`` in px for a camera JSON or OpenCV document that does not record
         it.
+    sensor : int or str, optional
+        For a Metashape camera export (File > Export > Export Cameras, root ``<document>``)
+        with several sensors: the sensor's id or label (a single sensor is taken without
+        it); see :func:`photogeom.camera.metashape_export.sensor_calibration`.
 
     Returns
     -------
@@ -868,47 +898,91 @@ def read_calibration_file(
     Raises
     ------
     InputError
-        ``image_size`` given for a file that records the size.
+        ``image_size`` given for a file that records the size; ``sensor`` given for a file
+        that is no camera export.
     FileFormatError
-        An unreadable file, one of none of these formats, or a calibration without an exact
-        Brown equivalent (the terms named).
+        An unreadable file, one of none of these formats, a calibration without an exact
+        Brown equivalent (the terms named), or a camera export whose sensor cannot be read
+        (as :func:`~photogeom.camera.metashape_export.sensor_calibration`).
+    """
+    return read_calibration_source(path, image_size, sensor=sensor)[:3]
+
+
+def read_calibration_source(
+    path: str | os.PathLike, image_size=None, *, sensor: int | str | None = None
+) -> tuple[
+    MetashapeCalibration,
+    dict[str, float],
+    tuple[tuple[str, ...], np.ndarray] | None,
+    SensorCalibration | None,
+]:
+    """As :func:`read_calibration_file`, and the sensor read from a Metashape camera export.
+
+    Parameters
+    ----------
+    path, image_size, sensor
+        As :func:`read_calibration_file`.
+
+    Returns
+    -------
+    calibration, std, covariance
+        As :func:`read_calibration_file`.
+    sensor : SensorCalibration or None
+        For a camera export, the sensor read (its id, label and the class of the calibration
+        read); None for other files.
+
+    Raises
+    ------
+    InputError, FileFormatError
+        As :func:`read_calibration_file`.
     """
     from ..io.jsonfile import MAX_JSON_BYTES, parse_json_bytes
+    from ..xmlsafe import root_tag
+    from .metashape import MAX_CAMERA_EXPORT_BYTES, check_xml_size
 
     where = str(path)
-    data = _read_bytes(path, MAX_JSON_BYTES)
+    data = _read_bytes(path, max(MAX_JSON_BYTES, MAX_CAMERA_EXPORT_BYTES))
     fmt = calibration_content_format(data)
+    if fmt != "metashape" and len(data) > MAX_JSON_BYTES:
+        raise FileFormatError(
+            f"{path}: more than {MAX_JSON_BYTES} bytes; a calibration file is a few kB: wrong "
+            "file?"
+        )
+    if sensor is not None and fmt != "metashape":
+        raise InputError(
+            f"sensor {sensor!r}: {where} is not a Metashape camera export (it has no sensors); "
+            "leave the sensor out"
+        )
     if fmt == "opencv":
         calib, std = opencv_calibration_from_text(data, where, image_size)
-        return calib, std, None
+        return calib, std, None, None
     if fmt == "metashape":
-        from .metashape import MAX_XML_BYTES
-
-        if len(data) > MAX_XML_BYTES:  # the limit of read_metashape_xml, on every path
-            raise FileFormatError(
-                f"{where}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: "
-                "wrong file?"
-            )
+        check_xml_size(data, where)  # the limits of read_metashape_xml, on every path
         if image_size is not None:
             raise InputError(
                 f"{where} is a Metashape XML, which records the image size (<width>, "
                 "<height>); leave the image size out"
             )
-        calib = MetashapeCalibration.from_xml_string(data, source=where)
+        if root_tag(data) in ("document", "chunk"):  # a camera export
+            from .metashape_export import read_sensor
+
+            read = read_sensor(data, where, sensor)  # calibration and covariance, one parse
+            return read.calibration, _std_of(None, read.covariance), read.covariance, read
+        calib = MetashapeCalibration.from_xml_string(data, source=where, sensor=sensor)
         cov = metashape_covariance_from_xml(data, where)
-        return calib, _std_of(None, cov), cov
+        return calib, _std_of(None, cov), cov, None
     if fmt == "json":
         obj = parse_json_bytes(data, where)
         if "camera_matrix" in obj and not any(k in obj for k in ("calibration", "interior")):
             # cv2.FileStorage's JSON (a .json written by OpenCV)
             calib, std = opencv_calibration_from_text(data, where, image_size)
-            return calib, std, None
-        return calibration_from_json(obj, where, image_size)
+            return calib, std, None, None
+        return (*calibration_from_json(obj, where, image_size), None)
     if fmt == "colmap":
         from ..bundle._textio import _decode_text
 
         text = _decode_text(data, Path(where), "COLMAP cameras file")
-        return colmap_calibration_from_text(text, where, image_size), {}, None
+        return colmap_calibration_from_text(text, where, image_size), {}, None, None
     raise FileFormatError(
         f"{where}: not a calibration file photogeom reads (Metashape calibration XML, camera "
         "JSON, OpenCV FileStorage YAML/XML/JSON, COLMAP cameras.txt)"

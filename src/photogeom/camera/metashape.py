@@ -60,6 +60,9 @@ XML_TAGS = (
 )
 #: Largest calibration XML read (bytes); Metashape writes about 1 kB.
 MAX_XML_BYTES = 1 << 20
+#: Largest Metashape camera export read (bytes): about 1.1 kB per image with the poses and
+#: their covariances, so some 55 000 images.
+MAX_CAMERA_EXPORT_BYTES = 64 << 20
 #: Largest image side accepted (pixels); a larger value is a corrupt file.
 MAX_IMAGE_SIDE = 10**6
 #: Largest focal length accepted, in image diagonals (a field of view of ~0.06 degree).
@@ -67,6 +70,40 @@ MAX_FOCAL_DIAGONALS = 1000.0
 
 #: Tags that are read but carry nothing photogeom uses (Metashape writes them).
 IGNORED_TAGS = ("date", "covariance")
+
+
+def check_xml_size(data: bytes, where: str) -> None:
+    """Refuse a calibration XML over ``MAX_XML_BYTES`` or a camera export (root
+    ``<document>`` or ``<chunk>``) over ``MAX_CAMERA_EXPORT_BYTES``.
+
+    Raises
+    ------
+    FileFormatError
+        For a document over its limit, naming the limit.
+    """
+    if len(data) <= MAX_XML_BYTES:
+        return
+    from ..xmlsafe import root_tag
+
+    if root_tag(data) in ("document", "chunk"):
+        if len(data) <= MAX_CAMERA_EXPORT_BYTES:
+            return
+        raise FileFormatError(
+            f"{where}: more than {MAX_CAMERA_EXPORT_BYTES} bytes; photogeom reads Metashape "
+            "camera exports of up to 64 MiB (some 55 000 images): export a chunk of fewer "
+            "images, or the calibration alone (Tools > Camera Calibration, Export)"
+        )
+    raise FileFormatError(
+        f"{where}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: wrong file?"
+    )
+
+
+def parse_decimal_or_none(text: str) -> float | None:
+    """``text`` as a number, or None when it is not one (compared, not reported)."""
+    try:
+        return parse_decimal(text)
+    except ValueError:
+        return None
 
 
 class MetashapeXMLWarning(UserWarning):
@@ -563,9 +600,14 @@ class MetashapeCalibration:
 
     @classmethod
     def from_xml_string(
-        cls, text: str | bytes, *, strict: bool = False, source: str = "calibration XML"
+        cls,
+        text: str | bytes,
+        *,
+        strict: bool = False,
+        source: str = "calibration XML",
+        sensor: int | str | None = None,
     ) -> MetashapeCalibration:
-        """Parse Metashape calibration XML; see :func:`read_metashape_xml`.
+        """Parse Metashape calibration XML or camera export; see :func:`read_metashape_xml`.
 
         Parameters
         ----------
@@ -576,6 +618,10 @@ class MetashapeCalibration:
             Refuse unknown tags (else they are ignored with a ``MetashapeXMLWarning``).
         source : str, default "calibration XML"
             Name of the document in error messages (e.g. the file path).
+        sensor : int or str, optional
+            For a camera export (root ``<document>`` or ``<chunk>``) with several sensors:
+            the sensor's id or label (see
+            :func:`photogeom.camera.metashape_export.sensor_calibration`).
 
         Returns
         -------
@@ -585,12 +631,40 @@ class MetashapeCalibration:
         ------
         FileFormatError
             As :func:`read_metashape_xml`.
+        InputError
+            ``sensor`` given for a calibration XML (root ``<calibration>``).
         """
-        from ..xmlsafe import parse_xml
+        from ..xmlsafe import parse_xml, root_tag
 
+        if root_tag(text) in ("document", "chunk"):  # a camera export, parsed once
+            from .metashape_export import read_sensor
+
+            return read_sensor(text, source, sensor, strict=strict).calibration
         root = parse_xml(text, source)
+        if sensor is not None:
+            raise InputError(
+                f"sensor {sensor!r}: {source} is a calibration XML of one camera (root "
+                "<calibration>), not a camera export with sensors; leave the sensor out"
+            )
+        return cls._from_calibration_element(root, strict=strict, source=source)
+
+    @classmethod
+    def _from_calibration_element(
+        cls,
+        root: ET.Element,
+        *,
+        strict: bool,
+        source: str,
+        size: tuple[str, str] | None = None,
+    ) -> MetashapeCalibration:
+        """The calibration of a ``<calibration>`` element (the root of a calibration XML, or
+        a sensor's in a camera export, whose ``size``, ``(width, height)`` as written in
+        the sensor's ``<resolution>``, is taken when the element has none)."""
         if root.tag != "calibration":
-            raise FileFormatError(f"{source}: root element is <{root.tag}>, expected <calibration>")
+            raise FileFormatError(
+                f"{source}: root element is <{root.tag}>, expected <calibration> (a Metashape "
+                "calibration XML) or <document> (a Metashape camera export)"
+            )
         values: dict[str, str] = {}
         unknown: list[str] = []
         projection = root.get("type")
@@ -628,6 +702,16 @@ class MetashapeCalibration:
             if strict:
                 raise FileFormatError(msg)
             warnings.warn(msg, MetashapeXMLWarning, stacklevel=3)
+        if size is not None:
+            for k, v in zip(("width", "height"), size):
+                if k not in values:
+                    values[k] = v
+                elif parse_decimal_or_none(values[k]) != parse_decimal_or_none(v):
+                    raise FileFormatError(
+                        f"{source}: the calibration's <resolution> {k}={values[k]!r} differs "
+                        f"from the sensor's {k}={v!r}; a calibration holds for the sensor's "
+                        "image size"
+                    )
         if projection is None:
             raise FileFormatError(f"{source}: missing <projection> (expected 'frame')")
         if projection != "frame":
@@ -682,20 +766,28 @@ class MetashapeCalibration:
         }
 
 
-def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> MetashapeCalibration:
-    """Read a Metashape camera calibration XML file (frame camera).
+def read_metashape_xml(
+    path: str | os.PathLike, *, strict: bool = False, sensor: int | str | None = None
+) -> MetashapeCalibration:
+    """Read a Metashape camera calibration XML file or camera export (frame camera).
 
-    Both the exported file (``<projection>``, ``<width>``, ``<height>`` children) and the
-    form inside project/camera exports (``<calibration type="frame">`` with
+    Both the exported calibration (``<projection>``, ``<width>``, ``<height>`` children) and
+    the form inside project/camera exports (``<calibration type="frame">`` with
     ``<resolution width=".." height=".."/>``) are read. Missing optional terms are zero;
-    ``<date>`` and ``<covariance>`` are ignored.
+    ``<date>`` and ``<covariance>`` are ignored. A camera export (File > Export > Export
+    Cameras, root ``<document>``) gives the calibration of one sensor: the adjusted one, or
+    the initial one when the sensor has no adjusted calibration (with a
+    ``MetashapeXMLWarning``); see :func:`photogeom.camera.metashape_export.sensor_calibration`.
 
     Parameters
     ----------
     path : str or os.PathLike
-        The XML file (at most ``MAX_XML_BYTES``).
+        The XML file (at most ``MAX_XML_BYTES``; a camera export at most
+        ``MAX_CAMERA_EXPORT_BYTES``).
     strict : bool, default False
         Refuse unknown tags instead of warning and ignoring them.
+    sensor : int or str, optional
+        The sensor of a camera export, by id or label (needed when it has several).
 
     Returns
     -------
@@ -705,9 +797,14 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
     Raises
     ------
     FileFormatError
-        Unreadable file or XML, a file larger than ``MAX_XML_BYTES``, missing
+        Unreadable file or XML, a file larger than ``MAX_XML_BYTES`` (a camera export:
+        ``MAX_CAMERA_EXPORT_BYTES``), missing
         ``width``/``height``/``f``, non-numeric values, a projection other than ``frame``,
-        or (with ``strict=True``) unknown tags.
+        (with ``strict=True``) unknown tags; for a camera export, several sensors and no
+        ``sensor``, an unknown or ambiguous ``sensor`` (the sensors are listed), a sensor
+        without a calibration, or of another camera type (named).
+    InputError
+        ``sensor`` given for a calibration XML of one camera.
 
     Warns
     -----
@@ -717,14 +814,13 @@ def read_metashape_xml(path: str | os.PathLike, *, strict: bool = False) -> Meta
     from ..io.sources import read_input_bytes
 
     try:
-        data = read_input_bytes(path, MAX_XML_BYTES)  # a pipe: read once per command
+        data = read_input_bytes(path, MAX_CAMERA_EXPORT_BYTES)  # a pipe: read once per command
     except OSError as exc:
         raise FileFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    if len(data) > MAX_XML_BYTES:
-        raise FileFormatError(
-            f"{path}: more than {MAX_XML_BYTES} bytes; a calibration XML is about 1 kB: wrong file?"
-        )
-    return MetashapeCalibration.from_xml_string(data, strict=strict, source=str(path))
+    check_xml_size(data, str(path))
+    return MetashapeCalibration.from_xml_string(
+        data, strict=strict, source=str(path), sensor=sensor
+    )
 
 
 def write_metashape_xml(calibration: MetashapeCalibration, path: str | os.PathLike) -> None:

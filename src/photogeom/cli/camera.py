@@ -207,11 +207,17 @@ def read_calibration_option(path: Path, option: str):
         starting with the option's name.
     """
     from ..camera.calibration_files import read_calibration_file
+    from ..camera.metashape_export import CHOOSE_SENSOR
 
     try:
         return read_calibration_file(path)[0]
     except FileFormatError as exc:
-        raise FileFormatError(f"{option} {exc}") from None
+        text = str(exc).replace(
+            CHOOSE_SENSOR,
+            f"write its calibration first with 'photogeom camera convert {path} --sensor ID "
+            f"camera.xml' and give {option} camera.xml",
+        )
+        raise FileFormatError(f"{option} {text}") from None
 
 
 def build_interior(
@@ -371,14 +377,16 @@ CameraOpt = Annotated[
     Path | None,
     typer.Option(
         help="Camera JSON (interior and/or exterior orientation), or a calibration of another "
-        "tool (interior only): Metashape XML, OpenCV YAML/XML/JSON, COLMAP cameras.txt."
+        "tool (interior only): Metashape XML or camera export (one sensor), OpenCV "
+        "YAML/XML/JSON, COLMAP cameras.txt."
     ),
 ]
 CalibrationOpt = Annotated[
     Path | None,
     typer.Option(
-        help="Frame-camera calibration (pixels): Metashape XML, camera JSON, OpenCV "
-        "FileStorage YAML/XML/JSON or COLMAP cameras.txt (one camera); format by content."
+        help="Frame-camera calibration (pixels): Metashape XML or camera export (one sensor), "
+        "camera JSON, OpenCV FileStorage YAML/XML/JSON or COLMAP cameras.txt (one camera); "
+        "format by content."
     ),
 ]
 FOpt = Annotated[float | None, typer.Option("--f", help="Principal distance (in --unit).")]
@@ -497,7 +505,8 @@ def convert_cmd(
     source: Annotated[
         Path,
         typer.Argument(
-            help="Calibration to read, format by content: Metashape XML, camera JSON "
+            help="Calibration to read, format by content: Metashape XML or camera export "
+            "(File > Export > Export Cameras; --sensor), camera JSON "
             "('bundle adjust --output-calibration', 'orient resection --output-params', ...), "
             "OpenCV FileStorage YAML/XML/JSON (camera_matrix, distortion_coefficients), COLMAP "
             "cameras.txt (one camera)."
@@ -519,18 +528,29 @@ def convert_cmd(
             show_default=False,
         ),
     ] = None,
+    sensor: Annotated[
+        str | None,
+        typer.Option(
+            "--sensor",
+            help="The sensor of a Metashape camera export (File > Export > Export Cameras) "
+            "with several, by its id or label (id:ID or label:LABEL to match one of them).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Convert a frame-camera calibration between Metashape XML, camera JSON, OpenCV YAML and
     COLMAP cameras.txt.
 
-    Standard deviations and the covariance (of a camera JSON written by 'bundle adjust
-    --output-calibration', the <covariance> of a Metashape XML) are carried over where the
-    target format has a place for them.
+    A Metashape camera export (File > Export > Export Cameras, Agisoft XML) gives the
+    calibration of one sensor (--sensor when it has several): the adjusted one, else the
+    initial one (with a warning). Standard deviations and the covariance (of a camera JSON
+    written by 'bundle adjust --output-calibration', the <covariance> of a Metashape XML or
+    camera export) are carried over where the target format has a place for them.
     """
     from ..camera.calibration_files import (
         calibration_format,
         calibration_text,
-        read_calibration_file,
+        read_calibration_source,
     )
     from .bundle import check_targets
 
@@ -542,16 +562,32 @@ def convert_cmd(
         if not (w == int(w) and h == int(h) and w > 0 and h > 0):
             raise InputError(f"--image-size {image_size}: give two whole numbers of pixels > 0")
         size = (int(w), int(h))
+    from ..camera.metashape_export import CHOOSE_SENSOR
+
     try:
-        cal, std, cov = read_calibration_file(source, size)
-    except InputError as exc:  # only an image size given for a file that records it
+        cal, std, cov, read = read_calibration_source(source, size, sensor=sensor)
+    except InputError as exc:  # an image size or sensor given for a file without them
+        text = str(exc)
+        if text.startswith("sensor "):
+            text = "--sensor " + text.removeprefix("sensor ").replace(
+                "leave the sensor out", "leave --sensor out"
+            )
+            raise InputError(text) from exc
         if size is None:
             raise
-        text = str(exc).replace("leave the image size out", "leave --image-size out")
+        text = text.replace("leave the image size out", "leave --image-size out")
         raise InputError(f"--image-size: {text}") from exc
+    except FileFormatError as exc:
+        text = str(exc).replace(CHOOSE_SENSOR, "choose one with --sensor ID or --sensor LABEL")
+        text = text.replace("choose one by its id", "give --sensor its id")
+        raise FileFormatError(text) from None
     text = calibration_text(cal, dst_fmt, std=std, covariance=cov)
     write_outputs([(target, text)])
-    say(f"wrote {target} ({dst_fmt})", console())
+    note = ""
+    if read is not None:  # a Metashape camera export: which sensor and calibration
+        note = f" from sensor {read.sensor_id} {read.label!r}"
+        note += f" ({read.calibration_class} calibration)"
+    say(f"wrote {target} ({dst_fmt}){note}", console())
 
 
 # --- camera dlt estimate ----------------------------------------------------------------------
