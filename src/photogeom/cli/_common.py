@@ -446,8 +446,8 @@ def unit_hint(text: str, option: str, unit: str = "px") -> str:
 
 
 def pixels(option: str):
-    """Parser of a float option in pixels: a number, refused with :func:`unit_hint`'s fix
-    when written with a unit (``--spacing 100px``; before: click's "Input should be a
+    """Parser of a float option in pixels: a number, refused with :func:`number_message`'s
+    fix when written with a unit (``--spacing 100px``; before: click's "Input should be a
     valid number, unable to parse string as a number").
 
     Parameters
@@ -467,9 +467,7 @@ def pixels(option: str):
         try:
             return float(text)
         except ValueError:
-            raise typer.BadParameter(
-                f"{text!r} is not a number{unit_hint(text, option)}"
-            ) from None
+            raise typer.BadParameter(number_message(text, option, "px")) from None
 
     parse.__name__ = "float"
     return parse
@@ -490,7 +488,6 @@ def fraction(option: str):
     callable
         ``str -> float`` for ``typer.Option(parser=...)``.
     """
-    import re
 
     def parse(text) -> float:
         if isinstance(text, int | float):  # a default value
@@ -498,17 +495,161 @@ def fraction(option: str):
         try:
             return float(text)
         except ValueError:
-            pass
-        m = re.fullmatch(r"\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*%\s*", text)
-        hint = (
-            f"; {option} is a fraction: give {float(m[1]) / 100:g} for {m[1]} %"
-            if m
-            else f"; {option} is a fraction, such as 0.6"
-        )
-        raise typer.BadParameter(f"{text!r} is not a number{hint}") from None
+            raise typer.BadParameter(number_message(text, option, FRACTION)) from None
 
     parse.__name__ = "float"
     return parse
+
+
+#: The "unit" of an option whose number is a fraction (``--overlap``) or a probability
+#: (``--alpha``): written in per cent, it is refused with the fraction to give.
+FRACTION = "fraction"
+
+#: The "unit" of a significance level (``--alpha``), a fraction too.
+PROBABILITY = "probability"
+
+#: The unit an option's number is in, read off its help text: (pattern, unit), the first
+#: match wins. A symbol (px, mm) is compared with the unit typed; a phrase is said as is.
+#: An option whose help matches none takes a plain number (a count, a level, a seed).
+_HELP_UNITS = (
+    (r"\bin \(0, ", PROBABILITY),
+    (r"\(fraction\)", FRACTION),
+    (r"\[m/px\]", "m/px"),
+    (r"\(px[);]|\[px\]|\bin pixels\b|\bin px\b", "px"),
+    (r"\bin --unit\b|\(image unit\)", "the unit of --unit"),
+    (r"\bimage unit of the cameras\b", "the image unit of the cameras"),
+    (r"\bin mm\b", "mm"),
+    (r"\((?:in )?m\)|\[m\]", "m"),
+    (r"\btarget units\b", "the target coordinates' unit"),
+    (r"\bsource units\b", "the source coordinates' unit"),
+    (r"\bin sigmas\b", "sigmas"),
+    (r"\bnormalised units\b", "normalised units"),
+)
+
+
+_EXAMPLES = {FRACTION: "0.6", PROBABILITY: "0.001"}
+
+
+def option_unit(help_text: str | None) -> str | None:
+    """The unit of a numeric option as its ``--help`` states it.
+
+    Parameters
+    ----------
+    help_text : str or None
+        The option's help.
+
+    Returns
+    -------
+    str or None
+        A unit symbol (``"px"``, ``"mm"``, ``"m"``, ``"m/px"``), :data:`FRACTION`,
+        :data:`PROBABILITY`, a phrase
+        (``"the unit of --unit"``), or None: a plain number without a unit.
+    """
+    import re
+
+    for pattern, unit in _HELP_UNITS:
+        if re.search(pattern, help_text or ""):
+            return unit
+    return None
+
+
+def number_message(text: str, option: str, unit: str | None, *, integer: bool = False) -> str:
+    """Why ``text`` is not a value of the numeric ``option``, and what to type instead: a
+    number written with a unit (``1mm``, ``0.5px``, ``60%``) or a decimal comma (``0,5``).
+
+    Parameters
+    ----------
+    text : str
+        The value as typed.
+    option : str
+        The option's name (``--sigma``).
+    unit : str or None
+        The unit the option is in (:func:`option_unit`): a symbol, :data:`FRACTION`,
+        :data:`PROBABILITY`, a phrase, or None (a plain number).
+    integer : bool
+        The option takes a whole number.
+
+    Returns
+    -------
+    str
+        E.g. ``"'1mm' is not a number; --sigma is in px, not mm: give it in px, without a
+        unit"``, ``"'0,5' is not a number; --sigma takes a decimal point: give --sigma 0.5"``.
+    """
+    import re
+
+    kind = "an integer" if integer else "a number"
+    head = f"{text!r} is not {kind}"
+    value = text.strip()
+    number = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+    comma = re.fullmatch(r"([+-]?\d+),(\d+)", value)
+    if comma:
+        if integer:
+            return f"{head}; {option} takes a whole number ({option} {comma[1]})"
+        return f"{head}; {option} takes a decimal point: give {option} {comma[1]}.{comma[2]}"
+    with_unit = re.fullmatch(rf"({number})\s*(%|°|[^\W\d_][^\s\d]*)", value)
+    if with_unit is None:
+        if integer and re.fullmatch(number, value):
+            return f"{head}; {option} takes a whole number, such as {option} 1"
+        if unit in (FRACTION, PROBABILITY):
+            return f"{head}; {option} is a {unit}, such as {_EXAMPLES[unit]}"
+        said = f" in {unit}" if unit is not None else ""
+        return f"{head}; {option} takes a number{said}, such as {option} 1"
+    bare, typed = with_unit[1], with_unit[2]
+    if unit in (FRACTION, PROBABILITY):
+        if typed == "%":
+            return f"{head}; {option} is a {unit}: give {float(bare) / 100:g} for {bare} %"
+        return f"{head}; {option} is a {unit}, such as {_EXAMPLES[unit]}"
+    if unit is None:
+        what = "a count" if integer else "a number"
+        return f"{head}; {option} is {what} without a unit: give {option} {bare}"
+    if " " in unit:  # a phrase: the unit is set elsewhere
+        return f"{head}; {option} is in {unit}: give the number alone ({option} {bare})"
+    if typed in (unit, f"{unit}s", unit.removesuffix("s")):
+        return f"{head}; {option} is in {unit}: give the number alone ({option} {bare})"
+    return f"{head}; {option} is in {unit}, not {typed}: give it in {unit}, without a unit"
+
+
+def _numbers_in_words(param) -> None:
+    """Make the numeric option ``param`` refuse a value it cannot read with
+    :func:`number_message` (the option's unit from its help) instead of pydantic's "Input
+    should be a valid number, unable to parse string as a number"."""
+    descriptor = getattr(param, "type_descriptor", None)
+    annotation = getattr(descriptor, "annotation", None)
+    if annotation not in (int, float) or getattr(param, "_numbers_in_words", False):
+        return
+    process = param.process_value
+    option = max(getattr(param, "opts", None) or [param.name], key=len)
+    unit = option_unit(getattr(param, "help", None))
+    integer = annotation is int
+
+    def process_value(ctx, value):
+        try:
+            return process(ctx, value)
+        except typer.BadParameter as exc:
+            if not isinstance(value, str) or "is not" in exc.message:
+                raise  # a parser's own words, or not a typed value
+            raise typer.BadParameter(
+                number_message(value, option, unit, integer=integer), ctx=ctx, param=param
+            ) from None
+
+    param.process_value = process_value
+    param._numbers_in_words = True
+
+
+def numbers_in_words(command) -> None:
+    """Give every numeric option of ``command`` and of its sub-commands the messages of
+    :func:`number_message` (``--sigma 1mm``: "--sigma is in px, not mm: give it in px,
+    without a unit"; ``--sigma 0,5``: "give --sigma 0.5").
+
+    Parameters
+    ----------
+    command : click command or group
+        The command tree built from the application.
+    """
+    for param in getattr(command, "params", ()):
+        _numbers_in_words(param)
+    for sub in getattr(command, "commands", {}).values():
+        numbers_in_words(sub)
 
 
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
