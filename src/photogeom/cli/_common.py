@@ -746,6 +746,48 @@ def _indented(value, level: int) -> str:
     return "[" + pad + ("," + pad).join(_indented(v, level + 1) for v in value) + end + "]"
 
 
+def json_id(value):
+    """An image or point id as JSON keeps it: its own type (an int stays an int, a text a
+    text), numpy scalars as the Python number.
+
+    Parameters
+    ----------
+    value : int, str or numpy scalar
+        The id.
+
+    Returns
+    -------
+    int, float or str
+    """
+    return value.item() if hasattr(value, "item") else value
+
+
+def pair_records(steps: dict | None, **values: dict | None) -> list[dict]:
+    """Model pairs as JSON records with typed ids: ``{"image_a": a, "image_b": b, name:
+    values[name][(a, b)], ...}``, in the order of ``steps``; a joined text key (``"a-b"``)
+    cannot be split back when an id holds ``-``, and loses an int id's type.
+
+    Parameters
+    ----------
+    steps : dict or None
+        ``{(a, b): value}``: the pairs (None or empty: none).
+    **values : dict or None
+        Further ``{(a, b): value}`` by the record's field name (None: the field left out).
+
+    Returns
+    -------
+    list of dict
+    """
+    rows = []
+    for a, b in steps or {}:
+        row = {"image_a": json_id(a), "image_b": json_id(b)}
+        for name, by_pair in values.items():
+            if by_pair is not None:
+                row[name] = by_pair.get((a, b))
+        rows.append(row)
+    return rows
+
+
 def finite_or_none(v) -> float | None:
     """``float(v)``, or None (JSON null) for NaN and infinity."""
     return float(v) if np.isfinite(v) else None

@@ -33,6 +33,7 @@ from ._common import (
     check_outputs,
     console,
     emit_points,
+    json_id,
     json_text,
     options_in_errors,
     pixels,
@@ -686,7 +687,8 @@ def fit(
     else:
         grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out, where)
     outputs = [(output, grids_file_bytes(output, grids, std=std))]
-    stats = {k: g.to_dict() for k, g in grids.items()}
+    # keyed by text (JSON keys are text); "image_id" keeps the id's type (an int stays one)
+    stats = {str(k): {"image_id": json_id(k), **g.to_dict()} for k, g in grids.items()}
     rejected = _rejected(grids, where, alpha, max_snooping_rounds) if snooping else None
     if report is not None:
         outputs.append((report, _report_html(grids, rejected).encode("utf-8")))
