@@ -1102,3 +1102,45 @@ def test_overlap_in_per_cent_and_sigmas_with_their_unit_name_the_value_to_give(c
     for args, want in cases:
         code, _, err = cli(*args)
         assert code == 2 and want in " ".join(err.split()), (args, err)
+
+
+def test_grid_fit_refuses_a_block_of_one_image_and_fits_its_residuals_csv(
+    cli, adjusted_folder, tmp_path
+):
+    # before: grid fit of a block folder left with one image fitted its grid without a word,
+    # though a block of one image cannot have been adjusted (bundle adjust refuses it); the
+    # residuals of one image as a CSV are fitted as ever
+    import shutil
+
+    one = tmp_path / "one"
+    shutil.copytree(adjusted_folder, one)
+    block = pg.bundle.read_block(adjusted_folder)
+    first = block.image_ids[0]
+    for name in ("images.csv", "observations.csv"):
+        lines = (one / name).read_text().splitlines(keepends=True)
+        keep = ("id", "image_id", str(first))
+        kept = [x for x in lines if x.startswith("#") or x.split(",")[0] in keep]
+        (one / name).write_text("".join(kept))
+    code, _, err = cli("grid", "fit", one, "--spacing", "1000", "--folds", "0",
+                       "-o", tmp_path / "g.npz")  # fmt: skip
+    assert code == 2 and not (tmp_path / "g.npz").exists()
+    assert f"the block has one image with observations ({first}): a block of one image " \
+        "cannot have been adjusted" in " ".join(err.split())
+    assert "--exclude" in err and "image_id,u,v,rx,ry" in err
+    # that image's residuals in the adjusted block, as a CSV: one grid, the block's grid
+    v = pg.bundle.reprojection_residuals(block)
+    rows = np.flatnonzero((block.obs_image == 0) & (block.role[block.obs_point] == "tie"))
+    uv = block.observations.uv[rows]
+    sigma = block.observations.sigma[rows]
+    csv_path = tmp_path / "one.csv"
+    csv_path.write_text("image_id,u,v,rx,ry,sigma\n" + "".join(
+        f"{first},{a!r},{b!r},{c!r},{d!r},{s!r}\n"
+        for (a, b), (c, d), s in zip(uv.tolist(), v[rows].tolist(), sigma.tolist())
+    ))  # fmt: skip
+    w, h = (int(x) for x in block.image_sizes()[0])
+    code, _, err = cli("grid", "fit", csv_path, "--image-size", f"{w}x{h}", "--spacing", "1000",
+                       "--folds", "0", "-o", tmp_path / "g.npz")  # fmt: skip
+    assert code == 0, err
+    got = pg.calibration.load_grids(tmp_path / "g.npz")
+    assert [str(k) for k in got] == [str(first)]
+    assert next(iter(got.values())).image_size == (w, h)

@@ -915,6 +915,15 @@ def _fit_block(
             "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
             stderr=True,
         )
+    seen = np.unique(block.obs_image)
+    if seen.size == 1:  # its tie points in one image only: no adjustment of this block
+        raise InputError(
+            f"{path}: the block has one image with observations ({block.image_ids[seen[0]]}): "
+            "a block of one image cannot have been adjusted (a bundle adjustment needs two "
+            "images that observe the same points), so its residuals are not those of an "
+            "adjustment; give the adjusted block the image belongs to (--exclude leaves "
+            "images out), or the image's residuals as a CSV (image_id,u,v,rx,ry)"
+        )
     from .grid_block import warn_if_unadjusted
 
     warn_if_unadjusted(block, path)
