@@ -1144,3 +1144,47 @@ def test_grid_fit_refuses_a_block_of_one_image_and_fits_its_residuals_csv(
     got = pg.calibration.load_grids(tmp_path / "g.npz")
     assert [str(k) for k in got] == [str(first)]
     assert next(iter(got.values())).image_size == (w, h)
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_correct_images_stopped_removes_the_empty_rig_folders_it_made(
+    tmp_path, monkeypatch, existing
+):
+    # before: Ctrl-C or SIGTERM while the images ran left the empty cam1/, cam2/ (and their
+    # parents) made for the rig's image ids in the output folder; the folders it did not
+    # make stay, as does one holding a file
+    from photogeom.calibration import images as images_module
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    for sub in ("cam1", "rig/cam2"):
+        (src / sub).mkdir(parents=True)
+        (src / sub / "a.png").write_bytes((src / "a.png").read_bytes())
+    grids = dict.fromkeys(["cam1/a.png", "rig/cam2/a.png", "a"], grid)
+    dst = tmp_path / "out"
+    if existing:  # the user's folder, with a sub-folder of its own and a file in rig/
+        (dst / "mine").mkdir(parents=True)
+        (dst / "rig").mkdir()
+        (dst / "rig" / "notes.txt").write_text("x")
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(images_module, "_run_serial", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        pg.calibration.correct_folder(src, dst, grids, progress=False)
+    if existing:
+        assert sorted(str(p.relative_to(dst)) for p in dst.rglob("*")) == [
+            "mine", "rig", "rig/notes.txt"
+        ]  # fmt: skip
+    else:
+        assert not dst.exists()
+    # an image that fails leaves no empty folder either; the others are written
+    monkeypatch.undo()
+    (src / "rig" / "cam2" / "a.png").write_bytes(b"not an image")
+    result = pg.calibration.correct_folder(src, dst, grids, progress=False)
+    assert sorted(result.written) == ["a", "cam1/a.png"] and list(result.failures) == [
+        "rig/cam2/a.png"
+    ]
+    assert not (dst / "rig" / "cam2").exists() and (dst / "cam1" / "a.png").is_file()
+    assert (dst / "rig").is_dir() == existing

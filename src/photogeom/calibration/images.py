@@ -1323,21 +1323,39 @@ def correct_folder(
         raise InputError("the output folder must differ from the input folder (originals are kept)")
     made = [d for d in (dst, *dst.parents) if not d.exists()]  # created here, innermost first
     _output_folder(dst)
+    below: list[Path] = []  # sub-folders of dst made for images below src (cam1/ of a rig)
     try:
-        return _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border)
+        result = _correct_jobs(
+            src, dst, grids, workers, dask, interpolation, progress, border, below
+        )
     except BaseException:
-        # a job that could not start (an unreachable scheduler, an interruption): folders
-        # made for it and still empty are removed again, nothing is left half-made
+        # a job that could not start or was stopped (an unreachable scheduler, Ctrl-C,
+        # SIGTERM): folders made for it and still empty are removed again, the sub-folders
+        # made for images (cam1/) first; nothing is left half-made
+        _remove_empty(below)
         for d in made:
             try:
                 d.rmdir()
             except OSError:
                 break
         raise
+    _remove_empty(below)  # made for images that all failed
+    return result
 
 
-def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border):
-    """The body of :func:`correct_folder` once the output folder exists."""
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove those of ``folders`` that are empty, the deepest first (a folder emptied by
+    the removal of its sub-folders goes too); a folder holding anything stays."""
+    for d in sorted(folders, key=lambda p: len(p.parts), reverse=True):
+        try:
+            d.rmdir()
+        except OSError:  # not empty (an image written, a file of the user's), or gone
+            pass
+
+
+def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border, below):
+    """The body of :func:`correct_folder` once the output folder exists; ``below`` receives
+    the sub-folders of ``dst`` it creates."""
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
@@ -1347,6 +1365,8 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     # folder alike: cam1/0001.jpg and cam2/0001.jpg are two images
     out = {key: dst / p.relative_to(src) for key, p in found.items()}
     for key, d in list(out.items()):
+        below.extend(p for p in (d.parent, *d.parent.parents) if p != dst and
+                     p.is_relative_to(dst) and not p.exists())  # fmt: skip
         try:
             d.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
