@@ -1188,3 +1188,36 @@ def test_correct_images_stopped_removes_the_empty_rig_folders_it_made(
     ]
     assert not (dst / "rig" / "cam2").exists() and (dst / "cam1" / "a.png").is_file()
     assert (dst / "rig").is_dir() == existing
+
+
+def test_correct_images_sigterm_runs_the_clean_up(cli, tmp_path, monkeypatch):
+    # before: SIGTERM (a job scheduler's stop, kill PID) ended the process at once, without
+    # the clean-up Ctrl-C runs: the empty cam1/ made for a rig's image id stayed
+    import os
+    import signal
+
+    from photogeom.calibration import images as images_module
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    (src / "cam1").mkdir()
+    (src / "cam1" / "a.png").write_bytes((src / "a.png").read_bytes())
+    pg.calibration.save_grids(grids_file, dict.fromkeys(["cam1/a.png", "a"], grid))
+    dst = tmp_path / "out"
+
+    def terminated(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("SIGTERM did not stop the run")
+
+    def runner_kept(signum, frame):  # the handler of a command that installs none
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(images_module, "_run_serial", terminated)
+    before = signal.signal(signal.SIGTERM, runner_kept)  # this test process is not killed
+    try:
+        code, _, _ = cli("grid", "correct-images", grids_file, src, dst)
+        assert signal.getsignal(signal.SIGTERM) is runner_kept  # the former one restored
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert code == 143
+    assert not dst.exists()

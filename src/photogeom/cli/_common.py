@@ -174,6 +174,40 @@ OutputCsvOpt = Annotated[
 ]
 
 
+#: Exit code of a command stopped by SIGTERM (128 + 15, as a shell reports it).
+SIGTERM_EXIT = 143
+
+
+@contextmanager
+def sigterm_stops():
+    """A scope in which SIGTERM ends the command as Ctrl-C does: an exception
+    (``SystemExit(143)``) that runs the clean-up of the running job (``grid correct-images``
+    removes the empty folders it made, the temporary files of its images), not an immediate
+    death that leaves them. Outside the main thread (no signal handlers there) nothing
+    changes.
+
+    Yields
+    ------
+    None
+        The scope is the ``with`` block; the former handler is restored at its end.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise SystemExit(SIGTERM_EXIT)
+
+    former = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, former)
+
+
 def console(stderr: bool = False):
     """A console that keeps tables readable when the output is not a terminal."""
     from rich.console import Console

@@ -40,6 +40,7 @@ from ._common import (
     refuse_stdout_dash,
     say,
     scheduler_option,
+    sigterm_stops,
     split_names,
     stage_spinner,
     typed_option,
@@ -1464,7 +1465,10 @@ def correct_images(
     grids = load_grids(grids_file)
     terminal = console(stderr=True).is_terminal
     try:
-        with nullcontext() if terminal else LogProgress("correcting images") as log:
+        with (
+            sigterm_stops(),  # SIGTERM as Ctrl-C: the job's clean-up runs
+            nullcontext() if terminal else LogProgress("correcting images") as log,
+        ):
 
             def counted(done: int, total: int) -> None:
                 log.update(f"correcting images: {done} of {total} images")
