@@ -950,6 +950,15 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                         tags.load(meta["exif"])
                 tags[700] = xmp
                 kw["exif"] = tags
+        if meta.get("mode") == "CMYK" and channels == 3:
+            # OpenCV decodes CMYK as RGB without a colour profile (an approximate
+            # conversion); Pillow could write CMYK back, but only from those RGB pixels
+            cmyk = (
+                f"CMYK {fmt} written as RGB: OpenCV decodes CMYK as RGB without a colour "
+                "profile, so the colours are approximate; convert the originals to RGB with "
+                "their colour profile first where colours matter"
+            )
+            note = cmyk if note is None else f"{cmyk}; {note}"
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
         if fmt == "JPEG":  # comments, extended XMP, IPTC, vendors' segments
