@@ -311,6 +311,11 @@ def _read(path: Path):
     except Exception:
         # OpenCV decoded it; Pillow cannot read it: pixels only.
         meta = {}
+    if meta.get("mode") == "CMYK" and pixels.ndim == 3 and pixels.shape[2] == 4:
+        # OpenCV decodes a CMYK TIFF as RGB and an opaque alpha channel the original does
+        # not have (written back as RGBA under the original's CMYK tags, the file was
+        # unreadable): the RGB pixels only, as of a CMYK JPEG
+        pixels = np.ascontiguousarray(pixels[..., :3])
     if raw[:8] == _PNG_SIGNATURE:
         meta["png_chunks"] = _png_metadata_chunks(raw)
         pixels = _png_own_coding(raw, pixels, meta)
@@ -807,6 +812,11 @@ def _has_metadata(exif) -> bool:
     return bool(exif)
 
 
+#: TIFF tags of a CMYK original's inks (InkSet, InkNames, NumberOfInks, DotRange,
+#: TargetPrinter) and its colour space (PhotometricInterpretation), not those of the RGB
+#: pixels written
+_TIFF_INK_TAGS = frozenset({262, 332, 333, 334, 336, 337})
+
 # ICC colour spaces (header bytes 16-19) of pixels that OpenCV may turn into others
 _ICC_SPACES = frozenset({b"RGB ", b"GRAY", b"CMYK", b"CMY "})
 
@@ -952,7 +962,12 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                 kw["exif"] = tags
         if meta.get("mode") == "CMYK" and channels == 3:
             # OpenCV decodes CMYK as RGB without a colour profile (an approximate
-            # conversion); Pillow could write CMYK back, but only from those RGB pixels
+            # conversion); Pillow could write CMYK back, but only from those RGB pixels.
+            # A TIFF's ink tags describe the original's separations, not these pixels
+            if isinstance(kw.get("exif"), Image.Exif):
+                tags = Image.Exif()
+                tags.update({k: v for k, v in kw["exif"].items() if k not in _TIFF_INK_TAGS})
+                kw["exif"] = tags
             cmyk = (
                 f"CMYK {fmt} written as RGB: OpenCV decodes CMYK as RGB without a colour "
                 "profile, so the colours are approximate; convert the originals to RGB with "
