@@ -168,3 +168,29 @@ def test_option_unit_reads_the_help(help_text, unit):
 def test_number_message_names_the_typed_unit():
     message = number_message("30°", "--kappa", "the unit of --angle-unit")
     assert re.search(r"--kappa is in the unit of --angle-unit: give the number alone", message)
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (
+            ["orient", "resection", "a.csv", "--f", "50", "--principal-point", "1mm,2mm"],
+            "--principal-point: expected comma-separated numbers, got '1mm,2mm'; give the "
+            "numbers without a unit (--principal-point 1,2)",
+        ),
+        (
+            ["camera", "project", "a.csv", "--f", "50", "--eo", "0m,0m,100m,0,0,0"],
+            "--eo X0,Y0,Z0,omega,phi,kappa: expected comma-separated numbers, got "
+            "'0m,0m,100m,0,0,0'; give the numbers without a unit (--eo 0,0,100,0,0,0)",
+        ),
+    ],
+)
+def test_lists_of_numbers_with_units_name_the_numbers_to_give(cli, args, words):
+    # before: "expected comma-separated numbers, got '1mm,2mm'" only
+    code, _, err = cli(*args)
+    assert code == 2 and words in " ".join(err.split()), err
+
+
+def test_a_list_with_a_word_that_is_no_number_gets_no_unit_advice(cli):
+    code, _, err = cli("orient", "resection", "a.csv", "--f", "50", "--principal-point", "a,b")
+    assert code == 2 and "got 'a,b'" in err and "without a unit" not in err

@@ -686,6 +686,25 @@ def numbers_in_words(command) -> None:
         numbers_in_words(sub)
 
 
+def _units_in_list(parts: list[str], what: str) -> str:
+    """The fix for a list of numbers written with units (``--principal-point 1mm,2mm``):
+    the numbers alone, else ''."""
+    import re
+
+    found = [
+        re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(%|°|[^\W\d_][^\s\d]*)?", p)
+        for p in parts
+    ]
+    if not all(found) or not any(m[2] for m in found):
+        return ""
+    option = what.split()[0]
+    bare = ",".join(m[1] for m in found)
+    return (
+        f"; give the numbers without a unit ({option} {bare}), in the unit {option}'s help "
+        "states"
+    )
+
+
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
     """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
 
@@ -700,7 +719,9 @@ def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | N
     try:
         vals = [float(p) for p in parts]
     except ValueError:
-        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+        raise InputError(
+            f"{what}: expected comma-separated numbers, got {text!r}{_units_in_list(parts, what)}"
+        ) from None
     bad = [p for p, v in zip(parts, vals) if not math.isfinite(v)]
     if bad:
         raise InputError(
