@@ -133,3 +133,28 @@ def test_a_process_without_standard_error_reads_and_refuses_as_well(tmp_path):
     lines = run.stdout.splitlines()
     assert lines[0] == f"({H}, {W}, 3)"
     assert lines[1].startswith("refused:") and "damaged JPEG data" in lines[1]
+
+
+@pytest.mark.parametrize("icc", [False, True])
+def test_a_cmyk_jpeg_is_written_as_rgb_and_the_note_says_so(tmp_path, grid, icc):
+    # before: a CMYK JPEG without an ICC profile was written as RGB with no note (with a
+    # CMYK profile only "ICC profile not kept" said it); the note now names the conversion
+    from PIL import Image
+
+    rng = np.random.default_rng(1)
+    cmyk = Image.fromarray((rng.random((H, W, 4)) * 255).astype(np.uint8), "CMYK")
+    src, dst = tmp_path / "a.jpg", tmp_path / "out.jpg"
+    kw = {}
+    if icc:  # a profile header naming the CMYK colour space (bytes 16-19)
+        kw["icc_profile"] = bytes(16) + b"CMYK" + bytes(108)
+    cmyk.save(src, quality=95, **kw)
+    note = correct_image_file(src, dst, grid)
+    with Image.open(dst) as out:
+        assert out.mode == "RGB" and out.size == (W, H)
+    assert note is not None and note.startswith("CMYK JPEG written as RGB")
+    assert "colours are approximate" in note
+    assert ("ICC profile not kept" in note) == icc
+    # an RGB JPEG gets no such note
+    rgb = tmp_path / "rgb.jpg"
+    rgb.write_bytes(_jpeg())
+    assert correct_image_file(rgb, tmp_path / "rgb_out.jpg", grid) is None

@@ -46,6 +46,10 @@ PACKAGES = (
     "photogeom.simulate",
     "photogeom.transforms",
     "photogeom.units",
+    # helper modules the docs refer to (docs/cli.md, docs/conventions.md, ...)
+    "photogeom.atomicfile",
+    "photogeom.io.sources",
+    "photogeom.records",
 )
 
 _SECTION = re.compile(

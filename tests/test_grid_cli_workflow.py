@@ -1102,3 +1102,122 @@ def test_overlap_in_per_cent_and_sigmas_with_their_unit_name_the_value_to_give(c
     for args, want in cases:
         code, _, err = cli(*args)
         assert code == 2 and want in " ".join(err.split()), (args, err)
+
+
+def test_grid_fit_refuses_a_block_of_one_image_and_fits_its_residuals_csv(
+    cli, adjusted_folder, tmp_path
+):
+    # before: grid fit of a block folder left with one image fitted its grid without a word,
+    # though a block of one image cannot have been adjusted (bundle adjust refuses it); the
+    # residuals of one image as a CSV are fitted as ever
+    import shutil
+
+    one = tmp_path / "one"
+    shutil.copytree(adjusted_folder, one)
+    block = pg.bundle.read_block(adjusted_folder)
+    first = block.image_ids[0]
+    for name in ("images.csv", "observations.csv"):
+        lines = (one / name).read_text().splitlines(keepends=True)
+        keep = ("id", "image_id", str(first))
+        kept = [x for x in lines if x.startswith("#") or x.split(",")[0] in keep]
+        (one / name).write_text("".join(kept))
+    code, _, err = cli("grid", "fit", one, "--spacing", "1000", "--folds", "0",
+                       "-o", tmp_path / "g.npz")  # fmt: skip
+    assert code == 2 and not (tmp_path / "g.npz").exists()
+    assert f"the block has one image with observations ({first}): a block of one image " \
+        "cannot have been adjusted" in " ".join(err.split())
+    assert "--exclude" in err and "image_id,u,v,rx,ry" in err
+    # that image's residuals in the adjusted block, as a CSV: one grid, the block's grid
+    v = pg.bundle.reprojection_residuals(block)
+    rows = np.flatnonzero((block.obs_image == 0) & (block.role[block.obs_point] == "tie"))
+    uv = block.observations.uv[rows]
+    sigma = block.observations.sigma[rows]
+    csv_path = tmp_path / "one.csv"
+    csv_path.write_text("image_id,u,v,rx,ry,sigma\n" + "".join(
+        f"{first},{a!r},{b!r},{c!r},{d!r},{s!r}\n"
+        for (a, b), (c, d), s in zip(uv.tolist(), v[rows].tolist(), sigma.tolist())
+    ))  # fmt: skip
+    w, h = (int(x) for x in block.image_sizes()[0])
+    code, _, err = cli("grid", "fit", csv_path, "--image-size", f"{w}x{h}", "--spacing", "1000",
+                       "--folds", "0", "-o", tmp_path / "g.npz")  # fmt: skip
+    assert code == 0, err
+    got = pg.calibration.load_grids(tmp_path / "g.npz")
+    assert [str(k) for k in got] == [str(first)]
+    assert next(iter(got.values())).image_size == (w, h)
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_correct_images_stopped_removes_the_empty_rig_folders_it_made(
+    tmp_path, monkeypatch, existing
+):
+    # before: Ctrl-C or SIGTERM while the images ran left the empty cam1/, cam2/ (and their
+    # parents) made for the rig's image ids in the output folder; the folders it did not
+    # make stay, as does one holding a file
+    from photogeom.calibration import images as images_module
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    for sub in ("cam1", "rig/cam2"):
+        (src / sub).mkdir(parents=True)
+        (src / sub / "a.png").write_bytes((src / "a.png").read_bytes())
+    grids = dict.fromkeys(["cam1/a.png", "rig/cam2/a.png", "a"], grid)
+    dst = tmp_path / "out"
+    if existing:  # the user's folder, with a sub-folder of its own and a file in rig/
+        (dst / "mine").mkdir(parents=True)
+        (dst / "rig").mkdir()
+        (dst / "rig" / "notes.txt").write_text("x")
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(images_module, "_run_serial", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        pg.calibration.correct_folder(src, dst, grids, progress=False)
+    if existing:
+        assert sorted(str(p.relative_to(dst)) for p in dst.rglob("*")) == [
+            "mine", "rig", "rig/notes.txt"
+        ]  # fmt: skip
+    else:
+        assert not dst.exists()
+    # an image that fails leaves no empty folder either; the others are written
+    monkeypatch.undo()
+    (src / "rig" / "cam2" / "a.png").write_bytes(b"not an image")
+    result = pg.calibration.correct_folder(src, dst, grids, progress=False)
+    assert sorted(result.written) == ["a", "cam1/a.png"] and list(result.failures) == [
+        "rig/cam2/a.png"
+    ]
+    assert not (dst / "rig" / "cam2").exists() and (dst / "cam1" / "a.png").is_file()
+    assert (dst / "rig").is_dir() == existing
+
+
+def test_correct_images_sigterm_runs_the_clean_up(cli, tmp_path, monkeypatch):
+    # before: SIGTERM (a job scheduler's stop, kill PID) ended the process at once, without
+    # the clean-up Ctrl-C runs: the empty cam1/ made for a rig's image id stayed
+    import os
+    import signal
+
+    from photogeom.calibration import images as images_module
+
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    (src / "cam1").mkdir()
+    (src / "cam1" / "a.png").write_bytes((src / "a.png").read_bytes())
+    pg.calibration.save_grids(grids_file, dict.fromkeys(["cam1/a.png", "a"], grid))
+    dst = tmp_path / "out"
+
+    def terminated(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("SIGTERM did not stop the run")
+
+    def runner_kept(signum, frame):  # the handler of a command that installs none
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(images_module, "_run_serial", terminated)
+    before = signal.signal(signal.SIGTERM, runner_kept)  # this test process is not killed
+    try:
+        code, _, _ = cli("grid", "correct-images", grids_file, src, dst)
+        assert signal.getsignal(signal.SIGTERM) is runner_kept  # the former one restored
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert code == 143
+    assert not dst.exists()

@@ -1,7 +1,7 @@
 """``orient relative --output-cameras`` was checked alone: a camera file named
 like ``--report`` or ``--output`` was found only when the files were written, after the
 computation, by file name (``error: x.out and x.out are the same file``), and one named
-like the input POINTS replaced the points with camera JSON (exit 0). Each camera file is now
+like the input MATCHES replaced the points with camera JSON (exit 0). Each camera file is now
 checked with the other options and the inputs before the computation, by option name."""
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def test_a_camera_file_named_like_the_input_keeps_the_points(cli, points: Path, 
     code, _, err = cli("orient", "relative", points, *ARGS,
                        "--output-cameras", points, tmp_path / "c2.json")
     assert code == 2
-    assert f"--output-cameras {points} is the input file POINTS" in err
+    assert f"--output-cameras {points} is the input file MATCHES" in err
     assert points.read_bytes() == before
 
 
@@ -63,3 +63,17 @@ def test_distinct_files_are_written(cli, points: Path, tmp_path: Path):
                        "--report", rep)
     assert code == 0, err
     assert c1.is_file() and c2.is_file() and rep.is_file()
+
+
+def test_the_first_argument_is_matches_as_in_the_docs(cli, points: Path, tmp_path: Path):
+    # the errors and the usage line called it POINTS ({points}) where docs/cli.md and the
+    # help write MATCHES.csv
+    code, _, err = cli("orient", "relative", points, *ARGS, "--report", points)
+    assert code == 2
+    assert f"--report {points} is the input file MATCHES" in err
+    code, _, err = cli("orient", "relative", *ARGS)
+    assert code == 2
+    assert "Usage: photogeom orient relative [OPTIONS] {matches} [image2]" in err
+    assert "Missing argument 'matches'" in " ".join(err.split())
+    cli_md = (Path(__file__).parents[1] / "docs" / "cli.md").read_text(encoding="utf-8")
+    assert "## `photogeom orient relative MATCHES.csv [IMAGE2.csv]`" in cli_md

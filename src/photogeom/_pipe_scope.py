@@ -33,6 +33,11 @@ def pipe_reads() -> Iterator[None]:
     wrote) and keeps nothing, so a long-running program that reads many pipes through the
     library holds none of them.
 
+    Yields
+    ------
+    None
+        The scope is the ``with`` block.
+
     Examples
     --------
     >>> from photogeom.io.sources import pipe_reads

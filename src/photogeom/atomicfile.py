@@ -449,5 +449,23 @@ def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8
 def atomic_write_texts(
     items: Sequence[tuple[str | os.PathLike, str]], encoding: str = "utf-8"
 ) -> list[Path]:
-    """Text version of :func:`atomic_write_many`: all files or none."""
+    """Text version of :func:`atomic_write_many`: all files or none.
+
+    Parameters
+    ----------
+    items : sequence of (path, str)
+        Each file's path and its text.
+    encoding : str
+        The encoding of every text.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The paths written, in the order of ``items``.
+
+    Raises
+    ------
+    OutputError
+        A file that cannot be written; none of the files is then replaced.
+    """
     return atomic_write_many([(p, t.encode(encoding)) for p, t in items])

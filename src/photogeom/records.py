@@ -47,30 +47,42 @@ def _spec(cls) -> tuple | None:
     return spec
 
 
-def build(cls: type[T], values: dict) -> T:
-    """``cls(**values)`` for a frozen dataclass ``cls``, without the per-field setattr cost.
+def build(kind: type[T], values: dict) -> T:
+    """``kind(**values)`` for a frozen dataclass ``kind``, without the per-field setattr cost.
+
+    Parameters
+    ----------
+    kind : type
+        The frozen dataclass (any other class is called as ``kind(**values)``).
+    values : dict
+        The field values by name; fields with defaults may be left out.
+
+    Returns
+    -------
+    object
+        The instance of ``kind``, its ``__post_init__`` run as the constructor runs it.
 
     Raises
     ------
     TypeError
         A required field is missing, or a name is not a field (as the constructor would).
     """
-    spec = _SPECS.get(cls) or _spec(cls)
+    spec = _SPECS.get(kind) or _spec(kind)
     if spec is None:
-        return cls(**values)
+        return kind(**values)
     plain, factories, required, names, post_init = spec
     keys = values.keys()
     if not (keys >= required and names.issuperset(keys)):
         missing, unknown = sorted(required - keys), sorted(keys - names)
         raise TypeError(
-            f"{cls.__name__}: "
+            f"{kind.__name__}: "
             + "; ".join(
                 f"{what} field(s) {', '.join(which)}"
                 for what, which in (("missing", missing), ("unexpected", unknown))
                 if which
             )
         )
-    obj = object.__new__(cls)
+    obj = object.__new__(kind)
     d = obj.__dict__
     d.update(plain)
     for name, factory in factories.items():
@@ -169,20 +181,24 @@ def value_key(obj) -> tuple:
     return tuple(out)
 
 
-def value_eq(self, other) -> bool:
-    """``==`` of value records: the same class and equal :func:`value_key`.
+def value_eq(record, other) -> bool:
+    """``==`` of value records (a class's ``__eq__ = value_eq``): the same class and equal
+    :func:`value_key`.
 
     Parameters
     ----------
-    self, other : object
+    record : object
+        The record compared (``self`` of ``__eq__``).
+    other : object
+        What it is compared with.
 
     Returns
     -------
     bool or NotImplemented
     """
-    if type(other) is not type(self):
+    if type(other) is not type(record):
         return NotImplemented
-    return value_key(self) == value_key(other)
+    return value_key(record) == value_key(other)
 
 
 def setstate_read_only(obj, state: dict) -> None:

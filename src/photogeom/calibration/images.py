@@ -311,6 +311,11 @@ def _read(path: Path):
     except Exception:
         # OpenCV decoded it; Pillow cannot read it: pixels only.
         meta = {}
+    if meta.get("mode") == "CMYK" and pixels.ndim == 3 and pixels.shape[2] == 4:
+        # OpenCV decodes a CMYK TIFF as RGB and an opaque alpha channel the original does
+        # not have (written back as RGBA under the original's CMYK tags, the file was
+        # unreadable): the RGB pixels only, as of a CMYK JPEG
+        pixels = np.ascontiguousarray(pixels[..., :3])
     if raw[:8] == _PNG_SIGNATURE:
         meta["png_chunks"] = _png_metadata_chunks(raw)
         pixels = _png_own_coding(raw, pixels, meta)
@@ -807,6 +812,11 @@ def _has_metadata(exif) -> bool:
     return bool(exif)
 
 
+#: TIFF tags of a CMYK original's inks (InkSet, InkNames, NumberOfInks, DotRange,
+#: TargetPrinter) and its colour space (PhotometricInterpretation), not those of the RGB
+#: pixels written
+_TIFF_INK_TAGS = frozenset({262, 332, 333, 334, 336, 337})
+
 # ICC colour spaces (header bytes 16-19) of pixels that OpenCV may turn into others
 _ICC_SPACES = frozenset({b"RGB ", b"GRAY", b"CMYK", b"CMY "})
 
@@ -950,6 +960,20 @@ def _encode(pixels: np.ndarray, meta: dict, suffix: str) -> tuple[bytes, str | N
                         tags.load(meta["exif"])
                 tags[700] = xmp
                 kw["exif"] = tags
+        if meta.get("mode") == "CMYK" and channels == 3:
+            # OpenCV decodes CMYK as RGB without a colour profile (an approximate
+            # conversion); Pillow could write CMYK back, but only from those RGB pixels.
+            # A TIFF's ink tags describe the original's separations, not these pixels
+            if isinstance(kw.get("exif"), Image.Exif):
+                tags = Image.Exif()
+                tags.update({k: v for k, v in kw["exif"].items() if k not in _TIFF_INK_TAGS})
+                kw["exif"] = tags
+            cmyk = (
+                f"CMYK {fmt} written as RGB: OpenCV decodes CMYK as RGB without a colour "
+                "profile, so the colours are approximate; convert the originals to RGB with "
+                "their colour profile first where colours matter"
+            )
+            note = cmyk if note is None else f"{cmyk}; {note}"
         buf = io.BytesIO()
         im.save(buf, format=fmt, **kw)
         if fmt == "JPEG":  # comments, extended XMP, IPTC, vendors' segments
@@ -1323,21 +1347,39 @@ def correct_folder(
         raise InputError("the output folder must differ from the input folder (originals are kept)")
     made = [d for d in (dst, *dst.parents) if not d.exists()]  # created here, innermost first
     _output_folder(dst)
+    below: list[Path] = []  # sub-folders of dst made for images below src (cam1/ of a rig)
     try:
-        return _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border)
+        result = _correct_jobs(
+            src, dst, grids, workers, dask, interpolation, progress, border, below
+        )
     except BaseException:
-        # a job that could not start (an unreachable scheduler, an interruption): folders
-        # made for it and still empty are removed again, nothing is left half-made
+        # a job that could not start or was stopped (an unreachable scheduler, Ctrl-C,
+        # SIGTERM): folders made for it and still empty are removed again, the sub-folders
+        # made for images (cam1/) first; nothing is left half-made
+        _remove_empty(below)
         for d in made:
             try:
                 d.rmdir()
             except OSError:
                 break
         raise
+    _remove_empty(below)  # made for images that all failed
+    return result
 
 
-def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border):
-    """The body of :func:`correct_folder` once the output folder exists."""
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove those of ``folders`` that are empty, the deepest first (a folder emptied by
+    the removal of its sub-folders goes too); a folder holding anything stays."""
+    for d in sorted(folders, key=lambda p: len(p.parts), reverse=True):
+        try:
+            d.rmdir()
+        except OSError:  # not empty (an image written, a file of the user's), or gone
+            pass
+
+
+def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, border, below):
+    """The body of :func:`correct_folder` once the output folder exists; ``below`` receives
+    the sub-folders of ``dst`` it creates."""
     result = FolderResult()
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
@@ -1347,6 +1389,8 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     # folder alike: cam1/0001.jpg and cam2/0001.jpg are two images
     out = {key: dst / p.relative_to(src) for key, p in found.items()}
     for key, d in list(out.items()):
+        below.extend(p for p in (d.parent, *d.parent.parents) if p != dst and
+                     p.is_relative_to(dst) and not p.exists())  # fmt: skip
         try:
             d.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:

@@ -174,6 +174,40 @@ OutputCsvOpt = Annotated[
 ]
 
 
+#: Exit code of a command stopped by SIGTERM (128 + 15, as a shell reports it).
+SIGTERM_EXIT = 143
+
+
+@contextmanager
+def sigterm_stops():
+    """A scope in which SIGTERM ends the command as Ctrl-C does: an exception
+    (``SystemExit(143)``) that runs the clean-up of the running job (``grid correct-images``
+    removes the empty folders it made, the temporary files of its images), not an immediate
+    death that leaves them. Outside the main thread (no signal handlers there) nothing
+    changes.
+
+    Yields
+    ------
+    None
+        The scope is the ``with`` block; the former handler is restored at its end.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise SystemExit(SIGTERM_EXIT)
+
+    former = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, former)
+
+
 def console(stderr: bool = False):
     """A console that keeps tables readable when the output is not a terminal."""
     from rich.console import Console
@@ -446,8 +480,8 @@ def unit_hint(text: str, option: str, unit: str = "px") -> str:
 
 
 def pixels(option: str):
-    """Parser of a float option in pixels: a number, refused with :func:`unit_hint`'s fix
-    when written with a unit (``--spacing 100px``; before: click's "Input should be a
+    """Parser of a float option in pixels: a number, refused with :func:`number_message`'s
+    fix when written with a unit (``--spacing 100px``; before: click's "Input should be a
     valid number, unable to parse string as a number").
 
     Parameters
@@ -467,9 +501,7 @@ def pixels(option: str):
         try:
             return float(text)
         except ValueError:
-            raise typer.BadParameter(
-                f"{text!r} is not a number{unit_hint(text, option)}"
-            ) from None
+            raise typer.BadParameter(number_message(text, option, "px")) from None
 
     parse.__name__ = "float"
     return parse
@@ -490,7 +522,6 @@ def fraction(option: str):
     callable
         ``str -> float`` for ``typer.Option(parser=...)``.
     """
-    import re
 
     def parse(text) -> float:
         if isinstance(text, int | float):  # a default value
@@ -498,17 +529,180 @@ def fraction(option: str):
         try:
             return float(text)
         except ValueError:
-            pass
-        m = re.fullmatch(r"\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*%\s*", text)
-        hint = (
-            f"; {option} is a fraction: give {float(m[1]) / 100:g} for {m[1]} %"
-            if m
-            else f"; {option} is a fraction, such as 0.6"
-        )
-        raise typer.BadParameter(f"{text!r} is not a number{hint}") from None
+            raise typer.BadParameter(number_message(text, option, FRACTION)) from None
 
     parse.__name__ = "float"
     return parse
+
+
+#: The "unit" of an option whose number is a fraction (``--overlap``) or a probability
+#: (``--alpha``): written in per cent, it is refused with the fraction to give.
+FRACTION = "fraction"
+
+#: The "unit" of a significance level (``--alpha``), a fraction too.
+PROBABILITY = "probability"
+
+#: The unit an option's number is in, read off its help text: (pattern, unit), the first
+#: match wins. A symbol (px, mm) is compared with the unit typed; a phrase is said as is.
+#: An option whose help matches none takes a plain number (a count, a level, a seed).
+_HELP_UNITS = (
+    (r"\bin \(0, ", PROBABILITY),
+    (r"\(fraction\)", FRACTION),
+    (r"\[m/px\]", "m/px"),
+    (r"\(px[);]|\[px\]|\bin pixels\b|\bin px\b", "px"),
+    (r"\bin --unit\b|\(image unit\)", "the unit of --unit"),
+    (r"\bimage unit of the cameras\b", "the image unit of the cameras"),
+    (r"\bin mm\b", "mm"),
+    (r"\((?:in )?m\)|\[m\]", "m"),
+    (r"\btarget units\b", "the target coordinates' unit"),
+    (r"\bsource units\b", "the source coordinates' unit"),
+    (r"\bin sigmas\b", "sigmas"),
+    (r"\bnormalised units\b", "normalised units"),
+)
+
+
+_EXAMPLES = {FRACTION: "0.6", PROBABILITY: "0.001"}
+
+
+def option_unit(help_text: str | None) -> str | None:
+    """The unit of a numeric option as its ``--help`` states it.
+
+    Parameters
+    ----------
+    help_text : str or None
+        The option's help.
+
+    Returns
+    -------
+    str or None
+        A unit symbol (``"px"``, ``"mm"``, ``"m"``, ``"m/px"``), :data:`FRACTION`,
+        :data:`PROBABILITY`, a phrase
+        (``"the unit of --unit"``), or None: a plain number without a unit.
+    """
+    import re
+
+    for pattern, unit in _HELP_UNITS:
+        if re.search(pattern, help_text or ""):
+            return unit
+    return None
+
+
+def number_message(text: str, option: str, unit: str | None, *, integer: bool = False) -> str:
+    """Why ``text`` is not a value of the numeric ``option``, and what to type instead: a
+    number written with a unit (``1mm``, ``0.5px``, ``60%``) or a decimal comma (``0,5``).
+
+    Parameters
+    ----------
+    text : str
+        The value as typed.
+    option : str
+        The option's name (``--sigma``).
+    unit : str or None
+        The unit the option is in (:func:`option_unit`): a symbol, :data:`FRACTION`,
+        :data:`PROBABILITY`, a phrase, or None (a plain number).
+    integer : bool
+        The option takes a whole number.
+
+    Returns
+    -------
+    str
+        E.g. ``"'1mm' is not a number; --sigma is in px, not mm: give it in px, without a
+        unit"``, ``"'0,5' is not a number; --sigma takes a decimal point: give --sigma 0.5"``.
+    """
+    import re
+
+    kind = "an integer" if integer else "a number"
+    head = f"{text!r} is not {kind}"
+    value = text.strip()
+    number = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+    comma = re.fullmatch(r"([+-]?\d+),(\d+)", value)
+    if comma:
+        if integer:
+            return f"{head}; {option} takes a whole number ({option} {comma[1]})"
+        return f"{head}; {option} takes a decimal point: give {option} {comma[1]}.{comma[2]}"
+    with_unit = re.fullmatch(rf"({number})\s*(%|°|[^\W\d_][^\s\d]*)", value)
+    if with_unit is None:
+        if integer and re.fullmatch(number, value):
+            return f"{head}; {option} takes a whole number, such as {option} 1"
+        if unit in (FRACTION, PROBABILITY):
+            return f"{head}; {option} is a {unit}, such as {_EXAMPLES[unit]}"
+        said = f" in {unit}" if unit is not None else ""
+        return f"{head}; {option} takes a number{said}, such as {option} 1"
+    bare, typed = with_unit[1], with_unit[2]
+    if unit in (FRACTION, PROBABILITY):
+        if typed == "%":
+            return f"{head}; {option} is a {unit}: give {float(bare) / 100:g} for {bare} %"
+        return f"{head}; {option} is a {unit}, such as {_EXAMPLES[unit]}"
+    if unit is None:
+        what = "a count" if integer else "a number"
+        return f"{head}; {option} is {what} without a unit: give {option} {bare}"
+    if " " in unit:  # a phrase: the unit is set elsewhere
+        return f"{head}; {option} is in {unit}: give the number alone ({option} {bare})"
+    if typed in (unit, f"{unit}s", unit.removesuffix("s")):
+        return f"{head}; {option} is in {unit}: give the number alone ({option} {bare})"
+    return f"{head}; {option} is in {unit}, not {typed}: give it in {unit}, without a unit"
+
+
+def _numbers_in_words(param) -> None:
+    """Make the numeric option ``param`` refuse a value it cannot read with
+    :func:`number_message` (the option's unit from its help) instead of pydantic's "Input
+    should be a valid number, unable to parse string as a number"."""
+    descriptor = getattr(param, "type_descriptor", None)
+    annotation = getattr(descriptor, "annotation", None)
+    if annotation not in (int, float) or getattr(param, "_numbers_in_words", False):
+        return
+    process = param.process_value
+    option = max(getattr(param, "opts", None) or [param.name], key=len)
+    unit = option_unit(getattr(param, "help", None))
+    integer = annotation is int
+
+    def process_value(ctx, value):
+        try:
+            return process(ctx, value)
+        except typer.BadParameter as exc:
+            if not isinstance(value, str) or "is not" in exc.message:
+                raise  # a parser's own words, or not a typed value
+            raise typer.BadParameter(
+                number_message(value, option, unit, integer=integer), ctx=ctx, param=param
+            ) from None
+
+    param.process_value = process_value
+    param._numbers_in_words = True
+
+
+def numbers_in_words(command) -> None:
+    """Give every numeric option of ``command`` and of its sub-commands the messages of
+    :func:`number_message` (``--sigma 1mm``: "--sigma is in px, not mm: give it in px,
+    without a unit"; ``--sigma 0,5``: "give --sigma 0.5").
+
+    Parameters
+    ----------
+    command : click command or group
+        The command tree built from the application.
+    """
+    for param in getattr(command, "params", ()):
+        _numbers_in_words(param)
+    for sub in getattr(command, "commands", {}).values():
+        numbers_in_words(sub)
+
+
+def _units_in_list(parts: list[str], what: str) -> str:
+    """The fix for a list of numbers written with units (``--principal-point 1mm,2mm``):
+    the numbers alone, else ''."""
+    import re
+
+    found = [
+        re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(%|°|[^\W\d_][^\s\d]*)?", p)
+        for p in parts
+    ]
+    if not all(found) or not any(m[2] for m in found):
+        return ""
+    option = what.split()[0]
+    bare = ",".join(m[1] for m in found)
+    return (
+        f"; give the numbers without a unit ({option} {bare}), in the unit {option}'s help "
+        "states"
+    )
 
 
 def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
@@ -525,7 +719,9 @@ def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | N
     try:
         vals = [float(p) for p in parts]
     except ValueError:
-        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+        raise InputError(
+            f"{what}: expected comma-separated numbers, got {text!r}{_units_in_list(parts, what)}"
+        ) from None
     bad = [p for p, v in zip(parts, vals) if not math.isfinite(v)]
     if bad:
         raise InputError(
@@ -603,6 +799,48 @@ def _indented(value, level: int) -> str:
         body = body.replace("\x00", pad + "]," + pad + "[" + inner)
         return "[" + pad + "[" + inner + body + pad + "]" + end + "]"
     return "[" + pad + ("," + pad).join(_indented(v, level + 1) for v in value) + end + "]"
+
+
+def json_id(value):
+    """An image or point id as JSON keeps it: its own type (an int stays an int, a text a
+    text), numpy scalars as the Python number.
+
+    Parameters
+    ----------
+    value : int, str or numpy scalar
+        The id.
+
+    Returns
+    -------
+    int, float or str
+    """
+    return value.item() if hasattr(value, "item") else value
+
+
+def pair_records(steps: dict | None, **values: dict | None) -> list[dict]:
+    """Model pairs as JSON records with typed ids: ``{"image_a": a, "image_b": b, name:
+    values[name][(a, b)], ...}``, in the order of ``steps``; a joined text key (``"a-b"``)
+    cannot be split back when an id holds ``-``, and loses an int id's type.
+
+    Parameters
+    ----------
+    steps : dict or None
+        ``{(a, b): value}``: the pairs (None or empty: none).
+    **values : dict or None
+        Further ``{(a, b): value}`` by the record's field name (None: the field left out).
+
+    Returns
+    -------
+    list of dict
+    """
+    rows = []
+    for a, b in steps or {}:
+        row = {"image_a": json_id(a), "image_b": json_id(b)}
+        for name, by_pair in values.items():
+            if by_pair is not None:
+                row[name] = by_pair.get((a, b))
+        rows.append(row)
+    return rows
 
 
 def finite_or_none(v) -> float | None:

@@ -33,12 +33,14 @@ from ._common import (
     check_outputs,
     console,
     emit_points,
+    json_id,
     json_text,
     options_in_errors,
     pixels,
     refuse_stdout_dash,
     say,
     scheduler_option,
+    sigterm_stops,
     split_names,
     stage_spinner,
     typed_option,
@@ -686,7 +688,8 @@ def fit(
     else:
         grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out, where)
     outputs = [(output, grids_file_bytes(output, grids, std=std))]
-    stats = {k: g.to_dict() for k, g in grids.items()}
+    # keyed by text (JSON keys are text); "image_id" keeps the id's type (an int stays one)
+    stats = {str(k): {"image_id": json_id(k), **g.to_dict()} for k, g in grids.items()}
     rejected = _rejected(grids, where, alpha, max_snooping_rounds) if snooping else None
     if report is not None:
         outputs.append((report, _report_html(grids, rejected).encode("utf-8")))
@@ -912,6 +915,15 @@ def _fit_block(
             f"{w} x {h} px, the smallest even size holding the observations, and fit only "
             "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
             stderr=True,
+        )
+    seen = np.unique(block.obs_image)
+    if seen.size == 1:  # its tie points in one image only: no adjustment of this block
+        raise InputError(
+            f"{path}: the block has one image with observations ({block.image_ids[seen[0]]}): "
+            "a block of one image cannot have been adjusted (a bundle adjustment needs two "
+            "images that observe the same points), so its residuals are not those of an "
+            "adjustment; give the adjusted block the image belongs to (--exclude leaves "
+            "images out), or the image's residuals as a CSV (image_id,u,v,rx,ry)"
         )
     from .grid_block import warn_if_unadjusted
 
@@ -1453,7 +1465,10 @@ def correct_images(
     grids = load_grids(grids_file)
     terminal = console(stderr=True).is_terminal
     try:
-        with nullcontext() if terminal else LogProgress("correcting images") as log:
+        with (
+            sigterm_stops(),  # SIGTERM as Ctrl-C: the job's clean-up runs
+            nullcontext() if terminal else LogProgress("correcting images") as log,
+        ):
 
             def counted(done: int, total: int) -> None:
                 log.update(f"correcting images: {done} of {total} images")

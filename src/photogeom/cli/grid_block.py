@@ -22,8 +22,10 @@ from ._common import (
     console,
     fraction,
     iteration_progress,
+    json_id,
     json_text,
     nan_to_none,
+    pair_records,
     pixels,
     say,
     split_numbers,
@@ -502,14 +504,22 @@ def _ev_json(ev) -> dict:
         },
         "residuals": {
             "block": blk,
-            "images": {str(k): v for k, v in ev["residuals"]["images"].items()},
+            # keyed by text (JSON keys are text); "image_id" keeps the id's type
+            "images": {
+                str(k): {"image_id": json_id(k), **v}
+                for k, v in ev["residuals"]["images"].items()
+            },
         },
         "steps_before": {f"{a}-{b}": v for (a, b), v in ev["steps_before"].items()},
         "steps_after": {f"{a}-{b}": v for (a, b), v in ev["steps_after"].items()},
+        # the same steps by model pair with typed ids ("a-b" is ambiguous for ids with "-")
+        "steps": pair_records(ev["steps_before"], before=ev["steps_before"],
+                              after=ev["steps_after"]),
         "mean_step_before": ev["mean_step_before"],
         "mean_step_after": ev["mean_step_after"],
         "step_reduction": ev["step_reduction"],
         "excluded": [str(k) for k in ev.get("excluded", [])],
+        "excluded_ids": [json_id(k) for k in ev.get("excluded", [])],
     }
     if ev.get("check_before"):
         out["check_rmse_gsd_before"] = ev["check_before"]["rmse_gsd"].tolist()
@@ -522,6 +532,8 @@ def _ev_json(ev) -> dict:
         out["rematched"] = {
             "steps_before": {f"{a}-{b}": v for (a, b), v in rm["steps_before"].items()},
             "steps_after": {f"{a}-{b}": v for (a, b), v in rm["steps_after"].items()},
+            "steps": pair_records(rm["steps_before"], before=rm["steps_before"],
+                                  after=rm["steps_after"]),
             "mean_step_before": rm["mean_step_before"],
             "mean_step_after": rm["mean_step_after"],
             "step_reduction": rm["step_reduction"],
@@ -715,11 +727,13 @@ def sweep(
                     "timings": sw["timings"],
                     "time_readjust": sw["time_readjust"].tolist(),
                     "models": [f"{a}-{b}" for a, b in sw["models"]],
+                    "model_pairs": pair_records(dict.fromkeys(map(tuple, sw["models"]))),
                     "step": sw["step"].tolist(),
                     "step_before": sw["step_before"].tolist(),
                     "chosen": np.asarray(sw["choice"]["spacing"]).tolist(),
                     "spacing": sw["spacing"],
                     "excluded": [str(k) for k in left],
+                    "excluded_ids": [json_id(k) for k in left],
                     **(
                         {
                             "step_rematched": sw["step_rematched"].tolist(),

@@ -13,10 +13,23 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperGroup
 
 from ..errors import PhotogeomError
+from ._common import numbers_in_words
+
+
+class _Group(TyperGroup):
+    """The ``photogeom`` command: every numeric option of its commands refuses a number
+    typed with a unit or a decimal comma in its own words (:func:`numbers_in_words`)."""
+
+    def __init__(self, **attrs) -> None:
+        super().__init__(**attrs)
+        numbers_in_words(self)
+
 
 app = typer.Typer(
+    cls=_Group,
     name="photogeom",
     help="Analytical photogrammetry with least-squares statistics. "
     "Angles are labelled with their unit; residuals are computed minus observed.",

@@ -65,7 +65,7 @@ def register(app: typer.Typer) -> None:
     app.command("relative")(relative)
 
 
-def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bool, id_col):
+def _read_matches(matches: Path, image2: Path | None, cols: str | None, pixel: bool, id_col):
     from ..io import read_points
 
     if image2 is None:
@@ -78,21 +78,21 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
             )
         kw = {"id_column": id_col, "role_column": None, "auto_weights": False}
         with column_options("--cols"):
-            t1 = read_points(points, names[:2], **kw)
-            t2 = read_points(points, names[2:], **kw)
+            t1 = read_points(matches, names[:2], **kw)
+            t2 = read_points(matches, names[2:], **kw)
         return list(t1.ids), t1.coords, t2.coords, []
     names = split_names(cols) or (["col", "row"] if pixel else ["x", "y"])
     if len(names) != 2:
         raise InputError(f"--cols: expected 2 columns per image file, got {names}")
     with column_options("--cols"):
-        t1 = read_points(points, names, id_column=id_col, role_column=None, auto_weights=False)
+        t1 = read_points(matches, names, id_column=id_col, role_column=None, auto_weights=False)
         t2 = read_points(image2, names, id_column=id_col, role_column=None, auto_weights=False)
     index2 = {p: k for k, p in enumerate(t2.ids)}
     ids = [p for p in t1.ids if p in index2]
     ids1 = set(t1.ids)
     only = [p for p in t1.ids if p not in index2] + [p for p in t2.ids if p not in ids1]
     if not ids:
-        raise InputError(f"{points} and {image2} share no point id")
+        raise InputError(f"{matches} and {image2} share no point id")
     index1 = {p: k for k, p in enumerate(t1.ids)}
     k1 = [index1[p] for p in ids]
     return ids, t1.coords[k1], t2.coords[[index2[p] for p in ids]], only
@@ -103,10 +103,11 @@ def _read_matches(points: Path, image2: Path | None, cols: str | None, pixel: bo
     seed="--seed", alpha="--alpha",
 )
 def relative(
-    points: Annotated[
+    matches: Annotated[
         Path,
         typer.Argument(
-            help="CSV with id,x1,y1,x2,y2 (both images), or image 1's id,x,y if IMAGE2 is given."
+            help="MATCHES.csv: id,x1,y1,x2,y2 (both images), or image 1's id,x,y if IMAGE2 is "
+            "given."
         ),
     ],
     image2: Annotated[
@@ -213,7 +214,7 @@ def relative(
     from ..io import format_points_csv
     from ..orientation.relative import relative_orientation
 
-    inputs = {"POINTS": points, "IMAGE2": image2, "--camera": camera, "--camera2": camera2,
+    inputs = {"MATCHES": matches, "IMAGE2": image2, "--camera": camera, "--camera2": camera2,
               "--calibration": calibration}  # fmt: skip
     if output_cameras is None:
         check_outputs(inputs, report=report, output=output)
@@ -240,8 +241,8 @@ def relative(
         io2, _ = camera_from_json(camera2)
         if io2 is None:
             raise InputError(f"--camera2 {camera2}: holds no interior orientation")
-    source = f"{points}{' + ' + str(image2) if image2 else ''}"  # what was oriented
-    ids, xy1, xy2, unmatched = _read_matches(points, image2, cols, pixel, id_col)
+    source = f"{matches}{' + ' + str(image2) if image2 else ''}"  # what was oriented
+    ids, xy1, xy2, unmatched = _read_matches(matches, image2, cols, pixel, id_col)
     if pixel:
         xy1, xy2 = io1.pixel_to_image(xy1), io2.pixel_to_image(xy2)
     try:
@@ -303,7 +304,7 @@ def relative(
                 )
             )
     if report is not None:
-        outputs.append((report, _report(fit, par, xy1, au, points)))
+        outputs.append((report, _report(fit, par, xy1, au, matches)))
     notes = []
     if unmatched:
         notes.append(f"ids in only one file, left out: {', '.join(unmatched[:30])}")

@@ -68,7 +68,20 @@ def input_kind(path: str | os.PathLike) -> str:
 
 
 def device_message(path: str | os.PathLike, what: str) -> str:
-    """The refusal of a device as the input ``what`` (``/dev/zero`` never ends)."""
+    """The refusal of a device as the input ``what`` (``/dev/zero`` never ends).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The device given.
+    what : str
+        The input it was given as, in the caller's words (``"the residuals CSV"``).
+
+    Returns
+    -------
+    str
+        The message: what the path is and what to give instead.
+    """
     return (
         f"cannot read {what} {path}: it is a device, not a file (a device such as /dev/zero "
         "never ends); give a regular file or a pipe"
@@ -76,7 +89,22 @@ def device_message(path: str | os.PathLike, what: str) -> str:
 
 
 def pipe_message(path: str | os.PathLike, what: str, why: str) -> str:
-    """The refusal of a pipe as the input ``what`` of a format read with seeks (``why``)."""
+    """The refusal of a pipe as the input ``what`` of a format read with seeks.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The pipe given.
+    what : str
+        The input it was given as, in the caller's words (``"the LAS cloud"``).
+    why : str
+        Why the format needs a regular file (``"LAS is read with seeks"``).
+
+    Returns
+    -------
+    str
+        The message: what the path is, why, and to save the stream to a file.
+    """
     return (
         f"cannot read {what} {path}: it is a pipe, and {why}; save the stream to a regular "
         "file and give that file"
@@ -144,8 +172,19 @@ def pipe_bytes(path: str | os.PathLike, limit: int | None) -> bytes:
 
 def kept_pipe_bytes(path: str | os.PathLike) -> bytes | None:
     """What :func:`pipe_bytes` read from the pipe ``path`` in the current
-    :func:`pipe_reads` scope, whole; None when it has not read it (or read only a part), or
-    outside every scope."""
+    :func:`pipe_reads` scope, whole.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The pipe.
+
+    Returns
+    -------
+    bytes or None
+        The pipe's whole content; None when :func:`pipe_bytes` has not read it (or read only
+        a part of it), or outside every scope.
+    """
     kept = kept_pipes()
     if kept is None:
         return None
