@@ -494,17 +494,7 @@ def pixels(option: str):
     callable
         ``str -> float`` for ``typer.Option(parser=...)``.
     """
-
-    def parse(text) -> float:
-        if isinstance(text, int | float):  # a default value
-            return float(text)
-        try:
-            return float(text)
-        except ValueError:
-            raise typer.BadParameter(number_message(text, option, "px")) from None
-
-    parse.__name__ = "float"
-    return parse
+    return _number_parser(option, "px")
 
 
 def fraction(option: str):
@@ -522,6 +512,12 @@ def fraction(option: str):
     callable
         ``str -> float`` for ``typer.Option(parser=...)``.
     """
+    return _number_parser(option, FRACTION)
+
+
+def _number_parser(option: str, unit: str):
+    """``str -> float`` of a float option in ``unit``; text that is not a number is
+    refused with :func:`number_message`'s fix."""
 
     def parse(text) -> float:
         if isinstance(text, int | float):  # a default value
@@ -529,7 +525,7 @@ def fraction(option: str):
         try:
             return float(text)
         except ValueError:
-            raise typer.BadParameter(number_message(text, option, FRACTION)) from None
+            raise typer.BadParameter(number_message(text, option, unit)) from None
 
     parse.__name__ = "float"
     return parse
