@@ -436,6 +436,12 @@ def check_out_cols(names: list[str], n: int, *, role: bool = False) -> None:
         )
 
 
+#: A number as typed on the command line (sign, decimals, exponent), and a unit typed
+#: after one (``%``, ``°``, ``px``, ``mm``): the patterns of the number messages below.
+_NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_TYPED_UNIT = r"%|°|[^\W\d_][^\s\d]*"
+
+
 def unit_hint(text: str, option: str, unit: str = "px") -> str:
     """The fix for a value of ``option`` (in ``unit``) written with a unit (``100px``,
     ``0.3 px``, ``100,150px``, ``7952x5304px``): the same value without it, else ''.
@@ -463,7 +469,7 @@ def unit_hint(text: str, option: str, unit: str = "px") -> str:
         if k % 2:  # a separator, kept as typed
             bare.append(piece.strip())
             continue
-        m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\W\d_]*)", piece)
+        m = re.fullmatch(rf"({_NUMBER})\s*([^\W\d_]*)", piece)
         if m is None:
             return ""
         bare.append(m[1])
@@ -610,15 +616,14 @@ def number_message(text: str, option: str, unit: str | None, *, integer: bool = 
     kind = "an integer" if integer else "a number"
     head = f"{text!r} is not {kind}"
     value = text.strip()
-    number = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
     comma = re.fullmatch(r"([+-]?\d+),(\d+)", value)
     if comma:
         if integer:
             return f"{head}; {option} takes a whole number ({option} {comma[1]})"
         return f"{head}; {option} takes a decimal point: give {option} {comma[1]}.{comma[2]}"
-    with_unit = re.fullmatch(rf"({number})\s*(%|°|[^\W\d_][^\s\d]*)", value)
+    with_unit = re.fullmatch(rf"({_NUMBER})\s*({_TYPED_UNIT})", value)
     if with_unit is None:
-        if integer and re.fullmatch(number, value):
+        if integer and re.fullmatch(_NUMBER, value):
             return f"{head}; {option} takes a whole number, such as {option} 1"
         if unit in (FRACTION, PROBABILITY):
             return f"{head}; {option} is a {unit}, such as {_EXAMPLES[unit]}"
@@ -687,10 +692,7 @@ def _units_in_list(parts: list[str], what: str) -> str:
     the numbers alone, else ''."""
     import re
 
-    found = [
-        re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(%|°|[^\W\d_][^\s\d]*)?", p)
-        for p in parts
-    ]
+    found = [re.fullmatch(rf"({_NUMBER})\s*({_TYPED_UNIT})?", p) for p in parts]
     if not all(found) or not any(m[2] for m in found):
         return ""
     option = what.split()[0]
@@ -701,11 +703,15 @@ def _units_in_list(parts: list[str], what: str) -> str:
     )
 
 
-def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | None:
+def split_numbers(
+    text: str | None, n: int | None, what: str, *, unit: str | None = None
+) -> list[float] | None:
     """Comma-separated finite numbers (exactly ``n`` when given) of the option ``what``.
 
     ``nan`` and ``inf`` are refused here, by the option's name: no option takes them, and
-    the library would name its own argument (``origin_px``, ``lat0``, ``scales``).
+    the library would name its own argument (``origin_px``, ``lat0``, ``scales``). Numbers
+    typed with a unit are refused with the numbers to give: in ``unit`` when given
+    (:func:`unit_hint`), else in the unit the option's help states.
     """
     import math
 
@@ -715,9 +721,8 @@ def split_numbers(text: str | None, n: int | None, what: str) -> list[float] | N
     try:
         vals = [float(p) for p in parts]
     except ValueError:
-        raise InputError(
-            f"{what}: expected comma-separated numbers, got {text!r}{_units_in_list(parts, what)}"
-        ) from None
+        hint = unit_hint(text, what.split()[0], unit) if unit else _units_in_list(parts, what)
+        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}{hint}") from None
     bad = [p for p, v in zip(parts, vals) if not math.isfinite(v)]
     if bad:
         raise InputError(

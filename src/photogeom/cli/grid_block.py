@@ -441,11 +441,7 @@ def _evaluate(
 def _spacings(text: str) -> list[float]:
     """The --spacings of ``sweep`` and ``report``: at least two positive, distinct numbers
     of pixels (checked before the block is read or adjusted)."""
-    try:
-        g = split_numbers(text, None, "--spacings")
-    except InputError as exc:
-        exc.args = (str(exc) + unit_hint(text, "--spacings"),)
-        raise
+    g = split_numbers(text, None, "--spacings", unit="px")
     if len(g) < 2:
         raise InputError(f"--spacings: give at least two spacings (px), not {text!r}")
     bad = [x for x in g if not x > 0]
