@@ -58,6 +58,32 @@ _HINTS = {
 _NAME_MAX = 255
 
 
+#: Bytes of the random part of a temporary file's name (twice as many hexadecimal digits).
+_RANDOM_BYTES = 6
+
+
+def remove_temporaries(path: str | os.PathLike) -> None:
+    """Remove the temporary files that atomic writes of ``path`` left behind in a process
+    that ended before renaming or removing them (killed for memory, a crash).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The destination of the writes; its own file is not touched.
+    """
+    from glob import escape
+
+    target = Path(path)
+    tail = "." + "0" * (2 * _RANDOM_BYTES) + ".tmp"
+    head = _temporary_name(target.parent, target.name, tail).name[: -len(tail)]
+    pattern = escape(head) + "." + "[0-9a-f]" * (2 * _RANDOM_BYTES) + ".tmp"
+    for p in target.parent.glob(pattern):
+        try:
+            p.unlink()
+        except OSError:  # gone meanwhile, or not ours to remove
+            pass
+
+
 def _temporary_name(directory: Path, name: str, tail: str) -> Path:
     """``directory / ("." + name + tail)``, ``name`` cut so that the file name fits the
     directory's file-name limit in bytes.
@@ -131,7 +157,7 @@ def _create_temporary(given: Path, target: Path) -> tuple[int, Path, os.stat_res
         raise _failure(given, exc) from exc
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
     for _ in range(100):
-        tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(6)}.tmp")
+        tmp = _temporary_name(directory, target.name, f".{secrets.token_hex(_RANDOM_BYTES)}.tmp")
         try:
             # 0o666: the kernel applies the umask, exactly as for open(path, "w")
             return os.open(tmp, flags, 0o666), tmp, old

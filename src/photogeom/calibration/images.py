@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomicfile import atomic_write_bytes
+from ..atomicfile import atomic_write_bytes, remove_temporaries
 from ..errors import FileFormatError, InputError, OutputError, PhotogeomError
 from ..io.sources import device_message, input_kind, read_input_bytes
 from .correction import INTERPOLATIONS, correct_image
@@ -1564,9 +1564,9 @@ def _run_alone(jobs, indices, interpolation, border, out, prog, t) -> None:
     after removing its temporary files left by a terminated process; one whose process
     dies is a failure of that image (see :func:`_run_processes`)."""
     for i in indices:
-        _remove_partial(jobs[i][2])
+        remove_temporaries(jobs[i][2])
         if _pool_run(jobs, [i], 1, interpolation, border, out, prog, t):
-            _remove_partial(jobs[i][2])
+            remove_temporaries(jobs[i][2])
             out[i] = (
                 False,
                 f"{jobs[i][1]}: the process correcting it died (out of memory, or a crash "
@@ -1624,19 +1624,6 @@ def _pool_run(jobs, indices, workers, interpolation, border, out, prog, t) -> li
         raise
     ex.shutdown(wait=True)  # the processes have ended: none writes any more
     return sorted(unfinished)
-
-
-def _remove_partial(dst: str) -> None:
-    """Remove the temporary files that :func:`~photogeom.atomicfile.atomic_write_bytes`
-    made for ``dst`` in a process that ended before renaming or removing them."""
-    from ..atomicfile import _temporary_name
-
-    target = Path(dst)
-    tail = "." + "0" * 12 + ".tmp"  # the form of the random part: 12 hexadecimal digits
-    head = _temporary_name(target.parent, target.name, tail).name[: -len(tail)]
-    for p in target.parent.glob(glob_escape(head) + "." + "[0-9a-f]" * 12 + ".tmp"):
-        with contextlib.suppress(OSError):
-            p.unlink()
 
 
 def _local_cluster_message(workers: int, exc: BaseException) -> str:
