@@ -81,15 +81,10 @@ def block_residuals(
     use = np.isin(block.role[block.obs_point], _roles(roles))
     r = reprojection_residuals(block)
     uv = block.observations.uv
-    rows = np.flatnonzero(use)
-    order = rows[np.argsort(block.obs_image[rows], kind="stable")]
-    counts = np.bincount(block.obs_image[rows], minlength=block.n_images)
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    out = {}
-    for i, iid in enumerate(block.image_ids.tolist()):  # images, not points
-        sel = order[starts[i] : starts[i + 1]]
-        out[iid] = (uv[sel], r[sel])
-    return out
+    per_image = _rows_per_image(block, np.flatnonzero(use))
+    return {
+        iid: (uv[sel], r[sel]) for iid, sel in zip(block.image_ids.tolist(), per_image)
+    }  # images, not points
 
 
 def fit_residual_grids(
@@ -210,14 +205,18 @@ def fit_residual_grids(
 
 def _sigmas_per_image(block: Block, roles) -> dict:
     use = np.isin(block.role[block.obs_point], _roles(roles))
-    rows = np.flatnonzero(use)
+    s = block.observations.sigma
+    per_image = _rows_per_image(block, np.flatnonzero(use))
+    return {iid: s[sel] for iid, sel in zip(block.image_ids.tolist(), per_image)}
+
+
+def _rows_per_image(block: Block, rows: np.ndarray | None = None) -> list[np.ndarray]:
+    """The rows of ``block``'s observations (of ``rows`` only, when given) grouped by image:
+    one array per image of ``block.image_ids``, the rows in their order within it."""
+    rows = np.arange(block.obs_image.size) if rows is None else rows
     order = rows[np.argsort(block.obs_image[rows], kind="stable")]
     counts = np.bincount(block.obs_image[rows], minlength=block.n_images)
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    s = block.observations.sigma
-    return {
-        iid: s[order[starts[i] : starts[i + 1]]] for i, iid in enumerate(block.image_ids.tolist())
-    }
+    return np.split(order, np.cumsum(counts)[:-1])
 
 
 def _uncorrected_ids(block: Block, uncorrected) -> set:
@@ -285,11 +284,8 @@ def correct_block_observations(block: Block, grids: Mapping, *, uncorrected=()) 
         )
     uv = block.observations.uv
     out = uv.copy()
-    order = np.argsort(block.obs_image, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(counts)])
     sizes = block.image_sizes().astype(int)
-    for i, iid in enumerate(ids):  # images, not points
-        sel = order[starts[i] : starts[i + 1]]
+    for i, (iid, sel) in enumerate(zip(ids, _rows_per_image(block))):  # images, not points
         if sel.size == 0 or iid in kept:
             continue
         g = grids[key_of[iid]]
@@ -380,14 +376,11 @@ def _fitted_to_these_observations(block: Block, grids: Mapping, uncorrected) -> 
     ids = block.image_ids.tolist()
     key_of, _ = match_grid_ids(ids, grids)
     uv = block.observations.uv
-    order = np.argsort(block.obs_image, kind="stable")
-    counts, _ = block.observation_counts()
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    for i, iid in enumerate(ids):  # images, not points
+    for iid, sel in zip(ids, _rows_per_image(block)):  # images, not points
         g = grids[key_of[iid]] if iid in key_of and iid not in kept else None
-        if g is None or g.uv is None or len(g.uv) == 0 or counts[i] == 0:
+        if g is None or g.uv is None or len(g.uv) == 0 or sel.size == 0:
             continue
-        own = uv[order[starts[i] : starts[i + 1]]]
+        own = uv[sel]
         same = np.isin(g.uv[:, 0] + 1j * g.uv[:, 1], own[:, 0] + 1j * own[:, 1])
         if 2 * int(same.sum()) >= len(g.uv):
             return True
