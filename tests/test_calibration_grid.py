@@ -352,6 +352,21 @@ def test_fit_grids_per_image():
         fit_grids(per, (600, 400), 80, folds=0)
 
 
+def test_fit_grids_takes_each_images_own_sigmas():
+    # sigma_obs by image (one per residual): each grid as fit_grid with that image's sigmas
+    rng = np.random.default_rng(10)
+    per = {k: (scattered(rng, 150, 600, 400), rng.normal(0, 1, (150, 2))) for k in range(3)}
+    sig = {k: rng.uniform(0.2, 2.0, 150) for k in per}
+    grids = fit_grids(per, (600, 400), 80, folds=0, sigma_obs=sig)
+    for k in per:
+        one = fit_grid(*per[k], (600, 400), 80, folds=0, sigma_obs=sig[k])
+        np.testing.assert_array_equal(grids[k].nodes, one.nodes)
+        assert grids[k].sigma0 == one.sigma0
+    del sig[2]
+    with pytest.raises(InputError, match="image 2: sigma_obs gives no standard deviations"):
+        fit_grids(per, (600, 400), 80, folds=0, sigma_obs=sig)
+
+
 # ------------------------------------------------------------------ layout and bad input
 def test_layout_covers_every_pixel():
     lay = GridLayout(7952, 5304, 100)

@@ -27,11 +27,8 @@ from ..bundle.block import ROLES, Block
 from ..bundle.residuals import reprojection_residuals
 from ..errors import InputError
 from .grid import (
-    _MIN_OBSERVATIONS,
     ResidualGrid,
-    _image_inputs,
     fit_grids,
-    progress_over,
     scaled_constraint_sigma,
 )
 from .gridfile import match_grid_ids
@@ -174,24 +171,7 @@ def fit_residual_grids(
     if isinstance(sigma_obs, str):
         if sigma_obs != "block":
             raise InputError(f"sigma_obs must be 'block' or a number of pixels, not {sigma_obs!r}")
-        sig = _sigmas_per_image(block, roles)
-        # every image's inputs are checked before the first fit, as fit_grids does
-        min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
-        for k, (uv, res) in per.items():
-            _image_inputs(uv, res, size_of[k], spacing, min_obs, f"image {k}: ")
-        out = {}
-        for k in progress_over(list(per), progress):  # images, not points
-            out.update(
-                fit_grids(
-                    {k: per[k]},
-                    size_of,
-                    spacing,
-                    sigma_obs=sig[k],
-                    sigma_constraint=sigma_constraint,
-                    **options,
-                )
-            )
-        return out
+        sigma_obs = _sigmas_per_image(block, roles)  # each observation its own sigma
     return fit_grids(
         per,
         size_of,

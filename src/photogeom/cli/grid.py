@@ -987,12 +987,7 @@ def _fit_csv(
     ignored and every residual had 1 px). ``where`` receives, per image, ``("line", the CSV
     line of each of its rows)``."""
     from ..calibration import GridLayout, fit_grids
-    from ..calibration.grid import (
-        _MIN_OBSERVATIONS,
-        _image_inputs,
-        progress_over,
-        scaled_constraint_sigma,
-    )
+    from ..calibration.grid import scaled_constraint_sigma
 
     if image_size is None:
         raise InputError(
@@ -1040,28 +1035,21 @@ def _fit_csv(
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
     if where is not None:
         where.update({k: ("line", np.asarray(lines)[r]) for k, r in groups.items()})
-    common = {"sigma_constraint": scaled_constraint_sigma(s_c, spacing), **options}
+    if sigma is not None:  # each residual its own sigma, as a block's observations
+        weights = {k: sigma[r] for k, r in groups.items()}
+    else:
+        weights = 1.0 if sigma_obs is None else sigma_obs
     try:
         with _images_progress(f"fitting grids of {spacing:g} px") as progress:
-            if sigma is None:
-                return fit_grids(
-                    per_image,
-                    size,
-                    spacing,
-                    sigma_obs=1.0 if sigma_obs is None else sigma_obs,
-                    progress=progress,
-                    **common,
-                )
-            # each residual its sigma: every image's inputs checked before the first fit,
-            # as fit_grids does, then one image at a time with its rows' sigmas
-            min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
-            for k, (uv, res) in per_image.items():
-                _image_inputs(uv, res, size, spacing, min_obs, f"image {k}: ")
-            out = {}
-            for k in progress_over(list(per_image), progress):  # images, not points
-                one = {k: per_image[k]}
-                out.update(fit_grids(one, size, spacing, sigma_obs=sigma[groups[k]], **common))
-            return out
+            return fit_grids(
+                per_image,
+                size,
+                spacing,
+                sigma_obs=weights,
+                sigma_constraint=scaled_constraint_sigma(s_c, spacing),
+                progress=progress,
+                **options,
+            )
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         raise _reworded(exc, _cli_words) from None
 
