@@ -1314,6 +1314,7 @@ def fit_grids(
     image_size,
     spacing: float,
     *,
+    sigma_obs=1.0,
     progress: bool | Callable[[int, int], None] = False,
     **options,
 ) -> dict:
@@ -1327,9 +1328,9 @@ def fit_grids(
         ``(width, height)`` for all images, or ``image id -> (width, height)``.
     spacing : float
         Node spacing (px).
-    sigma_obs : float, array or dict, optional
-        As :func:`fit_grid` for all images, or ``image id -> sigma_obs`` of that image (its
-        residuals' standard deviations, px: a number or one per residual).
+    sigma_obs : float, array or dict
+        As :func:`fit_grid` (default 1 px) for all images, or ``image id -> sigma_obs`` of
+        that image (its residuals' standard deviations, px: a number or one per residual).
     progress : bool or callable
         ``True``: a progress bar (rich) on the terminal; a callable: called as
         ``progress(done, total)`` (images) before the first and after every image.
@@ -1344,8 +1345,7 @@ def fit_grids(
     # the input of every image is checked before any is fitted: an error in the last of
     # 250 images came after the others were fitted (minutes), now at once
     min_obs = options.get("min_observations", _MIN_OBSERVATIONS)
-    by_image = options.get("sigma_obs")
-    by_image = options.pop("sigma_obs") if isinstance(by_image, Mapping) else None
+    by_image = sigma_obs if isinstance(sigma_obs, Mapping) else None
     items = []  # (image id, uv, residuals, size)
     for key, val in per_image.items():
         try:
@@ -1357,9 +1357,16 @@ def fit_grids(
         if by_image is not None and key not in by_image:
             raise InputError(f"image {key}: sigma_obs gives no standard deviations for it")
         items.append((key, uv, res, size))
-    own = {} if by_image is None else {k: {"sigma_obs": v} for k, v in by_image.items()}
     return {
-        key: fit_grid(uv, res, size, spacing, image_id=key, **options, **own.get(key, {}))
+        key: fit_grid(
+            uv,
+            res,
+            size,
+            spacing,
+            image_id=key,
+            sigma_obs=sigma_obs if by_image is None else by_image[key],
+            **options,
+        )
         for key, uv, res, size in progress_over(items, progress)
     }
 
