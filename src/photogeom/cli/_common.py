@@ -208,6 +208,26 @@ def sigterm_stops():
         signal.signal(signal.SIGTERM, former)
 
 
+def print_id_table(out, table) -> None:
+    """Print a table whose first column holds image ids, none of them cut to
+    ``DSC00100.…``: the ids are what ``--exclude`` and the image files take. In a pipe or a
+    file (no terminal width to keep) the table gets the width it needs; on a terminal too
+    narrow for it an id folds onto more lines, whole.
+
+    Parameters
+    ----------
+    out : rich.console.Console
+        Where to print.
+    table : rich.table.Table
+        The table; its first column is set to fold.
+    """
+    table.columns[0].overflow = "fold"
+    if not out.is_terminal:
+        wide = out.options.update_width(10_000)  # measured without the console's width
+        out.width = max(out.width, out.measure(table, options=wide).maximum)
+    out.print(table)
+
+
 def console(stderr: bool = False):
     """A console that keeps tables readable when the output is not a terminal."""
     from rich.console import Console

@@ -37,6 +37,7 @@ from ._common import (
     json_text,
     options_in_errors,
     pixels,
+    print_id_table,
     refuse_stdout_dash,
     say,
     scheduler_option,
@@ -733,7 +734,7 @@ def fit(
     for k, s in stats.items():
         t.add_row(*_grid_row(k, s))
     out = console()
-    _print_id_table(out, t)
+    print_id_table(out, t)
     if rejected is not None:
         say(_snooping_heading(rejected), out)
         if rejected["still_flagged"]:
@@ -755,7 +756,7 @@ def fit(
                 r.add_column(c, justify="right")
             for row in rejected["rejected"][:_SHOWN_REJECTED]:
                 r.add_row(str(row["image"]), str(row[rejected["located_by"]]), f"{row['w']:.2f}")
-            _print_id_table(out, r)
+            print_id_table(out, r)
             more = len(rejected["rejected"]) - _SHOWN_REJECTED
             if more > 0:
                 say(f"... and {more} more (all in --json)", out)
@@ -1124,26 +1125,6 @@ def _f(x) -> str:
 
 def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f} %"
-
-
-def _print_id_table(out, table) -> None:
-    """Print a table whose first column holds image ids, none of them cut to
-    ``DSC00100.…``: the ids are what ``--exclude`` and the image files take. In a pipe or a
-    file (no terminal width to keep) the table gets the width it needs; on a terminal too
-    narrow for it an id folds onto more lines, whole.
-
-    Parameters
-    ----------
-    out : rich.console.Console
-        Where to print.
-    table : rich.table.Table
-        The table; its first column is set to fold.
-    """
-    table.columns[0].overflow = "fold"
-    if not out.is_terminal:
-        wide = out.options.update_width(10_000)  # measured without the console's width
-        out.width = max(out.width, out.measure(table, options=wide).maximum)
-    out.print(table)
 
 
 def _grid_row(image_id, s: dict) -> list[str]:

@@ -27,6 +27,7 @@ from ._common import (
     nan_to_none,
     pair_records,
     pixels,
+    print_id_table,
     say,
     split_numbers,
     stage_spinner,
@@ -631,9 +632,7 @@ def evaluate(
         for k, v in ev["steps_before"].items():
             a = ev["steps_after"].get(k, float("nan"))
             m.add_row(f"{k[0]}-{k[1]}", f"{v:.3f}", f"{a:.3f}")
-        from .grid import _print_id_table
-
-        _print_id_table(out, m)
+        print_id_table(out, m)
     cb, ca = ev.get("check_before"), ev.get("check_after")
     if cb and ca:
         c = Table(title="check-point RMSE (GSD)")
