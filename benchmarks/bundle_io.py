@@ -1,4 +1,4 @@
-"""Interchange benchmark: reading and writing BAL files and COLMAP text models, with peers.
+"""Interchange benchmark: reading and writing BAL files and COLMAP models, with peers.
 
 Run:  python benchmarks/bundle_io.py            (250 images, ~1 M observations)
       python benchmarks/bundle_io.py --quick    (smaller, for a smoke run)
@@ -6,7 +6,8 @@ Run:  python benchmarks/bundle_io.py            (250 images, ~1 M observations)
 Prints, from one run on this machine (wall time of one call each, best of ``--repeat``):
 photogeom's ``read_bal`` / ``write_bal`` against GTSAM's ``SfmData.FromBalFile`` /
 ``writeBAL`` on the same file, and ``read_colmap`` / ``write_colmap`` against pycolmap's
-``Reconstruction(dir)`` / ``write_text`` on the same model; ratios peer / photogeom (> 1:
+``Reconstruction(dir)`` / ``write_text`` (``write_binary`` for the binary model) on the same
+model; ratios peer / photogeom (> 1:
 photogeom is faster). Also the time per observation at two sizes, to show the readers are
 linear in their input, and the CSV block folder read as written and with every cell quoted
 (a spreadsheet export), which reads at the same rate.
@@ -104,27 +105,8 @@ def run(m: int, p: int, per_point: int, repeat: int) -> None:
             )
         except ImportError:
             print("  GTSAM not installed")
-        col = d / "colmap"
-        t_wc = best(lambda: write_colmap(b, col), repeat)
-        t_rc = best(lambda: read_colmap(col, image_key="id"), repeat)
-        print(
-            f"  COLMAP write {t_wc:7.3f} s  read {t_rc:7.3f} s  "
-            f"({1e6 * t_rc / n:.2f} us per observation read)"
-        )
-        try:
-            import pycolmap
-
-            t_p = best(lambda: pycolmap.Reconstruction(str(col)), repeat)
-            rec = pycolmap.Reconstruction(str(col))
-            out = d / "pc"
-            out.mkdir()
-            t_pw = best(lambda: rec.write_text(str(out)), repeat)
-            print(
-                f"  pycolmap write {t_pw:5.3f} s  read {t_p:7.3f} s  ratio pycolmap / "
-                f"photogeom: write {t_pw / t_wc:.2f}, read {t_p / t_rc:.2f}"
-            )
-        except ImportError:
-            print("  pycolmap not installed")
+        t_text = colmap_rows(b, d / "colmap", repeat, binary=False)
+        colmap_rows(b, d / "colmap-bin", repeat, binary=True, text_read=t_text)
         csv_dir = d / "csv"
         t_wv = best(lambda: write_csv_block(b, csv_dir), repeat)
         t_rv = best(lambda: read_csv_block(csv_dir), repeat)
@@ -142,6 +124,36 @@ def run(m: int, p: int, per_point: int, repeat: int) -> None:
             f"  CSV    write {t_wv:7.3f} s  read {t_rv:7.3f} s  "
             f"({1e6 * t_rv / n:.2f} us per observation read; every cell quoted: {t_rq:.3f} s)"
         )
+
+
+def colmap_rows(b: Block, col: Path, repeat: int, *, binary: bool, text_read=None) -> float:
+    """Print the rows of the COLMAP text or binary model (photogeom, pycolmap); the read
+    time of photogeom."""
+    n = b.n_observations
+    kind = "binary" if binary else "text"
+    t_w = best(lambda: write_colmap(b, col, binary=binary), repeat)
+    t_r = best(lambda: read_colmap(col, image_key="id"), repeat)
+    vs = f"; text / binary read {text_read / t_r:.1f}" if text_read else ""
+    print(
+        f"  COLMAP {kind} write {t_w:7.3f} s  read {t_r:7.3f} s  "
+        f"({1e6 * t_r / n:.2f} us per observation read{vs})"
+    )
+    try:
+        import pycolmap
+
+        t_p = best(lambda: pycolmap.Reconstruction(str(col)), repeat)
+        rec = pycolmap.Reconstruction(str(col))
+        out = col.parent / f"pycolmap-{kind}"
+        out.mkdir()
+        write = rec.write_binary if binary else rec.write_text
+        t_pw = best(lambda: write(str(out)), repeat)
+        print(
+            f"  pycolmap {kind} write {t_pw:5.3f} s  read {t_p:7.3f} s  ratio pycolmap / "
+            f"photogeom: write {t_pw / t_w:.2f}, read {t_p / t_r:.2f}"
+        )
+    except ImportError:
+        print("  pycolmap not installed")
+    return t_r
 
 
 def main() -> None:

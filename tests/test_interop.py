@@ -170,26 +170,28 @@ def _binary_model(tmp_path):
     return binary
 
 
-def test_reading_a_colmap_binary_model_names_the_conversion(tmp_path):
+def test_a_colmap_binary_model_is_read_as_its_text_model(tmp_path):
     from photogeom.bundle import read_block
 
     binary = _binary_model(tmp_path)
-    # was: "cannot read COLMAP cameras file .../cameras.txt: no such file" (read_colmap) and
-    # "a folder with neither a COLMAP text model ... nor a CSV block" (read_block)
+    # was: "a COLMAP binary model (cameras.bin, ...); photogeom reads COLMAP's text model:
+    # convert it first with 'colmap model_converter ...'" from read_colmap and read_block
+    text = read_colmap(tmp_path / "text")
     for read in (read_colmap, read_block):
-        with pytest.raises(FileFormatError, match=r"a COLMAP binary model \(cameras.bin.*"
-                           r"colmap model_converter .*--output_type TXT"):  # fmt: skip
-            read(binary)
+        b = read(binary)
+        np.testing.assert_array_equal(b.exterior, text.exterior)
+        np.testing.assert_array_equal(b.observations.uv, text.observations.uv)
+        assert b.image_ids.tolist() == text.image_ids.tolist()
 
 
-def test_cli_names_the_conversion_of_a_colmap_binary_model(tmp_path, cli):
+def test_cli_reads_a_colmap_binary_model(tmp_path, cli):
     binary = _binary_model(tmp_path)
-    # was: "not a block folder (...); give the format with --from", then with --from colmap
-    # "cannot read COLMAP cameras file .../cameras.txt: no such file"
-    for extra in ([], ["--from", "colmap"]):
-        code, _, err = cli("bundle", "convert", binary, tmp_path / "o", "--to", "csv", *extra)
-        assert code == 2
-        assert "a COLMAP binary model" in err and "model_converter" in err
+    # was: exit code 2, "a COLMAP binary model ... model_converter", with and without --from
+    for k, extra in enumerate(([], ["--from", "colmap-bin"])):
+        code, out, err = cli("bundle", "convert", binary, tmp_path / f"o{k}", "--to", "csv",
+                             *extra)  # fmt: skip
+        assert code == 0, err
+        assert "(colmap-bin)" in out and "3 points, 5 image observations" in out
     code, _, err = cli("bundle", "convert", tmp_path / "text", binary, "--to", "colmap")
     assert code == 2 and "TARGET: cannot write a COLMAP text model" in err
 

@@ -31,6 +31,7 @@ def test_readme_python_examples_run(tmp_path, monkeypatch):
     assert len(namespace["bal"].image_ids) == 3  # dubrovnik-3-7
     assert (tmp_path / "dubrovnik.bal").is_file()
     assert len(namespace["model"].image_ids) == 21  # the FC300S block, via COLMAP text
+    assert namespace["binary_model"].image_ids.tolist() == namespace["model"].image_ids.tolist()
     assert namespace["pt"].role in {"tie", "control", "check"}
 
 

@@ -3,11 +3,13 @@ files written by COLMAP itself, refused models, named errors."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial.transform import Rotation
 
 from photogeom.bundle import (
     Block,
@@ -21,56 +23,12 @@ from photogeom.bundle.io_colmap import COLMAP_MODELS, MODEL_FREE
 from photogeom.camera.metashape import MetashapeCalibration
 from photogeom.errors import FileFormatError, InputError
 
+sys.path.insert(0, str(Path(__file__).parent))
+from colmap_blocks import CALS, H, W, pycolmap_reconstruction
+from colmap_blocks import random_block as _block
+from colmap_blocks import text_model as _model_dir
+
 pycolmap = pytest.importorskip("pycolmap")
-
-W, H = 4000, 3000
-CALS = {
-    "SIMPLE_PINHOLE": MetashapeCalibration(W, H, 3100.0, cx=12.3, cy=-8.1),
-    "PINHOLE": MetashapeCalibration(W, H, 3100.0, cx=12.3, cy=-8.1, b1=5.5),
-    "SIMPLE_RADIAL": MetashapeCalibration(W, H, 3100.0, cx=12.3, cy=-8.1, k1=-0.05),
-    "RADIAL": MetashapeCalibration(W, H, 3100.0, cx=-4.0, cy=7.25, k1=-0.05, k2=0.02),
-    "OPENCV": MetashapeCalibration(
-        W, H, 3100.0, cx=12.3, cy=-8.1, b1=-3.2, k1=-0.05, k2=0.02, p1=3e-4, p2=-2e-4
-    ),
-    "FULL_OPENCV": MetashapeCalibration(
-        W, H, 3100.0, cx=12.3, cy=-8.1, b1=-3.2, k1=-0.05, k2=0.02, k3=-0.01, p1=3e-4, p2=-2e-4
-    ),
-}
-
-
-def _block(rng, cameras, *, m=5, p=20, image_ids=None, point_ids=None, free=None) -> Block:
-    """Images looking down on points, every camera group used, observations with noise."""
-    gids = list(cameras)
-    pts = rng.uniform([-40, -30, -5], [40, 30, 5], size=(p, 3))
-    ext = [
-        [
-            *rng.uniform(-10, 10, 2),
-            120 + rng.uniform(-5, 5),
-            *rng.uniform(-0.2, 0.2, 2),
-            rng.uniform(-3, 3),
-        ]
-        for _ in range(m)
-    ]
-    img = list(range(m)) if image_ids is None else image_ids
-    pid = list(range(p)) if point_ids is None else point_ids
-    ii, jj = np.meshgrid(np.arange(m), np.arange(p), indexing="ij")
-    keep = rng.random(ii.size) < 0.8
-    keep[:p] = True  # every point in the first image
-    b0 = Block.from_arrays(
-        cameras=cameras,
-        image_ids=img,
-        image_camera=[gids[i % len(gids)] for i in range(m)],
-        exterior=ext,
-        point_ids=pid,
-        xyz=pts,
-        obs_image_ids=np.array(img)[ii.ravel()[keep]],
-        obs_point_ids=np.array(pid)[jj.ravel()[keep]],
-        uv=np.zeros((int(keep.sum()), 2)),
-        sigma=1.0,
-        free=free,
-    )
-    uv, _ = projected_pixels(b0)
-    return b0.with_observations(uv=uv + rng.normal(0, 0.3, uv.shape))
 
 
 def _pycolmap_pixels(rec, block, image_key="name"):
@@ -292,45 +250,8 @@ def test_edited_group_comment_is_refused(tmp_path, edit, match):
 def test_reads_models_written_by_colmap(tmp_path):
     """pycolmap writes a reconstruction (with its rigs and frames); photogeom reads it and
     projects its points where pycolmap does."""
-    rng = np.random.default_rng(5)
-    rec = pycolmap.Reconstruction()
+    rec = pycolmap_reconstruction(pycolmap, np.random.default_rng(5))
     models = list(COLMAP_MODELS)
-    for cid, model in enumerate(models, start=1):
-        cam = pycolmap.Camera.create_from_model_name(cid, model, 3000.0, W, H)
-        params = np.array(cam.params)
-        names = COLMAP_MODELS[model]
-        for k, nm in enumerate(names):
-            if nm in ("k", "k1"):
-                params[k] = -0.04
-            elif nm in ("k2", "k3"):
-                params[k] = 0.01
-            elif nm in ("p1", "p2"):
-                params[k] = 2e-4
-            elif nm == "fy":
-                params[k] = 3004.0
-            elif nm == "cx":
-                params[k] = W / 2 + 11.0
-        cam.params = params
-        rec.add_camera_with_trivial_rig(cam)
-    pts = rng.uniform([-30, -20, 100], [30, 20, 140], size=(12, 3))  # in front of z forward
-    for iid, cid in enumerate(range(1, len(models) + 1), start=1):
-        angles = rng.uniform(-0.1, 0.1, 3)
-        R = Rotation.from_rotvec(angles)
-        pose = pycolmap.Rigid3d(pycolmap.Rotation3d(R.as_quat()), rng.uniform(-2, 2, 3))
-        cam = rec.cameras[cid]
-        xy = cam.img_from_cam(np.array([pose * x for x in pts]))
-        im = pycolmap.Image(name=f"view_{iid}.png", camera_id=cid, image_id=iid)
-        im.points2D = pycolmap.Point2DList(
-            [pycolmap.Point2D(q + rng.normal(0, 0.2, 2)) for q in xy]
-        )
-        rec.add_image_with_trivial_frame(im, pose)
-    for j, X in enumerate(pts):
-        track = pycolmap.Track()
-        for iid in range(1, len(models) + 1):
-            track.add_element(iid, j)
-        pid = rec.add_point3D(X, track)
-        for iid in range(1, len(models) + 1):
-            rec.image(iid).set_point3D_for_point2D(j, pid)
     rec.write_text(str(tmp_path))
     b = read_colmap(tmp_path)
     assert b.n_images == len(models) and b.n_points == 12 and b.n_observations == 12 * len(models)
@@ -364,19 +285,6 @@ def test_round_trip_random_blocks(tmp_path_factory, seed, key):
 
 
 # --- refusals and errors ---------------------------------------------------------------------
-
-
-def _model_dir(tmp_path, cameras, images=None, points=None):
-    (tmp_path / "cameras.txt").write_text(cameras)
-    (tmp_path / "images.txt").write_text(
-        images
-        if images is not None
-        else "1 1 0 0 0 0 0 5 1 a.jpg\n10 20 7 30 40 -1\n2 1 0 0 0 1 0 5 1 b.jpg\n11 21 7\n"
-    )
-    (tmp_path / "points3D.txt").write_text(
-        points if points is not None else "7 0 0 20 0 0 0 -1 1 0 2 0\n"
-    )
-    return tmp_path
 
 
 def test_minimal_model(tmp_path):

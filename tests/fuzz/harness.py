@@ -8,6 +8,7 @@ any other exception is a finding. Seeds are built from the bundled data sets.
 
 from __future__ import annotations
 
+import functools
 import json
 import random
 import re
@@ -210,6 +211,29 @@ def _read_bal(p: Path):
     return pg.bundle.read_bal(p)
 
 
+@functools.cache
+def _colmap_binary_model() -> dict[str, bytes]:
+    """The COLMAP binary model of the bundled BAL problem (photogeom's writer, the files
+    pycolmap reads)."""
+    from photogeom.bundle.io_colmap_bin import colmap_binaries
+
+    return colmap_binaries(pg.bundle.read_bal(pg.datasets.path("dubrovnik-3-7")))
+
+
+def _colmap_binary_target(name: str) -> tuple[Callable[[Path], object], Callable[[], list]]:
+    """A reader of a binary model whose file ``name`` is the input, the other files the
+    seed's; and the seed of ``name``."""
+
+    def read(p: Path):
+        model = p.parent / "model"
+        model.mkdir(exist_ok=True)
+        for other, data in _colmap_binary_model().items():
+            (model / other).write_bytes(p.read_bytes() if other == name else data)
+        return pg.bundle.read_colmap(model)
+
+    return read, lambda: [_colmap_binary_model()[name]]
+
+
 def _rpc_dir() -> Path:
     return pg.datasets.path("ikonos").parent
 
@@ -256,6 +280,10 @@ TARGETS: dict[str, Target] = {
         Target("opencv-xml", _read_calibration, _opencv_xml_seeds, ".xml"),
         Target("colmap-cameras", _read_calibration, lambda: _calibration_seeds("colmap"), ".txt"),
         Target("bal", _read_bal, lambda: _bundled("dubrovnik-3-7"), ".txt"),
+        *(
+            Target(f"colmap-bin-{n.split('.')[0]}", *_colmap_binary_target(n), ".bin")
+            for n in ("cameras.bin", "images.bin", "points3D.bin")
+        ),
     )
 }
 

@@ -57,3 +57,9 @@ def test_the_readers_of_every_calibration_format_and_of_bal_are_fuzzed():
     by_format = {"metashape": "metashape-xml", "json": "camera-json", "colmap": "colmap-cameras"}
     wanted = {by_format.get(f, "opencv-yaml") for f in CALIBRATION_SUFFIXES.values()}
     assert wanted | {"opencv-xml", "bal"} <= set(TARGETS)
+
+
+def test_the_files_of_a_colmap_binary_model_are_fuzzed():
+    # the binary model (cameras.bin, images.bin, points3D.bin) is read since read_colmap
+    # reads it: each of its files is a target
+    assert {"colmap-bin-cameras", "colmap-bin-images", "colmap-bin-points3D"} <= set(TARGETS)

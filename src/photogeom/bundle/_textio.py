@@ -11,6 +11,7 @@ import bz2
 import os
 import re
 from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from itertools import chain
 from pathlib import Path
 
@@ -76,20 +77,42 @@ def read_text(
         ``limit`` allows.
     """
     p = Path(path)
-    if input_kind(p) == "device":
-        raise FileFormatError(device_message(p, what))
-    try:
+    with _input_errors(p, what):
         # a pipe is read once per command: from the bytes an earlier reader kept (grid
         # fit's format), or streamed and kept for the later readers
         with open_input(p) as fh:
             data = _read_limited(fh, p, what, limit)
+    return _decode_text(data, p, what)
+
+
+def read_binary(path: str | os.PathLike, what: str) -> bytes:
+    """The bytes of a binary input (a regular file, or a pipe read once per command as in
+    :func:`read_text`).
+
+    Raises
+    ------
+    FileFormatError
+        No such file, a folder, a device (``/dev/zero`` never ends), no permission.
+    """
+    p = Path(path)
+    with _input_errors(p, what), open_input(p) as fh:
+        return fh.read()
+
+
+@contextmanager
+def _input_errors(p: Path, what: str) -> Iterator[None]:
+    """Refuse a device, and turn the errors of opening and reading ``p`` into
+    :class:`FileFormatError` naming ``what``."""
+    if input_kind(p) == "device":
+        raise FileFormatError(device_message(p, what))
+    try:
+        yield
     except FileNotFoundError:
         raise FileFormatError(f"cannot read {what} {p}: no such file") from None
     except IsADirectoryError:
         raise FileFormatError(f"cannot read {what} {p}: it is a directory, not a file") from None
     except OSError as exc:
         raise FileFormatError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
-    return _decode_text(data, p, what)
 
 
 def _raw_chunks(fh) -> Iterator[bytes]:

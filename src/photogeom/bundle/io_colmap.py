@@ -1,5 +1,11 @@
 """COLMAP text models (``cameras.txt``, ``images.txt``, ``points3D.txt``): read and write.
 
+The binary model (``cameras.bin``, ...) holds the same numbers and is read and written by
+:mod:`photogeom.bundle.io_colmap_bin` through :func:`read_colmap` and :func:`write_colmap`
+(``binary=True``); both forms share the checks of this module (:func:`cameras_from_records`,
+:func:`check_images`, :func:`block_from_model`) and the numbers of the writer
+(:func:`colmap_model`).
+
 COLMAP's conventions and how photogeom maps them:
 
 * Pose: world -> camera quaternion ``(QW, QX, QY, QZ)`` (scalar first) and translation
@@ -58,7 +64,8 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -391,8 +398,7 @@ def cameras_from_text(
     """
     path = where_file
     lines, nums = _data_lines(text)
-    cams: dict[int, MetashapeCalibration] = {}
-    free: dict[int, tuple[str, ...]] = {}
+    records = []
     for ln, k in zip(lines, nums):
         tok = ln.split()
         where = f"{path}, line {k}"
@@ -406,23 +412,63 @@ def cameras_from_text(
             raise FileFormatError(
                 f"{where}: CAMERA_ID, WIDTH and HEIGHT must be integers, got {ln!r}"
             ) from None
-        if not 0 <= cid < _UINT32_MAX:
-            raise FileFormatError(f"{where}: CAMERA_ID {tok[0]} is not a COLMAP id {_ID_RANGE}")
-        if not (1 <= w <= MAX_IMAGE_SIDE and 1 <= h <= MAX_IMAGE_SIDE):
-            raise FileFormatError(
-                f"{where}: camera {cid}: WIDTH x HEIGHT = {tok[2][:20]} x {tok[3][:20]} is not "
-                f"an image size (whole pixels from 1 to {MAX_IMAGE_SIDE})"
-            )
         model = tok[1].upper()
         if model not in COLMAP_MODELS:
+            model = tok[1]  # refused by name in cameras_from_records
+            q = []
+        else:
+            try:
+                q = [float(t) for t in tok[4:]]
+            except ValueError:
+                raise FileFormatError(
+                    f"{where}: a camera parameter is not a number: {ln!r}"
+                ) from None
+        records.append((where, cid, model, w, h, q))
+    return cameras_from_records(records, path, refine_pp)
+
+
+def cameras_from_records(
+    records, where_file: str, refine_pp: bool = False
+) -> tuple[dict[int, MetashapeCalibration], dict[int, tuple[str, ...]]]:
+    """The cameras of a COLMAP model from its camera records, text or binary.
+
+    Parameters
+    ----------
+    records : sequence of (str, int, str, int, int, list of float)
+        ``(where, CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS)`` per camera, ``where`` the file
+        and line (or byte offset) for errors; a ``MODEL`` that is not one of
+        :data:`COLMAP_MODELS` is refused by its name.
+    where_file : str
+        The file, for errors about the whole file.
+    refine_pp : bool, default False
+        Count the principal point among the free parameters.
+
+    Returns
+    -------
+    cameras : dict CAMERA_ID -> MetashapeCalibration
+    free : dict CAMERA_ID -> tuple of str
+        As :func:`cameras_from_text`.
+
+    Raises
+    ------
+    FileFormatError
+        As :func:`cameras_from_text`.
+    """
+    cams: dict[int, MetashapeCalibration] = {}
+    free: dict[int, tuple[str, ...]] = {}
+    for where, cid, model, w, h, q in records:
+        if not 0 <= cid < _UINT32_MAX:
+            raise FileFormatError(f"{where}: CAMERA_ID {cid} is not a COLMAP id {_ID_RANGE}")
+        if not (1 <= w <= MAX_IMAGE_SIDE and 1 <= h <= MAX_IMAGE_SIDE):
             raise FileFormatError(
-                f"{where}: camera {cid} has COLMAP model {tok[1]}, which the Metashape frame "
+                f"{where}: camera {cid}: WIDTH x HEIGHT = {str(w)[:20]} x {str(h)[:20]} is not "
+                f"an image size (whole pixels from 1 to {MAX_IMAGE_SIDE})"
+            )
+        if model not in COLMAP_MODELS:
+            raise FileFormatError(
+                f"{where}: camera {cid} has COLMAP model {model}, which the Metashape frame "
                 f"model cannot represent exactly; supported: {', '.join(COLMAP_MODELS)}"
             )
-        try:
-            q = [float(t) for t in tok[4:]]
-        except ValueError:
-            raise FileFormatError(f"{where}: a camera parameter is not a number: {ln!r}") from None
         names = COLMAP_MODELS[model]
         if len(q) != len(names):
             raise FileFormatError(
@@ -445,7 +491,7 @@ def cameras_from_text(
             raise FileFormatError(f"{where}: camera {cid}: {exc}") from None
         free[cid] = MODEL_FREE[model] + (("cx", "cy") if refine_pp else ())
     if not cams:
-        raise FileFormatError(f"{path}: no cameras")
+        raise FileFormatError(f"{where_file}: no cameras")
     return cams, free
 
 
@@ -564,24 +610,54 @@ def _read_points(path: Path):
 BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")
 
 
-def is_binary_model(directory: str | os.PathLike) -> bool:
-    """Whether ``directory`` holds a COLMAP binary model and no text model."""
-    d = Path(directory)
-    return not (d / "cameras.txt").is_file() and any((d / f).is_file() for f in BINARY_FILES)
+#: The files of a COLMAP text model.
+TEXT_FILES = ("cameras.txt", "images.txt", "points3D.txt")
 
 
-def refuse_binary_model(directory: str | os.PathLike) -> None:
-    """Refuse a folder that holds COLMAP's binary model instead of the text model, naming
-    the conversion (:class:`FileFormatError`)."""
+def colmap_model_is_binary(directory: str | os.PathLike, binary: bool | None = None) -> bool:
+    """Whether to read the COLMAP model of ``directory`` from its binary files.
+
+    Parameters
+    ----------
+    directory : path-like
+        A folder.
+    binary : bool, optional
+        True: the binary model (``cameras.bin``, ...), False: the text model
+        (``cameras.txt``, ...); default: the one the folder holds.
+
+    Returns
+    -------
+    bool
+
+    Raises
+    ------
+    FileFormatError
+        Without ``binary``, a folder holding both models (they may differ; COLMAP reads the
+        binary one); with it, a folder that holds only the other model.
+    """
     d = Path(directory)
-    if is_binary_model(d):
-        found = ", ".join(f for f in BINARY_FILES if (d / f).is_file())
+    txt = [f for f in TEXT_FILES if (d / f).is_file()]
+    bins = [f for f in BINARY_FILES if (d / f).is_file()]
+    if binary is None:
+        if txt and bins:
+            raise FileFormatError(
+                f"{d} holds both a COLMAP text model ({', '.join(txt)}) and a binary model "
+                f"({', '.join(bins)}), which may differ (COLMAP reads the binary one): pass "
+                "binary=True to read the .bin files or binary=False for the .txt files, or "
+                "remove one of the two"
+            )
+        return bool(bins)
+    if binary and bins == [] and txt:
         raise FileFormatError(
-            f"{d}: a COLMAP binary model ({found}); photogeom reads COLMAP's text model "
-            "(cameras.txt, images.txt, points3D.txt): convert it first with "
-            f"'colmap model_converter --input_path {d} --output_path {d} --output_type TXT' "
-            f"or, in Python, pycolmap.Reconstruction('{d}').write_text('{d}')"
+            f"{d} holds a COLMAP text model ({', '.join(txt)}), not a binary one: pass "
+            "binary=False (or leave binary out)"
         )
+    if not binary and txt == [] and bins:
+        raise FileFormatError(
+            f"{d} holds a COLMAP binary model ({', '.join(bins)}), not a text one: pass "
+            "binary=True (or leave binary out)"
+        )
+    return bool(binary)
 
 
 def read_colmap(
@@ -590,8 +666,11 @@ def read_colmap(
     image_key: str = "name",
     refine_principal_point: bool = False,
     sigma: float = 1.0,
+    binary: bool | None = None,
 ) -> Block:
-    """Read a COLMAP text model (``cameras.txt``, ``images.txt``, ``points3D.txt``).
+    """Read a COLMAP model: text (``cameras.txt``, ``images.txt``, ``points3D.txt``) or
+    binary (``cameras.bin``, ``images.bin``, ``points3D.bin``, what COLMAP writes by
+    default).
 
     Parameters
     ----------
@@ -603,6 +682,10 @@ def read_colmap(
         Also free cx, cy (COLMAP's bundle adjuster keeps them fixed by default).
     sigma : float
         Standard deviation of every image coordinate, pixels (COLMAP's cost is unweighted).
+    binary : bool, optional
+        Read the binary model (True) or the text model (False); default: the one the folder
+        holds. Both give the same block for the same model (the binary one has no
+        ``# photogeom camera group:`` lines: each of its cameras is a group).
 
     Returns
     -------
@@ -620,19 +703,61 @@ def read_colmap(
         Missing files, malformed lines (naming file and line), camera models the Metashape
         model cannot represent, unknown ids, and tracks that disagree with ``images.txt``;
         a ``# photogeom camera group:`` line that is malformed, names unknown cameras or
-        cameras that differ in more than f, cx, cy;
-        a folder with COLMAP's binary model (``cameras.bin``, ...) instead of the text model
-        (the message names the conversion).
+        cameras that differ in more than f, cx, cy; a folder holding both a text and a
+        binary model without ``binary``; in a binary model, truncated files, counts larger
+        than the file, unknown camera model ids (see :mod:`photogeom.bundle.io_colmap_bin`;
+        the messages name the file and byte offset).
     """
     if image_key not in ("name", "id"):
         raise InputError(f"image_key must be 'name' or 'id', not {image_key!r}")
     d = Path(directory)
     if not d.is_dir():
-        raise FileFormatError(f"{d}: not a directory (a COLMAP text model is a folder)")
+        raise FileFormatError(f"{d}: not a directory (a COLMAP model is a folder)")
+    if colmap_model_is_binary(d, binary):
+        from .io_colmap_bin import read_colmap_binary
+
+        return read_colmap_binary(
+            d, image_key=image_key, refine_principal_point=refine_principal_point, sigma=sigma
+        )
     pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
-    refuse_binary_model(d)
     cams, free, groups = _read_cameras(pc, refine_principal_point)
     image_id, cam_id, names, pose, p2d, p3d, n2d, head_no = _read_images(pi)
+    check_images(cams, pc, pi, image_id, cam_id, names, image_key, lambda i: f"line {head_no[i]}")
+    head, pid, track, owner, pnums = _read_points(pp)
+    if np.any(pid < 0):
+        i = int(np.flatnonzero(pid < 0)[0])
+        raise FileFormatError(
+            f"{pp}, line {pnums[i]}: POINT3D_ID {pid[i]} is negative; COLMAP's point ids are "
+            "non-negative integers"
+        )
+    return block_from_model(
+        ModelArrays(
+            cams=cams,
+            free=free,
+            groups=groups,
+            files=(pc, pi, pp),
+            image_id=image_id,
+            cam_id=cam_id,
+            names=names,
+            pose=pose,
+            p2d=p2d[:, :2],
+            p3d=p3d,
+            n2d=n2d,
+            image_at=lambda i: f"line {head_no[i]}",
+            pid=pid,
+            xyz=head[:, 1:4],
+            track=track,
+            owner=owner,
+            point_at=lambda i: f"line {pnums[i]}",
+        ),
+        image_key,
+        sigma,
+    )
+
+
+def check_images(cams, pc, pi, image_id, cam_id, names, image_key, image_at) -> None:
+    """Refuse repeated ``IMAGE_ID``s (and ``NAME``s when they key the images) and images of
+    unknown cameras; ``image_at(i)``: where image ``i`` is in its file (for errors)."""
     u, c = np.unique(image_id, return_counts=True)
     if np.any(c > 1):
         raise FileFormatError(f"{pi}: IMAGE_ID {int(u[c > 1][0])} appears twice")
@@ -646,23 +771,69 @@ def read_colmap(
     if np.any(unknown):
         i = int(np.flatnonzero(unknown)[0])
         raise FileFormatError(
-            f"{pi}, line {head_no[i]}: image {int(image_id[i])} refers to camera "
+            f"{pi}, {image_at(i)}: image {int(image_id[i])} refers to camera "
             f"{int(cam_id[i])}, which is not in {pc}"
         )
-    head, pid, track, owner, pnums = _read_points(pp)
-    if np.any(pid < 0):
-        i = int(np.flatnonzero(pid < 0)[0])
-        raise FileFormatError(
-            f"{pp}, line {pnums[i]}: POINT3D_ID {pid[i]} is negative; COLMAP's point ids are "
-            "non-negative integers"
-        )
+
+
+@dataclass(frozen=True)
+class ModelArrays:
+    """A COLMAP model as read from its files (text or binary), for :func:`block_from_model`.
+
+    ``cams``, ``free``: the cameras (:func:`cameras_from_records`); ``groups``: the
+    ``# photogeom camera group:`` lines (text only); ``files``: the cameras, images and
+    points files; per image ``image_id``, ``cam_id`` (int64), ``names`` (str), ``pose``
+    (m, 7: QW QX QY QZ TX TY TZ), ``n2d`` (its number of 2D points); ``p2d`` (k, 2) px the
+    2D points of all images in file order (COLMAP's corner origin) and ``p3d`` (k,) int64
+    their ``POINT3D_ID`` (-1: none); per point ``pid`` (int64), ``xyz`` (p, 3); the track
+    elements ``track`` (t, 2: IMAGE_ID, POINT2D_IDX as float64) and ``owner`` (t,) the
+    point of each; ``image_at(i)``, ``point_at(k)``: where image ``i`` and point ``k``
+    are in their files ("line 12", "byte 4096"), for errors.
+    """
+
+    cams: dict
+    free: dict
+    groups: list
+    files: tuple[Path, Path, Path]
+    image_id: np.ndarray
+    cam_id: np.ndarray
+    names: np.ndarray
+    pose: np.ndarray
+    p2d: np.ndarray
+    p3d: np.ndarray
+    n2d: np.ndarray
+    image_at: Callable[[int], str]
+    pid: np.ndarray
+    xyz: np.ndarray
+    track: np.ndarray
+    owner: np.ndarray
+    point_at: Callable[[int], str]
+
+
+def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
+    """The block of a COLMAP model read from text or binary files (see :func:`read_colmap`):
+    the checks of the points, tracks and poses, and the block's construction.
+
+    Raises
+    ------
+    FileFormatError
+        Repeated point ids, NaN or infinite coordinates, tracks naming missing images or
+        out-of-range 2D points, tracks that disagree with the images' 2D points, quaternions
+        whose norm is not 1, malformed camera group lines.
+    """
+    mdl = model
+    pc, pi, pp = mdl.files
+    cams, free, groups = mdl.cams, mdl.free, mdl.groups
+    image_id, cam_id, names, pose = mdl.image_id, mdl.cam_id, mdl.names, mdl.pose
+    p2d, p3d, n2d = mdl.p2d, mdl.p3d, mdl.n2d
+    pid, track, owner = mdl.pid, mdl.track, mdl.owner
     u, c = np.unique(pid, return_counts=True)
     if np.any(c > 1):
         raise FileFormatError(f"{pp}: POINT3D_ID {int(u[c > 1][0])} appears twice")
-    nf = ~np.all(np.isfinite(head[:, 1:4]), axis=1)
+    nf = ~np.all(np.isfinite(mdl.xyz), axis=1)
     if np.any(nf):
         i = int(np.flatnonzero(nf)[0])
-        raise FileFormatError(f"{pp}, line {pnums[i]}: point {pid[i]} holds NaN or infinity")
+        raise FileFormatError(f"{pp}, {mdl.point_at(i)}: point {pid[i]} holds NaN or infinity")
     # track -> observations
     t_img, t_idx = track[:, 0], track[:, 1]
     order = np.argsort(image_id, kind="stable")
@@ -672,7 +843,7 @@ def read_colmap(
     if not np.all(found):
         k = int(np.flatnonzero(~found)[0])
         raise FileFormatError(
-            f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]} is observed in image "
+            f"{pp}, {mdl.point_at(owner[k])}: point {pid[owner[k]]} is observed in image "
             f"{t_img[k]:g}, which is not in {pi}"
         )
     row = order[pos]
@@ -681,14 +852,14 @@ def read_colmap(
     if np.any(badidx):
         k = int(np.flatnonzero(badidx)[0])
         raise FileFormatError(
-            f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]}: POINT2D_IDX {t_idx[k]:g} is "
+            f"{pp}, {mdl.point_at(owner[k])}: point {pid[owner[k]]}: POINT2D_IDX {t_idx[k]:g} is "
             f"out of range for image {int(image_id[row[k]])} ({int(n2d[row[k]])} 2D points)"
         )
     flat = offset[row] + t_idx.astype(np.int64)
     if np.any(p3d[flat] != pid[owner]):
         k = int(np.flatnonzero(p3d[flat] != pid[owner])[0])
         raise FileFormatError(
-            f"{pp}, line {pnums[owner[k]]}: point {pid[owner[k]]} lists 2D point "
+            f"{pp}, {mdl.point_at(owner[k])}: point {pid[owner[k]]} lists 2D point "
             f"{int(t_idx[k])} of image {int(image_id[row[k]])}, but {pi} gives that 2D point "
             f"POINT3D_ID {p3d[flat[k]]}: the two files disagree"
         )
@@ -702,7 +873,7 @@ def read_colmap(
             f"{pi} links {linked} 2D points to 3D points but the tracks of {pp} hold "
             f"{flat.size} (with {repeated} repeated): the two files disagree"
         )
-    uv = p2d[flat, :2] - 0.5
+    uv = p2d[flat] - 0.5
     nf = ~np.all(np.isfinite(uv), axis=1)
     if np.any(nf):
         k = int(np.flatnonzero(nf)[0])
@@ -712,7 +883,7 @@ def read_colmap(
     if np.any(np.abs(qn - 1.0) > 1e-6):
         i = int(np.flatnonzero(np.abs(qn - 1.0) > 1e-6)[0])
         raise FileFormatError(
-            f"{pi}, line {head_no[i]}: the quaternion of image {int(image_id[i])} has norm "
+            f"{pi}, {mdl.image_at(i)}: the quaternion of image {int(image_id[i])} has norm "
             f"{qn[i]:.9g}, not 1"
         )
     q = pose[:, [1, 2, 3, 0]]  # scipy: scalar last
@@ -733,7 +904,7 @@ def read_colmap(
         image_variant=variant,
         exterior=exterior.reshape(m, 6),
         point_ids=pid,
-        xyz=head[:, 1:4],
+        xyz=mdl.xyz,
         obs_image_ids=ids[row],
         obs_point_ids=pid[owner],
         uv=uv,
@@ -742,6 +913,8 @@ def read_colmap(
     )
     # the other one of IMAGE_ID and NAME, for the writer (database keys and file names)
     return block.replace(colmap_images=ColmapImages(block.image_ids, image_id, names))
+
+
 
 
 # --- writing ---------------------------------------------------------------------------------
@@ -766,16 +939,45 @@ def _join_lines(tokens: list[str], counts: np.ndarray) -> str:
     return "".join(out.tolist())
 
 
-def colmap_texts(
+@dataclass(frozen=True)
+class ColmapModel:
+    """The numbers of a block written as a COLMAP model, text or binary.
+
+    ``cameras``: ``(CAMERA_ID, MODEL, calibration)`` each; ``group_lines``: the
+    ``# photogeom camera group:`` lines of image-variant groups (text only); per image
+    ``image_id``, ``names``, ``image_camera`` (its ``CAMERA_ID``), ``pose`` (m, 7: QW QX QY
+    QZ TX TY TZ) and ``per_image`` (its number of 2D points); per 2D point, image by image,
+    ``uv`` (k, 2) px (COLMAP's corner origin) and ``point3d`` its ``POINT3D_ID``; per point
+    ``point_id``, ``xyz`` (p, 3) and ``per_point`` (its track length); per track element,
+    point by point, ``track`` (k, 2: IMAGE_ID, POINT2D_IDX).
+    """
+
+    cameras: list
+    group_lines: list
+    image_id: np.ndarray
+    names: np.ndarray
+    image_camera: np.ndarray
+    pose: np.ndarray
+    per_image: np.ndarray
+    uv: np.ndarray
+    point3d: np.ndarray
+    point_id: np.ndarray
+    xyz: np.ndarray
+    per_point: np.ndarray
+    track: np.ndarray
+
+
+def colmap_model(
     block: Block,
     *,
     model: str | Mapping[object, str] | None = None,
     drop_extras: bool = False,
-) -> dict[str, str]:
-    """The texts of ``cameras.txt``, ``images.txt``, ``points3D.txt``, ``rigs.txt`` and
-    ``frames.txt`` (see :func:`write_colmap`)."""
+    what: str = "a COLMAP text model",
+) -> ColmapModel:
+    """The numbers of ``block`` written as a COLMAP model (see :func:`write_colmap`);
+    ``what`` names the model in the refusal of extras."""
     if not drop_extras:
-        refuse_extras(block, "a COLMAP text model")
+        refuse_extras(block, what)
     g = len(block.calibrations)
     gid = block.camera_ids.tolist()
     models = {}
@@ -829,13 +1031,6 @@ def colmap_texts(
             group_lines.append(
                 group_comment(iv, block.calibrations[k], [t[0] for t in cam_lines[first:]])
             )
-    cams_txt = [
-        "# Camera list with one line of data per camera:",
-        "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
-        f"# Number of cameras: {len(cam_lines)}",
-        *group_lines,
-    ]
-    cams_txt += [camera_line(cid, mdl, c) for cid, mdl, c in cam_lines]
     # images
     m = block.n_images
     kept = None if block.colmap_images is None else block.colmap_images.lookup(block.image_ids)
@@ -851,17 +1046,9 @@ def colmap_texts(
         if iid is None:
             iid = np.arange(1, m + 1, dtype=np.int64)
         inames = block.image_ids.astype(str)
-    spaced = [s for s in inames.tolist() if not s or len(s.split()) != 1]
-    if spaced:
-        raise InputError(
-            f"image id {spaced[0]!r}: COLMAP's images.txt cannot hold names with white space "
-            "(or empty names); rename the images"
-        )
     R = _FLIP @ block.rotations()  # world -> COLMAP camera
     T = -np.einsum("nij,nj->ni", R, block.exterior[:, :3])
     q = Rotation.from_matrix(R).as_quat(canonical=True).reshape(m, 4) if m else np.zeros((0, 4))
-    q = q[:, [3, 0, 1, 2]]
-    pose_tok = np.array(format_floats(np.column_stack([q, T]))).reshape(m, 7)
     n = block.n_observations
     o_img, o_pt = block.obs_image, block.obs_point
     by_img = np.argsort(o_img, kind="stable")
@@ -872,11 +1059,54 @@ def colmap_texts(
     pid = _int_ids(block.point_ids, 2**63)  # 0 .. 2^63 - 1: every id the reader gives
     if pid is None:
         pid = np.arange(1, block.n_points + 1, dtype=np.int64)
-    uvc = block.observations.uv[by_img] + 0.5
+    by_pt = np.argsort(o_pt, kind="stable")
+    return ColmapModel(
+        cameras=cam_lines,
+        group_lines=group_lines,
+        image_id=iid,
+        names=inames,
+        image_camera=img_cam,
+        pose=np.column_stack([q[:, [3, 0, 1, 2]], T]).reshape(m, 7),
+        per_image=per_img,
+        uv=block.observations.uv[by_img] + 0.5,
+        point3d=pid[o_pt[by_img]],
+        point_id=pid,
+        xyz=block.xyz,
+        per_point=np.bincount(o_pt, minlength=block.n_points),
+        track=np.column_stack([iid[o_img[by_pt]], idx2d[by_pt]]).reshape(n, 2),
+    )
+
+
+def colmap_texts(
+    block: Block,
+    *,
+    model: str | Mapping[object, str] | None = None,
+    drop_extras: bool = False,
+) -> dict[str, str]:
+    """The texts of ``cameras.txt``, ``images.txt``, ``points3D.txt``, ``rigs.txt`` and
+    ``frames.txt`` (see :func:`write_colmap`)."""
+    mdl = colmap_model(block, model=model, drop_extras=drop_extras)
+    cam_lines, iid, inames, img_cam = mdl.cameras, mdl.image_id, mdl.names, mdl.image_camera
+    per_img, m, n = mdl.per_image, len(iid), len(mdl.point3d)
+    cams_txt = [
+        "# Camera list with one line of data per camera:",
+        "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
+        f"# Number of cameras: {len(cam_lines)}",
+        *mdl.group_lines,
+    ]
+    cams_txt += [camera_line(cid, mdl_, c) for cid, mdl_, c in cam_lines]
+    spaced = [s for s in inames.tolist() if not s or len(s.split()) != 1]
+    if spaced:
+        raise InputError(
+            f"image id {spaced[0]!r}: COLMAP's images.txt cannot hold names with white space "
+            "(or empty names); rename the images"
+        )
+    pose_tok = np.array(format_floats(mdl.pose)).reshape(m, 7)
+    uvc = mdl.uv
     p_tok = np.empty((n, 3), dtype=object)
     p_tok[:, 0] = format_floats(uvc[:, 0])
     p_tok[:, 1] = format_floats(uvc[:, 1])
-    p_tok[:, 2] = list(map(str, pid[o_pt[by_img]].tolist()))
+    p_tok[:, 2] = list(map(str, mdl.point3d.tolist()))
     head_tok = np.empty((m, 10), dtype=object)
     head_tok[:, 0] = list(map(str, iid.tolist()))
     head_tok[:, 1:8] = pose_tok
@@ -891,17 +1121,13 @@ def colmap_texts(
         f"# Number of images: {m}, mean observations per image: {mean_obs:.6g}\n" + body
     )
     # points3D: id X Y Z R G B ERROR track (IMAGE_ID, POINT2D_IDX)
-    p = block.n_points
-    by_pt = np.argsort(o_pt, kind="stable")
-    per_pt = np.bincount(o_pt, minlength=p)
+    p, per_pt = len(mdl.point_id), mdl.per_point
     ph = np.empty((p, 8), dtype=object)
-    ph[:, 0] = list(map(str, pid.tolist()))
-    ph[:, 1:4] = np.array(format_floats(block.xyz), dtype=object).reshape(p, 3)
+    ph[:, 0] = list(map(str, mdl.point_id.tolist()))
+    ph[:, 1:4] = np.array(format_floats(mdl.xyz), dtype=object).reshape(p, 3)
     ph[:, 4:7] = "0"
     ph[:, 7] = "-1"
-    tt = np.empty((n, 2), dtype=object)
-    tt[:, 0] = list(map(str, iid[o_img[by_pt]].tolist()))
-    tt[:, 1] = list(map(str, idx2d[by_pt].tolist()))
+    tt = np.array(list(map(str, mdl.track.ravel().tolist())), dtype=object).reshape(n, 2)
     counts = 8 + 2 * per_pt
     pstart = (np.cumsum(counts) - counts).astype(np.int64)  # (0,) for a block without points
     tstart = (np.cumsum(per_pt) - per_pt).astype(np.int64)
@@ -969,8 +1195,10 @@ def write_colmap(
     *,
     model: str | Mapping[object, str] | None = None,
     drop_extras: bool = False,
+    binary: bool = False,
 ) -> Path:
-    """Write a block as a COLMAP text model (five files, replaced atomically as one batch).
+    """Write a block as a COLMAP text or binary model (five files, replaced atomically as
+    one batch).
 
     Parameters
     ----------
@@ -986,7 +1214,13 @@ def write_colmap(
         and its free parameters (so a block read from COLMAP keeps its models).
     drop_extras : bool
         Write a block with control or check points, GNSS/IMU observations or unequal
-        observation standard deviations anyway (COLMAP's text model has none of them).
+        observation standard deviations anyway (COLMAP's model has none of them); with
+        ``binary``, also a camera group with image-variant parameters (written as one
+        camera per image, which read back are separate groups).
+    binary : bool, default False
+        Write COLMAP's binary model (``cameras.bin``, ``images.bin``, ``points3D.bin``,
+        ``rigs.bin``, ``frames.bin``; :mod:`photogeom.bundle.io_colmap_bin`): the same
+        numbers as doubles, the points in ascending ``POINT3D_ID`` order.
 
     Returns
     -------
@@ -1005,15 +1239,32 @@ def write_colmap(
     ------
     InputError
         K4 or B2 non-zero (no COLMAP model has them), a ``model`` that cannot hold the
-        calibration, image names with white space, or extras without ``drop_extras``.
+        calibration, image names with white space (text; binary: empty names or NUL), or
+        extras without ``drop_extras``.
     OutputError
         ``directory`` is a file (or lies under one), or a file cannot be written; nothing
         is written then.
     """
-    texts = colmap_texts(block, model=model, drop_extras=drop_extras)
+    files = colmap_files(block, model=model, drop_extras=drop_extras, binary=binary)
     d = Path(directory)
     from .io_formats import check_block_target, write_files  # (io_formats imports this module)
 
-    check_block_target(d, "colmap")
-    write_files({d / k: v.encode("utf-8") for k, v in texts.items()}, folders=[d])
+    check_block_target(d, "colmap-bin" if binary else "colmap")
+    write_files({d / k: v for k, v in files.items()}, folders=[d])
     return d
+
+
+def colmap_files(
+    block: Block,
+    *,
+    model: str | Mapping[object, str] | None = None,
+    drop_extras: bool = False,
+    binary: bool = False,
+) -> dict[str, bytes]:
+    """The files of :func:`write_colmap` (name -> content), nothing written."""
+    if binary:
+        from .io_colmap_bin import colmap_binaries
+
+        return colmap_binaries(block, model=model, drop_extras=drop_extras)
+    texts = colmap_texts(block, model=model, drop_extras=drop_extras)
+    return {k: v.encode("utf-8") for k, v in texts.items()}

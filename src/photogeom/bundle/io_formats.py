@@ -2,6 +2,8 @@
 
 * a file: BAL (plain or bzip2);
 * a folder with ``cameras.txt`` / ``images.txt`` / ``points3D.txt``: a COLMAP text model;
+* a folder with ``cameras.bin`` / ``images.bin`` / ``points3D.bin``: a COLMAP binary model
+  (``"colmap-bin"``);
 * a folder with ``images.csv`` / ``points.csv`` / ``observations.csv``: a CSV block.
 """
 
@@ -16,14 +18,22 @@ from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError, InputError, OutputError
 from .block import Block
 from .io_bal import bal_text, read_bal, write_bal
-from .io_colmap import BINARY_FILES, colmap_texts, is_binary_model, read_colmap, write_colmap
+from .io_colmap import (
+    BINARY_FILES,
+    TEXT_FILES,
+    colmap_files,
+    colmap_model_is_binary,
+    read_colmap,
+    write_colmap,
+)
 from .io_csv import csv_block_texts, read_csv_block, write_csv_block
 
 #: Names of the block formats.
-FORMATS = ("bal", "colmap", "csv")
+FORMATS = ("bal", "colmap", "colmap-bin", "csv")
 #: Formats written as a folder of files (BAL is one file).
-FOLDER_FORMATS = ("colmap", "csv")
+FOLDER_FORMATS = ("colmap", "colmap-bin", "csv")
 _NAMES = {"bal": "BAL file", "colmap": "COLMAP text model", "csv": "CSV block"}
+_NAMES["colmap-bin"] = "COLMAP binary model"
 
 
 def check_block_target(path: str | os.PathLike, kind: str, what: str | None = None) -> None:
@@ -33,9 +43,10 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     Parameters
     ----------
     path : path-like
-        Folder (``"colmap"``, ``"csv"``; created when missing) or file (``"bal"``).
+        Folder (``"colmap"``, ``"colmap-bin"``, ``"csv"``; created when missing) or file
+        (``"bal"``).
     kind : str
-        ``"bal"``, ``"colmap"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"colmap-bin"`` or ``"csv"``.
     what : str, optional
         How the caller names the destination (e.g. a command-line option), put before the
         message.
@@ -45,7 +56,8 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     OutputError
         A folder format onto an existing file (or under one), a BAL file onto a folder or
         into a folder that does not exist, a COLMAP text model into a folder holding a
-        COLMAP binary model (COLMAP would read the old binary files).
+        COLMAP binary model (COLMAP would read the old binary files), a binary model into a
+        folder holding a text model.
     """
     p = Path(path)
     k = _check(kind)
@@ -56,13 +68,21 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
                 f"{head}cannot write {p}: it is a file, not a folder; a {_NAMES[k]} is a "
                 "folder of files: give a folder path (new or existing)"
             )
-        if k == "colmap" and p.is_dir():
-            stale = [f for f in BINARY_FILES if (p / f).is_file()]
+        # the other COLMAP model: COLMAP reads the binary one first, read_colmap neither
+        other = {"colmap": (BINARY_FILES, "colmap-bin"), "colmap-bin": (TEXT_FILES, "colmap")}
+        if k in other and p.is_dir():
+            files, kind = other[k]
+            stale = [f for f in files if (p / f).is_file()]
             if stale:
+                why = (
+                    "which COLMAP reads instead of the text files"
+                    if k == "colmap"
+                    else "which would stand beside the binary files with other numbers"
+                )
                 raise OutputError(
-                    f"{head}cannot write a COLMAP text model into {p}: it holds a COLMAP "
-                    f"binary model ({', '.join(stale)}), which COLMAP reads instead of the "
-                    "text files; give another folder, or remove the .bin files first"
+                    f"{head}cannot write a {_NAMES[k]} into {p}: it holds a {_NAMES[kind]} "
+                    f"({', '.join(stale)}), {why}; give another folder, or remove the "
+                    f"{stale[0][-4:]} files first"
                 )
         up = p.parent
         while not up.exists() and up != up.parent:
@@ -94,7 +114,7 @@ def block_files(
     path : path-like
         The folder of a COLMAP or CSV block, the file of a BAL block (``.bz2``: compressed).
     kind : str
-        ``"bal"``, ``"colmap"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"colmap-bin"`` or ``"csv"``.
     **options
         Options of :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
 
@@ -109,7 +129,10 @@ def block_files(
     if k == "bal":
         data = bal_text(block, **options).encode("ascii")
         return {p: bz2.compress(data) if p.suffix == ".bz2" else data}
-    texts = (colmap_texts if k == "colmap" else csv_block_texts)(block, **options)
+    if k in ("colmap", "colmap-bin"):
+        files = colmap_files(block, **({"binary": True} if k == "colmap-bin" else {}), **options)
+        return {p / name: data for name, data in files.items()}
+    texts = csv_block_texts(block, **options)
     return {p / name: text.encode("utf-8") for name, text in texts.items()}
 
 
@@ -165,29 +188,39 @@ def detect_format(path: str | os.PathLike) -> str:
     Parameters
     ----------
     path : path-like
-        A BAL file (or pipe), or a folder holding a COLMAP text model or a CSV block.
+        A BAL file (or pipe), or a folder holding a COLMAP text or binary model or a CSV
+        block.
 
     Returns
     -------
     str
-        ``"bal"``, ``"colmap"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"colmap-bin"`` or ``"csv"``.
 
     Raises
     ------
     FileFormatError
-        ``path`` does not exist, or is a folder holding neither model.
+        ``path`` does not exist, is a folder holding none of them, or holds both a COLMAP
+        text and a binary model.
     """
     p = Path(path)
     if p.exists() and not p.is_dir():  # a file, or a pipe (read once); read_bal refuses devices
         return "bal"
     if p.is_dir():
-        if (p / "images.txt").is_file() or (p / "cameras.txt").is_file() or is_binary_model(p):
-            return "colmap"  # a binary model: read_colmap names the conversion
+        if any((p / f).is_file() for f in TEXT_FILES + BINARY_FILES):
+            try:
+                return "colmap-bin" if colmap_model_is_binary(p) else "colmap"
+            except FileFormatError as exc:  # both: the kinds of read_block name them
+                raise FileFormatError(
+                    str(exc).replace("binary=True", "kind='colmap-bin'").replace(
+                        "binary=False", "kind='colmap'"
+                    )
+                ) from None
         if (p / "images.csv").is_file() or (p / "observations.csv").is_file():
             return "csv"
         raise FileFormatError(
             f"{p}: a folder with neither a COLMAP text model (cameras.txt, images.txt, "
-            "points3D.txt) nor a CSV block (images.csv, points.csv, observations.csv)"
+            "points3D.txt) or binary model (cameras.bin, images.bin, points3D.bin) nor a CSV "
+            "block (images.csv, points.csv, observations.csv)"
         )
     raise FileFormatError(f"{p}: no such file or folder")
 
@@ -200,14 +233,15 @@ def _check(kind: str) -> str:
 
 
 def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> Block:
-    """Read a block from a BAL file, a COLMAP text model or a CSV folder.
+    """Read a block from a BAL file, a COLMAP text or binary model or a CSV folder.
 
     Parameters
     ----------
     path : path-like
         The file or folder.
-    kind : {"bal", "colmap", "csv"}, optional
-        The format; default :func:`detect_format`.
+    kind : {"bal", "colmap", "colmap-bin", "csv"}, optional
+        The format (``"colmap"`` the text model, ``"colmap-bin"`` the binary one); default
+        :func:`detect_format`.
     **options
         Keywords of :func:`read_bal`, :func:`read_colmap` or :func:`read_csv_block`.
 
@@ -217,12 +251,14 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
         The block, in photogeom's conventions (pixels from the centre of the first pixel).
     """
     k = detect_format(path) if kind is None else _check(kind)
-    reader = {"bal": read_bal, "colmap": read_colmap, "csv": read_csv_block}[k]
+    if k in ("colmap", "colmap-bin"):
+        return read_colmap(path, binary=k == "colmap-bin", **options)
+    reader = {"bal": read_bal, "csv": read_csv_block}[k]
     return reader(path, **options)
 
 
 def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, **options):
-    """Write a block as a BAL file, a COLMAP text model or a CSV folder.
+    """Write a block as a BAL file, a COLMAP text or binary model or a CSV folder.
 
     Parameters
     ----------
@@ -230,9 +266,10 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
         The block to write.
     path : path-like
         The file or folder.
-    kind : {"bal", "colmap", "csv"}, optional
-        The format. Without it: an existing path's format (:func:`detect_format`), else BAL
-        for names ending in ``.bal``, ``.txt`` or ``.bz2``; a new folder needs ``kind``.
+    kind : {"bal", "colmap", "colmap-bin", "csv"}, optional
+        The format (``"colmap-bin"``: ``"colmap"`` with ``binary=True``). Without it: an
+        existing path's format (:func:`detect_format`), else BAL for names ending in
+        ``.bal``, ``.txt`` or ``.bz2``; a new folder needs ``kind``.
     **options
         Keywords of :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
 
@@ -249,9 +286,12 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
             kind = "bal"
         else:
             raise InputError(
-                f"{p}: say which format to write (kind='colmap', 'csv' or 'bal'); only BAL "
+                f"{p}: say which format to write (kind='colmap', 'colmap-bin', 'csv' or "
+                "'bal'); only BAL "
                 "files are recognised by their name (.bal, .txt, .bz2)"
             )
     k = _check(kind)
-    writer = {"bal": write_bal, "colmap": write_colmap, "csv": write_csv_block}[k]
+    if k == "colmap-bin":
+        options = {**options, "binary": True}
+    writer = {"bal": write_bal, "csv": write_csv_block}.get(k, write_colmap)
     return writer(block, p, **options)

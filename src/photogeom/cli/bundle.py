@@ -3,11 +3,11 @@
 * ``simulate OUT``: a simulated UAV block in the CSV block format, with the truth in
   ``OUT/truth/`` and the simulation's settings and blunders in ``OUT/simulation.json``;
 * ``adjust INPUT``: the bundle adjustment of a CSV block folder, a BAL file or a COLMAP text
-  folder (format detected, or ``--format``), with the adjusted block (``--output``), the
+  or binary folder (format detected, or ``--format``), with the adjusted block (``--output``), the
   summary as JSON (``--json``), an HTML report (``--report``), the result record
   (``--result``) that ``report`` renders again and the adjusted calibration as Metashape XML,
   camera JSON or OpenCV YAML (``--output-calibration``);
-* ``convert INPUT OUTPUT``: between BAL, COLMAP text and CSV blocks;
+* ``convert INPUT OUTPUT``: between BAL, COLMAP text or binary and CSV blocks;
 * ``report RESULT.json``: the HTML report of a saved result record.
 """
 
@@ -53,6 +53,7 @@ class BlockFormat(str, Enum):
     csv = "csv"
     bal = "bal"
     colmap = "colmap"
+    colmap_bin = "colmap-bin"
 
 
 class Loss(str, Enum):
@@ -145,10 +146,32 @@ def _cli_words(fn):
 
 def detect_format(path: Path, given: BlockFormat | None, option: str = "--format") -> str:
     """The format of an existing block: ``given``, else by content (a file is BAL; a folder
-    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model, one
-    with COLMAP's binary model "colmap", whose reader names the conversion)."""
+    with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model
+    "colmap", one with ``cameras.bin`` COLMAP's binary model "colmap-bin"). A folder holding
+    both COLMAP models, or a COLMAP format the folder does not hold, is refused naming
+    ``option``."""
     if not path.exists():
         raise InputError(f"no file or folder {path}")
+    colmap = ("colmap", "colmap-bin")
+    if path.is_dir() and (given is None or given.value in colmap):
+        from ..bundle.io_colmap import BINARY_FILES, TEXT_FILES
+
+        txt = [f for f in TEXT_FILES if (path / f).is_file()]
+        bins = [f for f in BINARY_FILES if (path / f).is_file()]
+        if txt and bins and given is None and not (path / "cameras.csv").is_file():
+            raise InputError(
+                f"{path} holds both a COLMAP text model ({', '.join(txt)}) and a binary model "
+                f"({', '.join(bins)}), which may differ (COLMAP reads the binary one): give "
+                f"{option} colmap-bin for the .bin files or {option} colmap for the .txt "
+                "files, or remove one of the two"
+            )
+        have = "colmap" if txt else "colmap-bin"
+        if given is not None and bool(txt) != bool(bins) and given.value != have:
+            raise InputError(
+                f"{path} holds a COLMAP {'text' if txt else 'binary'} model "
+                f"({', '.join(txt or bins)}), not the {given.value} format: give {option} "
+                f"{have} (or leave {option} out)"
+            )
     if given is not None:
         return given.value
     if not path.is_dir():  # a file or a pipe (read once); the BAL reader refuses a device
@@ -160,15 +183,14 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
         return "bal"
     if (path / "cameras.csv").is_file():
         return "csv"
-    from ..bundle.io_colmap import is_binary_model
-
     if (path / "cameras.txt").is_file() or (path / "images.txt").is_file():
         return "colmap"
-    if is_binary_model(path):
-        return "colmap"  # reading it names the conversion to the text model
+    if any((path / f).is_file() for f in ("cameras.bin", "images.bin", "points3D.bin")):
+        return "colmap-bin"
     raise InputError(
-        f"{path}: not a block folder (no cameras.csv of a CSV block, no cameras.txt of a "
-        f"COLMAP text model); give the format with {option} csv|colmap|bal"
+        f"{path}: not a block folder (no cameras.csv of a CSV block, no cameras.txt or "
+        f"cameras.bin of a COLMAP model); give the format with {option} "
+        "csv|colmap|colmap-bin|bal"
     )
 
 
@@ -182,8 +204,9 @@ def output_format(path: Path, given: BlockFormat | None, default: str | None, op
     if path.suffix.lower() in _BAL_SUFFIXES:
         return "bal"
     raise InputError(
-        f"cannot tell the format of {path} from its name: give {option} csv|colmap|bal "
-        "(CSV blocks and COLMAP models are folders; a BAL file ends in .txt, .bal or .bz2)"
+        f"cannot tell the format of {path} from its name: give {option} "
+        "csv|colmap|colmap-bin|bal (CSV blocks and COLMAP models are folders; a BAL file ends "
+        "in .txt, .bal or .bz2)"
     )
 
 
@@ -202,8 +225,10 @@ def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
     kw = {} if sigma is None else {"sigma": sigma}
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
-    if fmt == "colmap":
-        return bundle.read_colmap(path, image_key=ImageKey(image_key).value, **kw)
+    if fmt in ("colmap", "colmap-bin"):
+        return bundle.read_colmap(
+            path, image_key=ImageKey(image_key).value, binary=fmt == "colmap-bin", **kw
+        )
     return bundle.read_csv_block(path, **kw)
 
 
@@ -498,11 +523,16 @@ def simulate(
 @_cli_words
 def adjust(
     source: Annotated[
-        Path, typer.Argument(help="A CSV block folder, a BAL file or a COLMAP text folder.")
+        Path,
+        typer.Argument(help="A CSV block folder, a BAL file or a COLMAP text or binary folder."),
     ],
     fmt: Annotated[
         BlockFormat | None,
-        typer.Option("--format", help="Format of SOURCE (default: detected)."),
+        typer.Option(
+            "--format",
+            help="Format of SOURCE (default: detected; colmap: the text model cameras.txt, "
+            "..., colmap-bin: COLMAP's binary model cameras.bin, ...).",
+        ),
     ] = None,
     free: Annotated[
         str | None,
@@ -558,7 +588,11 @@ def adjust(
     ] = None,
     output_fmt: Annotated[
         BlockFormat | None,
-        typer.Option("--output-format", help="Format of --output (default: that of SOURCE)."),
+        typer.Option(
+            "--output-format",
+            help="Format of --output (default: that of SOURCE; colmap-bin: COLMAP's binary "
+            "model).",
+        ),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
     report: Annotated[
@@ -735,7 +769,7 @@ def adjust(
         files = block_files(
             fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=block_angle
         )
-    write_all(files, texts, folders=[output] if out_fmt in ("csv", "colmap") else [])
+    write_all(files, texts, folders=[output] if out_fmt not in (None, "bal") else [])
     if as_json:
         d = fit.to_dict(angle)
         d["unit"] = unit
@@ -926,14 +960,24 @@ def _angles_written(fmt: str | None, angle_unit: str) -> str:
 @app.command("convert")
 @_cli_words
 def convert(
-    source: Annotated[Path, typer.Argument(help="Block to read (BAL file, COLMAP or CSV folder).")],
+    source: Annotated[
+        Path, typer.Argument(help="Block to read (BAL file, COLMAP text or binary, CSV folder).")
+    ],
     target: Annotated[Path, typer.Argument(help="Where to write (a folder for CSV and COLMAP).")],
     from_fmt: Annotated[
-        BlockFormat | None, typer.Option("--from", help="Format of SOURCE (default: detected).")
+        BlockFormat | None,
+        typer.Option(
+            "--from",
+            help="Format of SOURCE (default: detected; colmap-bin: COLMAP's binary model).",
+        ),
     ] = None,
     to_fmt: Annotated[
         BlockFormat | None,
-        typer.Option("--to", help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names)."),
+        typer.Option(
+            "--to",
+            help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names; colmap-bin: "
+            "COLMAP's binary model).",
+        ),
     ] = None,
     angle_unit: Annotated[
         AngleUnit,
@@ -948,7 +992,8 @@ def convert(
     drop_extras: DropExtrasOpt = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Convert a block between BAL, COLMAP text and CSV (conventions converted exactly)."""
+    """Convert a block between BAL, COLMAP text or binary and CSV (conventions converted
+    exactly)."""
     src = detect_format(source, from_fmt, "--from")
     dst = output_format(target, to_fmt, None, "--to")
     # a CSV block holds deg, gon or rad (named in its column headers): arcsec, accepted by
@@ -960,7 +1005,7 @@ def convert(
         files = block_files(
             block, target, dst, drop_extras=drop_extras, angle_unit=block_angle
         )
-    write_all(files, folders=[target] if dst in ("csv", "colmap") else [])
+    write_all(files, folders=[target] if dst != "bal" else [])
     info = {
         "source": str(source),
         "source_format": src,

@@ -556,7 +556,8 @@ def fit(
         typer.Argument(
             help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed) "
             "and optionally sigma (px), "
-            "or an adjusted block (a CSV block folder or COLMAP text model, a BAL file: "
+            "or an adjusted block (a CSV block folder or COLMAP text or binary model, a BAL "
+            "file: "
             ".bal, .bz2 or any name or pipe by its content): "
             "the reprojection residuals of its tie points, the image sizes of its cameras."
         ),
@@ -820,10 +821,11 @@ def _snooping_heading(rejected: dict) -> str:
 _BLOCK_SUFFIXES = (".bal", ".bz2")
 
 
-#: Files of a CSV block folder and of a COLMAP text model (inputs of ``grid fit BLOCK``).
+#: Files of a CSV block folder and of a COLMAP text or binary model (inputs of ``grid fit
+#: BLOCK``).
 _BLOCK_FILES = frozenset(
     ("cameras.csv", "images.csv", "points.csv", "observations.csv", "cameras.txt",
-     "images.txt", "points3D.txt")
+     "images.txt", "points3D.txt", "cameras.bin", "images.bin", "points3D.bin")
 )  # fmt: skip
 
 

@@ -1,7 +1,7 @@
 """`photogeom grid evaluate | sweep | report`: residual grids of a whole adjusted block.
 
 The block is a folder (or file) readable by ``photogeom.bundle.read_block`` (CSV block
-format, COLMAP text model, BAL) holding an **adjusted** block, or ``--preset NAME`` for a
+format, COLMAP text or binary model, BAL) holding an **adjusted** block, or ``--preset NAME`` for a
 simulated block of the study's cameras (simulated and adjusted first). ``evaluate`` fits
 grids, corrects, re-adjusts with the orientation fixed and prints the residuals and steps
 before and after; ``sweep`` tries several spacings and chooses one by the closest-to-origin
@@ -37,7 +37,9 @@ from ._common import (
 
 BlockArg = Annotated[
     Path | None,
-    typer.Argument(help="Adjusted block: a CSV block folder, COLMAP text model or BAL file."),
+    typer.Argument(
+        help="Adjusted block: a CSV block folder, COLMAP text or binary model or BAL file."
+    ),
 ]
 PresetOpt = Annotated[
     str | None,
