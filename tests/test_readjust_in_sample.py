@@ -1,6 +1,7 @@
-"""``readjust`` on the observations its grids were fitted to says that its sigma0 and
-standard deviations are in-sample (too small), and says nothing on observations measured
-again, where they are valid (a block without any local field: sigma0 ~ 1 is the truth)."""
+"""``readjust`` on the observations its grids were fitted to computes its sigma0 over the
+chain's redundancy and notes that its standard deviations are in-sample (too small), and
+says nothing on observations measured again, where they are valid (a block without any
+local field: sigma0 ~ 1 is the truth)."""
 
 import numpy as np
 import pytest
@@ -17,13 +18,15 @@ def fitted():
     return sim, ba, fit_residual_grids(ba.block, 200, folds=0)
 
 
-def test_in_sample_readjustment_is_noted_and_its_sigma0_is_too_small(fitted):
+def test_in_sample_readjustment_is_noted_and_its_sigma0_counts_the_chain(fitted):
     _, ba, grids = fitted
     re = readjust(ba.block, grids, snooping=False)
     assert IN_SAMPLE_NOTE in re.notes
-    # no field at all: the first adjustment's sigma0 is about 1, the in-sample one far below
+    # no field at all: the first adjustment's sigma0 is about 1, and so is the re-adjustment's
+    # over the chain's redundancy (over its own count it was 0.72: in-sample)
     assert 0.9 < ba.sigma0 < 1.1
-    assert re.sigma0 < 0.8
+    assert 0.9 < re.sigma0 < 1.1
+    assert re.effective_redundancy["value"] < 0.5 * re.redundancy
 
 
 def test_observations_measured_again_are_not_noted_and_their_sigma0_is_valid(fitted):
@@ -39,4 +42,8 @@ def test_grids_without_their_positions_say_nothing(fitted):
     assert all(g.uv is None for g in blind.values())
     re = readjust(ba.block, blind, snooping=False)
     assert IN_SAMPLE_NOTE not in re.notes
-    np.testing.assert_allclose(re.sigma0, readjust(ba.block, grids, snooping=False).sigma0)
+    assert re.effective_redundancy is None
+    # the same residuals over the plain count: the in-sample sigma0, not found out
+    known = readjust(ba.block, grids, snooping=False)
+    np.testing.assert_allclose(re.chi2["statistic"], known.chi2["statistic"])
+    assert re.sigma0 < 0.8 < known.sigma0

@@ -588,11 +588,18 @@ def bundle_adjust(block: Block, options: BundleOptions | None = None, *, progres
     InputError
         Invalid block (unknown ids, points seen once, duplicate observations, ...) or options.
     """
+    opts = options or BundleOptions()
+    opts = opts.updated(**kwargs) if kwargs else opts.validate()
+    return adjust_block(block, opts, progress=progress)
+
+
+def adjust_block(block: Block, opts: BundleOptions, *, progress=None, effective_redundancy=None):
+    """:func:`bundle_adjust` with resolved options and, optionally, the redundancy its
+    sigma0 is computed with (``effective_redundancy``, a mapping with ``"value"``: see
+    :attr:`photogeom.bundle.BundleFit.effective_redundancy`)."""
     from .result import build_result
 
     t0 = time.perf_counter()
-    opts = options or BundleOptions()
-    opts = opts.updated(**kwargs) if kwargs else opts.validate()
     if not isinstance(block, Block):
         raise InputError(
             f"bundle_adjust needs a photogeom.bundle.Block, got {type(block).__name__}"
@@ -610,4 +617,6 @@ def bundle_adjust(block: Block, options: BundleOptions | None = None, *, progres
         from .variance import iterate_variance_components
 
         run, vce = iterate_variance_components(problem, run, opts, progress)
-    return build_result(problem, run, opts, vce, time.perf_counter() - t0)
+    return build_result(
+        problem, run, opts, vce, time.perf_counter() - t0, effective_redundancy
+    )

@@ -43,6 +43,7 @@ _NESTED_FIELDS = (
     "chi2",
     "solver",
     "control",
+    "effective_redundancy",
     "_cal_cov",
 )
 
@@ -89,9 +90,19 @@ class BundleFit:
         (:func:`photogeom.bundle.robust.stein_redundancy`, whose expectation times the
         variance factor is that of ``v'PWv`` under normal errors), so that sigma0 is about
         ``sigma0_prior`` (1 by default) on clean data with correct a-priori sigmas.
+        With an ``effective_redundancy``, ``v'Pv`` is divided by it instead of ``r``.
     redundancy, n_observations, n_unknowns : int
         ``r = n_observations - n_unknowns`` (scalar observations: 2 per image point, 3 per
         control point, GNSS position and IMU attitude).
+    effective_redundancy : mapping or None
+        Set by :func:`photogeom.calibration.readjust` when its grids were fitted to these
+        same observations: the expectation of ``v'Pv / sigma^2`` over the whole chain
+        (first adjustment, grid fit, re-adjustment), ``"value"`` (unitless), ``"method"``
+        (``"exact"`` or ``"estimated"``), ``"probes"``, ``"seed"``, ``"std"`` (standard error
+        of the estimate) and ``"observations"``
+        (:func:`photogeom.calibration.chain.chain_redundancy`). sigma0, every standard
+        deviation and covariance scaled by it and the chi-square test (its degrees of
+        freedom) use this value. None otherwise.
     converged, iterations, message, cost_history
         Convergence diagnostics (cost = v'Pv after each accepted step).
     residuals : numpy.ndarray (n, 2)
@@ -188,6 +199,7 @@ class BundleFit:
     control: Mapping = field(default_factory=lambda: {"ids": []})
     correlation_threshold: float = 0.9
     image_calibration_std: np.ndarray | None = None
+    effective_redundancy: Mapping | None = None
     _image_cov: np.ndarray | None = None
     _point_cov: np.ndarray | None = None
     _cal_cov: Mapping | None = None
@@ -461,7 +473,8 @@ class BundleFit:
             f"{self.message} after {self.iterations} iteration(s), {self.elapsed:.2f} s "
             f"(solver: {self.solver.get('backend', '?')})",
             f"observations {self.n_observations}, unknowns {self.n_unknowns}, redundancy "
-            f"{self.redundancy}",
+            f"{self.redundancy}"
+            + _effective_redundancy_text(self.effective_redundancy),
             _loss_line(self.solver),
             f"sigma0 a posteriori {self.sigma0:.4f} (a priori {self.sigma0_prior:g}); chi-square "
             f"test: {'passed' if self.chi2.get('passed') else 'failed'} "
@@ -625,6 +638,9 @@ class BundleFit:
                 "sigma0": self.sigma0,
                 "sigma0_prior": self.sigma0_prior,
                 "redundancy": self.redundancy,
+                "effective_redundancy": (
+                    None if self.effective_redundancy is None else dict(self.effective_redundancy)
+                ),
                 "n_observations": self.n_observations,
                 "n_unknowns": self.n_unknowns,
                 "chi2": dict(self.chi2),
@@ -661,6 +677,19 @@ class BundleFit:
         )
 
 
+def _effective_redundancy_text(eff: Mapping | None) -> str:
+    """The effective redundancy of :meth:`BundleFit.summary`'s redundancy line, if any."""
+    if eff is None:
+        return ""
+    how = (
+        "exact"
+        if eff.get("method") == "exact"
+        else f"estimated from {eff.get('probes')} probes, seed {eff.get('seed')}, "
+        f"standard error {eff.get('std', math.nan):.3g}"
+    )
+    return f"; effective redundancy of the chain {eff.get('value', math.nan):.1f} ({how})"
+
+
 def _loss_line(solver: Mapping) -> str:
     """The loss of the adjustment for :meth:`BundleFit.summary`: with a robust one its
     scale and how sigma0 and the standard deviations are made consistent with it."""
@@ -694,7 +723,7 @@ def _crs_label(crs: str) -> str:
 # --- construction ----------------------------------------------------------------------------
 
 
-def _chi2(vtpv: float, r: int, s0: float, alpha: float = 0.05) -> dict:
+def _chi2(vtpv: float, r: float, s0: float, alpha: float = 0.05) -> dict:
     from scipy import special
 
     if r <= 0:
@@ -703,7 +732,7 @@ def _chi2(vtpv: float, r: int, s0: float, alpha: float = 0.05) -> dict:
     p = float(2 * min(special.chdtr(r, t), special.chdtrc(r, t)))
     return {
         "statistic": float(t),
-        "dof": int(r),
+        "dof": int(r) if float(r).is_integer() else float(r),
         "p_value": p,
         "alpha": alpha,
         "lower": float(special.chdtri(r, 1 - alpha / 2)),
@@ -950,7 +979,9 @@ def least_squares_square_sum(problem: Problem, state) -> float:
     return float(lin.cost - ne.predicted_decrease(dc, dp, 0.0))
 
 
-def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
+def build_result(
+    problem: Problem, run, opts, vce, elapsed: float, effective_redundancy: Mapping | None = None
+) -> BundleFit:
     from scipy import special
 
     block = problem.block
@@ -986,6 +1017,12 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             opts.loss, opts.scale, e, lin.P / sw[:, None, None], problem.obs_j, lin.point_info
         )
         var = vtpv / r_s
+    # a redundancy counted over a chain of estimates (calibration.readjust with grids fitted
+    # to these observations): the variance over it instead of over this adjustment's own
+    r_test: float = red
+    if effective_redundancy is not None and red > 0:
+        r_test = float(effective_redundancy["value"])
+        var *= red / r_test
     # the observations are whitened by their a-priori sigmas (weights 1 / sigma^2, in which
     # every cofactor, var and v'Pv here are); with P = sigma0_prior^2 / sigma^2 (the library's
     # convention) sigma0 is sigma0_prior sqrt(var), the global test v'Pv / sigma0_prior^2 and
@@ -1290,7 +1327,8 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         check=check,
         snooping=snoop,
         variance_components=vc,
-        chi2=_chi2(test_vtpv, red, 1.0),  # v'Pv / sigma0_prior^2 with P = sigma0_prior^2 / sigma^2
+        # v'Pv / sigma0_prior^2 with P = sigma0_prior^2 / sigma^2
+        chi2=_chi2(test_vtpv, r_test, 1.0),
         gsd=float(adjusted.gsd()),
         notes=tuple(notes),
         elapsed=elapsed,
@@ -1301,6 +1339,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
         _image_cov=image_cov,
         _point_cov=point_cov,
         _cal_cov=cal_cov,
+        effective_redundancy=None if effective_redundancy is None else dict(effective_redundancy),
     )
 
 
