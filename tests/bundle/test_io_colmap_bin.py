@@ -249,12 +249,23 @@ def test_a_folder_holds_one_model(tmp_path):
     shutil.copytree(tmp_path / "t", both)
     for f in (tmp_path / "b").iterdir():
         shutil.copy(f, both / f.name)
-    with pytest.raises(FileFormatError, match=r"holds both .*binary=True .* binary=False"):
+    # the same model both ways (a binary model converted to text in place): read
+    _assert_identical(read_colmap(both), read_colmap(tmp_path / "b"))
+    _assert_identical(read_block(both), read_colmap(tmp_path / "b"))
+    lines = (both / "points3D.txt").read_text().splitlines()
+    row = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    f = lines[row].split()
+    f[1] = repr(float(f[1]) + 0.001)  # one point 1 mm off in the text model
+    lines[row] = " ".join(f)
+    (both / "points3D.txt").write_text("\n".join(lines) + "\n")
+    msg = r"holds both .* they differ \(their point coordinates first\)"
+    with pytest.raises(FileFormatError, match=msg + r".*binary=True .* binary=False"):
         read_colmap(both)
-    with pytest.raises(FileFormatError, match=r"holds both .*kind='colmap-bin' .* kind='colmap'"):
+    with pytest.raises(FileFormatError, match=msg + r".*kind='colmap-bin' .* kind='colmap'"):
         read_block(both)
     _assert_identical(read_colmap(both, binary=True), read_colmap(tmp_path / "b"))
-    _assert_identical(read_colmap(both, binary=False), read_colmap(tmp_path / "t"))
+    text, first = read_colmap(both, binary=False), read_colmap(tmp_path / "t")
+    assert np.abs(text.xyz - first.xyz).max() == pytest.approx(0.001)  # the text as it is
     with pytest.raises(FileFormatError, match=r"holds a COLMAP binary model .*pass binary=True"):
         read_colmap(tmp_path / "b", binary=False)
     with pytest.raises(FileFormatError, match=r"holds a COLMAP text model .*pass binary=False"):
@@ -459,3 +470,22 @@ def test_grid_fit_reads_a_binary_model_as_the_text_model(tmp_path, cli):
     code, _, err = cli("grid", "fit", tmp_path / "b", "--spacing", "400", "-o", victim)
     assert code == 2 and "is the input file RESIDUALS (images.bin of the block)" in err
     assert victim.read_bytes() == before
+    # both models in one folder: the same model is read; a text model that differs is
+    # refused in words a grid command (no format option) can follow
+    for f in (tmp_path / "t").iterdir():
+        shutil.copy(f, tmp_path / "b" / f.name)
+    code, _, err = cli("grid", "fit", tmp_path / "b", "-o", tmp_path / "both.json",
+                       "--spacing", "400")  # fmt: skip
+    assert code == 0, err
+    for i, g in load_grids(tmp_path / "both.json").items():
+        assert np.array_equal(grids["b"][i].nodes, g.nodes)
+    lines = (tmp_path / "b" / "images.txt").read_text().splitlines()
+    row = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    f = lines[row].split()
+    f[5] = repr(float(f[5]) + 0.01)  # one image's TX 1 cm off in the text model
+    lines[row] = " ".join(f)
+    (tmp_path / "b" / "images.txt").write_text("\n".join(lines) + "\n")
+    code, _, err = cli("grid", "fit", tmp_path / "b", "-o", tmp_path / "both.json",
+                       "--spacing", "400")  # fmt: skip
+    assert code == 2 and "they differ (their image poses first)" in err, err
+    assert "remove the one not to read" in err and "kind=" not in err

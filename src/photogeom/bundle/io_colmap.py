@@ -685,7 +685,9 @@ def read_colmap(
     binary : bool, optional
         Read the binary model (True) or the text model (False); default: the one the folder
         holds. Both give the same block for the same model (the binary one has no
-        ``# photogeom camera group:`` lines: each of its cameras is a group).
+        ``# photogeom camera group:`` lines: each of its cameras is a group). A folder
+        holding both (a binary model converted to text in place) is read both ways and
+        taken when the two give the same block, refused when they differ.
 
     Returns
     -------
@@ -703,8 +705,8 @@ def read_colmap(
         Missing files, malformed lines (naming file and line), camera models the Metashape
         model cannot represent, unknown ids, and tracks that disagree with ``images.txt``;
         a ``# photogeom camera group:`` line that is malformed, names unknown cameras or
-        cameras that differ in more than f, cx, cy; a folder holding both a text and a
-        binary model without ``binary``; in a binary model, truncated files, counts larger
+        cameras that differ in more than f, cx, cy; a folder holding a text and a binary
+        model that differ, without ``binary``; in a binary model, truncated files, counts larger
         than the file, unknown camera model ids (see :mod:`photogeom.bundle.io_colmap_bin`;
         the messages name the file and byte offset).
     """
@@ -713,12 +715,65 @@ def read_colmap(
     d = Path(directory)
     if not d.is_dir():
         raise FileFormatError(f"{d}: not a directory (a COLMAP model is a folder)")
+    options = {"image_key": image_key, "refine_principal_point": refine_principal_point}
+    if binary is None and _holds_both_models(d):
+        return _read_both_models(d, sigma=sigma, **options)
     if colmap_model_is_binary(d, binary):
         from .io_colmap_bin import read_colmap_binary
 
-        return read_colmap_binary(
-            d, image_key=image_key, refine_principal_point=refine_principal_point, sigma=sigma
-        )
+        return read_colmap_binary(d, sigma=sigma, **options)
+    return _read_text_model(d, sigma=sigma, **options)
+
+
+def _holds_both_models(d: Path) -> bool:
+    return any((d / f).is_file() for f in TEXT_FILES) and any(
+        (d / f).is_file() for f in BINARY_FILES
+    )
+
+
+def _read_both_models(d: Path, **options) -> Block:
+    """The block of a folder holding both COLMAP models, read both ways: the binary one
+    (what COLMAP reads) when they give the same block, else :class:`FileFormatError` naming
+    the first part that differs."""
+    from dataclasses import fields
+
+    from ..records import value_key
+    from .io_colmap_bin import read_colmap_binary
+
+    b, t = read_colmap_binary(d, **options), _read_text_model(d, **options)
+    names = [f.name for f in fields(b) if f.compare]
+    for name, kb, kt in zip(names, value_key(b), value_key(t), strict=True):
+        if kb != kt:
+            raise FileFormatError(
+                f"{d} holds both a COLMAP text model ({', '.join(TEXT_FILES)}) and a binary "
+                f"model ({', '.join(BINARY_FILES)}), and they differ (their "
+                f"{_BLOCK_PARTS.get(name, name)} first): COLMAP reads the binary one; pass "
+                "binary=True to read the .bin files or binary=False for the .txt files, or "
+                "remove one of the two"
+            )
+    return b
+
+
+#: How an error names the parts of a block that differ between two models.
+_BLOCK_PARTS = {
+    "camera_ids": "camera ids",
+    "calibrations": "calibrations",
+    "image_ids": "image ids",
+    "image_camera": "cameras of the images",
+    "exterior": "image poses",
+    "point_ids": "point ids",
+    "xyz": "point coordinates",
+    "observations": "image observations",
+    "free": "free calibration parameters",
+    "image_variant": "camera groups",
+    "colmap_images": "image ids and names",
+}
+
+
+def _read_text_model(
+    d: Path, *, image_key: str, refine_principal_point: bool, sigma: float
+) -> Block:
+    """The block of the COLMAP text model in folder ``d`` (see :func:`read_colmap`)."""
     pc, pi, pp = d / "cameras.txt", d / "images.txt", d / "points3D.txt"
     cams, free, groups = _read_cameras(pc, refine_principal_point)
     image_id, cam_id, names, pose, p2d, p3d, n2d, head_no = _read_images(pi)

@@ -22,7 +22,6 @@ from .io_colmap import (
     BINARY_FILES,
     TEXT_FILES,
     colmap_files,
-    colmap_model_is_binary,
     read_colmap,
     write_colmap,
 )
@@ -199,22 +198,18 @@ def detect_format(path: str | os.PathLike) -> str:
     Raises
     ------
     FileFormatError
-        ``path`` does not exist, is a folder holding none of them, or holds both a COLMAP
-        text and a binary model.
+        ``path`` does not exist or is a folder holding none of them (a folder holding both
+        COLMAP models is ``"colmap-bin"``, COLMAP's choice: :func:`read_block` reads both
+        and refuses them when they differ).
     """
     p = Path(path)
     if p.exists() and not p.is_dir():  # a file, or a pipe (read once); read_bal refuses devices
         return "bal"
     if p.is_dir():
-        if any((p / f).is_file() for f in TEXT_FILES + BINARY_FILES):
-            try:
-                return "colmap-bin" if colmap_model_is_binary(p) else "colmap"
-            except FileFormatError as exc:  # both: the kinds of read_block name them
-                raise FileFormatError(
-                    str(exc).replace("binary=True", "kind='colmap-bin'").replace(
-                        "binary=False", "kind='colmap'"
-                    )
-                ) from None
+        if any((p / f).is_file() for f in BINARY_FILES):
+            return "colmap-bin"  # with a text model too: read_block reads and compares both
+        if any((p / f).is_file() for f in TEXT_FILES):
+            return "colmap"
         if (p / "images.csv").is_file() or (p / "observations.csv").is_file():
             return "csv"
         raise FileFormatError(
@@ -251,8 +246,18 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
         The block, in photogeom's conventions (pixels from the centre of the first pixel).
     """
     k = detect_format(path) if kind is None else _check(kind)
-    if k in ("colmap", "colmap-bin"):
-        return read_colmap(path, binary=k == "colmap-bin", **options)
+    if k in ("colmap", "colmap-bin"):  # detected: both models compared (read_colmap)
+        binary = None if kind is None else k == "colmap-bin"
+        if binary is None:
+            try:
+                return read_colmap(path, **options)
+            except FileFormatError as exc:
+                raise FileFormatError(
+                    str(exc)
+                    .replace("binary=True", "kind='colmap-bin'")
+                    .replace("binary=False", "kind='colmap'")
+                ) from None
+        return read_colmap(path, binary=binary, **options)
     reader = {"bal": read_bal, "csv": read_csv_block}[k]
     return reader(path, **options)
 

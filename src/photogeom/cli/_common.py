@@ -1372,3 +1372,23 @@ def option_or_file_crs(
             f"{option} names the CRS of the coordinates, it does not convert them; {fix}"
         )
     return text
+
+
+def read_detected_block(path: Path, **options):
+    """The block at ``path`` in the format its content shows (:func:`photogeom.bundle.
+    read_block` without ``kind``), for commands without a format option: a folder holding a
+    COLMAP text and a binary model that differ is refused in words such a command can
+    follow."""
+    from ..bundle.io_formats import read_block
+    from ..errors import FileFormatError
+
+    try:
+        return read_block(path, **options)
+    except FileFormatError as exc:
+        if "and they differ" not in str(exc):
+            raise
+        text = str(exc)
+        raise FileFormatError(
+            text[: text.index("; pass kind=")]
+            + "; remove the one not to read, or move it to a folder of its own"
+        ) from None

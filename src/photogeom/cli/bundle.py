@@ -24,7 +24,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import InputError, OutputError
+from ..errors import FileFormatError, InputError, OutputError
 from ._common import (
     CRS_FORMS,
     AngleUnit,
@@ -147,8 +147,9 @@ def _cli_words(fn):
 def detect_format(path: Path, given: BlockFormat | None, option: str = "--format") -> str:
     """The format of an existing block: ``given``, else by content (a file is BAL; a folder
     with ``cameras.csv`` is a CSV block, one with ``cameras.txt`` a COLMAP text model
-    "colmap", one with ``cameras.bin`` COLMAP's binary model "colmap-bin"). A folder holding
-    both COLMAP models, or a COLMAP format the folder does not hold, is refused naming
+    "colmap", one with ``cameras.bin`` COLMAP's binary model "colmap-bin", one with both
+    "colmap-both": :func:`read_block` reads it both ways and refuses it, naming ``option``,
+    when they differ). A COLMAP format the folder does not hold is refused naming
     ``option``."""
     if not path.exists():
         raise InputError(f"no file or folder {path}")
@@ -159,12 +160,7 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
         txt = [f for f in TEXT_FILES if (path / f).is_file()]
         bins = [f for f in BINARY_FILES if (path / f).is_file()]
         if txt and bins and given is None and not (path / "cameras.csv").is_file():
-            raise InputError(
-                f"{path} holds both a COLMAP text model ({', '.join(txt)}) and a binary model "
-                f"({', '.join(bins)}), which may differ (COLMAP reads the binary one): give "
-                f"{option} colmap-bin for the .bin files or {option} colmap for the .txt "
-                "files, or remove one of the two"
-            )
+            return "colmap-both"  # read_block reads both, takes them when they are the same
         have = "colmap" if txt else "colmap-bin"
         if given is not None and bool(txt) != bool(bins) and given.value != have:
             raise InputError(
@@ -210,8 +206,11 @@ def output_format(path: Path, given: BlockFormat | None, default: str | None, op
     )
 
 
-def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
-    """Read a block in format ``fmt`` (``sigma``: the ``--sigma`` of the command, px)."""
+def read_block(
+    path: Path, fmt: str, *, sigma: float | None, image_key: str, option: str = "--format"
+):
+    """Read a block in format ``fmt`` of :func:`detect_format` (``sigma``: the ``--sigma`` of
+    the command, px; ``option``: the command's format option, named in errors)."""
     import math
 
     from .. import bundle
@@ -225,6 +224,20 @@ def read_block(path: Path, fmt: str, *, sigma: float | None, image_key: str):
     kw = {} if sigma is None else {"sigma": sigma}
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
+    if fmt == "colmap-both":  # a folder holding both models (detect_format)
+        try:
+            return bundle.read_colmap(path, image_key=ImageKey(image_key).value, **kw)
+        except FileFormatError as exc:
+            if "and they differ" not in str(exc):
+                raise
+            raise InputError(
+                str(exc).replace(
+                    "pass binary=True to read the .bin files or binary=False for the .txt "
+                    "files",
+                    f"give {option} colmap-bin for the .bin files or {option} colmap for the "
+                    ".txt files",
+                )
+            ) from None
     if fmt in ("colmap", "colmap-bin"):
         return bundle.read_colmap(
             path, image_key=ImageKey(image_key).value, binary=fmt == "colmap-bin", **kw
@@ -673,7 +686,8 @@ def adjust(
         alpha, upper=0.5, off=None if snooping else "--no-snooping turns off: leave out "
         "--no-snooping or --alpha",
     )  # fmt: skip
-    src_fmt = detect_format(source, fmt)
+    read_fmt = detect_format(source, fmt)
+    src_fmt = "colmap-bin" if read_fmt == "colmap-both" else read_fmt  # COLMAP reads .bin
     out_fmt = (
         None if output is None else output_format(output, output_fmt, src_fmt, "--output-format")
     )
@@ -686,7 +700,7 @@ def adjust(
 
         cal_fmt = calibration_format(output_calibration, "--output-calibration")
     with stage_spinner(f"reading {source}"):
-        block = read_block(source, src_fmt, sigma=sigma, image_key=image_key)
+        block = read_block(source, read_fmt, sigma=sigma, image_key=image_key)
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
@@ -994,14 +1008,15 @@ def convert(
 ) -> None:
     """Convert a block between BAL, COLMAP text or binary and CSV (conventions converted
     exactly)."""
-    src = detect_format(source, from_fmt, "--from")
+    read_fmt = detect_format(source, from_fmt, "--from")
+    src = "colmap-bin" if read_fmt == "colmap-both" else read_fmt  # COLMAP reads .bin
     dst = output_format(target, to_fmt, None, "--to")
     # a CSV block holds deg, gon or rad (named in its column headers): arcsec, accepted by
     # every bundle command, is written in deg, as bundle adjust -o does
     block_angle = block_angle_unit(angle_unit.value)
     check_targets(blocks=[("TARGET", target, dst)])
     with stage_spinner(f"converting {source} to {dst}"):
-        block = read_block(source, src, sigma=sigma, image_key=image_key)
+        block = read_block(source, read_fmt, sigma=sigma, image_key=image_key, option="--from")
         files = block_files(
             block, target, dst, drop_extras=drop_extras, angle_unit=block_angle
         )

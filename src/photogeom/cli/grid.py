@@ -38,6 +38,7 @@ from ._common import (
     options_in_errors,
     pixels,
     print_id_table,
+    read_detected_block,
     refuse_stdout_dash,
     say,
     scheduler_option,
@@ -897,7 +898,6 @@ def _fit_block(
     fit of ``grid evaluate``), each image's size from its camera; the images of
     ``exclude`` (ids as text, --exclude) left out. ``where`` receives, per image, ``("point",
     the point id of each of its rows)``."""
-    import photogeom as pg
 
     from ..bundle.io_formats import detect_format
     from ..calibration import fit_residual_grids
@@ -910,7 +910,7 @@ def _fit_block(
         )
     options_read = {"image_size": _image_size(image_size)} if image_size is not None else {}
     with stage_spinner(f"reading {path}"):
-        block = pg.bundle.read_block(path, **options_read)
+        block = read_detected_block(path, **options_read)
     if bal and image_size is None:  # the pixel origin, and so the grids, follow that size
         w, h = (int(x) for x in block.image_sizes()[0])
         say(

@@ -28,6 +28,7 @@ from ._common import (
     pair_records,
     pixels,
     print_id_table,
+    read_detected_block,
     say,
     split_numbers,
     stage_spinner,
@@ -226,7 +227,7 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
     if not block.exists():
         raise InputError(f"BLOCK: {block} does not exist")
     with stage_spinner(f"reading {block}"):
-        read = pg.bundle.read_block(block)
+        read = read_detected_block(block)
     warn_if_unadjusted(read, block)
     return _Fit(read), None
 
