@@ -38,6 +38,11 @@ GIMBAL_TOLERANCE = 1e-9
 #: (the textbook atan2(-m21, m11) divides the rounding errors of the matrix by cos(phi)).
 NEAR_GIMBAL_LOCK = 1e-2
 
+#: Below this value of cos(phi) (|phi| above 84.3 degrees) the standard deviations of omega and
+#: kappa exceed the precision of the rotation itself by 1 / cos(phi), more than 10 times, and
+#: are correlated to nearly +-1: the estimators say so in a note.
+LOCK_COS_PHI = 0.1
+
 
 def _Rotation():
     """scipy's Rotation class, imported on first use (scipy.spatial is slow to import)."""
