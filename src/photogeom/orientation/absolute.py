@@ -38,7 +38,7 @@ from ..errors import (
     ReflectionError,
     TooFewPointsError,
 )
-from ..rotation import angles_from_rotation, orthogonality_defect
+from ..rotation import angles_from_rotation, gimbal_lock_note, orthogonality_defect
 from ..transforms import Similarity3D
 from ..units import from_radians
 from ..validation import as_float64, as_points, check_finite_magnitude
@@ -536,24 +536,30 @@ def absolute_orientation(
     ctx = _Context(n=n, ids=None if ids is None else tuple(ids), unit=unit, t0=t0,
                    sigma0_prior=float(sigma0_prior))
     if method in DIRECT_METHODS:
-        return _direct_fit(
+        fit = _direct_fit(
             method, x, X, prec, with_scale, scale_method or "least-squares", statistics,
             nearest_rotation, ctx, coplanar_threshold,
         )
-    if method == "gauss-markov":
+    elif method == "gauss-markov":
         if n >= LARGE_N and prec.obs_w is None and prec.cov_t is None:
-            return _gauss_markov_large(
+            fit = _gauss_markov_large(
                 x, X, prec.point_w, with_scale, initial, statistics, max_iter, tol,
                 raise_on_failure, ctx,
             )
-        return _gauss_markov_fit(
-            x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
+        else:
+            fit = _gauss_markov_fit(
+                x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
+            )
+    else:
+        fit = _gauss_helmert_fit(
+            x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol,
+            raise_on_failure, ctx,
         )
-    fit = _gauss_helmert_fit(
-        x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol, raise_on_failure, ctx
-    )
-    note = _gh_default_precision_note(prec, sigma0_prior)
-    return fit if note is None else replace(fit, notes=(*fit.notes, note))
+        note = _gh_default_precision_note(prec, sigma0_prior)
+        if note is not None:
+            fit = replace(fit, notes=(*fit.notes, note))
+    lock = gimbal_lock_note(fit.parameter_names, fit.parameters, fit.covariance)
+    return fit if lock is None else replace(fit, notes=(*fit.notes, lock))
 
 
 def _gh_default_precision_note(prec: _Precision, sigma0_prior: float) -> str | None:
