@@ -55,3 +55,17 @@ def test_absolute_orientation_near_gimbal_lock_notes_the_inflated_angle_std(meth
     assert len(notes) == 1
     _check(fit, notes[0])
     assert not any("gimbal lock" in n for n in _absolute(80.0, method).notes)
+
+
+@pytest.mark.parametrize("phi_deg", [89.9, -89.99])
+def test_dlt_orientation_near_gimbal_lock_notes_the_inflated_angle_std(phi_deg):
+    # before: orientation_std() gave omega and kappa +-21..26 deg here, nothing said
+    rng = np.random.default_rng(0)
+    eo = ExteriorOrientation(-300.0, 0.0, 20.0, 0.3, math.radians(phi_deg), -0.2)
+    g = eo.position - eo.matrix[2] * 300.0 + rng.uniform(-80, 80, (15, 3))
+    fit = pg.estimate_dlt(g + UTM, project(g, IO, eo) + rng.normal(0.0, 0.002, (15, 2)))
+    notes = [n for n in fit.notes if "gimbal lock" in n]
+    assert len(notes) == 1
+    std = fit.orientation_std()
+    assert f"({std['omega']:.3g} and {std['kappa']:.3g} deg)" in notes[0]
+    assert f"1/cos(phi) = {1.0 / math.cos(fit.exterior.phi):.3g}" in notes[0]

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..adjust import Fit, gauss_markov, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
+from ..rotation import LOCK_COS_PHI, gimbal_lock_note
 from ..validation import (
     as_float64,
     as_points,
@@ -528,4 +529,10 @@ def estimate_dlt(
         ),
     )
     fit = replace(fit, residuals=fit.residuals * s_img, elapsed=time.perf_counter() - t0)
+    if np.cos(eo.phi) < LOCK_COS_PHI:
+        lock = gimbal_lock_note(
+            ORIENTATION_NAMES, _orientation_vector(L), fit.orientation_covariance()
+        )
+        if lock:
+            fit = replace(fit, notes=(*fit.notes, f"decomposed orientation {lock}"))
     return with_check_points(fit, dlt.project, check_ground, check_image, check_ids)
