@@ -38,6 +38,54 @@ GIMBAL_TOLERANCE = 1e-9
 #: (the textbook atan2(-m21, m11) divides the rounding errors of the matrix by cos(phi)).
 NEAR_GIMBAL_LOCK = 1e-2
 
+#: Below this value of cos(phi) (|phi| above 84.3 degrees) the standard deviations of omega and
+#: kappa exceed the precision of the rotation itself by 1 / cos(phi), more than 10 times, and
+#: are correlated to nearly +-1: the estimators say so in a note.
+LOCK_COS_PHI = 0.1
+
+
+def gimbal_lock_note(names, values, covariance) -> str | None:
+    """The note of an estimate whose phi is near +-90 degrees (the gimbal lock of omega, phi,
+    kappa), or None.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Parameter names; those called ``omega``, ``phi`` and ``kappa`` are read.
+    values : array_like, shape (u,)
+        Parameter values (angles in radians).
+    covariance : array_like, shape (u, u)
+        Their covariance (angles in radians squared).
+
+    Returns
+    -------
+    str or None
+        When ``cos(phi) <`` :data:`LOCK_COS_PHI` and omega and kappa have finite standard
+        deviations: a note that these are inflated by ``1 / cos(phi)`` and correlated
+        (giving both), so that they describe the rotation only together.
+    """
+    names = list(names)
+    if not all(k in names for k in ("omega", "phi", "kappa")):
+        return None
+    i, j, k = (names.index(n) for n in ("omega", "phi", "kappa"))
+    phi = float(np.asarray(values, dtype=float)[j])
+    c = np.asarray(covariance, dtype=float)
+    if not math.cos(phi) < LOCK_COS_PHI or not np.all(np.isfinite(c[np.ix_([i, k], [i, k])])):
+        return None
+    so, sk = math.sqrt(max(c[i, i], 0.0)), math.sqrt(max(c[k, k], 0.0))
+    if so == 0.0 or sk == 0.0:
+        return None
+    rho = c[i, k] / (so * sk)
+    return (
+        f"near the gimbal lock of omega, phi, kappa (phi {math.degrees(phi):.6g} deg, "
+        f"{90.0 - abs(math.degrees(phi)):.3g} deg from +-90): omega and kappa turn about "
+        f"nearly the same axis, so their standard deviations ({math.degrees(so):.3g} and "
+        f"{math.degrees(sk):.3g} deg) are inflated by up to 1/cos(phi) = "
+        f"{1.0 / max(math.cos(phi), 1e-300):.3g} and correlated {rho:+.4f}; the rotation is "
+        "not less precise than elsewhere: use the angles' covariance together, not their "
+        "separate standard deviations"
+    )
+
 
 def _Rotation():
     """scipy's Rotation class, imported on first use (scipy.spatial is slow to import)."""

@@ -181,13 +181,14 @@ class Problem:
         ctrl_part = label[self.m + self.control]
         for part in parts:
             imgs = label[: self.m] == part
+            gnss = self.has_gnss & imgs
             P = np.concatenate(
-                [
-                    self.control_xyz[ctrl_part == part],
-                    self.block.gnss[self.has_gnss & imgs] - self.origin,
-                ]
+                [self.control_xyz[ctrl_part == part], self.block.gnss[gnss] - self.origin]
             )
-            missing = _datum_missing(P, bool(np.any(self.has_imu & imgs)))
+            S = np.concatenate(
+                [self.control_sigma[ctrl_part == part], self.block.gnss_sigma[gnss]]
+            )
+            missing = _datum_missing(P, bool(np.any(self.has_imu & imgs)), S)
             if not missing:
                 continue
             what = ", ".join(missing)
@@ -457,18 +458,57 @@ class Problem:
         )
 
 
-def _datum_missing(P: np.ndarray, imu: bool) -> list[str]:
+#: Positions whose distances from their best-fitting line are, as an RMS of the distances
+#: in units of their standard deviations, at most this, lie on one line as far as their
+#: accuracy can tell: the rotation about that line is then fixed by their noise alone.
+LINE_WITHIN_SIGMAS = 3.0
+
+
+def _datum_missing(P: np.ndarray, imu: bool, sigma: np.ndarray | None = None) -> list[str]:
     """The datum elements that positions ``P`` (k, 3: control points, GNSS centres) and,
-    with ``imu``, attitudes leave undetermined (empty: all seven fixed)."""
+    with ``imu``, attitudes leave undetermined (empty: all seven fixed).
+
+    Parameters
+    ----------
+    P : numpy.ndarray, shape (k, 3)
+        Control-point and GNSS positions, object units (m).
+    imu : bool
+        Whether IMU attitudes are observed (they fix the three rotations).
+    sigma : numpy.ndarray, shape (k, 3), optional
+        Standard deviations of ``P``, object units (m). Positions on one line within
+        :data:`LINE_WITHIN_SIGMAS` of them (RMS of the whitened distances from the line)
+        leave the rotation about the line undetermined, as exactly collinear ones do.
+
+    Returns
+    -------
+    list of str
+        The undetermined elements, in words.
+    """
     if P.shape[0] == 0:
         return ["3 shifts", "3 rotations", "the scale"]
     if P.shape[0] == 1:
         return ["the scale"] + ([] if imu else ["3 rotations"])
-    s = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    c = P - P.mean(axis=0)
+    _, s, vt = np.linalg.svd(c, full_matrices=False)
     if s[0] <= 1e-9 * max(1.0, float(np.abs(P).max())):
         return ["the scale"] + ([] if imu else ["3 rotations"])
-    if s[1] <= 1e-6 * s[0] and not imu:
-        return ["the rotation about the line through the control/GNSS positions"]
+    if imu:
+        return []
+    roll = "the rotation about the line through the control/GNSS positions"
+    if s[1] <= 1e-6 * s[0]:
+        return [roll]
+    if sigma is not None:
+        off = c - np.outer(c @ vt[0], vt[0])  # (k, 3) distances from the line, m
+        rms = float(np.sqrt(np.mean(np.sum((off / sigma) ** 2, axis=1))))
+        if rms <= LINE_WITHIN_SIGMAS:
+            dist = float(np.sqrt(np.mean(np.sum(off**2, axis=1))))
+            sd = float(np.sqrt(np.mean(sigma**2)))
+            return [
+                f"{roll}: they lie on one line within their accuracy (RMS distance from "
+                f"the line {dist:.3g}, {rms:.2g} times their standard deviations of "
+                f"{sd:.3g} RMS; at most {LINE_WITHIN_SIGMAS:g} times leaves the rotation "
+                "to their noise)"
+            ]
     return []
 
 

@@ -18,6 +18,7 @@ from ..adjust.snooping import POORLY_CONTROLLED, noncentrality
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
 from ..records import compact_repr, freeze_fields, read_only_fields, setstate_read_only
+from ..rotation import LOCK_COS_PHI
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
@@ -714,6 +715,64 @@ F_STD_MAX = 10.0
 #: causes (blunders, sigmas, a local minimum from poor start values).
 SIGMA0_FAR = 3.0
 
+
+def _near_gimbal_lock_note(
+    ids: np.ndarray,
+    phi: np.ndarray,
+    ext_std: np.ndarray,
+    image_cov: np.ndarray,
+    rotation_cov: np.ndarray,
+    free: np.ndarray,
+) -> str | None:
+    """The note on images near phi = +-90 degrees, or None.
+
+    Parameters
+    ----------
+    ids : numpy.ndarray, shape (m,)
+        Image ids.
+    phi : numpy.ndarray, shape (m,)
+        Adjusted phi, radians.
+    ext_std : numpy.ndarray, shape (m, 6)
+        Standard deviations of X0, Y0, Z0 (object units), omega, phi, kappa (radians).
+    image_cov : numpy.ndarray, shape (m, 6, 6)
+        Their covariances.
+    rotation_cov : numpy.ndarray, shape (m, 3, 3)
+        Covariances of the small rotations the adjustment estimates (radians squared).
+    free : numpy.ndarray of bool, shape (m, 3)
+        Which of omega, phi, kappa are estimated.
+
+    Returns
+    -------
+    str or None
+        The note naming the images, the inflation ``1 / cos(phi)`` and the attitude's own
+        precision, when an estimated attitude has ``cos(phi)`` below
+        :data:`photogeom.rotation.LOCK_COS_PHI`.
+    """
+    near = (np.cos(phi) < LOCK_COS_PHI) & free.all(axis=1)
+    if not np.any(near):
+        return None
+    k = np.flatnonzero(near)
+    listed = ", ".join(map(str, ids[k[:5]].tolist())) + (
+        f" and {k.size - 5} more" if k.size > 5 else ""
+    )
+    margin = float(np.degrees(0.5 * np.pi - np.abs(phi[k])).min())
+    inflation = float(1.0 / max(float(np.cos(phi[k]).min()), 1e-300))
+    big = float(np.degrees(np.max(ext_std[k][:, [3, 5]])))
+    own = float(np.degrees(np.sqrt(np.max(np.linalg.eigvalsh(rotation_cov[k])))))
+    c = image_cov[k]
+    rho = c[:, 3, 5] / np.maximum(np.sqrt(c[:, 3, 3] * c[:, 5, 5]), 1e-300)
+    worst = float(rho[np.argmax(np.abs(rho))])
+    return (
+        f"{k.size} image(s) ({listed}) are near the gimbal lock of omega, phi, kappa (phi "
+        f"within {margin:.3g} deg of +-90 deg): omega and kappa turn about nearly the same "
+        f"axis there, so their standard deviations (up to {big:.3g} deg) are up to "
+        f"1/cos(phi) = {inflation:.3g} times the attitude's own precision ({own:.3g} deg, the "
+        f"largest standard deviation of a small rotation) and correlated {worst:+.4f}; use "
+        "the angles' covariance together (image_covariance), not their separate standard "
+        "deviations, or angles in an object system whose z axis is nearer the viewing "
+        "direction"
+    )
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
@@ -1043,7 +1102,8 @@ def build_result(
         _, ne, F, Q, Qpp, _ = statistics_pass(problem, state, cw, pairs=need_pairs, cofactors=False)
     notes = []
     # exterior orientation covariance in X0..kappa
-    T = opk_from_increment_jacobian(opk_from_rotations(state.M))
+    angles = opk_from_rotations(state.M)
+    T = opk_from_increment_jacobian(angles)
     Jm = np.zeros((m, 6, 6))
     Jm[:, :3, :3] = np.eye(3)
     Jm[:, 3:, 3:] = T
@@ -1062,6 +1122,11 @@ def build_result(
         # to inner constraints every image has its (non-zero) standard deviations
         fixed6 = np.zeros_like(fixed6)
     ext_std[fixed6] = 0.0
+    lock_note = _near_gimbal_lock_note(
+        block.image_ids, angles[:, 1], ext_std, image_cov, var * Ql6[:, 3:, 3:], ~fixed6[:, 3:]
+    )
+    if lock_note:
+        notes.append(lock_note)
     # image-variant calibration: the images' offsets of f, cx, cy (datum-invariant)
     iv_std = np.full((m, 3), np.nan)
     if problem.b > 6:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..adjust import Fit, gauss_markov, normalize_points, solve_linear
 from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
+from ..rotation import LOCK_COS_PHI, gimbal_lock_note
 from ..validation import (
     as_float64,
     as_points,
@@ -163,6 +164,74 @@ def check_not_coplanar(ground: np.ndarray, what: str, need: int, hint: str) -> N
             f"{what}: the control points are coplanar (or collinear): relative thickness "
             f"{(s[-1] / s[0]) if s[0] > 0 else 0.0:.1e}, so the system is singular. At least "
             f"{need} non-coplanar points are needed; {hint}"
+        )
+
+
+#: Significance level of the test that the control's distances from a plane show in the
+#: image coordinates (the DLT against the planar projective transformation of the plane's
+#: coordinates): below it the DLT's camera is set by the noise of the image coordinates.
+RELIEF_ALPHA = 0.001
+
+
+def check_relief_shows(
+    ground: np.ndarray, image: np.ndarray, weights: np.ndarray | None, adj, what: str,
+    hint: str,
+) -> None:
+    """Raise :class:`DegenerateGeometryError` when nearly coplanar control is coplanar as far
+    as the image coordinates can tell.
+
+    The DLT's fit is compared with that of a planar projective transformation (8 parameters)
+    from the coordinates of the points in their best-fitting plane to the image: when the
+    DLT's three further parameters do not reduce the weighted squared residuals significantly
+    (F-test at :data:`RELIEF_ALPHA`), the points' distances from the plane do not show in
+    the image beyond its noise and the DLT's projection centre is undetermined.
+
+    Parameters
+    ----------
+    ground : numpy.ndarray, shape (n, 3)
+        Control points, object units.
+    image : numpy.ndarray, shape (n, 2)
+        Their image coordinates, mm or px.
+    weights : numpy.ndarray, shape (2 n,), optional
+        Weights of the image coordinates (1 / sigma^2, per coordinate, point by point).
+    adj : Adjustment
+        The DLT's adjustment (its ``vtpv`` and ``redundancy``, image units squared).
+    what, hint : str
+        Name of the estimate and the advice of the message.
+    """
+    from scipy.special import fdtri  # F quantile (scipy.stats is slow to import)
+
+    from ..estimation import estimate_transform
+
+    c = ground - ground.mean(axis=0)
+    _, s, vt = np.linalg.svd(c, full_matrices=False)
+    n = ground.shape[0]
+    try:
+        planar = estimate_transform(
+            "projective2d", c @ vt[:2].T, image,
+            weights=None if weights is None else weights.reshape(n, 2),
+        )  # fmt: skip
+    except (DegenerateGeometryError, InputError):
+        return  # no planar transformation to compare with: the plane test does not apply
+    r_dlt, r_plane = int(adj.redundancy), int(planar.redundancy)
+    ss_dlt = float(adj.vtpv)
+    ss_plane = float(planar.sigma0**2 * r_plane)
+    if r_dlt <= 0 or r_plane <= r_dlt or not np.isfinite(ss_plane):
+        return
+    if ss_dlt <= 0.0:
+        return  # error-free image coordinates: any relief shows
+    F = ((ss_plane - ss_dlt) / (r_plane - r_dlt)) / (ss_dlt / r_dlt)
+    limit = float(fdtri(r_plane - r_dlt, r_dlt, 1.0 - RELIEF_ALPHA))
+    if F <= limit:
+        rms = float(s[-1] / np.sqrt(n))
+        raise DegenerateGeometryError(
+            f"{what}: the control points are coplanar as far as the image coordinates can "
+            f"tell: their RMS distance from the best-fitting plane, {rms:.3g} (relative "
+            f"thickness {s[-1] / s[0]:.1e}), does not show in the image beyond its noise (a "
+            f"planar projective transformation fits the image coordinates as well: F = "
+            f"{F:.3g}, at most {limit:.3g} at alpha = {RELIEF_ALPHA:g}), so the projection "
+            f"centre is undetermined. Give control points with larger height differences; "
+            f"{hint}"
         )
 
 
@@ -398,6 +467,7 @@ def estimate_dlt(
             wd = wn / np.repeat(den * den, 2)
             adj = solve_linear(A, obs, weights=wd, names=NAMES, what=f"{what} (linear)")
             Ln = adj.x
+        check_relief_shows(g, im, w, adj, what, _COPLANAR_HINT)
     else:
         Ln = _five_point_start(gn, xn).reshape(-1)[:11]
     if constrained or refine:
@@ -459,4 +529,10 @@ def estimate_dlt(
         ),
     )
     fit = replace(fit, residuals=fit.residuals * s_img, elapsed=time.perf_counter() - t0)
+    if np.cos(eo.phi) < LOCK_COS_PHI:
+        lock = gimbal_lock_note(
+            ORIENTATION_NAMES, _orientation_vector(L), fit.orientation_covariance()
+        )
+        if lock:
+            fit = replace(fit, notes=(*fit.notes, f"decomposed orientation {lock}"))
     return with_check_points(fit, dlt.project, check_ground, check_image, check_ids)

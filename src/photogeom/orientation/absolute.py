@@ -38,7 +38,7 @@ from ..errors import (
     ReflectionError,
     TooFewPointsError,
 )
-from ..rotation import angles_from_rotation, orthogonality_defect
+from ..rotation import angles_from_rotation, gimbal_lock_note, orthogonality_defect
 from ..transforms import Similarity3D
 from ..units import from_radians
 from ..validation import as_float64, as_points, check_finite_magnitude
@@ -535,25 +535,35 @@ def absolute_orientation(
         raise InputError("initial values apply to 'gauss-markov' and 'gauss-helmert' only")
     ctx = _Context(n=n, ids=None if ids is None else tuple(ids), unit=unit, t0=t0,
                    sigma0_prior=float(sigma0_prior))
+    if method == "gauss-helmert" and weights is None:
+        # sigmas in object units (weights are relative: no distance to compare with)
+        _check_line_within_sigmas(x, prec.sig_s, "source", "sigma_source")
+        _check_line_within_sigmas(X, prec.sig_t, "target", "sigma_target")
     if method in DIRECT_METHODS:
-        return _direct_fit(
+        fit = _direct_fit(
             method, x, X, prec, with_scale, scale_method or "least-squares", statistics,
             nearest_rotation, ctx, coplanar_threshold,
         )
-    if method == "gauss-markov":
+    elif method == "gauss-markov":
         if n >= LARGE_N and prec.obs_w is None and prec.cov_t is None:
-            return _gauss_markov_large(
+            fit = _gauss_markov_large(
                 x, X, prec.point_w, with_scale, initial, statistics, max_iter, tol,
                 raise_on_failure, ctx,
             )
-        return _gauss_markov_fit(
-            x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
+        else:
+            fit = _gauss_markov_fit(
+                x, X, prec, with_scale, initial, max_iter, tol, raise_on_failure, ctx
+            )
+    else:
+        fit = _gauss_helmert_fit(
+            x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol,
+            raise_on_failure, ctx,
         )
-    fit = _gauss_helmert_fit(
-        x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol, raise_on_failure, ctx
-    )
-    note = _gh_default_precision_note(prec, sigma0_prior)
-    return fit if note is None else replace(fit, notes=(*fit.notes, note))
+        note = _gh_default_precision_note(prec, sigma0_prior)
+        if note is not None:
+            fit = replace(fit, notes=(*fit.notes, note))
+    lock = gimbal_lock_note(fit.parameter_names, fit.parameters, fit.covariance)
+    return fit if lock is None else replace(fit, notes=(*fit.notes, lock))
 
 
 def _gh_default_precision_note(prec: _Precision, sigma0_prior: float) -> str | None:
@@ -1255,6 +1265,38 @@ def _gh_observation_precision(prec: _Precision, n: int, sigma0_prior: float):
     C[np.ix_(src, src)] = Fs
     C[np.ix_(tgt, tgt)] = Ft
     return None, C
+
+
+#: Points whose distances from their best-fitting line are, as an RMS of the distances in
+#: units of their standard deviations, at most this lie on one line as far as their accuracy
+#: can tell: the rotation about that line is then set by their noise.
+LINE_WITHIN_SIGMAS = 3.0
+
+
+def _check_line_within_sigmas(pts: np.ndarray, sigma, side: str, option: str) -> None:
+    """Raise :class:`DegenerateGeometryError` when points with standard deviations ``sigma``
+    (scalar, (n,) or (n, 3), object units; None: not given, nothing checked) lie on one line
+    within :data:`LINE_WITHIN_SIGMAS` of them (RMS of the whitened distances from the line)."""
+    if sigma is None or not np.all(np.isfinite(pts)):
+        return  # not given, or NaN / inf: reported by the other checks
+    n = pts.shape[0]
+    sig = np.asarray(sigma, dtype=float)
+    sig = np.broadcast_to(sig[:, None] if sig.ndim == 1 else sig, (n, 3))
+    c = pts - pts.mean(axis=0)
+    _, sv, vt = np.linalg.svd(c, full_matrices=False)
+    if not np.all(np.isfinite(sv)) or sv[0] == 0.0:
+        return  # NaN / coincident points: reported by the other checks
+    off = c - np.outer(c @ vt[0], vt[0])  # distances from the line
+    rms = float(np.sqrt(np.mean(np.sum((off / sig) ** 2, axis=1))))
+    if rms <= LINE_WITHIN_SIGMAS:
+        dist = float(np.sqrt(np.mean(np.sum(off**2, axis=1))))
+        raise DegenerateGeometryError(
+            f"absolute orientation (gauss-helmert): the {n} {side} points lie on one line "
+            f"within their accuracy (RMS distance from the line {dist:.3g}, {rms:.2g} times "
+            f"{option}; at most {LINE_WITHIN_SIGMAS:g} times leaves the rotation about the "
+            "line to their noise), so that rotation is undetermined; at least three points "
+            f"off a line by more than {option} are needed in each system"
+        )
 
 
 def _gauss_helmert_fit(x, X, prec, with_scale, initial, statistics, iterate, max_iter, tol,

@@ -219,6 +219,7 @@ def space_intersection(
     # --- linear start: minimise perpendicular distances to the rays -------------------------
     Nl = np.zeros((n, 3, 3))
     bl = np.zeros((n, 3))
+    rays = np.full((m, n, 3), np.nan)  # unit ray directions, NaN where not observed
     for i, (io, _) in enumerate(cams):
         xy = ideal[i]
         yd = (io.y0 - xy[:, 1]) / io.f
@@ -228,15 +229,17 @@ def space_intersection(
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         Pm = np.eye(3) - d[:, :, None] * d[:, None, :]
         Pm[~valid[i]] = 0.0
+        rays[i][valid[i]] = d[valid[i]]
         Nl += Pm
         bl += Pm @ Cs[i]
     X = _solve3(Nl, bl, "space intersection (ray start)")
+    angles = _largest_ray_angles(rays)
     # --- Gauss-Newton on the image coordinates --------------------------------------------
     done = np.zeros(n, dtype=bool)
     it = 0
     while it < max_iter:
         it += 1
-        N, b, step_fn, _ = _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten)
+        N, b, step_fn, _ = _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten, angles)
         dX = _solve3(N, b, "space intersection")
         step = step_fn(dX)
         rms = np.sqrt(_vtpv(X, cams, Ms, Cs, ideal, valid, sig, whiten) / (2 * n_rays))
@@ -245,7 +248,7 @@ def space_intersection(
         done |= step <= tol * (1.0 + rms)
         if np.all(done):
             break
-    N, _, _, res = _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten)
+    N, _, _, res = _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten, angles)
     Q = np.linalg.inv(N)
     r = 2 * n_rays - 3
     vtpv = _vtpv(X, cams, Ms, Cs, ideal, valid, sig, whiten)
@@ -283,7 +286,42 @@ def _whitened(v: np.ndarray, A: np.ndarray, sig: float, L: np.ndarray | None):
     return np.einsum("nij,nj->ni", L, v), L @ A
 
 
-def _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten):
+#: Rays of a point that meet at most at this angle (degrees) are named nearly parallel when
+#: the point falls behind a camera (its depth is then set by the noise of the rays).
+PARALLEL_DEG = 1.0
+
+
+def _largest_ray_angles(rays: np.ndarray) -> np.ndarray:
+    """(n,) largest angle in degrees between any two rays of each point from unit ray
+    directions ``rays`` (m, n, 3), NaN where a point is not observed in an image."""
+    m = rays.shape[0]
+    best = np.zeros(rays.shape[1])
+    for i in range(m - 1):  # loop over image pairs, vectorised over points
+        c = np.einsum("knj,nj->kn", rays[i + 1 :], rays[i])
+        s = np.linalg.norm(np.cross(rays[i + 1 :], rays[i]), axis=2)
+        ang = np.degrees(np.arctan2(s, c))  # accurate for small angles too
+        best = np.fmax(best, np.nanmax(np.where(np.isnan(ang), -np.inf, ang), axis=0))
+    return best
+
+
+def _behind_message(i: int, idx: np.ndarray, angles: np.ndarray | None) -> str:
+    """The error for points ``idx`` that fall behind image ``i``."""
+    head = (
+        f"space intersection: {idx.size} point(s) fall behind image {i} (point index "
+        f"{', '.join(str(int(j)) for j in idx[:10])}); the rays do not meet in front of "
+        "the cameras"
+    )
+    if angles is not None and np.all(angles[idx] <= PARALLEL_DEG):
+        return (
+            f"{head}: their rays are nearly parallel (they meet at {float(angles[idx].max()):.2g}"
+            " deg at most), so the points' distances are set by the noise of the image "
+            "coordinates; they need images taken from positions further apart (a base "
+            "against the distance to the points), not the same or nearly the same position"
+        )
+    return f"{head}: check the orientations and the point correspondences"
+
+
+def _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten, angles=None):
     n = X.shape[0]
     N = np.zeros((n, 3, 3))
     b = np.zeros((n, 3))
@@ -296,11 +334,7 @@ def _normals(X, cams, Ms, Cs, ideal, valid, sig, whiten):
         behind = ok & ~(w < 0)
         if np.any(behind):
             idx = np.flatnonzero(behind)
-            raise DegenerateGeometryError(
-                f"space intersection: {idx.size} point(s) fall behind image {i} (point index "
-                f"{', '.join(str(int(j)) for j in idx[:10])}); the rays do not meet in front of "
-                "the cameras: check the orientations and the point correspondences"
-            )
+            raise DegenerateGeometryError(_behind_message(i, idx, angles))
         vw, Aw = _whitened(np.where(ok[:, None], v, 0.0), A, sig[i], whiten[i])
         Aw = np.where(ok[:, None, None], Aw, 0.0)
         vw = np.where(ok[:, None], vw, 0.0)

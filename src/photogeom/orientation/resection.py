@@ -33,6 +33,7 @@ from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
 from ..errors import DegenerateGeometryError, InputError, PhotogeomError, SuspectResultWarning
 from ..records import ReadOnlyRecord
+from ..rotation import gimbal_lock_note
 from ..validation import (
     as_float64,
     as_points,
@@ -837,6 +838,9 @@ def space_resection(
         notes=notes,
         suspect_reason=reason,
     )
+    lock = gimbal_lock_note(fit.parameter_names, fit.parameters, fit.covariance)
+    if lock:
+        fit = replace(fit, notes=(*fit.notes, lock))
     return with_check_points(
         fit,
         lambda g: project(g, io_hat, eo_hat, behind="nan"),
