@@ -97,6 +97,11 @@ _CLI_WORDS = (
         "points: use --start relative (with --strips, or the images in the order of "
         "images.csv)",
     ),
+    (
+        "(photogeom.bundle.start_from_relative_orientation; on the command line bundle adjust "
+        "--start relative)",
+        "(--start relative)",
+    ),
     ("photogeom.bundle.start_from_relative_orientation", "--start relative"),
     (
         "(control points as check points, GNSS and IMU set to NaN: "
