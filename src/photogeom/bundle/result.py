@@ -1248,7 +1248,7 @@ def build_result(problem: Problem, run, opts, vce, elapsed: float) -> BundleFit:
             )
     if not run.converged:
         # a start degrees and tens of metres off (no GNSS/IMU) ends here or at a wrong
-        # minimum: 11 of 20 simulated blocks 20 m and 10 degrees off, none from START_ROUTE
+        # minimum: 12 of 21 simulated blocks 20 m and 10 degrees off, none from START_ROUTE
         notes.append(
             f"{run.message}: the start values may be too far off (a block without GNSS/IMU: "
             f"{START_ROUTE}), or the cost still falls (more iterations)"
