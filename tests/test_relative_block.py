@@ -47,15 +47,3 @@ def test_unknown_image_in_strips_is_named():
         start_from_relative_orientation(sim.block, [[0, 1, 999]])
     with pytest.raises(pg.InputError, match="twice"):
         start_from_relative_orientation(sim.block, [[0, 1], [1, 2]])
-
-
-def test_tie_points_without_start_value_are_named():
-    # image 9 left out of the strips: the points seen only in it and one other image get no
-    # start value; they used to keep the block's, a placeholder 0 in a CSV block read with
-    # start_values=False
-    sim = pg.simulate.uav_block(
-        "FC300S", seed=1, strips=2, images_per_strip=5, gnss_sigma=None, imu_sigma_deg=None
-    )
-    ids = sim.block.image_ids.tolist()
-    with pytest.raises(pg.DegenerateGeometryError, match=r"18 tie point\(s\) get no start value"):
-        start_from_relative_orientation(sim.block, [ids[:9]])

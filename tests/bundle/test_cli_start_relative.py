@@ -147,3 +147,17 @@ def test_csv_reader_without_start_values_keeps_control(sim, tmp_path):
     control = block.role != "tie"
     np.testing.assert_allclose(block.xyz[control], sim.block.xyz[control], atol=1e-9)
     assert np.all(block.exterior == 0.0) and np.all(block.xyz[~control] == 0.0)
+
+
+def test_a_tie_point_without_start_value_is_named(sim, cli, tmp_path):
+    # a point measured in images 0 and 4 (no relative orientation of the strip pairs them)
+    # whose rays cross behind the cameras: it would keep the placeholder 0 of its empty cells
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    h = sim.camera.height
+    with open(d / "points.csv", "a") as f:
+        f.write("999,tie,,,,,,\n")
+    with open(d / "observations.csv", "a") as f:
+        f.write(f"0,999,10,{h - 10},0.3\n4,999,10,10,0.3\n")
+    code, _, err = cli("bundle", "adjust", d, "--start", "relative")
+    assert code != 0
+    assert "--start relative: 1 tie point(s) get no start value" in err and "999" in err

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..errors import DegenerateGeometryError, InputError
+from ..errors import InputError
 from ..orientation.strip import BlockStart, block_start
 from .block import Block
 
@@ -53,15 +53,14 @@ def start_from_relative_orientation(
     -------
     (Block, BlockStart)
         The block with the new start values, and the strips, models and fits behind them.
-        Images in no strip keep their exterior orientation.
+        Images in no strip keep their exterior orientation, and tie points that no model
+        reached and the new cameras cannot intersect (e.g. seen in one image of the strips)
+        keep their coordinates.
 
     Raises
     ------
     InputError
         Unknown image ids in ``strips``, or an image listed twice.
-    DegenerateGeometryError
-        Tie points that get no start value (no model reached them and the new cameras
-        cannot intersect them), named.
     """
     known = set(block.image_ids.tolist())
     listed = [i for s in strips for i in s]
@@ -114,16 +113,5 @@ def start_from_relative_orientation(
         tri = triangulate(new, block.point_ids[rest], images=listed)
         ok = np.asarray(tri.ok, dtype=bool)
         xyz[rest[ok]] = tri.xyz[ok]
-        if not np.all(ok):
-            # a start value kept from the block would be a silent placeholder (a CSV block
-            # read with start_values=False holds 0 there)
-            bad = block.point_ids[rest[~ok]]
-            raise DegenerateGeometryError(
-                f"{bad.size} tie point(s) get no start value: no model reached them and the "
-                "new cameras cannot intersect them (seen in fewer than two images of the "
-                "strips, or rays nearly parallel): "
-                f"{', '.join(map(str, bad[:8].tolist()))}{' ...' if bad.size > 8 else ''}; "
-                "list their images in the strips, or delete these points"
-            )
         new = block.replace(exterior=exterior, xyz=xyz)
     return new, start

@@ -898,13 +898,27 @@ def found_strips(block) -> list[list]:
 def relative_start(block, strips: str | None):
     """The block with start values from relative orientations (``--start relative``) and a
     line that says how they were found."""
+    import numpy as np
+
     from ..bundle import start_from_relative_orientation
+    from ..errors import DegenerateGeometryError
 
     if block.n_images < 2:
         raise InputError("--start relative needs at least two images")
     given = strips is not None
     lists = parse_strips(strips, block) if given else found_strips(block)
     new, st = start_from_relative_orientation(block, lists)
+    # every image is in a strip: a tie point left where it was got no start value (a CSV
+    # block without start values holds a placeholder 0 there)
+    kept = np.flatnonzero((block.role == "tie") & np.all(new.xyz == block.xyz, axis=1))
+    if kept.size:
+        bad = block.point_ids[kept].tolist()
+        raise DegenerateGeometryError(
+            f"--start relative: {kept.size} tie point(s) get no start value (no relative "
+            "orientation reached them and the new cameras cannot intersect them: rays nearly "
+            f"parallel or crossing behind the cameras): {', '.join(map(str, bad[:8]))}"
+            f"{' ...' if kept.size > 8 else ''}; delete them from the block's files"
+        )
     sizes = ", ".join(str(len(s)) for s in lists)
     control = set(block.point_ids[block.role == "control"].tolist())
     n_ctrl = len({p for u in st.control_used for p in u} & control)
