@@ -231,3 +231,20 @@ def test_integer_ids_are_kept():
     dp, _ = eo_errors(bs, {num[i]: e for i, e in truth.items()})
     assert dp.max() < 1e-6
     assert all(isinstance(p, int) for p in bs.points)
+
+
+def test_a_pair_without_base_names_its_images_and_strip():
+    # image 102 taken from the position of 101, turned: a pure rotation in the first pair;
+    # the error named no image, so a block of hundreds of images left the user guessing
+    strips, truth, obs, control, P = simulate_block()
+    ids, xyz = list(P), np.array(list(P.values()))
+    turned = pg.ExteriorOrientation(*truth["101"].position, 0.03, -0.02, 0.1)
+    xy = pg.project(xyz, IO, turned)
+    ok = (np.abs(xy[:, 0]) < 500) & (np.abs(xy[:, 1]) < 350)
+    obs["102"] = {ids[i]: xy[i] for i in np.flatnonzero(ok)}
+    with pytest.raises(
+        pg.DegenerateGeometryError,
+        match=r"^images '101', '102' \(pair 1 of the strip '101' \.\. '105'\): relative "
+        r"orientation: the images show no base.*leave one of the two out of the strip",
+    ):
+        pg.block_start(strips, interiors(strips), obs, control)

@@ -576,13 +576,16 @@ def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions,
     """Minimise the (robust) cost from ``state``; see :class:`Iteration`."""
     cost, e2, depth = problem.cost(state)
     if np.any(~(depth > 0)):
+        from .result import START_ROUTE
+
         k = np.flatnonzero(~(depth > 0))
         o = problem.block.observations
         row = problem.obs_rows[k[0]]
         raise DegenerateGeometryError(
             f"{k.size} observation(s) have their point behind the camera at the start, e.g. "
             f"image {o.image_ids[row]} point {o.point_ids[row]}: check the initial exterior "
-            "orientations (angles in radians, M = M3(kappa) M2(phi) M1(omega)) and points"
+            "orientations (angles in radians, M = M3(kappa) M2(phi) M1(omega)) and points; "
+            f"a block without GNSS/IMU, or with a start degrees off, takes {START_ROUTE}"
         )
     steps = _BundleSteps(problem, state, e2, options.xtol)
     run = levenberg_marquardt_loop(

@@ -20,7 +20,10 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
 * Angles carry their unit in the column name: ``_deg``, ``_gon`` or ``_rad`` (the writer
   uses degrees unless ``angle_unit`` says otherwise). ``df, dcx, dcy`` are per-image offsets
   of f, cx, cy (image-variant calibration), pixels. GNSS and IMU cells are empty for images
-  without them.
+  without them. A block without start values (no GNSS/IMU, a matcher's output) is read
+  with ``start_values=False``: ``X0, Y0, Z0``, the angles and the tie points' ``X, Y, Z``
+  may then be missing or empty (read as 0, placeholders for
+  :func:`photogeom.bundle.start_from_relative_orientation`).
 * Points: role ``tie``, ``control`` or ``check``; ``sX, sY, sZ`` standard deviations of
   surveyed coordinates (empty for tie points). An adjusted block is written with its
   estimates in ``X, Y, Z`` (check points triangulated) and the survey of its control and
@@ -69,6 +72,15 @@ from .block import CALIBRATION_NAMES, Block, ColmapImages
 FILES = ("cameras.csv", "images.csv", "points.csv", "observations.csv")
 _INT = re.compile(r"-?(?:0|[1-9][0-9]*)")
 _EO_ANGLES = ("omega", "phi", "kappa")
+
+#: The route of a block without start values, appended to the errors of empty or missing
+#: exterior-orientation and tie-point cells (the command line names its options instead).
+NO_START_HINT = (
+    "a block without start values (no GNSS/IMU, no earlier adjustment) is read with "
+    "read_csv_block(..., start_values=False) and given them by "
+    "photogeom.bundle.start_from_relative_orientation (relative orientations, strips, "
+    "control points)"
+)
 
 
 @dataclass
@@ -512,6 +524,7 @@ def read_csv_block(
     *,
     calibrations: Mapping[object, MetashapeCalibration | str | os.PathLike] | None = None,
     sigma: float = 0.5,
+    start_values: bool = True,
 ) -> Block:
     """Read a block from a folder of CSV files (see the module docstring).
 
@@ -528,6 +541,13 @@ def read_csv_block(
         or label (:func:`photogeom.camera.read_metashape_xml`).
     sigma : float
         Standard deviation of observations without a ``sigma`` column, pixels.
+    start_values : bool
+        True (default): every image has its exterior orientation (``X0, Y0, Z0`` and the
+        angles) and every tie point its ``X, Y, Z``. False: a block without start values
+        (no GNSS/IMU, a matcher's output): those columns may be missing and their cells
+        empty; an empty value is read as 0, a placeholder for
+        :func:`photogeom.bundle.start_from_relative_orientation` to replace (control and
+        check points still need their ``X, Y, Z``).
 
     Returns
     -------
@@ -594,9 +614,7 @@ def read_csv_block(
             )
     cams = {**cams, **given}
     cams = {k: cams[k] for k in cam_ids.tolist()}
-    xyz0 = np.column_stack([ti.floats(n) for n in ("X0", "Y0", "Z0")])
-    ang = _angles(ti, _EO_ANGLES, optional=False)
-    exterior = np.column_stack([xyz0, ang])
+    exterior = _exterior(ti, start_values)
     offset = None
     if any(ti.has(n) for n in ("df", "dcx", "dcy")):
         offset = np.column_stack(
@@ -617,7 +635,6 @@ def read_csv_block(
     colmap = _colmap_images(ti, img_ids)
     tp = _read_table(d / "points.csv")
     pt_ids = _id_array(tp.col("id"), tp, "id")
-    xyz = np.column_stack([tp.floats(n) for n in ("X", "Y", "Z")])
     role = np.array(tp.col("role"), dtype=str) if tp.has("role") else np.full(tp.n_rows, "tie")
     bad = ~np.isin(role, ("tie", "control", "check"))
     if np.any(bad):
@@ -625,6 +642,7 @@ def read_csv_block(
         raise FileFormatError(
             f"{tp.path}, line {tp.lines[k]}: role {str(role[k])!r} is not tie, control or check"
         )
+    xyz = _point_xyz(tp, role, start_values)
     psig = None
     if tp.has("sX"):
         psig = np.column_stack([tp.floats(f"s{a}", optional_cells=True) for a in "XYZ"])
@@ -681,6 +699,52 @@ def read_csv_block(
     if colmap is not None:
         block = block.replace(colmap_images=colmap)
     return block if surveyed is None else block.replace(surveyed=surveyed)
+
+
+def _with_start_hint(exc: FileFormatError) -> FileFormatError:
+    """``exc`` with :data:`NO_START_HINT` when it is about an empty or missing cell."""
+    text = str(exc)
+    if re.search(r"column '\w+' (is empty|not found)", text):
+        return FileFormatError(f"{text}; {NO_START_HINT}")
+    return exc
+
+
+def _exterior(ti: _Table, start_values: bool) -> np.ndarray:
+    """(n, 6) ``X0, Y0, Z0, omega, phi, kappa`` of images.csv (radians); without
+    ``start_values`` missing columns and empty cells are 0 (placeholders)."""
+    if start_values:
+        try:
+            xyz0 = np.column_stack([ti.floats(n) for n in ("X0", "Y0", "Z0")])
+            ang = _angles(ti, _EO_ANGLES, optional=False)
+        except FileFormatError as exc:
+            raise _with_start_hint(exc) from None
+        return np.column_stack([xyz0, ang])
+    xyz0 = np.column_stack(
+        [
+            ti.floats(n, optional_cells=True) if ti.has(n) else np.zeros(ti.n_rows)
+            for n in ("X0", "Y0", "Z0")
+        ]
+    )
+    ang = _angles(ti, _EO_ANGLES, optional=True)
+    if ang is None:
+        ang = np.zeros((ti.n_rows, 3))
+    return np.nan_to_num(np.column_stack([xyz0, ang]), nan=0.0)
+
+
+def _point_xyz(tp: _Table, role: np.ndarray, start_values: bool) -> np.ndarray:
+    """(n, 3) ``X, Y, Z`` of points.csv; empty cells of tie points are refused with the
+    route to start values, or (without ``start_values``) read as 0 (placeholders)."""
+    xyz = np.column_stack([tp.floats(n, optional_cells=True) for n in ("X", "Y", "Z")])
+    empty = ~np.all(np.isfinite(xyz), axis=1)
+    need = empty & ((role != "tie") | start_values)
+    if np.any(need):
+        k = int(np.flatnonzero(need)[0])
+        hint = "" if role[k] != "tie" else f"; {NO_START_HINT}"
+        raise FileFormatError(
+            f"{tp.path}, line {tp.lines[k]}: {role[k]} point: X, Y or Z is empty{hint}"
+        )
+    xyz[empty] = 0.0
+    return xyz
 
 
 def _colmap_images(ti: _Table, img_ids: np.ndarray) -> ColmapImages | None:

@@ -53,6 +53,14 @@ def start_from_relative_orientation(
     -------
     (Block, BlockStart)
         The block with the new start values, and the strips, models and fits behind them.
+        Images in no strip keep their exterior orientation, and tie points that no model
+        reached and the new cameras cannot intersect (e.g. seen in one image of the strips)
+        keep their coordinates.
+
+    Raises
+    ------
+    InputError
+        Unknown image ids in ``strips``, or an image listed twice.
     """
     known = set(block.image_ids.tolist())
     listed = [i for s in strips for i in s]

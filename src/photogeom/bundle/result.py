@@ -16,7 +16,7 @@ from ..adjust.schur import (
 )
 from ..adjust.snooping import POORLY_CONTROLLED, noncentrality
 from ..camera.frame_kernel import opk_from_increment_jacobian
-from ..errors import DegenerateGeometryError, InputError
+from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from ..records import compact_repr, freeze_fields, read_only_fields, setstate_read_only
 from ..rotation import LOCK_COS_PHI
 from ._angles import opk_from_rotations
@@ -773,6 +773,15 @@ def _near_gimbal_lock_note(
         "direction"
     )
 
+
+#: The route to start values of a block without GNSS/IMU, named in the notes of a run that
+#: did not converge or stopped far above its a-priori sigmas.
+START_ROUTE = (
+    "start values from relative orientations and the control points "
+    "(photogeom.bundle.start_from_relative_orientation; on the command line bundle adjust "
+    "--start relative)"
+)
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
@@ -1198,10 +1207,17 @@ def build_result(
         tri = triangulate(adjusted, block.point_ids[problem.check_points], covariance=True)
         if not np.all(tri.ok):
             bad = tri.point_ids[~tri.ok]
-            raise InputError(
+            text = (
                 f"check point(s) {', '.join(map(str, bad[:5]))} cannot be triangulated from "
                 f"their image observations ({tri.describe_failures()})"
             )
+            if not run.converged:  # with cameras far from a solution the cause is the run
+                raise ConvergenceError(
+                    f"{text}: the adjustment stopped ({run.message}) far from a solution; the "
+                    f"start values may be too far off (a block without GNSS/IMU: {START_ROUTE})",
+                    iterations=run.iterations,
+                )
+            raise InputError(text)
         X0 = block.surveyed_xyz[problem.check_points]
         check_xyz = tri.xyz
         err = check_xyz - X0
@@ -1334,7 +1350,12 @@ def build_result(
                 "snooping['poorly_controlled']: measure those points in more images"
             )
     if not run.converged:
-        notes.append(run.message)
+        # a start degrees and tens of metres off (no GNSS/IMU) ends here or at a wrong
+        # minimum: 12 of 21 simulated blocks 20 m and 10 degrees off, none from START_ROUTE
+        notes.append(
+            f"{run.message}: the start values may be too far off (a block without GNSS/IMU: "
+            f"{START_ROUTE}), or the cost still falls (more iterations)"
+        )
     elif sigma0 > SIGMA0_FAR * s0p:
         # a converged run far above the a-priori sigmas: blunders, sigmas too small, or a
         # local minimum (a start with the calibration free and the attitudes 5 degrees off
@@ -1344,7 +1365,7 @@ def build_result(
             f"{s0p:g}: blunders (see the w-test), a-priori sigmas too small, or start values "
             "so far off that the adjustment stopped in a local minimum; for the last, adjust "
             "with the calibration held first (no free parameters) and then free it from "
-            "that result"
+            f"that result, or (a block without GNSS/IMU) take {START_ROUTE}"
         )
     vc = None
     if vce is not None:

@@ -72,6 +72,13 @@ class Datum(str, Enum):
     free = "free"
 
 
+class Start(str, Enum):
+    """Start values of the adjustment."""
+
+    given = "given"
+    relative = "relative"
+
+
 _BAL_SUFFIXES = (".txt", ".bal", ".bz2")
 
 #: Library words in error messages and the command-line options that say the same.
@@ -83,6 +90,20 @@ _CLI_WORDS = (
         "M = M3(kappa) M2(phi) M1(omega); or in the convention of the BAL or COLMAP file)",
     ),
     ("drop_extras=True", "--drop-extras"),
+    (
+        "is read with read_csv_block(..., start_values=False) and given them by "
+        "photogeom.bundle.start_from_relative_orientation (relative orientations, strips, "
+        "control points)",
+        "takes them from relative orientations of consecutive images, strips and the control "
+        "points: use --start relative (with --strips, or the images in the order of "
+        "images.csv)",
+    ),
+    (
+        "(photogeom.bundle.start_from_relative_orientation; on the command line bundle adjust "
+        "--start relative)",
+        "(--start relative)",
+    ),
+    ("photogeom.bundle.start_from_relative_orientation", "--start relative"),
     (
         "(control points as check points, GNSS and IMU set to NaN: "
         "Block.without_datum_observations())",
@@ -207,10 +228,17 @@ def output_format(path: Path, given: BlockFormat | None, default: str | None, op
 
 
 def read_block(
-    path: Path, fmt: str, *, sigma: float | None, image_key: str, option: str = "--format"
+    path: Path,
+    fmt: str,
+    *,
+    sigma: float | None,
+    image_key: str,
+    option: str = "--format",
+    start_values: bool = True,
 ):
     """Read a block in format ``fmt`` of :func:`detect_format` (``sigma``: the ``--sigma`` of
-    the command, px; ``option``: the command's format option, named in errors)."""
+    the command, px; ``option``: the command's format option, named in errors;
+    ``start_values=False``: a CSV block's orientations and tie points may be empty)."""
     import math
 
     from .. import bundle
@@ -242,7 +270,7 @@ def read_block(
         return bundle.read_colmap(
             path, image_key=ImageKey(image_key).value, binary=fmt == "colmap-bin", **kw
         )
-    return bundle.read_csv_block(path, **kw)
+    return bundle.read_csv_block(path, start_values=start_values, **kw)
 
 
 def block_files(block, path: Path, fmt: str, *, drop_extras: bool, angle_unit: str):
@@ -591,6 +619,28 @@ def adjust(
         ),
     ] = None,
     max_iterations: Annotated[int, typer.Option(help="Iterations at most.")] = 100,
+    start: Annotated[
+        Start,
+        typer.Option(
+            "--start",
+            help="Start values: given (the block's exterior orientations and tie points: "
+            "GNSS/IMU, an earlier adjustment) or relative (new ones from relative "
+            "orientations of consecutive images, strips and the control points, for a block "
+            "without GNSS/IMU: the X0, Y0, Z0, omega, phi, kappa cells of images.csv and the "
+            "tie points' X, Y, Z may then be empty or missing).",
+        ),
+    ] = Start.given,
+    strips: Annotated[
+        str | None,
+        typer.Option(
+            "--strips",
+            help="With --start relative: the image ids of each strip in flight order, "
+            "comma-separated, strips separated by ';' (e.g. '1,2,3;6,5,4'), every image "
+            "once [default: the images in the order of the block's file, a new strip where "
+            "two consecutive images share fewer than 5 points or three fewer than 3].",
+            show_default=False,
+        ),
+    ] = None,
     output: Annotated[
         Path | None,
         typer.Option(
@@ -699,9 +749,20 @@ def adjust(
         from ..camera.calibration_files import calibration_format
 
         cal_fmt = calibration_format(output_calibration, "--output-calibration")
+    if strips is not None and start is not Start.relative:
+        raise InputError(
+            "--strips is for --start relative: add --start relative, or leave out --strips"
+        )
+    relative = start is Start.relative
     with stage_spinner(f"reading {source}"):
-        block = read_block(source, read_fmt, sigma=sigma, image_key=image_key)
+        block = read_block(
+            source, read_fmt, sigma=sigma, image_key=image_key, start_values=not relative
+        )
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
+    start_note = None
+    if relative:
+        with stage_spinner("start values from relative orientations"):
+            block, start_note = relative_start(block, strips)
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
         cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
@@ -787,12 +848,14 @@ def adjust(
     if as_json:
         d = fit.to_dict(angle)
         d["unit"] = unit
-        d["input"] = {"path": str(source), "format": src_fmt}
+        d["input"] = {"path": str(source), "format": src_fmt, "start": start.value}
         _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
         return
     out = console()
     say(f"{source} ({src_fmt})", out)
+    if start_note is not None:
+        say(start_note, out)
     say(fit.summary(angle, unit), out)
     if georef is not None:
         say(
@@ -809,6 +872,113 @@ def adjust(
         )
     for path, _ in texts:
         say(f"wrote {path}", out)
+
+
+#: Points two consecutive images of a found strip share (a relative orientation needs 5)
+#: and points three consecutive images share (the scale transfer; ``min_common``).
+_STRIP_PAIR, _STRIP_TRIPLE = 5, 3
+
+
+def parse_strips(text: str, block) -> list[list]:
+    """The strips of ``--strips`` ('1,2,3;6,5,4') as lists of the block's image ids; every
+    image once."""
+    by_text = {str(i): i for i in block.image_ids.tolist()}
+    out: list[list] = []
+    for part in text.split(";"):
+        cells = [c.strip() for c in part.split(",")]
+        if not any(cells):
+            continue
+        if not all(cells):
+            raise InputError(f"--strips: an empty image id in {part.strip()!r}")
+        unknown = [c for c in cells if c not in by_text]
+        if unknown:
+            raise InputError(
+                f"--strips: {', '.join(map(repr, unknown[:5]))} is not an image id of the "
+                f"block (its ids: {', '.join(list(by_text)[:8])}"
+                f"{' ...' if len(by_text) > 8 else ''})"
+            )
+        if len(cells) < 2:
+            raise InputError(f"--strips: strip {cells[0]!r} has one image; a strip needs two")
+        out.append([by_text[c] for c in cells])
+    listed = [i for s in out for i in s]
+    twice = sorted({str(i) for i in listed if listed.count(i) > 1})
+    if twice:
+        raise InputError(f"--strips: image(s) {', '.join(twice[:5])} listed twice")
+    left = [i for i in by_text if by_text[i] not in set(listed)]
+    if left:
+        raise InputError(
+            f"--strips: {len(left)} image(s) in no strip ({', '.join(left[:8])}): every image "
+            "needs its start values; add them to a strip, or delete them from the block"
+        )
+    return out
+
+
+def found_strips(block) -> list[list]:
+    """Strips from the order of the block's images: a new strip where two consecutive images
+    share fewer than ``_STRIP_PAIR`` points or three fewer than ``_STRIP_TRIPLE``."""
+    import numpy as np
+    from scipy import sparse
+
+    m = block.n_images
+    A = sparse.csr_matrix(
+        (np.ones(block.n_observations), (block.obs_image, block.obs_point)),
+        shape=(m, block.n_points),
+    )
+    A.data[:] = 1.0
+    pair = np.asarray(A[:-1].multiply(A[1:]).sum(axis=1)).ravel()  # images k, k + 1
+    triple = np.asarray(A[:-2].multiply(A[1:-1]).multiply(A[2:]).sum(axis=1)).ravel()
+    ids = block.image_ids.tolist()
+    out, cur = [], [ids[0]]
+    for k in range(1, m):
+        ok = pair[k - 1] >= _STRIP_PAIR and (len(cur) < 2 or triple[k - 2] >= _STRIP_TRIPLE)
+        if ok:
+            cur.append(ids[k])
+        else:
+            out.append(cur)
+            cur = [ids[k]]
+    out.append(cur)
+    lone = [s[0] for s in out if len(s) < 2]
+    if lone:
+        raise InputError(
+            f"--start relative: image(s) {', '.join(map(str, lone[:8]))} share fewer than "
+            f"{_STRIP_PAIR} points with the images next to them in the block's file: give "
+            "the strips in flight order with --strips"
+        )
+    return out
+
+
+def relative_start(block, strips: str | None):
+    """The block with start values from relative orientations (``--start relative``) and a
+    line that says how they were found."""
+    import numpy as np
+
+    from ..bundle import start_from_relative_orientation
+    from ..errors import DegenerateGeometryError
+
+    if block.n_images < 2:
+        raise InputError("--start relative needs at least two images")
+    given = strips is not None
+    lists = parse_strips(strips, block) if given else found_strips(block)
+    new, st = start_from_relative_orientation(block, lists)
+    # every image is in a strip: a tie point left where it was got no start value (a CSV
+    # block without start values holds a placeholder 0 there)
+    kept = np.flatnonzero((block.role == "tie") & np.all(new.xyz == block.xyz, axis=1))
+    if kept.size:
+        bad = block.point_ids[kept].tolist()
+        raise DegenerateGeometryError(
+            f"--start relative: {kept.size} tie point(s) get no start value (no relative "
+            "orientation reached them and the new cameras cannot intersect them: rays nearly "
+            f"parallel or crossing behind the cameras): {', '.join(map(str, bad[:8]))}"
+            f"{' ...' if kept.size > 8 else ''}; delete them from the block's files"
+        )
+    sizes = ", ".join(str(len(s)) for s in lists)
+    control = set(block.point_ids[block.role == "control"].tolist())
+    n_ctrl = len({p for u in st.control_used for p in u} & control)
+    how = "--strips" if given else "the order of the images in the block's file"
+    return new, (
+        f"start values from relative orientations: {len(lists)} strip(s) of {sizes} images "
+        f"({how}), oriented to {n_ctrl} control point(s)"
+    )
 
 
 def calibration_targets(path: Path, groups: list) -> list[tuple[object, Path]]:

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
-from ..errors import DegenerateGeometryError, InputError, TooFewPointsError
+from ..errors import DegenerateGeometryError, InputError, PhotogeomError, TooFewPointsError
 from .relative import RelativeOrientationFit, relative_orientation
 
 __all__ = ["BlockStart", "StripModel", "block_start", "orient_strip", "points_from_exteriors"]
@@ -144,9 +144,23 @@ def orient_strip(
         ids, xy1, xy2 = _pair_matches(observations[a], observations[b])
         if len(ids) < 5:
             raise TooFewPointsError(f"relative orientation of images {a!r}, {b!r}", len(ids), 5)
-        fit = relative_orientation(
-            xy1, xy2, interiors[a], interiors[b], method=method, sigma=sigma, ids=ids, seed=seed
-        )
+        try:
+            fit = relative_orientation(
+                xy1, xy2, interiors[a], interiors[b], method=method, sigma=sigma, ids=ids, seed=seed
+            )
+        except PhotogeomError as exc:  # which pair of which strip, in the error's own type
+            if exc.args:
+                hint = (
+                    "; leave one of the two out of the strip, or delete it from the block"
+                    if "no base" in str(exc.args[0])
+                    else ""
+                )
+                exc.args = (
+                    f"images {a!r}, {b!r} (pair {k + 1} of the strip {imgs[0]!r} .. "
+                    f"{imgs[-1]!r}): {exc.args[0]}{hint}",
+                    *exc.args[1:],
+                )
+            raise
         fits.append(fit)
         mp = fit.model_points()
         pts = mp.as_dict()

@@ -50,8 +50,10 @@ class SimulatedBlock:
     block : Block
         The block to adjust: observed pixels (ideal + local field + noise + blunders),
         initial exterior orientation (GNSS/IMU, or perturbed truth), initial calibration,
-        tie points triangulated from the initial cameras, control and check points at their
-        surveyed (noisy) coordinates.
+        tie points triangulated from the initial cameras (where those cannot intersect a
+        point, the mean of its initial rays' points at the mean terrain height), control and
+        check points at their surveyed (noisy) coordinates. The points and observations
+        depend on the true geometry only, not on the start values.
     truth : Block
         The same ids with the true exterior orientation, points, calibration (and
         image-variant offsets); its observations are the ideal pixels, so its
@@ -399,6 +401,54 @@ def _max_radius(cam: MetashapeCalibration) -> float:
             "(d r_distorted / d r <= 0): choose smaller distortion coefficients"
         )
     return rmax
+
+
+def _terrain_height_starts(
+    block: Block, points: np.ndarray, height: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Start coordinates of points from their rays in the block's cameras and a height.
+
+    Parameters
+    ----------
+    block : Block
+        Cameras (calibration, exterior orientation) and observations.
+    points : (k,) int
+        Rows of the points in ``block``.
+    height : float
+        Ground height Z the rays are cut with, in the block's length unit (metres).
+
+    Returns
+    -------
+    xyz : (k, 3) float
+        Mean of the points where each of a point's rays cuts ``Z = height`` in front of its
+        camera (``Z = height``; NaN where no ray does).
+    hit : (k,) bool
+        Points with at least one such ray.
+    """
+    from ..bundle.triangulate import normalized_rays
+
+    local = np.full(block.n_points, -1, dtype=np.int64)
+    local[points] = np.arange(points.size)
+    rows = np.flatnonzero(local[block.obs_point] >= 0)
+    xy, ok = normalized_rays(block, rows)
+    img = block.obs_image[rows]
+    dcam = np.column_stack([xy[:, 0], -xy[:, 1], -np.ones(rows.size)])
+    d = np.einsum("nji,nj->ni", block.rotations()[img], dcam)
+    C = block.exterior[img, :3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = (height - C[:, 2]) / d[:, 2]
+    good = ok & np.isfinite(lam) & (lam > 0)
+    lp = local[block.obs_point[rows]][good]
+    X = C[good] + lam[good, None] * d[good]
+    n = np.bincount(lp, minlength=points.size)
+    xyz = np.column_stack(
+        [np.bincount(lp, weights=X[:, a], minlength=points.size) for a in range(2)]
+        + [np.full(points.size, height)]
+    )
+    hit = n > 0
+    xyz[hit, :2] /= n[hit, None]
+    xyz[~hit] = np.nan
+    return xyz, hit
 
 
 def uav_block(
@@ -859,13 +909,27 @@ def uav_block(
     truth, start = build(*arrays)
     tie_idx = np.flatnonzero(role == "tie")
     tri = triangulate(start, pid[tie_idx], iterations=50)
-    n_dropped = int(np.sum(~tri.ok))
+    tri_xyz = np.array(tri.xyz)
+    fail = ~tri.ok
+    drop = np.zeros(tie_idx.size, dtype=bool)
+    n_plane = 0
+    if np.any(fail):
+        # Which tie points exist is a matter of the true geometry (a matcher's output lacks
+        # those whose rays are nearly parallel), not of the start values: a point the true
+        # cameras cannot intersect is dropped; one only the initial cameras cannot intersect
+        # (rays crossing behind them when the start is degrees off) keeps its observations and
+        # starts where its initial rays meet the mean terrain height.
+        drop[fail] = ~triangulate(truth, pid[tie_idx[fail]], iterations=50).ok
+        redo = fail & ~drop
+        plane, hit = _terrain_height_starts(start, tie_idx[redo], float(terrain_height))
+        tri_xyz[np.flatnonzero(redo)] = plane
+        n_plane = int(np.sum(hit))
+        drop[np.flatnonzero(redo)[~hit]] = True  # no initial ray reaches the ground
+    n_dropped = int(np.sum(drop))
     if n_dropped:
-        # Tie points that the initial cameras cannot intersect (e.g. nearly parallel rays
-        # at the block's edge) are dropped from both blocks, as a matcher's output would lack
-        # them; their number is recorded in ``options["dropped_tie_points"]``.
+        # dropped from both blocks; their number is ``options["dropped_tie_points"]``
         keep_pt = np.ones(pid.size, dtype=bool)
-        keep_pt[tie_idx[~tri.ok]] = False
+        keep_pt[tie_idx[drop]] = False
         keep_o = keep_pt[cj]
         newrow = np.cumsum(keep_o) - 1
         kb = keep_o[brows]
@@ -878,9 +942,7 @@ def uav_block(
         xyz_true, xyz_obs, point_sigma = xyz_true[keep_pt], xyz_obs[keep_pt], point_sigma[keep_pt]
         arrays = [ci, cj, pid, role, xyz_true, xyz_obs, point_sigma, uv_ideal, observed, obs_sigma]
         truth, start = build(*arrays)
-        tri_xyz = tri.xyz[tri.ok]
-    else:
-        tri_xyz = tri.xyz
+        tri_xyz = tri_xyz[~drop]
     xyz0 = xyz_obs.copy()
     xyz0[role == "tie"] = tri_xyz
     start = start.replace(xyz=xyz0)
@@ -896,6 +958,7 @@ def uav_block(
         relief=rel if terrain == "hilly" else None,
         tie_points_per_image=tie_points_per_image,
         dropped_tie_points=n_dropped,
+        terrain_height_starts=n_plane,
         sigma=float(sigma),
         gcp_sigma=float(gcp_sigma),
         gnss_sigma=None if gs is None else gs.tolist(),

@@ -1,0 +1,163 @@
+"""bundle adjust --start relative: a CSV block without start values (no GNSS/IMU, no
+exterior orientations, no tie-point coordinates) takes them from relative orientations,
+strips and its control points, and reaches the minimum the adjustment reaches from the true
+values."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+import photogeom as pg
+
+
+@pytest.fixture(scope="module")
+def sim():
+    # without GNSS/IMU, the start 30 m and 20 degrees off (FC300S, 56 m flying height)
+    return pg.simulate.uav_block(
+        "FC300S",
+        seed=1,
+        strips=2,
+        images_per_strip=5,
+        gnss_sigma=None,
+        imu_sigma_deg=None,
+        initial_position_error=30.0,
+        initial_attitude_error_deg=20.0,
+    )
+
+
+@pytest.fixture(scope="module")
+def reference(sim):
+    """The adjustment from the true exterior orientations and tie points."""
+    tie = (sim.block.role == "tie")[:, None]
+    return pg.bundle_adjust(
+        sim.block.replace(
+            exterior=sim.truth.exterior.copy(), xyz=np.where(tie, sim.truth.xyz, sim.block.xyz)
+        )
+    )
+
+
+def _without_start(sim, folder, *, columns: bool):
+    """The block's CSV folder with the exterior orientations and the tie points' X, Y, Z
+    removed: the columns left out (``columns=False``) or their cells emptied."""
+    pg.bundle.write_csv_block(sim.block, folder)
+    images = (folder / "images.csv").read_text().splitlines()
+    rows = [r for r in images if not r.startswith("#")]
+    keep = 2 if not columns else len(rows[0].split(","))
+    out = []
+    for r in rows:
+        cells = r.split(",")[:keep]
+        if columns and r is not rows[0]:
+            cells[2:8] = [""] * 6
+        out.append(",".join(cells))
+    (folder / "images.csv").write_text("\n".join(out) + "\n")
+    points = []
+    for r in (folder / "points.csv").read_text().splitlines():
+        cells = r.split(",")
+        if len(cells) > 4 and cells[1] == "tie":
+            cells[2:5] = ["", "", ""]
+        points.append(",".join(cells))
+    (folder / "points.csv").write_text("\n".join(points) + "\n")
+    return folder
+
+
+def _ids(sim, k):
+    return ",".join(map(str, sim.block.image_ids[5 * k : 5 * k + 5].tolist()))
+
+
+def test_without_start_values_the_error_names_the_route(sim, cli, tmp_path):
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    code, _, err = cli("bundle", "adjust", d)
+    assert code != 0
+    assert "column 'X0' not found" in err and "--start relative" in err
+    d = _without_start(sim, tmp_path / "c", columns=True)
+    code, _, err = cli("bundle", "adjust", d)
+    assert code != 0
+    assert "column 'X0' is empty" in err and "--start relative" in err
+    assert "read_csv_block" not in err  # the library's words are the options'
+
+
+@pytest.mark.parametrize(("strips", "columns"), [("found", False), ("given", True)])
+def test_start_relative_reaches_the_minimum_from_the_truth(
+    sim, reference, cli, tmp_path, columns, strips
+):
+    d = _without_start(sim, tmp_path / "b", columns=columns)
+    given = ["--strips", f"{_ids(sim, 0)};{_ids(sim, 1)}"] if strips == "given" else []
+    code, out, err = cli("bundle", "adjust", d, "--start", "relative", *given, "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["converged"] and res["input"]["start"] == "relative"
+    assert res["sigma0"] == pytest.approx(reference.sigma0, rel=1e-6)
+    got = np.array([[i["X0"], i["Y0"], i["Z0"]] for i in res["images"]])
+    np.testing.assert_allclose(got, reference.block.exterior[:, :3], rtol=0, atol=1e-4)
+
+
+def test_the_summary_says_where_the_start_values_came_from(sim, cli, tmp_path):
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    code, out, err = cli("bundle", "adjust", d, "--start", "relative")
+    assert code == 0, err
+    assert "start values from relative orientations: 1 strip(s) of 10 images" in out
+    assert "oriented to 5 control point(s)" in out
+
+
+@pytest.mark.parametrize(
+    ("strips", "match"),
+    [
+        ("0,1,2,3,4;5,6,7,8,99", r"--strips: '99' is not an image id of the block"),
+        ("0,1,2,3,4;5,6,7,8", r"--strips: 1 image\(s\) in no strip \(9\)"),
+        ("0,1,2,3,4;4,5,6,7,8,9", r"--strips: image\(s\) 4 listed twice"),
+        ("0,1,2,3,4,5,6,7,8;9", r"--strips: strip '9' has one image"),
+    ],
+)
+def test_bad_strips_are_named(sim, cli, tmp_path, strips, match):
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    code, _, err = cli("bundle", "adjust", d, "--start", "relative", "--strips", strips)
+    assert code != 0
+    assert re.search(match, err), err
+
+
+def test_strips_without_start_relative_is_refused(sim, cli, tmp_path):
+    pg.bundle.write_csv_block(sim.block, tmp_path / "b")
+    code, _, err = cli("bundle", "adjust", tmp_path / "b", "--strips", "0,1")
+    assert code != 0 and "--strips is for --start relative" in err
+
+
+def test_images_out_of_flight_order(sim, reference, cli, tmp_path):
+    # image 9 (end of the second strip, beside image 0 in the serpentine) moved between
+    # images 0 and 1: the found strips follow the file and still reach the minimum
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    rows = (d / "images.csv").read_text().splitlines()
+    rows = [rows[0], rows[1], rows[10], *rows[2:10]]
+    (d / "images.csv").write_text("\n".join(rows) + "\n")
+    code, out, err = cli("bundle", "adjust", d, "--start", "relative", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["converged"]
+    assert res["sigma0"] == pytest.approx(reference.sigma0, rel=1e-6)
+
+
+def test_csv_reader_without_start_values_keeps_control(sim, tmp_path):
+    d = _without_start(sim, tmp_path / "b", columns=True)
+    with pytest.raises(pg.FileFormatError, match="start_from_relative_orientation"):
+        pg.bundle.read_csv_block(d)
+    block = pg.bundle.read_csv_block(d, start_values=False)
+    control = block.role != "tie"
+    np.testing.assert_allclose(block.xyz[control], sim.block.xyz[control], atol=1e-9)
+    assert np.all(block.exterior == 0.0) and np.all(block.xyz[~control] == 0.0)
+
+
+def test_a_tie_point_without_start_value_is_named(sim, cli, tmp_path):
+    # a point measured in images 0 and 4 (no relative orientation of the strip pairs them)
+    # whose rays cross behind the cameras: it would keep the placeholder 0 of its empty cells
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    h = sim.camera.height
+    with open(d / "points.csv", "a") as f:
+        f.write("999,tie,,,,,,\n")
+    with open(d / "observations.csv", "a") as f:
+        f.write(f"0,999,10,{h - 10},0.3\n4,999,10,10,0.3\n")
+    code, _, err = cli("bundle", "adjust", d, "--start", "relative")
+    assert code != 0
+    assert "--start relative: 1 tie point(s) get no start value" in err and "999" in err
