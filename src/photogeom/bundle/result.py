@@ -782,6 +782,7 @@ START_ROUTE = (
     "--start relative)"
 )
 
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
