@@ -342,3 +342,21 @@ def test_summary_counts_the_flagged_observations_it_does_not_list(tmp_path, cli)
     assert f"{len(flagged)} observation(s) flagged" in out
     more = next(x for x in lines if x.startswith("  ... and "))
     assert more.startswith(f"  ... and {len(flagged) - 20} more") and "--json" in more
+
+
+def test_a_run_that_did_not_converge_exits_1_after_writing_what_was_asked(
+    simulated, cli, tmp_path
+):
+    # one iteration cannot converge from GNSS/IMU start values (7 iterations are needed):
+    # the summary, --json and -o show the last iterate, and the exit code says it is not an
+    # adjusted block (a script chaining commands must not go on with it)
+    code, out, err = cli("bundle", "adjust", simulated, "--max-iterations", "1",
+                         "-o", tmp_path / "last")  # fmt: skip
+    assert code == 1, err
+    assert "not converged" in out.lower() or "did not converge" in out.lower()
+    assert err.strip().splitlines()[-1].startswith("error: the adjustment did not converge")
+    assert "--max-iterations" in err and (tmp_path / "last" / "images.csv").is_file()
+    code, out, err = cli("bundle", "adjust", simulated, "--max-iterations", "1", "--json")
+    assert code == 1 and json.loads(out)["converged"] is False
+    code, out, err = cli("bundle", "adjust", simulated, "--json")
+    assert code == 0 and json.loads(out)["converged"] is True

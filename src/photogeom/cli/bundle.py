@@ -851,6 +851,7 @@ def adjust(
         d["input"] = {"path": str(source), "format": src_fmt, "start": start.value}
         _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
+        _refuse_unconverged(fit, max_iterations)
         return
     out = console()
     say(f"{source} ({src_fmt})", out)
@@ -872,6 +873,23 @@ def adjust(
         )
     for path, _ in texts:
         say(f"wrote {path}", out)
+    _refuse_unconverged(fit, max_iterations)
+
+
+def _refuse_unconverged(fit, max_iterations: int) -> None:
+    """Exit 1 after a run that did not converge (its summary, JSON and files are those of
+    the last iterate, written for inspection), with one line on stderr: a script must not
+    take the result for an adjusted block."""
+    if fit.converged:
+        return
+    typer.echo(
+        f"error: the adjustment did not converge ({fit.iterations} of at most "
+        f"{max_iterations} iterations): the summary and the files written hold its last "
+        "iterate, not an adjusted block; raise --max-iterations if the cost still falls, "
+        "else give better start values (--start relative for a block without GNSS/IMU)",
+        err=True,
+    )
+    raise typer.Exit(1)
 
 
 #: Points two consecutive images of a found strip share (a relative orientation needs 5)
