@@ -210,6 +210,18 @@ def _read_bal(p: Path):
     return pg.bundle.read_bal(p)
 
 
+def _read_bundler(p: Path):
+    return pg.bundle.read_bundler(p, image_size=(4000, 3000))
+
+
+def _bundler_seeds() -> list[bytes]:
+    """The bundled BAL problem as a Bundler file (its cameras are Bundler's)."""
+    from photogeom.bundle.io_bundler import bundler_texts
+
+    block = pg.bundle.read_bal(pg.datasets.path("dubrovnik-3-7"))
+    return [bundler_texts(block)[0].encode("ascii")]
+
+
 def _rpc_dir() -> Path:
     return pg.datasets.path("ikonos").parent
 
@@ -256,6 +268,7 @@ TARGETS: dict[str, Target] = {
         Target("opencv-xml", _read_calibration, _opencv_xml_seeds, ".xml"),
         Target("colmap-cameras", _read_calibration, lambda: _calibration_seeds("colmap"), ".txt"),
         Target("bal", _read_bal, lambda: _bundled("dubrovnik-3-7"), ".txt"),
+        Target("bundler", _read_bundler, _bundler_seeds, ".out"),
     )
 }
 

@@ -1,6 +1,7 @@
 """One entry point for the block formats: read or write by path, the format named or found.
 
-* a file: BAL (plain or bzip2);
+* a file: BAL (plain or bzip2), or Bundler (``bundle.out``: its first line
+  ``# Bundle file v0.3``; the image list goes with it);
 * a folder with ``cameras.txt`` / ``images.txt`` / ``points3D.txt``: a COLMAP text model;
 * a folder with ``images.csv`` / ``points.csv`` / ``observations.csv``: a CSV block.
 """
@@ -16,14 +17,16 @@ from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError, InputError, OutputError
 from .block import Block
 from .io_bal import bal_text, read_bal, write_bal
+from .io_bundler import bundler_texts, is_bundler_file, read_bundler, write_bundler
 from .io_colmap import BINARY_FILES, colmap_texts, is_binary_model, read_colmap, write_colmap
 from .io_csv import csv_block_texts, read_csv_block, write_csv_block
 
 #: Names of the block formats.
-FORMATS = ("bal", "colmap", "csv")
+FORMATS = ("bal", "colmap", "csv", "bundler")
 #: Formats written as a folder of files (BAL is one file).
 FOLDER_FORMATS = ("colmap", "csv")
-_NAMES = {"bal": "BAL file", "colmap": "COLMAP text model", "csv": "CSV block"}
+_NAMES = {"bal": "BAL file", "colmap": "COLMAP text model", "csv": "CSV block",
+          "bundler": "Bundler file"}  # fmt: skip
 
 
 def check_block_target(path: str | os.PathLike, kind: str, what: str | None = None) -> None:
@@ -33,9 +36,9 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     Parameters
     ----------
     path : path-like
-        Folder (``"colmap"``, ``"csv"``; created when missing) or file (``"bal"``).
+        Folder (``"colmap"``, ``"csv"``; created when missing) or file (``"bal"``, ``"bundler"``).
     kind : str
-        ``"bal"``, ``"colmap"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"csv"`` or ``"bundler"``.
     what : str, optional
         How the caller names the destination (e.g. a command-line option), put before the
         message.
@@ -74,8 +77,8 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     else:
         if p.is_dir():
             raise OutputError(
-                f"{head}cannot write {p}: it is a folder; a BAL block is one file: give a "
-                "file name (.bal, .txt or .bz2)"
+                f"{head}cannot write {p}: it is a folder; a {_NAMES[k]} is one file: give a "
+                f"file name ({'.out' if k == 'bundler' else '.bal, .txt or .bz2'})"
             )
         if str(p.parent) and not p.parent.is_dir():
             raise OutputError(
@@ -94,7 +97,7 @@ def block_files(
     path : path-like
         The folder of a COLMAP or CSV block, the file of a BAL block (``.bz2``: compressed).
     kind : str
-        ``"bal"``, ``"colmap"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"csv"`` or ``"bundler"``.
     **options
         Options of :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
 
@@ -109,6 +112,9 @@ def block_files(
     if k == "bal":
         data = bal_text(block, **options).encode("ascii")
         return {p: bz2.compress(data) if p.suffix == ".bz2" else data}
+    if k == "bundler":  # the file and its image list
+        out, names = bundler_texts(block, **options)
+        return {p: out.encode("ascii"), p.with_name(p.name + ".list.txt"): names.encode()}
     texts = (colmap_texts if k == "colmap" else csv_block_texts)(block, **options)
     return {p / name: text.encode("utf-8") for name, text in texts.items()}
 
@@ -170,7 +176,7 @@ def detect_format(path: str | os.PathLike) -> str:
     Returns
     -------
     str
-        ``"bal"``, ``"colmap"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"csv"`` or ``"bundler"``.
 
     Raises
     ------
@@ -179,7 +185,7 @@ def detect_format(path: str | os.PathLike) -> str:
     """
     p = Path(path)
     if p.exists() and not p.is_dir():  # a file, or a pipe (read once); read_bal refuses devices
-        return "bal"
+        return "bundler" if is_bundler_file(p) else "bal"
     if p.is_dir():
         if (p / "images.txt").is_file() or (p / "cameras.txt").is_file() or is_binary_model(p):
             return "colmap"  # a binary model: read_colmap names the conversion
@@ -200,13 +206,13 @@ def _check(kind: str) -> str:
 
 
 def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> Block:
-    """Read a block from a BAL file, a COLMAP text model or a CSV folder.
+    """Read a block from a BAL or Bundler file, a COLMAP text model or a CSV folder.
 
     Parameters
     ----------
     path : path-like
         The file or folder.
-    kind : {"bal", "colmap", "csv"}, optional
+    kind : {"bal", "colmap", "csv", "bundler"}, optional
         The format; default :func:`detect_format`.
     **options
         Keywords of :func:`read_bal`, :func:`read_colmap` or :func:`read_csv_block`.
@@ -217,12 +223,13 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
         The block, in photogeom's conventions (pixels from the centre of the first pixel).
     """
     k = detect_format(path) if kind is None else _check(kind)
-    reader = {"bal": read_bal, "colmap": read_colmap, "csv": read_csv_block}[k]
+    reader = {"bal": read_bal, "colmap": read_colmap, "csv": read_csv_block,
+              "bundler": read_bundler}[k]  # fmt: skip
     return reader(path, **options)
 
 
 def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, **options):
-    """Write a block as a BAL file, a COLMAP text model or a CSV folder.
+    """Write a block as a BAL or Bundler file, a COLMAP text model or a CSV folder.
 
     Parameters
     ----------
@@ -230,7 +237,7 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
         The block to write.
     path : path-like
         The file or folder.
-    kind : {"bal", "colmap", "csv"}, optional
+    kind : {"bal", "colmap", "csv", "bundler"}, optional
         The format. Without it: an existing path's format (:func:`detect_format`), else BAL
         for names ending in ``.bal``, ``.txt`` or ``.bz2``; a new folder needs ``kind``.
     **options
@@ -247,11 +254,14 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
             kind = detect_format(p)
         elif p.suffix.lower() in (".bal", ".txt", ".bz2"):
             kind = "bal"
+        elif p.suffix.lower() == ".out":
+            kind = "bundler"
         else:
             raise InputError(
                 f"{p}: say which format to write (kind='colmap', 'csv' or 'bal'); only BAL "
                 "files are recognised by their name (.bal, .txt, .bz2)"
             )
     k = _check(kind)
-    writer = {"bal": write_bal, "colmap": write_colmap, "csv": write_csv_block}[k]
+    writer = {"bal": write_bal, "colmap": write_colmap, "csv": write_csv_block,
+              "bundler": write_bundler}[k]  # fmt: skip
     return writer(block, p, **options)
