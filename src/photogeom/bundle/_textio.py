@@ -23,7 +23,12 @@ from ..io.sources import device_message, input_kind, open_input
 from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)")
+#: A number token. The digits before and after the point are separate runs (``\d+(\.\d*)?``,
+#: not ``\d+\.?\d*``, where a run of n digits splits n ways and a failed match tries them
+#: all): a long token that is not a number is refused in time linear in its length.
+_NUMBER = re.compile(
+    r"[+-]?(?:\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)"
+)
 
 
 #: Bytes of a text input looked at before the rest is read: its header (the size limit of
