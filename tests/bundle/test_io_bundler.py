@@ -339,3 +339,14 @@ def test_a_bundler_pipe_read_as_bal_names_the_format(cli, tmp_path):
             pg.bundle.read_bal(tmp_path / "b.txt")
     code, _, err = cli("bundle", "adjust", tmp_path / "b.txt", "--format", "bal")
     assert code != 0 and "give --format bundler" in err
+
+
+@pytest.mark.parametrize("counts", ["2 -5", "-1 3", "2 1.5", "2", "2 1 0"])
+def test_a_bad_header_of_a_long_file_is_named(tmp_path, counts):
+    # a file over the 64 KiB looked at first: its header bounds the size read
+    (tmp_path / "n.out").write_text(f"# Bundle file v0.3\n{counts}\n" + "1 2 3\n" * 30000)
+    with pytest.raises(FileFormatError, match=r"line 2: the header must be two non-negative"):
+        read_bundler(tmp_path / "n.out", image_size=(10, 10))
+    (tmp_path / "n.out").write_text(f"# Bundle file v0.3\n{counts}\n" + "1 2 3\n")
+    with pytest.raises(FileFormatError, match=r"the header must be two non-negative"):
+        read_bundler(tmp_path / "n.out", image_size=(10, 10))

@@ -155,10 +155,12 @@ def _size_limit(label: str):
         try:
             m, p = (int(t) for t in tokens)
         except ValueError:
+            m = p = -1
+        if m < 0 or p < 0:  # the reader says the same of a short file
             raise FileFormatError(
                 f"{label}, line 2: the header must be two non-negative integers "
                 f"(num_cameras num_points), got {' '.join(tokens)[:80]!r}"
-            ) from None
+            )
         need = 2 + 15 * m + p * (7 + 4 * m)
         most = 4 * BUNDLER_VALUE_CHARS * need + len(head)
         return most, (
@@ -279,10 +281,17 @@ def read_bundler(
             f"{label}: truncated: no header line (num_cameras num_points) after line 1"
         )
     head = vals[:2]
-    if not np.all(np.isfinite(head)) or np.any(head != np.round(head)) or np.any(head < 0):
+    on_line = int(np.count_nonzero(lines == lines[0]))
+    if (
+        on_line != 2
+        or not np.all(np.isfinite(head))
+        or np.any(head != np.round(head))
+        or np.any(head < 0)
+    ):
+        got = " ".join(format_floats(vals[:on_line][:4]))
         raise FileFormatError(
             f"{label}, line {line(0)}: the header must be two non-negative integers "
-            f"(num_cameras num_points), got {' '.join(format_floats(head))}"
+            f"(num_cameras num_points), got {got!r}"
         )
     m, p = (int(v) for v in head)
     if m == 0:
