@@ -350,3 +350,24 @@ def test_a_bad_header_of_a_long_file_is_named(tmp_path, counts):
     (tmp_path / "n.out").write_text(f"# Bundle file v0.3\n{counts}\n" + "1 2 3\n")
     with pytest.raises(FileFormatError, match=r"the header must be two non-negative"):
         read_bundler(tmp_path / "n.out", image_size=(10, 10))
+
+
+def test_grid_evaluate_of_a_bundler_file_without_its_images_names_the_conversion(cli, tmp_path):
+    text, *_ = scene(15, m=3, p=40, noise=0.3)
+    (tmp_path / "block.out").write_text(text)
+    code, _, err = cli("grid", "evaluate", tmp_path / "block.out", "--spacing", "250")
+    assert code != 0
+    assert "a Bundler file holds no image size" in err and "image_size=" not in err
+    assert "bundle convert" in err and "--image-size WIDTHxHEIGHT" in err
+    # with its images beside the list (Metashape's export folder), their sizes are read
+    from PIL import Image
+
+    names = [f"IMG_{k}.png" for k in range(3)]
+    (tmp_path / "list.txt").write_text("\n".join(names) + "\n")
+    for n in names:
+        Image.new("L", (1000, 750)).save(tmp_path / n)
+    code, out, err = cli(
+        "grid", "evaluate", tmp_path / "block.out", "--spacing", "250", "--json"
+    )  # fmt: skip
+    assert code == 0, err
+    assert set(names) <= set(out.replace('"', " ").split())
