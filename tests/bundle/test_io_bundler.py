@@ -204,6 +204,9 @@ GOOD = (
         (lambda s: s.replace("1 2 0\n", "1 nan 0\n"), "line 13: point 0 holds NaN"),
         (lambda s: s.replace("1 2 0\n", "1 x 0\n"), "line 13: 'x' is not a number"),
         (lambda s: s[:40], "truncated.*ends in camera 0"),
+        (lambda s: s.replace("1 0 7 100 200", "2 0 7 100 200 0 8 1 2"), r"line 15: .*two views of"),
+        (lambda s: s.replace("1000 0 0\n1 0 0\n0 1 0\n0 0 1\n0 0 -10", "\n".join(["0 0 0"] * 5))
+         .replace("1 0 7 100 200", "0"), "none of its 2 cameras is oriented"),
     ],
 )
 def test_refusals_name_the_line(tmp_path, edit, match):

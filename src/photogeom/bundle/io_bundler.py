@@ -251,7 +251,8 @@ def read_bundler(
     FileFormatError
         A missing or other header, a token that is not a number, counts that do not match
         the header, a truncated file, a point that is not three lines (position, colour,
-        view list), views of missing or left-out cameras, a rotation that is not one,
+        view list), views of missing or left-out cameras, two views of one camera in a view
+        list, no oriented camera, a rotation that is not one,
         a non-positive focal length or non-finite values, each naming the file and line;
         an image list of another length.
     InputError
@@ -395,7 +396,20 @@ def read_bundler(
             f"{label}, line {line(int(at[k]))}: a view of point {int(obs_point[k])} holds NaN "
             "or infinity"
         )
+    key = obs_point * m + ci.astype(np.int64)
+    order = np.argsort(key, kind="stable")
+    twice = np.flatnonzero(np.diff(key[order]) == 0)
+    if twice.size:
+        k = int(order[twice[0] + 1])
+        raise FileFormatError(
+            f"{label}, line {line(int(at[k]))}: point {int(obs_point[k])} has two views of "
+            f"camera {int(ci[k])}; a point is seen once by a camera: remove one of them"
+        )
     cam_index = np.flatnonzero(oriented)
+    if cam_index.size == 0:
+        raise FileFormatError(
+            f"{label}: none of its {m} cameras is oriented (all are zeros): no block to read"
+        )
     list_file = Path(image_list) if image_list is not None else list_path(path)
     names = _read_list(list_file, m) if list_file is not None else None
     ids = (
