@@ -207,15 +207,18 @@ def _first_bad_token(text: str) -> tuple[int, int, str] | None:
     return None
 
 
-def count_tokens(text: str) -> int:
-    """Number of whitespace-separated tokens (vectorised over the bytes)."""
-    b = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
-    if b.size == 0:
-        return 0
+def token_starts(b: np.ndarray) -> np.ndarray:
+    """Which bytes (uint8 array of UTF-8 text) begin a whitespace-separated token (bool)."""
     space = (b == 32) | ((b >= 9) & (b <= 13))
     starts = ~space
     starts[1:] &= space[:-1]
-    return int(np.count_nonzero(starts))
+    return starts
+
+
+def count_tokens(text: str) -> int:
+    """Number of whitespace-separated tokens (vectorised over the bytes)."""
+    b = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+    return int(np.count_nonzero(token_starts(b)))
 
 
 def numbers(text: str, label: str) -> np.ndarray:

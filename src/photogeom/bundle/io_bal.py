@@ -368,7 +368,7 @@ def refuse_extras(block: Block, fmt: str) -> None:
 
 
 def centred_cameras(
-    block: Block, fmt: str, *, centred: bool
+    block: Block, fmt: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The cameras and observations of a block in the model of BAL and Bundler files.
 
@@ -377,36 +377,31 @@ def centred_cameras(
     block : Block
     fmt : str
         The format's name, for errors.
-    centred : bool
-        True: the observations are measured from the image centre and a principal point
-        off it is refused (Bundler: positions in the image); False: from the principal
-        point (BAL: the projections exact, whatever the principal point).
 
     Returns
     -------
     M, t, C, x, y : numpy.ndarray
         Rotations (m, 3, 3) and translations (m, 3) (``P = M X + t``), the calibration
         matrix of each image (:meth:`Block.calibration_matrix`), the observations (n,) in
-        pixels from the origin, y up.
+        pixels from each image's principal point (the projections exact, whatever the
+        principal point), y up.
 
     Raises
     ------
     InputError
-        Non-zero K3, K4, P1, P2, B1 or B2 (the format's camera has f, k1, k2 only); with
-        ``centred``, a principal point off the image centre.
+        Non-zero K3, K4, P1, P2, B1 or B2 (the format's camera has f, k1, k2 only).
     """
     C = block.calibration_matrix()
-    names = ("k3", "k4", "p1", "p2", "b1", "b2") + (("cx", "cy") if centred else ())
+    names = ("k3", "k4", "p1", "p2", "b1", "b2")
     idx = [CALIBRATION_NAMES.index(nm) for nm in names]
     extra = C[:, idx]
     bad = np.any(extra != 0, axis=1)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         nz = [f"{nm} = {v!r}" for nm, v in zip(names, extra[i].tolist()) if v != 0]
-        centre = ", its principal point at the image centre" if centred else ""
         raise InputError(
             f"image {block.image_ids[i]} (camera {block.camera_ids[block.image_camera[i]]}): "
-            f"{', '.join(nz)}; a {fmt} camera has only f, k1, k2{centre}, so it cannot be "
+            f"{', '.join(nz)}; a {fmt} camera has only f, k1, k2, so it cannot be "
             f"written exactly ({fmt}'s tools would use a different camera)"
         )
     sizes = block.image_sizes()
@@ -425,7 +420,7 @@ def bal_text(block: Block, *, drop_extras: bool = False) -> str:
     if not drop_extras:
         refuse_extras(block, "BAL")
     m, p, n = block.n_images, block.n_points, block.n_observations
-    M, t, C, x, y = centred_cameras(block, "BAL", centred=False)
+    M, t, C, x, y = centred_cameras(block, "BAL")
     r = Rotation.from_matrix(M).as_rotvec().reshape(m, 3) if m else np.zeros((0, 3))
     cam = np.column_stack([r, t, C[:, 0], C[:, 3], C[:, 4]])
     xs = format_floats(x)

@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ._textio import format_floats, numbers, read_text, write_files_atomically
+from ._textio import format_floats, numbers, read_text, token_starts, write_files_atomically
 from .block import Block
 from .io_bal import block_from_centred, centred_cameras, refuse_extras
 
@@ -176,10 +176,7 @@ def _token_lines(body: str, first_line: int) -> np.ndarray:
     """Line number of each whitespace-separated token of ``body`` (its first line is
     ``first_line``), vectorised over the bytes."""
     b = np.frombuffer(body.encode("utf-8"), dtype=np.uint8)
-    space = (b == 32) | ((b >= 9) & (b <= 13))
-    starts = ~space
-    starts[1:] &= space[:-1]
-    return first_line + np.cumsum(b == 10)[np.flatnonzero(starts)]
+    return first_line + np.cumsum(b == 10)[np.flatnonzero(token_starts(b))]
 
 
 def _sizes(
@@ -412,13 +409,9 @@ def read_bundler(
         )
     list_file = Path(image_list) if image_list is not None else list_path(path)
     names = _read_list(list_file, m) if list_file is not None else None
-    ids = (
-        np.array([names[k] for k in cam_index.tolist()], dtype=object)
-        if names is not None
-        else cam_index.copy()
-    )
-    sizes = _sizes(image_size, None if names is None else [names[k] for k in cam_index.tolist()],
-                   ids, list_file, label)  # fmt: skip
+    oriented_names = None if names is None else [names[k] for k in cam_index.tolist()]
+    ids = cam_index.copy() if names is None else np.array(oriented_names, dtype=object)
+    sizes = _sizes(image_size, oriented_names, ids, list_file, label)
     fk = cams[cam_index, :3]
     Ro = R[cam_index]
     u, _, vt = np.linalg.svd(Ro)
@@ -452,7 +445,7 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
     """The Bundler file and image list of a block (see :func:`write_bundler`)."""
     if not drop_extras:
         refuse_extras(block, "Bundler")
-    C = block.calibration_matrix()
+    M, t, C, x, y = centred_cameras(block, "Bundler")
     off = np.flatnonzero(np.any(C[:, 1:3] != 0, axis=1))
     if off.size and not drop_extras:
         i = int(off[0])
@@ -463,7 +456,6 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
             "to write the observations from the principal point (the projections exact, the "
             "image positions moved by cx, cy)"
         )
-    M, t, C, x, y = centred_cameras(block, "Bundler", centred=False)
     names = [str(i) for i in block.image_ids.tolist()]
     bad = [s for s in names if not s.strip() or s != s.strip() or "\n" in s or "\r" in s]
     if bad:
@@ -477,11 +469,10 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
     cam_lines = [" ".join(r) for r in cf.reshape(m * 5, 3).tolist()]
     # views point by point; key: the observation's rank among its image's observations
     oi, op = block.obs_image, block.obs_point
-    by_image = np.argsort(oi, kind="stable")
+    per_image = np.bincount(oi, minlength=m)
     rank = np.empty(n, dtype=np.int64)
-    rank[by_image] = np.arange(n) - np.repeat(
-        np.cumsum(np.bincount(oi, minlength=m)) - np.bincount(oi, minlength=m),
-        np.bincount(oi, minlength=m),
+    rank[np.argsort(oi, kind="stable")] = np.arange(n) - np.repeat(
+        np.cumsum(per_image) - per_image, per_image
     )
     order = np.argsort(op, kind="stable")
     nv = np.bincount(op, minlength=p)
