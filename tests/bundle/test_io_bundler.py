@@ -254,6 +254,11 @@ def test_detect_and_dispatch(tmp_path):
     pg.bundle.write_block(b, tmp_path / "c.out")
     assert pg.bundle.detect_format(tmp_path / "c.out") == "bundler"
     assert (tmp_path / "c.out.list.txt").read_text() == "0\n"
+    from photogeom.bundle.io_formats import check_block_target
+    from photogeom.errors import OutputError
+
+    with pytest.raises(OutputError, match=r"a Bundler block is one file: give a file name \(\.out"):
+        check_block_target(tmp_path, "bundler")
 
 
 def test_cli_adjust_a_bundler_file(cli, tmp_path):

@@ -77,8 +77,8 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     else:
         if p.is_dir():
             raise OutputError(
-                f"{head}cannot write {p}: it is a folder; a {_NAMES[k]} is one file: give a "
-                f"file name ({'.out' if k == 'bundler' else '.bal, .txt or .bz2'})"
+                f"{head}cannot write {p}: it is a folder; a {_NAMES[k].split()[0]} block is one "
+                f"file: give a file name ({'.out' if k == 'bundler' else '.bal, .txt or .bz2'})"
             )
         if str(p.parent) and not p.parent.is_dir():
             raise OutputError(
