@@ -171,7 +171,9 @@ def detect_format(path: str | os.PathLike) -> str:
     Parameters
     ----------
     path : path-like
-        A BAL file (or pipe), or a folder holding a COLMAP text model or a CSV block.
+        A BAL file (or pipe), a Bundler file (its first line ``# Bundle file``; a pipe
+        only once a reader kept its bytes, else it is taken for BAL, whose reader names
+        ``kind='bundler'``), or a folder holding a COLMAP text model or a CSV block.
 
     Returns
     -------
