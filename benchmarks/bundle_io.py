@@ -1,4 +1,4 @@
-"""Interchange benchmark: reading and writing BAL files and COLMAP models, with peers.
+"""Interchange benchmark: reading and writing BAL, Bundler and COLMAP blocks, with peers.
 
 Run:  python benchmarks/bundle_io.py            (250 images, ~1 M observations)
       python benchmarks/bundle_io.py --quick    (smaller, for a smoke run)
@@ -7,8 +7,9 @@ Prints, from one run on this machine (wall time of one call each, best of ``--re
 photogeom's ``read_bal`` / ``write_bal`` against GTSAM's ``SfmData.FromBalFile`` /
 ``writeBAL`` on the same file, and ``read_colmap`` / ``write_colmap`` against pycolmap's
 ``Reconstruction(dir)`` / ``write_text`` (``write_binary`` for the binary model) on the same
-model; ratios peer / photogeom (> 1:
-photogeom is faster). Also the time per observation at two sizes, to show the readers are
+model; ratios peer / photogeom (> 1: photogeom is faster); ``read_bundler`` /
+``write_bundler`` (no peer reads Bundler files here). Also the time per observation at two
+sizes, to show the readers are
 linear in their input, and the CSV block folder read as written and with every cell quoted
 (a spreadsheet export), which reads at the same rate.
 """
@@ -26,9 +27,11 @@ from photogeom.bundle import (
     Block,
     projected_pixels,
     read_bal,
+    read_bundler,
     read_colmap,
     read_csv_block,
     write_bal,
+    write_bundler,
     write_colmap,
     write_csv_block,
 )
@@ -105,6 +108,13 @@ def run(m: int, p: int, per_point: int, repeat: int) -> None:
             )
         except ImportError:
             print("  GTSAM not installed")
+        out = d / "bundle.out"
+        t_wo = best(lambda: write_bundler(b, out), repeat)
+        t_ro = best(lambda: read_bundler(out, image_size=(4000, 3000)), repeat)
+        print(
+            f"  Bundler write {t_wo:6.3f} s  read {t_ro:7.3f} s  "
+            f"({1e6 * t_ro / n:.2f} us per observation read)"
+        )
         t_text = colmap_rows(b, d / "colmap", repeat, binary=False)
         colmap_rows(b, d / "colmap-bin", repeat, binary=True, text_read=t_text)
         csv_dir = d / "csv"

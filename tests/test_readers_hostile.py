@@ -418,3 +418,31 @@ def test_png_chunk_longer_than_the_file_is_refused_before_decoding(tmp_path, mon
     monkeypatch.setattr(images, "_decode_quietly", no_decoding)
     with pytest.raises(FileFormatError, match="PNG chunk 'IDAT' at byte 33 announces 1309280547"):
         images._read(src)
+
+
+@pytest.mark.parametrize("reader", ["read_bal", "read_bundler"])
+def test_a_long_token_that_is_not_a_number_is_named_in_linear_work(tmp_path, reader):
+    # the pattern that finds the bad token matched a run of n digits in n^2 / 2 steps (a
+    # 20 000-digit token took 25 s to name, 400 000 digits would take hours); now linear.
+    # Run in a child process so that a regression fails on the timeout, not by hanging.
+    import subprocess
+    import sys
+
+    token = "9" * 400_000 + "x"
+    path = tmp_path / "f.txt"
+    # counts that leave room for the token (64 characters a value)
+    head = "# Bundle file v0.3\n1 300\n" if reader == "read_bundler" else "1 1 500\n"
+    path.write_text(f"{head}0 0 {token} 1\n")
+    code = (
+        "import sys, photogeom as pg\n"
+        "from photogeom.errors import FileFormatError\n"
+        "try:\n"
+        f"    pg.bundle.{reader}(sys.argv[1], image_size=(10, 10))\n"
+        "except FileFormatError as exc:\n"
+        "    print(str(exc)[-40:])\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=120
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip().endswith("99x' is not a number")

@@ -234,6 +234,18 @@ def _colmap_binary_target(name: str) -> tuple[Callable[[Path], object], Callable
     return read, lambda: [_colmap_binary_model()[name]]
 
 
+def _read_bundler(p: Path):
+    return pg.bundle.read_bundler(p, image_size=(4000, 3000))
+
+
+def _bundler_seeds() -> list[bytes]:
+    """The bundled BAL problem as a Bundler file (its cameras are Bundler's)."""
+    from photogeom.bundle.io_bundler import bundler_texts
+
+    block = pg.bundle.read_bal(pg.datasets.path("dubrovnik-3-7"))
+    return [bundler_texts(block)[0].encode("ascii")]
+
+
 def _rpc_dir() -> Path:
     return pg.datasets.path("ikonos").parent
 
@@ -284,6 +296,7 @@ TARGETS: dict[str, Target] = {
             Target(f"colmap-bin-{n.split('.')[0]}", *_colmap_binary_target(n), ".bin")
             for n in ("cameras.bin", "images.bin", "points3D.bin")
         ),
+        Target("bundler", _read_bundler, _bundler_seeds, ".out"),
     )
 }
 

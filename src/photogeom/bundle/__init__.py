@@ -32,6 +32,7 @@ __all__ = [
 
 from .georef import gnss_into_block_crs, points_in, positions_in
 from .io_bal import read_bal, write_bal
+from .io_bundler import read_bundler, write_bundler
 from .io_colmap import read_colmap, write_colmap
 from .io_csv import read_csv_block, write_csv_block
 from .io_formats import detect_format, read_block, write_block
@@ -44,11 +45,13 @@ __all__ += [
     "positions_in",
     "read_bal",
     "read_block",
+    "read_bundler",
     "read_colmap",
     "read_csv_block",
     "start_from_relative_orientation",
     "write_bal",
     "write_block",
+    "write_bundler",
     "write_colmap",
     "write_csv_block",
 ]

@@ -24,7 +24,12 @@ from ..io.sources import device_message, input_kind, open_input
 from ..numbers import decimal_comma_hint
 
 _TOKEN = re.compile(r"\S+")
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)")
+#: A number token. The digits before and after the point are separate runs (``\d+(\.\d*)?``,
+#: not ``\d+\.?\d*``, where a run of n digits splits n ways and a failed match tries them
+#: all): a long token that is not a number is refused in time linear in its length.
+_NUMBER = re.compile(
+    r"[+-]?(?:\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)"
+)
 
 
 #: Bytes of a text input looked at before the rest is read: its header (the size limit of
@@ -225,15 +230,18 @@ def _first_bad_token(text: str) -> tuple[int, int, str] | None:
     return None
 
 
-def count_tokens(text: str) -> int:
-    """Number of whitespace-separated tokens (vectorised over the bytes)."""
-    b = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
-    if b.size == 0:
-        return 0
+def token_starts(b: np.ndarray) -> np.ndarray:
+    """Which bytes (uint8 array of UTF-8 text) begin a whitespace-separated token (bool)."""
     space = (b == 32) | ((b >= 9) & (b <= 13))
     starts = ~space
     starts[1:] &= space[:-1]
-    return int(np.count_nonzero(starts))
+    return starts
+
+
+def count_tokens(text: str) -> int:
+    """Number of whitespace-separated tokens (vectorised over the bytes)."""
+    b = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+    return int(np.count_nonzero(token_starts(b)))
 
 
 def numbers(text: str, label: str) -> np.ndarray:

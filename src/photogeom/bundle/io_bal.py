@@ -66,6 +66,15 @@ def _header_message(label: str, head: np.ndarray | list[str]) -> str:
     )
 
 
+def _refuse_bundler(text: str, label: str) -> None:
+    """Refuse a Bundler file read as BAL (a pipe, whose format is not looked at)."""
+    if text.lstrip().startswith("# Bundle file"):
+        raise FileFormatError(
+            f"{label}, line 1: a Bundler file, not a BAL file: read it as Bundler "
+            "(kind='bundler')"
+        )
+
+
 def _size_limit(label: str):
     """The ``limit`` of :func:`read_text` for a BAL file: the most bytes the counts of its
     header leave room for (:data:`BAL_VALUE_CHARS` characters a value, 4 bytes a character
@@ -73,6 +82,7 @@ def _size_limit(label: str):
     longer than its header says is refused after reading at most that much."""
 
     def limit(head: str) -> tuple[int, str]:
+        _refuse_bundler(head, label)
         tokens = head.split(None, 3)
         if len(tokens) < 4:  # no three tokens before the end of the head
             raise FileFormatError(
@@ -136,6 +146,7 @@ def read_bal(
     """
     label = str(path)
     text = read_text(path, "BAL file", limit=_size_limit(label))
+    _refuse_bundler(text, label)
     vals = numbers(text, label)
     if vals.size < 3:
         raise FileFormatError(
@@ -219,31 +230,113 @@ def read_bal(
     else:
         w, h = (int(s) for s in image_size)
     R = Rotation.from_rotvec(cams[:, :3]).as_matrix().reshape(m, 3, 3)
-    X0 = -np.einsum("nji,nj->ni", R, cams[:, 3:6])
-    exterior = np.column_stack([X0, opk_from_rotations(R)])
     ids = np.arange(m)
-    try:
-        cameras = {
-            int(k): MetashapeCalibration(w, h, float(c[6]), k1=float(c[7]), k2=float(c[8]))
-            for k, c in enumerate(cams)
-        }
-    except InputError as exc:
-        raise FileFormatError(f"{label}: {exc} (image_size={(w, h)})") from None
-    uv = np.column_stack([xy[:, 0] + (w - 1) / 2, (h - 1) / 2 - xy[:, 1]])
-    return Block.from_arrays(
-        cameras=cameras,
+    return block_from_centred(
+        label=label,
         image_ids=ids,
-        image_camera=ids,
-        exterior=exterior.reshape(m, 6),
+        image_group=ids,
+        rotations=R,
+        translations=cams[:, 3:6],
+        fk=cams[:, 6:9],
+        sizes=np.tile([w, h], (m, 1)),
         point_ids=np.arange(p),
         xyz=pts,
-        obs_image_ids=ci.astype(np.int64),
+        obs_image=ci.astype(np.int64),
         obs_point_ids=pi.astype(np.int64),
-        uv=uv.reshape(n, 2),
+        xy=xy,
+        sigma=sigma,
+        size_note=f" (image_size={(w, h)})",
+    )
+
+
+def block_from_centred(
+    *,
+    label: str,
+    image_ids: np.ndarray,
+    image_group: np.ndarray,
+    rotations: np.ndarray,
+    translations: np.ndarray,
+    fk: np.ndarray,
+    sizes: np.ndarray,
+    point_ids: np.ndarray,
+    xyz: np.ndarray,
+    obs_image: np.ndarray,
+    obs_point_ids: np.ndarray,
+    xy: np.ndarray,
+    sigma: float,
+    size_note: str = "",
+) -> Block:
+    """The block of a camera model shared by BAL and Bundler files: ``P = R X + t``,
+    ``p = -P / P_z``, ``(x, y) = f (1 + k1 |p|^2 + k2 |p|^4) p`` in pixels from the image
+    centre, y up (see the module docstring).
+
+    Parameters
+    ----------
+    label : str
+        The file, for errors.
+    image_ids : numpy.ndarray (m,)
+        Image ids.
+    image_group : numpy.ndarray of int (m,)
+        Camera group id of each image; the images of one group have equal ``fk`` and
+        ``sizes`` (the group takes its first image's).
+    rotations, translations : numpy.ndarray (m, 3, 3), (m, 3)
+        ``R`` and ``t`` of each image (world -> camera, camera looking down -z, y up).
+    fk : numpy.ndarray (m, 3)
+        Focal length (px), k1, k2 (of the normalised coordinates ``p``) of each image.
+    sizes : numpy.ndarray of int (m, 2)
+        Width and height of each image, px.
+    point_ids, xyz : numpy.ndarray (p,), (p, 3)
+        Point ids and object coordinates.
+    obs_image : numpy.ndarray of int (n,)
+        Position (0 .. m - 1) of the image of each observation.
+    obs_point_ids : numpy.ndarray (n,)
+        Point id of each observation.
+    xy : numpy.ndarray (n, 2)
+        Observations in pixels from the image centre, y up.
+    sigma : float
+        Standard deviation of every image coordinate, px.
+    size_note : str
+        Said after a calibration refused for its image size (where the size came from).
+
+    Returns
+    -------
+    Block
+        ``u = x + (w - 1) / 2``, ``v = (h - 1) / 2 - y`` (centre of the first pixel at
+        (0, 0)); ``M = R``, ``X0 = -R^T t``; f, k1, k2 free, principal point fixed at the
+        centre.
+    """
+    m = len(image_ids)
+    R = np.asarray(rotations, dtype=float).reshape(m, 3, 3)
+    X0 = -np.einsum("nji,nj->ni", R, np.asarray(translations, dtype=float).reshape(m, 3))
+    exterior = np.column_stack([X0, opk_from_rotations(R)]).reshape(m, 6)
+    groups, first = np.unique(image_group, return_index=True)
+    try:
+        cameras = {
+            g.item(): MetashapeCalibration(
+                int(sizes[i, 0]), int(sizes[i, 1]), float(fk[i, 0]), k1=float(fk[i, 1]),
+                k2=float(fk[i, 2]),
+            )
+            for g, i in zip(groups, first.tolist())
+        }  # fmt: skip
+    except InputError as exc:
+        raise FileFormatError(f"{label}: {exc}{size_note}") from None
+    n = len(xy)
+    half = (np.asarray(sizes, dtype=float) - 1) / 2
+    i = np.asarray(obs_image, dtype=np.int64)
+    uv = np.column_stack([xy[:, 0] + half[i, 0], half[i, 1] - xy[:, 1]]).reshape(n, 2)
+    return Block.from_arrays(
+        cameras=cameras,
+        image_ids=image_ids,
+        image_camera=image_group,
+        exterior=exterior,
+        point_ids=point_ids,
+        xyz=xyz,
+        obs_image_ids=np.asarray(image_ids)[i],
+        obs_point_ids=obs_point_ids,
+        uv=uv,
         sigma=sigma,
         free=BAL_FREE,
     )
-
 
 def _extras(block: Block) -> list[str]:
     """What a block holds that the format has no room for (empty: nothing)."""
@@ -274,10 +367,30 @@ def refuse_extras(block: Block, fmt: str) -> None:
         )
 
 
-def bal_text(block: Block, *, drop_extras: bool = False) -> str:
-    """The BAL text of a block (see :func:`write_bal`)."""
-    if not drop_extras:
-        refuse_extras(block, "BAL")
+def centred_cameras(
+    block: Block, fmt: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The cameras and observations of a block in the model of BAL and Bundler files.
+
+    Parameters
+    ----------
+    block : Block
+    fmt : str
+        The format's name, for errors.
+
+    Returns
+    -------
+    M, t, C, x, y : numpy.ndarray
+        Rotations (m, 3, 3) and translations (m, 3) (``P = M X + t``), the calibration
+        matrix of each image (:meth:`Block.calibration_matrix`), the observations (n,) in
+        pixels from each image's principal point (the projections exact, whatever the
+        principal point), y up.
+
+    Raises
+    ------
+    InputError
+        Non-zero K3, K4, P1, P2, B1 or B2 (the format's camera has f, k1, k2 only).
+    """
     C = block.calibration_matrix()
     names = ("k3", "k4", "p1", "p2", "b1", "b2")
     idx = [CALIBRATION_NAMES.index(nm) for nm in names]
@@ -288,20 +401,26 @@ def bal_text(block: Block, *, drop_extras: bool = False) -> str:
         nz = [f"{nm} = {v!r}" for nm, v in zip(names, extra[i].tolist()) if v != 0]
         raise InputError(
             f"image {block.image_ids[i]} (camera {block.camera_ids[block.image_camera[i]]}): "
-            f"{', '.join(nz)}; a BAL camera has only f, k1, k2, so it cannot be written "
-            "exactly (BAL's solvers would adjust a different camera)"
+            f"{', '.join(nz)}; a {fmt} camera has only f, k1, k2, so it cannot be "
+            f"written exactly ({fmt}'s tools would use a different camera)"
         )
-    m, p, n = block.n_images, block.n_points, block.n_observations
     sizes = block.image_sizes()
-    # BAL measures from the principal point, y up
+    # BAL and Bundler measure from the principal point, y up
     u0 = sizes[:, 0] / 2 - 0.5 + C[:, 1]
     v0 = sizes[:, 1] / 2 - 0.5 + C[:, 2]
     uv = block.observations.uv
     i = block.obs_image
-    x = uv[:, 0] - u0[i]
-    y = v0[i] - uv[:, 1]
     M = block.rotations()
     t = -np.einsum("nij,nj->ni", M, block.exterior[:, :3])
+    return M, t, C, uv[:, 0] - u0[i], v0[i] - uv[:, 1]
+
+
+def bal_text(block: Block, *, drop_extras: bool = False) -> str:
+    """The BAL text of a block (see :func:`write_bal`)."""
+    if not drop_extras:
+        refuse_extras(block, "BAL")
+    m, p, n = block.n_images, block.n_points, block.n_observations
+    M, t, C, x, y = centred_cameras(block, "BAL")
     r = Rotation.from_matrix(M).as_rotvec().reshape(m, 3) if m else np.zeros((0, 3))
     cam = np.column_stack([r, t, C[:, 0], C[:, 3], C[:, 4]])
     xs = format_floats(x)

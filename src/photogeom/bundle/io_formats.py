@@ -1,6 +1,7 @@
 """One entry point for the block formats: read or write by path, the format named or found.
 
-* a file: BAL (plain or bzip2);
+* a file: BAL (plain or bzip2), or Bundler (``bundle.out``: its first line
+  ``# Bundle file v0.3``; the image list goes with it);
 * a folder with ``cameras.txt`` / ``images.txt`` / ``points3D.txt``: a COLMAP text model;
 * a folder with ``cameras.bin`` / ``images.bin`` / ``points3D.bin``: a COLMAP binary model
   (``"colmap-bin"``);
@@ -18,6 +19,7 @@ from ..atomicfile import atomic_write_many
 from ..errors import FileFormatError, InputError, OutputError
 from .block import Block
 from .io_bal import bal_text, read_bal, write_bal
+from .io_bundler import bundler_texts, is_bundler_file, read_bundler, write_bundler
 from .io_colmap import (
     BINARY_FILES,
     TEXT_FILES,
@@ -28,10 +30,11 @@ from .io_colmap import (
 from .io_csv import csv_block_texts, read_csv_block, write_csv_block
 
 #: Names of the block formats.
-FORMATS = ("bal", "colmap", "colmap-bin", "csv")
-#: Formats written as a folder of files (BAL is one file).
+FORMATS = ("bal", "colmap", "colmap-bin", "csv", "bundler")
+#: Formats written as a folder of files (BAL and Bundler are one file).
 FOLDER_FORMATS = ("colmap", "colmap-bin", "csv")
-_NAMES = {"bal": "BAL file", "colmap": "COLMAP text model", "csv": "CSV block"}
+_NAMES = {"bal": "BAL file", "colmap": "COLMAP text model", "csv": "CSV block",
+          "bundler": "Bundler file"}  # fmt: skip
 _NAMES["colmap-bin"] = "COLMAP binary model"
 
 
@@ -43,9 +46,9 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     ----------
     path : path-like
         Folder (``"colmap"``, ``"colmap-bin"``, ``"csv"``; created when missing) or file
-        (``"bal"``).
+        (``"bal"``, ``"bundler"``).
     kind : str
-        ``"bal"``, ``"colmap"``, ``"colmap-bin"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"colmap-bin"``, ``"csv"`` or ``"bundler"``.
     what : str, optional
         How the caller names the destination (e.g. a command-line option), put before the
         message.
@@ -93,8 +96,8 @@ def check_block_target(path: str | os.PathLike, kind: str, what: str | None = No
     else:
         if p.is_dir():
             raise OutputError(
-                f"{head}cannot write {p}: it is a folder; a BAL block is one file: give a "
-                "file name (.bal, .txt or .bz2)"
+                f"{head}cannot write {p}: it is a folder; a {_NAMES[k].split()[0]} block is one "
+                f"file: give a file name ({'.out' if k == 'bundler' else '.bal, .txt or .bz2'})"
             )
         if str(p.parent) and not p.parent.is_dir():
             raise OutputError(
@@ -113,7 +116,7 @@ def block_files(
     path : path-like
         The folder of a COLMAP or CSV block, the file of a BAL block (``.bz2``: compressed).
     kind : str
-        ``"bal"``, ``"colmap"``, ``"colmap-bin"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"colmap-bin"``, ``"csv"`` or ``"bundler"``.
     **options
         Options of :func:`write_bal`, :func:`write_colmap` or :func:`write_csv_block`.
 
@@ -128,6 +131,9 @@ def block_files(
     if k == "bal":
         data = bal_text(block, **options).encode("ascii")
         return {p: bz2.compress(data) if p.suffix == ".bz2" else data}
+    if k == "bundler":  # the file and its image list
+        out, names = bundler_texts(block, **options)
+        return {p: out.encode("ascii"), p.with_name(p.name + ".list.txt"): names.encode()}
     if k in ("colmap", "colmap-bin"):
         files = colmap_files(block, **({"binary": True} if k == "colmap-bin" else {}), **options)
         return {p / name: data for name, data in files.items()}
@@ -187,13 +193,15 @@ def detect_format(path: str | os.PathLike) -> str:
     Parameters
     ----------
     path : path-like
-        A BAL file (or pipe), or a folder holding a COLMAP text or binary model or a CSV
+        A BAL file (or pipe), a Bundler file (its first line ``# Bundle file``; a pipe
+        only once a reader kept its bytes, else it is taken for BAL, whose reader names
+        ``kind='bundler'``), or a folder holding a COLMAP text or binary model or a CSV
         block.
 
     Returns
     -------
     str
-        ``"bal"``, ``"colmap"``, ``"colmap-bin"`` or ``"csv"``.
+        ``"bal"``, ``"colmap"``, ``"colmap-bin"``, ``"csv"`` or ``"bundler"``.
 
     Raises
     ------
@@ -204,7 +212,7 @@ def detect_format(path: str | os.PathLike) -> str:
     """
     p = Path(path)
     if p.exists() and not p.is_dir():  # a file, or a pipe (read once); read_bal refuses devices
-        return "bal"
+        return "bundler" if is_bundler_file(p) else "bal"
     if p.is_dir():
         if any((p / f).is_file() for f in BINARY_FILES):
             return "colmap-bin"  # with a text model too: read_block reads and compares both
@@ -228,13 +236,14 @@ def _check(kind: str) -> str:
 
 
 def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> Block:
-    """Read a block from a BAL file, a COLMAP text or binary model or a CSV folder.
+    """Read a block from a BAL or Bundler file, a COLMAP text or binary model or a CSV
+    folder.
 
     Parameters
     ----------
     path : path-like
         The file or folder.
-    kind : {"bal", "colmap", "colmap-bin", "csv"}, optional
+    kind : {"bal", "colmap", "colmap-bin", "csv", "bundler"}, optional
         The format (``"colmap"`` the text model, ``"colmap-bin"`` the binary one); default
         :func:`detect_format`.
     **options
@@ -258,12 +267,12 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
                     .replace("binary=False", "kind='colmap'")
                 ) from None
         return read_colmap(path, binary=binary, **options)
-    reader = {"bal": read_bal, "csv": read_csv_block}[k]
+    reader = {"bal": read_bal, "csv": read_csv_block, "bundler": read_bundler}[k]
     return reader(path, **options)
 
 
 def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, **options):
-    """Write a block as a BAL file, a COLMAP text or binary model or a CSV folder.
+    """Write a block as a BAL or Bundler file, a COLMAP text or binary model or a CSV folder.
 
     Parameters
     ----------
@@ -271,7 +280,7 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
         The block to write.
     path : path-like
         The file or folder.
-    kind : {"bal", "colmap", "colmap-bin", "csv"}, optional
+    kind : {"bal", "colmap", "colmap-bin", "csv", "bundler"}, optional
         The format (``"colmap-bin"``: ``"colmap"`` with ``binary=True``). Without it: an
         existing path's format (:func:`detect_format`), else BAL for names ending in
         ``.bal``, ``.txt`` or ``.bz2``; a new folder needs ``kind``.
@@ -289,6 +298,8 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
             kind = detect_format(p)
         elif p.suffix.lower() in (".bal", ".txt", ".bz2"):
             kind = "bal"
+        elif p.suffix.lower() == ".out":
+            kind = "bundler"
         else:
             raise InputError(
                 f"{p}: say which format to write (kind='colmap', 'colmap-bin', 'csv' or "
@@ -298,5 +309,7 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
     k = _check(kind)
     if k == "colmap-bin":
         options = {**options, "binary": True}
-    writer = {"bal": write_bal, "csv": write_csv_block}.get(k, write_colmap)
+    writer = {"bal": write_bal, "csv": write_csv_block, "bundler": write_bundler}.get(
+        k, write_colmap
+    )
     return writer(block, p, **options)

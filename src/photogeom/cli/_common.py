@@ -462,6 +462,18 @@ _NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _TYPED_UNIT = r"%|°|[^\W\d_][^\s\d]*"
 
 
+def image_size_option(text: str, option: str = "--image-size") -> tuple[int, int]:
+    """The ``(width, height)`` of an option ``WIDTHxHEIGHT`` (px; ``W,H`` also read)."""
+    try:
+        w, h = (int(x) for x in text.lower().replace(",", "x").split("x"))
+    except ValueError:
+        raise InputError(
+            f"{option}: expected WIDTHxHEIGHT in pixels, e.g. 7952x5304, not {text!r}"
+            + unit_hint(text, option)
+        ) from None
+    return w, h
+
+
 def unit_hint(text: str, option: str, unit: str = "px") -> str:
     """The fix for a value of ``option`` (in ``unit``) written with a unit (``100px``,
     ``0.3 px``, ``100,150px``, ``7952x5304px``): the same value without it, else ''.

@@ -2,12 +2,12 @@
 
 * ``simulate OUT``: a simulated UAV block in the CSV block format, with the truth in
   ``OUT/truth/`` and the simulation's settings and blunders in ``OUT/simulation.json``;
-* ``adjust INPUT``: the bundle adjustment of a CSV block folder, a BAL file or a COLMAP text
-  or binary folder (format detected, or ``--format``), with the adjusted block (``--output``), the
-  summary as JSON (``--json``), an HTML report (``--report``), the result record
-  (``--result``) that ``report`` renders again and the adjusted calibration as Metashape XML,
-  camera JSON or OpenCV YAML (``--output-calibration``);
-* ``convert INPUT OUTPUT``: between BAL, COLMAP text or binary and CSV blocks;
+* ``adjust INPUT``: the bundle adjustment of a CSV block folder, a BAL or Bundler file or a
+  COLMAP text or binary folder (format detected, or ``--format``), with the adjusted block
+  (``--output``), the summary as JSON (``--json``), an HTML report (``--report``), the result
+  record (``--result``) that ``report`` renders again and the adjusted calibration as
+  Metashape XML, camera JSON or OpenCV YAML (``--output-calibration``);
+* ``convert INPUT OUTPUT``: between BAL, Bundler, COLMAP text or binary and CSV blocks;
 * ``report RESULT.json``: the HTML report of a saved result record.
 """
 
@@ -31,6 +31,7 @@ from ._common import (
     alpha_help,
     check_alpha,
     console,
+    image_size_option,
     iteration_progress,
     json_text,
     options_in_errors,
@@ -54,6 +55,7 @@ class BlockFormat(str, Enum):
     bal = "bal"
     colmap = "colmap"
     colmap_bin = "colmap-bin"
+    bundler = "bundler"
 
 
 class Loss(str, Enum):
@@ -90,6 +92,12 @@ _CLI_WORDS = (
         "M = M3(kappa) M2(phi) M1(omega); or in the convention of the BAL or COLMAP file)",
     ),
     ("drop_extras=True", "--drop-extras"),
+    ("(image_size=(width, height), or a mapping image id -> size;", "(--image-size "
+     "WIDTHxHEIGHT;"),
+    ("(image_size=(width, height))", "(--image-size WIDTHxHEIGHT)"),
+    ("(image_list=)", "(--image-list)"),
+    ("read it as Bundler (kind='bundler')", "give --format bundler (bundle convert: --from "
+     "bundler)"),
     (
         "is read with read_csv_block(..., start_values=False) and given them by "
         "photogeom.bundle.start_from_relative_orientation (relative orientations, strips, "
@@ -197,7 +205,9 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
                 f"{path} is JSON, not a block: a result record is rendered with "
                 "'photogeom bundle report'"
             )
-        return "bal"
+        from ..bundle.io_bundler import is_bundler_file
+
+        return "bundler" if is_bundler_file(path) else "bal"
     if (path / "cameras.csv").is_file():
         return "csv"
     if (path / "cameras.txt").is_file() or (path / "images.txt").is_file():
@@ -207,7 +217,7 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
     raise InputError(
         f"{path}: not a block folder (no cameras.csv of a CSV block, no cameras.txt or "
         f"cameras.bin of a COLMAP model); give the format with {option} "
-        "csv|colmap|colmap-bin|bal"
+        "csv|colmap|colmap-bin|bal|bundler"
     )
 
 
@@ -220,10 +230,12 @@ def output_format(path: Path, given: BlockFormat | None, default: str | None, op
         return default
     if path.suffix.lower() in _BAL_SUFFIXES:
         return "bal"
+    if path.suffix.lower() == ".out":
+        return "bundler"
     raise InputError(
         f"cannot tell the format of {path} from its name: give {option} "
-        "csv|colmap|colmap-bin|bal (CSV blocks and COLMAP models are folders; a BAL file ends "
-        "in .txt, .bal or .bz2)"
+        "csv|colmap|colmap-bin|bal|bundler (CSV blocks and COLMAP models are folders; a BAL "
+        "file ends in .txt, .bal or .bz2, a Bundler file in .out)"
     )
 
 
@@ -235,10 +247,15 @@ def read_block(
     image_key: str,
     option: str = "--format",
     start_values: bool = True,
+    image_size: str | None = None,
+    image_list: Path | None = None,
+    group_cameras: bool = False,
 ):
     """Read a block in format ``fmt`` of :func:`detect_format` (``sigma``: the ``--sigma`` of
     the command, px; ``option``: the command's format option, named in errors;
-    ``start_values=False``: a CSV block's orientations and tie points may be empty)."""
+    ``start_values=False``: a CSV block's orientations and tie points may be empty;
+    ``image_size``, ``image_list``, ``group_cameras``: ``--image-size``, ``--image-list``,
+    ``--group-cameras`` of a BAL or Bundler file)."""
     import math
 
     from .. import bundle
@@ -250,6 +267,22 @@ def read_block(
             "positive number of pixels"
         )
     kw = {} if sigma is None else {"sigma": sigma}
+    shown = "colmap-bin" if fmt == "colmap-both" else fmt  # named in errors
+    bundler = {"--image-list": image_list is not None, "--group-cameras": group_cameras}
+    given = [o for o, v in bundler.items() if v]
+    if given and fmt != "bundler":
+        raise InputError(f"{' and '.join(given)} apply to a Bundler file; {path} is {shown}")
+    if image_size is not None:
+        if fmt not in ("bal", "bundler"):
+            raise InputError(
+                f"--image-size applies to a BAL or Bundler file; {path} is {shown}, whose "
+                "cameras give the image sizes: leave --image-size out"
+            )
+        kw["image_size"] = image_size_option(image_size)
+    if fmt == "bundler":
+        return bundle.read_bundler(
+            path, image_list=image_list, group_cameras=group_cameras, **kw
+        )
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
     if fmt == "colmap-both":  # a folder holding both models (detect_format)
@@ -296,11 +329,11 @@ def check_targets(blocks=(), files=(), made=()) -> None:
     the other).
     """
     for opt, path, fmt in blocks:
-        refuse_stdout_dash(opt, path, folder=fmt != "bal")
+        refuse_stdout_dash(opt, path, folder=fmt not in ("bal", "bundler"))
     for opt, path in files:
         refuse_stdout_dash(opt, path)
     named: dict[str, str] = {}
-    singles = [(o, p) for o, p, f in blocks if f == "bal"] + list(files)
+    singles = [(o, p) for o, p, f in blocks if f in ("bal", "bundler")] + list(files)
     for opt, path in singles:
         if path is None:
             continue
@@ -384,6 +417,33 @@ class ImageKey(str, Enum):
     by_id = "id"
 
 
+ImageSizeOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--image-size",
+        help="BAL/Bundler input: the images' size WIDTHxHEIGHT [px] (Bundler default: read "
+        "from the image files its list names; BAL: the smallest even size holding the "
+        "observations).",
+        show_default=False,
+    ),
+]
+ImageListOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--image-list",
+        help="Bundler input: its image list (default: NAME.out.list.txt or list.txt next to "
+        "it; without one the images are named by camera index).",
+        show_default=False,
+    ),
+]
+GroupCamerasOpt = Annotated[
+    bool,
+    typer.Option(
+        "--group-cameras",
+        help="Bundler input: one camera group for the images with equal f, k1, k2 and size "
+        "(default: a camera per image, as Bundler).",
+    ),
+]
 ImageKeyOpt = Annotated[
     ImageKey, typer.Option("--image-key", help="COLMAP: image ids from 'name' or 'id'.")
 ]
@@ -391,7 +451,7 @@ DropExtrasOpt = Annotated[
     bool,
     typer.Option(
         "--drop-extras",
-        help="BAL/COLMAP output: leave out what the format cannot hold (control and check "
+        help="BAL/COLMAP/Bundler output: leave out what the format cannot hold (control and check "
         "points, GNSS/IMU, unequal sigmas) instead of refusing.",
     ),
 ]
@@ -686,6 +746,9 @@ def adjust(
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
     image_key: ImageKeyOpt = ImageKey.by_name,
+    image_size: ImageSizeOpt = None,
+    image_list: ImageListOpt = None,
+    group_cameras: GroupCamerasOpt = False,
     drop_extras: DropExtrasOpt = False,
     crs: Annotated[
         str | None,
@@ -756,8 +819,9 @@ def adjust(
     relative = start is Start.relative
     with stage_spinner(f"reading {source}"):
         block = read_block(
-            source, read_fmt, sigma=sigma, image_key=image_key, start_values=not relative
-        )
+            source, read_fmt, sigma=sigma, image_key=image_key, start_values=not relative,
+            image_size=image_size, image_list=image_list, group_cameras=group_cameras,
+        )  # fmt: skip
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     start_note = None
     if relative:
@@ -1163,7 +1227,10 @@ def _angles_written(fmt: str | None, angle_unit: str) -> str:
 @_cli_words
 def convert(
     source: Annotated[
-        Path, typer.Argument(help="Block to read (BAL file, COLMAP text or binary, CSV folder).")
+        Path,
+        typer.Argument(
+            help="Block to read (BAL or Bundler file, COLMAP text or binary, CSV folder)."
+        ),
     ],
     target: Annotated[Path, typer.Argument(help="Where to write (a folder for CSV and COLMAP).")],
     from_fmt: Annotated[
@@ -1177,8 +1244,8 @@ def convert(
         BlockFormat | None,
         typer.Option(
             "--to",
-            help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names; colmap-bin: "
-            "COLMAP's binary model).",
+            help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names, Bundler for .out; "
+            "colmap-bin: COLMAP's binary model).",
         ),
     ] = None,
     angle_unit: Annotated[
@@ -1191,11 +1258,14 @@ def convert(
     ] = AngleUnit.deg,
     sigma: SigmaOpt = None,
     image_key: ImageKeyOpt = ImageKey.by_name,
+    image_size: ImageSizeOpt = None,
+    image_list: ImageListOpt = None,
+    group_cameras: GroupCamerasOpt = False,
     drop_extras: DropExtrasOpt = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Convert a block between BAL, COLMAP text or binary and CSV (conventions converted
-    exactly)."""
+    """Convert a block between BAL, Bundler, COLMAP text or binary and CSV (conventions
+    converted exactly)."""
     read_fmt = detect_format(source, from_fmt, "--from")
     src = "colmap-bin" if read_fmt == "colmap-both" else read_fmt  # COLMAP reads .bin
     dst = output_format(target, to_fmt, None, "--to")
@@ -1204,7 +1274,10 @@ def convert(
     block_angle = block_angle_unit(angle_unit.value)
     check_targets(blocks=[("TARGET", target, dst)])
     with stage_spinner(f"converting {source} to {dst}"):
-        block = read_block(source, read_fmt, sigma=sigma, image_key=image_key, option="--from")
+        block = read_block(
+            source, read_fmt, sigma=sigma, image_key=image_key, option="--from",
+            image_size=image_size, image_list=image_list, group_cameras=group_cameras,
+        )  # fmt: skip
         files = block_files(
             block, target, dst, drop_extras=drop_extras, angle_unit=block_angle
         )

@@ -33,6 +33,7 @@ from ._common import (
     check_outputs,
     console,
     emit_points,
+    image_size_option,
     json_id,
     json_text,
     options_in_errors,
@@ -538,17 +539,6 @@ def _groups(ids: list[str]) -> dict:
     return dict(zip(order, np.split(rows, cuts), strict=True))
 
 
-def _image_size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(x) for x in text.lower().replace(",", "x").split("x"))
-    except ValueError:
-        raise InputError(
-            f"--image-size: expected WIDTHxHEIGHT in pixels, e.g. 7952x5304, not {text!r}"
-            + unit_hint(text, "--image-size")
-        ) from None
-    return w, h
-
-
 @app.command("fit")
 @options_in_errors(alpha="--alpha", border="--border")
 def fit(
@@ -558,8 +548,8 @@ def fit(
             help="CSV with image_id, u, v, rx, ry (px; residuals computed minus observed) "
             "and optionally sigma (px), "
             "or an adjusted block (a CSV block folder or COLMAP text or binary model, a BAL "
-            "file: "
-            ".bal, .bz2 or any name or pipe by its content): "
+            "file: .bal, .bz2 or any name or pipe by its content, a Bundler file: .out, its "
+            "image list beside it): "
             "the reprojection residuals of its tie points, the image sizes of its cameras."
         ),
     ],
@@ -818,8 +808,8 @@ def _snooping_heading(rejected: dict) -> str:
     )
 
 
-#: Suffixes of a BAL file, the one block format stored in a single file
-_BLOCK_SUFFIXES = (".bal", ".bz2")
+#: Suffixes of a BAL or Bundler file, the block formats stored in a single file
+_BLOCK_SUFFIXES = (".bal", ".bz2", ".out")
 
 
 #: Files of a CSV block folder and of a COLMAP text or binary model (inputs of ``grid fit
@@ -831,11 +821,12 @@ _BLOCK_FILES = frozenset(
 
 
 def _is_block(path: Path) -> bool:
-    """Whether ``grid fit``'s input is an adjusted block (a folder or a BAL file) rather
-    than a residuals CSV: a folder, a name ending in .bal or .bz2, or a regular file or a
-    pipe whose content is BAL (bzip2-compressed, or a first line of three integers: cameras,
-    points, observations). A pipe is read once, whole, and its bytes kept
-    (:func:`photogeom.io.sources.pipe_bytes`) for the BAL or CSV reader."""
+    """Whether ``grid fit``'s input is an adjusted block (a folder, a BAL or Bundler file)
+    rather than a residuals CSV: a folder, a name ending in .bal, .bz2 or .out, or a regular
+    file or a pipe whose content is BAL (bzip2-compressed, or a first line of three integers:
+    cameras, points, observations) or Bundler (a first line ``# Bundle file``). A pipe is
+    read once, whole, and its bytes kept (:func:`photogeom.io.sources.pipe_bytes`) for the
+    block or CSV reader."""
     if path.is_dir() or path.suffix.lower() in _BLOCK_SUFFIXES:
         return True
     from ..io.sources import input_kind, pipe_bytes
@@ -851,7 +842,11 @@ def _is_block(path: Path) -> bool:
             return False
     except OSError:
         return False  # the CSV reader names the problem
-    return head.startswith(b"BZh") or _looks_like_bal(head.decode("latin-1"))
+    return (
+        head.startswith(b"BZh")
+        or head.lstrip(b"\xef\xbb\xbf").startswith(b"# Bundle file")
+        or _looks_like_bal(head.decode("latin-1"))
+    )
 
 
 def _looks_like_bal(text: str) -> bool:
@@ -902,15 +897,23 @@ def _fit_block(
     from ..bundle.io_formats import detect_format
     from ..calibration import fit_residual_grids
 
-    bal = detect_format(path) == "bal"
-    if image_size is not None and not bal:
+    kind = detect_format(path)
+    bal = kind == "bal"
+    if image_size is not None and kind not in ("bal", "bundler"):
         raise InputError(
-            f"--image-size applies to a residuals CSV or a BAL file; {path} is a block "
+            f"--image-size applies to a residuals CSV, a BAL or a Bundler file; {path} is a block "
             "whose cameras give the image sizes: leave --image-size out"
         )
-    options_read = {"image_size": _image_size(image_size)} if image_size is not None else {}
-    with stage_spinner(f"reading {path}"):
-        block = read_detected_block(path, **options_read)
+    options_read = {"image_size": image_size_option(image_size)} if image_size is not None else {}
+    try:
+        with stage_spinner(f"reading {path}"):
+            block = read_detected_block(path, **options_read)
+    except InputError as exc:  # a Bundler file's image sizes: the option that gives them
+        text = str(exc).replace("image_size=(width, height), or a mapping image id -> size;",
+                                "--image-size WIDTHxHEIGHT;")  # fmt: skip
+        raise InputError(
+            text.replace("(image_size=(width, height))", "(--image-size WIDTHxHEIGHT)")
+        ) from None
     if bal and image_size is None:  # the pixel origin, and so the grids, follow that size
         w, h = (int(x) for x in block.image_sizes()[0])
         say(
@@ -997,7 +1000,7 @@ def _fit_csv(
             f"{path}: a residuals CSV needs the images' size: give --image-size "
             "WIDTHxHEIGHT (pixels)"
         )
-    size = _image_size(image_size)
+    size = image_size_option(image_size)
     s_c = 1.0 if sigma_constraint is None else sigma_constraint
     quoted: list = []
     _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"), None, quoted)

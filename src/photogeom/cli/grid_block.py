@@ -226,8 +226,18 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
             return pg.bundle_adjust(sim.block, snooping=False), sim
     if not block.exists():
         raise InputError(f"BLOCK: {block} does not exist")
-    with stage_spinner(f"reading {block}"):
-        read = read_detected_block(block)
+    try:
+        with stage_spinner(f"reading {block}"):
+            read = read_detected_block(block)
+    except InputError as exc:  # a Bundler file whose image sizes are not known here
+        head, sep, _ = str(exc).partition("; give the images' size")
+        if not sep:
+            raise
+        raise InputError(
+            f"{head}; put the images where its image list says, or convert it with the "
+            f"images' size: photogeom bundle convert {block} block/ --to csv --image-size "
+            "WIDTHxHEIGHT, and give block/"
+        ) from None
     warn_if_unadjusted(read, block)
     return _Fit(read), None
 
