@@ -908,7 +908,9 @@ def adjust(
         files = block_files(
             fit.block, output, out_fmt, drop_extras=drop_extras, angle_unit=block_angle
         )
-    write_all(files, texts, folders=[output] if out_fmt not in (None, "bal") else [])
+    from ..bundle.io_formats import FOLDER_FORMATS
+
+    write_all(files, texts, folders=[output] if out_fmt in FOLDER_FORMATS else [])
     if as_json:
         d = fit.to_dict(angle)
         d["unit"] = unit
@@ -1281,7 +1283,9 @@ def convert(
         files = block_files(
             block, target, dst, drop_extras=drop_extras, angle_unit=block_angle
         )
-    write_all(files, folders=[target] if dst != "bal" else [])
+    from ..bundle.io_formats import FOLDER_FORMATS
+
+    write_all(files, folders=[target] if dst in FOLDER_FORMATS else [])
     info = {
         "source": str(source),
         "source_format": src,
