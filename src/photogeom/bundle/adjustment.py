@@ -69,7 +69,9 @@ def dense_global_bytes(n_groups: int, n_points: int, n_rows: int, b: int, snoopi
     Returns
     -------
     float
-        Bytes (the peak of those arrays, within about 10 % on blocks of 12 to 24 images).
+        Bytes of those arrays: 73 %, 83 % and 93 % of the measured peak of the whole
+        adjustment on BAL blocks of 8, 12 and 24 images (1000 tie points per image), the
+        rest of the adjustment weighing less as the block grows.
     """
     g = n_groups * NCAL
     solve = 3 * n_rows + 9 * n_points
