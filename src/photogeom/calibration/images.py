@@ -80,12 +80,16 @@ class FolderResult:
         Image files of the folder without a grid (not corrected).
     notes : dict
         ``image id -> note`` (e.g. metadata that the format did not let us keep).
+    missing : list
+        The image ids of ``failures`` that have no file in the folder (the others' files
+        were found and failed), in the order of the grids.
     """
 
     written: dict = field(default_factory=dict)
     failures: dict = field(default_factory=dict)
     skipped: list = field(default_factory=list)
     notes: dict = field(default_factory=dict)
+    missing: list = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -98,13 +102,14 @@ class FolderResult:
         -------
         dict
             ``written`` (image -> output path), ``failures`` (image -> reason), ``skipped``,
-            ``notes``; keys as text.
+            ``notes``, ``missing`` (the failures without a file); keys as text.
         """
         return {
             "written": {str(k): str(v) for k, v in self.written.items()},
             "failures": {str(k): v for k, v in self.failures.items()},
             "skipped": list(self.skipped),
             "notes": {str(k): v for k, v in self.notes.items()},
+            "missing": [str(k) for k in self.missing],
         }
 
 
@@ -1384,6 +1389,7 @@ def _correct_jobs(src, dst, grids, workers, dask, interpolation, progress, borde
     found, missing, extra = find_images(src, list(grids))
     for key in missing:
         result.failures[key] = _missing_message(src, key, extra)
+    result.missing = list(missing)
     result.skipped = extra
     # an image below the input folder (an id cam1/DSC00100.JPG) is written below the output
     # folder alike: cam1/0001.jpg and cam2/0001.jpg are two images

@@ -59,7 +59,13 @@ def image_overlap(block: Block, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     numpy.ndarray, shape (k,)
         Fractions (1 for coincident projection centres; negative without overlap).
     """
-    a, b = np.asarray(a, int), np.asarray(b, int)
+    return _overlap(block, np.asarray(a, int), np.asarray(b, int), _image_gsd(block))
+
+
+def _overlap(block: Block, a: np.ndarray, b: np.ndarray, gsd: np.ndarray) -> np.ndarray:
+    """:func:`image_overlap` with the images' GSD given (``_image_gsd(block)``, (m,)): it
+    runs over every observation of the block, so a caller that asks for many pairs of
+    images computes it once."""
     C = block.exterior[:, :3]
     base = C[b, :2] - C[a, :2]
     blen = np.linalg.norm(base, axis=1)
@@ -69,8 +75,7 @@ def image_overlap(block: Block, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     # image x axis (columns) and y axis in object space: rows of M; v runs along -y
     xa, ya = M[a, 0, :2], M[a, 1, :2]
     size = block.image_sizes()[a]
-    gsd = _image_gsd(block)[a]
-    L = gsd * (size[:, 0] * np.abs(np.sum(e * xa, 1)) + size[:, 1] * np.abs(np.sum(e * ya, 1)))
+    L = gsd[a] * (size[:, 0] * np.abs(np.sum(e * xa, 1)) + size[:, 1] * np.abs(np.sum(e * ya, 1)))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(blen > 0, 1.0 - blen / L, 1.0)
 
@@ -128,7 +133,8 @@ def stereo_models(block: Block, *, overlap: float = 0.6, min_overlap: float = 0.
     if m < 3:
         return StereoModels([ids], [0], [], [], [])
     rows = np.arange(m)
-    ov = image_overlap(block, rows[:-1], rows[1:])
+    gsd = _image_gsd(block)  # once: every candidate offset of every strip needs it
+    ov = _overlap(block, rows[:-1], rows[1:], gsd)
     C = block.exterior[:, :2]
     base = np.diff(C, axis=0)
     strips = [[0]]
@@ -151,14 +157,14 @@ def stereo_models(block: Block, *, overlap: float = 0.6, min_overlap: float = 0.
         for k in range(1, max(1, s.size // 2) + 1):  # candidate offsets of the strip
             if s.size < 2 * k + 1:
                 break
-            o = float(np.nanmean(image_overlap(block, s[:-k], s[k:])))
+            o = float(np.nanmean(_overlap(block, s[:-k], s[k:], gsd)))
             if abs(o - overlap) < best_d:
                 best, best_d = k, abs(o - overlap)
         offsets.append(best)
         if best == 0:
             continue
         k = best
-        o = image_overlap(block, s[:-k], s[k:])
+        o = _overlap(block, s[:-k], s[k:], gsd)
         for a, b, oo in zip(s[:-k], s[k:], o):
             models.append((ids[a], ids[b]))
             mov.append(float(oo))

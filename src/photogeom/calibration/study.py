@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numbers
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -331,6 +331,7 @@ def sweep_spacings(
     rematched: Block | None = None,
     exclude: Sequence = (),
     repeats: int = TIMING_REPEATS,
+    stage: Callable[[str], None] | None = None,
     **options,
 ) -> dict:
     """The grid-size sweep on an adjusted block.
@@ -384,6 +385,13 @@ def sweep_spacings(
     repeats : int, default ``TIMING_REPEATS`` (3)
         Timings of each spacing's fit and correction at most (an integer >= 1); the cost
         is their minimum. 1: one timing, no repeated pass.
+    stage : callable, optional
+        Called as ``stage(text)`` whenever the sweep moves on, with the spacing it is at
+        and the step, e.g. ``"spacing 3 of 7 (300 px): fitting grids, 120 of 250
+        images"``, ``"spacing 3 of 7 (300 px): re-adjusting"``, ``"timing again, pass 2 of
+        at most 3: spacing 3 of 7 (300 px)"``: a study-size block takes minutes per pass,
+        and a display of the elapsed time alone does not say how far it is. Without a
+        ``progress`` option the per-image count of the fit is included in the text.
     **options
         Passed to :func:`fit_residual_grids`.
 
@@ -424,21 +432,31 @@ def sweep_spacings(
     times = np.zeros(len(g))
     times_re = np.zeros(len(g))
     _warm_up(fit.block, g[0], left_out, options)
+    say = stage if stage is not None else _silent
     start = _clock()
     for c, sp in enumerate(g):  # spacings, not points
+        at = f"spacing {c + 1} of {len(g)} ({sp:g} px)"
+        say(f"{at}: fitting grids")
+        fit_options = options
+        if stage is not None and "progress" not in options:
+            fit_options = {**options, "progress": _image_counter(stage, f"{at}: fitting grids")}
         t0 = _clock()
-        grids = fit_residual_grids(fit.block, sp, **options)
+        grids = fit_residual_grids(fit.block, sp, **fit_options)
         corrected = correct_block_observations(fit.block, grids, uncorrected=exclude)
         t1 = _clock()
+        say(f"{at}: re-adjusting")
         re = _adjust_corrected(corrected, snooping=False)
         times[c], times_re[c] = t1 - t0, _clock() - t1
         s = model_steps(re.block, overlap=overlap)
         step[0, :, c] = [s.get(k, np.nan) for k in keys]
         if rematched is not None:
+            say(f"{at}: re-adjusting the re-matched observations")
             again = readjust(rematched, grids, uncorrected=exclude, snooping=False)
             s = model_steps(again.block, overlap=overlap)
             step[1, :, c] = [s.get(k, np.nan) for k in keys]
-    timings = _repeat_timings(fit.block, g, times, repeats, _clock() - start, exclude, options)
+    timings = _repeat_timings(
+        fit.block, g, times, repeats, _clock() - start, exclude, options, say
+    )
     ok = np.all(np.isfinite(step), axis=(0, 2))
     t = np.broadcast_to(times, step[0, ok].shape)
     choice = choose_spacing(g, step[0, ok], t)
@@ -468,6 +486,7 @@ def _repeat_timings(
     budget: float,
     exclude: Sequence,
     options: dict,
+    say: Callable[[str], None] | None = None,
 ) -> int:
     """Time every spacing's fit and correction again, in passes over all spacings, and
     keep each spacing's minimum in ``times`` (in place).
@@ -489,16 +508,24 @@ def _repeat_timings(
         Images that get no grid (their observations are not corrected).
     options : dict
         The sweep's options of :func:`fit_residual_grids`.
+    say : callable, optional
+        ``say(text)`` names the pass and the spacing being timed (``stage`` of
+        :func:`sweep_spacings`).
 
     Returns
     -------
     int
         The timings made per spacing (1 to ``repeats``).
     """
+    say = say if say is not None else _silent
     spent, made = 0.0, 1
     while made < repeats and spent + float(times.sum()) <= budget:
         begin = _clock()
         for c, sp in enumerate(spacings):  # spacings, not points
+            say(
+                f"timing again, pass {made + 1} of at most {repeats}: "
+                f"spacing {c + 1} of {len(spacings)} ({sp:g} px)"
+            )
             t0 = _clock()
             grids = fit_residual_grids(block, sp, **options)
             correct_block_observations(block, grids, uncorrected=exclude)
@@ -506,6 +533,20 @@ def _repeat_timings(
         spent += _clock() - begin
         made += 1
     return made
+
+
+def _silent(text: str) -> None:
+    """A ``stage`` that shows nothing."""
+
+
+def _image_counter(stage: Callable[[str], None], text: str) -> Callable[[int, int], None]:
+    """A ``progress(done, total)`` of :func:`fit_residual_grids` that passes
+    ``"<text>, <done> of <total> images"`` to ``stage``."""
+
+    def count(done: int, total: int) -> None:
+        stage(f"{text}, {done} of {total} images")
+
+    return count
 
 
 def _warm_up(block: Block, spacing: float, left_out: set, options: dict) -> None:

@@ -680,6 +680,8 @@ def fit(
         )
     else:
         grids = _fit_csv(residuals, image_size, spacing, sigma_obs, s_c, options, left_out, where)
+    if std:  # a selected inversion per image, 15 s for 250 images at 100 px: counted
+        _node_cofactors(grids)
     outputs = [(output, grids_file_bytes(output, grids, std=std))]
     # keyed by text (JSON keys are text); "image_id" keeps the id's type (an int stays one)
     stats = {str(k): {"image_id": json_id(k), **g.to_dict()} for k, g in grids.items()}
@@ -974,6 +976,16 @@ def _images_progress(what: str) -> Iterator[bool | Callable[[int, int], None]]:
             log.update(f"{what}: {done} of {total} images")
 
         yield counted
+
+
+def _node_cofactors(grids: dict) -> None:
+    """Compute (and keep in each grid) the node cofactors that the grids file's standard
+    deviations are made of, one image after another with the progress of the fit."""
+    from ..calibration.grid import progress_over
+
+    with _images_progress("node standard deviations") as progress:
+        for g in progress_over(list(grids.values()), progress):  # images, not points
+            g.node_cofactor  # noqa: B018 - computed on first use and kept
 
 
 def _fit_csv(
@@ -1470,13 +1482,37 @@ def correct_images(
                 f"{len(res.skipped)} image file(s) without a grid, not corrected: "
                 f"{', '.join(res.skipped[:10])}"
             )
-        for k, msg in res.failures.items():
-            say(f"failed {k}: {msg}", stderr=True)
+        _say_failures(res, src_dir)
     if res.failures:
         failed = len(res.failures)
         batch_failed(
             f"{failed} of {failed + len(res.written)} image(s) failed (listed above; the "
             f"other {len(res.written)} corrected into {dst_dir})"
+        )
+
+
+#: Images without a file that ``grid correct-images`` names one per line; the others are
+#: counted in one line (a folder holding a few of a 250-image block's images gave a line per
+#: image, and a damaged file's failure among them).
+MISSING_SHOWN = 10
+
+
+def _say_failures(res, src_dir: Path) -> None:
+    """The failures of ``correct_folder`` on stderr: every image whose file failed, then the
+    first :data:`MISSING_SHOWN` images without a file and a count of the rest."""
+    missing = set(res.missing)
+    for k, msg in res.failures.items():
+        if k not in missing:
+            say(f"failed {k}: {msg}", stderr=True)
+    shown = [k for k in res.missing if k in res.failures][:MISSING_SHOWN]
+    for k in shown:
+        say(f"failed {k}: {res.failures[k]}", stderr=True)
+    more = len(missing) - len(shown)
+    if more > 0:
+        say(
+            f"failed: {more} more image(s) with a grid and no image file of their name in "
+            f"{src_dir} (--json gives the reason for each)",
+            stderr=True,
         )
 
 

@@ -713,10 +713,10 @@ def sweep(
     left = _left_out(fit, exclude, block, preset)
     rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None  # as grid evaluate
     try:
-        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings") as step:
             sw = sweep_spacings(
                 fit, g, overlap=overlap, sigma_constraint=sigma_constraint, folds=0,
-                rematched=rem, exclude=left, repeats=repeats,
+                rematched=rem, exclude=left, repeats=repeats, stage=_sweep_stage(step),
             )  # fmt: skip
     except PhotogeomError as exc:
         exc.args = (_sweep_words(str(exc)),)
@@ -856,10 +856,10 @@ def report(
     # the re-matched block of the evaluation (the same seed draws the same measurement)
     rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None
     try:
-        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings"):
+        with stage_spinner(f"sweep: grids and re-adjustment at {len(g)} spacings") as step:
             sw = sweep_spacings(
                 fit, g, overlap=overlap, sigma_constraint=sc, folds=0, rematched=rem,
-                exclude=ev["excluded"], repeats=repeats,
+                exclude=ev["excluded"], repeats=repeats, stage=_sweep_stage(step),
             )  # fmt: skip
     except PhotogeomError as exc:
         exc.args = (_sweep_words(str(exc)),)
@@ -876,6 +876,16 @@ def report(
         res["rematched"] = ev["rematched"]
     path = grid_study_report(res, output)
     say(f"wrote {path}")
+
+
+def _sweep_stage(step):
+    """The ``stage`` of ``sweep_spacings`` for a :func:`stage_spinner`'s ``step``: the
+    spacing and the step of the sweep, after ``sweep:``."""
+
+    def stage(text: str) -> None:
+        step(f"sweep: {text}")
+
+    return stage
 
 
 def register(app: typer.Typer) -> None:
