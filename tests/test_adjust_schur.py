@@ -12,11 +12,20 @@ from photogeom.adjust.schur import (
 )
 
 
-def _problem(seed, L=5, b=4, n_groups=2, gl=3, n_points=12, fixed=True):
+def _problem(
+    seed, L=5, b=4, n_groups=2, gl=3, n_points=12, fixed=True, coupling="auto", shared=False
+):
+    """A random problem and its dense normal equations; ``shared``: the groups share their
+    first global column (the others their own)."""
     rng = np.random.default_rng(seed)
-    g = n_groups * gl
     local_group = rng.integers(0, n_groups, L)
-    local_global = local_group[:, None] * gl + np.arange(gl)[None, :]
+    if shared:
+        g = n_groups * (gl - 1) + 1
+        own = 1 + local_group[:, None] * (gl - 1) + np.arange(gl - 1)[None, :]
+        local_global = np.column_stack([np.zeros(L, dtype=int), own])
+    else:
+        g = n_groups * gl
+        local_global = local_group[:, None] * gl + np.arange(gl)[None, :]
     loc, pt = [], []
     for j in range(n_points):
         ims = rng.choice(L, size=rng.integers(2, L + 1), replace=False)
@@ -48,7 +57,17 @@ def _problem(seed, L=5, b=4, n_groups=2, gl=3, n_points=12, fixed=True):
     gg = rng.standard_normal(g) * 0.1
     lin = Linearization(r, A, G, P, li, lg, pi, pg_, gi, gg, 0.0)
     sysm = SchurSystem(
-        L, b, g, n_points, loc, pt, local_global, local_free, global_free, backend="superlu"
+        L,
+        b,
+        g,
+        n_points,
+        loc,
+        pt,
+        local_global,
+        local_free,
+        global_free,
+        backend="superlu",
+        global_coupling=coupling,
     )
     # dense
     nc = L * b + g
@@ -73,13 +92,33 @@ def _problem(seed, L=5, b=4, n_groups=2, gl=3, n_points=12, fixed=True):
     return sysm, lin, N, grad, free, J
 
 
-@pytest.mark.parametrize("seed,dense_inverse", [(0, True), (1, False), (2, True), (3, False)])
-def test_step_and_covariances_equal_the_dense_solution(seed, dense_inverse, monkeypatch):
+@pytest.mark.parametrize(
+    "seed,dense_inverse,coupling,n_groups,shared",
+    [
+        (0, True, "dense", 2, False),
+        (1, False, "dense", 2, False),
+        (2, True, "dense", 2, False),
+        (3, False, "dense", 2, False),
+        # the coupling of points with the global parameters per (point, group)
+        (0, True, "sparse", 2, False),
+        (1, False, "sparse", 2, False),
+        (4, True, "sparse", 1, False),
+        (5, False, "sparse", 5, False),
+        (6, True, "sparse", 4, True),  # groups sharing a global column
+        (7, False, "auto", 6, False),  # few groups: dense
+    ],
+)
+def test_step_and_covariances_equal_the_dense_solution(
+    seed, dense_inverse, coupling, n_groups, shared, monkeypatch
+):
     import photogeom.adjust.sparse as sparse
 
     if not dense_inverse:  # the blocks by batched solves with unit vectors
         monkeypatch.setattr(sparse, "DENSE_INVERSE_MAX", 0)
-    sysm, lin, N, grad, free, J = _problem(seed)
+    sysm, lin, N, grad, free, J = _problem(
+        seed, L=7, n_groups=n_groups, coupling=coupling, shared=shared
+    )
+    assert sysm.sparse_global == (coupling == "sparse")
     ne = sysm.normal_equations(lin)
     dc, dp, F = ne.solve()
     Nf = N[np.ix_(free, free)]
@@ -121,8 +160,9 @@ def test_step_and_covariances_equal_the_dense_solution(seed, dense_inverse, monk
         )
 
 
-def test_damped_step_equals_dense_marquardt():
-    sysm, lin, N, grad, free, _ = _problem(5)
+@pytest.mark.parametrize("coupling", ["dense", "sparse"])
+def test_damped_step_equals_dense_marquardt(coupling):
+    sysm, lin, N, grad, free, _ = _problem(5, coupling=coupling)
     lam = 0.3
     ne = sysm.normal_equations(lin, damping=lam)
     dc, dp, _ = ne.solve()

@@ -3,7 +3,8 @@
 The problems of this module have three kinds of unknowns:
 
 * *local* blocks of size ``b`` (e.g. one image's exterior orientation), many of them;
-* *global* parameters, few (e.g. the calibration of the camera groups);
+* *global* parameters (e.g. the calibration of the camera groups), each local block's rows
+  depending on a few of them (a *group*, one row of ``local_global``);
 * *point* blocks of size 3, very many (object points), each seen by a few local blocks.
 
 Each row group ``k`` (an observation of dimension ``d``, e.g. the two pixel coordinates of an
@@ -13,7 +14,11 @@ residuals and Jacobian blocks, :class:`SchurSystem` forms the normal equations, 
 the points (3x3 blocks, inverted in one vectorised call), solves the sparse reduced system
 (:mod:`photogeom.adjust.sparse`) and back-substitutes. Memory and work are linear in the
 number of observations and in the number of pairs of observations of one point; no dense
-matrix of the size of all unknowns is ever formed.
+matrix of the size of all unknowns is ever formed. With many groups (a camera group per
+image) the coupling of the points with the global parameters is held per pair (point,
+group observing it) and the global rows of the reduced system follow the groups that share
+points; only the (local, global) and (global, global) blocks and their covariances are held
+densely (memory local blocks x globals and globals squared).
 
 The covariance part gives blocks of the inverse: local and global blocks of the reduced
 system (by solves with unit vectors, never a dense inverse of the whole system), the
@@ -40,6 +45,33 @@ CHUNK = 32768
 #: block of the reduced system (a block's pairs in groups of this many, the last padded
 #: with zeros). One product per pair (a 6x3 by 3x6 product each) cost twice the time.
 PAIR_GROUP = 16
+#: Distinct global column sets (camera groups) from which the coupling of points with global
+#: parameters is held per (point, group) instead of densely (points x 3 x globals). Below
+#: it the dense form is faster (a 48-image block with 31 932 observations adjusted in
+#: 1.4 s dense, 2.1 s sparse with 8 groups; 2.3 s, 2.9 s with 16; 3.6 s, 3.7 s with 32;
+#: 4.0 s both with 48).
+SPARSE_GLOBAL_GROUPS = 32
+#: Bytes of the dense coupling (see :func:`dense_coupling_bytes`) above which it is held
+#: sparse with fewer groups too.
+DENSE_GLOBAL_BYTES = 512e6
+
+
+def dense_coupling_bytes(n_global: int, n_rows: int, n_points: int, b: int) -> float:
+    """Bytes of the largest dense arrays coupling the points with the global parameters:
+    the reduction's (rows + points) x 3 x ``n_global`` or the statistics' rows x (b + 3) x
+    ``n_global`` and points x 12 x ``n_global`` (8-byte floats).
+
+    Parameters
+    ----------
+    n_global, n_rows, n_points, b : int
+        Global parameters, observation row groups, points, size of a local block.
+
+    Returns
+    -------
+    float
+        Bytes.
+    """
+    return 8.0 * n_global * max(3 * n_rows + 9 * n_points, (b + 3) * n_rows + 12 * n_points)
 
 
 def _segments(keys: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -64,6 +96,52 @@ def _chunks(starts: np.ndarray, total: int, size: int = CHUNK):
         hi = starts[seg1] if seg1 < nseg else total
         yield int(lo), int(hi), seg, seg1
         seg = seg1
+
+
+def _padded_groups(
+    order: np.ndarray, starts: np.ndarray, total: int, t: int = PAIR_GROUP
+) -> tuple[np.ndarray, np.ndarray]:
+    """Entries in segment order in groups of ``t`` that do not cross segments (each
+    segment's last group padded with entry ``total``): the entry of each slot
+    (n_groups * t,) and the segment of each group (n_groups,)."""
+    count = np.diff(np.r_[starts, total])
+    groups = -(-count // t)
+    first_group = np.cumsum(groups) - groups
+    seg = np.repeat(np.arange(starts.size), count)
+    pos = np.arange(total) - starts[seg]
+    dest = (first_group[seg] + pos // t) * t + pos % t
+    slots = np.full(int(groups.sum()) * t, total, dtype=np.int64)
+    slots[dest] = order
+    return slots, np.repeat(np.arange(starts.size), groups)
+
+
+def _grouped_products(
+    left: np.ndarray,
+    right: np.ndarray,
+    slots_l: np.ndarray,
+    slots_r: np.ndarray,
+    group_seg: np.ndarray,
+    n_seg: int,
+    t: int = PAIR_GROUP,
+) -> np.ndarray:
+    """``out[s] = sum over the entries of segment s of left[i]' right[j]`` (left (k, 3, m),
+    right (k', 3, m'), one (m, 3t) x (3t, m') product per group of ``t`` entries; the slot
+    index ``len(left)`` / ``len(right)`` is a zero block)."""
+    m, m2 = left.shape[2], right.shape[2]
+    lz = np.concatenate([left, np.zeros((1, 3, m))])
+    rz = np.concatenate([right, np.zeros((1, 3, m2))])
+    out = np.zeros((n_seg, m, m2))
+    n_groups = group_seg.size
+    per = max(1, CHUNK // t)
+    for g0 in range(0, n_groups, per):  # chunks of groups: bounded temporaries
+        g1 = min(n_groups, g0 + per)
+        a = lz[slots_l[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m)
+        c = rz[slots_r[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m2)
+        prod = a.transpose(0, 2, 1) @ c
+        key = group_seg[g0:g1]
+        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        out[key[first]] += np.add.reduceat(prod, first, axis=0)
+    return out
 
 
 def _segment_sum(values_fn, order, starts, keys, total, out) -> None:
@@ -117,6 +195,14 @@ class SchurSystem:
         Parameters that are estimated; the others keep their values (their columns are
         dropped from the normal equations).
     backend : sparse solver backend (see :mod:`photogeom.adjust.sparse`).
+    global_coupling : {"auto", "dense", "sparse"}
+        How the coupling of points with the global parameters is held: ``"dense"`` as
+        (points, 3, n_global) arrays (memory points x globals), ``"sparse"`` per pair of a
+        point and a distinct row of ``local_global`` (a camera group) of the local blocks
+        observing it (memory linear in the observations times the track length),
+        ``"auto"`` sparse from :data:`SPARSE_GLOBAL_GROUPS` distinct rows on or where the
+        dense arrays would exceed :data:`DENSE_GLOBAL_BYTES`. The results agree to
+        rounding.
     """
 
     def __init__(
@@ -132,6 +218,7 @@ class SchurSystem:
         global_free: np.ndarray,
         *,
         backend: str = "auto",
+        global_coupling: str = "auto",
     ) -> None:
         self.n_local, self.b, self.n_global, self.n_points = n_local, b, n_global, n_points
         self.local = np.asarray(local, dtype=np.int64)
@@ -146,7 +233,23 @@ class SchurSystem:
         self.order_pt, self.pt_starts, self.pt_keys = _segments(self.point, n_points)
         self.order_loc, self.loc_starts, self.loc_keys = _segments(self.local, n_local)
         self._pairs()
+        if global_coupling not in ("auto", "dense", "sparse"):
+            raise ValueError(
+                f"global_coupling must be 'auto', 'dense' or 'sparse', not {global_coupling!r}"
+            )
+        self.sparse_global = False
+        if n_global and self.gl:
+            self.group_cols, grp = np.unique(self.local_global, axis=0, return_inverse=True)
+            self.local_group = np.asarray(grp, dtype=np.int64).reshape(-1)
+            n_grp = self.group_cols.shape[0]
+            big = (
+                n_grp >= SPARSE_GLOBAL_GROUPS
+                or dense_coupling_bytes(n_global, self.n, n_points, b) > DENSE_GLOBAL_BYTES
+            )
+            self.sparse_global = global_coupling == "sparse" or (global_coupling == "auto" and big)
         self._pattern()
+        if self.sparse_global:
+            self._point_groups()
 
     # --- structure ---------------------------------------------------------------------------
 
@@ -205,9 +308,96 @@ class SchurSystem:
         self._group_k2[dest] = self.pair_k2[po]
         self._group_block = np.repeat(np.arange(nb), groups)
 
-    def _pattern(self) -> None:
-        """Index arrays of the reduced matrix in CSC order (assembled from block data)."""
+    def _point_groups(self) -> None:
+        """Pairs (point, camera group) of the sparse coupling of points with the global
+        parameters and the index lists that combine them (all sorted by point):
+
+        * ``pg_point``, ``pg_group`` (n_pg,): the pairs, each distinct group of a point's rows;
+          ``row_pg`` (n,) the pair of each observation row;
+        * ``rp_row``, ``rp_pg``: every (observation row, pair) of the same point;
+        * ``pp_a``, ``pp_b``: every (pair, pair) of the same point (both orders, and each
+          pair with itself).
+        """
+        n_grp = self.group_cols.shape[0]
+        grp_row = self.local_group[self.local]
+        key = self.point * n_grp + grp_row
+        uniq, inv = np.unique(key, return_inverse=True)
+        self.pg_point = uniq // n_grp
+        self.pg_group = uniq % n_grp
+        self.row_pg = np.asarray(inv, dtype=np.int64).reshape(-1)
+        n_pg = uniq.size
+        self.n_pg = n_pg
+        self.pg_cols = self.group_cols[self.pg_group]  # (n_pg, gl)
+        self.pg_order, self.pg_row_starts, self.pg_row_keys = _segments(self.row_pg, n_pg)
+        npg = np.bincount(self.pg_point, minlength=self.n_points)
+        first = np.cumsum(npg) - npg  # first pair of each point
+        self.pg_pt_starts = first[npg > 0]
+        self.pg_pt_keys = np.flatnonzero(npg > 0)
+
+        def expand(owner_point, owners):
+            cnt = npg[owner_point]
+            rep = np.repeat(owners, cnt)
+            start = np.repeat(np.cumsum(cnt) - cnt, cnt)
+            other = first[np.repeat(owner_point, cnt)] + np.arange(rep.size) - start
+            return rep, other, cnt
+
+        # rows in point order: the (row, pair) entries of one point and of one row contiguous
+        rows = self.order_pt
+        self.rp_row, self.rp_pg, cnt = expand(self.point[rows], rows)
+        n_rp = self.rp_row.size
+        self.rp_row_starts = (np.cumsum(cnt) - cnt)[cnt > 0]
+        self.rp_row_keys = rows[cnt > 0]
+        pt_rp = self.point[self.rp_row]
+        self.rp_pt_starts = (
+            np.flatnonzero(np.r_[True, pt_rp[1:] != pt_rp[:-1]])
+            if n_rp
+            else (np.zeros(0, dtype=np.int64))
+        )
+        self.rp_pt_keys = pt_rp[self.rp_pt_starts]
+        # by (local block of the row, group of the pair): the local-global blocks
+        lg_key = self.local[self.rp_row] * n_grp + self.pg_group[self.rp_pg]
+        self.rp_lg_order, self.rp_lg_starts, keys = _segments(lg_key, self.n_local * n_grp)
+        self.rp_lg_local, self.rp_lg_group = keys // n_grp, keys % n_grp
+        slots, self._lg_seg = _padded_groups(self.rp_lg_order, self.rp_lg_starts, n_rp)
+        self._lg_row = np.r_[self.rp_row, self.n][slots]
+        self._lg_pg = np.r_[self.rp_pg, n_pg][slots]
+        # by pair: the cross cofactors of the groups with the points
+        self.rp_pg_order, self.rp_pg_starts, self.rp_pg_keys = _segments(self.rp_pg, n_pg)
+        # (pair, pair) of one point, contiguous by the first pair (hence by point)
+        self.pp_a, self.pp_b, cnt = expand(self.pg_point, np.arange(n_pg))
+        self.pp_a_starts = (np.cumsum(cnt) - cnt)[cnt > 0]
+        self.pp_a_keys = np.flatnonzero(cnt > 0)
+        pt_pp = self.pg_point[self.pp_a]
+        self.pp_pt_starts = np.flatnonzero(np.r_[True, pt_pp[1:] != pt_pp[:-1]])
+        self.pp_pt_keys = pt_pp[self.pp_pt_starts]
+        gg_key = self.pg_group[self.pp_a] * n_grp + self.pg_group[self.pp_b]
+        self.pp_gg_order, self.pp_gg_starts, keys = _segments(gg_key, n_grp * n_grp)
+        self.pp_gg_a, self.pp_gg_b = keys // n_grp, keys % n_grp
+        slots, self._gg_seg = _padded_groups(self.pp_gg_order, self.pp_gg_starts, self.pp_a.size)
+        self._gg_a = np.r_[self.pp_a, n_pg][slots]
+        self._gg_b = np.r_[self.pp_b, n_pg][slots]
+        # entries of the reduced system in the global rows and columns: a local block with
+        # the groups that observe its points (its own too), a group with the groups that
+        # share a point with it (and the whole diagonal)
         b, L, g = self.b, self.n_local, self.n_global
+        lk = np.r_[self.rp_lg_local, np.arange(L)]
+        gk = np.r_[self.rp_lg_group, self.local_group]
+        cols = self.group_cols[gk]
+        pos = (lk[:, None, None] * b + np.arange(b)[None, :, None]) * g + cols[:, None, :]
+        self.lg_pos = np.unique(pos.ravel())  # flat indices into (L b, g)
+        ga = np.r_[self.pp_gg_a, np.arange(n_grp)]
+        gb = np.r_[self.pp_gg_b, np.arange(n_grp)]
+        ca, cb = self.group_cols[ga], self.group_cols[gb]
+        self.gg_mask = np.zeros(g * g, dtype=bool)
+        self.gg_mask[(ca[:, :, None] * g + cb[:, None, :]).ravel()] = True
+        self.gg_mask[np.arange(g) * (g + 1)] = True
+
+    def _pattern(self) -> None:
+        """Index arrays of the reduced matrix in CSC order (assembled from block data); with
+        the sparse coupling of the global parameters only of the local-local blocks (the
+        global rows and columns follow the points, see :meth:`_point_groups`)."""
+        b, L = self.b, self.n_local
+        g = 0 if self.sparse_global else self.n_global
         rr, cc = np.meshgrid(np.arange(b), np.arange(b), indexing="ij")
         rows, cols = [], []
         base = np.arange(L) * b
@@ -365,8 +555,23 @@ class _Normal:
         W = A.transpose(0, 2, 1) @ P
         Y = W @ Vinv[pt]
         self.W, self.Y = W, Y
-        # H_j (3, g): sum over the point's rows of P_k' G_k in global columns
-        if g:
+        # H_j (3, g): sum over the point's rows of P_k' G_k in global columns; sparse: one
+        # (3, gl) block Hp per pair (point, group), VHp = Vinv_j Hp
+        sparse = s.sparse_global
+        if sparse:
+            H = VH = None
+            Hp = np.zeros((s.n_pg, 3 * gl))
+            _segment_sum(
+                lambda rows: (P[rows].transpose(0, 2, 1) @ G[rows]).reshape(rows.size, -1),
+                s.pg_order,
+                s.pg_row_starts,
+                s.pg_row_keys,
+                s.n,
+                Hp,
+            )
+            Hp = Hp.reshape(s.n_pg, 3, gl)
+            VHp = Vinv[s.pg_point] @ Hp
+        elif g:
             Wg = G.transpose(0, 2, 1) @ P  # (n, gl, 3)
             cols = s.local_global[s.local]  # (n, gl)
             flat = (pt[:, None, None] * 3 + np.arange(3)[None, None, :]) * g + cols[:, :, None]
@@ -374,9 +579,10 @@ class _Normal:
             H = H.reshape(s.n_points, 3, g)
         else:
             H = np.zeros((s.n_points, 3, 0))
-        self.H = H
-        VH = Vinv @ H  # (p, 3, g)
-        self.VH = VH
+        if not sparse:
+            Hp = VHp = None
+            VH = Vinv @ H  # (p, 3, g)
+        self.H, self.VH, self.Hp, self.VHp = H, VH, Hp, VHp
         # diagonal blocks U_ll - sum_k Y_k W_k' and local-global blocks - sum_k Y_k H_j,
         # one GEMM per local block over its sorted rows
         D = self.U.copy()
@@ -384,14 +590,27 @@ class _Normal:
         ol = s.order_loc
         Ys = Y[ol].transpose(0, 2, 1).reshape(-1, b)  # rows (k, 3) x b
         Ws = W[ol].transpose(0, 2, 1).reshape(-1, b)
-        Hs = H[pt[ol]].reshape(-1, g) if g else None
+        dense_lg = g and not sparse
+        Hs = H[pt[ol]].reshape(-1, g) if dense_lg else None
         ends = np.r_[s.loc_starts[1:], s.n]
         for lo, hi, key in zip(s.loc_starts.tolist(), ends.tolist(), s.loc_keys.tolist()):
             Yi = Ys[3 * lo : 3 * hi]
             D[key] -= Yi.T @ Ws[3 * lo : 3 * hi]
-            if g:
+            if dense_lg:
                 LG[key] -= Yi.T @ Hs[3 * lo : 3 * hi]
         del Ys, Ws, Hs
+        if sparse:
+            # - sum over (row k, pair e) of one point of Y_k Hp_e, by (local, group of e)
+            blk = _grouped_products(
+                Y.transpose(0, 2, 1), Hp, s._lg_row, s._lg_pg, s._lg_seg, s.rp_lg_starts.size
+            )
+            cols = s.group_cols[s.rp_lg_group]  # (blocks, gl)
+            flat = (
+                (s.rp_lg_local[:, None, None] * b + np.arange(b)[None, :, None]) * g
+                + cols[:, None, :]
+            ).ravel()
+            LG -= np.bincount(flat, weights=blk.ravel(), minlength=L * b * g).reshape(L, b, g)
+            del blk, flat
         # off-diagonal blocks: - sum over pairs Y_k1 W_k2', one (b, 3t) x (3t, b) product per
         # group of t pairs of a block (rows of Yt, Wt: the columns of Y_k, W_k; row n zero)
         nb = s.blocks.shape[0]
@@ -421,19 +640,39 @@ class _Normal:
             LG *= s.local_free[:, :, None]
             LG *= s.global_free[None, None, :]
             # global-global: U_gg - sum_j H_j' Vinv_j H_j
-            GG = self.Ugg - H.reshape(-1, g).T @ VH.reshape(-1, g)
+            if sparse:
+                # over the (pair, pair) of one point, by (group, group)
+                blk = _grouped_products(Hp, VHp, s._gg_a, s._gg_b, s._gg_seg, s.pp_gg_starts.size)
+                ca, cb = s.group_cols[s.pp_gg_a], s.group_cols[s.pp_gg_b]
+                flat = (ca[:, :, None] * g + cb[:, None, :]).ravel()
+                hvh = np.bincount(flat, weights=blk.ravel(), minlength=g * g).reshape(g, g)
+                GG = self.Ugg - hvh
+                del blk, flat, hvh
+            else:
+                GG = self.Ugg - H.reshape(-1, g).T @ VH.reshape(-1, g)
             gf = s.global_free
             GG = np.where(np.outer(gf, gf), GG, np.diag((~gf).astype(float)))
         else:
             GG = np.zeros((0, 0))
         self.D, self.off, self.LG, self.GG = D, off, LG, GG
         # the pattern lists symmetric counterparts in the same element order (see _pattern)
-        data = np.concatenate(
-            [D.ravel(), off.ravel(), off.ravel(), LG.ravel(), LG.ravel(), GG.ravel()]
-        )
+        parts = [D.ravel(), off.ravel(), off.ravel()]
+        if not sparse:
+            parts += [LG.ravel(), LG.ravel(), GG.ravel()]
+        data = np.concatenate(parts)
         self.S = sp.csc_matrix(
             (data[s._csc_perm], s._csc_indices, s._csc_indptr), shape=(s.nc, s.nc)
         )
+        if sparse:  # the global rows and columns: the pattern's entries and any other non-zero
+            lgv = LG.reshape(-1)[s.lg_pos]
+            r_ = s.lg_pos // g
+            c_ = L * b + s.lg_pos % g
+            ggv = GG.reshape(-1)
+            at = np.flatnonzero(s.gg_mask | (ggv != 0))
+            rows = np.concatenate([r_, c_, L * b + at // g])
+            cols = np.concatenate([c_, r_, L * b + at % g])
+            vals = np.concatenate([lgv, lgv, ggv[at]])
+            self.S = self.S + sp.csc_matrix((vals, (rows, cols)), shape=(s.nc, s.nc))
 
     # --- solving -------------------------------------------------------------------------
 
@@ -457,7 +696,12 @@ class _Normal:
             acc,
         )
         rl = -(self.gloc - acc) * s.local_free
-        rg = -(self.gglob - self.H.reshape(-1, s.n_global).T @ Vg.ravel()) * s.global_free
+        if s.sparse_global:
+            hv = (self.Hp.transpose(0, 2, 1) @ Vg[s.pg_point][:, :, None])[:, :, 0]
+            hg = np.bincount(s.pg_cols.ravel(), weights=hv.ravel(), minlength=s.n_global)
+        else:
+            hg = self.H.reshape(-1, s.n_global).T @ Vg.ravel()
+        rg = -(self.gglob - hg) * s.global_free
         return np.concatenate([rl.ravel(), rg])
 
     def back_substitute(self, dc: np.ndarray) -> np.ndarray:
@@ -476,7 +720,10 @@ class _Normal:
             acc,
         )
         t = self.gpt + acc
-        if s.n_global:
+        if s.sparse_global:
+            hd = (self.Hp @ dg[s.pg_cols][:, :, None])[:, :, 0]  # (n_pg, 3)
+            t[s.pg_pt_keys] += np.add.reduceat(hd, s.pg_pt_starts, axis=0)
+        elif s.n_global:
             t += self.H @ dg
         return -(self.Vinv @ t[:, :, None])[:, :, 0]
 
@@ -573,6 +820,12 @@ def covariance_blocks(
     return CovarianceBlocks(Ql, Qp, Qlg, Qgg)
 
 
+def _local_global_cols(Qlg: np.ndarray, local: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``Qlg[local[i]][:, cols[i]]`` (k, b, gl) of the local-global blocks (L, b, g)."""
+    b = Qlg.shape[1]
+    return Qlg[local[:, None, None], np.arange(b)[None, :, None], cols[:, None, :]]
+
+
 def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
     """Marginal cofactor of every point (n_points, 3, 3):
     ``V^-1 + V^-1 W' Q_cc W V^-1`` (needs ``Q.pairs``)."""
@@ -586,12 +839,34 @@ def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
         y = Y[rows]
         yt = y.transpose(0, 2, 1)
         t = yt @ Q.local[loc[rows]] @ y
-        if s.n_global:
+        if s.n_global and not s.sparse_global:
             c = yt @ Q.local_global[loc[rows]] @ VH[s.point[rows]].transpose(0, 2, 1)
             t += c + c.transpose(0, 2, 1)
         return t.reshape(rows.size, 9)
 
     _segment_sum(self_terms, s.order_pt, s.pt_starts, s.pt_keys, s.n, acc)
+    if s.sparse_global:
+        VHp = normal.VHp
+
+        def global_terms(rows):  # rows: (observation row, pair) of one point
+            k, e = s.rp_row[rows], s.rp_pg[rows]
+            c = (
+                Y[k].transpose(0, 2, 1)
+                @ _local_global_cols(Q.local_global, loc[k], s.pg_cols[e])
+                @ VHp[e].transpose(0, 2, 1)
+            )
+            return (c + c.transpose(0, 2, 1)).reshape(rows.size, 9)
+
+        n_rp = s.rp_row.size
+        _segment_sum(global_terms, np.arange(n_rp), s.rp_pt_starts, s.rp_pt_keys, n_rp, acc)
+
+        def global_global(rows):  # rows: (pair, pair) of one point
+            a, b_ = s.pp_a[rows], s.pp_b[rows]
+            qgg = Q.global_[s.pg_cols[a][:, :, None], s.pg_cols[b_][:, None, :]]
+            return (VHp[a] @ qgg @ VHp[b_].transpose(0, 2, 1)).reshape(rows.size, 9)
+
+        n_pp = s.pp_a.size
+        _segment_sum(global_global, np.arange(n_pp), s.pp_pt_starts, s.pp_pt_keys, n_pp, acc)
     if s.n_pairs:
         k1, k2 = s.pair_k1, s.pair_k2
         blk_of_pair = s.pair_block
@@ -604,7 +879,7 @@ def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
 
         _segment_sum(pair_terms, order, starts, keys, s.n_pairs, acc)
     out += acc.reshape(-1, 3, 3)
-    if s.n_global:
+    if s.n_global and not s.sparse_global:
         out += VH @ Q.global_ @ VH.transpose(0, 2, 1)
     return 0.5 * (out + out.transpose(0, 2, 1))
 
@@ -620,7 +895,20 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
     # cross cofactor camera-side (local b + global g) x point for each row: Q_{c,p_j}
     # Q_{l,p_j} = -(sum_k' Q_{l,l(k')} Y_k' + Q_{l,g} VH_j)
     Qlp = -(Q.local[loc] @ Y)  # own term k' = k
-    if s.n_global:
+    if s.sparse_global:
+        VHp = normal.VHp
+        n_rp = s.rp_row.size
+
+        def local_global(rows):  # rows: (observation row, pair) of one row
+            k, e = s.rp_row[rows], s.rp_pg[rows]
+            q = _local_global_cols(Q.local_global, loc[k], s.pg_cols[e])
+            return (q @ VHp[e].transpose(0, 2, 1)).reshape(rows.size, -1)
+
+        acc = np.zeros((n, Qlp.shape[1] * 3))
+        _segment_sum(local_global, np.arange(n_rp), s.rp_row_starts, s.rp_row_keys, n_rp, acc)
+        Qlp -= acc.reshape(Qlp.shape)
+        del acc
+    elif s.n_global:
         Qlp -= Q.local_global[loc] @ VH[pt].transpose(0, 2, 1)
     if s.n_pairs:
         k1, k2 = s.pair_k1, s.pair_k2
@@ -633,7 +921,28 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
             c = q.transpose(0, 2, 1) @ Y[k1[lo:hi]]
             np.subtract.at(Qlp, k1[lo:hi], a)
             np.subtract.at(Qlp, k2[lo:hi], c)
-    if s.n_global:
+    if s.sparse_global:
+        # Q_{g,p_j} in the columns of each pair (point j, group):
+        # -(sum_k' Q_{g,l(k')} Y_k' + sum over the point's pairs e' of Q_{g,g(e')} VHp_e')
+        gl = s.gl
+        Qgp = np.zeros((s.n_pg, gl * 3))
+
+        def rows_term(rows):  # rows: (observation row, pair), by pair
+            k, e = s.rp_row[rows], s.rp_pg[rows]
+            q = _local_global_cols(Q.local_global, loc[k], s.pg_cols[e])
+            return (q.transpose(0, 2, 1) @ Y[k]).reshape(rows.size, -1)
+
+        _segment_sum(rows_term, s.rp_pg_order, s.rp_pg_starts, s.rp_pg_keys, s.rp_row.size, Qgp)
+
+        def pairs_term(rows):  # rows: (pair, pair), by the first
+            a, b_ = s.pp_a[rows], s.pp_b[rows]
+            qgg = Q.global_[s.pg_cols[a][:, :, None], s.pg_cols[b_][:, None, :]]
+            return (qgg @ VHp[b_].transpose(0, 2, 1)).reshape(rows.size, -1)
+
+        n_pp = s.pp_a.size
+        _segment_sum(pairs_term, np.arange(n_pp), s.pp_a_starts, s.pp_a_keys, n_pp, Qgp)
+        Qgp = -Qgp.reshape(s.n_pg, gl, 3)
+    elif s.n_global:
         # Q_{g,p_j} = -(sum_k' Q_{g,l(k')} Y_k' + Q_gg VH_j) per point
         Qgp = -(Q.global_ @ VH.transpose(0, 2, 1))
         accg = np.zeros((s.n_points, s.n_global * 3))
@@ -663,9 +972,12 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
             gt = g_.transpose(0, 2, 1)
             cols = s.local_global[lr]  # (k, gl)
             o += g_ @ Q.global_[cols[:, :, None], cols[:, None, :]] @ gt
-            c = a @ np.take_along_axis(Q.local_global[lr], cols[:, None, :], axis=2) @ gt
+            c = a @ _local_global_cols(Q.local_global, lr, cols) @ gt
             o += c + c.transpose(0, 2, 1)
-            c = g_ @ np.take_along_axis(Qgp[pr], cols[:, :, None], axis=1) @ pt_
+            if s.sparse_global:
+                c = g_ @ Qgp[s.row_pg[r]] @ pt_
+            else:
+                c = g_ @ np.take_along_axis(Qgp[pr], cols[:, :, None], axis=1) @ pt_
             o += c + c.transpose(0, 2, 1)
         out[r] = o
     return out

@@ -33,8 +33,8 @@ NCAL = len(CALIBRATION_NAMES)
 
 
 def memory_limit() -> float:
-    """Bytes the dense camera-group arrays of an adjustment may take: half of the machine's
-    physical memory (``inf`` where the system does not say).
+    """Bytes the arrays of an adjustment that grow with the square of its camera groups may
+    take: half of the machine's physical memory (``inf`` where the system does not say).
 
     Returns
     -------
@@ -49,51 +49,57 @@ def memory_limit() -> float:
         return math.inf
 
 
-def dense_global_bytes(n_groups: int, n_points: int, n_rows: int, b: int, snooping: bool) -> float:
-    """Bytes of the arrays that couple the calibration parameters of the camera groups with
-    every point and observation row, held densely by the Schur reduction (points x 3 x
-    parameters, rows x 3 x parameters) and, for the redundancy numbers of data snooping,
-    by the observation cofactors (rows x (b + 3) x parameters).
+def dense_global_bytes(n_groups: int, n_images: int, b: int) -> float:
+    """Bytes of the arrays of an adjustment held densely over all calibration parameters
+    (11 per camera group, held ones included): the blocks of the reduced camera system that
+    couple the images with the calibration parameters (images x b x parameters) and the
+    calibration parameters with each other (parameters x parameters), their covariance
+    blocks and the inverse of the reduced system (or, when it is solved for, its columns of
+    the calibration parameters).
+
+    The coupling of the points and observations with the calibration is held per point and
+    camera group observing it (linear in the observations), so the points and observations
+    do not enter.
 
     Parameters
     ----------
     n_groups : int
         Camera groups (``NCAL`` calibration parameters each).
-    n_points, n_rows : int
-        Points and image observations (rows of two coordinates) in the adjustment.
+    n_images : int
+        Images (local blocks of the reduced system).
     b : int
         Parameters per image (6, or 9 with image-variant ones).
-    snooping : bool
-        Whether the observation cofactors are computed.
 
     Returns
     -------
     float
-        Bytes of those arrays: 73 %, 83 % and 93 % of the measured peak of the whole
-        adjustment on BAL blocks of 8, 12 and 24 images (1000 tie points per image), the
-        rest of the adjustment weighing less as the block grows.
+        Bytes: 0.5 GB for 250 images with a camera group each (the 250-image study block as
+        BAL, whose whole adjustment peaks at 1.5 GB), 36 GB for 2000.
     """
+    from ..adjust.sparse import DENSE_INVERSE_MAX
+
     g = n_groups * NCAL
-    solve = 3 * n_rows + 9 * n_points
-    statistics = (b + 3) * n_rows + 12 * n_points if snooping else 0
-    return 8.0 * g * max(solve, statistics)
+    nc = n_images * b + g
+    local_global = 3.0 * n_images * b * g  # LG, its accumulation, its covariance block
+    global_global = 4.5 * g * g  # GG, its accumulation and masks, its covariance block
+    inverse = nc * nc if nc <= DENSE_INVERSE_MAX else 2.0 * nc * g
+    return 8.0 * (local_global + global_global + inverse)
 
 
-def _check_dense_global_memory(n_groups: int, n_points: int, n_rows: int, b: int, snooping: bool):
+def _check_dense_global_memory(n_groups: int, n_images: int, b: int):
     """Refuse, before any work, an adjustment whose camera groups would need more memory
-    than :func:`memory_limit` (a camera group per image, as a BAL file gives, makes the
-    arrays grow with images x observations: 64 GB for 250 images and 259 000 observations,
-    where one camera group takes 0.3 GB)."""
-    need = dense_global_bytes(n_groups, n_points, n_rows, b, snooping)
+    than :func:`memory_limit` (the arrays grow with the square of the camera groups: 0.5 GB
+    for 250 images with a camera group each, as a BAL file gives, 36 GB for 2000)."""
+    need = dense_global_bytes(n_groups, n_images, b)
     limit = memory_limit()
     if need <= limit:
         return
     raise InputError(
         f"the block's {n_groups} camera groups hold {n_groups * NCAL} calibration "
-        f"parameters, which the adjustment couples with each of its {n_points} points and "
-        f"{n_rows} image observations: about {need / 1e9:.1f} GB of memory, more than the "
+        f"parameters, which the adjustment couples with each other and with each of its "
+        f"{n_images} images: about {need / 1e9:.1f} GB of memory, more than the "
         f"{limit / 1e9:.1f} GB allowed (half of this machine's memory). The memory grows "
-        "with camera groups x observations, held calibration parameters included: give "
+        "with the square of the camera groups, held calibration parameters included: give "
         "the images taken with one camera one camera group (a BAL file gives every image "
         "its own: convert it to a CSV block and set the camera column of images.csv), or "
         "adjust the block in parts"
@@ -170,7 +176,7 @@ class Problem:
         self.free_datum: tuple[int, int, int] | None = None
         if options.datum == "free":
             self._free_datum()
-        _check_dense_global_memory(ng, self.p, self.obs_i.size, self.b, options.snooping)
+        _check_dense_global_memory(ng, m, self.b)
         self.sys = SchurSystem(
             m,
             self.b,
