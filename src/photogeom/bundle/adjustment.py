@@ -101,8 +101,9 @@ def _check_dense_global_memory(n_groups: int, n_images: int, b: int):
         f"{limit / 1e9:.1f} GB allowed (half of this machine's memory). The memory grows "
         "with the square of the camera groups, held calibration parameters included: give "
         "the images taken with one camera one camera group (a BAL file gives every image "
-        "its own: convert it to a CSV block and set the camera column of images.csv), or "
-        "adjust the block in parts"
+        "its own: convert it to a CSV block and set the camera column of images.csv; a "
+        "Bundler file: read it with group_cameras=True, --group-cameras on the command "
+        "line), or adjust the block in parts"
     )
 
 
