@@ -161,3 +161,32 @@ def test_a_tie_point_without_start_value_is_named(sim, cli, tmp_path):
     code, _, err = cli("bundle", "adjust", d, "--start", "relative")
     assert code != 0
     assert "--start relative: 1 tie point(s) get no start value" in err and "999" in err
+
+
+@pytest.mark.parametrize("fmt", ["bal", "bundler", "colmap-bin"])
+def test_a_block_without_control_is_refused_before_the_orientations(sim, cli, tmp_path, fmt):
+    # a BAL or Bundler file or a COLMAP model holds no control points: --start relative
+    # oriented every pair of every strip first and then said 'absolute orientation of
+    # strip 1 (...): 0 point(s) given, at least 3 needed (control points in the strips,
+    # ...)', which such a file cannot give
+    target = {"bal": tmp_path / "b.bal", "bundler": tmp_path / "b.out"}.get(fmt, tmp_path / "m")
+    pg.bundle.write_block(sim.block, target, fmt, drop_extras=True)
+    size = ("--image-size", "4000x3000") if fmt != "colmap-bin" else ()
+    code, out, err = cli("bundle", "adjust", target, *size, "--start", "relative")
+    assert code == 2 and out == ""
+    assert "--start relative orients the strips to control points" in err
+    assert "has 0 observed in its images" in err
+    assert "leave out --start relative" in err and "--to csv" in err
+    assert "absolute orientation" not in err
+
+
+def test_the_library_refuses_fewer_than_three_control_points_first(sim):
+    role = sim.block.role.copy()
+    ctrl = np.flatnonzero(role == "control")
+    role[ctrl[2:]] = "tie"  # two control points left
+    block = sim.block.replace(role=role)
+    strips = [sim.block.image_ids[:5].tolist(), sim.block.image_ids[5:].tolist()]
+    with pytest.raises(pg.TooFewPointsError, match=r"control points observed in the strips' "
+                       r"images: 2 point\(s\) given, at least 3 needed") as info:
+        pg.bundle.start_from_relative_orientation(block, strips)
+    assert info.value.have == 2 and info.value.need == 3

@@ -1041,6 +1041,17 @@ def relative_start(block, strips: str | None):
 
     if block.n_images < 2:
         raise InputError("--start relative needs at least two images")
+    control_rows = np.flatnonzero(block.role == "control")
+    n_ctrl = np.intersect1d(control_rows, block.obs_point).size
+    if n_ctrl < 3:  # before the relative orientations (seconds to minutes) are computed
+        raise InputError(
+            f"--start relative orients the strips to control points, and the block has "
+            f"{n_ctrl} observed in its images (at least 3 needed, not on a line; BAL and "
+            "Bundler files and COLMAP models hold none): adjust the block from the start "
+            "values its file holds (leave out --start relative), or give control points in "
+            "a CSV block (bundle convert SOURCE FOLDER --to csv, then rows of role 'control' "
+            "in points.csv and their observations in observations.csv)"
+        )
     given = strips is not None
     lists = parse_strips(strips, block) if given else found_strips(block)
     new, st = start_from_relative_orientation(block, lists)
