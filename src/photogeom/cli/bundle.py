@@ -625,7 +625,9 @@ def simulate(
 def adjust(
     source: Annotated[
         Path,
-        typer.Argument(help="A CSV block folder, a BAL file or a COLMAP text or binary folder."),
+        typer.Argument(
+            help="A CSV block folder, a BAL or Bundler file or a COLMAP text or binary folder."
+        ),
     ],
     fmt: Annotated[
         BlockFormat | None,
@@ -706,7 +708,8 @@ def adjust(
         typer.Option(
             "--output",
             "-o",
-            help="Write the adjusted block here (a folder for CSV and COLMAP, a file for BAL).",
+            help="Write the adjusted block here (a folder for CSV and COLMAP, a file for BAL "
+            "and Bundler).",
         ),
     ] = None,
     output_fmt: Annotated[

@@ -1,11 +1,11 @@
 """`photogeom grid evaluate | sweep | report`: residual grids of a whole adjusted block.
 
 The block is a folder (or file) readable by ``photogeom.bundle.read_block`` (CSV block
-format, COLMAP text or binary model, BAL) holding an **adjusted** block, or ``--preset NAME`` for a
-simulated block of the study's cameras (simulated and adjusted first). ``evaluate`` fits
-grids, corrects, re-adjusts with the orientation fixed and prints the residuals and steps
-before and after; ``sweep`` tries several spacings and chooses one by the closest-to-origin
-rule; ``report`` writes the HTML report with the study's figures.
+format, COLMAP text or binary model, BAL or Bundler file) holding an **adjusted** block, or
+``--preset NAME`` for a simulated block of the study's cameras (simulated and adjusted
+first). ``evaluate`` fits grids, corrects, re-adjusts with the orientation fixed and prints
+the residuals and steps before and after; ``sweep`` tries several spacings and chooses one
+by the closest-to-origin rule; ``report`` writes the HTML report with the study's figures.
 """
 
 from __future__ import annotations
@@ -39,7 +39,8 @@ from ._common import (
 BlockArg = Annotated[
     Path | None,
     typer.Argument(
-        help="Adjusted block: a CSV block folder, COLMAP text or binary model or BAL file."
+        help="Adjusted block: a CSV block folder, COLMAP text or binary model, BAL file or "
+        "Bundler file (.out, its image list and images beside it: they give the image sizes)."
     ),
 ]
 PresetOpt = Annotated[
