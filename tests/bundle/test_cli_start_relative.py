@@ -190,3 +190,25 @@ def test_the_library_refuses_fewer_than_three_control_points_first(sim):
                        r"images: 2 point\(s\) given, at least 3 needed") as info:
         pg.bundle.start_from_relative_orientation(block, strips)
     assert info.value.have == 2 and info.value.need == 3
+
+
+def test_the_json_says_where_the_start_values_came_from(sim, cli, tmp_path):
+    # the summary's line (strips found in the file's order, control points) was missing
+    # from --json, which said only "start": "relative"
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    code, out, err = cli("bundle", "adjust", d, "--start", "relative", "--json")
+    assert code == 0, err
+    got = json.loads(out)["input"]
+    assert got["start"] == "relative"
+    ids = sim.block.image_ids.tolist()
+    assert got["start_relative"] == {
+        "strips": [ids], "strips_from": "file order", "control_points": 5
+    }
+    code, out, err = cli(
+        "bundle", "adjust", d, "--start", "relative", "--strips", f"{_ids(sim, 0)};{_ids(sim, 1)}",
+        "--json",
+    )
+    assert code == 0, err
+    got = json.loads(out)["input"]["start_relative"]
+    assert got["strips"] == [ids[:5], ids[5:]] and got["strips_from"] == "--strips"
+    assert all(type(i) is type(ids[0]) for s in got["strips"] for i in s)

@@ -826,10 +826,10 @@ def adjust(
             image_size=image_size, image_list=image_list, group_cameras=group_cameras,
         )  # fmt: skip
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
-    start_note = None
+    start_note = start_info = None
     if relative:
         with stage_spinner("start values from relative orientations"):
-            block, start_note = relative_start(block, strips)
+            block, start_note, start_info = relative_start(block, strips)
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
         cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
@@ -918,6 +918,8 @@ def adjust(
         d = fit.to_dict(angle)
         d["unit"] = unit
         d["input"] = {"path": str(source), "format": src_fmt, "start": start.value}
+        if start_info is not None:  # the strips found or given, as the summary's line
+            d["input"]["start_relative"] = start_info
         _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
         _refuse_unconverged(fit, max_iterations)
@@ -1035,8 +1037,10 @@ def found_strips(block) -> list[list]:
 
 
 def relative_start(block, strips: str | None):
-    """The block with start values from relative orientations (``--start relative``) and a
-    line that says how they were found."""
+    """The block with start values from relative orientations (``--start relative``), a
+    line that says how they were found and the same for ``--json`` (``strips``: the image
+    ids of each strip in flight order; ``strips_from``: ``"--strips"`` or ``"file order"``;
+    ``control_points``: the control points the strips were oriented to)."""
     import numpy as np
 
     from ..bundle import start_from_relative_orientation
@@ -1073,10 +1077,20 @@ def relative_start(block, strips: str | None):
     control = set(block.point_ids[block.role == "control"].tolist())
     n_ctrl = len({p for u in st.control_used for p in u} & control)
     how = "--strips" if given else "the order of the images in the block's file"
+    info = {
+        "strips": [[_plain(i) for i in s] for s in lists],
+        "strips_from": "--strips" if given else "file order",
+        "control_points": n_ctrl,
+    }
     return new, (
         f"start values from relative orientations: {len(lists)} strip(s) of {sizes} images "
         f"({how}), oriented to {n_ctrl} control point(s)"
-    )
+    ), info
+
+
+def _plain(value):
+    """An image id as JSON holds it (a numpy integer or string as int or str)."""
+    return value.item() if hasattr(value, "item") else value
 
 
 def calibration_targets(path: Path, groups: list) -> list[tuple[object, Path]]:
