@@ -922,7 +922,7 @@ def adjust(
             d["input"]["start_relative"] = start_info
         _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
-        _refuse_unconverged(fit, max_iterations)
+        _refuse_unconverged(fit, max_iterations, relative)
         return
     out = console()
     say(f"{source} ({src_fmt})", out)
@@ -944,20 +944,38 @@ def adjust(
         )
     for path, _ in texts:
         say(f"wrote {path}", out)
-    _refuse_unconverged(fit, max_iterations)
+    _refuse_unconverged(fit, max_iterations, relative)
 
 
-def _refuse_unconverged(fit, max_iterations: int) -> None:
+def _refuse_unconverged(fit, max_iterations: int, relative: bool) -> None:
     """Exit 1 after a run that did not converge (its summary, JSON and files are those of
     the last iterate, written for inspection), with one line on stderr: a script must not
-    take the result for an adjusted block."""
+    take the result for an adjusted block. The route to better start values is
+    ``--start relative`` unless the run started there or the block has fewer than three
+    control points observed (which that route needs)."""
     if fit.converged:
         return
+    from ..bundle.result import observed_control
+
+    n_ctrl = observed_control(fit.block)
+    if relative:
+        route = (
+            "the start values came from relative orientations (--start relative) already: "
+            "check the strips (--strips, each in flight order) and the control points"
+        )
+    elif n_ctrl < 3:
+        route = (
+            "give better start values (an earlier adjustment's; --start relative needs 3 "
+            f"control points observed in the images and the block has {n_ctrl}: BAL and "
+            "Bundler files and COLMAP models hold none, a CSV block can)"
+        )
+    else:
+        route = "give better start values (--start relative for a block without GNSS/IMU)"
     typer.echo(
         f"error: the adjustment did not converge ({fit.iterations} of at most "
         f"{max_iterations} iterations): the summary and the files written hold its last "
-        "iterate, not an adjusted block; raise --max-iterations if the cost still falls, "
-        "else give better start values (--start relative for a block without GNSS/IMU)",
+        f"iterate, not an adjusted block; raise --max-iterations if the cost still falls, "
+        f"else {route}",
         err=True,
     )
     raise typer.Exit(1)
@@ -1044,12 +1062,12 @@ def relative_start(block, strips: str | None):
     import numpy as np
 
     from ..bundle import start_from_relative_orientation
+    from ..bundle.result import observed_control
     from ..errors import DegenerateGeometryError
 
     if block.n_images < 2:
         raise InputError("--start relative needs at least two images")
-    control_rows = np.flatnonzero(block.role == "control")
-    n_ctrl = np.intersect1d(control_rows, block.obs_point).size
+    n_ctrl = observed_control(block)
     if n_ctrl < 3:  # before the relative orientations (seconds to minutes) are computed
         raise InputError(
             f"--start relative orients the strips to control points, and the block has "
