@@ -1086,6 +1086,26 @@ def test_correct_images_finds_ids_that_name_a_file_below_the_folder(cli, tmp_pat
     )
 
 
+def test_an_id_with_its_folder_given_that_folder_names_the_one_above(cli, tmp_path):
+    # a Bundler list's (or COLMAP's) id img/a.png with SRC_DIR the folder img itself: the
+    # error said "a.png has its name with another extension: rename it to img/a.png.png"
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    top = tmp_path / "project"
+    (top / "img").mkdir(parents=True)
+    (src / "a.png").rename(top / "img" / "a.png")
+    pg.calibration.save_grids(grids_file, {"img/a.png": grid})
+    code, _, err = cli("grid", "correct-images", grids_file, top / "img", tmp_path / "out")
+    assert code == 1
+    text = " ".join(err.split())
+    assert "rename it" not in text and "a.png.png" not in text
+    assert "the image id names its folder (img/)" in text
+    assert f"give the folder that holds img/ ({top}) as the images' folder" in text
+    code, _, err = cli("grid", "correct-images", grids_file, top, tmp_path / "out2")
+    assert code == 0, err
+    assert (tmp_path / "out2" / "img" / "a.png").is_file()
+
+
 def test_overlap_in_per_cent_and_sigmas_with_their_unit_name_the_value_to_give(cli, tmp_path):
     # before: "Input should be a valid number, unable to parse string as a number" for
     # --overlap 60%, --sigma-obs 0.3px and --sigma-temporal 0.1px
