@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -1241,3 +1242,31 @@ def test_correct_images_sigterm_runs_the_clean_up(cli, tmp_path, monkeypatch):
         signal.signal(signal.SIGTERM, before)
     assert code == 143
     assert not dst.exists()
+
+
+@pytest.mark.parametrize(("name", "fmt"), [("b.bal", "bal"), ("b.out", "bundler")])
+def test_the_command_of_the_not_adjusted_warning_adjusts_the_block(cli, tmp_path, name, fmt):
+    # the warning said "adjust it first ('photogeom bundle adjust b.bal -o adjusted/') and
+    # give the adjusted folder": for a BAL or Bundler file (no control, no GNSS) that command
+    # stopped at a datum defect, and with --datum free wrote a file named 'adjusted'
+    import shlex
+
+    sim = pg.simulate.uav_block("FC300S", seed=2, strips=2, images_per_strip=4)
+    src = tmp_path / name
+    pg.bundle.write_block(sim.block, src, fmt, drop_extras=True)
+    size = ("--image-size", "4000x3000")
+    code, _, err = cli("grid", "fit", src, "-o", tmp_path / "g.json", "--folds", "0",
+                       "--no-std", *size)  # fmt: skip
+    assert code == 0, err
+    text = " ".join(err.split())
+    command = re.search(r"adjust it first \('photogeom ([^']+)'\) and give (\S+)", text)
+    assert command is not None, text
+    args = shlex.split(command.group(1))
+    assert "--datum" in args and args[args.index("-o") + 1] == command.group(2)
+    code, _, err = cli(*args, *size)
+    assert code == 0, err
+    adjusted = Path(command.group(2))
+    assert adjusted.is_file() and pg.bundle.detect_format(adjusted) == fmt
+    code, _, err = cli("grid", "fit", adjusted, "-o", tmp_path / "g2.json", "--folds", "0",
+                       "--no-std", *size)  # fmt: skip
+    assert code == 0 and "not adjusted" not in err, err

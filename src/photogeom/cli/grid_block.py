@@ -280,10 +280,33 @@ def warn_if_unadjusted(block, path: Path) -> None:
     say(
         f"warning: {path}: the tie-point residuals (RMS {rms_px:.3g} px, {rms_w:.3g} times "
         "their sigmas) are those of a block not adjusted: the grids model the residuals of "
-        f"an adjusted block; adjust it first ('photogeom bundle adjust {path} -o "
-        "adjusted/') and give the adjusted folder",
+        f"an adjusted block; adjust it first ({adjust_command(block, path)}",
         stderr=True,
     )
+
+
+def adjust_command(block, path: Path) -> str:
+    """The ``bundle adjust`` command that adjusts the block read from ``path`` and what to
+    give then, in the block's own format: a BAL or Bundler block is one file (a folder
+    name would be taken for the file's), a Bundler file written beside its images (its
+    list names them relative to its folder), and a block without control points and GNSS
+    positions (any BAL or Bundler file, COLMAP model) needs ``--datum free``."""
+    import numpy as np
+
+    from ..bundle.io_formats import FOLDER_FORMATS, detect_format
+
+    try:
+        fmt = detect_format(path)
+    except PhotogeomError:  # a pipe already read: the folder formats are not pipes
+        fmt = "bal"
+    if fmt in FOLDER_FORMATS:
+        target, what = "adjusted/", "the adjusted folder"
+    else:
+        target = str(Path(path).with_name("adjusted.out" if fmt == "bundler" else "adjusted.bal"))
+        what = target
+    held = np.any(block.role == "control") or np.any(np.all(np.isfinite(block.gnss), axis=1))
+    free = "" if held else " --datum free"
+    return f"'photogeom bundle adjust {path}{free} -o {target}') and give {what}"
 
 
 def _cli(msg: str) -> str:
