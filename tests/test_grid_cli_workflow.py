@@ -1270,3 +1270,33 @@ def test_the_command_of_the_not_adjusted_warning_adjusts_the_block(cli, tmp_path
     code, _, err = cli("grid", "fit", adjusted, "-o", tmp_path / "g2.json", "--folds", "0",
                        "--no-std", *size)  # fmt: skip
     assert code == 0 and "not adjusted" not in err, err
+
+
+def test_grids_of_a_bal_file_fitted_at_its_size_name_the_route_in_evaluate(cli, tmp_path):
+    # grid fit adj.bal --image-size 4000x3000, then grid evaluate adj.bal --grids: evaluate
+    # has no --image-size and reads BAL at the smallest even size holding the observations,
+    # and the error said the grids "are of another camera or block; give --grids the grids
+    # file of this BLOCK", which they were
+    sim = pg.simulate.uav_block("FC300S", seed=2, strips=2, images_per_strip=4)
+    bal = tmp_path / "adj.bal"
+    pg.bundle.write_block(sim.block, bal, "bal", drop_extras=True)
+    block = pg.bundle.read_bal(bal, image_size=(4000, 3000))  # f, k1, k2 per image
+    fit = pg.bundle_adjust(block, datum="free", snooping=False)
+    pg.bundle.write_block(fit.block, bal, "bal")
+    grids = tmp_path / "g.npz"
+    code, _, err = cli("grid", "fit", bal, "--image-size", "4000x3000", "-o", grids,
+                       "--folds", "0", "--no-std")  # fmt: skip
+    assert code == 0, err
+    code, _, err = cli("grid", "evaluate", bal, "--grids", grids)
+    assert code != 0
+    text = " ".join(err.split())
+    assert "the grids are of another camera" not in text and "of this BLOCK" not in text
+    assert f"{bal} is a BAL file, which holds no image size" in text
+    route = re.search(r"photogeom (bundle convert \S+ block/ --to csv --image-size)", text)
+    assert route is not None, text
+    block = tmp_path / "block"
+    code, _, err = cli("bundle", "convert", bal, block, "--to", "csv",
+                       "--image-size", "4000x3000")  # fmt: skip
+    assert code == 0, err
+    code, _, err = cli("grid", "evaluate", block, "--grids", grids)
+    assert code == 0, err

@@ -202,8 +202,9 @@ RepeatsOpt = Annotated[
 class _Fit:
     """A block standing for the first adjustment (the block read is already adjusted)."""
 
-    def __init__(self, block) -> None:
+    def __init__(self, block, bal: bool = False) -> None:
         self.block = block
+        self.bal = bal  # read from a BAL file: its image size is the reader's guess
 
 
 def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
@@ -240,7 +241,13 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
             "WIDTHxHEIGHT, and give block/"
         ) from None
     warn_if_unadjusted(read, block)
-    return _Fit(read), None
+    from ..bundle.io_formats import detect_format
+
+    try:
+        bal = detect_format(block) == "bal"
+    except PhotogeomError:  # a pipe already read: BAL, the one format a pipe can be
+        bal = True
+    return _Fit(read, bal), None
 
 
 #: RMS of the tie-point residuals in units of their sigmas above which a block read as
@@ -470,6 +477,17 @@ def _evaluate(
                 again = readjust(rem, grids, uncorrected=left, snooping=False)
                 ev["rematched"] = evaluate_readjustment(fit, again, sim=sim, overlap=overlap)
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
+        head, sep, _ = str(exc).partition(": the grids are of another camera or block")
+        if sep and getattr(fit, "bal", False):  # the size BAL does not hold, not the grids
+            w, h = (int(x) for x in fit.block.image_sizes()[0])
+            exc.args = (
+                f"{head}: {block} is a BAL file, which holds no image size, read as {w} x {h} "
+                "px (the smallest even size holding its observations); for grids fitted with "
+                "grid fit --image-size, give the block with the images' size: photogeom "
+                f"bundle convert {block} block/ --to csv --image-size WIDTHxHEIGHT, and give "
+                "block/",
+            )
+            raise
         exc.args = (_cli(str(exc)),)
         raise
     ev["excluded"] = left
