@@ -147,3 +147,15 @@ def test_opencv_json_calibration_is_named_where_calibrations_are_listed(cli, tmp
         r"OpenCV (?:`cv2\.FileStorage` )?YAML(?:/XML(?:/JSON)?|, XML or JSON| or XML)", text
     )
     assert listed and all("JSON" in s for s in listed), listed
+
+
+def test_output_format_row_names_every_block_format():
+    # the row of bundle adjust -o listed csv|bal|colmap|colmap-bin: --output-format bundler
+    # (and its file, not folder) was missing
+    from photogeom.bundle.io_formats import FORMATS
+
+    row = _table_row("bundle-adjustment.md", "-o PATH")
+    first = re.split(r"(?<!\\)\|", row)[1]
+    named = re.search(r"--output-format ([a-z\\|-]+)", first).group(1).split("\\|")
+    assert sorted(named) == sorted(FORMATS)
+    assert "a file for BAL and Bundler" in row

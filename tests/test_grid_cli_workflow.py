@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -1086,6 +1087,26 @@ def test_correct_images_finds_ids_that_name_a_file_below_the_folder(cli, tmp_pat
     )
 
 
+def test_an_id_with_its_folder_given_that_folder_names_the_one_above(cli, tmp_path):
+    # a Bundler list's (or COLMAP's) id img/a.png with SRC_DIR the folder img itself: the
+    # error said "a.png has its name with another extension: rename it to img/a.png.png"
+    grids_file, src = _small_grids_and_folder(tmp_path)
+    grid = pg.calibration.load_grids(grids_file)["a"]
+    top = tmp_path / "project"
+    (top / "img").mkdir(parents=True)
+    (src / "a.png").rename(top / "img" / "a.png")
+    pg.calibration.save_grids(grids_file, {"img/a.png": grid})
+    code, _, err = cli("grid", "correct-images", grids_file, top / "img", tmp_path / "out")
+    assert code == 1
+    text = " ".join(err.split())
+    assert "rename it" not in text and "a.png.png" not in text
+    assert "the image id names its folder (img/)" in text
+    assert f"give the folder that holds img/ ({top}) as the images' folder" in text
+    code, _, err = cli("grid", "correct-images", grids_file, top, tmp_path / "out2")
+    assert code == 0, err
+    assert (tmp_path / "out2" / "img" / "a.png").is_file()
+
+
 def test_overlap_in_per_cent_and_sigmas_with_their_unit_name_the_value_to_give(cli, tmp_path):
     # before: "Input should be a valid number, unable to parse string as a number" for
     # --overlap 60%, --sigma-obs 0.3px and --sigma-temporal 0.1px
@@ -1221,3 +1242,61 @@ def test_correct_images_sigterm_runs_the_clean_up(cli, tmp_path, monkeypatch):
         signal.signal(signal.SIGTERM, before)
     assert code == 143
     assert not dst.exists()
+
+
+@pytest.mark.parametrize(("name", "fmt"), [("b.bal", "bal"), ("b.out", "bundler")])
+def test_the_command_of_the_not_adjusted_warning_adjusts_the_block(cli, tmp_path, name, fmt):
+    # the warning said "adjust it first ('photogeom bundle adjust b.bal -o adjusted/') and
+    # give the adjusted folder": for a BAL or Bundler file (no control, no GNSS) that command
+    # stopped at a datum defect, and with --datum free wrote a file named 'adjusted'
+    import shlex
+
+    sim = pg.simulate.uav_block("FC300S", seed=2, strips=2, images_per_strip=4)
+    src = tmp_path / name
+    pg.bundle.write_block(sim.block, src, fmt, drop_extras=True)
+    size = ("--image-size", "4000x3000")
+    code, _, err = cli("grid", "fit", src, "-o", tmp_path / "g.json", "--folds", "0",
+                       "--no-std", *size)  # fmt: skip
+    assert code == 0, err
+    text = " ".join(err.split())
+    command = re.search(r"adjust it first \('photogeom ([^']+)'\) and give (\S+)", text)
+    assert command is not None, text
+    args = shlex.split(command.group(1))
+    assert "--datum" in args and args[args.index("-o") + 1] == command.group(2)
+    code, _, err = cli(*args, *size)
+    assert code == 0, err
+    adjusted = Path(command.group(2))
+    assert adjusted.is_file() and pg.bundle.detect_format(adjusted) == fmt
+    code, _, err = cli("grid", "fit", adjusted, "-o", tmp_path / "g2.json", "--folds", "0",
+                       "--no-std", *size)  # fmt: skip
+    assert code == 0 and "not adjusted" not in err, err
+
+
+def test_grids_of_a_bal_file_fitted_at_its_size_name_the_route_in_evaluate(cli, tmp_path):
+    # grid fit adj.bal --image-size 4000x3000, then grid evaluate adj.bal --grids: evaluate
+    # has no --image-size and reads BAL at the smallest even size holding the observations,
+    # and the error said the grids "are of another camera or block; give --grids the grids
+    # file of this BLOCK", which they were
+    sim = pg.simulate.uav_block("FC300S", seed=2, strips=2, images_per_strip=4)
+    bal = tmp_path / "adj.bal"
+    pg.bundle.write_block(sim.block, bal, "bal", drop_extras=True)
+    block = pg.bundle.read_bal(bal, image_size=(4000, 3000))  # f, k1, k2 per image
+    fit = pg.bundle_adjust(block, datum="free", snooping=False)
+    pg.bundle.write_block(fit.block, bal, "bal")
+    grids = tmp_path / "g.npz"
+    code, _, err = cli("grid", "fit", bal, "--image-size", "4000x3000", "-o", grids,
+                       "--folds", "0", "--no-std")  # fmt: skip
+    assert code == 0, err
+    code, _, err = cli("grid", "evaluate", bal, "--grids", grids)
+    assert code != 0
+    text = " ".join(err.split())
+    assert "the grids are of another camera" not in text and "of this BLOCK" not in text
+    assert f"{bal} is a BAL file, which holds no image size" in text
+    route = re.search(r"photogeom (bundle convert \S+ block/ --to csv --image-size)", text)
+    assert route is not None, text
+    block = tmp_path / "block"
+    code, _, err = cli("bundle", "convert", bal, block, "--to", "csv",
+                       "--image-size", "4000x3000")  # fmt: skip
+    assert code == 0, err
+    code, _, err = cli("grid", "evaluate", block, "--grids", grids)
+    assert code == 0, err

@@ -128,8 +128,17 @@ def test_strip_without_gcps_oriented_through_the_other_strip():
 def test_no_control_for_a_strip_is_named():
     strips, _, obs, _, P = simulate_block()
     control = {p: P[p] for p in list(P)[:2]}
-    with pytest.raises(pg.TooFewPointsError, match="absolute orientation of strip"):
+    # two control points in the whole block: refused before any relative orientation
+    with pytest.raises(pg.TooFewPointsError, match="control points observed in the strips' "
+                       r"images: 2 point\(s\) given, at least 3 needed"):
         pg.block_start(strips, interiors(strips), obs, control)
+    # three, each kept in one image only (in no model): the strips are named
+    first = strips[0][0]
+    far = {p: P[p] for p in list(obs[first])[:3]}
+    one = {i: {p: xy for p, xy in o.items() if p not in far or i == first}
+           for i, o in obs.items()}
+    with pytest.raises(pg.TooFewPointsError, match="absolute orientation of strip"):
+        pg.block_start(strips, interiors(strips), one, far)
 
 
 def test_scale_transfer_needs_common_points():

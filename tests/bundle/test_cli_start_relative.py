@@ -161,3 +161,97 @@ def test_a_tie_point_without_start_value_is_named(sim, cli, tmp_path):
     code, _, err = cli("bundle", "adjust", d, "--start", "relative")
     assert code != 0
     assert "--start relative: 1 tie point(s) get no start value" in err and "999" in err
+
+
+@pytest.mark.parametrize("fmt", ["bal", "bundler", "colmap-bin"])
+def test_a_block_without_control_is_refused_before_the_orientations(sim, cli, tmp_path, fmt):
+    # a BAL or Bundler file or a COLMAP model holds no control points: --start relative
+    # oriented every pair of every strip first and then said 'absolute orientation of
+    # strip 1 (...): 0 point(s) given, at least 3 needed (control points in the strips,
+    # ...)', which such a file cannot give
+    target = {"bal": tmp_path / "b.bal", "bundler": tmp_path / "b.out"}.get(fmt, tmp_path / "m")
+    pg.bundle.write_block(sim.block, target, fmt, drop_extras=True)
+    size = ("--image-size", "4000x3000") if fmt != "colmap-bin" else ()
+    code, out, err = cli("bundle", "adjust", target, *size, "--start", "relative")
+    assert code == 2 and out == ""
+    assert "--start relative orients the strips to control points" in err
+    assert "has 0 observed in its images" in err
+    assert "leave out --start relative" in err and "--to csv" in err
+    assert "absolute orientation" not in err
+
+
+def test_the_library_refuses_fewer_than_three_control_points_first(sim):
+    role = sim.block.role.copy()
+    ctrl = np.flatnonzero(role == "control")
+    role[ctrl[2:]] = "tie"  # two control points left
+    block = sim.block.replace(role=role)
+    strips = [sim.block.image_ids[:5].tolist(), sim.block.image_ids[5:].tolist()]
+    with pytest.raises(pg.TooFewPointsError, match=r"control points observed in the strips' "
+                       r"images: 2 point\(s\) given, at least 3 needed") as info:
+        pg.bundle.start_from_relative_orientation(block, strips)
+    assert info.value.have == 2 and info.value.need == 3
+
+
+def test_the_json_says_where_the_start_values_came_from(sim, cli, tmp_path):
+    # the summary's line (strips found in the file's order, control points) was missing
+    # from --json, which said only "start": "relative"
+    d = _without_start(sim, tmp_path / "b", columns=False)
+    code, out, err = cli("bundle", "adjust", d, "--start", "relative", "--json")
+    assert code == 0, err
+    got = json.loads(out)["input"]
+    assert got["start"] == "relative"
+    ids = sim.block.image_ids.tolist()
+    assert got["start_relative"] == {
+        "strips": [ids], "strips_from": "file order", "control_points": 5
+    }
+    code, out, err = cli(
+        "bundle", "adjust", d, "--start", "relative", "--strips", f"{_ids(sim, 0)};{_ids(sim, 1)}",
+        "--json",
+    )
+    assert code == 0, err
+    got = json.loads(out)["input"]["start_relative"]
+    assert got["strips"] == [ids[:5], ids[5:]] and got["strips_from"] == "--strips"
+    assert all(type(i) is type(ids[0]) for s in got["strips"] for i in s)
+
+
+
+@pytest.fixture(scope="module")
+def near():
+    """The block with GNSS/IMU start values (it converges in about 7 iterations)."""
+    return pg.simulate.uav_block("FC300S", seed=1, strips=2, images_per_strip=5)
+
+
+def test_the_exit_of_a_run_not_converged_names_a_route_it_can_take(near, sim, cli, tmp_path):
+    # the last line said 'else give better start values (--start relative for a block
+    # without GNSS/IMU)' to a BAL file (no control points: --start relative is refused) and
+    # to a run that started from --start relative already
+    bal = tmp_path / "b.bal"
+    pg.bundle.write_block(near.block, bal, "bal", drop_extras=True)
+    code, out, err = cli("bundle", "adjust", bal, "--image-size", "4000x3000", "--datum",
+                         "free", "--max-iterations", "1")  # fmt: skip
+    assert code == 1, err
+    last = err.strip().splitlines()[-1]
+    assert "--start relative for a block without GNSS/IMU" not in last
+    assert "--start relative needs 3 control points" in last and "the block has 0" in last
+    assert "the block has 0 (BAL and Bundler files" in " ".join(out.split())  # the note
+    d = _without_start(sim, tmp_path / "c", columns=False)
+    code, _, err = cli("bundle", "adjust", d, "--start", "relative", "--max-iterations", "1")
+    assert code == 1, err
+    last = err.strip().splitlines()[-1]
+    assert "else the start values came from relative orientations (--start relative) " in last
+    assert "--start relative for a block without GNSS/IMU" not in last
+
+
+def test_the_library_says_what_a_block_without_control_lacks(near, sim):
+    lacks = "which needs 3 control points observed in the images, and the block has 0"
+    tie = np.where(near.block.role == "check", "check", "tie")
+    fit = pg.bundle_adjust(near.block.replace(role=tie), max_iterations=1, snooping=False)
+    note = next(n for n in fit.notes if n.startswith("not converged"))
+    assert lacks in note
+    fit = pg.bundle_adjust(near.block, max_iterations=1, snooping=False)
+    note = next(n for n in fit.notes if n.startswith("not converged"))
+    assert "--start relative)" in note and "the block has" not in note
+    tie = np.where(sim.block.role == "check", "check", "tie")  # 30 m, 20 deg off
+    with pytest.raises(pg.DegenerateGeometryError, match="behind the camera") as info:
+        pg.bundle_adjust(sim.block.replace(role=tie), datum="free")
+    assert lacks in str(info.value)

@@ -379,3 +379,23 @@ def test_grid_evaluate_of_a_bundler_file_without_its_images_names_the_conversion
     )  # fmt: skip
     assert code == 0, err
     assert set(names) <= set(out.replace('"', " ").split())
+
+
+@pytest.mark.parametrize(
+    ("command", "says"),
+    [
+        (("bundle", "adjust"), ["a BAL or Bundler file", "a file for BAL and Bundler"]),
+        (("grid", "fit"), ["a Bundler file (default: read from the images its list names)"]),
+        (("grid", "evaluate"), ["BAL file or Bundler file"]),
+        (("grid", "sweep"), ["BAL file or Bundler file"]),
+        (("grid", "report"), ["BAL file or Bundler file"]),
+    ],
+)
+def test_the_help_of_every_block_reader_names_bundler_files(cli, command, says):
+    # the commands read Bundler files, but their --help named CSV, COLMAP and BAL only
+    # (SOURCE and -o of bundle adjust, --image-size of grid fit, BLOCK of the grid commands)
+    code, out, _ = cli(*command, "--help")
+    assert code == 0
+    text = " ".join(out.split())
+    for s in says:
+        assert s in text

@@ -652,7 +652,7 @@ def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions,
     """Minimise the (robust) cost from ``state``; see :class:`Iteration`."""
     cost, e2, depth = problem.cost(state)
     if np.any(~(depth > 0)):
-        from .result import START_ROUTE
+        from .result import start_route
 
         k = np.flatnonzero(~(depth > 0))
         o = problem.block.observations
@@ -661,7 +661,8 @@ def levenberg_marquardt(problem: Problem, state: _State, options: BundleOptions,
             f"{k.size} observation(s) have their point behind the camera at the start, e.g. "
             f"image {o.image_ids[row]} point {o.point_ids[row]}: check the initial exterior "
             "orientations (angles in radians, M = M3(kappa) M2(phi) M1(omega)) and points; "
-            f"a block without GNSS/IMU, or with a start degrees off, takes {START_ROUTE}"
+            "a block without GNSS/IMU, or with a start degrees off, takes "
+            f"{start_route(problem.block)}"
         )
     steps = _BundleSteps(problem, state, e2, options.xtol)
     run = levenberg_marquardt_loop(

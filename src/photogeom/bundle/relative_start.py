@@ -61,6 +61,11 @@ def start_from_relative_orientation(
     ------
     InputError
         Unknown image ids in ``strips``, or an image listed twice.
+    TooFewPointsError
+        Fewer than three control points observed in the strips' images (a block read from
+        a BAL or Bundler file or a COLMAP model holds none), before any relative
+        orientation is computed; a strip that cannot be oriented (see
+        :func:`photogeom.orientation.block_start`).
     """
     known = set(block.image_ids.tolist())
     listed = [i for s in strips for i in s]

@@ -783,6 +783,24 @@ START_ROUTE = (
 )
 
 
+def observed_control(block: Block) -> int:
+    """The number of the block's control points observed in at least one of its images."""
+    return int(np.intersect1d(np.flatnonzero(block.role == "control"), block.obs_point).size)
+
+
+def start_route(block: Block) -> str:
+    """:data:`START_ROUTE`, said with what the block lacks for it when fewer than three of
+    its control points are observed in its images (the route orients the strips to them:
+    a block read from a BAL or Bundler file or a COLMAP model has none)."""
+    n = observed_control(block)
+    if n >= 3:
+        return START_ROUTE
+    return (
+        f"{START_ROUTE}, which needs 3 control points observed in the images, and the block "
+        f"has {n} (BAL and Bundler files and COLMAP models hold none: add them in a CSV block)"
+    )
+
+
 def _crs_label(crs: str) -> str:
     from ..crs import crs_label
 
@@ -1215,7 +1233,8 @@ def build_result(
             if not run.converged:  # with cameras far from a solution the cause is the run
                 raise ConvergenceError(
                     f"{text}: the adjustment stopped ({run.message}) far from a solution; the "
-                    f"start values may be too far off (a block without GNSS/IMU: {START_ROUTE})",
+                    "start values may be too far off (a block without GNSS/IMU: "
+                    f"{start_route(block)})",
                     iterations=run.iterations,
                 )
             raise InputError(text)
@@ -1355,7 +1374,7 @@ def build_result(
         # minimum: 12 of 21 simulated blocks 20 m and 10 degrees off, none from START_ROUTE
         notes.append(
             f"{run.message}: the start values may be too far off (a block without GNSS/IMU: "
-            f"{START_ROUTE}), or the cost still falls (more iterations)"
+            f"{start_route(block)}), or the cost still falls (more iterations)"
         )
     elif sigma0 > SIGMA0_FAR * s0p:
         # a converged run far above the a-priori sigmas: blunders, sigmas too small, or a
@@ -1366,7 +1385,7 @@ def build_result(
             f"{s0p:g}: blunders (see the w-test), a-priori sigmas too small, or start values "
             "so far off that the adjustment stopped in a local minimum; for the last, adjust "
             "with the calibration held first (no free parameters) and then free it from "
-            f"that result, or (a block without GNSS/IMU) take {START_ROUTE}"
+            f"that result, or (a block without GNSS/IMU) take {start_route(block)}"
         )
     vc = None
     if vce is not None:

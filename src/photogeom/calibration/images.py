@@ -1225,6 +1225,8 @@ def _near_names(key: str, unmatched) -> list[tuple[str, str]]:
     ``DSC1.JPG`` for the id ``dsc1.jpg`` (case), ``DSC1.tif`` for the id ``DSC1.JPG`` (a
     copy in another format: COLMAP names an image with its extension), ``a.PNG`` for ``A``.
     """
+    if _subfolder_id(key) is not None:  # matched below its folder: said by the caller
+        return []
     k = key.lower()
     k_path = Path(key)
     k_stem = k_path.stem.lower() if k_path.suffix.lower() in IMAGE_SUFFIXES else None
@@ -1268,6 +1270,21 @@ def _missing_message(folder: Path, key, unmatched=()) -> str:
         return (
             f"no image file named {k} (or {k}.<ext>) in {folder} in a supported format "
             f"({', '.join(IMAGE_SUFFIXES)}); found {', '.join(same[:5])}"
+        )
+    sub = _subfolder_id(k)
+    if sub is not None and sub[1] in set(unmatched):
+        # the id names its folder (a COLMAP image path, a Bundler list's path) and the
+        # folder given is that one: the file is there, the id's folder is not below it
+        names = tuple(sub[0].split("/"))
+        at = ""
+        for f in (folder, folder.resolve()):  # as given, else absolute (folder '.')
+            if len(f.parts) > len(names) and f.parts[-len(names):] == names:
+                at = f" ({f.parents[len(names) - 1]})"
+                break
+        return (
+            f"no image file {k} below {folder}: the image id names its folder ({sub[0]}/), "
+            f"and {folder} holds {sub[1]} itself; give the folder that holds {sub[0]}/{at} "
+            "as the images' folder"
         )
     near = _near_names(k, unmatched)
     if near:

@@ -625,7 +625,9 @@ def simulate(
 def adjust(
     source: Annotated[
         Path,
-        typer.Argument(help="A CSV block folder, a BAL file or a COLMAP text or binary folder."),
+        typer.Argument(
+            help="A CSV block folder, a BAL or Bundler file or a COLMAP text or binary folder."
+        ),
     ],
     fmt: Annotated[
         BlockFormat | None,
@@ -706,7 +708,8 @@ def adjust(
         typer.Option(
             "--output",
             "-o",
-            help="Write the adjusted block here (a folder for CSV and COLMAP, a file for BAL).",
+            help="Write the adjusted block here (a folder for CSV and COLMAP, a file for BAL "
+            "and Bundler).",
         ),
     ] = None,
     output_fmt: Annotated[
@@ -823,10 +826,10 @@ def adjust(
             image_size=image_size, image_list=image_list, group_cameras=group_cameras,
         )  # fmt: skip
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
-    start_note = None
+    start_note = start_info = None
     if relative:
         with stage_spinner("start values from relative orientations"):
-            block, start_note = relative_start(block, strips)
+            block, start_note, start_info = relative_start(block, strips)
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
         cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
@@ -915,9 +918,11 @@ def adjust(
         d = fit.to_dict(angle)
         d["unit"] = unit
         d["input"] = {"path": str(source), "format": src_fmt, "start": start.value}
+        if start_info is not None:  # the strips found or given, as the summary's line
+            d["input"]["start_relative"] = start_info
         _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
-        _refuse_unconverged(fit, max_iterations)
+        _refuse_unconverged(fit, max_iterations, relative)
         return
     out = console()
     say(f"{source} ({src_fmt})", out)
@@ -939,20 +944,38 @@ def adjust(
         )
     for path, _ in texts:
         say(f"wrote {path}", out)
-    _refuse_unconverged(fit, max_iterations)
+    _refuse_unconverged(fit, max_iterations, relative)
 
 
-def _refuse_unconverged(fit, max_iterations: int) -> None:
+def _refuse_unconverged(fit, max_iterations: int, relative: bool) -> None:
     """Exit 1 after a run that did not converge (its summary, JSON and files are those of
     the last iterate, written for inspection), with one line on stderr: a script must not
-    take the result for an adjusted block."""
+    take the result for an adjusted block. The route to better start values is
+    ``--start relative`` unless the run started there or the block has fewer than three
+    control points observed (which that route needs)."""
     if fit.converged:
         return
+    from ..bundle.result import observed_control
+
+    n_ctrl = observed_control(fit.block)
+    if relative:
+        route = (
+            "the start values came from relative orientations (--start relative) already: "
+            "check the strips (--strips, each in flight order) and the control points"
+        )
+    elif n_ctrl < 3:
+        route = (
+            "give better start values (an earlier adjustment's; --start relative needs 3 "
+            f"control points observed in the images and the block has {n_ctrl}: BAL and "
+            "Bundler files and COLMAP models hold none, a CSV block can)"
+        )
+    else:
+        route = "give better start values (--start relative for a block without GNSS/IMU)"
     typer.echo(
         f"error: the adjustment did not converge ({fit.iterations} of at most "
         f"{max_iterations} iterations): the summary and the files written hold its last "
-        "iterate, not an adjusted block; raise --max-iterations if the cost still falls, "
-        "else give better start values (--start relative for a block without GNSS/IMU)",
+        f"iterate, not an adjusted block; raise --max-iterations if the cost still falls, "
+        f"else {route}",
         err=True,
     )
     raise typer.Exit(1)
@@ -1032,15 +1055,28 @@ def found_strips(block) -> list[list]:
 
 
 def relative_start(block, strips: str | None):
-    """The block with start values from relative orientations (``--start relative``) and a
-    line that says how they were found."""
+    """The block with start values from relative orientations (``--start relative``), a
+    line that says how they were found and the same for ``--json`` (``strips``: the image
+    ids of each strip in flight order; ``strips_from``: ``"--strips"`` or ``"file order"``;
+    ``control_points``: the control points the strips were oriented to)."""
     import numpy as np
 
     from ..bundle import start_from_relative_orientation
+    from ..bundle.result import observed_control
     from ..errors import DegenerateGeometryError
 
     if block.n_images < 2:
         raise InputError("--start relative needs at least two images")
+    n_ctrl = observed_control(block)
+    if n_ctrl < 3:  # before the relative orientations (seconds to minutes) are computed
+        raise InputError(
+            f"--start relative orients the strips to control points, and the block has "
+            f"{n_ctrl} observed in its images (at least 3 needed, not on a line; BAL and "
+            "Bundler files and COLMAP models hold none): adjust the block from the start "
+            "values its file holds (leave out --start relative), or give control points in "
+            "a CSV block (bundle convert SOURCE FOLDER --to csv, then rows of role 'control' "
+            "in points.csv and their observations in observations.csv)"
+        )
     given = strips is not None
     lists = parse_strips(strips, block) if given else found_strips(block)
     new, st = start_from_relative_orientation(block, lists)
@@ -1059,10 +1095,20 @@ def relative_start(block, strips: str | None):
     control = set(block.point_ids[block.role == "control"].tolist())
     n_ctrl = len({p for u in st.control_used for p in u} & control)
     how = "--strips" if given else "the order of the images in the block's file"
+    info = {
+        "strips": [[_plain(i) for i in s] for s in lists],
+        "strips_from": "--strips" if given else "file order",
+        "control_points": n_ctrl,
+    }
     return new, (
         f"start values from relative orientations: {len(lists)} strip(s) of {sizes} images "
         f"({how}), oriented to {n_ctrl} control point(s)"
-    )
+    ), info
+
+
+def _plain(value):
+    """An image id as JSON holds it (a numpy integer or string as int or str)."""
+    return value.item() if hasattr(value, "item") else value
 
 
 def calibration_targets(path: Path, groups: list) -> list[tuple[object, Path]]:

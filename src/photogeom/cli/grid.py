@@ -560,8 +560,9 @@ def fit(
         str | None,
         typer.Option(
             "--image-size",
-            help="Image size WIDTHxHEIGHT in pixels (all images) of a residuals CSV or a "
-            "BAL file (BAL holds none).",
+            help="Image size WIDTHxHEIGHT in pixels (all images) of a residuals CSV, a BAL "
+            "file (BAL holds none) or a Bundler file (default: read from the images its "
+            "list names).",
         ),
     ] = None,
     spacing: Annotated[

@@ -1,11 +1,11 @@
 """`photogeom grid evaluate | sweep | report`: residual grids of a whole adjusted block.
 
 The block is a folder (or file) readable by ``photogeom.bundle.read_block`` (CSV block
-format, COLMAP text or binary model, BAL) holding an **adjusted** block, or ``--preset NAME`` for a
-simulated block of the study's cameras (simulated and adjusted first). ``evaluate`` fits
-grids, corrects, re-adjusts with the orientation fixed and prints the residuals and steps
-before and after; ``sweep`` tries several spacings and chooses one by the closest-to-origin
-rule; ``report`` writes the HTML report with the study's figures.
+format, COLMAP text or binary model, BAL or Bundler file) holding an **adjusted** block, or
+``--preset NAME`` for a simulated block of the study's cameras (simulated and adjusted
+first). ``evaluate`` fits grids, corrects, re-adjusts with the orientation fixed and prints
+the residuals and steps before and after; ``sweep`` tries several spacings and chooses one
+by the closest-to-origin rule; ``report`` writes the HTML report with the study's figures.
 """
 
 from __future__ import annotations
@@ -39,7 +39,8 @@ from ._common import (
 BlockArg = Annotated[
     Path | None,
     typer.Argument(
-        help="Adjusted block: a CSV block folder, COLMAP text or binary model or BAL file."
+        help="Adjusted block: a CSV block folder, COLMAP text or binary model, BAL file or "
+        "Bundler file (.out, its image list and images beside it: they give the image sizes)."
     ),
 ]
 PresetOpt = Annotated[
@@ -201,8 +202,9 @@ RepeatsOpt = Annotated[
 class _Fit:
     """A block standing for the first adjustment (the block read is already adjusted)."""
 
-    def __init__(self, block) -> None:
+    def __init__(self, block, bal: bool = False) -> None:
         self.block = block
+        self.bal = bal  # read from a BAL file: its image size is the reader's guess
 
 
 def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
@@ -239,7 +241,13 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
             "WIDTHxHEIGHT, and give block/"
         ) from None
     warn_if_unadjusted(read, block)
-    return _Fit(read), None
+    from ..bundle.io_formats import detect_format
+
+    try:
+        bal = detect_format(block) == "bal"
+    except PhotogeomError:  # a pipe already read: BAL, the one format a pipe can be
+        bal = True
+    return _Fit(read, bal), None
 
 
 #: RMS of the tie-point residuals in units of their sigmas above which a block read as
@@ -279,10 +287,33 @@ def warn_if_unadjusted(block, path: Path) -> None:
     say(
         f"warning: {path}: the tie-point residuals (RMS {rms_px:.3g} px, {rms_w:.3g} times "
         "their sigmas) are those of a block not adjusted: the grids model the residuals of "
-        f"an adjusted block; adjust it first ('photogeom bundle adjust {path} -o "
-        "adjusted/') and give the adjusted folder",
+        f"an adjusted block; adjust it first ({adjust_command(block, path)}",
         stderr=True,
     )
+
+
+def adjust_command(block, path: Path) -> str:
+    """The ``bundle adjust`` command that adjusts the block read from ``path`` and what to
+    give then, in the block's own format: a BAL or Bundler block is one file (a folder
+    name would be taken for the file's), a Bundler file written beside its images (its
+    list names them relative to its folder), and a block without control points and GNSS
+    positions (any BAL or Bundler file, COLMAP model) needs ``--datum free``."""
+    import numpy as np
+
+    from ..bundle.io_formats import FOLDER_FORMATS, detect_format
+
+    try:
+        fmt = detect_format(path)
+    except PhotogeomError:  # a pipe already read: the folder formats are not pipes
+        fmt = "bal"
+    if fmt in FOLDER_FORMATS:
+        target, what = "adjusted/", "the adjusted folder"
+    else:
+        target = str(Path(path).with_name("adjusted.out" if fmt == "bundler" else "adjusted.bal"))
+        what = target
+    held = np.any(block.role == "control") or np.any(np.all(np.isfinite(block.gnss), axis=1))
+    free = "" if held else " --datum free"
+    return f"'photogeom bundle adjust {path}{free} -o {target}') and give {what}"
 
 
 def _cli(msg: str) -> str:
@@ -446,6 +477,17 @@ def _evaluate(
                 again = readjust(rem, grids, uncorrected=left, snooping=False)
                 ev["rematched"] = evaluate_readjustment(fit, again, sim=sim, overlap=overlap)
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
+        head, sep, _ = str(exc).partition(": the grids are of another camera or block")
+        if sep and getattr(fit, "bal", False):  # the size BAL does not hold, not the grids
+            w, h = (int(x) for x in fit.block.image_sizes()[0])
+            exc.args = (
+                f"{head}: {block} is a BAL file, which holds no image size, read as {w} x {h} "
+                "px (the smallest even size holding its observations); for grids fitted with "
+                "grid fit --image-size, give the block with the images' size: photogeom "
+                f"bundle convert {block} block/ --to csv --image-size WIDTHxHEIGHT, and give "
+                "block/",
+            )
+            raise
         exc.args = (_cli(str(exc)),)
         raise
     ev["excluded"] = left

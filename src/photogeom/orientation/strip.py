@@ -234,14 +234,26 @@ def block_start(
     Raises
     ------
     TooFewPointsError
-        A strip with fewer than three control points and fewer than three tie points shared
-        with the strips oriented before it.
+        Fewer than three control points observed in the strips' images (refused before
+        any relative orientation is computed: the first strip needs three), or a strip
+        with fewer than three control points and fewer than three tie points shared with
+        the strips oriented before it.
     """
     from .absolute import absolute_orientation
 
     if not strips:
         raise InputError("block_start needs at least one strip")
     ctrl = {p: np.asarray(x, dtype=float).reshape(3) for p, x in control.items()}
+    seen = set().union(*(observations.get(i, {}).keys() for s in strips for i in s))
+    n_ctrl = len(seen.intersection(ctrl))
+    if n_ctrl < 3:
+        raise TooFewPointsError(
+            "block start: control points observed in the strips' images",
+            n_ctrl,
+            3,
+            "the strips are oriented to them, and the first strip needs three not on a line; "
+            f"{len(ctrl)} control point(s) given",
+        )
     models = [
         orient_strip(
             s,
