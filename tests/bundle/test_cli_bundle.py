@@ -360,3 +360,24 @@ def test_a_run_that_did_not_converge_exits_1_after_writing_what_was_asked(
     assert code == 1 and json.loads(out)["converged"] is False
     code, out, err = cli("bundle", "adjust", simulated, "--json")
     assert code == 0 and json.loads(out)["converged"] is True
+
+
+def test_converting_to_a_format_without_sigmas_names_the_sigma_not_written(cli, tmp_path):
+    # a CSV block whose observations all have 0.3 px: BAL, Bundler and COLMAP hold no
+    # standard deviation and their readers take 1 px; the conversion says so and how to read
+    # the file back with the same weights (before: nothing was said)
+    code, _, err = cli("bundle", "simulate", tmp_path / "s", "--gcps", "none", "--checks", "0",
+                       "--no-gnss", "--no-imu", "--gcp-sigma", "0.3", "--strips", "2",
+                       "--images-per-strip", "3")  # fmt: skip
+    assert code == 0, err
+    assert np.all(pg.bundle.read_csv_block(tmp_path / "s").observations.sigma == 0.3)
+    for fmt, target in (("bal", "s.bal"), ("colmap-bin", "c"), ("bundler", "b.out")):
+        code, _, err = cli("bundle", "convert", tmp_path / "s", tmp_path / target, "--to", fmt)
+        assert code == 0, err
+        assert "holds no standard deviations" in err and "--sigma 0.3" in err, (fmt, err)
+    code, _, err = cli("bundle", "convert", tmp_path / "s.bal", tmp_path / "back", "--to",
+                       "csv", "--sigma", "0.3")  # fmt: skip
+    assert code == 0 and "standard deviations" not in err
+    assert np.all(pg.bundle.read_csv_block(tmp_path / "back").observations.sigma == 0.3)
+    code, _, err = cli("bundle", "convert", tmp_path / "s.bal", tmp_path / "again.bal")
+    assert code == 0 and "standard deviations" not in err  # 1 px: nothing lost

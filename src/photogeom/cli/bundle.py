@@ -312,7 +312,26 @@ def block_files(block, path: Path, fmt: str, *, drop_extras: bool, angle_unit: s
     from ..bundle.io_formats import block_files as files
 
     options = {"angle_unit": angle_unit} if fmt == "csv" else {"drop_extras": drop_extras}
-    return files(block, path, fmt, **options)
+    out = files(block, path, fmt, **options)
+    _note_sigma_not_written(block, path, fmt)
+    return out
+
+
+def _note_sigma_not_written(block, path: Path, fmt: str) -> None:
+    """A note on stderr when a BAL, Bundler or COLMAP file is written for observations whose
+    one standard deviation is not the 1 px its readers assume (the formats hold none; a
+    block whose sigmas differ is refused or written with --drop-extras, named there)."""
+    import numpy as np
+
+    s = block.observations.sigma
+    if fmt == "csv" or s.size == 0 or np.any(s != s[0]) or s[0] == 1.0:
+        return
+    typer.echo(
+        f"note: {path}: the {fmt} format holds no standard deviations; the observations' "
+        f"{s[0]:g} px is not written and its readers take 1 px: read it back with --sigma "
+        f"{s[0]:g} for the same weights (sigma0 and the tests scale with it)",
+        err=True,
+    )
 
 
 def check_targets(blocks=(), files=(), made=()) -> None:
