@@ -16,6 +16,10 @@ accepted step.
   simulated 250-image block, 14 instead of 9 from a poorer start, to the same minimum.
   Steps the model predicts less well (``rho`` below about 0.9) lower the damping as in
   Nielsen's rule.
+* A problem may refine an accepted trial without a step of the damped system (``refine``,
+  e.g. the bundle's tie points whose own step raised their cost, moved by point-only steps);
+  the damping follows the step's own gain ratio, the cost and the convergence test the
+  refined trial.
 * Converged: an accepted step lowering the cost by at most ``ftol`` times the cost, an
   accepted step below ``xtol`` (the problem's test), a rejected finite trial whose step is
   below ``xtol``, or a cost of zero to rounding (``exact_cost``). Stopped: the damping grew
@@ -55,6 +59,11 @@ class DampedProblem(Protocol):
 
     def accept(self, state) -> None:
         """Re-linearise at the accepted ``state`` (the last evaluated trial)."""
+
+    # optional: ``refine(state, trial, cost) -> (trial, cost)``, an accepted trial improved
+    # without a step of the damped system (a lower cost or the same), before ``accept``
+
+
 
 
 @dataclass
@@ -96,6 +105,7 @@ def levenberg_marquardt_loop(
         ``progress(iteration, cost, damping)`` after each accepted step.
     """
     history = [cost]
+    refine = getattr(problem, "refine", None)
     lam = options.initial_damping
     nu = 2.0
     converged = False
@@ -118,6 +128,8 @@ def levenberg_marquardt_loop(
         if valid and np.isfinite(new_cost) and new_cost < cost:
             rho = (cost - new_cost) / pred if pred > 0 else 1.0
             small = problem.small(state, step)
+            if refine is not None:
+                trial, new_cost = refine(state, trial, new_cost)
             decrease = cost - new_cost
             state, cost = trial, new_cost
             history.append(cost)

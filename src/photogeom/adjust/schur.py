@@ -514,17 +514,30 @@ class SchurSystem:
         return _Normal(self, lin, U, Ulg, Ugg, V, gloc, gglob, gpt, diag_l, diag_g, diag_p)
 
 
+def weak_point_blocks(V: np.ndarray) -> np.ndarray:
+    """Which 3x3 point blocks ``V`` (p, 3, 3) of normal equations are (nearly) singular:
+    a determinant at most 1e-14 times the cube of the trace (the point is not determined by
+    its rays: all nearly parallel, or fewer than two).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (p,)
+    """
+    det = np.linalg.det(V)
+    scale = np.einsum("pii->p", V) ** 3
+    return ~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))
+
+
 def invert_point_blocks(V: np.ndarray) -> np.ndarray:
     """Inverses of the 3x3 point blocks ``V`` (p, 3, 3) of normal equations.
 
     Raises
     ------
     DegenerateGeometryError
-        A block is (nearly) singular: its point is not determined by its rays.
+        A block is (nearly) singular (:func:`weak_point_blocks`): its point is not
+        determined by its rays.
     """
-    det = np.linalg.det(V)
-    scale = np.einsum("pii->p", V) ** 3
-    weak = ~(np.abs(det) > 1e-14 * np.maximum(scale, 1e-300))
+    weak = weak_point_blocks(V)
     if np.any(weak):
         raise DegenerateGeometryError(
             f"{int(weak.sum())} point(s) are not determined by their rays (all rays "

@@ -1379,7 +1379,8 @@ def build_result(
     elif sigma0 > SIGMA0_FAR * s0p:
         # a converged run far above the a-priori sigmas: blunders, sigmas too small, or a
         # local minimum (a start with the calibration free and the attitudes 5 degrees off
-        # stopped at sigma0 24 where the calibration held first reached 1.04)
+        # stopped at sigma0 24 where the calibration held first reached 1.04, before the
+        # point-only steps of tie points whose own step raised their cost)
         notes.append(
             f"sigma0 {sigma0:.3g} is more than {SIGMA0_FAR:g} times its a-priori "
             f"{s0p:g}: blunders (see the w-test), a-priori sigmas too small, or start values "
