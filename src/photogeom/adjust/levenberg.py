@@ -64,8 +64,6 @@ class DampedProblem(Protocol):
     # without a step of the damped system (a lower cost or the same), before ``accept``
 
 
-
-
 @dataclass
 class LoopResult:
     """Outcome of :func:`levenberg_marquardt_loop`."""
