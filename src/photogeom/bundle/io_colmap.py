@@ -744,14 +744,36 @@ def _read_both_models(d: Path, **options) -> Block:
     names = [f.name for f in fields(b) if f.compare]
     for name, kb, kt in zip(names, value_key(b), value_key(t), strict=True):
         if kb != kt:
-            raise FileFormatError(
+            raise ColmapModelsDiffer(
                 f"{d} holds both a COLMAP text model ({', '.join(TEXT_FILES)}) and a binary "
                 f"model ({', '.join(BINARY_FILES)}), and they differ (their "
-                f"{_BLOCK_PARTS.get(name, name)} first): COLMAP reads the binary one; pass "
-                "binary=True to read the .bin files or binary=False for the .txt files, or "
-                "remove one of the two"
+                f"{_BLOCK_PARTS.get(name, name)} first): COLMAP reads the binary one",
+                "pass binary=True to read the .bin files or binary=False for the .txt files, "
+                "or remove one of the two",
             )
     return b
+
+
+class ColmapModelsDiffer(FileFormatError):
+    """A folder holding a COLMAP text and a binary model that differ (:func:`read_colmap`
+    without ``binary``): ``head`` says so, ``choose`` how the caller's interface picks one;
+    :meth:`chosen_by` gives the same refusal in another interface's words.
+
+    Parameters
+    ----------
+    head : str
+        The folder, its files and the first part that differs.
+    choose : str
+        How to choose one model, in the caller's words.
+    """
+
+    def __init__(self, head: str, choose: str) -> None:
+        super().__init__(f"{head}; {choose}")
+        self.head = head
+
+    def chosen_by(self, choose: str) -> ColmapModelsDiffer:
+        """The same refusal with ``choose`` (e.g. command-line options) as the way to pick."""
+        return ColmapModelsDiffer(self.head, choose)
 
 
 #: How an error names the parts of a block that differ between two models.

@@ -23,6 +23,7 @@ from .io_bundler import bundler_texts, is_bundler_file, read_bundler, write_bund
 from .io_colmap import (
     BINARY_FILES,
     TEXT_FILES,
+    ColmapModelsDiffer,
     colmap_files,
     read_colmap,
     write_colmap,
@@ -260,11 +261,10 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
         if binary is None:
             try:
                 return read_colmap(path, **options)
-            except FileFormatError as exc:
-                raise FileFormatError(
-                    str(exc)
-                    .replace("binary=True", "kind='colmap-bin'")
-                    .replace("binary=False", "kind='colmap'")
+            except ColmapModelsDiffer as exc:
+                raise exc.chosen_by(
+                    "pass kind='colmap-bin' to read the .bin files or kind='colmap' for the "
+                    ".txt files, or remove one of the two"
                 ) from None
         return read_colmap(path, binary=binary, **options)
     reader = {"bal": read_bal, "csv": read_csv_block, "bundler": read_bundler}[k]

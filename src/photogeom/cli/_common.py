@@ -1391,16 +1391,12 @@ def read_detected_block(path: Path, **options):
     read_block` without ``kind``), for commands without a format option: a folder holding a
     COLMAP text and a binary model that differ is refused in words such a command can
     follow."""
+    from ..bundle.io_colmap import ColmapModelsDiffer
     from ..bundle.io_formats import read_block
-    from ..errors import FileFormatError
 
     try:
         return read_block(path, **options)
-    except FileFormatError as exc:
-        if "and they differ" not in str(exc):
-            raise
-        text = str(exc)
-        raise FileFormatError(
-            text[: text.index("; pass kind=")]
-            + "; remove the one not to read, or move it to a folder of its own"
+    except ColmapModelsDiffer as exc:
+        raise exc.chosen_by(
+            "remove the one not to read, or move it to a folder of its own"
         ) from None

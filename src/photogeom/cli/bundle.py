@@ -24,7 +24,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import FileFormatError, InputError, OutputError
+from ..errors import InputError, OutputError
 from ._common import (
     CRS_FORMS,
     AngleUnit,
@@ -286,18 +286,14 @@ def read_block(
     if fmt == "bal":
         return bundle.read_bal(path, **kw)
     if fmt == "colmap-both":  # a folder holding both models (detect_format)
+        from ..bundle.io_colmap import ColmapModelsDiffer
+
         try:
             return bundle.read_colmap(path, image_key=ImageKey(image_key).value, **kw)
-        except FileFormatError as exc:
-            if "and they differ" not in str(exc):
-                raise
+        except ColmapModelsDiffer as exc:
             raise InputError(
-                str(exc).replace(
-                    "pass binary=True to read the .bin files or binary=False for the .txt "
-                    "files",
-                    f"give {option} colmap-bin for the .bin files or {option} colmap for the "
-                    ".txt files",
-                )
+                f"{exc.head}; give {option} colmap-bin for the .bin files or {option} colmap "
+                "for the .txt files, or remove one of the two"
             ) from None
     if fmt in ("colmap", "colmap-bin"):
         return bundle.read_colmap(
