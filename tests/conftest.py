@@ -99,3 +99,13 @@ def fifo_read_once(tmp_path):
 
     yield make
     stop.set()
+
+
+@pytest.fixture
+def at_once(monkeypatch):
+    """Progress lines in logs (no terminal) from the first item on, then none until the
+    end: what a slow job prints, for commands of small test inputs."""
+    import photogeom.cli._common as cc
+
+    monkeypatch.setattr(cc, "LOG_PROGRESS_DELAY", 0.0)
+    monkeypatch.setattr(cc, "LOG_PROGRESS_INTERVAL", 1e6)

@@ -12,16 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import photogeom.cli._common as cc
 from photogeom.calibration import fit_grid, load_grids
 
 W, H = 300, 200
-
-
-@pytest.fixture
-def at_once(monkeypatch):
-    monkeypatch.setattr(cc, "LOG_PROGRESS_DELAY", 0.0)
-    monkeypatch.setattr(cc, "LOG_PROGRESS_INTERVAL", 1e6)
 
 
 @pytest.fixture(scope="module")

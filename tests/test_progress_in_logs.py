@@ -14,15 +14,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-import photogeom.cli._common as cc
-
 W, H = 300, 200
-
-
-@pytest.fixture
-def at_once(monkeypatch):
-    monkeypatch.setattr(cc, "LOG_PROGRESS_DELAY", 0.0)
-    monkeypatch.setattr(cc, "LOG_PROGRESS_INTERVAL", 1e6)
 
 
 @pytest.fixture(scope="module")
