@@ -623,7 +623,8 @@ def colmap_model_is_binary(directory: str | os.PathLike, binary: bool | None = N
         A folder.
     binary : bool, optional
         True: the binary model (``cameras.bin``, ...), False: the text model
-        (``cameras.txt``, ...); default: the one the folder holds.
+        (``cameras.txt``, ...); default: the one the folder holds (the binary one of a
+        folder holding both; :func:`read_colmap` reads such a folder both ways first).
 
     Returns
     -------
@@ -632,20 +633,12 @@ def colmap_model_is_binary(directory: str | os.PathLike, binary: bool | None = N
     Raises
     ------
     FileFormatError
-        Without ``binary``, a folder holding both models (they may differ; COLMAP reads the
-        binary one); with it, a folder that holds only the other model.
+        With ``binary``, a folder that holds only the other model.
     """
     d = Path(directory)
     txt = [f for f in TEXT_FILES if (d / f).is_file()]
     bins = [f for f in BINARY_FILES if (d / f).is_file()]
     if binary is None:
-        if txt and bins:
-            raise FileFormatError(
-                f"{d} holds both a COLMAP text model ({', '.join(txt)}) and a binary model "
-                f"({', '.join(bins)}), which may differ (COLMAP reads the binary one): pass "
-                "binary=True to read the .bin files or binary=False for the .txt files, or "
-                "remove one of the two"
-            )
         return bool(bins)
     if binary and bins == [] and txt:
         raise FileFormatError(
