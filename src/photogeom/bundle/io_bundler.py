@@ -71,15 +71,31 @@ _LIST_TAIL = re.compile(r"\s+0\s+[-+0-9.eE]+\s*$")
 
 
 def is_bundler_file(path: str | os.PathLike) -> bool:
-    """Whether a regular file begins with Bundler's header line (its first bytes are read), or
-    a pipe whose bytes a reader kept in this command (:func:`photogeom.io.sources.
-    kept_pipe_bytes`; a pipe not yet read is not read: False). A missing file: False."""
-    from ..io.sources import input_kind, kept_pipe_bytes
+    """Whether a regular file or a pipe begins with Bundler's header line.
+
+    A regular file: its first bytes are read. A pipe inside a
+    :func:`photogeom.io.sources.pipe_reads` scope (every command): read once, whole (bounded
+    by the header's counts as the BAL or Bundler reader bounds it, :func:`read_text`), and
+    its bytes kept for the reader that follows; a pipe already read in the scope: the bytes
+    kept. A pipe outside every scope is not read (it could not be read again): False. A
+    missing file: False.
+
+    Raises
+    ------
+    FileFormatError
+        A pipe that cannot be read, or longer than its header allows (the reader's
+        message).
+    """
+    from ..io.sources import input_kind, kept_pipe_bytes, kept_pipes
 
     p = Path(path)
     kind = input_kind(p)
     if kind == "pipe":
-        head = kept_pipe_bytes(p) or b""
+        head = kept_pipe_bytes(p)
+        if head is None and kept_pipes() is not None:
+            _read_pipe_once(p)  # kept whole for the reader that follows
+            head = kept_pipe_bytes(p)
+        head = head or b""
     elif kind == "file":
         try:
             with open(p, "rb") as fh:
@@ -88,7 +104,26 @@ def is_bundler_file(path: str | os.PathLike) -> bool:
             return False
     else:
         return False
-    return head[:64].lstrip(b"\xef\xbb\xbf").startswith(b"# Bundle file")
+    return head[:64].lstrip(b"\xef\xbb\xbf").startswith(BUNDLER_HEAD)
+
+
+#: The first bytes of a Bundler file (``# Bundle file v0.3``).
+BUNDLER_HEAD = b"# Bundle file"
+
+
+def _read_pipe_once(p: Path) -> None:
+    """Read the pipe ``p`` whole in the current scope, bounded as the reader of its format
+    (BAL, or Bundler by its first line) bounds it, so that the reader that follows gets the
+    bytes kept."""
+    from .io_bal import _size_limit as bal_limit
+
+    label = str(p)
+
+    def limit(head: str) -> tuple[int, str]:
+        bundler = head.lstrip("\ufeff").startswith(BUNDLER_HEAD.decode())
+        return (_size_limit(label) if bundler else bal_limit(label))(head)
+
+    read_text(p, "BAL or Bundler file", limit=limit)
 
 
 def list_path(path: str | os.PathLike) -> Path | None:
