@@ -52,7 +52,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ._textio import format_floats, numbers, read_text, token_starts, write_files_atomically
+from ._textio import (
+    NO_NAME_CHARS,
+    format_floats,
+    numbers,
+    read_text,
+    token_starts,
+    write_files_atomically,
+)
 from .block import Block
 from .io_bal import block_from_centred, centred_cameras, refuse_extras
 
@@ -491,12 +498,12 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
             "to write the observations from the principal point (the projections exact, the "
             "image positions moved by cx, cy)"
         )
-    names = [str(i) for i in block.image_ids.tolist()]
-    bad = [s for s in names if not s.strip() or s != s.strip() or "\n" in s or "\r" in s]
+    names = [str(i) for i in block.image_ids.tolist()]  # as given (no NUL dropped)
+    bad = [s for s in names if not s.strip() or s != s.strip() or NO_NAME_CHARS.search(s)]
     if bad:
         raise InputError(
             f"image id {bad[0]!r}: an image list holds one name a line, without leading or "
-            "trailing white space; rename the image"
+            "trailing white space, line breaks or NUL characters; rename the image"
         )
     m, p, n = block.n_images, block.n_points, block.n_observations
     cam = np.column_stack([C[:, 0], C[:, 3], C[:, 4], M.reshape(m, 9), t])

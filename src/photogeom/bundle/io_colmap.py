@@ -80,6 +80,7 @@ from ._textio import (
     read_text,
     split_numeric_lines,
     split_numeric_tokens,
+    unwritable_name,
 )
 from .block import Block, ColmapImages
 from .io_bal import refuse_extras
@@ -1103,6 +1104,12 @@ def colmap_model(
             )
     # images
     m = block.n_images
+    bad = unwritable_name(block.image_ids)  # as given: astype(str) drops trailing NULs
+    if bad is not None:
+        raise InputError(
+            f"image id {bad[0]!r}: {what} cannot hold an image name that {bad[1]} (it would "
+            "be read back as another name, or not at all); rename the images"
+        )
     kept = None if block.colmap_images is None else block.colmap_images.lookup(block.image_ids)
     if kept is not None:  # read from COLMAP: its IMAGE_ID and NAME, whichever was the key
         iid, inames = kept[0].astype(np.int64), kept[1].astype(str)
@@ -1165,11 +1172,12 @@ def colmap_texts(
         *mdl.group_lines,
     ]
     cams_txt += [camera_line(cid, mdl_, c) for cid, mdl_, c in cam_lines]
-    spaced = [s for s in inames.tolist() if not s or len(s.split()) != 1]
+    # a name is one token of its line: white space at its ends would be dropped on reading
+    spaced = [s for s in inames.tolist() if s.split() != [s]]
     if spaced:
         raise InputError(
             f"image id {spaced[0]!r}: COLMAP's images.txt cannot hold names with white space "
-            "(or empty names); rename the images"
+            "(also at their ends, which its readers drop) or empty names; rename the images"
         )
     pose_tok = np.array(format_floats(mdl.pose)).reshape(m, 7)
     uvc = mdl.uv
