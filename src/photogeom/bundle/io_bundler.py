@@ -139,18 +139,29 @@ def _read_pipe_once(p: Path) -> None:
 def list_path(path: str | os.PathLike) -> Path | None:
     """The image list of a Bundler file found next to it: ``NAME.list.txt`` (as
     ``bundle.out.list.txt``), else ``list.txt`` in its folder, or above a folder ``bundle``
-    (Bundler's own layout, ``bundle/bundle.out`` with ``list.txt``); None when there is
-    none."""
+    (Bundler's own layout, ``bundle/bundle.out`` with ``list.txt``, or only the
+    ``prepare/list.txt`` its ``RunBundler.sh`` writes first); None when there is none."""
     p = Path(path)
+    up = p.parent.parent
     for cand in (
         p.with_name(p.name + ".list.txt"),
         p.with_name(p.stem + ".list.txt"),
         *(p.parent / n for n in LIST_NAMES),
-        *([p.parent.parent / "list.txt"] if p.parent.name == "bundle" else []),
+        *([up / "list.txt", up / "prepare" / "list.txt"] if p.parent.name == "bundle" else []),
     ):
         if cand.is_file():
             return cand
     return None
+
+
+def list_base(list_file: Path) -> Path:
+    """The folder the names of an image list are relative to: the list's own, or for
+    Bundler's ``prepare/list.txt`` the folder Bundler ran in (its parent), as the names of
+    ``RunBundler.sh``'s list (``./IMG_0001.jpg``) are."""
+    folder = list_file.parent
+    if list_file.name == "list.txt" and folder.name == "prepare":
+        return folder.parent
+    return folder
 
 
 def _read_list(path: Path, m: int) -> list[str]:
@@ -262,7 +273,7 @@ def _sizes(
                 f"(image_size=(width, height), or a mapping image id -> size; image {key} "
                 "has none)"
             )
-        img = list_file.parent / names[k]
+        img = list_base(list_file) / names[k]
         if not img.is_file():
             raise InputError(
                 f"{label}: a Bundler file holds no image size, and image {names[k]!r} of "
