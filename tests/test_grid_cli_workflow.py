@@ -1274,9 +1274,9 @@ def test_the_command_of_the_not_adjusted_warning_adjusts_the_block(cli, tmp_path
 
 def test_grids_of_a_bal_file_fitted_at_its_size_name_the_route_in_evaluate(cli, tmp_path):
     # grid fit adj.bal --image-size 4000x3000, then grid evaluate adj.bal --grids: evaluate
-    # has no --image-size and reads BAL at the smallest even size holding the observations,
+    # reads BAL at the smallest even size holding the observations without --image-size,
     # and the error said the grids "are of another camera or block; give --grids the grids
-    # file of this BLOCK", which they were
+    # file of this BLOCK", which they were; it names --image-size, which evaluate now has
     sim = pg.simulate.uav_block("FC300S", seed=2, strips=2, images_per_strip=4)
     bal = tmp_path / "adj.bal"
     pg.bundle.write_block(sim.block, bal, "bal", drop_extras=True)
@@ -1292,11 +1292,6 @@ def test_grids_of_a_bal_file_fitted_at_its_size_name_the_route_in_evaluate(cli, 
     text = " ".join(err.split())
     assert "the grids are of another camera" not in text and "of this BLOCK" not in text
     assert f"{bal} is a BAL file, which holds no image size" in text
-    route = re.search(r"photogeom (bundle convert \S+ block/ --to csv --image-size)", text)
-    assert route is not None, text
-    block = tmp_path / "block"
-    code, _, err = cli("bundle", "convert", bal, block, "--to", "csv",
-                       "--image-size", "4000x3000")  # fmt: skip
-    assert code == 0, err
-    code, _, err = cli("grid", "evaluate", block, "--grids", grids)
+    assert "give the same --image-size WIDTHxHEIGHT here" in text, text
+    code, _, err = cli("grid", "evaluate", bal, "--grids", grids, "--image-size", "4000x3000")
     assert code == 0, err

@@ -360,13 +360,19 @@ def test_a_bad_header_of_a_long_file_is_named(tmp_path, counts):
         read_bundler(tmp_path / "n.out", image_size=(10, 10))
 
 
-def test_grid_evaluate_of_a_bundler_file_without_its_images_names_the_conversion(cli, tmp_path):
+def test_grid_evaluate_of_a_bundler_file_without_its_images_names_image_size(cli, tmp_path):
     text, *_ = scene(15, m=3, p=40, noise=0.3)
     (tmp_path / "block.out").write_text(text)
     code, _, err = cli("grid", "evaluate", tmp_path / "block.out", "--spacing", "250")
     assert code != 0
     assert "a Bundler file holds no image size" in err and "image_size=" not in err
-    assert "bundle convert" in err and "--image-size WIDTHxHEIGHT" in err
+    assert "give their size with --image-size WIDTHxHEIGHT" in err
+    # the option named (before: grid evaluate had none, and a conversion was the route)
+    code, out, err = cli(
+        "grid", "evaluate", tmp_path / "block.out", "--spacing", "250", "--json",
+        "--image-size", "1000x750",
+    )  # fmt: skip
+    assert code == 0, err
     # with its images beside the list (Metashape's export folder), their sizes are read
     from PIL import Image
 

@@ -32,6 +32,38 @@ _NUMBER = re.compile(
 )
 
 
+#: Characters no block file can hold in an image name (or a CSV block in any id): NUL
+#: (the end of a C string, where COLMAP's binary names end; text holding it is taken for
+#: binary) and the line breaks of ``str.splitlines`` (the readers split lines there).
+NO_NAME_CHARS = re.compile("[\x00\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029]")
+
+
+def unwritable_name(ids) -> tuple[str, str] | None:
+    """The first image name of ``ids`` that no block file can hold, and why.
+
+    Parameters
+    ----------
+    ids : array-like
+        Image ids as the block holds them (checked as Python strings: a numpy ``str``
+        array would already have dropped trailing NUL characters).
+
+    Returns
+    -------
+    (str, str) or None
+        The name and why (``"is empty"``, ``"holds a NUL character"``, ``"holds the line
+        break '\\n'"``); None when every name can be written.
+    """
+    values = ids.tolist() if hasattr(ids, "tolist") else list(ids)
+    for name in map(str, values):
+        if not name:
+            return name, "is empty"
+        bad = NO_NAME_CHARS.search(name)
+        if bad is not None:
+            c = bad.group()
+            return name, "holds a NUL character" if c == "\x00" else f"holds the line break {c!r}"
+    return None
+
+
 #: Bytes of a text input looked at before the rest is read: its header (the size limit of
 #: a BAL file), and whether it is binary.
 HEAD_BYTES = 64 << 10

@@ -29,7 +29,10 @@ Bundler's conventions and how photogeom maps them:
   upper-right corner at ``(w/2, h/2)``; photogeom's origin is the centre of the first
   (top-left) pixel, so ``u = x + (w - 1) / 2`` and ``v = (h - 1) / 2 - y``. The file holds no
   image size: it comes from ``image_size`` or from the image files the list names (their
-  header only, as stored), and a block whose sizes are unknown is refused.
+  header only, as stored), and a block whose sizes are unknown is refused. An image whose
+  EXIF orientation turns it by 90 degrees (5-8) takes the size its observations fit:
+  as stored (Bundler, COLMAP), or as shown (a tool that applied the orientation; an
+  :class:`ExifOrientationWarning` says so); observations that fit both are refused.
 * A camera of all zeros is an image that was not oriented: it is left out, the other cameras
   keep their index (view lists refer to cameras by index; a view of a left-out camera is
   refused).
@@ -52,7 +55,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ._textio import format_floats, numbers, read_text, token_starts, write_files_atomically
+from ._textio import (
+    NO_NAME_CHARS,
+    format_floats,
+    numbers,
+    read_text,
+    token_starts,
+    write_files_atomically,
+)
 from .block import Block
 from .io_bal import block_from_centred, centred_cameras, refuse_extras
 
@@ -71,15 +81,31 @@ _LIST_TAIL = re.compile(r"\s+0\s+[-+0-9.eE]+\s*$")
 
 
 def is_bundler_file(path: str | os.PathLike) -> bool:
-    """Whether a regular file begins with Bundler's header line (its first bytes are read), or
-    a pipe whose bytes a reader kept in this command (:func:`photogeom.io.sources.
-    kept_pipe_bytes`; a pipe not yet read is not read: False). A missing file: False."""
-    from ..io.sources import input_kind, kept_pipe_bytes
+    """Whether a regular file or a pipe begins with Bundler's header line.
+
+    A regular file: its first bytes are read. A pipe inside a
+    :func:`photogeom.io.sources.pipe_reads` scope (every command): read once, whole (bounded
+    by the header's counts as the BAL or Bundler reader bounds it, :func:`read_text`), and
+    its bytes kept for the reader that follows; a pipe already read in the scope: the bytes
+    kept. A pipe outside every scope is not read (it could not be read again): False. A
+    missing file: False.
+
+    Raises
+    ------
+    FileFormatError
+        A pipe that cannot be read, or longer than its header allows (the reader's
+        message).
+    """
+    from ..io.sources import input_kind, kept_pipe_bytes, kept_pipes
 
     p = Path(path)
     kind = input_kind(p)
     if kind == "pipe":
-        head = kept_pipe_bytes(p) or b""
+        head = kept_pipe_bytes(p)
+        if head is None and kept_pipes() is not None:
+            _read_pipe_once(p)  # kept whole for the reader that follows
+            head = kept_pipe_bytes(p)
+        head = head or b""
     elif kind == "file":
         try:
             with open(p, "rb") as fh:
@@ -88,24 +114,54 @@ def is_bundler_file(path: str | os.PathLike) -> bool:
             return False
     else:
         return False
-    return head[:64].lstrip(b"\xef\xbb\xbf").startswith(b"# Bundle file")
+    return head[:64].lstrip(b"\xef\xbb\xbf").startswith(BUNDLER_HEAD)
+
+
+#: The first bytes of a Bundler file (``# Bundle file v0.3``).
+BUNDLER_HEAD = b"# Bundle file"
+
+
+def _read_pipe_once(p: Path) -> None:
+    """Read the pipe ``p`` whole in the current scope, bounded as the reader of its format
+    (BAL, or Bundler by its first line) bounds it, so that the reader that follows gets the
+    bytes kept."""
+    from .io_bal import _size_limit as bal_limit
+
+    label = str(p)
+
+    def limit(head: str) -> tuple[int, str]:
+        bundler = head.lstrip("\ufeff").startswith(BUNDLER_HEAD.decode())
+        return (_size_limit(label) if bundler else bal_limit(label))(head)
+
+    read_text(p, "BAL or Bundler file", limit=limit)
 
 
 def list_path(path: str | os.PathLike) -> Path | None:
     """The image list of a Bundler file found next to it: ``NAME.list.txt`` (as
     ``bundle.out.list.txt``), else ``list.txt`` in its folder, or above a folder ``bundle``
-    (Bundler's own layout, ``bundle/bundle.out`` with ``list.txt``); None when there is
-    none."""
+    (Bundler's own layout, ``bundle/bundle.out`` with ``list.txt``, or only the
+    ``prepare/list.txt`` its ``RunBundler.sh`` writes first); None when there is none."""
     p = Path(path)
+    up = p.parent.parent
     for cand in (
         p.with_name(p.name + ".list.txt"),
         p.with_name(p.stem + ".list.txt"),
         *(p.parent / n for n in LIST_NAMES),
-        *([p.parent.parent / "list.txt"] if p.parent.name == "bundle" else []),
+        *([up / "list.txt", up / "prepare" / "list.txt"] if p.parent.name == "bundle" else []),
     ):
         if cand.is_file():
             return cand
     return None
+
+
+def list_base(list_file: Path) -> Path:
+    """The folder the names of an image list are relative to: the list's own, or for
+    Bundler's ``prepare/list.txt`` the folder Bundler ran in (its parent), as the names of
+    ``RunBundler.sh``'s list (``./IMG_0001.jpg``) are."""
+    folder = list_file.parent
+    if list_file.name == "list.txt" and folder.name == "prepare":
+        return folder.parent
+    return folder
 
 
 def _read_list(path: Path, m: int) -> list[str]:
@@ -131,12 +187,27 @@ def _read_list(path: Path, m: int) -> list[str]:
     return names
 
 
-def _image_file_size(path: Path) -> tuple[int, int]:
+#: EXIF orientations (tag 274) under which an image is shown turned by 90 degrees: its
+#: stored width is its shown height.
+_TURNED = (5, 6, 7, 8)
+
+
+class ExifOrientationWarning(UserWarning):
+    """A Bundler file's coordinates refer to an image as shown (its EXIF orientation
+    applied, turned by 90 degrees), not as its pixels are stored."""
+
+
+def _image_file_size(path: Path) -> tuple[int, int, int]:
+    """Width, height (px, as stored) and EXIF orientation (1 when none) of an image file."""
     from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(path) as im:  # the header only: no pixel is decoded
-            return int(im.size[0]), int(im.size[1])
+            try:
+                turn = int(im.getexif().get(274, 1))
+            except (TypeError, ValueError):  # a damaged tag: the image as stored
+                turn = 1
+            return int(im.size[0]), int(im.size[1]), turn
     except (OSError, UnidentifiedImageError, ValueError) as exc:
         raise FileFormatError(
             f"cannot read the size of image {path}: {exc}; give the images' size "
@@ -181,12 +252,14 @@ def _token_lines(body: str, first_line: int) -> np.ndarray:
 
 def _sizes(
     image_size, names: list[str] | None, ids, list_file: Path | None, label: str
-) -> np.ndarray:
-    """(m, 2) image sizes: one size, a mapping image id -> size, or the image files."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """(m, 2) image sizes (one size, a mapping image id -> size, or the image files as
+    stored) and (m,) EXIF orientations of the image files read (1 for sizes given)."""
     m = len(ids)
+    turn = np.ones(m, dtype=np.int64)
     if image_size is not None and not isinstance(image_size, Mapping):
         w, h = (int(s) for s in image_size)
-        return np.tile([w, h], (m, 1))
+        return np.tile([w, h], (m, 1)), turn
     given = dict(image_size or {})
     out = np.zeros((m, 2), dtype=np.int64)
     for k, key in enumerate(ids.tolist()):
@@ -200,14 +273,61 @@ def _sizes(
                 f"(image_size=(width, height), or a mapping image id -> size; image {key} "
                 "has none)"
             )
-        img = list_file.parent / names[k]
+        img = list_base(list_file) / names[k]
         if not img.is_file():
             raise InputError(
                 f"{label}: a Bundler file holds no image size, and image {names[k]!r} of "
                 f"{list_file} is not at {img}; give the images' size (image_size=(width, "
                 "height)), or put the images where the list says"
             )
-        out[k] = _image_file_size(img)
+        *out[k], turn[k] = _image_file_size(img)
+    return out, turn
+
+
+def _turned_sizes(
+    sizes: np.ndarray, turn: np.ndarray, obs_image: np.ndarray, xy: np.ndarray, names, label
+) -> np.ndarray:
+    """The sizes of images whose EXIF orientation turns them by 90 degrees, as their
+    observations show them: Bundler itself and COLMAP use the pixels as stored, a tool that
+    applies the orientation the image as shown (width and height swapped). The observations
+    (``xy`` from the image centre, px) decide; a size both fit is refused (ambiguous)."""
+    turned = np.isin(turn, _TURNED)
+    if not np.any(turned):
+        return sizes
+    m = sizes.shape[0]
+    reach = np.zeros((m, 2))
+    np.maximum.at(reach, obs_image, np.abs(xy))
+    w, h = sizes[:, 0] / 2, sizes[:, 1] / 2
+    stored = (reach[:, 0] <= w) & (reach[:, 1] <= h)
+    shown = (reach[:, 0] <= h) & (reach[:, 1] <= w)
+    both = turned & stored & shown & (sizes[:, 0] != sizes[:, 1])
+    if np.any(both):
+        k = int(np.flatnonzero(both)[0])
+        W, H = (int(v) for v in sizes[k])
+        raise InputError(
+            f"{label}: image {names[k]!r} is {W} x {H} px as stored, and its EXIF orientation "
+            f"({int(turn[k])}) shows it turned, {H} x {W} px; its observations fit both, so "
+            "the file does not say which its coordinates refer to (Bundler and COLMAP use the "
+            "image as stored, a tool that applies the orientation the image as shown); give "
+            "the images' size (image_size=(width, height))"
+        )
+    swap = turned & shown & ~stored
+    if not np.any(swap):
+        return sizes
+    import warnings
+
+    k = int(np.flatnonzero(swap)[0])
+    W, H = (int(v) for v in sizes[k])
+    warnings.warn(
+        f"{label}: the observations of {int(swap.sum())} image(s) (first {names[k]!r}, "
+        f"{W} x {H} px as stored, EXIF orientation {int(turn[k])}) fit the image as shown, "
+        f"{H} x {W} px, not as stored: read with the shown size; their coordinates refer to "
+        "the image turned as its EXIF orientation says, not to its stored pixels",
+        ExifOrientationWarning,
+        stacklevel=3,
+    )
+    out = sizes.copy()
+    out[swap] = sizes[swap][:, ::-1]
     return out
 
 
@@ -411,7 +531,10 @@ def read_bundler(
     names = _read_list(list_file, m) if list_file is not None else None
     oriented_names = None if names is None else [names[k] for k in cam_index.tolist()]
     ids = cam_index.copy() if names is None else np.array(oriented_names, dtype=object)
-    sizes = _sizes(image_size, oriented_names, ids, list_file, label)
+    sizes, turn = _sizes(image_size, oriented_names, ids, list_file, label)
+    where = np.full(m, -1, dtype=np.int64)
+    where[cam_index] = np.arange(cam_index.size)
+    sizes = _turned_sizes(sizes, turn, where[ci.astype(np.int64)], views[:, 2:], ids, label)
     fk = cams[cam_index, :3]
     Ro = R[cam_index]
     u, _, vt = np.linalg.svd(Ro)
@@ -422,8 +545,6 @@ def read_bundler(
         group = cam_index[first][inv.ravel()]
     else:
         group = cam_index
-    where = np.full(m, -1, dtype=np.int64)
-    where[cam_index] = np.arange(cam_index.size)
     return block_from_centred(
         label=label,
         image_ids=ids,
@@ -456,12 +577,12 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
             "to write the observations from the principal point (the projections exact, the "
             "image positions moved by cx, cy)"
         )
-    names = [str(i) for i in block.image_ids.tolist()]
-    bad = [s for s in names if not s.strip() or s != s.strip() or "\n" in s or "\r" in s]
+    names = [str(i) for i in block.image_ids.tolist()]  # as given (no NUL dropped)
+    bad = [s for s in names if not s.strip() or s != s.strip() or NO_NAME_CHARS.search(s)]
     if bad:
         raise InputError(
             f"image id {bad[0]!r}: an image list holds one name a line, without leading or "
-            "trailing white space; rename the image"
+            "trailing white space, line breaks or NUL characters; rename the image"
         )
     m, p, n = block.n_images, block.n_points, block.n_observations
     cam = np.column_stack([C[:, 0], C[:, 3], C[:, 4], M.reshape(m, 9), t])

@@ -80,6 +80,7 @@ from ._textio import (
     read_text,
     split_numeric_lines,
     split_numeric_tokens,
+    unwritable_name,
 )
 from .block import Block, ColmapImages
 from .io_bal import refuse_extras
@@ -701,7 +702,15 @@ def read_colmap(
         cameras that differ in more than f, cx, cy; a folder holding a text and a binary
         model that differ, without ``binary``; in a binary model, truncated files, counts larger
         than the file, unknown camera model ids (see :mod:`photogeom.bundle.io_colmap_bin`;
-        the messages name the file and byte offset).
+        the messages name the file and byte offset); a ``rigs.txt`` / ``rigs.bin`` that
+        cannot be read (:func:`rig_sizes`).
+
+    Warns
+    -----
+    ColmapRigWarning
+        The model's ``rigs.txt`` (``rigs.bin``) holds a rig of several cameras (COLMAP 3.12
+        and later): its images are read with the poses COLMAP composed for them and are
+        independent images of the block; the rig is not a constraint.
     """
     if image_key not in ("name", "id"):
         raise InputError(f"image_key must be 'name' or 'id', not {image_key!r}")
@@ -710,12 +719,104 @@ def read_colmap(
         raise FileFormatError(f"{d}: not a directory (a COLMAP model is a folder)")
     options = {"image_key": image_key, "refine_principal_point": refine_principal_point}
     if binary is None and _holds_both_models(d):
-        return _read_both_models(d, sigma=sigma, **options)
+        block = _read_both_models(d, sigma=sigma, **options)
+        _warn_rigs(d, True)
+        return block
     if colmap_model_is_binary(d, binary):
         from .io_colmap_bin import read_colmap_binary
 
-        return read_colmap_binary(d, sigma=sigma, **options)
-    return _read_text_model(d, sigma=sigma, **options)
+        block = read_colmap_binary(d, sigma=sigma, **options)
+        _warn_rigs(d, True)
+        return block
+    block = _read_text_model(d, sigma=sigma, **options)
+    _warn_rigs(d, False)
+    return block
+
+
+class ColmapRigWarning(UserWarning):
+    """A COLMAP model holds rigs of several cameras (COLMAP 3.12 and later): its images are
+    read with the poses COLMAP composed for them and adjusted as independent images; the
+    rigs' fixed relative poses are not a constraint of the adjustment."""
+
+
+def rig_sizes(directory: str | os.PathLike, binary: bool) -> dict[int, int] | None:
+    """The number of sensors of each rig in ``rigs.txt`` (``binary``: ``rigs.bin``) of a
+    COLMAP model folder.
+
+    Parameters
+    ----------
+    directory : path-like
+        The model's folder.
+    binary : bool
+        Read ``rigs.bin`` instead of ``rigs.txt``.
+
+    Returns
+    -------
+    dict of int -> int, or None
+        ``{RIG_ID: NUM_SENSORS}``; None when the folder has no such file (a model of COLMAP
+        before 3.12: one camera per rig).
+
+    Raises
+    ------
+    FileFormatError
+        A file that ends inside a rig or holds a line without RIG_ID NUM_SENSORS.
+    """
+    import struct
+
+    from ._textio import read_binary
+
+    p = Path(directory) / ("rigs.bin" if binary else "rigs.txt")
+    if not p.is_file():
+        return None
+    sizes: dict[int, int] = {}
+    if not binary:
+        lines, numbers = _data_lines(read_text(p, "COLMAP rigs file"))
+        for line, k in zip(lines, numbers, strict=True):
+            tok = line.split()
+            if len(tok) < 2 or not (tok[0].isdigit() and tok[1].isdigit()):
+                raise FileFormatError(
+                    f"{p}, line {k}: expected RIG_ID NUM_SENSORS ..., got {line[:80]!r}"
+                )
+            sizes[int(tok[0])] = int(tok[1])
+        return sizes
+    data = read_binary(p, "COLMAP rigs file")
+    try:  # per rig: uint32 id, uint32 sensors, the reference (int32 type, uint32 id), then
+        # per other sensor int32 type, uint32 id, uint8 has_pose [, 7 float64]
+        (n,), pos = struct.unpack_from("<Q", data, 0), 8
+        for _ in range(n):
+            rid, count = struct.unpack_from("<II", data, pos)
+            pos += 8 + (8 if count > 0 else 0)
+            for _ in range(max(count - 1, 0)):
+                pos += 8
+                (has_pose,) = struct.unpack_from("<B", data, pos)
+                pos += 1 + (56 if has_pose else 0)
+            sizes[rid] = count
+    except struct.error:
+        raise FileFormatError(
+            f"{p}: truncated at byte {pos} of {len(data)} (a rig cut short)"
+        ) from None
+    return sizes
+
+
+def _warn_rigs(d: Path, binary: bool) -> None:
+    """Warn (:class:`ColmapRigWarning`) when the model read holds a rig of several
+    cameras."""
+    import warnings
+
+    sizes = rig_sizes(d, binary) or {}
+    rigs = {r: n for r, n in sizes.items() if n > 1}
+    if not rigs:
+        return
+    first = next(iter(rigs))
+    name = "rigs.bin" if binary else "rigs.txt"
+    warnings.warn(
+        f"{d}: {name} holds {len(rigs)} rig(s) of several cameras (rig {first}: "
+        f"{rigs[first]} cameras); each image is read with the pose COLMAP composed for it from "
+        "its frame and rig and adjusted as an independent image: the rig's fixed relative "
+        "poses are not a constraint of the adjustment",
+        ColmapRigWarning,
+        stacklevel=3,
+    )
 
 
 def _holds_both_models(d: Path) -> bool:
@@ -1103,6 +1204,12 @@ def colmap_model(
             )
     # images
     m = block.n_images
+    bad = unwritable_name(block.image_ids)  # as given: astype(str) drops trailing NULs
+    if bad is not None:
+        raise InputError(
+            f"image id {bad[0]!r}: {what} cannot hold an image name that {bad[1]} (it would "
+            "be read back as another name, or not at all); rename the images"
+        )
     kept = None if block.colmap_images is None else block.colmap_images.lookup(block.image_ids)
     if kept is not None:  # read from COLMAP: its IMAGE_ID and NAME, whichever was the key
         iid, inames = kept[0].astype(np.int64), kept[1].astype(str)
@@ -1165,11 +1272,12 @@ def colmap_texts(
         *mdl.group_lines,
     ]
     cams_txt += [camera_line(cid, mdl_, c) for cid, mdl_, c in cam_lines]
-    spaced = [s for s in inames.tolist() if not s or len(s.split()) != 1]
+    # a name is one token of its line: white space at its ends would be dropped on reading
+    spaced = [s for s in inames.tolist() if s.split() != [s]]
     if spaced:
         raise InputError(
             f"image id {spaced[0]!r}: COLMAP's images.txt cannot hold names with white space "
-            "(or empty names); rename the images"
+            "(also at their ends, which its readers drop) or empty names; rename the images"
         )
     pose_tok = np.array(format_floats(mdl.pose)).reshape(m, 7)
     uvc = mdl.uv

@@ -381,7 +381,8 @@ def colmap_binaries(
     Raises
     ------
     InputError
-        As the text model; image names that are empty or hold a NUL character; a camera
+        As the text model (image names that are empty or hold a NUL character or a line
+        break, checked by :func:`photogeom.bundle.io_colmap.colmap_model`); a camera
         group with image-variant parameters (the binary model has no place for the
         ``# photogeom camera group:`` line that joins its cameras again) without
         ``drop_extras``.
@@ -397,12 +398,6 @@ def colmap_binaries(
             "writes its images as separate cameras and cannot say that they are one group "
             "(the text model keeps that in a comment line); write the text model, or pass "
             "drop_extras=True to write the cameras as separate groups"
-        )
-    bad = [s for s in mdl.names.tolist() if not s or "\0" in s]
-    if bad:
-        raise InputError(
-            f"image id {bad[0]!r}: COLMAP's images.bin cannot hold an empty name or one with a "
-            "NUL character; rename the images"
         )
     # cameras.bin
     cams = [_U64.pack(len(mdl.cameras))]

@@ -66,7 +66,7 @@ from ..camera.metashape import MetashapeCalibration, read_metashape_xml
 from ..errors import FileFormatError, InputError, OutputError
 from ..numbers import decimal_comma_hint
 from ..units import from_radians, normalize_angle_unit, to_radians
-from ._textio import format_floats, read_text
+from ._textio import NO_NAME_CHARS, format_floats, read_text
 from .block import CALIBRATION_NAMES, Block, ColmapImages
 
 FILES = ("cameras.csv", "images.csv", "points.csv", "observations.csv")
@@ -820,7 +820,7 @@ def _csv(header: list[str], columns: list[list[str]], comments: list[str] = ()) 
 
 
 #: Characters that end a line for the reader (``str.splitlines``), and NUL (binary files).
-_NO_ID_CHARS = re.compile("[\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029\x00]")
+_NO_ID_CHARS = NO_NAME_CHARS  # one definition for every block writer
 
 
 def _id_cells(ids: np.ndarray, what: str) -> list[str]:

@@ -194,10 +194,11 @@ def detect_format(path: str | os.PathLike) -> str:
     Parameters
     ----------
     path : path-like
-        A BAL file (or pipe), a Bundler file (its first line ``# Bundle file``; a pipe
-        only once a reader kept its bytes, else it is taken for BAL, whose reader names
-        ``kind='bundler'``), or a folder holding a COLMAP text or binary model or a CSV
-        block.
+        A BAL or Bundler file or pipe (Bundler: its first line ``# Bundle file``; a pipe
+        is read once, whole, inside a :func:`photogeom.io.sources.pipe_reads` scope, every
+        command's, and its bytes kept for the reader; outside every scope it is not read and
+        taken for BAL, whose reader names ``kind='bundler'``), or a folder holding a COLMAP
+        text or binary model or a CSV block.
 
     Returns
     -------

@@ -221,17 +221,41 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
     )
 
 
+def format_by_name(path: Path) -> str | None:
+    """The block format a file name says: ``"bal"`` for ``.txt``, ``.bal`` and ``.bz2``,
+    ``"bundler"`` for ``.out``, else None (a folder's name says nothing)."""
+    suffix = path.suffix.lower()
+    if suffix in _BAL_SUFFIXES:
+        return "bal"
+    if suffix == ".out":
+        return "bundler"
+    return None
+
+
 def output_format(path: Path, given: BlockFormat | None, default: str | None, option: str) -> str:
-    """The format to write ``path`` in: ``given``, else ``default``, else by the name
-    (``.txt``, ``.bal``, ``.bz2``: BAL)."""
+    """The format to write ``path`` in: ``given``, else the one its name says
+    (:func:`format_by_name`: ``.txt``, ``.bal``, ``.bz2`` BAL, ``.out`` Bundler), else
+    ``default`` (a folder: ``bundle adjust`` writes the input's format). A name whose suffix
+    says another format than ``given`` is refused naming ``option``."""
+    named = format_by_name(path)
     if given is not None:
+        if named is not None and named != given.value:
+            says = "a BAL file" if named == "bal" else "a Bundler file"
+            what = (
+                "a folder of files" if given.value in ("csv", "colmap", "colmap-bin")
+                else "a BAL file (.bal, .txt or .bz2)" if given.value == "bal"
+                else "a Bundler file (.out)"
+            )  # fmt: skip
+            raise InputError(
+                f"{option} {given.value} contradicts the name {path}, whose suffix "
+                f"{path.suffix} says {says}: {given.value} is written as {what}; give a name "
+                f"without {path.suffix}, or {option} {named} (or leave {option} out)"
+            )
         return given.value
+    if named is not None:
+        return named
     if default is not None:
         return default
-    if path.suffix.lower() in _BAL_SUFFIXES:
-        return "bal"
-    if path.suffix.lower() == ".out":
-        return "bundler"
     raise InputError(
         f"cannot tell the format of {path} from its name: give {option} "
         "csv|colmap|colmap-bin|bal|bundler (CSV blocks and COLMAP models are folders; a BAL "
@@ -731,8 +755,9 @@ def adjust(
         BlockFormat | None,
         typer.Option(
             "--output-format",
-            help="Format of --output (default: that of SOURCE; colmap-bin: COLMAP's binary "
-            "model).",
+            help="Format of --output (default: BAL for .txt/.bal/.bz2 names, Bundler for "
+            ".out, as bundle convert --to; any other name: that of SOURCE; colmap-bin: "
+            "COLMAP's binary model; a suffix that says another format is refused).",
         ),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
@@ -1308,7 +1333,8 @@ def convert(
         typer.Option(
             "--to",
             help="Format of TARGET (default: BAL for .txt/.bal/.bz2 names, Bundler for .out; "
-            "colmap-bin: COLMAP's binary model).",
+            "colmap-bin: COLMAP's binary model; a suffix that says another format is "
+            "refused).",
         ),
     ] = None,
     angle_unit: Annotated[

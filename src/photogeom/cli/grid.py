@@ -39,13 +39,11 @@ from ._common import (
     options_in_errors,
     pixels,
     print_id_table,
-    read_detected_block,
     refuse_stdout_dash,
     say,
     scheduler_option,
     sigterm_stops,
     split_names,
-    stage_spinner,
     typed_option,
     unit_hint,
 )
@@ -900,31 +898,15 @@ def _fit_block(
     from ..bundle.io_formats import detect_format
     from ..calibration import fit_residual_grids
 
-    kind = detect_format(path)
-    bal = kind == "bal"
+    kind = detect_format(path)  # a pipe is read once here and kept for the reader
     if image_size is not None and kind not in ("bal", "bundler"):
         raise InputError(
             f"--image-size applies to a residuals CSV, a BAL or a Bundler file; {path} is a block "
             "whose cameras give the image sizes: leave --image-size out"
         )
-    options_read = {"image_size": image_size_option(image_size)} if image_size is not None else {}
-    try:
-        with stage_spinner(f"reading {path}"):
-            block = read_detected_block(path, **options_read)
-    except InputError as exc:  # a Bundler file's image sizes: the option that gives them
-        text = str(exc).replace("image_size=(width, height), or a mapping image id -> size;",
-                                "--image-size WIDTHxHEIGHT;")  # fmt: skip
-        raise InputError(
-            text.replace("(image_size=(width, height))", "(--image-size WIDTHxHEIGHT)")
-        ) from None
-    if bal and image_size is None:  # the pixel origin, and so the grids, follow that size
-        w, h = (int(x) for x in block.image_sizes()[0])
-        say(
-            f"warning: {path}: a BAL file holds no image size; the grids are fitted for "
-            f"{w} x {h} px, the smallest even size holding the observations, and fit only "
-            "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
-            stderr=True,
-        )
+    from .grid_block import read_sized_block
+
+    block, _ = read_sized_block(path, image_size)  # BAL without --image-size: a warning
     seen = np.unique(block.obs_image)
     if seen.size == 1:  # its tie points in one image only: no adjustment of this block
         raise InputError(

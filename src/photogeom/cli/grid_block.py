@@ -21,6 +21,7 @@ from ._common import (
     JsonOpt,
     console,
     fraction,
+    image_size_option,
     iteration_progress,
     json_id,
     json_text,
@@ -35,12 +36,14 @@ from ._common import (
     typed_option,
     unit_hint,
 )
+from .bundle import ImageSizeOpt
 
 BlockArg = Annotated[
     Path | None,
     typer.Argument(
         help="Adjusted block: a CSV block folder, COLMAP text or binary model, BAL file or "
-        "Bundler file (.out, its image list and images beside it: they give the image sizes)."
+        "Bundler file (.out, its image list and images beside it: they give the image sizes, "
+        "else --image-size)."
     ),
 ]
 PresetOpt = Annotated[
@@ -207,14 +210,26 @@ class _Fit:
         self.bal = bal  # read from a BAL file: its image size is the reader's guess
 
 
-def _source(block: Path | None, preset: str | None, seed: int, strips: int, images: int):
-    """(first fit, simulated block or None); ``images``: --images-per-strip. A spinner
-    names the stage on a terminal."""
+def _source(
+    block: Path | None,
+    preset: str | None,
+    seed: int,
+    strips: int,
+    images: int,
+    image_size: str | None = None,
+):
+    """(first fit, simulated block or None); ``images``: --images-per-strip; ``image_size``:
+    --image-size of a BAL or Bundler BLOCK. A spinner names the stage on a terminal."""
     import photogeom as pg
 
     if (block is None) == (preset is None):
         raise InputError("give either a BLOCK folder or --preset NAME (not both)")
     if preset is not None:
+        if image_size is not None:
+            raise InputError(
+                "--image-size applies to a BAL or Bundler BLOCK; a --preset block's cameras "
+                "give the image sizes: leave --image-size out"
+            )
         names = ("ILCE-7RM2", "FC6310", "FC300S")  # bundle simulate's --preset choices
         if preset not in names:
             raise InputError(f"--preset {preset}: choose one of {', '.join(names)}")
@@ -228,26 +243,65 @@ def _source(block: Path | None, preset: str | None, seed: int, strips: int, imag
             return pg.bundle_adjust(sim.block, snooping=False), sim
     if not block.exists():
         raise InputError(f"BLOCK: {block} does not exist")
+    read, bal = read_sized_block(block, image_size)
+    warn_if_unadjusted(read, block)
+    return _Fit(read, bal), None
+
+
+def read_sized_block(path: Path, image_size: str | None) -> tuple[object, bool]:
+    """The block at ``path`` (format by content) for the grid commands, and whether it is a
+    BAL file read at the size its reader guessed.
+
+    Parameters
+    ----------
+    path : Path
+        The BLOCK (folder, BAL or Bundler file or pipe).
+    image_size : str or None
+        ``--image-size WIDTHxHEIGHT`` (px): the size of every image of a BAL or Bundler
+        file; refused for a format whose cameras give the sizes.
+
+    Returns
+    -------
+    (Block, bool)
+        The block; True for a BAL file read without ``image_size``, whose size (the smallest
+        even one holding the observations, and so the grids' extent and pixel origin) is a
+        guess: a warning on stderr names --image-size.
+
+    Raises
+    ------
+    InputError
+        --image-size for a folder format, a Bundler file whose images are not found.
+    """
+    from ..bundle.io_formats import detect_format
+
+    kind = detect_format(path)  # a pipe is read once here and kept for the reader
+    if image_size is not None and kind not in ("bal", "bundler"):
+        raise InputError(
+            f"--image-size applies to a BAL or Bundler file; {path} is a block whose cameras "
+            "give the image sizes: leave --image-size out"
+        )
+    options = {} if image_size is None else {"image_size": image_size_option(image_size)}
     try:
-        with stage_spinner(f"reading {block}"):
-            read = read_detected_block(block)
-    except InputError as exc:  # a Bundler file whose image sizes are not known here
+        with stage_spinner(f"reading {path}"):
+            block = read_detected_block(path, **options)
+    except InputError as exc:  # a Bundler file's image sizes: the option that gives them
         head, sep, _ = str(exc).partition("; give the images' size")
         if not sep:
             raise
         raise InputError(
-            f"{head}; put the images where its image list says, or convert it with the "
-            f"images' size: photogeom bundle convert {block} block/ --to csv --image-size "
-            "WIDTHxHEIGHT, and give block/"
+            f"{head}; put the images where its image list says, or give their size with "
+            "--image-size WIDTHxHEIGHT"
         ) from None
-    warn_if_unadjusted(read, block)
-    from ..bundle.io_formats import detect_format
-
-    try:
-        bal = detect_format(block) == "bal"
-    except PhotogeomError:  # a pipe already read: BAL, the one format a pipe can be
-        bal = True
-    return _Fit(read, bal), None
+    guessed = kind == "bal" and image_size is None
+    if guessed:  # the pixel origin, and so the grids, follow that size
+        w, h = (int(x) for x in block.image_sizes()[0])
+        say(
+            f"warning: {path}: a BAL file holds no image size; the grids are fitted for "
+            f"{w} x {h} px, the smallest even size holding the observations, and fit only "
+            "images of that size: give the images' size with --image-size WIDTHxHEIGHT",
+            stderr=True,
+        )
+    return block, guessed
 
 
 #: RMS of the tie-point residuals in units of their sigmas above which a block read as
@@ -376,6 +430,7 @@ def _evaluate(
     spacing_given=True,
     rematch=False,
     exclude=None,
+    image_size=None,
 ):
     from ..calibration import (
         adjust_with_grids,
@@ -420,7 +475,7 @@ def _evaluate(
             "--exclude leaves images out of the grids fitted after the adjustment; "
             "--in-adjustment estimates a grid for every image: give one of them"
         )
-    fit, sim = _source(block, preset, seed, strips, images)
+    fit, sim = _source(block, preset, seed, strips, images, image_size)
     left = _left_out(fit, exclude, block, preset)
     fitted = [k for k in fit.block.image_ids.tolist() if k not in left]
     surveyed = _surveyed(check_points) if check_points is not None else None
@@ -483,9 +538,7 @@ def _evaluate(
             exc.args = (
                 f"{head}: {block} is a BAL file, which holds no image size, read as {w} x {h} "
                 "px (the smallest even size holding its observations); for grids fitted with "
-                "grid fit --image-size, give the block with the images' size: photogeom "
-                f"bundle convert {block} block/ --to csv --image-size WIDTHxHEIGHT, and give "
-                "block/",
+                "grid fit --image-size, give the same --image-size WIDTHxHEIGHT here",
             )
             raise
         exc.args = (_cli(str(exc)),)
@@ -612,6 +665,7 @@ def evaluate(
     grids_file: GridsOpt = None,
     rematch: RematchOpt = False,
     exclude: ExcludeOpt = None,
+    image_size: ImageSizeOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit grids, correct, re-adjust (orientation fixed) and compare residuals and steps;
@@ -636,6 +690,7 @@ def evaluate(
         spacing_given=spacing is not None,
         rematch=rematch,
         exclude=exclude,
+        image_size=image_size,
     )
     if as_json:  # no stereo model pair: the steps are null
         typer.echo(json_text(nan_to_none(_ev_json(ev))))
@@ -729,6 +784,7 @@ def sweep(
     rematch: RematchOpt = False,
     exclude: ExcludeOpt = None,
     repeats: RepeatsOpt = TIMING_REPEATS,
+    image_size: ImageSizeOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Grid-size sweep: step per model and time per spacing, the closest-to-origin choice.
@@ -751,7 +807,7 @@ def sweep(
             "--rematch needs --preset: re-matching draws new measurements of a simulated "
             "block's points"
         )
-    fit, sim = _source(block, preset, seed, strips, images)
+    fit, sim = _source(block, preset, seed, strips, images, image_size)
     left = _left_out(fit, exclude, block, preset)
     rem = sim.rematch(fit.block, seed=(seed, 1)) if rematch else None  # as grid evaluate
     try:
@@ -864,6 +920,7 @@ def report(
     rematch: RematchOpt = False,
     exclude: ExcludeOpt = None,
     repeats: RepeatsOpt = TIMING_REPEATS,
+    image_size: ImageSizeOpt = None,
 ) -> None:
     """Evaluate and sweep, then write the HTML report with the study's figures (with
     --in-adjustment: the grids of the adjustment in the figures, the sweep post-processed)."""
@@ -893,6 +950,7 @@ def report(
         spacing_given=spacing is not None,
         rematch=rematch,
         exclude=exclude,
+        image_size=image_size,
     )
     sc = _sigma_c(sigma_constraint)
     # the re-matched block of the evaluation (the same seed draws the same measurement)

@@ -1,0 +1,130 @@
+"""COLMAP 3.12 and later write rigs (``rigs.txt`` / ``rigs.bin``) and frames beside the
+model. photogeom reads each image with the pose in ``images.txt`` / ``images.bin``, which
+COLMAP composes from the image's frame and rig (COLMAP's format documentation: newer
+``cameras`` and ``images`` files are compatible with old ones), and adjusts it as an
+independent image: a model with a rig of several cameras is read to the same block as
+without its rig files, and a ``ColmapRigWarning`` says that the rig is not a constraint
+(before: nothing was said)."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from photogeom import MetashapeCalibration
+from photogeom.bundle import read_colmap, write_colmap
+from photogeom.bundle.io_colmap import ColmapRigWarning, rig_sizes
+from photogeom.errors import FileFormatError
+
+sys.path.insert(0, str(Path(__file__).parent))
+from blocks import grid_block
+
+CAL = MetashapeCalibration(3000, 2000, 2400.0, k1=-0.08, k2=0.03)
+
+
+def _pose(line: str):
+    t = line.split()
+    q = np.array([float(x) for x in t[1:5]])
+    return Rotation.from_quat(q[[1, 2, 3, 0]]), np.array([float(x) for x in t[5:8]])
+
+
+def _tokens(rot, t) -> str:
+    x, y, z, w = rot.as_quat()
+    return " ".join(repr(float(v)) for v in (w, x, y, z, *t))
+
+
+def _rig_model(folder: Path) -> None:
+    """A model written by photogeom made into one of COLMAP 3.12 with a rig: images 1 and 2
+    are the two cameras of rig 1 in frame 1 (camera 2 a copy of camera 1), image 3 the
+    reference camera alone in frame 3; every pose in images.txt is the composition of its
+    frame's and its sensor's, as COLMAP writes it."""
+    write_colmap(grid_block(2, rows=1, cols=3, n_points=40, cal=CAL), folder, drop_extras=True)
+    cams = (folder / "cameras.txt").read_text().splitlines()
+    cam1 = next(c for c in cams if c.startswith("1 "))
+    (folder / "cameras.txt").write_text("\n".join([*cams, "2" + cam1[1:]]) + "\n")
+    lines = (folder / "images.txt").read_text().splitlines()
+    heads = [k for k, ln in enumerate(lines) if ln and not ln.startswith("#")][::2]
+    poses = [_pose(lines[k]) for k in heads]
+    tok = lines[heads[1]].split()
+    tok[8] = "2"  # image 2 taken by camera 2
+    lines[heads[1]] = " ".join(tok)
+    (folder / "images.txt").write_text("\n".join(lines) + "\n")
+    (r1, t1), (r2, t2), (r3, t3) = poses
+    rel = r2 * r1.inv()  # sensor 2 from rig (= camera 1)
+    rel_t = t2 - rel.apply(t1)
+    (folder / "rigs.txt").write_text(
+        "# Number of rigs: 1\n" f"1 2 CAMERA 1 CAMERA 2 1 {_tokens(rel, rel_t)}\n"
+    )
+    (folder / "frames.txt").write_text(
+        "# Number of frames: 2\n"
+        f"1 1 {_tokens(r1, t1)} 2 CAMERA 1 1 CAMERA 2 2\n"
+        f"3 1 {_tokens(r3, t3)} 1 CAMERA 1 3\n"
+    )
+
+
+@pytest.fixture
+def rig_model(tmp_path):
+    folder = tmp_path / "text"
+    _rig_model(folder)
+    return folder
+
+
+def _plain(folder: Path, tmp_path: Path) -> Path:
+    """The same model without its rig and frame files (a model of COLMAP before 3.12)."""
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    for name in ("cameras.txt", "images.txt", "points3D.txt"):
+        (plain / name).write_bytes((folder / name).read_bytes())
+    return plain
+
+
+def test_a_text_model_with_a_rig_is_read_as_independent_images_and_says_so(rig_model, tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        want = read_colmap(_plain(rig_model, tmp_path))  # no rig file: no warning
+    with pytest.warns(ColmapRigWarning, match=r"rigs.txt holds 1 rig\(s\) of several cameras"):
+        got = read_colmap(rig_model)
+    np.testing.assert_array_equal(got.exterior, want.exterior)
+    np.testing.assert_array_equal(got.observations.uv, want.observations.uv)
+    assert rig_sizes(rig_model, binary=False) == {1: 2}
+
+
+def test_colmap_reads_the_rig_model_with_the_poses_of_images_txt(rig_model, tmp_path):
+    # the peer: pycolmap composes each image's pose from its frame and rig; they are the
+    # poses of images.txt that photogeom reads, and its binary model has the same rig
+    pycolmap = pytest.importorskip("pycolmap")
+    rec = pycolmap.Reconstruction(str(rig_model))
+    assert rec.num_rigs() == 1 and rec.num_frames() == 2
+    block = read_colmap(_plain(rig_model, tmp_path))
+    for image in rec.images.values():
+        if not image.has_pose:
+            continue
+        k = block.image_ids.tolist().index(image.name)
+        centre = -image.cam_from_world().rotation.matrix().T @ image.cam_from_world().translation
+        np.testing.assert_allclose(block.exterior[k, :3], centre, rtol=0, atol=1e-9)
+    binary = tmp_path / "bin"
+    binary.mkdir()
+    rec.write_binary(str(binary))
+    assert rig_sizes(binary, binary=True) == {1: 2}
+    with pytest.warns(ColmapRigWarning, match=r"rigs.bin holds 1 rig\(s\)"):
+        read_colmap(binary)
+
+
+def test_a_damaged_rig_file_is_refused_by_name(rig_model):
+    (rig_model / "rigs.txt").write_text("1 x CAMERA 1\n")
+    with pytest.raises(FileFormatError, match=r"rigs.txt, line 1: expected RIG_ID NUM_SENSORS"):
+        read_colmap(rig_model)
+
+
+def test_photogeoms_own_models_have_trivial_rigs_and_no_warning(tmp_path):
+    write_colmap(grid_block(2, rows=1, cols=3, n_points=40, cal=CAL), tmp_path / "m",
+                 drop_extras=True, binary=True)  # fmt: skip
+    assert rig_sizes(tmp_path / "m", binary=True) == {1: 1}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_colmap(tmp_path / "m")
