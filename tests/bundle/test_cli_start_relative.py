@@ -202,7 +202,7 @@ def test_the_json_says_where_the_start_values_came_from(sim, cli, tmp_path):
     assert got["start"] == "relative"
     ids = sim.block.image_ids.tolist()
     assert got["start_relative"] == {
-        "strips": [ids], "strips_from": "file order", "control_points": 5
+        "strips": [ids], "strips_from": "file order", "control_points": 5, "bridged": []
     }
     code, out, err = cli(
         "bundle", "adjust", d, "--start", "relative", "--strips", f"{_ids(sim, 0)};{_ids(sim, 1)}",

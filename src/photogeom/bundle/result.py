@@ -828,10 +828,25 @@ def _chi2(vtpv: float, r: float, s0: float, alpha: float = 0.05) -> dict:
     }
 
 
-def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors: bool):
-    """Final linearisation, factor and the covariance blocks the result needs."""
+def statistics_pass(
+    problem: Problem, state, weights, *, pairs: bool, cofactors: bool, run=None
+):
+    """Final linearisation, factor and the covariance blocks the result needs.
+
+    ``run`` (the iteration's outcome, optional) names a run that stopped unconverged when
+    its last iterate leaves points undetermined by their rays (they were determined at the
+    start, or the iteration would have failed there): a :class:`ConvergenceError` with those
+    points and the route to start values, instead of the normal equations' error with a row
+    number. A singular reduced system keeps its advice (an undetermined calibration
+    parameter or datum also stops the iteration).
+    """
     lin = problem.linearize(state, weights)
-    ne = problem.sys.normal_equations(lin)
+    try:
+        ne = problem.sys.normal_equations(lin)
+    except DegenerateGeometryError as exc:
+        if run is None or run.converged:
+            raise
+        raise _stopped_with_undetermined_points(problem, state, run) from exc
     try:
         F = ne.factor()
     except DegenerateGeometryError as exc:
@@ -845,6 +860,28 @@ def statistics_pass(problem: Problem, state, weights, *, pairs: bool, cofactors:
     Qpp = point_covariances(ne, Q) if pairs else None
     Cobs = observation_cofactors(ne, Q, Qpp) if cofactors else None
     return lin, ne, F, Q, Qpp, Cobs
+
+
+def _stopped_with_undetermined_points(problem: Problem, state, run) -> ConvergenceError:
+    """The error of a run that stopped where its cameras leave points undetermined."""
+    block = problem.block
+    _, e2, _ = problem.cost(state)
+    pts = np.arange(problem.p)
+    weak = pts[problem._weak_points(state, pts, state.X, e2)]
+    rows = problem.adj_points[weak]
+    ids = block.point_ids[rows].tolist()
+    first = ""
+    if ids:
+        seen = block.image_ids[block.obs_image[block.obs_point == rows[0]]].tolist()
+        first = f", e.g. point {ids[0]} (seen in image(s) {', '.join(map(str, seen[:6]))})"
+    return ConvergenceError(
+        f"the adjustment stopped unconverged ({run.message}) where its cameras leave "
+        f"{len(ids) or 'some'} point(s) undetermined by their rays (nearly parallel or "
+        f"crossing far away){first}, so that no standard deviations exist there: the "
+        "start values are too far off for the iteration (a block without GNSS/IMU: "
+        f"{start_route(block)})",
+        iterations=run.iterations,
+    )
 
 
 def _check_point_rays(problem: Problem, state, xyz: np.ndarray):
@@ -1077,7 +1114,7 @@ def build_result(
     cofactors = bool(opts.snooping or opts.loss != "squared")
     need_pairs = bool(opts.point_covariance or cofactors)
     lin, ne, F, Q, Qpp, Cobs = statistics_pass(
-        problem, state, run.weights, pairs=need_pairs, cofactors=cofactors
+        problem, state, run.weights, pairs=need_pairs, cofactors=cofactors, run=run
     )
     m = problem.m
     n_img = problem.obs_i.size

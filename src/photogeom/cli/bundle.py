@@ -1098,7 +1098,9 @@ def relative_start(block, strips: str | None):
     """The block with start values from relative orientations (``--start relative``), a
     line that says how they were found and the same for ``--json`` (``strips``: the image
     ids of each strip in flight order; ``strips_from``: ``"--strips"`` or ``"file order"``;
-    ``control_points``: the control points the strips were oriented to)."""
+    ``control_points``: the control points the strips were oriented to; ``bridged``: per pair
+    whose relative orientation failed from the essential matrix and started from its
+    neighbour's, ``[image, image, neighbour's image, neighbour's image]``)."""
     import numpy as np
 
     from ..bundle import start_from_relative_orientation
@@ -1135,15 +1137,29 @@ def relative_start(block, strips: str | None):
     control = set(block.point_ids[block.role == "control"].tolist())
     n_ctrl = len({p for u in st.control_used for p in u} & control)
     how = "--strips" if given else "the order of the images in the block's file"
+    bridged = [
+        [_plain(m.images[k]), _plain(m.images[k + 1]), _plain(m.images[j]), _plain(m.images[j + 1])]
+        for m in st.strips
+        for k, j in m.bridged
+    ]
     info = {
         "strips": [[_plain(i) for i in s] for s in lists],
         "strips_from": "--strips" if given else "file order",
         "control_points": n_ctrl,
+        "bridged": bridged,
     }
-    return new, (
+    line = (
         f"start values from relative orientations: {len(lists)} strip(s) of {sizes} images "
         f"({how}), oriented to {n_ctrl} control point(s)"
-    ), info
+    )
+    if bridged:
+        pairs = ", ".join(f"{a}-{b} (from {c}-{d})" for a, b, c, d in bridged[:8])
+        more = f" and {len(bridged) - 8} more" if len(bridged) > 8 else ""
+        line += (
+            f"; {len(bridged)} pair(s) failed from the essential matrix and were oriented "
+            f"from the neighbouring pair's relative orientation: images {pairs}{more}"
+        )
+    return new, line, info
 
 
 def _plain(value):

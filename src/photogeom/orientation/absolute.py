@@ -373,6 +373,7 @@ def absolute_orientation(
     sigma0_prior: float = 1.0,
     nearest_rotation: bool = False,
     coplanar_threshold: float | None = None,
+    reflection: str = "raise",
     iterate: bool | None = None,
     max_iter: int = 50,
     tol: float = 1e-10,
@@ -430,6 +431,13 @@ def absolute_orientation(
         value of either centred point set is below this (default
         :data:`~photogeom.orientation.absolute_direct.COPLANAR_THRESHOLD` = 0.3; 0 augments
         only for n = 3).
+    reflection : {"raise", "rotation"}
+        ``"raise"`` (default): a best fit that is a reflection raises :class:`ReflectionError`
+        (the systems have opposite handedness). ``"rotation"`` (``"svd"`` without ``robust``
+        only): keep the best proper rotation, for point sets that share their handedness by
+        construction and whose mirror image fits better only because they are deformed (a
+        strip chained from relative orientations and nearly coplanar control points); the
+        fit's notes say so.
     iterate : bool, optional
         ``"gauss-helmert"`` without ``robust`` only (refused otherwise): ``None`` uses the exact
         direct solution for at most one sigma per system and the iterative adjustment
@@ -465,6 +473,10 @@ def absolute_orientation(
     TooFewPointsError, InputError, DegenerateGeometryError, ReflectionError, ConvergenceError
     """
     method = normalize_method(method)
+    if reflection not in ("raise", "rotation"):
+        raise InputError(f"reflection must be 'raise' or 'rotation', not {reflection!r}")
+    if reflection == "rotation" and (method != "svd" or robust is not None):
+        raise InputError("reflection='rotation' applies to method='svd' without robust= only")
     if iterate is not None and (method != "gauss-helmert" or robust is not None):
         raise InputError(
             "iterate applies to method='gauss-helmert' without robust= only, not to "
@@ -542,7 +554,7 @@ def absolute_orientation(
     if method in DIRECT_METHODS:
         fit = _direct_fit(
             method, x, X, prec, with_scale, scale_method or "least-squares", statistics,
-            nearest_rotation, ctx, coplanar_threshold,
+            nearest_rotation, ctx, coplanar_threshold, keep_rotation=reflection == "rotation",
         )
     elif method == "gauss-markov":
         if n >= LARGE_N and prec.obs_w is None and prec.cov_t is None:
@@ -678,7 +690,7 @@ def _bare_fit(model, method, names, params, u, r, n_obs, with_scale, ctx, notes)
 
 
 def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, nearest, ctx,
-                coplanar_threshold=None):
+                coplanar_threshold=None, keep_rotation=False):
     n = ctx.n
     w = prec.point_w
     notes = [_CONVENTION_NOTE]
@@ -708,6 +720,12 @@ def _direct_fit(method, x, X, prec, with_scale, scale_method, statistics, neares
     else:
         pm = _moments(x, X, w, statistics)
         sol = solve_single(pm, method, with_scale=with_scale, scale_method=scale_method)
+        if keep_rotation and sol.reflection:  # sol holds the best proper rotation
+            sol.reflection = False
+            notes.append(
+                "a reflection fits better than any rotation; the best proper rotation is kept "
+                "(reflection='rotation')"
+            )
         _check_single(sol, x, X, w, pm, method)
         s, R, t = sol.scale, sol.rotation, sol.translation
     if raw:

@@ -3,7 +3,10 @@
 The classical chain, for each strip of images in flight order:
 
 1. relative orientation of every consecutive pair (:func:`relative_orientation`, wrong
-   matches removed by RANSAC and data snooping) and its model points by intersection;
+   matches removed by RANSAC and data snooping) and its model points by intersection; a
+   pair that fails from the essential matrix's start (e.g. lens distortion the start
+   calibration lacks, which looks like forward motion) is adjusted from the relative
+   orientation of its neighbouring pair in the strip;
 2. strip formation: model ``k`` is attached to the strip through the image it shares with
    model ``k - 1`` (that image's attitude and projection centre are made to coincide) and
    its scale is transferred from the points common to both models (the median of the
@@ -26,13 +29,19 @@ points follow by intersection: :func:`points_from_exteriors`.
 from __future__ import annotations
 
 from collections.abc import Hashable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..camera.exterior import ExteriorOrientation
 from ..camera.interior import InteriorOrientation
-from ..errors import DegenerateGeometryError, InputError, PhotogeomError, TooFewPointsError
+from ..errors import (
+    ConvergenceError,
+    DegenerateGeometryError,
+    InputError,
+    PhotogeomError,
+    TooFewPointsError,
+)
 from .relative import RelativeOrientationFit, relative_orientation
 
 __all__ = ["BlockStart", "StripModel", "block_start", "orient_strip", "points_from_exteriors"]
@@ -50,6 +59,11 @@ class StripModel:
     relative : tuple of RelativeOrientationFit, one per consecutive pair.
     scales : tuple of float, scale transferred to each model (1 for the first).
     scale_spread : tuple of float, relative MAD of the distance ratios of each transfer.
+    bridged : tuple of (int, int)
+        ``(k, j)`` for every pair ``k`` (0-based: images ``k``, ``k + 1``) whose relative
+        orientation failed from its own start (the essential matrix) and was adjusted from
+        the relative orientation of the neighbouring pair ``j`` instead; empty when every
+        pair oriented from its own start.
     """
 
     images: tuple
@@ -58,6 +72,7 @@ class StripModel:
     relative: tuple
     scales: tuple
     scale_spread: tuple
+    bridged: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -122,7 +137,18 @@ def orient_strip(
     -------
     StripModel
         Exterior orientations and points in the system of the first model, the relative
-        orientations and the scale transfers.
+        orientations, the scale transfers and the pairs oriented from their neighbour's
+        relative orientation (``bridged``).
+
+    Raises
+    ------
+    TooFewPointsError
+        Two consecutive images share fewer than 5 points, or three fewer than
+        ``min_common``.
+    DegenerateGeometryError, ConvergenceError
+        A pair that cannot be oriented from the essential matrix nor from its neighbouring
+        pair's relative orientation (the message names the pair, the strip and both
+        failures), or whose points do not determine it.
     """
     imgs = tuple(images)
     if len(imgs) < 2:
@@ -138,28 +164,86 @@ def orient_strip(
     fits: list[RelativeOrientationFit] = []
     scales: list[float] = [1.0]
     spreads: list[float] = [0.0]
+    bridged: list[tuple[int, int]] = []
+    ahead: dict[int, RelativeOrientationFit] = {}  # pairs oriented before their turn
     prev_points: dict | None = None
-    for k in range(len(imgs) - 1):
+
+    def pair(k: int, initial=None) -> RelativeOrientationFit:
         a, b = imgs[k], imgs[k + 1]
         ids, xy1, xy2 = _pair_matches(observations[a], observations[b])
         if len(ids) < 5:
             raise TooFewPointsError(f"relative orientation of images {a!r}, {b!r}", len(ids), 5)
-        try:
-            fit = relative_orientation(
-                xy1, xy2, interiors[a], interiors[b], method=method, sigma=sigma, ids=ids, seed=seed
+        return relative_orientation(
+            xy1,
+            xy2,
+            interiors[a],
+            interiors[b],
+            method=method,
+            sigma=sigma,
+            ids=ids,
+            seed=seed,
+            initial=initial,
+        )
+
+    def named(exc: PhotogeomError, k: int, extra: str = "") -> None:
+        """Put the pair and the strip in the message of ``exc`` (keeping its type)."""
+        if exc.args:
+            a, b = imgs[k], imgs[k + 1]
+            hint = (
+                "; leave one of the two out of the strip, or delete it from the block"
+                if "no base" in str(exc.args[0])
+                else ""
             )
+            exc.args = (
+                f"images {a!r}, {b!r} (pair {k + 1} of the strip {imgs[0]!r} .. "
+                f"{imgs[-1]!r}): {exc.args[0]}{hint}{extra}",
+                *exc.args[1:],
+            )
+
+    for k in range(len(imgs) - 1):
+        a, b = imgs[k], imgs[k + 1]
+        n_common = sum(p in observations[b] for p in observations[a])
+        if n_common < 5:
+            raise TooFewPointsError(f"relative orientation of images {a!r}, {b!r}", n_common, 5)
+        try:
+            fit = ahead.pop(k) if k in ahead else pair(k)
+        except (DegenerateGeometryError, ConvergenceError) as exc:
+            # the essential matrix's start can fail where the pair itself is sound (a start
+            # calibration without the lens distortion makes forward motion fit most matches):
+            # a neighbouring pair of the strip, flown alike, gives the start instead
+            j = k - 1 if k > 0 else k + 1
+            neighbour = None
+            if k > 0:
+                neighbour = fits[k - 1]
+            elif len(imgs) > 2:
+                try:
+                    neighbour = ahead[1] = pair(1)
+                except PhotogeomError:
+                    neighbour = None
+            if neighbour is None:
+                named(exc, k)
+                raise
+            try:
+                fit = pair(k, initial=(neighbour.exterior1, neighbour.exterior2))
+            except PhotogeomError as again:
+                named(
+                    exc,
+                    k,
+                    f" (started from the relative orientation of images {imgs[j]!r}, "
+                    f"{imgs[j + 1]!r} instead, it failed too: {again})",
+                )
+                raise exc from again
+            fit = replace(
+                fit,
+                notes=(
+                    *fit.notes,
+                    f"started from the relative orientation of images {imgs[j]!r}, "
+                    f"{imgs[j + 1]!r}: its own start failed ({exc})",
+                ),
+            )
+            bridged.append((k, j))
         except PhotogeomError as exc:  # which pair of which strip, in the error's own type
-            if exc.args:
-                hint = (
-                    "; leave one of the two out of the strip, or delete it from the block"
-                    if "no base" in str(exc.args[0])
-                    else ""
-                )
-                exc.args = (
-                    f"images {a!r}, {b!r} (pair {k + 1} of the strip {imgs[0]!r} .. "
-                    f"{imgs[-1]!r}): {exc.args[0]}{hint}",
-                    *exc.args[1:],
-                )
+            named(exc, k)
             raise
         fits.append(fit)
         mp = fit.model_points()
@@ -199,7 +283,9 @@ def orient_strip(
             counts[p] = counts.get(p, 0) + 1
         prev_points = strip_pts
     points = {p: sums[p] / counts[p] for p in sums}
-    return StripModel(imgs, exteriors, points, tuple(fits), tuple(scales), tuple(spreads))
+    return StripModel(
+        imgs, exteriors, points, tuple(fits), tuple(scales), tuple(spreads), tuple(bridged)
+    )
 
 
 def block_start(
@@ -239,7 +325,6 @@ def block_start(
         with fewer than three control points and fewer than three tie points shared with
         the strips oriented before it.
     """
-    from .absolute import absolute_orientation
 
     if not strips:
         raise InputError("block_start needs at least one strip")
@@ -296,7 +381,7 @@ def block_start(
             src = np.array([u["points"][p] for p in ids])
             dst = np.array([ctrl[p] if p in ctrl else ground[p] for p in ids])
             try:
-                fit = absolute_orientation(src, dst, method="svd", ids=[str(p) for p in ids])
+                fit = _strip_to_ground(src, dst, ids=[str(p) for p in ids])
             except DegenerateGeometryError as exc:
                 raise DegenerateGeometryError(
                     f"absolute orientation of {name(u)}: {exc}; spread the control points"
@@ -329,6 +414,22 @@ def block_start(
     return BlockStart(exteriors, ground, tuple(models), tuple(fits), tuple(used))
 
 
+def _strip_to_ground(src: np.ndarray, dst: np.ndarray, ids=None):
+    """The similarity with a proper rotation that carries strip (model) coordinates ``src``
+    (n, 3) onto ``dst`` (n, 3), ground or another model's coordinates.
+
+    A strip is right-handed by construction (its models are intersections of rotated rays), so
+    a mirror image that fits its points better means a strip bent by its chain of models, not
+    a left-handed one: a start calibration without the lens distortion bent strips of 50
+    images through four turns until their five nearly coplanar control points, up to 7 m off
+    in height, favoured the mirror (:class:`ReflectionError` before). The best proper
+    rotation is the start then; the bundle adjustment removes the bending.
+    """
+    from .absolute import absolute_orientation
+
+    return absolute_orientation(src, dst, method="svd", ids=ids, reflection="rotation")
+
+
 def _moved(e: ExteriorOrientation, s: float, R: np.ndarray, t: np.ndarray):
     """An exterior orientation carried by the similarity ``X = s R x + t``."""
     return ExteriorOrientation.from_matrix(
@@ -343,16 +444,15 @@ def _images(u: dict) -> list:
 def _join(a: dict, b: dict) -> None:
     """Carry unit ``b`` into the model system of unit ``a`` (similarity on their common
     points, one pass removing points off by more than five times the median) and merge."""
-    from .absolute import absolute_orientation
 
     common = [p for p in b["points"] if p in a["points"]]
     src = np.array([b["points"][p] for p in common])
     dst = np.array([a["points"][p] for p in common])
-    fit = absolute_orientation(src, dst, method="svd")
+    fit = _strip_to_ground(src, dst)
     err = np.linalg.norm(fit.residuals, axis=1)
     keep = err <= 5.0 * max(float(np.median(err)), 1e-12)
     if 3 <= keep.sum() < len(common):
-        fit = absolute_orientation(src[keep], dst[keep], method="svd")
+        fit = _strip_to_ground(src[keep], dst[keep])
     s, R, t = fit.scale, fit.rotation, fit.translation
     for img, e in b["exteriors"].items():
         a["exteriors"].setdefault(img, _moved(e, s, R, t))
