@@ -422,14 +422,24 @@ class _GridProblem:
         return pr.uv - self.grid_values(z) - self.bp.uv, pr.depth
 
     def cost(self, s, z) -> tuple[float, np.ndarray]:
+        c, _, depth = self.cost_rows(s, z)
+        return c, depth
+
+    def cost_rows(self, s, z) -> tuple[float, np.ndarray, np.ndarray]:
+        """The cost of all terms, the squared whitened norms (n,) and the depths (n,) of
+        the image rows."""
         v, depth = self.residuals(s, z)
-        sw = 1.0 / self.bp.sigma_obs()
-        c = float(np.sum((v * sw[:, None]) ** 2))
-        c += self.bp.prior_terms(s)[4] + float(z @ (self.R @ z))
+        e2 = np.einsum("nd,nd->n", v, v) / self.bp.sigma_obs() ** 2
+        return self.cost_of(s, z, e2), e2, depth
+
+    def cost_of(self, s, z, e2: np.ndarray) -> float:
+        """The cost of all terms from the squared whitened norms ``e2`` (n,) of the image
+        rows: those, the priors (GNSS, IMU, control) and the grids' pseudo-observations."""
+        c = float(np.sum(e2)) + self.bp.prior_terms(s)[4] + float(z @ (self.R @ z))
         if self.U is not None:
             uz = self.U.T @ z
             c += float(uz @ uz)
-        return c, depth
+        return c
 
     def normal_equations(self, s, z):
         """``N`` (free unknowns, sparse) and the gradient ``J'r`` of all terms; with the
@@ -591,8 +601,23 @@ class _GridSteps:
     def evaluate(self, state, step):
         (s, z), (dcg, dz, dp) = state, step
         trial = (self.gp.bp.update(s, dcg, dp), z + dz)
-        new_cost, depth = self.gp.cost(*trial)
-        return trial, new_cost, bool(np.all(depth > 0))
+        new_cost, self._e2, self._depth = self.gp.cost_rows(*trial)
+        return trial, new_cost, bool(np.all(self._depth > 0))
+
+    def refine(self, state, trial, cost: float):
+        """The accepted ``trial`` with the tie points whose own step raised their cost (or
+        put them behind a camera) moved by point-only steps, the cameras and the grids held
+        at the trial (:meth:`~photogeom.bundle.adjustment.Problem.guard_point_steps` with
+        the observations corrected by the trial's grids), and its cost."""
+        gp = self.gp
+        (s, _), (ts, tz) = state, trial
+        target = gp.bp.uv + gp.grid_values(tz)
+        ts, e2, _, changed = gp.bp.guard_point_steps(s, ts, self._e2, self._depth, target)
+        if not changed:
+            return trial, cost
+        self._e2 = e2
+        # summed anew: the trial's cost may exceed the refined one many times over
+        return (ts, tz), gp.cost_of(ts, tz, e2)
 
     def small(self, state, step) -> bool:
         (s, _), (dcg, dz, dp) = state, step
