@@ -357,6 +357,12 @@ def readjust(
     linearised with their final weights, the mean sigma0^2 over 30 draws differed from
     that of grids fitted with the same weights held by at most 0.0002 +- 0.0011.
 
+    When ``block`` is the block of the final fit of
+    :func:`~photogeom.calibration.adjust_with_grids` (``GridAdjustment.fit.block``, the
+    object itself), the chain's first adjustment is that joint adjustment, with its
+    calibration and grid nodes among the unknowns (before: the bundle adjustment of the
+    final fit's block, and the mean sigma0^2 of 100 draws was 0.91 instead of 1.00).
+
     The standard deviations stay in-sample and too small: the re-adjustment holds the
     cameras as errorless, while they carry the first adjustment's errors. On the same
     simulated blocks the re-adjusted tie points' errors (against the truth) were 1.5-2.1
