@@ -43,7 +43,7 @@ from ..bundle.block import Block
 from ..bundle.options import BundleOptions
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
-from .grid import FiniteElementSystem
+from .grid import FiniteElementSystem, fitted_solver
 from .gridfile import match_grid_ids
 
 __all__ = ["chain_redundancy"]
@@ -202,20 +202,22 @@ class _Chain:
             srt = np.argsort(key)
             pos = np.clip(np.searchsorted(key[srt], guv[:, 0] + 1j * guv[:, 1]), 0, key.size - 1)
             found = key[srt][pos] == guv[:, 0] + 1j * guv[:, 1]
-            system = FiniteElementSystem(
-                g.layout,
-                guv,
-                1.0 / np.asarray(g.sigma_obs) ** 2,
-                1.0 / g.sigma_constraint**2,
-                g.border,
-            )
+            solve = fitted_solver(g)  # the fit's own factor, when the grid keeps it
+            if solve is None:
+                solve = FiniteElementSystem(
+                    g.layout,
+                    guv,
+                    1.0 / np.asarray(g.sigma_obs) ** 2,
+                    1.0 / g.sigma_constraint**2,
+                    g.border,
+                ).solve
             out.append(
                 (
                     rows,
                     rows[srt[pos[found]]],  # rows whose residuals the grid was fitted to
                     np.flatnonzero(found),  # their places among the grid's points
                     guv.shape[0],
-                    system,
+                    solve,
                     g.layout.design_matrix(uv),
                 )
             )
@@ -229,10 +231,10 @@ class _Chain:
         img = E[: 2 * n].reshape(n, 2, k)
         px = img * self.sigma[:, None, None]
         model = np.zeros_like(img)
-        for rows, fit_rows, places, n_fit, system, A_all in self.images:  # images
+        for rows, fit_rows, places, n_fit, solve, A_all in self.images:  # images
             L = np.zeros((n_fit, 2 * k))
             L[places] = px[fit_rows].reshape(-1, 2 * k)
-            nodes = system.solve(L)
+            nodes = solve(L)
             model[rows] = np.asarray(A_all @ nodes).reshape(-1, 2, k)
         img = img - model / self.sigma[:, None, None]  # corrected, at the held cameras
         g = np.zeros((self.n_points, 3, k))
