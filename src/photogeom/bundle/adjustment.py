@@ -524,7 +524,12 @@ class Problem:
         return project_rows(X, s.M[i], s.C[i], cal, self.size[rows], jacobian=jacobian)
 
     def guard_point_steps(
-        self, state: _State, trial: _State, e2: np.ndarray, depth: np.ndarray
+        self,
+        state: _State,
+        trial: _State,
+        e2: np.ndarray,
+        depth: np.ndarray,
+        uv: np.ndarray | None = None,
     ) -> tuple[_State, np.ndarray, np.ndarray, bool]:
         """Each tie point of ``trial`` at the better of its trial position and its position
         in ``state``, and moved from the latter by point-only Levenberg-Marquardt steps, all
@@ -547,6 +552,10 @@ class Problem:
             The current state and the trial of one step from it.
         e2, depth : numpy.ndarray, shape (n,)
             Squared whitened norms and depths of the trial's image rows.
+        uv : numpy.ndarray, shape (n, 2), optional
+            The image coordinates (px) the projections are compared with, one per image
+            row; default the observations. The adjustment with residual grids gives the
+            observations corrected by the grids' trial values (held during these steps).
 
         Returns
         -------
@@ -554,12 +563,13 @@ class Problem:
             ``(trial, e2, depth, changed)``, the trial's points and rows updated in place;
             ``changed`` says whether any point was.
         """
+        uv = self.uv if uv is None else uv
         tie = np.ones(self.p, dtype=bool)
         tie[self.control] = False
         new_cost, new_behind = self._point_costs(e2, depth)
         X_old = state.X
         pr = self._project_points(trial, X_old[self.obs_j], np.arange(self.obs_j.size), False)
-        e2_old = np.einsum("nd,nd->n", pr.uv - self.uv, pr.uv - self.uv) / self.sigma_obs() ** 2
+        e2_old = np.einsum("nd,nd->n", pr.uv - uv, pr.uv - uv) / self.sigma_obs() ** 2
         old_cost, old_behind = self._point_costs(e2_old, pr.depth)
         worse = new_behind | ~(new_cost <= old_cost)  # NaN (a point at a camera) is worse
         back = tie & ~old_behind & np.isfinite(old_cost) & worse
@@ -576,7 +586,7 @@ class Problem:
         # behind the cameras (a start far off), the cost falls towards infinity
         others = depth[~guarded]
         cap = 2.0 * float(others.max()) if others.size else np.inf
-        self._point_steps(trial, np.flatnonzero(back), e2, depth, cap)
+        self._point_steps(trial, np.flatnonzero(back), e2, depth, cap, uv)
         return trial, e2, depth, True
 
     def _weak_points(
@@ -597,21 +607,28 @@ class Problem:
         return weak_point_blocks(N.reshape(k, 3, 3))
 
     def _point_steps(
-        self, s: _State, pts: np.ndarray, e2: np.ndarray, depth: np.ndarray, cap: float
+        self,
+        s: _State,
+        pts: np.ndarray,
+        e2: np.ndarray,
+        depth: np.ndarray,
+        cap: float,
+        uv: np.ndarray | None = None,
     ) -> None:
         """Point-only Levenberg-Marquardt steps (at most :data:`POINT_STEPS`) of the adjusted
         points ``pts`` with the cameras of ``s`` held, each point damped and accepted on its
         own (lower robust cost, in front of its cameras at depths up to ``cap`` (m), and
         still determined by its rays: rays that meet behind the cameras lower a point's cost
         towards infinity); ``s.X``, ``e2`` and ``depth`` of their rows are updated in
-        place."""
+        place. ``uv`` (n, 2) px: the coordinates the projections are compared with, one per
+        image row (default the observations)."""
         k = pts.size
         local = np.full(self.p, -1, dtype=np.int64)
         local[pts] = np.arange(k)
         rows = np.flatnonzero(local[self.obs_j] >= 0)
         jr = local[self.obs_j[rows]]
         sig = self.sigma_obs()[rows]
-        uv = self.uv[rows]
+        uv = (self.uv if uv is None else uv)[rows]
         cur = np.bincount(jr, weights=self.robust_rows(e2[rows]), minlength=k)
         mu = np.full(k, 1e-3)
         active = np.ones(k, dtype=bool)

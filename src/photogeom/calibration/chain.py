@@ -17,6 +17,11 @@ It is below the re-adjustment's own count (observations minus point unknowns) by
 adjustment's orientation and calibration unknowns (held afterwards at values that absorbed
 part of the noise) and by what the grids took up.
 
+When the block is the final fit's block of
+:func:`~photogeom.calibration.adjust_with_grids`, ``H1`` is the hat matrix of that joint
+adjustment (its calibration and grid nodes among the unknowns, the grids'
+pseudo-observations a prior without errors of their own).
+
 ``tr(M'M) = E|M z|^2`` for random signs ``z`` (Hutchinson's estimator); every product ``M z``
 is three linear solves: the first adjustment's normal equations, each grid's, and one 3 x 3
 system per point. With ``K`` probes the relative standard error is about ``sqrt(2 / (K r))``;
@@ -38,7 +43,7 @@ from ..bundle.block import Block
 from ..bundle.options import BundleOptions
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import DegenerateGeometryError, InputError
-from .grid import FiniteElementSystem
+from .grid import FiniteElementSystem, fitted_solver
 from .gridfile import match_grid_ids
 
 __all__ = ["chain_redundancy"]
@@ -136,16 +141,23 @@ class _Chain:
     """The linearised chain of one block and its grids: :meth:`apply` gives ``M Z``."""
 
     def __init__(self, block: Block, grids: Mapping, uncorrected=()) -> None:
-        p1 = _first_problem(block)
-        self.J1, self.rows = _first_jacobian(p1)
-        self.F1 = factorize(
-            (self.J1.T @ self.J1).tocsc(), what="normal matrix of the first adjustment"
-        )
-        self.n_rows = self.J1.shape[0]
-        self.n_img = p1.obs_i.size
-        self.sigma = p1.sigma_obs()  # px, the whitening of the image rows
+        from .in_adjustment import joint_first_adjustment
+
         # the re-adjustment: points only, the same observation rows (same block structure)
         p3 = Problem(block, BundleOptions(fix_exterior=True, free=()))
+        joint = joint_first_adjustment(block)
+        if joint is None:
+            p1 = _first_problem(block)
+            self.J1, self.rows = _first_jacobian(p1)
+            F1 = factorize(
+                (self.J1.T @ self.J1).tocsc(), what="normal matrix of the first adjustment"
+            )
+            self.solve1 = F1.solve
+            self.sigma = p1.sigma_obs()  # px, the whitening of the image rows
+        else:  # the block of adjust_with_grids' final fit: the joint adjustment was first
+            self.J1, self.rows, self.solve1, self.sigma = joint
+        self.n_rows = self.J1.shape[0]
+        self.n_img = self.sigma.size
         lin3 = p3.linearize(p3.initial_state(), np.ones(p3.obs_i.size))
         self.P3 = lin3.P  # (n, 2, 3) whitened
         self.obs_j = p3.obs_j
@@ -160,7 +172,7 @@ class _Chain:
             self.w_ctrl = 1.0 / sg  # (c, 3)
             V[self.control[:, None], np.arange(3), np.arange(3)] += self.w_ctrl**2
         self.Vinv = np.linalg.inv(V)
-        self.images = self._grid_operators(block, grids, p1, uncorrected)
+        self.images = self._grid_operators(block, grids, p3, uncorrected)
 
     @staticmethod
     def _grid_operators(block, grids, problem, uncorrected) -> list:
@@ -190,20 +202,22 @@ class _Chain:
             srt = np.argsort(key)
             pos = np.clip(np.searchsorted(key[srt], guv[:, 0] + 1j * guv[:, 1]), 0, key.size - 1)
             found = key[srt][pos] == guv[:, 0] + 1j * guv[:, 1]
-            system = FiniteElementSystem(
-                g.layout,
-                guv,
-                1.0 / np.asarray(g.sigma_obs) ** 2,
-                1.0 / g.sigma_constraint**2,
-                g.border,
-            )
+            solve = fitted_solver(g)  # the fit's own factor, when the grid keeps it
+            if solve is None:
+                solve = FiniteElementSystem(
+                    g.layout,
+                    guv,
+                    1.0 / np.asarray(g.sigma_obs) ** 2,
+                    1.0 / g.sigma_constraint**2,
+                    g.border,
+                ).solve
             out.append(
                 (
                     rows,
                     rows[srt[pos[found]]],  # rows whose residuals the grid was fitted to
                     np.flatnonzero(found),  # their places among the grid's points
                     guv.shape[0],
-                    system,
+                    solve,
                     g.layout.design_matrix(uv),
                 )
             )
@@ -212,15 +226,15 @@ class _Chain:
     def apply(self, Z: np.ndarray) -> np.ndarray:
         """``M Z`` for ``Z`` (n_rows, k) whitened errors."""
         k = Z.shape[1]
-        E = Z - self.J1 @ self.F1.solve(np.asarray(self.J1.T @ Z))  # first adjustment
+        E = Z - self.J1 @ self.solve1(np.asarray(self.J1.T @ Z))  # first adjustment
         n = self.n_img
         img = E[: 2 * n].reshape(n, 2, k)
         px = img * self.sigma[:, None, None]
         model = np.zeros_like(img)
-        for rows, fit_rows, places, n_fit, system, A_all in self.images:  # images
+        for rows, fit_rows, places, n_fit, solve, A_all in self.images:  # images
             L = np.zeros((n_fit, 2 * k))
             L[places] = px[fit_rows].reshape(-1, 2 * k)
-            nodes = system.solve(L)
+            nodes = solve(L)
             model[rows] = np.asarray(A_all @ nodes).reshape(-1, 2, k)
         img = img - model / self.sigma[:, None, None]  # corrected, at the held cameras
         g = np.zeros((self.n_points, 3, k))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import weakref
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -1026,7 +1027,7 @@ def _fit_grid(
     cv_before = cv_after = float("nan")
     if folds and folds > 1 and u_uv.shape[0] >= folds:
         cv_before, cv_after = _cross_validate(system, u_uv, u_l, p, A, folds, seed)
-    return ResidualGrid(
+    grid = ResidualGrid(
         layout=layout,
         nodes=z.reshape(layout.ny, layout.nx, 2),
         sigma0=sigma0,
@@ -1056,6 +1057,45 @@ def _fit_grid(
             else None
         ),
     )
+    _keep_factor(grid, system)
+    return grid
+
+
+#: The factorised normal equations of each grid fitted in this process, held as long as
+#: the grid (the grid's object is the key): :func:`~photogeom.calibration.chain.chain_redundancy`
+#: solves with them instead of factorising every grid again (:func:`fitted_solver`).
+_FACTORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _keep_factor(grid: ResidualGrid, system: FiniteElementSystem) -> None:
+    """Keep ``system``'s factor with ``grid`` when it is the grid's own (its final
+    weights)."""
+    if system.factor is None:
+        return
+    _FACTORS[grid] = (
+        system.weights.copy(),
+        system.constraint_weight,
+        system._AtP,
+        system.factor,
+    )
+
+
+def fitted_solver(grid: ResidualGrid) -> Callable[[np.ndarray], np.ndarray] | None:
+    """``l -> node values`` of ``grid``'s fit, ``N^-1 A' P l`` for the residuals ``l``
+    (k, c) px at the positions the grid kept, from the factor of its fit (None when the
+    grid was not fitted in this process, or its weights were replaced since)."""
+    kept = _FACTORS.get(grid)
+    if kept is None:
+        return None
+    w, wc, AtP, factor = kept
+    same = (
+        w.shape == np.shape(grid.sigma_obs)
+        and np.array_equal(w, 1.0 / np.asarray(grid.sigma_obs, dtype=float) ** 2)
+        and wc == 1.0 / float(grid.sigma_constraint) ** 2
+    )
+    if not same:
+        return None
+    return lambda l: factor.solve(np.asarray(AtP @ l))
 
 
 def check_min_support(min_support) -> int:

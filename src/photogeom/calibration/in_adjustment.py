@@ -55,6 +55,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -422,14 +423,24 @@ class _GridProblem:
         return pr.uv - self.grid_values(z) - self.bp.uv, pr.depth
 
     def cost(self, s, z) -> tuple[float, np.ndarray]:
+        c, _, depth = self.cost_rows(s, z)
+        return c, depth
+
+    def cost_rows(self, s, z) -> tuple[float, np.ndarray, np.ndarray]:
+        """The cost of all terms, the squared whitened norms (n,) and the depths (n,) of
+        the image rows."""
         v, depth = self.residuals(s, z)
-        sw = 1.0 / self.bp.sigma_obs()
-        c = float(np.sum((v * sw[:, None]) ** 2))
-        c += self.bp.prior_terms(s)[4] + float(z @ (self.R @ z))
+        e2 = np.einsum("nd,nd->n", v, v) / self.bp.sigma_obs() ** 2
+        return self.cost_of(s, z, e2), e2, depth
+
+    def cost_of(self, s, z, e2: np.ndarray) -> float:
+        """The cost of all terms from the squared whitened norms ``e2`` (n,) of the image
+        rows: those, the priors (GNSS, IMU, control) and the grids' pseudo-observations."""
+        c = float(np.sum(e2)) + self.bp.prior_terms(s)[4] + float(z @ (self.R @ z))
         if self.U is not None:
             uz = self.U.T @ z
             c += float(uz @ uz)
-        return c, depth
+        return c
 
     def normal_equations(self, s, z):
         """``N`` (free unknowns, sparse) and the gradient ``J'r`` of all terms; with the
@@ -467,6 +478,21 @@ class _GridProblem:
         Rz = self.R @ z if self.U is None else self.R @ z + self.U @ (self.U.T @ z)
         g_priors = np.concatenate([lg.ravel(), np.zeros(self.ncal), Rz, pgr.ravel()])
         return N, g + g_priors[fi]
+
+    def grid_jacobian(self) -> sp.csr_matrix:
+        """The whitened Jacobian (2n x n_grid) of the image rows (x then y per
+        observation) in the node values: minus the bilinear weights over the sigmas."""
+        sw = 1.0 / self.bp.sigma_obs()
+        w = (-self.obs_w * sw[:, None]).ravel()
+        cols = (self._grid_cols - self.off_g).ravel()
+        rx = np.repeat(2 * np.arange(self.n), 4)
+        return sp.csr_matrix(
+            (
+                np.concatenate([w, w]),
+                (np.concatenate([rx, rx + 1]), np.concatenate([cols, cols + 1])),
+            ),
+            shape=(2 * self.n, self.n_grid),
+        )
 
     def split(self, dx_free: np.ndarray):
         dx = np.zeros(self.ntot)
@@ -591,8 +617,23 @@ class _GridSteps:
     def evaluate(self, state, step):
         (s, z), (dcg, dz, dp) = state, step
         trial = (self.gp.bp.update(s, dcg, dp), z + dz)
-        new_cost, depth = self.gp.cost(*trial)
-        return trial, new_cost, bool(np.all(depth > 0))
+        new_cost, self._e2, self._depth = self.gp.cost_rows(*trial)
+        return trial, new_cost, bool(np.all(self._depth > 0))
+
+    def refine(self, state, trial, cost: float):
+        """The accepted ``trial`` with the tie points whose own step raised their cost (or
+        put them behind a camera) moved by point-only steps, the cameras and the grids held
+        at the trial (:meth:`~photogeom.bundle.adjustment.Problem.guard_point_steps` with
+        the observations corrected by the trial's grids), and its cost."""
+        gp = self.gp
+        (s, _), (ts, tz) = state, trial
+        target = gp.bp.uv + gp.grid_values(tz)
+        ts, e2, _, changed = gp.bp.guard_point_steps(s, ts, self._e2, self._depth, target)
+        if not changed:
+            return trial, cost
+        self._e2 = e2
+        # summed anew: the trial's cost may exceed the refined one many times over
+        return (ts, tz), gp.cost_of(ts, tz, e2)
 
     def small(self, state, step) -> bool:
         (s, _), (dcg, dz, dp) = state, step
@@ -695,6 +736,38 @@ def _solve_by_points(
     return np.concatenate([dc, dp])
 
 
+class _ReducedFactor:
+    """``(N + U U')^-1`` for blocks of right-hand sides from one factorisation: the points
+    (the last ``npt`` unknowns, 3x3 blocks) eliminated, the reduced system factorised with
+    ``backend="auto"``, ``U`` (camera-side unknowns x k, None: no such term) by the
+    Woodbury identity with its capacitance matrix factorised once (as
+    :func:`_solve_by_points`)."""
+
+    def __init__(self, N: sp.csr_matrix, npt: int, U, what: str) -> None:
+        self.nc = N.shape[0] - npt
+        S, self.Ncp, self.Vinv = _reduce_points(N, npt)
+        self.F = factorize(S.tocsc(), backend="auto", what=what)
+        del S
+        self.U = U if U is not None and U.shape[1] else None
+        if self.U is not None:
+            self.C = sla.cho_factor(
+                np.eye(self.U.shape[1]) + self.F.inverse_gram(self.U),
+                lower=True,
+                check_finite=False,
+            )
+
+    def solve(self, B: np.ndarray) -> np.ndarray:
+        """``(N + U U')^-1 B`` for ``B`` (unknowns, k)."""
+        nc = self.nc
+        bc, bp = B[:nc], B[nc:]
+        dc = self.F.solve(bc - self.Ncp @ (self.Vinv @ bp))
+        if self.U is not None:
+            w = sla.cho_solve(self.C, np.asarray(self.U.T @ dc), check_finite=False)
+            dc = dc - self.F.solve(np.asarray(self.U @ w))
+        dp = self.Vinv @ (bp - self.Ncp.T @ dc)
+        return np.concatenate([dc, dp])
+
+
 def _woodbury_solve(F, U: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
     """``(S + U U')^-1 b`` from the factor ``F`` of ``S`` (see :func:`_solve_by_points`)."""
     # I + W'W >= I: positive definite whenever the factor of S is
@@ -742,6 +815,67 @@ def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix, backend: str = "auto") -
     diag = np.full(gp.ntot, np.nan)
     diag[fi[rows]] = d
     return diag[gp.off_g : gp.off_p]
+
+
+# --------------------------------------------------------------------------- the chain
+@dataclass(frozen=True, eq=False)
+class _Joint:
+    """What linearises a joint adjustment with grids again: its estimate (``block``, the
+    observations as given) and settings (the Jacobian does not depend on the node
+    values)."""
+
+    block: Block
+    opts: BundleOptions
+    spacing: float
+    per: str
+    datum: str
+    sc: float
+    st: float | None
+    sa: float | None
+    border: str
+
+
+#: The final fit's block of each joint adjustment (``GridAdjustment.fit.block``, held
+#: weakly) -> its :class:`_Joint`: grids fitted afterwards to that fit's residuals and
+#: :func:`~photogeom.calibration.readjust` take the joint adjustment as the first
+#: adjustment of their chain (:func:`joint_first_adjustment`).
+_JOINT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def joint_first_adjustment(block: Block):
+    """The first adjustment of the chain of ``block`` when it is the final fit's block of
+    :func:`adjust_with_grids` (``GridAdjustment.fit.block``), else None.
+
+    Returns
+    -------
+    tuple or None
+        ``(J, rows, solve, sigma)``: the whitened Jacobian of the joint adjustment at its
+        solution (rows: image observations x then y, GNSS, IMU, control coordinates;
+        columns: its free unknowns, grid nodes included), the row ranges of the groups
+        (as :func:`~photogeom.calibration.chain._first_jacobian`), ``solve(B)`` giving
+        ``(J'J + P)^-1 B`` with ``P`` the precision of the grids' pseudo-observations (the
+        datum by the Woodbury identity), and the observations' standard deviations (px).
+        The pseudo-observations are error-free here: the chain's redundancy is that of the
+        observations' noise, as for a block without any local field.
+    """
+    rec = _JOINT.get(block)
+    if rec is None:
+        return None
+    from .chain import _first_jacobian
+
+    gp = _GridProblem(
+        rec.block, rec.opts, rec.spacing, rec.per, rec.datum, rec.sc, rec.st, rec.sa, rec.border
+    )
+    J0, rows = _first_jacobian(gp.bp)
+    g0 = int(np.sum(gp.free[: gp.off_g]))
+    Jg = gp.grid_jacobian()
+    Jg = sp.vstack([Jg, sp.csr_matrix((J0.shape[0] - Jg.shape[0], gp.n_grid))], format="csr")
+    J = sp.hstack([J0[:, :g0], Jg, J0[:, g0:]], format="csr")
+    N = (J.T @ J + gp._R_free).tocsr()
+    F = _ReducedFactor(
+        N, 3 * gp.bp.p, gp.U_free, "normal equations with residual grids at the solution"
+    )
+    return J, rows, F.solve, gp.bp.sigma_obs()
 
 
 # --------------------------------------------------------------------------- the call
@@ -929,6 +1063,7 @@ def adjust_with_grids(
         correct_block_observations(est, grids),
         opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
     )
+    _JOINT[final.block] = _Joint(est, opts, spacing, per, datum, sc, st, sa, border)
     return GridAdjustment(
         grids=grids,
         block=est,
