@@ -450,10 +450,14 @@ class SchurSystem:
         """Drop the columns of fixed parameters (zero Jacobian entries)."""
         if np.all(self.local_free) and np.all(self.global_free):
             return lin
-        A = lin.A * self.local_free[self.local][:, None, :]
+        # copies of the Jacobian blocks only where a column is fixed (a fresh array per
+        # iteration); the rows' masks gathered from the local blocks' (bool, not indices)
+        A = lin.A
+        if not np.all(self.local_free):
+            A = lin.A * self.local_free[self.local][:, None, :]
         G = lin.G
-        if self.gl:
-            G = lin.G * self.global_free[self.local_global[self.local]][:, None, :]
+        if self.gl and not np.all(self.global_free):
+            G = lin.G * self.global_free[self.local_global][self.local][:, None, :]
         lf = self.local_free
         li = lin.local_info * (lf[:, :, None] & lf[:, None, :])
         lg = lin.local_grad * lf
