@@ -1,11 +1,11 @@
-"""Memory of the Schur reduction per Levenberg-Marquardt iteration.
+"""Memory of the linearisation and the Schur reduction per Levenberg-Marquardt iteration.
 
-Every iteration forms the normal equations anew; arrays as large as the Jacobian blocks
-that are allocated afresh each time cost page faults (system time) besides their copies:
-the 250-image ILCE-7RM2 block with 1000 tie points per image faulted in about 800 MB of
-fresh memory per iteration. The reduction gathers each image's rows by themselves instead
-of reordered copies of all rows, and the scatter index of the points' coupling with the
-calibration is formed once.
+Every iteration linearises and forms the normal equations anew; arrays as large as the
+Jacobian blocks that are allocated afresh each time cost page faults (system time) besides
+their copies: the 250-image ILCE-7RM2 block with 1000 tie points per image faulted in
+about 800 MB of fresh memory per iteration. The reduction gathers each image's rows by
+themselves instead of reordered copies of all rows, and the scatter index of the points'
+coupling with the calibration is formed once; the derivatives are whitened in place.
 """
 
 from __future__ import annotations
