@@ -248,6 +248,7 @@ class SchurSystem:
             )
             self.sparse_global = global_coupling == "sparse" or (global_coupling == "auto" and big)
         self._pattern()
+        self._dense_h_index = None
         if self.sparse_global:
             self._point_groups()
 
@@ -427,16 +428,36 @@ class SchurSystem:
             np.int64
         )
 
+    def dense_h_index(self) -> np.ndarray:
+        """Flat index into ``H`` (n_points, 3, n_global) of every entry of the rows' ``G_k' P_k``
+        (n, gl, 3) with the dense coupling of the points with the global parameters: formed
+        once (structure only), not at every iteration (a fresh array of 24 gl n bytes).
+
+        Returns
+        -------
+        numpy.ndarray of int64, shape (n * gl * 3,)
+        """
+        if self._dense_h_index is None:
+            g = self.n_global
+            cols = self.local_global[self.local]  # (n, gl)
+            pt3 = self.point[:, None, None] * 3 + np.arange(3)[None, None, :]
+            self._dense_h_index = (pt3 * g + cols[:, :, None]).ravel().astype(np.intp, copy=False)
+        return self._dense_h_index
+
     # --- normal equations ----------------------------------------------------------------
 
     def _masked(self, lin: Linearization) -> Linearization:
         """Drop the columns of fixed parameters (zero Jacobian entries)."""
         if np.all(self.local_free) and np.all(self.global_free):
             return lin
-        A = lin.A * self.local_free[self.local][:, None, :]
+        # copies of the Jacobian blocks only where a column is fixed (a fresh array per
+        # iteration); the rows' masks gathered from the local blocks' (bool, not indices)
+        A = lin.A
+        if not np.all(self.local_free):
+            A = lin.A * self.local_free[self.local][:, None, :]
         G = lin.G
-        if self.gl:
-            G = lin.G * self.global_free[self.local_global[self.local]][:, None, :]
+        if self.gl and not np.all(self.global_free):
+            G = lin.G * self.global_free[self.local_global][self.local][:, None, :]
         lf = self.local_free
         li = lin.local_info * (lf[:, :, None] & lf[:, None, :])
         lg = lin.local_grad * lf
@@ -459,13 +480,13 @@ class SchurSystem:
         gloc = lin.local_grad.copy()
         ggl_loc = np.zeros((L, gl))
 
-        # one small GEMM per local block over its contiguous (sorted) rows: [A G r]'[A G r]
-        d = r.shape[1]
-        B = np.concatenate([A, G, r[:, :, None]], axis=2)[self.order_loc]
-        B = B.reshape(-1, b + gl + 1)
+        # one small GEMM per local block over its rows: [A G r]'[A G r], each block's rows
+        # gathered by themselves (no reordered copy of all rows: a fresh array per iteration)
         ends = np.r_[self.loc_starts[1:], self.n]
         for lo, hi, key in zip(self.loc_starts.tolist(), ends.tolist(), self.loc_keys.tolist()):
-            Bi = B[d * lo : d * hi]
+            rows = self.order_loc[lo:hi]
+            Bi = np.concatenate([A[rows], G[rows], r[rows][:, :, None]], axis=2)
+            Bi = Bi.reshape(-1, b + gl + 1)
             Mi = Bi.T @ Bi
             U[key] += Mi[:b, :b]
             gloc[key] += Mi[:b, -1]
@@ -473,7 +494,6 @@ class SchurSystem:
                 Ulg[key] = Mi[:b, b : b + gl]
                 Ugl_loc[key] = Mi[b : b + gl, b : b + gl]
                 ggl_loc[key] = Mi[b : b + gl, -1]
-        del B
         # global sums (scatter local global columns)
         Ugg = lin.global_info.copy()
         gglob = lin.global_grad.copy()
@@ -586,9 +606,8 @@ class _Normal:
             VHp = Vinv[s.pg_point] @ Hp
         elif g:
             Wg = G.transpose(0, 2, 1) @ P  # (n, gl, 3)
-            cols = s.local_global[s.local]  # (n, gl)
-            flat = (pt[:, None, None] * 3 + np.arange(3)[None, None, :]) * g + cols[:, :, None]
-            H = np.bincount(flat.ravel(), weights=Wg.ravel(), minlength=s.n_points * 3 * g)
+            H = np.bincount(s.dense_h_index(), weights=Wg.ravel(), minlength=s.n_points * 3 * g)
+            del Wg
             H = H.reshape(s.n_points, 3, g)
         else:
             H = np.zeros((s.n_points, 3, 0))
@@ -597,21 +616,19 @@ class _Normal:
             VH = Vinv @ H  # (p, 3, g)
         self.H, self.VH, self.Hp, self.VHp = H, VH, Hp, VHp
         # diagonal blocks U_ll - sum_k Y_k W_k' and local-global blocks - sum_k Y_k H_j,
-        # one GEMM per local block over its sorted rows
+        # one GEMM per local block over its rows (rows (k, 3) x b), each block's rows
+        # gathered by themselves (no reordered copies of all rows)
         D = self.U.copy()
         LG = np.zeros((L, b, g))
         ol = s.order_loc
-        Ys = Y[ol].transpose(0, 2, 1).reshape(-1, b)  # rows (k, 3) x b
-        Ws = W[ol].transpose(0, 2, 1).reshape(-1, b)
         dense_lg = g and not sparse
-        Hs = H[pt[ol]].reshape(-1, g) if dense_lg else None
         ends = np.r_[s.loc_starts[1:], s.n]
         for lo, hi, key in zip(s.loc_starts.tolist(), ends.tolist(), s.loc_keys.tolist()):
-            Yi = Ys[3 * lo : 3 * hi]
-            D[key] -= Yi.T @ Ws[3 * lo : 3 * hi]
+            rows = ol[lo:hi]
+            Yi = Y[rows].transpose(0, 2, 1).reshape(-1, b)
+            D[key] -= Yi.T @ W[rows].transpose(0, 2, 1).reshape(-1, b)
             if dense_lg:
-                LG[key] -= Yi.T @ Hs[3 * lo : 3 * hi]
-        del Ys, Ws, Hs
+                LG[key] -= Yi.T @ H[pt[rows]].reshape(-1, g)
         if sparse:
             # - sum over (row k, pair e) of one point of Y_k Hp_e, by (local, group of e)
             blk = _grouped_products(

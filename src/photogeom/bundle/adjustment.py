@@ -455,8 +455,15 @@ class Problem:
         blocks = [pr.d_center, pr.d_rotation]
         if self.b > 6:
             blocks.append(pr.d_calibration[:, :, :3])
-        A = np.concatenate(blocks, axis=2) * sw[:, None, None]
-        return A, pr.d_calibration * sw[:, None, None], pr.d_point * sw[:, None, None]
+        w = sw[:, None, None]
+        A = np.concatenate(blocks, axis=2)
+        A *= w
+        # the projection's own arrays are whitened in place: no copies of the size of all rows
+        G = pr.d_calibration
+        G *= w
+        P = pr.d_point
+        P *= w
+        return A, G, P
 
     def jacobians_at(self, s: _State, rows: np.ndarray, xyz: np.ndarray):
         """:meth:`_jacobian_blocks` of observation ``rows`` of the block (e.g. of check
