@@ -533,10 +533,11 @@ class Problem:
             norm = np.sqrt(np.einsum("nd,nd->n", e, e))
             u = e / np.where(norm > 0, norm, 1.0)[:, None]
             sr = np.sqrt(radial)
-            T = np.eye(2) - (1.0 - sr)[:, None, None] * np.einsum("ni,nj->nij", u, u)
-            A = np.einsum("nab,nbk->nak", T, A)
-            G = np.einsum("nab,nbk->nak", T, G)
-            P = np.einsum("nab,nbk->nak", T, P)
+            k = (1.0 - sr)[:, None] * u  # rows J -= k (u'J), in place (no copy of J)
+            for J in (A, G, P):
+                uJ = np.einsum("nd,ndc->nc", u, J)
+                for d in range(2):
+                    J[:, d, :] -= k[:, d, None] * uJ
             r = r / sr[:, None]
         li, lg, pi, pg, pcost, _ = self.prior_terms(s)
         ng = self.ng * NCAL
