@@ -8,8 +8,11 @@ from ..errors import InputError
 
 LOSSES = ("squared", "huber", "cauchy")
 DATUMS = ("auto", "weighted", "free")
-#: Default loss scales in units of the observations' standard deviation (95 % efficiency
-#: under normal errors).
+#: Default loss scales in units of the observations' standard deviation: the constants of
+#: 95 % efficiency of a one-dimensional residual under normal errors. Applied to the 2-D norm
+#: of an image point's whitened residual, their efficiency is 93.4 % (Huber) and 94.2 %
+#: (Cauchy), the radial M-estimator's ``E[psi'/2 + psi/(2 r)]^2 / (E[psi^2] / 2)`` over the
+#: chi distribution with 2 degrees of freedom.
 DEFAULT_LOSS_SCALE = {"huber": 1.345, "cauchy": 2.385}
 
 
