@@ -870,6 +870,8 @@ def adjust(
     if relative:
         with stage_spinner("start values from relative orientations"):
             block, start_note, start_info = relative_start(block, strips)
+    if output is not None:
+        _refuse_output_terms(block, free_names(free), output, out_fmt)
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
         cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
@@ -1196,15 +1198,55 @@ def _refuse_opencv_terms(
     of a block whose calibration has (or will estimate) K4 or B2, which their models have
     not."""
     tool = "OpenCV" if fmt == "opencv" else "COLMAP"
+    _refuse_terms(
+        block, free, ("k4", "b2"), f"--output-calibration {path}: {tool}'s camera models have",
+        "hold them at zero (--free without k4 and b2) or write the calibration as .xml or "
+        ".json",
+    )
+
+
+#: Calibration terms each block format's camera cannot hold (BAL and Bundler: f, k1, k2 and,
+#: through the observations, the principal point; COLMAP: every term but K4 and B2).
+_FORMAT_MISSING_TERMS = {
+    "bal": ("k3", "k4", "p1", "p2", "b1", "b2"),
+    "bundler": ("k3", "k4", "p1", "p2", "b1", "b2"),
+    "colmap": ("k4", "b2"),
+    "colmap-bin": ("k4", "b2"),
+}
+
+
+def _refuse_output_terms(block, free: tuple[str, ...] | None, path: Path, fmt: str) -> None:
+    """Refuse, before the adjustment, an ``--output`` block file whose format's camera
+    cannot hold terms the block's calibration has (or will estimate): the writer would
+    refuse it after the adjustment."""
+    from ..bundle import CALIBRATION_NAMES
+
+    missing = _FORMAT_MISSING_TERMS.get(fmt)
+    if not missing:
+        return
+    keep = [n for n in CALIBRATION_NAMES if n not in missing]
+    name = {"bal": "a BAL file", "bundler": "a Bundler file"}.get(fmt, "a COLMAP model")
+    _refuse_terms(
+        block, free, missing, f"--output {path}: {name}'s camera has",
+        f"estimate only what it holds (--free {','.join(keep)}, or fewer) with those terms "
+        "zero in the block, or write the adjusted block as a CSV folder (-o FOLDER "
+        "--output-format csv" + (")" if fmt.startswith("colmap") else "; or colmap)"),
+    )
+
+
+def _refuse_terms(
+    block, free: tuple[str, ...] | None, terms: tuple[str, ...], what: str, fix: str
+) -> None:
+    """Refuse a block whose calibration has non-zero ``terms`` or estimates them (``free``
+    the ``--free`` names, None for the block's own); ``what`` begins the message ("...
+    has"), ``fix`` ends it."""
     for g, cal in block.cameras.items():
         names = set(block.free[g] if free is None else free)
-        bad = [n.upper() for n in ("k4", "b2") if n in names or getattr(cal, n) != 0.0]
+        bad = [n.upper() for n in terms if n in names or getattr(cal, n) != 0.0]
         if bad:
             raise InputError(
-                f"--output-calibration {path}: {tool}'s camera models have no "
-                f"{' and no '.join(bad)}, which camera group {g!r} estimates or holds non-zero: "
-                "hold them at zero (--free without k4 and b2) or write the calibration as "
-                ".xml or .json"
+                f"{what} no {' and no '.join(bad)}, which camera group {g!r} estimates or "
+                f"holds non-zero: {fix}"
             )
 
 
