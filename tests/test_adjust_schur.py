@@ -13,12 +13,30 @@ from photogeom.adjust.schur import (
 
 
 def _problem(
-    seed, L=5, b=4, n_groups=2, gl=3, n_points=12, fixed=True, coupling="auto", shared=False
+    seed,
+    L=5,
+    b=4,
+    n_groups=2,
+    gl=3,
+    n_points=12,
+    fixed=True,
+    coupling="auto",
+    shared=False,
+    own=0,
+    own_groups="auto",
+    hold=None,
 ):
     """A random problem and its dense normal equations; ``shared``: the groups share their
-    first global column (the others their own)."""
+    first global column (the others their own); ``own``: the first ``own`` local blocks
+    have a group of their own (``L`` groups if ``own == L``)."""
     rng = np.random.default_rng(seed)
-    local_group = rng.integers(0, n_groups, L)
+    local_group = rng.integers(0, max(n_groups, 1), L)
+    if own:
+        # groups 0 .. own - 1 of the first local blocks alone, the others shared
+        n_shared = 0 if own == L else n_groups
+        # every shared group observed by two local blocks at least
+        local_group = np.r_[np.arange(own), own + np.arange(L - own) % max(n_shared, 1)]
+        n_groups = own + n_shared
     if shared:
         g = n_groups * (gl - 1) + 1
         own = 1 + local_group[:, None] * (gl - 1) + np.arange(gl - 1)[None, :]
@@ -43,6 +61,8 @@ def _problem(
         local_free[0, :] = False
         local_free[2, 1] = False
         global_free[1] = False
+    if hold is not None:  # position ``hold`` of every group's columns held
+        global_free[np.unique(local_global[:, hold])] = False
     li = np.zeros((L, b, b))
     lg = np.zeros((L, b))
     Jl = rng.standard_normal((L, 3, b))
@@ -68,6 +88,7 @@ def _problem(
         global_free,
         backend="superlu",
         global_coupling=coupling,
+        own_groups=own_groups,
     )
     # dense
     nc = L * b + g
@@ -172,3 +193,156 @@ def test_damped_step_equals_dense_marquardt(coupling):
     Nf = Nd[np.ix_(free, free)]
     x[free] = np.linalg.solve(Nf, -grad[free])
     np.testing.assert_allclose(np.r_[dc, dp.ravel()], x, rtol=1e-9, atol=1e-11)
+
+
+@pytest.mark.parametrize(
+    "seed,dense_inverse,coupling,own,n_groups,hold",
+    [
+        (10, True, "auto", 7, 0, None),  # a group per local block: no global parameter left
+        (11, False, "auto", 7, 0, None),
+        (12, True, "dense", 4, 1, None),  # mixed: own groups and one shared by three blocks
+        (13, False, "sparse", 3, 2, None),
+        (14, False, "dense", 5, 1, None),
+        # a parameter held in every group: left out of the folded system
+        (15, True, "auto", 7, 0, 2),
+        (16, False, "sparse", 3, 2, 0),
+    ],
+)
+def test_own_groups_held_locally_equal_the_dense_solution(
+    seed, dense_inverse, coupling, own, n_groups, hold, monkeypatch
+):
+    """The groups of single local blocks held as their local unknowns: the step in the
+    unfolded unknowns, the factor's solves, the blocks of the inverse (those of the
+    global parameters by global_block / local_global_block), point covariances and
+    observation cofactors equal those of the dense normal equations."""
+    import photogeom.adjust.sparse as sparse
+
+    if not dense_inverse:
+        monkeypatch.setattr(sparse, "DENSE_INVERSE_MAX", 0)
+    L = 7
+    sysm, lin, N, grad, free, J = _problem(
+        seed, L=L, n_groups=n_groups, own=own, own_groups="local", coupling=coupling, hold=hold
+    )
+    assert sysm.inner is not None
+    assert sysm.inner.b == sysm.b + sysm.gl - (hold is not None)
+    n_shared_cols = sysm.n_global - own * sysm.gl
+    assert sysm.inner.n_global == (n_shared_cols + 1 if own < L else 0)
+    ne = sysm.normal_equations(lin)
+    dc, dp, F = ne.solve()
+    Nf = N[np.ix_(free, free)]
+    x = np.zeros(N.shape[0])
+    x[free] = np.linalg.solve(Nf, -grad[free])
+    nc, b = sysm.nc, sysm.b
+    np.testing.assert_allclose(dc, x[:nc], rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(dp.ravel(), x[nc:], rtol=1e-9, atol=1e-11)
+    Q = np.zeros_like(N)
+    Q[np.ix_(free, free)] = np.linalg.inv(Nf)
+    # the factor in the unfolded unknowns: its inverse is Q's camera-side block
+    cf = free[:nc]
+    E = np.eye(nc)[:, cf]
+    np.testing.assert_allclose(F.solve(E)[cf], Q[:nc, :nc][np.ix_(cf, cf)], atol=1e-10)
+    np.testing.assert_allclose(
+        F.inverse_diagonal(np.flatnonzero(cf)), np.diag(Q)[:nc][cf], rtol=1e-9
+    )
+    np.testing.assert_allclose(
+        F.inverse_gram(E), Q[:nc, :nc][np.ix_(cf, cf)], rtol=1e-9, atol=1e-10
+    )
+    cb = covariance_blocks(ne, F, pairs=True, batch_columns=7)
+    for l_ in range(L):
+        np.testing.assert_allclose(
+            cb.local[l_], Q[l_ * b : l_ * b + b, l_ * b : l_ * b + b], atol=1e-10
+        )
+    for k, (l1, l2) in enumerate(sysm.blocks):
+        np.testing.assert_allclose(
+            cb.pairs[k], Q[l1 * b : l1 * b + b, l2 * b : l2 * b + b], atol=1e-10
+        )
+    g = np.arange(sysm.n_global)
+    # every pair of local blocks shares a point here: all global blocks are at hand
+    assert len(sysm.blocks) == L * (L - 1) // 2
+    np.testing.assert_allclose(cb.global_block(g, g), Q[L * b : nc, L * b : nc], atol=1e-10)
+    for l_ in range(L):
+        np.testing.assert_allclose(
+            cb.local_global_block(l_, g), Q[l_ * b : l_ * b + b, L * b : nc], atol=1e-10
+        )
+    Qpp = point_covariances(ne, cb)
+    for j in range(sysm.n_points):
+        np.testing.assert_allclose(
+            Qpp[j],
+            Q[nc + 3 * j : nc + 3 * j + 3, nc + 3 * j : nc + 3 * j + 3],
+            rtol=1e-9,
+            atol=1e-10,
+        )
+    C = observation_cofactors(ne, cb, Qpp)
+    JQJ = J @ Q @ J.T
+    for k in range(sysm.n):
+        np.testing.assert_allclose(
+            C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
+        )
+    # damped: the Marquardt step of the dense system
+    lam = 0.3
+    ne = sysm.normal_equations(lin, damping=lam)
+    dc, dp, _ = ne.solve()
+    Nd = N.copy()
+    Nd[np.diag_indices_from(Nd)] *= 1 + lam
+    x = np.zeros(N.shape[0])
+    x[free] = np.linalg.solve(Nd[np.ix_(free, free)], -grad[free])
+    np.testing.assert_allclose(np.r_[dc, dp.ravel()], x, rtol=1e-9, atol=1e-11)
+    pred = ne.predicted_decrease(dc, dp, lam)
+    ref = -(grad[free] @ x[free]) + lam * np.sum(np.diag(N)[free] * x[free] ** 2)
+    assert pred == pytest.approx(ref, rel=1e-9)
+
+
+def test_own_groups_far_apart_take_a_solve():
+    """Two local blocks with groups of their own that share no point: their calibration
+    block is not among the covariance blocks, and global_block says so."""
+    rng = np.random.default_rng(3)
+    L, b, gl = 4, 2, 2
+    # a chain: 0-1, 1-2, 2-3 share points, 0 and 3 none
+    loc = np.array([0, 1, 1, 2, 2, 3, 0, 1, 1, 2, 0, 1, 2, 3])
+    pt = np.array([0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6])
+    n = loc.size
+    lg = np.arange(L * gl).reshape(L, gl)
+    sysm = SchurSystem(
+        L,
+        b,
+        L * gl,
+        7,
+        loc,
+        pt,
+        lg,
+        np.ones((L, b), bool),
+        np.ones(L * gl, bool),
+        own_groups="local",
+    )
+    lin = Linearization(
+        rng.standard_normal((n, 2)),
+        rng.standard_normal((n, 2, b)),
+        rng.standard_normal((n, 2, gl)),
+        rng.standard_normal((n, 2, 3)),
+        np.tile(np.eye(b), (L, 1, 1)),
+        np.zeros((L, b)),
+        np.zeros((7, 3, 3)),
+        np.zeros((7, 3)),
+        np.eye(L * gl),
+        np.zeros(L * gl),
+        0.0,
+    )
+    ne = sysm.normal_equations(lin)
+    F = ne.factor()
+    cb = covariance_blocks(ne, F, pairs=True)
+    assert not np.any((sysm.blocks[:, 0] == 0) & (sysm.blocks[:, 1] == 3))
+    with pytest.raises(LookupError, match="solve with the factor"):
+        cb.global_block(np.array([0]), np.array([3 * gl]))
+    # blocks at hand agree with the solves
+    cols = np.arange(2 * gl)  # groups of local blocks 0 and 1 (they share points)
+    ref = F.solve(np.eye(sysm.nc)[:, L * b + cols])[L * b + cols]
+    np.testing.assert_allclose(cb.global_block(cols, cols), ref, atol=1e-12)
+
+
+def test_a_prior_coupling_an_own_group_with_others_is_refused():
+    sysm, lin, *_ = _problem(3, L=7, n_groups=1, own=4, own_groups="local")
+    gi = lin.global_info.copy()
+    gi[0, -1] = gi[-1, 0] = 0.1  # an own group's column with a shared one
+    lin.global_info = gi
+    with pytest.raises(ValueError, match="own_groups='global'"):
+        sysm.normal_equations(lin)

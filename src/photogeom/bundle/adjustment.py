@@ -15,9 +15,10 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..adjust.levenberg import levenberg_marquardt_loop
-from ..adjust.schur import Linearization, SchurSystem, weak_point_blocks
+from ..adjust.schur import Linearization, SchurSystem, folded_locals, weak_point_blocks
 from ..camera.frame_kernel import (
     opk_from_increment_jacobian,
     project_rows,
@@ -50,31 +51,35 @@ def memory_limit() -> float:
 
 
 def dense_global_bytes(n_groups: int, n_images: int, b: int) -> float:
-    """Bytes of the arrays of an adjustment held densely over all calibration parameters
-    (11 per camera group, held ones included): the blocks of the reduced camera system that
-    couple the images with the calibration parameters (images x b x parameters) and the
-    calibration parameters with each other (parameters x parameters), their covariance
-    blocks and the inverse of the reduced system (or, when it is solved for, its columns of
-    the calibration parameters).
+    """Bytes of the arrays of an adjustment held densely over the calibration parameters
+    of its global camera groups (11 per group, held ones included): the blocks of the
+    reduced camera system that couple the images with those parameters (images x b x
+    parameters) and the parameters with each other (parameters x parameters), their
+    covariance blocks and the inverse of the reduced system (or, when it is solved for,
+    its columns of those parameters).
 
-    The coupling of the points and observations with the calibration is held per point and
-    camera group observing it (linear in the observations), so the points and observations
-    do not enter.
+    A camera group observed by one image only is held in that image's unknowns
+    (:func:`photogeom.adjust.schur.folded_locals`; ``b`` then counts its parameters):
+    it is not a global group and does not enter ``n_groups``. The coupling of the points
+    and observations with the calibration is held per point and camera group observing it
+    (linear in the observations), so the points and observations do not enter.
 
     Parameters
     ----------
     n_groups : int
-        Camera groups (``NCAL`` calibration parameters each).
+        Global camera groups (``NCAL`` calibration parameters each).
     n_images : int
         Images (local blocks of the reduced system).
     b : int
-        Parameters per image (6, or 9 with image-variant ones).
+        Unknowns per image (6, 9 with image-variant ones, ``NCAL`` more with the camera
+        groups of single images held in them).
 
     Returns
     -------
     float
-        Bytes: 0.5 GB for 250 images with a camera group each (the 250-image study block as
-        BAL, whose whole adjustment peaks at 1.5 GB), 36 GB for 2000.
+        Bytes: 0.5 GB for 250 images and 250 global camera groups, 36 GB for 2000 and
+        2000 (camera groups shared by pairs of images, say; a camera group per image, as
+        a BAL file gives, has none).
     """
     from ..adjust.sparse import DENSE_INVERSE_MAX
 
@@ -87,23 +92,24 @@ def dense_global_bytes(n_groups: int, n_images: int, b: int) -> float:
 
 
 def _check_dense_global_memory(n_groups: int, n_images: int, b: int):
-    """Refuse, before any work, an adjustment whose camera groups would need more memory
-    than :func:`memory_limit` (the arrays grow with the square of the camera groups: 0.5 GB
-    for 250 images with a camera group each, as a BAL file gives, 36 GB for 2000)."""
+    """Refuse, before any work, an adjustment whose global camera groups would need more
+    memory than :func:`memory_limit` (the arrays grow with the square of those groups: 0.5
+    GB for 250 images with 250 such groups, 36 GB for 2000)."""
     need = dense_global_bytes(n_groups, n_images, b)
     limit = memory_limit()
     if need <= limit:
         return
     raise InputError(
-        f"the block's {n_groups} camera groups hold {n_groups * NCAL} calibration "
-        f"parameters, which the adjustment couples with each other and with each of its "
-        f"{n_images} images: about {need / 1e9:.1f} GB of memory, more than the "
-        f"{limit / 1e9:.1f} GB allowed (half of this machine's memory). The memory grows "
-        "with the square of the camera groups, held calibration parameters included: give "
-        "the images taken with one camera one camera group (a BAL file gives every image "
-        "its own: convert it to a CSV block and set the camera column of images.csv; a "
-        "Bundler file: read it with group_cameras=True, --group-cameras on the command "
-        "line), or adjust the block in parts"
+        f"the block's {n_groups} camera groups observed by more than one image hold "
+        f"{n_groups * NCAL} calibration parameters, which the adjustment couples with each "
+        f"other and with each of its {n_images} images: about {need / 1e9:.1f} GB of "
+        f"memory, more than the {limit / 1e9:.1f} GB allowed (half of this machine's "
+        "memory). The memory grows with the square of these camera groups, held "
+        "calibration parameters included (a camera group of a single image is held with "
+        "that image and costs nothing of it): give the images taken with one camera one "
+        "camera group (in a CSV block the camera column of images.csv; a Bundler file: "
+        "read it with group_cameras=True, --group-cameras on the command line), or adjust "
+        "the block in parts"
     )
 
 
@@ -177,7 +183,10 @@ class Problem:
         self.free_datum: tuple[int, int, int] | None = None
         if options.datum == "free":
             self._free_datum()
-        _check_dense_global_memory(ng, m, self.b)
+        # camera groups of single images are held in their images' unknowns
+        folded = folded_locals(self.local_global, ng * NCAL)
+        b_sys = self.b + NCAL if np.any(folded) else self.b
+        _check_dense_global_memory(ng - int(folded.sum()), m, b_sys)
         self.sys = SchurSystem(
             m,
             self.b,
@@ -557,7 +566,7 @@ class Problem:
             lg,
             pi,
             pg,
-            np.zeros((ng, ng)),
+            sp.csr_matrix((ng, ng)),  # no prior on the calibrations
             np.zeros(ng),
             float(np.einsum("nd,nd->", r, r)) + pcost,
         )

@@ -987,7 +987,10 @@ def check_point_covariance(
         pairs = problem.sys.blocks
         pair_index = {(int(a), int(c)): t for t, (a, c) in enumerate(pairs.tolist())}
     for j, (ims, gs, cols, B) in enumerate(terms):  # over the (few) check points
-        Qs = _camera_cofactors(problem, blocks, pair_index, ims, gs)
+        try:
+            Qs = _camera_cofactors(problem, blocks, pair_index, ims, gs)
+        except LookupError:  # calibrations held in images that share no point
+            Qs = None
         if Qs is None:  # an image pair without a common point: its block by a solve
             E = np.zeros((problem.sys.nc, cols.size))
             E[cols, np.arange(cols.size)] = 1.0
@@ -1066,7 +1069,8 @@ def free_check_point_covariance(
 def _camera_cofactors(problem: Problem, blocks, pair_index, ims, gs) -> np.ndarray | None:
     """``Q_cc`` of images ``ims`` (their local unknowns) and camera groups ``gs`` (their
     calibrations), in that order, from the covariance blocks; None when a pair of the
-    images has no block (they share no adjusted point) or there are no blocks."""
+    images has no block (they share no adjusted point) or there are no blocks (a
+    LookupError where the calibration of such an image is held in its local block)."""
     if pair_index is None:
         return None
     b = problem.b
@@ -1077,7 +1081,7 @@ def _camera_cofactors(problem: Problem, blocks, pair_index, ims, gs) -> np.ndarr
     for a in range(ni):  # over the few images of one check point
         sa = slice(a * b, (a + 1) * b)
         Qs[sa, sa] = blocks.local[ims[a]]
-        Qs[sa, ni * b :] = blocks.local_global[ims[a]][:, gcols]
+        Qs[sa, ni * b :] = blocks.local_global_block(ims[a], gcols)
         for c in range(a + 1, ni):
             t = pair_index.get((int(ims[a]), int(ims[c])))
             if t is None:
@@ -1086,7 +1090,7 @@ def _camera_cofactors(problem: Problem, blocks, pair_index, ims, gs) -> np.ndarr
             Qs[sa, sc] = blocks.pairs[t]
             Qs[sc, sa] = blocks.pairs[t].T
     Qs[ni * b :, : ni * b] = Qs[: ni * b, ni * b :].T
-    Qs[ni * b :, ni * b :] = blocks.global_[np.ix_(gcols, gcols)]
+    Qs[ni * b :, ni * b :] = blocks.global_block(gcols, gcols)
     return Qs
 
 
@@ -1203,7 +1207,8 @@ def build_result(
     for gi, gid in enumerate(block.camera_ids.tolist()):
         sl = slice(gi * NCAL, (gi + 1) * NCAL)
         free = problem.global_free[sl]
-        Qg = Q.global_[sl, sl]
+        gcols = np.arange(sl.start, sl.stop)
+        Qg = Q.global_block(gcols, gcols)
         calib[gid] = {n: float(state.cal[gi, k]) for k, n in enumerate(CALIBRATION_NAMES)}
         std = np.sqrt(np.clip(np.diag(Qg) * var, 0, None))
         cal_std[gid] = {
