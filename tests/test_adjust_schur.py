@@ -165,20 +165,7 @@ def test_step_and_covariances_equal_the_dense_solution(
             cb.pairs[k], Q[l1 * b : l1 * b + b, l2 * b : l2 * b + b], atol=1e-10
         )
     np.testing.assert_allclose(cb.global_, Q[L * b : nc, L * b : nc], atol=1e-10)
-    Qpp = point_covariances(ne, cb)
-    for j in range(sysm.n_points):
-        np.testing.assert_allclose(
-            Qpp[j],
-            Q[nc + 3 * j : nc + 3 * j + 3, nc + 3 * j : nc + 3 * j + 3],
-            rtol=1e-9,
-            atol=1e-10,
-        )
-    C = observation_cofactors(ne, cb, Qpp)
-    JQJ = J @ Q @ J.T
-    for k in range(sysm.n):
-        np.testing.assert_allclose(
-            C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
-        )
+    _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc)
 
 
 @pytest.mark.parametrize("coupling", ["dense", "sparse"])
@@ -264,20 +251,7 @@ def test_own_groups_held_locally_equal_the_dense_solution(
         np.testing.assert_allclose(
             cb.local_global_block(l_, g), Q[l_ * b : l_ * b + b, L * b : nc], atol=1e-10
         )
-    Qpp = point_covariances(ne, cb)
-    for j in range(sysm.n_points):
-        np.testing.assert_allclose(
-            Qpp[j],
-            Q[nc + 3 * j : nc + 3 * j + 3, nc + 3 * j : nc + 3 * j + 3],
-            rtol=1e-9,
-            atol=1e-10,
-        )
-    C = observation_cofactors(ne, cb, Qpp)
-    JQJ = J @ Q @ J.T
-    for k in range(sysm.n):
-        np.testing.assert_allclose(
-            C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
-        )
+    _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc)
     # damped: the Marquardt step of the dense system
     lam = 0.3
     ne = sysm.normal_equations(lin, damping=lam)
@@ -346,3 +320,23 @@ def test_a_prior_coupling_an_own_group_with_others_is_refused():
     lin.global_info = gi
     with pytest.raises(ValueError, match="own_groups='global'"):
         sysm.normal_equations(lin)
+
+
+def _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc):
+    """The points' covariance blocks and the observations' cofactors from the covariance
+    blocks ``cb`` equal those of the dense inverse ``Q`` (points after the ``nc`` camera
+    unknowns) and the dense ``J Q J'``."""
+    Qpp = point_covariances(ne, cb)
+    for j in range(sysm.n_points):
+        np.testing.assert_allclose(
+            Qpp[j],
+            Q[nc + 3 * j : nc + 3 * j + 3, nc + 3 * j : nc + 3 * j + 3],
+            rtol=1e-9,
+            atol=1e-10,
+        )
+    C = observation_cofactors(ne, cb, Qpp)
+    JQJ = J @ Q @ J.T
+    for k in range(sysm.n):
+        np.testing.assert_allclose(
+            C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
+        )

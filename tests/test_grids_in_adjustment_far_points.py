@@ -2,30 +2,25 @@
 point-only steps, as the bundle adjustment does: from two-ray tie points started 170-220 m
 off it reaches the minimum of the good start in about as many iterations."""
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-import photogeom as pg
 from photogeom.calibration import adjust_with_grids
+
+sys.path.insert(0, str(Path(__file__).parent / "bundle"))
+from blocks import far_point_block
 
 
 @pytest.fixture(scope="module")
 def blocks():
     """The simulated block and the block with 20 of its two-ray tie points moved to 1.6
     times their distance from their first image's centre (as in the bundle's test)."""
-    sim = pg.simulate.uav_block(
-        "ILCE-7RM2", seed=1, strips=3, images_per_strip=7, tie_points_per_image=200
-    )
-    b = sim.block
-    rays = np.bincount(b.obs_point, minlength=b.n_points)
-    two = np.flatnonzero((b.role == "tie") & (rays == 2))
-    moved = two[:: two.size // 20][:20]
-    first = np.array([np.flatnonzero(b.obs_point == j)[0] for j in moved])
-    C = b.exterior[b.obs_image[first], :3]
-    xyz = b.xyz.copy()
-    xyz[moved] = C + 1.6 * (xyz[moved] - C)
-    assert np.linalg.norm(xyz[moved] - b.xyz[moved], axis=1).min() > 150.0
-    return b, b.replace(xyz=xyz)
+    b, far, moved = far_point_block()
+    assert np.linalg.norm(far.xyz[moved] - b.xyz[moved], axis=1).min() > 150.0
+    return b, far
 
 
 def test_far_two_ray_points_reach_the_same_minimum_as_fast(blocks):

@@ -125,3 +125,25 @@ def perturbed(truth: Block, seed=1, pos=2.0, ang=0.02, cal_rel=0.05, pt=1.0):
         c, f=c.f * (1 + cal_rel), cx=c.cx + 5, cy=c.cy - 5, k1=0.0, k2=0.0, k3=0.0, p1=0.0, p2=0.0
     )
     return truth.replace(exterior=ext, xyz=xyz, calibrations=(c0,))
+
+
+def far_point_block(n_moved: int = 20, factor: float = 1.6):
+    """The simulated ILCE-7RM2 block (seed 1, 3 x 7 images, 200 tie points per image) and
+    the same block with ``n_moved`` of its two-ray tie points moved to ``factor`` times
+    their distance from their first image's centre (170-220 m along their first ray at
+    the defaults, as nearly parallel rays of a GNSS/IMU start triangulate them), and the
+    moved points' indices."""
+    import photogeom as pg
+
+    sim = pg.simulate.uav_block(
+        "ILCE-7RM2", seed=1, strips=3, images_per_strip=7, tie_points_per_image=200
+    )
+    b = sim.block
+    rays = np.bincount(b.obs_point, minlength=b.n_points)
+    two = np.flatnonzero((b.role == "tie") & (rays == 2))
+    moved = two[:: two.size // n_moved][:n_moved]
+    first = np.array([np.flatnonzero(b.obs_point == j)[0] for j in moved])
+    C = b.exterior[b.obs_image[first], :3]
+    xyz = b.xyz.copy()
+    xyz[moved] = C + factor * (xyz[moved] - C)
+    return b, b.replace(xyz=xyz), moved

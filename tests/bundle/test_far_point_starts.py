@@ -3,6 +3,9 @@ nearly parallel rays of a GNSS/IMU start triangulate them: up to 330 m on the 25
 ILCE-7RM2 block with 3000 tie points per image) do not hold back the adjustment: it
 reaches the minimum of the block with good point starts, in as many iterations."""
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -10,25 +13,18 @@ import photogeom as pg
 from photogeom.bundle.adjustment import Problem
 from photogeom.bundle.options import BundleOptions
 
+sys.path.insert(0, str(Path(__file__).parent))
+from blocks import far_point_block
+
 
 @pytest.fixture(scope="module")
 def blocks():
     """The simulated block, its adjustment, and the block with 20 of its two-ray tie points
     moved to 1.6 times their distance from their first image's centre (170-220 m along
     their first ray)."""
-    sim = pg.simulate.uav_block(
-        "ILCE-7RM2", seed=1, strips=3, images_per_strip=7, tie_points_per_image=200
-    )
-    b = sim.block
-    rays = np.bincount(b.obs_point, minlength=b.n_points)
-    two = np.flatnonzero((b.role == "tie") & (rays == 2))
-    moved = two[:: two.size // 20][:20]
-    first = np.array([np.flatnonzero(b.obs_point == j)[0] for j in moved])
-    C = b.exterior[b.obs_image[first], :3]
-    xyz = b.xyz.copy()
-    xyz[moved] = C + 1.6 * (xyz[moved] - C)
-    assert np.linalg.norm(xyz[moved] - b.xyz[moved], axis=1).min() > 150.0
-    return b, pg.bundle_adjust(b), b.replace(xyz=xyz), moved
+    b, far, moved = far_point_block()
+    assert np.linalg.norm(far.xyz[moved] - b.xyz[moved], axis=1).min() > 150.0
+    return b, pg.bundle_adjust(b), far, moved
 
 
 def test_far_two_ray_points_reach_the_same_minimum_as_fast(blocks):
