@@ -23,7 +23,7 @@ def block():
 
 
 def test_a_grid_too_fine_for_the_memory_is_refused(block, monkeypatch):
-    monkeypatch.setattr(ia, "_physical_memory", lambda: 2**30)  # a 1 GiB machine
+    monkeypatch.setattr(ia, "physical_memory", lambda: 2**30)  # a 1 GiB machine
     layout = pg.calibration.GridLayout(4000, 3000, 50)
     need = ia.BYTES_PER_DATUM_ENTRY * block.n_images * (2.0 * layout.n_nodes) ** 2
     assert need > 2**30  # 6 grids of 81 x 61 nodes: about 65 GiB
@@ -56,7 +56,7 @@ def test_with_an_amplitude_the_datum_adds_no_dense_block(block, monkeypatch):
     assert N.nnz < 0.2 * dense
     # and the memory of dense blocks is not what limits such grids: 50 px on a "1 GiB
     # machine" (dense blocks: 65 GiB) is set up without a refusal
-    monkeypatch.setattr(ia, "_physical_memory", lambda: 2**30)
+    monkeypatch.setattr(ia, "physical_memory", lambda: 2**30)
     gp = _problem(block, 50.0, 0.5)
     assert gp.U.shape == (gp.n_grid, 4 * block.n_images)
 
@@ -93,9 +93,9 @@ def test_the_low_rank_solve_equals_a_dense_solve_of_the_full_system(block, kw):
 
 
 def test_the_estimate_is_of_every_grid_and_coarse_grids_pass(monkeypatch):
-    monkeypatch.setattr(ia, "_physical_memory", lambda: 10**9)
+    monkeypatch.setattr(ia, "physical_memory", lambda: 10**9)
     ia._check_memory(np.array([63] * 16), 500.0)  # 16 images at 500 px: 16 MB
     with pytest.raises(InputError, match="16 grid"):
         ia._check_memory(np.array([1271] * 16), 100.0)  # 16 x 2542^2 x 120 B: 12.4 GB
-    monkeypatch.setattr(ia, "_physical_memory", lambda: None)  # unknown memory: no guard
+    monkeypatch.setattr(ia, "physical_memory", lambda: None)  # unknown memory: no guard
     ia._check_memory(np.array([10**6]), 1.0)

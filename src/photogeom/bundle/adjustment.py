@@ -42,12 +42,10 @@ def memory_limit() -> float:
     float
         Bytes.
     """
-    import os
+    from ..machine import physical_memory
 
-    try:
-        return 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):  # pragma: no cover - not POSIX
-        return math.inf
+    total = physical_memory()
+    return math.inf if total is None else 0.5 * total
 
 
 def dense_global_bytes(n_groups: int, n_images: int, b: int) -> float:

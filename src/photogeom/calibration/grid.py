@@ -1078,13 +1078,15 @@ KEPT_BYTES_PER_UNKNOWN = 900.0
 def kept_factor_limit() -> float:
     """Bytes the factors kept with fitted grids may take together: an eighth of the
     machine's physical memory (a quarter of
-    :func:`photogeom.bundle.adjustment.memory_limit`). Grids fitted beyond it keep none;
+    :func:`photogeom.bundle.adjustment.memory_limit`; ``inf`` where the system does not
+    say). Grids fitted beyond it keep none;
     the chain of :func:`~photogeom.calibration.readjust` factorises those again (the same
     numbers, more time). Without the limit, 250 grids at 100 px held 0.9 GB, and the fit of
     a 2000-image block would hold 7.6 GB, as long as the grids live."""
-    from ..bundle.adjustment import memory_limit
+    from ..machine import physical_memory
 
-    return 0.25 * memory_limit()
+    total = physical_memory()
+    return math.inf if total is None else 0.125 * total
 
 
 def _factor_bytes(system: FiniteElementSystem) -> float:

@@ -53,7 +53,6 @@ grids belong to the post-processing.
 from __future__ import annotations
 
 import math
-import os
 import time
 import weakref
 from dataclasses import dataclass, field
@@ -70,6 +69,7 @@ from ..bundle.block import Block
 from ..bundle.options import BundleOptions
 from ..camera.frame_kernel import project_rows
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
+from ..machine import physical_memory
 from .grid import (
     BORDERS,
     GridLayout,
@@ -533,20 +533,12 @@ def _free_field_dims(L: GridLayout, D: np.ndarray, border: str) -> int:
 BYTES_PER_DATUM_ENTRY = 120
 
 
-def _physical_memory() -> int | None:
-    """This machine's memory (bytes), None when the system does not say."""
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
-    except (AttributeError, OSError, ValueError):
-        return None
-
-
 def _check_memory(nodes: np.ndarray, spacing: float) -> None:
     """Refuse grids without an amplitude whose dense datum blocks would need more memory
     than the machine has (before: numpy's "Unable to allocate 27.5 GiB" at 20 px, or
     minutes of swapping). With an amplitude the datum is a low-rank term: no dense block."""
     need = BYTES_PER_DATUM_ENTRY * float(np.sum((2.0 * nodes) ** 2))
-    have = _physical_memory()
+    have = physical_memory()
     if have is None or need <= have:
         return
     raise InputError(
