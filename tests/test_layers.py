@@ -19,9 +19,10 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "photogeom"
 pytestmark = pytest.mark.skipif(not SRC.is_dir(), reason="src/photogeom is not beside the tests")
 
 LAYERS = (
-    # the base: errors, checks and records, units, rotations, image coordinates, CRSs
+    # the base: errors, checks and records, units, rotations, image coordinates, CRSs, the
+    # machine
     ("errors", "validation", "records", "numbers", "units", "rotation", "imagecoords",
-     "xmlsafe", "atomicfile", "_pipe_scope", "crs"),
+     "xmlsafe", "atomicfile", "_pipe_scope", "crs", "machine"),
     ("transforms",),
     ("adjust",),
     ("estimation", "orientation", "camera", "rpc"),
