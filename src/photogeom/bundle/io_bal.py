@@ -367,6 +367,11 @@ def refuse_extras(block: Block, fmt: str) -> None:
         )
 
 
+#: Calibration terms the camera of BAL and Bundler files cannot hold (it has f, k1, k2; the
+#: principal point is held through the observations, measured from it).
+TERMS_NOT_HELD = ("k3", "k4", "p1", "p2", "b1", "b2")
+
+
 def centred_cameras(
     block: Block, fmt: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -392,7 +397,7 @@ def centred_cameras(
         Non-zero K3, K4, P1, P2, B1 or B2 (the format's camera has f, k1, k2 only).
     """
     C = block.calibration_matrix()
-    names = ("k3", "k4", "p1", "p2", "b1", "b2")
+    names = TERMS_NOT_HELD
     idx = [CALIBRATION_NAMES.index(nm) for nm in names]
     extra = C[:, idx]
     bad = np.any(extra != 0, axis=1)

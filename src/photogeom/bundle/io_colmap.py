@@ -104,6 +104,8 @@ MODEL_FREE: dict[str, tuple[str, ...]] = {
     "OPENCV": ("f", "b1", "k1", "k2", "p1", "p2"),
     "FULL_OPENCV": ("f", "b1", "k1", "k2", "k3", "p1", "p2"),
 }
+#: Calibration terms no COLMAP camera model holds (Metashape's r^8 radial term and shear).
+TERMS_NOT_HELD = ("k4", "b2")
 _FLIP = np.diag([1.0, -1.0, -1.0])
 _UINT32_MAX = 2**32 - 1
 _ID_RANGE = "(camera and image ids are 32-bit: 0 to 4294967294)"
@@ -234,7 +236,7 @@ def colmap_model_for(c: MetashapeCalibration, free: tuple[str, ...] = ()) -> str
     model it came from. Raises :class:`InputError` for non-zero K4 or B2.
     """
     nz = _nonzero(c)
-    bad = sorted(nz & {"k4", "b2"})
+    bad = sorted(nz & set(TERMS_NOT_HELD))
     if bad:
         raise InputError(
             f"{', '.join(n.upper() for n in bad)} = "
@@ -242,7 +244,7 @@ def colmap_model_for(c: MetashapeCalibration, free: tuple[str, ...] = ()) -> str
             "Metashape's r^8 radial term (K4) or its shear (B2); the calibration cannot be "
             "written exactly"
         )
-    want = nz | (set(free) - {"cx", "cy", "k4", "b2"})
+    want = nz | (set(free) - {"cx", "cy", *TERMS_NOT_HELD})
     for model, names in MODEL_FREE.items():
         if want <= set(names):
             return model

@@ -819,10 +819,6 @@ def _csv(header: list[str], columns: list[list[str]], comments: list[str] = ()) 
     return "\n".join(lines) + "\n"
 
 
-#: Characters that end a line for the reader (``str.splitlines``), and NUL (binary files).
-_NO_ID_CHARS = NO_NAME_CHARS  # one definition for every block writer
-
-
 def _id_cells(ids: np.ndarray, what: str) -> list[str]:
     """The cells of an id column: integers as they are; text quoted (inner quotes doubled)
     when the reader would otherwise change it: leading or trailing white space, a leading
@@ -837,7 +833,7 @@ def _id_cells(ids: np.ndarray, what: str) -> list[str]:
     if ids.dtype.kind in "iu":
         return cells
     for k, c in enumerate(cells):
-        bad = _NO_ID_CHARS.search(c)
+        bad = NO_NAME_CHARS.search(c)
         if not c or bad is not None:
             why = "is empty" if not c else f"holds the character {bad.group()!r}"
             raise OutputError(

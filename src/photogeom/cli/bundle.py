@@ -1205,25 +1205,16 @@ def _refuse_opencv_terms(
     )
 
 
-#: Calibration terms each block format's camera cannot hold (BAL and Bundler: f, k1, k2 and,
-#: through the observations, the principal point; COLMAP: every term but K4 and B2).
-_FORMAT_MISSING_TERMS = {
-    "bal": ("k3", "k4", "p1", "p2", "b1", "b2"),
-    "bundler": ("k3", "k4", "p1", "p2", "b1", "b2"),
-    "colmap": ("k4", "b2"),
-    "colmap-bin": ("k4", "b2"),
-}
-
-
 def _refuse_output_terms(block, free: tuple[str, ...] | None, path: Path, fmt: str) -> None:
     """Refuse, before the adjustment, an ``--output`` block file whose format's camera
     cannot hold terms the block's calibration has (or will estimate): the writer would
     refuse it after the adjustment."""
-    from ..bundle import CALIBRATION_NAMES
+    from ..bundle import CALIBRATION_NAMES, io_bal, io_colmap
 
-    missing = _FORMAT_MISSING_TERMS.get(fmt)
-    if not missing:
+    if fmt == "csv":
         return
+    # the writers' own lists: BAL and Bundler share the camera of io_bal.centred_cameras
+    missing = io_colmap.TERMS_NOT_HELD if fmt.startswith("colmap") else io_bal.TERMS_NOT_HELD
     keep = [n for n in CALIBRATION_NAMES if n not in missing]
     name = {"bal": "a BAL file", "bundler": "a Bundler file"}.get(fmt, "a COLMAP model")
     _refuse_terms(
