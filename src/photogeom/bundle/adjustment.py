@@ -671,8 +671,7 @@ class Problem:
         pr = self._project_points(s, X[jr], rows, True)
         sw = np.sqrt(self.robust_weights(e2[rows])) / self.sigma_obs()[rows]
         P = pr.d_point * sw[:, None, None]
-        N = _sum_by(jr, np.einsum("nai,naj->nij", P, P).reshape(-1, 9), k)
-        return weak_point_blocks(N.reshape(k, 3, 3))
+        return weak_point_blocks(_point_normals(jr, P, k))
 
     def _point_steps(
         self,
@@ -706,7 +705,7 @@ class Problem:
             sw = np.sqrt(w) / sig
             r = (pr.uv - uv) * sw[:, None]
             P = pr.d_point * sw[:, None, None]
-            N = _sum_by(jr, np.einsum("nai,naj->nij", P, P).reshape(-1, 9), k).reshape(k, 3, 3)
+            N = _point_normals(jr, P, k)
             g = _sum_by(jr, np.einsum("nai,na->ni", P, r), k)
             d = np.einsum("kii->ki", N)
             N[:, [0, 1, 2], [0, 1, 2]] += mu[:, None] * np.maximum(d, 1e-12 * d.max(initial=1))
@@ -720,9 +719,8 @@ class Problem:
             ct = np.bincount(jr, weights=self.robust_rows(e2t), minlength=k)
             behind = np.bincount(jr, weights=~((pt.depth > 0) & (pt.depth <= cap)), minlength=k) > 0
             Pt = pt.d_point * sw[:, None, None]
-            Nt = _sum_by(jr, np.einsum("nai,naj->nij", Pt, Pt).reshape(-1, 9), k)
             # not towards where the rays meet at infinity: the point stays determined
-            weak = weak_point_blocks(Nt.reshape(k, 3, 3))
+            weak = weak_point_blocks(_point_normals(jr, Pt, k))
             ok = active & ~behind & ~weak & (ct < cur)
             gain = np.where(ok, cur - ct, 0.0)
             X = s.X[pts]
@@ -765,6 +763,12 @@ class Problem:
             free=free,
             image_variant=iv,
         )
+
+
+def _point_normals(index: np.ndarray, P: np.ndarray, k: int) -> np.ndarray:
+    """(k, 3, 3) normal blocks ``sum P'P`` of points from the whitened point derivatives
+    ``P`` (n, 2, 3) of image rows, by the rows' point ``index`` (n,) in ``range(k)``."""
+    return _sum_by(index, np.einsum("nai,naj->nij", P, P).reshape(-1, 9), k).reshape(k, 3, 3)
 
 
 def _sum_by(index: np.ndarray, values: np.ndarray, k: int) -> np.ndarray:
