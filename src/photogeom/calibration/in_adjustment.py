@@ -704,44 +704,44 @@ def _solve_by_points(
     coupling to every image of its group kept conjugate gradients from converging in
     ``10 n`` iterations at the Marquardt damping of a converging adjustment.
     """
-    nc = N.shape[0] - npt
-    S, Ncp, Vinv = _reduce_points(N, npt)
-    gc, gp_ = g[:nc], g[nc:]
-    rhs = -gc + Ncp @ (Vinv @ gp_)
-    del gc
-    if backend == "auto" and not HAVE_CHOLMOD and nc <= DENSE_REDUCED_MAX:
-        backend = "dense"
-    low_rank = U is not None and U.shape[1] > 0
-    if low_rank and backend == "cg":  # iterations on the operator: no factor to reuse
-        S = S + U @ U.T
-        low_rank = False
-    S = S.tocsc()
-    F = factorize(
-        S,
-        backend=backend,
-        what="normal equations with residual grids",
-        blocks=blocks if backend == "cg" else None,
-    )
-    del S
-    dc = _woodbury_solve(F, U, rhs) if low_rank else F.solve(rhs)
-    dp = -(Vinv @ (gp_ + Ncp.T @ dc))
-    return np.concatenate([dc, dp])
+    return _ReducedFactor(
+        N, npt, U, "normal equations with residual grids", backend=backend, blocks=blocks
+    ).solve(-g)
 
 
 class _ReducedFactor:
     """``(N + U U')^-1`` for blocks of right-hand sides from one factorisation: the points
-    (the last ``npt`` unknowns, 3x3 blocks) eliminated, the reduced system factorised with
-    ``backend="auto"``, ``U`` (camera-side unknowns x k, None: no such term) by the
-    Woodbury identity with its capacitance matrix factorised once (as
-    :func:`_solve_by_points`)."""
+    (the last ``npt`` unknowns, 3x3 blocks) eliminated, the reduced system factorised by
+    :func:`~photogeom.adjust.sparse.factorize` (``backend``: ``"auto"`` takes the dense
+    factorisation up to :data:`DENSE_REDUCED_MAX` where CHOLMOD is missing), ``U``
+    (camera-side unknowns x k, None: no such term) by the Woodbury identity with its
+    capacitance matrix factorised once, or, with ``backend="cg"`` (no factor to reuse),
+    added to the reduced system (see :func:`_solve_by_points`)."""
 
-    def __init__(self, N: sp.csr_matrix, npt: int, U, what: str) -> None:
+    def __init__(
+        self,
+        N: sp.csr_matrix,
+        npt: int,
+        U,
+        what: str,
+        *,
+        backend: str = "auto",
+        blocks: np.ndarray | None = None,
+    ) -> None:
         self.nc = N.shape[0] - npt
         S, self.Ncp, self.Vinv = _reduce_points(N, npt)
-        self.F = factorize(S.tocsc(), backend="auto", what=what)
-        del S
+        if backend == "auto" and not HAVE_CHOLMOD and self.nc <= DENSE_REDUCED_MAX:
+            backend = "dense"
         self.U = U if U is not None and U.shape[1] else None
+        if self.U is not None and backend == "cg":  # iterations on the operator: no factor
+            S = S + self.U @ self.U.T
+            self.U = None
+        self.F = factorize(
+            S.tocsc(), backend=backend, what=what, blocks=blocks if backend == "cg" else None
+        )
+        del S
         if self.U is not None:
+            # I + W'W >= I: positive definite whenever the factor of S is
             self.C = sla.cho_factor(
                 np.eye(self.U.shape[1]) + self.F.inverse_gram(self.U),
                 lower=True,
@@ -758,14 +758,6 @@ class _ReducedFactor:
             dc = dc - self.F.solve(np.asarray(self.U @ w))
         dp = self.Vinv @ (bp - self.Ncp.T @ dc)
         return np.concatenate([dc, dp])
-
-
-def _woodbury_solve(F, U: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
-    """``(S + U U')^-1 b`` from the factor ``F`` of ``S`` (see :func:`_solve_by_points`)."""
-    # I + W'W >= I: positive definite whenever the factor of S is
-    c = sla.cho_factor(np.eye(U.shape[1]) + F.inverse_gram(U), lower=True, check_finite=False)
-    y = F.solve(b)
-    return y - F.solve(U @ sla.cho_solve(c, U.T @ y, check_finite=False))
 
 
 def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix, backend: str = "auto") -> np.ndarray:
