@@ -20,7 +20,9 @@ with the number and the remedy, in seconds.
 from __future__ import annotations
 
 import math
+import sys
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,6 +33,9 @@ from photogeom.adjust import schur
 from photogeom.bundle import adjustment
 from photogeom.bundle.io_bal import read_bal, write_bal
 from photogeom.errors import InputError
+
+sys.path.insert(0, str(Path(__file__).parent))
+from closeness import assert_close_to_scale as _close
 
 
 def _per_image(tmp_path_factory, name, **kwargs):
@@ -89,15 +94,6 @@ def test_memory_is_linear_in_the_observations(tmp_path_factory, per_image_camera
         tracemalloc.stop()
     assert fit.converged and fit.snooping is not None
     assert peak < 0.6 * dense_coupling
-
-
-def _close(a, b, rtol=1e-8):
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    assert a.shape == b.shape
-    ok = np.isfinite(a)
-    np.testing.assert_array_equal(ok, np.isfinite(b))
-    scale = max(np.max(np.abs(a[ok]), initial=0.0), 1e-300)
-    assert np.max(np.abs(a[ok] - b[ok]), initial=0.0) <= rtol * scale
 
 
 def test_the_sparse_coupling_gives_the_dense_results(per_image_cameras, monkeypatch):

@@ -13,12 +13,18 @@ parameters, held parameters, a robust loss and variance components.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import photogeom as pg
 from photogeom.adjust import schur
 from photogeom.bundle import adjustment
+
+sys.path.insert(0, str(Path(__file__).parent))
+from closeness import assert_close_to_scale as _close
 
 
 def _own_groups(block, which):
@@ -62,15 +68,6 @@ def sim():
     return pg.simulate.uav_block(
         "FC6310", seed=2, strips=2, images_per_strip=6, tie_points_per_image=120
     )
-
-
-def _close(a, b, rtol=1e-8):
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    assert a.shape == b.shape
-    ok = np.isfinite(a)
-    np.testing.assert_array_equal(ok, np.isfinite(b))
-    scale = max(np.max(np.abs(a[ok]), initial=0.0), 1e-300)
-    assert np.max(np.abs(a[ok] - b[ok]), initial=0.0) <= rtol * scale
 
 
 def _image_variant(block):
