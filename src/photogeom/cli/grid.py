@@ -895,18 +895,13 @@ def _fit_block(
     ``exclude`` (ids as text, --exclude) left out. ``where`` receives, per image, ``("point",
     the point id of each of its rows)``."""
 
-    from ..bundle.io_formats import detect_format
     from ..calibration import fit_residual_grids
-
-    kind = detect_format(path)  # a pipe is read once here and kept for the reader
-    if image_size is not None and kind not in ("bal", "bundler"):
-        raise InputError(
-            f"--image-size applies to a residuals CSV, a BAL or a Bundler file; {path} is a block "
-            "whose cameras give the image sizes: leave --image-size out"
-        )
     from .grid_block import read_sized_block
 
-    block, _ = read_sized_block(path, image_size)  # BAL without --image-size: a warning
+    # BAL without --image-size: a warning
+    block, _ = read_sized_block(
+        path, image_size, takes_size="a residuals CSV, a BAL or a Bundler file"
+    )
     seen = np.unique(block.obs_image)
     if seen.size == 1:  # its tie points in one image only: no adjustment of this block
         raise InputError(

@@ -248,7 +248,9 @@ def _source(
     return _Fit(read, bal), None
 
 
-def read_sized_block(path: Path, image_size: str | None) -> tuple[object, bool]:
+def read_sized_block(
+    path: Path, image_size: str | None, takes_size: str = "a BAL or Bundler file"
+) -> tuple[object, bool]:
     """The block at ``path`` (format by content) for the grid commands, and whether it is a
     BAL file read at the size its reader guessed.
 
@@ -259,6 +261,8 @@ def read_sized_block(path: Path, image_size: str | None) -> tuple[object, bool]:
     image_size : str or None
         ``--image-size WIDTHxHEIGHT`` (px): the size of every image of a BAL or Bundler
         file; refused for a format whose cameras give the sizes.
+    takes_size : str
+        What the command's ``--image-size`` applies to, named in that refusal.
 
     Returns
     -------
@@ -277,8 +281,8 @@ def read_sized_block(path: Path, image_size: str | None) -> tuple[object, bool]:
     kind = detect_format(path)  # a pipe is read once here and kept for the reader
     if image_size is not None and kind not in ("bal", "bundler"):
         raise InputError(
-            f"--image-size applies to a BAL or Bundler file; {path} is a block whose cameras "
-            "give the image sizes: leave --image-size out"
+            f"--image-size applies to {takes_size}; {path} is a block whose cameras give "
+            "the image sizes: leave --image-size out"
         )
     options = {} if image_size is None else {"image_size": image_size_option(image_size)}
     try:
