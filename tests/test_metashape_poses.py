@@ -259,6 +259,11 @@ def test_refusals(tmp_path, sim):
     assert np.all(np.isnan(p.exterior[2:4]))
     with pytest.raises(InputError, match=r"2 image.* not aligned .*: 2, 3;"):
         start_from_metashape(block, p)
+    text = export_xml(labels, ext, cal, chunk=CHUNK)[0]
+    p = _write(tmp_path, text.replace('id="3" sensor_id="0"', 'id="3" master_id="2" sensor_id="0"'))
+    assert p.master_ids.tolist() == ["", "", "", "2"] + [""] * (len(labels) - 4)
+    with pytest.raises(InputError, match=r"1 image.* multi-camera system .*: 3 \(master_id 2"):
+        start_from_metashape(block, p)
     p = _write(tmp_path, export_xml(labels[1:], ext[1:], cal, chunk=CHUNK)[0])
     with pytest.raises(InputError, match=r"1 image.* match no camera label .*: 0;"):
         start_from_metashape(block, p)

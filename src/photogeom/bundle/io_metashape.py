@@ -17,7 +17,8 @@ with one ``<chunk>`` holding
   computer-vision axes) into its component's (or, without components, the chunk's) frame.
   A camera Metashape did not align has no ``<transform>``; ``enabled="false"`` marks a
   camera left out of Metashape's adjustment; ``<orientation>`` is the image's EXIF
-  orientation flag (1: as stored);
+  orientation flag (1: as stored); ``master_id`` names the master camera of a camera of
+  a multi-camera system (its pose is the master's with its sensor's offset: not read);
 * ``<transform>`` (``<rotation>``, ``<translation>``, ``<scale>``): the chunk's frame into
   the world frame, and ``<reference>`` the chunk's CRS as WKT. For a georeferenced chunk
   (a geographic or projected CRS) the world frame is the *geocentric* (ECEF) frame of the
@@ -84,6 +85,9 @@ class MetashapePoses:
         Cameras not marked ``enabled="false"``.
     orientation : numpy.ndarray of int, shape (m,)
         EXIF orientation flag of each image (1 when the camera has none).
+    master_ids : numpy.ndarray of str, shape (m,)
+        The ``master_id`` of each camera of a multi-camera system other than its master
+        (empty for the others).
     frame : str
         ``"geocentric"`` (a georeferenced chunk: ECEF metres of the CRS's datum),
         ``"local"`` (the chunk's local CRS) or ``"internal"`` (a chunk without
@@ -104,6 +108,7 @@ class MetashapePoses:
     aligned: np.ndarray
     enabled: np.ndarray
     orientation: np.ndarray
+    master_ids: np.ndarray
     frame: str
     crs: str | None
     reference: str | None
@@ -311,6 +316,7 @@ def read_metashape_cameras(path: str | os.PathLike) -> MetashapePoses:
     aligned = np.zeros(m, dtype=bool)
     enabled = np.ones(m, dtype=bool)
     orientation = np.ones(m, dtype=np.int64)
+    masters = []
     Rw = np.empty((m, 3, 3))
     seen: dict[str, ET.Element] = {}
     for k, el in enumerate(elements):  # parsing: one XML element each
@@ -343,6 +349,8 @@ def read_metashape_cameras(path: str | os.PathLike) -> MetashapePoses:
                 "writes true or false"
             )
         enabled[k] = en in ("true", "1")
+        master = el.get("master_id")
+        masters.append("" if master in (None, el.get("id")) else master)
         ori = el.find("orientation")
         if ori is not None:
             o = (ori.text or "").strip()
@@ -388,6 +396,7 @@ def read_metashape_cameras(path: str | os.PathLike) -> MetashapePoses:
         aligned=aligned,
         enabled=enabled,
         orientation=orientation,
+        master_ids=np.array(masters, dtype=str),
         frame=frame,
         crs=crs,
         reference=reference,
@@ -557,7 +566,8 @@ def start_from_metashape(block: Block, poses: MetashapePoses) -> tuple[Block, Me
     ------
     InputError
         Images of the block that match no camera (listed, with some of the labels), images
-        whose camera Metashape did not align (listed), images with an EXIF orientation
+        whose camera Metashape did not align or is a non-master camera of a multi-camera
+        system (listed), images with an EXIF orientation
         other than 1 (listed), an image size that is not its sensor's resolution, a block
         with control or check points, GNSS or IMU.
     FileFormatError
@@ -586,6 +596,16 @@ def start_from_metashape(block: Block, poses: MetashapePoses) -> tuple[Block, Me
             f"{len(missing)} image(s) of the block match no camera label of {src}: "
             f"{_some(missing)}; its labels are {_some(poses.labels.tolist(), 5)} (an image "
             "matches the label equal to its name, its file name or that without extension)"
+        )
+    slave = poses.master_ids[rows] != ""
+    if np.any(slave):
+        k = rows[slave]
+        raise InputError(
+            f"{int(slave.sum())} image(s) of the block are cameras of a Metashape multi-camera "
+            f"system other than its master: {_some(poses.labels[k])} (master_id "
+            f"{poses.master_ids[k[0]]} of the first); their poses are the master's with the "
+            "sensor's offset, which photogeom does not read: remove those images from the "
+            "block, or export them from a chunk without the multi-camera system"
         )
     unaligned = ~poses.aligned[rows]
     if np.any(unaligned):
