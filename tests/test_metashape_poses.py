@@ -172,6 +172,18 @@ def test_round_trip_geocentric(tmp_path, sim):
     assert p.sensor("0").calibration == cal
 
 
+def test_crs_of_other_datums_is_left_unset(tmp_path, sim):
+    """A chunk in a CRS of another datum (DHDN / Gauss-Krueger zone 3) is geocentric, but
+    Metashape does not say whose: no CRS is claimed."""
+    pyproj = pytest.importorskip("pyproj")
+    truth, cal = sim
+    for code, crs in (("EPSG:31467", None), ("EPSG:32633", "EPSG:4978")):
+        wkt = pyproj.CRS(code).to_wkt("WKT1_GDAL")
+        text, _ = export_xml(_labels(truth), _world(truth, ECEF), cal, chunk=CHUNK, reference=wkt)
+        p = _write(tmp_path, text)
+        assert p.frame == "geocentric" and p.crs == crs
+
+
 def test_round_trip_local_and_internal(tmp_path, sim):
     truth, cal = sim
     ext = truth.exterior

@@ -21,8 +21,8 @@ with one ``<chunk>`` holding
   a multi-camera system (its pose is the master's with its sensor's offset: not read);
 * ``<transform>`` (``<rotation>``, ``<translation>``, ``<scale>``): the chunk's frame into
   the world frame, and ``<reference>`` the chunk's CRS as WKT. For a georeferenced chunk
-  (a geographic or projected CRS) the world frame is the *geocentric* (ECEF) frame of the
-  CRS's datum, in metres; for a local CRS (``LOCAL_CS``) it is that local frame; a chunk
+  (a geographic or projected CRS) the world frame is *geocentric* (ECEF), in metres
+  (WGS 84's for a CRS based on it); for a local CRS (``LOCAL_CS``) it is that local frame; a chunk
   without ``<transform>`` has only its internal frame (arbitrary origin, axes and scale).
 
 With ``R_c, t_c`` the camera's transform, ``s_k, R_k, t_k`` its component's and ``s, R, t``
@@ -93,8 +93,9 @@ class MetashapePoses:
         ``"local"`` (the chunk's local CRS) or ``"internal"`` (a chunk without
         ``<transform>``: Metashape's internal frame, arbitrary scale).
     crs : str or None
-        The CRS of the world frame when ``frame`` is ``"geocentric"`` (``"EPSG:4978"`` for
-        WGS 84, else the geocentric CRS of the datum as WKT); None otherwise.
+        The CRS of the world frame: ``"EPSG:4978"`` when ``frame`` is ``"geocentric"`` and
+        the chunk's CRS is based on WGS 84; None otherwise (for another datum Metashape's
+        geocentric frame may be that datum's or WGS 84's, which the file does not say).
     reference : str or None
         The chunk's ``<reference>`` (its CRS as Metashape wrote it).
     source : str
@@ -236,7 +237,6 @@ def _world_crs(reference: str | None, has_transform: bool) -> tuple[str, str | N
         return "local", None
     try:
         import pyproj
-        from pyproj.crs import GeocentricCRS
         from pyproj.exceptions import CRSError
     except ImportError:  # pyproj is optional: the frame is geocentric, its CRS unnamed
         return "geocentric", None
@@ -246,13 +246,11 @@ def _world_crs(reference: str | None, has_transform: bool) -> tuple[str, str | N
         return "geocentric", None
     if geodetic is None or geodetic.datum is None:
         return "geocentric", None
-    datum = geodetic.datum
-    if datum.name in ("World Geodetic System 1984", "WGS_1984", "WGS 84"):
+    if geodetic.datum.name in ("World Geodetic System 1984", "WGS_1984", "WGS 84"):
         return "geocentric", "EPSG:4978"
-    try:
-        return "geocentric", GeocentricCRS(name=f"geocentric {datum.name}", datum=datum).to_wkt()
-    except CRSError:
-        return "geocentric", None
+    # another datum: Metashape's geocentric frame may be that datum's or WGS 84's (through
+    # the CRS's TOWGS84), which the file does not say; the CRS is left unset, not guessed
+    return "geocentric", None
 
 
 def read_metashape_cameras(path: str | os.PathLike) -> MetashapePoses:
