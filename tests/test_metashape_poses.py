@@ -177,8 +177,11 @@ def test_crs_of_other_datums_is_left_unset(tmp_path, sim):
     Metashape does not say whose: no CRS is claimed."""
     pyproj = pytest.importorskip("pyproj")
     truth, cal = sim
-    for code, crs in (("EPSG:31467", None), ("EPSG:32633", "EPSG:4978")):
-        wkt = pyproj.CRS(code).to_wkt("WKT1_GDAL")
+    for code, crs, form in (("EPSG:31467", None, "WKT1_GDAL"),
+                            ("EPSG:32633", "EPSG:4978", "WKT1_GDAL"),
+                            ("EPSG:32633", "EPSG:4978", "WKT2_2019"),
+                            ("EPSG:4979", "EPSG:4978", "WKT2_2019")):  # fmt: skip
+        wkt = pyproj.CRS(code).to_wkt(form)
         text, _ = export_xml(_labels(truth), _world(truth, ECEF), cal, chunk=CHUNK, reference=wkt)
         p = _write(tmp_path, text)
         assert p.frame == "geocentric" and p.crs == crs

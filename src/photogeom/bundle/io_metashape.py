@@ -246,8 +246,9 @@ def _world_crs(reference: str | None, has_transform: bool) -> tuple[str, str | N
         return "geocentric", None
     if geodetic is None or geodetic.datum is None:
         return "geocentric", None
-    if geodetic.datum.name in ("World Geodetic System 1984", "WGS_1984", "WGS 84"):
-        return "geocentric", "EPSG:4978"
+    name = geodetic.datum.name.replace("_", " ")
+    if name.startswith("World Geodetic System 1984") or name in ("WGS 1984", "WGS 84"):
+        return "geocentric", "EPSG:4978"  # WKT1 names it so; WKT2 "... 1984 ensemble"
     # another datum: Metashape's geocentric frame may be that datum's or WGS 84's (through
     # the CRS's TOWGS84), which the file does not say; the CRS is left unset, not guessed
     return "geocentric", None
