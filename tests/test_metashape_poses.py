@@ -320,6 +320,11 @@ def test_malformed(tmp_path, sim):
     k = text.index("<transform>") + len("<transform>")
     with pytest.raises(FileFormatError, match=r"line \d+: the rotation of camera '0'"):
         _write(tmp_path, text[:k] + "2" + text[k:])
+    k = text.index("<transform>", text.index('label="5"')) + len("<transform>")
+    with pytest.raises(FileFormatError, match=r"line \d+: the <transform> of camera '5' holds a"):
+        _write(tmp_path, text[:k] + "x" + text[k:])
+    with pytest.raises(FileFormatError, match="camera '5' holds 17 numbers, expected 16"):
+        _write(tmp_path, text[:k] + "1 " + text[k:])
     with pytest.raises(FileFormatError, match="not a Metashape camera export"):
         _write(tmp_path, "<calibration><projection>frame</projection></calibration>")
 

@@ -197,6 +197,47 @@ def _check_rotation(R: np.ndarray, what: str, where: str, el, lines: dict) -> No
         )
 
 
+def _transforms(tfs: list[ET.Element], labels: list[str], where: str, lines: dict) -> np.ndarray:
+    """The cameras' ``<transform>`` matrices (k, 4, 4), each refused naming its camera and
+    line: not 16 numbers, NaN or infinity, a last row other than (0, 0, 0, 1), a 3 x 3 part
+    that is not a rotation."""
+    from ._textio import numbers
+
+    texts = [tf.text or "" for tf in tfs]
+    try:
+        vals = numbers(" ".join(texts), where)
+    except FileFormatError:
+        vals = None
+    if vals is None or vals.size != 16 * len(tfs):  # find the camera at fault
+        for tf, lab in zip(tfs, labels):
+            _numbers(tf, 16, f"the <transform> of camera {lab!r}", where, lines)
+        raise FileFormatError(
+            f"{where}: the cameras' <transform> elements hold something other than numbers"
+        )
+    A = vals.reshape(-1, 4, 4)
+    bad = ~np.all(np.isfinite(A), axis=(1, 2))
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise FileFormatError(
+            f"{where}{_line(tfs[i], lines)}: the <transform> of camera {labels[i]!r} holds NaN "
+            "or infinity"
+        )
+    bad = np.any(A[:, 3] != [0.0, 0.0, 0.0, 1.0], axis=1)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise FileFormatError(
+            f"{where}{_line(tfs[i], lines)}: the <transform> of camera {labels[i]!r} has the "
+            f"last row {A[i, 3].tolist()}, expected [0, 0, 0, 1]"
+        )
+    R = A[:, :3, :3]
+    off = np.abs(R @ np.transpose(R, (0, 2, 1)) - np.eye(3)).max(axis=(1, 2))
+    bad = (off > ROTATION_TOLERANCE) | ~(np.linalg.det(R) > 0)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        _check_rotation(R[i], f"camera {labels[i]!r}", where, tfs[i], lines)
+    return A
+
+
 def _similarity(el: ET.Element | None, what: str, where: str, lines: dict):
     """``(s, R, t)`` of a ``<transform>`` with ``<rotation>``, ``<translation>``,
     ``<scale>`` (each optional: identity, zero, one), or of 16 numbers; None without one."""
@@ -316,7 +357,8 @@ def read_metashape_cameras(path: str | os.PathLike) -> MetashapePoses:
     enabled = np.ones(m, dtype=bool)
     orientation = np.ones(m, dtype=np.int64)
     masters = []
-    Rw = np.empty((m, 3, 3))
+    tfs: list[ET.Element] = []
+    comp: list[str | None] = []
     seen: dict[str, ET.Element] = {}
     for k, el in enumerate(elements):  # parsing: one XML element each
         label = el.get("label")
@@ -362,31 +404,28 @@ def read_metashape_cameras(path: str | os.PathLike) -> MetashapePoses:
         tf = el.find("transform")
         if tf is None:
             continue
-        A = _numbers(tf, 16, f"the <transform> of camera {label!r}", where, lines).reshape(4, 4)
-        if np.any(A[3] != [0.0, 0.0, 0.0, 1.0]):
-            raise FileFormatError(
-                f"{where}{_line(tf, lines)}: the <transform> of camera {label!r} has the last "
-                f"row {A[3].tolist()}, expected [0, 0, 0, 1]"
-            )
-        _check_rotation(A[:3, :3], f"camera {label!r}", where, tf, lines)
-        R, t = A[:3, :3], A[:3, 3]
         cid = el.get("component_id")
-        if cid is not None:
-            if cid not in components:
-                raise FileFormatError(
-                    f"{where}{_line(el, lines)}: camera {label!r} names component_id {cid!r}, "
-                    "which is not among the chunk's <components>"
-                )
-            if components[cid] is not None:  # component -> chunk
-                sk, Rk, tk = components[cid]
-                R, t = Rk @ R, sk * (Rk @ t) + tk
-        Rw[k] = R0 @ R
-        exterior[k, :3] = s0 * (R0 @ t) + t0
+        if cid is not None and cid not in components:
+            raise FileFormatError(
+                f"{where}{_line(el, lines)}: camera {label!r} names component_id {cid!r}, "
+                "which is not among the chunk's <components>"
+            )
         aligned[k] = True
-    if np.any(aligned):
-        exterior[aligned, 3:] = opk_from_rotations(
-            _FLIP @ np.transpose(Rw[aligned], (0, 2, 1))
-        )
+        tfs.append(tf)
+        comp.append(cid)
+    if tfs:  # the transforms' numbers in one vectorised call, checked all at once
+        A = _transforms(tfs, [labels[k] for k in np.flatnonzero(aligned)], where, lines)
+        R, t = A[:, :3, :3], A[:, :3, 3]
+        comp_ids = np.array([c if c is not None else "" for c in comp])
+        for cid, sim in components.items():  # component -> chunk, per component
+            sel = comp_ids == cid
+            if sim is not None and np.any(sel):
+                sk, Rk, tk = sim
+                R[sel] = Rk @ R[sel]
+                t[sel] = sk * t[sel] @ Rk.T + tk
+        exterior[aligned, :3] = s0 * t @ R0.T + t0
+        Rw = R0 @ R  # camera -> world rotation
+        exterior[aligned, 3:] = opk_from_rotations(_FLIP @ np.transpose(Rw, (0, 2, 1)))
     return MetashapePoses(
         labels=np.array(labels, dtype=str),
         camera_ids=np.array(ids, dtype=str),
