@@ -349,6 +349,9 @@ def test_cli_bundle_adjust_start_metashape(tmp_path, sim, cli):
     assert d["input"]["start"] == "metashape"
     s = d["input"]["start_metashape"]
     assert s["n_images"] == 8 and s["frame"] == "geocentric" and s["rms_px"] < 1e-6
+    code, out, err = cli("bundle", "adjust", sparse, "--start", "metashape", "--start-file",
+                         xml, "--datum", "free", "--crs", "EPSG:32633")  # fmt: skip
+    assert code == 2 and "geocentric coordinates of" in err and "(EPSG:4978)" in err, err
     code, out, err = cli("bundle", "adjust", sparse, "--start", "metashape")
     assert code == 2 and "give it with --start-file cameras.xml" in err
     code, out, err = cli("bundle", "adjust", sparse, "--start-file", xml)

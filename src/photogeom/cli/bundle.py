@@ -904,6 +904,14 @@ def adjust(
         block, done = start_from_metashape(block, poses)
         start_note = done.summary()
         start_info = {"file": str(start_file), **done.to_dict()}
+        if crs is not None and block.crs is not None:
+            from ._common import same_crs
+
+            if not same_crs(block.crs, crs):
+                raise InputError(
+                    f"--start metashape puts the block in the geocentric coordinates of "
+                    f"{start_file} ({block.crs}), but --crs says {crs}: leave out --crs"
+                )
     block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     if relative:
         with stage_spinner("start values from relative orientations"):
