@@ -79,6 +79,7 @@ class Start(str, Enum):
 
     given = "given"
     relative = "relative"
+    metashape = "metashape"
 
 
 _BAL_SUFFIXES = (".txt", ".bal", ".bz2")
@@ -204,6 +205,13 @@ def detect_format(path: Path, given: BlockFormat | None, option: str = "--format
             raise InputError(
                 f"{path} is JSON, not a block: a result record is rendered with "
                 "'photogeom bundle report'"
+            )
+        if path.suffix.lower() == ".xml":  # no block format is XML
+            raise InputError(
+                f"{path} is XML, not a block: a Metashape camera export (cameras.xml) holds "
+                "poses and calibrations but no tie points; adjust the Bundler file or COLMAP "
+                "model Metashape exported of the same project, starting from this file: "
+                f"photogeom bundle adjust MODEL --start metashape --start-file {path}"
             )
         from ..bundle.io_bundler import is_bundler_file
 
@@ -728,9 +736,21 @@ def adjust(
             "GNSS/IMU, an earlier adjustment) or relative (new ones from relative "
             "orientations of consecutive images, strips and the control points, for a block "
             "without GNSS/IMU: the X0, Y0, Z0, omega, phi, kappa cells of images.csv and the "
-            "tie points' X, Y, Z may then be empty or missing).",
+            "tie points' X, Y, Z may then be empty or missing) or metashape (the poses and "
+            "calibrations of a Metashape camera export, --start-file, for a Bundler file or "
+            "COLMAP model of the same project: images matched by label, a camera group per "
+            "sensor, tie points triangulated).",
         ),
     ] = Start.given,
+    start_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--start-file",
+            help="With --start metashape: the Metashape camera export (File > Export > "
+            "Export Cameras, Agisoft XML).",
+            show_default=False,
+        ),
+    ] = None,
     strips: Annotated[
         str | None,
         typer.Option(
@@ -859,14 +879,40 @@ def adjust(
         raise InputError(
             "--strips is for --start relative: add --start relative, or leave out --strips"
         )
+    if (start_file is not None) != (start is Start.metashape):
+        raise InputError(
+            "--start-file is for --start metashape: add --start metashape, or leave out "
+            "--start-file" if start_file is not None else "--start metashape takes the poses "
+            "from a Metashape camera export: give it with --start-file cameras.xml"
+        )
     relative = start is Start.relative
+    poses = None
+    if start_file is not None:
+        from ..bundle.io_metashape import read_metashape_cameras
+
+        with stage_spinner(f"reading {start_file}"):
+            poses = read_metashape_cameras(start_file)
     with stage_spinner(f"reading {source}"):
         block = read_block(
             source, read_fmt, sigma=sigma, image_key=image_key, start_values=not relative,
             image_size=image_size, image_list=image_list, group_cameras=group_cameras,
         )  # fmt: skip
-    block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     start_note = start_info = None
+    if poses is not None:
+        from ..bundle.io_metashape import start_from_metashape
+
+        block, done = start_from_metashape(block, poses)
+        start_note = done.summary()
+        start_info = {"file": str(start_file), **done.to_dict()}
+        if crs is not None and block.crs is not None:
+            from ._common import same_crs
+
+            if not same_crs(block.crs, crs):
+                raise InputError(
+                    f"--start metashape puts the block in the geocentric coordinates of "
+                    f"{start_file} ({block.crs}), but --crs says {crs}: leave out --crs"
+                )
+    block, georef = _block_crs(block, crs, gnss_crs, allow_ballpark)
     if relative:
         with stage_spinner("start values from relative orientations"):
             block, start_note, start_info = relative_start(block, strips)
@@ -961,7 +1007,7 @@ def adjust(
         d["unit"] = unit
         d["input"] = {"path": str(source), "format": src_fmt, "start": start.value}
         if start_info is not None:  # the strips found or given, as the summary's line
-            d["input"]["start_relative"] = start_info
+            d["input"]["start_" + start.value] = start_info
         _add_georef(d, georef)
         typer.echo(json_text(d), nl=False)
         _refuse_unconverged(fit, max_iterations, relative)
