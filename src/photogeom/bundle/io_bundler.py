@@ -198,7 +198,8 @@ class ExifOrientationWarning(UserWarning):
 
 
 def _image_file_size(path: Path) -> tuple[int, int, int]:
-    """Width, height (px, as stored) and EXIF orientation (1 when none) of an image file."""
+    """Width, height (px, as stored) and EXIF orientation (1 when none) of an image file
+    (a TIFF's from its tags 256, 257: Pillow turns a TIFF's size by its Orientation)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -207,8 +208,10 @@ def _image_file_size(path: Path) -> tuple[int, int, int]:
                 turn = int(im.getexif().get(274, 1))
             except (TypeError, ValueError):  # a damaged tag: the image as stored
                 turn = 1
+            if im.format == "TIFF":  # Pillow gives a TIFF's size turned by its Orientation
+                return int(im.tag_v2[256]), int(im.tag_v2[257]), turn
             return int(im.size[0]), int(im.size[1]), turn
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
+    except (OSError, UnidentifiedImageError, ValueError, KeyError) as exc:
         raise FileFormatError(
             f"cannot read the size of image {path}: {exc}; give the images' size "
             "(image_size=(width, height))"
