@@ -64,7 +64,13 @@ from ._textio import (
     write_files_atomically,
 )
 from .block import Block
-from .io_bal import block_from_centred, centred_cameras, refuse_extras
+from .io_bal import (
+    SIZES_FIX,
+    block_from_centred,
+    centred_cameras,
+    refuse_extras,
+    warn_outside,
+)
 
 #: First line of a Bundler file.
 BUNDLER_HEADER = "# Bundle file v0.3"
@@ -377,6 +383,12 @@ def read_bundler(
         an image list of another length.
     InputError
         Image sizes that are not given and cannot be read from image files.
+
+    Warns
+    -----
+    ImageSizeWarning
+        An image whose observations reach outside the size given or read from its file
+        (:func:`photogeom.bundle.io_bal.warn_outside`).
     """
     label = str(path)
     text = read_text(path, "Bundler file", limit=_size_limit(label))
@@ -538,6 +550,17 @@ def read_bundler(
     where = np.full(m, -1, dtype=np.int64)
     where[cam_index] = np.arange(cam_index.size)
     sizes = _turned_sizes(sizes, turn, where[ci.astype(np.int64)], views[:, 2:], ids, label)
+    given = image_size if isinstance(image_size, Mapping) else {}
+
+    def size_from(k: int) -> str:
+        if image_size is not None and (not isinstance(image_size, Mapping) or ids[k] in given):
+            return "the image size given (image_size)"
+        return f"the size of its image file {list_base(list_file) / oriented_names[k]}"
+
+    warn_outside(
+        label, ids, sizes, where[ci.astype(np.int64)], views[:, 2:], size_from,
+        f"give each image its size {SIZES_FIX}, or the image files the list names",
+    )  # fmt: skip
     fk = cams[cam_index, :3]
     Ro = R[cam_index]
     u, _, vt = np.linalg.svd(Ro)

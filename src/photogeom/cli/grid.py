@@ -560,7 +560,8 @@ def fit(
             "--image-size",
             help="Image size WIDTHxHEIGHT in pixels (all images) of a residuals CSV, a BAL "
             "file (BAL holds none) or a Bundler file (default: read from the images its "
-            "list names).",
+            "list names); for a BAL or Bundler file also SIZES.csv of image_id,width,height "
+            "rows (images of several sizes).",
         ),
     ] = None,
     spacing: Annotated[
