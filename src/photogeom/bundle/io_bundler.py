@@ -610,6 +610,13 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
             f"image id {bad[0]!r}: an image list holds one name a line, without leading or "
             "trailing white space, line breaks or NUL characters; rename the image"
         )
+    tail = [s for s in names if _LIST_TAIL.search(s)]
+    if tail:
+        raise InputError(
+            f"image id {tail[0]!r}: an image list line 'NAME 0 FOCAL' gives the focal length "
+            f"after the name, so the name would be read back as "
+            f"{_LIST_TAIL.sub('', tail[0])!r}; rename the image"
+        )
     m, p, n = block.n_images, block.n_points, block.n_observations
     cam = np.column_stack([C[:, 0], C[:, 3], C[:, 4], M.reshape(m, 9), t])
     cf = np.array(format_floats(cam), dtype=object).reshape(m, 15)
