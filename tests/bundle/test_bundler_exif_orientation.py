@@ -38,9 +38,9 @@ def bundler(tmp_path_factory):
     return d / "b.out"
 
 
-def _images(folder: Path, bundler: Path, size, orientation) -> Path:
+def _images(folder: Path, bundler: Path, size, orientation, kind: str = "JPEG") -> Path:
     """The Bundler file and its list in ``folder``, the listed images ``size`` px as stored,
-    with EXIF ``orientation`` (None: no tag)."""
+    with EXIF ``orientation`` (None: no tag), in format ``kind``."""
     folder.mkdir()
     out = folder / "b.out"
     out.write_bytes(bundler.read_bytes())
@@ -50,7 +50,7 @@ def _images(folder: Path, bundler: Path, size, orientation) -> Path:
         exif = PIL.Exif()
         if orientation is not None:
             exif[274] = orientation
-        PIL.new("L", size).save(folder / name, "JPEG", exif=exif)
+        PIL.new("L", size).save(folder / name, kind, exif=exif)
     return out
 
 
@@ -87,3 +87,26 @@ def test_without_the_tag_the_stored_size_is_taken(tmp_path, bundler):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _same(read_bundler(out), read_bundler(bundler, image_size=SIZE))
+
+
+@pytest.mark.parametrize("orientation", [6, 8])
+def test_a_tiffs_stored_size_is_read_as_stored(tmp_path, bundler, orientation):
+    # Pillow gives a TIFF's size turned by its Orientation tag (a JPEG's as stored): a TIFF
+    # stored 3000 x 2000 px with Orientation 6 was taken for one stored 2000 x 3000 px, and
+    # its observations of the stored pixels were said to refer to the image as shown (an
+    # ExifOrientationWarning that grid correct-images of the files would not match them)
+    out = _images(tmp_path / "t", bundler, SIZE, orientation, "TIFF")
+    name = out.with_name("b.out.list.txt").read_text().split()[0]
+    with PIL.open(out.parent / name) as im:  # the premise: Pillow turns the TIFF's size
+        assert im.size == SIZE[::-1] and (im.tag_v2[256], im.tag_v2[257]) == SIZE
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        block = read_bundler(out)
+    _same(block, read_bundler(bundler, image_size=SIZE))
+
+
+def test_a_tiff_whose_coordinates_refer_to_the_shown_image_says_so(tmp_path, bundler):
+    out = _images(tmp_path / "t", bundler, SIZE[::-1], 6, "TIFF")  # shown 3000 x 2000
+    with pytest.warns(ExifOrientationWarning, match=r"2000 x 3000 px as stored.*3000 x 2000"):
+        block = read_bundler(out)
+    _same(block, read_bundler(bundler, image_size=SIZE))

@@ -128,3 +128,96 @@ def test_photogeoms_own_models_have_trivial_rigs_and_no_warning(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_colmap(tmp_path / "m")
+
+
+def _shift_image(folder: Path, image: int, dx: float) -> None:
+    """Move image ``image``'s TX in images.txt by ``dx``, as a tool that rewrites
+    images.txt and leaves the frames (COLMAP before 3.12, a script) does."""
+    lines = (folder / "images.txt").read_text().splitlines()
+    for k in [k for k, ln in enumerate(lines) if ln and not ln.startswith("#")][::2]:
+        tok = lines[k].split()
+        if tok[0] == str(image):
+            tok[5] = repr(float(tok[5]) + dx)
+            lines[k] = " ".join(tok)
+    (folder / "images.txt").write_text("\n".join(lines) + "\n")
+
+
+def _centre(rec, name: str) -> np.ndarray:
+    pose = next(im for im in rec.images.values() if im.name == name).cam_from_world()
+    return -pose.rotation.matrix().T @ pose.translation
+
+
+def test_images_txt_contradicting_its_frames_is_refused_naming_files_and_images(
+    rig_model, tmp_path
+):
+    # image 2 (camera 2, composed through the rig's sensor pose) moved by 0.5 in images.txt:
+    # COLMAP 3.12+ reads the frame's pose, photogeom would read images.txt's (before: read
+    # without a word, a block 0.5 units off what COLMAP reads from the same folder)
+    pycolmap = pytest.importorskip("pycolmap")
+    want = read_colmap(_plain(rig_model, tmp_path))
+    _shift_image(rig_model, 2, 0.5)
+    (tmp_path / "moved").mkdir()
+    moved = read_colmap(_plain(rig_model, tmp_path / "moved"))
+    k = want.image_ids.tolist().index("img001")
+    assert np.linalg.norm(moved.exterior[k, :3] - want.exterior[k, :3]) == pytest.approx(0.5)
+    # the peer reads the frames' pose, not images.txt's
+    rec = pycolmap.Reconstruction(str(rig_model))
+    np.testing.assert_allclose(_centre(rec, "img001"), want.exterior[k, :3], atol=1e-9)
+    with pytest.raises(FileFormatError) as err:
+        read_colmap(rig_model)
+    msg = str(err.value)
+    assert "the poses of 1 image(s) contradict" in msg and "2 'img001'" in msg
+    assert "frames.txt" in msg and "rigs.txt" in msg and "remove rigs.txt and frames.txt" in msg
+    assert "0.5 model units apart" in msg
+    # the remedy: without the rig and frame files COLMAP and photogeom read images.txt alike
+    (rig_model / "rigs.txt").unlink()
+    (rig_model / "frames.txt").unlink()
+    np.testing.assert_array_equal(read_colmap(rig_model).exterior, moved.exterior)
+    rec = pycolmap.Reconstruction(str(rig_model))
+    np.testing.assert_allclose(_centre(rec, "img001"), moved.exterior[k, :3], atol=1e-9)
+
+
+def test_a_turn_below_the_tolerance_is_read_and_above_it_refused(rig_model):
+    lines = (rig_model / "images.txt").read_text().splitlines()
+    k = next(k for k, ln in enumerate(lines) if ln.startswith("3 "))
+    r, t = _pose(lines[k])
+    for angle, refused in ((1e-8, False), (1e-5, True)):
+        turned = Rotation.from_rotvec([0.0, 0.0, angle]) * r
+        ln = [*lines[:k], "3 " + _tokens(turned, t) + " 1 img002", *lines[k + 1 :]]
+        (rig_model / "images.txt").write_text("\n".join(ln) + "\n")
+        if refused:
+            with pytest.raises(FileFormatError, match=r"image 3 'img002': 0.000573 deg"):
+                read_colmap(rig_model)
+        else:
+            with pytest.warns(ColmapRigWarning):
+                read_colmap(rig_model)
+
+
+def test_an_image_in_no_frame_is_refused_as_colmap_cannot_read_it(rig_model):
+    pycolmap = pytest.importorskip("pycolmap")
+    frames = (rig_model / "frames.txt").read_text().splitlines()
+    (rig_model / "frames.txt").write_text("\n".join(f for f in frames if not f.startswith("3 ")))
+    with pytest.raises(Exception):  # noqa: B017 - pycolmap's own error (unordered_map::at)
+        pycolmap.Reconstruction(str(rig_model))
+    with pytest.raises(FileFormatError, match=r"1 image\(s\) are in no frame of frames.txt "
+                       r"\(images 3 'img002'\)"):  # fmt: skip
+        read_colmap(rig_model)
+
+
+def test_a_binary_model_whose_images_bin_contradicts_its_frames_is_refused(rig_model, tmp_path):
+    pycolmap = pytest.importorskip("pycolmap")
+    binary = tmp_path / "bin"
+    binary.mkdir()
+    pycolmap.Reconstruction(str(rig_model)).write_binary(str(binary))
+    with pytest.warns(ColmapRigWarning):
+        read_colmap(binary)  # as COLMAP wrote it: agrees
+    data = bytearray((binary / "images.bin").read_bytes())
+    # the first image's TX: after the count (8), IMAGE_ID (4) and QW QX QY QZ (32)
+    image = int(np.frombuffer(data, "<u4", 1, 8)[0])
+    tx = np.frombuffer(data, "<f8", 1, 44)[0]
+    data[44:52] = np.float64(tx + 2.0).tobytes()
+    (binary / "images.bin").write_bytes(bytes(data))
+    with pytest.raises(FileFormatError, match=rf"images.bin and the frames disagree.*image "
+                       rf"{image} 'img00\d': 0 deg and 2 model units apart.*remove rigs.bin "
+                       r"and frames.bin"):  # fmt: skip
+        read_colmap(binary)

@@ -4,7 +4,9 @@ writers (``'img0\\x00'`` read back as ``'img0'``: numpy's str arrays drop traili
 white space at the ends of a name was dropped by the COLMAP text writer (``' img0'``,
 ``'img0\\t'`` read back as ``'img0'``), and a NUL or a line break (``\\x0b``, ``\\x85``,
 ``\\u2028``) in a COLMAP text name or a Bundler image list was written into a file its reader
-then refused."""
+then refused; a name ending in ' 0 NUMBER' (``'img0 0 1200'``) was written to a Bundler
+image list, whose reader takes that for the focal length of Bundler's list format and gave
+``'img0'`` back."""
 
 from __future__ import annotations
 
@@ -23,7 +25,9 @@ from blocks import grid_block
 
 CAL = MetashapeCalibration(3000, 2000, 2400.0, k1=-0.08, k2=0.03)
 NAMES = ["img0\x00", "im\x00g0", "img0\t", " img0", "img0\r", "im\x0bg0", "im\x85g0",
-         "im\u2028g0", "im\x1cg0", "img0\x1f", "img0\x01", "img0\x7f", "img 0"]  # fmt: skip
+         "im\u2028g0", "im\x1cg0", "img0\x1f", "img0\x01", "img0\x7f", "img 0",
+         # a Bundler list line 'NAME 0 FOCAL': read back as 'img0' before (now refused)
+         "img0 0 1200", "img0 0 -1.5e3", "img 0 0"]  # fmt: skip
 KINDS = {"csv": "", "colmap": "", "colmap-bin": "", "bundler": ".out"}
 
 

@@ -485,6 +485,12 @@ def test_grid_fit_reads_a_binary_model_as_the_text_model(tmp_path, cli):
     f[5] = repr(float(f[5]) + 0.01)  # one image's TX 1 cm off in the text model
     lines[row] = " ".join(f)
     (tmp_path / "b" / "images.txt").write_text("\n".join(lines) + "\n")
+    frames = (tmp_path / "b" / "frames.txt").read_text().splitlines()  # and its frame
+    k = next(i for i, line in enumerate(frames) if line.split()[0] == f[0])
+    g = frames[k].split()
+    g[6] = f[5]
+    frames[k] = " ".join(g)
+    (tmp_path / "b" / "frames.txt").write_text("\n".join(frames) + "\n")
     code, _, err = cli("grid", "fit", tmp_path / "b", "-o", tmp_path / "both.json",
                        "--spacing", "400")  # fmt: skip
     assert code == 2 and "they differ (their image poses first)" in err, err

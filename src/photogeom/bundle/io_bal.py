@@ -26,7 +26,8 @@ BAL's conventions and how photogeom maps them:
   problem BAL's own solvers (Ceres' ``bundle_adjuster``) solve.
 * BAL has no image size. photogeom needs one to place its pixel origin (centre of the first
   pixel at (0, 0)); the reader picks the smallest even width and height that hold every
-  observation, the same for all images, unless ``image_size`` is given. Then
+  observation, the same for all images, unless ``image_size`` is given (one size, or one
+  per image; observations outside the size given are warned of, :func:`warn_outside`). Then
   ``u = x + (w - 1) / 2`` and ``v = (h - 1) / 2 - y`` exactly (even sizes make
   ``(w - 1) / 2`` a half-integer, exact in binary); the choice moves the pixel origin only,
   never a projection.
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import bz2
 import os
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -113,7 +115,7 @@ def _size_limit(label: str):
 def read_bal(
     path: str | os.PathLike,
     *,
-    image_size: tuple[int, int] | None = None,
+    image_size: tuple[int, int] | Mapping[int, tuple[int, int]] | None = None,
     sigma: float = 1.0,
 ) -> Block:
     """Read a BAL problem file (``.bz2`` compressed or plain) as a :class:`Block`.
@@ -123,8 +125,9 @@ def read_bal(
     path : path-like
         The BAL file (bzip2-compressed files are recognised by content, any name), or a
         pipe (read once). A device (``/dev/zero``) is refused.
-    image_size : (width, height), optional
-        Pixel size of every image. Default: the smallest even sizes that hold every
+    image_size : (width, height), or mapping image id -> (width, height), optional
+        Pixel size of every image, or of each (ids ``0 .. m - 1``, every image: images of
+        cameras of several formats). Default: the smallest even sizes that hold every
         observation (BAL stores none; see the module docstring).
     sigma : float
         Standard deviation of every image coordinate, pixels (BAL's cost is unweighted).
@@ -143,6 +146,13 @@ def read_bal(
         non-finite values, each naming the line; a file (decompressed) longer than its
         header's counts leave room for (:data:`BAL_VALUE_CHARS` characters a value): a
         stream that never ends or a bzip2 bomb is refused after reading that much.
+    InputError
+        An ``image_size`` mapping without a size for every image.
+
+    Warns
+    -----
+    ImageSizeWarning
+        ``image_size`` smaller than an image's observations reach (:func:`warn_outside`).
     """
     label = str(path)
     text = read_text(path, "BAL file", limit=_size_limit(label))
@@ -227,10 +237,26 @@ def read_bal(
     if image_size is None:
         w = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 0]), initial=0.0))))
         h = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 1]), initial=0.0))))
+        sizes = np.tile([w, h], (m, 1))
+    elif isinstance(image_size, Mapping):
+        missing = [i for i in range(m) if i not in image_size]
+        if missing:
+            raise InputError(
+                f"{label}: image_size gives no size for image {missing[0]} (of "
+                f"{len(missing)} without one); a mapping gives every image's: ids 0..{m - 1}"
+            )
+        sizes = np.array([[int(s) for s in image_size[i]] for i in range(m)], dtype=np.int64)
     else:
-        w, h = (int(s) for s in image_size)
+        sizes = np.tile([int(s) for s in image_size], (m, 1))
     R = Rotation.from_rotvec(cams[:, :3]).as_matrix().reshape(m, 3, 3)
     ids = np.arange(m)
+    if image_size is not None:
+        warn_outside(
+            label, ids, sizes, ci.astype(np.int64), xy,
+            lambda k: "the image size given (image_size)",
+            f"give each image its size {SIZES_FIX}, or leave image_size out (the smallest even "
+            "size holding every observation, the same for all images)",
+        )  # fmt: skip
     return block_from_centred(
         label=label,
         image_ids=ids,
@@ -238,14 +264,86 @@ def read_bal(
         rotations=R,
         translations=cams[:, 3:6],
         fk=cams[:, 6:9],
-        sizes=np.tile([w, h], (m, 1)),
+        sizes=sizes,
         point_ids=np.arange(p),
         xyz=pts,
         obs_image=ci.astype(np.int64),
         obs_point_ids=pi.astype(np.int64),
         xy=xy,
         sigma=sigma,
-        size_note=f" (image_size={(w, h)})",
+        size_note=(
+            " (image_size)"
+            if isinstance(image_size, Mapping)
+            else f" (image_size={(int(sizes[0, 0]), int(sizes[0, 1]))})"
+        ),
+    )
+
+
+#: How :func:`warn_outside` says to give the images' sizes (the command line says it in
+#: its options).
+SIZES_FIX = (
+    "(image_size=(width, height) for all, or a mapping image id -> (width, height) for "
+    "images of several sizes)"
+)
+
+
+class ImageSizeWarning(UserWarning):
+    """Observations of a BAL or Bundler file reach outside the image size given or read for
+    their image: the size is likely not that of the image (a camera of another format, a
+    resized copy), which moves the pixel origin and the grids' extent."""
+
+
+def warn_outside(
+    label: str,
+    ids: np.ndarray,
+    sizes: np.ndarray,
+    obs_image: np.ndarray,
+    xy: np.ndarray,
+    size_from: Callable[[int], str],
+    fix: str,
+) -> None:
+    """Warn (:class:`ImageSizeWarning`) of observations outside the image size an image was
+    given: BAL and Bundler coordinates are from the image centre (the principal point), so
+    ``|x| <= w / 2`` and ``|y| <= h / 2`` hold for every point of an image of ``w x h`` px
+    with its principal point at the centre.
+
+    Parameters
+    ----------
+    label : str
+        The file, for the message.
+    ids : numpy.ndarray
+        (m,) the images' ids.
+    sizes : numpy.ndarray
+        (m, 2) int, each image's width and height, px.
+    obs_image : numpy.ndarray
+        (n,) int, the image (row of ``ids``) of each observation.
+    xy : numpy.ndarray
+        (n, 2) the observations from the image centre, px (either sign of y).
+    size_from : callable
+        ``size_from(k)``: where image ``k``'s size came from (words for the message).
+    fix : str
+        How to give the right sizes, in the words of the caller.
+    """
+    import warnings
+
+    m = len(ids)
+    reach = np.zeros((m, 2))
+    np.maximum.at(reach, np.asarray(obs_image, dtype=np.int64), np.abs(xy))
+    out = np.any(reach > np.asarray(sizes, dtype=float) / 2, axis=1)
+    if not np.any(out):
+        return
+    k = int(np.flatnonzero(out)[0])
+    need = 2 * np.ceil(reach[k]).astype(np.int64)
+    others = f" (and {int(out.sum()) - 1} more)" if out.sum() > 1 else ""
+    warnings.warn(
+        f"{label}: image {ids.tolist()[k]!r}{others} has observations outside {size_from(k)}, "
+        f"{int(sizes[k, 0])} x {int(sizes[k, 1])} px: up to {reach[k, 0]:.1f} px from the "
+        f"centre in x and {reach[k, 1]:.1f} px in y, an image of at least {need[0]} x "
+        f"{need[1]} px; read as given, but unless the file's principal points are off the "
+        f"centre the size is not that of the image (a camera of another format, a resized "
+        f"copy), which moves the pixel origin and the grids' extent: {fix}",
+        ImageSizeWarning,
+        stacklevel=3,
     )
 
 

@@ -64,7 +64,13 @@ from ._textio import (
     write_files_atomically,
 )
 from .block import Block
-from .io_bal import block_from_centred, centred_cameras, refuse_extras
+from .io_bal import (
+    SIZES_FIX,
+    block_from_centred,
+    centred_cameras,
+    refuse_extras,
+    warn_outside,
+)
 
 #: First line of a Bundler file.
 BUNDLER_HEADER = "# Bundle file v0.3"
@@ -198,7 +204,8 @@ class ExifOrientationWarning(UserWarning):
 
 
 def _image_file_size(path: Path) -> tuple[int, int, int]:
-    """Width, height (px, as stored) and EXIF orientation (1 when none) of an image file."""
+    """Width, height (px, as stored) and EXIF orientation (1 when none) of an image file
+    (a TIFF's from its tags 256, 257: Pillow turns a TIFF's size by its Orientation)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -207,8 +214,10 @@ def _image_file_size(path: Path) -> tuple[int, int, int]:
                 turn = int(im.getexif().get(274, 1))
             except (TypeError, ValueError):  # a damaged tag: the image as stored
                 turn = 1
+            if im.format == "TIFF":  # Pillow gives a TIFF's size turned by its Orientation
+                return int(im.tag_v2[256]), int(im.tag_v2[257]), turn
             return int(im.size[0]), int(im.size[1]), turn
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
+    except (OSError, UnidentifiedImageError, ValueError, KeyError) as exc:
         raise FileFormatError(
             f"cannot read the size of image {path}: {exc}; give the images' size "
             "(image_size=(width, height))"
@@ -374,6 +383,12 @@ def read_bundler(
         an image list of another length.
     InputError
         Image sizes that are not given and cannot be read from image files.
+
+    Warns
+    -----
+    ImageSizeWarning
+        An image whose observations reach outside the size given or read from its file
+        (:func:`photogeom.bundle.io_bal.warn_outside`).
     """
     label = str(path)
     text = read_text(path, "Bundler file", limit=_size_limit(label))
@@ -535,6 +550,17 @@ def read_bundler(
     where = np.full(m, -1, dtype=np.int64)
     where[cam_index] = np.arange(cam_index.size)
     sizes = _turned_sizes(sizes, turn, where[ci.astype(np.int64)], views[:, 2:], ids, label)
+    given = image_size if isinstance(image_size, Mapping) else {}
+
+    def size_from(k: int) -> str:
+        if image_size is not None and (not isinstance(image_size, Mapping) or ids[k] in given):
+            return "the image size given (image_size)"
+        return f"the size of its image file {list_base(list_file) / oriented_names[k]}"
+
+    warn_outside(
+        label, ids, sizes, where[ci.astype(np.int64)], views[:, 2:], size_from,
+        f"give each image its size {SIZES_FIX}, or the image files the list names",
+    )  # fmt: skip
     fk = cams[cam_index, :3]
     Ro = R[cam_index]
     u, _, vt = np.linalg.svd(Ro)
@@ -583,6 +609,13 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
         raise InputError(
             f"image id {bad[0]!r}: an image list holds one name a line, without leading or "
             "trailing white space, line breaks or NUL characters; rename the image"
+        )
+    tail = [s for s in names if _LIST_TAIL.search(s)]
+    if tail:
+        raise InputError(
+            f"image id {tail[0]!r}: an image list line 'NAME 0 FOCAL' gives the focal length "
+            f"after the name, so the name would be read back as "
+            f"{_LIST_TAIL.sub('', tail[0])!r}; rename the image"
         )
     m, p, n = block.n_images, block.n_points, block.n_observations
     cam = np.column_stack([C[:, 0], C[:, 3], C[:, 4], M.reshape(m, 9), t])

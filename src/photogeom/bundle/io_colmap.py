@@ -705,7 +705,9 @@ def read_colmap(
         model that differ, without ``binary``; in a binary model, truncated files, counts larger
         than the file, unknown camera model ids (see :mod:`photogeom.bundle.io_colmap_bin`;
         the messages name the file and byte offset); a ``rigs.txt`` / ``rigs.bin`` that
-        cannot be read (:func:`rig_sizes`).
+        cannot be read (:func:`rig_sizes`); image poses that contradict the model's
+        ``frames`` and ``rigs`` files, or images in no frame (:func:`check_frames`: COLMAP
+        3.12 and later would read the frames' poses).
 
     Warns
     -----
@@ -818,6 +820,221 @@ def _warn_rigs(d: Path, binary: bool) -> None:
         "poses are not a constraint of the adjustment",
         ColmapRigWarning,
         stacklevel=3,
+    )
+
+
+#: Largest disagreement of an image's pose in ``images.txt`` / ``images.bin`` with the pose its
+#: frame and rig compose (rotation angle, rad; translation, relative to the model's largest
+#: ``|T|``): COLMAP writes both from the same numbers to 17 digits, so they agree to about
+#: 1e-15; a model whose images file another tool rewrote differs by far more.
+FRAME_POSE_TOLERANCE = 1e-6
+
+
+def _rig_sensor_poses(path: Path, binary: bool) -> dict[tuple[int, int], np.ndarray | None]:
+    """Per camera of ``rigs.txt`` / ``rigs.bin``, keyed ``(RIG_ID, CAMERA_ID)``, its
+    ``sensor_from_rig`` pose (7: QW QX QY QZ TX TY TZ; the identity for the reference sensor,
+    None for a sensor whose pose the rig does not hold)."""
+    import struct
+
+    from ._textio import read_binary
+
+    identity = np.array([1.0, 0, 0, 0, 0, 0, 0])
+    poses: dict[tuple[int, int], np.ndarray | None] = {}
+    if not binary:
+        lines, numbers = _data_lines(read_text(path, "COLMAP rigs file"))
+        for line, k in zip(lines, numbers, strict=True):
+            tok = line.split()
+            try:
+                rid, count, at = int(tok[0]), int(tok[1]), 4
+                if count > 0:
+                    if tok[2] == "CAMERA":
+                        poses[(rid, int(tok[3]))] = identity
+                    for _ in range(count - 1):
+                        kind, sid, has = tok[at], int(tok[at + 1]), tok[at + 2] == "1"
+                        pose = np.array([float(x) for x in tok[at + 3 : at + 10]]) if has else None
+                        if has and pose.size != 7:
+                            raise IndexError
+                        if kind == "CAMERA":
+                            poses[(rid, sid)] = pose
+                        at += 10 if has else 3
+            except (IndexError, ValueError):
+                raise FileFormatError(
+                    f"{path}, line {k}: expected RIG_ID NUM_SENSORS REF_SENSOR_TYPE "
+                    f"REF_SENSOR_ID and the other sensors, got {line[:80]!r}"
+                ) from None
+        return poses
+    data, pos = read_binary(path, "COLMAP rigs file"), 8
+    try:
+        (n,) = struct.unpack_from("<Q", data, 0)
+        for _ in range(n):
+            rid, count = struct.unpack_from("<II", data, pos)
+            pos += 8
+            if count > 0:
+                kind, sid = struct.unpack_from("<iI", data, pos)
+                pos += 8
+                if kind == 0:
+                    poses[(rid, sid)] = identity
+            for _ in range(max(count - 1, 0)):
+                kind, sid, has = struct.unpack_from("<iIB", data, pos)
+                pos += 9
+                pose = np.array(struct.unpack_from("<7d", data, pos)) if has else None
+                pos += 56 if has else 0
+                if kind == 0:
+                    poses[(rid, sid)] = pose
+    except struct.error:
+        raise FileFormatError(
+            f"{path}: truncated at byte {pos} of {len(data)} (a rig cut short)"
+        ) from None
+    return poses
+
+
+def _frame_records(path: Path, binary: bool):
+    """The frames of ``frames.txt`` / ``frames.bin``: per camera image of a frame its
+    ``IMAGE_ID``, ``RIG_ID``, ``CAMERA_ID`` and the frame's ``rig_from_world`` pose (7)."""
+    import struct
+
+    from ._textio import read_binary
+
+    image, rig, camera, pose = [], [], [], []
+    if not binary:
+        lines, numbers = _data_lines(read_text(path, "COLMAP frames file"))
+        for line, k in zip(lines, numbers, strict=True):
+            tok = line.split()
+            try:
+                rid, rfw, n = int(tok[1]), [float(x) for x in tok[2:9]], int(tok[9])
+                data = tok[10 : 10 + 3 * n]
+                if len(rfw) != 7 or len(data) != 3 * n:
+                    raise IndexError
+                for kind, sid, did in zip(data[::3], data[1::3], data[2::3], strict=True):
+                    if kind == "CAMERA":
+                        image.append(int(did))
+                        rig.append(rid)
+                        camera.append(int(sid))
+                        pose.append(rfw)
+            except (IndexError, ValueError):
+                raise FileFormatError(
+                    f"{path}, line {k}: expected FRAME_ID RIG_ID QW QX QY QZ TX TY TZ "
+                    f"NUM_DATA_IDS and the data ids, got {line[:80]!r}"
+                ) from None
+    else:
+        data, pos = read_binary(path, "COLMAP frames file"), 8
+        try:
+            (n,) = struct.unpack_from("<Q", data, 0)
+            for _ in range(n):
+                _, rid, *rfw, count = struct.unpack_from("<II7dI", data, pos)
+                pos += 68
+                for _ in range(count):
+                    kind, sid, did = struct.unpack_from("<iIQ", data, pos)
+                    pos += 16
+                    if kind == 0:
+                        image.append(did)
+                        rig.append(rid)
+                        camera.append(sid)
+                        pose.append(rfw)
+        except struct.error:
+            raise FileFormatError(
+                f"{path}: truncated at byte {pos} of {len(data)} (a frame cut short)"
+            ) from None
+    return (
+        np.array(image, dtype=np.int64),
+        np.array(rig, dtype=np.int64),
+        np.array(camera, dtype=np.int64),
+        np.array(pose, dtype=float).reshape(-1, 7),
+    )
+
+
+def check_frames(images: Path, image_id: np.ndarray, names: np.ndarray, pose: np.ndarray) -> None:
+    """Refuse a model whose ``frames`` and ``rigs`` files (COLMAP 3.12 and later) contradict
+    its images file: an image whose pose there differs from the one its frame and rig
+    compose (by more than :data:`FRAME_POSE_TOLERANCE`), or that is in no frame.
+
+    COLMAP 3.12 and later (pycolmap 4) take the poses from the frames and ignore those of the
+    images file; photogeom reads the images file. When another tool (COLMAP before 3.12, a
+    script) rewrote the images file and left the old frames, the two read different blocks
+    from one folder, and which is meant cannot be told from the files.
+
+    Parameters
+    ----------
+    images : Path
+        The model's ``images.txt`` or ``images.bin`` (the folder and the form).
+    image_id : numpy.ndarray
+        (m,) int64, the images' ``IMAGE_ID``.
+    names : numpy.ndarray
+        (m,) str, their ``NAME``.
+    pose : numpy.ndarray
+        (m, 7) the images' camera-from-world poses, QW QX QY QZ, TX TY TZ (model units).
+
+    Raises
+    ------
+    FileFormatError
+        The poses contradict, naming the files, the images and the fix.
+    """
+    binary = images.suffix == ".bin"
+    ext = ".bin" if binary else ".txt"
+    pf, pr = images.parent / f"frames{ext}", images.parent / f"rigs{ext}"
+    if not pf.is_file() or image_id.size == 0:
+        return
+    if not pr.is_file():
+        raise FileFormatError(
+            f"{pf} has no {pr.name} beside it, which its rigs need; COLMAP cannot read the "
+            f"model either: remove {pf.name} (the poses are those of {images.name})"
+        )
+    sensors = _rig_sensor_poses(pr, binary)
+    img, rig, cam, rfw = _frame_records(pf, binary)
+    sfr = [sensors.get((r, c)) for r, c in zip(rig.tolist(), cam.tolist(), strict=True)]
+    known = np.array([s is not None for s in sfr], dtype=bool)
+    sfr_pose = np.array([s if s is not None else np.zeros(7) for s in sfr]).reshape(-1, 7)
+    # composed camera from world: R = R_s R_r, T = R_s T_r + T_s
+    rs = Rotation.from_quat(sfr_pose[known][:, [1, 2, 3, 0]]) if known.any() else None
+    rr = Rotation.from_quat(rfw[known][:, [1, 2, 3, 0]]) if known.any() else None
+    order = np.argsort(img[known], kind="stable")
+    frame_img = img[known][order]
+    where = np.searchsorted(frame_img, image_id)
+    inside = where < frame_img.size
+    found = np.zeros(image_id.size, dtype=bool)
+    found[inside] = frame_img[where[inside]] == image_id[inside]
+    in_frames = np.isin(image_id, img)  # also an image of a sensor without a pose
+    angle = np.zeros(image_id.size)
+    shift = np.zeros(image_id.size)
+    if found.any():
+        k = order[where[found]]
+        r_comp = rs[k] * rr[k]
+        t_comp = rs[k].apply(rfw[known][k, 4:7]) + sfr_pose[known][k, 4:7]
+        r_img = Rotation.from_quat(pose[found][:, [1, 2, 3, 0]])
+        angle[found] = (r_img * r_comp.inv()).magnitude()
+        shift[found] = np.linalg.norm(pose[found, 4:7] - t_comp, axis=1)
+    scale = max(float(np.max(np.linalg.norm(pose[:, 4:7], axis=1))), 1e-300)
+    bad = (angle > FRAME_POSE_TOLERANCE) | (shift > FRAME_POSE_TOLERANCE * scale)
+    missing = ~in_frames
+    if not (bad.any() or missing.any()):
+        return
+    parts = []
+    if bad.any():
+        i = np.flatnonzero(bad)
+        shown = ", ".join(
+            f"{int(image_id[j])} {str(names[j])!r}: {np.degrees(angle[j]):.3g} deg and "
+            f"{shift[j]:.3g} model units apart"
+            for j in i[:3]
+        )
+        parts.append(
+            f"the poses of {i.size} image(s) contradict those their frames in {pf.name} and "
+            f"rigs in {pr.name} compose (image {shown}{'; ...' if i.size > 3 else ''})"
+        )
+    if missing.any():
+        i = np.flatnonzero(missing)
+        shown = ", ".join(f"{int(image_id[j])} {str(names[j])!r}" for j in i[:3])
+        parts.append(
+            f"{i.size} image(s) are in no frame of {pf.name} (images {shown}"
+            f"{', ...' if i.size > 3 else ''})"
+        )
+    raise FileFormatError(
+        f"{images.parent}: {images.name} and the frames disagree: {'; '.join(parts)}. COLMAP "
+        f"3.12 and later read the poses of the frames, photogeom those of {images.name}: "
+        f"another tool (COLMAP before 3.12, a script) rewrote {images.name} and left the old "
+        f"frames? If {images.name} holds the poses meant, remove {pr.name} and {pf.name} "
+        f"(COLMAP then reads {images.name} too); if the frames do, write the model again "
+        "with COLMAP 3.12 or later (colmap model_converter, or pycolmap's "
+        "Reconstruction(folder).write_text), which writes both from the frames"
     )
 
 
@@ -992,7 +1209,8 @@ def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
     FileFormatError
         Repeated point ids, NaN or infinite coordinates, tracks naming missing images or
         out-of-range 2D points, tracks that disagree with the images' 2D points, quaternions
-        whose norm is not 1, malformed camera group lines.
+        whose norm is not 1, malformed camera group lines, poses that contradict the
+        frames (:func:`check_frames`).
     """
     mdl = model
     pc, pi, pp = mdl.files
@@ -1059,6 +1277,7 @@ def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
             f"{pi}, {mdl.image_at(i)}: the quaternion of image {int(image_id[i])} has norm "
             f"{qn[i]:.9g}, not 1"
         )
+    check_frames(pi, image_id, names, pose)
     q = pose[:, [1, 2, 3, 0]]  # scipy: scalar last
     R = Rotation.from_quat(q).as_matrix().reshape(-1, 3, 3)
     X0 = -np.einsum("nji,nj->ni", R, pose[:, 4:7])

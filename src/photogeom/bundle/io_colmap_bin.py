@@ -17,9 +17,10 @@ little-endian binary records, doubles to the last bit:
 
 COLMAP 3.12 and later (pycolmap 4) also write ``rigs.bin`` and ``frames.bin``; ``images.bin``
 keeps its layout and each image's pose (camera from world, composed from its frame and rig),
-which is what is read; rigs and frames are not read (as ``rigs.txt``, ``frames.txt`` of the
-text model). The writer writes one trivial rig per camera and one frame per image, as the
-text writer does, so COLMAP reads the written poses.
+which is what is read; rigs and frames are read only to refuse poses that contradict them
+and to warn of a rig of several cameras (as ``rigs.txt``, ``frames.txt`` of the text model:
+:func:`photogeom.bundle.io_colmap.check_frames`). The writer writes one trivial rig per
+camera and one frame per image, as the text writer does, so COLMAP reads the written poses.
 
 Reading is linear in the files: the fixed-size parts are read with numpy at their byte
 offsets, with one pass over the images for their variable-length names; the points are

@@ -306,6 +306,7 @@ def _read(path: Path):
                 if isinstance(o, bytes) and len(o) == 1:  # a BYTE tag: Pillow cannot save it
                     exif[_TIFF_ORIENTATION] = o[0]
             meta["exif"] = exif
+            meta["orientation"] = _exif_orientation(im)
             meta["icc_profile"] = info.get("icc_profile")
             meta["dpi"] = info.get("dpi")
             if meta["format"] == "JPEG" and info.get("jfif_unit") not in (1, 2):
@@ -335,6 +336,57 @@ def _read(path: Path):
             f"{stored_size[0]} x {stored_size[1]} px: the pixels were turned on reading"
         )
     return pixels, meta
+
+
+#: What each EXIF orientation (tag 274) other than 1 does to the stored pixels when shown.
+EXIF_TURNS = {
+    2: "mirrored left-right",
+    3: "turned by 180 degrees",
+    4: "mirrored top-bottom",
+    5: "mirrored and turned by 90 degrees",
+    6: "turned by 90 degrees clockwise",
+    7: "mirrored and turned by 90 degrees",
+    8: "turned by 90 degrees counter-clockwise",
+}
+
+
+def _exif_orientation(im) -> int:
+    """The EXIF orientation (tag 274) of an open Pillow image; 1 when it has none or it is
+    not one number."""
+    o = im.getexif().get(_TIFF_ORIENTATION, 1)
+    if isinstance(o, bytes) and len(o) == 1:
+        o = o[0]
+    elif isinstance(o, tuple) and len(o) == 1:
+        o = o[0]
+    try:
+        return int(o)
+    except (TypeError, ValueError):
+        return 1
+
+
+def orientation_note(orientation: int) -> str | None:
+    """The note of an image file whose EXIF orientation shows it otherwise than stored: it
+    is corrected as stored, which is right only for a grid of the stored pixels.
+
+    Parameters
+    ----------
+    orientation : int
+        The file's EXIF orientation (tag 274; 1 or an unknown value: none).
+
+    Returns
+    -------
+    str or None
+        The note, or None for orientation 1 (and values EXIF does not define).
+    """
+    turn = EXIF_TURNS.get(orientation)
+    if turn is None:
+        return None
+    return (
+        f"EXIF orientation {orientation} (shown {turn}): corrected as stored, the tag kept, "
+        "which is right for a grid of the stored pixels (COLMAP, Bundler and photogeom's own "
+        "coordinates) and wrong for one fitted to coordinates of the image as shown (a tool "
+        "that applied the orientation)"
+    )
 
 
 # JPEG header segments Pillow writes itself from what it read (JFIF, the EXIF it took,
@@ -1037,7 +1089,8 @@ def correct_image_file(
     Returns
     -------
     str or None
-        A note when metadata could not be kept, else None.
+        A note when metadata could not be kept, or when the file's EXIF orientation shows
+        it otherwise than stored (:func:`orientation_note`: corrected as stored), else None.
 
     Raises
     ------
@@ -1068,9 +1121,8 @@ def correct_image_file(
     )
     data, note = _encode(out, meta, src.suffix.lower() or ".png")
     atomic_write_bytes(dst, data)
-    if palette_note is not None:
-        note = palette_note if note is None else f"{palette_note}; {note}"
-    return note
+    notes = [palette_note, orientation_note(meta.get("orientation", 1)), note]
+    return "; ".join(n for n in notes if n is not None) or None
 
 
 # --------------------------------------------------------------------------- folders

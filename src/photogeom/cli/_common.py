@@ -474,6 +474,96 @@ def image_size_option(text: str, option: str = "--image-size") -> tuple[int, int
     return w, h
 
 
+def image_sizes_option(
+    text: str, option: str = "--image-size"
+) -> tuple[int, int] | dict[object, tuple[int, int]]:
+    """The images' size of an option: ``WIDTHxHEIGHT`` (px) for every image, or a CSV file
+    (a name ending in ``.csv``) of ``image_id,width,height`` rows, one size per image.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+    option : str
+        The option's name, for errors.
+
+    Returns
+    -------
+    tuple of int, or dict
+        ``(width, height)`` px, or ``{image id: (width, height)}``: the ids as text and, for
+        ids of digits only, also as integers (a BAL file's ids, a Bundler file's camera
+        indices).
+
+    Raises
+    ------
+    InputError
+        A value that is neither; a CSV without the three columns, with a size that is not
+        two whole numbers > 0, or an id twice (naming the line).
+    """
+    import csv
+
+    if not text.lower().endswith(".csv"):
+        return image_size_option(text, option)
+    path = Path(text)
+    try:
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{option} {text}: cannot read it as a CSV of image_id,width,height ({exc})"
+        ) from None
+    rows = [(k, r) for k, r in enumerate(csv.reader(lines), 1) if r and not r[0].startswith("#")]
+    head = [c.strip().lower() for c in rows[0][1]] if rows else []
+    if not {"image_id", "width", "height"} <= set(head):
+        raise InputError(
+            f"{option} {text}: a CSV of image sizes needs the columns image_id,width,height "
+            f"(px), one row per image; its header is {','.join(head)[:80]!r}"
+        )
+    at = [head.index(c) for c in ("image_id", "width", "height")]
+    sizes: dict[object, tuple[int, int]] = {}
+    for k, row in rows[1:]:
+        try:
+            key, w, h = (row[j].strip() for j in at)
+            size = (int(w), int(h))
+        except (IndexError, ValueError):
+            size = (0, 0)
+            key = ""
+        if min(size) <= 0 or not key:
+            raise InputError(
+                f"{option} {text}, line {k}: expected an image id and its width and height "
+                f"in whole pixels > 0, got {','.join(row)[:80]!r}"
+            )
+        if key in sizes:
+            raise InputError(f"{option} {text}, line {k}: image {key!r} has a size already")
+        sizes[key] = size
+        if key.isascii() and key.isdigit():
+            sizes[int(key)] = size
+    return sizes
+
+
+#: The image-size words of the BAL and Bundler readers (``photogeom.bundle.io_bal.SIZES_FIX``,
+#: :func:`photogeom.bundle.io_bal.warn_outside`, ``read_bal``'s mapping) in ``--image-size``'s.
+SIZE_WORDS: tuple[tuple[str, str], ...] = (
+    (
+        "(image_size=(width, height) for all, or a mapping image id -> (width, height) for "
+        "images of several sizes)",
+        "(--image-size WIDTHxHEIGHT for all, or --image-size SIZES.csv, a CSV of "
+        "image_id,width,height rows, for images of several sizes)",
+    ),
+    ("the image size given (image_size)", "the image size given (--image-size)"),
+    ("leave image_size out", "leave --image-size out"),
+    ("image_size gives no size for image", "--image-size gives no size for image"),
+    ("a mapping gives every image's", "a CSV of sizes gives every image's"),
+)
+
+
+def size_words(text: str) -> str:
+    """A block reader's message on image sizes in the words of ``--image-size``
+    (:data:`SIZE_WORDS`)."""
+    for api, cli in SIZE_WORDS:
+        text = text.replace(api, cli)
+    return text
+
+
 def unit_hint(text: str, option: str, unit: str = "px") -> str:
     """The fix for a value of ``option`` (in ``unit``) written with a unit (``100px``,
     ``0.3 px``, ``100,150px``, ``7952x5304px``): the same value without it, else ''.
@@ -1029,6 +1119,7 @@ def emit_points(text: str, output: Path | None, n: int) -> None:
 #: Phrases of library messages that name a Python argument, and the command-line option that
 #: does the same (the library speaks of its keywords, the command line of its options).
 CLI_WORDS: tuple[tuple[str, str], ...] = (
+    *SIZE_WORDS,
     ("pass behind='nan' to get NaN", "pass --behind nan to get NaN"),
     ("or pass behind='nan'", "or pass --behind nan"),
     (

@@ -31,12 +31,13 @@ from ._common import (
     alpha_help,
     check_alpha,
     console,
-    image_size_option,
+    image_sizes_option,
     iteration_progress,
     json_text,
     options_in_errors,
     refuse_stdout_dash,
     say,
+    size_words,
     split_names,
     stage_spinner,
     typed_option,
@@ -310,13 +311,17 @@ def read_block(
                 f"--image-size applies to a BAL or Bundler file; {path} is {shown}, whose "
                 "cameras give the image sizes: leave --image-size out"
             )
-        kw["image_size"] = image_size_option(image_size)
-    if fmt == "bundler":
-        return bundle.read_bundler(
-            path, image_list=image_list, group_cameras=group_cameras, **kw
-        )
-    if fmt == "bal":
-        return bundle.read_bal(path, **kw)
+        kw["image_size"] = image_sizes_option(image_size)
+    try:
+        if fmt == "bundler":
+            return bundle.read_bundler(
+                path, image_list=image_list, group_cameras=group_cameras, **kw
+            )
+        if fmt == "bal":
+            return bundle.read_bal(path, **kw)
+    except InputError as exc:  # the sizes given: in --image-size's words
+        exc.args = (size_words(str(exc)), *exc.args[1:])
+        raise
     if fmt == "colmap-both":  # a folder holding both models (detect_format)
         from ..bundle.io_colmap import ColmapModelsDiffer
 
@@ -468,7 +473,8 @@ ImageSizeOpt = Annotated[
     str | None,
     typer.Option(
         "--image-size",
-        help="BAL/Bundler input: the images' size WIDTHxHEIGHT [px] (Bundler default: read "
+        help="BAL/Bundler input: the images' size WIDTHxHEIGHT [px], or SIZES.csv of "
+        "image_id,width,height rows for images of several sizes (Bundler default: read "
         "from the image files its list names; BAL: the smallest even size holding the "
         "observations).",
         show_default=False,

@@ -33,7 +33,7 @@ from ._common import (
     check_outputs,
     console,
     emit_points,
-    image_size_option,
+    image_sizes_option,
     json_id,
     json_text,
     options_in_errors,
@@ -560,7 +560,8 @@ def fit(
             "--image-size",
             help="Image size WIDTHxHEIGHT in pixels (all images) of a residuals CSV, a BAL "
             "file (BAL holds none) or a Bundler file (default: read from the images its "
-            "list names).",
+            "list names), or SIZES.csv of image_id,width,height rows (images of several "
+            "sizes).",
         ),
     ] = None,
     spacing: Annotated[
@@ -978,19 +979,21 @@ def _fit_csv(
 ) -> dict:
     """The grids of a residuals CSV (image_id, u, v, rx, ry, and optionally sigma: each
     residual's standard deviation in px, as in a block's observations.csv) of images of one
-    size; the images of ``exclude`` (--exclude) left out. Without --sigma-obs a sigma column
-    weighs each residual, as the observations' sigmas do for a block (before, it was
-    ignored and every residual had 1 px). ``where`` receives, per image, ``("line", the CSV
-    line of each of its rows)``."""
+    size (--image-size WIDTHxHEIGHT) or each of its own (--image-size SIZES.csv); the images
+    of ``exclude`` (--exclude) left out. Without --sigma-obs a sigma column weighs each
+    residual, as the observations' sigmas do for a block (before, it was ignored and every
+    residual had 1 px). ``where`` receives, per image, ``("line", the CSV line of each of
+    its rows)``."""
     from ..calibration import GridLayout, fit_grids
     from ..calibration.grid import scaled_constraint_sigma
 
     if image_size is None:
         raise InputError(
             f"{path}: a residuals CSV needs the images' size: give --image-size "
-            "WIDTHxHEIGHT (pixels)"
+            "WIDTHxHEIGHT (pixels), or SIZES.csv of image_id,width,height rows for images of "
+            "several sizes"
         )
-    size = image_size_option(image_size)
+    size = image_sizes_option(image_size)
     s_c = 1.0 if sigma_constraint is None else sigma_constraint
     quoted: list = []
     _h, columns, col, lines = _read_csv(path, ("image_id", "u", "v", "rx", "ry"), None, quoted)
@@ -1016,18 +1019,37 @@ def _fit_csv(
                 "positive number of pixels; give each residual's standard deviation (px), or "
                 "--sigma-obs for all of them"
             )
+    groups = _groups(ids)
+    if isinstance(size, dict):  # --image-size SIZES.csv: each image its own size
+        none = [k for k in groups if k not in size and k not in exclude]
+        if none:
+            raise InputError(
+                f"--image-size {image_size} gives no size for image {none[0]!r} of {path} "
+                f"({len(none)} image(s) without one); add a row image_id,width,height for "
+                "each, or --exclude them"
+            )
+        size = {k: size[k] for k in groups if k in size}
+        row_size = np.zeros((len(ids), 2))
+        for k, r in groups.items():
+            row_size[r] = size.get(k, (np.inf, np.inf))
+        fix = "give each image's size in the CSV of --image-size, or remove those rows"
+    else:
+        row_size = np.tile(np.asarray(size, dtype=float), (len(ids), 1))
+        fix = (
+            "give the images' size with --image-size WIDTHxHEIGHT (or SIZES.csv of "
+            "image_id,width,height rows for images of several sizes), or remove those rows"
+        )
     try:  # the image size and the spacing are refused first, as fit_grids does
-        GridLayout(size[0], size[1], spacing)
+        for w, h in dict.fromkeys(size.values()) if isinstance(size, dict) else [size]:
+            GridLayout(w, h, spacing)
     except PhotogeomError as exc:
         raise _reworded(exc, _cli_words) from None
-    _refuse_outside(
-        path, ids, data[:, :2], lines, np.full(len(ids), size[0]), np.full(len(ids), size[1]),
-        "give the images' size with --image-size WIDTHxHEIGHT, or remove those rows",
-    )  # fmt: skip
-    groups = _groups(ids)
+    _refuse_outside(path, ids, data[:, :2], lines, row_size[:, 0], row_size[:, 1], fix)
     _refuse_unknown(exclude, list(groups), path)
     for k in exclude:
         del groups[k]
+    if isinstance(size, dict):
+        size = {k: size[k] for k in groups}
     per_image = {k: (data[r, :2], data[r, 2:]) for k, r in groups.items()}
     if where is not None:
         where.update({k: ("line", np.asarray(lines)[r]) for k, r in groups.items()})

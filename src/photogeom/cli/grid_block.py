@@ -21,7 +21,7 @@ from ._common import (
     JsonOpt,
     console,
     fraction,
-    image_size_option,
+    image_sizes_option,
     iteration_progress,
     json_id,
     json_text,
@@ -31,6 +31,7 @@ from ._common import (
     print_id_table,
     read_detected_block,
     say,
+    size_words,
     split_numbers,
     stage_spinner,
     typed_option,
@@ -284,13 +285,14 @@ def read_sized_block(
             f"--image-size applies to {takes_size}; {path} is a block whose cameras give "
             "the image sizes: leave --image-size out"
         )
-    options = {} if image_size is None else {"image_size": image_size_option(image_size)}
+    options = {} if image_size is None else {"image_size": image_sizes_option(image_size)}
     try:
         with stage_spinner(f"reading {path}"):
             block = read_detected_block(path, **options)
     except InputError as exc:  # a Bundler file's image sizes: the option that gives them
         head, sep, _ = str(exc).partition("; give the images' size")
         if not sep:
+            exc.args = (size_words(str(exc)), *exc.args[1:])
             raise
         raise InputError(
             f"{head}; put the images where its image list says, or give their size with "
