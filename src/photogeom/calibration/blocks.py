@@ -358,10 +358,13 @@ def readjust(
     that of grids fitted with the same weights held by at most 0.0002 +- 0.0011.
 
     When ``block`` is the block of the final fit of
-    :func:`~photogeom.calibration.adjust_with_grids` (``GridAdjustment.fit.block``, the
-    object itself), the chain's first adjustment is that joint adjustment, with its
+    :func:`~photogeom.calibration.adjust_with_grids` (``GridAdjustment.fit.block``, a copy
+    of it or a CSV block folder written from it: its ``joint_adjustment`` record), the
+    chain's first adjustment is that joint adjustment, with its
     calibration and grid nodes among the unknowns (before: the bundle adjustment of the
-    final fit's block, and the mean sigma0^2 of 100 draws was 0.91 instead of 1.00).
+    final fit's block, and the mean sigma0^2 of 100 draws was 0.91 instead of 1.00). A
+    block carrying the record whose observations, orientation or calibration differ from
+    that final fit's takes its own bundle adjustment and a note says so.
 
     The standard deviations stay in-sample and too small: the re-adjustment holds the
     cameras as errorless, while they carry the first adjustment's errors. On the same
@@ -390,7 +393,7 @@ def readjust(
                 probes=redundancy_probes,
                 seed=redundancy_seed,
             )
-            notes = (IN_SAMPLE_NOTE,)
+            notes = (IN_SAMPLE_NOTE,) if chain["note"] is None else (IN_SAMPLE_NOTE, chain["note"])
         except DegenerateGeometryError as exc:  # said in the result's notes
             notes = (f"{NO_CHAIN_NOTE}: {exc}",)
     fit = _adjust_corrected(corrected, effective_redundancy=chain, **options)

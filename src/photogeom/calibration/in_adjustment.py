@@ -54,8 +54,7 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -129,7 +128,10 @@ class GridAdjustment:
         check points are triangulated from corrected observations, and its residuals,
         steps and check-point statistics are comparable with
         :func:`~photogeom.calibration.readjust` after the post-processing. Its standard
-        deviations are conditional on the fixed orientation.
+        deviations are conditional on the fixed orientation. Its block carries the record
+        of this joint adjustment (``fit.block.joint_adjustment``, a
+        :class:`JointAdjustmentRecord`), kept by copies and CSV block folders: readjust
+        takes the joint adjustment as the first adjustment of its chain.
     per : {"image", "camera"}
     spacing : float
         Node spacing (px).
@@ -802,11 +804,49 @@ def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix, backend: str = "auto") -
 
 
 # --------------------------------------------------------------------------- the chain
+#: The folder of a CSV block folder that holds the record of the joint adjustment of
+#: :func:`adjust_with_grids` (its final fit's block, ``GridAdjustment.fit.block``): the
+#: joint estimate as a CSV block (angles in radians) and ``settings.json``.
+RECORD_FOLDER = "joint_adjustment"
+#: Settings file of :data:`RECORD_FOLDER`.
+RECORD_SETTINGS = "settings.json"
+
+
+def _observations_digest(block: Block) -> str:
+    """SHA-256 of a block's observed pixels (float64 bytes; a CSV round trip keeps them)."""
+    import hashlib
+
+    uv = np.ascontiguousarray(block.observations.uv, dtype="<f8")
+    return hashlib.sha256(uv.tobytes()).hexdigest()
+
+
 @dataclass(frozen=True, eq=False)
-class _Joint:
-    """What linearises a joint adjustment with grids again: its estimate (``block``, the
-    observations as given) and settings (the Jacobian does not depend on the node
-    values)."""
+class JointAdjustmentRecord:
+    """The joint adjustment with grids that a block is the final fit of.
+
+    :func:`adjust_with_grids` puts it on its final fit's block
+    (``GridAdjustment.fit.block.joint_adjustment``); copies of the block keep it
+    (:meth:`~photogeom.bundle.Block.replace` and every method deriving a block), a CSV block
+    folder holds it (:data:`RECORD_FOLDER`), and a new adjustment's block has none.
+    :func:`~photogeom.calibration.readjust` takes the joint adjustment as the first
+    adjustment of its chain when the block is still that final fit (:meth:`mismatch`).
+
+    Attributes
+    ----------
+    block : Block
+        The joint estimate (orientations, calibration, points; the observations as given,
+        not corrected).
+    opts : BundleOptions
+        The options of the joint adjustment.
+    spacing : float
+        Node spacing (px).
+    per, datum, border : str
+        As in :func:`adjust_with_grids`.
+    sc, st, sa : float or None
+        ``sigma_constraint``, ``sigma_temporal`` and ``sigma_amplitude`` (px; None: not used).
+    observations_sha256 : str
+        SHA-256 of the final fit's observed pixels (corrected by the grids), float64.
+    """
 
     block: Block
     opts: BundleOptions
@@ -817,13 +857,136 @@ class _Joint:
     st: float | None
     sa: float | None
     border: str
+    observations_sha256: str
 
+    def mismatch(self, block: Block) -> str | None:
+        """Why ``block`` is not the final fit this record was made for (None: it is).
 
-#: The final fit's block of each joint adjustment (``GridAdjustment.fit.block``, held
-#: weakly) -> its :class:`_Joint`: grids fitted afterwards to that fit's residuals and
-#: :func:`~photogeom.calibration.readjust` take the joint adjustment as the first
-#: adjustment of their chain (:func:`joint_first_adjustment`).
-_JOINT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        Parameters
+        ----------
+        block : Block
+            The block carrying the record.
+
+        Returns
+        -------
+        str or None
+            What differs: the observation rows, the observed pixels (bit for bit), the
+            exterior orientation or the calibration (beyond 1e-10 relative, 1e-9 absolute:
+            a CSV round trip in degrees changes the last digits).
+        """
+        est = self.block
+        if not est.same_observation_rows(block):
+            return "its observation rows"
+        if _observations_digest(block) != self.observations_sha256:
+            return "its observed pixels"
+        if not np.allclose(block.exterior, est.exterior, rtol=1e-10, atol=1e-9):
+            return "its exterior orientation"
+        if not np.allclose(
+            block.calibration_matrix(), est.calibration_matrix(), rtol=1e-10, atol=1e-9
+        ) or not np.allclose(block.calibration_offset, est.calibration_offset, atol=1e-9):
+            return "its calibration"
+        return None
+
+    def settings(self) -> dict:
+        """JSON-ready settings (``settings.json`` of :data:`RECORD_FOLDER`).
+
+        Returns
+        -------
+        dict
+            ``spacing`` (px), ``per``, ``datum``, ``border``, ``sigma_constraint``,
+            ``sigma_temporal``, ``sigma_amplitude`` (px, null where not used),
+            ``observations_sha256`` and ``options`` (the fields of the BundleOptions).
+        """
+        import dataclasses
+
+        opts = dataclasses.asdict(self.opts)
+        if opts.get("free") is not None:
+            opts["free"] = list(opts["free"])
+        return {
+            "written_by": "photogeom.calibration.adjust_with_grids",
+            "spacing": self.spacing,
+            "per": self.per,
+            "datum": self.datum,
+            "border": self.border,
+            "sigma_constraint": self.sc,
+            "sigma_temporal": self.st,
+            "sigma_amplitude": self.sa,
+            "observations_sha256": self.observations_sha256,
+            "options": opts,
+        }
+
+    def texts(self) -> dict[str, str]:
+        """The files of :data:`RECORD_FOLDER` by name: the joint estimate's CSV block
+        (angles in radians, every digit kept) and ``settings.json``.
+
+        Returns
+        -------
+        dict
+            File name (inside :data:`RECORD_FOLDER`) -> text.
+        """
+        import json
+
+        from ..bundle.io_csv import csv_block_texts
+
+        out = csv_block_texts(self.block, angle_unit="rad")
+        out[RECORD_SETTINGS] = json.dumps(self.settings(), indent=1) + "\n"
+        return out
+
+    @classmethod
+    def read(cls, folder, block: Block) -> JointAdjustmentRecord:
+        """The record in ``folder`` (:data:`RECORD_FOLDER` of a CSV block folder).
+
+        Parameters
+        ----------
+        folder : path-like
+            The record's folder.
+        block : Block
+            The block read from the enclosing folder (for the error messages).
+
+        Returns
+        -------
+        JointAdjustmentRecord
+
+        Raises
+        ------
+        FileFormatError
+            A settings file that is not JSON or lacks a setting, or options that are not
+            valid.
+        """
+        import json
+        from pathlib import Path
+
+        from ..bundle.io_csv import read_csv_block
+        from ..errors import FileFormatError
+
+        d = Path(folder)
+        path = d / RECORD_SETTINGS
+        try:
+            s = json.loads(path.read_text(encoding="utf-8"))
+            o = dict(s["options"])
+            if o.get("free") is not None:
+                o["free"] = tuple(o["free"])
+            opts = BundleOptions(**o).validate()
+            rec = cls(
+                block=read_csv_block(d),
+                opts=opts,
+                spacing=float(s["spacing"]),
+                per=str(s["per"]),
+                datum=str(s["datum"]),
+                sc=float(s["sigma_constraint"]),
+                st=None if s["sigma_temporal"] is None else float(s["sigma_temporal"]),
+                sa=None if s["sigma_amplitude"] is None else float(s["sigma_amplitude"]),
+                border=str(s["border"]),
+                observations_sha256=str(s["observations_sha256"]),
+            )
+        except (OSError, ValueError, KeyError, TypeError, InputError) as exc:
+            raise FileFormatError(
+                f"{path}: not the settings of a joint adjustment with grids ({exc}); "
+                f"remove the folder {d} to read the block without them (readjust then "
+                "takes the bundle adjustment of the block as the first adjustment of its "
+                "chain)"
+            ) from None
+        return rec
 
 
 def joint_first_adjustment(block: Block):
@@ -842,8 +1005,8 @@ def joint_first_adjustment(block: Block):
         The pseudo-observations are error-free here: the chain's redundancy is that of the
         observations' noise, as for a block without any local field.
     """
-    rec = _JOINT.get(block)
-    if rec is None:
+    rec = getattr(block, "joint_adjustment", None)
+    if rec is None or rec.mismatch(block) is not None:
         return None
     from .chain import _first_jacobian
 
@@ -1047,7 +1210,10 @@ def adjust_with_grids(
         correct_block_observations(est, grids),
         opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
     )
-    _JOINT[final.block] = _Joint(est, opts, spacing, per, datum, sc, st, sa, border)
+    record = JointAdjustmentRecord(
+        est, opts, spacing, per, datum, sc, st, sa, border, _observations_digest(final.block)
+    )
+    final = replace(final, block=final.block.replace(joint_adjustment=record))
     return GridAdjustment(
         grids=grids,
         block=est,
