@@ -35,14 +35,14 @@ def _run(args):
 def draws():
     """12 draws of fresh noise on one geometry: in-adjustment grids of 500 px (temporal
     constraints 0.3 px), then grids of 300 px fitted to the final fit's residuals and the
-    re-adjustment; ``(final fit's block, its grids, re-adjustment)`` per draw."""
+    re-adjustment; ``(final fit's block, its grids, re-adjustment, final fit)`` per draw."""
     sim = pg.simulate.uav_block("ILCE-7RM2", seed=2, strips=2, images_per_strip=4, local_field=0.0)
     out = []
     for k in range(12):  # draws, not points
         ba = pg.bundle_adjust(sim.rematch(seed=100 + k), snooping=False)
         ga = adjust_with_grids(ba.block, 500.0, sigma_temporal=0.3, std=False)
         grids = fit_residual_grids(ga.fit.block, 300.0, folds=0)
-        out.append((ga.fit.block, grids, readjust(ga.fit.block, grids, snooping=False)))
+        out.append((ga.fit.block, grids, readjust(ga.fit.block, grids, snooping=False), ga.fit))
     return out
 
 
@@ -50,9 +50,22 @@ def test_sigma0_after_grids_in_and_after_the_adjustment_is_unbiased(draws):
     # before, the chain's first adjustment held the calibration and had no grid nodes:
     # mean sigma0^2 0.904 over these 12 draws (0.909 +- 0.008 over 100; effective
     # redundancy 146 on the first draw instead of 133); now 0.995 (1.001 +- 0.009 over 100)
-    assert all(re.effective_redundancy is not None for _, _, re in draws)
-    s2 = [re.sigma0**2 for _, _, re in draws]
+    assert all(re.effective_redundancy is not None for _, _, re, _ in draws)
+    s2 = [re.sigma0**2 for _, _, re, _ in draws]
     # one draw's sigma0^2 varies by about sqrt(2 / 133) = 0.12: the mean of 12 by 0.035
+    assert abs(np.mean(s2) - 1.0) < 0.05
+
+
+def test_sigma0_of_the_final_fit_of_the_adjustment_with_grids_is_unbiased(draws):
+    # the final fit's residuals are the joint adjustment's: over the re-adjustment's own
+    # redundancy (1021 on the first draw) the mean sigma0^2 was 0.66 over these draws, no
+    # word of it; over the chain of the two (effective redundancy 697) it is 0.99
+    fits = [fit for *_, fit in draws]
+    assert all(f.effective_redundancy["first_adjustment"] == "adjust_with_grids" for f in fits)
+    assert all(f.effective_redundancy["value"] < 0.8 * f.redundancy for f in fits)
+    assert all(any("estimated from these same observations" in n for n in f.notes) for f in fits)
+    s2 = [f.sigma0**2 for f in fits]
+    # one draw's sigma0^2 varies by about sqrt(2 / 697) = 0.054: the mean of 12 by 0.016
     assert abs(np.mean(s2) - 1.0) < 0.05
 
 
@@ -69,7 +82,7 @@ def test_copies_of_the_final_block_keep_the_joint_chain(draws):
     # pickle, a derived block) took the bundle adjustment of the block as the chain's first
     # adjustment, silently: effective redundancy 145.8 instead of 132.7, sigma0 0.917
     # instead of 0.961 on this draw
-    block, grids, re = draws[0]
+    block, grids, re, _ = draws[0]
     assert re.effective_redundancy["first_adjustment"] == "adjust_with_grids"
     for copy in (
         block.replace(),
@@ -86,7 +99,7 @@ def test_copies_of_the_final_block_keep_the_joint_chain(draws):
 
 
 def test_a_csv_block_folder_keeps_the_joint_chain(draws, tmp_path):
-    block, grids, re = draws[0]
+    block, grids, re, _ = draws[0]
     pg.bundle.write_block(block, tmp_path / "rad", kind="csv", angle_unit="rad")
     _same_chain(re, readjust(pg.bundle.read_block(tmp_path / "rad"), grids, snooping=False))
     # in degrees the orientation read back differs in its last digits: the same chain,
@@ -107,7 +120,7 @@ def test_a_csv_block_folder_keeps_the_joint_chain(draws, tmp_path):
 def test_the_command_line_keeps_the_record_through_a_csv_block(draws, tmp_path):
     # 'bundle convert' to a CSV folder keeps it; to a format without a place for it, the
     # command warns that it is lost and how to keep it
-    block, grids, re = draws[0]
+    block, grids, re, _ = draws[0]
     pg.bundle.write_block(block, tmp_path / "blk", kind="csv", angle_unit="rad")
     code, _, err = _run(["bundle", "convert", tmp_path / "blk", tmp_path / "out", "--to",
                          "csv", "--angle-unit", "rad"])  # fmt: skip
@@ -121,7 +134,7 @@ def test_the_command_line_keeps_the_record_through_a_csv_block(draws, tmp_path):
 
 
 def test_a_block_changed_since_the_final_fit_says_why_the_chain_is_plain(draws):
-    block, grids, _ = draws[0]
+    block, grids, _, _ = draws[0]
     moved = block.replace(exterior=block.exterior + np.array([0, 0, 0, 0, 0, 1e-6]))
     r = readjust(moved, grids, snooping=False)
     assert r.effective_redundancy["first_adjustment"] == "bundle_adjust"
@@ -130,7 +143,7 @@ def test_a_block_changed_since_the_final_fit_says_why_the_chain_is_plain(draws):
 
 
 def test_an_adjustment_of_the_final_block_starts_a_chain_of_its_own(draws):
-    block, _, re = draws[0]
+    block, _, re, _ = draws[0]
     assert block.joint_adjustment is not None
     assert re.block.joint_adjustment is None
     assert pg.bundle_adjust(block, snooping=False).block.joint_adjustment is None

@@ -127,8 +127,11 @@ class GridAdjustment:
         calibration held at the joint estimate: its points equal the joint solution's, its
         check points are triangulated from corrected observations, and its residuals,
         steps and check-point statistics are comparable with
-        :func:`~photogeom.calibration.readjust` after the post-processing. Its standard
-        deviations are conditional on the fixed orientation. Its block carries the record
+        :func:`~photogeom.calibration.readjust` after the post-processing. Its sigma0 is
+        over the effective redundancy of the chain of the joint adjustment and this
+        re-adjustment (``fit.effective_redundancy``; its residuals are the joint
+        adjustment's); its standard deviations are conditional on the fixed orientation
+        (a note says so). Its block carries the record
         of this joint adjustment (``fit.block.joint_adjustment``, a
         :class:`JointAdjustmentRecord`), kept by copies and CSV block folders: readjust
         takes the joint adjustment as the first adjustment of its chain.
@@ -1025,6 +1028,15 @@ def joint_first_adjustment(block: Block):
     return J, rows, F.solve, gp.bp.sigma_obs()
 
 
+#: The note of the final fit of :func:`adjust_with_grids` (``GridAdjustment.fit``).
+IN_ADJUSTMENT_NOTE = (
+    "the grids were estimated from these same observations in the joint adjustment: sigma0 "
+    "is computed over the effective redundancy of the chain (the joint adjustment, then this "
+    "re-adjustment; see effective_redundancy), but the standard deviations are conditional "
+    "on the orientation and calibration held and too small"
+)
+
+
 # --------------------------------------------------------------------------- the call
 def adjust_with_grids(
     block: Block,
@@ -1112,8 +1124,6 @@ def adjust_with_grids(
         ``backend="cg"``: conjugate gradients did not solve the normal equations in
         ``10 n`` iterations (the message names the direct backends).
     """
-    from ..bundle.adjustment import bundle_adjust
-
     t0 = time.perf_counter()
     if not isinstance(block, Block):
         raise InputError(
@@ -1204,16 +1214,28 @@ def adjust_with_grids(
             for iid, c in zip(block.image_ids.tolist(), block.image_camera.tolist())
             if cam_ids[c] in objs
         }
+    from ..bundle.adjustment import adjust_block
     from .blocks import correct_block_observations
+    from .chain import chain_redundancy
 
-    final = bundle_adjust(
-        correct_block_observations(est, grids),
-        opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
-    )
+    corrected = correct_block_observations(est, grids)
     record = JointAdjustmentRecord(
-        est, opts, spacing, per, datum, sc, st, sa, border, _observations_digest(final.block)
+        est, opts, spacing, per, datum, sc, st, sa, border, _observations_digest(corrected)
     )
-    final = replace(final, block=final.block.replace(joint_adjustment=record))
+    corrected = corrected.replace(joint_adjustment=record)
+    # the re-adjustment's residuals are the joint adjustment's: sigma0 over the chain of the
+    # two (its effective redundancy; over the re-adjustment's own count it was too small)
+    chain = chain_redundancy(corrected, {}, uncorrected=corrected.image_ids.tolist())
+    final = adjust_block(
+        corrected,
+        opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
+        effective_redundancy=chain,
+    )
+    final = replace(
+        final,
+        block=final.block.replace(joint_adjustment=record),
+        notes=(*final.notes, IN_ADJUSTMENT_NOTE),
+    )
     return GridAdjustment(
         grids=grids,
         block=est,
