@@ -126,6 +126,13 @@ def test_the_command_line_keeps_the_record_through_a_csv_block(draws, tmp_path):
                          "csv", "--angle-unit", "rad"])  # fmt: skip
     assert code == 0, err
     _same_chain(re, readjust(pg.bundle.read_block(tmp_path / "out"), grids, snooping=False))
+    # a block without the record converted into that folder takes the record away
+    pg.bundle.write_block(block.replace(joint_adjustment=None), tmp_path / "plain", kind="csv")
+    code, _, err = _run(["bundle", "convert", tmp_path / "plain", tmp_path / "out", "--to",
+                         "csv"])  # fmt: skip
+    assert code == 0, err
+    assert not (tmp_path / "out" / "joint_adjustment").exists()
+    assert pg.bundle.read_block(tmp_path / "out").joint_adjustment is None
     code, _, err = _run(["bundle", "convert", tmp_path / "blk", tmp_path / "col", "--to",
                          "colmap", "--drop-extras"])  # fmt: skip
     assert code == 0, err

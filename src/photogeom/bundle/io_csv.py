@@ -984,6 +984,33 @@ def record_files(block: Block, directory: Path) -> dict[Path, bytes]:
     return {d / k: v.encode("utf-8") for k, v in rec.texts().items()}
 
 
+def remove_stale_record(directory: Path) -> None:
+    """Remove the record of a joint adjustment with grids (folder ``joint_adjustment``, its
+    settings first) from the CSV block folder ``directory``, written with a block that has
+    none: it belongs to a block written there before.
+
+    Raises
+    ------
+    OutputError
+        A file of the record that cannot be removed.
+    """
+    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
+
+    stale = Path(directory) / RECORD_FOLDER
+    for name in (RECORD_SETTINGS, *FILES):
+        if (stale / name).is_file():
+            try:
+                (stale / name).unlink()
+            except OSError as exc:
+                raise OutputError(
+                    f"cannot remove {stale / name}, the record of a joint adjustment with "
+                    f"grids that the block written to {directory} does not have: {exc}; "
+                    "remove the folder yourself"
+                ) from None
+    if stale.is_dir() and not any(stale.iterdir()):
+        stale.rmdir()
+
+
 def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: str = "deg") -> Path:
     """Write a block as a folder of CSV files (created if missing; see the module docstring).
 
@@ -1012,8 +1039,6 @@ def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: s
         A text id that a CSV line cannot hold (empty, a line break, NUL), or a folder that
         cannot be written.
     """
-    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
-
     texts = csv_block_texts(block, angle_unit=angle_unit)
     d = Path(directory)
     from .io_formats import check_block_target, write_files  # (io_formats imports this module)
@@ -1021,18 +1046,4 @@ def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: s
     check_block_target(d, "csv")
     files = {d / k: v.encode("utf-8") for k, v in texts.items()} | record_files(block, d)
     write_files(files, folders=sorted({f.parent for f in files}))
-    if block.joint_adjustment is None:  # a record left by a block written here before
-        stale = d / RECORD_FOLDER
-        for name in (RECORD_SETTINGS, *FILES):
-            if (stale / name).is_file():
-                try:
-                    (stale / name).unlink()
-                except OSError as exc:
-                    raise OutputError(
-                        f"cannot remove {stale / name}, the record of a joint adjustment "
-                        f"with grids that the block written to {d} does not have: {exc}; "
-                        "remove the folder yourself"
-                    ) from None
-        if stale.is_dir() and not any(stale.iterdir()):
-            stale.rmdir()
     return d

@@ -29,7 +29,13 @@ from .io_colmap import (
     read_colmap,
     write_colmap,
 )
-from .io_csv import csv_block_texts, read_csv_block, record_files, write_csv_block
+from .io_csv import (
+    csv_block_texts,
+    read_csv_block,
+    record_files,
+    remove_stale_record,
+    write_csv_block,
+)
 
 #: Names of the block formats.
 FORMATS = ("bal", "colmap", "colmap-bin", "csv", "bundler")
@@ -160,7 +166,9 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
     Raises
     ------
     OutputError
-        A folder that is a file or cannot be created, a file that cannot be written.
+        A folder that is a file or cannot be created, a file that cannot be written, the
+        record of a joint adjustment with grids left in a CSV block folder written without
+        one that cannot be removed (:func:`~photogeom.bundle.io_csv.remove_stale_record`).
     """
     made: list[Path] = []
     try:
@@ -182,7 +190,7 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
                         f"cannot create folder {m}: {exc.strerror or exc}", exc.errno
                     ) from None
                 made.append(m)
-        return atomic_write_many(list(files.items()))
+        written = atomic_write_many(list(files.items()))
     except BaseException:
         for m in reversed(made):  # empty again: the batch rolled its files back
             try:
@@ -190,6 +198,17 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
             except OSError:
                 pass
         raise
+    # a CSV block written without the record of a joint adjustment with grids: a record
+    # left in its folder by a block written there before is not this block's
+    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
+
+    for path in files:
+        d = Path(path).parent
+        if Path(path).name == "observations.csv" and (
+            d / RECORD_FOLDER / RECORD_SETTINGS not in files
+        ):
+            remove_stale_record(d)
+    return written
 
 
 def detect_format(path: str | os.PathLike) -> str:
