@@ -1022,8 +1022,15 @@ def joint_first_adjustment(block: Block):
     Jg = sp.vstack([Jg, sp.csr_matrix((J0.shape[0] - Jg.shape[0], gp.n_grid))], format="csr")
     J = sp.hstack([J0[:, :g0], Jg, J0[:, g0:]], format="csr")
     N = (J.T @ J + gp._R_free).tocsr()
+    # the joint adjustment's backend: with "cg" nothing is factorised (each probe is solved
+    # by conjugate gradients, as the adjustment's steps were)
     F = _ReducedFactor(
-        N, 3 * gp.bp.p, gp.U_free, "normal equations with residual grids at the solution"
+        N,
+        3 * gp.bp.p,
+        gp.U_free,
+        "normal equations with residual grids at the solution",
+        backend=rec.opts.backend,
+        blocks=gp.cg_blocks,
     )
     return J, rows, F.solve, gp.bp.sigma_obs()
 
