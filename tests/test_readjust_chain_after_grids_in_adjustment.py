@@ -6,6 +6,7 @@ the whole non-linear chain on fresh noise of a block without any local field: th
 sigma0^2 must be 1."""
 
 import contextlib
+import dataclasses
 import io
 import pickle
 import re as re_
@@ -35,14 +36,15 @@ def _run(args):
 def draws():
     """12 draws of fresh noise on one geometry: in-adjustment grids of 500 px (temporal
     constraints 0.3 px), then grids of 300 px fitted to the final fit's residuals and the
-    re-adjustment; ``(final fit's block, its grids, re-adjustment, final fit)`` per draw."""
+    re-adjustment; ``(final fit's block, its grids, re-adjustment, GridAdjustment)`` per
+    draw."""
     sim = pg.simulate.uav_block("ILCE-7RM2", seed=2, strips=2, images_per_strip=4, local_field=0.0)
     out = []
     for k in range(12):  # draws, not points
         ba = pg.bundle_adjust(sim.rematch(seed=100 + k), snooping=False)
         ga = adjust_with_grids(ba.block, 500.0, sigma_temporal=0.3, std=False)
         grids = fit_residual_grids(ga.fit.block, 300.0, folds=0)
-        out.append((ga.fit.block, grids, readjust(ga.fit.block, grids, snooping=False), ga.fit))
+        out.append((ga.fit.block, grids, readjust(ga.fit.block, grids, snooping=False), ga))
     return out
 
 
@@ -60,13 +62,38 @@ def test_sigma0_of_the_final_fit_of_the_adjustment_with_grids_is_unbiased(draws)
     # the final fit's residuals are the joint adjustment's: over the re-adjustment's own
     # redundancy (1021 on the first draw) the mean sigma0^2 was 0.66 over these draws, no
     # word of it; over the chain of the two (effective redundancy 697) it is 0.99
-    fits = [fit for *_, fit in draws]
+    fits = [ga.fit for *_, ga in draws]
     assert all(f.effective_redundancy["first_adjustment"] == "adjust_with_grids" for f in fits)
     assert all(f.effective_redundancy["value"] < 0.8 * f.redundancy for f in fits)
     assert all(any("estimated from these same observations" in n for n in f.notes) for f in fits)
     s2 = [f.sigma0**2 for f in fits]
     # one draw's sigma0^2 varies by about sqrt(2 / 697) = 0.054: the mean of 12 by 0.016
     assert abs(np.mean(s2) - 1.0) < 0.05
+
+
+def test_readjusting_the_joint_estimate_with_its_grids_is_the_final_fit(draws, tmp_path):
+    # GridAdjustment.block with GridAdjustment.grids corrects and re-adjusts as the final fit
+    # did: before, its grids (no pixel positions kept) said nothing, and sigma0 was over the
+    # re-adjustment's own redundancy (1021; sigma0 0.80 instead of 0.97 on this draw), with
+    # no note
+    ga = draws[0][3]
+    again = readjust(ga.block, ga.grids, snooping=False)
+    _same_chain(ga.fit, again)
+    assert again.notes == ga.fit.notes
+    # the same from a CSV block folder and a grids file
+    pg.bundle.write_block(ga.block, tmp_path / "b", kind="csv", angle_unit="rad")
+    pg.calibration.save_grids(tmp_path / "g.npz", ga.grids)
+    read = readjust(
+        pg.bundle.read_block(tmp_path / "b"),
+        pg.calibration.load_grids(tmp_path / "g.npz"),
+        snooping=False,
+    )
+    _same_chain(ga.fit, read)
+    # other grids (or some images left uncorrected) are not the final fit: no such chain
+    other = {k: g for k, g in ga.grids.items()}
+    first = next(iter(other))
+    other[first] = dataclasses.replace(other[first], nodes=other[first].nodes * 1.01)
+    assert readjust(ga.block, other, snooping=False).effective_redundancy is None
 
 
 def _same_chain(a, b) -> None:

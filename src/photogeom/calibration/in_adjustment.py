@@ -121,7 +121,9 @@ class GridAdjustment:
         without and with the grid (px).
     block : Block
         The joint estimate: exterior orientations, calibrations and points, with the
-        observations as given (not corrected).
+        observations as given (not corrected), and the record of this joint adjustment
+        (``block.joint_adjustment``): :func:`~photogeom.calibration.readjust` of it with
+        ``grids`` is ``fit`` again, sigma0 over the same effective redundancy.
     fit : BundleFit
         The observations corrected by the grids and adjusted with the exterior orientation and
         calibration held at the joint estimate: its points equal the joint solution's, its
@@ -823,6 +825,22 @@ def _observations_digest(block: Block) -> str:
     return hashlib.sha256(uv.tobytes()).hexdigest()
 
 
+def grids_digest(block: Block, grids) -> str | None:
+    """SHA-256 of the node values (float64) of the grids of ``block``'s images, in block
+    order; None when an image has no grid in ``grids``."""
+    import hashlib
+
+    from .gridfile import match_grid_ids
+
+    key_of, missing = match_grid_ids(block.image_ids.tolist(), grids)
+    if missing:
+        return None
+    h = hashlib.sha256()
+    for iid in block.image_ids.tolist():  # images, not points
+        h.update(np.ascontiguousarray(grids[key_of[iid]].nodes, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
 @dataclass(frozen=True, eq=False)
 class JointAdjustmentRecord:
     """The joint adjustment with grids that a block is the final fit of.
@@ -832,7 +850,9 @@ class JointAdjustmentRecord:
     (:meth:`~photogeom.bundle.Block.replace` and every method deriving a block), a CSV block
     folder holds it (:data:`RECORD_FOLDER`), and a new adjustment's block has none.
     :func:`~photogeom.calibration.readjust` takes the joint adjustment as the first
-    adjustment of its chain when the block is still that final fit (:meth:`mismatch`).
+    adjustment of its chain when the block is still that final fit (:meth:`mismatch`). The
+    joint estimate ``GridAdjustment.block`` carries it too: ``readjust`` of that block with
+    the joint adjustment's own grids is the final fit again, with its chain.
 
     Attributes
     ----------
@@ -849,6 +869,10 @@ class JointAdjustmentRecord:
         ``sigma_constraint``, ``sigma_temporal`` and ``sigma_amplitude`` (px; None: not used).
     observations_sha256 : str
         SHA-256 of the final fit's observed pixels (corrected by the grids), float64.
+    estimate_sha256 : str
+        SHA-256 of the joint estimate's observed pixels (as given), float64.
+    grids_sha256 : str
+        SHA-256 of the node values of the joint adjustment's grids (:func:`grids_digest`).
     """
 
     block: Block
@@ -861,14 +885,18 @@ class JointAdjustmentRecord:
     sa: float | None
     border: str
     observations_sha256: str
+    estimate_sha256: str = ""
+    grids_sha256: str = ""
 
-    def mismatch(self, block: Block) -> str | None:
+    def mismatch(self, block: Block, *, estimate: bool = False) -> str | None:
         """Why ``block`` is not the final fit this record was made for (None: it is).
 
         Parameters
         ----------
         block : Block
             The block carrying the record.
+        estimate : bool
+            Compare with the joint estimate (its observations as given) instead.
 
         Returns
         -------
@@ -880,7 +908,8 @@ class JointAdjustmentRecord:
         est = self.block
         if not est.same_observation_rows(block):
             return "its observation rows"
-        if _observations_digest(block) != self.observations_sha256:
+        own = self.estimate_sha256 if estimate else self.observations_sha256
+        if _observations_digest(block) != own:
             return "its observed pixels"
         if not np.allclose(block.exterior, est.exterior, rtol=1e-10, atol=1e-9):
             return "its exterior orientation"
@@ -898,7 +927,8 @@ class JointAdjustmentRecord:
         dict
             ``spacing`` (px), ``per``, ``datum``, ``border``, ``sigma_constraint``,
             ``sigma_temporal``, ``sigma_amplitude`` (px, null where not used),
-            ``observations_sha256`` and ``options`` (the fields of the BundleOptions).
+            ``observations_sha256``, ``estimate_sha256``, ``grids_sha256`` and ``options``
+            (the fields of the BundleOptions).
         """
         import dataclasses
 
@@ -915,6 +945,8 @@ class JointAdjustmentRecord:
             "sigma_temporal": self.st,
             "sigma_amplitude": self.sa,
             "observations_sha256": self.observations_sha256,
+            "estimate_sha256": self.estimate_sha256,
+            "grids_sha256": self.grids_sha256,
             "options": opts,
         }
 
@@ -981,6 +1013,8 @@ class JointAdjustmentRecord:
                 sa=None if s["sigma_amplitude"] is None else float(s["sigma_amplitude"]),
                 border=str(s["border"]),
                 observations_sha256=str(s["observations_sha256"]),
+                estimate_sha256=str(s.get("estimate_sha256", "")),
+                grids_sha256=str(s.get("grids_sha256", "")),
             )
         except (OSError, ValueError, KeyError, TypeError, InputError) as exc:
             raise FileFormatError(
@@ -1227,7 +1261,18 @@ def adjust_with_grids(
 
     corrected = correct_block_observations(est, grids)
     record = JointAdjustmentRecord(
-        est, opts, spacing, per, datum, sc, st, sa, border, _observations_digest(corrected)
+        est,
+        opts,
+        spacing,
+        per,
+        datum,
+        sc,
+        st,
+        sa,
+        border,
+        _observations_digest(corrected),
+        _observations_digest(est),
+        grids_digest(est, grids) or "",
     )
     corrected = corrected.replace(joint_adjustment=record)
     # the re-adjustment's residuals are the joint adjustment's: sigma0 over the chain of the
@@ -1245,7 +1290,7 @@ def adjust_with_grids(
     )
     return GridAdjustment(
         grids=grids,
-        block=est,
+        block=est.replace(joint_adjustment=record),
         fit=final,
         per=per,
         spacing=float(gp.layouts[0].spacing if gp.layouts[0] is not None else spacing),
