@@ -71,3 +71,25 @@ def test_preconditioner_blocks_of_any_shape_solve_exactly():
     np.testing.assert_allclose(x, np.linalg.solve(N.toarray(), b), rtol=1e-10, atol=1e-14)
     with pytest.raises(ValueError, match="50 unknowns"):
         sps.factorize(N, backend="cg", blocks=np.zeros(49, int))
+
+
+def test_cg_factorises_nothing_for_the_final_fits_chain(monkeypatch):
+    # the final fit's sigma0 is over the chain's effective redundancy, which solves with the
+    # joint normal equations: they were factorised with backend="auto" (CHOLMOD or dense)
+    # whatever the adjustment's backend, what "cg" is chosen to avoid on blocks too large
+    # to factorise; they are solved by conjugate gradients now, to the same redundancy
+    block = pg.simulate.uav_block("FC300S", seed=1, strips=2, images_per_strip=3).block
+    ref = adjust_with_grids(block, 1000, per="camera", std=False, backend="auto")
+    used = []
+    plain = ia.factorize
+
+    def spy(S, **kw):
+        used.append(kw.get("backend", "auto"))
+        return plain(S, **kw)
+
+    monkeypatch.setattr(ia, "factorize", spy)
+    cg = adjust_with_grids(block, 1000, per="camera", std=False, backend="cg", max_iterations=20)
+    assert used and set(used) == {"cg"}
+    assert cg.fit.effective_redundancy["value"] == pytest.approx(
+        ref.fit.effective_redundancy["value"], rel=1e-8
+    )

@@ -96,5 +96,11 @@ class SuspectResultWarning(UserWarning):
     and in the result's notes): for example a sigma0 the a-priori sigma does not explain."""
 
 
+class LostRecordWarning(UserWarning):
+    """Something a later step needs is not kept by the output asked for: for example the
+    record of a joint adjustment with grids (``Block.joint_adjustment``) in a block format
+    without a place for it (the message names what is lost and how to keep it)."""
+
+
 class PrecisionWarning(UserWarning):
     """Input in a low-precision type (float32) has already lost digits the result needs."""

@@ -762,6 +762,7 @@ class Problem:
             surveyed=b.survey,
             free=free,
             image_variant=iv,
+            joint_adjustment=None,  # this adjustment is the first of the block's chain
         )
 
 

@@ -326,6 +326,14 @@ class Block:
         :func:`~photogeom.bundle.write_colmap` writes back; default None. Kept by
         :meth:`replace` and the adjustment; a CSV block keeps it in the ``images.csv``
         columns ``colmap_image_id`` and ``colmap_name``; BAL has no place for it.
+    joint_adjustment : JointAdjustmentRecord or None
+        On the block of the final fit of :func:`~photogeom.calibration.adjust_with_grids`
+        (``GridAdjustment.fit.block``): that joint adjustment (its estimate and settings),
+        which :func:`~photogeom.calibration.readjust` takes as the first adjustment of its
+        chain; default None. Kept by :meth:`replace` and every method deriving a block, by
+        pickling and by a CSV block folder (its folder ``joint_adjustment``); an
+        adjustment's block has none (it starts a chain of its own); COLMAP, BAL and
+        Bundler files have no place for it (:func:`~photogeom.bundle.write_block` warns).
     """
 
     camera_ids: np.ndarray
@@ -350,6 +358,7 @@ class Block:
     crs: str | None = None
     surveyed: np.ndarray | None = None
     colmap_images: ColmapImages | None = None
+    joint_adjustment: object | None = None
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)

@@ -37,6 +37,12 @@ comma; a header line; ``#`` comment lines and blank lines skipped anywhere)::
   the ids they refer to. ``-0`` reads as 0; ``-0`` and ``0`` in one id column are refused.
 * ``images.csv`` columns ``colmap_image_id`` and ``colmap_name`` (both or neither) hold
   ``Block.colmap_images`` (COLMAP's IMAGE_ID and NAME of a block read from COLMAP).
+* The block of the final fit of :func:`~photogeom.calibration.adjust_with_grids`
+  (``Block.joint_adjustment``) is written with a folder ``joint_adjustment`` holding the
+  joint estimate (the four files, angles in radians) and ``settings.json`` (the settings
+  of that adjustment), read back with the block: ``readjust`` on the folder takes the joint
+  adjustment as the first adjustment of its chain. Writing a block without it removes
+  that folder's files.
 * A cell in double quotes (inner quotes doubled) is its text exactly: not a comment, not
   stripped, text even in integer form. The writer quotes the text ids the reader would
   otherwise change (white space at either end, a leading ``#``, a comma, a quote, integer
@@ -698,7 +704,13 @@ def read_csv_block(
         raise FileFormatError(f"{d}: {exc}") from None
     if colmap is not None:
         block = block.replace(colmap_images=colmap)
-    return block if surveyed is None else block.replace(surveyed=surveyed)
+    block = block if surveyed is None else block.replace(surveyed=surveyed)
+    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS, JointAdjustmentRecord
+
+    if (d / RECORD_FOLDER / RECORD_SETTINGS).is_file():  # the final fit of adjust_with_grids
+        record = JointAdjustmentRecord.read(d / RECORD_FOLDER, block)
+        block = block.replace(joint_adjustment=record)
+    return block
 
 
 def _with_start_hint(exc: FileFormatError) -> FileFormatError:
@@ -959,10 +971,53 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
     }
 
 
+def record_files(block: Block, directory: Path) -> dict[Path, bytes]:
+    """The files of the record of the joint adjustment with grids that ``block`` is the final
+    fit of (``Block.joint_adjustment``) in the CSV block folder ``directory``: its folder
+    ``joint_adjustment``; none without a record."""
+    rec = block.joint_adjustment
+    if rec is None:
+        return {}
+    from ..calibration.in_adjustment import RECORD_FOLDER
+
+    d = Path(directory) / RECORD_FOLDER
+    return {d / k: v.encode("utf-8") for k, v in rec.texts().items()}
+
+
+def remove_stale_record(directory: Path) -> None:
+    """Remove the record of a joint adjustment with grids (folder ``joint_adjustment``, its
+    settings first) from the CSV block folder ``directory``, written with a block that has
+    none: it belongs to a block written there before.
+
+    Raises
+    ------
+    OutputError
+        A file of the record that cannot be removed.
+    """
+    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
+
+    stale = Path(directory) / RECORD_FOLDER
+    for name in (RECORD_SETTINGS, *FILES):
+        if (stale / name).is_file():
+            try:
+                (stale / name).unlink()
+            except OSError as exc:
+                raise OutputError(
+                    f"cannot remove {stale / name}, the record of a joint adjustment with "
+                    f"grids that the block written to {directory} does not have: {exc}; "
+                    "remove the folder yourself"
+                ) from None
+    if stale.is_dir() and not any(stale.iterdir()):
+        stale.rmdir()
+
+
 def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: str = "deg") -> Path:
     """Write a block as a folder of CSV files (created if missing; see the module docstring).
 
-    All four files are formatted first, then each is replaced atomically.
+    All four files are formatted first, then each is replaced atomically. The block of the
+    final fit of :func:`~photogeom.calibration.adjust_with_grids` is written with the record
+    of its joint adjustment (folder ``joint_adjustment``); a block without a record removes
+    that folder's files.
 
     Parameters
     ----------
@@ -989,5 +1044,6 @@ def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: s
     from .io_formats import check_block_target, write_files  # (io_formats imports this module)
 
     check_block_target(d, "csv")
-    write_files({d / k: v.encode("utf-8") for k, v in texts.items()}, folders=[d])
+    files = {d / k: v.encode("utf-8") for k, v in texts.items()} | record_files(block, d)
+    write_files(files, folders=sorted({f.parent for f in files}))
     return d

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import bz2
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from ..atomicfile import atomic_write_many
-from ..errors import FileFormatError, InputError, OutputError
+from ..errors import FileFormatError, InputError, LostRecordWarning, OutputError
 from .block import Block
 from .io_bal import bal_text, read_bal, write_bal
 from .io_bundler import bundler_texts, is_bundler_file, read_bundler, write_bundler
@@ -28,7 +29,13 @@ from .io_colmap import (
     read_colmap,
     write_colmap,
 )
-from .io_csv import csv_block_texts, read_csv_block, write_csv_block
+from .io_csv import (
+    csv_block_texts,
+    read_csv_block,
+    record_files,
+    remove_stale_record,
+    write_csv_block,
+)
 
 #: Names of the block formats.
 FORMATS = ("bal", "colmap", "colmap-bin", "csv", "bundler")
@@ -129,6 +136,7 @@ def block_files(
     """
     p = Path(path)
     k = _check(kind)
+    warn_lost_record(block, p, k)
     if k == "bal":
         data = bal_text(block, **options).encode("ascii")
         return {p: bz2.compress(data) if p.suffix == ".bz2" else data}
@@ -139,7 +147,9 @@ def block_files(
         files = colmap_files(block, **({"binary": True} if k == "colmap-bin" else {}), **options)
         return {p / name: data for name, data in files.items()}
     texts = csv_block_texts(block, **options)
-    return {p / name: text.encode("utf-8") for name, text in texts.items()}
+    return {p / name: text.encode("utf-8") for name, text in texts.items()} | record_files(
+        block, p
+    )
 
 
 def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> list[Path]:
@@ -156,7 +166,9 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
     Raises
     ------
     OutputError
-        A folder that is a file or cannot be created, a file that cannot be written.
+        A folder that is a file or cannot be created, a file that cannot be written, the
+        record of a joint adjustment with grids left in a CSV block folder written without
+        one that cannot be removed (:func:`~photogeom.bundle.io_csv.remove_stale_record`).
     """
     made: list[Path] = []
     try:
@@ -178,7 +190,7 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
                         f"cannot create folder {m}: {exc.strerror or exc}", exc.errno
                     ) from None
                 made.append(m)
-        return atomic_write_many(list(files.items()))
+        written = atomic_write_many(list(files.items()))
     except BaseException:
         for m in reversed(made):  # empty again: the batch rolled its files back
             try:
@@ -186,6 +198,17 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
             except OSError:
                 pass
         raise
+    # a CSV block written without the record of a joint adjustment with grids: a record
+    # left in its folder by a block written there before is not this block's
+    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
+
+    for path in files:
+        d = Path(path).parent
+        if Path(path).name == "observations.csv" and (
+            d / RECORD_FOLDER / RECORD_SETTINGS not in files
+        ):
+            remove_stale_record(d)
+    return written
 
 
 def detect_format(path: str | os.PathLike) -> str:
@@ -272,6 +295,25 @@ def read_block(path: str | os.PathLike, kind: str | None = None, **options) -> B
     return reader(path, **options)
 
 
+#: The warning of :func:`write_block` for the final fit's block of ``adjust_with_grids``
+#: written in a format without a place for its record (``Block.joint_adjustment``).
+LOST_RECORD = (
+    "{path}: a {kind} has no place for the record of the joint adjustment with grids this "
+    "block is the final fit of (Block.joint_adjustment): readjust on the block read back "
+    "takes the bundle adjustment of that block as the first adjustment of its chain, whose "
+    "redundancy is too large; write a CSV block folder to keep the record"
+)
+
+
+def warn_lost_record(block: Block, path: Path, kind: str) -> None:
+    """Warn (:data:`LOST_RECORD`) when ``block`` carries the record of a joint adjustment
+    with grids and format ``kind`` has no place for it."""
+    if kind != "csv" and block.joint_adjustment is not None:
+        warnings.warn(
+            LOST_RECORD.format(path=path, kind=_NAMES[kind]), LostRecordWarning, stacklevel=3
+        )
+
+
 def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, **options):
     """Write a block as a BAL or Bundler file, a COLMAP text or binary model or a CSV folder.
 
@@ -292,6 +334,12 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
     -------
     pathlib.Path
         The file or folder written.
+
+    Warns
+    -----
+    LostRecordWarning
+        The block carries the record of a joint adjustment with grids
+        (``Block.joint_adjustment``) and the format is not a CSV folder, which alone holds it.
     """
     p = Path(path)
     if kind is None:
@@ -308,6 +356,7 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
                 "files are recognised by their name (.bal, .txt, .bz2)"
             )
     k = _check(kind)
+    warn_lost_record(block, p, k)
     if k == "colmap-bin":
         options = {**options, "binary": True}
     writer = {"bal": write_bal, "csv": write_csv_block, "bundler": write_bundler}.get(

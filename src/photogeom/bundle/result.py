@@ -833,20 +833,22 @@ def statistics_pass(
 ):
     """Final linearisation, factor and the covariance blocks the result needs.
 
-    ``run`` (the iteration's outcome, optional) names a run that stopped unconverged when
-    its last iterate leaves points undetermined by their rays (they were determined at the
-    start, or the iteration would have failed there): a :class:`ConvergenceError` with those
-    points and the route to start values, instead of the normal equations' error with a row
-    number. A singular reduced system keeps its advice (an undetermined calibration
-    parameter or datum also stops the iteration).
+    ``run`` (the iteration's outcome, optional) names a run that stopped, unconverged or
+    converged, where its last iterate leaves points undetermined by their rays (they were
+    determined at the start, or the iteration would have failed there): a
+    :class:`ConvergenceError` with those points, their rays, the residuals there and the
+    route to start values, instead of the normal equations' error with a row number. A
+    singular reduced system keeps its advice (an undetermined calibration parameter or
+    datum also stops the iteration).
     """
     lin = problem.linearize(state, weights)
     try:
         ne = problem.sys.normal_equations(lin)
     except DegenerateGeometryError as exc:
-        if run is None or run.converged:
+        named = None if run is None else _stopped_with_undetermined_points(problem, state, run)
+        if named is None:
             raise
-        raise _stopped_with_undetermined_points(problem, state, run) from exc
+        raise named from exc
     try:
         F = ne.factor()
     except DegenerateGeometryError as exc:
@@ -862,22 +864,41 @@ def statistics_pass(
     return lin, ne, F, Q, Qpp, Cobs
 
 
-def _stopped_with_undetermined_points(problem: Problem, state, run) -> ConvergenceError:
-    """The error of a run that stopped where its cameras leave points undetermined."""
+def _stopped_with_undetermined_points(problem: Problem, state, run) -> ConvergenceError | None:
+    """The error of a run that stopped where its cameras leave points undetermined; None
+    for a converged run where no point is (the normal equations' own error stands)."""
     block = problem.block
     _, e2, _ = problem.cost(state)
     pts = np.arange(problem.p)
     weak = pts[problem._weak_points(state, pts, state.X, e2)]
     rows = problem.adj_points[weak]
     ids = block.point_ids[rows].tolist()
+    if run.converged and not ids:
+        return None
     first = ""
     if ids:
-        seen = block.image_ids[block.obs_image[block.obs_point == rows[0]]].tolist()
-        first = f", e.g. point {ids[0]} (seen in image(s) {', '.join(map(str, seen[:6]))})"
+        own = np.flatnonzero(problem.obs_j == weak[0])  # the first point's image rows
+        seen = block.image_ids[problem.obs_i[own]].tolist()
+        far = float(np.max(np.linalg.norm(state.X[weak[0]] - state.C[problem.obs_i[own]], axis=1)))
+        spread = float(np.max(np.ptp(state.C, axis=0)))
+        where = (
+            f", whose {own.size} rays meet {far / spread:.3g} times the spread of the "
+            "projection centres away from their cameras"
+            if spread > 0
+            else ""
+        )
+        first = f", e.g. point {ids[0]} (seen in image(s) {', '.join(map(str, seen[:6]))}){where}"
+    rms = math.sqrt(float(np.mean(e2)) / 2.0) if e2.size else float("nan")
+    how = (
+        f"converged ({run.message.removeprefix('converged: ')}) to a state"
+        if run.converged
+        else f"stopped unconverged ({run.message})"
+    )
     return ConvergenceError(
-        f"the adjustment stopped unconverged ({run.message}) where its cameras leave "
+        f"the adjustment {how} where its cameras leave "
         f"{len(ids) or 'some'} point(s) undetermined by their rays (nearly parallel or "
-        f"crossing far away){first}, so that no standard deviations exist there: the "
+        f"crossing far away){first}, with image residuals of {rms:.3g} times their "
+        "standard deviations (RMS), so that no standard deviations exist there: the "
         "start values are too far off for the iteration (a block without GNSS/IMU: "
         f"{start_route(block)})",
         iterations=run.iterations,

@@ -358,10 +358,16 @@ def readjust(
     that of grids fitted with the same weights held by at most 0.0002 +- 0.0011.
 
     When ``block`` is the block of the final fit of
-    :func:`~photogeom.calibration.adjust_with_grids` (``GridAdjustment.fit.block``, the
-    object itself), the chain's first adjustment is that joint adjustment, with its
+    :func:`~photogeom.calibration.adjust_with_grids` (``GridAdjustment.fit.block``, a copy
+    of it or a CSV block folder written from it: its ``joint_adjustment`` record), the
+    chain's first adjustment is that joint adjustment, with its
     calibration and grid nodes among the unknowns (before: the bundle adjustment of the
-    final fit's block, and the mean sigma0^2 of 100 draws was 0.91 instead of 1.00).
+    final fit's block, and the mean sigma0^2 of 100 draws was 0.91 instead of 1.00). A
+    block carrying the record whose observations, orientation or calibration differ from
+    that final fit's takes its own bundle adjustment and a note says so. The joint estimate
+    (``GridAdjustment.block``) with the joint adjustment's own grids (``GridAdjustment.grids``,
+    node values bit for bit, every image corrected) is that final fit again: sigma0 over the
+    chain of the joint adjustment and the re-adjustment, as ``GridAdjustment.fit``.
 
     The standard deviations stay in-sample and too small: the re-adjustment holds the
     cameras as errorless, while they carry the first adjustment's errors. On the same
@@ -381,7 +387,20 @@ def readjust(
     corrected = correct_block_observations(block, grids, uncorrected=uncorrected)
     corrected.validate()  # the block's own errors first (e.g. a single image)
     chain, notes = None, ()
-    if _fitted_to_these_observations(block, grids, uncorrected):
+    if _joint_estimate_with_its_grids(block, grids, uncorrected):
+        from .in_adjustment import IN_ADJUSTMENT_NOTE
+
+        # the final fit of adjust_with_grids again: the chain of the joint adjustment and
+        # this re-adjustment, no grids after it
+        chain = chain_redundancy(
+            corrected.replace(joint_adjustment=block.joint_adjustment),
+            {},
+            uncorrected=corrected.image_ids.tolist(),
+            probes=redundancy_probes,
+            seed=redundancy_seed,
+        )
+        notes = (IN_ADJUSTMENT_NOTE,)
+    elif _fitted_to_these_observations(block, grids, uncorrected):
         try:
             chain = chain_redundancy(
                 block,
@@ -390,7 +409,7 @@ def readjust(
                 probes=redundancy_probes,
                 seed=redundancy_seed,
             )
-            notes = (IN_SAMPLE_NOTE,)
+            notes = (IN_SAMPLE_NOTE,) if chain["note"] is None else (IN_SAMPLE_NOTE, chain["note"])
         except DegenerateGeometryError as exc:  # said in the result's notes
             notes = (f"{NO_CHAIN_NOTE}: {exc}",)
     fit = _adjust_corrected(corrected, effective_redundancy=chain, **options)
@@ -418,6 +437,20 @@ NO_CHAIN_NOTE = (
     "of the chain needs the first adjustment of the block the grids were fitted to (adjust "
     "the block first, then fit the grids to its residuals)"
 )
+
+
+def _joint_estimate_with_its_grids(block: Block, grids: Mapping, uncorrected) -> bool:
+    """Whether ``block`` is the joint estimate of :func:`adjust_with_grids`
+    (``GridAdjustment.block``: its record, its observations as given) and ``grids`` are that
+    adjustment's own grids (node values bit for bit), every image corrected."""
+    from .in_adjustment import grids_digest
+
+    rec = block.joint_adjustment
+    if rec is None or len(uncorrected) or not rec.grids_sha256:
+        return False
+    if rec.mismatch(block, estimate=True) is not None:
+        return False
+    return grids_digest(block, grids) == rec.grids_sha256
 
 
 def _fitted_to_these_observations(block: Block, grids: Mapping, uncorrected) -> bool:

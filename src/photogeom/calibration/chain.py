@@ -18,7 +18,8 @@ adjustment's orientation and calibration unknowns (held afterwards at values tha
 part of the noise) and by what the grids took up.
 
 When the block is the final fit's block of
-:func:`~photogeom.calibration.adjust_with_grids`, ``H1`` is the hat matrix of that joint
+:func:`~photogeom.calibration.adjust_with_grids` (its ``joint_adjustment`` record, which copies
+and CSV block folders keep), ``H1`` is the hat matrix of that joint
 adjustment (its calibration and grid nodes among the unknowns, the grids'
 pseudo-observations a prior without errors of their own).
 
@@ -146,6 +147,9 @@ class _Chain:
         # the re-adjustment: points only, the same observation rows (same block structure)
         p3 = Problem(block, BundleOptions(fix_exterior=True, free=()))
         joint = joint_first_adjustment(block)
+        rec = block.joint_adjustment
+        #: why the block's record of a joint adjustment does not apply (None: none, or used)
+        self.lost = None if rec is None else rec.mismatch(block)
         if joint is None:
             p1 = _first_problem(block)
             self.J1, self.rows = _first_jacobian(p1)
@@ -154,8 +158,10 @@ class _Chain:
             )
             self.solve1 = F1.solve
             self.sigma = p1.sigma_obs()  # px, the whitening of the image rows
+            self.joint = False
         else:  # the block of adjust_with_grids' final fit: the joint adjustment was first
             self.J1, self.rows, self.solve1, self.sigma = joint
+            self.joint = True
         self.n_rows = self.J1.shape[0]
         self.n_img = self.sigma.size
         lin3 = p3.linearize(p3.initial_state(), np.ones(p3.obs_i.size))
@@ -291,7 +297,11 @@ def chain_redundancy(
         ``"value"`` (the effective redundancy, unitless), ``"method"`` (``"exact"`` or
         ``"estimated"``), ``"probes"`` (used) and ``"seed"`` (None when exact), ``"std"``
         (standard error of the estimate, 0 when exact), ``"observations"`` (the
-        observation components of the chain).
+        observation components of the chain), ``"first_adjustment"``
+        (``"adjust_with_grids"`` when the block is the final fit of a joint adjustment with
+        grids, by its :attr:`~photogeom.bundle.Block.joint_adjustment`, else
+        ``"bundle_adjust"``) and ``"note"`` (None, or why the block's record of a joint
+        adjustment was not used: the block is no longer that final fit).
     """
     if not (isinstance(probes, int | np.integer) and probes >= 2):
         raise InputError(f"probes must be an integer of at least 2, not {probes!r}")
@@ -313,6 +323,7 @@ def chain_redundancy(
             "seed": None,
             "std": 0.0,
             "observations": int(n),
+            **_first_words(chain),
         }
     rng = np.random.default_rng(seed)
     per = np.zeros(0)
@@ -333,4 +344,24 @@ def chain_redundancy(
         "seed": int(seed),
         "std": std,
         "observations": int(n),
+        **_first_words(chain),
+    }
+
+
+def _first_words(chain: _Chain) -> dict:
+    """``"first_adjustment"`` and ``"note"`` of :func:`chain_redundancy`'s result."""
+    if chain.lost is None:
+        joint = chain.joint
+        return {"first_adjustment": "adjust_with_grids" if joint else "bundle_adjust", "note": None}
+    return {
+        "first_adjustment": "bundle_adjust",
+        "note": (
+            "the block carries the record of a joint adjustment with grids "
+            "(adjust_with_grids), but "
+            f"{chain.lost} differ(s) from that adjustment's final fit, so the chain's first "
+            "adjustment is the bundle adjustment of this block and its redundancy is too "
+            "large if the grids were fitted to the final fit's residuals: pass the final "
+            "fit's block (GridAdjustment.fit.block, a copy of it or a CSV block folder "
+            "written from it) to fit_residual_grids and readjust"
+        ),
     }

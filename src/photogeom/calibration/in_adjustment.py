@@ -54,8 +54,7 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -122,14 +121,22 @@ class GridAdjustment:
         without and with the grid (px).
     block : Block
         The joint estimate: exterior orientations, calibrations and points, with the
-        observations as given (not corrected).
+        observations as given (not corrected), and the record of this joint adjustment
+        (``block.joint_adjustment``): :func:`~photogeom.calibration.readjust` of it with
+        ``grids`` is ``fit`` again, sigma0 over the same effective redundancy.
     fit : BundleFit
         The observations corrected by the grids and adjusted with the exterior orientation and
         calibration held at the joint estimate: its points equal the joint solution's, its
         check points are triangulated from corrected observations, and its residuals,
         steps and check-point statistics are comparable with
-        :func:`~photogeom.calibration.readjust` after the post-processing. Its standard
-        deviations are conditional on the fixed orientation.
+        :func:`~photogeom.calibration.readjust` after the post-processing. Its sigma0 is
+        over the effective redundancy of the chain of the joint adjustment and this
+        re-adjustment (``fit.effective_redundancy``; its residuals are the joint
+        adjustment's); its standard deviations are conditional on the fixed orientation
+        (a note says so). Its block carries the record
+        of this joint adjustment (``fit.block.joint_adjustment``, a
+        :class:`JointAdjustmentRecord`), kept by copies and CSV block folders: readjust
+        takes the joint adjustment as the first adjustment of its chain.
     per : {"image", "camera"}
     spacing : float
         Node spacing (px).
@@ -802,11 +809,71 @@ def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix, backend: str = "auto") -
 
 
 # --------------------------------------------------------------------------- the chain
+#: The folder of a CSV block folder that holds the record of the joint adjustment of
+#: :func:`adjust_with_grids` (its final fit's block, ``GridAdjustment.fit.block``): the
+#: joint estimate as a CSV block (angles in radians) and ``settings.json``.
+RECORD_FOLDER = "joint_adjustment"
+#: Settings file of :data:`RECORD_FOLDER`.
+RECORD_SETTINGS = "settings.json"
+
+
+def _observations_digest(block: Block) -> str:
+    """SHA-256 of a block's observed pixels (float64 bytes; a CSV round trip keeps them)."""
+    import hashlib
+
+    uv = np.ascontiguousarray(block.observations.uv, dtype="<f8")
+    return hashlib.sha256(uv.tobytes()).hexdigest()
+
+
+def grids_digest(block: Block, grids) -> str | None:
+    """SHA-256 of the node values (float64) of the grids of ``block``'s images, in block
+    order; None when an image has no grid in ``grids``."""
+    import hashlib
+
+    from .gridfile import match_grid_ids
+
+    key_of, missing = match_grid_ids(block.image_ids.tolist(), grids)
+    if missing:
+        return None
+    h = hashlib.sha256()
+    for iid in block.image_ids.tolist():  # images, not points
+        h.update(np.ascontiguousarray(grids[key_of[iid]].nodes, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
 @dataclass(frozen=True, eq=False)
-class _Joint:
-    """What linearises a joint adjustment with grids again: its estimate (``block``, the
-    observations as given) and settings (the Jacobian does not depend on the node
-    values)."""
+class JointAdjustmentRecord:
+    """The joint adjustment with grids that a block is the final fit of.
+
+    :func:`adjust_with_grids` puts it on its final fit's block
+    (``GridAdjustment.fit.block.joint_adjustment``); copies of the block keep it
+    (:meth:`~photogeom.bundle.Block.replace` and every method deriving a block), a CSV block
+    folder holds it (:data:`RECORD_FOLDER`), and a new adjustment's block has none.
+    :func:`~photogeom.calibration.readjust` takes the joint adjustment as the first
+    adjustment of its chain when the block is still that final fit (:meth:`mismatch`). The
+    joint estimate ``GridAdjustment.block`` carries it too: ``readjust`` of that block with
+    the joint adjustment's own grids is the final fit again, with its chain.
+
+    Attributes
+    ----------
+    block : Block
+        The joint estimate (orientations, calibration, points; the observations as given,
+        not corrected).
+    opts : BundleOptions
+        The options of the joint adjustment.
+    spacing : float
+        Node spacing (px).
+    per, datum, border : str
+        As in :func:`adjust_with_grids`.
+    sc, st, sa : float or None
+        ``sigma_constraint``, ``sigma_temporal`` and ``sigma_amplitude`` (px; None: not used).
+    observations_sha256 : str
+        SHA-256 of the final fit's observed pixels (corrected by the grids), float64.
+    estimate_sha256 : str
+        SHA-256 of the joint estimate's observed pixels (as given), float64.
+    grids_sha256 : str
+        SHA-256 of the node values of the joint adjustment's grids (:func:`grids_digest`).
+    """
 
     block: Block
     opts: BundleOptions
@@ -817,13 +884,146 @@ class _Joint:
     st: float | None
     sa: float | None
     border: str
+    observations_sha256: str
+    estimate_sha256: str = ""
+    grids_sha256: str = ""
 
+    def mismatch(self, block: Block, *, estimate: bool = False) -> str | None:
+        """Why ``block`` is not the final fit this record was made for (None: it is).
 
-#: The final fit's block of each joint adjustment (``GridAdjustment.fit.block``, held
-#: weakly) -> its :class:`_Joint`: grids fitted afterwards to that fit's residuals and
-#: :func:`~photogeom.calibration.readjust` take the joint adjustment as the first
-#: adjustment of their chain (:func:`joint_first_adjustment`).
-_JOINT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        Parameters
+        ----------
+        block : Block
+            The block carrying the record.
+        estimate : bool
+            Compare with the joint estimate (its observations as given) instead.
+
+        Returns
+        -------
+        str or None
+            What differs: the observation rows, the observed pixels (bit for bit), the
+            exterior orientation or the calibration (beyond 1e-10 relative, 1e-9 absolute:
+            a CSV round trip in degrees changes the last digits).
+        """
+        est = self.block
+        if not est.same_observation_rows(block):
+            return "its observation rows"
+        own = self.estimate_sha256 if estimate else self.observations_sha256
+        if _observations_digest(block) != own:
+            return "its observed pixels"
+        if not np.allclose(block.exterior, est.exterior, rtol=1e-10, atol=1e-9):
+            return "its exterior orientation"
+        if not np.allclose(
+            block.calibration_matrix(), est.calibration_matrix(), rtol=1e-10, atol=1e-9
+        ) or not np.allclose(block.calibration_offset, est.calibration_offset, atol=1e-9):
+            return "its calibration"
+        return None
+
+    def settings(self) -> dict:
+        """JSON-ready settings (``settings.json`` of :data:`RECORD_FOLDER`).
+
+        Returns
+        -------
+        dict
+            ``spacing`` (px), ``per``, ``datum``, ``border``, ``sigma_constraint``,
+            ``sigma_temporal``, ``sigma_amplitude`` (px, null where not used),
+            ``observations_sha256``, ``estimate_sha256``, ``grids_sha256`` and ``options``
+            (the fields of the BundleOptions).
+        """
+        import dataclasses
+
+        opts = dataclasses.asdict(self.opts)
+        if opts.get("free") is not None:
+            opts["free"] = list(opts["free"])
+        return {
+            "written_by": "photogeom.calibration.adjust_with_grids",
+            "spacing": self.spacing,
+            "per": self.per,
+            "datum": self.datum,
+            "border": self.border,
+            "sigma_constraint": self.sc,
+            "sigma_temporal": self.st,
+            "sigma_amplitude": self.sa,
+            "observations_sha256": self.observations_sha256,
+            "estimate_sha256": self.estimate_sha256,
+            "grids_sha256": self.grids_sha256,
+            "options": opts,
+        }
+
+    def texts(self) -> dict[str, str]:
+        """The files of :data:`RECORD_FOLDER` by name: the joint estimate's CSV block
+        (angles in radians, every digit kept) and ``settings.json``.
+
+        Returns
+        -------
+        dict
+            File name (inside :data:`RECORD_FOLDER`) -> text.
+        """
+        import json
+
+        from ..bundle.io_csv import csv_block_texts
+
+        out = csv_block_texts(self.block, angle_unit="rad")
+        out[RECORD_SETTINGS] = json.dumps(self.settings(), indent=1) + "\n"
+        return out
+
+    @classmethod
+    def read(cls, folder, block: Block) -> JointAdjustmentRecord:
+        """The record in ``folder`` (:data:`RECORD_FOLDER` of a CSV block folder).
+
+        Parameters
+        ----------
+        folder : path-like
+            The record's folder.
+        block : Block
+            The block read from the enclosing folder (for the error messages).
+
+        Returns
+        -------
+        JointAdjustmentRecord
+
+        Raises
+        ------
+        FileFormatError
+            A settings file that is not JSON or lacks a setting, or options that are not
+            valid.
+        """
+        import json
+        from pathlib import Path
+
+        from ..bundle.io_csv import read_csv_block
+        from ..errors import FileFormatError
+
+        d = Path(folder)
+        path = d / RECORD_SETTINGS
+        try:
+            s = json.loads(path.read_text(encoding="utf-8"))
+            o = dict(s["options"])
+            if o.get("free") is not None:
+                o["free"] = tuple(o["free"])
+            opts = BundleOptions(**o).validate()
+            rec = cls(
+                block=read_csv_block(d),
+                opts=opts,
+                spacing=float(s["spacing"]),
+                per=str(s["per"]),
+                datum=str(s["datum"]),
+                sc=float(s["sigma_constraint"]),
+                st=None if s["sigma_temporal"] is None else float(s["sigma_temporal"]),
+                sa=None if s["sigma_amplitude"] is None else float(s["sigma_amplitude"]),
+                border=str(s["border"]),
+                observations_sha256=str(s["observations_sha256"]),
+                estimate_sha256=str(s.get("estimate_sha256", "")),
+                grids_sha256=str(s.get("grids_sha256", "")),
+            )
+        except (OSError, ValueError, KeyError, TypeError, InputError) as exc:
+            raise FileFormatError(
+                f"{path}: not the settings of a joint adjustment with grids ({exc}); "
+                f"remove the folder {d} to read the block without them (readjust then "
+                "takes the bundle adjustment of the block as the first adjustment of its "
+                "chain)"
+            ) from None
+        return rec
 
 
 def joint_first_adjustment(block: Block):
@@ -842,8 +1042,8 @@ def joint_first_adjustment(block: Block):
         The pseudo-observations are error-free here: the chain's redundancy is that of the
         observations' noise, as for a block without any local field.
     """
-    rec = _JOINT.get(block)
-    if rec is None:
+    rec = getattr(block, "joint_adjustment", None)
+    if rec is None or rec.mismatch(block) is not None:
         return None
     from .chain import _first_jacobian
 
@@ -856,10 +1056,26 @@ def joint_first_adjustment(block: Block):
     Jg = sp.vstack([Jg, sp.csr_matrix((J0.shape[0] - Jg.shape[0], gp.n_grid))], format="csr")
     J = sp.hstack([J0[:, :g0], Jg, J0[:, g0:]], format="csr")
     N = (J.T @ J + gp._R_free).tocsr()
+    # the joint adjustment's backend: with "cg" nothing is factorised (each probe is solved
+    # by conjugate gradients, as the adjustment's steps were)
     F = _ReducedFactor(
-        N, 3 * gp.bp.p, gp.U_free, "normal equations with residual grids at the solution"
+        N,
+        3 * gp.bp.p,
+        gp.U_free,
+        "normal equations with residual grids at the solution",
+        backend=rec.opts.backend,
+        blocks=gp.cg_blocks,
     )
     return J, rows, F.solve, gp.bp.sigma_obs()
+
+
+#: The note of the final fit of :func:`adjust_with_grids` (``GridAdjustment.fit``).
+IN_ADJUSTMENT_NOTE = (
+    "the grids were estimated from these same observations in the joint adjustment: sigma0 "
+    "is computed over the effective redundancy of the chain (the joint adjustment, then this "
+    "re-adjustment; see effective_redundancy), but the standard deviations are conditional "
+    "on the orientation and calibration held and too small"
+)
 
 
 # --------------------------------------------------------------------------- the call
@@ -949,8 +1165,6 @@ def adjust_with_grids(
         ``backend="cg"``: conjugate gradients did not solve the normal equations in
         ``10 n`` iterations (the message names the direct backends).
     """
-    from ..bundle.adjustment import bundle_adjust
-
     t0 = time.perf_counter()
     if not isinstance(block, Block):
         raise InputError(
@@ -1041,16 +1255,42 @@ def adjust_with_grids(
             for iid, c in zip(block.image_ids.tolist(), block.image_camera.tolist())
             if cam_ids[c] in objs
         }
+    from ..bundle.adjustment import adjust_block
     from .blocks import correct_block_observations
+    from .chain import chain_redundancy
 
-    final = bundle_adjust(
-        correct_block_observations(est, grids),
-        opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
+    corrected = correct_block_observations(est, grids)
+    record = JointAdjustmentRecord(
+        est,
+        opts,
+        spacing,
+        per,
+        datum,
+        sc,
+        st,
+        sa,
+        border,
+        _observations_digest(corrected),
+        _observations_digest(est),
+        grids_digest(est, grids) or "",
     )
-    _JOINT[final.block] = _Joint(est, opts, spacing, per, datum, sc, st, sa, border)
+    corrected = corrected.replace(joint_adjustment=record)
+    # the re-adjustment's residuals are the joint adjustment's: sigma0 over the chain of the
+    # two (its effective redundancy; over the re-adjustment's own count it was too small)
+    chain = chain_redundancy(corrected, {}, uncorrected=corrected.image_ids.tolist())
+    final = adjust_block(
+        corrected,
+        opts.updated(fix_exterior=True, free=(), snooping=False, point_covariance=False),
+        effective_redundancy=chain,
+    )
+    final = replace(
+        final,
+        block=final.block.replace(joint_adjustment=record),
+        notes=(*final.notes, IN_ADJUSTMENT_NOTE),
+    )
     return GridAdjustment(
         grids=grids,
-        block=est,
+        block=est.replace(joint_adjustment=record),
         fit=final,
         per=per,
         spacing=float(gp.layouts[0].spacing if gp.layouts[0] is not None else spacing),

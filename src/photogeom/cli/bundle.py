@@ -1473,7 +1473,8 @@ def convert(
         )
     from ..bundle.io_formats import FOLDER_FORMATS
 
-    write_all(files, folders=[target] if dst in FOLDER_FORMATS else [])
+    # a CSV block's record of a joint adjustment with grids is a folder inside TARGET
+    write_all(files, folders=sorted({f.parent for f in files}) if dst in FOLDER_FORMATS else [])
     info = {
         "source": str(source),
         "source_format": src,
