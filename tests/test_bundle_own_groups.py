@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import photogeom as pg
-from photogeom.adjust import schur
+from photogeom.adjust import folding
 from photogeom.bundle import adjustment
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -75,8 +75,8 @@ def _image_variant(block):
 
 
 def _global(monkeypatch):
-    monkeypatch.setattr(schur, "OWN_GROUPS_LOCAL", 10**9)
-    monkeypatch.setattr(schur, "OWN_GROUPS_FRACTION", 10.0)
+    monkeypatch.setattr(folding, "OWN_GROUPS_LOCAL", 10**9)
+    monkeypatch.setattr(folding, "OWN_GROUPS_FRACTION", 10.0)
 
 
 CASES = {
