@@ -1,5 +1,7 @@
 """The Schur-complement engine against the dense normal equations of the same problem."""
 
+import tracemalloc
+
 import numpy as np
 import pytest
 
@@ -340,3 +342,44 @@ def _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc):
         np.testing.assert_allclose(
             C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
         )
+
+
+def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch):
+    """``W_k`` and ``Y_k`` (n, b, 3) are the reduction's only arrays of the size of all rows
+    beside the Jacobian blocks: the pair products gather their rows from them in chunks
+    (padded copies of both stood beside them, with a gathered copy of ``V^-1`` for every
+    row). With a small ``CHUNK`` the temporaries that the call frees again stay below half
+    of one such array (0.24; before: 2.1 of them)."""
+    import photogeom.adjust.schur as schur
+
+    monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
+    rng = np.random.default_rng(3)
+    L, b, p, per = 20, 9, 4000, 5
+    loc = np.argsort(rng.random((p, L)), axis=1)[:, :per].ravel()  # 5 distinct blocks a point
+    pt = np.repeat(np.arange(p), per)
+    n = loc.size
+    lin = Linearization(
+        rng.normal(size=(n, 2)),
+        rng.normal(size=(n, 2, b)),
+        np.zeros((n, 2, 0)),
+        rng.normal(size=(n, 2, 3)),
+        np.zeros((L, b, b)),
+        np.zeros((L, b)),
+        np.zeros((p, 3, 3)),
+        np.zeros((p, 3)),
+        np.zeros((0, 0)),
+        np.zeros(0),
+        0.0,
+    )
+    sysm = SchurSystem(
+        L, b, 0, p, loc, pt, np.zeros((L, 0), int), np.ones((L, b), bool), np.zeros(0, bool)
+    )
+    tracemalloc.start()
+    try:
+        normal = sysm.normal_equations(lin, damping=1e-3)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    row_array = n * b * 3 * 8
+    assert normal.W.shape == normal.Y.shape == (n, b, 3)
+    assert peak - kept < 0.5 * row_array, (peak - kept) / row_array

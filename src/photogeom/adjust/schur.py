@@ -687,9 +687,18 @@ class _Normal:
         A, G, P = self.lin.A, self.lin.G, self.lin.P
         Vinv = self.Vinv
         pt = s.point
-        # W_k = A_k' P_k (b, 3); Y_k = W_k Vinv_j
-        W = A.transpose(0, 2, 1) @ P
-        Y = W @ Vinv[pt]
+        # W_k = A_k' P_k (b, 3); Y_k = W_k Vinv_j, each with a zero row n beyond the end
+        # (the padding of the pair groups below: no padded copies of them), Y in chunks of
+        # rows (no gathered copy of Vinv for all rows)
+        n = s.n
+        Wz = np.empty((n + 1, b, 3))
+        Yz = np.empty((n + 1, b, 3))
+        Wz[n] = Yz[n] = 0.0
+        W, Y = Wz[:n], Yz[:n]
+        np.matmul(A.transpose(0, 2, 1), P, out=W)
+        for lo in range(0, n, CHUNK):
+            hi = min(n, lo + CHUNK)
+            np.matmul(W[lo:hi], Vinv[pt[lo:hi]], out=Y[lo:hi])
         self.W, self.Y = W, Y
         # H_j (3, g): sum over the point's rows of P_k' G_k in global columns; sparse: one
         # (3, gl) block Hp per pair (point, group), VHp = Vinv_j Hp
@@ -745,24 +754,20 @@ class _Normal:
             LG -= np.bincount(flat, weights=blk.ravel(), minlength=L * b * g).reshape(L, b, g)
             del blk, flat
         # off-diagonal blocks: - sum over pairs Y_k1 W_k2', one (b, 3t) x (3t, b) product per
-        # group of t pairs of a block (rows of Yt, Wt: the columns of Y_k, W_k; row n zero)
+        # group of t pairs of a block (rows: the columns of Y_k, W_k; row n zero)
         nb = s.blocks.shape[0]
         off = np.zeros((nb, b * b))
         if s.n_pairs:
             t = PAIR_GROUP
-            zero = np.zeros((1, 3, b))
-            Yt = np.concatenate([Y.transpose(0, 2, 1), zero])
-            Wt = np.concatenate([W.transpose(0, 2, 1), zero])
             per = max(1, CHUNK // t)
             for g0 in range(0, s.n_groups, per):  # chunks of groups: bounded temporaries
                 g1 = min(s.n_groups, g0 + per)
-                y = Yt[s._group_k1[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, b)
-                w = Wt[s._group_k2[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, b)
+                y = Yz[s._group_k1[g0 * t : g1 * t]].transpose(0, 2, 1).reshape(g1 - g0, 3 * t, b)
+                w = Wz[s._group_k2[g0 * t : g1 * t]].transpose(0, 2, 1).reshape(g1 - g0, 3 * t, b)
                 prod = (y.transpose(0, 2, 1) @ w).reshape(g1 - g0, b * b)
                 key = s._group_block[g0:g1]
                 first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
                 off[key[first]] += np.add.reduceat(prod, first, axis=0)
-            del Yt, Wt
         off = -off
         # local-global: U_lg (scattered into the global columns)
         if g:
