@@ -344,18 +344,11 @@ def _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc):
         )
 
 
-def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch):
-    """``W_k`` and ``Y_k`` (n, b, 3) are the reduction's only arrays of the size of all rows
-    beside the Jacobian blocks: the pair products gather their rows from them in chunks
-    (padded copies of both stood beside them, with a gathered copy of ``V^-1`` for every
-    row). With a small ``CHUNK`` the temporaries that the call frees again stay below half
-    of one such array (0.24; before: 2.1 of them)."""
-    import photogeom.adjust.schur as schur
-
-    monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
-    rng = np.random.default_rng(3)
-    L, b, p, per = 20, 9, 4000, 5
-    loc = np.argsort(rng.random((p, L)), axis=1)[:, :per].ravel()  # 5 distinct blocks a point
+def _many_rows(L=20, b=9, p=4000, per=5, seed=3):
+    """A problem without global parameters whose rows (p * per) far outnumber its local
+    blocks (L of size b): each point in ``per`` distinct blocks."""
+    rng = np.random.default_rng(seed)
+    loc = np.argsort(rng.random((p, L)), axis=1)[:, :per].ravel()
     pt = np.repeat(np.arange(p), per)
     n = loc.size
     lin = Linearization(
@@ -363,7 +356,7 @@ def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch)
         rng.normal(size=(n, 2, b)),
         np.zeros((n, 2, 0)),
         rng.normal(size=(n, 2, 3)),
-        np.zeros((L, b, b)),
+        np.tile(np.eye(b), (L, 1, 1)),
         np.zeros((L, b)),
         np.zeros((p, 3, 3)),
         np.zeros((p, 3)),
@@ -374,6 +367,20 @@ def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch)
     sysm = SchurSystem(
         L, b, 0, p, loc, pt, np.zeros((L, 0), int), np.ones((L, b), bool), np.zeros(0, bool)
     )
+    return sysm, lin
+
+
+def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch):
+    """``W_k`` and ``Y_k`` (n, b, 3) are the reduction's only arrays of the size of all rows
+    beside the Jacobian blocks: the pair products gather their rows from them in chunks
+    (padded copies of both stood beside them, with a gathered copy of ``V^-1`` for every
+    row). With a small ``CHUNK`` the temporaries that the call frees again stay below half
+    of one such array (0.24; before: 2.1 of them)."""
+    import photogeom.adjust.schur as schur
+
+    monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
+    sysm, lin = _many_rows()
+    n, b = sysm.n, sysm.b
     tracemalloc.start()
     try:
         normal = sysm.normal_equations(lin, damping=1e-3)
@@ -383,3 +390,37 @@ def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch)
     row_array = n * b * 3 * 8
     assert normal.W.shape == normal.Y.shape == (n, b, 3)
     assert peak - kept < 0.5 * row_array, (peak - kept) / row_array
+
+
+def test_the_observation_cofactors_gather_no_covariance_block_for_every_row(monkeypatch):
+    """The cross cofactors of the rows' local blocks with their points took ``Q_ll`` of
+    every row's local block at once (n x b x b, 131 MB on a 500-image BAL block with a
+    camera per image); chunks of rows now. With a small ``CHUNK`` the temporaries freed
+    again stay below half of that array (before: 1.3 of it), and the cofactors are those
+    of the dense normal equations."""
+    import photogeom.adjust.schur as schur
+
+    monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
+    sysm, lin = _many_rows()
+    ne = sysm.normal_equations(lin)
+    cb = covariance_blocks(ne, ne.factor(), pairs=True)
+    Qpp = point_covariances(ne, cb)
+    tracemalloc.start()
+    try:
+        observation_cofactors(ne, cb, Qpp)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    n, b = sysm.n, sysm.b
+    assert peak - kept < 0.5 * n * b * b * 8, (peak - kept) / (n * b * b * 8)
+    # in chunks of rows, the cofactors of the dense normal equations
+    sysm, lin, N, _, free, J = _problem(11, L=6, b=9, n_groups=1, gl=2, n_points=40)
+    ne = sysm.normal_equations(lin)
+    cb = covariance_blocks(ne, ne.factor(), pairs=True)
+    got = observation_cofactors(ne, cb, point_covariances(ne, cb))
+    Q = np.zeros_like(N)
+    Q[np.ix_(free, free)] = np.linalg.inv(N[np.ix_(free, free)])
+    ref = J @ Q @ J.T
+    d = got.shape[1]
+    blocks = np.stack([ref[d * k : d * k + d, d * k : d * k + d] for k in range(sysm.n)])
+    np.testing.assert_allclose(got, blocks, rtol=1e-8, atol=1e-10 * np.abs(blocks).max())

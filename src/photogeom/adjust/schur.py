@@ -1051,7 +1051,10 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
     n = s.n
     # cross cofactor camera-side (local b + global g) x point for each row: Q_{c,p_j}
     # Q_{l,p_j} = -(sum_k' Q_{l,l(k')} Y_k' + Q_{l,g} VH_j)
-    Qlp = -(Q.local[loc] @ Y)  # own term k' = k
+    Qlp = np.empty(Y.shape)  # own term k' = k, in chunks of rows (no Q.local for every row)
+    for lo in range(0, n, CHUNK):
+        hi = min(n, lo + CHUNK)
+        np.negative(Q.local[loc[lo:hi]] @ Y[lo:hi], out=Qlp[lo:hi])
     if s.sparse_global:
         VHp = normal.VHp
         n_rp = s.rp_row.size
