@@ -424,3 +424,45 @@ def test_the_observation_cofactors_gather_no_covariance_block_for_every_row(monk
     d = got.shape[1]
     blocks = np.stack([ref[d * k : d * k + d, d * k : d * k + d] for k in range(sysm.n)])
     np.testing.assert_allclose(got, blocks, rtol=1e-8, atol=1e-10 * np.abs(blocks).max())
+
+
+def test_held_global_columns_without_rows_are_left_out_of_the_folded_system():
+    """Every local block with a group of its own and two held global columns no row
+    depends on (a camera group without images) beside one free such column with a prior:
+    the held ones are not in the folded system (no dense coupling of the points with
+    them), and the step, the factor's solves and the covariance blocks are those of the
+    global form."""
+    rng = np.random.default_rng(5)
+    L, b, gl, p = 5, 3, 2, 12
+    g = L * gl + 3
+    loc = np.concatenate([rng.choice(L, 3, replace=False) for _ in range(p)])
+    pt = np.repeat(np.arange(p), 3)
+    n = loc.size
+    lg = np.arange(L * gl).reshape(L, gl)
+    gf = np.ones(g, bool)
+    gf[L * gl : L * gl + 2] = False
+    lin = Linearization(
+        rng.standard_normal((n, 2)),
+        rng.standard_normal((n, 2, b)),
+        rng.standard_normal((n, 2, gl)),
+        rng.standard_normal((n, 2, 3)),
+        np.tile(np.eye(b), (L, 1, 1)),
+        np.zeros((L, b)),
+        np.zeros((p, 3, 3)),
+        np.zeros((p, 3)),
+        np.eye(g),
+        rng.standard_normal(g),
+        0.0,
+    )
+    out = {}
+    for og in ("local", "global"):
+        s = SchurSystem(L, b, g, p, loc, pt, lg, np.ones((L, b), bool), gf, own_groups=og)
+        ne = s.normal_equations(lin)
+        dc, dp, F = ne.solve()
+        cb = covariance_blocks(ne, F, pairs=True)
+        cols = np.r_[lg[1], L * gl + np.arange(3)]
+        e = np.eye(s.nc)[:, -1]  # the free one (held ones: zero in and out, see MappedFactor)
+        out[og] = (dc, dp, F.solve(e), cb.local_global_block(1, cols), s)
+    assert out["local"][4].inner.n_global == 1  # the free column with its prior only
+    for a, c in zip(out["local"][:4], out["global"][:4]):
+        np.testing.assert_allclose(a, c, rtol=1e-9, atol=1e-12)

@@ -142,3 +142,35 @@ def test_own_groups_give_the_results_of_global_ones(sim, bal, case, monkeypatch)
     if ref.variance_components is not None:
         for k, v in ref.variance_components["factors"].items():
             assert fit.variance_components["factors"][k] == pytest.approx(v, rel=1e-8)
+
+
+def test_camera_groups_without_images_beside_own_ones_take_no_dense_coupling(bal):
+    """Camera groups without images (a COLMAP model's cameras of images it did not
+    register) are held. Beside a camera group per image they stood as the folded
+    system's only global parameters, coupled densely with every point (points x 3 x 11
+    per such group: 2.3 GB more for 10 of them beside a 500-image BAL block); they are
+    left out of it, and the adjustment is that of the block without them."""
+    ids = bal.camera_ids.tolist()
+    extra = [f"unused{k}" for k in range(3)]
+    block = bal.replace(
+        camera_ids=np.array(ids + extra, dtype=object),
+        calibrations=tuple(bal.calibrations) + (bal.calibrations[0],) * 3,
+        free={**bal.free, **{g: bal.free[ids[0]] for g in extra}},
+        image_variant={**bal.image_variant, **{g: bal.image_variant[ids[0]] for g in extra}},
+    )
+    opts = {"datum": "free", "free": ("f", "k1", "k2")}
+    problem = adjustment.Problem(block, pg.bundle.BundleOptions(**opts))
+    assert problem.sys.inner is not None
+    assert problem.sys.inner.n_global == 0  # nothing couples the points with them
+    fit = pg.bundle_adjust(block, point_covariance=True, **opts)
+    ref = pg.bundle_adjust(bal, point_covariance=True, **opts)
+    assert fit.iterations == ref.iterations
+    assert fit.sigma0 == pytest.approx(ref.sigma0, rel=1e-12)
+    _close(fit.block.exterior, ref.block.exterior, 1e-12)
+    _close(fit.exterior_std, ref.exterior_std, 1e-12)
+    _close(fit.point_std, ref.point_std, 1e-12)
+    for gid in ids:
+        _close(list(fit.calibration_std[gid].values()), list(ref.calibration_std[gid].values()))
+    for k, gid in enumerate(extra):  # held at their values, no standard deviation
+        assert fit.block.calibrations[len(ids) + k] == block.calibrations[len(ids) + k]
+        assert all(np.isnan(v) for v in fit.calibration_std[gid].values())

@@ -98,6 +98,10 @@ class Folding:
     held where the block has no group of its own or holds that parameter. The blocks
     without an own group keep the shared columns as globals; the folded ones depend on a
     held dummy global column (zero derivatives), so that every row has ``gl`` of them.
+    Held global columns that no local block depends on (a camera group without images)
+    are left out of the folded system too: as globals of a folded system with no shared
+    group they would be coupled densely with every point (points x 3 x those columns, 2.3
+    GB more for 10 such groups beside a 500-image block with a camera per image).
 
     Parameters
     ----------
@@ -124,7 +128,8 @@ class Folding:
         The local block holding each unfolded global column (-1: shared) and its position
         among the kept ones (-1: left out of the folded system).
     sh_idx : numpy.ndarray of int, shape (n_global,)
-        The folded global column of each shared column (-1: own).
+        The folded global column of each shared column (-1: own, or held and no local
+        block depends on it: left out).
     index : numpy.ndarray of int, shape (n_local * b + n_global,)
         The index in the folded system of every unfolded unknown (local blocks, then
         globals); ``n_folded`` (a zero beyond its end) for the ones left out.
@@ -155,7 +160,9 @@ class Folding:
         col_pos = np.full(g, -1, dtype=np.int64)  # -1: held in every own group, left out
         col_local[own_cols] = own_l[:, None]
         col_pos[own_cols] = slot[None, :]
-        shared = np.flatnonzero(col_local < 0)
+        used = np.zeros(g, dtype=bool)
+        used[local_global.ravel()] = True
+        shared = np.flatnonzero((col_local < 0) & (used | global_free))
         sh_idx = np.full(g, -1, dtype=np.int64)
         sh_idx[shared] = np.arange(shared.size)
         others = ~own
@@ -179,7 +186,7 @@ class Folding:
         glob_idx = np.where(
             col_local >= 0,
             np.where(col_pos >= 0, col_local * b2 + b + col_pos, self.n_folded),
-            L * b2 + np.maximum(sh_idx, 0),
+            np.where(sh_idx >= 0, L * b2 + sh_idx, self.n_folded),
         )
         self.index = np.r_[loc_idx, glob_idx]
 
@@ -220,10 +227,11 @@ class Folding:
         cl, cp, sh = self.col_local, self.col_pos, self.sh_idx
         own_c = cl >= 0
         kept = cp >= 0  # the own columns in the folded system (the others held everywhere)
+        sh_c = sh >= 0  # the shared columns in it (held ones without rows left out)
         gg = np.asarray(lin.global_grad, dtype=float)
         np.add.at(lgr, (cl[kept], b + cp[kept]), gg[kept])
         gg2 = np.zeros(n_global2)
-        gg2[sh[~own_c]] = gg[~own_c]
+        gg2[sh[sh_c]] = gg[sh_c]
         gi = sp.coo_matrix(lin.global_info)
         i, j, v = gi.row, gi.col, gi.data
         both_own = own_c[i] & own_c[j] & (cl[i] == cl[j])
@@ -236,6 +244,7 @@ class Folding:
                 "alone depends on with other global parameters: pass own_groups='global'"
             )
         both_own &= kept[i] & kept[j]
+        both_sh &= sh_c[i] & sh_c[j]
         np.add.at(li, (cl[i[both_own]], b + cp[i[both_own]], b + cp[j[both_own]]), v[both_own])
         gi2 = np.zeros((n_global2, n_global2))
         np.add.at(gi2, (sh[i[both_sh]], sh[j[both_sh]]), v[both_sh])
@@ -381,9 +390,10 @@ class FoldedCovarianceBlocks:
         cols = np.asarray(cols, dtype=np.int64)
         loc = f.col_local[cols]
         cp = f.col_pos[cols]
-        pos = np.where(loc >= 0, s.b + cp, f.sh_idx[cols])
-        loc = np.where((loc >= 0) & (cp < 0), -2, loc)  # left out of the folded system
-        return loc, pos
+        sh = f.sh_idx[cols]
+        pos = np.where(loc >= 0, s.b + cp, sh)
+        left_out = np.where(loc >= 0, cp < 0, sh < 0)  # not in the folded system
+        return np.where(left_out, -2, loc), pos
 
     def global_block(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """``Q`` of global parameters ``rows`` (k1,) by ``cols`` (k2,): (k1, k2).
