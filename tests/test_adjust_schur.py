@@ -344,42 +344,59 @@ def _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc):
         )
 
 
-def _many_rows(L=20, b=9, p=4000, per=5, seed=3):
-    """A problem without global parameters whose rows (p * per) far outnumber its local
-    blocks (L of size b): each point in ``per`` distinct blocks."""
+def _many_rows(L=20, b=9, p=4000, per=5, seed=3, n_groups=0, gl=2, coupling="auto"):
+    """A problem whose rows (p * per) far outnumber its local blocks (L of size b): each
+    point in ``per`` distinct blocks; ``n_groups`` groups of ``gl`` global parameters (the
+    local blocks in turn), none by default."""
     rng = np.random.default_rng(seed)
     loc = np.argsort(rng.random((p, L)), axis=1)[:, :per].ravel()
     pt = np.repeat(np.arange(p), per)
     n = loc.size
+    gl = gl if n_groups else 0
+    g = n_groups * gl
     lin = Linearization(
         rng.normal(size=(n, 2)),
         rng.normal(size=(n, 2, b)),
-        np.zeros((n, 2, 0)),
+        rng.normal(size=(n, 2, gl)),
         rng.normal(size=(n, 2, 3)),
         np.tile(np.eye(b), (L, 1, 1)),
         np.zeros((L, b)),
         np.zeros((p, 3, 3)),
         np.zeros((p, 3)),
-        np.zeros((0, 0)),
-        np.zeros(0),
+        np.eye(g),
+        np.zeros(g),
         0.0,
     )
+    lg = (np.arange(L) % max(n_groups, 1))[:, None] * gl + np.arange(gl)[None, :]
     sysm = SchurSystem(
-        L, b, 0, p, loc, pt, np.zeros((L, 0), int), np.ones((L, b), bool), np.zeros(0, bool)
+        L,
+        b,
+        g,
+        p,
+        loc,
+        pt,
+        lg,
+        np.ones((L, b), bool),
+        np.ones(g, bool),
+        global_coupling=coupling,
     )
     return sysm, lin
 
 
-def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch):
+@pytest.mark.parametrize("groups", [0, 4])
+def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch, groups):
     """``W_k`` and ``Y_k`` (n, b, 3) are the reduction's only arrays of the size of all rows
-    beside the Jacobian blocks: the pair products gather their rows from them in chunks
-    (padded copies of both stood beside them, with a gathered copy of ``V^-1`` for every
-    row). With a small ``CHUNK`` the temporaries that the call frees again stay below half
-    of one such array (0.24; before: 2.1 of them)."""
+    beside the Jacobian blocks: the pair products, and with the coupling of the points with
+    the global parameters per (point, group) the products of the rows with the groups,
+    gather their rows from them in chunks (padded copies of them stood beside them, with a
+    gathered copy of ``V^-1`` for every row). With a small ``CHUNK`` the temporaries that
+    the call frees again stay below half of one such array (before: 2.1 of them without
+    groups, 1.3 with the groups' padded copy of ``Y`` alone)."""
     import photogeom.adjust.schur as schur
 
     monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
-    sysm, lin = _many_rows()
+    sysm, lin = _many_rows(n_groups=groups, coupling="sparse")
+    assert sysm.sparse_global == bool(groups)
     n, b = sysm.n, sysm.b
     tracemalloc.start()
     try:

@@ -161,19 +161,18 @@ def _grouped_products(
     n_seg: int,
     t: int = PAIR_GROUP,
 ) -> np.ndarray:
-    """``out[s] = sum over the entries of segment s of left[i]' right[j]`` (left (k, 3, m),
-    right (k', 3, m'), one (m, 3t) x (3t, m') product per group of ``t`` entries; the slot
-    index ``len(left)`` / ``len(right)`` is a zero block)."""
+    """``out[s] = sum over the entries of segment s of left[i]' right[j]`` (left (k + 1, 3,
+    m), right (k' + 1, 3, m'), each with a zero block last, the slot index ``k`` / ``k'`` of
+    the padding: no padded copies of them), one (m, 3t) x (3t, m') product per group of
+    ``t`` entries."""
     m, m2 = left.shape[2], right.shape[2]
-    lz = np.concatenate([left, np.zeros((1, 3, m))])
-    rz = np.concatenate([right, np.zeros((1, 3, m2))])
     out = np.zeros((n_seg, m, m2))
     n_groups = group_seg.size
     per = max(1, CHUNK // t)
     for g0 in range(0, n_groups, per):  # chunks of groups: bounded temporaries
         g1 = min(n_groups, g0 + per)
-        a = lz[slots_l[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m)
-        c = rz[slots_r[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m2)
+        a = left[slots_l[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m)
+        c = right[slots_r[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m2)
         prod = a.transpose(0, 2, 1) @ c
         key = group_seg[g0:g1]
         first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
@@ -705,17 +704,22 @@ class _Normal:
         sparse = s.sparse_global
         if sparse:
             H = VH = None
-            Hp = np.zeros((s.n_pg, 3 * gl))
+            # with a zero block n_pg beyond the end (the padding of the grouped products)
+            Hpz = np.zeros((s.n_pg + 1, 3, gl))
             _segment_sum(
                 lambda rows: (P[rows].transpose(0, 2, 1) @ G[rows]).reshape(rows.size, -1),
                 s.pg_order,
                 s.pg_row_starts,
                 s.pg_row_keys,
                 s.n,
-                Hp,
+                Hpz.reshape(s.n_pg + 1, 3 * gl),
             )
-            Hp = Hp.reshape(s.n_pg, 3, gl)
-            VHp = Vinv[s.pg_point] @ Hp
+            Hp = Hpz[: s.n_pg]
+            VHpz = np.zeros((s.n_pg + 1, 3, gl))
+            VHp = VHpz[: s.n_pg]
+            for lo in range(0, s.n_pg, CHUNK):  # no gathered copy of Vinv for every pair
+                hi = min(s.n_pg, lo + CHUNK)
+                np.matmul(Vinv[s.pg_point[lo:hi]], Hp[lo:hi], out=VHp[lo:hi])
         elif g:
             Wg = G.transpose(0, 2, 1) @ P  # (n, gl, 3)
             H = np.bincount(s.dense_h_index(), weights=Wg.ravel(), minlength=s.n_points * 3 * g)
@@ -744,7 +748,7 @@ class _Normal:
         if sparse:
             # - sum over (row k, pair e) of one point of Y_k Hp_e, by (local, group of e)
             blk = _grouped_products(
-                Y.transpose(0, 2, 1), Hp, s._lg_row, s._lg_pg, s._lg_seg, s.rp_lg_starts.size
+                Yz.transpose(0, 2, 1), Hpz, s._lg_row, s._lg_pg, s._lg_seg, s.rp_lg_starts.size
             )
             cols = s.group_cols[s.rp_lg_group]  # (blocks, gl)
             flat = (
@@ -780,7 +784,7 @@ class _Normal:
             # global-global: U_gg - sum_j H_j' Vinv_j H_j
             if sparse:
                 # over the (pair, pair) of one point, by (group, group)
-                blk = _grouped_products(Hp, VHp, s._gg_a, s._gg_b, s._gg_seg, s.pp_gg_starts.size)
+                blk = _grouped_products(Hpz, VHpz, s._gg_a, s._gg_b, s._gg_seg, s.pp_gg_starts.size)
                 ca, cb = s.group_cols[s.pp_gg_a], s.group_cols[s.pp_gg_b]
                 flat = (ca[:, :, None] * g + cb[:, None, :]).ravel()
                 hvh = np.bincount(flat, weights=blk.ravel(), minlength=g * g).reshape(g, g)
