@@ -174,3 +174,17 @@ def test_camera_groups_without_images_beside_own_ones_take_no_dense_coupling(bal
     for k, gid in enumerate(extra):  # held at their values, no standard deviation
         assert fit.block.calibrations[len(ids) + k] == block.calibrations[len(ids) + k]
         assert all(np.isnan(v) for v in fit.calibration_std[gid].values())
+
+
+def test_the_reported_reduced_system_is_the_one_solved(bal, sim):
+    """A camera group per image (f, k1, k2 free) is solved as one block of 6 + 3 unknowns
+    per image: 8 x 9 = 72 unknowns, as the solver record says (it said 136, the images'
+    6 and the groups' 11 calibration parameters, held ones included, beside the non-zeros
+    of the 72-unknown system). With shared groups: 6 per image and 11 per group."""
+    fit = pg.bundle_adjust(bal, datum="free", free=("f", "k1", "k2"), snooping=False)
+    assert fit.block.n_images == 8
+    assert fit.solver["reduced_system_size"] == 8 * 9
+    assert fit.solver["reduced_system_nonzeros"] <= 72 * 72
+    shared = pg.bundle_adjust(sim.block, snooping=False)
+    n_groups = len(sim.block.camera_ids)
+    assert shared.solver["reduced_system_size"] == 6 * sim.block.n_images + 11 * n_groups
