@@ -391,7 +391,7 @@ def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch,
     gather their rows from them in chunks (padded copies of them stood beside them, with a
     gathered copy of ``V^-1`` for every row). With a small ``CHUNK`` the temporaries that
     the call frees again stay below half of one such array (before: 2.1 of them without
-    groups, 1.3 with the groups' padded copy of ``Y`` alone)."""
+    groups, 1.2 with the groups' padded copy of ``Y`` alone)."""
     import photogeom.adjust.schur as schur
 
     monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
