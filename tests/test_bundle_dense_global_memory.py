@@ -71,6 +71,7 @@ def _global_groups(monkeypatch):
     in their images)."""
     monkeypatch.setattr(folding, "OWN_GROUPS_LOCAL", 10**9)
     monkeypatch.setattr(folding, "OWN_GROUPS_FRACTION", 10.0)
+    monkeypatch.setattr(folding, "OWN_GROUPS_DENSE_ENTRIES", 2**62)
 
 
 def test_memory_is_linear_in_the_observations(tmp_path_factory, per_image_cameras):

@@ -35,9 +35,18 @@ if TYPE_CHECKING:
 #: network, statistics included) adjusts in 0.21 s of CPU time instead of 0.49 s with 8
 #: images, 0.36 s instead of 1.11 s with 16, 0.82 s instead of 2.73 s with 40; every local
 #: block then has the groups' free unknowns, held where it has no group of its own, which a
-#: few own groups among many shared would not repay.
-OWN_GROUPS_LOCAL = 32
+#: few own groups among many shared do not repay: 500 FC6310 images, those without a group
+#: of their own sharing one (3 iterations with statistics, CPU), folded / global 21.6 s /
+#: 8.0 s with 32 own groups, 22.2 / 11.7 s with 100, 24.1 / 19.6 s with 175, 21.6 / 26.4 s
+#: with 250 (the global form's dense calibration blocks grow with the square of the own
+#: groups, the folded form's held unknowns with the images).
+OWN_GROUPS_LOCAL = 200
 OWN_GROUPS_FRACTION = 0.5
+#: Entries of the dense block of the local blocks by the own groups' parameters (local
+#: blocks x own parameters) from which those are folded however few they are: the global
+#: form's blocks of them would need 0.8 GB and more at 6 unknowns a local block, several
+#: times that with their accumulation and covariances.
+OWN_GROUPS_DENSE_ENTRIES = 2**24
 
 
 def own_group_locals(local_global: np.ndarray, n_global: int) -> np.ndarray:
@@ -69,9 +78,10 @@ def folded_locals(local_global: np.ndarray, n_global: int, own_groups: str = "au
 
     ``"local"``: every such block; ``"global"``: none; ``"auto"``: every such block from
     :data:`OWN_GROUPS_LOCAL` of them on, or from :data:`OWN_GROUPS_FRACTION` of the local
-    blocks (a block with a camera per image, as BAL files give: its calibrations, which
-    would be global parameters growing with the square of the images, become the images'
-    own unknowns, eliminated like their orientations).
+    blocks, or where the local blocks times the own parameters reach
+    :data:`OWN_GROUPS_DENSE_ENTRIES` (a block with a camera per image, as BAL files give:
+    its calibrations, which would be global parameters growing with the square of the
+    images, become the images' own unknowns, eliminated like their orientations).
 
     Returns
     -------
@@ -81,7 +91,13 @@ def folded_locals(local_global: np.ndarray, n_global: int, own_groups: str = "au
         raise ValueError(f"own_groups must be 'auto', 'local' or 'global', not {own_groups!r}")
     own = own_group_locals(local_global, n_global)
     k = int(own.sum())
-    few = k < OWN_GROUPS_LOCAL and k < OWN_GROUPS_FRACTION * own.size
+    lg = np.asarray(local_global)
+    dense = own.size * k * (lg.shape[1] if lg.ndim == 2 else 0)  # Python ints
+    few = (
+        k < OWN_GROUPS_LOCAL
+        and k < OWN_GROUPS_FRACTION * own.size
+        and dense < OWN_GROUPS_DENSE_ENTRIES
+    )
     if own_groups == "global" or (own_groups == "auto" and few):
         own[:] = False
     return own
