@@ -1,5 +1,7 @@
 """The Schur-complement engine against the dense normal equations of the same problem."""
 
+import tracemalloc
+
 import numpy as np
 import pytest
 
@@ -340,3 +342,144 @@ def _check_point_and_observation_cofactors(ne, cb, sysm, Q, J, nc):
         np.testing.assert_allclose(
             C[k], JQJ[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], rtol=1e-8, atol=1e-9
         )
+
+
+def _many_rows(L=20, b=9, p=4000, per=5, seed=3, n_groups=0, gl=2, coupling="auto"):
+    """A problem whose rows (p * per) far outnumber its local blocks (L of size b): each
+    point in ``per`` distinct blocks; ``n_groups`` groups of ``gl`` global parameters (the
+    local blocks in turn), none by default."""
+    rng = np.random.default_rng(seed)
+    loc = np.argsort(rng.random((p, L)), axis=1)[:, :per].ravel()
+    pt = np.repeat(np.arange(p), per)
+    n = loc.size
+    gl = gl if n_groups else 0
+    g = n_groups * gl
+    lin = Linearization(
+        rng.normal(size=(n, 2)),
+        rng.normal(size=(n, 2, b)),
+        rng.normal(size=(n, 2, gl)),
+        rng.normal(size=(n, 2, 3)),
+        np.tile(np.eye(b), (L, 1, 1)),
+        np.zeros((L, b)),
+        np.zeros((p, 3, 3)),
+        np.zeros((p, 3)),
+        np.eye(g),
+        np.zeros(g),
+        0.0,
+    )
+    lg = (np.arange(L) % max(n_groups, 1))[:, None] * gl + np.arange(gl)[None, :]
+    sysm = SchurSystem(
+        L,
+        b,
+        g,
+        p,
+        loc,
+        pt,
+        lg,
+        np.ones((L, b), bool),
+        np.ones(g, bool),
+        global_coupling=coupling,
+    )
+    return sysm, lin
+
+
+@pytest.mark.parametrize("groups", [0, 4])
+def test_the_reduction_allocates_no_padded_copies_of_the_row_blocks(monkeypatch, groups):
+    """``W_k`` and ``Y_k`` (n, b, 3) are the reduction's only arrays of the size of all rows
+    beside the Jacobian blocks: the pair products, and with the coupling of the points with
+    the global parameters per (point, group) the products of the rows with the groups,
+    gather their rows from them in chunks (padded copies of them stood beside them, with a
+    gathered copy of ``V^-1`` for every row). With a small ``CHUNK`` the temporaries that
+    the call frees again stay below half of one such array (before: 2.1 of them without
+    groups, 1.2 with the groups' padded copy of ``Y`` alone)."""
+    import photogeom.adjust.schur as schur
+
+    monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
+    sysm, lin = _many_rows(n_groups=groups, coupling="sparse")
+    assert sysm.sparse_global == bool(groups)
+    n, b = sysm.n, sysm.b
+    tracemalloc.start()
+    try:
+        normal = sysm.normal_equations(lin, damping=1e-3)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    row_array = n * b * 3 * 8
+    assert normal.W.shape == normal.Y.shape == (n, b, 3)
+    assert peak - kept < 0.5 * row_array, (peak - kept) / row_array
+
+
+def test_the_observation_cofactors_gather_no_covariance_block_for_every_row(monkeypatch):
+    """The cross cofactors of the rows' local blocks with their points took ``Q_ll`` of
+    every row's local block at once (n x b x b, 131 MB on a 500-image BAL block with a
+    camera per image); chunks of rows now. With a small ``CHUNK`` the temporaries freed
+    again stay below half of that array (before: 1.3 of it), and the cofactors are those
+    of the dense normal equations."""
+    import photogeom.adjust.schur as schur
+
+    monkeypatch.setattr(schur, "CHUNK", 2 * schur.PAIR_GROUP)
+    sysm, lin = _many_rows()
+    ne = sysm.normal_equations(lin)
+    cb = covariance_blocks(ne, ne.factor(), pairs=True)
+    Qpp = point_covariances(ne, cb)
+    tracemalloc.start()
+    try:
+        observation_cofactors(ne, cb, Qpp)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    n, b = sysm.n, sysm.b
+    assert peak - kept < 0.5 * n * b * b * 8, (peak - kept) / (n * b * b * 8)
+    # in chunks of rows, the cofactors of the dense normal equations
+    sysm, lin, N, _, free, J = _problem(11, L=6, b=9, n_groups=1, gl=2, n_points=40)
+    ne = sysm.normal_equations(lin)
+    cb = covariance_blocks(ne, ne.factor(), pairs=True)
+    got = observation_cofactors(ne, cb, point_covariances(ne, cb))
+    Q = np.zeros_like(N)
+    Q[np.ix_(free, free)] = np.linalg.inv(N[np.ix_(free, free)])
+    ref = J @ Q @ J.T
+    d = got.shape[1]
+    blocks = np.stack([ref[d * k : d * k + d, d * k : d * k + d] for k in range(sysm.n)])
+    np.testing.assert_allclose(got, blocks, rtol=1e-8, atol=1e-10 * np.abs(blocks).max())
+
+
+def test_held_global_columns_without_rows_are_left_out_of_the_folded_system():
+    """Every local block with a group of its own and two held global columns no row
+    depends on (a camera group without images) beside one free such column with a prior:
+    the held ones are not in the folded system (no dense coupling of the points with
+    them), and the step, the factor's solves and the covariance blocks are those of the
+    global form."""
+    rng = np.random.default_rng(5)
+    L, b, gl, p = 5, 3, 2, 12
+    g = L * gl + 3
+    loc = np.concatenate([rng.choice(L, 3, replace=False) for _ in range(p)])
+    pt = np.repeat(np.arange(p), 3)
+    n = loc.size
+    lg = np.arange(L * gl).reshape(L, gl)
+    gf = np.ones(g, bool)
+    gf[L * gl : L * gl + 2] = False
+    lin = Linearization(
+        rng.standard_normal((n, 2)),
+        rng.standard_normal((n, 2, b)),
+        rng.standard_normal((n, 2, gl)),
+        rng.standard_normal((n, 2, 3)),
+        np.tile(np.eye(b), (L, 1, 1)),
+        np.zeros((L, b)),
+        np.zeros((p, 3, 3)),
+        np.zeros((p, 3)),
+        np.eye(g),
+        rng.standard_normal(g),
+        0.0,
+    )
+    out = {}
+    for og in ("local", "global"):
+        s = SchurSystem(L, b, g, p, loc, pt, lg, np.ones((L, b), bool), gf, own_groups=og)
+        ne = s.normal_equations(lin)
+        dc, dp, F = ne.solve()
+        cb = covariance_blocks(ne, F, pairs=True)
+        cols = np.r_[lg[1], L * gl + np.arange(3)]
+        e = np.eye(s.nc)[:, -1]  # the free one (held ones: zero in and out, see MappedFactor)
+        out[og] = (dc, dp, F.solve(e), cb.local_global_block(1, cols), s)
+    assert out["local"][4].inner.n_global == 1  # the free column with its prior only
+    for a, c in zip(out["local"][:4], out["global"][:4]):
+        np.testing.assert_allclose(a, c, rtol=1e-9, atol=1e-12)

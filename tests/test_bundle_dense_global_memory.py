@@ -29,7 +29,7 @@ import pytest
 import scipy.sparse as sp
 
 import photogeom as pg
-from photogeom.adjust import schur
+from photogeom.adjust import folding, schur
 from photogeom.bundle import adjustment
 from photogeom.bundle.io_bal import read_bal, write_bal
 from photogeom.errors import InputError
@@ -69,8 +69,9 @@ def _paired(block):
 def _global_groups(monkeypatch):
     """Every camera group held as global parameters (the form before own groups were held
     in their images)."""
-    monkeypatch.setattr(schur, "OWN_GROUPS_LOCAL", 10**9)
-    monkeypatch.setattr(schur, "OWN_GROUPS_FRACTION", 10.0)
+    monkeypatch.setattr(folding, "OWN_GROUPS_LOCAL", 10**9)
+    monkeypatch.setattr(folding, "OWN_GROUPS_FRACTION", 10.0)
+    monkeypatch.setattr(folding, "OWN_GROUPS_DENSE_ENTRIES", 2**62)
 
 
 def test_memory_is_linear_in_the_observations(tmp_path_factory, per_image_cameras):

@@ -21,8 +21,9 @@ points; only the (local, global) and (global, global) blocks and their covarianc
 densely (memory local blocks x globals and globals squared). The global parameters of a
 group that one local block alone depends on (a camera group of one image, as every image of
 a BAL file has) are held as further unknowns of that local block instead (see
-``own_groups`` of :class:`SchurSystem`): a block with a camera per image then has no global
-parameter at all.
+``own_groups`` of :class:`SchurSystem` and :mod:`photogeom.adjust.folding`, which holds that
+folding and whose names this module re-exports): a block with a camera per image then has
+no global parameter at all.
 
 The covariance part gives blocks of the inverse: local and global blocks of the reduced
 system (by solves with unit vectors, never a dense inverse of the whole system), the
@@ -41,7 +42,39 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import DegenerateGeometryError
+from .folding import (
+    OWN_GROUPS_FRACTION,
+    OWN_GROUPS_LOCAL,
+    FoldedCovarianceBlocks,
+    FoldedNormal,
+    Folding,
+    MappedFactor,
+    folded_locals,
+    own_group_locals,
+)
 from .sparse import SparseFactor, factorize
+
+__all__ = [
+    "CHUNK",
+    "DENSE_GLOBAL_BYTES",
+    "OWN_GROUPS_FRACTION",
+    "OWN_GROUPS_LOCAL",
+    "PAIR_GROUP",
+    "SPARSE_GLOBAL_GROUPS",
+    "CovarianceBlocks",
+    "FoldedCovarianceBlocks",
+    "Linearization",
+    "MappedFactor",
+    "SchurSystem",
+    "covariance_blocks",
+    "dense_coupling_bytes",
+    "folded_locals",
+    "invert_point_blocks",
+    "observation_cofactors",
+    "own_group_locals",
+    "point_covariances",
+    "weak_point_blocks",
+]
 
 #: Observation rows processed at once (bounds temporary memory).
 CHUNK = 32768
@@ -58,63 +91,6 @@ SPARSE_GLOBAL_GROUPS = 32
 #: Bytes of the dense coupling (see :func:`dense_coupling_bytes`) above which it is held
 #: sparse with fewer groups too.
 DENSE_GLOBAL_BYTES = 512e6
-#: Local blocks with a group of global parameters of their own (no other local block's rows
-#: depend on its columns: a camera group observed by one image only) from which those
-#: parameters are folded into their local blocks (see :func:`folded_locals`), or this
-#: fraction of the local blocks. Folded, a block with a camera group per image (BAL, free
-#: network, statistics included) adjusts in 0.21 s of CPU time instead of 0.49 s with 8
-#: images, 0.36 s instead of 1.11 s with 16, 0.82 s instead of 2.73 s with 40; every local
-#: block then has the groups' free unknowns, held where it has no group of its own, which a
-#: few own groups among many shared would not repay.
-OWN_GROUPS_LOCAL = 32
-OWN_GROUPS_FRACTION = 0.5
-
-
-def own_group_locals(local_global: np.ndarray, n_global: int) -> np.ndarray:
-    """Which local blocks' global columns belong to them alone: no other local block's
-    rows depend on any of them and each occurs once in the block's row of
-    ``local_global`` (a camera group observed by one image only).
-
-    Parameters
-    ----------
-    local_global : numpy.ndarray of int, shape (n_local, gl)
-        The global columns each local block's rows depend on.
-    n_global : int
-        Global parameters.
-
-    Returns
-    -------
-    numpy.ndarray of bool, shape (n_local,)
-    """
-    lg = np.asarray(local_global, dtype=np.int64)
-    if lg.ndim != 2 or lg.shape[1] == 0 or n_global == 0:
-        return np.zeros(lg.shape[0] if lg.ndim else 0, dtype=bool)
-    count = np.bincount(lg.ravel(), minlength=n_global)
-    return np.all(count[lg] == 1, axis=1)
-
-
-def folded_locals(local_global: np.ndarray, n_global: int, own_groups: str = "auto") -> np.ndarray:
-    """The local blocks whose own global parameters (:func:`own_group_locals`) a
-    :class:`SchurSystem` with ``own_groups`` holds in their local block.
-
-    ``"local"``: every such block; ``"global"``: none; ``"auto"``: every such block from
-    :data:`OWN_GROUPS_LOCAL` of them on, or from :data:`OWN_GROUPS_FRACTION` of the local
-    blocks (a block with a camera per image, as BAL files give: its calibrations, which
-    would be global parameters growing with the square of the images, become the images'
-    own unknowns, eliminated like their orientations).
-
-    Returns
-    -------
-    numpy.ndarray of bool, shape (n_local,)
-    """
-    if own_groups not in ("auto", "local", "global"):
-        raise ValueError(f"own_groups must be 'auto', 'local' or 'global', not {own_groups!r}")
-    own = own_group_locals(local_global, n_global)
-    k = int(own.sum())
-    few = k < OWN_GROUPS_LOCAL and k < OWN_GROUPS_FRACTION * own.size
-    if own_groups == "global" or (own_groups == "auto" and few):
-        own[:] = False
-    return own
 
 
 def dense_coupling_bytes(n_global: int, n_rows: int, n_points: int, b: int) -> float:
@@ -185,19 +161,18 @@ def _grouped_products(
     n_seg: int,
     t: int = PAIR_GROUP,
 ) -> np.ndarray:
-    """``out[s] = sum over the entries of segment s of left[i]' right[j]`` (left (k, 3, m),
-    right (k', 3, m'), one (m, 3t) x (3t, m') product per group of ``t`` entries; the slot
-    index ``len(left)`` / ``len(right)`` is a zero block)."""
+    """``out[s] = sum over the entries of segment s of left[i]' right[j]`` (left (k + 1, 3,
+    m), right (k' + 1, 3, m'), each with a zero block last, the slot index ``k`` / ``k'`` of
+    the padding: no padded copies of them), one (m, 3t) x (3t, m') product per group of
+    ``t`` entries."""
     m, m2 = left.shape[2], right.shape[2]
-    lz = np.concatenate([left, np.zeros((1, 3, m))])
-    rz = np.concatenate([right, np.zeros((1, 3, m2))])
     out = np.zeros((n_seg, m, m2))
     n_groups = group_seg.size
     per = max(1, CHUNK // t)
     for g0 in range(0, n_groups, per):  # chunks of groups: bounded temporaries
         g1 = min(n_groups, g0 + per)
-        a = lz[slots_l[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m)
-        c = rz[slots_r[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m2)
+        a = left[slots_l[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m)
+        c = right[slots_r[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, m2)
         prod = a.transpose(0, 2, 1) @ c
         key = group_seg[g0:g1]
         first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
@@ -304,8 +279,10 @@ class SchurSystem:
         self.backend = backend
         self.n = self.local.size
         self.nc = n_local * b + n_global
-        #: the system with the own groups' parameters in their local blocks (None: not folded)
+        #: the system with the own groups' parameters in their local blocks and the map
+        #: between the two (None: not folded; see :mod:`photogeom.adjust.folding`)
         self.inner: SchurSystem | None = None
+        self.folding: Folding | None = None
         fold = folded_locals(self.local_global, n_global, own_groups)
         if np.any(fold):
             self._fold(fold, global_coupling)
@@ -336,132 +313,30 @@ class SchurSystem:
 
     def _fold(self, own: np.ndarray, global_coupling: str) -> None:
         """The system with the free global columns of the local blocks ``own`` (L,) as
-        their local unknowns ``b, b + 1, ...`` (``self.inner``) and the maps between the
-        two.
-
-        The positions in the rows of ``local_global`` held in every such block (a camera
-        group's fixed parameters) are left out of the folded system (their steps and
-        covariances are zero); the others are unknowns of every local block, held where
-        the block has no group of its own or holds that parameter."""
-        L, b, g = self.n_local, self.b, self.n_global
-        own_l = np.flatnonzero(own)
-        own_cols = self.local_global[own_l]  # (n_own, gl)
-        keep = np.flatnonzero(self.global_free[own_cols].any(axis=0))  # positions in a row
-        b2 = b + keep.size
-        slot = np.full(self.gl, -1, dtype=np.int64)
-        slot[keep] = np.arange(keep.size)
-        col_local = np.full(g, -1, dtype=np.int64)
-        col_pos = np.full(g, -1, dtype=np.int64)  # -1: held in every own group, left out
-        col_local[own_cols] = own_l[:, None]
-        col_pos[own_cols] = slot[None, :]
-        shared = np.flatnonzero(col_local < 0)
-        sh_idx = np.full(g, -1, dtype=np.int64)
-        sh_idx[shared] = np.arange(shared.size)
-        others = ~own
-        if np.any(others):
-            # the blocks without an own group depend on the shared columns; the folded ones
-            # on a held dummy column (zero derivatives), so that every row has gl of them
-            dummy = shared.size
-            lg2 = np.full((L, self.gl), dummy, dtype=np.int64)
-            lg2[others] = sh_idx[self.local_global[others]]
-            gf2 = np.r_[self.global_free[shared], False]
-        else:
-            lg2 = np.zeros((L, 0), dtype=np.int64)
-            gf2 = self.global_free[shared]
-        lf2 = np.zeros((L, b2), dtype=bool)
-        lf2[:, :b] = self.local_free
-        lf2[own_l, b:] = self.global_free[own_cols[:, keep]]
+        their local unknowns (``self.inner``) and the map between the two
+        (``self.folding``, a :class:`~photogeom.adjust.folding.Folding`)."""
+        f = Folding(
+            self.local_global, self.n_global, self.local_free, self.global_free, self.local, own
+        )
+        self.folding = f
         self.inner = SchurSystem(
-            L,
-            b2,
-            gf2.size,
+            self.n_local,
+            f.b,
+            f.global_free.size,
             self.n_points,
             self.local,
             self.point,
-            lg2,
-            lf2,
-            gf2,
+            f.local_global,
+            f.local_free,
+            f.global_free,
             backend=self.backend,
             global_coupling=global_coupling,
             own_groups="global",
         )
-        self.fold_own, self.fold_keep = own, keep
-        self.fold_col_local, self.fold_col_pos = col_local, col_pos
-        self.fold_shared, self.fold_sh_idx = shared, sh_idx
-        # the index in the folded system of every unknown of this one (local blocks, then
-        # globals); inner.nc (a zero beyond its end) for the ones left out
-        nc2 = self.inner.nc
-        loc_idx = (np.arange(L)[:, None] * b2 + np.arange(b)[None, :]).ravel()
-        glob_idx = np.where(
-            col_local >= 0,
-            np.where(col_pos >= 0, col_local * b2 + b + col_pos, nc2),
-            L * b2 + np.maximum(sh_idx, 0),
-        )
-        self.fold_index = np.r_[loc_idx, glob_idx]
         inner = self.inner
         self.blocks, self.n_pairs = inner.blocks, inner.n_pairs
         self.pair_k1, self.pair_k2, self.pair_block = inner.pair_k1, inner.pair_k2, inner.pair_block
         self.sparse_global = inner.sparse_global
-
-    def to_inner(self, x: np.ndarray) -> np.ndarray:
-        """A vector (nc,) or columns (nc, k) of this system's unknowns in the folded
-        system's order (its held extra unknowns zero)."""
-        x = np.asarray(x, dtype=float)
-        out = np.zeros((self.inner.nc + 1, *x.shape[1:]))
-        out[self.fold_index] = x
-        return out[:-1]
-
-    def from_inner(self, x: np.ndarray) -> np.ndarray:
-        """A vector (inner.nc,) or columns (inner.nc, k) of the folded system in this
-        system's unknowns (those left out of it zero)."""
-        x = np.asarray(x, dtype=float)
-        return np.concatenate([x, np.zeros((1, *x.shape[1:]))])[self.fold_index]
-
-    def fold_linearization(self, lin: Linearization) -> Linearization:
-        """The linearisation in the folded system's unknowns: the own groups' derivatives
-        and prior terms in their local blocks, the shared ones global."""
-        L, b = self.n_local, self.b
-        inner = self.inner
-        keep = self.fold_keep
-        b2 = inner.b
-        own_row = self.fold_own[self.local]
-        n, d = lin.r.shape
-        A = np.empty((n, d, b2))
-        A[:, :, :b] = lin.A
-        A[:, :, b:] = lin.G[:, :, keep] * own_row[:, None, None]
-        if inner.gl:
-            G = lin.G * ~own_row[:, None, None]
-        else:
-            G = np.zeros((n, d, 0))
-        li = np.zeros((L, b2, b2))
-        li[:, :b, :b] = lin.local_info
-        lgr = np.zeros((L, b2))
-        lgr[:, :b] = lin.local_grad
-        cl, cp, sh = self.fold_col_local, self.fold_col_pos, self.fold_sh_idx
-        own_c = cl >= 0
-        kept = cp >= 0  # the own columns in the folded system (the others held everywhere)
-        gg = np.asarray(lin.global_grad, dtype=float)
-        np.add.at(lgr, (cl[kept], b + cp[kept]), gg[kept])
-        gg2 = np.zeros(inner.n_global)
-        gg2[sh[~own_c]] = gg[~own_c]
-        gi = sp.coo_matrix(lin.global_info)
-        i, j, v = gi.row, gi.col, gi.data
-        both_own = own_c[i] & own_c[j] & (cl[i] == cl[j])
-        both_sh = ~own_c[i] & ~own_c[j]
-        gf = self.global_free
-        cross = ~(both_own | both_sh) & (v != 0) & gf[i] & gf[j]
-        if np.any(cross):
-            raise ValueError(
-                "global_info couples the global parameters of a group that one local block "
-                "alone depends on with other global parameters: pass own_groups='global'"
-            )
-        both_own &= kept[i] & kept[j]
-        np.add.at(li, (cl[i[both_own]], b + cp[i[both_own]], b + cp[j[both_own]]), v[both_own])
-        gi2 = np.zeros((inner.n_global, inner.n_global))
-        np.add.at(gi2, (sh[i[both_sh]], sh[j[both_sh]]), v[both_sh])
-        return Linearization(
-            lin.r, A, G, lin.P, li, lgr, lin.point_info, lin.point_grad, gi2, gg2, lin.cost
-        )
 
     # --- structure ---------------------------------------------------------------------------
 
@@ -682,7 +557,7 @@ class SchurSystem:
     def normal_equations(self, lin: Linearization, damping: float = 0.0) -> _Normal:
         """Form the damped normal equations and the reduced (camera) system."""
         if self.inner is not None:
-            return _FoldedNormal(self, lin, damping)
+            return FoldedNormal(self, lin, damping)
         if sp.issparse(lin.global_info):
             lin = Linearization(
                 lin.r,
@@ -811,26 +686,40 @@ class _Normal:
         A, G, P = self.lin.A, self.lin.G, self.lin.P
         Vinv = self.Vinv
         pt = s.point
-        # W_k = A_k' P_k (b, 3); Y_k = W_k Vinv_j
-        W = A.transpose(0, 2, 1) @ P
-        Y = W @ Vinv[pt]
+        # W_k = A_k' P_k (b, 3); Y_k = W_k Vinv_j, each with a zero row n beyond the end
+        # (the padding of the pair groups below: no padded copies of them), Y in chunks of
+        # rows (no gathered copy of Vinv for all rows)
+        n = s.n
+        Wz = np.empty((n + 1, b, 3))
+        Yz = np.empty((n + 1, b, 3))
+        Wz[n] = Yz[n] = 0.0
+        W, Y = Wz[:n], Yz[:n]
+        np.matmul(A.transpose(0, 2, 1), P, out=W)
+        for lo in range(0, n, CHUNK):
+            hi = min(n, lo + CHUNK)
+            np.matmul(W[lo:hi], Vinv[pt[lo:hi]], out=Y[lo:hi])
         self.W, self.Y = W, Y
         # H_j (3, g): sum over the point's rows of P_k' G_k in global columns; sparse: one
         # (3, gl) block Hp per pair (point, group), VHp = Vinv_j Hp
         sparse = s.sparse_global
         if sparse:
             H = VH = None
-            Hp = np.zeros((s.n_pg, 3 * gl))
+            # with a zero block n_pg beyond the end (the padding of the grouped products)
+            Hpz = np.zeros((s.n_pg + 1, 3, gl))
             _segment_sum(
                 lambda rows: (P[rows].transpose(0, 2, 1) @ G[rows]).reshape(rows.size, -1),
                 s.pg_order,
                 s.pg_row_starts,
                 s.pg_row_keys,
                 s.n,
-                Hp,
+                Hpz.reshape(s.n_pg + 1, 3 * gl),
             )
-            Hp = Hp.reshape(s.n_pg, 3, gl)
-            VHp = Vinv[s.pg_point] @ Hp
+            Hp = Hpz[: s.n_pg]
+            VHpz = np.zeros((s.n_pg + 1, 3, gl))
+            VHp = VHpz[: s.n_pg]
+            for lo in range(0, s.n_pg, CHUNK):  # no gathered copy of Vinv for every pair
+                hi = min(s.n_pg, lo + CHUNK)
+                np.matmul(Vinv[s.pg_point[lo:hi]], Hp[lo:hi], out=VHp[lo:hi])
         elif g:
             Wg = G.transpose(0, 2, 1) @ P  # (n, gl, 3)
             H = np.bincount(s.dense_h_index(), weights=Wg.ravel(), minlength=s.n_points * 3 * g)
@@ -859,7 +748,7 @@ class _Normal:
         if sparse:
             # - sum over (row k, pair e) of one point of Y_k Hp_e, by (local, group of e)
             blk = _grouped_products(
-                Y.transpose(0, 2, 1), Hp, s._lg_row, s._lg_pg, s._lg_seg, s.rp_lg_starts.size
+                Yz.transpose(0, 2, 1), Hpz, s._lg_row, s._lg_pg, s._lg_seg, s.rp_lg_starts.size
             )
             cols = s.group_cols[s.rp_lg_group]  # (blocks, gl)
             flat = (
@@ -869,24 +758,20 @@ class _Normal:
             LG -= np.bincount(flat, weights=blk.ravel(), minlength=L * b * g).reshape(L, b, g)
             del blk, flat
         # off-diagonal blocks: - sum over pairs Y_k1 W_k2', one (b, 3t) x (3t, b) product per
-        # group of t pairs of a block (rows of Yt, Wt: the columns of Y_k, W_k; row n zero)
+        # group of t pairs of a block (rows: the columns of Y_k, W_k; row n zero)
         nb = s.blocks.shape[0]
         off = np.zeros((nb, b * b))
         if s.n_pairs:
             t = PAIR_GROUP
-            zero = np.zeros((1, 3, b))
-            Yt = np.concatenate([Y.transpose(0, 2, 1), zero])
-            Wt = np.concatenate([W.transpose(0, 2, 1), zero])
             per = max(1, CHUNK // t)
             for g0 in range(0, s.n_groups, per):  # chunks of groups: bounded temporaries
                 g1 = min(s.n_groups, g0 + per)
-                y = Yt[s._group_k1[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, b)
-                w = Wt[s._group_k2[g0 * t : g1 * t]].reshape(g1 - g0, 3 * t, b)
+                y = Yz[s._group_k1[g0 * t : g1 * t]].transpose(0, 2, 1).reshape(g1 - g0, 3 * t, b)
+                w = Wz[s._group_k2[g0 * t : g1 * t]].transpose(0, 2, 1).reshape(g1 - g0, 3 * t, b)
                 prod = (y.transpose(0, 2, 1) @ w).reshape(g1 - g0, b * b)
                 key = s._group_block[g0:g1]
                 first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
                 off[key[first]] += np.add.reduceat(prod, first, axis=0)
-            del Yt, Wt
         off = -off
         # local-global: U_lg (scattered into the global columns)
         if g:
@@ -899,7 +784,7 @@ class _Normal:
             # global-global: U_gg - sum_j H_j' Vinv_j H_j
             if sparse:
                 # over the (pair, pair) of one point, by (group, group)
-                blk = _grouped_products(Hp, VHp, s._gg_a, s._gg_b, s._gg_seg, s.pp_gg_starts.size)
+                blk = _grouped_products(Hpz, VHpz, s._gg_a, s._gg_b, s._gg_seg, s.pp_gg_starts.size)
                 ca, cb = s.group_cols[s.pp_gg_a], s.group_cols[s.pp_gg_b]
                 flat = (ca[:, :, None] * g + cb[:, None, :]).ravel()
                 hvh = np.bincount(flat, weights=blk.ravel(), minlength=g * g).reshape(g, g)
@@ -1002,84 +887,6 @@ class _Normal:
         return float(-(g @ dx) + damping * np.sum(diag * free * dx * dx))
 
 
-class _FoldedNormal:
-    """Normal equations of a :class:`SchurSystem` whose own groups are held in their local
-    blocks: those of the folded system (``inner``), with steps, right-hand sides and the
-    factor in the unfolded system's unknowns."""
-
-    def __init__(self, sys: SchurSystem, lin: Linearization, damping: float) -> None:
-        self.sys, self.lin = sys, lin
-        self.inner = sys.inner.normal_equations(sys.fold_linearization(lin), damping=damping)
-        self.S = self.inner.S
-
-    def factor(self) -> MappedFactor:
-        return MappedFactor(self.inner.factor(), self.sys)
-
-    def reduced_rhs(self) -> np.ndarray:
-        return self.sys.from_inner(self.inner.reduced_rhs())
-
-    def back_substitute(self, dc: np.ndarray) -> np.ndarray:
-        return self.inner.back_substitute(self.sys.to_inner(dc))
-
-    def solve(self) -> tuple[np.ndarray, np.ndarray, MappedFactor]:
-        dc, dp, F = self.inner.solve()
-        return self.sys.from_inner(dc), dp, MappedFactor(F, self.sys)
-
-    def predicted_decrease(self, dc: np.ndarray, dp: np.ndarray, damping: float) -> float:
-        return self.inner.predicted_decrease(self.sys.to_inner(dc), dp, damping)
-
-
-class MappedFactor:
-    """The factor of a folded reduced system (:attr:`SchurSystem.inner`) seen in the
-    unknowns of the unfolded one (``sys``): the folded system's extra unknowns are held (a
-    unit diagonal, no coupling) and the unfolded one's left out of it are held too, so that
-    solving with them zero is solving the unfolded system."""
-
-    def __init__(self, factor: SparseFactor, sys: SchurSystem) -> None:
-        self.inner, self.sys = factor, sys
-        self.n = sys.nc
-        self.backend, self.what = factor.backend, factor.what
-
-    def _in(self, b: np.ndarray) -> np.ndarray:
-        b = np.asarray(b, dtype=float)
-        if b.shape[0] != self.n:
-            raise ValueError(f"{self.what}: the right side has {b.shape[0]} rows, not {self.n}")
-        return self.sys.to_inner(b)
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """``N^-1 b`` for ``b`` of shape (n,) or (n, k)."""
-        return self.sys.from_inner(self.inner.solve(self._in(b)))
-
-    def inverse_gram(self, B, batch_bytes: int = 64 * 2**20) -> np.ndarray:
-        """``B' N^-1 B`` (k, k) for ``B`` of shape (n, k), dense or sparse."""
-        B = sp.csr_matrix(B, dtype=float)
-        if B.shape[0] != self.n:
-            raise ValueError(f"{self.what}: B has {B.shape[0]} rows, the matrix {self.n}")
-        idx = self.sys.fold_index
-        inside = idx < self.inner.n
-        E = sp.csr_matrix(
-            (np.ones(int(inside.sum())), (idx[inside], np.flatnonzero(inside))),
-            shape=(self.inner.n, self.n),
-        )
-        return self.inner.inverse_gram(E @ B, batch_bytes=batch_bytes)
-
-    def inverse_diagonal(self, idx=None, batch_bytes: int = 64 * 2**20) -> np.ndarray:
-        """Entries ``idx`` (default: all) of the diagonal of ``N^-1``."""
-        idx = np.arange(self.n) if idx is None else np.asarray(idx, dtype=np.int64).ravel()
-        at = self.sys.fold_index[idx]
-        out = np.zeros(idx.size)
-        inside = at < self.inner.n
-        out[inside] = self.inner.inverse_diagonal(at[inside], batch_bytes=batch_bytes)
-        return out
-
-    def dense_inverse(self) -> np.ndarray:
-        """The whole inverse ``N^-1`` (n, n)."""
-        Q = self.inner.dense_inverse()
-        Q = np.pad(Q, ((0, 1), (0, 1)))
-        idx = self.sys.fold_index
-        return Q[np.ix_(idx, idx)]
-
-
 @dataclass
 class CovarianceBlocks:
     """Blocks of ``Q_cc`` (the inverse of the reduced system) needed for statistics.
@@ -1104,96 +911,12 @@ class CovarianceBlocks:
         return self.local_global[local][:, cols]
 
 
-class FoldedCovarianceBlocks:
-    """Blocks of ``Q_cc`` of a :class:`SchurSystem` whose own groups are held in their
-    local blocks, in its unknowns: ``local`` (n_local, b, b) and ``pairs`` (n_blocks, b, b)
-    as in :class:`CovarianceBlocks`; the blocks of global parameters by
-    :meth:`global_block` and :meth:`local_global_block` (no dense array of all global
-    parameters); ``inner`` the :class:`CovarianceBlocks` of the folded system."""
-
-    def __init__(self, inner: CovarianceBlocks, sys: SchurSystem) -> None:
-        self.inner, self.sys = inner, sys
-        b = sys.b
-        self.local = inner.local[:, :b, :b]
-        self.pairs = None if inner.pairs is None else inner.pairs[:, :b, :b]
-        L = sys.n_local
-        bl = sys.blocks
-        self._pair_key = bl[:, 0] * L + bl[:, 1]  # sorted (np.unique in SchurSystem._pairs)
-
-    def _pair(self, la: np.ndarray, lb: np.ndarray) -> np.ndarray:
-        """Index of the block of local blocks ``min(la, lb)``, ``max(la, lb)``."""
-        L = self.sys.n_local
-        key = np.minimum(la, lb) * L + np.maximum(la, lb)
-        t = np.searchsorted(self._pair_key, key)
-        t = np.minimum(t, max(self._pair_key.size - 1, 0))
-        if self.inner.pairs is None or self._pair_key.size == 0 or np.any(self._pair_key[t] != key):
-            raise LookupError(
-                "the covariance of two local blocks that share no point is not among the "
-                "blocks computed: solve with the factor"
-            )
-        return t
-
-    def _entries(self, ra, pa, rb, pb) -> np.ndarray:
-        """``Q`` of folded unknowns (local ``ra`` or -1 for global, position ``pa`` in it
-        or in the shared globals) by (``rb``, ``pb``), elementwise (broadcast)."""
-        Qi = self.inner
-        ra, pa, rb, pb = np.broadcast_arrays(ra, pa, rb, pb)
-        out = np.zeros(ra.shape)  # -2: held in every own group, left out: zero
-        ga, gb = ra == -1, rb == -1
-        la, lb = ra >= 0, rb >= 0
-        ga, gb = ga & (lb | gb), gb & (la | ga)  # pairs with a left-out one stay zero
-        la, lb = la & (lb | gb), lb & (la | ga)
-        m = ga & gb
-        out[m] = Qi.global_[pa[m], pb[m]]
-        m = la & gb
-        out[m] = Qi.local_global[ra[m], pa[m], pb[m]]
-        m = ga & lb
-        out[m] = Qi.local_global[rb[m], pb[m], pa[m]]
-        m = la & lb & (ra == rb)
-        out[m] = Qi.local[ra[m], pa[m], pb[m]]
-        m = la & lb & (ra != rb)
-        if np.any(m):
-            t = self._pair(ra[m], rb[m])
-            lo = ra[m] < rb[m]  # Q[lo, hi] stored; Q[hi, lo] its transpose
-            out[m] = np.where(lo, Qi.pairs[t, pa[m], pb[m]], Qi.pairs[t, pb[m], pa[m]])
-        return out
-
-    def _global(self, cols: np.ndarray):
-        s = self.sys
-        cols = np.asarray(cols, dtype=np.int64)
-        loc = s.fold_col_local[cols]
-        cp = s.fold_col_pos[cols]
-        pos = np.where(loc >= 0, s.b + cp, s.fold_sh_idx[cols])
-        loc = np.where((loc >= 0) & (cp < 0), -2, loc)  # left out of the folded system
-        return loc, pos
-
-    def global_block(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """``Q`` of global parameters ``rows`` (k1,) by ``cols`` (k2,): (k1, k2).
-
-        Raises
-        ------
-        LookupError
-            Two of them belong to local blocks that share no point (their block is not
-            computed).
-        """
-        ra, pa = self._global(rows)
-        rb, pb = self._global(cols)
-        return self._entries(ra[:, None], pa[:, None], rb[None, :], pb[None, :])
-
-    def local_global_block(self, local: int, cols: np.ndarray) -> np.ndarray:
-        """``Q`` of local block ``local`` by global parameters ``cols`` (k,): (b, k)."""
-        rb, pb = self._global(cols)
-        ra = np.full((self.sys.b, 1), int(local))
-        pa = np.arange(self.sys.b)[:, None]
-        return self._entries(ra, pa, rb[None, :], pb[None, :])
-
-
 def covariance_blocks(
     normal: _Normal, factor: SparseFactor, *, pairs: bool, batch_columns: int = 512
 ) -> CovarianceBlocks | FoldedCovarianceBlocks:
     """Blocks of the inverse of the reduced system by solves with unit vectors in batches
     (memory ``nc * batch_columns``)."""
-    if isinstance(normal, _FoldedNormal):
+    if isinstance(normal, FoldedNormal):
         inner = covariance_blocks(
             normal.inner, factor.inner, pairs=pairs, batch_columns=batch_columns
         )
@@ -1263,7 +986,7 @@ def _local_global_cols(Qlg: np.ndarray, local: np.ndarray, cols: np.ndarray) -> 
 def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
     """Marginal cofactor of every point (n_points, 3, 3):
     ``V^-1 + V^-1 W' Q_cc W V^-1`` (needs ``Q.pairs``)."""
-    if isinstance(normal, _FoldedNormal):
+    if isinstance(normal, FoldedNormal):
         return point_covariances(normal.inner, Q.inner)
     s = normal.sys
     Y, Vinv, VH = normal.Y, normal.Vinv, normal.VH
@@ -1323,7 +1046,7 @@ def point_covariances(normal: _Normal, Q: CovarianceBlocks) -> np.ndarray:
 def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray) -> np.ndarray:
     """Cofactor ``J Q J'`` of the adjusted value of every observation row group (n, d, d)
     (whitened; the residual cofactor is ``I - J Q J'``)."""
-    if isinstance(normal, _FoldedNormal):
+    if isinstance(normal, FoldedNormal):
         return observation_cofactors(normal.inner, Q.inner, Qpp)
     s = normal.sys
     A, G, P = normal.lin.A, normal.lin.G, normal.lin.P
@@ -1332,7 +1055,10 @@ def observation_cofactors(normal: _Normal, Q: CovarianceBlocks, Qpp: np.ndarray)
     n = s.n
     # cross cofactor camera-side (local b + global g) x point for each row: Q_{c,p_j}
     # Q_{l,p_j} = -(sum_k' Q_{l,l(k')} Y_k' + Q_{l,g} VH_j)
-    Qlp = -(Q.local[loc] @ Y)  # own term k' = k
+    Qlp = np.empty(Y.shape)  # own term k' = k, in chunks of rows (no Q.local for every row)
+    for lo in range(0, n, CHUNK):
+        hi = min(n, lo + CHUNK)
+        np.negative(Q.local[loc[lo:hi]] @ Y[lo:hi], out=Qlp[lo:hi])
     if s.sparse_global:
         VHp = normal.VHp
         n_rp = s.rp_row.size

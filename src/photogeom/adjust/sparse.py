@@ -101,6 +101,9 @@ DENSE_MAX = 2500
 #: are wanted (n^2 doubles: 512 MB at 8000); sparse solves with unit vectors are far
 #: slower there. Larger systems use the solves.
 DENSE_INVERSE_MAX = 8000
+#: Columns of the dense inverse whose upper triangle is filled at once (a temporary of
+#: ``n x _STRIPE`` doubles).
+_STRIPE = 256
 
 
 class SparseFactor:
@@ -404,13 +407,23 @@ class SparseFactor:
                 f"{self.what}: {self.n} unknowns are too many for a dense inverse; use "
                 "inverse_blocks"
             )
-        c, info = lapack.dpotrf(self._Ns.toarray(), lower=1, clean=0, overwrite_a=1)
+        # one array of n x n throughout: formed in Fortran order (LAPACK's, factorised and
+        # inverted in place), its upper triangle filled from the lower one in stripes of
+        # columns, returned as its transpose (C order, the same symmetric matrix)
+        c, info = lapack.dpotrf(self._Ns.toarray(order="F"), lower=1, clean=0, overwrite_a=1)
         if info != 0:
             raise DegenerateGeometryError(f"{self.what} is not positive definite")
         inv, info = lapack.dpotri(c, lower=1, overwrite_c=1)
         if info != 0:
             raise DegenerateGeometryError(f"{self.what} is singular")
-        inv = np.tril(inv) + np.tril(inv, -1).T
+        del c
+        n = inv.shape[0]
+        for j0 in range(0, n, _STRIPE):
+            j1 = min(n, j0 + _STRIPE)
+            inv[j0:j1, j1:] = inv[j1:, j0:j1].T
+            d = inv[j0:j1, j0:j1]
+            d[np.triu_indices(j1 - j0, 1)] = d.T[np.triu_indices(j1 - j0, 1)]
+        inv = inv.T
         inv *= self._scale[:, None]
         inv *= self._scale[None, :]
         return inv

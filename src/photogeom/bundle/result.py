@@ -1469,7 +1469,7 @@ def build_result(
             )
     solver = {
         "backend": F.backend,
-        "reduced_system_size": int(problem.sys.nc),
+        "reduced_system_size": int(ne.S.shape[0]),  # as solved (own groups in the images)
         "reduced_system_nonzeros": int(ne.S.nnz),
         "loss": opts.loss,
         # the scale of a robust loss, in a-priori sigmas of the image coordinates
