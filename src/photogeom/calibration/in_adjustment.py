@@ -95,9 +95,11 @@ AMPLITUDE_FACTOR = 2.0
 #: system is factorised densely (LAPACK; 70 MB at 3000, 800 MB at 10000).
 DENSE_REDUCED_MAX = 10000
 #: Unknowns (without the points) up to which node standard deviations are computed by
-#: default (a selected inversion of the system reduced by the points: 4.7 s CPU for 8700
-#: unknowns, 21 images of 42 Mpx at 500 px; see :func:`_grid_cofactors`).
-STD_MAX = 5000
+#: default (a selected inversion of the system reduced by the points, see
+#: :func:`_grid_cofactors`: 4.7 s CPU for 8700 unknowns, 21 images of 42 Mpx at 500 px,
+#: where one triangular solve per node took 31.5 s; 17.7 s for 16 600 unknowns, twice
+#: the adjustment, and 38.7 s for 33 000, as long as the adjustment).
+STD_MAX = 10000
 #: Node standard deviations where the factor of the system reduced by the points is dense:
 #: memory of one batch of unit vectors solved against it (bytes; see
 #: :func:`_grid_cofactors`).
@@ -892,7 +894,7 @@ def adjust_with_grids(
         inverse at the nodes, by a supernodal selected inversion of the system reduced by
         the points in the fill-reducing order of its sparse factor;
         ``backend="cg"`` factorises it with ``"auto"``).
-        None: when at most 5000 unknowns remain after the points.
+        None: when at most 10 000 unknowns remain after the points (:data:`STD_MAX`).
     options : BundleOptions, optional
         Settings of the adjustment; keyword arguments override fields. The loss must be
         ``"squared"``; variance components, free networks and point covariances are not
