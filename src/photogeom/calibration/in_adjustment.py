@@ -98,7 +98,7 @@ DENSE_REDUCED_MAX = 10000
 #: default (a selected inversion of the system reduced by the points, see
 #: :func:`_grid_cofactors`: 4.7 s CPU for 8700 unknowns, 21 images of 42 Mpx at 500 px,
 #: where one triangular solve per node took 31.5 s; 17.7 s for 16 600 unknowns, twice
-#: the adjustment, and 38.7 s for 33 000, as long as the adjustment).
+#: the adjustment, and 39-44 s for 33 000, about as long as the adjustment).
 STD_MAX = 10000
 #: Node standard deviations where the factor of the system reduced by the points is dense:
 #: memory of one batch of unit vectors solved against it (bytes; see

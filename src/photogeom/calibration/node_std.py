@@ -8,8 +8,10 @@ fill-reducing order serves a supernodal selected inversion
 (:class:`~photogeom.adjust.selected_inverse.GroupSelectedInverse`) over groups of the
 unknowns: each image's orientation, each camera group's calibration, and tiles of
 :data:`NODE_TILE` x :data:`NODE_TILE` nodes of each grid. Its work is that of one more
-factorisation; one triangular solve over the whole factor per node, as before, took 170 s
-on the 250-image study block at 1000 px (31 500 node values), 14 s now.
+factorisation: on the 250-image study block at 1000 px (31 500 node values) the
+inversion takes 14 s CPU, where one triangular solve over the whole factor per node took
+131-170 s; with the factorisation and the Woodbury term's solves (one per datum
+condition, 1000) the node standard deviations take 39-44 s.
 """
 
 from __future__ import annotations
