@@ -50,3 +50,9 @@ def test_an_indefinite_matrix_is_refused():
     N = sp.csr_matrix(np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
     with pytest.raises(DegenerateGeometryError, match="not positive definite"):
         GroupSelectedInverse(N, np.array([0, 1, 2]), np.array([0, 1, 2]), what="the test")
+
+
+def test_the_order_may_be_a_list():
+    N = _spd(30, 0.1, 4)
+    got = GroupSelectedInverse(N, list(range(30)), list(range(29, -1, -1))).diagonal()
+    np.testing.assert_allclose(got, np.diag(np.linalg.inv(N.toarray())), rtol=1e-10)

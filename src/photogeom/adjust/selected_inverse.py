@@ -201,8 +201,9 @@ class GroupSelectedInverse:
         coo = N.tocoo()
         low = coo.row >= coo.col
         rr, cc, xx = coo.row[low], coo.col[low], coo.data[low]
+        rank = np.asarray(rank, dtype=np.int64)
         K = int(rank.size)
-        grp = np.asarray(rank, dtype=np.int64)[np.asarray(labels, dtype=np.int64)]
+        grp = rank[np.asarray(labels, dtype=np.int64)]
         # supernodes: chains of the elimination tree of the groups, made consecutive
         struct = _symbolic(np.maximum(grp[rr], grp[cc]), np.minimum(grp[rr], grp[cc]), K)
         head = _supernode_heads(struct)
