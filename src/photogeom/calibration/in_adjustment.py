@@ -94,11 +94,14 @@ AMPLITUDE_FACTOR = 2.0
 #: system is factorised densely (LAPACK; 70 MB at 3000, 800 MB at 10000).
 DENSE_REDUCED_MAX = 10000
 #: Unknowns (without the points) up to which node standard deviations are computed by
-#: default (one triangular solve per node against the factor of the system reduced by
-#: the points: 24 s for 8700 unknowns, 21 images of 42 Mpx at 500 px).
-STD_MAX = 5000
-#: Node standard deviations: memory of one batch of unit vectors solved against the factor
-#: of the system reduced by the points (bytes; see :func:`_grid_cofactors`).
+#: default (a selected inversion of the system reduced by the points, see
+#: :func:`_grid_cofactors`: 4.7 s CPU for 8700 unknowns, 21 images of 42 Mpx at 500 px,
+#: where one triangular solve per node took 31.5 s; 17.7 s for 16 600 unknowns, twice
+#: the adjustment, and 39-44 s for 33 000, about as long as the adjustment).
+STD_MAX = 10000
+#: Node standard deviations where the factor of the system reduced by the points is dense:
+#: memory of one batch of unit vectors solved against it (bytes; see
+#: :func:`_grid_cofactors`).
 STD_BATCH_BYTES = 64 * 2**20
 #: Marquardt damping at the start (relative to the diagonal of the normal matrix) when no
 #: ``options`` are given. The grids' weak directions (the near null space between per-image
@@ -770,42 +773,14 @@ class _ReducedFactor:
 def _grid_cofactors(gp: _GridProblem, N: sp.csr_matrix, backend: str = "auto") -> np.ndarray:
     """``diag(N^-1)`` of the grid unknowns (``N`` with the low-rank datum ``U U'`` added
     when it is kept apart), never the whole inverse: the points (3x3 blocks, last) are
-    eliminated, the reduced system ``S`` is factorised (``backend``; ``"cg"`` has no
-    factor, ``"auto"`` serves it) and ``diag(S^-1)`` of the nodes comes from one
-    triangular solve per node in batches
-    (:meth:`~photogeom.adjust.sparse.SparseFactor.inverse_diagonal`). The datum enters by
-    the Woodbury identity, ``diag((S + U U')^-1) = diag(S^-1) - diag(Z C^-1 Z')`` with
-    ``Z = S^-1 U`` and ``C = I + U' Z``: the memory is that of the factor, a batch and
-    ``Z`` (camera-side unknowns x datum conditions), not (camera-side unknowns)^2."""
-    fi = gp.free_idx
-    nc = fi.size - 3 * gp.bp.p
-    S = _reduce_points(N, 3 * gp.bp.p)[0].tocsc()
-    try:
-        F = factorize(
-            S,
-            backend="auto" if backend == "cg" else backend,
-            what="the normal equations with residual grids at the solution",
-        )
-    except DegenerateGeometryError:
-        raise DegenerateGeometryError(
-            "the normal equations with residual grids are singular at the solution: a grid "
-            "or orientation parameter is not determined (use a larger spacing or stronger "
-            "constraints)"
-        ) from None
-    del S
-    rows = np.flatnonzero((fi[:nc] >= gp.off_g) & (fi[:nc] < gp.off_p))  # the nodes
-    d = F.inverse_diagonal(rows, batch_bytes=STD_BATCH_BYTES)
-    U = gp.U_free
-    if U is not None and U.shape[1]:
-        Z = F.solve(U.toarray())
-        C = np.eye(U.shape[1]) + np.asarray(U.T @ Z)
-        C = sla.cho_factor(C, lower=True, check_finite=False)
-        Zg = Z[rows]
-        del Z
-        d -= np.einsum("ij,ji->i", Zg, sla.cho_solve(C, Zg.T, check_finite=False))
-    diag = np.full(gp.ntot, np.nan)
-    diag[fi[rows]] = d
-    return diag[gp.off_g : gp.off_p]
+    eliminated, the reduced system is factorised (``backend``; ``"cg"`` has no factor,
+    ``"auto"`` serves it) and the diagonal at the nodes comes from a supernodal selected
+    inversion in the factor's fill-reducing order (triangular solves in batches of
+    :data:`STD_BATCH_BYTES` where the factor is dense), the datum by the Woodbury identity
+    (:func:`~photogeom.calibration.node_std.node_cofactors`)."""
+    from .node_std import node_cofactors
+
+    return node_cofactors(gp, N, backend, STD_BATCH_BYTES)
 
 
 # --------------------------------------------------------------------------- the chain
@@ -1132,9 +1107,10 @@ def adjust_with_grids(
         A node is supported when its adjacent cells hold at least this many observations.
     std : bool, optional
         Standard deviations of the nodes from the joint covariance (the diagonal of the
-        inverse at the nodes, by one triangular solve per node against the factor of the
-        system reduced by the points; ``backend="cg"`` factorises it with ``"auto"``).
-        None: when at most 5000 unknowns remain after the points.
+        inverse at the nodes, by a supernodal selected inversion of the system reduced by
+        the points in the fill-reducing order of its sparse factor;
+        ``backend="cg"`` factorises it with ``"auto"``).
+        None: when at most 10 000 unknowns remain after the points (:data:`STD_MAX`).
     options : BundleOptions, optional
         Settings of the adjustment; keyword arguments override fields. The loss must be
         ``"squared"``; variance components, free networks and point covariances are not
