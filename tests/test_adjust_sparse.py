@@ -177,3 +177,21 @@ def test_the_dense_inverse_holds_one_matrix_of_its_size(backend):
     assert peak <= 1.2 * 8 * n * n, peak / (8 * n * n)
     ref = np.linalg.inv(N.toarray())
     np.testing.assert_allclose(Q, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_elimination_order_puts_an_arrow_matrix_dense_unknown_last(backend):
+    # An "arrow" matrix: unknown 0 coupled to all others, which are coupled to nothing else.
+    # Eliminating it first fills the whole factor; any fill-reducing order takes it last.
+    n = 300
+    N = sp.lil_matrix((n, n))
+    N.setdiag(10.0 + np.arange(n))
+    N[0, :] = 1.0
+    N[:, 0] = 1.0
+    N[0, 0] = 1000.0
+    positions = factorize(sp.csc_matrix(N), backend=backend).elimination_positions()
+    if backend in ("dense", "cg"):
+        assert positions is None
+    else:
+        np.testing.assert_array_equal(np.sort(positions), np.arange(n))
+        assert positions[0] == n - 1

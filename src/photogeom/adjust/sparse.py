@@ -297,6 +297,25 @@ class SparseFactor:
                 "undetermined parameter)"
             )
 
+    def elimination_positions(self) -> np.ndarray | None:
+        """The place of every unknown in the factor's fill-reducing elimination order
+        (CHOLMOD's permutation, SuperLU's column permutation), None for a dense or ``"cg"``
+        factor.
+
+        Returns
+        -------
+        ndarray of int64, shape (n,), or None
+            ``positions[i]``: the step at which unknown ``i`` is eliminated.
+        """
+        if self.backend == "cholmod":
+            perm = np.asarray(self._f.P(), dtype=np.int64)
+            positions = np.empty(perm.size, dtype=np.int64)
+            positions[perm] = np.arange(perm.size)
+            return positions
+        if self.backend == "superlu":
+            return np.asarray(self._f.perm_c, dtype=np.int64)
+        return None
+
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``N^-1 b`` for ``b`` of shape (n,) or (n, k)."""
         b = np.asarray(b, dtype=float)

@@ -90,7 +90,7 @@ def node_cofactors(gp, N: sp.csr_matrix, backend: str, batch_bytes: int) -> np.n
         del Z
         corr = np.einsum("ij,ji->i", Zg, sla.cho_solve(C, Zg.T, check_finite=False))
         del Zg
-    position = _elimination_positions(F)
+    position = F.elimination_positions()
     if position is None:  # a dense factor: triangular solves
         d = F.inverse_diagonal(rows, batch_bytes=batch_bytes)
     else:
@@ -112,19 +112,6 @@ def node_cofactors(gp, N: sp.csr_matrix, backend: str, batch_bytes: int) -> np.n
     diag = np.full(gp.ntot, np.nan)
     diag[fi[rows]] = d
     return diag[gp.off_g : gp.off_p]
-
-
-def _elimination_positions(F) -> np.ndarray | None:
-    """The place of every unknown in the fill-reducing order of a sparse factor (CHOLMOD's
-    permutation, SuperLU's column permutation), None for a dense one."""
-    if F.backend == "cholmod":
-        perm = np.asarray(F._f.P(), dtype=np.int64)
-        position = np.empty(perm.size, dtype=np.int64)
-        position[perm] = np.arange(perm.size)
-        return position
-    if F.backend == "superlu":
-        return np.asarray(F._f.perm_c, dtype=np.int64)
-    return None
 
 
 def _groups(gp, fc: np.ndarray) -> np.ndarray:
