@@ -22,14 +22,17 @@ accepted step.
   refined trial.
 * A problem may offer the geodesic acceleration of a rejected step (``accelerate``, e.g.
   the bundle's: the step bent by the residuals' second derivative along it): a valid trial
-  that raises the cost is retried once with it, in the same iteration (unless the step's
-  predicted decrease is at most ``ftol`` times the cost: rounding); accepted, the damping
-  follows the first step's gain ratio (its predicted decrease). A minimum along a
+  that raises the cost is retried once with it, in the same iteration (unless the loop
+  converged: below); accepted, the damping follows the first step's gain ratio (its
+  predicted decrease). A minimum along a
   curved valley (a camera per image: focal length against flying height) is then reached
   in fewer iterations: a simulated 1000-image BAL block in 35 instead of 67.
 * Converged: an accepted step lowering the cost by at most ``ftol`` times the cost, an
   accepted step below ``xtol`` (the problem's test), a rejected finite trial whose step is
-  below ``xtol``, or a cost of zero to rounding (``exact_cost``). Stopped: the damping grew
+  below ``xtol``, a rejected valid trial whose predicted decrease is at most ``ftol`` times
+  the cost (the cost is at its minimum to rounding: raising the damping would only shorten
+  the step until it is below ``xtol``, nine more factorisations on a test block), or a cost
+  of zero to rounding (``exact_cost``). Stopped: the damping grew
   past 1e16, or ``max_iterations`` iterations.
 * A singular damped system raises the damping; past 1e10 the problem's
   :class:`~photogeom.errors.DegenerateGeometryError` propagates.
@@ -138,9 +141,11 @@ def levenberg_marquardt_loop(
             converged = True
             message = "converged: no further decrease (step below xtol)"
             break
-        # not for a step whose model decrease is within ftol of the cost (rounding)
-        retry = accelerate is not None and valid and pred > options.ftol * cost
-        if not better and retry and np.isfinite(new_cost):
+        if not better and valid and np.isfinite(new_cost) and pred <= options.ftol * cost:
+            converged = True
+            message = "converged: no further decrease (predicted decrease below ftol)"
+            break
+        if not better and valid and np.isfinite(new_cost) and accelerate is not None:
             fast = accelerate(state, step, lam)
             if fast is not None:
                 t2, c2, v2 = problem.evaluate(state, fast)
