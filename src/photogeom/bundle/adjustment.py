@@ -214,6 +214,35 @@ class Problem:
         }
         self._datum_check()
 
+    def counts(self) -> tuple[int, int]:
+        """Observations (image coordinates, GNSS and IMU triples, control coordinates) and
+        free unknowns of the adjustment; their difference is its redundancy."""
+        n_obs = (
+            2 * self.obs_i.size
+            + 3 * int(self.has_gnss.sum())
+            + 3 * int(self.has_imu.sum())
+            + 3 * int(self.control.size)
+        )
+        return n_obs, int(self.local_free.sum() + self.global_free.sum() + 3 * self.p)
+
+    def check_redundancy(self) -> None:
+        """Refuse more free unknowns than observations: no geometry determines them.
+
+        Raises
+        ------
+        DegenerateGeometryError
+            Naming both counts and the remedy.
+        """
+        n_obs, n_unk = self.counts()
+        if n_unk > n_obs:
+            raise DegenerateGeometryError(
+                f"the observations do not determine all free parameters: {n_obs} "
+                f"observations for {n_unk} unknowns (redundancy {n_obs - n_unk}): fix "
+                "calibration parameters the geometry cannot separate (e.g. "
+                "free=('f', 'cx', 'cy', 'k1', 'k2', 'k3', 'p1', 'p2') without b1/b2/k4, or "
+                "fewer), or add images, tie points or control"
+            )
+
     # --- datum -------------------------------------------------------------------------------
 
     def _free_datum(self) -> None:
@@ -1123,6 +1152,7 @@ def adjust_block(block: Block, opts: BundleOptions, *, progress=None, effective_
         )
     block.validate()
     problem = Problem(block, opts)
+    problem.check_redundancy()
     if opts.verbose and progress is None:
 
         def progress(it, cost, lam):
