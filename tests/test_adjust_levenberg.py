@@ -93,3 +93,64 @@ def test_the_iteration_limit_is_reported():
     opts = SimpleNamespace(**{**vars(OPTIONS), "max_iterations": 2})
     run = levenberg_marquardt_loop(p, x0, p.cost(x0), opts)
     assert not run.converged and run.iterations == 2 and "2 iterations reached" in run.message
+
+
+class Valley:
+    """Rosenbrock's valley ``r = (10 (y - x^2), 1 - x)``, curved about its minimum (1, 1);
+    with ``accelerated`` the problem offers the geodesic acceleration of a step."""
+
+    def __init__(self, x0, accelerated):
+        self.evaluated = []
+        self.accept(np.asarray(x0, float))
+        if accelerated:
+            self.accelerate = self._accelerate
+
+    @staticmethod
+    def residuals(x):
+        return np.array([10.0 * (x[1] - x[0] ** 2), 1.0 - x[0]])
+
+    def cost(self, x):
+        r = self.residuals(x)
+        return float(r @ r)
+
+    def accept(self, x):
+        self.J = np.array([[-20.0 * x[0], 10.0], [-1.0, 0.0]])
+        self.N, self.g = self.J.T @ self.J, self.J.T @ self.residuals(x)
+
+    def _damped(self, damping):
+        return self.N + damping * np.diag(np.diag(self.N))
+
+    def solve(self, damping):
+        dx = -np.linalg.solve(self._damped(damping), self.g)
+        return dx, float(-2.0 * (self.g @ dx) - dx @ self.N @ dx)
+
+    def _accelerate(self, x, dx, damping):
+        rvv = np.array([-20.0 * dx[0] ** 2, 0.0])  # second derivative along dx
+        a = -np.linalg.solve(self._damped(damping), self.J.T @ rvv)
+        d = np.diag(self.N)
+        if 2.0 * np.sqrt(d @ a**2) > 0.75 * np.sqrt(d @ dx**2):
+            return None
+        return dx + 0.5 * a
+
+    def evaluate(self, x, dx):
+        self.evaluated.append(dx)
+        return x + dx, self.cost(x + dx), True
+
+    def small(self, x, dx):
+        return bool(np.all(np.abs(dx) <= 1e-12))
+
+
+def test_a_rejected_step_is_retried_with_its_acceleration():
+    x0 = np.array([-1.2, 1.0])
+    opts = SimpleNamespace(**{**vars(OPTIONS), "ftol": 1e-12})
+    plain = Valley(x0, accelerated=False)
+    ref = levenberg_marquardt_loop(plain, x0, plain.cost(x0), opts)
+    fast = Valley(x0, accelerated=True)
+    run = levenberg_marquardt_loop(fast, x0, fast.cost(x0), opts)
+    assert ref.converged and run.converged
+    np.testing.assert_allclose(run.state, [1.0, 1.0], atol=1e-6)
+    np.testing.assert_allclose(ref.state, [1.0, 1.0], atol=1e-6)
+    # one evaluation more per accelerated retry, counted in the same iteration
+    assert len(fast.evaluated) > run.iterations
+    assert run.iterations < ref.iterations
+    assert all(a > b for a, b in zip(run.history, run.history[1:]))

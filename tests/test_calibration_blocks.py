@@ -80,6 +80,17 @@ def test_readjust_fixes_orientation_and_reduces_residuals_and_steps(unstable):
     assert set(ev["check_after"]) == {"errors", "rmse", "rmse_gsd"}
 
 
+def test_readjust_stops_at_the_minimum_to_rounding(unstable):
+    """Only the points move (one 3 x 3 system each): the minimum is reached in a few steps,
+    then the step's predicted decrease is rounding; the damping was raised nine times
+    until the step fell below xtol (12 iterations, each a factorisation)."""
+    _, fit, grids = unstable
+    re = pg.calibration.readjust(fit.block, grids, snooping=False)
+    assert re.converged and re.iterations <= 4
+    assert "predicted decrease below ftol" in re.message
+    assert all(a > b for a, b in zip(re.cost_history, re.cost_history[1:]))
+
+
 def test_field_recovered_where_supported():
     """Residuals against the true orientation: the grid matches the true local field."""
     sim = pg.simulate.uav_block(

@@ -212,3 +212,12 @@ def test_unknown_free_parameter_names_are_refused():
         bundle_adjust(truth, free=("f", "k5"))
     with pytest.raises(InputError, match="sequence of parameter names"):
         bundle_adjust(truth, free="f")
+
+
+def test_more_unknowns_than_observations_are_refused_before_the_iteration():
+    """The bundled 3-image BAL problem in a free network: 41 unknowns (f, k1, k2 per image)
+    for 38 observations. The loop fits it exactly; only a factorisation at the solution that
+    rounding happened to break refused it, and after fewer rejected steps it did not."""
+    block = pg.bundle.read_bal(pg.datasets.path("dubrovnik-3-7"))
+    with pytest.raises(DegenerateGeometryError, match=r"38 observations for 41 unknowns"):
+        pg.bundle_adjust(block, datum="free", snooping=False)

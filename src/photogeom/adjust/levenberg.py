@@ -20,9 +20,19 @@ accepted step.
   e.g. the bundle's tie points whose own step raised their cost, moved by point-only steps);
   the damping follows the step's own gain ratio, the cost and the convergence test the
   refined trial.
+* A problem may offer the geodesic acceleration of a rejected step (``accelerate``, e.g.
+  the bundle's: the step bent by the residuals' second derivative along it): a valid trial
+  that raises the cost is retried once with it, in the same iteration (unless the loop
+  converged: below); accepted, the damping follows the first step's gain ratio (its
+  predicted decrease). A minimum along a
+  curved valley (a camera per image: focal length against flying height) is then reached
+  in fewer iterations: a simulated 1000-image BAL block in 35 instead of 67.
 * Converged: an accepted step lowering the cost by at most ``ftol`` times the cost, an
   accepted step below ``xtol`` (the problem's test), a rejected finite trial whose step is
-  below ``xtol``, or a cost of zero to rounding (``exact_cost``). Stopped: the damping grew
+  below ``xtol``, a rejected valid trial whose predicted decrease is at most ``ftol`` times
+  the cost (the cost is at its minimum to rounding: raising the damping would only shorten
+  the step until it is below ``xtol``, nine more factorisations on a test block), or a cost
+  of zero to rounding (``exact_cost``). Stopped: the damping grew
   past 1e16, or ``max_iterations`` iterations.
 * A singular damped system raises the damping; past 1e10 the problem's
   :class:`~photogeom.errors.DegenerateGeometryError` propagates.
@@ -61,7 +71,9 @@ class DampedProblem(Protocol):
         """Re-linearise at the accepted ``state`` (the last evaluated trial)."""
 
     # optional: ``refine(state, trial, cost) -> (trial, cost)``, an accepted trial improved
-    # without a step of the damped system (a lower cost or the same), before ``accept``
+    # without a step of the damped system (a lower cost or the same), before ``accept``;
+    # ``accelerate(state, step, damping) -> step or None``, a rejected step corrected by
+    # its geodesic acceleration (or None: not offered), evaluated before the damping rises
 
 
 @dataclass
@@ -104,6 +116,7 @@ def levenberg_marquardt_loop(
     """
     history = [cost]
     refine = getattr(problem, "refine", None)
+    accelerate = getattr(problem, "accelerate", None)
     lam = options.initial_damping
     nu = 2.0
     converged = False
@@ -123,7 +136,22 @@ def levenberg_marquardt_loop(
             nu *= 2.0
             continue
         trial, new_cost, valid = problem.evaluate(state, step)
-        if valid and np.isfinite(new_cost) and new_cost < cost:
+        better = valid and np.isfinite(new_cost) and new_cost < cost
+        if not better and np.isfinite(new_cost) and problem.small(state, step):
+            converged = True
+            message = "converged: no further decrease (step below xtol)"
+            break
+        if not better and valid and np.isfinite(new_cost) and pred <= options.ftol * cost:
+            converged = True
+            message = "converged: no further decrease (predicted decrease below ftol)"
+            break
+        if not better and valid and np.isfinite(new_cost) and accelerate is not None:
+            fast = accelerate(state, step, lam)
+            if fast is not None:
+                t2, c2, v2 = problem.evaluate(state, fast)
+                if v2 and np.isfinite(c2) and c2 < cost:
+                    trial, new_cost, step, better = t2, c2, fast, True
+        if better:
             rho = (cost - new_cost) / pred if pred > 0 else 1.0
             small = problem.small(state, step)
             if refine is not None:
@@ -143,10 +171,6 @@ def levenberg_marquardt_loop(
                 converged, message = True, "converged: step below xtol"
                 break
         else:
-            if np.isfinite(new_cost) and problem.small(state, step):
-                converged = True
-                message = "converged: no further decrease (step below xtol)"
-                break
             lam *= nu
             nu *= 2.0
             if lam > 1e16:

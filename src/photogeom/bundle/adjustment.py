@@ -214,6 +214,35 @@ class Problem:
         }
         self._datum_check()
 
+    def counts(self) -> tuple[int, int]:
+        """Observations (image coordinates, GNSS and IMU triples, control coordinates) and
+        free unknowns of the adjustment; their difference is its redundancy."""
+        n_obs = (
+            2 * self.obs_i.size
+            + 3 * int(self.has_gnss.sum())
+            + 3 * int(self.has_imu.sum())
+            + 3 * int(self.control.size)
+        )
+        return n_obs, int(self.local_free.sum() + self.global_free.sum() + 3 * self.p)
+
+    def check_redundancy(self) -> None:
+        """Refuse more free unknowns than observations: no geometry determines them.
+
+        Raises
+        ------
+        DegenerateGeometryError
+            Naming both counts and the remedy.
+        """
+        n_obs, n_unk = self.counts()
+        if n_unk > n_obs:
+            raise DegenerateGeometryError(
+                f"the observations do not determine all free parameters: {n_obs} "
+                f"observations for {n_unk} unknowns (redundancy {n_obs - n_unk}): fix "
+                "calibration parameters the geometry cannot separate (e.g. "
+                "free=('f', 'cx', 'cy', 'k1', 'k2', 'k3', 'p1', 'p2') without b1/b2/k4, or "
+                "fewer), or add images, tie points or control"
+            )
+
     # --- datum -------------------------------------------------------------------------------
 
     def _free_datum(self) -> None:
@@ -792,6 +821,15 @@ RADIAL_CURVATURE_FLOOR = 3e-3
 #: (:meth:`Problem.radial_curvature`).
 NEWTON_SWITCH = 1e-2
 
+#: Geodesic acceleration of a rejected step (:meth:`_BundleSteps.accelerate`): the finite
+#: difference of the residuals' second derivative along the step is taken this fraction of
+#: the step away.
+ACCELERATION_STEP = 0.1
+
+#: ... and the acceleration ``a`` is used when ``|a| <= ACCELERATION_RATIO |v| / 2`` (``v``
+#: the step; Transtrum and Sethna's 0.75).
+ACCELERATION_RATIO = 0.75
+
 #: Point-only Levenberg-Marquardt steps at most of a tie point whose step in the reduced
 #: system raised its cost (:meth:`Problem.guard_point_steps`).
 POINT_STEPS = 20
@@ -901,6 +939,7 @@ class _BundleSteps:
 
     def __init__(self, problem: Problem, state: _State, e2: np.ndarray, xtol: float) -> None:
         self.problem, self.xtol = problem, xtol
+        self._state = state
         self.newton = False
         self._cost = problem.robust_cost(e2) + problem.prior_terms(state)[4]
         self._guarded = False
@@ -929,6 +968,84 @@ class _BundleSteps:
                 new_cost = problem.robust_cost(e2) + problem.prior_terms(trial)[4]
         return trial, new_cost, bool(np.all(self._depth > 0))
 
+    def accelerate(self, state: _State, step, damping: float):
+        """The damped step ``v`` with its geodesic acceleration (Transtrum and Sethna):
+        ``v + a / 2``, ``a`` the damped solve with the second directional derivative of the
+        residuals along ``v`` in place of the residuals, or None when ``|a|`` exceeds
+        :data:`ACCELERATION_RATIO` times ``|v| / 2`` (norms scaled by the normal matrix's
+        diagonal, as the damping) or the loss is robust.
+
+        The second derivative is the finite difference ``2 / h (r(x + h v) - r(x) - h J v)
+        / h`` with ``h`` = :data:`ACCELERATION_STEP`; the terms of the GNSS, IMU and
+        control-point observations are left out of it (their curvature is nil or small).
+        The acceleration follows a curved valley of the cost that the linear model leaves
+        after the first-order step: a camera per image (BAL), whose focal length trades
+        with the distance to the ground and its distortion with both, takes such steps.
+        """
+        problem = self.problem
+        if problem.options.loss != "squared" or state is not self._state:
+            return None
+        dc, dp = step
+        lin = self.lin
+        m, b = problem.m, problem.b
+        i, j = problem.obs_i, problem.obs_j
+        cam = problem.block.image_camera[i]
+        dl = dc[: m * b].reshape(m, b)
+        dg = dc[m * b :].reshape(problem.ng, NCAL)
+        jv = (
+            np.einsum("ndc,nc->nd", lin.A, dl[i])
+            + np.einsum("ndc,nc->nd", lin.G, dg[cam])
+            + np.einsum("ndc,nc->nd", lin.P, dp[j])
+        )
+        h = ACCELERATION_STEP
+        sw = np.sqrt(self.weights) / problem.sigma_obs()
+        near = problem.residuals(problem.update(state, h * dc, h * dp))[0] * sw[:, None]
+        near -= lin.r
+        near /= h
+        near -= jv
+        near *= 2.0 / h  # r_vv, whitened
+        curved = Linearization(
+            near,
+            lin.A,
+            lin.G,
+            lin.P,
+            lin.local_info,
+            np.zeros_like(lin.local_grad),
+            lin.point_info,
+            np.zeros_like(lin.point_grad),
+            lin.global_info,
+            np.zeros_like(lin.global_grad),
+            0.0,
+        )
+        del near, jv
+        ne = problem.sys.normal_equations(curved, damping=damping)
+        ac, ap, _ = ne.solve()
+        del ne
+        # norms in the damping's metric: the diagonal of J'J (image rows and priors)
+        dloc = np.bincount(
+            (i[:, None] * b + np.arange(b)).ravel(),
+            weights=np.einsum("ndc,ndc->nc", lin.A, lin.A).ravel(),
+            minlength=m * b,
+        )
+        dloc += np.einsum("lcc->lc", lin.local_info).ravel()
+        dcal = np.bincount(
+            (cam[:, None] * NCAL + np.arange(NCAL)).ravel(),
+            weights=np.einsum("ndc,ndc->nc", lin.G, lin.G).ravel(),
+            minlength=problem.ng * NCAL,
+        )
+        dpt = np.bincount(
+            (j[:, None] * 3 + np.arange(3)).ravel(),
+            weights=np.einsum("ndc,ndc->nc", lin.P, lin.P).ravel(),
+            minlength=problem.p * 3,
+        )
+        dpt += np.einsum("pcc->pc", lin.point_info).ravel()
+        diag = np.concatenate([dloc, dcal, dpt])
+        v = np.concatenate([dc, dp.ravel()])
+        a = np.concatenate([ac, ap.ravel()])
+        if 2.0 * math.sqrt(diag @ (a * a)) > ACCELERATION_RATIO * math.sqrt(diag @ (v * v)):
+            return None
+        return dc + 0.5 * ac, dp + 0.5 * ap
+
     def refine(self, state: _State, trial: _State, cost: float):
         """The accepted ``trial`` with the tie points whose own step raised their cost
         moved by point-only steps (:meth:`Problem.guard_point_steps`), and its cost."""
@@ -946,6 +1063,7 @@ class _BundleSteps:
         return _step_small(self.problem, state, *step, self.xtol)
 
     def accept(self, state: _State) -> None:
+        self._state = state
         problem = self.problem
         cost = problem.robust_cost(self._e2) + problem.prior_terms(state)[4]
         if problem.options.loss != "squared" and self._cost - cost <= NEWTON_SWITCH * cost:
@@ -1035,6 +1153,7 @@ def adjust_block(block: Block, opts: BundleOptions, *, progress=None, effective_
         )
     block.validate()
     problem = Problem(block, opts)
+    problem.check_redundancy()
     if opts.verbose and progress is None:
 
         def progress(it, cost, lam):

@@ -1142,14 +1142,7 @@ def build_result(
         problem, state, run.weights, pairs=need_pairs, cofactors=cofactors, run=run
     )
     m = problem.m
-    n_img = problem.obs_i.size
-    n_obs = (
-        2 * n_img
-        + 3 * int(problem.has_gnss.sum())
-        + 3 * int(problem.has_imu.sum())
-        + 3 * int(problem.control.size)
-    )
-    n_unk = int(problem.local_free.sum() + problem.global_free.sum() + 3 * problem.p)
+    n_obs, n_unk = problem.counts()
     red = n_obs - n_unk
     vtpv = float(lin.cost)
     s0p = opts.sigma0_prior
