@@ -57,3 +57,23 @@ def test_weak_tie_points_keep_their_advice():
         weak.validate()
     weak.drop_weak_points().validate()
     assert weak.drop_weak_points().n_points == b.n_points - 1
+
+
+def test_select_points_keeps_each_kept_points_observations_and_coordinates():
+    b = grid_block(seed=5, rows=2, cols=3, n_points=60, n_control=4, n_check=2)
+    keep = np.random.default_rng(0).random(b.n_points) < 0.6
+    new = b.select_points(keep)
+    kept = set(b.point_ids[keep].tolist())
+    assert new.point_ids.tolist() == [p for p in b.point_ids.tolist() if p in kept]
+    # every observation of a kept point, in the block's order, with its pixels and image
+    o, n = b.observations, new.observations
+    rows = [r for r, p in enumerate(o.point_ids.tolist()) if p in kept]
+    assert n.point_ids.tolist() == [o.point_ids[r] for r in rows]
+    assert n.image_ids.tolist() == [o.image_ids[r] for r in rows]
+    np.testing.assert_array_equal(n.uv, o.uv[rows])
+    for pid in kept:
+        i, j = b.point_ids.tolist().index(pid), new.point_ids.tolist().index(pid)
+        np.testing.assert_array_equal(new.xyz[j], b.xyz[i])
+        assert new.role[j] == b.role[i]
+    with pytest.raises(ValueError, match="expected"):
+        b.select_points(keep[:-1])

@@ -938,16 +938,35 @@ class Block:
         keep_pt = (per_pt >= 2) | ((self.role != "tie") & (not surveyed))
         if np.all(keep_pt):
             return self
-        b = self.select_observations(keep_pt[self.obs_point])
-        newidx = np.cumsum(keep_pt) - 1
+        return self.select_points(keep_pt)
+
+    def select_points(self, keep: np.ndarray) -> Block:
+        """A new block with only the points where ``keep`` is true, their observations,
+        coordinates, roles, standard deviations and surveyed coordinates.
+
+        Parameters
+        ----------
+        keep : numpy.ndarray of bool, shape (n_points,)
+            The points to keep, in the block's point order.
+
+        Returns
+        -------
+        Block
+            The new block (the images and their cameras unchanged).
+        """
+        keep = np.asarray(keep, dtype=bool)
+        if keep.shape != (self.n_points,):
+            raise ValueError(f"keep has shape {keep.shape}; expected ({self.n_points},)")
+        b = self.select_observations(keep[self.obs_point])
+        newidx = np.cumsum(keep) - 1
         return replace(
             b,
-            point_ids=self.point_ids[keep_pt],
-            xyz=self.xyz[keep_pt],
-            role=self.role[keep_pt],
-            point_sigma=self.point_sigma[keep_pt],
+            point_ids=self.point_ids[keep],
+            xyz=self.xyz[keep],
+            role=self.role[keep],
+            point_sigma=self.point_sigma[keep],
             obs_point=newidx[b.obs_point],
-            surveyed=None if self.surveyed is None else self.surveyed[keep_pt],
+            surveyed=None if self.surveyed is None else self.surveyed[keep],
         )
 
     def summary(self) -> str:

@@ -710,7 +710,7 @@ def start_from_metashape(block: Block, poses: MetashapePoses) -> tuple[Block, Me
     new = new.replace(xyz=xyz)
     dropped = int(np.sum(~ok))
     if dropped:
-        new = _keep_points(new, ok)
+        new = new.select_points(ok)
     rms = float(np.sqrt(np.mean(tri.rms[tri.ok] ** 2))) if np.any(tri.ok) else float("nan")
     info = MetashapeStart(
         n_images=int(block.n_images),
@@ -722,20 +722,3 @@ def start_from_metashape(block: Block, poses: MetashapePoses) -> tuple[Block, Me
         frame=poses.frame,
     )
     return new, info
-
-
-def _keep_points(block: Block, keep: np.ndarray) -> Block:
-    """The block without the points where ``keep`` is false (and their observations)."""
-    from dataclasses import replace
-
-    b = block.select_observations(keep[block.obs_point])
-    newidx = np.cumsum(keep) - 1
-    return replace(
-        b,
-        point_ids=block.point_ids[keep],
-        xyz=block.xyz[keep],
-        role=block.role[keep],
-        point_sigma=block.point_sigma[keep],
-        obs_point=newidx[b.obs_point],
-        surveyed=None,
-    )
