@@ -68,3 +68,21 @@ def test_what_the_format_holds_is_adjusted_and_written(block_dir, cli, tmp_path)
     )  # fmt: skip
     assert code == 0, err
     assert bundle.read_bal(out).n_images == 6
+
+
+def test_an_image_id_a_bundler_list_cannot_keep_is_refused_first(
+    cli, tmp_path, no_adjustment
+):
+    # 'NAME 0 FOCAL' is a list line with Bundler's focal length: read back as 'img0'
+    import numpy as np
+
+    b = grid_block(2, rows=2, cols=3, n_points=120, noise=0.3, cal=CAL)
+    ids = b.image_ids.tolist()
+    ids[1] = "img0 0 1200"
+    src = tmp_path / "src"
+    write_csv_block(b.replace(image_ids=np.array(ids, dtype=object)), src)
+    out = tmp_path / "x.out"
+    code, _, err = cli("bundle", "adjust", src, "-o", out, "--free", "f,k1,k2", "--drop-extras")
+    assert code != 0
+    assert f"--output {out}" in err and "'img0 0 1200'" in err and "rename the image" in err
+    assert not out.exists()

@@ -588,6 +588,37 @@ def read_bundler(
     )
 
 
+def refuse_unlisted_names(ids) -> None:
+    """Refuse image ids that a Bundler image list cannot hold so that they read back as
+    they are.
+
+    Parameters
+    ----------
+    ids : array-like
+        The block's image ids (checked as Python strings: no NUL dropped).
+
+    Raises
+    ------
+    InputError
+        An id empty, with white space at an end, a line break or NUL character, or ending
+        in ``" 0 NUMBER"`` (read back as Bundler's focal length after the name); named.
+    """
+    names = [str(i) for i in (ids.tolist() if hasattr(ids, "tolist") else list(ids))]
+    bad = [s for s in names if not s.strip() or s != s.strip() or NO_NAME_CHARS.search(s)]
+    if bad:
+        raise InputError(
+            f"image id {bad[0]!r}: an image list holds one name a line, without leading or "
+            "trailing white space, line breaks or NUL characters; rename the image"
+        )
+    tail = [s for s in names if _LIST_TAIL.search(s)]
+    if tail:
+        raise InputError(
+            f"image id {tail[0]!r}: an image list line 'NAME 0 FOCAL' gives the focal length "
+            f"after the name, so the name would be read back as "
+            f"{_LIST_TAIL.sub('', tail[0])!r}; rename the image"
+        )
+
+
 def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]:
     """The Bundler file and image list of a block (see :func:`write_bundler`)."""
     if not drop_extras:
@@ -603,20 +634,8 @@ def bundler_texts(block: Block, *, drop_extras: bool = False) -> tuple[str, str]
             "to write the observations from the principal point (the projections exact, the "
             "image positions moved by cx, cy)"
         )
+    refuse_unlisted_names(block.image_ids)
     names = [str(i) for i in block.image_ids.tolist()]  # as given (no NUL dropped)
-    bad = [s for s in names if not s.strip() or s != s.strip() or NO_NAME_CHARS.search(s)]
-    if bad:
-        raise InputError(
-            f"image id {bad[0]!r}: an image list holds one name a line, without leading or "
-            "trailing white space, line breaks or NUL characters; rename the image"
-        )
-    tail = [s for s in names if _LIST_TAIL.search(s)]
-    if tail:
-        raise InputError(
-            f"image id {tail[0]!r}: an image list line 'NAME 0 FOCAL' gives the focal length "
-            f"after the name, so the name would be read back as "
-            f"{_LIST_TAIL.sub('', tail[0])!r}; rename the image"
-        )
     m, p, n = block.n_images, block.n_points, block.n_observations
     cam = np.column_stack([C[:, 0], C[:, 3], C[:, 4], M.reshape(m, 9), t])
     cf = np.array(format_floats(cam), dtype=object).reshape(m, 15)

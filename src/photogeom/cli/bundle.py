@@ -924,6 +924,7 @@ def adjust(
             block, start_note, start_info = relative_start(block, strips)
     if output is not None:
         _refuse_output_terms(block, free_names(free), output, out_fmt)
+        _refuse_output_names(block, output, out_fmt)
     cal_files: list[tuple[object, Path]] = []
     if output_calibration is not None:
         cal_files = calibration_targets(output_calibration, block.camera_ids.tolist())
@@ -1275,6 +1276,26 @@ def _refuse_output_terms(block, free: tuple[str, ...] | None, path: Path, fmt: s
         "zero in the block, or write the adjusted block as a CSV folder (-o FOLDER "
         "--output-format csv" + (")" if fmt.startswith("colmap") else "; or colmap)"),
     )
+
+
+def _refuse_output_names(block, path: Path, fmt: str) -> None:
+    """Refuse, before the adjustment, image ids that the ``--output`` format cannot write
+    back (the writer would refuse them after the adjustment)."""
+    from ..bundle._textio import unwritable_name
+    from ..bundle.io_bundler import refuse_unlisted_names
+
+    try:
+        if fmt == "bundler":
+            refuse_unlisted_names(block.image_ids)
+        elif fmt.startswith("colmap"):
+            bad = unwritable_name(block.image_ids)
+            if bad is not None:
+                raise InputError(
+                    f"image id {bad[0]!r}: a COLMAP model cannot hold an image name that "
+                    f"{bad[1]}; rename the image"
+                )
+    except InputError as exc:
+        raise InputError(f"--output {path}: {exc}") from None
 
 
 def _refuse_terms(
