@@ -165,6 +165,12 @@ def test_the_command_line_keeps_the_record_through_a_csv_block(draws, tmp_path):
     assert code == 0, err
     assert re_.search(r"warning: .*col: a COLMAP text model has no place for the record of the "
                       r"joint adjustment.*write a CSV block folder to keep", err)  # fmt: skip
+    # a conversion the format refuses gives the refusal alone, not the warning as well
+    code, _, err = _run(["bundle", "convert", tmp_path / "blk", tmp_path / "b.bal", "--to",
+                         "bal"])  # fmt: skip
+    assert code != 0 and "--drop-extras" in err
+    assert "no place for the record" not in err
+    assert not (tmp_path / "b.bal").exists()
 
 
 def test_a_block_changed_since_the_final_fit_says_why_the_chain_is_plain(draws):

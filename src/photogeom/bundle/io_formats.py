@@ -136,20 +136,22 @@ def block_files(
     """
     p = Path(path)
     k = _check(kind)
-    warn_lost_record(block, p, k)
     if k == "bal":
         data = bal_text(block, **options).encode("ascii")
-        return {p: bz2.compress(data) if p.suffix == ".bz2" else data}
-    if k == "bundler":  # the file and its image list
+        files = {p: bz2.compress(data) if p.suffix == ".bz2" else data}
+    elif k == "bundler":  # the file and its image list
         out, names = bundler_texts(block, **options)
-        return {p: out.encode("ascii"), p.with_name(p.name + ".list.txt"): names.encode()}
-    if k in ("colmap", "colmap-bin"):
-        files = colmap_files(block, **({"binary": True} if k == "colmap-bin" else {}), **options)
-        return {p / name: data for name, data in files.items()}
-    texts = csv_block_texts(block, **options)
-    return {p / name: text.encode("utf-8") for name, text in texts.items()} | record_files(
-        block, p
-    )
+        files = {p: out.encode("ascii"), p.with_name(p.name + ".list.txt"): names.encode()}
+    elif k in ("colmap", "colmap-bin"):
+        model = colmap_files(block, **({"binary": True} if k == "colmap-bin" else {}), **options)
+        files = {p / name: data for name, data in model.items()}
+    else:
+        texts = csv_block_texts(block, **options)
+        files = {p / name: text.encode("utf-8") for name, text in texts.items()}
+        files |= record_files(block, p)
+    # after the texts: a block the format refuses gets the refusal alone, not the warning
+    warn_lost_record(block, p, k)
+    return files
 
 
 def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> list[Path]:
@@ -356,10 +358,11 @@ def write_block(block: Block, path: str | os.PathLike, kind: str | None = None, 
                 "files are recognised by their name (.bal, .txt, .bz2)"
             )
     k = _check(kind)
-    warn_lost_record(block, p, k)
     if k == "colmap-bin":
         options = {**options, "binary": True}
     writer = {"bal": write_bal, "csv": write_csv_block, "bundler": write_bundler}.get(
         k, write_colmap
     )
-    return writer(block, p, **options)
+    written = writer(block, p, **options)
+    warn_lost_record(block, p, k)  # after the writer: a refused block gets the refusal alone
+    return written
