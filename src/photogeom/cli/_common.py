@@ -541,7 +541,8 @@ def image_sizes_option(
 
 
 #: The image-size words of the BAL and Bundler readers (``photogeom.bundle.io_bal.SIZES_FIX``,
-#: :func:`photogeom.bundle.io_bal.warn_outside`, ``read_bal``'s mapping) in ``--image-size``'s.
+#: :func:`photogeom.bundle.io_bal.warn_outside`, ``read_bal``'s mapping) in ``--image-size``'s
+#: (``in_cli_words(message, SIZE_WORDS)``; part of :data:`CLI_WORDS`).
 SIZE_WORDS: tuple[tuple[str, str], ...] = (
     (
         "(image_size=(width, height) for all, or a mapping image id -> (width, height) for "
@@ -554,14 +555,6 @@ SIZE_WORDS: tuple[tuple[str, str], ...] = (
     ("image_size gives no size for image", "--image-size gives no size for image"),
     ("a mapping gives every image's", "a CSV of sizes gives every image's"),
 )
-
-
-def size_words(text: str) -> str:
-    """A block reader's message on image sizes in the words of ``--image-size``
-    (:data:`SIZE_WORDS`)."""
-    for api, cli in SIZE_WORDS:
-        text = text.replace(api, cli)
-    return text
 
 
 def unit_hint(text: str, option: str, unit: str = "px") -> str:
@@ -1234,9 +1227,12 @@ def column_options(coordinates: str, **kinds: str):
         raise new from exc
 
 
-def in_cli_words(message: str) -> str:
-    """``message`` with the Python argument names of :data:`CLI_WORDS` replaced by options."""
-    for api, cli in CLI_WORDS:
+def in_cli_words(
+    message: str, words: tuple[tuple[str, str], ...] | None = None
+) -> str:
+    """``message`` with the Python argument names of ``words`` (library phrase, option
+    phrase; default :data:`CLI_WORDS`) replaced by options, in their order."""
+    for api, cli in CLI_WORDS if words is None else words:
         message = message.replace(api, cli)
     return message
 

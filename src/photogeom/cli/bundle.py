@@ -27,17 +27,18 @@ import typer
 from ..errors import InputError, OutputError
 from ._common import (
     CRS_FORMS,
+    SIZE_WORDS,
     AngleUnit,
     alpha_help,
     check_alpha,
     console,
     image_sizes_option,
+    in_cli_words,
     iteration_progress,
     json_text,
     options_in_errors,
     refuse_stdout_dash,
     say,
-    size_words,
     split_names,
     stage_spinner,
     typed_option,
@@ -153,9 +154,7 @@ class _CliWords:
         from ..errors import PhotogeomError
 
         if isinstance(exc, PhotogeomError) and exc.args:
-            text = str(exc.args[0])
-            for lib, cli in _CLI_WORDS:
-                text = text.replace(lib, cli)
+            text = in_cli_words(str(exc.args[0]), _CLI_WORDS)
             text = _FREE_TUPLE.sub(
                 lambda m: "--free " + ",".join(re.findall(r"'(\w+)'", m.group(1))), text
             )
@@ -320,7 +319,7 @@ def read_block(
         if fmt == "bal":
             return bundle.read_bal(path, **kw)
     except InputError as exc:  # the sizes given: in --image-size's words
-        exc.args = (size_words(str(exc)), *exc.args[1:])
+        exc.args = (in_cli_words(str(exc), SIZE_WORDS), *exc.args[1:])
         raise
     if fmt == "colmap-both":  # a folder holding both models (detect_format)
         from ..bundle.io_colmap import ColmapModelsDiffer

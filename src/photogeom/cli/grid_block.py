@@ -18,10 +18,12 @@ import typer
 
 from ..errors import InputError, PhotogeomError
 from ._common import (
+    SIZE_WORDS,
     JsonOpt,
     console,
     fraction,
     image_sizes_option,
+    in_cli_words,
     iteration_progress,
     json_id,
     json_text,
@@ -31,7 +33,6 @@ from ._common import (
     print_id_table,
     read_detected_block,
     say,
-    size_words,
     split_numbers,
     stage_spinner,
     typed_option,
@@ -292,7 +293,7 @@ def read_sized_block(
     except InputError as exc:  # a Bundler file's image sizes: the option that gives them
         head, sep, _ = str(exc).partition("; give the images' size")
         if not sep:
-            exc.args = (size_words(str(exc)), *exc.args[1:])
+            exc.args = (in_cli_words(str(exc), SIZE_WORDS), *exc.args[1:])
             raise
         raise InputError(
             f"{head}; put the images where its image list says, or give their size with "
