@@ -765,41 +765,10 @@ def rig_sizes(directory: str | os.PathLike, binary: bool) -> dict[int, int] | No
     FileFormatError
         A file that ends inside a rig or holds a line without RIG_ID NUM_SENSORS.
     """
-    import struct
-
-    from ._textio import read_binary
-
     p = Path(directory) / ("rigs.bin" if binary else "rigs.txt")
     if not p.is_file():
         return None
-    sizes: dict[int, int] = {}
-    if not binary:
-        lines, numbers = _data_lines(read_text(p, "COLMAP rigs file"))
-        for line, k in zip(lines, numbers, strict=True):
-            tok = line.split()
-            if len(tok) < 2 or not (tok[0].isdigit() and tok[1].isdigit()):
-                raise FileFormatError(
-                    f"{p}, line {k}: expected RIG_ID NUM_SENSORS ..., got {line[:80]!r}"
-                )
-            sizes[int(tok[0])] = int(tok[1])
-        return sizes
-    data = read_binary(p, "COLMAP rigs file")
-    try:  # per rig: uint32 id, uint32 sensors, the reference (int32 type, uint32 id), then
-        # per other sensor int32 type, uint32 id, uint8 has_pose [, 7 float64]
-        (n,), pos = struct.unpack_from("<Q", data, 0), 8
-        for _ in range(n):
-            rid, count = struct.unpack_from("<II", data, pos)
-            pos += 8 + (8 if count > 0 else 0)
-            for _ in range(max(count - 1, 0)):
-                pos += 8
-                (has_pose,) = struct.unpack_from("<B", data, pos)
-                pos += 1 + (56 if has_pose else 0)
-            sizes[rid] = count
-    except struct.error:
-        raise FileFormatError(
-            f"{p}: truncated at byte {pos} of {len(data)} (a rig cut short)"
-        ) from None
-    return sizes
+    return _read_rigs(p, binary)[0]
 
 
 def _warn_rigs(d: Path, binary: bool) -> None:
@@ -830,62 +799,83 @@ def _warn_rigs(d: Path, binary: bool) -> None:
 FRAME_POSE_TOLERANCE = 1e-6
 
 
-def _rig_sensor_poses(path: Path, binary: bool) -> dict[tuple[int, int], np.ndarray | None]:
-    """Per camera of ``rigs.txt`` / ``rigs.bin``, keyed ``(RIG_ID, CAMERA_ID)``, its
-    ``sensor_from_rig`` pose (7: QW QX QY QZ TX TY TZ; the identity for the reference sensor,
-    None for a sensor whose pose the rig does not hold)."""
+def _read_rigs(
+    path: Path, binary: bool, poses: bool = False
+) -> tuple[dict[int, int], dict[tuple[int, int], np.ndarray | None]]:
+    """The rigs of ``rigs.txt`` / ``rigs.bin``: ``{RIG_ID: NUM_SENSORS}`` and, with
+    ``poses``, per camera keyed ``(RIG_ID, CAMERA_ID)`` its ``sensor_from_rig`` pose (7: QW
+    QX QY QZ TX TY TZ; the identity for the reference sensor, None for a sensor whose pose
+    the rig does not hold; else an empty dict).
+
+    Raises
+    ------
+    FileFormatError
+        A line without RIG_ID NUM_SENSORS, sensors that do not parse (with ``poses``), a
+        binary file that ends inside a rig.
+    """
     import struct
 
     from ._textio import read_binary
 
     identity = np.array([1.0, 0, 0, 0, 0, 0, 0])
-    poses: dict[tuple[int, int], np.ndarray | None] = {}
+    sizes: dict[int, int] = {}
+    sensors: dict[tuple[int, int], np.ndarray | None] = {}
     if not binary:
         lines, numbers = _data_lines(read_text(path, "COLMAP rigs file"))
         for line, k in zip(lines, numbers, strict=True):
             tok = line.split()
+            if len(tok) < 2 or not (tok[0].isdigit() and tok[1].isdigit()):
+                raise FileFormatError(
+                    f"{path}, line {k}: expected RIG_ID NUM_SENSORS ..., got {line[:80]!r}"
+                )
+            rid, count, at = int(tok[0]), int(tok[1]), 4
+            sizes[rid] = count
+            if not poses:
+                continue
             try:
-                rid, count, at = int(tok[0]), int(tok[1]), 4
                 if count > 0:
                     if tok[2] == "CAMERA":
-                        poses[(rid, int(tok[3]))] = identity
+                        sensors[(rid, int(tok[3]))] = identity
                     for _ in range(count - 1):
                         kind, sid, has = tok[at], int(tok[at + 1]), tok[at + 2] == "1"
                         pose = np.array([float(x) for x in tok[at + 3 : at + 10]]) if has else None
                         if has and pose.size != 7:
                             raise IndexError
                         if kind == "CAMERA":
-                            poses[(rid, sid)] = pose
+                            sensors[(rid, sid)] = pose
                         at += 10 if has else 3
             except (IndexError, ValueError):
                 raise FileFormatError(
                     f"{path}, line {k}: expected RIG_ID NUM_SENSORS REF_SENSOR_TYPE "
                     f"REF_SENSOR_ID and the other sensors, got {line[:80]!r}"
                 ) from None
-        return poses
+        return sizes, sensors
     data, pos = read_binary(path, "COLMAP rigs file"), 8
-    try:
+    try:  # per rig: uint32 id, uint32 sensors, the reference (int32 type, uint32 id), then
+        # per other sensor int32 type, uint32 id, uint8 has_pose [, 7 float64]
         (n,) = struct.unpack_from("<Q", data, 0)
         for _ in range(n):
             rid, count = struct.unpack_from("<II", data, pos)
             pos += 8
+            sizes[rid] = count
             if count > 0:
                 kind, sid = struct.unpack_from("<iI", data, pos)
                 pos += 8
-                if kind == 0:
-                    poses[(rid, sid)] = identity
+                if poses and kind == 0:
+                    sensors[(rid, sid)] = identity
             for _ in range(max(count - 1, 0)):
                 kind, sid, has = struct.unpack_from("<iIB", data, pos)
                 pos += 9
-                pose = np.array(struct.unpack_from("<7d", data, pos)) if has else None
+                if poses and kind == 0:
+                    sensors[(rid, sid)] = (
+                        np.array(struct.unpack_from("<7d", data, pos)) if has else None
+                    )
                 pos += 56 if has else 0
-                if kind == 0:
-                    poses[(rid, sid)] = pose
     except struct.error:
         raise FileFormatError(
             f"{path}: truncated at byte {pos} of {len(data)} (a rig cut short)"
         ) from None
-    return poses
+    return sizes, sensors
 
 
 def _frame_records(path: Path, binary: bool):
@@ -979,7 +969,7 @@ def check_frames(images: Path, image_id: np.ndarray, names: np.ndarray, pose: np
             f"{pf} has no {pr.name} beside it, which its rigs need; COLMAP cannot read the "
             f"model either: remove {pf.name} (the poses are those of {images.name})"
         )
-    sensors = _rig_sensor_poses(pr, binary)
+    sensors = _read_rigs(pr, binary, poses=True)[1]
     img, rig, cam, rfw = _frame_records(pf, binary)
     sfr = [sensors.get((r, c)) for r, c in zip(rig.tolist(), cam.tolist(), strict=True)]
     known = np.array([s is not None for s in sfr], dtype=bool)
