@@ -304,6 +304,34 @@ def test_named_errors(tmp_path, text, match):
         read_bal(_write(tmp_path, text))
 
 
+def test_a_repeated_observation_is_refused_naming_both_lines(tmp_path):
+    # a camera's second observation of one point: read before without a word, a block that
+    # the CSV and Bundler readers refuse when written as theirs, and the adjustment refused
+    # naming neither file nor line; the Bundler reader refuses the same repeat by its line
+    lines = DUBROVNIK.read_text().splitlines()
+    m, p, n = map(int, lines[0].split())
+    at = next(k for k, ln in enumerate(lines) if k and ln.split())  # the first observation
+    dup = [f"{m} {p} {n + 1}", *lines[1 : at + 2], lines[at + 1], *lines[at + 2 :]]
+    path = tmp_path / "dup.bal"
+    path.write_text("\n".join(dup) + "\n")
+    cam, pt = lines[at + 1].split()[:2]
+    want = (
+        rf"dup.bal, line {at + 3}: observation 2 is camera {cam}'s observation of point {pt} "
+        rf"again \(observation 1, line {at + 2}\); a camera observes a point once: remove one"
+    )
+    with pytest.raises(FileFormatError, match=want):
+        read_bal(path)
+    block = read_bal(DUBROVNIK)
+    pg.bundle.write_bundler(block, tmp_path / "b.out", drop_extras=True)
+    out = (tmp_path / "b.out").read_text().splitlines()
+    k = 2 + 5 * block.n_images + 2  # the first point's view list
+    views = out[k].split()
+    out[k] = " ".join([str(int(views[0]) + 1), *views[1:], *views[1:5]])
+    (tmp_path / "b.out").write_text("\n".join(out) + "\n")
+    with pytest.raises(FileFormatError, match=r"point 0 has two views of camera"):
+        pg.bundle.read_bundler(tmp_path / "b.out", image_size=(2000, 2000))
+
+
 def test_missing_and_damaged_files(tmp_path):
     with pytest.raises(FileFormatError, match="no such file"):
         read_bal(tmp_path / "nope.txt")

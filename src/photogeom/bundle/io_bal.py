@@ -142,10 +142,11 @@ def read_bal(
     ------
     FileFormatError
         A token that is not a number, counts that do not match the header, a truncated
-        file, camera or point indices out of range, a non-positive focal length or
-        non-finite values, each naming the line; a file (decompressed) longer than its
-        header's counts leave room for (:data:`BAL_VALUE_CHARS` characters a value): a
-        stream that never ends or a bzip2 bomb is refused after reading that much.
+        file, camera or point indices out of range, a camera's second observation of one
+        point, a non-positive focal length or non-finite values, each naming the line; a
+        file (decompressed) longer than its header's counts leave room for
+        (:data:`BAL_VALUE_CHARS` characters a value): a stream that never ends or a bzip2
+        bomb is refused after reading that much.
     InputError
         An ``image_size`` mapping without a size for every image.
 
@@ -208,6 +209,17 @@ def read_bal(
             f"{label}, line {where(k, 4, 3)}: observation {k} refers to camera {ci[k]:g} and "
             f"point {pi[k]:g}; indices "
             f"must be integers in 0..{m - 1} (cameras) and 0..{p - 1} (points)"
+        )
+    key = ci.astype(np.int64) * p + pi.astype(np.int64)
+    order = np.argsort(key, kind="stable")
+    again = np.flatnonzero(np.diff(key[order]) == 0)
+    if again.size:  # the first row (in file order) that repeats an earlier one
+        k = int(np.min(order[again + 1]))
+        first = int(np.flatnonzero(key == key[k])[0])
+        raise FileFormatError(
+            f"{label}, line {where(k, 4, 3)}: observation {k} is camera {int(ci[k])}'s "
+            f"observation of point {int(pi[k])} again (observation {first}, line "
+            f"{where(first, 4, 3)}); a camera observes a point once: remove one of them"
         )
     for arr, width, offset, what in (
         (obs[:, 2:], 4, 3, "observation"),
