@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..camera.metashape import MetashapeCalibration
+from ..camera.metashape import MAX_IMAGE_SIDE, MetashapeCalibration
 from ..errors import FileFormatError, InputError
 from ._angles import opk_from_rotations
 from ._textio import format_floats, numbers, read_text, token_line, write_files_atomically
@@ -249,6 +249,17 @@ def read_bal(
     if image_size is None:
         w = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 0]), initial=0.0))))
         h = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 1]), initial=0.0))))
+        if max(w, h) > MAX_IMAGE_SIDE:  # an image no camera has: name the observation
+            reach = np.max(np.abs(xy) / [w, h], axis=1)
+            k = int(np.argmax(reach))
+            raise FileFormatError(
+                f"{label}, line {where(k, 4, 3)}: observation {k} lies at ({xy[k, 0]:g}, "
+                f"{xy[k, 1]:g}) px from the image centre; a BAL file states no image size, "
+                f"which is taken from the observations (the smallest even size holding them "
+                f"all), and {w} x {h} px is more than the {MAX_IMAGE_SIDE} px of an image "
+                "side: remove that observation (a blunder?), or give the images' size "
+                "(image_size=(width, height)), observations outside it read with a warning"
+            )
         sizes = np.tile([w, h], (m, 1))
     elif isinstance(image_size, Mapping):
         missing = [i for i in range(m) if i not in image_size]
