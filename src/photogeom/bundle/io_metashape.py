@@ -250,11 +250,16 @@ def _similarity(el: ET.Element | None, what: str, where: str, lines: dict):
                 f"{where}{_line(el, lines)}: the <transform> of {what} has the last row "
                 f"{A[3].tolist()}, expected [0, 0, 0, 1]"
             )
-        s = float(np.cbrt(np.linalg.det(A[:3, :3])))
-        if not s > 0:
-            raise FileFormatError(
-                f"{where}{_line(el, lines)}: the <transform> of {what} is singular"
+        det = float(np.linalg.det(A[:3, :3]))
+        if not det > 0:  # the scale would be its cube root
+            why = (
+                f"mirrors (det {det:.6g} < 0): a similarity (rotation, translation, "
+                "scale > 0) does not"
+                if det < 0
+                else "is singular (det 0)"
             )
+            raise FileFormatError(f"{where}{_line(el, lines)}: the <transform> of {what} {why}")
+        s = float(np.cbrt(det))
         R = A[:3, :3] / s
         _check_rotation(R, what, where, el, lines)
         return s, R, A[:3, 3]
