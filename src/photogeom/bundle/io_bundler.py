@@ -60,6 +60,7 @@ from ._textio import (
     format_floats,
     numbers,
     read_text,
+    rotation_defects,
     token_starts,
     write_files_atomically,
 )
@@ -475,13 +476,13 @@ def read_bundler(
             "an oriented camera needs f > 0 (a camera that is not oriented is all zeros)"
         )
     R = cams[:, 3:12].reshape(m, 3, 3)
-    dev = np.abs(np.einsum("nij,nkj->nik", R, R) - np.eye(3)).max(axis=(1, 2))
-    bad = oriented & ((dev > ROTATION_TOLERANCE) | (np.linalg.det(R) <= 0))
+    bad, dev, det = rotation_defects(R, ROTATION_TOLERANCE)
+    bad &= oriented
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
         raise FileFormatError(
             f"{label}, line {line(2 + 15 * k + 3)}: camera {k}: R is not a rotation (R R^T "
-            f"differs from the identity by {dev[k]:.3g}, det {np.linalg.det(R[k]):.6g})"
+            f"differs from the identity by {dev[k]:.3g}, det {det[k]:.6g})"
         )
     # the points: three lines each (position, colour, view list), found by the tokens' lines
     pl = lines[start:]
