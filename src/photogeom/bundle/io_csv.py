@@ -70,6 +70,7 @@ import numpy as np
 
 from ..camera.metashape import MetashapeCalibration, read_metashape_xml
 from ..errors import FileFormatError, InputError, OutputError
+from ..io.csvblocks import empty_column
 from ..numbers import decimal_comma_hint
 from ..units import from_radians, normalize_angle_unit, to_radians
 from ._textio import NO_NAME_CHARS, format_floats, read_text
@@ -292,7 +293,7 @@ def _read_table(path: Path) -> _Table:
         sep = ";" if ";" in first else "\t" if "\t" in first else ","
     header, _ = _split_line(first, sep, path, int(numbers[0]))
     if any(not h for h in header):
-        raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
+        raise FileFormatError(f"{path}, line {numbers[0]}: {empty_column(header, sep)}")
     dup = _repeated(header)
     if dup:
         raise FileFormatError(
