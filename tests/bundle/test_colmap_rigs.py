@@ -255,3 +255,29 @@ def test_a_rigs_file_without_rigs_and_without_frames_is_read_as_colmap_reads_it(
     (folder / "rigs.txt").write_text("# Number of rigs: 0\n")
     assert pycolmap.Reconstruction(str(folder)).num_images() == 3  # an older model's reading
     assert read_colmap(folder).n_images == 3
+
+
+@pytest.mark.parametrize(
+    ("edit", "count", "said"),
+    [
+        (lambda t: t[:2] + "9" + t[3:], 2,
+         r"image 1 'img000': rig 9, which rigs.txt does not hold; image 2 'img001': rig 9"),
+        (lambda t: t.replace("CAMERA 1 1", "CAMERA 7 1"), 1,
+         r"image 1 'img000': camera 7, which is no sensor of rig 1"),
+    ],
+)  # fmt: skip
+def test_frames_in_rigs_the_rigs_file_does_not_give_are_refused(rig_model, edit, count, said):
+    # frame 1 in rig 9 (not in rigs.txt), or its image taken by camera 7 (no sensor of rig
+    # 1): COLMAP cannot read the model ("Rig with ID 9 does not exist", "rig.HasSensor");
+    # before, photogeom read it without a word (the poses of those images went unchecked)
+    pycolmap = pytest.importorskip("pycolmap")
+    lines = (rig_model / "frames.txt").read_text().splitlines()
+    lines = [edit(ln) if ln.startswith("1 1 ") else ln for ln in lines]
+    (rig_model / "frames.txt").write_text("\n".join(lines) + "\n")
+    with pytest.raises(Exception):  # noqa: B017 - pycolmap's own error
+        pycolmap.Reconstruction(str(rig_model))
+    with pytest.raises(FileFormatError, match=rf"frames.txt places {count} image\(s\) in rigs "
+                       rf"that rigs.txt does not give them \({said}.*\); COLMAP cannot read "
+                       "the model either. If images.txt holds the poses meant, remove rigs.txt "
+                       "and frames.txt"):  # fmt: skip
+        read_colmap(rig_model)

@@ -934,11 +934,48 @@ def _frame_records(path: Path, binary: bool):
     )
 
 
+def _check_frame_rigs(images, pf, pr, rigs, sensors, img, rig, cam, image_id, names) -> None:
+    """Refuse frames (``pf``) whose images are in a rig the rigs file (``pr``) does not hold,
+    or taken by a camera that is no sensor of their rig: COLMAP cannot read such a model
+    ("Rig with ID .. does not exist", "rig.HasSensor" failed)."""
+    no_rig = ~np.isin(rig, np.fromiter(rigs, dtype=np.int64, count=len(rigs)))
+    no_sensor = ~no_rig & np.array(
+        [(r, c) not in sensors for r, c in zip(rig.tolist(), cam.tolist(), strict=True)],
+        dtype=bool,
+    ).reshape(-1)
+    bad = no_rig | no_sensor
+    if not bad.any():
+        return
+    named = dict(zip(image_id.tolist(), map(str, names), strict=True))
+
+    def image(j: int) -> str:
+        i = int(img[j])
+        return f"{i} {named[i]!r}" if i in named else str(i)
+
+    shown = "; ".join(
+        f"image {image(j)}: "
+        + (
+            f"rig {int(rig[j])}, which {pr.name} does not hold"
+            if no_rig[j]
+            else f"camera {int(cam[j])}, which is no sensor of rig {int(rig[j])}"
+        )
+        for j in np.flatnonzero(bad)[:3]
+    )
+    raise FileFormatError(
+        f"{images.parent}: {pf.name} places {int(bad.sum())} image(s) in rigs that "
+        f"{pr.name} does not give them ({shown}{'; ...' if bad.sum() > 3 else ''}); COLMAP "
+        f"cannot read the model either. If {images.name} holds the poses meant, remove "
+        f"{pr.name} and {pf.name} (COLMAP then reads {images.name} too); else put back the "
+        f"{pr.name} written with {pf.name}"
+    )
+
+
 def check_frames(images: Path, image_id: np.ndarray, names: np.ndarray, pose: np.ndarray) -> None:
     """Refuse a model whose ``frames`` and ``rigs`` files (COLMAP 3.12 and later) contradict
     its images file: an image whose pose there differs from the one its frame and rig
     compose (by more than :data:`FRAME_POSE_TOLERANCE`), or that is in no frame (also: rigs
-    without a frames file, which COLMAP cannot read either).
+    without a frames file, frames in rigs the rigs file does not hold or taken by a camera
+    that is no sensor of their rig, which COLMAP cannot read either).
 
     COLMAP 3.12 and later (pycolmap 4) take the poses from the frames and ignore those of the
     images file; photogeom reads the images file. When another tool (COLMAP before 3.12, a
@@ -986,8 +1023,9 @@ def check_frames(images: Path, image_id: np.ndarray, names: np.ndarray, pose: np
             f"{pf} has no {pr.name} beside it, which its rigs need; COLMAP cannot read the "
             f"model either: remove {pf.name} (the poses are those of {images.name})"
         )
-    sensors = _read_rigs(pr, binary, poses=True)[1]
+    rigs, sensors = _read_rigs(pr, binary, poses=True)
     img, rig, cam, rfw = _frame_records(pf, binary)
+    _check_frame_rigs(images, pf, pr, rigs, sensors, img, rig, cam, image_id, names)
     sfr = [sensors.get((r, c)) for r, c in zip(rig.tolist(), cam.tolist(), strict=True)]
     known = np.array([s is not None for s in sfr], dtype=bool)
     sfr_pose = np.array([s if s is not None else np.zeros(7) for s in sfr]).reshape(-1, 7)
