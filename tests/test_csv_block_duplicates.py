@@ -54,3 +54,25 @@ def test_bundle_adjust_names_the_lines(cli, folder: Path):
 
 def test_distinct_observations_still_read(folder: Path):
     assert read_csv_block(folder).n_observations == read_bal(BAL).n_observations
+
+
+def test_a_header_ending_in_a_separator_names_the_column_and_the_fix(folder: Path, tmp_path):
+    # a spreadsheet's export with a separator after the last column ("id,x,y,z," /
+    # "image_id;point_id;u;v;sigma;"): refused before as "the header has an empty column
+    # name", naming neither the column nor what to do; both CSV readers now name them
+    from photogeom.io.points import read_points
+
+    obs = folder / "observations.csv"
+    obs.write_text("\n".join(ln.replace(",", ";") + ";" for ln in _lines(obs)) + "\n")
+    with pytest.raises(FileFormatError, match=r"observations.csv, line \d+: the header ends in a "
+                       r"separator \(';'\): its column 6 has no name; remove the separator at "
+                       r"the end of the lines"):  # fmt: skip
+        read_csv_block(folder)
+    pts = tmp_path / "p.csv"
+    pts.write_text("id,x,y,z,\nA,1,2,3,\n")
+    with pytest.raises(FileFormatError, match=r"p.csv, line 1: the header ends in a separator "
+                       r"\(','\): its column 5 has no name"):  # fmt: skip
+        read_points(pts)
+    pts.write_text("id,,y,z\nA,1,2,3\n")
+    with pytest.raises(FileFormatError, match=r"empty column name \(column 2\): name it"):
+        read_points(pts)

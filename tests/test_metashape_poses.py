@@ -310,6 +310,20 @@ def test_disabled_and_fixed(tmp_path, sim):
     np.testing.assert_allclose(new.exterior, truth.exterior, atol=1e-9)
 
 
+def test_a_mirroring_chunk_transform_is_named_a_reflection(tmp_path, sim):
+    # a chunk <transform> of 16 numbers whose 3 x 3 part mirrors (det < 0) was refused as
+    # "singular"; a singular one (det 0) is still called so
+    truth, cal = sim
+    text, _ = export_xml(_labels(truth), truth.exterior, cal, chunk=(2.0, np.eye(3), np.zeros(3)))
+    k = text.rindex("<transform><rotation")
+    end = text.index("</transform>", k) + len("</transform>")
+    for diag, why in (("-2 2 2", r"mirrors \(det -8 < 0\)"), ("0 2 2", r"is singular")):
+        d = diag.split()
+        tf = f"<transform>{d[0]} 0 0 0 0 {d[1]} 0 0 0 0 {d[2]} 0 0 0 0 1</transform>"
+        with pytest.raises(FileFormatError, match=rf"line \d+: the <transform> of the chunk {why}"):
+            _write(tmp_path, text[:k] + tf + text[end:])
+
+
 def test_malformed(tmp_path, sim):
     truth, cal = sim
     labels = _labels(truth)

@@ -46,6 +46,30 @@ def test_write_files_removes_the_folders_it_made(tmp_path):
     assert _tree(tmp_path) == ["adir"]
 
 
+def _record(folder):
+    """A record of a joint adjustment with grids in ``folder`` (its settings and a file)."""
+    rec = folder / "joint_adjustment"
+    rec.mkdir(parents=True)
+    (rec / "settings.json").write_text("{}")
+    (rec / "observations.csv").write_text("image_id,point_id,u,v\n")
+    return rec
+
+
+def test_write_files_is_a_plain_batch_writer_that_keeps_other_files(block, tmp_path):
+    # a file named observations.csv written by the generic batch writer (a --result or
+    # --report of that name) is no CSV block: the record beside it stays (before, it was
+    # removed as a stale record of a block written there)
+    rec = _record(tmp_path / "out")
+    write_files({tmp_path / "out" / "observations.csv": b"image_id,point_id,u,v\n"})
+    assert sorted(p.name for p in rec.iterdir()) == ["observations.csv", "settings.json"]
+    # a CSV block without a record written there removes it: it was another block's
+    write_csv_block(block, tmp_path / "out")
+    assert not rec.exists()
+    _record(tmp_path / "blk")
+    pg.bundle.write_block(block, tmp_path / "blk", kind="csv")
+    assert not (tmp_path / "blk" / "joint_adjustment").exists()
+
+
 def test_check_block_target_names_the_option(tmp_path):
     (tmp_path / "f").write_text("")
     with pytest.raises(OutputError, match=r"^-o: cannot write .*f: it is a file, not a folder"):

@@ -221,3 +221,63 @@ def test_a_binary_model_whose_images_bin_contradicts_its_frames_is_refused(rig_m
                        rf"{image} 'img00\d': 0 deg and 2 model units apart.*remove rigs.bin "
                        r"and frames.bin"):  # fmt: skip
         read_colmap(binary)
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_rigs_without_frames_are_refused_as_colmap_cannot_read_them(rig_model, tmp_path, binary):
+    # COLMAP 3.12+ writes rigs and frames together; with rigs and no frames it looks up each
+    # image's frame and fails (before: photogeom read such a folder without a word)
+    pycolmap = pytest.importorskip("pycolmap")
+    folder, ext = rig_model, ".txt"
+    if binary:
+        folder, ext = tmp_path / "bin", ".bin"
+        folder.mkdir()
+        pycolmap.Reconstruction(str(rig_model)).write_binary(str(folder))
+    (folder / f"frames{ext}").unlink()
+    with pytest.raises(Exception):  # noqa: B017 - pycolmap's own error (unordered_map::at)
+        pycolmap.Reconstruction(str(folder))
+    with pytest.raises(FileFormatError, match=rf"rigs{ext} holds 1 rig\(s\) but the model has "
+                       rf"no frames{ext}.*remove rigs{ext} if images{ext} holds the poses "
+                       "meant"):  # fmt: skip
+        read_colmap(folder)
+    # the remedy: without the rigs, COLMAP and photogeom read the poses of the images file
+    (folder / f"rigs{ext}").unlink()
+    rec = pycolmap.Reconstruction(str(folder))
+    block = read_colmap(folder)
+    np.testing.assert_allclose(_centre(rec, "img001"), block.exterior[1, :3], atol=1e-9)
+
+
+def test_a_rigs_file_without_rigs_and_without_frames_is_read_as_colmap_reads_it(tmp_path):
+    pycolmap = pytest.importorskip("pycolmap")
+    folder = tmp_path / "m"
+    write_colmap(grid_block(2, rows=1, cols=3, n_points=40, cal=CAL), folder, drop_extras=True)
+    (folder / "frames.txt").unlink()
+    (folder / "rigs.txt").write_text("# Number of rigs: 0\n")
+    assert pycolmap.Reconstruction(str(folder)).num_images() == 3  # an older model's reading
+    assert read_colmap(folder).n_images == 3
+
+
+@pytest.mark.parametrize(
+    ("edit", "count", "said"),
+    [
+        (lambda t: t[:2] + "9" + t[3:], 2,
+         r"image 1 'img000': rig 9, which rigs.txt does not hold; image 2 'img001': rig 9"),
+        (lambda t: t.replace("CAMERA 1 1", "CAMERA 7 1"), 1,
+         r"image 1 'img000': camera 7, which is no sensor of rig 1"),
+    ],
+)  # fmt: skip
+def test_frames_in_rigs_the_rigs_file_does_not_give_are_refused(rig_model, edit, count, said):
+    # frame 1 in rig 9 (not in rigs.txt), or its image taken by camera 7 (no sensor of rig
+    # 1): COLMAP cannot read the model ("Rig with ID 9 does not exist", "rig.HasSensor");
+    # before, photogeom read it without a word (the poses of those images went unchecked)
+    pycolmap = pytest.importorskip("pycolmap")
+    lines = (rig_model / "frames.txt").read_text().splitlines()
+    lines = [edit(ln) if ln.startswith("1 1 ") else ln for ln in lines]
+    (rig_model / "frames.txt").write_text("\n".join(lines) + "\n")
+    with pytest.raises(Exception):  # noqa: B017 - pycolmap's own error
+        pycolmap.Reconstruction(str(rig_model))
+    with pytest.raises(FileFormatError, match=rf"frames.txt places {count} image\(s\) in rigs "
+                       rf"that rigs.txt does not give them \({said}.*\); COLMAP cannot read "
+                       "the model either. If images.txt holds the poses meant, remove rigs.txt "
+                       "and frames.txt"):  # fmt: skip
+        read_colmap(rig_model)

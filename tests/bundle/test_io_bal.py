@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 import photogeom as pg
 from photogeom.bundle import Block, projected_pixels, read_bal, reprojection_residuals, write_bal
+from photogeom.bundle.io_bal import ImageSizeWarning
 from photogeom.camera.metashape import MetashapeCalibration
 from photogeom.errors import FileFormatError, InputError
 
@@ -302,6 +303,53 @@ def test_good_minimal_file(tmp_path):
 def test_named_errors(tmp_path, text, match):
     with pytest.raises(FileFormatError, match=match):
         read_bal(_write(tmp_path, text))
+
+
+def test_a_repeated_observation_is_refused_naming_both_lines(tmp_path):
+    # a camera's second observation of one point: read before without a word, a block that
+    # the CSV and Bundler readers refuse when written as theirs, and the adjustment refused
+    # naming neither file nor line; the Bundler reader refuses the same repeat by its line
+    lines = DUBROVNIK.read_text().splitlines()
+    m, p, n = map(int, lines[0].split())
+    at = next(k for k, ln in enumerate(lines) if k and ln.split())  # the first observation
+    dup = [f"{m} {p} {n + 1}", *lines[1 : at + 2], lines[at + 1], *lines[at + 2 :]]
+    path = tmp_path / "dup.bal"
+    path.write_text("\n".join(dup) + "\n")
+    cam, pt = lines[at + 1].split()[:2]
+    want = (
+        rf"dup.bal, line {at + 3}: observation 2 is camera {cam}'s observation of point {pt} "
+        rf"again \(observation 1, line {at + 2}\); a camera observes a point once: remove one"
+    )
+    with pytest.raises(FileFormatError, match=want):
+        read_bal(path)
+    block = read_bal(DUBROVNIK)
+    pg.bundle.write_bundler(block, tmp_path / "b.out", drop_extras=True)
+    out = (tmp_path / "b.out").read_text().splitlines()
+    k = 2 + 5 * block.n_images + 2  # the first point's view list
+    views = out[k].split()
+    out[k] = " ".join([str(int(views[0]) + 1), *views[1:], *views[1:5]])
+    (tmp_path / "b.out").write_text("\n".join(out) + "\n")
+    with pytest.raises(FileFormatError, match=r"point 0 has two views of camera"):
+        pg.bundle.read_bundler(tmp_path / "b.out", image_size=(2000, 2000))
+
+
+def test_an_observation_beyond_any_image_is_named_with_its_line(tmp_path):
+    # BAL has no image size: it is the smallest even size holding every observation, so one
+    # stray observation 600 000 px out made an image of 1 200 000 px, refused as "width must
+    # be a whole number of pixels from 1 to 1000000 ... (image_size=(1200000, 8))", an
+    # image_size never given; the observation is named with its line and the routes
+    text = GOOD.replace("0 1 -3.0 4.0", "0 1 -6e5 4.0")
+    with pytest.raises(FileFormatError, match=r"bad.txt, line 3: observation 1 lies at "
+                       r"\(-600000, 4\) px from the image centre.*1200000 x 8 px is more "
+                       r"than the 1000000 px of an image side: remove that observation.*"
+                       r"give the images' size \(image_size=\(width, height\)\)"):  # fmt: skip
+        read_bal(_write(tmp_path, text))
+    with pytest.warns(ImageSizeWarning):  # the route: the size given, a warning
+        b = read_bal(_write(tmp_path, text), image_size=(4000, 3000))
+    assert b.n_observations == 2
+    # the largest side read from the observations is still taken
+    edge = GOOD.replace("0 1 -3.0 4.0", "0 1 -5e5 4.0")
+    assert read_bal(_write(tmp_path, edge)).image_sizes()[0].tolist() == [1000000, 8]
 
 
 def test_missing_and_damaged_files(tmp_path):

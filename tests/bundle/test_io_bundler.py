@@ -405,3 +405,22 @@ def test_the_help_of_every_block_reader_names_bundler_files(cli, command, says):
     text = " ".join(out.split())
     for s in says:
         assert s in text
+
+
+def test_the_readers_share_one_rotation_check():
+    # Bundler's camera rotations and Metashape's transforms are checked by one function,
+    # which agrees with the package's orthogonality defect and determinant
+    from photogeom.bundle import _textio, io_bundler, io_metashape
+
+    rng = np.random.default_rng(4)
+    R = Rotation.random(6, random_state=rng).as_matrix()
+    R[1] *= -1  # a reflection
+    R[2] *= 1.001  # a scale
+    R[3, 0, 1] += 2e-6  # off by more than Metashape's 1e-6, less than Bundler's 1e-5
+    bad, defect, det = _textio.rotation_defects(R, 1e-6)
+    assert bad.tolist() == [False, True, True, True, False, False]
+    np.testing.assert_allclose(det, np.linalg.det(R))
+    assert np.all(defect <= pg.orthogonality_defect(R) + 1e-15)  # max |.| <= Frobenius
+    assert _textio.rotation_defects(R, 1e-5)[0].tolist() == [False, True, True, False, False, False]
+    assert not hasattr(io_metashape, "_check_rotation")  # no copy of its own
+    assert io_bundler.rotation_defects is _textio.rotation_defects

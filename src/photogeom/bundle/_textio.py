@@ -262,6 +262,32 @@ def _first_bad_token(text: str) -> tuple[int, int, str] | None:
     return None
 
 
+def rotation_defects(R: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which matrices of a stack read from a file are no rotation, for the readers'
+    refusals (Bundler's camera rotations, Metashape's transforms).
+
+    Parameters
+    ----------
+    R : numpy.ndarray
+        (k, 3, 3) matrices (finite; unitless).
+    tolerance : float
+        Largest ``max |R R' - I|`` read as a rotation (the digits the format holds).
+
+    Returns
+    -------
+    bad : numpy.ndarray
+        (k,) bool: off the orthonormal by more than ``tolerance``, or ``det R <= 0``.
+    defect : numpy.ndarray
+        (k,) ``max |R R' - I|`` of each.
+    det : numpy.ndarray
+        (k,) ``det R`` of each.
+    """
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    defect = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    return (defect > tolerance) | ~(det > 0), defect, det
+
+
 def token_starts(b: np.ndarray) -> np.ndarray:
     """Which bytes (uint8 array of UTF-8 text) begin a whitespace-separated token (bool)."""
     space = (b == 32) | ((b >= 9) & (b <= 13))

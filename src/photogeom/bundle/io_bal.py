@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..camera.metashape import MetashapeCalibration
+from ..camera.metashape import MAX_IMAGE_SIDE, MetashapeCalibration
 from ..errors import FileFormatError, InputError
 from ._angles import opk_from_rotations
 from ._textio import format_floats, numbers, read_text, token_line, write_files_atomically
@@ -142,10 +142,11 @@ def read_bal(
     ------
     FileFormatError
         A token that is not a number, counts that do not match the header, a truncated
-        file, camera or point indices out of range, a non-positive focal length or
-        non-finite values, each naming the line; a file (decompressed) longer than its
-        header's counts leave room for (:data:`BAL_VALUE_CHARS` characters a value): a
-        stream that never ends or a bzip2 bomb is refused after reading that much.
+        file, camera or point indices out of range, a camera's second observation of one
+        point, a non-positive focal length or non-finite values, each naming the line; a
+        file (decompressed) longer than its header's counts leave room for
+        (:data:`BAL_VALUE_CHARS` characters a value): a stream that never ends or a bzip2
+        bomb is refused after reading that much.
     InputError
         An ``image_size`` mapping without a size for every image.
 
@@ -209,6 +210,17 @@ def read_bal(
             f"point {pi[k]:g}; indices "
             f"must be integers in 0..{m - 1} (cameras) and 0..{p - 1} (points)"
         )
+    key = ci.astype(np.int64) * p + pi.astype(np.int64)
+    order = np.argsort(key, kind="stable")
+    again = np.flatnonzero(np.diff(key[order]) == 0)
+    if again.size:  # the first row (in file order) that repeats an earlier one
+        k = int(np.min(order[again + 1]))
+        first = int(np.flatnonzero(key == key[k])[0])
+        raise FileFormatError(
+            f"{label}, line {where(k, 4, 3)}: observation {k} is camera {int(ci[k])}'s "
+            f"observation of point {int(pi[k])} again (observation {first}, line "
+            f"{where(first, 4, 3)}); a camera observes a point once: remove one of them"
+        )
     for arr, width, offset, what in (
         (obs[:, 2:], 4, 3, "observation"),
         (cams, 9, 3 + 4 * n, "camera"),
@@ -237,6 +249,17 @@ def read_bal(
     if image_size is None:
         w = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 0]), initial=0.0))))
         h = max(2, 2 * int(np.ceil(np.max(np.abs(xy[:, 1]), initial=0.0))))
+        if max(w, h) > MAX_IMAGE_SIDE:  # an image no camera has: name the observation
+            reach = np.max(np.abs(xy) / [w, h], axis=1)
+            k = int(np.argmax(reach))
+            raise FileFormatError(
+                f"{label}, line {where(k, 4, 3)}: observation {k} lies at ({xy[k, 0]:g}, "
+                f"{xy[k, 1]:g}) px from the image centre; a BAL file states no image size, "
+                f"which is taken from the observations (the smallest even size holding them "
+                f"all), and {w} x {h} px is more than the {MAX_IMAGE_SIDE} px of an image "
+                "side: remove that observation (a blunder?), or give the images' size "
+                "(image_size=(width, height)), observations outside it read with a warning"
+            )
         sizes = np.tile([w, h], (m, 1))
     elif isinstance(image_size, Mapping):
         missing = [i for i in range(m) if i not in image_size]

@@ -50,7 +50,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Mapping
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 
 import numpy as np
 
@@ -60,6 +60,7 @@ from ._textio import (
     format_floats,
     numbers,
     read_text,
+    rotation_defects,
     token_starts,
     write_files_atomically,
 )
@@ -168,6 +169,22 @@ def list_base(list_file: Path) -> Path:
     if list_file.name == "list.txt" and folder.name == "prepare":
         return folder.parent
     return folder
+
+
+def listed_image(list_file: Path, name: str) -> Path:
+    """The image file that ``name`` of the image list ``list_file`` names: relative to
+    :func:`list_base` (an absolute name as it is). A name with backslashes that is no file
+    as written, on a system whose paths use slashes, is read as a Windows path (a list
+    written on Windows: ``images\\IMG_0001.JPG``, ``.\\IMG_0001.JPG``), its parts joined
+    with slashes."""
+    base = list_base(list_file)
+    img = base / name
+    if "\\" not in name or os.sep == "\\" or img.exists():
+        return img
+    win = PureWindowsPath(name)
+    if win.drive or win.root:  # an absolute Windows path: not a path of this system
+        return img
+    return base.joinpath(*win.parts)
 
 
 def _read_list(path: Path, m: int) -> list[str]:
@@ -282,12 +299,20 @@ def _sizes(
                 f"(image_size=(width, height), or a mapping image id -> size; image {key} "
                 "has none)"
             )
-        img = list_base(list_file) / names[k]
+        img = listed_image(list_file, names[k])
         if not img.is_file():
+            win = PureWindowsPath(names[k])
+            where = (
+                f"names a Windows path (drive {win.drive or win.root}), which is no path "
+                "of this system"
+                if os.sep != "\\" and "\\" in names[k] and (win.drive or win.root)
+                else f"is not at {img}"
+            )
             raise InputError(
                 f"{label}: a Bundler file holds no image size, and image {names[k]!r} of "
-                f"{list_file} is not at {img}; give the images' size (image_size=(width, "
-                "height)), or put the images where the list says"
+                f"{list_file} {where}; give the images' size (image_size=(width, "
+                "height)), or put the images where the list says (names relative to "
+                "the list's folder)"
             )
         *out[k], turn[k] = _image_file_size(img)
     return out, turn
@@ -359,7 +384,8 @@ def read_bundler(
         file (:func:`list_path`); without one the images are named by camera index.
     image_size : (width, height) or mapping image id -> (width, height), optional
         Pixel size of every image, or of each. Default: read from the image files the list
-        names (relative to the list's folder; headers only).
+        names (relative to the list's folder, Windows paths too: :func:`listed_image`;
+        headers only).
     group_cameras : bool
         One camera group for the images with equal f, k1, k2 and size (default: a group per
         image, as Bundler adjusts them).
@@ -450,13 +476,13 @@ def read_bundler(
             "an oriented camera needs f > 0 (a camera that is not oriented is all zeros)"
         )
     R = cams[:, 3:12].reshape(m, 3, 3)
-    dev = np.abs(np.einsum("nij,nkj->nik", R, R) - np.eye(3)).max(axis=(1, 2))
-    bad = oriented & ((dev > ROTATION_TOLERANCE) | (np.linalg.det(R) <= 0))
+    bad, dev, det = rotation_defects(R, ROTATION_TOLERANCE)
+    bad &= oriented
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
         raise FileFormatError(
             f"{label}, line {line(2 + 15 * k + 3)}: camera {k}: R is not a rotation (R R^T "
-            f"differs from the identity by {dev[k]:.3g}, det {np.linalg.det(R[k]):.6g})"
+            f"differs from the identity by {dev[k]:.3g}, det {det[k]:.6g})"
         )
     # the points: three lines each (position, colour, view list), found by the tokens' lines
     pl = lines[start:]
@@ -555,7 +581,7 @@ def read_bundler(
     def size_from(k: int) -> str:
         if image_size is not None and (not isinstance(image_size, Mapping) or ids[k] in given):
             return "the image size given (image_size)"
-        return f"the size of its image file {list_base(list_file) / oriented_names[k]}"
+        return f"the size of its image file {listed_image(list_file, oriented_names[k])}"
 
     warn_outside(
         label, ids, sizes, where[ci.astype(np.int64)], views[:, 2:], size_from,

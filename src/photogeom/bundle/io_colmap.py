@@ -706,8 +706,9 @@ def read_colmap(
         than the file, unknown camera model ids (see :mod:`photogeom.bundle.io_colmap_bin`;
         the messages name the file and byte offset); a ``rigs.txt`` / ``rigs.bin`` that
         cannot be read (:func:`rig_sizes`); image poses that contradict the model's
-        ``frames`` and ``rigs`` files, or images in no frame (:func:`check_frames`: COLMAP
-        3.12 and later would read the frames' poses).
+        ``frames`` and ``rigs`` files, images in no frame, or rigs without a ``frames``
+        file (:func:`check_frames`: COLMAP 3.12 and later would read the frames' poses, and
+        cannot read rigs without frames).
 
     Warns
     -----
@@ -933,10 +934,48 @@ def _frame_records(path: Path, binary: bool):
     )
 
 
+def _check_frame_rigs(images, pf, pr, rigs, sensors, img, rig, cam, image_id, names) -> None:
+    """Refuse frames (``pf``) whose images are in a rig the rigs file (``pr``) does not hold,
+    or taken by a camera that is no sensor of their rig: COLMAP cannot read such a model
+    ("Rig with ID .. does not exist", "rig.HasSensor" failed)."""
+    no_rig = ~np.isin(rig, np.fromiter(rigs, dtype=np.int64, count=len(rigs)))
+    no_sensor = ~no_rig & np.array(
+        [(r, c) not in sensors for r, c in zip(rig.tolist(), cam.tolist(), strict=True)],
+        dtype=bool,
+    ).reshape(-1)
+    bad = no_rig | no_sensor
+    if not bad.any():
+        return
+    named = dict(zip(image_id.tolist(), map(str, names), strict=True))
+
+    def image(j: int) -> str:
+        i = int(img[j])
+        return f"{i} {named[i]!r}" if i in named else str(i)
+
+    shown = "; ".join(
+        f"image {image(j)}: "
+        + (
+            f"rig {int(rig[j])}, which {pr.name} does not hold"
+            if no_rig[j]
+            else f"camera {int(cam[j])}, which is no sensor of rig {int(rig[j])}"
+        )
+        for j in np.flatnonzero(bad)[:3]
+    )
+    raise FileFormatError(
+        f"{images.parent}: {pf.name} places {int(bad.sum())} image(s) in rigs that "
+        f"{pr.name} does not give them ({shown}{'; ...' if bad.sum() > 3 else ''}); COLMAP "
+        f"cannot read the model either. If {images.name} holds the poses meant, remove "
+        f"{pr.name} and {pf.name} (COLMAP then reads {images.name} too); else put back the "
+        f"{pr.name} written with {pf.name}"
+    )
+
+
 def check_frames(images: Path, image_id: np.ndarray, names: np.ndarray, pose: np.ndarray) -> None:
     """Refuse a model whose ``frames`` and ``rigs`` files (COLMAP 3.12 and later) contradict
     its images file: an image whose pose there differs from the one its frame and rig
-    compose (by more than :data:`FRAME_POSE_TOLERANCE`), or that is in no frame.
+    compose (by more than :data:`FRAME_POSE_TOLERANCE`), or that is in no frame (also: rigs
+    without a frames file, frames in rigs the rigs file does not hold or taken by a camera
+    that is no sensor of their rig, which COLMAP cannot read either).
 
     COLMAP 3.12 and later (pycolmap 4) take the poses from the frames and ignore those of the
     images file; photogeom reads the images file. When another tool (COLMAP before 3.12, a
@@ -957,20 +996,36 @@ def check_frames(images: Path, image_id: np.ndarray, names: np.ndarray, pose: np
     Raises
     ------
     FileFormatError
-        The poses contradict, naming the files, the images and the fix.
+        The poses contradict, images are in no frame, or a rigs file holding rigs has no
+        frames file beside it; naming the files, the images and the fix.
     """
     binary = images.suffix == ".bin"
     ext = ".bin" if binary else ".txt"
     pf, pr = images.parent / f"frames{ext}", images.parent / f"rigs{ext}"
-    if not pf.is_file() or image_id.size == 0:
+    if image_id.size == 0:
+        return
+    if not pf.is_file():
+        # COLMAP 3.12+ reads a model without rigs and frames as one of an older version
+        # (a trivial rig per camera, a frame per image); one with rigs looks up the frame of
+        # every image and fails on the first
+        rigs = _read_rigs(pr, binary)[0] if pr.is_file() else {}
+        if rigs:
+            raise FileFormatError(
+                f"{pr} holds {len(rigs)} rig(s) but the model has no {pf.name}, which places "
+                f"each image in a frame of a rig; COLMAP cannot read the model either (it "
+                f"looks up the frame of each image of {images.name}): remove {pr.name} if "
+                f"{images.name} holds the poses meant (COLMAP then reads them too), else put "
+                f"back the {pf.name} written with {pr.name}"
+            )
         return
     if not pr.is_file():
         raise FileFormatError(
             f"{pf} has no {pr.name} beside it, which its rigs need; COLMAP cannot read the "
             f"model either: remove {pf.name} (the poses are those of {images.name})"
         )
-    sensors = _read_rigs(pr, binary, poses=True)[1]
+    rigs, sensors = _read_rigs(pr, binary, poses=True)
     img, rig, cam, rfw = _frame_records(pf, binary)
+    _check_frame_rigs(images, pf, pr, rigs, sensors, img, rig, cam, image_id, names)
     sfr = [sensors.get((r, c)) for r, c in zip(rig.tolist(), cam.tolist(), strict=True)]
     known = np.array([s is not None for s in sfr], dtype=bool)
     sfr_pose = np.array([s if s is not None else np.zeros(7) for s in sfr]).reshape(-1, 7)

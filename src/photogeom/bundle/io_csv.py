@@ -70,6 +70,7 @@ import numpy as np
 
 from ..camera.metashape import MetashapeCalibration, read_metashape_xml
 from ..errors import FileFormatError, InputError, OutputError
+from ..io.csvblocks import empty_column
 from ..numbers import decimal_comma_hint
 from ..units import from_radians, normalize_angle_unit, to_radians
 from ._textio import NO_NAME_CHARS, format_floats, read_text
@@ -292,7 +293,7 @@ def _read_table(path: Path) -> _Table:
         sep = ";" if ";" in first else "\t" if "\t" in first else ","
     header, _ = _split_line(first, sep, path, int(numbers[0]))
     if any(not h for h in header):
-        raise FileFormatError(f"{path}, line {numbers[0]}: the header has an empty column name")
+        raise FileFormatError(f"{path}, line {numbers[0]}: {empty_column(header, sep)}")
     dup = _repeated(header)
     if dup:
         raise FileFormatError(
@@ -984,10 +985,18 @@ def record_files(block: Block, directory: Path) -> dict[Path, bytes]:
     return {d / k: v.encode("utf-8") for k, v in rec.texts().items()}
 
 
-def remove_stale_record(directory: Path) -> None:
+def remove_stale_record(directory: Path, written: Mapping[Path, bytes] | None = None) -> None:
     """Remove the record of a joint adjustment with grids (folder ``joint_adjustment``, its
-    settings first) from the CSV block folder ``directory``, written with a block that has
-    none: it belongs to a block written there before.
+    settings first) from the CSV block folder ``directory``, just written with a block that
+    has none: it belongs to a block written there before.
+
+    Parameters
+    ----------
+    directory : Path
+        The CSV block folder written.
+    written : mapping of Path -> bytes, optional
+        The files written with the block (:func:`record_files` among them for a block with
+        a record): a record among them is the block's own and stays.
 
     Raises
     ------
@@ -997,6 +1006,8 @@ def remove_stale_record(directory: Path) -> None:
     from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
 
     stale = Path(directory) / RECORD_FOLDER
+    if written is not None and stale / RECORD_SETTINGS in written:
+        return
     for name in (RECORD_SETTINGS, *FILES):
         if (stale / name).is_file():
             try:
@@ -1046,4 +1057,5 @@ def write_csv_block(block: Block, directory: str | os.PathLike, *, angle_unit: s
     check_block_target(d, "csv")
     files = {d / k: v.encode("utf-8") for k, v in texts.items()} | record_files(block, d)
     write_files(files, folders=sorted({f.parent for f in files}))
+    remove_stale_record(d, files)
     return d

@@ -33,7 +33,6 @@ from .io_csv import (
     csv_block_texts,
     read_csv_block,
     record_files,
-    remove_stale_record,
     write_csv_block,
 )
 
@@ -168,9 +167,7 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
     Raises
     ------
     OutputError
-        A folder that is a file or cannot be created, a file that cannot be written, the
-        record of a joint adjustment with grids left in a CSV block folder written without
-        one that cannot be removed (:func:`~photogeom.bundle.io_csv.remove_stale_record`).
+        A folder that is a file or cannot be created, a file that cannot be written.
     """
     made: list[Path] = []
     try:
@@ -200,16 +197,6 @@ def write_files(files: Mapping[Path, bytes], folders: Sequence[Path] = ()) -> li
             except OSError:
                 pass
         raise
-    # a CSV block written without the record of a joint adjustment with grids: a record
-    # left in its folder by a block written there before is not this block's
-    from ..calibration.in_adjustment import RECORD_FOLDER, RECORD_SETTINGS
-
-    for path in files:
-        d = Path(path).parent
-        if Path(path).name == "observations.csv" and (
-            d / RECORD_FOLDER / RECORD_SETTINGS not in files
-        ):
-            remove_stale_record(d)
     return written
 
 

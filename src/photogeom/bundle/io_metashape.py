@@ -188,12 +188,18 @@ def _numbers(el: ET.Element, count: int, what: str, where: str, lines: dict) -> 
     return v
 
 
-def _check_rotation(R: np.ndarray, what: str, where: str, el, lines: dict) -> None:
-    off = np.abs(R @ R.T - np.eye(3)).max()
-    if off > ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
+def _check_rotations(R: np.ndarray, what, where: str, els, lines: dict) -> None:
+    """Refuse the first of the matrices ``R`` (k, 3, 3) that is no rotation
+    (:func:`~photogeom.bundle._textio.rotation_defects`), naming ``what(i)`` and the line of
+    ``els[i]``."""
+    from ._textio import rotation_defects
+
+    bad, off, det = rotation_defects(R, ROTATION_TOLERANCE)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
         raise FileFormatError(
-            f"{where}{_line(el, lines)}: the rotation of {what} is not a rotation "
-            f"(|R R' - I| = {off:.3g}, det {np.linalg.det(R):.6g})"
+            f"{where}{_line(els[i], lines)}: the rotation of {what(i)} is not a rotation "
+            f"(|R R' - I| = {off[i]:.3g}, det {det[i]:.6g})"
         )
 
 
@@ -229,12 +235,7 @@ def _transforms(tfs: list[ET.Element], labels: list[str], where: str, lines: dic
             f"{where}{_line(tfs[i], lines)}: the <transform> of camera {labels[i]!r} has the "
             f"last row {A[i, 3].tolist()}, expected [0, 0, 0, 1]"
         )
-    R = A[:, :3, :3]
-    off = np.abs(R @ np.transpose(R, (0, 2, 1)) - np.eye(3)).max(axis=(1, 2))
-    bad = (off > ROTATION_TOLERANCE) | ~(np.linalg.det(R) > 0)
-    if np.any(bad):
-        i = int(np.flatnonzero(bad)[0])
-        _check_rotation(R[i], f"camera {labels[i]!r}", where, tfs[i], lines)
+    _check_rotations(A[:, :3, :3], lambda i: f"camera {labels[i]!r}", where, tfs, lines)
     return A
 
 
@@ -250,18 +251,23 @@ def _similarity(el: ET.Element | None, what: str, where: str, lines: dict):
                 f"{where}{_line(el, lines)}: the <transform> of {what} has the last row "
                 f"{A[3].tolist()}, expected [0, 0, 0, 1]"
             )
-        s = float(np.cbrt(np.linalg.det(A[:3, :3])))
-        if not s > 0:
-            raise FileFormatError(
-                f"{where}{_line(el, lines)}: the <transform> of {what} is singular"
+        det = float(np.linalg.det(A[:3, :3]))
+        if not det > 0:  # the scale would be its cube root
+            why = (
+                f"mirrors (det {det:.6g} < 0): a similarity (rotation, translation, "
+                "scale > 0) does not"
+                if det < 0
+                else "is singular (det 0)"
             )
+            raise FileFormatError(f"{where}{_line(el, lines)}: the <transform> of {what} {why}")
+        s = float(np.cbrt(det))
         R = A[:3, :3] / s
-        _check_rotation(R, what, where, el, lines)
+        _check_rotations(R[None], lambda _: what, where, [el], lines)
         return s, R, A[:3, 3]
     rot, tr, sc = el.find("rotation"), el.find("translation"), el.find("scale")
     R = np.eye(3) if rot is None else _numbers(rot, 9, f"<rotation> of {what}", where, lines)
     R = R.reshape(3, 3)
-    _check_rotation(R, what, where, rot, lines)
+    _check_rotations(R[None], lambda _: what, where, [rot], lines)
     t = np.zeros(3) if tr is None else _numbers(tr, 3, f"<translation> of {what}", where, lines)
     s = 1.0 if sc is None else float(_numbers(sc, 1, f"<scale> of {what}", where, lines)[0])
     if not s > 0:

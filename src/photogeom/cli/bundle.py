@@ -417,9 +417,13 @@ def check_targets(blocks=(), files=(), made=()) -> None:
             )
 
 
-def write_all(files: dict, texts=(), folders=()) -> None:
+def write_all(files: dict, texts=(), folders=(), csv_blocks=()) -> None:
     """Write block files (path -> bytes) and texts ((path, str), UTF-8) in one batch: all
-    are written or none is; ``folders`` are created first and removed again on failure."""
+    are written or none is; ``folders`` are created first and removed again on failure.
+    ``csv_blocks``: the CSV block folders among them, from which the record of a joint
+    adjustment with grids that their block does not have is removed after the batch
+    (:func:`~photogeom.bundle.io_csv.remove_stale_record`)."""
+    from ..bundle.io_csv import remove_stale_record
     from ..bundle.io_formats import write_files
 
     batch = dict(files)
@@ -431,6 +435,8 @@ def write_all(files: dict, texts=(), folders=()) -> None:
             )
         batch[path] = text.encode("utf-8")
     write_files(batch, folders)
+    for d in csv_blocks:
+        remove_stale_record(Path(d), batch)
 
 
 def free_names(text: str | None) -> tuple[str, ...] | None:
@@ -656,6 +662,7 @@ def simulate(
         files,
         [(output / "simulation.json", json_text(record))],
         folders=[output, output / "truth"],
+        csv_blocks=[output, output / "truth"],
     )
     if as_json:
         typer.echo(json_text(record), nl=False)
@@ -1007,7 +1014,12 @@ def adjust(
         )
     from ..bundle.io_formats import FOLDER_FORMATS
 
-    write_all(files, texts, folders=[output] if out_fmt in FOLDER_FORMATS else [])
+    write_all(
+        files,
+        texts,
+        folders=[output] if out_fmt in FOLDER_FORMATS else [],
+        csv_blocks=[output] if output is not None and out_fmt == "csv" else [],
+    )
     if as_json:
         d = fit.to_dict(angle)
         d["unit"] = unit
@@ -1494,7 +1506,11 @@ def convert(
     from ..bundle.io_formats import FOLDER_FORMATS
 
     # a CSV block's record of a joint adjustment with grids is a folder inside TARGET
-    write_all(files, folders=sorted({f.parent for f in files}) if dst in FOLDER_FORMATS else [])
+    write_all(
+        files,
+        folders=sorted({f.parent for f in files}) if dst in FOLDER_FORMATS else [],
+        csv_blocks=[target] if dst == "csv" else [],
+    )
     info = {
         "source": str(source),
         "source_format": src,

@@ -298,7 +298,7 @@ class DelimitedText:
         header = tuple(n.strip() for n in names)
         if any(not h for h in header):
             raise FileFormatError(
-                f"{self.label}, line {number}: the header has an empty column name: "
+                f"{self.label}, line {number}: {empty_column(header, self.delimiter)}: "
                 f"{_shorten(text)!r}"
             )
         counts: dict[str, int] = {}
@@ -633,6 +633,21 @@ def _indented(block: bytes) -> bool:
     if block[:1] in (b" ", b"\t"):
         return True
     return (b" " in block and b"\n " in block) or (b"\t" in block and b"\n\t" in block)
+
+
+def empty_column(header: Sequence[str], delimiter: str) -> str:
+    """The refusal of a header with an empty column name (``header`` its names, split at
+    ``delimiter``), naming the column and the fix: a separator at the end of the line (a
+    spreadsheet's empty column) is to be removed, another empty name to be given."""
+    k = next(j for j, h in enumerate(header) if not h)
+    sep = {"\t": "tab", " ": "space"}.get(delimiter, repr(delimiter))
+    if k == len(header) - 1 and k > 0:
+        return (
+            f"the header ends in a separator ({sep}): its column {k + 1} has no name; "
+            "remove the separator at the end of the lines (a spreadsheet writes one for an "
+            "empty column), or name the column"
+        )
+    return f"the header has an empty column name (column {k + 1}): name it, or remove it"
 
 
 def _lines_at_most(block: bytes, limit: int) -> bool:
