@@ -151,7 +151,10 @@ class GridAdjustment:
         A-posteriori standard deviation of unit weight of the joint adjustment, with the
         weights ``P = sigma0_prior^2 / sigma^2`` of the options, as in
         :class:`~photogeom.bundle.BundleFit`: about ``sigma0_prior`` (1 by default) when the
-        a-priori sigmas are right. The standard deviations do not depend on ``sigma0_prior``.
+        a-priori sigmas are right and the field is of the size its pseudo-observations
+        state; below it where the field is smaller (none at all: the mean sigma0^2 is
+        ``(n - tr(J N^-1 J')) / r``, 0.70-0.84 on a simulated block, see the docs). The
+        standard deviations do not depend on ``sigma0_prior``.
     redundancy, n_unknowns : int
         Redundancy: scalar observations (image, GNSS, IMU, control) plus the rank of the
         grids' pseudo-observations, minus the free unknowns. The pseudo-observations are
