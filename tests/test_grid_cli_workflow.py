@@ -161,15 +161,7 @@ def test_grid_evaluate_takes_the_grids_file_that_corrects_the_images(
     assert code == 0, err
     code, fitted, err = cli("grid", "evaluate", adjusted_folder, "--spacing", "1000", "--json")
     assert code == 0, err
-    from_file, fitted = json.loads(from_file), json.loads(fitted)
-    # a grids file keeps no pixel positions: readjust cannot tell that its grids were fitted
-    # to these observations, and its sigma0 is over the re-adjustment's own redundancy
-    # (415; sigma0 1.086), where the grids fitted here get the chain's (224.0; 1.478)
-    a, b = from_file.pop("adjustment"), fitted.pop("adjustment")
-    assert a["before"] is None and b["before"] is None
-    assert not a["after"]["effective"] and b["after"]["effective"]
-    assert a["after"]["redundancy"] > b["after"]["redundancy"]
-    assert from_file == fitted
+    assert json.loads(from_file) == json.loads(fitted)
     out = tmp_path / "r.html"
     code, _, err = cli(
         "grid", "report", adjusted_folder, "--grids", grids, "--spacings", "500,1000", "-o", out
