@@ -187,3 +187,38 @@ def test_an_adjustment_of_the_final_block_starts_a_chain_of_its_own(draws):
     assert block.joint_adjustment is not None
     assert re.block.joint_adjustment is None
     assert pg.bundle_adjust(block, snooping=False).block.joint_adjustment is None
+
+
+def test_the_joint_estimate_with_images_left_uncorrected_keeps_the_chain(draws):
+    # readjust(ga.block, ga.grids, uncorrected=[two of 8 images]): before, no chain and no
+    # note, sigma0 over the re-adjustment's own redundancy (1021): mean sigma0^2 0.739 over
+    # 6 draws. The uncorrected images' residuals keep their grids' part of the joint fit;
+    # the chain (effective redundancy about 760, above the final fit's 700) gives 1.0
+    s2 = []
+    for *_, ga in draws:  # draws, not points
+        ids = ga.block.image_ids.tolist()
+        r = readjust(ga.block, ga.grids, uncorrected=[ids[0], ids[5]], snooping=False)
+        assert r.effective_redundancy["first_adjustment"] == "adjust_with_grids"
+        v = r.effective_redundancy["value"]
+        assert ga.fit.effective_redundancy["value"] < v < r.redundancy
+        s2.append(r.sigma0**2)
+    # one draw's sigma0^2 varies by about sqrt(2 / 760) = 0.05: the mean of 12 by 0.015
+    assert abs(np.mean(s2) - 1.0) < 0.05
+    # grids of some images missing: they cannot be told to be the joint adjustment's own,
+    # and a note says why sigma0 is over the re-adjustment's own redundancy
+    ga = draws[0][3]
+    ids = ga.block.image_ids.tolist()
+    some = {k: g for k, g in ga.grids.items() if k != ids[0]}
+    r = readjust(ga.block, some, uncorrected=[ids[0]], snooping=False)
+    assert r.effective_redundancy is None
+    assert any("not that adjustment's own" in n for n in r.notes)
+
+
+def test_joint_uncorrected_needs_the_final_fit_of_the_joint_adjustment(draws):
+    from photogeom.calibration.chain import chain_redundancy
+    from photogeom.errors import InputError
+
+    block = draws[0][0].replace(joint_adjustment=None)
+    ids = block.image_ids.tolist()
+    with pytest.raises(InputError, match="not the final fit of adjust_with_grids"):
+        chain_redundancy(block, {}, uncorrected=ids, joint_uncorrected=ids[:1])

@@ -71,7 +71,13 @@ def test_replace_of_other_fields_keeps_the_cofactors():
 
 
 def test_read_grid_with_other_weights_has_no_stale_cofactors(tmp_path):
-    path = save_grids(tmp_path / "g.npz", {1: _grid()})
+    # a file without the pixel positions of the fit (as written before they were stored)
+    import json
+
+    path = save_grids(tmp_path / "g.json", {1: _grid()})
+    d = json.loads(path.read_text())
+    del d["images"][0]["uv"]
+    path.write_text(json.dumps(d))
     g = load_grids(path)[1]
     assert g.uv is None
     same = replace(g, nodes=g.nodes * 2)
@@ -79,6 +85,14 @@ def test_read_grid_with_other_weights_has_no_stale_cofactors(tmp_path):
     other = replace(g, sigma_obs=g.sigma_obs * 3)
     with pytest.raises(InputError, match="weights or layout replaced"):
         other.node_std  # noqa: B018
+    # a file with them: the cofactors of the new weights, computed from the positions
+    fitted = _grid()
+    g = load_grids(save_grids(tmp_path / "p.npz", {1: fitted}))[1]
+    assert np.array_equal(g.uv, fitted.uv)
+    other = replace(g, sigma_obs=g.sigma_obs * 3)
+    expected = replace(fitted, sigma_obs=fitted.sigma_obs * 3).node_cofactor
+    np.testing.assert_allclose(other.node_cofactor, expected, rtol=1e-12)
+    assert not np.allclose(other.node_cofactor, g.node_cofactor)
 
 
 @pytest.mark.parametrize("name", ARRAYS)

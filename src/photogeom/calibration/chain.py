@@ -141,7 +141,9 @@ def _first_problem(block: Block) -> Problem:
 class _Chain:
     """The linearised chain of one block and its grids: :meth:`apply` gives ``M Z``."""
 
-    def __init__(self, block: Block, grids: Mapping, uncorrected=()) -> None:
+    def __init__(
+        self, block: Block, grids: Mapping, uncorrected=(), joint_uncorrected=()
+    ) -> None:
         from .in_adjustment import joint_first_adjustment
 
         # the re-adjustment: points only, the same observation rows (same block structure)
@@ -159,9 +161,17 @@ class _Chain:
             self.solve1 = F1.solve
             self.sigma = p1.sigma_obs()  # px, the whitening of the image rows
             self.joint = False
+            if len(joint_uncorrected):
+                raise InputError(
+                    "joint_uncorrected names images left out of the correction by the grids "
+                    "of a joint adjustment with grids, but the block is not the final fit of "
+                    "adjust_with_grids (GridAdjustment.fit.block): leave joint_uncorrected out"
+                )
+            self.J1_model = self.J1
         else:  # the block of adjust_with_grids' final fit: the joint adjustment was first
-            self.J1, self.rows, self.solve1, self.sigma = joint
+            self.J1, self.rows, self.solve1, self.sigma, nodes = joint
             self.joint = True
+            self.J1_model = self._without_grids(self.J1, nodes, p3, block, joint_uncorrected)
         self.n_rows = self.J1.shape[0]
         self.n_img = self.sigma.size
         lin3 = p3.linearize(p3.initial_state(), np.ones(p3.obs_i.size))
@@ -179,6 +189,31 @@ class _Chain:
             V[self.control[:, None], np.arange(3), np.arange(3)] += self.w_ctrl**2
         self.Vinv = np.linalg.inv(V)
         self.images = self._grid_operators(block, grids, p3, uncorrected)
+
+    @staticmethod
+    def _without_grids(J1, nodes: slice, problem, block: Block, left) -> sp.csr_matrix:
+        """``J1`` with the grid nodes' entries of the rows of the images ``left`` (ids)
+        zeroed: the part of the joint adjustment's fit that reaches the observations of the
+        re-adjustment. Those images' observations are not corrected by their grids, so
+        their residuals at the held cameras keep the grids' share of the fit."""
+        if not len(left):
+            return J1
+        ids = block.image_ids.tolist()
+        unknown = [k for k in left if k not in set(ids)]
+        if unknown:
+            raise InputError(
+                f"joint_uncorrected: unknown image id(s) {', '.join(map(str, unknown[:5]))}"
+            )
+        out = set(left)
+        bad = np.array([iid in out for iid in ids], dtype=bool)[problem.obs_i]  # (n,)
+        J = J1.tocoo()
+        drop = (
+            (J.row < 2 * bad.size)
+            & bad[np.minimum(J.row // 2, bad.size - 1)]
+            & (J.col >= nodes.start)
+            & (J.col < nodes.stop)
+        )
+        return sp.csr_matrix((J.data[~drop], (J.row[~drop], J.col[~drop])), shape=J1.shape)
 
     @staticmethod
     def _grid_operators(block, grids, problem, uncorrected) -> list:
@@ -232,7 +267,7 @@ class _Chain:
     def apply(self, Z: np.ndarray) -> np.ndarray:
         """``M Z`` for ``Z`` (n_rows, k) whitened errors."""
         k = Z.shape[1]
-        E = Z - self.J1 @ self.solve1(np.asarray(self.J1.T @ Z))  # first adjustment
+        E = Z - self.J1_model @ self.solve1(np.asarray(self.J1.T @ Z))  # first adjustment
         n = self.n_img
         img = E[: 2 * n].reshape(n, 2, k)
         px = img * self.sigma[:, None, None]
@@ -265,6 +300,7 @@ def chain_redundancy(
     probes: int = PROBES,
     seed: int = 0,
     exact: bool | None = None,
+    joint_uncorrected=(),
 ) -> dict:
     """Effective redundancy of the re-adjustment of ``block`` with grids fitted to its own
     residuals (see the module): ``tr(M'M)``, exact or estimated.
@@ -290,6 +326,15 @@ def chain_redundancy(
     exact : bool, optional
         Compute the trace exactly (``M`` applied to every unit vector: one batch of solves
         per 64 observation components); default: exact up to 256 observation components.
+    joint_uncorrected : sequence of image ids
+        When ``block`` is the final fit of :func:`~photogeom.calibration.adjust_with_grids`
+        (its ``joint_adjustment`` record): the images whose observations the joint
+        adjustment's grids were not applied to (``readjust(ga.block, ga.grids,
+        uncorrected=...)``). Their residuals in the re-adjustment keep the grids' part of
+        the joint fit: the chain's first step is ``I - J_c N^-1 J'``, ``J_c`` the joint
+        Jacobian without the grid nodes in those images' rows. ``block`` is then the
+        final fit with every image corrected (only its structure and values at the
+        solution count). Refused for another block.
 
     Returns
     -------
@@ -305,7 +350,7 @@ def chain_redundancy(
     """
     if not (isinstance(probes, int | np.integer) and probes >= 2):
         raise InputError(f"probes must be an integer of at least 2, not {probes!r}")
-    chain = _Chain(block, grids, uncorrected)
+    chain = _Chain(block, grids, uncorrected, joint_uncorrected)
     n = chain.n_rows
     if exact is None:
         exact = n <= EXACT_ROWS

@@ -2,6 +2,8 @@
 
 * :func:`residual_statistics` / :func:`compare_residuals` - RMS and mean length of image
   residuals per image and for the block, before and after the correction;
+* :func:`adjustment_statistics` - sigma0 and the redundancy it is computed over, of the
+  first adjustment and of the re-adjustment;
 * :func:`min_max_normalise`, :func:`choose_spacing`, :func:`most_frequent_spacing` - the
   grid-size sweep: per test model, accuracy (the height step) and computing time are each
   normalised to [0, 1] (min-max over the spacings tried) and the spacing closest to the
@@ -103,6 +105,34 @@ def _pair(b: np.ndarray, a: np.ndarray) -> dict:
         "after": sa,
         "reduction_rms": red("rms"),
         "reduction_mean_length": red("mean_length"),
+    }
+
+
+def adjustment_statistics(fit) -> dict:
+    """sigma0 of an adjustment and the redundancy it is computed over.
+
+    Parameters
+    ----------
+    fit : BundleFit
+        A bundle adjustment or a re-adjustment with grids (:func:`readjust`,
+        ``GridAdjustment.fit``).
+
+    Returns
+    -------
+    dict
+        ``sigma0`` (a-posteriori standard deviation of unit weight, ``sqrt(v'Pv / r)``,
+        unitless), ``redundancy`` (``r``, unitless: the effective redundancy of the chain of
+        first adjustment, grids and re-adjustment when the fit has one, else observations
+        minus unknowns), ``effective`` (whether ``redundancy`` is the chain's), and
+        ``observations`` and ``unknowns`` (scalar counts of the adjustment).
+    """
+    eff = getattr(fit, "effective_redundancy", None)
+    return {
+        "sigma0": float(fit.sigma0),
+        "redundancy": float(eff["value"]) if eff is not None else float(fit.redundancy),
+        "effective": eff is not None,
+        "observations": int(fit.n_observations),
+        "unknowns": int(fit.n_unknowns),
     }
 
 

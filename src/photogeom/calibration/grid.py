@@ -489,7 +489,9 @@ class ResidualGrid:
     border : str
     uv : numpy.ndarray, shape (n_input, 2), optional
         Pixel positions of the input points (px), kept to compute :attr:`node_std` on first
-        use; None for a grid read without them (saved with ``std=False``).
+        use (and stored by :func:`~photogeom.calibration.save_grids`); None for a grid
+        read from a file written without them, and for the grids of
+        :func:`~photogeom.calibration.adjust_with_grids`.
     snooping : mapping, optional
         Read-only (its arrays too). With ``snooping=True``: ``"test"`` (``"w"``),
         ``"alpha"``, ``"critical_value"`` and ``"w"`` (n_input,), the larger ``|w|`` of

@@ -122,6 +122,8 @@ def _arrays(grid: ResidualGrid, std: bool) -> dict:
         "sigma_obs": grid.sigma_obs,
         "outliers": grid.outliers,
     }
+    if grid.uv is not None:  # the positions fitted: readjust finds grids of its observations
+        out["uv"] = grid.uv
     if std:
         try:
             out["node_cofactor"] = grid.node_cofactor
@@ -200,7 +202,9 @@ def grids_file_bytes(path: str | os.PathLike, grids: dict, *, std: bool = True) 
     return text.encode("utf-8")
 
 
-_ARRAYS = ("nodes", "node_std", "node_cofactor", "support", "counts", "sigma_obs", "outliers")
+_ARRAYS = (
+    "nodes", "node_std", "node_cofactor", "support", "counts", "sigma_obs", "outliers", "uv"
+)  # fmt: skip
 _NEEDED_STATS = ("width", "height", "spacing", "redundancy")
 _NEEDED_ARRAYS = ("nodes", "support", "counts", "sigma_obs", "outliers")
 _BORDERS = ("mean", "linear")
@@ -277,12 +281,20 @@ def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
     nodes = _array(arr, "nodes", (*shape, 2), "f", where)
     if not np.isfinite(nodes).all():
         raise FileFormatError(f"{where}: nodes hold NaN or infinite values")
+    sigma_obs = _array(arr, "sigma_obs", None, "f", where)
+    outliers = _array(arr, "outliers", None, "b", where)
+    uv = None
+    if arr.get("uv") is not None:  # the pixel positions of the fit (files before: none)
+        n = outliers.size if outliers.size else sigma_obs.size
+        uv = _array(arr, "uv", (n, 2), "f", where)
+        if not np.isfinite(uv).all():
+            raise FileFormatError(f"{where}: uv holds NaN or infinite values")
     g = ResidualGrid(
         layout=layout,
         nodes=nodes,
         sigma0=_number(st, "sigma0", where),
         redundancy=_integer(st, "redundancy", where),
-        sigma_obs=_array(arr, "sigma_obs", None, "f", where),
+        sigma_obs=sigma_obs,
         sigma_constraint=_number(st, "sigma_constraint", where),
         support=_array(arr, "support", shape, "b", where),
         counts=_array(arr, "counts", shape, "u", where),
@@ -290,11 +302,12 @@ def _grid(st: dict, arr: dict, where: str) -> ResidualGrid:
         rms_after=_number(st, "rms_after", where),
         rms_cv_before=_number(st, "rms_cv_before", where),
         rms_cv_after=_number(st, "rms_cv_after", where),
-        outliers=_array(arr, "outliers", None, "b", where),
+        outliers=outliers,
         vce_iterations=_integer(
             {"vce_iterations": st.get("vce_iterations", 0)}, "vce_iterations", where
         ),
         border=border,
+        uv=uv,
     )
     if arr.get("node_cofactor") is not None:
         g = replace(g, _std=[_array(arr, "node_cofactor", shape, "f", where)])

@@ -151,7 +151,10 @@ class GridAdjustment:
         A-posteriori standard deviation of unit weight of the joint adjustment, with the
         weights ``P = sigma0_prior^2 / sigma^2`` of the options, as in
         :class:`~photogeom.bundle.BundleFit`: about ``sigma0_prior`` (1 by default) when the
-        a-priori sigmas are right. The standard deviations do not depend on ``sigma0_prior``.
+        a-priori sigmas are right and the field is of the size its pseudo-observations
+        state; below it where the field is smaller (none at all: the mean sigma0^2 is
+        ``(n - tr(J N^-1 J')) / r``, 0.70-0.84 on a simulated block, see the docs). The
+        standard deviations do not depend on ``sigma0_prior``.
     redundancy, n_unknowns : int
         Redundancy: scalar observations (image, GNSS, IMU, control) plus the rank of the
         grids' pseudo-observations, minus the free unknowns. The pseudo-observations are
@@ -1008,12 +1011,13 @@ def joint_first_adjustment(block: Block):
     Returns
     -------
     tuple or None
-        ``(J, rows, solve, sigma)``: the whitened Jacobian of the joint adjustment at its
-        solution (rows: image observations x then y, GNSS, IMU, control coordinates;
+        ``(J, rows, solve, sigma, nodes)``: the whitened Jacobian of the joint adjustment at
+        its solution (rows: image observations x then y, GNSS, IMU, control coordinates;
         columns: its free unknowns, grid nodes included), the row ranges of the groups
         (as :func:`~photogeom.calibration.chain._first_jacobian`), ``solve(B)`` giving
         ``(J'J + P)^-1 B`` with ``P`` the precision of the grids' pseudo-observations (the
-        datum by the Woodbury identity), and the observations' standard deviations (px).
+        datum by the Woodbury identity), the observations' standard deviations (px) and the
+        columns of ``J`` that hold the grid nodes (a slice).
         The pseudo-observations are error-free here: the chain's redundancy is that of the
         observations' noise, as for a block without any local field.
     """
@@ -1041,7 +1045,7 @@ def joint_first_adjustment(block: Block):
         backend=rec.opts.backend,
         blocks=gp.cg_blocks,
     )
-    return J, rows, F.solve, gp.bp.sigma_obs()
+    return J, rows, F.solve, gp.bp.sigma_obs(), slice(g0, g0 + gp.n_grid)
 
 
 #: The note of the final fit of :func:`adjust_with_grids` (``GridAdjustment.fit``).

@@ -277,8 +277,14 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
         ``rmse_gsd``); with ``sim`` also ``tie_before``, ``tie_after``: the RMSE of every
         triangulated tie point against its true coordinates (``points``, ``rmse``,
         ``rmse_gsd``), the object's accuracy at thousands of points where a simulated block
-        has a few check points.
+        has a few check points. ``adjustment``: ``{"before": ..., "after": ...}``, sigma0
+        and its redundancy of each fit
+        (:func:`~photogeom.calibration.evaluate.adjustment_statistics`; the re-adjustment's
+        over the chain's effective redundancy when it has one; None for a stand-in without
+        its fit's statistics, as a block read as adjusted).
     """
+    from .evaluate import adjustment_statistics
+
     rb = {k: v[1] for k, v in block_residuals(before.block).items() if v[1].size}
     ra = {k: v[1] for k, v in block_residuals(after.block).items() if k in rb}
     sb = model_steps(before.block, overlap=overlap)
@@ -293,6 +299,11 @@ def evaluate_readjustment(before, after, *, sim=None, surveyed=None, overlap: fl
         "mean_step_before": mb,
         "mean_step_after": ma,
         "step_reduction": 1.0 - ma / mb if mb > 0 else float("nan"),
+        # a block read as adjusted (a stand-in of the first fit) has no statistics
+        "adjustment": {
+            k: adjustment_statistics(f) if hasattr(f, "sigma0") else None
+            for k, f in (("before", before), ("after", after))
+        },
     }
     if sim is not None and surveyed is not None:
         raise InputError("give sim (the truth) or surveyed check coordinates, not both")

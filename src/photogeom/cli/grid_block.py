@@ -611,9 +611,13 @@ def _ev_json(ev) -> dict:
                 "GSD",
             ),
             **dict.fromkeys(
-                ("reduction_rms", "reduction_mean_length", "step_reduction"), "1"
+                ("reduction_rms", "reduction_mean_length", "step_reduction", "sigma0",
+                 "redundancy"), "1"
             ),
         },
+        # sigma0 of each fit and the redundancy it is over (the re-adjustment's: the chain's
+        # effective redundancy when "effective")
+        "adjustment": ev["adjustment"],
         "residuals": {
             "block": blk,
             # keyed by text (JSON keys are text); "image_id" keeps the id's type
@@ -649,6 +653,7 @@ def _ev_json(ev) -> dict:
             "mean_step_before": rm["mean_step_before"],
             "mean_step_after": rm["mean_step_after"],
             "step_reduction": rm["step_reduction"],
+            "adjustment": rm["adjustment"],
         }
     return out
 
@@ -710,7 +715,7 @@ def evaluate(
             f"no pair of consecutive stereo models in the block (--overlap {overlap:g}): "
             "no height steps, only the residuals are compared"
         )
-    t = Table(title="tie-point residuals (px) and steps (GSD)")
+    t = Table(title="tie-point residuals (px), steps (GSD), sigma0 and redundancy (unitless)")
     for c in ("quantity", "before", "after", "reduction"):
         t.add_column(c, justify="right")
     blk = ev["residuals"]["block"]
@@ -726,6 +731,9 @@ def evaluate(
         f"{blk['after']['mean_length']:.4f}",
         f"{100 * blk['reduction_mean_length']:.1f} %",
     )
+    adj = ev["adjustment"]
+    t.add_row("sigma0 (unitless)", *(_sigma0_cell(adj[k]) for k in ("before", "after")), "")
+    t.add_row("redundancy", *(_redundancy_cell(adj[k]) for k in ("before", "after")), "")
     if ev["steps_before"]:
         t.add_row(
             "mean step",
@@ -741,6 +749,7 @@ def evaluate(
             f"{rm['mean_step_after']:.3f}",
             f"{100 * rm['step_reduction']:.1f} %",
         )
+        t.add_row("sigma0, re-matched", "", _sigma0_cell(rm["adjustment"]["after"]), "")
     out.print(t)
     if ev["steps_before"]:
         m = Table(title="step per model pair (GSD)")
@@ -769,6 +778,25 @@ def evaluate(
         out.print(t)
     if ev["excluded"]:
         say(_excluded_words(ev["excluded"]), out)
+
+
+#: A cell of the evaluation table for the first adjustment of a BLOCK read as adjusted.
+NOT_ADJUSTED_HERE = "n/a (BLOCK read as adjusted)"
+
+
+def _sigma0_cell(stats: dict | None) -> str:
+    """A sigma0 of the evaluation table (unitless)."""
+    return NOT_ADJUSTED_HERE if stats is None else f"{stats['sigma0']:.4f}"
+
+
+def _redundancy_cell(stats: dict | None) -> str:
+    """A redundancy of the evaluation table: a count, or the chain's effective redundancy
+    (a real number, marked)."""
+    if stats is None:
+        return NOT_ADJUSTED_HERE
+    if stats["effective"]:
+        return f"{stats['redundancy']:.1f} (effective)"
+    return f"{stats['redundancy']:.0f}"
 
 
 def _excluded_words(left: list) -> str:
