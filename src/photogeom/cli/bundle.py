@@ -140,6 +140,28 @@ _CLI_WORDS = (
     ),
 )
 
+#: The summary's pointers to the result's keys (``BundleFit.summary``) in the options' words;
+#: the printed summary takes these and :data:`_CLI_WORDS`.
+_SUMMARY_WORDS = (
+    (
+        "(all of them in snooping['flagged'] of the result; --json lists them too)",
+        "(all of them in the JSON of --json and --result: snooping.flagged)",
+    ),
+    (
+        "they are listed in snooping['poorly_controlled']:",
+        "they are listed in --report and in the JSON of --json and --result "
+        "(snooping.poorly_controlled):",
+    ),
+    (
+        "adjust with the calibration held first (no free parameters) and then free it from "
+        "that result",
+        "adjust with the calibration held first (--free none -o FIRST) and then adjust FIRST "
+        "with it free",
+    ),
+    ("(leave it out of the free parameters)", "(leave it out of --free)"),
+    *_CLI_WORDS,
+)
+
 #: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
 _FREE_TUPLE = re.compile(r"free=\(((?:'\w+',?\s*)+)\)")
 
@@ -1022,7 +1044,7 @@ def adjust(
     say(f"{source} ({src_fmt})", out)
     if start_note is not None:
         say(start_note, out)
-    say(fit.summary(angle, unit), out)
+    say(in_cli_words(fit.summary(angle, unit), _SUMMARY_WORDS), out)
     if georef is not None:
         say(
             f"GNSS positions of {georef['n_gnss']} image(s) converted from "
