@@ -395,6 +395,28 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
     ]
 
 
+def _a_priori_section(d: Mapping) -> str:
+    """The stochastic model: the a-priori standard deviations of each group of observations
+    (median, least and largest, with the unit)."""
+    rows = [
+        [
+            r["observations"],
+            str(r["n"]),
+            _f(r["median"]),
+            _f(r["min"]) if r["min"] == r["max"] else f"{_f(r['min'])} - {_f(r['max'])}",
+            r["unit"],
+        ]
+        for r in d["a_priori"]
+    ]
+    return _table_html(
+        ["observations", "n", "sigma (median)", "range", "unit"],
+        rows,
+        note="as given with the block (before the adjustment); each observation weighs "
+        "sigma0_prior^2 / sigma^2",
+        text_cols={0, 4},
+    )
+
+
 def _orientation_residual_rows(d: Mapping) -> list[list[str]]:
     """RMS per axis of the GNSS and IMU residuals (adjusted minus observed), if any."""
     orr = d.get("orientation_residual_rms") or {}
@@ -734,7 +756,8 @@ def add_bundle_result(
 ) -> None:
     """Add the sections of a bundle adjustment to ``report`` from its result record.
 
-    Sections: summary statistics; calibration with standard deviations and correlation heat
+    Sections: summary statistics; the a-priori standard deviations (when the record has
+    them); calibration with standard deviations and correlation heat
     map; exterior orientation (the ``max_rows`` images with the largest RMS residual when
     there are more); control and check points; residual vectors binned over the sensor;
     RMS residual per image; point precision (when computed); convergence; flagged
@@ -763,6 +786,8 @@ def add_bundle_result(
             else '<p class="warn">The iteration did NOT converge; do not trust these numbers.</p>'
         ),
     )
+    if d.get("a_priori"):  # records written before it was kept have none
+        report._add(3, f"{p}A-priori standard deviations", _a_priori_section(d))
     report._add(3, f"{p}Calibration", _calibration_section(d, max_rows))
     report._add(3, f"{p}Exterior orientation", _exterior_section(d, max_rows))
     if d.get("georeferencing") and d.get("images"):
