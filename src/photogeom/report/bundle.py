@@ -434,8 +434,7 @@ def _orientation_residual_rows(d: Mapping) -> list[list[str]]:
         rows.append(
             [
                 f"RMS IMU residual (adjusted - IMU, {orr['imu_images']} images)",
-                f"omega {_f(a[0], 3)}, phi {_f(a[1], 3)}, kappa {_f(a[2], 3)} "
-                f"{d['angle_unit']}",
+                f"omega {_f(a[0], 3)}, phi {_f(a[1], 3)}, kappa {_f(a[2], 3)} {d['angle_unit']}",
             ]
         )
     return rows
@@ -747,6 +746,25 @@ def _variance_section(vc: Mapping) -> str:
     )
 
 
+#: The notes' pointer to the result's key (``BundleFit`` notes), where the report has the
+#: section: its title, and the key of the record for all of them.
+_POOR_KEY = "they are listed in snooping['poorly_controlled']:"
+_POOR_SECTION = (
+    "they are listed under Poorly controlled observations (all of them in the result "
+    "record: snooping.poorly_controlled):"
+)
+
+
+def _report_words(note: str, poor_section: bool) -> str:
+    """A note of the record in the report's words: the poorly controlled observations are
+    pointed to in their section (when the report has it), not in a Python mapping."""
+    if poor_section:
+        return note.replace(_POOR_KEY, _POOR_SECTION)
+    return note.replace(
+        _POOR_KEY, "they are listed in the result record (snooping.poorly_controlled):"
+    )
+
+
 def add_bundle_result(
     report: Report,
     data: Mapping,
@@ -875,7 +893,7 @@ def add_bundle_result(
         report._add(3, f"{p}Poorly controlled observations", poor)
     if d.get("variance_components"):
         report._add(3, f"{p}Variance components", _variance_section(d["variance_components"]))
-    notes = d.get("notes") or []
+    notes = [_report_words(n, bool(poor)) for n in d.get("notes") or []]
     report._add(
         3,
         f"{p}Notes",
