@@ -821,8 +821,9 @@ def adjust(
     unit: Annotated[
         str | None,
         typer.Option(
-            help="Length unit of the object coordinates [default: the unit of the block's CRS "
-            "(--crs or the '# crs:' line of points.csv), else m].",
+            help="Length unit of the object coordinates, a label of the numbers shown "
+            "[default: the unit of the block's CRS (--crs or the '# crs:' line of points.csv), "
+            "else m]; one that contradicts the CRS is refused.",
             show_default=False,
         ),
     ] = None,
@@ -957,6 +958,15 @@ def adjust(
         )
     if unit is None:  # the CRS's unit, as orient absolute and transform estimate label it
         unit = _crs_length_unit(block.crs) or "m"
+    elif block.crs is not None:  # a label that contradicts the CRS: refused, as they do
+        from ..crs import cartesian_crs
+
+        where = "--crs" if crs is not None else "the block's CRS (points.csv '# crs:' line)"
+        try:
+            cartesian_crs(block.crs, what=where, unit=unit)
+        except InputError as exc:
+            text = str(exc).replace(f"the unit given is {unit!r}", f"--unit is {unit}")
+            raise InputError(text.replace("leave the unit out", "leave --unit out")) from None
     options = dict(
         loss=loss.value,
         loss_scale=loss_scale,
