@@ -31,7 +31,7 @@ from ..calibration.blocks import block_residuals
 from .html import Report
 from .plots import CLIPPED_COLOUR, ArrowScale, arrow_scale, plain
 
-__all__ = ["PUBLISHED", "grid_study_report", "sensor_mean_residuals"]
+__all__ = ["PUBLISHED", "grid_settings", "grid_study_report", "sensor_mean_residuals"]
 
 #: The study's published numbers (05-residual-grid.md).
 PUBLISHED = {
@@ -277,9 +277,21 @@ def _simulated(res: Mapping) -> bool:
     return str(res.get("preset", "")).split(" (")[0] in PUBLISHED
 
 
-def _grid_settings(grids: Mapping, n_images: int) -> list[list[str]]:
-    """Rows ``[setting, value]`` of the grids evaluated: spacing (px), nodes, smoothness
-    sigma (px) and the images that have a grid."""
+def grid_settings(grids: Mapping, n_images: int | None = None) -> list[list[str]]:
+    """Rows ``[setting, value]`` of a set of grids: spacing (px), nodes, smoothness sigma
+    (px) and the images that have a grid.
+
+    Parameters
+    ----------
+    grids : Mapping
+        ``{image id: ResidualGrid}`` (a grid shared by several images counted once).
+    n_images : int, optional
+        Images of the block, for "K of N" (without: the count of the grids' images).
+
+    Returns
+    -------
+    list of [str, str]
+    """
     gs = list({id(g): g for g in grids.values()}.values())  # a grid per camera: once
     spacings = sorted({float(g.spacing) for g in gs})
     shapes = sorted({tuple(int(n) for n in np.shape(g.nodes)[:2]) for g in gs})
@@ -298,7 +310,8 @@ def _grid_settings(grids: Mapping, n_images: int) -> list[list[str]]:
                 + (" (variance components)" if vce else ""),
             ]
         )
-    rows.append(["images with a grid", f"{len(grids)} of {n_images}"])
+    of = "" if n_images is None else f" of {n_images}"
+    rows.append(["images with a grid", f"{len(grids)}{of}"])
     return rows
 
 
@@ -359,7 +372,7 @@ def grid_study_report(
         rep.add_table(
             "Grids",
             ["setting", "value"],
-            _grid_settings(grids, fit.block.n_images),
+            grid_settings(grids, fit.block.n_images),
             note="the grids whose correction the tables and figures below evaluate",
         )
         blk = ev["residuals"]["block"]
