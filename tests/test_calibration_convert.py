@@ -73,6 +73,28 @@ def test_convert_a_resection_camera(cli, tmp_path):
     assert pg.read_metashape_xml(tmp_path / "x.xml") == back
 
 
+def test_convert_image_size_as_the_other_commands_write_it(cli, tmp_path):
+    """--image-size WIDTHxHEIGHT, as bundle adjust and grid fit take it (before: refused,
+    'expected comma-separated numbers'); WIDTH,HEIGHT still read."""
+    io = CAL.interior_orientation().to_dict()
+    del io["image_size"]
+    src = tmp_path / "cam.json"
+    src.write_text(json.dumps({"interior": io}))
+    code, _, err = cli("camera", "convert", src, tmp_path / "x.xml", "--image-size", "4000x3000")
+    assert code == 0, err
+    back = pg.read_metashape_xml(tmp_path / "x.xml")
+    assert (back.width, back.height) == (4000, 3000)
+    for name in ("f", "cx", "cy", "b1", "k1", "k2", "k3", "p1", "p2"):
+        assert getattr(back, name) == pytest.approx(getattr(CAL, name), rel=1e-12, abs=1e-12)
+    code, _, err = cli("camera", "convert", src, tmp_path / "y.xml", "--image-size", "4000,3000")
+    assert code == 0, err
+    assert (tmp_path / "y.xml").read_bytes() == (tmp_path / "x.xml").read_bytes()
+    for bad in ("4000x0", "4000.5x3000", "4000"):
+        code, _, err = cli("camera", "convert", src, tmp_path / "z.xml", "--image-size", bad)
+        assert code == 2 and "--image-size" in err and "Traceback" not in err, (bad, err)
+    assert not (tmp_path / "z.xml").exists()
+
+
 def test_convert_refusals(cli, tmp_path):
     pg.write_calibration(CAL, tmp_path / "a.xml")
     pg.write_calibration(CAL, tmp_path / "a.yaml")

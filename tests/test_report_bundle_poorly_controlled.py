@@ -102,3 +102,15 @@ def test_an_observation_with_r_zero_is_undetectable(adjusted, no_png):
                       _section(text, "Poorly controlled observations")).group(1)  # fmt: skip
     cells = re.findall(r"<td[^>]*>(.*?)</td>", first)
     assert cells[0] == "0.000" and cells[2:4] == ["undetectable", "undetectable"]
+
+
+def test_the_note_points_to_the_section_not_to_a_python_key(adjusted):
+    # before: "they are listed in snooping['poorly_controlled']", a key of a Python mapping,
+    # in a report handed to a client
+    fit, _, text = adjusted
+    notes = _section(text, "Notes")
+    assert "snooping[" not in text
+    assert "image observation(s) are poorly controlled" in notes
+    assert "they are listed under Poorly controlled observations" in notes
+    # the library's own note keeps its key
+    assert any("snooping['poorly_controlled']" in n for n in fit.notes)

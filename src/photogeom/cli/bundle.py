@@ -140,6 +140,28 @@ _CLI_WORDS = (
     ),
 )
 
+#: The summary's pointers to the result's keys (``BundleFit.summary``) in the options' words;
+#: the printed summary takes these and :data:`_CLI_WORDS`.
+_SUMMARY_WORDS = (
+    (
+        "(all of them in snooping['flagged'] of the result; --json lists them too)",
+        "(all of them in the JSON of --json and --result: snooping.flagged)",
+    ),
+    (
+        "they are listed in snooping['poorly_controlled']:",
+        "they are listed in --report and in the JSON of --json and --result "
+        "(snooping.poorly_controlled):",
+    ),
+    (
+        "adjust with the calibration held first (no free parameters) and then free it from "
+        "that result",
+        "adjust with the calibration held first (--free none -o FIRST) and then adjust FIRST "
+        "with it free",
+    ),
+    ("(leave it out of the free parameters)", "(leave it out of --free)"),
+    *_CLI_WORDS,
+)
+
 #: ``free=('f', 'cx', ...)`` in a message: the same as ``--free f,cx,...``.
 _FREE_TUPLE = re.compile(r"free=\(((?:'\w+',?\s*)+)\)")
 
@@ -806,8 +828,9 @@ def adjust(
     unit: Annotated[
         str | None,
         typer.Option(
-            help="Length unit of the object coordinates [default: the unit of the block's CRS "
-            "(--crs or the '# crs:' line of points.csv), else m].",
+            help="Length unit of the object coordinates, a label of the numbers shown "
+            "[default: the unit of the block's CRS (--crs or the '# crs:' line of points.csv), "
+            "else m]; one that contradicts the CRS is refused.",
             show_default=False,
         ),
     ] = None,
@@ -942,6 +965,15 @@ def adjust(
         )
     if unit is None:  # the CRS's unit, as orient absolute and transform estimate label it
         unit = _crs_length_unit(block.crs) or "m"
+    elif block.crs is not None:  # a label that contradicts the CRS: refused, as they do
+        from ..crs import cartesian_crs
+
+        where = "--crs" if crs is not None else "the block's CRS (points.csv '# crs:' line)"
+        try:
+            cartesian_crs(block.crs, what=where, unit=unit)
+        except InputError as exc:
+            text = str(exc).replace(f"the unit given is {unit!r}", f"--unit is {unit}")
+            raise InputError(text.replace("leave the unit out", "leave --unit out")) from None
     options = dict(
         loss=loss.value,
         loss_scale=loss_scale,
@@ -1034,7 +1066,7 @@ def adjust(
     say(f"{source} ({src_fmt})", out)
     if start_note is not None:
         say(start_note, out)
-    say(fit.summary(angle, unit), out)
+    say(in_cli_words(fit.summary(angle, unit), _SUMMARY_WORDS), out)
     if georef is not None:
         say(
             f"GNSS positions of {georef['n_gnss']} image(s) converted from "

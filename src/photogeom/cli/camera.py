@@ -40,6 +40,7 @@ from ._common import (
     console,
     emit_points,
     finite_or_none,
+    image_size_option,
     json_text,
     options_in_errors,
     say,
@@ -523,7 +524,8 @@ def convert_cmd(
         str | None,
         typer.Option(
             "--image-size",
-            help="WIDTH,HEIGHT in px, for a camera JSON or OpenCV file that does not record "
+            help="WIDTHxHEIGHT in px (as --image-size of the bundle and grid commands; "
+            "WIDTH,HEIGHT also read), for a camera JSON or OpenCV file that does not record "
             "the image size.",
             show_default=False,
         ),
@@ -558,10 +560,10 @@ def convert_cmd(
     check_targets(files=[("TARGET", target)])
     size = None
     if image_size is not None:
-        w, h = split_numbers(image_size, 2, "--image-size WIDTH,HEIGHT")
-        if not (w == int(w) and h == int(h) and w > 0 and h > 0):
+        w, h = image_size_option(image_size)
+        if w <= 0 or h <= 0:
             raise InputError(f"--image-size {image_size}: give two whole numbers of pixels > 0")
-        size = (int(w), int(h))
+        size = (w, h)
     from ..camera.metashape_export import CHOOSE_SENSOR
 
     try:

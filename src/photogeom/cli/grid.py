@@ -1177,6 +1177,14 @@ def _report_html(grids: dict, rejected: dict | None = None) -> str:
         "Finite-element residual grids",
         f"{first.layout.spacing:g} px node spacing; image residuals computed minus observed, px",
     )
+    from ..report.grid_study import grid_settings
+
+    rep.add_table(
+        "Grids",
+        ["setting", "value"],
+        grid_settings(grids),
+        note="the grids written to the grids file (--output)",
+    )
     rows = [_grid_row(k, g.to_dict()) for k, g in grids.items()]
     rep.add_table(
         "Per image",

@@ -1006,6 +1006,7 @@ def report(
         "refit": re,
         "grids": grids,
         "sweep": sw,
+        "simulated": preset is not None,
     }
     if ev.get("rematched"):
         res["rematched"] = ev["rematched"]

@@ -395,6 +395,28 @@ def _summary_rows(d: Mapping) -> list[list[str]]:
     ]
 
 
+def _a_priori_section(d: Mapping) -> str:
+    """The stochastic model: the a-priori standard deviations of each group of observations
+    (median, least and largest, with the unit)."""
+    rows = [
+        [
+            r["observations"],
+            str(r["n"]),
+            _f(r["median"]),
+            _f(r["min"]) if r["min"] == r["max"] else f"{_f(r['min'])} - {_f(r['max'])}",
+            r["unit"],
+        ]
+        for r in d["a_priori"]
+    ]
+    return _table_html(
+        ["observations", "n", "sigma (median)", "range", "unit"],
+        rows,
+        note="as given with the block (before the adjustment); each observation weighs "
+        "sigma0_prior^2 / sigma^2",
+        text_cols={0, 4},
+    )
+
+
 def _orientation_residual_rows(d: Mapping) -> list[list[str]]:
     """RMS per axis of the GNSS and IMU residuals (adjusted minus observed), if any."""
     orr = d.get("orientation_residual_rms") or {}
@@ -412,8 +434,7 @@ def _orientation_residual_rows(d: Mapping) -> list[list[str]]:
         rows.append(
             [
                 f"RMS IMU residual (adjusted - IMU, {orr['imu_images']} images)",
-                f"omega {_f(a[0], 3)}, phi {_f(a[1], 3)}, kappa {_f(a[2], 3)} "
-                f"{d['angle_unit']}",
+                f"omega {_f(a[0], 3)}, phi {_f(a[1], 3)}, kappa {_f(a[2], 3)} {d['angle_unit']}",
             ]
         )
     return rows
@@ -725,6 +746,25 @@ def _variance_section(vc: Mapping) -> str:
     )
 
 
+#: The notes' pointer to the result's key (``BundleFit`` notes), where the report has the
+#: section: its title, and the key of the record for all of them.
+_POOR_KEY = "they are listed in snooping['poorly_controlled']:"
+_POOR_SECTION = (
+    "they are listed under Poorly controlled observations (all of them in the result "
+    "record: snooping.poorly_controlled):"
+)
+
+
+def _report_words(note: str, poor_section: bool) -> str:
+    """A note of the record in the report's words: the poorly controlled observations are
+    pointed to in their section (when the report has it), not in a Python mapping."""
+    if poor_section:
+        return note.replace(_POOR_KEY, _POOR_SECTION)
+    return note.replace(
+        _POOR_KEY, "they are listed in the result record (snooping.poorly_controlled):"
+    )
+
+
 def add_bundle_result(
     report: Report,
     data: Mapping,
@@ -734,7 +774,8 @@ def add_bundle_result(
 ) -> None:
     """Add the sections of a bundle adjustment to ``report`` from its result record.
 
-    Sections: summary statistics; calibration with standard deviations and correlation heat
+    Sections: summary statistics; the a-priori standard deviations (when the record has
+    them); calibration with standard deviations and correlation heat
     map; exterior orientation (the ``max_rows`` images with the largest RMS residual when
     there are more); control and check points; residual vectors binned over the sensor;
     RMS residual per image; point precision (when computed); convergence; flagged
@@ -763,6 +804,8 @@ def add_bundle_result(
             else '<p class="warn">The iteration did NOT converge; do not trust these numbers.</p>'
         ),
     )
+    if d.get("a_priori"):  # records written before it was kept have none
+        report._add(3, f"{p}A-priori standard deviations", _a_priori_section(d))
     report._add(3, f"{p}Calibration", _calibration_section(d, max_rows))
     report._add(3, f"{p}Exterior orientation", _exterior_section(d, max_rows))
     if d.get("georeferencing") and d.get("images"):
@@ -850,7 +893,7 @@ def add_bundle_result(
         report._add(3, f"{p}Poorly controlled observations", poor)
     if d.get("variance_components"):
         report._add(3, f"{p}Variance components", _variance_section(d["variance_components"]))
-    notes = d.get("notes") or []
+    notes = [_report_words(n, bool(poor)) for n in d.get("notes") or []]
     report._add(
         3,
         f"{p}Notes",

@@ -178,6 +178,52 @@ def _poorly_controlled(fit) -> tuple[list[dict], int]:
     return out, int(rows.size)
 
 
+def _spread(name: str, sigma, unit: str) -> dict | None:
+    """One row of :func:`_a_priori`: the count, median, least and largest of the finite
+    ``sigma`` (None when there are none)."""
+    s = np.asarray(sigma, dtype=float)
+    s = s[np.isfinite(s)]
+    if not s.size:
+        return None
+    return {
+        "observations": name,
+        "n": int(s.size),
+        "median": float(np.median(s)),
+        "min": float(s.min()),
+        "max": float(s.max()),
+        "unit": unit,
+    }
+
+
+def _a_priori(fit, unit: str, angle_unit: str) -> list[dict]:
+    """The a-priori standard deviations of the adjustment's observations (its stochastic
+    model): image observations by the role of their point (px), the control points' surveyed
+    coordinates and the GNSS positions (``unit``) per axis, the IMU attitudes per angle
+    (``angle_unit``)."""
+    from ..units import from_radians
+
+    b = fit.block
+    obs_role = b.role[b.obs_point]
+    rows = [
+        _spread(
+            f"image observations of {role} points", b.observations.sigma[obs_role == role], "px"
+        )
+        for role in ("tie", "control", "check")
+    ]
+    ctl = b.role == "control"
+    rows += [
+        _spread(f"control points {a}", b.point_sigma[ctl, k], unit) for k, a in enumerate("XYZ")
+    ]
+    gnss = np.isfinite(b.gnss).all(axis=1)
+    rows += [_spread(f"GNSS {a}0", b.gnss_sigma[gnss, k], unit) for k, a in enumerate("XYZ")]
+    imu = np.isfinite(b.imu).all(axis=1)
+    rows += [
+        _spread(f"IMU {a}", from_radians(b.imu_sigma[imu, k], angle_unit), angle_unit)
+        for k, a in enumerate(("omega", "phi", "kappa"))
+    ]
+    return [r for r in rows if r is not None]
+
+
 def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: int = 10) -> dict:
     """The JSON-ready record of a bundle adjustment that :func:`add_bundle_result` renders.
 
@@ -201,8 +247,11 @@ def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: 
         deviations, or None), ``flagged`` (at most 200 observations, largest |w| first) and
         ``n_flagged``, ``poorly_controlled`` (at most 200 observations with a redundancy
         number below 0.1, the least controlled first: ``image``, ``point``, ``r`` and
-        ``mdb`` of u and v, ``sigma``) and ``n_poorly_controlled``. NaN is written as None
-        (JSON null).
+        ``mdb`` of u and v, ``sigma``), ``n_poorly_controlled`` and ``a_priori`` (the
+        a-priori standard deviations: per group of observations ``observations``, ``n``,
+        ``median``, ``min``, ``max`` and ``unit``: image observations by their point's role in
+        px, control points and GNSS per axis in ``unit``, IMU per angle in ``angle_unit``).
+        NaN is written as None (JSON null).
     """
     from ..adjust.fit import _jsonable
 
@@ -246,6 +295,7 @@ def bundle_result_data(fit, *, unit: str = "m", angle_unit: str = "deg", cells: 
             "poorly_controlled": poor,
             "n_poorly_controlled": n_poor,
             "correlation_threshold": fit.correlation_threshold,
+            "a_priori": _a_priori(fit, unit, angle_unit),
         }
     )
     return _jsonable(d)

@@ -31,7 +31,7 @@ from ..calibration.blocks import block_residuals
 from .html import Report
 from .plots import CLIPPED_COLOUR, ArrowScale, arrow_scale, plain
 
-__all__ = ["PUBLISHED", "grid_study_report", "sensor_mean_residuals"]
+__all__ = ["PUBLISHED", "grid_settings", "grid_study_report", "sensor_mean_residuals"]
 
 #: The study's published numbers (05-residual-grid.md).
 PUBLISHED = {
@@ -269,6 +269,52 @@ def _fig_models(ev) -> Figure:
     return fig
 
 
+def _simulated(res: Mapping) -> bool:
+    """Whether a result is of a simulated block: ``res["simulated"]`` when given (the
+    command line), else a name that is one of the study's cameras (:func:`run_study`)."""
+    if "simulated" in res:
+        return bool(res["simulated"])
+    return str(res.get("preset", "")).split(" (")[0] in PUBLISHED
+
+
+def grid_settings(grids: Mapping, n_images: int | None = None) -> list[list[str]]:
+    """Rows ``[setting, value]`` of a set of grids: spacing (px), nodes, smoothness sigma
+    (px) and the images that have a grid.
+
+    Parameters
+    ----------
+    grids : Mapping
+        ``{image id: ResidualGrid}`` (a grid shared by several images counted once).
+    n_images : int, optional
+        Images of the block, for "K of N" (without: the count of the grids' images).
+
+    Returns
+    -------
+    list of [str, str]
+    """
+    gs = list({id(g): g for g in grids.values()}.values())  # a grid per camera: once
+    spacings = sorted({float(g.spacing) for g in gs})
+    shapes = sorted({tuple(int(n) for n in np.shape(g.nodes)[:2]) for g in gs})
+    rows = [
+        ["node spacing", " / ".join(f"{x:g}" for x in spacings) + " px"],
+        ["nodes per grid (rows x columns)", ", ".join(f"{a} x {b}" for a, b in shapes)],
+    ]
+    sc = np.asarray([getattr(g, "sigma_constraint", np.nan) for g in gs], dtype=float)
+    if np.isfinite(sc).any():
+        lo, hi = np.nanmin(sc), np.nanmax(sc)
+        vce = any(getattr(g, "vce_iterations", 0) for g in gs)
+        rows.append(
+            [
+                "smoothness sigma",
+                (f"{lo:.4g} px" if np.isclose(lo, hi) else f"{lo:.4g} - {hi:.4g} px")
+                + (" (variance components)" if vce else ""),
+            ]
+        )
+    of = "" if n_images is None else f" of {n_images}"
+    rows.append(["images with a grid", f"{len(grids)}{of}"])
+    return rows
+
+
 def grid_study_report(
     results: Mapping | Sequence[Mapping],
     path: str | os.PathLike,
@@ -280,10 +326,13 @@ def grid_study_report(
         results = [results]
     rep = Report(title, "Finite-element residual grids after the bundle adjustment")
     summary = []
+    simulated = False
     for res in results:
         ev = res["evaluation"]
         name = res.get("preset", "block")
-        pub = PUBLISHED.get(str(name).split(" (")[0], ("-", "-", "-"))
+        sim = _simulated(res)
+        simulated |= sim
+        pub = PUBLISHED.get(str(name).split(" (")[0], ("-", "-", "-")) if sim else ("-",) * 3
         sw = res.get("sweep")
         summary.append(
             [
@@ -309,9 +358,10 @@ def grid_study_report(
         ],
         summary,
         note=(
-            "Simulated re-creations (trends), not the study's data. Re-matched: the corrected "
-            "observations measured again with fresh noise, as the study matched its corrected "
-            "images anew (the grids are not credited with the noise they fitted)."
+            ("Simulated re-creations (trends), not the study's data. " if simulated else "")
+            + "Re-matched: the corrected observations measured again with fresh noise, as "
+            "the study matched its corrected images anew (the grids are not credited with the "
+            "noise they fitted)."
         ),
     )
     for res in results:
@@ -319,6 +369,12 @@ def grid_study_report(
         ev = res["evaluation"]
         fit, refit, grids = res["fit"], res["refit"], res["grids"]
         rep.add_heading(str(name))
+        rep.add_table(
+            "Grids",
+            ["setting", "value"],
+            grid_settings(grids, fit.block.n_images),
+            note="the grids whose correction the tables and figures below evaluate",
+        )
         blk = ev["residuals"]["block"]
         # the numbers and rounding 'grid evaluate' prints: px to 4 decimals, GSD to 3,
         # reductions in per cent
