@@ -72,14 +72,13 @@ ExcludeOpt = Annotated[
         "with white space at its ends or a comma: '\" im0 \",IMG_7'."
     ),
 ]
-SigmaCOpt = Annotated[
-    str,
-    typer.Option(
-        help="Standard deviation of the smoothness pseudo-observations: px, 'scaled' "
-        "(0.1 px x (spacing / 100 px)^2) or 'vce' (variance components; not with "
-        "--in-adjustment)."
-    ),
-]
+_SIGMA_C_HELP = (
+    "Standard deviation of the smoothness pseudo-observations: px, 'scaled' (0.1 px x "
+    "(spacing / 100 px)^2) or 'vce' (variance components)"
+)
+SigmaCOpt = Annotated[str, typer.Option(help=_SIGMA_C_HELP + ".")]
+#: of the commands with --in-adjustment, whose grids in the adjustment take no variance components
+SigmaCInAdjOpt = Annotated[str, typer.Option(help=_SIGMA_C_HELP + "; not with --in-adjustment.")]
 
 
 def _sigma_option(text: str, option: str, words: dict):
@@ -662,7 +661,7 @@ def evaluate(
     block: BlockArg = None,
     preset: PresetOpt = None,
     spacing: FitSpacingOpt = None,
-    sigma_constraint: SigmaCOpt = "scaled",
+    sigma_constraint: SigmaCInAdjOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
@@ -940,7 +939,7 @@ def report(
     preset: PresetOpt = None,
     spacing: FitSpacingOpt = None,
     spacings: SpacingsOpt = "100,150,200,300,500,1000,2000",
-    sigma_constraint: SigmaCOpt = "scaled",
+    sigma_constraint: SigmaCInAdjOpt = "scaled",
     overlap: OverlapOpt = 0.6,
     seed: SeedOpt = 1,
     strips: StripsOpt = 2,
