@@ -34,3 +34,16 @@ def test_printed_summary_names_options_not_python_keys(cli, tmp_path):
     poor = int(re.search(r"note: (\d+) image observation\(s\) are poorly", out).group(1))
     assert len(rec["snooping"]["flagged"]) == flagged > 20
     assert len(rec["snooping"]["poorly_controlled"]) == poor > 0
+
+
+def test_library_summary_names_no_command_line_options(cli, tmp_path):
+    """The other way round: ``BundleFit.summary`` (Python) pointed to ``--json``."""
+    import photogeom as pg
+
+    code, _, err = cli("bundle", "simulate", tmp_path / "uav", "--seed", "1", "--blunders", "2")
+    assert code == 0, err
+    text = pg.bundle_adjust(pg.bundle.read_block(tmp_path / "uav")).summary()
+    assert "snooping['flagged'] of the result" in text
+    # options only where the text says they are the command line's
+    python_words = re.sub(r"on the command line [^)]*", "", text)
+    assert not re.search(r"(?<![\w-])--[a-z]", python_words), text

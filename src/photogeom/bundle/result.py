@@ -566,7 +566,7 @@ class BundleFit:
             if len(fl) > SUMMARY_FLAGGED:
                 L.append(
                     f"  ... and {len(fl) - SUMMARY_FLAGGED} more with smaller |w| (all of "
-                    "them in snooping['flagged'] of the result; --json lists them too)"
+                    "them in snooping['flagged'] of the result)"
                 )
         if self.variance_components:
             L.append("variance components (estimated sigma = factor x a-priori sigma):")

@@ -144,7 +144,7 @@ _CLI_WORDS = (
 #: the printed summary takes these and :data:`_CLI_WORDS`.
 _SUMMARY_WORDS = (
     (
-        "(all of them in snooping['flagged'] of the result; --json lists them too)",
+        "(all of them in snooping['flagged'] of the result)",
         "(all of them in the JSON of --json and --result: snooping.flagged)",
     ),
     (
