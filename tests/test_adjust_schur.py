@@ -503,7 +503,7 @@ def test_a_second_right_hand_side_reuses_the_factor(seed, coupling, own, n_group
     import photogeom.adjust.schur as schur
 
     L, lam = 7, 0.3
-    sysm, lin, N, grad, free, J = _problem(
+    sysm, lin, N, _, free, J = _problem(
         seed,
         L=L,
         n_groups=n_groups,

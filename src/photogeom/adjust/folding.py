@@ -293,14 +293,16 @@ class FoldedNormal:
         return self.sys.folding.from_inner(dc), dp, MappedFactor(F, self.sys)
 
     def solve_gradient(self, gc: np.ndarray, gp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The step of the same damped system for the gradient ``gc`` (nc,, in the unfolded
-        system's unknowns), ``gp`` (n_points, 3) with the factor of the last :meth:`solve`
-        (no second reduction or factorisation): camera side (nc,), points (n_points, 3)."""
+        """The step of the same damped system for the gradient ``gc`` (nc,), in the unfolded
+        system's unknowns, and ``gp`` (n_points, 3) with the factor of the last
+        :meth:`solve` (no second reduction or factorisation): camera side (nc,), points
+        (n_points, 3)."""
         dc, dp = self.inner.solve_gradient(self.sys.folding.to_inner(gc), gp)
         return self.sys.folding.from_inner(dc), dp
 
     def drop_reduction(self) -> None:
-        """Free what :meth:`solve_gradient` does not need (see the folded system's)."""
+        """Free what :meth:`solve_gradient` does not need: the folded system's reduced
+        matrix, its blocks and its linearisation (the factor is kept)."""
         self.inner.drop_reduction()
         self.S = None
 
