@@ -483,3 +483,61 @@ def test_held_global_columns_without_rows_are_left_out_of_the_folded_system():
     assert out["local"][4].inner.n_global == 1  # the free column with its prior only
     for a, c in zip(out["local"][:4], out["global"][:4]):
         np.testing.assert_allclose(a, c, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "seed,coupling,own,n_groups",
+    [
+        (20, "dense", 0, 2),
+        (21, "sparse", 0, 3),
+        (22, "auto", 7, 0),  # a group per local block, folded
+        (23, "dense", 4, 1),  # own groups and a shared one
+    ],
+)
+def test_a_second_right_hand_side_reuses_the_factor(seed, coupling, own, n_groups, monkeypatch):
+    """``solve_gradient`` of ``gradient(lin, r)``: the damped step for other residual rows
+    (no prior gradients) with the factor of the last solve, the reduction's blocks
+    dropped, equals the dense Marquardt solution and that of a freshly formed system
+    (1e-12); no second factorisation. ``damping_diagonal`` is the dense normal matrix's
+    diagonal, the prior terms (``global_info`` too) included."""
+    import photogeom.adjust.schur as schur
+
+    L, lam = 7, 0.3
+    sysm, lin, N, _, free, J = _problem(
+        seed,
+        L=L,
+        n_groups=n_groups,
+        own=own,
+        own_groups="local" if own else "auto",
+        coupling=coupling,
+        shared=False,
+    )
+    assert (sysm.inner is not None) == bool(own)
+    count = []
+    real = schur.factorize
+    monkeypatch.setattr(schur, "factorize", lambda *a, **k: count.append(1) or real(*a, **k))
+    ne = sysm.normal_equations(lin, damping=lam)
+    ne.solve()
+    ne.drop_reduction()
+    r2 = np.random.default_rng(seed + 100).standard_normal(lin.r.shape)
+    gc, gp = sysm.gradient(lin, r2)
+    np.testing.assert_allclose(np.r_[gc, gp.ravel()], J.T @ r2.ravel(), rtol=1e-12, atol=1e-12)
+    dc, dp = ne.solve_gradient(gc, gp)
+    assert len(count) == 1
+    Nd = N.copy()
+    Nd[np.diag_indices_from(Nd)] *= 1 + lam
+    x = np.zeros(N.shape[0])
+    x[free] = np.linalg.solve(Nd[np.ix_(free, free)], -(J.T @ r2.ravel())[free])
+    np.testing.assert_allclose(np.r_[dc, dp.ravel()], x, rtol=1e-9, atol=1e-11)
+    zero_l, zero_p = np.zeros_like(lin.local_grad), np.zeros_like(lin.point_grad)
+    fresh = Linearization(
+        r2, lin.A, lin.G, lin.P, lin.local_info, zero_l, lin.point_info, zero_p,
+        lin.global_info, np.zeros_like(lin.global_grad), 0.0,
+    )  # fmt: skip
+    fc, fp, _ = sysm.normal_equations(fresh, damping=lam).solve()
+    ref = np.r_[fc, fp.ravel()]
+    got = np.r_[dc, dp.ravel()]
+    assert np.linalg.norm(got - ref) <= 1e-12 * np.linalg.norm(ref)
+    d = ne.damping_diagonal()
+    np.testing.assert_allclose(d[free], np.diag(N)[free], rtol=1e-12)
+    assert np.all(d[~free] == 0)

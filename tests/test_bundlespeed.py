@@ -142,7 +142,8 @@ def test_the_grouped_pair_products_give_the_dense_schur_complement(monkeypatch, 
 def test_the_default_damping_reaches_the_minimum_in_gauss_newton_steps(monkeypatch):
     """The benchmark's 50-image block (1 m, 0.5 degree start, nominal camera): 15 iterations
     from a damping of 1e-4 of the diagonal (7 since rejected steps are retried with their
-    geodesic acceleration, 9 factorisations), 6 from the default 1e-8 (GTSAM: 6)."""
+    geodesic acceleration: 8 factorisations with the statistics' one, 10 while each retry
+    factorised again), 6 from the default 1e-8 (7 factorisations; GTSAM: 6 iterations)."""
     import photogeom as pg
 
     sim = pg.simulate.uav_block(
@@ -166,5 +167,5 @@ def test_the_default_damping_reaches_the_minimum_in_gauss_newton_steps(monkeypat
     res, n = _factorisations(monkeypatch, block, **kw)
     ref, n_ref = _factorisations(monkeypatch, block, initial_damping=1e-4, **kw)
     assert res.converged and ref.converged
-    assert res.iterations <= 7 and n <= 8 and n_ref > n
+    assert res.iterations <= 7 and n <= 8 and 8 >= n_ref > n  # retries reuse the factor
     assert res.cost_history[-1] == pytest.approx(ref.cost_history[-1], rel=1e-10)

@@ -292,6 +292,28 @@ class FoldedNormal:
         dc, dp, F = self.inner.solve()
         return self.sys.folding.from_inner(dc), dp, MappedFactor(F, self.sys)
 
+    def solve_gradient(self, gc: np.ndarray, gp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The step of the same damped system for the gradient ``gc`` (nc,), in the unfolded
+        system's unknowns, and ``gp`` (n_points, 3) with the factor of the last
+        :meth:`solve` (no second reduction or factorisation): camera side (nc,), points
+        (n_points, 3)."""
+        dc, dp = self.inner.solve_gradient(self.sys.folding.to_inner(gc), gp)
+        return self.sys.folding.from_inner(dc), dp
+
+    def drop_reduction(self) -> None:
+        """Free what :meth:`solve_gradient` does not need: the folded system's reduced
+        matrix, its blocks and its linearisation (the factor is kept)."""
+        self.inner.drop_reduction()
+        self.S = None
+
+    def damping_diagonal(self) -> np.ndarray:
+        """The diagonal the damping is scaled by, camera side in the unfolded system's
+        unknowns (zero for those left out of the folded one), then points (nc + 3
+        n_points,)."""
+        d = self.inner.damping_diagonal()
+        nc = self.sys.inner.nc
+        return np.concatenate([self.sys.folding.from_inner(d[:nc]), d[nc:]])
+
     def predicted_decrease(self, dc: np.ndarray, dp: np.ndarray, damping: float) -> float:
         return self.inner.predicted_decrease(self.sys.folding.to_inner(dc), dp, damping)
 

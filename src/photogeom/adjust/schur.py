@@ -532,6 +532,42 @@ class SchurSystem:
 
     # --- normal equations ----------------------------------------------------------------
 
+    def gradient(self, lin: Linearization, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``J' r`` of residual rows ``r`` (n, d) with the Jacobian blocks of ``lin``
+        (those of this system's unknowns, not of its folded form), without prior terms.
+
+        Parameters
+        ----------
+        lin : Linearization
+            Its ``A``, ``G`` and ``P`` are used.
+        r : numpy.ndarray, shape (n, d)
+            Whitened residual rows (any unit; the gradient has the same).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Camera side (nc,): local blocks, then global; points (n_points, 3).
+        """
+        b, L, g, gl = self.b, self.n_local, self.n_global, self.gl
+        gloc = np.bincount(
+            (self.local[:, None] * b + np.arange(b)).ravel(),
+            weights=np.einsum("ndc,nd->nc", lin.A, r).ravel(),
+            minlength=L * b,
+        )
+        gglob = np.zeros(g)
+        if g and gl:
+            gglob = np.bincount(
+                self.local_global[self.local].ravel(),
+                weights=np.einsum("ndc,nd->nc", lin.G, r).ravel(),
+                minlength=g,
+            )
+        gpt = np.bincount(
+            (self.point[:, None] * 3 + np.arange(3)).ravel(),
+            weights=np.einsum("ndc,nd->nc", lin.P, r).ravel(),
+            minlength=self.n_points * 3,
+        )
+        return np.concatenate([gloc, gglob]), gpt.reshape(self.n_points, 3)
+
     def _masked(self, lin: Linearization) -> Linearization:
         """Drop the columns of fixed parameters (zero Jacobian entries)."""
         if np.all(self.local_free) and np.all(self.global_free):
@@ -677,6 +713,7 @@ class _Normal:
         self.U, self.Ulg, self.Ugg, self.V = U, Ulg, Ugg, V
         self.gloc, self.gglob, self.gpt = gloc, gglob, gpt
         self.diag = (diag_l, diag_g, diag_p)
+        self._factor: SparseFactor | None = None  # of the last solve (see solve_residuals)
         self.Vinv = invert_point_blocks(V)
         self._reduce()
 
@@ -823,11 +860,14 @@ class _Normal:
             self.S, backend=self.sys.backend, what="reduced camera system", block_size=self.sys.b
         )
 
-    def reduced_rhs(self) -> np.ndarray:
-        """``-(g_c - W V^-1 g_p)`` stacked (local blocks, then global)."""
+    def reduced_rhs(self, grads: tuple | None = None) -> np.ndarray:
+        """``-(g_c - W V^-1 g_p)`` stacked (local blocks, then global), of the
+        linearisation's gradients or of ``grads``: local (n_local, b), global (n_global,),
+        points (n_points, 3)."""
         s = self.sys
         L, b = s.n_local, s.b
-        Vg = (self.Vinv @ self.gpt[:, :, None])[:, :, 0]  # V^-1 g_p
+        gloc, gglob, gpt = (self.gloc, self.gglob, self.gpt) if grads is None else grads
+        Vg = (self.Vinv @ gpt[:, :, None])[:, :, 0]  # V^-1 g_p
         acc = np.zeros((L, b))
         _segment_sum(
             lambda rows: (self.W[rows] @ Vg[s.point[rows]][:, :, None])[:, :, 0],
@@ -837,7 +877,7 @@ class _Normal:
             s.n,
             acc,
         )
-        rl = -(self.gloc - acc) * s.local_free
+        rl = -(gloc - acc) * s.local_free
         if s.sparse_global:
             hv = (self.Hp.transpose(0, 2, 1) @ Vg[s.pg_point][:, :, None])[:, :, 0]
             hg = np.bincount(s.pg_cols.ravel(), weights=hv.ravel(), minlength=s.n_global)
@@ -845,11 +885,12 @@ class _Normal:
             hg = self.H.reshape(-1, s.n_global).T @ Vg.ravel()
         else:
             hg = np.zeros(0)
-        rg = -(self.gglob - hg) * s.global_free
+        rg = -(gglob - hg) * s.global_free
         return np.concatenate([rl.ravel(), rg])
 
-    def back_substitute(self, dc: np.ndarray) -> np.ndarray:
-        """Point steps ``-V^-1 (g_p + W' dc)`` (n_points, 3) for camera-side steps ``dc``."""
+    def back_substitute(self, dc: np.ndarray, gpt: np.ndarray | None = None) -> np.ndarray:
+        """Point steps ``-V^-1 (g_p + W' dc)`` (n_points, 3) for camera-side steps ``dc``
+        (``g_p`` the linearisation's point gradients or ``gpt`` (n_points, 3))."""
         s = self.sys
         L, b = s.n_local, s.b
         dl = dc[: L * b].reshape(L, b)
@@ -863,7 +904,7 @@ class _Normal:
             s.n,
             acc,
         )
-        t = self.gpt + acc
+        t = (self.gpt if gpt is None else gpt) + acc
         if s.sparse_global:
             hd = (self.Hp @ dg[s.pg_cols][:, :, None])[:, :, 0]  # (n_pg, 3)
             t[s.pg_pt_keys] += np.add.reduceat(hd, s.pg_pt_starts, axis=0)
@@ -872,19 +913,58 @@ class _Normal:
         return -(self.Vinv @ t[:, :, None])[:, :, 0]
 
     def solve(self) -> tuple[np.ndarray, np.ndarray, SparseFactor]:
-        """Camera-side step (nc,), point step (n_points, 3) and the factor used."""
+        """Camera-side step (nc,), point step (n_points, 3) and the factor used (kept for
+        :meth:`solve_residuals`)."""
         F = self.factor()
+        self._factor = F
         dc = F.solve(self.reduced_rhs())
         return dc, self.back_substitute(dc), F
 
+    def solve_gradient(self, gc: np.ndarray, gp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The step of the same damped system for the gradient ``gc`` (nc,), ``gp``
+        (n_points, 3) in place of the linearisation's (e.g. :meth:`SchurSystem.gradient` of
+        other residuals): camera side (nc,), points (n_points, 3).
+
+        The factor of the last :meth:`solve` is used (factorised here if there was none):
+        the matrix does not depend on the gradient, so a second right-hand side (a geodesic
+        acceleration's) costs a solve with the factor and no reduction.
+        """
+        F = self._factor
+        if F is None:
+            F = self._factor = self.factor()
+        s = self.sys
+        gc = np.asarray(gc, dtype=float)
+        gp = np.asarray(gp, dtype=float).reshape(s.n_points, 3)
+        grads = (gc[: s.n_local * s.b].reshape(s.n_local, s.b), gc[s.n_local * s.b :], gp)
+        dc = F.solve(self.reduced_rhs(grads))
+        return dc, self.back_substitute(dc, gp)
+
+    def drop_reduction(self) -> None:
+        """Free what :meth:`solve_gradient` with the kept factor does not need: the reduced
+        matrix and its blocks, ``Y``, the linearisation (its masked Jacobian blocks);
+        :meth:`predicted_decrease` and :meth:`damping_diagonal` still work."""
+        if self._factor is None:
+            self._factor = self.factor()
+        self.S = self.D = self.off = self.LG = self.GG = None
+        self.U = self.Ulg = self.Ugg = self.V = None
+        self.Y = self.VH = self.VHp = self.lin = None
+
+    def damping_diagonal(self) -> np.ndarray:
+        """The diagonal the damping is scaled by (that of ``J'J`` with the prior terms,
+        at least 1e-12; zero for fixed parameters), camera side then points (nc + 3
+        n_points,): the metric of steps that :meth:`predicted_decrease` uses."""
+        s = self.sys
+        diag = np.concatenate([np.maximum(d, 1e-12).ravel() for d in self.diag])
+        free = np.concatenate(
+            [s.local_free.ravel(), s.global_free, np.ones(self.diag[2].size, dtype=bool)]
+        )
+        return diag * free
+
     def predicted_decrease(self, dc: np.ndarray, dp: np.ndarray, damping: float) -> float:
         """``-2 g'dx - dx' N dx`` of the undamped model, from the damped solution."""
-        s = self.sys
         g = np.concatenate([self.gloc.ravel(), self.gglob, self.gpt.ravel()])
         dx = np.concatenate([dc, dp.ravel()])
-        diag = np.concatenate([np.maximum(d, 1e-12).ravel() for d in self.diag])
-        free = np.concatenate([s.local_free.ravel(), s.global_free, np.ones(dp.size, dtype=bool)])
-        return float(-(g @ dx) + damping * np.sum(diag * free * dx * dx))
+        return float(-(g @ dx) + damping * np.sum(self.damping_diagonal() * dx * dx))
 
 
 @dataclass

@@ -946,12 +946,19 @@ class _BundleSteps:
         self.weights = problem.robust_weights(e2)
         self.lin = problem.linearize(state, self.weights)
         self._e2 = e2
+        #: the damped normal equations of the last solve and their damping, with their
+        #: factor: an accelerated retry of its step solves with it (no second reduction
+        #: and factorisation); dropped before the next solve or linearisation
+        self._normal = None
+        self._damping = math.nan
 
     def solve(self, damping: float):
+        self._normal = None  # the last trial's system: not kept beside this one
         ne = self.problem.sys.normal_equations(self.lin, damping=damping)
         dc, dp, _ = ne.solve()
         pred = ne.predicted_decrease(dc, dp, damping)
-        del ne  # the reduced system and its blocks: not kept beside the next linearisation
+        ne.drop_reduction()  # kept: the factor and what a second right-hand side needs
+        self._normal, self._damping = ne, damping
         return (dc, dp), pred
 
     def evaluate(self, state: _State, step):
@@ -972,8 +979,10 @@ class _BundleSteps:
         """The damped step ``v`` with its geodesic acceleration (Transtrum and Sethna):
         ``v + a / 2``, ``a`` the damped solve with the second directional derivative of the
         residuals along ``v`` in place of the residuals, or None when ``|a|`` exceeds
-        :data:`ACCELERATION_RATIO` times ``|v| / 2`` (norms scaled by the normal matrix's
-        diagonal, as the damping) or the loss is robust.
+        :data:`ACCELERATION_RATIO` times ``|v| / 2`` (norms scaled by the diagonal the
+        damping is scaled by) or the loss is robust. ``a`` is solved with the factor of
+        the damped system ``v`` came from (the same matrix: only the right-hand side
+        differs).
 
         The second derivative is the finite difference ``2 / h (r(x + h v) - r(x) - h J v)
         / h`` with ``h`` = :data:`ACCELERATION_STEP`; the terms of the GNSS, IMU and
@@ -985,6 +994,11 @@ class _BundleSteps:
         problem = self.problem
         if problem.options.loss != "squared" or state is not self._state:
             return None
+        ne = self._normal
+        if ne is None or self._damping != damping:  # not the last solve's system
+            self._normal = None
+            ne = self._normal = problem.sys.normal_equations(self.lin, damping=damping)
+            self._damping = damping
         dc, dp = step
         lin = self.lin
         m, b = problem.m, problem.b
@@ -1004,42 +1018,11 @@ class _BundleSteps:
         near /= h
         near -= jv
         near *= 2.0 / h  # r_vv, whitened
-        curved = Linearization(
-            near,
-            lin.A,
-            lin.G,
-            lin.P,
-            lin.local_info,
-            np.zeros_like(lin.local_grad),
-            lin.point_info,
-            np.zeros_like(lin.point_grad),
-            lin.global_info,
-            np.zeros_like(lin.global_grad),
-            0.0,
-        )
-        del near, jv
-        ne = problem.sys.normal_equations(curved, damping=damping)
-        ac, ap, _ = ne.solve()
-        del ne
-        # norms in the damping's metric: the diagonal of J'J (image rows and priors)
-        dloc = np.bincount(
-            (i[:, None] * b + np.arange(b)).ravel(),
-            weights=np.einsum("ndc,ndc->nc", lin.A, lin.A).ravel(),
-            minlength=m * b,
-        )
-        dloc += np.einsum("lcc->lc", lin.local_info).ravel()
-        dcal = np.bincount(
-            (cam[:, None] * NCAL + np.arange(NCAL)).ravel(),
-            weights=np.einsum("ndc,ndc->nc", lin.G, lin.G).ravel(),
-            minlength=problem.ng * NCAL,
-        )
-        dpt = np.bincount(
-            (j[:, None] * 3 + np.arange(3)).ravel(),
-            weights=np.einsum("ndc,ndc->nc", lin.P, lin.P).ravel(),
-            minlength=problem.p * 3,
-        )
-        dpt += np.einsum("pcc->pc", lin.point_info).ravel()
-        diag = np.concatenate([dloc, dcal, dpt])
+        del jv
+        ac, ap = ne.solve_gradient(*problem.sys.gradient(lin, near))
+        del near
+        # norms in the damping's metric
+        diag = ne.damping_diagonal()
         v = np.concatenate([dc, dp.ravel()])
         a = np.concatenate([ac, ap.ravel()])
         if 2.0 * math.sqrt(diag @ (a * a)) > ACCELERATION_RATIO * math.sqrt(diag @ (v * v)):
@@ -1071,7 +1054,8 @@ class _BundleSteps:
         self._cost = cost
         self.weights = problem.robust_weights(self._e2)
         radial = problem.radial_curvature(self._e2) if self.newton else None
-        self.lin = None  # free the old Jacobian blocks before forming the new ones
+        self._normal = None  # the last trial's system, then the old Jacobian blocks:
+        self.lin = None  # freed before the new ones are formed
         self.lin = problem.linearize(state, self.weights, radial)
 
 
