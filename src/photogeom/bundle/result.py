@@ -22,6 +22,7 @@ from ..rotation import LOCK_COS_PHI
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
+from .determined import check_determined
 from .residuals import reprojection_residuals
 from .robust import (
     covariance_weights,
@@ -1141,6 +1142,7 @@ def build_result(
     lin, ne, F, Q, Qpp, Cobs = statistics_pass(
         problem, state, run.weights, pairs=need_pairs, cofactors=cofactors, run=run
     )
+    check_determined(problem, lin, Q)  # a singular system that rounding let factorise
     m = problem.m
     n_obs, n_unk = problem.counts()
     red = n_obs - n_unk
