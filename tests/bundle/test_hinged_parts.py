@@ -172,3 +172,17 @@ def test_inflation_factors_are_those_of_the_dense_normal_matrix():
     assert local.max() > 1e4  # the hinge of three points is weak
     np.testing.assert_allclose(local, vif, rtol=1e-3)
     assert not np.any(cal)  # no free calibration
+
+
+@pytest.mark.parametrize("backend", ["dense", "superlu"])
+def test_one_linking_point_is_refused_naming_the_hinged_part_not_the_calibration(backend):
+    # the factorisation fails here; before, its error advised to fix calibration parameters
+    # (none are free) and named no image
+    _, start = hinged_block(1)
+    with pytest.raises(DegenerateGeometryError, match="do not determine all free parameters") as e:
+        pg.bundle_adjust(start, free=(), backend=backend)
+    text = str(e.value)
+    named = {w.split(" ")[0] for w in text.split("image(s) ")[1].split(". ")[0].split("; ")}
+    named = {w for w in named if w.startswith("img")}
+    assert named and named <= PART_B
+    assert "fewer than three tie points" in text and "calibration" not in text

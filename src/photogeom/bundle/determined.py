@@ -171,3 +171,49 @@ def check_determined(problem: Problem, lin, Q) -> None:
         + advice(problem, cal, VIF_MAX)
     )
 
+
+#: Marquardt damping (relative to the diagonal) of the system whose inverse names the
+#: unknowns of a reduced camera system that does not factorise: it bounds their variance
+#: inflation factors near its inverse, far above those of determined unknowns.
+NAMING_DAMPING = 1e-10
+
+
+def singular_error(problem: Problem, lin, exc: Exception) -> DegenerateGeometryError | None:
+    """The error of a reduced camera system that does not factorise (or whose inverse
+    does not form) at the solution, naming the unknowns it leaves free.
+
+    They are the unknowns of the largest variance inflation factors (at least 1e-2 of the
+    largest and 1e6) of the system damped by :data:`NAMING_DAMPING`; the cost is one more
+    factorisation and the diagonal blocks of its inverse, on this failure only.
+
+    Parameters
+    ----------
+    problem : Problem
+        The adjustment.
+    lin : Linearization
+        Its final, undamped linearisation.
+    exc : Exception
+        The factorisation's error (its text is kept).
+
+    Returns
+    -------
+    DegenerateGeometryError or None
+        None when the damped system does not name them either.
+    """
+    from ..adjust.schur import covariance_blocks
+
+    try:
+        ne = problem.sys.normal_equations(lin, damping=NAMING_DAMPING)
+        Q = covariance_blocks(ne, ne.factor(), pairs=False)
+    except DegenerateGeometryError:
+        return None
+    local, cal = inflation_factors(problem, lin, Q)
+    top = max(float(local.max(initial=0.0)), float(cal.max(initial=0.0)))
+    if not (np.isfinite(top) and top > 1e6):
+        return None
+    bound = max(1e-2 * top, 1e6)
+    return DegenerateGeometryError(
+        f"the observations do not determine all free parameters at the solution ({exc}): "
+        f"they leave free {undetermined_text(problem, local, cal, bound)}. Causes: "
+        + advice(problem, cal, bound)
+    )
