@@ -186,3 +186,16 @@ def test_one_linking_point_is_refused_naming_the_hinged_part_not_the_calibration
     named = {w for w in named if w.startswith("img")}
     assert named and named <= PART_B
     assert "fewer than three tie points" in text and "calibration" not in text
+
+
+def test_adjust_with_grids_refuses_the_hinge_of_two_points():
+    # the joint system with residual grids factorised too, and the block came back with
+    # its hinged half at whatever rotation the iteration left, without a word
+    from photogeom.calibration.in_adjustment import adjust_with_grids
+
+    _, start = hinged_block(2)
+    with pytest.raises(DegenerateGeometryError, match="do not determine all free parameters") as e:
+        adjust_with_grids(start, 1000.0, per="camera")
+    text = str(e.value)
+    named = {w.split(" ")[0] for w in text.split("image(s) ")[1].split(". ")[0].split("; ")}
+    assert {w for w in named if w.startswith("img")} <= PART_B

@@ -217,3 +217,40 @@ def singular_error(problem: Problem, lin, exc: Exception) -> DegenerateGeometryE
         f"they leave free {undetermined_text(problem, local, cal, bound)}. Causes: "
         + advice(problem, cal, bound)
     )
+
+
+def check_state_determined(problem: Problem, state) -> None:
+    """Refuse a state of ``problem`` whose reduced camera system is singular: the bundle
+    part of an adjustment that adds unknowns of its own (residual grids), whose own
+    factorisation does not name the cause.
+
+    Adding unknowns never determines the block's own: a defect of the bundle part is one
+    of the joint system. The check is one linearisation (unit weights), one factorisation
+    and the diagonal blocks of its inverse (:func:`check_determined`); with
+    ``backend="cg"`` (no factor, a solve per unknown) it is not made.
+
+    Parameters
+    ----------
+    problem : Problem
+        The bundle adjustment of the block.
+    state : _State
+        Its unknowns at the solution.
+
+    Raises
+    ------
+    DegenerateGeometryError
+        As :func:`check_determined`, or as :func:`singular_error` where the factorisation
+        fails.
+    """
+    from ..adjust.schur import covariance_blocks
+
+    if problem.options.backend == "cg":
+        return
+    lin = problem.linearize(state, np.ones(problem.obs_i.size))
+    ne = problem.sys.normal_equations(lin)
+    try:
+        Q = covariance_blocks(ne, ne.factor(), pairs=False)
+    except DegenerateGeometryError as exc:
+        named = singular_error(problem, lin, exc)
+        raise (named or exc) from exc
+    check_determined(problem, lin, Q)
