@@ -8,11 +8,12 @@ rounding noise times 1e15 (standard deviations of 3e4 m on a 12-image block whos
 halves share two tie points). The variance inflation factor of each unknown,
 ``VIF_k = Q_kk N_kk`` (``Q`` the inverse of the normal matrix, ``N_kk`` its diagonal; 1 for
 an unknown uncorrelated with all others, ``1 / (1 - R_k^2)`` with ``R_k`` its multiple
-correlation with them), tells them apart: rounding of the factorisation and of the Schur
-complement leaves ``1 - R_k^2`` at least about 1e-13 for such a direction, while a determined
-but weak unknown has a VIF far below (a focal length with all Brown terms on a flat nadir
-block without GNSS, standard deviation 1e4 px: 5e10). It costs the diagonals of the
-covariance blocks the statistics compute anyway and one pass over the Jacobian blocks.
+correlation with them), tells them apart: along such a direction ``1 - R_k^2`` is rounding,
+1e-16 to 1e-14 (factors of 9e14 to 2e15 on that block), while a determined but weak unknown
+has a factor far below the bound (a focal length with all Brown terms on a flat nadir block
+without GNSS, standard deviation 1e4 px: 5e10). It costs the diagonals of the covariance
+blocks the statistics compute anyway and one pass over the Jacobian blocks (0.14 s of 52 s
+on a simulated 500-image block of 75 000 observations).
 """
 
 from __future__ import annotations
