@@ -854,7 +854,9 @@ def _datum_missing(P: np.ndarray, imu: bool, sigma: np.ndarray | None = None) ->
     sigma : numpy.ndarray, shape (k, 3), optional
         Standard deviations of ``P``, object units (m). Positions on one line within
         :data:`LINE_WITHIN_SIGMAS` of them (RMS of the whitened distances from the line)
-        leave the rotation about the line undetermined, as exactly collinear ones do.
+        leave the rotation about the line undetermined, as exactly collinear ones do;
+        positions at one point within as much (RMS of the whitened distances from their
+        centroid) the scale and, without ``imu``, the rotations, as a single one does.
 
     Returns
     -------
@@ -869,6 +871,18 @@ def _datum_missing(P: np.ndarray, imu: bool, sigma: np.ndarray | None = None) ->
     _, s, vt = np.linalg.svd(c, full_matrices=False)
     if s[0] <= 1e-9 * max(1.0, float(np.abs(P).max())):
         return ["the scale"] + ([] if imu else ["3 rotations"])
+    if sigma is not None:
+        rms = float(np.sqrt(np.mean(np.sum((c / sigma) ** 2, axis=1))))
+        if rms <= LINE_WITHIN_SIGMAS:  # one point within their accuracy: no scale, no roll
+            dist = float(np.sqrt(np.mean(np.sum(c**2, axis=1))))
+            sd = float(np.sqrt(np.mean(sigma**2)))
+            return [
+                "the scale"
+                + ("" if imu else " and the 3 rotations")
+                + f": they lie at one point within their accuracy (RMS distance from their "
+                f"centroid {dist:.3g}, {rms:.2g} times their standard deviations of {sd:.3g} "
+                f"RMS; at most {LINE_WITHIN_SIGMAS:g} times leaves the scale to their noise)"
+            ]
     if imu:
         return []
     roll = "the rotation about the line through the control/GNSS positions"

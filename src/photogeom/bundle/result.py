@@ -15,6 +15,7 @@ from ..adjust.schur import (
     point_covariances,
 )
 from ..adjust.snooping import POORLY_CONTROLLED, noncentrality
+from ..adjust.sparse import CGNotConvergedError
 from ..camera.frame_kernel import opk_from_increment_jacobian
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
 from ..records import compact_repr, freeze_fields, read_only_fields, setstate_read_only
@@ -22,6 +23,7 @@ from ..rotation import LOCK_COS_PHI
 from ._angles import opk_from_rotations
 from .adjustment import NCAL, Problem
 from .block import CALIBRATION_NAMES, EO_NAMES, Block
+from .determined import check_determined, singular_error
 from .residuals import reprojection_residuals
 from .robust import (
     covariance_weights,
@@ -851,14 +853,19 @@ def statistics_pass(
         raise named from exc
     try:
         F = ne.factor()
+        Q = covariance_blocks(ne, F, pairs=pairs)  # a dense inverse may fail where F did not
+    except CGNotConvergedError:
+        raise
     except DegenerateGeometryError as exc:
+        named = singular_error(problem, lin, exc)
+        if named is not None:
+            raise named from exc
         raise DegenerateGeometryError(
             "the observations do not determine all free parameters at the solution "
             f"({exc}): fix calibration parameters the geometry cannot separate (e.g. "
             "free=('f', 'cx', 'cy', 'k1', 'k2', 'k3', 'p1', 'p2') without b1/b2/k4, or f on a "
             "flat block without GNSS/oblique images) or add control"
         ) from exc
-    Q = covariance_blocks(ne, F, pairs=pairs)
     Qpp = point_covariances(ne, Q) if pairs else None
     Cobs = observation_cofactors(ne, Q, Qpp) if cofactors else None
     return lin, ne, F, Q, Qpp, Cobs
@@ -1141,6 +1148,7 @@ def build_result(
     lin, ne, F, Q, Qpp, Cobs = statistics_pass(
         problem, state, run.weights, pairs=need_pairs, cofactors=cofactors, run=run
     )
+    check_determined(problem, lin, Q)  # a singular system that rounding let factorise
     m = problem.m
     n_obs, n_unk = problem.counts()
     red = n_obs - n_unk

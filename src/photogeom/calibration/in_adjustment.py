@@ -65,6 +65,7 @@ from ..adjust.schur import invert_point_blocks
 from ..adjust.sparse import HAVE_CHOLMOD, CGNotConvergedError, factorize
 from ..bundle.adjustment import NCAL, Problem, _step_small
 from ..bundle.block import Block
+from ..bundle.determined import check_state_determined
 from ..bundle.options import BundleOptions
 from ..camera.frame_kernel import project_rows
 from ..errors import ConvergenceError, DegenerateGeometryError, InputError
@@ -1183,6 +1184,8 @@ def adjust_with_grids(
     sa = _amplitude(block, sigma_amplitude, spacing, sc, border)
     gp = _GridProblem(block, opts, spacing, per, datum, sc, st, sa, border)
     s, z, N, cost, it, converged, message, history = _levenberg_marquardt(gp, opts, progress)
+    # the block's own unknowns, which no grid determines (a part hinged on one or two points)
+    check_state_determined(gp.bp, s)
     n_obs = 2 * gp.n + _prior_count(gp.bp) + gp.n_pseudo
     redundancy = int(n_obs - gp.free_idx.size)
     # the cost is whitened by the sigmas alone; with the weights P = sigma0_prior^2 / sigma^2
