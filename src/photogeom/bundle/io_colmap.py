@@ -511,10 +511,17 @@ def _read_images(path: Path):
         if not s or s.startswith("#"):
             k += 1
             continue
+        if k + 1 == len(raw):  # COLMAP's reader drops such an image without a word
+            raise FileFormatError(
+                f"{path}, line {k + 1}: the file ends after this image's header line, without "
+                "its POINTS2D line (COLMAP writes one for every image, empty when the image "
+                "has no 2D points): the file is cut short, and COLMAP would read it without "
+                f"this image; write the model again, or end the file with an empty line after "
+                f"line {k + 1} to keep the image with no 2D points"
+            )
         heads.append(s.split())
         head_no.append(k + 1)
-        # the last image's POINTS2D line may be missing when it is empty (end of file)
-        pts_lines.append(raw[k + 1] if k + 1 < len(raw) else "")
+        pts_lines.append(raw[k + 1])
         pts_no.append(k + 2)
         k += 2
     m = len(heads)

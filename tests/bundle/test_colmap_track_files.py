@@ -1,0 +1,76 @@
+"""COLMAP text and binary models that COLMAP's reader takes and a block cannot hold as written:
+an images.txt cut short after an image's header line, and a track naming one image twice.
+
+pycolmap is the peer: it reads each file, and the tests check what it reads of it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from photogeom.bundle import read_colmap
+from photogeom.errors import FileFormatError
+
+pycolmap = pytest.importorskip("pycolmap")
+
+W, H, F = 3000, 2000, 2500.0
+IMAGE_IDS = [3, 5, 8]
+
+
+def _model(d: Path, *, extra_image: str = "", end: str = "\n") -> Path:
+    """A COLMAP text model: 3 images looking down at 12 points (every point in every
+    image); ``extra_image``: one more images.txt header line, written after the others and
+    followed by ``end``."""
+    rng = np.random.default_rng(5)
+    d.mkdir()
+    (d / "cameras.txt").write_text(f"# Camera list\n1 SIMPLE_PINHOLE {W} {H} {F} 1500 1000\n")
+    pid = np.arange(12) + 100
+    xyz = np.column_stack(
+        [rng.uniform(-20, 20, 12), rng.uniform(-15, 15, 12), rng.normal(0, 2, 12)]
+    )
+    R = np.diag([1.0, -1.0, -1.0])  # looking straight down: q = (0, 1, 0, 0)
+    lines, tracks = ["# Image list"], {int(p): [] for p in pid}
+    for iid, x in zip(IMAGE_IDS, (-8.0, 0.0, 8.0)):
+        c = np.array([x, 1.0, 90.0])
+        T = (-R @ c).tolist()
+        P = (xyz - c) @ R.T
+        uv = F * P[:, :2] / P[:, 2:] + [1500.0, 1000.0] + rng.normal(0, 0.3, (12, 2))
+        lines.append(f"{iid} 0 1 0 0 {T[0]!r} {T[1]!r} {T[2]!r} 1 IMG_{iid}.JPG")
+        lines.append(" ".join(f"{u!r} {v!r} {p}" for (u, v), p in zip(uv.tolist(), pid)))
+        for j, p in enumerate(pid):
+            tracks[int(p)] += [iid, j]
+    text = "\n".join(lines) + "\n"
+    (d / "images.txt").write_text(text + (extra_image + end if extra_image else ""))
+    (d / "points3D.txt").write_text(
+        "# 3D point list\n"
+        + "".join(
+            f"{p} {x!r} {y!r} {z!r} 0 0 0 -1 {' '.join(map(str, tracks[int(p)]))}\n"
+            for p, (x, y, z) in zip(pid, xyz.tolist())
+        )
+    )
+    return d
+
+
+LAST = "9 0 1 0 0 0.0 1.0 -90.0 1 IMG_9.JPG"
+
+
+@pytest.mark.parametrize("end", ["\n", ""])
+def test_images_txt_cut_after_a_header_line_is_refused_naming_it(tmp_path, end):
+    # the last image's header line without its POINTS2D line: COLMAP drops the image
+    d = _model(tmp_path / "m", extra_image=LAST, end=end)
+    assert pycolmap.Reconstruction(str(d)).num_images() == 3
+    with pytest.raises(FileFormatError, match=r"images\.txt, line 8: the file ends after") as e:
+        read_colmap(d)
+    assert "POINTS2D" in str(e.value) and "empty line after line 8" in str(e.value)
+
+
+def test_images_txt_with_the_empty_points2d_line_keeps_the_image(tmp_path):
+    # the same image with its (empty) POINTS2D line, as COLMAP writes it: both read 4 images
+    d = _model(tmp_path / "m", extra_image=LAST, end="\n\n")
+    assert pycolmap.Reconstruction(str(d)).num_images() == 4
+    block = read_colmap(d, image_key="id")
+    assert sorted(block.image_ids.tolist()) == [3, 5, 8, 9]
+    assert len(block.obs_image) == 36
