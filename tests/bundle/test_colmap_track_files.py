@@ -74,3 +74,51 @@ def test_images_txt_with_the_empty_points2d_line_keeps_the_image(tmp_path):
     block = read_colmap(d, image_key="id")
     assert sorted(block.image_ids.tolist()) == [3, 5, 8, 9]
     assert len(block.obs_image) == 36
+
+
+def _image_twice(d: Path) -> Path:
+    """The model of :func:`_model` with a 13th 2D point of image 3 linked to point 100, which
+    image 3 sees at its 2D point 0 already: point 100's track names image 3 twice."""
+    lines = (d / "images.txt").read_text().splitlines()
+    lines[2] += " 1501.25 1000.75 100"
+    (d / "images.txt").write_text("\n".join(lines) + "\n")
+    pts = (d / "points3D.txt").read_text().splitlines()
+    pts[1] += " 3 12"
+    (d / "points3D.txt").write_text("\n".join(pts) + "\n")
+    return d
+
+
+def test_a_track_naming_an_image_twice_is_refused_naming_lines_and_ids(tmp_path):
+    d = _image_twice(_model(tmp_path / "m"))
+    peer = pycolmap.Reconstruction(str(d))  # COLMAP keeps both observations
+    assert peer.points3D[100].track.length() == 4
+    assert sorted(e.image_id for e in peer.points3D[100].track.elements) == [3, 3, 5, 8]
+    with pytest.raises(FileFormatError) as e:
+        read_colmap(d)
+    msg = str(e.value)
+    assert "points3D.txt, line 2: the track of point 100 names image 3 (IMG_3.JPG) twice" in msg
+    assert "POINT2D_IDX 0 and 12" in msg and "images.txt, line 3" in msg
+    assert "remove one of the two from the track" in msg
+
+
+def test_a_binary_track_naming_an_image_twice_is_refused_as_the_text_one(tmp_path):
+    d = _image_twice(_model(tmp_path / "m"))
+    out = tmp_path / "bin"
+    out.mkdir()
+    pycolmap.Reconstruction(str(d)).write_binary(str(out))  # COLMAP's own binary model
+    with pytest.raises(FileFormatError) as e:
+        read_colmap(out)
+    msg = str(e.value)
+    assert "points3D.bin, byte " in msg
+    assert "the track of point 100 names image 3 (IMG_3.JPG) twice, POINT2D_IDX 0 and 12" in msg
+    assert "images.bin, byte " in msg
+
+
+def test_bundle_convert_of_a_track_naming_an_image_twice_names_the_file(tmp_path, cli):
+    # before, the block was read and written as CSV and Bundler blocks that their own
+    # readers refuse, and bundle adjust refused it naming no file
+    d = _image_twice(_model(tmp_path / "m"))
+    code, _out, err = cli("bundle", "convert", d, tmp_path / "csv", "--to", "csv")
+    assert code != 0
+    assert "points3D.txt, line 2: the track of point 100 names image 3" in " ".join(err.split())
+    assert not (tmp_path / "csv").exists()
