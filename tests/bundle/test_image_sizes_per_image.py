@@ -132,3 +132,42 @@ def test_a_csv_of_sizes_that_cannot_be_read_is_refused_by_line(cli, tmp_path, te
     code, _, err = cli("bundle", "convert", DUBROVNIK, tmp_path / "b", "--to", "csv",
                        "--image-size", sizes)  # fmt: skip
     assert code == 2 and words in err, err
+
+
+def test_two_rows_naming_one_integer_id_are_refused_naming_both_lines(cli, tmp_path):
+    # rows 0 and 00 both set image 0 of a BAL file: the later one (100 x 100) won silently
+    sizes = tmp_path / "sizes.csv"
+    sizes.write_text("image_id,width,height\n0,2200,1800\n1,2400,1600\n2,3000,2000\n00,100,100\n")
+    code, _, err = cli("bundle", "convert", DUBROVNIK, tmp_path / "b", "--to", "csv",
+                       "--image-size", sizes)  # fmt: skip
+    assert code == 2, err
+    assert "lines 2 and 5: rows '0' and '00' both name image 0" in " ".join(err.split())
+    assert not (tmp_path / "b").exists()
+    # 00 alone is image 0, as the integer it spells
+    sizes.write_text("image_id,width,height\n00,2200,1800\n1,2400,1600\n2,3000,2000\n")
+    code, _, err = cli("bundle", "convert", DUBROVNIK, tmp_path / "c", "--to", "csv",
+                       "--image-size", sizes)  # fmt: skip
+    assert code == 0, err
+    got = pg.bundle.read_csv_block(tmp_path / "c").image_sizes()
+    np.testing.assert_array_equal(got, [[2200, 1800], [2400, 1600], [3000, 2000]])
+
+
+def test_a_bundler_file_without_a_list_refuses_two_rows_naming_one_camera(cli, bundler, tmp_path):
+    (tmp_path / "b.out").write_bytes(bundler.read_bytes())  # no list: ids are camera indices
+    sizes = tmp_path / "sizes.csv"
+    sizes.write_text("image_id,width,height\n0,3000,2000\n01,3000,2000\n1,3000,2000\n2,3000,2000\n")
+    code, _, err = cli("bundle", "convert", tmp_path / "b.out", tmp_path / "c", "--to", "csv",
+                       "--image-size", sizes)  # fmt: skip
+    assert code == 2, err
+    assert "lines 3 and 4: rows '01' and '1' both name image 1" in " ".join(err.split())
+
+
+def test_text_ids_of_a_csv_of_sizes_match_exactly(tmp_path):
+    from photogeom.cli._common import image_sizes_option
+
+    sizes = tmp_path / "sizes.csv"
+    sizes.write_text("image_id,width,height\n0,2200,1800\n00,100,100\n")
+    got = image_sizes_option(str(sizes))
+    assert got["0"] == (2200, 1800) and got["00"] == (100, 100)  # two images of a text block
+    with pytest.raises(InputError, match=r"lines 2 and 3: rows '0' and '00' both name image 0"):
+        0 in got  # noqa: B015 (an integer block's lookup)

@@ -345,7 +345,11 @@ def test_refused_cameras(tmp_path, cameras, match):
             None,
             r"NAME 'a.jpg' appears twice; read with image_key='id'",
         ),
-        ("1 1 0 0 0 0 0 5 1 a.jpg\n", None, r"point 7 is observed in image 2, which is not in"),
+        (
+            "1 1 0 0 0 0 0 5 1 a.jpg\n10 20 7\n",
+            None,
+            r"point 7 is observed in image 2, which is not in",
+        ),
         ("# nothing\n", None, r"images\.txt: no images"),
     ],
 )

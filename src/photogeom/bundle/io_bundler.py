@@ -286,7 +286,7 @@ def _sizes(
     if image_size is not None and not isinstance(image_size, Mapping):
         w, h = (int(s) for s in image_size)
         return np.tile([w, h], (m, 1)), turn
-    given = dict(image_size or {})
+    given = image_size or {}  # the mapping as given: its own lookups (--image-size's refusals)
     out = np.zeros((m, 2), dtype=np.int64)
     for k, key in enumerate(ids.tolist()):
         if key in given:

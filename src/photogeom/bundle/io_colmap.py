@@ -511,10 +511,17 @@ def _read_images(path: Path):
         if not s or s.startswith("#"):
             k += 1
             continue
+        if k + 1 == len(raw):  # COLMAP's reader drops such an image without a word
+            raise FileFormatError(
+                f"{path}, line {k + 1}: the file ends after this image's header line, without "
+                "its POINTS2D line (COLMAP writes one for every image, empty when the image "
+                "has no 2D points): the file is cut short, and COLMAP would read it without "
+                f"this image; write the model again, or end the file with an empty line after "
+                f"line {k + 1} to keep the image with no 2D points"
+            )
         heads.append(s.split())
         head_no.append(k + 1)
-        # the last image's POINTS2D line may be missing when it is empty (end of file)
-        pts_lines.append(raw[k + 1] if k + 1 < len(raw) else "")
+        pts_lines.append(raw[k + 1])
         pts_no.append(k + 2)
         k += 2
     m = len(heads)
@@ -1179,6 +1186,7 @@ def _read_text_model(
             p3d=p3d,
             n2d=n2d,
             image_at=lambda i: f"line {head_no[i]}",
+            points2d_at=lambda i: f"line {head_no[i] + 1}",
             pid=pid,
             xyz=head[:, 1:4],
             track=track,
@@ -1223,7 +1231,8 @@ class ModelArrays:
     their ``POINT3D_ID`` (-1: none); per point ``pid`` (int64), ``xyz`` (p, 3); the track
     elements ``track`` (t, 2: IMAGE_ID, POINT2D_IDX as float64) and ``owner`` (t,) the
     point of each; ``image_at(i)``, ``point_at(k)``: where image ``i`` and point ``k``
-    are in their files ("line 12", "byte 4096"), for errors.
+    are in their files ("line 12", "byte 4096"), for errors; ``points2d_at(i)``: where
+    image ``i``'s 2D points are (its POINTS2D line; ``None``: at ``image_at(i)``).
     """
 
     cams: dict
@@ -1243,6 +1252,7 @@ class ModelArrays:
     track: np.ndarray
     owner: np.ndarray
     point_at: Callable[[int], str]
+    points2d_at: Callable[[int], str] | None = None
 
 
 def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
@@ -1253,7 +1263,8 @@ def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
     ------
     FileFormatError
         Repeated point ids, NaN or infinite coordinates, tracks naming missing images or
-        out-of-range 2D points, tracks that disagree with the images' 2D points, quaternions
+        out-of-range 2D points, tracks that disagree with the images' 2D points, tracks
+        that name an image twice, quaternions
         whose norm is not 1, malformed camera group lines, poses that contradict the
         frames (:func:`check_frames`).
     """
@@ -1309,6 +1320,7 @@ def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
             f"{pi} links {linked} 2D points to 3D points but the tracks of {pp} hold "
             f"{flat.size} (with {repeated} repeated): the two files disagree"
         )
+    _refuse_image_twice_in_a_track(mdl, flat, row, owner, offset)
     uv = p2d[flat] - 0.5
     nf = ~np.all(np.isfinite(uv), axis=1)
     if np.any(nf):
@@ -1352,6 +1364,41 @@ def block_from_model(model: ModelArrays, image_key: str, sigma: float) -> Block:
     return block.replace(colmap_images=ColmapImages(block.image_ids, image_id, names))
 
 
+
+
+def _refuse_image_twice_in_a_track(
+    mdl: ModelArrays, flat: np.ndarray, row: np.ndarray, owner: np.ndarray, offset: np.ndarray
+) -> None:
+    """Refuse a track that names one image twice (two 2D points of an image linked to one 3D
+    point): COLMAP keeps both, a block holds one observation of a point per image.
+
+    ``flat``, ``row``, ``owner``: per track element, its 2D point (index into all images' 2D
+    points), its image and its point; ``offset``: each image's first 2D point. Names the
+    first such point of the points file, its image and both POINT2D_IDX. Vectorised: one
+    stable sort of (point, image) codes."""
+    if flat.size < 2:
+        return
+    m = max(mdl.image_id.size, 1)
+    key = owner.astype(np.int64) * m + row
+    order = np.argsort(key, kind="stable")
+    same = np.flatnonzero(key[order[1:]] == key[order[:-1]])
+    if not same.size:
+        return
+    j = same[int(np.argmin(owner[order[same]]))]  # the first such point of the points file
+    a, b = int(order[j]), int(order[j + 1])
+    i, k = int(row[a]), int(owner[a])
+    idx = sorted((int(flat[a] - offset[i]), int(flat[b] - offset[i])))
+    pi, pp = mdl.files[1], mdl.files[2]
+    where = mdl.points2d_at(i) if mdl.points2d_at is not None else mdl.image_at(i)
+    raise FileFormatError(
+        f"{pp}, {mdl.point_at(k)}: the track of point {mdl.pid[k]} names image "
+        f"{int(mdl.image_id[i])} ({mdl.names[i]}) twice, POINT2D_IDX {idx[0]} and {idx[1]} "
+        f"({pi}, {where}: both 2D points linked to point {mdl.pid[k]}); an image observes a "
+        "point once "
+        "(two 2D points of one image matched to one 3D point are a matching error), which a "
+        "block cannot hold: remove one of the two from the track and set that 2D point's "
+        "POINT3D_ID to -1"
+    )
 
 
 # --- writing ---------------------------------------------------------------------------------

@@ -474,6 +474,33 @@ def image_size_option(text: str, option: str = "--image-size") -> tuple[int, int
     return w, h
 
 
+class _SizesByRow(dict):
+    """``{image id: (width, height)}`` of a CSV of image sizes: the ids as text and, for ids
+    of digits only, as integers; an integer that two rows name (``0`` and ``00``) is refused
+    when a block with integer ids looks it up, naming both lines (a block with text ids
+    matches the texts exactly)."""
+
+    def __init__(self, sizes: dict, twice: dict[int, str]) -> None:
+        super().__init__(sizes)
+        self.twice = twice  # integer id -> the error naming the two rows
+
+    def _refuse(self, key: object) -> None:
+        if type(key) is int and key in self.twice:
+            raise InputError(self.twice[key])
+
+    def __contains__(self, key: object) -> bool:
+        self._refuse(key)
+        return super().__contains__(key)
+
+    def __getitem__(self, key: object) -> tuple[int, int]:
+        self._refuse(key)
+        return super().__getitem__(key)
+
+    def get(self, key: object, default=None):
+        self._refuse(key)
+        return super().get(key, default)
+
+
 def image_sizes_option(
     text: str, option: str = "--image-size"
 ) -> tuple[int, int] | dict[object, tuple[int, int]]:
@@ -490,9 +517,10 @@ def image_sizes_option(
     Returns
     -------
     tuple of int, or dict
-        ``(width, height)`` px, or ``{image id: (width, height)}``: the ids as text and, for
-        ids of digits only, also as integers (a BAL file's ids, a Bundler file's camera
-        indices).
+        ``(width, height)`` px, or ``{image id: (width, height)}``: the ids as text (matched
+        exactly) and, for ids of digits only, also as integers (a BAL file's ids, a Bundler
+        file's camera indices; ``00`` is image 0). Two rows naming one integer (``0`` and
+        ``00``) are refused, naming both lines, when a block with integer ids looks it up.
 
     Raises
     ------
@@ -520,6 +548,8 @@ def image_sizes_option(
         )
     at = [head.index(c) for c in ("image_id", "width", "height")]
     sizes: dict[object, tuple[int, int]] = {}
+    as_int: dict[int, tuple[int, str]] = {}  # integer id -> (line, id as typed) of its row
+    twice: dict[int, str] = {}
     for k, row in rows[1:]:
         try:
             key, w, h = (row[j].strip() for j in at)
@@ -536,8 +566,19 @@ def image_sizes_option(
             raise InputError(f"{option} {text}, line {k}: image {key!r} has a size already")
         sizes[key] = size
         if key.isascii() and key.isdigit():
-            sizes[int(key)] = size
-    return sizes
+            n = int(key)
+            if n in as_int:
+                line, first = as_int[n]
+                twice.setdefault(
+                    n,
+                    f"{option} {text}, lines {line} and {k}: rows {first!r} and {key!r} both "
+                    f"name image {n} (the block's image ids are integers); give each image "
+                    "one row",
+                )
+                continue
+            as_int[n] = (k, key)
+            sizes[n] = size
+    return _SizesByRow(sizes, twice)
 
 
 #: The image-size words of the BAL and Bundler readers (``photogeom.bundle.io_bal.SIZES_FIX``,
