@@ -154,3 +154,48 @@ def test_a_rejected_step_is_retried_with_its_acceleration():
     assert len(fast.evaluated) > run.iterations
     assert run.iterations < ref.iterations
     assert all(a > b for a, b in zip(run.history, run.history[1:]))
+
+
+class Bounded(Curve):
+    """:class:`Curve` whose trials with ``c`` at or above ``bound`` are invalid (as a point
+    behind its camera is to the bundle), with its own step tolerance."""
+
+    def __init__(self, t, y, x0, bound, xtol):
+        self.bound, self.xtol = bound, xtol
+        super().__init__(t, y, x0)
+
+    def evaluate(self, x, dx):
+        return x + dx, self.cost(x + dx), bool(x[2] + dx[2] < self.bound)
+
+    def small(self, x, dx):
+        return bool(np.all(np.abs(dx) <= self.xtol * np.maximum(np.abs(x), 1.0)))
+
+
+@pytest.mark.parametrize("xtol", [1e-14, 1e-10, 1e-8])
+@pytest.mark.parametrize("x0", [(1.0, -0.5, 0.0), (2.0, -1.0, 0.05), (3.0, -2.0, -0.5)])
+def test_steps_shrinking_against_invalid_trials_are_not_convergence(xtol, x0):
+    # the minimum (scipy's, c = 0.41) lies where the trials are invalid (c >= 0.35): the
+    # steps shrink below xtol against that bound because the invalid trials raise the
+    # damping, and the cost still falls beyond it. Before, the loop reported "converged"
+    # there (a rejected invalid trial with a step below xtol, or an accepted step below
+    # xtol after invalid ones), in each of these 9 runs
+    t, y = _data()
+    free_min = least_squares(lambda x: Curve(t, y, x).residuals(x), [1.0, -0.5, 0.0]).x
+    assert free_min[2] > 0.35
+    p = Bounded(t, y, x0, 0.35, xtol)
+    opts = SimpleNamespace(initial_damping=1e-4, max_iterations=300, ftol=1e-14, xtol=xtol)
+    x0 = np.asarray(x0)
+    r = levenberg_marquardt_loop(p, x0, p.cost(x0), opts)
+    assert not r.converged
+    assert r.message.startswith("not converged: the steps shrank below xtol short of a state")
+    assert r.state[2] < 0.35 and r.cost > p.cost(free_min)
+
+
+def test_a_bound_beyond_the_minimum_leaves_the_convergence():
+    t, y = _data()
+    free_min = least_squares(lambda x: Curve(t, y, x).residuals(x), [1.0, -0.5, 0.0]).x
+    x0 = np.array([1.0, -0.5, 0.0])
+    p = Bounded(t, y, x0, 1.0, 1e-14)
+    r = levenberg_marquardt_loop(p, x0, p.cost(x0), OPTIONS)
+    assert r.converged
+    np.testing.assert_allclose(r.state, free_min, rtol=1e-6)

@@ -199,3 +199,38 @@ def test_adjust_with_grids_refuses_the_hinge_of_two_points():
     text = str(e.value)
     named = {w.split(" ")[0] for w in text.split("image(s) ")[1].split(". ")[0].split("; ")}
     assert {w for w in named if w.startswith("img")} <= PART_B
+
+
+@pytest.mark.parametrize("links", [1, 2])
+def test_the_hinge_is_refused_before_the_first_iteration(links):
+    # before, the whole Levenberg-Marquardt iteration ran (damped, it converged) and the
+    # statistics refused the result; the tie points the halves share (found here from the
+    # images of each half, not from the adjustment) are named
+    from photogeom.bundle.adjustment import Problem
+
+    _, start = hinged_block(links)
+    with pytest.raises(DegenerateGeometryError, match="fewer than three tie points") as e:
+        Problem(start, pg.bundle.BundleOptions(free=()))
+    calls = []
+    with pytest.raises(DegenerateGeometryError, match="fewer than three tie points"):
+        pg.bundle_adjust(start, free=(), progress=lambda *a: calls.append(a))
+    assert calls == []  # no iteration
+    text = str(e.value)
+    assert "do not determine all free parameters" in text
+    named = {w.split(" ")[0] for w in text.split("image(s) ")[1].split(". ")[0].split("; ")}
+    assert named <= PART_B and len(named) == 5 and "and 1 more" in text  # five named
+    in_a, in_b = _in_part(start)
+    shared = start.point_ids[in_a & in_b]
+    assert shared.size == links
+    listed = text.split("point(s) ")[1].split(")")[0].split(", ")
+    assert sorted(listed) == sorted(map(str, shared.tolist()))
+
+
+def test_three_linking_points_pass_the_check_before_the_iterations():
+    # the truth of the determined block (SVD rank full) is not refused, nor its free network
+    from photogeom.bundle.adjustment import Problem
+
+    truth, _ = hinged_block(3)
+    _, linking = Problem(truth, pg.bundle.BundleOptions(free=()))._held_parts()
+    assert linking.size == 1  # one part: the halves share three points
+    Problem(truth.without_datum_observations(), pg.bundle.BundleOptions(free=(), datum="free"))

@@ -33,7 +33,11 @@ accepted step.
   the cost (the cost is at its minimum to rounding: raising the damping would only shorten
   the step until it is below ``xtol``, nine more factorisations on a test block), or a cost
   of zero to rounding (``exact_cost``). Stopped: the damping grew
-  past 1e16, or ``max_iterations`` iterations.
+  past 1e16, or ``max_iterations`` iterations, or a step below ``xtol`` (rejected or
+  accepted) after a trial rejected as invalid since the last accepted step
+  (:data:`STOPPED_AT_INVALID`): the damping the invalid trials raised shortened the steps
+  against states the problem refuses, not a minimum (a curve fit whose minimum lies
+  beyond such a bound was reported converged at the bound, in 9 of 9 runs).
 * A singular damped system raises the damping; past 1e10 the problem's
   :class:`~photogeom.errors.DegenerateGeometryError` propagates.
 """
@@ -51,6 +55,16 @@ __all__ = ["MIN_DAMPING_FACTOR", "DampedProblem", "LoopResult", "levenberg_marqu
 
 #: The damping falls after an accepted step by at most this factor (Nielsen: 1/3).
 MIN_DAMPING_FACTOR = 0.1
+
+
+#: The loop's message where its steps shrink below ``xtol`` short of a state the problem
+#: refuses (a trial rejected as invalid since the last accepted step): the steps were cut by
+#: the damping that the invalid trials raised, not by a minimum.
+STOPPED_AT_INVALID = (
+    "not converged: the steps shrank below xtol short of a state the adjustment refuses "
+    "(a trial with a point behind its camera): the cost still falls towards it, so this "
+    "is no minimum"
+)
 
 
 class DampedProblem(Protocol):
@@ -120,6 +134,7 @@ def levenberg_marquardt_loop(
     lam = options.initial_damping
     nu = 2.0
     converged = False
+    invalid = False  # a trial rejected as invalid since the last accepted step
     message = f"not converged: {options.max_iterations} iterations reached"
     it = 0
     while it < options.max_iterations:
@@ -138,8 +153,11 @@ def levenberg_marquardt_loop(
         trial, new_cost, valid = problem.evaluate(state, step)
         better = valid and np.isfinite(new_cost) and new_cost < cost
         if not better and np.isfinite(new_cost) and problem.small(state, step):
-            converged = True
-            message = "converged: no further decrease (step below xtol)"
+            if valid and not invalid:
+                converged = True
+                message = "converged: no further decrease (step below xtol)"
+            else:
+                message = STOPPED_AT_INVALID
             break
         if not better and valid and np.isfinite(new_cost) and pred <= options.ftol * cost:
             converged = True
@@ -154,6 +172,7 @@ def levenberg_marquardt_loop(
         if better:
             rho = (cost - new_cost) / pred if pred > 0 else 1.0
             small = problem.small(state, step)
+            stopped = small and invalid  # short of an invalid trial's state: no minimum
             if refine is not None:
                 trial, new_cost = refine(state, trial, new_cost)
             decrease = cost - new_cost
@@ -164,13 +183,18 @@ def levenberg_marquardt_loop(
             problem.accept(state)
             if progress is not None:
                 progress(it, cost, lam)
+            if stopped:
+                message = STOPPED_AT_INVALID
+                break
             if decrease <= options.ftol * cost:
                 converged, message = True, "converged: relative cost decrease below ftol"
                 break
             if small:
                 converged, message = True, "converged: step below xtol"
                 break
+            invalid = False
         else:
+            invalid = invalid or not valid
             lam *= nu
             nu *= 2.0
             if lam > 1e16:

@@ -213,6 +213,7 @@ class Problem:
             "imu": 1.0,
         }
         self._datum_check()
+        self._link_check()
 
     def counts(self) -> tuple[int, int]:
         """Observations (image coordinates, GNSS and IMU triples, control coordinates) and
@@ -319,6 +320,99 @@ class Problem:
                 "common tie points, add control points or GNSS positions in that part, or "
                 "adjust it as a block of its own"
             )
+
+    def _held_parts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Parts of the block that can move against the rest: (m,) label of each image's
+        part and the (k,) number of points each part shares with the others.
+
+        Images sharing at least :data:`MIN_LINK_POINTS` points are one part; parts sharing
+        at least as many points (in all, over their images) are merged, until no two parts
+        do. A part that shares fewer with all others together can turn about them (two: the
+        line through them; one: three rotations and the scale about it; none: the
+        similarity transformation) without changing any image observation: unless its own
+        control points, GNSS positions, IMU attitudes or held unknowns fix it, the normal
+        equations are singular, whatever the geometry within it. The converse does not hold
+        (three linking points on one ray leave a hinge too): this finds the hinges the
+        tie-point graph alone proves.
+        """
+        from scipy.sparse.csgraph import connected_components
+
+        m, p = self.m, self.p
+        seen = sp.csr_matrix(
+            (np.ones(self.obs_i.size), (self.obs_j, self.obs_i)), shape=(p, m)
+        )  # (points, images): 1 where observed (pairs are unique: Block.validate)
+        label = np.arange(m)
+        while True:
+            k = int(label.max()) + 1
+            part = sp.csr_matrix((np.ones(m), (np.arange(m), label)), shape=(m, k))
+            by_part = (seen @ part).tocsr()
+            by_part.data[:] = 1.0  # (points, parts): whether the part sees the point
+            shared = (by_part.T @ by_part).tocoo()
+            link = (shared.row != shared.col) & (shared.data >= MIN_LINK_POINTS)
+            if not np.any(link):
+                break
+            graph = sp.coo_matrix(
+                (np.ones(int(link.sum())), (shared.row[link], shared.col[link])), shape=(k, k)
+            )
+            label = connected_components(graph, directed=False)[1][label]
+        many = np.diff(by_part.indptr) > 1  # points seen by two parts or more
+        linking = np.bincount(by_part[many].indices, minlength=k)
+        return label, linking
+
+    def _link_check(self) -> None:
+        """Refuse a part of the block linked to the rest by fewer than
+        :data:`MIN_LINK_POINTS` points and fixed by nothing of its own
+        (:meth:`_held_parts`), before the iterations.
+
+        Raises
+        ------
+        DegenerateGeometryError
+            Naming the part's images, the linking points and what to do.
+        """
+        if self.options.fix_exterior or self.m < 2:
+            return
+        label, linking = self._held_parts()
+        k = linking.size
+        if k < 2:
+            return
+        fixed = np.zeros(k, dtype=bool)  # parts with datum observations or held unknowns
+        fixed[label[self.has_gnss | self.has_imu]] = True
+        fixed[label[~self.local_free[:, :6].all(axis=1)]] = True
+        fixed[label[self.obs_i[self.obs_is_control]]] = True
+        hinged = np.flatnonzero(~fixed & (linking < MIN_LINK_POINTS))
+        if hinged.size == 0:
+            return
+        sizes = np.bincount(label, minlength=k)[hinged]
+        worst = int(hinged[np.argsort(sizes, kind="stable")[0]])  # the smallest part
+        imgs = np.flatnonzero(label == worst)
+        ids = self.block.image_ids[imgs]
+        more = f" and {ids.size - 5} more" if ids.size > 5 else ""
+        in_part = np.zeros(self.p, dtype=bool)
+        in_part[self.obs_j[label[self.obs_i] == worst]] = True
+        out_part = np.zeros(self.p, dtype=bool)
+        out_part[self.obs_j[label[self.obs_i] != worst]] = True
+        links = self.block.point_ids[self.adj_points[np.flatnonzero(in_part & out_part)]]
+        n = links.size
+        free = (
+            "the rotation about the line through them is"
+            if n == 2
+            else "its three rotations and its scale about it are"
+        )
+        others = (
+            f" ({hinged.size - 1} more part(s) of the block are linked as weakly)"
+            if hinged.size > 1
+            else ""
+        )
+        raise DegenerateGeometryError(
+            "the observations do not determine all free parameters: the part of the block "
+            f"of image(s) {'; '.join(map(str, ids[:5].tolist()))}{more} is linked to the "
+            f"rest by fewer than three tie points ({n}: point(s) "
+            f"{', '.join(map(str, links.tolist()))}) and has no control points, GNSS "
+            f"positions or IMU attitudes of its own, so {free} free (the normal "
+            f"equations are singular){others}. Link the part by at least three tie points "
+            "seen in both, give it control points or GNSS positions, or adjust it as a "
+            "block of its own"
+        )
 
     def _free_datum_check(self) -> None:
         """A free network holds the first image's orientation and one centre coordinate at
@@ -833,6 +927,12 @@ ACCELERATION_RATIO = 0.75
 #: Point-only Levenberg-Marquardt steps at most of a tie point whose step in the reduced
 #: system raised its cost (:meth:`Problem.guard_point_steps`).
 POINT_STEPS = 20
+
+
+#: Points a part of a block shares with the rest at least, for the tie points alone to
+#: leave it no motion against the rest (:meth:`Problem._held_parts`): a part linked by two
+#: can turn about the line through them, by one about it and scale.
+MIN_LINK_POINTS = 3
 
 
 #: Positions whose distances from their best-fitting line are, as an RMS of the distances

@@ -718,6 +718,44 @@ F_STD_MAX = 10.0
 SIGMA0_FAR = 3.0
 
 
+def _image_focal_notes(block, state, f_std: np.ndarray) -> list[str]:
+    """Notes on image-variant focal lengths the block does not determine: per camera group
+    whose images' offsets of f have a standard deviation above :data:`F_STD_MAX` px or 5 %
+    of f (the bound of the group's own focal length).
+
+    Parameters
+    ----------
+    block : Block
+        The adjusted block's input.
+    state : _State
+        The unknowns at the solution (``cal`` the groups' values, ``offset`` the images' offsets).
+    f_std : numpy.ndarray, shape (m,)
+        Standard deviations of the images' offsets of f, px; NaN where held.
+
+    Returns
+    -------
+    list of str
+    """
+    notes = []
+    f = state.cal[block.image_camera, 0] + state.offset[:, 0]  # each image's f, px
+    weak = np.isfinite(f_std) & ((f_std > F_STD_MAX) | (f_std > 0.05 * np.abs(f)))
+    for gi in np.unique(block.image_camera[weak]).tolist():
+        rows = block.image_camera == gi
+        k, n = int(np.sum(weak & rows)), int(np.sum(np.isfinite(f_std) & rows))
+        lo, hi = float(np.min(f_std[weak & rows])), float(np.max(f_std[weak & rows]))
+        std = f"{lo:.3g} px" if f"{lo:.3g}" == f"{hi:.3g}" else f"{lo:.3g} to {hi:.3g} px"
+        notes.append(
+            f"camera {block.camera_ids[gi]}: the focal lengths estimated per image (image-variant "
+            f"f) are poorly determined in {k} of its {n} images (std of their offsets {std} "
+            f"of {float(np.median(f[rows])):.6g} px: heights uncertain by about "
+            f"{hi:.3g} GSD): the block's geometry cannot separate them from the flying "
+            "height; hold f (leave it out of the free parameters) or add what separates "
+            "it: oblique images, a second flying height, height differences in the terrain, "
+            "or both GNSS positions and control points"
+        )
+    return notes
+
+
 def _near_gimbal_lock_note(
     ids: np.ndarray,
     phi: np.ndarray,
@@ -1224,6 +1262,7 @@ def build_result(
         d = np.sqrt(np.clip(var * np.einsum("mii->mi", Q.local[:, 6:9, 6:9]), 0, None))
         est = problem.local_free[:, 6:9]
         iv_std[est] = d[est]
+        notes.extend(_image_focal_notes(block, state, iv_std[:, 0]))
     # calibration
     calib, cal_std, cal_corr, cal_cov, high = {}, {}, {}, {}, []
     for gi, gid in enumerate(block.camera_ids.tolist()):
