@@ -145,12 +145,16 @@ def test_after_a_process_died_the_other_images_keep_the_pool(tmp_path, monkeypat
     res = correct_folder(src, tmp_path / "out", grids, workers=2, progress=False)
     assert set(res.failures) == {"i3"} and set(res.written) == set(names) - {"i3"}
     assert pools[0] == [2, 12]
-    # the images not finished when the pool broke (its first image died at once): the
-    # first 3 of them alone, the dead one among them, the others on a pool of 2
+    # the images not finished when the pool broke: the first 3 of them alone, the dead
+    # one among them, the others on a pool of 2. How many the other process finished
+    # before the death broke the pool depends on the scheduling (on a loaded machine it
+    # may finish all but the dead one), so the counts are checked against each other.
     alone = [p for p in pools[1:] if p == [1, 1]]
     rest = [p for p in pools[1:] if p != [1, 1]]
-    assert len(alone) == 3
-    assert len(rest) == 1 and rest[0][0] == 2 and 1 <= rest[0][1] <= 9
+    unfinished = len(alone) + sum(p[1] for p in rest)
+    assert 1 <= unfinished <= 12
+    assert len(alone) == min(3, unfinished)
+    assert rest == ([[2, unfinished - 3]] if unfinished > 3 else [])
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
         f"{k}.jpg" for k in names if k != "i3"
     )
