@@ -653,7 +653,7 @@ def _ev_json(ev) -> dict:
         "units": {
             **dict.fromkeys(("rms", "mean_length", "rms_x", "rms_y"), "px"),
             **dict.fromkeys(
-                ("steps_before", "steps_after", "mean_step_before", "mean_step_after",
+                ("steps_before", "steps_after", "steps", "mean_step_before", "mean_step_after",
                  "check_rmse_gsd_before", "check_rmse_gsd_after", "tie_rmse_gsd_before",
                  "tie_rmse_gsd_after"),
                 "GSD",
