@@ -914,7 +914,16 @@ def sweep(
             json_text(
                 {
                     "units": {
-                        **dict.fromkeys(("spacings", "chosen", "spacing"), "px"),
+                        **dict.fromkeys(
+                            (
+                                "spacings",
+                                "chosen",
+                                "spacing",
+                                "chosen_rematched",
+                                "spacing_rematched",
+                            ),
+                            "px",
+                        ),
                         **dict.fromkeys(("step", "step_before", "step_rematched"), "GSD"),
                         **dict.fromkeys(("time", "time_readjust"), "s (CPU)"),
                     },
