@@ -1074,6 +1074,7 @@ def report(
     }
     if ev.get("rematched"):
         res["rematched"] = ev["rematched"]
+    res["notes"] = note_words(ev["notes"])  # as grid evaluate prints them
     path = grid_study_report(res, output)
     say(f"wrote {path}")
 
