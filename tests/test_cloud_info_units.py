@@ -48,3 +48,12 @@ def test_info_names_the_units(cli, tmp_path, crs, units):
         assert line == "units   " + ", ".join(f"{k} {u}" for k, u in units.items()) + (
             " (of scales, offsets, min, max)"
         )
+
+
+def test_axis_units_as_labelled():
+    from photogeom.crs import axis_units
+
+    assert axis_units("EPSG:4979") == ["deg", "deg", "m"]
+    assert axis_units("EPSG:2263") == ["ftUS", "ftUS"]
+    assert axis_units("EPSG:32633") == ["m", "m"]
+    assert axis_units("enu:47.1,8.5,500") == ["m", "m", "m"]

@@ -289,20 +289,15 @@ def _coordinate_units(ci) -> dict[str, str]:
     """The unit of X, Y and Z (scales, offsets, min, max of ``cloud info``) from the file's
     CRS record: its axes' units (``m``, ``ftUS``, ``deg``), :data:`NO_UNIT` for a coordinate
     without an axis (Z of a 2D CRS) or for all three without a readable record."""
-    from ..crs import _UNIT_ABBREV, parse_crs
+    from ..crs import axis_units
     from ..errors import PhotogeomError
 
     units = []
     if ci.crs:
         try:
-            axes = parse_crs(ci.crs).axis_info
+            units = axis_units(ci.crs)[:3]
         except PhotogeomError:
-            axes = []
-        units = [
-            "deg" if "degree" in a.unit_name.lower()
-            else _UNIT_ABBREV.get(a.unit_name.lower(), a.unit_name)
-            for a in axes[:3]
-        ]  # fmt: skip
+            units = []
     units += [NO_UNIT] * (3 - len(units))
     return dict(zip("XYZ", units))
 

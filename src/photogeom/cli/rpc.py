@@ -489,17 +489,9 @@ def _crs_column_units(text: str, names) -> dict[str, str]:
     """The unit of each output column ``names`` of ``rpc localize --crs text``: those of the
     CRS's axes (``deg`` for degrees, ``ftUS`` for US survey feet), and for a CRS of two axes
     the third column's, the ellipsoidal height of WGS 84 that PROJ passes through (m)."""
-    from .. import crs as _crs
+    from ..crs import axis_units
 
-    if _crs.frame_from_text(text) is not None:
-        return dict.fromkeys(names, "m")
-    axes = _crs.parse_crs(text, what="--crs").axis_info
-    units = [
-        "deg" if "degree" in a.unit_name.lower() else _crs._UNIT_ABBREV.get(
-            a.unit_name.lower(), a.unit_name
-        )
-        for a in axes[:3]
-    ]
+    units = axis_units(text)[:3]
     if len(units) < 3:
         units.append("m (ellipsoidal height of WGS 84, not converted: the CRS has no height)")
     return dict(zip(names, units))
