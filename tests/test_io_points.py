@@ -113,7 +113,7 @@ def test_missing_columns_names_found_and_expected(tmp_path):
 
 def test_pair_columns_missing_or_overlapping(tmp_path):
     p = _write(tmp_path, "a.csv", "id,a,b,c,d\n1,0,0,0,0\n")
-    with pytest.raises(FileFormatError, match=r"cannot tell.*id, a, b, c, d.*--source-cols"):
+    with pytest.raises(FileFormatError, match=r"cannot tell.*id, a, b, c, d.*source_columns="):
         read_point_pairs(p)
     with pytest.raises(InputError, match="both source and target"):
         read_point_pairs(p, "a,b", "b,c")

@@ -36,7 +36,7 @@ def test_blunder_on_a_two_ray_point_is_reported_as_undetectable(block):
     assert "two images" in note
     assert list(key) in bad.to_dict()["snooping"]["poorly_controlled"]
     assert "poorly controlled" in bad.summary()
-    # every listed observation has r < 0.1 in x or y, every other one not
+    # every listed observation has r < 0.1 in u or v, every other one not
     in_adj = bad.in_adjustment
     poor = np.any(sn["redundancy_numbers"] < 0.1, axis=1) & in_adj
     assert poor.sum() == len(sn["poorly_controlled"])

@@ -114,3 +114,17 @@ def test_the_note_points_to_the_section_not_to_a_python_key(adjusted):
     assert "they are listed under Poorly controlled observations" in notes
     # the library's own note keeps its key
     assert any("snooping['poorly_controlled']" in n for n in fit.notes)
+
+
+def test_the_note_and_the_section_name_image_coordinates_alike(adjusted):
+    # before: the note said "a redundancy number below 0.1 in x or y" and the section above
+    # it "in u or v": the bundle's image observations are (u, v) pixels
+    fit, _, text = adjusted
+    note = next(n for n in fit.notes if "poorly controlled" in n)
+    assert "redundancy number below 0.1 in u or v" in note
+    assert "x or y" not in note
+    assert "redundancy number r below 0.1 in u or v" in _section(
+        text, "Poorly controlled observations"
+    )
+    notes = _section(text, "Notes")
+    assert "below 0.1 in u or v" in notes and "x or y" not in notes

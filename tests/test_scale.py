@@ -66,7 +66,7 @@ def test_crs_convert_streams_blocks_and_matches_proj(cli, tmp_path, monkeypatch)
         expected,
         ["lon", "lat", "h"],
         extra={"role": [r or "control" for r in roles]},
-        comments=["EPSG:32632 -> EPSG:4979", "crs: EPSG:4979"],
+        comments=["EPSG:32632 -> EPSG:4979; lon in deg, lat in deg, h in m", "crs: EPSG:4979"],
     )
     assert out.read_text() == text
 

@@ -35,6 +35,7 @@ __all__ = [
     "Ellipsoid",
     "LocalFrame",
     "ProjTransform",
+    "axis_units",
     "cartesian_crs",
     "crs_label",
     "crs_name",
@@ -816,6 +817,35 @@ class ProjTransform:
 GEOCENTRIC_WGS84 = "EPSG:4978"
 
 _UNIT_ABBREV = {"metre": "m", "meter": "m", "foot": "ft", "us survey foot": "ftUS"}
+
+
+def axis_units(crs) -> list[str]:
+    """The unit of each axis of a CRS as photogeom labels numbers: ``m``, ``ft``, ``ftUS``,
+    ``deg`` for degrees, else PROJ's name; ``m`` for every axis of a local frame
+    (``enu:lat0,lon0,h0``).
+
+    Parameters
+    ----------
+    crs : str, int or pyproj.CRS
+        As :func:`parse_crs` takes it, or ``"enu:lat0,lon0,h0"``.
+
+    Returns
+    -------
+    list of str
+        One per axis, in PROJ's axis order (two for a 2D CRS).
+
+    Raises
+    ------
+    InputError
+        A CRS PROJ does not know.
+    """
+    if isinstance(crs, str) and frame_from_text(crs) is not None:
+        return ["m", "m", "m"]
+    return [
+        "deg" if "degree" in a.unit_name.lower()
+        else _UNIT_ABBREV.get(a.unit_name.lower(), a.unit_name)
+        for a in parse_crs(crs).axis_info
+    ]  # fmt: skip
 _UNIT_WORDS = {
     "m": {"m", "metre", "meter", "metres", "meters"},
     "ft": {"ft", "foot", "feet"},

@@ -868,8 +868,32 @@ def _cells(values: np.ndarray) -> list[str]:
     return out
 
 
+def _length_label(crs: str | None) -> str:
+    """The length unit of a block's object coordinates for the files' comment lines: that
+    of its CRS (``ftUS`` for EPSG:2263), ``m`` without a CRS (the unit the product labels
+    object coordinates with unless told), or the CRS's own words when PROJ cannot name one
+    length unit (an unknown or geographic CRS)."""
+    if not crs:
+        return "m"
+    from ..crs import cartesian_crs
+    from ..errors import PhotogeomError
+
+    try:
+        info = cartesian_crs(crs, what="the block's CRS")
+    except PhotogeomError:
+        info = None
+    if info is None or not info.unit:
+        return "the unit of the CRS on the crs: line of points.csv"
+    return info.unit
+
+
 def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
-    """The texts of the four CSV files of a block (see :func:`write_csv_block`)."""
+    """The texts of the four CSV files of a block (see :func:`write_csv_block`).
+
+    Their comment lines name the unit of every number: pixels for the calibration and the
+    observations, the length unit of the block's CRS (``m`` without one) for projection
+    centres, GNSS positions and points, ``angle_unit`` for the angles (also in their
+    column names)."""
     unit = normalize_angle_unit(angle_unit)
     if unit not in ("deg", "gon", "rad"):
         raise InputError(f"angle_unit must be deg, gon or rad, not {angle_unit!r}")
@@ -923,15 +947,27 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
             list(map(str, kept[0].tolist())),
             _id_cells(np.asarray(kept[1]).astype(str), "COLMAP image name"),
         ]
-    imgs = _csv(
-        header,
-        cols,
-        [
-            f"exterior orientation: projection centre and omega, phi, kappa in {unit} "
-            "(M = M3(kappa) M2(phi) M1(omega), object -> image)"
-        ],
-    )
-    comments = ["object coordinates; sX, sY, sZ: standard deviations of surveyed points"]
+    length = _length_label(block.crs)
+    # one comment line, as before the optional columns were described (a reader that skips
+    # a fixed number of lines keeps working)
+    described = [
+        f"exterior orientation: projection centre X0, Y0, Z0 in {length}, omega, phi, kappa "
+        f"in {unit} (M = M3(kappa) M2(phi) M1(omega), object -> image)"
+    ]
+    if "df" in header:
+        described.append("df, dcx, dcy: per-image offsets of f, cx, cy in pixels")
+    if "gnss_X" in header:
+        described.append(
+            f"gnss_X, gnss_Y, gnss_Z: GNSS projection centre and gnss_sX, gnss_sY, gnss_sZ "
+            f"its standard deviations in {length}"
+        )
+    if "imu_omega_" + unit in header:
+        described.append(f"imu_*: IMU attitude and imu_s* its standard deviations in {unit}")
+    imgs = _csv(header, cols, ["; ".join(described)])
+    comments = [
+        f"object coordinates X, Y, Z in {length}; sX, sY, sZ: standard deviations of "
+        f"surveyed points in {length}"
+    ]
     head = ["id", "role", "X", "Y", "Z", "sX", "sY", "sZ"]
     cols = [
         point_cells,
@@ -942,7 +978,7 @@ def csv_block_texts(block: Block, *, angle_unit: str = "deg") -> dict[str, str]:
     if block.surveyed is not None:
         comments.append(
             "X, Y, Z: adjusted (check points triangulated); surveyed_X, surveyed_Y, "
-            "surveyed_Z: the survey of control and check points"
+            f"surveyed_Z: the survey of control and check points, in {length}"
         )
         head += [f"surveyed_{a}" for a in "XYZ"]
         cols += [_cells(block.surveyed[:, k]) for k in range(3)]

@@ -1466,7 +1466,7 @@ def build_result(
             two = int(np.sum(rays[block.obs_point[poor_rows]] <= 2))
             notes.append(
                 f"{poor_rows.size} image observation(s) are poorly controlled (a redundancy "
-                f"number below {POORLY_CONTROLLED:g} in x or y: the smallest blunder the "
+                f"number below {POORLY_CONTROLLED:g} in u or v: the smallest blunder the "
                 f"w-test finds there exceeds {d0 / math.sqrt(POORLY_CONTROLLED):.0f} sigma, "
                 f"smaller ones pass unnoticed), {two} of them of points seen in two images "
                 "(an error along the base moves the point instead); they are listed in "

@@ -475,8 +475,9 @@ def calibration_from_json(
         raise FileFormatError(
             f"{where}: the interior orientation is in {io.unit}"
             + (" without pixel geometry (origin_px)" if io.origin_px is None else "")
-            + ": a calibration file needs it in px with origin_px (a camera of a pixel "
-            "calibration: --calibration, --principal-point and --unit px)"
+            + ": a calibration file needs it in px with origin_px (InteriorOrientation."
+            "digital(f, col_pp, row_pp, unit='px'); on the command line a camera given with "
+            "--calibration, or with --principal-point and --unit px)"
         )
     if image_size is None and io.image_size is None:
         raise FileFormatError(

@@ -1243,12 +1243,20 @@ def column_options(coordinates: str, **kinds: str):
         source and target set of one file), ``weight``, ``sigma``.
     """
     from ..errors import FileFormatError
-    from ..io.points import AUTO_COLUMN_HINT, COLUMN_HINT
+    from ..io.points import AUTO_COLUMN_HINT, COLUMN_HINT, PAIR_COLUMN_HINT
 
     try:
         yield
     except FileFormatError as exc:
         kind = getattr(exc, "column_kind", None)
+        if PAIR_COLUMN_HINT in str(exc):  # the library's keywords as the two options
+            source = kinds.get("source", coordinates)
+            target = kinds.get("target", coordinates)
+            raise FileFormatError(
+                str(exc).replace(
+                    PAIR_COLUMN_HINT, f"(or name them, e.g. {source} x2,y2 {target} x1,y1)"
+                )
+            ) from exc
         if kind is None and AUTO_COLUMN_HINT in str(exc):  # no known column names at all
             raise FileFormatError(
                 str(exc).replace(AUTO_COLUMN_HINT, f"(or name them with {coordinates})")

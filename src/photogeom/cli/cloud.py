@@ -77,12 +77,20 @@ def info(
     from ..io.cloud import cloud_info
 
     ci = cloud_info(path)
+    units = _coordinate_units(ci)  # of scales, offsets, mins, maxs (X, Y, Z)
     if json_out:
-        typer.echo(json_text(ci.to_dict()), nl=False)
+        typer.echo(json_text({**ci.to_dict(), "units": units}), nl=False)
         return
     lines = [
         f"{ci.path}: {ci.point_count} points, LAS {ci.version}, point format {ci.point_format}"
         f"{', LAZ' if ci.compressed else ''}",
+        "units   "
+        + (
+            "not recorded (no CRS)"
+            if set(units.values()) == {NO_UNIT}
+            else ", ".join(f"{k} {u}" for k, u in units.items())
+        )
+        + " (of scales, offsets, min, max)",
         f"scales  {_fmt3(ci.scales)}",
         f"offsets {_fmt3(ci.offsets)}",
         f"min     {_fmt3(ci.mins)}",
@@ -271,6 +279,27 @@ def _check_output_crs(crs: str, target: str, says: str) -> None:
             f"({says} {target}): --crs names the CRS of the output coordinates, it does not "
             "convert them; leave --crs out"
         )
+
+
+#: What ``cloud info`` says of a coordinate whose unit the file does not give.
+NO_UNIT = "not recorded (no CRS axis for it)"
+
+
+def _coordinate_units(ci) -> dict[str, str]:
+    """The unit of X, Y and Z (scales, offsets, min, max of ``cloud info``) from the file's
+    CRS record: its axes' units (``m``, ``ftUS``, ``deg``), :data:`NO_UNIT` for a coordinate
+    without an axis (Z of a 2D CRS) or for all three without a readable record."""
+    from ..crs import axis_units
+    from ..errors import PhotogeomError
+
+    units = []
+    if ci.crs:
+        try:
+            units = axis_units(ci.crs)[:3]
+        except PhotogeomError:
+            units = []
+    units += [NO_UNIT] * (3 - len(units))
+    return dict(zip("XYZ", units))
 
 
 def _crs_shown(ci) -> str:

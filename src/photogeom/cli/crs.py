@@ -179,7 +179,19 @@ def convert(
     convert_points = _crs.points_converter(src, dst, allow_ballpark=allow_ballpark)
     names = split_names(out_cols) or list(crs_column_names(dst, opt_to)[: blocks.dim])
     check_out_cols(names, blocks.dim, role=blocks.has_roles)
-    comments = [f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "")]
+    # the unit of every column written: the output CRS's axes, and for a CRS without a
+    # height axis the third coordinate as PROJ passes it through, in the input's unit
+    units = _crs.axis_units(dst)[: blocks.dim]
+    if len(units) < blocks.dim:
+        given = _crs.axis_units(src)
+        units.append(
+            f"{given[2] if len(given) > 2 else 'the unit of the input'} (the input's "
+            f"{blocks.columns[2]}, not converted: {to_crs} has no height axis)"
+        )
+    comments = [
+        f"{src} -> {to_crs}" + (f" (ENU origin {origin})" if frame else "") + "; "
+        + ", ".join(f"{n} in {u}" for n, u in zip(names, units))
+    ]  # fmt: skip
     comments.append(f"crs: {dst}")
 
     geographic = not enu_in and _is_geographic(src)

@@ -537,6 +537,7 @@ def _evaluate(
                 rem = sim.rematch(fit.block, seed=(seed, 1))
                 again = readjust(rem, grids, uncorrected=left, snooping=False)
                 ev["rematched"] = evaluate_readjustment(fit, again, sim=sim, overlap=overlap)
+                ev["rematched"]["notes"] = list(again.notes)
     except PhotogeomError as exc:  # every error (ConvergenceError of vce too) in CLI words
         head, sep, _ = str(exc).partition(": the grids are of another camera or block")
         if sep and getattr(fit, "bal", False):  # the size BAL does not hold, not the grids
@@ -550,7 +551,55 @@ def _evaluate(
         exc.args = (_cli(str(exc)),)
         raise
     ev["excluded"] = left
+    # why sigma0 is over the chain's redundancy or the re-adjustment's own, and the
+    # re-adjustment's own notes (the library's words: note_words gives the command's)
+    ev["notes"] = list(re.notes)
     return fit, re, grids, ev, sim
+
+
+#: Phrases of the re-adjustment's notes (``readjust``, ``adjust_with_grids``,
+#: ``chain_redundancy``) that name Python, and what ``grid evaluate`` says instead.
+NOTE_WORDS: tuple[tuple[str, str], ...] = (
+    ("; see effective_redundancy)", "; the redundancy marked effective)"),
+    (
+        "judge the precision on observations measured again (the corrected images matched "
+        "anew)",
+        "judge the precision on observations measured again (the corrected images matched "
+        "anew; --rematch for a --preset block)",
+    ),
+    (
+        "(adjust the block first, then fit the grids to its residuals)",
+        "(adjust BLOCK first, 'photogeom bundle adjust BLOCK -o ADJUSTED', and evaluate "
+        "ADJUSTED)",
+    ),
+    (
+        "the block is the joint estimate of adjust_with_grids (GridAdjustment.block)",
+        "BLOCK is the joint estimate of an adjustment with grids (its folder "
+        "joint_adjustment)",
+    ),
+    (
+        "pass GridAdjustment.grids whole (uncorrected= leaves images out of the correction) "
+        "for the joint adjustment's chain",
+        "give that adjustment's own grids, all of them, with --grids (--exclude leaves "
+        "images out of the correction) for the joint adjustment's chain",
+    ),
+    (
+        "a joint adjustment with grids (adjust_with_grids), but",
+        "a joint adjustment with grids, but",
+    ),
+    (
+        "pass the final fit's block (GridAdjustment.fit.block, a copy of it or a CSV block "
+        "folder written from it) to fit_residual_grids and readjust",
+        "give the final fit's block (a CSV block folder written from it) as BLOCK",
+    ),
+)
+
+
+def note_words(notes) -> list[str]:
+    """The notes of a re-adjustment (``BundleFit.notes``) in the words of ``grid evaluate``:
+    its options and BLOCK instead of Python names (:data:`NOTE_WORDS`, then the common
+    :data:`~photogeom.cli._common.CLI_WORDS`)."""
+    return [in_cli_words(in_cli_words(str(n), NOTE_WORDS)) for n in notes]
 
 
 def _spacings(text: str) -> list[float]:
@@ -604,7 +653,7 @@ def _ev_json(ev) -> dict:
         "units": {
             **dict.fromkeys(("rms", "mean_length", "rms_x", "rms_y"), "px"),
             **dict.fromkeys(
-                ("steps_before", "steps_after", "mean_step_before", "mean_step_after",
+                ("steps_before", "steps_after", "steps", "mean_step_before", "mean_step_after",
                  "check_rmse_gsd_before", "check_rmse_gsd_after", "tie_rmse_gsd_before",
                  "tie_rmse_gsd_after"),
                 "GSD",
@@ -635,6 +684,8 @@ def _ev_json(ev) -> dict:
         "step_reduction": ev["step_reduction"],
         "excluded": [str(k) for k in ev.get("excluded", [])],
         "excluded_ids": [json_id(k) for k in ev.get("excluded", [])],
+        # the re-adjustment's notes, as printed
+        "notes": note_words(ev.get("notes", [])),
     }
     if ev.get("check_before"):
         out["check_rmse_gsd_before"] = ev["check_before"]["rmse_gsd"].tolist()
@@ -653,6 +704,7 @@ def _ev_json(ev) -> dict:
             "mean_step_after": rm["mean_step_after"],
             "step_reduction": rm["step_reduction"],
             "adjustment": rm["adjustment"],
+            "notes": note_words(rm.get("notes", [])),
         }
     return out
 
@@ -777,6 +829,10 @@ def evaluate(
         out.print(t)
     if ev["excluded"]:
         say(_excluded_words(ev["excluded"]), out)
+    for n in note_words(ev["notes"]):
+        say(f"note: {n}", out)
+    for n in note_words(ev.get("rematched", {}).get("notes", [])):
+        say(f"note (re-matched observations): {n}", out)
 
 
 #: A cell of the evaluation table for the first adjustment of a BLOCK read as adjusted.
@@ -858,7 +914,16 @@ def sweep(
             json_text(
                 {
                     "units": {
-                        **dict.fromkeys(("spacings", "chosen", "spacing"), "px"),
+                        **dict.fromkeys(
+                            (
+                                "spacings",
+                                "chosen",
+                                "spacing",
+                                "chosen_rematched",
+                                "spacing_rematched",
+                            ),
+                            "px",
+                        ),
                         **dict.fromkeys(("step", "step_before", "step_rematched"), "GSD"),
                         **dict.fromkeys(("time", "time_readjust"), "s (CPU)"),
                     },
@@ -1009,6 +1074,7 @@ def report(
     }
     if ev.get("rematched"):
         res["rematched"] = ev["rematched"]
+    res["notes"] = note_words(ev["notes"])  # as grid evaluate prints them
     path = grid_study_report(res, output)
     say(f"wrote {path}")
 

@@ -258,6 +258,7 @@ def project(
         data = {
             "rpc": str(rpc_file),
             "pixel_convention": "(0, 0) = centre of the first pixel",
+            "units": {"col": "px", "row": "px"},
             "points": rows,
         }
         typer.echo(json_text(data), nl=False)
@@ -415,6 +416,11 @@ def localize(
                 stderr=True,
             )
 
+    # the unit of every coordinate written (--json: "units"; a CSV: its comment)
+    if to_crs is None:
+        units = {"lon": "deg", "lat": "deg", "h": "m"}
+    else:
+        units = _crs_column_units(to_crs[0], to_crs[2])
     if as_json:
         rows = []
         keys = ("lon", "lat", "h") if to_crs is None else to_crs[2]
@@ -430,6 +436,7 @@ def localize(
         report()
         data = {"rpc": str(rpc_file), "tol_px": tol, "counts": counts, "points": rows}
         data["crs"] = "EPSG:4979" if to_crs is None else to_crs[0]
+        data["units"] = units
         typer.echo(json_text(data), nl=False)
         return
     if to_crs is None:
@@ -442,7 +449,7 @@ def localize(
         names = list(to_crs[2])
         comments = [
             f"localised with {rpc_file}; tol {tol:g} px; converted from EPSG:4979 (lon, lat, "
-            "ellipsoidal h) by PROJ",
+            "ellipsoidal h) by PROJ; " + ", ".join(f"{k} in {u}" for k, u in units.items()),
             f"crs: {to_crs[0]}",
         ]
     n = run_point_job(
@@ -476,6 +483,18 @@ def _input_crs(crs: str, allow_ballpark: bool):
 
     # the PROJ operation built once, not once per block of a streamed file
     return _crs.points_converter(text, "EPSG:4979", allow_ballpark=allow_ballpark)
+
+
+def _crs_column_units(text: str, names) -> dict[str, str]:
+    """The unit of each output column ``names`` of ``rpc localize --crs text``: those of the
+    CRS's axes (``deg`` for degrees, ``ftUS`` for US survey feet), and for a CRS of two axes
+    the third column's, the ellipsoidal height of WGS 84 that PROJ passes through (m)."""
+    from ..crs import axis_units
+
+    units = axis_units(text)[:3]
+    if len(units) < 3:
+        units.append("m (ellipsoidal height of WGS 84, not converted: the CRS has no height)")
+    return dict(zip(names, units))
 
 
 def _output_crs(crs: str, allow_ballpark: bool):

@@ -265,6 +265,9 @@ def _resolve_columns(raw: _Source, wanted: Sequence[str], what: str) -> tuple[st
 COLUMN_HINT = "choose others by name"
 #: End of the message of a file without any of the default column names (as above).
 AUTO_COLUMN_HINT = "(or name the columns to use)"
+#: End of the message of a pair file whose source and target columns cannot be told apart
+#: (:func:`read_point_pairs`; the command line names its two options instead).
+PAIR_COLUMN_HINT = "(or name them, e.g. source_columns='x2,y2', target_columns='x1,y1')"
 
 
 
@@ -770,7 +773,7 @@ def read_point_pairs(
             raise FileFormatError(
                 f"{raw.label}: cannot tell which columns hold the source and target coordinates; "
                 f"the file has columns {_names(raw.header)}, expected {expected} "
-                "(or name them, e.g. --source-cols x2,y2 --target-cols x1,y1)"
+                + PAIR_COLUMN_HINT
             )
     elif src_names is None:
         t_cols = _resolve_columns(raw, dst_names, "target coordinate")

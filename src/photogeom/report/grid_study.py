@@ -15,7 +15,10 @@ self-contained HTML file with:
 * the step per model before and after (Figure 14);
 * tables: residual RMS and mean length, steps (also re-matched), check points (X, Y, Z and
   3D) and, for a simulated block, every tie point against the truth, published numbers
-  beside ours.
+  beside ours;
+* the notes of the re-adjustment (``notes`` of the result when given, in the caller's
+  words, else ``refit.notes``): why its sigma0 is over the chain's effective redundancy or
+  its own, and that its standard deviations are in-sample.
 """
 
 from __future__ import annotations
@@ -440,6 +443,13 @@ def grid_study_report(
                 else ""
             ),
         )
+        # why the re-adjustment's sigma0 is over the chain's redundancy or its own, and that
+        # its standard deviations are in-sample (the command line passes them in its words)
+        notes = res.get("notes")
+        if notes is None:
+            notes = list(getattr(refit, "notes", ()))
+        if notes:
+            rep.add_text("Notes of the re-adjustment", "\n\n".join(map(str, notes)), pre=False)
         rep.add_table(
             "Per image",
             [
