@@ -89,3 +89,33 @@ def test_a_block_read_as_adjusted_has_no_first_statistics(cli, fits, tmp_path):
     code, text, err = cli("grid", "evaluate", tmp_path / "b", "--spacing", "500")
     assert code == 0, err
     assert "n/a (BLOCK read as adjusted)" in text
+
+
+def test_the_grid_report_block_table_gives_sigma0_and_redundancy(fits, tmp_path, monkeypatch):
+    """The report handed on had the residuals and steps of ``grid evaluate`` but not its
+    sigma0 and redundancy rows; they are in its Block table now, against ``sqrt(v'Pv / r)``."""
+    import html
+    import re as regex
+
+    from photogeom.report.grid_study import grid_study_report
+
+    monkeypatch.setattr("photogeom.report.html.figure_to_png", lambda fig, dpi=110: b"")
+    ba, re = fits
+    grids = fit_residual_grids(ba.block, 500.0, folds=0)
+    ev = evaluate_readjustment(ba, re)
+    text = grid_study_report(
+        {"fit": ba, "refit": re, "grids": grids, "evaluation": ev}, tmp_path / "g.html"
+    ).read_text(encoding="utf-8")
+    cells = {
+        row[0]: row[1:]
+        for row in (
+            [html.unescape(c) for c in regex.findall(r"<td[^>]*>(.*?)</td>", tr, flags=regex.S)]
+            for tr in regex.findall(r"<tr>(.*?)</tr>", text, flags=regex.S)
+        )
+        if row
+    }
+    r = re.effective_redundancy["value"]
+    assert cells["redundancy"][:2] == ["890", f"{r:.1f} (effective)"]
+    s0 = [float(x) for x in cells["sigma0 (unitless)"][:2]]
+    assert s0[0] == pytest.approx(np.sqrt(_vpv(ba) / 890), abs=6e-5)
+    assert s0[1] == pytest.approx(np.sqrt(_vpv(re) / r), abs=6e-5)

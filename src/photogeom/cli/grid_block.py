@@ -841,17 +841,17 @@ NOT_ADJUSTED_HERE = "n/a (BLOCK read as adjusted)"
 
 def _sigma0_cell(stats: dict | None) -> str:
     """A sigma0 of the evaluation table (unitless)."""
-    return NOT_ADJUSTED_HERE if stats is None else f"{stats['sigma0']:.4f}"
+    from ..report.format import fmt_sigma0
+
+    return NOT_ADJUSTED_HERE if stats is None else fmt_sigma0(stats)
 
 
 def _redundancy_cell(stats: dict | None) -> str:
     """A redundancy of the evaluation table: a count, or the chain's effective redundancy
     (a real number, marked)."""
-    if stats is None:
-        return NOT_ADJUSTED_HERE
-    if stats["effective"]:
-        return f"{stats['redundancy']:.1f} (effective)"
-    return f"{stats['redundancy']:.0f}"
+    from ..report.format import fmt_redundancy
+
+    return NOT_ADJUSTED_HERE if stats is None else fmt_redundancy(stats)
 
 
 def _excluded_words(left: list) -> str:

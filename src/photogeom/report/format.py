@@ -123,6 +123,20 @@ def fmt_stat(x: float, digits: int = 4) -> str:
     return f"{float(x):.{digits}g}"
 
 
+def fmt_sigma0(stats: dict) -> str:
+    """sigma0 of :func:`photogeom.calibration.evaluate.adjustment_statistics` (unitless),
+    four decimals."""
+    return f"{stats['sigma0']:.4f}"
+
+
+def fmt_redundancy(stats: dict) -> str:
+    """The redundancy of :func:`photogeom.calibration.evaluate.adjustment_statistics`: a
+    count, or the chain's effective redundancy (a real number, marked "(effective)")."""
+    if stats["effective"]:
+        return f"{stats['redundancy']:.1f} (effective)"
+    return f"{stats['redundancy']:.0f}"
+
+
 def fmt_duration(seconds: float) -> str:
     """A run time with three significant digits and never an exponent: milliseconds below
     one second (``"14.6 ms"``), else seconds (``"2.85 s"``, ``"1500 s"``); "-" when

@@ -31,10 +31,14 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..calibration.blocks import block_residuals
+from .format import fmt_redundancy, fmt_sigma0
 from .html import Report
 from .plots import CLIPPED_COLOUR, ArrowScale, arrow_scale, plain
 
 __all__ = ["PUBLISHED", "grid_settings", "grid_study_report", "sensor_mean_residuals"]
+
+#: A Block table cell of an adjustment this report did not run (a block read as adjusted).
+NOT_ADJUSTED = "n/a (read as adjusted)"
 
 #: The study's published numbers (05-residual-grid.md).
 PUBLISHED = {
@@ -401,6 +405,21 @@ def grid_study_report(
                 _pct(ev["step_reduction"]),
             ],
         ]
+        # sigma0 and the redundancy it is over, as grid evaluate prints them; none for a
+        # block read as adjusted (a block folder keeps no adjustment's statistics)
+        adj = ev.get("adjustment") or {}
+        if adj.get("before") or adj.get("after"):
+            cells = {k: adj.get(k) for k in ("before", "after")}
+            rows.append(
+                ["sigma0 (unitless)"]
+                + [fmt_sigma0(c) if c else NOT_ADJUSTED for c in cells.values()]
+                + [""]
+            )
+            rows.append(
+                ["redundancy"]
+                + [fmt_redundancy(c) if c else NOT_ADJUSTED for c in cells.values()]
+                + [""]
+            )
         if res.get("rematched"):
             rm = res["rematched"]
             rows.append(
