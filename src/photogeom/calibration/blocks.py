@@ -402,7 +402,8 @@ def readjust(
         # grids' part of the joint fit): the chain of the joint adjustment and this
         # re-adjustment, no grids after it
         final = corrected
-        left = [k for k in block.image_ids.tolist() if k in _uncorrected_ids(block, uncorrected)]
+        out = _uncorrected_ids(block, uncorrected)
+        left = [k for k in block.image_ids.tolist() if k in out]
         if left:  # the final fit's block, every image corrected: the record's own
             final = correct_block_observations(block, grids)
         chain = chain_redundancy(
