@@ -713,6 +713,18 @@ SUMMARY_FLAGGED = 20
 #: error of the focal length of df px moves the heights by about df GSD.
 F_STD_MAX = 10.0
 
+#: What separates a focal length from the flying height (the notes on poorly determined f).
+F_SEPARATES = (
+    "oblique images, a second flying height, height differences in the terrain, or both GNSS "
+    "positions and control points"
+)
+
+
+def _f_poorly_determined(std, f):
+    """Whether a focal length's standard deviation ``std`` (px) exceeds :data:`F_STD_MAX` px
+    or 5 % of the focal length ``f`` (px): one the block does not determine."""
+    return (std > F_STD_MAX) | (std > 0.05 * np.abs(f))
+
 #: sigma0 above this many times its a-priori value, at convergence, gets a note naming the
 #: causes (blunders, sigmas, a local minimum from poor start values).
 SIGMA0_FAR = 3.0
@@ -738,7 +750,7 @@ def _image_focal_notes(block, state, f_std: np.ndarray) -> list[str]:
     """
     notes = []
     f = state.cal[block.image_camera, 0] + state.offset[:, 0]  # each image's f, px
-    weak = np.isfinite(f_std) & ((f_std > F_STD_MAX) | (f_std > 0.05 * np.abs(f)))
+    weak = np.isfinite(f_std) & _f_poorly_determined(f_std, f)
     for gi in np.unique(block.image_camera[weak]).tolist():
         rows = block.image_camera == gi
         k, n = int(np.sum(weak & rows)), int(np.sum(np.isfinite(f_std) & rows))
@@ -750,8 +762,7 @@ def _image_focal_notes(block, state, f_std: np.ndarray) -> list[str]:
             f"of {float(np.median(f[rows])):.6g} px: heights uncertain by about "
             f"{hi:.3g} GSD): the block's geometry cannot separate them from the flying "
             "height; hold f (leave it out of the free parameters) or add what separates "
-            "it: oblique images, a second flying height, height differences in the terrain, "
-            "or both GNSS positions and control points"
+            f"it: {F_SEPARATES}"
         )
     return notes
 
@@ -1290,14 +1301,13 @@ def build_result(
         # (GSD = depth / f), the points' heights where GNSS holds the cameras, the cameras'
         # where control holds the ground. A std above F_STD_MAX px (or 5 % of f) is a focal
         # length the block does not determine
-        if free[0] and (std[0] > F_STD_MAX or std[0] > 0.05 * state.cal[gi, 0]):
+        if free[0] and _f_poorly_determined(std[0], state.cal[gi, 0]):
             notes.append(
                 f"camera {gid}: the focal length is poorly determined (std {std[0]:.3g} px of "
                 f"{state.cal[gi, 0]:.6g} px: heights uncertain by about {std[0]:.3g} GSD): "
                 "the block's geometry cannot separate it from the flying height; hold f (leave "
                 "it out of the free parameters, at a known calibration) or add what separates "
-                "it: oblique images, a second flying height, height differences in the "
-                "terrain, or both GNSS positions and control points"
+                f"it: {F_SEPARATES}"
             )
     if problem.unused_groups:
         notes.append(
